@@ -1,0 +1,103 @@
+# Thermoviscoelastic double pendulum: EME and midpoint time integration with PETSc SNES.
+#   make          build library, drivers and tests (installs missing packages first)
+#   make run      the paper's Fig. 4 scene with EME_s, EME_theta, EME_u, and a summary table
+#   make test     every test; the last line is "N passed, M failed"
+#   make clean    remove what the build made
+SHELL := /bin/bash
+.DEFAULT_GOAL := all
+
+BUILD := build
+OBJ := $(BUILD)/obj
+MOD := $(BUILD)/mod
+BIN := $(BUILD)/bin
+TESTBIN := $(BUILD)/tests
+VENV := .venv
+PYTHON := $(VENV)/bin/python
+
+FC := mpif90
+CC := mpicc
+# Recursive '=' so that pkg-config runs after `deps` has installed PETSc and HDF5.
+PETSC_FLAGS = $(shell pkg-config --cflags PETSc)
+PETSC_LIBS = $(shell pkg-config --libs PETSc)
+HDF5_FLAGS = $(shell pkg-config --cflags-only-I hdf5-openmpi)
+HDF5_LIBS = $(shell pkg-config --libs-only-L hdf5-openmpi) -lhdf5_fortran -lhdf5
+WARNINGS := -Wall -Wextra -fimplicit-none
+FFLAGS := -O2 -g $(WARNINGS) -J$(MOD) -I$(MOD)
+# Our own modules are standard Fortran 2018; PETSc's headers need long lines and no -std.
+STD_FLAGS := -std=f2018
+PETSC_SOURCE_FLAGS = -ffree-line-length-none $(PETSC_FLAGS)
+CFLAGS := -O2 -g -Wall -Wextra -std=c11
+
+# ---------------------------------------------------------------- sources, in layers
+MODEL := src/model/model_parameters.f90 src/model/free_energy.f90 src/model/invariant_function.f90 \
+         src/model/thermo_variable.f90 src/model/double_pendulum.f90 src/model/pendulum_model.f90
+STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_field.f90
+SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
+LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME)
+LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
+
+UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient
+TEST_SUPPORT := $(OBJ)/tests/unit/assertions.o $(OBJ)/tests/unit/fixtures.o
+
+# ---------------------------------------------------------------- module dependencies
+o = $(OBJ)/src/$(1).o
+$(call o,model/free_energy): $(call o,model/model_parameters)
+$(call o,model/thermo_variable): $(call o,model/invariant_function) $(call o,model/free_energy)
+$(call o,model/double_pendulum): $(call o,model/model_parameters)
+$(call o,model/pendulum_model): $(call o,model/model_parameters) $(call o,model/free_energy) \
+    $(call o,model/thermo_variable) $(call o,model/double_pendulum)
+$(call o,structure/structure_matrices) $(call o,structure/generic_vector_field): \
+    $(call o,model/model_parameters) $(call o,model/free_energy) $(call o,model/thermo_variable) \
+    $(call o,model/double_pendulum)
+$(call o,scheme/discrete_gradient): $(call o,model/invariant_function)
+$(call o,scheme/step_residual): $(call o,model/thermo_variable) $(call o,model/pendulum_model) \
+    $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) $(call o,structure/generic_vector_field)
+$(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
+    $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
+$(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
+
+# ---------------------------------------------------------------- rules
+.PHONY: all deps test run clean
+
+all: $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
+
+$(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
+	@mkdir -p $(dir $@) $(MOD)
+	$(FC) $(FFLAGS) $(STD_FLAGS) -c $< -o $@
+
+$(OBJ)/%.o: %.F90 | $(BUILD)/.native-deps
+	@mkdir -p $(dir $@) $(MOD)
+	$(FC) $(FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) -c $< -o $@
+
+$(OBJ)/%.o: %.c | $(BUILD)/.native-deps
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -c $< -o $@
+
+$(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
+	@mkdir -p $(dir $@)
+	$(FC) $(FFLAGS) -o $@ $^
+
+# ---------------------------------------------------------------- set-up
+# Debian packages for the native stack, then a virtual environment for h5py and friends.
+NATIVE_PACKAGES := gfortran petsc-dev libhdf5-openmpi-dev libopenmpi-dev openmpi-bin pkg-config
+deps: $(BUILD)/.native-deps $(VENV)/.python-deps
+
+$(BUILD)/.native-deps:
+	@if command -v mpif90 >/dev/null && pkg-config --exists PETSc hdf5-openmpi; then :; else \
+	  echo "Installing $(NATIVE_PACKAGES) with apt-get"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(NATIVE_PACKAGES) >/dev/null; fi
+	@mkdir -p $(BUILD) && touch $@
+
+$(VENV)/.python-deps: postprocess/requirements.txt
+	@python3 -m venv $(VENV) 2>/dev/null || { rm -rf $(VENV); echo "Installing python3-venv with apt-get"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null && \
+	  python3 -m venv $(VENV); }
+	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r postprocess/requirements.txt
+	@touch $@
+
+# ---------------------------------------------------------------- use
+test: all $(VENV)/.python-deps
+	$(PYTHON) tests/run_tests.py --bin $(TESTBIN)
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,125 @@
+!> Free energies (16)-(17) of the two springs, written two ways:
+!>  - `paper_free_energy`: psi_a(l, theta, gamma) literally as the paper writes it;
+!>  - `mechanical_parts`: the closed forms e_a and sigma_a of FORMULATION section 3, as
+!>    functions of the invariant C = q.q (and gamma), with gradient and Hessian.
+!> u_a = e_a + Cap_a (theta - theta_ref) and s_a = sigma_a + Cap_a ln(theta/theta_ref);
+!> tests/unit/test_free_energy checks this against psi by s = -d psi/d theta, u = psi + theta s.
+module free_energy
+  use, intrinsic :: iso_fortran_env, only: real64
+  use model_parameters, only: pendulum_parameters
+  implicit none (type, external)
+  private
+  public :: spring_law, spring_law_of, mechanical_parts, paper_free_energy, viscosity
+
+  !> Coefficients of spring a's closed forms (FORMULATION section 3). Spring 1 has no Maxwell
+  !> element: its beta_v, maxwell_ref and maxwell_slope are zero, so one formula serves both.
+  type :: spring_law
+    real(real64) :: natural_length = 1.0_real64  !! l_a^0
+    real(real64) :: stiffness_ref = 0.0_real64   !! a_a = mu_{a,cst} + mu_{a,theta} theta_ref
+    real(real64) :: stiffness_slope = 0.0_real64 !! mu_{a,theta}
+    real(real64) :: beta = 0.0_real64            !! beta
+    real(real64) :: theta_ref = 1.0_real64       !! theta_ref
+    real(real64) :: beta_v = 0.0_real64          !! beta^v (spring 2 only)
+    real(real64) :: maxwell_ref = 0.0_real64     !! A = mu^neq_cst + mu^neq_theta theta_ref (spring 2 only)
+    real(real64) :: maxwell_slope = 0.0_real64   !! mu^neq_theta (spring 2 only)
+    real(real64) :: heat_capacity = 1.0_real64   !! Cap_a: c_1, or (1 + beta^v) c_2
+  end type spring_law
+
+contains
+
+  !> The closed-form coefficients of spring `a` (1 or 2).
+  pure function spring_law_of(params, a) result(law)
+    type(pendulum_parameters), intent(in) :: params
+    integer, intent(in) :: a
+    type(spring_law) :: law
+
+    law%natural_length = params%natural_length(a)
+    law%stiffness_ref = params%mu_eq_const(a) + params%mu_eq_slope(a)*params%theta_ref
+    law%stiffness_slope = params%mu_eq_slope(a)
+    law%beta = params%beta
+    law%theta_ref = params%theta_ref
+    if (a == 2) then
+      law%beta_v = params%beta_v
+      law%maxwell_ref = params%mu_neq_const + params%mu_neq_slope*params%theta_ref
+      law%maxwell_slope = params%mu_neq_slope
+    end if
+    law%heat_capacity = (1.0_real64 + law%beta_v)*params%heat_capacity(a)
+  end function spring_law_of
+
+  !> e_a and sigma_a with gradients and Hessians in (C, gamma), C = l^2 > 0 (FORMULATION section 3).
+  pure subroutine mechanical_parts(law, c, gamma, e, sigma, de, dsigma, d2e, d2sigma)
+    type(spring_law), intent(in) :: law
+    real(real64), intent(in) :: c, gamma
+    real(real64), intent(out) :: e, sigma
+    real(real64), intent(out) :: de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+
+    real(real64) :: log_stretch, dlog, d2log, inv_length, dinv, d2inv
+
+    ! L = ln(l/l0) = ln(C/l0^2)/2 and r = 1/l = C^(-1/2), with their C-derivatives.
+    log_stretch = 0.5_real64*log(c/law%natural_length**2)
+    dlog = 0.5_real64/c
+    d2log = -0.5_real64/c**2
+    inv_length = 1.0_real64/sqrt(c)
+    dinv = -0.5_real64*inv_length/c
+    d2inv = 0.75_real64*inv_length/c**2
+
+    ! e uses (a, beta theta_ref, A); sigma uses (mu_theta, beta, mu^neq_theta).
+    call spring_part(law%stiffness_ref, law%beta*law%theta_ref, law%maxwell_ref, e, de, d2e)
+    call spring_part(law%stiffness_slope, law%beta, law%maxwell_slope, sigma, dsigma, d2sigma)
+
+  contains
+
+    !> (1+bv)(k/2 L^2 + b L) + m gamma^2 - bv gamma (k L + b)/l, the common shape of e and sigma.
+    pure subroutine spring_part(k, b, m, value, grad, hess)
+      real(real64), intent(in) :: k, b, m
+      real(real64), intent(out) :: value, grad(2), hess(2, 2)
+      real(real64) :: slope, h, dh, d2h, bv
+
+      bv = law%beta_v
+      slope = k*log_stretch + b                       ! d/dL of k/2 L^2 + b L
+      h = slope*inv_length                            ! (k L + b)/l
+      dh = k*dlog*inv_length + slope*dinv
+      d2h = k*d2log*inv_length + 2.0_real64*k*dlog*dinv + slope*d2inv
+
+      value = (1.0_real64 + bv)*(0.5_real64*k*log_stretch**2 + b*log_stretch) &
+              + m*gamma**2 - bv*gamma*h
+      grad(1) = (1.0_real64 + bv)*slope*dlog - bv*gamma*dh
+      grad(2) = 2.0_real64*m*gamma - bv*h
+      hess(1, 1) = (1.0_real64 + bv)*(k*dlog**2 + slope*d2log) - bv*gamma*d2h
+      hess(1, 2) = -bv*dh
+      hess(2, 1) = hess(1, 2)
+      hess(2, 2) = 2.0_real64*m
+    end subroutine spring_part
+  end subroutine mechanical_parts
+
+  !> psi_a(l, theta, gamma) exactly as eqs. (16)-(17) write it; gamma is ignored for spring 1.
+  pure function paper_free_energy(params, a, length, theta, gamma) result(psi)
+    type(pendulum_parameters), intent(in) :: params
+    integer, intent(in) :: a
+    real(real64), intent(in) :: length, theta, gamma
+    real(real64) :: psi
+    real(real64) :: stretch_log, mu_eq, mu_neq, psi_eq, dpsi_eq_dl, theta_ref
+
+    theta_ref = params%theta_ref
+    stretch_log = log(length/params%natural_length(a))
+    mu_eq = params%mu_eq_const(a) - params%mu_eq_slope(a)*(theta - theta_ref)
+    psi_eq = 0.5_real64*mu_eq*stretch_log**2 - params%beta*(theta - theta_ref)*stretch_log &
+             + params%heat_capacity(a)*(theta - theta_ref - theta*log(theta/theta_ref))
+    psi = psi_eq
+    if (a == 2) then
+      mu_neq = params%mu_neq_const - params%mu_neq_slope*(theta - theta_ref)
+      dpsi_eq_dl = (mu_eq*stretch_log - params%beta*(theta - theta_ref))/length
+      psi = psi + params%beta_v*psi_eq + mu_neq*gamma**2 - params%beta_v*gamma*dpsi_eq_dl
+    end if
+  end function paper_free_energy
+
+  !> eta(theta) = eta_cst exp(eta_theta (1/theta - 1/theta_ref)), eq. (17).
+  pure function viscosity(params, theta) result(eta)
+    type(pendulum_parameters), intent(in) :: params
+    real(real64), intent(in) :: theta
+    real(real64) :: eta
+
+    eta = params%viscosity_const*exp(params%viscosity_activation*(1.0_real64/theta - 1.0_real64/params%theta_ref))
+  end function viscosity
+
+end module free_energy

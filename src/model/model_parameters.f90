@@ -1,0 +1,27 @@
+!> Material and mechanical data of the thermoviscoelastic double pendulum.
+!> Names follow the &model namelist group; defaults are the paper's Table 1.
+module model_parameters
+  use, intrinsic :: iso_fortran_env, only: real64
+  implicit none (type, external)
+  private
+  public :: pendulum_parameters
+
+  !> Table 1 of the paper, in SI units (FORMULATION section 1: treat all values as plain SI numbers).
+  type :: pendulum_parameters
+    real(real64) :: mass(2) = [1.0_real64, 1.0_real64]                !! m_a [kg]
+    real(real64) :: natural_length(2) = [1.5_real64, 2.0_real64]      !! lambda_a^0 [m]
+    real(real64) :: mu_eq_const(2) = [200.0_real64, 200.0_real64]     !! mu^eq_{a,cst}, eq. (17) [J]
+    real(real64) :: mu_eq_slope(2) = [0.5_real64, 0.5_real64]         !! mu^eq_{a,theta}, eq. (17) [J/K]
+    real(real64) :: mu_neq_const = 5.0_real64                         !! mu^neq_{2,cst}, eq. (17)
+    real(real64) :: mu_neq_slope = 0.1_real64                         !! mu^neq_{2,theta}, eq. (17)
+    real(real64) :: heat_capacity(2) = [10.0_real64, 10.0_real64]     !! c_a^0, eq. (16) [J/K]
+    real(real64) :: viscosity_const = 100.0_real64                    !! eta_cst, eq. (17)
+    real(real64) :: viscosity_activation = 10.0_real64                !! eta_theta, eq. (17) [K]
+    real(real64) :: conductivity = 1.0_real64                         !! kappa, eq. (12) [J/(K s)]
+    real(real64) :: theta_ref = 300.0_real64                          !! theta_ref [K]
+    real(real64) :: beta = 0.02_real64                                !! thermal coupling beta [J/K]
+    real(real64) :: beta_v = 0.5_real64                               !! Maxwell coupling beta^v
+    real(real64) :: gravity(3) = [0.0_real64, 0.0_real64, -9.81_real64] !! g [m/s^2]
+  end type pendulum_parameters
+
+end module model_parameters

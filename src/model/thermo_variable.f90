@@ -1,0 +1,234 @@
+!> The spring potentials U_a and S_a as functions of the invariants x = (C, [gamma,] tau_a),
+!> for each choice of the thermodynamic variable tau (FORMULATION section 3, table).
+!> Spring 1 has n = 2 invariants (C1, tau1), spring 2 has n = 3 (C2, gamma, tau2).
+module thermo_variable
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: invariant_functions
+  use free_energy, only: spring_law, mechanical_parts
+  implicit none (type, external)
+  private
+  public :: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
+  public :: spring_potential, potential_u, potential_s
+  public :: domain_ok, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
+
+  integer, parameter :: tau_entropy = 1          !! tau = s
+  integer, parameter :: tau_temperature = 2      !! tau = theta
+  integer, parameter :: tau_internal_energy = 3  !! tau = u
+  !> Namelist spellings, indexed by the constants above.
+  character(len=*), parameter :: thermo_variable_names(3) = &
+    [character(len=15) :: 'entropy', 'temperature', 'internal_energy']
+
+  integer, parameter :: potential_u = 1  !! index of U_a in f(:)
+  integer, parameter :: potential_s = 2  !! index of S_a in f(:)
+
+  integer, parameter :: domain_ok = 0
+  integer, parameter :: domain_nonpositive_length = 1
+  integer, parameter :: domain_nonpositive_temperature = 2
+  integer, parameter :: domain_overflow = 3
+
+  !> f = (U_a, S_a) of one spring in its invariants.
+  type, extends(invariant_functions) :: spring_potential
+    type(spring_law) :: law
+    integer :: variable = tau_temperature
+    integer :: n_invariants = 2   !! 2 for spring 1, 3 for spring 2
+  contains
+    procedure :: evaluate => evaluate_potentials
+    procedure :: temperature => spring_temperature
+    procedure :: tau_from_temperature
+    procedure :: metric_scale
+  end type spring_potential
+
+  ! Largest argument of exp that stays finite, with a margin.
+  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))
+
+contains
+
+  !> theta(x) from the table in FORMULATION section 3; stat reports a domain violation.
+  pure subroutine spring_temperature(self, x, theta, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: theta
+    integer, intent(out) :: stat
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+
+    call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
+    if (stat /= domain_ok) then
+      theta = 0.0_real64
+      return
+    end if
+    call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
+  end subroutine spring_temperature
+
+  !> U_a and S_a with gradients and Hessians in x (FORMULATION section 3, table).
+  pure subroutine evaluate_potentials(self, x, f, grad, hess, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), grad(:, :)
+    real(real64), intent(out), optional :: hess(:, :, :)
+    integer, intent(out) :: stat
+
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    real(real64) :: tau, theta, cap
+    integer :: n, m
+
+    n = self%n_invariants
+    m = n - 1                        ! mechanical invariants: C, or (C, gamma)
+    f = 0.0_real64
+    grad = 0.0_real64
+    if (present(hess)) hess = 0.0_real64
+    call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
+    if (stat /= domain_ok) return
+    tau = x(n)
+    cap = self%law%heat_capacity
+    call temperature_of(self, tau, e, sigma, theta, stat)
+    if (stat /= domain_ok) return
+
+    select case (self%variable)
+    case (tau_temperature)
+      f(potential_u) = e + cap*(tau - self%law%theta_ref)
+      f(potential_s) = sigma + cap*log(tau/self%law%theta_ref)
+      grad(1:m, potential_u) = de(1:m)
+      grad(n, potential_u) = cap
+      grad(1:m, potential_s) = dsigma(1:m)
+      grad(n, potential_s) = cap/tau
+      if (present(hess)) then
+        hess(1:m, 1:m, potential_u) = d2e(1:m, 1:m)
+        hess(1:m, 1:m, potential_s) = d2sigma(1:m, 1:m)
+        hess(n, n, potential_s) = -cap/tau**2
+      end if
+    case (tau_entropy)
+      ! theta = theta_ref exp((tau - sigma)/Cap), so d theta = theta (d tau - d sigma)/Cap.
+      f(potential_u) = e + cap*(theta - self%law%theta_ref)
+      f(potential_s) = tau
+      grad(1:m, potential_u) = de(1:m) - theta*dsigma(1:m)
+      grad(n, potential_u) = theta
+      grad(n, potential_s) = 1.0_real64
+      if (present(hess)) then
+        hess(1:m, 1:m, potential_u) = d2e(1:m, 1:m) - theta*d2sigma(1:m, 1:m) &
+                                      + (theta/cap)*outer(dsigma(1:m), dsigma(1:m))
+        hess(1:m, n, potential_u) = -(theta/cap)*dsigma(1:m)
+        hess(n, 1:m, potential_u) = hess(1:m, n, potential_u)
+        hess(n, n, potential_u) = theta/cap
+      end if
+    case (tau_internal_energy)
+      ! theta = theta_ref + (tau - e)/Cap, so d theta = (d tau - d e)/Cap.
+      f(potential_u) = tau
+      f(potential_s) = sigma + cap*log(theta/self%law%theta_ref)
+      grad(n, potential_u) = 1.0_real64
+      grad(1:m, potential_s) = dsigma(1:m) - de(1:m)/theta
+      grad(n, potential_s) = 1.0_real64/theta
+      if (present(hess)) then
+        hess(1:m, 1:m, potential_s) = d2sigma(1:m, 1:m) - d2e(1:m, 1:m)/theta &
+                                      - outer(de(1:m), de(1:m))/(cap*theta**2)
+        hess(1:m, n, potential_s) = de(1:m)/(cap*theta**2)
+        hess(n, 1:m, potential_s) = hess(1:m, n, potential_s)
+        hess(n, n, potential_s) = -1.0_real64/(cap*theta**2)
+      end if
+    end select
+  end subroutine evaluate_potentials
+
+  !> The value of tau that gives temperature theta at mechanical invariants (C, [gamma]).
+  pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: mechanical(:)   !! C, or (C, gamma)
+    real(real64), intent(in) :: theta
+    real(real64), intent(out) :: tau
+    integer, intent(out) :: stat
+    real(real64) :: x(3), e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+
+    tau = 0.0_real64
+    if (theta <= 0.0_real64) then
+      stat = domain_nonpositive_temperature
+      return
+    end if
+    x = 0.0_real64
+    x(1:self%n_invariants - 1) = mechanical(1:self%n_invariants - 1)
+    call mechanical_state(self, x(1:self%n_invariants), e, sigma, de, dsigma, d2e, d2sigma, stat)
+    if (stat /= domain_ok) return
+    select case (self%variable)
+    case (tau_temperature)
+      tau = theta
+    case (tau_entropy)
+      tau = sigma + self%law%heat_capacity*log(theta/self%law%theta_ref)
+    case (tau_internal_energy)
+      tau = e + self%law%heat_capacity*(theta - self%law%theta_ref)
+    end select
+  end subroutine tau_from_temperature
+
+  !> Typical sizes of the invariants, for the nondimensional discrete-gradient metric
+  !> (FORMULATION section 5): C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref.
+  pure function metric_scale(self) result(scale)
+    class(spring_potential), intent(in) :: self
+    real(real64) :: scale(self%n_invariants)
+    integer :: n
+
+    n = self%n_invariants
+    scale(1) = self%law%natural_length**2
+    if (n == 3) scale(2) = 1.0_real64
+    select case (self%variable)
+    case (tau_temperature)
+      scale(n) = self%law%theta_ref
+    case (tau_entropy)
+      scale(n) = self%law%heat_capacity
+    case default
+      scale(n) = self%law%heat_capacity*self%law%theta_ref
+    end select
+  end function metric_scale
+
+  ! e, sigma and their (C, gamma) derivatives at x; gamma = 0 for spring 1.
+  pure subroutine mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    integer, intent(out) :: stat
+    real(real64) :: gamma
+
+    if (.not. (x(1) > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      e = 0.0_real64; sigma = 0.0_real64; de = 0.0_real64; dsigma = 0.0_real64
+      d2e = 0.0_real64; d2sigma = 0.0_real64
+      return
+    end if
+    gamma = 0.0_real64
+    if (self%n_invariants == 3) gamma = x(2)
+    call mechanical_parts(self%law, x(1), gamma, e, sigma, de, dsigma, d2e, d2sigma)
+    stat = domain_ok
+  end subroutine mechanical_state
+
+  ! theta from tau and the mechanical parts (table of FORMULATION section 3).
+  pure subroutine temperature_of(self, tau, e, sigma, theta, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: tau, e, sigma
+    real(real64), intent(out) :: theta
+    integer, intent(out) :: stat
+    real(real64) :: exponent
+
+    stat = domain_ok
+    select case (self%variable)
+    case (tau_temperature)
+      theta = tau
+    case (tau_entropy)
+      exponent = (tau - sigma)/self%law%heat_capacity
+      if (exponent > max_exponent) then
+        theta = huge(1.0_real64)
+        stat = domain_overflow
+        return
+      end if
+      theta = self%law%theta_ref*exp(exponent)
+    case default
+      theta = self%law%theta_ref + (tau - e)/self%law%heat_capacity
+    end select
+    if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
+  end subroutine temperature_of
+
+  pure function outer(a, b) result(ab)
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64) :: ab(size(a), size(b))
+    integer :: j
+
+    do j = 1, size(b)
+      ab(:, j) = a*b(j)
+    end do
+  end function outer
+
+end module thermo_variable

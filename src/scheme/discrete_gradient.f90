@@ -1,0 +1,192 @@
+!> Discrete gradients D f(a, b) of functions of a spring's invariants (FORMULATION section 5).
+!> Both satisfy the directionality condition D f . (b - a) = f(b) - f(a) and tend to grad f
+!> as b -> a. Each also returns its exact Jacobian d(D f)/db for Newton's method.
+!>  - Gonzalez [1]: D f = grad f(m) + (f(b) - f(a) - grad f(m).d) / (d.W d) W d, with
+!>    m = (a + b)/2, d = b - a, and W = diag(1/scale^2), the nondimensional metric.
+!>  - partitioned: the symmetrized coordinate increment. D_i f averages the one-variable
+!>    difference quotients in x_i over all orderings of the variables; for n variables the
+!>    quotient with the set P of other variables already at b has weight |P|! (n-1-|P|)! / n!.
+!> Difference quotients cancel catastrophically for small increments. Below the threshold
+!> `quotient_threshold` (nondimensional, eps^(1/3), where the truncation error of the fallback
+!> and the rounding error of the quotient balance) the exact derivative at the midpoint
+!> replaces the quotient, and the Jacobian follows the branch taken.
+module discrete_gradient
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: invariant_functions
+  implicit none (type, external)
+  private
+  public :: gradient_gonzalez, gradient_partitioned, discrete_gradient_names
+  public :: metric_nondimensional, metric_euclidean, metric_names
+  public :: quotient_threshold, discrete_gradient_of, gonzalez_gradient, partitioned_gradient
+
+  integer, parameter :: gradient_gonzalez = 1
+  integer, parameter :: gradient_partitioned = 2
+  character(len=*), parameter :: discrete_gradient_names(2) = [character(len=11) :: 'gonzalez', 'partitioned']
+
+  !> The metric of Gonzalez's quotient: scaled by typical sizes (the default), or raw units.
+  integer, parameter :: metric_nondimensional = 1
+  integer, parameter :: metric_euclidean = 2
+  character(len=*), parameter :: metric_names(2) = [character(len=14) :: 'nondimensional', 'euclidean']
+
+  real(real64), parameter :: quotient_threshold = epsilon(1.0_real64)**(1.0_real64/3.0_real64)
+
+contains
+
+  !> D f(a, b) by the discrete gradient `kind`; ddg_db(i, l, j) = d(dg(i, j))/d b(l).
+  pure subroutine discrete_gradient_of(kind, fun, a, b, scale, dg, ddg_db, fallback, stat)
+    integer, intent(in) :: kind
+    class(invariant_functions), intent(in) :: fun
+    real(real64), intent(in) :: a(:), b(:), scale(:)
+    real(real64), intent(out) :: dg(:, :)
+    real(real64), intent(out), optional :: ddg_db(:, :, :)
+    logical, intent(out), optional :: fallback
+    integer, intent(out) :: stat
+
+    select case (kind)
+    case (gradient_partitioned)
+      call partitioned_gradient(fun, a, b, scale, dg, ddg_db, fallback, stat)
+    case default
+      call gonzalez_gradient(fun, a, b, scale, dg, ddg_db, fallback, stat)
+    end select
+  end subroutine discrete_gradient_of
+
+  !> Gonzalez's discrete gradient in the metric W = diag(1/scale^2).
+  pure subroutine gonzalez_gradient(fun, a, b, scale, dg, ddg_db, fallback, stat)
+    class(invariant_functions), intent(in) :: fun
+    real(real64), intent(in) :: a(:), b(:), scale(:)
+    real(real64), intent(out) :: dg(:, :)
+    real(real64), intent(out), optional :: ddg_db(:, :, :)
+    logical, intent(out), optional :: fallback
+    integer, intent(out) :: stat
+
+    real(real64) :: d(size(a)), wd(size(a)), weight(size(a)), dwd, coefficient, dc_db(size(a))
+    real(real64) :: f_a(size(dg, 2)), f_b(size(dg, 2)), f_m(size(dg, 2))
+    real(real64) :: grad_a(size(a), size(dg, 2)), grad_b(size(a), size(dg, 2))
+    real(real64) :: grad_m(size(a), size(dg, 2)), hess_m(size(a), size(a), size(dg, 2))
+    logical :: small
+    integer :: j, l
+
+    d = b - a
+    weight = 1.0_real64/scale**2
+    wd = weight*d
+    dwd = dot_product(d, wd)
+    small = sqrt(dwd) < quotient_threshold
+    if (present(fallback)) fallback = small
+
+    if (present(ddg_db)) then
+      call fun%evaluate(0.5_real64*(a + b), f_m, grad_m, hess_m, stat)
+    else
+      call fun%evaluate(0.5_real64*(a + b), f_m, grad_m, stat=stat)
+    end if
+    if (stat /= 0) return
+    dg = grad_m
+    if (present(ddg_db)) ddg_db = 0.5_real64*hess_m
+    if (small) return
+
+    call fun%evaluate(a, f_a, grad_a, stat=stat)
+    if (stat /= 0) return
+    call fun%evaluate(b, f_b, grad_b, stat=stat)
+    if (stat /= 0) return
+    do j = 1, size(dg, 2)
+      coefficient = (f_b(j) - f_a(j) - dot_product(grad_m(:, j), d))/dwd
+      dg(:, j) = dg(:, j) + coefficient*wd
+      if (present(ddg_db)) then
+        dc_db = (grad_b(:, j) - grad_m(:, j) - 0.5_real64*matmul(hess_m(:, :, j), d))/dwd &
+                - 2.0_real64*coefficient*wd/dwd
+        do l = 1, size(a)
+          ddg_db(:, l, j) = ddg_db(:, l, j) + wd*dc_db(l)
+          ddg_db(l, l, j) = ddg_db(l, l, j) + coefficient*weight(l)
+        end do
+      end if
+    end do
+  end subroutine gonzalez_gradient
+
+  !> The symmetrized coordinate-increment (partitioned) discrete gradient, n <= 3 variables.
+  pure subroutine partitioned_gradient(fun, a, b, scale, dg, ddg_db, fallback, stat)
+    class(invariant_functions), intent(in) :: fun
+    real(real64), intent(in) :: a(:), b(:), scale(:)
+    real(real64), intent(out) :: dg(:, :)
+    real(real64), intent(out), optional :: ddg_db(:, :, :)
+    logical, intent(out), optional :: fallback
+    integer, intent(out) :: stat
+
+    integer, parameter :: max_corners = 8
+    real(real64) :: f_corner(size(dg, 2), 0:max_corners - 1)
+    real(real64) :: grad_corner(size(a), size(dg, 2), 0:max_corners - 1)
+    real(real64) :: f_x(size(dg, 2)), grad_x(size(a), size(dg, 2)), hess_x(size(a), size(a), size(dg, 2))
+    real(real64) :: x(size(a)), quotient(size(dg, 2)), increment, w
+    integer :: n, corner, i, l, others, lo, hi
+    logical :: any_fallback
+
+    n = size(a)
+    any_fallback = .false.
+    dg = 0.0_real64
+    if (present(ddg_db)) ddg_db = 0.0_real64
+
+    ! f and grad f at every corner; bit i-1 of the corner's number set means x_i = b_i.
+    do corner = 0, 2**n - 1
+      call fun%evaluate(corner_point(corner), f_corner(:, corner), grad_corner(:, :, corner), stat=stat)
+      if (stat /= 0) return
+    end do
+
+    do i = 1, n
+      increment = b(i) - a(i)
+      do others = 0, 2**n - 1
+        if (btest(others, i - 1)) cycle
+        lo = others
+        hi = ibset(others, i - 1)
+        w = ordering_weight(popcnt(others), n)
+        if (abs(increment)/scale(i) >= quotient_threshold) then
+          quotient = (f_corner(:, hi) - f_corner(:, lo))/increment
+          dg(i, :) = dg(i, :) + w*quotient
+          if (present(ddg_db)) then
+            ddg_db(i, i, :) = ddg_db(i, i, :) + w*(grad_corner(i, :, hi) - quotient)/increment
+            do l = 1, n
+              if (btest(others, l - 1)) ddg_db(i, l, :) = ddg_db(i, l, :) &
+                + w*(grad_corner(l, :, hi) - grad_corner(l, :, lo))/increment
+            end do
+          end if
+        else
+          any_fallback = .true.
+          x = corner_point(lo)
+          x(i) = 0.5_real64*(a(i) + b(i))
+          call fun%evaluate(x, f_x, grad_x, hess_x, stat)
+          if (stat /= 0) return
+          dg(i, :) = dg(i, :) + w*grad_x(i, :)
+          if (present(ddg_db)) then
+            ddg_db(i, i, :) = ddg_db(i, i, :) + 0.5_real64*w*hess_x(i, i, :)
+            do l = 1, n
+              if (btest(others, l - 1)) ddg_db(i, l, :) = ddg_db(i, l, :) + w*hess_x(i, l, :)
+            end do
+          end if
+        end if
+      end do
+    end do
+    if (present(fallback)) fallback = any_fallback
+
+  contains
+
+    pure function corner_point(bits) result(point)
+      integer, intent(in) :: bits
+      real(real64) :: point(size(a))
+      integer :: m
+
+      do m = 1, size(a)
+        if (btest(bits, m - 1)) then
+          point(m) = b(m)
+        else
+          point(m) = a(m)
+        end if
+      end do
+    end function corner_point
+  end subroutine partitioned_gradient
+
+  ! Share of the orderings of n variables in which exactly `before` others precede a given one.
+  pure function ordering_weight(before, n) result(w)
+    integer, intent(in) :: before, n
+    real(real64) :: w
+
+    w = gamma(real(before + 1, real64))*gamma(real(n - before, real64))/gamma(real(n + 1, real64))
+  end function ordering_weight
+
+end module discrete_gradient

@@ -1,0 +1,150 @@
+!> Residual and analytic Jacobian of one time step, for both schemes:
+!>   R(z') = (z' - z)/dt - f(z_mid, partials),   z_mid = (z + z')/2,
+!> where f is the GENERIC vector field (generic_vector_field) and `partials` are
+!>  - EME (eq. (15), FORMULATION section 5): discrete gradients of U_a and S_a between the
+!>    invariants of z and z', per spring; grad_qa of a spring is 2 q_mid D_C by the chain rule,
+!>    and K0 is taken at the discrete temperatures Theta_a = D_tau U_a / D_tau S_a;
+!>  - midpoint (FORMULATION section 6): exact partials at z_mid.
+!> Kinetic energy and gravity are quadratic and linear, so their midpoint gradients are exact
+!> discrete gradients; f evaluates them at z_mid in both schemes.
+module step_residual
+  use, intrinsic :: iso_fortran_env, only: real64
+  use thermo_variable, only: potential_u, potential_s, domain_ok, domain_nonpositive_temperature
+  use pendulum_model, only: pendulum
+  use double_pendulum, only: state_size, q_index, gamma_index, tau_index, var_c, var_gamma, var_tau, &
+                             spring_invariants
+  use discrete_gradient, only: gradient_gonzalez, metric_nondimensional, metric_euclidean, &
+                               discrete_gradient_of
+  use generic_vector_field, only: vector_field
+  implicit none (type, external)
+  private
+  public :: step_problem, scheme_eme, scheme_midpoint, scheme_names
+
+  integer, parameter :: scheme_eme = 1
+  integer, parameter :: scheme_midpoint = 2
+  character(len=*), parameter :: scheme_names(2) = [character(len=8) :: 'eme', 'midpoint']
+
+  !> One step z -> z' of a scheme: the model, the scheme's choices, dt and the old state.
+  type :: step_problem
+    type(pendulum) :: model
+    integer :: scheme = scheme_eme
+    integer :: gradient = gradient_gonzalez
+    integer :: metric = metric_nondimensional
+    real(real64) :: dt = 0.0_real64
+    real(real64) :: z_old(state_size) = 0.0_real64
+  contains
+    procedure :: unknowns
+    procedure :: evaluate
+    procedure :: scheme_partials
+    procedure :: scheme_temperatures
+  end type step_problem
+
+contains
+
+  !> Number of unknowns of the step's nonlinear system.
+  pure function unknowns(self) result(n)
+    class(step_problem), intent(in) :: self
+    integer :: n
+
+    n = size(self%z_old)
+  end function unknowns
+
+  !> R(z') and optionally dR/dz'. stat /= 0: z' (or a point the scheme needs) is outside the
+  !> model's domain, e.g. a non-positive temperature; R is then undefined.
+  pure subroutine evaluate(self, z_new, residual, jacobian, stat)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(in) :: z_new(:)
+    real(real64), intent(out) :: residual(:)
+    real(real64), intent(out), optional :: jacobian(:, :)
+    integer, intent(out) :: stat
+
+    real(real64) :: z_mid(state_size), partials(3, 2, 2), dpartials_dz(3, 2, 2, state_size)
+    real(real64) :: f(state_size), df_dz(state_size, state_size), df_dpartials(state_size, 3, 2, 2)
+    integer :: i
+
+    z_mid = 0.5_real64*(self%z_old + z_new(1:state_size))
+    if (present(jacobian)) then
+      call self%scheme_partials(z_new, partials, dpartials_dz, stat)
+      if (stat /= domain_ok) return
+      call vector_field(self%model%params, z_mid, partials, f, df_dz, df_dpartials)
+      jacobian = -0.5_real64*df_dz &
+                 - matmul(reshape(df_dpartials, [state_size, 12]), reshape(dpartials_dz, [12, state_size]))
+      do i = 1, state_size
+        jacobian(i, i) = jacobian(i, i) + 1.0_real64/self%dt
+      end do
+    else
+      call self%scheme_partials(z_new, partials, stat=stat)
+      if (stat /= domain_ok) return
+      call vector_field(self%model%params, z_mid, partials, f)
+    end if
+    residual(1:state_size) = (z_new(1:state_size) - self%z_old)/self%dt - f
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_nonpositive_temperature
+  end subroutine evaluate
+
+  !> The scheme's partials of U_a, S_a (discrete gradients or midpoint derivatives) for the
+  !> step to z', and optionally their derivatives with respect to z'.
+  pure subroutine scheme_partials(self, z_new, partials, dpartials_dz, stat)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(in) :: z_new(:)
+    real(real64), intent(out) :: partials(3, 2, 2)
+    real(real64), intent(out), optional :: dpartials_dz(3, 2, 2, state_size)
+    integer, intent(out) :: stat
+
+    real(real64) :: z_mid(state_size), dx_dz(3, state_size), f(2), g(3, 2), dg(3, 3, 2), scale(3)
+    integer :: a, n, slot(3)
+
+    partials = 0.0_real64
+    if (present(dpartials_dz)) dpartials_dz = 0.0_real64
+    z_mid = 0.5_real64*(self%z_old + z_new(1:state_size))
+    do a = 1, 2
+      n = a + 1
+      if (a == 1) then
+        slot(1:2) = [var_c, var_tau]
+      else
+        slot = [var_c, var_gamma, var_tau]
+      end if
+      dx_dz = 0.0_real64
+      if (self%scheme == scheme_eme) then
+        if (self%metric == metric_euclidean) then
+          scale = 1.0_real64
+        else
+          scale(1:n) = self%model%spring(a)%metric_scale()
+        end if
+        call discrete_gradient_of(self%gradient, self%model%spring(a), spring_invariants(self%z_old, a), &
+                                  spring_invariants(z_new, a), scale(1:n), g(1:n, :), dg(1:n, 1:n, :), stat=stat)
+        ! x' = (q'.q', [gamma'], tau')
+        dx_dz(1, q_index(:, a)) = 2.0_real64*z_new(q_index(:, a))
+        if (a == 2) dx_dz(2, gamma_index) = 1.0_real64
+        dx_dz(n, tau_index(a)) = 1.0_real64
+      else
+        call self%model%spring(a)%evaluate(spring_invariants(z_mid, a), f, g(1:n, :), dg(1:n, 1:n, :), stat)
+        ! x_mid = (q_mid.q_mid, [gamma_mid], tau_mid) with z_mid = (z + z')/2
+        dx_dz(1, q_index(:, a)) = z_mid(q_index(:, a))
+        if (a == 2) dx_dz(2, gamma_index) = 0.5_real64
+        dx_dz(n, tau_index(a)) = 0.5_real64
+      end if
+      if (stat /= domain_ok) return
+      partials(slot(1:n), :, a) = g(1:n, :)
+      if (present(dpartials_dz)) then
+        dpartials_dz(slot(1:n), potential_u, a, :) = matmul(dg(1:n, 1:n, potential_u), dx_dz(1:n, :))
+        dpartials_dz(slot(1:n), potential_s, a, :) = matmul(dg(1:n, 1:n, potential_s), dx_dz(1:n, :))
+      end if
+    end do
+  end subroutine scheme_partials
+
+  !> The temperatures the scheme's K0 uses for the step to z': the discrete temperatures
+  !> D_tau U_a / D_tau S_a for EME, the midpoint temperatures for the midpoint rule.
+  pure subroutine scheme_temperatures(self, z_new, theta, stat)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(in) :: z_new(:)
+    real(real64), intent(out) :: theta(2)
+    integer, intent(out) :: stat
+    real(real64) :: partials(3, 2, 2)
+
+    theta = 0.0_real64
+    call self%scheme_partials(z_new, partials, stat=stat)
+    if (stat /= domain_ok) return
+    theta = partials(var_tau, potential_u, :)/partials(var_tau, potential_s, :)
+  end subroutine scheme_temperatures
+
+end module step_residual
