@@ -36,7 +36,8 @@ SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
 LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME)
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 
-UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient
+UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient \
+    test_step_residual
 TEST_SUPPORT := $(OBJ)/tests/unit/assertions.o $(OBJ)/tests/unit/fixtures.o
 
 # ---------------------------------------------------------------- module dependencies

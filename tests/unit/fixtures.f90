@@ -105,8 +105,9 @@ contains
                            rtol=1.0e-6_real64, atol=1.0e-7_real64*maxval(abs(hess)))
   end subroutine check_derivatives
 
-  !> Largest entry of |J - J_fd| / (1 + |J|), J_fd by central differences of `residual`.
-  function fd_jacobian_error(residual, x, jacobian, h) result(err)
+  !> Largest entry of |J - J_fd| / (1 + |J|), J_fd by central differences of `residual` with
+  !> steps h(:): 2nd order by default, 4th order if fourth_order is true.
+  function fd_jacobian_error(residual, x, jacobian, h, fourth_order) result(err)
     interface
       subroutine residual(x, r)
         import :: real64
@@ -115,21 +116,35 @@ contains
       end subroutine residual
     end interface
     real(real64), intent(in) :: x(:), jacobian(:, :), h(:)
+    logical, intent(in), optional :: fourth_order
     real(real64) :: err
-    real(real64) :: xp(size(x)), xm(size(x)), rp(size(jacobian, 1)), rm(size(jacobian, 1)), column(size(jacobian, 1))
+    real(real64) :: column(size(jacobian, 1))
     integer :: j
+    logical :: high
 
+    high = .false.
+    if (present(fourth_order)) high = fourth_order
     err = 0.0_real64
     do j = 1, size(x)
-      xp = x
-      xm = x
-      xp(j) = x(j) + h(j)
-      xm(j) = x(j) - h(j)
-      call residual(xp, rp)
-      call residual(xm, rm)
-      column = (rp - rm)/(2*h(j))
+      if (high) then
+        column = (-shifted(j, 2*h(j)) + 8*shifted(j, h(j)) - 8*shifted(j, -h(j)) + shifted(j, -2*h(j)))/(12*h(j))
+      else
+        column = (shifted(j, h(j)) - shifted(j, -h(j)))/(2*h(j))
+      end if
       err = max(err, maxval(abs(column - jacobian(:, j))/(1.0_real64 + abs(jacobian(:, j)))))
     end do
+
+  contains
+
+    function shifted(j, step) result(r)
+      integer, intent(in) :: j
+      real(real64), intent(in) :: step
+      real(real64) :: r(size(jacobian, 1)), xs(size(x))
+
+      xs = x
+      xs(j) = x(j) + step
+      call residual(xs, r)
+    end function shifted
   end function fd_jacobian_error
 
   !> s and u of spring a from psi exactly as the paper writes it (16)-(17):
