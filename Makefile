@@ -33,8 +33,13 @@ MODEL := src/model/model_parameters.f90 src/model/free_energy.f90 src/model/inva
          src/model/thermo_variable.f90 src/model/double_pendulum.f90 src/model/pendulum_model.f90
 STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_field.f90
 SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
-LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME)
+SOLVER := src/solver/step_solver.F90
+IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_series.f90 src/io/build_info.F90 \
+      src/io/run_config.f90
+RUN := src/run/simulation.F90
+LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
+DRIVERS := eme_run
 
 UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient \
     test_step_residual
@@ -53,6 +58,16 @@ $(call o,structure/structure_matrices) $(call o,structure/generic_vector_field):
 $(call o,scheme/discrete_gradient): $(call o,model/invariant_function)
 $(call o,scheme/step_residual): $(call o,model/thermo_variable) $(call o,model/pendulum_model) \
     $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) $(call o,structure/generic_vector_field)
+$(call o,solver/step_solver): $(call o,scheme/step_residual)
+# PETSc callbacks have fixed argument lists; some arguments are not needed.
+$(call o,solver/step_solver): FFLAGS += -Wno-unused-dummy-argument
+$(call o,io/run_config): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
+    $(call o,scheme/discrete_gradient) $(call o,scheme/step_residual)
+$(call o,run/simulation): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
+    $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) \
+    $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,io/run_config) \
+    $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info)
+$(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
 $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
     $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
@@ -60,11 +75,11 @@ $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJ
 # ---------------------------------------------------------------- rules
 .PHONY: all deps test run clean
 
-all: $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
+all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
 $(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
-	$(FC) $(FFLAGS) $(STD_FLAGS) -c $< -o $@
+	$(FC) $(FFLAGS) $(STD_FLAGS) $(HDF5_FLAGS) -c $< -o $@
 
 $(OBJ)/%.o: %.F90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
@@ -72,11 +87,26 @@ $(OBJ)/%.o: %.F90 | $(BUILD)/.native-deps
 
 $(OBJ)/%.o: %.c | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -c $< -o $@
+	$(CC) $(CFLAGS) $(HDF5_FLAGS) -c $< -o $@
+
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS)
+
+$(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
+	@mkdir -p $(dir $@)
+	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
-	$(FC) $(FFLAGS) -o $@ $^
+	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
+
+# The code version is recompiled in only when `git describe` changes.
+VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
+$(BUILD)/version.stamp: FORCE
+	@mkdir -p $(BUILD)
+	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
+$(call o,io/build_info): $(BUILD)/version.stamp
+$(call o,io/build_info): FFLAGS += -DEME_VERSION='"$(VERSION)"'
+.PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up
 # Debian packages for the native stack, then a virtual environment for h5py and friends.

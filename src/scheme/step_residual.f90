@@ -37,6 +37,7 @@ module step_residual
     procedure :: evaluate
     procedure :: scheme_partials
     procedure :: scheme_temperatures
+    procedure :: check_root
   end type step_problem
 
 contains
@@ -146,5 +147,33 @@ contains
     if (stat /= domain_ok) return
     theta = partials(var_tau, potential_u, :)/partials(var_tau, potential_s, :)
   end subroutine scheme_temperatures
+
+  !> Why x' is not a physical root of the step ('' if it is): the temperatures at z' and the
+  !> temperatures the scheme's K0 used must be positive (FORMULATION section 5).
+  pure subroutine check_root(self, x_new, problem_text)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(in) :: x_new(:)
+    character(len=:), allocatable, intent(out) :: problem_text
+    real(real64) :: energy, entropy, theta(2)
+    integer :: stat
+    character(len=120) :: text
+
+    problem_text = ''
+    call self%model%observe(x_new(1:state_size), energy, entropy, theta, stat)
+    if (stat /= domain_ok .or. .not. all(theta > 0.0_real64)) then
+      write (text, '(a, 2(1x, es10.3), a)') 'non-positive temperature at the new state (theta =', theta, ' K)'
+      problem_text = trim(text)
+      return
+    end if
+    call self%scheme_temperatures(x_new, theta, stat)
+    if (stat /= domain_ok .or. .not. all(theta > 0.0_real64 .and. theta < huge(1.0_real64))) then
+      if (self%scheme == scheme_eme) then
+        write (text, '(a, 2(1x, es10.3), a)') 'non-positive discrete temperature (D_tau U/D_tau S =', theta, ' K)'
+      else
+        write (text, '(a, 2(1x, es10.3), a)') 'non-positive midpoint temperature (theta =', theta, ' K)'
+      end if
+      problem_text = trim(text)
+    end if
+  end subroutine check_root
 
 end module step_residual

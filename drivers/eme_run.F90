@@ -1,0 +1,50 @@
+!> eme_run FILE.nml [PETSc options]: one run of the thermoviscoelastic double pendulum.
+!> Reads the namelist, integrates, writes the HDF5 file named in &output and prints a
+!> one-line summary. Exit status: 0 complete, 2 bad input or usage (no output file is
+!> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error.
+program eme_run
+#include <petsc/finclude/petscsys.h>
+  use petscsys
+  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
+  use run_config, only: run_configuration, read_run_config
+  use simulation, only: run_summary, run_simulation
+  implicit none
+
+  type(run_configuration) :: config
+  type(run_summary) :: summary
+  character(len=4096) :: path
+  character(len=:), allocatable :: message
+  integer :: stat, exit_status
+  PetscErrorCode :: ierr
+
+  PetscCallA(PetscInitialize(ierr))
+  exit_status = 0
+  if (command_argument_count() < 1) then
+    write (error_unit, '(a)') 'usage: eme_run FILE.nml [PETSc options, e.g. -snes_monitor -snes_converged_reason]'
+    exit_status = 2
+  else
+    call get_command_argument(1, path)
+    call read_run_config(trim(path), config, stat, message)
+    if (stat /= 0) then
+      write (error_unit, '(a)') 'eme_run: '//message
+      exit_status = 2
+    else
+      call run_simulation(config, summary, stat, message)
+      if (stat /= 0) then
+        write (error_unit, '(a)') 'eme_run: '//message
+        exit_status = 1
+      else if (summary%status /= 'complete') then
+        write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
+        exit_status = 3
+      end if
+      if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
+        & es9.2, a, f0.2, a, f0.3, a)') config%output_file, summary%status, summary%steps_completed, &
+        summary%steps_planned, '|dE|/|E0| <= ', summary%energy_drift, ', min dS = ', &
+        summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
+        summary%angular_momentum_drift, ', Newton/step ', &
+        real(summary%newton_iterations, real64)/max(1, summary%steps_completed), ', ', summary%wall_seconds, ' s'
+    end if
+  end if
+  PetscCallA(PetscFinalize(ierr))
+  if (exit_status /= 0) stop exit_status, quiet=.true.
+end program eme_run

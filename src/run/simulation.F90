@@ -1,0 +1,327 @@
+!> One run from a validated configuration to its HDF5 file: the time loop shared by eme_run
+!> and eme_ensemble. A step that cannot be solved ends the run cleanly: every step before it
+!> stays in the file, whose `status` attribute then reads 'incomplete: <reason>'.
+module simulation
+#include <petsc/finclude/petscsys.h>
+  use petscsys
+  use, intrinsic :: iso_fortran_env, only: real64, int64
+  use model_parameters, only: pendulum_parameters
+  use thermo_variable, only: thermo_variable_names
+  use pendulum_model, only: pendulum, make_pendulum
+  use double_pendulum, only: state_size, state_column_names, angular_momentum
+  use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
+  use step_residual, only: step_problem, scheme_eme, scheme_names
+  use step_solver, only: snes_solver, step_report
+  use run_config, only: run_configuration, step_count
+  use hdf5_series, only: hdf5_file, series_table
+  use filesystem, only: make_parent_directories
+  use build_info, only: code_version
+  implicit none
+  private
+  public :: run_summary, run_simulation
+
+  !> The figures a run is judged by, as the summary table prints them.
+  type :: run_summary
+    character(len=:), allocatable :: status       !! 'complete' or 'incomplete: <reason>'
+    integer :: steps_planned = 0
+    integer :: steps_completed = 0
+    integer :: newton_iterations = 0
+    real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0| / |E_0|
+    real(real64) :: min_entropy_increment = huge(1.0_real64)
+    real(real64) :: max_lyapunov_increment = -huge(1.0_real64)
+    real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
+    real(real64) :: wall_seconds = 0.0_real64
+  end type run_summary
+
+  !> Columns of the per-point and per-step rows (see `define_datasets`).
+  integer, parameter :: point_row_width = 1 + state_size + 2 + 3 + 3
+  integer, parameter :: step_row_width = 6
+
+contains
+
+  !> Runs `config` and writes its HDF5 file. stat /= 0 only if the file could not be written
+  !> or PETSc failed; a run that stops early is reported through summary%status.
+  subroutine run_simulation(config, summary, stat, message)
+    type(run_configuration), intent(in) :: config
+    type(run_summary), intent(out) :: summary
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    type(pendulum) :: model
+    type(step_problem) :: problem
+    type(snes_solver), target :: solver
+    type(step_report) :: report
+    type(hdf5_file) :: file
+    type(series_table) :: points, steps
+    real(real64) :: z(state_size), z_previous(state_size), x_new(state_size), guess(state_size)
+    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, theta(2), time
+    integer(int64) :: clock_start, clock_now, clock_rate
+    integer :: n, io_stat
+    PetscErrorCode :: ierr
+
+    call system_clock(clock_start, clock_rate)
+    message = ''
+    summary%status = 'incomplete: running'
+    summary%steps_planned = step_count(config)
+    model = make_pendulum(config%model, config%thermo_variable)
+    call model%state_from_temperatures(config%q1, config%q2, config%p1, config%p2, config%gamma, config%theta, z, stat)
+    if (stat /= 0) then
+      message = config%input_file//': &initial: the initial state lies outside the model''s domain'
+      return
+    end if
+    problem%model = model
+    problem%scheme = config%scheme
+    problem%gradient = config%discrete_gradient
+    problem%metric = config%metric
+    problem%dt = config%dt
+    problem%z_old = z
+
+    call open_output(stat, message)
+    if (stat /= 0) return
+    call solver%create(problem, config%newton_tol, ierr)
+    if (ierr /= 0) then
+      stat = int(ierr)
+      message = 'PETSc failed to set up the solver'
+      call close_output('incomplete: PETSc failed to set up the solver')
+      return
+    end if
+
+    call observe(z, energy, entropy, lyapunov, theta)
+    energy_0 = energy
+    jz_0 = angular_momentum_z(z)
+    call record_point(0.0_real64, z, energy, entropy, lyapunov, theta)
+    z_previous = z
+    do n = 1, summary%steps_planned
+      ! Predictor: linear extrapolation of the last step (the old state on the first step).
+      guess = 2*z - z_previous
+      call solver%solve_step(z, config%dt, guess, x_new, report, ierr)
+      summary%newton_iterations = summary%newton_iterations + report%newton_iterations
+      if (ierr /= 0) then
+        stat = int(ierr)
+        message = 'PETSc failed during the solve'
+        summary%status = 'incomplete: PETSc error in step '//integer_text(n)
+        exit
+      end if
+      time = n*config%dt
+      if (.not. report%accepted) then
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//real_text(time)//' s): '//report%reason
+        exit
+      end if
+      call solver%problem%scheme_temperatures(x_new, theta, io_stat)
+      call steps%append(file, [real(report%newton_iterations, real64), theta, real(report%strategy, real64), &
+                               real(report%solves, real64), real(report%rejected_roots, real64)], io_stat)
+      if (io_stat /= 0) exit
+      entropy_old = entropy
+      lyapunov_old = lyapunov
+      z_previous = z
+      z = x_new
+      call observe(z, energy, entropy, lyapunov, theta)
+      call record_point(time, z, energy, entropy, lyapunov, theta)
+      if (io_stat /= 0) exit
+      summary%steps_completed = n
+      summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0)/abs(energy_0))
+      summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
+      summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
+      summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(angular_momentum_z(z) - jz_0))
+    end do
+    if (io_stat /= 0) then
+      stat = io_stat
+      message = 'cannot write to '//config%output_file
+      summary%status = 'incomplete: cannot write the output file'
+    else if (summary%steps_completed == summary%steps_planned) then
+      summary%status = 'complete'
+    end if
+    call solver%destroy(ierr)
+    call system_clock(clock_now)
+    summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
+    call close_output(summary%status)
+
+  contains
+
+    subroutine observe(z, energy, entropy, lyapunov, theta)
+      real(real64), intent(in) :: z(state_size)
+      real(real64), intent(out) :: energy, entropy, lyapunov, theta(2)
+      integer :: domain
+
+      call model%observe(z, energy, entropy, theta, domain)
+      lyapunov = energy - config%theta_r*entropy
+    end subroutine observe
+
+    subroutine record_point(time, z, energy, entropy, lyapunov, theta)
+      real(real64), intent(in) :: time, z(state_size), energy, entropy, lyapunov, theta(2)
+
+      call points%append(file, [time, z, theta, energy, entropy, lyapunov, angular_momentum(z)], io_stat)
+    end subroutine record_point
+
+    subroutine open_output(stat, message)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: message
+
+      call make_parent_directories(config%output_file, stat)
+      if (stat == 0) call file%create(config%output_file, stat, message)
+      if (stat /= 0) then
+        message = 'cannot create the output file '''//config%output_file//''' (&output: file)'
+        return
+      end if
+      call write_run_attributes(file, config, summary%steps_planned, stat)
+      if (stat == 0) call define_datasets(file, points, steps, config%scheme, stat)
+      if (stat /= 0) message = 'cannot write to '//config%output_file
+    end subroutine open_output
+
+    subroutine close_output(status)
+      character(len=*), intent(in) :: status
+      integer :: close_stat
+
+      call points%close(file, close_stat)
+      call steps%close(file, close_stat)
+      call file%set_text('status', status, close_stat)
+      call file%set_integer('steps_completed', summary%steps_completed, close_stat)
+      call file%set_real('wall_time_seconds', summary%wall_seconds, close_stat)
+      call file%close(close_stat)
+    end subroutine close_output
+  end subroutine run_simulation
+
+  ! The datasets, in the order of the rows that feed them. h5py shows (rows) or (rows, columns).
+  subroutine define_datasets(file, points, steps, scheme, stat)
+    type(hdf5_file), intent(in) :: file
+    type(series_table), intent(inout) :: points, steps
+    integer, intent(in) :: scheme
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: columns, temperature_meaning
+    integer :: i
+
+    columns = trim(state_column_names(1))
+    do i = 2, state_size
+      columns = columns//' '//trim(state_column_names(i))
+    end do
+    if (scheme == scheme_eme) then
+      temperature_meaning = 'discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'
+    else
+      temperature_meaning = 'temperatures at the step''s midpoint, where K0 is evaluated'
+    end if
+    stat = 0
+    call points%define(file, 'time', 1, .false., 's', 'time t_n = n dt', stat)
+    if (stat == 0) call points%define(file, 'state', state_size, .true., 'SI', &
+      'z = (q1, q2, p1, p2, gamma, tau1, tau2) in the run''s thermodynamic variable; columns: '//columns, stat)
+    if (stat == 0) call file%set_text('columns', columns, stat, points%items(2)%dataset)
+    if (stat == 0) call points%define(file, 'temperature', 2, .true., 'K', 'spring temperatures theta_1, theta_2', stat)
+    if (stat == 0) call points%define(file, 'energy', 1, .false., 'J', 'total energy E = T + V_g + U_1 + U_2', stat)
+    if (stat == 0) call points%define(file, 'entropy', 1, .false., 'J/K', 'total entropy S = S_1 + S_2', stat)
+    if (stat == 0) call points%define(file, 'lyapunov', 1, .false., 'J', 'V = E - theta_r S, eq. (14)', stat)
+    if (stat == 0) call points%define(file, 'angular_momentum', 3, .true., 'J s', 'J = q1 x p1 + q2 x p2', stat)
+    if (stat == 0) call steps%define(file, 'newton_iterations', 1, .false., '1', &
+      'Newton iterations of the step, summed over every solve it took', stat, integer_valued=.true.)
+    if (stat == 0) call steps%define(file, 'scheme_temperature', 2, .true., 'K', temperature_meaning, stat)
+    if (stat == 0) call steps%define(file, 'solver_strategy', 1, .false., '1', &
+      'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt)', stat, integer_valued=.true.)
+    if (stat == 0) call steps%define(file, 'snes_solves', 1, .false., '1', &
+      'SNESSolve calls of the step (continuation stages included)', stat, integer_valued=.true.)
+    if (stat == 0) call steps%define(file, 'rejected_roots', 1, .false., '1', &
+      'converged roots rejected as unphysical (non-positive temperature) in the step', stat, integer_valued=.true.)
+  end subroutine define_datasets
+
+  ! Scheme, data and provenance as root attributes, under the namelists' names.
+  subroutine write_run_attributes(file, config, steps_planned, stat)
+    type(hdf5_file), intent(in) :: file
+    type(run_configuration), intent(in) :: config
+    integer, intent(in) :: steps_planned
+    integer, intent(out) :: stat
+    type(pendulum) :: model
+    character(len=:), allocatable :: gradient, metric
+
+    model = make_pendulum(config%model, config%thermo_variable)
+    if (config%scheme == scheme_eme) then
+      gradient = trim(discrete_gradient_names(config%discrete_gradient))
+      metric = trim(metric_names(config%metric))
+      if (config%metric == metric_nondimensional) metric = metric// &
+        ': C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
+    else
+      gradient = 'none (midpoint rule)'
+      metric = 'none (midpoint rule)'
+    end if
+    stat = 0
+    call text('status', 'incomplete: running')
+    call text('scheme', trim(scheme_names(config%scheme)))
+    call text('thermo_variable', trim(thermo_variable_names(config%thermo_variable)))
+    call text('discrete_gradient', gradient)
+    call text('metric', metric)
+    call text('input_file', config%input_file)
+    call text('code_version', code_version)
+    call real_attribute('dt', config%dt)
+    call real_attribute('t_end', config%t_end)
+    call real_attribute('theta_r', config%theta_r)
+    call real_attribute('newton_tol', config%newton_tol)
+    call real_attribute('quotient_threshold', quotient_threshold)
+    if (stat == 0) call file%set_integer('steps_planned', steps_planned, stat)
+    if (stat == 0) call file%set_reals('metric_scale_spring1', model%spring(1)%metric_scale(), stat)
+    if (stat == 0) call file%set_reals('metric_scale_spring2', model%spring(2)%metric_scale(), stat)
+    associate (p => config%model)
+      call reals('mass', p%mass)
+      call reals('natural_length', p%natural_length)
+      call reals('mu_eq_const', p%mu_eq_const)
+      call reals('mu_eq_slope', p%mu_eq_slope)
+      call real_attribute('mu_neq_const', p%mu_neq_const)
+      call real_attribute('mu_neq_slope', p%mu_neq_slope)
+      call reals('heat_capacity', p%heat_capacity)
+      call real_attribute('viscosity_const', p%viscosity_const)
+      call real_attribute('viscosity_activation', p%viscosity_activation)
+      call real_attribute('conductivity', p%conductivity)
+      call real_attribute('theta_ref', p%theta_ref)
+      call real_attribute('beta', p%beta)
+      call real_attribute('beta_v', p%beta_v)
+      call reals('gravity', p%gravity)
+    end associate
+    call reals('q1', config%q1)
+    call reals('q2', config%q2)
+    call reals('p1', config%p1)
+    call reals('p2', config%p2)
+    call real_attribute('gamma', config%gamma)
+    call reals('theta', config%theta)
+
+  contains
+
+    subroutine text(name, value)
+      character(len=*), intent(in) :: name, value
+      if (stat == 0) call file%set_text(name, value, stat)
+    end subroutine text
+
+    subroutine real_attribute(name, value)
+      character(len=*), intent(in) :: name
+      real(real64), intent(in) :: value
+      if (stat == 0) call file%set_real(name, value, stat)
+    end subroutine real_attribute
+
+    subroutine reals(name, values)
+      character(len=*), intent(in) :: name
+      real(real64), intent(in) :: values(:)
+      if (stat == 0) call file%set_reals(name, values, stat)
+    end subroutine reals
+  end subroutine write_run_attributes
+
+  pure function angular_momentum_z(z) result(jz)
+    real(real64), intent(in) :: z(state_size)
+    real(real64) :: jz
+    real(real64) :: j(3)
+
+    j = angular_momentum(z)
+    jz = j(3)
+  end function angular_momentum_z
+
+  pure function integer_text(i) result(text)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: text
+    character(len=16) :: buffer
+
+    write (buffer, '(i0)') i
+    text = trim(buffer)
+  end function integer_text
+
+  pure function real_text(x) result(text)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=24) :: buffer
+
+    write (buffer, '(f0.4)') x
+    text = trim(buffer)
+  end function real_text
+
+end module simulation

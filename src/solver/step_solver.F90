@@ -1,0 +1,304 @@
+!> PETSc SNES solver for one time step of a step_problem (src/scheme/step_residual).
+!> One SNES, vector pair and dense matrix are created per run and reused for every step;
+!> the linear solves are LU (KSPPREONLY + PCLU). SNESSetFromOptions comes last, so
+!> -snes_monitor, -snes_converged_reason, -snes_test_jacobian, ... work from the command line.
+!>
+!> A step is accepted only if SNES converged AND the root is physical (FORMULATION section 5):
+!> positive temperatures at z' and positive scheme temperatures. Newton at large dt is hard,
+!> so a step that fails is retried, always for the same dt:
+!>   1. from the caller's predictor,  2. from the old state,
+!>   3. by continuation in the step size: the step equation is solved for dt_s = s dt with
+!>      s increasing to 1, each solve starting from the previous root extrapolated in s.
+!>      Only the final solve, at s = 1, is the step; the others only provide initial guesses.
+module step_solver
+#include <petsc/finclude/petscsnes.h>
+  use petscsnes
+  use, intrinsic :: iso_fortran_env, only: real64
+  use step_residual, only: step_problem
+  implicit none
+  private
+  public :: snes_solver, step_report
+  public :: strategy_predictor, strategy_old_state, strategy_continuation
+
+  integer, parameter :: strategy_predictor = 1
+  integer, parameter :: strategy_old_state = 2
+  integer, parameter :: strategy_continuation = 3
+
+  !> How a step went: which strategy found the root and at what cost.
+  type :: step_report
+    logical :: accepted = .false.
+    integer :: strategy = 0              !! strategy_* that produced the accepted root
+    integer :: newton_iterations = 0     !! summed over every solve of the step
+    integer :: solves = 0                !! SNESSolve calls, including continuation stages
+    integer :: rejected_roots = 0        !! converged roots rejected as unphysical
+    character(len=:), allocatable :: reason   !! why the step failed (if it did)
+  end type step_report
+
+  !> The PETSc objects of one run and the problem their callbacks see. Do not copy it after
+  !> `create`: PETSc holds the address of `problem`.
+  type :: snes_solver
+    type(step_problem) :: problem
+    SNES :: snes
+    Vec :: x
+    Vec :: r
+    Mat :: jacobian
+    integer :: n = 0
+  contains
+    procedure :: create
+    procedure :: destroy
+    procedure :: solve_step
+  end type snes_solver
+
+  integer, parameter :: max_continuation_solves = 40
+  real(real64), parameter :: first_continuation_fraction = 0.25_real64
+  real(real64), parameter :: smallest_continuation_increment = 1.0_real64/1024
+
+contains
+
+  !> Creates the SNES for `problem` (copied into the solver) with absolute tolerance newton_tol
+  !> on the 2-norm of the residual.
+  subroutine create(self, problem, newton_tol, ierr)
+    class(snes_solver), intent(inout), target :: self
+    type(step_problem), intent(in) :: problem
+    real(real64), intent(in) :: newton_tol
+    PetscErrorCode, intent(out) :: ierr
+    KSP :: ksp
+    PC :: pc
+    PetscInt :: n, max_iterations, max_evaluations
+
+    self%problem = problem
+    self%n = problem%unknowns()
+    n = self%n
+    PetscCall(VecCreateSeq(PETSC_COMM_SELF, n, self%x, ierr))
+    PetscCall(VecDuplicate(self%x, self%r, ierr))
+    PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, n, n, PETSC_NULL_SCALAR, self%jacobian, ierr))
+    PetscCall(SNESCreate(PETSC_COMM_SELF, self%snes, ierr))
+    PetscCall(SNESSetFunction(self%snes, self%r, form_residual, self%problem, ierr))
+    PetscCall(SNESSetJacobian(self%snes, self%jacobian, self%jacobian, form_jacobian, self%problem, ierr))
+    PetscCall(SNESGetKSP(self%snes, ksp, ierr))
+    PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
+    PetscCall(KSPGetPC(ksp, pc, ierr))
+    PetscCall(PCSetType(pc, PCLU, ierr))
+    max_iterations = 50
+    max_evaluations = 10000
+    PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
+    PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, 0, PETSC_NULL_FUNCTION, ierr))
+    PetscCall(SNESSetFromOptions(self%snes, ierr))
+  end subroutine create
+
+  !> Frees the PETSc objects.
+  subroutine destroy(self, ierr)
+    class(snes_solver), intent(inout) :: self
+    PetscErrorCode, intent(out) :: ierr
+
+    PetscCall(SNESDestroy(self%snes, ierr))
+    PetscCall(MatDestroy(self%jacobian, ierr))
+    PetscCall(VecDestroy(self%r, ierr))
+    PetscCall(VecDestroy(self%x, ierr))
+  end subroutine destroy
+
+  !> Solves the step from z_old with step size dt. `guess` is the caller's predictor; on
+  !> acceptance x_new holds the root (state and any multipliers).
+  subroutine solve_step(self, z_old, dt, guess, x_new, report, ierr)
+    class(snes_solver), intent(inout) :: self
+    real(real64), intent(in) :: z_old(:), dt, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    PetscErrorCode, intent(out) :: ierr
+    real(real64) :: start(self%n)
+    character(len=:), allocatable :: why
+
+    ierr = 0
+    self%problem%z_old = z_old
+    report%reason = ''
+
+    call attempt(guess, 1.0_real64, strategy_predictor)
+    if (report%accepted .or. ierr /= 0) return
+    start = guess
+    start(1:size(z_old)) = z_old
+    if (maxval(abs(start - guess)) > 0.0_real64) then
+      call attempt(start, 1.0_real64, strategy_old_state)
+      if (report%accepted .or. ierr /= 0) return
+    end if
+    call continuation(start)
+    self%problem%dt = dt
+
+  contains
+
+    ! One SNES solve of the step with step size fraction*dt from `initial`.
+    subroutine attempt(initial, fraction, strategy)
+      real(real64), intent(in) :: initial(:), fraction
+      integer, intent(in) :: strategy
+      logical :: ok
+
+      call solve_once(self, initial, fraction*dt, x_new, report, ok, why, ierr)
+      if (ierr /= 0) return
+      if (ok) then
+        report%accepted = .true.
+        report%strategy = strategy
+        report%reason = ''
+      else
+        report%reason = why
+      end if
+    end subroutine attempt
+
+    ! Continuation in s from 0 to 1 with adaptive increments.
+    subroutine continuation(initial)
+      real(real64), intent(in) :: initial(:)
+      real(real64) :: s_done, s_try, increment, root(self%n), previous(self%n), trial(self%n)
+      logical :: ok
+      integer :: stage
+
+      s_done = 0.0_real64
+      increment = first_continuation_fraction
+      root = initial
+      previous = initial
+      do stage = 1, max_continuation_solves
+        s_try = min(1.0_real64, s_done + increment)
+        ! Linear extrapolation in s along the path of roots (the old state at s = 0).
+        if (s_done > 0.0_real64) then
+          trial = root + (s_try - s_done)/s_done*(root - previous)
+        else
+          trial = root
+        end if
+        call solve_once(self, trial, s_try*dt, x_new, report, ok, why, ierr)
+        if (ierr /= 0) return
+        if (ok) then
+          if (s_try >= 1.0_real64) then
+            report%accepted = .true.
+            report%strategy = strategy_continuation
+            report%reason = ''
+            return
+          end if
+          s_done = s_try
+          root = x_new
+          increment = 2*increment
+        else
+          increment = increment/2
+          if (increment < smallest_continuation_increment) exit
+        end if
+      end do
+      report%reason = 'no root from the predictor, from the old state, or by continuation in dt (last: ' &
+                      //why//')'
+    end subroutine continuation
+  end subroutine solve_step
+
+  ! One SNESSolve for step size dt from `initial`; ok = converged to a physical root.
+  subroutine solve_once(self, initial, dt, root, report, ok, why, ierr)
+    class(snes_solver), intent(inout) :: self
+    real(real64), intent(in) :: initial(:), dt
+    real(real64), intent(out) :: root(:)
+    type(step_report), intent(inout) :: report
+    logical, intent(out) :: ok
+    character(len=:), allocatable, intent(out) :: why
+    PetscErrorCode, intent(out) :: ierr
+    PetscScalar, pointer :: values(:)
+    SNESConvergedReason :: converged
+    PetscInt :: iterations
+    character(len=80) :: reason_text
+    character(len=:), allocatable :: physics
+
+    ok = .false.
+    why = ''
+    self%problem%dt = dt
+    PetscCall(VecGetArrayF90(self%x, values, ierr))
+    values = initial
+    PetscCall(VecRestoreArrayF90(self%x, values, ierr))
+    PetscCall(SNESSolve(self%snes, PETSC_NULL_VEC, self%x, ierr))
+    PetscCall(SNESGetConvergedReason(self%snes, converged, ierr))
+    PetscCall(SNESGetIterationNumber(self%snes, iterations, ierr))
+    report%newton_iterations = report%newton_iterations + iterations
+    report%solves = report%solves + 1
+    PetscCall(VecGetArrayReadF90(self%x, values, ierr))
+    root = values
+    PetscCall(VecRestoreArrayReadF90(self%x, values, ierr))
+    if (converged <= 0) then
+      PetscCall(SNESGetConvergedReasonString(self%snes, reason_text, ierr))
+      why = 'Newton did not converge: '//trim(reason_text)
+      return
+    end if
+    call self%problem%check_root(root, physics)
+    if (len(physics) > 0) then
+      report%rejected_roots = report%rejected_roots + 1
+      why = 'root rejected: '//physics
+      return
+    end if
+    ok = .true.
+  end subroutine solve_once
+
+  ! SNES convergence test. Converged when the residual is below the absolute tolerance and so
+  ! was the Newton update that produced it (or the initial guess already solves the step).
+  ! Newton's quadratic convergence then leaves a residual ~ tolerance^2, so the discrete
+  ! conservation laws, which hold exactly at a root, hold to round-off rather than to the
+  ! tolerance. -snes_atol changes the tolerance; -snes_stol > 0 adds PETSc's relative update test.
+  subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
+    SNES :: snes
+    PetscInt :: iteration
+    PetscReal :: x_norm, update_norm, residual_norm
+    SNESConvergedReason :: reason
+    PetscInt :: context
+    PetscErrorCode :: ierr
+    PetscReal :: atol, rtol, stol
+    PetscInt :: max_iterations, max_evaluations
+
+    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+    if (.not. (residual_norm <= huge(residual_norm))) then
+      reason = SNES_DIVERGED_FNORM_NAN
+    else if (residual_norm <= atol .and. (iteration == 0 .or. update_norm <= max(atol, stol*x_norm))) then
+      reason = SNES_CONVERGED_FNORM_ABS
+    else
+      reason = SNES_CONVERGED_ITERATING
+    end if
+  end subroutine converged_on_update
+
+  ! SNES callback: the step residual; a state outside the model's domain is a domain error,
+  ! which makes the line search shorten the step.
+  subroutine form_residual(snes, x, f, problem, ierr)
+    SNES :: snes
+    Vec :: x
+    Vec :: f
+    type(step_problem) :: problem
+    PetscErrorCode :: ierr
+    PetscScalar, pointer :: x_values(:), f_values(:)
+    integer :: stat
+
+    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
+    PetscCall(VecGetArrayF90(f, f_values, ierr))
+    call problem%evaluate(x_values, f_values, stat=stat)
+    if (stat /= 0) f_values = huge(1.0_real64)
+    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
+    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    if (stat /= 0) then
+      PetscCall(SNESSetFunctionDomainError(snes, ierr))
+    end if
+  end subroutine form_residual
+
+  ! SNES callback: the analytic Jacobian, written straight into the dense matrix.
+  subroutine form_jacobian(snes, x, jacobian, preconditioner, problem, ierr)
+    SNES :: snes
+    Vec :: x
+    Mat :: jacobian
+    Mat :: preconditioner
+    type(step_problem) :: problem
+    PetscErrorCode :: ierr
+    PetscScalar, pointer :: x_values(:), entries(:, :)
+    real(real64) :: residual(problem%unknowns())
+    integer :: stat
+
+    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
+    PetscCall(MatDenseGetArrayF90(preconditioner, entries, ierr))
+    call problem%evaluate(x_values, residual, entries, stat)
+    PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
+    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
+    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
+    if (jacobian /= preconditioner) then
+      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+    end if
+    if (stat /= 0) then
+      PetscCall(SNESSetJacobianDomainError(snes, ierr))
+    end if
+  end subroutine form_jacobian
+
+end module step_solver
