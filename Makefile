@@ -42,7 +42,7 @@ LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := eme_run
 
 UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient \
-    test_step_residual
+    test_step_residual test_step_solver
 TEST_SUPPORT := $(OBJ)/tests/unit/assertions.o $(OBJ)/tests/unit/fixtures.o
 
 # ---------------------------------------------------------------- module dependencies
@@ -127,6 +127,13 @@ $(VENV)/.python-deps: postprocess/requirements.txt
 	@touch $@
 
 # ---------------------------------------------------------------- use
+PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy,paper_fig4_$(s)_$(v)))
+
+run: all $(VENV)/.python-deps
+	@mkdir -p results
+	@for run in $(PAPER_RUNS); do $(BIN)/eme_run inputs/$$run.nml > /dev/null || exit 1; done
+	@$(PYTHON) postprocess/summarize_runs.py $(foreach r,$(PAPER_RUNS),results/$(r).h5)
+
 test: all $(VENV)/.python-deps
 	$(PYTHON) tests/run_tests.py --bin $(TESTBIN)
 

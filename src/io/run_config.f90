@@ -364,7 +364,7 @@ contains
     integer, intent(in) :: failed
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=:), allocatable :: name, item
+    character(len=:), allocatable :: name, item, value
 
     stat = 1
     if (failed > size(items)) then
@@ -376,8 +376,10 @@ contains
     if (.not. any(fields%name == name)) then
       message = path//': &'//group//': unknown field '''//name//'''; allowed: '//names_list(fields)
     else
-      message = path//': &'//group//': field '''//name//''' cannot take the value '''// &
-                trim(adjustl(item(index(item, '=') + 1:)))//'''; allowed: '//trim(allowed_of(fields, name))
+      value = trim(adjustl(item(index(item, '=') + 1:)))
+      if (verify(value(1:1), '''"') /= 0) value = ''''//value//''''
+      message = path//': &'//group//': field '''//name//''' cannot take the value '//value// &
+                '; allowed: '//trim(allowed_of(fields, name))
     end if
   end subroutine explain_failure
 
@@ -558,17 +560,24 @@ contains
     file = 'results/'//input_file(slash + 1:dot - 1)//'.h5'
   end function default_output_file
 
+  ! Values as a user would write them: 6 significant digits, trailing zeros dropped.
   pure function reals_text(values) result(text)
     real(real64), intent(in) :: values(:)
     character(len=:), allocatable :: text
     character(len=32) :: one
-    integer :: i
+    integer :: i, exponent_at, last
 
     text = ''
     do i = 1, size(values)
-      write (one, '(g0)') values(i)
+      write (one, '(g0.6)') values(i)
+      exponent_at = scan(one, 'Ee')
+      if (exponent_at == 0) exponent_at = len_trim(one) + 1
+      last = exponent_at - 1
+      do while (last > 1 .and. one(last:last) == '0' .and. one(last - 1:last - 1) /= '.')
+        last = last - 1
+      end do
       if (i > 1) text = text//', '
-      text = text//trim(one)
+      text = text//one(1:last)//trim(one(exponent_at:))
     end do
   end function reals_text
 

@@ -154,17 +154,20 @@ contains
     class(step_problem), intent(in) :: self
     real(real64), intent(in) :: x_new(:)
     character(len=:), allocatable, intent(out) :: problem_text
-    real(real64) :: energy, entropy, theta(2)
-    integer :: stat
+    real(real64) :: theta(2)
+    integer :: stat, a
     character(len=120) :: text
 
     problem_text = ''
-    call self%model%observe(x_new(1:state_size), energy, entropy, theta, stat)
-    if (stat /= domain_ok .or. .not. all(theta > 0.0_real64)) then
-      write (text, '(a, 2(1x, es10.3), a)') 'non-positive temperature at the new state (theta =', theta, ' K)'
-      problem_text = trim(text)
-      return
-    end if
+    do a = 1, 2
+      call self%model%spring(a)%temperature(spring_invariants(x_new, a), theta(a), stat)
+      if (stat /= domain_ok) then
+        write (text, '(a, i0, a, es10.3, a)') 'non-positive temperature at the new state (theta_', a, ' = ', &
+          theta(a), ' K)'
+        problem_text = trim(text)
+        return
+      end if
+    end do
     call self%scheme_temperatures(x_new, theta, stat)
     if (stat /= domain_ok .or. .not. all(theta > 0.0_real64 .and. theta < huge(1.0_real64))) then
       if (self%scheme == scheme_eme) then

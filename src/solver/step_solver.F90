@@ -32,6 +32,7 @@ module step_solver
     integer :: solves = 0                !! SNESSolve calls, including continuation stages
     integer :: rejected_roots = 0        !! converged roots rejected as unphysical
     character(len=:), allocatable :: reason   !! why the step failed (if it did)
+    character(len=:), allocatable :: last_rejection   !! why the last rejected root was rejected
   end type step_report
 
   !> The PETSc objects of one run and the problem their callbacks see. Do not copy it after
@@ -111,6 +112,7 @@ contains
     ierr = 0
     self%problem%z_old = z_old
     report%reason = ''
+    report%last_rejection = ''
 
     call attempt(guess, 1.0_real64, strategy_predictor)
     if (report%accepted .or. ierr /= 0) return
@@ -213,17 +215,36 @@ contains
     root = values
     PetscCall(VecRestoreArrayReadF90(self%x, values, ierr))
     if (converged <= 0) then
-      PetscCall(SNESGetConvergedReasonString(self%snes, reason_text, ierr))
-      why = 'Newton did not converge: '//trim(reason_text)
-      return
+      if (.not. at_rounding_floor()) then
+        PetscCall(SNESGetConvergedReasonString(self%snes, reason_text, ierr))
+        why = 'Newton did not converge: '//trim(reason_text)
+        return
+      end if
     end if
     call self%problem%check_root(root, physics)
     if (len(physics) > 0) then
       report%rejected_roots = report%rejected_roots + 1
       why = 'root rejected: '//physics
+      report%last_rejection = why
       return
     end if
     ok = .true.
+
+  contains
+
+    ! The line search failed on a residual already below the tolerance: the residual sits at
+    ! its rounding floor and cannot decrease further, so the iterate is a root to round-off.
+    logical function at_rounding_floor()
+      PetscReal :: residual_norm, atol, rtol, stol
+      PetscInt :: max_iterations, max_evaluations
+      PetscErrorCode :: ierr
+
+      at_rounding_floor = .false.
+      if (converged /= SNES_DIVERGED_LINE_SEARCH) return
+      PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
+      PetscCall(SNESGetTolerances(self%snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+      at_rounding_floor = residual_norm <= atol
+    end function at_rounding_floor
   end subroutine solve_once
 
   ! SNES convergence test. Converged when the residual is below the absolute tolerance and so

@@ -1,0 +1,69 @@
+#!/usr/bin/env python3
+"""Prints the summary table of one or more eme_run result files.
+
+For each run: status, steps, the relative energy drift max_n |E_n - E_0| / |E_0|, the smallest
+entropy increment, the largest Lyapunov increment, the J_z drift max_n |J_z,n - J_z,0|, the
+mean Newton iterations per step and the wall time. Everything is read from the HDF5 files.
+
+usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
+"""
+import argparse
+import sys
+
+import h5py
+import numpy as np
+
+
+def summarize(path):
+    """The table row of one run file, as a dict of numbers and strings."""
+    with h5py.File(path, "r") as f:
+        for name in ("energy", "entropy", "lyapunov", "angular_momentum", "newton_iterations"):
+            if name not in f:
+                raise SystemExit(f"{path}: dataset /{name} is missing; is this an eme_run file?")
+        energy, entropy, lyapunov = f["energy"][:], f["entropy"][:], f["lyapunov"][:]
+        jz = f["angular_momentum"][:, 2]
+        newton = f["newton_iterations"][:]
+        attrs = f.attrs
+        steps = len(newton)
+        return {
+            "run": f"{attrs['scheme']}/{attrs['thermo_variable']}"
+                   + (f"/{attrs['discrete_gradient']}" if attrs["scheme"] == "eme" else ""),
+            "status": attrs["status"],
+            "steps": steps,
+            "energy_drift": float(np.max(np.abs(energy - energy[0])) / abs(energy[0])),
+            "min_dS": float(np.diff(entropy).min()) if steps else float("nan"),
+            "max_dV": float(np.diff(lyapunov).max()) if steps else float("nan"),
+            "jz_drift": float(np.max(np.abs(jz - jz[0]))),
+            "newton_per_step": float(newton.mean()) if steps else float("nan"),
+            "wall_s": float(attrs["wall_time_seconds"]),
+        }
+
+
+COLUMNS = [("run", "run", "{}"), ("steps", "steps", "{}"), ("energy_drift", "|dE|/|E0| max", "{:.2e}"),
+           ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
+           ("jz_drift", "|dJz| max [J s]", "{:.2e}"), ("newton_per_step", "Newton/step", "{:.2f}"),
+           ("wall_s", "wall [s]", "{:.3f}"), ("status", "status", "{}")]
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("files", nargs="+", help="eme_run HDF5 files")
+    parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    args = parser.parse_args(argv)
+    rows = [[fmt.format(summarize(path)[key]) for key, _, fmt in COLUMNS] for path in args.files]
+    headers = [title for _, title, _ in COLUMNS]
+    if args.markdown:
+        print("| " + " | ".join(headers) + " |")
+        print("|" + "---|" * len(headers))
+        for row in rows:
+            print("| " + " | ".join(row) + " |")
+        return 0
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]
+    print("  ".join(h.ljust(w) for h, w in zip(headers, widths)))
+    for row in rows:
+        print("  ".join(c.ljust(w) for c, w in zip(row, widths)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

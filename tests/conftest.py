@@ -1,0 +1,60 @@
+"""Shared helpers for the Python tests: write namelists and run the drivers."""
+import subprocess
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+BIN = ROOT / "build" / "bin"
+
+
+def namelist_text(groups):
+    """Namelist text from {'integrator': {'dt': 0.1, 'scheme': 'eme'}, ...}."""
+
+    def value(v):
+        if isinstance(v, str):
+            return f"'{v}'"
+        if isinstance(v, bool):
+            return ".true." if v else ".false."
+        if isinstance(v, (list, tuple, np.ndarray)):
+            return ", ".join(value(x) for x in v)
+        return repr(float(v)) if isinstance(v, float) else str(v)
+
+    lines = []
+    for group, fields in groups.items():
+        lines.append(f"&{group}")
+        lines.extend(f"  {name} = {value(v)}" for name, v in fields.items())
+        lines.append("/")
+    return "\n".join(lines) + "\n"
+
+
+def run_eme(directory, name, groups, *options, timeout=300):
+    """Runs eme_run on a namelist built from `groups`; the output goes to directory/name.h5.
+
+    Returns (completed process, path of the HDF5 file)."""
+    directory = Path(directory)
+    output = directory / f"{name}.h5"
+    groups = {key: dict(fields) for key, fields in groups.items()}
+    groups.setdefault("output", {})["file"] = str(output)
+    namelist = directory / f"{name}.nml"
+    namelist.write_text(namelist_text(groups))
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist), *options],
+                            capture_output=True, text=True, timeout=timeout)
+    return result, output
+
+
+def read_run(path):
+    """Datasets and attributes of a run file as plain numpy arrays and Python values."""
+    with h5py.File(path, "r") as f:
+        data = {name: f[name][()] for name in f}
+        data["attrs"] = dict(f.attrs)
+    return data
+
+
+@pytest.fixture(scope="session")
+def eme_run_binary():
+    binary = BIN / "eme_run"
+    assert binary.exists(), f"{binary} is missing: run `make` first"
+    return binary

@@ -1,0 +1,41 @@
+"""postprocess/summarize_runs.py computes its columns from the file's numbers."""
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "postprocess"))
+import summarize_runs  # noqa: E402
+
+
+def make_file(path, energy, entropy, lyapunov, jz, newton):
+    with h5py.File(path, "w") as f:
+        f["energy"], f["entropy"], f["lyapunov"] = energy, entropy, lyapunov
+        f["angular_momentum"] = np.column_stack([np.zeros_like(jz), np.zeros_like(jz), jz])
+        f["newton_iterations"] = newton
+        f.attrs.update(scheme="eme", thermo_variable="entropy", discrete_gradient="gonzalez",
+                       status="complete", wall_time_seconds=1.5)
+
+
+def test_columns_from_known_numbers(tmp_path):
+    path = tmp_path / "known.h5"
+    make_file(path, energy=[10.0, 10.5, 9.0], entropy=[1.0, 1.2, 1.1], lyapunov=[5.0, 4.0, 4.5],
+              jz=[-3.0, -3.0, -2.9], newton=[4, 6])
+    row = summarize_runs.summarize(path)
+    assert row["energy_drift"] == pytest.approx(0.1)          # |9 - 10| / 10
+    assert row["min_dS"] == pytest.approx(-0.1)               # S_2 - S_1, n+1 minus n
+    assert row["max_dV"] == pytest.approx(0.5)                # V_2 - V_1
+    assert row["jz_drift"] == pytest.approx(0.1)
+    assert row["newton_per_step"] == pytest.approx(5.0)
+    assert row["steps"] == 2 and row["run"] == "eme/entropy/gonzalez"
+
+
+def test_missing_dataset_is_named(tmp_path):
+    path = tmp_path / "broken.h5"
+    with h5py.File(path, "w") as f:
+        f["energy"] = [1.0]
+    with pytest.raises(SystemExit, match="dataset /entropy is missing"):
+        summarize_runs.summarize(path)
