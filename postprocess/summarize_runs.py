@@ -39,9 +39,9 @@ def summarize(path):
         }
 
 
-COLUMNS = [("run", "run", "{}"), ("steps", "steps", "{}"), ("energy_drift", "|dE|/|E0| max", "{:.2e}"),
+COLUMNS = [("run", "run", "{}"), ("steps", "steps", "{}"), ("energy_drift", "energy drift", "{:.2e}"),
            ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
-           ("jz_drift", "|dJz| max [J s]", "{:.2e}"), ("newton_per_step", "Newton/step", "{:.2f}"),
+           ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("newton_per_step", "Newton/step", "{:.2f}"),
            ("wall_s", "wall [s]", "{:.3f}"), ("status", "status", "{}")]
 
 
