@@ -73,7 +73,7 @@ $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test run clean
+.PHONY: all deps test run constraints clean
 
 all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
@@ -127,12 +127,24 @@ $(VENV)/.python-deps: postprocess/requirements.txt
 	@touch $@
 
 # ---------------------------------------------------------------- use
-PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy,paper_fig4_$(s)_$(v)))
+PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy,paper_fig4_$(s)_$(v))) \
+              paper_fig5_fixed_length paper_fig5_fixed_temperature paper_fig5_both
+CONSTRAINT_RUNS := $(foreach c,fixed_length fixed_temperature,$(foreach v,entropy internal_energy,fig5_$(c)_eme_$(v))) \
+                   $(foreach v,theta entropy internal_energy,fig5_fixed_temperature_no_conduction_eme_$(v))
+
+# Runs every input of a list and prints the summary table of their files.
+define run_and_summarize
+	@mkdir -p results
+	@for run in $(1); do $(BIN)/eme_run inputs/$$run.nml > /dev/null || exit 1; done
+	@$(PYTHON) postprocess/summarize_runs.py $(foreach r,$(1),results/$(r).h5)
+endef
 
 run: all $(VENV)/.python-deps
-	@mkdir -p results
-	@for run in $(PAPER_RUNS); do $(BIN)/eme_run inputs/$$run.nml > /dev/null || exit 1; done
-	@$(PYTHON) postprocess/summarize_runs.py $(foreach r,$(PAPER_RUNS),results/$(r).h5)
+	$(call run_and_summarize,$(PAPER_RUNS))
+
+# The constraint scenes for EME_s and EME_u, and g2 without conduction (README, Constraints).
+constraints: all $(VENV)/.python-deps
+	$(call run_and_summarize,$(CONSTRAINT_RUNS))
 
 test: all $(VENV)/.python-deps
 	$(PYTHON) tests/run_tests.py --bin $(TESTBIN)

@@ -19,14 +19,15 @@ def make_figure(runs, compare=(), title="Energy, entropy and Lyapunov function")
     for row, (name, value_label, increment_label) in enumerate(QUANTITIES):
         values_ax, increments_ax = axes[row]
         for run, style in [(r, "main") for r in runs] + [(r, "compare") for r in compare]:
+            dashed = style == "compare"
             line = dict(color=colour(run), label=run.label, linewidth=1.0,
-                        linestyle="-" if style == "main" else "--")
-            marker = dict(color=colour(run), marker="." if style == "main" else "x",
-                          markersize=4, linewidth=0.5,
-                          linestyle="-" if style == "main" else "--")
+                        linestyle="--" if dashed else "-")
+            # Markers only: a line joining increments of opposite sign would cross every decade.
+            marker = dict(color=colour(run), marker="x" if dashed else ".", markersize=4,
+                          linestyle="none")
             time, values = run.data["time"], run.data[name]
             values_ax.plot(time, values, **line)
-            increments_ax.plot(time[1:], increments(values), label=run.label, **marker)
+            increments_ax.plot(time[1:], increments(values), **marker)
         everything = [*runs, *compare]
         flat_aware_limits(values_ax, [r.data[name] for r in everything])
         increment_axis(increments_ax, [increments(r.data[name]) for r in everything])
@@ -34,7 +35,8 @@ def make_figure(runs, compare=(), title="Energy, entropy and Lyapunov function")
         increments_ax.set_ylabel(increment_label)
     axes[-1, 0].set_xlabel(r"time $t_n$ [s]")
     axes[-1, 1].set_xlabel(r"time $t_{n+1}$ [s] (increment of step n $\to$ n+1)")
-    axes[0, 0].legend(fontsize=7)
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center",
+               ncols=3, fontsize=8)
     describe(fig, title, [*runs, *compare])
     return fig
 

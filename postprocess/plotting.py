@@ -86,13 +86,16 @@ def increment_axis(ax, values):
     |x| < 1e-15, below the round-off of any quantity of this model."""
     ax.set_yscale("symlog", linthresh=INCREMENT_LINEAR_THRESHOLD, linscale=0.3)
     largest = max((np.max(np.abs(v)) for v in values if len(v)), default=0.0)
-    top = 10.0 ** np.ceil(np.log10(max(largest, 1e-12)))
+    # Labels at 1e-12 and every third decade above it; the axis ends on a labelled decade.
+    decade = int(np.ceil(np.log10(largest))) if largest > 0 else -12
+    top_exponent = max(-12, decade + (-(decade + 12)) % 3)
+    decades = 10.0 ** np.arange(-12, top_exponent + 1, 3, dtype=float)
+    top = decades[-1]
     ax.set_ylim(-top, top)
-    exponents = np.arange(np.log10(top), -13, -3)
-    ticks = np.concatenate([-(10.0 ** exponents), [0.0], 10.0 ** exponents[::-1]])
+    ticks = np.concatenate([-decades[::-1], [0.0], decades])
     ax.set_yticks(ticks, [f"{t:.0e}" if t else "0" for t in ticks])
-    ax.yaxis.set_minor_locator(matplotlib.ticker.NullLocator())
-    ax.axhline(0.0, color="0.6", linewidth=0.6)
+    every_decade = 10.0 ** np.arange(np.log10(INCREMENT_LINEAR_THRESHOLD), np.log10(top) + 1)
+    ax.set_yticks(np.concatenate([-every_decade, every_decade]), minor=True)
     ax.grid(True, axis="y", linewidth=0.3)
     ax.tick_params(axis="y", labelsize=7)
 

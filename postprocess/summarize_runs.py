@@ -1,14 +1,17 @@
 #!/usr/bin/env python3
 """Prints the summary table of one or more eme_run result files.
 
-For each run: status, steps, the relative energy drift max_n |E_n - E_0| / |E_0|, the smallest
-entropy increment, the largest Lyapunov increment, the J_z drift max_n |J_z,n - J_z,0|, the
-mean Newton iterations per step and the wall time. Everything is read from the HDF5 files.
+For each run: status, steps, the relative energy balance error max_n |E_n - E_0 - Q_n| / |E_0|
+(Q_n is the heat supplied through constraint g2, zero without it, so this is the energy drift),
+the smallest entropy increment, the largest Lyapunov increment, the J_z drift
+max_n |J_z,n - J_z,0|, the largest constraint residual, the mean Newton iterations per step and
+the wall time. Everything is read from the HDF5 files.
 
 usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
 """
 import argparse
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -21,27 +24,33 @@ def summarize(path):
             if name not in f:
                 raise SystemExit(f"{path}: dataset /{name} is missing; is this an eme_run file?")
         energy, entropy, lyapunov = f["energy"][:], f["entropy"][:], f["lyapunov"][:]
+        heat = f["boundary_heat"][:] if "boundary_heat" in f else np.zeros_like(energy)
+        constraint = float(np.abs(f["constraint_residual"][:]).max()) if "constraint_residual" in f else None
         jz = f["angular_momentum"][:, 2]
         newton = f["newton_iterations"][:]
         attrs = f.attrs
         steps = len(newton)
         return {
+            "file": Path(path).stem,
             "run": f"{attrs['scheme']}/{attrs['thermo_variable']}"
-                   + (f"/{attrs['discrete_gradient']}" if attrs["scheme"] == "eme" else ""),
+                   + (f"/{attrs['discrete_gradient']}" if attrs["scheme"] == "eme" else "")
+                   + (f" + {attrs['constraints']}" if attrs.get("constraints", "none") != "none" else ""),
             "status": attrs["status"],
             "steps": steps,
-            "energy_drift": float(np.max(np.abs(energy - energy[0])) / abs(energy[0])),
+            "energy_drift": float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0])),
             "min_dS": float(np.diff(entropy).min()) if steps else float("nan"),
             "max_dV": float(np.diff(lyapunov).max()) if steps else float("nan"),
             "jz_drift": float(np.max(np.abs(jz - jz[0]))),
+            "constraint": "-" if constraint is None else f"{constraint:.1e}",
             "newton_per_step": float(newton.mean()) if steps else float("nan"),
             "wall_s": float(attrs["wall_time_seconds"]),
         }
 
 
-COLUMNS = [("run", "run", "{}"), ("steps", "steps", "{}"), ("energy_drift", "energy drift", "{:.2e}"),
+COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"), ("energy_drift", "energy balance", "{:.2e}"),
            ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
-           ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("newton_per_step", "Newton/step", "{:.2f}"),
+           ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("constraint", "max |g|", "{}"),
+           ("newton_per_step", "Newton/step", "{:.2f}"),
            ("wall_s", "wall [s]", "{:.3f}"), ("status", "status", "{}")]
 
 

@@ -1,4 +1,4 @@
-!> The input of one run: the namelist groups &model, &initial, &integrator and &output.
+!> The input of one run: the namelist groups &model, &initial, &constraints, &integrator and &output.
 !> Absent groups and names keep their defaults, which are the paper's data (empty groups
 !> reproduce the paper's Fig. 4 scene with EME_theta). Every value is validated here, before
 !> anything is written; errors come back as stat /= 0 with a message that names the file, the
@@ -13,7 +13,8 @@ module run_config
   private
   public :: run_configuration, read_run_config, step_count, input_groups
 
-  character(len=*), parameter :: input_groups(4) = [character(len=10) :: 'model', 'initial', 'integrator', 'output']
+  character(len=*), parameter :: input_groups(5) = [character(len=11) :: 'model', 'initial', 'constraints', &
+                                                   'integrator', 'output']
 
   !> Everything a run needs, in the namelists' names and units.
   type :: run_configuration
@@ -32,6 +33,10 @@ module run_config
     real(real64) :: dt = 0.15_real64
     real(real64) :: t_end = 20.0_real64
     real(real64) :: newton_tol = 1.0e-8_real64
+    logical :: fix_length = .false.
+    real(real64) :: length = 1.0_real64
+    logical :: fix_temperature = .false.
+    real(real64) :: temperature = 280.0_real64
     character(len=:), allocatable :: output_file
     real(real64) :: theta_r = 300.0_real64
   end type run_configuration
@@ -39,7 +44,7 @@ module run_config
   !> What a field accepts, for error messages.
   type :: field_spec
     character(len=24) :: name
-    character(len=60) :: allowed
+    character(len=80) :: allowed
   end type field_spec
 
   !> One item of a group as written, and as a one-item namelist record.
@@ -80,6 +85,7 @@ contains
     call check_group_names(unit, path, stat, message)
     if (stat == 0) call read_model(unit, config, stat, message)
     if (stat == 0) call read_initial(unit, config, stat, message)
+    if (stat == 0) call read_constraints(unit, config, stat, message)
     if (stat == 0) call read_integrator(unit, config, stat, message)
     if (stat == 0) call read_output(unit, config, stat, message)
     close (unit)
@@ -215,6 +221,63 @@ contains
     end subroutine require
   end subroutine read_initial
 
+  subroutine read_constraints(unit, config, stat, message)
+    integer, intent(in) :: unit
+    type(run_configuration), intent(inout) :: config
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    logical :: fix_length, fix_temperature
+    real(real64) :: length, temperature
+    type(item_text), allocatable :: items(:)
+    character(len=text_length) :: io_message
+    integer :: ios, i
+    namelist /constraints/ fix_length, length, fix_temperature, temperature
+    type(field_spec), parameter :: fields(4) = [ &
+      field_spec('fix_length', '.true. or .false.'), &
+      field_spec('length', 'a real number > 0 equal to |q1| at t = 0 [m]'), &
+      field_spec('fix_temperature', '.true. or .false.'), &
+      field_spec('temperature', 'a real number > 0 equal to theta(1) at t = 0 [K]')]
+
+    ! Defaults make both constraints hold at t = 0 (FORMULATION section 7).
+    fix_length = .false.
+    fix_temperature = .false.
+    length = norm2(config%q1)
+    temperature = config%theta(1)
+    stat = 0
+    message = ''
+    rewind (unit)
+    read (unit, nml=constraints, iostat=ios, iomsg=io_message)
+    if (ios /= 0 .and. ios /= iostat_end) then
+      ! Read the group's items one at a time to find the one gfortran rejected.
+      call group_items(unit, 'constraints', items)
+      do i = 1, size(items)
+        read (items(i)%text, nml=constraints, iostat=ios, iomsg=io_message)
+        if (ios /= 0) exit
+      end do
+      call explain_failure(config%input_file, 'constraints', fields, items, i, io_message, stat, message)
+      return
+    end if
+    config%fix_length = fix_length
+    config%length = length
+    config%fix_temperature = fix_temperature
+    config%temperature = temperature
+    ! A constraint must hold at t = 0, or the first step would jump onto it and do work.
+    call require(length > 0 .and. abs(length - norm2(config%q1)) <= 1.0e-12_real64*length, &
+                 'length', reals_text([length]))
+    call require(temperature > 0 .and. abs(temperature - config%theta(1)) <= 1.0e-12_real64*temperature, &
+                 'temperature', reals_text([temperature]))
+    if (fix_temperature) config%theta_r = temperature
+
+  contains
+
+    subroutine require(condition, field, value)
+      logical, intent(in) :: condition
+      character(len=*), intent(in) :: field, value
+      if (stat /= 0 .or. condition) return
+      call invalid_value(config%input_file, 'constraints', field, value, fields, stat, message)
+    end subroutine require
+  end subroutine read_constraints
+
   subroutine read_integrator(unit, config, stat, message)
     integer, intent(in) :: unit
     type(run_configuration), intent(inout) :: config
@@ -300,7 +363,7 @@ contains
     namelist /output/ file, theta_r
     type(field_spec), parameter :: fields(2) = [ &
       field_spec('file', 'a path ending in .h5 (default results/<input name>.h5)'), &
-      field_spec('theta_r', 'a real number > 0 [K] (default theta_ref)')]
+      field_spec('theta_r', 'a real number > 0 [K] (default theta_ref, or the fixed temperature)')]
 
     file = default_output_file(config%input_file)
     theta_r = config%theta_r
@@ -416,7 +479,8 @@ contains
       name = lowercase(line(first:last))
       if (.not. any(input_groups == name)) then
         stat = 1
-        message = path//': unknown namelist group &'//name//'; allowed groups: &model, &initial, &integrator, &output'
+        message = path//': unknown namelist group &'//name// &
+                  '; allowed groups: &model, &initial, &constraints, &integrator, &output'
         return
       end if
     end do

@@ -33,10 +33,6 @@ module simulation
     real(real64) :: wall_seconds = 0.0_real64
   end type run_summary
 
-  !> Columns of the per-point and per-step rows (see `define_datasets`).
-  integer, parameter :: point_row_width = 1 + state_size + 2 + 3 + 3
-  integer, parameter :: step_row_width = 6
-
 contains
 
   !> Runs `config` and writes its HDF5 file. stat /= 0 only if the file could not be written
@@ -52,7 +48,8 @@ contains
     type(step_report) :: report
     type(hdf5_file) :: file
     type(series_table) :: points, steps
-    real(real64) :: z(state_size), z_previous(state_size), x_new(state_size), guess(state_size)
+    real(real64), allocatable :: x(:), x_previous(:), x_new(:)
+    real(real64) :: z(state_size), boundary_heat
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, theta(2), time
     integer(int64) :: clock_start, clock_now, clock_rate
     integer :: n, io_stat
@@ -74,6 +71,15 @@ contains
     problem%metric = config%metric
     problem%dt = config%dt
     problem%z_old = z
+    problem%fix_length = config%fix_length
+    problem%length = config%length
+    problem%fix_temperature = config%fix_temperature
+    problem%temperature = config%temperature
+    ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
+    allocate (x(problem%unknowns()), x_previous(problem%unknowns()), x_new(problem%unknowns()))
+    x = 0.0_real64
+    x(1:state_size) = z
+    boundary_heat = 0.0_real64
 
     call open_output(stat, message)
     if (stat /= 0) return
@@ -89,11 +95,10 @@ contains
     energy_0 = energy
     jz_0 = angular_momentum_z(z)
     call record_point(0.0_real64, z, energy, entropy, lyapunov, theta)
-    z_previous = z
+    x_previous = x
     do n = 1, summary%steps_planned
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
-      guess = 2*z - z_previous
-      call solver%solve_step(z, config%dt, guess, x_new, report, ierr)
+      call solver%solve_step(z, config%dt, 2*x - x_previous, x_new, report, ierr)
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       if (ierr /= 0) then
         stat = int(ierr)
@@ -108,12 +113,15 @@ contains
       end if
       call solver%problem%scheme_temperatures(x_new, theta, io_stat)
       call steps%append(file, [real(report%newton_iterations, real64), theta, real(report%strategy, real64), &
-                               real(report%solves, real64), real(report%rejected_roots, real64)], io_stat)
+                               real(report%solves, real64), real(report%rejected_roots, real64), &
+                               x_new(state_size + 1:)], io_stat)
       if (io_stat /= 0) exit
+      if (problem%fix_temperature) boundary_heat = boundary_heat + config%dt*x_new(problem%temperature_multiplier())
       entropy_old = entropy
       lyapunov_old = lyapunov
-      z_previous = z
-      z = x_new
+      x_previous = x
+      x = x_new
+      z = x(1:state_size)
       call observe(z, energy, entropy, lyapunov, theta)
       call record_point(time, z, energy, entropy, lyapunov, theta)
       if (io_stat /= 0) exit
@@ -148,8 +156,21 @@ contains
 
     subroutine record_point(time, z, energy, entropy, lyapunov, theta)
       real(real64), intent(in) :: time, z(state_size), energy, entropy, lyapunov, theta(2)
+      real(real64) :: residuals(2)
+      integer :: k
 
-      call points%append(file, [time, z, theta, energy, entropy, lyapunov, angular_momentum(z)], io_stat)
+      ! g1 = (q1.q1 - length^2)/2 and g2 = Theta_1 - temperature, for the active constraints.
+      k = 0
+      if (problem%fix_length) then
+        k = k + 1
+        residuals(k) = 0.5_real64*(dot_product(z(1:3), z(1:3)) - problem%length**2)
+      end if
+      if (problem%fix_temperature) then
+        k = k + 1
+        residuals(k) = theta(1) - problem%temperature
+      end if
+      call points%append(file, [time, z, theta, energy, entropy, lyapunov, angular_momentum(z), boundary_heat, &
+                                residuals(1:k)], io_stat)
     end subroutine record_point
 
     subroutine open_output(stat, message)
@@ -162,8 +183,8 @@ contains
         message = 'cannot create the output file '''//config%output_file//''' (&output: file)'
         return
       end if
-      call write_run_attributes(file, config, summary%steps_planned, stat)
-      if (stat == 0) call define_datasets(file, points, steps, config%scheme, stat)
+      call write_run_attributes(file, config, summary%steps_planned, problem%unknowns(), stat)
+      if (stat == 0) call define_datasets(file, points, steps, problem, stat)
       if (stat /= 0) message = 'cannot write to '//config%output_file
     end subroutine open_output
 
@@ -181,19 +202,19 @@ contains
   end subroutine run_simulation
 
   ! The datasets, in the order of the rows that feed them. h5py shows (rows) or (rows, columns).
-  subroutine define_datasets(file, points, steps, scheme, stat)
+  subroutine define_datasets(file, points, steps, problem, stat)
     type(hdf5_file), intent(in) :: file
     type(series_table), intent(inout) :: points, steps
-    integer, intent(in) :: scheme
+    type(step_problem), intent(in) :: problem
     integer, intent(out) :: stat
-    character(len=:), allocatable :: columns, temperature_meaning
+    character(len=:), allocatable :: columns, temperature_meaning, multipliers, residuals
     integer :: i
 
     columns = trim(state_column_names(1))
     do i = 2, state_size
       columns = columns//' '//trim(state_column_names(i))
     end do
-    if (scheme == scheme_eme) then
+    if (problem%scheme == scheme_eme) then
       temperature_meaning = 'discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'
     else
       temperature_meaning = 'temperatures at the step''s midpoint, where K0 is evaluated'
@@ -208,6 +229,25 @@ contains
     if (stat == 0) call points%define(file, 'entropy', 1, .false., 'J/K', 'total entropy S = S_1 + S_2', stat)
     if (stat == 0) call points%define(file, 'lyapunov', 1, .false., 'J', 'V = E - theta_r S, eq. (14)', stat)
     if (stat == 0) call points%define(file, 'angular_momentum', 3, .true., 'J s', 'J = q1 x p1 + q2 x p2', stat)
+    if (stat == 0) call points%define(file, 'boundary_heat', 1, .false., 'J', &
+      'heat supplied through constraint g2 since t = 0, sum of dt lambda_2 (zero without it)', stat)
+    ! Constraint data exist only when a constraint is active (FORMULATION section 7).
+    multipliers = ''
+    residuals = ''
+    if (problem%fix_length) then
+      multipliers = 'lambda_length'
+      residuals = 'g1'
+    end if
+    if (problem%fix_temperature) then
+      multipliers = trim(multipliers//' lambda_temperature')
+      residuals = trim(residuals//' g2')
+    end if
+    if (problem%constraint_count() > 0) then
+      if (stat == 0) call points%define(file, 'constraint_residual', problem%constraint_count(), .true., 'SI', &
+        'g1 = (q1.q1 - length^2)/2 [m^2], g2 = Theta_1 - temperature [K], for the active constraints; columns: ' &
+        //adjustl(residuals), stat)
+      if (stat == 0) call file%set_text('columns', adjustl(residuals), stat, points%items(size(points%items))%dataset)
+    end if
     if (stat == 0) call steps%define(file, 'newton_iterations', 1, .false., '1', &
       'Newton iterations of the step, summed over every solve it took', stat, integer_valued=.true.)
     if (stat == 0) call steps%define(file, 'scheme_temperature', 2, .true., 'K', temperature_meaning, stat)
@@ -217,13 +257,19 @@ contains
       'SNESSolve calls of the step (continuation stages included)', stat, integer_valued=.true.)
     if (stat == 0) call steps%define(file, 'rejected_roots', 1, .false., '1', &
       'converged roots rejected as unphysical (non-positive temperature) in the step', stat, integer_valued=.true.)
+    if (problem%constraint_count() > 0) then
+      if (stat == 0) call steps%define(file, 'multiplier', problem%constraint_count(), .true., 'SI', &
+        'Lagrange multipliers: lambda_length [N/m] (force -lambda q1_mid), lambda_temperature [W] (heat supply); '// &
+        'columns: '//adjustl(multipliers), stat)
+      if (stat == 0) call file%set_text('columns', adjustl(multipliers), stat, steps%items(size(steps%items))%dataset)
+    end if
   end subroutine define_datasets
 
   ! Scheme, data and provenance as root attributes, under the namelists' names.
-  subroutine write_run_attributes(file, config, steps_planned, stat)
+  subroutine write_run_attributes(file, config, steps_planned, unknowns, stat)
     type(hdf5_file), intent(in) :: file
     type(run_configuration), intent(in) :: config
-    integer, intent(in) :: steps_planned
+    integer, intent(in) :: steps_planned, unknowns
     integer, intent(out) :: stat
     type(pendulum) :: model
     character(len=:), allocatable :: gradient, metric
@@ -252,6 +298,7 @@ contains
     call real_attribute('newton_tol', config%newton_tol)
     call real_attribute('quotient_threshold', quotient_threshold)
     if (stat == 0) call file%set_integer('steps_planned', steps_planned, stat)
+    if (stat == 0) call file%set_integer('unknowns', unknowns, stat)
     if (stat == 0) call file%set_reals('metric_scale_spring1', model%spring(1)%metric_scale(), stat)
     if (stat == 0) call file%set_reals('metric_scale_spring2', model%spring(2)%metric_scale(), stat)
     associate (p => config%model)
@@ -270,6 +317,19 @@ contains
       call real_attribute('beta_v', p%beta_v)
       call reals('gravity', p%gravity)
     end associate
+    if (config%fix_length .and. config%fix_temperature) then
+      call text('constraints', 'length, temperature')
+    else if (config%fix_length) then
+      call text('constraints', 'length')
+    else if (config%fix_temperature) then
+      call text('constraints', 'temperature')
+    else
+      call text('constraints', 'none')
+    end if
+    if (stat == 0) call file%set_integer('fix_length', merge(1, 0, config%fix_length), stat)
+    call real_attribute('length', config%length)
+    if (stat == 0) call file%set_integer('fix_temperature', merge(1, 0, config%fix_temperature), stat)
+    call real_attribute('temperature', config%temperature)
     call reals('q1', config%q1)
     call reals('q2', config%q2)
     call reals('p1', config%p1)

@@ -7,11 +7,13 @@
 !>  - midpoint (FORMULATION section 6): exact partials at z_mid.
 !> Kinetic energy and gravity are quadratic and linear, so their midpoint gradients are exact
 !> discrete gradients; f evaluates them at z_mid in both schemes.
+!> Active constraints (FORMULATION section 7) append their multipliers to the unknowns and
+!> their equations g(z') = 0 to the residual (`add_constraints`).
 module step_residual
   use, intrinsic :: iso_fortran_env, only: real64
-  use thermo_variable, only: potential_u, potential_s, domain_ok, domain_nonpositive_temperature
+  use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok, domain_nonpositive_temperature
   use pendulum_model, only: pendulum
-  use double_pendulum, only: state_size, q_index, gamma_index, tau_index, var_c, var_gamma, var_tau, &
+  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, var_c, var_gamma, var_tau, &
                              spring_invariants
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional, metric_euclidean, &
                                discrete_gradient_of
@@ -32,8 +34,15 @@ module step_residual
     integer :: metric = metric_nondimensional
     real(real64) :: dt = 0.0_real64
     real(real64) :: z_old(state_size) = 0.0_real64
+    logical :: fix_length = .false.        !! constraint g1 = (q1.q1 - length^2)/2, eq. (13)
+    real(real64) :: length = 1.0_real64    !! lbar_1 [m]
+    logical :: fix_temperature = .false.   !! constraint g2 = Theta_1 - temperature, eq. (13)
+    real(real64) :: temperature = 1.0_real64   !! thetabar_1 [K]
   contains
     procedure :: unknowns
+    procedure :: constraint_count
+    procedure :: length_multiplier
+    procedure :: temperature_multiplier
     procedure :: evaluate
     procedure :: scheme_partials
     procedure :: scheme_temperatures
@@ -42,19 +51,45 @@ module step_residual
 
 contains
 
-  !> Number of unknowns of the step's nonlinear system.
+  !> Number of unknowns of the step's nonlinear system: the state and one multiplier per
+  !> active constraint (the system grows only with what the scene switches on).
   pure function unknowns(self) result(n)
     class(step_problem), intent(in) :: self
     integer :: n
 
-    n = size(self%z_old)
+    n = state_size + self%constraint_count()
   end function unknowns
 
-  !> R(z') and optionally dR/dz'. stat /= 0: z' (or a point the scheme needs) is outside the
-  !> model's domain, e.g. a non-positive temperature; R is then undefined.
-  pure subroutine evaluate(self, z_new, residual, jacobian, stat)
+  !> Number of active constraints.
+  pure function constraint_count(self) result(k)
     class(step_problem), intent(in) :: self
-    real(real64), intent(in) :: z_new(:)
+    integer :: k
+
+    k = count([self%fix_length, self%fix_temperature])
+  end function constraint_count
+
+  !> Position of lambda_1 (length constraint) in the unknowns, 0 if inactive.
+  pure function length_multiplier(self) result(k)
+    class(step_problem), intent(in) :: self
+    integer :: k
+
+    k = merge(state_size + 1, 0, self%fix_length)
+  end function length_multiplier
+
+  !> Position of lambda_2 (temperature constraint) in the unknowns, 0 if inactive.
+  pure function temperature_multiplier(self) result(k)
+    class(step_problem), intent(in) :: self
+    integer :: k
+
+    k = merge(state_size + self%constraint_count(), 0, self%fix_temperature)
+  end function temperature_multiplier
+
+  !> R(x') and optionally dR/dx' for x' = (z', multipliers of the active constraints).
+  !> stat /= 0: z' (or a point the scheme needs) is outside the model's domain, e.g. a
+  !> non-positive temperature; R is then undefined.
+  pure subroutine evaluate(self, x_new, residual, jacobian, stat)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(in) :: x_new(:)
     real(real64), intent(out) :: residual(:)
     real(real64), intent(out), optional :: jacobian(:, :)
     integer, intent(out) :: stat
@@ -63,24 +98,96 @@ contains
     real(real64) :: f(state_size), df_dz(state_size, state_size), df_dpartials(state_size, 3, 2, 2)
     integer :: i
 
-    z_mid = 0.5_real64*(self%z_old + z_new(1:state_size))
+    z_mid = 0.5_real64*(self%z_old + x_new(1:state_size))
     if (present(jacobian)) then
-      call self%scheme_partials(z_new, partials, dpartials_dz, stat)
+      call self%scheme_partials(x_new, partials, dpartials_dz, stat)
       if (stat /= domain_ok) return
       call vector_field(self%model%params, z_mid, partials, f, df_dz, df_dpartials)
-      jacobian = -0.5_real64*df_dz &
-                 - matmul(reshape(df_dpartials, [state_size, 12]), reshape(dpartials_dz, [12, state_size]))
+      jacobian = 0.0_real64
+      jacobian(1:state_size, 1:state_size) = -0.5_real64*df_dz &
+        - matmul(reshape(df_dpartials, [state_size, 12]), reshape(dpartials_dz, [12, state_size]))
       do i = 1, state_size
         jacobian(i, i) = jacobian(i, i) + 1.0_real64/self%dt
       end do
     else
-      call self%scheme_partials(z_new, partials, stat=stat)
+      call self%scheme_partials(x_new, partials, stat=stat)
       if (stat /= domain_ok) return
       call vector_field(self%model%params, z_mid, partials, f)
     end if
-    residual(1:state_size) = (z_new(1:state_size) - self%z_old)/self%dt - f
+    residual(1:state_size) = (x_new(1:state_size) - self%z_old)/self%dt - f
+    if (self%fix_length .or. self%fix_temperature) then
+      call add_constraints(self, x_new, z_mid, partials, dpartials_dz, residual, jacobian, stat)
+      if (stat /= domain_ok) return
+    end if
     if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_nonpositive_temperature
   end subroutine evaluate
+
+  ! The constraint terms N lambda of eq. (15) and the equations g(z') = 0 (FORMULATION section 7):
+  !  - g1 = (q1.q1 - length^2)/2: force -lambda_1 q1_mid on p1 (q1_mid is g1's exact discrete
+  !    gradient, so the constraint does no work and is parallel to q1_mid: E and J_z stay conserved);
+  !  - g2 = Theta_1(z') - temperature: heat supply lambda_2 / D_tau U_1 into tau_1, so that
+  !    E_{n+1} - E_n = dt lambda_2.
+  pure subroutine add_constraints(self, x_new, z_mid, partials, dpartials_dz, residual, jacobian, stat)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(in) :: x_new(:), z_mid(state_size), partials(3, 2, 2), dpartials_dz(3, 2, 2, state_size)
+    real(real64), intent(inout) :: residual(:)
+    real(real64), intent(inout), optional :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: lambda, u_tau, theta, dtheta_dz(state_size)
+    integer :: k, i
+
+    stat = domain_ok
+    if (self%fix_length) then
+      k = self%length_multiplier()
+      lambda = x_new(k)
+      associate (q1 => x_new(q_index(:, 1)))
+        residual(p_index(:, 1)) = residual(p_index(:, 1)) + lambda*z_mid(q_index(:, 1))
+        residual(k) = 0.5_real64*(dot_product(q1, q1) - self%length**2)
+        if (present(jacobian)) then
+          jacobian(p_index(:, 1), k) = z_mid(q_index(:, 1))
+          do i = 1, 3
+            jacobian(p_index(i, 1), q_index(i, 1)) = jacobian(p_index(i, 1), q_index(i, 1)) + 0.5_real64*lambda
+          end do
+          jacobian(k, q_index(:, 1)) = q1
+        end if
+      end associate
+    end if
+    if (self%fix_temperature) then
+      k = self%temperature_multiplier()
+      lambda = x_new(k)
+      u_tau = partials(var_tau, potential_u, 1)
+      residual(tau_index(1)) = residual(tau_index(1)) - lambda/u_tau
+      call spring_temperature_gradient(self%model%spring(1), x_new, theta, dtheta_dz, stat)
+      if (stat /= domain_ok) return
+      residual(k) = theta - self%temperature
+      if (present(jacobian)) then
+        jacobian(tau_index(1), k) = -1.0_real64/u_tau
+        jacobian(tau_index(1), 1:state_size) = jacobian(tau_index(1), 1:state_size) &
+                                               + lambda/u_tau**2*dpartials_dz(var_tau, potential_u, 1, :)
+        jacobian(k, 1:state_size) = dtheta_dz
+      end if
+    end if
+  end subroutine add_constraints
+
+  ! Spring 1's temperature Theta = dU/dtau / dS/dtau (eq. (2)) at z and its gradient in z.
+  pure subroutine spring_temperature_gradient(spring, z, theta, dtheta_dz, stat)
+    type(spring_potential), intent(in) :: spring
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: theta, dtheta_dz(state_size)
+    integer, intent(out) :: stat
+    real(real64) :: f(2), g(2, 2), h(2, 2, 2), dtheta_dx(2)
+
+    dtheta_dz = 0.0_real64
+    theta = 0.0_real64
+    call spring%evaluate(spring_invariants(z, 1), f, g, h, stat)
+    if (stat /= domain_ok) return
+    associate (u_tau => g(2, potential_u), s_tau => g(2, potential_s))
+      theta = u_tau/s_tau
+      dtheta_dx = (h(2, :, potential_u)*s_tau - u_tau*h(2, :, potential_s))/s_tau**2
+    end associate
+    dtheta_dz(q_index(:, 1)) = dtheta_dx(1)*2.0_real64*z(q_index(:, 1))
+    dtheta_dz(tau_index(1)) = dtheta_dx(2)
+  end subroutine spring_temperature_gradient
 
   !> The scheme's partials of U_a, S_a (discrete gradients or midpoint derivatives) for the
   !> step to z', and optionally their derivatives with respect to z'.

@@ -13,7 +13,7 @@ import pytest
 
 from conftest import BIN, namelist_text, read_run, run_eme
 
-POINT_DATASETS = ["time", "state", "temperature", "energy", "entropy", "lyapunov", "angular_momentum"]
+POINT_DATASETS = ["time", "state", "temperature", "energy", "entropy", "lyapunov", "angular_momentum", "boundary_heat"]
 STEP_DATASETS = ["newton_iterations", "scheme_temperature", "solver_strategy", "snes_solves", "rejected_roots"]
 
 

@@ -16,8 +16,9 @@ def make_file(path, energy, entropy, lyapunov, jz, newton):
         f["energy"], f["entropy"], f["lyapunov"] = energy, entropy, lyapunov
         f["angular_momentum"] = np.column_stack([np.zeros_like(jz), np.zeros_like(jz), jz])
         f["newton_iterations"] = newton
+        f["boundary_heat"] = np.zeros_like(energy)
         f.attrs.update(scheme="eme", thermo_variable="entropy", discrete_gradient="gonzalez",
-                       status="complete", wall_time_seconds=1.5)
+                       status="complete", wall_time_seconds=1.5, constraints="none")
 
 
 def test_columns_from_known_numbers(tmp_path):
@@ -31,6 +32,19 @@ def test_columns_from_known_numbers(tmp_path):
     assert row["jz_drift"] == pytest.approx(0.1)
     assert row["newton_per_step"] == pytest.approx(5.0)
     assert row["steps"] == 2 and row["run"] == "eme/entropy/gonzalez"
+
+
+def test_energy_balance_counts_the_boundary_heat(tmp_path):
+    path = tmp_path / "heat.h5"
+    make_file(path, energy=[10.0, 8.0, 7.0], entropy=[1.0, 1.0, 1.0], lyapunov=[1.0, 1.0, 1.0],
+              jz=[0.0, 0.0, 0.0], newton=[1, 1])
+    with h5py.File(path, "a") as f:
+        f["boundary_heat"][...] = [0.0, -2.0, -2.5]            # E_n - E_0 - Q_n = 0, 0, -0.5
+        f["constraint_residual"] = [[0.0], [1e-3], [-2e-3]]
+        f.attrs["constraints"] = "temperature"
+    row = summarize_runs.summarize(path)
+    assert row["energy_drift"] == pytest.approx(0.05)
+    assert row["constraint"] == "2.0e-03" and row["run"].endswith("+ temperature")
 
 
 def test_missing_dataset_is_named(tmp_path):

@@ -61,6 +61,30 @@ program test_step_residual
     end do
   end do
 
+  ! Constraints (FORMULATION section 7): the multipliers are unknowns 16 and 17.
+  do variable = tau_entropy, tau_internal_energy
+    problem%model = make_pendulum(params, variable)
+    do kind = 0, gradient_partitioned
+      problem%scheme = merge(scheme_midpoint, scheme_eme, kind == 0)
+      if (kind > 0) problem%gradient = kind
+      ! A well-separated pair: the stencil must not straddle a spring's fallback branch.
+      problem%z_old = random_state(problem%model)
+      z_new = problem%z_old + 0.2_real64*(random_state(problem%model) - problem%z_old)
+      problem%length = norm2(problem%z_old(q_index(:, 1)))
+      problem%temperature = 290.0_real64
+      problem%fix_length = .true.
+      problem%fix_temperature = .true.
+      call suite%check_equal_int('two constraints add two unknowns', problem%unknowns(), state_size + 2)
+      call check_jacobian([z_new, 3.7_real64, -41.0_real64], trim(case_name(kind))//' with both constraints')
+      problem%fix_length = .false.
+      call check_jacobian([z_new, -41.0_real64], trim(case_name(kind))//' with the temperature constraint')
+      problem%fix_length = .true.
+      problem%fix_temperature = .false.
+      call check_jacobian([z_new, 3.7_real64], trim(case_name(kind))//' with the length constraint')
+      problem%fix_length = .false.
+    end do
+  end do
+
   ! The Euclidean metric (FORMULATION section 5) is a different, equally exact discrete gradient.
   problem%model = make_pendulum(params, tau_internal_energy)
   problem%scheme = scheme_eme
@@ -103,16 +127,16 @@ contains
   ! 4th-order stencil with steps large enough to keep the quotients' rounding out of the way.
   ! The columns listed in fallback_columns move a spring whose discrete gradient is in its
   ! fallback branch: they get small 2nd-order steps so that the perturbed state stays there.
-  subroutine check_jacobian(z_new, label, fallback_columns)
-    real(real64), intent(in) :: z_new(state_size)
+  subroutine check_jacobian(x_new, label, fallback_columns)
+    real(real64), intent(in) :: x_new(:)
     character(len=*), intent(in) :: label
     integer, intent(in), optional :: fallback_columns(:)
-    real(real64) :: r(state_size), jac(state_size, state_size), h(state_size), err, tolerance
+    real(real64) :: r(size(x_new)), jac(size(x_new), size(x_new)), h(size(x_new)), err, tolerance
     integer :: stat, a
 
-    call problem%evaluate(z_new, r, jac, stat)
+    call problem%evaluate(x_new, r, jac, stat)
     call suite%check_equal_int('state in domain, '//label, stat, 0)
-    h = max(1.0_real64, abs(z_new))
+    h = max(1.0_real64, abs(x_new))
     do a = 1, 2
       associate (scale => problem%model%spring(a)%metric_scale())
         h(tau_index(a)) = scale(a + 1)
@@ -126,7 +150,7 @@ contains
       h = 1.0e-4_real64*h
       tolerance = 1.0e-6_real64
     end if
-    err = fd_jacobian_error(residual_of, z_new, jac, h, fourth_order=.not. present(fallback_columns))
+    err = fd_jacobian_error(residual_of, x_new, jac, h, fourth_order=.not. present(fallback_columns))
     call suite%check_true('Jacobian against central differences, '//label, err < tolerance, &
                           'largest |J - J_fd|/(1 + |J|) = '//real_text(err))
   end subroutine check_jacobian

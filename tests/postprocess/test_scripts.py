@@ -1,0 +1,306 @@
+"""The plot scripts on short eme_run runs (t_end = 1 s) and on synthetic files that follow the
+documented layout: they write PNG and PDF, plot the files' own numbers, name a missing dataset,
+and label an incomplete run."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from matplotlib import animation
+from matplotlib.collections import LineCollection
+from PIL import Image
+
+ROOT = Path(__file__).resolve().parents[2]
+POSTPROCESS = ROOT / "postprocess"
+EME_RUN = ROOT / "build" / "bin" / "eme_run"
+sys.path.insert(0, str(POSTPROCESS))
+
+import plot_balance  # noqa: E402
+import plot_constrained  # noqa: E402
+import plot_snapshots  # noqa: E402
+import plot_temperatures  # noqa: E402
+from plotting import figure_texts, plt  # noqa: E402
+from synthetic_runs import constraint_attributes, write_run  # noqa: E402
+from trajectory import CONSTRAINT_ATTRIBUTES, RunFileError, read_run  # noqa: E402
+
+# Matplotlib 3.8's mathtext calls pyparsing names that the unpinned pyparsing 3.3 deprecates.
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:matplotlib._mathtext",
+                                        "ignore::DeprecationWarning:pyparsing")
+
+VARIABLES = ("entropy", "temperature", "internal_energy")
+BALANCE = ["energy", "entropy", "lyapunov"]
+
+
+def run_eme(directory, name, scheme, variable, *options):
+    """1 s of the paper scene; returns (exit status, stderr, output path)."""
+    output = directory / f"{name}.h5"
+    namelist = directory / f"{name}.nml"
+    namelist.write_text(f"&integrator scheme='{scheme}' thermo_variable='{variable}' t_end=1.0 /\n"
+                        f"&output file='{output}' /\n")
+    result = subprocess.run([str(EME_RUN), str(namelist), *options], capture_output=True,
+                            text=True, timeout=120)
+    return result.returncode, result.stderr, output
+
+
+@pytest.fixture(scope="module")
+def eme_files(tmp_path_factory):
+    """{(scheme, variable): path} of complete runs, and 'incomplete': a run that -snes_max_it 1
+    stops at its first step (exit status 3; the file holds only the initial state)."""
+    if not EME_RUN.exists():
+        pytest.skip(f"{EME_RUN} is missing: run `make` in {ROOT} first")
+    directory = tmp_path_factory.mktemp("eme_runs")
+    files = {}
+    for scheme in ("eme", "midpoint"):
+        for variable in VARIABLES:
+            status, stderr, path = run_eme(directory, f"{scheme}_{variable}", scheme, variable)
+            assert status == 0, stderr
+            files[scheme, variable] = path
+    status, stderr, path = run_eme(directory, "incomplete", "eme", "temperature", "-snes_max_it", "1")
+    assert status == 3, f"expected an incomplete run (exit status 3), got {status}: {stderr}"
+    files["incomplete"] = path
+    return files
+
+
+def eme(files):
+    return [files["eme", v] for v in VARIABLES]
+
+
+def midpoint(files):
+    return [files["midpoint", v] for v in VARIABLES]
+
+
+def assert_png_and_pdf(paths, stem):
+    assert [Path(p) for p in paths[:2]] == [stem.with_suffix(".png"), stem.with_suffix(".pdf")]
+    png, pdf = (Path(p).read_bytes() for p in paths[:2])
+    assert png.startswith(b"\x89PNG") and len(png) > 10_000
+    assert pdf.startswith(b"%PDF") and len(pdf) > 5_000
+
+
+def truncated_copy(source, target, steps, status):
+    """A copy of a complete run cut after `steps` steps and marked as the simulator marks an
+    incomplete run (status, steps_completed); per-state datasets keep N+1 rows, per-step ones N."""
+    shutil.copy(source, target)
+    with h5py.File(target, "r+") as f:
+        states = len(f["time"])
+        for name in list(f):
+            rows = steps + 1 if len(f[name]) == states else steps
+            data, attrs = f[name][:rows], dict(f[name].attrs)
+            del f[name]
+            f[name] = data
+            f[name].attrs.update(attrs)
+        f.attrs["status"] = status
+        f.attrs["steps_completed"] = steps
+    return target
+
+
+# ---------------------------------------------------------------- Fig. 4: balance
+def test_balance_writes_png_and_pdf(eme_files, tmp_path):
+    stem = tmp_path / "figures" / "fig4"
+    paths = plot_balance.main([*map(str, eme(eme_files)), "--compare", *map(str, midpoint(eme_files)),
+                               "-o", str(stem)])
+    assert_png_and_pdf(paths, stem)
+
+
+def test_balance_plots_the_files_values_and_next_minus_current_increments(eme_files):
+    runs = [read_run(p, BALANCE) for p in eme(eme_files)]
+    compare = [read_run(p, BALANCE) for p in midpoint(eme_files)]
+    fig = plot_balance.make_figure(runs, compare)
+    axes = fig.axes
+    for row, name in enumerate(BALANCE):
+        values_ax, increments_ax = axes[2 * row], axes[2 * row + 1]
+        assert len(values_ax.get_lines()) == 6 and len(increments_ax.get_lines()) == 6
+        for run, values_line, increments_line in zip(runs + compare, values_ax.get_lines(),
+                                                     increments_ax.get_lines()):
+            with h5py.File(run.path, "r") as f:
+                time, values = f["time"][()], f[name][()]
+            np.testing.assert_array_equal(values_line.get_xdata(), time)
+            np.testing.assert_array_equal(values_line.get_ydata(), values)
+            np.testing.assert_array_equal(increments_line.get_xdata(), time[1:])
+            np.testing.assert_array_equal(increments_line.get_ydata(), values[1:] - values[:-1])
+        styles = [line.get_linestyle() for line in values_ax.get_lines()]
+        assert styles == ["-"] * 3 + ["--"] * 3
+    texts = "\n".join(figure_texts(fig))
+    for variable in VARIABLES:
+        assert f"thermo_variable={variable}" in texts
+    assert "dt=0.15 s" in texts and "input " + str(eme(eme_files)[0].with_suffix(".nml")) in texts
+    assert "E [J]" in texts and "S [J/K]" in texts and "[s]" in texts
+    plt.close(fig)
+
+
+def test_balance_increments_of_1e_minus_12_and_1_joule_are_both_readable(eme_files):
+    runs = [read_run(p, BALANCE) for p in eme(eme_files)]
+    compare = [read_run(p, BALANCE) for p in midpoint(eme_files)]
+    fig = plot_balance.make_figure(runs, compare)
+    energy_increments = fig.axes[1]
+    fig.canvas.draw()
+    assert energy_increments.get_yscale() == "symlog"
+    low, high = energy_increments.get_ylim()
+    assert low <= -1.0 and high >= 1.0
+    to_axes = energy_increments.transAxes.inverted()
+    heights = [to_axes.transform(energy_increments.transData.transform((0.5, y)))[1]
+               for y in (1e-13, 1e-12, 1.0)]
+    # 1e-12 sits a visible distance from both round-off (1e-13) and 1 J on the axis.
+    assert heights[1] - heights[0] > 0.02 and heights[2] - heights[1] > 0.15
+    labels = [t.get_text() for t in energy_increments.get_yticklabels()]
+    assert "1e-12" in labels and "1e+00" in labels
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------- temperatures and J_z
+def test_temperatures_and_jz_drift(eme_files, tmp_path):
+    files = eme(eme_files) + [eme_files["midpoint", "temperature"]]
+    stem = tmp_path / "temperatures"
+    assert_png_and_pdf(plot_temperatures.main([*map(str, files), "-o", str(stem)]), stem)
+    runs = [read_run(p, ["temperature", "angular_momentum"]) for p in files]
+    fig = plot_temperatures.make_figure(runs)
+    for index, path in enumerate(files):
+        with h5py.File(path, "r") as f:
+            theta, jz = f["temperature"][()], f["angular_momentum"][:, 2]
+        np.testing.assert_array_equal(fig.axes[0].get_lines()[index].get_ydata(), theta[:, 0])
+        np.testing.assert_array_equal(fig.axes[1].get_lines()[index].get_ydata(), theta[:, 1])
+        np.testing.assert_array_equal(fig.axes[2].get_lines()[index].get_ydata(), jz - jz[0])
+    assert "[K]" in fig.axes[0].get_ylabel() and "[J s]" in fig.axes[2].get_ylabel()
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------- Fig. 3: snapshots
+def test_snapshots_and_animation(eme_files, tmp_path, capsys):
+    path = eme_files["eme", "temperature"]
+    stem = tmp_path / "fig3"
+    written = plot_snapshots.main([str(path), "--times", "0", "0.5", "5", "-o", str(stem)])
+    assert_png_and_pdf(written, stem)
+    suffix = "mp4" if animation.writers.is_available("ffmpeg") else "gif"
+    assert written[2] == tmp_path / f"fig3_animation.{suffix}"
+    out = capsys.readouterr().out
+    assert f"wrote {written[2]} ({'MP4, ffmpeg' if suffix == 'mp4' else 'GIF, Pillow'}" in out
+    assert "times [5.0] s lie past its last step" in out
+    if suffix == "gif":
+        with h5py.File(path, "r") as f:
+            frames = len(f["time"])
+        assert Image.open(written[2]).n_frames == frames
+
+
+def test_snapshot_springs_join_origin_m1_and_m2_coloured_by_temperature(eme_files):
+    run = read_run(eme_files["eme", "temperature"], ["state", "temperature"])
+    fig = plot_snapshots.make_figure([run], [0.0, 0.45])
+    with h5py.File(run.path, "r") as f:
+        names = f["state"].attrs["columns"].split()
+        state, theta = f["state"][3], f["temperature"][3]
+    q1 = np.array([state[names.index(f"q1_{a}")] for a in "xyz"])
+    q2 = np.array([state[names.index(f"q2_{a}")] for a in "xyz"])
+    side_view = fig.axes[1]  # column 2 (t = 0.45 s = step 3), top row: x-z
+    assert "0.45 s" in side_view.get_title()
+    springs = [c for c in side_view.collections if isinstance(c, LineCollection)][0]
+    m1, m2 = q1[[0, 2]], (q1 + q2)[[0, 2]]
+    np.testing.assert_allclose(springs.get_segments(), [[[0, 0], m1], [m1, m2]])
+    np.testing.assert_array_equal(springs.get_array(), theta)
+    texts = figure_texts(fig)
+    assert any("spring temperature" in t and "[K]" in t for t in texts)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------- Fig. 5: constrained runs
+@pytest.fixture()
+def constrained_files(tmp_path):
+    cases = {"fixed_length": (True, False), "fixed_temperature": (False, True), "both": (True, True)}
+    return [write_run(tmp_path / f"fig5_{name}.h5", steps=6,
+                      attributes={"dt": 0.15, **constraint_attributes(*flags)})[0]
+            for name, flags in cases.items()]
+
+
+def test_constrained_runs(constrained_files, tmp_path):
+    stem = tmp_path / "fig5"
+    assert_png_and_pdf(plot_constrained.main([*map(str, constrained_files), "-o", str(stem)]), stem)
+    runs = [read_run(p, BALANCE, CONSTRAINT_ATTRIBUTES) for p in constrained_files]
+    fig = plot_constrained.make_figure(runs)
+    for index, path in enumerate(constrained_files):
+        with h5py.File(path, "r") as f:
+            values = {name: f[name][()] for name in ("time", *BALANCE)}
+        for ax, name in zip(fig.axes[:3], BALANCE):
+            np.testing.assert_array_equal(ax.get_lines()[index].get_ydata(), values[name])
+        lyapunov_increments = fig.axes[3].get_lines()[index]
+        np.testing.assert_array_equal(lyapunov_increments.get_xdata(), values["time"][1:])
+        np.testing.assert_array_equal(lyapunov_increments.get_ydata(),
+                                      values["lyapunov"][1:] - values["lyapunov"][:-1])
+    legend = "\n".join(t.get_text() for t in fig.legends[0].get_texts())
+    assert legend.count(r"$l_1$ = 2.5 m") == 2 and legend.count(r"$\theta_1$ = 300 K") == 2
+    plt.close(fig)
+
+
+def test_constrained_run_without_constraint_attributes_is_refused(tmp_path):
+    path, _ = write_run(tmp_path / "plain.h5", attributes={"constraints": "length"})
+    with pytest.raises(RunFileError, match=f"{path}: root attribute 'fix_length' is missing"):
+        plot_constrained.main([str(path), "-o", str(tmp_path / "out")])
+
+
+# ---------------------------------------------------------------- incomplete runs
+def test_incomplete_run_from_eme_run_is_plotted_and_labelled(eme_files, tmp_path):
+    path = eme_files["incomplete"]
+    with h5py.File(path, "r") as f:
+        status = f.attrs["status"]
+    assert status.startswith("incomplete")
+    for module, needed in [(plot_balance, BALANCE), (plot_temperatures, ["temperature", "angular_momentum"])]:
+        stem = tmp_path / module.__name__
+        assert_png_and_pdf(module.main([str(path), "-o", str(stem)]), stem)
+        fig = module.make_figure([read_run(path, needed)])
+        texts = "\n".join(figure_texts(fig))
+        assert "INCOMPLETE after 0 steps" in texts and "status: incomplete: step 1" in texts
+        plt.close(fig)
+    stem = tmp_path / "snapshots"
+    written = plot_snapshots.main([str(path), "-o", str(stem)])
+    assert_png_and_pdf(written, stem)
+
+
+def test_truncated_run_is_plotted_up_to_its_last_step(eme_files, tmp_path):
+    status = "incomplete: step 4 (t = .6000 s): Newton did not converge"
+    path = truncated_copy(eme_files["eme", "entropy"], tmp_path / "stopped.h5", 3, status)
+    fig = plot_balance.make_figure([read_run(path, BALANCE)])
+    assert len(fig.axes[0].get_lines()[0].get_ydata()) == 4
+    assert len(fig.axes[1].get_lines()[0].get_ydata()) == 3
+    texts = "\n".join(figure_texts(fig))
+    assert "INCOMPLETE after 3 steps" in texts and status in texts.replace("\n    ", " ")
+    plt.close(fig)
+    stem = tmp_path / "snapshots"
+    assert_png_and_pdf(plot_snapshots.main([str(path), "--no-animation", "-o", str(stem)]), stem)
+
+
+# ---------------------------------------------------------------- the command line
+SCRIPTS = ["plot_balance.py", "plot_temperatures.py", "plot_snapshots.py", "plot_constrained.py"]
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_help(script):
+    result = subprocess.run([sys.executable, str(POSTPROCESS / script), "--help"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert "OUT.png and OUT.pdf" in result.stdout and "FILE.h5" in result.stdout
+    if script == "plot_snapshots.py":
+        assert "OUT.mp4" in result.stdout and "ffmpeg" in result.stdout and "OUT.gif" in result.stdout
+    if script == "plot_balance.py":
+        assert "--compare" in result.stdout
+
+
+def test_command_line_on_eme_run_output(eme_files, tmp_path):
+    # One script through `python postprocess/SCRIPT.py`; the others run the same main() above.
+    stem = tmp_path / "out"
+    result = subprocess.run([sys.executable, str(POSTPROCESS / "plot_temperatures.py"),
+                             *map(str, eme(eme_files)), "-o", str(stem)],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["wrote", str(stem) + ".png", "wrote", str(stem) + ".pdf"]
+    assert_png_and_pdf([stem.with_suffix(".png"), stem.with_suffix(".pdf")], stem)
+
+
+def test_command_line_names_a_missing_dataset(eme_files, tmp_path):
+    path = tmp_path / "no_lyapunov.h5"
+    shutil.copy(eme_files["eme", "entropy"], path)
+    with h5py.File(path, "r+") as f:
+        del f["lyapunov"]
+    result = subprocess.run([sys.executable, str(POSTPROCESS / "plot_balance.py"), str(path),
+                             "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr.strip() == f"plot_balance.py: error: {path}: dataset '/lyapunov' is missing"
+    assert not (tmp_path / "out.png").exists()

@@ -1,0 +1,116 @@
+"""The reader and data extraction of postprocess/trajectory.py on hand-made inputs."""
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "postprocess"))
+
+import trajectory  # noqa: E402
+from synthetic_runs import STATE_COLUMNS, constraint_attributes, write_run  # noqa: E402
+from trajectory import RunFileError, read_run  # noqa: E402
+
+
+def test_increments_are_next_minus_current():
+    np.testing.assert_array_equal(trajectory.increments([1.0, 4.0, 9.0, 16.0]), [3.0, 5.0, 7.0])
+    np.testing.assert_array_equal(trajectory.increments([2.0, 1.0]), [-1.0])
+    assert trajectory.increments([5.0]).shape == (0,)
+
+
+def test_jz_drift_is_z_component_minus_its_initial_value(tmp_path):
+    momentum = np.array([[7.0, 8.0, -3.0], [1.0, 2.0, -2.5], [0.0, 0.0, -4.0]])
+    path, _ = write_run(tmp_path / "run.h5", steps=2, data={"angular_momentum": momentum})
+    run = read_run(path, ["angular_momentum"])
+    np.testing.assert_array_equal(trajectory.jz_drift(run), [0.0, 0.5, -1.0])
+
+
+def test_positions_follow_the_columns_attribute_and_q2_is_relative(tmp_path):
+    # Columns written in reverse order: guessing positions 0..5 would read tau2, tau1, gamma, ...
+    path, data = write_run(tmp_path / "run.h5", columns=STATE_COLUMNS[::-1])
+    m1, m2 = trajectory.mass_positions(read_run(path, ["state"]))
+    q1, q2 = data["state"][:, 0:3], data["state"][:, 3:6]
+    np.testing.assert_array_equal(m1, q1)
+    np.testing.assert_array_equal(m2, q1 + q2)
+
+
+def test_a_missing_state_column_is_named(tmp_path):
+    path, _ = write_run(tmp_path / "run.h5")
+    with h5py.File(path, "r+") as f:
+        f["state"].attrs["columns"] = " ".join(c if c != "q2_z" else "q2_w" for c in STATE_COLUMNS)
+    with pytest.raises(RunFileError) as error:
+        trajectory.mass_positions(read_run(path, ["state"]))
+    assert str(path) in str(error.value) and "/state" in str(error.value) and "'q2_z'" in str(error.value)
+
+
+def test_a_missing_dataset_is_named_with_the_file(tmp_path):
+    path, _ = write_run(tmp_path / "run.h5", drop=["lyapunov"])
+    assert read_run(path, ["energy"]).data["energy"].shape == (5,)
+    with pytest.raises(RunFileError) as error:
+        read_run(path, ["energy", "lyapunov"])
+    assert str(error.value) == f"{path}: dataset '/lyapunov' is missing"
+
+
+@pytest.mark.parametrize("attribute", ["dt", "input_file", "status", "thermo_variable"])
+def test_a_missing_attribute_is_named_with_the_file(tmp_path, attribute):
+    path, _ = write_run(tmp_path / "run.h5", drop=[attribute])
+    with pytest.raises(RunFileError) as error:
+        read_run(path, ["energy"])
+    assert str(error.value) == f"{path}: root attribute '{attribute}' is missing"
+
+
+def test_a_constraint_attribute_is_required_only_when_asked_for(tmp_path):
+    path, _ = write_run(tmp_path / "run.h5")  # no constraint attributes at all
+    read_run(path, ["energy"])
+    with pytest.raises(RunFileError, match="root attribute 'constraints' is missing"):
+        read_run(path, ["energy"], trajectory.CONSTRAINT_ATTRIBUTES)
+
+
+def test_a_dataset_of_the_wrong_length_is_reported(tmp_path):
+    path, _ = write_run(tmp_path / "run.h5", data={"entropy": np.zeros(3)})
+    with pytest.raises(RunFileError, match="'/entropy' has 3 rows, expected 5"):
+        read_run(path, ["entropy"])
+
+
+def test_a_file_that_is_not_hdf5_is_named(tmp_path):
+    path = tmp_path / "notes.h5"
+    path.write_text("not HDF5")
+    with pytest.raises(RunFileError, match=f"{path}: cannot open"):
+        read_run(path, ["energy"])
+
+
+def test_incomplete_status_is_detected_and_labelled(tmp_path):
+    status = "incomplete: step 3 (t = .3000 s): Newton did not converge"
+    path, _ = write_run(tmp_path / "stopped.h5", steps=2, attributes={"status": status})
+    run = read_run(path, ["energy"])
+    assert run.incomplete and run.steps == 2
+    assert "INCOMPLETE after 2 steps" in run.label
+    assert status in run.description
+    complete = read_run(write_run(tmp_path / "done.h5")[0], ["energy"])
+    assert not complete.incomplete and "INCOMPLETE" not in complete.label
+
+
+def test_description_states_scheme_variable_dt_and_input(tmp_path):
+    path, _ = write_run(tmp_path / "run.h5", attributes={"thermo_variable": "internal_energy",
+                                                          "dt": 0.05, "input_file": "inputs/x.nml"})
+    run = read_run(path, ["energy"])
+    assert run.name == "EME_u"
+    for text in ("eme", "thermo_variable=internal_energy", "dt=0.05 s", "input inputs/x.nml", str(path)):
+        assert text in run.description
+
+
+def test_snapshot_steps_pick_the_nearest_step_and_drop_times_past_the_end():
+    time = 0.5 * np.arange(5)  # 0, 0.5, ..., 2.0
+    steps, dropped = trajectory.snapshot_steps(time, [0.0, 0.74, 0.76, 2.2, 3.0])
+    assert steps == [0, 1, 2, 4]
+    assert dropped == [3.0]
+
+
+def test_constraint_summary_reads_the_constraint_attributes(tmp_path):
+    both = read_run(write_run(tmp_path / "both.h5", attributes=constraint_attributes(True, True))[0],
+                    [], trajectory.CONSTRAINT_ATTRIBUTES)
+    assert trajectory.constraint_summary(both) == r"$g_1$: $l_1$ = 2.5 m, $g_2$: $\theta_1$ = 300 K"
+    length = read_run(write_run(tmp_path / "length.h5", attributes=constraint_attributes(True, False))[0],
+                      [], trajectory.CONSTRAINT_ATTRIBUTES)
+    assert trajectory.constraint_summary(length) == r"$g_1$: $l_1$ = 2.5 m"
