@@ -35,7 +35,7 @@ STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_f
 SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
 SOLVER := src/solver/step_solver.F90
 IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_series.f90 src/io/build_info.F90 \
-      src/io/run_config.f90
+      src/io/namelist_text.f90 src/io/run_config.f90
 RUN := src/run/simulation.F90
 LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
@@ -62,7 +62,7 @@ $(call o,solver/step_solver): $(call o,scheme/step_residual)
 # PETSc callbacks have fixed argument lists; some arguments are not needed.
 $(call o,solver/step_solver): FFLAGS += -Wno-unused-dummy-argument
 $(call o,io/run_config): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
-    $(call o,scheme/discrete_gradient) $(call o,scheme/step_residual)
+    $(call o,scheme/discrete_gradient) $(call o,scheme/step_residual) $(call o,io/namelist_text)
 $(call o,run/simulation): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
     $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) \
     $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,io/run_config) \

@@ -21,7 +21,7 @@ def make_figure(runs, title="Constrained runs: energy, entropy and Lyapunov func
         time = run.data["time"]
         for (name, _), ax in zip(PANELS, axes.flat):
             ax.plot(time, run.data[name], **style)
-        axes[1, 1].plot(time[1:], increments(run.data["lyapunov"]), marker=".", markersize=4,
+        axes[1, 1].plot(time[1:], increments(run.data["energy"]), marker=".", markersize=4,
                         linestyle="none", color=style["color"])
     for (_, label), ax in zip(PANELS, axes.flat):
         ax.set_ylabel(label)

@@ -53,7 +53,8 @@ def describe(fig, title, runs):
     lines = [title]
     for run in runs:
         text = f"{run.name}: {run.description}"
-        lines.extend(textwrap.wrap(text, 150, subsequent_indent="    "))
+        lines.extend(textwrap.wrap(text, 150, subsequent_indent="    ", break_long_words=False,
+                                   break_on_hyphens=False))
     fig.suptitle("\n".join(lines), x=0.01, ha="left", fontsize=7)
 
 

@@ -22,13 +22,9 @@ import plot_balance  # noqa: E402
 import plot_constrained  # noqa: E402
 import plot_snapshots  # noqa: E402
 import plot_temperatures  # noqa: E402
-from plotting import figure_texts, plt  # noqa: E402
+from plotting import figure_texts as texts_of, plt  # noqa: E402
 from synthetic_runs import constraint_attributes, write_run  # noqa: E402
 from trajectory import CONSTRAINT_ATTRIBUTES, RunFileError, read_run  # noqa: E402
-
-# Matplotlib 3.8's mathtext calls pyparsing names that the unpinned pyparsing 3.3 deprecates.
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:matplotlib._mathtext",
-                                        "ignore::DeprecationWarning:pyparsing")
 
 VARIABLES = ("entropy", "temperature", "internal_energy")
 BALANCE = ["energy", "entropy", "lyapunov"]
@@ -70,6 +66,11 @@ def eme(files):
 
 def midpoint(files):
     return [files["midpoint", v] for v in VARIABLES]
+
+
+def figure_texts(fig):
+    """Every text of a figure, with the run descriptions' wrapped lines joined again."""
+    return [text.replace("\n    ", " ") for text in texts_of(fig)]
 
 
 def assert_png_and_pdf(paths, stem):
@@ -261,7 +262,7 @@ def test_truncated_run_is_plotted_up_to_its_last_step(eme_files, tmp_path):
     assert len(fig.axes[0].get_lines()[0].get_ydata()) == 4
     assert len(fig.axes[1].get_lines()[0].get_ydata()) == 3
     texts = "\n".join(figure_texts(fig))
-    assert "INCOMPLETE after 3 steps" in texts and status in texts.replace("\n    ", " ")
+    assert "INCOMPLETE after 3 steps" in texts and status in texts
     plt.close(fig)
     stem = tmp_path / "snapshots"
     assert_png_and_pdf(plot_snapshots.main([str(path), "--no-animation", "-o", str(stem)]), stem)

@@ -1,0 +1,305 @@
+!> Namelist files as text: the whole file without comments, its group names, and a group split
+!> into `name = value` items. Readers apply each item with its own one-item namelist read, so
+!> that a failing item is known by name, and extra items (overrides) can follow the file's.
+module namelist_text
+  use, intrinsic :: iso_fortran_env, only: real64
+  implicit none (type, external)
+  private
+  public :: field_spec, namelist_item, read_source_text, group_names, group_items, item_name
+  public :: item_failure, invalid_value_message, names_list, allowed_of, reals_text, lowercase
+
+  !> A field a group accepts and what it allows, for messages.
+  type :: field_spec
+    character(len=24) :: name
+    character(len=80) :: allowed
+  end type field_spec
+
+  !> One `name = value` item: as written, as a one-item record '&group item /', and its origin
+  !> (the file's name, or e.g. 'study override').
+  type :: namelist_item
+    character(len=:), allocatable :: item
+    character(len=:), allocatable :: record
+    character(len=:), allocatable :: origin
+  end type namelist_item
+
+  integer, parameter :: line_length = 1024
+
+contains
+
+  !> The file's text with comments removed and lines joined by blanks.
+  subroutine read_source_text(path, text, stat, message)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: text
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=line_length) :: line
+    character(len=256) :: io_message
+    integer :: unit, ios
+
+    text = ''
+    message = ''
+    open (newunit=unit, file=path, status='old', action='read', iostat=stat, iomsg=io_message)
+    if (stat /= 0) then
+      message = path//': cannot read the input file: '//trim(io_message)
+      return
+    end if
+    do
+      read (unit, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      text = text//' '//trim(without_comment(line))
+    end do
+    close (unit)
+  end subroutine read_source_text
+
+  !> Lower-case names of every group '&name' in the text, in order (outside quotes).
+  subroutine group_names(text, names)
+    character(len=*), intent(in) :: text
+    character(len=32), allocatable, intent(out) :: names(:)
+    integer :: i, last
+
+    allocate (names(0))
+    do i = 1, len(text)
+      if (text(i:i) /= '&' .or. quoted_at(text, i)) cycle
+      last = i + verify(text(i + 1:)//' ', 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_') - 1
+      names = [names, lowercase(text(i + 1:last))]
+    end do
+  end subroutine group_names
+
+  !> The items of the `occurrence`-th group &group in the text (first by default), followed by
+  !> the `extra` items whose names are among `fields`. `origin` names where the file's came from.
+  subroutine group_items(text, group, fields, origin, items, extra, occurrence)
+    character(len=*), intent(in) :: text, group, origin
+    type(field_spec), intent(in) :: fields(:)
+    type(namelist_item), allocatable, intent(out) :: items(:)
+    type(namelist_item), intent(in), optional :: extra(:)
+    integer, intent(in), optional :: occurrence
+    character(len=:), allocatable :: body
+    integer :: start, finish, next, i
+
+    allocate (items(0))
+    call group_body(text, group, body, occurrence)
+    start = 1
+    do while (start <= len(body))
+      call next_item(body, start, finish, next)
+      if (finish < start) exit
+      items = [items, namelist_item(body(start:finish), '&'//group//' '//body(start:finish)//' /', origin)]
+      start = next
+    end do
+    if (.not. present(extra)) return
+    do i = 1, size(extra)
+      if (any(fields%name == item_name(extra(i)%item))) &
+        items = [items, namelist_item(extra(i)%item, '&'//group//' '//extra(i)%item//' /', extra(i)%origin)]
+    end do
+  end subroutine group_items
+
+  !> The message for an item whose one-item read failed: an unknown name, or a value of the
+  !> wrong kind.
+  function item_failure(item, group, fields) result(message)
+    type(namelist_item), intent(in) :: item
+    character(len=*), intent(in) :: group
+    type(field_spec), intent(in) :: fields(:)
+    character(len=:), allocatable :: message
+    character(len=:), allocatable :: name, value
+
+    name = item_name(item%item)
+    if (.not. any(fields%name == name)) then
+      message = item%origin//': &'//group//': unknown field '''//name//'''; allowed: '//names_list(fields)
+    else
+      value = trim(adjustl(item%item(index(item%item, '=') + 1:)))
+      if (len(value) == 0) value = ' '
+      if (verify(value(1:1), '''"') /= 0) value = ''''//value//''''
+      message = item%origin//': &'//group//': field '''//name//''' cannot take the value '//value// &
+                '; allowed: '//trim(allowed_of(fields, name))
+    end if
+  end function item_failure
+
+  !> "origin: &group: field = value is not allowed; allowed: ..."
+  function invalid_value_message(origin, group, field, value, fields) result(message)
+    character(len=*), intent(in) :: origin, group, field, value
+    type(field_spec), intent(in) :: fields(:)
+    character(len=:), allocatable :: message
+
+    message = origin//': &'//group//': '//field//' = '//trim(value)//' is not allowed; allowed: ' &
+              //trim(allowed_of(fields, field))
+  end function invalid_value_message
+
+  !> The field name of an item 'name[(...)] = value', in lower case.
+  pure function item_name(item) result(name)
+    character(len=*), intent(in) :: item
+    character(len=:), allocatable :: name
+    integer :: stop_at
+
+    stop_at = scan(item, '=(')
+    if (stop_at == 0) stop_at = len(item) + 1
+    name = trim(lowercase(adjustl(item(1:stop_at - 1))))
+  end function item_name
+
+  !> 'a, b, c' from the fields' names.
+  pure function names_list(fields) result(list)
+    type(field_spec), intent(in) :: fields(:)
+    character(len=:), allocatable :: list
+    integer :: i
+
+    list = trim(fields(1)%name)
+    do i = 2, size(fields)
+      list = list//', '//trim(fields(i)%name)
+    end do
+  end function names_list
+
+  !> What field `name` allows ('' if unknown).
+  pure function allowed_of(fields, name) result(allowed)
+    type(field_spec), intent(in) :: fields(:)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: allowed
+    integer :: i
+
+    allowed = ''
+    do i = 1, size(fields)
+      if (fields(i)%name == name) allowed = trim(fields(i)%allowed)
+    end do
+  end function allowed_of
+
+  !> Values as a user would write them: 6 significant digits, trailing zeros dropped.
+  pure function reals_text(values) result(text)
+    real(real64), intent(in) :: values(:)
+    character(len=:), allocatable :: text
+    character(len=32) :: one
+    integer :: i, exponent_at, last
+
+    text = ''
+    do i = 1, size(values)
+      write (one, '(g0.6)') values(i)
+      exponent_at = scan(one, 'Ee')
+      if (exponent_at == 0) exponent_at = len_trim(one) + 1
+      last = exponent_at - 1
+      do while (last > 1 .and. one(last:last) == '0' .and. one(last - 1:last - 1) /= '.')
+        last = last - 1
+      end do
+      if (i > 1) text = text//', '
+      text = text//one(1:last)//trim(one(exponent_at:))
+    end do
+  end function reals_text
+
+  !> ASCII lower case.
+  pure function lowercase(text) result(lower)
+    character(len=*), intent(in) :: text
+    character(len=len(text)) :: lower
+    integer :: i, code
+
+    lower = text
+    do i = 1, len(text)
+      code = iachar(text(i:i))
+      if (code >= iachar('A') .and. code <= iachar('Z')) lower(i:i) = achar(code + 32)
+    end do
+  end function lowercase
+
+  ! ------------------------------------------------------------------ scanning
+
+  ! The text between the occurrence-th '&group' and its closing '/' (outside quotes); '' if absent.
+  subroutine group_body(text, group, body, occurrence)
+    character(len=*), intent(in) :: text, group
+    character(len=:), allocatable, intent(out) :: body
+    integer, intent(in), optional :: occurrence
+    integer :: i, start, wanted, found
+
+    body = ''
+    wanted = 1
+    if (present(occurrence)) wanted = occurrence
+    found = 0
+    start = 0
+    do i = 1, len(text) - len(group)
+      if (text(i:i) /= '&' .or. quoted_at(text, i)) cycle
+      if (lowercase(text(i + 1:i + len(group))) /= group) cycle
+      if (i + len(group) < len(text)) then
+        if (verify(text(i + len(group) + 1:i + len(group) + 1), ' /') /= 0) cycle
+      end if
+      found = found + 1
+      if (found == wanted) then
+        start = i + len(group) + 1
+        exit
+      end if
+    end do
+    if (start == 0) return
+    do i = start, len(text)
+      if (text(i:i) == '/' .and. .not. quoted_at(text, i)) then
+        body = text(start:i - 1)
+        return
+      end if
+    end do
+    body = text(start:)
+  end subroutine group_body
+
+  ! The next item 'name[(...)] = values' of a group body starting at `start`: it ends where the
+  ! next 'name =' begins (outside quotes). Returns finish < start when no item is left.
+  subroutine next_item(body, start, finish, next)
+    character(len=*), intent(in) :: body
+    integer, intent(inout) :: start
+    integer, intent(out) :: finish, next
+    integer :: i, equals
+
+    do while (start <= len(body))
+      if (index(' ,', body(start:start)) == 0) exit
+      start = start + 1
+    end do
+    finish = start - 1
+    next = len(body) + 1
+    if (start > len(body)) return
+    equals = index(body(start:), '=')
+    if (equals == 0) then
+      finish = len_trim(body)
+      return
+    end if
+    equals = start + equals - 1
+    do i = equals + 1, len(body)
+      if (body(i:i) /= '=' .or. quoted_at(body, i)) cycle
+      ! back up over the name (and any subscript) in front of this '='
+      next = i - 1
+      do while (next > equals .and. body(next:next) == ' ')
+        next = next - 1
+      end do
+      if (body(next:next) == ')') next = index(body(1:next), '(', back=.true.) - 1
+      do while (next > equals .and. index(' ,', body(next:next)) == 0)
+        next = next - 1
+      end do
+      finish = next
+      next = next + 1
+      return
+    end do
+    finish = len_trim(body)
+  end subroutine next_item
+
+  ! Whether position i of the text lies inside a quoted string.
+  pure logical function quoted_at(text, i)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: i
+    integer :: j
+    character :: quote
+
+    quoted_at = .false.
+    quote = ' '
+    do j = 1, i - 1
+      if (quoted_at) then
+        if (text(j:j) == quote) quoted_at = .false.
+      else if (text(j:j) == '''' .or. text(j:j) == '"') then
+        quoted_at = .true.
+        quote = text(j:j)
+      end if
+    end do
+  end function quoted_at
+
+  ! A line without its '!' comment (a '!' inside quotes is kept).
+  pure function without_comment(line) result(code)
+    character(len=*), intent(in) :: line
+    character(len=len(line)) :: code
+    integer :: i
+
+    code = line
+    do i = 1, len_trim(line)
+      if (line(i:i) == '!' .and. .not. quoted_at(line, i)) then
+        code(i:) = ''
+        return
+      end if
+    end do
+  end function without_comment
+
+end module namelist_text

@@ -1,0 +1,33 @@
+"""Namelist syntax users write: several groups on a line, upper case, comments, '!' and '/'
+inside strings, array elements and repeat counts all read as Fortran would read them."""
+import subprocess
+
+import numpy as np
+
+from conftest import BIN, read_run
+
+
+def run_text(tmp_path, text):
+    namelist = tmp_path / "scene.nml"
+    namelist.write_text(text)
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    return result
+
+
+def test_groups_on_one_line_upper_case_and_comments(tmp_path, eme_run_binary):
+    output = tmp_path / "odd!name" / "run.h5"
+    run_text(tmp_path, f"! a comment line\n&INTEGRATOR DT = 0.1, T_END=0.3 / &output file = '{output}' ! why\n/\n"
+                       "&initial theta(2) = 360.0  p2(1:2) = 2*0.5 /\n&model mass = 2*1.5 /\n")
+    data = read_run(output)
+    assert data["attrs"]["dt"] == 0.1 and data["attrs"]["t_end"] == 0.3
+    np.testing.assert_allclose(data["attrs"]["theta"], [280.0, 360.0])
+    np.testing.assert_allclose(data["attrs"]["p2"], [0.5, 0.5, 0.0])
+    np.testing.assert_allclose(data["attrs"]["mass"], [1.5, 1.5])
+    np.testing.assert_allclose(data["temperature"][0], [280.0, 360.0])
+
+
+def test_later_assignment_wins(tmp_path, eme_run_binary):
+    output = tmp_path / "run.h5"
+    run_text(tmp_path, f"&integrator dt = 0.2, t_end = 0.4, dt = 0.1 /\n&output file = '{output}' /\n")
+    assert read_run(output)["attrs"]["dt"] == 0.1
