@@ -3,6 +3,8 @@ increments X_{n+1} - X_n, for EME_s, EME_theta and EME_u (one run file each).
 
 Increments are drawn on a symmetric-log axis, so a round-off increment of 1e-12 and a
 midpoint-rule increment of 1 J are both readable and the sign is the side of zero.
+
+Example: plot_balance.py eme_s.h5 eme_theta.h5 eme_u.h5 --compare mp_s.h5 mp_theta.h5 mp_u.h5 -o fig4
 """
 from plotting import (argument_parser, colour, describe, flat_aware_limits, increment_axis,
                       plt, run_script, save)

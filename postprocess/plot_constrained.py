@@ -16,12 +16,12 @@ def make_figure(runs, title="Constrained runs: energy, entropy and Lyapunov func
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True, layout="constrained")
     colours = matplotlib.colormaps["tab10"].colors
     for index, run in enumerate(runs):
-        style = dict(color=colours[index % len(colours)], linewidth=1.0,
-                     label=rf"{run.label}, {constraint_summary(run)}, $\theta_R$ = {run.attrs['theta_r']:g} K")
+        label = rf"{run.label}, {constraint_summary(run)}, $\theta_R$ = {run.attrs['theta_r']:g} K"
+        style = dict(color=colours[index % len(colours)], linewidth=1.0, label=label)
         time = run.data["time"]
         for (name, _), ax in zip(PANELS, axes.flat):
             ax.plot(time, run.data[name], **style)
-        axes[1, 1].plot(time[1:], increments(run.data["energy"]), marker=".", markersize=4,
+        axes[1, 1].plot(time[1:], increments(run.data["lyapunov"]), marker=".", markersize=4,
                         linestyle="none", color=style["color"])
     for (_, label), ax in zip(PANELS, axes.flat):
         ax.set_ylabel(label)

@@ -4,9 +4,9 @@ Each snapshot shows the origin (support), the masses m1 at q1 and m2 at q1 + q2 
 relative to m1) and the two springs coloured by their temperatures, in two projections:
 side view x-z (gravity points to -z) and top view x-y. One row pair per run file.
 
-Animation: written as OUT.mp4 with matplotlib's ffmpeg writer when ffmpeg is on PATH,
-otherwise as OUT.gif with the Pillow writer (Pillow ships with matplotlib). The script prints
-which one it wrote.
+Animation (unless --no-animation): written as OUT_animation.mp4 with matplotlib's ffmpeg
+writer when ffmpeg is on PATH, otherwise as OUT_animation.gif with the Pillow writer (Pillow
+ships with matplotlib). The script prints which one it wrote.
 """
 import matplotlib
 from matplotlib import animation
@@ -27,11 +27,12 @@ def pendulum_points(run):
 
 
 def view_limits(runs):
-    """Common square-ish limits per coordinate over every run, origin included, 5 % margin."""
+    """Limits (low, high) per coordinate over every run, origin included: one common width for
+    x, y and z, so every panel is square at equal aspect even when the motion is flat."""
     points = np.concatenate([pendulum_points(run).reshape(-1, 3) for run in runs])
     low, high = points.min(axis=0), points.max(axis=0)
-    margin = 0.05 * max(high - low) + 0.1
-    return low - margin, high + margin
+    centre, half_width = 0.5 * (low + high), 0.55 * max(high - low) + 0.1
+    return centre - half_width, centre + half_width
 
 
 def temperature_scale(runs):
@@ -129,7 +130,9 @@ def write_animation(runs, output, max_frames):
             title.set_text(f"{run.label}: $t_n$ = {run.data['time'][step]:.2f} s")
 
     suffix, writer = animation_writer()
-    path = output_stem(output).with_name(output_stem(output).name + "_animation." + suffix)
+    stem = output_stem(output)
+    path = stem.with_name(f"{stem.name}_animation.{suffix}")
+    draw(frame_times[0])
     fig.canvas.draw()
     fig.set_layout_engine("none")  # the layout is fixed now; re-solving it per frame is slow
     with writer.saving(fig, path, dpi=80):
@@ -153,6 +156,8 @@ def main(argv=None):
     runs = [read_run(path, ["state", "temperature"]) for path in args.files]
     last = max(run.data["time"][-1] for run in runs)
     times = args.times if args.times else list(np.linspace(0.0, last, 4))
+    if not any(snapshot_steps(run.data["time"], times)[0] for run in runs):
+        parser.error(f"no time of --times {times} lies within a run (the last step is at {last:g} s)")
     written = save(make_figure(runs, times), args.output)
     if not args.no_animation:
         written.append(write_animation(runs, args.output, args.max_frames))

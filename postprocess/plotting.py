@@ -18,9 +18,9 @@ VARIABLE_COLOURS = {"entropy": "tab:blue", "temperature": "tab:red", "internal_e
 INCREMENT_LINEAR_THRESHOLD = 1e-15
 
 
-def argument_parser(description, epilog=None):
+def argument_parser(description):
     """Parser with the arguments every script takes: FILE.h5 ... and -o OUT."""
-    parser = argparse.ArgumentParser(description=description, epilog=epilog,
+    parser = argparse.ArgumentParser(description=description,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("files", nargs="+", metavar="FILE.h5", help="run files written by eme_run")
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
@@ -59,6 +59,7 @@ def describe(fig, title, runs):
 
 
 def colour(run):
+    """The run's line colour, by thermodynamic variable."""
     return VARIABLE_COLOURS.get(run.attrs["thermo_variable"], "black")
 
 

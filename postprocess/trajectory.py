@@ -14,7 +14,6 @@ import numpy as np
 DESCRIPTION_ATTRIBUTES = ("scheme", "thermo_variable", "discrete_gradient", "dt", "input_file",
                           "status", "theta_r")
 CONSTRAINT_ATTRIBUTES = ("constraints", "fix_length", "length", "fix_temperature", "temperature")
-POSITION_COLUMNS = ("q1_x", "q1_y", "q1_z", "q2_x", "q2_y", "q2_z")
 
 # Subscripts of the paper's scheme names EME_s, EME_theta, EME_u.
 VARIABLE_SYMBOLS = {"entropy": "s", "temperature": r"\theta", "internal_energy": "u"}
@@ -27,7 +26,7 @@ class RunFileError(Exception):
 
 
 def _plain(value):
-    """HDF5 attribute value as str, float, bool or numpy array."""
+    """An HDF5 attribute value as a Python str, number, list of str or numpy array."""
     if isinstance(value, bytes):
         return value.decode()
     if isinstance(value, np.ndarray) and value.dtype.kind in "SO":
@@ -47,6 +46,7 @@ class Run:
 
     @property
     def incomplete(self):
+        """True when the run stopped early (status 'incomplete: <reason>')."""
         return str(self.attrs["status"]).startswith("incomplete")
 
     @property
@@ -151,14 +151,14 @@ def jz_drift(run):
 
 
 def snapshot_steps(time, requested):
-    """Step indices nearest to the requested times; times past the last step + dt/2 are dropped.
-
-    Returns (indices, dropped times)."""
+    """Step indices nearest to the requested times, each once, in the order asked; times past
+    the last step + dt/2 are dropped. Returns (indices, dropped times)."""
     time = np.asarray(time)
     half_step = 0.5 * (time[1] - time[0]) if len(time) > 1 else 0.0
     kept = [t for t in requested if t <= time[-1] + half_step]
     dropped = [t for t in requested if t > time[-1] + half_step]
-    return [int(np.argmin(np.abs(time - t))) for t in kept], dropped
+    nearest = [int(np.argmin(np.abs(time - t))) for t in kept]
+    return list(dict.fromkeys(nearest)), dropped
 
 
 def constraint_summary(run):

@@ -243,7 +243,8 @@ def test_incomplete_run_from_eme_run_is_plotted_and_labelled(eme_files, tmp_path
     with h5py.File(path, "r") as f:
         status = f.attrs["status"]
     assert status.startswith("incomplete")
-    for module, needed in [(plot_balance, BALANCE), (plot_temperatures, ["temperature", "angular_momentum"])]:
+    plots = [(plot_balance, BALANCE), (plot_temperatures, ["temperature", "angular_momentum"])]
+    for module, needed in plots:
         stem = tmp_path / module.__name__
         assert_png_and_pdf(module.main([str(path), "-o", str(stem)]), stem)
         fig = module.make_figure([read_run(path, needed)])
@@ -279,7 +280,8 @@ def test_help(script):
     assert result.returncode == 0, result.stderr
     assert "OUT.png and OUT.pdf" in result.stdout and "FILE.h5" in result.stdout
     if script == "plot_snapshots.py":
-        assert "OUT.mp4" in result.stdout and "ffmpeg" in result.stdout and "OUT.gif" in result.stdout
+        for text in ("OUT_animation.mp4", "ffmpeg", "OUT_animation.gif", "Pillow"):
+            assert text in result.stdout
     if script == "plot_balance.py":
         assert "--compare" in result.stdout
 

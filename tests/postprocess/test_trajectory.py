@@ -41,7 +41,8 @@ def test_a_missing_state_column_is_named(tmp_path):
         f["state"].attrs["columns"] = " ".join(c if c != "q2_z" else "q2_w" for c in STATE_COLUMNS)
     with pytest.raises(RunFileError) as error:
         trajectory.mass_positions(read_run(path, ["state"]))
-    assert str(path) in str(error.value) and "/state" in str(error.value) and "'q2_z'" in str(error.value)
+    message = str(error.value)
+    assert str(path) in message and "/state" in message and "'q2_z'" in message
 
 
 def test_a_missing_dataset_is_named_with_the_file(tmp_path):
@@ -105,12 +106,16 @@ def test_snapshot_steps_pick_the_nearest_step_and_drop_times_past_the_end():
     steps, dropped = trajectory.snapshot_steps(time, [0.0, 0.74, 0.76, 2.2, 3.0])
     assert steps == [0, 1, 2, 4]
     assert dropped == [3.0]
+    # Two times nearest to one step show it once.
+    assert trajectory.snapshot_steps(time, [1.4, 0.6, 0.5])[0] == [3, 1]
 
 
 def test_constraint_summary_reads_the_constraint_attributes(tmp_path):
-    both = read_run(write_run(tmp_path / "both.h5", attributes=constraint_attributes(True, True))[0],
-                    [], trajectory.CONSTRAINT_ATTRIBUTES)
-    assert trajectory.constraint_summary(both) == r"$g_1$: $l_1$ = 2.5 m, $g_2$: $\theta_1$ = 300 K"
-    length = read_run(write_run(tmp_path / "length.h5", attributes=constraint_attributes(True, False))[0],
-                      [], trajectory.CONSTRAINT_ATTRIBUTES)
-    assert trajectory.constraint_summary(length) == r"$g_1$: $l_1$ = 2.5 m"
+    def summary(name, fix_length, fix_temperature):
+        attributes = constraint_attributes(fix_length, fix_temperature)
+        path, _ = write_run(tmp_path / name, attributes=attributes)
+        return trajectory.constraint_summary(read_run(path, [], trajectory.CONSTRAINT_ATTRIBUTES))
+
+    assert summary("both.h5", True, True) == r"$g_1$: $l_1$ = 2.5 m, $g_2$: $\theta_1$ = 300 K"
+    assert summary("length.h5", True, False) == r"$g_1$: $l_1$ = 2.5 m"
+    assert summary("temperature.h5", False, True) == r"$g_2$: $\theta_1$ = 300 K"
