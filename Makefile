@@ -35,11 +35,11 @@ STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_f
 SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
 SOLVER := src/solver/step_solver.F90
 IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_series.f90 src/io/build_info.F90 \
-      src/io/namelist_text.f90 src/io/run_config.f90
-RUN := src/run/simulation.F90
+      src/io/compound_table.c src/io/hdf5_table.f90 src/io/namelist_text.f90 src/io/run_config.f90 src/io/study_config.f90
+RUN := src/run/simulation.F90 src/run/ensemble.f90
 LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
-DRIVERS := eme_run
+DRIVERS := eme_run eme_ensemble
 
 UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient \
     test_step_residual test_step_solver
@@ -67,13 +67,17 @@ $(call o,run/simulation): $(call o,model/model_parameters) $(call o,model/thermo
     $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) \
     $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,io/run_config) \
     $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info)
+$(call o,io/study_config): $(call o,io/namelist_text) $(call o,io/run_config)
+$(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call o,run/simulation) \
+    $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info)
 $(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
+$(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble)
 $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
     $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test run constraints clean
+.PHONY: all deps test run constraints figures clean
 
 all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
@@ -141,6 +145,21 @@ endef
 
 run: all $(VENV)/.python-deps
 	$(call run_and_summarize,$(PAPER_RUNS))
+	@$(MAKE) --no-print-directory figures
+
+# The paper's Figs. 3, 4 and 5 and the temperatures from the files `make run` wrote.
+FIGURES := results/figures
+EME_FILES := $(foreach v,entropy theta internal_energy,results/paper_fig4_eme_$(v).h5)
+MIDPOINT_FILES := $(foreach v,entropy theta internal_energy,results/paper_fig4_midpoint_$(v).h5)
+FIG5_FILES := $(foreach c,fixed_length fixed_temperature both,results/paper_fig5_$(c).h5)
+
+figures: $(VENV)/.python-deps
+	@for f in $(EME_FILES) $(MIDPOINT_FILES) $(FIG5_FILES); do test -f $$f || { echo "$$f is missing: run 'make run' first"; exit 1; }; done
+	$(PYTHON) postprocess/plot_snapshots.py results/paper_fig4_eme_theta.h5 --times 0 8 16 -o $(FIGURES)/fig3_snapshots
+	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) -o $(FIGURES)/fig4_eme
+	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(FIGURES)/fig4_eme_vs_midpoint
+	$(PYTHON) postprocess/plot_constrained.py $(FIG5_FILES) -o $(FIGURES)/fig5_constrained
+	$(PYTHON) postprocess/plot_temperatures.py $(EME_FILES) $(MIDPOINT_FILES) -o $(FIGURES)/temperatures_jz
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (README, Constraints).
 constraints: all $(VENV)/.python-deps

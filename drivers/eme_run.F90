@@ -38,7 +38,7 @@ program eme_run
         exit_status = 3
       end if
       if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
-        & es9.2, a, f0.2, a, f0.3, a)') config%output_file, summary%status, summary%steps_completed, &
+        & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
         summary%steps_planned, '|dE|/|E0| <= ', summary%energy_drift, ', min dS = ', &
         summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
         summary%angular_momentum_drift, ', Newton/step ', &

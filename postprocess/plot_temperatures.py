@@ -14,8 +14,8 @@ def make_figure(runs, title="Spring temperatures and angular momentum drift"):
         style = dict(color=colour(run), linestyle=LINESTYLES.get(run.attrs["scheme"], ":"),
                      linewidth=1.0, label=run.label)
         time = run.data["time"]
-        for spring, ax in enumerate(axes[:2]):
-            ax.plot(time, run.data["temperature"][:, spring], **style)
+        for name, ax in zip(("theta_1", "theta_2"), axes[:2]):
+            ax.plot(time, run.column("temperature", name), **style)
         axes[2].plot(time, jz_drift(run), marker=".", markersize=3, **style)
     axes[0].set_ylabel(r"$\theta_1$ (spring 1) [K]")
     axes[1].set_ylabel(r"$\theta_2$ (spring 2) [K]")

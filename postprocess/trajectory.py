@@ -1,7 +1,7 @@
 """Reads eme_run output files (README, "Output layout (HDF5)") and extracts what the plots show.
 
-Every dataset and attribute is looked up by its documented name; state columns are found
-through the `columns` attribute of /state, never by position. A missing one raises
+Every dataset and attribute is looked up by its documented name; columns of 2-D datasets are
+found through their `columns` attribute, never by position. A missing one raises
 RunFileError naming the file and what is missing.
 """
 from dataclasses import dataclass, field
@@ -145,8 +145,8 @@ def mass_positions(run):
 
 
 def jz_drift(run):
-    """J_z,n - J_z,0 from /angular_momentum, whose columns are the x, y, z components."""
-    jz = run.data["angular_momentum"][:, 2]
+    """J_z,n - J_z,0 from the J_z column of /angular_momentum."""
+    jz = run.column("angular_momentum", "J_z")
     return jz - jz[0]
 
 

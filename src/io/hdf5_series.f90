@@ -7,8 +7,9 @@
 module hdf5_series
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_int64_t, c_null_char
-  use hdf5, only: hid_t, hsize_t, h5open_f, h5close_f, h5eset_auto_f, h5fcreate_f, h5fclose_f, &
-                  h5fflush_f, H5F_ACC_TRUNC_F, H5F_SCOPE_GLOBAL_F, h5screate_simple_f, h5screate_f, &
+  use hdf5, only: hid_t, hsize_t, h5open_f, h5eset_auto_f, h5fcreate_f, h5fopen_f, h5fclose_f, &
+                  h5fflush_f, H5F_ACC_TRUNC_F, H5F_ACC_RDWR_F, H5F_ACC_RDONLY_F, H5F_SCOPE_GLOBAL_F, &
+                  h5screate_simple_f, h5screate_f, &
                   h5sclose_f, H5S_SCALAR_F, H5S_UNLIMITED_F, H5S_SELECT_SET_F, h5sselect_hyperslab_f, &
                   h5pcreate_f, h5pclose_f, h5pset_chunk_f, H5P_DATASET_CREATE_F, h5dcreate_f, h5dclose_f, &
                   h5dwrite_f, h5dset_extent_f, h5dget_space_f, H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, &
@@ -47,6 +48,7 @@ module hdf5_series
     integer(hid_t) :: id = -1
   contains
     procedure :: create
+    procedure :: open_existing
     procedure :: close => close_file
     procedure :: flush => flush_file
     procedure :: set_text
@@ -82,14 +84,29 @@ contains
     if (stat /= 0) message = 'cannot create HDF5 file '''//trim(path)//''''
   end subroutine create
 
-  !> Closes the file and the HDF5 library.
+  !> Opens an existing file, read-only or for writing.
+  subroutine open_existing(self, path, writable, stat)
+    class(hdf5_file), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    logical, intent(in) :: writable
+    integer, intent(out) :: stat
+
+    call h5open_f(stat)
+    if (stat == 0) call h5eset_auto_f(0, stat)
+    if (stat /= 0) return
+    if (writable) then
+      call h5fopen_f(path, H5F_ACC_RDWR_F, self%id, stat)
+    else
+      call h5fopen_f(path, H5F_ACC_RDONLY_F, self%id, stat)
+    end if
+  end subroutine open_existing
+
+  !> Closes the file. (The HDF5 library stays open: other files may be in use.)
   subroutine close_file(self, stat)
     class(hdf5_file), intent(inout) :: self
     integer, intent(out) :: stat
-    integer :: ignored
 
     call h5fclose_f(self%id, stat)
-    call h5close_f(ignored)
     self%id = -1
   end subroutine close_file
 
@@ -145,8 +162,9 @@ contains
   end subroutine set_integer
 
   !> Adds a dataset of `width` values per row (a (rows, width) dataset if vector, else (rows))
-  !> with `units` and `description` attributes; it is created empty in `file` at once.
-  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued)
+  !> with `units` and `description` attributes, and `columns` (names separated by blanks) for a
+  !> vector; it is created empty in `file` at once.
+  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued, columns)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
     character(len=*), intent(in) :: name, units, description
@@ -154,6 +172,7 @@ contains
     logical, intent(in) :: vector
     integer, intent(out) :: stat
     logical, intent(in), optional :: integer_valued
+    character(len=*), intent(in), optional :: columns
     type(series) :: item
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: dims(2), max_dims(2), chunk(2)
@@ -187,14 +206,11 @@ contains
     if (stat /= 0) return
     call file%set_text('units', units, stat, item%dataset)
     if (stat == 0) call file%set_text('description', description, stat, item%dataset)
+    if (stat == 0 .and. present(columns)) call file%set_text('columns', columns, stat, item%dataset)
     if (stat /= 0) return
 
     self%row_width = self%row_width + width
-    if (allocated(self%items)) then
-      self%items = [self%items, item]
-    else
-      self%items = [item]
-    end if
+    call append_series(self%items, item)
     if (allocated(self%buffer)) deallocate (self%buffer)
     allocate (self%buffer(self%row_width, self%chunk_rows))
   end subroutine define
@@ -274,6 +290,28 @@ contains
       call h5dclose_f(self%items(i)%dataset, ignored)
     end do
   end subroutine close_table
+
+  ! items := [items, item], explicitly (gfortran 12 mishandles array constructors of types with
+  ! allocatable character components).
+  subroutine append_series(items, item)
+    type(series), allocatable, intent(inout) :: items(:)
+    type(series), intent(in) :: item
+    type(series), allocatable :: longer(:)
+    integer :: i
+
+    if (.not. allocated(items)) allocate (items(0))
+    allocate (longer(size(items) + 1))
+    do i = 1, size(items)
+      call move_alloc(items(i)%name, longer(i)%name)
+      longer(i)%width = items(i)%width
+      longer(i)%vector = items(i)%vector
+      longer(i)%integer_valued = items(i)%integer_valued
+      longer(i)%offset = items(i)%offset
+      longer(i)%dataset = items(i)%dataset
+    end do
+    longer(size(longer)) = item
+    call move_alloc(longer, items)
+  end subroutine append_series
 
   subroutine write_numeric_attribute(object, name, values, scalar, stat, integer_valued)
     integer(hid_t), intent(in) :: object

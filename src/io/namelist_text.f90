@@ -82,15 +82,34 @@ contains
     do while (start <= len(body))
       call next_item(body, start, finish, next)
       if (finish < start) exit
-      items = [items, namelist_item(body(start:finish), '&'//group//' '//body(start:finish)//' /', origin)]
+      call append(items, body(start:finish), group, origin)
       start = next
     end do
     if (.not. present(extra)) return
     do i = 1, size(extra)
-      if (any(fields%name == item_name(extra(i)%item))) &
-        items = [items, namelist_item(extra(i)%item, '&'//group//' '//extra(i)%item//' /', extra(i)%origin)]
+      if (any(fields%name == item_name(extra(i)%item))) call append(items, extra(i)%item, group, extra(i)%origin)
     end do
   end subroutine group_items
+
+  ! items := [items, the item] (explicit, as gfortran 12 mishandles array constructors of
+  ! types with allocatable character components).
+  subroutine append(items, item, group, origin)
+    type(namelist_item), allocatable, intent(inout) :: items(:)
+    character(len=*), intent(in) :: item, group, origin
+    type(namelist_item), allocatable :: longer(:)
+    integer :: i
+
+    allocate (longer(size(items) + 1))
+    do i = 1, size(items)
+      call move_alloc(items(i)%item, longer(i)%item)
+      call move_alloc(items(i)%record, longer(i)%record)
+      call move_alloc(items(i)%origin, longer(i)%origin)
+    end do
+    longer(size(longer))%item = item
+    longer(size(longer))%record = '&'//group//' '//item//' /'
+    longer(size(longer))%origin = origin
+    call move_alloc(longer, items)
+  end subroutine append
 
   !> The message for an item whose one-item read failed: an unknown name, or a value of the
   !> wrong kind.

@@ -106,7 +106,7 @@ contains
     character(len=:), allocatable, intent(out) :: message
     type(namelist_item), intent(in), optional :: overrides(:)
     type(namelist_item), allocatable :: extra(:)
-    character(len=:), allocatable :: text
+    character(len=:), allocatable :: text, name
     character(len=32), allocatable :: groups(:)
     integer :: i
 
@@ -125,14 +125,13 @@ contains
     allocate (extra(0))
     if (present(overrides)) extra = overrides
     do i = 1, size(extra)
-      associate (name => item_name(extra(i)%item))
-        if (.not. any([model_fields%name, initial_fields%name, constraint_fields%name, integrator_fields%name, &
-                       output_fields%name] == name)) then
-          stat = 1
-          message = extra(i)%origin//': '''//name//''' is not a field of an eme_run namelist group'
-          return
-        end if
-      end associate
+      name = item_name(extra(i)%item)
+      if (.not. any([model_fields%name, initial_fields%name, constraint_fields%name, integrator_fields%name, &
+                     output_fields%name] == name)) then
+        stat = 1
+        message = extra(i)%origin//': '''//name//''' is not a field of an eme_run namelist group'
+        return
+      end if
     end do
     call read_model(text, extra, config, stat, message)
     if (stat == 0) call read_initial(text, extra, config, stat, message)

@@ -18,7 +18,7 @@ module simulation
   use build_info, only: code_version
   implicit none
   private
-  public :: run_summary, run_simulation
+  public :: run_summary, run_simulation, run_observer
 
   !> The figures a run is judged by, as the summary table prints them.
   type :: run_summary
@@ -30,18 +30,35 @@ module simulation
     real(real64) :: min_entropy_increment = huge(1.0_real64)
     real(real64) :: max_lyapunov_increment = -huge(1.0_real64)
     real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
-    real(real64) :: wall_seconds = 0.0_real64
+    real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
+    real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
   end type run_summary
+
+  !> Something that wants control after every accepted step (the ensemble's scheduler serves
+  !> other ranks from there while rank 0 computes a case).
+  type, abstract :: run_observer
+  contains
+    procedure(after_step_interface), deferred :: after_step
+  end type run_observer
+
+  abstract interface
+    !> Called after each accepted step.
+    subroutine after_step_interface(self)
+      import :: run_observer
+      class(run_observer), intent(inout) :: self
+    end subroutine after_step_interface
+  end interface
 
 contains
 
   !> Runs `config` and writes its HDF5 file. stat /= 0 only if the file could not be written
   !> or PETSc failed; a run that stops early is reported through summary%status.
-  subroutine run_simulation(config, summary, stat, message)
+  subroutine run_simulation(config, summary, stat, message, observer)
     type(run_configuration), intent(in) :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
+    class(run_observer), intent(inout), optional :: observer
     type(pendulum) :: model
     type(step_problem) :: problem
     type(snes_solver), target :: solver
@@ -51,7 +68,7 @@ contains
     real(real64), allocatable :: x(:), x_previous(:), x_new(:)
     real(real64) :: z(state_size), boundary_heat
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, theta(2), time
-    integer(int64) :: clock_start, clock_now, clock_rate
+    integer(int64) :: clock_start, clock_loop, clock_now, clock_rate
     integer :: n, io_stat
     PetscErrorCode :: ierr
 
@@ -96,6 +113,7 @@ contains
     jz_0 = angular_momentum_z(z)
     call record_point(0.0_real64, z, energy, entropy, lyapunov, theta)
     x_previous = x
+    call system_clock(clock_loop)
     do n = 1, summary%steps_planned
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call solver%solve_step(z, config%dt, 2*x - x_previous, x_new, report, ierr)
@@ -130,6 +148,7 @@ contains
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
       summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(angular_momentum_z(z) - jz_0))
+      if (present(observer)) call observer%after_step()
     end do
     if (io_stat /= 0) then
       stat = io_stat
@@ -138,10 +157,12 @@ contains
     else if (summary%steps_completed == summary%steps_planned) then
       summary%status = 'complete'
     end if
+    call system_clock(clock_now)
+    summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
     call solver%destroy(ierr)
+    call close_output(summary%status)
     call system_clock(clock_now)
     summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
-    call close_output(summary%status)
 
   contains
 
@@ -196,7 +217,9 @@ contains
       call steps%close(file, close_stat)
       call file%set_text('status', status, close_stat)
       call file%set_integer('steps_completed', summary%steps_completed, close_stat)
-      call file%set_real('wall_time_seconds', summary%wall_seconds, close_stat)
+      call file%set_real('solve_time_seconds', summary%solve_seconds, close_stat)
+      call system_clock(clock_now)
+      call file%set_real('wall_time_seconds', real(clock_now - clock_start, real64)/real(clock_rate, real64), close_stat)
       call file%close(close_stat)
     end subroutine close_output
   end subroutine run_simulation
@@ -222,13 +245,14 @@ contains
     stat = 0
     call points%define(file, 'time', 1, .false., 's', 'time t_n = n dt', stat)
     if (stat == 0) call points%define(file, 'state', state_size, .true., 'SI', &
-      'z = (q1, q2, p1, p2, gamma, tau1, tau2) in the run''s thermodynamic variable; columns: '//columns, stat)
-    if (stat == 0) call file%set_text('columns', columns, stat, points%items(2)%dataset)
-    if (stat == 0) call points%define(file, 'temperature', 2, .true., 'K', 'spring temperatures theta_1, theta_2', stat)
+      'z = (q1, q2, p1, p2, gamma, tau1, tau2) in the run''s thermodynamic variable', stat, columns=columns)
+    if (stat == 0) call points%define(file, 'temperature', 2, .true., 'K', 'spring temperatures', stat, &
+                                      columns='theta_1 theta_2')
     if (stat == 0) call points%define(file, 'energy', 1, .false., 'J', 'total energy E = T + V_g + U_1 + U_2', stat)
     if (stat == 0) call points%define(file, 'entropy', 1, .false., 'J/K', 'total entropy S = S_1 + S_2', stat)
     if (stat == 0) call points%define(file, 'lyapunov', 1, .false., 'J', 'V = E - theta_r S, eq. (14)', stat)
-    if (stat == 0) call points%define(file, 'angular_momentum', 3, .true., 'J s', 'J = q1 x p1 + q2 x p2', stat)
+    if (stat == 0) call points%define(file, 'angular_momentum', 3, .true., 'J s', 'J = q1 x p1 + q2 x p2', stat, &
+                                      columns='J_x J_y J_z')
     if (stat == 0) call points%define(file, 'boundary_heat', 1, .false., 'J', &
       'heat supplied through constraint g2 since t = 0, sum of dt lambda_2 (zero without it)', stat)
     ! Constraint data exist only when a constraint is active (FORMULATION section 7).
@@ -236,21 +260,21 @@ contains
     residuals = ''
     if (problem%fix_length) then
       multipliers = 'lambda_length'
-      residuals = 'g1'
+      residuals = 'g_length'
     end if
     if (problem%fix_temperature) then
       multipliers = trim(multipliers//' lambda_temperature')
-      residuals = trim(residuals//' g2')
+      residuals = trim(residuals//' g_temperature')
     end if
     if (problem%constraint_count() > 0) then
       if (stat == 0) call points%define(file, 'constraint_residual', problem%constraint_count(), .true., 'SI', &
-        'g1 = (q1.q1 - length^2)/2 [m^2], g2 = Theta_1 - temperature [K], for the active constraints; columns: ' &
-        //adjustl(residuals), stat)
-      if (stat == 0) call file%set_text('columns', adjustl(residuals), stat, points%items(size(points%items))%dataset)
+        'g_length = (q1.q1 - length^2)/2 [m^2], g_temperature = Theta_1 - temperature [K], for the active '// &
+        'constraints', stat, columns=adjustl(residuals))
     end if
     if (stat == 0) call steps%define(file, 'newton_iterations', 1, .false., '1', &
       'Newton iterations of the step, summed over every solve it took', stat, integer_valued=.true.)
-    if (stat == 0) call steps%define(file, 'scheme_temperature', 2, .true., 'K', temperature_meaning, stat)
+    if (stat == 0) call steps%define(file, 'scheme_temperature', 2, .true., 'K', temperature_meaning, stat, &
+                                     columns='Theta_1 Theta_2')
     if (stat == 0) call steps%define(file, 'solver_strategy', 1, .false., '1', &
       'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt)', stat, integer_valued=.true.)
     if (stat == 0) call steps%define(file, 'snes_solves', 1, .false., '1', &
@@ -259,9 +283,8 @@ contains
       'converged roots rejected as unphysical (non-positive temperature) in the step', stat, integer_valued=.true.)
     if (problem%constraint_count() > 0) then
       if (stat == 0) call steps%define(file, 'multiplier', problem%constraint_count(), .true., 'SI', &
-        'Lagrange multipliers: lambda_length [N/m] (force -lambda q1_mid), lambda_temperature [W] (heat supply); '// &
-        'columns: '//adjustl(multipliers), stat)
-      if (stat == 0) call file%set_text('columns', adjustl(multipliers), stat, steps%items(size(steps%items))%dataset)
+        'Lagrange multipliers: lambda_length [N/m] (force -lambda q1_mid), lambda_temperature [W] (heat supply)', &
+        stat, columns=adjustl(multipliers))
     end if
   end subroutine define_datasets
 
@@ -380,8 +403,8 @@ contains
     character(len=:), allocatable :: text
     character(len=24) :: buffer
 
-    write (buffer, '(f0.4)') x
-    text = trim(buffer)
+    write (buffer, '(f24.4)') x
+    text = trim(adjustl(buffer))
   end function real_text
 
 end module simulation

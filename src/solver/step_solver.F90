@@ -147,19 +147,20 @@ contains
     ! Continuation in s from 0 to 1 with adaptive increments.
     subroutine continuation(initial)
       real(real64), intent(in) :: initial(:)
-      real(real64) :: s_done, s_try, increment, root(self%n), previous(self%n), trial(self%n)
+      real(real64) :: s_done, s_try, increment, root(self%n), trial(self%n)
+      character(len=:), allocatable :: last_failure
       logical :: ok
       integer :: stage
 
       s_done = 0.0_real64
       increment = first_continuation_fraction
       root = initial
-      previous = initial
+      last_failure = 'more than '//integer_text(max_continuation_solves)//' continuation solves needed'
       do stage = 1, max_continuation_solves
         s_try = min(1.0_real64, s_done + increment)
-        ! Linear extrapolation in s along the path of roots (the old state at s = 0).
+        ! Linear extrapolation in s along the path of roots, which starts at the old state (s = 0).
         if (s_done > 0.0_real64) then
-          trial = root + (s_try - s_done)/s_done*(root - previous)
+          trial = root + (s_try - s_done)/s_done*(root - initial)
         else
           trial = root
         end if
@@ -176,12 +177,13 @@ contains
           root = x_new
           increment = 2*increment
         else
+          last_failure = why
           increment = increment/2
           if (increment < smallest_continuation_increment) exit
         end if
       end do
       report%reason = 'no root from the predictor, from the old state, or by continuation in dt (last: ' &
-                      //why//')'
+                      //last_failure//')'
     end subroutine continuation
   end subroutine solve_step
 
@@ -321,5 +323,14 @@ contains
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
     end if
   end subroutine form_jacobian
+
+  pure function integer_text(i) result(text)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: text
+    character(len=16) :: buffer
+
+    write (buffer, '(i0)') i
+    text = trim(buffer)
+  end function integer_text
 
 end module step_solver

@@ -80,9 +80,14 @@ def write_run(path, steps=4, data=None, attributes=None, drop=(), columns=STATE_
             f[name].attrs["description"] = f"synthetic {name}"
         if "state" in f:
             f["state"].attrs["columns"] = " ".join(columns)
+        for name, names in (("temperature", "theta_1 theta_2"), ("angular_momentum", "J_x J_y J_z"),
+                            ("scheme_temperature", "Theta_1 Theta_2")):
+            if name in f:
+                f[name].attrs["columns"] = names
         for name in ("multiplier", "constraint_residual"):
             if name in f:
-                f[name].attrs["columns"] = " ".join(active)
+                prefix = "lambda_" if name == "multiplier" else "g_"
+                f[name].attrs["columns"] = " ".join(prefix + c for c in active)
         for name, value in attrs.items():
             if name not in drop:
                 f.attrs[name] = value

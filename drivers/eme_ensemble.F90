@@ -1,0 +1,47 @@
+!> mpirun -n P eme_ensemble STUDY.nml [PETSc options]: runs the cases of a parameter study on
+!> P ranks (README, Ensemble studies). Exit status: 0 every case was attempted (failed cases
+!> are results, recorded in the index with their reason), 2 bad study input (nothing is
+!> written), 1 the index could not be written.
+program eme_ensemble
+#include <petsc/finclude/petscsys.h>
+  use petscsys
+  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use study_config, only: study_definition, read_study
+  use ensemble, only: run_study, study_outcome, world_rank
+  implicit none
+
+  type(study_definition), target :: study
+  type(study_outcome) :: outcome
+  character(len=4096) :: path
+  character(len=:), allocatable :: message
+  integer :: stat, rank, exit_status
+  PetscErrorCode :: ierr
+
+  PetscCallA(PetscInitialize(ierr))
+  rank = world_rank()
+  exit_status = 0
+  if (command_argument_count() < 1) then
+    if (rank == 0) write (error_unit, '(a)') 'usage: mpirun -n P eme_ensemble STUDY.nml [PETSc options]'
+    exit_status = 2
+  else
+    call get_command_argument(1, path)
+    ! Every rank reads and validates the study: the expansion is cheap and deterministic.
+    call read_study(trim(path), study, stat, message)
+    if (stat /= 0) then
+      if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
+      exit_status = 2
+    else
+      call run_study(study, outcome, stat, message)
+      if (stat /= 0) then
+        if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
+        exit_status = 1
+      else if (rank == 0) then
+        write (output_unit, '(a, i0, a, i0, a, i0, a, i0, a, f10.2, a)') 'eme_ensemble: ', outcome%cases, ' cases: ', &
+          outcome%complete, ' complete (', outcome%skipped, ' from an earlier run), ', outcome%failed, &
+          ' failed; wall time', outcome%wall_seconds, ' s; index '//study%output_dir//'/index.h5'
+      end if
+    end if
+  end if
+  PetscCallA(PetscFinalize(ierr))
+  if (exit_status /= 0) stop exit_status, quiet=.true.
+end program eme_ensemble

@@ -1,0 +1,279 @@
+!> The input of an ensemble study: a &study group naming a base scene (an eme_run namelist)
+!> and one &sweep group per swept field, each with a list of numbers (`values`) or of texts
+!> (`texts`). The sweeps combine as a Cartesian product (the first sweep varies slowest) or are
+!> zipped. Every case is expanded, numbered and validated here, by reading the base scene with
+!> the case's overrides exactly as eme_run would, so bad study input fails before any case runs.
+module study_config
+  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
+  use namelist_text, only: field_spec, namelist_item, read_source_text, group_names, group_items, item_failure, &
+                           invalid_value_message, lowercase
+  use run_config, only: run_configuration, read_run_config, step_count
+  implicit none (type, external)
+  private
+  public :: study_definition, study_case, read_study, max_sweep_values
+
+  integer, parameter :: max_sweep_values = 256
+  integer, parameter :: max_cases = 100000
+
+  !> One swept field and its values, as namelist value texts ('0.15' or '''eme''').
+  type :: study_sweep
+    character(len=:), allocatable :: field
+    logical :: textual = .false.
+    character(len=64), allocatable :: values(:)
+  end type study_sweep
+
+  !> One case: its overrides of the base scene, validated configuration and cost estimate.
+  type :: study_case
+    integer :: number = 0
+    type(namelist_item), allocatable :: overrides(:)
+    type(run_configuration) :: config
+    real(real64) :: cost = 0.0_real64      !! planned steps times unknowns, for largest-first order
+  end type study_case
+
+  !> The study: where its pieces are, its sweeps and the expanded cases.
+  type :: study_definition
+    character(len=:), allocatable :: input_file
+    character(len=:), allocatable :: base
+    character(len=:), allocatable :: output_dir
+    character(len=:), allocatable :: combine
+    type(study_sweep), allocatable :: sweeps(:)
+    type(study_case), allocatable :: cases(:)
+  end type study_definition
+
+  type(field_spec), parameter :: study_fields(3) = [ &
+    field_spec('base', 'the path of an eme_run namelist (the base scene)'), &
+    field_spec('output_dir', 'a directory for the case files and index.h5 (default results/<study name>)'), &
+    field_spec('combine', "'product' or 'zip'")]
+  type(field_spec), parameter :: sweep_fields(3) = [ &
+    field_spec('field', 'the name of an eme_run namelist field, e.g. ''dt'' or ''theta(2)'''), &
+    field_spec('values', 'up to 256 real numbers'), &
+    field_spec('texts', 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
+
+contains
+
+  !> Reads `path`, expands and validates every case; stat /= 0 with a message on bad input.
+  subroutine read_study(path, study, stat, message)
+    character(len=*), intent(in) :: path
+    type(study_definition), intent(out) :: study
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=:), allocatable :: text
+    character(len=32), allocatable :: groups(:)
+    integer :: i
+
+    study%input_file = path
+    call read_source_text(path, text, stat, message)
+    if (stat /= 0) return
+    call group_names(text, groups)
+    do i = 1, size(groups)
+      if (groups(i) /= 'study' .and. groups(i) /= 'sweep') then
+        stat = 1
+        message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &study, &sweep'
+        return
+      end if
+    end do
+    call read_study_group(text, study, stat, message)
+    if (stat /= 0) return
+    allocate (study%sweeps(0))
+    do i = 1, count(groups == 'sweep')
+      call read_sweep_group(text, i, study, stat, message)
+      if (stat /= 0) return
+    end do
+    call expand_cases(study, stat, message)
+  end subroutine read_study
+
+  subroutine read_study_group(text, definition, stat, message)
+    character(len=*), intent(in) :: text
+    type(study_definition), intent(inout) :: definition
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=1024) :: base, output_dir
+    character(len=16) :: combine
+    type(namelist_item), allocatable :: items(:)
+    character(len=256) :: io_message
+    integer :: ios, i, slash, dot
+    namelist /study/ base, output_dir, combine
+
+    base = ''
+    slash = index(definition%input_file, '/', back=.true.)
+    dot = index(definition%input_file, '.', back=.true.)
+    if (dot <= slash) dot = len(definition%input_file) + 1
+    output_dir = 'results/'//definition%input_file(slash + 1:dot - 1)
+    combine = 'product'
+    stat = 0
+    message = ''
+    call group_items(text, 'study', study_fields, definition%input_file, items)
+    do i = 1, size(items)
+      read (items(i)%record, nml=study, iostat=ios, iomsg=io_message)
+      if (ios /= 0) then
+        stat = 1
+        message = item_failure(items(i), 'study', study_fields)
+        return
+      end if
+    end do
+    definition%base = trim(base)
+    definition%output_dir = trim(output_dir)
+    definition%combine = trim(lowercase(combine))
+    if (len(definition%base) == 0) then
+      stat = 1
+      message = definition%input_file//': &study: base is missing; allowed: '//trim(study_fields(1)%allowed)
+    else if (definition%combine /= 'product' .and. definition%combine /= 'zip') then
+      stat = 1
+      message = invalid_value_message(definition%input_file, 'study', 'combine', "'"//definition%combine//"'", study_fields)
+    else if (len(definition%output_dir) == 0) then
+      stat = 1
+      message = invalid_value_message(definition%input_file, 'study', 'output_dir', "''", study_fields)
+    end if
+  end subroutine read_study_group
+
+  subroutine read_sweep_group(text, occurrence, definition, stat, message)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: occurrence
+    type(study_definition), intent(inout) :: definition
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=64) :: field
+    real(real64) :: values(max_sweep_values)
+    character(len=64) :: texts(max_sweep_values)
+    type(namelist_item), allocatable :: items(:)
+    type(study_sweep) :: new_sweep
+    character(len=256) :: io_message
+    character(len=32) :: number
+    integer :: ios, i, n
+    namelist /sweep/ field, values, texts
+
+    field = ''
+    values = ieee_value(1.0_real64, ieee_quiet_nan)
+    texts = ''
+    stat = 0
+    message = ''
+    call group_items(text, 'sweep', sweep_fields, definition%input_file, items, occurrence=occurrence)
+    do i = 1, size(items)
+      read (items(i)%record, nml=sweep, iostat=ios, iomsg=io_message)
+      if (ios /= 0) then
+        stat = 1
+        message = item_failure(items(i), 'sweep', sweep_fields)
+        return
+      end if
+    end do
+    write (number, '(i0)') occurrence
+    new_sweep%field = trim(lowercase(adjustl(field)))
+    if (len(new_sweep%field) == 0) then
+      stat = 1
+      message = definition%input_file//': &sweep number '//trim(number)//': field is missing; allowed: ' &
+                //trim(sweep_fields(1)%allowed)
+      return
+    end if
+    n = count(.not. ieee_is_nan(values))
+    new_sweep%textual = n == 0
+    if (new_sweep%textual) n = count(len_trim(texts) > 0)
+    if (n == 0 .or. (new_sweep%textual .and. any(len_trim(texts(n + 1:)) > 0)) .or. &
+        (.not. new_sweep%textual .and. (any(len_trim(texts) > 0) .or. any(ieee_is_nan(values(1:n)))))) then
+      stat = 1
+      message = definition%input_file//': &sweep '''//new_sweep%field//''': give either values (numbers) or texts, '// &
+                'one list without gaps'
+      return
+    end if
+    allocate (new_sweep%values(n))
+    do i = 1, n
+      if (new_sweep%textual) then
+        new_sweep%values(i) = ''''//trim(texts(i))//''''
+      else
+        write (new_sweep%values(i), '(g0)') values(i)
+      end if
+    end do
+    call append_sweep(definition%sweeps, new_sweep)
+  end subroutine read_sweep_group
+
+  ! The cases: a Cartesian product (first sweep slowest) or the zip of the sweeps. Each is read
+  ! and validated as eme_run would read the base scene with the case's overrides.
+  subroutine expand_cases(study, stat, message)
+    type(study_definition), intent(inout) :: study
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    integer :: n_sweeps, n_cases, c, s, remainder, pick(max(1, size(study%sweeps)))
+    character(len=:), allocatable :: case_message
+
+    stat = 0
+    message = ''
+    n_sweeps = size(study%sweeps)
+    if (n_sweeps == 0) then
+      n_cases = 1
+    else if (study%combine == 'zip') then
+      n_cases = size(study%sweeps(1)%values)
+      do s = 2, n_sweeps
+        if (size(study%sweeps(s)%values) /= n_cases) then
+          stat = 1
+          message = study%input_file//': &study: combine = ''zip'' needs sweeps of equal length; '''// &
+                    study%sweeps(s)%field//''' differs from '''//study%sweeps(1)%field//''''
+          return
+        end if
+      end do
+    else
+      n_cases = 1
+      do s = 1, n_sweeps
+        if (n_cases > max_cases/size(study%sweeps(s)%values)) then
+          stat = 1
+          message = study%input_file//': the product of the sweeps has more than 100000 cases'
+          return
+        end if
+        n_cases = n_cases*size(study%sweeps(s)%values)
+      end do
+    end if
+    allocate (study%cases(n_cases))
+    do c = 1, n_cases
+      ! Which value of each sweep this case takes.
+      remainder = c - 1
+      do s = n_sweeps, 1, -1
+        if (study%combine == 'zip') then
+          pick(s) = c
+        else
+          pick(s) = mod(remainder, size(study%sweeps(s)%values)) + 1
+          remainder = remainder/size(study%sweeps(s)%values)
+        end if
+      end do
+      associate (this => study%cases(c))
+        this%number = c
+        allocate (this%overrides(n_sweeps))
+        do s = 1, n_sweeps
+          this%overrides(s) = namelist_item(study%sweeps(s)%field//' = '//trim(study%sweeps(s)%values(pick(s))), '', &
+                                            study%input_file//': &sweep '''//study%sweeps(s)%field//'''')
+        end do
+        call read_run_config(study%base, this%config, stat, case_message, this%overrides)
+        if (stat /= 0) then
+          message = case_message//' (case '//integer_text(c)//' of the study)'
+          return
+        end if
+        this%cost = real(step_count(this%config), real64)
+      end associate
+    end do
+  end subroutine expand_cases
+
+  ! sweeps := [sweeps, new_sweep], explicitly (see namelist_text's append).
+  subroutine append_sweep(sweeps, new_sweep)
+    type(study_sweep), allocatable, intent(inout) :: sweeps(:)
+    type(study_sweep), intent(in) :: new_sweep
+    type(study_sweep), allocatable :: longer(:)
+    integer :: i
+
+    allocate (longer(size(sweeps) + 1))
+    do i = 1, size(sweeps)
+      call move_alloc(sweeps(i)%field, longer(i)%field)
+      call move_alloc(sweeps(i)%values, longer(i)%values)
+      longer(i)%textual = sweeps(i)%textual
+    end do
+    longer(size(longer)) = new_sweep
+    call move_alloc(longer, sweeps)
+  end subroutine append_sweep
+
+  pure function integer_text(i) result(text)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: text
+    character(len=16) :: buffer
+
+    write (buffer, '(i0)') i
+    text = trim(buffer)
+  end function integer_text
+
+end module study_config
