@@ -29,7 +29,7 @@ PETSC_SOURCE_FLAGS = -ffree-line-length-none $(PETSC_FLAGS)
 CFLAGS := -O2 -g -Wall -Wextra -std=c11
 
 # ---------------------------------------------------------------- sources, in layers
-MODEL := src/model/model_parameters.f90 src/model/free_energy.f90 src/model/invariant_function.f90 \
+MODEL := src/model/model_parameters.f90 src/model/special_functions.f90 src/model/free_energy.f90 src/model/invariant_function.f90 \
          src/model/thermo_variable.f90 src/model/double_pendulum.f90 src/model/pendulum_model.f90
 STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_field.f90
 SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
@@ -47,8 +47,9 @@ TEST_SUPPORT := $(OBJ)/tests/unit/assertions.o $(OBJ)/tests/unit/fixtures.o
 
 # ---------------------------------------------------------------- module dependencies
 o = $(OBJ)/src/$(1).o
-$(call o,model/free_energy): $(call o,model/model_parameters)
-$(call o,model/thermo_variable): $(call o,model/invariant_function) $(call o,model/free_energy)
+$(call o,model/free_energy): $(call o,model/model_parameters) $(call o,model/special_functions)
+$(call o,model/thermo_variable): $(call o,model/invariant_function) $(call o,model/free_energy) \
+    $(call o,model/special_functions)
 $(call o,model/double_pendulum): $(call o,model/model_parameters)
 $(call o,model/pendulum_model): $(call o,model/model_parameters) $(call o,model/free_energy) \
     $(call o,model/thermo_variable) $(call o,model/double_pendulum)
@@ -68,7 +69,7 @@ $(call o,run/simulation): $(call o,model/model_parameters) $(call o,model/thermo
     $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,io/run_config) \
     $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info)
 $(call o,io/study_config): $(call o,io/namelist_text) $(call o,io/run_config)
-$(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call o,run/simulation) \
+$(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call o,run/simulation) $(call o,solver/step_solver) \
     $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info)
 $(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
 $(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble)

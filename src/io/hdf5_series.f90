@@ -57,6 +57,9 @@ module hdf5_series
     procedure :: set_integer
   end type hdf5_file
 
+  ! h5open_f rebuilds HDF5's table of Fortran types on every call (~1.5 ms): call it once.
+  logical, save :: library_open = .false.
+
   interface
     function c_write_text_attribute(object, name, value) result(status) &
         bind(c, name='eme_h5_write_text_attribute')
@@ -78,8 +81,7 @@ contains
     character(len=:), allocatable, intent(out) :: message
 
     message = ''
-    call h5open_f(stat)
-    if (stat == 0) call h5eset_auto_f(0, stat)
+    call open_library(stat)
     if (stat == 0) call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%id, stat)
     if (stat /= 0) message = 'cannot create HDF5 file '''//trim(path)//''''
   end subroutine create
@@ -91,8 +93,7 @@ contains
     logical, intent(in) :: writable
     integer, intent(out) :: stat
 
-    call h5open_f(stat)
-    if (stat == 0) call h5eset_auto_f(0, stat)
+    call open_library(stat)
     if (stat /= 0) return
     if (writable) then
       call h5fopen_f(path, H5F_ACC_RDWR_F, self%id, stat)
@@ -290,6 +291,17 @@ contains
       call h5dclose_f(self%items(i)%dataset, ignored)
     end do
   end subroutine close_table
+
+  ! Opens the HDF5 library once per process, with its own error printing off.
+  subroutine open_library(stat)
+    integer, intent(out) :: stat
+
+    stat = 0
+    if (library_open) return
+    call h5open_f(stat)
+    if (stat == 0) call h5eset_auto_f(0, stat)
+    library_open = stat == 0
+  end subroutine open_library
 
   ! items := [items, item], explicitly (gfortran 12 mishandles array constructors of types with
   ! allocatable character components).

@@ -7,9 +7,10 @@
 module free_energy
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
+  use special_functions, only: log1p
   implicit none (type, external)
   private
-  public :: spring_law, spring_law_of, mechanical_parts, paper_free_energy, viscosity
+  public :: spring_law, spring_law_of, mechanical_parts, mechanical_difference, paper_free_energy, viscosity
 
   !> Coefficients of spring a's closed forms (FORMULATION section 3). Spring 1 has no Maxwell
   !> element: its beta_v, maxwell_ref and maxwell_slope are zero, so one formula serves both.
@@ -91,6 +92,41 @@ contains
       hess(2, 2) = 2.0_real64*m
     end subroutine spring_part
   end subroutine mechanical_parts
+
+  !> e(b) - e(a) and sigma(b) - sigma(a) for invariants (C, gamma) at a and b, computed without
+  !> cancellation: ln(C_b/C_a) by log1p, L_b^2 - L_a^2 as (L_a + L_b) dL, 1/l_b - 1/l_a in closed
+  !> form. The plain difference of two values of size |e| loses eps |e| / |e(b) - e(a)| of its
+  !> digits, which the discrete gradients' quotients would divide by |b - a| again.
+  pure subroutine mechanical_difference(law, c_a, gamma_a, c_b, gamma_b, delta_e, delta_sigma)
+    type(spring_law), intent(in) :: law
+    real(real64), intent(in) :: c_a, gamma_a, c_b, gamma_b
+    real(real64), intent(out) :: delta_e, delta_sigma
+    real(real64) :: log_a, log_b, delta_log, inv_a, inv_b, delta_inv, delta_gamma
+
+    log_a = 0.5_real64*log(c_a/law%natural_length**2)
+    delta_log = 0.5_real64*log1p((c_b - c_a)/c_a)
+    log_b = log_a + delta_log
+    inv_a = 1.0_real64/sqrt(c_a)
+    inv_b = 1.0_real64/sqrt(c_b)
+    delta_inv = -(c_b - c_a)*inv_a*inv_b/(sqrt(c_a) + sqrt(c_b))
+    delta_gamma = gamma_b - gamma_a
+    delta_e = part_difference(law%stiffness_ref, law%beta*law%theta_ref, law%maxwell_ref)
+    delta_sigma = part_difference(law%stiffness_slope, law%beta, law%maxwell_slope)
+
+  contains
+
+    ! Difference of (1+bv)(k/2 L^2 + b L) + m gamma^2 - bv gamma (k L + b)/l, term by term.
+    pure real(real64) function part_difference(k, b, m)
+      real(real64), intent(in) :: k, b, m
+      real(real64) :: slope_a, slope_b
+
+      slope_a = k*log_a + b
+      slope_b = k*log_b + b
+      part_difference = (1.0_real64 + law%beta_v)*(0.5_real64*k*(log_a + log_b) + b)*delta_log &
+                        + m*(gamma_a + gamma_b)*delta_gamma &
+                        - law%beta_v*(delta_gamma*slope_b*inv_b + gamma_a*(k*delta_log*inv_b + slope_a*delta_inv))
+    end function part_difference
+  end subroutine mechanical_difference
 
   !> psi_a(l, theta, gamma) exactly as eqs. (16)-(17) write it; gamma is ignored for spring 1.
   pure function paper_free_energy(params, a, length, theta, gamma) result(psi)

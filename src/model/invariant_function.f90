@@ -10,6 +10,7 @@ module invariant_function
   type, abstract :: invariant_functions
   contains
     procedure(evaluate_interface), deferred :: evaluate
+    procedure :: difference
   end type invariant_functions
 
   abstract interface
@@ -24,5 +25,22 @@ module invariant_function
       integer, intent(out) :: stat
     end subroutine evaluate_interface
   end interface
+
+contains
+
+  !> f(b) - f(a). This default subtracts two evaluations; functions that can, override it with
+  !> a form free of cancellation (the discrete gradients divide it by |b - a|).
+  pure subroutine difference(self, a, b, delta, stat)
+    class(invariant_functions), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: delta(:)
+    integer, intent(out) :: stat
+    real(real64) :: f_a(size(delta)), f_b(size(delta)), g(size(a), size(delta))
+
+    call self%evaluate(a, f_a, g, stat=stat)
+    if (stat /= 0) return
+    call self%evaluate(b, f_b, g, stat=stat)
+    delta = f_b - f_a
+  end subroutine difference
 
 end module invariant_function

@@ -4,7 +4,8 @@
 module thermo_variable
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions
-  use free_energy, only: spring_law, mechanical_parts
+  use free_energy, only: spring_law, mechanical_parts, mechanical_difference
+  use special_functions, only: log1p, expm1
   implicit none (type, external)
   private
   public :: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
@@ -33,6 +34,7 @@ module thermo_variable
     integer :: n_invariants = 2   !! 2 for spring 1, 3 for spring 2
   contains
     procedure :: evaluate => evaluate_potentials
+    procedure :: difference => potential_difference
     procedure :: temperature => spring_temperature
     procedure :: tau_from_temperature
     procedure :: metric_scale
@@ -126,6 +128,50 @@ contains
       end if
     end select
   end subroutine evaluate_potentials
+
+  !> U(b) - U(a) and S(b) - S(a) without cancellation (FORMULATION section 3 table, term by
+  !> term): the mechanical parts by `mechanical_difference`, ln(theta_b/theta_a) by log1p, and
+  !> theta_b - theta_a by expm1 for tau = s.
+  pure subroutine potential_difference(self, a, b, delta, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: delta(:)
+    integer, intent(out) :: stat
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    real(real64) :: delta_e, delta_sigma, delta_tau, theta_a, theta_b, delta_theta, cap, gamma_a, gamma_b
+    integer :: n
+
+    n = self%n_invariants
+    delta = 0.0_real64
+    call mechanical_state(self, a, e, sigma, de, dsigma, d2e, d2sigma, stat)
+    if (stat /= domain_ok) return
+    call temperature_of(self, a(n), e, sigma, theta_a, stat)
+    if (stat /= domain_ok) return
+    call self%temperature(b, theta_b, stat)
+    if (stat /= domain_ok) return
+    gamma_a = 0.0_real64
+    gamma_b = 0.0_real64
+    if (n == 3) then
+      gamma_a = a(2)
+      gamma_b = b(2)
+    end if
+    call mechanical_difference(self%law, a(1), gamma_a, b(1), gamma_b, delta_e, delta_sigma)
+    cap = self%law%heat_capacity
+    delta_tau = b(n) - a(n)
+    select case (self%variable)
+    case (tau_temperature)
+      delta(potential_u) = delta_e + cap*delta_tau
+      delta(potential_s) = delta_sigma + cap*log1p(delta_tau/a(n))
+    case (tau_entropy)
+      delta_theta = theta_a*expm1((delta_tau - delta_sigma)/cap)
+      delta(potential_u) = delta_e + cap*delta_theta
+      delta(potential_s) = delta_tau
+    case (tau_internal_energy)
+      delta_theta = (delta_tau - delta_e)/cap
+      delta(potential_u) = delta_tau
+      delta(potential_s) = delta_sigma + cap*log1p(delta_theta/theta_a)
+    end select
+  end subroutine potential_difference
 
   !> The value of tau that gives temperature theta at mechanical invariants (C, [gamma]).
   pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)

@@ -18,6 +18,7 @@ module ensemble
   use study_config, only: study_definition
   use run_config, only: run_configuration
   use simulation, only: run_summary, run_simulation, run_observer
+  use step_solver, only: snes_solver
   use hdf5_series, only: hdf5_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
   use filesystem, only: make_directories, rename_file
@@ -160,20 +161,22 @@ contains
     type(study_manager), intent(inout) :: manager
     type(study_outcome), intent(inout) :: outcome
     type(case_result) :: result
-    integer :: c, skipped
+    type(snes_solver), target :: solver
+    integer :: c, skipped, ierr
 
     skipped = manager%done
     do
       call manager%after_step()
       c = take_next(manager)
       if (c == 0) exit
-      call run_case(manager%study, c, 0, result, manager)
+      call run_case(manager%study, c, 0, result, solver, manager)
       call record(manager, c, result)
     end do
     ! Nothing left to start: collect the last results and stop every worker.
     do while (manager%active_workers > 0)
       call serve_one(manager, blocking=.true.)
     end do
+    if (solver%created) call solver%destroy(ierr)
     call progress(manager, final=.true.)
     outcome%complete = count(manager%results%status == 'complete')
     outcome%failed = count(manager%results%status(1:7) == 'failed:')
@@ -275,8 +278,9 @@ contains
     type(study_definition), intent(in) :: study
     integer, intent(in) :: rank
     type(case_result) :: result
+    type(snes_solver), target :: solver
     real(real64) :: message(metric_count + 1)
-    integer :: c(1)
+    integer :: c(1), ierr
 
     message = 0.0_real64
     result%status = ''
@@ -285,17 +289,20 @@ contains
       call MPI_Send(result%status, status_length, MPI_CHARACTER, 0, tag_status, MPI_COMM_WORLD)
       call MPI_Recv(c, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
       if (c(1) == 0) exit
-      call run_case(study, c(1), rank, result)
+      call run_case(study, c(1), rank, result, solver)
       message = [real(c(1), real64), result%metrics]
     end do
+    if (solver%created) call solver%destroy(ierr)
   end subroutine work
 
   ! ------------------------------------------------------------------ one case, any rank
 
-  subroutine run_case(study, c, rank, result, observer)
+  ! The rank's PETSc objects, reused from case to case (recreated when the unknowns change).
+  subroutine run_case(study, c, rank, result, solver, observer)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: c, rank
     type(case_result), intent(out) :: result
+    type(snes_solver), intent(inout), target :: solver
     class(run_observer), intent(inout), optional :: observer
     type(run_configuration) :: config
     type(run_summary) :: summary
@@ -306,7 +313,7 @@ contains
     config = study%cases(c)%config
     final_file = case_file(study, c)
     config%output_file = final_file//'.part'
-    call run_simulation(config, summary, stat, message, observer)
+    call run_simulation(config, summary, stat, message, observer, solver)
     if (stat /= 0) then
       result%status = 'failed: '//message
     else if (summary%status == 'complete') then

@@ -53,15 +53,19 @@ contains
 
   !> Runs `config` and writes its HDF5 file. stat /= 0 only if the file could not be written
   !> or PETSc failed; a run that stops early is reported through summary%status.
-  subroutine run_simulation(config, summary, stat, message, observer)
+  !> With `solver`, the caller's PETSc objects are reused (and left for the next run);
+  !> without, the run creates and frees its own.
+  subroutine run_simulation(config, summary, stat, message, observer, solver)
     type(run_configuration), intent(in) :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     class(run_observer), intent(inout), optional :: observer
+    type(snes_solver), intent(inout), target, optional :: solver
     type(pendulum) :: model
     type(step_problem) :: problem
-    type(snes_solver), target :: solver
+    type(snes_solver), target :: own_solver
+    type(snes_solver), pointer :: active
     type(step_report) :: report
     type(hdf5_file) :: file
     type(series_table) :: points, steps
@@ -100,7 +104,12 @@ contains
 
     call open_output(stat, message)
     if (stat /= 0) return
-    call solver%create(problem, config%newton_tol, ierr)
+    if (present(solver)) then
+      active => solver
+    else
+      active => own_solver
+    end if
+    call active%prepare(problem, config%newton_tol, ierr)
     if (ierr /= 0) then
       stat = int(ierr)
       message = 'PETSc failed to set up the solver'
@@ -116,7 +125,7 @@ contains
     call system_clock(clock_loop)
     do n = 1, summary%steps_planned
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
-      call solver%solve_step(z, config%dt, 2*x - x_previous, x_new, report, ierr)
+      call active%solve_step(z, config%dt, 2*x - x_previous, x_new, report, ierr)
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       if (ierr /= 0) then
         stat = int(ierr)
@@ -129,7 +138,7 @@ contains
         summary%status = 'incomplete: step '//integer_text(n)//' (t = '//real_text(time)//' s): '//report%reason
         exit
       end if
-      call solver%problem%scheme_temperatures(x_new, theta, io_stat)
+      call active%problem%scheme_temperatures(x_new, theta, io_stat)
       call steps%append(file, [real(report%newton_iterations, real64), theta, real(report%strategy, real64), &
                                real(report%solves, real64), real(report%rejected_roots, real64), &
                                x_new(state_size + 1:)], io_stat)
@@ -159,7 +168,7 @@ contains
     end if
     call system_clock(clock_now)
     summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
-    call solver%destroy(ierr)
+    if (.not. present(solver)) call own_solver%destroy(ierr)
     call close_output(summary%status)
     call system_clock(clock_now)
     summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)

@@ -60,8 +60,7 @@ contains
     integer, intent(out) :: stat
 
     real(real64) :: d(size(a)), wd(size(a)), weight(size(a)), dwd, coefficient, dc_db(size(a))
-    real(real64) :: f_a(size(dg, 2)), f_b(size(dg, 2)), f_m(size(dg, 2))
-    real(real64) :: grad_a(size(a), size(dg, 2)), grad_b(size(a), size(dg, 2))
+    real(real64) :: delta_f(size(dg, 2)), f_b(size(dg, 2)), f_m(size(dg, 2)), grad_b(size(a), size(dg, 2))
     real(real64) :: grad_m(size(a), size(dg, 2)), hess_m(size(a), size(a), size(dg, 2))
     logical :: small
     integer :: j, l
@@ -83,12 +82,14 @@ contains
     if (present(ddg_db)) ddg_db = 0.5_real64*hess_m
     if (small) return
 
-    call fun%evaluate(a, f_a, grad_a, stat=stat)
+    call fun%difference(a, b, delta_f, stat)
     if (stat /= 0) return
-    call fun%evaluate(b, f_b, grad_b, stat=stat)
-    if (stat /= 0) return
+    if (present(ddg_db)) then
+      call fun%evaluate(b, f_b, grad_b, stat=stat)
+      if (stat /= 0) return
+    end if
     do j = 1, size(dg, 2)
-      coefficient = (f_b(j) - f_a(j) - dot_product(grad_m(:, j), d))/dwd
+      coefficient = (delta_f(j) - dot_product(grad_m(:, j), d))/dwd
       dg(:, j) = dg(:, j) + coefficient*wd
       if (present(ddg_db)) then
         dc_db = (grad_b(:, j) - grad_m(:, j) - 0.5_real64*matmul(hess_m(:, :, j), d))/dwd &
@@ -137,7 +138,9 @@ contains
         hi = ibset(others, i - 1)
         w = ordering_weight(popcnt(others), n)
         if (abs(increment)/scale(i) >= quotient_threshold) then
-          quotient = (f_corner(:, hi) - f_corner(:, lo))/increment
+          call fun%difference(corner_point(lo), corner_point(hi), quotient, stat)
+          if (stat /= 0) return
+          quotient = quotient/increment
           dg(i, :) = dg(i, :) + w*quotient
           if (present(ddg_db)) then
             ddg_db(i, i, :) = ddg_db(i, i, :) + w*(grad_corner(i, :, hi) - quotient)/increment

@@ -44,8 +44,11 @@ module step_solver
     Vec :: r
     Mat :: jacobian
     integer :: n = 0
+    real(real64) :: newton_tol = 0.0_real64
+    logical :: created = .false.
   contains
     procedure :: create
+    procedure :: prepare
     procedure :: destroy
     procedure :: solve_step
   end type snes_solver
@@ -69,6 +72,8 @@ contains
 
     self%problem = problem
     self%n = problem%unknowns()
+    self%newton_tol = newton_tol
+    self%created = .true.
     n = self%n
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, n, self%x, ierr))
     PetscCall(VecDuplicate(self%x, self%r, ierr))
@@ -87,11 +92,36 @@ contains
     PetscCall(SNESSetFromOptions(self%snes, ierr))
   end subroutine create
 
+  !> Makes the solver ready for `problem`: reuses the PETSc objects of an earlier run when the
+  !> number of unknowns is the same (an ensemble rank runs many cases), and creates them
+  !> otherwise. A changed newton_tol is applied; options from the command line are kept.
+  subroutine prepare(self, problem, newton_tol, ierr)
+    class(snes_solver), intent(inout), target :: self
+    type(step_problem), intent(in) :: problem
+    real(real64), intent(in) :: newton_tol
+    PetscErrorCode, intent(out) :: ierr
+
+    ierr = 0
+    if (self%created .and. self%n == problem%unknowns()) then
+      self%problem = problem
+      if (abs(newton_tol - self%newton_tol) > 0.0_real64) then
+        PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, PETSC_DEFAULT_INTEGER, PETSC_DEFAULT_INTEGER, ierr))
+        self%newton_tol = newton_tol
+      end if
+      return
+    end if
+    if (self%created) then
+      PetscCall(self%destroy(ierr))
+    end if
+    PetscCall(self%create(problem, newton_tol, ierr))
+  end subroutine prepare
+
   !> Frees the PETSc objects.
   subroutine destroy(self, ierr)
     class(snes_solver), intent(inout) :: self
     PetscErrorCode, intent(out) :: ierr
 
+    self%created = .false.
     PetscCall(SNESDestroy(self%snes, ierr))
     PetscCall(MatDestroy(self%jacobian, ierr))
     PetscCall(VecDestroy(self%r, ierr))

@@ -95,3 +95,21 @@ def test_midpoint_is_not_lyapunov_stable_on_the_paper_scene(runs, variable):
     # V = E - theta_r S rises on some step for every midpoint variant: the criterion of
     # eq. (14) is what separates EME from the midpoint rule here.
     assert increments(runs["midpoint", variable, "gonzalez"], "lyapunov").max() > 1e-3
+
+
+@pytest.mark.parametrize("gradient", GRADIENTS)
+@pytest.mark.parametrize("variable", VARIABLES)
+def test_eme_small_steps_complete(tmp_path, eme_run_binary, variable, gradient):
+    # At dt = 0.001 a spring's invariants change by ~1e-5 per step. The discrete gradients'
+    # quotients divide f(b) - f(a) by that; computed by plain subtraction, its rounding left a
+    # residual floor above the Newton tolerance and some steps could not converge (EME_s failed
+    # at step 11888, EME_u at 17469 before the differences were computed without cancellation).
+    result, path = run_eme(tmp_path, "small", {"integrator": {
+        "thermo_variable": variable, "discrete_gradient": gradient, "dt": 0.001}})
+    assert result.returncode == 0, result.stderr
+    run = read_run(path)
+    assert run["attrs"]["steps_completed"] == 20000
+    assert run["newton_iterations"].max() <= 6
+    energy = run["energy"]
+    assert np.max(np.abs(energy - energy[0])) / abs(energy[0]) <= 1e-8
+    assert increments(run, "entropy").min() >= -1e-10

@@ -53,6 +53,19 @@ program test_thermo_variable
     end do
   end do
 
+  ! U(b) - U(a) and S(b) - S(a) without cancellation: equal to the plain difference for far
+  ! pairs, and to grad f(mid).(b - a) for pairs 1e-9 apart, where the Taylor remainder is
+  ! O(1e-27) and a plain difference of values of size |f| would keep only ~7 digits.
+  do variable = tau_entropy, tau_internal_energy
+    model = make_pendulum(params, variable)
+    do a = 1, 2
+      n = a + 1
+      write (label, '(a, " spring ", i0)') trim(thermo_variable_names(variable)), a
+      call check_difference(model%spring(a), n, 0.3_real64, 1.0e-12_real64, 'far pair, '//trim(label))
+      call check_difference(model%spring(a), n, 1.0e-9_real64, 1.0e-8_real64, 'close pair, '//trim(label))
+    end do
+  end do
+
   ! Domain errors are reported, not trapped.
   model = make_pendulum(params, tau_temperature)
   call model%spring(2)%evaluate([0.0_real64, 0.0_real64, 300.0_real64], f, g, stat=stat)
@@ -67,5 +80,38 @@ program test_thermo_variable
   call suite%check_equal_int('admissible internal energy', stat, domain_ok)
 
   call suite%finish()
+
+contains
+
+  ! Compares spring%difference(x_a, x_b) with the plain difference (far pairs) or the midpoint
+  ! gradient's first-order difference (close pairs), relative to rtol.
+  subroutine check_difference(spring, n, step, rtol, label)
+    type(spring_potential), intent(in) :: spring
+    integer, intent(in) :: n
+    real(real64), intent(in) :: step, rtol
+    character(len=*), intent(in) :: label
+    real(real64) :: x_a(n), x_b(n), scale(n), delta(2), f_a(2), f_b(2), g(n, 2), expected(2)
+    integer :: i, stat
+
+    scale = spring%metric_scale()
+    x_a(1) = uniform(1.0_real64, 9.0_real64)
+    if (n == 3) x_a(2) = uniform(-0.3_real64, 0.3_real64)
+    call spring%tau_from_temperature(x_a(1:n - 1), uniform(260.0_real64, 380.0_real64), x_a(n), stat)
+    do i = 1, n
+      x_b(i) = x_a(i) + step*scale(i)*uniform(-1.0_real64, 1.0_real64)
+    end do
+    call spring%difference(x_a, x_b, delta, stat)
+    if (step > 1.0e-3_real64) then
+      call spring%evaluate(x_a, f_a, g, stat=stat)
+      call spring%evaluate(x_b, f_b, g, stat=stat)
+      expected = f_b - f_a
+      call suite%check_close('difference = f(b) - f(a), '//label, delta, expected, &
+                             atol=rtol*max(maxval(abs(f_a)), 1.0_real64))
+    else
+      call spring%evaluate(0.5_real64*(x_a + x_b), f_a, g, stat=stat)
+      expected = matmul(x_b - x_a, g)
+      call suite%check_close('difference = grad f(mid).d to first order, '//label, delta, expected, rtol=rtol)
+    end if
+  end subroutine check_difference
 
 end program test_thermo_variable
