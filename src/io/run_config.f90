@@ -10,15 +10,20 @@ module run_config
   use thermo_variable, only: tau_temperature, thermo_variable_names
   use discrete_gradient, only: gradient_gonzalez, discrete_gradient_names, metric_nondimensional, metric_names
   use step_residual, only: scheme_eme, scheme_names
+  use ts_integrator, only: ts_scheme_names
   use model_parameters, only: pendulum_parameters
   use namelist_text, only: field_spec, namelist_item, read_source_text, group_names, group_items, item_name, &
                            item_failure, invalid_value_message, names_list, reals_text
   implicit none (type, external)
   private
-  public :: run_configuration, read_run_config, step_count, input_groups
+  public :: run_configuration, read_run_config, step_count, input_groups, scheme_choices, is_ts_scheme
 
   character(len=*), parameter :: input_groups(5) = [character(len=11) :: 'model', 'initial', 'constraints', &
                                                    'integrator', 'output']
+
+  !> The values of &integrator scheme: the structure-preserving schemes, then the PETSc TS
+  !> baselines (config%scheme indexes this list).
+  character(len=*), parameter :: scheme_choices(6) = [character(len=11) :: scheme_names, ts_scheme_names]
 
   !> Everything a run needs, in the namelists' names and units.
   type :: run_configuration
@@ -41,6 +46,7 @@ module run_config
     real(real64) :: dt = 0.15_real64
     real(real64) :: t_end = 20.0_real64
     real(real64) :: newton_tol = 1.0e-8_real64
+    real(real64) :: ts_tolerance = 1.0e-10_real64
     character(len=:), allocatable :: output_file
     real(real64) :: theta_r = 300.0_real64
   end type run_configuration
@@ -72,14 +78,15 @@ module run_config
     field_spec('length', 'a real number > 0 equal to |q1| at t = 0 [m]'), &
     field_spec('fix_temperature', '.true. or .false.'), &
     field_spec('temperature', 'a real number > 0 equal to theta(1) at t = 0 [K]')]
-  type(field_spec), parameter :: integrator_fields(7) = [ &
-    field_spec('scheme', "'eme' or 'midpoint'"), &
+  type(field_spec), parameter :: integrator_fields(8) = [ &
+    field_spec('scheme', "'eme', 'midpoint', 'ts_midpoint', 'ts_bdf2', 'ts_rk4' or 'ts_rk5dp'"), &
     field_spec('thermo_variable', "'entropy', 'temperature' or 'internal_energy'"), &
     field_spec('discrete_gradient', "'gonzalez' or 'partitioned'"), &
     field_spec('metric', "'nondimensional' or 'euclidean'"), &
     field_spec('dt', 'a real number > 0 [s]'), &
     field_spec('t_end', 'a real number > 0 [s]'), &
-    field_spec('newton_tol', 'a real number > 0')]
+    field_spec('newton_tol', 'a real number > 0'), &
+    field_spec('ts_tolerance', 'a real number > 0 (absolute and relative, for ts_rk5dp)')]
   type(field_spec), parameter :: output_fields(2) = [ &
     field_spec('file', 'a path ending in .h5 (default results/<input name>.h5)'), &
     field_spec('theta_r', 'a real number > 0 [K] (default theta_ref, or the fixed temperature)')]
@@ -306,17 +313,17 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     character(len=text_length) :: scheme, thermo_variable, discrete_gradient, metric
-    real(real64) :: dt, t_end, newton_tol
+    real(real64) :: dt, t_end, newton_tol, ts_tolerance
     type(namelist_item), allocatable :: items(:)
     character(len=text_length) :: io_message
     integer :: ios, i
-    namelist /integrator/ scheme, thermo_variable, discrete_gradient, metric, dt, t_end, newton_tol
+    namelist /integrator/ scheme, thermo_variable, discrete_gradient, metric, dt, t_end, newton_tol, ts_tolerance
 
-    scheme = scheme_names(config%scheme)
+    scheme = scheme_choices(config%scheme)
     thermo_variable = thermo_variable_names(config%thermo_variable)
     discrete_gradient = discrete_gradient_names(config%discrete_gradient)
     metric = metric_names(config%metric)
-    dt = config%dt; t_end = config%t_end; newton_tol = config%newton_tol
+    dt = config%dt; t_end = config%t_end; newton_tol = config%newton_tol; ts_tolerance = config%ts_tolerance
     stat = 0
     message = ''
     call group_items(text, 'integrator', integrator_fields, config%input_file, items, extra)
@@ -328,12 +335,18 @@ contains
         return
       end if
     end do
-    config%scheme = choice(scheme, scheme_names, 'scheme')
+    config%scheme = choice(scheme, scheme_choices, 'scheme')
     config%thermo_variable = choice(thermo_variable, thermo_variable_names, 'thermo_variable')
     config%discrete_gradient = choice(discrete_gradient, discrete_gradient_names, 'discrete_gradient')
     config%metric = choice(metric, metric_names, 'metric')
-    config%dt = dt; config%t_end = t_end; config%newton_tol = newton_tol
+    config%dt = dt; config%t_end = t_end; config%newton_tol = newton_tol; config%ts_tolerance = ts_tolerance
     call require(dt > 0, 'dt', reals_text([dt]))
+    call require(ts_tolerance > 0, 'ts_tolerance', reals_text([ts_tolerance]))
+    if (stat == 0 .and. is_ts_scheme(config%scheme) .and. (config%fix_length .or. config%fix_temperature)) then
+      stat = 1
+      message = origin_of(items, 'scheme', config%input_file)//': &integrator: scheme = '''//trim(scheme)// &
+                ''' integrates the unconstrained model only; allowed with &constraints: ''eme'' or ''midpoint'''
+    end if
     call require(t_end > 0, 't_end', reals_text([t_end]))
     call require(newton_tol > 0, 'newton_tol', reals_text([newton_tol]))
 
@@ -407,6 +420,13 @@ contains
   end subroutine read_output
 
   ! ------------------------------------------------------------------ helpers
+
+  !> Whether scheme (an index into scheme_choices) is a PETSc TS baseline.
+  pure logical function is_ts_scheme(scheme)
+    integer, intent(in) :: scheme
+
+    is_ts_scheme = scheme > size(scheme_names)
+  end function is_ts_scheme
 
   ! Where the last value of `field` came from: an override's origin, or the input file.
   pure function origin_of(items, field, input_file) result(origin)

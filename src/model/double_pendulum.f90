@@ -9,7 +9,7 @@ module double_pendulum
   public :: state_size, q_index, p_index, gamma_index, tau_index
   public :: var_c, var_gamma, var_tau, state_column_names
   public :: inverse_mass_times, kinetic_energy, gravity_potential, gravity_force
-  public :: angular_momentum, spring_invariants
+  public :: angular_momentum, spring_invariants, invariant_slots, invariants_jacobian
 
   integer, parameter :: state_size = 15
   !> q_index(:, a) and p_index(:, a) are the columns of q_a and p_a in z.
@@ -87,6 +87,30 @@ contains
     if (a == 2) x(2) = z(gamma_index)
     x(a + 1) = z(tau_index(a))
   end function spring_invariants
+
+  !> The slots (var_c, [var_gamma,] var_tau) of spring a's invariants in partials(:, :, a).
+  pure function invariant_slots(a) result(slots)
+    integer, intent(in) :: a
+    integer :: slots(a + 1)
+
+    if (a == 1) then
+      slots = [var_c, var_tau]
+    else
+      slots = [var_c, var_gamma, var_tau]
+    end if
+  end function invariant_slots
+
+  !> d x_a / d z for spring a's invariants x = (q_a.q_a, [gamma,] tau_a) at z.
+  pure function invariants_jacobian(z, a) result(dx_dz)
+    real(real64), intent(in) :: z(:)
+    integer, intent(in) :: a
+    real(real64) :: dx_dz(a + 1, state_size)
+
+    dx_dz = 0.0_real64
+    dx_dz(1, q_index(:, a)) = 2.0_real64*z(q_index(:, a))
+    if (a == 2) dx_dz(2, gamma_index) = 1.0_real64
+    dx_dz(a + 1, tau_index(a)) = 1.0_real64
+  end function invariants_jacobian
 
   pure function cross(a, b) result(c)
     real(real64), intent(in) :: a(3), b(3)

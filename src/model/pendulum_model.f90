@@ -6,7 +6,7 @@ module pendulum_model
   use free_energy, only: spring_law_of
   use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, &
-                             kinetic_energy, gravity_potential, spring_invariants
+                             kinetic_energy, gravity_potential, spring_invariants, invariant_slots, invariants_jacobian
   implicit none (type, external)
   private
   public :: pendulum, make_pendulum
@@ -18,6 +18,7 @@ module pendulum_model
     type(spring_potential) :: spring(2)
   contains
     procedure :: observe
+    procedure :: exact_partials
     procedure :: state_from_temperatures
   end type pendulum
 
@@ -62,6 +63,37 @@ contains
       entropy = entropy + f(potential_s)
     end do
   end subroutine observe
+
+  !> The exact partials of U_a and S_a in each spring's invariants at z, as partials(var,
+  !> potential, a), and optionally their derivatives with respect to z.
+  pure subroutine exact_partials(self, z, partials, dpartials_dz, stat)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: partials(3, 2, 2)
+    real(real64), intent(out), optional :: dpartials_dz(3, 2, 2, state_size)
+    integer, intent(out) :: stat
+    real(real64) :: f(2), g(3, 2), h(3, 3, 2)
+    integer :: a, n
+
+    partials = 0.0_real64
+    if (present(dpartials_dz)) dpartials_dz = 0.0_real64
+    do a = 1, 2
+      n = a + 1
+      if (present(dpartials_dz)) then
+        call self%spring(a)%evaluate(spring_invariants(z, a), f, g(1:n, :), h(1:n, 1:n, :), stat)
+      else
+        call self%spring(a)%evaluate(spring_invariants(z, a), f, g(1:n, :), stat=stat)
+      end if
+      if (stat /= domain_ok) return
+      partials(invariant_slots(a), :, a) = g(1:n, :)
+      if (present(dpartials_dz)) then
+        associate (dx_dz => invariants_jacobian(z, a), slots => invariant_slots(a))
+          dpartials_dz(slots, potential_u, a, :) = matmul(h(1:n, 1:n, potential_u), dx_dz)
+          dpartials_dz(slots, potential_s, a, :) = matmul(h(1:n, 1:n, potential_s), dx_dz)
+        end associate
+      end if
+    end do
+  end subroutine exact_partials
 
   !> The state z built from positions, momenta, gamma and spring temperatures theta(2).
   pure subroutine state_from_temperatures(self, q1, q2, p1, p2, gamma, theta, z, stat)

@@ -11,8 +11,10 @@ module simulation
   use double_pendulum, only: state_size, state_column_names, angular_momentum
   use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use step_residual, only: step_problem, scheme_eme, scheme_names
-  use step_solver, only: snes_solver, step_report
-  use run_config, only: run_configuration, step_count
+  use step_solver, only: snes_solver
+  use ts_integrator, only: ts_stepper
+  use time_stepper, only: stepper, step_report
+  use run_config, only: run_configuration, step_count, scheme_choices, is_ts_scheme
   use hdf5_series, only: hdf5_file, series_table
   use filesystem, only: make_parent_directories
   use build_info, only: code_version
@@ -66,6 +68,8 @@ contains
     type(step_problem) :: problem
     type(snes_solver), target :: own_solver
     type(snes_solver), pointer :: active
+    type(ts_stepper), target :: ts
+    class(stepper), pointer :: integrator
     type(step_report) :: report
     type(hdf5_file) :: file
     type(series_table) :: points, steps
@@ -87,7 +91,7 @@ contains
       return
     end if
     problem%model = model
-    problem%scheme = config%scheme
+    if (.not. is_ts_scheme(config%scheme)) problem%scheme = config%scheme
     problem%gradient = config%discrete_gradient
     problem%metric = config%metric
     problem%dt = config%dt
@@ -104,12 +108,18 @@ contains
 
     call open_output(stat, message)
     if (stat /= 0) return
-    if (present(solver)) then
-      active => solver
+    if (is_ts_scheme(config%scheme)) then
+      call ts%create(model, config%scheme - 2, z, config%dt, config%newton_tol, config%ts_tolerance, ierr)
+      integrator => ts
     else
-      active => own_solver
+      if (present(solver)) then
+        active => solver
+      else
+        active => own_solver
+      end if
+      call active%prepare(problem, config%newton_tol, ierr)
+      integrator => active
     end if
-    call active%prepare(problem, config%newton_tol, ierr)
     if (ierr /= 0) then
       stat = int(ierr)
       message = 'PETSc failed to set up the solver'
@@ -125,7 +135,7 @@ contains
     call system_clock(clock_loop)
     do n = 1, summary%steps_planned
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
-      call active%solve_step(z, config%dt, 2*x - x_previous, x_new, report, ierr)
+      call integrator%advance(x, (n - 1)*config%dt, config%dt, 2*x - x_previous, x_new, report, ierr)
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       if (ierr /= 0) then
         stat = int(ierr)
@@ -138,8 +148,8 @@ contains
         summary%status = 'incomplete: step '//integer_text(n)//' (t = '//real_text(time)//' s): '//report%reason
         exit
       end if
-      call active%problem%scheme_temperatures(x_new, theta, io_stat)
-      call steps%append(file, [real(report%newton_iterations, real64), theta, real(report%strategy, real64), &
+      call steps%append(file, [real(report%newton_iterations, real64), report%scheme_temperature, &
+                               real(report%strategy, real64), &
                                real(report%solves, real64), real(report%rejected_roots, real64), &
                                x_new(state_size + 1:)], io_stat)
       if (io_stat /= 0) exit
@@ -168,7 +178,11 @@ contains
     end if
     call system_clock(clock_now)
     summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
-    if (.not. present(solver)) call own_solver%destroy(ierr)
+    if (is_ts_scheme(config%scheme)) then
+      call ts%destroy(ierr)
+    else if (.not. present(solver)) then
+      call own_solver%destroy(ierr)
+    end if
     call close_output(summary%status)
     call system_clock(clock_now)
     summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
@@ -214,7 +228,7 @@ contains
         return
       end if
       call write_run_attributes(file, config, summary%steps_planned, problem%unknowns(), stat)
-      if (stat == 0) call define_datasets(file, points, steps, problem, stat)
+      if (stat == 0) call define_datasets(file, points, steps, problem, config%scheme, stat)
       if (stat /= 0) message = 'cannot write to '//config%output_file
     end subroutine open_output
 
@@ -234,10 +248,11 @@ contains
   end subroutine run_simulation
 
   ! The datasets, in the order of the rows that feed them. h5py shows (rows) or (rows, columns).
-  subroutine define_datasets(file, points, steps, problem, stat)
+  subroutine define_datasets(file, points, steps, problem, scheme, stat)
     type(hdf5_file), intent(in) :: file
     type(series_table), intent(inout) :: points, steps
     type(step_problem), intent(in) :: problem
+    integer, intent(in) :: scheme    !! index into scheme_choices
     integer, intent(out) :: stat
     character(len=:), allocatable :: columns, temperature_meaning, multipliers, residuals
     integer :: i
@@ -246,7 +261,9 @@ contains
     do i = 2, state_size
       columns = columns//' '//trim(state_column_names(i))
     end do
-    if (problem%scheme == scheme_eme) then
+    if (scheme > size(scheme_choices) - 4) then
+      temperature_meaning = 'temperatures at the end of the step (PETSc TS baselines have no discrete temperature)'
+    else if (scheme == scheme_eme) then
       temperature_meaning = 'discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'
     else
       temperature_meaning = 'temperatures at the step''s midpoint, where K0 is evaluated'
@@ -285,11 +302,14 @@ contains
     if (stat == 0) call steps%define(file, 'scheme_temperature', 2, .true., 'K', temperature_meaning, stat, &
                                      columns='Theta_1 Theta_2')
     if (stat == 0) call steps%define(file, 'solver_strategy', 1, .false., '1', &
-      'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt)', stat, integer_valued=.true.)
+      'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 0 for PETSc TS', stat, &
+      integer_valued=.true.)
     if (stat == 0) call steps%define(file, 'snes_solves', 1, .false., '1', &
-      'SNESSolve calls of the step (continuation stages included)', stat, integer_valued=.true.)
+      'SNESSolve calls of the step (continuation stages included), or TS steps taken for PETSc TS', stat, &
+      integer_valued=.true.)
     if (stat == 0) call steps%define(file, 'rejected_roots', 1, .false., '1', &
-      'converged roots rejected as unphysical (non-positive temperature) in the step', stat, integer_valued=.true.)
+      'converged roots rejected as unphysical (non-positive temperature), or TS steps rejected', stat, &
+      integer_valued=.true.)
     if (problem%constraint_count() > 0) then
       if (stat == 0) call steps%define(file, 'multiplier', problem%constraint_count(), .true., 'SI', &
         'Lagrange multipliers: lambda_length [N/m] (force -lambda q1_mid), lambda_temperature [W] (heat supply)', &
@@ -307,7 +327,10 @@ contains
     character(len=:), allocatable :: gradient, metric
 
     model = make_pendulum(config%model, config%thermo_variable)
-    if (config%scheme == scheme_eme) then
+    if (is_ts_scheme(config%scheme)) then
+      gradient = 'none (PETSc TS)'
+      metric = 'none (PETSc TS)'
+    else if (config%scheme == scheme_eme) then
       gradient = trim(discrete_gradient_names(config%discrete_gradient))
       metric = trim(metric_names(config%metric))
       if (config%metric == metric_nondimensional) metric = metric// &
@@ -318,7 +341,7 @@ contains
     end if
     stat = 0
     call text('status', 'incomplete: running')
-    call text('scheme', trim(scheme_names(config%scheme)))
+    call text('scheme', trim(scheme_choices(config%scheme)))
     call text('thermo_variable', trim(thermo_variable_names(config%thermo_variable)))
     call text('discrete_gradient', gradient)
     call text('metric', metric)
@@ -328,6 +351,7 @@ contains
     call real_attribute('t_end', config%t_end)
     call real_attribute('theta_r', config%theta_r)
     call real_attribute('newton_tol', config%newton_tol)
+    call real_attribute('ts_tolerance', config%ts_tolerance)
     call real_attribute('quotient_threshold', quotient_threshold)
     if (stat == 0) call file%set_integer('steps_planned', steps_planned, stat)
     if (stat == 0) call file%set_integer('unknowns', unknowns, stat)

@@ -13,8 +13,8 @@ module step_residual
   use, intrinsic :: iso_fortran_env, only: real64
   use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok, domain_nonpositive_temperature
   use pendulum_model, only: pendulum
-  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, var_c, var_gamma, var_tau, &
-                             spring_invariants
+  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, var_tau, &
+                             spring_invariants, invariant_slots, invariants_jacobian
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional, metric_euclidean, &
                                discrete_gradient_of
   use generic_vector_field, only: vector_field
@@ -198,45 +198,43 @@ contains
     real(real64), intent(out), optional :: dpartials_dz(3, 2, 2, state_size)
     integer, intent(out) :: stat
 
-    real(real64) :: z_mid(state_size), dx_dz(3, state_size), f(2), g(3, 2), dg(3, 3, 2), scale(3)
-    integer :: a, n, slot(3)
+    real(real64) :: g(3, 2), dg(3, 3, 2), scale(3)
+    integer :: a, n
 
+    if (self%scheme /= scheme_eme) then
+      ! Midpoint: exact partials at z_mid = (z + z')/2, so d/dz' is half of d/dz_mid.
+      call self%model%exact_partials(0.5_real64*(self%z_old + z_new(1:state_size)), partials, dpartials_dz, stat)
+      if (present(dpartials_dz)) dpartials_dz = 0.5_real64*dpartials_dz
+      return
+    end if
     partials = 0.0_real64
     if (present(dpartials_dz)) dpartials_dz = 0.0_real64
-    z_mid = 0.5_real64*(self%z_old + z_new(1:state_size))
     do a = 1, 2
       n = a + 1
-      if (a == 1) then
-        slot(1:2) = [var_c, var_tau]
+      if (self%metric == metric_euclidean) then
+        scale = 1.0_real64
       else
-        slot = [var_c, var_gamma, var_tau]
+        scale(1:n) = self%model%spring(a)%metric_scale()
       end if
-      dx_dz = 0.0_real64
-      if (self%scheme == scheme_eme) then
-        if (self%metric == metric_euclidean) then
-          scale = 1.0_real64
+      associate (x_old => spring_invariants(self%z_old, a), x_new => spring_invariants(z_new, a), &
+                 slots => invariant_slots(a))
+        if (present(dpartials_dz)) then
+          call discrete_gradient_of(self%gradient, self%model%spring(a), x_old, x_new, scale(1:n), g(1:n, :), &
+                                    dg(1:n, 1:n, :), stat=stat)
         else
-          scale(1:n) = self%model%spring(a)%metric_scale()
+          call discrete_gradient_of(self%gradient, self%model%spring(a), x_old, x_new, scale(1:n), g(1:n, :), &
+                                    stat=stat)
         end if
-        call discrete_gradient_of(self%gradient, self%model%spring(a), spring_invariants(self%z_old, a), &
-                                  spring_invariants(z_new, a), scale(1:n), g(1:n, :), dg(1:n, 1:n, :), stat=stat)
-        ! x' = (q'.q', [gamma'], tau')
-        dx_dz(1, q_index(:, a)) = 2.0_real64*z_new(q_index(:, a))
-        if (a == 2) dx_dz(2, gamma_index) = 1.0_real64
-        dx_dz(n, tau_index(a)) = 1.0_real64
-      else
-        call self%model%spring(a)%evaluate(spring_invariants(z_mid, a), f, g(1:n, :), dg(1:n, 1:n, :), stat)
-        ! x_mid = (q_mid.q_mid, [gamma_mid], tau_mid) with z_mid = (z + z')/2
-        dx_dz(1, q_index(:, a)) = z_mid(q_index(:, a))
-        if (a == 2) dx_dz(2, gamma_index) = 0.5_real64
-        dx_dz(n, tau_index(a)) = 0.5_real64
-      end if
-      if (stat /= domain_ok) return
-      partials(slot(1:n), :, a) = g(1:n, :)
-      if (present(dpartials_dz)) then
-        dpartials_dz(slot(1:n), potential_u, a, :) = matmul(dg(1:n, 1:n, potential_u), dx_dz(1:n, :))
-        dpartials_dz(slot(1:n), potential_s, a, :) = matmul(dg(1:n, 1:n, potential_s), dx_dz(1:n, :))
-      end if
+        if (stat /= domain_ok) return
+        partials(slots, :, a) = g(1:n, :)
+        if (present(dpartials_dz)) then
+          ! Chain rule through x' = (q'.q', [gamma'], tau').
+          associate (dx_dz => invariants_jacobian(z_new, a))
+            dpartials_dz(slots, potential_u, a, :) = matmul(dg(1:n, 1:n, potential_u), dx_dz)
+            dpartials_dz(slots, potential_s, a, :) = matmul(dg(1:n, 1:n, potential_s), dx_dz)
+          end associate
+        end if
+      end associate
     end do
   end subroutine scheme_partials
 

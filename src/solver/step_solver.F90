@@ -15,29 +15,20 @@ module step_solver
   use petscsnes
   use, intrinsic :: iso_fortran_env, only: real64
   use step_residual, only: step_problem
+  use time_stepper, only: stepper, step_report
   implicit none
   private
-  public :: snes_solver, step_report
+  public :: snes_solver
   public :: strategy_predictor, strategy_old_state, strategy_continuation
 
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
   integer, parameter :: strategy_continuation = 3
 
-  !> How a step went: which strategy found the root and at what cost.
-  type :: step_report
-    logical :: accepted = .false.
-    integer :: strategy = 0              !! strategy_* that produced the accepted root
-    integer :: newton_iterations = 0     !! summed over every solve of the step
-    integer :: solves = 0                !! SNESSolve calls, including continuation stages
-    integer :: rejected_roots = 0        !! converged roots rejected as unphysical
-    character(len=:), allocatable :: reason   !! why the step failed (if it did)
-    character(len=:), allocatable :: last_rejection   !! why the last rejected root was rejected
-  end type step_report
 
   !> The PETSc objects of one run and the problem their callbacks see. Do not copy it after
   !> `create`: PETSc holds the address of `problem`.
-  type :: snes_solver
+  type, extends(stepper) :: snes_solver
     type(step_problem) :: problem
     SNES :: snes
     Vec :: x
@@ -51,6 +42,7 @@ module step_solver
     procedure :: prepare
     procedure :: destroy
     procedure :: solve_step
+    procedure :: advance
   end type snes_solver
 
   integer, parameter :: max_continuation_solves = 40
@@ -216,6 +208,20 @@ contains
                       //last_failure//')'
     end subroutine continuation
   end subroutine solve_step
+
+  !> The stepper interface: one step of the scheme, then the temperatures its K0 used.
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+    class(snes_solver), intent(inout) :: self
+    real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    integer, intent(out) :: ierr
+    integer :: stat
+
+    call self%solve_step(x_old(1:size(self%problem%z_old)), dt, guess, x_new, report, ierr)
+    if (ierr /= 0 .or. .not. report%accepted) return
+    call self%problem%scheme_temperatures(x_new, report%scheme_temperature, stat)
+  end subroutine advance
 
   ! One SNESSolve for step size dt from `initial`; ok = converged to a physical root.
   subroutine solve_once(self, initial, dt, root, report, ok, why, ierr)

@@ -15,7 +15,8 @@ program test_step_solver
   use double_pendulum, only: state_size, angular_momentum
   use discrete_gradient, only: gradient_gonzalez, gradient_partitioned, metric_euclidean, discrete_gradient_names
   use step_residual, only: step_problem, scheme_eme, scheme_midpoint
-  use step_solver, only: snes_solver, step_report
+  use step_solver, only: snes_solver
+  use time_stepper, only: step_report
   implicit none
 
   type(test_suite) :: suite

@@ -1,0 +1,258 @@
+!> PETSc TS baselines on the continuous GENERIC vector field f(z) = L grad E + K grad S
+!> (generic_vector_field at exact partials, FORMULATION section 4) and its exact Jacobian:
+!>   ts_midpoint  TSTHETA with theta = 1/2, the implicit midpoint rule as PETSc does it
+!>   ts_bdf2      TSBDF of order 2
+!>   ts_rk4       TSRK 4, the classic explicit Runge-Kutta method
+!>   ts_rk5dp     TSRK 5dp, Dormand-Prince with adaptive steps at tolerance ts_tolerance
+!> The fixed-step methods take one step of dt per output step; ts_rk5dp chooses its own steps
+!> and lands on every output time. The TS keeps its state between output steps, so multistep
+!> BDF2 keeps its history. Options with the TS prefix work from the command line (-ts_*).
+module ts_integrator
+#include <petsc/finclude/petscts.h>
+  use petscts
+  use, intrinsic :: iso_fortran_env, only: real64
+  use pendulum_model, only: pendulum
+  use double_pendulum, only: state_size
+  use generic_vector_field, only: vector_field
+  use time_stepper, only: stepper, step_report
+  implicit none
+  private
+  public :: ts_stepper, ts_scheme_names, ts_midpoint, ts_bdf2, ts_rk4, ts_rk5dp
+
+  integer, parameter :: ts_midpoint = 1, ts_bdf2 = 2, ts_rk4 = 3, ts_rk5dp = 4
+  character(len=*), parameter :: ts_scheme_names(4) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4', &
+                                                       'ts_rk5dp']
+
+  !> The model the callbacks evaluate, and whether it left its domain.
+  type :: rhs_context
+    type(pendulum) :: model
+    logical :: out_of_domain = .false.
+  end type rhs_context
+
+  !> One TS for a run. Do not copy it after `create`: PETSc holds the address of `context`.
+  type, extends(stepper) :: ts_stepper
+    type(rhs_context) :: context
+    TS :: ts
+    Vec :: x
+    Mat :: jacobian
+    integer :: method = ts_midpoint
+    PetscInt :: snes_iterations = 0
+    PetscInt :: steps = 0
+    PetscInt :: rejections = 0
+  contains
+    procedure :: create
+    procedure :: destroy
+    procedure :: advance
+  end type ts_stepper
+
+contains
+
+  !> Sets up method `method` (ts_*) for `model` from state z0 at t = 0 with step dt (the first
+  !> step for ts_rk5dp), Newton tolerance newton_tol (implicit methods) and tolerance
+  !> `tolerance` (ts_rk5dp).
+  subroutine create(self, model, method, z0, dt, newton_tol, tolerance, ierr)
+    class(ts_stepper), intent(inout), target :: self
+    type(pendulum), intent(in) :: model
+    integer, intent(in) :: method
+    real(real64), intent(in) :: z0(state_size), dt, newton_tol, tolerance
+    PetscErrorCode, intent(out) :: ierr
+    SNES :: snes
+    TSAdapt :: adapt
+    PetscScalar, pointer :: values(:)
+    PetscInt :: n, max_iterations, max_evaluations, max_steps
+
+    self%context%model = model
+    self%method = method
+    n = state_size
+    PetscCall(VecCreateSeq(PETSC_COMM_SELF, n, self%x, ierr))
+    PetscCall(VecGetArrayF90(self%x, values, ierr))
+    values = z0
+    PetscCall(VecRestoreArrayF90(self%x, values, ierr))
+    PetscCall(TSCreate(PETSC_COMM_SELF, self%ts, ierr))
+    PetscCall(TSSetProblemType(self%ts, TS_NONLINEAR, ierr))
+    PetscCall(TSSetSolution(self%ts, self%x, ierr))
+    PetscCall(TSSetRHSFunction(self%ts, PETSC_NULL_VEC, form_rhs, self%context, ierr))
+    select case (method)
+    case (ts_midpoint)
+      PetscCall(TSSetType(self%ts, TSTHETA, ierr))
+      PetscCall(TSThetaSetTheta(self%ts, 0.5_real64, ierr))
+    case (ts_bdf2)
+      PetscCall(TSSetType(self%ts, 'bdf', ierr))   ! PETSc 3.18's Fortran headers lack TSBDF
+      PetscCall(TSBDFSetOrder(self%ts, 2, ierr))
+    case (ts_rk4)
+      PetscCall(TSSetType(self%ts, TSRK, ierr))
+      PetscCall(TSRKSetType(self%ts, TSRK4, ierr))
+    case (ts_rk5dp)
+      PetscCall(TSSetType(self%ts, TSRK, ierr))
+      PetscCall(TSRKSetType(self%ts, TSRK5DP, ierr))
+    end select
+    if (method == ts_midpoint .or. method == ts_bdf2) then
+      PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, n, n, PETSC_NULL_SCALAR, self%jacobian, ierr))
+      PetscCall(TSSetRHSJacobian(self%ts, self%jacobian, self%jacobian, form_rhs_jacobian, self%context, ierr))
+      PetscCall(TSGetSNES(self%ts, snes, ierr))
+      max_iterations = 50
+      max_evaluations = 10000
+      PetscCall(SNESSetTolerances(snes, newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
+      PetscCall(set_direct_solver(snes, ierr))
+    end if
+    PetscCall(TSSetTime(self%ts, 0.0_real64, ierr))
+    PetscCall(TSSetTimeStep(self%ts, dt, ierr))
+    max_steps = 1000000000
+    PetscCall(TSSetMaxSteps(self%ts, max_steps, ierr))
+    PetscCall(TSSetExactFinalTime(self%ts, TS_EXACTFINALTIME_MATCHSTEP, ierr))
+    ! A step that fails ends TSSolve with a negative converged reason, not a PETSc error.
+    PetscCall(TSSetErrorIfStepFails(self%ts, PETSC_FALSE, ierr))
+    PetscCall(TSGetAdapt(self%ts, adapt, ierr))
+    if (method == ts_rk5dp) then
+      PetscCall(TSSetTolerances(self%ts, tolerance, PETSC_NULL_VEC, tolerance, PETSC_NULL_VEC, ierr))
+    else
+      PetscCall(TSAdaptSetType(adapt, TSADAPTNONE, ierr))
+    end if
+    PetscCall(TSSetFromOptions(self%ts, ierr))
+  end subroutine create
+
+  !> Frees the PETSc objects.
+  subroutine destroy(self, ierr)
+    class(ts_stepper), intent(inout) :: self
+    PetscErrorCode, intent(out) :: ierr
+
+    PetscCall(TSDestroy(self%ts, ierr))
+    PetscCall(VecDestroy(self%x, ierr))
+    if (self%method == ts_midpoint .or. self%method == ts_bdf2) then
+      PetscCall(MatDestroy(self%jacobian, ierr))
+    end if
+  end subroutine destroy
+
+  !> Integrates from the TS's current state to t_old + dt. x_old and guess are not needed: the
+  !> TS carries its state (and BDF2 its history) from one output step to the next.
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+    class(ts_stepper), intent(inout) :: self
+    real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    integer, intent(out) :: ierr
+    PetscScalar, pointer :: values(:)
+    TSConvergedReason :: converged
+    PetscInt :: snes_iterations, steps, rejections
+    real(real64) :: energy, entropy
+    character(len=80) :: text
+    integer :: stat
+
+    report%reason = ''
+    report%last_rejection = ''
+    self%context%out_of_domain = .false.
+    ! Start from the exact output time: the TS's own sum of steps drifts by rounding, and a
+    ! remainder of 1e-16 s would become a step of its own (which t + dt cannot even resolve).
+    ! For the fixed-step methods, reset dt too: after landing on an output time the TS keeps
+    ! the shortened last step as its next one. They then take exactly one step of dt.
+    PetscCall(TSSetTime(self%ts, t_old, ierr))
+    PetscCall(TSSetMaxTime(self%ts, t_old + dt, ierr))
+    if (self%method /= ts_rk5dp) then
+      PetscCall(TSSetTimeStep(self%ts, dt, ierr))
+    end if
+    PetscCall(TSSolve(self%ts, self%x, ierr))
+    PetscCall(TSGetConvergedReason(self%ts, converged, ierr))
+    PetscCall(TSGetSNESIterations(self%ts, snes_iterations, ierr))
+    PetscCall(TSGetStepNumber(self%ts, steps, ierr))
+    PetscCall(TSGetStepRejections(self%ts, rejections, ierr))
+    report%newton_iterations = int(snes_iterations - self%snes_iterations)
+    report%solves = int(steps - self%steps)
+    report%rejected_roots = int(rejections - self%rejections)
+    self%snes_iterations = snes_iterations
+    self%steps = steps
+    self%rejections = rejections
+    PetscCall(VecGetArrayReadF90(self%x, values, ierr))
+    x_new = values
+    PetscCall(VecRestoreArrayReadF90(self%x, values, ierr))
+    if (converged < 0) then
+      write (text, '(a, i0)') 'PETSc TS did not converge, TSConvergedReason ', converged
+      report%reason = trim(text)
+      return
+    end if
+    call self%context%model%observe(x_new, energy, entropy, report%scheme_temperature, stat)
+    if (stat /= 0 .or. self%context%out_of_domain .or. .not. all(abs(x_new) <= huge(1.0_real64))) then
+      report%reason = 'the state left the model''s domain (a non-positive temperature, or a blow-up)'
+      return
+    end if
+    report%accepted = .true.
+  end subroutine advance
+
+  ! Dense LU for the implicit methods' Newton solves, as for the EME schemes.
+  subroutine set_direct_solver(snes, ierr)
+    SNES :: snes
+    PetscErrorCode, intent(out) :: ierr
+    KSP :: ksp
+    PC :: pc
+
+    PetscCall(SNESGetKSP(snes, ksp, ierr))
+    PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
+    PetscCall(KSPGetPC(ksp, pc, ierr))
+    PetscCall(PCSetType(pc, PCLU, ierr))
+  end subroutine set_direct_solver
+
+  ! TS callback: f(z) = L grad E + K grad S at z. Outside the model's domain the field is NaN,
+  ! which the implicit methods' line search and the step check after TSSolve catch.
+  subroutine form_rhs(ts, time, x, f, context, ierr)
+    TS :: ts
+    PetscReal :: time
+    Vec :: x
+    Vec :: f
+    type(rhs_context) :: context
+    PetscErrorCode :: ierr
+    PetscScalar, pointer :: x_values(:), f_values(:)
+    real(real64) :: partials(3, 2, 2)
+    integer :: stat
+
+    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
+    PetscCall(VecGetArrayF90(f, f_values, ierr))
+    call context%model%exact_partials(x_values, partials, stat=stat)
+    if (stat == 0) then
+      call vector_field(context%model%params, x_values, partials, f_values)
+    else
+      context%out_of_domain = .true.
+      f_values = ieee_nan()
+    end if
+    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
+    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+  end subroutine form_rhs
+
+  ! TS callback: df/dz = (df/dz at fixed partials) + (df/dpartials)(dpartials/dz).
+  subroutine form_rhs_jacobian(ts, time, x, jacobian, preconditioner, context, ierr)
+    TS :: ts
+    PetscReal :: time
+    Vec :: x
+    Mat :: jacobian
+    Mat :: preconditioner
+    type(rhs_context) :: context
+    PetscErrorCode :: ierr
+    PetscScalar, pointer :: x_values(:), entries(:, :)
+    real(real64) :: partials(3, 2, 2), dpartials_dz(3, 2, 2, state_size), f(state_size)
+    real(real64) :: df_dz(state_size, state_size), df_dpartials(state_size, 3, 2, 2)
+    integer :: stat
+
+    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
+    PetscCall(MatDenseGetArrayF90(preconditioner, entries, ierr))
+    call context%model%exact_partials(x_values, partials, dpartials_dz, stat)
+    if (stat == 0) then
+      call vector_field(context%model%params, x_values, partials, f, df_dz, df_dpartials)
+      entries = df_dz + matmul(reshape(df_dpartials, [state_size, 12]), reshape(dpartials_dz, [12, state_size]))
+    else
+      context%out_of_domain = .true.
+      entries = 0.0_real64
+    end if
+    PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
+    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
+    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
+    if (jacobian /= preconditioner) then
+      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+    end if
+  end subroutine form_rhs_jacobian
+
+  pure real(real64) function ieee_nan()
+    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+    ieee_nan = ieee_value(1.0_real64, ieee_quiet_nan)
+  end function ieee_nan
+
+end module ts_integrator
