@@ -39,7 +39,7 @@ program eme_run
       end if
       if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
         & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
-        summary%steps_planned, '|dE|/|E0| <= ', summary%energy_drift, ', min dS = ', &
+        summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
         summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
         summary%angular_momentum_drift, ', Newton/step ', &
         real(summary%newton_iterations, real64)/max(1, summary%steps_completed), ', ', summary%wall_seconds, ' s'

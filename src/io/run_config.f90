@@ -47,6 +47,7 @@ module run_config
     real(real64) :: t_end = 20.0_real64
     real(real64) :: newton_tol = 1.0e-8_real64
     real(real64) :: ts_tolerance = 1.0e-10_real64
+    integer :: newton_max_iterations = 50
     character(len=:), allocatable :: output_file
     real(real64) :: theta_r = 300.0_real64
   end type run_configuration
@@ -78,7 +79,7 @@ module run_config
     field_spec('length', 'a real number > 0 equal to |q1| at t = 0 [m]'), &
     field_spec('fix_temperature', '.true. or .false.'), &
     field_spec('temperature', 'a real number > 0 equal to theta(1) at t = 0 [K]')]
-  type(field_spec), parameter :: integrator_fields(8) = [ &
+  type(field_spec), parameter :: integrator_fields(9) = [ &
     field_spec('scheme', "'eme', 'midpoint', 'ts_midpoint', 'ts_bdf2', 'ts_rk4' or 'ts_rk5dp'"), &
     field_spec('thermo_variable', "'entropy', 'temperature' or 'internal_energy'"), &
     field_spec('discrete_gradient', "'gonzalez' or 'partitioned'"), &
@@ -86,7 +87,8 @@ module run_config
     field_spec('dt', 'a real number > 0 [s]'), &
     field_spec('t_end', 'a real number > 0 [s]'), &
     field_spec('newton_tol', 'a real number > 0'), &
-    field_spec('ts_tolerance', 'a real number > 0 (absolute and relative, for ts_rk5dp)')]
+    field_spec('ts_tolerance', 'a real number > 0 (absolute and relative, for ts_rk5dp)'), &
+    field_spec('newton_max_iterations', 'an integer >= 1 (Newton iterations per solve)')]
   type(field_spec), parameter :: output_fields(2) = [ &
     field_spec('file', 'a path ending in .h5 (default results/<input name>.h5)'), &
     field_spec('theta_r', 'a real number > 0 [K] (default theta_ref, or the fixed temperature)')]
@@ -314,16 +316,19 @@ contains
     character(len=:), allocatable, intent(out) :: message
     character(len=text_length) :: scheme, thermo_variable, discrete_gradient, metric
     real(real64) :: dt, t_end, newton_tol, ts_tolerance
+    integer :: newton_max_iterations
     type(namelist_item), allocatable :: items(:)
     character(len=text_length) :: io_message
     integer :: ios, i
-    namelist /integrator/ scheme, thermo_variable, discrete_gradient, metric, dt, t_end, newton_tol, ts_tolerance
+    namelist /integrator/ scheme, thermo_variable, discrete_gradient, metric, dt, t_end, newton_tol, ts_tolerance, &
+      newton_max_iterations
 
     scheme = scheme_choices(config%scheme)
     thermo_variable = thermo_variable_names(config%thermo_variable)
     discrete_gradient = discrete_gradient_names(config%discrete_gradient)
     metric = metric_names(config%metric)
     dt = config%dt; t_end = config%t_end; newton_tol = config%newton_tol; ts_tolerance = config%ts_tolerance
+    newton_max_iterations = config%newton_max_iterations
     stat = 0
     message = ''
     call group_items(text, 'integrator', integrator_fields, config%input_file, items, extra)
@@ -340,7 +345,9 @@ contains
     config%discrete_gradient = choice(discrete_gradient, discrete_gradient_names, 'discrete_gradient')
     config%metric = choice(metric, metric_names, 'metric')
     config%dt = dt; config%t_end = t_end; config%newton_tol = newton_tol; config%ts_tolerance = ts_tolerance
+    config%newton_max_iterations = newton_max_iterations
     call require(dt > 0, 'dt', reals_text([dt]))
+    call require(newton_max_iterations >= 1, 'newton_max_iterations', reals_text([real(newton_max_iterations, real64)]))
     call require(ts_tolerance > 0, 'ts_tolerance', reals_text([ts_tolerance]))
     if (stat == 0 .and. is_ts_scheme(config%scheme) .and. (config%fix_length .or. config%fix_temperature)) then
       stat = 1

@@ -4,7 +4,7 @@
 !> zipped. Every case is expanded, numbered and validated here, by reading the base scene with
 !> the case's overrides exactly as eme_run would, so bad study input fails before any case runs.
 module study_config
-  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use namelist_text, only: field_spec, namelist_item, read_source_text, group_names, group_items, item_failure, &
                            invalid_value_message, lowercase
@@ -179,6 +179,9 @@ contains
     do i = 1, n
       if (new_sweep%textual) then
         new_sweep%values(i) = ''''//trim(texts(i))//''''
+      else if (abs(values(i)) < 1.0e15_real64 .and. abs(values(i) - anint(values(i))) <= 0.0_real64) then
+        ! Whole numbers as integers, so that integer fields (newton_max_iterations) take them too.
+        write (new_sweep%values(i), '(i0)') nint(values(i), int64)
       else
         write (new_sweep%values(i), '(g0)') values(i)
       end if

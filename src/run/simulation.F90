@@ -5,6 +5,7 @@ module simulation
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: real64, int64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use model_parameters, only: pendulum_parameters
   use thermo_variable, only: thermo_variable_names
   use pendulum_model, only: pendulum, make_pendulum
@@ -28,9 +29,9 @@ module simulation
     integer :: steps_planned = 0
     integer :: steps_completed = 0
     integer :: newton_iterations = 0
-    real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0| / |E_0|
-    real(real64) :: min_entropy_increment = huge(1.0_real64)
-    real(real64) :: max_lyapunov_increment = -huge(1.0_real64)
+    real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
+    real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
+    real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
     real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
@@ -109,7 +110,8 @@ contains
     call open_output(stat, message)
     if (stat /= 0) return
     if (is_ts_scheme(config%scheme)) then
-      call ts%create(model, config%scheme - 2, z, config%dt, config%newton_tol, config%ts_tolerance, ierr)
+      call ts%create(model, config%scheme - 2, z, config%dt, config%newton_tol, config%newton_max_iterations, &
+                     config%ts_tolerance, ierr)
       integrator => ts
     else
       if (present(solver)) then
@@ -117,7 +119,7 @@ contains
       else
         active => own_solver
       end if
-      call active%prepare(problem, config%newton_tol, ierr)
+      call active%prepare(problem, config%newton_tol, config%newton_max_iterations, ierr)
       integrator => active
     end if
     if (ierr /= 0) then
@@ -163,12 +165,16 @@ contains
       call record_point(time, z, energy, entropy, lyapunov, theta)
       if (io_stat /= 0) exit
       summary%steps_completed = n
-      summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0)/abs(energy_0))
+      summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
       summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(angular_momentum_z(z) - jz_0))
       if (present(observer)) call observer%after_step()
     end do
+    if (summary%steps_completed == 0) then
+      summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
+      summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
+    end if
     if (io_stat /= 0) then
       stat = io_stat
       message = 'cannot write to '//config%output_file
@@ -302,7 +308,8 @@ contains
     if (stat == 0) call steps%define(file, 'scheme_temperature', 2, .true., 'K', temperature_meaning, stat, &
                                      columns='Theta_1 Theta_2')
     if (stat == 0) call steps%define(file, 'solver_strategy', 1, .false., '1', &
-      'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 0 for PETSc TS', stat, &
+      'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 4-6 the same with the '// &
+      'fallback line search; 0 for PETSc TS', stat, &
       integer_valued=.true.)
     if (stat == 0) call steps%define(file, 'snes_solves', 1, .false., '1', &
       'SNESSolve calls of the step (continuation stages included), or TS steps taken for PETSc TS', stat, &
@@ -352,6 +359,7 @@ contains
     call real_attribute('theta_r', config%theta_r)
     call real_attribute('newton_tol', config%newton_tol)
     call real_attribute('ts_tolerance', config%ts_tolerance)
+    if (stat == 0) call file%set_integer('newton_max_iterations', config%newton_max_iterations, stat)
     call real_attribute('quotient_threshold', quotient_threshold)
     if (stat == 0) call file%set_integer('steps_planned', steps_planned, stat)
     if (stat == 0) call file%set_integer('unknowns', unknowns, stat)

@@ -10,6 +10,10 @@
 !>   3. by continuation in the step size: the step equation is solved for dt_s = s dt with
 !>      s increasing to 1, each solve starting from the previous root extrapolated in s.
 !>      Only the final solve, at s = 1, is the step; the others only provide initial guesses.
+!> Newton takes full steps (line search 'basic') by default: the residual's rows carry
+!> different units, and backtracking on its 2-norm can stall where full steps converge. If
+!> 1-3 all fail, they are tried once more with the other line search ('bt' backtracking, or
+!> 'basic' if the command line chose another): strategies 4-6.
 module step_solver
 #include <petsc/finclude/petscsnes.h>
   use petscsnes
@@ -24,6 +28,7 @@ module step_solver
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
   integer, parameter :: strategy_continuation = 3
+  integer, parameter :: strategies_per_line_search = 3
 
 
   !> The PETSc objects of one run and the problem their callbacks see. Do not copy it after
@@ -36,7 +41,10 @@ module step_solver
     Mat :: jacobian
     integer :: n = 0
     real(real64) :: newton_tol = 0.0_real64
+    integer :: max_iterations = 0
     logical :: created = .false.
+    character(len=16) :: line_search = ''           !! the primary line search type
+    character(len=16) :: fallback_line_search = ''  !! tried when every strategy failed with it
   contains
     procedure :: create
     procedure :: prepare
@@ -52,19 +60,22 @@ module step_solver
 contains
 
   !> Creates the SNES for `problem` (copied into the solver) with absolute tolerance newton_tol
-  !> on the 2-norm of the residual.
-  subroutine create(self, problem, newton_tol, ierr)
+  !> on the 2-norm of the residual and at most max_iterations Newton iterations per solve.
+  subroutine create(self, problem, newton_tol, max_iterations, ierr)
     class(snes_solver), intent(inout), target :: self
     type(step_problem), intent(in) :: problem
     real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
     KSP :: ksp
     PC :: pc
-    PetscInt :: n, max_iterations, max_evaluations
+    SNESLineSearch :: line_search
+    PetscInt :: n, max_evaluations
 
     self%problem = problem
     self%n = problem%unknowns()
     self%newton_tol = newton_tol
+    self%max_iterations = max_iterations
     self%created = .true.
     n = self%n
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, n, self%x, ierr))
@@ -77,35 +88,46 @@ contains
     PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
     PetscCall(KSPGetPC(ksp, pc, ierr))
     PetscCall(PCSetType(pc, PCLU, ierr))
-    max_iterations = 50
     max_evaluations = 10000
-    PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
+    PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, int(max_iterations, kind(n)), max_evaluations, ierr))
     PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, 0, PETSC_NULL_FUNCTION, ierr))
+    PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
+    PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESSetFromOptions(self%snes, ierr))
+    PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
+    if (self%line_search == SNESLINESEARCHBT) then
+      self%fallback_line_search = SNESLINESEARCHBASIC
+    else
+      self%fallback_line_search = SNESLINESEARCHBT
+    end if
   end subroutine create
 
   !> Makes the solver ready for `problem`: reuses the PETSc objects of an earlier run when the
   !> number of unknowns is the same (an ensemble rank runs many cases), and creates them
-  !> otherwise. A changed newton_tol is applied; options from the command line are kept.
-  subroutine prepare(self, problem, newton_tol, ierr)
+  !> otherwise. Changed tolerances are applied; options from the command line are kept.
+  subroutine prepare(self, problem, newton_tol, max_iterations, ierr)
     class(snes_solver), intent(inout), target :: self
     type(step_problem), intent(in) :: problem
     real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
+    PetscInt :: iterations
 
     ierr = 0
     if (self%created .and. self%n == problem%unknowns()) then
       self%problem = problem
-      if (abs(newton_tol - self%newton_tol) > 0.0_real64) then
-        PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, PETSC_DEFAULT_INTEGER, PETSC_DEFAULT_INTEGER, ierr))
+      if (abs(newton_tol - self%newton_tol) > 0.0_real64 .or. max_iterations /= self%max_iterations) then
+        iterations = max_iterations
+        PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, iterations, PETSC_DEFAULT_INTEGER, ierr))
         self%newton_tol = newton_tol
+        self%max_iterations = max_iterations
       end if
       return
     end if
     if (self%created) then
       PetscCall(self%destroy(ierr))
     end if
-    PetscCall(self%create(problem, newton_tol, ierr))
+    PetscCall(self%create(problem, newton_tol, max_iterations, ierr))
   end subroutine prepare
 
   !> Frees the PETSc objects.
@@ -130,24 +152,39 @@ contains
     PetscErrorCode, intent(out) :: ierr
     real(real64) :: start(self%n)
     character(len=:), allocatable :: why
+    SNESLineSearch :: line_search
+    integer :: offset
 
     ierr = 0
     self%problem%z_old = z_old
     report%reason = ''
     report%last_rejection = ''
-
-    call attempt(guess, 1.0_real64, strategy_predictor)
-    if (report%accepted .or. ierr /= 0) return
     start = guess
     start(1:size(z_old)) = z_old
-    if (maxval(abs(start - guess)) > 0.0_real64) then
-      call attempt(start, 1.0_real64, strategy_old_state)
-      if (report%accepted .or. ierr /= 0) return
-    end if
-    call continuation(start)
+    offset = 0
+    call strategies()
+    if (report%accepted .or. ierr /= 0) return
+    ! Every strategy failed with the primary line search: once more with the other one.
+    PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
+    PetscCall(SNESLineSearchSetType(line_search, self%fallback_line_search, ierr))
+    offset = strategies_per_line_search
+    call strategies()
+    PetscCall(SNESLineSearchSetType(line_search, self%line_search, ierr))
     self%problem%dt = dt
 
   contains
+
+    ! Predictor, old state, continuation in dt; report%strategy is offset + which one worked.
+    subroutine strategies()
+      call attempt(guess, 1.0_real64, offset + strategy_predictor)
+      if (report%accepted .or. ierr /= 0) return
+      if (maxval(abs(start - guess)) > 0.0_real64) then
+        call attempt(start, 1.0_real64, offset + strategy_old_state)
+        if (report%accepted .or. ierr /= 0) return
+      end if
+      call continuation(start)
+      self%problem%dt = dt
+    end subroutine strategies
 
     ! One SNES solve of the step with step size fraction*dt from `initial`.
     subroutine attempt(initial, fraction, strategy)
@@ -191,7 +228,7 @@ contains
         if (ok) then
           if (s_try >= 1.0_real64) then
             report%accepted = .true.
-            report%strategy = strategy_continuation
+            report%strategy = offset + strategy_continuation
             report%reason = ''
             return
           end if

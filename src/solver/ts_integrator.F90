@@ -48,12 +48,12 @@ module ts_integrator
 contains
 
   !> Sets up method `method` (ts_*) for `model` from state z0 at t = 0 with step dt (the first
-  !> step for ts_rk5dp), Newton tolerance newton_tol (implicit methods) and tolerance
+  !> step for ts_rk5dp), Newton tolerance and iteration limit (implicit methods) and tolerance
   !> `tolerance` (ts_rk5dp).
-  subroutine create(self, model, method, z0, dt, newton_tol, tolerance, ierr)
+  subroutine create(self, model, method, z0, dt, newton_tol, newton_max_iterations, tolerance, ierr)
     class(ts_stepper), intent(inout), target :: self
     type(pendulum), intent(in) :: model
-    integer, intent(in) :: method
+    integer, intent(in) :: method, newton_max_iterations
     real(real64), intent(in) :: z0(state_size), dt, newton_tol, tolerance
     PetscErrorCode, intent(out) :: ierr
     SNES :: snes
@@ -90,7 +90,7 @@ contains
       PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, n, n, PETSC_NULL_SCALAR, self%jacobian, ierr))
       PetscCall(TSSetRHSJacobian(self%ts, self%jacobian, self%jacobian, form_rhs_jacobian, self%context, ierr))
       PetscCall(TSGetSNES(self%ts, snes, ierr))
-      max_iterations = 50
+      max_iterations = newton_max_iterations
       max_evaluations = 10000
       PetscCall(SNESSetTolerances(snes, newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
       PetscCall(set_direct_solver(snes, ierr))
@@ -165,8 +165,15 @@ contains
     x_new = values
     PetscCall(VecRestoreArrayReadF90(self%x, values, ierr))
     if (converged < 0) then
-      write (text, '(a, i0)') 'PETSc TS did not converge, TSConvergedReason ', converged
-      report%reason = trim(text)
+      select case (converged)
+      case (TS_DIVERGED_NONLINEAR_SOLVE)
+        report%reason = 'PETSc TS: the Newton solve of an implicit step diverged (TS_DIVERGED_NONLINEAR_SOLVE)'
+      case (TS_DIVERGED_STEP_REJECTED)
+        report%reason = 'PETSc TS: too many rejected steps (TS_DIVERGED_STEP_REJECTED)'
+      case default
+        write (text, '(a, i0)') 'PETSc TS did not converge, TSConvergedReason ', converged
+        report%reason = trim(text)
+      end select
       return
     end if
     call self%context%model%observe(x_new, energy, entropy, report%scheme_temperature, stat)

@@ -14,12 +14,15 @@ CASES = {
     "zero dt": ("&integrator dt = 0.0 /\n", ["&integrator", "dt = 0", "a real number > 0"]),
     "non-positive mass": ("&model\n  mass = 1.0, -2.0\n/\n", ["&model", "mass", "two real numbers > 0"]),
     "non-positive temperature": ("&initial theta = 280.0, -5.0 /\n", ["&initial", "theta", "two real numbers > 0"]),
-    "unknown scheme": ("&integrator scheme = 'rk4' /\n", ["&integrator", "scheme = 'rk4'", "'eme' or 'midpoint'"]),
+    "unknown scheme": ("&integrator scheme = 'rk4' /\n", ["&integrator", "scheme = 'rk4'",
+                                                          "'eme', 'midpoint', 'ts_midpoint', 'ts_bdf2', 'ts_rk4' or 'ts_rk5dp'"]),
     "unknown thermodynamic variable": ("&integrator thermo_variable = 'enthalpy' /\n",
                                        ["thermo_variable = 'enthalpy'", "'entropy', 'temperature' or 'internal_energy'"]),
     "unknown discrete gradient": ("&integrator discrete_gradient = 'itoh' /\n", ["discrete_gradient", "'gonzalez' or 'partitioned'"]),
     "unknown group": ("&integrater dt = 0.1 /\n", ["unknown namelist group &integrater", "&integrator"]),
     "too many values": ("&model gravity = 0, 0, -9.81, 1 /\n", ["&model", "gravity"]),
+    "zero Newton iterations": ("&integrator newton_max_iterations = 0 /\n",
+                               ["&integrator", "newton_max_iterations = 0", "an integer >= 1"]),
     "zero spring length": ("&initial q1 = 0, 0, 0 /\n", ["&initial", "q1", "not all zero"]),
 }
 

@@ -41,7 +41,7 @@ program test_step_solver
       if (kind > 0) problem%gradient = kind
       label = case_label(variable, kind)
       z0 = paper_state(problem%model)
-      call solver%create(problem, tol, ierr)
+      call solver%create(problem, tol, 50, ierr)
       call solver%solve_step(z0, dt, z0, z1, report, ierr)
       call suite%check_true('step accepted, '//trim(label), report%accepted .and. ierr == 0, report%reason)
       call solver%problem%evaluate(z1, residual, stat=stat)
@@ -69,7 +69,7 @@ program test_step_solver
   problem%gradient = gradient_gonzalez
   problem%metric = metric_euclidean
   z0 = paper_state(problem%model)
-  call solver%create(problem, tol, ierr)
+  call solver%create(problem, tol, 50, ierr)
   call solver%solve_step(z0, dt, z0, z1, report, ierr)
   call solver%solve_step(z1, dt, 2*z1 - z0, z2, report, ierr)
   call suite%check_true('a root with negative discrete temperature was found and rejected', &
