@@ -22,7 +22,7 @@ PETSC_LIBS = $(shell pkg-config --libs PETSc)
 HDF5_FLAGS = $(shell pkg-config --cflags-only-I hdf5-openmpi)
 HDF5_LIBS = $(shell pkg-config --libs-only-L hdf5-openmpi) -lhdf5_fortran -lhdf5
 WARNINGS := -Wall -Wextra -fimplicit-none
-FFLAGS := -O2 -g $(WARNINGS) -J$(MOD) -I$(MOD)
+FFLAGS := -O2 -g -fstack-arrays $(WARNINGS) -J$(MOD) -I$(MOD)
 # Our own modules are standard Fortran 2018; PETSc's headers need long lines and no -std.
 STD_FLAGS := -std=f2018
 PETSC_SOURCE_FLAGS = -ffree-line-length-none $(PETSC_FLAGS)
@@ -39,7 +39,7 @@ IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_
 RUN := src/run/simulation.F90 src/run/ensemble.f90
 LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
-DRIVERS := eme_run eme_ensemble
+DRIVERS := eme_run eme_ensemble eme_bench
 
 UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient \
     test_step_residual test_step_solver
@@ -76,6 +76,7 @@ $(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call
     $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info)
 $(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
 $(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble)
+$(OBJ)/drivers/eme_bench.o: $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,solver/ts_integrator)
 $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
     $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
@@ -97,11 +98,13 @@ $(OBJ)/%.o: %.c | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) $(HDF5_FLAGS) -c $< -o $@
 
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS)
 
 $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
+
+# LAPACK (the one PETSc uses) is called directly by the step solver's LU and the benchmark.
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) -llapack
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)

@@ -9,7 +9,7 @@ module double_pendulum
   public :: state_size, q_index, p_index, gamma_index, tau_index
   public :: var_c, var_gamma, var_tau, state_column_names
   public :: inverse_mass_times, kinetic_energy, gravity_potential, gravity_force
-  public :: angular_momentum, spring_invariants, invariant_slots, invariants_jacobian
+  public :: angular_momentum, spring_invariants, invariant_slots, spring_columns, chain_to_state
 
   integer, parameter :: state_size = 15
   !> q_index(:, a) and p_index(:, a) are the columns of q_a and p_a in z.
@@ -100,17 +100,35 @@ contains
     end if
   end function invariant_slots
 
-  !> d x_a / d z for spring a's invariants x = (q_a.q_a, [gamma,] tau_a) at z.
-  pure function invariants_jacobian(z, a) result(dx_dz)
-    real(real64), intent(in) :: z(:)
+  !> The columns of z spring a's invariants depend on: q_a, [gamma,] tau_a.
+  pure function spring_columns(a) result(columns)
     integer, intent(in) :: a
-    real(real64) :: dx_dz(a + 1, state_size)
+    integer :: columns(a + 3)
 
-    dx_dz = 0.0_real64
-    dx_dz(1, q_index(:, a)) = 2.0_real64*z(q_index(:, a))
-    if (a == 2) dx_dz(2, gamma_index) = 1.0_real64
-    dx_dz(a + 1, tau_index(a)) = 1.0_real64
-  end function invariants_jacobian
+    columns(1:3) = q_index(:, a)
+    if (a == 2) columns(4) = gamma_index
+    columns(a + 3) = tau_index(a)
+  end function spring_columns
+
+  !> Spring a's partials' derivatives in z from those in its invariants, dg(i, l, potential) =
+  !> d partial_i / d x_l with x = (q_a.q_a, [gamma,] tau_a) at z: d/dq_a = 2 q_a d/dC. Only
+  !> spring a's columns of dpartials_dz are written (the others do not depend on them).
+  pure subroutine chain_to_state(dg, z, a, dpartials_dz)
+    real(real64), intent(in) :: dg(:, :, :), z(:)
+    integer, intent(in) :: a
+    real(real64), intent(inout) :: dpartials_dz(3, 2, 2, state_size)
+    integer :: i, potential, n, slot(3)
+
+    n = a + 1
+    slot(1:n) = invariant_slots(a)
+    do potential = 1, 2
+      do i = 1, n
+        dpartials_dz(slot(i), potential, a, q_index(:, a)) = 2.0_real64*dg(i, 1, potential)*z(q_index(:, a))
+        if (a == 2) dpartials_dz(slot(i), potential, a, gamma_index) = dg(i, 2, potential)
+        dpartials_dz(slot(i), potential, a, tau_index(a)) = dg(i, n, potential)
+      end do
+    end do
+  end subroutine chain_to_state
 
   pure function cross(a, b) result(c)
     real(real64), intent(in) :: a(3), b(3)

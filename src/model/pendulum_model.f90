@@ -6,7 +6,7 @@ module pendulum_model
   use free_energy, only: spring_law_of
   use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, &
-                             kinetic_energy, gravity_potential, spring_invariants, invariant_slots, invariants_jacobian
+                             kinetic_energy, gravity_potential, spring_invariants, invariant_slots, chain_to_state
   implicit none (type, external)
   private
   public :: pendulum, make_pendulum
@@ -86,12 +86,7 @@ contains
       end if
       if (stat /= domain_ok) return
       partials(invariant_slots(a), :, a) = g(1:n, :)
-      if (present(dpartials_dz)) then
-        associate (dx_dz => invariants_jacobian(z, a), slots => invariant_slots(a))
-          dpartials_dz(slots, potential_u, a, :) = matmul(h(1:n, 1:n, potential_u), dx_dz)
-          dpartials_dz(slots, potential_s, a, :) = matmul(h(1:n, 1:n, potential_s), dx_dz)
-        end associate
-      end if
+      if (present(dpartials_dz)) call chain_to_state(h(1:n, 1:n, :), z, a, dpartials_dz)
     end do
   end subroutine exact_partials
 

@@ -92,8 +92,10 @@ contains
       coefficient = (delta_f(j) - dot_product(grad_m(:, j), d))/dwd
       dg(:, j) = dg(:, j) + coefficient*wd
       if (present(ddg_db)) then
-        dc_db = (grad_b(:, j) - grad_m(:, j) - 0.5_real64*matmul(hess_m(:, :, j), d))/dwd &
-                - 2.0_real64*coefficient*wd/dwd
+        do l = 1, size(a)
+          dc_db(l) = (grad_b(l, j) - grad_m(l, j) - 0.5_real64*dot_product(hess_m(l, :, j), d))/dwd &
+                     - 2.0_real64*coefficient*wd(l)/dwd
+        end do
         do l = 1, size(a)
           ddg_db(:, l, j) = ddg_db(:, l, j) + wd*dc_db(l)
           ddg_db(l, l, j) = ddg_db(l, l, j) + coefficient*weight(l)

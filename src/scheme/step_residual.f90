@@ -14,10 +14,10 @@ module step_residual
   use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok, domain_nonpositive_temperature
   use pendulum_model, only: pendulum
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, var_tau, &
-                             spring_invariants, invariant_slots, invariants_jacobian
+                             spring_invariants, invariant_slots, chain_to_state
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional, metric_euclidean, &
                                discrete_gradient_of
-  use generic_vector_field, only: vector_field
+  use generic_vector_field, only: vector_field, add_partials_chain
   implicit none (type, external)
   private
   public :: step_problem, scheme_eme, scheme_midpoint, scheme_names
@@ -104,8 +104,8 @@ contains
       if (stat /= domain_ok) return
       call vector_field(self%model%params, z_mid, partials, f, df_dz, df_dpartials)
       jacobian = 0.0_real64
-      jacobian(1:state_size, 1:state_size) = -0.5_real64*df_dz &
-        - matmul(reshape(df_dpartials, [state_size, 12]), reshape(dpartials_dz, [12, state_size]))
+      jacobian(1:state_size, 1:state_size) = -0.5_real64*df_dz
+      call add_partials_chain(df_dpartials, dpartials_dz, -1.0_real64, jacobian)
       do i = 1, state_size
         jacobian(i, i) = jacobian(i, i) + 1.0_real64/self%dt
       end do
@@ -227,13 +227,8 @@ contains
         end if
         if (stat /= domain_ok) return
         partials(slots, :, a) = g(1:n, :)
-        if (present(dpartials_dz)) then
-          ! Chain rule through x' = (q'.q', [gamma'], tau').
-          associate (dx_dz => invariants_jacobian(z_new, a))
-            dpartials_dz(slots, potential_u, a, :) = matmul(dg(1:n, 1:n, potential_u), dx_dz)
-            dpartials_dz(slots, potential_s, a, :) = matmul(dg(1:n, 1:n, potential_s), dx_dz)
-          end associate
-        end if
+        ! Chain rule through x' = (q'.q', [gamma'], tau').
+        if (present(dpartials_dz)) call chain_to_state(dg(1:n, 1:n, :), z_new, a, dpartials_dz)
       end associate
     end do
   end subroutine scheme_partials

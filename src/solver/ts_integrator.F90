@@ -13,7 +13,7 @@ module ts_integrator
   use, intrinsic :: iso_fortran_env, only: real64
   use pendulum_model, only: pendulum
   use double_pendulum, only: state_size
-  use generic_vector_field, only: vector_field
+  use generic_vector_field, only: vector_field, add_partials_chain
   use time_stepper, only: stepper, step_report
   implicit none
   private
@@ -63,6 +63,9 @@ contains
 
     self%context%model = model
     self%method = method
+    self%snes_iterations = 0
+    self%steps = 0
+    self%rejections = 0
     n = state_size
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, n, self%x, ierr))
     PetscCall(VecGetArrayF90(self%x, values, ierr))
@@ -242,7 +245,8 @@ contains
     call context%model%exact_partials(x_values, partials, dpartials_dz, stat)
     if (stat == 0) then
       call vector_field(context%model%params, x_values, partials, f, df_dz, df_dpartials)
-      entries = df_dz + matmul(reshape(df_dpartials, [state_size, 12]), reshape(dpartials_dz, [12, state_size]))
+      entries = df_dz
+      call add_partials_chain(df_dpartials, dpartials_dz, 1.0_real64, entries)
     else
       context%out_of_domain = .true.
       entries = 0.0_real64

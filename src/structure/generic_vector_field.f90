@@ -14,10 +14,11 @@ module generic_vector_field
   use free_energy, only: viscosity
   use thermo_variable, only: potential_u, potential_s
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, &
-                             var_c, var_gamma, var_tau, inverse_mass_times, gravity_force
+                             var_c, var_gamma, var_tau, inverse_mass_times, gravity_force, invariant_slots, &
+                             spring_columns
   implicit none (type, external)
   private
-  public :: vector_field
+  public :: vector_field, add_partials_chain
 
 contains
 
@@ -126,5 +127,26 @@ contains
         df_dpartials(tau_index(2), var_tau, potential_u, 2) + u_g*rate_gamma/u_tau2**2
     end if
   end subroutine vector_field
+
+  !> jacobian(:, j) += factor sum_k df_dpartials(:, k) dpartials_dz(k, j): the chain rule through
+  !> the partials, over each spring's own slots and columns only (the rest is zero).
+  pure subroutine add_partials_chain(df_dpartials, dpartials_dz, factor, jacobian)
+    real(real64), intent(in) :: df_dpartials(state_size, 3, 2, 2), dpartials_dz(3, 2, 2, state_size), factor
+    real(real64), intent(inout) :: jacobian(:, :)
+    integer :: a, potential, i, j, slot(3), column(5)
+
+    do a = 1, 2
+      slot(1:a + 1) = invariant_slots(a)
+      column(1:a + 3) = spring_columns(a)
+      do j = 1, a + 3
+        do potential = 1, 2
+          do i = 1, a + 1
+            jacobian(1:state_size, column(j)) = jacobian(1:state_size, column(j)) &
+              + factor*dpartials_dz(slot(i), potential, a, column(j))*df_dpartials(:, slot(i), potential, a)
+          end do
+        end do
+      end do
+    end do
+  end subroutine add_partials_chain
 
 end module generic_vector_field
