@@ -82,7 +82,7 @@ $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test run constraints figures clean
+.PHONY: all deps test run constraints figures study bench clean
 
 all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
@@ -167,6 +167,17 @@ figures: $(VENV)/.python-deps
 	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(FIGURES)/fig4_eme_vs_midpoint
 	$(PYTHON) postprocess/plot_constrained.py $(FIG5_FILES) -o $(FIGURES)/fig5_constrained
 	$(PYTHON) postprocess/plot_temperatures.py $(EME_FILES) $(MIDPOINT_FILES) -o $(FIGURES)/temperatures_jz
+
+# Convergence, work-precision and stability studies on 2 ranks, then their analysis: charts in
+# results/figures, numbers in results/study/summary.h5 (README, Speed and accuracy).
+STUDIES := convergence convergence_reference stability_paper stability_hard
+MPIRUN := mpirun --allow-run-as-root --oversubscribe
+
+study: all $(VENV)/.python-deps
+	@for s in $(STUDIES); do rm -rf results/study/$$s; \
+	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml | tail -1 || exit 1; done
+	$(PYTHON) postprocess/study_analysis.py --study-dir results/study -o results/figures \
+	  --summary results/study/summary.h5
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (README, Constraints).
 constraints: all $(VENV)/.python-deps

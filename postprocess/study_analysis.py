@@ -1,0 +1,399 @@
+"""Analysis of the parameter studies of `make study` (README, "Ensemble studies").
+
+Reads STUDY_DIR/{convergence, convergence_reference, stability_paper, stability_hard}/index.h5
+and the case files they name, and writes to OUT:
+  study_convergence        error at t = T against dt, with each scheme's fitted order
+  study_work_precision     the same errors against the solve time
+  study_structure_cost     energy error and entropy decrease against solve time (paper scene)
+  study_stability_map      outcome of every case of the two stability studies
+(each as .png and .pdf), one HDF5 file SUMMARY with the numbers behind every figure, and
+prints the findings as plain lines. A scheme is a scheme and thermodynamic variable pair,
+named as in the paper (EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u).
+"""
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import study_plots
+from plotting import run_script
+from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
+from trajectory import RunFileError, read_run
+
+# study_convergence_reference.nml: case 1 (temperature variable, tolerance 1e-13) is the
+# reference, case 2 (entropy variable, tolerance 1e-12) an independent cross-check of it.
+REFERENCE_CASE, CROSS_CHECK_CASE = 1, 2
+MECHANICAL_COLUMNS = ("q1_x q1_y q1_z q2_x q2_y q2_z p1_x p1_y p1_z p2_x p2_y p2_z gamma").split()
+TEMPERATURE_COLUMNS = ("theta_1", "theta_2")
+# Asymptotic range of the order fit: the FIT_POINTS smallest dt (a factor 4 in dt with the
+# study's halving) among the errors above MEANINGFUL_FACTOR times the cross-check level;
+# errors nearer that level measure the reference, not the scheme.
+FIT_POINTS = 3
+MEANINGFUL_FACTOR = 100.0
+# Stability criteria (inputs/study_stability_*.nml).
+ENERGY_TOLERANCE = 1e-6          # energy_drift, relative
+LYAPUNOV_TOLERANCE = 1e-8        # max_lyapunov_increment [J]
+# Failure reasons, matched in lower case. "no root" is our solver's report that every strategy
+# failed (it names the last attempt); PETSc TS reports TS_DIVERGED_NONLINEAR_SOLVE (older
+# builds: "TSConvergedReason -1") or rejected steps; the time loop reports a state outside
+# the model's domain.
+NO_ROOT = "no root"
+NONPHYSICAL_REASONS = ("left the model's domain", "blow-up", "non-positive temperature", "nan")
+SOLVER_REASONS = ("newton", "diverged", "did not converge", "rejected steps")
+OUTCOMES = ("kept", "energy", "lyapunov", "solver", "nonphysical")
+# Cell flags: V also rose (on a cell whose energy error decides it); the solver's last rejected
+# root had a non-positive temperature (on a "no root" failure).
+FLAG_LYAPUNOV, FLAG_TEMPERATURE = "V", "T"
+
+STUDIES = ("convergence", "convergence_reference", "stability_paper", "stability_hard")
+SCENES = {"paper": "stability_paper", "hard": "stability_hard"}
+INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
+                "solve_time_seconds", "energy_drift", "min_entropy_increment",
+                "max_lyapunov_increment")
+
+
+class StudyError(RunFileError):
+    """A study index or case file lacks what the analysis needs, or the studies disagree."""
+
+
+def read_index(folder):
+    """Rows of FOLDER/index.h5 /cases as dicts (text fields decoded), each with its case 'path'."""
+    path = Path(folder) / "index.h5"
+    try:
+        handle = h5py.File(path, "r")
+    except OSError as error:
+        raise StudyError(f"{path}: cannot open as a study index ({error})") from None
+    with handle:
+        if "cases" not in handle:
+            raise StudyError(f"{path}: dataset '/cases' is missing")
+        cases = handle["cases"][()]
+    missing = [name for name in INDEX_FIELDS if name not in (cases.dtype.names or ())]
+    if missing:
+        raise StudyError(f"{path}: /cases has no field {', '.join(missing)}")
+    rows = []
+    for case in cases:
+        row = {name: case[name].decode() if isinstance(case[name], bytes) else case[name].item()
+               for name in cases.dtype.names}
+        row["path"] = path.parent / row["file"]
+        row["index"] = path
+        rows.append(row)
+    return rows
+
+
+def row_by_case(rows, case):
+    """The row of case number `case`."""
+    for row in rows:
+        if row["case"] == case:
+            return row
+    raise StudyError(f"{rows[0]['index'] if rows else 'index'}: no case {case}")
+
+
+# ---------------------------------------------------------------- convergence
+@dataclass
+class FinalPoint:
+    """The last state of a run: q, p, gamma (by /state column names) and the temperatures."""
+    path: Path
+    time: float
+    mechanical: np.ndarray
+    temperatures: np.ndarray
+    theta_ref: float
+
+
+def final_point(path):
+    """The last point of a run file, columns found through the `columns` attributes."""
+    run = read_run(path, ["state", "temperature"], ["theta_ref"])
+    mechanical = np.array([run.column("state", name)[-1] for name in MECHANICAL_COLUMNS])
+    temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS])
+    return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures,
+                      float(run.attrs["theta_ref"]))
+
+
+def state_error(point, reference):
+    """max(|q, p, gamma difference|, |theta_a difference| / theta_ref) at the common end time."""
+    if abs(point.time - reference.time) > 1e-9 * max(1.0, abs(reference.time)):
+        raise StudyError(f"{point.path} ends at t = {point.time:.10g} s but the reference "
+                         f"{reference.path} at t = {reference.time:.10g} s: errors need the same T")
+    if point.theta_ref != reference.theta_ref:
+        raise StudyError(f"{point.path}: theta_ref = {point.theta_ref:g} K, the reference "
+                         f"{reference.path} has {reference.theta_ref:g} K")
+    mechanical = np.max(np.abs(point.mechanical - reference.mechanical))
+    thermal = np.max(np.abs(point.temperatures - reference.temperatures)) / reference.theta_ref
+    return float(max(mechanical, thermal))
+
+
+def asymptotic_range(dt, error, level):
+    """Indices (ascending dt) of the FIT_POINTS smallest dt with error > MEANINGFUL_FACTOR * level."""
+    dt, error = np.asarray(dt, float), np.asarray(error, float)
+    usable = [i for i in np.argsort(dt) if error[i] > MEANINGFUL_FACTOR * level]
+    return np.array(usable[:FIT_POINTS], dtype=int)
+
+
+def fitted_order(dt, error):
+    """Least-squares slope p and constant C of log(error) = log(C) + p log(dt)."""
+    if len(dt) < 2:
+        return float("nan"), float("nan")
+    slope, intercept = np.polyfit(np.log(dt), np.log(error), 1)
+    return float(slope), float(np.exp(intercept))
+
+
+def convergence(study_dir):
+    """Errors of every complete convergence case against the reference, and each scheme's fit."""
+    references = read_index(Path(study_dir) / "convergence_reference")
+    reference = final_point(row_by_case(references, REFERENCE_CASE)["path"])
+    cross_check = final_point(row_by_case(references, CROSS_CHECK_CASE)["path"])
+    level = state_error(cross_check, reference)
+    rows = read_index(Path(study_dir) / "convergence")
+    complete = [row for row in rows if row["status"] == "complete"]
+    if not complete:
+        raise StudyError(f"{Path(study_dir) / 'convergence' / 'index.h5'}: no complete case")
+    errors = np.array([state_error(final_point(row["path"]), reference) for row in complete])
+    fits = {}
+    for key in curve_keys(complete):
+        chosen = members(complete, key)
+        dt = np.array([complete[i]["dt"] for i in chosen])
+        fit = asymptotic_range(dt, errors[chosen], level)
+        order, constant = fitted_order(dt[fit], errors[chosen][fit])
+        fits[key] = {"order": order, "constant": constant, "dt": dt[fit],
+                     "cases": np.array([complete[chosen[i]]["case"] for i in fit], dtype=int)}
+    return {"rows": complete, "errors": errors, "fits": fits, "level": level,
+            "reference": reference, "cross_check": cross_check,
+            "left_out": [row for row in rows if row["status"] != "complete"]}
+
+
+# ---------------------------------------------------------------- structure and stability
+def entropy_violation(min_entropy_increment):
+    """The largest entropy decrease in one step, max(0, -min_n (S_{n+1} - S_n)) [J/K]."""
+    return np.maximum(0.0, -np.asarray(min_entropy_increment, dtype=float))
+
+
+def temperatures_positive(path):
+    """True when every temperature in the case file's /temperature is finite and positive."""
+    temperature = read_run(path, ["temperature"]).data["temperature"]
+    return bool(np.all(np.isfinite(temperature)) and np.all(temperature > 0))
+
+
+def classify(status, energy_drift, max_lyapunov_increment, positive_temperatures=True):
+    """(outcome, flags) of one case; outcome is one of OUTCOMES.
+
+    Precedence: a failed case is a failure whatever its metrics before the failure; among
+    failures "no root" (our solver rejected or missed every root, so no state left the domain)
+    is a solver failure, flagged T when the last root it rejected had a non-positive
+    temperature; then a non-physical state or blow-up; then Newton divergence. A finished case
+    with a non-positive or non-finite temperature, or non-finite metrics, is non-physical; else
+    an energy error > ENERGY_TOLERANCE decides (flagged V when V also rose), then V rising
+    by more than LYAPUNOV_TOLERANCE; otherwise everything was kept."""
+    reason = status.lower()
+    if status.startswith("failed"):
+        if NO_ROOT in reason:
+            return "solver", FLAG_TEMPERATURE if "non-positive temperature" in reason else ""
+        if any(text in reason for text in NONPHYSICAL_REASONS):
+            return "nonphysical", ""
+        if any(text in reason for text in SOLVER_REASONS):
+            return "solver", ""
+        raise StudyError(f"unknown failure reason: {status!r}")
+    if status != "complete":
+        raise StudyError(f"a case is neither complete nor failed (status {status!r}): "
+                         "finish the study first")
+    if not (positive_temperatures and np.isfinite(energy_drift) and np.isfinite(max_lyapunov_increment)):
+        return "nonphysical", ""
+    lyapunov_rose = max_lyapunov_increment > LYAPUNOV_TOLERANCE
+    if energy_drift > ENERGY_TOLERANCE:
+        return "energy", FLAG_LYAPUNOV if lyapunov_rose else ""
+    return ("lyapunov" if lyapunov_rose else "kept"), ""
+
+
+def stability_map(rows):
+    """Outcome grid of one stability study: rows = schemes, columns = dt (-1 where not run)."""
+    keys = curve_keys(rows)
+    steps = sorted({row["dt"] for row in rows})
+    outcome = np.full((len(keys), len(steps)), -1, dtype=int)
+    flags = np.full(outcome.shape, "", dtype=object)
+    case = np.zeros(outcome.shape, dtype=int)
+    failed_at = np.full(outcome.shape, np.nan)   # end time of the step that failed [s]
+    status = np.full(outcome.shape, "", dtype=object)
+    energy, lyapunov = np.full(outcome.shape, np.nan), np.full(outcome.shape, np.nan)
+    positive_grid = np.full(outcome.shape, -1, dtype=int)    # 1 / 0: checked; -1: not checked
+    checked = 0
+    for row in rows:
+        i, j = keys.index((row["scheme"], row["thermo_variable"])), steps.index(row["dt"])
+        if case[i, j]:
+            raise StudyError(f"{row['index']}: cases {case[i, j]} and {row['case']} are both "
+                             f"{plain_name(*keys[i])} at dt = {row['dt']:g} s")
+        positive = True
+        if row["status"] == "complete":
+            positive = temperatures_positive(row["path"])
+            positive_grid[i, j] = int(positive)
+            checked += 1
+        name, flag = classify(row["status"], row["energy_drift"], row["max_lyapunov_increment"], positive)
+        outcome[i, j], flags[i, j], case[i, j] = OUTCOMES.index(name), flag, row["case"]
+        status[i, j], energy[i, j], lyapunov[i, j] = (row["status"], row["energy_drift"],
+                                                      row["max_lyapunov_increment"])
+        if row["status"].startswith("failed"):
+            failed_at[i, j] = (row["steps_completed"] + 1) * row["dt"]
+    return {"keys": keys, "dt": np.array(steps), "outcome": outcome, "flags": flags, "case": case,
+            "failed_at": failed_at, "status": status, "energy_drift": energy,
+            "max_lyapunov_increment": lyapunov, "temperatures_positive": positive_grid,
+            "temperature_files_checked": checked,
+            "source": rows[0]["index"].parent if rows else "-",
+            "scene": scene_description(rows[0]["path"]) if rows else "-"}
+
+
+def scene_description(path):
+    """Interval and initial state of a study's scene, from one case file's root attributes."""
+    attrs = read_run(path, [], ["t_end", "p2", "theta"]).attrs
+    vector = ", ".join(f"{v:g}" for v in np.ravel(attrs["p2"]))
+    return (f"[0, {attrs['t_end']:g}] s, p2(0) = ({vector}) N s, theta(0) = "
+            f"({', '.join(f'{v:g}' for v in np.ravel(attrs['theta']))}) K")
+
+
+def structure_cost(rows):
+    """Complete cases of one study: solve time, energy error and entropy violation per scheme."""
+    complete = [row for row in rows if row["status"] == "complete"]
+    return {"rows": complete,
+            "solve_time": np.array([row["solve_time_seconds"] for row in complete]),
+            "energy": np.array([row["energy_drift"] for row in complete]),
+            "violation": entropy_violation([row["min_entropy_increment"] for row in complete])}
+
+
+# ---------------------------------------------------------------- summary file and findings
+def write_dataset(group, name, values, units, description):
+    """One dataset with its units and description attributes; text as UTF-8 strings."""
+    values = np.asarray(values)
+    if values.dtype.kind in "UO":
+        values = np.array([str(v) for v in values.ravel()], dtype=h5py.string_dtype()).reshape(values.shape)
+    dataset = group.create_dataset(name, data=values)
+    dataset.attrs["units"] = units
+    dataset.attrs["description"] = description
+
+
+def write_summary(path, conv, structure, maps):
+    """The numbers behind every figure, one group per figure."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = conv["rows"]
+    names = [plain_name(row["scheme"], row["thermo_variable"]) for row in rows]
+    with h5py.File(path, "w") as f:
+        f.attrs["description"] = "numbers behind the study figures of postprocess/study_analysis.py"
+        g = f.create_group("convergence")
+        g.attrs["description"] = ("error at t = T against the reference, and against solve time "
+                                  "(figures study_convergence, study_work_precision)")
+        write_dataset(g, "scheme", names, "1", "scheme and thermodynamic variable of each case")
+        write_dataset(g, "case", [row["case"] for row in rows], "1", "case number in convergence/index.h5")
+        write_dataset(g, "dt", [row["dt"] for row in rows], "s", "time step")
+        write_dataset(g, "error", conv["errors"], "1", "max(|q, p, gamma - reference| [SI], "
+                      "|theta_a - reference|/theta_ref) at t = T")
+        write_dataset(g, "solve_time_seconds", [row["solve_time_seconds"] for row in rows], "s",
+                      "solve_time_seconds of the index: the time loop of the case")
+        write_dataset(g, "end_time", conv["reference"].time, "s", "T, where errors are taken")
+        write_dataset(g, "cross_check_level", conv["level"], "1",
+                      "the same error norm between the cross-check and the reference")
+        fit_names = [plain_name(*key) for key in conv["fits"]]
+        fits = list(conv["fits"].values())
+        write_dataset(g, "fit_scheme", fit_names, "1", "scheme of each fitted order")
+        write_dataset(g, "fitted_order", [fit["order"] for fit in fits], "1",
+                      f"least-squares slope of log(error) on log(dt) over the {FIT_POINTS} smallest dt "
+                      f"with error > {MEANINGFUL_FACTOR:g} x cross_check_level")
+        write_dataset(g, "fit_constant", [fit["constant"] for fit in fits], "1", "C of error = C dt^order")
+        write_dataset(g, "fit_dt_min", [fit["dt"].min() if len(fit["dt"]) else np.nan for fit in fits], "s",
+                      "smallest dt of the fit")
+        write_dataset(g, "fit_dt_max", [fit["dt"].max() if len(fit["dt"]) else np.nan for fit in fits], "s",
+                      "largest dt of the fit")
+        g = f.create_group("structure_cost")
+        g.attrs["description"] = "complete cases of stability_paper (figure study_structure_cost)"
+        srows = structure["rows"]
+        write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in srows], "1",
+                      "scheme and thermodynamic variable of each case")
+        write_dataset(g, "case", [r["case"] for r in srows], "1", "case number in stability_paper/index.h5")
+        write_dataset(g, "dt", [r["dt"] for r in srows], "s", "time step")
+        write_dataset(g, "solve_time_seconds", structure["solve_time"], "s", "the time loop of the case")
+        write_dataset(g, "energy_drift", structure["energy"], "1", "max_n |E_n - E_0| / |E_0|")
+        write_dataset(g, "entropy_violation", structure["violation"], "J/K",
+                      "max(0, -min_n (S_{n+1} - S_n)): the largest entropy decrease in a step")
+        write_dataset(g, "plot_floor", study_plots.LOG_FLOOR, "1 (energy), J/K (entropy)",
+                      "values below it, exact zeros included, are drawn at it on the log axes")
+        for scene, grid in maps.items():
+            g = f.create_group(f"stability/{scene}")
+            g.attrs["description"] = (f"outcome of each case of {SCENES[scene]} (figure study_stability_map); "
+                                      "rows: scheme, columns: dt")
+            write_dataset(g, "scheme", [plain_name(*key) for key in grid["keys"]], "1", "row: scheme")
+            write_dataset(g, "dt", grid["dt"], "s", "column: time step")
+            write_dataset(g, "outcome", grid["outcome"], "1", "index into outcome_names; -1: not run")
+            write_dataset(g, "outcome_names", [study_plots.OUTCOME_TEXT[o] for o in OUTCOMES], "1",
+                          "outcome classes, in the order of the outcome codes")
+            write_dataset(g, "flags", grid["flags"], "1", f"{FLAG_LYAPUNOV}: V also rose; "
+                          f"{FLAG_TEMPERATURE}: the last root the solver rejected had a non-positive temperature")
+            write_dataset(g, "case", grid["case"], "1", f"case number in {SCENES[scene]}/index.h5")
+            write_dataset(g, "failed_at", grid["failed_at"], "s", "end time of the step that failed (NaN: finished)")
+            write_dataset(g, "status", grid["status"], "1", "status of the case in the index")
+            write_dataset(g, "energy_drift", grid["energy_drift"], "1",
+                          f"max_n |E_n - E_0| / |E_0| over the completed steps; kept: <= {ENERGY_TOLERANCE:g}")
+            write_dataset(g, "max_lyapunov_increment", grid["max_lyapunov_increment"], "J",
+                          f"max_n (V_{{n+1}} - V_n) over the completed steps; kept: <= {LYAPUNOV_TOLERANCE:g} J")
+            write_dataset(g, "temperatures_positive", grid["temperatures_positive"], "1",
+                          "1: every /temperature value of the finished case file is finite and > 0; 0: not; "
+                          "-1: not checked (failed case, or not run)")
+            write_dataset(g, "kept_count", (grid["outcome"] == 0).sum(axis=1), "1",
+                          "dt values at which the scheme finished with everything kept")
+    print(f"wrote {path}")
+
+
+def findings(conv, structure, maps):
+    """The findings as plain lines of numbers."""
+    reference, cross_check = conv["reference"], conv["cross_check"]
+    lines = [f"convergence: reference {reference.path} at T = {reference.time:g} s; cross-check "
+             f"{cross_check.path}: |reference - cross-check| = {conv['level']:.2e}"]
+    lines += [f"convergence: left out (not complete): case {row['case']} {row['status']}"
+              for row in conv["left_out"]]
+    for key, fit in conv["fits"].items():
+        finest = members(conv["rows"], key)[0]
+        lines.append(f"convergence {plain_name(*key)}: fitted order {fit['order']:.2f} over dt = "
+                     + ", ".join(f"{dt:g}" for dt in fit["dt"]) + f" s; error {conv['errors'][finest]:.2e} "
+                     f"at dt = {conv['rows'][finest]['dt']:g} s in {conv['rows'][finest]['solve_time_seconds']:.2e} s")
+    srows = structure["rows"]
+    for key in curve_keys(srows):
+        chosen = members(srows, key)
+        lines.append(f"structure (paper scene, {len(chosen)} finished cases) {plain_name(*key)}: max energy "
+                     f"error {structure['energy'][chosen].max():.2e}, max entropy decrease "
+                     f"{structure['violation'][chosen].max():.2e} J/K")
+    for key in sorted({key for grid in maps.values() for key in grid["keys"]}, key=key_rank):
+        parts = []
+        for scene, grid in maps.items():
+            row = grid["outcome"][grid["keys"].index(key)] if key in grid["keys"] else np.array([])
+            parts.append(f"{(row == 0).sum()} of {(row >= 0).sum()} dt ({SCENE_TITLES[scene]})")
+        lines.append(f"stability {plain_name(*key)}: finished with everything kept at " + ", ".join(parts))
+    for scene, grid in maps.items():
+        for i, j in zip(*np.nonzero(np.isfinite(grid["failed_at"]))):
+            flag = f" ({grid['flags'][i, j]})" if grid["flags"][i, j] else ""
+            lines.append(f"stability {SCENE_TITLES[scene]}: {plain_name(*grid['keys'][i])} at dt = {grid['dt'][j]:g} s "
+                         f"failed in the step ending at t = {grid['failed_at'][i, j]:g} s: "
+                         f"{OUTCOMES[grid['outcome'][i, j]]}{flag} (case {grid['case'][i, j]})")
+        counts = ", ".join(f"{o} {(grid['outcome'] == k).sum()}" for k, o in enumerate(OUTCOMES))
+        lines.append(f"stability {SCENE_TITLES[scene]}: {counts}; temperatures checked in "
+                     f"{grid['temperature_files_checked']} finished case files")
+    return lines
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--study-dir", default="results/study", metavar="STUDY_DIR",
+                        help="folder holding the four study folders (default: %(default)s)")
+    parser.add_argument("-o", "--output", default="results/figures", metavar="OUT",
+                        help="folder for the figures (default: %(default)s)")
+    parser.add_argument("--summary", default="results/study/summary.h5", metavar="SUMMARY",
+                        help="HDF5 file of the numbers behind the figures (default: %(default)s)")
+    args = parser.parse_args(argv)
+    study_dir, output = Path(args.study_dir), Path(args.output)
+    conv = convergence(study_dir)
+    structure = structure_cost(read_index(study_dir / SCENES["paper"]))
+    maps = {scene: stability_map(read_index(study_dir / folder)) for scene, folder in SCENES.items()}
+    study_plots.save_all(output, conv, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR))
+    write_summary(args.summary, conv, structure, maps)
+    for line in findings(conv, structure, maps):
+        print(line)
+
+
+if __name__ == "__main__":
+    run_script(main)

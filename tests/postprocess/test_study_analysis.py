@@ -1,0 +1,293 @@
+"""postprocess/study_analysis.py: the error norm, the order fit and the outcome classification on
+hand-made inputs, and the whole script on tiny studies run with eme_ensemble."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "postprocess"))
+
+import study_analysis  # noqa: E402
+from study_analysis import (FinalPoint, StudyError, asymptotic_range, classify,  # noqa: E402
+                            entropy_violation, final_point, fitted_order, state_error)
+from synthetic_runs import STATE_COLUMNS, write_run  # noqa: E402
+from trajectory import RunFileError  # noqa: E402
+
+ENSEMBLE = ROOT / "build" / "bin" / "eme_ensemble"
+SCRIPT = ROOT / "postprocess" / "study_analysis.py"
+BASE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
+MECHANICAL_GAMMA = study_analysis.MECHANICAL_COLUMNS.index("gamma")
+
+
+# ---------------------------------------------------------------- error norm
+def point(mechanical=None, temperatures=(300.0, 350.0), time=2.0, theta_ref=300.0, name="run.h5"):
+    mechanical = np.zeros(13) if mechanical is None else np.asarray(mechanical, float)
+    return FinalPoint(Path(name), time, mechanical, np.asarray(temperatures, float), theta_ref)
+
+
+def test_error_is_the_largest_mechanical_or_scaled_temperature_difference():
+    reference = point()
+    mechanical = np.zeros(13)
+    mechanical[10] = -0.3                                        # p2_y off by 0.3 N s
+    assert state_error(point(mechanical, (300.0, 410.0)), reference) == pytest.approx(0.3)   # 60 K / 300 K = 0.2
+    assert state_error(point(mechanical, (150.0, 350.0)), reference) == pytest.approx(0.5)   # 150 K / 300 K
+    assert state_error(point(), reference) == 0.0
+
+
+def test_error_reads_q_p_gamma_and_temperatures_by_column_name_not_tau(tmp_path):
+    # /state columns written in reverse order, and tau1, tau2 far apart: they must not count.
+    steps = 3
+    state = np.zeros((steps + 1, 15))
+    state[-1, STATE_COLUMNS.index("gamma")] = 0.25
+    state[-1, STATE_COLUMNS.index("tau1")] = 1e6
+    temperature = np.full((steps + 1, 2), 300.0)
+    temperature[-1] = (300.0, 330.0)                              # 30 K / 300 K = 0.1
+    attributes = {"theta_ref": 300.0}
+    case, _ = write_run(tmp_path / "case.h5", steps, {"state": state, "temperature": temperature},
+                        attributes, columns=STATE_COLUMNS[::-1])
+    reference, _ = write_run(tmp_path / "reference.h5", steps, {"state": np.zeros((steps + 1, 15)),
+                             "temperature": np.full((steps + 1, 2), 300.0)}, attributes)
+    last = final_point(case)
+    assert last.mechanical[MECHANICAL_GAMMA] == 0.25 and last.time == pytest.approx(0.3)
+    assert state_error(last, final_point(reference)) == pytest.approx(0.25)
+    temperature[-1] = (300.0, 450.0)                              # now the temperature decides: 0.5
+    case, _ = write_run(tmp_path / "case2.h5", steps, {"state": state, "temperature": temperature}, attributes)
+    assert state_error(final_point(case), final_point(reference)) == pytest.approx(0.5)
+
+
+def test_error_refuses_states_at_different_times():
+    with pytest.raises(StudyError, match=r"case\.h5 ends at t = 1\.9.*reference\.h5 at t = 2 s"):
+        state_error(point(time=1.9, name="case.h5"), point(name="reference.h5"))
+
+
+def test_a_missing_theta_ref_is_named(tmp_path):
+    path, _ = write_run(tmp_path / "run.h5")
+    with pytest.raises(RunFileError, match=r"run\.h5: root attribute 'theta_ref' is missing"):
+        final_point(path)
+
+
+# ---------------------------------------------------------------- order fit
+@pytest.mark.parametrize("order", [1.0, 2.0, 4.0])
+def test_fit_recovers_an_exact_slope(order):
+    dt = 0.1 / 2.0 ** np.arange(6)
+    slope, constant = fitted_order(dt, 3.0 * dt ** order)
+    assert slope == pytest.approx(order, abs=1e-12) and constant == pytest.approx(3.0, rel=1e-10)
+
+
+def test_asymptotic_range_skips_errors_near_the_reference_level_and_large_steps():
+    dt = 0.1 / 2.0 ** np.arange(7)                    # 0.1 ... 0.0015625
+    error = 5.0 * dt ** 2
+    error[0] = 1.0                                     # pre-asymptotic largest step
+    level = 1e-9
+    error[dt < 0.004] = 50 * level                     # the two finest sit on the reference's level
+    chosen = asymptotic_range(dt, error, level)
+    np.testing.assert_allclose(np.sort(dt[chosen]), [0.00625, 0.0125, 0.025])
+    assert fitted_order(dt[chosen], error[chosen])[0] == pytest.approx(2.0, abs=1e-12)
+    # Every point in the fit would give a wrong order: the selection is what makes it 2.
+    assert abs(fitted_order(dt, error)[0] - 2.0) > 0.3
+
+
+def test_asymptotic_range_of_a_scheme_at_the_level_is_empty_and_gives_no_order():
+    dt = np.array([0.1, 0.05])
+    chosen = asymptotic_range(dt, np.array([1e-10, 1e-10]), 1e-11)
+    assert len(chosen) == 0 and np.isnan(fitted_order(dt[chosen], dt[chosen])[0])
+
+
+# ---------------------------------------------------------------- outcome classification
+NO_ROOT = ("failed: incomplete: step 16 (t = 12.0000 s): no root from the predictor, from the old state, "
+           "or by continuation in dt (last: {})")
+
+
+@pytest.mark.parametrize("status, drift, dv, positive, expected", [
+    ("complete", 1e-15, -1.0, True, ("kept", "")),
+    ("complete", 1e-6, 1e-8, True, ("kept", "")),                 # both limits are inclusive
+    ("complete", 2e-6, -1.0, True, ("energy", "")),
+    ("complete", 2e-6, 5.0, True, ("energy", "V")),               # energy decides, V is flagged
+    ("complete", 1e-15, 2e-8, True, ("lyapunov", "")),
+    ("complete", 5.0, 5.0, False, ("nonphysical", "")),           # a temperature <= 0 beats the rest
+    ("complete", np.nan, -1.0, True, ("nonphysical", "")),
+    ("complete", 1e-15, np.nan, True, ("nonphysical", "")),
+    (NO_ROOT.format("root rejected: non-positive temperature at the new state (theta_2 = -1.965E-01 K))"),
+     1e-15, -1.0, True, ("solver", "T")),
+    (NO_ROOT.format("Newton did not converge: DIVERGED_LINE_SEARCH)"), 1e-15, -1.0, True, ("solver", "")),
+    ("failed: incomplete: step 6 (t = 3.0000 s): PETSc TS: the Newton solve of an implicit step diverged "
+     "(TS_DIVERGED_NONLINEAR_SOLVE)", 1e-15, -1.0, True, ("solver", "")),
+    ("failed: incomplete: step 6 (t = 3.0000 s): PETSc TS did not converge, TSConvergedReason -1",
+     1e-15, -1.0, True, ("solver", "")),
+    ("failed: incomplete: step 4 (t = 3.0000 s): the state left the model's domain (a non-positive "
+     "temperature, or a blow-up)", 1e-15, -1.0, True, ("nonphysical", "")),
+    ("failed: incomplete: step 1 (t = 0.1500 s): no root from the predictor, from the old state, or by "
+     "continuation in dt (last: Newton did not converge: DIVERGED_MAX_IT)", np.nan, np.nan, True, ("solver", "")),
+])
+def test_outcome_and_precedence(status, drift, dv, positive, expected):
+    assert classify(status, drift, dv, positive) == expected
+
+
+@pytest.mark.parametrize("status", ["pending", "failed: cannot write to x.h5"])
+def test_unclassifiable_cases_stop_the_analysis(status):
+    with pytest.raises(StudyError, match="pending|unknown failure"):
+        classify(status, 0.0, 0.0)
+
+
+def test_entropy_violation_is_the_largest_decrease_and_zero_for_increases():
+    np.testing.assert_array_equal(entropy_violation([-0.5, 0.0, 1e-3, -1e-20]), [0.5, 0.0, 0.0, 1e-20])
+
+
+# ---------------------------------------------------------------- the script on tiny studies
+STUDIES = {
+    # 2 schemes x 3 dt on [0, 0.4] s: 6 cases of 10 to 40 steps.
+    "convergence": """&sweep field = 't_end', values = 0.4 /
+&sweep field = 'scheme', texts = 'eme', 'ts_rk4' /
+&sweep field = 'thermo_variable', texts = 'temperature' /
+&sweep field = 'dt', values = 0.04, 0.02, 0.01 /""",
+    "convergence_reference": """&sweep field = 't_end', values = 0.4, 0.4 /
+&sweep field = 'dt', values = 0.01, 0.01 /
+&sweep field = 'scheme', texts = 'ts_rk5dp', 'ts_rk5dp' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'entropy' /
+&sweep field = 'ts_tolerance', values = 1.0e-13, 1.0e-12 /""",
+    # One case per outcome we can force: kept (EME), energy error (MP_s), and two failures by
+    # allowing one Newton iteration per solve: our solver ("no root") and PETSc TS.
+    "stability_paper": """&sweep field = 't_end', values = 1.0, 1.0, 1.0, 1.0 /
+&sweep field = 'scheme', texts = 'eme', 'midpoint', 'eme', 'ts_midpoint' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'entropy', 'temperature', 'internal_energy' /
+&sweep field = 'dt', values = 0.1, 0.1, 0.2, 0.1 /
+&sweep field = 'newton_max_iterations', values = 50, 50, 1, 1 /""",
+}
+STUDIES["stability_hard"] = STUDIES["stability_paper"]
+EXPECTED_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("EME_theta", 0.2): "solver",
+                     ("TS-midpoint_u", 0.1): "solver"}
+
+
+def run_script(study_dir, output, summary):
+    return subprocess.run([sys.executable, str(SCRIPT), "--study-dir", str(study_dir), "-o", str(output),
+                           "--summary", str(summary)], capture_output=True, text=True, timeout=300, cwd=ROOT)
+
+
+@pytest.fixture(scope="module")
+def studies(tmp_path_factory):
+    """STUDY_DIR with the four tiny studies, run with eme_ensemble on one rank."""
+    assert ENSEMBLE.exists(), f"{ENSEMBLE} is missing: run `make` in {ROOT} first"
+    directory = tmp_path_factory.mktemp("studies")
+    for name, sweeps in STUDIES.items():
+        combine = "product" if name == "convergence" else "zip"
+        namelist = directory / f"{name}.nml"
+        namelist.write_text(f"&study\n  base = '{BASE}'\n  output_dir = '{directory / 'study' / name}'\n"
+                            f"  combine = '{combine}'\n/\n{sweeps}\n")
+        result = subprocess.run([str(ENSEMBLE), str(namelist)], capture_output=True, text=True,
+                                timeout=300, cwd=ROOT)
+        assert result.returncode == 0, result.stderr
+    return directory / "study"
+
+
+@pytest.fixture(scope="module")
+def analysed(studies, tmp_path_factory):
+    output = tmp_path_factory.mktemp("analysis")
+    result = run_script(studies, output / "figures", output / "summary.h5")
+    assert result.returncode == 0, result.stderr
+    return output, result.stdout
+
+
+@pytest.mark.parametrize("name", ["study_convergence", "study_work_precision", "study_structure_cost",
+                                  "study_stability_map"])
+def test_script_writes_png_and_pdf(analysed, name):
+    output, _ = analysed
+    png = (output / "figures" / f"{name}.png").read_bytes()
+    pdf = (output / "figures" / f"{name}.pdf").read_bytes()
+    assert png.startswith(b"\x89PNG") and len(png) > 10_000
+    assert pdf.startswith(b"%PDF") and len(pdf) > 5_000
+
+
+def text(values):
+    return [v.decode() if isinstance(v, bytes) else str(v) for v in np.ravel(values)]
+
+
+def test_summary_holds_every_figure_s_numbers_with_units(analysed):
+    output, _ = analysed
+    with h5py.File(output / "summary.h5", "r") as f:
+        names = []
+        f.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
+        for name in names:
+            assert {"units", "description"} <= set(f[name].attrs), name
+        for scene in ("paper", "hard"):
+            for dataset in ("scheme", "dt", "outcome", "outcome_names", "flags", "case", "kept_count"):
+                assert f"stability/{scene}/{dataset}" in names
+        for dataset in ("scheme", "dt", "error", "solve_time_seconds", "cross_check_level", "fit_scheme",
+                        "fitted_order"):
+            assert f"convergence/{dataset}" in names
+        for dataset in ("solve_time_seconds", "energy_drift", "entropy_violation"):
+            assert f"structure_cost/{dataset}" in names
+        assert len(f["convergence/error"]) == 6
+        grid = f["stability/paper/outcome"][()]
+        schemes, steps = text(f["stability/paper/scheme"][()]), list(f["stability/paper/dt"][()])
+        assert (grid >= 0).sum() == 4
+        codes = {(schemes[i], steps[j]): study_analysis.OUTCOMES[grid[i, j]] for i, j in zip(*np.nonzero(grid >= 0))}
+        assert codes == EXPECTED_OUTCOMES
+        orders = dict(zip(text(f["convergence/fit_scheme"][()]), f["convergence/fitted_order"][()]))
+        assert orders["EME_theta"] == pytest.approx(2.0, abs=0.3)
+        assert orders["RK4_theta"] == pytest.approx(4.0, abs=0.5)
+
+
+def test_summary_numbers_are_the_files_numbers(studies, analysed):
+    """Errors recomputed here with plain h5py, and the index's metrics, equal the summary's."""
+    output, _ = analysed
+
+    def last(path):
+        with h5py.File(path, "r") as f:
+            return f["state"][-1, :13], f["temperature"][-1], f.attrs["theta_ref"]
+
+    q_ref, theta_ref_values, theta_ref = last(studies / "convergence_reference" / "case_00001.h5")
+    with h5py.File(output / "summary.h5", "r") as f, \
+            h5py.File(studies / "convergence" / "index.h5", "r") as index:
+        rows = {row["case"]: row for row in index["cases"][()]}
+        for case, error, time in zip(f["convergence/case"][()], f["convergence/error"][()],
+                                     f["convergence/solve_time_seconds"][()]):
+            q, theta, _ = last(studies / "convergence" / rows[case]["file"].decode())
+            expected = max(np.abs(q - q_ref).max(), np.abs(theta - theta_ref_values).max() / theta_ref)
+            assert error == pytest.approx(expected, rel=1e-12, abs=0)
+            assert time == rows[case]["solve_time_seconds"]
+        q_check, theta_check, _ = last(studies / "convergence_reference" / "case_00002.h5")
+        level = max(np.abs(q_check - q_ref).max(), np.abs(theta_check - theta_ref_values).max() / theta_ref)
+        assert f["convergence/cross_check_level"][()] == pytest.approx(level, rel=1e-12)
+    with h5py.File(output / "summary.h5", "r") as f, \
+            h5py.File(studies / "stability_paper" / "index.h5", "r") as index:
+        rows = {row["case"]: row for row in index["cases"][()]}
+        for case, drift, violation in zip(f["structure_cost/case"][()], f["structure_cost/energy_drift"][()],
+                                          f["structure_cost/entropy_violation"][()]):
+            assert rows[case]["status"] == b"complete"
+            assert drift == rows[case]["energy_drift"]
+            assert violation == max(0.0, -rows[case]["min_entropy_increment"])
+
+
+def test_findings_are_printed(analysed):
+    _, stdout = analysed
+    assert "convergence: reference" in stdout and "|reference - cross-check| = " in stdout
+    assert "convergence EME_theta: fitted order " in stdout
+    assert "stability EME_theta: finished with everything kept at 1 of 2 dt (paper scene), 1 of 2 dt (harder scene)" \
+        in stdout
+    assert "stability MP_s: finished with everything kept at 0 of 1 dt (paper scene)" in stdout
+
+
+def test_a_missing_columns_attribute_names_the_file(studies, tmp_path):
+    broken = tmp_path / "study"
+    shutil.copytree(studies, broken)
+    case = broken / "convergence" / "case_00002.h5"
+    with h5py.File(case, "r+") as f:
+        del f["state"].attrs["columns"]
+    result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 2
+    assert str(case) in result.stderr and "/state has no column" in result.stderr
+
+
+def test_a_missing_study_names_its_index(studies, tmp_path):
+    broken = tmp_path / "study"
+    shutil.copytree(studies, broken)
+    shutil.rmtree(broken / "stability_hard")
+    result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 2
+    assert str(broken / "stability_hard" / "index.h5") in result.stderr and "cannot open" in result.stderr
+    assert not (tmp_path / "figures").exists() and not (tmp_path / "summary.h5").exists()
