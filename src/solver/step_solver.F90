@@ -85,6 +85,7 @@ module step_solver
     logical :: created = .false.
     character(len=16) :: line_search = ''           !! the primary line search type
     character(len=16) :: fallback_line_search = ''  !! tried when every strategy failed with it
+    logical :: chord_predictor = .true.             !! -eme_chord_predictor false switches it off
   contains
     procedure :: create
     procedure :: prepare
@@ -111,6 +112,7 @@ contains
     PC :: pc
     SNESLineSearch :: line_search
     PetscInt :: n, max_evaluations
+    PetscBool :: found
 
     self%problem = problem
     self%n = problem%unknowns()
@@ -141,6 +143,8 @@ contains
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESSetFromOptions(self%snes, ierr))
     PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
+    self%chord_predictor = .true.
+    PetscCall(PetscOptionsGetBool(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-eme_chord_predictor', self%chord_predictor, found, ierr))
     if (self%line_search == SNESLINESEARCHBT) then
       self%fallback_line_search = SNESLINESEARCHBASIC
     else
@@ -243,7 +247,7 @@ contains
       integer :: stat, info
 
       better = x
-      if (.not. self%lu%ready) return
+      if (.not. (self%lu%ready .and. self%chord_predictor)) return
       self%problem%dt = dt
       call self%problem%evaluate(x, residual, stat=stat)
       if (stat /= 0) return
