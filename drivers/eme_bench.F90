@@ -44,7 +44,7 @@ program eme_bench
   allocate (times(repeats))
   write (output_unit, '(a, i0, a)') 'per-step cost on the paper scene (134 steps of 0.15 s), median of ', repeats, &
     ' runs after a warm-up; Newton iterations per step are means'
-  write (output_unit, '(a22, a16, a16)') 'scheme', 'us per step', 'Newton/step'
+  write (output_unit, '(a, t44, a, t58, a)') 'scheme', 'us per step', 'Newton/step'
 
   do scheme = scheme_eme, scheme_midpoint
     do variable = tau_entropy, tau_internal_energy
@@ -241,7 +241,7 @@ contains
     character(len=*), intent(in) :: label
     integer, intent(in) :: iterations
 
-    write (output_unit, '(a50, f10.2, f14.2)') label, median(times)/steps, real(iterations, real64)/steps
+    write (output_unit, '(a, t44, f11.2, f14.2)') label, median(times)/steps, real(iterations, real64)/steps
     flush (output_unit)
   end subroutine report_line
 
