@@ -29,15 +29,16 @@ PETSC_SOURCE_FLAGS = -ffree-line-length-none $(PETSC_FLAGS)
 CFLAGS := -O2 -g -Wall -Wextra -std=c11
 
 # ---------------------------------------------------------------- sources, in layers
+UTIL := src/util/number_text.f90
 MODEL := src/model/model_parameters.f90 src/model/special_functions.f90 src/model/free_energy.f90 src/model/invariant_function.f90 \
          src/model/thermo_variable.f90 src/model/double_pendulum.f90 src/model/pendulum_model.f90
 STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_field.f90
 SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
-SOLVER := src/solver/time_stepper.f90 src/solver/step_solver.F90 src/solver/ts_integrator.F90
+SOLVER := src/solver/time_stepper.f90 src/solver/lapack_lu.f90 src/solver/step_solver.F90 src/solver/ts_integrator.F90
 IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_series.f90 src/io/build_info.F90 \
       src/io/compound_table.c src/io/hdf5_table.f90 src/io/namelist_text.f90 src/io/run_config.f90 src/io/study_config.f90
 RUN := src/run/simulation.F90 src/run/ensemble.f90
-LIBRARY_SOURCES := $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
+LIBRARY_SOURCES := $(UTIL) $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := eme_run eme_ensemble eme_bench
 
@@ -59,7 +60,8 @@ $(call o,structure/structure_matrices) $(call o,structure/generic_vector_field):
 $(call o,scheme/discrete_gradient): $(call o,model/invariant_function)
 $(call o,scheme/step_residual): $(call o,model/thermo_variable) $(call o,model/pendulum_model) \
     $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) $(call o,structure/generic_vector_field)
-$(call o,solver/step_solver): $(call o,scheme/step_residual) $(call o,solver/time_stepper)
+$(call o,solver/step_solver): $(call o,scheme/step_residual) $(call o,solver/time_stepper) $(call o,solver/lapack_lu) \
+    $(call o,util/number_text)
 $(call o,solver/ts_integrator): $(call o,model/pendulum_model) $(call o,model/double_pendulum) \
     $(call o,structure/generic_vector_field) $(call o,solver/time_stepper)
 # PETSc callbacks have fixed argument lists; some arguments are not needed.
@@ -70,13 +72,14 @@ $(call o,io/run_config): $(call o,model/model_parameters) $(call o,model/thermo_
 $(call o,run/simulation): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
     $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) \
     $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,solver/ts_integrator) $(call o,io/run_config) \
-    $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info)
-$(call o,io/study_config): $(call o,io/namelist_text) $(call o,io/run_config)
+    $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info) $(call o,util/number_text)
+$(call o,io/study_config): $(call o,io/namelist_text) $(call o,io/run_config) $(call o,util/number_text)
 $(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call o,run/simulation) $(call o,solver/step_solver) \
-    $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info)
+    $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info) $(call o,util/number_text)
 $(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
 $(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble)
-$(OBJ)/drivers/eme_bench.o: $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,solver/ts_integrator)
+$(OBJ)/drivers/eme_bench.o: $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,solver/ts_integrator) \
+    $(call o,solver/lapack_lu)
 $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
     $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)

@@ -19,6 +19,7 @@ program eme_bench
   use step_solver, only: snes_solver
   use ts_integrator, only: ts_stepper, ts_midpoint, ts_rk4, ts_scheme_names
   use time_stepper, only: step_report
+  use lapack_lu, only: dgetf2, dgetrs
   implicit none
 
   integer, parameter :: steps = 134
@@ -201,22 +202,6 @@ contains
     logical, intent(out) :: ok
     real(real64) :: residual(state_size), update(state_size)
     integer :: info, stat
-    interface
-      subroutine dgetf2(m, n, a, lda, ipiv, info)
-        import :: real64
-        integer, intent(in) :: m, n, lda
-        real(real64), intent(inout) :: a(lda, *)
-        integer, intent(out) :: ipiv(*), info
-      end subroutine dgetf2
-      subroutine dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
-        import :: real64
-        character, intent(in) :: trans
-        integer, intent(in) :: n, nrhs, lda, ldb, ipiv(*)
-        real(real64), intent(in) :: a(lda, *)
-        real(real64), intent(inout) :: b(ldb, *)
-        integer, intent(out) :: info
-      end subroutine dgetrs
-    end interface
 
     root = start
     ok = .false.

@@ -9,6 +9,7 @@ module study_config
   use namelist_text, only: field_spec, namelist_item, read_source_text, group_names, group_items, item_failure, &
                            invalid_value_message, lowercase
   use run_config, only: run_configuration, read_run_config, step_count
+  use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: study_definition, study_case, read_study, max_sweep_values
@@ -269,14 +270,5 @@ contains
     longer(size(longer)) = new_sweep
     call move_alloc(longer, sweeps)
   end subroutine append_sweep
-
-  pure function integer_text(i) result(text)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: text
-    character(len=16) :: buffer
-
-    write (buffer, '(i0)') i
-    text = trim(buffer)
-  end function integer_text
 
 end module study_config

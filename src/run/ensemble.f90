@@ -23,6 +23,7 @@ module ensemble
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
   use filesystem, only: make_directories, rename_file
   use build_info, only: code_version
+  use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
   public :: run_study, study_outcome, world_rank
@@ -267,8 +268,8 @@ contains
     remaining = 0.0_real64
     if (manager%done_cost > 0) remaining = elapsed*(manager%planned_cost - manager%done_cost)/manager%done_cost
     write (output_unit, '(a, i0, a, i0, a, i0, a, a, a, a, a)') 'eme_ensemble: ', manager%done, '/', &
-      size(manager%results), ' cases done, ', manager%failed, ' failed, ', seconds_text(elapsed), &
-      ' s elapsed, about ', seconds_text(remaining), ' s left'
+      size(manager%results), ' cases done, ', manager%failed, ' failed, ', fixed_text(elapsed, 1), &
+      ' s elapsed, about ', fixed_text(remaining, 1), ' s left'
     flush (output_unit)
   end subroutine progress
 
@@ -494,23 +495,5 @@ contains
       if (index('''"', plain(1:1)) > 0) plain = plain(2:len(plain) - 1)
     end if
   end function unquoted
-
-  pure function seconds_text(seconds) result(text)
-    real(real64), intent(in) :: seconds
-    character(len=:), allocatable :: text
-    character(len=16) :: buffer
-
-    write (buffer, '(f16.1)') seconds
-    text = trim(adjustl(buffer))
-  end function seconds_text
-
-  pure function integer_text(i) result(text)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: text
-    character(len=16) :: buffer
-
-    write (buffer, '(i0)') i
-    text = trim(buffer)
-  end function integer_text
 
 end module ensemble

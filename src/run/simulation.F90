@@ -19,6 +19,7 @@ module simulation
   use hdf5_series, only: hdf5_file, series_table
   use filesystem, only: make_parent_directories
   use build_info, only: code_version
+  use number_text, only: integer_text, fixed_text
   implicit none
   private
   public :: run_summary, run_simulation, run_observer
@@ -147,7 +148,7 @@ contains
       end if
       time = n*config%dt
       if (.not. report%accepted) then
-        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//real_text(time)//' s): '//report%reason
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '//report%reason
         exit
       end if
       call steps%append(file, [real(report%newton_iterations, real64), report%scheme_temperature, &
@@ -429,23 +430,5 @@ contains
     j = angular_momentum(z)
     jz = j(3)
   end function angular_momentum_z
-
-  pure function integer_text(i) result(text)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: text
-    character(len=16) :: buffer
-
-    write (buffer, '(i0)') i
-    text = trim(buffer)
-  end function integer_text
-
-  pure function real_text(x) result(text)
-    real(real64), intent(in) :: x
-    character(len=:), allocatable :: text
-    character(len=24) :: buffer
-
-    write (buffer, '(f24.4)') x
-    text = trim(adjustl(buffer))
-  end function real_text
 
 end module simulation

@@ -20,6 +20,8 @@ module step_solver
   use, intrinsic :: iso_fortran_env, only: real64
   use step_residual, only: step_problem
   use time_stepper, only: stepper, step_report
+  use lapack_lu, only: dgetf2, dgetrs
+  use number_text, only: integer_text
   implicit none
   private
   public :: snes_solver
@@ -54,20 +56,6 @@ module step_solver
       type(dense_lu), pointer :: context
       PetscErrorCode :: ierr
     end subroutine PCShellGetContext
-    subroutine dgetf2(m, n, a, lda, ipiv, info)
-      import :: real64
-      integer, intent(in) :: m, n, lda
-      real(real64), intent(inout) :: a(lda, *)
-      integer, intent(out) :: ipiv(*), info
-    end subroutine dgetf2
-    subroutine dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
-      import :: real64
-      character, intent(in) :: trans
-      integer, intent(in) :: n, nrhs, lda, ldb, ipiv(*)
-      real(real64), intent(in) :: a(lda, *)
-      real(real64), intent(inout) :: b(ldb, *)
-      integer, intent(out) :: info
-    end subroutine dgetrs
   end interface
 
   !> The PETSc objects of one run and the problem their callbacks see. Do not copy it after
@@ -510,14 +498,5 @@ contains
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
     end if
   end subroutine form_jacobian
-
-  pure function integer_text(i) result(text)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: text
-    character(len=16) :: buffer
-
-    write (buffer, '(i0)') i
-    text = trim(buffer)
-  end function integer_text
 
 end module step_solver
