@@ -34,7 +34,8 @@ MODEL := src/model/model_parameters.f90 src/model/special_functions.f90 src/mode
          src/model/thermo_variable.f90 src/model/double_pendulum.f90 src/model/pendulum_model.f90
 STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_field.f90
 SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
-SOLVER := src/solver/time_stepper.f90 src/solver/lapack_lu.f90 src/solver/step_solver.F90 src/solver/ts_integrator.F90
+SOLVER := src/solver/time_stepper.f90 src/solver/lapack_lu.f90 src/solver/step_solver.F90 src/solver/ts_domain.c \
+          src/solver/ts_integrator.F90
 IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_series.f90 src/io/build_info.F90 \
       src/io/compound_table.c src/io/hdf5_table.f90 src/io/namelist_text.f90 src/io/run_config.f90 src/io/study_config.f90
 RUN := src/run/simulation.F90 src/run/ensemble.f90
@@ -64,6 +65,7 @@ $(call o,solver/step_solver): $(call o,scheme/step_residual) $(call o,solver/tim
     $(call o,util/number_text)
 $(call o,solver/ts_integrator): $(call o,model/pendulum_model) $(call o,model/double_pendulum) \
     $(call o,structure/generic_vector_field) $(call o,solver/time_stepper)
+$(OBJ)/src/solver/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
 # PETSc callbacks have fixed argument lists; some arguments are not needed.
 $(call o,solver/step_solver) $(call o,solver/ts_integrator): FFLAGS += -Wno-unused-dummy-argument
 $(call o,io/run_config): $(call o,model/model_parameters) $(call o,model/thermo_variable) \

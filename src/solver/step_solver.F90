@@ -154,6 +154,7 @@ contains
     ierr = 0
     if (self%created .and. self%n == problem%unknowns()) then
       self%problem = problem
+      self%lu%ready = .false.    ! the chord predictor must not use another problem's Jacobian
       if (abs(newton_tol - self%newton_tol) > 0.0_real64 .or. max_iterations /= self%max_iterations) then
         iterations = max_iterations
         PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, iterations, PETSC_DEFAULT_INTEGER, ierr))

@@ -11,6 +11,7 @@ module ts_integrator
 #include <petsc/finclude/petscts.h>
   use petscts
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_funloc, c_loc, c_f_pointer
   use pendulum_model, only: pendulum
   use double_pendulum, only: state_size
   use generic_vector_field, only: vector_field, add_partials_chain
@@ -23,11 +24,25 @@ module ts_integrator
   character(len=*), parameter :: ts_scheme_names(4) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4', &
                                                        'ts_rk5dp']
 
-  !> The model the callbacks evaluate, and whether it left its domain.
+  !> The model the callbacks evaluate, whether the method solves equations (the implicit ones
+  !> tell their SNES when a Newton iterate leaves the domain), and how many stages the domain
+  !> check has rejected.
   type :: rhs_context
     type(pendulum) :: model
-    logical :: out_of_domain = .false.
+    logical :: implicit = .false.
+    integer :: domain_rejections = 0
   end type rhs_context
+
+  interface
+    !> Attaches the stage domain check `inside` (with `context`) to a TS (ts_domain.c).
+    function eme_ts_set_domain_check(ts, inside, context) bind(C, name='eme_ts_set_domain_check') result(ierr)
+      import :: c_int, c_ptr, c_funptr
+      type(*), intent(in) :: ts
+      type(c_funptr), value, intent(in) :: inside
+      type(c_ptr), value, intent(in) :: context
+      integer(c_int) :: ierr
+    end function eme_ts_set_domain_check
+  end interface
 
   !> One TS for a run. Do not copy it after `create`: PETSc holds the address of `context`.
   type, extends(stepper) :: ts_stepper
@@ -62,6 +77,8 @@ contains
     PetscInt :: n, max_iterations, max_evaluations, max_steps
 
     self%context%model = model
+    self%context%implicit = method == ts_midpoint .or. method == ts_bdf2
+    self%context%domain_rejections = 0
     self%method = method
     self%snes_iterations = 0
     self%steps = 0
@@ -75,6 +92,8 @@ contains
     PetscCall(TSSetProblemType(self%ts, TS_NONLINEAR, ierr))
     PetscCall(TSSetSolution(self%ts, self%x, ierr))
     PetscCall(TSSetRHSFunction(self%ts, PETSC_NULL_VEC, form_rhs, self%context, ierr))
+    ierr = eme_ts_set_domain_check(self%ts, c_funloc(stage_inside), c_loc(self%context))
+    if (ierr /= 0) return
     select case (method)
     case (ts_midpoint)
       PetscCall(TSSetType(self%ts, TSTHETA, ierr))
@@ -89,7 +108,7 @@ contains
       PetscCall(TSSetType(self%ts, TSRK, ierr))
       PetscCall(TSRKSetType(self%ts, TSRK5DP, ierr))
     end select
-    if (method == ts_midpoint .or. method == ts_bdf2) then
+    if (self%context%implicit) then
       PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, n, n, PETSC_NULL_SCALAR, self%jacobian, ierr))
       PetscCall(TSSetRHSJacobian(self%ts, self%jacobian, self%jacobian, form_rhs_jacobian, self%context, ierr))
       PetscCall(TSGetSNES(self%ts, snes, ierr))
@@ -109,7 +128,9 @@ contains
     if (method == ts_rk5dp) then
       PetscCall(TSSetTolerances(self%ts, tolerance, PETSC_NULL_VEC, tolerance, PETSC_NULL_VEC, ierr))
     else
+      ! Fixed steps: a stage outside the domain ends the run instead of halving the step.
       PetscCall(TSAdaptSetType(adapt, TSADAPTNONE, ierr))
+      PetscCall(TSSetMaxStepRejections(self%ts, 0, ierr))
     end if
     PetscCall(TSSetFromOptions(self%ts, ierr))
   end subroutine create
@@ -121,7 +142,7 @@ contains
 
     PetscCall(TSDestroy(self%ts, ierr))
     PetscCall(VecDestroy(self%x, ierr))
-    if (self%method == ts_midpoint .or. self%method == ts_bdf2) then
+    if (self%context%implicit) then
       PetscCall(MatDestroy(self%jacobian, ierr))
     end if
   end subroutine destroy
@@ -143,7 +164,7 @@ contains
 
     report%reason = ''
     report%last_rejection = ''
-    self%context%out_of_domain = .false.
+    self%context%domain_rejections = 0
     ! Start from the exact output time: the TS's own sum of steps drifts by rounding, and a
     ! remainder of 1e-16 s would become a step of its own (which t + dt cannot even resolve).
     ! For the fixed-step methods, reset dt too: after landing on an output time the TS keeps
@@ -172,7 +193,12 @@ contains
       case (TS_DIVERGED_NONLINEAR_SOLVE)
         report%reason = 'PETSc TS: the Newton solve of an implicit step diverged (TS_DIVERGED_NONLINEAR_SOLVE)'
       case (TS_DIVERGED_STEP_REJECTED)
-        report%reason = 'PETSc TS: too many rejected steps (TS_DIVERGED_STEP_REJECTED)'
+        if (self%context%domain_rejections > 0) then
+          report%reason = 'PETSc TS: a stage left the model''s domain, a non-positive temperature or spring ' &
+                          //'length (TS_DIVERGED_STEP_REJECTED)'
+        else
+          report%reason = 'PETSc TS: too many rejected steps (TS_DIVERGED_STEP_REJECTED)'
+        end if
       case default
         write (text, '(a, i0)') 'PETSc TS did not converge, TSConvergedReason ', converged
         report%reason = trim(text)
@@ -180,7 +206,7 @@ contains
       return
     end if
     call self%context%model%observe(x_new, energy, entropy, report%scheme_temperature, stat)
-    if (stat /= 0 .or. self%context%out_of_domain .or. .not. all(abs(x_new) <= huge(1.0_real64))) then
+    if (stat /= 0 .or. .not. all(abs(x_new) <= huge(1.0_real64))) then
       report%reason = 'the state left the model''s domain (a non-positive temperature, or a blow-up)'
       return
     end if
@@ -200,18 +226,20 @@ contains
     PetscCall(PCSetType(pc, PCLU, ierr))
   end subroutine set_direct_solver
 
-  ! TS callback: f(z) = L grad E + K grad S at z. Outside the model's domain the field is NaN,
-  ! which the implicit methods' line search and the step check after TSSolve catch.
+  ! TS callback: f(z) = L grad E + K grad S at z. The stage check keeps the explicit methods'
+  ! stages inside the model's domain; a Newton iterate of an implicit method can leave it, and
+  ! then the field is NaN and the SNES is told (SNESSetFunctionDomainError).
   subroutine form_rhs(ts, time, x, f, context, ierr)
-    TS :: ts
-    PetscReal :: time
-    Vec :: x
-    Vec :: f
-    type(rhs_context) :: context
-    PetscErrorCode :: ierr
+    TS, intent(in) :: ts
+    PetscReal, intent(in) :: time
+    Vec, intent(in) :: x
+    Vec, intent(in) :: f
+    type(rhs_context), intent(in) :: context
+    PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), f_values(:)
     real(real64) :: partials(3, 2, 2)
     integer :: stat
+    SNES :: snes
 
     PetscCall(VecGetArrayReadF90(x, x_values, ierr))
     PetscCall(VecGetArrayF90(f, f_values, ierr))
@@ -219,22 +247,26 @@ contains
     if (stat == 0) then
       call vector_field(context%model%params, x_values, partials, f_values)
     else
-      context%out_of_domain = .true.
       f_values = ieee_nan()
     end if
     PetscCall(VecRestoreArrayF90(f, f_values, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    if (stat /= 0 .and. context%implicit) then
+      PetscCall(TSGetSNES(ts, snes, ierr))
+      PetscCall(SNESSetFunctionDomainError(snes, ierr))
+    end if
   end subroutine form_rhs
 
   ! TS callback: df/dz = (df/dz at fixed partials) + (df/dpartials)(dpartials/dz).
   subroutine form_rhs_jacobian(ts, time, x, jacobian, preconditioner, context, ierr)
-    TS :: ts
-    PetscReal :: time
-    Vec :: x
-    Mat :: jacobian
-    Mat :: preconditioner
-    type(rhs_context) :: context
-    PetscErrorCode :: ierr
+    TS, intent(in) :: ts
+    PetscReal, intent(in) :: time
+    Vec, intent(in) :: x
+    Mat, intent(in) :: jacobian
+    Mat, intent(in) :: preconditioner
+    type(rhs_context), intent(in) :: context
+    PetscErrorCode, intent(out) :: ierr
+    SNES :: snes
     PetscScalar, pointer :: x_values(:), entries(:, :)
     real(real64) :: partials(3, 2, 2), dpartials_dz(3, 2, 2, state_size), f(state_size)
     real(real64) :: df_dz(state_size, state_size), df_dpartials(state_size, 3, 2, 2)
@@ -248,7 +280,6 @@ contains
       entries = df_dz
       call add_partials_chain(df_dpartials, dpartials_dz, 1.0_real64, entries)
     else
-      context%out_of_domain = .true.
       entries = 0.0_real64
     end if
     PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
@@ -259,7 +290,28 @@ contains
       PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
       PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
     end if
+    if (stat /= 0) then
+      PetscCall(TSGetSNES(ts, snes, ierr))
+      PetscCall(SNESSetJacobianDomainError(snes, ierr))
+    end if
   end subroutine form_rhs_jacobian
+
+  ! TS stage domain check (called through ts_domain.c): 1 if the stage lies in the model's
+  ! domain (positive temperatures and spring lengths, finite values), else 0, counted.
+  integer(c_int) function stage_inside(state, n, context) bind(C)
+    integer(c_int), value, intent(in) :: n
+    real(c_double), intent(in) :: state(n)
+    type(c_ptr), value, intent(in) :: context
+    type(rhs_context), pointer :: rhs
+    real(real64) :: partials(3, 2, 2)
+    integer :: stat
+
+    call c_f_pointer(context, rhs)
+    stat = 1
+    if (all(abs(state) <= huge(1.0_real64))) call rhs%model%exact_partials(state, partials, stat=stat)
+    stage_inside = merge(1_c_int, 0_c_int, stat == 0)
+    if (stat /= 0) rhs%domain_rejections = rhs%domain_rejections + 1
+  end function stage_inside
 
   pure real(real64) function ieee_nan()
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan

@@ -75,3 +75,29 @@ def test_baselines_refuse_constraints(tmp_path, eme_run_binary):
                                              "integrator": {"scheme": "ts_rk4"}})
     assert result.returncode == 2 and not path.exists()
     assert "scheme = 'ts_rk4' integrates the unconstrained model only" in result.stderr
+
+
+# The harder scene of the stability study: fast motion and a wide temperature gap, where large
+# steps carry Runge-Kutta stages out of the model's domain (a non-positive temperature).
+HARD_SCENE = {"initial": {"p2": [-5.0, -5.0, 0.0], "theta": [200.0, 350.0]}}
+
+
+@pytest.mark.parametrize("variable", ["temperature", "internal_energy"])
+def test_adaptive_method_steps_back_from_the_domain_boundary(tmp_path, eme_run_binary, variable):
+    # Its stages leave the domain at dt = 1 s: the stage check rejects them and the method
+    # retries with smaller steps, instead of PETSc failing on a NaN error estimate.
+    result, path = run_eme(tmp_path, "rk5dp", {**HARD_SCENE, "integrator": {
+        "scheme": "ts_rk5dp", "thermo_variable": variable, "dt": 1.0, "t_end": 4.0, "ts_tolerance": 1e-6}})
+    assert result.returncode == 0, result.stderr
+    run = read_run(path)
+    assert run["attrs"]["status"] == "complete" and np.all(run["temperature"] > 0)
+    assert run["rejected_roots"].sum() > 0
+
+
+def test_fixed_step_method_stops_cleanly_when_a_stage_leaves_the_domain(tmp_path, eme_run_binary):
+    result, path = run_eme(tmp_path, "rk4", {**HARD_SCENE, "integrator": {
+        "scheme": "ts_rk4", "thermo_variable": "internal_energy", "dt": 1.0, "t_end": 4.0}})
+    assert result.returncode == 3, result.stderr
+    run = read_run(path)
+    assert run["attrs"]["status"].startswith("incomplete: step 1 (t = 1.0000 s): PETSc TS: a stage left the model's domain")
+    assert run["time"].tolist() == [0.0]
