@@ -1,9 +1,16 @@
 # Thermoviscoelastic double pendulum: EME and midpoint time integration with PETSc SNES.
-#   make          build library, drivers and tests (installs missing packages first)
-#   make run      the paper's Fig. 4 scene with EME_s, EME_theta, EME_u, and a summary table
-#   make test     every test; the last line is "N passed, M failed"
-#   make clean    remove what the build made
+#   make              build library, drivers and tests (installs missing apt packages first)
+#   make run          the paper's Fig. 4 scenes (EME and midpoint, every variable) and Fig. 5
+#                     scenes, a summary table, then the figures
+#   make test         every test; the last line is "N passed, M failed"
+#   make constraints  the constraints with EME_s and EME_u, and without conduction
+#   make figures      the figures of `make run`'s files
+#   make study        convergence, work-precision and stability studies, and their charts
+#   make bench        ensemble throughput and per-step cost (benchmarks, not tests)
+#   make clean        remove what the build made
 SHELL := /bin/bash
+# A failing command inside a pipeline (mpirun ... | tail) fails its recipe.
+.SHELLFLAGS := -o pipefail -c
 .DEFAULT_GOAL := all
 
 BUILD := build
@@ -70,18 +77,20 @@ $(OBJ)/src/solver/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
 $(call o,solver/step_solver) $(call o,solver/ts_integrator): FFLAGS += -Wno-unused-dummy-argument
 $(call o,io/run_config): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
     $(call o,scheme/discrete_gradient) $(call o,scheme/step_residual) $(call o,io/namelist_text) \
-    $(call o,solver/ts_integrator)
-$(call o,run/simulation): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
+    $(call o,solver/ts_integrator) $(call o,util/number_text)
+$(call o,run/simulation): $(call o,model/thermo_variable) \
     $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) \
-    $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,solver/ts_integrator) $(call o,io/run_config) \
+    $(call o,scheme/step_residual) $(call o,solver/time_stepper) $(call o,solver/step_solver) \
+    $(call o,solver/ts_integrator) $(call o,io/run_config) \
     $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info) $(call o,util/number_text)
 $(call o,io/study_config): $(call o,io/namelist_text) $(call o,io/run_config) $(call o,util/number_text)
 $(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call o,run/simulation) $(call o,solver/step_solver) \
     $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info) $(call o,util/number_text)
 $(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
-$(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble)
-$(OBJ)/drivers/eme_bench.o: $(call o,scheme/step_residual) $(call o,solver/step_solver) $(call o,solver/ts_integrator) \
-    $(call o,solver/lapack_lu)
+$(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble) $(call o,util/number_text)
+$(OBJ)/drivers/eme_bench.o: $(call o,model/model_parameters) $(call o,model/thermo_variable) \
+    $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/step_residual) \
+    $(call o,solver/time_stepper) $(call o,solver/step_solver) $(call o,solver/ts_integrator) $(call o,solver/lapack_lu)
 $(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
     $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)

@@ -10,7 +10,7 @@
 program eme_bench
 #include <petsc/finclude/petscsys.h>
   use petscsys
-  use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit
+  use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit, error_unit
   use model_parameters, only: pendulum_parameters
   use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
   use pendulum_model, only: pendulum, make_pendulum
@@ -40,7 +40,10 @@ program eme_bench
   repeats = 15
   if (command_argument_count() >= 1) then
     call get_command_argument(1, argument)
-    if (verify(trim(argument), '0123456789') == 0) read (argument, *) repeats
+    if (argument(1:1) /= '-') then    ! else a PETSc option
+      read (argument, *, iostat=stat) repeats
+      if (stat /= 0 .or. repeats < 1) call fail('REPEATS must be a whole number >= 1')
+    end if
   end if
   allocate (times(repeats))
   write (output_unit, '(a, i0, a)') 'per-step cost on the paper scene (134 steps of 0.15 s), median of ', repeats, &
@@ -51,6 +54,7 @@ program eme_bench
     do variable = tau_entropy, tau_internal_energy
       call set_problem(scheme, variable)
       call solver%prepare(problem, newton_tol, 50, ierr)
+      if (ierr /= 0) call fail('PETSc failed to set up the solver')
       call time_snes(iterations)
       write (label, '(a, "_", a)') trim(merge('EME     ', 'midpoint', scheme == scheme_eme)), &
         trim(thermo_variable_names(variable))
@@ -62,6 +66,7 @@ program eme_bench
     end do
   end do
   call solver%destroy(ierr)
+  if (ierr /= 0) call fail('PETSc failed to free the solver')
 
   do method = ts_midpoint, ts_rk4
     model = make_pendulum(params, tau_temperature)
@@ -84,6 +89,14 @@ program eme_bench
   PetscCallA(PetscFinalize(ierr))
 
 contains
+
+  ! A benchmark that cannot run says why and exits with status 1.
+  subroutine fail(text)
+    character(len=*), intent(in) :: text
+
+    write (error_unit, '(a)') 'eme_bench: '//text
+    stop 1, quiet=.true.
+  end subroutine fail
 
   subroutine set_problem(scheme, variable)
     integer, intent(in) :: scheme, variable
@@ -113,7 +126,7 @@ contains
       call system_clock(start, rate)
       do n = 1, steps
         call solver%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
-        if (.not. report%accepted) error stop 'eme_bench: a step failed'
+        if (ierr /= 0 .or. .not. report%accepted) call fail('a step failed')
         iterations = iterations + report%newton_iterations
         x_previous = x
         x = x_new
@@ -134,17 +147,19 @@ contains
 
     do run = 0, repeats
       call ts%create(model, method, z0, dt, newton_tol, 50, 1.0e-10_real64, ierr)
+      if (ierr /= 0) call fail('PETSc failed to set up the TS')
       x = z0
       iterations = 0
       call system_clock(start, rate)
       do n = 1, steps
         call ts%advance(x, (n - 1)*dt, dt, x, x_new, report, ierr)
-        if (.not. report%accepted) error stop 'eme_bench: a TS step failed'
+        if (ierr /= 0 .or. .not. report%accepted) call fail('a TS step failed')
         iterations = iterations + report%newton_iterations
         x = x_new
       end do
       call system_clock(finish)
       call ts%destroy(ierr)
+      if (ierr /= 0) call fail('PETSc failed to free the TS')
       if (run > 0) times(run) = real(finish - start, real64)/real(rate, real64)*1.0e6_real64
     end do
   end subroutine time_ts
@@ -173,7 +188,7 @@ contains
         if (.not. ok) then
           call newton(x, x_new, its, ok)
           iterations = iterations + its
-          if (.not. ok) error stop 'eme_bench: the floor Newton loop failed'
+          if (.not. ok) call fail('the floor Newton loop failed')
         end if
         x_previous = x
         x = x_new

@@ -1,13 +1,14 @@
 !> mpirun -n P eme_ensemble STUDY.nml [PETSc options]: runs the cases of a parameter study on
 !> P ranks (README, Ensemble studies). Exit status: 0 every case was attempted (failed cases
 !> are results, recorded in the index with their reason), 2 bad study input (nothing is
-!> written), 1 the index could not be written.
+!> written), 1 the index could not be written or updated.
 program eme_ensemble
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use study_config, only: study_definition, read_study
   use ensemble, only: run_study, study_outcome, world_rank
+  use number_text, only: integer_text
   implicit none
 
   type(study_definition), target :: study
@@ -31,11 +32,16 @@ program eme_ensemble
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
       exit_status = 2
     else
-      call run_study(study, outcome, stat, message)
+      call run_study(study, outcome, stat, message, print_line)
       if (stat /= 0) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
         exit_status = 1
-      else if (rank == 0) then
+      else if (rank == 0 .and. outcome%index_errors > 0) then
+        write (error_unit, '(a)') 'eme_ensemble: '//study%output_dir//'/index.h5 could not be updated ' &
+          //integer_text(outcome%index_errors)//' times; the case files are complete, the index is not'
+        exit_status = 1
+      end if
+      if (stat == 0 .and. rank == 0) then
         write (output_unit, '(a, i0, a, i0, a, i0, a, i0, a, f10.2, a)') 'eme_ensemble: ', outcome%cases, ' cases: ', &
           outcome%complete, ' complete (', outcome%skipped, ' from an earlier run), ', outcome%failed, &
           ' failed; wall time', outcome%wall_seconds, ' s; index '//study%output_dir//'/index.h5'
@@ -44,4 +50,15 @@ program eme_ensemble
   end if
   PetscCallA(PetscFinalize(ierr))
   if (exit_status /= 0) stop exit_status, quiet=.true.
+
+contains
+
+  ! The study's start, progress and warning lines, as they come.
+  subroutine print_line(text)
+    character(len=*), intent(in) :: text
+
+    write (output_unit, '(a)') text
+    flush (output_unit)
+  end subroutine print_line
+
 end program eme_ensemble

@@ -16,13 +16,15 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from trajectory import RunFileError
+
 
 def summarize(path):
     """The table row of one run file, as a dict of numbers and strings."""
     with h5py.File(path, "r") as f:
         for name in ("energy", "entropy", "lyapunov", "angular_momentum", "newton_iterations"):
             if name not in f:
-                raise SystemExit(f"{path}: dataset /{name} is missing; is this an eme_run file?")
+                raise RunFileError(f"{path}: dataset /{name} is missing; is this an eme_run file?")
         energy, entropy, lyapunov = f["energy"][:], f["entropy"][:], f["lyapunov"][:]
         heat = f["boundary_heat"][:] if "boundary_heat" in f else np.zeros_like(energy)
         constraint = float(np.abs(f["constraint_residual"][:]).max()) if "constraint_residual" in f else None
@@ -75,4 +77,8 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except (RunFileError, OSError) as error:      # a bad or unreadable file: exit status 2
+        print(f"summarize_runs.py: error: {error}", file=sys.stderr)
+        sys.exit(2)

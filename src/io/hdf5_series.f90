@@ -177,7 +177,7 @@ contains
     type(series) :: item
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: dims(2), max_dims(2), chunk(2)
-    integer :: rank
+    integer :: rank, ignored
 
     item%name = name
     item%width = width
@@ -202,8 +202,8 @@ contains
     call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
     if (stat == 0) call h5pset_chunk_f(properties, rank, chunk(1:rank), stat)
     if (stat == 0) call h5dcreate_f(file%id, name, kind, space, item%dataset, stat, properties)
-    call h5pclose_f(properties, rank)
-    call h5sclose_f(space, rank)
+    call h5pclose_f(properties, ignored)
+    call h5sclose_f(space, ignored)
     if (stat /= 0) return
     call file%set_text('units', units, stat, item%dataset)
     if (stat == 0) call file%set_text('description', description, stat, item%dataset)
@@ -351,12 +351,17 @@ contains
     if (stat /= 0) return
     if (as_integer) then
       call h5acreate_f(object, name, H5T_NATIVE_INTEGER, space, attribute, stat)
-      if (stat == 0) call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
     else
       call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
-      if (stat == 0) call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
     end if
-    call h5aclose_f(attribute, ignored)
+    if (stat == 0) then    ! created: write, then close whatever the write did
+      if (as_integer) then
+        call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
+      else
+        call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
+      end if
+      call h5aclose_f(attribute, ignored)
+    end if
     call h5sclose_f(space, ignored)
   end subroutine write_numeric_attribute
 

@@ -17,7 +17,6 @@ module hdf5_table
     integer(c_int), allocatable :: widths(:)
   contains
     procedure :: add
-    procedure :: numeric_count
     procedure :: create
     procedure :: write_row
     procedure :: read_row
@@ -87,13 +86,6 @@ contains
     self%names = self%names//name//new_line('a')
     self%widths = [self%widths, int(width, c_int)]
   end subroutine add
-
-  !> Number of real and integer columns (the length of a row's `numbers`).
-  pure integer function numeric_count(self)
-    class(table_columns), intent(in) :: self
-
-    numeric_count = count(self%widths <= 0)
-  end function numeric_count
 
   !> Creates dataset `name` of `rows` empty rows in the open file `file`.
   subroutine create(self, file, name, rows, stat)

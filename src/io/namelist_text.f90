@@ -6,7 +6,7 @@ module namelist_text
   implicit none (type, external)
   private
   public :: field_spec, namelist_item, read_source_text, group_names, group_items, item_name
-  public :: item_failure, invalid_value_message, names_list, allowed_of, reals_text, lowercase
+  public :: item_failure, invalid_value_message, names_list, reals_text, lowercase
 
   !> A field a group accepts and what it allows, for messages.
   type :: field_spec
@@ -22,8 +22,6 @@ module namelist_text
     character(len=:), allocatable :: origin
   end type namelist_item
 
-  integer, parameter :: line_length = 1024
-
 contains
 
   !> The file's text with comments removed and lines joined by blanks.
@@ -32,24 +30,43 @@ contains
     character(len=:), allocatable, intent(out) :: text
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=line_length) :: line
+    character(len=:), allocatable :: line
     character(len=256) :: io_message
     integer :: unit, ios
 
     text = ''
     message = ''
     open (newunit=unit, file=path, status='old', action='read', iostat=stat, iomsg=io_message)
-    if (stat /= 0) then
-      message = path//': cannot read the input file: '//trim(io_message)
-      return
+    if (stat == 0) then
+      do
+        call read_line(unit, line, stat, io_message)
+        if (stat /= 0) exit
+        text = text//' '//trim(without_comment(line))
+      end do
+      if (is_iostat_end(stat)) stat = 0
+      close (unit, iostat=ios)
     end if
-    do
-      read (unit, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      text = text//' '//trim(without_comment(line))
-    end do
-    close (unit)
+    if (stat /= 0) message = path//': cannot read the input file: '//trim(io_message)
   end subroutine read_source_text
+
+  ! One line of any length; stat is IOSTAT_END after the last line.
+  subroutine read_line(unit, line, stat, io_message)
+    integer, intent(in) :: unit
+    character(len=:), allocatable, intent(out) :: line
+    integer, intent(out) :: stat
+    character(len=*), intent(inout) :: io_message
+    character(len=256) :: chunk
+    integer :: length
+
+    line = ''
+    do
+      read (unit, '(a)', advance='no', size=length, iostat=stat, iomsg=io_message) chunk
+      line = line//chunk(1:length)
+      if (stat /= 0) exit
+    end do
+    ! A line ends at its record end, or at the end of a file without a final newline.
+    if (is_iostat_eor(stat) .or. (is_iostat_end(stat) .and. len(line) > 0)) stat = 0
+  end subroutine read_line
 
   !> Lower-case names of every group '&name' in the text, in order (outside quotes).
   subroutine group_names(text, names)

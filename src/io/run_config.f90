@@ -11,12 +11,13 @@ module run_config
   use discrete_gradient, only: gradient_gonzalez, discrete_gradient_names, metric_nondimensional, metric_names
   use step_residual, only: scheme_eme, scheme_names
   use ts_integrator, only: ts_scheme_names
+  use number_text, only: integer_text
   use model_parameters, only: pendulum_parameters
   use namelist_text, only: field_spec, namelist_item, read_source_text, group_names, group_items, item_name, &
-                           item_failure, invalid_value_message, names_list, reals_text
+                           item_failure, invalid_value_message, reals_text
   implicit none (type, external)
   private
-  public :: run_configuration, read_run_config, step_count, input_groups, scheme_choices, is_ts_scheme
+  public :: run_configuration, read_run_config, step_count, scheme_choices, is_ts_scheme
 
   character(len=*), parameter :: input_groups(5) = [character(len=11) :: 'model', 'initial', 'constraints', &
                                                    'integrator', 'output']
@@ -347,7 +348,7 @@ contains
     config%dt = dt; config%t_end = t_end; config%newton_tol = newton_tol; config%ts_tolerance = ts_tolerance
     config%newton_max_iterations = newton_max_iterations
     call require(dt > 0, 'dt', reals_text([dt]))
-    call require(newton_max_iterations >= 1, 'newton_max_iterations', reals_text([real(newton_max_iterations, real64)]))
+    call require(newton_max_iterations >= 1, 'newton_max_iterations', integer_text(newton_max_iterations))
     call require(ts_tolerance > 0, 'ts_tolerance', reals_text([ts_tolerance]))
     if (stat == 0 .and. is_ts_scheme(config%scheme) .and. (config%fix_length .or. config%fix_temperature)) then
       stat = 1

@@ -12,7 +12,7 @@ module study_config
   use number_text, only: integer_text
   implicit none (type, external)
   private
-  public :: study_definition, study_case, read_study, max_sweep_values
+  public :: study_definition, study_case, read_study
 
   integer, parameter :: max_sweep_values = 256
   integer, parameter :: max_cases = 100000
@@ -29,7 +29,7 @@ module study_config
     integer :: number = 0
     type(namelist_item), allocatable :: overrides(:)
     type(run_configuration) :: config
-    real(real64) :: cost = 0.0_real64      !! planned steps times unknowns, for largest-first order
+    real(real64) :: cost = 0.0_real64      !! planned steps, for largest-first order
   end type study_case
 
   !> The study: where its pieces are, its sweeps and the expanded cases.
@@ -178,7 +178,10 @@ contains
     end if
     allocate (new_sweep%values(n))
     do i = 1, n
-      if (new_sweep%textual) then
+      if (new_sweep%textual .and. is_logical_literal(texts(i))) then
+        ! Logical fields (fix_length, fix_temperature) take .true. and .false. unquoted.
+        new_sweep%values(i) = trim(adjustl(texts(i)))
+      else if (new_sweep%textual) then
         new_sweep%values(i) = ''''//trim(texts(i))//''''
       else if (abs(values(i)) < 1.0e15_real64 .and. abs(values(i) - anint(values(i))) <= 0.0_real64) then
         ! Whole numbers as integers, so that integer fields (newton_max_iterations) take them too.
@@ -270,5 +273,12 @@ contains
     longer(size(longer)) = new_sweep
     call move_alloc(longer, sweeps)
   end subroutine append_sweep
+
+  ! Whether a sweep text is a Fortran logical constant.
+  pure logical function is_logical_literal(text)
+    character(len=*), intent(in) :: text
+
+    is_logical_literal = any(lowercase(trim(adjustl(text))) == [character(len=7) :: '.true.', '.false.'])
+  end function is_logical_literal
 
 end module study_config

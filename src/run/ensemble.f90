@@ -14,7 +14,8 @@ module ensemble
   use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Send, MPI_Recv, MPI_Iprobe, MPI_Probe, &
                      MPI_Status, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_CHARACTER, &
                      MPI_Wtime, MPI_STATUS_IGNORE
-  use, intrinsic :: iso_fortran_env, only: real64, output_unit
+  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
   use run_config, only: run_configuration
   use simulation, only: run_summary, run_simulation, run_observer
@@ -26,7 +27,14 @@ module ensemble
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
-  public :: run_study, study_outcome, world_rank
+  public :: run_study, study_outcome, world_rank, line_reporter
+
+  abstract interface
+    !> Receives a line for the user (the start, progress and warnings); the driver prints it.
+    subroutine line_reporter(text)
+      character(len=*), intent(in) :: text
+    end subroutine line_reporter
+  end interface
 
   integer, parameter :: status_length = 256
   integer, parameter :: tag_request = 1, tag_status = 2, tag_assign = 3
@@ -48,6 +56,7 @@ module ensemble
     integer :: complete = 0
     integer :: failed = 0
     integer :: skipped = 0     !! complete from an earlier run, not rerun
+    integer :: index_errors = 0   !! index rows that could not be written
     real(real64) :: wall_seconds = 0.0_real64
   end type study_outcome
 
@@ -62,6 +71,8 @@ module ensemble
     integer :: active_workers = 0
     integer :: done = 0
     integer :: failed = 0
+    integer :: index_errors = 0
+    procedure(line_reporter), pointer, nopass :: report => null()
     real(real64) :: started = 0.0_real64
     real(real64) :: last_progress = 0.0_real64
     real(real64) :: planned_cost = 0.0_real64
@@ -78,17 +89,20 @@ contains
   end function world_rank
 
   !> Runs every pending case of `study`. Collective over MPI_COMM_WORLD. stat /= 0 (on every
-  !> rank) if the index could not be prepared; failed cases are not errors.
-  subroutine run_study(study, outcome, stat, message)
+  !> rank) if the index could not be prepared; failed cases are not errors. Rank 0 hands its
+  !> start line, progress lines and warnings to `report`.
+  subroutine run_study(study, outcome, stat, message, report)
     type(study_definition), intent(inout), target :: study
     type(study_outcome), intent(out) :: outcome
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
+    procedure(line_reporter), optional :: report
     type(study_manager) :: manager
     integer :: rank, ranks, flag(1)
 
     call MPI_Comm_rank(MPI_COMM_WORLD, rank)
     call MPI_Comm_size(MPI_COMM_WORLD, ranks)
+    if (present(report)) manager%report => report
     message = ''
     stat = 0
     outcome%cases = size(study%cases)
@@ -133,8 +147,8 @@ contains
     if (stat /= 0) return
     ! A case is done if an earlier run completed it and its file is still there.
     do c = 1, size(study%cases)
-      inquire (file=case_file(study, c), exist=pending(c))
-      pending(c) = .not. (pending(c) .and. manager%results(c)%status == 'complete')
+      inquire (file=case_file(study, c), exist=pending(c), iostat=stat)
+      pending(c) = .not. (stat == 0 .and. pending(c) .and. manager%results(c)%status == 'complete')
       if (pending(c)) manager%results(c)%status = 'pending'
     end do
     call write_index(manager, stat, message)
@@ -153,9 +167,9 @@ contains
     end do
     manager%planned_cost = sum(study%cases(manager%queue)%cost)
     manager%done = count(.not. pending)
-    write (output_unit, '(a, i0, a, i0, a, i0, a, i0, a)') 'eme_ensemble: ', size(study%cases), ' cases, ', &
-      size(manager%queue), ' to run (', manager%done, ' complete from an earlier run), on ', ranks, ' ranks'
-    flush (output_unit)
+    call say(manager, 'eme_ensemble: '//integer_text(size(study%cases))//' cases, '//integer_text(size(manager%queue)) &
+             //' to run ('//integer_text(manager%done)//' complete from an earlier run), on '//integer_text(ranks) &
+             //' ranks')
   end subroutine prepare
 
   subroutine manage(manager, outcome)
@@ -163,7 +177,7 @@ contains
     type(study_outcome), intent(inout) :: outcome
     type(case_result) :: result
     type(snes_solver), target :: solver
-    integer :: c, skipped, ierr
+    integer :: c, skipped, ierr, stat
 
     skipped = manager%done
     do
@@ -183,7 +197,9 @@ contains
     outcome%failed = count(manager%results%status(1:7) == 'failed:')
     outcome%skipped = skipped
     outcome%wall_seconds = MPI_Wtime() - manager%started
-    call manager%index%close(c)
+    call manager%index%close(stat)
+    if (stat /= 0) manager%index_errors = manager%index_errors + 1
+    outcome%index_errors = manager%index_errors
   end subroutine manage
 
   ! Observer hook: between two of rank 0's own steps, answer every waiting request.
@@ -252,7 +268,10 @@ contains
     manager%done_cost = manager%done_cost + manager%study%cases(c)%cost
     call write_row(manager, c, stat)
     if (stat == 0) call manager%index%flush(stat)
-    if (stat /= 0) write (output_unit, '(a, i0)') 'eme_ensemble: could not update index.h5 for case ', c
+    if (stat /= 0) then
+      manager%index_errors = manager%index_errors + 1
+      call say(manager, 'eme_ensemble: could not update index.h5 for case '//integer_text(c))
+    end if
   end subroutine record
 
   ! One line at most every progress_interval seconds, and a last one at the end.
@@ -267,11 +286,18 @@ contains
     elapsed = now - manager%started
     remaining = 0.0_real64
     if (manager%done_cost > 0) remaining = elapsed*(manager%planned_cost - manager%done_cost)/manager%done_cost
-    write (output_unit, '(a, i0, a, i0, a, i0, a, a, a, a, a)') 'eme_ensemble: ', manager%done, '/', &
-      size(manager%results), ' cases done, ', manager%failed, ' failed, ', fixed_text(elapsed, 1), &
-      ' s elapsed, about ', fixed_text(remaining, 1), ' s left'
-    flush (output_unit)
+    call say(manager, 'eme_ensemble: '//integer_text(manager%done)//'/'//integer_text(size(manager%results)) &
+             //' cases done, '//integer_text(manager%failed)//' failed, '//fixed_text(elapsed, 1) &
+             //' s elapsed, about '//fixed_text(remaining, 1)//' s left')
   end subroutine progress
+
+  ! Hands a line to the driver's reporter, if it gave one.
+  subroutine say(manager, text)
+    type(study_manager), intent(in) :: manager
+    character(len=*), intent(in) :: text
+
+    if (associated(manager%report)) call manager%report(text)
+  end subroutine say
 
   ! ------------------------------------------------------------------ workers
 
@@ -308,7 +334,7 @@ contains
     type(run_configuration) :: config
     type(run_summary) :: summary
     character(len=:), allocatable :: message, final_file
-    integer :: stat, rename_stat
+    integer :: stat, rename_stat, inquire_stat
     logical :: written
 
     config = study%cases(c)%config
@@ -322,8 +348,8 @@ contains
     else
       result%status = 'failed: '//summary%status
     end if
-    inquire (file=config%output_file, exist=written)
-    if (written) then
+    inquire (file=config%output_file, exist=written, iostat=inquire_stat)
+    if (inquire_stat == 0 .and. written) then
       call rename_file(config%output_file, final_file, rename_stat)
       if (rename_stat /= 0) result%status = 'failed: cannot rename '//config%output_file
     end if
@@ -383,7 +409,7 @@ contains
     character(len=status_length), allocatable, intent(out) :: texts(:)
     character(len=16) :: name
     real(real64) :: value
-    integer :: s
+    integer :: s, ios
 
     write (name, '("case_", i5.5, ".h5")') c
     numbers = [real(c, real64)]
@@ -393,7 +419,8 @@ contains
         if (sweep%textual) then
           texts = [character(len=status_length) :: texts, unquoted(item(index(item, '=') + 1:))]
         else
-          read (item(index(item, '=') + 1:), *) value
+          read (item(index(item, '=') + 1:), *, iostat=ios) value
+          if (ios /= 0) value = ieee_value(value, ieee_quiet_nan)
           numbers = [numbers, value]
         end if
       end associate
@@ -447,14 +474,14 @@ contains
     real(real64), allocatable :: numbers(:), old_numbers(:)
     character(len=status_length), allocatable :: texts(:), old_texts(:)
     character(len=:), allocatable :: path
-    integer :: c, rows, n_sweep_numbers
+    integer :: c, rows, n_sweep_numbers, close_stat
     logical :: exists
 
     stat = 0
     message = ''
     path = manager%study%output_dir//'/index.h5'
-    inquire (file=path, exist=exists)
-    if (.not. exists) return
+    inquire (file=path, exist=exists, iostat=close_stat)
+    if (close_stat /= 0 .or. .not. exists) return
     call old%open_existing(path, .false., stat)
     if (stat /= 0) then
       message = 'cannot read '//path//' of an earlier run; remove it to start the study afresh'
@@ -483,7 +510,7 @@ contains
       end if
       deallocate (old_numbers, old_texts)
     end do
-    call old%close(rows)
+    call old%close(close_stat)
   end subroutine read_previous_index
 
   pure function unquoted(text) result(plain)

@@ -6,7 +6,6 @@ module simulation
   use petscsys
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
-  use model_parameters, only: pendulum_parameters
   use thermo_variable, only: thermo_variable_names
   use pendulum_model, only: pendulum, make_pendulum
   use double_pendulum, only: state_size, state_column_names, angular_momentum
@@ -111,7 +110,7 @@ contains
     call open_output(stat, message)
     if (stat /= 0) return
     if (is_ts_scheme(config%scheme)) then
-      call ts%create(model, config%scheme - 2, z, config%dt, config%newton_tol, config%newton_max_iterations, &
+      call ts%create(model, config%scheme - size(scheme_names), z, config%dt, config%newton_tol, config%newton_max_iterations, &
                      config%ts_tolerance, ierr)
       integrator => ts
     else
@@ -126,6 +125,8 @@ contains
     if (ierr /= 0) then
       stat = int(ierr)
       message = 'PETSc failed to set up the solver'
+      if (.not. is_ts_scheme(config%scheme) .and. .not. present(solver) .and. own_solver%created) &
+        call own_solver%destroy(ierr)
       call close_output('incomplete: PETSc failed to set up the solver')
       return
     end if
@@ -185,10 +186,15 @@ contains
     end if
     call system_clock(clock_now)
     summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+    ierr = 0
     if (is_ts_scheme(config%scheme)) then
       call ts%destroy(ierr)
     else if (.not. present(solver)) then
       call own_solver%destroy(ierr)
+    end if
+    if (ierr /= 0 .and. stat == 0) then
+      stat = int(ierr)
+      message = 'PETSc failed to free the solver'
     end if
     call close_output(summary%status)
     call system_clock(clock_now)

@@ -17,7 +17,7 @@ module discrete_gradient
   private
   public :: gradient_gonzalez, gradient_partitioned, discrete_gradient_names
   public :: metric_nondimensional, metric_euclidean, metric_names
-  public :: quotient_threshold, discrete_gradient_of, gonzalez_gradient, partitioned_gradient
+  public :: quotient_threshold, discrete_gradient_of
 
   integer, parameter :: gradient_gonzalez = 1
   integer, parameter :: gradient_partitioned = 2

@@ -11,9 +11,10 @@
 !> their equations g(z') = 0 to the residual (`add_constraints`).
 module step_residual
   use, intrinsic :: iso_fortran_env, only: real64
-  use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok, domain_nonpositive_temperature
+  use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok, domain_nonpositive_temperature, &
+                             domain_nonpositive_length, domain_overflow
   use pendulum_model, only: pendulum
-  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, var_tau, &
+  use double_pendulum, only: state_size, q_index, p_index, tau_index, var_tau, &
                              spring_invariants, invariant_slots, chain_to_state
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional, metric_euclidean, &
                                discrete_gradient_of
@@ -119,7 +120,7 @@ contains
       call add_constraints(self, x_new, z_mid, partials, dpartials_dz, residual, jacobian, stat)
       if (stat /= domain_ok) return
     end if
-    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_nonpositive_temperature
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine evaluate
 
   ! The constraint terms N lambda of eq. (15) and the equations g(z') = 0 (FORMULATION section 7):
@@ -261,15 +262,22 @@ contains
     problem_text = ''
     do a = 1, 2
       call self%model%spring(a)%temperature(spring_invariants(x_new, a), theta(a), stat)
-      if (stat /= domain_ok) then
+      if (stat == domain_nonpositive_temperature) then
         write (text, '(a, i0, a, es10.3, a)') 'non-positive temperature at the new state (theta_', a, ' = ', &
           theta(a), ' K)'
+      else if (stat /= domain_ok) then
+        write (text, '(a, i0, a)') 'spring ', a, ' at the new state is outside the model''s domain ('// &
+          domain_text(stat)//')'
+      end if
+      if (stat /= domain_ok) then
         problem_text = trim(text)
         return
       end if
     end do
     call self%scheme_temperatures(x_new, theta, stat)
-    if (stat /= domain_ok .or. .not. all(theta > 0.0_real64 .and. theta < huge(1.0_real64))) then
+    if (stat /= domain_ok .and. stat /= domain_nonpositive_temperature) then
+      problem_text = 'the scheme''s temperatures are undefined between the states ('//domain_text(stat)//')'
+    else if (stat /= domain_ok .or. .not. all(theta > 0.0_real64 .and. theta < huge(1.0_real64))) then
       if (self%scheme == scheme_eme) then
         write (text, '(a, 2(1x, es10.3), a)') 'non-positive discrete temperature (D_tau U/D_tau S =', theta, ' K)'
       else
@@ -278,5 +286,22 @@ contains
       problem_text = trim(text)
     end if
   end subroutine check_root
+
+  ! What a domain status means, for messages.
+  pure function domain_text(stat) result(text)
+    integer, intent(in) :: stat
+    character(len=:), allocatable :: text
+
+    select case (stat)
+    case (domain_nonpositive_length)
+      text = 'a non-positive spring length'
+    case (domain_nonpositive_temperature)
+      text = 'a non-positive temperature'
+    case (domain_overflow)
+      text = 'an overflow'
+    case default
+      text = 'inside the domain'
+    end select
+  end function domain_text
 
 end module step_residual

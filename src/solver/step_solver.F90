@@ -12,8 +12,8 @@
 !>      Only the final solve, at s = 1, is the step; the others only provide initial guesses.
 !> Newton takes full steps (line search 'basic') by default: the residual's rows carry
 !> different units, and backtracking on its 2-norm can stall where full steps converge. If
-!> 1-3 all fail, they are tried once more with the other line search ('bt' backtracking, or
-!> 'basic' if the command line chose another): strategies 4-6.
+!> 1-3 all fail, they are tried once more with backtracking ('bt'), or with full steps if the
+!> command line chose 'bt': strategies 4-6.
 module step_solver
 #include <petsc/finclude/petscsnes.h>
   use petscsnes
@@ -25,7 +25,6 @@ module step_solver
   implicit none
   private
   public :: snes_solver
-  public :: strategy_predictor, strategy_old_state, strategy_continuation
 
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
@@ -46,15 +45,15 @@ module step_solver
   interface
     subroutine PCShellSetContext(pc, context, ierr)
       import :: tPC, dense_lu
-      PC :: pc
-      type(dense_lu) :: context
-      PetscErrorCode :: ierr
+      PC, intent(in) :: pc
+      type(dense_lu), intent(in) :: context
+      PetscErrorCode, intent(out) :: ierr
     end subroutine PCShellSetContext
     subroutine PCShellGetContext(pc, context, ierr)
       import :: tPC, dense_lu
-      PC :: pc
-      type(dense_lu), pointer :: context
-      PetscErrorCode :: ierr
+      PC, intent(in) :: pc
+      type(dense_lu), pointer, intent(out) :: context
+      PetscErrorCode, intent(out) :: ierr
     end subroutine PCShellGetContext
   end interface
 
@@ -316,6 +315,10 @@ contains
     call self%solve_step(x_old(1:size(self%problem%z_old)), dt, guess, x_new, report, ierr)
     if (ierr /= 0 .or. .not. report%accepted) return
     call self%problem%scheme_temperatures(x_new, report%scheme_temperature, stat)
+    if (stat /= 0) then    ! check_root has accepted the root, so this does not happen
+      report%accepted = .false.
+      report%reason = 'the scheme temperatures of the root are undefined'
+    end if
   end subroutine advance
 
   ! One SNESSolve for step size dt from `initial`; ok = converged to a physical root.
@@ -386,12 +389,12 @@ contains
   ! conservation laws, which hold exactly at a root, hold to round-off rather than to the
   ! tolerance. -snes_atol changes the tolerance; -snes_stol > 0 adds PETSc's relative update test.
   subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
-    SNES :: snes
-    PetscInt :: iteration
-    PetscReal :: x_norm, update_norm, residual_norm
-    SNESConvergedReason :: reason
-    PetscInt :: context
-    PetscErrorCode :: ierr
+    SNES, intent(in) :: snes
+    PetscInt, intent(in) :: iteration
+    PetscReal, intent(in) :: x_norm, update_norm, residual_norm
+    SNESConvergedReason, intent(out) :: reason
+    PetscInt, intent(in) :: context
+    PetscErrorCode, intent(out) :: ierr
     PetscReal :: atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
 
@@ -408,8 +411,8 @@ contains
   ! Shell preconditioner set-up: factor the new Jacobian. A zero pivot fails the linear solve,
   ! which fails the Newton solve, which the step's strategies handle.
   subroutine factor_jacobian(pc, ierr)
-    PC :: pc
-    PetscErrorCode :: ierr
+    PC, intent(in) :: pc
+    PetscErrorCode, intent(out) :: ierr
     type(dense_lu), pointer :: lu
     Mat :: operator, preconditioner
     PetscScalar, pointer :: entries(:, :)
@@ -432,10 +435,10 @@ contains
 
   ! Shell preconditioner application: y = J^-1 x from the factors.
   subroutine solve_factored(pc, x, y, ierr)
-    PC :: pc
-    Vec :: x
-    Vec :: y
-    PetscErrorCode :: ierr
+    PC, intent(in) :: pc
+    Vec, intent(in) :: x
+    Vec, intent(in) :: y
+    PetscErrorCode, intent(out) :: ierr
     type(dense_lu), pointer :: lu
     PetscScalar, pointer :: x_values(:), y_values(:)
     integer :: info, n
@@ -448,16 +451,19 @@ contains
     call dgetrs('N', n, 1, lu%factors, n, lu%pivots, y_values, n, info)
     PetscCall(VecRestoreArrayF90(y, y_values, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    if (info /= 0) then
+      PetscCall(PCSetFailedReason(pc, PC_SUBPC_ERROR, ierr))
+    end if
   end subroutine solve_factored
 
   ! SNES callback: the step residual; a state outside the model's domain is a domain error,
   ! which makes the line search shorten the step.
   subroutine form_residual(snes, x, f, problem, ierr)
-    SNES :: snes
-    Vec :: x
-    Vec :: f
-    type(step_problem) :: problem
-    PetscErrorCode :: ierr
+    SNES, intent(in) :: snes
+    Vec, intent(in) :: x
+    Vec, intent(in) :: f
+    type(step_problem), intent(in) :: problem
+    PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), f_values(:)
     integer :: stat
 
@@ -474,12 +480,12 @@ contains
 
   ! SNES callback: the analytic Jacobian, written straight into the dense matrix.
   subroutine form_jacobian(snes, x, jacobian, preconditioner, problem, ierr)
-    SNES :: snes
-    Vec :: x
-    Mat :: jacobian
-    Mat :: preconditioner
-    type(step_problem) :: problem
-    PetscErrorCode :: ierr
+    SNES, intent(in) :: snes
+    Vec, intent(in) :: x
+    Mat, intent(in) :: jacobian
+    Mat, intent(in) :: preconditioner
+    type(step_problem), intent(in) :: problem
+    PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), entries(:, :)
     real(real64) :: residual(problem%unknowns())
     integer :: stat

@@ -215,7 +215,7 @@ contains
 
   ! Dense LU for the implicit methods' Newton solves, as for the EME schemes.
   subroutine set_direct_solver(snes, ierr)
-    SNES :: snes
+    SNES, intent(in) :: snes
     PetscErrorCode, intent(out) :: ierr
     KSP :: ksp
     PC :: pc

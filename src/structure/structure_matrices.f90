@@ -16,7 +16,7 @@ module structure_matrices
   implicit none (type, external)
   private
   public :: energy_gradient, entropy_gradient, mielke_transpose
-  public :: poisson_matrix_0, friction_matrix_0, poisson_matrix, friction_matrix
+  public :: poisson_matrix, friction_matrix
 
 contains
 

@@ -165,6 +165,21 @@ def test_single_rank_without_mpirun(small_study, tmp_path):
     assert_same_run(path, output / "case_00001.h5")
 
 
+def test_a_logical_field_is_swept(tmp_path, eme_run_binary):
+    output = tmp_path / "out"
+    study = write_study(tmp_path, f"""&study base = '{ROOT / "inputs" / "paper_fig4_eme_theta.nml"}',
+  output_dir = '{output}' /
+&sweep field = 't_end', values = 0.6 /
+&sweep field = 'fix_temperature', texts = '.false.', '.true.' /
+""")
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    assert [s.decode() for s in read_index(output)["fix_temperature"]] == [".false.", ".true."]
+    runs = [read_run(output / f"case_0000{c}.h5") for c in (1, 2)]
+    assert [run["attrs"]["fix_temperature"] for run in runs] == [0, 1]
+    assert [run["attrs"]["unknowns"] for run in runs] == [15, 16]
+
+
 @pytest.mark.parametrize("text,words", [
     ("&study base = 'inputs/paper_fig4_eme_theta.nml' /\n&sweep field = 'dtt', values = 0.1 /\n",
      ["&sweep 'dtt'", "'dtt' is not a field of an eme_run namelist group"]),

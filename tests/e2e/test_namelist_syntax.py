@@ -31,3 +31,11 @@ def test_later_assignment_wins(tmp_path, eme_run_binary):
     output = tmp_path / "run.h5"
     run_text(tmp_path, f"&integrator dt = 0.2, t_end = 0.4, dt = 0.1 /\n&output file = '{output}' /\n")
     assert read_run(output)["attrs"]["dt"] == 0.1
+
+
+def test_long_lines_and_a_last_line_without_newline(tmp_path, eme_run_binary):
+    output = tmp_path / "run.h5"
+    padding = " " * 3000
+    run_text(tmp_path, f"&integrator dt = 0.2,{padding} t_end = 0.4 /\n&output file = '{output}' /")
+    data = read_run(output)
+    assert data["attrs"]["t_end"] == 0.4 and data["attrs"]["status"] == "complete"

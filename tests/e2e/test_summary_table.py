@@ -1,4 +1,5 @@
 """postprocess/summarize_runs.py computes its columns from the file's numbers."""
+import subprocess
 import sys
 
 import h5py
@@ -51,5 +52,8 @@ def test_missing_dataset_is_named(tmp_path):
     path = tmp_path / "broken.h5"
     with h5py.File(path, "w") as f:
         f["energy"] = [1.0]
-    with pytest.raises(SystemExit, match="dataset /entropy is missing"):
+    with pytest.raises(summarize_runs.RunFileError, match="dataset /entropy is missing"):
         summarize_runs.summarize(path)
+    result = subprocess.run([sys.executable, str(ROOT / "postprocess" / "summarize_runs.py"), str(path)],
+                            capture_output=True, text=True)
+    assert result.returncode == 2 and "dataset /entropy is missing" in result.stderr

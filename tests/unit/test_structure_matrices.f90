@@ -5,7 +5,7 @@
 program test_structure_matrices
   use, intrinsic :: iso_fortran_env, only: real64
   use assertions, only: test_suite
-  use fixtures, only: seed_random, uniform, random_state
+  use fixtures, only: seed_random, random_state
   use model_parameters, only: pendulum_parameters
   use thermo_variable, only: tau_entropy, tau_internal_energy, thermo_variable_names, potential_u, potential_s
   use pendulum_model, only: pendulum, make_pendulum
