@@ -169,7 +169,7 @@ contains
     manager%done = count(.not. pending)
     call say(manager, 'eme_ensemble: '//integer_text(size(study%cases))//' cases, '//integer_text(size(manager%queue)) &
              //' to run ('//integer_text(manager%done)//' complete from an earlier run), on '//integer_text(ranks) &
-             //' ranks')
+             //' rank'//repeat('s', merge(0, 1, ranks == 1)))
   end subroutine prepare
 
   subroutine manage(manager, outcome)
