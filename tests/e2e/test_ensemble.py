@@ -1,8 +1,11 @@
 """eme_ensemble under mpirun: every case of a small study completes, a case's file equals the
 same case run by eme_run, a failing case is isolated, a restarted study reruns only what is not
 complete, a killed study leaves no file that looks finished, and bad study input is rejected."""
+import os
+import signal
 import subprocess
 import time
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -35,6 +38,23 @@ def write_study(tmp_path, text, name="study"):
 def ensemble(study, ranks=3, timeout=300):
     return subprocess.run([*MPIRUN, "-n", str(ranks), str(BIN / "eme_ensemble"), str(study)],
                           capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+
+
+def kill_processes_naming(text):
+    """SIGKILL every process whose command line contains `text` (Linux /proc; no procps needed).
+    Open MPI puts its ranks in process groups of their own, so a process group kill misses them."""
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            command = (entry / "cmdline").read_bytes()
+        except OSError:        # the process has ended meanwhile
+            continue
+        if text.encode() in command:
+            try:
+                os.kill(int(entry.name), signal.SIGKILL)
+            except ProcessLookupError:
+                pass
 
 
 def read_index(output):
@@ -135,11 +155,10 @@ def test_killed_study_restarts_to_completion(tmp_path, eme_run_binary):
     process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), str(study)], cwd=ROOT,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     # Kill as soon as the first case has finished: the largest ones are still running then.
-    # Open MPI puts its ranks in process groups of their own, so kill them by the study's path.
-    deadline = time.time() + 60
+    deadline = time.time() + 120
     while not list(output.glob("case_*.h5")) and time.time() < deadline:
         time.sleep(0.05)
-    subprocess.run(["pkill", "-KILL", "-f", str(study)])
+    kill_processes_naming(str(study))
     process.wait()
     # No file under a final name may look finished unless it is.
     for path in output.glob("case_*.h5"):

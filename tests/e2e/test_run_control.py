@@ -74,6 +74,11 @@ def test_killed_run_leaves_a_readable_file(tmp_path, eme_run_binary):
     namelist.write_text(namelist_text({"integrator": {"dt": 0.05, "t_end": 1.0e6},
                                        "output": {"file": str(output)}}))
     process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)])
+    # Start-up time varies by machine: wait for the file, then for well over 256 steps (the
+    # run takes under 0.1 ms per step here), then kill mid-run.
+    deadline = time.time() + 120
+    while not output.exists() and time.time() < deadline and process.poll() is None:
+        time.sleep(0.05)
     time.sleep(2.0)
     process.send_signal(signal.SIGKILL)
     process.wait()
