@@ -140,7 +140,6 @@ contains
     type(namelist_item), allocatable :: items(:)
     type(study_sweep) :: new_sweep
     character(len=256) :: io_message
-    character(len=32) :: number
     integer :: ios, i, n
     namelist /sweep/ field, values, texts
 
@@ -158,11 +157,10 @@ contains
         return
       end if
     end do
-    write (number, '(i0)') occurrence
     new_sweep%field = trim(lowercase(adjustl(field)))
     if (len(new_sweep%field) == 0) then
       stat = 1
-      message = definition%input_file//': &sweep number '//trim(number)//': field is missing; allowed: ' &
+      message = definition%input_file//': &sweep number '//integer_text(occurrence)//': field is missing; allowed: ' &
                 //trim(sweep_fields(1)%allowed)
       return
     end if

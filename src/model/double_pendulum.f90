@@ -9,7 +9,7 @@ module double_pendulum
   public :: state_size, q_index, p_index, gamma_index, tau_index
   public :: var_c, var_gamma, var_tau, state_column_names
   public :: inverse_mass_times, kinetic_energy, gravity_potential, gravity_force
-  public :: angular_momentum, spring_invariants, invariant_slots, spring_columns, chain_to_state
+  public :: angular_momentum, cross, spring_invariants, invariant_slots, spring_columns, chain_to_state
 
   integer, parameter :: state_size = 15
   !> q_index(:, a) and p_index(:, a) are the columns of q_a and p_a in z.

@@ -3,7 +3,7 @@ module number_text
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
   private
-  public :: integer_text, fixed_text
+  public :: integer_text, fixed_text, scientific_text
 
 contains
 
@@ -27,5 +27,15 @@ contains
     write (buffer, '(f40.'//integer_text(decimals)//')') x
     text = trim(adjustl(buffer))
   end function fixed_text
+
+  !> A real in scientific notation with 4 digits after the point, without blanks.
+  pure function scientific_text(x) result(text)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=16) :: buffer
+
+    write (buffer, '(es16.4)') x
+    text = trim(adjustl(buffer))
+  end function scientific_text
 
 end module number_text

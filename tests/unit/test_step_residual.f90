@@ -12,7 +12,8 @@ program test_step_residual
   use model_parameters, only: pendulum_parameters
   use thermo_variable, only: tau_entropy, tau_internal_energy, thermo_variable_names
   use pendulum_model, only: make_pendulum
-  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, angular_momentum
+  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, angular_momentum, cross
+  use number_text, only: scientific_text
   use discrete_gradient, only: gradient_gonzalez, gradient_partitioned, discrete_gradient_names, &
                                metric_euclidean, metric_nondimensional
   use structure_matrices, only: energy_gradient, entropy_gradient
@@ -152,7 +153,7 @@ contains
     end if
     err = fd_jacobian_error(residual_of, x_new, jac, h, fourth_order=.not. present(fallback_columns))
     call suite%check_true('Jacobian against central differences, '//label, err < tolerance, &
-                          'largest |J - J_fd|/(1 + |J|) = '//real_text(err))
+                          'largest |J - J_fd|/(1 + |J|) = '//scientific_text(err))
   end subroutine check_jacobian
 
   subroutine residual_of(x, r)
@@ -199,19 +200,5 @@ contains
                              [dt*j_residual(3)], atol=1.0e-13_real64*max(1.0_real64, abs(j_old(3))))
     end associate
   end subroutine check_balance_laws
-
-  pure function cross(a, b) result(c)
-    real(real64), intent(in) :: a(3), b(3)
-    real(real64) :: c(3)
-
-    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
-  end function cross
-
-  function real_text(x) result(text)
-    real(real64), intent(in) :: x
-    character(len=12) :: text
-
-    write (text, '(es12.4)') x
-  end function real_text
 
 end program test_step_residual

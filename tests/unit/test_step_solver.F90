@@ -15,6 +15,7 @@ program test_step_solver
   use thermo_variable, only: tau_entropy, tau_internal_energy, thermo_variable_names
   use pendulum_model, only: make_pendulum
   use double_pendulum, only: state_size, angular_momentum
+  use number_text, only: scientific_text
   use discrete_gradient, only: gradient_gonzalez, gradient_partitioned, metric_euclidean, discrete_gradient_names
   use step_residual, only: step_problem, scheme_eme, scheme_midpoint
   use step_solver, only: snes_solver
@@ -50,7 +51,7 @@ program test_step_solver
       call solver%problem%evaluate(z1, residual, stat=stat)
       ! The update criterion takes Newton well past the residual tolerance.
       call suite%check_true('residual at the root far below newton_tol, '//trim(label), &
-                            norm2(residual) < 1.0e-2_real64*tol, 'norm = '//real_text(norm2(residual)))
+                            norm2(residual) < 1.0e-2_real64*tol, 'norm = '//scientific_text(norm2(residual)))
       call problem%model%observe(z0, e0, s0, theta, stat)
       call problem%model%observe(z1, e1, s1, theta, stat)
       j0 = angular_momentum(z0)
@@ -83,18 +84,18 @@ program test_step_solver
   call problem%scheme_temperatures(z1, theta, stat)
   call suite%check_true('the step equation has a root with a negative discrete temperature', &
                         norm2(residual) < 1.0e-10_real64 .and. theta(1) < 0.0_real64, &
-                        'residual '//real_text(norm2(residual))//', Theta_1 '//real_text(theta(1)))
+                        'residual '//scientific_text(norm2(residual))//', Theta_1 '//scientific_text(theta(1)))
   call problem%check_root(z1, rejection)
   call suite%check_true('check_root rejects it', index(rejection, 'discrete temperature') > 0, rejection)
   call solver%create(problem, tol, 50, ierr)
   call solver%solve_step(z0, dt, z1, z2, report, ierr)
   call suite%check_true('the solver, starting at that root, rejects it', &
                         report%rejected_roots >= 1 .and. index(report%last_rejection, 'discrete temperature') > 0, &
-                        'rejected roots: '//real_text(real(report%rejected_roots, real64))//'; '//report%last_rejection)
+                        'rejected roots: '//scientific_text(real(report%rejected_roots, real64))//'; '//report%last_rejection)
   call suite%check_true('the step still ends at a root', report%accepted, report%reason)
   call solver%problem%scheme_temperatures(z2, theta, stat)
   call suite%check_true('the accepted root has positive discrete temperatures', all(theta > 0), &
-                        'Theta = '//real_text(theta(1))//real_text(theta(2)))
+                        'Theta = '//scientific_text(theta(1))//' '//scientific_text(theta(2)))
   call solver%destroy(ierr)
 
   call suite%finish()
@@ -137,12 +138,5 @@ contains
       label = trim(thermo_variable_names(variable))//' midpoint'
     end select
   end function case_label
-
-  function real_text(x) result(text)
-    real(real64), intent(in) :: x
-    character(len=12) :: text
-
-    write (text, '(es12.4)') x
-  end function real_text
 
 end program test_step_solver
