@@ -26,6 +26,8 @@ CC := mpicc
 # Recursive '=' so that pkg-config runs after `deps` has installed PETSc and HDF5.
 PETSC_FLAGS = $(shell pkg-config --cflags PETSc)
 PETSC_LIBS = $(shell pkg-config --libs PETSc)
+# Modules that use PETSc-typed modules need PETSc's module files, without its other flags.
+PETSC_INCLUDES = $(shell pkg-config --cflags-only-I PETSc)
 HDF5_FLAGS = $(shell pkg-config --cflags-only-I hdf5-openmpi)
 HDF5_LIBS = $(shell pkg-config --libs-only-L hdf5-openmpi) -lhdf5_fortran -lhdf5
 WARNINGS := -Wall -Wextra -fimplicit-none
@@ -35,65 +37,38 @@ STD_FLAGS := -std=f2018
 PETSC_SOURCE_FLAGS = -ffree-line-length-none $(PETSC_FLAGS)
 CFLAGS := -O2 -g -Wall -Wextra -std=c11
 
-# ---------------------------------------------------------------- sources, in layers
-UTIL := src/util/number_text.f90
-MODEL := src/model/model_parameters.f90 src/model/special_functions.f90 src/model/free_energy.f90 src/model/invariant_function.f90 \
-         src/model/thermo_variable.f90 src/model/double_pendulum.f90 src/model/pendulum_model.f90
-STRUCTURE := src/structure/structure_matrices.f90 src/structure/generic_vector_field.f90
-SCHEME := src/scheme/discrete_gradient.f90 src/scheme/step_residual.f90
-SOLVER := src/solver/time_stepper.f90 src/solver/lapack_lu.f90 src/solver/step_solver.F90 src/solver/ts_domain.c \
-          src/solver/ts_integrator.F90
-IO := src/io/posix_files.c src/io/filesystem.f90 src/io/hdf5_text.c src/io/hdf5_series.f90 src/io/build_info.F90 \
-      src/io/compound_table.c src/io/hdf5_table.f90 src/io/namelist_text.f90 src/io/run_config.f90 src/io/study_config.f90
-RUN := src/run/simulation.F90 src/run/ensemble.f90
-LIBRARY_SOURCES := $(UTIL) $(MODEL) $(STRUCTURE) $(SCHEME) $(SOLVER) $(IO) $(RUN)
+# ---------------------------------------------------------------- sources
+# Every source file is found by its folder: a new module needs no Makefile edit. Module
+# dependencies are read from the `use` statements (a module lives in the file of its name).
+LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c))
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
-DRIVERS := eme_run eme_ensemble eme_bench
+DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
+UNIT_TESTS := $(basename $(notdir $(wildcard tests/unit/test_*.f90 tests/unit/test_*.F90)))
+TEST_SUPPORT_SOURCES := $(wildcard tests/unit/support/*.f90 tests/oracles/*.f90)
+TEST_SUPPORT := $(patsubst %,$(OBJ)/%.o,$(basename $(TEST_SUPPORT_SOURCES)))
+FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90) $(TEST_SUPPORT_SOURCES) \
+    $(wildcard tests/unit/test_*.f90 tests/unit/test_*.F90)
 
-UNIT_TESTS := test_free_energy test_thermo_variable test_structure_matrices test_discrete_gradient \
-    test_step_residual test_step_solver
-TEST_SUPPORT := $(OBJ)/tests/unit/assertions.o $(OBJ)/tests/unit/fixtures.o
+# obj: the objects of the modules it uses (only modules of this project have a source file).
+$(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
+	@mkdir -p $(BUILD)
+	@for f in $(FORTRAN_SOURCES); do \
+	  for m in $$(sed -n 's/^ *use  *\([A-Za-z_0-9]*\).*/\1/p' $$f | tr A-Z a-z | sort -u); do \
+	    for d in $(FORTRAN_SOURCES); do \
+	      case $$d in */$$m.f90|*/$$m.F90) echo "$(OBJ)/$${f%.*}.o: $(OBJ)/$${d%.*}.o";; esac; \
+	    done; \
+	  done; \
+	done > $@
+-include $(BUILD)/fortran.deps
 
-# ---------------------------------------------------------------- module dependencies
-o = $(OBJ)/src/$(1).o
-$(call o,model/free_energy): $(call o,model/model_parameters) $(call o,model/special_functions)
-$(call o,model/thermo_variable): $(call o,model/invariant_function) $(call o,model/free_energy) \
-    $(call o,model/special_functions)
-$(call o,model/double_pendulum): $(call o,model/model_parameters)
-$(call o,model/pendulum_model): $(call o,model/model_parameters) $(call o,model/free_energy) \
-    $(call o,model/thermo_variable) $(call o,model/double_pendulum)
-$(call o,structure/structure_matrices) $(call o,structure/generic_vector_field): \
-    $(call o,model/model_parameters) $(call o,model/free_energy) $(call o,model/thermo_variable) \
-    $(call o,model/double_pendulum)
-$(call o,scheme/discrete_gradient): $(call o,model/invariant_function)
-$(call o,scheme/step_residual): $(call o,model/thermo_variable) $(call o,model/pendulum_model) \
-    $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) $(call o,structure/generic_vector_field)
-$(call o,solver/step_solver): $(call o,scheme/step_residual) $(call o,solver/time_stepper) $(call o,solver/lapack_lu) \
-    $(call o,util/number_text)
-$(call o,solver/ts_integrator): $(call o,model/pendulum_model) $(call o,model/double_pendulum) \
-    $(call o,structure/generic_vector_field) $(call o,solver/time_stepper)
-$(OBJ)/src/solver/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
-# PETSc callbacks have fixed argument lists; some arguments are not needed.
-$(call o,solver/step_solver) $(call o,solver/ts_integrator): FFLAGS += -Wno-unused-dummy-argument
-$(call o,io/run_config): $(call o,model/model_parameters) $(call o,model/thermo_variable) \
-    $(call o,scheme/discrete_gradient) $(call o,scheme/step_residual) $(call o,io/namelist_text) \
-    $(call o,solver/ts_integrator) $(call o,util/number_text)
-$(call o,run/simulation): $(call o,model/thermo_variable) \
-    $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/discrete_gradient) \
-    $(call o,scheme/step_residual) $(call o,solver/time_stepper) $(call o,solver/step_solver) \
-    $(call o,solver/ts_integrator) $(call o,io/run_config) \
-    $(call o,io/hdf5_series) $(call o,io/filesystem) $(call o,io/build_info) $(call o,util/number_text)
-$(call o,io/study_config): $(call o,io/namelist_text) $(call o,io/run_config) $(call o,util/number_text)
-$(call o,run/ensemble): $(call o,io/study_config) $(call o,io/run_config) $(call o,run/simulation) $(call o,solver/step_solver) \
-    $(call o,io/hdf5_series) $(call o,io/hdf5_table) $(call o,io/filesystem) $(call o,io/build_info) $(call o,util/number_text)
-$(OBJ)/drivers/eme_run.o: $(call o,io/run_config) $(call o,run/simulation)
-$(OBJ)/drivers/eme_ensemble.o: $(call o,io/study_config) $(call o,run/ensemble) $(call o,util/number_text)
-$(OBJ)/drivers/eme_bench.o: $(call o,model/model_parameters) $(call o,model/thermo_variable) \
-    $(call o,model/pendulum_model) $(call o,model/double_pendulum) $(call o,scheme/step_residual) \
-    $(call o,solver/time_stepper) $(call o,solver/step_solver) $(call o,solver/ts_integrator) $(call o,solver/lapack_lu)
-$(OBJ)/tests/unit/fixtures.o: $(OBJ)/tests/unit/assertions.o $(call o,model/free_energy) $(call o,model/invariant_function) \
-    $(call o,model/model_parameters) $(call o,model/pendulum_model) $(call o,model/double_pendulum)
+$(OBJ)/src/integrator/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
+# Callbacks and interface implementations have fixed argument lists; some arguments are not needed.
+$(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/lu_preconditioner.o $(OBJ)/src/integrator/ts_stepper.o \
+$(OBJ)/src/integrator/discrete_gradient_stepper.o $(OBJ)/src/model/length_constraint.o \
+$(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
+$(OBJ)/src/model/pendulum_model.o: FFLAGS += -Wno-unused-dummy-argument
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
+$(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
 .PHONY: all deps test run constraints figures study bench clean
@@ -102,7 +77,7 @@ all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
 $(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
-	$(FC) $(FFLAGS) $(STD_FLAGS) $(HDF5_FLAGS) -c $< -o $@
+	$(FC) $(FFLAGS) $(STD_FLAGS) $(PETSC_INCLUDES) $(HDF5_FLAGS) -c $< -o $@
 
 $(OBJ)/%.o: %.F90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
@@ -129,8 +104,8 @@ VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
 $(BUILD)/version.stamp: FORCE
 	@mkdir -p $(BUILD)
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
-$(call o,io/build_info): $(BUILD)/version.stamp
-$(call o,io/build_info): FFLAGS += -DEME_VERSION='"$(VERSION)"'
+$(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp
+$(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up

@@ -11,29 +11,32 @@ program eme_bench
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit, error_unit
-  use model_parameters, only: pendulum_parameters
   use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
-  use pendulum_model, only: pendulum, make_pendulum
-  use double_pendulum, only: state_size
-  use step_residual, only: step_problem, scheme_eme, scheme_midpoint
-  use step_solver, only: snes_solver
-  use ts_integrator, only: ts_stepper, ts_midpoint, ts_rk4, ts_scheme_names
-  use time_stepper, only: step_report
-  use lapack_lu, only: dgetf2, dgetrs
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use pendulum_scene, only: double_pendulum_scene
+  use step_residual, only: step_problem
+  use dense_lu, only: lu_factors
+  use integrator_settings, only: integrator_choice
+  use integrator_registry, only: integrator_entry, find_integrator
+  use stepper, only: time_stepper, step_report
   implicit none
 
   integer, parameter :: steps = 134
   real(real64), parameter :: dt = 0.15_real64, newton_tol = 1.0e-8_real64
-  type(pendulum_parameters) :: params
-  type(pendulum) :: model
-  type(step_problem) :: problem
-  type(snes_solver), target :: solver
-  real(real64) :: z0(state_size), median_eme_theta, newton_eme_theta, median_floor, newton_floor
-  real(real64), allocatable :: times(:)
-  real(real64) :: factors(state_size, state_size), jacobian_scratch(state_size, state_size)
-  integer :: pivots(state_size)
-  integer :: repeats, variable, scheme, method, iterations, stat
+  character(len=*), parameter :: snes_schemes(2) = [character(len=8) :: 'eme', 'midpoint']
+  character(len=*), parameter :: ts_schemes(3) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4']
+  type(double_pendulum_scene) :: scene
+  type(integrator_choice) :: choice
+  type(step_problem) :: problem           ! the floor's step
+  type(lu_factors) :: lu                  ! the floor's factors
+  class(generic_model), allocatable :: model
+  type(constraint_slot), allocatable :: constraints(:)
+  real(real64), allocatable :: z0(:), times(:)
+  real(real64) :: median_eme_theta, newton_eme_theta, median_floor
+  integer :: repeats, variable, k, iterations, stat
   character(len=32) :: argument, label
+  character(len=:), allocatable :: message
   PetscErrorCode :: ierr
 
   PetscCallA(PetscInitialize(ierr))
@@ -46,41 +49,30 @@ program eme_bench
     end if
   end if
   allocate (times(repeats))
+  choice%dt = dt
+  choice%newton_tol = newton_tol
   write (output_unit, '(a, i0, a)') 'per-step cost on the paper scene (134 steps of 0.15 s), median of ', repeats, &
     ' runs after a warm-up; Newton iterations per step are means'
   write (output_unit, '(a, t44, a, t58, a)') 'scheme', 'us per step', 'Newton/step'
 
-  do scheme = scheme_eme, scheme_midpoint
+  do k = 1, size(snes_schemes)
     do variable = tau_entropy, tau_internal_energy
-      call set_problem(scheme, variable)
-      call solver%prepare(problem, newton_tol, 50, ierr)
-      if (ierr /= 0) call fail('PETSc failed to set up the solver')
-      call time_snes(iterations)
-      write (label, '(a, "_", a)') trim(merge('EME     ', 'midpoint', scheme == scheme_eme)), &
-        trim(thermo_variable_names(variable))
+      call time_scheme(trim(snes_schemes(k)), variable, fresh_start=.false., iterations=iterations)
+      write (label, '(a, "_", a)') trim(merge('EME     ', 'midpoint', k == 1)), trim(thermo_variable_names(variable))
       call report_line(label, iterations)
-      if (scheme == scheme_eme .and. variable == tau_temperature) then
+      if (k == 1 .and. variable == tau_temperature) then
         median_eme_theta = median(times)/steps
         newton_eme_theta = real(iterations, real64)/steps
       end if
     end do
   end do
-  call solver%destroy(ierr)
-  if (ierr /= 0) call fail('PETSc failed to free the solver')
-
-  do method = ts_midpoint, ts_rk4
-    model = make_pendulum(params, tau_temperature)
-    call model%state_from_temperatures([1.0_real64, 0.0_real64, 0.0_real64], [3.0_real64, 0.0_real64, 0.0_real64], &
-      [0.0_real64, 0.0_real64, 0.0_real64], [-1.0_real64, -1.0_real64, 0.0_real64], 0.0_real64, &
-      [280.0_real64, 350.0_real64], z0, stat)
-    call time_ts(method, iterations)
-    call report_line(trim(ts_scheme_names(method))//'_temperature', iterations)
+  do k = 1, size(ts_schemes)
+    call time_scheme(trim(ts_schemes(k)), tau_temperature, fresh_start=.true., iterations=iterations)
+    call report_line(trim(ts_schemes(k))//'_temperature', iterations)
   end do
 
-  call set_problem(scheme_eme, tau_temperature)
   call time_floor(iterations)
   median_floor = median(times)/steps
-  newton_floor = real(iterations, real64)/steps
   call report_line('floor: EME_temperature, LAPACK Newton loop', iterations)
   write (output_unit, '(a, f0.2, a, f0.2, a)') 'SNES/floor for EME_temperature: ', median_eme_theta/median_floor, &
     ' (Newton/step ', newton_eme_theta, ' with SNES)'
@@ -98,35 +90,47 @@ contains
     stop 1, quiet=.true.
   end subroutine fail
 
-  subroutine set_problem(scheme, variable)
-    integer, intent(in) :: scheme, variable
+  ! The paper scene's model and initial state in thermodynamic variable `variable`.
+  subroutine set_scene(variable)
+    integer, intent(in) :: variable
 
-    model = make_pendulum(params, variable)
-    call model%state_from_temperatures([1.0_real64, 0.0_real64, 0.0_real64], [3.0_real64, 0.0_real64, 0.0_real64], &
-      [0.0_real64, 0.0_real64, 0.0_real64], [-1.0_real64, -1.0_real64, 0.0_real64], 0.0_real64, &
-      [280.0_real64, 350.0_real64], z0, stat)
-    problem%model = model
-    problem%scheme = scheme
-    problem%dt = dt
-    problem%z_old = z0
-  end subroutine set_problem
+    call scene%build(variable, model, z0, constraints, stat, message)
+    if (stat /= 0) call fail(message)
+  end subroutine set_scene
 
-  ! The run's stepping loop with the SNES solver, timed; iterations of the last run.
-  subroutine time_snes(iterations)
+  ! The run's stepping loop of integrator `name` from the registry, timed; iterations of the
+  ! last run. fresh_start: the integrator starts anew for every repeat (a TS carries its state).
+  subroutine time_scheme(name, variable, fresh_start, iterations)
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: variable
+    logical, intent(in) :: fresh_start
     integer, intent(out) :: iterations
+    class(time_stepper), allocatable, target :: integrator
+    type(integrator_entry) :: entry
     type(step_report) :: report
-    real(real64) :: x(state_size), x_previous(state_size), x_new(state_size)
+    real(real64), allocatable :: x(:), x_previous(:), x_new(:)
     integer :: run, n
     integer(int64) :: start, finish, rate
+    logical :: found
 
+    call set_scene(variable)
+    choice%thermo_variable = variable
+    call find_integrator(name, entry, found)
+    if (.not. found) call fail('no integrator '//name)
+    call entry%build(integrator)
+    allocate (x(size(z0)), x_previous(size(z0)), x_new(size(z0)))
     do run = 0, repeats
+      if (run == 0 .or. fresh_start) then
+        call integrator%start(choice, model, constraints, z0, ierr)
+        if (ierr /= 0) call fail('PETSc failed to set up '//name)
+      end if
       x = z0
       x_previous = z0
       iterations = 0
       call system_clock(start, rate)
       do n = 1, steps
-        call solver%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
-        if (ierr /= 0 .or. .not. report%accepted) call fail('a step failed')
+        call integrator%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
+        if (ierr /= 0 .or. .not. report%accepted) call fail('a step of '//name//' failed')
         iterations = iterations + report%newton_iterations
         x_previous = x
         x = x_new
@@ -134,46 +138,26 @@ contains
       call system_clock(finish)
       if (run > 0) times(run) = real(finish - start, real64)/real(rate, real64)*1.0e6_real64
     end do
-  end subroutine time_snes
+    call integrator%release(ierr)
+    if (ierr /= 0) call fail('PETSc failed to free '//name)
+  end subroutine time_scheme
 
-  subroutine time_ts(method, iterations)
-    integer, intent(in) :: method
-    integer, intent(out) :: iterations
-    type(ts_stepper), target :: ts
-    type(step_report) :: report
-    real(real64) :: x(state_size), x_new(state_size)
-    integer :: run, n
-    integer(int64) :: start, finish, rate
-
-    do run = 0, repeats
-      call ts%create(model, method, z0, dt, newton_tol, 50, 1.0e-10_real64, ierr)
-      if (ierr /= 0) call fail('PETSc failed to set up the TS')
-      x = z0
-      iterations = 0
-      call system_clock(start, rate)
-      do n = 1, steps
-        call ts%advance(x, (n - 1)*dt, dt, x, x_new, report, ierr)
-        if (ierr /= 0 .or. .not. report%accepted) call fail('a TS step failed')
-        iterations = iterations + report%newton_iterations
-        x = x_new
-      end do
-      call system_clock(finish)
-      call ts%destroy(ierr)
-      if (ierr /= 0) call fail('PETSc failed to free the TS')
-      if (run > 0) times(run) = real(finish - start, real64)/real(rate, real64)*1.0e6_real64
-    end do
-  end subroutine time_ts
-
-  ! The floor: Newton with full steps and LAPACK's LU on the same residual and Jacobian, the
-  ! same predictor (extrapolation refined by a chord step with the last LU, falling back to the
-  ! old state) and the same convergence test.
+  ! The floor: Newton with full steps and LAPACK's LU on the same EME_theta residual and
+  ! Jacobian, the same predictor (extrapolation refined by a chord step with the last LU,
+  ! falling back to the old state) and the same convergence test.
   subroutine time_floor(iterations)
     integer, intent(out) :: iterations
-    real(real64) :: x(state_size), x_previous(state_size), x_new(state_size), guess(state_size)
+    real(real64), allocatable :: x(:), x_previous(:), x_new(:), guess(:)
     integer :: run, n, its
     logical :: ok
     integer(int64) :: start, finish, rate
 
+    call set_scene(tau_temperature)
+    allocate (problem%model, source=model)
+    allocate (problem%constraints(0))
+    problem%dt = dt
+    call lu%reset(model%state_size)
+    allocate (x(size(z0)), x_previous(size(z0)), x_new(size(z0)), guess(size(z0)))
     do run = 0, repeats
       x = z0
       x_previous = z0
@@ -198,42 +182,42 @@ contains
     end do
   end subroutine time_floor
 
-  ! x := x - J^-1 R(x) with the factors of the last Newton iteration.
+  ! The floor's chord step: x := x - J^-1 R(x) with the factors of the last Newton iteration.
   subroutine chord(x)
-    real(real64), intent(inout) :: x(state_size)
-    real(real64) :: residual(state_size)
+    real(real64), intent(inout) :: x(:)
+    real(real64) :: residual(size(x))
     integer :: stat, info
 
     call problem%evaluate(x, residual, stat=stat)
     if (stat /= 0) return
-    call dgetrs('N', state_size, 1, factors, state_size, pivots, residual, state_size, info)
+    call lu%solve(residual, info)
     if (info == 0) x = x - residual
   end subroutine chord
 
-  subroutine newton(start, root, its, ok)
-    real(real64), intent(in) :: start(state_size)
-    real(real64), intent(out) :: root(state_size)
+  ! The floor's Newton loop: full steps, the solver's convergence test.
+  subroutine newton(initial, root, its, ok)
+    real(real64), intent(in) :: initial(:)
+    real(real64), allocatable, intent(inout) :: root(:)
     integer, intent(out) :: its
     logical, intent(out) :: ok
-    real(real64) :: residual(state_size), update(state_size)
+    real(real64) :: residual(size(initial)), update(size(initial)), jacobian(size(initial), size(initial))
     integer :: info, stat
 
-    root = start
+    root = initial
     ok = .false.
-    call problem%evaluate(root, residual, factors, stat)
+    call problem%evaluate(root, residual, jacobian, stat)
     do its = 1, 50
       if (stat /= 0) return
       update = -residual
-      call dgetf2(state_size, state_size, factors, state_size, pivots, info)
+      call lu%factor(jacobian, info)
       if (info /= 0) return
-      call dgetrs('N', state_size, 1, factors, state_size, pivots, update, state_size, info)
+      call lu%solve(update, info)
       root = root + update
-      call problem%evaluate(root, residual, jacobian_scratch, stat)
+      call problem%evaluate(root, residual, jacobian, stat)
       if (stat == 0 .and. norm2(residual) <= newton_tol .and. norm2(update) <= newton_tol) then
         ok = .true.
         return
       end if
-      factors = jacobian_scratch
     end do
   end subroutine newton
 

@@ -1,4 +1,5 @@
 """Shared helpers for the Python tests: write namelists and run the drivers."""
+import os
 import subprocess
 from pathlib import Path
 
@@ -7,7 +8,8 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-BIN = ROOT / "build" / "bin"
+# EME_BIN_DIR points the tests at other builds of the drivers (default: this checkout's).
+BIN = Path(os.environ.get("EME_BIN_DIR", ROOT / "build" / "bin"))
 
 
 def namelist_text(groups):

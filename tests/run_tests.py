@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Runs every test and ends with one line: "N passed, M failed".
 
-Fortran unit-test programs (build/tests/test_*) print one "PASS ..." or "FAIL ..." line per
-check; a program that dies without reporting a failure counts as one failure. The Python tests
+Fortran unit-test programs (build/tests/test_*) register their tests by name (`test_x --list`);
+each test runs in a process of its own (`test_x NAME`) and prints one "PASS ..." or "FAIL ..."
+line per check; a test that dies without reporting a failure counts as one failure. The Python tests
 (end-to-end runs of the drivers, postprocessing) run under pytest and are counted per test.
 """
 import argparse
@@ -16,20 +17,37 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def run_fortran(binary_dir):
+    """Runs every registered test of every program in a process of its own (tests/unit/test_runner.f90),
+    so that a crash in one test is reported as that test's failure and hides no other."""
     passed = failed = 0
     for program in sorted(Path(binary_dir).glob("test_*")):
-        result = subprocess.run([str(program)], capture_output=True, text=True, cwd=ROOT)
-        lines = result.stdout.splitlines()
-        passes = sum(line.startswith("PASS ") for line in lines)
-        failures = [line for line in lines if line.startswith("FAIL ")]
-        for line in failures:
-            print(line)
-        if result.returncode != 0 and not failures:
-            print(f"FAIL {program.name}: exited with status {result.returncode}\n{result.stderr[-2000:]}")
-            failures = ["crash"]
-        print(f"{program.name}: {passes} passed, {len(failures)} failed")
-        passed += passes
-        failed += len(failures)
+        listing = subprocess.run([str(program), "--list"], capture_output=True, text=True, cwd=ROOT)
+        names = listing.stdout.split("\n") if listing.returncode == 0 else []
+        names = [name for name in names if name.strip()]
+        if not names:
+            print(f"FAIL {program.name}: --list gave no tests (exit status {listing.returncode})\n"
+                  f"{listing.stderr[-2000:]}")
+            failed += 1
+            continue
+        program_passed = program_failed = 0
+        for name in names:
+            result = subprocess.run([str(program), name], capture_output=True, text=True, cwd=ROOT)
+            lines = result.stdout.splitlines()
+            passes = sum(line.startswith("PASS ") for line in lines)
+            failures = [line for line in lines if line.startswith("FAIL ")]
+            for line in failures:
+                print(line)
+            if result.returncode != 0 and not failures:
+                print(f"FAIL {program.name} {name}: exited with status {result.returncode}\n{result.stderr[-2000:]}")
+                failures = ["crash"]
+            if passes + len(failures) == 0:
+                print(f"FAIL {program.name} {name}: made no check")
+                failures = ["no check"]
+            program_passed += passes
+            program_failed += len(failures)
+        print(f"{program.name}: {len(names)} tests, {program_passed} checks passed, {program_failed} failed")
+        passed += program_passed
+        failed += program_failed
     return passed, failed
 
 

@@ -163,9 +163,9 @@ contains
   end subroutine set_integer
 
   !> Adds a dataset of `width` values per row (a (rows, width) dataset if vector, else (rows))
-  !> with `units` and `description` attributes, and `columns` (names separated by blanks) for a
-  !> vector; it is created empty in `file` at once.
-  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued, columns)
+  !> with `units` and `description` attributes, `columns` (names separated by blanks) for a
+  !> vector, and `rows` (what a row is); it is created empty in `file` at once.
+  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued, columns, rows)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
     character(len=*), intent(in) :: name, units, description
@@ -173,7 +173,7 @@ contains
     logical, intent(in) :: vector
     integer, intent(out) :: stat
     logical, intent(in), optional :: integer_valued
-    character(len=*), intent(in), optional :: columns
+    character(len=*), intent(in), optional :: columns, rows
     type(series) :: item
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: dims(2), max_dims(2), chunk(2)
@@ -208,6 +208,7 @@ contains
     call file%set_text('units', units, stat, item%dataset)
     if (stat == 0) call file%set_text('description', description, stat, item%dataset)
     if (stat == 0 .and. present(columns)) call file%set_text('columns', columns, stat, item%dataset)
+    if (stat == 0 .and. present(rows)) call file%set_text('rows', rows, stat, item%dataset)
     if (stat /= 0) return
 
     self%row_width = self%row_width + width

@@ -1,24 +1,15 @@
 !> Namelist files as text: the whole file without comments, its group names, and a group split
-!> into `name = value` items. Readers apply each item with its own one-item namelist read, so
-!> that a failing item is known by name, and extra items (overrides) can follow the file's.
+!> into `name = value` items, so that src/io/namelist_group reads each item on its own (a failing
+!> item is known by name) and extra items (overrides) can follow the file's.
 module namelist_text
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
   private
-  public :: field_spec, namelist_item, read_source_text, group_names, group_items, item_name
-  public :: item_failure, invalid_value_message, names_list, reals_text, lowercase
+  public :: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, lowercase
 
-  !> A field a group accepts and what it allows, for messages.
-  type :: field_spec
-    character(len=24) :: name
-    character(len=80) :: allowed
-  end type field_spec
-
-  !> One `name = value` item: as written, as a one-item record '&group item /', and its origin
-  !> (the file's name, or e.g. 'study override').
+  !> One `name = value` item as written, and its origin (the file's name, or e.g. a study's sweep).
   type :: namelist_item
     character(len=:), allocatable :: item
-    character(len=:), allocatable :: record
     character(len=:), allocatable :: origin
   end type namelist_item
 
@@ -83,10 +74,10 @@ contains
   end subroutine group_names
 
   !> The items of the `occurrence`-th group &group in the text (first by default), followed by
-  !> the `extra` items whose names are among `fields`. `origin` names where the file's came from.
-  subroutine group_items(text, group, fields, origin, items, extra, occurrence)
+  !> the `extra` items whose names are among `names`. `origin` names where the file's came from.
+  subroutine group_items(text, group, names, origin, items, extra, occurrence)
     character(len=*), intent(in) :: text, group, origin
-    type(field_spec), intent(in) :: fields(:)
+    character(len=*), intent(in) :: names(:)
     type(namelist_item), allocatable, intent(out) :: items(:)
     type(namelist_item), intent(in), optional :: extra(:)
     integer, intent(in), optional :: occurrence
@@ -99,65 +90,32 @@ contains
     do while (start <= len(body))
       call next_item(body, start, finish, next)
       if (finish < start) exit
-      call append(items, body(start:finish), group, origin)
+      call append(items, body(start:finish), origin)
       start = next
     end do
     if (.not. present(extra)) return
     do i = 1, size(extra)
-      if (any(fields%name == item_name(extra(i)%item))) call append(items, extra(i)%item, group, extra(i)%origin)
+      if (any(names == item_name(extra(i)%item))) call append(items, extra(i)%item, extra(i)%origin)
     end do
   end subroutine group_items
 
   ! items := [items, the item] (explicit, as gfortran 12 mishandles array constructors of
   ! types with allocatable character components).
-  subroutine append(items, item, group, origin)
+  subroutine append(items, item, origin)
     type(namelist_item), allocatable, intent(inout) :: items(:)
-    character(len=*), intent(in) :: item, group, origin
+    character(len=*), intent(in) :: item, origin
     type(namelist_item), allocatable :: longer(:)
     integer :: i
 
     allocate (longer(size(items) + 1))
     do i = 1, size(items)
       call move_alloc(items(i)%item, longer(i)%item)
-      call move_alloc(items(i)%record, longer(i)%record)
       call move_alloc(items(i)%origin, longer(i)%origin)
     end do
     longer(size(longer))%item = item
-    longer(size(longer))%record = '&'//group//' '//item//' /'
     longer(size(longer))%origin = origin
     call move_alloc(longer, items)
   end subroutine append
-
-  !> The message for an item whose one-item read failed: an unknown name, or a value of the
-  !> wrong kind.
-  function item_failure(item, group, fields) result(message)
-    type(namelist_item), intent(in) :: item
-    character(len=*), intent(in) :: group
-    type(field_spec), intent(in) :: fields(:)
-    character(len=:), allocatable :: message
-    character(len=:), allocatable :: name, value
-
-    name = item_name(item%item)
-    if (.not. any(fields%name == name)) then
-      message = item%origin//': &'//group//': unknown field '''//name//'''; allowed: '//names_list(fields)
-    else
-      value = trim(adjustl(item%item(index(item%item, '=') + 1:)))
-      if (len(value) == 0) value = ' '
-      if (verify(value(1:1), '''"') /= 0) value = ''''//value//''''
-      message = item%origin//': &'//group//': field '''//name//''' cannot take the value '//value// &
-                '; allowed: '//trim(allowed_of(fields, name))
-    end if
-  end function item_failure
-
-  !> "origin: &group: field = value is not allowed; allowed: ..."
-  function invalid_value_message(origin, group, field, value, fields) result(message)
-    character(len=*), intent(in) :: origin, group, field, value
-    type(field_spec), intent(in) :: fields(:)
-    character(len=:), allocatable :: message
-
-    message = origin//': &'//group//': '//field//' = '//trim(value)//' is not allowed; allowed: ' &
-              //trim(allowed_of(fields, field))
-  end function invalid_value_message
 
   !> The field name of an item 'name[(...)] = value', in lower case.
   pure function item_name(item) result(name)
@@ -169,31 +127,6 @@ contains
     if (stop_at == 0) stop_at = len(item) + 1
     name = trim(lowercase(adjustl(item(1:stop_at - 1))))
   end function item_name
-
-  !> 'a, b, c' from the fields' names.
-  pure function names_list(fields) result(list)
-    type(field_spec), intent(in) :: fields(:)
-    character(len=:), allocatable :: list
-    integer :: i
-
-    list = trim(fields(1)%name)
-    do i = 2, size(fields)
-      list = list//', '//trim(fields(i)%name)
-    end do
-  end function names_list
-
-  !> What field `name` allows ('' if unknown).
-  pure function allowed_of(fields, name) result(allowed)
-    type(field_spec), intent(in) :: fields(:)
-    character(len=*), intent(in) :: name
-    character(len=:), allocatable :: allowed
-    integer :: i
-
-    allowed = ''
-    do i = 1, size(fields)
-      if (fields(i)%name == name) allowed = trim(fields(i)%allowed)
-    end do
-  end function allowed_of
 
   !> Values as a user would write them: 6 significant digits, trailing zeros dropped.
   pure function reals_text(values) result(text)

@@ -6,9 +6,10 @@
 module study_config
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
-  use namelist_text, only: field_spec, namelist_item, read_source_text, group_names, group_items, item_failure, &
-                           invalid_value_message, lowercase
-  use run_config, only: run_configuration, read_run_config, step_count
+  use namelist_text, only: namelist_item, read_source_text, group_names, lowercase
+  use namelist_group, only: group_field, text_field, reals_field, texts_field, read_group, invalid_value_message
+  use run_config, only: run_configuration, read_run_config
+  use integrator_settings, only: step_count
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -41,15 +42,6 @@ module study_config
     type(study_sweep), allocatable :: sweeps(:)
     type(study_case), allocatable :: cases(:)
   end type study_definition
-
-  type(field_spec), parameter :: study_fields(3) = [ &
-    field_spec('base', 'the path of an eme_run namelist (the base scene)'), &
-    field_spec('output_dir', 'a directory for the case files and index.h5 (default results/<study name>)'), &
-    field_spec('combine', "'product' or 'zip'")]
-  type(field_spec), parameter :: sweep_fields(3) = [ &
-    field_spec('field', 'the name of an eme_run namelist field, e.g. ''dt'' or ''theta(2)'''), &
-    field_spec('values', 'up to 256 real numbers'), &
-    field_spec('texts', 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
 
 contains
 
@@ -89,12 +81,10 @@ contains
     type(study_definition), intent(inout) :: definition
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=1024) :: base, output_dir
-    character(len=16) :: combine
-    type(namelist_item), allocatable :: items(:)
-    character(len=256) :: io_message
-    integer :: ios, i, slash, dot
-    namelist /study/ base, output_dir, combine
+    character(len=1024), target :: base, output_dir
+    character(len=16), target :: combine
+    type(group_field) :: fields(3)
+    integer :: slash, dot
 
     base = ''
     slash = index(definition%input_file, '/', back=.true.)
@@ -102,29 +92,25 @@ contains
     if (dot <= slash) dot = len(definition%input_file) + 1
     output_dir = 'results/'//definition%input_file(slash + 1:dot - 1)
     combine = 'product'
-    stat = 0
-    message = ''
-    call group_items(text, 'study', study_fields, definition%input_file, items)
-    do i = 1, size(items)
-      read (items(i)%record, nml=study, iostat=ios, iomsg=io_message)
-      if (ios /= 0) then
-        stat = 1
-        message = item_failure(items(i), 'study', study_fields)
-        return
-      end if
-    end do
+    fields = [ &
+      text_field('base', base, 'the path of an eme_run namelist (the base scene)', ''), &
+      text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
+                 ''), &
+      text_field('combine', combine, "'product' or 'zip'", '')]
+    call read_group(text, 'study', fields, definition%input_file, stat, message)
+    if (stat /= 0) return
     definition%base = trim(base)
     definition%output_dir = trim(output_dir)
     definition%combine = trim(lowercase(combine))
     if (len(definition%base) == 0) then
       stat = 1
-      message = definition%input_file//': &study: base is missing; allowed: '//trim(study_fields(1)%allowed)
+      message = definition%input_file//': &study: base is missing; allowed: '//trim(fields(1)%allowed)
     else if (definition%combine /= 'product' .and. definition%combine /= 'zip') then
       stat = 1
-      message = invalid_value_message(definition%input_file, 'study', 'combine', "'"//definition%combine//"'", study_fields)
+      message = invalid_value_message(definition%input_file, 'study', fields(3))
     else if (len(definition%output_dir) == 0) then
       stat = 1
-      message = invalid_value_message(definition%input_file, 'study', 'output_dir', "''", study_fields)
+      message = invalid_value_message(definition%input_file, 'study', fields(2))
     end if
   end subroutine read_study_group
 
@@ -134,34 +120,27 @@ contains
     type(study_definition), intent(inout) :: definition
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=64) :: field
-    real(real64) :: values(max_sweep_values)
-    character(len=64) :: texts(max_sweep_values)
-    type(namelist_item), allocatable :: items(:)
+    character(len=64), target :: field
+    real(real64), target :: values(max_sweep_values)
+    character(len=64), target :: texts(max_sweep_values)
+    type(group_field) :: fields(3)
     type(study_sweep) :: new_sweep
-    character(len=256) :: io_message
-    integer :: ios, i, n
-    namelist /sweep/ field, values, texts
+    integer :: i, n
 
     field = ''
     values = ieee_value(1.0_real64, ieee_quiet_nan)
     texts = ''
-    stat = 0
-    message = ''
-    call group_items(text, 'sweep', sweep_fields, definition%input_file, items, occurrence=occurrence)
-    do i = 1, size(items)
-      read (items(i)%record, nml=sweep, iostat=ios, iomsg=io_message)
-      if (ios /= 0) then
-        stat = 1
-        message = item_failure(items(i), 'sweep', sweep_fields)
-        return
-      end if
-    end do
+    fields = [ &
+      text_field('field', field, 'the name of an eme_run namelist field, e.g. ''dt'' or ''theta(2)''', ''), &
+      reals_field('values', values, 'up to 256 real numbers', '', open_length=.true.), &
+      texts_field('texts', texts, 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
+    call read_group(text, 'sweep', fields, definition%input_file, stat, message, occurrence=occurrence)
+    if (stat /= 0) return
     new_sweep%field = trim(lowercase(adjustl(field)))
     if (len(new_sweep%field) == 0) then
       stat = 1
       message = definition%input_file//': &sweep number '//integer_text(occurrence)//': field is missing; allowed: ' &
-                //trim(sweep_fields(1)%allowed)
+                //trim(fields(1)%allowed)
       return
     end if
     n = count(.not. ieee_is_nan(values))
@@ -242,7 +221,7 @@ contains
         this%number = c
         allocate (this%overrides(n_sweeps))
         do s = 1, n_sweeps
-          this%overrides(s) = namelist_item(study%sweeps(s)%field//' = '//trim(study%sweeps(s)%values(pick(s))), '', &
+          this%overrides(s) = namelist_item(study%sweeps(s)%field//' = '//trim(study%sweeps(s)%values(pick(s))), &
                                             study%input_file//': &sweep '''//study%sweeps(s)%field//'''')
         end do
         call read_run_config(study%base, this%config, stat, case_message, this%overrides)
@@ -250,7 +229,7 @@ contains
           message = case_message//' (case '//integer_text(c)//' of the study)'
           return
         end if
-        this%cost = real(step_count(this%config), real64)
+        this%cost = real(step_count(this%config%integrator), real64)
       end associate
     end do
   end subroutine expand_cases

@@ -6,10 +6,9 @@ module double_pendulum
   use model_parameters, only: pendulum_parameters
   implicit none (type, external)
   private
-  public :: state_size, q_index, p_index, gamma_index, tau_index
-  public :: var_c, var_gamma, var_tau, state_column_names
+  public :: state_size, q_index, p_index, gamma_index, tau_index, state_column_names
   public :: inverse_mass_times, kinetic_energy, gravity_potential, gravity_force
-  public :: angular_momentum, cross, spring_invariants, invariant_slots, spring_columns, chain_to_state
+  public :: angular_momentum, cross, spring_invariants, spring_columns
 
   integer, parameter :: state_size = 15
   !> q_index(:, a) and p_index(:, a) are the columns of q_a and p_a in z.
@@ -17,9 +16,6 @@ module double_pendulum
   integer, parameter :: p_index(3, 2) = reshape([7, 8, 9, 10, 11, 12], [3, 2])
   integer, parameter :: gamma_index = 13
   integer, parameter :: tau_index(2) = [14, 15]
-
-  !> Slots of a spring's partial derivatives (C, gamma, tau) in partials(3, 2, 2).
-  integer, parameter :: var_c = 1, var_gamma = 2, var_tau = 3
 
   character(len=*), parameter :: state_column_names(state_size) = [character(len=6) :: &
     'q1_x', 'q1_y', 'q1_z', 'q2_x', 'q2_y', 'q2_z', 'p1_x', 'p1_y', 'p1_z', &
@@ -77,28 +73,25 @@ contains
     j = cross(z(q_index(:, 1)), z(p_index(:, 1))) + cross(z(q_index(:, 2)), z(p_index(:, 2)))
   end function angular_momentum
 
-  !> Spring a's invariants x = (C, tau) for a = 1 or (C, gamma, tau) for a = 2, C = q_a.q_a.
-  pure function spring_invariants(z, a) result(x)
+  !> Spring a's invariants x = (C, tau) for a = 1 or (C, gamma, tau) for a = 2, C = q_a.q_a,
+  !> and optionally dx_dz(i, j) = d x(i)/d z(spring_columns(a)(j)).
+  pure subroutine spring_invariants(z, a, x, dx_dz)
     real(real64), intent(in) :: z(:)
     integer, intent(in) :: a
-    real(real64) :: x(a + 1)
+    real(real64), intent(out) :: x(:)
+    real(real64), intent(out), optional :: dx_dz(:, :)
 
     x(1) = dot_product(z(q_index(:, a)), z(q_index(:, a)))
     if (a == 2) x(2) = z(gamma_index)
     x(a + 1) = z(tau_index(a))
-  end function spring_invariants
-
-  !> The slots (var_c, [var_gamma,] var_tau) of spring a's invariants in partials(:, :, a).
-  pure function invariant_slots(a) result(slots)
-    integer, intent(in) :: a
-    integer :: slots(a + 1)
-
-    if (a == 1) then
-      slots = [var_c, var_tau]
-    else
-      slots = [var_c, var_gamma, var_tau]
+    if (present(dx_dz)) then
+      ! columns (q_a, [gamma,] tau_a): dC/dq = 2 q; gamma and tau are columns of z themselves.
+      dx_dz = 0.0_real64
+      dx_dz(1, 1:3) = 2.0_real64*z(q_index(:, a))
+      if (a == 2) dx_dz(2, 4) = 1.0_real64
+      dx_dz(a + 1, a + 3) = 1.0_real64
     end if
-  end function invariant_slots
+  end subroutine spring_invariants
 
   !> The columns of z spring a's invariants depend on: q_a, [gamma,] tau_a.
   pure function spring_columns(a) result(columns)
@@ -110,26 +103,7 @@ contains
     columns(a + 3) = tau_index(a)
   end function spring_columns
 
-  !> Spring a's partials' derivatives in z from those in its invariants, dg(i, l, potential) =
-  !> d partial_i / d x_l with x = (q_a.q_a, [gamma,] tau_a) at z: d/dq_a = 2 q_a d/dC. Only
-  !> spring a's columns of dpartials_dz are written (the others do not depend on them).
-  pure subroutine chain_to_state(dg, z, a, dpartials_dz)
-    real(real64), intent(in) :: dg(:, :, :), z(:)
-    integer, intent(in) :: a
-    real(real64), intent(inout) :: dpartials_dz(3, 2, 2, state_size)
-    integer :: i, potential, n, slot(3)
-
-    n = a + 1
-    slot(1:n) = invariant_slots(a)
-    do potential = 1, 2
-      do i = 1, n
-        dpartials_dz(slot(i), potential, a, q_index(:, a)) = 2.0_real64*dg(i, 1, potential)*z(q_index(:, a))
-        if (a == 2) dpartials_dz(slot(i), potential, a, gamma_index) = dg(i, 2, potential)
-        dpartials_dz(slot(i), potential, a, tau_index(a)) = dg(i, n, potential)
-      end do
-    end do
-  end subroutine chain_to_state
-
+  !> The cross product a x b.
   pure function cross(a, b) result(c)
     real(real64), intent(in) :: a(3), b(3)
     real(real64) :: c(3)

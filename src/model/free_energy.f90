@@ -1,16 +1,16 @@
-!> Free energies (16)-(17) of the two springs, written two ways:
-!>  - `paper_free_energy`: psi_a(l, theta, gamma) literally as the paper writes it;
-!>  - `mechanical_parts`: the closed forms e_a and sigma_a of FORMULATION section 3, as
-!>    functions of the invariant C = q.q (and gamma), with gradient and Hessian.
+!> Free energies (16)-(17) of the two springs in closed form (FORMULATION section 3): the
+!> mechanical parts e_a and sigma_a as functions of the invariant C = q.q (and gamma), with
+!> gradient and Hessian, and eta(theta) of eq. (17).
 !> u_a = e_a + Cap_a (theta - theta_ref) and s_a = sigma_a + Cap_a ln(theta/theta_ref);
-!> tests/unit/test_free_energy checks this against psi by s = -d psi/d theta, u = psi + theta s.
+!> tests/unit/test_free_energy checks this against psi as the paper writes it
+!> (tests/oracles/paper_free_energy) by s = -d psi/d theta, u = psi + theta s.
 module free_energy
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
   use special_functions, only: log1p
   implicit none (type, external)
   private
-  public :: spring_law, spring_law_of, mechanical_parts, mechanical_difference, paper_free_energy, viscosity
+  public :: spring_law, spring_law_of, mechanical_parts, mechanical_difference, viscosity
 
   !> Coefficients of spring a's closed forms (FORMULATION section 3). Spring 1 has no Maxwell
   !> element: its beta_v, maxwell_ref and maxwell_slope are zero, so one formula serves both.
@@ -127,27 +127,6 @@ contains
                         - law%beta_v*(delta_gamma*slope_b*inv_b + gamma_a*(k*delta_log*inv_b + slope_a*delta_inv))
     end function part_difference
   end subroutine mechanical_difference
-
-  !> psi_a(l, theta, gamma) exactly as eqs. (16)-(17) write it; gamma is ignored for spring 1.
-  pure function paper_free_energy(params, a, length, theta, gamma) result(psi)
-    type(pendulum_parameters), intent(in) :: params
-    integer, intent(in) :: a
-    real(real64), intent(in) :: length, theta, gamma
-    real(real64) :: psi
-    real(real64) :: stretch_log, mu_eq, mu_neq, psi_eq, dpsi_eq_dl, theta_ref
-
-    theta_ref = params%theta_ref
-    stretch_log = log(length/params%natural_length(a))
-    mu_eq = params%mu_eq_const(a) - params%mu_eq_slope(a)*(theta - theta_ref)
-    psi_eq = 0.5_real64*mu_eq*stretch_log**2 - params%beta*(theta - theta_ref)*stretch_log &
-             + params%heat_capacity(a)*(theta - theta_ref - theta*log(theta/theta_ref))
-    psi = psi_eq
-    if (a == 2) then
-      mu_neq = params%mu_neq_const - params%mu_neq_slope*(theta - theta_ref)
-      dpsi_eq_dl = (mu_eq*stretch_log - params%beta*(theta - theta_ref))/length
-      psi = psi + params%beta_v*psi_eq + mu_neq*gamma**2 - params%beta_v*gamma*dpsi_eq_dl
-    end if
-  end function paper_free_energy
 
   !> eta(theta) = eta_cst exp(eta_theta (1/theta - 1/theta_ref)), eq. (17).
   pure function viscosity(params, theta) result(eta)

@@ -1,21 +1,34 @@
-!> Abstract vector of scalar functions f: R^n -> R^k of a spring's invariant variables
-!> x = (C, [gamma,] tau). Discrete gradients (src/scheme) work on any extension of it.
+!> Abstract vector of scalar functions f: R^n -> R^k of a subsystem's invariant variables
+!> x = (mechanical invariants, tau), e.g. a spring's (U_a, S_a) of (C, [gamma,] tau). Discrete
+!> gradients (src/scheme) work on any extension of it. Evaluations outside the functions'
+!> domain report one of the domain_* codes instead of stopping.
 module invariant_function
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
   private
-  public :: invariant_functions
+  public :: invariant_functions, potential_u, potential_s
+  public :: domain_ok, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow, domain_text
+
+  integer, parameter :: potential_u = 1  !! index of the internal energy U_a in f(:)
+  integer, parameter :: potential_s = 2  !! index of the entropy S_a in f(:)
+
+  !> Outcomes of an evaluation: inside the domain, or why not.
+  integer, parameter :: domain_ok = 0
+  integer, parameter :: domain_nonpositive_length = 1
+  integer, parameter :: domain_nonpositive_temperature = 2
+  integer, parameter :: domain_overflow = 3
 
   !> k functions of n invariants, evaluated with gradient and (optionally) Hessian.
   type, abstract :: invariant_functions
   contains
     procedure(evaluate_interface), deferred :: evaluate
     procedure :: difference
+    procedure :: temperature
   end type invariant_functions
 
   abstract interface
     !> f(j) = f_j(x), grad(:, j) = grad f_j, hess(:, :, j) = Hessian of f_j.
-    !> stat /= 0 means x lies outside the functions' domain; outputs are then undefined.
+    !> stat /= domain_ok means x lies outside the functions' domain; outputs are then undefined.
     pure subroutine evaluate_interface(self, x, f, grad, hess, stat)
       import :: invariant_functions, real64
       class(invariant_functions), intent(in) :: self
@@ -38,9 +51,42 @@ contains
     real(real64) :: f_a(size(delta)), f_b(size(delta)), g(size(a), size(delta))
 
     call self%evaluate(a, f_a, g, stat=stat)
-    if (stat /= 0) return
+    if (stat /= domain_ok) return
     call self%evaluate(b, f_b, g, stat=stat)
     delta = f_b - f_a
   end subroutine difference
+
+  !> The temperature Theta = d_tau U / d_tau S of eq. (2) at x, tau being the last invariant.
+  !> This default divides the derivatives; functions with a closed form override it.
+  pure subroutine temperature(self, x, theta, stat)
+    class(invariant_functions), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: theta
+    integer, intent(out) :: stat
+    real(real64) :: f(2), g(size(x), 2)
+
+    theta = 0.0_real64
+    call self%evaluate(x, f, g, stat=stat)
+    if (stat /= domain_ok) return
+    theta = g(size(x), potential_u)/g(size(x), potential_s)
+    if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
+  end subroutine temperature
+
+  !> What a domain status means, for messages.
+  pure function domain_text(stat) result(text)
+    integer, intent(in) :: stat
+    character(len=:), allocatable :: text
+
+    select case (stat)
+    case (domain_nonpositive_length)
+      text = 'a non-positive spring length'
+    case (domain_nonpositive_temperature)
+      text = 'a non-positive temperature'
+    case (domain_overflow)
+      text = 'an overflow'
+    case default
+      text = 'inside the domain'
+    end select
+  end function domain_text
 
 end module invariant_function

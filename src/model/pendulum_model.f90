@@ -1,24 +1,34 @@
-!> The whole model for one choice of thermodynamic variable: parameters plus the two spring
-!> potentials, with the totals E = T + V_g + U_1 + U_2, S = S_1 + S_2 and the temperatures (2).
+!> The thermoviscoelastic double pendulum as a GENERIC model (src/structure/model_interface):
+!> two springs, each a subsystem with (U_a, S_a) in its invariants (C_a, [gamma,] tau_a) for one
+!> choice of thermodynamic variable; kinetic energy and gravity as the mechanical energy; the
+!> written-out vector field of src/model/pendulum_vector_field.
 module pendulum_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
-  use free_energy, only: spring_law_of
-  use thermo_variable, only: spring_potential, potential_u, potential_s, domain_ok
-  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, &
-                             kinetic_energy, gravity_potential, spring_invariants, invariant_slots, chain_to_state
+  use free_energy, only: spring_law_of, viscosity
+  use thermo_variable, only: spring_potential
+  use model_interface, only: generic_model
+  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, state_column_names, &
+                             kinetic_energy, gravity_potential, gravity_force, inverse_mass_times, &
+                             angular_momentum, spring_invariants, spring_columns
+  use pendulum_vector_field, only: vector_field
   implicit none (type, external)
   private
   public :: pendulum, make_pendulum
 
   !> Parameters and the spring potentials (U_a, S_a) in the chosen thermodynamic variable.
-  type :: pendulum
+  type, extends(generic_model) :: pendulum
     type(pendulum_parameters) :: params
     integer :: variable = 0
     type(spring_potential) :: spring(2)
   contains
-    procedure :: observe
-    procedure :: exact_partials
+    procedure :: invariants
+    procedure :: vector_field => pendulum_field
+    procedure :: mechanical_energy
+    procedure :: mechanical_energy_gradient
+    procedure :: angular_momentum => pendulum_angular_momentum
+    procedure :: poisson_matrix_0
+    procedure :: friction_matrix_0
     procedure :: state_from_temperatures
   end type pendulum
 
@@ -33,62 +43,108 @@ contains
 
     model%params = params
     model%variable = variable
+    model%state_size = state_size
+    model%column_names = state_column_names
+    model%max_invariants = 3
+    allocate (model%subsystems(2))
     do a = 1, 2
       model%spring(a)%law = spring_law_of(params, a)
       model%spring(a)%variable = variable
       model%spring(a)%n_invariants = a + 1
+      associate (part => model%subsystems(a))
+        part%name = 'spring '//achar(iachar('0') + a)
+        allocate (part%potentials, source=model%spring(a))
+        part%invariant_count = a + 1
+        part%columns = spring_columns(a)
+        part%tau_column = tau_index(a)
+        part%metric_scale = model%spring(a)%metric_scale()
+      end associate
     end do
   end function make_pendulum
 
-  !> Total energy (6) with gravity, total entropy and the spring temperatures (2) at state z.
-  pure subroutine observe(self, z, energy, entropy, temperature, stat)
-    class(pendulum), intent(in) :: self
-    real(real64), intent(in) :: z(state_size)
-    real(real64), intent(out) :: energy, entropy, temperature(2)
-    integer, intent(out) :: stat
-    real(real64) :: f(2), grad(3, 2)
-    integer :: a
-
-    energy = kinetic_energy(self%params, z) + gravity_potential(self%params, z)
-    entropy = 0.0_real64
-    temperature = 0.0_real64
-    do a = 1, 2
-      associate (x => spring_invariants(z, a))
-        call self%spring(a)%evaluate(x, f, grad(1:a + 1, :), stat=stat)
-        if (stat /= domain_ok) return
-        call self%spring(a)%temperature(x, temperature(a), stat)
-        if (stat /= domain_ok) return
-      end associate
-      energy = energy + f(potential_u)
-      entropy = entropy + f(potential_s)
-    end do
-  end subroutine observe
-
-  !> The exact partials of U_a and S_a in each spring's invariants at z, as partials(var,
-  !> potential, a), and optionally their derivatives with respect to z.
-  pure subroutine exact_partials(self, z, partials, dpartials_dz, stat)
+  !> Spring a's invariants (C_a, [gamma,] tau_a) and their derivatives in its columns.
+  pure subroutine invariants(self, z, a, x, dx_dz)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64), intent(out) :: partials(3, 2, 2)
-    real(real64), intent(out), optional :: dpartials_dz(3, 2, 2, state_size)
-    integer, intent(out) :: stat
-    real(real64) :: f(2), g(3, 2), h(3, 3, 2)
-    integer :: a, n
+    integer, intent(in) :: a
+    real(real64), intent(out) :: x(:)
+    real(real64), intent(out), optional :: dx_dz(:, :)
 
-    partials = 0.0_real64
-    if (present(dpartials_dz)) dpartials_dz = 0.0_real64
+    call spring_invariants(z, a, x, dx_dz)
+  end subroutine invariants
+
+  !> The written-out field of FORMULATION section 4 (pendulum_vector_field).
+  pure subroutine pendulum_field(self, z, partials, f, df_dz, df_dpartials)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:), partials(:, :, :)
+    real(real64), intent(out) :: f(:)
+    real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
+
+    call vector_field(self%params, z, partials, f, df_dz, df_dpartials)
+  end subroutine pendulum_field
+
+  !> T + V_g: kinetic energy (6) and gravity.
+  pure function mechanical_energy(self, z) result(energy)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: energy
+
+    energy = kinetic_energy(self%params, z) + gravity_potential(self%params, z)
+  end function mechanical_energy
+
+  !> grad (T + V_g): -gravity forces on q, m^-1 p on p.
+  pure function mechanical_energy_gradient(self, z) result(gradient)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradient(size(z))
+    real(real64) :: force(3, 2), v(3, 2)
+    integer :: a
+
+    force = gravity_force(self%params)
+    v = inverse_mass_times(self%params, reshape(z(p_index(1, 1):p_index(3, 2)), [3, 2]))
+    gradient = 0.0_real64
     do a = 1, 2
-      n = a + 1
-      if (present(dpartials_dz)) then
-        call self%spring(a)%evaluate(spring_invariants(z, a), f, g(1:n, :), h(1:n, 1:n, :), stat)
-      else
-        call self%spring(a)%evaluate(spring_invariants(z, a), f, g(1:n, :), stat=stat)
-      end if
-      if (stat /= domain_ok) return
-      partials(invariant_slots(a), :, a) = g(1:n, :)
-      if (present(dpartials_dz)) call chain_to_state(h(1:n, 1:n, :), z, a, dpartials_dz)
+      gradient(q_index(:, a)) = -force(:, a)
+      gradient(p_index(:, a)) = v(:, a)
     end do
-  end subroutine exact_partials
+  end function mechanical_energy_gradient
+
+  !> J = q1 x p1 + q2 x p2 (FORMULATION section 2).
+  pure function pendulum_angular_momentum(self, z) result(j)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: j(3)
+
+    j = angular_momentum(z)
+  end function pendulum_angular_momentum
+
+  !> L0 of eq. (12): the canonical symplectic matrix on (q, p), zero elsewhere.
+  pure function poisson_matrix_0(self) result(l0)
+    class(pendulum), intent(in) :: self
+    real(real64) :: l0(self%state_size, self%state_size)
+    integer :: i
+
+    l0 = 0.0_real64
+    do i = 1, 6
+      l0(q_index(1, 1) - 1 + i, p_index(1, 1) - 1 + i) = 1.0_real64
+      l0(p_index(1, 1) - 1 + i, q_index(1, 1) - 1 + i) = -1.0_real64
+    end do
+  end function poisson_matrix_0
+
+  !> K0 of eq. (12) at the temperatures Theta_a of the partials: Theta_2/eta(Theta_2) on gamma,
+  !> kappa Theta_1 Theta_2 [[1, -1], [-1, 1]] on (tau_1, tau_2).
+  pure function friction_matrix_0(self, partials) result(k0)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: partials(:, :, :)
+    real(real64) :: k0(self%state_size, self%state_size)
+    real(real64) :: theta(2), conduction
+
+    theta = self%partials_temperatures(partials)
+    k0 = 0.0_real64
+    k0(gamma_index, gamma_index) = theta(2)/viscosity(self%params, theta(2))
+    conduction = self%params%conductivity*theta(1)*theta(2)
+    k0(tau_index, tau_index) = reshape([conduction, -conduction, -conduction, conduction], [2, 2])
+  end function friction_matrix_0
 
   !> The state z built from positions, momenta, gamma and spring temperatures theta(2).
   pure subroutine state_from_temperatures(self, q1, q2, p1, p2, gamma, theta, z, stat)
@@ -96,6 +152,7 @@ contains
     real(real64), intent(in) :: q1(3), q2(3), p1(3), p2(3), gamma, theta(2)
     real(real64), intent(out) :: z(state_size)
     integer, intent(out) :: stat
+    real(real64) :: x(3)
     integer :: a
 
     z(q_index(:, 1)) = q1
@@ -105,10 +162,9 @@ contains
     z(gamma_index) = gamma
     z(tau_index) = 0.0_real64
     do a = 1, 2
-      associate (x => spring_invariants(z, a))
-        call self%spring(a)%tau_from_temperature(x(1:a), theta(a), z(tau_index(a)), stat)
-      end associate
-      if (stat /= domain_ok) return
+      call spring_invariants(z, a, x(1:a + 1))
+      call self%spring(a)%tau_from_temperature(x(1:a), theta(a), z(tau_index(a)), stat)
+      if (stat /= 0) return
     end do
   end subroutine state_from_temperatures
 

@@ -3,14 +3,14 @@
 !> Spring 1 has n = 2 invariants (C1, tau1), spring 2 has n = 3 (C2, gamma, tau2).
 module thermo_variable
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: invariant_functions
+  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_nonpositive_length, &
+                                domain_nonpositive_temperature, domain_overflow
   use free_energy, only: spring_law, mechanical_parts, mechanical_difference
   use special_functions, only: log1p, expm1
   implicit none (type, external)
   private
   public :: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
-  public :: spring_potential, potential_u, potential_s
-  public :: domain_ok, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
+  public :: spring_potential
 
   integer, parameter :: tau_entropy = 1          !! tau = s
   integer, parameter :: tau_temperature = 2      !! tau = theta
@@ -18,14 +18,6 @@ module thermo_variable
   !> Namelist spellings, indexed by the constants above.
   character(len=*), parameter :: thermo_variable_names(3) = &
     [character(len=15) :: 'entropy', 'temperature', 'internal_energy']
-
-  integer, parameter :: potential_u = 1  !! index of U_a in f(:)
-  integer, parameter :: potential_s = 2  !! index of S_a in f(:)
-
-  integer, parameter :: domain_ok = 0
-  integer, parameter :: domain_nonpositive_length = 1
-  integer, parameter :: domain_nonpositive_temperature = 2
-  integer, parameter :: domain_overflow = 3
 
   !> f = (U_a, S_a) of one spring in its invariants.
   type, extends(invariant_functions) :: spring_potential
@@ -45,7 +37,8 @@ module thermo_variable
 
 contains
 
-  !> theta(x) from the table in FORMULATION section 3; stat reports a domain violation.
+  !> theta(x) in closed form, from the table in FORMULATION section 3 (it equals eq. (2)'s
+  !> d_tau U / d_tau S, which the tests check); stat reports a domain violation.
   pure subroutine spring_temperature(self, x, theta, stat)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: x(:)

@@ -4,25 +4,33 @@
 program test_thermo_variable
   use, intrinsic :: iso_fortran_env, only: real64
   use assertions, only: test_suite
+  use unit_testing, only: unit_test, run_unit_tests
   use fixtures, only: seed_random, uniform, paper_legendre, check_derivatives
   use model_parameters, only: pendulum_parameters
-  use thermo_variable, only: spring_potential, tau_entropy, tau_temperature, tau_internal_energy, &
-                             thermo_variable_names, potential_u, potential_s, domain_ok, &
-                             domain_nonpositive_length, domain_nonpositive_temperature
+  use invariant_function, only: potential_u, potential_s, domain_ok, domain_nonpositive_length, &
+                                domain_nonpositive_temperature
+  use thermo_variable, only: spring_potential, tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
   use pendulum_model, only: pendulum, make_pendulum
   implicit none (type, external)
 
-  type(test_suite) :: suite
-  type(pendulum_parameters) :: params
-  type(pendulum) :: model
-  real(real64) :: length, theta, gamma, s_paper, u_paper, tau, theta_back, x3(3), f(2), g(3, 2)
-  real(real64), allocatable :: x(:)
-  integer :: variable, a, trial, stat, n
-  character(len=60) :: label
+  call run_unit_tests('test_thermo_variable', [ &
+    unit_test('potentials_against_psi', potentials_against_psi), &
+    unit_test('cancellation_free_difference', cancellation_free_difference), &
+    unit_test('domain_errors', domain_errors)])
 
-  suite%name = 'test_thermo_variable'
-  call seed_random(23)
+contains
 
+  !> U_a and S_a against psi, eq. (2), the closed-form temperature and the derivatives.
+  subroutine potentials_against_psi(suite)
+    type(test_suite), intent(inout) :: suite
+    type(pendulum_parameters) :: params
+    type(pendulum) :: model
+    real(real64) :: length, theta, gamma, s_paper, u_paper, tau, theta_back, f(2), g(3, 2)
+    real(real64), allocatable :: x(:)
+    integer :: variable, a, trial, stat, n
+    character(len=60) :: label
+
+    call seed_random(23)
   do variable = tau_entropy, tau_internal_energy
     model = make_pendulum(params, variable)
     do a = 1, 2
@@ -53,20 +61,39 @@ program test_thermo_variable
     end do
   end do
 
-  ! U(b) - U(a) and S(b) - S(a) without cancellation: equal to the plain difference for far
-  ! pairs, and to grad f(mid).(b - a) for pairs 1e-9 apart, where the Taylor remainder is
-  ! O(1e-27) and a plain difference of values of size |f| would keep only ~7 digits.
+  end subroutine potentials_against_psi
+
+  !> U(b) - U(a) and S(b) - S(a) without cancellation: equal to the plain difference for far
+  !> pairs, and to grad f(mid).(b - a) for pairs 1e-9 apart, where the Taylor remainder is
+  !> O(1e-27) and a plain difference of values of size |f| would keep only ~7 digits.
+  subroutine cancellation_free_difference(suite)
+    type(test_suite), intent(inout) :: suite
+    type(pendulum_parameters) :: params
+    type(pendulum) :: model
+    integer :: variable, a, n
+    character(len=60) :: label
+
+    call seed_random(24)
   do variable = tau_entropy, tau_internal_energy
     model = make_pendulum(params, variable)
     do a = 1, 2
       n = a + 1
       write (label, '(a, " spring ", i0)') trim(thermo_variable_names(variable)), a
-      call check_difference(model%spring(a), n, 0.3_real64, 1.0e-12_real64, 'far pair, '//trim(label))
-      call check_difference(model%spring(a), n, 1.0e-9_real64, 1.0e-8_real64, 'close pair, '//trim(label))
+      call check_difference(suite, model%spring(a), n, 0.3_real64, 1.0e-12_real64, 'far pair, '//trim(label))
+      call check_difference(suite, model%spring(a), n, 1.0e-9_real64, 1.0e-8_real64, 'close pair, '//trim(label))
     end do
   end do
 
-  ! Domain errors are reported, not trapped.
+  end subroutine cancellation_free_difference
+
+  !> Domain errors are reported, not trapped.
+  subroutine domain_errors(suite)
+    type(test_suite), intent(inout) :: suite
+    type(pendulum_parameters) :: params
+    type(pendulum) :: model
+    real(real64) :: x3(3), f(2), g(3, 2)
+    integer :: stat
+
   model = make_pendulum(params, tau_temperature)
   call model%spring(2)%evaluate([0.0_real64, 0.0_real64, 300.0_real64], f, g, stat=stat)
   call suite%check_equal_int('zero length is outside the domain', stat, domain_nonpositive_length)
@@ -78,14 +105,12 @@ program test_thermo_variable
   call suite%check_equal_int('internal energy below the zero-kelvin value', stat, domain_nonpositive_temperature)
   call model%spring(2)%evaluate([4.0_real64, 0.0_real64, 100.0_real64], f, g, stat=stat)
   call suite%check_equal_int('admissible internal energy', stat, domain_ok)
-
-  call suite%finish()
-
-contains
+  end subroutine domain_errors
 
   ! Compares spring%difference(x_a, x_b) with the plain difference (far pairs) or the midpoint
   ! gradient's first-order difference (close pairs), relative to rtol.
-  subroutine check_difference(spring, n, step, rtol, label)
+  subroutine check_difference(suite, spring, n, step, rtol, label)
+    type(test_suite), intent(inout) :: suite
     type(spring_potential), intent(in) :: spring
     integer, intent(in) :: n
     real(real64), intent(in) :: step, rtol

@@ -1,5 +1,5 @@
-!> PETSc TS baselines on the continuous GENERIC vector field f(z) = L grad E + K grad S
-!> (generic_vector_field at exact partials, FORMULATION section 4) and its exact Jacobian:
+!> PETSc TS baselines on the continuous GENERIC vector field f(z) = L grad E + K grad S of any
+!> model (its vector field at exact partials, FORMULATION section 4) and its exact Jacobian:
 !>   ts_midpoint  TSTHETA with theta = 1/2, the implicit midpoint rule as PETSc does it
 !>   ts_bdf2      TSBDF of order 2
 !>   ts_rk4       TSRK 4, the classic explicit Runge-Kutta method
@@ -7,28 +7,26 @@
 !> The fixed-step methods take one step of dt per output step; ts_rk5dp chooses its own steps
 !> and lands on every output time. The TS keeps its state between output steps, so multistep
 !> BDF2 keeps its history. Options with the TS prefix work from the command line (-ts_*).
-module ts_integrator
+module ts_stepper
 #include <petsc/finclude/petscts.h>
   use petscts
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_int, c_double, c_ptr, c_funptr, c_funloc, c_loc, c_f_pointer
-  use pendulum_model, only: pendulum
-  use double_pendulum, only: state_size
-  use generic_vector_field, only: vector_field, add_partials_chain
-  use time_stepper, only: stepper, step_report
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use integrator_settings, only: integrator_choice
+  use stepper, only: time_stepper, step_report
   implicit none
   private
-  public :: ts_stepper, ts_scheme_names, ts_midpoint, ts_bdf2, ts_rk4, ts_rk5dp
+  public :: ts_baseline, new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
 
   integer, parameter :: ts_midpoint = 1, ts_bdf2 = 2, ts_rk4 = 3, ts_rk5dp = 4
-  character(len=*), parameter :: ts_scheme_names(4) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4', &
-                                                       'ts_rk5dp']
 
   !> The model the callbacks evaluate, whether the method solves equations (the implicit ones
   !> tell their SNES when a Newton iterate leaves the domain), and how many stages the domain
   !> check has rejected.
   type :: rhs_context
-    type(pendulum) :: model
+    class(generic_model), allocatable :: model
     logical :: implicit = .false.
     integer :: domain_rejections = 0
   end type rhs_context
@@ -44,46 +42,81 @@ module ts_integrator
     end function eme_ts_set_domain_check
   end interface
 
-  !> One TS for a run. Do not copy it after `create`: PETSc holds the address of `context`.
-  type, extends(stepper) :: ts_stepper
+  !> One TS per run. Do not copy it after `start`: PETSc holds the address of `context`.
+  type, extends(time_stepper) :: ts_baseline
     type(rhs_context) :: context
     TS :: ts
     Vec :: x
     Mat :: jacobian
     integer :: method = ts_midpoint
+    logical :: created = .false.
     PetscInt :: snes_iterations = 0
     PetscInt :: steps = 0
     PetscInt :: rejections = 0
   contains
-    procedure :: create
-    procedure :: destroy
+    procedure :: start
     procedure :: advance
-  end type ts_stepper
+    procedure :: release
+  end type ts_baseline
 
 contains
 
-  !> Sets up method `method` (ts_*) for `model` from state z0 at t = 0 with step dt (the first
-  !> step for ts_rk5dp), Newton tolerance and iteration limit (implicit methods) and tolerance
-  !> `tolerance` (ts_rk5dp).
-  subroutine create(self, model, method, z0, dt, newton_tol, newton_max_iterations, tolerance, ierr)
-    class(ts_stepper), intent(inout), target :: self
-    type(pendulum), intent(in) :: model
-    integer, intent(in) :: method, newton_max_iterations
-    real(real64), intent(in) :: z0(state_size), dt, newton_tol, tolerance
-    PetscErrorCode, intent(out) :: ierr
+  !> TSTHETA with theta = 1/2.
+  subroutine new_ts_midpoint(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=ts_baseline(method=ts_midpoint))
+  end subroutine new_ts_midpoint
+
+  !> TSBDF of order 2.
+  subroutine new_ts_bdf2(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=ts_baseline(method=ts_bdf2))
+  end subroutine new_ts_bdf2
+
+  !> TSRK 4.
+  subroutine new_ts_rk4(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=ts_baseline(method=ts_rk4))
+  end subroutine new_ts_rk4
+
+  !> TSRK 5dp, adaptive.
+  subroutine new_ts_rk5dp(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=ts_baseline(method=ts_rk5dp))
+  end subroutine new_ts_rk5dp
+
+  !> Creates the TS of the run for `model` from state z0 at t = 0 with step dt (the first step
+  !> for ts_rk5dp), Newton tolerance and iteration limit (implicit methods) and tolerance
+  !> ts_tolerance (ts_rk5dp); a TS of an earlier run is destroyed first. The TS baselines take no
+  !> constraints (the registry says so, and the input refuses them).
+  subroutine start(self, choice, model, constraints, z0, ierr)
+    class(ts_baseline), intent(inout), target :: self
+    type(integrator_choice), intent(in) :: choice
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z0(:)
+    integer, intent(out) :: ierr
     SNES :: snes
     TSAdapt :: adapt
     PetscScalar, pointer :: values(:)
     PetscInt :: n, max_iterations, max_evaluations, max_steps
 
-    self%context%model = model
-    self%context%implicit = method == ts_midpoint .or. method == ts_bdf2
+    if (self%created) then
+      PetscCall(self%release(ierr))
+    end if
+    if (allocated(self%context%model)) deallocate (self%context%model)
+    allocate (self%context%model, source=model)
+    self%context%implicit = self%method == ts_midpoint .or. self%method == ts_bdf2
     self%context%domain_rejections = 0
-    self%method = method
     self%snes_iterations = 0
     self%steps = 0
     self%rejections = 0
-    n = state_size
+    self%created = .true.
+    n = model%state_size
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, n, self%x, ierr))
     PetscCall(VecGetArrayF90(self%x, values, ierr))
     values = z0
@@ -94,7 +127,7 @@ contains
     PetscCall(TSSetRHSFunction(self%ts, PETSC_NULL_VEC, form_rhs, self%context, ierr))
     ierr = eme_ts_set_domain_check(self%ts, c_funloc(stage_inside), c_loc(self%context))
     if (ierr /= 0) return
-    select case (method)
+    select case (self%method)
     case (ts_midpoint)
       PetscCall(TSSetType(self%ts, TSTHETA, ierr))
       PetscCall(TSThetaSetTheta(self%ts, 0.5_real64, ierr))
@@ -112,45 +145,49 @@ contains
       PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, n, n, PETSC_NULL_SCALAR, self%jacobian, ierr))
       PetscCall(TSSetRHSJacobian(self%ts, self%jacobian, self%jacobian, form_rhs_jacobian, self%context, ierr))
       PetscCall(TSGetSNES(self%ts, snes, ierr))
-      max_iterations = newton_max_iterations
+      max_iterations = choice%newton_max_iterations
       max_evaluations = 10000
-      PetscCall(SNESSetTolerances(snes, newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
+      PetscCall(SNESSetTolerances(snes, choice%newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
       PetscCall(set_direct_solver(snes, ierr))
     end if
     PetscCall(TSSetTime(self%ts, 0.0_real64, ierr))
-    PetscCall(TSSetTimeStep(self%ts, dt, ierr))
+    PetscCall(TSSetTimeStep(self%ts, choice%dt, ierr))
     max_steps = 1000000000
     PetscCall(TSSetMaxSteps(self%ts, max_steps, ierr))
     PetscCall(TSSetExactFinalTime(self%ts, TS_EXACTFINALTIME_MATCHSTEP, ierr))
     ! A step that fails ends TSSolve with a negative converged reason, not a PETSc error.
     PetscCall(TSSetErrorIfStepFails(self%ts, PETSC_FALSE, ierr))
     PetscCall(TSGetAdapt(self%ts, adapt, ierr))
-    if (method == ts_rk5dp) then
-      PetscCall(TSSetTolerances(self%ts, tolerance, PETSC_NULL_VEC, tolerance, PETSC_NULL_VEC, ierr))
+    if (self%method == ts_rk5dp) then
+      PetscCall(TSSetTolerances(self%ts, choice%ts_tolerance, PETSC_NULL_VEC, choice%ts_tolerance, PETSC_NULL_VEC, ierr))
     else
       ! Fixed steps: a stage outside the domain ends the run instead of halving the step.
       PetscCall(TSAdaptSetType(adapt, TSADAPTNONE, ierr))
       PetscCall(TSSetMaxStepRejections(self%ts, 0, ierr))
     end if
     PetscCall(TSSetFromOptions(self%ts, ierr))
-  end subroutine create
+    if (size(constraints) > 0) ierr = PETSC_ERR_ARG_WRONG   ! the input refuses constraints for TS
+  end subroutine start
 
   !> Frees the PETSc objects.
-  subroutine destroy(self, ierr)
-    class(ts_stepper), intent(inout) :: self
-    PetscErrorCode, intent(out) :: ierr
+  subroutine release(self, ierr)
+    class(ts_baseline), intent(inout) :: self
+    integer, intent(out) :: ierr
 
+    ierr = 0
+    if (.not. self%created) return
+    self%created = .false.
     PetscCall(TSDestroy(self%ts, ierr))
     PetscCall(VecDestroy(self%x, ierr))
     if (self%context%implicit) then
       PetscCall(MatDestroy(self%jacobian, ierr))
     end if
-  end subroutine destroy
+  end subroutine release
 
   !> Integrates from the TS's current state to t_old + dt. x_old and guess are not needed: the
   !> TS carries its state (and BDF2 its history) from one output step to the next.
   subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
-    class(ts_stepper), intent(inout) :: self
+    class(ts_baseline), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
     real(real64), intent(out) :: x_new(:)
     type(step_report), intent(out) :: report
@@ -164,6 +201,8 @@ contains
 
     report%reason = ''
     report%last_rejection = ''
+    allocate (report%scheme_temperature(self%context%model%subsystem_count()))
+    report%scheme_temperature = 0.0_real64
     self%context%domain_rejections = 0
     ! Start from the exact output time: the TS's own sum of steps drifts by rounding, and a
     ! remainder of 1e-16 s would become a step of its own (which t + dt cannot even resolve).
@@ -181,7 +220,7 @@ contains
     PetscCall(TSGetStepRejections(self%ts, rejections, ierr))
     report%newton_iterations = int(snes_iterations - self%snes_iterations)
     report%solves = int(steps - self%steps)
-    report%rejected_roots = int(rejections - self%rejections)
+    report%rejected = int(rejections - self%rejections)
     self%snes_iterations = snes_iterations
     self%steps = steps
     self%rejections = rejections
@@ -237,7 +276,7 @@ contains
     type(rhs_context), intent(in) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), f_values(:)
-    real(real64) :: partials(3, 2, 2)
+    real(real64) :: partials(context%model%max_invariants, 2, context%model%subsystem_count())
     integer :: stat
     SNES :: snes
 
@@ -245,7 +284,7 @@ contains
     PetscCall(VecGetArrayF90(f, f_values, ierr))
     call context%model%exact_partials(x_values, partials, stat=stat)
     if (stat == 0) then
-      call vector_field(context%model%params, x_values, partials, f_values)
+      call context%model%vector_field(x_values, partials, f_values)
     else
       f_values = ieee_nan()
     end if
@@ -268,20 +307,25 @@ contains
     PetscErrorCode, intent(out) :: ierr
     SNES :: snes
     PetscScalar, pointer :: x_values(:), entries(:, :)
-    real(real64) :: partials(3, 2, 2), dpartials_dz(3, 2, 2, state_size), f(state_size)
-    real(real64) :: df_dz(state_size, state_size), df_dpartials(state_size, 3, 2, 2)
     integer :: stat
 
     PetscCall(VecGetArrayReadF90(x, x_values, ierr))
     PetscCall(MatDenseGetArrayF90(preconditioner, entries, ierr))
-    call context%model%exact_partials(x_values, partials, dpartials_dz, stat)
-    if (stat == 0) then
-      call vector_field(context%model%params, x_values, partials, f, df_dz, df_dpartials)
-      entries = df_dz
-      call add_partials_chain(df_dpartials, dpartials_dz, 1.0_real64, entries)
-    else
-      entries = 0.0_real64
-    end if
+    associate (model => context%model, n => context%model%state_size, m => context%model%max_invariants, &
+               k => context%model%subsystem_count())
+      block
+        real(real64) :: partials(m, 2, k), dpartials_dz(m, 2, k, n), f(n), df_dz(n, n), df_dpartials(n, m, 2, k)
+
+        call model%exact_partials(x_values, partials, dpartials_dz, stat)
+        if (stat == 0) then
+          call model%vector_field(x_values, partials, f, df_dz, df_dpartials)
+          entries = df_dz
+          call model%add_partials_chain(df_dpartials, dpartials_dz, 1.0_real64, entries)
+        else
+          entries = 0.0_real64
+        end if
+      end block
+    end associate
     PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
     PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
@@ -303,19 +347,28 @@ contains
     real(c_double), intent(in) :: state(n)
     type(c_ptr), value, intent(in) :: context
     type(rhs_context), pointer :: rhs
-    real(real64) :: partials(3, 2, 2)
     integer :: stat
 
     call c_f_pointer(context, rhs)
     stat = 1
-    if (all(abs(state) <= huge(1.0_real64))) call rhs%model%exact_partials(state, partials, stat=stat)
+    if (all(abs(state) <= huge(1.0_real64))) call in_domain(rhs%model, state, stat)
     stage_inside = merge(1_c_int, 0_c_int, stat == 0)
     if (stat /= 0) rhs%domain_rejections = rhs%domain_rejections + 1
   end function stage_inside
+
+  ! stat = 0 if the model's partials exist at `state` (positive lengths and temperatures).
+  subroutine in_domain(model, state, stat)
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: state(:)
+    integer, intent(out) :: stat
+    real(real64) :: partials(model%max_invariants, 2, model%subsystem_count())
+
+    call model%exact_partials(state, partials, stat=stat)
+  end subroutine in_domain
 
   pure real(real64) function ieee_nan()
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
     ieee_nan = ieee_value(1.0_real64, ieee_quiet_nan)
   end function ieee_nan
 
-end module ts_integrator
+end module ts_stepper

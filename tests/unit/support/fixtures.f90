@@ -5,9 +5,10 @@ module fixtures
   use assertions, only: test_suite
   use invariant_function, only: invariant_functions
   use model_parameters, only: pendulum_parameters
-  use free_energy, only: paper_free_energy
+  use paper_free_energy, only: paper_psi
   use pendulum_model, only: pendulum
   use double_pendulum, only: state_size
+  use nonlinear_problem, only: nonlinear_system
   implicit none (type, external)
   private
   public :: seed_random, uniform, paper_state, random_state, check_derivatives, fd_jacobian_error
@@ -105,16 +106,10 @@ contains
                            rtol=1.0e-6_real64, atol=1.0e-7_real64*maxval(abs(hess)))
   end subroutine check_derivatives
 
-  !> Largest entry of |J - J_fd| / (1 + |J|), J_fd by central differences of `residual` with
-  !> steps h(:): 2nd order by default, 4th order if fourth_order is true.
-  function fd_jacobian_error(residual, x, jacobian, h, fourth_order) result(err)
-    interface
-      subroutine residual(x, r)
-        import :: real64
-        real(real64), intent(in) :: x(:)
-        real(real64), intent(out) :: r(:)
-      end subroutine residual
-    end interface
+  !> Largest entry of |J - J_fd| / (1 + |J|), J_fd by central differences of the problem's
+  !> residual with steps h(:): 2nd order by default, 4th order if fourth_order is true.
+  function fd_jacobian_error(problem, x, jacobian, h, fourth_order) result(err)
+    class(nonlinear_system), intent(in) :: problem
     real(real64), intent(in) :: x(:), jacobian(:, :), h(:)
     logical, intent(in), optional :: fourth_order
     real(real64) :: err
@@ -140,10 +135,11 @@ contains
       integer, intent(in) :: j
       real(real64), intent(in) :: step
       real(real64) :: r(size(jacobian, 1)), xs(size(x))
+      integer :: stat
 
       xs = x
       xs(j) = x(j) + step
-      call residual(xs, r)
+      call problem%evaluate(xs, r, stat=stat)
     end function shifted
   end function fd_jacobian_error
 
@@ -157,11 +153,11 @@ contains
     real(real64) :: h
 
     h = 1.0e-3_real64*theta
-    s = -(-paper_free_energy(params, a, length, theta + 2*h, gamma) &
-          + 8*paper_free_energy(params, a, length, theta + h, gamma) &
-          - 8*paper_free_energy(params, a, length, theta - h, gamma) &
-          + paper_free_energy(params, a, length, theta - 2*h, gamma))/(12*h)
-    u = paper_free_energy(params, a, length, theta, gamma) + theta*s
+    s = -(-paper_psi(params, a, length, theta + 2*h, gamma) &
+          + 8*paper_psi(params, a, length, theta + h, gamma) &
+          - 8*paper_psi(params, a, length, theta - h, gamma) &
+          + paper_psi(params, a, length, theta - 2*h, gamma))/(12*h)
+    u = paper_psi(params, a, length, theta, gamma) + theta*s
   end subroutine paper_legendre
 
   pure subroutine evaluate_quadratic(self, x, f, grad, hess, stat)

@@ -1,0 +1,107 @@
+!> Every integrator the code offers, in one table: its namelist name (&integrator scheme), its
+!> family, what it supports and how to build it. The input's allowed values, the output's
+!> attributes, --help and the Python scripts (through the attributes the output carries) all
+!> take names and capabilities from here. Adding an integrator: write its module (extend
+!> time_stepper, src/integrator/stepper) and add one row to `registered_integrators`.
+module integrator_registry
+  use stepper, only: time_stepper
+  use discrete_gradient_stepper, only: new_eme, new_midpoint
+  use ts_stepper, only: new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
+  implicit none (type, external)
+  private
+  public :: integrator_entry, registered_integrators, find_integrator, integrator_names, integrator_count
+  public :: family_discrete_gradient, family_petsc_ts
+
+  integer, parameter :: integrator_count = 6   !! the rows of the table below
+
+  !> The families, as the output's `scheme_family` attribute names them.
+  character(len=*), parameter :: family_discrete_gradient = 'discrete_gradient_step'  !! one SNES system per step
+  character(len=*), parameter :: family_petsc_ts = 'petsc_ts'                         !! a PETSc TS method
+
+  abstract interface
+    !> Allocates a new, unstarted integrator of the entry's kind.
+    subroutine builder(integrator)
+      import :: time_stepper
+      class(time_stepper), allocatable, intent(out) :: integrator
+    end subroutine builder
+  end interface
+
+  !> One integrator and its capabilities.
+  type :: integrator_entry
+    character(len=16) :: name = ''                  !! &integrator scheme = '<name>'
+    character(len=24) :: family = ''
+    character(len=16) :: label = ''                 !! plain name for figures (the paper's EME, MP, ...)
+    character(len=100) :: description = ''
+    logical :: takes_constraints = .false.
+    logical :: uses_discrete_gradient = .false.     !! reads discrete_gradient and metric
+    logical :: adaptive = .false.                   !! chooses its own steps (reads ts_tolerance)
+    logical :: thermo_variables(3) = .true.         !! takes tau = s, theta, u (thermo_variable's tau_*)
+    character(len=100) :: scheme_temperature = ''   !! what /scheme_temperature holds for it
+    procedure(builder), pointer, nopass :: build => null()
+  end type integrator_entry
+
+contains
+
+  !> The table.
+  function registered_integrators() result(entries)
+    type(integrator_entry) :: entries(integrator_count)
+    character(len=*), parameter :: ts_temperature = &
+      'temperatures at the end of the step (PETSc TS baselines have no discrete temperature)'
+
+    entries = [ &
+      integrator_entry(name='eme', family=family_discrete_gradient, label='EME', &
+        description='energy-momentum-entropy scheme (15): discrete gradients, one SNES system per step', &
+        takes_constraints=.true., uses_discrete_gradient=.true., build=new_eme, &
+        scheme_temperature='discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'), &
+      integrator_entry(name='midpoint', family=family_discrete_gradient, label='MP', &
+        description='implicit midpoint rule: the exact partials at the midpoint, one SNES system per step', &
+        takes_constraints=.true., build=new_midpoint, &
+        scheme_temperature='temperatures at the step''s midpoint, where K0 is evaluated'), &
+      integrator_entry(name='ts_midpoint', family=family_petsc_ts, label='TS-midpoint', &
+        description='PETSc TSTHETA with theta = 1/2: the implicit midpoint rule with PETSc''s SNES defaults', &
+        scheme_temperature=ts_temperature, build=new_ts_midpoint), &
+      integrator_entry(name='ts_bdf2', family=family_petsc_ts, label='BDF2', description='PETSc TSBDF of order 2', &
+        scheme_temperature=ts_temperature, build=new_ts_bdf2), &
+      integrator_entry(name='ts_rk4', family=family_petsc_ts, label='RK4', &
+        description='PETSc TSRK 4: the classic explicit Runge-Kutta method', &
+        scheme_temperature=ts_temperature, build=new_ts_rk4), &
+      integrator_entry(name='ts_rk5dp', family=family_petsc_ts, label='RK5DP', &
+        description='PETSc TSRK 5dp: adaptive Dormand-Prince at ts_tolerance, landing on every output time', &
+        adaptive=.true., scheme_temperature=ts_temperature, build=new_ts_rk5dp)]
+  end function registered_integrators
+
+  !> The entry named `name` (found = .false. if there is none).
+  subroutine find_integrator(name, entry, found)
+    character(len=*), intent(in) :: name
+    type(integrator_entry), intent(out) :: entry
+    logical, intent(out) :: found
+    type(integrator_entry) :: entries(integrator_count)
+    integer :: i
+
+    entries = registered_integrators()
+    found = .false.
+    do i = 1, size(entries)
+      if (entries(i)%name /= name) cycle
+      entry = entries(i)
+      found = .true.
+      return
+    end do
+  end subroutine find_integrator
+
+  !> The names, blank-separated (those that take constraints only, if `constrained`).
+  function integrator_names(constrained) result(list)
+    logical, intent(in) :: constrained
+    character(len=:), allocatable :: list
+    type(integrator_entry) :: entries(integrator_count)
+    integer :: i
+
+    entries = registered_integrators()
+    list = ''
+    do i = 1, size(entries)
+      if (constrained .and. .not. entries(i)%takes_constraints) cycle
+      list = trim(list//' '//entries(i)%name)
+    end do
+    list = adjustl(list)
+  end function integrator_names
+
+end module integrator_registry

@@ -1,0 +1,33 @@
+!> The settings of the &integrator namelist group that the integrators read (README, Input).
+module integrator_settings
+  use, intrinsic :: iso_fortran_env, only: real64
+  use thermo_variable, only: tau_temperature
+  use discrete_gradient, only: gradient_gonzalez, metric_nondimensional
+  implicit none (type, external)
+  private
+  public :: integrator_choice, step_count
+
+  !> Which integrator, in which thermodynamic variable, with which step and tolerances.
+  type :: integrator_choice
+    character(len=16) :: scheme = 'eme'              !! a name of the integrator registry
+    integer :: thermo_variable = tau_temperature     !! tau_* of thermo_variable
+    integer :: discrete_gradient = gradient_gonzalez
+    integer :: metric = metric_nondimensional
+    real(real64) :: dt = 0.15_real64                 !! the step, or the output interval [s]
+    real(real64) :: t_end = 20.0_real64              !! [s]
+    real(real64) :: newton_tol = 1.0e-8_real64       !! Newton's tolerance on the residual and the update
+    integer :: newton_max_iterations = 50            !! per nonlinear solve
+    real(real64) :: ts_tolerance = 1.0e-10_real64    !! absolute and relative, adaptive methods
+  end type integrator_choice
+
+contains
+
+  !> Number of steps that cover [0, t_end]: the last time is the first n dt >= t_end
+  !> (the paper's 20 s with dt = 0.15 s gives 134 steps ending at 20.1 s).
+  pure integer function step_count(choice)
+    type(integrator_choice), intent(in) :: choice
+
+    step_count = ceiling(choice%t_end/choice%dt - 1.0e-9_real64)
+  end function step_count
+
+end module integrator_settings

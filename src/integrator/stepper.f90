@@ -1,0 +1,67 @@
+!> What the time loop drives: an integrator that advances the run's unknowns x = (z,
+!> multipliers of the active constraints) from one output time to the next and reports what
+!> happened. The discrete-gradient steps (SNES), the PETSc TS baselines and later families
+!> extend it; src/integrator/integrator_registry builds them by name.
+module stepper
+  use, intrinsic :: iso_fortran_env, only: real64
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use integrator_settings, only: integrator_choice
+  implicit none (type, external)
+  private
+  public :: time_stepper, step_report
+
+  !> How a step went.
+  type :: step_report
+    logical :: accepted = .false.
+    integer :: strategy = 0              !! what found the root (retry_strategies' strategy_*; 0 for TS)
+    integer :: newton_iterations = 0     !! summed over every solve of the step
+    integer :: solves = 0                !! nonlinear solves (continuation stages included), or TS steps taken
+    integer :: rejected = 0              !! roots rejected as unphysical, or TS steps rejected
+    real(real64), allocatable :: scheme_temperature(:)   !! the temperatures the step's K0 used
+    character(len=:), allocatable :: reason              !! why the step failed (if it did)
+    character(len=:), allocatable :: last_rejection      !! why the last rejected root was rejected
+  end type step_report
+
+  !> An integrator of one run at a time; `start` may reuse what an earlier run set up.
+  type, abstract :: time_stepper
+    character(len=16) :: scheme = ''     !! the registry name it was built for
+  contains
+    procedure(start_interface), deferred :: start
+    procedure(advance_interface), deferred :: advance
+    procedure(release_interface), deferred :: release
+  end type time_stepper
+
+  abstract interface
+    !> Prepares a run of `model` from state z0 at t = 0 with the active `constraints`. ierr /= 0
+    !> only for a library error.
+    subroutine start_interface(self, choice, model, constraints, z0, ierr)
+      import :: time_stepper, integrator_choice, generic_model, constraint_slot, real64
+      class(time_stepper), intent(inout), target :: self
+      type(integrator_choice), intent(in) :: choice
+      class(generic_model), intent(in) :: model
+      type(constraint_slot), intent(in) :: constraints(:)
+      real(real64), intent(in) :: z0(:)
+      integer, intent(out) :: ierr
+    end subroutine start_interface
+
+    !> From x_old (at time t_old) to x_new at t_old + dt; `guess` is a predictor the integrator
+    !> may use. ierr /= 0 only for a library error; a step that cannot be done is reported.
+    subroutine advance_interface(self, x_old, t_old, dt, guess, x_new, report, ierr)
+      import :: time_stepper, step_report, real64
+      class(time_stepper), intent(inout), target :: self
+      real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
+      real(real64), intent(out) :: x_new(:)
+      type(step_report), intent(out) :: report
+      integer, intent(out) :: ierr
+    end subroutine advance_interface
+
+    !> Frees what the stepper holds (library objects); it can start again afterwards.
+    subroutine release_interface(self, ierr)
+      import :: time_stepper
+      class(time_stepper), intent(inout) :: self
+      integer, intent(out) :: ierr
+    end subroutine release_interface
+  end interface
+
+end module stepper

@@ -1,0 +1,481 @@
+!> One reader for every namelist group: a group is a table of fields, each bound to the variable
+!> that receives it, with what it allows. `read_group` applies the group's items from the file
+!> and then any overrides (e.g. a study's sweep values), one item at a time, so that a failing
+!> item is known by name, and checks each field against its table entry. Errors come back as a
+!> message naming the file (or override), the group, the field and what is allowed. The same
+!> tables give --help its lists and the output its attributes.
+!>
+!> Values are read as Fortran reads list-directed input (repeat counts such as 2*0.5 included);
+!> an array takes exactly its number of values, or one value per subscript (theta(2) = 350,
+!> p2(1:2) = 2*0.5); texts are quoted; logical values are .true. or .false. (or T, F).
+module namelist_group
+  use, intrinsic :: iso_fortran_env, only: real64
+  use namelist_text, only: namelist_item, group_items, item_name, reals_text
+  use number_text, only: integer_text
+  implicit none (type, external)
+  private
+  public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
+  public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
+  public :: field_real, field_integer, field_logical, field_text
+
+  integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
+
+  !> A field of a group: its name, what it allows (for messages and --help), its units, and the
+  !> variable it is read into. Bounds and choices are checked after the group is read.
+  type :: group_field
+    character(len=24) :: name = ''
+    character(len=120) :: allowed = ''
+    character(len=16) :: units = ''
+    integer :: kind = field_real
+    real(real64), pointer :: real_value => null()
+    real(real64), pointer :: real_values(:) => null()
+    integer, pointer :: integer_value => null()
+    logical, pointer :: logical_value => null()
+    character(len=:), pointer :: text_value => null()
+    character(len=64), pointer :: text_values(:) => null()
+    logical :: open_length = .false.              !! an array that takes up to its size of values
+    real(real64) :: minimum = -huge(1.0_real64)   !! every value >= minimum (> if exclusive)
+    logical :: exclusive = .false.
+    logical :: nonzero = .false.                  !! an array that must not be all zero
+    logical :: check_equal = .false.              !! a real that must equal `required` (relative 1e-12)
+    real(real64) :: required = 0.0_real64
+    character(len=200) :: choices = ''            !! the allowed texts, separated by blanks ('' = any)
+  end type group_field
+
+contains
+
+  ! ------------------------------------------------------------------ building tables
+
+  !> A real scalar field.
+  function real_field(name, variable, allowed, units, minimum, exclusive) result(field)
+    character(len=*), intent(in) :: name, allowed, units
+    real(real64), intent(in), target :: variable
+    real(real64), intent(in), optional :: minimum
+    logical, intent(in), optional :: exclusive
+    type(group_field) :: field
+
+    field = group_field(name=name, allowed=allowed, units=units, kind=field_real)
+    field%real_value => variable
+    call set_bounds(field, minimum, exclusive)
+  end function real_field
+
+  !> A real array field; nonzero: not all values may be zero; open_length: it takes up to its
+  !> size of values, leaving the rest as they were.
+  function reals_field(name, variable, allowed, units, minimum, exclusive, nonzero, open_length) result(field)
+    character(len=*), intent(in) :: name, allowed, units
+    real(real64), intent(in), target :: variable(:)
+    real(real64), intent(in), optional :: minimum
+    logical, intent(in), optional :: exclusive, nonzero, open_length
+    type(group_field) :: field
+
+    field = group_field(name=name, allowed=allowed, units=units, kind=field_real)
+    field%real_values => variable
+    call set_bounds(field, minimum, exclusive)
+    if (present(nonzero)) field%nonzero = nonzero
+    if (present(open_length)) field%open_length = open_length
+  end function reals_field
+
+  !> An integer field.
+  function integer_field(name, variable, allowed, minimum) result(field)
+    character(len=*), intent(in) :: name, allowed
+    integer, intent(in), target :: variable
+    integer, intent(in), optional :: minimum
+    type(group_field) :: field
+
+    field = group_field(name=name, allowed=allowed, units='1', kind=field_integer)
+    field%integer_value => variable
+    if (present(minimum)) field%minimum = real(minimum, real64)
+  end function integer_field
+
+  !> A logical field.
+  function logical_field(name, variable, allowed) result(field)
+    character(len=*), intent(in) :: name, allowed
+    logical, intent(in), target :: variable
+    type(group_field) :: field
+
+    field = group_field(name=name, allowed=allowed, units='', kind=field_logical)
+    field%logical_value => variable
+  end function logical_field
+
+  !> A text field; choices (blank-separated) are its allowed values, '' for any text.
+  function text_field(name, variable, allowed, choices) result(field)
+    character(len=*), intent(in) :: name, allowed, choices
+    character(len=*), intent(in), target :: variable
+    type(group_field) :: field
+
+    field = group_field(name=name, allowed=allowed, units='', kind=field_text)
+    field%text_value => variable
+    field%choices = choices
+  end function text_field
+
+  !> A list of up to size(variable) quoted texts (the rest is left as it was).
+  function texts_field(name, variable, allowed) result(field)
+    character(len=*), intent(in) :: name, allowed
+    character(len=64), intent(in), target :: variable(:)
+    type(group_field) :: field
+
+    field = group_field(name=name, allowed=allowed, units='', kind=field_text)
+    field%text_values => variable
+    field%open_length = .true.
+  end function texts_field
+
+  subroutine set_bounds(field, minimum, exclusive)
+    type(group_field), intent(inout) :: field
+    real(real64), intent(in), optional :: minimum
+    logical, intent(in), optional :: exclusive
+
+    if (present(minimum)) field%minimum = minimum
+    if (present(exclusive)) field%exclusive = exclusive
+  end subroutine set_bounds
+
+  ! ------------------------------------------------------------------ reading
+
+  !> Reads group &group of `text` (and the `extra` items that name its fields) into the fields'
+  !> variables and checks them; stat /= 0 with `message` on the first problem. `origin` is the
+  !> file's name, for messages.
+  subroutine read_group(text, group, fields, origin, stat, message, extra, occurrence)
+    character(len=*), intent(in) :: text, group, origin
+    type(group_field), intent(in) :: fields(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    type(namelist_item), intent(in), optional :: extra(:)
+    integer, intent(in), optional :: occurrence
+    type(namelist_item), allocatable :: items(:)
+    integer :: i, k
+
+    stat = 0
+    message = ''
+    call group_items(text, group, field_names(fields), origin, items, extra, occurrence)
+    do i = 1, size(items)
+      k = field_index(fields, item_name(items(i)%item))
+      if (k == 0) then
+        stat = 1
+        message = items(i)%origin//': &'//group//': unknown field '''//item_name(items(i)%item)//'''; allowed: ' &
+                  //names_text(fields)
+        return
+      end if
+      call apply_item(fields(k), items(i)%item, stat)
+      if (stat /= 0) then
+        message = items(i)%origin//': &'//group//': field '''//trim(fields(k)%name)//''' cannot take the value ' &
+                  //quoted_value(items(i)%item)//'; allowed: '//trim(fields(k)%allowed)
+        return
+      end if
+    end do
+    do k = 1, size(fields)
+      if (within_bounds(fields(k))) cycle
+      stat = 1
+      message = invalid_value_message(origin_of(items, fields(k)%name, origin), group, fields(k))
+      return
+    end do
+  end subroutine read_group
+
+  !> "origin: &group: field = value is not allowed; allowed: ...", for a field whose value (as it
+  !> stands now) breaks a rule of the group.
+  function invalid_value_message(origin, group, field) result(message)
+    character(len=*), intent(in) :: origin, group
+    type(group_field), intent(in) :: field
+    character(len=:), allocatable :: message
+
+    message = origin//': &'//group//': '//trim(field%name)//' = '//field_value_text(field)//' is not allowed; allowed: ' &
+              //trim(field%allowed)
+  end function invalid_value_message
+
+  !> The field's value as a user would write it (texts quoted).
+  function field_value_text(field) result(text)
+    type(group_field), intent(in) :: field
+    character(len=:), allocatable :: text
+
+    select case (field%kind)
+    case (field_real)
+      if (associated(field%real_value)) then
+        text = reals_text([field%real_value])
+      else
+        text = reals_text(field%real_values)
+      end if
+    case (field_integer)
+      text = integer_text(field%integer_value)
+    case (field_logical)
+      text = merge('.true. ', '.false.', field%logical_value)
+      text = trim(text)
+    case default
+      if (associated(field%text_value)) then
+        text = ''''//trim(field%text_value)//''''
+      else
+        text = ''''//trim(field%text_values(1))//''', ...'
+      end if
+    end select
+  end function field_value_text
+
+  !> The names of a table's fields.
+  function field_names(fields) result(names)
+    type(group_field), intent(in) :: fields(:)
+    character(len=24) :: names(size(fields))
+
+    names = fields%name
+  end function field_names
+
+  !> "'a', 'b' or 'c'" from the blank-separated choices "a b c".
+  pure function choices_text(choices) result(text)
+    character(len=*), intent(in) :: choices
+    character(len=:), allocatable :: text
+    character(len=:), allocatable :: rest, word
+    integer :: count, blank
+
+    text = ''
+    rest = trim(adjustl(choices))
+    count = 0
+    do while (len(rest) > 0)
+      blank = index(rest, ' ')
+      if (blank == 0) blank = len(rest) + 1
+      word = ''''//rest(1:blank - 1)//''''
+      rest = trim(adjustl(rest(blank:)))
+      count = count + 1
+      if (count == 1) then
+        text = word
+      else if (len(rest) == 0) then
+        text = text//' or '//word
+      else
+        text = text//', '//word
+      end if
+    end do
+  end function choices_text
+
+  ! ------------------------------------------------------------------ helpers
+
+  ! Applies 'name[(i[:j])] = value' to the field; stat /= 0 if the value does not fit it.
+  subroutine apply_item(field, item, stat)
+    type(group_field), intent(in) :: field
+    character(len=*), intent(in) :: item
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: value
+    integer :: first, last, equals, open_at
+    real(real64) :: one(1)
+    character(len=1024) :: text_buffer
+
+    equals = index(item, '=')
+    value = trim(adjustl(item(equals + 1:)))
+    if (len(value) > 0) then
+      if (value(len(value):len(value)) == ',') value = value(1:len(value) - 1)
+    end if
+    open_at = index(item(1:equals), '(')
+    stat = 1
+    if (len_trim(value) == 0) return
+    if (associated(field%real_values)) then
+      first = 1
+      last = size(field%real_values)
+      if (open_at > 0) call parse_subscript(item(open_at + 1:equals - 1), first, last, stat)
+      if (open_at > 0 .and. stat /= 0) return
+      call read_reals(value, field%real_values(first:last), stat, field%open_length)
+      return
+    end if
+    if (associated(field%text_values)) then
+      if (index('''"', value(1:1)) == 0 .or. open_at > 0) return    ! quoted texts, no subscripts
+      call read_texts(value, field%text_values, stat)
+      return
+    end if
+    if (open_at > 0) return    ! a subscript on a scalar
+    select case (field%kind)
+    case (field_real)
+      one = field%real_value
+      call read_reals(value, one, stat)
+      if (stat == 0) field%real_value = one(1)
+    case (field_integer)
+      call read_integer(value, field%integer_value, stat)
+    case (field_logical)
+      call read_logical(value, field%logical_value, stat)
+    case default
+      if (index('''"', value(1:1)) == 0) return    ! texts are quoted
+      read (value, *, iostat=stat) text_buffer
+      if (stat == 0 .and. len_trim(text_buffer) > len(field%text_value)) stat = 1
+      if (stat == 0) field%text_value = trim(text_buffer)
+    end select
+
+  end subroutine apply_item
+
+  ! Exactly size(values) values from the text (list-directed), or up to that many if
+  ! open_length; one more is an error.
+  subroutine read_reals(text, values, stat, open_length)
+    character(len=*), intent(in) :: text
+    real(real64), intent(inout) :: values(:)
+    integer, intent(out) :: stat
+    logical, intent(in), optional :: open_length
+    real(real64) :: probe(size(values) + 1)
+    integer :: probe_stat
+    logical :: open
+    character(len=len(text) + 2) :: ended
+
+    open = .false.
+    if (present(open_length)) open = open_length
+    if (open) then
+      ended = text//' /'                           ! '/' ends list-directed input early
+      read (ended, *, iostat=stat) values
+    else
+      read (text, *, iostat=stat) values
+    end if
+    if (stat /= 0) return
+    read (text, *, iostat=probe_stat) probe
+    if (probe_stat == 0) stat = 1
+  end subroutine read_reals
+
+  ! Up to size(values) quoted texts; one more is an error.
+  subroutine read_texts(text, values, stat)
+    character(len=*), intent(in) :: text
+    character(len=64), intent(inout) :: values(:)
+    integer, intent(out) :: stat
+    character(len=64) :: probe(size(values) + 1)
+    integer :: probe_stat
+    character(len=len(text) + 2) :: ended
+
+    ended = text//' /'
+    read (ended, *, iostat=stat) values
+    if (stat /= 0) return
+    read (text, *, iostat=probe_stat) probe
+    if (probe_stat == 0) stat = 1
+  end subroutine read_texts
+
+  subroutine read_integer(text, value, stat)
+    character(len=*), intent(in) :: text
+    integer, intent(inout) :: value
+    integer, intent(out) :: stat
+    integer :: probe(2), probe_stat
+
+    read (text, *, iostat=stat) value
+    if (stat /= 0) return
+    read (text, *, iostat=probe_stat) probe
+    if (probe_stat == 0) stat = 1
+  end subroutine read_integer
+
+  subroutine read_logical(text, value, stat)
+    character(len=*), intent(in) :: text
+    logical, intent(inout) :: value
+    integer, intent(out) :: stat
+    logical :: probe(2)
+    integer :: probe_stat
+
+    read (text, *, iostat=stat) value
+    if (stat /= 0) return
+    read (text, *, iostat=probe_stat) probe
+    if (probe_stat == 0) stat = 1
+  end subroutine read_logical
+
+  ! 'i' or 'i:j' within first:last (which it narrows); stat /= 0 if not.
+  subroutine parse_subscript(text, first, last, stat)
+    character(len=*), intent(in) :: text
+    integer, intent(inout) :: first, last
+    integer, intent(out) :: stat
+    integer :: colon, close_at, lower, upper
+
+    close_at = index(text, ')')
+    stat = 1
+    if (close_at == 0) return
+    colon = index(text(1:close_at - 1), ':')
+    if (colon == 0) then
+      read (text(1:close_at - 1), *, iostat=stat) lower
+      upper = lower
+    else
+      read (text(1:colon - 1), *, iostat=stat) lower
+      if (stat == 0) read (text(colon + 1:close_at - 1), *, iostat=stat) upper
+    end if
+    if (stat /= 0) return
+    if (lower < first .or. upper > last .or. upper < lower) then
+      stat = 1
+      return
+    end if
+    first = lower
+    last = upper
+  end subroutine parse_subscript
+
+  ! Whether the field's value keeps its bounds, non-zero rule and choices.
+  logical function within_bounds(field)
+    type(group_field), intent(in) :: field
+    real(real64), allocatable :: values(:)
+
+    within_bounds = .true.
+    select case (field%kind)
+    case (field_real)
+      if (associated(field%real_value)) then
+        values = [field%real_value]
+      else
+        values = field%real_values
+      end if
+      if (field%exclusive) then
+        within_bounds = all(values > field%minimum)
+      else if (field%minimum > -huge(1.0_real64)) then
+        within_bounds = all(values >= field%minimum)
+      end if
+      if (field%nonzero) within_bounds = within_bounds .and. norm2(values) > 0.0_real64
+      if (field%check_equal) within_bounds = within_bounds .and. &
+                                             all(abs(values - field%required) <= 1.0e-12_real64*abs(field%required))
+    case (field_integer)
+      within_bounds = real(field%integer_value, real64) >= field%minimum
+    case (field_text)
+      if (len_trim(field%choices) > 0) within_bounds = is_choice(trim(field%text_value), field%choices)
+    end select
+  end function within_bounds
+
+  ! Whether `word` is one of the blank-separated `choices`.
+  pure logical function is_choice(word, choices)
+    character(len=*), intent(in) :: word, choices
+
+    is_choice = len(word) > 0 .and. index(' '//choices//' ', ' '//word//' ') > 0
+  end function is_choice
+
+  integer function field_index(fields, name)
+    type(group_field), intent(in) :: fields(:)
+    character(len=*), intent(in) :: name
+    integer :: k
+
+    field_index = 0
+    do k = 1, size(fields)
+      if (fields(k)%name == name) field_index = k
+    end do
+  end function field_index
+
+  ! 'a, b, c' from the fields' names.
+  function names_text(fields) result(list)
+    type(group_field), intent(in) :: fields(:)
+    character(len=:), allocatable :: list
+    integer :: k
+
+    list = trim(fields(1)%name)
+    do k = 2, size(fields)
+      list = list//', '//trim(fields(k)%name)
+    end do
+  end function names_text
+
+  ! The value of an item as written, quoted if it is not already.
+  function quoted_value(item) result(value)
+    character(len=*), intent(in) :: item
+    character(len=:), allocatable :: value
+
+    value = trim(adjustl(item(index(item, '=') + 1:)))
+    if (len(value) == 0) value = ' '
+    if (verify(value(1:1), '''"') /= 0) value = ''''//value//''''
+  end function quoted_value
+
+  !> Where the last value of field `name` of group &group came from: the origin of an `extra`
+  !> item that sets it, or `origin` (the input file).
+  function value_origin(text, group, name, origin, extra) result(where)
+    character(len=*), intent(in) :: text, group, name, origin
+    type(namelist_item), intent(in), optional :: extra(:)
+    character(len=:), allocatable :: where
+    type(namelist_item), allocatable :: items(:)
+
+    call group_items(text, group, [character(len=24) :: name], origin, items, extra)
+    where = origin_of(items, name, origin)
+  end function value_origin
+
+  ! Where the last value of `name` came from: an override's origin, or the input file.
+  function origin_of(items, name, input_file) result(origin)
+    type(namelist_item), intent(in) :: items(:)
+    character(len=*), intent(in) :: name, input_file
+    character(len=:), allocatable :: origin
+    integer :: i
+
+    origin = input_file
+    do i = 1, size(items)
+      if (item_name(items(i)%item) == trim(name)) origin = items(i)%origin
+    end do
+  end function origin_of
+
+end module namelist_group

@@ -1,0 +1,80 @@
+!> What a model reads and builds for a run: its namelist groups (the scene: parameters, initial
+!> state, constraints) and, for a thermodynamic variable, the model of src/structure/
+!> model_interface, its initial state and its active constraints. src/model/model_registry
+!> names the scenes; run_config reads the run-level groups (&integrator, &output) around them.
+module model_scene
+  use, intrinsic :: iso_fortran_env, only: real64
+  use namelist_text, only: namelist_item
+  use namelist_group, only: group_field
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  implicit none (type, external)
+  private
+  public :: scene
+
+  !> A model's input.
+  type, abstract :: scene
+  contains
+    procedure(group_names_interface), deferred :: group_names
+    procedure(fields_interface), deferred :: fields
+    procedure(read_interface), deferred :: read
+    procedure(build_interface), deferred :: build
+    procedure(theta_interface), deferred :: default_theta_r
+    procedure(count_interface), deferred :: constraint_count
+  end type scene
+
+  abstract interface
+    !> The namelist groups the scene reads, in reading order.
+    pure subroutine group_names_interface(self, names)
+      import :: scene
+      class(scene), intent(in) :: self
+      character(len=16), allocatable, intent(out) :: names(:)
+    end subroutine group_names_interface
+
+    !> The fields of group `group`, bound to the scene's variables.
+    function fields_interface(self, group) result(fields)
+      import :: scene, group_field
+      class(scene), intent(in), target :: self
+      character(len=*), intent(in) :: group
+      type(group_field), allocatable :: fields(:)
+    end function fields_interface
+
+    !> Reads and checks the scene's groups from `text` (the input file `origin`, comments
+    !> removed) and the `extra` items; stat /= 0 with a message naming file, group and field.
+    subroutine read_interface(self, text, origin, extra, stat, message)
+      import :: scene, namelist_item
+      class(scene), intent(inout), target :: self
+      character(len=*), intent(in) :: text, origin
+      type(namelist_item), intent(in) :: extra(:)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: message
+    end subroutine read_interface
+
+    !> The model in thermodynamic variable `variable` (thermo_variable's tau_*), its initial
+    !> state z0 and its active constraints; stat /= 0 if the initial state is outside the domain.
+    subroutine build_interface(self, variable, model, z0, constraints, stat, message)
+      import :: scene, generic_model, constraint_slot, real64
+      class(scene), intent(in) :: self
+      integer, intent(in) :: variable
+      class(generic_model), allocatable, intent(out) :: model
+      real(real64), allocatable, intent(out) :: z0(:)
+      type(constraint_slot), allocatable, intent(out) :: constraints(:)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: message
+    end subroutine build_interface
+
+    !> The Lyapunov reference temperature theta_R a run uses unless &output sets it [K].
+    pure function theta_interface(self) result(theta_r)
+      import :: scene, real64
+      class(scene), intent(in) :: self
+      real(real64) :: theta_r
+    end function theta_interface
+
+    !> Number of active constraints.
+    pure integer function count_interface(self)
+      import :: scene
+      class(scene), intent(in) :: self
+    end function count_interface
+  end interface
+
+end module model_scene

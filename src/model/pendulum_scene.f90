@@ -1,0 +1,174 @@
+!> The double pendulum's input: the groups &model (Table 1's data), &initial (FORMULATION
+!> section 1's state, with temperatures whatever the thermodynamic variable) and &constraints
+!> (g1, g2 of eq. (13)). Defaults are the paper's scene. A constraint must hold at t = 0, or the
+!> first step would jump onto it and do work: `length` defaults to |q1(0)| and must equal it,
+!> `temperature` defaults to theta(1) and must equal it.
+module pendulum_scene
+  use, intrinsic :: iso_fortran_env, only: real64
+  use namelist_text, only: namelist_item
+  use namelist_group, only: group_field, real_field, reals_field, logical_field, text_field, read_group
+  use model_parameters, only: pendulum_parameters
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use model_scene, only: scene
+  use pendulum_model, only: pendulum, make_pendulum
+  use length_constraint, only: make_fixed_length
+  use temperature_constraint, only: make_fixed_temperature
+  implicit none (type, external)
+  private
+  public :: double_pendulum_scene, double_pendulum_name
+
+  character(len=*), parameter :: double_pendulum_name = 'double_pendulum'
+
+  !> The values of the three groups, in their namelist names.
+  type, extends(scene) :: double_pendulum_scene
+    character(len=24) :: model_name = double_pendulum_name
+    type(pendulum_parameters) :: params
+    real(real64) :: q1(3) = [1.0_real64, 0.0_real64, 0.0_real64]
+    real(real64) :: q2(3) = [3.0_real64, 0.0_real64, 0.0_real64]
+    real(real64) :: p1(3) = [0.0_real64, 0.0_real64, 0.0_real64]
+    real(real64) :: p2(3) = [-1.0_real64, -1.0_real64, 0.0_real64]
+    real(real64) :: gamma = 0.0_real64
+    real(real64) :: theta(2) = [280.0_real64, 350.0_real64]
+    logical :: fix_length = .false.
+    real(real64) :: length = 1.0_real64
+    logical :: fix_temperature = .false.
+    real(real64) :: temperature = 280.0_real64
+  contains
+    procedure :: group_names
+    procedure :: fields
+    procedure :: read
+    procedure :: build
+    procedure :: default_theta_r
+    procedure :: constraint_count
+  end type double_pendulum_scene
+
+contains
+
+  !> &model, &initial, &constraints.
+  pure subroutine group_names(self, names)
+    class(double_pendulum_scene), intent(in) :: self
+    character(len=16), allocatable, intent(out) :: names(:)
+
+    names = [character(len=16) :: 'model', 'initial', 'constraints']
+  end subroutine group_names
+
+  !> The fields of one group (README, Input).
+  function fields(self, group) result(table)
+    class(double_pendulum_scene), intent(in), target :: self
+    character(len=*), intent(in) :: group
+    type(group_field), allocatable :: table(:)
+
+    select case (group)
+    case ('model')
+      associate (p => self%params)
+        table = [ &
+          text_field('model_name', self%model_name, "the model: 'double_pendulum'", double_pendulum_name), &
+          reals_field('mass', p%mass, 'two real numbers > 0 [kg]', 'kg', minimum=0.0_real64, exclusive=.true.), &
+          reals_field('natural_length', p%natural_length, 'two real numbers > 0 [m]', 'm', minimum=0.0_real64, &
+                      exclusive=.true.), &
+          reals_field('mu_eq_const', p%mu_eq_const, 'two real numbers [J]', 'J'), &
+          reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers [J/K]', 'J/K'), &
+          real_field('mu_neq_const', p%mu_neq_const, 'a real number', 'J/m^2'), &
+          real_field('mu_neq_slope', p%mu_neq_slope, 'a real number', 'J/(K m^2)'), &
+          reals_field('heat_capacity', p%heat_capacity, 'two real numbers > 0 [J/K]', 'J/K', minimum=0.0_real64, &
+                      exclusive=.true.), &
+          real_field('viscosity_const', p%viscosity_const, 'a real number > 0', 'J s/m^2', minimum=0.0_real64, &
+                     exclusive=.true.), &
+          real_field('viscosity_activation', p%viscosity_activation, 'a real number [K]', 'K'), &
+          real_field('conductivity', p%conductivity, 'a real number >= 0 [J/(K s)]', 'J/(K s)', minimum=0.0_real64), &
+          real_field('theta_ref', p%theta_ref, 'a real number > 0 [K]', 'K', minimum=0.0_real64, exclusive=.true.), &
+          real_field('beta', p%beta, 'a real number [J/K]', 'J/K'), &
+          real_field('beta_v', p%beta_v, 'a real number >= 0', '1', minimum=0.0_real64), &
+          reals_field('gravity', p%gravity, 'three real numbers [m/s^2]', 'm/s^2')]
+      end associate
+    case ('initial')
+      table = [ &
+        reals_field('q1', self%q1, 'three real numbers, not all zero [m]', 'm', nonzero=.true.), &
+        reals_field('q2', self%q2, 'three real numbers, not all zero [m]', 'm', nonzero=.true.), &
+        reals_field('p1', self%p1, 'three real numbers [N s]', 'N s'), &
+        reals_field('p2', self%p2, 'three real numbers [N s]', 'N s'), &
+        real_field('gamma', self%gamma, 'a real number [m]', 'm'), &
+        reals_field('theta', self%theta, 'two real numbers > 0 [K]', 'K', minimum=0.0_real64, exclusive=.true.)]
+    case ('constraints')
+      table = [ &
+        logical_field('fix_length', self%fix_length, '.true. or .false.'), &
+        real_field('length', self%length, 'a real number > 0 equal to |q1| at t = 0 [m]', 'm', minimum=0.0_real64, &
+                   exclusive=.true.), &
+        logical_field('fix_temperature', self%fix_temperature, '.true. or .false.'), &
+        real_field('temperature', self%temperature, 'a real number > 0 equal to theta(1) at t = 0 [K]', 'K', &
+                   minimum=0.0_real64, exclusive=.true.)]
+      ! A constraint must hold at t = 0.
+      table(2)%check_equal = .true.
+      table(2)%required = norm2(self%q1)
+      table(4)%check_equal = .true.
+      table(4)%required = self%theta(1)
+    case default
+      allocate (table(0))
+    end select
+  end function fields
+
+  !> Reads &model, &initial and &constraints in that order (the constraints' defaults come from
+  !> the initial state).
+  subroutine read(self, text, origin, extra, stat, message)
+    class(double_pendulum_scene), intent(inout), target :: self
+    character(len=*), intent(in) :: text, origin
+    type(namelist_item), intent(in) :: extra(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+
+    call read_group(text, 'model', self%fields('model'), origin, stat, message, extra)
+    if (stat == 0) call read_group(text, 'initial', self%fields('initial'), origin, stat, message, extra)
+    if (stat /= 0) return
+    self%length = norm2(self%q1)
+    self%temperature = self%theta(1)
+    call read_group(text, 'constraints', self%fields('constraints'), origin, stat, message, extra)
+  end subroutine read
+
+  !> The pendulum in thermodynamic variable `variable`, the initial state and the constraints.
+  subroutine build(self, variable, model, z0, constraints, stat, message)
+    class(double_pendulum_scene), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: model
+    real(real64), allocatable, intent(out) :: z0(:)
+    type(constraint_slot), allocatable, intent(out) :: constraints(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    type(pendulum) :: pendulum_of_scene
+    integer :: k
+
+    message = ''
+    pendulum_of_scene = make_pendulum(self%params, variable)
+    allocate (z0(pendulum_of_scene%state_size))
+    call pendulum_of_scene%state_from_temperatures(self%q1, self%q2, self%p1, self%p2, self%gamma, self%theta, z0, stat)
+    if (stat /= 0) message = '&initial: the initial state lies outside the model''s domain'
+    allocate (model, source=pendulum_of_scene)
+    allocate (constraints(self%constraint_count()))
+    k = 0
+    if (self%fix_length) then
+      k = k + 1
+      allocate (constraints(k)%item, source=make_fixed_length(self%length))
+    end if
+    if (self%fix_temperature) then
+      k = k + 1
+      allocate (constraints(k)%item, source=make_fixed_temperature(1, self%temperature))
+    end if
+  end subroutine build
+
+  !> theta_ref, or the fixed temperature of spring 1 under g2 (FORMULATION section 7).
+  pure function default_theta_r(self) result(theta_r)
+    class(double_pendulum_scene), intent(in) :: self
+    real(real64) :: theta_r
+
+    theta_r = self%params%theta_ref
+    if (self%fix_temperature) theta_r = self%temperature
+  end function default_theta_r
+
+  !> Number of active constraints.
+  pure integer function constraint_count(self)
+    class(double_pendulum_scene), intent(in) :: self
+
+    constraint_count = count([self%fix_length, self%fix_temperature])
+  end function constraint_count
+
+end module pendulum_scene

@@ -1,0 +1,76 @@
+!> LU factors of a small dense matrix by LAPACK: dgetf2 (unblocked; for 15 to 17 unknowns it
+!> costs half of the blocked dgetrf that PETSc's dense LU calls, README per-step cost) and dgetrs.
+!> The step solver's shell preconditioner keeps them, and its chord predictor reuses them.
+module dense_lu
+  use, intrinsic :: iso_fortran_env, only: real64
+  implicit none (type, external)
+  private
+  public :: lu_factors
+
+  !> The factors of the last matrix factored, if `ready`.
+  type :: lu_factors
+    real(real64), allocatable :: factors(:, :)
+    integer, allocatable :: pivots(:)
+    logical :: ready = .false.
+  contains
+    procedure :: reset
+    procedure :: factor
+    procedure :: solve
+  end type lu_factors
+
+  interface
+    !> LU factorization with partial pivoting, unblocked: A = P L U.
+    subroutine dgetf2(m, n, a, lda, ipiv, info)
+      import :: real64
+      integer, intent(in) :: m, n, lda
+      real(real64), intent(inout) :: a(lda, *)
+      integer, intent(out) :: ipiv(*), info
+    end subroutine dgetf2
+    !> Solves A X = B (trans = 'N') with the factors of dgetf2.
+    subroutine dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
+      import :: real64
+      character, intent(in) :: trans
+      integer, intent(in) :: n, nrhs, lda, ldb, ipiv(*)
+      real(real64), intent(in) :: a(lda, *)
+      real(real64), intent(inout) :: b(ldb, *)
+      integer, intent(out) :: info
+    end subroutine dgetrs
+  end interface
+
+contains
+
+  !> Room for n x n factors, none ready.
+  pure subroutine reset(self, n)
+    class(lu_factors), intent(inout) :: self
+    integer, intent(in) :: n
+
+    if (allocated(self%factors)) deallocate (self%factors, self%pivots)
+    allocate (self%factors(n, n), self%pivots(n))
+    self%ready = .false.
+  end subroutine reset
+
+  !> Factors `matrix`; info /= 0 for a zero pivot (then no factors are ready).
+  subroutine factor(self, matrix, info)
+    class(lu_factors), intent(inout) :: self
+    real(real64), intent(in) :: matrix(:, :)
+    integer, intent(out) :: info
+    integer :: n
+
+    n = size(self%pivots)
+    self%factors = matrix
+    call dgetf2(n, n, self%factors, n, self%pivots, info)
+    self%ready = info == 0
+  end subroutine factor
+
+  !> b := A^-1 b with the factors.
+  subroutine solve(self, b, info)
+    class(lu_factors), intent(in) :: self
+    real(real64), intent(inout) :: b(:)
+    integer, intent(out) :: info
+    integer :: n
+
+    n = size(self%pivots)
+    call dgetrs('N', n, 1, self%factors, n, self%pivots, b, n, info)
+  end subroutine solve
+
+end module dense_lu

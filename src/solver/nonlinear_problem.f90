@@ -1,0 +1,53 @@
+!> What the nonlinear solvers need from a problem R(x) = 0 of any size: the residual with its
+!> Jacobian, a physical check of a root, and a continuation parameter s in (0, 1] that deforms
+!> the problem into an easier one (s = 1 is the problem itself; as s -> 0 a known point, such
+!> as a time step's old state, becomes a root).
+module nonlinear_problem
+  use, intrinsic :: iso_fortran_env, only: real64
+  implicit none (type, external)
+  private
+  public :: nonlinear_system
+
+  !> A square nonlinear system R(x) = 0.
+  type, abstract :: nonlinear_system
+  contains
+    procedure(unknowns_interface), deferred :: unknowns
+    procedure(evaluate_interface), deferred :: evaluate
+    procedure(check_root_interface), deferred :: check_root
+    procedure(continuation_interface), deferred :: set_continuation
+  end type nonlinear_system
+
+  abstract interface
+    !> Number of unknowns (and equations).
+    pure integer function unknowns_interface(self)
+      import :: nonlinear_system
+      class(nonlinear_system), intent(in) :: self
+    end function unknowns_interface
+
+    !> R(x) and optionally dR/dx; stat /= 0 when x lies outside the problem's domain.
+    pure subroutine evaluate_interface(self, x, residual, jacobian, stat)
+      import :: nonlinear_system, real64
+      class(nonlinear_system), intent(in) :: self
+      real(real64), intent(in) :: x(:)
+      real(real64), intent(out) :: residual(:)
+      real(real64), intent(out), optional :: jacobian(:, :)
+      integer, intent(out) :: stat
+    end subroutine evaluate_interface
+
+    !> Why x is not an acceptable root ('' if it is).
+    pure subroutine check_root_interface(self, x, problem_text)
+      import :: nonlinear_system, real64
+      class(nonlinear_system), intent(in) :: self
+      real(real64), intent(in) :: x(:)
+      character(len=:), allocatable, intent(out) :: problem_text
+    end subroutine check_root_interface
+
+    !> Selects the deformed problem at s in (0, 1].
+    pure subroutine continuation_interface(self, s)
+      import :: nonlinear_system, real64
+      class(nonlinear_system), intent(inout) :: self
+      real(real64), intent(in) :: s
+    end subroutine continuation_interface
+  end interface
+
+end module nonlinear_problem

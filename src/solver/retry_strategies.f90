@@ -1,0 +1,213 @@
+!> How a time step's nonlinear system is attacked, whatever solves it: a root is accepted only if
+!> the solver converged AND the root is physical (the problem's check_root, FORMULATION
+!> section 5), and a step that fails is retried, always for the same step:
+!>   1. from the caller's predictor, improved by the finder's last linearization (a chord step);
+!>   2. from the old state;
+!>   3. by continuation: the problem is solved for s rising to 1 (nonlinear_system's
+!>      continuation parameter; for a time step, the step of s dt), each solve starting from the
+!>      previous root extrapolated in s. Only the solve at s = 1 is the step.
+!> If 1-3 all fail, they are tried once more with the finder's fallback (another line search):
+!> strategies 4-6. Pure Fortran over an abstract root finder, so it is tested without PETSc.
+module retry_strategies
+  use, intrinsic :: iso_fortran_env, only: real64
+  use nonlinear_problem, only: nonlinear_system
+  use number_text, only: integer_text
+  implicit none (type, external)
+  private
+  public :: root_finder, root_search, find_root
+  public :: strategy_predictor, strategy_old_state, strategy_continuation, strategies_per_round
+  public :: max_continuation_solves, first_continuation_fraction, smallest_continuation_increment
+
+  integer, parameter :: strategy_predictor = 1
+  integer, parameter :: strategy_old_state = 2
+  integer, parameter :: strategy_continuation = 3
+  integer, parameter :: strategies_per_round = 3
+
+  integer, parameter :: max_continuation_solves = 40
+  real(real64), parameter :: first_continuation_fraction = 0.25_real64
+  real(real64), parameter :: smallest_continuation_increment = 1.0_real64/1024
+
+  !> Something that solves a nonlinear_system from an initial guess (e.g. PETSc SNES).
+  type, abstract :: root_finder
+  contains
+    procedure(solve_interface), deferred :: solve
+    procedure(refine_interface), deferred :: refine
+    procedure(fallback_interface), deferred :: use_fallback
+  end type root_finder
+
+  !> What a search for a step's root did.
+  type :: root_search
+    logical :: accepted = .false.
+    integer :: strategy = 0               !! which strategy found the root (strategy_* + 3 in the fallback round)
+    integer :: newton_iterations = 0      !! over every solve
+    integer :: solves = 0
+    integer :: rejected_roots = 0         !! converged roots that check_root refused
+    character(len=:), allocatable :: reason           !! why the search failed (if it did)
+    character(len=:), allocatable :: last_rejection   !! why the last refused root was refused
+  end type root_search
+
+  abstract interface
+    !> One solve from `initial`. converged: the solver met its tolerance (root physical or not);
+    !> otherwise `reason` says why not. ierr /= 0 only for a library error.
+    subroutine solve_interface(self, problem, initial, root, converged, reason, iterations, ierr)
+      import :: root_finder, nonlinear_system, real64
+      class(root_finder), intent(inout) :: self
+      class(nonlinear_system), intent(inout), target :: problem
+      real(real64), intent(in) :: initial(:)
+      real(real64), intent(out) :: root(:)
+      logical, intent(out) :: converged
+      character(len=:), allocatable, intent(out) :: reason
+      integer, intent(out) :: iterations, ierr
+    end subroutine solve_interface
+
+    !> x improved with what the finder kept of its last linearization, if anything.
+    subroutine refine_interface(self, problem, x)
+      import :: root_finder, nonlinear_system, real64
+      class(root_finder), intent(inout) :: self
+      class(nonlinear_system), intent(in) :: problem
+      real(real64), intent(inout) :: x(:)
+    end subroutine refine_interface
+
+    !> Switches the finder's fallback (the other line search) on or off.
+    subroutine fallback_interface(self, on, ierr)
+      import :: root_finder
+      class(root_finder), intent(inout) :: self
+      logical, intent(in) :: on
+      integer, intent(out) :: ierr
+    end subroutine fallback_interface
+  end interface
+
+contains
+
+  !> Searches the root of `problem` (at s = 1) by the strategies above. `predictor` is the
+  !> caller's guess; `start` is the old state (a root at s -> 0), both of the problem's size.
+  !> ierr /= 0 only for a library error; a search that fails is reported in `search`.
+  subroutine find_root(finder, problem, start, predictor, root, search, ierr)
+    class(root_finder), intent(inout) :: finder
+    class(nonlinear_system), intent(inout), target :: problem
+    real(real64), intent(in) :: start(:), predictor(:)
+    real(real64), intent(out) :: root(:)
+    type(root_search), intent(out) :: search
+    integer, intent(out) :: ierr
+    integer :: offset, fallback_ierr
+
+    search%reason = ''
+    search%last_rejection = ''
+    offset = 0
+    call strategies()
+    if (search%accepted .or. ierr /= 0) return
+    call finder%use_fallback(.true., ierr)
+    if (ierr /= 0) return
+    offset = strategies_per_round
+    call strategies()
+    call finder%use_fallback(.false., fallback_ierr)
+    if (ierr == 0) ierr = fallback_ierr
+    call problem%set_continuation(1.0_real64)
+
+  contains
+
+    ! Predictor, old state, continuation; search%strategy is offset + the one that worked.
+    subroutine strategies()
+      real(real64) :: guess(size(predictor))
+
+      guess = predictor
+      call problem%set_continuation(1.0_real64)
+      call finder%refine(problem, guess)
+      call attempt(guess, 1.0_real64, offset + strategy_predictor)
+      if (search%accepted .or. ierr /= 0) return
+      if (maxval(abs(start - predictor)) > 0.0_real64) then
+        call attempt(start, 1.0_real64, offset + strategy_old_state)
+        if (search%accepted .or. ierr /= 0) return
+      end if
+      call continuation()
+      call problem%set_continuation(1.0_real64)
+    end subroutine strategies
+
+    ! One solve at s = fraction from `initial`; accepted if it converged to a physical root.
+    subroutine attempt(initial, fraction, strategy)
+      real(real64), intent(in) :: initial(:), fraction
+      integer, intent(in) :: strategy
+      logical :: ok
+      character(len=:), allocatable :: why
+
+      call solve_once(initial, fraction, ok, why)
+      if (ierr /= 0) return
+      if (ok) then
+        search%accepted = .true.
+        search%strategy = strategy
+        search%reason = ''
+      else
+        search%reason = why
+      end if
+    end subroutine attempt
+
+    ! Continuation in s from 0 to 1 with adaptive increments.
+    subroutine continuation()
+      real(real64) :: s_done, s_try, increment, path_root(size(start)), trial(size(start))
+      character(len=:), allocatable :: last_failure, why
+      logical :: ok
+      integer :: stage
+
+      s_done = 0.0_real64
+      increment = first_continuation_fraction
+      path_root = start
+      last_failure = 'more than '//integer_text(max_continuation_solves)//' continuation solves needed'
+      do stage = 1, max_continuation_solves
+        s_try = min(1.0_real64, s_done + increment)
+        ! Linear extrapolation in s along the path of roots, which starts at the old state (s = 0).
+        if (s_done > 0.0_real64) then
+          trial = path_root + (s_try - s_done)/s_done*(path_root - start)
+        else
+          trial = path_root
+        end if
+        call solve_once(trial, s_try, ok, why)
+        if (ierr /= 0) return
+        if (ok) then
+          if (s_try >= 1.0_real64) then
+            search%accepted = .true.
+            search%strategy = offset + strategy_continuation
+            search%reason = ''
+            return
+          end if
+          s_done = s_try
+          path_root = root
+          increment = 2*increment
+        else
+          last_failure = why
+          increment = increment/2
+          if (increment < smallest_continuation_increment) exit
+        end if
+      end do
+      search%reason = 'no root from the predictor, from the old state, or by continuation in dt (last: ' &
+                      //last_failure//')'
+    end subroutine continuation
+
+    ! One solve at s from `initial`, counted; ok = converged to a physical root.
+    subroutine solve_once(initial, s, ok, why)
+      real(real64), intent(in) :: initial(:), s
+      logical, intent(out) :: ok
+      character(len=:), allocatable, intent(out) :: why
+      character(len=:), allocatable :: physics
+      logical :: converged
+      integer :: iterations
+
+      ok = .false.
+      call problem%set_continuation(s)
+      call finder%solve(problem, initial, root, converged, why, iterations, ierr)
+      if (ierr /= 0) return
+      search%newton_iterations = search%newton_iterations + iterations
+      search%solves = search%solves + 1
+      if (.not. converged) return
+      call problem%check_root(root, physics)
+      if (len(physics) > 0) then
+        search%rejected_roots = search%rejected_roots + 1
+        why = 'root rejected: '//physics
+        search%last_rejection = why
+        return
+      end if
+      why = ''
+      ok = .true.
+    end subroutine solve_once
+  end subroutine find_root
+
+end module retry_strategies

@@ -1,0 +1,285 @@
+!> What a model must provide for the time integrators: a GENERIC system with Mielke's split
+!> (paper eqs. (4)-(12), FORMULATION section 4) made of thermodynamic subsystems.
+!>
+!> The state z has `state_size` entries. Subsystem a owns a pair of potentials (U_a, S_a) as
+!> functions of its invariants x_a(z) = (mechanical invariants, tau_a): tau_a is the subsystem's
+!> thermodynamic variable, a column of z, and the last invariant. E = mechanical energy (kinetic,
+!> gravity) + sum U_a, S = sum S_a. The schemes never differentiate U_a and S_a in z directly:
+!> they take `partials(i, k, a)`, the derivative of potential k (potential_u or potential_s) of
+!> subsystem a in its invariant i (1..n_a, tau last) -- exact ones at a state, or discrete
+!> gradients between two states -- and hand them to the model's written-out vector field
+!> f(z, partials) = L grad E + K grad S. For EME to conserve E and J exactly, a model's mechanical
+!> invariants must be at most quadratic in z (their midpoint gradient is then exact).
+!>
+!> A new model extends `generic_model`: it fills `state_size`, `column_names` and `subsystems`
+!> when it is built and implements the deferred procedures. Everything else here is generic.
+module model_interface
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok
+  implicit none (type, external)
+  private
+  public :: generic_model, subsystem
+
+  !> One thermodynamic subsystem (a spring, with its temperature).
+  type :: subsystem
+    character(len=16) :: name = ''                           !! for messages, e.g. 'spring 1'
+    class(invariant_functions), allocatable :: potentials   !! (U_a, S_a) of the invariants x_a
+    integer :: invariant_count = 0                           !! n_a, tau_a being the last
+    integer, allocatable :: columns(:)                       !! the columns of z that x_a depends on
+    integer :: tau_column = 0                                !! tau_a's column of z
+    real(real64), allocatable :: metric_scale(:)             !! typical sizes of x_a (FORMULATION section 5)
+  end type subsystem
+
+  !> A GENERIC model with Mielke's split.
+  type, abstract :: generic_model
+    integer :: state_size = 0
+    character(len=16), allocatable :: column_names(:)        !! of z, in the model's thermodynamic variable
+    type(subsystem), allocatable :: subsystems(:)
+    integer :: max_invariants = 0                            !! the largest n_a, the first extent of partials
+  contains
+    procedure(invariants_interface), deferred :: invariants
+    procedure(vector_field_interface), deferred :: vector_field
+    procedure(scalar_of_state), deferred :: mechanical_energy
+    procedure(vector_of_state), deferred :: mechanical_energy_gradient
+    procedure(momentum_interface), deferred :: angular_momentum
+    procedure(poisson_interface), deferred :: poisson_matrix_0
+    procedure(friction_interface), deferred :: friction_matrix_0
+    procedure :: subsystem_count
+    procedure :: observe
+    procedure :: temperatures
+    procedure :: exact_partials
+    procedure :: chain_to_state
+    procedure :: add_partials_chain
+    procedure :: subsystem_gradient
+    procedure :: partials_temperatures
+  end type generic_model
+
+  abstract interface
+    !> x_a(z), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
+    pure subroutine invariants_interface(self, z, a, x, dx_dz)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      integer, intent(in) :: a
+      real(real64), intent(out) :: x(:)
+      real(real64), intent(out), optional :: dx_dz(:, :)
+    end subroutine invariants_interface
+
+    !> f(z, partials) = L grad E + K grad S written out, and optionally df/dz at fixed partials
+    !> and df/dpartials(:, i, k, a).
+    pure subroutine vector_field_interface(self, z, partials, f, df_dz, df_dpartials)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:), partials(:, :, :)
+      real(real64), intent(out) :: f(:)
+      real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
+    end subroutine vector_field_interface
+
+    !> A scalar function of the state (the mechanical energy: kinetic and gravity).
+    pure function scalar_of_state(self, z) result(value)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: value
+    end function scalar_of_state
+
+    !> The gradient in z of the mechanical energy.
+    pure function vector_of_state(self, z) result(gradient)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: gradient(size(z))
+    end function vector_of_state
+
+    !> The angular momentum J(z), whose component along gravity is a first integral.
+    pure function momentum_interface(self, z) result(j)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: j(3)
+    end function momentum_interface
+
+    !> L0 of eq. (8): the Poisson matrix of the split, in z's layout.
+    pure function poisson_interface(self) result(l0)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64) :: l0(self%state_size, self%state_size)
+    end function poisson_interface
+
+    !> K0 of eq. (8) at the temperatures the partials give (eq. (2)), in z's layout.
+    pure function friction_interface(self, partials) result(k0)
+      import :: generic_model, real64
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: partials(:, :, :)
+      real(real64) :: k0(self%state_size, self%state_size)
+    end function friction_interface
+  end interface
+
+contains
+
+  !> Number of subsystems.
+  pure integer function subsystem_count(self)
+    class(generic_model), intent(in) :: self
+
+    subsystem_count = size(self%subsystems)
+  end function subsystem_count
+
+  !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z.
+  pure subroutine observe(self, z, energy, entropy, temperature, stat)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: energy, entropy, temperature(:)
+    integer, intent(out) :: stat
+    real(real64) :: f(2), grad(self%max_invariants, 2), x(self%max_invariants)
+    integer :: a, n
+
+    energy = self%mechanical_energy(z)
+    entropy = 0.0_real64
+    temperature = 0.0_real64
+    stat = domain_ok
+    do a = 1, size(self%subsystems)
+      n = self%subsystems(a)%invariant_count
+      call self%invariants(z, a, x(1:n))
+      call self%subsystems(a)%potentials%evaluate(x(1:n), f, grad(1:n, :), stat=stat)
+      if (stat /= domain_ok) return
+      call self%subsystems(a)%potentials%temperature(x(1:n), temperature(a), stat)
+      if (stat /= domain_ok) return
+      energy = energy + f(potential_u)
+      entropy = entropy + f(potential_s)
+    end do
+  end subroutine observe
+
+  !> The subsystems' temperatures at z; stat reports the first that is outside the domain in
+  !> `which` (0 if none).
+  pure subroutine temperatures(self, z, theta, stat, which)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: theta(:)
+    integer, intent(out) :: stat, which
+    real(real64) :: x(self%max_invariants)
+    integer :: a, n
+
+    theta = 0.0_real64
+    which = 0
+    do a = 1, size(self%subsystems)
+      n = self%subsystems(a)%invariant_count
+      call self%invariants(z, a, x(1:n))
+      call self%subsystems(a)%potentials%temperature(x(1:n), theta(a), stat)
+      if (stat /= domain_ok) then
+        which = a
+        return
+      end if
+    end do
+  end subroutine temperatures
+
+  !> The exact partials of U_a and S_a in each subsystem's invariants at z, and optionally their
+  !> derivatives dpartials_dz(i, k, a, j) with respect to z(j).
+  pure subroutine exact_partials(self, z, partials, dpartials_dz, stat)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: partials(:, :, :)
+    real(real64), intent(out), optional :: dpartials_dz(:, :, :, :)
+    integer, intent(out) :: stat
+    real(real64) :: f(2), g(self%max_invariants, 2), h(self%max_invariants, self%max_invariants, 2)
+    real(real64) :: x(self%max_invariants), dx(self%max_invariants, self%state_size)
+    integer :: a, n, m
+
+    partials = 0.0_real64
+    stat = domain_ok
+    if (present(dpartials_dz)) dpartials_dz = 0.0_real64
+    do a = 1, size(self%subsystems)
+      associate (part => self%subsystems(a))
+        n = part%invariant_count
+        m = size(part%columns)
+        if (present(dpartials_dz)) then
+          call self%invariants(z, a, x(1:n), dx(1:n, 1:m))
+          call part%potentials%evaluate(x(1:n), f, g(1:n, :), h(1:n, 1:n, :), stat)
+        else
+          call self%invariants(z, a, x(1:n))
+          call part%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
+        end if
+        if (stat /= domain_ok) return
+        partials(1:n, :, a) = g(1:n, :)
+        if (present(dpartials_dz)) call self%chain_to_state(a, h(1:n, 1:n, :), dx(1:n, 1:m), dpartials_dz)
+      end associate
+    end do
+  end subroutine exact_partials
+
+  !> Subsystem a's partials' derivatives in z from those in its invariants:
+  !> dpartials_dz(i, k, a, columns(j)) = sum_l dg(i, l, k) dx_dz(l, j). Other columns are left alone.
+  pure subroutine chain_to_state(self, a, dg, dx_dz, dpartials_dz)
+    class(generic_model), intent(in) :: self
+    integer, intent(in) :: a
+    real(real64), intent(in) :: dg(:, :, :), dx_dz(:, :)
+    real(real64), intent(inout) :: dpartials_dz(:, :, :, :)
+    integer :: i, k, j
+
+    associate (columns => self%subsystems(a)%columns)
+      do k = 1, 2
+        do i = 1, size(dg, 1)
+          do j = 1, size(columns)
+            dpartials_dz(i, k, a, columns(j)) = dot_product(dg(i, :, k), dx_dz(:, j))
+          end do
+        end do
+      end do
+    end associate
+  end subroutine chain_to_state
+
+  !> jacobian(:, j) += factor sum df_dpartials(:, i, k, a) dpartials_dz(i, k, a, j): the chain rule
+  !> through the partials, over each subsystem's own invariants and columns (the rest is zero).
+  pure subroutine add_partials_chain(self, df_dpartials, dpartials_dz, factor, jacobian)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: df_dpartials(:, :, :, :), dpartials_dz(:, :, :, :), factor
+    real(real64), intent(inout) :: jacobian(:, :)
+    integer :: a, k, i, j, column
+
+    do a = 1, size(self%subsystems)
+      associate (part => self%subsystems(a))
+        do j = 1, size(part%columns)
+          column = part%columns(j)
+          do k = 1, 2
+            do i = 1, part%invariant_count
+              jacobian(1:self%state_size, column) = jacobian(1:self%state_size, column) &
+                + factor*dpartials_dz(i, k, a, column)*df_dpartials(:, i, k, a)
+            end do
+          end do
+        end do
+      end associate
+    end do
+  end subroutine add_partials_chain
+
+  !> The gradient in z of sum_a H_a (H = U if potential = potential_u, S if potential_s) from the
+  !> partials: (dx_a/dz)^T partials(:, potential, a), with dx_a/dz at z.
+  pure function subsystem_gradient(self, z, partials, potential) result(gradient)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:), partials(:, :, :)
+    integer, intent(in) :: potential
+    real(real64) :: gradient(self%state_size)
+    real(real64) :: x(self%max_invariants), dx(self%max_invariants, self%state_size)
+    integer :: a, n, m
+
+    gradient = 0.0_real64
+    do a = 1, size(self%subsystems)
+      n = self%subsystems(a)%invariant_count
+      m = size(self%subsystems(a)%columns)
+      call self%invariants(z, a, x(1:n), dx(1:n, 1:m))
+      gradient(self%subsystems(a)%columns) = gradient(self%subsystems(a)%columns) &
+                                             + matmul(partials(1:n, potential, a), dx(1:n, 1:m))
+    end do
+  end function subsystem_gradient
+
+  !> The temperatures Theta_a = d_tau U_a / d_tau S_a that partials give (eq. (2)): the discrete
+  !> temperatures for discrete-gradient partials.
+  pure function partials_temperatures(self, partials) result(theta)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: partials(:, :, :)
+    real(real64) :: theta(size(self%subsystems))
+    integer :: a, n
+
+    do a = 1, size(self%subsystems)
+      n = self%subsystems(a)%invariant_count
+      theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
+    end do
+  end function partials_temperatures
+
+end module model_interface

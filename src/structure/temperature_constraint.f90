@@ -1,0 +1,111 @@
+!> Constraint g2 of eq. (13) for any subsystem a of a model: Theta_a(z) = thetabar, held by a heat
+!> supply lambda (a power, [W]) from the surroundings into tau_a: lambda / D_tau U_a in tau_a's
+!> row of the step, so that E_{n+1} - E_n = dt lambda exactly (FORMULATION section 7).
+module temperature_constraint
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: potential_u, potential_s, domain_ok
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint
+  implicit none (type, external)
+  private
+  public :: fixed_temperature, make_fixed_temperature
+
+  !> Subsystem `part` held at `temperature` [K].
+  type, extends(constraint) :: fixed_temperature
+    integer :: part = 1
+    real(real64) :: temperature = 1.0_real64
+  contains
+    procedure :: add_terms
+    procedure :: value
+  end type fixed_temperature
+
+contains
+
+  !> The constraint Theta_part = temperature.
+  pure function make_fixed_temperature(part, temperature) result(bath)
+    integer, intent(in) :: part
+    real(real64), intent(in) :: temperature
+    type(fixed_temperature) :: bath
+
+    bath%name = 'temperature'
+    bath%multiplier_units = 'W'
+    bath%value_units = 'K'
+    bath%meaning = 'g = Theta - temperature of the held spring; lambda: the heat supply into it'
+    bath%supplies_heat = .true.
+    bath%part = part
+    bath%temperature = temperature
+  end function make_fixed_temperature
+
+  !> Heat supply lambda / D_tau U_a into tau_a, and g = Theta_a(z') - temperature with Theta_a
+  !> = d_tau U_a / d_tau S_a of eq. (2) at z'.
+  pure subroutine add_terms(self, model, z_new, z_mid, partials, dpartials_dz, lambda, row, residual, jacobian, stat)
+    class(fixed_temperature), intent(in) :: self
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: z_new(:), z_mid(:), partials(:, :, :), dpartials_dz(:, :, :, :), lambda
+    integer, intent(in) :: row
+    real(real64), intent(inout) :: residual(:)
+    real(real64), intent(inout), optional :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: u_tau, theta, dtheta_dz(model%state_size)
+    integer :: n, tau
+
+    n = model%subsystems(self%part)%invariant_count
+    tau = model%subsystems(self%part)%tau_column
+    u_tau = partials(n, potential_u, self%part)
+    residual(tau) = residual(tau) - lambda/u_tau
+    call temperature_gradient(model, self%part, z_new, theta, dtheta_dz, stat)
+    if (stat /= domain_ok) return
+    residual(row) = theta - self%temperature
+    if (present(jacobian)) then
+      jacobian(tau, row) = -1.0_real64/u_tau
+      jacobian(tau, 1:model%state_size) = jacobian(tau, 1:model%state_size) &
+                                          + lambda/u_tau**2*dpartials_dz(n, potential_u, self%part, :)
+      jacobian(row, 1:model%state_size) = dtheta_dz
+    end if
+  end subroutine add_terms
+
+  !> g = Theta_a(z) - temperature, with the subsystem's own temperature function.
+  pure subroutine value(self, model, z, g, stat)
+    class(fixed_temperature), intent(in) :: self
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: g
+    integer, intent(out) :: stat
+    real(real64) :: x(model%max_invariants), theta
+    integer :: n
+
+    n = model%subsystems(self%part)%invariant_count
+    call model%invariants(z, self%part, x(1:n))
+    call model%subsystems(self%part)%potentials%temperature(x(1:n), theta, stat)
+    g = theta - self%temperature
+  end subroutine value
+
+  ! Theta_a = d_tau U / d_tau S at z (eq. (2)) and its gradient in z.
+  pure subroutine temperature_gradient(model, a, z, theta, dtheta_dz, stat)
+    class(generic_model), intent(in) :: model
+    integer, intent(in) :: a
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: theta, dtheta_dz(:)
+    integer, intent(out) :: stat
+    real(real64) :: x(model%max_invariants), dx(model%max_invariants, model%state_size), f(2)
+    real(real64) :: g(model%max_invariants, 2), h(model%max_invariants, model%max_invariants, 2)
+    real(real64) :: dtheta_dx(model%max_invariants)
+    integer :: n, m, j
+
+    dtheta_dz = 0.0_real64
+    theta = 0.0_real64
+    n = model%subsystems(a)%invariant_count
+    m = size(model%subsystems(a)%columns)
+    call model%invariants(z, a, x(1:n), dx(1:n, 1:m))
+    call model%subsystems(a)%potentials%evaluate(x(1:n), f, g(1:n, :), h(1:n, 1:n, :), stat)
+    if (stat /= domain_ok) return
+    associate (u_tau => g(n, potential_u), s_tau => g(n, potential_s))
+      theta = u_tau/s_tau
+      dtheta_dx(1:n) = (h(n, 1:n, potential_u)*s_tau - u_tau*h(n, 1:n, potential_s))/s_tau**2
+    end associate
+    do j = 1, m
+      dtheta_dz(model%subsystems(a)%columns(j)) = dot_product(dtheta_dx(1:n), dx(1:n, j))
+    end do
+  end subroutine temperature_gradient
+
+end module temperature_constraint
