@@ -9,6 +9,7 @@ program eme_ensemble
   use study_config, only: study_definition, read_study
   use ensemble, only: run_study, study_outcome, world_rank
   use number_text, only: integer_text
+  use command_help, only: print_study_help, print_integrators, has_argument
   implicit none
 
   type(study_definition), target :: study
@@ -18,6 +19,13 @@ program eme_ensemble
   integer :: stat, rank, exit_status
   PetscErrorCode :: ierr
 
+  if (has_argument([character(len=6) :: '--help', '-h'])) then
+    call print_study_help(output_unit)
+    stop
+  else if (has_argument(['--integrators'])) then
+    call print_integrators(output_unit, tabular=.true.)
+    stop
+  end if
   PetscCallA(PetscInitialize(ierr))
   rank = world_rank()
   exit_status = 0

@@ -2,12 +2,16 @@
 !> Reads the namelist, integrates, writes the HDF5 file named in &output and prints a
 !> one-line summary. Exit status: 0 complete, 2 bad input or usage (no output file is
 !> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error.
+!> eme_run --help (or -h), --integrators (the registry as a table) and --output-schema (the
+!> HDF5 layout as a table) print and exit with status 0.
 program eme_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
   use run_config, only: run_configuration, read_run_config
   use simulation, only: run_summary, run_simulation
+  use run_output, only: print_output_schema
+  use command_help, only: print_run_help, print_integrators, has_argument
   implicit none
 
   type(run_configuration) :: config
@@ -17,10 +21,22 @@ program eme_run
   integer :: stat, exit_status
   PetscErrorCode :: ierr
 
+  ! These need neither PETSc nor an input file.
+  if (has_argument([character(len=6) :: '--help', '-h'])) then
+    call print_run_help(output_unit)
+    stop
+  else if (has_argument(['--integrators'])) then
+    call print_integrators(output_unit, tabular=.true.)
+    stop
+  else if (has_argument(['--output-schema'])) then
+    call print_output_schema()
+    stop
+  end if
   PetscCallA(PetscInitialize(ierr))
   exit_status = 0
   if (command_argument_count() < 1) then
-    write (error_unit, '(a)') 'usage: eme_run FILE.nml [PETSc options, e.g. -snes_monitor -snes_converged_reason]'
+    write (error_unit, '(a)') 'usage: eme_run FILE.nml [PETSc options, e.g. -snes_monitor -snes_converged_reason]; '// &
+      'eme_run --help tells more'
     exit_status = 2
   else
     call get_command_argument(1, path)

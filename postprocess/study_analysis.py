@@ -8,7 +8,8 @@ and the case files they name, and writes to OUT:
   study_stability_map      outcome of every case of the two stability studies
 (each as .png and .pdf), one HDF5 file SUMMARY with the numbers behind every figure, and
 prints the findings as plain lines. A scheme is a scheme and thermodynamic variable pair,
-named as in the paper (EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u).
+named as in the paper (EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u) with the labels of the
+integrator registry, which every index carries (/integrators).
 """
 import argparse
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+import integrators
 import study_plots
 from plotting import run_script
 from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
@@ -69,6 +71,7 @@ def read_index(folder):
         if "cases" not in handle:
             raise StudyError(f"{path}: dataset '/cases' is missing")
         cases = handle["cases"][()]
+        integrators.register_index(handle)
     missing = [name for name in INDEX_FIELDS if name not in (cases.dtype.names or ())]
     if missing:
         raise StudyError(f"{path}: /cases has no field {', '.join(missing)}")

@@ -1,8 +1,9 @@
 """Figures of the parameter studies (study_analysis.py): names, styles and the four figures.
 
 A curve or map row is a scheme and thermodynamic variable pair, e.g. ("eme", "temperature"),
-labelled in the paper's notation (EME_theta). Colour says the scheme, marker and line style
-the thermodynamic variable."""
+labelled in the paper's notation (EME_theta) with the label the integrator registry gives
+(postprocess/integrators.py). Colour says the scheme, marker and line style the thermodynamic
+variable."""
 import textwrap
 from pathlib import Path
 
@@ -11,16 +12,12 @@ from matplotlib.colors import ListedColormap
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+import integrators
 from plotting import plt, save
 
-SCHEME_ORDER = ("eme", "midpoint", "ts_midpoint", "ts_bdf2", "ts_rk4")
 VARIABLE_ORDER = ("entropy", "temperature", "internal_energy")
-FAMILY_NAMES = {"eme": "EME", "midpoint": "MP", "ts_midpoint": "TS-midpoint", "ts_bdf2": "BDF2",
-                "ts_rk4": "RK4", "ts_rk5dp": "RK5DP"}
 VARIABLE_PLAIN = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
 VARIABLE_MATH = {"entropy": "s", "temperature": r"\theta", "internal_energy": "u"}
-FAMILY_COLOURS = {"eme": "tab:red", "midpoint": "tab:blue", "ts_midpoint": "tab:cyan",
-                  "ts_bdf2": "tab:green", "ts_rk4": "tab:purple"}
 # Nested markers (large open, middle open, small filled), so that points of the three
 # variables that coincide stay visible.
 VARIABLE_MARKERS = {"entropy": ("o", 8, "none"), "temperature": ("^", 6, "none"),
@@ -45,9 +42,9 @@ SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene"}
 
 
 def key_rank(key):
-    """Sort key of a (scheme, variable) pair: study order, unknown names last."""
+    """Sort key of a (scheme, variable) pair: registry order, unknown names last."""
     scheme, variable = key
-    return (SCHEME_ORDER.index(scheme) if scheme in SCHEME_ORDER else len(SCHEME_ORDER), scheme,
+    return (integrators.position(scheme), scheme,
             VARIABLE_ORDER.index(variable) if variable in VARIABLE_ORDER else len(VARIABLE_ORDER), variable)
 
 
@@ -58,19 +55,19 @@ def curve_keys(rows):
 
 def plain_name(scheme, variable):
     """EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u."""
-    return f"{FAMILY_NAMES.get(scheme, scheme)}_{VARIABLE_PLAIN.get(variable, variable)}"
+    return f"{integrators.label(scheme)}_{VARIABLE_PLAIN.get(variable, variable)}"
 
 
 def label(scheme, variable):
     """The paper's notation with a subscript, for legends and axes."""
-    return rf"{FAMILY_NAMES.get(scheme, scheme)}$_{{{VARIABLE_MATH.get(variable, variable)}}}$"
+    return rf"{integrators.label(scheme)}$_{{{VARIABLE_MATH.get(variable, variable)}}}$"
 
 
 def style(key):
     """Line and marker style of one scheme."""
     scheme, variable = key
     marker, size, face = VARIABLE_MARKERS.get(variable, ("x", 5, None))
-    colour = FAMILY_COLOURS.get(scheme, "black")
+    colour = integrators.colour(scheme)
     return dict(color=colour, marker=marker, markersize=size, markerfacecolor=face or colour,
                 linestyle=VARIABLE_LINES.get(variable, "-."), linewidth=1.0)
 

@@ -35,7 +35,7 @@ def summarize(path):
         return {
             "file": Path(path).stem,
             "run": f"{attrs['scheme']}/{attrs['thermo_variable']}"
-                   + (f"/{attrs['discrete_gradient']}" if attrs["scheme"] == "eme" else "")
+                   + (f"/{attrs['discrete_gradient']}" if attrs["discrete_gradient"] != "none" else "")
                    + (f" + {attrs['constraints']}" if attrs.get("constraints", "none") != "none" else ""),
             "status": attrs["status"],
             "steps": steps,

@@ -10,6 +10,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+import integrators
+
 # Attributes every figure states (scheme, thermodynamic variable, dt, input file, status).
 DESCRIPTION_ATTRIBUTES = ("scheme", "thermo_variable", "discrete_gradient", "dt", "input_file",
                           "status", "theta_r")
@@ -18,7 +20,6 @@ CONSTRAINT_ATTRIBUTES = ("constraints", "fix_length", "length", "fix_temperature
 # Subscripts of the paper's scheme names EME_s, EME_theta, EME_u.
 VARIABLE_SYMBOLS = {"entropy": "s", "temperature": r"\theta", "internal_energy": "u"}
 VARIABLE_NAMES = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
-SCHEME_NAMES = {"eme": "EME", "midpoint": "MP"}
 
 
 class RunFileError(Exception):
@@ -43,6 +44,7 @@ class Run:
     attrs: dict
     data: dict = field(default_factory=dict)
     columns: dict = field(default_factory=dict)  # dataset name -> its `columns` attribute, split
+    rows: dict = field(default_factory=dict)     # dataset name -> its `rows` attribute: point or step
 
     @property
     def incomplete(self):
@@ -65,14 +67,14 @@ class Run:
     @property
     def name(self):
         """Plain scheme name as in the paper, e.g. EME_theta or MP_u."""
-        scheme = SCHEME_NAMES.get(self.attrs["scheme"], self.attrs["scheme"])
+        scheme = integrators.label(self.attrs["scheme"])
         variable = self.attrs["thermo_variable"]
         return f"{scheme}_{VARIABLE_NAMES.get(variable, variable)}"
 
     @property
     def label(self):
         """Short legend name in the paper's notation, e.g. EME_theta, with an incomplete marker."""
-        scheme = SCHEME_NAMES.get(self.attrs["scheme"], self.attrs["scheme"])
+        scheme = integrators.label(self.attrs["scheme"])
         symbol = VARIABLE_SYMBOLS.get(self.attrs["thermo_variable"], self.attrs["thermo_variable"])
         text = rf"{scheme}$_{{{symbol}}}$, $\Delta t$ = {self.attrs['dt']:g} s"
         if self.incomplete:
@@ -102,6 +104,10 @@ def read_run(path, datasets, attributes=()):
             if name not in handle.attrs:
                 raise RunFileError(f"{path}: root attribute '{name}' is missing")
             attrs[name] = _plain(handle.attrs[name])
+        for name in ("scheme_label", "scheme_family"):
+            if name in handle.attrs:
+                attrs[name] = _plain(handle.attrs[name])
+        integrators.register_run(attrs)
         run = Run(path, attrs)
         for name in ("time", *datasets):
             if name not in handle or not isinstance(handle[name], h5py.Dataset):
@@ -109,6 +115,8 @@ def read_run(path, datasets, attributes=()):
             run.data[name] = handle[name][()]
             if "columns" in handle[name].attrs:
                 run.columns[name] = _column_names(handle[name].attrs["columns"])
+            if "rows" in handle[name].attrs:
+                run.rows[name] = _plain(handle[name].attrs["rows"])
     _check_lengths(run, datasets)
     return run
 
@@ -120,12 +128,13 @@ def _column_names(value):
 
 
 def _check_lengths(run, datasets):
-    """Per-state datasets have N+1 rows and per-step ones N (README table)."""
+    """Per-point datasets have N+1 rows and per-step ones N, as each dataset's `rows` attribute
+    says (README, Output layout)."""
     rows = len(run.data["time"])
-    per_step = {"newton_iterations", "scheme_temperature", "solver_strategy", "snes_solves",
-                "rejected_roots", "multiplier"}
     for name in datasets:
-        expected = rows - 1 if name in per_step else rows
+        if name not in run.rows:
+            raise RunFileError(f"{run.path}: dataset '/{name}' has no 'rows' attribute (point or step)")
+        expected = rows - 1 if run.rows[name] == "step" else rows
         if len(run.data[name]) != expected:
             raise RunFileError(f"{run.path}: dataset '/{name}' has {len(run.data[name])} rows, "
                                f"expected {expected} (/time has {rows})")

@@ -16,6 +16,7 @@ module namelist_group
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
   public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
+  public :: describe_group
   public :: field_real, field_integer, field_logical, field_text
 
   integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
@@ -205,6 +206,22 @@ contains
       end if
     end select
   end function field_value_text
+
+  !> The group as --help shows it: '&group', then each field with its default (the value it holds
+  !> now) and what it allows.
+  subroutine describe_group(unit, group, fields)
+    integer, intent(in) :: unit
+    character(len=*), intent(in) :: group
+    type(group_field), intent(in) :: fields(:)
+    integer :: k
+
+    write (unit, '(2x, a)') '&'//group
+    do k = 1, size(fields)
+      write (unit, '(4x, a, t28, a)') trim(fields(k)%name), trim(fields(k)%allowed)
+      if (fields(k)%open_length .or. field_value_text(fields(k)) == "''") cycle
+      write (unit, '(t28, a)') 'default: '//field_value_text(fields(k))
+    end do
+  end subroutine describe_group
 
   !> The names of a table's fields.
   function field_names(fields) result(names)

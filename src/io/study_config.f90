@@ -13,7 +13,7 @@ module study_config
   use number_text, only: integer_text
   implicit none (type, external)
   private
-  public :: study_definition, study_case, read_study
+  public :: study_definition, study_case, read_study, study_fields, sweep_fields, max_sweep_values
 
   integer, parameter :: max_sweep_values = 256
   integer, parameter :: max_cases = 100000
@@ -92,11 +92,7 @@ contains
     if (dot <= slash) dot = len(definition%input_file) + 1
     output_dir = 'results/'//definition%input_file(slash + 1:dot - 1)
     combine = 'product'
-    fields = [ &
-      text_field('base', base, 'the path of an eme_run namelist (the base scene)', ''), &
-      text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
-                 ''), &
-      text_field('combine', combine, "'product' or 'zip'", '')]
+    fields = study_fields(base, output_dir, combine)
     call read_group(text, 'study', fields, definition%input_file, stat, message)
     if (stat /= 0) return
     definition%base = trim(base)
@@ -130,10 +126,7 @@ contains
     field = ''
     values = ieee_value(1.0_real64, ieee_quiet_nan)
     texts = ''
-    fields = [ &
-      text_field('field', field, 'the name of an eme_run namelist field, e.g. ''dt'' or ''theta(2)''', ''), &
-      reals_field('values', values, 'up to 256 real numbers', '', open_length=.true.), &
-      texts_field('texts', texts, 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
+    fields = sweep_fields(field, values, texts)
     call read_group(text, 'sweep', fields, definition%input_file, stat, message, occurrence=occurrence)
     if (stat /= 0) return
     new_sweep%field = trim(lowercase(adjustl(field)))
@@ -169,6 +162,31 @@ contains
     end do
     call append_sweep(definition%sweeps, new_sweep)
   end subroutine read_sweep_group
+
+  !> The fields of &study, bound to the variables that receive them.
+  function study_fields(base, output_dir, combine) result(fields)
+    character(len=*), intent(in), target :: base, output_dir, combine
+    type(group_field) :: fields(3)
+
+    fields = [ &
+      text_field('base', base, 'the path of an eme_run namelist (the base scene)', ''), &
+      text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
+                 ''), &
+      text_field('combine', combine, "'product' (the first sweep varies slowest) or 'zip'", '')]
+  end function study_fields
+
+  !> The fields of &sweep, bound to the variables that receive them.
+  function sweep_fields(field, values, texts) result(fields)
+    character(len=*), intent(in), target :: field
+    real(real64), intent(in), target :: values(:)
+    character(len=64), intent(in), target :: texts(:)
+    type(group_field) :: fields(3)
+
+    fields = [ &
+      text_field('field', field, 'the name of an eme_run namelist field, e.g. ''dt'' or ''theta(2)''', ''), &
+      reals_field('values', values, 'up to 256 real numbers', '', open_length=.true.), &
+      texts_field('texts', texts, 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
+  end function sweep_fields
 
   ! The cases: a Cartesian product (first sweep slowest) or the zip of the sweeps. Each is read
   ! and validated as eme_run would read the base scene with the case's overrides.

@@ -3,6 +3,8 @@
 !> or 'pending') and the case's figures. It is written with every case's row before any case
 !> runs and updated row by row as cases end. Opening the index of an earlier run of the same
 !> study keeps the cases it records as complete whose files exist; the others are pending again.
+!> The dataset /integrators holds the integrator registry (name, label, family, capabilities), so
+!> the scripts that chart a study name and order its schemes as the code does.
 module study_index
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -10,6 +12,7 @@ module study_index
   use hdf5_series, only: hdf5_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
   use filesystem, only: make_directories
+  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
   use number_text, only: integer_text
   implicit none (type, external)
@@ -192,9 +195,41 @@ contains
     do c = 1, size(self%results)
       if (stat == 0) call write_row(self, c, stat)
     end do
+    if (stat == 0) call write_registry(self%file, stat)
     if (stat == 0) call self%file%flush(stat)
     if (stat == 0) message = ''
   end subroutine write_index
+
+  ! The dataset /integrators: one row per registered integrator.
+  subroutine write_registry(file, stat)
+    type(hdf5_file), intent(in) :: file
+    integer, intent(out) :: stat
+    type(table_columns) :: columns
+    type(integrator_entry) :: entries(integrator_count)
+    character(len=status_length) :: texts(4)
+    real(real64) :: numbers(3)
+    integer :: i
+
+    call columns%add('name', len(entries(1)%name))
+    call columns%add('label', len(entries(1)%label))
+    call columns%add('family', len(entries(1)%family))
+    call columns%add('description', len(entries(1)%description))
+    call columns%add('takes_constraints', column_integer)
+    call columns%add('uses_discrete_gradient', column_integer)
+    call columns%add('adaptive', column_integer)
+    entries = registered_integrators()
+    call columns%create(file%id, 'integrators', size(entries), stat)
+    do i = 1, size(entries)
+      if (stat /= 0) return
+      texts(1) = entries(i)%name
+      texts(2) = entries(i)%label
+      texts(3) = entries(i)%family
+      texts(4) = entries(i)%description
+      numbers = merge(1.0_real64, 0.0_real64, [entries(i)%takes_constraints, entries(i)%uses_discrete_gradient, &
+                                               entries(i)%adaptive])
+      call columns%write_row(file%id, 'integrators', i, numbers, texts, stat)
+    end do
+  end subroutine write_registry
 
   ! Results of an earlier run of the same study, if its index.h5 exists. A different case list
   ! (other sweeps or values) is an error: the old files would not match their rows.

@@ -12,6 +12,8 @@ UNITS = {"time": "s", "state": "SI", "temperature": "K", "energy": "J", "entropy
          "lyapunov": "J", "angular_momentum": "J s", "newton_iterations": "1",
          "scheme_temperature": "K", "solver_strategy": "1", "snes_solves": "1",
          "rejected_roots": "1", "boundary_heat": "J", "multiplier": "SI", "constraint_residual": "SI"}
+PER_STEP = {"newton_iterations", "scheme_temperature", "solver_strategy", "snes_solves", "rejected_roots",
+            "multiplier"}
 
 
 def run_data(steps, dt=0.1):
@@ -78,6 +80,7 @@ def write_run(path, steps=4, data=None, attributes=None, drop=(), columns=STATE_
             f[name] = value[:, order] if name == "state" else value
             f[name].attrs["units"] = UNITS[name]
             f[name].attrs["description"] = f"synthetic {name}"
+            f[name].attrs["rows"] = "step" if name in PER_STEP else "point"
         if "state" in f:
             f["state"].attrs["columns"] = " ".join(columns)
         for name, names in (("temperature", "theta_1 theta_2"), ("angular_momentum", "J_x J_y J_z"),

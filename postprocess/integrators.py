@@ -1,0 +1,47 @@
+"""The integrators as the code's registry describes them (src/integrator/integrator_registry),
+read from the files the code writes: a study index's /integrators table, or a run file's
+scheme, scheme_label and scheme_family attributes. The figures take the schemes' names, their
+order and their colours from here, so that a new integrator needs no change in the scripts.
+"""
+
+# Colours by position in the registry (the first five are those the gallery has always used).
+PALETTE = ("tab:red", "tab:blue", "tab:cyan", "tab:green", "tab:purple", "tab:orange", "tab:brown",
+           "tab:pink", "tab:olive", "tab:gray")
+
+_KNOWN = {}     # name -> {"position": int, "label": str, "family": str}
+
+
+def _text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def register_index(handle):
+    """Registers the integrators of an open study index (h5py File), if it has /integrators."""
+    if "integrators" not in handle:
+        return
+    for position, row in enumerate(handle["integrators"][()]):
+        _KNOWN[_text(row["name"])] = {"position": position, "label": _text(row["label"]),
+                                      "family": _text(row["family"])}
+
+
+def register_run(attrs):
+    """Registers the integrator of one run file from its root attributes (a dict)."""
+    name = _text(attrs["scheme"])
+    if name not in _KNOWN and "scheme_label" in attrs:
+        _KNOWN[name] = {"position": len(_KNOWN), "label": _text(attrs["scheme_label"]),
+                        "family": _text(attrs.get("scheme_family", ""))}
+
+
+def position(name):
+    """The integrator's place in the registry (unknown names after every known one)."""
+    return _KNOWN[name]["position"] if name in _KNOWN else len(_KNOWN)
+
+
+def label(name):
+    """The plain name the figures use (the paper's EME and MP, RK4, ...), or the name itself."""
+    return _KNOWN[name]["label"] if name in _KNOWN else name
+
+
+def colour(name):
+    """The integrator's colour: by its place in the registry."""
+    return PALETTE[position(name) % len(PALETTE)] if name in _KNOWN else "black"

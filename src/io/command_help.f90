@@ -1,0 +1,117 @@
+!> What the drivers print for --help, and the integrator table: the input groups and their
+!> fields come from the namelist tables, the integrators from the registry, so a new field,
+!> integrator or model appears here by itself. (The output layout is printed by run_output.)
+module command_help
+  use, intrinsic :: iso_fortran_env, only: real64
+  use namelist_text, only: namelist_item
+  use namelist_group, only: describe_group
+  use model_registry, only: select_scene, model_names
+  use run_config, only: run_configuration, integrator_fields, output_fields
+  use study_config, only: study_fields, sweep_fields, max_sweep_values
+  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
+  implicit none (type, external)
+  private
+  public :: print_run_help, print_study_help, print_integrators, has_argument
+
+  character(len=*), parameter :: exit_codes = &
+    'Exit status: 0 complete, 2 bad input or usage (nothing is written), 3 the run stopped early (its file is '// &
+    'kept, marked incomplete, with the reason), 1 an I/O or PETSc error.'
+
+contains
+
+  !> Whether the command line holds one of `options` (anywhere).
+  logical function has_argument(options)
+    character(len=*), intent(in) :: options(:)
+    character(len=256) :: argument
+    integer :: i
+
+    has_argument = .false.
+    do i = 1, command_argument_count()
+      call get_command_argument(i, argument)
+      if (any(options == argument)) has_argument = .true.
+    end do
+  end function has_argument
+
+  !> eme_run --help.
+  subroutine print_run_help(unit)
+    integer, intent(in) :: unit
+    type(run_configuration), target :: defaults
+    type(namelist_item) :: no_items(0)
+    character(len=16), allocatable :: groups(:)
+    character(len=:), allocatable :: message
+    integer :: g, stat
+
+    write (unit, '(a)') 'usage: eme_run FILE.nml [PETSc options]', &
+      '       eme_run --help | --integrators | --output-schema', '', &
+      'Integrates one scene of the thermoviscoelastic double pendulum (Valdes y Beck & Betsch, PAMM 2023)', &
+      'and writes an HDF5 file (&output file; README, Output layout). PETSc options reach the solvers:', &
+      '-snes_monitor, -snes_converged_reason, -snes_test_jacobian, -pc_type lu, -ts_*, and the code''s own', &
+      '-eme_chord_predictor false (no chord refinement of the predictor).', '', exit_codes, '', &
+      'Input: a namelist file with any of these groups (models: '//model_names()//'); left-out fields keep', &
+      'their defaults, the paper''s scene:'
+    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+    call defaults%scene%group_names(groups)
+    do g = 1, size(groups)
+      call describe_group(unit, trim(groups(g)), defaults%scene%fields(trim(groups(g))))
+    end do
+    call describe_group(unit, 'integrator', integrator_fields(defaults))
+    call describe_group(unit, 'output', output_fields(defaults))
+    write (unit, '(a)') '', 'Integrators (&integrator scheme):'
+    call print_integrators(unit, tabular=.false.)
+  end subroutine print_run_help
+
+  !> eme_ensemble --help.
+  subroutine print_study_help(unit)
+    integer, intent(in) :: unit
+    character(len=1024), target :: base, output_dir
+    character(len=16), target :: combine
+    character(len=64), target :: field, texts(max_sweep_values)
+    real(real64), target :: values(max_sweep_values)
+
+    base = ''
+    output_dir = ''
+    combine = 'product'
+    field = ''
+    texts = ''
+    values = 0.0_real64
+    write (unit, '(a)') 'usage: mpirun -n P eme_ensemble STUDY.nml [PETSc options]', &
+      '       eme_ensemble --help | --integrators', '', &
+      'Runs the cases of a parameter study on P ranks (one rank: no mpirun needed): every case is an', &
+      'eme_run scene, the base scene with one value of each sweep. Each case writes output_dir/case_NNNNN.h5;', &
+      'output_dir/index.h5 (/cases) records every case''s status and figures, and running the study again', &
+      'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
+      '2 bad study input (nothing is written), 1 the index could not be written.', '', &
+      'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
+    call describe_group(unit, 'study', study_fields(base, output_dir, combine))
+    call describe_group(unit, 'sweep', sweep_fields(field, values, texts))
+  end subroutine print_study_help
+
+  !> The integrator registry: as a tab-separated table (name, family, label, constraints,
+  !> adaptive, description) or as lines for --help.
+  subroutine print_integrators(unit, tabular)
+    integer, intent(in) :: unit
+    logical, intent(in) :: tabular
+    type(integrator_entry) :: entries(integrator_count)
+    character(len=*), parameter :: tab = achar(9)
+    integer :: i
+
+    entries = registered_integrators()
+    if (tabular) write (unit, '(a)') 'name'//tab//'family'//tab//'label'//tab//'takes_constraints'//tab//'adaptive' &
+      //tab//'description'
+    do i = 1, size(entries)
+      associate (e => entries(i))
+        if (tabular) then
+          write (unit, '(a)') trim(e%name)//tab//trim(e%family)//tab//trim(e%label)//tab// &
+            trim(merge('yes', 'no ', e%takes_constraints))//tab//trim(merge('yes', 'no ', e%adaptive))//tab// &
+            trim(e%description)
+        else
+          write (unit, '(4x, a, t20, a)') trim(e%name), trim(e%description)
+          write (unit, '(t20, a)') 'family '//trim(e%family)//'; '//trim(merge('takes constraints   ', &
+            'no constraints      ', e%takes_constraints))//'; '//trim(merge('adaptive steps', 'fixed steps   ', &
+            e%adaptive))
+        end if
+      end associate
+    end do
+  end subroutine print_integrators
+
+end module command_help

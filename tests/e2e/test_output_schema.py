@@ -1,0 +1,106 @@
+"""The output layout and the integrator registry as the drivers print them (eme_run
+--output-schema, --integrators, --help) against what the files hold and what the Python scripts
+read: one table each, so that a dataset, a column or an integrator cannot differ between the
+Fortran side, the files and the scripts."""
+import re
+import subprocess
+from pathlib import Path
+
+import h5py
+import pytest
+
+from conftest import BIN, ROOT, run_eme
+
+POSTPROCESS = ROOT / "postprocess"
+
+
+def table(*options):
+    """A tab-separated table printed by eme_run, as a list of dicts."""
+    result = subprocess.run([str(BIN / "eme_run"), *options], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.rstrip("\n").split("\n")
+    header = lines[0].split("\t")
+    return [dict(zip(header, line.split("\t"))) for line in lines[1:]]
+
+
+def text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+@pytest.fixture(scope="module")
+def schema():
+    return {row["name"]: row for row in table("--output-schema")}
+
+
+@pytest.mark.parametrize("constraints", [{}, {"fix_length": True, "fix_temperature": True}])
+def test_run_files_follow_the_schema(tmp_path, eme_run_binary, schema, constraints):
+    """Every dataset of a run file is in the schema with its rows, units and description; every
+    schema dataset is in the file (constraint datasets only with constraints); columns follow the
+    schema's templates."""
+    groups = {"integrator": {"t_end": 0.3}}
+    if constraints:
+        groups["constraints"] = constraints
+    result, path = run_eme(tmp_path, "run", groups)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(path, "r") as f:
+        for name, dataset in f.items():
+            assert name in schema, f"/{name} is not in eme_run --output-schema"
+            spec = schema[name]
+            assert text(dataset.attrs["rows"]) == spec["rows"], name
+            assert text(dataset.attrs["units"]) == spec["units"], name
+            if name != "scheme_temperature":       # its description comes from the registry entry
+                assert text(dataset.attrs["description"]) == spec["description"], name
+            expected_rows = len(f["time"]) - (1 if spec["rows"] == "step" else 0)
+            assert dataset.shape[0] == expected_rows, name
+            if spec["columns"]:
+                columns = text(dataset.attrs["columns"]).split()
+                assert dataset.shape[1] == len(columns), name
+                if "<" in spec["columns"]:
+                    prefix = spec["columns"].split("<")[0]
+                    assert all(column.startswith(prefix) for column in columns), (name, columns)
+                else:
+                    assert columns == spec["columns"].split(), name
+        for name, spec in schema.items():
+            if "<constraints>" in spec["columns"] and not constraints:
+                assert name not in f, f"/{name} without an active constraint"
+            else:
+                assert name in f, f"schema dataset /{name} is missing from the file"
+        if constraints:
+            assert text(f["multiplier"].attrs["columns"]) == "lambda_length lambda_temperature"
+            assert text(f.attrs["constraints"]) == "length, temperature"
+
+
+def test_scripts_read_only_schema_datasets(schema):
+    """Every dataset the scripts ask read_run for is one the code writes."""
+    requested = set()
+    for script in POSTPROCESS.glob("*.py"):
+        for call in re.findall(r"read_run\([^\[\)]*\[([^\]]*)\]", script.read_text()):
+            requested.update(re.findall(r"\"([a-z_]+)\"", call))
+    assert requested, "no read_run call found: the pattern is out of date"
+    assert requested <= set(schema), f"not in the schema: {sorted(requested - set(schema))}"
+
+
+def test_registry_reaches_files_help_and_indexes(tmp_path, eme_run_binary):
+    """The registry table equals what a run file, --help and a study index say of each integrator."""
+    entries = table("--integrators")
+    assert [e["name"] for e in entries][:6] == ["eme", "midpoint", "ts_midpoint", "ts_bdf2", "ts_rk4", "ts_rk5dp"]
+    help_text = subprocess.run([str(BIN / "eme_run"), "--help"], capture_output=True, text=True).stdout
+    for entry in entries:
+        assert entry["name"] in help_text and entry["description"] in help_text
+    entry = entries[3]
+    result, path = run_eme(tmp_path, "one", {"integrator": {"scheme": entry["name"], "t_end": 0.3}})
+    assert result.returncode == 0, result.stderr
+    with h5py.File(path, "r") as f:
+        assert text(f.attrs["scheme_label"]) == entry["label"]
+        assert text(f.attrs["scheme_family"]) == entry["family"]
+        assert text(f.attrs["scheme_description"]) == entry["description"]
+    study = tmp_path / "study.nml"
+    study.write_text(f"&study base = '{tmp_path / 'one.nml'}', output_dir = '{tmp_path / 'study'}' /\n"
+                     "&sweep field = 't_end', values = 0.15 /\n")
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "study" / "index.h5", "r") as f:
+        rows = f["integrators"][()]
+    assert [text(r["name"]) for r in rows] == [e["name"] for e in entries]
+    assert [text(r["label"]) for r in rows] == [e["label"] for e in entries]
+    assert [bool(r["takes_constraints"]) for r in rows] == [e["takes_constraints"] == "yes" for e in entries]
