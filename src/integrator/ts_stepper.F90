@@ -16,6 +16,7 @@ module ts_stepper
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report
+  use dense_assembly, only: assemble_jacobian
   implicit none
   private
   public :: ts_baseline, new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
@@ -328,12 +329,7 @@ contains
     end associate
     PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
-    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    if (jacobian /= preconditioner) then
-      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-    end if
+    PetscCall(assemble_jacobian(jacobian, preconditioner, ierr))
     if (stat /= 0) then
       PetscCall(TSGetSNES(ts, snes, ierr))
       PetscCall(SNESSetJacobianDomainError(snes, ierr))

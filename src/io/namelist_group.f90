@@ -354,26 +354,29 @@ contains
     character(len=*), intent(in) :: text
     integer, intent(inout) :: value
     integer, intent(out) :: stat
-    integer :: probe(2), probe_stat
 
     read (text, *, iostat=stat) value
-    if (stat /= 0) return
-    read (text, *, iostat=probe_stat) probe
-    if (probe_stat == 0) stat = 1
+    if (stat == 0 .and. .not. single_item(text)) stat = 1
   end subroutine read_integer
 
   subroutine read_logical(text, value, stat)
     character(len=*), intent(in) :: text
     logical, intent(inout) :: value
     integer, intent(out) :: stat
-    logical :: probe(2)
-    integer :: probe_stat
 
     read (text, *, iostat=stat) value
-    if (stat /= 0) return
-    read (text, *, iostat=probe_stat) probe
-    if (probe_stat == 0) stat = 1
+    if (stat == 0 .and. .not. single_item(text)) stat = 1
   end subroutine read_logical
+
+  ! Whether the text holds one list item only (a second one makes the field's value wrong).
+  logical function single_item(text)
+    character(len=*), intent(in) :: text
+    character(len=len(text)) :: items(2)
+    integer :: stat
+
+    read (text, *, iostat=stat) items
+    single_item = stat /= 0
+  end function single_item
 
   ! 'i' or 'i:j' within first:last (which it narrows); stat /= 0 if not.
   subroutine parse_subscript(text, first, last, stat)

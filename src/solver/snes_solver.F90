@@ -15,6 +15,7 @@ module snes_solver
   use retry_strategies, only: root_finder
   use dense_lu, only: lu_factors
   use lu_preconditioner, only: use_lu_shell
+  use dense_assembly, only: assemble_jacobian
   implicit none
   private
   public :: newton_solver
@@ -287,12 +288,7 @@ contains
     call context%problem%evaluate(x_values, residual, entries, stat)
     PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
-    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    if (jacobian /= preconditioner) then
-      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-    end if
+    PetscCall(assemble_jacobian(jacobian, preconditioner, ierr))
     if (stat /= 0) then
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
     end if

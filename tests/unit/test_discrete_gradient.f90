@@ -35,63 +35,63 @@ contains
     character(len=100) :: label
 
     call seed_random(3)
-  do variable = tau_entropy, tau_internal_energy
-    model = make_pendulum(params, variable)
-    do a = 1, 2
-      n = a + 1
-      scale(1:n) = model%spring(a)%metric_scale()
-      do kind = gradient_gonzalez, gradient_partitioned
-        do trial = 1, 8
-          write (label, '(a, " spring ", i0, " ", a, " trial ", i0)') trim(thermo_variable_names(variable)), a, &
-            trim(discrete_gradient_names(kind)), trial
-          ! Pairs from far apart (trial 1-4) to close (5-8).
-          z_a = random_state(model)
-          z_b = random_state(model)
-          if (trial > 4) z_b = z_a + 10.0_real64**(-trial + 3)*(z_b - z_a)
-          call spring_invariants(z_a, a, x_a(1:n))
-          call spring_invariants(z_b, a, x_b(1:n))
-          call check_directionality(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
-          ! Below |d| ~ 1e-2 a difference quotient of the quotient is not resolved in double
-          ! precision (rounding ~ eps |f| / (|d| h) with h < |d|); the formula is the same code.
-          if (trial <= 5) call check_jacobian(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
-        end do
-        ! Fallback branch: an increment below the threshold, in every invariant at once.
-        write (label, '(a, " spring ", i0, " ", a, " fallback")') trim(thermo_variable_names(variable)), a, &
-          trim(discrete_gradient_names(kind))
-        call spring_invariants(random_state(model), a, x_a(1:n))
-        x_b(1:n) = x_a(1:n) + 0.2_real64*quotient_threshold*scale(1:n)
-        call discrete_gradient_of(kind, model%spring(a), x_a(1:n), x_b(1:n), scale(1:n), dg(1:n, :), &
-                                  fallback=fallback, stat=stat)
-        call suite%check_true('fallback taken, '//trim(label), fallback)
-        call check_directionality(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
-        call check_jacobian(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
-        call model%spring(a)%evaluate(0.5_real64*(x_a(1:n) + x_b(1:n)), f_m, g_m(1:n, :), stat=stat)
-        call suite%check_close('fallback is the midpoint gradient, '//trim(label), reshape(dg(1:n, :), [2*n]), &
-                               reshape(g_m(1:n, :), [2*n]), rtol=1.0e-9_real64)
-        ! Only the tau increment is small: the partitioned D_tau falls back, the others do not.
-        if (kind == gradient_partitioned) then
-          call spring_invariants(random_state(model), a, x_b(1:n))
-          x_b(n) = x_a(n) + 0.1_real64*quotient_threshold*scale(n)
-          write (label, '(a, " spring ", i0, " partitioned, only tau small")') trim(thermo_variable_names(variable)), a
+    do variable = tau_entropy, tau_internal_energy
+      model = make_pendulum(params, variable)
+      do a = 1, 2
+        n = a + 1
+        scale(1:n) = model%spring(a)%metric_scale()
+        do kind = gradient_gonzalez, gradient_partitioned
+          do trial = 1, 8
+            write (label, '(a, " spring ", i0, " ", a, " trial ", i0)') trim(thermo_variable_names(variable)), a, &
+              trim(discrete_gradient_names(kind)), trial
+            ! Pairs from far apart (trial 1-4) to close (5-8).
+            z_a = random_state(model)
+            z_b = random_state(model)
+            if (trial > 4) z_b = z_a + 10.0_real64**(-trial + 3)*(z_b - z_a)
+            call spring_invariants(z_a, a, x_a(1:n))
+            call spring_invariants(z_b, a, x_b(1:n))
+            call check_directionality(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
+            ! Below |d| ~ 1e-2 a difference quotient of the quotient is not resolved in double
+            ! precision (rounding ~ eps |f| / (|d| h) with h < |d|); the formula is the same code.
+            if (trial <= 5) call check_jacobian(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
+          end do
+          ! Fallback branch: an increment below the threshold, in every invariant at once.
+          write (label, '(a, " spring ", i0, " ", a, " fallback")') trim(thermo_variable_names(variable)), a, &
+            trim(discrete_gradient_names(kind))
+          call spring_invariants(random_state(model), a, x_a(1:n))
+          x_b(1:n) = x_a(1:n) + 0.2_real64*quotient_threshold*scale(1:n)
+          call discrete_gradient_of(kind, model%spring(a), x_a(1:n), x_b(1:n), scale(1:n), dg(1:n, :), &
+                                    fallback=fallback, stat=stat)
+          call suite%check_true('fallback taken, '//trim(label), fallback)
           call check_directionality(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
           call check_jacobian(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
-        end if
+          call model%spring(a)%evaluate(0.5_real64*(x_a(1:n) + x_b(1:n)), f_m, g_m(1:n, :), stat=stat)
+          call suite%check_close('fallback is the midpoint gradient, '//trim(label), reshape(dg(1:n, :), [2*n]), &
+                                 reshape(g_m(1:n, :), [2*n]), rtol=1.0e-9_real64)
+          ! Only the tau increment is small: the partitioned D_tau falls back, the others do not.
+          if (kind == gradient_partitioned) then
+            call spring_invariants(random_state(model), a, x_b(1:n))
+            x_b(n) = x_a(n) + 0.1_real64*quotient_threshold*scale(n)
+            write (label, '(a, " spring ", i0, " partitioned, only tau small")') trim(thermo_variable_names(variable)), a
+            call check_directionality(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
+            call check_jacobian(suite, model%spring(a), kind, x_a(1:n), x_b(1:n), scale(1:n), trim(label))
+          end if
+        end do
+        ! FORMULATION section 5: the partitioned D_tau U and D_tau S are derivatives at intermediate
+        ! points, so the discrete temperature is positive even for large jumps.
+        theta_min = huge(1.0_real64)
+        do trial = 1, 200
+          call spring_invariants(random_state(model), a, x_a(1:n))
+          call spring_invariants(random_state(model), a, x_b(1:n))
+          call discrete_gradient_of(gradient_partitioned, model%spring(a), x_a(1:n), x_b(1:n), scale(1:n), &
+                                    dg(1:n, :), stat=stat)
+          theta_min = min(theta_min, dg(n, potential_u)/dg(n, potential_s))
+        end do
+        write (label, '(a, " spring ", i0)') trim(thermo_variable_names(variable)), a
+        call suite%check_true('partitioned discrete temperature > 0 on 200 random pairs, '//trim(label), &
+                              theta_min > 0.0_real64)
       end do
-      ! FORMULATION section 5: the partitioned D_tau U and D_tau S are derivatives at intermediate
-      ! points, so the discrete temperature is positive even for large jumps.
-      theta_min = huge(1.0_real64)
-      do trial = 1, 200
-        call spring_invariants(random_state(model), a, x_a(1:n))
-        call spring_invariants(random_state(model), a, x_b(1:n))
-        call discrete_gradient_of(gradient_partitioned, model%spring(a), x_a(1:n), x_b(1:n), scale(1:n), &
-                                  dg(1:n, :), stat=stat)
-        theta_min = min(theta_min, dg(n, potential_u)/dg(n, potential_s))
-      end do
-      write (label, '(a, " spring ", i0)') trim(thermo_variable_names(variable)), a
-      call suite%check_true('partitioned discrete temperature > 0 on 200 random pairs, '//trim(label), &
-                            theta_min > 0.0_real64)
     end do
-  end do
 
   end subroutine spring_potentials
 
@@ -104,20 +104,20 @@ contains
     character(len=100) :: label
 
     call seed_random(4)
-  call random_number(quadratic%a)
-  quadratic%a = quadratic%a + reshape([(transpose(quadratic%a(:, :, j)), j=1, 2)], [3, 3, 2])
-  call random_number(quadratic%c)
-  do kind = gradient_gonzalez, gradient_partitioned
-    do trial = 1, 3
-      call random_number(x_a)
-      call random_number(x_b)
-      call discrete_gradient_of(kind, quadratic, x_a, x_b, [1.0_real64, 3.0_real64, 0.2_real64], dg, stat=stat)
-      call quadratic%evaluate(0.5_real64*(x_a + x_b), f_m, g_m, stat=stat)
-      write (label, '(a, " quadratic, trial ", i0)') trim(discrete_gradient_names(kind)), trial
-      call suite%check_close('exact for '//trim(label), reshape(dg, [6]), reshape(g_m, [6]), rtol=1.0e-12_real64)
-      call check_directionality(suite, quadratic, kind, x_a, x_b, [1.0_real64, 3.0_real64, 0.2_real64], trim(label))
+    call random_number(quadratic%a)
+    quadratic%a = quadratic%a + reshape([(transpose(quadratic%a(:, :, j)), j=1, 2)], [3, 3, 2])
+    call random_number(quadratic%c)
+    do kind = gradient_gonzalez, gradient_partitioned
+      do trial = 1, 3
+        call random_number(x_a)
+        call random_number(x_b)
+        call discrete_gradient_of(kind, quadratic, x_a, x_b, [1.0_real64, 3.0_real64, 0.2_real64], dg, stat=stat)
+        call quadratic%evaluate(0.5_real64*(x_a + x_b), f_m, g_m, stat=stat)
+        write (label, '(a, " quadratic, trial ", i0)') trim(discrete_gradient_names(kind)), trial
+        call suite%check_close('exact for '//trim(label), reshape(dg, [6]), reshape(g_m, [6]), rtol=1.0e-12_real64)
+        call check_directionality(suite, quadratic, kind, x_a, x_b, [1.0_real64, 3.0_real64, 0.2_real64], trim(label))
+      end do
     end do
-  end do
   end subroutine quadratics
 
   ! D f . (b - a) = f(b) - f(a) for both functions, to rounding of the larger of f(a), f(b).
