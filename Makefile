@@ -66,7 +66,8 @@ $(OBJ)/src/integrator/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
 $(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/lu_preconditioner.o $(OBJ)/src/integrator/ts_stepper.o \
 $(OBJ)/src/integrator/discrete_gradient_stepper.o $(OBJ)/src/model/length_constraint.o \
 $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
-$(OBJ)/src/model/pendulum_model.o: FFLAGS += -Wno-unused-dummy-argument
+$(OBJ)/src/model/pendulum_model.o $(OBJ)/tests/unit/support/single_spring_model.o \
+$(OBJ)/tests/unit/support/scripted_solver.o: FFLAGS += -Wno-unused-dummy-argument
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 

@@ -16,6 +16,7 @@ program test_step_solver
   use model_parameters, only: pendulum_parameters
   use thermo_variable, only: tau_entropy, tau_internal_energy, thermo_variable_names
   use pendulum_model, only: pendulum, make_pendulum
+  use single_spring_model, only: single_spring, make_single_spring
   use double_pendulum, only: state_size, angular_momentum
   use model_constraint, only: constraint_slot
   use number_text, only: scientific_text
@@ -34,7 +35,8 @@ program test_step_solver
   PetscCallA(PetscInitialize(ierr))
   call run_unit_tests('test_step_solver', [ &
     unit_test('first_step_of_each_scheme', first_step_of_each_scheme), &
-    unit_test('unphysical_root_rejected', unphysical_root_rejected)])
+    unit_test('unphysical_root_rejected', unphysical_root_rejected), &
+    unit_test('single_spring_steps', single_spring_steps)])
   PetscCallA(PetscFinalize(ierr))
 
 contains
@@ -155,6 +157,63 @@ contains
       x = x - r
     end do
   end subroutine plain_newton
+
+  !> EME on a second model through the same stepper (8 unknowns, one subsystem): 20 steps in
+  !> every thermodynamic variable conserve E and J_z to round-off and never lose entropy.
+  subroutine single_spring_steps(suite)
+    type(test_suite), intent(inout) :: suite
+    type(pendulum_parameters) :: params
+    type(single_spring) :: model
+    type(integrator_choice) :: choice
+    class(time_stepper), allocatable, target :: integrator
+    type(constraint_slot) :: no_constraints(0)
+    type(step_report) :: report
+    real(real64) :: z0(8), z(8), z_new(8), theta(1), e0, e, s_old, s, s_start, j0(3), j(3), worst_energy, worst_jz, least_ds
+    integer :: variable, n, stat, ierr
+    logical :: accepted
+
+    choice%dt = 0.05_real64
+    choice%newton_tol = tol
+    do variable = tau_entropy, tau_internal_energy
+      model = make_single_spring(params, variable)
+      choice%thermo_variable = variable
+      call new_eme(integrator)
+      call model%state_from_temperature([1.6_real64, 0.4_real64, -1.0_real64], [0.5_real64, 1.2_real64, -0.3_real64], &
+                                        0.08_real64, 310.0_real64, z0)
+      call integrator%start(choice, model, no_constraints, z0, ierr)
+      call model%observe(z0, e0, s_old, theta, stat)
+      s_start = s_old
+      j0 = model%angular_momentum(z0)
+      z = z0
+      accepted = .true.
+      worst_energy = 0.0_real64
+      worst_jz = 0.0_real64
+      least_ds = huge(1.0_real64)
+      do n = 1, 20
+        call integrator%advance(z, (n - 1)*choice%dt, choice%dt, z, z_new, report, ierr)
+        accepted = accepted .and. report%accepted .and. ierr == 0
+        if (.not. accepted) exit
+        z = z_new
+        call model%observe(z, e, s, theta, stat)
+        j = model%angular_momentum(z)
+        worst_energy = max(worst_energy, abs(e - e0)/abs(e0))
+        worst_jz = max(worst_jz, abs(j(3) - j0(3)))
+        least_ds = min(least_ds, s - s_old)
+        s_old = s
+      end do
+      associate (label => 'single spring, '//trim(thermo_variable_names(variable)))
+        call suite%check_true('20 steps accepted, '//label, accepted, report%reason)
+        call suite%check_true('energy conserved, '//label, worst_energy < 1.0e-13_real64, &
+                              'max relative drift '//scientific_text(worst_energy))
+        call suite%check_true('J_z conserved, '//label, worst_jz < 1.0e-13_real64, 'max drift '//scientific_text(worst_jz))
+        call suite%check_true('entropy never falls, '//label, least_ds >= -1.0e-13_real64, &
+                              'least increment '//scientific_text(least_ds))
+        call suite%check_true('the damper produces entropy, '//label, s_old - s_start > 0.0_real64, &
+                              'S_20 - S_0 = '//scientific_text(s_old - s_start))
+      end associate
+      call integrator%release(ierr)
+    end do
+  end subroutine single_spring_steps
 
   function case_label(variable, kind) result(label)
     integer, intent(in) :: variable, kind

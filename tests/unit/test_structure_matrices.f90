@@ -13,6 +13,7 @@ program test_structure_matrices
   use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
   use model_interface, only: generic_model
   use pendulum_model, only: pendulum, make_pendulum
+  use single_spring_model, only: single_spring, make_single_spring
   use discrete_gradient, only: gradient_gonzalez, gradient_partitioned, discrete_gradient_of, discrete_gradient_names
   use structure_matrices, only: energy_gradient, entropy_gradient, mielke_transpose, poisson_matrix, friction_matrix
   implicit none (type, external)
@@ -20,7 +21,8 @@ program test_structure_matrices
   call run_unit_tests('test_structure_matrices', [ &
     unit_test('structure_entropy', structure_entropy), &
     unit_test('structure_temperature', structure_temperature), &
-    unit_test('structure_internal_energy', structure_internal_energy)])
+    unit_test('structure_internal_energy', structure_internal_energy), &
+    unit_test('single_spring_structure', single_spring_structure)])
 
 contains
 
@@ -41,6 +43,40 @@ contains
 
     call check_variable(suite, tau_internal_energy)
   end subroutine structure_internal_energy
+
+  !> The same checks on a second model (tests/unit/support/single_spring_model): 8 unknowns, one
+  !> subsystem, in every thermodynamic variable.
+  subroutine single_spring_structure(suite)
+    type(test_suite), intent(inout) :: suite
+    type(pendulum_parameters) :: params
+    type(single_spring) :: model
+    real(real64) :: z(8), z_new(8), partials(3, 2, 1), q(3), p(3)
+    integer :: variable, trial, kind, stat
+    character(len=80) :: label
+
+    call seed_random(9)
+    do variable = tau_entropy, tau_internal_energy
+      model = make_single_spring(params, variable)
+      do trial = 1, 3
+        call random_number(q)
+        call random_number(p)
+        call model%state_from_temperature([1.5_real64, 0.0_real64, -1.0_real64] + 0.5_real64*q, 2.0_real64*p - 1.0_real64, &
+                                          0.1_real64*trial, 270.0_real64 + 20.0_real64*trial, z)
+        write (label, '("single spring ", a, " exact partials, trial ", i0)') trim(thermo_variable_names(variable)), trial
+        call model%exact_partials(z, partials, stat=stat)
+        call check_structure(suite, model, z, partials, trim(label))
+        call check_vector_field_derivatives(suite, model, z, partials, trim(label))
+        call model%state_from_temperature([1.2_real64, 0.3_real64, -1.1_real64], [0.4_real64, -0.2_real64, 0.9_real64], &
+                                          0.05_real64, 300.0_real64, z_new)
+        do kind = gradient_gonzalez, gradient_partitioned
+          write (label, '("single spring ", a, " ", a, " partials, trial ", i0)') trim(thermo_variable_names(variable)), &
+            trim(discrete_gradient_names(kind)), trial
+          call discrete_partials(model, kind, z, z_new, partials)
+          call check_structure(suite, model, 0.5_real64*(z + z_new), partials, trim(label))
+        end do
+      end do
+    end do
+  end subroutine single_spring_structure
 
   ! Random states of the pendulum in one variable: exact partials, and discrete partials between
   ! each state and a nearby one.
