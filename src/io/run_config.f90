@@ -87,6 +87,12 @@ contains
       choice%discrete_gradient = findloc(discrete_gradient_names, config%discrete_gradient, dim=1)
       choice%metric = findloc(metric_names, config%metric, dim=1)
       call find_integrator(choice%scheme, entry, found)
+      if (.not. entry%thermo_variables(choice%thermo_variable)) then
+        stat = 1
+        message = value_origin(text, 'integrator', 'thermo_variable', path, extra)//': &integrator: scheme = '''// &
+                  trim(choice%scheme)//''' does not take thermo_variable = '''//trim(config%thermo_variable)//''''
+        return
+      end if
       if (.not. entry%takes_constraints .and. config%scene%constraint_count() > 0) then
         stat = 1
         message = value_origin(text, 'integrator', 'scheme', path, extra)//': &integrator: scheme = '''// &

@@ -172,7 +172,7 @@ contains
       text_field('base', base, 'the path of an eme_run namelist (the base scene)', ''), &
       text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
                  ''), &
-      text_field('combine', combine, "'product' (the first sweep varies slowest) or 'zip'", '')]
+      text_field('combine', combine, "'product' or 'zip' (product: the first sweep varies slowest)", '')]
   end function study_fields
 
   !> The fields of &sweep, bound to the variables that receive them.
