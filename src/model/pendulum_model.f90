@@ -44,7 +44,8 @@ contains
     model%params = params
     model%variable = variable
     model%state_size = state_size
-    model%column_names = state_column_names
+    allocate (model%column_names(state_size))
+    model%column_names(:) = state_column_names
     model%max_invariants = 3
     allocate (model%subsystems(2))
     do a = 1, 2

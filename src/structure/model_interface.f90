@@ -20,13 +20,14 @@ module model_interface
   private
   public :: generic_model, subsystem
 
-  !> One thermodynamic subsystem (a spring, with its temperature).
+  !> One thermodynamic subsystem (a spring, with its temperature). The model's builder sets every
+  !> component.
   type :: subsystem
-    character(len=16) :: name = ''                           !! for messages, e.g. 'spring 1'
+    character(len=16) :: name                                !! for messages, e.g. 'spring 1'
     class(invariant_functions), allocatable :: potentials   !! (U_a, S_a) of the invariants x_a
-    integer :: invariant_count = 0                           !! n_a, tau_a being the last
+    integer :: invariant_count                               !! n_a, tau_a being the last
     integer, allocatable :: columns(:)                       !! the columns of z that x_a depends on
-    integer :: tau_column = 0                                !! tau_a's column of z
+    integer :: tau_column                                    !! tau_a's column of z
     real(real64), allocatable :: metric_scale(:)             !! typical sizes of x_a (FORMULATION section 5)
   end type subsystem
 
