@@ -34,7 +34,7 @@ module integrator_registry
     character(len=100) :: description = ''
     logical :: takes_constraints = .false.
     logical :: uses_discrete_gradient = .false.     !! reads discrete_gradient and metric
-    logical :: adaptive = .false.                   !! chooses its own steps (reads ts_tolerance)
+    logical :: adaptive = .false.                   !! chooses its own steps (reads tolerance)
     logical :: thermo_variables(3) = .true.         !! takes tau = s, theta, u (thermo_variable's tau_*)
     character(len=100) :: scheme_temperature = ''   !! what /scheme_temperature holds for it
     procedure(builder), pointer, nopass :: build => null()
@@ -66,7 +66,7 @@ contains
         description='PETSc TSRK 4: the classic explicit Runge-Kutta method', &
         scheme_temperature=ts_temperature, build=new_ts_rk4), &
       integrator_entry(name='ts_rk5dp', family=family_petsc_ts, label='RK5DP', &
-        description='PETSc TSRK 5dp: adaptive Dormand-Prince at ts_tolerance, landing on every output time', &
+        description='PETSc TSRK 5dp: adaptive Dormand-Prince at tolerance, landing on every output time', &
         adaptive=.true., scheme_temperature=ts_temperature, build=new_ts_rk5dp)]
   end function registered_integrators
 

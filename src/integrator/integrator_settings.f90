@@ -17,7 +17,7 @@ module integrator_settings
     real(real64) :: t_end = 20.0_real64              !! [s]
     real(real64) :: newton_tol = 1.0e-8_real64       !! Newton's tolerance on the residual and the update
     integer :: newton_max_iterations = 50            !! per nonlinear solve
-    real(real64) :: ts_tolerance = 1.0e-10_real64    !! absolute and relative, adaptive methods
+    real(real64) :: tolerance = 1.0e-10_real64       !! absolute and relative, per step, of every adaptive method
   end type integrator_choice
 
 contains

@@ -3,7 +3,7 @@
 !>   ts_midpoint  TSTHETA with theta = 1/2, the implicit midpoint rule as PETSc does it
 !>   ts_bdf2      TSBDF of order 2
 !>   ts_rk4       TSRK 4, the classic explicit Runge-Kutta method
-!>   ts_rk5dp     TSRK 5dp, Dormand-Prince with adaptive steps at tolerance ts_tolerance
+!>   ts_rk5dp     TSRK 5dp, Dormand-Prince with adaptive steps at &integrator tolerance
 !> The fixed-step methods take one step of dt per output step; ts_rk5dp chooses its own steps
 !> and lands on every output time. The TS keeps its state between output steps, so multistep
 !> BDF2 keeps its history. Options with the TS prefix work from the command line (-ts_*).
@@ -92,7 +92,7 @@ contains
 
   !> Creates the TS of the run for `model` from state z0 at t = 0 with step dt (the first step
   !> for ts_rk5dp), Newton tolerance and iteration limit (implicit methods) and tolerance
-  !> ts_tolerance (ts_rk5dp); a TS of an earlier run is destroyed first. The TS baselines take no
+  !> tolerance (ts_rk5dp); a TS of an earlier run is destroyed first. The TS baselines take no
   !> constraints (the registry says so, and the input refuses them).
   subroutine start(self, choice, model, constraints, z0, ierr)
     class(ts_baseline), intent(inout), target :: self
@@ -160,7 +160,7 @@ contains
     PetscCall(TSSetErrorIfStepFails(self%ts, PETSC_FALSE, ierr))
     PetscCall(TSGetAdapt(self%ts, adapt, ierr))
     if (self%method == ts_rk5dp) then
-      PetscCall(TSSetTolerances(self%ts, choice%ts_tolerance, PETSC_NULL_VEC, choice%ts_tolerance, PETSC_NULL_VEC, ierr))
+      PetscCall(TSSetTolerances(self%ts, choice%tolerance, PETSC_NULL_VEC, choice%tolerance, PETSC_NULL_VEC, ierr))
     else
       ! Fixed steps: a stage outside the domain ends the run instead of halving the step.
       PetscCall(TSAdaptSetType(adapt, TSADAPTNONE, ierr))

@@ -133,8 +133,10 @@ contains
         real_field('dt', c%dt, 'a real number > 0 [s]', 's', minimum=0.0_real64, exclusive=.true.), &
         real_field('t_end', c%t_end, 'a real number > 0 [s]', 's', minimum=0.0_real64, exclusive=.true.), &
         real_field('newton_tol', c%newton_tol, 'a real number > 0', '1', minimum=0.0_real64, exclusive=.true.), &
-        real_field('ts_tolerance', c%ts_tolerance, 'a real number > 0 (absolute and relative, for ts_rk5dp)', '1', &
-                   minimum=0.0_real64, exclusive=.true.), &
+        real_field('tolerance', c%tolerance, 'a real number > 0: the absolute and relative error per step of the '// &
+                   'adaptive integrators', '1', minimum=0.0_real64, exclusive=.true.), &
+        real_field('ts_tolerance', c%tolerance, 'the same as tolerance (its old name)', '1', minimum=0.0_real64, &
+                   exclusive=.true.), &
         integer_field('newton_max_iterations', c%newton_max_iterations, &
                       'an integer >= 1 (Newton iterations per solve)', minimum=1)]
     end associate

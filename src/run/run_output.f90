@@ -218,7 +218,8 @@ contains
       call real_attribute('t_end', choice%t_end)
       call real_attribute('theta_r', config%theta_r)
       call real_attribute('newton_tol', choice%newton_tol)
-      call real_attribute('ts_tolerance', choice%ts_tolerance)
+      call real_attribute('tolerance', choice%tolerance)
+      call real_attribute('ts_tolerance', choice%tolerance)   ! the old name, for old scripts
       if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat)
     end associate
     call real_attribute('quotient_threshold', quotient_threshold)
