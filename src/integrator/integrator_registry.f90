@@ -7,16 +7,18 @@ module integrator_registry
   use stepper, only: time_stepper
   use discrete_gradient_stepper, only: new_eme, new_midpoint
   use ts_stepper, only: new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
+  use relaxed_stepper, only: new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
   implicit none (type, external)
   private
   public :: integrator_entry, registered_integrators, find_integrator, integrator_names, integrator_count
-  public :: family_discrete_gradient, family_petsc_ts
+  public :: family_discrete_gradient, family_petsc_ts, family_relaxation
 
-  integer, parameter :: integrator_count = 6   !! the rows of the table below
+  integer, parameter :: integrator_count = 10   !! the rows of the table below
 
   !> The families, as the output's `scheme_family` attribute names them.
   character(len=*), parameter :: family_discrete_gradient = 'discrete_gradient_step'  !! one SNES system per step
   character(len=*), parameter :: family_petsc_ts = 'petsc_ts'                         !! a PETSc TS method
+  character(len=*), parameter :: family_relaxation = 'relaxation'                     !! relaxed Runge-Kutta
 
   abstract interface
     !> Allocates a new, unstarted integrator of the entry's kind.
@@ -35,6 +37,7 @@ module integrator_registry
     logical :: takes_constraints = .false.
     logical :: uses_discrete_gradient = .false.     !! reads discrete_gradient and metric
     logical :: adaptive = .false.                   !! chooses its own steps (reads tolerance)
+    logical :: chooses_time = .false.               !! reaches times of its own (relaxation, adaptive steps)
     logical :: thermo_variables(3) = .true.         !! takes tau = s, theta, u (thermo_variable's tau_*)
     character(len=100) :: scheme_temperature = ''   !! what /scheme_temperature holds for it
     procedure(builder), pointer, nopass :: build => null()
@@ -47,6 +50,8 @@ contains
     type(integrator_entry) :: entries(integrator_count)
     character(len=*), parameter :: ts_temperature = &
       'temperatures at the end of the step (PETSc TS baselines have no discrete temperature)'
+    character(len=*), parameter :: relaxed_temperature = &
+      'temperatures at the end of the step (relaxed Runge-Kutta methods have no discrete temperature)'
 
     entries = [ &
       integrator_entry(name='eme', family=family_discrete_gradient, label='EME', &
@@ -67,7 +72,19 @@ contains
         scheme_temperature=ts_temperature, build=new_ts_rk4), &
       integrator_entry(name='ts_rk5dp', family=family_petsc_ts, label='RK5DP', &
         description='PETSc TSRK 5dp: adaptive Dormand-Prince at tolerance, landing on every output time', &
-        adaptive=.true., scheme_temperature=ts_temperature, build=new_ts_rk5dp)]
+        adaptive=.true., scheme_temperature=ts_temperature, build=new_ts_rk5dp), &
+      integrator_entry(name='relaxed_rk4', family=family_relaxation, label='RRK4', &
+        description='classic RK4 with energy relaxation and an exact J projection, in entropy variables', &
+        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_rk4), &
+      integrator_entry(name='relaxed_rk8', family=family_relaxation, label='RRK8', &
+        description='Cooper-Verner order 8 (11 stages, weights >= 0), relaxed as relaxed_rk4', &
+        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_rk8), &
+      integrator_entry(name='relaxed_dp853', family=family_relaxation, label='RDP853', &
+        description='Dormand-Prince 8(5,3), relaxed, adaptive at tolerance, with the entropy guard; dt is its first step', &
+        adaptive=.true., chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_dp853), &
+      integrator_entry(name='relaxed_gauss6', family=family_relaxation, label='RGauss6', &
+        description='Gauss-Legendre with 3 stages (order 6, implicit, stages solved by SNES), relaxed', &
+        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_gauss6)]
   end function registered_integrators
 
   !> The entry named `name` (found = .false. if there is none).

@@ -9,7 +9,7 @@ module stepper
   use integrator_settings, only: integrator_choice
   implicit none (type, external)
   private
-  public :: time_stepper, step_report
+  public :: time_stepper, step_report, step_diagnostic
 
   !> How a step went.
   type :: step_report
@@ -21,15 +21,28 @@ module stepper
     real(real64), allocatable :: scheme_temperature(:)   !! the temperatures the step's K0 used
     character(len=:), allocatable :: reason              !! why the step failed (if it did)
     character(len=:), allocatable :: last_rejection      !! why the last rejected root was rejected
+    logical :: chose_time = .false.      !! the integrator chose the time it reached: `time`
+    real(real64) :: time = 0.0_real64
+    real(real64), allocatable :: diagnostics(:)   !! the integrator's own per-step figures (its `diagnostics`)
   end type step_report
 
-  !> An integrator of one run at a time; `start` may reuse what an earlier run set up.
+  !> A per-step figure an integrator records beyond step_report's fields (a dataset of its own).
+  type :: step_diagnostic
+    character(len=24) :: name = ''
+    character(len=8) :: units = ''
+    character(len=200) :: description = ''
+  end type step_diagnostic
+
+  !> An integrator of one run at a time; `start` may reuse what an earlier run set up. An
+  !> integrator that chooses its own times (relaxation, adaptive steps) reports them in
+  !> step_report%time and the run goes on until t_end; the others step to n dt.
   type, abstract :: time_stepper
     character(len=16) :: scheme = ''     !! the registry name it was built for
   contains
     procedure(start_interface), deferred :: start
     procedure(advance_interface), deferred :: advance
     procedure(release_interface), deferred :: release
+    procedure :: diagnostics
   end type time_stepper
 
   abstract interface
@@ -63,5 +76,15 @@ module stepper
       integer, intent(out) :: ierr
     end subroutine release_interface
   end interface
+
+contains
+
+  !> The integrator's own per-step figures, in the order of step_report%diagnostics; none by default.
+  function diagnostics(self) result(specs)
+    class(time_stepper), intent(in) :: self
+    type(step_diagnostic), allocatable :: specs(:)
+
+    allocate (specs(0))
+  end function diagnostics
 
 end module stepper

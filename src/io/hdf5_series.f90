@@ -164,8 +164,8 @@ contains
 
   !> Adds a dataset of `width` values per row (a (rows, width) dataset if vector, else (rows))
   !> with `units` and `description` attributes, `columns` (names separated by blanks) for a
-  !> vector, and `rows` (what a row is); it is created empty in `file` at once.
-  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued, columns, rows)
+  !> vector, `rows` (what a row is) and `source` (who defines it); it is created empty in `file` at once.
+  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued, columns, rows, source)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
     character(len=*), intent(in) :: name, units, description
@@ -173,7 +173,7 @@ contains
     logical, intent(in) :: vector
     integer, intent(out) :: stat
     logical, intent(in), optional :: integer_valued
-    character(len=*), intent(in), optional :: columns, rows
+    character(len=*), intent(in), optional :: columns, rows, source
     type(series) :: item
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: dims(2), max_dims(2), chunk(2)
@@ -209,6 +209,7 @@ contains
     if (stat == 0) call file%set_text('description', description, stat, item%dataset)
     if (stat == 0 .and. present(columns)) call file%set_text('columns', columns, stat, item%dataset)
     if (stat == 0 .and. present(rows)) call file%set_text('rows', rows, stat, item%dataset)
+    if (stat == 0 .and. present(source)) call file%set_text('source', source, stat, item%dataset)
     if (stat /= 0) return
 
     self%row_width = self%row_width + width

@@ -25,7 +25,7 @@ module namelist_group
   !> variable it is read into. Bounds and choices are checked after the group is read.
   type :: group_field
     character(len=24) :: name = ''
-    character(len=120) :: allowed = ''
+    character(len=:), allocatable :: allowed      !! what it allows, for messages and --help
     character(len=16) :: units = ''
     integer :: kind = field_real
     real(real64), pointer :: real_value => null()
@@ -40,7 +40,7 @@ module namelist_group
     logical :: nonzero = .false.                  !! an array that must not be all zero
     logical :: check_equal = .false.              !! a real that must equal `required` (relative 1e-12)
     real(real64) :: required = 0.0_real64
-    character(len=200) :: choices = ''            !! the allowed texts, separated by blanks ('' = any)
+    character(len=:), allocatable :: choices      !! the allowed texts, separated by blanks ('' = any)
   end type group_field
 
 contains
@@ -106,7 +106,7 @@ contains
 
     field = group_field(name=name, allowed=allowed, units='', kind=field_text)
     field%text_value => variable
-    field%choices = choices
+    if (len_trim(choices) > 0) field%choices = trim(choices)
   end function text_field
 
   !> A list of up to size(variable) quoted texts (the rest is left as it was).
@@ -429,7 +429,7 @@ contains
     case (field_integer)
       within_bounds = real(field%integer_value, real64) >= field%minimum
     case (field_text)
-      if (len_trim(field%choices) > 0) within_bounds = is_choice(trim(field%text_value), field%choices)
+      if (allocated(field%choices)) within_bounds = is_choice(trim(field%text_value), field%choices)
     end select
   end function within_bounds
 

@@ -24,6 +24,7 @@ module invariant_function
     procedure(evaluate_interface), deferred :: evaluate
     procedure :: difference
     procedure :: temperature
+    procedure :: tau_from_temperature
   end type invariant_functions
 
   abstract interface
@@ -71,6 +72,20 @@ contains
     theta = g(size(x), potential_u)/g(size(x), potential_s)
     if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
   end subroutine temperature
+
+  !> The value of tau (the last invariant) that gives temperature theta at the mechanical
+  !> invariants (the others). This default cannot invert: stat = domain_overflow; functions with
+  !> a closed form override it (a model that changes thermodynamic variables needs it).
+  pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
+    class(invariant_functions), intent(in) :: self
+    real(real64), intent(in) :: mechanical(:)
+    real(real64), intent(in) :: theta
+    real(real64), intent(out) :: tau
+    integer, intent(out) :: stat
+
+    tau = 0.0_real64
+    stat = domain_overflow
+  end subroutine tau_from_temperature
 
   !> What a domain status means, for messages.
   pure function domain_text(stat) result(text)

@@ -10,7 +10,7 @@ module pendulum_model
   use model_interface, only: generic_model
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, state_column_names, &
                              kinetic_energy, gravity_potential, gravity_force, inverse_mass_times, &
-                             angular_momentum, spring_invariants, spring_columns
+                             angular_momentum, spring_invariants, spring_columns, cross
   use pendulum_vector_field, only: vector_field
   implicit none (type, external)
   private
@@ -19,7 +19,6 @@ module pendulum_model
   !> Parameters and the spring potentials (U_a, S_a) in the chosen thermodynamic variable.
   type, extends(generic_model) :: pendulum
     type(pendulum_parameters) :: params
-    integer :: variable = 0
     type(spring_potential) :: spring(2)
   contains
     procedure :: invariants
@@ -29,6 +28,10 @@ module pendulum_model
     procedure :: angular_momentum => pendulum_angular_momentum
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
+    procedure :: in_variable
+    procedure :: conserved_momentum
+    procedure :: conserved_momentum_gradient
+    procedure :: mechanical_energy_difference => pendulum_energy_difference
     procedure :: state_from_temperatures
   end type pendulum
 
@@ -42,7 +45,7 @@ contains
     integer :: a
 
     model%params = params
-    model%variable = variable
+    model%thermo_variable = variable
     model%state_size = state_size
     allocate (model%column_names(state_size))
     model%column_names(:) = state_column_names
@@ -146,6 +149,64 @@ contains
     conduction = self%params%conductivity*theta(1)*theta(2)
     k0(tau_index, tau_index) = reshape([conduction, -conduction, -conduction, conduction], [2, 2])
   end function friction_matrix_0
+
+  !> The pendulum in another thermodynamic variable.
+  subroutine in_variable(self, variable, other)
+    class(pendulum), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: other
+
+    allocate (other, source=make_pendulum(self%params, variable))
+  end subroutine in_variable
+
+  !> J.a with a = g/|g| (e_z without gravity): the component of J that gravity leaves conserved.
+  pure function conserved_momentum(self, z) result(j_axis)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: j_axis
+
+    j_axis = dot_product(angular_momentum(z), conserved_axis(self%params))
+  end function conserved_momentum
+
+  !> d(J.a)/dp: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
+  pure function conserved_momentum_gradient(self, z) result(gradient)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradient(size(z))
+    real(real64) :: axis(3)
+    integer :: a
+
+    axis = conserved_axis(self%params)
+    gradient = 0.0_real64
+    do a = 1, 2
+      gradient(p_index(:, a)) = cross(axis, z(q_index(:, a)))
+    end do
+  end function conserved_momentum_gradient
+
+  !> (T + V_g)(z_b) - (T + V_g)(z_a) without cancellation: T is quadratic, so its difference is
+  !> 1/2 (p_b - p_a).m^-1 (p_b + p_a); V_g is linear.
+  pure function pendulum_energy_difference(self, z_a, z_b) result(delta)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z_a(:), z_b(:)
+    real(real64) :: delta
+    real(real64) :: p_a(3, 2), p_b(3, 2), q_a(3, 2), q_b(3, 2)
+
+    p_a = reshape(z_a(p_index(1, 1):p_index(3, 2)), [3, 2])
+    p_b = reshape(z_b(p_index(1, 1):p_index(3, 2)), [3, 2])
+    q_a = reshape(z_a(q_index(1, 1):q_index(3, 2)), [3, 2])
+    q_b = reshape(z_b(q_index(1, 1):q_index(3, 2)), [3, 2])
+    delta = 0.5_real64*sum((p_b - p_a)*inverse_mass_times(self%params, p_b + p_a)) &
+            - sum(gravity_force(self%params)*(q_b - q_a))
+  end function pendulum_energy_difference
+
+  ! The direction of gravity, or e_z without it.
+  pure function conserved_axis(params) result(axis)
+    type(pendulum_parameters), intent(in) :: params
+    real(real64) :: axis(3)
+
+    axis = [0.0_real64, 0.0_real64, 1.0_real64]
+    if (norm2(params%gravity) > 0.0_real64) axis = params%gravity/norm2(params%gravity)
+  end function conserved_axis
 
   !> The state z built from positions, momenta, gamma and spring temperatures theta(2).
   pure subroutine state_from_temperatures(self, q1, q2, p1, p2, gamma, theta, z, stat)

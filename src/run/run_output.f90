@@ -13,7 +13,7 @@ module run_output
   use thermo_variable, only: thermo_variable_names
   use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use run_config, only: run_configuration
-  use stepper, only: step_report
+  use stepper, only: step_report, step_diagnostic
   use build_info, only: code_version
   implicit none (type, external)
   private
@@ -73,13 +73,15 @@ module run_output
 
 contains
 
-  !> Creates the file at config%output_file with its attributes and empty datasets.
-  subroutine create(self, config, entry, model, constraints, steps_planned, stat)
+  !> Creates the file at config%output_file with its attributes and empty datasets: the schema's,
+  !> then one per step for each of the integrator's own diagnostics (attribute source = integrator).
+  subroutine create(self, config, entry, model, constraints, diagnostics, steps_planned, stat)
     class(run_file), intent(inout) :: self
     type(run_configuration), intent(in) :: config
     type(integrator_entry), intent(in) :: entry
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
+    type(step_diagnostic), intent(in) :: diagnostics(:)
     integer, intent(in) :: steps_planned
     integer, intent(out) :: stat
     character(len=:), allocatable :: ignored
@@ -98,6 +100,11 @@ contains
       else
         call define(self%steps)
       end if
+    end do
+    do k = 1, size(diagnostics)
+      if (stat /= 0) return
+      call self%steps%define(self%file, trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
+                             trim(diagnostics(k)%description), stat, rows='step', source='integrator')
     end do
 
   contains
@@ -130,24 +137,28 @@ contains
     call self%points%append(self%file, [time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals], stat)
   end subroutine record_point
 
-  !> One row of every per-step dataset, in the schema's order.
+  !> One row of every per-step dataset, in the schema's order, then the integrator's diagnostics.
   subroutine record_step(self, report, multipliers, stat)
     class(run_file), intent(inout) :: self
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:)
     integer, intent(out) :: stat
 
+    real(real64), allocatable :: diagnostics(:)
+
+    allocate (diagnostics(0))
+    if (allocated(report%diagnostics)) diagnostics = report%diagnostics
     call self%steps%append(self%file, [real(report%newton_iterations, real64), report%scheme_temperature, &
                                        real(report%strategy, real64), real(report%solves, real64), &
-                                       real(report%rejected, real64), multipliers], stat)
+                                       real(report%rejected, real64), multipliers, diagnostics], stat)
   end subroutine record_step
 
-  !> Writes what is buffered, the final status and times, and closes the file; stat reports the
-  !> first failure.
-  subroutine finish(self, status, steps_completed, solve_seconds, wall_seconds, stat)
+  !> Writes what is buffered, the final status, step counts and times, and closes the file; stat
+  !> reports the first failure.
+  subroutine finish(self, status, steps_planned, steps_completed, solve_seconds, wall_seconds, stat)
     class(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
-    integer, intent(in) :: steps_completed
+    integer, intent(in) :: steps_planned, steps_completed
     real(real64), intent(in) :: solve_seconds, wall_seconds
     integer, intent(out) :: stat
     integer :: close_stat
@@ -156,6 +167,8 @@ contains
     call self%steps%close(self%file, close_stat)
     if (stat == 0) stat = close_stat
     call self%file%set_text('status', status, close_stat)
+    if (stat == 0) stat = close_stat
+    call self%file%set_integer('steps_planned', steps_planned, close_stat)
     if (stat == 0) stat = close_stat
     call self%file%set_integer('steps_completed', steps_completed, close_stat)
     if (stat == 0) stat = close_stat

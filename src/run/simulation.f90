@@ -72,15 +72,17 @@ contains
     type(run_file) :: output
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
+    real(real64) :: t_end
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate
-    integer :: n, k, n_state, io_stat, ierr, release_ierr
-    logical :: found
+    integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps
+    logical :: found, finished
 
     call system_clock(clock_start, clock_rate)
     message = ''
     summary%status = 'incomplete: running'
     summary%steps_planned = step_count(config%integrator)
     dt = config%integrator%dt
+    t_end = config%integrator%t_end
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
     if (stat /= 0) then
@@ -95,13 +97,6 @@ contains
     x(1:n_state) = z0
     boundary_heat = 0.0_real64
 
-    call make_parent_directories(config%output_file, stat)
-    if (stat == 0) call output%create(config, entry, model, constraints, summary%steps_planned, stat)
-    if (stat /= 0) then
-      message = 'cannot create the output file '''//config%output_file//''' (&output: file)'
-      return
-    end if
-
     if (present(reusable)) then
       if (allocated(reusable)) then
         if (reusable%scheme /= entry%name) then
@@ -114,6 +109,13 @@ contains
     else
       call new_integrator(own)
       integrator => own
+    end if
+    call make_parent_directories(config%output_file, stat)
+    if (stat == 0) call output%create(config, entry, model, constraints, integrator%diagnostics(), summary%steps_planned, &
+                                      stat)
+    if (stat /= 0) then
+      message = 'cannot create the output file '''//config%output_file//''' (&output: file)'
+      return
     end if
     call integrator%start(config%integrator, model, constraints, z0, ierr)
     if (ierr /= 0) then
@@ -131,9 +133,21 @@ contains
     x_previous = x
     call system_clock(clock_loop)
     io_stat = 0
-    do n = 1, summary%steps_planned
+    ! Integrators on the output grid take steps_planned steps to n dt; those that choose their
+    ! times go on until they reach t_end (the last step lands on it).
+    max_steps = max(1000000, 100*summary%steps_planned)
+    finished = summary%steps_planned == 0
+    time = 0.0_real64
+    n = 0
+    do while (.not. finished)
+      if (n == max_steps) then
+        summary%status = 'incomplete: t_end not reached in '//integer_text(max_steps)//' steps'
+        exit
+      end if
+      n = n + 1
+      if (.not. entry%chooses_time) time = (n - 1)*dt
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
-      call integrator%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
+      call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       if (ierr /= 0) then
         stat = ierr
@@ -141,7 +155,13 @@ contains
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
         exit
       end if
-      time = n*dt
+      if (entry%chooses_time) then
+        time = report%time
+        finished = time >= t_end
+      else
+        time = n*dt
+        finished = n == summary%steps_planned
+      end if
       if (.not. report%accepted) then
         summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '//report%reason
         exit
@@ -173,8 +193,10 @@ contains
       stat = io_stat
       message = 'cannot write to '//config%output_file
       summary%status = 'incomplete: cannot write the output file'
-    else if (summary%steps_completed == summary%steps_planned) then
+    else if (finished .and. summary%steps_completed == n) then
       summary%status = 'complete'
+      ! An integrator that chooses its times planned t_end/dt steps; it took n.
+      summary%steps_planned = n
     end if
     call system_clock(clock_now)
     summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
@@ -224,7 +246,7 @@ contains
       integer :: close_stat
 
       call system_clock(clock_now)
-      call output%finish(status, summary%steps_completed, summary%solve_seconds, &
+      call output%finish(status, summary%steps_planned, summary%steps_completed, summary%solve_seconds, &
                          real(clock_now - clock_start, real64)/real(clock_rate, real64), close_stat)
       if (close_stat /= 0 .and. stat == 0) then
         stat = close_stat

@@ -34,6 +34,7 @@ module model_interface
   !> A GENERIC model with Mielke's split.
   type, abstract :: generic_model
     integer :: state_size = 0
+    integer :: thermo_variable = 0                           !! thermo_variable's tau_* of every subsystem
     character(len=16), allocatable :: column_names(:)        !! of z, in the model's thermodynamic variable
     type(subsystem), allocatable :: subsystems(:)
     integer :: max_invariants = 0                            !! the largest n_a, the first extent of partials
@@ -45,6 +46,12 @@ module model_interface
     procedure(momentum_interface), deferred :: angular_momentum
     procedure(poisson_interface), deferred :: poisson_matrix_0
     procedure(friction_interface), deferred :: friction_matrix_0
+    procedure(in_variable_interface), deferred :: in_variable
+    procedure(scalar_of_state), deferred :: conserved_momentum
+    procedure(vector_of_state), deferred :: conserved_momentum_gradient
+    procedure :: mechanical_energy_difference
+    procedure :: energy_difference
+    procedure :: convert_state
     procedure :: subsystem_count
     procedure :: observe
     procedure :: temperatures
@@ -76,7 +83,16 @@ module model_interface
       real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
     end subroutine vector_field_interface
 
-    !> A scalar function of the state (the mechanical energy: kinetic and gravity).
+    !> The same model in thermodynamic variable `variable` (thermo_variable's tau_*).
+    subroutine in_variable_interface(self, variable, other)
+      import :: generic_model
+      class(generic_model), intent(in) :: self
+      integer, intent(in) :: variable
+      class(generic_model), allocatable, intent(out) :: other
+    end subroutine in_variable_interface
+
+    !> A scalar function of the state: the mechanical energy (kinetic and gravity), or the
+    !> component of the angular momentum that is a first integral (along gravity).
     pure function scalar_of_state(self, z) result(value)
       import :: generic_model, real64
       class(generic_model), intent(in) :: self
@@ -84,7 +100,8 @@ module model_interface
       real(real64) :: value
     end function scalar_of_state
 
-    !> The gradient in z of the mechanical energy.
+    !> A gradient in z: of the mechanical energy; of the conserved momentum component, which is
+    !> linear in the momenta, with respect to the momenta only (zero in the other columns).
     pure function vector_of_state(self, z) result(gradient)
       import :: generic_model, real64
       class(generic_model), intent(in) :: self
@@ -124,6 +141,62 @@ contains
 
     subsystem_count = size(self%subsystems)
   end function subsystem_count
+
+  !> (T + V_g)(z_b) - (T + V_g)(z_a). This default subtracts two values; models override it with
+  !> a form free of cancellation (kinetic energy is quadratic, gravity linear).
+  pure function mechanical_energy_difference(self, z_a, z_b) result(delta)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z_a(:), z_b(:)
+    real(real64) :: delta
+
+    delta = self%mechanical_energy(z_b) - self%mechanical_energy(z_a)
+  end function mechanical_energy_difference
+
+  !> E(z_b) - E(z_a) without cancellation: the mechanical part by mechanical_energy_difference,
+  !> the subsystems' U_a by their potentials' difference (relaxation solves E(z_b) = E(z_a)).
+  pure subroutine energy_difference(self, z_a, z_b, delta, stat)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z_a(:), z_b(:)
+    real(real64), intent(out) :: delta
+    integer, intent(out) :: stat
+    real(real64) :: x_a(self%max_invariants), x_b(self%max_invariants), part(2)
+    integer :: a, n
+
+    delta = self%mechanical_energy_difference(z_a, z_b)
+    stat = domain_ok
+    do a = 1, size(self%subsystems)
+      n = self%subsystems(a)%invariant_count
+      call self%invariants(z_a, a, x_a(1:n))
+      call self%invariants(z_b, a, x_b(1:n))
+      call self%subsystems(a)%potentials%difference(x_a(1:n), x_b(1:n), part, stat)
+      if (stat /= domain_ok) return
+      delta = delta + part(potential_u)
+    end do
+  end subroutine energy_difference
+
+  !> The same physical state in `target`'s thermodynamic variable: every subsystem's tau from its
+  !> temperature at the same mechanical invariants (FORMULATION section 3's closed forms).
+  pure subroutine convert_state(self, z, target, z_target, stat)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    class(generic_model), intent(in) :: target
+    real(real64), intent(out) :: z_target(:)
+    integer, intent(out) :: stat
+    real(real64) :: x(self%max_invariants), theta
+    integer :: a, n
+
+    z_target = z
+    stat = domain_ok
+    do a = 1, size(self%subsystems)
+      n = self%subsystems(a)%invariant_count
+      call self%invariants(z, a, x(1:n))
+      call self%subsystems(a)%potentials%temperature(x(1:n), theta, stat)
+      if (stat /= domain_ok) return
+      call target%subsystems(a)%potentials%tau_from_temperature(x(1:n - 1), theta, &
+                                                                z_target(self%subsystems(a)%tau_column), stat)
+      if (stat /= domain_ok) return
+    end do
+  end subroutine convert_state
 
   !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z.
   pure subroutine observe(self, z, energy, entropy, temperature, stat)

@@ -35,6 +35,9 @@ module single_spring_model
     procedure :: angular_momentum
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
+    procedure :: in_variable
+    procedure :: conserved_momentum
+    procedure :: conserved_momentum_gradient
     procedure :: state_from_temperature
   end type single_spring
 
@@ -50,6 +53,7 @@ contains
     model%mass = params%mass(2)
     model%spring%law = spring_law_of(params, 2)
     model%spring%variable = variable
+    model%thermo_variable = variable
     model%spring%n_invariants = 3
     model%state_size = 8
     allocate (model%column_names(size(column_names)))
@@ -186,6 +190,35 @@ contains
     k0 = 0.0_real64
     k0(gamma_column, gamma_column) = theta/viscosity(self%params, theta)
   end function friction_matrix_0
+
+  subroutine in_variable(self, variable, other)
+    class(single_spring), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: other
+
+    allocate (other, source=make_single_spring(self%params, variable))
+  end subroutine in_variable
+
+  !> J_z (gravity is along z in the tests).
+  pure function conserved_momentum(self, z) result(j_z)
+    class(single_spring), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: j_z
+    real(real64) :: j(3)
+
+    j = self%angular_momentum(z)
+    j_z = j(3)
+  end function conserved_momentum
+
+  !> d J_z/dp = (-q_y, q_x, 0).
+  pure function conserved_momentum_gradient(self, z) result(gradient)
+    class(single_spring), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradient(size(z))
+
+    gradient = 0.0_real64
+    gradient(4:6) = [-z(2), z(1), 0.0_real64]
+  end function conserved_momentum_gradient
 
   !> The state from position, momentum, gamma and temperature.
   subroutine state_from_temperature(self, q, p, gamma, theta, z)

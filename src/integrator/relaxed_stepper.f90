@@ -1,0 +1,429 @@
+!> Relaxed Runge-Kutta integrators (HIGH_ORDER.md): every step keeps E exactly, the conserved
+!> component of J exactly, S non-decreasing and V = E - theta_R S non-increasing, at order 4 to 8.
+!>
+!> The step runs in entropy variables (tau = s), whatever the run's thermodynamic variable: there
+!> S is linear in z, L grad S = 0 everywhere, and every stage has positive temperatures. With
+!> d = h sum_i b_i f(g_i) and e_S = h sum_i b_i grad S.f(g_i) = h sum_i b_i sigma(g_i), sigma >= 0,
+!> the relaxed update z + gamma d (momenta corrected for J, src/integrator/relaxation) has
+!>   S_{n+1} - S_n = gamma e_S   exactly,
+!> which is >= 0 when every b_i >= 0 (RK4, Cooper-Verner 8, Gauss-Legendre 3) and is guarded
+!> otherwise (Dormand-Prince 8(5,3): a step with e_S < 0 is rejected). Time advances by gamma h;
+!> the step that reaches t_end lands on it (t + h, no time relaxation: the local error stays
+!> O(h^p)). A step with a non-finite stage, no relaxation root in [0.2, 2], a failed stage solve
+!> or a failed guard is rejected and replaced by two relaxed half steps, recursively, to
+!> max_halvings levels; an unrelaxed step is never accepted.
+!>
+!> Fixed-step schemes take nominal steps of dt; relaxed_dp853 adapts h to the &integrator
+!> tolerance (absolute and relative per step, DOP853's error norm and controller), dt being its
+!> first trial step. The implicit Gauss-Legendre stages are solved by PETSc SNES.
+module relaxed_stepper
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: domain_ok
+  use thermo_variable, only: tau_entropy
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use butcher_tableaux, only: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3
+  use relaxation, only: relax
+  use collocation_stages, only: stage_system, field_and_jacobian
+  use snes_solver, only: newton_solver
+  use retry_strategies, only: root_search, find_root
+  use integrator_settings, only: integrator_choice
+  use stepper, only: time_stepper, step_report, step_diagnostic
+  use number_text, only: integer_text
+  implicit none (type, external)
+  private
+  public :: relaxed_runge_kutta, new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
+  public :: max_halvings
+
+  !> Depth of the halving of a rejected step: 2^12 substeps at most.
+  integer, parameter :: max_halvings = 12
+  ! DOP853's step-size controller: safety factor and the bounds of h_new/h.
+  real(real64), parameter :: safety = 0.9_real64, shrink_limit = 0.333_real64, grow_limit = 6.0_real64
+  integer, parameter :: max_error_rejections = 100
+
+  !> A relaxed Runge-Kutta integrator and its state in entropy variables.
+  type, extends(time_stepper) :: relaxed_runge_kutta
+    type(butcher_tableau) :: tableau
+    logical :: adaptive = .false.
+    class(generic_model), allocatable :: model          !! the run's model in entropy variables
+    class(generic_model), allocatable :: user_model     !! the run's model in its own variable
+    real(real64), allocatable :: z(:)                   !! the state, in entropy variables
+    real(real64) :: t = 0.0_real64
+    real(real64) :: t_end = 0.0_real64
+    real(real64) :: tolerance = 0.0_real64
+    real(real64) :: h_next = 0.0_real64                 !! the adaptive method's next trial step
+    ! The implicit method's stage system and its solver.
+    type(stage_system) :: stages
+    type(newton_solver) :: solver
+    real(real64) :: newton_tol = 0.0_real64
+    integer :: newton_max_iterations = 0
+    real(real64), allocatable :: last_stages(:)         !! the last step's K, the next predictor
+    ! What the current output step did, and what the last committed step replaced.
+    integer :: attempts = 0, rejections = 0, newton_iterations = 0
+    real(real64) :: last_gamma = 1.0_real64, entropy_production = 0.0_real64
+    character(len=:), allocatable :: last_failure
+    real(real64), allocatable :: z_saved(:)
+    real(real64) :: t_saved = 0.0_real64, gamma_saved = 1.0_real64, production_saved = 0.0_real64
+  contains
+    procedure :: start
+    procedure :: advance
+    procedure :: release
+    procedure :: diagnostics
+    procedure, private :: restore
+  end type relaxed_runge_kutta
+
+contains
+
+  !> Classic RK4, relaxed.
+  subroutine new_relaxed_rk4(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=relaxed_runge_kutta(tableau=classic_rk4()))
+  end subroutine new_relaxed_rk4
+
+  !> Cooper-Verner 8, relaxed.
+  subroutine new_relaxed_rk8(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=relaxed_runge_kutta(tableau=cooper_verner8()))
+  end subroutine new_relaxed_rk8
+
+  !> Dormand-Prince 8(5,3), relaxed, adaptive, with the entropy guard.
+  subroutine new_relaxed_dp853(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=relaxed_runge_kutta(tableau=dormand_prince853(), adaptive=.true.))
+  end subroutine new_relaxed_dp853
+
+  !> Gauss-Legendre with 3 stages (order 6, implicit), relaxed.
+  subroutine new_relaxed_gauss6(integrator)
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    allocate (integrator, source=relaxed_runge_kutta(tableau=gauss_legendre3()))
+  end subroutine new_relaxed_gauss6
+
+  !> The per-step figures of a relaxed step.
+  function diagnostics(self) result(specs)
+    class(relaxed_runge_kutta), intent(in) :: self
+    type(step_diagnostic), allocatable :: specs(:)
+
+    specs = [step_diagnostic('relaxation_gamma', '1', &
+                             'gamma of the step''s last relaxed (sub)step: E(z + gamma d) = E(z); time advanced by gamma h'), &
+             step_diagnostic('rejected_steps', '1', &
+                             'attempts rejected in the step (no relaxation root, a non-finite stage, a failed stage '// &
+                             'solve, the entropy guard, or the error test), each replaced by smaller steps'), &
+             step_diagnostic('entropy_production', 'J/K', &
+                             'gamma e_S summed over the step''s substeps: the entropy change the step''s stages give')]
+  end function diagnostics
+
+  !> The run's models (its own variable and entropy variables) and the initial state.
+  subroutine start(self, choice, model, constraints, z0, ierr)
+    class(relaxed_runge_kutta), intent(inout), target :: self
+    type(integrator_choice), intent(in) :: choice
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z0(:)
+    integer, intent(out) :: ierr
+    integer :: stat
+
+    ierr = 0
+    if (size(constraints) > 0) ierr = 1     ! the registry and the input refuse constraints
+    if (allocated(self%user_model)) deallocate (self%user_model)
+    allocate (self%user_model, source=model)
+    if (allocated(self%model)) deallocate (self%model)
+    call model%in_variable(tau_entropy, self%model)
+    if (allocated(self%z)) deallocate (self%z)
+    allocate (self%z(size(z0)))
+    call model%convert_state(z0, self%model, self%z, stat)
+    if (stat /= domain_ok) ierr = 1
+    self%t = 0.0_real64
+    self%t_end = choice%t_end
+    self%tolerance = choice%tolerance
+    self%h_next = choice%dt
+    self%newton_tol = choice%newton_tol
+    self%newton_max_iterations = choice%newton_max_iterations
+    if (allocated(self%last_stages)) deallocate (self%last_stages)
+    if (self%tableau%implicit) then
+      if (allocated(self%stages%model)) deallocate (self%stages%model)
+      allocate (self%stages%model, source=self%model)
+      self%stages%a = self%tableau%a
+      self%stages%z = self%z
+      self%stages%h = choice%dt
+      call self%solver%prepare(self%stages, choice%newton_tol, choice%newton_max_iterations, ierr)
+    end if
+  end subroutine start
+
+  !> One output step: a relaxed step of dt (fixed-step schemes) or one accepted adaptive step,
+  !> landing on t_end when it reaches it. x_old is not needed: the integrator keeps its state.
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+    class(relaxed_runge_kutta), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    integer, intent(out) :: ierr
+    real(real64) :: energy, entropy
+    logical :: ok
+    integer :: stat
+
+    ierr = 0
+    self%attempts = 0
+    self%rejections = 0
+    self%newton_iterations = 0
+    self%entropy_production = 0.0_real64
+    self%last_failure = ''
+    report%reason = ''
+    report%last_rejection = ''
+    allocate (report%scheme_temperature(self%model%subsystem_count()))
+    report%scheme_temperature = 0.0_real64
+    if (self%adaptive) then
+      call adaptive_step(self, ok, ierr)
+    else if (self%t + dt >= self%t_end) then
+      call step_or_halve(self, self%t_end - self%t, .true., 0, ok, ierr)
+    else
+      call step_or_halve(self, dt, .false., 0, ok, ierr)
+    end if
+    report%chose_time = .true.
+    report%time = self%t
+    report%solves = self%attempts
+    report%rejected = self%rejections
+    report%newton_iterations = self%newton_iterations
+    report%diagnostics = [self%last_gamma, real(self%rejections, real64), self%entropy_production]
+    if (ierr /= 0) return
+    if (.not. ok) then
+      report%reason = self%last_failure
+      return
+    end if
+    call self%model%convert_state(self%z, self%user_model, x_new(1:size(self%z)), stat)
+    if (stat == domain_ok) call self%user_model%observe(x_new(1:size(self%z)), energy, entropy, &
+                                                        report%scheme_temperature, stat)
+    report%accepted = stat == domain_ok
+    if (.not. report%accepted) report%reason = 'the state left the model''s domain'
+  end subroutine advance
+
+  !> Frees the stage solver's PETSc objects.
+  subroutine release(self, ierr)
+    class(relaxed_runge_kutta), intent(inout) :: self
+    integer, intent(out) :: ierr
+
+    ierr = 0
+    if (self%solver%created) call self%solver%destroy(ierr)
+  end subroutine release
+
+  ! A step of h (landing: the time goes to t + h exactly), or, if it is rejected, two halves,
+  ! recursively; ok = .false. when halving went past max_halvings.
+  recursive subroutine step_or_halve(self, h, landing, depth, ok, ierr)
+    class(relaxed_runge_kutta), intent(inout) :: self
+    real(real64), intent(in) :: h
+    logical, intent(in) :: landing
+    integer, intent(in) :: depth
+    logical, intent(out) :: ok
+    integer, intent(out) :: ierr
+    real(real64) :: target_time, error_norm
+
+    target_time = self%t + h
+    call relaxed_step(self, h, landing, ok, error_norm, ierr)
+    if (ok .or. ierr /= 0) return
+    self%rejections = self%rejections + 1
+    if (depth == max_halvings) then
+      self%last_failure = 'a step halved '//integer_text(max_halvings)//' times still failed (last: ' &
+                          //self%last_failure//')'
+      return
+    end if
+    call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, ierr)
+    if (.not. ok .or. ierr /= 0) return
+    if (landing) then
+      call step_or_halve(self, target_time - self%t, .true., depth + 1, ok, ierr)
+    else
+      call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, ierr)
+    end if
+  end subroutine step_or_halve
+
+  ! One accepted step of the adaptive method: DOP853's error norm (Hairer, Norsett, Wanner)
+  ! against `tolerance`, h_new = h min(6, max(1/3, 0.9 err^(-1/8))), and no growth right after a
+  ! rejection, as DOP853 does; a failed or guarded step is halved. The step that reaches t_end
+  ! lands on it.
+  subroutine adaptive_step(self, ok, ierr)
+    class(relaxed_runge_kutta), intent(inout) :: self
+    logical, intent(out) :: ok
+    integer, intent(out) :: ierr
+    real(real64) :: h, error_norm, factor
+    logical :: landing
+    integer :: tries
+
+    ok = .false.
+    ierr = 0
+    h = self%h_next
+    do tries = 1, max_error_rejections
+      landing = self%t + h >= self%t_end
+      if (landing) h = self%t_end - self%t
+      call relaxed_step(self, h, landing, ok, error_norm, ierr)
+      if (ierr /= 0) return
+      if (ok .and. error_norm <= 1.0_real64) then
+        factor = grow_limit
+        if (error_norm > 0.0_real64) factor = min(grow_limit, max(shrink_limit, safety*error_norm**(-0.125_real64)))
+        if (tries > 1) factor = min(factor, 1.0_real64)
+        if (.not. landing) self%h_next = h*factor
+        return
+      end if
+      self%rejections = self%rejections + 1
+      if (ok) then
+        ! Relaxed, but not accepted by the error test: undo and retry smaller.
+        call self%restore()
+        h = h*max(shrink_limit, safety*error_norm**(-0.125_real64))
+        ok = .false.
+      else
+        h = 0.5_real64*h
+      end if
+      if (h <= 1.0e-14_real64*max(1.0_real64, abs(self%t))) exit
+    end do
+    self%last_failure = 'the adaptive step shrank below round-off or was rejected ' &
+                        //integer_text(max_error_rejections)//' times (last: '//self%last_failure//')'
+  end subroutine adaptive_step
+
+  ! One relaxed step of h from the current state, committed when ok (state, time, figures):
+  ! the stages, d = h sum_i b_i k_i and e_S = h sum_i b_i sum_a k_i(tau_a), then the relaxation.
+  ! landing: the time goes to t + h exactly. A step whose relaxed time would pass t_end is
+  ! redone as the landing step. error_norm: DOP853's error norm (0 without embedded weights).
+  recursive subroutine relaxed_step(self, h, landing, ok, error_norm, ierr)
+    class(relaxed_runge_kutta), intent(inout) :: self
+    real(real64), intent(in) :: h
+    logical, intent(in) :: landing
+    logical, intent(out) :: ok
+    real(real64), intent(out) :: error_norm
+    integer, intent(out) :: ierr
+    real(real64) :: k(size(self%z), self%tableau%stages), d(size(self%z)), z_new(size(self%z)), e_s, gamma
+    integer :: evaluations, a
+
+    ok = .false.
+    ierr = 0
+    error_norm = 0.0_real64
+    self%attempts = self%attempts + 1
+    call stage_derivatives(self, h, k, ok, ierr)
+    if (.not. ok .or. ierr /= 0) return
+    ok = .false.
+    d = h*matmul(k, self%tableau%b)
+    e_s = 0.0_real64
+    do a = 1, self%model%subsystem_count()
+      e_s = e_s + h*dot_product(self%tableau%b, k(self%model%subsystems(a)%tau_column, :))
+    end do
+    if (.not. all(abs(d) <= huge(1.0_real64))) then
+      self%last_failure = 'a non-finite stage'
+      return
+    end if
+    if (any(self%tableau%b < 0.0_real64) .and. e_s < 0.0_real64) then
+      self%last_failure = 'the entropy guard: the step''s entropy estimate is negative'
+      return
+    end if
+    call relax(self%model, self%z, d, gamma, z_new, ok, evaluations)
+    if (.not. ok) then
+      self%last_failure = 'no relaxation root gamma in [0.2, 2]'
+      return
+    end if
+    if (.not. landing .and. self%t + gamma*h >= self%t_end) then
+      self%attempts = self%attempts - 1
+      call relaxed_step(self, self%t_end - self%t, .true., ok, error_norm, ierr)
+      return
+    end if
+    if (self%tableau%embedded) error_norm = dop853_error_norm(self, h, k, z_new)
+    self%z_saved = self%z
+    self%t_saved = self%t
+    self%gamma_saved = self%last_gamma
+    self%production_saved = self%entropy_production
+    self%z = z_new
+    if (landing) then
+      self%t = self%t + h
+    else
+      self%t = self%t + gamma*h
+    end if
+    self%last_gamma = gamma
+    self%entropy_production = self%entropy_production + gamma*e_s
+  end subroutine relaxed_step
+
+  ! Undoes the last committed step (the adaptive method's error test refused it).
+  subroutine restore(self)
+    class(relaxed_runge_kutta), intent(inout) :: self
+
+    self%z = self%z_saved
+    self%t = self%t_saved
+    self%last_gamma = self%gamma_saved
+    self%entropy_production = self%production_saved
+  end subroutine restore
+
+  ! The stage derivatives k_i = f(g_i) of a step of h: explicit stages one after another, or the
+  ! implicit stage system solved by SNES (k_i recomputed from the final stage values, so the
+  ! entropy identity does not depend on the solver's tolerance). ok = .false. with last_failure
+  ! when a stage leaves the domain or the solve fails.
+  subroutine stage_derivatives(self, h, k, ok, ierr)
+    class(relaxed_runge_kutta), intent(inout) :: self
+    real(real64), intent(in) :: h
+    real(real64), intent(out) :: k(:, :)
+    logical, intent(out) :: ok
+    integer, intent(out) :: ierr
+    real(real64) :: g(size(self%z)), y(size(self%z), self%tableau%stages)
+    real(real64), allocatable :: start(:), predictor(:), solution(:)
+    type(root_search) :: search
+    integer :: i, stat, s, n
+
+    ok = .false.
+    ierr = 0
+    s = self%tableau%stages
+    n = size(self%z)
+    if (.not. self%tableau%implicit) then
+      do i = 1, s
+        g = self%z + h*matmul(k(:, 1:i - 1), self%tableau%a(i, 1:i - 1))
+        call field_and_jacobian(self%model, g, k(:, i), stat)
+        if (stat /= domain_ok) then
+          self%last_failure = 'stage '//integer_text(i)//' left the model''s domain or is not finite'
+          return
+        end if
+      end do
+      ok = .true.
+      return
+    end if
+    call field_and_jacobian(self%model, self%z, g, stat)
+    if (stat /= domain_ok) then
+      self%last_failure = 'the state left the model''s domain'
+      return
+    end if
+    start = [(g, i = 1, s)]
+    predictor = start
+    if (allocated(self%last_stages)) predictor = self%last_stages
+    allocate (solution(n*s))
+    self%stages%z = self%z
+    self%stages%h = h
+    call find_root(self%solver, self%stages, start, predictor, solution, search, ierr)
+    self%newton_iterations = self%newton_iterations + search%newton_iterations
+    if (ierr /= 0) return
+    if (.not. search%accepted) then
+      self%last_failure = 'the stage equations: '//search%reason
+      return
+    end if
+    self%last_stages = solution
+    y = self%stages%stage_values(solution)
+    do i = 1, s
+      call field_and_jacobian(self%model, y(:, i), k(:, i), stat)
+      if (stat /= domain_ok) then
+        self%last_failure = 'stage '//integer_text(i)//' left the model''s domain'
+        return
+      end if
+    end do
+    ok = .true.
+  end subroutine stage_derivatives
+
+  ! DOP853's error norm of a step of h: err5 = sum ((sum_j e5_j k_j)/sk)^2, err3 likewise with e3,
+  ! sk = tolerance (1 + max(|z|, |z_new|)), err = |h| err5 / sqrt(n (err5 + 0.01 err3)).
+  function dop853_error_norm(self, h, k, z_new) result(error_norm)
+    class(relaxed_runge_kutta), intent(in) :: self
+    real(real64), intent(in) :: h, k(:, :), z_new(:)
+    real(real64) :: error_norm
+    real(real64) :: scale(size(z_new)), err5, err3, denominator
+
+    scale = self%tolerance*(1.0_real64 + max(abs(self%z), abs(z_new)))
+    err5 = sum((matmul(k, self%tableau%e5)/scale)**2)
+    err3 = sum((matmul(k, self%tableau%e3)/scale)**2)
+    denominator = err5 + 0.01_real64*err3
+    if (denominator <= 0.0_real64) denominator = 1.0_real64
+    error_norm = abs(h)*err5/sqrt(size(z_new)*denominator)
+  end function dop853_error_norm
+
+end module relaxed_stepper
