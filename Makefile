@@ -94,8 +94,10 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
 
-# LAPACK (the one PETSc uses) is called directly by the step solver's LU and the benchmark.
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) -llapack
+# LAPACK (the one PETSc uses) is called directly by the step solver's LU and the benchmark;
+# SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
+SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LIBS) -llapack
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
@@ -112,11 +114,11 @@ $(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
 
 # ---------------------------------------------------------------- set-up
 # Debian packages for the native stack, then a virtual environment for h5py and friends.
-NATIVE_PACKAGES := gfortran petsc-dev libhdf5-openmpi-dev libopenmpi-dev openmpi-bin pkg-config
+NATIVE_PACKAGES := gfortran petsc-dev libhdf5-openmpi-dev libopenmpi-dev openmpi-bin pkg-config libsundials-dev
 deps: $(BUILD)/.native-deps $(VENV)/.python-deps
 
 $(BUILD)/.native-deps:
-	@if command -v mpif90 >/dev/null && pkg-config --exists PETSc hdf5-openmpi; then :; else \
+	@if command -v mpif90 >/dev/null && pkg-config --exists PETSc hdf5-openmpi && test -f /usr/include/cvode/cvode.h; then :; else \
 	  echo "Installing $(NATIVE_PACKAGES) with apt-get"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(NATIVE_PACKAGES) >/dev/null; fi
 	@mkdir -p $(BUILD) && touch $@
