@@ -72,7 +72,7 @@ contains
     type(run_file) :: output
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
-    real(real64) :: t_end
+    real(real64) :: t_end, time_old
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate
     integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps
     logical :: found, finished
@@ -146,6 +146,7 @@ contains
       end if
       n = n + 1
       if (.not. entry%chooses_time) time = (n - 1)*dt
+      time_old = time
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
@@ -168,8 +169,9 @@ contains
       end if
       call output%record_step(report, x_new(n_state + 1:), io_stat)
       if (io_stat /= 0) exit
+      ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
       do k = 1, size(constraints)
-        boundary_heat = boundary_heat + dt*constraints(k)%item%heat_supply(x_new(n_state + k))
+        boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
       end do
       entropy_old = entropy
       lyapunov_old = lyapunov
