@@ -96,7 +96,8 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 
 # LAPACK (the one PETSc uses) is called directly by the step solver's LU and the benchmark;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
-SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
+SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense \
+                 -lsundials_sunnonlinsolfixedpoint
 LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LIBS) -llapack
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)

@@ -10,7 +10,7 @@ module collocation_stages
   use nonlinear_problem, only: nonlinear_system
   implicit none (type, external)
   private
-  public :: stage_system, field_and_jacobian
+  public :: stage_system
 
   !> The stages of one step of h from z with coefficients a.
   type, extends(nonlinear_system) :: stage_system
@@ -74,9 +74,9 @@ contains
     if (present(jacobian)) jacobian = 0.0_real64
     do i = 1, s
       if (present(jacobian)) then
-        call field_and_jacobian(self%model, y(:, i), f, stat, df)
+        call self%model%continuous_field(y(:, i), f, stat, df)
       else
-        call field_and_jacobian(self%model, y(:, i), f, stat)
+        call self%model%continuous_field(y(:, i), f, stat)
       end if
       if (stat /= domain_ok) return
       residual((i - 1)*n + 1:i*n) = x((i - 1)*n + 1:i*n) - f
@@ -105,28 +105,5 @@ contains
     if (stat /= domain_ok) problem_text = 'a stage value lies outside the model''s domain'
   end subroutine check_root
 
-  !> The continuous field f(z) at exact partials, and optionally its Jacobian df/dz.
-  pure subroutine field_and_jacobian(model, z, f, stat, jacobian)
-    class(generic_model), intent(in) :: model
-    real(real64), intent(in) :: z(:)
-    real(real64), intent(out) :: f(:)
-    integer, intent(out) :: stat
-    real(real64), intent(out), optional :: jacobian(:, :)
-    real(real64) :: partials(model%max_invariants, 2, model%subsystem_count())
-    real(real64) :: dpartials(model%max_invariants, 2, model%subsystem_count(), model%state_size)
-    real(real64) :: df_dpartials(model%state_size, model%max_invariants, 2, model%subsystem_count())
-
-    if (present(jacobian)) then
-      call model%exact_partials(z, partials, dpartials, stat)
-      if (stat /= domain_ok) return
-      call model%vector_field(z, partials, f, jacobian, df_dpartials)
-      call model%add_partials_chain(df_dpartials, dpartials, 1.0_real64, jacobian)
-    else
-      call model%exact_partials(z, partials, stat=stat)
-      if (stat /= domain_ok) return
-      call model%vector_field(z, partials, f)
-    end if
-    if (.not. all(abs(f) <= huge(1.0_real64))) stat = domain_overflow
-  end subroutine field_and_jacobian
 
 end module collocation_stages

@@ -8,17 +8,19 @@ module integrator_registry
   use discrete_gradient_stepper, only: new_eme, new_midpoint
   use ts_stepper, only: new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
   use relaxed_stepper, only: new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
+  use cvode_stepper, only: new_cvode_bdf, new_cvode_adams
   implicit none (type, external)
   private
   public :: integrator_entry, registered_integrators, find_integrator, integrator_names, integrator_count
-  public :: family_discrete_gradient, family_petsc_ts, family_relaxation
+  public :: family_discrete_gradient, family_petsc_ts, family_relaxation, family_sundials
 
-  integer, parameter :: integrator_count = 10   !! the rows of the table below
+  integer, parameter :: integrator_count = 12   !! the rows of the table below
 
   !> The families, as the output's `scheme_family` attribute names them.
   character(len=*), parameter :: family_discrete_gradient = 'discrete_gradient_step'  !! one SNES system per step
   character(len=*), parameter :: family_petsc_ts = 'petsc_ts'                         !! a PETSc TS method
   character(len=*), parameter :: family_relaxation = 'relaxation'                     !! relaxed Runge-Kutta
+  character(len=*), parameter :: family_sundials = 'sundials_cvode'                   !! SUNDIALS CVODE
 
   abstract interface
     !> Allocates a new, unstarted integrator of the entry's kind.
@@ -50,6 +52,8 @@ contains
     type(integrator_entry) :: entries(integrator_count)
     character(len=*), parameter :: ts_temperature = &
       'temperatures at the end of the step (PETSc TS baselines have no discrete temperature)'
+    character(len=*), parameter :: cvode_temperature = &
+      'temperatures at the end of the step (CVODE baselines have no discrete temperature)'
     character(len=*), parameter :: relaxed_temperature = &
       'temperatures at the end of the step (relaxed Runge-Kutta methods have no discrete temperature)'
 
@@ -84,7 +88,13 @@ contains
         adaptive=.true., chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_dp853), &
       integrator_entry(name='relaxed_gauss6', family=family_relaxation, label='RGauss6', &
         description='Gauss-Legendre with 3 stages (order 6, implicit, stages solved by SNES), relaxed', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_gauss6)]
+        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_gauss6), &
+      integrator_entry(name='cvode_bdf', family=family_sundials, label='CVODE-BDF', &
+        description='SUNDIALS CVODE: variable-order BDF, Newton with the analytic Jacobian, adaptive at tolerance', &
+        adaptive=.true., scheme_temperature=cvode_temperature, build=new_cvode_bdf), &
+      integrator_entry(name='cvode_adams', family=family_sundials, label='CVODE-Adams', &
+        description='SUNDIALS CVODE: variable-order Adams-Moulton, fixed-point iteration, adaptive at tolerance', &
+        adaptive=.true., scheme_temperature=cvode_temperature, build=new_cvode_adams)]
   end function registered_integrators
 
   !> The entry named `name` (found = .false. if there is none).

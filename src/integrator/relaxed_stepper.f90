@@ -24,7 +24,7 @@ module relaxed_stepper
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3
   use relaxation, only: relax
-  use collocation_stages, only: stage_system, field_and_jacobian
+  use collocation_stages, only: stage_system
   use snes_solver, only: newton_solver
   use retry_strategies, only: root_search, find_root
   use integrator_settings, only: integrator_choice
@@ -371,7 +371,7 @@ contains
     if (.not. self%tableau%implicit) then
       do i = 1, s
         g = self%z + h*matmul(k(:, 1:i - 1), self%tableau%a(i, 1:i - 1))
-        call field_and_jacobian(self%model, g, k(:, i), stat)
+        call self%model%continuous_field(g, k(:, i), stat)
         if (stat /= domain_ok) then
           self%last_failure = 'stage '//integer_text(i)//' left the model''s domain or is not finite'
           return
@@ -380,7 +380,7 @@ contains
       ok = .true.
       return
     end if
-    call field_and_jacobian(self%model, self%z, g, stat)
+    call self%model%continuous_field(self%z, g, stat)
     if (stat /= domain_ok) then
       self%last_failure = 'the state left the model''s domain'
       return
@@ -401,7 +401,7 @@ contains
     self%last_stages = solution
     y = self%stages%stage_values(solution)
     do i = 1, s
-      call field_and_jacobian(self%model, y(:, i), k(:, i), stat)
+      call self%model%continuous_field(y(:, i), k(:, i), stat)
       if (stat /= domain_ok) then
         self%last_failure = 'stage '//integer_text(i)//' left the model''s domain'
         return

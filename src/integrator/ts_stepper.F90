@@ -277,18 +277,13 @@ contains
     type(rhs_context), intent(in) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), f_values(:)
-    real(real64) :: partials(context%model%max_invariants, 2, context%model%subsystem_count())
     integer :: stat
     SNES :: snes
 
     PetscCall(VecGetArrayReadF90(x, x_values, ierr))
     PetscCall(VecGetArrayF90(f, f_values, ierr))
-    call context%model%exact_partials(x_values, partials, stat=stat)
-    if (stat == 0) then
-      call context%model%vector_field(x_values, partials, f_values)
-    else
-      f_values = ieee_nan()
-    end if
+    call context%model%continuous_field(x_values, f_values, stat)
+    if (stat /= 0) f_values = ieee_nan()
     PetscCall(VecRestoreArrayF90(f, f_values, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
     if (stat /= 0 .and. context%implicit) then
@@ -312,21 +307,12 @@ contains
 
     PetscCall(VecGetArrayReadF90(x, x_values, ierr))
     PetscCall(MatDenseGetArrayF90(preconditioner, entries, ierr))
-    associate (model => context%model, n => context%model%state_size, m => context%model%max_invariants, &
-               k => context%model%subsystem_count())
-      block
-        real(real64) :: partials(m, 2, k), dpartials_dz(m, 2, k, n), f(n), df_dz(n, n), df_dpartials(n, m, 2, k)
+    block
+      real(real64) :: f(context%model%state_size)
 
-        call model%exact_partials(x_values, partials, dpartials_dz, stat)
-        if (stat == 0) then
-          call model%vector_field(x_values, partials, f, df_dz, df_dpartials)
-          entries = df_dz
-          call model%add_partials_chain(df_dpartials, dpartials_dz, 1.0_real64, entries)
-        else
-          entries = 0.0_real64
-        end if
-      end block
-    end associate
+      call context%model%continuous_field(x_values, f, stat, entries)
+      if (stat /= 0) entries = 0.0_real64
+    end block
     PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
     PetscCall(assemble_jacobian(jacobian, preconditioner, ierr))

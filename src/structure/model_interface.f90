@@ -15,7 +15,7 @@
 !> when it is built and implements the deferred procedures. Everything else here is generic.
 module model_interface
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok
+  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_overflow
   implicit none (type, external)
   private
   public :: generic_model, subsystem
@@ -56,6 +56,7 @@ module model_interface
     procedure :: observe
     procedure :: temperatures
     procedure :: exact_partials
+    procedure :: continuous_field
     procedure :: chain_to_state
     procedure :: add_partials_chain
     procedure :: subsystem_gradient
@@ -278,6 +279,32 @@ contains
       end associate
     end do
   end subroutine exact_partials
+
+  !> The continuous field f(z) = L grad E + K grad S (eq. (8)) at the exact partials, and
+  !> optionally its Jacobian df/dz (through the partials by the chain rule); stat /= domain_ok
+  !> outside the model's domain or where f is not finite.
+  pure subroutine continuous_field(self, z, f, stat, jacobian)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: jacobian(:, :)
+    real(real64) :: partials(self%max_invariants, 2, size(self%subsystems))
+    real(real64) :: dpartials(self%max_invariants, 2, size(self%subsystems), self%state_size)
+    real(real64) :: df_dpartials(self%state_size, self%max_invariants, 2, size(self%subsystems))
+
+    if (present(jacobian)) then
+      call self%exact_partials(z, partials, dpartials, stat)
+      if (stat /= domain_ok) return
+      call self%vector_field(z, partials, f, jacobian, df_dpartials)
+      call self%add_partials_chain(df_dpartials, dpartials, 1.0_real64, jacobian)
+    else
+      call self%exact_partials(z, partials, stat=stat)
+      if (stat /= domain_ok) return
+      call self%vector_field(z, partials, f)
+    end if
+    if (.not. all(abs(f) <= huge(1.0_real64))) stat = domain_overflow
+  end subroutine continuous_field
 
   !> Subsystem a's partials' derivatives in z from those in its invariants:
   !> dpartials_dz(i, k, a, columns(j)) = sum_l dg(i, l, k) dx_dz(l, j). Other columns are left alone.
