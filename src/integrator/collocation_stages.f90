@@ -1,12 +1,15 @@
 !> The stage equations of an implicit Runge-Kutta step as a nonlinear system for the solvers:
 !>   R_i(K) = K_i - f(z + h sum_j a_ij K_j),   i = 1..s,
-!> with f the model's continuous GENERIC field at exact partials, and the Jacobian
+!> with f the continuous GENERIC field of the model under its constraints
+!> (src/integrator/constrained_flow), and the Jacobian
 !>   dR_i/dK_j = delta_ij I - h a_ij (df/dz)(Y_i),   Y_i = z + h sum_j a_ij K_j.
 !> Its continuation parameter scales h: at s -> 0 every K_i = f(z) is a root.
 module collocation_stages
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: domain_ok, domain_overflow
   use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use constrained_flow, only: constrained_field
   use nonlinear_problem, only: nonlinear_system
   implicit none (type, external)
   private
@@ -15,6 +18,7 @@ module collocation_stages
   !> The stages of one step of h from z with coefficients a.
   type, extends(nonlinear_system) :: stage_system
     class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)   !! the field is the constrained flow's
     real(real64), allocatable :: a(:, :)
     real(real64), allocatable :: z(:)
     real(real64) :: h = 0.0_real64
@@ -74,9 +78,9 @@ contains
     if (present(jacobian)) jacobian = 0.0_real64
     do i = 1, s
       if (present(jacobian)) then
-        call self%model%continuous_field(y(:, i), f, stat, df)
+        call constrained_field(self%model, self%constraints, y(:, i), f, stat, df)
       else
-        call self%model%continuous_field(y(:, i), f, stat)
+        call constrained_field(self%model, self%constraints, y(:, i), f, stat)
       end if
       if (stat /= domain_ok) return
       residual((i - 1)*n + 1:i*n) = x((i - 1)*n + 1:i*n) - f

@@ -40,6 +40,9 @@ module integrator_registry
     logical :: uses_discrete_gradient = .false.     !! reads discrete_gradient and metric
     logical :: adaptive = .false.                   !! chooses its own steps (reads tolerance)
     logical :: chooses_time = .false.               !! reaches times of its own (relaxation, adaptive steps)
+    !> Integrates the constrained flow in continuous time (the constraints' continuous forms,
+    !> index-1 multipliers): the initial state must satisfy the hidden constraints too.
+    logical :: continuous_constraints = .false.
     logical :: thermo_variables(3) = .true.         !! takes tau = s, theta, u (thermo_variable's tau_*)
     character(len=100) :: scheme_temperature = ''   !! what /scheme_temperature holds for it
     procedure(builder), pointer, nopass :: build => null()
@@ -79,16 +82,20 @@ contains
         adaptive=.true., scheme_temperature=ts_temperature, build=new_ts_rk5dp), &
       integrator_entry(name='relaxed_rk4', family=family_relaxation, label='RRK4', &
         description='classic RK4 with energy relaxation and an exact J projection, in entropy variables', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_rk4), &
+        chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_rk4), &
       integrator_entry(name='relaxed_rk8', family=family_relaxation, label='RRK8', &
         description='Cooper-Verner order 8 (11 stages, weights >= 0), relaxed as relaxed_rk4', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_rk8), &
+        chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_rk8), &
       integrator_entry(name='relaxed_dp853', family=family_relaxation, label='RDP853', &
         description='Dormand-Prince 8(5,3), relaxed, adaptive at tolerance, with the entropy guard; dt is its first step', &
-        adaptive=.true., chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_dp853), &
+        adaptive=.true., chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_dp853), &
       integrator_entry(name='relaxed_gauss6', family=family_relaxation, label='RGauss6', &
         description='Gauss-Legendre with 3 stages (order 6, implicit, stages solved by SNES), relaxed', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, build=new_relaxed_gauss6), &
+        chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_gauss6), &
       integrator_entry(name='cvode_bdf', family=family_sundials, label='CVODE-BDF', &
         description='SUNDIALS CVODE: variable-order BDF, Newton with the analytic Jacobian, adaptive at tolerance', &
         adaptive=.true., scheme_temperature=cvode_temperature, build=new_cvode_bdf), &

@@ -1,18 +1,23 @@
 !> Relaxation of a Runge-Kutta step (Ketcheson 2019; Ranocha, Sayyari, Dalcin, Parsani,
-!> Ketcheson 2020; HIGH_ORDER.md): the step z + d is replaced by z + Delta(gamma), where
-!> Delta(gamma) = gamma d with the momenta corrected so that the conserved component of the
-!> angular momentum keeps its value, and gamma is the root near 1 of
-!>   r(gamma) = E(z + Delta(gamma)) - E(z) = 0,
-!> evaluated with the model's cancellation-free energy difference. The momentum correction is
-!> exact because J.a is linear in the momenta at fixed positions; it changes no entropy, so with
-!> tau = s the entropy change stays gamma times the step's entropy estimate.
+!> Ketcheson 2020; HIGH_ORDER.md): the step z + d is replaced by z_new(gamma) = P(z + gamma d),
+!> where P projects onto the constraints and the conserved component of the angular momentum
+!> (src/integrator/constrained_flow: positions, then the momenta, then slaved entries), and
+!> gamma is the root near 1 of
+!>   r(gamma) = [E(z_new) - E(z)] - thetabar [S(z_new) - S(z) - gamma e_S] = 0,
+!> evaluated with the model's cancellation-free differences. thetabar = 0 for a closed system:
+!> then E(z_new) = E(z). With a heat bath at thetabar (constraint g2), V = E - thetabar S
+!> changes by exactly -thetabar gamma e_S. In entropy variables, with e_S the step's entropy
+!> estimate h sum_i b_i sigma_i, the projection leaves the free subsystems' entropy alone, so
+!> S(z_new) - S(z) = gamma e_S in a closed system.
 module relaxation
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: domain_ok
   use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use constrained_flow, only: project_state, bath_temperature_of
   implicit none (type, external)
   private
-  public :: relax, relaxed_increment, gamma_min, gamma_max
+  public :: relax, gamma_min, gamma_max
 
   !> The gamma a step may take (HIGH_ORDER.md); outside, the step is rejected.
   real(real64), parameter :: gamma_min = 0.2_real64, gamma_max = 2.0_real64
@@ -21,24 +26,26 @@ module relaxation
 
 contains
 
-  !> gamma and z_new = z + Delta(gamma) with E(z_new) = E(z) to round-off and the conserved
-  !> momentum unchanged; found = .false. when no root lies in [gamma_min, gamma_max] or an
-  !> evaluation leaves the model's domain. `evaluations` counts the energy differences taken.
-  subroutine relax(model, z, d, gamma, z_new, found, evaluations)
+  !> gamma and z_new = P(z + gamma d) with r(gamma) = 0 to round-off; found = .false. when no
+  !> root lies in [gamma_min, gamma_max] or an evaluation leaves the model's domain.
+  !> `evaluations` counts the energy differences taken.
+  subroutine relax(model, constraints, z, d, entropy_estimate, gamma, z_new, found, evaluations)
     class(generic_model), intent(in) :: model
-    real(real64), intent(in) :: z(:), d(:)
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z(:), d(:), entropy_estimate
     real(real64), intent(out) :: gamma, z_new(:)
     logical, intent(out) :: found
     integer, intent(out) :: evaluations
-    real(real64) :: momentum, g_a, g_b, q_a, q_b, g_next
+    real(real64) :: momentum, bath, g_a, g_b, q_a, q_b, g_next
     integer :: k, stat
     logical :: converged
 
     found = .false.
     evaluations = 0
     momentum = model%conserved_momentum(z)
-    ! r(0) = 0 always: the secant runs on q(gamma) = r(gamma)/gamma, whose root is the
-    ! nontrivial one, from gamma = 1 (an order-p step has r(1) = O(h^(p+1))) and 1 - 1e-3.
+    bath = bath_temperature_of(constraints)
+    ! r(0) = 0: the secant runs on q(gamma) = r(gamma)/gamma, whose root is the nontrivial one,
+    ! from gamma = 1 (an order-p step has r(1) = O(h^(p+1))) and 1 - 1e-3.
     g_a = 1.0_real64
     call scaled_residual(g_a, q_a, stat)
     if (stat /= domain_ok) return
@@ -73,36 +80,35 @@ contains
     end do
     gamma = g_b
     found = converged .and. gamma >= gamma_min .and. gamma <= gamma_max
-    if (found) z_new = relaxed_increment(model, z, d, gamma, momentum)
+    if (found) call increment(gamma, stat)
+    found = found .and. stat == domain_ok
 
   contains
 
+    ! z_new = P(z + g d).
+    subroutine increment(g, stat)
+      real(real64), intent(in) :: g
+      integer, intent(out) :: stat
+
+      z_new = z + g*d
+      call project_state(model, constraints, momentum, z_new, stat)
+    end subroutine increment
+
+    ! q = r(g)/g at z_new = P(z + g d).
     subroutine scaled_residual(g, q, stat)
       real(real64), intent(in) :: g
       real(real64), intent(out) :: q
       integer, intent(out) :: stat
-      real(real64) :: r
+      real(real64) :: energy_change, entropy_change
 
-      z_new = relaxed_increment(model, z, d, g, momentum)
-      call model%energy_difference(z, z_new, r, stat)
+      call increment(g, stat)
+      if (stat /= domain_ok) return
+      call model%energy_difference(z, z_new, energy_change, stat, entropy_change)
       evaluations = evaluations + 1
-      q = r/g
+      q = energy_change/g
+      if (bath > 0.0_real64) q = q - bath*(entropy_change/g - entropy_estimate)
       if (.not. (abs(q) <= huge(q))) stat = domain_ok + 1
     end subroutine scaled_residual
   end subroutine relax
-
-  !> z + gamma d with the momenta corrected along the conserved momentum's gradient c (at the new
-  !> positions) so that J.a keeps the value `momentum`: p <- p - ((J.a)(z + gamma d) - momentum) c/|c|^2.
-  pure function relaxed_increment(model, z, d, gamma, momentum) result(z_new)
-    class(generic_model), intent(in) :: model
-    real(real64), intent(in) :: z(:), d(:), gamma, momentum
-    real(real64) :: z_new(size(z))
-    real(real64) :: c(size(z)), norm_squared
-
-    z_new = z + gamma*d
-    c = model%conserved_momentum_gradient(z_new)
-    norm_squared = dot_product(c, c)
-    if (norm_squared > 0.0_real64) z_new = z_new - (model%conserved_momentum(z_new) - momentum)/norm_squared*c
-  end function relaxed_increment
 
 end module relaxation

@@ -24,6 +24,7 @@ module relaxed_stepper
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3
   use relaxation, only: relax
+  use constrained_flow, only: constrained_field, project_state
   use collocation_stages, only: stage_system
   use snes_solver, only: newton_solver
   use retry_strategies, only: root_search, find_root
@@ -47,6 +48,7 @@ module relaxed_stepper
     logical :: adaptive = .false.
     class(generic_model), allocatable :: model          !! the run's model in entropy variables
     class(generic_model), allocatable :: user_model     !! the run's model in its own variable
+    type(constraint_slot), allocatable :: constraints(:)   !! the active constraints' continuous forms
     real(real64), allocatable :: z(:)                   !! the state, in entropy variables
     real(real64) :: t = 0.0_real64
     real(real64) :: t_end = 0.0_real64
@@ -127,7 +129,7 @@ contains
     integer :: stat
 
     ierr = 0
-    if (size(constraints) > 0) ierr = 1     ! the registry and the input refuse constraints
+    self%constraints = constraints
     if (allocated(self%user_model)) deallocate (self%user_model)
     allocate (self%user_model, source=model)
     if (allocated(self%model)) deallocate (self%model)
@@ -135,6 +137,8 @@ contains
     if (allocated(self%z)) deallocate (self%z)
     allocate (self%z(size(z0)))
     call model%convert_state(z0, self%model, self%z, stat)
+    ! The input has checked that z0 satisfies the constraints; this removes the conversion's round-off.
+    if (stat == domain_ok) call project_state(self%model, constraints, self%model%conserved_momentum(self%z), self%z, stat)
     if (stat /= domain_ok) ierr = 1
     self%t = 0.0_real64
     self%t_end = choice%t_end
@@ -146,6 +150,7 @@ contains
     if (self%tableau%implicit) then
       if (allocated(self%stages%model)) deallocate (self%stages%model)
       allocate (self%stages%model, source=self%model)
+      self%stages%constraints = constraints
       self%stages%a = self%tableau%a
       self%stages%z = self%z
       self%stages%h = choice%dt
@@ -161,11 +166,13 @@ contains
     real(real64), intent(out) :: x_new(:)
     type(step_report), intent(out) :: report
     integer, intent(out) :: ierr
-    real(real64) :: energy, entropy
+    real(real64) :: energy, entropy, z_start(size(self%z)), t_start, f(size(self%z)), energy_change
     logical :: ok
-    integer :: stat
+    integer :: stat, n, k
 
     ierr = 0
+    z_start = self%z
+    t_start = self%t
     self%attempts = 0
     self%rejections = 0
     self%newton_iterations = 0
@@ -193,9 +200,17 @@ contains
       report%reason = self%last_failure
       return
     end if
-    call self%model%convert_state(self%z, self%user_model, x_new(1:size(self%z)), stat)
-    if (stat == domain_ok) call self%user_model%observe(x_new(1:size(self%z)), energy, entropy, &
-                                                        report%scheme_temperature, stat)
+    n = size(self%z)
+    call self%model%convert_state(self%z, self%user_model, x_new(1:n), stat)
+    if (stat == domain_ok) call self%user_model%observe(x_new(1:n), energy, entropy, report%scheme_temperature, stat)
+    ! The multipliers: the index-1 lambda at the new state; a heat bath's mean power over the step.
+    if (stat == domain_ok .and. size(self%constraints) > 0) &
+      call constrained_field(self%model, self%constraints, self%z, f, stat, multipliers=x_new(n + 1:))
+    do k = 1, size(self%constraints)
+      if (stat /= domain_ok .or. .not. self%constraints(k)%item%supplies_heat) cycle
+      call self%model%energy_difference(z_start, self%z, energy_change, stat)
+      x_new(n + k) = energy_change/(self%t - t_start)
+    end do
     report%accepted = stat == domain_ok
     if (.not. report%accepted) report%reason = 'the state left the model''s domain'
   end subroutine advance
@@ -314,7 +329,7 @@ contains
       self%last_failure = 'the entropy guard: the step''s entropy estimate is negative'
       return
     end if
-    call relax(self%model, self%z, d, gamma, z_new, ok, evaluations)
+    call relax(self%model, self%constraints, self%z, d, e_s, gamma, z_new, ok, evaluations)
     if (.not. ok) then
       self%last_failure = 'no relaxation root gamma in [0.2, 2]'
       return
@@ -371,7 +386,7 @@ contains
     if (.not. self%tableau%implicit) then
       do i = 1, s
         g = self%z + h*matmul(k(:, 1:i - 1), self%tableau%a(i, 1:i - 1))
-        call self%model%continuous_field(g, k(:, i), stat)
+        call constrained_field(self%model, self%constraints, g, k(:, i), stat)
         if (stat /= domain_ok) then
           self%last_failure = 'stage '//integer_text(i)//' left the model''s domain or is not finite'
           return
@@ -380,7 +395,7 @@ contains
       ok = .true.
       return
     end if
-    call self%model%continuous_field(self%z, g, stat)
+    call constrained_field(self%model, self%constraints, self%z, g, stat)
     if (stat /= domain_ok) then
       self%last_failure = 'the state left the model''s domain'
       return
@@ -401,7 +416,7 @@ contains
     self%last_stages = solution
     y = self%stages%stage_values(solution)
     do i = 1, s
-      call self%model%continuous_field(y(:, i), k(:, i), stat)
+      call constrained_field(self%model, self%constraints, y(:, i), k(:, i), stat)
       if (stat /= domain_ok) then
         self%last_failure = 'stage '//integer_text(i)//' left the model''s domain'
         return

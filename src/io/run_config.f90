@@ -12,6 +12,9 @@ module run_config
   use integrator_settings, only: integrator_choice
   use integrator_registry, only: integrator_entry, find_integrator, integrator_names
   use model_scene, only: scene
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use constrained_flow, only: initial_inconsistency
   use model_registry, only: select_scene
   use namelist_text, only: namelist_item, read_source_text, group_names, item_name
   use namelist_group, only: group_field, real_field, integer_field, text_field, read_group, field_names, &
@@ -100,6 +103,13 @@ contains
                   //choices_text(integrator_names(.true.))
         return
       end if
+      if (entry%continuous_constraints .and. config%scene%constraint_count() > 0) then
+        call check_continuous_start(config, entry, stat, message)
+        if (stat /= 0) then
+          message = value_origin(text, 'integrator', 'scheme', path, extra)//': '//message
+          return
+        end if
+      end if
     end associate
 
     config%theta_r = config%scene%default_theta_r()
@@ -114,6 +124,37 @@ contains
       end associate
     end if
   end subroutine read_run_config
+
+  ! An integrator of the continuous constrained flow needs constraints with a continuous-time
+  ! form and an initial state that satisfies their hidden constraints (dg/dt = 0).
+  subroutine check_continuous_start(config, entry, stat, message)
+    type(run_configuration), intent(in) :: config
+    type(integrator_entry), intent(in) :: entry
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:)
+    character(len=:), allocatable :: why
+    integer :: k
+
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
+    if (stat /= 0) return
+    do k = 1, size(constraints)
+      if (constraints(k)%item%continuous_form) cycle
+      stat = 1
+      message = '&constraints: scheme = '''//trim(entry%name)//''' integrates the constrained flow in continuous '// &
+                'time, and the '//trim(constraints(k)%item%name)//' constraint has no continuous-time form'
+      return
+    end do
+    why = initial_inconsistency(model, constraints, z0)
+    if (len(why) > 0) then
+      stat = 1
+      message = '&initial: scheme = '''//trim(entry%name)//''' integrates the constrained motion in continuous '// &
+                'time (EME and the midpoint rule enforce the constraints at each step''s end and take any initial '// &
+                'velocity): '//why
+    end if
+  end subroutine check_continuous_start
 
   !> The fields of &integrator (README, Input).
   function integrator_fields(config) result(fields)

@@ -147,7 +147,7 @@ contains
     k = 0
     if (self%fix_length) then
       k = k + 1
-      allocate (constraints(k)%item, source=make_fixed_length(self%length))
+      allocate (constraints(k)%item, source=make_fixed_length(self%length, self%params%mass(1)))
     end if
     if (self%fix_temperature) then
       k = k + 1

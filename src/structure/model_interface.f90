@@ -154,16 +154,19 @@ contains
   end function mechanical_energy_difference
 
   !> E(z_b) - E(z_a) without cancellation: the mechanical part by mechanical_energy_difference,
-  !> the subsystems' U_a by their potentials' difference (relaxation solves E(z_b) = E(z_a)).
-  pure subroutine energy_difference(self, z_a, z_b, delta, stat)
+  !> the subsystems' U_a by their potentials' difference (relaxation solves E(z_b) = E(z_a));
+  !> optionally S(z_b) - S(z_a) likewise.
+  pure subroutine energy_difference(self, z_a, z_b, delta, stat, entropy_delta)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z_a(:), z_b(:)
     real(real64), intent(out) :: delta
     integer, intent(out) :: stat
+    real(real64), intent(out), optional :: entropy_delta
     real(real64) :: x_a(self%max_invariants), x_b(self%max_invariants), part(2)
     integer :: a, n
 
     delta = self%mechanical_energy_difference(z_a, z_b)
+    if (present(entropy_delta)) entropy_delta = 0.0_real64
     stat = domain_ok
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
@@ -172,6 +175,7 @@ contains
       call self%subsystems(a)%potentials%difference(x_a(1:n), x_b(1:n), part, stat)
       if (stat /= domain_ok) return
       delta = delta + part(potential_u)
+      if (present(entropy_delta)) entropy_delta = entropy_delta + part(potential_s)
     end do
   end subroutine energy_difference
 

@@ -1,6 +1,11 @@
 !> Constraint g2 of eq. (13) for any subsystem a of a model: Theta_a(z) = thetabar, held by a heat
 !> supply lambda (a power, [W]) from the surroundings into tau_a: lambda / D_tau U_a in tau_a's
 !> row of the step, so that E_{n+1} - E_n = dt lambda exactly (FORMULATION section 7).
+!>
+!> Its continuous-time form (the relaxed Runge-Kutta family; HIGH_ORDER.md, Constraints): tau_a
+!> is slaved to the mechanical invariants by Theta_a = thetabar, so the subsystem is an
+!> isothermal one in a heat bath at thetabar, and the conserved energy gives way to the Lyapunov
+!> function V = E - thetabar S.
 module temperature_constraint
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: potential_u, potential_s, domain_ok
@@ -17,6 +22,8 @@ module temperature_constraint
   contains
     procedure :: add_terms
     procedure :: value
+    procedure :: slave_state
+    procedure :: bath_temperature
   end type fixed_temperature
 
 contains
@@ -34,6 +41,7 @@ contains
     bath%supplies_heat = .true.
     bath%part = part
     bath%temperature = temperature
+    bath%continuous_form = .true.
   end function make_fixed_temperature
 
   !> Heat supply lambda / D_tau U_a into tau_a, and g = Theta_a(z') - temperature with Theta_a
@@ -79,6 +87,36 @@ contains
     call model%subsystems(self%part)%potentials%temperature(x(1:n), theta, stat)
     g = theta - self%temperature
   end subroutine value
+
+  !> tau_a <- the value with Theta_a = thetabar at z's mechanical invariants; with `chain`, its
+  !> row becomes (d tau_a/dz) chain, d tau_a/dz_j = -(dTheta_a/dz_j)/(dTheta_a/dtau_a) (j /= tau_a).
+  pure subroutine slave_state(self, model, z, stat, chain)
+    class(fixed_temperature), intent(in) :: self
+    class(generic_model), intent(in) :: model
+    real(real64), intent(inout) :: z(:)
+    integer, intent(out) :: stat
+    real(real64), intent(inout), optional :: chain(:, :)
+    real(real64) :: x(model%max_invariants), theta, dtheta_dz(size(z)), row(size(z))
+    integer :: n, tau
+
+    n = model%subsystems(self%part)%invariant_count
+    tau = model%subsystems(self%part)%tau_column
+    call model%invariants(z, self%part, x(1:n))
+    call model%subsystems(self%part)%potentials%tau_from_temperature(x(1:n - 1), self%temperature, z(tau), stat)
+    if (stat /= domain_ok .or. .not. present(chain)) return
+    call temperature_gradient(model, self%part, z, theta, dtheta_dz, stat)
+    if (stat /= domain_ok) return
+    row = -dtheta_dz/dtheta_dz(tau)
+    row(tau) = 0.0_real64
+    chain(tau, :) = matmul(row, chain)
+  end subroutine slave_state
+
+  !> The bath's temperature thetabar.
+  pure real(real64) function bath_temperature(self)
+    class(fixed_temperature), intent(in) :: self
+
+    bath_temperature = self%temperature
+  end function bath_temperature
 
   ! Theta_a = d_tau U / d_tau S at z (eq. (2)) and its gradient in z.
   pure subroutine temperature_gradient(model, a, z, theta, dtheta_dz, stat)

@@ -117,6 +117,7 @@ contains
     type(pendulum_parameters) :: params
     type(pendulum) :: model
     real(real64) :: z(15), d(15), z_new(15), gamma, delta_energy, energy, entropy, theta(2)
+    type(constraint_slot) :: no_constraints(0)
     integer :: trial, evaluations, stat
     logical :: found
 
@@ -125,7 +126,7 @@ contains
     do trial = 1, 5
       z = random_state(model)
       d = rk4_direction(model, z, 0.05_real64)
-      call relax(model, z, d, gamma, z_new, found, evaluations)
+      call relax(model, no_constraints, z, d, 0.0_real64, gamma, z_new, found, evaluations)
       call suite%check_true('a relaxation root exists', found)
       call model%energy_difference(z, z_new, delta_energy, stat)
       call model%observe(z, energy, entropy, theta, stat)
@@ -139,7 +140,7 @@ contains
                             scientific_text(real(evaluations, real64)))
     end do
     d = 0.01_real64*(random_state(model) - z)
-    call relax(model, z, d, gamma, z_new, found, evaluations)
+    call relax(model, no_constraints, z, d, 0.0_real64, gamma, z_new, found, evaluations)
     call suite%check_true('no root for a direction off the flow', .not. found, 'gamma '//scientific_text(gamma))
   end subroutine relaxation_keeps_energy_and_momentum
 

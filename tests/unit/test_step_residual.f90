@@ -121,7 +121,7 @@ contains
         length = norm2(problem%z_old(q_index(:, 1)))
         deallocate (problem%constraints)
         allocate (problem%constraints(2))
-        allocate (problem%constraints(1)%item, source=make_fixed_length(length))
+        allocate (problem%constraints(1)%item, source=make_fixed_length(length, 1.0_real64))
         allocate (problem%constraints(2)%item, source=make_fixed_temperature(1, 290.0_real64))
         call suite%check_equal_int('two constraints add two unknowns', problem%unknowns(), state_size + 2)
         call check_jacobian(suite, problem, [z_new, 3.7_real64, -41.0_real64], trim(case_name(variable, kind))// &
@@ -132,7 +132,7 @@ contains
         call check_jacobian(suite, problem, [z_new, -41.0_real64], trim(case_name(variable, kind))// &
                             ' with the temperature constraint')
         deallocate (problem%constraints(1)%item)
-        allocate (problem%constraints(1)%item, source=make_fixed_length(length))
+        allocate (problem%constraints(1)%item, source=make_fixed_length(length, 1.0_real64))
         call check_jacobian(suite, problem, [z_new, 3.7_real64], trim(case_name(variable, kind))//' with the length constraint')
       end do
     end do

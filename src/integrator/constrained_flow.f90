@@ -1,0 +1,155 @@
+!> The continuous constrained flow that the relaxed Runge-Kutta family integrates (HIGH_ORDER.md,
+!> Constraints), built from each active constraint's continuous-time form
+!> (src/structure/model_constraint):
+!>  - the field F(z) = f(sigma(z)) + N lambda: the continuous GENERIC field at the state whose
+!>    slaved entries (g2: tau_a with Theta_a = thetabar) are set from the others, plus the
+!>    constraint forces with their index-1 multipliers (g1);
+!>  - the projection after a step: positions back onto g = 0, then the momenta onto the
+!>    conserved angular momentum and every hidden constraint dg/dt = 0 at once (the least
+!>    change of p: p <- p - G^T (G G^T)^-1 r for the conditions' gradients G and residuals r),
+!>    then the slaved entries again. Only positions and momenta move (and slaved entries), so
+!>    in entropy variables the entropy of the free subsystems is untouched.
+module constrained_flow
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: domain_ok
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use dense_lu, only: lu_factors
+  use number_text, only: scientific_text
+  implicit none (type, external)
+  private
+  public :: constrained_field, project_state, bath_temperature_of, initial_inconsistency
+
+contains
+
+  !> F(z) = f(sigma(z)) + N lambda and optionally dF/dz; multipliers(k): constraint k's lambda.
+  !> stat /= domain_ok outside the model's domain.
+  pure subroutine constrained_field(model, constraints, z, f, stat, jacobian, multipliers)
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: jacobian(:, :), multipliers(:)
+    real(real64) :: w(size(z)), chain(size(z), size(z)), df(size(z), size(z)), lambda
+    integer :: k, i
+
+    if (size(constraints) == 0) then
+      call model%continuous_field(z, f, stat, jacobian)
+      return
+    end if
+    w = z
+    chain = 0.0_real64
+    do i = 1, size(z)
+      chain(i, i) = 1.0_real64
+    end do
+    do k = 1, size(constraints)
+      if (present(jacobian)) then
+        call constraints(k)%item%slave_state(model, w, stat, chain)
+      else
+        call constraints(k)%item%slave_state(model, w, stat)
+      end if
+      if (stat /= domain_ok) return
+    end do
+    if (present(jacobian)) then
+      call model%continuous_field(w, f, stat, df)
+    else
+      call model%continuous_field(w, f, stat)
+    end if
+    if (stat /= domain_ok) return
+    do k = 1, size(constraints)
+      if (present(jacobian)) then
+        call constraints(k)%item%add_force(model, w, f, lambda, df)
+      else
+        call constraints(k)%item%add_force(model, w, f, lambda)
+      end if
+      if (present(multipliers)) multipliers(k) = lambda
+    end do
+    if (present(jacobian)) jacobian = matmul(df, chain)
+  end subroutine constrained_field
+
+  !> z back onto the constraints and the conserved momentum component `momentum` (see above);
+  !> stat /= domain_ok if a slaved entry has no value or the conditions are degenerate.
+  subroutine project_state(model, constraints, momentum, z, stat)
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: momentum
+    real(real64), intent(inout) :: z(:)
+    integer, intent(out) :: stat
+    real(real64) :: gradients(size(z), size(constraints) + 1), residuals(size(constraints) + 1)
+    real(real64) :: gram(size(constraints) + 1, size(constraints) + 1)
+    type(lu_factors) :: factors
+    integer :: k, m, info
+    logical :: has
+
+    stat = domain_ok
+    do k = 1, size(constraints)
+      call constraints(k)%item%project_positions(model, z)
+    end do
+    ! The conditions linear in the momenta at the new positions: J.a = momentum, c_k = 0.
+    m = 1
+    gradients(:, 1) = model%conserved_momentum_gradient(z)
+    residuals(1) = model%conserved_momentum(z) - momentum
+    do k = 1, size(constraints)
+      call constraints(k)%item%momentum_condition(model, z, has, residuals(m + 1), gradients(:, m + 1))
+      if (has) m = m + 1
+    end do
+    if (m == 1) then
+      ! One condition: no linear solve.
+      gram(1, 1) = dot_product(gradients(:, 1), gradients(:, 1))
+      if (gram(1, 1) > 0.0_real64) z = z - residuals(1)/gram(1, 1)*gradients(:, 1)
+    else
+      gram(1:m, 1:m) = matmul(transpose(gradients(:, 1:m)), gradients(:, 1:m))
+      call factors%reset(m)
+      call factors%factor(gram(1:m, 1:m), info)
+      if (info == 0) call factors%solve(residuals(1:m), info)
+      if (info /= 0) then
+        stat = domain_ok + 1
+        return
+      end if
+      z = z - matmul(gradients(:, 1:m), residuals(1:m))
+    end if
+    do k = 1, size(constraints)
+      call constraints(k)%item%slave_state(model, z, stat)
+      if (stat /= domain_ok) return
+    end do
+  end subroutine project_state
+
+  !> The temperature of the heat bath of the constraints [K], 0 for a closed system.
+  pure real(real64) function bath_temperature_of(constraints)
+    type(constraint_slot), intent(in) :: constraints(:)
+    integer :: k
+
+    bath_temperature_of = 0.0_real64
+    do k = 1, size(constraints)
+      bath_temperature_of = max(bath_temperature_of, constraints(k)%item%bath_temperature())
+    end do
+  end function bath_temperature_of
+
+  !> Why z0 cannot start the constrained continuous flow ('' if it can), with the nearest state
+  !> that can (the projection above, which keeps the conserved momentum), column by column.
+  function initial_inconsistency(model, constraints, z0) result(text)
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z0(:)
+    character(len=:), allocatable :: text
+    real(real64) :: z(size(z0))
+    integer :: k, stat
+    character(len=:), allocatable :: changes
+
+    text = ''
+    do k = 1, size(constraints)
+      text = text//constraints(k)%item%inconsistency(model, z0)
+    end do
+    if (len(text) == 0) return
+    z = z0
+    call project_state(model, constraints, model%conserved_momentum(z0), z, stat)
+    if (stat /= domain_ok) return
+    changes = ''
+    do k = 1, size(z)
+      if (abs(z(k) - z0(k)) > 0.0_real64) changes = changes//', '//trim(model%column_names(k))//' = '//scientific_text(z(k))
+    end do
+    text = text//'; the nearest state that satisfies it with the same angular momentum has '//changes(3:)
+  end function initial_inconsistency
+
+end module constrained_flow
