@@ -61,7 +61,7 @@ module relaxed_stepper
     integer :: newton_max_iterations = 0
     real(real64), allocatable :: last_stages(:)         !! the last step's K, the next predictor
     ! What the current output step did, and what the last committed step replaced.
-    integer :: attempts = 0, rejections = 0, newton_iterations = 0
+    integer :: attempts = 0, rejections = 0, halvings = 0, newton_iterations = 0
     real(real64) :: last_gamma = 1.0_real64, entropy_production = 0.0_real64
     character(len=:), allocatable :: last_failure
     real(real64), allocatable :: z_saved(:)
@@ -113,7 +113,9 @@ contains
                              'gamma of the step''s last relaxed (sub)step: E(z + gamma d) = E(z); time advanced by gamma h'), &
              step_diagnostic('rejected_steps', '1', &
                              'attempts rejected in the step (no relaxation root, a non-finite stage, a failed stage '// &
-                             'solve, the entropy guard, or the error test), each replaced by smaller steps'), &
+                             'solve, the entropy guard, or the adaptive error test), each replaced by smaller steps'), &
+             step_diagnostic('halved_steps', '1', &
+                             'rejected attempts replaced by two halves (every rejection but the error test''s)'), &
              step_diagnostic('entropy_production', 'J/K', &
                              'gamma e_S summed over the step''s substeps: the entropy change the step''s stages give')]
   end function diagnostics
@@ -175,6 +177,7 @@ contains
     t_start = self%t
     self%attempts = 0
     self%rejections = 0
+    self%halvings = 0
     self%newton_iterations = 0
     self%entropy_production = 0.0_real64
     self%last_failure = ''
@@ -194,7 +197,8 @@ contains
     report%solves = self%attempts
     report%rejected = self%rejections
     report%newton_iterations = self%newton_iterations
-    report%diagnostics = [self%last_gamma, real(self%rejections, real64), self%entropy_production]
+    report%diagnostics = [self%last_gamma, real(self%rejections, real64), real(self%halvings, real64), &
+                          self%entropy_production]
     if (ierr /= 0) return
     if (.not. ok) then
       report%reason = self%last_failure
@@ -239,6 +243,7 @@ contains
     call relaxed_step(self, h, landing, ok, error_norm, ierr)
     if (ok .or. ierr /= 0) return
     self%rejections = self%rejections + 1
+    self%halvings = self%halvings + 1
     if (depth == max_halvings) then
       self%last_failure = 'a step halved '//integer_text(max_halvings)//' times still failed (last: ' &
                           //self%last_failure//')'
@@ -288,6 +293,7 @@ contains
         ok = .false.
       else
         h = 0.5_real64*h
+        self%halvings = self%halvings + 1
       end if
       if (h <= 1.0e-14_real64*max(1.0_real64, abs(self%t))) exit
     end do
