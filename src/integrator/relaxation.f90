@@ -9,9 +9,13 @@
 !> changes by exactly -thetabar gamma e_S. In entropy variables, with e_S the step's entropy
 !> estimate h sum_i b_i sigma_i, the projection leaves the free subsystems' entropy alone, so
 !> S(z_new) - S(z) = gamma e_S in a closed system.
+!>
+!> "To round-off" has a floor: z_new is rounded to doubles, which moves E by up to about
+!> eps sum_i |z_i dE/dz_i| (1e-13 J on the paper scene) whatever gamma is. A gamma whose r is
+!> below that floor is a root; an accurate small step can have r(1) below it already.
 module relaxation
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use invariant_function, only: domain_ok, potential_u, potential_s
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use constrained_flow, only: project_state, bath_temperature_of
@@ -36,54 +40,69 @@ contains
     real(real64), intent(out) :: gamma, z_new(:)
     logical, intent(out) :: found
     integer, intent(out) :: evaluations
-    real(real64) :: momentum, bath, g_a, g_b, q_a, q_b, g_next
+    real(real64) :: momentum, bath, floor, g_a, g_b, q_a, q_b, g_next, best, best_r
     integer :: k, stat
-    logical :: converged
+    logical :: stalled
 
     found = .false.
     evaluations = 0
+    gamma = 1.0_real64
     momentum = model%conserved_momentum(z)
     bath = bath_temperature_of(constraints)
+    call rounding_floor(floor, stat)
+    if (stat /= domain_ok) return
     ! r(0) = 0: the secant runs on q(gamma) = r(gamma)/gamma, whose root is the nontrivial one,
-    ! from gamma = 1 (an order-p step has r(1) = O(h^(p+1))) and 1 - 1e-3.
+    ! from gamma = 1 (an order-p step has r(1) = O(h^(p+1))) and 1 - 1e-3. It always takes a
+    ! secant step: r(1) is the method's own energy error, which may lie below the floor and yet
+    ! accumulate over many steps if accepted; the secant's root has only rounding left in r.
     g_a = 1.0_real64
     call scaled_residual(g_a, q_a, stat)
     if (stat /= domain_ok) return
-    gamma = g_a
-    if (.not. (abs(q_a) > 0.0_real64)) then
-      found = .true.
-      return
-    end if
     g_b = 1.0_real64 - 1.0e-3_real64
     call scaled_residual(g_b, q_b, stat)
     if (stat /= domain_ok) return
-    ! Secant steps (q is nearly linear near the root, so they converge fast) until a step moves
-    ! gamma by less than `settled`: the secant's error is then far below that step, and gamma
-    ! is the root to round-off. Stagnation elsewhere, or a step out of range, means no root.
-    converged = .false.
+    best = 1.0_real64
+    best_r = abs(q_a)
+    ! Secant steps (q is nearly linear near the root, so they converge fast) until |r| is an
+    ! eighth of the floor or a step moves gamma by less than `settled` (then only rounding is
+    ! left to change). The best gamma is a root if its |r| is within the floor.
     do k = 1, max_secant_steps
       if (.not. (abs(q_b - q_a) > 0.0_real64)) exit
       g_next = g_b - q_b*(g_b - g_a)/(q_b - q_a)
       if (.not. (g_next >= 0.5_real64*gamma_min .and. g_next <= 2.0_real64*gamma_max)) exit
-      converged = abs(g_next - g_b) <= settled
-      if (converged) then
-        g_b = g_next
-        exit
-      end if
+      stalled = abs(g_next - g_b) <= settled
       g_a = g_b
       q_a = q_b
       g_b = g_next
       call scaled_residual(g_b, q_b, stat)
       if (stat /= domain_ok) return
-      if (.not. (abs(q_b) > 0.0_real64)) converged = .true.
-      if (converged) exit
+      if (abs(q_b*g_b) < best_r) then
+        best = g_b
+        best_r = abs(q_b*g_b)
+      end if
+      if (stalled .or. best_r <= 0.125_real64*floor) exit
     end do
-    gamma = g_b
-    found = converged .and. gamma >= gamma_min .and. gamma <= gamma_max
+    gamma = best
+    found = best_r <= floor .and. gamma >= gamma_min .and. gamma <= gamma_max
     if (found) call increment(gamma, stat)
     found = found .and. stat == domain_ok
 
   contains
+
+    ! The rounding floor of r (above): 8 eps sum_i |z_i| (|dE/dz_i| + thetabar |dS/dz_i|).
+    subroutine rounding_floor(floor, stat)
+      real(real64), intent(out) :: floor
+      integer, intent(out) :: stat
+      real(real64) :: partials(model%max_invariants, 2, model%subsystem_count()), weights(size(z))
+
+      floor = 0.0_real64
+      call model%exact_partials(z, partials, stat=stat)
+      if (stat /= domain_ok) return
+      weights = abs(model%mechanical_energy_gradient(z) + model%subsystem_gradient(z, partials, potential_u))
+      if (bath > 0.0_real64) weights = weights + bath*abs(model%subsystem_gradient(z, partials, potential_s))
+      floor = 8*epsilon(1.0_real64)*sum(abs(z)*weights)
+      if (.not. (floor > 0.0_real64)) floor = tiny(1.0_real64)
+    end subroutine rounding_floor
 
     ! z_new = P(z + g d).
     subroutine increment(g, stat)

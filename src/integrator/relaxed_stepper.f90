@@ -41,6 +41,9 @@ module relaxed_stepper
   ! DOP853's step-size controller: safety factor and the bounds of h_new/h.
   real(real64), parameter :: safety = 0.9_real64, shrink_limit = 0.333_real64, grow_limit = 6.0_real64
   integer, parameter :: max_error_rejections = 100
+  !> A step that would leave less than landing_slack h to t_end lands on t_end instead: a last
+  !> step of round-off size would carry no information for relaxation to work with.
+  real(real64), parameter :: landing_slack = 0.01_real64
 
   !> A relaxed Runge-Kutta integrator and its state in entropy variables.
   type, extends(time_stepper) :: relaxed_runge_kutta
@@ -187,7 +190,7 @@ contains
     report%scheme_temperature = 0.0_real64
     if (self%adaptive) then
       call adaptive_step(self, ok, ierr)
-    else if (self%t + dt >= self%t_end) then
+    else if (self%t + (1.0_real64 + landing_slack)*dt >= self%t_end) then
       call step_or_halve(self, self%t_end - self%t, .true., 0, ok, ierr)
     else
       call step_or_halve(self, dt, .false., 0, ok, ierr)
@@ -274,7 +277,7 @@ contains
     ierr = 0
     h = self%h_next
     do tries = 1, max_error_rejections
-      landing = self%t + h >= self%t_end
+      landing = self%t + (1.0_real64 + landing_slack)*h >= self%t_end
       if (landing) h = self%t_end - self%t
       call relaxed_step(self, h, landing, ok, error_norm, ierr)
       if (ierr /= 0) return
@@ -303,8 +306,9 @@ contains
 
   ! One relaxed step of h from the current state, committed when ok (state, time, figures):
   ! the stages, d = h sum_i b_i k_i and e_S = h sum_i b_i sum_a k_i(tau_a), then the relaxation.
-  ! landing: the time goes to t + h exactly. A step whose relaxed time would pass t_end is
-  ! redone as the landing step. error_norm: DOP853's error norm (0 without embedded weights).
+  ! landing: the time goes to t + h exactly. A step whose relaxed time would pass t_end, or leave
+  ! less than landing_slack h before it, is redone as the landing step. error_norm: DOP853's
+  ! error norm (0 without embedded weights).
   recursive subroutine relaxed_step(self, h, landing, ok, error_norm, ierr)
     class(relaxed_runge_kutta), intent(inout) :: self
     real(real64), intent(in) :: h
@@ -340,7 +344,7 @@ contains
       self%last_failure = 'no relaxation root gamma in [0.2, 2]'
       return
     end if
-    if (.not. landing .and. self%t + gamma*h >= self%t_end) then
+    if (.not. landing .and. self%t + (gamma + landing_slack)*h >= self%t_end) then
       self%attempts = self%attempts - 1
       call relaxed_step(self, self%t_end - self%t, .true., ok, error_norm, ierr)
       return
