@@ -4,8 +4,9 @@
 !> The step runs in entropy variables (tau = s), whatever the run's thermodynamic variable: there
 !> S is linear in z, L grad S = 0 everywhere, and every stage has positive temperatures. With
 !> d = h sum_i b_i f(g_i) and e_S = h sum_i b_i grad S.f(g_i) = h sum_i b_i sigma(g_i), sigma >= 0,
-!> the relaxed update z + gamma d (momenta corrected for J, src/integrator/relaxation) has
-!>   S_{n+1} - S_n = gamma e_S   exactly,
+!> the relaxed update P(z + gamma d) (projected onto the constraints and the conserved J;
+!> src/integrator/relaxation) has
+!>   S_{n+1} - S_n = gamma e_S   exactly (to rounding),
 !> which is >= 0 when every b_i >= 0 (RK4, Cooper-Verner 8, Gauss-Legendre 3) and is guarded
 !> otherwise (Dormand-Prince 8(5,3): a step with e_S < 0 is rejected). Time advances by gamma h;
 !> the step that reaches t_end lands on it (t + h, no time relaxation: the local error stays
@@ -16,6 +17,10 @@
 !> Fixed-step schemes take nominal steps of dt; relaxed_dp853 adapts h to the &integrator
 !> tolerance (absolute and relative per step, DOP853's error norm and controller), dt being its
 !> first trial step. The implicit Gauss-Legendre stages are solved by PETSc SNES.
+!>
+!> Constraints enter through their continuous-time forms (src/integrator/constrained_flow): g1
+!> by its index-1 force and the projection, g2 as a heat bath at thetabar, for which the relaxed
+!> functional is V = E - thetabar S with V_{n+1} - V_n = -thetabar gamma e_S <= 0.
 module relaxed_stepper
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: domain_ok
