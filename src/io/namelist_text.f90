@@ -3,9 +3,17 @@
 !> item is known by name) and extra items (overrides) can follow the file's.
 module namelist_text
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long_long, c_null_char
+  use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, lowercase
+  public :: max_input_bytes
+
+  !> The largest input file read: namelists are small, and a wrong file is not read whole.
+  integer, parameter :: max_input_bytes = 1048576
+  character(len=*), parameter :: name_characters = 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_'
+  character(len=*), parameter :: syntax = 'groups &name field = value, ... / and comments after !'
 
   !> One `name = value` item as written, and its origin (the file's name, or e.g. a study's sweep).
   type :: namelist_item
@@ -13,20 +21,50 @@ module namelist_text
     character(len=:), allocatable :: origin
   end type namelist_item
 
+  interface
+    ! src/io/input_file_check.c: 0 and the size of a readable regular file, else -1 and the reason.
+    function c_check_input_file(path, size, reason, reason_size) result(status) bind(c, name='eme_check_input_file')
+      import :: c_char, c_int, c_long_long
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_long_long), intent(out) :: size
+      character(kind=c_char), intent(out) :: reason(*)
+      integer(c_int), value :: reason_size
+      integer(c_int) :: status
+    end function c_check_input_file
+  end interface
+
 contains
 
-  !> The file's text with comments removed and lines joined by blanks.
+  !> The file's text with comments removed and lines joined by blanks. The file must be a
+  !> readable regular file of at most max_input_bytes (a FIFO or a device is refused, not waited
+  !> on) holding namelist groups '&name items /' and nothing else. A file without any group comes
+  !> back with no group: the caller, who knows the allowed groups, refuses it.
   subroutine read_source_text(path, text, stat, message)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: text
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     character(len=:), allocatable :: line
-    character(len=256) :: io_message
+    character(len=4096) :: io_message
+    character(kind=c_char, len=512) :: reason
+    integer(c_long_long) :: size
     integer :: unit, ios
 
     text = ''
     message = ''
+    reason = ''
+    stat = int(c_check_input_file(path//c_null_char, size, reason, len(reason, kind=c_int)))
+    if (stat /= 0) then
+      message = path//': cannot read the input file: '//c_text(reason)
+      return
+    end if
+    if (size > max_input_bytes) then
+      stat = 1
+      message = path//': cannot read the input file: it has more than '//integer_text(max_input_bytes)// &
+                ' bytes; allowed: a namelist file of at most '//integer_text(max_input_bytes)//' bytes'
+      return
+    end if
+    io_message = ''
     open (newunit=unit, file=path, status='old', action='read', iostat=stat, iomsg=io_message)
     if (stat == 0) then
       do
@@ -37,17 +75,22 @@ contains
       if (is_iostat_end(stat)) stat = 0
       close (unit, iostat=ios)
     end if
-    if (stat /= 0) message = path//': cannot read the input file: '//trim(io_message)
+    if (stat /= 0) then
+      message = path//': cannot read the input file: '//trim(io_message)
+      return
+    end if
+    call check_groups(text, path, stat, message)
   end subroutine read_source_text
 
-  ! One line of any length; stat is IOSTAT_END after the last line.
+  ! One line of any length; stat is IOSTAT_END after the last line. Control characters (tabs,
+  ! carriage returns) become blanks.
   subroutine read_line(unit, line, stat, io_message)
     integer, intent(in) :: unit
     character(len=:), allocatable, intent(out) :: line
     integer, intent(out) :: stat
     character(len=*), intent(inout) :: io_message
     character(len=256) :: chunk
-    integer :: length
+    integer :: length, i
 
     line = ''
     do
@@ -57,7 +100,110 @@ contains
     end do
     ! A line ends at its record end, or at the end of a file without a final newline.
     if (is_iostat_eor(stat) .or. (is_iostat_end(stat) .and. len(line) > 0)) stat = 0
+    do i = 1, len(line)
+      if (iachar(line(i:i)) < 32) line(i:i) = ' '
+    end do
   end subroutine read_line
+
+  ! Checks that the text is a sequence of groups '&name items /' and nothing else: no text
+  ! outside a group (a group whose '&' was forgotten), every group closed by '/' outside quotes
+  ! before the next '&', and no '/' right after '=' (an unquoted path, file = /tmp/x.h5, would
+  ! close the group there).
+  subroutine check_groups(text, path, stat, message)
+    character(len=*), intent(in) :: text, path
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=:), allocatable :: name
+    character :: quote
+    integer :: i, j, name_end, closed, last
+
+    stat = 1
+    i = 1
+    do
+      do while (i <= len(text))
+        if (text(i:i) /= ' ') exit
+        i = i + 1
+      end do
+      if (i > len(text)) exit
+      if (text(i:i) /= '&') then
+        message = path//': text outside any namelist group: '''//excerpt(text(i:))// &
+                  ''' (was a group''s ''&'' forgotten?); allowed: '//syntax
+        return
+      end if
+      name_end = i + verify(text(i + 1:)//' ', name_characters) - 1
+      name = lowercase(text(i + 1:name_end))
+      if (len(name) == 0) then
+        message = path//': ''&'' without a group name at '''//excerpt(text(i:))//'''; allowed: '//syntax
+        return
+      end if
+      closed = 0
+      quote = ' '
+      do j = name_end + 1, len(text)
+        if (quote /= ' ') then
+          if (text(j:j) == quote) quote = ' '
+        else if (text(j:j) == '''' .or. text(j:j) == '"') then
+          quote = text(j:j)
+        else if (text(j:j) == '&') then
+          message = path//': &'//name//' is not closed by ''/'' before '''//excerpt(text(j:))//'''; allowed: '//syntax
+          return
+        else if (text(j:j) == '/') then
+          closed = j
+          exit
+        end if
+      end do
+      if (quote /= ' ') then
+        message = path//': &'//name//': a text opened by '//quote//' is not closed; allowed: '//syntax
+        return
+      else if (closed == 0) then
+        message = path//': &'//name//' is not closed by ''/''; allowed: '//syntax
+        return
+      end if
+      last = name_end + len_trim(text(name_end + 1:closed - 1))
+      if (text(last:last) == '=') then
+        message = path//': &'//name//': field '''//item_name(last_name(text(name_end + 1:last)))//''' has no value '// &
+                  'before the ''/'' that closes the group; texts are quoted, as in file = ''/tmp/x.h5'''
+        return
+      end if
+      i = closed + 1
+    end do
+    stat = 0
+    message = ''
+  end subroutine check_groups
+
+  ! 'name =' at the end of a group body.
+  pure function last_name(body) result(item)
+    character(len=*), intent(in) :: body
+    character(len=:), allocatable :: item
+    integer :: start
+
+    start = len_trim(body(1:len(body) - 1))
+    start = scan(body(1:start), ' ,', back=.true.)
+    item = body(start + 1:)
+  end function last_name
+
+  ! The start of a text, for messages: at most 40 characters, the unprintable ones as '?'.
+  pure function excerpt(text) result(short)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: short
+    integer :: i
+
+    short = trim(text(1:min(len(text), 40)))
+    do i = 1, len(short)
+      if (iachar(short(i:i)) < 32 .or. iachar(short(i:i)) > 126) short(i:i) = '?'
+    end do
+    if (len_trim(text) > 40) short = short//'...'
+  end function excerpt
+
+  ! The text of a C string buffer, up to its NUL.
+  pure function c_text(buffer) result(text)
+    character(len=*), intent(in) :: buffer
+    character(len=:), allocatable :: text
+    integer :: nul
+
+    nul = index(buffer, c_null_char)
+    if (nul == 0) nul = len_trim(buffer) + 1
+    text = buffer(1:nul - 1)
+  end function c_text
 
   !> Lower-case names of every group '&name' in the text, in order (outside quotes).
   subroutine group_names(text, names)
@@ -68,7 +214,7 @@ contains
     allocate (names(0))
     do i = 1, len(text)
       if (text(i:i) /= '&' .or. quoted_at(text, i)) cycle
-      last = i + verify(text(i + 1:)//' ', 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_') - 1
+      last = i + verify(text(i + 1:)//' ', name_characters) - 1
       names = [names, lowercase(text(i + 1:last))]
     end do
   end subroutine group_names
