@@ -61,7 +61,7 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 	done > $@
 -include $(BUILD)/fortran.deps
 
-$(OBJ)/src/integrator/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
 $(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/lu_preconditioner.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
