@@ -4,6 +4,7 @@
 module namelist_text
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long_long, c_null_char
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -44,11 +45,13 @@ contains
     character(len=:), allocatable, intent(out) :: text
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=:), allocatable :: line
+    character(len=:), allocatable :: raw, code
     character(len=4096) :: io_message
     character(kind=c_char, len=512) :: reason
+    character :: quote
     integer(c_long_long) :: size
-    integer :: unit, ios
+    integer :: unit, ios, line_number, start, finish, length
+    logical :: group_seen
 
     text = ''
     message = ''
@@ -64,46 +67,84 @@ contains
                 ' bytes; allowed: a namelist file of at most '//integer_text(max_input_bytes)//' bytes'
       return
     end if
+    ! The whole file at once (its size is known), then line by line.
+    allocate (character(len=int(size)) :: raw)
     io_message = ''
-    open (newunit=unit, file=path, status='old', action='read', iostat=stat, iomsg=io_message)
-    if (stat == 0) then
-      do
-        call read_line(unit, line, stat, io_message)
-        if (stat /= 0) exit
-        text = text//' '//trim(without_comment(line))
-      end do
-      if (is_iostat_end(stat)) stat = 0
-      close (unit, iostat=ios)
-    end if
+    open (newunit=unit, file=path, access='stream', form='unformatted', status='old', action='read', iostat=stat, &
+          iomsg=io_message)
+    if (stat == 0 .and. size > 0) read (unit, iostat=stat, iomsg=io_message) raw
+    if (stat == 0) close (unit, iostat=stat, iomsg=io_message)
     if (stat /= 0) then
+      close (unit, iostat=ios)
       message = path//': cannot read the input file: '//trim(io_message)
       return
     end if
+    text = repeat(' ', len(raw) + 1)      ! each line adds a blank, each newline goes
+    length = 0
+    line_number = 0
+    group_seen = .false.
+    start = 1
+    do while (start <= len(raw))
+      finish = index(raw(start:), achar(10)) + start - 2
+      if (finish < start - 1) finish = len(raw)
+      line_number = line_number + 1
+      code = trim(without_comment(blanked(raw(start:finish))))
+      text(length + 1:length + 1 + len(code)) = ' '//code
+      length = length + 1 + len(code)
+      ! An open quote is a group's error; text before any group is refused as such below.
+      group_seen = group_seen .or. index(code, '&') > 0
+      quote = ' '
+      if (group_seen) quote = open_quote(code)
+      if (quote /= ' ') then
+        stat = 1
+        message = path//': line '//integer_text(line_number)//': '//last_group(text(1:length))//'a text opened by '// &
+                  quote//' is not closed on its line; allowed: '//syntax
+        return
+      end if
+      start = finish + 2
+    end do
+    text = text(1:length)
     call check_groups(text, path, stat, message)
   end subroutine read_source_text
 
-  ! One line of any length; stat is IOSTAT_END after the last line. Control characters (tabs,
-  ! carriage returns) become blanks.
-  subroutine read_line(unit, line, stat, io_message)
-    integer, intent(in) :: unit
-    character(len=:), allocatable, intent(out) :: line
-    integer, intent(out) :: stat
-    character(len=*), intent(inout) :: io_message
-    character(len=256) :: chunk
-    integer :: length, i
+  ! A line with its control characters (tab, carriage return, NUL) as blanks.
+  pure function blanked(line) result(clean)
+    character(len=*), intent(in) :: line
+    character(len=len(line)) :: clean
+    integer :: i
 
-    line = ''
-    do
-      read (unit, '(a)', advance='no', size=length, iostat=stat, iomsg=io_message) chunk
-      line = line//chunk(1:length)
-      if (stat /= 0) exit
-    end do
-    ! A line ends at its record end, or at the end of a file without a final newline.
-    if (is_iostat_eor(stat) .or. (is_iostat_end(stat) .and. len(line) > 0)) stat = 0
+    clean = line
     do i = 1, len(line)
-      if (iachar(line(i:i)) < 32) line(i:i) = ' '
+      if (iachar(line(i:i)) < 32) clean(i:i) = ' '
     end do
-  end subroutine read_line
+  end function blanked
+
+  ! The quote character of a text left open at the end of `code` (' ' if none).
+  pure function open_quote(code) result(quote)
+    character(len=*), intent(in) :: code
+    character :: quote
+    integer :: i
+
+    quote = ' '
+    do i = 1, len(code)
+      if (quote /= ' ') then
+        if (code(i:i) == quote) quote = ' '
+      else if (code(i:i) == '''' .or. code(i:i) == '"') then
+        quote = code(i:i)
+      end if
+    end do
+  end function open_quote
+
+  ! '&name: ' for the last group opened in the text (outside quotes), '' if none.
+  function last_group(text) result(prefix)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: prefix
+    character(len=32), allocatable :: names(:)
+
+    call group_names(text, names)
+    prefix = ''
+    if (size(names) > 0) prefix = '&'//trim(names(size(names)))//': '
+  end function last_group
 
   ! Checks that the text is a sequence of groups '&name items /' and nothing else: no text
   ! outside a group (a group whose '&' was forgotten), every group closed by '/' outside quotes
@@ -274,26 +315,58 @@ contains
     name = trim(lowercase(adjustl(item(1:stop_at - 1))))
   end function item_name
 
-  !> Values as a user would write them: 6 significant digits, trailing zeros dropped.
+  !> Values as a user would write them, to 6 significant digits: 280.0, 0.011, -0.1, 1e-8, 5e9.
   pure function reals_text(values) result(text)
     real(real64), intent(in) :: values(:)
     character(len=:), allocatable :: text
-    character(len=32) :: one
-    integer :: i, exponent_at, last
+    integer :: i
 
     text = ''
     do i = 1, size(values)
-      write (one, '(g0.6)') values(i)
-      exponent_at = scan(one, 'Ee')
-      if (exponent_at == 0) exponent_at = len_trim(one) + 1
-      last = exponent_at - 1
-      do while (last > 1 .and. one(last:last) == '0' .and. one(last - 1:last - 1) /= '.')
-        last = last - 1
-      end do
       if (i > 1) text = text//', '
-      text = text//one(1:last)//trim(one(exponent_at:))
+      text = text//real_text(values(i))
     end do
   end function reals_text
+
+  ! One value for reals_text: fixed notation from 1e-3 to 1e7, else mantissa 'e' exponent.
+  pure function real_text(x) result(text)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=40) :: buffer
+    integer :: decimals, exponent_at, exponent
+
+    if (ieee_is_nan(x)) then
+      text = 'NaN'
+    else if (abs(x) > huge(x)) then
+      text = trim(merge('Inf ', '-Inf', x > 0))
+    else if (abs(x) < 1.0e-3_real64 .and. abs(x) > 0.0_real64 .or. abs(x) >= 1.0e7_real64) then
+      write (buffer, '(es15.5e3)') x
+      exponent_at = index(buffer, 'E')
+      read (buffer(exponent_at + 1:), *) exponent
+      text = without_trailing_zeros(trim(adjustl(buffer(1:exponent_at - 1))))
+      if (text(len(text):len(text)) == '0') text = text(1:len(text) - 2)    ! 1.0 -> 1
+      write (buffer, '(i0)') exponent
+      text = text//'e'//trim(buffer)
+    else
+      decimals = 1
+      if (abs(x) > 0.0_real64) decimals = max(1, 5 - floor(log10(abs(x))))
+      write (buffer, '(f40.'//integer_text(decimals)//')') x
+      text = without_trailing_zeros(trim(adjustl(buffer)))
+    end if
+  end function real_text
+
+  ! '12.3400' -> '12.34', '280.000' -> '280.0': trailing zeros go, one digit after '.' stays.
+  pure function without_trailing_zeros(number) result(text)
+    character(len=*), intent(in) :: number
+    character(len=:), allocatable :: text
+    integer :: last
+
+    last = len(number)
+    do while (last > 1 .and. number(last:last) == '0' .and. number(max(1, last - 1):max(1, last - 1)) /= '.')
+      last = last - 1
+    end do
+    text = number(1:last)
+  end function without_trailing_zeros
 
   !> ASCII lower case.
   pure function lowercase(text) result(lower)
