@@ -8,8 +8,9 @@
 #            else the Fortran wrappers h5pfc or h5fc (`-show`)
 #   SUNDIALS CVODE: SUNDIALS_DIR, else the compiler's default paths
 #   LAPACK   the compiler's default paths
-# What is missing is installed with apt-get on Debian as root ($NATIVE_PACKAGES); anywhere else
-# the script prints what to install (Debian, Spack, conda-forge) and stops with status 1.
+# What is missing is installed with apt-get on Debian as root ($NATIVE_PACKAGES; never with
+# EME_SETUP_APT=no); anywhere else the script prints what to install (Debian, Spack,
+# conda-forge) and stops with status 1.
 set -u
 output=$1
 FC=${FC:-mpif90}
@@ -36,6 +37,11 @@ rpaths() {
     for flag in $1; do
         case $flag in -L*) printf ' -Wl,-rpath,%s' "${flag#-L}" ;; esac
     done
+}
+
+# The words of $1 without repeats, in order.
+unique() {
+    printf '%s\n' $1 | awk 'NF && !seen[$0]++' | tr '\n' ' '
 }
 
 # The first of the directories of the -I flags $2 that holds file $1.
@@ -108,6 +114,7 @@ find_libraries() {
                         /*libhdf5*) hdf5_dirs="$hdf5_dirs -L$(dirname "$word")" ;;
                     esac
                 done
+                hdf5_flags=$(unique "$hdf5_flags")
                 [ -n "$hdf5_flags" ] && break
             done
         fi
@@ -115,6 +122,7 @@ find_libraries() {
     if ! include_holding hdf5.mod "$hdf5_flags" >/dev/null || ! have_library hdf5_fortran "$hdf5_dirs"; then
         missing="$missing HDF5(with-Fortran)"
     fi
+    hdf5_dirs=$(unique "$hdf5_dirs")
     hdf5_libs="$hdf5_dirs$(rpaths "$hdf5_dirs") -lhdf5_fortran -lhdf5"
 
     # SUNDIALS (CVODE with its dense direct solver)
@@ -153,7 +161,7 @@ EOF
 
 find_libraries
 if [ -n "$missing" ]; then
-    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && [ "${EME_SETUP_APT:-yes}" != no ] && command -v apt-get >/dev/null 2>&1; then
         echo "Missing:$missing; installing $NATIVE_PACKAGES with apt-get"
         apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $NATIVE_PACKAGES >/dev/null
         find_libraries

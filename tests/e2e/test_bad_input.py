@@ -184,13 +184,16 @@ def test_a_file_that_is_not_a_regular_file_is_refused_without_waiting(tmp_path, 
     refused(tmp_path, [str(path)], [f"{path}: cannot read the input file: "] + words)
 
 
-def test_an_unreadable_file_names_the_os_reason(tmp_path, eme_run_binary):
-    namelist = tmp_path / "secret.nml"
-    namelist.write_text("&integrator t_end = 0.3 /\n")
-    namelist.chmod(0)
-    if os.access(namelist, os.R_OK):
-        pytest.skip("running as root: every file is readable")
-    refused(tmp_path, [str(namelist)], [f"{namelist}: cannot read the input file: Permission denied"])
+@pytest.mark.parametrize("kind", ["not a directory", "symbolic link loop"])
+def test_an_unreadable_file_names_the_os_reason(tmp_path, eme_run_binary, kind):
+    """Errors that root gets too (a permission error would not show when the tests run as root)."""
+    if kind == "not a directory":
+        (tmp_path / "plain").write_text("")
+        path, reason = tmp_path / "plain" / "scene.nml", "Not a directory"
+    else:
+        path, reason = tmp_path / "loop.nml", "Too many levels of symbolic links"
+        path.symlink_to(path)
+    refused(tmp_path, [str(path)], [f"{path}: cannot read the input file: {reason}"])
 
 
 def test_a_huge_file_is_refused_unread(tmp_path, eme_run_binary):
