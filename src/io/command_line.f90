@@ -6,6 +6,7 @@
 module command_line
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use number_text, only: integer_text
+  use namelist_text, only: joined
   implicit none (type, external)
   private
   public :: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
@@ -66,7 +67,7 @@ contains
       else if (is_option(argument)) then
         if (argument(1:2) == '--' .and. stat == 0) then
           stat = 2
-          message = 'unknown option '''//argument//'''; allowed: '//joined(own_options)// &
+          message = 'unknown option '''//argument//'''; allowed: '//joined(own_options, ', ')// &
                     ', one input file, and PETSc options (one ''-'', e.g. -snes_monitor)'
         end if
         after_petsc_option = .true.
@@ -149,17 +150,5 @@ contains
     ends_with_nml = .false.
     if (len(argument) > 4) ends_with_nml = argument(len(argument) - 3:) == '.nml'
   end function ends_with_nml
-
-  ! 'a, b, c'.
-  pure function joined(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-
-    text = trim(names(1))
-    do i = 2, size(names)
-      text = text//', '//trim(names(i))
-    end do
-  end function joined
 
 end module command_line

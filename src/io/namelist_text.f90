@@ -9,7 +9,7 @@ module namelist_text
   implicit none (type, external)
   private
   public :: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, lowercase
-  public :: max_input_bytes
+  public :: max_input_bytes, joined
 
   !> The largest input file read: namelists are small, and a wrong file is not read whole.
   integer, parameter :: max_input_bytes = 1048576
@@ -367,6 +367,19 @@ contains
     end do
     text = number(1:last)
   end function without_trailing_zeros
+
+  !> The names, trimmed, with `separator` between them ('a, b, c' for ', ').
+  pure function joined(names, separator) result(text)
+    character(len=*), intent(in) :: names(:), separator
+    character(len=:), allocatable :: text
+    integer :: i
+
+    text = ''
+    if (size(names) > 0) text = trim(names(1))
+    do i = 2, size(names)
+      text = text//separator//trim(names(i))
+    end do
+  end function joined
 
   !> ASCII lower case.
   pure function lowercase(text) result(lower)

@@ -13,7 +13,7 @@ module run_config
   use integrator_registry, only: integrator_entry, find_integrator, integrator_names
   use model_scene, only: scene
   use model_registry, only: select_scene
-  use namelist_text, only: namelist_item, read_source_text, group_names, item_name, reals_text
+  use namelist_text, only: namelist_item, read_source_text, group_names, item_name, reals_text, joined
   use number_text, only: integer_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, read_group, field_names, &
                             invalid_value_message, choices_text, value_origin
@@ -72,13 +72,13 @@ contains
     if (size(groups) == 0) then
       stat = 1
       message = path//': no namelist group found (an empty file, only comments, or not a namelist); allowed groups: ' &
-                //group_list(allowed_groups)//', each written &name field = value, ... /'
+                //'&'//joined(allowed_groups, ', &')//', each written &name field = value, ... /'
       return
     end if
     do i = 1, size(groups)
       stat = 1
       if (.not. any(allowed_groups == groups(i))) then
-        message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: '//group_list(allowed_groups)
+        message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &'//joined(allowed_groups, ', &')
         return
       else if (count(groups == groups(i)) > 1) then
         message = path//': &'//trim(groups(i))//' appears '//integer_text(count(groups == groups(i)))// &
@@ -150,11 +150,11 @@ contains
     associate (c => config%integrator)
       fields = [ &
         text_field('scheme', c%scheme, choices_text(schemes), schemes), &
-        text_field('thermo_variable', config%thermo_variable, choices_text(joined(thermo_variable_names)), &
-                   joined(thermo_variable_names)), &
-        text_field('discrete_gradient', config%discrete_gradient, choices_text(joined(discrete_gradient_names)), &
-                   joined(discrete_gradient_names)), &
-        text_field('metric', config%metric, choices_text(joined(metric_names)), joined(metric_names)), &
+        text_field('thermo_variable', config%thermo_variable, choices_text(joined(thermo_variable_names, ' ')), &
+                   joined(thermo_variable_names, ' ')), &
+        text_field('discrete_gradient', config%discrete_gradient, choices_text(joined(discrete_gradient_names, ' ')), &
+                   joined(discrete_gradient_names, ' ')), &
+        text_field('metric', config%metric, choices_text(joined(metric_names, ' ')), joined(metric_names, ' ')), &
         real_field('dt', c%dt, 'a real number > 0 [s]', 's', minimum=0.0_real64, exclusive=.true.), &
         real_field('t_end', c%t_end, 'a real number > 0 [s]', 's', minimum=0.0_real64, exclusive=.true.), &
         real_field('newton_tol', c%newton_tol, 'a real number > 0 and <= 0.01 (Newton''s tolerance; a looser one '// &
@@ -218,30 +218,6 @@ contains
                     associated(x%real_values, y%real_values) .or. associated(x%integer_value, y%integer_value) .or. &
                     associated(x%logical_value, y%logical_value) .or. associated(x%text_value, y%text_value)
   end function same_variable
-
-  ! Names joined by blanks.
-  pure function joined(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-
-    text = trim(names(1))
-    do i = 2, size(names)
-      text = text//' '//trim(names(i))
-    end do
-  end function joined
-
-  ! '&a, &b, &c'.
-  pure function group_list(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-
-    text = '&'//trim(names(1))
-    do i = 2, size(names)
-      text = text//', &'//trim(names(i))
-    end do
-  end function group_list
 
   ! Whether `name` is a field of one of the groups.
   logical function is_field(config, groups, name)
