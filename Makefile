@@ -122,7 +122,8 @@ PYTHON_REQUIREMENTS := postprocess/requirements.txt
 PYTHON_LOCK := postprocess/requirements.lock
 deps: $(BUILD)/.native-deps $(VENV)/.python-deps
 
-ifeq ($(filter clean python-lock,$(MAKECMDGOALS)),)
+# Every goal but these needs the libraries (no goal means `all`).
+ifneq ($(filter-out clean python-lock,$(or $(MAKECMDGOALS),all)),)
 include $(BUILD)/config.mk
 endif
 

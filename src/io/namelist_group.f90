@@ -17,7 +17,7 @@ module namelist_group
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
   public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
-  public :: describe_group
+  public :: describe_group, parse_subscript
   public :: field_real, field_integer, field_logical, field_text
 
   integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
@@ -439,7 +439,8 @@ contains
     single_item = stat /= 0
   end function single_item
 
-  ! 'i' or 'i:j' within first:last (which it narrows); stat /= 0 with the reason if not.
+  !> The subscript 'i)' or 'i:j)' (the text after '('), within first:last, which it narrows to
+  !> i:j; stat /= 0 with the reason if it is not one or out of range.
   subroutine parse_subscript(text, first, last, stat, reason)
     character(len=*), intent(in) :: text
     integer, intent(inout) :: first, last

@@ -76,16 +76,16 @@ contains
       return
     end if
     do i = 1, size(groups)
-      stat = 1
       if (.not. any(allowed_groups == groups(i))) then
+        stat = 1
         message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &'//joined(allowed_groups, ', &')
         return
       else if (count(groups == groups(i)) > 1) then
+        stat = 1
         message = path//': &'//trim(groups(i))//' appears '//integer_text(count(groups == groups(i)))// &
                   ' times; allowed: each group once (put all its fields in one group)'
         return
       end if
-      stat = 0
     end do
     do i = 1, size(extra)
       if (is_field(config, allowed_groups, item_name(extra(i)%item))) cycle

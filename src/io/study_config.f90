@@ -7,7 +7,8 @@ module study_config
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use namelist_text, only: namelist_item, read_source_text, group_names, lowercase, item_name
-  use namelist_group, only: group_field, text_field, reals_field, texts_field, read_group, invalid_value_message
+  use namelist_group, only: group_field, text_field, reals_field, texts_field, read_group, invalid_value_message, &
+                            parse_subscript
   use run_config, only: run_configuration, read_run_config, same_variable
   use integrator_settings, only: step_count
   use number_text, only: integer_text
@@ -237,26 +238,17 @@ contains
   subroutine element_range(field, first, last)
     character(len=*), intent(in) :: field
     integer, intent(out) :: first, last
-    integer :: open_at, close_at, colon, stat
+    character(len=:), allocatable :: reason
+    integer :: open_at, stat
 
     first = 1
     last = huge(1)
     open_at = index(field, '(')
-    close_at = index(field, ')')
-    if (open_at == 0 .or. close_at < open_at) return
-    colon = index(field(open_at:close_at), ':')
-    if (colon == 0) then
-      read (field(open_at + 1:close_at - 1), *, iostat=stat) first
-      last = first
-    else
-      colon = open_at + colon - 1
-      read (field(open_at + 1:colon - 1), *, iostat=stat) first
-      if (stat == 0) read (field(colon + 1:close_at - 1), *, iostat=stat) last
-    end if
-    if (stat /= 0) then
-      first = 1
-      last = huge(1)
-    end if
+    if (open_at == 0) return
+    call parse_subscript(field(open_at + 1:), first, last, stat, reason)
+    if (stat == 0) return
+    first = 1
+    last = huge(1)
   end subroutine element_range
 
   ! The cases: a Cartesian product (first sweep slowest) or the zip of the sweeps. Each is read
