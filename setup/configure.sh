@@ -41,7 +41,11 @@ rpaths() {
 
 # The words of $1 without repeats, in order.
 unique() {
-    printf '%s\n' $1 | awk 'NF && !seen[$0]++' | tr '\n' ' '
+    kept=''
+    for word in $1; do
+        case " $kept " in *" $word "*) ;; *) kept="$kept $word" ;; esac
+    done
+    printf '%s' "$kept"
 }
 
 # The first of the directories of the -I flags $2 that holds file $1.
