@@ -7,6 +7,7 @@
 #   make figures      the figures of `make run`'s files
 #   make study        convergence, work-precision and stability studies, and their charts
 #   make bench        ensemble throughput and per-step cost (benchmarks, not tests)
+#   make python-lock  pin every Python package anew after postprocess/requirements.txt changed
 #   make clean        remove what the build made
 SHELL := /bin/bash
 # A failing command inside a pipeline (mpirun ... | tail) fails its recipe.
@@ -23,13 +24,9 @@ PYTHON := $(VENV)/bin/python
 
 FC := mpif90
 CC := mpicc
-# Recursive '=' so that pkg-config runs after `deps` has installed PETSc and HDF5.
-PETSC_FLAGS = $(shell pkg-config --cflags PETSc)
-PETSC_LIBS = $(shell pkg-config --libs PETSc)
-# Modules that use PETSc-typed modules need PETSc's module files, without its other flags.
-PETSC_INCLUDES = $(shell pkg-config --cflags-only-I PETSc)
-HDF5_FLAGS = $(shell pkg-config --cflags-only-I hdf5-openmpi)
-HDF5_LIBS = $(shell pkg-config --libs-only-L hdf5-openmpi) -lhdf5_fortran -lhdf5
+# PETSC_FLAGS, PETSC_LIBS, PETSC_INCLUDES (PETSc's include flags alone, for modules that use
+# PETSc-typed modules), HDF5_FLAGS, HDF5_LIBS, SUNDIALS_FLAGS and SUNDIALS_LDFLAGS come from
+# build/config.mk (section set-up).
 WARNINGS := -Wall -Wextra -fimplicit-none
 FFLAGS := -O2 -g -fstack-arrays $(WARNINGS) -J$(MOD) -I$(MOD)
 # Our own modules are standard Fortran 2018; PETSc's headers need long lines and no -std.
@@ -61,7 +58,7 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 	done > $@
 -include $(BUILD)/fortran.deps
 
-$(OBJ)/src/integrator/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
 $(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/lu_preconditioner.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
@@ -73,7 +70,7 @@ $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJ
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test run constraints figures study bench clean
+.PHONY: all deps test run constraints figures study bench clean python-lock
 
 all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
@@ -87,7 +84,7 @@ $(OBJ)/%.o: %.F90 | $(BUILD)/.native-deps
 
 $(OBJ)/%.o: %.c | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) $(HDF5_FLAGS) -c $< -o $@
+	$(CC) $(CFLAGS) $(HDF5_FLAGS) $(SUNDIALS_FLAGS) -c $< -o $@
 
 
 $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
@@ -98,7 +95,7 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
 SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense \
                  -lsundials_sunnonlinsolfixedpoint
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LIBS) -llapack
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
@@ -114,22 +111,56 @@ $(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up
-# Debian packages for the native stack, then a virtual environment for h5py and friends.
+# The native libraries: setup/configure.sh finds them (PETSC_DIR and PETSC_ARCH, HDF5_DIR or
+# pkg-config or h5pfc/h5fc, SUNDIALS_DIR), installs what is missing with apt-get on Debian as
+# root, or else says what to install (Debian, Spack, conda-forge) and stops. Their flags go to
+# build/config.mk, which make includes and so remakes first. Then a virtual environment with the
+# Python packages of postprocess/requirements.txt, every package pinned by requirements.lock.
 NATIVE_PACKAGES := gfortran petsc-dev libhdf5-openmpi-dev libopenmpi-dev openmpi-bin pkg-config libsundials-dev
+SETUP_SETTINGS := PETSC_DIR=$(PETSC_DIR) PETSC_ARCH=$(PETSC_ARCH) HDF5_DIR=$(HDF5_DIR) SUNDIALS_DIR=$(SUNDIALS_DIR) \
+                  FC=$(FC) CC=$(CC)
+PYTHON_REQUIREMENTS := postprocess/requirements.txt
+PYTHON_LOCK := postprocess/requirements.lock
 deps: $(BUILD)/.native-deps $(VENV)/.python-deps
 
-$(BUILD)/.native-deps:
-	@if command -v mpif90 >/dev/null && pkg-config --exists PETSc hdf5-openmpi && test -f /usr/include/cvode/cvode.h; then :; else \
-	  echo "Installing $(NATIVE_PACKAGES) with apt-get"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(NATIVE_PACKAGES) >/dev/null; fi
-	@mkdir -p $(BUILD) && touch $@
+# Every goal but these needs the libraries (no goal means `all`).
+ifneq ($(filter-out clean python-lock,$(or $(MAKECMDGOALS),all)),)
+include $(BUILD)/config.mk
+endif
 
-$(VENV)/.python-deps: postprocess/requirements.txt
-	@python3 -m venv $(VENV) 2>/dev/null || { rm -rf $(VENV); echo "Installing python3-venv with apt-get"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null && \
-	  python3 -m venv $(VENV); }
-	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r postprocess/requirements.txt
+# Reconfigures when the settings change.
+$(BUILD)/setup.stamp: FORCE
+	@mkdir -p $(BUILD)
+	@echo '$(SETUP_SETTINGS)' | cmp -s - $@ || echo '$(SETUP_SETTINGS)' > $@
+
+$(BUILD)/config.mk: setup/configure.sh $(BUILD)/setup.stamp
+	@NATIVE_PACKAGES='$(NATIVE_PACKAGES)' $(SETUP_SETTINGS) sh setup/configure.sh $@
+
+$(BUILD)/.native-deps: $(BUILD)/config.mk
 	@touch $@
+
+$(VENV)/.python-deps: $(PYTHON_REQUIREMENTS) $(PYTHON_LOCK) setup/check_python_lock.py
+	@python3 setup/check_python_lock.py $(PYTHON_REQUIREMENTS) $(PYTHON_LOCK)
+	@python3 -m venv $(VENV) 2>/dev/null || { rm -rf $(VENV); \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then echo "Installing python3-venv with apt-get"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null && \
+	    python3 -m venv $(VENV); \
+	  else echo "python3 -m venv does not work: install python3-venv (Debian: apt-get install python3-venv)," \
+	    "or put a Python with venv first on PATH (conda: conda install python)" >&2; exit 1; fi; }
+	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r $(PYTHON_REQUIREMENTS) -c $(PYTHON_LOCK)
+	@$(VENV)/bin/python setup/check_python_lock.py --installed $(PYTHON_LOCK)
+	@touch $@
+
+# Regenerates the lock after requirements.txt changed: a fresh environment, what pip installs
+# for requirements.txt today, frozen. Commit both files.
+python-lock:
+	rm -rf $(BUILD)/lock-venv
+	python3 -m venv $(BUILD)/lock-venv
+	$(BUILD)/lock-venv/bin/pip install --quiet --disable-pip-version-check -r $(PYTHON_REQUIREMENTS)
+	{ echo "# Every Python package of .venv, pinned. Generated by 'make python-lock' from $(PYTHON_REQUIREMENTS)"; \
+	  echo "# ($$($(BUILD)/lock-venv/bin/python --version), $$(date -u +%Y-%m-%d)); do not edit by hand."; \
+	  $(BUILD)/lock-venv/bin/pip freeze; } > $(PYTHON_LOCK)
+	rm -rf $(BUILD)/lock-venv
 
 # ---------------------------------------------------------------- use
 PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy,paper_fig4_$(s)_$(v))) \

@@ -1,4 +1,4 @@
-!> mpirun -n P eme_ensemble STUDY.nml [PETSc options]: runs the cases of a parameter study on
+!> mpirun -n P eme_ensemble [PETSc options] STUDY.nml [PETSc options]: runs the cases of a parameter study on
 !> P ranks (README, Ensemble studies). Exit status: 0 every case was attempted (failed cases
 !> are results, recorded in the index with their reason), 2 bad study input (nothing is
 !> written), 1 the index could not be written or updated.
@@ -9,33 +9,40 @@ program eme_ensemble
   use study_config, only: study_definition, read_study
   use ensemble, only: run_study, study_outcome, world_rank
   use number_text, only: integer_text
-  use command_help, only: print_study_help, print_integrators, has_argument
+  use command_help, only: print_study_help, print_integrators
+  use command_line, only: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
+  use library_versions, only: print_versions
   implicit none
 
   type(study_definition), target :: study
   type(study_outcome) :: outcome
-  character(len=4096) :: path
-  character(len=:), allocatable :: message
+  type(command_arguments) :: arguments
+  character(len=:), allocatable :: message, unused
   integer :: stat, rank, exit_status
   PetscErrorCode :: ierr
 
-  if (has_argument([character(len=6) :: '--help', '-h'])) then
+  call parse_command_line('eme_ensemble', [character(len=16) :: '--help', '-h', '--version', '--integrators'], &
+                          arguments, stat, message)
+  if (arguments%has_flag('--help') .or. arguments%has_flag('-h')) then
     call print_study_help(output_unit)
     stop
-  else if (has_argument(['--integrators'])) then
+  else if (arguments%has_flag('--version')) then
+    call print_versions(output_unit, 'eme_ensemble')
+    stop
+  else if (arguments%has_flag('--integrators')) then
     call print_integrators(output_unit, tabular=.true.)
     stop
   end if
   PetscCallA(PetscInitialize(ierr))
+  PetscCallA(detach_input_file(arguments, ierr))
   rank = world_rank()
   exit_status = 0
-  if (command_argument_count() < 1) then
-    if (rank == 0) write (error_unit, '(a)') 'usage: mpirun -n P eme_ensemble STUDY.nml [PETSc options]'
+  if (stat /= 0) then
+    if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
     exit_status = 2
   else
-    call get_command_argument(1, path)
     ! Every rank reads and validates the study: the expansion is cheap and deterministic.
-    call read_study(trim(path), study, stat, message)
+    call read_study(arguments%input_file, study, stat, message)
     if (stat /= 0) then
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
       exit_status = 2
@@ -54,6 +61,8 @@ program eme_ensemble
           outcome%complete, ' complete (', outcome%skipped, ' from an earlier run), ', outcome%failed, &
           ' failed; wall time', outcome%wall_seconds, ' s; index '//study%output_dir//'/index.h5'
       end if
+      unused = unused_petsc_options()
+      if (len(unused) > 0) write (error_unit, '(a)') 'eme_ensemble: warning: PETSc options that nothing used: '//unused
     end if
   end if
   PetscCallA(PetscFinalize(ierr))

@@ -1,9 +1,9 @@
-!> eme_run FILE.nml [PETSc options]: one run of the thermoviscoelastic double pendulum.
+!> eme_run [PETSc options] FILE.nml [PETSc options]: one run of the thermoviscoelastic double pendulum.
 !> Reads the namelist, integrates, writes the HDF5 file named in &output and prints a
 !> one-line summary. Exit status: 0 complete, 2 bad input or usage (no output file is
 !> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error.
-!> eme_run --help (or -h), --integrators (the registry as a table) and --output-schema (the
-!> HDF5 layout as a table) print and exit with status 0.
+!> eme_run --help (or -h), --version, --integrators (the registry as a table) and --output-schema
+!> (the HDF5 layout as a table) print and exit with status 0.
 program eme_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
@@ -11,55 +11,61 @@ program eme_run
   use run_config, only: run_configuration, read_run_config
   use simulation, only: run_summary, run_simulation
   use run_output, only: print_output_schema
-  use command_help, only: print_run_help, print_integrators, has_argument
+  use command_help, only: print_run_help, print_integrators
+  use command_line, only: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
+  use library_versions, only: print_versions
   implicit none
 
   type(run_configuration) :: config
   type(run_summary) :: summary
-  character(len=4096) :: path
-  character(len=:), allocatable :: message
+  type(command_arguments) :: arguments
+  character(len=:), allocatable :: message, unused
   integer :: stat, exit_status
   PetscErrorCode :: ierr
 
+  call parse_command_line('eme_run', [character(len=16) :: '--help', '-h', '--version', '--integrators', &
+                          '--output-schema'], arguments, stat, message)
   ! These need neither PETSc nor an input file.
-  if (has_argument([character(len=6) :: '--help', '-h'])) then
+  if (arguments%has_flag('--help') .or. arguments%has_flag('-h')) then
     call print_run_help(output_unit)
     stop
-  else if (has_argument(['--integrators'])) then
+  else if (arguments%has_flag('--version')) then
+    call print_versions(output_unit, 'eme_run')
+    stop
+  else if (arguments%has_flag('--integrators')) then
     call print_integrators(output_unit, tabular=.true.)
     stop
-  else if (has_argument(['--output-schema'])) then
+  else if (arguments%has_flag('--output-schema')) then
     call print_output_schema()
     stop
+  else if (stat /= 0) then
+    write (error_unit, '(a)') 'eme_run: '//message
+    stop 2, quiet=.true.
   end if
   PetscCallA(PetscInitialize(ierr))
+  PetscCallA(detach_input_file(arguments, ierr))
   exit_status = 0
-  if (command_argument_count() < 1) then
-    write (error_unit, '(a)') 'usage: eme_run FILE.nml [PETSc options, e.g. -snes_monitor -snes_converged_reason]; '// &
-      'eme_run --help tells more'
+  call read_run_config(arguments%input_file, config, stat, message)
+  if (stat /= 0) then
+    write (error_unit, '(a)') 'eme_run: '//message
     exit_status = 2
   else
-    call get_command_argument(1, path)
-    call read_run_config(trim(path), config, stat, message)
+    call run_simulation(config, summary, stat, message)
     if (stat /= 0) then
       write (error_unit, '(a)') 'eme_run: '//message
-      exit_status = 2
-    else
-      call run_simulation(config, summary, stat, message)
-      if (stat /= 0) then
-        write (error_unit, '(a)') 'eme_run: '//message
-        exit_status = 1
-      else if (summary%status /= 'complete') then
-        write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
-        exit_status = 3
-      end if
-      if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
-        & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
-        summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
-        summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
-        summary%angular_momentum_drift, ', Newton/step ', &
-        real(summary%newton_iterations, real64)/max(1, summary%steps_completed), ', ', summary%wall_seconds, ' s'
+      exit_status = 1
+    else if (summary%status /= 'complete') then
+      write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
+      exit_status = 3
     end if
+    if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
+      & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
+      summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
+      summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
+      summary%angular_momentum_drift, ', Newton/step ', &
+      real(summary%newton_iterations, real64)/max(1, summary%steps_completed), ', ', summary%wall_seconds, ' s'
+    unused = unused_petsc_options()
+    if (len(unused) > 0) write (error_unit, '(a)') 'eme_run: warning: PETSc options that nothing used: '//unused
   end if
   PetscCallA(PetscFinalize(ierr))
   if (exit_status /= 0) stop exit_status, quiet=.true.

@@ -16,6 +16,12 @@ module command_help
   character(len=*), parameter :: exit_codes = &
     'Exit status: 0 complete, 2 bad input or usage (nothing is written), 3 the run stopped early (its file is '// &
     'kept, marked incomplete, with the reason), 1 an I/O or PETSc error.'
+  character(len=*), parameter :: petsc_options_text(5) = [character(len=100) :: &
+    'PETSc options (one ''-'') reach every solver, before or after the input file: -snes_monitor,', &
+    '-snes_converged_reason, -snes_test_jacobian, -pc_type lu, -ts_*, and the code''s own', &
+    '-eme_chord_predictor false (no chord refinement of the Newton predictor). An argument after', &
+    'an option is its value unless it ends in .nml. Options that nothing used are named in a warning', &
+    'at the end.']
 
 contains
 
@@ -39,14 +45,17 @@ contains
     type(namelist_item) :: no_items(0)
     character(len=16), allocatable :: groups(:)
     character(len=:), allocatable :: message
-    integer :: g, stat
+    integer :: g, i, stat
 
-    write (unit, '(a)') 'usage: eme_run FILE.nml [PETSc options]', &
-      '       eme_run --help | --integrators | --output-schema', '', &
+    write (unit, '(a)') 'usage: eme_run [PETSc options] FILE.nml [PETSc options]', &
+      '       eme_run --help | -h | --version | --integrators | --output-schema', '', &
       'Integrates one scene of the thermoviscoelastic double pendulum (Valdes y Beck & Betsch, PAMM 2023)', &
-      'and writes an HDF5 file (&output file; README, Output layout). PETSc options reach the solvers:', &
-      '-snes_monitor, -snes_converged_reason, -snes_test_jacobian, -pc_type lu, -ts_*, and the code''s own', &
-      '-eme_chord_predictor false (no chord refinement of the predictor).', '', exit_codes, '', &
+      'and writes an HDF5 file (&output file; README, Output layout).', '', &
+      '  --help, -h        this text', &
+      '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
+      '  --integrators     the integrator registry as a tab-separated table', &
+      '  --output-schema   the HDF5 layout as a tab-separated table', '', &
+      (trim(petsc_options_text(i)), i = 1, size(petsc_options_text)), '', exit_codes, '', &
       'Input: a namelist file with any of these groups (models: '//model_names()//'); left-out fields keep', &
       'their defaults, the paper''s scene:'
     call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
@@ -63,10 +72,11 @@ contains
   !> eme_ensemble --help.
   subroutine print_study_help(unit)
     integer, intent(in) :: unit
-    character(len=1024), target :: base, output_dir
+    character(len=4096), target :: base, output_dir
     character(len=16), target :: combine
     character(len=64), target :: field, texts(max_sweep_values)
     real(real64), target :: values(max_sweep_values)
+    integer :: i
 
     base = ''
     output_dir = ''
@@ -74,13 +84,14 @@ contains
     field = ''
     texts = ''
     values = 0.0_real64
-    write (unit, '(a)') 'usage: mpirun -n P eme_ensemble STUDY.nml [PETSc options]', &
-      '       eme_ensemble --help | --integrators', '', &
+    write (unit, '(a)') 'usage: mpirun -n P eme_ensemble [PETSc options] STUDY.nml [PETSc options]', &
+      '       eme_ensemble --help | -h | --version | --integrators', '', &
       'Runs the cases of a parameter study on P ranks (one rank: no mpirun needed): every case is an', &
       'eme_run scene, the base scene with one value of each sweep. Each case writes output_dir/case_NNNNN.h5;', &
       'output_dir/index.h5 (/cases) records every case''s status and figures, and running the study again', &
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
-      '2 bad study input (nothing is written), 1 the index could not be written.', '', &
+      '2 bad study input or usage (nothing is written), 1 the index could not be written.', '', &
+      (trim(petsc_options_text(i)), i = 1, size(petsc_options_text)), '', &
       'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
     call describe_group(unit, 'study', study_fields(base, output_dir, combine))
     call describe_group(unit, 'sweep', sweep_fields(field, values, texts))

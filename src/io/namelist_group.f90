@@ -10,16 +10,19 @@
 !> p2(1:2) = 2*0.5); texts are quoted; logical values are .true. or .false. (or T, F).
 module namelist_group
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use namelist_text, only: namelist_item, group_items, item_name, reals_text
   use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
   public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
-  public :: describe_group
+  public :: describe_group, parse_subscript
   public :: field_real, field_integer, field_logical, field_text
 
   integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
+  ! What apply_item found wrong with an item.
+  integer, parameter :: value_problem = 1, subscript_problem = 2
 
   !> A field of a group: its name, what it allows (for messages and --help), its units, and the
   !> variable it is read into. Bounds and choices are checked after the group is read.
@@ -37,6 +40,7 @@ module namelist_group
     logical :: open_length = .false.              !! an array that takes up to its size of values
     real(real64) :: minimum = -huge(1.0_real64)   !! every value >= minimum (> if exclusive)
     logical :: exclusive = .false.
+    real(real64) :: maximum = huge(1.0_real64)    !! every value <= maximum
     logical :: nonzero = .false.                  !! an array that must not be all zero
     logical :: check_equal = .false.              !! a real that must equal `required` (relative 1e-12)
     real(real64) :: required = 0.0_real64
@@ -48,16 +52,17 @@ contains
   ! ------------------------------------------------------------------ building tables
 
   !> A real scalar field.
-  function real_field(name, variable, allowed, units, minimum, exclusive) result(field)
+  function real_field(name, variable, allowed, units, minimum, exclusive, maximum) result(field)
     character(len=*), intent(in) :: name, allowed, units
     real(real64), intent(in), target :: variable
-    real(real64), intent(in), optional :: minimum
+    real(real64), intent(in), optional :: minimum, maximum
     logical, intent(in), optional :: exclusive
     type(group_field) :: field
 
     field = group_field(name=name, allowed=allowed, units=units, kind=field_real)
     field%real_value => variable
     call set_bounds(field, minimum, exclusive)
+    if (present(maximum)) field%maximum = maximum
   end function real_field
 
   !> A real array field; nonzero: not all values may be zero; open_length: it takes up to its
@@ -142,6 +147,7 @@ contains
     type(namelist_item), intent(in), optional :: extra(:)
     integer, intent(in), optional :: occurrence
     type(namelist_item), allocatable :: items(:)
+    character(len=:), allocatable :: reason
     integer :: i, k
 
     stat = 0
@@ -155,10 +161,15 @@ contains
                   //names_text(fields)
         return
       end if
-      call apply_item(fields(k), items(i)%item, stat)
-      if (stat /= 0) then
+      call apply_item(fields(k), items(i)%item, stat, reason)
+      if (stat == subscript_problem) then
+        message = items(i)%origin//': &'//group//': '//trim(adjustl(items(i)%item(1:index(items(i)%item, '=') - 1))) &
+                  //': '//reason
+        return
+      else if (stat /= 0) then
+        if (len(reason) > 0) reason = ' ('//reason//')'
         message = items(i)%origin//': &'//group//': field '''//trim(fields(k)%name)//''' cannot take the value ' &
-                  //quoted_value(items(i)%item)//'; allowed: '//trim(fields(k)%allowed)
+                  //quoted_value(items(i)%item)//reason//'; allowed: '//trim(fields(k)%allowed)
         return
       end if
     end do
@@ -259,79 +270,129 @@ contains
 
   ! ------------------------------------------------------------------ helpers
 
-  ! Applies 'name[(i[:j])] = value' to the field; stat /= 0 if the value does not fit it.
-  subroutine apply_item(field, item, stat)
+  ! Applies 'name[(i[:j])] = value' to the field. stat: 0, value_problem (the value does not fit
+  ! the field) or subscript_problem; `reason` says why, when more than the allowed text helps.
+  subroutine apply_item(field, item, stat, reason)
     type(group_field), intent(in) :: field
     character(len=*), intent(in) :: item
     integer, intent(out) :: stat
-    character(len=:), allocatable :: value
+    character(len=:), allocatable, intent(out) :: reason
+    character(len=:), allocatable :: value, text_buffer
     integer :: first, last, equals, open_at
     real(real64) :: one(1)
-    character(len=1024) :: text_buffer
 
+    reason = ''
     equals = index(item, '=')
     value = trim(adjustl(item(equals + 1:)))
     if (len(value) > 0) then
       if (value(len(value):len(value)) == ',') value = value(1:len(value) - 1)
     end if
     open_at = index(item(1:equals), '(')
-    stat = 1
-    if (len_trim(value) == 0) return
+    first = 1
+    last = 1
+    if (associated(field%real_values)) last = size(field%real_values)
+    if (open_at > 0) then
+      stat = subscript_problem
+      if (.not. associated(field%real_values)) then
+        reason = 'field '''//trim(field%name)//''' takes no subscript'
+        return
+      end if
+      call parse_subscript(item(open_at + 1:equals - 1), first, last, stat, reason)
+      if (stat /= 0) then
+        stat = subscript_problem
+        reason = reason//'; '''//trim(field%name)//''' has elements 1 to '//integer_text(size(field%real_values))
+        return
+      end if
+    end if
+    stat = value_problem
+    if (len_trim(value) == 0) then
+      reason = 'no value'
+      return
+    end if
     if (associated(field%real_values)) then
-      first = 1
-      last = size(field%real_values)
-      if (open_at > 0) call parse_subscript(item(open_at + 1:equals - 1), first, last, stat)
-      if (open_at > 0 .and. stat /= 0) return
-      call read_reals(value, field%real_values(first:last), stat, field%open_length)
+      call read_reals(value, field%real_values(first:last), stat, reason, field%open_length)
       return
     end if
     if (associated(field%text_values)) then
-      if (index('''"', value(1:1)) == 0 .or. open_at > 0) return    ! quoted texts, no subscripts
+      if (index('''"', value(1:1)) == 0) then
+        reason = 'texts are quoted'
+        return
+      end if
       call read_texts(value, field%text_values, stat)
       return
     end if
-    if (open_at > 0) return    ! a subscript on a scalar
     select case (field%kind)
     case (field_real)
       one = field%real_value
-      call read_reals(value, one, stat)
+      call read_reals(value, one, stat, reason)
       if (stat == 0) field%real_value = one(1)
     case (field_integer)
       call read_integer(value, field%integer_value, stat)
     case (field_logical)
       call read_logical(value, field%logical_value, stat)
     case default
-      if (index('''"', value(1:1)) == 0) return    ! texts are quoted
+      if (index('''"', value(1:1)) == 0) then
+        reason = 'texts are quoted'
+        return
+      end if
+      allocate (character(len=len(value)) :: text_buffer)
       read (value, *, iostat=stat) text_buffer
-      if (stat == 0 .and. len_trim(text_buffer) > len(field%text_value)) stat = 1
+      if (stat == 0 .and. .not. single_item(value)) stat = value_problem
+      if (stat == 0 .and. len_trim(text_buffer) > len(field%text_value)) then
+        stat = value_problem
+        reason = 'longer than '//integer_text(len(field%text_value))//' characters'
+      end if
       if (stat == 0) field%text_value = trim(text_buffer)
     end select
-
+    if (stat /= 0) stat = value_problem
   end subroutine apply_item
 
-  ! Exactly size(values) values from the text (list-directed), or up to that many if
-  ! open_length; one more is an error.
-  subroutine read_reals(text, values, stat, open_length)
+  ! Exactly size(values) values from the text (list-directed), or 1 to size(values) if
+  ! open_length; fewer, more, an empty value between commas, NaN and Inf are errors (with the
+  ! reason). The text is read twice, into arrays preset to 0 and to 1: an element that differs
+  ! was left unassigned by the list.
+  subroutine read_reals(text, values, stat, reason, open_length)
     character(len=*), intent(in) :: text
     real(real64), intent(inout) :: values(:)
     integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: reason
     logical, intent(in), optional :: open_length
-    real(real64) :: probe(size(values) + 1)
-    integer :: probe_stat
-    logical :: open
+    real(real64) :: zeros(size(values) + 1), ones(size(values) + 1)
+    logical :: assigned(size(values) + 1), open
+    integer :: given
     character(len=len(text) + 2) :: ended
 
+    reason = ''
     open = .false.
     if (present(open_length)) open = open_length
-    if (open) then
-      ended = text//' /'                           ! '/' ends list-directed input early
-      read (ended, *, iostat=stat) values
-    else
-      read (text, *, iostat=stat) values
+    zeros = 0.0_real64
+    ones = 1.0_real64
+    ended = text//' /'                             ! '/' ends list-directed input early
+    read (ended, *, iostat=stat) zeros
+    if (stat == 0) read (ended, *, iostat=stat) ones
+    if (stat /= 0) then
+      stat = value_problem
+      return
     end if
-    if (stat /= 0) return
-    read (text, *, iostat=probe_stat) probe
-    if (probe_stat == 0) stat = 1
+    stat = value_problem
+    if (.not. all(ieee_is_finite(zeros))) then
+      reason = 'NaN and Inf are not allowed'
+      return
+    end if
+    assigned = abs(zeros - ones) < 0.5_real64
+    given = count(assigned)
+    if (given > 0 .and. .not. all(assigned(1:given))) then
+      reason = 'a value is missing between commas'
+    else if (given > size(values)) then
+      reason = 'more than '//integer_text(size(values))//' values'
+    else if (given == 0) then
+      reason = 'no value'
+    else if (given < size(values) .and. .not. open) then
+      reason = integer_text(size(values))//' values needed, '//integer_text(given)//' given'
+    else
+      values(1:given) = zeros(1:given)
+      stat = 0
+    end if
   end subroutine read_reals
 
   ! Up to size(values) quoted texts; one more is an error.
@@ -347,7 +408,7 @@ contains
     read (ended, *, iostat=stat) values
     if (stat /= 0) return
     read (text, *, iostat=probe_stat) probe
-    if (probe_stat == 0) stat = 1
+    if (probe_stat == 0) stat = value_problem
   end subroutine read_texts
 
   subroutine read_integer(text, value, stat)
@@ -356,7 +417,7 @@ contains
     integer, intent(out) :: stat
 
     read (text, *, iostat=stat) value
-    if (stat == 0 .and. .not. single_item(text)) stat = 1
+    if (stat == 0 .and. .not. single_item(text)) stat = value_problem
   end subroutine read_integer
 
   subroutine read_logical(text, value, stat)
@@ -365,7 +426,7 @@ contains
     integer, intent(out) :: stat
 
     read (text, *, iostat=stat) value
-    if (stat == 0 .and. .not. single_item(text)) stat = 1
+    if (stat == 0 .and. .not. single_item(text)) stat = value_problem
   end subroutine read_logical
 
   ! Whether the text holds one list item only (a second one makes the field's value wrong).
@@ -378,16 +439,20 @@ contains
     single_item = stat /= 0
   end function single_item
 
-  ! 'i' or 'i:j' within first:last (which it narrows); stat /= 0 if not.
-  subroutine parse_subscript(text, first, last, stat)
+  !> The subscript 'i)' or 'i:j)' (the text after '('), within first:last, which it narrows to
+  !> i:j; stat /= 0 with the reason if it is not one or out of range.
+  subroutine parse_subscript(text, first, last, stat, reason)
     character(len=*), intent(in) :: text
     integer, intent(inout) :: first, last
     integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: reason
     integer :: colon, close_at, lower, upper
 
     close_at = index(text, ')')
     stat = 1
+    reason = 'subscript ('//trim(text)//' is not closed'
     if (close_at == 0) return
+    reason = 'subscript ('//text(1:close_at)//' is not i or i:j'
     colon = index(text(1:close_at - 1), ':')
     if (colon == 0) then
       read (text(1:close_at - 1), *, iostat=stat) lower
@@ -399,10 +464,12 @@ contains
     if (stat /= 0) return
     if (lower < first .or. upper > last .or. upper < lower) then
       stat = 1
+      reason = 'subscript ('//text(1:close_at)//' is out of range'
       return
     end if
     first = lower
     last = upper
+    reason = ''
   end subroutine parse_subscript
 
   ! Whether the field's value keeps its bounds, non-zero rule and choices.
@@ -423,6 +490,7 @@ contains
       else if (field%minimum > -huge(1.0_real64)) then
         within_bounds = all(values >= field%minimum)
       end if
+      if (field%maximum < huge(1.0_real64)) within_bounds = within_bounds .and. all(values <= field%maximum)
       if (field%nonzero) within_bounds = within_bounds .and. norm2(values) > 0.0_real64
       if (field%check_equal) within_bounds = within_bounds .and. &
                                              all(abs(values - field%required) <= 1.0e-12_real64*abs(field%required))

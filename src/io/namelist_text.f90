@@ -3,9 +3,18 @@
 !> item is known by name) and extra items (overrides) can follow the file's.
 module namelist_text
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long_long, c_null_char
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
+  use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, lowercase
+  public :: max_input_bytes, joined
+
+  !> The largest input file read: namelists are small, and a wrong file is not read whole.
+  integer, parameter :: max_input_bytes = 1048576
+  character(len=*), parameter :: name_characters = 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_'
+  character(len=*), parameter :: syntax = 'groups &name field = value, ... / and comments after !'
 
   !> One `name = value` item as written, and its origin (the file's name, or e.g. a study's sweep).
   type :: namelist_item
@@ -13,51 +22,229 @@ module namelist_text
     character(len=:), allocatable :: origin
   end type namelist_item
 
+  interface
+    ! src/io/input_file_check.c: 0 and the size of a readable regular file, else -1 and the reason.
+    function c_check_input_file(path, size, reason, reason_size) result(status) bind(c, name='eme_check_input_file')
+      import :: c_char, c_int, c_long_long
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_long_long), intent(out) :: size
+      character(kind=c_char), intent(out) :: reason(*)
+      integer(c_int), value :: reason_size
+      integer(c_int) :: status
+    end function c_check_input_file
+  end interface
+
 contains
 
-  !> The file's text with comments removed and lines joined by blanks.
+  !> The file's text with comments removed and lines joined by blanks. The file must be a
+  !> readable regular file of at most max_input_bytes (a FIFO or a device is refused, not waited
+  !> on) holding namelist groups '&name items /' and nothing else. A file without any group comes
+  !> back with no group: the caller, who knows the allowed groups, refuses it.
   subroutine read_source_text(path, text, stat, message)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: text
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=:), allocatable :: line
-    character(len=256) :: io_message
-    integer :: unit, ios
+    character(len=:), allocatable :: raw, code
+    character(len=4096) :: io_message
+    character(kind=c_char, len=512) :: reason
+    character :: quote
+    integer(c_long_long) :: size
+    integer :: unit, ios, line_number, start, finish, length
+    logical :: group_seen
 
     text = ''
     message = ''
-    open (newunit=unit, file=path, status='old', action='read', iostat=stat, iomsg=io_message)
-    if (stat == 0) then
-      do
-        call read_line(unit, line, stat, io_message)
-        if (stat /= 0) exit
-        text = text//' '//trim(without_comment(line))
-      end do
-      if (is_iostat_end(stat)) stat = 0
-      close (unit, iostat=ios)
+    reason = ''
+    stat = int(c_check_input_file(path//c_null_char, size, reason, len(reason, kind=c_int)))
+    if (stat /= 0) then
+      message = path//': cannot read the input file: '//c_text(reason)
+      return
     end if
-    if (stat /= 0) message = path//': cannot read the input file: '//trim(io_message)
+    if (size > max_input_bytes) then
+      stat = 1
+      message = path//': cannot read the input file: it has more than '//integer_text(max_input_bytes)// &
+                ' bytes; allowed: a namelist file of at most '//integer_text(max_input_bytes)//' bytes'
+      return
+    end if
+    ! The whole file at once (its size is known), then line by line.
+    allocate (character(len=int(size)) :: raw)
+    io_message = ''
+    open (newunit=unit, file=path, access='stream', form='unformatted', status='old', action='read', iostat=stat, &
+          iomsg=io_message)
+    if (stat == 0 .and. size > 0) read (unit, iostat=stat, iomsg=io_message) raw
+    if (stat == 0) close (unit, iostat=stat, iomsg=io_message)
+    if (stat /= 0) then
+      close (unit, iostat=ios)
+      message = path//': cannot read the input file: '//trim(io_message)
+      return
+    end if
+    text = repeat(' ', len(raw) + 1)      ! each line adds a blank, each newline goes
+    length = 0
+    line_number = 0
+    group_seen = .false.
+    start = 1
+    do while (start <= len(raw))
+      finish = index(raw(start:), achar(10)) + start - 2
+      if (finish < start - 1) finish = len(raw)
+      line_number = line_number + 1
+      code = trim(without_comment(blanked(raw(start:finish))))
+      text(length + 1:length + 1 + len(code)) = ' '//code
+      length = length + 1 + len(code)
+      ! An open quote is a group's error; text before any group is refused as such below.
+      group_seen = group_seen .or. index(code, '&') > 0
+      quote = ' '
+      if (group_seen) quote = open_quote(code)
+      if (quote /= ' ') then
+        stat = 1
+        message = path//': line '//integer_text(line_number)//': '//last_group(text(1:length))//'a text opened by '// &
+                  quote//' is not closed on its line; allowed: '//syntax
+        return
+      end if
+      start = finish + 2
+    end do
+    text = text(1:length)
+    call check_groups(text, path, stat, message)
   end subroutine read_source_text
 
-  ! One line of any length; stat is IOSTAT_END after the last line.
-  subroutine read_line(unit, line, stat, io_message)
-    integer, intent(in) :: unit
-    character(len=:), allocatable, intent(out) :: line
-    integer, intent(out) :: stat
-    character(len=*), intent(inout) :: io_message
-    character(len=256) :: chunk
-    integer :: length
+  ! A line with its control characters (tab, carriage return, NUL) as blanks.
+  pure function blanked(line) result(clean)
+    character(len=*), intent(in) :: line
+    character(len=len(line)) :: clean
+    integer :: i
 
-    line = ''
-    do
-      read (unit, '(a)', advance='no', size=length, iostat=stat, iomsg=io_message) chunk
-      line = line//chunk(1:length)
-      if (stat /= 0) exit
+    clean = line
+    do i = 1, len(line)
+      if (iachar(line(i:i)) < 32) clean(i:i) = ' '
     end do
-    ! A line ends at its record end, or at the end of a file without a final newline.
-    if (is_iostat_eor(stat) .or. (is_iostat_end(stat) .and. len(line) > 0)) stat = 0
-  end subroutine read_line
+  end function blanked
+
+  ! The quote character of a text left open at the end of `code` (' ' if none).
+  pure function open_quote(code) result(quote)
+    character(len=*), intent(in) :: code
+    character :: quote
+    integer :: i
+
+    quote = ' '
+    do i = 1, len(code)
+      if (quote /= ' ') then
+        if (code(i:i) == quote) quote = ' '
+      else if (code(i:i) == '''' .or. code(i:i) == '"') then
+        quote = code(i:i)
+      end if
+    end do
+  end function open_quote
+
+  ! '&name: ' for the last group opened in the text (outside quotes), '' if none.
+  function last_group(text) result(prefix)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: prefix
+    character(len=32), allocatable :: names(:)
+
+    call group_names(text, names)
+    prefix = ''
+    if (size(names) > 0) prefix = '&'//trim(names(size(names)))//': '
+  end function last_group
+
+  ! Checks that the text is a sequence of groups '&name items /' and nothing else: no text
+  ! outside a group (a group whose '&' was forgotten), every group closed by '/' outside quotes
+  ! before the next '&', and no '/' right after '=' (an unquoted path, file = /tmp/x.h5, would
+  ! close the group there).
+  subroutine check_groups(text, path, stat, message)
+    character(len=*), intent(in) :: text, path
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=:), allocatable :: name
+    character :: quote
+    integer :: i, j, name_end, closed, last
+
+    stat = 1
+    i = 1
+    do
+      do while (i <= len(text))
+        if (text(i:i) /= ' ') exit
+        i = i + 1
+      end do
+      if (i > len(text)) exit
+      if (text(i:i) /= '&') then
+        message = path//': text outside any namelist group: '''//excerpt(text(i:))// &
+                  ''' (was a group''s ''&'' forgotten?); allowed: '//syntax
+        return
+      end if
+      name_end = i + verify(text(i + 1:)//' ', name_characters) - 1
+      name = lowercase(text(i + 1:name_end))
+      if (len(name) == 0) then
+        message = path//': ''&'' without a group name at '''//excerpt(text(i:))//'''; allowed: '//syntax
+        return
+      end if
+      closed = 0
+      quote = ' '
+      do j = name_end + 1, len(text)
+        if (quote /= ' ') then
+          if (text(j:j) == quote) quote = ' '
+        else if (text(j:j) == '''' .or. text(j:j) == '"') then
+          quote = text(j:j)
+        else if (text(j:j) == '&') then
+          message = path//': &'//name//' is not closed by ''/'' before '''//excerpt(text(j:))//'''; allowed: '//syntax
+          return
+        else if (text(j:j) == '/') then
+          closed = j
+          exit
+        end if
+      end do
+      if (quote /= ' ') then
+        message = path//': &'//name//': a text opened by '//quote//' is not closed; allowed: '//syntax
+        return
+      else if (closed == 0) then
+        message = path//': &'//name//' is not closed by ''/''; allowed: '//syntax
+        return
+      end if
+      last = name_end + len_trim(text(name_end + 1:closed - 1))
+      if (text(last:last) == '=') then
+        message = path//': &'//name//': field '''//item_name(last_name(text(name_end + 1:last)))//''' has no value '// &
+                  'before the ''/'' that closes the group; texts are quoted, as in file = ''/tmp/x.h5'''
+        return
+      end if
+      i = closed + 1
+    end do
+    stat = 0
+    message = ''
+  end subroutine check_groups
+
+  ! 'name =' at the end of a group body.
+  pure function last_name(body) result(item)
+    character(len=*), intent(in) :: body
+    character(len=:), allocatable :: item
+    integer :: start
+
+    start = len_trim(body(1:len(body) - 1))
+    start = scan(body(1:start), ' ,', back=.true.)
+    item = body(start + 1:)
+  end function last_name
+
+  ! The start of a text, for messages: at most 40 characters, the unprintable ones as '?'.
+  pure function excerpt(text) result(short)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: short
+    integer :: i
+
+    short = trim(text(1:min(len(text), 40)))
+    do i = 1, len(short)
+      if (iachar(short(i:i)) < 32 .or. iachar(short(i:i)) > 126) short(i:i) = '?'
+    end do
+    if (len_trim(text) > 40) short = short//'...'
+  end function excerpt
+
+  ! The text of a C string buffer, up to its NUL.
+  pure function c_text(buffer) result(text)
+    character(len=*), intent(in) :: buffer
+    character(len=:), allocatable :: text
+    integer :: nul
+
+    nul = index(buffer, c_null_char)
+    if (nul == 0) nul = len_trim(buffer) + 1
+    text = buffer(1:nul - 1)
+  end function c_text
 
   !> Lower-case names of every group '&name' in the text, in order (outside quotes).
   subroutine group_names(text, names)
@@ -68,7 +255,7 @@ contains
     allocate (names(0))
     do i = 1, len(text)
       if (text(i:i) /= '&' .or. quoted_at(text, i)) cycle
-      last = i + verify(text(i + 1:)//' ', 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_') - 1
+      last = i + verify(text(i + 1:)//' ', name_characters) - 1
       names = [names, lowercase(text(i + 1:last))]
     end do
   end subroutine group_names
@@ -128,26 +315,71 @@ contains
     name = trim(lowercase(adjustl(item(1:stop_at - 1))))
   end function item_name
 
-  !> Values as a user would write them: 6 significant digits, trailing zeros dropped.
+  !> Values as a user would write them, to 6 significant digits: 280.0, 0.011, -0.1, 1e-8, 5e9.
   pure function reals_text(values) result(text)
     real(real64), intent(in) :: values(:)
     character(len=:), allocatable :: text
-    character(len=32) :: one
-    integer :: i, exponent_at, last
+    integer :: i
 
     text = ''
     do i = 1, size(values)
-      write (one, '(g0.6)') values(i)
-      exponent_at = scan(one, 'Ee')
-      if (exponent_at == 0) exponent_at = len_trim(one) + 1
-      last = exponent_at - 1
-      do while (last > 1 .and. one(last:last) == '0' .and. one(last - 1:last - 1) /= '.')
-        last = last - 1
-      end do
       if (i > 1) text = text//', '
-      text = text//one(1:last)//trim(one(exponent_at:))
+      text = text//real_text(values(i))
     end do
   end function reals_text
+
+  ! One value for reals_text: fixed notation from 1e-3 to 1e7, else mantissa 'e' exponent.
+  pure function real_text(x) result(text)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=40) :: buffer
+    integer :: decimals, exponent_at, exponent
+
+    if (ieee_is_nan(x)) then
+      text = 'NaN'
+    else if (abs(x) > huge(x)) then
+      text = trim(merge('Inf ', '-Inf', x > 0))
+    else if (abs(x) < 1.0e-3_real64 .and. abs(x) > 0.0_real64 .or. abs(x) >= 1.0e7_real64) then
+      write (buffer, '(es15.5e3)') x
+      exponent_at = index(buffer, 'E')
+      read (buffer(exponent_at + 1:), *) exponent
+      text = without_trailing_zeros(trim(adjustl(buffer(1:exponent_at - 1))))
+      if (text(len(text):len(text)) == '0') text = text(1:len(text) - 2)    ! 1.0 -> 1
+      write (buffer, '(i0)') exponent
+      text = text//'e'//trim(buffer)
+    else
+      decimals = 1
+      if (abs(x) > 0.0_real64) decimals = max(1, 5 - floor(log10(abs(x))))
+      write (buffer, '(f40.'//integer_text(decimals)//')') x
+      text = without_trailing_zeros(trim(adjustl(buffer)))
+    end if
+  end function real_text
+
+  ! '12.3400' -> '12.34', '280.000' -> '280.0': trailing zeros go, one digit after '.' stays.
+  pure function without_trailing_zeros(number) result(text)
+    character(len=*), intent(in) :: number
+    character(len=:), allocatable :: text
+    integer :: last
+
+    last = len(number)
+    do while (last > 1 .and. number(last:last) == '0' .and. number(max(1, last - 1):max(1, last - 1)) /= '.')
+      last = last - 1
+    end do
+    text = number(1:last)
+  end function without_trailing_zeros
+
+  !> The names, trimmed, with `separator` between them ('a, b, c' for ', ').
+  pure function joined(names, separator) result(text)
+    character(len=*), intent(in) :: names(:), separator
+    character(len=:), allocatable :: text
+    integer :: i
+
+    text = ''
+    if (size(names) > 0) text = trim(names(1))
+    do i = 2, size(names)
+      text = text//separator//trim(names(i))
+    end do
+  end function joined
 
   !> ASCII lower case.
   pure function lowercase(text) result(lower)

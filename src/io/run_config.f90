@@ -16,15 +16,19 @@ module run_config
   use model_constraint, only: constraint_slot
   use constrained_flow, only: initial_inconsistency
   use model_registry, only: select_scene
-  use namelist_text, only: namelist_item, read_source_text, group_names, item_name
+  use namelist_text, only: namelist_item, read_source_text, group_names, item_name, reals_text, joined
+  use number_text, only: integer_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, read_group, field_names, &
                             invalid_value_message, choices_text, value_origin
   implicit none (type, external)
   private
-  public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups
+  public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable
 
   !> The run-level groups, read after the model's.
   character(len=*), parameter :: run_groups(2) = [character(len=16) :: 'integrator', 'output']
+  !> The loosest Newton tolerance: at newton_tol = 100 the paper scene's Newton accepts its
+  !> predictor on every step and nothing moves; at 1 its energy error is 4e-4.
+  real(real64), parameter :: max_newton_tol = 1.0e-2_real64
 
   !> Everything a run needs.
   type :: run_configuration
@@ -37,7 +41,7 @@ module run_config
     character(len=16) :: thermo_variable = 'temperature'
     character(len=16) :: discrete_gradient = 'gonzalez'
     character(len=16) :: metric = 'nondimensional'
-    character(len=1024) :: file = ''
+    character(len=4096) :: file = ''                 !! PATH_MAX
   end type run_configuration
 
 contains
@@ -68,11 +72,23 @@ contains
     call config%scene%group_names(allowed_groups)
     allowed_groups = [character(len=16) :: allowed_groups, run_groups]
     call group_names(text, groups)
-    do i = 1, size(groups)
-      if (any(allowed_groups == groups(i))) cycle
+    if (size(groups) == 0) then
       stat = 1
-      message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: '//group_list(allowed_groups)
+      message = path//': no namelist group found (an empty file, only comments, or not a namelist); allowed groups: ' &
+                //'&'//joined(allowed_groups, ', &')//', each written &name field = value, ... /'
       return
+    end if
+    do i = 1, size(groups)
+      if (.not. any(allowed_groups == groups(i))) then
+        stat = 1
+        message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &'//joined(allowed_groups, ', &')
+        return
+      else if (count(groups == groups(i)) > 1) then
+        stat = 1
+        message = path//': &'//trim(groups(i))//' appears '//integer_text(count(groups == groups(i)))// &
+                  ' times; allowed: each group once (put all its fields in one group)'
+        return
+      end if
     end do
     do i = 1, size(extra)
       if (is_field(config, allowed_groups, item_name(extra(i)%item))) cycle
@@ -85,6 +101,15 @@ contains
     if (stat /= 0) return
     call read_group(text, 'integrator', integrator_fields(config), path, stat, message, extra)
     if (stat /= 0) return
+    if (config%integrator%t_end/config%integrator%dt >= real(huge(1), real64)) then
+      ! The time loop counts steps in a default integer.
+      stat = 1
+      message = value_origin(text, 'integrator', 't_end', path, extra)//': &integrator: t_end = '// &
+                reals_text([config%integrator%t_end])//' with dt = '//reals_text([config%integrator%dt])//' needs '// &
+                reals_text([config%integrator%t_end/config%integrator%dt])//' steps, more than a run can count; '// &
+                'allowed: t_end/dt < '//integer_text(huge(1))
+      return
+    end if
     associate (choice => config%integrator)
       choice%thermo_variable = findloc(thermo_variable_names, config%thermo_variable, dim=1)
       choice%discrete_gradient = findloc(discrete_gradient_names, config%discrete_gradient, dim=1)
@@ -166,14 +191,16 @@ contains
     associate (c => config%integrator)
       fields = [ &
         text_field('scheme', c%scheme, choices_text(schemes), schemes), &
-        text_field('thermo_variable', config%thermo_variable, choices_text(joined(thermo_variable_names)), &
-                   joined(thermo_variable_names)), &
-        text_field('discrete_gradient', config%discrete_gradient, choices_text(joined(discrete_gradient_names)), &
-                   joined(discrete_gradient_names)), &
-        text_field('metric', config%metric, choices_text(joined(metric_names)), joined(metric_names)), &
+        text_field('thermo_variable', config%thermo_variable, choices_text(joined(thermo_variable_names, ' ')), &
+                   joined(thermo_variable_names, ' ')), &
+        text_field('discrete_gradient', config%discrete_gradient, choices_text(joined(discrete_gradient_names, ' ')), &
+                   joined(discrete_gradient_names, ' ')), &
+        text_field('metric', config%metric, choices_text(joined(metric_names, ' ')), joined(metric_names, ' ')), &
         real_field('dt', c%dt, 'a real number > 0 [s]', 's', minimum=0.0_real64, exclusive=.true.), &
         real_field('t_end', c%t_end, 'a real number > 0 [s]', 's', minimum=0.0_real64, exclusive=.true.), &
-        real_field('newton_tol', c%newton_tol, 'a real number > 0', '1', minimum=0.0_real64, exclusive=.true.), &
+        real_field('newton_tol', c%newton_tol, 'a real number > 0 and <= 0.01 (Newton''s tolerance; a looser one '// &
+                   'accepts a step that has hardly moved)', '1', minimum=0.0_real64, exclusive=.true., &
+                   maximum=max_newton_tol), &
         real_field('tolerance', c%tolerance, 'a real number > 0: the absolute and relative error per step of the '// &
                    'adaptive integrators', '1', minimum=0.0_real64, exclusive=.true.), &
         real_field('ts_tolerance', c%tolerance, 'the same as tolerance (its old name)', '1', minimum=0.0_real64, &
@@ -194,29 +221,44 @@ contains
                  'K', minimum=0.0_real64, exclusive=.true.)]
   end function output_fields
 
-  ! Names joined by blanks.
-  pure function joined(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
+  !> Whether fields `name_a` and `name_b` of the eme_run groups set the same variable: the same
+  !> name, or a field and its old name (tolerance and ts_tolerance). False if either is unknown.
+  logical function same_variable(name_a, name_b)
+    character(len=*), intent(in) :: name_a, name_b
+    type(run_configuration), target :: defaults
+    type(group_field), allocatable :: table(:)
+    type(group_field) :: x, y
+    type(namelist_item) :: no_items(0)
+    character(len=16), allocatable :: groups(:)
+    character(len=:), allocatable :: message
+    logical :: found_a, found_b
+    integer :: g, k, stat
 
-    text = trim(names(1))
-    do i = 2, size(names)
-      text = text//' '//trim(names(i))
+    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+    call defaults%scene%group_names(groups)
+    found_a = .false.
+    found_b = .false.
+    do g = 1, size(groups) + 2
+      if (g <= size(groups)) then
+        table = defaults%scene%fields(trim(groups(g)))
+      else if (g == size(groups) + 1) then
+        table = integrator_fields(defaults)
+      else
+        table = output_fields(defaults)
+      end if
+      k = findloc(table%name, name_a, dim=1)
+      if (k > 0) x = table(k)
+      found_a = found_a .or. k > 0
+      k = findloc(table%name, name_b, dim=1)
+      if (k > 0) y = table(k)
+      found_b = found_b .or. k > 0
     end do
-  end function joined
-
-  ! '&a, &b, &c'.
-  pure function group_list(names) result(text)
-    character(len=*), intent(in) :: names(:)
-    character(len=:), allocatable :: text
-    integer :: i
-
-    text = '&'//trim(names(1))
-    do i = 2, size(names)
-      text = text//', &'//trim(names(i))
-    end do
-  end function group_list
+    same_variable = found_a .and. found_b
+    if (.not. same_variable) return
+    same_variable = x%name == y%name .or. associated(x%real_value, y%real_value) .or. &
+                    associated(x%real_values, y%real_values) .or. associated(x%integer_value, y%integer_value) .or. &
+                    associated(x%logical_value, y%logical_value) .or. associated(x%text_value, y%text_value)
+  end function same_variable
 
   ! Whether `name` is a field of one of the groups.
   logical function is_field(config, groups, name)

@@ -6,9 +6,10 @@
 module study_config
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
-  use namelist_text, only: namelist_item, read_source_text, group_names, lowercase
-  use namelist_group, only: group_field, text_field, reals_field, texts_field, read_group, invalid_value_message
-  use run_config, only: run_configuration, read_run_config
+  use namelist_text, only: namelist_item, read_source_text, group_names, lowercase, item_name
+  use namelist_group, only: group_field, text_field, reals_field, texts_field, read_group, invalid_value_message, &
+                            parse_subscript
+  use run_config, only: run_configuration, read_run_config, same_variable
   use integrator_settings, only: step_count
   use number_text, only: integer_text
   implicit none (type, external)
@@ -59,13 +60,23 @@ contains
     call read_source_text(path, text, stat, message)
     if (stat /= 0) return
     call group_names(text, groups)
+    stat = 1
+    if (size(groups) == 0) then
+      message = path//': no namelist group found (an empty file, only comments, or not a namelist); allowed groups: '// &
+                '&study, &sweep, each written &name field = value, ... /'
+      return
+    end if
     do i = 1, size(groups)
       if (groups(i) /= 'study' .and. groups(i) /= 'sweep') then
-        stat = 1
         message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &study, &sweep'
         return
       end if
     end do
+    if (count(groups == 'study') > 1) then
+      message = path//': &study appears '//integer_text(count(groups == 'study'))//' times; allowed: one &study group '// &
+                'and one &sweep group per swept field'
+      return
+    end if
     call read_study_group(text, study, stat, message)
     if (stat /= 0) return
     allocate (study%sweeps(0))
@@ -73,6 +84,8 @@ contains
       call read_sweep_group(text, i, study, stat, message)
       if (stat /= 0) return
     end do
+    call check_collisions(study, stat, message)
+    if (stat /= 0) return
     call expand_cases(study, stat, message)
   end subroutine read_study
 
@@ -81,7 +94,7 @@ contains
     type(study_definition), intent(inout) :: definition
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=1024), target :: base, output_dir
+    character(len=4096), target :: base, output_dir
     character(len=16), target :: combine
     type(group_field) :: fields(3)
     integer :: slash, dot
@@ -187,6 +200,56 @@ contains
       reals_field('values', values, 'up to 256 real numbers', '', open_length=.true.), &
       texts_field('texts', texts, 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
   end function sweep_fields
+
+  ! Cases that would collide: two sweeps that set the same variable (or overlapping elements of
+  ! it: 'theta' and 'theta(2)'; a field and its old name), and a sweep of the output file, which
+  ! the study names for each case.
+  subroutine check_collisions(study, stat, message)
+    type(study_definition), intent(in) :: study
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    integer :: s, t, first(2), last(2)
+
+    stat = 1
+    do s = 1, size(study%sweeps)
+      if (item_name(study%sweeps(s)%field) == 'file') then
+        message = study%input_file//': &sweep ''file'': the study writes each case to output_dir/case_NNNNN.h5; '// &
+                  'allowed: any eme_run field but &output file'
+        return
+      end if
+      do t = 1, s - 1
+        if (.not. same_variable(item_name(study%sweeps(s)%field), item_name(study%sweeps(t)%field))) cycle
+        call element_range(study%sweeps(t)%field, first(1), last(1))
+        call element_range(study%sweeps(s)%field, first(2), last(2))
+        if (max(first(1), first(2)) > min(last(1), last(2))) cycle
+        message = study%input_file//': &sweep '''//study%sweeps(t)%field//''' and &sweep '''//study%sweeps(s)%field// &
+                  ''' set the same value, and the later would overwrite the earlier in every case; allowed: '// &
+                  'each field (or array element) in one sweep'
+        return
+      end do
+    end do
+    stat = 0
+    message = ''
+  end subroutine check_collisions
+
+  ! The elements first:last that a sweep field 'name', 'name(i)' or 'name(i:j)' sets (all of
+  ! them, 1:huge, without a subscript or with one that is not i or i:j, which the case's own
+  ! validation refuses).
+  subroutine element_range(field, first, last)
+    character(len=*), intent(in) :: field
+    integer, intent(out) :: first, last
+    character(len=:), allocatable :: reason
+    integer :: open_at, stat
+
+    first = 1
+    last = huge(1)
+    open_at = index(field, '(')
+    if (open_at == 0) return
+    call parse_subscript(field(open_at + 1:), first, last, stat, reason)
+    if (stat == 0) return
+    first = 1
+    last = huge(1)
+  end subroutine element_range
 
   ! The cases: a Cartesian product (first sweep slowest) or the zip of the sweeps. Each is read
   ! and validated as eme_run would read the base scene with the case's overrides.

@@ -5,8 +5,9 @@
 !> `temperature` defaults to theta(1) and must equal it.
 module pendulum_scene
   use, intrinsic :: iso_fortran_env, only: real64
-  use namelist_text, only: namelist_item
-  use namelist_group, only: group_field, real_field, reals_field, logical_field, text_field, read_group
+  use namelist_text, only: namelist_item, reals_text
+  use namelist_group, only: group_field, real_field, reals_field, logical_field, text_field, read_group, &
+                            invalid_value_message, value_origin
   use model_parameters, only: pendulum_parameters
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
@@ -67,15 +68,20 @@ contains
           reals_field('mass', p%mass, 'two real numbers > 0 [kg]', 'kg', minimum=0.0_real64, exclusive=.true.), &
           reals_field('natural_length', p%natural_length, 'two real numbers > 0 [m]', 'm', minimum=0.0_real64, &
                       exclusive=.true.), &
-          reals_field('mu_eq_const', p%mu_eq_const, 'two real numbers [J]', 'J'), &
-          reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers [J/K]', 'J/K'), &
-          real_field('mu_neq_const', p%mu_neq_const, 'a real number', 'J/m^2'), &
-          real_field('mu_neq_slope', p%mu_neq_slope, 'a real number', 'J/(K m^2)'), &
+          reals_field('mu_eq_const', p%mu_eq_const, 'two real numbers > 0 [J] (eq. (17))', 'J', minimum=0.0_real64, &
+                      exclusive=.true.), &
+          reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers > 0 [J/K] (eq. (17))', 'J/K', minimum=0.0_real64, &
+                      exclusive=.true.), &
+          real_field('mu_neq_const', p%mu_neq_const, 'a real number > 0 [J/m^2] (eq. (17))', 'J/m^2', &
+                     minimum=0.0_real64, exclusive=.true.), &
+          real_field('mu_neq_slope', p%mu_neq_slope, 'a real number > 0 [J/(K m^2)] (eq. (17))', 'J/(K m^2)', &
+                     minimum=0.0_real64, exclusive=.true.), &
           reals_field('heat_capacity', p%heat_capacity, 'two real numbers > 0 [J/K]', 'J/K', minimum=0.0_real64, &
                       exclusive=.true.), &
-          real_field('viscosity_const', p%viscosity_const, 'a real number > 0', 'J s/m^2', minimum=0.0_real64, &
-                     exclusive=.true.), &
-          real_field('viscosity_activation', p%viscosity_activation, 'a real number [K]', 'K'), &
+          real_field('viscosity_const', p%viscosity_const, 'a real number > 0 [J s/m^2] (eq. (17))', 'J s/m^2', &
+                     minimum=0.0_real64, exclusive=.true.), &
+          real_field('viscosity_activation', p%viscosity_activation, 'a real number > 0 [K] (eq. (17))', 'K', &
+                     minimum=0.0_real64, exclusive=.true.), &
           real_field('conductivity', p%conductivity, 'a real number >= 0 [J/(K s)]', 'J/(K s)', minimum=0.0_real64), &
           real_field('theta_ref', p%theta_ref, 'a real number > 0 [K]', 'K', minimum=0.0_real64, exclusive=.true.), &
           real_field('beta', p%beta, 'a real number [J/K]', 'J/K'), &
@@ -89,7 +95,8 @@ contains
         reals_field('p1', self%p1, 'three real numbers [N s]', 'N s'), &
         reals_field('p2', self%p2, 'three real numbers [N s]', 'N s'), &
         real_field('gamma', self%gamma, 'a real number [m]', 'm'), &
-        reals_field('theta', self%theta, 'two real numbers > 0 [K]', 'K', minimum=0.0_real64, exclusive=.true.)]
+        reals_field('theta', self%theta, 'two real numbers > 0 [K], below theta_ref + mu_eq_const/mu_eq_slope '// &
+                    '(where a spring''s stiffness, eq. (17), would reach 0)', 'K', minimum=0.0_real64, exclusive=.true.)]
     case ('constraints')
       table = [ &
         logical_field('fix_length', self%fix_length, '.true. or .false.'), &
@@ -117,9 +124,25 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
 
+    type(group_field), allocatable :: initial_fields(:)
+    real(real64) :: stiffness(2)
+
     call read_group(text, 'model', self%fields('model'), origin, stat, message, extra)
-    if (stat == 0) call read_group(text, 'initial', self%fields('initial'), origin, stat, message, extra)
     if (stat /= 0) return
+    initial_fields = self%fields('initial')
+    call read_group(text, 'initial', initial_fields, origin, stat, message, extra)
+    if (stat /= 0) return
+    ! mu^eq_a(theta_a) of eq. (17) at t = 0: a spring with no stiffness has no equilibrium.
+    associate (p => self%params)
+      stiffness = p%mu_eq_const - p%mu_eq_slope*(self%theta - p%theta_ref)
+    end associate
+    if (any(stiffness <= 0.0_real64)) then
+      stat = 1
+      message = invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), 'initial', &
+                                      initial_fields(findloc(initial_fields%name, 'theta', dim=1)))// &
+                ' (the stiffness mu_eq(theta) of eq. (17) is '//reals_text(stiffness)//' J)'
+      return
+    end if
     self%length = norm2(self%q1)
     self%temperature = self%theta(1)
     call read_group(text, 'constraints', self%fields('constraints'), origin, stat, message, extra)

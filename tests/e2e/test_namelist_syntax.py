@@ -39,3 +39,27 @@ def test_long_lines_and_a_last_line_without_newline(tmp_path, eme_run_binary):
     run_text(tmp_path, f"&integrator dt = 0.2,{padding} t_end = 0.4 /\n&output file = '{output}' /")
     data = read_run(output)
     assert data["attrs"]["t_end"] == 0.4 and data["attrs"]["status"] == "complete"
+
+
+def test_tabs_crlf_and_special_characters_inside_quotes(tmp_path, eme_run_binary):
+    """The strict reader still takes what Fortran's namelist input takes: tab separators, DOS
+    line ends, '/', '&' and '!' and a doubled quote inside quoted texts, empty groups, and
+    comments and blank lines between groups."""
+    output = tmp_path / "a&b!c's" / "run/x.h5"
+    quoted = str(output).replace("'", "''")
+    text = ("! scene\r\n\r\n&integrator\tdt = 0.1,\tt_end = 0.3 /\r\n"
+            "   ! between groups\r\n&constraints /\r\n"
+            f"&output file = '{quoted}' ! a comment with ' and & and /\r\n/\r\n")
+    run_text(tmp_path, text)
+    data = read_run(output)
+    assert data["attrs"]["dt"] == 0.1 and data["attrs"]["t_end"] == 0.3
+
+
+def test_array_element_and_range_assignments_combine(tmp_path, eme_run_binary):
+    """theta(2) and p2(2:3) set only their elements; the others keep their defaults."""
+    output = tmp_path / "run.h5"
+    run_text(tmp_path, f"&integrator t_end = 0.3 /\n&initial theta(2) = 340, p2(2:3) = -0.5, 0.25 /\n"
+                       f"&output file = '{output}' /\n")
+    data = read_run(output)
+    np.testing.assert_allclose(data["attrs"]["theta"], [280.0, 340.0])
+    np.testing.assert_allclose(data["attrs"]["p2"], [-1.0, -0.5, 0.25])

@@ -1,0 +1,154 @@
+!> The drivers' command line: the program's own options (--help, -h, --version, ...), exactly
+!> one input file, and PETSc options before or after it. A PETSc option ('-name') takes the next
+!> argument as its value, as PETSc reads it, unless that argument ends in '.nml': then it is the
+!> input file, and `detach_input_file` turns the option back into a flag once PETSc has read the
+!> command line. `unused_petsc_options` lists the options nothing used, as -options_left would.
+module command_line
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
+  use number_text, only: integer_text
+  use namelist_text, only: joined
+  implicit none (type, external)
+  private
+  public :: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
+
+  !> What the command line asked for.
+  type :: command_arguments
+    character(len=:), allocatable :: input_file          !! '' when none was given
+    character(len=32), allocatable :: flags(:)           !! the program's own options that were given
+    character(len=:), allocatable :: option_before_file  !! the PETSc option PETSc takes the file for the value of
+  contains
+    procedure :: has_flag
+  end type command_arguments
+
+  interface
+    ! src/io/petsc_option_checks.c
+    function c_option_as_flag(name) result(status) bind(c, name='eme_petsc_option_as_flag')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: name(*)
+      integer(c_int) :: status
+    end function c_option_as_flag
+    function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+      integer(c_int) :: status
+    end function c_unused_options
+  end interface
+
+contains
+
+  !> Reads the command line. `own_options` are the program's options ('--help', '-h', ...), which
+  !> take no value. stat /= 0 with a message for an unknown '--option', no input file or more
+  !> than one; the caller acts on flags such as --help before it looks at stat.
+  subroutine parse_command_line(program_name, own_options, arguments, stat, message)
+    character(len=*), intent(in) :: program_name
+    character(len=*), intent(in) :: own_options(:)
+    type(command_arguments), intent(out) :: arguments
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=:), allocatable :: argument, previous, files
+    logical :: after_petsc_option
+    integer :: i, file_count
+
+    allocate (arguments%flags(0))
+    arguments%input_file = ''
+    arguments%option_before_file = ''
+    stat = 0
+    message = ''
+    files = ''
+    file_count = 0
+    previous = ''
+    after_petsc_option = .false.
+    do i = 1, command_argument_count()
+      argument = command_argument(i)
+      if (any(own_options == argument)) then
+        arguments%flags = [character(len=32) :: arguments%flags, argument]
+        after_petsc_option = .false.
+      else if (is_option(argument)) then
+        if (argument(1:2) == '--' .and. stat == 0) then
+          stat = 2
+          message = 'unknown option '''//argument//'''; allowed: '//joined(own_options, ', ')// &
+                    ', one input file, and PETSc options (one ''-'', e.g. -snes_monitor)'
+        end if
+        after_petsc_option = .true.
+      else if (after_petsc_option .and. .not. ends_with_nml(argument)) then
+        after_petsc_option = .false.    ! the option's value
+      else
+        if (after_petsc_option) arguments%option_before_file = previous
+        file_count = file_count + 1
+        if (file_count == 1) arguments%input_file = argument
+        files = files//' '''//argument//''''
+        after_petsc_option = .false.
+      end if
+      previous = argument
+    end do
+    if (stat /= 0) return
+    if (file_count == 0) then
+      stat = 2
+      message = 'no input file; usage: '//program_name//' [options] FILE.nml [PETSc options]; '// &
+                program_name//' --help tells more'
+    else if (file_count > 1) then
+      stat = 2
+      message = integer_text(file_count)//' input files:'//files//'; allowed: exactly one input file (an argument '// &
+                'after a PETSc option is its value unless it ends in .nml)'
+    end if
+  end subroutine parse_command_line
+
+  !> Whether the program's own option `flag` was given.
+  pure logical function has_flag(self, flag)
+    class(command_arguments), intent(in) :: self
+    character(len=*), intent(in) :: flag
+
+    has_flag = any(self%flags == flag)
+  end function has_flag
+
+  !> After PetscInitialize: PETSc took an input file that followed an option for that option's
+  !> value; make the option a flag again. stat /= 0 if PETSc refused.
+  subroutine detach_input_file(arguments, stat)
+    type(command_arguments), intent(in) :: arguments
+    integer, intent(out) :: stat
+
+    stat = 0
+    if (len(arguments%option_before_file) > 0) stat = int(c_option_as_flag(arguments%option_before_file//c_null_char))
+  end subroutine detach_input_file
+
+  !> Before PetscFinalize, on every rank (collective): the PETSc options that nothing used on
+  !> any rank, blank-separated ('' on ranks other than 0, and if every option was used).
+  function unused_petsc_options() result(names)
+    character(len=:), allocatable :: names
+    character(kind=c_char, len=4096) :: buffer
+
+    buffer = ''
+    names = ''
+    if (c_unused_options(buffer, len(buffer, kind=c_int)) /= 0) return
+    names = buffer(1:index(buffer, c_null_char) - 1)
+  end function unused_petsc_options
+
+  ! Argument i, whatever its length.
+  function command_argument(i) result(argument)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: argument
+    integer :: length
+
+    call get_command_argument(i, length=length)
+    allocate (character(len=length) :: argument)
+    if (length > 0) call get_command_argument(i, argument)
+  end function command_argument
+
+  ! '-name' or '--name'; a negative number such as -1 or -.5 is a value.
+  pure logical function is_option(argument)
+    character(len=*), intent(in) :: argument
+
+    is_option = .false.
+    if (len(argument) < 2) return
+    is_option = argument(1:1) == '-' .and. scan(argument(2:2), '0123456789.') == 0
+  end function is_option
+
+  pure logical function ends_with_nml(argument)
+    character(len=*), intent(in) :: argument
+
+    ends_with_nml = .false.
+    if (len(argument) > 4) ends_with_nml = argument(len(argument) - 3:) == '.nml'
+  end function ends_with_nml
+
+end module command_line

@@ -1,0 +1,154 @@
+"""The drivers' command line: --help and -h, --version with the libraries' own versions,
+options before or after exactly one input file, unknown options refused, and a warning for PETSc
+options that nothing used."""
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import BIN, ROOT, namelist_text
+
+MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
+PROGRAMS = ["eme_run", "eme_ensemble"]
+
+
+def run(program, *arguments, cwd=ROOT):
+    return subprocess.run([str(BIN / program), *map(str, arguments)], capture_output=True, text=True, timeout=120,
+                          cwd=cwd)
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+def test_help_lists_usage_groups_exit_codes_and_own_options(program, flag, eme_run_binary):
+    result = run(program, flag)
+    assert result.returncode == 0 and result.stderr == ""
+    text = result.stdout
+    assert text.startswith(f"usage: ") and program in text.splitlines()[0]
+    groups = ["&model", "&initial", "&constraints", "&integrator", "&output"] if program == "eme_run" \
+        else ["&study", "&sweep"]
+    for word in groups + ["Exit status: 0", "2 bad", "--version", "-eme_chord_predictor", "before or after the input file"]:
+        assert word in text, word
+    # Help comes before anything else: with an input file, a second one or PETSc options too.
+    assert run(program, "a.nml", "b.nml", "-snes_monitor", flag).stdout == text
+
+
+def library_versions_from_elsewhere():
+    """The versions as other tools report them: pkg-config for PETSc and HDF5, SUNDIALS' header,
+    Open MPI's mpirun."""
+    def pkg_config(name):
+        return subprocess.run(["pkg-config", "--modversion", name], capture_output=True, text=True,
+                              check=True).stdout.strip()
+    sundials = re.search(r'#define SUNDIALS_VERSION "([^"]+)"',
+                         Path("/usr/include/sundials/sundials_config.h").read_text()).group(1)
+    mpi = re.search(r"\(Open MPI\) (\S+)", subprocess.run(["mpirun", "--version"], capture_output=True,
+                                                           text=True).stdout).group(1)
+    return {"PETSc": pkg_config("PETSc"), "HDF5": pkg_config("hdf5-openmpi"), "SUNDIALS": sundials,
+            "MPI": f"Open MPI v{mpi}"}
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_version_names_the_code_and_every_library(program, eme_run_binary):
+    result = run(program, "--version")
+    assert result.returncode == 0 and result.stderr == ""
+    lines = result.stdout.splitlines()
+    git = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True, cwd=ROOT)
+    assert lines[0].startswith(f"{program} (eme) ") and len(lines[0].split()[-1]) >= 7
+    if git.returncode == 0:
+        # The build's version is the commit it was built from (the tree may have changed since).
+        assert lines[0].split()[-1].split("-dirty")[0] == git.stdout.strip().split("-dirty")[0]
+    found = dict(line.split(": ", 1) for line in lines[1:])
+    assert set(found) >= {"PETSc", "HDF5", "MPI", "SUNDIALS", "LAPACK", "compiler"}
+    for library, version in library_versions_from_elsewhere().items():
+        assert found[library].startswith(version), (library, found[library], version)
+    assert re.fullmatch(r"\d+\.\d+\.\d+", found["LAPACK"])
+
+
+@pytest.fixture
+def scene(tmp_path):
+    def make(name="scene", t_end=0.3):
+        output = tmp_path / f"{name}.h5"
+        path = tmp_path / f"{name}.nml"
+        path.write_text(namelist_text({"integrator": {"t_end": t_end}, "output": {"file": str(output)}}))
+        return path, output
+    return make
+
+
+@pytest.mark.parametrize("order", ["after", "before", "flag before", "value before", "both sides"])
+def test_options_before_or_after_the_input_file(scene, order, eme_run_binary):
+    """-snes_converged_reason prints a line per solve wherever it stands; an option's value
+    (-snes_linesearch_type basic) before the file is not taken for the file; the same file
+    results either way."""
+    path, output = scene()
+    arguments = {
+        "after": [path, "-snes_converged_reason"],
+        "before": ["-snes_converged_reason", path],
+        "flag before": ["-snes_converged_reason", path, "-snes_linesearch_type", "basic"],
+        "value before": ["-snes_linesearch_type", "basic", path, "-snes_converged_reason"],
+        "both sides": ["-snes_max_it", "50", "-snes_converged_reason", path, "-snes_linesearch_type", "basic"],
+    }[order]
+    result = run("eme_run", *arguments)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.count("Nonlinear solve converged") >= 2
+    assert "warning" not in result.stderr, result.stderr
+    with h5py.File(output, "r") as f:
+        state = f["state"][()]
+    plain_path, plain_output = scene("plain")
+    assert run("eme_run", plain_path).returncode == 0
+    with h5py.File(plain_output, "r") as f:
+        np.testing.assert_array_equal(f["state"][()], state)
+
+
+@pytest.mark.parametrize("arguments,words", [
+    (["{a}", "{b}"], ["2 input files: '{a}' '{b}'", "allowed: exactly one input file"]),
+    (["-snes_monitor", "{a}", "{b}"], ["2 input files"]),
+    (["{a}", "-pc_type", "lu", "{b}"], ["2 input files"]),
+    (["-snes_monitor"], ["no input file", "usage:"]),
+    (["--bogus", "{a}"], ["unknown option '--bogus'", "allowed: --help, -h, --version"]),
+])
+def test_usage_errors_write_nothing(tmp_path, scene, arguments, words, eme_run_binary):
+    a, output_a = scene("a")
+    b, output_b = scene("b")
+    for program in PROGRAMS:
+        result = run(program, *[x.format(a=a, b=b) for x in arguments])
+        assert result.returncode == 2, (program, result.stderr)
+        for word in words:
+            assert word.format(a=a, b=b) in result.stderr, result.stderr
+        assert not output_a.exists() and not output_b.exists()
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["a.nml", "b.nml"]
+
+
+def test_unused_petsc_options_are_warned(scene, eme_run_binary):
+    path, output = scene()
+    result = run("eme_run", path, "-snes_atoll", "1e-3", "-snes_converged_reason", "-ts_type", "bdf")
+    assert result.returncode == 0, result.stderr
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert warnings == ["eme_run: warning: PETSc options that nothing used: -snes_atoll -ts_type"]
+    # An EME run uses no TS; a TS run uses -ts_* and so is not warned about them.
+    path.write_text(namelist_text({"integrator": {"t_end": 0.3, "scheme": "ts_bdf2"}, "output": {"file": str(output)}}))
+    output.unlink()
+    result = run("eme_run", path, "-ts_max_snes_failures", "3", "-snes_atoll", "1")
+    assert result.returncode == 0, result.stderr
+    assert "PETSc options that nothing used: -snes_atoll\n" in result.stderr
+
+
+def test_ensemble_warns_only_about_options_no_rank_used(tmp_path, eme_run_binary):
+    """A TS option is used by the rank that runs the TS case only: no warning for it, whichever
+    rank that was; a misspelt option is named once, by rank 0."""
+    base = tmp_path / "base.nml"
+    base.write_text("&integrator t_end = 0.6 /\n")
+    output = tmp_path / "out"
+    study = tmp_path / "study.nml"
+    study.write_text(f"&study base = '{base}', output_dir = '{output}' /\n"
+                     "&sweep field = 'scheme', texts = 'eme', 'ts_bdf2', 'midpoint', 'eme' /\n")
+    result = subprocess.run([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), "-ts_max_snes_failures", "3", str(study),
+                             "-bogus_option"], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.count("warning") == 1
+    assert "eme_ensemble: warning: PETSc options that nothing used: -bogus_option\n" in result.stderr
+    with h5py.File(output / "index.h5", "r") as f:
+        cases = f["cases"][()]
+    assert len(set(cases["rank"])) == 2     # both ranks ran cases
