@@ -18,7 +18,8 @@ LINESTYLES = (("-", "solid"), ("--", "dashed"), (":", "dotted"), ("-.", "dash-do
 
 
 def reference_temperature(run):
-    return run.attrs.get("theta_r", float("nan"))
+    """theta_R as text, e.g. '300 K' (a killed run's file may lack it)."""
+    return f"{run.attrs['theta_r']:g} K" if "theta_r" in run.attrs else "missing"
 
 
 def make_figure(runs):
@@ -29,7 +30,7 @@ def make_figure(runs):
     references = list(dict.fromkeys(reference_temperature(run) for run in runs))
     for index, run in enumerate(runs):
         theta_r = reference_temperature(run)
-        label = rf"{run.label}, {constraint_summary(run)}, $\theta_R$ = {theta_r:g} K"
+        label = rf"{run.label}, {constraint_summary(run)}, $\theta_R$ = {theta_r}"
         style = curve_style(colours[index % len(colours)], index,
                             linestyle=LINESTYLES[references.index(theta_r) % len(LINESTYLES)][0])
         time = run.data["time"]
@@ -43,7 +44,7 @@ def make_figure(runs):
     axes[1, 1].set_ylabel(r"$V_{n+1} - V_n$ [J]")
     if len(references) > 1:
         note = (r"$V$ of each run with its own $\theta_R$: "
-                + ", ".join(f"{LINESTYLES[i % len(LINESTYLES)][1]} {theta_r:g} K" for i, theta_r in enumerate(references)))
+                + ", ".join(f"{LINESTYLES[i % len(LINESTYLES)][1]} {theta_r}" for i, theta_r in enumerate(references)))
         axes[1, 0].set_title(note, loc="left")
         axes[1, 1].set_title(r"increments of each run's own $V$", loc="left")
     axes[1, 0].set_xlabel(r"time $t_n$ [s]")

@@ -81,6 +81,11 @@ COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "
            ("wall_s", "wall [s]", "{}"), ("status", "status", "{}")]
 
 
+def markdown_row(cells):
+    """One Markdown table row; a '|' inside a cell (as in 'max |g|') is escaped."""
+    return "| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("files", nargs="+", help="eme_run HDF5 files")
@@ -97,10 +102,10 @@ def main(argv=None):
         rows.append([fmt.format(row[key]) for key, _, fmt in COLUMNS])
     headers = [title for _, title, _ in COLUMNS]
     if rows and args.markdown:
-        print("| " + " | ".join(headers) + " |")
+        print(markdown_row(headers))
         print("|" + "---|" * len(headers))
         for row in rows:
-            print("| " + " | ".join(row) + " |")
+            print(markdown_row(row))
     elif rows:
         widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]
         print("  ".join(h.ljust(w) for h, w in zip(headers, widths)).rstrip())

@@ -119,8 +119,8 @@ class Run:
                 f"discrete_gradient={a['discrete_gradient']}, dt={a['dt']}, theta_r={a['theta_r']}, "
                 f"input {a['input_file']}, file {self.path}, code {a['code_version']}, "
                 f"status: {self.status}")
-        if self.problems:
-            text += "; " + self.incomplete_mark + ": " + "; ".join(self.problems)
+        if self.incomplete:
+            text += f"; {self.incomplete_mark}" + "".join(f"; {problem}" for problem in self.problems)
         return text
 
 
@@ -174,7 +174,11 @@ def read_run(path, datasets, attributes=(), optional=()):
                 run.rows[name] = _plain(handle[name].attrs["rows"])
             elif name != "time":
                 raise RunFileError(f"{path}: dataset '/{name}' has no 'rows' attribute (point or step)")
-    cut_to_common_length(run)
+        # The other datasets' lengths count too: a file whose datasets disagree is incomplete.
+        others = {name: (_plain(item.attrs["rows"]), item.shape[0]) for name, item in handle.items()
+                  if name not in run.data and isinstance(item, h5py.Dataset) and item.shape
+                  and "rows" in item.attrs}
+    cut_to_common_length(run, others)
     return run
 
 
@@ -184,23 +188,23 @@ def _column_names(value):
     return value.replace(",", " ").split() if isinstance(value, str) else list(value)
 
 
-def cut_to_common_length(run):
+def cut_to_common_length(run, others=None):
     """Per-point datasets have N+1 rows and per-step ones N, as each dataset's `rows` attribute
-    says (README, Output layout). A file killed while writing may hold more rows in some; all
-    are cut to the steps every dataset holds, and the cut is recorded as a problem."""
-    lengths = {name: len(values) for name, values in run.data.items()}
-    steps = min(lengths[name] - (0 if run.rows.get(name) == "step" else 1) for name in lengths)
+    says (README, Output layout). A file killed while writing may hold more rows in some; the
+    datasets read are cut to the steps that every dataset holds (those read and `others`, name:
+    (rows, length) of datasets not read), and the cut is recorded as a problem."""
+    lengths = {name: (run.rows.get(name, "point"), len(values)) for name, values in run.data.items()}
+    lengths.update(others or {})
+    steps = min(length - (0 if rows == "step" else 1) for rows, length in lengths.values())
     if steps < 0:
         raise RunFileError(f"{run.path}: no state written ("
-                           + ", ".join(f"/{name} has {rows} rows" for name, rows in lengths.items()) + ")")
-    wanted = {name: steps + (0 if run.rows.get(name) == "step" else 1) for name in lengths}
-    cut = {name: rows for name, rows in lengths.items() if rows != wanted[name]}
-    if cut:
+                           + ", ".join(f"/{name} has {length} rows" for name, (_, length) in lengths.items()) + ")")
+    if any(length != steps + (0 if rows == "step" else 1) for rows, length in lengths.values()):
         run.problems.append("datasets of different lengths ("
-                            + ", ".join(f"/{name} {rows} rows" for name, rows in lengths.items())
+                            + ", ".join(f"/{name} {length} rows" for name, (_, length) in lengths.items())
                             + f"); read up to step {steps}")
-        for name in cut:
-            run.data[name] = run.data[name][:wanted[name]]
+        for name in run.data:
+            run.data[name] = run.data[name][:steps + (0 if lengths[name][0] == "step" else 1)]
 
 
 def increments(values):
