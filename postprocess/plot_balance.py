@@ -7,8 +7,8 @@ marker say the thermodynamic variable; --compare runs are dashed with open marke
 
 Example: plot_balance.py eme_s.h5 eme_theta.h5 eme_u.h5 --compare mp_s.h5 mp_theta.h5 mp_u.h5 -o fig4
 """
-from plotting import (DOUBLE_COLUMN, argument_parser, flat_aware_limits, increment_axis, parse_arguments,
-                      plot_marked, plot_points, plt, run_script, run_style, save)
+from plotting import (DOUBLE_COLUMN, add_compare_argument, argument_parser, flat_aware_limits, increment_axis,
+                      parse_arguments, plot_marked, plot_points, plt, run_script, save, styled_runs)
 from trajectory import increments, read_run
 
 TITLE = "Energy, entropy and Lyapunov function and their per-step increments"
@@ -20,7 +20,7 @@ QUANTITIES = [("energy", "$E$ [J]", r"$E_{n+1}-E_n$ [J]"),
 def make_figure(runs, compare=()):
     """Values (left) and increments (right) of E, S, V; `compare` runs are drawn dashed."""
     fig, axes = plt.subplots(len(QUANTITIES), 2, figsize=(DOUBLE_COLUMN, 6.2), sharex=True)
-    drawn = [(run, run_style(run)) for run in runs] + [(run, run_style(run, compare=True)) for run in compare]
+    drawn = styled_runs(runs, compare)
     for row, (name, value_label, increment_label) in enumerate(QUANTITIES):
         values_ax, increments_ax = axes[row]
         for run, style in drawn:
@@ -40,8 +40,7 @@ def make_figure(runs, compare=()):
 
 def main(argv=None):
     parser = argument_parser(__doc__)
-    parser.add_argument("--compare", nargs="+", default=[], metavar="FILE.h5",
-                        help="midpoint-rule (or any other) runs to overlay, dashed with open markers")
+    add_compare_argument(parser)
     args = parse_arguments(parser, argv)
     needed = [name for name, _, _ in QUANTITIES]
     runs = [read_run(path, needed) for path in args.files]

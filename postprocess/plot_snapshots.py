@@ -11,8 +11,6 @@ ffmpeg on PATH), otherwise OUT_animation.gif with the Pillow writer (Pillow ship
 matplotlib). Frames are one journal page wide at --dpi, so their 8-pt text stays readable.
 The script prints which one it wrote.
 """
-import shutil
-
 import matplotlib
 from matplotlib import animation, patheffects
 from matplotlib.collections import LineCollection
@@ -30,6 +28,7 @@ PLANES = [((0, 2), "x [m]", "side view\nz [m]"), ((0, 1), "x [m]", "top view\ny 
 COLOUR_MAP = ListedColormap(matplotlib.colormaps["plasma"](np.linspace(0.0, 0.82, 256)), name="plasma_trimmed")
 SPRING_OUTLINE = [patheffects.Stroke(linewidth=4.2, foreground="0.15"), patheffects.Normal()]
 PATH_COLOUR = "0.65"
+FRAMES_PER_SECOND = 10
 MASS_STYLE = dict(marker="o", color="black", markersize=5, linestyle="none")
 ORIGIN_STYLE = dict(marker="^", color="black", markersize=6, linestyle="none")
 
@@ -39,9 +38,8 @@ def ffmpeg_available():
     try:
         import imageio_ffmpeg
         matplotlib.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
-    except (ImportError, RuntimeError):  # no wheel, or a wheel without a binary for this platform
-        if shutil.which(matplotlib.rcParams["animation.ffmpeg_path"]) is None:
-            return False
+    except (ImportError, RuntimeError):
+        pass  # no wheel, or none with a binary for this platform: an ffmpeg on PATH, if any
     return animation.writers.is_available("ffmpeg")
 
 
@@ -142,11 +140,11 @@ def make_figure(runs, times):
     return fig
 
 
-def animation_writer(fps=10):
+def animation_writer():
     """('mp4', ffmpeg writer) when ffmpeg is available, otherwise ('gif', Pillow writer)."""
     if ffmpeg_available():
-        return "mp4", animation.FFMpegWriter(fps=fps, bitrate=-1)
-    return "gif", animation.PillowWriter(fps=fps)
+        return "mp4", animation.FFMpegWriter(fps=FRAMES_PER_SECOND)
+    return "gif", animation.PillowWriter(fps=FRAMES_PER_SECOND)
 
 
 def write_animation(runs, output, max_frames, dpi):

@@ -2,8 +2,8 @@
 for one or more runs (one curve per run file; colour and marker say the thermodynamic
 variable; --compare runs are dashed with open markers). One journal column wide.
 """
-from plotting import (SINGLE_COLUMN, argument_parser, parse_arguments, plot_marked, plt, run_script,
-                      run_style, save)
+from plotting import (SINGLE_COLUMN, add_compare_argument, argument_parser, parse_arguments, plot_marked, plt,
+                      run_script, save, styled_runs)
 from trajectory import jz_drift, read_run
 
 TITLE = "Spring temperatures and angular momentum drift"
@@ -12,7 +12,7 @@ TITLE = "Spring temperatures and angular momentum drift"
 def make_figure(runs, compare=()):
     """theta_1 (top), theta_2 (middle) from /temperature and J_z drift (bottom)."""
     fig, axes = plt.subplots(3, 1, figsize=(SINGLE_COLUMN, 5.2), sharex=True)
-    drawn = [(run, run_style(run)) for run in runs] + [(run, run_style(run, compare=True)) for run in compare]
+    drawn = styled_runs(runs, compare)
     for run, style in drawn:
         time = run.data["time"]
         for name, ax in zip(("theta_1", "theta_2"), axes[:2]):
@@ -28,8 +28,7 @@ def make_figure(runs, compare=()):
 
 def main(argv=None):
     parser = argument_parser(__doc__)
-    parser.add_argument("--compare", nargs="+", default=[], metavar="FILE.h5",
-                        help="midpoint-rule (or any other) runs, dashed with open markers")
+    add_compare_argument(parser)
     args = parse_arguments(parser, argv)
     needed = ["temperature", "angular_momentum"]
     runs = [read_run(path, needed) for path in args.files]

@@ -61,15 +61,11 @@ def argument_parser(description):
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
                         help="output path without suffix: writes OUT.png and OUT.pdf, and the caption "
                              "with every file's provenance to OUT.txt")
-    add_style_argument(parser)
-    return parser
-
-
-def add_style_argument(parser):
     parser.add_argument("--style", default="paper", metavar="STYLE",
                         help="'paper' (default): journal column widths (3.5 and 7 in), text >= 8 pt, "
                              "TrueType fonts; any other matplotlib style name or .mplstyle file is "
                              "applied on top of it")
+    return parser
 
 
 def parse_arguments(parser, argv):
@@ -153,6 +149,16 @@ def run_style(run, compare=False):
                        filled=not compare, linestyle="--" if compare else "-")
 
 
+def styled_runs(runs, compare=()):
+    """(run, style) pairs: the runs, then the compared runs (dashed, open markers)."""
+    return [(run, run_style(run)) for run in runs] + [(run, run_style(run, compare=True)) for run in compare]
+
+
+def add_compare_argument(parser):
+    parser.add_argument("--compare", nargs="+", default=[], metavar="FILE.h5",
+                        help="midpoint-rule (or any other) runs to overlay, dashed with open markers")
+
+
 def plot_marked(ax, x, y, style, **more):
     """A curve with MARKERS_PER_CURVE markers on it (its legend entry shows line and marker)."""
     return ax.plot(x, y, markevery=max(1, len(x) // MARKERS_PER_CURVE), **style, **more)
@@ -185,8 +191,8 @@ def increment_axis(ax, values, labels=7):
     Why symlog: an EME energy increment is round-off (1e-13 J) while a midpoint one is of
     order 1 J, and the sign matters (dS >= 0, dV <= 0). Symlog is logarithmic on both sides
     of zero, so 1e-12 and 1 are both read off decades and the sign is the side of the axis;
-    exact zeros, which a log of |increment| cannot show, sit on the thin linear band
-    |x| < 1e-15, below the round-off of any quantity of this model. The axis ends at the decade
+    exact zeros, which a log of |increment| cannot show, sit on the linear band |x| < 1e-16,
+    below the round-off of any quantity of this model (E ~ 600 J, S ~ 2 J/K). The axis ends at the decade
     above the largest increment that matplotlib's symlog locator labels (10^n formatter)."""
     ax.set_yscale("symlog", linthresh=INCREMENT_LINEAR_THRESHOLD, linscale=3.5)
     locator = ax.yaxis.get_major_locator()

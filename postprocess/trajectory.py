@@ -145,11 +145,9 @@ def root_attributes(handle):
     return {name: _plain(value) for name, value in handle.attrs.items()}
 
 
-def read_run(path, datasets, attributes=(), optional=()):
-    """Reads the named datasets and every root attribute of a run file.
-
-    `datasets` and `attributes` (besides IDENTITY_ATTRIBUTES) are required; `optional` datasets
-    are read when present."""
+def read_run(path, datasets, attributes=()):
+    """Reads the named datasets and every root attribute of a run file; `attributes` are required
+    besides IDENTITY_ATTRIBUTES."""
     path = Path(path)
     with run_file(path) as handle:
         missing = [name for name in (*IDENTITY_ATTRIBUTES, *attributes) if name not in handle.attrs]
@@ -162,10 +160,8 @@ def read_run(path, datasets, attributes=(), optional=()):
         absent = [name for name in DESCRIPTION_ATTRIBUTES if name not in run.attrs and name != "status"]
         if absent:
             run.problems.append("root attributes " + ", ".join(absent) + " missing")
-        for name in ("time", *datasets, *optional):
+        for name in ("time", *datasets):
             if name not in handle or not isinstance(handle[name], h5py.Dataset):
-                if name in optional:
-                    continue
                 raise RunFileError(f"{path}: dataset '/{name}' is missing")
             run.data[name] = handle[name][()]
             if "columns" in handle[name].attrs:

@@ -126,15 +126,22 @@ def run(script, *arguments):
                           capture_output=True, text=True, timeout=120)
 
 
+def plot_broken(directory, script, kind, kinds):
+    """Makes the broken file of `kind` and plots it; returns its path, the expected message and
+    the finished process, which never shows a traceback."""
+    make, message = kinds[kind]
+    path = directory / f"{kind}.h5"
+    make(path)
+    result = run(script, path, *PLOTS[script], "-o", directory / "out")
+    assert "Traceback" not in result.stderr
+    return path, message, result
+
+
 @pytest.mark.parametrize("kind", USABLE)
 @pytest.mark.parametrize("script", PLOTS)
 def test_a_usable_broken_file_is_drawn_and_marked_incomplete(tmp_path, script, kind):
-    make, message = USABLE[kind]
-    path = tmp_path / f"{kind}.h5"
-    make(path)
-    result = run(script, path, *PLOTS[script], "-o", tmp_path / "out")
+    path, message, result = plot_broken(tmp_path, script, kind, USABLE)
     assert result.returncode == 0, result.stderr
-    assert "Traceback" not in result.stderr
     assert f"{path}: INCOMPLETE after" in result.stderr and message in result.stderr
     assert (tmp_path / "out.png").read_bytes().startswith(b"\x89PNG")
     caption = (tmp_path / "out.txt").read_text()
@@ -144,12 +151,8 @@ def test_a_usable_broken_file_is_drawn_and_marked_incomplete(tmp_path, script, k
 @pytest.mark.parametrize("kind", UNUSABLE)
 @pytest.mark.parametrize("script", PLOTS)
 def test_an_unusable_file_is_named_with_exit_status_2(tmp_path, script, kind):
-    make, message = UNUSABLE[kind]
-    path = tmp_path / f"{kind}.h5"
-    make(path)
-    result = run(script, path, *PLOTS[script], "-o", tmp_path / "out")
+    path, message, result = plot_broken(tmp_path, script, kind, UNUSABLE)
     assert result.returncode == 2
-    assert "Traceback" not in result.stderr
     assert result.stderr.startswith(f"{script}: error: {path}: ") and message in result.stderr
     assert not (tmp_path / "out.png").exists()
 
