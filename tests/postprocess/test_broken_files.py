@@ -7,6 +7,8 @@ attributes (a run killed before its end never writes its times and final status)
 datasets cut short, step datasets longer than the points allow (a kill between the two
 flushes), a file without any state, the first 96 bytes of a run file (what a kill before the
 first flush left), a file cut in half, and a text file."""
+import functools
+import importlib
 import re
 import subprocess
 import sys
@@ -20,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 POSTPROCESS = ROOT / "postprocess"
 sys.path.insert(0, str(POSTPROCESS))
 
+import plotting  # noqa: E402
 from synthetic_runs import constraint_attributes, write_run  # noqa: E402
 
 STEPS = 6
@@ -126,35 +129,71 @@ def run(script, *arguments):
                           capture_output=True, text=True, timeout=120)
 
 
-def plot_broken(directory, script, kind, kinds):
-    """Makes the broken file of `kind` and plots it; returns its path, the expected message and
-    the finished process, which never shows a traceback."""
+def run_in_process(monkeypatch, capsys, script, *arguments):
+    """The script's main() as its command line runs it (through plotting.run_script), in this
+    process: (exit status, stderr). An uncaught exception, which would be a traceback, fails
+    the test."""
+    module = importlib.import_module(script.removesuffix(".py"))
+    monkeypatch.setattr(sys, "argv", [script, *map(str, arguments)])
+    try:
+        plotting.run_script(module.main)
+        status = 0
+    except SystemExit as stop:
+        status = stop.code
+    return status, capsys.readouterr().err
+
+
+def plot_broken(directory, script, kind, kinds, runner):
+    """Makes the broken file of `kind` and plots it with `runner`; returns its path, the
+    expected message, the exit status and stderr."""
     make, message = kinds[kind]
     path = directory / f"{kind}.h5"
     make(path)
-    result = run(script, path, *PLOTS[script], "-o", directory / "out")
-    assert "Traceback" not in result.stderr
-    return path, message, result
+    status, stderr = runner(script, path, *PLOTS[script], "-o", directory / "out")
+    return path, message, status, stderr
+
+
+def check_usable(directory, path, message, status, stderr):
+    assert status == 0, stderr
+    assert f"{path}: INCOMPLETE after" in stderr and message in stderr
+    assert (directory / "out.png").read_bytes().startswith(b"\x89PNG")
+    caption = (directory / "out.txt").read_text()
+    assert "INCOMPLETE after" in caption and message in caption
+
+
+def check_unusable(directory, script, path, message, status, stderr):
+    assert status == 2
+    assert stderr.startswith(f"{script}: error: {path}: ") and message in stderr
+    assert not (directory / "out.png").exists()
 
 
 @pytest.mark.parametrize("kind", USABLE)
 @pytest.mark.parametrize("script", PLOTS)
-def test_a_usable_broken_file_is_drawn_and_marked_incomplete(tmp_path, script, kind):
-    path, message, result = plot_broken(tmp_path, script, kind, USABLE)
-    assert result.returncode == 0, result.stderr
-    assert f"{path}: INCOMPLETE after" in result.stderr and message in result.stderr
-    assert (tmp_path / "out.png").read_bytes().startswith(b"\x89PNG")
-    caption = (tmp_path / "out.txt").read_text()
-    assert "INCOMPLETE after" in caption and message in caption
+def test_a_usable_broken_file_is_drawn_and_marked_incomplete(tmp_path, monkeypatch, capsys, script, kind):
+    runner = functools.partial(run_in_process, monkeypatch, capsys)
+    check_usable(tmp_path, *plot_broken(tmp_path, script, kind, USABLE, runner))
 
 
 @pytest.mark.parametrize("kind", UNUSABLE)
 @pytest.mark.parametrize("script", PLOTS)
-def test_an_unusable_file_is_named_with_exit_status_2(tmp_path, script, kind):
-    path, message, result = plot_broken(tmp_path, script, kind, UNUSABLE)
-    assert result.returncode == 2
-    assert result.stderr.startswith(f"{script}: error: {path}: ") and message in result.stderr
-    assert not (tmp_path / "out.png").exists()
+def test_an_unusable_file_is_named_with_exit_status_2(tmp_path, monkeypatch, capsys, script, kind):
+    runner = functools.partial(run_in_process, monkeypatch, capsys)
+    check_unusable(tmp_path, script, *plot_broken(tmp_path, script, kind, UNUSABLE, runner))
+
+
+@pytest.mark.parametrize("script", PLOTS)
+def test_the_command_line_shows_no_traceback(tmp_path, script):
+    """The same through `python postprocess/SCRIPT.py`, for one usable and one unusable kind."""
+    def runner(*arguments):
+        result = run(*arguments)
+        assert "Traceback" not in result.stderr
+        return result.returncode, result.stderr
+
+    (tmp_path / "killed").mkdir()
+    check_usable(tmp_path / "killed", *plot_broken(tmp_path / "killed", script, "killed", USABLE, runner))
+    (tmp_path / "stub").mkdir()
+    check_unusable(tmp_path / "stub", script,
+                   *plot_broken(tmp_path / "stub", script, "stub_of_96_bytes", UNUSABLE, runner))
 
 
 def test_summary_prints_what_broken_files_hold_and_names_the_unusable_ones(tmp_path):
