@@ -45,8 +45,9 @@ matplotlib.style.use(PAPER_STYLE)
 VARIABLE_COLOURS = {"entropy": "tab:blue", "temperature": "tab:red", "internal_energy": "tab:green"}
 VARIABLE_ORDER = ("entropy", "temperature", "internal_energy")
 # Nested markers (large, middle, small; drawn large first): points of up to three curves that
-# coincide stay visible as a circle around a triangle around a square.
-NESTED_MARKERS = (("o", 5.0), ("^", 3.5), ("s", 2.0))
+# coincide stay visible as a circle around a triangle around a square. A second set of shapes
+# tells apart curves of two schemes that coincide (a circle and a diamond both show).
+NESTED_MARKERS = ((("o", 5.0), ("^", 3.5), ("s", 2.0)), (("D", 4.5), ("v", 3.5), ("p", 2.5)))
 # Increments below this size [J or J/K] are drawn on the linear part of the symlog axis.
 INCREMENT_LINEAR_THRESHOLD = 1e-16
 # Markers on a curve: about this many, so that a curve under another still shows.
@@ -135,9 +136,11 @@ def variable_position(variable):
     return VARIABLE_ORDER.index(variable) if variable in VARIABLE_ORDER else len(VARIABLE_ORDER)
 
 
-def curve_style(colour, position, filled=True, linestyle="-"):
-    """Line and nested marker of curve `position`; `filled` False draws open markers."""
-    marker, size = NESTED_MARKERS[position % len(NESTED_MARKERS)]
+def curve_style(colour, position, filled=True, linestyle="-", shapes=0):
+    """Line and nested marker of curve `position` from the marker set `shapes`; `filled` False
+    draws open markers."""
+    nested = NESTED_MARKERS[shapes % len(NESTED_MARKERS)]
+    marker, size = nested[position % len(nested)]
     return dict(color=colour, marker=marker, markersize=size, linestyle=linestyle,
                 markerfacecolor=colour if filled else "none", zorder=2 + 0.1 * position)
 

@@ -58,11 +58,12 @@ def label(scheme, variable):
 
 def style(key):
     """Line and marker style of one scheme: the variable's nested marker, open where a smaller
-    one may sit inside it."""
+    one may sit inside it, in shapes that alternate from scheme to scheme of the registry (so
+    that MP and TS-midpoint, whose errors coincide, both show)."""
     scheme, variable = key
     position = variable_position(variable)
     return curve_style(integrators.colour(scheme), position, filled=position >= len(VARIABLE_ORDER) - 1,
-                       linestyle=VARIABLE_LINES.get(variable, "-."))
+                       linestyle=VARIABLE_LINES.get(variable, "-."), shapes=integrators.position(scheme))
 
 
 def members(rows, key):
