@@ -4,7 +4,7 @@
 #                     scenes, a summary table, then the figures
 #   make test         every test; the last line is "N passed, M failed"
 #   make constraints  the constraints with EME_s and EME_u, and without conduction
-#   make figures      the figures of `make run`'s files
+#   make figures      the figures of the paper scenes (runs what is missing or outdated first)
 #   make study        convergence, work-precision and stability studies, and their charts
 #   make bench        ensemble throughput and per-step cost (benchmarks, not tests)
 #   make python-lock  pin every Python package anew after postprocess/requirements.txt changed
@@ -168,10 +168,21 @@ PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy
 CONSTRAINT_RUNS := $(foreach c,fixed_length fixed_temperature,$(foreach v,entropy internal_energy,fig5_$(c)_eme_$(v))) \
                    $(foreach v,theta entropy internal_energy,fig5_fixed_temperature_no_conduction_eme_$(v))
 
-# Runs every input of a list and prints the summary table of their files.
-define run_and_summarize
+# A run file from its input: inputs/NAME.nml writes results/NAME.h5 (its &output file). An
+# earlier file is removed first; a run that stops early keeps its file as results/NAME.h5.failed
+# (marked incomplete inside), so that the next make runs it again.
+results/%.h5: inputs/%.nml $(BIN)/eme_run
 	@mkdir -p results
-	@for run in $(1); do $(BIN)/eme_run inputs/$$run.nml > /dev/null || exit 1; done
+	@rm -f $@ $@.failed
+	@$(BIN)/eme_run $< > /dev/null || { status=$$?; test -f $@ && mv $@ $@.failed && \
+	  echo "$<: eme_run stopped (exit status $$status); its file is kept as $@.failed"; exit $$status; }
+	@test -f $@ || { echo "$< did not write $@: its &output file must be $@"; exit 1; }
+
+# Runs every input of a list (again, even when its file is newer than the input) and prints
+# the summary table of their files.
+define run_and_summarize
+	@rm -f $(foreach r,$(1),results/$(r).h5)
+	@$(MAKE) --no-print-directory $(foreach r,$(1),results/$(r).h5)
 	@$(PYTHON) postprocess/summarize_runs.py $(foreach r,$(1),results/$(r).h5)
 endef
 
@@ -179,19 +190,28 @@ run: all $(VENV)/.python-deps
 	$(call run_and_summarize,$(PAPER_RUNS))
 	@$(MAKE) --no-print-directory figures
 
-# The paper's Figs. 3, 4 and 5 and the temperatures from the files `make run` wrote.
+# The paper's Figs. 3, 4 and 5 and the temperatures, each drawn from the run files it shows;
+# a missing or outdated run file is run first (rule above), so this works from a clean clone.
 FIGURES := results/figures
 EME_FILES := $(foreach v,entropy theta internal_energy,results/paper_fig4_eme_$(v).h5)
 MIDPOINT_FILES := $(foreach v,entropy theta internal_energy,results/paper_fig4_midpoint_$(v).h5)
 FIG5_FILES := $(foreach c,fixed_length fixed_temperature both,results/paper_fig5_$(c).h5)
+PLOT_DEPS := postprocess/plotting.py postprocess/trajectory.py postprocess/integrators.py $(VENV)/.python-deps
+FIGURE_FILES := $(foreach f,fig3_snapshots fig4_eme fig4_eme_vs_midpoint fig5_constrained temperatures_jz,$(FIGURES)/$(f).png)
 
-figures: $(VENV)/.python-deps
-	@for f in $(EME_FILES) $(MIDPOINT_FILES) $(FIG5_FILES); do test -f $$f || { echo "$$f is missing: run 'make run' first"; exit 1; }; done
-	$(PYTHON) postprocess/plot_snapshots.py results/paper_fig4_eme_theta.h5 --times 0 8 16 -o $(FIGURES)/fig3_snapshots
-	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) -o $(FIGURES)/fig4_eme
-	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(FIGURES)/fig4_eme_vs_midpoint
-	$(PYTHON) postprocess/plot_constrained.py $(FIG5_FILES) -o $(FIGURES)/fig5_constrained
-	$(PYTHON) postprocess/plot_temperatures.py $(EME_FILES) $(MIDPOINT_FILES) -o $(FIGURES)/temperatures_jz
+figures: $(FIGURE_FILES)
+
+# Fig. 3 at the paper's times 0, 8, 16 and 24 s, from the EME_theta run on [0, 24] s.
+$(FIGURES)/fig3_snapshots.png: results/paper_fig3.h5 postprocess/plot_snapshots.py $(PLOT_DEPS)
+	$(PYTHON) postprocess/plot_snapshots.py $< --times 0 8 16 24 -o $(basename $@)
+$(FIGURES)/fig4_eme.png: $(EME_FILES) postprocess/plot_balance.py $(PLOT_DEPS)
+	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) -o $(basename $@)
+$(FIGURES)/fig4_eme_vs_midpoint.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_balance.py $(PLOT_DEPS)
+	$(PYTHON) postprocess/plot_balance.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(basename $@)
+$(FIGURES)/fig5_constrained.png: $(FIG5_FILES) postprocess/plot_constrained.py $(PLOT_DEPS)
+	$(PYTHON) postprocess/plot_constrained.py $(FIG5_FILES) -o $(basename $@)
+$(FIGURES)/temperatures_jz.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_temperatures.py $(PLOT_DEPS)
+	$(PYTHON) postprocess/plot_temperatures.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(basename $@)
 
 # Convergence, work-precision and stability studies on 2 ranks, then their analysis: charts in
 # results/figures, numbers in results/study/summary.h5 (README, Speed and accuracy).

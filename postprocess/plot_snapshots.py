@@ -1,23 +1,46 @@
 """Fig. 3 analogue: snapshots of the double pendulum at chosen times, and an animation.
 
 Each snapshot shows the origin (support), the masses m1 at q1 and m2 at q1 + q2 (q2 is
-relative to m1) and the two springs coloured by their temperatures, in two projections:
-side view x-z (gravity points to -z) and top view x-y. One row pair per run file.
+relative to m1) and the two springs coloured by their temperatures (a perceptually uniform
+map trimmed so that no temperature is drawn near-white, and a dark outline), in two
+projections: side view x-z (gravity points to -z) and top view x-y. One row pair per run file.
 
-Animation (unless --no-animation): written as OUT_animation.mp4 with matplotlib's ffmpeg
-writer when ffmpeg is on PATH, otherwise as OUT_animation.gif with the Pillow writer (Pillow
-ships with matplotlib). The script prints which one it wrote.
+Animation (unless --no-animation): OUT_animation.mp4 with matplotlib's ffmpeg writer when
+ffmpeg is available (the imageio-ffmpeg wheel of postprocess/requirements.txt brings one, or
+ffmpeg on PATH), otherwise OUT_animation.gif with the Pillow writer (Pillow ships with
+matplotlib). Frames are one journal page wide at --dpi, so their 8-pt text stays readable.
+The script prints which one it wrote.
 """
 import matplotlib
-from matplotlib import animation
+from matplotlib import animation, patheffects
 from matplotlib.collections import LineCollection
+from matplotlib.colors import ListedColormap
+from matplotlib.lines import Line2D
 import numpy as np
 
-from plotting import argument_parser, describe, output_stem, plt, run_script, save
+from plotting import (DOUBLE_COLUMN, argument_parser, output_stem, parse_arguments, plt, run_script,
+                      save)
 from trajectory import mass_positions, read_run, snapshot_steps
 
-PLANES = [((0, 2), "x [m]", "z [m]", "side view x-z"), ((0, 1), "x [m]", "y [m]", "top view x-y")]
-COLOUR_MAP = "coolwarm"
+TITLE = "Snapshots of the thermoviscoelastic double pendulum"
+PLANES = [((0, 2), "x [m]", "side view\nz [m]"), ((0, 1), "x [m]", "top view\ny [m]")]
+# plasma without its light-yellow top: every temperature is drawn clearly darker than white.
+COLOUR_MAP = ListedColormap(matplotlib.colormaps["plasma"](np.linspace(0.0, 0.82, 256)), name="plasma_trimmed")
+SPRING_OUTLINE = [patheffects.Stroke(linewidth=4.2, foreground="0.15"), patheffects.Normal()]
+PATH_COLOUR = "0.65"
+FRAMES_PER_SECOND = 10
+MASS_STYLE = dict(marker="o", color="black", markersize=5, linestyle="none")
+ORIGIN_STYLE = dict(marker="^", color="black", markersize=6, linestyle="none")
+
+
+def ffmpeg_available():
+    """True when matplotlib can write MP4: ffmpeg from the imageio-ffmpeg wheel, or on PATH."""
+    try:
+        import imageio_ffmpeg
+        matplotlib.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError):
+        pass  # no wheel, or none with a binary for this platform: an ffmpeg on PATH, if any
+    return animation.writers.is_available("ffmpeg")
 
 
 def pendulum_points(run):
@@ -42,16 +65,17 @@ def temperature_scale(runs):
 
 
 class PendulumView:
-    """The artists of one projection panel: trail of m2, two springs, masses, origin."""
+    """The artists of one projection panel: path of m2, two springs, masses, origin."""
 
     def __init__(self, ax, plane, limits, norm):
-        (i, j), xlabel, ylabel, _ = plane
+        (i, j), xlabel, ylabel = plane
         self.axes = (i, j)
-        self.trail, = ax.plot([], [], color="0.75", linewidth=0.6, zorder=1)
-        self.springs = LineCollection([], cmap=COLOUR_MAP, norm=norm, linewidths=3, zorder=2)
+        self.path, = ax.plot([], [], color=PATH_COLOUR, linewidth=0.6, zorder=1)
+        self.springs = LineCollection([], cmap=COLOUR_MAP, norm=norm, linewidths=2.8, zorder=2,
+                                      path_effects=SPRING_OUTLINE)
         ax.add_collection(self.springs)
-        self.masses, = ax.plot([], [], "o", color="black", markersize=7, zorder=3)
-        ax.plot([0], [0], marker="^", color="black", markersize=9, linestyle="none", zorder=3)
+        self.masses, = ax.plot([], [], **MASS_STYLE, zorder=3)
+        ax.plot([0], [0], **ORIGIN_STYLE, zorder=3)
         ax.set_xlim(limits[0][i], limits[1][i])
         ax.set_ylim(limits[0][j], limits[1][j])
         ax.set_aspect("equal")
@@ -59,13 +83,30 @@ class PendulumView:
         ax.set_ylabel(ylabel)
 
     def show(self, points, temperatures, step):
-        """Draws step `step`; the trail is m2's path up to it."""
+        """Draws step `step`; the path is m2's up to it."""
         i, j = self.axes
         now = points[step][:, [i, j]]
         self.springs.set_segments([now[0:2], now[1:3]])
         self.springs.set_array(np.asarray(temperatures[step]))
         self.masses.set_data(now[1:, 0], now[1:, 1])
-        self.trail.set_data(points[: step + 1, 2, i], points[: step + 1, 2, j])
+        self.path.set_data(points[: step + 1, 2, i], points[: step + 1, 2, j])
+
+
+def legend_handles():
+    """What the markers and lines of a panel are (the springs' colours have the colour bar)."""
+    return [Line2D([], [], **ORIGIN_STYLE, label="origin (support)"),
+            Line2D([], [], **MASS_STYLE, label="masses $m_1$ at $q_1$, $m_2$ at $q_1 + q_2$"),
+            Line2D([], [], color=PATH_COLOUR, linewidth=0.6, label="path of $m_2$ so far"),
+            Line2D([], [], color=COLOUR_MAP(0.5), linewidth=2.8, path_effects=SPRING_OUTLINE,
+                   label="springs, coloured by temperature")]
+
+
+def finish_figure(fig, axes, norm):
+    """Colour bar and the legend of markers and lines."""
+    colour_bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes, shrink=0.8,
+                              aspect=25)
+    colour_bar.set_label(r"spring temperature $\theta_a$ [K]")
+    fig.legend(handles=legend_handles(), loc="outside lower center", ncols=2)
 
 
 def make_figure(runs, times):
@@ -75,8 +116,9 @@ def make_figure(runs, times):
     columns = max(len(steps) for steps, _ in selections)
     if columns == 0:
         raise ValueError(f"no requested time {list(times)} lies within any run")
-    fig, axes = plt.subplots(2 * len(runs), columns, figsize=(3.2 * columns + 1.5, 3.4 * 2 * len(runs)),
-                             layout="constrained", squeeze=False)
+    panel = (DOUBLE_COLUMN - 0.9) / max(columns, 3)
+    fig, axes = plt.subplots(2 * len(runs), columns, figsize=(DOUBLE_COLUMN, 2 * len(runs) * panel + 1.1),
+                             squeeze=False, sharex="col", sharey="row")
     for r, (run, (steps, dropped)) in enumerate(zip(runs, selections)):
         if dropped:
             print(f"{run.path}: times {dropped} s lie past its last step "
@@ -85,41 +127,40 @@ def make_figure(runs, times):
         for c in range(columns):
             for p, plane in enumerate(PLANES):
                 ax = axes[2 * r + p, c]
+                view = PendulumView(ax, plane, limits, norm)
+                ax.label_outer()  # the panels share their scales: labels on the outer ones
                 if c >= len(steps):
                     ax.set_visible(False)
                     continue
-                PendulumView(ax, plane, limits, norm).show(points, temperatures, steps[c])
-                ax.set_title(f"{run.label}\n{plane[3]}, $t_n$ = {run.data['time'][steps[c]]:.2f} s",
-                             fontsize=8)
-    colour_bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes, shrink=0.6)
-    colour_bar.set_label(r"spring temperature $\theta_a$ [K]")
-    describe(fig, "Snapshots of the thermoviscoelastic double pendulum "
-                  "(triangle: origin, dots: m1 and m2, grey: path of m2)", runs)
+                view.show(points, temperatures, steps[c])
+                if p == 0:
+                    ax.set_title(f"$t_n$ = {run.data['time'][steps[c]]:.2f} s")
+    fig.suptitle("; ".join(run.label for run in runs))
+    finish_figure(fig, axes, norm)
     return fig
 
 
 def animation_writer():
     """('mp4', ffmpeg writer) when ffmpeg is available, otherwise ('gif', Pillow writer)."""
-    if animation.writers.is_available("ffmpeg"):
-        return "mp4", animation.FFMpegWriter(fps=10)
-    return "gif", animation.PillowWriter(fps=10)
+    if ffmpeg_available():
+        return "mp4", animation.FFMpegWriter(fps=FRAMES_PER_SECOND)
+    return "gif", animation.PillowWriter(fps=FRAMES_PER_SECOND)
 
 
-def write_animation(runs, output, max_frames):
-    """Animation of every run side by side (one row per run); frames are common times."""
+def write_animation(runs, output, max_frames, dpi):
+    """Animation of every run (one row per run, side and top view); frames are common times."""
     limits, norm = view_limits(runs), temperature_scale(runs)
     last = max(run.data["time"][-1] for run in runs)
-    smallest_dt = min(run.attrs["dt"] for run in runs)
-    frame_times = np.linspace(0.0, last, int(min(max_frames, round(last / smallest_dt) + 1)))
-    fig, axes = plt.subplots(len(runs), 2, figsize=(10, 4.2 * len(runs)), layout="constrained",
-                             squeeze=False)
+    steps = [float(np.min(np.diff(run.data["time"]))) for run in runs if run.steps]
+    smallest_dt = min(steps, default=1.0)
+    frame_times = np.linspace(0.0, last, int(min(max_frames, round(last / smallest_dt) + 1)) if steps else 1)
+    fig, axes = plt.subplots(len(runs), 2, figsize=(DOUBLE_COLUMN, 3.1 * len(runs) + 0.9), squeeze=False,
+                             sharex=True)
     panels = []
     for run, row in zip(runs, axes):
         views = [PendulumView(ax, plane, limits, norm) for ax, plane in zip(row, PLANES)]
-        panels.append((run, pendulum_points(run), views, row[0].set_title("", fontsize=8)))
-    fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes,
-                 shrink=0.7).set_label(r"spring temperature $\theta_a$ [K]")
-    describe(fig, "Double pendulum (triangle: origin, dots: m1 and m2, grey: path of m2)", runs)
+        panels.append((run, pendulum_points(run), views, row[0].set_title("", loc="left")))
+    finish_figure(fig, axes, norm)
 
     def draw(t):
         for run, points, views, title in panels:
@@ -135,12 +176,13 @@ def write_animation(runs, output, max_frames):
     draw(frame_times[0])
     fig.canvas.draw()
     fig.set_layout_engine("none")  # the layout is fixed now; re-solving it per frame is slow
-    with writer.saving(fig, path, dpi=80):
+    with writer.saving(fig, path, dpi=dpi):
         for t in frame_times:
             draw(t)
             writer.grab_frame()
     plt.close(fig)
-    print(f"wrote {path} ({'MP4, ffmpeg' if suffix == 'mp4' else 'GIF, Pillow: ffmpeg not found'})")
+    print(f"wrote {path} ({'MP4, ffmpeg' if suffix == 'mp4' else 'GIF, Pillow: ffmpeg not found'}, "
+          f"{len(frame_times)} frames)")
     return path
 
 
@@ -152,15 +194,17 @@ def main(argv=None):
     parser.add_argument("--no-animation", action="store_true", help="write only the snapshots")
     parser.add_argument("--max-frames", type=int, default=200,
                         help="at most this many animation frames (default 200)")
-    args = parser.parse_args(argv)
+    parser.add_argument("--dpi", type=int, default=150,
+                        help="animation resolution in pixels per inch of its 7-in width (default 150)")
+    args = parse_arguments(parser, argv)
     runs = [read_run(path, ["state", "temperature"]) for path in args.files]
     last = max(run.data["time"][-1] for run in runs)
     times = args.times if args.times else list(np.linspace(0.0, last, 4))
     if not any(snapshot_steps(run.data["time"], times)[0] for run in runs):
         parser.error(f"no time of --times {times} lies within a run (the last step is at {last:g} s)")
-    written = save(make_figure(runs, times), args.output)
+    written = save(make_figure(runs, times), args.output, TITLE, runs)
     if not args.no_animation:
-        written.append(write_animation(runs, args.output, args.max_frames))
+        written.append(write_animation(runs, args.output, args.max_frames, args.dpi))
     return written
 
 

@@ -1,7 +1,16 @@
-"""Figure helpers shared by the plot scripts: command line, run descriptions, axes, saving."""
+"""Figure helpers shared by the plot scripts: the publication style, command line, run styles,
+axes, and saving with provenance.
+
+The paper style (the default) sizes figures to journal columns (SINGLE_COLUMN, DOUBLE_COLUMN)
+and sets every text to at least MIN_FONT_POINTS at that, the printed, size; PDFs embed TrueType
+fonts (pdf.fonttype 42, not Type 3); ticks and their 10^n labels come from matplotlib's own
+locators and formatters. Provenance (command line, and per run file its scheme, thermodynamic
+variable, dt, input file, code version and status) goes into the files' metadata (PNG text
+chunks, PDF document information) and a caption file OUT.txt, not onto the figure.
+"""
 import argparse
+import shlex
 import sys
-import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -9,23 +18,66 @@ import matplotlib
 matplotlib.use("Agg")  # scripts write files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import SymmetricalLogLocator  # noqa: E402
 
 from trajectory import RunFileError  # noqa: E402
 
+# Journal column widths [in]: one column and the full text width.
+SINGLE_COLUMN, DOUBLE_COLUMN = 3.5, 7.0
+MIN_FONT_POINTS = 8
+PAPER_STYLE = {
+    "font.size": MIN_FONT_POINTS, "axes.titlesize": MIN_FONT_POINTS, "axes.labelsize": MIN_FONT_POINTS,
+    "xtick.labelsize": MIN_FONT_POINTS, "ytick.labelsize": MIN_FONT_POINTS,
+    "legend.fontsize": MIN_FONT_POINTS, "legend.title_fontsize": MIN_FONT_POINTS,
+    "figure.titlesize": 9, "figure.labelsize": MIN_FONT_POINTS,
+    "pdf.fonttype": 42, "ps.fonttype": 42,            # TrueType, not Type 3
+    "axes.formatter.use_mathtext": True,              # 10^n, not 1e-12, in scalar labels too
+    "axes.formatter.limits": (-3, 4),
+    "axes.linewidth": 0.6, "grid.linewidth": 0.3, "grid.color": "0.85",
+    "xtick.major.width": 0.6, "ytick.major.width": 0.6, "xtick.minor.width": 0.4, "ytick.minor.width": 0.4,
+    "lines.linewidth": 1.0, "lines.markersize": 3.5, "lines.markeredgewidth": 0.7,
+    "legend.frameon": False, "legend.handlelength": 2.2, "legend.columnspacing": 1.2,
+    "figure.constrained_layout.use": True, "figure.dpi": 100, "savefig.dpi": 300,
+}
+matplotlib.style.use(PAPER_STYLE)
+
 # Colour per thermodynamic variable, so EME and midpoint runs of one variable match.
 VARIABLE_COLOURS = {"entropy": "tab:blue", "temperature": "tab:red", "internal_energy": "tab:green"}
+VARIABLE_ORDER = ("entropy", "temperature", "internal_energy")
+# Nested markers (large, middle, small; drawn large first): points of up to three curves that
+# coincide stay visible as a circle around a triangle around a square. A second set of shapes
+# tells apart curves of two schemes that coincide (a circle and a diamond both show).
+NESTED_MARKERS = ((("o", 5.0), ("^", 3.5), ("s", 2.0)), (("D", 4.5), ("v", 3.5), ("p", 2.5)))
 # Increments below this size [J or J/K] are drawn on the linear part of the symlog axis.
-INCREMENT_LINEAR_THRESHOLD = 1e-15
+INCREMENT_LINEAR_THRESHOLD = 1e-16
+# Markers on a curve: about this many, so that a curve under another still shows.
+MARKERS_PER_CURVE = 12
 
 
 def argument_parser(description):
-    """Parser with the arguments every script takes: FILE.h5 ... and -o OUT."""
+    """Parser with the arguments every script takes: FILE.h5 ..., -o OUT and --style."""
     parser = argparse.ArgumentParser(description=description,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("files", nargs="+", metavar="FILE.h5", help="run files written by eme_run")
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
-                        help="output path without suffix: writes OUT.png and OUT.pdf")
+                        help="output path without suffix: writes OUT.png and OUT.pdf, and the caption "
+                             "with every file's provenance to OUT.txt")
+    parser.add_argument("--style", default="paper", metavar="STYLE",
+                        help="'paper' (default): journal column widths (3.5 and 7 in), text >= 8 pt, "
+                             "TrueType fonts; any other matplotlib style name or .mplstyle file is "
+                             "applied on top of it")
     return parser
+
+
+def parse_arguments(parser, argv):
+    """Parses the command line and applies --style (a bad style is a usage error)."""
+    args = parser.parse_args(argv)
+    if args.style != "paper":
+        try:
+            matplotlib.style.use(args.style)
+        except (OSError, ValueError) as error:
+            parser.error(f"--style {args.style}: {error}")
+    return args
 
 
 def output_stem(output):
@@ -37,30 +89,88 @@ def output_stem(output):
     return path
 
 
-def save(fig, output):
-    """Writes OUT.png and OUT.pdf, closes the figure and returns the two paths."""
+def provenance(title, runs=(), lines=()):
+    """The caption text: title, the command that drew the figure, one line per run file, and
+    any further lines."""
+    script = Path(sys.argv[0]).name
+    command = shlex.join([script, *sys.argv[1:]])
+    text = [title, f"Drawn by: {command} (matplotlib {matplotlib.__version__})"]
+    text += [f"{run.name}: {run.description}" for run in runs]
+    return "\n".join(text + list(lines))
+
+
+def save(fig, output, title, runs=(), lines=()):
+    """Writes OUT.png and OUT.pdf at the figure's size with the provenance in their metadata,
+    and OUT.txt with the same text; closes the figure and returns the three paths."""
+    for run in runs:
+        if run.incomplete:
+            print(f"{Path(sys.argv[0]).name}: {run.path}: {run.incomplete_mark}, drawn as far as it goes "
+                  f"(status: {run.status}" + "".join(f"; {problem}" for problem in run.problems) + ")",
+                  file=sys.stderr)
     stem = output_stem(output)
-    paths = [stem.with_name(stem.name + suffix) for suffix in (".png", ".pdf")]
-    for path in paths:
-        fig.savefig(path, dpi=150)
+    caption = provenance(title, runs, lines)
+    creator = f"{Path(sys.argv[0]).name} (matplotlib {matplotlib.__version__})"
+    metadata = {".png": {"Title": title, "Description": caption, "Software": creator},
+                ".pdf": {"Title": title, "Subject": caption, "Creator": creator}}
+    paths = []
+    for suffix in (".png", ".pdf"):
+        path = stem.with_name(stem.name + suffix)
+        fig.savefig(path, metadata=metadata[suffix])
+        paths.append(path)
         print(f"wrote {path}")
+    text_path = stem.with_name(stem.name + ".txt")
+    text_path.write_text(caption + "\n")
+    paths.append(text_path)
+    print(f"wrote {text_path}")
     plt.close(fig)
     return paths
-
-
-def describe(fig, title, runs):
-    """Figure title plus one line per run: scheme, thermodynamic variable, dt, input file, status."""
-    lines = [title]
-    for run in runs:
-        text = f"{run.name}: {run.description}"
-        lines.extend(textwrap.wrap(text, 150, subsequent_indent="    ", break_long_words=False,
-                                   break_on_hyphens=False))
-    fig.suptitle("\n".join(lines), x=0.01, ha="left", fontsize=7)
 
 
 def colour(run):
     """The run's line colour, by thermodynamic variable."""
     return VARIABLE_COLOURS.get(run.attrs["thermo_variable"], "black")
+
+
+def variable_position(variable):
+    """Place of a thermodynamic variable in VARIABLE_ORDER (unknown ones after)."""
+    return VARIABLE_ORDER.index(variable) if variable in VARIABLE_ORDER else len(VARIABLE_ORDER)
+
+
+def curve_style(colour, position, filled=True, linestyle="-", shapes=0):
+    """Line and nested marker of curve `position` from the marker set `shapes`; `filled` False
+    draws open markers."""
+    nested = NESTED_MARKERS[shapes % len(NESTED_MARKERS)]
+    marker, size = nested[position % len(nested)]
+    return dict(color=colour, marker=marker, markersize=size, linestyle=linestyle,
+                markerfacecolor=colour if filled else "none", zorder=2 + 0.1 * position)
+
+
+def run_style(run, compare=False):
+    """A run's curve: colour and nested marker by thermodynamic variable; a compared run is
+    dashed with open markers."""
+    return curve_style(colour(run), variable_position(run.attrs["thermo_variable"]),
+                       filled=not compare, linestyle="--" if compare else "-")
+
+
+def styled_runs(runs, compare=()):
+    """(run, style) pairs: the runs, then the compared runs (dashed, open markers)."""
+    return [(run, run_style(run)) for run in runs] + [(run, run_style(run, compare=True)) for run in compare]
+
+
+def add_compare_argument(parser):
+    parser.add_argument("--compare", nargs="+", default=[], metavar="FILE.h5",
+                        help="midpoint-rule (or any other) runs to overlay, dashed with open markers")
+
+
+def plot_marked(ax, x, y, style, **more):
+    """A curve with MARKERS_PER_CURVE markers on it (its legend entry shows line and marker)."""
+    return ax.plot(x, y, markevery=max(1, len(x) // MARKERS_PER_CURVE), **style, **more)
+
+
+def plot_points(ax, x, y, style):
+    """Only the markers of a curve style, one per point (no line: a line joining increments of
+    opposite sign would cross every decade of a symlog axis)."""
+    return ax.plot(x, y, **{**style, "linestyle": "none"})
 
 
 def flat_aware_limits(ax, values):
@@ -78,28 +188,28 @@ def flat_aware_limits(ax, values):
     ax.ticklabel_format(axis="y", useOffset=False)
 
 
-def increment_axis(ax, values):
-    """Symmetric-log y axis for per-step increments.
+def increment_axis(ax, values, labels=7):
+    """Symmetric-log y axis for per-step increments, with at most `labels` labelled ticks.
 
     Why symlog: an EME energy increment is round-off (1e-13 J) while a midpoint one is of
     order 1 J, and the sign matters (dS >= 0, dV <= 0). Symlog is logarithmic on both sides
     of zero, so 1e-12 and 1 are both read off decades and the sign is the side of the axis;
-    exact zeros, which a log of |increment| cannot show, sit on the thin linear band
-    |x| < 1e-15, below the round-off of any quantity of this model."""
-    ax.set_yscale("symlog", linthresh=INCREMENT_LINEAR_THRESHOLD, linscale=0.3)
+    exact zeros, which a log of |increment| cannot show, sit on the linear band |x| < 1e-16,
+    below the round-off of any quantity of this model (E ~ 600 J, S ~ 2 J/K). The axis ends at the decade
+    above the largest increment that matplotlib's symlog locator labels (10^n formatter)."""
+    ax.set_yscale("symlog", linthresh=INCREMENT_LINEAR_THRESHOLD, linscale=3.5)
+    locator = ax.yaxis.get_major_locator()
+    locator.set_params(numticks=labels)
     largest = max((np.max(np.abs(v)) for v in values if len(v)), default=0.0)
-    # Labels at 1e-12 and every third decade above it; the axis ends on a labelled decade.
-    decade = int(np.ceil(np.log10(largest))) if largest > 0 else -12
-    top_exponent = max(-12, decade + (-(decade + 12)) % 3)
-    decades = 10.0 ** np.arange(-12, top_exponent + 1, 3, dtype=float)
-    top = decades[-1]
+    exponent = int(np.ceil(np.log10(largest))) if largest > INCREMENT_LINEAR_THRESHOLD else -12
+    for top in 10.0 ** np.arange(exponent, exponent + labels):
+        if np.any(np.isclose(locator.tick_values(-top, top), top, rtol=1e-9)):
+            break
     ax.set_ylim(-top, top)
-    ticks = np.concatenate([-decades[::-1], [0.0], decades])
-    ax.set_yticks(ticks, [f"{t:.0e}" if t else "0" for t in ticks])
-    every_decade = 10.0 ** np.arange(np.log10(INCREMENT_LINEAR_THRESHOLD), np.log10(top) + 1)
-    ax.set_yticks(np.concatenate([-every_decade, every_decade]), minor=True)
-    ax.grid(True, axis="y", linewidth=0.3)
-    ax.tick_params(axis="y", labelsize=7)
+    every_decade = SymmetricalLogLocator(linthresh=INCREMENT_LINEAR_THRESHOLD, base=10)
+    every_decade.set_params(numticks=1000)
+    ax.yaxis.set_minor_locator(every_decade)
+    ax.grid(True, axis="y", which="major")
 
 
 def figure_texts(fig):

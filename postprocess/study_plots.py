@@ -3,8 +3,9 @@
 A curve or map row is a scheme and thermodynamic variable pair, e.g. ("eme", "temperature"),
 labelled in the paper's notation (EME_theta) with the label the integrator registry gives
 (postprocess/integrators.py). Colour says the scheme, marker and line style the thermodynamic
-variable."""
-import textwrap
+variable. The figures use the paper style of plotting.py; what each shows in detail (reference,
+fit rule, classification) goes to its caption file and metadata.
+"""
 from pathlib import Path
 
 import numpy as np
@@ -13,15 +14,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 import integrators
-from plotting import plt, save
-
-VARIABLE_ORDER = ("entropy", "temperature", "internal_energy")
-VARIABLE_PLAIN = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
-VARIABLE_MATH = {"entropy": "s", "temperature": r"\theta", "internal_energy": "u"}
-# Nested markers (large open, middle open, small filled), so that points of the three
-# variables that coincide stay visible.
-VARIABLE_MARKERS = {"entropy": ("o", 8, "none"), "temperature": ("^", 6, "none"),
-                    "internal_energy": ("s", 3, None)}
+from plotting import DOUBLE_COLUMN, VARIABLE_ORDER, curve_style, plt, save, variable_position
+from trajectory import VARIABLE_NAMES, VARIABLE_SYMBOLS
 VARIABLE_LINES = {"entropy": "-", "temperature": "--", "internal_energy": ":"}
 
 # Log axes cannot show 0: values below LOG_FLOOR (exact zeros included) are drawn at it. Relative
@@ -44,8 +38,7 @@ SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene"}
 def key_rank(key):
     """Sort key of a (scheme, variable) pair: registry order, unknown names last."""
     scheme, variable = key
-    return (integrators.position(scheme), scheme,
-            VARIABLE_ORDER.index(variable) if variable in VARIABLE_ORDER else len(VARIABLE_ORDER), variable)
+    return (integrators.position(scheme), scheme, variable_position(variable), variable)
 
 
 def curve_keys(rows):
@@ -55,35 +48,32 @@ def curve_keys(rows):
 
 def plain_name(scheme, variable):
     """EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u."""
-    return f"{integrators.label(scheme)}_{VARIABLE_PLAIN.get(variable, variable)}"
+    return f"{integrators.label(scheme)}_{VARIABLE_NAMES.get(variable, variable)}"
 
 
 def label(scheme, variable):
     """The paper's notation with a subscript, for legends and axes."""
-    return rf"{integrators.label(scheme)}$_{{{VARIABLE_MATH.get(variable, variable)}}}$"
+    return rf"{integrators.label(scheme)}$_{{{VARIABLE_SYMBOLS.get(variable, variable)}}}$"
 
 
 def style(key):
-    """Line and marker style of one scheme."""
+    """Line and marker style of one scheme: the variable's nested marker, open where a smaller
+    one may sit inside it, in shapes that alternate from scheme to scheme of the registry (so
+    that MP and TS-midpoint, whose errors coincide, both show)."""
     scheme, variable = key
-    marker, size, face = VARIABLE_MARKERS.get(variable, ("x", 5, None))
-    colour = integrators.colour(scheme)
-    return dict(color=colour, marker=marker, markersize=size, markerfacecolor=face or colour,
-                linestyle=VARIABLE_LINES.get(variable, "-."), linewidth=1.0)
-
-
-def header(fig, title, lines):
-    """Title and a few description lines, as plotting.describe writes them for single runs."""
-    wrapped = [title]
-    for line in lines:
-        wrapped += textwrap.wrap(line, 170, subsequent_indent="    ", break_long_words=False)
-    fig.suptitle("\n".join(wrapped), x=0.01, ha="left", fontsize=7)
+    position = variable_position(variable)
+    return curve_style(integrators.colour(scheme), position, filled=position >= len(VARIABLE_ORDER) - 1,
+                       linestyle=VARIABLE_LINES.get(variable, "-."), shapes=integrators.position(scheme))
 
 
 def members(rows, key):
     """Indices of the rows of one scheme, by ascending dt."""
     chosen = [i for i, row in enumerate(rows) if (row["scheme"], row["thermo_variable"]) == key]
     return sorted(chosen, key=lambda i: rows[i]["dt"])
+
+
+def legend_right(fig, ax):
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper")
 
 
 def error_axes(ax, conv, x_values, with_fit):
@@ -97,21 +87,21 @@ def error_axes(ax, conv, x_values, with_fit):
             text += f": order {fit['order']:.2f}"
         ax.plot(x_values[chosen], errors[chosen], label=text, **style(key))
     ax.axhline(conv["level"], color="black", linewidth=0.8, linestyle="-.",
-               label=f"|reference - cross-check| = {conv['level']:.1e}")
+               label="|reference $-$ cross-check|")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_ylabel(r"error at $t = T$:  max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, "
+    ax.set_ylabel(r"error at $t = T$: max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, "
                   r"|$\Delta\theta_a$|/$\theta_{ref}$)")
-    ax.grid(True, which="major", linewidth=0.3)
+    ax.grid(True, which="major")
 
 
 def reference_lines(conv):
-    """Header lines naming the reference, the cross-check and the cases of the convergence study."""
+    """Caption lines naming the reference, the cross-check and the cases of the convergence study."""
     reference, cross_check = conv["reference"], conv["cross_check"]
-    return [f"Reference: {reference.path} at T = {reference.time:g} s; cross-check: {cross_check.path}. "
-            "Errors near the cross-check level (dash-dot line) measure the reference, not the scheme. "
-            "Where curves coincide (a scheme in its three variables; MP and TS-midpoint), the nested "
-            "markers show it.",
+    return [f"Reference: {reference.path} at T = {reference.time:g} s; cross-check: {cross_check.path}; "
+            f"|reference - cross-check| = {conv['level']:.1e} (dash-dot line). Errors near that level "
+            "measure the reference, not the scheme. Where curves coincide (a scheme in its three "
+            "variables; MP and TS-midpoint), the nested markers show it.",
             f"Cases: {len(conv['rows'])} complete of {conv['rows'][0]['index'] if conv['rows'] else '-'}"
             + (f"; left out (not complete): {len(conv['left_out'])}" if conv["left_out"] else "")]
 
@@ -119,35 +109,30 @@ def reference_lines(conv):
 def convergence_figure(conv, fit_rule):
     """Error at t = T against dt, log-log, with the fitted order of each scheme."""
     points, factor = fit_rule
-    fig, ax = plt.subplots(figsize=(11, 6.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(DOUBLE_COLUMN, 4.4))
     dt = np.array([row["dt"] for row in conv["rows"]])
     error_axes(ax, conv, dt, with_fit=True)
     fitted = np.isin([row["case"] for row in conv["rows"]],
                      np.concatenate([fit["cases"] for fit in conv["fits"].values()]))
-    ax.plot(dt[fitted], conv["errors"][fitted], linestyle="none", marker="o", markersize=15,
-            color="0.85", zorder=0, label="points of the order fit (grey disc)")
-    steps = np.unique(dt)
-    ax.set_xticks(steps, [f"{step:g}" for step in steps], fontsize=7)
-    ax.minorticks_off()
+    ax.plot(dt[fitted], conv["errors"][fitted], linestyle="none", marker="o", markersize=11,
+            color="0.85", zorder=0, label="points of the order fit")
     ax.set_xlabel(r"time step $\Delta t$ [s]")
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper", fontsize=7)
-    header(fig, "Convergence: error at t = T against the time step", reference_lines(conv) + [
+    legend_right(fig, ax)
+    return fig, "Convergence: error at t = T against the time step", reference_lines(conv) + [
         f"Order: least-squares slope of log(error) on log(dt) over the asymptotic range, the {points} "
-        f"smallest dt with error > {factor:g} x the cross-check level (grey discs)."])
-    return fig
+        f"smallest dt with error > {factor:g} x the cross-check level (grey discs)."]
 
 
 def work_precision_figure(conv):
     """Error at t = T against the solve time, log-log; lower left is better."""
-    fig, ax = plt.subplots(figsize=(11, 6.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(DOUBLE_COLUMN, 4.4))
     time = np.array([row["solve_time_seconds"] for row in conv["rows"]])
     error_axes(ax, conv, time, with_fit=False)
-    ax.set_xlabel("solve time [s] (solve_time_seconds: the time loop of one case, one rank)")
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper", fontsize=7)
-    header(fig, "Work-precision: error at t = T against solve time (lower left is better)",
-           reference_lines(conv) + ["Points along a curve: the dt of the convergence study; one timing "
-                                    "per case, no repeats."])
-    return fig
+    ax.set_xlabel("solve time of one case on one rank [s]")
+    legend_right(fig, ax)
+    return fig, "Work-precision: error at t = T against solve time (lower left is better)", \
+        reference_lines(conv) + ["Points along a curve: the dt of the convergence study; solve_time_seconds "
+                                 "(the time loop of one case, one rank), one timing per case, no repeats."]
 
 
 def floored(values):
@@ -156,7 +141,7 @@ def floored(values):
 
 def structure_figure(structure, source):
     """Energy error and entropy-law violation against solve time, complete cases."""
-    fig, axes = plt.subplots(1, 2, figsize=(13, 6), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(1, 2, figsize=(DOUBLE_COLUMN, 4.6), sharex=True)
     rows = structure["rows"]
     panels = (("energy", r"energy error max$_n$ |$E_n - E_0$| / |$E_0$|"),
               ("violation", r"entropy decrease max(0, $-$min$_n$ ($S_{n+1} - S_n$)) [J/K]"))
@@ -165,76 +150,74 @@ def structure_figure(structure, source):
             chosen = members(rows, key)
             ax.plot(structure["solve_time"][chosen], floored(structure[name][chosen]),
                     label=label(*key), **style(key))
-        ax.axhspan(LOG_FLOOR / 10, LOG_FLOOR * 2, color="0.88", zorder=0)
-        ax.text(0.01, 0.01, f"floor: exact zeros and values < {LOG_FLOOR:.0e} drawn at {LOG_FLOOR:.0e}",
-                transform=ax.transAxes, fontsize=7, va="bottom")
+        floor = ax.axhspan(LOG_FLOOR / 10, LOG_FLOOR * 2, color="0.88", zorder=0)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_ylim(bottom=LOG_FLOOR / 10)
-        ax.set_xlabel("solve time [s] (time loop of one case)")
+        ax.set_xlabel("solve time of one case [s]")
         ax.set_ylabel(ylabel)
-        ax.grid(True, which="major", linewidth=0.3)
-    axes[0].axhline(np.finfo(float).eps, color="black", linewidth=0.6, linestyle=":")
-    axes[0].text(0.99, np.finfo(float).eps * 1.5, "machine epsilon", transform=axes[0].get_yaxis_transform(),
-                 ha="right", fontsize=7)
-    zero = [label(*key) for key in curve_keys(rows)
+        ax.grid(True, which="major")
+    epsilon = axes[0].axhline(np.finfo(float).eps, color="black", linewidth=0.6, linestyle=":")
+    axes[0].legend([floor, epsilon], [rf"zeros and values < $10^{{{np.log10(LOG_FLOOR):.0f}}}$", "machine epsilon"],
+                   loc="center left", bbox_to_anchor=(0.0, 0.42))
+    # One legend column per scheme: its curves in the three variables.
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=max(1, -(-len(handles) // len(VARIABLE_ORDER))))
+    zero = [plain_name(*key) for key in curve_keys(rows)
             if np.all(structure["violation"][members(rows, key)] == 0)]
-    axes[1].text(0.01, 0.1, "zero on every finished case:\n" + ", ".join(zero), transform=axes[1].transAxes,
-                 fontsize=7, va="bottom", wrap=True)
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=8, fontsize=7)
-    header(fig, "Structure against cost: energy error and entropy decrease against solve time", [
+    return fig, "Structure against cost: energy error and entropy decrease against solve time", [
         f"Complete cases of {source} ([0, t_end], dt from the study), one point per case, curves "
         "ordered by dt; failed cases are left out. From the index: energy_drift and "
-        "min_entropy_increment."])
-    return fig
+        f"min_entropy_increment. Exact zeros and values below {LOG_FLOOR:.0e} are drawn at {LOG_FLOOR:.0e} "
+        "(grey band).", "Entropy decrease zero on every finished case: " + ", ".join(zero)]
 
 
 def stability_figure(maps):
-    """One panel per scene: rows = schemes, columns = dt, cells coloured by outcome."""
+    """One panel per scene, stacked: rows = schemes, columns = dt, cells coloured by outcome."""
     outcomes = list(OUTCOME_TEXT)
     colours = ListedColormap([NOT_RUN_COLOUR] + [OUTCOME_COLOURS[o] for o in outcomes])
-    fig, axes = plt.subplots(1, len(maps), figsize=(14, 7.5), layout="constrained", sharey=True)
-    axes = np.atleast_1d(axes)
-    for ax, (scene, grid) in zip(axes, maps.items()):
+    heights = [len(grid["keys"]) for grid in maps.values()]
+    fig, axes = plt.subplots(len(maps), 1, figsize=(DOUBLE_COLUMN, 0.2 * sum(heights) + 0.6 * len(maps) + 1.6),
+                             height_ratios=heights, squeeze=False)
+    for ax, (scene, grid) in zip(axes[:, 0], maps.items()):
         outcome = grid["outcome"]
-        ax.imshow(outcome + 1, cmap=colours, vmin=0, vmax=len(outcomes), aspect="auto",
-                  interpolation="nearest")
+        ax.pcolormesh(outcome + 1, cmap=colours, vmin=0, vmax=len(outcomes), edgecolors="white",
+                      linewidth=1.0)
         for i, j in np.ndindex(outcome.shape):
             text = grid["flags"][i, j]
             if np.isfinite(grid["failed_at"][i, j]):
                 text = f"{grid['failed_at'][i, j]:g} s" + (f" {text}" if text else "")
             if text:
                 dark = outcome[i, j] >= 0 and outcomes[outcome[i, j]] == "nonphysical"
-                ax.text(j, i, text, ha="center", va="center", fontsize=6,
-                        color="white" if dark else "black")
-        ax.set_xticks(range(len(grid["dt"])), [f"{dt:g}" for dt in grid["dt"]], fontsize=7)
-        ax.set_yticks(range(len(grid["keys"])), [label(*key) for key in grid["keys"]], fontsize=8)
-        ax.set_xticks(np.arange(len(grid["dt"]) + 1) - 0.5, minor=True)
-        ax.set_yticks(np.arange(len(grid["keys"]) + 1) - 0.5, minor=True)
-        ax.grid(True, which="minor", color="white", linewidth=1.0)
-        ax.tick_params(which="minor", length=0)
+                ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", color="white" if dark else "black")
+        # Categorical axes: one labelled tick per cell.
+        ax.set_xticks(np.arange(len(grid["dt"])) + 0.5, [f"{dt:g}" for dt in grid["dt"]])
+        ax.set_yticks(np.arange(len(grid["keys"])) + 0.5, [label(*key) for key in grid["keys"]])
+        ax.tick_params(length=0)
+        ax.invert_yaxis()
         ax.set_xlabel(r"time step $\Delta t$ [s]")
-        ax.set_title(f"{SCENE_TITLES.get(scene, scene)}: {grid['scene']}\n({grid['source']})", fontsize=8)
+        ax.set_title(f"{SCENE_TITLES.get(scene, scene)}: {grid['scene']}", loc="left")
     handles = [Patch(facecolor=OUTCOME_COLOURS[o], edgecolor="0.5", label=OUTCOME_TEXT[o]) for o in outcomes]
     handles.append(Patch(facecolor=NOT_RUN_COLOUR, edgecolor="0.5", label="not in the study"))
     for text in ("in a cell: V = V also rose (energy error decides the colour)",
                  "T = the solver's last rejected root had a temperature <= 0",
                  "9 s = the case failed in the step ending at t = 9 s"):
         handles.append(Line2D([], [], linestyle="none", label=text))
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=7, handlelength=1.5)
-    header(fig, "Stability map: outcome of every case", [
+    fig.legend(handles=handles, loc="outside lower center", ncols=1, handlelength=1.5)
+    return fig, "Stability map: outcome of every case", [
+        "Studies: " + "; ".join(f"{SCENE_TITLES.get(scene, scene)}: {grid['source']}" for scene, grid in maps.items()),
         "Precedence: a failed case counts as failed; our solver's 'no root' (it rejected or missed every root) "
         "is a solver failure, marked T when the last rejected root had a temperature <= 0; a finished case with "
         "a temperature <= 0 in /temperature (checked for every finished case) is non-physical; then energy error "
-        "> 1e-6 (marked V when V also rose), then V rising by > 1e-8 J."])
-    return fig
+        "> 1e-6 (marked V when V also rose), then V rising by > 1e-8 J."]
 
 
 def save_all(output, conv, structure, maps, fit_rule):
-    """Writes the four figures to OUTPUT/study_*.png and .pdf."""
+    """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt."""
     output = Path(output)
-    save(convergence_figure(conv, fit_rule), output / "study_convergence")
-    save(work_precision_figure(conv), output / "study_work_precision")
     source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
-    save(structure_figure(structure, source), output / "study_structure_cost")
-    save(stability_figure(maps), output / "study_stability_map")
+    for name, (fig, title, lines) in (("study_convergence", convergence_figure(conv, fit_rule)),
+                                      ("study_work_precision", work_precision_figure(conv)),
+                                      ("study_structure_cost", structure_figure(structure, source)),
+                                      ("study_stability_map", stability_figure(maps))):
+        save(fig, output / name, title, lines=lines)

@@ -7,53 +7,83 @@ the smallest entropy increment, the largest Lyapunov increment, the J_z drift
 max_n |J_z,n - J_z,0|, the largest constraint residual, the mean Newton iterations per step and
 the wall time. Everything is read from the HDF5 files.
 
+A file that a killed or stopped run left behind is summarised as far as it goes, its status
+marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5, damaged, without
+the datasets) is named on stderr with the reason, and the exit status is then 2.
+
 usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
 """
 import argparse
 import sys
 from pathlib import Path
 
-import h5py
 import numpy as np
 
-from trajectory import RunFileError
+from trajectory import IDENTITY_ATTRIBUTES, Run, RunFileError, cut_to_common_length, root_attributes, run_file
+
+POINT_DATASETS = ("energy", "entropy", "lyapunov", "angular_momentum")
+STEP_DATASETS = ("newton_iterations",)
+OPTIONAL = ("boundary_heat", "constraint_residual")
+
+
+def read(path):
+    """The datasets the table needs and every root attribute, cut to the steps they all hold."""
+    with run_file(path) as f:
+        for name in (*POINT_DATASETS, *STEP_DATASETS):
+            if name not in f:
+                raise RunFileError(f"{path}: dataset /{name} is missing; is this an eme_run file?")
+        run = Run(Path(path), root_attributes(f))
+        for name in (*POINT_DATASETS, *STEP_DATASETS, *OPTIONAL):
+            if name in f:
+                run.data[name] = f[name][()]
+                run.rows[name] = "step" if name in STEP_DATASETS else "point"
+    absent = [name for name in (*IDENTITY_ATTRIBUTES, "discrete_gradient") if name not in run.attrs]
+    if absent:
+        run.problems.append("root attributes " + ", ".join(absent) + " missing")
+    cut_to_common_length(run)
+    return run
 
 
 def summarize(path):
     """The table row of one run file, as a dict of numbers and strings."""
-    with h5py.File(path, "r") as f:
-        for name in ("energy", "entropy", "lyapunov", "angular_momentum", "newton_iterations"):
-            if name not in f:
-                raise RunFileError(f"{path}: dataset /{name} is missing; is this an eme_run file?")
-        energy, entropy, lyapunov = f["energy"][:], f["entropy"][:], f["lyapunov"][:]
-        heat = f["boundary_heat"][:] if "boundary_heat" in f else np.zeros_like(energy)
-        constraint = float(np.abs(f["constraint_residual"][:]).max()) if "constraint_residual" in f else None
-        jz = f["angular_momentum"][:, 2]
-        newton = f["newton_iterations"][:]
-        attrs = f.attrs
-        steps = len(newton)
-        return {
-            "file": Path(path).stem,
-            "run": f"{attrs['scheme']}/{attrs['thermo_variable']}"
-                   + (f"/{attrs['discrete_gradient']}" if attrs["discrete_gradient"] != "none" else "")
-                   + (f" + {attrs['constraints']}" if attrs.get("constraints", "none") != "none" else ""),
-            "status": attrs["status"],
-            "steps": steps,
-            "energy_drift": float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0])),
-            "min_dS": float(np.diff(entropy).min()) if steps else float("nan"),
-            "max_dV": float(np.diff(lyapunov).max()) if steps else float("nan"),
-            "jz_drift": float(np.max(np.abs(jz - jz[0]))),
-            "constraint": "-" if constraint is None else f"{constraint:.1e}",
-            "newton_per_step": float(newton.mean()) if steps else float("nan"),
-            "wall_s": float(attrs["wall_time_seconds"]),
-        }
+    run = read(path)
+    data, attrs, steps = run.data, run.attrs, run.steps
+    energy, entropy, lyapunov = data["energy"], data["entropy"], data["lyapunov"]
+    heat = data.get("boundary_heat", np.zeros_like(energy))
+    jz = data["angular_momentum"][:, 2]        # columns J_x J_y J_z (README, Output layout)
+    constraint = data.get("constraint_residual")
+    gradient = attrs.get("discrete_gradient", "none")
+    constraints = attrs.get("constraints", "none")
+    status = run.status
+    if run.incomplete:
+        status = f"{run.incomplete_mark} ({'; '.join([run.status, *run.problems])})"
+    return {
+        "file": run.path.stem,
+        "run": f"{attrs.get('scheme', '?')}/{attrs.get('thermo_variable', '?')}"
+               + (f"/{gradient}" if gradient != "none" else "")
+               + (f" + {constraints}" if constraints != "none" else ""),
+        "status": status,
+        "steps": steps,
+        "energy_drift": float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0])),
+        "min_dS": float(np.diff(entropy).min()) if steps else float("nan"),
+        "max_dV": float(np.diff(lyapunov).max()) if steps else float("nan"),
+        "jz_drift": float(np.max(np.abs(jz - jz[0]))),
+        "constraint": "-" if constraint is None or constraint.size == 0 else f"{np.abs(constraint).max():.1e}",
+        "newton_per_step": float(data["newton_iterations"].mean()) if steps else float("nan"),
+        "wall_s": f"{attrs['wall_time_seconds']:.3f}" if "wall_time_seconds" in attrs else "-",
+    }
 
 
 COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"), ("energy_drift", "energy balance", "{:.2e}"),
            ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
            ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("constraint", "max |g|", "{}"),
            ("newton_per_step", "Newton/step", "{:.2f}"),
-           ("wall_s", "wall [s]", "{:.3f}"), ("status", "status", "{}")]
+           ("wall_s", "wall [s]", "{}"), ("status", "status", "{}")]
+
+
+def markdown_row(cells):
+    """One Markdown table row; a '|' inside a cell (as in 'max |g|') is escaped."""
+    return "| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |"
 
 
 def main(argv=None):
@@ -61,24 +91,28 @@ def main(argv=None):
     parser.add_argument("files", nargs="+", help="eme_run HDF5 files")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     args = parser.parse_args(argv)
-    rows = [[fmt.format(summarize(path)[key]) for key, _, fmt in COLUMNS] for path in args.files]
+    rows, unusable = [], 0
+    for path in args.files:
+        try:
+            row = summarize(path)
+        except RunFileError as error:
+            print(f"summarize_runs.py: error: {error}", file=sys.stderr)
+            unusable += 1
+            continue
+        rows.append([fmt.format(row[key]) for key, _, fmt in COLUMNS])
     headers = [title for _, title, _ in COLUMNS]
-    if args.markdown:
-        print("| " + " | ".join(headers) + " |")
+    if rows and args.markdown:
+        print(markdown_row(headers))
         print("|" + "---|" * len(headers))
         for row in rows:
-            print("| " + " | ".join(row) + " |")
-        return 0
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]
-    print("  ".join(h.ljust(w) for h, w in zip(headers, widths)))
-    for row in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(row, widths)))
-    return 0
+            print(markdown_row(row))
+    elif rows:
+        widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]
+        print("  ".join(h.ljust(w) for h, w in zip(headers, widths)).rstrip())
+        for row in rows:
+            print("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
+    return 2 if unusable else 0
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except (RunFileError, OSError) as error:      # a bad or unreadable file: exit status 2
-        print(f"summarize_runs.py: error: {error}", file=sys.stderr)
-        sys.exit(2)
+    sys.exit(main())

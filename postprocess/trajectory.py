@@ -1,9 +1,13 @@
 """Reads eme_run output files (README, "Output layout (HDF5)") and extracts what the plots show.
 
 Every dataset and attribute is looked up by its documented name; columns of 2-D datasets are
-found through their `columns` attribute, never by position. A missing one raises
-RunFileError naming the file and what is missing.
+found through their `columns` attribute, never by position. A file that cannot be used (not
+HDF5, unreadable, without a dataset or identity attribute a plot needs) raises RunFileError
+naming the file and what is missing. A file that a killed or stopped run left behind is read
+as far as it goes: a missing descriptive attribute is named, datasets of different lengths are
+cut to the steps they all hold, and the run counts as incomplete (Run.problems says why).
 """
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,9 +16,10 @@ import numpy as np
 
 import integrators
 
-# Attributes every figure states (scheme, thermodynamic variable, dt, input file, status).
-DESCRIPTION_ATTRIBUTES = ("scheme", "thermo_variable", "discrete_gradient", "dt", "input_file",
-                          "status", "theta_r")
+# The run's identity: a figure cannot name or colour a run without them.
+IDENTITY_ATTRIBUTES = ("scheme", "thermo_variable")
+# Attributes every figure states when the file has them (a killed run may lack some).
+DESCRIPTION_ATTRIBUTES = ("discrete_gradient", "dt", "theta_r", "input_file", "status", "code_version")
 CONSTRAINT_ATTRIBUTES = ("constraints", "fix_length", "length", "fix_temperature", "temperature")
 
 # Subscripts of the paper's scheme names EME_s, EME_theta, EME_u.
@@ -45,16 +50,22 @@ class Run:
     data: dict = field(default_factory=dict)
     columns: dict = field(default_factory=dict)  # dataset name -> its `columns` attribute, split
     rows: dict = field(default_factory=dict)     # dataset name -> its `rows` attribute: point or step
+    problems: list = field(default_factory=list)  # why the file is incomplete beyond its status
+
+    @property
+    def status(self):
+        """The file's status attribute, or what its absence means."""
+        return str(self.attrs.get("status", "incomplete: no status attribute (the run was killed?)"))
 
     @property
     def incomplete(self):
-        """True when the run stopped early (status 'incomplete: <reason>')."""
-        return str(self.attrs["status"]).startswith("incomplete")
+        """True unless the file says 'complete' and has everything the plots read."""
+        return self.status != "complete" or bool(self.problems)
 
     @property
     def steps(self):
-        """Completed steps N (the datasets hold N+1 states)."""
-        return len(self.data["time"]) - 1
+        """Completed steps N: the per-point datasets hold N+1 rows (after cut_to_common_length)."""
+        return min(len(values) for name, values in self.data.items() if self.rows.get(name) != "step") - 1
 
     def column(self, dataset, name):
         """Column `name` of a 2-D dataset, located through the dataset's `columns` attribute."""
@@ -72,43 +83,83 @@ class Run:
         return f"{scheme}_{VARIABLE_NAMES.get(variable, variable)}"
 
     @property
-    def label(self):
-        """Short legend name in the paper's notation, e.g. EME_theta, with an incomplete marker."""
+    def short_label(self):
+        """The paper's notation, e.g. EME_theta, in math text."""
         scheme = integrators.label(self.attrs["scheme"])
         symbol = VARIABLE_SYMBOLS.get(self.attrs["thermo_variable"], self.attrs["thermo_variable"])
-        text = rf"{scheme}$_{{{symbol}}}$, $\Delta t$ = {self.attrs['dt']:g} s"
+        return rf"{scheme}$_{{{symbol}}}$"
+
+    @property
+    def incomplete_mark(self):
+        """'' for a complete run, else e.g. 'INCOMPLETE after 3 steps' (FAILED for a failed case)."""
+        if not self.incomplete:
+            return ""
+        word = "FAILED" if self.status.startswith("failed") else "INCOMPLETE"
+        return f"{word} after {self.steps} steps"
+
+    @property
+    def label(self):
+        """Legend name in the paper's notation with the time step, e.g. EME_theta, dt = 0.15 s,
+        and the incomplete mark."""
+        text = self.short_label
+        if "dt" in self.attrs:
+            text += rf", $\Delta t$ = {self.attrs['dt']:g} s"
         if self.incomplete:
-            text += f" (INCOMPLETE after {self.steps} steps)"
+            text += f" ({self.incomplete_mark})"
         return text
 
     @property
     def description(self):
         """One line stating scheme, thermodynamic variable, dt, input file, file and status."""
-        a = self.attrs
-        return (f"{a['scheme']}, thermo_variable={a['thermo_variable']}, "
-                f"discrete_gradient={a['discrete_gradient']}, dt={a['dt']:g} s, "
-                f"theta_r={a['theta_r']:g} K, input {a['input_file']}, file {self.path}, "
-                f"status: {a['status']}")
+        a = {name: self.attrs.get(name, "(missing)") for name in DESCRIPTION_ATTRIBUTES}
+        for name, unit in (("dt", "s"), ("theta_r", "K")):
+            if name in self.attrs:
+                a[name] = f"{self.attrs[name]:g} {unit}"
+        text = (f"{self.attrs['scheme']}, thermo_variable={self.attrs['thermo_variable']}, "
+                f"discrete_gradient={a['discrete_gradient']}, dt={a['dt']}, theta_r={a['theta_r']}, "
+                f"input {a['input_file']}, file {self.path}, code {a['code_version']}, "
+                f"status: {self.status}")
+        if self.incomplete:
+            text += f"; {self.incomplete_mark}" + "".join(f"; {problem}" for problem in self.problems)
+        return text
 
 
-def read_run(path, datasets, attributes=()):
-    """Reads the named datasets and attributes (plus those every figure states) of a run file."""
-    path = Path(path)
+@contextmanager
+def run_file(path):
+    """The run file open for reading; failures to open or read it raise RunFileError naming it."""
     try:
         handle = h5py.File(path, "r")
     except OSError as error:
         raise RunFileError(f"{path}: cannot open as an HDF5 run file ({error})") from None
-    with handle:
-        attrs = {}
-        for name in (*DESCRIPTION_ATTRIBUTES, *attributes):
-            if name not in handle.attrs:
-                raise RunFileError(f"{path}: root attribute '{name}' is missing")
-            attrs[name] = _plain(handle.attrs[name])
-        for name in ("scheme_label", "scheme_family"):
-            if name in handle.attrs:
-                attrs[name] = _plain(handle.attrs[name])
-        integrators.register_run(attrs)
-        run = Run(path, attrs)
+    try:
+        with handle:
+            yield handle
+    except (OSError, RuntimeError, KeyError) as error:
+        # HDF5 reports a truncated or damaged file only when its data are read.
+        raise RunFileError(f"{path}: cannot read the file ({type(error).__name__}: {error}); "
+                           "it may be truncated or damaged") from None
+
+
+def root_attributes(handle):
+    """Every root attribute of an open file as plain Python values."""
+    return {name: _plain(value) for name, value in handle.attrs.items()}
+
+
+def read_run(path, datasets, attributes=()):
+    """Reads the named datasets and every root attribute of a run file; `attributes` are required
+    besides IDENTITY_ATTRIBUTES."""
+    path = Path(path)
+    with run_file(path) as handle:
+        missing = [name for name in (*IDENTITY_ATTRIBUTES, *attributes) if name not in handle.attrs]
+        if missing:
+            raise RunFileError(f"{path}: root attribute{'s' if len(missing) > 1 else ''} "
+                               + ", ".join(f"'{name}'" for name in missing)
+                               + (" are" if len(missing) > 1 else " is") + " missing")
+        run = Run(path, root_attributes(handle))
+        integrators.register_run(run.attrs)
+        absent = [name for name in DESCRIPTION_ATTRIBUTES if name not in run.attrs and name != "status"]
+        if absent:
+            run.problems.append("root attributes " + ", ".join(absent) + " missing")
         for name in ("time", *datasets):
             if name not in handle or not isinstance(handle[name], h5py.Dataset):
                 raise RunFileError(f"{path}: dataset '/{name}' is missing")
@@ -117,7 +168,13 @@ def read_run(path, datasets, attributes=()):
                 run.columns[name] = _column_names(handle[name].attrs["columns"])
             if "rows" in handle[name].attrs:
                 run.rows[name] = _plain(handle[name].attrs["rows"])
-    _check_lengths(run, datasets)
+            elif name != "time":
+                raise RunFileError(f"{path}: dataset '/{name}' has no 'rows' attribute (point or step)")
+        # The other datasets' lengths count too: a file whose datasets disagree is incomplete.
+        others = {name: (_plain(item.attrs["rows"]), item.shape[0]) for name, item in handle.items()
+                  if name not in run.data and isinstance(item, h5py.Dataset) and item.shape
+                  and "rows" in item.attrs}
+    cut_to_common_length(run, others)
     return run
 
 
@@ -127,17 +184,23 @@ def _column_names(value):
     return value.replace(",", " ").split() if isinstance(value, str) else list(value)
 
 
-def _check_lengths(run, datasets):
+def cut_to_common_length(run, others=None):
     """Per-point datasets have N+1 rows and per-step ones N, as each dataset's `rows` attribute
-    says (README, Output layout)."""
-    rows = len(run.data["time"])
-    for name in datasets:
-        if name not in run.rows:
-            raise RunFileError(f"{run.path}: dataset '/{name}' has no 'rows' attribute (point or step)")
-        expected = rows - 1 if run.rows[name] == "step" else rows
-        if len(run.data[name]) != expected:
-            raise RunFileError(f"{run.path}: dataset '/{name}' has {len(run.data[name])} rows, "
-                               f"expected {expected} (/time has {rows})")
+    says (README, Output layout). A file killed while writing may hold more rows in some; the
+    datasets read are cut to the steps that every dataset holds (those read and `others`, name:
+    (rows, length) of datasets not read), and the cut is recorded as a problem."""
+    lengths = {name: (run.rows.get(name, "point"), len(values)) for name, values in run.data.items()}
+    lengths.update(others or {})
+    steps = min(length - (0 if rows == "step" else 1) for rows, length in lengths.values())
+    if steps < 0:
+        raise RunFileError(f"{run.path}: no state written ("
+                           + ", ".join(f"/{name} has {length} rows" for name, (_, length) in lengths.items()) + ")")
+    if any(length != steps + (0 if rows == "step" else 1) for rows, length in lengths.values()):
+        run.problems.append("datasets of different lengths ("
+                            + ", ".join(f"/{name} {length} rows" for name, (_, length) in lengths.items())
+                            + f"); read up to step {steps}")
+        for name in run.data:
+            run.data[name] = run.data[name][:steps + (0 if lengths[name][0] == "step" else 1)]
 
 
 def increments(values):

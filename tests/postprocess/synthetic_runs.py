@@ -44,7 +44,8 @@ def run_data(steps, dt=0.1):
 
 def run_attributes(steps, dt=0.1, thermo_variable="temperature", status="complete"):
     return {
-        "scheme": "eme", "thermo_variable": thermo_variable, "discrete_gradient": "gonzalez",
+        "scheme": "eme", "scheme_label": "EME", "scheme_family": "discrete_gradient_step",
+        "thermo_variable": thermo_variable, "discrete_gradient": "gonzalez",
         "metric": "nondimensional", "dt": dt, "t_end": dt * steps, "theta_r": 300.0,
         "newton_tol": 1e-8, "status": status, "steps_planned": steps, "steps_completed": steps,
         "wall_time_seconds": 0.01, "code_version": "synthetic", "input_file": "synthetic.nml",

@@ -1,6 +1,7 @@
 """The plot scripts on short eme_run runs (t_end = 1 s) and on synthetic files that follow the
 documented layout: they write PNG and PDF, plot the files' own numbers, name a missing dataset,
 and label an incomplete run."""
+import re
 import shutil
 import subprocess
 import sys
@@ -9,7 +10,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from matplotlib import animation
 from matplotlib.collections import LineCollection
 from PIL import Image
 
@@ -22,7 +22,7 @@ import plot_balance  # noqa: E402
 import plot_constrained  # noqa: E402
 import plot_snapshots  # noqa: E402
 import plot_temperatures  # noqa: E402
-from plotting import figure_texts as texts_of, plt  # noqa: E402
+from plotting import DOUBLE_COLUMN, figure_texts as texts_of, plt  # noqa: E402
 from synthetic_runs import constraint_attributes, write_run  # noqa: E402
 from trajectory import CONSTRAINT_ATTRIBUTES, RunFileError, read_run  # noqa: E402
 
@@ -124,11 +124,27 @@ def test_balance_plots_the_files_values_and_next_minus_current_increments(eme_fi
         styles = [line.get_linestyle() for line in values_ax.get_lines()]
         assert styles == ["-"] * 3 + ["--"] * 3
     texts = "\n".join(figure_texts(fig))
-    for variable in VARIABLES:
-        assert f"thermo_variable={variable}" in texts
-    assert "dt=0.15 s" in texts and "input " + str(eme(eme_files)[0].with_suffix(".nml")) in texts
-    assert "E [J]" in texts and "S [J/K]" in texts and "[s]" in texts
+    assert "$E$ [J]" in texts and "$S$ [J/K]" in texts and "[s]" in texts
     plt.close(fig)
+
+
+def test_provenance_goes_to_the_caption_file_and_metadata_not_onto_the_figure(eme_files, tmp_path):
+    stem = tmp_path / "fig4"
+    png, pdf, caption = plot_balance.main([*map(str, eme(eme_files)), "--compare", *map(str, midpoint(eme_files)),
+                                           "-o", str(stem)])
+    text = caption.read_text()
+    assert caption == stem.with_suffix(".txt") and text.startswith(plot_balance.TITLE)
+    for variable in VARIABLES:
+        assert f"thermo_variable={variable}" in text
+    assert text.count("status: complete") == 6 and "dt=0.15 s" in text and "code " in text
+    assert "input " + str(eme(eme_files)[0].with_suffix(".nml")) in text
+    assert "Drawn by: " in text
+    assert Image.open(png).text["Description"] == text.rstrip("\n")
+    assert b"/Subject" in pdf.read_bytes() and b"thermo_variable=entropy" in pdf.read_bytes()
+    runs = [read_run(p, BALANCE) for p in eme(eme_files)]
+    texts = "\n".join(figure_texts(plot_balance.make_figure(runs)))
+    assert "thermo_variable" not in texts and "input" not in texts
+    plt.close("all")
 
 
 def test_balance_increments_of_1e_minus_12_and_1_joule_are_both_readable(eme_files):
@@ -145,8 +161,13 @@ def test_balance_increments_of_1e_minus_12_and_1_joule_are_both_readable(eme_fil
                for y in (1e-13, 1e-12, 1.0)]
     # 1e-12 sits a visible distance from both round-off (1e-13) and 1 J on the axis.
     assert heights[1] - heights[0] > 0.02 and heights[2] - heights[1] > 0.15
-    labels = [t.get_text() for t in energy_increments.get_yticklabels()]
-    assert "1e-12" in labels and "1e+00" in labels
+    # matplotlib's symlog locator and 10^n formatter label the axis, 0 included, up to its top.
+    labels = [t.get_text() for t in energy_increments.get_yticklabels()
+              if low <= t.get_position()[1] <= high]
+    assert r"$\mathdefault{0}$" in labels
+    powers = [label for label in labels if label != r"$\mathdefault{0}$"]
+    assert powers and all(re.fullmatch(r"\$\\mathdefault\{-?10\^\{-?\d+\}\}\$", label) for label in powers), labels
+    assert labels[-1] == rf"$\mathdefault{{10^{{{round(np.log10(high))}}}}}$"
     plt.close(fig)
 
 
@@ -173,15 +194,32 @@ def test_snapshots_and_animation(eme_files, tmp_path, capsys):
     stem = tmp_path / "fig3"
     written = plot_snapshots.main([str(path), "--times", "0", "0.5", "5", "-o", str(stem)])
     assert_png_and_pdf(written, stem)
-    suffix = "mp4" if animation.writers.is_available("ffmpeg") else "gif"
-    assert written[2] == tmp_path / f"fig3_animation.{suffix}"
+    suffix = "mp4" if plot_snapshots.ffmpeg_available() else "gif"
+    assert written[3] == tmp_path / f"fig3_animation.{suffix}"
     out = capsys.readouterr().out
-    assert f"wrote {written[2]} ({'MP4, ffmpeg' if suffix == 'mp4' else 'GIF, Pillow'}" in out
+    assert f"wrote {written[3]} ({'MP4, ffmpeg' if suffix == 'mp4' else 'GIF, Pillow'}" in out
     assert "times [5.0] s lie past its last step" in out
+    with h5py.File(path, "r") as f:
+        frames = len(f["time"])
     if suffix == "gif":
-        with h5py.File(path, "r") as f:
-            frames = len(f["time"])
-        assert Image.open(written[2]).n_frames == frames
+        assert Image.open(written[3]).n_frames == frames
+    assert f"{frames} frames" in out
+
+
+def test_animation_is_mp4_when_imageio_ffmpeg_provides_ffmpeg(eme_files, tmp_path):
+    pytest.importorskip("imageio_ffmpeg")
+    written = plot_snapshots.main([str(eme_files["eme", "temperature"]), "--max-frames", "5", "--dpi", "150",
+                                   "-o", str(tmp_path / "fig3")])
+    movie = written[3]
+    assert movie.suffix == ".mp4"
+    header = movie.read_bytes()[:12]
+    assert header[4:8] == b"ftyp", header          # an ISO media (MP4) file
+    # The frames are the figure's 7 in at 150 dpi: 8-pt text is 17 pixels high.
+    import imageio_ffmpeg
+    reader = imageio_ffmpeg.read_frames(str(movie))
+    width, height = next(reader)["size"]
+    reader.close()
+    assert width == round(DOUBLE_COLUMN * 150)
 
 
 def test_snapshot_springs_join_origin_m1_and_m2_coloured_by_temperature(eme_files):
@@ -233,7 +271,8 @@ def test_constrained_runs(constrained_files, tmp_path):
 
 def test_constrained_run_without_constraint_attributes_is_refused(tmp_path):
     path, _ = write_run(tmp_path / "plain.h5", attributes={"constraints": "length"})
-    with pytest.raises(RunFileError, match=f"{path}: root attribute 'fix_length' is missing"):
+    with pytest.raises(RunFileError, match=f"{path}: root attributes 'fix_length', 'length', "
+                                           "'fix_temperature', 'temperature' are missing"):
         plot_constrained.main([str(path), "-o", str(tmp_path / "out")])
 
 
@@ -246,10 +285,12 @@ def test_incomplete_run_from_eme_run_is_plotted_and_labelled(eme_files, tmp_path
     plots = [(plot_balance, BALANCE), (plot_temperatures, ["temperature", "angular_momentum"])]
     for module, needed in plots:
         stem = tmp_path / module.__name__
-        assert_png_and_pdf(module.main([str(path), "-o", str(stem)]), stem)
+        written = module.main([str(path), "-o", str(stem)])
+        assert_png_and_pdf(written, stem)
+        assert "status: incomplete: step 1" in written[2].read_text()
         fig = module.make_figure([read_run(path, needed)])
         texts = "\n".join(figure_texts(fig))
-        assert "INCOMPLETE after 0 steps" in texts and "status: incomplete: step 1" in texts
+        assert "INCOMPLETE after 0 steps" in texts
         plt.close(fig)
     stem = tmp_path / "snapshots"
     written = plot_snapshots.main([str(path), "-o", str(stem)])
@@ -263,8 +304,9 @@ def test_truncated_run_is_plotted_up_to_its_last_step(eme_files, tmp_path):
     assert len(fig.axes[0].get_lines()[0].get_ydata()) == 4
     assert len(fig.axes[1].get_lines()[0].get_ydata()) == 3
     texts = "\n".join(figure_texts(fig))
-    assert "INCOMPLETE after 3 steps" in texts and status in texts
+    assert "INCOMPLETE after 3 steps" in texts
     plt.close(fig)
+    assert status in read_run(path, BALANCE).description
     stem = tmp_path / "snapshots"
     assert_png_and_pdf(plot_snapshots.main([str(path), "--no-animation", "-o", str(stem)]), stem)
 
@@ -278,10 +320,12 @@ def test_help(script):
     result = subprocess.run([sys.executable, str(POSTPROCESS / script), "--help"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
-    assert "OUT.png and OUT.pdf" in result.stdout and "FILE.h5" in result.stdout
+    text = " ".join(result.stdout.split())
+    assert "OUT.png and OUT.pdf" in text and "FILE.h5" in text and "OUT.txt" in text
+    assert "--style" in text and "column widths (3.5 and 7 in)" in text
     if script == "plot_snapshots.py":
-        for text in ("OUT_animation.mp4", "ffmpeg", "OUT_animation.gif", "Pillow"):
-            assert text in result.stdout
+        for word in ("OUT_animation.mp4", "imageio-ffmpeg", "OUT_animation.gif", "Pillow"):
+            assert word in text
     if script == "plot_balance.py":
         assert "--compare" in result.stdout
 
@@ -293,7 +337,8 @@ def test_command_line_on_eme_run_output(eme_files, tmp_path):
                              *map(str, eme(eme_files)), "-o", str(stem)],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == ["wrote", str(stem) + ".png", "wrote", str(stem) + ".pdf"]
+    assert result.stdout.split() == ["wrote", str(stem) + ".png", "wrote", str(stem) + ".pdf",
+                                     "wrote", str(stem) + ".txt"]
     assert_png_and_pdf([stem.with_suffix(".png"), stem.with_suffix(".pdf")], stem)
 
 

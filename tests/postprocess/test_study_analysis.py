@@ -13,6 +13,10 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "postprocess"))
 
 import study_analysis  # noqa: E402
+import study_plots  # noqa: E402
+from figure_checks import (drawn_font_sizes, marked_lines, pdf_font_kinds, pdf_width_inches,  # noqa: E402
+                           unexplained_markers)
+from plotting import plt  # noqa: E402
 from study_analysis import (FinalPoint, StudyError, asymptotic_range, classify,  # noqa: E402
                             entropy_violation, final_point, fitted_order, state_error)
 from synthetic_runs import STATE_COLUMNS, write_run  # noqa: E402
@@ -291,3 +295,55 @@ def test_a_missing_study_names_its_index(studies, tmp_path):
     assert result.returncode == 2
     assert str(broken / "stability_hard" / "index.h5") in result.stderr and "cannot open" in result.stderr
     assert not (tmp_path / "figures").exists() and not (tmp_path / "summary.h5").exists()
+
+
+# ---------------------------------------------------------------- publication style of the charts
+@pytest.mark.parametrize("name", ["study_convergence", "study_work_precision", "study_structure_cost",
+                                  "study_stability_map"])
+def test_charts_are_a_page_wide_with_truetype_fonts_and_a_caption(analysed, name):
+    output, _ = analysed
+    pdf = (output / "figures" / f"{name}.pdf").read_bytes()
+    kinds = pdf_font_kinds(pdf)
+    assert kinds and kinds <= {b"TrueType", b"CIDFontType2", b"Type0"} and b"/Type3" not in pdf
+    assert pdf_width_inches(pdf) == pytest.approx(7.0, abs=0.01)
+    caption = (output / "figures" / f"{name}.txt").read_text()
+    assert "Drawn by: study_analysis.py" in caption
+
+
+def test_charts_text_is_at_least_8_pt_and_legends_explain_every_marker(studies):
+    conv = study_analysis.convergence(studies)
+    structure = study_analysis.structure_cost(study_analysis.read_index(studies / "stability_paper"))
+    maps = {scene: study_analysis.stability_map(study_analysis.read_index(studies / folder))
+            for scene, folder in study_analysis.SCENES.items()}
+    made = {"convergence": study_plots.convergence_figure(conv, (3, 100.0)),
+            "work_precision": study_plots.work_precision_figure(conv),
+            "structure": study_plots.structure_figure(structure, studies / "stability_paper"),
+            "stability": study_plots.stability_figure(maps)}
+    for name, (fig, title, lines) in made.items():
+        assert min(drawn_font_sizes(fig)) >= 8, name
+        assert unexplained_markers(fig) == [], name
+        assert title and lines, name
+        if name != "stability":
+            assert marked_lines(fig), name
+    plt.close("all")
+
+
+# ---------------------------------------------------------------- unusable files: a message, no traceback
+def test_an_unreadable_case_file_is_named_without_a_traceback(studies, tmp_path):
+    broken = tmp_path / "study"
+    shutil.copytree(studies, broken)
+    case = broken / "stability_paper" / "case_00001.h5"
+    case.write_bytes(case.read_bytes()[:96])           # what a kill before the first flush left
+    result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"{case}: cannot open as an HDF5 run file" in result.stderr
+
+
+def test_an_unreadable_index_is_named_without_a_traceback(studies, tmp_path):
+    broken = tmp_path / "study"
+    shutil.copytree(studies, broken)
+    index = broken / "convergence" / "index.h5"
+    index.write_text("not an index")
+    result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"{index}: cannot open as a study index" in result.stderr

@@ -53,25 +53,53 @@ def test_a_missing_dataset_is_named_with_the_file(tmp_path):
     assert str(error.value) == f"{path}: dataset '/lyapunov' is missing"
 
 
-@pytest.mark.parametrize("attribute", ["dt", "input_file", "status", "thermo_variable"])
-def test_a_missing_attribute_is_named_with_the_file(tmp_path, attribute):
+@pytest.mark.parametrize("attribute", ["scheme", "thermo_variable"])
+def test_a_missing_identity_attribute_is_named_with_the_file(tmp_path, attribute):
     path, _ = write_run(tmp_path / "run.h5", drop=[attribute])
     with pytest.raises(RunFileError) as error:
         read_run(path, ["energy"])
     assert str(error.value) == f"{path}: root attribute '{attribute}' is missing"
 
 
+def test_missing_descriptive_attributes_are_named_and_mark_the_run_incomplete(tmp_path):
+    # What a run killed before its end leaves: no status of its own, no times, no dt.
+    path, data = write_run(tmp_path / "killed.h5", steps=3, drop=["status", "dt", "input_file"])
+    run = read_run(path, ["energy"])
+    np.testing.assert_array_equal(run.data["energy"], data["energy"])
+    assert run.incomplete and run.steps == 3
+    assert run.label.endswith("(INCOMPLETE after 3 steps)") and "Delta t" not in run.label
+    assert "dt=(missing)" in run.description and "input (missing)" in run.description
+    assert "root attributes dt, input_file missing" in run.description
+    assert "status: incomplete: no status attribute" in run.description
+
+
 def test_a_constraint_attribute_is_required_only_when_asked_for(tmp_path):
     path, _ = write_run(tmp_path / "run.h5")  # no constraint attributes at all
     read_run(path, ["energy"])
-    with pytest.raises(RunFileError, match="root attribute 'constraints' is missing"):
+    with pytest.raises(RunFileError, match="root attributes 'constraints', 'fix_length', 'length', "
+                                           "'fix_temperature', 'temperature' are missing"):
         read_run(path, ["energy"], trajectory.CONSTRAINT_ATTRIBUTES)
 
 
-def test_a_dataset_of_the_wrong_length_is_reported(tmp_path):
-    path, _ = write_run(tmp_path / "run.h5", data={"entropy": np.zeros(3)})
-    with pytest.raises(RunFileError, match="'/entropy' has 3 rows, expected 5"):
-        read_run(path, ["entropy"])
+def test_datasets_of_different_lengths_are_cut_to_the_steps_they_all_hold(tmp_path):
+    # A point dataset one row short: the run is read up to step 2 of 4, and says so.
+    path, data = write_run(tmp_path / "run.h5", steps=4, data={"entropy": 1.7 + 0.01 * np.arange(3)})
+    run = read_run(path, ["energy", "entropy", "newton_iterations"])
+    assert run.steps == 2 and run.incomplete and not str(run.status).startswith("incomplete")
+    np.testing.assert_array_equal(run.data["time"], data["time"][:3])
+    np.testing.assert_array_equal(run.data["energy"], data["energy"][:3])
+    np.testing.assert_array_equal(run.data["newton_iterations"], data["newton_iterations"][:2])
+    assert "/entropy 3 rows" in run.description and "read up to step 2" in run.description
+    # Step datasets longer than the points allow (a kill between the two flushes) are cut too.
+    path, data = write_run(tmp_path / "steps.h5", steps=4, data={"newton_iterations": np.full(7, 4)})
+    run = read_run(path, ["newton_iterations"])
+    assert run.steps == 4 and len(run.data["newton_iterations"]) == 4 and run.incomplete
+
+
+def test_a_file_without_any_state_is_refused(tmp_path):
+    path, _ = write_run(tmp_path / "empty.h5", steps=0, data={"time": np.zeros(0)})
+    with pytest.raises(RunFileError, match=f"{path}: no state written"):
+        read_run(path, ["energy"])
 
 
 def test_a_file_that_is_not_hdf5_is_named(tmp_path):
