@@ -215,7 +215,8 @@ $(FIGURES)/temperatures_jz.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_
 
 # Convergence, work-precision and stability studies on 2 ranks, then their analysis: charts in
 # results/figures, numbers in results/study/summary.h5 (README, Speed and accuracy).
-STUDIES := convergence convergence_reference stability_paper stability_hard
+STUDIES := convergence convergence_reference work_precision work_precision_adaptive work_precision_reference \
+           stability_paper stability_hard
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
 study: all $(VENV)/.python-deps

@@ -4,9 +4,10 @@ scheme, scheme_label and scheme_family attributes. The figures take the schemes'
 order and their colours from here, so that a new integrator needs no change in the scripts.
 """
 
-# Colours by position in the registry (the first five are those the gallery has always used).
+# Colours by position in the registry (the first five are those the gallery has always used);
+# as many as the registry has integrators, so that no two share a colour.
 PALETTE = ("tab:red", "tab:blue", "tab:cyan", "tab:green", "tab:purple", "tab:orange", "tab:brown",
-           "tab:pink", "tab:olive", "tab:gray")
+           "tab:pink", "tab:olive", "tab:gray", "navy", "goldenrod", "black", "lime")
 
 _KNOWN = {}     # name -> {"position": int, "label": str, "family": str}
 

@@ -1,9 +1,12 @@
 """Analysis of the parameter studies of `make study` (README, "Ensemble studies").
 
-Reads STUDY_DIR/{convergence, convergence_reference, stability_paper, stability_hard}/index.h5
-and the case files they name, and writes to OUT:
-  study_convergence        error at t = T against dt, with each scheme's fitted order
-  study_work_precision     the same errors against the solve time
+Reads STUDY_DIR/{convergence, convergence_reference, work_precision, work_precision_adaptive,
+work_precision_reference, stability_paper, stability_hard}/index.h5 and the case files they
+name, and writes to OUT:
+  study_convergence        error at t = T against dt, with each fixed-step scheme's fitted order,
+                           and the adaptive schemes' error at t = 5 s against their tolerance
+  study_work_precision     error at t = 5 s against the solve time (median of the study's
+                           repeats), fixed-step schemes over dt, adaptive ones over tolerance
   study_structure_cost     energy error and entropy decrease against solve time (paper scene)
   study_stability_map      outcome of every case of the two stability studies
 (each as .png and .pdf), one HDF5 file SUMMARY with the numbers behind every figure, and
@@ -43,13 +46,21 @@ LYAPUNOV_TOLERANCE = 1e-8        # max_lyapunov_increment [J]
 # the model's domain.
 NO_ROOT = "no root"
 NONPHYSICAL_REASONS = ("left the model's domain", "blow-up", "non-positive temperature", "nan")
-SOLVER_REASONS = ("newton", "diverged", "did not converge", "rejected steps")
+SOLVER_REASONS = ("newton", "diverged", "did not converge", "rejected steps", "halved", "sundials cvode failed")
 OUTCOMES = ("kept", "energy", "lyapunov", "solver", "nonphysical")
 # Cell flags: V also rose (on a cell whose energy error decides it); the solver's last rejected
 # root had a non-positive temperature (on a "no root" failure).
 FLAG_LYAPUNOV, FLAG_TEMPERATURE = "V", "T"
 
-STUDIES = ("convergence", "convergence_reference", "stability_paper", "stability_hard")
+STUDIES = ("convergence", "convergence_reference", "work_precision", "work_precision_adaptive",
+           "work_precision_reference", "stability_paper", "stability_hard")
+# Work-precision (inputs/study_work_precision*.nml): fixed-step and adaptive cases at t = 5 s
+# against work_precision_reference (case 1, cross-checked by case 2). Points within
+# WORK_PRECISION_FACTOR of the cross-check level measure the reference and are left out; the
+# findings name each scheme's cheapest case that meets each of TARGETS.
+WORK_PRECISION = ("work_precision", "work_precision_adaptive")
+WORK_PRECISION_FACTOR = 10.0
+TARGETS = (1e-4, 1e-6)
 SCENES = {"paper": "stability_paper", "hard": "stability_hard"}
 INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
                 "solve_time_seconds", "energy_drift", "min_entropy_increment",
@@ -143,10 +154,7 @@ def fitted_order(dt, error):
 
 def convergence(study_dir):
     """Errors of every complete convergence case against the reference, and each scheme's fit."""
-    references = read_index(Path(study_dir) / "convergence_reference")
-    reference = final_point(row_by_case(references, REFERENCE_CASE)["path"])
-    cross_check = final_point(row_by_case(references, CROSS_CHECK_CASE)["path"])
-    level = state_error(cross_check, reference)
+    reference, cross_check, level = reference_pair(Path(study_dir) / "convergence_reference")
     rows = read_index(Path(study_dir) / "convergence")
     complete = [row for row in rows if row["status"] == "complete"]
     if not complete:
@@ -165,10 +173,55 @@ def convergence(study_dir):
             "left_out": [row for row in rows if row["status"] != "complete"]}
 
 
+def reference_pair(folder):
+    """(reference, cross-check, level) of a reference study: its cases 1 and 2 and their error."""
+    references = read_index(folder)
+    reference = final_point(row_by_case(references, REFERENCE_CASE)["path"])
+    cross_check = final_point(row_by_case(references, CROSS_CHECK_CASE)["path"])
+    return reference, cross_check, state_error(cross_check, reference)
+
+
+def setting(row):
+    """What a work-precision case varies: its tolerance (adaptive schemes) or its dt."""
+    return row["tolerance"] if "tolerance" in row else row["dt"]
+
+
+def work_precision(study_dir):
+    """Errors at t = 5 s of every complete work-precision case against the reference, which of
+    them stand clear of the reference's level, and each scheme's cheapest case per target."""
+    reference, cross_check, level = reference_pair(Path(study_dir) / "work_precision_reference")
+    rows, left_out = [], []
+    for folder in WORK_PRECISION:
+        for row in read_index(Path(study_dir) / folder):
+            (rows if row["status"] == "complete" else left_out).append(row)
+    if not rows:
+        raise StudyError(f"{Path(study_dir)}: no complete work-precision case")
+    errors = np.array([state_error(final_point(row["path"]), reference) for row in rows])
+    shown = errors >= WORK_PRECISION_FACTOR * level
+    cheapest = {}
+    for key in curve_keys(rows):
+        for target in TARGETS:
+            meeting = [i for i in members(rows, key) if shown[i] and errors[i] <= target]
+            if meeting:
+                cheapest[key, target] = min(meeting, key=lambda i: rows[i]["solve_time_seconds"])
+    return {"rows": rows, "errors": errors, "shown": shown, "level": level, "reference": reference,
+            "cross_check": cross_check, "left_out": left_out, "cheapest": cheapest}
+
+
 # ---------------------------------------------------------------- structure and stability
 def entropy_violation(min_entropy_increment):
     """The largest entropy decrease in one step, max(0, -min_n (S_{n+1} - S_n)) [J/K]."""
     return np.maximum(0.0, -np.asarray(min_entropy_increment, dtype=float))
+
+
+def halved_steps(path):
+    """Steps of the case that were rejected and replaced by two halves (the integrator's
+    /halved_steps dataset; 0 for integrators that never halve)."""
+    try:
+        with h5py.File(path, "r") as handle:
+            return int(np.sum(handle["halved_steps"][()])) if "halved_steps" in handle else 0
+    except OSError as error:
+        raise StudyError(f"{path}: cannot read the case file ({error})") from None
 
 
 def temperatures_positive(path):
@@ -218,6 +271,7 @@ def stability_map(rows):
     status = np.full(outcome.shape, "", dtype=object)
     energy, lyapunov = np.full(outcome.shape, np.nan), np.full(outcome.shape, np.nan)
     positive_grid = np.full(outcome.shape, -1, dtype=int)    # 1 / 0: checked; -1: not checked
+    halved = np.zeros(outcome.shape, dtype=int)
     checked = 0
     for row in rows:
         i, j = keys.index((row["scheme"], row["thermo_variable"])), steps.index(row["dt"])
@@ -225,6 +279,8 @@ def stability_map(rows):
             raise StudyError(f"{row['index']}: cases {case[i, j]} and {row['case']} are both "
                              f"{plain_name(*keys[i])} at dt = {row['dt']:g} s")
         positive = True
+        if Path(row["path"]).exists():
+            halved[i, j] = halved_steps(row["path"])
         if row["status"] == "complete":
             positive = temperatures_positive(row["path"])
             positive_grid[i, j] = int(positive)
@@ -238,7 +294,7 @@ def stability_map(rows):
     return {"keys": keys, "dt": np.array(steps), "outcome": outcome, "flags": flags, "case": case,
             "failed_at": failed_at, "status": status, "energy_drift": energy,
             "max_lyapunov_increment": lyapunov, "temperatures_positive": positive_grid,
-            "temperature_files_checked": checked,
+            "temperature_files_checked": checked, "halved": halved,
             "source": rows[0]["index"].parent if rows else "-",
             "scene": scene_description(rows[0]["path"]) if rows else "-"}
 
@@ -271,7 +327,7 @@ def write_dataset(group, name, values, units, description):
     dataset.attrs["description"] = description
 
 
-def write_summary(path, conv, structure, maps):
+def write_summary(path, conv, wp, structure, maps):
     """The numbers behind every figure, one group per figure."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -303,6 +359,26 @@ def write_summary(path, conv, structure, maps):
                       "smallest dt of the fit")
         write_dataset(g, "fit_dt_max", [fit["dt"].max() if len(fit["dt"]) else np.nan for fit in fits], "s",
                       "largest dt of the fit")
+        g = f.create_group("work_precision")
+        g.attrs["description"] = ("error at t = 5 s against the reference, and against solve time "
+                                  "(figure study_work_precision; right panel of study_convergence)")
+        wrows = wp["rows"]
+        write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in wrows], "1",
+                      "scheme and thermodynamic variable of each case")
+        write_dataset(g, "study", [r["index"].parent.name for r in wrows], "1", "the study of each case")
+        write_dataset(g, "case", [r["case"] for r in wrows], "1", "case number in the study's index.h5")
+        write_dataset(g, "dt", [r["dt"] for r in wrows], "s", "time step (adaptive schemes: output interval)")
+        write_dataset(g, "tolerance", [r.get("tolerance", np.nan) for r in wrows], "1",
+                      "tolerance of an adaptive scheme (NaN for fixed-step schemes)")
+        write_dataset(g, "error", wp["errors"], "1", "max(|q, p, gamma - reference| [SI], "
+                      "|theta_a - reference|/theta_ref) at t = 5 s")
+        write_dataset(g, "shown", wp["shown"].astype(int), "1",
+                      f"1: error >= {WORK_PRECISION_FACTOR:g} x cross_check_level, drawn in the figure")
+        write_dataset(g, "solve_time_seconds", [r["solve_time_seconds"] for r in wrows], "s",
+                      "solve_time_seconds of the index: the time loop of the case (median of the repeats)")
+        write_dataset(g, "energy_drift", [r["energy_drift"] for r in wrows], "1", "max_n |E_n - E_0| / |E_0|")
+        write_dataset(g, "cross_check_level", wp["level"], "1",
+                      "the same error norm between the cross-check and the reference")
         g = f.create_group("structure_cost")
         g.attrs["description"] = "complete cases of stability_paper (figure study_structure_cost)"
         srows = structure["rows"]
@@ -337,12 +413,14 @@ def write_summary(path, conv, structure, maps):
             write_dataset(g, "temperatures_positive", grid["temperatures_positive"], "1",
                           "1: every /temperature value of the finished case file is finite and > 0; 0: not; "
                           "-1: not checked (failed case, or not run)")
+            write_dataset(g, "halved_steps", grid["halved"], "1",
+                          "steps rejected and replaced by two halves (relaxed Runge-Kutta schemes)")
             write_dataset(g, "kept_count", (grid["outcome"] == 0).sum(axis=1), "1",
                           "dt values at which the scheme finished with everything kept")
     print(f"wrote {path}")
 
 
-def findings(conv, structure, maps):
+def findings(conv, wp, structure, maps):
     """The findings as plain lines of numbers."""
     reference, cross_check = conv["reference"], conv["cross_check"]
     lines = [f"convergence: reference {reference.path} at T = {reference.time:g} s; cross-check "
@@ -354,6 +432,24 @@ def findings(conv, structure, maps):
         lines.append(f"convergence {plain_name(*key)}: fitted order {fit['order']:.2f} over dt = "
                      + ", ".join(f"{dt:g}" for dt in fit["dt"]) + f" s; error {conv['errors'][finest]:.2e} "
                      f"at dt = {conv['rows'][finest]['dt']:g} s in {conv['rows'][finest]['solve_time_seconds']:.2e} s")
+    lines.append(f"work precision: reference {wp['reference'].path} at t = {wp['reference'].time:g} s; cross-check "
+                 f"{wp['cross_check'].path}: |reference - cross-check| = {wp['level']:.2e}")
+    wrows, cheapest = wp["rows"], wp["cheapest"]
+    for target in TARGETS:
+        for key in curve_keys(wrows):
+            if (key, target) not in cheapest:
+                lines.append(f"work precision {plain_name(*key)}: no case reached {target:.0e}")
+                continue
+            i = cheapest[key, target]
+            text = (f"work precision {plain_name(*key)}: error <= {target:.0e} at "
+                    f"{'tolerance' if 'tolerance' in wrows[i] else 'dt'} {setting(wrows[i]):g}: error "
+                    f"{wp['errors'][i]:.2e} in {wrows[i]['solve_time_seconds']:.2e} s, energy error "
+                    f"{wrows[i]['energy_drift']:.1e}")
+            for anchor in (("cvode_bdf", "temperature"), ("eme", "temperature")):
+                if (anchor, target) in cheapest:
+                    ratio = wrows[i]["solve_time_seconds"] / wrows[cheapest[anchor, target]]["solve_time_seconds"]
+                    text += f"; {ratio:.3g} x {plain_name(*anchor)}'s time"
+            lines.append(text)
     srows = structure["rows"]
     for key in curve_keys(srows):
         chosen = members(srows, key)
@@ -390,11 +486,13 @@ def main(argv=None):
     args = parser.parse_args(argv)
     study_dir, output = Path(args.study_dir), Path(args.output)
     conv = convergence(study_dir)
+    wp = work_precision(study_dir)
     structure = structure_cost(read_index(study_dir / SCENES["paper"]))
     maps = {scene: stability_map(read_index(study_dir / folder)) for scene, folder in SCENES.items()}
-    study_plots.save_all(output, conv, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR))
-    write_summary(args.summary, conv, structure, maps)
-    for line in findings(conv, structure, maps):
+    study_plots.save_all(output, conv, wp, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR),
+                         work_precision_factor=WORK_PRECISION_FACTOR)
+    write_summary(args.summary, conv, wp, structure, maps)
+    for line in findings(conv, wp, structure, maps):
         print(line)
 
 

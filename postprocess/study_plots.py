@@ -26,7 +26,7 @@ OUTCOME_TEXT = {
     "kept": "finished, everything kept (energy error <= 1e-6, V non-increasing, temperatures > 0)",
     "energy": "finished, energy error > 1e-6",
     "lyapunov": "finished, energy kept, V rose (max dV > 1e-8 J)",
-    "solver": "failed: Newton divergence / no root",
+    "solver": "failed: no solution of a step (Newton divergence, no root, halving exhausted)",
     "nonphysical": "failed: non-physical state or blow-up",
 }
 OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442",
@@ -67,9 +67,9 @@ def style(key):
 
 
 def members(rows, key):
-    """Indices of the rows of one scheme, by ascending dt."""
+    """Indices of the rows of one scheme, by ascending dt, then tolerance (adaptive schemes)."""
     chosen = [i for i, row in enumerate(rows) if (row["scheme"], row["thermo_variable"]) == key]
-    return sorted(chosen, key=lambda i: rows[i]["dt"])
+    return sorted(chosen, key=lambda i: (rows[i]["dt"], rows[i].get("tolerance", 0.0)))
 
 
 def legend_right(fig, ax):
@@ -106,10 +106,11 @@ def reference_lines(conv):
             + (f"; left out (not complete): {len(conv['left_out'])}" if conv["left_out"] else "")]
 
 
-def convergence_figure(conv, fit_rule):
-    """Error at t = T against dt, log-log, with the fitted order of each scheme."""
+def convergence_figure(conv, wp, fit_rule):
+    """Error at t = T against dt, log-log, with the fitted order of each fixed-step scheme; beside
+    it, the adaptive schemes' error at t = 5 s against their tolerance."""
     points, factor = fit_rule
-    fig, ax = plt.subplots(figsize=(DOUBLE_COLUMN, 4.4))
+    fig, (ax, adaptive) = plt.subplots(1, 2, figsize=(DOUBLE_COLUMN, 4.6), width_ratios=(3, 2))
     dt = np.array([row["dt"] for row in conv["rows"]])
     error_axes(ax, conv, dt, with_fit=True)
     fitted = np.isin([row["case"] for row in conv["rows"]],
@@ -117,22 +118,56 @@ def convergence_figure(conv, fit_rule):
     ax.plot(dt[fitted], conv["errors"][fitted], linestyle="none", marker="o", markersize=11,
             color="0.85", zorder=0, label="points of the order fit")
     ax.set_xlabel(r"time step $\Delta t$ [s]")
-    legend_right(fig, ax)
-    return fig, "Convergence: error at t = T against the time step", reference_lines(conv) + [
-        f"Order: least-squares slope of log(error) on log(dt) over the asymptotic range, the {points} "
-        f"smallest dt with error > {factor:g} x the cross-check level (grey discs)."]
+    ax.set_title(f"fixed step, t = {conv['reference'].time:g} s", loc="left")
+    rows = [i for i, row in enumerate(wp["rows"]) if "tolerance" in row]
+    for key in curve_keys([wp["rows"][i] for i in rows]):
+        chosen = [i for i in members(wp["rows"], key) if i in rows and wp["shown"][i]]
+        adaptive.plot([wp["rows"][i]["tolerance"] for i in chosen], wp["errors"][chosen], label=label(*key),
+                      **style(key))
+    adaptive.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.")
+    adaptive.set_xscale("log")
+    adaptive.set_yscale("log")
+    adaptive.set_xlabel("tolerance (absolute and relative, per step)")
+    adaptive.set_title(f"adaptive, t = {wp['reference'].time:g} s", loc="left")
+    adaptive.grid(True, which="major")
+    adaptive.legend(loc="upper left")
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=4)
+    return fig, "Convergence: error against the time step, and of the adaptive schemes against the tolerance", \
+        reference_lines(conv) + [
+            f"Order: least-squares slope of log(error) on log(dt) over the asymptotic range, the {points} "
+            f"smallest dt with error > {factor:g} x the cross-check level (grey discs).",
+            f"Right: the adaptive cases of the work-precision study against its reference ({wp['reference'].path}); "
+            f"points below {wp['level']:.1e} x 10 (the dash-dot line is the cross-check level) are left out."]
 
 
-def work_precision_figure(conv):
-    """Error at t = T against the solve time, log-log; lower left is better."""
+def work_precision_figure(wp, factor):
+    """Error at t = 5 s against the median solve time, log-log; lower left is better."""
     fig, ax = plt.subplots(figsize=(DOUBLE_COLUMN, 4.4))
-    time = np.array([row["solve_time_seconds"] for row in conv["rows"]])
-    error_axes(ax, conv, time, with_fit=False)
-    ax.set_xlabel("solve time of one case on one rank [s]")
+    rows, errors = wp["rows"], wp["errors"]
+    time = np.array([row["solve_time_seconds"] for row in rows])
+    for key in curve_keys(rows):
+        chosen = [i for i in members(rows, key) if wp["shown"][i]]
+        chosen.sort(key=lambda i: -errors[i])
+        adaptive = "tolerance" in rows[chosen[0]] if chosen else False
+        ax.plot(time[chosen], errors[chosen], label=label(*key) + (" (tolerance)" if adaptive else ""),
+                **style(key))
+    ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.", label="|reference $-$ cross-check|")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylim(1e-11, 1.0)
+    ax.set_xlabel("solve time of one case on one rank, median of the study's repeats [s]")
+    ax.set_ylabel(r"error at $t$ = 5 s: max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, "
+                  r"|$\Delta\theta_a$|/$\theta_{ref}$)")
+    ax.grid(True, which="major")
     legend_right(fig, ax)
-    return fig, "Work-precision: error at t = T against solve time (lower left is better)", \
-        reference_lines(conv) + ["Points along a curve: the dt of the convergence study; solve_time_seconds "
-                                 "(the time loop of one case, one rank), one timing per case, no repeats."]
+    reference, cross_check = wp["reference"], wp["cross_check"]
+    repeats = sorted({row.get("repeats", 1) for row in rows})
+    return fig, "Work-precision at t = 5 s: error against solve time (lower left is better)", [
+        f"Reference: {reference.path}; cross-check: {cross_check.path}; |reference - cross-check| = "
+        f"{wp['level']:.1e} (dash-dot line); points with error below {factor:g} times it are left out.",
+        "Points along a curve: the dt of a fixed-step scheme, or the tolerance of an adaptive one. "
+        f"Solve time: the time loop of one case on one rank, the median of {'/'.join(map(str, repeats))} runs.",
+        f"Cases: {len(rows)} complete" + (f"; left out (not complete): {len(wp['left_out'])}" if wp["left_out"] else "")]
 
 
 def floored(values):
@@ -187,6 +222,8 @@ def stability_figure(maps):
             text = grid["flags"][i, j]
             if np.isfinite(grid["failed_at"][i, j]):
                 text = f"{grid['failed_at'][i, j]:g} s" + (f" {text}" if text else "")
+            if grid["halved"][i, j]:
+                text = (f"{text} " if text else "") + f"h{grid['halved'][i, j]}"
             if text:
                 dark = outcome[i, j] >= 0 and outcomes[outcome[i, j]] == "nonphysical"
                 ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", color="white" if dark else "black")
@@ -201,7 +238,8 @@ def stability_figure(maps):
     handles.append(Patch(facecolor=NOT_RUN_COLOUR, edgecolor="0.5", label="not in the study"))
     for text in ("in a cell: V = V also rose (energy error decides the colour)",
                  "T = the solver's last rejected root had a temperature <= 0",
-                 "9 s = the case failed in the step ending at t = 9 s"):
+                 "9 s = the case failed in the step ending at t = 9 s",
+                 "h3 = 3 steps were rejected and replaced by two halves"):
         handles.append(Line2D([], [], linestyle="none", label=text))
     fig.legend(handles=handles, loc="outside lower center", ncols=1, handlelength=1.5)
     return fig, "Stability map: outcome of every case", [
@@ -212,12 +250,12 @@ def stability_figure(maps):
         "> 1e-6 (marked V when V also rose), then V rising by > 1e-8 J."]
 
 
-def save_all(output, conv, structure, maps, fit_rule):
+def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor):
     """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt."""
     output = Path(output)
     source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
-    for name, (fig, title, lines) in (("study_convergence", convergence_figure(conv, fit_rule)),
-                                      ("study_work_precision", work_precision_figure(conv)),
+    for name, (fig, title, lines) in (("study_convergence", convergence_figure(conv, wp, fit_rule)),
+                                      ("study_work_precision", work_precision_figure(wp, work_precision_factor)),
                                       ("study_structure_cost", structure_figure(structure, source)),
                                       ("study_stability_map", stability_figure(maps))):
         save(fig, output / name, title, lines=lines)
