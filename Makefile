@@ -166,6 +166,7 @@ python-lock:
 PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy,paper_fig4_$(s)_$(v))) \
               paper_fig5_fixed_length paper_fig5_fixed_temperature paper_fig5_both
 CONSTRAINT_RUNS := $(foreach c,fixed_length fixed_temperature,$(foreach v,entropy internal_energy,fig5_$(c)_eme_$(v))) \
+                   $(foreach c,fixed_length fixed_temperature both,$(foreach s,relaxed_rk8 relaxed_gauss6,fig5_$(c)_$(s))) \
                    $(foreach v,theta entropy internal_energy,fig5_fixed_temperature_no_conduction_eme_$(v))
 
 # A run file from its input: inputs/NAME.nml writes results/NAME.h5 (its &output file). An
