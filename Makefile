@@ -164,6 +164,7 @@ python-lock:
 
 # ---------------------------------------------------------------- use
 PAPER_RUNS := $(foreach s,eme midpoint,$(foreach v,entropy theta internal_energy,paper_fig4_$(s)_$(v))) \
+              $(foreach s,rk4 rk8 dp853 gauss6,paper_fig4_relaxed_$(s)) \
               paper_fig5_fixed_length paper_fig5_fixed_temperature paper_fig5_both
 CONSTRAINT_RUNS := $(foreach c,fixed_length fixed_temperature,$(foreach v,entropy internal_energy,fig5_$(c)_eme_$(v))) \
                    $(foreach c,fixed_length fixed_temperature both,$(foreach s,relaxed_rk8 relaxed_gauss6,fig5_$(c)_$(s))) \
