@@ -227,11 +227,13 @@ study: all $(VENV)/.python-deps
 	$(PYTHON) postprocess/study_analysis.py --study-dir results/study -o results/figures \
 	  --summary results/study/summary.h5
 
-# Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, then the per-step cost
-# of every scheme against a LAPACK Newton floor. The last line is machine-readable.
+# Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
+# 1e-6 at t = 5 s of every scheme, then the per-step cost of every scheme against a LAPACK Newton
+# floor. The last line is machine-readable.
 bench: all $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 5
+	$(BIN)/eme_accuracy_bench 5
 	$(BIN)/eme_bench 21
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (README, Constraints).
