@@ -61,14 +61,14 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 	done > $@
 -include $(BUILD)/fortran.deps
 
-$(OBJ)/src/integrator/ts_domain.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
-$(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/lu_preconditioner.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
+$(OBJ)/src/solver/snes_solver.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
 $(OBJ)/src/model/length_constraint.o \
 $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
 $(OBJ)/src/model/pendulum_model.o $(OBJ)/tests/unit/support/single_spring_model.o $(OBJ)/src/model/invariant_function.o \
-$(OBJ)/tests/unit/support/scripted_solver.o: FFLAGS += -Wno-unused-dummy-argument
+$(OBJ)/tests/unit/support/scripted_solver.o $(OBJ)/src/solver/lapack_newton.o: FFLAGS += -Wno-unused-dummy-argument
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 

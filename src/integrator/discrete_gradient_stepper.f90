@@ -1,14 +1,19 @@
-!> The one-step schemes of the paper, each step one nonlinear system (src/scheme/step_residual)
-!> solved by Newton's method in PETSc SNES (src/solver/snes_solver) under the retry strategies
-!> (src/solver/retry_strategies): EME, whose partials are discrete gradients, and the implicit
-!> midpoint rule, whose partials are the exact ones at the midpoint. The step size never changes;
-!> a step that no strategy solves ends the run.
+!> The one-step schemes of the paper, each step one nonlinear system solved by Newton's method in
+!> PETSc SNES (src/solver/snes_solver) under the retry strategies (src/solver/retry_strategies):
+!> EME, whose partials are discrete gradients, and the implicit midpoint rule, whose partials are
+!> the exact ones at the midpoint. The double pendulum's step, with or without its constraints, is
+!> solved on the condensed unknowns by the fused kernel (src/scheme/pendulum_step_kernel); any
+!> other model or constraint by the generic residual (src/scheme/step_residual), which
+!> -eme_fused_kernel false also selects. The step size never changes; a step that no strategy
+!> solves ends the run.
 module discrete_gradient_stepper
   use, intrinsic :: iso_fortran_env, only: real64
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint
+  use pendulum_step_kernel, only: pendulum_step, build_pendulum_step, condensed_offset
   use snes_solver, only: newton_solver
+  use solver_options, only: step_solver_options, read_solver_options
   use retry_strategies, only: root_search, find_root
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report
@@ -19,7 +24,9 @@ module discrete_gradient_stepper
   !> The step's system and the solver that keeps its PETSc objects from run to run.
   type, extends(time_stepper) :: step_solver
     integer :: partials_rule = partials_discrete_gradient
-    type(step_problem) :: problem
+    type(step_problem) :: problem          !! the generic step (kept up to date also when fused)
+    type(pendulum_step) :: kernel          !! the fused, condensed step
+    logical :: fused = .false.             !! the kernel solves the steps
     type(newton_solver) :: solver
   contains
     procedure :: start
@@ -51,6 +58,7 @@ contains
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z0(:)
     integer, intent(out) :: ierr
+    type(step_solver_options) :: options
 
     if (allocated(self%problem%model)) deallocate (self%problem%model)
     allocate (self%problem%model, source=model)
@@ -60,7 +68,15 @@ contains
     self%problem%metric = choice%metric
     self%problem%dt = choice%dt
     self%problem%z_old = z0
-    call self%solver%prepare(self%problem, choice%newton_tol, choice%newton_max_iterations, ierr)
+    call read_solver_options(options, ierr)
+    if (ierr /= 0) return
+    self%fused = .false.
+    if (options%fused_kernel) call build_pendulum_step(self%problem, self%kernel, self%fused)
+    if (self%fused) then
+      call self%solver%prepare(self%kernel, choice%newton_tol, choice%newton_max_iterations, ierr)
+    else
+      call self%solver%prepare(self%problem, choice%newton_tol, choice%newton_max_iterations, ierr)
+    end if
   end subroutine start
 
   !> One step of dt from x_old; on acceptance, the temperatures the step's K0 used.
@@ -81,7 +97,20 @@ contains
       start = guess
       start(1:n) = x_old(1:n)
     end associate
-    call find_root(self%solver, self%problem, start, guess, x_new, search, ierr)
+    if (self%fused) then
+      ! The same search on the condensed unknowns y = x(7:); q' follows from y.
+      call self%kernel%set_old_state(x_old)
+      self%kernel%dt = dt
+      block
+        real(real64) :: y_new(size(guess) - condensed_offset)
+
+        call find_root(self%solver, self%kernel, start(condensed_offset + 1:), self%kernel%condense(guess), y_new, &
+                       search, ierr)
+        x_new = self%kernel%expand(y_new)
+      end block
+    else
+      call find_root(self%solver, self%problem, start, guess, x_new, search, ierr)
+    end if
     report%accepted = search%accepted
     report%strategy = search%strategy
     report%newton_iterations = search%newton_iterations
@@ -92,7 +121,11 @@ contains
     allocate (report%scheme_temperature(self%problem%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
     if (ierr /= 0 .or. .not. report%accepted) return
-    call self%problem%scheme_temperatures(x_new, report%scheme_temperature, stat)
+    if (self%fused) then
+      call self%kernel%scheme_temperatures(x_new(condensed_offset + 1:), report%scheme_temperature, stat)
+    else
+      call self%problem%scheme_temperatures(x_new, report%scheme_temperature, stat)
+    end if
     if (stat /= 0) then    ! check_root has accepted the root, so this does not happen
       report%accepted = .false.
       report%reason = 'the scheme temperatures of the root are undefined'

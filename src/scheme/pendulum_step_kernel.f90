@@ -77,6 +77,7 @@ module pendulum_step_kernel
     procedure :: set_continuation
     procedure :: set_old_state
     procedure :: expand
+    procedure :: condense
     procedure :: scheme_temperatures
   end type pendulum_step
 
@@ -198,6 +199,24 @@ contains
     x(1:6) = reshape(q_new, [6])
     x(condensed_offset + 1:) = y
   end function expand
+
+  !> The condensed unknowns y whose q'(y) is the positions of x: the momenta p' = 2 m (q' - q)/h - p
+  !> (the position rows solved for p'), the rest of y from x.
+  pure function condense(self, x) result(y)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64) :: y(size(x) - condensed_offset)
+    real(real64) :: v(3, 2), p_mid(3, 2), m1, m2
+
+    m1 = self%params%mass(1)
+    m2 = self%params%mass(2)
+    v = reshape(x(1:6) - self%z_old(1:6), [3, 2])/(self%fraction*self%dt)
+    ! m = [[m1 + m2, m2], [m2, m2]] (q2 relative to m1), the inverse of m^-1.
+    p_mid(:, 1) = (m1 + m2)*v(:, 1) + m2*v(:, 2)
+    p_mid(:, 2) = m2*(v(:, 1) + v(:, 2))
+    y = x(condensed_offset + 1:)
+    y(1:6) = reshape(2.0_real64*p_mid, [6]) - self%z_old(7:12)
+  end function condense
 
   ! v = m^-1 p_mid for the new momenta in y.
   pure function velocity(self, y) result(v)

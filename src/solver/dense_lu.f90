@@ -15,6 +15,7 @@ module dense_lu
   contains
     procedure :: reset
     procedure :: factor
+    procedure :: factor_in_place
     procedure :: solve
   end type lu_factors
 
@@ -54,13 +55,21 @@ contains
     class(lu_factors), intent(inout) :: self
     real(real64), intent(in) :: matrix(:, :)
     integer, intent(out) :: info
+
+    self%factors = matrix
+    call self%factor_in_place(info)
+  end subroutine factor
+
+  !> Factors the matrix a caller wrote into `factors` (saves a copy); info as `factor`.
+  subroutine factor_in_place(self, info)
+    class(lu_factors), intent(inout) :: self
+    integer, intent(out) :: info
     integer :: n
 
     n = size(self%pivots)
-    self%factors = matrix
     call dgetf2(n, n, self%factors, n, self%pivots, info)
     self%ready = info == 0
-  end subroutine factor
+  end subroutine factor_in_place
 
   !> b := A^-1 b with the factors.
   subroutine solve(self, b, info)

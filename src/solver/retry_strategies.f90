@@ -17,6 +17,7 @@ module retry_strategies
   public :: root_finder, root_search, find_root
   public :: strategy_predictor, strategy_old_state, strategy_continuation, strategies_per_round
   public :: max_continuation_solves, first_continuation_fraction, smallest_continuation_increment
+  public :: chord_update_limit
 
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
@@ -26,6 +27,12 @@ module retry_strategies
   integer, parameter :: max_continuation_solves = 40
   real(real64), parameter :: first_continuation_fraction = 0.25_real64
   real(real64), parameter :: smallest_continuation_increment = 1.0_real64/1024
+
+  !> A root finder may confirm a root with the LU factors it has (a final chord step instead of a
+  !> new Jacobian) once the residual is below its tolerance after an update of at most this
+  !> 2-norm: the chord step's residual is then ~ |update| times the tolerance, at the residual's
+  !> rounding (README, per-step cost).
+  real(real64), parameter :: chord_update_limit = 1.0e-6_real64
 
   !> Something that solves a nonlinear_system from an initial guess (e.g. PETSc SNES).
   type, abstract :: root_finder

@@ -1,0 +1,64 @@
+/* The step solver's own options, registered with PETSc's options database so that `-help` lists
+ * them with their descriptions (PETSc 3.18 has no Fortran PetscOptionsBegin/PetscOptionsBool),
+ * and a scan of the options a user gave, by part of their name (PETSc's options database has no
+ * prefix query). For src/solver/solver_options.f90. */
+#include <petscsys.h>
+#include <string.h>
+
+/* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes and -eme_final_chord into the
+ * four flags (0 or 1; their values on entry are the defaults). Returns a PETSc error code. */
+PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *final_chord)
+{
+    PetscBool value;
+
+    PetscFunctionBeginUser;
+    PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step solver (eme_run, eme_ensemble, eme_bench)", "SNES");
+    value = *chord_predictor ? PETSC_TRUE : PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-eme_chord_predictor",
+                               "Refine each step's predictor by one chord step with the last step's LU factors", "",
+                               value, &value, NULL));
+    *chord_predictor = value == PETSC_TRUE;
+    value = *fused_kernel ? PETSC_TRUE : PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-eme_fused_kernel",
+                               "Solve the double pendulum's step by its fused kernel on the condensed unknowns "
+                               "(9 plus multipliers); false: the generic residual on 15 plus multipliers", "",
+                               value, &value, NULL));
+    *fused_kernel = value == PETSC_TRUE;
+    value = *lean_snes ? PETSC_TRUE : PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-eme_lean_snes",
+                               "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a "
+                               "full-step shell line search, unless options need SNES's own Jacobian", "",
+                               value, &value, NULL));
+    *lean_snes = value == PETSC_TRUE;
+    value = *final_chord ? PETSC_TRUE : PETSC_FALSE;
+    PetscCall(PetscOptionsBool("-eme_final_chord",
+                               "Confirm a root whose residual is below tolerance after a small update with the "
+                               "existing LU factors instead of a new Jacobian (lean SNES only)", "",
+                               value, &value, NULL));
+    *final_chord = value == PETSC_TRUE;
+    PetscOptionsEnd();
+    PetscFunctionReturn(0);
+}
+
+/* *given = 1 if the name of an option in the database contains `text` (a NUL-terminated string),
+ * else 0. Returns a PETSc error code. */
+PetscErrorCode eme_option_given(const char *text, int *given)
+{
+    char *all, *token, *end;
+    size_t length = strlen(text);
+
+    PetscFunctionBeginUser;
+    *given = 0;
+    PetscCall(PetscOptionsGetAll(NULL, &all));
+    /* "-name value -name ..." : each token that starts with '-' is a name (or a negative value). */
+    for (token = all; *token && !*given; token = end) {
+        while (*token == ' ') token++;
+        for (end = token; *end && *end != ' '; end++) continue;
+        if (*token == '-') {
+            const char *at;
+            for (at = token; at + length <= end && !*given; at++) *given = strncmp(at, text, length) == 0;
+        }
+    }
+    PetscCall(PetscFree(all));
+    PetscFunctionReturn(0);
+}
