@@ -94,10 +94,10 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
 
-# LAPACK (the one PETSc uses) is called directly by the step solver's LU and the benchmark;
+# LAPACK and BLAS (the ones PETSc uses) are called directly by the step solver's LU;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
 SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LIBS) -llapack
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LIBS) -llapack -lblas
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)

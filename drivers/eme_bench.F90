@@ -42,6 +42,7 @@ program eme_bench
     logical :: fix_temperature = .false.
     real(real64), allocatable :: snes_times(:), floor_times(:)
     integer :: snes_iterations = 0, floor_iterations = 0, solves = 0
+    integer :: factorizations = 0        !! SNES's LU factorizations in one run
   end type bench_case
 
   character(len=*), parameter :: ts_schemes(3) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4']
@@ -90,14 +91,14 @@ program eme_bench
 
   write (output_unit, '(a, i0, a)') 'per-step cost (134 steps of 0.15 s), medians of ', repeats, &
     ' repeats after a warm-up, SNES and floor alternating per repeat; Newton/step are means'
-  write (output_unit, '(a, t34, a, t48, a, t62, a, t76, a, t90, a)') 'case', 'SNES us/step', 'floor us/step', &
-    'SNES/floor', 'Newton/step', 'SNES us/solve'
+  write (output_unit, '(a, t34, a, t48, a, t62, a, t76, a, t90, a, t104, a)') 'case', 'SNES us/step', &
+    'floor us/step', 'SNES/floor', 'Newton/step', 'LU/step', 'SNES us/solve'
   do k = 1, size(cases)
     call time_case(cases(k))
     associate (c => cases(k))
-      write (output_unit, '(a, t34, f12.2, f14.2, f14.3, f14.2, f14.2)') trim(c%label), median(c%snes_times), &
+      write (output_unit, '(a, t34, f12.2, f14.2, f14.3, f14.2, f14.2, f14.2)') trim(c%label), median(c%snes_times), &
         median(c%floor_times), median(c%snes_times/c%floor_times), real(c%snes_iterations, real64)/steps, &
-        (median(c%snes_times) - median(c%floor_times))*steps/c%solves
+        real(c%factorizations, real64)/steps, (median(c%snes_times) - median(c%floor_times))*steps/c%solves
       if (c%floor_iterations /= c%snes_iterations) write (output_unit, '(2x, a, i0, a, i0, a)') &
         '(the floor took ', c%floor_iterations, ' Newton iterations, SNES ', c%snes_iterations, ')'
     end associate
@@ -159,7 +160,7 @@ contains
     real(real64), allocatable :: z0(:), x0(:)
     type(constraint_slot), allocatable :: constraints(:)
     logical :: found, built
-    integer :: run
+    integer :: run, factorizations
 
     call set_scene(c, model, z0, constraints, x0)
     choice%dt = dt
@@ -169,8 +170,7 @@ contains
     call find_integrator(trim(c%scheme), entry, found)
     if (.not. found) call fail('no integrator '//trim(c%scheme))
     call entry%build(integrator)
-    call integrator%start(choice, model, constraints, z0, ierr)
-    if (ierr /= 0) call fail('PETSc failed to set up '//trim(c%label))
+    call start_run(integrator, choice, model, constraints, z0, c%label)
     select type (integrator)
     type is (step_solver)
       call build_pendulum_step(integrator%problem, kernel, built)
@@ -183,12 +183,39 @@ contains
     floor%final_chord = options%final_chord
     allocate (c%snes_times(repeats), c%floor_times(repeats))
     do run = 0, repeats
+      if (run > 0) call start_run(integrator, choice, model, constraints, z0, c%label)
+      factorizations = integrator_factorizations(integrator)
       c%snes_times(max(run, 1)) = snes_run(integrator, x0, c%snes_iterations, c%solves)
+      c%factorizations = integrator_factorizations(integrator) - factorizations
       c%floor_times(max(run, 1)) = floor_run(floor, kernel, x0, c%floor_iterations)
     end do
     call integrator%release(ierr)
     if (ierr /= 0) call fail('PETSc failed to free '//trim(c%label))
   end subroutine time_case
+
+  ! A run's start, as eme_run makes it (no LU factors from an earlier run); not timed.
+  subroutine start_run(integrator, choice, model, constraints, z0, label)
+    class(time_stepper), intent(inout), target :: integrator
+    type(integrator_choice), intent(in) :: choice
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z0(:)
+    character(len=*), intent(in) :: label
+
+    call integrator%start(choice, model, constraints, z0, ierr)
+    if (ierr /= 0) call fail('PETSc failed to set up '//trim(label))
+  end subroutine start_run
+
+  ! The LU factorizations of a discrete-gradient integrator's solver so far.
+  integer function integrator_factorizations(integrator)
+    class(time_stepper), intent(in) :: integrator
+
+    integrator_factorizations = 0
+    select type (integrator)
+    type is (step_solver)
+      integrator_factorizations = integrator%solver%factorizations()
+    end select
+  end function integrator_factorizations
 
   ! The stepping loop of a run through the integrator; us per step, its Newton iterations and solves.
   function snes_run(integrator, x0, iterations, solves) result(us)

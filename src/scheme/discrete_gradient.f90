@@ -96,10 +96,11 @@ contains
   !> midpoint and grad f(b) (all three or none). The fused step kernel (src/scheme/
   !> pendulum_step_kernel) computes the parts itself and shares them.
   pure subroutine gonzalez_from_parts(d, weight, dwd, grad_m, delta_f, dg, hess_m, grad_b, ddg_db)
-    real(real64), intent(in) :: d(:), weight(:), dwd, grad_m(:, :), delta_f(:)
-    real(real64), intent(out) :: dg(:, :)
-    real(real64), intent(in), optional :: hess_m(:, :, :), grad_b(:, :)
-    real(real64), intent(out), optional :: ddg_db(:, :, :)
+    real(real64), intent(in), contiguous :: d(:), weight(:), grad_m(:, :), delta_f(:)
+    real(real64), intent(in) :: dwd
+    real(real64), intent(out), contiguous :: dg(:, :)
+    real(real64), intent(in), optional, contiguous :: hess_m(:, :, :), grad_b(:, :)
+    real(real64), intent(out), optional, contiguous :: ddg_db(:, :, :)
     real(real64) :: wd(size(d)), coefficient, dc_db(size(d))
     integer :: j, l
 

@@ -59,7 +59,8 @@ module pendulum_step_kernel
     real(real64) :: scale(3, 2) = 1.0_real64       !! the discrete gradients' metric scales
     real(real64) :: dt = 0.0_real64
     real(real64) :: fraction = 1.0_real64          !! continuation: the step of fraction*dt
-    real(real64) :: z_old(15) = 0.0_real64
+    real(real64) :: q_old(3, 2) = 0.0_real64, p_old(3, 2) = 0.0_real64   !! the old state z
+    real(real64) :: gamma_old = 0.0_real64, tau_old(2) = 0.0_real64
     type(spring_old_state) :: old(2)
     integer :: old_stat = domain_ok                !! the old state's domain status
     real(real64) :: inverse_mass(2, 2) = 0.0_real64
@@ -164,7 +165,12 @@ contains
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
     integer :: a, n
 
-    self%z_old = z(1:15)
+    self%q_old(:, 1) = z(q_index(:, 1))
+    self%q_old(:, 2) = z(q_index(:, 2))
+    self%p_old(:, 1) = z(p_index(:, 1))
+    self%p_old(:, 2) = z(p_index(:, 2))
+    self%gamma_old = z(13)
+    self%tau_old = z(14:15)
     self%old_stat = domain_ok
     do a = 1, 2
       n = a + 1
@@ -192,11 +198,11 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: y(:)
     real(real64) :: x(size(y) + condensed_offset)
-    real(real64) :: q_new(3, 2), v(3, 2)
+    real(real64) :: v(3, 2)
 
     v = velocity(self, y)
-    q_new = reshape(self%z_old(1:6), [3, 2]) + (self%fraction*self%dt)*v
-    x(1:6) = reshape(q_new, [6])
+    x(1:3) = self%q_old(:, 1) + (self%fraction*self%dt)*v(:, 1)
+    x(4:6) = self%q_old(:, 2) + (self%fraction*self%dt)*v(:, 2)
     x(condensed_offset + 1:) = y
   end function expand
 
@@ -210,12 +216,14 @@ contains
 
     m1 = self%params%mass(1)
     m2 = self%params%mass(2)
-    v = reshape(x(1:6) - self%z_old(1:6), [3, 2])/(self%fraction*self%dt)
+    v(:, 1) = (x(1:3) - self%q_old(:, 1))/(self%fraction*self%dt)
+    v(:, 2) = (x(4:6) - self%q_old(:, 2))/(self%fraction*self%dt)
     ! m = [[m1 + m2, m2], [m2, m2]] (q2 relative to m1), the inverse of m^-1.
     p_mid(:, 1) = (m1 + m2)*v(:, 1) + m2*v(:, 2)
     p_mid(:, 2) = m2*(v(:, 1) + v(:, 2))
     y = x(condensed_offset + 1:)
-    y(1:6) = reshape(2.0_real64*p_mid, [6]) - self%z_old(7:12)
+    y(1:3) = 2.0_real64*p_mid(:, 1) - self%p_old(:, 1)
+    y(4:6) = 2.0_real64*p_mid(:, 2) - self%p_old(:, 2)
   end function condense
 
   ! v = m^-1 p_mid for the new momenta in y.
@@ -224,7 +232,8 @@ contains
     real(real64), intent(in) :: y(:)
     real(real64) :: v(3, 2), p_mid(3, 2)
 
-    p_mid = 0.5_real64*(reshape(self%z_old(7:12), [3, 2]) + reshape(y(1:6), [3, 2]))
+    p_mid(:, 1) = 0.5_real64*(self%p_old(:, 1) + y(1:3))
+    p_mid(:, 2) = 0.5_real64*(self%p_old(:, 2) + y(4:6))
     v(:, 1) = self%inverse_mass(1, 1)*p_mid(:, 1) + self%inverse_mass(1, 2)*p_mid(:, 2)
     v(:, 2) = self%inverse_mass(2, 1)*p_mid(:, 1) + self%inverse_mass(2, 2)*p_mid(:, 2)
   end function velocity
@@ -246,16 +255,16 @@ contains
     logical, intent(in) :: derivatives
     type(step_point), intent(inout) :: point
     integer, intent(out) :: stat
-    real(real64) :: x(3), q_old(3, 2)
+    real(real64) :: x(3)
     integer :: a, n
 
-    q_old = reshape(self%z_old(1:6), [3, 2])
-    point%p_new = reshape(y(1:6), [3, 2])
+    point%p_new(:, 1) = y(1:3)
+    point%p_new(:, 2) = y(4:6)
     point%gamma_new = y(row_gamma)
     point%tau_new = y(row_tau)
     point%v = velocity(self, y)
-    point%q_new = q_old + (self%fraction*self%dt)*point%v
-    point%q_mid = 0.5_real64*(q_old + point%q_new)
+    point%q_new = self%q_old + (self%fraction*self%dt)*point%v
+    point%q_mid = 0.5_real64*(self%q_old + point%q_new)
     stat = self%old_stat
     if (stat /= domain_ok) return
     do a = 1, 2
@@ -263,8 +272,8 @@ contains
       if (self%partials_rule == partials_midpoint) then
         ! Exact partials at the invariants of z_mid: dC_mid/dq' = q_mid, d(gamma, tau)_mid/d(gamma, tau)' = 1/2.
         x(1) = dot_product(point%q_mid(:, a), point%q_mid(:, a))
-        if (a == 2) x(2) = 0.5_real64*(self%z_old(13) + point%gamma_new)
-        x(n) = 0.5_real64*(self%z_old(13 + a) + point%tau_new(a))
+        if (a == 2) x(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
+        x(n) = 0.5_real64*(self%tau_old(a) + point%tau_new(a))
         point%chain_c(:, a) = point%q_mid(:, a)
         point%chain_other = 0.5_real64
         call exact_partials(self, a, x(1:n), derivatives, point%partials(1:n, :, a), point%dpartials(1:n, 1:n, :, a), &
@@ -277,8 +286,13 @@ contains
         point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
         point%chain_other = 1.0_real64
         if (self%gradient == gradient_gonzalez) then
-          call gonzalez_partials(self, a, x(1:n), derivatives, point%partials(1:n, :, a), &
-                                 point%dpartials(1:n, 1:n, :, a), stat)
+          block
+            real(real64) :: dg(n, 2), ddg(n, n, 2)
+
+            call gonzalez_partials(self, a, x(1:n), derivatives, dg, ddg, stat)
+            point%partials(1:n, :, a) = dg
+            if (derivatives) point%dpartials(1:n, 1:n, :, a) = ddg
+          end block
         else if (derivatives) then
           call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), x(1:n), self%scale(1:n, a), &
                                     point%partials(1:n, :, a), point%dpartials(1:n, 1:n, :, a), stat=stat)
@@ -299,7 +313,7 @@ contains
     integer, intent(in) :: a
     real(real64), intent(in) :: x(:)
     logical, intent(in) :: derivatives
-    real(real64), intent(out) :: dg(:, :), ddg(:, :, :)
+    real(real64), intent(out), contiguous :: dg(:, :), ddg(:, :, :)
     integer, intent(out) :: stat
     real(real64) :: d(size(x)), weight(size(x)), mid(size(x)), dwd, grad_m(size(x), 2), hess_m(size(x), size(x), 2)
     real(real64) :: grad_b(size(x), 2), delta_f(2), e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), theta
@@ -456,12 +470,12 @@ contains
       heating = partials(2, potential_u, 2)*inv_u_tau(2)
       do a = 1, 2
         b = 3 - a
-        residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%z_old(p_index(:, a)))/h &
+        residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%p_old(:, a))/h &
                                                      - self%force(:, a) + 2.0_real64*thermal_force(a)*point%q_mid(:, a)
-        residual(row_tau(a)) = (point%tau_new(a) - self%z_old(13 + a))/h + 2.0_real64*work_ratio(a)*work(a) &
+        residual(row_tau(a)) = (point%tau_new(a) - self%tau_old(a))/h + 2.0_real64*work_ratio(a)*work(a) &
                                - self%params%conductivity*(theta(b) - theta(a))*inv_u_tau(a)
       end do
-      residual(row_gamma) = (point%gamma_new - self%z_old(13))/h - rate
+      residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - rate
       residual(row_tau(2)) = residual(row_tau(2)) + heating*rate
       ! Constraints (FORMULATION section 7).
       lambda_length = 0.0_real64

@@ -32,7 +32,7 @@ module retry_strategies
   !> new Jacobian) once the residual is below its tolerance after an update of at most this
   !> 2-norm: the chord step's residual is then ~ |update| times the tolerance, at the residual's
   !> rounding (README, per-step cost).
-  real(real64), parameter :: chord_update_limit = 1.0e-6_real64
+  real(real64), parameter :: chord_update_limit = 1.0e-3_real64
 
   !> Something that solves a nonlinear_system from an initial guess (e.g. PETSc SNES).
   type, abstract :: root_finder
