@@ -15,25 +15,25 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step solver (eme_run, eme_ensemble, eme_bench)", "SNES");
     value = *chord_predictor ? PETSC_TRUE : PETSC_FALSE;
     PetscCall(PetscOptionsBool("-eme_chord_predictor",
-                               "Refine each step's predictor by one chord step with the last step's LU factors", "",
+                               "Refine each step's predictor by one chord step with the last step's LU factors", "README: Solver",
                                value, &value, NULL));
     *chord_predictor = value == PETSC_TRUE;
     value = *fused_kernel ? PETSC_TRUE : PETSC_FALSE;
     PetscCall(PetscOptionsBool("-eme_fused_kernel",
                                "Solve the double pendulum's step by its fused kernel on the condensed unknowns "
-                               "(9 plus multipliers); false: the generic residual on 15 plus multipliers", "",
+                               "(9 plus multipliers); false: the generic residual on 15 plus multipliers", "README: Solver",
                                value, &value, NULL));
     *fused_kernel = value == PETSC_TRUE;
     value = *lean_snes ? PETSC_TRUE : PETSC_FALSE;
     PetscCall(PetscOptionsBool("-eme_lean_snes",
                                "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a "
-                               "full-step shell line search, unless options need SNES's own Jacobian", "",
+                               "full-step shell line search, unless options need SNES's own Jacobian", "README: Solver",
                                value, &value, NULL));
     *lean_snes = value == PETSC_TRUE;
     value = *final_chord ? PETSC_TRUE : PETSC_FALSE;
     PetscCall(PetscOptionsBool("-eme_final_chord",
                                "Confirm a root whose residual is below tolerance after a small update with the "
-                               "existing LU factors instead of a new Jacobian (lean SNES only)", "",
+                               "existing LU factors instead of a new Jacobian (lean SNES only)", "README: Solver",
                                value, &value, NULL));
     *final_chord = value == PETSC_TRUE;
     PetscOptionsEnd();
