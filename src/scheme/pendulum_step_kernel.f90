@@ -77,6 +77,7 @@ module pendulum_step_kernel
     procedure :: check_root
     procedure :: set_continuation
     procedure :: set_old_state
+    procedure :: rounding_scales
     procedure :: expand
     procedure :: condense
     procedure :: scheme_temperatures
@@ -192,6 +193,15 @@ contains
       end associate
     end do
   end subroutine set_old_state
+
+  !> The residual (y' - y)/h - f rounds at ~eps |z|/h, the root at ~eps |z|: z the old state.
+  pure subroutine rounding_scales(self, state_scale, residual_scale)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(out) :: state_scale, residual_scale
+
+    state_scale = sqrt(sum(self%q_old**2) + sum(self%p_old**2) + self%gamma_old**2 + sum(self%tau_old**2))
+    residual_scale = state_scale/(self%fraction*self%dt)
+  end subroutine rounding_scales
 
   !> The generic unknowns x = (q', y) of the condensed unknowns y.
   pure function expand(self, y) result(x)

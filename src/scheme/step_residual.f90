@@ -37,6 +37,7 @@ module step_residual
     procedure :: evaluate
     procedure :: check_root
     procedure :: set_continuation
+    procedure :: rounding_scales
     procedure :: scheme_partials
     procedure :: scheme_temperatures
   end type step_problem
@@ -58,6 +59,15 @@ contains
 
     self%fraction = s
   end subroutine set_continuation
+
+  !> The residual (z' - z)/h - f rounds at ~eps |z|/h, the root at ~eps |z|: z the old state.
+  pure subroutine rounding_scales(self, state_scale, residual_scale)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(out) :: state_scale, residual_scale
+
+    state_scale = norm2(self%z_old)
+    residual_scale = state_scale/(self%fraction*self%dt)
+  end subroutine rounding_scales
 
   !> R(x') and optionally dR/dx' for x' = (z', multipliers of the active constraints).
   !> stat /= 0: z' (or a point the scheme needs) is outside the model's domain, e.g. a

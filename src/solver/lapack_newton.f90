@@ -6,7 +6,7 @@
 module lapack_newton
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, chord_update_limit
+  use retry_strategies, only: root_finder, chord_update_limit, newton_converged
   use dense_lu, only: lu_factors
   implicit none (type, external)
   private
@@ -40,8 +40,7 @@ contains
     self%max_iterations = max_iterations
   end subroutine prepare
 
-  !> Newton from `initial`: converged when the residual and the update that produced it are below
-  !> the tolerance (or the initial guess already solves the system).
+  !> Newton from `initial` until retry_strategies' newton_converged says so.
   subroutine solve(self, problem, initial, root, converged, reason, iterations, ierr)
     class(newton_loop), intent(inout) :: self
     class(nonlinear_system), intent(inout), target :: problem
@@ -51,7 +50,7 @@ contains
     character(len=:), allocatable, intent(out) :: reason
     integer, intent(out) :: iterations, ierr
     real(real64) :: residual(size(initial)), update(size(initial)), scratch(size(initial))
-    real(real64) :: residual_norm, update_norm
+    real(real64) :: residual_norm, update_norm, state_scale, residual_scale
     integer :: info, stat
     logical :: chord_taken
 
@@ -65,7 +64,9 @@ contains
     call problem%evaluate(root, residual, stat=stat)
     if (stat /= 0) return
     residual_norm = norm2(residual)
-    converged = residual_norm <= self%tolerance
+    call problem%rounding_scales(state_scale, residual_scale)
+    converged = newton_converged(0, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, state_scale, &
+                                 residual_scale)
     do while (.not. converged .and. iterations < self%max_iterations)
       iterations = iterations + 1
       if (self%final_chord .and. self%lu%ready .and. .not. chord_taken .and. residual_norm <= self%tolerance .and. &
@@ -86,7 +87,8 @@ contains
       call problem%evaluate(root, residual, stat=stat)
       if (stat /= 0) return
       residual_norm = norm2(residual)
-      converged = residual_norm <= self%tolerance .and. update_norm <= self%tolerance
+      converged = newton_converged(iterations, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, &
+                                   state_scale, residual_scale)
     end do
     if (converged) reason = ''
   end subroutine solve

@@ -6,10 +6,13 @@
 #include <string.h>
 
 /* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes and -eme_final_chord into the
- * four flags (0 or 1; their values on entry are the defaults). Returns a PETSc error code. */
-PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *final_chord)
+ * four flags (0 or 1) and -eme_max_halvings into max_halvings (0 to 30); their values on entry are
+ * the defaults. Returns a PETSc error code (PETSC_ERR_ARG_OUTOFRANGE for a depth outside 0..30). */
+PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *final_chord,
+                                       int *max_halvings)
 {
     PetscBool value;
+    PetscInt depth = *max_halvings;
 
     PetscFunctionBeginUser;
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step solver (eme_run, eme_ensemble, eme_bench)", "SNES");
@@ -36,6 +39,13 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
                                "existing LU factors instead of a new Jacobian (lean SNES only)", "README: Solver",
                                value, &value, NULL));
     *final_chord = value == PETSC_TRUE;
+    PetscCall(PetscOptionsInt("-eme_max_halvings",
+                              "A step whose root no retry strategy finds is replaced by two half steps, "
+                              "recursively up to this depth (0: the run stops at such a step)", "README: Solver",
+                              depth, &depth, NULL));
+    PetscCheck(depth >= 0 && depth <= 30, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
+               "-eme_max_halvings takes 0 to 30, not %" PetscInt_FMT, depth);
+    *max_halvings = (int)depth;
     PetscOptionsEnd();
     PetscFunctionReturn(0);
 }

@@ -26,7 +26,7 @@ module snes_solver
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_int, c_double
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, chord_update_limit
+  use retry_strategies, only: root_finder, chord_update_limit, newton_converged
   use dense_lu, only: lu_factors
   use dense_assembly, only: assemble_jacobian
   use solver_options, only: step_solver_options, read_solver_options, option_given
@@ -49,6 +49,8 @@ module snes_solver
     real(real64) :: tolerance = 0.0_real64          !! the convergence test's absolute tolerance
     real(real64) :: residual_norm = huge(1.0_real64)  !! at SNES's current iterate
     real(real64) :: update_norm = huge(1.0_real64)    !! of the update that led there
+    real(real64) :: state_scale = 0.0_real64          !! the problem's rounding scales (newton_converged)
+    real(real64) :: residual_scale = 0.0_real64
     logical :: chord_taken = .false.                !! the last iteration reused the factors
     integer :: factorizations = 0                   !! LU factorizations since the solver was made
     integer :: chord_steps = 0                      !! final chord steps since then
@@ -182,7 +184,7 @@ contains
     PetscCall(PCShellSetName(pc, 'dense LU by LAPACK dgetf2 and dgetrs', ierr))
     max_evaluations = 10000
     PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, int(max_iterations, kind(rows)), max_evaluations, ierr))
-    PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, 0, PETSC_NULL_FUNCTION, ierr))
+    PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, self%context, PETSC_NULL_FUNCTION, ierr))
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESSetFromOptions(self%snes, ierr))
@@ -295,6 +297,7 @@ contains
     self%context%residual_norm = huge(1.0_real64)
     self%context%update_norm = huge(1.0_real64)
     self%context%chord_taken = .false.
+    call problem%rounding_scales(self%context%state_scale, self%context%residual_scale)
     self%context%tolerance = self%newton_tol
     if (self%context%lean .and. self%context%final_chord) then
       PetscCall(tolerance_of(self%snes, self%context%tolerance, ierr))
@@ -377,17 +380,14 @@ contains
     end if
   end subroutine use_fallback
 
-  ! SNES convergence test. Converged when the residual is below the absolute tolerance and so
-  ! was the Newton update that produced it (or the initial guess already solves the system).
-  ! Newton's quadratic convergence then leaves a residual ~ tolerance^2, so the discrete
-  ! conservation laws, which hold exactly at a root, hold to round-off rather than to the
-  ! tolerance. -snes_atol changes the tolerance; -snes_stol > 0 adds PETSc's relative update test.
+  ! SNES convergence test: retry_strategies' newton_converged with SNES's absolute tolerance
+  ! (-snes_atol changes it) and relative update tolerance (-snes_stol > 0 adds it).
   subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
     SNES, intent(in) :: snes
     PetscInt, intent(in) :: iteration
     PetscReal, intent(in) :: x_norm, update_norm, residual_norm
     SNESConvergedReason, intent(out) :: reason
-    PetscInt, intent(in) :: context
+    type(solver_context), intent(in) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscReal :: atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
@@ -395,7 +395,8 @@ contains
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (residual_norm <= atol .and. (iteration == 0 .or. update_norm <= max(atol, stol*x_norm))) then
+    else if (newton_converged(int(iteration), residual_norm, update_norm, x_norm, atol, stol, context%state_scale, &
+                              context%residual_scale)) then
       reason = SNES_CONVERGED_FNORM_ABS
     else
       reason = SNES_CONVERGED_ITERATING

@@ -8,25 +8,28 @@
 !>   -eme_lean_snes false         SNES builds the Jacobian (SNESComputeJacobian) and takes its
 !>                                'basic' line search
 !>   -eme_final_chord false       a new Jacobian for every Newton iteration
+!> and one for the step itself:
+!>   -eme_max_halvings N          halve a step whose root is not found, recursively, N times at most
 module solver_options
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
   implicit none (type, external)
   private
   public :: step_solver_options, read_solver_options, option_given
 
-  !> The switches, with their defaults.
+  !> The switches and the halving depth, with their defaults.
   type :: step_solver_options
     logical :: chord_predictor = .true.
     logical :: fused_kernel = .true.
     logical :: lean_snes = .true.
     logical :: final_chord = .true.
+    integer :: max_halvings = 6
   end type step_solver_options
 
   interface
-    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, final_chord) &
+    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings) &
       bind(C, name='eme_read_solver_options') result(ierr)
       import :: c_int
-      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord
+      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings
       integer(c_int) :: ierr
     end function eme_read_solver_options
 
@@ -41,15 +44,17 @@ module solver_options
 contains
 
   !> The switches as the options database sets them. ierr /= 0 for a PETSc error (e.g. a value
-  !> that is not a logical).
+  !> that is not a logical, or a depth outside 0..30).
   subroutine read_solver_options(options, ierr)
     type(step_solver_options), intent(out) :: options
     integer, intent(out) :: ierr
-    integer(c_int) :: flags(4)
+    integer(c_int) :: flags(4), depth
 
     flags = merge(1_c_int, 0_c_int, [options%chord_predictor, options%fused_kernel, options%lean_snes, &
                                      options%final_chord])
-    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(4)))
+    depth = int(options%max_halvings, c_int)
+    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(4), depth))
+    options%max_halvings = int(depth)
     options%chord_predictor = flags(1) /= 0
     options%fused_kernel = flags(2) /= 0
     options%lean_snes = flags(3) /= 0
