@@ -101,21 +101,33 @@ contains
     real(real64), intent(out), contiguous :: dg(:, :)
     real(real64), intent(in), optional, contiguous :: hess_m(:, :, :), grad_b(:, :)
     real(real64), intent(out), optional, contiguous :: ddg_db(:, :, :)
-    real(real64) :: wd(size(d)), coefficient, dc_db(size(d))
-    integer :: j, l
+    real(real64) :: wd(size(d)), coefficient, dc_db(size(d)), inv_dwd, hess_d
+    integer :: j, l, i, n
 
+    n = size(d)
+    inv_dwd = 1.0_real64/dwd
     wd = weight*d
     do j = 1, size(dg, 2)
-      coefficient = (delta_f(j) - dot_product(grad_m(:, j), d))/dwd
-      dg(:, j) = grad_m(:, j) + coefficient*wd
+      coefficient = delta_f(j)
+      do i = 1, n
+        coefficient = coefficient - grad_m(i, j)*d(i)
+      end do
+      coefficient = coefficient*inv_dwd
+      do i = 1, n
+        dg(i, j) = grad_m(i, j) + coefficient*wd(i)
+      end do
       if (present(ddg_db)) then
-        do l = 1, size(d)
-          dc_db(l) = (grad_b(l, j) - grad_m(l, j) - 0.5_real64*dot_product(hess_m(l, :, j), d))/dwd &
-                     - 2.0_real64*coefficient*wd(l)/dwd
+        do l = 1, n
+          hess_d = 0.0_real64
+          do i = 1, n
+            hess_d = hess_d + hess_m(l, i, j)*d(i)
+          end do
+          dc_db(l) = (grad_b(l, j) - grad_m(l, j) - 0.5_real64*hess_d - 2.0_real64*coefficient*wd(l))*inv_dwd
         end do
-        ddg_db(:, :, j) = 0.5_real64*hess_m(:, :, j)
-        do l = 1, size(d)
-          ddg_db(:, l, j) = ddg_db(:, l, j) + wd*dc_db(l)
+        do l = 1, n
+          do i = 1, n
+            ddg_db(i, l, j) = 0.5_real64*hess_m(i, l, j) + wd(i)*dc_db(l)
+          end do
           ddg_db(l, l, j) = ddg_db(l, l, j) + coefficient*weight(l)
         end do
       end if

@@ -49,7 +49,7 @@ contains
     logical, intent(out) :: converged
     character(len=:), allocatable, intent(out) :: reason
     integer, intent(out) :: iterations, ierr
-    real(real64) :: residual(size(initial)), update(size(initial)), scratch(size(initial))
+    real(real64) :: residual(size(initial)), update(size(initial))
     real(real64) :: residual_norm, update_norm, state_scale, residual_scale
     integer :: info, stat
     logical :: chord_taken
@@ -61,7 +61,7 @@ contains
     converged = .false.
     chord_taken = .false.
     update_norm = huge(1.0_real64)
-    call problem%evaluate(root, residual, stat=stat)
+    call problem%evaluate_residual(root, residual, stat)
     if (stat /= 0) return
     residual_norm = norm2(residual)
     call problem%rounding_scales(state_scale, residual_scale)
@@ -74,7 +74,7 @@ contains
         chord_taken = .true.
       else
         chord_taken = .false.
-        call problem%evaluate(root, scratch, self%lu%factors, stat)
+        call problem%evaluate_jacobian(root, self%lu%factors, stat)
         self%lu%ready = .false.
         if (stat /= 0) return
         call self%lu%factor_in_place(info)
@@ -84,7 +84,7 @@ contains
       call self%lu%solve(update, info)
       root = root - update
       update_norm = norm2(update)
-      call problem%evaluate(root, residual, stat=stat)
+      call problem%evaluate_residual(root, residual, stat)
       if (stat /= 0) return
       residual_norm = norm2(residual)
       converged = newton_converged(iterations, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, &

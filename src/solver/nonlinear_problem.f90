@@ -16,6 +16,8 @@ module nonlinear_problem
     procedure(check_root_interface), deferred :: check_root
     procedure(continuation_interface), deferred :: set_continuation
     procedure :: rounding_scales
+    procedure :: evaluate_residual
+    procedure :: evaluate_jacobian
   end type nonlinear_system
 
   abstract interface
@@ -52,6 +54,29 @@ module nonlinear_problem
   end interface
 
 contains
+
+  !> R(x) for a Newton iteration that may next ask for dR/dx at the same x (evaluate_jacobian): a
+  !> problem may keep what the residual computed. This default evaluates.
+  subroutine evaluate_residual(self, x, residual, stat)
+    class(nonlinear_system), intent(inout) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
+
+    call self%evaluate(x, residual, stat=stat)
+  end subroutine evaluate_residual
+
+  !> dR/dx; a problem that kept the residual's pass at this x reuses it. This default evaluates
+  !> residual and Jacobian.
+  subroutine evaluate_jacobian(self, x, jacobian, stat)
+    class(nonlinear_system), intent(inout) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: residual(size(x))
+
+    call self%evaluate(x, residual, jacobian, stat)
+  end subroutine evaluate_jacobian
 
   !> Sizes that say where rounding ends Newton's iteration (retry_strategies' newton_converged):
   !> an update below ~eps state_scale and a residual below ~eps residual_scale are at the rounding

@@ -417,7 +417,7 @@ contains
 
     PetscCall(VecGetArrayReadF90(x, x_values, ierr))
     PetscCall(VecGetArrayF90(f, f_values, ierr))
-    call context%problem%evaluate(x_values, f_values, stat=stat)
+    call context%problem%evaluate_residual(x_values, f_values, stat)
     if (stat /= 0) f_values = huge(1.0_real64)
     context%residual_norm = norm2(f_values)
     PetscCall(VecRestoreArrayF90(f, f_values, ierr))
@@ -513,20 +513,20 @@ contains
     end if
   end subroutine apply_lu
 
-  ! The lean way's Jacobian at SNES's current iterate, written into the LU's own array and
-  ! factored there; info /= 0 for a point outside the domain or a zero pivot.
+  ! The lean way's Jacobian at SNES's current iterate (whose residual the problem may have kept),
+  ! written into the LU's own array and factored there; info /= 0 for a point outside the domain
+  ! or a zero pivot.
   subroutine factor_jacobian(context, info, ierr)
     type(solver_context), intent(inout) :: context
     integer, intent(out) :: info
     PetscErrorCode, intent(out) :: ierr
     Vec :: iterate
     PetscScalar, pointer :: values(:)
-    real(real64) :: residual(size(context%lu%pivots))
     integer :: stat
 
     PetscCall(SNESGetSolution(context%snes, iterate, ierr))
     PetscCall(VecGetArrayReadF90(iterate, values, ierr))
-    call context%problem%evaluate(values, residual, context%lu%factors, stat)
+    call context%problem%evaluate_jacobian(values, context%lu%factors, stat)
     PetscCall(VecRestoreArrayReadF90(iterate, values, ierr))
     info = stat
     context%lu%ready = .false.
@@ -552,7 +552,7 @@ contains
     PetscCall(VecGetArrayF90(x, x_values, ierr))
     trial = x_values - y_values
     update_norm = norm2(y_values)
-    call context%problem%evaluate(trial, residual, stat=stat)
+    call context%problem%evaluate_residual(trial, residual, stat)
     if (stat == 0) then
       x_values = trial
       x_norm = norm2(trial)
