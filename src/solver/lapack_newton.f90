@@ -6,7 +6,7 @@
 module lapack_newton
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, chord_update_limit, newton_converged
+  use retry_strategies, only: root_finder, final_chord_step, newton_converged
   use dense_lu, only: lu_factors
   implicit none (type, external)
   private
@@ -69,8 +69,7 @@ contains
                                  residual_scale)
     do while (.not. converged .and. iterations < self%max_iterations)
       iterations = iterations + 1
-      if (self%final_chord .and. self%lu%ready .and. .not. chord_taken .and. residual_norm <= self%tolerance .and. &
-          update_norm <= chord_update_limit) then
+      if (final_chord_step(self%final_chord, self%lu%ready, chord_taken, residual_norm, self%tolerance, update_norm)) then
         chord_taken = .true.
       else
         chord_taken = .false.

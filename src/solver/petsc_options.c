@@ -5,40 +5,39 @@
 #include <petscsys.h>
 #include <string.h>
 
+/* One logical option: *flag (0 or 1) is its default on entry and its value on return. */
+static PetscErrorCode bool_option(PetscOptionItems *PetscOptionsObject, const char *name, const char *help, int *flag)
+{
+    PetscBool value = *flag ? PETSC_TRUE : PETSC_FALSE;
+
+    PetscFunctionBeginUser;
+    PetscCall(PetscOptionsBool(name, help, "README: Solver", value, &value, NULL));
+    *flag = value == PETSC_TRUE;
+    PetscFunctionReturn(0);
+}
+
 /* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes and -eme_final_chord into the
  * four flags (0 or 1) and -eme_max_halvings into max_halvings (0 to 30); their values on entry are
  * the defaults. Returns a PETSc error code (PETSC_ERR_ARG_OUTOFRANGE for a depth outside 0..30). */
 PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *final_chord,
                                        int *max_halvings)
 {
-    PetscBool value;
     PetscInt depth = *max_halvings;
 
     PetscFunctionBeginUser;
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step solver (eme_run, eme_ensemble, eme_bench)", "SNES");
-    value = *chord_predictor ? PETSC_TRUE : PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-eme_chord_predictor",
-                               "Refine each step's predictor by one chord step with the last step's LU factors", "README: Solver",
-                               value, &value, NULL));
-    *chord_predictor = value == PETSC_TRUE;
-    value = *fused_kernel ? PETSC_TRUE : PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-eme_fused_kernel",
-                               "Solve the double pendulum's step by its fused kernel on the condensed unknowns "
-                               "(9 plus multipliers); false: the generic residual on 15 plus multipliers", "README: Solver",
-                               value, &value, NULL));
-    *fused_kernel = value == PETSC_TRUE;
-    value = *lean_snes ? PETSC_TRUE : PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-eme_lean_snes",
-                               "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a "
-                               "full-step shell line search, unless options need SNES's own Jacobian", "README: Solver",
-                               value, &value, NULL));
-    *lean_snes = value == PETSC_TRUE;
-    value = *final_chord ? PETSC_TRUE : PETSC_FALSE;
-    PetscCall(PetscOptionsBool("-eme_final_chord",
-                               "Confirm a root whose residual is below tolerance after a small update with the "
-                               "existing LU factors instead of a new Jacobian (lean SNES only)", "README: Solver",
-                               value, &value, NULL));
-    *final_chord = value == PETSC_TRUE;
+    PetscCall(bool_option(PetscOptionsObject, "-eme_chord_predictor",
+                          "Refine each step's predictor by one chord step with the last step's LU factors",
+                          chord_predictor));
+    PetscCall(bool_option(PetscOptionsObject, "-eme_fused_kernel",
+                          "Solve the double pendulum's step by its fused kernel on the condensed unknowns "
+                          "(9 plus multipliers); false: the generic residual on 15 plus multipliers", fused_kernel));
+    PetscCall(bool_option(PetscOptionsObject, "-eme_lean_snes",
+                          "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a "
+                          "full-step shell line search, unless options need SNES's own Jacobian", lean_snes));
+    PetscCall(bool_option(PetscOptionsObject, "-eme_final_chord",
+                          "Confirm a root whose residual is below tolerance after a small update with the "
+                          "existing LU factors instead of a new Jacobian (lean SNES only)", final_chord));
     PetscCall(PetscOptionsInt("-eme_max_halvings",
                               "A step whose root no retry strategy finds is replaced by two half steps, "
                               "recursively up to this depth (0: the run stops at such a step)", "README: Solver",

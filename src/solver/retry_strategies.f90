@@ -17,7 +17,7 @@ module retry_strategies
   public :: root_finder, root_search, find_root
   public :: strategy_predictor, strategy_old_state, strategy_continuation, strategies_per_round
   public :: max_continuation_solves, first_continuation_fraction, smallest_continuation_increment
-  public :: chord_update_limit, newton_converged, rounding_factor
+  public :: chord_update_limit, newton_converged, rounding_factor, final_chord_step
 
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
@@ -113,6 +113,17 @@ contains
                                           (update_norm <= rounding_factor*epsilon(1.0_real64)*state_scale .and. &
                                            residual_norm <= rounding_factor*epsilon(1.0_real64)*residual_scale)
   end function newton_converged
+
+  !> Whether a Newton iteration may confirm the root with the factors at hand instead of a new
+  !> Jacobian (the final chord step): the residual is below the tolerance after an update of at
+  !> most chord_update_limit, and the last iteration was not already such a step.
+  pure logical function final_chord_step(enabled, factors_ready, chord_taken, residual_norm, tolerance, update_norm)
+    logical, intent(in) :: enabled, factors_ready, chord_taken
+    real(real64), intent(in) :: residual_norm, tolerance, update_norm
+
+    final_chord_step = enabled .and. factors_ready .and. .not. chord_taken .and. residual_norm <= tolerance .and. &
+                       update_norm <= chord_update_limit
+  end function final_chord_step
 
   !> Searches the root of `problem` (at s = 1) by the strategies above. `predictor` is the
   !> caller's guess; `start` is the old state (a root at s -> 0), both of the problem's size.

@@ -26,7 +26,7 @@ module snes_solver
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_int, c_double
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, chord_update_limit, newton_converged
+  use retry_strategies, only: root_finder, final_chord_step, newton_converged
   use dense_lu, only: lu_factors
   use dense_assembly, only: assemble_jacobian
   use solver_options, only: step_solver_options, read_solver_options, option_given
@@ -488,8 +488,8 @@ contains
 
     PetscCall(PCShellGetContext(pc, context, ierr))
     if (context%lean) then
-      if (context%final_chord .and. context%lu%ready .and. .not. context%chord_taken .and. &
-          context%residual_norm <= context%tolerance .and. context%update_norm <= chord_update_limit) then
+      if (final_chord_step(context%final_chord, context%lu%ready, context%chord_taken, context%residual_norm, &
+                           context%tolerance, context%update_norm)) then
         context%chord_taken = .true.
         context%chord_steps = context%chord_steps + 1
       else

@@ -45,8 +45,10 @@ def test_help_lists_the_eme_options(tmp_path, eme_run_binary):
     for option, words in [("-eme_chord_predictor", "chord step with the last step's LU factors"),
                           ("-eme_fused_kernel", "fused kernel on the condensed unknowns"),
                           ("-eme_lean_snes", "inside the shell preconditioner"),
-                          ("-eme_final_chord", "existing LU factors instead of a new Jacobian")]:
-        line = next((l for l in result.stdout.splitlines() if l.strip().startswith(option + ":")), "")
+                          ("-eme_final_chord", "existing LU factors instead of a new Jacobian"),
+                          ("-eme_max_halvings", "replaced by two half steps, recursively")]:
+        line = next((l for l in result.stdout.splitlines() if l.strip().startswith(option + ":")
+                     or l.strip().startswith(option + " <")), "")
         assert words in line, (option, line)
 
 
