@@ -6,9 +6,10 @@
 !> a run uses it (PETSc SNES on the fused kernel, the retry strategies), and on the floor, the same
 !> steps solved by a hand-written Newton loop on the same fused kernel (same predictor and chord
 !> refinement, same final chord step, same convergence test and root check, LAPACK's LU, no
-!> PETSc). Alternating repeat by repeat in one process keeps the machine's drifts out of the
-!> ratio; reported are the medians of each and the median of the per-repeat ratios. The PETSc TS
-!> baselines are timed alone for reference.
+!> PETSc; src/solver/lapack_newton). Each repeat runs every case in turn, and each case alternates
+!> SNES and floor, in one process, so that the machine's drifts spread over all cases and stay out
+!> of the ratio; reported are the medians of each and the median of the per-repeat ratios. The
+!> PETSc TS baselines are timed alone afterwards, for reference.
 !> The last line is machine-readable:
 !>   us_per_step=<EME_theta median> snes_over_floor=<its ratio> newton_per_step=<EME_theta mean>
 program eme_bench
@@ -33,7 +34,8 @@ program eme_bench
   real(real64), parameter :: dt = 0.15_real64, newton_tol = 1.0e-8_real64
 
 
-  !> One case: a scheme on a scene, its SNES and floor timings (us per step, per repeat).
+  !> One case: a scheme on a scene, what its runs need, and its SNES and floor timings (us per
+  !> step, per repeat).
   type :: bench_case
     character(len=40) :: label = ''
     character(len=16) :: scheme = ''
@@ -43,13 +45,20 @@ program eme_bench
     real(real64), allocatable :: snes_times(:), floor_times(:)
     integer :: snes_iterations = 0, floor_iterations = 0, solves = 0
     integer :: factorizations = 0        !! SNES's LU factorizations in one run
+    class(time_stepper), allocatable :: integrator
+    type(integrator_choice) :: choice
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:), x0(:)
+    type(constraint_slot), allocatable :: constraints(:)
+    type(pendulum_step) :: kernel        !! the floor's
+    type(newton_loop) :: floor
   end type bench_case
 
   character(len=*), parameter :: ts_schemes(3) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4']
   type(bench_case), allocatable :: cases(:)
   type(step_solver_options) :: options
   real(real64), allocatable :: times(:)
-  integer :: repeats, k, iterations, stat, theta_case
+  integer :: repeats, k, iterations, stat, theta_case, run
   character(len=32) :: argument
   PetscErrorCode :: ierr
 
@@ -93,8 +102,18 @@ program eme_bench
     ' repeats after a warm-up, SNES and floor alternating per repeat; Newton/step are means'
   write (output_unit, '(a, t34, a, t48, a, t62, a, t76, a, t90, a, t104, a)') 'case', 'SNES us/step', &
     'floor us/step', 'SNES/floor', 'Newton/step', 'LU/step', 'SNES us/solve'
+  ! Round robin: every repeat runs every case, so that the machine's drifts spread over all of them.
   do k = 1, size(cases)
-    call time_case(cases(k))
+    call set_up_case(cases(k))
+  end do
+  do run = 0, repeats
+    do k = 1, size(cases)
+      call repeat_case(cases(k), run)
+    end do
+  end do
+  do k = 1, size(cases)
+    call cases(k)%integrator%release(ierr)
+    if (ierr /= 0) call fail('PETSc failed to free '//trim(cases(k)%label))
     associate (c => cases(k))
       write (output_unit, '(a, t34, f12.2, f14.2, f14.3, f14.2, f14.2, f14.2)') trim(c%label), median(c%snes_times), &
         median(c%floor_times), median(c%snes_times/c%floor_times), real(c%snes_iterations, real64)/steps, &
@@ -148,50 +167,46 @@ contains
     x0 = [z0, spread(0.0_real64, 1, size(constraints))]
   end subroutine set_scene
 
-  ! One case: warm-up, then per repeat the SNES run and the floor run.
-  subroutine time_case(c)
-    type(bench_case), intent(inout) :: c
-    class(time_stepper), allocatable, target :: integrator
+  ! A case's integrator, scene and floor.
+  subroutine set_up_case(c)
+    type(bench_case), intent(inout), target :: c
     type(integrator_entry) :: entry
-    type(integrator_choice) :: choice
-    type(newton_loop) :: floor
-    type(pendulum_step), target :: kernel
-    class(generic_model), allocatable :: model
-    real(real64), allocatable :: z0(:), x0(:)
-    type(constraint_slot), allocatable :: constraints(:)
     logical :: found, built
-    integer :: run, factorizations
 
-    call set_scene(c, model, z0, constraints, x0)
-    choice%dt = dt
-    choice%newton_tol = newton_tol
-    choice%newton_max_iterations = max_iterations
-    choice%thermo_variable = c%variable
+    call set_scene(c, c%model, c%z0, c%constraints, c%x0)
+    c%choice%dt = dt
+    c%choice%newton_tol = newton_tol
+    c%choice%newton_max_iterations = max_iterations
+    c%choice%thermo_variable = c%variable
     call find_integrator(trim(c%scheme), entry, found)
     if (.not. found) call fail('no integrator '//trim(c%scheme))
-    call entry%build(integrator)
-    call start_run(integrator, choice, model, constraints, z0, c%label)
-    select type (integrator)
+    call entry%build(c%integrator)
+    call start_run(c%integrator, c%choice, c%model, c%constraints, c%z0, c%label)
+    select type (integrator => c%integrator)
     type is (step_solver)
-      call build_pendulum_step(integrator%problem, kernel, built)
+      call build_pendulum_step(integrator%problem, c%kernel, built)
     class default
       built = .false.
     end select
     if (.not. built) call fail('no fused kernel for '//trim(c%label))
-    call floor%prepare(kernel%unknowns(), newton_tol, max_iterations)
-    floor%chord_predictor = options%chord_predictor
-    floor%final_chord = options%final_chord
+    call c%floor%prepare(c%kernel%unknowns(), newton_tol, max_iterations)
+    c%floor%chord_predictor = options%chord_predictor
+    c%floor%final_chord = options%final_chord
     allocate (c%snes_times(repeats), c%floor_times(repeats))
-    do run = 0, repeats
-      if (run > 0) call start_run(integrator, choice, model, constraints, z0, c%label)
-      factorizations = integrator_factorizations(integrator)
-      c%snes_times(max(run, 1)) = snes_run(integrator, x0, c%snes_iterations, c%solves)
-      c%factorizations = integrator_factorizations(integrator) - factorizations
-      c%floor_times(max(run, 1)) = floor_run(floor, kernel, x0, c%floor_iterations)
-    end do
-    call integrator%release(ierr)
-    if (ierr /= 0) call fail('PETSc failed to free '//trim(c%label))
-  end subroutine time_case
+  end subroutine set_up_case
+
+  ! Repeat `run` of a case (0: the warm-up): its SNES run, then its floor run.
+  subroutine repeat_case(c, run)
+    type(bench_case), intent(inout), target :: c
+    integer, intent(in) :: run
+    integer :: factorizations
+
+    if (run > 0) call start_run(c%integrator, c%choice, c%model, c%constraints, c%z0, c%label)
+    factorizations = integrator_factorizations(c%integrator)
+    c%snes_times(max(run, 1)) = snes_run(c%integrator, c%x0, c%snes_iterations, c%solves)
+    c%factorizations = integrator_factorizations(c%integrator) - factorizations
+    c%floor_times(max(run, 1)) = floor_run(c%floor, c%kernel, c%x0, c%floor_iterations)
+  end subroutine repeat_case
 
   ! A run's start, as eme_run makes it (no LU factors from an earlier run); not timed.
   subroutine start_run(integrator, choice, model, constraints, z0, label)
