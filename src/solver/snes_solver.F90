@@ -53,7 +53,6 @@ module snes_solver
     real(real64) :: residual_scale = 0.0_real64
     logical :: chord_taken = .false.                !! the last iteration reused the factors
     integer :: factorizations = 0                   !! LU factorizations since the solver was made
-    integer :: chord_steps = 0                      !! final chord steps since then
   end type solver_context
 
   !> The PETSc objects of a solver. Do not copy it after `prepare`: PETSc holds the address of
@@ -81,7 +80,6 @@ module snes_solver
     procedure :: use_fallback
     procedure :: lean
     procedure :: factorizations
-    procedure :: chord_steps
     procedure, private :: create
     procedure, private :: set_line_search
   end type newton_solver
@@ -181,7 +179,7 @@ contains
     PetscCall(PCShellSetContext(pc, self%context, ierr))
     PetscCall(PCShellSetSetUp(pc, factor_operator, ierr))
     PetscCall(PCShellSetApply(pc, apply_lu, ierr))
-    PetscCall(PCShellSetName(pc, 'dense LU by LAPACK dgetf2 and dgetrs', ierr))
+    PetscCall(PCShellSetName(pc, 'dense LU by LAPACK dgetf2, solves by dlaswp and BLAS dtrsv', ierr))
     max_evaluations = 10000
     PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, int(max_iterations, kind(rows)), max_evaluations, ierr))
     PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, self%context, PETSC_NULL_FUNCTION, ierr))
@@ -266,13 +264,6 @@ contains
 
     factorizations = self%context%factorizations
   end function factorizations
-
-  !> Final chord steps (roots confirmed with the factors at hand) since the solver was made.
-  integer function chord_steps(self)
-    class(newton_solver), intent(in) :: self
-
-    chord_steps = self%context%chord_steps
-  end function chord_steps
 
   !> One SNESSolve of `problem` (of the size the solver was prepared for; it must stay at its
   !> address during the solve) from `initial`. A line search that fails on a residual already below the
@@ -491,7 +482,6 @@ contains
       if (final_chord_step(context%final_chord, context%lu%ready, context%chord_taken, context%residual_norm, &
                            context%tolerance, context%update_norm)) then
         context%chord_taken = .true.
-        context%chord_steps = context%chord_steps + 1
       else
         context%chord_taken = .false.
         PetscCall(factor_jacobian(context, info, ierr))
