@@ -28,11 +28,17 @@ CC := mpicc
 # PETSc-typed modules), HDF5_FLAGS, HDF5_LIBS, SUNDIALS_FLAGS and SUNDIALS_LDFLAGS come from
 # build/config.mk (section set-up).
 WARNINGS := -Wall -Wextra -fimplicit-none
-FFLAGS := -O2 -g -fstack-arrays $(WARNINGS) -J$(MOD) -I$(MOD)
+# Optimization of the step kernel (src/scheme, src/model, the LU) and the instruction set
+# (README, Per-step cost). Never -ffast-math: the structure-preserving residual needs IEEE
+# semantics and its NaN checks. ARCH_FLAGS is empty, so the binaries run on any x86-64 CPU;
+# `make clean && make ARCH_FLAGS=-march=native` builds for this machine's CPU only.
+KERNEL_FLAGS ?= -O3
+ARCH_FLAGS ?=
+FFLAGS := -O2 -g -fstack-arrays $(WARNINGS) -J$(MOD) -I$(MOD) $(ARCH_FLAGS)
 # Our own modules are standard Fortran 2018; PETSc's headers need long lines and no -std.
 STD_FLAGS := -std=f2018
 PETSC_SOURCE_FLAGS = -ffree-line-length-none $(PETSC_FLAGS)
-CFLAGS := -O2 -g -Wall -Wextra -std=c11
+CFLAGS := -O2 -g -Wall -Wextra -std=c11 $(ARCH_FLAGS)
 
 # ---------------------------------------------------------------- sources
 # Every source file is found by its folder: a new module needs no Makefile edit. Module
@@ -58,14 +64,16 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 	done > $@
 -include $(BUILD)/fortran.deps
 
-$(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o \
+$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
-$(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/lu_preconditioner.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
+$(OBJ)/src/solver/snes_solver.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
 $(OBJ)/src/model/length_constraint.o \
 $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
 $(OBJ)/src/model/pendulum_model.o $(OBJ)/tests/unit/support/single_spring_model.o $(OBJ)/src/model/invariant_function.o \
-$(OBJ)/tests/unit/support/scripted_solver.o: FFLAGS += -Wno-unused-dummy-argument
+$(OBJ)/tests/unit/support/scripted_solver.o $(OBJ)/src/solver/lapack_newton.o: FFLAGS += -Wno-unused-dummy-argument
+$(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): FFLAGS += $(KERNEL_FLAGS)
 $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
@@ -91,11 +99,11 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
 
-# LAPACK (the one PETSc uses) is called directly by the step solver's LU and the benchmark;
+# LAPACK and BLAS (the ones PETSc uses) are called directly by the step solver's LU;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
 SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense \
                  -lsundials_sunnonlinsolfixedpoint
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas
 
 $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)

@@ -1,52 +1,77 @@
-!> eme_bench [REPEATS] [PETSc options]: per-step cost of every scheme on the paper's scene
-!> (make bench). Each scheme runs the 134 steps of the Fig. 4 scene REPEATS times (default 15)
-!> after one warm-up run; only the stepping loop is timed (no output). Reported: the median
-!> microseconds per step and the mean Newton iterations per step. The floor is the same EME_theta
-!> step (same residual, Jacobian, predictor and convergence test) solved by a minimal Newton loop
-!> with LAPACK's dgetf2 and dgetrs instead of SNES; the ratio SNES/floor comes from the same
-!> process.
+!> eme_bench [REPEATS] [PETSc options]: per-step cost of every scheme on the paper's scene and the
+!> constrained scenes of Fig. 5 (make bench). Each case runs the 134 steps of its scene REPEATS
+!> times (default 15) after one warm-up run; only the stepping loop is timed (no output).
+!>
+!> Every discrete-gradient case is timed twice per repeat, alternately: through the integrator as
+!> a run uses it (PETSc SNES on the fused kernel, the retry strategies), and on the floor, the same
+!> steps solved by a hand-written Newton loop on the same fused kernel (same predictor and chord
+!> refinement, same final chord step, same convergence test and root check, LAPACK's LU, no
+!> PETSc; src/solver/lapack_newton). Each repeat runs every case in turn, and each case alternates
+!> SNES and floor, in one process, so that the machine's drifts spread over all cases and stay out
+!> of the ratio; reported are the medians of each and the median of the per-repeat ratios. The
+!> PETSc TS baselines are timed alone afterwards, for reference.
 !> The last line is machine-readable:
-!>   us_per_step=<EME_theta median> snes_over_floor=<ratio> newton_per_step=<EME_theta mean>
+!>   us_per_step=<EME_theta median> snes_over_floor=<its ratio> newton_per_step=<EME_theta mean>
 program eme_bench
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit, error_unit
-  use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
+  use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use pendulum_scene, only: double_pendulum_scene
-  use step_residual, only: step_problem
-  use dense_lu, only: lu_factors
+  use pendulum_step_kernel, only: pendulum_step, build_pendulum_step, condensed_offset
+  use retry_strategies, only: root_search, find_root
+  use lapack_newton, only: newton_loop
+  use solver_options, only: step_solver_options, read_solver_options
   use integrator_settings, only: integrator_choice
   use integrator_registry, only: integrator_entry, find_integrator
+  use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
   implicit none
 
-  integer, parameter :: steps = 134
+  integer, parameter :: steps = 134, max_iterations = 50
   real(real64), parameter :: dt = 0.15_real64, newton_tol = 1.0e-8_real64
-  character(len=*), parameter :: snes_schemes(2) = [character(len=8) :: 'eme', 'midpoint']
+
+
+  !> One case: a scheme on a scene, what its runs need, and its SNES and floor timings (us per
+  !> step, per repeat).
+  type :: bench_case
+    character(len=40) :: label = ''
+    character(len=16) :: scheme = ''
+    integer :: variable = tau_temperature
+    logical :: fix_length = .false.
+    logical :: fix_temperature = .false.
+    real(real64), allocatable :: snes_times(:), floor_times(:)
+    integer :: snes_iterations = 0, floor_iterations = 0, solves = 0
+    integer :: factorizations = 0        !! SNES's LU factorizations in one run
+    class(time_stepper), allocatable :: integrator
+    type(integrator_choice) :: choice
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:), x0(:)
+    type(constraint_slot), allocatable :: constraints(:)
+    type(pendulum_step) :: kernel        !! the floor's
+    type(newton_loop) :: floor
+  end type bench_case
+
   character(len=*), parameter :: ts_schemes(3) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4']
-  type(double_pendulum_scene) :: scene
-  type(integrator_choice) :: choice
-  type(step_problem) :: problem           ! the floor's step
-  type(lu_factors) :: lu                  ! the floor's factors
-  class(generic_model), allocatable :: model
-  type(constraint_slot), allocatable :: constraints(:)
-  real(real64), allocatable :: z0(:), times(:)
-  real(real64) :: median_eme_theta, newton_eme_theta, median_floor
-  integer :: repeats, variable, k, iterations, stat
-  character(len=32) :: argument, label
-  character(len=:), allocatable :: message
+  type(bench_case), allocatable :: cases(:)
+  type(step_solver_options) :: options
+  real(real64), allocatable :: times(:)
+  integer :: repeats, k, iterations, stat, theta_case, run
+  character(len=32) :: argument
   PetscErrorCode :: ierr
 
   if (command_argument_count() >= 1) then
     call get_command_argument(1, argument)
     if (argument == '--help' .or. argument == '-h') then
       write (output_unit, '(a)') 'usage: eme_bench [REPEATS] [PETSc options]', '', &
-        'Times the stepping loop of every scheme on the paper scene (134 steps of 0.15 s): the median of', &
-        'REPEATS runs (default 15) after a warm-up, per step, with Newton iterations per step; then the', &
-        'same EME_theta step solved by a minimal LAPACK Newton loop (the floor). A benchmark, not a test:', &
-        'the last line is machine-readable: us_per_step=... snes_over_floor=... newton_per_step=...'
+        'Times the stepping loop of every scheme on the paper scene and the Fig. 5 constrained scenes (134', &
+        'steps of 0.15 s): per repeat, alternately through PETSc SNES as a run does and by a hand-written', &
+        'Newton loop on the same fused kernel (the floor); medians of REPEATS runs (default 15) after a', &
+        'warm-up, per step, with Newton iterations per step; the PETSc TS baselines alone. The -eme_*', &
+        'options (-help lists them) switch the speed-ups off one by one. A benchmark, not a test: the last', &
+        'line is machine-readable: us_per_step=... snes_over_floor=... newton_per_step=...'
       stop
     end if
   end if
@@ -59,36 +84,58 @@ program eme_bench
       if (stat /= 0 .or. repeats < 1) call fail('REPEATS must be a whole number >= 1')
     end if
   end if
+  call read_solver_options(options, ierr)
+  if (ierr /= 0) call fail('cannot read the -eme_* options')
   allocate (times(repeats))
-  choice%dt = dt
-  choice%newton_tol = newton_tol
-  write (output_unit, '(a, i0, a)') 'per-step cost on the paper scene (134 steps of 0.15 s), median of ', repeats, &
-    ' runs after a warm-up; Newton iterations per step are means'
-  write (output_unit, '(a, t44, a, t58, a)') 'scheme', 'us per step', 'Newton/step'
 
-  do k = 1, size(snes_schemes)
-    do variable = tau_entropy, tau_internal_energy
-      call time_scheme(trim(snes_schemes(k)), variable, fresh_start=.false., iterations=iterations)
-      write (label, '(a, "_", a)') trim(merge('EME     ', 'midpoint', k == 1)), trim(thermo_variable_names(variable))
-      call report_line(label, iterations)
-      if (k == 1 .and. variable == tau_temperature) then
-        median_eme_theta = median(times)/steps
-        newton_eme_theta = real(iterations, real64)/steps
-      end if
+  cases = [bench_case('EME_entropy', 'eme', tau_entropy), bench_case('EME_temperature', 'eme', tau_temperature), &
+           bench_case('EME_internal_energy', 'eme', tau_internal_energy), &
+           bench_case('midpoint_entropy', 'midpoint', tau_entropy), &
+           bench_case('midpoint_temperature', 'midpoint', tau_temperature), &
+           bench_case('midpoint_internal_energy', 'midpoint', tau_internal_energy), &
+           bench_case('EME_temperature + length', 'eme', tau_temperature, fix_length=.true.), &
+           bench_case('EME_temperature + temperature', 'eme', tau_temperature, fix_temperature=.true.), &
+           bench_case('EME_temperature + both', 'eme', tau_temperature, fix_length=.true., fix_temperature=.true.)]
+  theta_case = 2
+
+  write (output_unit, '(a, i0, a)') 'per-step cost (134 steps of 0.15 s), medians of ', repeats, &
+    ' repeats after a warm-up, SNES and floor alternating per repeat; Newton/step are means'
+  write (output_unit, '(a, t34, a, t48, a, t62, a, t76, a, t90, a, t104, a)') 'case', 'SNES us/step', &
+    'floor us/step', 'SNES/floor', 'Newton/step', 'LU/step', 'SNES us/solve'
+  ! Round robin: every repeat runs every case, so that the machine's drifts spread over all of them.
+  do k = 1, size(cases)
+    call set_up_case(cases(k))
+  end do
+  do run = 0, repeats
+    do k = 1, size(cases)
+      call repeat_case(cases(k), run)
     end do
   end do
-  do k = 1, size(ts_schemes)
-    call time_scheme(trim(ts_schemes(k)), tau_temperature, fresh_start=.true., iterations=iterations)
-    call report_line(trim(ts_schemes(k))//'_temperature', iterations)
+  do k = 1, size(cases)
+    call cases(k)%integrator%release(ierr)
+    if (ierr /= 0) call fail('PETSc failed to free '//trim(cases(k)%label))
+    associate (c => cases(k))
+      write (output_unit, '(a, t34, f12.2, f14.2, f14.3, f14.2, f14.2, f14.2)') trim(c%label), median(c%snes_times), &
+        median(c%floor_times), median(c%snes_times/c%floor_times), real(c%snes_iterations, real64)/steps, &
+        real(c%factorizations, real64)/steps, (median(c%snes_times) - median(c%floor_times))*steps/c%solves
+      if (c%floor_iterations /= c%snes_iterations) write (output_unit, '(2x, a, i0, a, i0, a)') &
+        '(the floor took ', c%floor_iterations, ' Newton iterations, SNES ', c%snes_iterations, ')'
+    end associate
+    flush (output_unit)
   end do
-
-  call time_floor(iterations)
-  median_floor = median(times)/steps
-  call report_line('floor: EME_temperature, LAPACK Newton loop', iterations)
-  write (output_unit, '(a, f0.2, a, f0.2, a)') 'SNES/floor for EME_temperature: ', median_eme_theta/median_floor, &
-    ' (Newton/step ', newton_eme_theta, ' with SNES)'
+  do k = 1, size(ts_schemes)
+    call time_ts(trim(ts_schemes(k)), iterations)
+    write (output_unit, '(a, t34, f12.2, t76, f14.2)') trim(ts_schemes(k))//'_temperature', median(times), &
+      real(iterations, real64)/steps
+  end do
+  ! CVODE (the high-order baselines): when the project has cvode_bdf, its us per step on the paper
+  ! scene and EME_theta's cost as a ratio to it go here.
+  write (output_unit, '(a, 2(f0.3, a))') 'EME_entropy and EME_internal_energy over EME_temperature: ', &
+    median(cases(1)%snes_times)/median(cases(theta_case)%snes_times), ' and ', &
+    median(cases(3)%snes_times)/median(cases(theta_case)%snes_times), ''
   write (output_unit, '("us_per_step=", f0.2, " snes_over_floor=", f0.3, " newton_per_step=", f0.3)') &
-    median_eme_theta, median_eme_theta/median_floor, newton_eme_theta
+    median(cases(theta_case)%snes_times), median(cases(theta_case)%snes_times/cases(theta_case)%floor_times), &
+    real(cases(theta_case)%snes_iterations, real64)/steps
   PetscCallA(PetscFinalize(ierr))
 
 contains
@@ -101,144 +148,177 @@ contains
     stop 1, quiet=.true.
   end subroutine fail
 
-  ! The paper scene's model and initial state in thermodynamic variable `variable`.
-  subroutine set_scene(variable)
-    integer, intent(in) :: variable
+  ! The paper scene, with the case's constraints (Fig. 5: length |q1(0)| = 1 m, theta_1 = 280 K):
+  ! the model, its initial state z0 and the run's initial unknowns x0 = (z0, multipliers 0).
+  subroutine set_scene(c, model, z0, constraints, x0)
+    type(bench_case), intent(in) :: c
+    class(generic_model), allocatable, intent(out) :: model
+    real(real64), allocatable, intent(out) :: z0(:), x0(:)
+    type(constraint_slot), allocatable, intent(out) :: constraints(:)
+    type(double_pendulum_scene) :: scene
+    character(len=:), allocatable :: message
 
-    call scene%build(variable, model, z0, constraints, stat, message)
+    scene%fix_length = c%fix_length
+    scene%length = norm2(scene%q1)
+    scene%fix_temperature = c%fix_temperature
+    scene%temperature = scene%theta(1)
+    call scene%build(c%variable, model, z0, constraints, stat, message)
     if (stat /= 0) call fail(message)
+    x0 = [z0, spread(0.0_real64, 1, size(constraints))]
   end subroutine set_scene
 
-  ! The run's stepping loop of integrator `name` from the registry, timed; iterations of the
-  ! last run. fresh_start: the integrator starts anew for every repeat (a TS carries its state).
-  subroutine time_scheme(name, variable, fresh_start, iterations)
+  ! A case's integrator, scene and floor.
+  subroutine set_up_case(c)
+    type(bench_case), intent(inout), target :: c
+    type(integrator_entry) :: entry
+    logical :: found, built
+
+    call set_scene(c, c%model, c%z0, c%constraints, c%x0)
+    c%choice%dt = dt
+    c%choice%newton_tol = newton_tol
+    c%choice%newton_max_iterations = max_iterations
+    c%choice%thermo_variable = c%variable
+    call find_integrator(trim(c%scheme), entry, found)
+    if (.not. found) call fail('no integrator '//trim(c%scheme))
+    call entry%build(c%integrator)
+    call start_run(c%integrator, c%choice, c%model, c%constraints, c%z0, c%label)
+    select type (integrator => c%integrator)
+    type is (step_solver)
+      call build_pendulum_step(integrator%problem, c%kernel, built)
+    class default
+      built = .false.
+    end select
+    if (.not. built) call fail('no fused kernel for '//trim(c%label))
+    call c%floor%prepare(c%kernel%unknowns(), newton_tol, max_iterations)
+    c%floor%chord_predictor = options%chord_predictor
+    c%floor%final_chord = options%final_chord
+    allocate (c%snes_times(repeats), c%floor_times(repeats))
+  end subroutine set_up_case
+
+  ! Repeat `run` of a case (0: the warm-up): its SNES run, then its floor run.
+  subroutine repeat_case(c, run)
+    type(bench_case), intent(inout), target :: c
+    integer, intent(in) :: run
+    integer :: factorizations
+
+    if (run > 0) call start_run(c%integrator, c%choice, c%model, c%constraints, c%z0, c%label)
+    factorizations = integrator_factorizations(c%integrator)
+    c%snes_times(max(run, 1)) = snes_run(c%integrator, c%x0, c%snes_iterations, c%solves)
+    c%factorizations = integrator_factorizations(c%integrator) - factorizations
+    c%floor_times(max(run, 1)) = floor_run(c%floor, c%kernel, c%x0, c%floor_iterations)
+  end subroutine repeat_case
+
+  ! A run's start, as eme_run makes it (no LU factors from an earlier run); not timed.
+  subroutine start_run(integrator, choice, model, constraints, z0, label)
+    class(time_stepper), intent(inout), target :: integrator
+    type(integrator_choice), intent(in) :: choice
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z0(:)
+    character(len=*), intent(in) :: label
+
+    call integrator%start(choice, model, constraints, z0, ierr)
+    if (ierr /= 0) call fail('PETSc failed to set up '//trim(label))
+  end subroutine start_run
+
+  ! The LU factorizations of a discrete-gradient integrator's solver so far.
+  integer function integrator_factorizations(integrator)
+    class(time_stepper), intent(in) :: integrator
+
+    integrator_factorizations = 0
+    select type (integrator)
+    type is (step_solver)
+      integrator_factorizations = integrator%solver%factorizations()
+    end select
+  end function integrator_factorizations
+
+  ! The stepping loop of a run through the integrator; us per step, its Newton iterations and solves.
+  function snes_run(integrator, x0, iterations, solves) result(us)
+    class(time_stepper), intent(inout), target :: integrator
+    real(real64), intent(in) :: x0(:)
+    integer, intent(out) :: iterations, solves
+    real(real64) :: us
+    type(step_report) :: report
+    real(real64) :: x(size(x0)), x_previous(size(x0)), x_new(size(x0))
+    integer(int64) :: start, finish, rate
+    integer :: n
+
+    x = x0
+    x_previous = x0
+    iterations = 0
+    solves = 0
+    call system_clock(start, rate)
+    do n = 1, steps
+      call integrator%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
+      if (ierr /= 0 .or. .not. report%accepted) call fail('a step failed: '//report%reason)
+      iterations = iterations + report%newton_iterations
+      solves = solves + report%solves
+      x_previous = x
+      x = x_new
+    end do
+    call system_clock(finish)
+    us = real(finish - start, real64)/real(rate, real64)*1.0e6_real64/steps
+  end function snes_run
+
+  ! The same steps on the floor: the stepper's search (src/integrator/discrete_gradient_stepper)
+  ! on the kernel with the LAPACK Newton loop as its root finder.
+  function floor_run(floor, kernel, x0, iterations) result(us)
+    type(newton_loop), intent(inout) :: floor
+    type(pendulum_step), intent(inout), target :: kernel
+    real(real64), intent(in) :: x0(:)
+    integer, intent(out) :: iterations
+    real(real64) :: us
+    type(root_search) :: search
+    real(real64) :: x(size(x0)), x_previous(size(x0)), guess(size(x0)), y(size(x0) - condensed_offset)
+    integer(int64) :: start, finish, rate
+    integer :: n
+
+    x = x0
+    x_previous = x0
+    iterations = 0
+    floor%lu%ready = .false.
+    call system_clock(start, rate)
+    do n = 1, steps
+      call kernel%set_old_state(x)
+      guess = 2*x - x_previous
+      call find_root(floor, kernel, x(condensed_offset + 1:), kernel%condense(guess), y, search, ierr)
+      if (.not. search%accepted) call fail('a floor step failed: '//search%reason)
+      iterations = iterations + search%newton_iterations
+      x_previous = x
+      x = kernel%expand(y)
+    end do
+    call system_clock(finish)
+    us = real(finish - start, real64)/real(rate, real64)*1.0e6_real64/steps
+  end function floor_run
+
+
+  ! A TS baseline's stepping loop, timed; Newton iterations of the last run.
+  subroutine time_ts(name, iterations)
     character(len=*), intent(in) :: name
-    integer, intent(in) :: variable
-    logical, intent(in) :: fresh_start
     integer, intent(out) :: iterations
     class(time_stepper), allocatable, target :: integrator
     type(integrator_entry) :: entry
-    type(step_report) :: report
-    real(real64), allocatable :: x(:), x_previous(:), x_new(:)
-    integer :: run, n
-    integer(int64) :: start, finish, rate
+    type(integrator_choice) :: choice
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:), x0(:)
+    type(constraint_slot), allocatable :: constraints(:)
+    integer :: run, solves
     logical :: found
 
-    call set_scene(variable)
-    choice%thermo_variable = variable
+    call set_scene(bench_case(name, name, tau_temperature), model, z0, constraints, x0)
+    choice%dt = dt
+    choice%newton_tol = newton_tol
+    choice%thermo_variable = tau_temperature
     call find_integrator(name, entry, found)
     if (.not. found) call fail('no integrator '//name)
     call entry%build(integrator)
-    allocate (x(size(z0)), x_previous(size(z0)), x_new(size(z0)))
     do run = 0, repeats
-      if (run == 0 .or. fresh_start) then
-        call integrator%start(choice, model, constraints, z0, ierr)
-        if (ierr /= 0) call fail('PETSc failed to set up '//name)
-      end if
-      x = z0
-      x_previous = z0
-      iterations = 0
-      call system_clock(start, rate)
-      do n = 1, steps
-        call integrator%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
-        if (ierr /= 0 .or. .not. report%accepted) call fail('a step of '//name//' failed')
-        iterations = iterations + report%newton_iterations
-        x_previous = x
-        x = x_new
-      end do
-      call system_clock(finish)
-      if (run > 0) times(run) = real(finish - start, real64)/real(rate, real64)*1.0e6_real64
+      call integrator%start(choice, model, constraints, z0, ierr)    ! a TS carries its state
+      if (ierr /= 0) call fail('PETSc failed to set up '//name)
+      times(max(run, 1)) = snes_run(integrator, x0, iterations, solves)
     end do
     call integrator%release(ierr)
-    if (ierr /= 0) call fail('PETSc failed to free '//name)
-  end subroutine time_scheme
-
-  ! The floor: Newton with full steps and LAPACK's LU on the same EME_theta residual and
-  ! Jacobian, the same predictor (extrapolation refined by a chord step with the last LU,
-  ! falling back to the old state) and the same convergence test.
-  subroutine time_floor(iterations)
-    integer, intent(out) :: iterations
-    real(real64), allocatable :: x(:), x_previous(:), x_new(:), guess(:)
-    integer :: run, n, its
-    logical :: ok
-    integer(int64) :: start, finish, rate
-
-    call set_scene(tau_temperature)
-    allocate (problem%model, source=model)
-    allocate (problem%constraints(0))
-    problem%dt = dt
-    call lu%reset(model%state_size)
-    allocate (x(size(z0)), x_previous(size(z0)), x_new(size(z0)), guess(size(z0)))
-    do run = 0, repeats
-      x = z0
-      x_previous = z0
-      iterations = 0
-      call system_clock(start, rate)
-      do n = 1, steps
-        problem%z_old = x
-        guess = 2*x - x_previous
-        if (n > 1) call chord(guess)
-        call newton(guess, x_new, its, ok)
-        iterations = iterations + its
-        if (.not. ok) then
-          call newton(x, x_new, its, ok)
-          iterations = iterations + its
-          if (.not. ok) call fail('the floor Newton loop failed')
-        end if
-        x_previous = x
-        x = x_new
-      end do
-      call system_clock(finish)
-      if (run > 0) times(run) = real(finish - start, real64)/real(rate, real64)*1.0e6_real64
-    end do
-  end subroutine time_floor
-
-  ! The floor's chord step: x := x - J^-1 R(x) with the factors of the last Newton iteration.
-  subroutine chord(x)
-    real(real64), intent(inout) :: x(:)
-    real(real64) :: residual(size(x))
-    integer :: stat, info
-
-    call problem%evaluate(x, residual, stat=stat)
-    if (stat /= 0) return
-    call lu%solve(residual, info)
-    if (info == 0) x = x - residual
-  end subroutine chord
-
-  ! The floor's Newton loop: full steps, the solver's convergence test.
-  subroutine newton(initial, root, its, ok)
-    real(real64), intent(in) :: initial(:)
-    real(real64), allocatable, intent(inout) :: root(:)
-    integer, intent(out) :: its
-    logical, intent(out) :: ok
-    real(real64) :: residual(size(initial)), update(size(initial)), jacobian(size(initial), size(initial))
-    integer :: info, stat
-
-    root = initial
-    ok = .false.
-    call problem%evaluate(root, residual, jacobian, stat)
-    do its = 1, 50
-      if (stat /= 0) return
-      update = -residual
-      call lu%factor(jacobian, info)
-      if (info /= 0) return
-      call lu%solve(update, info)
-      root = root + update
-      call problem%evaluate(root, residual, jacobian, stat)
-      if (stat == 0 .and. norm2(residual) <= newton_tol .and. norm2(update) <= newton_tol) then
-        ok = .true.
-        return
-      end if
-    end do
-  end subroutine newton
-
-  subroutine report_line(label, iterations)
-    character(len=*), intent(in) :: label
-    integer, intent(in) :: iterations
-
-    write (output_unit, '(a, t44, f11.2, f14.2)') label, median(times)/steps, real(iterations, real64)/steps
-    flush (output_unit)
-  end subroutine report_line
+  end subroutine time_ts
 
   function median(values) result(m)
     real(real64), intent(in) :: values(:)

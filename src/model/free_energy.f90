@@ -10,7 +10,8 @@ module free_energy
   use special_functions, only: log1p
   implicit none (type, external)
   private
-  public :: spring_law, spring_law_of, mechanical_parts, mechanical_difference, viscosity
+  public :: spring_law, spring_law_of, mechanical_parts, mechanical_parts_at, mechanical_difference
+  public :: mechanical_difference_at, viscosity
 
   !> Coefficients of spring a's closed forms (FORMULATION section 3). Spring 1 has no Maxwell
   !> element: its beta_v, maxwell_ref and maxwell_slope are zero, so one formula serves both.
@@ -54,13 +55,23 @@ contains
     real(real64), intent(out) :: e, sigma
     real(real64), intent(out) :: de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
 
-    real(real64) :: log_stretch, dlog, d2log, inv_length, dinv, d2inv
+    ! L = ln(l/l0) = ln(C/l0^2)/2 and r = 1/l = C^(-1/2).
+    call mechanical_parts_at(law, c, 0.5_real64*log(c/law%natural_length**2), 1.0_real64/sqrt(c), gamma, &
+                             e, sigma, de, dsigma, d2e, d2sigma)
+  end subroutine mechanical_parts
 
-    ! L = ln(l/l0) = ln(C/l0^2)/2 and r = 1/l = C^(-1/2), with their C-derivatives.
-    log_stretch = 0.5_real64*log(c/law%natural_length**2)
+  !> mechanical_parts for a caller that already has L = ln(l/l0) and r = 1/l at C (the fused
+  !> step kernel shares them between the values, gradients and differences it needs).
+  pure subroutine mechanical_parts_at(law, c, log_stretch, inv_length, gamma, e, sigma, de, dsigma, d2e, d2sigma)
+    type(spring_law), intent(in) :: law
+    real(real64), intent(in) :: c, log_stretch, inv_length, gamma
+    real(real64), intent(out) :: e, sigma
+    real(real64), intent(out) :: de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    real(real64) :: dlog, d2log, dinv, d2inv
+
+    ! The C-derivatives of L and r.
     dlog = 0.5_real64/c
     d2log = -0.5_real64/c**2
-    inv_length = 1.0_real64/sqrt(c)
     dinv = -0.5_real64*inv_length/c
     d2inv = 0.75_real64*inv_length/c**2
 
@@ -91,7 +102,7 @@ contains
       hess(2, 1) = hess(1, 2)
       hess(2, 2) = 2.0_real64*m
     end subroutine spring_part
-  end subroutine mechanical_parts
+  end subroutine mechanical_parts_at
 
   !> e(b) - e(a) and sigma(b) - sigma(a) for invariants (C, gamma) at a and b, computed without
   !> cancellation: ln(C_b/C_a) by log1p, L_b^2 - L_a^2 as (L_a + L_b) dL, 1/l_b - 1/l_a in closed
@@ -101,14 +112,24 @@ contains
     type(spring_law), intent(in) :: law
     real(real64), intent(in) :: c_a, gamma_a, c_b, gamma_b
     real(real64), intent(out) :: delta_e, delta_sigma
-    real(real64) :: log_a, log_b, delta_log, inv_a, inv_b, delta_inv, delta_gamma
+    real(real64) :: inv_a, inv_b
 
-    log_a = 0.5_real64*log(c_a/law%natural_length**2)
-    delta_log = 0.5_real64*log1p((c_b - c_a)/c_a)
-    log_b = log_a + delta_log
     inv_a = 1.0_real64/sqrt(c_a)
     inv_b = 1.0_real64/sqrt(c_b)
-    delta_inv = -(c_b - c_a)*inv_a*inv_b/(sqrt(c_a) + sqrt(c_b))
+    call mechanical_difference_at(law, 0.5_real64*log(c_a/law%natural_length**2), 0.5_real64*log1p((c_b - c_a)/c_a), &
+                                  inv_b, -(c_b - c_a)*inv_a*inv_b/(sqrt(c_a) + sqrt(c_b)), gamma_a, gamma_b, &
+                                  delta_e, delta_sigma)
+  end subroutine mechanical_difference
+
+  !> mechanical_difference for a caller that already has L_a = ln(l_a/l0), dL = L_b - L_a (by
+  !> log1p), r_b = 1/l_b and dr = r_b - r_a (in closed form).
+  pure subroutine mechanical_difference_at(law, log_a, delta_log, inv_b, delta_inv, gamma_a, gamma_b, delta_e, delta_sigma)
+    type(spring_law), intent(in) :: law
+    real(real64), intent(in) :: log_a, delta_log, inv_b, delta_inv, gamma_a, gamma_b
+    real(real64), intent(out) :: delta_e, delta_sigma
+    real(real64) :: log_b, delta_gamma
+
+    log_b = log_a + delta_log
     delta_gamma = gamma_b - gamma_a
     delta_e = part_difference(law%stiffness_ref, law%beta*law%theta_ref, law%maxwell_ref)
     delta_sigma = part_difference(law%stiffness_slope, law%beta, law%maxwell_slope)
@@ -126,7 +147,7 @@ contains
                         + m*(gamma_a + gamma_b)*delta_gamma &
                         - law%beta_v*(delta_gamma*slope_b*inv_b + gamma_a*(k*delta_log*inv_b + slope_a*delta_inv))
     end function part_difference
-  end subroutine mechanical_difference
+  end subroutine mechanical_difference_at
 
   !> eta(theta) = eta_cst exp(eta_theta (1/theta - 1/theta_ref)), eq. (17).
   pure function viscosity(params, theta) result(eta)

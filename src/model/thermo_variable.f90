@@ -10,7 +10,7 @@ module thermo_variable
   implicit none (type, external)
   private
   public :: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
-  public :: spring_potential
+  public :: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
 
   integer, parameter :: tau_entropy = 1          !! tau = s
   integer, parameter :: tau_temperature = 2      !! tau = theta
@@ -62,26 +62,42 @@ contains
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
 
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
-    real(real64) :: tau, theta, cap
-    integer :: n, m
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), theta
 
-    n = self%n_invariants
-    m = n - 1                        ! mechanical invariants: C, or (C, gamma)
     f = 0.0_real64
     grad = 0.0_real64
     if (present(hess)) hess = 0.0_real64
     call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
     if (stat /= domain_ok) return
-    tau = x(n)
-    cap = self%law%heat_capacity
-    call temperature_of(self, tau, e, sigma, theta, stat)
+    call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
     if (stat /= domain_ok) return
+    call potentials_from_parts(self, x(self%n_invariants), theta, e, sigma, de, dsigma, d2e, d2sigma, grad, hess, f)
+  end subroutine evaluate_potentials
+
+  !> The table of FORMULATION section 3 from the mechanical parts e, sigma (with their (C, gamma)
+  !> derivatives) and the temperature theta at invariants x = (C, [gamma,] tau): the gradient,
+  !> optionally the Hessian and the values of (U_a, S_a). evaluate_potentials and the fused step
+  !> kernel (src/scheme/pendulum_step_kernel) both assemble them here.
+  pure subroutine potentials_from_parts(self, tau, theta, e, sigma, de, dsigma, d2e, d2sigma, grad, hess, f)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: tau, theta, e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    real(real64), intent(out) :: grad(:, :)
+    real(real64), intent(out), optional :: hess(:, :, :), f(:)
+    real(real64) :: cap
+    integer :: n, m
+
+    n = self%n_invariants
+    m = n - 1                        ! mechanical invariants: C, or (C, gamma)
+    grad = 0.0_real64
+    if (present(hess)) hess = 0.0_real64
+    cap = self%law%heat_capacity
 
     select case (self%variable)
     case (tau_temperature)
-      f(potential_u) = e + cap*(tau - self%law%theta_ref)
-      f(potential_s) = sigma + cap*log(tau/self%law%theta_ref)
+      if (present(f)) then
+        f(potential_u) = e + cap*(tau - self%law%theta_ref)
+        f(potential_s) = sigma + cap*log(tau/self%law%theta_ref)
+      end if
       grad(1:m, potential_u) = de(1:m)
       grad(n, potential_u) = cap
       grad(1:m, potential_s) = dsigma(1:m)
@@ -93,8 +109,10 @@ contains
       end if
     case (tau_entropy)
       ! theta = theta_ref exp((tau - sigma)/Cap), so d theta = theta (d tau - d sigma)/Cap.
-      f(potential_u) = e + cap*(theta - self%law%theta_ref)
-      f(potential_s) = tau
+      if (present(f)) then
+        f(potential_u) = e + cap*(theta - self%law%theta_ref)
+        f(potential_s) = tau
+      end if
       grad(1:m, potential_u) = de(1:m) - theta*dsigma(1:m)
       grad(n, potential_u) = theta
       grad(n, potential_s) = 1.0_real64
@@ -107,8 +125,10 @@ contains
       end if
     case (tau_internal_energy)
       ! theta = theta_ref + (tau - e)/Cap, so d theta = (d tau - d e)/Cap.
-      f(potential_u) = tau
-      f(potential_s) = sigma + cap*log(theta/self%law%theta_ref)
+      if (present(f)) then
+        f(potential_u) = tau
+        f(potential_s) = sigma + cap*log(theta/self%law%theta_ref)
+      end if
       grad(n, potential_u) = 1.0_real64
       grad(1:m, potential_s) = dsigma(1:m) - de(1:m)/theta
       grad(n, potential_s) = 1.0_real64/theta
@@ -120,7 +140,7 @@ contains
         hess(n, n, potential_s) = -1.0_real64/(cap*theta**2)
       end if
     end select
-  end subroutine evaluate_potentials
+  end subroutine potentials_from_parts
 
   !> U(b) - U(a) and S(b) - S(a) without cancellation (FORMULATION section 3 table, term by
   !> term): the mechanical parts by `mechanical_difference`, ln(theta_b/theta_a) by log1p, and
@@ -131,7 +151,7 @@ contains
     real(real64), intent(out) :: delta(:)
     integer, intent(out) :: stat
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
-    real(real64) :: delta_e, delta_sigma, delta_tau, theta_a, theta_b, delta_theta, cap, gamma_a, gamma_b
+    real(real64) :: delta_e, delta_sigma, theta_a, theta_b, delta_theta, gamma_a, gamma_b
     integer :: n
 
     n = self%n_invariants
@@ -149,22 +169,33 @@ contains
       gamma_b = b(2)
     end if
     call mechanical_difference(self%law, a(1), gamma_a, b(1), gamma_b, delta_e, delta_sigma)
+    call difference_from_parts(self, a(n), b(n) - a(n), theta_a, delta_e, delta_sigma, delta, delta_theta)
+  end subroutine potential_difference
+
+  !> The table's differences U(b) - U(a), S(b) - S(a) term by term from tau_a, tau_b - tau_a,
+  !> theta_a and the mechanical differences; also theta_b - theta_a.
+  pure subroutine difference_from_parts(self, tau_a, delta_tau, theta_a, delta_e, delta_sigma, delta, delta_theta)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: tau_a, delta_tau, theta_a, delta_e, delta_sigma
+    real(real64), intent(out) :: delta(:), delta_theta
+    real(real64) :: cap
+
     cap = self%law%heat_capacity
-    delta_tau = b(n) - a(n)
     select case (self%variable)
     case (tau_temperature)
+      delta_theta = delta_tau
       delta(potential_u) = delta_e + cap*delta_tau
-      delta(potential_s) = delta_sigma + cap*log1p(delta_tau/a(n))
+      delta(potential_s) = delta_sigma + cap*log1p(delta_tau/tau_a)
     case (tau_entropy)
       delta_theta = theta_a*expm1((delta_tau - delta_sigma)/cap)
       delta(potential_u) = delta_e + cap*delta_theta
       delta(potential_s) = delta_tau
-    case (tau_internal_energy)
+    case default
       delta_theta = (delta_tau - delta_e)/cap
       delta(potential_u) = delta_tau
       delta(potential_s) = delta_sigma + cap*log1p(delta_theta/theta_a)
     end select
-  end subroutine potential_difference
+  end subroutine difference_from_parts
 
   !> The value of tau that gives temperature theta at mechanical invariants (C, [gamma]).
   pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
@@ -234,7 +265,7 @@ contains
     stat = domain_ok
   end subroutine mechanical_state
 
-  ! theta from tau and the mechanical parts (table of FORMULATION section 3).
+  !> theta from tau and the mechanical parts e, sigma (table of FORMULATION section 3).
   pure subroutine temperature_of(self, tau, e, sigma, theta, stat)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: tau, e, sigma

@@ -17,7 +17,7 @@ module discrete_gradient
   private
   public :: gradient_gonzalez, gradient_partitioned, discrete_gradient_names
   public :: metric_nondimensional, metric_euclidean, metric_names
-  public :: quotient_threshold, discrete_gradient_of
+  public :: quotient_threshold, discrete_gradient_of, gonzalez_from_parts
 
   integer, parameter :: gradient_gonzalez = 1
   integer, parameter :: gradient_partitioned = 2
@@ -59,16 +59,14 @@ contains
     logical, intent(out), optional :: fallback
     integer, intent(out) :: stat
 
-    real(real64) :: d(size(a)), wd(size(a)), weight(size(a)), dwd, coefficient, dc_db(size(a))
+    real(real64) :: d(size(a)), weight(size(a)), dwd
     real(real64) :: delta_f(size(dg, 2)), f_b(size(dg, 2)), f_m(size(dg, 2)), grad_b(size(a), size(dg, 2))
     real(real64) :: grad_m(size(a), size(dg, 2)), hess_m(size(a), size(a), size(dg, 2))
     logical :: small
-    integer :: j, l
 
     d = b - a
     weight = 1.0_real64/scale**2
-    wd = weight*d
-    dwd = dot_product(d, wd)
+    dwd = dot_product(d, weight*d)
     small = sqrt(dwd) < quotient_threshold
     if (present(fallback)) fallback = small
 
@@ -87,22 +85,54 @@ contains
     if (present(ddg_db)) then
       call fun%evaluate(b, f_b, grad_b, stat=stat)
       if (stat /= 0) return
+      call gonzalez_from_parts(d, weight, dwd, grad_m, delta_f, dg, hess_m, grad_b, ddg_db)
+    else
+      call gonzalez_from_parts(d, weight, dwd, grad_m, delta_f, dg)
     end if
+  end subroutine gonzalez_gradient
+
+  !> Gonzalez's quotient above the threshold from its parts: d = b - a, the metric's weights W,
+  !> dwd = d.W d, grad f at the midpoint and f(b) - f(a); for its Jacobian also the Hessian at the
+  !> midpoint and grad f(b) (all three or none). The fused step kernel (src/scheme/
+  !> pendulum_step_kernel) computes the parts itself and shares them.
+  pure subroutine gonzalez_from_parts(d, weight, dwd, grad_m, delta_f, dg, hess_m, grad_b, ddg_db)
+    real(real64), intent(in), contiguous :: d(:), weight(:), grad_m(:, :), delta_f(:)
+    real(real64), intent(in) :: dwd
+    real(real64), intent(out), contiguous :: dg(:, :)
+    real(real64), intent(in), optional, contiguous :: hess_m(:, :, :), grad_b(:, :)
+    real(real64), intent(out), optional, contiguous :: ddg_db(:, :, :)
+    real(real64) :: wd(size(d)), coefficient, dc_db(size(d)), inv_dwd, hess_d
+    integer :: j, l, i, n
+
+    n = size(d)
+    inv_dwd = 1.0_real64/dwd
+    wd = weight*d
     do j = 1, size(dg, 2)
-      coefficient = (delta_f(j) - dot_product(grad_m(:, j), d))/dwd
-      dg(:, j) = dg(:, j) + coefficient*wd
+      coefficient = delta_f(j)
+      do i = 1, n
+        coefficient = coefficient - grad_m(i, j)*d(i)
+      end do
+      coefficient = coefficient*inv_dwd
+      do i = 1, n
+        dg(i, j) = grad_m(i, j) + coefficient*wd(i)
+      end do
       if (present(ddg_db)) then
-        do l = 1, size(a)
-          dc_db(l) = (grad_b(l, j) - grad_m(l, j) - 0.5_real64*dot_product(hess_m(l, :, j), d))/dwd &
-                     - 2.0_real64*coefficient*wd(l)/dwd
+        do l = 1, n
+          hess_d = 0.0_real64
+          do i = 1, n
+            hess_d = hess_d + hess_m(l, i, j)*d(i)
+          end do
+          dc_db(l) = (grad_b(l, j) - grad_m(l, j) - 0.5_real64*hess_d - 2.0_real64*coefficient*wd(l))*inv_dwd
         end do
-        do l = 1, size(a)
-          ddg_db(:, l, j) = ddg_db(:, l, j) + wd*dc_db(l)
+        do l = 1, n
+          do i = 1, n
+            ddg_db(i, l, j) = 0.5_real64*hess_m(i, l, j) + wd(i)*dc_db(l)
+          end do
           ddg_db(l, l, j) = ddg_db(l, l, j) + coefficient*weight(l)
         end do
       end if
     end do
-  end subroutine gonzalez_gradient
+  end subroutine gonzalez_from_parts
 
   !> The symmetrized coordinate-increment (partitioned) discrete gradient, n <= 3 variables.
   pure subroutine partitioned_gradient(fun, a, b, scale, dg, ddg_db, fallback, stat)

@@ -17,7 +17,7 @@ module step_residual
   use nonlinear_problem, only: nonlinear_system
   implicit none (type, external)
   private
-  public :: step_problem, partials_discrete_gradient, partials_midpoint
+  public :: step_problem, partials_discrete_gradient, partials_midpoint, root_problem_text
 
   integer, parameter :: partials_discrete_gradient = 1  !! EME
   integer, parameter :: partials_midpoint = 2           !! the implicit midpoint rule
@@ -37,6 +37,7 @@ module step_residual
     procedure :: evaluate
     procedure :: check_root
     procedure :: set_continuation
+    procedure :: rounding_scales
     procedure :: scheme_partials
     procedure :: scheme_temperatures
   end type step_problem
@@ -58,6 +59,15 @@ contains
 
     self%fraction = s
   end subroutine set_continuation
+
+  !> The residual (z' - z)/h - f rounds at ~eps |z|/h, the root at ~eps |z|: z the old state.
+  pure subroutine rounding_scales(self, state_scale, residual_scale)
+    class(step_problem), intent(in) :: self
+    real(real64), intent(out) :: state_scale, residual_scale
+
+    state_scale = norm2(self%z_old)
+    residual_scale = state_scale/(self%fraction*self%dt)
+  end subroutine rounding_scales
 
   !> R(x') and optionally dR/dx' for x' = (z', multipliers of the active constraints).
   !> stat /= 0: z' (or a point the scheme needs) is outside the model's domain, e.g. a
@@ -176,37 +186,51 @@ contains
     class(step_problem), intent(in) :: self
     real(real64), intent(in) :: x(:)
     character(len=:), allocatable, intent(out) :: problem_text
-    real(real64) :: theta(self%model%subsystem_count())
-    integer :: stat, a, which
+    real(real64) :: theta(self%model%subsystem_count()), theta_scheme(self%model%subsystem_count())
+    integer :: stat, scheme_stat, which
+
+    call self%model%temperatures(x(1:self%model%state_size), theta, stat, which)
+    scheme_stat = domain_ok
+    theta_scheme = 0.0_real64
+    if (stat == domain_ok) call self%scheme_temperatures(x, theta_scheme, scheme_stat)
+    which = max(which, 1)
+    call root_problem_text(self%partials_rule, stat, which, theta, self%model%subsystems(which)%name, &
+                           scheme_stat, theta_scheme, problem_text)
+  end subroutine check_root
+
+  !> The reason a root is not physical ('' if it is) from the temperatures at the new state
+  !> (`new_stat` and the subsystem `which` that failed first, named `name`) and the scheme's
+  !> temperatures (`scheme_stat`, not looked at unless new_stat is domain_ok).
+  pure subroutine root_problem_text(partials_rule, new_stat, which, theta_new, name, scheme_stat, theta_scheme, &
+                                    problem_text)
+    integer, intent(in) :: partials_rule, new_stat, which, scheme_stat
+    real(real64), intent(in) :: theta_new(:), theta_scheme(:)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable, intent(out) :: problem_text
     character(len=120) :: text
+    integer :: a
 
     problem_text = ''
-    call self%model%temperatures(x(1:self%model%state_size), theta, stat, which)
-    if (stat == domain_nonpositive_temperature) then
+    if (new_stat == domain_nonpositive_temperature) then
       write (text, '(a, i0, a, es10.3, a)') 'non-positive temperature at the new state (theta_', which, ' = ', &
-        theta(which), ' K)'
+        theta_new(which), ' K)'
       problem_text = trim(text)
-      return
-    else if (stat /= domain_ok) then
-      problem_text = trim(self%model%subsystems(which)%name)//' at the new state is outside the model''s domain (' &
-                     //domain_text(stat)//')'
-      return
-    end if
-    call self%scheme_temperatures(x, theta, stat)
-    if (stat /= domain_ok .and. stat /= domain_nonpositive_temperature) then
-      problem_text = 'the scheme''s temperatures are undefined between the states ('//domain_text(stat)//')'
-    else if (stat /= domain_ok .or. .not. all(theta > 0.0_real64 .and. theta < huge(1.0_real64))) then
-      if (self%partials_rule == partials_discrete_gradient) then
+    else if (new_stat /= domain_ok) then
+      problem_text = trim(name)//' at the new state is outside the model''s domain ('//domain_text(new_stat)//')'
+    else if (scheme_stat /= domain_ok .and. scheme_stat /= domain_nonpositive_temperature) then
+      problem_text = 'the scheme''s temperatures are undefined between the states ('//domain_text(scheme_stat)//')'
+    else if (scheme_stat /= domain_ok .or. .not. all(theta_scheme > 0.0_real64 .and. theta_scheme < huge(1.0_real64))) then
+      if (partials_rule == partials_discrete_gradient) then
         problem_text = 'non-positive discrete temperature (D_tau U/D_tau S ='
       else
         problem_text = 'non-positive midpoint temperature (theta ='
       end if
-      do a = 1, size(theta)
-        write (text, '(1x, es10.3)') theta(a)
+      do a = 1, size(theta_scheme)
+        write (text, '(1x, es10.3)') theta_scheme(a)
         problem_text = problem_text//trim(text)
       end do
       problem_text = problem_text//' K)'
     end if
-  end subroutine check_root
+  end subroutine root_problem_text
 
 end module step_residual

@@ -1,5 +1,6 @@
-!> LU factors of a small dense matrix by LAPACK: dgetf2 (unblocked; for 15 to 17 unknowns it
-!> costs half of the blocked dgetrf that PETSc's dense LU calls, README per-step cost) and dgetrs.
+!> LU factors of a small dense matrix by LAPACK: dgetf2 (unblocked; for 9 to 17 unknowns it
+!> costs half of the blocked dgetrf that PETSc's dense LU calls, README per-step cost), and the
+!> solves of dgetrs by its parts (dlaswp, two dtrsv).
 !> The step solver's shell preconditioner keeps them, and its chord predictor reuses them.
 module dense_lu
   use, intrinsic :: iso_fortran_env, only: real64
@@ -15,6 +16,7 @@ module dense_lu
   contains
     procedure :: reset
     procedure :: factor
+    procedure :: factor_in_place
     procedure :: solve
   end type lu_factors
 
@@ -26,15 +28,20 @@ module dense_lu
       real(real64), intent(inout) :: a(lda, *)
       integer, intent(out) :: ipiv(*), info
     end subroutine dgetf2
-    !> Solves A X = B (trans = 'N') with the factors of dgetf2.
-    subroutine dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
+    !> The row interchanges of the factorization applied to x (LAPACK).
+    subroutine dlaswp(n, a, lda, k1, k2, ipiv, incx)
       import :: real64
-      character, intent(in) :: trans
-      integer, intent(in) :: n, nrhs, lda, ldb, ipiv(*)
+      integer, intent(in) :: n, lda, k1, k2, ipiv(*), incx
+      real(real64), intent(inout) :: a(lda, *)
+    end subroutine dlaswp
+    !> x := A^-1 x for a triangular A (BLAS level 2).
+    subroutine dtrsv(uplo, trans, diag, n, a, lda, x, incx)
+      import :: real64
+      character, intent(in) :: uplo, trans, diag
+      integer, intent(in) :: n, lda, incx
       real(real64), intent(in) :: a(lda, *)
-      real(real64), intent(inout) :: b(ldb, *)
-      integer, intent(out) :: info
-    end subroutine dgetrs
+      real(real64), intent(inout) :: x(*)
+    end subroutine dtrsv
   end interface
 
 contains
@@ -54,15 +61,24 @@ contains
     class(lu_factors), intent(inout) :: self
     real(real64), intent(in) :: matrix(:, :)
     integer, intent(out) :: info
+
+    self%factors = matrix
+    call self%factor_in_place(info)
+  end subroutine factor
+
+  !> Factors the matrix a caller wrote into `factors` (saves a copy); info as `factor`.
+  subroutine factor_in_place(self, info)
+    class(lu_factors), intent(inout) :: self
+    integer, intent(out) :: info
     integer :: n
 
     n = size(self%pivots)
-    self%factors = matrix
     call dgetf2(n, n, self%factors, n, self%pivots, info)
     self%ready = info == 0
-  end subroutine factor
+  end subroutine factor_in_place
 
-  !> b := A^-1 b with the factors.
+  !> b := A^-1 b with the factors: what dgetrs does for one right-hand side, by the level-2 BLAS
+  !> triangular solves (dgetrs calls the level-3 dtrsm, whose overhead dominates at this size).
   subroutine solve(self, b, info)
     class(lu_factors), intent(in) :: self
     real(real64), intent(inout) :: b(:)
@@ -70,7 +86,10 @@ contains
     integer :: n
 
     n = size(self%pivots)
-    call dgetrs('N', n, 1, self%factors, n, self%pivots, b, n, info)
+    call dlaswp(1, b, n, 1, n, self%pivots, 1)
+    call dtrsv('L', 'N', 'U', n, self%factors, n, b, 1)
+    call dtrsv('U', 'N', 'N', n, self%factors, n, b, 1)
+    info = 0
   end subroutine solve
 
 end module dense_lu

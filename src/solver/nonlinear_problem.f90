@@ -1,7 +1,7 @@
 !> What the nonlinear solvers need from a problem R(x) = 0 of any size: the residual with its
-!> Jacobian, a physical check of a root, and a continuation parameter s in (0, 1] that deforms
+!> Jacobian, a physical check of a root, a continuation parameter s in (0, 1] that deforms
 !> the problem into an easier one (s = 1 is the problem itself; as s -> 0 a known point, such
-!> as a time step's old state, becomes a root).
+!> as a time step's old state, becomes a root), and optionally the scales of its rounding.
 module nonlinear_problem
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
@@ -15,6 +15,9 @@ module nonlinear_problem
     procedure(evaluate_interface), deferred :: evaluate
     procedure(check_root_interface), deferred :: check_root
     procedure(continuation_interface), deferred :: set_continuation
+    procedure :: rounding_scales
+    procedure :: evaluate_residual
+    procedure :: evaluate_jacobian
   end type nonlinear_system
 
   abstract interface
@@ -49,5 +52,42 @@ module nonlinear_problem
       real(real64), intent(in) :: s
     end subroutine continuation_interface
   end interface
+
+contains
+
+  !> R(x) for a Newton iteration that may next ask for dR/dx at the same x (evaluate_jacobian): a
+  !> problem may keep what the residual computed. This default evaluates.
+  subroutine evaluate_residual(self, x, residual, stat)
+    class(nonlinear_system), intent(inout) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
+
+    call self%evaluate(x, residual, stat=stat)
+  end subroutine evaluate_residual
+
+  !> dR/dx; a problem that kept the residual's pass at this x reuses it. This default evaluates
+  !> residual and Jacobian.
+  subroutine evaluate_jacobian(self, x, jacobian, stat)
+    class(nonlinear_system), intent(inout) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: residual(size(x))
+
+    call self%evaluate(x, residual, jacobian, stat)
+  end subroutine evaluate_jacobian
+
+  !> Sizes that say where rounding ends Newton's iteration (retry_strategies' newton_converged):
+  !> an update below ~eps state_scale and a residual below ~eps residual_scale are at the rounding
+  !> of a root. They must come from a point known to be sane (a time step's old state), not from
+  !> the iterate. This default knows none (zeros): only the tolerance decides.
+  pure subroutine rounding_scales(self, state_scale, residual_scale)
+    class(nonlinear_system), intent(in) :: self
+    real(real64), intent(out) :: state_scale, residual_scale
+
+    state_scale = 0.0_real64
+    residual_scale = 0.0_real64
+  end subroutine rounding_scales
 
 end module nonlinear_problem

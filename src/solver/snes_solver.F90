@@ -1,35 +1,64 @@
 !> PETSc SNES on a nonlinear_system of any size (src/solver/nonlinear_problem), as the root
 !> finder of the retry strategies (src/solver/retry_strategies). One SNES, vector pair and dense
 !> matrix live as long as the solver and are reused for every solve (and, in an ensemble, for
-!> every case of the same size). The linear solves are exact: LU in a shell preconditioner
-!> (src/solver/lu_preconditioner) whose factors also serve the chord predictor. SNESSetFromOptions
+!> every case of the same size). The linear solves are exact: LU by LAPACK (src/solver/dense_lu)
+!> in a shell preconditioner, whose factors also serve the chord predictor. SNESSetFromOptions
 !> comes last, so -snes_monitor, -snes_converged_reason, -snes_test_jacobian, -pc_type lu, ...
-!> work from the command line. Newton takes full steps (line search 'basic') by default: the
-!> residual's rows carry different units, and backtracking on its 2-norm can stall where full
-!> steps converge; the fallback is 'bt' (or 'basic' if the command line chose 'bt').
+!> work from the command line. Newton takes full steps by default: the residual's rows carry
+!> different units, and backtracking on its 2-norm can stall where full steps converge; the
+!> fallback is 'bt' (or 'basic' if the command line chose 'bt').
+!>
+!> Two ways to drive SNES (README, per-step cost):
+!>  - lean (the default): SNES never computes a Jacobian (SNESSetLagJacobian -1). The shell
+!>    preconditioner evaluates it at SNES's current iterate and factors it when it is applied,
+!>    once per Newton iteration, or confirms a root with the factors it has (the final chord
+!>    step: the residual is below the tolerance after an update below chord_update_limit). A
+!>    shell line search takes the full step and hands SNES the norms it computed. SNES's viewer
+!>    lookups are switched off around SNESSolve when no option asks for a viewer.
+!>  - standard: SNESComputeJacobian calls form_jacobian, PCSetUp factors the matrix (read without
+!>    changing its state, so once per iteration), the line search is PETSc's. Taken when an
+!>    option needs SNES's own Jacobian (-snes_test_jacobian, -snes_compare_*, -snes_mf*,
+!>    -snes_fd*, -snes_lag_jacobian, -pc_type, -ksp_type, another -snes_type) or -eme_lean_snes
+!>    false; the line search is PETSc's whenever -snes_linesearch_type is given.
 module snes_solver
 #include <petsc/finclude/petscsnes.h>
   use petscsnes
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder
+  use retry_strategies, only: root_finder, final_chord_step, newton_converged
   use dense_lu, only: lu_factors
-  use lu_preconditioner, only: use_lu_shell
   use dense_assembly, only: assemble_jacobian
+  use solver_options, only: step_solver_options, read_solver_options, option_given
   implicit none
   private
   public :: newton_solver
 
-  !> The problem the callbacks see (PETSc holds this context's address).
-  type :: problem_context
-    class(nonlinear_system), pointer :: problem => null()
-  end type problem_context
+  ! SNES_LINESEARCH_FAILED_DOMAIN of petscsnes.h (PETSc 3.18 has no Fortran name for it).
+  PetscEnum, parameter :: line_search_failed_domain = 2
 
-  !> The PETSc objects of a solver. Do not copy it after `prepare`: PETSc holds the addresses of
-  !> `context` and `lu`.
-  type, extends(root_finder) :: newton_solver
-    type(problem_context) :: context
+  !> What the callbacks see (PETSc holds this context's address): the problem, the LU factors
+  !> and, within a solve, what the lean preconditioner needs to choose between a new Jacobian and
+  !> the factors it has.
+  type :: solver_context
+    class(nonlinear_system), pointer :: problem => null()
     type(lu_factors) :: lu
+    SNES :: snes
+    logical :: lean = .false.
+    logical :: final_chord = .true.
+    real(real64) :: tolerance = 0.0_real64          !! the convergence test's absolute tolerance
+    real(real64) :: residual_norm = huge(1.0_real64)  !! at SNES's current iterate
+    real(real64) :: update_norm = huge(1.0_real64)    !! of the update that led there
+    real(real64) :: state_scale = 0.0_real64          !! the problem's rounding scales (newton_converged)
+    real(real64) :: residual_scale = 0.0_real64
+    logical :: chord_taken = .false.                !! the last iteration reused the factors
+    integer :: factorizations = 0                   !! LU factorizations since the solver was made
+  end type solver_context
+
+  !> The PETSc objects of a solver. Do not copy it after `prepare`: PETSc holds the address of
+  !> `context`.
+  type, extends(root_finder) :: newton_solver
+    type(solver_context) :: context
     SNES :: snes
     Vec :: x
     Vec :: r
@@ -38,17 +67,45 @@ module snes_solver
     real(real64) :: newton_tol = 0.0_real64
     integer :: max_iterations = 0
     logical :: created = .false.
+    type(step_solver_options) :: options
+    logical :: shell_line_search = .false.          !! the full-step shell instead of 'basic'
+    logical :: quiet = .false.                      !! no option asks for a viewer
     character(len=16) :: line_search = ''           !! the primary line search type
     character(len=16) :: fallback_line_search = ''  !! the retry strategies' fallback
-    logical :: chord_predictor = .true.             !! -eme_chord_predictor false switches it off
   contains
     procedure :: prepare
     procedure :: destroy
     procedure :: solve
     procedure :: refine
     procedure :: use_fallback
+    procedure :: lean
+    procedure :: factorizations
     procedure, private :: create
+    procedure, private :: set_line_search
   end type newton_solver
+
+  ! PETSc needs these interfaces to pass a Fortran derived type as a shell's context.
+  interface
+    subroutine PCShellSetContext(pc, context, ierr)
+      import :: tPC, solver_context
+      PC, intent(in) :: pc
+      type(solver_context), intent(in) :: context
+      PetscErrorCode, intent(out) :: ierr
+    end subroutine PCShellSetContext
+    subroutine PCShellGetContext(pc, context, ierr)
+      import :: tPC, solver_context
+      PC, intent(in) :: pc
+      type(solver_context), pointer, intent(out) :: context
+      PetscErrorCode, intent(out) :: ierr
+    end subroutine PCShellGetContext
+    !> The dense matrix's values without changing its state (dense_read.c).
+    function eme_dense_read(matrix, values) bind(C, name='eme_dense_read') result(ierr)
+      import :: c_int, c_double
+      type(*), intent(in) :: matrix
+      real(c_double), intent(out) :: values(*)
+      integer(c_int) :: ierr
+    end function eme_dense_read
+  end interface
 
 contains
 
@@ -67,7 +124,7 @@ contains
     ierr = 0
     self%context%problem => problem
     if (self%created .and. self%n == problem%unknowns()) then
-      self%lu%ready = .false.    ! the chord predictor must not use another problem's Jacobian
+      self%context%lu%ready = .false.    ! the chord steps must not use another problem's Jacobian
       if (abs(newton_tol - self%newton_tol) > 0.0_real64 .or. max_iterations /= self%max_iterations) then
         iterations = max_iterations
         PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, iterations, PETSC_DEFAULT_INTEGER, ierr))
@@ -92,40 +149,94 @@ contains
     KSP :: ksp
     PC :: pc
     SNESLineSearch :: line_search
-    PetscInt :: size, max_evaluations
-    PetscBool :: found
+    PetscInt :: rows, max_evaluations, lag
+    character(len=32) :: snes_type, ksp_type, pc_type
+    logical :: needs_snes_jacobian, given
+    integer :: k
+    character(len=*), parameter :: jacobian_options(*) = [character(len=20) :: '-snes_test_jacobian', &
+      '-snes_compare', '-snes_mf', '-snes_fd', '-snes_lag_jacobian', '-pc_type', '-ksp_type']
+    character(len=*), parameter :: viewer_options(*) = [character(len=8) :: 'view', 'reason', 'monitor', 'draw']
 
     self%n = n
     self%newton_tol = newton_tol
     self%max_iterations = max_iterations
     self%created = .true.
-    size = n
-    PetscCall(VecCreateSeq(PETSC_COMM_SELF, size, self%x, ierr))
+    rows = n
+    PetscCall(VecCreateSeq(PETSC_COMM_SELF, rows, self%x, ierr))
     PetscCall(VecDuplicate(self%x, self%r, ierr))
-    PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, size, size, PETSC_NULL_SCALAR, self%jacobian, ierr))
+    PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, rows, rows, PETSC_NULL_SCALAR, self%jacobian, ierr))
+    ! Assembled once, so that the lean preconditioner's operator (never changed) is valid.
+    PetscCall(assemble_jacobian(self%jacobian, self%jacobian, ierr))
     PetscCall(SNESCreate(PETSC_COMM_SELF, self%snes, ierr))
+    self%context%snes = self%snes
     PetscCall(SNESSetFunction(self%snes, self%r, form_residual, self%context, ierr))
     PetscCall(SNESSetJacobian(self%snes, self%jacobian, self%jacobian, form_jacobian, self%context, ierr))
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
     PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
     PetscCall(KSPGetPC(ksp, pc, ierr))
-    call self%lu%reset(n)
-    PetscCall(use_lu_shell(pc, self%lu, ierr))
+    call self%context%lu%reset(n)
+    PetscCall(PCSetType(pc, PCSHELL, ierr))
+    PetscCall(PCShellSetContext(pc, self%context, ierr))
+    PetscCall(PCShellSetSetUp(pc, factor_operator, ierr))
+    PetscCall(PCShellSetApply(pc, apply_lu, ierr))
+    PetscCall(PCShellSetName(pc, 'dense LU by LAPACK dgetf2, solves by dlaswp and BLAS dtrsv', ierr))
     max_evaluations = 10000
-    PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, int(max_iterations, kind(size)), max_evaluations, ierr))
-    PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, 0, PETSC_NULL_FUNCTION, ierr))
+    PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, int(max_iterations, kind(rows)), max_evaluations, ierr))
+    PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, self%context, PETSC_NULL_FUNCTION, ierr))
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESSetFromOptions(self%snes, ierr))
     PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
-    self%chord_predictor = .true.
-    PetscCall(PetscOptionsGetBool(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-eme_chord_predictor', self%chord_predictor, found, ierr))
+    PetscCall(read_solver_options(self%options, ierr))
+
+    ! Lean only where SNES would not look at its Jacobian: Newton line search, LU in our shell.
+    PetscCall(SNESGetType(self%snes, snes_type, ierr))
+    PetscCall(KSPGetType(ksp, ksp_type, ierr))
+    PetscCall(PCGetType(pc, pc_type, ierr))
+    PetscCall(SNESGetLagJacobian(self%snes, lag, ierr))
+    needs_snes_jacobian = snes_type /= SNESNEWTONLS .or. ksp_type /= KSPPREONLY .or. pc_type /= PCSHELL .or. lag /= 1
+    do k = 1, size(jacobian_options)
+      PetscCall(option_given(trim(jacobian_options(k)), given, ierr))
+      needs_snes_jacobian = needs_snes_jacobian .or. given
+    end do
+    self%context%lean = self%options%lean_snes .and. .not. needs_snes_jacobian
+    self%context%final_chord = self%options%final_chord
+    if (self%context%lean) then
+      lag = -1
+      PetscCall(SNESSetLagJacobian(self%snes, lag, ierr))
+    end if
+    PetscCall(option_given('-snes_linesearch_type', given, ierr))
+    self%shell_line_search = self%context%lean .and. .not. given
     if (self%line_search == SNESLINESEARCHBT) then
       self%fallback_line_search = SNESLINESEARCHBASIC
     else
       self%fallback_line_search = SNESLINESEARCHBT
     end if
+    PetscCall(self%set_line_search(self%line_search, ierr))
+    ! Viewers: -snes_view, -snes_converged_reason, -ksp_view_*, -mat_view, ..., monitors and draws.
+    self%quiet = .true.
+    do k = 1, size(viewer_options)
+      PetscCall(option_given(trim(viewer_options(k)), given, ierr))
+      self%quiet = self%quiet .and. .not. given
+    end do
   end subroutine create
+
+  ! The line search `kind`: the full-step shell stands in for 'basic' when the solver is lean and
+  ! the command line chose no line search.
+  subroutine set_line_search(self, kind, ierr)
+    class(newton_solver), intent(inout), target :: self
+    character(len=*), intent(in) :: kind
+    PetscErrorCode, intent(out) :: ierr
+    SNESLineSearch :: line_search
+
+    PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
+    if (self%shell_line_search .and. kind == SNESLINESEARCHBASIC) then
+      PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHSHELL, ierr))
+      PetscCall(SNESLineSearchShellSetUserFunc(line_search, full_step, self%context, ierr))
+    else
+      PetscCall(SNESLineSearchSetType(line_search, kind, ierr))
+    end if
+  end subroutine set_line_search
 
   !> Frees the PETSc objects.
   subroutine destroy(self, ierr)
@@ -133,12 +244,26 @@ contains
     PetscErrorCode, intent(out) :: ierr
 
     self%created = .false.
-    self%lu%ready = .false.
+    self%context%lu%ready = .false.
     PetscCall(SNESDestroy(self%snes, ierr))
     PetscCall(MatDestroy(self%jacobian, ierr))
     PetscCall(VecDestroy(self%r, ierr))
     PetscCall(VecDestroy(self%x, ierr))
   end subroutine destroy
+
+  !> Whether the solver drives SNES the lean way (module header).
+  logical function lean(self)
+    class(newton_solver), intent(in) :: self
+
+    lean = self%context%lean
+  end function lean
+
+  !> LU factorizations since the solver was made.
+  integer function factorizations(self)
+    class(newton_solver), intent(in) :: self
+
+    factorizations = self%context%factorizations
+  end function factorizations
 
   !> One SNESSolve of `problem` (of the size the solver was prepared for; it must stay at its
   !> address during the solve) from `initial`. A line search that fails on a residual already below the
@@ -160,10 +285,24 @@ contains
     reason = ''
     iterations = 0
     self%context%problem => problem
+    self%context%residual_norm = huge(1.0_real64)
+    self%context%update_norm = huge(1.0_real64)
+    self%context%chord_taken = .false.
+    call problem%rounding_scales(self%context%state_scale, self%context%residual_scale)
+    self%context%tolerance = self%newton_tol
+    if (self%context%lean .and. self%context%final_chord) then
+      PetscCall(tolerance_of(self%snes, self%context%tolerance, ierr))
+    end if
     PetscCall(VecGetArrayF90(self%x, values, ierr))
     values = initial
     PetscCall(VecRestoreArrayF90(self%x, values, ierr))
+    if (self%quiet) then
+      PetscCall(PetscOptionsPushGetViewerOff(PETSC_TRUE, ierr))
+    end if
     PetscCall(SNESSolve(self%snes, PETSC_NULL_VEC, self%x, ierr))
+    if (self%quiet) then
+      PetscCall(PetscOptionsPopGetViewerOff(ierr))
+    end if
     PetscCall(SNESGetConvergedReason(self%snes, snes_reason, ierr))
     PetscCall(SNESGetIterationNumber(self%snes, its, ierr))
     iterations = int(its)
@@ -180,17 +319,27 @@ contains
   contains
 
     logical function at_rounding_floor()
-      PetscReal :: residual_norm, atol, rtol, stol
-      PetscInt :: max_iterations, max_evaluations
+      PetscReal :: residual_norm, atol
       PetscErrorCode :: ierr
 
       at_rounding_floor = .false.
       if (snes_reason /= SNES_DIVERGED_LINE_SEARCH) return
       PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
-      PetscCall(SNESGetTolerances(self%snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+      PetscCall(tolerance_of(self%snes, atol, ierr))
       at_rounding_floor = residual_norm <= atol
     end function at_rounding_floor
   end subroutine solve
+
+  ! The absolute tolerance SNES holds (-snes_atol may have changed newton_tol).
+  subroutine tolerance_of(snes, atol, ierr)
+    SNES, intent(in) :: snes
+    real(real64), intent(out) :: atol
+    PetscErrorCode, intent(out) :: ierr
+    PetscReal :: rtol, stol
+    PetscInt :: max_iterations, max_evaluations
+
+    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+  end subroutine tolerance_of
 
   !> The chord step x - J_old^-1 R(x) with the last Jacobian's LU factors (from the last
   !> solve): a residual and a back-substitution instead of a Newton iteration, which saves about
@@ -202,10 +351,10 @@ contains
     real(real64) :: residual(size(x))
     integer :: stat, info
 
-    if (.not. (self%lu%ready .and. self%chord_predictor)) return
+    if (.not. (self%context%lu%ready .and. self%options%chord_predictor)) return
     call problem%evaluate(x, residual, stat=stat)
     if (stat /= 0) return
-    call self%lu%solve(residual, info)
+    call self%context%lu%solve(residual, info)
     if (info == 0) x = x - residual
   end subroutine refine
 
@@ -214,27 +363,22 @@ contains
     class(newton_solver), intent(inout) :: self
     logical, intent(in) :: on
     integer, intent(out) :: ierr
-    SNESLineSearch :: line_search
 
-    PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     if (on) then
-      PetscCall(SNESLineSearchSetType(line_search, self%fallback_line_search, ierr))
+      PetscCall(self%set_line_search(self%fallback_line_search, ierr))
     else
-      PetscCall(SNESLineSearchSetType(line_search, self%line_search, ierr))
+      PetscCall(self%set_line_search(self%line_search, ierr))
     end if
   end subroutine use_fallback
 
-  ! SNES convergence test. Converged when the residual is below the absolute tolerance and so
-  ! was the Newton update that produced it (or the initial guess already solves the system).
-  ! Newton's quadratic convergence then leaves a residual ~ tolerance^2, so the discrete
-  ! conservation laws, which hold exactly at a root, hold to round-off rather than to the
-  ! tolerance. -snes_atol changes the tolerance; -snes_stol > 0 adds PETSc's relative update test.
+  ! SNES convergence test: retry_strategies' newton_converged with SNES's absolute tolerance
+  ! (-snes_atol changes it) and relative update tolerance (-snes_stol > 0 adds it).
   subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
     SNES, intent(in) :: snes
     PetscInt, intent(in) :: iteration
     PetscReal, intent(in) :: x_norm, update_norm, residual_norm
     SNESConvergedReason, intent(out) :: reason
-    PetscInt, intent(in) :: context
+    type(solver_context), intent(in) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscReal :: atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
@@ -242,7 +386,8 @@ contains
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (residual_norm <= atol .and. (iteration == 0 .or. update_norm <= max(atol, stol*x_norm))) then
+    else if (newton_converged(int(iteration), residual_norm, update_norm, x_norm, atol, stol, context%state_scale, &
+                              context%residual_scale)) then
       reason = SNES_CONVERGED_FNORM_ABS
     else
       reason = SNES_CONVERGED_ITERATING
@@ -250,20 +395,22 @@ contains
   end subroutine converged_on_update
 
   ! SNES callback: the residual; a point outside the problem's domain is a domain error, which
-  ! makes the line search shorten the step.
+  ! makes the line search shorten the step. Its norm is the current iterate's for the lean
+  ! preconditioner (SNESSolve evaluates the initial residual here).
   subroutine form_residual(snes, x, f, context, ierr)
     SNES, intent(in) :: snes
     Vec, intent(in) :: x
     Vec, intent(in) :: f
-    type(problem_context), intent(in) :: context
+    type(solver_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), f_values(:)
     integer :: stat
 
     PetscCall(VecGetArrayReadF90(x, x_values, ierr))
     PetscCall(VecGetArrayF90(f, f_values, ierr))
-    call context%problem%evaluate(x_values, f_values, stat=stat)
+    call context%problem%evaluate_residual(x_values, f_values, stat)
     if (stat /= 0) f_values = huge(1.0_real64)
+    context%residual_norm = norm2(f_values)
     PetscCall(VecRestoreArrayF90(f, f_values, ierr))
     PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
     if (stat /= 0) then
@@ -271,13 +418,13 @@ contains
     end if
   end subroutine form_residual
 
-  ! SNES callback: the analytic Jacobian, written straight into the dense matrix.
+  ! SNES callback (standard way): the analytic Jacobian, written straight into the dense matrix.
   subroutine form_jacobian(snes, x, jacobian, preconditioner, context, ierr)
     SNES, intent(in) :: snes
     Vec, intent(in) :: x
     Mat, intent(in) :: jacobian
     Mat, intent(in) :: preconditioner
-    type(problem_context), intent(in) :: context
+    type(solver_context), intent(in) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), entries(:, :)
     real(real64) :: residual(context%problem%unknowns())
@@ -293,5 +440,126 @@ contains
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
     end if
   end subroutine form_jacobian
+
+  ! Shell preconditioner set-up (standard way): factor the new matrix, read without changing its
+  ! state. PETSc keeps a failure reason until told otherwise, so a good factorization clears it.
+  ! The lean way factors when the preconditioner is applied.
+  subroutine factor_operator(pc, ierr)
+    PC, intent(in) :: pc
+    PetscErrorCode, intent(out) :: ierr
+    type(solver_context), pointer :: context
+    Mat :: operator, preconditioner
+    integer :: info
+
+    PetscCall(PCShellGetContext(pc, context, ierr))
+    if (context%lean) return
+    PetscCall(PCGetOperators(pc, operator, preconditioner, ierr))
+    ierr = eme_dense_read(preconditioner, context%lu%factors)
+    if (ierr /= 0) return
+    call context%lu%factor_in_place(info)
+    context%factorizations = context%factorizations + 1
+    if (info /= 0) then
+      PetscCall(PCSetFailedReason(pc, PC_FACTOR_NUMERIC_ZEROPIVOT, ierr))
+    else
+      PetscCall(PCSetFailedReason(pc, PC_NOERROR, ierr))
+    end if
+  end subroutine factor_operator
+
+  ! Shell application: y = J^-1 x from the factors. The lean way first evaluates the Jacobian at
+  ! SNES's iterate and factors it, unless the final chord step confirms the root with the factors
+  ! at hand (module header).
+  subroutine apply_lu(pc, x, y, ierr)
+    PC, intent(in) :: pc
+    Vec, intent(in) :: x
+    Vec, intent(in) :: y
+    PetscErrorCode, intent(out) :: ierr
+    type(solver_context), pointer :: context
+    PetscScalar, pointer :: x_values(:), y_values(:)
+    integer :: info
+
+    PetscCall(PCShellGetContext(pc, context, ierr))
+    if (context%lean) then
+      if (final_chord_step(context%final_chord, context%lu%ready, context%chord_taken, context%residual_norm, &
+                           context%tolerance, context%update_norm)) then
+        context%chord_taken = .true.
+      else
+        context%chord_taken = .false.
+        PetscCall(factor_jacobian(context, info, ierr))
+        if (info /= 0) then
+          PetscCall(PCSetFailedReason(pc, PC_FACTOR_NUMERIC_ZEROPIVOT, ierr))
+          return
+        end if
+        PetscCall(PCSetFailedReason(pc, PC_NOERROR, ierr))
+      end if
+    end if
+    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
+    PetscCall(VecGetArrayF90(y, y_values, ierr))
+    y_values = x_values
+    call context%lu%solve(y_values, info)
+    PetscCall(VecRestoreArrayF90(y, y_values, ierr))
+    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    if (info /= 0) then
+      PetscCall(PCSetFailedReason(pc, PC_SUBPC_ERROR, ierr))
+    end if
+  end subroutine apply_lu
+
+  ! The lean way's Jacobian at SNES's current iterate (whose residual the problem may have kept),
+  ! written into the LU's own array and factored there; info /= 0 for a point outside the domain
+  ! or a zero pivot.
+  subroutine factor_jacobian(context, info, ierr)
+    type(solver_context), intent(inout) :: context
+    integer, intent(out) :: info
+    PetscErrorCode, intent(out) :: ierr
+    Vec :: iterate
+    PetscScalar, pointer :: values(:)
+    integer :: stat
+
+    PetscCall(SNESGetSolution(context%snes, iterate, ierr))
+    PetscCall(VecGetArrayReadF90(iterate, values, ierr))
+    call context%problem%evaluate_jacobian(values, context%lu%factors, stat)
+    PetscCall(VecRestoreArrayReadF90(iterate, values, ierr))
+    info = stat
+    context%lu%ready = .false.
+    if (stat /= 0) return
+    call context%lu%factor_in_place(info)
+    context%factorizations = context%factorizations + 1
+  end subroutine factor_jacobian
+
+  ! Shell line search (the lean way's 'basic'): the full Newton step X - Y, its residual, and the
+  ! norms SNES would otherwise compute again. A step outside the domain fails the line search and
+  ! leaves X where it was, as 'basic' does.
+  subroutine full_step(line_search, context, ierr)
+    SNESLineSearch, intent(in) :: line_search
+    type(solver_context), intent(inout) :: context
+    PetscErrorCode, intent(out) :: ierr
+    Vec :: x, f, y, w, g
+    PetscScalar, pointer :: x_values(:), f_values(:), y_values(:)
+    real(real64) :: trial(context%problem%unknowns()), residual(size(trial)), x_norm, residual_norm, update_norm
+    integer :: stat
+
+    PetscCall(SNESLineSearchGetVecs(line_search, x, f, y, w, g, ierr))
+    PetscCall(VecGetArrayReadF90(y, y_values, ierr))
+    PetscCall(VecGetArrayF90(x, x_values, ierr))
+    trial = x_values - y_values
+    update_norm = norm2(y_values)
+    call context%problem%evaluate_residual(trial, residual, stat)
+    if (stat == 0) then
+      x_values = trial
+      x_norm = norm2(trial)
+      residual_norm = norm2(residual)
+    end if
+    PetscCall(VecRestoreArrayF90(x, x_values, ierr))
+    PetscCall(VecRestoreArrayReadF90(y, y_values, ierr))
+    if (stat /= 0) then
+      PetscCall(SNESLineSearchSetReason(line_search, line_search_failed_domain, ierr))
+      return
+    end if
+    PetscCall(VecGetArrayF90(f, f_values, ierr))
+    f_values = residual
+    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
+    PetscCall(SNESLineSearchSetNorms(line_search, x_norm, residual_norm, update_norm, ierr))
+    context%residual_norm = residual_norm
+    context%update_norm = update_norm
+  end subroutine full_step
 
 end module snes_solver

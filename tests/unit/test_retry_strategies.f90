@@ -7,7 +7,8 @@ program test_retry_strategies
   use assertions, only: test_suite
   use unit_testing, only: unit_test, run_unit_tests
   use retry_strategies, only: root_search, find_root, strategy_predictor, strategy_old_state, &
-                              strategy_continuation, strategies_per_round, first_continuation_fraction
+                              strategy_continuation, strategies_per_round, first_continuation_fraction, &
+                              newton_converged, rounding_factor
   use scripted_solver, only: line_problem, scripted_finder
   implicit none (type, external)
 
@@ -17,7 +18,9 @@ program test_retry_strategies
     unit_test('continuation_third', continuation_third), &
     unit_test('fallback_round', fallback_round), &
     unit_test('unphysical_roots_rejected', unphysical_roots_rejected), &
-    unit_test('nothing_found', nothing_found)])
+    unit_test('nothing_found', nothing_found), &
+    unit_test('without_continuation', without_continuation), &
+    unit_test('convergence_test_scale_aware', convergence_test_scale_aware)])
 
 contains
 
@@ -132,5 +135,57 @@ contains
                           .not. finder%with_fallback(1))
     call suite%check_true('reason given', index(search%reason, 'no root') == 1, search%reason)
   end subroutine nothing_found
+
+  !> Without continuation (the substeps of a halved step): predictor and old state only.
+  subroutine without_continuation(suite)
+    type(test_suite), intent(inout) :: suite
+    type(line_problem), target :: problem
+    type(scripted_finder) :: finder
+    type(root_search) :: search
+    real(real64) :: root(1)
+    integer :: ierr
+
+    finder%reach = 0.1_real64
+    call find_root(finder, problem, [0.0_real64], [0.5_real64], root, search, ierr, continue_in_s=.false.)
+    call suite%check_true('not accepted', .not. search%accepted)
+    call suite%check_equal_int('two solves per round, two rounds', search%solves, 4)
+    call suite%check_true('the reason names the strategies tried', &
+                          index(search%reason, 'no root from the predictor or from the old state') == 1, search%reason)
+  end subroutine without_continuation
+
+  !> Newton's test: the tolerance on residual and update, or both at the rounding of the problem's
+  !> scales (never with the default zero scales, never at iteration 0, never by the iterate's size).
+  subroutine convergence_test_scale_aware(suite)
+    type(test_suite), intent(inout) :: suite
+    real(real64), parameter :: tol = 1.0e-8_real64, scale = 500.0_real64, residual_scale = 500.0_real64/1.0e-6_real64
+    real(real64) :: floor, residual_floor
+
+    floor = rounding_factor*epsilon(1.0_real64)*scale
+    residual_floor = rounding_factor*epsilon(1.0_real64)*residual_scale
+    call suite%check_true('residual and update below the tolerance', &
+                          newton_converged(3, 0.5*tol, 0.5*tol, scale, tol, 0.0_real64, 0.0_real64, 0.0_real64))
+    call suite%check_true('the update above the tolerance is not enough', &
+                          .not. newton_converged(3, 0.5*tol, 2*tol, scale, tol, 0.0_real64, 0.0_real64, 0.0_real64))
+    call suite%check_true('an initial guess below the tolerance', &
+                          newton_converged(0, 0.5*tol, huge(1.0_real64), scale, tol, 0.0_real64, 0.0_real64, 0.0_real64))
+    call suite%check_true('at the rounding floor above a tolerance it cannot reach', &
+                          newton_converged(3, 0.5*residual_floor, 0.5*floor, scale, 1.0e-20_real64, 0.0_real64, scale, &
+                                           residual_scale) .and. residual_floor > tol)
+    call suite%check_true('an update above its rounding is not at the floor', &
+                          .not. newton_converged(3, 0.5*residual_floor, 2*floor, scale, 1.0e-20_real64, 0.0_real64, &
+                                                 scale, residual_scale))
+    call suite%check_true('a residual above its rounding is not at the floor', &
+                          .not. newton_converged(3, 2*residual_floor, 0.5*floor, scale, 1.0e-20_real64, 0.0_real64, &
+                                                 scale, residual_scale))
+    call suite%check_true('a run-away iterate does not scale the floor', &
+                          .not. newton_converged(3, 1.0e20_real64, 1.0e3_real64, 1.0e25_real64, 1.0e-20_real64, &
+                                                 0.0_real64, scale, residual_scale))
+    call suite%check_true('no floor without scales', .not. newton_converged(3, 1.0e-10_real64, 1.0e-30_real64, scale, &
+                                                                            1.0e-20_real64, 0.0_real64, 0.0_real64, &
+                                                                            0.0_real64))
+    call suite%check_true('no floor at iteration 0', &
+                          .not. newton_converged(0, 0.5*residual_floor, 0.5*floor, scale, 1.0e-20_real64, 0.0_real64, &
+                                                 scale, residual_scale))
+  end subroutine convergence_test_scale_aware
 
 end program test_retry_strategies

@@ -14,7 +14,7 @@ program test_step_solver
   use unit_testing, only: unit_test, run_unit_tests
   use fixtures, only: paper_state
   use model_parameters, only: pendulum_parameters
-  use thermo_variable, only: tau_entropy, tau_internal_energy, thermo_variable_names
+  use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
   use pendulum_model, only: pendulum, make_pendulum
   use single_spring_model, only: single_spring, make_single_spring
   use double_pendulum, only: state_size, angular_momentum
@@ -22,10 +22,15 @@ program test_step_solver
   use number_text, only: scientific_text
   use discrete_gradient, only: gradient_gonzalez, gradient_partitioned, metric_euclidean, discrete_gradient_names
   use dense_lu, only: lu_factors
-  use step_residual, only: step_problem
+  use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint
   use integrator_settings, only: integrator_choice
   use discrete_gradient_stepper, only: step_solver, new_eme, new_midpoint
   use stepper, only: time_stepper, step_report
+  use pendulum_scene, only: double_pendulum_scene
+  use model_interface, only: generic_model
+  use pendulum_step_kernel, only: pendulum_step, build_pendulum_step, condensed_offset
+  use lapack_newton, only: newton_loop
+  use retry_strategies, only: root_search, find_root
   implicit none
 
   real(real64), parameter :: dt = 0.15_real64, tol = 1.0e-8_real64
@@ -36,7 +41,10 @@ program test_step_solver
   call run_unit_tests('test_step_solver', [ &
     unit_test('first_step_of_each_scheme', first_step_of_each_scheme), &
     unit_test('unphysical_root_rejected', unphysical_root_rejected), &
-    unit_test('single_spring_steps', single_spring_steps)])
+    unit_test('single_spring_steps', single_spring_steps), &
+    unit_test('lean_snes_is_the_newton_loop', lean_snes_is_the_newton_loop), &
+    unit_test('standard_way_factors_once', standard_way_factors_once), &
+    unit_test('jacobian_options_keep_snes_standard', jacobian_options_keep_snes_standard)])
   PetscCallA(PetscFinalize(ierr))
 
 contains
@@ -214,6 +222,162 @@ contains
       call integrator%release(ierr)
     end do
   end subroutine single_spring_steps
+
+  !> The lean SNES way adds nothing to the iteration: 30 steps of the paper scene (and its Fig. 5
+  !> constraints) through the stepper end at the roots, after the Newton iterations, of the
+  !> hand-written loop on the same kernel under the same search (src/solver/lapack_newton).
+  subroutine lean_snes_is_the_newton_loop(suite)
+    type(test_suite), intent(inout) :: suite
+    integer :: variable, set
+
+    do variable = tau_entropy, tau_internal_energy
+      call compare_with_loop(suite, 'eme', variable, 0)
+      call compare_with_loop(suite, 'midpoint', variable, 0)
+    end do
+    do set = 1, 3
+      call compare_with_loop(suite, 'eme', tau_internal_energy, set)
+    end do
+  end subroutine lean_snes_is_the_newton_loop
+
+  ! One scheme on the paper scene with the constraint set `set` (bit 0 length, bit 1 temperature).
+  subroutine compare_with_loop(suite, scheme, variable, set)
+    type(test_suite), intent(inout) :: suite
+    character(len=*), intent(in) :: scheme
+    integer, intent(in) :: variable, set
+    type(integrator_choice) :: choice
+    type(step_solver), target :: stepper
+    type(pendulum_step), target :: kernel
+    type(newton_loop) :: loop
+    type(root_search) :: search
+    type(step_report) :: report
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:), x(:), x_previous(:), x_new(:), y(:)
+    real(real64) :: worst
+    integer :: n, ierr, snes_iterations, loop_iterations
+    logical :: built
+    character(len=100) :: label
+
+    call paper_scene(variable, set, model, z0, constraints)
+    choice%dt = dt
+    choice%newton_tol = tol
+    choice%thermo_variable = variable
+    stepper%partials_rule = merge(partials_midpoint, partials_discrete_gradient, scheme == 'midpoint')
+    call stepper%start(choice, model, constraints, z0, ierr)
+    call build_pendulum_step(stepper%problem, kernel, built)
+    call loop%prepare(kernel%unknowns(), tol, choice%newton_max_iterations)
+    write (label, '(a, 1x, a, a, i0)') scheme, trim(thermo_variable_names(variable)), ', constraints ', set
+    call suite%check_true('the stepper is fused and lean, '//trim(label), stepper%fused .and. stepper%solver%lean())
+    x = [z0, spread(0.0_real64, 1, size(constraints))]
+    x_previous = x
+    x_new = x
+    y = x(condensed_offset + 1:)
+    worst = 0.0_real64
+    snes_iterations = 0
+    loop_iterations = 0
+    do n = 1, 30
+      call stepper%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
+      call kernel%set_old_state(x)
+      call find_root(loop, kernel, x(condensed_offset + 1:), kernel%condense(2*x - x_previous), y, search, ierr)
+      if (.not. (report%accepted .and. search%accepted)) exit
+      snes_iterations = snes_iterations + report%newton_iterations
+      loop_iterations = loop_iterations + search%newton_iterations
+      worst = max(worst, maxval(abs(x_new(condensed_offset + 1:) - y)/max(1.0_real64, abs(y))))
+      x_previous = x
+      x = x_new
+    end do
+    call suite%check_true('30 steps, '//trim(label), n > 30, report%reason//search%reason)
+    call suite%check_equal_int('Newton iterations as the loop''s, '//trim(label), snes_iterations, loop_iterations)
+    call suite%check_true('roots as the loop''s, '//trim(label), worst < 1.0e-13_real64, 'largest relative difference ' &
+                          //scientific_text(worst))
+    call stepper%release(ierr)
+  end subroutine compare_with_loop
+
+  !> The standard SNES way (-eme_lean_snes false: SNES computes the Jacobian, PCSetUp factors it)
+  !> factors each Jacobian once: the shell reads the matrix without changing its state.
+  subroutine standard_way_factors_once(suite)
+    type(test_suite), intent(inout) :: suite
+    type(integrator_choice) :: choice
+    type(step_solver), target :: stepper
+    type(step_report) :: report
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:), x(:), x_new(:)
+    integer :: n, ierr, iterations
+
+    PetscCallA(PetscOptionsSetValue(PETSC_NULL_OPTIONS, '-eme_lean_snes', 'false', ierr))
+    call paper_scene(tau_entropy, 0, model, z0, constraints)
+    choice%dt = dt
+    choice%newton_tol = tol
+    choice%thermo_variable = tau_entropy
+    call stepper%start(choice, model, constraints, z0, ierr)
+    call suite%check_true('-eme_lean_snes false: the standard way', .not. stepper%solver%lean())
+    x = z0
+    x_new = z0
+    iterations = 0
+    do n = 1, 5
+      call stepper%advance(x, (n - 1)*dt, dt, x, x_new, report, ierr)
+      iterations = iterations + report%newton_iterations
+      x = x_new
+    end do
+    call suite%check_equal_int('one LU factorization per Newton iteration', stepper%solver%factorizations(), iterations)
+    call stepper%release(ierr)
+    PetscCallA(PetscOptionsClearValue(PETSC_NULL_OPTIONS, '-eme_lean_snes', ierr))
+  end subroutine standard_way_factors_once
+
+  !> Options that need SNES's own Jacobian or linear solver keep SNES the standard way, and
+  !> -pc_type lu then solves with PETSc's LU: the steps end at the same roots.
+  subroutine jacobian_options_keep_snes_standard(suite)
+    type(test_suite), intent(inout) :: suite
+    type(integrator_choice) :: choice
+    type(step_solver), target :: lean, standard
+    type(step_report) :: report
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:), x(:), x_lean(:), x_standard(:)
+    integer :: n, ierr
+
+    call paper_scene(tau_temperature, 0, model, z0, constraints)
+    choice%dt = dt
+    choice%newton_tol = tol
+    choice%thermo_variable = tau_temperature
+    call lean%start(choice, model, constraints, z0, ierr)
+    PetscCallA(PetscOptionsSetValue(PETSC_NULL_OPTIONS, '-pc_type', 'lu', ierr))
+    call standard%start(choice, model, constraints, z0, ierr)
+    PetscCallA(PetscOptionsClearValue(PETSC_NULL_OPTIONS, '-pc_type', ierr))
+    call suite%check_true('-pc_type lu: the standard way', lean%solver%lean() .and. .not. standard%solver%lean())
+    call suite%check_equal_int('-pc_type lu: PETSc factors, not the shell', standard%solver%factorizations(), 0)
+    x = z0
+    x_lean = z0
+    x_standard = z0
+    do n = 1, 5
+      call lean%advance(x, (n - 1)*dt, dt, x, x_lean, report, ierr)
+      call standard%advance(x, (n - 1)*dt, dt, x, x_standard, report, ierr)
+      call suite%check_close('-pc_type lu: the same root', x_standard, x_lean, rtol=1.0e-10_real64, atol=1.0e-12_real64)
+      x = x_lean
+    end do
+    call suite%check_equal_int('-pc_type lu: still no factorization by the shell', standard%solver%factorizations(), 0)
+    call lean%release(ierr)
+    call standard%release(ierr)
+  end subroutine jacobian_options_keep_snes_standard
+
+  ! The paper scene with the constraint set `set` (bit 0: length |q1(0)|, bit 1: theta_1 = 280 K).
+  subroutine paper_scene(variable, set, model, z0, constraints)
+    integer, intent(in) :: variable, set
+    class(generic_model), allocatable, intent(out) :: model
+    real(real64), allocatable, intent(out) :: z0(:)
+    type(constraint_slot), allocatable, intent(out) :: constraints(:)
+    type(double_pendulum_scene) :: scene
+    character(len=:), allocatable :: message
+    integer :: stat
+
+    scene%fix_length = btest(set, 0)
+    scene%length = norm2(scene%q1)
+    scene%fix_temperature = btest(set, 1)
+    scene%temperature = scene%theta(1)
+    call scene%build(variable, model, z0, constraints, stat, message)
+    if (stat /= 0) error stop 'test_step_solver: the paper scene cannot be built'
+  end subroutine paper_scene
 
   function case_label(variable, kind) result(label)
     integer, intent(in) :: variable, kind

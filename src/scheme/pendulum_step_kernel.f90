@@ -1,0 +1,812 @@
+!> The fused, condensed step of the double pendulum: the same equations as the generic step
+!> residual (src/scheme/step_residual, which stays the test oracle), in one pass per point.
+!>
+!> Condensed: the position rows of R(z') = (z' - z)/h - f(z_mid, partials) are linear,
+!>   q' = q + h m^-1 p_mid,   p_mid = (p + p')/2,
+!> so q' is eliminated exactly and Newton runs on y = (p1', p2', gamma', tau1', tau2', multipliers):
+!> 9 unknowns plus one per active constraint (FORMULATION section 7). The residual of y is the
+!> generic residual's rows of p, gamma, tau and the constraints at z'(y); its Jacobian is
+!>   dR/dy = dR/dz'|_(p, gamma, tau, multipliers) + dR/dq' (h/2) m^-1.
+!> Fused: one pass computes the residual and, when asked, the Jacobian, sharing every logarithm,
+!> root and exponential of the spring potentials and the discrete-gradient quotients between them.
+!> Old-state quantities (the invariants, ln(l/l0), 1/l and the temperatures of z) are computed once
+!> per step by set_old_state, not once per Newton iteration.
+!> Schemes: EME (eq. (15)) with Gonzalez's discrete gradient (its parts assembled here) or the
+!> partitioned one (src/scheme/discrete_gradient), and the midpoint rule (exact partials at z_mid),
+!> in every thermodynamic variable; constraints g1 (fixed length) and g2 (fixed temperature).
+module pendulum_step_kernel
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: potential_u, potential_s, domain_ok, domain_nonpositive_length, &
+                                domain_nonpositive_temperature, domain_overflow
+  use special_functions, only: log1p
+  use model_parameters, only: pendulum_parameters
+  use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
+  use thermo_variable, only: spring_potential, tau_temperature, tau_entropy, temperature_of, potentials_from_parts, &
+                             difference_from_parts
+  use double_pendulum, only: q_index, p_index, gravity_force
+  use pendulum_model, only: pendulum
+  use model_constraint, only: constraint_slot
+  use length_constraint, only: fixed_length
+  use temperature_constraint, only: fixed_temperature
+  use discrete_gradient, only: gradient_gonzalez, metric_euclidean, quotient_threshold, gonzalez_from_parts, &
+                               discrete_gradient_of
+  use nonlinear_problem, only: nonlinear_system
+  use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint, root_problem_text
+  implicit none (type, external)
+  private
+  public :: pendulum_step, build_pendulum_step, condensed_offset
+
+  !> y = x(condensed_offset + 1:): the positions are the first 6 of the generic unknowns x.
+  integer, parameter :: condensed_offset = 6
+  integer, parameter :: row_gamma = 7
+  integer, parameter :: row_tau(2) = [8, 9]
+  integer, parameter :: max_rows = 11          !! 9 and both multipliers
+
+  !> What a step needs of a spring's old state.
+  type :: spring_old_state
+    real(real64) :: x(3) = 0.0_real64             !! invariants (C, [gamma,] tau)
+    real(real64) :: log_stretch = 0.0_real64      !! L = ln(l/l0)
+    real(real64) :: inv_length = 0.0_real64       !! 1/l
+    real(real64) :: length = 0.0_real64           !! l = sqrt(C)
+    real(real64) :: theta = 0.0_real64            !! temperature
+  end type spring_old_state
+
+  !> What a spring's values pass computed at a point and its derivative pass reuses: its
+  !> invariants x' (EME) or x_mid (midpoint), the mechanical parts at the midpoint (or x_mid) and
+  !> the temperature there, and for Gonzalez's quotient d = x' - x, its metric and f(x') - f(x).
+  type :: spring_pass
+    real(real64) :: x(3) = 0.0_real64, mid(3) = 0.0_real64, d(3) = 0.0_real64, weight(3) = 0.0_real64
+    real(real64) :: dwd = 0.0_real64, grad_m(3, 2) = 0.0_real64, delta_f(2) = 0.0_real64
+    real(real64) :: e = 0.0_real64, sigma = 0.0_real64, de(2) = 0.0_real64, dsigma(2) = 0.0_real64
+    real(real64) :: d2e(2, 2) = 0.0_real64, d2sigma(2, 2) = 0.0_real64, theta_mid = 0.0_real64
+    real(real64) :: delta_log = 0.0_real64, inv_b = 0.0_real64, theta_b = 0.0_real64
+    logical :: small = .false.            !! Gonzalez's fallback: the midpoint derivative
+  end type spring_pass
+
+  !> A point y of the step: the new and midpoint positions and momenta, each spring's partials
+  !> P(i, k) with dpartials(i, l, k, a) = dP(i, k)/dxi_l in the variables xi the partials depend
+  !> on (the invariants of z' for EME, of z_mid for the midpoint rule) and dxi/dz', and the
+  !> scalars of the residual's pass that its Jacobian reuses.
+  type :: step_point
+    real(real64) :: p_new(3, 2) = 0.0_real64, q_new(3, 2) = 0.0_real64, q_mid(3, 2) = 0.0_real64
+    real(real64) :: v(3, 2) = 0.0_real64, gamma_new = 0.0_real64, tau_new(2) = 0.0_real64
+    real(real64) :: partials(3, 2, 2) = 0.0_real64
+    real(real64) :: dpartials(3, 3, 2, 2) = 0.0_real64
+    real(real64) :: chain_c(3, 2) = 0.0_real64   !! dxi_C/dq_a'
+    real(real64) :: chain_other = 1.0_real64      !! dxi_gamma/dgamma' = dxi_tau/dtau'
+    type(spring_pass) :: spring(2)
+    real(real64) :: theta(2) = 0.0_real64, thermal_force(2) = 0.0_real64, work(2) = 0.0_real64
+    real(real64) :: work_ratio(2) = 0.0_real64, inv_u_tau(2) = 0.0_real64
+    real(real64) :: inv_eta = 0.0_real64, rate = 0.0_real64, heating = 0.0_real64
+    real(real64) :: lambda_length = 0.0_real64, lambda_temperature = 0.0_real64
+  end type step_point
+
+  !> The condensed step of one scheme for the double pendulum.
+  type, extends(nonlinear_system) :: pendulum_step
+    type(pendulum_parameters) :: params
+    type(spring_potential) :: spring(2)
+    integer :: partials_rule = partials_discrete_gradient
+    integer :: gradient = gradient_gonzalez
+    real(real64) :: scale(3, 2) = 1.0_real64       !! the discrete gradients' metric scales
+    real(real64) :: dt = 0.0_real64
+    real(real64) :: fraction = 1.0_real64          !! continuation: the step of fraction*dt
+    real(real64) :: q_old(3, 2) = 0.0_real64, p_old(3, 2) = 0.0_real64   !! the old state z
+    real(real64) :: gamma_old = 0.0_real64, tau_old(2) = 0.0_real64
+    type(spring_old_state) :: old(2)
+    integer :: old_stat = domain_ok                !! the old state's domain status
+    real(real64) :: inverse_mass(2, 2) = 0.0_real64
+    real(real64) :: force(3, 2) = 0.0_real64       !! gravity
+    integer :: constraint_count = 0
+    integer :: length_row = 0                      !! g1's row and multiplier (0: inactive)
+    real(real64) :: length = 0.0_real64
+    integer :: temperature_row = 0                 !! g2's row and multiplier (0: inactive)
+    integer :: temperature_part = 1
+    real(real64) :: temperature = 0.0_real64
+    type(step_point) :: kept                       !! the last residual's pass (evaluate_residual)
+    real(real64) :: kept_y(11) = 0.0_real64
+    real(real64) :: kept_h = 0.0_real64
+    logical :: kept_valid = .false.
+  contains
+    procedure :: unknowns
+    procedure :: evaluate
+    procedure :: evaluate_residual
+    procedure :: evaluate_jacobian
+    procedure :: check_root
+    procedure :: set_continuation
+    procedure :: set_old_state
+    procedure :: rounding_scales
+    procedure :: expand
+    procedure :: condense
+    procedure :: scheme_temperatures
+  end type pendulum_step
+
+
+contains
+
+  !> The kernel for `problem` if its model is the double pendulum and it knows every active
+  !> constraint; `built` = .false. otherwise (the generic residual then serves).
+  subroutine build_pendulum_step(problem, kernel, built)
+    type(step_problem), intent(in) :: problem
+    type(pendulum_step), intent(out) :: kernel
+    logical, intent(out) :: built
+    integer :: k, a
+
+    built = .false.
+    select type (model => problem%model)
+    type is (pendulum)
+      kernel%params = model%params
+      kernel%spring = model%spring
+      do a = 1, 2
+        if (problem%metric == metric_euclidean) then
+          kernel%scale(1:a + 1, a) = 1.0_real64
+        else
+          kernel%scale(1:a + 1, a) = model%subsystems(a)%metric_scale
+        end if
+      end do
+    class default
+      return
+    end select
+    kernel%partials_rule = problem%partials_rule
+    kernel%gradient = problem%gradient
+    kernel%dt = problem%dt
+    kernel%fraction = problem%fraction
+    associate (m1 => kernel%params%mass(1), m2 => kernel%params%mass(2))
+      kernel%inverse_mass = reshape([1.0_real64, -1.0_real64, -1.0_real64, (m1 + m2)/m2], [2, 2])/m1
+    end associate
+    kernel%force = gravity_force(kernel%params)
+    kernel%constraint_count = size(problem%constraints)
+    do k = 1, size(problem%constraints)
+      select type (item => problem%constraints(k)%item)
+      type is (fixed_length)
+        kernel%length_row = row_tau(2) + k
+        kernel%length = item%length
+      type is (fixed_temperature)
+        kernel%temperature_row = row_tau(2) + k
+        kernel%temperature_part = item%part
+        kernel%temperature = item%temperature
+      class default
+        return
+      end select
+    end do
+    call kernel%set_old_state(problem%z_old)
+    built = .true.
+  end subroutine build_pendulum_step
+
+  pure integer function unknowns(self)
+    class(pendulum_step), intent(in) :: self
+
+    unknowns = row_tau(2) + self%constraint_count
+  end function unknowns
+
+  !> The step of s dt from the same old state.
+  pure subroutine set_continuation(self, s)
+    class(pendulum_step), intent(inout) :: self
+    real(real64), intent(in) :: s
+
+    self%fraction = s
+  end subroutine set_continuation
+
+  !> The step's old state z; what the step needs of it is computed here, once.
+  pure subroutine set_old_state(self, z)
+    class(pendulum_step), intent(inout) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    integer :: a, n
+
+    self%q_old(:, 1) = z(q_index(:, 1))
+    self%q_old(:, 2) = z(q_index(:, 2))
+    self%p_old(:, 1) = z(p_index(:, 1))
+    self%p_old(:, 2) = z(p_index(:, 2))
+    self%gamma_old = z(13)
+    self%tau_old = z(14:15)
+    self%kept_valid = .false.
+    self%old_stat = domain_ok
+    do a = 1, 2
+      n = a + 1
+      associate (old => self%old(a), law => self%spring(a)%law)
+        old%x(1) = dot_product(z(q_index(:, a)), z(q_index(:, a)))
+        if (a == 2) old%x(2) = z(13)
+        old%x(n) = z(13 + a)
+        if (.not. (old%x(1) > 0.0_real64)) then
+          self%old_stat = domain_nonpositive_length
+          return
+        end if
+        old%length = sqrt(old%x(1))
+        old%inv_length = 1.0_real64/old%length
+        old%log_stretch = 0.5_real64*log(old%x(1)/law%natural_length**2)
+        call mechanical_parts_at(law, old%x(1), old%log_stretch, old%inv_length, gamma_of(old%x, n), &
+                                 e, sigma, de, dsigma, d2e, d2sigma)
+        call temperature_of(self%spring(a), old%x(n), e, sigma, old%theta, self%old_stat)
+        if (self%old_stat /= domain_ok) return
+      end associate
+    end do
+  end subroutine set_old_state
+
+  !> The residual (y' - y)/h - f rounds at ~eps |z|/h, the root at ~eps |z|: z the old state.
+  pure subroutine rounding_scales(self, state_scale, residual_scale)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(out) :: state_scale, residual_scale
+
+    state_scale = sqrt(sum(self%q_old**2) + sum(self%p_old**2) + self%gamma_old**2 + sum(self%tau_old**2))
+    residual_scale = state_scale/(self%fraction*self%dt)
+  end subroutine rounding_scales
+
+  !> The generic unknowns x = (q', y) of the condensed unknowns y.
+  pure function expand(self, y) result(x)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    real(real64) :: x(size(y) + condensed_offset)
+    real(real64) :: v(3, 2)
+
+    v = velocity(self, y)
+    x(1:3) = self%q_old(:, 1) + (self%fraction*self%dt)*v(:, 1)
+    x(4:6) = self%q_old(:, 2) + (self%fraction*self%dt)*v(:, 2)
+    x(condensed_offset + 1:) = y
+  end function expand
+
+  !> The condensed unknowns y whose q'(y) is the positions of x: the momenta p' = 2 m (q' - q)/h - p
+  !> (the position rows solved for p'), the rest of y from x.
+  pure function condense(self, x) result(y)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64) :: y(size(x) - condensed_offset)
+    real(real64) :: v(3, 2), p_mid(3, 2), m1, m2
+
+    m1 = self%params%mass(1)
+    m2 = self%params%mass(2)
+    v(:, 1) = (x(1:3) - self%q_old(:, 1))/(self%fraction*self%dt)
+    v(:, 2) = (x(4:6) - self%q_old(:, 2))/(self%fraction*self%dt)
+    ! m = [[m1 + m2, m2], [m2, m2]] (q2 relative to m1), the inverse of m^-1.
+    p_mid(:, 1) = (m1 + m2)*v(:, 1) + m2*v(:, 2)
+    p_mid(:, 2) = m2*(v(:, 1) + v(:, 2))
+    y = x(condensed_offset + 1:)
+    y(1:3) = 2.0_real64*p_mid(:, 1) - self%p_old(:, 1)
+    y(4:6) = 2.0_real64*p_mid(:, 2) - self%p_old(:, 2)
+  end function condense
+
+  ! v = m^-1 p_mid for the new momenta in y.
+  pure function velocity(self, y) result(v)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    real(real64) :: v(3, 2), p_mid(3, 2)
+
+    p_mid(:, 1) = 0.5_real64*(self%p_old(:, 1) + y(1:3))
+    p_mid(:, 2) = 0.5_real64*(self%p_old(:, 2) + y(4:6))
+    v(:, 1) = self%inverse_mass(1, 1)*p_mid(:, 1) + self%inverse_mass(1, 2)*p_mid(:, 2)
+    v(:, 2) = self%inverse_mass(2, 1)*p_mid(:, 1) + self%inverse_mass(2, 2)*p_mid(:, 2)
+  end function velocity
+
+  ! gamma among a spring's invariants (spring 2), 0 for spring 1.
+  pure real(real64) function gamma_of(x, n)
+    real(real64), intent(in) :: x(:)
+    integer, intent(in) :: n
+
+    gamma_of = 0.0_real64
+    if (n == 3) gamma_of = x(2)
+  end function gamma_of
+
+  !> The values pass at y: positions, midpoint, and every spring's partials. stat /= 0: a point
+  !> the scheme needs is outside the model's domain.
+  pure subroutine values_pass(self, y, point, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    type(step_point), intent(inout) :: point
+    integer, intent(out) :: stat
+    integer :: a, n
+
+    point%p_new(:, 1) = y(1:3)
+    point%p_new(:, 2) = y(4:6)
+    point%gamma_new = y(row_gamma)
+    point%tau_new = y(row_tau)
+    point%v = velocity(self, y)
+    point%q_new = self%q_old + (self%fraction*self%dt)*point%v
+    point%q_mid = 0.5_real64*(self%q_old + point%q_new)
+    stat = self%old_stat
+    if (stat /= domain_ok) return
+    do a = 1, 2
+      n = a + 1
+      associate (sp => point%spring(a))
+        if (self%partials_rule == partials_midpoint) then
+          ! Exact partials at the invariants of z_mid: dC_mid/dq' = q_mid, d(gamma, tau)_mid/d(gamma, tau)' = 1/2.
+          sp%mid(1) = dot_product(point%q_mid(:, a), point%q_mid(:, a))
+          if (a == 2) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
+          sp%mid(n) = 0.5_real64*(self%tau_old(a) + point%tau_new(a))
+          point%chain_c(:, a) = point%q_mid(:, a)
+          point%chain_other = 0.5_real64
+          call midpoint_values(self, a, sp, stat)
+          point%partials(1:n, :, a) = sp%grad_m(1:n, :)
+        else
+          ! Discrete gradients between the invariants of z and z': dC'/dq' = 2 q'.
+          sp%x(1) = dot_product(point%q_new(:, a), point%q_new(:, a))
+          if (a == 2) sp%x(2) = point%gamma_new
+          sp%x(n) = point%tau_new(a)
+          point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
+          point%chain_other = 1.0_real64
+          if (self%gradient == gradient_gonzalez) then
+            call gonzalez_values(self, a, sp, point%partials(1:n, :, a), stat)
+          else
+            call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), &
+                                      self%scale(1:n, a), point%partials(1:n, :, a), stat=stat)
+          end if
+        end if
+      end associate
+      if (stat /= domain_ok) return
+    end do
+  end subroutine values_pass
+
+  !> The derivative pass at a point whose values pass is done: dP/dxi for every spring.
+  pure subroutine derivative_pass(self, point, stat)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(inout) :: point
+    integer, intent(out) :: stat
+    real(real64) :: partials(3, 2), hess(3, 3, 2)
+    integer :: a, n
+
+    stat = domain_ok
+    do a = 1, 2
+      n = a + 1
+      associate (sp => point%spring(a))
+        if (self%partials_rule == partials_midpoint) then
+          call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, &
+                                     sp%d2e, sp%d2sigma, partials(1:n, :), hess(1:n, 1:n, :))
+        else if (self%gradient == gradient_gonzalez) then
+          call gonzalez_derivatives(self, a, sp, hess(1:n, 1:n, :))
+        else
+          call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
+                                    partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
+          if (stat /= domain_ok) return
+        end if
+        point%dpartials(1:n, 1:n, :, a) = hess(1:n, 1:n, :)
+      end associate
+    end do
+  end subroutine derivative_pass
+
+  !> The mechanical parts, temperature and exact partials of spring a at sp%mid.
+  pure subroutine midpoint_values(self, a, sp, stat)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(spring_pass), intent(inout) :: sp
+    integer, intent(out) :: stat
+    integer :: n
+
+    n = a + 1
+    if (.not. (sp%mid(1) > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    call mechanical_parts(self%spring(a)%law, sp%mid(1), gamma_of(sp%mid, n), sp%e, sp%sigma, sp%de, sp%dsigma, &
+                          sp%d2e, sp%d2sigma)
+    call temperature_of(self%spring(a), sp%mid(n), sp%e, sp%sigma, sp%theta_mid, stat)
+    if (stat /= domain_ok) return
+    call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
+                               sp%d2sigma, sp%grad_m(1:n, :))
+  end subroutine midpoint_values
+
+  !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x, with the
+  !> old state's logarithm, root and temperature reused and the new point's ln(l/l0) and 1/l kept
+  !> for the derivative pass (src/scheme/discrete_gradient).
+  pure subroutine gonzalez_values(self, a, sp, dg, stat)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(spring_pass), intent(inout) :: sp
+    real(real64), intent(out) :: dg(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), delta_e, delta_sigma, delta_theta, length_b
+    integer :: n
+
+    n = a + 1
+    associate (old => self%old(a), spring => self%spring(a), x => sp%x(1:n), d => sp%d(1:n))
+      d = x - old%x(1:n)
+      sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
+      sp%dwd = dot_product(d, sp%weight(1:n)*d)
+      sp%mid(1:n) = 0.5_real64*(old%x(1:n) + x)
+      call midpoint_values(self, a, sp, stat)
+      if (stat /= domain_ok) return
+      sp%small = sqrt(sp%dwd) < quotient_threshold
+      if (sp%small) then
+        ! The fallback below the threshold: the midpoint derivative.
+        dg = sp%grad_m(1:n, :)
+        return
+      end if
+      ! The difference f(x) - f(x_old) without cancellation, sharing ln(l/l0) and 1/l at x.
+      if (.not. (x(1) > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      sp%delta_log = 0.5_real64*log1p(d(1)/old%x(1))
+      length_b = sqrt(x(1))
+      sp%inv_b = 1.0_real64/length_b
+      call mechanical_difference_at(spring%law, old%log_stretch, sp%delta_log, sp%inv_b, &
+                                    -d(1)*old%inv_length*sp%inv_b/(old%length + length_b), gamma_of(old%x, n), &
+                                    gamma_of(x, n), delta_e, delta_sigma)
+      call difference_from_parts(spring, old%x(n), d(n), old%theta, delta_e, delta_sigma, sp%delta_f, delta_theta)
+      sp%theta_b = old%theta + delta_theta
+      if (.not. (sp%theta_b > 0.0_real64)) then
+        ! Rounding can take theta_old + delta_theta to zero where theta itself is tiny: decide by theta.
+        call mechanical_parts_at(spring%law, x(1), old%log_stretch + sp%delta_log, sp%inv_b, gamma_of(x, n), &
+                                 e, sigma, de, dsigma, d2e, d2sigma)
+        call temperature_of(spring, x(n), e, sigma, sp%theta_b, stat)
+        if (stat /= domain_ok) return
+      end if
+      call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg)
+    end associate
+  end subroutine gonzalez_values
+
+  !> The derivative of Gonzalez's discrete gradient in x' from its values pass.
+  pure subroutine gonzalez_derivatives(self, a, sp, ddg)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(spring_pass), intent(in) :: sp
+    real(real64), intent(out) :: ddg(:, :, :)
+    real(real64) :: grad(3, 2), hess_m(3, 3, 2), grad_b(3, 2), dg(3, 2)
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    integer :: n
+
+    n = a + 1
+    associate (spring => self%spring(a))
+      call potentials_from_parts(spring, sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
+                                 sp%d2sigma, grad(1:n, :), hess_m(1:n, 1:n, :))
+      if (sp%small) then
+        ddg = 0.5_real64*hess_m(1:n, 1:n, :)
+        return
+      end if
+      call mechanical_parts_at(spring%law, sp%x(1), self%old(a)%log_stretch + sp%delta_log, sp%inv_b, &
+                               gamma_of(sp%x, n), e, sigma, de, dsigma, d2e, d2sigma)
+      call potentials_from_parts(spring, sp%x(n), sp%theta_b, e, sigma, de, dsigma, d2e, d2sigma, grad_b(1:n, :))
+      call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
+                               hess_m(1:n, 1:n, :), grad_b(1:n, :), ddg)
+    end associate
+  end subroutine gonzalez_derivatives
+
+  !> The temperature of spring a at the new state and, optionally, its gradient in the spring's
+  !> invariants (FORMULATION section 3: theta = tau; theta_ref exp((s - sigma)/Cap); theta_ref +
+  !> (u - e)/Cap).
+  pure subroutine new_temperature(self, a, point, theta, dtheta_dx, stat)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(step_point), intent(in) :: point
+    real(real64), intent(out) :: theta
+    real(real64), intent(out), optional :: dtheta_dx(:)
+    integer, intent(out) :: stat
+    real(real64) :: c, e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), cap
+    integer :: n
+
+    n = a + 1
+    theta = 0.0_real64
+    c = dot_product(point%q_new(:, a), point%q_new(:, a))
+    if (.not. (c > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    if (self%spring(a)%variable == tau_temperature .and. .not. present(dtheta_dx)) then
+      ! theta = tau: no mechanical parts needed.
+      call temperature_of(self%spring(a), point%tau_new(a), 0.0_real64, 0.0_real64, theta, stat)
+      return
+    end if
+    call mechanical_parts(self%spring(a)%law, c, merge(point%gamma_new, 0.0_real64, a == 2), e, sigma, de, dsigma, &
+                          d2e, d2sigma)
+    call temperature_of(self%spring(a), point%tau_new(a), e, sigma, theta, stat)
+    if (.not. present(dtheta_dx)) return
+    cap = self%spring(a)%law%heat_capacity
+    dtheta_dx = 0.0_real64
+    select case (self%spring(a)%variable)
+    case (tau_temperature)
+      dtheta_dx(n) = 1.0_real64
+    case (tau_entropy)
+      dtheta_dx(1:n - 1) = -theta*dsigma(1:n - 1)/cap
+      dtheta_dx(n) = theta/cap
+    case default
+      dtheta_dx(1:n - 1) = -de(1:n - 1)/cap
+      dtheta_dx(n) = 1.0_real64/cap
+    end select
+  end subroutine new_temperature
+
+  !> R(y) and optionally dR/dy (module header) in one pass. stat /= 0: y (or a point the scheme
+  !> needs) is outside the model's domain; R is then undefined.
+  pure subroutine evaluate(self, x, residual, jacobian, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: residual(:)
+    real(real64), intent(out), optional :: jacobian(:, :)
+    integer, intent(out) :: stat
+    type(step_point) :: point
+
+    call residual_pass(self, x, point, residual, stat)
+    if (stat /= domain_ok .or. .not. present(jacobian)) return
+    call jacobian_pass(self, point, jacobian, stat)
+  end subroutine evaluate
+
+  !> R(y), keeping the pass for a Jacobian at the same y (evaluate_jacobian).
+  subroutine evaluate_residual(self, x, residual, stat)
+    class(pendulum_step), intent(inout) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
+
+    call residual_pass(self, x, self%kept, residual, stat)
+    self%kept_valid = stat == domain_ok
+    self%kept_y(1:size(x)) = x
+    self%kept_h = self%fraction*self%dt
+  end subroutine evaluate_residual
+
+  !> dR/dy at y, from the kept residual pass if it was at this y (and step), else in one pass.
+  subroutine evaluate_jacobian(self, x, jacobian, stat)
+    class(pendulum_step), intent(inout) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: residual(size(x))
+
+    if (.not. kept_for(self, x)) then
+      call residual_pass(self, x, self%kept, residual, stat)
+      self%kept_valid = stat == domain_ok
+      self%kept_y(1:size(x)) = x
+      self%kept_h = self%fraction*self%dt
+      if (stat /= domain_ok) return
+    end if
+    call jacobian_pass(self, self%kept, jacobian, stat)
+  end subroutine evaluate_jacobian
+
+  ! The values pass and the residual at y; the point keeps the residual's scalars.
+  pure subroutine residual_pass(self, y, point, residual, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    type(step_point), intent(inout) :: point
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
+    real(real64) :: h, theta_new
+    integer :: a, b, n
+
+    h = self%fraction*self%dt
+    call values_pass(self, y, point, stat)
+    if (stat /= domain_ok) return
+    associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
+               work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
+      do a = 1, 2
+        n = a + 1
+        theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
+        thermal_force(a) = partials(1, potential_u, a) - theta(a)*partials(1, potential_s, a)
+        work(a) = dot_product(point%q_mid(:, a), point%v(:, a))
+        work_ratio(a) = partials(1, potential_s, a)/partials(n, potential_s, a)
+        inv_u_tau(a) = 1.0_real64/partials(n, potential_u, a)
+      end do
+      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2.
+      point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
+      point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
+      point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
+      do a = 1, 2
+        b = 3 - a
+        residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%p_old(:, a))/h &
+                                                     - self%force(:, a) + 2.0_real64*thermal_force(a)*point%q_mid(:, a)
+        residual(row_tau(a)) = (point%tau_new(a) - self%tau_old(a))/h + 2.0_real64*work_ratio(a)*work(a) &
+                               - self%params%conductivity*(theta(b) - theta(a))*inv_u_tau(a)
+      end do
+      residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - point%rate
+      residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
+      ! Constraints (FORMULATION section 7).
+      point%lambda_length = 0.0_real64
+      if (self%length_row > 0) then
+        point%lambda_length = y(self%length_row)
+        residual(1:3) = residual(1:3) + point%lambda_length*point%q_mid(:, 1)
+        residual(self%length_row) = 0.5_real64*(dot_product(point%q_new(:, 1), point%q_new(:, 1)) - self%length**2)
+      end if
+      point%lambda_temperature = 0.0_real64
+      if (self%temperature_row > 0) then
+        point%lambda_temperature = y(self%temperature_row)
+        a = self%temperature_part
+        residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
+        call new_temperature(self, a, point, theta_new, stat=stat)
+        if (stat /= domain_ok) return
+        residual(self%temperature_row) = theta_new - self%temperature
+      end if
+    end associate
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
+  end subroutine residual_pass
+
+  ! The derivative pass and dR/dy at a point whose residual pass is done.
+  pure subroutine jacobian_pass(self, point, jacobian, stat)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(inout) :: point
+    real(real64), intent(out) :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: theta_new, dtheta_new(3)
+
+    call derivative_pass(self, point, stat)
+    if (stat /= domain_ok) return
+    dtheta_new = 0.0_real64
+    if (self%temperature_row > 0) then
+      call new_temperature(self, self%temperature_part, point, theta_new, dtheta_new(1:self%temperature_part + 1), stat)
+      if (stat /= domain_ok) return
+    end if
+    call assemble_jacobian(self, point, dtheta_new, jacobian)
+  end subroutine jacobian_pass
+
+  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.
+  pure subroutine assemble_jacobian(self, point, dtheta_new, jacobian)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(in) :: point
+    real(real64), intent(in) :: dtheta_new(3)
+    real(real64), intent(out) :: jacobian(:, :)
+    ! Derivatives in the variables xi_a of each spring (1..n_a) of the scalars the rows use.
+    real(real64) :: dtheta(3, 2), dforce(3, 2), dratio(3, 2), dinv_u(3, 2), drate(3), dheating(3), dinv_eta
+    ! Each row's derivative in xi of each spring, then in q' (condensed at the end), and the
+    ! Jacobian, in arrays of fixed size (no descriptors, no vector subscripts in the loops).
+    real(real64) :: drow(max_rows, 3, 2), dq(max_rows, 3, 2), jac(max_rows, max_rows)
+    real(real64) :: kappa, s_tau, h
+    integer :: a, b, n, l, i, col, rows, p0
+
+    rows = size(jacobian, 1)
+    h = self%fraction*self%dt
+    kappa = self%params%conductivity
+    jac(1:rows, 1:rows) = 0.0_real64
+    dq(1:rows, :, :) = 0.0_real64
+    drow(1:rows, :, :) = 0.0_real64
+    associate (partials => point%partials, dp => point%dpartials, theta => point%theta, &
+               thermal_force => point%thermal_force, work => point%work, work_ratio => point%work_ratio, &
+               inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &
+               lambda_length => point%lambda_length, lambda_temperature => point%lambda_temperature)
+      do a = 1, 2
+        n = a + 1
+        s_tau = partials(n, potential_s, a)
+        do l = 1, n
+          dtheta(l, a) = (dp(n, l, potential_u, a) - theta(a)*dp(n, l, potential_s, a))/s_tau
+          dforce(l, a) = dp(1, l, potential_u, a) - theta(a)*dp(1, l, potential_s, a) &
+                         - partials(1, potential_s, a)*dtheta(l, a)
+          dratio(l, a) = (dp(1, l, potential_s, a) - work_ratio(a)*dp(n, l, potential_s, a))/s_tau
+          dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
+        end do
+      end do
+      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
+      dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
+      do l = 1, 3
+        drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
+                    - dp(2, l, potential_u, 2))*inv_eta &
+                   + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
+        dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
+      end do
+
+    do a = 1, 2
+      b = 3 - a
+      n = a + 1
+      p0 = 3*(a - 1)                  ! the rows (and columns) of p_a are p0 + 1..p0 + 3
+      do l = 1, n
+        ! momentum rows: 2 T_a q_mid_a
+        drow(p0 + 1:p0 + 3, l, a) = 2.0_real64*point%q_mid(:, a)*dforce(l, a)
+        ! tau_a rows: 2 (S_C/S_tau) w - kappa (Theta_b - Theta_a)/U_tau
+        drow(row_tau(a), l, a) = drow(row_tau(a), l, a) + 2.0_real64*work(a)*dratio(l, a) &
+                                 + kappa*dtheta(l, a)*inv_u_tau(a) &
+                                 - kappa*(theta(b) - theta(a))*dinv_u(l, a)
+      end do
+      do l = 1, b + 1
+        drow(row_tau(a), l, b) = drow(row_tau(a), l, b) - kappa*dtheta(l, b)*inv_u_tau(a)
+      end do
+    end do
+    drow(row_gamma, :, 2) = -drate
+    drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
+    if (self%temperature_row > 0) then
+      a = self%temperature_part
+      drow(row_tau(a), 1:a + 1, a) = drow(row_tau(a), 1:a + 1, a) - lambda_temperature*dinv_u(1:a + 1, a)
+    end if
+
+    ! Through the partials' variables xi into the columns of q', gamma', tau'.
+    do a = 1, 2
+      n = a + 1
+      do i = 1, 3
+        dq(1:rows, i, a) = drow(1:rows, 1, a)*point%chain_c(i, a)
+      end do
+      if (a == 2) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
+      jac(1:rows, row_tau(a)) = drow(1:rows, n, a)*point%chain_other
+    end do
+
+    ! Direct dependencies: (z' - z)/h, q_mid in the forces, w = q_mid.v.
+    do col = 1, row_tau(2)
+      jac(col, col) = jac(col, col) + 1.0_real64/h
+    end do
+    do a = 1, 2
+      p0 = 3*(a - 1)
+      do i = 1, 3
+        dq(p0 + i, i, a) = dq(p0 + i, i, a) + thermal_force(a)
+      end do
+      ! w_a = q_mid_a . v_a: dw/dq_a' = v_a/2, dw/dp_b' = q_mid_a m^-1_ab/2.
+      dq(row_tau(a), :, a) = dq(row_tau(a), :, a) + work_ratio(a)*point%v(:, a)
+      do b = 1, 2
+        jac(row_tau(a), 3*b - 2:3*b) = jac(row_tau(a), 3*b - 2:3*b) &
+                                       + work_ratio(a)*self%inverse_mass(a, b)*point%q_mid(:, a)
+      end do
+    end do
+    if (self%length_row > 0) then
+      do i = 1, 3
+        dq(i, i, 1) = dq(i, i, 1) + 0.5_real64*lambda_length
+      end do
+      jac(1:3, self%length_row) = point%q_mid(:, 1)
+      dq(self%length_row, :, 1) = point%q_new(:, 1)
+    end if
+    if (self%temperature_row > 0) then
+      a = self%temperature_part
+      n = a + 1
+      jac(row_tau(a), self%temperature_row) = -inv_u_tau(a)
+      ! g2 = theta(z') - temperature, through the invariants of z' (C' = q'.q').
+      dq(self%temperature_row, :, a) = dtheta_new(1)*2.0_real64*point%q_new(:, a)
+      if (a == 2) jac(self%temperature_row, row_gamma) = dtheta_new(2)
+      jac(self%temperature_row, row_tau(a)) = dtheta_new(n)
+    end if
+
+    ! Condensation: q_a' = q_a + h m^-1 p_mid, so dq_a'/dp_b' = (h/2) m^-1_ab.
+    do b = 1, 2
+      do a = 1, 2
+        jac(1:rows, 3*b - 2:3*b) = jac(1:rows, 3*b - 2:3*b) + (0.5_real64*h*self%inverse_mass(a, b))*dq(1:rows, :, a)
+      end do
+    end do
+    jacobian = jac(1:rows, 1:rows)
+    end associate
+  end subroutine assemble_jacobian
+
+  !> The temperatures the scheme's K0 uses at y: discrete (EME) or midpoint temperatures.
+  pure subroutine scheme_temperatures(self, y, theta, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    real(real64), intent(out) :: theta(:)
+    integer, intent(out) :: stat
+    type(step_point) :: point
+    integer :: a
+
+    theta = 0.0_real64
+    call values_at(self, y, point, stat)
+    if (stat /= domain_ok) return
+    do a = 1, 2
+      theta(a) = point%partials(a + 1, potential_u, a)/point%partials(a + 1, potential_s, a)
+    end do
+  end subroutine scheme_temperatures
+
+  ! The values pass at y: the kept one if it was at this y of this step (the root a solve ended
+  ! on, which check_root and scheme_temperatures then ask about), else a new one.
+  pure subroutine values_at(self, y, point, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    type(step_point), intent(out) :: point
+    integer, intent(out) :: stat
+
+    if (kept_for(self, y)) then
+      point = self%kept
+      stat = domain_ok
+    else
+      call values_pass(self, y, point, stat)
+    end if
+  end subroutine values_at
+
+  ! Whether the kept pass is at y (bit for bit) of this very step.
+  pure logical function kept_for(self, y)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+
+    kept_for = self%kept_valid .and. abs(self%kept_h - self%fraction*self%dt) <= 0.0_real64
+    if (kept_for) kept_for = all(abs(self%kept_y(1:size(y)) - y) <= 0.0_real64)
+  end function kept_for
+
+  !> Why y is not a physical root ('' if it is): as the generic step's check_root.
+  pure subroutine check_root(self, x, problem_text)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    character(len=:), allocatable, intent(out) :: problem_text
+    type(step_point) :: point
+    real(real64) :: theta_new(2), theta_scheme(2)
+    integer :: stat, scheme_stat, a, which
+
+    call values_at(self, x, point, scheme_stat)
+    theta_new = 0.0_real64
+    theta_scheme = 0.0_real64
+    which = 1
+    do a = 1, 2
+      call new_temperature(self, a, point, theta_new(a), stat=stat)
+      if (stat /= domain_ok) then
+        which = a
+        exit
+      end if
+    end do
+    if (scheme_stat == domain_ok) theta_scheme = [(point%partials(a + 1, potential_u, a) &
+                                                   /point%partials(a + 1, potential_s, a), a=1, 2)]
+    call root_problem_text(self%partials_rule, stat, which, theta_new, 'spring '//achar(iachar('0') + which), &
+                           scheme_stat, theta_scheme, problem_text)
+  end subroutine check_root
+
+end module pendulum_step_kernel

@@ -1,0 +1,119 @@
+!> Newton's method by hand on a nonlinear_system, with LAPACK's LU (src/solver/dense_lu) and no
+!> PETSc: the same iteration as the lean SNES path (src/solver/snes_solver) -- full steps, a new
+!> Jacobian and LU per iteration except the final chord step, the same convergence test -- for
+!> the benchmark's floor (drivers/eme_bench) and the tests that check that SNES adds nothing to
+!> the iteration.
+module lapack_newton
+  use, intrinsic :: iso_fortran_env, only: real64
+  use nonlinear_problem, only: nonlinear_system
+  use retry_strategies, only: root_finder, final_chord_step, newton_converged
+  use dense_lu, only: lu_factors
+  implicit none (type, external)
+  private
+  public :: newton_loop
+
+  !> The loop's tolerance, iteration limit, switches and LU factors.
+  type, extends(root_finder) :: newton_loop
+    type(lu_factors) :: lu
+    real(real64) :: tolerance = 1.0e-8_real64
+    integer :: max_iterations = 50
+    logical :: chord_predictor = .true.
+    logical :: final_chord = .true.
+  contains
+    procedure :: prepare
+    procedure :: solve
+    procedure :: refine
+    procedure :: use_fallback
+  end type newton_loop
+
+contains
+
+  !> Room for n unknowns, tolerance on the residual's 2-norm, at most max_iterations per solve.
+  subroutine prepare(self, n, tolerance, max_iterations)
+    class(newton_loop), intent(inout) :: self
+    integer, intent(in) :: n
+    real(real64), intent(in) :: tolerance
+    integer, intent(in) :: max_iterations
+
+    call self%lu%reset(n)
+    self%tolerance = tolerance
+    self%max_iterations = max_iterations
+  end subroutine prepare
+
+  !> Newton from `initial` until retry_strategies' newton_converged says so.
+  subroutine solve(self, problem, initial, root, converged, reason, iterations, ierr)
+    class(newton_loop), intent(inout) :: self
+    class(nonlinear_system), intent(inout), target :: problem
+    real(real64), intent(in) :: initial(:)
+    real(real64), intent(out) :: root(:)
+    logical, intent(out) :: converged
+    character(len=:), allocatable, intent(out) :: reason
+    integer, intent(out) :: iterations, ierr
+    real(real64) :: residual(size(initial)), update(size(initial))
+    real(real64) :: residual_norm, update_norm, state_scale, residual_scale
+    integer :: info, stat
+    logical :: chord_taken
+
+    ierr = 0
+    iterations = 0
+    reason = 'Newton did not converge'
+    root = initial
+    converged = .false.
+    chord_taken = .false.
+    update_norm = huge(1.0_real64)
+    call problem%evaluate_residual(root, residual, stat)
+    if (stat /= 0) return
+    residual_norm = norm2(residual)
+    call problem%rounding_scales(state_scale, residual_scale)
+    converged = newton_converged(0, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, state_scale, &
+                                 residual_scale)
+    do while (.not. converged .and. iterations < self%max_iterations)
+      iterations = iterations + 1
+      if (final_chord_step(self%final_chord, self%lu%ready, chord_taken, residual_norm, self%tolerance, update_norm)) then
+        chord_taken = .true.
+      else
+        chord_taken = .false.
+        call problem%evaluate_jacobian(root, self%lu%factors, stat)
+        self%lu%ready = .false.
+        if (stat /= 0) return
+        call self%lu%factor_in_place(info)
+        if (info /= 0) return
+      end if
+      update = residual
+      call self%lu%solve(update, info)
+      root = root - update
+      update_norm = norm2(update)
+      call problem%evaluate_residual(root, residual, stat)
+      if (stat /= 0) return
+      residual_norm = norm2(residual)
+      converged = newton_converged(iterations, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, &
+                                   state_scale, residual_scale)
+    end do
+    if (converged) reason = ''
+  end subroutine solve
+
+  !> The chord refinement of a predictor with the last factors, as the SNES solver's.
+  subroutine refine(self, problem, x)
+    class(newton_loop), intent(inout) :: self
+    class(nonlinear_system), intent(in) :: problem
+    real(real64), intent(inout) :: x(:)
+    real(real64) :: residual(size(x))
+    integer :: stat, info
+
+    if (.not. (self%lu%ready .and. self%chord_predictor)) return
+    call problem%evaluate(x, residual, stat=stat)
+    if (stat /= 0) return
+    call self%lu%solve(residual, info)
+    if (info == 0) x = x - residual
+  end subroutine refine
+
+  !> The loop has no other line search: the fallback round repeats the first.
+  subroutine use_fallback(self, on, ierr)
+    class(newton_loop), intent(inout) :: self
+    logical, intent(in) :: on
+    integer, intent(out) :: ierr
+
+    ierr = 0
+  end subroutine use_fallback
+
+end module lapack_newton

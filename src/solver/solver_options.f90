@@ -1,0 +1,75 @@
+!> The step solver's run-time choices from PETSc's options database (src/solver/petsc_options.c
+!> registers them, so that PETSc's -help lists them with their descriptions), and which options a
+!> user gave, by part of their name. Each switch undoes one of the step's speed-ups, for
+!> measuring what it buys (README, per-step cost):
+!>   -eme_chord_predictor false   no chord refinement of the predictor
+!>   -eme_fused_kernel false      the generic residual on the full unknowns instead of the fused,
+!>                                condensed kernel (src/scheme/pendulum_step_kernel)
+!>   -eme_lean_snes false         SNES builds the Jacobian (SNESComputeJacobian) and takes its
+!>                                'basic' line search
+!>   -eme_final_chord false       a new Jacobian for every Newton iteration
+!> and one for the step itself:
+!>   -eme_max_halvings N          halve a step whose root is not found, recursively, N times at most
+module solver_options
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
+  implicit none (type, external)
+  private
+  public :: step_solver_options, read_solver_options, option_given
+
+  !> The switches and the halving depth, with their defaults.
+  type :: step_solver_options
+    logical :: chord_predictor = .true.
+    logical :: fused_kernel = .true.
+    logical :: lean_snes = .true.
+    logical :: final_chord = .true.
+    integer :: max_halvings = 6
+  end type step_solver_options
+
+  interface
+    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings) &
+      bind(C, name='eme_read_solver_options') result(ierr)
+      import :: c_int
+      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings
+      integer(c_int) :: ierr
+    end function eme_read_solver_options
+
+    function eme_option_given(text, given) bind(C, name='eme_option_given') result(ierr)
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: text(*)
+      integer(c_int), intent(out) :: given
+      integer(c_int) :: ierr
+    end function eme_option_given
+  end interface
+
+contains
+
+  !> The switches as the options database sets them. ierr /= 0 for a PETSc error (e.g. a value
+  !> that is not a logical, or a depth outside 0..30).
+  subroutine read_solver_options(options, ierr)
+    type(step_solver_options), intent(out) :: options
+    integer, intent(out) :: ierr
+    integer(c_int) :: flags(4), depth
+
+    flags = merge(1_c_int, 0_c_int, [options%chord_predictor, options%fused_kernel, options%lean_snes, &
+                                     options%final_chord])
+    depth = int(options%max_halvings, c_int)
+    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(4), depth))
+    options%max_halvings = int(depth)
+    options%chord_predictor = flags(1) /= 0
+    options%fused_kernel = flags(2) /= 0
+    options%lean_snes = flags(3) /= 0
+    options%final_chord = flags(4) /= 0
+  end subroutine read_solver_options
+
+  !> Whether the name of an option the user gave contains `text` (e.g. 'view', '-snes_compare').
+  subroutine option_given(text, given, ierr)
+    character(len=*), intent(in) :: text
+    logical, intent(out) :: given
+    integer, intent(out) :: ierr
+    integer(c_int) :: found
+
+    ierr = int(eme_option_given(text//c_null_char, found))
+    given = found /= 0
+  end subroutine option_given
+
+end module solver_options
