@@ -25,7 +25,7 @@ import integrators
 import study_plots
 from plotting import run_script
 from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
-from trajectory import RunFileError, read_run
+from trajectory import RunFileError, read_run, run_file
 
 # study_convergence_reference.nml: case 1 (temperature variable, tolerance 1e-13) is the
 # reference, case 2 (entropy variable, tolerance 1e-12) an independent cross-check of it.
@@ -215,13 +215,15 @@ def entropy_violation(min_entropy_increment):
 
 
 def halved_steps(path):
-    """Steps of the case that were rejected and replaced by two halves (the integrator's
-    /halved_steps dataset; 0 for integrators that never halve)."""
-    try:
-        with h5py.File(path, "r") as handle:
-            return int(np.sum(handle["halved_steps"][()])) if "halved_steps" in handle else 0
-    except OSError as error:
-        raise StudyError(f"{path}: cannot read the case file ({error})") from None
+    """Steps of the case that were rejected and replaced by two halves: the relaxed schemes'
+    /halved_steps, or from EME's and the midpoint rule's /substeps (a step replaced by k substeps
+    was halved k - 1 times); 0 for integrators that never halve."""
+    with run_file(path) as handle:
+        if "halved_steps" in handle:
+            return int(np.sum(handle["halved_steps"][()]))
+        if "substeps" in handle:
+            return int(np.sum(handle["substeps"][()] - 1))
+        return 0
 
 
 def temperatures_positive(path):

@@ -80,8 +80,8 @@ def scene(tmp_path):
 @pytest.mark.parametrize("order", ["after", "before", "flag before", "value before", "both sides"])
 def test_options_before_or_after_the_input_file(scene, order, eme_run_binary):
     """-snes_converged_reason prints a line per solve wherever it stands; an option's value
-    (-snes_linesearch_type basic) before the file is not taken for the file; the same file
-    results either way."""
+    (-snes_linesearch_type basic) before the file is not taken for the file; the same states
+    result either way."""
     path, output = scene()
     arguments = {
         "after": [path, "-snes_converged_reason"],
@@ -99,7 +99,9 @@ def test_options_before_or_after_the_input_file(scene, order, eme_run_binary):
     plain_path, plain_output = scene("plain")
     assert run("eme_run", plain_path).returncode == 0
     with h5py.File(plain_output, "r") as f:
-        np.testing.assert_array_equal(f["state"][()], state)
+        # -snes_linesearch_type selects PETSc's standard SNES path (README, Solver), which reaches
+        # the same roots to rounding, not bit for bit.
+        np.testing.assert_allclose(f["state"][()], state, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("arguments,words", [

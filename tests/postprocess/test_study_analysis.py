@@ -155,16 +155,34 @@ STUDIES = {
 &sweep field = 'thermo_variable', texts = 'temperature', 'entropy' /
 &sweep field = 'ts_tolerance', values = 1.0e-13, 1.0e-12 /""",
     # One case per outcome we can force: kept (EME), energy error (MP_s), and two failures by
-    # allowing one Newton iteration per solve: our solver ("no root") and PETSc TS.
-    "stability_paper": """&sweep field = 't_end', values = 1.0, 1.0, 1.0, 1.0 /
-&sweep field = 'scheme', texts = 'eme', 'midpoint', 'eme', 'ts_midpoint' /
-&sweep field = 'thermo_variable', texts = 'temperature', 'entropy', 'temperature', 'internal_energy' /
-&sweep field = 'dt', values = 0.1, 0.1, 0.2, 0.1 /
-&sweep field = 'newton_max_iterations', values = 50, 50, 1, 1 /""",
+    # allowing one Newton iteration per solve: our solver ("no root") and PETSc TS; and a relaxed
+    # scheme at a step it must halve.
+    "stability_paper": """&sweep field = 't_end', values = 1.0, 1.0, 1.0, 1.0, 1.0 /
+&sweep field = 'scheme', texts = 'eme', 'midpoint', 'eme', 'ts_midpoint', 'relaxed_rk4' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'entropy', 'temperature', 'internal_energy',
+  'temperature' /
+&sweep field = 'dt', values = 0.1, 0.1, 0.2, 0.1, 0.5 /
+&sweep field = 'newton_max_iterations', values = 50, 50, 1, 1, 50 /""",
+    # Work precision on [0, 0.4] s: two fixed-step schemes over dt, two adaptive ones over the
+    # tolerance, and a reference (relaxed_rk8 at a tiny step) with a CVODE cross-check.
+    "work_precision": """&sweep field = 't_end', values = 4*0.4 /
+&sweep field = 'scheme', texts = 'eme', 'eme', 'relaxed_rk8', 'relaxed_rk8' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'temperature', 'temperature', 'temperature' /
+&sweep field = 'dt', values = 0.02, 0.01, 0.1, 0.05 /""",
+    "work_precision_adaptive": """&sweep field = 't_end', values = 4*0.4 /
+&sweep field = 'scheme', texts = 'relaxed_dp853', 'relaxed_dp853', 'cvode_bdf', 'cvode_bdf' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'temperature', 'temperature', 'temperature' /
+&sweep field = 'dt', values = 4*0.2 /
+&sweep field = 'tolerance', values = 1e-5, 1e-8, 1e-5, 1e-8 /""",
+    "work_precision_reference": """&sweep field = 't_end', values = 0.4, 0.4 /
+&sweep field = 'scheme', texts = 'relaxed_rk8', 'cvode_adams' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'temperature' /
+&sweep field = 'dt', values = 0.005, 0.2 /
+&sweep field = 'tolerance', values = 1e-10, 1e-13 /""",
 }
 STUDIES["stability_hard"] = STUDIES["stability_paper"]
 EXPECTED_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("EME_theta", 0.2): "solver",
-                     ("TS-midpoint_u", 0.1): "solver"}
+                     ("TS-midpoint_u", 0.1): "solver", ("RRK4_theta", 0.5): "kept"}
 
 
 def run_script(study_dir, output, summary):
@@ -228,9 +246,16 @@ def test_summary_holds_every_figure_s_numbers_with_units(analysed):
         assert len(f["convergence/error"]) == 6
         grid = f["stability/paper/outcome"][()]
         schemes, steps = text(f["stability/paper/scheme"][()]), list(f["stability/paper/dt"][()])
-        assert (grid >= 0).sum() == 4
+        assert (grid >= 0).sum() == 5
         codes = {(schemes[i], steps[j]): study_analysis.OUTCOMES[grid[i, j]] for i, j in zip(*np.nonzero(grid >= 0))}
         assert codes == EXPECTED_OUTCOMES
+        # The relaxed case at dt = 0.5 s halves steps, and only it.
+        halved = f["stability/paper/halved_steps"][()]
+        assert halved[schemes.index("RRK4_theta"), steps.index(0.5)] > 0 and halved.sum() == halved.max()
+        for dataset in ("scheme", "study", "dt", "tolerance", "error", "shown", "solve_time_seconds",
+                        "energy_drift", "cross_check_level"):
+            assert f"work_precision/{dataset}" in names
+        assert len(f["work_precision/error"]) == 8
         orders = dict(zip(text(f["convergence/fit_scheme"][()]), f["convergence/fitted_order"][()]))
         assert orders["EME_theta"] == pytest.approx(2.0, abs=0.3)
         assert orders["RK4_theta"] == pytest.approx(4.0, abs=0.5)
@@ -257,6 +282,16 @@ def test_summary_numbers_are_the_files_numbers(studies, analysed):
         q_check, theta_check, _ = last(studies / "convergence_reference" / "case_00002.h5")
         level = max(np.abs(q_check - q_ref).max(), np.abs(theta_check - theta_ref_values).max() / theta_ref)
         assert f["convergence/cross_check_level"][()] == pytest.approx(level, rel=1e-12)
+    q_ref, theta_ref_values, theta_ref = last(studies / "work_precision_reference" / "case_00001.h5")
+    with h5py.File(output / "summary.h5", "r") as f:
+        for study, case, error, time in zip(text(f["work_precision/study"][()]), f["work_precision/case"][()],
+                                            f["work_precision/error"][()], f["work_precision/solve_time_seconds"][()]):
+            with h5py.File(studies / study / "index.h5", "r") as index:
+                row = {row["case"]: row for row in index["cases"][()]}[case]
+            q, theta, _ = last(studies / study / row["file"].decode())
+            expected = max(np.abs(q - q_ref).max(), np.abs(theta - theta_ref_values).max() / theta_ref)
+            assert error == pytest.approx(expected, rel=1e-12, abs=0)
+            assert time == row["solve_time_seconds"]
     with h5py.File(output / "summary.h5", "r") as f, \
             h5py.File(studies / "stability_paper" / "index.h5", "r") as index:
         rows = {row["case"]: row for row in index["cases"][()]}
@@ -274,6 +309,8 @@ def test_findings_are_printed(analysed):
     assert "stability EME_theta: finished with everything kept at 1 of 2 dt (paper scene), 1 of 2 dt (harder scene)" \
         in stdout
     assert "stability MP_s: finished with everything kept at 0 of 1 dt (paper scene)" in stdout
+    assert "work precision: reference" in stdout
+    assert "work precision RRK8_theta: error <= 1e-04 at dt " in stdout and "x CVODE-BDF_theta's time" in stdout
 
 
 def test_a_missing_columns_attribute_names_the_file(studies, tmp_path):
@@ -315,8 +352,9 @@ def test_charts_text_is_at_least_8_pt_and_legends_explain_every_marker(studies):
     structure = study_analysis.structure_cost(study_analysis.read_index(studies / "stability_paper"))
     maps = {scene: study_analysis.stability_map(study_analysis.read_index(studies / folder))
             for scene, folder in study_analysis.SCENES.items()}
-    made = {"convergence": study_plots.convergence_figure(conv, (3, 100.0)),
-            "work_precision": study_plots.work_precision_figure(conv),
+    wp = study_analysis.work_precision(studies)
+    made = {"convergence": study_plots.convergence_figure(conv, wp, (3, 100.0)),
+            "work_precision": study_plots.work_precision_figure(wp, 10.0),
             "structure": study_plots.structure_figure(structure, studies / "stability_paper"),
             "stability": study_plots.stability_figure(maps)}
     for name, (fig, title, lines) in made.items():
