@@ -15,7 +15,8 @@ module command_help
 
   character(len=*), parameter :: exit_codes = &
     'Exit status: 0 complete, 2 bad input or usage (nothing is written), 3 the run stopped early (its file is '// &
-    'kept, marked incomplete, with the reason), 1 an I/O or PETSc error.'
+    'kept, marked incomplete, with the reason), 1 an I/O or PETSc error, 128 + N after signal N (SIGTERM: 143, '// &
+    'SIGINT: 130; the file is kept, marked incomplete).'
 
 contains
 
@@ -65,12 +66,14 @@ contains
     integer, intent(in) :: unit
     character(len=1024), target :: base, output_dir
     character(len=16), target :: combine
+    logical, target :: index_only
     character(len=64), target :: field, texts(max_sweep_values)
     real(real64), target :: values(max_sweep_values)
 
     base = ''
     output_dir = ''
     combine = 'product'
+    index_only = .false.
     field = ''
     texts = ''
     values = 0.0_real64
@@ -82,7 +85,7 @@ contains
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
       '2 bad study input (nothing is written), 1 the index could not be written.', '', &
       'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
-    call describe_group(unit, 'study', study_fields(base, output_dir, combine))
+    call describe_group(unit, 'study', study_fields(base, output_dir, combine, index_only))
     call describe_group(unit, 'sweep', sweep_fields(field, values, texts))
   end subroutine print_study_help
 
