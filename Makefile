@@ -166,9 +166,10 @@ figures: $(VENV)/.python-deps
 STUDIES := convergence convergence_reference stability_paper stability_hard
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
+# Each study prints its start, a progress line every 2 s and its summary.
 study: all $(VENV)/.python-deps
 	@for s in $(STUDIES); do rm -rf results/study/$$s; \
-	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml | tail -1 || exit 1; done
+	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml || exit 1; done
 	$(PYTHON) postprocess/study_analysis.py --study-dir results/study -o results/figures \
 	  --summary results/study/summary.h5
 

@@ -13,9 +13,10 @@ module filesystem
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int) :: status
     end function c_make_directories
-    function c_rename_file(from, to) result(status) bind(c, name='eme_rename_file')
+    function c_rename_file(from, to, sync) result(status) bind(c, name='eme_rename_file')
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: from(*), to(*)
+      integer(c_int), value :: sync
       integer(c_int) :: status
     end function c_rename_file
     function c_remove_file(path) result(status) bind(c, name='eme_remove_file')
@@ -78,12 +79,17 @@ contains
     if (slash > 1) call make_directories(file(1:slash - 1), stat)
   end subroutine make_parent_directories
 
-  !> Renames `from` to `to`, replacing `to` atomically, and syncs the directory.
-  subroutine rename_file(from, to, stat)
+  !> Renames `from` to `to`, replacing `to` atomically; with `sync` (default) the directory entry
+  !> is on disk on return.
+  subroutine rename_file(from, to, stat, sync)
     character(len=*), intent(in) :: from, to
     integer, intent(out) :: stat
+    logical, intent(in), optional :: sync
+    logical :: durable
 
-    stat = int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char))
+    durable = .true.
+    if (present(sync)) durable = sync
+    stat = int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char, merge(1_c_int, 0_c_int, durable)))
   end subroutine rename_file
 
   !> Removes `path`; a missing file is no error.

@@ -11,6 +11,7 @@
  * closes do not fail for want of space. Called from Fortran through bind(C)
  * (src/io/hdf5_series.f90). Functions return 0 on success, an errno value for an OS failure,
  * or -1 for an HDF5 failure. */
+#include <errno.h>
 #include <hdf5.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -36,8 +37,11 @@ int eme_h5_create_in_memory(const char *label, hid_t *file)
     return status;
 }
 
-/* Writes the image of the in-memory file `file` as the whole of `path` (fsync'd with `sync`);
- * `file` stays open. An OS failure removes the partial file and returns errno. */
+int eme_rename_file(const char *from, const char *to, int sync);                 /* posix_files.c */
+
+/* Writes the image of the in-memory file `file` as the whole of `path` (fsync'd with `sync`):
+ * as path.tmp, renamed to `path`, so that `path` is never a partial file. `file` stays open. An
+ * OS failure removes the partial file and returns errno. */
 int eme_h5_store_image(hid_t file, const char *path, int sync)
 {
     if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0) return -1;
@@ -46,7 +50,12 @@ int eme_h5_store_image(hid_t file, const char *path, int sync)
     void *image = malloc((size_t)size);
     if (image == NULL) return -1;
     int status = -1;
-    if (H5Fget_file_image(file, image, (size_t)size) == size) status = eme_write_whole_file(path, image, (long)size, sync);
+    char temporary[4096];
+    if (snprintf(temporary, sizeof temporary, "%s.tmp", path) >= (int)sizeof temporary) status = ENAMETOOLONG;
+    else if (H5Fget_file_image(file, image, (size_t)size) == size) {
+        status = eme_write_whole_file(temporary, image, (long)size, sync);
+        if (status == 0) status = eme_rename_file(temporary, path, sync);
+    }
     free(image);
     return status;
 }

@@ -51,11 +51,11 @@ static void sync_directory_of(const char *path)
     close(fd);
 }
 
-/* rename(2), atomic within one file system, then the directory synced. */
-int eme_rename_file(const char *from, const char *to)
+/* rename(2), atomic within one file system; with `sync`, the directory is synced after. */
+int eme_rename_file(const char *from, const char *to, int sync)
 {
     if (rename(from, to) != 0) return errno;
-    sync_directory_of(to);
+    if (sync) sync_directory_of(to);
     return 0;
 }
 

@@ -370,7 +370,7 @@ contains
     extras(4)%name = 'study_rank'
     extras(4)%number = rank
     call run_simulation(config, summary, stat, message, observer, integrator, keep_file=.not. study%index_only, &
-                        extras=extras)
+                        extras=extras, durable=.false.)
     if (summary%failure_kind == failure_interrupted) then
       result%status = summary%status
     else if (stat /= 0) then

@@ -109,6 +109,7 @@ module run_output
     character(len=:), allocatable :: path
     logical :: enabled = .false.        !! .false.: nothing is recorded (an index-only study)
     logical :: on_disk = .false.        !! the file exists at `path`
+    logical :: durable = .true.         !! the finished file is synced to disk (fsync)
     integer(int64) :: last_write = 0, clock_rate = 1
   contains
     procedure :: create
@@ -264,7 +265,7 @@ contains
       call self%points%write(self%file, .true., stat)
       if (stat == 0) call self%steps%write(self%file, .true., stat)
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
-      if (stat == 0) call self%file%store(self%path, .true., stat)
+      if (stat == 0) call self%file%store(self%path, self%durable, stat)
       call self%file%close(ignored)
       self%on_disk = stat == 0
       if (stat /= 0) return
@@ -280,7 +281,7 @@ contains
       end if
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
       call close_window(self, stat)
-      if (stat == 0) call sync_file(self%path, stat)
+      if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
       if (stat /= 0) return
     end if
     call check_run_file(self%path, status_read, steps_read, check_stat)

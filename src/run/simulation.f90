@@ -78,8 +78,9 @@ contains
   !> With `reusable`, the caller's integrator is used when it is of the configured kind (an
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
   !> the next run; without, the run builds and frees its own. `progress` receives a line at most
-  !> every 2 s; `extras` are root attributes added to the file.
-  subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras)
+  !> every 2 s; `extras` are root attributes added to the file. The finished file is synced to
+  !> disk unless `durable` is .false. (an ensemble's case: its index is the record).
+  subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable)
     type(run_configuration), intent(in) :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
@@ -89,6 +90,7 @@ contains
     procedure(line_reporter), optional :: progress
     logical, intent(in), optional :: keep_file
     type(extra_attribute), intent(in), optional :: extras(:)
+    logical, intent(in), optional :: durable
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -171,6 +173,7 @@ contains
     if (writing) then
       allocate (added(0))
       if (present(extras)) added = extras
+      if (present(durable)) output%durable = durable
       call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, ierr)
       if (ierr /= 0) then
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
@@ -354,7 +357,7 @@ contains
         if (stat == 0) message = config%output_file//' keeps the earlier complete run; this run''s file is '//part
         return
       end if
-      call rename_file(part, config%output_file, rename_stat)
+      call rename_file(part, config%output_file, rename_stat, sync=output%durable)
       if (rename_stat /= 0) then
         stat = 0
         call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file//''' ('//config%input_file &

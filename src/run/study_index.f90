@@ -19,7 +19,7 @@ module study_index
   use study_config, only: study_definition
   use hdf5_series, only: hdf5_file, check_run_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
-  use filesystem, only: make_directories, rename_file, remove_file, file_exists, append_text, os_error_text
+  use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
   use number_text, only: integer_text
@@ -236,11 +236,9 @@ contains
     real(real64), allocatable :: numbers(:, :), parameters(:)
     character(len=status_length), allocatable :: texts(:, :)
     character(len=64), allocatable :: parameter_texts(:)
-    character(len=:), allocatable :: temporary
     integer :: c, n_numbers, n_texts, ignored
 
     message = ''
-    temporary = self%index_path//'.tmp'
     n_numbers = self%columns%numeric_count()
     n_texts = self%columns%text_count()
     allocate (numbers(n_numbers, size(self%results)), texts(n_texts, size(self%results)))
@@ -261,9 +259,8 @@ contains
     if (stat == 0) call file%set_integer('index_only', merge(1, 0, self%study%index_only), stat)
     if (stat == 0) call file%set_text('code_version', code_version, stat)
     if (stat == 0) call write_registry(file, stat)
-    if (stat == 0) call file%store(temporary, .true., stat)
+    if (stat == 0) call file%store(self%index_path, .true., stat)
     call file%close(ignored)
-    if (stat == 0) call rename_file(temporary, self%index_path, stat)
     if (stat > 0) then
       message = 'cannot write '//self%index_path//' ('//self%study%input_file//'): '//os_error_text(stat)
     else if (stat /= 0) then
