@@ -190,7 +190,11 @@ contains
     outcome%skipped = skipped
     outcome%wall_seconds = MPI_Wtime() - manager%started
     call manager%index%close(stat, message)
-    if (stat /= 0) call index_failed(manager, message)
+    if (stat /= 0) then
+      call index_failed(manager, message)
+      call say(manager, 'eme_ensemble: '//message//'; '//manager%index%journal_path//' holds every result; running '// &
+               'the study again (with room) rewrites the index')
+    end if
     outcome%index_errors = manager%index_errors
     outcome%signal = interrupting_signal()
     outcome%io_failure = len(manager%io_message) > 0

@@ -256,6 +256,7 @@ contains
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
+    type(run_summary) :: stopped
     character(len=:), allocatable :: status_read
     integer :: steps_read, check_stat, ignored
 
@@ -273,9 +274,11 @@ contains
       call append_window(self, self%points%window_bytes() + self%steps%window_bytes(), stat)
       if (stat > 0) then
         ! No room for the rows: keep those of the last window, and say why in the status.
+        stopped = summary
+        stopped%failure_kind = failure_io
         call self%file%open_existing(self%path, .true., check_stat)
         if (check_stat == 0) call summary_attributes(self, 'incomplete: cannot write the output file: '// &
-                                                     os_error_text(stat), summary, check_stat)
+                                                     os_error_text(stat), stopped, check_stat)
         call self%file%close(ignored)
         return
       end if

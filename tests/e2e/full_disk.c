@@ -4,10 +4,10 @@
  * ftruncate that would make the files there hold more fails with ENOSPC, as a full tmpfs does.
  * Everything else passes through. Used where `mount -t tmpfs` is not permitted. */
 #define _GNU_SOURCE
-#include <dirent.h>
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <ftw.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,21 +16,22 @@
 #include <sys/types.h>
 #include <unistd.h>
 
-/* Bytes held by the regular files directly under `directory`. */
+static long long total_bytes;
+
+static int add_size(const char *path, const struct stat *info, int kind, struct FTW *position)
+{
+    (void)path;
+    (void)position;
+    if (kind == FTW_F && S_ISREG(info->st_mode)) total_bytes += (long long)info->st_size;
+    return 0;
+}
+
+/* Bytes held by the regular files under `directory` (at any depth). */
 static long long used_bytes(const char *directory)
 {
-    DIR *listing = opendir(directory);
-    if (listing == NULL) return 0;
-    long long total = 0;
-    struct dirent *entry;
-    char path[PATH_MAX];
-    while ((entry = readdir(listing)) != NULL) {
-        struct stat info;
-        snprintf(path, sizeof path, "%s/%s", directory, entry->d_name);
-        if (stat(path, &info) == 0 && S_ISREG(info.st_mode)) total += (long long)info.st_size;
-    }
-    closedir(listing);
-    return total;
+    total_bytes = 0;
+    nftw(directory, add_size, 16, FTW_PHYS);
+    return total_bytes;
 }
 
 /* 1 if making fd's file reach `end` bytes would overfill the simulated file system. */
