@@ -177,7 +177,7 @@ study: all $(VENV)/.python-deps
 # of every scheme against a LAPACK Newton floor. The last line is machine-readable.
 bench: all $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
-	$(PYTHON) postprocess/bench_ensemble.py --repeats 5
+	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
 	$(BIN)/eme_bench 21
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (README, Constraints).

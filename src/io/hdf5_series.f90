@@ -34,7 +34,7 @@ module hdf5_series
     type(series), allocatable :: items(:)
     integer :: row_width = 0
     integer :: chunk_rows = 1024
-    integer :: capacity_rows = 4096      !! rows buffered at most before they must be written
+    integer :: capacity_rows = 16384     !! rows buffered at most before they must be written
     real(real64), allocatable :: buffer(:, :)
     integer :: buffered = 0
     integer(int64) :: written = 0        !! rows in the file
@@ -355,7 +355,7 @@ contains
     integer, intent(out) :: stat
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
-    integer :: i, rank, ignored
+    integer :: i, rank, ignored, close_stat
 
     stat = 0
     do i = 1, size(self%items)
@@ -376,7 +376,10 @@ contains
           call h5dset_extent_f(dataset, extent(1:rank), stat)
         else
           call create_dataset(file, item, rank, extent, final, self%chunk_rows, dataset, stat)
-          if (stat /= 0) return
+          if (stat /= 0) then
+            if (dataset >= 0) call h5dclose_f(dataset, ignored)
+            return
+          end if
         end if
         if (stat == 0 .and. self%buffered > 0) then
           call h5dget_space_f(dataset, file_space, stat)
@@ -396,7 +399,8 @@ contains
             call h5sclose_f(file_space, ignored)
           end if
         end if
-        call h5dclose_f(dataset, ignored)
+        call h5dclose_f(dataset, close_stat)
+        if (stat == 0) stat = close_stat
         if (stat /= 0) return
       end associate
     end do
@@ -497,9 +501,9 @@ contains
     integer, intent(out) :: stat
     logical, intent(in), optional :: integer_valued
     integer(hid_t) :: space, attribute
-    integer(hsize_t) :: dims(1)
+    integer(hsize_t) :: dims(1), points
     logical :: exists, as_integer
-    integer :: ignored
+    integer :: ignored, close_stat
 
     as_integer = .false.
     if (present(integer_valued)) as_integer = integer_valued
@@ -507,8 +511,29 @@ contains
     stat = 0
     if (.not. fresh) then
       call h5aexists_f(object, name, exists, stat)
-      if (stat == 0 .and. exists) call h5adelete_f(object, name, stat)
       if (stat /= 0) return
+      if (exists) then
+        ! In place if the stored attribute has the same number of values (no change to the object
+        ! header's layout); otherwise it is replaced.
+        call h5aopen_f(object, name, attribute, stat)
+        if (stat /= 0) return
+        call h5aget_space_f(attribute, space, stat)
+        if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
+        if (stat == 0) call h5sclose_f(space, ignored)
+        if (stat == 0 .and. points == size(values, kind=hsize_t)) then
+          if (as_integer) then
+            call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
+          else
+            call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
+          end if
+          call h5aclose_f(attribute, close_stat)
+          if (stat == 0) stat = close_stat
+          return
+        end if
+        call h5aclose_f(attribute, ignored)
+        call h5adelete_f(object, name, stat)
+        if (stat /= 0) return
+      end if
     end if
     if (scalar) then
       call h5screate_f(H5S_SCALAR_F, space, stat)

@@ -97,6 +97,7 @@ module run_output
   end type extra_attribute
 
   real(real64), parameter :: write_interval = 1.0_real64   !! seconds between writes of a long run
+  integer, parameter :: buffer_bytes = 4*1024*1024          !! rows held in memory between writes, at most
 
   !> A run's file and its two tables of rows (points and steps). It is built in memory and
   !> reaches the disk when the run ends or after write_interval seconds (or a full buffer),
@@ -164,6 +165,9 @@ contains
       call self%steps%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
                              trim(diagnostics(k)%description), rows='step', source='integrator')
     end do
+    ! Both tables gain a row per step: together they buffer at most buffer_bytes.
+    self%points%capacity_rows = max(1024, buffer_bytes/(8*(self%points%row_width + self%steps%row_width)))
+    self%steps%capacity_rows = self%points%capacity_rows
 
   contains
 
@@ -241,7 +245,7 @@ contains
       self%on_disk = stat == 0
     else
       call append_window(self, self%points%window_bytes() + self%steps%window_bytes(), stat)
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
+      if (stat == 0) call summary_attributes(self, summary%status, summary, stat, numbers_only=.true.)
       call close_window(self, stat)
     end if
   end subroutine write_rows
@@ -314,15 +318,20 @@ contains
     if (stat == 0) stat = close_stat
   end subroutine close_window
 
-  ! The final root attributes; steps_completed is the step rows in the file.
-  subroutine summary_attributes(self, status, summary, stat)
+  ! The final root attributes; steps_completed is the step rows in the file. numbers_only: the
+  ! texts (status, failure_kind) are as the file holds them, and numbers are written in place.
+  subroutine summary_attributes(self, status, summary, stat, numbers_only)
     type(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
     type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
+    logical, intent(in), optional :: numbers_only
 
-    call self%file%set_text('status', status, stat)
-    if (stat == 0) call self%file%set_text('failure_kind', summary%failure_kind, stat)
+    stat = 0
+    if (.not. present(numbers_only)) then
+      call self%file%set_text('status', status, stat)
+      if (stat == 0) call self%file%set_text('failure_kind', summary%failure_kind, stat)
+    end if
     if (stat == 0) call self%file%set_integer('steps_planned', summary%steps_planned, stat)
     if (stat == 0) call self%file%set_integer('steps_completed', int(self%steps%written), stat)
     if (stat == 0) call self%file%set_integer('newton_iterations_total', summary%newton_iterations, stat)
