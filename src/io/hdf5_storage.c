@@ -6,7 +6,7 @@
  *    reserved first (posix_fallocate: a full disk is reported there, by the OS, before HDF5
  *    writes anything), then the file is opened, written and closed. Between windows the file is
  *    closed and complete, so any reader can open it, and a kill leaves it readable;
- *  - a finished file is checked by reading it back.
+ *  - a file written whole is checked by its size on disk; one grown in windows is read back.
  * HDF5 1.10 crashes at exit after a failed H5Fclose (HDFFV-11052); with the space reserved,
  * closes do not fail for want of space. Called from Fortran through bind(C)
  * (src/io/hdf5_series.f90). Functions return 0 on success, an errno value for an OS failure,
@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 int eme_write_whole_file(const char *path, const void *data, long size, int sync);  /* posix_files.c */
@@ -40,8 +41,9 @@ int eme_h5_create_in_memory(const char *label, hid_t *file)
 int eme_rename_file(const char *from, const char *to, int sync);                 /* posix_files.c */
 
 /* Writes the image of the in-memory file `file` as the whole of `path` (fsync'd with `sync`):
- * as path.tmp, renamed to `path`, so that `path` is never a partial file. `file` stays open. An
- * OS failure removes the partial file and returns errno. */
+ * as path.tmp, checked to hold the image's size, renamed to `path`, so that `path` is never a
+ * partial file. `file` stays open. An OS failure removes the partial file and returns errno; a
+ * file of the wrong size gives -2. */
 int eme_h5_store_image(hid_t file, const char *path, int sync)
 {
     if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0) return -1;
@@ -54,6 +56,11 @@ int eme_h5_store_image(hid_t file, const char *path, int sync)
     if (snprintf(temporary, sizeof temporary, "%s.tmp", path) >= (int)sizeof temporary) status = ENAMETOOLONG;
     else if (H5Fget_file_image(file, image, (size_t)size) == size) {
         status = eme_write_whole_file(temporary, image, (long)size, sync);
+        struct stat written;
+        if (status == 0 && (stat(temporary, &written) != 0 || written.st_size != (off_t)size)) {
+            unlink(temporary);
+            status = -2;      /* the file system does not hold what was written */
+        }
         if (status == 0) status = eme_rename_file(temporary, path, sync);
     }
     free(image);

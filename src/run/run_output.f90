@@ -19,8 +19,8 @@ module run_output
   implicit none (type, external)
   private
   public :: run_file, run_summary, extra_attribute, output_dataset, output_schema, print_output_schema
-  public :: failure_kinds, failure_none, failure_solver, failure_domain, failure_input, failure_io, &
-            failure_interrupted, failure_library
+  public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
+            failure_library
 
   !> One dataset of the layout. `columns` names a vector's columns; the run fills in the
   !> entries of the model's state (<state>), of its subsystems (<subsystems>) and of the active
@@ -70,13 +70,11 @@ module run_output
   character(len=*), parameter :: failure_io = 'io'                  !! the output could not be written
   character(len=*), parameter :: failure_interrupted = 'interrupted'  !! SIGTERM or SIGINT
   character(len=*), parameter :: failure_library = 'library'        !! PETSc or HDF5 failed
-  character(len=12), parameter :: failure_kinds(7) = [character(len=12) :: failure_none, failure_solver, &
-    failure_domain, failure_input, failure_io, failure_interrupted, failure_library]
 
   !> The figures a run is judged by, as the summary table prints them.
   type :: run_summary
     character(len=:), allocatable :: status       !! 'complete' or 'incomplete: <reason>'
-    character(len=:), allocatable :: failure_kind !! one of failure_kinds
+    character(len=:), allocatable :: failure_kind !! one of the failure_* words above
     integer :: steps_planned = 0
     integer :: steps_completed = 0
     integer :: newton_iterations = 0
@@ -252,8 +250,10 @@ contains
 
   !> Writes what is buffered and the final attributes: status, failure_kind, steps_planned,
   !> steps_completed (the step rows in the file), the summary's figures and times. The file is
-  !> then closed, synced and read back (every dataset's length against steps_completed, and the
-  !> status). stat: 0, an OS error number, -1 (HDF5) or -2 (it did not read back as written).
+  !> then closed and synced (unless not durable) and checked: a file written whole from memory by
+  !> its size on disk, one grown in windows by reading it back (every dataset's length against
+  !> steps_completed, and the status). stat: 0, an OS error number, -1 (HDF5) or -2 (the disk
+  !> does not hold what was written).
   !> If the rows cannot be written for want of space, the file keeps the rows of its last
   !> window, and its status says why if that much can still be written.
   subroutine finish(self, summary, stat)
@@ -267,13 +267,14 @@ contains
     stat = 0
     if (.not. self%enabled) return
     if (.not. self%on_disk) then
+      ! Written whole from memory; store checks that the disk holds every byte.
       call self%points%write(self%file, .true., stat)
       if (stat == 0) call self%steps%write(self%file, .true., stat)
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
       if (stat == 0) call self%file%store(self%path, self%durable, stat)
       call self%file%close(ignored)
       self%on_disk = stat == 0
-      if (stat /= 0) return
+      return
     else
       call append_window(self, self%points%window_bytes() + self%steps%window_bytes(), stat)
       if (stat > 0) then

@@ -74,7 +74,7 @@ contains
   !> stat /= 0, with a message naming the file, the input file and the OS's reason, if the output
   !> could not be written, a library failed, or the output file holds a complete run that may
   !> not be replaced; a run that stops early is reported through summary%status. Either way
-  !> summary%failure_kind says why in a word (src/run/run_output's failure_kinds).
+  !> summary%failure_kind says why in a word (src/run/run_output's failure_* words).
   !> With `reusable`, the caller's integrator is used when it is of the configured kind (an
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
   !> the next run; without, the run builds and frees its own. `progress` receives a line at most

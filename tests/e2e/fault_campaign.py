@@ -7,7 +7,7 @@ moments and sizes, and a count of what they left behind. The README's figures co
 Categories (N tries each, random moments or sizes):
   run_kill_long / run_kill_short     SIGKILL to eme_run (20 million steps / the paper scene)
   run_term_long / run_term_short     SIGTERM or SIGINT to eme_run
-  run_full_disk                      eme_run on a disk of random size (200 B to 30 MB)
+  run_full_disk                      eme_run on a disk of random size (1 kB to 50 MB)
   study_kill / study_term            SIGKILL to every rank / SIGTERM to mpirun, then a restart
   study_full_disk                    a study on a small disk, then a restart with room
 What counts as bad: a file under its final name that is neither complete (read back) nor marked
@@ -106,13 +106,13 @@ def category_run_signal(folder, rng, long_run, kill):
 
 
 def category_run_full_disk(folder, rng):
-    size = int(10 ** rng.uniform(2.3, 7.5))
-    long_run = rng.random() < 0.6
+    size = int(10 ** rng.uniform(3.0, 7.7))
+    long_run = rng.random() < 0.7
     with small_disk(folder / "disk", size) as disk:
         method = disk.method
         output = disk.folder / "run.h5"
         namelist = folder / "run.nml"
-        namelist.write_text(namelist_text({"integrator": {"dt": 0.01, "t_end": 300.0} if long_run else {},
+        namelist.write_text(namelist_text({"integrator": {"dt": 0.01, "t_end": 600.0} if long_run else {},
                                            "output": {"file": str(output)}}))
         result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True, env=disk.env)
         bad = judge_final(output)
@@ -147,7 +147,7 @@ STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_
 """
 
 
-def study_files(folder, output, cases=120, index_only=False):
+def study_files(folder, output, cases=300, index_only=False):
     values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(cases))
     study = folder / "study.nml"
     study.write_text(STUDY.format(base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
@@ -210,7 +210,7 @@ def category_study_signal(folder, rng, kill):
     process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), str(study)], cwd=ROOT,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wait_for(lambda: (output / "index.h5").exists() or process.poll() is not None)
-    time.sleep(rng.uniform(0.0, 0.8))
+    time.sleep(rng.uniform(0.0, 1.5))
     if kill:
         kill_ranks(str(study))
     else:
@@ -223,7 +223,8 @@ def category_study_signal(folder, rng, kill):
             bad = bad or judge_final(path)
     bad = bad or finish_and_judge(study, output, before=before)
     mode = "index-only" if index_only else "files"
-    return bad, f"{mode}, {'SIGKILL' if kill else 'SIGTERM'}, {len(before)} recorded before", False
+    stage = "none" if not before else "all" if len(before) == 300 else "some"
+    return bad, f"{mode}, {stage} recorded complete before the restart", False
 
 
 def category_study_full_disk(folder, rng):
