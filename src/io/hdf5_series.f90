@@ -18,7 +18,9 @@ module hdf5_series
                   h5aopen_f, h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
   implicit none (type, external)
   private
-  public :: hdf5_file, series_table, check_run_file
+  public :: hdf5_file, series_table, check_run_file, file_in_use
+
+  integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
 
   !> One dataset fed from columns offset+1 .. offset+width of its table's rows.
   type :: series
@@ -99,10 +101,10 @@ module hdf5_series
       integer(c_int), value :: sync
       integer(c_int) :: status
     end function c_store_image
-    function c_open_file(path, writable, reserve, file) result(status) bind(c, name='eme_h5_open_file')
+    function c_open_file(path, writable, reserve, wait_ms, file) result(status) bind(c, name='eme_h5_open_file')
       import :: c_char, c_int, c_long, c_int64_t
       character(kind=c_char), intent(in) :: path(*)
-      integer(c_int), value :: writable
+      integer(c_int), value :: writable, wait_ms
       integer(c_long), value :: reserve
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
@@ -147,22 +149,28 @@ contains
   end subroutine store
 
   !> Opens an existing file read-only, or for writing after reserving `reserve` bytes of disk for
-  !> what will be added (default 64 KiB). stat: 0, an OS error number from the reservation (the
-  !> file is untouched), or -1 (HDF5 could not open it).
-  subroutine open_existing(self, path, writable, stat, reserve)
+  !> what will be added (default 64 KiB). A writer waits for readers that hold the file open:
+  !> with `wait_ms` < 0 not at all (stat = file_in_use, write later), else up to wait_ms
+  !> milliseconds (default 5000), then it writes without HDF5's lock. stat: 0, an OS error number
+  !> from the reservation (the file is untouched), file_in_use, or -1 (HDF5 could not open it).
+  subroutine open_existing(self, path, writable, stat, reserve, wait_ms)
     class(hdf5_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     logical, intent(in) :: writable
     integer, intent(out) :: stat
     integer(int64), intent(in), optional :: reserve
+    integer, intent(in), optional :: wait_ms
     integer(c_int64_t) :: id
     integer(c_long) :: bytes
+    integer(c_int) :: patience
 
     call open_library(stat)
     if (stat /= 0) return
     bytes = 65536
     if (present(reserve)) bytes = int(reserve, c_long)
-    stat = int(c_open_file(trim(path)//c_null_char, merge(1_c_int, 0_c_int, writable), bytes, id))
+    patience = 5000
+    if (present(wait_ms)) patience = int(wait_ms, c_int)
+    stat = int(c_open_file(trim(path)//c_null_char, merge(1_c_int, 0_c_int, writable), bytes, patience, id))
     self%id = int(id, hid_t)
     self%fresh = .false.
   end subroutine open_existing

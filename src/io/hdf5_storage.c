@@ -11,11 +11,14 @@
  * closes do not fail for want of space. Called from Fortran through bind(C)
  * (src/io/hdf5_series.f90). Functions return 0 on success, an errno value for an OS failure,
  * or -1 for an HDF5 failure. */
+#define _DEFAULT_SOURCE /* flock, usleep */
 #include <errno.h>
+#include <fcntl.h>
 #include <hdf5.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -67,13 +70,37 @@ int eme_h5_store_image(hid_t file, const char *path, int sync)
     return status;
 }
 
+/* 1 if another process holds a lock on `path` (HDF5 readers take a shared one while open). */
+static int locked_by_other(const char *path)
+{
+    int fd = open(path, O_RDONLY);
+    if (fd < 0) return 0;
+    int locked = flock(fd, LOCK_EX | LOCK_NB) != 0 && (errno == EWOULDBLOCK || errno == EAGAIN);
+    close(fd);                           /* releases the lock if it was taken */
+    return locked;
+}
+
 /* Opens the existing file `path`: read-only, or for writing after reserving `reserve` bytes of
  * disk space for what the window will add. A writer takes HDF5's file lock, so that readers do
- * not open the file half-written; if a reader holds the file open, it writes without the lock
- * rather than wait. */
-int eme_h5_open_file(const char *path, int writable, long reserve, hid_t *file)
+ * not open the file half-written. While a reader holds the file open, `wait_ms` < 0 returns -3
+ * at once (the caller writes later); otherwise it waits up to wait_ms, then writes without the
+ * lock rather than stall the run. */
+int eme_h5_open_file(const char *path, int writable, long reserve, int wait_ms, hid_t *file)
 {
     *file = -1;
+    int unlocked = 0;
+    if (writable) {
+        for (int waited = 0; locked_by_other(path); waited += 10) {
+            if (wait_ms < 0) return -3;
+            if (waited >= wait_ms) {
+                unlocked = 1;
+                break;
+            }
+            usleep(10000);
+        }
+    }
+    struct stat before;
+    if (writable && stat(path, &before) != 0) return errno;
     if (writable) {
         int error = eme_reserve_space(path, reserve);
         if (error != 0) return error;
@@ -81,9 +108,10 @@ int eme_h5_open_file(const char *path, int writable, long reserve, hid_t *file)
     hid_t access = H5Pcreate(H5P_FILE_ACCESS);
     if (access < 0) return -1;
     unsigned mode = writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY;
-    *file = H5Fopen(path, mode, access);
+    if (!unlocked) *file = H5Fopen(path, mode, access);
     if (*file < 0 && writable && H5Pset_file_locking(access, 0, 1) >= 0) *file = H5Fopen(path, mode, access);
     H5Pclose(access);
+    if (*file < 0 && writable) (void)truncate(path, before.st_size);   /* give the reservation back */
     return *file >= 0 ? 0 : -1;
 }
 
@@ -143,7 +171,7 @@ int eme_h5_check_run_file(const char *path, char *status, int capacity, long *st
     hid_t file;
     status[0] = '\0';
     *steps_completed = -1;
-    if (eme_h5_open_file(path, 0, 0, &file) != 0) return 1;
+    if (eme_h5_open_file(path, 0, 0, 0, &file) != 0) return 1;
     int result = 2;
     if (eme_h5_read_text_attribute(file, "status", status, capacity) == 0 && H5Aexists(file, "steps_completed") > 0) {
         hid_t attribute = H5Aopen(file, "steps_completed", H5P_DEFAULT);

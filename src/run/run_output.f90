@@ -5,7 +5,7 @@
 !> --output-schema` prints the table; the Python tests check real files against it.
 module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit
-  use hdf5_series, only: hdf5_file, series_table, check_run_file
+  use hdf5_series, only: hdf5_file, series_table, check_run_file, file_in_use
   use namelist_group, only: group_field, field_real, field_integer, field_logical
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
@@ -232,8 +232,8 @@ contains
 
     stat = 0
     if (.not. self%enabled) return
-    call system_clock(self%last_write)
     if (.not. self%on_disk) then
+      call system_clock(self%last_write)
       call self%points%write(self%file, .false., stat)
       if (stat == 0) call self%steps%write(self%file, .false., stat)
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
@@ -242,7 +242,14 @@ contains
       call self%file%close(stat)
       self%on_disk = stat == 0
     else
-      call append_window(self, self%points%window_bytes() + self%steps%window_bytes(), stat)
+      ! A reader holding the file open defers the write to a later step, until the buffer is full.
+      call append_window(self, stat, defer=.not. (self%points%full() .or. self%steps%full()))
+      if (stat == file_in_use) then      ! try again in 50 ms
+        call system_clock(self%last_write)
+        self%last_write = self%last_write - int((write_interval - 0.05_real64)*self%clock_rate, int64)
+        stat = 0
+        return
+      end if
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat, numbers_only=.true.)
       call close_window(self, stat)
     end if
@@ -276,7 +283,7 @@ contains
       self%on_disk = stat == 0
       return
     else
-      call append_window(self, self%points%window_bytes() + self%steps%window_bytes(), stat)
+      call append_window(self, stat)
       if (stat > 0) then
         ! No room for the rows: keep those of the last window, and say why in the status.
         stopped = summary
@@ -296,15 +303,22 @@ contains
     if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%steps%written) stat = -2
   end subroutine finish
 
-  ! Opens the file on disk for appending the buffered rows, after reserving `bytes` (plus room for
-  ! attributes), and writes them.
-  subroutine append_window(self, bytes, stat)
+  ! Opens the file on disk for appending the buffered rows, after reserving their space (plus
+  ! room for attributes), and writes them. defer: return file_in_use if a reader has it open.
+  subroutine append_window(self, stat, defer)
     type(run_file), intent(inout) :: self
-    integer(int64), intent(in) :: bytes
     integer, intent(out) :: stat
+    logical, intent(in), optional :: defer
+    integer :: wait_ms
 
-    call self%file%open_existing(self%path, .true., stat, reserve=bytes + 65536_int64)
+    wait_ms = 5000
+    if (present(defer)) then
+      if (defer) wait_ms = -1
+    end if
+    call self%file%open_existing(self%path, .true., stat, reserve=self%points%window_bytes() + &
+                                 self%steps%window_bytes() + 65536_int64, wait_ms=wait_ms)
     if (stat /= 0) return
+    call system_clock(self%last_write)
     call self%points%write(self%file, .false., stat)
     if (stat == 0) call self%steps%write(self%file, .false., stat)
   end subroutine append_window

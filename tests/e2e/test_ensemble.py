@@ -240,6 +240,17 @@ def test_a_study_from_elsewhere_is_refused(small_study, tmp_path):
 INDEX_ONLY_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
 &sweep field = 'theta(2)', values = {values} /
 """
+# 400 paper-scene cases: a sweep takes at most 256 values, so two of 20.
+LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .false. /
+&sweep field = 'theta(1)', values = {values1} /
+&sweep field = 'theta(2)', values = {values2} /
+"""
+
+
+def large_study(tmp_path, output):
+    return write_study(tmp_path, LARGE_STUDY.format(
+        base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
+        values1=", ".join(f"{270 + i:.1f}" for i in range(20)), values2=", ".join(f"{340 + i:.1f}" for i in range(20))))
 
 
 def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
@@ -293,16 +304,14 @@ def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
     marked interrupted, the index is written and the journal emptied; exit 143; a restart
     finishes the study."""
     output = tmp_path / "out"
-    values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(100))
-    study = write_study(tmp_path, INDEX_ONLY_STUDY.format(base=ROOT / "inputs" / "paper_fig4_eme_theta.nml",
-                                                         output=output, index_only=".false.", values=values))
-    code, out, err = signal_after([str(BIN / "eme_ensemble"), str(study)], 0.5, signal.SIGTERM, cwd=ROOT,
+    study = large_study(tmp_path, output)
+    code, out, err = signal_after([str(BIN / "eme_ensemble"), str(study)], 0.3, signal.SIGTERM, cwd=ROOT,
                                   start_marker=output / "case_00002.h5")
     assert code == 143, err
     assert "SIGTERM received: no new cases" in out
     index = read_index(output)
     statuses = [s.decode() for s in index["status"]]
-    assert 2 <= statuses.count("complete") < 100 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
+    assert 2 <= statuses.count("complete") < 400 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
     assert set(statuses) <= {"complete", "pending", "incomplete: interrupted by SIGTERM"}
     assert not (output / "index.journal").exists() and not list(output.glob("*.part"))
     for row in index:
@@ -319,9 +328,7 @@ def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, 
     limit stops the study cleanly and requeues the job (a stand-in scontrol records the call);
     the requeued job finishes the study and does not requeue."""
     output = tmp_path / "out"
-    values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(100))
-    study = write_study(tmp_path, INDEX_ONLY_STUDY.format(base=ROOT / "inputs" / "paper_fig4_eme_theta.nml",
-                                                         output=output, index_only=".false.", values=values))
+    study = large_study(tmp_path, output)
     tools = tmp_path / "bin"
     tools.mkdir()
     (tools / "scontrol").write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
@@ -329,7 +336,7 @@ def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, 
     env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242",
                EME_LAUNCHER=" ".join([*MPIRUN, "-n", "2"]))
     script = ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)]
-    code, out, err = signal_after(script, 0.5, signal.SIGTERM, env=env, cwd=ROOT,
+    code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
                                   start_marker=output / "case_00002.h5")
     assert code == 0, out + err
     assert "time limit near" in out

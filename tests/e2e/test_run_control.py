@@ -132,11 +132,18 @@ def test_a_running_file_is_read_while_it_grows(tmp_path, eme_run_binary):
         # A reader holding the file open for 2.5 s: the writer goes on without the lock.
         with h5py.File(part, "r"):
             time.sleep(2.5)
-        _, steps_after = check_run_file(part)
-        assert steps_after > seen[-1]
+        assert wait_for(lambda: readable_steps(part) > seen[-1], timeout=10)
     finally:
         process.send_signal(signal.SIGTERM)
         process.wait()
+
+
+def readable_steps(path):
+    """steps_completed of a running file, or -1 while a write holds its lock."""
+    try:
+        return check_run_file(path)[1]
+    except OSError:
+        return -1
 
 
 @pytest.mark.parametrize("name", ["SIGTERM", "SIGINT"])
