@@ -12,9 +12,9 @@
 !> marked 'incomplete: interrupted by <signal>', and the index is written; so does an output
 !> that cannot be written (a full disk), since every later case would fail the same way.
 module ensemble
-  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Send, MPI_Recv, MPI_Iprobe, MPI_Probe, &
-                     MPI_Status, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_CHARACTER, &
-                     MPI_Wtime, MPI_STATUS_IGNORE
+  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Send, MPI_Recv, MPI_Irecv, MPI_Wait, &
+                     MPI_Iprobe, MPI_Probe, MPI_Status, MPI_Request, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, &
+                     MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
   use study_index, only: case_index, case_result, case_file, case_overrides, status_length, kind_length, metric_count
@@ -29,7 +29,10 @@ module ensemble
   public :: run_study, study_outcome, world_rank, line_reporter
 
   integer, parameter :: tag_request = 1, tag_status = 2, tag_assign = 3
-  integer, parameter :: message_length = metric_count + 2    !! case, metrics, stopping
+  integer, parameter :: message_length = metric_count + 2    !! case, metrics, leaving
+  ! A request's last value: the worker goes on (and is answered with its next case), or leaves
+  ! after this answer (no case left, or a signal stopped it).
+  real(real64), parameter :: going_on = 0.0_real64, leaving = 1.0_real64
   real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
 
   !> Counts at the end of a study (on every rank).
@@ -210,7 +213,8 @@ contains
   end subroutine serve_requests
 
   ! Receives requests (a finished case's result, or none) and answers each with a case number,
-  ! or 0 to stop. Non-blocking: only what has arrived; blocking: waits for one request.
+  ! or 0: none left. A worker that says it is leaving gets 0 and is no longer waited for.
+  ! Non-blocking: only what has arrived; blocking: waits for one request.
   subroutine serve_one(manager, blocking)
     type(study_manager), intent(inout) :: manager
     logical, intent(in) :: blocking
@@ -238,9 +242,12 @@ contains
         result%metrics = message(2:metric_count + 1)
         call record(manager, nint(message(1)), result)
       end if
-      c(1) = 0
-      if (message(message_length) < 0.5_real64) c(1) = take_next(manager)    ! a worker stopped by a signal gets none
-      if (c(1) == 0) manager%active_workers = manager%active_workers - 1
+      if (message(message_length) > going_on) then
+        c(1) = 0
+        manager%active_workers = manager%active_workers - 1
+      else
+        c(1) = take_next(manager)
+      end if
       call MPI_Send(c, 1, MPI_INTEGER, probe%MPI_SOURCE, tag_assign, MPI_COMM_WORLD)
       if (blocking) return
     end do
@@ -322,29 +329,52 @@ contains
 
   ! ------------------------------------------------------------------ workers
 
+  ! A worker holds its next case while it computes one: it asks for the next before it starts a
+  ! case, so that it never waits for rank 0, which answers between its own steps.
   subroutine work(study, rank)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: rank
     type(case_result) :: result
     class(time_stepper), allocatable :: integrator
+    type(MPI_Request) :: asked
     real(real64) :: message(message_length)
     character(len=status_length + kind_length) :: texts
-    integer :: c(1), ierr
+    integer :: current(1), next(1), ierr
 
     message = 0.0_real64
     texts = ''
-    do
-      if (interrupting_signal() /= 0) message(message_length) = 1.0_real64
-      call MPI_Send(message, message_length, MPI_DOUBLE_PRECISION, 0, tag_request, MPI_COMM_WORLD)
-      call MPI_Send(texts, len(texts), MPI_CHARACTER, 0, tag_status, MPI_COMM_WORLD)
-      call MPI_Recv(c, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
-      if (c(1) == 0) exit
-      call run_case(study, c(1), rank, result, integrator)
-      message(1:metric_count + 1) = [real(c(1), real64), result%metrics]
+    call request(message, texts)
+    call MPI_Recv(current, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
+    if (current(1) /= 0) then
+      call request(message, texts)
+      call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
+    end if
+    do while (current(1) /= 0)
+      call run_case(study, current(1), rank, result, integrator)
+      call MPI_Wait(asked, MPI_STATUS_IGNORE)
+      message(1:metric_count + 1) = [real(current(1), real64), result%metrics]
       texts = result%status//result%failure_kind
+      if (next(1) == 0) exit
+      if (interrupting_signal() /= 0) exit      ! the case held next stays pending
+      call request(message, texts)
+      current = next
+      call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
     end do
+    ! The last result (if any), and leave.
+    message(message_length) = leaving
+    call request(message, texts)
+    call MPI_Recv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
     if (allocated(integrator)) call integrator%release(ierr)
   end subroutine work
+
+  ! A request to rank 0: the last result (case 0: none) and whether the worker is leaving.
+  subroutine request(message, texts)
+    real(real64), intent(in) :: message(:)
+    character(len=*), intent(in) :: texts
+
+    call MPI_Send(message, size(message), MPI_DOUBLE_PRECISION, 0, tag_request, MPI_COMM_WORLD)
+    call MPI_Send(texts, len(texts), MPI_CHARACTER, 0, tag_status, MPI_COMM_WORLD)
+  end subroutine request
 
   ! ------------------------------------------------------------------ one case, any rank
 
