@@ -2,9 +2,9 @@
 """Fault campaign (not a test: it takes minutes): many kills, signals and full disks at random
 moments and sizes, and a count of what they left behind. The README's figures come from it.
 
-  .venv/bin/python tests/e2e/fault_campaign.py [--runs N] [--seed S] [--only NAME ...]
+  .venv/bin/python tests/e2e/fault_campaign.py [--runs N] [--study-runs M] [--seed S] [--only NAME ...]
 
-Categories (N tries each, random moments or sizes):
+Categories (N or M tries each, random moments or sizes):
   run_kill_long / run_kill_short     SIGKILL to eme_run (20 million steps / the paper scene)
   run_term_long / run_term_short     SIGTERM or SIGINT to eme_run
   run_full_disk                      eme_run on a disk of random size (1 kB to 50 MB)
@@ -262,7 +262,8 @@ CATEGORIES = {
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--runs", type=int, default=20, help="tries per category (default 20)")
+    parser.add_argument("--runs", type=int, default=20, help="tries per eme_run category (default 20)")
+    parser.add_argument("--study-runs", type=int, default=10, help="tries per study category (default 10)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--only", nargs="*", choices=sorted(CATEGORIES), help="categories to run (default all)")
     args = parser.parse_args(argv)
@@ -270,7 +271,8 @@ def main(argv=None):
     totals = collections.Counter()
     for name in args.only or CATEGORIES:
         outcomes, bad, unreadable = collections.Counter(), [], 0
-        for _ in range(args.runs):
+        tries = args.study_runs if name.startswith("study") else args.runs
+        for _ in range(tries):
             folder = Path(tempfile.mkdtemp(prefix=f"eme_{name}_"))
             try:
                 problem, outcome, part_unreadable = CATEGORIES[name](folder, rng)
@@ -280,10 +282,10 @@ def main(argv=None):
             unreadable += part_unreadable
             if problem:
                 bad.append(problem)
-        totals["tries"] += args.runs
+        totals["tries"] += tries
         totals["bad"] += len(bad)
         totals["unreadable FILE.part"] += unreadable
-        print(f"{name}: {args.runs} tries, {len(bad)} bad, {unreadable} unreadable FILE.part; "
+        print(f"{name}: {tries} tries, {len(bad)} bad, {unreadable} unreadable FILE.part; "
               + "; ".join(f"{k}: {v}" for k, v in sorted(outcomes.items())), flush=True)
         for problem in bad:
             print(f"  BAD {problem}", flush=True)

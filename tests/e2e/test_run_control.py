@@ -46,6 +46,16 @@ def test_run_that_cannot_continue_keeps_its_steps(tmp_path, eme_run_binary):
     np.testing.assert_allclose(run["time"], 2.0 * np.arange(15.0))
 
 
+def test_a_run_that_leaves_the_domain_says_so(tmp_path, eme_run_binary):
+    # Explicit RK4 beyond its stability limit reaches a non-positive temperature at t = 17.25 s
+    # (the stability study's RK4_theta at dt = 0.75 s): failure_kind 'domain', not 'solver'.
+    result, path = run_eme(tmp_path, "domain", {"integrator": {"scheme": "ts_rk4", "dt": 0.75}})
+    assert result.returncode == 3
+    run = read_run(path)
+    assert "domain" in run["attrs"]["status"] and run["attrs"]["failure_kind"] == "domain"
+    assert_consistent(run, 22)
+
+
 def test_petsc_options_reach_the_solver(tmp_path, eme_run_binary):
     scene = {"integrator": {"t_end": 0.45}}
     result, _ = run_eme(tmp_path, "reason", scene, "-snes_converged_reason")
