@@ -9,7 +9,6 @@ program eme_ensemble
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use study_config, only: study_definition, read_study
   use ensemble, only: run_study, study_outcome, world_rank
-  use number_text, only: integer_text
   use command_help, only: print_study_help, print_integrators, has_argument
   implicit none
 

@@ -83,7 +83,8 @@ contains
       'eme_run scene, the base scene with one value of each sweep. Each case writes output_dir/case_NNNNN.h5;', &
       'output_dir/index.h5 (/cases) records every case''s status and figures, and running the study again', &
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
-      '2 bad study input (nothing is written), 1 the index could not be written.', '', &
+      '2 bad study input (nothing is written), 1 the index or a case''s output could not be written, 128 + N', &
+      'after signal N (the study stopped cleanly; running it again goes on).', '', &
       'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
     call describe_group(unit, 'study', study_fields(base, output_dir, combine, index_only))
     call describe_group(unit, 'sweep', sweep_fields(field, values, texts))

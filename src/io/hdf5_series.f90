@@ -529,13 +529,7 @@ contains
         if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
         if (stat == 0) call h5sclose_f(space, ignored)
         if (stat == 0 .and. points == size(values, kind=hsize_t)) then
-          if (as_integer) then
-            call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
-          else
-            call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
-          end if
-          call h5aclose_f(attribute, close_stat)
-          if (stat == 0) stat = close_stat
+          call write_values()
           return
         end if
         call h5aclose_f(attribute, ignored)
@@ -554,15 +548,21 @@ contains
     else
       call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
     end if
-    if (stat == 0) then    ! created: write, then close whatever the write did
+    if (stat == 0) call write_values()    ! created: write, then close whatever the write did
+    call h5sclose_f(space, ignored)
+
+  contains
+
+    ! Writes the values into the open attribute and closes it; stat keeps the first failure.
+    subroutine write_values()
       if (as_integer) then
         call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
       else
         call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
       end if
-      call h5aclose_f(attribute, ignored)
-    end if
-    call h5sclose_f(space, ignored)
+      call h5aclose_f(attribute, close_stat)
+      if (stat == 0) stat = close_stat
+    end subroutine write_values
   end subroutine write_numeric_attribute
 
 end module hdf5_series
