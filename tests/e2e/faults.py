@@ -4,6 +4,7 @@ disk, signals at chosen moments, and a check of what a run left behind.
 A small disk is a tmpfs of the given size where `mount` is permitted (root, outside a restricted
 container), otherwise the LD_PRELOAD shim tests/e2e/full_disk.c, which makes one directory behave
 as a file system of that size without privileges. EME_TEST_FULL_DISK=shim forces the shim."""
+import atexit
 import contextlib
 import os
 import shutil
@@ -26,6 +27,7 @@ def _shim_library():
         if compiler is None:
             raise RuntimeError("no C compiler for the full-disk shim")
         folder = Path(tempfile.mkdtemp(prefix="eme_full_disk_"))
+        atexit.register(shutil.rmtree, folder, True)
         library = folder / "full_disk.so"
         subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(library), str(HERE / "full_disk.c"), "-ldl"],
                        check=True)
