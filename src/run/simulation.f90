@@ -139,8 +139,8 @@ contains
                   //config%input_file//', &output: file): '//os_error_text(ierr))
         return
       end if
-      replace = config%overwrite
-      if (.not. replace) replace = overwrite_requested()
+      replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
+      if (config%overwrite) replace = .true.
       if (.not. replace) replace = .not. holds_complete_run(config%output_file)
       if (.not. replace) then
         call fail(failure_input, config%output_file//' holds a complete run, which is kept; to replace it, set '// &
