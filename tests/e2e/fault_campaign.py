@@ -143,15 +143,18 @@ def category_run_full_disk(folder, rng):
 
 
 STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
-&sweep field = 'theta(2)', values = {values} /
+&sweep field = 'theta(1)', values = {values1} /
+&sweep field = 'theta(2)', values = {values2} /
 """
 
 
-def study_files(folder, output, cases=300, index_only=False):
-    values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(cases))
+def study_files(folder, output, cases=600, index_only=False):
+    """A study of `cases` paper-scene cases (20 values of theta(2) per value of theta(1))."""
     study = folder / "study.nml"
     study.write_text(STUDY.format(base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
-                                  index_only=".true." if index_only else ".false.", values=values))
+                                  index_only=".true." if index_only else ".false.",
+                                  values1=", ".join(f"{270 + i:.1f}" for i in range(cases // 20)),
+                                  values2=", ".join(f"{340 + i:.1f}" for i in range(20))))
     return study
 
 
@@ -216,6 +219,8 @@ def category_study_signal(folder, rng, kill):
     else:
         process.send_signal(signal.SIGTERM)
     process.wait()
+    if not (output / "index.h5").exists():
+        raise RuntimeError(f"the study did not start: {study}")
     before = recorded_complete(output)
     bad = ""
     if not index_only:
@@ -223,7 +228,7 @@ def category_study_signal(folder, rng, kill):
             bad = bad or judge_final(path)
     bad = bad or finish_and_judge(study, output, before=before)
     mode = "index-only" if index_only else "files"
-    stage = "none" if not before else "all" if len(before) == 300 else "some"
+    stage = "none" if not before else "all" if len(before) == 600 else "some"
     return bad, f"{mode}, {stage} recorded complete before the restart", False
 
 
