@@ -229,9 +229,10 @@ STUDIES := convergence convergence_reference work_precision work_precision_adapt
            stability_paper stability_hard
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
+# Each study prints its start, a progress line every 2 s and its summary.
 study: all $(VENV)/.python-deps
 	@for s in $(STUDIES); do rm -rf results/study/$$s; \
-	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml | tail -1 || exit 1; done
+	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml || exit 1; done
 	$(PYTHON) postprocess/study_analysis.py --study-dir results/study -o results/figures \
 	  --summary results/study/summary.h5
 
@@ -240,7 +241,7 @@ study: all $(VENV)/.python-deps
 # floor. The last line is machine-readable.
 bench: all $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
-	$(PYTHON) postprocess/bench_ensemble.py --repeats 5
+	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
 	$(BIN)/eme_accuracy_bench 5
 	$(BIN)/eme_bench 21
 

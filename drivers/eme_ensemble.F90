@@ -1,14 +1,14 @@
 !> mpirun -n P eme_ensemble [PETSc options] STUDY.nml [PETSc options]: runs the cases of a parameter study on
 !> P ranks (README, Ensemble studies). Exit status: 0 every case was attempted (failed cases
 !> are results, recorded in the index with their reason), 2 bad study input (nothing is
-!> written), 1 the index could not be written or updated.
+!> written), 1 the index or a case's output could not be written, 128 + N after signal N (the
+!> study stopped cleanly; running it again goes on).
 program eme_ensemble
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use study_config, only: study_definition, read_study
   use ensemble, only: run_study, study_outcome, world_rank
-  use number_text, only: integer_text
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
   use library_versions, only: print_versions
@@ -51,10 +51,11 @@ program eme_ensemble
       if (stat /= 0) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
         exit_status = 1
-      else if (rank == 0 .and. outcome%index_errors > 0) then
-        write (error_unit, '(a)') 'eme_ensemble: '//study%output_dir//'/index.h5 could not be updated ' &
-          //integer_text(outcome%index_errors)//' times; the case files are complete, the index is not'
+      else if (outcome%io_failure) then
+        if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: stopped: '//outcome%io_message
         exit_status = 1
+      else if (outcome%signal /= 0) then
+        exit_status = 128 + outcome%signal
       end if
       if (stat == 0 .and. rank == 0) then
         write (output_unit, '(a, i0, a, i0, a, i0, a, i0, a, f10.2, a)') 'eme_ensemble: ', outcome%cases, ' cases: ', &

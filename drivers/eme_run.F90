@@ -1,7 +1,8 @@
 !> eme_run [PETSc options] FILE.nml [PETSc options]: one run of the thermoviscoelastic double pendulum.
 !> Reads the namelist, integrates, writes the HDF5 file named in &output and prints a
 !> one-line summary. Exit status: 0 complete, 2 bad input or usage (no output file is
-!> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error.
+!> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error,
+!> 128 + N after signal N (SIGTERM, SIGINT: the file is kept, marked incomplete).
 !> eme_run --help (or -h), --version, --integrators (the registry as a table) and --output-schema
 !> (the HDF5 layout as a table) print and exit with status 0.
 program eme_run
@@ -9,7 +10,8 @@ program eme_run
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
   use run_config, only: run_configuration, read_run_config
-  use simulation, only: run_summary, run_simulation
+  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status
+  use run_options, only: progress_wanted
   use run_output, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
@@ -50,13 +52,17 @@ program eme_run
     write (error_unit, '(a)') 'eme_run: '//message
     exit_status = 2
   else
-    call run_simulation(config, summary, stat, message)
+    if (progress_wanted()) then
+      call run_simulation(config, summary, stat, message, progress=print_progress)
+    else
+      call run_simulation(config, summary, stat, message)
+    end if
+    exit_status = run_exit_status(summary)
     if (stat /= 0) then
       write (error_unit, '(a)') 'eme_run: '//message
-      exit_status = 1
     else if (summary%status /= 'complete') then
       write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
-      exit_status = 3
+      if (len(message) > 0) write (error_unit, '(a)') 'eme_run: '//message
     end if
     if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
       & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
@@ -69,4 +75,15 @@ program eme_run
   end if
   PetscCallA(PetscFinalize(ierr))
   if (exit_status /= 0) stop exit_status, quiet=.true.
+
+contains
+
+  ! A progress line on stderr (simulation sends one at most every 2 s).
+  subroutine print_progress(text)
+    character(len=*), intent(in) :: text
+
+    write (error_unit, '(a)') 'eme_run: '//text
+    flush (error_unit)
+  end subroutine print_progress
+
 end program eme_run

@@ -15,7 +15,8 @@ module command_help
 
   character(len=*), parameter :: exit_codes = &
     'Exit status: 0 complete, 2 bad input or usage (nothing is written), 3 the run stopped early (its file is '// &
-    'kept, marked incomplete, with the reason), 1 an I/O or PETSc error.'
+    'kept, marked incomplete, with the reason), 1 an I/O or PETSc error, 128 + N after signal N (SIGTERM: 143, '// &
+    'SIGINT: 130; the file is kept, marked incomplete).'
   character(len=*), parameter :: petsc_options_text(5) = [character(len=100) :: &
     'PETSc options (one ''-'') reach every solver, before or after the input file: -snes_monitor,', &
     '-snes_converged_reason, -snes_test_jacobian, -pc_type lu, -ts_*, and the code''s own', &
@@ -74,6 +75,7 @@ contains
     integer, intent(in) :: unit
     character(len=4096), target :: base, output_dir
     character(len=16), target :: combine
+    logical, target :: index_only
     character(len=64), target :: field, texts(max_sweep_values)
     real(real64), target :: values(max_sweep_values)
     integer :: i
@@ -81,6 +83,7 @@ contains
     base = ''
     output_dir = ''
     combine = 'product'
+    index_only = .false.
     field = ''
     texts = ''
     values = 0.0_real64
@@ -90,10 +93,11 @@ contains
       'eme_run scene, the base scene with one value of each sweep. Each case writes output_dir/case_NNNNN.h5;', &
       'output_dir/index.h5 (/cases) records every case''s status and figures, and running the study again', &
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
-      '2 bad study input or usage (nothing is written), 1 the index could not be written.', '', &
+      '2 bad study input or usage (nothing is written), 1 the index or a case''s output could not be written,', &
+      '128 + N after signal N (the study stopped cleanly; running it again goes on).', '', &
       (trim(petsc_options_text(i)), i = 1, size(petsc_options_text)), '', &
       'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
-    call describe_group(unit, 'study', study_fields(base, output_dir, combine))
+    call describe_group(unit, 'study', study_fields(base, output_dir, combine, index_only))
     call describe_group(unit, 'sweep', sweep_fields(field, values, texts))
   end subroutine print_study_help
 

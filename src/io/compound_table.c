@@ -1,9 +1,12 @@
 /* A table as one HDF5 compound dataset, so that h5py loads it in one call as a numpy
  * structured array (`f["cases"][:]`). Columns are chosen at run time: float64 (width 0),
- * int32 (width -1) or fixed-length UTF-8 strings (width > 0, in bytes). Rows are written and
- * read whole: numbers as doubles (one per numeric column, in column order) and texts as one
- * string with a newline after each text column's value. Called from Fortran through bind(C)
- * (src/io/hdf5_table.f90). Every function returns 0 on success and -1 on an HDF5 error. */
+ * int32 (width -1) or fixed-length UTF-8 strings (width > 0, in bytes). HDF5's high-level table
+ * API (H5TB) takes a layout fixed at compile time as a C struct; these tables' columns come from
+ * a study's sweeps, so the compound type is built here. Tables are written and read whole:
+ * numbers as doubles, row after row, each row's numeric columns in column order; texts as one
+ * string holding each row's text columns in order, each followed by a newline. Called from
+ * Fortran through bind(C) (src/io/hdf5_table.f90). Every function returns 0 on success and -1 on
+ * an HDF5 error or a malformed argument. */
 #define _POSIX_C_SOURCE 200809L /* strnlen */
 #include <hdf5.h>
 #include <stdlib.h>
@@ -62,105 +65,93 @@ static hid_t compound_type(const layout *columns)
     return type;
 }
 
-/* The dataset `name` of `rows` rows, every number 0 and every text empty. */
-int eme_table_create(hid_t file, const char *name, int count, const char *names, const int *widths, long rows)
+/* Packs (pack != 0) numbers and texts into `buffer`, or unpacks `buffer` into them. */
+static int convert(const layout *columns, long rows, unsigned char *buffer, double *numbers, char *texts,
+                   long texts_capacity, int pack)
 {
-    layout columns;
-    if (make_layout(count, names, widths, &columns) < 0) return -1;
-    hid_t type = compound_type(&columns);
-    if (type < 0) return -1;
-    hsize_t dims[1] = {(hsize_t)rows};
-    hid_t space = H5Screate_simple(1, dims, NULL);
-    hid_t dataset = H5Dcreate2(file, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    int status = -1;
-    if (dataset >= 0) {
-        char *zeros = calloc((size_t)rows > 0 ? (size_t)rows : 1, columns.row_size);
-        if (zeros != NULL && H5Dwrite(dataset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, zeros) >= 0) status = 0;
-        free(zeros);
-        H5Dclose(dataset);
-    }
-    H5Sclose(space);
-    H5Tclose(type);
-    return status;
-}
-
-/* Writes or reads row `row` (0-based) of `name`; `write` selects the direction. */
-static int row_io(hid_t file, const char *name, int count, const char *names, const int *widths, long row,
-                  double *numbers, char *texts, long texts_capacity, int write)
-{
-    layout columns;
-    if (make_layout(count, names, widths, &columns) < 0) return -1;
-    hid_t type = compound_type(&columns);
-    if (type < 0) return -1;
-    hid_t dataset = H5Dopen2(file, name, H5P_DEFAULT);
-    if (dataset < 0) {
-        H5Tclose(type);
-        return -1;
-    }
-    unsigned char *buffer = calloc(1, columns.row_size);
-    hid_t file_space = H5Dget_space(dataset);
-    hsize_t start[1] = {(hsize_t)row}, one[1] = {1};
-    hid_t memory_space = H5Screate_simple(1, one, NULL);
-    int status = H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, NULL, one, NULL);
-    if (status >= 0 && !write) status = H5Dread(dataset, type, memory_space, file_space, H5P_DEFAULT, buffer);
     const char *text_in = texts;
-    long text_out = 0;
-    int number = 0;
-    for (int i = 0; i < columns.count && status >= 0; ++i) {
-        unsigned char *field = buffer + columns.offsets[i];
-        if (columns.widths[i] == 0) {
-            if (write) memcpy(field, &numbers[number], sizeof(double));
-            else memcpy(&numbers[number], field, sizeof(double));
-            ++number;
-        } else if (columns.widths[i] < 0) {
-            int value;
-            if (write) {
-                value = (int)numbers[number];
-                memcpy(field, &value, sizeof(int));
-            } else {
-                memcpy(&value, field, sizeof(int));
-                numbers[number] = value;
-            }
-            ++number;
-        } else if (write) {
-            const char *end = strchr(text_in, '\n');
-            if (end == NULL) status = -1;
-            else {
+    long text_out = 0, number = 0;
+    for (long r = 0; r < rows; ++r) {
+        for (int i = 0; i < columns->count; ++i) {
+            unsigned char *field = buffer + (size_t)r * columns->row_size + columns->offsets[i];
+            if (columns->widths[i] == 0) {
+                if (pack) memcpy(field, &numbers[number], sizeof(double));
+                else memcpy(&numbers[number], field, sizeof(double));
+                ++number;
+            } else if (columns->widths[i] < 0) {
+                int value;
+                if (pack) {
+                    value = (int)numbers[number];
+                    memcpy(field, &value, sizeof(int));
+                } else {
+                    memcpy(&value, field, sizeof(int));
+                    numbers[number] = value;
+                }
+                ++number;
+            } else if (pack) {
+                const char *end = strchr(text_in, '\n');
+                if (end == NULL) return -1;
                 size_t length = (size_t)(end - text_in);
-                if (length > (size_t)columns.widths[i]) length = (size_t)columns.widths[i];
+                if (length > (size_t)columns->widths[i]) length = (size_t)columns->widths[i];
                 memcpy(field, text_in, length);
                 text_in = end + 1;
-            }
-        } else {
-            size_t length = strnlen((const char *)field, (size_t)columns.widths[i]);
-            if (text_out + (long)length + 1 > texts_capacity) status = -1;
-            else {
+            } else {
+                size_t length = strnlen((const char *)field, (size_t)columns->widths[i]);
+                if (text_out + (long)length + 1 >= texts_capacity) return -1;
                 memcpy(texts + text_out, field, length);
                 texts[text_out + (long)length] = '\n';
                 text_out += (long)length + 1;
             }
         }
     }
-    if (status >= 0 && write) status = H5Dwrite(dataset, type, memory_space, file_space, H5P_DEFAULT, buffer);
-    if (!write && status >= 0 && text_out < texts_capacity) texts[text_out] = '\0';
+    if (!pack) texts[text_out] = '\0';
+    return 0;
+}
+
+/* Creates dataset `name` of `rows` rows and writes them all. */
+int eme_table_write(hid_t file, const char *name, int count, const char *names, const int *widths, long rows,
+                    const double *numbers, const char *texts)
+{
+    layout columns;
+    if (rows < 0 || make_layout(count, names, widths, &columns) < 0) return -1;
+    unsigned char *buffer = calloc(rows > 0 ? (size_t)rows : 1, columns.row_size);
+    if (buffer == NULL) return -1;
+    int status = convert(&columns, rows, buffer, (double *)numbers, (char *)texts, 0, 1);
+    hid_t type = status == 0 ? compound_type(&columns) : -1;
+    if (type >= 0) {
+        hsize_t dims[1] = {(hsize_t)rows};
+        hid_t space = H5Screate_simple(1, dims, NULL);
+        hid_t dataset = H5Dcreate2(file, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        status = dataset >= 0 && H5Dwrite(dataset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer) >= 0 ? 0 : -1;
+        if (dataset >= 0) H5Dclose(dataset);
+        H5Sclose(space);
+        H5Tclose(type);
+    } else {
+        status = -1;
+    }
     free(buffer);
-    H5Sclose(memory_space);
-    H5Sclose(file_space);
-    H5Dclose(dataset);
+    return status;
+}
+
+/* Reads all `rows` rows of `name` (rows as eme_table_rows gives them) into numbers and texts
+ * (capacity: the size of `texts`). HDF5 matches columns by name, so the file's may be in any
+ * order; one the file lacks reads as 0 or as an empty text. */
+int eme_table_read(hid_t file, const char *name, int count, const char *names, const int *widths, long rows,
+                   double *numbers, char *texts, long texts_capacity)
+{
+    layout columns;
+    if (rows < 0 || make_layout(count, names, widths, &columns) < 0) return -1;
+    hid_t type = compound_type(&columns);
+    if (type < 0) return -1;
+    hid_t dataset = H5Dopen2(file, name, H5P_DEFAULT);
+    unsigned char *buffer = calloc(rows > 0 ? (size_t)rows : 1, columns.row_size);
+    int status = -1;
+    if (dataset >= 0 && buffer != NULL && H5Dread(dataset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer) >= 0)
+        status = convert(&columns, rows, buffer, numbers, texts, texts_capacity, 0);
+    free(buffer);
+    if (dataset >= 0) H5Dclose(dataset);
     H5Tclose(type);
-    return status < 0 ? -1 : 0;
-}
-
-int eme_table_write_row(hid_t file, const char *name, int count, const char *names, const int *widths, long row,
-                        const double *numbers, const char *texts)
-{
-    return row_io(file, name, count, names, widths, row, (double *)numbers, (char *)texts, 0, 1);
-}
-
-int eme_table_read_row(hid_t file, const char *name, int count, const char *names, const int *widths, long row,
-                       double *numbers, char *texts, long texts_capacity)
-{
-    return row_io(file, name, count, names, widths, row, numbers, texts, texts_capacity, 0);
+    return status;
 }
 
 /* Number of rows of dataset `name`, or -1. */

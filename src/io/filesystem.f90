@@ -1,9 +1,11 @@
-!> Directory creation and atomic rename (src/io/posix_files.c), with Fortran strings.
+!> File-system operations (src/io/posix_files.c) with Fortran strings. Each returns stat = 0 on
+!> success, else the OS's error number, which os_error_text turns into the OS's words.
 module filesystem
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_null_char
   implicit none (type, external)
   private
-  public :: make_directories, make_parent_directories, rename_file
+  public :: make_directories, make_parent_directories, rename_file, remove_file, file_exists, append_text, &
+            reserve_space, sync_file, os_error_text, stderr_is_terminal
 
   interface
     function c_make_directories(path) result(status) bind(c, name='eme_make_directories')
@@ -11,16 +13,54 @@ module filesystem
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int) :: status
     end function c_make_directories
-    function c_rename_file(from, to) result(status) bind(c, name='eme_rename_file')
+    function c_rename_file(from, to, sync) result(status) bind(c, name='eme_rename_file')
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: from(*), to(*)
+      integer(c_int), value :: sync
       integer(c_int) :: status
     end function c_rename_file
+    function c_remove_file(path) result(status) bind(c, name='eme_remove_file')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: status
+    end function c_remove_file
+    function c_file_exists(path) result(status) bind(c, name='eme_file_exists')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: status
+    end function c_file_exists
+    function c_append_text(path, text, length, sync) result(status) bind(c, name='eme_append_text')
+      import :: c_char, c_int, c_long
+      character(kind=c_char), intent(in) :: path(*), text(*)
+      integer(c_long), value :: length
+      integer(c_int), value :: sync
+      integer(c_int) :: status
+    end function c_append_text
+    function c_reserve_space(path, bytes) result(status) bind(c, name='eme_reserve_space')
+      import :: c_char, c_int, c_long
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_long), value :: bytes
+      integer(c_int) :: status
+    end function c_reserve_space
+    function c_sync_file(path) result(status) bind(c, name='eme_sync_file')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: status
+    end function c_sync_file
+    subroutine c_os_error_text(error, text, capacity) bind(c, name='eme_os_error_text')
+      import :: c_char, c_int
+      integer(c_int), value :: error, capacity
+      character(kind=c_char), intent(out) :: text(*)
+    end subroutine c_os_error_text
+    function c_stderr_is_terminal() result(status) bind(c, name='eme_stderr_is_terminal')
+      import :: c_int
+      integer(c_int) :: status
+    end function c_stderr_is_terminal
   end interface
 
 contains
 
-  !> mkdir -p path; stat = 0 on success.
+  !> mkdir -p path.
   subroutine make_directories(path, stat)
     character(len=*), intent(in) :: path
     integer, intent(out) :: stat
@@ -39,12 +79,74 @@ contains
     if (slash > 1) call make_directories(file(1:slash - 1), stat)
   end subroutine make_parent_directories
 
-  !> Renames `from` to `to`, replacing `to`; stat = 0 on success.
-  subroutine rename_file(from, to, stat)
+  !> Renames `from` to `to`, replacing `to` atomically; with `sync` (default) the directory entry
+  !> is on disk on return.
+  subroutine rename_file(from, to, stat, sync)
     character(len=*), intent(in) :: from, to
     integer, intent(out) :: stat
+    logical, intent(in), optional :: sync
+    logical :: durable
 
-    stat = int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char))
+    durable = .true.
+    if (present(sync)) durable = sync
+    stat = int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char, merge(1_c_int, 0_c_int, durable)))
   end subroutine rename_file
+
+  !> Removes `path`; a missing file is no error.
+  subroutine remove_file(path, stat)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: stat
+
+    stat = int(c_remove_file(trim(path)//c_null_char))
+  end subroutine remove_file
+
+  !> Whether `path` is an existing regular file.
+  logical function file_exists(path)
+    character(len=*), intent(in) :: path
+
+    file_exists = c_file_exists(trim(path)//c_null_char) == 1
+  end function file_exists
+
+  !> Appends `text` (whole lines) to `path`, creating it; with `sync` it is on disk on return.
+  subroutine append_text(path, text, sync, stat)
+    character(len=*), intent(in) :: path, text
+    logical, intent(in) :: sync
+    integer, intent(out) :: stat
+
+    stat = int(c_append_text(trim(path)//c_null_char, text, int(len(text), c_long), merge(1_c_int, 0_c_int, sync)))
+  end subroutine append_text
+
+  !> Allocates `bytes` of disk space at the end of the existing file `path`, so that writes into
+  !> them cannot fail for want of space (ENOSPC or EFBIG come back here instead).
+  subroutine reserve_space(path, bytes, stat)
+    character(len=*), intent(in) :: path
+    integer(c_long), intent(in) :: bytes
+    integer, intent(out) :: stat
+
+    stat = int(c_reserve_space(trim(path)//c_null_char, bytes))
+  end subroutine reserve_space
+
+  !> Puts the data of the existing file `path` on disk (fsync).
+  subroutine sync_file(path, stat)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: stat
+
+    stat = int(c_sync_file(trim(path)//c_null_char))
+  end subroutine sync_file
+
+  !> The OS's words for error number `error` ('No space left on device').
+  function os_error_text(error) result(text)
+    integer, intent(in) :: error
+    character(len=:), allocatable :: text
+    character(len=256) :: buffer
+
+    call c_os_error_text(int(error, c_int), buffer, int(len(buffer), c_int))
+    text = buffer(1:max(0, index(buffer, c_null_char) - 1))
+  end function os_error_text
+
+  !> Whether standard error is a terminal.
+  logical function stderr_is_terminal()
+    stderr_is_terminal = c_stderr_is_terminal() == 1
+  end function stderr_is_terminal
 
 end module filesystem

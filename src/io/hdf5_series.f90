@@ -1,105 +1,178 @@
-!> HDF5 output made of extendible datasets that grow by one row at a time.
+!> HDF5 output made of datasets that grow by rows, written so that a full disk or a kill never
+!> leaves a file that lies (src/io/hdf5_storage.c says how: files are built in memory and written
+!> in one checked write; later rows are appended in short windows after their disk space is
+!> reserved; between windows the file is closed).
 !> A `series_table` groups datasets that gain a row together (one per time point, or one per
-!> step); rows are buffered and written a chunk at a time, after which the file is flushed, so
-!> memory stays bounded and a killed run leaves a readable file with every flushed row.
-!> Datasets are (rows) or (rows, width) as h5py shows them. Text attributes are UTF-8
-!> variable-length strings (h5py reads them as str), written by src/io/hdf5_text.c.
+!> step). Rows are buffered in memory (bounded: `capacity_rows`) and written a window at a time.
+!> Datasets whose final length is known when they are first written are contiguous; the others
+!> are chunked and extendible. Datasets are (rows) or (rows, width) as h5py shows them. Text
+!> attributes are UTF-8 variable-length strings (h5py reads them as str).
 module hdf5_series
-  use, intrinsic :: iso_fortran_env, only: real64
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_int64_t, c_null_char
-  use hdf5, only: hid_t, hsize_t, h5open_f, h5eset_auto_f, h5fcreate_f, h5fopen_f, h5fclose_f, &
-                  h5fflush_f, H5F_ACC_TRUNC_F, H5F_ACC_RDWR_F, H5F_ACC_RDONLY_F, H5F_SCOPE_GLOBAL_F, &
-                  h5screate_simple_f, h5screate_f, &
+  use, intrinsic :: iso_fortran_env, only: real64, int64
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
+  use hdf5, only: hid_t, hsize_t, h5open_f, h5eset_auto_f, h5fclose_f, h5screate_simple_f, h5screate_f, &
                   h5sclose_f, H5S_SCALAR_F, H5S_UNLIMITED_F, H5S_SELECT_SET_F, h5sselect_hyperslab_f, &
-                  h5pcreate_f, h5pclose_f, h5pset_chunk_f, H5P_DATASET_CREATE_F, h5dcreate_f, h5dclose_f, &
-                  h5dwrite_f, h5dset_extent_f, h5dget_space_f, H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, &
-                  h5acreate_f, h5aclose_f, h5awrite_f, h5aexists_f, h5adelete_f
+                  h5pcreate_f, h5pclose_f, h5pset_chunk_f, h5pset_layout_f, H5D_CONTIGUOUS_F, H5P_DATASET_CREATE_F, &
+                  h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dset_extent_f, h5dget_space_f, &
+                  H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, h5acreate_f, h5aclose_f, h5awrite_f, h5aexists_f, h5adelete_f, &
+                  h5aopen_f, h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
   implicit none (type, external)
   private
-  public :: hdf5_file, series_table
+  public :: hdf5_file, series_table, check_run_file, file_in_use
+
+  integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
 
   !> One dataset fed from columns offset+1 .. offset+width of its table's rows.
   type :: series
-    character(len=:), allocatable :: name
+    character(len=:), allocatable :: name, units, description, columns, rows, source
     integer :: width = 1
     logical :: vector = .false.          !! (rows, width) if true, (rows) if false
     logical :: integer_valued = .false.
     integer :: offset = 0
-    integer(hid_t) :: dataset = -1
   end type series
 
   !> Datasets that gain a row together, with the row buffer.
   type :: series_table
     type(series), allocatable :: items(:)
     integer :: row_width = 0
-    integer :: chunk_rows = 256
+    integer :: chunk_rows = 1024
+    integer :: capacity_rows = 16384     !! rows buffered at most before they must be written
     real(real64), allocatable :: buffer(:, :)
     integer :: buffered = 0
-    integer(hsize_t) :: written = 0
+    integer(int64) :: written = 0        !! rows in the file
+    logical :: created = .false.         !! the datasets exist in the file
   contains
     procedure :: define
     procedure :: append
-    procedure :: flush => flush_table
-    procedure :: close => close_table
+    procedure :: full
+    procedure :: window_bytes
+    procedure :: write => write_table
   end type series_table
 
-  !> An open output file.
+  !> An open HDF5 file (in memory until stored, or on disk).
   type :: hdf5_file
     integer(hid_t) :: id = -1
+    logical :: fresh = .false.           !! created by this process: no attribute exists yet
   contains
-    procedure :: create
+    procedure :: create_in_memory
+    procedure :: store
     procedure :: open_existing
     procedure :: close => close_file
-    procedure :: flush => flush_file
     procedure :: set_text
     procedure :: set_real
     procedure :: set_reals
     procedure :: set_integer
+    procedure :: get_text
+    procedure :: get_reals
   end type hdf5_file
 
   ! h5open_f rebuilds HDF5's table of Fortran types on every call (~1.5 ms): call it once.
   logical, save :: library_open = .false.
+  integer, save :: memory_files = 0
 
   interface
-    function c_write_text_attribute(object, name, value) result(status) &
+    function c_write_text_attribute(object, name, value, fresh) result(status) &
         bind(c, name='eme_h5_write_text_attribute')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: object   ! hid_t is int64_t in HDF5 1.10
       character(kind=c_char), intent(in) :: name(*), value(*)
+      integer(c_int), value :: fresh
       integer(c_int) :: status
     end function c_write_text_attribute
+    function c_read_text_attribute(object, name, text, capacity) result(status) &
+        bind(c, name='eme_h5_read_text_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object
+      character(kind=c_char), intent(in) :: name(*)
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: capacity
+      integer(c_int) :: status
+    end function c_read_text_attribute
+    function c_create_in_memory(label, file) result(status) bind(c, name='eme_h5_create_in_memory')
+      import :: c_char, c_int, c_int64_t
+      character(kind=c_char), intent(in) :: label(*)
+      integer(c_int64_t), intent(out) :: file
+      integer(c_int) :: status
+    end function c_create_in_memory
+    function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: sync
+      integer(c_int) :: status
+    end function c_store_image
+    function c_open_file(path, writable, reserve, wait_ms, file) result(status) bind(c, name='eme_h5_open_file')
+      import :: c_char, c_int, c_long, c_int64_t
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: writable, wait_ms
+      integer(c_long), value :: reserve
+      integer(c_int64_t), intent(out) :: file
+      integer(c_int) :: status
+    end function c_open_file
+    function c_check_run_file(path, status_text, capacity, steps) result(status) bind(c, name='eme_h5_check_run_file')
+      import :: c_char, c_int, c_long
+      character(kind=c_char), intent(in) :: path(*)
+      character(kind=c_char), intent(out) :: status_text(*)
+      integer(c_int), value :: capacity
+      integer(c_long), intent(out) :: steps
+      integer(c_int) :: status
+    end function c_check_run_file
   end interface
 
 contains
 
-  !> Creates (truncates) the file at `path`. HDF5's own error printing is switched off:
-  !> failures come back as stat /= 0 with a message.
-  subroutine create(self, path, stat, message)
+  !> Creates an empty file in memory; `store` writes it to disk. stat = -1 on an HDF5 failure.
+  subroutine create_in_memory(self, stat)
+    class(hdf5_file), intent(inout) :: self
+    integer, intent(out) :: stat
+    character(len=32) :: label
+    integer(c_int64_t) :: id
+
+    call open_library(stat)
+    if (stat /= 0) return
+    memory_files = memory_files + 1
+    write (label, '("eme_memory_file_", i0)') memory_files
+    stat = int(c_create_in_memory(trim(label)//c_null_char, id))
+    self%id = int(id, hid_t)
+    self%fresh = .true.
+  end subroutine create_in_memory
+
+  !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
+  !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).
+  subroutine store(self, path, sync, stat)
     class(hdf5_file), intent(inout) :: self
     character(len=*), intent(in) :: path
+    logical, intent(in) :: sync
     integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
 
-    message = ''
-    call open_library(stat)
-    if (stat == 0) call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%id, stat)
-    if (stat /= 0) message = 'cannot create HDF5 file '''//trim(path)//''''
-  end subroutine create
+    stat = int(c_store_image(int(self%id, c_int64_t), trim(path)//c_null_char, merge(1_c_int, 0_c_int, sync)))
+  end subroutine store
 
-  !> Opens an existing file, read-only or for writing.
-  subroutine open_existing(self, path, writable, stat)
+  !> Opens an existing file read-only, or for writing after reserving `reserve` bytes of disk for
+  !> what will be added (default 64 KiB). A writer waits for readers that hold the file open:
+  !> with `wait_ms` < 0 not at all (stat = file_in_use, write later), else up to wait_ms
+  !> milliseconds (default 5000), then it writes without HDF5's lock. stat: 0, an OS error number
+  !> from the reservation (the file is untouched), file_in_use, or -1 (HDF5 could not open it).
+  subroutine open_existing(self, path, writable, stat, reserve, wait_ms)
     class(hdf5_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     logical, intent(in) :: writable
     integer, intent(out) :: stat
+    integer(int64), intent(in), optional :: reserve
+    integer, intent(in), optional :: wait_ms
+    integer(c_int64_t) :: id
+    integer(c_long) :: bytes
+    integer(c_int) :: patience
 
     call open_library(stat)
     if (stat /= 0) return
-    if (writable) then
-      call h5fopen_f(path, H5F_ACC_RDWR_F, self%id, stat)
-    else
-      call h5fopen_f(path, H5F_ACC_RDONLY_F, self%id, stat)
-    end if
+    bytes = 65536
+    if (present(reserve)) bytes = int(reserve, c_long)
+    patience = 5000
+    if (present(wait_ms)) patience = int(wait_ms, c_int)
+    stat = int(c_open_file(trim(path)//c_null_char, merge(1_c_int, 0_c_int, writable), bytes, patience, id))
+    self%id = int(id, hid_t)
+    self%fresh = .false.
   end subroutine open_existing
 
   !> Closes the file. (The HDF5 library stays open: other files may be in use.)
@@ -107,17 +180,11 @@ contains
     class(hdf5_file), intent(inout) :: self
     integer, intent(out) :: stat
 
+    stat = 0
+    if (self%id < 0) return
     call h5fclose_f(self%id, stat)
     self%id = -1
   end subroutine close_file
-
-  !> Pushes everything written so far to disk.
-  subroutine flush_file(self, stat)
-    class(hdf5_file), intent(in) :: self
-    integer, intent(out) :: stat
-
-    call h5fflush_f(self%id, H5F_SCOPE_GLOBAL_F, stat)
-  end subroutine flush_file
 
   !> Text attribute on the file root, or on object `object` if given (replaces an old value).
   subroutine set_text(self, name, value, stat, object)
@@ -129,7 +196,8 @@ contains
 
     target_id = self%id
     if (present(object)) target_id = object
-    stat = int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, value//c_null_char))
+    stat = int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, value//c_null_char, &
+                                      merge(1_c_int, 0_c_int, self%fresh)))
   end subroutine set_text
 
   !> Scalar real attribute on the file root.
@@ -139,7 +207,7 @@ contains
     real(real64), intent(in) :: value
     integer, intent(out) :: stat
 
-    call write_numeric_attribute(self%id, name, [value], .true., stat)
+    call write_numeric_attribute(self%id, name, [value], .true., self%fresh, stat)
   end subroutine set_real
 
   !> Real-array attribute on the file root.
@@ -149,7 +217,7 @@ contains
     real(real64), intent(in) :: values(:)
     integer, intent(out) :: stat
 
-    call write_numeric_attribute(self%id, name, values, .false., stat)
+    call write_numeric_attribute(self%id, name, values, .false., self%fresh, stat)
   end subroutine set_reals
 
   !> Scalar integer attribute on the file root.
@@ -159,140 +227,242 @@ contains
     integer, intent(in) :: value
     integer, intent(out) :: stat
 
-    call write_numeric_attribute(self%id, name, [real(value, real64)], .true., stat, integer_valued=.true.)
+    call write_numeric_attribute(self%id, name, [real(value, real64)], .true., self%fresh, stat, integer_valued=.true.)
   end subroutine set_integer
+
+  !> The text attribute `name` of the file root; stat /= 0 if it is missing.
+  subroutine get_text(self, name, value, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable, intent(out) :: value
+    integer, intent(out) :: stat
+    character(len=4096) :: buffer
+
+    stat = int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, int(len(buffer), c_int)))
+    value = buffer(1:max(0, index(buffer, c_null_char) - 1))
+  end subroutine get_text
+
+  !> The numeric attribute `name` of the file root (a scalar or an array, as reals); stat /= 0 if
+  !> it is missing or not numeric.
+  subroutine get_reals(self, name, values, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    real(real64), allocatable, intent(out) :: values(:)
+    integer, intent(out) :: stat
+    integer(hid_t) :: attribute, space
+    integer(hsize_t) :: points, dims(1)
+    integer :: ignored
+
+    allocate (values(0))
+    call h5aopen_f(self%id, name, attribute, stat)
+    if (stat /= 0) return
+    call h5aget_space_f(attribute, space, stat)
+    if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
+    if (stat == 0) then
+      deallocate (values)
+      allocate (values(points))
+      dims = [points]
+      call h5aread_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
+      call h5sclose_f(space, ignored)
+    end if
+    call h5aclose_f(attribute, ignored)
+  end subroutine get_reals
+
+  !> Reads the run file at `path` back: its status and steps_completed, and whether every
+  !> per-point dataset has steps_completed + 1 rows and every per-step dataset steps_completed
+  !> (src/io/hdf5_storage.c). stat: 0 all holds, 1 unreadable, 2 no status, 3 lengths disagree.
+  subroutine check_run_file(path, status, steps_completed, stat)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: status
+    integer, intent(out) :: steps_completed, stat
+    character(len=1024) :: buffer
+    integer(c_long) :: steps
+
+    call open_library(stat)
+    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps))
+    status = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    steps_completed = int(steps)
+  end subroutine check_run_file
 
   !> Adds a dataset of `width` values per row (a (rows, width) dataset if vector, else (rows))
   !> with `units` and `description` attributes, `columns` (names separated by blanks) for a
-  !> vector, `rows` (what a row is) and `source` (who defines it); it is created empty in `file` at once.
-  subroutine define(self, file, name, width, vector, units, description, stat, integer_valued, columns, rows, source)
+  !> vector, `rows` (what a row is) and `source` (who defines it). It is created in a file by the
+  !> table's first `write`.
+  subroutine define(self, name, width, vector, units, description, integer_valued, columns, rows, source)
     class(series_table), intent(inout) :: self
-    type(hdf5_file), intent(in) :: file
     character(len=*), intent(in) :: name, units, description
     integer, intent(in) :: width
     logical, intent(in) :: vector
-    integer, intent(out) :: stat
     logical, intent(in), optional :: integer_valued
     character(len=*), intent(in), optional :: columns, rows, source
     type(series) :: item
-    integer(hid_t) :: space, properties, kind
-    integer(hsize_t) :: dims(2), max_dims(2), chunk(2)
-    integer :: rank, ignored
 
     item%name = name
+    item%units = units
+    item%description = description
+    item%columns = ''
+    item%rows = ''
+    item%source = ''
+    if (present(columns)) item%columns = columns
+    if (present(rows)) item%rows = rows
+    if (present(source)) item%source = source
     item%width = width
     item%vector = vector
     if (present(integer_valued)) item%integer_valued = integer_valued
     item%offset = self%row_width
-    if (vector) then
-      rank = 2
-      dims = [int(width, hsize_t), 0_hsize_t]
-      max_dims = [int(width, hsize_t), H5S_UNLIMITED_F]
-      chunk = [int(width, hsize_t), int(self%chunk_rows, hsize_t)]
-    else
-      rank = 1
-      dims = [0_hsize_t, 0_hsize_t]
-      max_dims = [H5S_UNLIMITED_F, 0_hsize_t]
-      chunk = [int(self%chunk_rows, hsize_t), 0_hsize_t]
-    end if
-    kind = H5T_NATIVE_DOUBLE
-    if (item%integer_valued) kind = H5T_NATIVE_INTEGER
-    call h5screate_simple_f(rank, dims(1:rank), space, stat, max_dims(1:rank))
-    if (stat /= 0) return
-    call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
-    if (stat == 0) call h5pset_chunk_f(properties, rank, chunk(1:rank), stat)
-    if (stat == 0) call h5dcreate_f(file%id, name, kind, space, item%dataset, stat, properties)
-    call h5pclose_f(properties, ignored)
-    call h5sclose_f(space, ignored)
-    if (stat /= 0) return
-    call file%set_text('units', units, stat, item%dataset)
-    if (stat == 0) call file%set_text('description', description, stat, item%dataset)
-    if (stat == 0 .and. present(columns)) call file%set_text('columns', columns, stat, item%dataset)
-    if (stat == 0 .and. present(rows)) call file%set_text('rows', rows, stat, item%dataset)
-    if (stat == 0 .and. present(source)) call file%set_text('source', source, stat, item%dataset)
-    if (stat /= 0) return
-
     self%row_width = self%row_width + width
     call append_series(self%items, item)
     if (allocated(self%buffer)) deallocate (self%buffer)
-    allocate (self%buffer(self%row_width, self%chunk_rows))
+    allocate (self%buffer(self%row_width, 64))
   end subroutine define
 
-  !> Appends one row (all datasets of the table at once); writes a chunk when the buffer fills.
-  subroutine append(self, file, row, stat)
+  !> Buffers one row (all datasets of the table at once); the buffer grows up to capacity_rows.
+  subroutine append(self, row)
     class(series_table), intent(inout) :: self
-    type(hdf5_file), intent(in) :: file
     real(real64), intent(in) :: row(:)
-    integer, intent(out) :: stat
+    real(real64), allocatable :: larger(:, :)
 
-    stat = 0
+    if (self%buffered == size(self%buffer, 2)) then
+      allocate (larger(self%row_width, max(self%buffered + 1, min(2*self%buffered, self%capacity_rows))))
+      larger(:, 1:self%buffered) = self%buffer(:, 1:self%buffered)
+      call move_alloc(larger, self%buffer)
+    end if
     self%buffered = self%buffered + 1
     self%buffer(:, self%buffered) = row
-    if (self%buffered == self%chunk_rows) call self%flush(file, stat)
   end subroutine append
 
-  !> Writes the buffered rows to every dataset of the table and flushes the file.
-  subroutine flush_table(self, file, stat)
+  !> Whether the buffer holds capacity_rows rows and must be written.
+  logical function full(self)
+    class(series_table), intent(in) :: self
+
+    full = self%buffered >= self%capacity_rows
+  end function full
+
+  !> Disk space the table's buffered rows take when appended to its chunked datasets (whole new
+  !> chunks), plus room for the chunk index.
+  integer(int64) function window_bytes(self)
+    class(series_table), intent(in) :: self
+    integer(int64) :: chunks, chunk
+    integer :: i
+
+    chunk = self%chunk_rows
+    chunks = (self%written + self%buffered + chunk - 1)/chunk - (self%written + chunk - 1)/chunk
+    window_bytes = 0
+    do i = 1, size(self%items)
+      window_bytes = window_bytes + chunks*chunk*self%items(i)%width*merge(4, 8, self%items(i)%integer_valued) + 4096
+    end do
+  end function window_bytes
+
+  !> Writes the buffered rows to every dataset of the table in `file` and empties the buffer. The
+  !> first write creates the datasets: contiguous of exactly the buffered rows if `final` (no row
+  !> will follow), chunked and extendible otherwise.
+  subroutine write_table(self, file, final, stat)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
+    logical, intent(in) :: final
     integer, intent(out) :: stat
-    integer(hid_t) :: file_space, memory_space
+    integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
-    integer :: i, rank, ignored
+    integer :: i, rank, ignored, close_stat
 
     stat = 0
-    if (self%buffered == 0) return
     do i = 1, size(self%items)
       associate (item => self%items(i), first => self%items(i)%offset + 1, last => self%items(i)%offset + self%items(i)%width)
+        rank = merge(2, 1, item%vector)
         if (item%vector) then
-          rank = 2
           extent = [int(item%width, hsize_t), self%written + self%buffered]
           offset = [0_hsize_t, self%written]
           count = [int(item%width, hsize_t), int(self%buffered, hsize_t)]
         else
-          rank = 1
           extent = [self%written + self%buffered, 0_hsize_t]
           offset = [self%written, 0_hsize_t]
           count = [int(self%buffered, hsize_t), 0_hsize_t]
         end if
-        call h5dset_extent_f(item%dataset, extent(1:rank), stat)
-        if (stat /= 0) return
-        call h5dget_space_f(item%dataset, file_space, stat)
-        if (stat /= 0) return
-        call h5sselect_hyperslab_f(file_space, H5S_SELECT_SET_F, offset(1:rank), count(1:rank), stat)
-        if (stat == 0) call h5screate_simple_f(rank, count(1:rank), memory_space, stat)
-        if (stat == 0) then
-          if (item%integer_valued) then
-            call h5dwrite_f(item%dataset, H5T_NATIVE_INTEGER, nint(self%buffer(first:last, 1:self%buffered)), &
-                            count(1:rank), stat, memory_space, file_space)
-          else
-            call h5dwrite_f(item%dataset, H5T_NATIVE_DOUBLE, self%buffer(first:last, 1:self%buffered), &
-                            count(1:rank), stat, memory_space, file_space)
+        if (self%created) then
+          call h5dopen_f(file%id, item%name, dataset, stat)
+          if (stat /= 0) return
+          call h5dset_extent_f(dataset, extent(1:rank), stat)
+        else
+          call create_dataset(file, item, rank, extent, final, self%chunk_rows, dataset, stat)
+          if (stat /= 0) then
+            if (dataset >= 0) call h5dclose_f(dataset, ignored)
+            return
           end if
-          call h5sclose_f(memory_space, ignored)
         end if
-        call h5sclose_f(file_space, ignored)
+        if (stat == 0 .and. self%buffered > 0) then
+          call h5dget_space_f(dataset, file_space, stat)
+          if (stat == 0) then
+            call h5sselect_hyperslab_f(file_space, H5S_SELECT_SET_F, offset(1:rank), count(1:rank), stat)
+            if (stat == 0) call h5screate_simple_f(rank, count(1:rank), memory_space, stat)
+            if (stat == 0) then
+              if (item%integer_valued) then
+                call h5dwrite_f(dataset, H5T_NATIVE_INTEGER, nint(self%buffer(first:last, 1:self%buffered)), &
+                                count(1:rank), stat, memory_space, file_space)
+              else
+                call h5dwrite_f(dataset, H5T_NATIVE_DOUBLE, self%buffer(first:last, 1:self%buffered), &
+                                count(1:rank), stat, memory_space, file_space)
+              end if
+              call h5sclose_f(memory_space, ignored)
+            end if
+            call h5sclose_f(file_space, ignored)
+          end if
+        end if
+        call h5dclose_f(dataset, close_stat)
+        if (stat == 0) stat = close_stat
         if (stat /= 0) return
       end associate
     end do
+    self%created = .true.
     self%written = self%written + self%buffered
     self%buffered = 0
-    call file%flush(stat)
-  end subroutine flush_table
+  end subroutine write_table
 
-  !> Writes what is buffered and closes the table's datasets.
-  subroutine close_table(self, file, stat)
-    class(series_table), intent(inout) :: self
+  ! Creates one dataset of the table with its attributes: contiguous of `extent` if `final`,
+  ! chunked with an unlimited row count otherwise.
+  subroutine create_dataset(file, item, rank, extent, final, chunk_rows, dataset, stat)
     type(hdf5_file), intent(in) :: file
+    type(series), intent(in) :: item
+    integer, intent(in) :: rank, chunk_rows
+    integer(hsize_t), intent(in) :: extent(2)
+    logical, intent(in) :: final
+    integer(hid_t), intent(out) :: dataset
     integer, intent(out) :: stat
-    integer :: i, ignored
+    type(hdf5_file) :: fresh_object
+    integer(hid_t) :: space, properties, kind
+    integer(hsize_t) :: max_dims(2), chunk(2)
+    integer :: ignored
 
-    call self%flush(file, stat)
-    if (.not. allocated(self%items)) return
-    do i = 1, size(self%items)
-      call h5dclose_f(self%items(i)%dataset, ignored)
-    end do
-  end subroutine close_table
+    dataset = -1
+    kind = H5T_NATIVE_DOUBLE
+    if (item%integer_valued) kind = H5T_NATIVE_INTEGER
+    max_dims = extent
+    max_dims(rank) = H5S_UNLIMITED_F
+    chunk = extent
+    chunk(rank) = int(chunk_rows, hsize_t)
+    if (final) max_dims = extent
+    call h5screate_simple_f(rank, extent(1:rank), space, stat, max_dims(1:rank))
+    if (stat /= 0) return
+    call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
+    if (stat == 0) then
+      if (final) then
+        call h5pset_layout_f(properties, H5D_CONTIGUOUS_F, stat)
+      else
+        call h5pset_chunk_f(properties, rank, chunk(1:rank), stat)
+      end if
+    end if
+    if (stat == 0) call h5dcreate_f(file%id, item%name, kind, space, dataset, stat, properties)
+    call h5pclose_f(properties, ignored)
+    call h5sclose_f(space, ignored)
+    if (stat /= 0) return
+    ! A new dataset has no attributes: no existence queries.
+    fresh_object%id = file%id
+    fresh_object%fresh = .true.
+    call fresh_object%set_text('units', item%units, stat, dataset)
+    if (stat == 0) call fresh_object%set_text('description', item%description, stat, dataset)
+    if (stat == 0 .and. len(item%columns) > 0) call fresh_object%set_text('columns', item%columns, stat, dataset)
+    if (stat == 0 .and. len(item%rows) > 0) call fresh_object%set_text('rows', item%rows, stat, dataset)
+    if (stat == 0 .and. len(item%source) > 0) call fresh_object%set_text('source', item%source, stat, dataset)
+  end subroutine create_dataset
 
   ! Opens the HDF5 library once per process, with its own error printing off.
   subroutine open_library(stat)
@@ -317,34 +487,56 @@ contains
     allocate (longer(size(items) + 1))
     do i = 1, size(items)
       call move_alloc(items(i)%name, longer(i)%name)
+      call move_alloc(items(i)%units, longer(i)%units)
+      call move_alloc(items(i)%description, longer(i)%description)
+      call move_alloc(items(i)%columns, longer(i)%columns)
+      call move_alloc(items(i)%rows, longer(i)%rows)
+      call move_alloc(items(i)%source, longer(i)%source)
       longer(i)%width = items(i)%width
       longer(i)%vector = items(i)%vector
       longer(i)%integer_valued = items(i)%integer_valued
       longer(i)%offset = items(i)%offset
-      longer(i)%dataset = items(i)%dataset
     end do
     longer(size(longer)) = item
     call move_alloc(longer, items)
   end subroutine append_series
 
-  subroutine write_numeric_attribute(object, name, values, scalar, stat, integer_valued)
+  subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
     integer(hid_t), intent(in) :: object
     character(len=*), intent(in) :: name
     real(real64), intent(in) :: values(:)
-    logical, intent(in) :: scalar
+    logical, intent(in) :: scalar, fresh
     integer, intent(out) :: stat
     logical, intent(in), optional :: integer_valued
     integer(hid_t) :: space, attribute
-    integer(hsize_t) :: dims(1)
+    integer(hsize_t) :: dims(1), points
     logical :: exists, as_integer
-    integer :: ignored
+    integer :: ignored, close_stat
 
     as_integer = .false.
     if (present(integer_valued)) as_integer = integer_valued
     dims = [int(size(values), hsize_t)]
-    call h5aexists_f(object, name, exists, stat)
-    if (stat == 0 .and. exists) call h5adelete_f(object, name, stat)
-    if (stat /= 0) return
+    stat = 0
+    if (.not. fresh) then
+      call h5aexists_f(object, name, exists, stat)
+      if (stat /= 0) return
+      if (exists) then
+        ! In place if the stored attribute has the same number of values (no change to the object
+        ! header's layout); otherwise it is replaced.
+        call h5aopen_f(object, name, attribute, stat)
+        if (stat /= 0) return
+        call h5aget_space_f(attribute, space, stat)
+        if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
+        if (stat == 0) call h5sclose_f(space, ignored)
+        if (stat == 0 .and. points == size(values, kind=hsize_t)) then
+          call write_values()
+          return
+        end if
+        call h5aclose_f(attribute, ignored)
+        call h5adelete_f(object, name, stat)
+        if (stat /= 0) return
+      end if
+    end if
     if (scalar) then
       call h5screate_f(H5S_SCALAR_F, space, stat)
     else
@@ -356,15 +548,21 @@ contains
     else
       call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
     end if
-    if (stat == 0) then    ! created: write, then close whatever the write did
+    if (stat == 0) call write_values()    ! created: write, then close whatever the write did
+    call h5sclose_f(space, ignored)
+
+  contains
+
+    ! Writes the values into the open attribute and closes it; stat keeps the first failure.
+    subroutine write_values()
       if (as_integer) then
         call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
       else
         call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
       end if
-      call h5aclose_f(attribute, ignored)
-    end if
-    call h5sclose_f(space, ignored)
+      call h5aclose_f(attribute, close_stat)
+      if (stat == 0) stat = close_stat
+    end subroutine write_values
   end subroutine write_numeric_attribute
 
 end module hdf5_series

@@ -1,5 +1,6 @@
 !> A table as one HDF5 compound dataset (src/io/compound_table.c): h5py loads it in one call as a
-!> numpy structured array. Columns are real64, integer or fixed-length text.
+!> numpy structured array. Columns are real64, integer or fixed-length text; tables are written
+!> and read whole.
 module hdf5_table
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_double, c_int64_t, c_null_char
@@ -17,44 +18,36 @@ module hdf5_table
     integer(c_int), allocatable :: widths(:)
   contains
     procedure :: add
-    procedure :: create
-    procedure :: write_row
-    procedure :: read_row
+    procedure :: numeric_count
+    procedure :: text_count
+    procedure :: write => write_table
+    procedure :: read => read_table
   end type table_columns
 
   interface
-    function c_table_create(file, name, count, names, widths, rows) result(status) bind(c, name='eme_table_create')
-      import :: c_int64_t, c_char, c_int, c_long
-      integer(c_int64_t), value :: file
-      character(kind=c_char), intent(in) :: name(*), names(*)
-      integer(c_int), value :: count
-      integer(c_int), intent(in) :: widths(*)
-      integer(c_long), value :: rows
-      integer(c_int) :: status
-    end function c_table_create
-    function c_table_write_row(file, name, count, names, widths, row, numbers, texts) result(status) &
-        bind(c, name='eme_table_write_row')
+    function c_table_write(file, name, count, names, widths, rows, numbers, texts) result(status) &
+        bind(c, name='eme_table_write')
       import :: c_int64_t, c_char, c_int, c_long, c_double
       integer(c_int64_t), value :: file
       character(kind=c_char), intent(in) :: name(*), names(*), texts(*)
       integer(c_int), value :: count
       integer(c_int), intent(in) :: widths(*)
-      integer(c_long), value :: row
+      integer(c_long), value :: rows
       real(c_double), intent(in) :: numbers(*)
       integer(c_int) :: status
-    end function c_table_write_row
-    function c_table_read_row(file, name, count, names, widths, row, numbers, texts, capacity) result(status) &
-        bind(c, name='eme_table_read_row')
+    end function c_table_write
+    function c_table_read(file, name, count, names, widths, rows, numbers, texts, capacity) result(status) &
+        bind(c, name='eme_table_read')
       import :: c_int64_t, c_char, c_int, c_long, c_double
       integer(c_int64_t), value :: file
       character(kind=c_char), intent(in) :: name(*), names(*)
       character(kind=c_char), intent(out) :: texts(*)
       integer(c_int), value :: count
       integer(c_int), intent(in) :: widths(*)
-      integer(c_long), value :: row, capacity
+      integer(c_long), value :: rows, capacity
       real(c_double), intent(out) :: numbers(*)
       integer(c_int) :: status
-    end function c_table_read_row
+    end function c_table_read
     function c_table_rows(file, name) result(rows) bind(c, name='eme_table_rows')
       import :: c_int64_t, c_char, c_long
       integer(c_int64_t), value :: file
@@ -87,65 +80,80 @@ contains
     self%widths = [self%widths, int(width, c_int)]
   end subroutine add
 
-  !> Creates dataset `name` of `rows` empty rows in the open file `file`.
-  subroutine create(self, file, name, rows, stat)
+  !> Number of numeric (real or integer) columns.
+  integer function numeric_count(self)
+    class(table_columns), intent(in) :: self
+
+    numeric_count = count(self%widths <= 0)
+  end function numeric_count
+
+  !> Number of text columns.
+  integer function text_count(self)
+    class(table_columns), intent(in) :: self
+
+    text_count = count(self%widths > 0)
+  end function text_count
+
+  !> Creates dataset `name` in the open file and writes every row: numbers(:, r) are row r's
+  !> numeric columns in column order, texts(:, r) its text columns.
+  subroutine write_table(self, file, name, numbers, texts, stat)
     class(table_columns), intent(in) :: self
     integer(hid_t), intent(in) :: file
     character(len=*), intent(in) :: name
-    integer, intent(in) :: rows
-    integer, intent(out) :: stat
-
-    stat = int(c_table_create(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
-                              self%names//c_null_char, self%widths, int(rows, c_long)))
-  end subroutine create
-
-  !> Writes row `row` (1-based): numbers in column order, texts in column order.
-  subroutine write_row(self, file, name, row, numbers, texts, stat)
-    class(table_columns), intent(in) :: self
-    integer(hid_t), intent(in) :: file
-    character(len=*), intent(in) :: name
-    integer, intent(in) :: row
-    real(real64), intent(in) :: numbers(:)
-    character(len=*), intent(in) :: texts(:)
+    real(real64), intent(in) :: numbers(:, :)
+    character(len=*), intent(in) :: texts(:, :)
     integer, intent(out) :: stat
     character(len=:), allocatable :: joined
-    integer :: i
+    integer :: i, r, at, total
 
-    joined = ''
-    do i = 1, size(texts)
-      joined = joined//trim(texts(i))//new_line('a')
+    total = 0
+    do r = 1, size(texts, 2)
+      do i = 1, size(texts, 1)
+        total = total + len_trim(texts(i, r)) + 1
+      end do
     end do
-    stat = int(c_table_write_row(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
-                                 self%names//c_null_char, self%widths, int(row - 1, c_long), numbers, &
-                                 joined//c_null_char))
-  end subroutine write_row
+    allocate (character(len=total + 1) :: joined)
+    at = 0
+    do r = 1, size(texts, 2)
+      do i = 1, size(texts, 1)
+        joined(at + 1:at + len_trim(texts(i, r)) + 1) = trim(texts(i, r))//new_line('a')
+        at = at + len_trim(texts(i, r)) + 1
+      end do
+    end do
+    joined(at + 1:at + 1) = c_null_char
+    stat = int(c_table_write(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
+                             self%names//c_null_char, self%widths, int(size(numbers, 2), c_long), numbers, joined))
+  end subroutine write_table
 
-  !> Reads row `row` (1-based) into numbers and texts.
-  subroutine read_row(self, file, name, row, numbers, texts, stat)
+  !> Reads every row of dataset `name` (table_rows of them) as write_table wrote them.
+  subroutine read_table(self, file, name, numbers, texts, stat)
     class(table_columns), intent(in) :: self
     integer(hid_t), intent(in) :: file
     character(len=*), intent(in) :: name
-    integer, intent(in) :: row
-    real(real64), intent(out) :: numbers(:)
-    character(len=*), intent(out) :: texts(:)
+    real(real64), intent(out) :: numbers(:, :)
+    character(len=*), intent(out) :: texts(:, :)
     integer, intent(out) :: stat
-    character(len=4096) :: joined
-    integer :: i, start, finish
+    character(len=:), allocatable :: joined
+    integer :: i, r, start, finish
 
-    joined = ''
-    stat = int(c_table_read_row(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
-                                self%names//c_null_char, self%widths, int(row - 1, c_long), numbers, joined, &
-                                int(len(joined), c_long)))
+    allocate (character(len=size(texts)*(len(texts) + 1) + 1) :: joined)
+    stat = int(c_table_read(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
+                            self%names//c_null_char, self%widths, int(size(numbers, 2), c_long), numbers, joined, &
+                            int(len(joined), c_long)))
+    texts = ''
+    if (stat /= 0) return
     start = 1
-    do i = 1, size(texts)
-      finish = index(joined(start:), new_line('a')) + start - 2
-      if (finish < start - 1) then
-        texts(i) = ''
-        cycle
-      end if
-      texts(i) = joined(start:finish)
-      start = finish + 2
+    do r = 1, size(texts, 2)
+      do i = 1, size(texts, 1)
+        finish = index(joined(start:), new_line('a')) + start - 2
+        if (finish < start - 1) then
+          stat = -1
+          return
+        end if
+        texts(i, r) = joined(start:finish)
+        start = finish + 2
+      end do
     end do
-  end subroutine read_row
+  end subroutine read_table
 
 end module hdf5_table

@@ -1,29 +1,149 @@
-/* Directory creation and atomic rename for the Fortran drivers (no standard Fortran way).
- * Each returns 0 on success and -1 on failure (errno is left set). */
+/* File-system operations for the Fortran code that standard Fortran lacks or cannot check:
+ * directories, atomic rename, whole-file writes and line appends with their OS error, disk space
+ * reserved ahead of a write, and whether stderr is a terminal. Each returns 0 on success or the
+ * errno value of the failure (eme_os_error_text turns it into the OS's words). */
+#define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
+
+/* The OS's text for error number `error` ("No space left on device"), NUL-terminated. */
+void eme_os_error_text(int error, char *text, int capacity)
+{
+    if (capacity < 1) return;
+    const char *words = strerror(error);
+    snprintf(text, (size_t)capacity, "%s", words != NULL ? words : "unknown error");
+}
 
 /* mkdir -p: create `path` and any missing parents. */
 int eme_make_directories(const char *path)
 {
     char partial[4096];
     size_t length = strlen(path);
-    if (length == 0 || length >= sizeof partial) return -1;
+    if (length == 0) return EINVAL;
+    if (length >= sizeof partial) return ENAMETOOLONG;
     memcpy(partial, path, length + 1);
     for (char *cursor = partial + 1; *cursor != '\0'; ++cursor) {
         if (*cursor != '/') continue;
         *cursor = '\0';
-        if (mkdir(partial, 0777) != 0 && errno != EEXIST) return -1;
+        if (mkdir(partial, 0777) != 0 && errno != EEXIST) return errno;
         *cursor = '/';
     }
-    if (mkdir(partial, 0777) != 0 && errno != EEXIST) return -1;
+    if (mkdir(partial, 0777) != 0 && errno != EEXIST) return errno;
     return 0;
 }
 
-/* rename(2): atomic within one file system. */
-int eme_rename_file(const char *from, const char *to)
+/* Makes the directory entry of `path` durable (fsync of its directory; a no-op where the file
+ * system refuses directories). */
+static void sync_directory_of(const char *path)
 {
-    return rename(from, to) == 0 ? 0 : -1;
+    char directory[4096];
+    const char *slash = strrchr(path, '/');
+    if (slash == NULL) snprintf(directory, sizeof directory, ".");
+    else if (slash == path) snprintf(directory, sizeof directory, "/");
+    else snprintf(directory, sizeof directory, "%.*s", (int)(slash - path), path);
+    int fd = open(directory, O_RDONLY);
+    if (fd < 0) return;
+    (void)fsync(fd);
+    close(fd);
+}
+
+/* rename(2), atomic within one file system; with `sync`, the directory is synced after. */
+int eme_rename_file(const char *from, const char *to, int sync)
+{
+    if (rename(from, to) != 0) return errno;
+    if (sync) sync_directory_of(to);
+    return 0;
+}
+
+/* unlink(2); a missing file is not an error. */
+int eme_remove_file(const char *path)
+{
+    if (unlink(path) != 0 && errno != ENOENT) return errno;
+    return 0;
+}
+
+/* 1 if `path` names an existing regular file, 0 if not. */
+int eme_file_exists(const char *path)
+{
+    struct stat info;
+    return stat(path, &info) == 0 && S_ISREG(info.st_mode) ? 1 : 0;
+}
+
+static int write_all(int fd, const char *data, size_t size)
+{
+    while (size > 0) {
+        ssize_t done = write(fd, data, size);
+        if (done < 0) {
+            if (errno == EINTR) continue;
+            return errno;
+        }
+        data += done;
+        size -= (size_t)done;
+    }
+    return 0;
+}
+
+/* Writes `size` bytes as the whole content of `path` (created or truncated); with `sync` the
+ * data are on disk (fsync) before it returns. On failure the partial file is removed. */
+int eme_write_whole_file(const char *path, const void *data, long size, int sync)
+{
+    int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    if (fd < 0) return errno;
+    int error = write_all(fd, data, (size_t)size);
+    if (error == 0 && sync && fsync(fd) != 0) error = errno;
+    if (close(fd) != 0 && error == 0) error = errno;
+    if (error != 0) unlink(path);
+    return error;
+}
+
+/* Appends `length` bytes (one or more whole lines) to `path`, creating it; with `sync`, fsync.
+ * A short append is cut back, so the file never ends in a partial line. */
+int eme_append_text(const char *path, const char *text, long length, int sync)
+{
+    int fd = open(path, O_WRONLY | O_CREAT | O_APPEND, 0666);
+    if (fd < 0) return errno;
+    struct stat info;
+    int error = fstat(fd, &info) != 0 ? errno : 0;
+    if (error == 0) error = write_all(fd, text, (size_t)length);
+    if (error != 0) (void)ftruncate(fd, info.st_size);
+    if (error == 0 && sync && fsync(fd) != 0) error = errno;
+    if (close(fd) != 0 && error == 0) error = errno;
+    return error;
+}
+
+/* Allocates `bytes` of disk space past the end of the existing file `path` (posix_fallocate,
+ * which also extends the file), so that writes into that range cannot fail for want of space.
+ * On failure the file is cut back to its old size. */
+int eme_reserve_space(const char *path, long bytes)
+{
+    int fd = open(path, O_WRONLY);
+    if (fd < 0) return errno;
+    struct stat info;
+    int error = fstat(fd, &info) != 0 ? errno : 0;
+    if (error == 0 && bytes > 0) {
+        error = posix_fallocate(fd, info.st_size, (off_t)bytes);
+        if (error != 0) (void)ftruncate(fd, info.st_size);
+    }
+    close(fd);
+    return error;
+}
+
+/* fsync(2) of an existing file: its data are on disk on return. */
+int eme_sync_file(const char *path)
+{
+    int fd = open(path, O_RDONLY);
+    if (fd < 0) return errno;
+    int error = fsync(fd) != 0 ? errno : 0;
+    close(fd);
+    return error;
+}
+
+/* 1 if standard error is a terminal. */
+int eme_stderr_is_terminal(void)
+{
+    return isatty(STDERR_FILENO) ? 1 : 0;
 }

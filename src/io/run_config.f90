@@ -18,7 +18,7 @@ module run_config
   use model_registry, only: select_scene
   use namelist_text, only: namelist_item, read_source_text, group_names, item_name, reals_text, joined
   use number_text, only: integer_text
-  use namelist_group, only: group_field, real_field, integer_field, text_field, read_group, field_names, &
+  use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
                             invalid_value_message, choices_text, value_origin
   implicit none (type, external)
   private
@@ -37,6 +37,7 @@ module run_config
     type(integrator_choice) :: integrator
     character(len=:), allocatable :: output_file
     real(real64) :: theta_r = 300.0_real64       !! the Lyapunov reference temperature [K]
+    logical :: overwrite = .false.               !! replace an existing complete output file
     ! The texts of the &integrator and &output fields, as read.
     character(len=16) :: thermo_variable = 'temperature'
     character(len=16) :: discrete_gradient = 'gonzalez'
@@ -218,7 +219,8 @@ contains
     fields = [ &
       text_field('file', config%file, 'a path ending in .h5 (default results/<input name>.h5)', ''), &
       real_field('theta_r', config%theta_r, 'a real number > 0 [K] (default theta_ref, or the fixed temperature)', &
-                 'K', minimum=0.0_real64, exclusive=.true.)]
+                 'K', minimum=0.0_real64, exclusive=.true.), &
+      logical_field('overwrite', config%overwrite, '.true. or .false. (default): replace an existing complete file')]
   end function output_fields
 
   !> Whether fields `name_a` and `name_b` of the eme_run groups set the same variable: the same

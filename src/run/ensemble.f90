@@ -4,43 +4,47 @@
 !> asks rank 0 for the next one. Rank 0 computes cases too and serves requests between its own
 !> time steps (a run_observer), so no core idles as a pure manager.
 !>
-!> Files: case_NNNNN.h5 per case in the study's output_dir, written as case_NNNNN.h5.part and
-!> renamed when the case ends (complete or failed), so a killed study leaves no file that looks
-!> finished; rank 0 keeps the study's index (src/run/study_index) up to date as cases end, and
-!> running the study again redoes only what the index does not record as complete.
+!> Files: case_NNNNN.h5 per case in the study's output_dir (none in an index-only study), written
+!> as case_NNNNN.h5.part and renamed when the case ends, so a killed study leaves no file that
+!> looks finished; rank 0 records each result in the study's index (src/run/study_index) as the
+!> case ends, and running the study again redoes only what the index does not record as
+!> complete. SIGTERM or SIGINT stops the study cleanly: no new case starts, running cases end
+!> marked 'incomplete: interrupted by <signal>', and the index is written; so does an output
+!> that cannot be written (a full disk), since every later case would fail the same way.
 module ensemble
-  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Send, MPI_Recv, MPI_Iprobe, MPI_Probe, &
-                     MPI_Status, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, MPI_INTEGER, MPI_CHARACTER, &
-                     MPI_Wtime, MPI_STATUS_IGNORE
+  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Send, MPI_Recv, MPI_Irecv, MPI_Wait, &
+                     MPI_Iprobe, MPI_Probe, MPI_Status, MPI_Request, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, &
+                     MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
-  use study_index, only: case_index, case_result, case_file, status_length, metric_count
+  use study_index, only: case_index, case_result, case_file, case_overrides, status_length, kind_length, metric_count
   use run_config, only: run_configuration
-  use simulation, only: run_summary, run_simulation, run_observer
+  use run_output, only: failure_io, failure_interrupted
+  use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
+  use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute
   use stepper, only: time_stepper
-  use filesystem, only: rename_file
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
   public :: run_study, study_outcome, world_rank, line_reporter
 
-  abstract interface
-    !> Receives a line for the user (the start, progress and warnings); the driver prints it.
-    subroutine line_reporter(text)
-      character(len=*), intent(in) :: text
-    end subroutine line_reporter
-  end interface
-
   integer, parameter :: tag_request = 1, tag_status = 2, tag_assign = 3
+  integer, parameter :: message_length = metric_count + 2    !! case, metrics, leaving
+  ! A request's last value: the worker goes on (and is answered with its next case), or leaves
+  ! after this answer (no case left, or a signal stopped it).
+  real(real64), parameter :: going_on = 0.0_real64, leaving = 1.0_real64
   real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
 
-  !> Counts at the end of a study (on every rank; meaningful on rank 0).
+  !> Counts at the end of a study (on every rank).
   type :: study_outcome
     integer :: cases = 0
     integer :: complete = 0
     integer :: failed = 0
     integer :: skipped = 0     !! complete from an earlier run, not rerun
-    integer :: index_errors = 0   !! index rows that could not be written
+    integer :: index_errors = 0   !! times the index could not be written
+    integer :: signal = 0      !! the SIGTERM or SIGINT that stopped the study, or 0
+    logical :: io_failure = .false.   !! a case's output or the index could not be written
+    character(len=:), allocatable :: io_message
     real(real64) :: wall_seconds = 0.0_real64
   end type study_outcome
 
@@ -54,6 +58,8 @@ module ensemble
     integer :: done = 0
     integer :: failed = 0
     integer :: index_errors = 0
+    logical :: stopping = .false.             !! hand out no more cases
+    character(len=:), allocatable :: io_message
     procedure(line_reporter), pointer, nopass :: report => null()
     real(real64) :: started = 0.0_real64
     real(real64) :: last_progress = 0.0_real64
@@ -80,12 +86,14 @@ contains
     character(len=:), allocatable, intent(out) :: message
     procedure(line_reporter), optional :: report
     type(study_manager) :: manager
-    integer :: rank, ranks, flag(1)
+    integer :: rank, ranks, flag(1), counts(7)
 
     call MPI_Comm_rank(MPI_COMM_WORLD, rank)
     call MPI_Comm_size(MPI_COMM_WORLD, ranks)
+    call install_interrupt_handlers(stat)
     if (present(report)) manager%report => report
     message = ''
+    outcome%io_message = ''
     stat = 0
     outcome%cases = size(study%cases)
     if (rank == 0) call prepare(manager, study, ranks, stat, message)
@@ -101,6 +109,16 @@ contains
     else
       call work(study, rank)
     end if
+    ! Every rank ends with rank 0's verdict (the drivers' exit status).
+    counts = [outcome%complete, outcome%failed, outcome%skipped, outcome%index_errors, outcome%signal, &
+              merge(1, 0, outcome%io_failure), 0]
+    call MPI_Bcast(counts, size(counts), MPI_INTEGER, 0, MPI_COMM_WORLD)
+    outcome%complete = counts(1)
+    outcome%failed = counts(2)
+    outcome%skipped = counts(3)
+    outcome%index_errors = counts(4)
+    outcome%signal = counts(5)
+    outcome%io_failure = counts(6) == 1
   end subroutine run_study
 
   ! ------------------------------------------------------------------ rank 0
@@ -111,14 +129,16 @@ contains
     integer, intent(in) :: ranks
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    integer :: c, i, j
+    character(len=:), allocatable :: notes
+    integer :: c, i, j, start
     logical, allocatable :: pending(:)
 
     manager%study => study
     manager%active_workers = ranks - 1
     manager%started = MPI_Wtime()
     manager%last_progress = manager%started
-    call manager%index%open(study, pending, stat, message)
+    manager%io_message = ''
+    call manager%index%open(study, pending, notes, stat, message)
     if (stat /= 0) return
     ! The queue: pending cases, largest planned cost first (stable for equal costs).
     manager%queue = pack([(c, c=1, size(study%cases))], pending)
@@ -134,6 +154,13 @@ contains
     end do
     manager%planned_cost = sum(study%cases(manager%queue)%cost)
     manager%done = count(.not. pending)
+    start = 1
+    do while (start <= len(notes))
+      i = index(notes(start:), new_line('a'))
+      if (i == 0) i = len(notes) - start + 2
+      call say(manager, 'eme_ensemble: '//notes(start:start + i - 2))
+      start = start + i
+    end do
     call say(manager, 'eme_ensemble: '//integer_text(size(study%cases))//' cases, '//integer_text(size(manager%queue)) &
              //' to run ('//integer_text(manager%done)//' complete from an earlier run), on '//integer_text(ranks) &
              //' rank'//repeat('s', merge(0, 1, ranks == 1)))
@@ -144,6 +171,7 @@ contains
     type(study_outcome), intent(inout) :: outcome
     type(case_result) :: result
     class(time_stepper), allocatable :: integrator
+    character(len=:), allocatable :: message
     integer :: c, skipped, ierr, stat
 
     skipped = manager%done
@@ -164,9 +192,16 @@ contains
     outcome%failed = count(manager%index%results%status(1:7) == 'failed:')
     outcome%skipped = skipped
     outcome%wall_seconds = MPI_Wtime() - manager%started
-    call manager%index%close(stat)
-    if (stat /= 0) manager%index_errors = manager%index_errors + 1
+    call manager%index%close(stat, message)
+    if (stat /= 0) then
+      call index_failed(manager, message)
+      call say(manager, 'eme_ensemble: '//message//'; '//manager%index%journal_path//' holds every result; running '// &
+               'the study again (with room) rewrites the index')
+    end if
     outcome%index_errors = manager%index_errors
+    outcome%signal = interrupting_signal()
+    outcome%io_failure = len(manager%io_message) > 0
+    outcome%io_message = manager%io_message
   end subroutine manage
 
   ! Observer hook: between two of rank 0's own steps, answer every waiting request.
@@ -178,13 +213,15 @@ contains
   end subroutine serve_requests
 
   ! Receives requests (a finished case's result, or none) and answers each with a case number,
-  ! or 0 to stop. Non-blocking: only what has arrived; blocking: waits for one request.
+  ! or 0: none left. A worker that says it is leaving gets 0 and is no longer waited for.
+  ! Non-blocking: only what has arrived; blocking: waits for one request.
   subroutine serve_one(manager, blocking)
     type(study_manager), intent(inout) :: manager
     logical, intent(in) :: blocking
     type(MPI_Status) :: probe
     type(case_result) :: result
-    real(real64) :: message(metric_count + 1)
+    real(real64) :: message(message_length)
+    character(len=status_length + kind_length) :: texts
     integer :: c(1)
     logical :: waiting
 
@@ -196,46 +233,74 @@ contains
         call MPI_Iprobe(MPI_ANY_SOURCE, tag_request, MPI_COMM_WORLD, waiting, probe)
       end if
       if (.not. waiting) return
-      call MPI_Recv(message, metric_count + 1, MPI_DOUBLE_PRECISION, probe%MPI_SOURCE, tag_request, MPI_COMM_WORLD, &
+      call MPI_Recv(message, message_length, MPI_DOUBLE_PRECISION, probe%MPI_SOURCE, tag_request, MPI_COMM_WORLD, &
                     MPI_STATUS_IGNORE)
-      call MPI_Recv(result%status, status_length, MPI_CHARACTER, probe%MPI_SOURCE, tag_status, MPI_COMM_WORLD, &
-                    MPI_STATUS_IGNORE)
+      call MPI_Recv(texts, len(texts), MPI_CHARACTER, probe%MPI_SOURCE, tag_status, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
       if (message(1) > 0) then
-        result%metrics = message(2:)
+        result%status = texts(1:status_length)
+        result%failure_kind = texts(status_length + 1:)
+        result%metrics = message(2:metric_count + 1)
         call record(manager, nint(message(1)), result)
       end if
-      c(1) = take_next(manager)
-      if (c(1) == 0) manager%active_workers = manager%active_workers - 1
+      if (message(message_length) > going_on) then
+        c(1) = 0
+        manager%active_workers = manager%active_workers - 1
+      else
+        c(1) = take_next(manager)
+      end if
       call MPI_Send(c, 1, MPI_INTEGER, probe%MPI_SOURCE, tag_assign, MPI_COMM_WORLD)
       if (blocking) return
     end do
   end subroutine serve_one
 
+  ! The next case to start, or 0 when none is left or the study is stopping.
   integer function take_next(manager)
     type(study_manager), intent(inout) :: manager
+    integer :: signal
 
     take_next = 0
-    if (manager%next > size(manager%queue)) return
+    signal = interrupting_signal()
+    if (signal /= 0 .and. .not. manager%stopping) then
+      manager%stopping = .true.
+      call say(manager, 'eme_ensemble: '//signal_name(signal)//' received: no new cases; the running ones stop '// &
+               'after their current step, and the index is written (run the study again to go on)')
+    end if
+    if (manager%stopping .or. manager%next > size(manager%queue)) return
     take_next = manager%queue(manager%next)
     manager%next = manager%next + 1
   end function take_next
 
-  ! Stores a case's result and writes its index row.
+  ! Stores a case's result in the index. A case whose output could not be written, or an index
+  ! that cannot be, stops the study: every later case would meet the same full disk.
   subroutine record(manager, c, result)
     type(study_manager), intent(inout) :: manager
     integer, intent(in) :: c
     type(case_result), intent(in) :: result
+    character(len=:), allocatable :: message
     integer :: stat
 
     manager%done = manager%done + 1
     if (result%status(1:7) == 'failed:') manager%failed = manager%failed + 1
     manager%done_cost = manager%done_cost + manager%study%cases(c)%cost
-    call manager%index%record(c, result, stat)
-    if (stat /= 0) then
-      manager%index_errors = manager%index_errors + 1
-      call say(manager, 'eme_ensemble: could not update index.h5 for case '//integer_text(c))
+    call manager%index%record(c, result, stat, message)
+    if (stat /= 0) call index_failed(manager, message)
+    if (result%failure_kind == failure_io .and. len(manager%io_message) == 0) then
+      manager%io_message = 'case '//integer_text(c)//': '//trim(result%status)
+      manager%stopping = .true.
+      call say(manager, 'eme_ensemble: '//manager%io_message//'; no new cases start (run the study again when there '//&
+               'is room)')
     end if
   end subroutine record
+
+  subroutine index_failed(manager, message)
+    type(study_manager), intent(inout) :: manager
+    character(len=*), intent(in) :: message
+
+    manager%index_errors = manager%index_errors + 1
+    if (len(manager%io_message) == 0) manager%io_message = message
+    if (.not. manager%stopping) call say(manager, 'eme_ensemble: '//message//'; no new cases start')
+    manager%stopping = .true.
+  end subroutine index_failed
 
   ! One line at most every progress_interval seconds, and a last one at the end.
   subroutine progress(manager, final)
@@ -264,31 +329,57 @@ contains
 
   ! ------------------------------------------------------------------ workers
 
+  ! A worker holds its next case while it computes one: it asks for the next before it starts a
+  ! case, so that it never waits for rank 0, which answers between its own steps.
   subroutine work(study, rank)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: rank
     type(case_result) :: result
     class(time_stepper), allocatable :: integrator
-    real(real64) :: message(metric_count + 1)
-    integer :: c(1), ierr
+    type(MPI_Request) :: asked
+    real(real64) :: message(message_length)
+    character(len=status_length + kind_length) :: texts
+    integer :: current(1), next(1), ierr
 
     message = 0.0_real64
-    result%status = ''
-    do
-      call MPI_Send(message, metric_count + 1, MPI_DOUBLE_PRECISION, 0, tag_request, MPI_COMM_WORLD)
-      call MPI_Send(result%status, status_length, MPI_CHARACTER, 0, tag_status, MPI_COMM_WORLD)
-      call MPI_Recv(c, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
-      if (c(1) == 0) exit
-      call run_case(study, c(1), rank, result, integrator)
-      message = [real(c(1), real64), result%metrics]
+    texts = ''
+    call request(message, texts)
+    call MPI_Recv(current, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
+    if (current(1) /= 0) then
+      call request(message, texts)
+      call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
+    end if
+    do while (current(1) /= 0)
+      call run_case(study, current(1), rank, result, integrator)
+      call MPI_Wait(asked, MPI_STATUS_IGNORE)
+      message(1:metric_count + 1) = [real(current(1), real64), result%metrics]
+      texts = result%status//result%failure_kind
+      if (next(1) == 0) exit
+      if (interrupting_signal() /= 0) exit      ! the case held next stays pending
+      call request(message, texts)
+      current = next
+      call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
     end do
+    ! The last result (if any), and leave.
+    message(message_length) = leaving
+    call request(message, texts)
+    call MPI_Recv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
     if (allocated(integrator)) call integrator%release(ierr)
   end subroutine work
+
+  ! A request to rank 0: the last result (case 0: none) and whether the worker is leaving.
+  subroutine request(message, texts)
+    real(real64), intent(in) :: message(:)
+    character(len=*), intent(in) :: texts
+
+    call MPI_Send(message, size(message), MPI_DOUBLE_PRECISION, 0, tag_request, MPI_COMM_WORLD)
+    call MPI_Send(texts, len(texts), MPI_CHARACTER, 0, tag_status, MPI_COMM_WORLD)
+  end subroutine request
 
   ! ------------------------------------------------------------------ one case, any rank
 
   ! One case with the rank's integrator, reused from case to case (run_simulation replaces it
-  ! when a case needs another kind).
+  ! when a case needs another kind). Its file names its study, case number, overrides and rank.
   subroutine run_case(study, c, rank, result, integrator, observer)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: c, rank
@@ -297,26 +388,33 @@ contains
     class(run_observer), intent(inout), optional :: observer
     type(run_configuration) :: config
     type(run_summary) :: summary
-    character(len=:), allocatable :: message, final_file
-    integer :: stat, rename_stat, inquire_stat
-    logical :: written
+    type(extra_attribute) :: extras(4)
+    character(len=:), allocatable :: message
+    integer :: stat
 
     config = study%cases(c)%config
-    final_file = case_file(study, c)
-    config%output_file = final_file//'.part'
-    call run_simulation(config, summary, stat, message, observer, integrator)
-    if (stat /= 0) then
+    config%output_file = case_file(study, c)
+    config%overwrite = .true.          ! the index, not the file, says whether a case is done
+    extras(1)%name = 'study'
+    extras(1)%text = study%input_file
+    extras(2)%name = 'study_case'
+    extras(2)%number = c
+    extras(3)%name = 'study_overrides'
+    extras(3)%text = case_overrides(study, c)
+    extras(4)%name = 'study_rank'
+    extras(4)%number = rank
+    call run_simulation(config, summary, stat, message, observer, integrator, keep_file=.not. study%index_only, &
+                        extras=extras, durable=.false.)
+    if (summary%failure_kind == failure_interrupted) then
+      result%status = summary%status
+    else if (stat /= 0) then
       result%status = 'failed: '//message
     else if (summary%status == 'complete') then
       result%status = 'complete'
     else
       result%status = 'failed: '//summary%status
     end if
-    inquire (file=config%output_file, exist=written, iostat=inquire_stat)
-    if (inquire_stat == 0 .and. written) then
-      call rename_file(config%output_file, final_file, rename_stat)
-      if (rename_stat /= 0) result%status = 'failed: cannot rename '//config%output_file
-    end if
+    result%failure_kind = summary%failure_kind
     result%metrics = [real(summary%steps_completed, real64), real(summary%steps_planned, real64), &
                       real(summary%newton_iterations, real64), summary%wall_seconds, summary%solve_seconds, &
                       summary%energy_drift, &

@@ -1,9 +1,12 @@
 !> One run from a validated configuration to its HDF5 file: the time loop shared by eme_run and
 !> eme_ensemble. The model and its initial state come from the configuration's scene, the
 !> integrator from the registry; the loop advances it one output step at a time and records
-!> every point and step (src/run/run_output). A step that cannot be solved ends the run cleanly:
-!> every step before it stays in the file, whose `status` attribute then reads
-!> 'incomplete: <reason>'.
+!> every point and step (src/run/run_output). The file is written as FILE.part and renamed to
+!> FILE when the run has ended and the file has been read back; an existing complete FILE is
+!> not replaced unless asked (&output overwrite, -eme_overwrite). A run ends early, cleanly, when
+!> a step cannot be solved, when SIGTERM or SIGINT arrives, or when the output cannot be
+!> written: the file then keeps every step written before, its `status` reads 'incomplete:
+!> <reason>' and its `failure_kind` says why in a word.
 module simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -13,26 +16,18 @@ module simulation
   use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
-  use run_output, only: run_file
-  use filesystem, only: make_parent_directories
+  use run_output, only: run_file, run_summary, extra_attribute, failure_none, failure_solver, failure_domain, &
+                        failure_input, failure_io, failure_interrupted, failure_library
+  use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
+  use run_options, only: overwrite_requested
+  use hdf5_series, only: check_run_file
+  use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
-  public :: run_summary, run_simulation, run_observer
+  public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status
 
-  !> The figures a run is judged by, as the summary table prints them.
-  type :: run_summary
-    character(len=:), allocatable :: status       !! 'complete' or 'incomplete: <reason>'
-    integer :: steps_planned = 0
-    integer :: steps_completed = 0
-    integer :: newton_iterations = 0
-    real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
-    real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
-    real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
-    real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
-    real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
-    real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
-  end type run_summary
+  real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
 
   !> Something that wants control after every accepted step (the ensemble's scheduler serves
   !> other ranks from there while rank 0 computes a case).
@@ -47,22 +42,55 @@ module simulation
       import :: run_observer
       class(run_observer), intent(inout) :: self
     end subroutine after_step_interface
+
+    !> Receives a line for the user (progress, a study's start and warnings); the driver prints it.
+    subroutine line_reporter(text)
+      character(len=*), intent(in) :: text
+    end subroutine line_reporter
   end interface
 
 contains
 
-  !> Runs `config` and writes its HDF5 file. stat /= 0 only if the file could not be written
-  !> or a library failed; a run that stops early is reported through summary%status.
+  !> The exit status a driver gives a run: 0 complete, 3 stopped early by the method (solver,
+  !> domain), 2 input it cannot run, 1 output or library failure, 128 + N after signal N.
+  integer function exit_status(summary)
+    type(run_summary), intent(in) :: summary
+
+    select case (summary%failure_kind)
+    case (failure_none)
+      exit_status = 0
+    case (failure_solver, failure_domain)
+      exit_status = 3
+    case (failure_input)
+      exit_status = 2
+    case (failure_interrupted)
+      exit_status = 128 + interrupting_signal()
+    case default
+      exit_status = 1
+    end select
+  end function exit_status
+
+  !> Runs `config` and writes its HDF5 file (none if keep_file is .false.: an index-only study).
+  !> stat /= 0, with a message naming the file, the input file and the OS's reason, if the output
+  !> could not be written, a library failed, or the output file holds a complete run that may
+  !> not be replaced; a run that stops early is reported through summary%status. Either way
+  !> summary%failure_kind says why in a word (src/run/run_output's failure_* words).
   !> With `reusable`, the caller's integrator is used when it is of the configured kind (an
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
-  !> the next run; without, the run builds and frees its own.
-  subroutine run_simulation(config, summary, stat, message, observer, reusable)
+  !> the next run; without, the run builds and frees its own. `progress` receives a line at most
+  !> every 2 s; `extras` are root attributes added to the file. The finished file is synced to
+  !> disk unless `durable` is .false. (an ensemble's case: its index is the record).
+  subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable)
     type(run_configuration), intent(in) :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     class(run_observer), intent(inout), optional :: observer
     class(time_stepper), allocatable, intent(inout), target, optional :: reusable
+    procedure(line_reporter), optional :: progress
+    logical, intent(in), optional :: keep_file
+    type(extra_attribute), intent(in), optional :: extras(:)
+    logical, intent(in), optional :: durable
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -70,24 +98,56 @@ contains
     type(integrator_entry) :: entry
     type(step_report) :: report
     type(run_file) :: output
+    type(extra_attribute), allocatable :: added(:)
+    character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
     real(real64) :: t_end, time_old
-    integer(int64) :: clock_start, clock_loop, clock_now, clock_rate
-    integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps
-    logical :: found, finished
+    integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
+    integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps, signal
+    logical :: found, finished, writing, replace
 
     call system_clock(clock_start, clock_rate)
+    clock_progress = clock_start
+    clock_loop = clock_start
     message = ''
+    stat = 0
     summary%status = 'incomplete: running'
+    summary%failure_kind = failure_none
     summary%steps_planned = step_count(config%integrator)
     dt = config%integrator%dt
     t_end = config%integrator%t_end
+    time = 0.0_real64
+    n = 0
+    writing = .true.
+    if (present(keep_file)) writing = keep_file
+    part = config%output_file//'.part'
+    call install_interrupt_handlers(ierr)
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
     if (stat /= 0) then
       message = config%input_file//': '//message
+      summary%failure_kind = failure_input
       return
+    end if
+    if (writing) then
+      call make_parent_directories(config%output_file, stat)
+      if (stat /= 0) then
+        ierr = stat
+        stat = 0
+        call fail(failure_io, 'cannot create the directory of the output file '''//config%output_file//''' (' &
+                  //config%input_file//', &output: file): '//os_error_text(ierr))
+        return
+      end if
+      replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
+      if (config%overwrite) replace = .true.
+      if (.not. replace) replace = .not. holds_complete_run(config%output_file)
+      if (.not. replace) then
+        call fail(failure_input, config%output_file//' holds a complete run, which is kept; to replace it, set '// &
+                  '&output overwrite = .true. in '//config%input_file//', give -eme_overwrite, or choose another '// &
+                  '&output file')
+        return
+      end if
     end if
     n_state = model%state_size
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
@@ -110,19 +170,23 @@ contains
       call new_integrator(own)
       integrator => own
     end if
-    call make_parent_directories(config%output_file, stat)
-    if (stat == 0) call output%create(config, entry, model, constraints, integrator%diagnostics(), summary%steps_planned, &
-                                      stat)
-    if (stat /= 0) then
-      message = 'cannot create the output file '''//config%output_file//''' (&output: file)'
-      return
+    if (writing) then
+      allocate (added(0))
+      if (present(extras)) added = extras
+      if (present(durable)) output%durable = durable
+      call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, ierr)
+      if (ierr /= 0) then
+        call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
+        if (.not. present(reusable)) call integrator%release(release_ierr)
+        return
+      end if
     end if
     call integrator%start(config%integrator, model, constraints, z0, ierr)
     if (ierr /= 0) then
-      stat = ierr
-      message = 'PETSc failed to set up the solver'
+      call fail(failure_library, 'PETSc failed to set up the solver')
+      summary%status = 'incomplete: PETSc failed to set up the solver'
       if (.not. present(reusable)) call integrator%release(release_ierr)
-      call close_output('incomplete: PETSc failed to set up the solver')
+      call close_output()
       return
     end if
 
@@ -132,16 +196,20 @@ contains
     call record_point(0.0_real64, z0)
     x_previous = x
     call system_clock(clock_loop)
-    io_stat = 0
     ! Integrators on the output grid take steps_planned steps to n dt; those that choose their
     ! times go on until they reach t_end (the last step lands on it).
     max_steps = max(1000000, 100*summary%steps_planned)
     finished = summary%steps_planned == 0
-    time = 0.0_real64
-    n = 0
     do while (.not. finished)
+      signal = interrupting_signal()
+      if (signal /= 0) then
+        summary%status = 'incomplete: interrupted by '//signal_name(signal)
+        summary%failure_kind = failure_interrupted
+        exit
+      end if
       if (n == max_steps) then
         summary%status = 'incomplete: t_end not reached in '//integer_text(max_steps)//' steps'
+        summary%failure_kind = failure_solver
         exit
       end if
       n = n + 1
@@ -151,8 +219,7 @@ contains
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       if (ierr /= 0) then
-        stat = ierr
-        message = 'PETSc failed during the solve'
+        call fail(failure_library, 'PETSc failed during the solve')
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
         exit
       end if
@@ -165,10 +232,10 @@ contains
       end if
       if (.not. report%accepted) then
         summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '//report%reason
+        summary%failure_kind = step_failure_kind(report%reason)
         exit
       end if
-      call output%record_step(report, x_new(n_state + 1:), io_stat)
-      if (io_stat /= 0) exit
+      call output%record_step(report, x_new(n_state + 1:))
       ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
       do k = 1, size(constraints)
         boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
@@ -179,39 +246,40 @@ contains
       x = x_new
       call observe(x(1:n_state), energy, entropy, lyapunov)
       call record_point(time, x(1:n_state))
-      if (io_stat /= 0) exit
       summary%steps_completed = n
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
       summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(angular_momentum_z(x(1:n_state)) - jz_0))
+      if (output%write_due()) then
+        call set_times(.true.)
+        call output%write_rows(summary, io_stat)
+        if (io_stat /= 0) then
+          summary%status = 'incomplete: cannot write the output file: '//io_reason(io_stat)
+          call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): ' &
+                    //io_reason(io_stat))
+          exit
+        end if
+      end if
       if (present(observer)) call observer%after_step()
+      if (present(progress)) call report_progress()
     end do
     if (summary%steps_completed == 0) then
       summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
       summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
     end if
-    if (io_stat /= 0) then
-      stat = io_stat
-      message = 'cannot write to '//config%output_file
-      summary%status = 'incomplete: cannot write the output file'
-    else if (finished .and. summary%steps_completed == n) then
+    call set_times(.true.)
+    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
       ! An integrator that chooses its times planned t_end/dt steps; it took n.
       summary%steps_planned = n
     end if
-    call system_clock(clock_now)
-    summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
     if (.not. present(reusable)) then
       call integrator%release(release_ierr)
-      if (release_ierr /= 0 .and. stat == 0) then
-        stat = release_ierr
-        message = 'PETSc failed to free the solver'
-      end if
+      if (release_ierr /= 0) call fail(failure_library, 'PETSc failed to free the solver')
     end if
-    call close_output(summary%status)
-    call system_clock(clock_now)
-    summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
+    call close_output()
+    call set_times(.false.)
 
   contains
 
@@ -221,6 +289,25 @@ contains
       call entry%build(made)
       made%scheme = entry%name
     end subroutine new_integrator
+
+    ! Records a failure that is not the method's (the first one wins) with its message.
+    subroutine fail(kind, text)
+      character(len=*), intent(in) :: kind, text
+
+      if (stat /= 0) return
+      stat = 1
+      message = text
+      summary%failure_kind = kind
+    end subroutine fail
+
+    ! The whole run's seconds so far, and the time loop's while it runs.
+    subroutine set_times(in_loop)
+      logical, intent(in) :: in_loop
+
+      call system_clock(clock_now)
+      if (in_loop) summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+      summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
+    end subroutine set_times
 
     subroutine observe(z, energy, entropy, lyapunov)
       real(real64), intent(in) :: z(:)
@@ -240,21 +327,57 @@ contains
         call constraints(k)%item%value(model, z, residuals(k), domain)
       end do
       call output%record_point(time, z, theta, energy, entropy, lyapunov, model%angular_momentum(z), boundary_heat, &
-                               residuals, io_stat)
+                               residuals)
     end subroutine record_point
 
-    subroutine close_output(status)
-      character(len=*), intent(in) :: status
-      integer :: close_stat
+    ! Writes the file's last rows and final attributes, reads it back, and gives it its final
+    ! name; an incomplete run does not take the name of a complete one.
+    subroutine close_output()
+      integer :: finish_stat, rename_stat
+      character(len=:), allocatable :: kept
 
-      call system_clock(clock_now)
-      call output%finish(status, summary%steps_planned, summary%steps_completed, summary%solve_seconds, &
-                         real(clock_now - clock_start, real64)/real(clock_rate, real64), close_stat)
-      if (close_stat /= 0 .and. stat == 0) then
-        stat = close_stat
-        message = 'cannot write to '//config%output_file
+      if (.not. writing) return
+      call set_times(.false.)
+      call output%finish(summary, finish_stat)
+      if (finish_stat /= 0) then
+        summary%status = 'incomplete: cannot write the output file: '//io_reason(finish_stat)
+        if (output%on_disk) then
+          kept = '; '//part//' keeps the '//integer_text(int(output%steps%written))//' steps written before'
+        else
+          kept = '; nothing was kept'
+        end if
+        stat = 0
+        call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): ' &
+                  //io_reason(finish_stat)//kept)
+        return
+      end if
+      replace = summary%status == 'complete'
+      if (.not. replace) replace = .not. holds_complete_run(config%output_file)
+      if (.not. replace) then
+        if (stat == 0) message = config%output_file//' keeps the earlier complete run; this run''s file is '//part
+        return
+      end if
+      call rename_file(part, config%output_file, rename_stat, sync=output%durable)
+      if (rename_stat /= 0) then
+        stat = 0
+        call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file//''' ('//config%input_file &
+                  //'): '//os_error_text(rename_stat))
       end if
     end subroutine close_output
+
+    ! Every 2 s at most: simulated time, steps, rate and the time left.
+    subroutine report_progress()
+      real(real64) :: elapsed, left
+
+      call system_clock(clock_now)
+      if (real(clock_now - clock_progress, real64) < progress_interval*real(clock_rate, real64)) return
+      clock_progress = clock_now
+      elapsed = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+      left = elapsed*max(0.0_real64, t_end - time)/max(time, tiny(time))
+      call progress('t = '//fixed_text(time, 3)//' of '//fixed_text(t_end, 3)//' s, '//integer_text(n)//' steps, ' &
+                    //integer_text(nint(n/max(elapsed, tiny(elapsed))))//' steps/s, about '//fixed_text(left, 1) &
+                    //' s left')
+    end subroutine report_progress
 
     pure function angular_momentum_z(z) result(jz)
       real(real64), intent(in) :: z(:)
@@ -265,5 +388,44 @@ contains
       jz = j(3)
     end function angular_momentum_z
   end subroutine run_simulation
+
+  ! Whether `path` is a run file that reads back complete.
+  logical function holds_complete_run(path)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: status
+    integer :: steps, stat
+
+    holds_complete_run = .false.
+    if (.not. file_exists(path)) return
+    call check_run_file(path, status, steps, stat)
+    holds_complete_run = stat == 0 .and. status == 'complete'
+  end function holds_complete_run
+
+  ! An OS error number in words; -1: an HDF5 failure; -2: the file did not read back.
+  function io_reason(stat) result(text)
+    integer, intent(in) :: stat
+    character(len=:), allocatable :: text
+
+    select case (stat)
+    case (-1)
+      text = 'HDF5 failed'
+    case (-2)
+      text = 'the file did not read back as written'
+    case default
+      text = os_error_text(stat)
+    end select
+  end function io_reason
+
+  ! The failure kind of a step the integrator could not take, from its reason (the solver's
+  ! "no root" first: its last attempt may name a non-positive temperature it refused).
+  pure function step_failure_kind(reason) result(kind)
+    character(len=*), intent(in) :: reason
+    character(len=:), allocatable :: kind
+
+    kind = failure_solver
+    if (index(reason, 'no root') > 0) return
+    if (index(reason, 'domain') > 0 .or. index(reason, 'non-positive') > 0 .or. index(reason, 'blow-up') > 0 .or. &
+        index(reason, 'undefined') > 0) kind = failure_domain
+  end function step_failure_kind
 
 end module simulation

@@ -1,42 +1,61 @@
 !> The index of a study: output_dir/index.h5, whose dataset /cases has one row per case
-!> (h5py: f['cases'][:]): case, file, one column per sweep, status ('complete', 'failed: <reason>'
-!> or 'pending') and the case's figures. It is written with every case's row before any case
-!> runs and updated row by row as cases end. Opening the index of an earlier run of the same
-!> study keeps the cases it records as complete whose files exist; the others are pending again.
-!> The dataset /integrators holds the integrator registry (name, label, family, capabilities), so
+!> (h5py: f['cases'][:]): case, file, one column per sweep, status ('complete', 'failed: <reason>',
+!> 'incomplete: interrupted by <signal>' or 'pending'), failure_kind and the case's figures. The
+!> dataset /integrators holds the integrator registry (name, label, family, capabilities), so
 !> the scripts that chart a study name and order its schemes as the code does.
+!>
+!> Crash safety. index.h5 is never written in place: a new one is written as index.h5.tmp and
+!> renamed over it, when the study starts, every 2 s while cases end, and at the end. A case's
+!> result counts as recorded once its line is appended to output_dir/index.journal (one line
+!> per result, appended whole); a restart replays the journal over index.h5. A case file holds
+!> its case number, overrides and figures too, so a missing or damaged index is rebuilt from the
+!> case files (and the journal). On a restart every case recorded complete is checked against its
+!> file (it opens, says complete, and its datasets have the recorded number of rows), and a case
+!> that fails the check runs again. In an index-only study (&study index_only) there are no case
+!> files: index.h5 and the journal are the record.
 module study_index
-  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
-  use hdf5_series, only: hdf5_file
+  use hdf5_series, only: hdf5_file, check_run_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
-  use filesystem, only: make_directories
+  use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
   use number_text, only: integer_text
   implicit none (type, external)
   private
-  public :: case_index, case_result, case_file, status_length, metric_count, m_rank, m_run_count
+  public :: case_index, case_result, case_file, case_overrides, status_length, kind_length, metric_count, m_rank, &
+            m_run_count
 
   integer, parameter :: status_length = 256
+  integer, parameter :: kind_length = 16
   integer, parameter :: metric_count = 11
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, rank, run_count
-  integer, parameter :: m_rank = 10, m_run_count = 11
+  integer, parameter :: m_steps = 1, m_rank = 10, m_run_count = 11
+  character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
+    'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
+    'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'rank', 'run_count']
+  logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
+                                                            .false., .false., .false., .true., .true.]
+  real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
+  character(len=1), parameter :: tab = achar(9)
 
   !> What happened to one case (an index row without its parameters).
   type :: case_result
     character(len=status_length) :: status = 'pending'
+    character(len=kind_length) :: failure_kind = 'none'
     real(real64) :: metrics(metric_count) = 0.0_real64
   end type case_result
 
   !> The open index of a study and every case's result.
   type :: case_index
     type(study_definition), pointer :: study => null()
-    type(hdf5_file) :: file
     type(table_columns) :: columns
     type(case_result), allocatable :: results(:)
+    character(len=:), allocatable :: index_path, journal_path
+    integer(int64) :: last_write = 0, clock_rate = 1
   contains
     procedure :: open => open_index
     procedure :: record
@@ -50,68 +69,123 @@ contains
     type(study_definition), intent(in) :: study
     integer, intent(in) :: c
     character(len=:), allocatable :: path
-    character(len=16) :: name
 
-    write (name, '("case_", i5.5, ".h5")') c
-    path = study%output_dir//'/'//trim(name)
+    path = study%output_dir//'/'//case_name(c)
   end function case_file
 
-  !> Creates the output directory and index.h5 with a row per case, keeping the results of an
-  !> earlier run of the same study; pending(c) says which cases are still to run.
-  subroutine open_index(self, study, pending, stat, message)
+  !> Case c's overrides of the base scene as one line ('dt = 0.1; scheme = ''eme''').
+  pure function case_overrides(study, c) result(text)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: c
+    character(len=:), allocatable :: text
+    integer :: s
+
+    text = ''
+    do s = 1, size(study%cases(c)%overrides)
+      if (s > 1) text = text//'; '
+      text = text//trim(study%cases(c)%overrides(s)%item)
+    end do
+  end function case_overrides
+
+  !> Creates the output directory and a fresh index.h5 with a row per case, keeping the results
+  !> of earlier runs of the same study (from index.h5, the journal and the case files) that still
+  !> check out; pending(c) says which cases are to run. `notes` tells the user what the restart
+  !> found (empty if nothing to say). A different study in output_dir is an error.
+  subroutine open_index(self, study, pending, notes, stat, message)
     class(case_index), intent(inout) :: self
     type(study_definition), intent(in), target :: study
     logical, allocatable, intent(out) :: pending(:)
+    character(len=:), allocatable, intent(out) :: notes
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    integer :: c
+    integer :: c, rebuilt, rejected
 
     self%study => study
+    self%index_path = study%output_dir//'/index.h5'
+    self%journal_path = study%output_dir//'/index.journal'
+    notes = ''
     allocate (self%results(size(study%cases)), pending(size(study%cases)))
     call define_columns(study, self%columns)
     call make_directories(study%output_dir, stat)
     if (stat /= 0) then
-      message = study%input_file//': cannot create the output directory '''//study%output_dir//''''
+      message = study%input_file//': cannot create the output directory '''//study%output_dir//''': '// &
+                os_error_text(stat)
       return
     end if
-    call read_previous_index(self, stat, message)
+    call read_previous_index(self, notes, stat, message)
     if (stat /= 0) return
-    ! A case is done if an earlier run completed it and its file is still there.
+    call replay_journal(self, notes, stat, message)
+    if (stat /= 0) return
+    rebuilt = 0
+    rejected = 0
+    if (.not. study%index_only) then
+      do c = 1, size(study%cases)
+        if (self%results(c)%status == 'complete') then
+          if (.not. file_checks_out(self, c)) then
+            rejected = rejected + 1
+            self%results(c)%status = 'pending'
+          end if
+        else if (file_exists(case_file(study, c))) then
+          if (rebuild_from_file(self, c)) rebuilt = rebuilt + 1
+        end if
+      end do
+    end if
+    if (rebuilt > 0) call add_note(notes, integer_text(rebuilt)//' complete cases recovered from their files')
+    if (rejected > 0) call add_note(notes, integer_text(rejected)//' cases recorded complete whose files do not ' &
+                                    //'check out (missing, unreadable, incomplete or short) run again')
     do c = 1, size(study%cases)
-      inquire (file=case_file(study, c), exist=pending(c), iostat=stat)
-      pending(c) = .not. (stat == 0 .and. pending(c) .and. self%results(c)%status == 'complete')
+      pending(c) = self%results(c)%status /= 'complete'
       if (pending(c)) self%results(c)%status = 'pending'
+      if (pending(c)) self%results(c)%failure_kind = 'none'
     end do
+    call system_clock(self%last_write, self%clock_rate)
     call write_index(self, stat, message)
+    if (stat == 0) call start_journal(self, stat, message)
   end subroutine open_index
 
-  !> Stores case c's result (its run count one higher) and writes its row to disk.
-  subroutine record(self, c, result, stat)
+  !> Stores case c's result (its run count one higher): appended to the journal at once, and in
+  !> index.h5 at the next rewrite (at most index_interval seconds later, or at close).
+  subroutine record(self, c, result, stat, message)
     class(case_index), intent(inout) :: self
     integer, intent(in) :: c
     type(case_result), intent(in) :: result
     integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    integer(int64) :: now
 
+    message = ''
     self%results(c)%status = result%status
+    self%results(c)%failure_kind = result%failure_kind
     self%results(c)%metrics(1:m_rank) = result%metrics(1:m_rank)
     self%results(c)%metrics(m_run_count) = self%results(c)%metrics(m_run_count) + 1
-    call write_row(self, c, stat)
-    if (stat == 0) call self%file%flush(stat)
+    call append_text(self%journal_path, journal_line(self, c), .false., stat)
+    if (stat /= 0) then
+      message = 'cannot append to '//self%journal_path//' ('//self%study%input_file//'): '//os_error_text(stat)
+      return
+    end if
+    call system_clock(now)
+    if (real(now - self%last_write, real64) >= index_interval*real(self%clock_rate, real64)) then
+      call write_index(self, stat, message)
+      self%last_write = now
+    end if
   end subroutine record
 
-  !> Closes index.h5.
-  subroutine close_index(self, stat)
+  !> Writes the final index.h5 and empties the journal, whose lines it now holds.
+  subroutine close_index(self, stat, message)
     class(case_index), intent(inout) :: self
     integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
 
-    call self%file%close(stat)
+    call write_index(self, stat, message)
+    if (stat == 0) call remove_file(self%journal_path, stat)
+    if (stat /= 0 .and. len(message) == 0) message = 'cannot remove '//self%journal_path//': '//os_error_text(stat)
   end subroutine close_index
 
-  ! case, file, one column per sweep, status, the metrics, rank and run_count.
+  ! case, file, one column per sweep, status, failure_kind, the metrics (rank and run_count last).
   subroutine define_columns(study, columns)
     type(study_definition), intent(in) :: study
     type(table_columns), intent(out) :: columns
-    integer :: s
+    integer :: s, m
 
     call columns%add('case', column_integer)
     call columns%add('file', 64)
@@ -123,36 +197,27 @@ contains
       end if
     end do
     call columns%add('status', status_length)
-    call columns%add('steps_completed', column_integer)
-    call columns%add('steps_planned', column_integer)
-    call columns%add('newton_iterations', column_integer)
-    call columns%add('wall_time_seconds', column_real)
-    call columns%add('solve_time_seconds', column_real)
-    call columns%add('energy_drift', column_real)
-    call columns%add('min_entropy_increment', column_real)
-    call columns%add('max_lyapunov_increment', column_real)
-    call columns%add('angular_momentum_drift', column_real)
-    call columns%add('rank', column_integer)
-    call columns%add('run_count', column_integer)
+    call columns%add('failure_kind', kind_length)
+    do m = 1, metric_count
+      call columns%add(trim(metric_names(m)), merge(column_integer, column_real, metric_is_integer(m)))
+    end do
   end subroutine define_columns
 
-  ! The row of case c: numbers and texts in column order.
-  subroutine row_values(self, c, numbers, texts)
-    type(case_index), intent(in) :: self
+  ! The parameter columns of case c (case and sweep values): numbers and texts in column order.
+  subroutine case_parameters(study, c, numbers, texts)
+    type(study_definition), intent(in) :: study
     integer, intent(in) :: c
     real(real64), allocatable, intent(out) :: numbers(:)
-    character(len=status_length), allocatable, intent(out) :: texts(:)
-    character(len=16) :: name
+    character(len=64), allocatable, intent(out) :: texts(:)
     real(real64) :: value
     integer :: s, ios
 
-    write (name, '("case_", i5.5, ".h5")') c
     numbers = [real(c, real64)]
-    texts = [character(len=status_length) :: name]
-    do s = 1, size(self%study%sweeps)
-      associate (sweep => self%study%sweeps(s), item => self%study%cases(c)%overrides(s)%item)
+    allocate (texts(0))
+    do s = 1, size(study%sweeps)
+      associate (sweep => study%sweeps(s), item => study%cases(c)%overrides(s)%item)
         if (sweep%textual) then
-          texts = [character(len=status_length) :: texts, unquoted(item(index(item, '=') + 1:))]
+          texts = [character(len=64) :: texts, unquoted(item(index(item, '=') + 1:))]
         else
           read (item(index(item, '=') + 1:), *, iostat=ios) value
           if (ios /= 0) value = ieee_value(value, ieee_quiet_nan)
@@ -160,44 +225,47 @@ contains
         end if
       end associate
     end do
-    texts = [texts, self%results(c)%status]
-    numbers = [numbers, self%results(c)%metrics]
-  end subroutine row_values
+  end subroutine case_parameters
 
-  subroutine write_row(self, c, stat)
-    type(case_index), intent(inout) :: self
-    integer, intent(in) :: c
-    integer, intent(out) :: stat
-    real(real64), allocatable :: numbers(:)
-    character(len=status_length), allocatable :: texts(:)
-
-    call row_values(self, c, numbers, texts)
-    call self%columns%write_row(self%file%id, 'cases', c, numbers, texts, stat)
-  end subroutine write_row
-
-  ! Creates index.h5 with every case's row (pending, or kept from an earlier run).
+  ! Writes index.h5: built in memory, written as index.h5.tmp (synced) and renamed over index.h5.
   subroutine write_index(self, stat, message)
     type(case_index), intent(inout) :: self
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    integer :: c
-    character(len=:), allocatable :: path, ignored
+    type(hdf5_file) :: file
+    real(real64), allocatable :: numbers(:, :), parameters(:)
+    character(len=status_length), allocatable :: texts(:, :)
+    character(len=64), allocatable :: parameter_texts(:)
+    integer :: c, n_numbers, n_texts, ignored
 
-    path = self%study%output_dir//'/index.h5'
-    message = 'cannot write '//path
-    call self%file%create(path, stat, ignored)
-    if (stat /= 0) return
-    call self%columns%create(self%file%id, 'cases', size(self%results), stat)
-    if (stat == 0) call self%file%set_text('study', self%study%input_file, stat)
-    if (stat == 0) call self%file%set_text('base', self%study%base, stat)
-    if (stat == 0) call self%file%set_text('combine', self%study%combine, stat)
-    if (stat == 0) call self%file%set_text('code_version', code_version, stat)
+    message = ''
+    n_numbers = self%columns%numeric_count()
+    n_texts = self%columns%text_count()
+    allocate (numbers(n_numbers, size(self%results)), texts(n_texts, size(self%results)))
     do c = 1, size(self%results)
-      if (stat == 0) call write_row(self, c, stat)
+      call case_parameters(self%study, c, parameters, parameter_texts)
+      numbers(:, c) = [parameters, self%results(c)%metrics]
+      texts(1, c) = ''
+      if (.not. self%study%index_only) texts(1, c) = case_name(c)
+      texts(2:n_texts - 2, c) = parameter_texts
+      texts(n_texts - 1, c) = self%results(c)%status
+      texts(n_texts, c) = self%results(c)%failure_kind
     end do
-    if (stat == 0) call write_registry(self%file, stat)
-    if (stat == 0) call self%file%flush(stat)
-    if (stat == 0) message = ''
+    call file%create_in_memory(stat)
+    if (stat == 0) call self%columns%write(file%id, 'cases', numbers, texts, stat)
+    if (stat == 0) call file%set_text('study', self%study%input_file, stat)
+    if (stat == 0) call file%set_text('base', self%study%base, stat)
+    if (stat == 0) call file%set_text('combine', self%study%combine, stat)
+    if (stat == 0) call file%set_integer('index_only', merge(1, 0, self%study%index_only), stat)
+    if (stat == 0) call file%set_text('code_version', code_version, stat)
+    if (stat == 0) call write_registry(file, stat)
+    if (stat == 0) call file%store(self%index_path, .true., stat)
+    call file%close(ignored)
+    if (stat > 0) then
+      message = 'cannot write '//self%index_path//' ('//self%study%input_file//'): '//os_error_text(stat)
+    else if (stat /= 0) then
+      message = 'HDF5 failed to build '//self%index_path
+    end if
   end subroutine write_index
 
   ! The dataset /integrators: one row per registered integrator.
@@ -206,8 +274,8 @@ contains
     integer, intent(out) :: stat
     type(table_columns) :: columns
     type(integrator_entry) :: entries(integrator_count)
-    character(len=status_length) :: texts(4)
-    real(real64) :: numbers(3)
+    character(len=status_length) :: texts(4, integrator_count)
+    real(real64) :: numbers(3, integrator_count)
     integer :: i
 
     call columns%add('name', len(entries(1)%name))
@@ -218,75 +286,271 @@ contains
     call columns%add('uses_discrete_gradient', column_integer)
     call columns%add('adaptive', column_integer)
     entries = registered_integrators()
-    call columns%create(file%id, 'integrators', size(entries), stat)
     do i = 1, size(entries)
-      if (stat /= 0) return
-      texts(1) = entries(i)%name
-      texts(2) = entries(i)%label
-      texts(3) = entries(i)%family
-      texts(4) = entries(i)%description
-      numbers = merge(1.0_real64, 0.0_real64, [entries(i)%takes_constraints, entries(i)%uses_discrete_gradient, &
-                                               entries(i)%adaptive])
-      call columns%write_row(file%id, 'integrators', i, numbers, texts, stat)
+      texts(:, i) = [character(len=status_length) :: entries(i)%name, entries(i)%label, entries(i)%family, &
+                     entries(i)%description]
+      numbers(:, i) = merge(1.0_real64, 0.0_real64, [entries(i)%takes_constraints, entries(i)%uses_discrete_gradient, &
+                                                     entries(i)%adaptive])
     end do
+    call columns%write(file%id, 'integrators', numbers, texts, stat)
   end subroutine write_registry
 
-  ! Results of an earlier run of the same study, if its index.h5 exists. A different case list
-  ! (other sweeps or values) is an error: the old files would not match their rows.
-  subroutine read_previous_index(self, stat, message)
+  ! Results of an earlier run of the same study from its index.h5, if there is one. A damaged
+  ! index is set aside (the journal and case files rebuild it); a different case list (other
+  ! sweeps or values) is an error: the old files would not match their rows.
+  subroutine read_previous_index(self, notes, stat, message)
     type(case_index), intent(inout) :: self
+    character(len=:), allocatable, intent(inout) :: notes
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     type(hdf5_file) :: old
-    real(real64), allocatable :: numbers(:), old_numbers(:)
-    character(len=status_length), allocatable :: texts(:), old_texts(:)
-    character(len=:), allocatable :: path
-    integer :: c, rows, n_sweep_numbers, close_stat
-    logical :: exists
+    real(real64), allocatable :: numbers(:, :), parameters(:)
+    character(len=status_length), allocatable :: texts(:, :)
+    character(len=64), allocatable :: parameter_texts(:)
+    integer :: c, rows, n_numbers, n_texts, ignored
 
     stat = 0
     message = ''
-    path = self%study%output_dir//'/index.h5'
-    inquire (file=path, exist=exists, iostat=close_stat)
-    if (close_stat /= 0 .or. .not. exists) return
-    call old%open_existing(path, .false., stat)
-    if (stat /= 0) then
-      message = 'cannot read '//path//' of an earlier run; remove it to start the study afresh'
+    if (.not. file_exists(self%index_path)) return
+    call old%open_existing(self%index_path, .false., stat)
+    rows = -1
+    if (stat == 0) rows = table_rows(old%id, 'cases')
+    if (stat /= 0 .or. rows < 0) then
+      call old%close(ignored)
+      stat = 0
+      call add_note(notes, self%index_path//' cannot be read; it is rebuilt from the journal and the case files')
       return
     end if
-    rows = table_rows(old%id, 'cases')
     if (rows /= size(self%results)) then
+      call old%close(ignored)
       stat = 1
-      message = path//' belongs to a different study (its case count differs); use another output_dir or remove it'
+      message = self%index_path//' belongs to a different study (its case count differs); use another output_dir '// &
+                'or remove it'
+      return
+    end if
+    n_numbers = self%columns%numeric_count()
+    n_texts = self%columns%text_count()
+    allocate (numbers(n_numbers, rows), texts(n_texts, rows))
+    call self%columns%read(old%id, 'cases', numbers, texts, stat)
+    call old%close(ignored)
+    if (stat /= 0) then
+      stat = 0
+      call add_note(notes, self%index_path//' cannot be read; it is rebuilt from the journal and the case files')
+      return
     end if
     do c = 1, rows
-      if (stat /= 0) exit
-      call row_values(self, c, numbers, texts)
-      allocate (old_numbers(size(numbers)), old_texts(size(texts)))
-      call self%columns%read_row(old%id, 'cases', c, old_numbers, old_texts, stat)
-      ! The parameters (case, file, sweep values) must be the same; keep status and metrics.
-      n_sweep_numbers = size(numbers) - metric_count
-      if (stat /= 0 .or. any(abs(old_numbers(1:n_sweep_numbers) - numbers(1:n_sweep_numbers)) > 0.0_real64) .or. &
-          any(old_texts(1:size(texts) - 1) /= texts(1:size(texts) - 1))) then
+      call case_parameters(self%study, c, parameters, parameter_texts)
+      if (any(abs(numbers(1:size(parameters), c) - parameters) > 0.0_real64) .or. &
+          any(texts(2:n_texts - 2, c) /= parameter_texts)) then
         stat = 1
-        message = path//' belongs to a different study (case '//integer_text(c)// &
+        message = self%index_path//' belongs to a different study (case '//integer_text(c)// &
                   ' differs); use another output_dir or remove it'
-      else
-        self%results(c)%status = old_texts(size(texts))
-        self%results(c)%metrics = old_numbers(n_sweep_numbers + 1:)
+        return
       end if
-      deallocate (old_numbers, old_texts)
+      self%results(c)%status = texts(n_texts - 1, c)
+      self%results(c)%failure_kind = texts(n_texts, c)(1:kind_length)
+      self%results(c)%metrics = numbers(size(parameters) + 1:, c)
     end do
-    call old%close(close_stat)
   end subroutine read_previous_index
 
-  pure function unquoted(text) result(plain)
-    character(len=*), intent(in) :: text
-    character(len=:), allocatable :: plain
+  ! One journal line: case, failure_kind, the metrics, status and overrides, separated by tabs.
+  function journal_line(self, c) result(line)
+    type(case_index), intent(in) :: self
+    integer, intent(in) :: c
+    character(len=:), allocatable :: line
+    character(len=32) :: number
+    integer :: m
 
-    plain = trim(adjustl(text))
-    if (len(plain) >= 2) then
-      if (index('''"', plain(1:1)) > 0) plain = plain(2:len(plain) - 1)
+    line = integer_text(c)//tab//trim(self%results(c)%failure_kind)
+    do m = 1, metric_count
+      write (number, '(es25.17e3)') self%results(c)%metrics(m)
+      line = line//tab//trim(adjustl(number))
+    end do
+    line = line//tab//plain(trim(self%results(c)%status))//tab//plain(case_overrides(self%study, c))//new_line('a')
+  end function journal_line
+
+  ! Applies the journal's lines (each the latest result of its case) over what index.h5 gave. A
+  ! line that does not parse (a torn last line) is skipped; one of another study is an error.
+  subroutine replay_journal(self, notes, stat, message)
+    type(case_index), intent(inout) :: self
+    character(len=:), allocatable, intent(inout) :: notes
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(len=:), allocatable :: text, line
+    type(case_result) :: result
+    integer :: unit, size_bytes, start, finish, c, applied, skipped, ios
+    character(len=256) :: io_message
+
+    stat = 0
+    message = ''
+    if (.not. file_exists(self%journal_path)) return
+    inquire (file=self%journal_path, size=size_bytes)
+    allocate (character(len=max(0, size_bytes)) :: text)
+    open (newunit=unit, file=self%journal_path, access='stream', form='unformatted', status='old', action='read', &
+          iostat=ios, iomsg=io_message)
+    if (ios == 0) read (unit, iostat=ios, iomsg=io_message) text
+    if (ios == 0) close (unit)
+    if (ios /= 0) then
+      stat = 1
+      message = 'cannot read '//self%journal_path//': '//trim(io_message)
+      return
+    end if
+    applied = 0
+    skipped = 0
+    start = 1
+    do while (start <= len(text))
+      finish = index(text(start:), new_line('a'))
+      if (finish == 0) then       ! no newline: a line cut short by a kill
+        skipped = skipped + 1
+        exit
+      end if
+      line = text(start:start + finish - 2)
+      start = start + finish
+      if (line(1:min(1, len(line))) == '#') cycle
+      call parse_journal_line(line, c, result, ios)
+      if (ios /= 0 .or. c < 1 .or. c > size(self%results)) then
+        skipped = skipped + 1
+        cycle
+      end if
+      if (trim(line(index(line, tab, back=.true.) + 1:)) /= plain(case_overrides(self%study, c))) then
+        stat = 1
+        message = self%journal_path//' belongs to a different study (case '//integer_text(c)//' differs); use ' &
+                  //'another output_dir or remove it'
+        return
+      end if
+      self%results(c) = result
+      applied = applied + 1
+    end do
+    if (applied > 0) call add_note(notes, integer_text(applied)//' results taken from '//self%journal_path)
+    if (skipped > 0) call add_note(notes, integer_text(skipped)//' damaged lines of '//self%journal_path//' skipped')
+  end subroutine replay_journal
+
+  ! case, failure_kind, metrics, status (the overrides, last, are checked by the caller).
+  subroutine parse_journal_line(line, c, result, stat)
+    character(len=*), intent(in) :: line
+    integer, intent(out) :: c
+    type(case_result), intent(out) :: result
+    integer, intent(out) :: stat
+    integer :: field, start, finish, m
+
+    c = 0
+    stat = 1
+    start = 1
+    do field = 1, metric_count + 3
+      finish = index(line(start:), tab)
+      if (finish == 0) return
+      finish = start + finish - 2
+      select case (field)
+      case (1)
+        read (line(start:finish), *, iostat=stat) c
+      case (2)
+        result%failure_kind = line(start:finish)
+      case (3:metric_count + 2)
+        m = field - 2
+        read (line(start:finish), *, iostat=stat) result%metrics(m)
+      case default
+        result%status = line(start:finish)
+      end select
+      if (stat /= 0) return
+      start = finish + 2
+    end do
+    stat = 0
+  end subroutine parse_journal_line
+
+  ! A fresh journal: one comment line naming the study.
+  subroutine start_journal(self, stat, message)
+    type(case_index), intent(inout) :: self
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+
+    message = ''
+    call remove_file(self%journal_path, stat)
+    if (stat == 0) call append_text(self%journal_path, '# eme_ensemble results of '//self%study%input_file//', ' &
+                                    //integer_text(size(self%results))//' cases: case, failure_kind, ' &
+                                    //'metrics, status, overrides'//new_line('a'), .false., stat)
+    if (stat /= 0) message = 'cannot write '//self%journal_path//' ('//self%study%input_file//'): '//os_error_text(stat)
+  end subroutine start_journal
+
+  ! Whether case c's file reads back complete with the recorded number of steps.
+  logical function file_checks_out(self, c)
+    type(case_index), intent(in) :: self
+    integer, intent(in) :: c
+    character(len=:), allocatable :: status
+    integer :: steps, stat
+
+    call check_run_file(case_file(self%study, c), status, steps, stat)
+    file_checks_out = stat == 0 .and. status == 'complete' .and. steps == nint(self%results(c)%metrics(m_steps))
+  end function file_checks_out
+
+  ! Takes case c's row from its file, if the file is this case's (its study_case and
+  ! study_overrides attributes) and reads back complete.
+  logical function rebuild_from_file(self, c)
+    type(case_index), intent(inout) :: self
+    integer, intent(in) :: c
+    type(hdf5_file) :: file
+    character(len=:), allocatable :: status, overrides
+    real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
+    integer :: steps, stat, ignored
+
+    rebuild_from_file = .false.
+    call check_run_file(case_file(self%study, c), status, steps, stat)
+    if (stat /= 0 .or. status /= 'complete') return
+    call file%open_existing(case_file(self%study, c), .false., stat)
+    if (stat /= 0) return
+    call file%get_reals('study_case', number, stat)
+    if (stat == 0) call file%get_text('study_overrides', overrides, stat)
+    if (stat == 0) call file%get_reals('run_figures', figures, stat)
+    if (stat == 0) call file%get_reals('steps_planned', planned, stat)
+    if (stat == 0) call file%get_reals('newton_iterations_total', newton, stat)
+    if (stat == 0) call file%get_reals('wall_time_seconds', wall, stat)
+    if (stat == 0) call file%get_reals('solve_time_seconds', solve, stat)
+    if (stat == 0) call file%get_reals('study_rank', rank, stat)
+    call file%close(ignored)
+    if (stat /= 0) return
+    if (size(number) /= 1 .or. size(figures) /= 4) return
+    if (nint(number(1)) /= c .or. overrides /= case_overrides(self%study, c)) return
+    self%results(c)%status = 'complete'
+    self%results(c)%failure_kind = 'none'
+    self%results(c)%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, rank(1), 1.0_real64]
+    rebuild_from_file = .true.
+  end function rebuild_from_file
+
+  pure function case_name(c) result(name)
+    integer, intent(in) :: c
+    character(len=:), allocatable :: name
+    character(len=16) :: buffer
+
+    write (buffer, '("case_", i5.5, ".h5")') c
+    name = trim(buffer)
+  end function case_name
+
+  ! A text on one line without tabs (tabs and newlines become blanks).
+  pure function plain(text) result(line)
+    character(len=*), intent(in) :: text
+    character(len=len(text)) :: line
+    integer :: i
+
+    line = text
+    do i = 1, len(line)
+      if (line(i:i) == tab .or. line(i:i) == new_line('a') .or. line(i:i) == achar(13)) line(i:i) = ' '
+    end do
+  end function plain
+
+  subroutine add_note(notes, text)
+    character(len=:), allocatable, intent(inout) :: notes
+    character(len=*), intent(in) :: text
+
+    if (len(notes) > 0) notes = notes//new_line('a')
+    notes = notes//text
+  end subroutine add_note
+
+  pure function unquoted(text) result(plain_text)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: plain_text
+
+    plain_text = trim(adjustl(text))
+    if (len(plain_text) >= 2) then
+      if (index('''"', plain_text(1:1)) > 0) plain_text = plain_text(2:len(plain_text) - 1)
     end if
   end function unquoted
 

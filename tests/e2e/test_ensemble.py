@@ -2,6 +2,7 @@
 same case run by eme_run, a failing case is isolated, a restarted study reruns only what is not
 complete, a killed study leaves no file that looks finished, and bad study input is rejected."""
 import os
+import re
 import signal
 import subprocess
 import time
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import BIN, ROOT, read_run, run_eme
+from faults import check_run_file, signal_after, wait_for
 
 MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
 # Cases zipped: two EME variants, a midpoint case, and a deliberately failing one: with one
@@ -80,6 +82,7 @@ def test_study_runs_every_case_and_isolates_the_failure(small_study):
     assert statuses[:3] == ["complete"] * 3
     assert statuses[3].startswith("failed: incomplete: step 1 (t = 0.1500 s)")
     assert "DIVERGED_MAX_IT" in statuses[3]
+    assert [k.decode() for k in index["failure_kind"]] == ["none", "none", "none", "solver"]
     assert sorted(set(index["rank"])) != [0]                     # more than one rank worked
     assert not list(output.glob("*.part"))
     # The index rows are the case files' numbers.
@@ -104,16 +107,26 @@ def test_study_runs_every_case_and_isolates_the_failure(small_study):
         assert row["solve_time_seconds"] == pytest.approx(data["attrs"]["solve_time_seconds"])
     failed = read_run(output / "case_00004.h5")
     assert failed["attrs"]["status"].startswith("incomplete: step 1") and len(failed["time"]) == 1
+    assert failed["attrs"]["failure_kind"] == "solver"
+    # A case file names its study, case, overrides and rank, so that an index can be rebuilt.
+    first = read_run(output / "case_00001.h5")["attrs"]
+    assert first["study_case"] == 1 and first["study"] == str(study)
+    overrides = first["study_overrides"].split("; ")
+    assert overrides[:2] == ["scheme = 'eme'", "thermo_variable = 'entropy'"] and len(overrides) == 5
+    assert float(overrides[2].split(" = ")[1]) == 0.3 and overrides[4] == "newton_max_iterations = 50"
+    assert first["study_rank"] == index["rank"][0]
 
 
 def assert_same_run(single_path, case_path):
     """The datasets and (but for timing and provenance) the attributes of two run files agree."""
     single, case = read_run(single_path), read_run(case_path)
     assert set(single) == set(case)
+    assert set(case["attrs"]) - set(single["attrs"]) == {"study", "study_case", "study_overrides", "study_rank"}
     for name in single:
         if name != "attrs":
             assert np.array_equal(single[name], case[name]), name
-    timing = {"wall_time_seconds", "solve_time_seconds", "input_file", "code_version"}
+    timing = {"wall_time_seconds", "solve_time_seconds", "input_file", "code_version", "study", "study_case",
+              "study_overrides", "study_rank"}
     for name, value in single["attrs"].items():
         if name not in timing:
             assert np.array_equal(value, case["attrs"][name]), name
@@ -154,10 +167,9 @@ def test_killed_study_restarts_to_completion(tmp_path, eme_run_binary):
 """)
     process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), str(study)], cwd=ROOT,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    # Kill as soon as the first case has finished: the largest ones are still running then.
-    deadline = time.time() + 120
-    while not list(output.glob("case_*.h5")) and time.time() < deadline:
-        time.sleep(0.05)
+    # Kill once a case has finished while another has written part of its file (the largest
+    # cases run first, and a case writes its file after 4096 steps or 1 s).
+    assert wait_for(lambda: list(output.glob("case_*.h5")) and list(output.glob("*.part")))
     kill_processes_naming(str(study))
     process.wait()
     # No file under a final name may look finished unless it is.
@@ -169,6 +181,171 @@ def test_killed_study_restarts_to_completion(tmp_path, eme_run_binary):
     assert result.returncode == 0, result.stderr
     index = read_index(output)
     assert all(s == b"complete" for s in index["status"])
+
+
+def test_restart_checks_complete_case_files(small_study):
+    """A restart trusts no file blindly: a case recorded complete whose file is gone, damaged or
+    no longer complete runs again; the others are kept."""
+    study, output = small_study
+    assert ensemble(study).returncode == 0
+    (output / "case_00001.h5").unlink()
+    (output / "case_00002.h5").write_bytes(b"not an HDF5 file")
+    with h5py.File(output / "case_00003.h5", "r+") as f:
+        f.attrs["status"] = "incomplete: edited"
+    result = ensemble(study)
+    assert result.returncode == 0, result.stderr
+    assert "3 cases recorded complete whose files do not check out" in result.stdout
+    assert "4 to run (0 complete from an earlier run)" in result.stdout
+    index = read_index(output)
+    assert index["run_count"].tolist() == [2, 2, 2, 2]
+    assert [s.decode() for s in index["status"][:3]] == ["complete"] * 3
+
+
+@pytest.mark.parametrize("damage", ["garbage", "removed"])
+def test_a_damaged_index_is_rebuilt_from_the_case_files(small_study, damage):
+    """index.h5 unreadable or gone: the case files, which name their case and overrides and
+    hold its figures, give back every complete row; only the failed case runs again."""
+    study, output = small_study
+    assert ensemble(study).returncode == 0
+    before = read_index(output)
+    if damage == "garbage":
+        (output / "index.h5").write_bytes(b"\0" * 100)
+    else:
+        (output / "index.h5").unlink()
+    result = ensemble(study)
+    assert result.returncode == 0, result.stderr
+    assert "3 complete cases recovered from their files" in result.stdout
+    assert "1 to run (3 complete from an earlier run)" in result.stdout
+    after = read_index(output)
+    for name in before.dtype.names:
+        if name in ("run_count", "wall_time_seconds"):
+            continue
+        equal_nan = before[name].dtype.kind == "f"
+        assert np.array_equal(before[name][:3], after[name][:3], equal_nan=equal_nan), name
+    for row in after[:3]:     # the file's wall time: the run up to closing its file
+        assert row["wall_time_seconds"] == read_run(output / row["file"].decode())["attrs"]["wall_time_seconds"]
+    assert after["run_count"].tolist() == [1, 1, 1, 1]     # the failed case's earlier run is not on record
+
+
+def test_a_study_from_elsewhere_is_refused(small_study, tmp_path):
+    study, output = small_study
+    assert ensemble(study).returncode == 0
+    other = write_study(tmp_path, SMALL_STUDY.replace("0.3, 0.15, 0.15, 0.15", "0.3, 0.15, 0.15, 0.2").format(
+        base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output), name="other")
+    result = ensemble(other)
+    assert result.returncode == 1
+    assert "belongs to a different study (case 4 differs)" in result.stderr
+
+
+INDEX_ONLY_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
+&sweep field = 'theta(2)', values = {values} /
+"""
+# 400 paper-scene cases: a sweep takes at most 256 values, so two of 20.
+LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .false. /
+&sweep field = 'theta(1)', values = {values1} /
+&sweep field = 'theta(2)', values = {values2} /
+"""
+
+
+def large_study(tmp_path, output):
+    return write_study(tmp_path, LARGE_STUDY.format(
+        base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
+        values1=", ".join(f"{270 + i:.1f}" for i in range(20)), values2=", ".join(f"{340 + i:.1f}" for i in range(20))))
+
+
+def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
+    """index_only = .true.: no case files, and every figure of the index as the study with files
+    gives it (timings aside)."""
+    indexes = {}
+    for index_only in (".true.", ".false."):
+        output = tmp_path / index_only.strip(".")
+        study = write_study(tmp_path, INDEX_ONLY_STUDY.format(
+            base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output, index_only=index_only,
+            values="340, 345, 350, 355"), name=index_only.strip("."))
+        assert ensemble(study, ranks=2).returncode == 0
+        indexes[index_only] = read_index(output)
+        with h5py.File(output / "index.h5", "r") as f:
+            assert f.attrs["index_only"] == (1 if index_only == ".true." else 0)
+    assert sorted(p.name for p in (tmp_path / "true").iterdir()) == ["index.h5"]
+    lean, full = indexes[".true."], indexes[".false."]
+    assert lean["file"].tolist() == [b""] * 4 and full["file"].tolist()[0] == b"case_00001.h5"
+    for name in lean.dtype.names:
+        if name not in ("file", "wall_time_seconds", "solve_time_seconds", "rank"):
+            assert np.array_equal(lean[name], full[name]), name
+
+
+def test_a_killed_index_only_study_resumes_from_its_journal(tmp_path, eme_run_binary):
+    """SIGKILL to every rank of an index-only study: index.h5 lags behind (it is rewritten every
+    2 s), the journal does not; the restart takes every recorded result from it and runs only
+    the rest, so no case runs twice."""
+    output = tmp_path / "out"
+    values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(200))
+    study = write_study(tmp_path, INDEX_ONLY_STUDY.format(base=ROOT / "inputs" / "paper_fig4_eme_theta.nml",
+                                                         output=output, index_only=".true.", values=values))
+    process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), str(study)], cwd=ROOT,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    journal = output / "index.journal"
+    wait_for(lambda: journal.exists() and journal.read_text().count("\n") > 20)
+    kill_processes_naming(str(study))
+    process.wait()
+    recorded = journal.read_text().count("\n") - 1
+    result = ensemble(study, ranks=2)
+    assert result.returncode == 0, result.stderr
+    match = re.search(r"(\d+) results taken from .*index.journal", result.stdout)
+    assert match and int(match.group(1)) >= recorded - 1, result.stdout
+    index = read_index(output)
+    assert all(s == b"complete" for s in index["status"])
+    assert index["run_count"].tolist() == [1] * 200
+    assert not journal.exists()
+
+
+def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
+    """SIGTERM (one rank, no mpirun: its exit status is ours): no new case, the running one ends
+    marked interrupted, the index is written and the journal emptied; exit 143; a restart
+    finishes the study."""
+    output = tmp_path / "out"
+    study = large_study(tmp_path, output)
+    code, out, err = signal_after([str(BIN / "eme_ensemble"), str(study)], 0.3, signal.SIGTERM, cwd=ROOT,
+                                  start_marker=output / "case_00002.h5")
+    assert code == 143, err
+    assert "SIGTERM received: no new cases" in out
+    index = read_index(output)
+    statuses = [s.decode() for s in index["status"]]
+    assert 2 <= statuses.count("complete") < 400 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
+    assert set(statuses) <= {"complete", "pending", "incomplete: interrupted by SIGTERM"}
+    assert not (output / "index.journal").exists() and not list(output.glob("*.part"))
+    for row in index:
+        if row["status"] != b"pending":
+            status, steps = check_run_file(output / row["file"].decode())
+            assert status == row["status"].decode() and steps == row["steps_completed"]
+    result = ensemble(study, ranks=2)
+    assert result.returncode == 0, result.stderr
+    assert all(s == b"complete" for s in read_index(output)["status"])
+
+
+def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, eme_run_binary):
+    """inputs/slurm_study.sbatch run as Slurm would: SIGTERM to the batch script before the time
+    limit stops the study cleanly and requeues the job (a stand-in scontrol records the call);
+    the requeued job finishes the study and does not requeue."""
+    output = tmp_path / "out"
+    study = large_study(tmp_path, output)
+    tools = tmp_path / "bin"
+    tools.mkdir()
+    (tools / "scontrol").write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
+    (tools / "scontrol").chmod(0o755)
+    env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242",
+               EME_LAUNCHER=" ".join([*MPIRUN, "-n", "2"]))
+    script = ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)]
+    code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
+                                  start_marker=output / "case_00002.h5")
+    assert code == 0, out + err
+    assert "time limit near" in out
+    assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
+    assert "pending" in {s.decode() for s in read_index(output)["status"]}
+    result = subprocess.run(script, capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert all(s == b"complete" for s in read_index(output)["status"])
+    assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
 
 
 def test_single_rank_without_mpirun(small_study, tmp_path):

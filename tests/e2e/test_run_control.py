@@ -1,10 +1,12 @@
 """Running eme_run as a user does: PETSc options reach the solver, a run that cannot
 continue stops cleanly and keeps its steps in a valid file marked incomplete, a killed run
-leaves a readable file, and memory does not grow with the number of steps."""
+leaves a readable file, a running file can be read, SIGTERM and SIGINT stop a run cleanly, a
+complete result is not replaced unless asked, progress lines, and memory does not grow with the
+number of steps."""
 import re
-import resource
 import signal
 import subprocess
+import sys
 import time
 
 import h5py
@@ -12,6 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import BIN, namelist_text, read_run, run_eme
+from faults import SIGNALS, check_run_file, signal_after, wait_for
 
 POINT_DATASETS = ["time", "state", "temperature", "energy", "entropy", "lyapunov", "angular_momentum", "boundary_heat"]
 STEP_DATASETS = ["newton_iterations", "scheme_temperature", "solver_strategy", "snes_solves", "rejected_roots"]
@@ -39,9 +42,20 @@ def test_run_that_cannot_continue_keeps_its_steps(tmp_path, eme_run_binary):
     failed = int(re.match(r"incomplete: step (\d+) \(t = ", status).group(1))
     assert status.startswith(f"incomplete: step {failed} (t = {2.0 * failed:.4f} s)") and 1 < failed < 30
     assert "no root" in status and status in result.stderr
+    assert run["attrs"]["failure_kind"] == "solver"
     assert_consistent(run, failed - 1)
     assert np.all(run["temperature"] > 0)
     np.testing.assert_allclose(run["time"], 2.0 * np.arange(float(failed)))
+
+
+def test_a_run_that_leaves_the_domain_says_so(tmp_path, eme_run_binary):
+    # Explicit RK4 beyond its stability limit reaches a non-positive temperature at t = 17.25 s
+    # (the stability study's RK4_theta at dt = 0.75 s): failure_kind 'domain', not 'solver'.
+    result, path = run_eme(tmp_path, "domain", {"integrator": {"scheme": "ts_rk4", "dt": 0.75}})
+    assert result.returncode == 3
+    run = read_run(path)
+    assert "domain" in run["attrs"]["status"] and run["attrs"]["failure_kind"] == "domain"
+    assert_consistent(run, 22)
 
 
 def test_petsc_options_reach_the_solver(tmp_path, eme_run_binary):
@@ -70,40 +84,199 @@ def test_snes_test_jacobian_is_quiet(tmp_path, eme_run_binary, scheme, variable,
     assert max(ratios) < 1e-5, ratios
 
 
+def long_run(tmp_path, name, integrator=None, output=None):
+    """A namelist of a run far too long to finish (EME, 20 million steps of 0.05 s)."""
+    output = output or tmp_path / f"{name}.h5"
+    namelist = tmp_path / f"{name}.nml"
+    namelist.write_text(namelist_text({"integrator": integrator or {"dt": 0.05, "t_end": 1.0e6},
+                                       "output": {"file": str(output), "overwrite": True}}))
+    return namelist, output
+
+
 def test_killed_run_leaves_a_readable_file(tmp_path, eme_run_binary):
-    output = tmp_path / "killed.h5"
-    namelist = tmp_path / "killed.nml"
-    namelist.write_text(namelist_text({"integrator": {"dt": 0.05, "t_end": 1.0e6},
-                                       "output": {"file": str(output)}}))
+    """SIGKILL mid-run: the final name is never taken; FILE.part holds every row written up to its
+    last write, with points and steps of equal length and steps_completed saying how many."""
+    namelist, output = long_run(tmp_path, "killed")
+    part = output.with_name(output.name + ".part")
     process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)])
-    # Start-up time varies by machine: wait for the file, then for well over 256 steps (the
-    # run takes under 0.1 ms per step here), then kill mid-run.
-    deadline = time.time() + 120
-    while not output.exists() and time.time() < deadline and process.poll() is None:
-        time.sleep(0.05)
-    time.sleep(2.0)
+    # Start-up time varies by machine: wait for the first write, then kill after more.
+    assert wait_for(lambda: part.exists() or process.poll() is not None)
+    time.sleep(1.5)
     process.send_signal(signal.SIGKILL)
     process.wait()
-    with h5py.File(output, "r") as f:
-        assert f.attrs["status"] == "incomplete: running"
-        rows = f["time"].shape[0]
-        assert rows >= 256
-        for name in POINT_DATASETS:
-            assert f[name].shape[0] == rows, name
-        np.testing.assert_allclose(f["time"][:], 0.05 * np.arange(rows))
-        energy = f["energy"][:]
-        assert np.max(np.abs(energy - energy[0])) <= 1e-8 * abs(energy[0])
+    assert not output.exists()
+    status, steps = check_run_file(part)
+    assert status == "incomplete: running"
+    run = read_run(part)
+    assert steps >= 1 and run["attrs"]["failure_kind"] == "none"
+    assert_consistent(run, steps)
+    np.testing.assert_allclose(run["time"], 0.05 * np.arange(steps + 1))
+    energy = run["energy"]
+    assert np.max(np.abs(energy - energy[0])) <= 1e-8 * abs(energy[0])
+
+
+SLOW_RUN = {"scheme": "ts_rk5dp", "tolerance": 1e-14, "dt": 1.0, "t_end": 4000.0}   # about 30 steps/s here
+
+
+def test_a_running_file_is_read_while_it_grows(tmp_path, eme_run_binary):
+    """The file is written every second (by wall time: this run takes far fewer steps than the
+    row buffer holds) and closed in between, so h5py reads it while eme_run runs: consistent each
+    time, growing, marked running. A reader that keeps the file open does not stop the run."""
+    namelist, output = long_run(tmp_path, "running", integrator=SLOW_RUN)
+    part = output.with_name(output.name + ".part")
+    process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(lambda: part.exists() or process.poll() is not None)
+        seen, refused = [], 0
+        deadline = time.time() + 4.0
+        while time.time() < deadline and process.poll() is None:
+            try:
+                status, steps = check_run_file(part)
+            except OSError:       # opened during a write: HDF5's file lock says so; read again
+                refused += 1
+                continue
+            assert status == "incomplete: running"
+            seen.append(steps)
+            time.sleep(0.1)
+        assert process.poll() is None, process.stderr.read()
+        assert len(seen) >= 10 and seen == sorted(seen) and seen[-1] > seen[0], (seen, refused)
+        assert seen[0] < 1000          # written by wall time, long before the row buffer fills
+        # A reader holding the file open for 2.5 s: the writer goes on without the lock.
+        with h5py.File(part, "r"):
+            time.sleep(2.5)
+        assert wait_for(lambda: readable_steps(part) > seen[-1], timeout=10)
+    finally:
+        process.send_signal(signal.SIGTERM)
+        process.wait()
+
+
+def readable_steps(path):
+    """steps_completed of a running file, or -1 while a write holds its lock."""
+    try:
+        return check_run_file(path)[1]
+    except OSError:
+        return -1
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGINT"])
+def test_a_signal_stops_the_run_and_marks_its_file(tmp_path, eme_run_binary, name):
+    """SIGTERM (a batch scheduler) and SIGINT (Ctrl-C): the run stops after its current step,
+    writes every step and every attribute, marks the file and exits with 128 + the signal."""
+    number = SIGNALS[name]
+    namelist, output = long_run(tmp_path, "signal")
+    part = output.with_name(output.name + ".part")
+    code, _, err = signal_after([str(BIN / "eme_run"), str(namelist)], 0.5, number, start_marker=part)
+    assert code == 128 + number, err
+    assert f"interrupted by {name}" in err
+    status, steps = check_run_file(output)
+    assert status == f"incomplete: interrupted by {name}" and steps > 1000
+    assert not part.exists()
+    run = read_run(output)
+    assert run["attrs"]["failure_kind"] == "interrupted"
+    result, complete = run_eme(tmp_path, "complete", {"integrator": {"t_end": 0.3}})
+    assert result.returncode == 0
+    assert set(run["attrs"]) == set(read_run(complete)["attrs"])     # every attribute written
+    np.testing.assert_allclose(run["time"], 0.05 * np.arange(steps + 1))
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGINT", "SIGKILL"])
+def test_signals_at_random_moments_of_short_runs(tmp_path, eme_run_binary, name):
+    """The paper scene (134 steps, done in a few ms after start-up) hit by a signal anywhere from
+    start-up to its end: the output file is absent, FILE.part (SIGKILL only), or it reads back with
+    a status that tells the truth: complete only if it ran to the end."""
+    number = SIGNALS[name]
+    rng = np.random.default_rng(13)
+    for attempt in range(8):
+        folder = tmp_path / f"{attempt}"
+        folder.mkdir()
+        output = folder / "paper.h5"
+        namelist = folder / "paper.nml"
+        namelist.write_text(namelist_text({"output": {"file": str(output)}}))
+        start = time.time()
+        code, _, err = signal_after([str(BIN / "eme_run"), str(namelist)], float(rng.uniform(0.0, 0.6)), number)
+        if output.exists():
+            status, steps = check_run_file(output)
+            if status == "complete":
+                assert steps == 134 and code in (0, -number), (code, err)
+            else:
+                assert status == f"incomplete: interrupted by {name}" and code == 128 + number, (status, code)
+        else:
+            assert code in (-number, 128 + number), (code, err, time.time() - start)
+        part = output.with_name("paper.h5.part")
+        if part.exists():
+            assert name == "SIGKILL"
+            assert check_run_file(part)[0] == "incomplete: running"
+
+
+def test_a_complete_result_is_not_replaced_unless_asked(tmp_path, eme_run_binary):
+    scene = {"integrator": {"t_end": 0.3}}
+    result, path = run_eme(tmp_path, "kept", scene)
+    assert result.returncode == 0
+    before = path.stat().st_mtime_ns
+    result, _ = run_eme(tmp_path, "kept", scene)
+    assert result.returncode == 2
+    assert f"{path} holds a complete run" in result.stderr and "overwrite" in result.stderr
+    assert path.stat().st_mtime_ns == before and not path.with_name("kept.h5.part").exists()
+    result, _ = run_eme(tmp_path, "kept", scene, "-eme_overwrite")
+    assert result.returncode == 0 and path.stat().st_mtime_ns != before
+    before = path.stat().st_mtime_ns
+    result, _ = run_eme(tmp_path, "kept", {"integrator": {"t_end": 0.3}, "output": {"overwrite": True}})
+    assert result.returncode == 0 and path.stat().st_mtime_ns != before
+
+
+def test_a_new_run_that_ends_early_keeps_the_old_result(tmp_path, eme_run_binary):
+    """With overwrite asked, a new run that is killed, or stops early, leaves the earlier complete
+    file as it was; the new run's file stays FILE.part."""
+    result, path = run_eme(tmp_path, "old", {"integrator": {"t_end": 0.3}})
+    assert result.returncode == 0
+    old = read_run(path)
+    namelist, _ = long_run(tmp_path, "old", output=path)
+    part = path.with_name("old.h5.part")
+    for number in (signal.SIGKILL, signal.SIGTERM):
+        part.unlink(missing_ok=True)
+        code, _, err = signal_after([str(BIN / "eme_run"), str(namelist)], 0.5, number, start_marker=part)
+        assert code in (-signal.SIGKILL, 128 + signal.SIGTERM), err
+        assert check_run_file(path) == ("complete", 2) and np.array_equal(read_run(path)["state"], old["state"])
+        assert part.exists()
+    assert "keeps the earlier complete run" in err and str(part) in err
+
+
+def test_progress_lines(tmp_path, eme_run_binary):
+    """-eme_progress: a line on stderr at most every 2 s with simulated time, steps, rate and the
+    time left; without it (stderr is not a terminal here) none."""
+    namelist, _ = long_run(tmp_path, "progress")
+    code, out, err = signal_after([str(BIN / "eme_run"), str(namelist), "-eme_progress"], 5.0, signal.SIGTERM,
+                                  start_marker=tmp_path / "progress.h5.part")
+    lines = [line for line in err.splitlines() if " steps/s, about " in line]
+    assert 2 <= len(lines) <= 4, err
+    match = re.fullmatch(r"eme_run: t = ([0-9.]+) of 1000000\.000 s, (\d+) steps, (\d+) steps/s, about ([0-9.]+) s left",
+                         lines[-1])
+    assert match, lines[-1]
+    assert float(match.group(1)) == pytest.approx(0.05 * int(match.group(2)), abs=1e-6)
+    assert int(match.group(3)) > 0 and float(match.group(4)) > 0
+    result, _ = run_eme(tmp_path, "quiet", {"integrator": {"t_end": 0.3}})
+    assert "steps/s" not in result.stderr
 
 
 def peak_memory_kib(tmp_path, name, t_end):
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    result, _ = run_eme(tmp_path, name, {"integrator": {"scheme": "midpoint", "thermo_variable": "entropy",
-                                                         "dt": 0.01, "t_end": t_end}})
-    assert result.returncode == 0, result.stderr
-    return max(before, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+    """Peak RSS of one eme_run, measured by a fresh Python process that starts it (the RSS of
+    children is a maximum over all of them, so it must be a process with no other child)."""
+    result, path = run_eme(tmp_path, name, {"integrator": {"scheme": "midpoint", "thermo_variable": "entropy",
+                                                            "dt": 0.01, "t_end": 0.01}})
+    namelist = path.with_suffix(".nml")
+    namelist.write_text(namelist_text({"integrator": {"scheme": "midpoint", "thermo_variable": "entropy", "dt": 0.01,
+                                                      "t_end": t_end}, "output": {"file": str(path), "overwrite": True}}))
+    probe = ("import resource, subprocess, sys; code = subprocess.run(sys.argv[1:]).returncode; "
+             "print(code, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+    result = subprocess.run([sys.executable, "-c", probe, str(BIN / "eme_run"), str(namelist)], capture_output=True,
+                            text=True)
+    code, peak = result.stdout.split()[-2:]
+    assert code == "0", result.stderr
+    return int(peak)
 
 
 def test_memory_does_not_grow_with_steps(tmp_path, eme_run_binary):
-    short = peak_memory_kib(tmp_path, "short", 5.0)      # 500 steps
-    long = peak_memory_kib(tmp_path, "long", 300.0)      # 30000 steps: 30000 rows x 24 values = 5.8 MB
+    """Rows wait in a buffer of at most 4 MiB between writes: beyond it, memory stays flat."""
+    short = peak_memory_kib(tmp_path, "short", 300.0)    # 30000 steps: the buffer is full
+    long = peak_memory_kib(tmp_path, "long", 1500.0)     # 150000 steps: 150000 rows x 31 values = 37 MB
     assert long - short < 2048, f"peak RSS grew from {short} KiB to {long} KiB"

@@ -1,0 +1,131 @@
+"""Fault injection for the tests and the fault campaign (tests/e2e/fault_campaign.py): a small
+disk, signals at chosen moments, and a check of what a run left behind.
+
+A small disk is a tmpfs of the given size where `mount` is permitted (root, outside a restricted
+container), otherwise the LD_PRELOAD shim tests/e2e/full_disk.c, which makes one directory behave
+as a file system of that size without privileges. EME_TEST_FULL_DISK=shim forces the shim."""
+import atexit
+import contextlib
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+
+HERE = Path(__file__).resolve().parent
+_SHIM = {}
+
+
+def _shim_library():
+    """Compiles the LD_PRELOAD shim once per process; its path."""
+    if "path" not in _SHIM:
+        compiler = shutil.which("cc") or shutil.which("gcc")
+        if compiler is None:
+            raise RuntimeError("no C compiler for the full-disk shim")
+        folder = Path(tempfile.mkdtemp(prefix="eme_full_disk_"))
+        atexit.register(shutil.rmtree, folder, True)
+        library = folder / "full_disk.so"
+        subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(library), str(HERE / "full_disk.c"), "-ldl"],
+                       check=True)
+        _SHIM["path"] = library
+    return _SHIM["path"]
+
+
+def _try_tmpfs(folder, size_bytes):
+    if os.environ.get("EME_TEST_FULL_DISK") == "shim" or os.geteuid() != 0 or shutil.which("mount") is None:
+        return False
+    result = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_bytes}", "tmpfs", str(folder)],
+                            capture_output=True)
+    return result.returncode == 0
+
+
+class SmallDisk:
+    """A folder that holds at most `size` bytes; `env` is the environment a process needs to
+    see it so (empty for a tmpfs). `resize` gives it another size."""
+
+    def __init__(self, folder, size):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.tmpfs = _try_tmpfs(self.folder, size)
+        self.size = size
+        self.env = dict(os.environ)
+        if not self.tmpfs:
+            self.env.update(LD_PRELOAD=str(_shim_library()), EME_FULL_DISK_DIR=str(self.folder),
+                            EME_FULL_DISK_BYTES=str(size))
+
+    @property
+    def method(self):
+        return "tmpfs" if self.tmpfs else "LD_PRELOAD shim"
+
+    def resize(self, size):
+        self.size = size
+        if self.tmpfs:
+            subprocess.run(["mount", "-o", f"remount,size={size}", str(self.folder)], check=True)
+        else:
+            self.env["EME_FULL_DISK_BYTES"] = str(size)
+
+    def close(self):
+        if self.tmpfs:
+            subprocess.run(["umount", "-l", str(self.folder)], capture_output=True)
+            self.tmpfs = False
+
+
+@contextlib.contextmanager
+def small_disk(folder, size):
+    disk = SmallDisk(folder, size)
+    try:
+        yield disk
+    finally:
+        disk.close()
+
+
+def mpirun_env_options(env):
+    """mpirun -x options that pass the shim's variables on to the ranks."""
+    names = [name for name in ("LD_PRELOAD", "EME_FULL_DISK_DIR", "EME_FULL_DISK_BYTES") if name in env]
+    return [option for name in names for option in ("-x", name)]
+
+
+def check_run_file(path):
+    """What a reader finds in a run file: (status, steps_completed). Raises if the file cannot
+    be read, lacks its status, or a dataset's length disagrees with steps_completed (per-point
+    datasets steps + 1 rows, per-step datasets steps rows)."""
+    with h5py.File(path, "r") as f:
+        status = f.attrs["status"]
+        steps = int(f.attrs["steps_completed"])
+        for name, dataset in f.items():
+            rows = dataset.attrs["rows"]
+            expected = steps + 1 if rows == "point" else steps
+            if dataset.shape[0] != expected:
+                raise AssertionError(f"{path}: /{name} has {dataset.shape[0]} rows, steps_completed = {steps}")
+            dataset[()]                      # every value can be read
+    return status, steps
+
+
+def wait_for(predicate, timeout=120.0, interval=0.02):
+    """Polls until predicate() is true; False on timeout."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return False
+
+
+def signal_after(command, delay, number, env=None, cwd=None, start_marker=None):
+    """Starts `command`, waits until `start_marker` exists (if given) and then `delay` seconds,
+    sends signal `number`, and returns the completed process's (return code, stdout, stderr)."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=cwd)
+    if start_marker is not None:
+        wait_for(lambda: Path(start_marker).exists() or process.poll() is not None)
+    time.sleep(delay)
+    if process.poll() is None:
+        process.send_signal(number)
+    out, err = process.communicate(timeout=300)
+    return process.returncode, out, err
+
+
+SIGNALS = {"SIGTERM": signal.SIGTERM, "SIGINT": signal.SIGINT, "SIGKILL": signal.SIGKILL}
