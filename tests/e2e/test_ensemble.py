@@ -240,7 +240,8 @@ def test_a_study_from_elsewhere_is_refused(small_study, tmp_path):
 INDEX_ONLY_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
 &sweep field = 'theta(2)', values = {values} /
 """
-# 400 paper-scene cases: a sweep takes at most 256 values, so two of 20.
+# 1200 paper-scene cases (a sweep takes at most 256 values, so two of 40 and 30): long enough, at
+# about 3 ms a case on 2 ranks, for a signal 0.3 s after the first case to find the study running.
 LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .false. /
 &sweep field = 'theta(1)', values = {values1} /
 &sweep field = 'theta(2)', values = {values2} /
@@ -250,7 +251,8 @@ LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .
 def large_study(tmp_path, output):
     return write_study(tmp_path, LARGE_STUDY.format(
         base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
-        values1=", ".join(f"{270 + i:.1f}" for i in range(20)), values2=", ".join(f"{340 + i:.1f}" for i in range(20))))
+        values1=", ".join(f"{270 + 0.5 * i:.1f}" for i in range(40)),
+        values2=", ".join(f"{340 + 0.5 * i:.1f}" for i in range(30))))
 
 
 def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
@@ -311,7 +313,7 @@ def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
     assert "SIGTERM received: no new cases" in out
     index = read_index(output)
     statuses = [s.decode() for s in index["status"]]
-    assert 2 <= statuses.count("complete") < 400 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
+    assert 2 <= statuses.count("complete") < 1200 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
     assert set(statuses) <= {"complete", "pending", "incomplete: interrupted by SIGTERM"}
     assert not (output / "index.journal").exists() and not list(output.glob("*.part"))
     for row in index:

@@ -142,7 +142,7 @@ def test_constrained_motion_agrees_with_eme(tmp_path, eme_run_binary, constraint
     state at t = 1 s (measured: EME's error 1.7e-4 and 4.3e-5 at dt = 1e-3 and 5e-4 s with g1,
     2.0e-4 and 5.1e-5 with g2; relaxed_rk8 at dt = 0.01 s is within 2e-8 of its own dt = 0.02 s)."""
     def end(scheme, dt):
-        run = relaxed_run(tmp_path, f"{scheme}", scheme, constraints=constraints, initial=CONSISTENT,
+        run = relaxed_run(tmp_path, f"{scheme}_{dt:g}", scheme, constraints=constraints, initial=CONSISTENT,
                           integrator={"dt": dt, "t_end": 1.0})
         return np.concatenate([run["state"][-1, :13], run["temperature"][-1] / 300.0])
 
