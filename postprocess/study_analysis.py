@@ -82,6 +82,7 @@ def read_index(folder):
         if "cases" not in handle:
             raise StudyError(f"{path}: dataset '/cases' is missing")
         cases = handle["cases"][()]
+        repeats = int(handle.attrs.get("repeats", 1))       # runs per case; the time is their median
         integrators.register_index(handle)
     missing = [name for name in INDEX_FIELDS if name not in (cases.dtype.names or ())]
     if missing:
@@ -92,6 +93,7 @@ def read_index(folder):
                for name in cases.dtype.names}
         row["path"] = path.parent / row["file"]
         row["index"] = path
+        row["repeats"] = repeats
         rows.append(row)
     return rows
 

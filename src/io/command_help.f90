@@ -76,6 +76,7 @@ contains
     character(len=4096), target :: base, output_dir
     character(len=16), target :: combine
     logical, target :: index_only
+    integer, target :: repeats
     character(len=64), target :: field, texts(max_sweep_values)
     real(real64), target :: values(max_sweep_values)
     integer :: i
@@ -84,6 +85,7 @@ contains
     output_dir = ''
     combine = 'product'
     index_only = .false.
+    repeats = 1
     field = ''
     texts = ''
     values = 0.0_real64
@@ -97,7 +99,7 @@ contains
       '128 + N after signal N (the study stopped cleanly; running it again goes on).', '', &
       (trim(petsc_options_text(i)), i = 1, size(petsc_options_text)), '', &
       'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
-    call describe_group(unit, 'study', study_fields(base, output_dir, combine, index_only))
+    call describe_group(unit, 'study', study_fields(base, output_dir, combine, index_only, repeats))
     call describe_group(unit, 'sweep', sweep_fields(field, values, texts))
   end subroutine print_study_help
 

@@ -7,8 +7,8 @@ module study_config
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use namelist_text, only: namelist_item, read_source_text, group_names, lowercase, item_name
-  use namelist_group, only: group_field, text_field, reals_field, texts_field, logical_field, read_group, &
-                            invalid_value_message, parse_subscript
+  use namelist_group, only: group_field, text_field, reals_field, texts_field, logical_field, integer_field, &
+                            read_group, invalid_value_message, parse_subscript
   use run_config, only: run_configuration, read_run_config, same_variable
   use integrator_settings, only: step_count
   use number_text, only: integer_text
@@ -41,6 +41,7 @@ module study_config
     character(len=:), allocatable :: output_dir
     character(len=:), allocatable :: combine
     logical :: index_only = .false.      !! keep the index row only, no case files
+    integer :: repeats = 1               !! runs of each case; the index holds the median solve time
     type(study_sweep), allocatable :: sweeps(:)
     type(study_case), allocatable :: cases(:)
   end type study_definition
@@ -98,7 +99,8 @@ contains
     character(len=4096), target :: base, output_dir
     character(len=16), target :: combine
     logical, target :: index_only
-    type(group_field) :: fields(4)
+    integer, target :: repeats
+    type(group_field) :: fields(5)
     integer :: slash, dot
 
     base = ''
@@ -108,10 +110,12 @@ contains
     output_dir = 'results/'//definition%input_file(slash + 1:dot - 1)
     combine = 'product'
     index_only = .false.
-    fields = study_fields(base, output_dir, combine, index_only)
+    repeats = 1
+    fields = study_fields(base, output_dir, combine, index_only, repeats)
     call read_group(text, 'study', fields, definition%input_file, stat, message)
     if (stat /= 0) return
     definition%index_only = index_only
+    definition%repeats = repeats
     definition%base = trim(base)
     definition%output_dir = trim(output_dir)
     definition%combine = trim(lowercase(combine))
@@ -181,17 +185,20 @@ contains
   end subroutine read_sweep_group
 
   !> The fields of &study, bound to the variables that receive them.
-  function study_fields(base, output_dir, combine, index_only) result(fields)
+  function study_fields(base, output_dir, combine, index_only, repeats) result(fields)
     character(len=*), intent(in), target :: base, output_dir, combine
     logical, intent(in), target :: index_only
-    type(group_field) :: fields(4)
+    integer, intent(in), target :: repeats
+    type(group_field) :: fields(5)
 
     fields = [ &
       text_field('base', base, 'the path of an eme_run namelist (the base scene)', ''), &
       text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
                  ''), &
       text_field('combine', combine, "'product' or 'zip' (product: the first sweep varies slowest)", ''), &
-      logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false. (default)')]
+      logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false. (default)'), &
+      integer_field('repeats', repeats, 'an integer >= 1: runs of each case, timed; the index holds the median '// &
+                    'solve time (default 1)', minimum=1)]
   end function study_fields
 
   !> The fields of &sweep, bound to the variables that receive them.

@@ -257,6 +257,7 @@ contains
     if (stat == 0) call file%set_text('base', self%study%base, stat)
     if (stat == 0) call file%set_text('combine', self%study%combine, stat)
     if (stat == 0) call file%set_integer('index_only', merge(1, 0, self%study%index_only), stat)
+    if (stat == 0) call file%set_integer('repeats', self%study%repeats, stat)
     if (stat == 0) call file%set_text('code_version', code_version, stat)
     if (stat == 0) call write_registry(file, stat)
     if (stat == 0) call file%store(self%index_path, .true., stat)
