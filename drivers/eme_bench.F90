@@ -9,7 +9,9 @@
 !> PETSc; src/solver/lapack_newton). Each repeat runs every case in turn, and each case alternates
 !> SNES and floor, in one process, so that the machine's drifts spread over all cases and stay out
 !> of the ratio; reported are the medians of each and the median of the per-repeat ratios. The
-!> PETSc TS baselines are timed alone afterwards, for reference.
+!> PETSc TS baselines are timed alone afterwards, for reference. SUNDIALS CVODE (cvode_bdf at the
+!> default tolerance, 1e-10) runs in the round robin too, once per repeat, and EME_theta's cost
+!> per step is reported as the median of its per-repeat ratios to CVODE's cost per internal step.
 !> The last line is machine-readable:
 !>   us_per_step=<EME_theta median> snes_over_floor=<its ratio> newton_per_step=<EME_theta mean>
 program eme_bench
@@ -28,6 +30,7 @@ program eme_bench
   use integrator_registry, only: integrator_entry, find_integrator
   use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
+  use statistics, only: median
   implicit none
 
   integer, parameter :: steps = 134, max_iterations = 50
@@ -56,8 +59,10 @@ program eme_bench
 
   character(len=*), parameter :: ts_schemes(3) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4']
   type(bench_case), allocatable :: cases(:)
+  type(bench_case) :: cvode                         !! cvode_bdf on the paper scene (its SNES fields unused)
   type(step_solver_options) :: options
-  real(real64), allocatable :: times(:)
+  real(real64), allocatable :: times(:), cvode_times(:), cvode_internal(:), eme_over_cvode(:)
+  integer :: cvode_steps, cvode_solves
   integer :: repeats, k, iterations, stat, theta_case, run
   character(len=32) :: argument
   PetscErrorCode :: ierr
@@ -86,7 +91,7 @@ program eme_bench
   end if
   call read_solver_options(options, ierr)
   if (ierr /= 0) call fail('cannot read the -eme_* options')
-  allocate (times(repeats))
+  allocate (times(repeats), cvode_times(repeats), cvode_internal(repeats), eme_over_cvode(repeats))
 
   cases = [bench_case('EME_entropy', 'eme', tau_entropy), bench_case('EME_temperature', 'eme', tau_temperature), &
            bench_case('EME_internal_energy', 'eme', tau_internal_energy), &
@@ -106,11 +111,21 @@ program eme_bench
   do k = 1, size(cases)
     call set_up_case(cases(k))
   end do
+  call set_up_cvode(cvode)
   do run = 0, repeats
     do k = 1, size(cases)
       call repeat_case(cases(k), run)
     end do
+    call cvode%integrator%start(cvode%choice, cvode%model, cvode%constraints, cvode%z0, ierr)   ! CVODE carries its state
+    if (ierr /= 0) call fail('SUNDIALS CVODE failed to start')
+    times(1) = snes_run(cvode%integrator, cvode%x0, cvode_steps, cvode_solves)
+    if (run > 0) then
+      cvode_times(run) = times(1)
+      cvode_internal(run) = times(1)*steps/cvode_solves
+      eme_over_cvode(run) = cases(theta_case)%snes_times(run)/cvode_internal(run)
+    end if
   end do
+  call cvode%integrator%release(ierr)
   do k = 1, size(cases)
     call cases(k)%integrator%release(ierr)
     if (ierr /= 0) call fail('PETSc failed to free '//trim(cases(k)%label))
@@ -128,8 +143,10 @@ program eme_bench
     write (output_unit, '(a, t34, f12.2, t76, f14.2)') trim(ts_schemes(k))//'_temperature', median(times), &
       real(iterations, real64)/steps
   end do
-  ! CVODE (the high-order baselines): when the project has cvode_bdf, its us per step on the paper
-  ! scene and EME_theta's cost as a ratio to it go here.
+  write (output_unit, '(a, t34, f12.2, a, f0.1, a, f0.2, a)') 'cvode_bdf_temperature', median(cvode_times), &
+    ' (', real(cvode_solves, real64)/steps, ' internal steps per step, ', median(cvode_internal), ' us each)'
+  write (output_unit, '(a, f0.2, a)') 'EME_temperature per step over cvode_bdf per internal step: ', &
+    median(eme_over_cvode), ' (median of the per-repeat ratios)'
   write (output_unit, '(a, 2(f0.3, a))') 'EME_entropy and EME_internal_energy over EME_temperature: ', &
     median(cases(1)%snes_times)/median(cases(theta_case)%snes_times), ' and ', &
     median(cases(3)%snes_times)/median(cases(theta_case)%snes_times), ''
@@ -166,6 +183,21 @@ contains
     if (stat /= 0) call fail(message)
     x0 = [z0, spread(0.0_real64, 1, size(constraints))]
   end subroutine set_scene
+
+  ! cvode_bdf on the paper scene at the default tolerance.
+  subroutine set_up_cvode(c)
+    type(bench_case), intent(inout), target :: c
+    type(integrator_entry) :: entry
+    logical :: found
+
+    c%label = 'cvode_bdf_temperature'
+    call set_scene(c, c%model, c%z0, c%constraints, c%x0)
+    c%choice%dt = dt
+    c%choice%thermo_variable = tau_temperature
+    call find_integrator('cvode_bdf', entry, found)
+    if (.not. found) call fail('no integrator cvode_bdf')
+    call entry%build(c%integrator)
+  end subroutine set_up_cvode
 
   ! A case's integrator, scene and floor.
   subroutine set_up_case(c)
@@ -319,24 +351,5 @@ contains
     end do
     call integrator%release(ierr)
   end subroutine time_ts
-
-  function median(values) result(m)
-    real(real64), intent(in) :: values(:)
-    real(real64) :: m, sorted(size(values)), swap
-    integer :: i, j
-
-    sorted = values
-    do i = 2, size(sorted)
-      swap = sorted(i)
-      j = i - 1
-      do while (j >= 1)
-        if (sorted(j) <= swap) exit
-        sorted(j + 1) = sorted(j)
-        j = j - 1
-      end do
-      sorted(j + 1) = swap
-    end do
-    m = 0.5_real64*(sorted((size(sorted) + 1)/2) + sorted(size(sorted)/2 + 1))
-  end function median
 
 end program eme_bench
