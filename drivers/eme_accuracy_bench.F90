@@ -23,6 +23,7 @@ program eme_accuracy_bench
   use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use statistics, only: median
+  use command_line, only: benchmark_repeats
   implicit none
 
   !> A scheme under test: its registry name, whether it is adaptive (calibrated in tolerance,
@@ -80,14 +81,8 @@ program eme_accuracy_bench
     end if
   end if
   PetscCallA(PetscInitialize(ierr))
-  repeats = 5
-  if (command_argument_count() >= 1) then
-    call get_command_argument(1, argument)
-    if (argument(1:1) /= '-') then    ! else a PETSc option
-      read (argument, *, iostat=stat) repeats
-      if (stat /= 0 .or. repeats < 1) call fail('REPEATS must be a whole number >= 1')
-    end if
-  end if
+  call benchmark_repeats(5, repeats, stat)
+  if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
   call scene%build(tau_temperature, model, z0, constraints, stat, message)
   if (stat /= 0) call fail(message)
 

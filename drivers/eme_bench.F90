@@ -31,6 +31,7 @@ program eme_bench
   use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
   use statistics, only: median
+  use command_line, only: benchmark_repeats
   implicit none
 
   integer, parameter :: steps = 134, max_iterations = 50
@@ -81,14 +82,8 @@ program eme_bench
     end if
   end if
   PetscCallA(PetscInitialize(ierr))
-  repeats = 15
-  if (command_argument_count() >= 1) then
-    call get_command_argument(1, argument)
-    if (argument(1:1) /= '-') then    ! else a PETSc option
-      read (argument, *, iostat=stat) repeats
-      if (stat /= 0 .or. repeats < 1) call fail('REPEATS must be a whole number >= 1')
-    end if
-  end if
+  call benchmark_repeats(15, repeats, stat)
+  if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
   call read_solver_options(options, ierr)
   if (ierr /= 0) call fail('cannot read the -eme_* options')
   allocate (times(repeats), cvode_times(repeats), cvode_internal(repeats), eme_over_cvode(repeats))

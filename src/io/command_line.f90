@@ -9,7 +9,7 @@ module command_line
   use namelist_text, only: joined
   implicit none (type, external)
   private
-  public :: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
+  public :: command_arguments, parse_command_line, detach_input_file, unused_petsc_options, benchmark_repeats
 
   !> What the command line asked for.
   type :: command_arguments
@@ -95,6 +95,23 @@ contains
   end subroutine parse_command_line
 
   !> Whether the program's own option `flag` was given.
+  !> A benchmark's REPEATS: its first argument when that is not an option, else `default`;
+  !> stat /= 0 when it is not a whole number >= 1.
+  subroutine benchmark_repeats(default, repeats, stat)
+    integer, intent(in) :: default
+    integer, intent(out) :: repeats
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: first
+
+    repeats = default
+    stat = 0
+    if (command_argument_count() < 1) return
+    first = command_argument(1)
+    if (is_option(first)) return
+    read (first, *, iostat=stat) repeats
+    if (stat == 0 .and. repeats < 1) stat = 1
+  end subroutine benchmark_repeats
+
   pure logical function has_flag(self, flag)
     class(command_arguments), intent(in) :: self
     character(len=*), intent(in) :: flag
