@@ -65,7 +65,7 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 -include $(BUILD)/fortran.deps
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o \
-$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/converged_reasons.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
 $(OBJ)/src/solver/snes_solver.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \

@@ -123,11 +123,13 @@ find_libraries() {
             done
         fi
     fi
-    if ! include_holding hdf5.mod "$hdf5_flags" >/dev/null || ! have_library hdf5_fortran "$hdf5_dirs"; then
-        missing="$missing HDF5(with-Fortran)"
+    # The high-level libraries too: dimension scales (H5DS) and tables (H5TB).
+    if ! include_holding hdf5.mod "$hdf5_flags" >/dev/null || ! have_library hdf5_fortran "$hdf5_dirs" ||
+       ! have_library hdf5hl_fortran "$hdf5_dirs"; then
+        missing="$missing HDF5(with-Fortran-and-high-level)"
     fi
     hdf5_dirs=$(unique "$hdf5_dirs")
-    hdf5_libs="$hdf5_dirs$(rpaths "$hdf5_dirs") -lhdf5_fortran -lhdf5"
+    hdf5_libs="$hdf5_dirs$(rpaths "$hdf5_dirs") -lhdf5hl_fortran -lhdf5_hl -lhdf5_fortran -lhdf5"
 
     # SUNDIALS (CVODE with its dense direct solver)
     sundials_flags='' sundials_dirs=''
@@ -153,7 +155,7 @@ Install them with one of (then run make again):
   Debian/Ubuntu (as root, or with sudo):
     apt-get install $NATIVE_PACKAGES
   Spack:
-    spack install openmpi petsc+mpi+fortran hdf5+fortran+mpi sundials netlib-lapack pkgconf
+    spack install openmpi petsc+mpi+fortran hdf5+fortran+hl+mpi sundials netlib-lapack pkgconf
     spack load openmpi petsc hdf5 sundials netlib-lapack pkgconf
   conda-forge:
     conda install -c conda-forge compilers openmpi openmpi-mpifort petsc 'hdf5=*=mpi_openmpi*' sundials liblapack pkg-config

@@ -15,7 +15,8 @@ module cvode_stepper
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
-  use stepper, only: time_stepper, step_report, step_diagnostic
+  use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
+  use solver_description, only: add_setting, text_setting, number_setting
   use number_text, only: fixed_text
   implicit none (type, external)
   private
@@ -29,6 +30,7 @@ module cvode_stepper
   !> One CVODE run. Do not copy it after `start`: CVODE holds the address of `context`.
   type, extends(time_stepper) :: cvode_baseline
     logical :: bdf = .true.
+    real(real64) :: tolerance = 0.0_real64   !! CVODE's relative and absolute tolerance
     type(field_context) :: context
     type(c_ptr) :: handle = c_null_ptr
     !> CVODE's cumulative counts at the last output step (eme_cvode_statistics).
@@ -38,6 +40,7 @@ module cvode_stepper
     procedure :: advance
     procedure :: release
     procedure :: diagnostics
+    procedure :: describe_solver
   end type cvode_baseline
 
   interface
@@ -112,6 +115,7 @@ contains
     if (allocated(self%context%model)) deallocate (self%context%model)
     allocate (self%context%model, source=model)
     self%counts = 0
+    self%tolerance = choice%tolerance
     ierr = eme_cvode_create(int(size(z0), c_int), merge(1_c_int, 0_c_int, self%bdf), 0.0_c_double, z0, &
                             choice%tolerance, choice%tolerance, c_funloc(field), c_funloc(field_jacobian), &
                             c_loc(self%context), self%handle)
@@ -139,6 +143,7 @@ contains
     allocate (report%scheme_temperature(self%context%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
     flag = eme_cvode_advance(self%handle, t_old + dt, x_new, t_reached)
+    report%converged_reason = int(flag)
     ierr = eme_cvode_statistics(self%handle, counts, last_order, last_step)
     if (ierr /= 0) return
     report%diagnostics = [real(last_order, real64), last_step, real(counts(2) - self%counts(2), real64)]
@@ -166,8 +171,39 @@ contains
 
     specs = [step_diagnostic('method_order', '1', 'the order of CVODE''s last internal step in the output step'), &
              step_diagnostic('internal_step', 's', 'the size of CVODE''s last internal step in the output step'), &
-             step_diagnostic('field_evaluations', '1', 'right-hand side evaluations in the output step')]
+             step_diagnostic('field_evaluations', '1', 'right-hand side evaluations in the output step', 'sum')]
   end function diagnostics
+
+  !> CVODE's method, nonlinear and linear solvers and tolerances as given to it (CVODE reads no
+  !> command-line options), and CVODE's names of the flags CVode returns (/converged_reason: 0
+  !> CV_SUCCESS, negative a failure). CVODE's Newton tests its corrections, not a residual:
+  !> /residual_norm is NaN.
+  function describe_solver(self) result(report)
+    class(cvode_baseline), intent(in) :: self
+    type(solver_report) :: report
+    character(kind=c_char, len=40) :: name
+    integer :: flag
+
+    call add_setting(report, text_setting('name', 'SUNDIALS CVODE'))
+    if (self%bdf) then
+      call add_setting(report, text_setting('cvode_method', 'BDF, orders 1-5'))
+      call add_setting(report, text_setting('cvode_nonlinear_solver', 'Newton, dense direct linear solver with the '// &
+                                            'analytic Jacobian'))
+    else
+      call add_setting(report, text_setting('cvode_method', 'Adams-Moulton, orders 1-12'))
+      call add_setting(report, text_setting('cvode_nonlinear_solver', 'fixed-point iteration'))
+    end if
+    call add_setting(report, number_setting('cvode_rtol', self%tolerance))
+    call add_setting(report, number_setting('cvode_atol', self%tolerance))
+    allocate (report%reason_codes(0), report%reason_names(0))
+    do flag = -40, 0
+      call eme_cvode_flag_name(int(flag, c_int), name, len(name, kind=c_int))
+      name = name(1:index(name, c_null_char) - 1)
+      if (name == 'NONE' .or. name == 'unknown flag') cycle
+      report%reason_codes = [report%reason_codes, flag]
+      report%reason_names = [character(len=40) :: report%reason_names, name]
+    end do
+  end function describe_solver
 
   !> Frees CVODE's memory.
   subroutine release(self, ierr)

@@ -21,7 +21,8 @@ module discrete_gradient_stepper
   use solver_options, only: step_solver_options, read_solver_options
   use retry_strategies, only: root_search, find_root
   use integrator_settings, only: integrator_choice
-  use stepper, only: time_stepper, step_report, step_diagnostic
+  use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
+  use solver_description, only: add_setting, text_setting, number_setting
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -51,6 +52,7 @@ module discrete_gradient_stepper
     procedure :: advance
     procedure :: release
     procedure :: diagnostics
+    procedure :: describe_solver
   end type step_solver
 
 contains
@@ -106,8 +108,21 @@ contains
 
     specs = [step_diagnostic('substeps', '1', 'steps of the scheme in the output step: 1, or more where halves '// &
                              'replaced a step without a root (-eme_max_halvings deep); multipliers are then the '// &
-                             'substeps'' time averages')]
+                             'substeps'' time averages', 'sum')]
   end function diagnostics
+
+  !> The step's SNES as it was set up (command-line options applied), with the kernel it solves
+  !> and the halving depth.
+  function describe_solver(self) result(report)
+    class(step_solver), intent(in) :: self
+    type(solver_report) :: report
+    integer :: ierr
+
+    call self%solver%describe(report, ierr)
+    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
+    call add_setting(report, text_setting('eme_fused_kernel', merge('true ', 'false', self%fused)))
+    call add_setting(report, number_setting('eme_max_halvings', real(self%max_halvings, real64)))
+  end function describe_solver
 
   !> One step of dt from x_old, in halves where needed (module header); on acceptance, the
   !> temperatures the (last sub)step's K0 used.
@@ -133,6 +148,8 @@ contains
     report%reason = tally%reason
     report%last_rejection = tally%last_rejection
     report%diagnostics = [real(tally%substeps, real64)]
+    report%residual_norm = self%solver%last_residual_norm
+    report%converged_reason = self%solver%last_reason
     allocate (report%scheme_temperature(self%problem%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
     if (ierr /= 0 .or. .not. report%accepted) return

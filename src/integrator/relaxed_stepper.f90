@@ -34,7 +34,8 @@ module relaxed_stepper
   use snes_solver, only: newton_solver
   use retry_strategies, only: root_search, find_root
   use integrator_settings, only: integrator_choice
-  use stepper, only: time_stepper, step_report, step_diagnostic
+  use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
+  use solver_description, only: add_setting, text_setting, no_solver
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -79,6 +80,7 @@ module relaxed_stepper
     procedure :: advance
     procedure :: release
     procedure :: diagnostics
+    procedure :: describe_solver
     procedure, private :: restore
   end type relaxed_runge_kutta
 
@@ -121,12 +123,28 @@ contains
                              'gamma of the step''s last relaxed (sub)step: E(z + gamma d) = E(z); time advanced by gamma h'), &
              step_diagnostic('rejected_steps', '1', &
                              'attempts rejected in the step (no relaxation root, a non-finite stage, a failed stage '// &
-                             'solve, the entropy guard, or the adaptive error test), each replaced by smaller steps'), &
+                             'solve, the entropy guard, or the adaptive error test), each replaced by smaller steps', &
+                             'sum'), &
              step_diagnostic('halved_steps', '1', &
-                             'rejected attempts replaced by two halves (every rejection but the error test''s)'), &
+                             'rejected attempts replaced by two halves (every rejection but the error test''s)', 'sum'), &
              step_diagnostic('entropy_production', 'J/K', &
-                             'gamma e_S summed over the step''s substeps: the entropy change the step''s stages give')]
+                             'gamma e_S summed over the step''s substeps: the entropy change the step''s stages give', &
+                             'sum')]
   end function diagnostics
+
+  !> The implicit stages' SNES (Gauss-Legendre) as it was set up; none for explicit stages.
+  function describe_solver(self) result(report)
+    class(relaxed_runge_kutta), intent(in) :: self
+    type(solver_report) :: report
+    integer :: ierr
+
+    if (.not. self%tableau%implicit) then
+      report = no_solver('explicit stages')
+      return
+    end if
+    call self%solver%describe(report, ierr)
+    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
+  end function describe_solver
 
   !> The run's models (its own variable and entropy variables) and the initial state.
   subroutine start(self, choice, model, constraints, z0, ierr)
@@ -207,6 +225,10 @@ contains
     report%newton_iterations = self%newton_iterations
     report%diagnostics = [self%last_gamma, real(self%rejections, real64), real(self%halvings, real64), &
                           self%entropy_production]
+    if (self%tableau%implicit) then
+      report%residual_norm = self%solver%last_residual_norm
+      report%converged_reason = self%solver%last_reason
+    end if
     if (ierr /= 0) return
     if (.not. ok) then
       report%reason = self%last_failure

@@ -1,15 +1,21 @@
 !> What the time loop drives: an integrator that advances the run's unknowns x = (z,
 !> multipliers of the active constraints) from one output time to the next and reports what
 !> happened. The discrete-gradient steps (SNES), the PETSc TS baselines and later families
-!> extend it; src/integrator/integrator_registry builds them by name.
+!> extend it; src/integrator/integrator_registry builds them by name. An integrator reports its
+!> solver's settings as the solver used them (`describe_solver`, after `start`; none by
+!> default) and, with each step, the final residual norm and converged reason of its last solve.
 module stepper
-  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_fortran_env, only: real64, int64
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
+  use solver_description, only: solver_report, no_solver
   implicit none (type, external)
   private
-  public :: time_stepper, step_report, step_diagnostic
+  public :: time_stepper, step_report, step_diagnostic, solver_report, no_residual
+
+  !> The residual norm of a step that solves no nonlinear system: NaN.
+  real(real64), parameter :: no_residual = transfer(int(z'7FF8000000000000', int64), 1.0_real64)
 
   !> How a step went.
   type :: step_report
@@ -24,6 +30,10 @@ module stepper
     logical :: chose_time = .false.      !! the integrator chose the time it reached: `time`
     real(real64) :: time = 0.0_real64
     real(real64), allocatable :: diagnostics(:)   !! the integrator's own per-step figures (its `diagnostics`)
+    !> 2-norm of the final residual of the step's last nonlinear solve, as the solver's
+    !> convergence test measured it; NaN if the step solves none.
+    real(real64) :: residual_norm = no_residual
+    integer :: converged_reason = 0      !! the solver's converged reason of that solve (describe_solver's legend)
   end type step_report
 
   !> A per-step figure an integrator records beyond step_report's fields (a dataset of its own).
@@ -31,6 +41,9 @@ module stepper
     character(len=24) :: name = ''
     character(len=8) :: units = ''
     character(len=200) :: description = ''
+    !> A file row that stands for several steps (&output every) holds the 'last' step's value,
+    !> or the 'sum', 'min', 'max' or 'mean' over them.
+    character(len=4) :: combine = 'last'
   end type step_diagnostic
 
   !> An integrator of one run at a time; `start` may reuse what an earlier run set up. An
@@ -43,6 +56,7 @@ module stepper
     procedure(advance_interface), deferred :: advance
     procedure(release_interface), deferred :: release
     procedure :: diagnostics
+    procedure :: describe_solver
   end type time_stepper
 
   abstract interface
@@ -86,5 +100,14 @@ contains
 
     allocate (specs(0))
   end function diagnostics
+
+  !> The solver's settings as the solver holds them after `start` (command-line options
+  !> applied), and the legend of step_report%converged_reason; by default, no solver.
+  function describe_solver(self) result(report)
+    class(time_stepper), intent(in) :: self
+    type(solver_report) :: report
+
+    report = no_solver('the integrator reports no solver')
+  end function describe_solver
 
 end module stepper

@@ -15,7 +15,8 @@ module ts_stepper
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
-  use stepper, only: time_stepper, step_report
+  use stepper, only: time_stepper, step_report, solver_report, no_residual
+  use solver_description, only: add_setting, text_setting, number_setting, set_petsc_reasons, reasons_ts
   use dense_assembly, only: assemble_jacobian
   implicit none
   private
@@ -58,6 +59,7 @@ module ts_stepper
     procedure :: start
     procedure :: advance
     procedure :: release
+    procedure :: describe_solver
   end type ts_baseline
 
 contains
@@ -195,6 +197,7 @@ contains
     integer, intent(out) :: ierr
     PetscScalar, pointer :: values(:)
     TSConvergedReason :: converged
+    SNES :: snes
     PetscInt :: snes_iterations, steps, rejections
     real(real64) :: energy, entropy
     character(len=80) :: text
@@ -216,6 +219,12 @@ contains
     end if
     PetscCall(TSSolve(self%ts, self%x, ierr))
     PetscCall(TSGetConvergedReason(self%ts, converged, ierr))
+    report%converged_reason = int(converged)
+    report%residual_norm = no_residual
+    if (self%context%implicit) then
+      PetscCall(TSGetSNES(self%ts, snes, ierr))
+      PetscCall(SNESGetFunctionNorm(snes, report%residual_norm, ierr))
+    end if
     PetscCall(TSGetSNESIterations(self%ts, snes_iterations, ierr))
     PetscCall(TSGetStepNumber(self%ts, steps, ierr))
     PetscCall(TSGetStepRejections(self%ts, rejections, ierr))
@@ -252,6 +261,61 @@ contains
     end if
     report%accepted = .true.
   end subroutine advance
+
+  !> The TS as the options database left it (after TSSetFromOptions): type, adaptivity and
+  !> tolerances, and for the implicit methods their SNES and linear solver; PETSc's names of the
+  !> TS converged reasons (/converged_reason holds TSSolve's of each output step).
+  function describe_solver(self) result(report)
+    class(ts_baseline), intent(in) :: self
+    type(solver_report) :: report
+    PetscErrorCode :: ierr
+
+    call describe_ts(self, report, ierr)
+    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the TS'))
+  end function describe_solver
+
+  subroutine describe_ts(self, report, ierr)
+    class(ts_baseline), intent(in) :: self
+    type(solver_report), intent(inout) :: report
+    PetscErrorCode, intent(out) :: ierr
+    TSAdapt :: adapt
+    SNES :: snes
+    KSP :: ksp
+    PC :: pc
+    Vec :: vector_atol, vector_rtol
+    PetscReal :: atol, rtol, stol, dt
+    PetscInt :: max_iterations, max_evaluations
+    character(len=32) :: ts_type, adapt_type, snes_type, ksp_type, pc_type
+
+    PetscCall(TSGetType(self%ts, ts_type, ierr))
+    PetscCall(TSGetAdapt(self%ts, adapt, ierr))
+    PetscCall(TSAdaptGetType(adapt, adapt_type, ierr))
+    PetscCall(TSGetTolerances(self%ts, atol, vector_atol, rtol, vector_rtol, ierr))
+    PetscCall(TSGetTimeStep(self%ts, dt, ierr))
+    call add_setting(report, text_setting('name', 'PETSc TS'))
+    call add_setting(report, text_setting('ts_type', ts_type))
+    call add_setting(report, text_setting('ts_adapt_type', adapt_type))
+    call add_setting(report, number_setting('ts_atol', atol))
+    call add_setting(report, number_setting('ts_rtol', rtol))
+    call add_setting(report, number_setting('ts_dt', dt, 's'))
+    if (self%context%implicit) then
+      PetscCall(TSGetSNES(self%ts, snes, ierr))
+      PetscCall(SNESGetType(snes, snes_type, ierr))
+      PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+      PetscCall(SNESGetKSP(snes, ksp, ierr))
+      PetscCall(KSPGetType(ksp, ksp_type, ierr))
+      PetscCall(KSPGetPC(ksp, pc, ierr))
+      PetscCall(PCGetType(pc, pc_type, ierr))
+      call add_setting(report, text_setting('snes_type', snes_type))
+      call add_setting(report, number_setting('snes_atol', atol))
+      call add_setting(report, number_setting('snes_rtol', rtol))
+      call add_setting(report, number_setting('snes_stol', stol))
+      call add_setting(report, number_setting('snes_max_it', real(max_iterations, real64)))
+      call add_setting(report, text_setting('ksp_type', ksp_type))
+      call add_setting(report, text_setting('pc_type', pc_type))
+    end if
+    call set_petsc_reasons(report, reasons_ts, ierr)
+  end subroutine describe_ts
 
   ! Dense LU for the implicit methods' Newton solves, as for the EME schemes.
   subroutine set_direct_solver(snes, ierr)

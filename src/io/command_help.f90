@@ -3,6 +3,7 @@
 !> integrator or model appears here by itself. (The output layout is printed by run_output.)
 module command_help
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
   use namelist_text, only: namelist_item
   use namelist_group, only: describe_group
   use model_registry, only: select_scene, model_names
@@ -17,12 +18,21 @@ module command_help
     'Exit status: 0 complete, 2 bad input or usage (nothing is written), 3 the run stopped early (its file is '// &
     'kept, marked incomplete, with the reason), 1 an I/O or PETSc error, 128 + N after signal N (SIGTERM: 143, '// &
     'SIGINT: 130; the file is kept, marked incomplete).'
-  character(len=*), parameter :: petsc_options_text(5) = [character(len=100) :: &
+  character(len=*), parameter :: petsc_options_text(4) = [character(len=100) :: &
     'PETSc options (one ''-'') reach every solver, before or after the input file: -snes_monitor,', &
-    '-snes_converged_reason, -snes_test_jacobian, -pc_type lu, -ts_*, and the code''s own', &
-    '-eme_chord_predictor false (no chord refinement of the Newton predictor). An argument after', &
-    'an option is its value unless it ends in .nml. Options that nothing used are named in a warning', &
-    'at the end.']
+    '-snes_converged_reason, -snes_test_jacobian, -pc_type lu, -ts_*, and the code''s own below (PETSc''s', &
+    '-help lists them too). An argument after an option is its value unless it ends in .nml. Options', &
+    'that nothing used are named in a warning at the end.']
+
+  interface
+    ! The code's own options, one by one (src/solver/petsc_options.c); 1 past the last.
+    function c_option_help(i, name, value, help, size) result(past) bind(c, name='eme_option_help')
+      import :: c_int, c_char
+      integer(c_int), value :: i, size
+      character(kind=c_char), intent(out) :: name(*), value(*), help(*)
+      integer(c_int) :: past
+    end function c_option_help
+  end interface
 
 contains
 
@@ -56,7 +66,9 @@ contains
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &
       '  --output-schema   the HDF5 layout as a tab-separated table', '', &
-      (trim(petsc_options_text(i)), i = 1, size(petsc_options_text)), '', exit_codes, '', &
+      (trim(petsc_options_text(i)), i = 1, size(petsc_options_text))
+    call print_own_options(unit)
+    write (unit, '(a)') '', exit_codes, '', &
       'Input: a namelist file with any of these groups (models: '//model_names()//'); left-out fields keep', &
       'their defaults, the paper''s scene:'
     call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
@@ -97,11 +109,35 @@ contains
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
       '2 bad study input or usage (nothing is written), 1 the index or a case''s output could not be written,', &
       '128 + N after signal N (the study stopped cleanly; running it again goes on).', '', &
-      (trim(petsc_options_text(i)), i = 1, size(petsc_options_text)), '', &
+      (trim(petsc_options_text(i)), i = 1, size(petsc_options_text))
+    call print_own_options(unit)
+    write (unit, '(a)') '', &
       'Input: one &study group and one &sweep group per swept field (eme_run --help lists the fields):'
     call describe_group(unit, 'study', study_fields(base, output_dir, combine, index_only, repeats))
     call describe_group(unit, 'sweep', sweep_fields(field, values, texts))
   end subroutine print_study_help
+
+  ! The code's own -eme_* options with their defaults and descriptions (the table PETSc's -help
+  ! shows them from).
+  subroutine print_own_options(unit)
+    integer, intent(in) :: unit
+    character(kind=c_char, len=512) :: name, value, help
+    integer(c_int) :: i
+
+    i = 0
+    do while (c_option_help(i, name, value, help, len(name, kind=c_int)) == 0)
+      write (unit, '(4x, a)') before_nul(name)//' '//before_nul(value)
+      write (unit, '(t28, a)') before_nul(help)
+      i = i + 1
+    end do
+  end subroutine print_own_options
+
+  pure function before_nul(text) result(plain)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: plain
+
+    plain = text(1:index(text, c_null_char) - 1)
+  end function before_nul
 
   !> The integrator registry: as a tab-separated table (name, family, label, constraints,
   !> adaptive, description) or as lines for --help.

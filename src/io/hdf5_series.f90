@@ -5,15 +5,20 @@
 !> A `series_table` groups datasets that gain a row together (one per time point, or one per
 !> step). Rows are buffered in memory (bounded: `capacity_rows`) and written a window at a time.
 !> Datasets whose final length is known when they are first written are contiguous; the others
-!> are chunked and extendible. Datasets are (rows) or (rows, width) as h5py shows them. Text
-!> attributes are UTF-8 variable-length strings (h5py reads them as str).
+!> are chunked and extendible, and deflated (with the shuffle filter) when a compression level is
+!> set. Datasets are (rows) or (rows, width) as h5py shows them. A table's first dataset can be
+!> the HDF5 dimension scale of the others' rows (src/io/hdf5_scales.c). A row of the file can
+!> stand for several rows given to the table (`accumulate`, then `commit`): each dataset keeps
+!> the last, the sum, the minimum, the maximum or the mean of them. Text attributes are UTF-8
+!> variable-length strings (h5py reads them as str).
 module hdf5_series
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
   use hdf5, only: hid_t, hsize_t, h5open_f, h5eset_auto_f, h5fclose_f, h5screate_simple_f, h5screate_f, &
                   h5sclose_f, H5S_SCALAR_F, H5S_UNLIMITED_F, H5S_SELECT_SET_F, h5sselect_hyperslab_f, &
                   h5pcreate_f, h5pclose_f, h5pset_chunk_f, h5pset_layout_f, H5D_CONTIGUOUS_F, H5P_DATASET_CREATE_F, &
-                  h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dset_extent_f, h5dget_space_f, &
+                  h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dset_extent_f, h5dget_space_f, h5pset_deflate_f, &
+                  h5pset_shuffle_f, &
                   H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, h5acreate_f, h5aclose_f, h5awrite_f, h5aexists_f, h5adelete_f, &
                   h5aopen_f, h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
   implicit none (type, external)
@@ -29,6 +34,10 @@ module hdf5_series
     logical :: vector = .false.          !! (rows, width) if true, (rows) if false
     logical :: integer_valued = .false.
     integer :: offset = 0
+    character(len=4) :: combine = 'last' !! a file row for several given rows: last, sum, min, max or mean
+    character(len=16), allocatable :: column_units(:)   !! of a vector's columns (attribute column_units)
+    integer, allocatable :: flag_values(:)              !! CF flag_values and flag_meanings, if allocated
+    character(len=:), allocatable :: flag_meanings
   end type series
 
   !> Datasets that gain a row together, with the row buffer.
@@ -41,9 +50,16 @@ module hdf5_series
     integer :: buffered = 0
     integer(int64) :: written = 0        !! rows in the file
     logical :: created = .false.         !! the datasets exist in the file
+    logical :: scale = .false.           !! the first dataset is the dimension scale of the others' rows
+    integer :: compression = 0           !! deflate level 0 (none) to 9 of chunked datasets
+    real(real64), allocatable :: pending(:)   !! the combined row being accumulated
+    integer :: pending_count = 0         !! rows accumulated into it
   contains
     procedure :: define
+    procedure :: set_flags
     procedure :: append
+    procedure :: accumulate
+    procedure :: commit
     procedure :: full
     procedure :: window_bytes
     procedure :: write => write_table
@@ -62,6 +78,7 @@ module hdf5_series
     procedure :: set_real
     procedure :: set_reals
     procedure :: set_integer
+    procedure :: set_texts
     procedure :: get_text
     procedure :: get_reals
   end type hdf5_file
@@ -79,6 +96,30 @@ module hdf5_series
       integer(c_int), value :: fresh
       integer(c_int) :: status
     end function c_write_text_attribute
+    function c_write_text_array_attribute(object, name, joined) result(status) &
+        bind(c, name='eme_h5_write_text_array_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object
+      character(kind=c_char), intent(in) :: name(*), joined(*)
+      integer(c_int) :: status
+    end function c_write_text_array_attribute
+    function c_make_scale(scale, name) result(status) bind(c, name='eme_h5_make_scale')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: scale
+      character(kind=c_char), intent(in) :: name(*)
+      integer(c_int) :: status
+    end function c_make_scale
+    function c_column_scale(file, dataset, name, joined) result(status) bind(c, name='eme_h5_column_scale')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: file, dataset
+      character(kind=c_char), intent(in) :: name(*), joined(*)
+      integer(c_int) :: status
+    end function c_column_scale
+    function c_attach_row_scale(dataset, scale) result(status) bind(c, name='eme_h5_attach_row_scale')
+      import :: c_int, c_int64_t
+      integer(c_int64_t), value :: dataset, scale
+      integer(c_int) :: status
+    end function c_attach_row_scale
     function c_read_text_attribute(object, name, text, capacity) result(status) &
         bind(c, name='eme_h5_read_text_attribute')
       import :: c_char, c_int, c_int64_t
@@ -200,34 +241,49 @@ contains
                                       merge(1_c_int, 0_c_int, self%fresh)))
   end subroutine set_text
 
-  !> Scalar real attribute on the file root.
-  subroutine set_real(self, name, value, stat)
+  !> Array of texts as one attribute on the file root (h5py: an array of str).
+  subroutine set_texts(self, name, values, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name, values(:)
+    integer, intent(out) :: stat
+
+    stat = int(c_write_text_array_attribute(int(self%id, c_int64_t), name//c_null_char, joined_lines(values)//c_null_char))
+  end subroutine set_texts
+
+  !> Scalar real attribute on the file root; with `units`, a text attribute <name>_units too.
+  subroutine set_real(self, name, value, stat, units)
     class(hdf5_file), intent(in) :: self
     character(len=*), intent(in) :: name
     real(real64), intent(in) :: value
     integer, intent(out) :: stat
+    character(len=*), intent(in), optional :: units
 
     call write_numeric_attribute(self%id, name, [value], .true., self%fresh, stat)
+    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
   end subroutine set_real
 
-  !> Real-array attribute on the file root.
-  subroutine set_reals(self, name, values, stat)
+  !> Real-array attribute on the file root; with `units`, a text attribute <name>_units too.
+  subroutine set_reals(self, name, values, stat, units)
     class(hdf5_file), intent(in) :: self
     character(len=*), intent(in) :: name
     real(real64), intent(in) :: values(:)
     integer, intent(out) :: stat
+    character(len=*), intent(in), optional :: units
 
     call write_numeric_attribute(self%id, name, values, .false., self%fresh, stat)
+    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
   end subroutine set_reals
 
-  !> Scalar integer attribute on the file root.
-  subroutine set_integer(self, name, value, stat)
+  !> Scalar integer attribute on the file root; with `units`, a text attribute <name>_units too.
+  subroutine set_integer(self, name, value, stat, units)
     class(hdf5_file), intent(in) :: self
     character(len=*), intent(in) :: name
     integer, intent(in) :: value
     integer, intent(out) :: stat
+    character(len=*), intent(in), optional :: units
 
     call write_numeric_attribute(self%id, name, [real(value, real64)], .true., self%fresh, stat, integer_valued=.true.)
+    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
   end subroutine set_integer
 
   !> The text attribute `name` of the file root; stat /= 0 if it is missing.
@@ -269,8 +325,9 @@ contains
   end subroutine get_reals
 
   !> Reads the run file at `path` back: its status and steps_completed, and whether every
-  !> per-point dataset has steps_completed + 1 rows and every per-step dataset steps_completed
-  !> (src/io/hdf5_storage.c). stat: 0 all holds, 1 unreadable, 2 no status, 3 lengths disagree.
+  !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
+  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). stat: 0 all holds,
+  !> 1 unreadable, 2 no status, 3 lengths disagree.
   subroutine check_run_file(path, status, steps_completed, stat)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: status
@@ -285,16 +342,19 @@ contains
   end subroutine check_run_file
 
   !> Adds a dataset of `width` values per row (a (rows, width) dataset if vector, else (rows))
-  !> with `units` and `description` attributes, `columns` (names separated by blanks) for a
-  !> vector, `rows` (what a row is) and `source` (who defines it). It is created in a file by the
-  !> table's first `write`.
-  subroutine define(self, name, width, vector, units, description, integer_valued, columns, rows, source)
+  !> with `units` and `description` attributes, `columns` (names separated by blanks) and
+  !> `column_units` for a vector, `rows` (what a row is) and `source` (who defines it); `combine`
+  !> says what a file row that stands for several given rows holds ('last' by default). It is
+  !> created in a file by the table's first `write`.
+  subroutine define(self, name, width, vector, units, description, integer_valued, columns, rows, source, &
+                    column_units, combine)
     class(series_table), intent(inout) :: self
     character(len=*), intent(in) :: name, units, description
     integer, intent(in) :: width
     logical, intent(in) :: vector
     logical, intent(in), optional :: integer_valued
-    character(len=*), intent(in), optional :: columns, rows, source
+    character(len=*), intent(in), optional :: columns, rows, source, combine
+    character(len=*), intent(in), optional :: column_units(:)
     type(series) :: item
 
     item%name = name
@@ -306,6 +366,8 @@ contains
     if (present(columns)) item%columns = columns
     if (present(rows)) item%rows = rows
     if (present(source)) item%source = source
+    if (present(column_units)) item%column_units = column_units
+    if (present(combine)) item%combine = combine
     item%width = width
     item%vector = vector
     if (present(integer_valued)) item%integer_valued = integer_valued
@@ -315,6 +377,70 @@ contains
     if (allocated(self%buffer)) deallocate (self%buffer)
     allocate (self%buffer(self%row_width, 64))
   end subroutine define
+
+  !> Gives dataset `name` the CF attributes flag_values and flag_meanings (a legend of codes).
+  subroutine set_flags(self, name, values, meanings)
+    class(series_table), intent(inout) :: self
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: values(:)
+    character(len=*), intent(in) :: meanings(:)
+    integer :: i, k
+
+    do i = 1, size(self%items)
+      if (self%items(i)%name /= name) cycle
+      self%items(i)%flag_values = values
+      self%items(i)%flag_meanings = ''
+      do k = 1, size(meanings)
+        if (k > 1) self%items(i)%flag_meanings = self%items(i)%flag_meanings//' '
+        self%items(i)%flag_meanings = self%items(i)%flag_meanings//trim(meanings(k))
+      end do
+    end do
+  end subroutine set_flags
+
+  !> Combines `row` into the pending file row, each dataset by its `combine` rule.
+  subroutine accumulate(self, row)
+    class(series_table), intent(inout) :: self
+    real(real64), intent(in) :: row(:)
+    integer :: i
+
+    if (.not. allocated(self%pending)) allocate (self%pending(self%row_width))
+    if (self%pending_count == 0) then
+      self%pending = row
+    else
+      do i = 1, size(self%items)
+        associate (p => self%pending(self%items(i)%offset + 1:self%items(i)%offset + self%items(i)%width), &
+                   r => row(self%items(i)%offset + 1:self%items(i)%offset + self%items(i)%width))
+          select case (self%items(i)%combine)
+          case ('sum', 'mean')
+            p = p + r
+          case ('min')
+            p = min(p, r)
+          case ('max')
+            p = max(p, r)
+          case default
+            p = r
+          end select
+        end associate
+      end do
+    end if
+    self%pending_count = self%pending_count + 1
+  end subroutine accumulate
+
+  !> Buffers the pending file row (if any rows were accumulated) and starts a new one.
+  subroutine commit(self)
+    class(series_table), intent(inout) :: self
+    integer :: i
+
+    if (self%pending_count == 0) return
+    do i = 1, size(self%items)
+      if (self%items(i)%combine /= 'mean') cycle
+      associate (p => self%pending(self%items(i)%offset + 1:self%items(i)%offset + self%items(i)%width))
+        p = p/self%pending_count
+      end associate
+    end do
+    call self%append(self%pending)
+    self%pending_count = 0
+  end subroutine commit
 
   !> Buffers one row (all datasets of the table at once); the buffer grows up to capacity_rows.
   subroutine append(self, row)
@@ -347,6 +473,8 @@ contains
 
     chunk = self%chunk_rows
     chunks = (self%written + self%buffered + chunk - 1)/chunk - (self%written + chunk - 1)/chunk
+    ! A compressed chunk that grows is written anew elsewhere in the file.
+    if (self%compression > 0) chunks = chunks + 1
     window_bytes = 0
     do i = 1, size(self%items)
       window_bytes = window_bytes + chunks*chunk*self%items(i)%width*merge(4, 8, self%items(i)%integer_valued) + 4096
@@ -383,7 +511,7 @@ contains
           if (stat /= 0) return
           call h5dset_extent_f(dataset, extent(1:rank), stat)
         else
-          call create_dataset(file, item, rank, extent, final, self%chunk_rows, dataset, stat)
+          call create_dataset(file, item, rank, extent, final, self%chunk_rows, self%compression, dataset, stat)
           if (stat /= 0) then
             if (dataset >= 0) call h5dclose_f(dataset, ignored)
             return
@@ -412,17 +540,45 @@ contains
         if (stat /= 0) return
       end associate
     end do
+    if (.not. self%created .and. self%scale) call attach_scale(file, self%items, stat)
+    if (stat /= 0) return
     self%created = .true.
     self%written = self%written + self%buffered
     self%buffered = 0
   end subroutine write_table
 
+  ! Makes the first dataset the dimension scale (named after it) of the other datasets' rows,
+  ! and gives each vector dataset X the scale X_column of its columns' names.
+  subroutine attach_scale(file, items, stat)
+    type(hdf5_file), intent(in) :: file
+    type(series), intent(in) :: items(:)
+    integer, intent(out) :: stat
+    integer(hid_t) :: scale, dataset
+    integer :: i, ignored
+
+    call h5dopen_f(file%id, items(1)%name, scale, stat)
+    if (stat /= 0) return
+    stat = int(c_make_scale(int(scale, c_int64_t), items(1)%name//c_null_char))
+    do i = 2, size(items)
+      if (stat /= 0) exit
+      call h5dopen_f(file%id, items(i)%name, dataset, stat)
+      if (stat /= 0) exit
+      stat = int(c_attach_row_scale(int(dataset, c_int64_t), int(scale, c_int64_t)))
+      if (stat == 0 .and. items(i)%vector) stat = int(c_column_scale(int(file%id, c_int64_t), int(dataset, c_int64_t), &
+                                                      items(i)%name//'_column'//c_null_char, &
+                                                      words_as_lines(items(i)%columns)//c_null_char))
+      call h5dclose_f(dataset, ignored)
+    end do
+    call h5dclose_f(scale, ignored)
+  end subroutine attach_scale
+
   ! Creates one dataset of the table with its attributes: contiguous of `extent` if `final`,
-  ! chunked with an unlimited row count otherwise.
-  subroutine create_dataset(file, item, rank, extent, final, chunk_rows, dataset, stat)
+  ! chunked with an unlimited row count otherwise; chunked and deflated at level `compression`
+  ! (after the shuffle filter) if that is > 0 and there are rows.
+  subroutine create_dataset(file, item, rank, extent, final, chunk_rows, compression, dataset, stat)
     type(hdf5_file), intent(in) :: file
     type(series), intent(in) :: item
-    integer, intent(in) :: rank, chunk_rows
+    integer, intent(in) :: rank, chunk_rows, compression
     integer(hsize_t), intent(in) :: extent(2)
     logical, intent(in) :: final
     integer(hid_t), intent(out) :: dataset
@@ -431,6 +587,7 @@ contains
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: max_dims(2), chunk(2)
     integer :: ignored
+    logical :: compressed
 
     dataset = -1
     kind = H5T_NATIVE_DOUBLE
@@ -439,17 +596,23 @@ contains
     max_dims(rank) = H5S_UNLIMITED_F
     chunk = extent
     chunk(rank) = int(chunk_rows, hsize_t)
-    if (final) max_dims = extent
+    if (final) then
+      max_dims = extent
+      chunk(rank) = min(chunk(rank), extent(rank))
+    end if
+    compressed = compression > 0 .and. chunk(rank) > 0
     call h5screate_simple_f(rank, extent(1:rank), space, stat, max_dims(1:rank))
     if (stat /= 0) return
     call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
     if (stat == 0) then
-      if (final) then
+      if (final .and. .not. compressed) then
         call h5pset_layout_f(properties, H5D_CONTIGUOUS_F, stat)
       else
         call h5pset_chunk_f(properties, rank, chunk(1:rank), stat)
       end if
     end if
+    if (stat == 0 .and. compressed) call h5pset_shuffle_f(properties, stat)
+    if (stat == 0 .and. compressed) call h5pset_deflate_f(properties, compression, stat)
     if (stat == 0) call h5dcreate_f(file%id, item%name, kind, space, dataset, stat, properties)
     call h5pclose_f(properties, ignored)
     call h5sclose_f(space, ignored)
@@ -462,7 +625,46 @@ contains
     if (stat == 0 .and. len(item%columns) > 0) call fresh_object%set_text('columns', item%columns, stat, dataset)
     if (stat == 0 .and. len(item%rows) > 0) call fresh_object%set_text('rows', item%rows, stat, dataset)
     if (stat == 0 .and. len(item%source) > 0) call fresh_object%set_text('source', item%source, stat, dataset)
+    if (stat == 0 .and. allocated(item%column_units)) stat = int(c_write_text_array_attribute(int(dataset, c_int64_t), &
+                                                            'column_units'//c_null_char, &
+                                                            joined_lines(item%column_units)//c_null_char))
+    if (stat == 0 .and. allocated(item%flag_values)) then
+      call write_numeric_attribute(dataset, 'flag_values', real(item%flag_values, real64), .false., .true., stat, &
+                                   integer_valued=.true.)
+      if (stat == 0) call fresh_object%set_text('flag_meanings', item%flag_meanings, stat, dataset)
+    end if
   end subroutine create_dataset
+
+  ! The blank-separated words of `text`, each ended by a newline.
+  pure function words_as_lines(text) result(lines)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: lines
+    integer :: i
+
+    lines = ''
+    do i = 1, len(text)
+      if (text(i:i) /= ' ') then
+        lines = lines//text(i:i)
+      else if (i > 1) then
+        if (text(i - 1:i - 1) /= ' ') lines = lines//new_line('a')
+      end if
+    end do
+    if (len(text) > 0) then
+      if (text(len(text):len(text)) /= ' ') lines = lines//new_line('a')
+    end if
+  end function words_as_lines
+
+  ! The texts, each trimmed and ended by a newline.
+  pure function joined_lines(texts) result(joined)
+    character(len=*), intent(in) :: texts(:)
+    character(len=:), allocatable :: joined
+    integer :: i
+
+    joined = ''
+    do i = 1, size(texts)
+      joined = joined//trim(texts(i))//new_line('a')
+    end do
+  end function joined_lines
 
   ! Opens the HDF5 library once per process, with its own error printing off.
   subroutine open_library(stat)
@@ -496,6 +698,10 @@ contains
       longer(i)%vector = items(i)%vector
       longer(i)%integer_valued = items(i)%integer_valued
       longer(i)%offset = items(i)%offset
+      longer(i)%combine = items(i)%combine
+      if (allocated(items(i)%column_units)) call move_alloc(items(i)%column_units, longer(i)%column_units)
+      if (allocated(items(i)%flag_values)) call move_alloc(items(i)%flag_values, longer(i)%flag_values)
+      if (allocated(items(i)%flag_meanings)) call move_alloc(items(i)%flag_meanings, longer(i)%flag_meanings)
     end do
     longer(size(longer)) = item
     call move_alloc(longer, items)

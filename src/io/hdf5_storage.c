@@ -162,10 +162,24 @@ static herr_t check_rows(hid_t group, const char *name, const H5L_info_t *info, 
     return 0;
 }
 
+/* The integer root attribute `name` of `file`, or -1 if it is missing or unreadable. */
+static long long integer_attribute(hid_t file, const char *name)
+{
+    long long value = -1;
+    if (H5Aexists(file, name) <= 0) return -1;
+    hid_t attribute = H5Aopen(file, name, H5P_DEFAULT);
+    if (attribute < 0) return -1;
+    if (H5Aread(attribute, H5T_NATIVE_LLONG, &value) < 0) value = -1;
+    H5Aclose(attribute);
+    return value;
+}
+
 /* Reads a run file back: its `status` into `status` (capacity bytes) and `steps_completed`, and
- * checks that every per-point dataset has steps_completed + 1 rows and every per-step dataset
- * steps_completed rows. Returns 0 if all holds, 1 if the file cannot be opened, 2 if status or
- * steps_completed is missing, 3 if a dataset has the wrong length or cannot be read. */
+ * checks that every per-point dataset has R + 1 rows and every per-step dataset R rows, R being
+ * the attribute step_rows (a row can stand for several steps: &output every), or
+ * steps_completed in files without it. Returns 0 if all holds, 1 if the file cannot be opened,
+ * 2 if status or steps_completed is missing, 3 if a dataset has the wrong length or cannot be
+ * read. */
 int eme_h5_check_run_file(const char *path, char *status, int capacity, long *steps_completed)
 {
     hid_t file;
@@ -173,17 +187,15 @@ int eme_h5_check_run_file(const char *path, char *status, int capacity, long *st
     *steps_completed = -1;
     if (eme_h5_open_file(path, 0, 0, 0, &file) != 0) return 1;
     int result = 2;
-    if (eme_h5_read_text_attribute(file, "status", status, capacity) == 0 && H5Aexists(file, "steps_completed") > 0) {
-        hid_t attribute = H5Aopen(file, "steps_completed", H5P_DEFAULT);
-        long long steps = -1;
-        if (attribute >= 0 && H5Aread(attribute, H5T_NATIVE_LLONG, &steps) >= 0) {
-            row_check check = {(long)steps, 0, 0};
-            *steps_completed = (long)steps;
-            hsize_t position = 0;
-            if (H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, check_rows, &check) < 0) check.mismatches++;
-            result = check.mismatches == 0 && check.datasets > 0 ? 0 : 3;
-        }
-        if (attribute >= 0) H5Aclose(attribute);
+    long long steps = integer_attribute(file, "steps_completed");
+    if (eme_h5_read_text_attribute(file, "status", status, capacity) == 0 && steps >= 0) {
+        long long rows = H5Aexists(file, "step_rows") > 0 ? integer_attribute(file, "step_rows") : steps;
+        row_check check = {(long)rows, 0, 0};
+        *steps_completed = (long)steps;
+        hsize_t position = 0;
+        if (rows < 0 || H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, check_rows, &check) < 0)
+            check.mismatches++;
+        result = check.mismatches == 0 && check.datasets > 0 ? 0 : 3;
     }
     if (H5Fclose(file) < 0 && result == 0) result = 1;
     return result;

@@ -1,21 +1,30 @@
-!> A table as one HDF5 compound dataset (src/io/compound_table.c): h5py loads it in one call as a
-!> numpy structured array. Columns are real64, integer or fixed-length text; tables are written
-!> and read whole.
+!> A table as one HDF5 compound dataset made by HDF5's high-level table API (H5TB): h5py loads it
+!> in one call as a numpy structured array (`f["cases"][:]`), and HDF5's table tools know it
+!> (attributes CLASS = TABLE, TITLE, FIELD_n_NAME). Columns are chosen at run time (a study's
+!> sweeps name some of them): real64, integer or fixed-length UTF-8 text, NUL-padded so that h5py
+!> gives the text without trailing blanks. Tables are written whole (H5TBmake_table, then one
+!> H5TBwrite_fields_name per column) and read whole, column by column by name: a column the
+!> file lacks (an index written before the column existed) reads as 0 or as an empty text.
 module hdf5_table
   use, intrinsic :: iso_fortran_env, only: real64
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_double, c_int64_t, c_null_char
-  use hdf5, only: hid_t
+  use hdf5, only: hid_t, hsize_t, size_t, H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, H5T_NATIVE_CHARACTER, &
+                  H5T_STR_NULLPAD_F, H5T_CSET_UTF8_F, h5tcopy_f, h5tset_size_f, h5tset_strpad_f, h5tset_cset_f, &
+                  h5tclose_f, h5lexists_f
+  use h5tb, only: h5tbmake_table_f, h5tbwrite_field_name_f, h5tbread_field_name_f, h5tbget_table_info_f, &
+                  h5tbget_field_info_f
   implicit none (type, external)
   private
   public :: table_columns, column_real, column_integer, table_rows
 
   integer, parameter :: column_real = 0      !! width of a real64 column
   integer, parameter :: column_integer = -1  !! width of an integer column
+  integer, parameter :: name_length = 64     !! longest column name
+  integer, parameter :: chunk_rows = 1024
 
   !> The columns of a table: names and widths (column_real, column_integer, or a text length).
   type :: table_columns
-    character(len=:), allocatable :: names   !! each name followed by a newline
-    integer(c_int), allocatable :: widths(:)
+    character(len=name_length), allocatable :: names(:)
+    integer, allocatable :: widths(:)
   contains
     procedure :: add
     procedure :: numeric_count
@@ -24,46 +33,21 @@ module hdf5_table
     procedure :: read => read_table
   end type table_columns
 
-  interface
-    function c_table_write(file, name, count, names, widths, rows, numbers, texts) result(status) &
-        bind(c, name='eme_table_write')
-      import :: c_int64_t, c_char, c_int, c_long, c_double
-      integer(c_int64_t), value :: file
-      character(kind=c_char), intent(in) :: name(*), names(*), texts(*)
-      integer(c_int), value :: count
-      integer(c_int), intent(in) :: widths(*)
-      integer(c_long), value :: rows
-      real(c_double), intent(in) :: numbers(*)
-      integer(c_int) :: status
-    end function c_table_write
-    function c_table_read(file, name, count, names, widths, rows, numbers, texts, capacity) result(status) &
-        bind(c, name='eme_table_read')
-      import :: c_int64_t, c_char, c_int, c_long, c_double
-      integer(c_int64_t), value :: file
-      character(kind=c_char), intent(in) :: name(*), names(*)
-      character(kind=c_char), intent(out) :: texts(*)
-      integer(c_int), value :: count
-      integer(c_int), intent(in) :: widths(*)
-      integer(c_long), value :: rows, capacity
-      real(c_double), intent(out) :: numbers(*)
-      integer(c_int) :: status
-    end function c_table_read
-    function c_table_rows(file, name) result(rows) bind(c, name='eme_table_rows')
-      import :: c_int64_t, c_char, c_long
-      integer(c_int64_t), value :: file
-      character(kind=c_char), intent(in) :: name(*)
-      integer(c_long) :: rows
-    end function c_table_rows
-  end interface
-
 contains
 
   !> Number of rows of table `name` in the open file, or -1 if there is none.
   integer function table_rows(file, name)
     integer(hid_t), intent(in) :: file
     character(len=*), intent(in) :: name
+    integer(hsize_t) :: fields, records
+    logical :: exists
+    integer :: stat
 
-    table_rows = int(c_table_rows(int(file, c_int64_t), name//c_null_char))
+    table_rows = -1
+    call h5lexists_f(file, name, exists, stat)
+    if (stat /= 0 .or. .not. exists) return
+    call h5tbget_table_info_f(file, name, fields, records, stat)
+    if (stat == 0) table_rows = int(records)
   end function table_rows
 
   !> Appends a column.
@@ -72,12 +56,9 @@ contains
     character(len=*), intent(in) :: name
     integer, intent(in) :: width
 
-    if (.not. allocated(self%names)) then
-      self%names = ''
-      allocate (self%widths(0))
-    end if
-    self%names = self%names//name//new_line('a')
-    self%widths = [self%widths, int(width, c_int)]
+    if (.not. allocated(self%names)) allocate (self%names(0), self%widths(0))
+    self%names = [self%names, name]
+    self%widths = [self%widths, width]
   end subroutine add
 
   !> Number of numeric (real or integer) columns.
@@ -94,7 +75,7 @@ contains
     text_count = count(self%widths > 0)
   end function text_count
 
-  !> Creates dataset `name` in the open file and writes every row: numbers(:, r) are row r's
+  !> Creates table `name` in the open file and writes every row: numbers(:, r) are row r's
   !> numeric columns in column order, texts(:, r) its text columns.
   subroutine write_table(self, file, name, numbers, texts, stat)
     class(table_columns), intent(in) :: self
@@ -103,29 +84,45 @@ contains
     real(real64), intent(in) :: numbers(:, :)
     character(len=*), intent(in) :: texts(:, :)
     integer, intent(out) :: stat
-    character(len=:), allocatable :: joined
-    integer :: i, r, at, total
+    integer(hid_t) :: types(size(self%widths))
+    integer(size_t) :: sizes(size(self%widths)), offsets(size(self%widths))
+    integer(hsize_t) :: rows
+    integer :: i, k, t, ignored
 
-    total = 0
-    do r = 1, size(texts, 2)
-      do i = 1, size(texts, 1)
-        total = total + len_trim(texts(i, r)) + 1
-      end do
+    rows = size(numbers, 2, kind=hsize_t)
+    call column_types(self, types, sizes, stat)
+    if (stat /= 0) return
+    offsets(1) = 0
+    do i = 2, size(sizes)
+      offsets(i) = offsets(i - 1) + sizes(i - 1)
     end do
-    allocate (character(len=total + 1) :: joined)
-    at = 0
-    do r = 1, size(texts, 2)
-      do i = 1, size(texts, 1)
-        joined(at + 1:at + len_trim(texts(i, r)) + 1) = trim(texts(i, r))//new_line('a')
-        at = at + len_trim(texts(i, r)) + 1
-      end do
+    call h5tbmake_table_f(name, file, name, size(self%widths, kind=hsize_t), rows, sum(sizes), self%names, offsets, &
+                          types, int(max(1, min(chunk_rows, size(numbers, 2))), hsize_t), 0, stat)
+    do i = 1, size(types)
+      if (self%widths(i) > 0) call h5tclose_f(types(i), ignored)
     end do
-    joined(at + 1:at + 1) = c_null_char
-    stat = int(c_table_write(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
-                             self%names//c_null_char, self%widths, int(size(numbers, 2), c_long), numbers, joined))
+    k = 0
+    t = 0
+    do i = 1, size(self%widths)
+      if (stat /= 0 .or. rows == 0) exit
+      select case (self%widths(i))
+      case (column_real)
+        k = k + 1
+        call h5tbwrite_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, sizes(i), numbers(k, :), stat)
+      case (column_integer)
+        k = k + 1
+        call h5tbwrite_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, sizes(i), nint(numbers(k, :)), &
+                                    stat)
+      case default
+        t = t + 1
+        call h5tbwrite_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, sizes(i), &
+                                    nul_padded(texts(t, :), self%widths(i)), stat)
+      end select
+    end do
   end subroutine write_table
 
-  !> Reads every row of dataset `name` (table_rows of them) as write_table wrote them.
+  !> Reads every row of table `name` (table_rows of them) as write_table wrote them, column by
+  !> column by name; columns the file lacks read as 0 or ''.
   subroutine read_table(self, file, name, numbers, texts, stat)
     class(table_columns), intent(in) :: self
     integer(hid_t), intent(in) :: file
@@ -133,27 +130,122 @@ contains
     real(real64), intent(out) :: numbers(:, :)
     character(len=*), intent(out) :: texts(:, :)
     integer, intent(out) :: stat
-    character(len=:), allocatable :: joined
-    integer :: i, r, start, finish
+    character(len=name_length), allocatable :: stored(:)
+    integer(size_t), allocatable :: stored_sizes(:), stored_offsets(:)
+    integer(size_t) :: row_size
+    integer(hsize_t) :: fields, rows
+    real(real64), allocatable :: reals(:)
+    integer, allocatable :: integers(:)
+    integer :: i, k, t
 
-    allocate (character(len=size(texts)*(len(texts) + 1) + 1) :: joined)
-    stat = int(c_table_read(int(file, c_int64_t), name//c_null_char, size(self%widths, kind=c_int), &
-                            self%names//c_null_char, self%widths, int(size(numbers, 2), c_long), numbers, joined, &
-                            int(len(joined), c_long)))
+    numbers = 0.0_real64
     texts = ''
+    call h5tbget_table_info_f(file, name, fields, rows, stat)
     if (stat /= 0) return
-    start = 1
-    do r = 1, size(texts, 2)
-      do i = 1, size(texts, 1)
-        finish = index(joined(start:), new_line('a')) + start - 2
-        if (finish < start - 1) then
-          stat = -1
-          return
-        end if
-        texts(i, r) = joined(start:finish)
-        start = finish + 2
-      end do
+    if (rows /= size(numbers, 2, kind=hsize_t)) then
+      stat = -1
+      return
+    end if
+    allocate (stored(fields), stored_sizes(fields), stored_offsets(fields))
+    stored = ''
+    call h5tbget_field_info_f(file, name, fields, stored, stored_sizes, stored_offsets, row_size, stat)
+    if (stat /= 0) return
+    allocate (reals(rows), integers(rows))
+    k = 0
+    t = 0
+    do i = 1, size(self%widths)
+      if (self%widths(i) <= 0) then
+        k = k + 1
+      else
+        t = t + 1
+      end if
+      if (rows == 0 .or. .not. any(stored == self%names(i))) cycle
+      select case (self%widths(i))
+      case (column_real)
+        call h5tbread_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, 8_size_t, reals, stat)
+        numbers(k, :) = reals
+      case (column_integer)
+        call h5tbread_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, &
+                                   int(storage_size(integers)/8, size_t), integers, stat)
+        numbers(k, :) = real(integers, real64)
+      case default
+        ! In the file's width, which a table written by another version may have changed.
+        call read_texts(file, name, trim(self%names(i)), int(stored_sizes(findloc(stored, self%names(i), dim=1))), &
+                        texts(t, :), stat)
+      end select
+      if (stat /= 0) return
     end do
   end subroutine read_table
+
+  ! Text column `column` of table `name`, stored `width` characters wide, without its NULs.
+  subroutine read_texts(file, name, column, width, texts, stat)
+    integer(hid_t), intent(in) :: file
+    character(len=*), intent(in) :: name, column
+    integer, intent(in) :: width
+    character(len=*), intent(inout) :: texts(:)
+    integer, intent(out) :: stat
+    character(len=width) :: stored(size(texts))
+    integer :: r
+
+    call h5tbread_field_name_f(file, name, column, 0_hsize_t, size(texts, kind=hsize_t), int(width, size_t), stored, &
+                               stat)
+    if (stat /= 0) return
+    do r = 1, size(texts)
+      texts(r) = without_nul(stored(r))
+    end do
+  end subroutine read_texts
+
+  ! The HDF5 type and size of each column (text types are new and must be closed).
+  subroutine column_types(columns, types, sizes, stat)
+    type(table_columns), intent(in) :: columns
+    integer(hid_t), intent(out) :: types(:)
+    integer(size_t), intent(out) :: sizes(:)
+    integer, intent(out) :: stat
+    integer :: i
+    integer :: probe
+
+    stat = 0
+    do i = 1, size(columns%widths)
+      select case (columns%widths(i))
+      case (column_real)
+        types(i) = H5T_NATIVE_DOUBLE
+        sizes(i) = 8
+      case (column_integer)
+        types(i) = H5T_NATIVE_INTEGER
+        sizes(i) = int(storage_size(probe)/8, size_t)
+      case default
+        sizes(i) = int(columns%widths(i), size_t)
+        call h5tcopy_f(H5T_NATIVE_CHARACTER, types(i), stat)
+        if (stat == 0) call h5tset_size_f(types(i), sizes(i), stat)
+        if (stat == 0) call h5tset_strpad_f(types(i), H5T_STR_NULLPAD_F, stat)
+        if (stat == 0) call h5tset_cset_f(types(i), H5T_CSET_UTF8_F, stat)
+      end select
+      if (stat /= 0) return
+    end do
+  end subroutine column_types
+
+  ! Texts of `width` characters, each NUL-padded after its last non-blank character.
+  pure function nul_padded(texts, width) result(padded)
+    character(len=*), intent(in) :: texts(:)
+    integer, intent(in) :: width
+    character(len=width) :: padded(size(texts))
+    integer :: r, n
+
+    do r = 1, size(texts)
+      n = min(width, len_trim(texts(r)))
+      padded(r) = texts(r)(1:n)//repeat(achar(0), width - n)
+    end do
+  end function nul_padded
+
+  ! A stored text up to its first NUL.
+  pure function without_nul(text) result(plain)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: plain
+    integer :: nul
+
+    nul = index(text, achar(0))
+    if (nul == 0) nul = len(text) + 1
+    plain = text(1:nul - 1)
+  end function without_nul
 
 end module hdf5_table

@@ -29,6 +29,7 @@ module run_config
   !> The loosest Newton tolerance: at newton_tol = 100 the paper scene's Newton accepts its
   !> predictor on every step and nothing moves; at 1 its energy error is 4e-4.
   real(real64), parameter :: max_newton_tol = 1.0e-2_real64
+  integer, parameter :: max_compression = 9     !! gzip's highest level
 
   !> Everything a run needs.
   type :: run_configuration
@@ -38,6 +39,8 @@ module run_config
     character(len=:), allocatable :: output_file
     real(real64) :: theta_r = 300.0_real64       !! the Lyapunov reference temperature [K]
     logical :: overwrite = .false.               !! replace an existing complete output file
+    integer :: output_every = 1                  !! a file row per this many steps (&output every)
+    integer :: compression = 0                   !! deflate level of the datasets, 0 (none) to 9
     ! The texts of the &integrator and &output fields, as read.
     character(len=16) :: thermo_variable = 'temperature'
     character(len=16) :: discrete_gradient = 'gonzalez'
@@ -56,6 +59,7 @@ contains
     character(len=:), allocatable, intent(out) :: message
     type(namelist_item), intent(in), optional :: overrides(:)
     type(namelist_item), allocatable :: extra(:)
+    type(group_field), allocatable :: outputs(:)
     type(integrator_entry) :: entry
     character(len=:), allocatable :: text
     character(len=32), allocatable :: groups(:)
@@ -143,11 +147,14 @@ contains
     call read_group(text, 'output', output_fields(config), path, stat, message, extra)
     if (stat /= 0) return
     config%output_file = trim(config%file)
+    outputs = output_fields(config)
     if (.not. (len_trim(config%file) > 3 .and. index(config%file, '.h5', back=.true.) == len_trim(config%file) - 2)) then
       stat = 1
-      associate (fields => output_fields(config))
-        message = invalid_value_message(value_origin(text, 'output', 'file', path, extra), 'output', fields(1))
-      end associate
+      message = invalid_value_message(value_origin(text, 'output', 'file', path, extra), 'output', outputs(1))
+    else if (config%compression > max_compression) then
+      stat = 1
+      message = invalid_value_message(value_origin(text, 'output', 'compression', path, extra), 'output', &
+                                      outputs(findloc(outputs%name, 'compression', dim=1)))
     end if
   end subroutine read_run_config
 
@@ -220,7 +227,11 @@ contains
       text_field('file', config%file, 'a path ending in .h5 (default results/<input name>.h5)', ''), &
       real_field('theta_r', config%theta_r, 'a real number > 0 [K] (default theta_ref, or the fixed temperature)', &
                  'K', minimum=0.0_real64, exclusive=.true.), &
-      logical_field('overwrite', config%overwrite, '.true. or .false. (default): replace an existing complete file')]
+      logical_field('overwrite', config%overwrite, '.true. or .false. (default): replace an existing complete file'), &
+      integer_field('every', config%output_every, 'an integer >= 1 (default 1): write every N-th point, each step '// &
+                    'row standing for the N steps before it (sums, extremes; README, Output layout)', minimum=1), &
+      integer_field('compression', config%compression, 'an integer 0 (default: none) to 9: gzip level of the '// &
+                    'datasets (with the shuffle filter)', minimum=0)]
   end function output_fields
 
   !> Whether fields `name_a` and `name_b` of the eme_run groups set the same variable: the same

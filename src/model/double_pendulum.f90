@@ -6,7 +6,8 @@ module double_pendulum
   use model_parameters, only: pendulum_parameters
   implicit none (type, external)
   private
-  public :: state_size, q_index, p_index, gamma_index, tau_index, state_column_names
+  public :: state_size, q_index, p_index, gamma_index, tau_index, state_column_names, state_column_units
+  public :: tau_symbols, tau_units
   public :: inverse_mass_times, kinetic_energy, gravity_potential, gravity_force
   public :: angular_momentum, cross, spring_invariants, spring_columns
 
@@ -20,6 +21,13 @@ module double_pendulum
   character(len=*), parameter :: state_column_names(state_size) = [character(len=6) :: &
     'q1_x', 'q1_y', 'q1_z', 'q2_x', 'q2_y', 'q2_z', 'p1_x', 'p1_y', 'p1_z', &
     'p2_x', 'p2_y', 'p2_z', 'gamma', 'tau1', 'tau2']
+  !> The columns' units; tau_a's depend on the thermodynamic variable (tau_units).
+  character(len=*), parameter :: state_column_units(state_size) = [character(len=6) :: &
+    'm', 'm', 'm', 'm', 'm', 'm', 'N s', 'N s', 'N s', 'N s', 'N s', 'N s', 'm', '', '']
+  !> tau_a's column name (symbol and a) and units for thermo_variable's tau_entropy,
+  !> tau_temperature and tau_internal_energy.
+  character(len=*), parameter :: tau_symbols(3) = [character(len=5) :: 's', 'theta', 'u']
+  character(len=*), parameter :: tau_units(3) = [character(len=3) :: 'J/K', 'K', 'J']
 
 contains
 

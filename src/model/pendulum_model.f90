@@ -9,6 +9,7 @@ module pendulum_model
   use thermo_variable, only: spring_potential
   use model_interface, only: generic_model
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, state_column_names, &
+                             state_column_units, tau_symbols, tau_units, &
                              kinetic_energy, gravity_potential, gravity_force, inverse_mass_times, &
                              angular_momentum, spring_invariants, spring_columns, cross
   use pendulum_vector_field, only: vector_field
@@ -33,6 +34,7 @@ module pendulum_model
     procedure :: conserved_momentum_gradient
     procedure :: mechanical_energy_difference => pendulum_energy_difference
     procedure :: state_from_temperatures
+    procedure :: column_units => pendulum_column_units
   end type pendulum
 
 contains
@@ -61,10 +63,20 @@ contains
         part%invariant_count = a + 1
         part%columns = spring_columns(a)
         part%tau_column = tau_index(a)
+        model%column_names(tau_index(a)) = trim(tau_symbols(variable))//achar(iachar('0') + a)
         part%metric_scale = model%spring(a)%metric_scale()
       end associate
     end do
   end function make_pendulum
+
+  !> The units of z's columns: m, N s, m (gamma), and tau_a's in the model's variable.
+  pure subroutine pendulum_column_units(self, units)
+    class(pendulum), intent(in) :: self
+    character(len=*), intent(out) :: units(:)
+
+    units = state_column_units
+    units(tau_index) = tau_units(self%thermo_variable)
+  end subroutine pendulum_column_units
 
   !> Spring a's invariants (C_a, [gamma,] tau_a) and their derivatives in its columns.
   pure subroutine invariants(self, z, a, x, dx_dz)

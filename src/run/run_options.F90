@@ -1,27 +1,43 @@
 !> The code's own command-line options of a run, read from PETSc's options database (so they
-!> mix with PETSc's own and appear in -options_left): -eme_progress [true|false] (progress lines
-!> on stderr; by default only when stderr is a terminal) and -eme_overwrite (replace an existing
-!> complete result, as &output overwrite = .true. does).
+!> mix with PETSc's own, appear in -options_left, and PETSc's -help lists them with their
+!> descriptions: src/solver/petsc_options.c registers them): -eme_progress [true|false]
+!> (progress lines on stderr; by default only when stderr is a terminal) and -eme_overwrite
+!> (replace an existing complete result, as &output overwrite = .true. does). Also the options
+!> database as text, for the provenance a run file records.
 module run_options
 #include <petsc/finclude/petscsys.h>
   use petscsys
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
   use filesystem, only: stderr_is_terminal
   implicit none
   private
-  public :: progress_wanted, overwrite_requested
+  public :: progress_wanted, overwrite_requested, petsc_options_in_force
+
+  interface
+    function eme_read_run_options(progress, progress_given, overwrite) bind(C, name='eme_read_run_options') &
+      result(ierr)
+      import :: c_int
+      integer(c_int), intent(inout) :: progress, progress_given, overwrite
+      integer(c_int) :: ierr
+    end function eme_read_run_options
+
+    function eme_options_in_force(text, size) bind(C, name='eme_options_in_force') result(ierr)
+      import :: c_int, c_char
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+      integer(c_int) :: ierr
+    end function eme_options_in_force
+  end interface
 
 contains
 
   !> Whether eme_run prints progress lines: -eme_progress as given, else when stderr is a terminal.
   logical function progress_wanted()
-    PetscBool :: value, given
-    PetscErrorCode :: ierr
+    integer(c_int) :: progress, given, overwrite
 
-    value = PETSC_FALSE
-    call PetscOptionsGetBool(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-eme_progress', value, given, ierr)
-    if (ierr /= 0) given = PETSC_FALSE
-    if (given) then
-      progress_wanted = value
+    call read_options(progress, given, overwrite)
+    if (given /= 0) then
+      progress_wanted = progress /= 0
     else
       progress_wanted = stderr_is_terminal()
     end if
@@ -29,12 +45,37 @@ contains
 
   !> Whether the command line asks to replace an existing complete result (-eme_overwrite).
   logical function overwrite_requested()
-    PetscBool :: value, given
-    PetscErrorCode :: ierr
+    integer(c_int) :: progress, given, overwrite
 
-    value = PETSC_FALSE
-    call PetscOptionsGetBool(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-eme_overwrite', value, given, ierr)
-    overwrite_requested = ierr == 0 .and. given .and. value
+    call read_options(progress, given, overwrite)
+    overwrite_requested = overwrite /= 0
   end function overwrite_requested
+
+  !> The options database as text ('-name value ...'), as the run uses it.
+  function petsc_options_in_force() result(text)
+    character(len=:), allocatable :: text
+    character(kind=c_char, len=16384) :: buffer
+
+    buffer = ''
+    if (eme_options_in_force(buffer, len(buffer, kind=c_int)) /= 0) then
+      text = 'unknown: PETSc could not list its options'
+    else
+      text = trim(buffer(1:index(buffer, c_null_char) - 1))
+    end if
+  end function petsc_options_in_force
+
+  ! The run options as the database sets them (0 or 1; a value PETSc cannot read as a logical
+  ! counts as not given).
+  subroutine read_options(progress, given, overwrite)
+    integer(c_int), intent(out) :: progress, given, overwrite
+
+    progress = 0
+    given = 0
+    overwrite = 0
+    if (eme_read_run_options(progress, given, overwrite) /= 0) then
+      given = 0
+      overwrite = 0
+    end if
+  end subroutine read_options
 
 end module run_options

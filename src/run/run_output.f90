@@ -1,10 +1,14 @@
 !> The HDF5 file of one run (README, Output layout): its datasets, declared once in
-!> `output_schema` with their names, rows (one per point t_n, or one per step), units and
-!> descriptions, and its root attributes: the integrator (with its registry entry), every field
-!> of the model's namelist groups under its namelist name, and provenance. `eme_run
-!> --output-schema` prints the table; the Python tests check real files against it.
+!> `output_schema` with their names, rows (one per point t_n, or one per step), units, descriptions
+!> and how a row that stands for several steps combines them (&output every), and its root
+!> attributes: the integrator (with its registry entry and its solver's settings as used), every
+!> field of the model's namelist groups under its namelist name with its units (<name>_units),
+!> and provenance (command line, PETSc options, the effective namelist, versions, host, dates).
+!> `/time` and `/step` are the dimension scales of the per-point and per-step datasets.
+!> `eme_run --output-schema` prints the table; the Python tests check real files against it.
 module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use hdf5_series, only: hdf5_file, series_table, check_run_file, file_in_use
   use namelist_group, only: group_field, field_real, field_integer, field_logical
   use model_interface, only: generic_model
@@ -13,7 +17,9 @@ module run_output
   use thermo_variable, only: thermo_variable_names
   use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use run_config, only: run_configuration
-  use stepper, only: step_report, step_diagnostic
+  use effective_namelist, only: namelist_of_run
+  use library_versions, only: library_names, library_version
+  use stepper, only: step_report, step_diagnostic, solver_report
   use build_info, only: code_version
   use filesystem, only: sync_file, os_error_text
   implicit none (type, external)
@@ -25,41 +31,65 @@ module run_output
   !> One dataset of the layout. `columns` names a vector's columns; the run fills in the
   !> entries of the model's state (<state>), of its subsystems (<subsystems>) and of the active
   !> constraints (<constraints>), prefixed as written (theta_<subsystems> gives theta_1 theta_2).
-  !> Datasets of constraints exist only when a constraint is active.
+  !> Units '<columns>': per column (the attribute column_units, from the model or the
+  !> constraints). Datasets of constraints exist only when a constraint is active. `combine`: what
+  !> a row holds that stands for several steps (&output every = N): the last step's value, or the
+  !> sum, min, max or mean over the steps.
   type :: output_dataset
     character(len=24) :: name
     character(len=5) :: rows                !! 'point' (N+1 rows) or 'step' (N rows)
     character(len=24) :: columns            !! '' for a (rows) dataset
-    character(len=8) :: units
+    character(len=9) :: units
     logical :: integer_valued
-    character(len=200) :: description
+    character(len=4) :: combine
+    character(len=240) :: description
   end type output_dataset
 
-  type(output_dataset), parameter :: output_schema(15) = [ &
-    output_dataset('time', 'point', '', 's', .false., 'time t_n of each point'), &
-    output_dataset('state', 'point', '<state>', 'SI', .false., &
+  !> Units of a dataset whose columns differ in units.
+  character(len=*), parameter :: per_column = '<columns>'
+
+  type(output_dataset), parameter :: output_schema(21) = [ &
+    output_dataset('time', 'point', '', 's', .false., 'last', &
+                   'time t_n of each point; the dimension scale of every per-point dataset'), &
+    output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
                    'the state z in the run''s thermodynamic variable; `columns` names its entries'), &
-    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'spring temperatures'), &
-    output_dataset('energy', 'point', '', 'J', .false., 'total energy E = T + V_g + U_1 + U_2'), &
-    output_dataset('entropy', 'point', '', 'J/K', .false., 'total entropy S = S_1 + S_2'), &
-    output_dataset('lyapunov', 'point', '', 'J', .false., 'V = E - theta_r S, eq. (14)'), &
-    output_dataset('angular_momentum', 'point', 'J_x J_y J_z', 'J s', .false., 'J = q1 x p1 + q2 x p2'), &
-    output_dataset('boundary_heat', 'point', '', 'J', .false., &
+    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'last', 'spring temperatures'), &
+    output_dataset('energy', 'point', '', 'J', .false., 'last', 'total energy E = T + V_g + U_1 + U_2'), &
+    output_dataset('entropy', 'point', '', 'J/K', .false., 'last', 'total entropy S = S_1 + S_2'), &
+    output_dataset('lyapunov', 'point', '', 'J', .false., 'last', 'V = E - theta_r S, eq. (14)'), &
+    output_dataset('angular_momentum', 'point', 'J_x J_y J_z', 'J s', .false., 'last', 'J = q1 x p1 + q2 x p2'), &
+    output_dataset('boundary_heat', 'point', '', 'J', .false., 'last', &
                    'heat supplied through constraints since t = 0, sum of dt times their heat supply (zero without)'), &
-    output_dataset('constraint_residual', 'point', 'g_<constraints>', 'SI', .false., &
+    output_dataset('constraint_residual', 'point', 'g_<constraints>', per_column, .false., 'last', &
                    'g(z) of the active constraints (see the attribute constraint_meanings)'), &
-    output_dataset('newton_iterations', 'step', '', '1', .true., &
-                   'Newton iterations of the step, summed over every solve it took'), &
-    output_dataset('scheme_temperature', 'step', 'Theta_<subsystems>', 'K', .false., &
+    output_dataset('step', 'step', '', '1', .true., 'last', &
+                   'the number n (from 1) of the last step the row stands for: the row''s step, or with &output '// &
+                   'every = N the N steps up to n; the dimension scale of every per-step dataset'), &
+    output_dataset('newton_iterations', 'step', '', '1', .true., 'sum', &
+                   'Newton iterations of the step, summed over every solve it took (retries, continuation stages, '// &
+                   'substeps); newton_iterations_total / steps_completed is the mean per step'), &
+    output_dataset('scheme_temperature', 'step', 'Theta_<subsystems>', 'K', .false., 'last', &
                    '<the integrator''s entry in the registry says>'), &
-    output_dataset('solver_strategy', 'step', '', '1', .true., &
+    output_dataset('solver_strategy', 'step', '', '1', .true., 'max', &
                    'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 4-6 the same with the &
                    &fallback line search; 0 for PETSc TS'), &
-    output_dataset('snes_solves', 'step', '', '1', .true., &
+    output_dataset('snes_solves', 'step', '', '1', .true., 'sum', &
                    'SNESSolve calls of the step (continuation stages included), or TS steps taken for PETSc TS'), &
-    output_dataset('rejected_roots', 'step', '', '1', .true., &
+    output_dataset('rejected_roots', 'step', '', '1', .true., 'sum', &
                    'converged roots rejected as unphysical (non-positive temperature), or TS steps rejected'), &
-    output_dataset('multiplier', 'step', 'lambda_<constraints>', 'SI', .false., &
+    output_dataset('residual_norm', 'step', '', '1', .false., 'max', &
+                   '2-norm of the final residual of the step''s last nonlinear solve, as the solver''s convergence '// &
+                   'test measured it (root attribute solver_snes_atol); NaN where the step solves no nonlinear system '// &
+                   '(explicit stages, CVODE)'), &
+    output_dataset('converged_reason', 'step', '', '1', .true., 'last', &
+                   'the solver''s converged reason of the step''s last solve, in its own numbering (flag_values, '// &
+                   'flag_meanings): SNESConvergedReason, TSConvergedReason, CVode''s flag; 0 without a solver'), &
+    output_dataset('cpu_seconds', 'step', '', 's', .false., 'sum', 'CPU time of the step (the integrator''s advance)'), &
+    output_dataset('min_entropy_increment', 'step', '', 'J/K', .false., 'min', &
+                   'S_n - S_(n-1) of the step; of a row that stands for several steps, the smallest of theirs'), &
+    output_dataset('max_lyapunov_increment', 'step', '', 'J', .false., 'max', &
+                   'V_n - V_(n-1) of the step; of a row that stands for several steps, the largest of theirs'), &
+    output_dataset('multiplier', 'step', 'lambda_<constraints>', per_column, .false., 'mean', &
                    'Lagrange multipliers of the active constraints (see the attribute constraint_meanings)')]
 
   !> Why a run did not complete, in a word (file attribute and study index column `failure_kind`).
@@ -97,11 +127,21 @@ module run_output
   real(real64), parameter :: write_interval = 1.0_real64   !! seconds between writes of a long run
   integer, parameter :: buffer_bytes = 4*1024*1024          !! rows held in memory between writes, at most
 
+  interface
+    subroutine c_host_name(text, size) bind(c, name='eme_host_name')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+    end subroutine c_host_name
+  end interface
+
   !> A run's file and its two tables of rows (points and steps). It is built in memory and
   !> reaches the disk when the run ends or after write_interval seconds (or a full buffer),
   !> whichever comes first; from then on, buffered rows are appended in a window at least every
   !> write_interval seconds (src/io/hdf5_series). Between windows the file on disk is closed
-  !> and readable, and its points and steps agree in length (steps_completed says how many).
+  !> and readable, and its points and steps agree in length (step_rows says how many step rows,
+  !> steps_completed how many steps they stand for). With every = N, a point row is kept every N
+  !> steps (and the last), and a step row stands for the steps since the previous point row.
   type :: run_file
     type(hdf5_file) :: file
     type(series_table) :: points, steps
@@ -110,8 +150,14 @@ module run_output
     logical :: on_disk = .false.        !! the file exists at `path`
     logical :: durable = .true.         !! the finished file is synced to disk (fsync)
     integer(int64) :: last_write = 0, clock_rate = 1
+    integer :: every = 1                !! steps per row (&output every)
+    integer :: last_step = 0            !! the last step recorded
+    integer :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
+    integer :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
+    integer :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
   contains
     procedure :: create
+    procedure :: record_solver
     procedure :: record_point
     procedure :: record_step
     procedure :: write_due
@@ -123,31 +169,39 @@ contains
 
   !> Prepares the run file for `path` in memory with its attributes and the datasets' layout:
   !> the schema's, then one per step for each of the integrator's own diagnostics (attribute
-  !> source = integrator). Nothing is written to `path` yet. stat = -1 if HDF5 failed.
-  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, stat)
+  !> source = integrator). `petsc_options` are the options in force (the database's text).
+  !> Nothing is written to `path` yet. stat = -1 if HDF5 failed.
+  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, stat)
     class(run_file), intent(inout) :: self
     character(len=*), intent(in) :: path
-    type(run_configuration), intent(in) :: config
+    type(run_configuration), intent(in), target :: config
     type(integrator_entry), intent(in) :: entry
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
     type(step_diagnostic), intent(in) :: diagnostics(:)
     type(extra_attribute), intent(in) :: extras(:)
+    character(len=*), intent(in) :: petsc_options
     integer, intent(out) :: stat
     type(output_dataset) :: spec
     integer :: k
 
     self%path = path
     self%enabled = .true.
+    self%every = config%output_every
+    self%points%compression = config%compression
+    self%steps%compression = config%compression
+    self%points%scale = .true.
+    self%steps%scale = .true.
     call system_clock(self%last_write, self%clock_rate)
     call self%file%create_in_memory(stat)
     if (stat == 0) call write_run_attributes(self%file, config, entry, model, constraints, stat)
+    if (stat == 0) call write_provenance(self%file, config, petsc_options, stat)
     do k = 1, size(extras)
       if (stat /= 0) exit
       if (allocated(extras(k)%text)) then
         call self%file%set_text(trim(extras(k)%name), extras(k)%text, stat)
       else
-        call self%file%set_integer(trim(extras(k)%name), extras(k)%number, stat)
+        call self%file%set_integer(trim(extras(k)%name), extras(k)%number, stat, units='1')
       end if
     end do
     do k = 1, size(output_schema)
@@ -161,7 +215,8 @@ contains
     end do
     do k = 1, size(diagnostics)
       call self%steps%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
-                             trim(diagnostics(k)%description), rows='step', source='integrator')
+                             trim(diagnostics(k)%description), rows='step', source='integrator', &
+                             combine=diagnostics(k)%combine)
     end do
     ! Both tables gain a row per step: together they buffer at most buffer_bytes.
     self%points%capacity_rows = max(1024, buffer_bytes/(8*(self%points%row_width + self%steps%row_width)))
@@ -172,38 +227,102 @@ contains
     subroutine define(table)
       type(series_table), intent(inout) :: table
       character(len=:), allocatable :: columns, description
+      character(len=16), allocatable :: units(:)
+      character(len=:), allocatable :: common
 
       columns = expanded_columns(spec%columns, model, constraints)
       description = trim(spec%description)
       if (spec%name == 'scheme_temperature') description = trim(entry%scheme_temperature)
-      call table%define(trim(spec%name), max(1, count_words(columns)), len(columns) > 0, trim(spec%units), &
-                        description, integer_valued=spec%integer_valued, columns=columns, rows=trim(spec%rows))
+      if (len(columns) == 0) then
+        call table%define(trim(spec%name), 1, .false., trim(spec%units), description, &
+                          integer_valued=spec%integer_valued, rows=trim(spec%rows), combine=spec%combine)
+        return
+      end if
+      units = column_units(spec, model, constraints, count_words(columns))
+      common = trim(units(1))
+      if (any(units /= units(1))) common = 'per column: column_units'
+      call table%define(trim(spec%name), count_words(columns), .true., common, description, &
+                        integer_valued=spec%integer_valued, columns=columns, rows=trim(spec%rows), &
+                        column_units=units, combine=spec%combine)
     end subroutine define
   end subroutine create
 
-  !> Buffers one row of every per-point dataset, in the schema's order.
+  !> The solver the integrator used (after its `start`): each setting as a root attribute
+  !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
+  subroutine record_solver(self, report, stat)
+    class(run_file), intent(inout) :: self
+    type(solver_report), intent(in) :: report
+    integer, intent(out) :: stat
+    integer :: k
+
+    stat = 0
+    if (.not. self%enabled) return
+    do k = 1, size(report%settings)
+      associate (item => report%settings(k))
+        if (allocated(item%text)) then
+          call self%file%set_text('solver_'//trim(item%name), item%text, stat)
+        else
+          call self%file%set_real('solver_'//trim(item%name), item%value, stat, units=trim(item%units))
+        end if
+      end associate
+      if (stat /= 0) return
+    end do
+    call self%steps%set_flags('converged_reason', report%reason_codes, report%reason_names)
+  end subroutine record_solver
+
+  !> Records the point after step n (or the initial point) for every per-point dataset, in the
+  !> schema's order. The rows of steps not yet in the file are completed every `every` steps
+  !> (the initial point at once).
   subroutine record_point(self, time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals)
     class(run_file), intent(inout) :: self
     real(real64), intent(in) :: time, z(:), theta(:), energy, entropy, lyapunov, momentum(3), heat, residuals(:)
 
-    if (self%enabled) call self%points%append([time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals])
+    if (.not. self%enabled) return
+    call self%points%accumulate([time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals])
+    if (self%steps%pending_count == 0 .or. self%steps%pending_count >= self%every) call commit_rows(self)
   end subroutine record_point
 
-  !> Buffers one row of every per-step dataset, in the schema's order, then the integrator's
-  !> diagnostics.
-  subroutine record_step(self, report, multipliers)
+  !> Records step n for every per-step dataset, in the schema's order, then the integrator's
+  !> diagnostics: `cpu_seconds` its CPU time, `entropy_increment` S_n - S_(n-1) and
+  !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
+  subroutine record_step(self, n, report, multipliers, cpu_seconds, entropy_increment, lyapunov_increment)
     class(run_file), intent(inout) :: self
+    integer, intent(in) :: n
     type(step_report), intent(in) :: report
-    real(real64), intent(in) :: multipliers(:)
+    real(real64), intent(in) :: multipliers(:), cpu_seconds, entropy_increment, lyapunov_increment
     real(real64), allocatable :: diagnostics(:)
 
     if (.not. self%enabled) return
     allocate (diagnostics(0))
     if (allocated(report%diagnostics)) diagnostics = report%diagnostics
-    call self%steps%append([real(report%newton_iterations, real64), report%scheme_temperature, &
-                            real(report%strategy, real64), real(report%solves, real64), &
-                            real(report%rejected, real64), multipliers, diagnostics])
+    call self%steps%accumulate([real(n, real64), real(report%newton_iterations, real64), report%scheme_temperature, &
+                                real(report%strategy, real64), real(report%solves, real64), &
+                                real(report%rejected, real64), report%residual_norm, &
+                                real(report%converged_reason, real64), cpu_seconds, entropy_increment, &
+                                lyapunov_increment, multipliers, diagnostics])
+    self%last_step = n
+    self%newton_pending = self%newton_pending + report%newton_iterations
   end subroutine record_step
+
+  ! Completes the pending point row and the step row of the steps since the last one.
+  subroutine commit_rows(self)
+    type(run_file), intent(inout) :: self
+
+    call self%points%commit()
+    if (self%steps%pending_count == 0) return
+    call self%steps%commit()
+    self%committed_steps = self%last_step
+    self%committed_newton = self%committed_newton + self%newton_pending
+    self%newton_pending = 0
+  end subroutine commit_rows
+
+  ! After both tables' buffers reached the file: the steps its rows stand for.
+  subroutine rows_on_disk(self)
+    type(run_file), intent(inout) :: self
+
+    self%disk_steps = self%committed_steps
+    self%disk_newton = self%committed_newton
+  end subroutine rows_on_disk
 
   !> Whether buffered rows are due on disk: write_interval seconds since the last write, or a
   !> full buffer. Call it after a whole step (its step row and end point) was recorded.
@@ -236,6 +355,7 @@ contains
       call system_clock(self%last_write)
       call self%points%write(self%file, .false., stat)
       if (stat == 0) call self%steps%write(self%file, .false., stat)
+      if (stat == 0) call rows_on_disk(self)
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
       if (stat == 0) call self%file%store(self%path, .false., stat)
       if (stat /= 0) return
@@ -273,11 +393,13 @@ contains
 
     stat = 0
     if (.not. self%enabled) return
+    if (self%steps%pending_count > 0) call commit_rows(self)
     if (.not. self%on_disk) then
       ! Written whole from memory; store checks that the disk holds every byte.
       call self%points%write(self%file, .true., stat)
       if (stat == 0) call self%steps%write(self%file, .true., stat)
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
+      if (stat == 0) call rows_on_disk(self)
+      if (stat == 0) call summary_attributes(self, summary%status, summary, stat, final=.true.)
       if (stat == 0) call self%file%store(self%path, self%durable, stat)
       call self%file%close(ignored)
       self%on_disk = stat == 0
@@ -290,17 +412,17 @@ contains
         stopped%failure_kind = failure_io
         call self%file%open_existing(self%path, .true., check_stat)
         if (check_stat == 0) call summary_attributes(self, 'incomplete: cannot write the output file: '// &
-                                                     os_error_text(stat), stopped, check_stat)
+                                                     os_error_text(stat), stopped, check_stat, final=.true.)
         call self%file%close(ignored)
         return
       end if
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
+      if (stat == 0) call summary_attributes(self, summary%status, summary, stat, final=.true.)
       call close_window(self, stat)
       if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
       if (stat /= 0) return
     end if
     call check_run_file(self%path, status_read, steps_read, check_stat)
-    if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%steps%written) stat = -2
+    if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%disk_steps) stat = -2
   end subroutine finish
 
   ! Opens the file on disk for appending the buffered rows, after reserving their space (plus
@@ -321,6 +443,7 @@ contains
     call system_clock(self%last_write)
     call self%points%write(self%file, .false., stat)
     if (stat == 0) call self%steps%write(self%file, .false., stat)
+    if (stat == 0) call rows_on_disk(self)
   end subroutine append_window
 
   ! Closes a window; stat keeps its first failure.
@@ -333,28 +456,55 @@ contains
     if (stat == 0) stat = close_stat
   end subroutine close_window
 
-  ! The final root attributes; steps_completed is the step rows in the file. numbers_only: the
-  ! texts (status, failure_kind) are as the file holds them, and numbers are written in place.
-  subroutine summary_attributes(self, status, summary, stat, numbers_only)
+  ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
+  ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
+  ! steps; `final` adds end_time. numbers_only: the texts (status, failure_kind) are as the file
+  ! holds them, and numbers are written in place.
+  subroutine summary_attributes(self, status, summary, stat, numbers_only, final)
     type(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
     type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
-    logical, intent(in), optional :: numbers_only
+    logical, intent(in), optional :: numbers_only, final
+    logical :: units
 
     stat = 0
+    units = self%file%fresh         ! the units attributes go with the first write
     if (.not. present(numbers_only)) then
       call self%file%set_text('status', status, stat)
       if (stat == 0) call self%file%set_text('failure_kind', summary%failure_kind, stat)
     end if
-    if (stat == 0) call self%file%set_integer('steps_planned', summary%steps_planned, stat)
-    if (stat == 0) call self%file%set_integer('steps_completed', int(self%steps%written), stat)
-    if (stat == 0) call self%file%set_integer('newton_iterations_total', summary%newton_iterations, stat)
+    if (present(final)) then
+      if (stat == 0 .and. final) call self%file%set_text('end_time', iso_time(), stat)
+    end if
+    call number('steps_planned', real(summary%steps_planned, real64), '1', .true.)
+    call number('steps_completed', real(self%disk_steps, real64), '1', .true.)
+    call number('step_rows', real(self%steps%written, real64), '1', .true.)
+    call number('newton_iterations_total', real(self%disk_newton, real64), '1', .true.)
     if (stat == 0) call self%file%set_reals('run_figures', [summary%energy_drift, summary%min_entropy_increment, &
                                            summary%max_lyapunov_increment, summary%angular_momentum_drift], stat)
-    if (stat == 0) call self%file%set_real('solve_time_seconds', summary%solve_seconds, stat)
-    if (stat == 0) call self%file%set_real('wall_time_seconds', summary%wall_seconds, stat)
+    if (stat == 0 .and. units) call self%file%set_texts('run_figures_units', &
+                                                        [character(len=3) :: '1', 'J/K', 'J', 'J s'], stat)
+    call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
+    call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
     self%file%fresh = .false.
+
+  contains
+
+    subroutine number(name, value, unit, integer_valued)
+      character(len=*), intent(in) :: name, unit
+      real(real64), intent(in) :: value
+      logical, intent(in) :: integer_valued
+
+      if (stat /= 0) return
+      if (integer_valued) then
+        if (units) call self%file%set_integer(name, nint(value), stat, units=unit)
+        if (.not. units) call self%file%set_integer(name, nint(value), stat)
+      else
+        if (units) call self%file%set_real(name, value, stat, units=unit)
+        if (.not. units) call self%file%set_real(name, value, stat)
+      end if
+    end subroutine number
   end subroutine summary_attributes
 
   !> The schema as tab-separated lines: name, rows, columns, units, description.
@@ -362,11 +512,12 @@ contains
     type(output_dataset) :: spec
     integer :: k
 
-    write (output_unit, '(a)') 'name'//achar(9)//'rows'//achar(9)//'columns'//achar(9)//'units'//achar(9)//'description'
+    write (output_unit, '(a)') 'name'//achar(9)//'rows'//achar(9)//'columns'//achar(9)//'units'//achar(9)// &
+      'combine'//achar(9)//'description'
     do k = 1, size(output_schema)
       spec = output_schema(k)
       write (output_unit, '(a)') trim(spec%name)//achar(9)//trim(spec%rows)//achar(9)//trim(spec%columns)//achar(9) &
-        //trim(spec%units)//achar(9)//trim(spec%description)
+        //trim(spec%units)//achar(9)//trim(spec%combine)//achar(9)//trim(spec%description)
     end do
   end subroutine print_output_schema
 
@@ -402,19 +553,22 @@ contains
       call text('metric', metric)
       call text('input_file', config%input_file)
       call text('code_version', code_version)
-      call real_attribute('dt', choice%dt)
-      call real_attribute('t_end', choice%t_end)
-      call real_attribute('theta_r', config%theta_r)
-      call real_attribute('newton_tol', choice%newton_tol)
-      call real_attribute('tolerance', choice%tolerance)
-      call real_attribute('ts_tolerance', choice%tolerance)   ! the old name, for old scripts
-      if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat)
+      call real_attribute('dt', choice%dt, 's')
+      call real_attribute('t_end', choice%t_end, 's')
+      call real_attribute('theta_r', config%theta_r, 'K')
+      call real_attribute('newton_tol', choice%newton_tol, '1')
+      call real_attribute('tolerance', choice%tolerance, '1')
+      call real_attribute('ts_tolerance', choice%tolerance, '1')   ! the old name, for old scripts
+      if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat, units='1')
     end associate
-    call real_attribute('quotient_threshold', quotient_threshold)
-    if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat)
+    call real_attribute('quotient_threshold', quotient_threshold, '1')
+    if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
+    if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
+    if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')
     do a = 1, model%subsystem_count()
       associate (part => model%subsystems(a))
-        if (stat == 0) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, stat)
+        if (stat == 0) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, stat, &
+                                           units='those of the subsystem''s invariants (attribute metric)')
       end associate
     end do
     call config%scene%group_names(groups)
@@ -447,14 +601,14 @@ contains
         select case (fields(i)%kind)
         case (field_real)
           if (associated(fields(i)%real_value)) then
-            call file%set_real(trim(fields(i)%name), fields(i)%real_value, stat)
+            call file%set_real(trim(fields(i)%name), fields(i)%real_value, stat, units=trim(fields(i)%units))
           else
-            call file%set_reals(trim(fields(i)%name), fields(i)%real_values, stat)
+            call file%set_reals(trim(fields(i)%name), fields(i)%real_values, stat, units=trim(fields(i)%units))
           end if
         case (field_integer)
-          call file%set_integer(trim(fields(i)%name), fields(i)%integer_value, stat)
+          call file%set_integer(trim(fields(i)%name), fields(i)%integer_value, stat, units='1')
         case (field_logical)
-          call file%set_integer(trim(fields(i)%name), merge(1, 0, fields(i)%logical_value), stat)
+          call file%set_integer(trim(fields(i)%name), merge(1, 0, fields(i)%logical_value), stat, units='1')
         case default
           call file%set_text(trim(fields(i)%name), trim(fields(i)%text_value), stat)
         end select
@@ -466,12 +620,122 @@ contains
       if (stat == 0) call file%set_text(name, value, stat)
     end subroutine text
 
-    subroutine real_attribute(name, value)
-      character(len=*), intent(in) :: name
+    subroutine real_attribute(name, value, units)
+      character(len=*), intent(in) :: name, units
       real(real64), intent(in) :: value
-      if (stat == 0) call file%set_real(name, value, stat)
+      if (stat == 0) call file%set_real(name, value, stat, units=units)
     end subroutine real_attribute
   end subroutine write_run_attributes
+
+  ! How the run was made: the command line, the PETSc options in force, the effective namelist,
+  ! the versions of every library, the host and the start time (end_time comes at the end).
+  subroutine write_provenance(file, config, petsc_options, stat)
+    type(hdf5_file), intent(in) :: file
+    type(run_configuration), intent(in), target :: config
+    character(len=*), intent(in) :: petsc_options
+    integer, intent(out) :: stat
+    character(kind=c_char, len=256) :: host
+    integer :: i
+
+    call c_host_name(host, len(host, kind=c_int))
+    call file%set_text('command_line', command_line(), stat)
+    if (stat == 0) call file%set_text('petsc_options', petsc_options, stat)
+    if (stat == 0) call file%set_text('namelist', namelist_of_run(config), stat)
+    do i = 2, size(library_names)
+      if (stat == 0) call file%set_text('version_'//lower(trim(library_names(i))), &
+                                        library_version(trim(library_names(i))), stat)
+    end do
+    if (stat == 0) call file%set_text('host', host(1:index(host, c_null_char) - 1), stat)
+    if (stat == 0) call file%set_text('start_time', iso_time(), stat)
+  end subroutine write_provenance
+
+  ! The program's command line, an argument quoted for a POSIX shell where it needs it.
+  function command_line() result(text)
+    character(len=:), allocatable :: text
+    character(len=:), allocatable :: argument
+    character(len=*), parameter :: plain = 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_./=:,+@%'
+    integer :: i, length
+
+    text = ''
+    do i = 0, command_argument_count()
+      call get_command_argument(i, length=length)
+      allocate (character(len=length) :: argument)
+      call get_command_argument(i, argument)
+      if (i > 0) text = text//' '
+      if (len(argument) > 0 .and. verify(argument, plain) == 0) then
+        text = text//argument
+      else
+        text = text//shell_quoted(argument)
+      end if
+      deallocate (argument)
+    end do
+  end function command_line
+
+  ! The text in single quotes, a quote inside written as '\''.
+  pure function shell_quoted(text) result(quoted)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: quoted
+    character(len=*), parameter :: quote = achar(39), escaped = achar(39)//achar(92)//achar(39)//achar(39)
+    integer :: i
+
+    quoted = quote
+    do i = 1, len(text)
+      if (text(i:i) == quote) then
+        quoted = quoted//escaped
+      else
+        quoted = quoted//text(i:i)
+      end if
+    end do
+    quoted = quoted//quote
+  end function shell_quoted
+
+  ! Now as ISO 8601 local time with its UTC offset, e.g. 2024-05-01T14:03:07+02:00.
+  function iso_time() result(text)
+    character(len=:), allocatable :: text
+    integer :: v(8)
+    character(len=32) :: buffer
+
+    call date_and_time(values=v)
+    write (buffer, '(i4.4, "-", i2.2, "-", i2.2, "T", i2.2, ":", i2.2, ":", i2.2, a, i2.2, ":", i2.2)') v(1:3), &
+      v(5:7), merge('+', '-', v(4) >= 0), abs(v(4))/60, mod(abs(v(4)), 60)
+    text = trim(buffer)
+  end function iso_time
+
+  pure function lower(text) result(lowered)
+    character(len=*), intent(in) :: text
+    character(len=len(text)) :: lowered
+    integer :: i
+
+    lowered = text
+    do i = 1, len(text)
+      if (text(i:i) >= 'A' .and. text(i:i) <= 'Z') lowered(i:i) = achar(iachar(text(i:i)) + 32)
+    end do
+  end function lower
+
+  ! The units of a vector dataset's `count` columns: the model's (<state>), the constraints'
+  ! (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.
+  function column_units(spec, model, constraints, count) result(units)
+    type(output_dataset), intent(in) :: spec
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    integer, intent(in) :: count
+    character(len=16) :: units(count)
+    integer :: k
+
+    if (spec%columns == '<state>') then
+      call model%column_units(units)
+    else if (index(spec%columns, '<constraints>') > 0) then
+      do k = 1, count
+        if (spec%name == 'multiplier') then
+          units(k) = constraints(k)%item%multiplier_units
+        else
+          units(k) = constraints(k)%item%value_units
+        end if
+      end do
+    else
+      units = spec%units
+    end if
+  end function column_units
 
   ! The columns of a schema entry for this run.
   function expanded_columns(template, model, constraints) result(columns)

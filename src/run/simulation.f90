@@ -19,7 +19,7 @@ module simulation
   use run_output, only: run_file, run_summary, extra_attribute, failure_none, failure_solver, failure_domain, &
                         failure_input, failure_io, failure_interrupted, failure_library
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use run_options, only: overwrite_requested
+  use run_options, only: overwrite_requested, petsc_options_in_force
   use hdf5_series, only: check_run_file
   use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text
   use number_text, only: integer_text, fixed_text
@@ -81,7 +81,7 @@ contains
   !> every 2 s; `extras` are root attributes added to the file. The finished file is synced to
   !> disk unless `durable` is .false. (an ensemble's case: its index is the record).
   subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable)
-    type(run_configuration), intent(in) :: config
+    type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
@@ -102,7 +102,7 @@ contains
     character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
-    real(real64) :: t_end, time_old
+    real(real64) :: t_end, time_old, cpu_before, cpu_after
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
     integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps, signal
     logical :: found, finished, writing, replace
@@ -174,7 +174,8 @@ contains
       allocate (added(0))
       if (present(extras)) added = extras
       if (present(durable)) output%durable = durable
-      call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, ierr)
+      call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
+                         petsc_options_in_force(), ierr)
       if (ierr /= 0) then
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
         if (.not. present(reusable)) call integrator%release(release_ierr)
@@ -187,6 +188,12 @@ contains
       summary%status = 'incomplete: PETSc failed to set up the solver'
       if (.not. present(reusable)) call integrator%release(release_ierr)
       call close_output()
+      return
+    end if
+    call output%record_solver(integrator%describe_solver(), ierr)
+    if (ierr /= 0) then
+      call fail(failure_library, 'HDF5 could not record the solver in '''//part//''' ('//config%input_file//')')
+      if (.not. present(reusable)) call integrator%release(release_ierr)
       return
     end if
 
@@ -216,8 +223,9 @@ contains
       if (.not. entry%chooses_time) time = (n - 1)*dt
       time_old = time
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
+      call cpu_time(cpu_before)
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
-      summary%newton_iterations = summary%newton_iterations + report%newton_iterations
+      call cpu_time(cpu_after)
       if (ierr /= 0) then
         call fail(failure_library, 'PETSc failed during the solve')
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
@@ -235,7 +243,9 @@ contains
         summary%failure_kind = step_failure_kind(report%reason)
         exit
       end if
-      call output%record_step(report, x_new(n_state + 1:))
+      ! Newton iterations per step: those of the completed steps over their number (a failed
+      ! step's are not counted), as newton_iterations_total / steps_completed in the file.
+      summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
       do k = 1, size(constraints)
         boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
@@ -245,6 +255,8 @@ contains
       x_previous = x
       x = x_new
       call observe(x(1:n_state), energy, entropy, lyapunov)
+      call output%record_step(n, report, x(n_state + 1:), cpu_after - cpu_before, entropy - entropy_old, &
+                              lyapunov - lyapunov_old)
       call record_point(time, x(1:n_state))
       summary%steps_completed = n
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
@@ -342,7 +354,7 @@ contains
       if (finish_stat /= 0) then
         summary%status = 'incomplete: cannot write the output file: '//io_reason(finish_stat)
         if (output%on_disk) then
-          kept = '; '//part//' keeps the '//integer_text(int(output%steps%written))//' steps written before'
+          kept = '; '//part//' keeps the '//integer_text(output%disk_steps)//' steps written before'
         else
           kept = '; nothing was kept'
         end if

@@ -1,18 +1,61 @@
-/* The step solver's own options, registered with PETSc's options database so that `-help` lists
- * them with their descriptions (PETSc 3.18 has no Fortran PetscOptionsBegin/PetscOptionsBool),
- * and a scan of the options a user gave, by part of their name (PETSc's options database has no
- * prefix query). For src/solver/solver_options.f90. */
+/* The code's own options (-eme_*), in one table: registered with PETSc's options database when
+ * they are read, so that PETSc's -help lists them with their descriptions (PETSc 3.18 has no
+ * Fortran PetscOptionsBegin/PetscOptionsBool), and listed by the drivers' --help from the same
+ * table (src/io/command_help.f90). Also a scan of the options a user gave, by part of their name
+ * (PETSc's options database has no prefix query), and the database's text, for the provenance a
+ * run file records. For src/solver/solver_options.f90 and src/run/run_options.F90. */
 #include <petscsys.h>
 #include <string.h>
 
-/* One logical option: *flag (0 or 1) is its default on entry and its value on return. */
-static PetscErrorCode bool_option(PetscOptionItems *PetscOptionsObject, const char *name, const char *help, int *flag)
+typedef struct {
+    const char *name, *value, *help;
+} eme_option;
+
+/* The step solver's options (README: Solver), then the run's (README: Set-up and use). */
+enum { CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MAX_HALVINGS, PROGRESS, OVERWRITE, OPTION_COUNT };
+static const eme_option options[OPTION_COUNT] = {
+    {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors"},
+    {"-eme_fused_kernel", "<true>",
+     "Solve the double pendulum's step by its fused kernel on the condensed unknowns (9 plus multipliers); "
+     "false: the generic residual on 15 plus multipliers"},
+    {"-eme_lean_snes", "<true>",
+     "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a full-step shell line search, "
+     "unless options need SNES's own Jacobian"},
+    {"-eme_final_chord", "<true>",
+     "Confirm a root whose residual is below tolerance after a small update with the existing LU factors instead "
+     "of a new Jacobian (lean SNES only)"},
+    {"-eme_max_halvings", "<6>",
+     "A step whose root no retry strategy finds is replaced by two half steps, recursively up to this depth "
+     "(0 to 30; 0: the run stops at such a step)"},
+    {"-eme_progress", "<terminal>",
+     "Print a progress line on stderr at most every 2 s (simulated time, steps, rate, time left); default: when "
+     "stderr is a terminal"},
+    {"-eme_overwrite", "<false>",
+     "Replace an existing complete output file, as &output overwrite = .true. does (a run that does not complete "
+     "never replaces one)"},
+};
+
+/* The name, default and description of option i (0-based), for --help; 1 past the last. */
+int eme_option_help(int i, char *name, char *value, char *help, int size)
 {
-    PetscBool value = *flag ? PETSC_TRUE : PETSC_FALSE;
+    if (i < 0 || i >= OPTION_COUNT) return 1;
+    snprintf(name, (size_t)size, "%s", options[i].name);
+    snprintf(value, (size_t)size, "%s", options[i].value);
+    snprintf(help, (size_t)size, "%s", options[i].help);
+    return 0;
+}
+
+/* One logical option: *flag (0 or 1) is its default on entry and its value on return; *given
+ * (if not NULL) says whether the database set it. */
+static PetscErrorCode bool_option(PetscOptionItems *PetscOptionsObject, int which, const char *section, int *flag,
+                                  int *given)
+{
+    PetscBool value = *flag ? PETSC_TRUE : PETSC_FALSE, set = PETSC_FALSE;
 
     PetscFunctionBeginUser;
-    PetscCall(PetscOptionsBool(name, help, "README: Solver", value, &value, NULL));
+    PetscCall(PetscOptionsBool(options[which].name, options[which].help, section, value, &value, &set));
     *flag = value == PETSC_TRUE;
+    if (given) *given = set == PETSC_TRUE;
     PetscFunctionReturn(0);
 }
 
@@ -23,28 +66,33 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
                                        int *max_halvings)
 {
     PetscInt depth = *max_halvings;
+    const char *section = "README: Solver";
 
     PetscFunctionBeginUser;
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step solver (eme_run, eme_ensemble, eme_bench)", "SNES");
-    PetscCall(bool_option(PetscOptionsObject, "-eme_chord_predictor",
-                          "Refine each step's predictor by one chord step with the last step's LU factors",
-                          chord_predictor));
-    PetscCall(bool_option(PetscOptionsObject, "-eme_fused_kernel",
-                          "Solve the double pendulum's step by its fused kernel on the condensed unknowns "
-                          "(9 plus multipliers); false: the generic residual on 15 plus multipliers", fused_kernel));
-    PetscCall(bool_option(PetscOptionsObject, "-eme_lean_snes",
-                          "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a "
-                          "full-step shell line search, unless options need SNES's own Jacobian", lean_snes));
-    PetscCall(bool_option(PetscOptionsObject, "-eme_final_chord",
-                          "Confirm a root whose residual is below tolerance after a small update with the "
-                          "existing LU factors instead of a new Jacobian (lean SNES only)", final_chord));
-    PetscCall(PetscOptionsInt("-eme_max_halvings",
-                              "A step whose root no retry strategy finds is replaced by two half steps, "
-                              "recursively up to this depth (0: the run stops at such a step)", "README: Solver",
-                              depth, &depth, NULL));
+    PetscCall(bool_option(PetscOptionsObject, CHORD_PREDICTOR, section, chord_predictor, NULL));
+    PetscCall(bool_option(PetscOptionsObject, FUSED_KERNEL, section, fused_kernel, NULL));
+    PetscCall(bool_option(PetscOptionsObject, LEAN_SNES, section, lean_snes, NULL));
+    PetscCall(bool_option(PetscOptionsObject, FINAL_CHORD, section, final_chord, NULL));
+    PetscCall(PetscOptionsInt(options[MAX_HALVINGS].name, options[MAX_HALVINGS].help, section, depth, &depth, NULL));
     PetscCheck(depth >= 0 && depth <= 30, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
                "-eme_max_halvings takes 0 to 30, not %" PetscInt_FMT, depth);
     *max_halvings = (int)depth;
+    PetscOptionsEnd();
+    PetscFunctionReturn(0);
+}
+
+/* Reads -eme_progress (into *progress, and whether it was given into *progress_given) and
+ * -eme_overwrite (into *overwrite); the flags' values on entry are the defaults. Returns a PETSc
+ * error code. */
+PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite)
+{
+    const char *section = "README: Set-up and use";
+
+    PetscFunctionBeginUser;
+    PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME run (eme_run, eme_ensemble)", NULL);
+    PetscCall(bool_option(PetscOptionsObject, PROGRESS, section, progress, progress_given));
+    PetscCall(bool_option(PetscOptionsObject, OVERWRITE, section, overwrite, NULL));
     PetscOptionsEnd();
     PetscFunctionReturn(0);
 }
@@ -68,6 +116,20 @@ PetscErrorCode eme_option_given(const char *text, int *given)
             for (at = token; at + length <= end && !*given; at++) *given = strncmp(at, text, length) == 0;
         }
     }
+    PetscCall(PetscFree(all));
+    PetscFunctionReturn(0);
+}
+
+/* The options database as text ("-name value -name ..."; every option set, from the command
+ * line, PETSC_OPTIONS or an options file) into `text` (`size` bytes, cut if longer). Returns a
+ * PETSc error code. */
+PetscErrorCode eme_options_in_force(char *text, int size)
+{
+    char *all;
+
+    PetscFunctionBeginUser;
+    PetscCall(PetscOptionsGetAll(NULL, &all));
+    snprintf(text, (size_t)size, "%s", all);
     PetscCall(PetscFree(all));
     PetscFunctionReturn(0);
 }

@@ -30,6 +30,8 @@ module snes_solver
   use dense_lu, only: lu_factors
   use dense_assembly, only: assemble_jacobian
   use solver_options, only: step_solver_options, read_solver_options, option_given
+  use solver_description, only: solver_report, add_setting, text_setting, number_setting, set_petsc_reasons, &
+                                reasons_snes
   implicit none
   private
   public :: newton_solver
@@ -72,6 +74,8 @@ module snes_solver
     logical :: quiet = .false.                      !! no option asks for a viewer
     character(len=16) :: line_search = ''           !! the primary line search type
     character(len=16) :: fallback_line_search = ''  !! the retry strategies' fallback
+    real(real64) :: last_residual_norm = 0.0_real64   !! of the last solve, as SNES's convergence test saw it
+    integer :: last_reason = 0                      !! SNESConvergedReason of the last solve
   contains
     procedure :: prepare
     procedure :: destroy
@@ -80,6 +84,7 @@ module snes_solver
     procedure :: use_fallback
     procedure :: lean
     procedure :: factorizations
+    procedure :: describe
     procedure, private :: create
     procedure, private :: set_line_search
   end type newton_solver
@@ -258,6 +263,46 @@ contains
     lean = self%context%lean
   end function lean
 
+  !> The SNES as the options database left it (after SNESSetFromOptions): type, tolerances, line
+  !> searches, linear solver, the lean way's choices, and PETSc's names of its converged reasons.
+  subroutine describe(self, report, ierr)
+    class(newton_solver), intent(in) :: self
+    type(solver_report), intent(inout) :: report
+    PetscErrorCode, intent(out) :: ierr
+    KSP :: ksp
+    PC :: pc
+    PetscReal :: atol, rtol, stol
+    PetscInt :: max_iterations, max_evaluations, lag
+    character(len=32) :: snes_type, ksp_type, pc_type
+
+    PetscCall(SNESGetType(self%snes, snes_type, ierr))
+    PetscCall(SNESGetTolerances(self%snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+    PetscCall(SNESGetLagJacobian(self%snes, lag, ierr))
+    PetscCall(SNESGetKSP(self%snes, ksp, ierr))
+    PetscCall(KSPGetType(ksp, ksp_type, ierr))
+    PetscCall(KSPGetPC(ksp, pc, ierr))
+    PetscCall(PCGetType(pc, pc_type, ierr))
+    call add_setting(report, text_setting('name', 'PETSc SNES'))
+    call add_setting(report, text_setting('snes_type', snes_type))
+    call add_setting(report, number_setting('snes_atol', atol))
+    call add_setting(report, number_setting('snes_rtol', rtol))
+    call add_setting(report, number_setting('snes_stol', stol))
+    call add_setting(report, number_setting('snes_max_it', real(max_iterations, real64)))
+    call add_setting(report, number_setting('snes_max_funcs', real(max_evaluations, real64)))
+    call add_setting(report, number_setting('snes_lag_jacobian', real(lag, real64)))
+    call add_setting(report, text_setting('snes_convergence_test', 'retry_strategies newton_converged: |F| <= '// &
+                                          'snes_atol after an update <= max(snes_atol, snes_stol |x|), or both at '// &
+                                          'their rounding'))
+    call add_setting(report, text_setting('snes_linesearch_type', self%line_search))
+    call add_setting(report, text_setting('fallback_linesearch_type', self%fallback_line_search))
+    call add_setting(report, text_setting('ksp_type', ksp_type))
+    call add_setting(report, text_setting('pc_type', pc_type))
+    call add_setting(report, text_setting('eme_lean_snes', merge('true ', 'false', self%context%lean)))
+    call add_setting(report, text_setting('eme_final_chord', merge('true ', 'false', self%context%final_chord)))
+    call add_setting(report, text_setting('eme_chord_predictor', merge('true ', 'false', self%options%chord_predictor)))
+    call set_petsc_reasons(report, reasons_snes, ierr)
+  end subroutine describe
+
   !> LU factorizations since the solver was made.
   integer function factorizations(self)
     class(newton_solver), intent(in) :: self
@@ -305,6 +350,8 @@ contains
     end if
     PetscCall(SNESGetConvergedReason(self%snes, snes_reason, ierr))
     PetscCall(SNESGetIterationNumber(self%snes, its, ierr))
+    PetscCall(SNESGetFunctionNorm(self%snes, self%last_residual_norm, ierr))
+    self%last_reason = int(snes_reason)
     iterations = int(its)
     PetscCall(VecGetArrayReadF90(self%x, values, ierr))
     root = values

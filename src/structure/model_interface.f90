@@ -12,7 +12,8 @@
 !> invariants must be at most quadratic in z (their midpoint gradient is then exact).
 !>
 !> A new model extends `generic_model`: it fills `state_size`, `column_names` and `subsystems`
-!> when it is built and implements the deferred procedures. Everything else here is generic.
+!> when it is built, implements the deferred procedures and says its columns' units
+!> (`column_units`, 'unknown' by default). Everything else here is generic.
 module model_interface
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_overflow
@@ -53,6 +54,7 @@ module model_interface
     procedure :: energy_difference
     procedure :: convert_state
     procedure :: subsystem_count
+    procedure :: column_units
     procedure :: observe
     procedure :: temperatures
     procedure :: exact_partials
@@ -137,6 +139,14 @@ module model_interface
 contains
 
   !> Number of subsystems.
+  !> The units of z's columns (the output's column_units); 'unknown' unless the model says.
+  pure subroutine column_units(self, units)
+    class(generic_model), intent(in) :: self
+    character(len=*), intent(out) :: units(:)
+
+    units = 'unknown'
+  end subroutine column_units
+
   pure integer function subsystem_count(self)
     class(generic_model), intent(in) :: self
 

@@ -91,17 +91,20 @@ def mpirun_env_options(env):
 
 def check_run_file(path):
     """What a reader finds in a run file: (status, steps_completed). Raises if the file cannot
-    be read, lacks its status, or a dataset's length disagrees with steps_completed (per-point
-    datasets steps + 1 rows, per-step datasets steps rows)."""
+    be read, lacks its status, or a dataset's length disagrees with the step rows (step_rows, or
+    steps_completed in older files: per-point datasets rows + 1, per-step datasets rows)."""
     with h5py.File(path, "r") as f:
         status = f.attrs["status"]
         steps = int(f.attrs["steps_completed"])
+        step_rows = int(f.attrs.get("step_rows", steps))
         for name, dataset in f.items():
-            rows = dataset.attrs["rows"]
-            expected = steps + 1 if rows == "point" else steps
-            if dataset.shape[0] != expected:
-                raise AssertionError(f"{path}: /{name} has {dataset.shape[0]} rows, steps_completed = {steps}")
             dataset[()]                      # every value can be read
+            if "rows" not in dataset.attrs:  # the columns' dimension scales
+                continue
+            rows = dataset.attrs["rows"]
+            expected = step_rows + 1 if rows == "point" else step_rows
+            if dataset.shape[0] != expected:
+                raise AssertionError(f"{path}: /{name} has {dataset.shape[0]} rows, step_rows = {step_rows}")
     return status, steps
 
 

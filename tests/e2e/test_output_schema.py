@@ -48,17 +48,29 @@ def test_run_files_follow_the_schema(tmp_path, eme_run_binary, schema, constrain
                 # the integrator's own per-step figures (its `diagnostics`, e.g. EME's substeps)
                 assert text(dataset.attrs["rows"]) == "step" and dataset.shape[0] == len(f["time"]) - 1, name
                 continue
+            if name.endswith("_column"):
+                # the dimension scale of a vector dataset's columns: their names
+                assert text(dataset.attrs["CLASS"]) == "DIMENSION_SCALE", name
+                owner = f[name[:-len("_column")]]
+                assert [text(c) for c in dataset[()]] == text(owner.attrs["columns"]).split(), name
+                continue
             assert name in schema, f"/{name} is not in eme_run --output-schema"
             spec = schema[name]
             assert text(dataset.attrs["rows"]) == spec["rows"], name
-            assert text(dataset.attrs["units"]) == spec["units"], name
+            if spec["units"] != "<columns>":
+                assert text(dataset.attrs["units"]) == spec["units"], name
             if name != "scheme_temperature":       # its description comes from the registry entry
                 assert text(dataset.attrs["description"]) == spec["description"], name
             expected_rows = len(f["time"]) - (1 if spec["rows"] == "step" else 0)
             assert dataset.shape[0] == expected_rows, name
             if spec["columns"]:
                 columns = text(dataset.attrs["columns"]).split()
+                assert text(dataset.attrs["columns"]) == " ".join(columns), f"{name}: blanks in 'columns'"
                 assert dataset.shape[1] == len(columns), name
+                units = [text(u) for u in dataset.attrs["column_units"]]
+                assert len(units) == len(columns) and all(u and u == u.strip() and u != "SI" for u in units), name
+                assert text(dataset.attrs["units"]) == (units[0] if len(set(units)) == 1
+                                                        else "per column: column_units"), name
                 if "<" in spec["columns"]:
                     prefix = spec["columns"].split("<")[0]
                     assert all(column.startswith(prefix) for column in columns), (name, columns)
@@ -71,6 +83,8 @@ def test_run_files_follow_the_schema(tmp_path, eme_run_binary, schema, constrain
                 assert name in f, f"schema dataset /{name} is missing from the file"
         if constraints:
             assert text(f["multiplier"].attrs["columns"]) == "lambda_length lambda_temperature"
+            assert [text(u) for u in f["multiplier"].attrs["column_units"]] == ["N/m", "W"]
+            assert [text(u) for u in f["constraint_residual"].attrs["column_units"]] == ["m^2", "K"]
             assert text(f.attrs["constraints"]) == "length, temperature"
 
 

@@ -105,8 +105,8 @@ def test_missing_libraries_say_what_to_install(tmp_path):
     status, message, found = configure(tmp_path, PATH=path)
     assert status == 1 and found == {}
     for words in ["The build needs: MPI-Fortran-compiler(mpif90) MPI-C-compiler(mpicc) PETSc(with-Fortran)",
-                  "HDF5(with-Fortran)", "apt-get install gfortran petsc-dev", "spack install", "petsc+mpi+fortran",
-                  "hdf5+fortran+mpi", "conda install -c conda-forge", "make PETSC_DIR=... [PETSC_ARCH=...] HDF5_DIR=..."]:
+                  "HDF5(with-Fortran-and-high-level)", "apt-get install gfortran petsc-dev", "spack install", "petsc+mpi+fortran",
+                  "hdf5+fortran+hl+mpi", "conda install -c conda-forge", "make PETSC_DIR=... [PETSC_ARCH=...] HDF5_DIR=..."]:
         assert words in message, message
     assert "Permission denied" not in message
 

@@ -1,0 +1,126 @@
+!> The input a run used, as namelist text: every group and field of eme_run's input (the
+!> model's groups, &integrator, &output) with the values after defaults and overrides (a study
+!> case's sweep values). Reals are written with the fewest digits that read back to the same
+!> number, so that running the text again gives the same run. A field that is another's old
+!> name (ts_tolerance) is left out.
+module effective_namelist
+  use, intrinsic :: iso_fortran_env, only: real64
+  use run_config, only: run_configuration, integrator_fields, output_fields
+  use namelist_group, only: group_field, field_real, field_integer, field_logical
+  use number_text, only: integer_text
+  implicit none (type, external)
+  private
+  public :: namelist_of_run, exact_real_text
+
+contains
+
+  !> The namelist text of `config`: one group per block, one field per line.
+  function namelist_of_run(config) result(text)
+    type(run_configuration), intent(in), target :: config
+    character(len=:), allocatable :: text
+    character(len=16), allocatable :: groups(:)
+    integer :: g
+
+    text = ''
+    call config%scene%group_names(groups)
+    do g = 1, size(groups)
+      text = text//group_text(trim(groups(g)), config%scene%fields(trim(groups(g))))
+    end do
+    text = text//group_text('integrator', integrator_fields(config))//group_text('output', output_fields(config))
+  end function namelist_of_run
+
+  ! '&group' and a line per field, closed by '/'.
+  function group_text(group, fields) result(text)
+    character(len=*), intent(in) :: group
+    type(group_field), intent(in) :: fields(:)
+    character(len=:), allocatable :: text
+    integer :: k
+
+    text = '&'//group//new_line('a')
+    do k = 1, size(fields)
+      if (is_alias(fields, k)) cycle
+      text = text//'  '//trim(fields(k)%name)//' = '//value_text(fields(k))//new_line('a')
+    end do
+    text = text//'/'//new_line('a')
+  end function group_text
+
+  ! Whether field k sets the same variable as an earlier field of the group (an old name).
+  logical function is_alias(fields, k)
+    type(group_field), intent(in) :: fields(:)
+    integer, intent(in) :: k
+    integer :: j
+
+    is_alias = .false.
+    do j = 1, k - 1
+      if (associated(fields(k)%real_value)) then
+        if (associated(fields(k)%real_value, fields(j)%real_value)) is_alias = .true.
+      end if
+    end do
+  end function is_alias
+
+  ! A field's value as namelist input: exact reals, quoted texts (quotes doubled).
+  function value_text(field) result(text)
+    type(group_field), intent(in) :: field
+    character(len=:), allocatable :: text
+    integer :: i
+
+    select case (field%kind)
+    case (field_real)
+      if (associated(field%real_value)) then
+        text = exact_real_text(field%real_value)
+      else
+        text = exact_real_text(field%real_values(1))
+        do i = 2, size(field%real_values)
+          text = text//', '//exact_real_text(field%real_values(i))
+        end do
+      end if
+    case (field_integer)
+      text = integer_text(field%integer_value)
+    case (field_logical)
+      text = trim(merge('.true. ', '.false.', field%logical_value))
+    case default
+      text = ''''//doubled_quotes(trim(field%text_value))//''''
+    end select
+  end function value_text
+
+  !> x with the fewest significant digits that read back to x: fixed notation for exponents
+  !> -3 to 6 (0.15, 280.0), else mantissa and exponent (1.0e-8).
+  function exact_real_text(x) result(text)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=48) :: buffer
+    real(real64) :: back
+    integer :: digits, exponent, at
+
+    if (.not. abs(x) > 0.0_real64) then
+      text = '0.0'
+      return
+    end if
+    do digits = 1, 17
+      write (buffer, '(es40.'//integer_text(max(1, digits - 1))//'e3)') x
+      read (buffer, *) back
+      if (.not. abs(back - x) > 0.0_real64) exit
+    end do
+    at = index(buffer, 'E')
+    read (buffer(at + 1:), *) exponent
+    if (exponent >= -3 .and. exponent <= 6) then
+      write (buffer, '(f48.'//integer_text(max(1, digits - 1 - exponent))//')') x
+      text = trim(adjustl(buffer))
+    else
+      text = trim(adjustl(buffer(1:at - 1)))//'e'//integer_text(exponent)
+    end if
+  end function exact_real_text
+
+  pure function doubled_quotes(text) result(quoted)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: quoted
+    integer :: i
+
+    quoted = ''
+    do i = 1, len(text)
+      quoted = quoted//text(i:i)
+      if (text(i:i) == '''') quoted = quoted//''''
+    end do
+  end function doubled_quotes
+
+end module effective_namelist
