@@ -1,8 +1,9 @@
 """Analysis of the parameter studies of `make study` (README, "Ensemble studies").
 
 Reads STUDY_DIR/{convergence, convergence_reference, work_precision, work_precision_adaptive,
-work_precision_reference, stability_paper, stability_hard}/index.h5 and the case files they
-name, and writes to OUT:
+work_precision_reference, stability_paper, stability_hard}/index.h5 and the case files the
+convergence and work-precision indexes name (the stability studies keep only their index:
+&study index_only), and writes to OUT:
   study_convergence        error at t = T against dt, with each fixed-step scheme's fitted order,
                            and the adaptive schemes' error at t = 5 s against their tolerance
   study_work_precision     error at t = 5 s against the solve time (median of the study's
@@ -15,6 +16,7 @@ named as in the paper (EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u) with t
 integrator registry, which every index carries (/integrators).
 """
 import argparse
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +27,7 @@ import integrators
 import study_plots
 from plotting import run_script
 from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
-from trajectory import RunFileError, read_run, run_file
+from trajectory import RunFileError, read_run
 
 # study_convergence_reference.nml: case 1 (temperature variable, tolerance 1e-13) is the
 # reference, case 2 (entropy variable, tolerance 1e-12) an independent cross-check of it.
@@ -64,7 +66,7 @@ TARGETS = (1e-4, 1e-6)
 SCENES = {"paper": "stability_paper", "hard": "stability_hard"}
 INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
                 "solve_time_seconds", "energy_drift", "min_entropy_increment",
-                "max_lyapunov_increment")
+                "max_lyapunov_increment", "min_temperature", "halved_steps")
 
 
 class StudyError(RunFileError):
@@ -83,6 +85,9 @@ def read_index(folder):
             raise StudyError(f"{path}: dataset '/cases' is missing")
         cases = handle["cases"][()]
         repeats = int(handle.attrs.get("repeats", 1))       # runs per case; the time is their median
+        case_1_input = handle.attrs.get("case_1_input", "")
+        if isinstance(case_1_input, bytes):
+            case_1_input = case_1_input.decode()
         integrators.register_index(handle)
     missing = [name for name in INDEX_FIELDS if name not in (cases.dtype.names or ())]
     if missing:
@@ -94,6 +99,7 @@ def read_index(folder):
         row["path"] = path.parent / row["file"]
         row["index"] = path
         row["repeats"] = repeats
+        row["case_1_input"] = case_1_input
         rows.append(row)
     return rows
 
@@ -216,22 +222,10 @@ def entropy_violation(min_entropy_increment):
     return np.maximum(0.0, -np.asarray(min_entropy_increment, dtype=float))
 
 
-def halved_steps(path):
-    """Steps of the case that were rejected and replaced by two halves: the relaxed schemes'
-    /halved_steps, or from EME's and the midpoint rule's /substeps (a step replaced by k substeps
-    was halved k - 1 times); 0 for integrators that never halve."""
-    with run_file(path) as handle:
-        if "halved_steps" in handle:
-            return int(np.sum(handle["halved_steps"][()]))
-        if "substeps" in handle:
-            return int(np.sum(handle["substeps"][()] - 1))
-        return 0
-
-
-def temperatures_positive(path):
-    """True when every temperature in the case file's /temperature is finite and positive."""
-    temperature = read_run(path, ["temperature"]).data["temperature"]
-    return bool(np.all(np.isfinite(temperature)) and np.all(temperature > 0))
+def temperatures_positive(min_temperature):
+    """True when the case's lowest temperature (the index's min_temperature, NaN once a
+    temperature was not finite) is finite and positive."""
+    return bool(np.isfinite(min_temperature) and min_temperature > 0)
 
 
 def classify(status, energy_drift, max_lyapunov_increment, positive_temperatures=True):
@@ -283,10 +277,9 @@ def stability_map(rows):
             raise StudyError(f"{row['index']}: cases {case[i, j]} and {row['case']} are both "
                              f"{plain_name(*keys[i])} at dt = {row['dt']:g} s")
         positive = True
-        if Path(row["path"]).exists():
-            halved[i, j] = halved_steps(row["path"])
+        halved[i, j] = row["halved_steps"]
         if row["status"] == "complete":
-            positive = temperatures_positive(row["path"])
+            positive = temperatures_positive(row["min_temperature"])
             positive_grid[i, j] = int(positive)
             checked += 1
         name, flag = classify(row["status"], row["energy_drift"], row["max_lyapunov_increment"], positive)
@@ -298,17 +291,27 @@ def stability_map(rows):
     return {"keys": keys, "dt": np.array(steps), "outcome": outcome, "flags": flags, "case": case,
             "failed_at": failed_at, "status": status, "energy_drift": energy,
             "max_lyapunov_increment": lyapunov, "temperatures_positive": positive_grid,
-            "temperature_files_checked": checked, "halved": halved,
+            "temperatures_checked": checked, "halved": halved,
             "source": rows[0]["index"].parent if rows else "-",
-            "scene": scene_description(rows[0]["path"]) if rows else "-"}
+            "scene": scene_description(rows[0]) if rows else "-"}
 
 
-def scene_description(path):
-    """Interval and initial state of a study's scene, from one case file's root attributes."""
-    attrs = read_run(path, [], ["t_end", "p2", "theta"]).attrs
-    vector = ", ".join(f"{v:g}" for v in np.ravel(attrs["p2"]))
-    return (f"[0, {attrs['t_end']:g}] s, p2(0) = ({vector}) N s, theta(0) = "
-            f"({', '.join(f'{v:g}' for v in np.ravel(attrs['theta']))}) K")
+def namelist_values(text, name):
+    """The values of field `name` in namelist text as the code writes it (one field a line,
+    'name = v1, v2'), as floats; [] if the field is not there."""
+    match = re.search(rf"^\s*{re.escape(name)}\s*=\s*(.+?)\s*$", text, flags=re.MULTILINE | re.IGNORECASE)
+    return [float(value.replace("d", "e").replace("D", "e")) for value in match.group(1).split(",")] if match else []
+
+
+def scene_description(row):
+    """Interval and initial state of a study's scene, from its index's case_1_input (every case
+    shares all but the swept fields), so a study without case files has one too."""
+    text = row["case_1_input"]
+    t_end, p2, theta = (namelist_values(text, name) for name in ("t_end", "p2", "theta"))
+    if not (t_end and p2 and theta):
+        raise StudyError(f"{row['index']}: attribute case_1_input lacks t_end, p2 or theta")
+    return (f"[0, {t_end[0]:g}] s, p2(0) = ({', '.join(f'{v:g}' for v in p2)}) N s, theta(0) = "
+            f"({', '.join(f'{v:g}' for v in theta)}) K")
 
 
 def structure_cost(rows):
@@ -415,10 +418,11 @@ def write_summary(path, conv, wp, structure, maps):
             write_dataset(g, "max_lyapunov_increment", grid["max_lyapunov_increment"], "J",
                           f"max_n (V_{{n+1}} - V_n) over the completed steps; kept: <= {LYAPUNOV_TOLERANCE:g} J")
             write_dataset(g, "temperatures_positive", grid["temperatures_positive"], "1",
-                          "1: every /temperature value of the finished case file is finite and > 0; 0: not; "
-                          "-1: not checked (failed case, or not run)")
+                          "1: every temperature of the finished case was finite and > 0 (the index's "
+                          "min_temperature); 0: not; -1: not checked (failed case, or not run)")
             write_dataset(g, "halved_steps", grid["halved"], "1",
-                          "steps rejected and replaced by two halves (relaxed Runge-Kutta schemes)")
+                          "failed attempts replaced by two halves (EME and the midpoint rule, the relaxed "
+                          "Runge-Kutta schemes; the index's halved_steps)")
             write_dataset(g, "kept_count", (grid["outcome"] == 0).sum(axis=1), "1",
                           "dt values at which the scheme finished with everything kept")
     print(f"wrote {path}")
@@ -474,7 +478,7 @@ def findings(conv, wp, structure, maps):
                          f"{OUTCOMES[grid['outcome'][i, j]]}{flag} (case {grid['case'][i, j]})")
         counts = ", ".join(f"{o} {(grid['outcome'] == k).sum()}" for k, o in enumerate(OUTCOMES))
         lines.append(f"stability {SCENE_TITLES[scene]}: {counts}; temperatures checked in "
-                     f"{grid['temperature_files_checked']} finished case files")
+                     f"{grid['temperatures_checked']} finished cases")
     return lines
 
 

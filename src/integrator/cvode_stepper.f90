@@ -15,7 +15,7 @@ module cvode_stepper
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
-  use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
+  use stepper, only: time_stepper, step_report, step_diagnostic, solver_report, accept_in_domain
   use solver_description, only: add_setting, text_setting, number_setting
   use number_text, only: fixed_text
   implicit none (type, external)
@@ -134,8 +134,6 @@ contains
     integer(c_int) :: flag, last_order
     real(c_double) :: t_reached, last_step
     character(kind=c_char, len=40) :: name
-    real(real64) :: energy, entropy
-    integer :: stat
 
     ierr = 0
     report%reason = ''
@@ -156,12 +154,7 @@ contains
       report%reason = 'SUNDIALS CVODE failed at t = '//fixed_text(t_reached, 6)//' s: '//name(1:index(name, c_null_char) - 1)
       return
     end if
-    call self%context%model%observe(x_new, energy, entropy, report%scheme_temperature, stat)
-    if (stat /= 0 .or. .not. all(abs(x_new) <= huge(1.0_real64))) then
-      report%reason = 'the state left the model''s domain (a non-positive temperature, or a blow-up)'
-      return
-    end if
-    report%accepted = .true.
+    call accept_in_domain(self%context%model, x_new, report)
   end subroutine advance
 
   !> The per-step figures of CVODE's internal steps.

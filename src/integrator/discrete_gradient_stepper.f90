@@ -148,6 +148,7 @@ contains
     report%reason = tally%reason
     report%last_rejection = tally%last_rejection
     report%diagnostics = [real(tally%substeps, real64)]
+    report%halvings = max(0, tally%substeps - 1)     ! each halving adds one substep
     report%residual_norm = self%solver%last_residual_norm
     report%converged_reason = self%solver%last_reason
     allocate (report%scheme_temperature(self%problem%model%subsystem_count()))

@@ -223,6 +223,7 @@ contains
     report%solves = self%attempts
     report%rejected = self%rejections
     report%newton_iterations = self%newton_iterations
+    report%halvings = self%halvings
     report%diagnostics = [self%last_gamma, real(self%rejections, real64), real(self%halvings, real64), &
                           self%entropy_production]
     if (self%tableau%implicit) then

@@ -12,7 +12,7 @@ module stepper
   use solver_description, only: solver_report, no_solver
   implicit none (type, external)
   private
-  public :: time_stepper, step_report, step_diagnostic, solver_report, no_residual
+  public :: time_stepper, step_report, step_diagnostic, solver_report, no_residual, accept_in_domain
 
   !> The residual norm of a step that solves no nonlinear system: NaN.
   real(real64), parameter :: no_residual = transfer(int(z'7FF8000000000000', int64), 1.0_real64)
@@ -24,6 +24,7 @@ module stepper
     integer :: newton_iterations = 0     !! summed over every solve of the step
     integer :: solves = 0                !! nonlinear solves (continuation stages included), or TS steps taken
     integer :: rejected = 0              !! roots rejected as unphysical, or TS steps rejected
+    integer :: halvings = 0              !! failed attempts replaced by two halves (EME's substeps, relaxed RK)
     real(real64), allocatable :: scheme_temperature(:)   !! the temperatures the step's K0 used
     character(len=:), allocatable :: reason              !! why the step failed (if it did)
     character(len=:), allocatable :: last_rejection      !! why the last rejected root was rejected
@@ -109,5 +110,19 @@ contains
 
     report = no_solver('the integrator reports no solver')
   end function describe_solver
+
+  !> Accepts a step whose end state z_new is finite and in the model's domain (its temperatures
+  !> then go to report%scheme_temperature); otherwise says why not.
+  subroutine accept_in_domain(model, z_new, report)
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: z_new(:)
+    type(step_report), intent(inout) :: report
+    real(real64) :: energy, entropy
+    integer :: stat
+
+    call model%observe(z_new, energy, entropy, report%scheme_temperature, stat)
+    report%accepted = stat == 0 .and. all(abs(z_new) <= huge(1.0_real64))
+    if (.not. report%accepted) report%reason = 'the state left the model''s domain (a non-positive temperature, or a blow-up)'
+  end subroutine accept_in_domain
 
 end module stepper

@@ -15,7 +15,7 @@ module ts_stepper
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
-  use stepper, only: time_stepper, step_report, solver_report, no_residual
+  use stepper, only: time_stepper, step_report, solver_report, no_residual, accept_in_domain
   use solver_description, only: add_setting, text_setting, number_setting, set_petsc_reasons, reasons_ts
   use dense_assembly, only: assemble_jacobian
   implicit none
@@ -199,9 +199,7 @@ contains
     TSConvergedReason :: converged
     SNES :: snes
     PetscInt :: snes_iterations, steps, rejections
-    real(real64) :: energy, entropy
     character(len=80) :: text
-    integer :: stat
 
     report%reason = ''
     report%last_rejection = ''
@@ -254,12 +252,7 @@ contains
       end select
       return
     end if
-    call self%context%model%observe(x_new, energy, entropy, report%scheme_temperature, stat)
-    if (stat /= 0 .or. .not. all(abs(x_new) <= huge(1.0_real64))) then
-      report%reason = 'the state left the model''s domain (a non-positive temperature, or a blow-up)'
-      return
-    end if
-    report%accepted = .true.
+    call accept_in_domain(self%context%model, x_new, report)
   end subroutine advance
 
   !> The TS as the options database left it (after TSSetFromOptions): type, adaptivity and

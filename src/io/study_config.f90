@@ -6,7 +6,7 @@
 module study_config
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
-  use namelist_text, only: namelist_item, read_source_text, group_names, lowercase, item_name
+  use namelist_text, only: namelist_item, read_source_text, group_names, group_items, lowercase, item_name
   use namelist_group, only: group_field, text_field, reals_field, texts_field, logical_field, integer_field, &
                             read_group, invalid_value_message, parse_subscript
   use run_config, only: run_configuration, read_run_config, same_variable
@@ -18,6 +18,8 @@ module study_config
 
   integer, parameter :: max_sweep_values = 256
   integer, parameter :: max_cases = 100000
+  !> A study of this many cases or more keeps only its index unless &study index_only says otherwise.
+  integer, parameter :: index_only_from = 1000
 
   !> One swept field and its values, as namelist value texts ('0.15' or '''eme''').
   type :: study_sweep
@@ -89,7 +91,24 @@ contains
     call check_collisions(study, stat, message)
     if (stat /= 0) return
     call expand_cases(study, stat, message)
+    if (stat /= 0) return
+    if (size(study%cases) >= index_only_from) then
+      if (.not. index_only_given(text, path)) study%index_only = .true.
+    end if
   end subroutine read_study
+
+  ! Whether &study sets index_only.
+  logical function index_only_given(text, path)
+    character(len=*), intent(in) :: text, path
+    type(namelist_item), allocatable :: items(:)
+    integer :: k
+
+    call group_items(text, 'study', [character(len=1) ::], path, items)
+    index_only_given = .false.
+    do k = 1, size(items)
+      if (item_name(items(k)%item) == 'index_only') index_only_given = .true.
+    end do
+  end function index_only_given
 
   subroutine read_study_group(text, definition, stat, message)
     character(len=*), intent(in) :: text
@@ -196,7 +215,9 @@ contains
       text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
                  ''), &
       text_field('combine', combine, "'product' or 'zip' (product: the first sweep varies slowest)", ''), &
-      logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false. (default)'), &
+      logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false.: a '// &
+                    'case file per case too (default: .false. below '//integer_text(index_only_from)//' cases, '// &
+                    '.true. from there)'), &
       integer_field('repeats', repeats, 'an integer >= 1: runs of each case, timed; the index holds the median '// &
                     'solve time (default 1)', minimum=1)]
   end function study_fields

@@ -164,7 +164,9 @@ contains
     end do
     call say(manager, 'eme_ensemble: '//integer_text(size(study%cases))//' cases, '//integer_text(size(manager%queue)) &
              //' to run ('//integer_text(manager%done)//' complete from an earlier run), on '//integer_text(ranks) &
-             //' rank'//repeat('s', merge(0, 1, ranks == 1)))
+             //' rank'//repeat('s', merge(0, 1, ranks == 1))//trim(merge('; only the index is kept (index_only)', &
+                                                                      '                                     ', &
+                                                                      study%index_only)))
   end subroutine prepare
 
   subroutine manage(manager, outcome)
@@ -428,7 +430,8 @@ contains
                       real(summary%newton_iterations, real64), summary%wall_seconds, summary%solve_seconds, &
                       summary%energy_drift, &
                       summary%min_entropy_increment, summary%max_lyapunov_increment, &
-                      summary%angular_momentum_drift, real(rank, real64), 0.0_real64]
+                      summary%angular_momentum_drift, summary%min_temperature, &
+                      real(summary%halved_steps, real64), real(rank, real64), 0.0_real64]
   end subroutine run_case
 
 end module ensemble

@@ -9,7 +9,7 @@
 !> <reason>' and its `failure_kind` says why in a word.
 module simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
@@ -246,6 +246,7 @@ contains
       ! Newton iterations per step: those of the completed steps over their number (a failed
       ! step's are not counted), as newton_iterations_total / steps_completed in the file.
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
+      summary%halved_steps = summary%halved_steps + report%halvings
       ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
       do k = 1, size(constraints)
         boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
@@ -328,6 +329,12 @@ contains
 
       call model%observe(z, energy, entropy, theta, domain)
       lyapunov = energy - config%theta_r*entropy
+      ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
+      if (.not. all(abs(theta) <= huge(1.0_real64))) then
+        summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
+      else if (.not. ieee_is_nan(summary%min_temperature)) then
+        summary%min_temperature = min(summary%min_temperature, minval(theta))
+      end if
     end subroutine observe
 
     ! One point: the state with what it is judged by, and the active constraints' g.

@@ -2,7 +2,9 @@
 !> (h5py: f['cases'][:]): case, file, one column per sweep, status ('complete', 'failed: <reason>',
 !> 'incomplete: interrupted by <signal>' or 'pending'), failure_kind and the case's figures. The
 !> dataset /integrators holds the integrator registry (name, label, family, capabilities), so
-!> the scripts that chart a study name and order its schemes as the code does.
+!> the scripts that chart a study name and order its schemes as the code does. The attribute
+!> case_1_input is case 1's input as namelist text (all groups and fields, defaults included):
+!> every case shares it but for the swept fields, so the scene is known without a case file.
 !>
 !> Crash safety. index.h5 is never written in place: a new one is written as index.h5.tmp and
 !> renamed over it, when the study starts, every 2 s while cases end, and at the end. A case's
@@ -22,6 +24,7 @@ module study_index
   use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
+  use effective_namelist, only: namelist_of_run
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -30,15 +33,17 @@ module study_index
 
   integer, parameter :: status_length = 256
   integer, parameter :: kind_length = 16
-  integer, parameter :: metric_count = 11
+  integer, parameter :: metric_count = 13
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
-  ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, rank, run_count
-  integer, parameter :: m_steps = 1, m_rank = 10, m_run_count = 11
+  ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
+  ! halved_steps, rank, run_count
+  integer, parameter :: m_steps = 1, m_rank = 12, m_run_count = 13
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
     'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
-    'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'rank', 'run_count']
+    'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'min_temperature', &
+    'halved_steps', 'rank', 'run_count']
   logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
-                                                            .false., .false., .false., .true., .true.]
+                                                            .false., .false., .false., .false., .true., .true., .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
   character(len=1), parameter :: tab = achar(9)
 
@@ -256,6 +261,8 @@ contains
     if (stat == 0) call file%set_text('study', self%study%input_file, stat)
     if (stat == 0) call file%set_text('base', self%study%base, stat)
     if (stat == 0) call file%set_text('combine', self%study%combine, stat)
+    ! What every case shares (all but the swept fields): the scene without opening a case file.
+    if (stat == 0) call file%set_text('case_1_input', namelist_of_run(self%study%cases(1)%config), stat)
     if (stat == 0) call file%set_integer('index_only', merge(1, 0, self%study%index_only), stat)
     if (stat == 0) call file%set_integer('repeats', self%study%repeats, stat)
     if (stat == 0) call file%set_text('code_version', code_version, stat)
@@ -508,7 +515,7 @@ contains
     if (stat == 0) call file%get_reals('study_rank', rank, stat)
     call file%close(ignored)
     if (stat /= 0) return
-    if (size(number) /= 1 .or. size(figures) /= 4) return
+    if (size(number) /= 1 .or. size(figures) /= 6) return
     if (nint(number(1)) /= c .or. overrides /= case_overrides(self%study, c)) return
     self%results(c)%status = 'complete'
     self%results(c)%failure_kind = 'none'

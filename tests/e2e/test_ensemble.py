@@ -102,6 +102,10 @@ def test_study_runs_every_case_and_isolates_the_failure(small_study):
         assert row["min_entropy_increment"] == pytest.approx(np.diff(data["entropy"]).min(), rel=1e-12)
         assert row["max_lyapunov_increment"] == pytest.approx(np.diff(data["lyapunov"]).max(), rel=1e-12)
         assert row["solve_time_seconds"] == pytest.approx(data["attrs"]["solve_time_seconds"])
+        # The stability map's figures come from the index: the lowest temperature of the file's
+        # points, and the halvings (a step made of k substeps was halved k - 1 times).
+        assert row["min_temperature"] == data["temperature"].min()
+        assert row["halved_steps"] == (data["substeps"] - 1).sum()
     failed = read_run(output / "case_00004.h5")
     assert failed["attrs"]["status"].startswith("incomplete: step 1") and len(failed["time"]) == 1
     assert failed["attrs"]["failure_kind"] == "solver"
@@ -273,6 +277,26 @@ def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
     for name in lean.dtype.names:
         if name not in ("file", "wall_time_seconds", "solve_time_seconds", "rank"):
             assert np.array_equal(lean[name], full[name]), name
+
+
+@pytest.mark.parametrize("given, kept_files", [("", False), ("index_only = .false.", True)])
+def test_a_study_of_1000_cases_keeps_only_its_index_unless_told(tmp_path, eme_run_binary, given, kept_files):
+    """From 1000 cases on, index_only is on by default; &study index_only = .false. keeps the files."""
+    output = tmp_path / "out"
+    study = write_study(tmp_path, f"""&study
+  base = '{ROOT / "inputs" / "paper_fig4_eme_theta.nml"}'
+  output_dir = '{output}'
+  {given}
+/
+&sweep field = 't_end', values = 0.1 /
+&sweep field = 'theta(1)', values = {", ".join(f"{270 + i:.1f}" for i in range(40))} /
+&sweep field = 'theta(2)', values = {", ".join(f"{340 + i:.1f}" for i in range(25))} /
+""")
+    result = ensemble(study, ranks=2)
+    assert result.returncode == 0, result.stderr
+    assert ("only the index is kept" in result.stdout) != kept_files
+    assert len(read_index(output)) == 1000
+    assert len(list(output.glob("case_*.h5"))) == (1000 if kept_files else 0)
 
 
 def test_a_killed_index_only_study_resumes_from_its_journal(tmp_path, eme_run_binary):

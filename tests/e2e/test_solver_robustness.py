@@ -50,6 +50,9 @@ def test_halves_replace_a_step_without_root(tmp_path, eme_run_binary, variable, 
     np.testing.assert_allclose(run["time"], 0.5 * np.arange(41.0))         # the user's grid
     substeps = run["substeps"]
     assert substeps.shape == (40,) and np.all(substeps >= 1) and np.any(substeps > 1)
+    # The run's figures (a study index's halved_steps and min_temperature) say the same.
+    assert run["attrs"]["run_figures"][5] == np.sum(substeps - 1)
+    assert run["attrs"]["run_figures"][4] == run["temperature"].min()
     # Every substep is an EME step: energy (with the heat the substeps exchanged through g2,
     # recorded as the multipliers' time averages), J_z, and the Lyapunov function hold per output step.
     assert relative_energy_error(run) <= 1e-13

@@ -138,6 +138,12 @@ def test_unclassifiable_cases_stop_the_analysis(status):
         classify(status, 0.0, 0.0)
 
 
+@pytest.mark.parametrize("min_temperature, positive", [(300.0, True), (1e-300, True), (0.0, False),
+                                                     (-5.0, False), (np.nan, False), (np.inf, False)])
+def test_temperatures_are_positive_when_the_lowest_is_finite_and_positive(min_temperature, positive):
+    assert study_analysis.temperatures_positive(min_temperature) is positive
+
+
 def test_entropy_violation_is_the_largest_decrease_and_zero_for_increases():
     np.testing.assert_array_equal(entropy_violation([-0.5, 0.0, 1e-3, -1e-20]), [0.5, 0.0, 0.0, 1e-20])
 
@@ -192,14 +198,16 @@ def run_script(study_dir, output, summary):
 
 @pytest.fixture(scope="module")
 def studies(tmp_path_factory):
-    """STUDY_DIR with the four tiny studies, run with eme_ensemble on one rank."""
+    """STUDY_DIR with the seven tiny studies, run with eme_ensemble on one rank; the stability
+    studies keep only their index, as make study's do."""
     assert ENSEMBLE.exists(), f"{ENSEMBLE} is missing: run `make` in {ROOT} first"
     directory = tmp_path_factory.mktemp("studies")
     for name, sweeps in STUDIES.items():
         combine = "product" if name == "convergence" else "zip"
+        index_only = ".true." if name.startswith("stability") else ".false."     # as make study's
         namelist = directory / f"{name}.nml"
         namelist.write_text(f"&study\n  base = '{BASE}'\n  output_dir = '{directory / 'study' / name}'\n"
-                            f"  combine = '{combine}'\n/\n{sweeps}\n")
+                            f"  combine = '{combine}'\n  index_only = {index_only}\n/\n{sweeps}\n")
         result = subprocess.run([str(ENSEMBLE), str(namelist)], capture_output=True, text=True,
                                 timeout=300, cwd=ROOT)
         assert result.returncode == 0, result.stderr
@@ -228,7 +236,7 @@ def text(values):
     return [v.decode() if isinstance(v, bytes) else str(v) for v in np.ravel(values)]
 
 
-def test_summary_holds_every_figure_s_numbers_with_units(analysed):
+def test_summary_holds_every_figure_s_numbers_with_units(studies, analysed):
     output, _ = analysed
     with h5py.File(output / "summary.h5", "r") as f:
         names = []
@@ -249,6 +257,8 @@ def test_summary_holds_every_figure_s_numbers_with_units(analysed):
         assert (grid >= 0).sum() == 5
         codes = {(schemes[i], steps[j]): study_analysis.OUTCOMES[grid[i, j]] for i, j in zip(*np.nonzero(grid >= 0))}
         assert codes == EXPECTED_OUTCOMES
+        # The stability studies kept no case files: the map came from their indexes.
+        assert not list((studies / "stability_paper").glob("case_*.h5"))
         # The relaxed case at dt = 0.5 s halves steps, and only it.
         halved = f["stability/paper/halved_steps"][()]
         assert halved[schemes.index("RRK4_theta"), steps.index(0.5)] > 0 and halved.sum() == halved.max()
@@ -370,7 +380,7 @@ def test_charts_text_is_at_least_8_pt_and_legends_explain_every_marker(studies):
 def test_an_unreadable_case_file_is_named_without_a_traceback(studies, tmp_path):
     broken = tmp_path / "study"
     shutil.copytree(studies, broken)
-    case = broken / "stability_paper" / "case_00001.h5"
+    case = broken / "work_precision" / "case_00001.h5"
     case.write_bytes(case.read_bytes()[:96])           # what a kill before the first flush left
     result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
     assert result.returncode == 2 and "Traceback" not in result.stderr
