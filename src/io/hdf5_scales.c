@@ -45,31 +45,55 @@ int eme_h5_attach_row_scale(hid_t dataset, hid_t scale)
     return H5DSattach_scale(dataset, scale, 0) < 0 ? -1 : 0;
 }
 
+/* The entries of a joined text with what HDF5 writes them as: variable-length UTF-8 strings in
+ * a 1-D space of their number. */
+struct text_array {
+    size_t count;
+    char *copy;
+    char **entries;
+    hid_t type, space;
+};
+
+static void text_array_close(struct text_array *text)
+{
+    if (text->space >= 0) H5Sclose(text->space);
+    if (text->type >= 0) H5Tclose(text->type);
+    free(text->entries);
+    free(text->copy);
+}
+
+/* Splits `joined` (each entry ended by a newline) into *text; -1 (with nothing to close) on failure. */
+static int text_array_open(const char *joined, struct text_array *text)
+{
+    text->copy = NULL;
+    text->type = text->space = -1;
+    text->entries = split_lines(joined, &text->count, &text->copy);
+    if (text->entries == NULL) return -1;
+    hsize_t dims[1] = {text->count};
+    text->type = H5Tcopy(H5T_C_S1);
+    text->space = H5Screate_simple(1, dims, NULL);
+    if (text->type < 0 || text->space < 0 || H5Tset_size(text->type, H5T_VARIABLE) < 0 ||
+        H5Tset_cset(text->type, H5T_CSET_UTF8) < 0) {
+        text_array_close(text);
+        return -1;
+    }
+    return 0;
+}
+
 /* Writes attribute `name` of `object` as a 1-D array of variable-length UTF-8 strings (h5py:
  * an array of str): the entries of `joined`, each ended by a newline. */
 int eme_h5_write_text_array_attribute(hid_t object, const char *name, const char *joined)
 {
-    size_t count;
-    char *copy = NULL;
-    char **entries = split_lines(joined, &count, &copy);
+    struct text_array text;
+    if (text_array_open(joined, &text) < 0) return -1;
     int status = -1;
-    if (entries != NULL) {
-        hid_t type = H5Tcopy(H5T_C_S1);
-        hsize_t dims[1] = {count};
-        hid_t space = H5Screate_simple(1, dims, NULL);
-        if (type >= 0 && space >= 0 && H5Tset_size(type, H5T_VARIABLE) >= 0 && H5Tset_cset(type, H5T_CSET_UTF8) >= 0) {
-            if (H5Aexists(object, name) > 0) H5Adelete(object, name);
-            hid_t attribute = H5Acreate2(object, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
-            if (attribute >= 0) {
-                if (H5Awrite(attribute, type, entries) >= 0) status = 0;
-                H5Aclose(attribute);
-            }
-        }
-        if (space >= 0) H5Sclose(space);
-        if (type >= 0) H5Tclose(type);
+    if (H5Aexists(object, name) > 0) H5Adelete(object, name);
+    hid_t attribute = H5Acreate2(object, name, text.type, text.space, H5P_DEFAULT, H5P_DEFAULT);
+    if (attribute >= 0) {
+        if (H5Awrite(attribute, text.type, text.entries) >= 0) status = 0;
+        H5Aclose(attribute);
     }
-    free(entries);
-    free(copy);
+    text_array_close(&text);
     return status;
 }
 
@@ -78,27 +102,16 @@ int eme_h5_write_text_array_attribute(hid_t object, const char *name, const char
  * second (column) dimension of `dataset`: the names of the columns as a coordinate. */
 int eme_h5_column_scale(hid_t file, hid_t dataset, const char *name, const char *joined)
 {
-    size_t count;
-    char *copy = NULL;
-    char **entries = split_lines(joined, &count, &copy);
+    struct text_array text;
+    if (text_array_open(joined, &text) < 0) return -1;
     int status = -1;
-    if (entries != NULL) {
-        hid_t type = H5Tcopy(H5T_C_S1);
-        hsize_t dims[1] = {count};
-        hid_t space = H5Screate_simple(1, dims, NULL);
-        if (type >= 0 && space >= 0 && H5Tset_size(type, H5T_VARIABLE) >= 0 && H5Tset_cset(type, H5T_CSET_UTF8) >= 0) {
-            hid_t scale = H5Dcreate2(file, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-            if (scale >= 0) {
-                if (H5Dwrite(scale, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, entries) >= 0 &&
-                    H5DSset_scale(scale, name) >= 0 && H5DSattach_scale(dataset, scale, 1) >= 0)
-                    status = 0;
-                H5Dclose(scale);
-            }
-        }
-        if (space >= 0) H5Sclose(space);
-        if (type >= 0) H5Tclose(type);
+    hid_t scale = H5Dcreate2(file, name, text.type, text.space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (scale >= 0) {
+        if (H5Dwrite(scale, text.type, H5S_ALL, H5S_ALL, H5P_DEFAULT, text.entries) >= 0 &&
+            H5DSset_scale(scale, name) >= 0 && H5DSattach_scale(dataset, scale, 1) >= 0)
+            status = 0;
+        H5Dclose(scale);
     }
-    free(entries);
-    free(copy);
+    text_array_close(&text);
     return status;
 }
