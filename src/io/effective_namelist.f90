@@ -90,22 +90,28 @@ contains
     character(len=:), allocatable :: text
     character(len=48) :: buffer
     real(real64) :: back
-    integer :: digits, exponent, at
+    integer :: decimals, exponent, at
 
     if (.not. abs(x) > 0.0_real64) then
       text = '0.0'
       return
     end if
-    do digits = 1, 17
-      write (buffer, '(es40.'//integer_text(max(1, digits - 1))//'e3)') x
+    ! The fewest decimals of d.ddd E e (decimals + 1 significant digits) that read back to x.
+    do decimals = 1, 16
+      write (buffer, '(es40.'//integer_text(decimals)//'e3)') x
       read (buffer, *) back
       if (.not. abs(back - x) > 0.0_real64) exit
     end do
     at = index(buffer, 'E')
     read (buffer(at + 1:), *) exponent
     if (exponent >= -3 .and. exponent <= 6) then
-      write (buffer, '(f48.'//integer_text(max(1, digits - 1 - exponent))//')') x
+      ! The same significant digits in fixed notation: decimals - exponent after the point.
+      write (buffer, '(f48.'//integer_text(max(1, decimals - exponent))//')') x
       text = trim(adjustl(buffer))
+      ! Zeros the mantissa did not need (0.10 from 1.0e-1), keeping a digit after the point.
+      do while (text(len(text):) == '0' .and. text(len(text) - 1:len(text) - 1) /= '.')
+        text = text(1:len(text) - 1)
+      end do
     else
       text = trim(adjustl(buffer(1:at - 1)))//'e'//integer_text(exponent)
     end if
