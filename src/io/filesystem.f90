@@ -4,8 +4,8 @@ module filesystem
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_null_char
   implicit none (type, external)
   private
-  public :: make_directories, make_parent_directories, rename_file, remove_file, file_exists, append_text, &
-            reserve_space, sync_file, os_error_text, stderr_is_terminal
+  public :: make_directories, make_parent_directories, rename_file, exchange_files, copy_file, remove_file, &
+            file_exists, append_text, reserve_space, sync_file, os_error_text, stderr_is_terminal
 
   interface
     function c_make_directories(path) result(status) bind(c, name='eme_make_directories')
@@ -19,6 +19,16 @@ module filesystem
       integer(c_int), value :: sync
       integer(c_int) :: status
     end function c_rename_file
+    function c_exchange_files(newer, path) result(status) bind(c, name='eme_exchange_files')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: newer(*), path(*)
+      integer(c_int) :: status
+    end function c_exchange_files
+    function c_copy_file(from, to) result(status) bind(c, name='eme_copy_file')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: from(*), to(*)
+      integer(c_int) :: status
+    end function c_copy_file
     function c_remove_file(path) result(status) bind(c, name='eme_remove_file')
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: path(*)
@@ -91,6 +101,24 @@ contains
     if (present(sync)) durable = sync
     stat = int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char, merge(1_c_int, 0_c_int, durable)))
   end subroutine rename_file
+
+  !> Gives the file `newer` the name `path`, and the file that had that name the name `newer`;
+  !> `path` names a whole file at every instant (src/io/posix_files.c). stat: 0 or an OS error.
+  subroutine exchange_files(newer, path, stat)
+    character(len=*), intent(in) :: newer, path
+    integer, intent(out) :: stat
+
+    stat = int(c_exchange_files(trim(newer)//c_null_char, trim(path)//c_null_char))
+  end subroutine exchange_files
+
+  !> Copies the file `from` as `to`, which is replaced whole (a process that has the old `to` open
+  !> keeps it as it was). stat: 0 or an OS error.
+  subroutine copy_file(from, to, stat)
+    character(len=*), intent(in) :: from, to
+    integer, intent(out) :: stat
+
+    stat = int(c_copy_file(trim(from)//c_null_char, trim(to)//c_null_char))
+  end subroutine copy_file
 
   !> Removes `path`; a missing file is no error.
   subroutine remove_file(path, stat)

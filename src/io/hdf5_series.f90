@@ -1,7 +1,7 @@
 !> HDF5 output made of datasets that grow by rows, written so that a full disk or a kill never
 !> leaves a file that lies (src/io/hdf5_storage.c says how: files are built in memory and written
 !> in one checked write; later rows are appended in short windows after their disk space is
-!> reserved; between windows the file is closed).
+!> reserved, to a copy that then takes the file's name (src/run/run_output.f90)).
 !> A `series_table` groups datasets that gain a row together (one per time point, or one per
 !> step). Rows are buffered in memory (bounded: `capacity_rows`) and written a window at a time.
 !> Datasets whose final length is known when they are first written are contiguous; the others
@@ -40,20 +40,21 @@ module hdf5_series
     character(len=:), allocatable :: flag_meanings
   end type series
 
-  !> Datasets that gain a row together, with the row buffer.
+  !> Datasets that gain a row together, with the row buffer. A writer that keeps two copies of a
+  !> file (src/run/run_output) writes each row twice: `write` can keep the rows it wrote, and
+  !> `forget` drops them once every copy holds them.
   type :: series_table
     type(series), allocatable :: items(:)
     integer :: row_width = 0
-    !> Rows per chunk of a long run's datasets: a window (at most capacity_rows rows) adds one to
-    !> three chunks a dataset, so few chunk-index writes precede the superblock's new end of
-    !> allocation, which is what a SIGKILL inside a window can leave inconsistent (1024-row chunks:
-    !> 2 of 66 killed files unreadable, 8192: 1 of 240; README, What the code promises). The
-    !> widest (15-column) chunk, 983 kB, still fits HDF5's 1 MiB chunk cache.
+    !> Rows per chunk of a long run's datasets: 64 kB chunks of a scalar dataset, so that a window
+    !> (at most 2 capacity_rows rows) adds a few chunks a dataset; the widest (15-column) chunk,
+    !> 983 kB, still fits HDF5's 1 MiB chunk cache.
     integer :: chunk_rows = 8192
     integer :: capacity_rows = 16384     !! rows buffered at most before they must be written
     real(real64), allocatable :: buffer(:, :)
     integer :: buffered = 0
-    integer(int64) :: written = 0        !! rows in the file
+    integer(int64) :: first_row = 0      !! the row (from 0) of the datasets that buffer column 1 holds
+    integer(int64) :: written = 0        !! rows in the file written last
     logical :: created = .false.         !! the datasets exist in the file
     logical :: scale = .false.           !! the first dataset is the dimension scale of the others' rows
     integer :: compression = 0           !! deflate level 0 (none) to 9 of chunked datasets
@@ -68,6 +69,7 @@ module hdf5_series
     procedure :: full
     procedure :: window_bytes
     procedure :: write => write_table
+    procedure :: forget
   end type series_table
 
   !> An open HDF5 file (in memory until stored, or on disk).
@@ -447,14 +449,15 @@ contains
     self%pending_count = 0
   end subroutine commit
 
-  !> Buffers one row (all datasets of the table at once); the buffer grows up to capacity_rows.
+  !> Buffers one row (all datasets of the table at once). The buffer grows to capacity_rows rows
+  !> not yet written, plus the rows a second copy of the file still needs.
   subroutine append(self, row)
     class(series_table), intent(inout) :: self
     real(real64), intent(in) :: row(:)
     real(real64), allocatable :: larger(:, :)
 
     if (self%buffered == size(self%buffer, 2)) then
-      allocate (larger(self%row_width, max(self%buffered + 1, min(2*self%buffered, self%capacity_rows))))
+      allocate (larger(self%row_width, max(self%buffered + 1, min(2*self%buffered, 2*self%capacity_rows))))
       larger(:, 1:self%buffered) = self%buffer(:, 1:self%buffered)
       call move_alloc(larger, self%buffer)
     end if
@@ -462,22 +465,22 @@ contains
     self%buffer(:, self%buffered) = row
   end subroutine append
 
-  !> Whether the buffer holds capacity_rows rows and must be written.
+  !> Whether capacity_rows rows are buffered that no file holds yet: they must be written.
   logical function full(self)
     class(series_table), intent(in) :: self
 
-    full = self%buffered >= self%capacity_rows
+    full = self%first_row + self%buffered - self%written >= self%capacity_rows
   end function full
 
   !> Disk space the table's buffered rows take when appended to its chunked datasets (whole new
-  !> chunks), plus room for the chunk index.
+  !> chunks) in a file that holds first_row rows, plus room for the chunk index.
   integer(int64) function window_bytes(self)
     class(series_table), intent(in) :: self
     integer(int64) :: chunks, chunk
     integer :: i
 
     chunk = self%chunk_rows
-    chunks = (self%written + self%buffered + chunk - 1)/chunk - (self%written + chunk - 1)/chunk
+    chunks = (self%first_row + self%buffered + chunk - 1)/chunk - (self%first_row + chunk - 1)/chunk
     ! A compressed chunk that grows is written anew elsewhere in the file.
     if (self%compression > 0) chunks = chunks + 1
     window_bytes = 0
@@ -486,14 +489,16 @@ contains
     end do
   end function window_bytes
 
-  !> Writes the buffered rows to every dataset of the table in `file` and empties the buffer. The
-  !> first write creates the datasets: contiguous of exactly the buffered rows if `final` (no row
-  !> will follow), chunked and extendible otherwise.
-  subroutine write_table(self, file, final, stat)
+  !> Writes the buffered rows to every dataset of the table in `file`, which holds first_row rows,
+  !> and empties the buffer, unless `keep` (then `forget` drops the rows once no file needs them).
+  !> The first write creates the datasets: contiguous of exactly the buffered rows if `final` (no
+  !> row will follow), chunked and extendible otherwise.
+  subroutine write_table(self, file, final, stat, keep)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
     logical, intent(in) :: final
     integer, intent(out) :: stat
+    logical, intent(in), optional :: keep
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
     integer :: i, rank, ignored, close_stat
@@ -503,12 +508,12 @@ contains
       associate (item => self%items(i), first => self%items(i)%offset + 1, last => self%items(i)%offset + self%items(i)%width)
         rank = merge(2, 1, item%vector)
         if (item%vector) then
-          extent = [int(item%width, hsize_t), self%written + self%buffered]
-          offset = [0_hsize_t, self%written]
+          extent = [int(item%width, hsize_t), self%first_row + self%buffered]
+          offset = [0_hsize_t, self%first_row]
           count = [int(item%width, hsize_t), int(self%buffered, hsize_t)]
         else
-          extent = [self%written + self%buffered, 0_hsize_t]
-          offset = [self%written, 0_hsize_t]
+          extent = [self%first_row + self%buffered, 0_hsize_t]
+          offset = [self%first_row, 0_hsize_t]
           count = [int(self%buffered, hsize_t), 0_hsize_t]
         end if
         if (self%created) then
@@ -548,9 +553,25 @@ contains
     if (.not. self%created .and. self%scale) call attach_scale(file, self%items, stat)
     if (stat /= 0) return
     self%created = .true.
-    self%written = self%written + self%buffered
-    self%buffered = 0
+    self%written = self%first_row + self%buffered
+    if (present(keep)) then
+      if (keep) return
+    end if
+    call self%forget(self%written)
   end subroutine write_table
+
+  !> Drops the buffered rows before row `rows` (from 0): every file holds them.
+  subroutine forget(self, rows)
+    class(series_table), intent(inout) :: self
+    integer(int64), intent(in) :: rows
+    integer :: dropped
+
+    dropped = int(min(max(rows - self%first_row, 0_int64), int(self%buffered, int64)))
+    if (dropped == 0) return
+    self%buffer(:, 1:self%buffered - dropped) = self%buffer(:, dropped + 1:self%buffered)
+    self%buffered = self%buffered - dropped
+    self%first_row = self%first_row + dropped
+  end subroutine forget
 
   ! Makes the first dataset the dimension scale (named after it) of the other datasets' rows,
   ! and gives each vector dataset X the scale X_column of its columns' names.

@@ -1,8 +1,8 @@
 /* File-system operations for the Fortran code that standard Fortran lacks or cannot check:
- * directories, atomic rename, whole-file writes and line appends with their OS error, disk space
- * reserved ahead of a write, and whether stderr is a terminal. Each returns 0 on success or the
- * errno value of the failure (eme_os_error_text turns it into the OS's words). */
-#define _POSIX_C_SOURCE 200809L
+ * directories, atomic rename, exchange and copy, whole-file writes and line appends with their OS
+ * error, disk space reserved ahead of a write, and whether stderr is a terminal. Each returns 0
+ * on success or the errno value of the failure (eme_os_error_text turns it into the OS's words). */
+#define _GNU_SOURCE /* renameat2 */
 #include <errno.h>
 #include <fcntl.h>
 #include <stdio.h>
@@ -57,6 +57,66 @@ int eme_rename_file(const char *from, const char *to, int sync)
     if (rename(from, to) != 0) return errno;
     if (sync) sync_directory_of(to);
     return 0;
+}
+
+static int write_all(int fd, const char *data, size_t size);
+
+/* Copies the file `from` as the whole of `to`: written as `to`.tmp and renamed, so that `to` is
+ * never a partial copy, and a process that has the old `to` open keeps it as it was. */
+int eme_copy_file(const char *from, const char *to)
+{
+    char temporary[4096];
+    if (snprintf(temporary, sizeof temporary, "%s.tmp", to) >= (int)sizeof temporary) return ENAMETOOLONG;
+    int in = open(from, O_RDONLY);
+    if (in < 0) return errno;
+    int out = open(temporary, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    if (out < 0) {
+        int error = errno;
+        close(in);
+        return error;
+    }
+    static char block[1 << 20];
+    int error = 0;
+    for (;;) {
+        ssize_t got = read(in, block, sizeof block);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) {
+            if (got < 0) error = errno;
+            break;
+        }
+        error = write_all(out, block, (size_t)got);
+        if (error != 0) break;
+    }
+    if (close(out) != 0 && error == 0) error = errno;
+    close(in);
+    if (error == 0 && rename(temporary, to) != 0) error = errno;
+    if (error != 0) (void)unlink(temporary);
+    return error;
+}
+
+/* Gives `newer` the name `path` and the old file at `path` the name `newer`, so that `path`
+ * names a whole file at every instant. Where the file system cannot exchange two names in one
+ * step (NFS, Lustre: renameat2 EINVAL), the old file is kept by a hard link `path`.kept while
+ * `newer` is renamed over `path`; where it has no hard links either, `newer` is renamed over
+ * `path` and copied back to `newer`. */
+int eme_exchange_files(const char *newer, const char *path)
+{
+    if (renameat2(AT_FDCWD, newer, AT_FDCWD, path, RENAME_EXCHANGE) == 0) return 0;
+    if (errno != EINVAL && errno != ENOSYS && errno != EOPNOTSUPP) return errno;
+    char kept[4096];
+    if (snprintf(kept, sizeof kept, "%s.kept", path) >= (int)sizeof kept) return ENAMETOOLONG;
+    (void)unlink(kept);
+    if (link(path, kept) == 0) {
+        if (rename(newer, path) != 0) {
+            int error = errno;
+            (void)unlink(kept);
+            return error;
+        }
+        return rename(kept, newer) == 0 ? 0 : errno;
+    }
+    if (errno != EPERM && errno != EOPNOTSUPP && errno != ENOSYS) return errno;
+    if (rename(newer, path) != 0) return errno;
+    return eme_copy_file(path, newer);
 }
 
 /* unlink(2); a missing file is not an error. */

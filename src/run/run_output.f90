@@ -21,7 +21,7 @@ module run_output
   use library_versions, only: library_names, library_version
   use stepper, only: step_report, step_diagnostic, solver_report
   use build_info, only: code_version
-  use filesystem, only: sync_file, os_error_text
+  use filesystem, only: sync_file, exchange_files, copy_file, remove_file, os_error_text
   implicit none (type, external)
   private
   public :: run_file, run_summary, extra_attribute, output_dataset, output_schema, print_output_schema
@@ -141,16 +141,20 @@ module run_output
   !> A run's file and its two tables of rows (points and steps). It is built in memory and
   !> reaches the disk when the run ends or after write_interval seconds (or a full buffer),
   !> whichever comes first; from then on, buffered rows are appended in a window at least every
-  !> write_interval seconds (src/io/hdf5_series). Between windows the file on disk is closed
-  !> and readable, and its points and steps agree in length (step_rows says how many step rows,
-  !> steps_completed how many steps they stand for). With every = N, a point row is kept every N
-  !> steps (and the last), and a step row stands for the steps since the previous point row.
+  !> write_interval seconds (src/io/hdf5_series). The file at `path` is never written in place,
+  !> because a kill inside HDF5's writes can leave a file it cannot read: a window writes the
+  !> copy `path`.spare, which lags one window behind, and then exchanges the two names. So `path`
+  !> always names a closed, readable file whose points and steps agree in length (step_rows says
+  !> how many step rows, steps_completed how many steps they stand for). With every = N, a point
+  !> row is kept every N steps (and the last), and a step row stands for the steps since the
+  !> previous point row.
   type :: run_file
     type(hdf5_file) :: file
     type(series_table) :: points, steps
-    character(len=:), allocatable :: path
+    character(len=:), allocatable :: path, spare
     logical :: enabled = .false.        !! .false.: nothing is recorded (an index-only study)
     logical :: on_disk = .false.        !! the file exists at `path`
+    integer :: failure = 0              !! the first failed write (its stat): later windows fail with it
     logical :: durable = .true.         !! the finished file is synced to disk (fsync)
     integer(int64) :: last_write = 0, clock_rate = 1
     integer :: every = 1                !! steps per row (&output every)
@@ -189,6 +193,7 @@ contains
     integer :: k
 
     self%path = path
+    self%spare = path//'.spare'
     self%enabled = .true.
     self%every = config%output_every
     self%points%compression = config%compression
@@ -344,13 +349,14 @@ contains
   end function write_due
 
   !> Writes the buffered rows and the run's attributes so far (`summary`, status 'incomplete:
-  !> running'): the first time the whole file is created at `path` (datasets chunked, as more rows
-  !> will follow), later in a window that appends them. stat: 0, an OS error number (nothing new
-  !> reached the disk; the file holds what it held), or -1 (HDF5).
+  !> running'): the first time the whole file is created at `path` and as its spare (datasets
+  !> chunked, as more rows will follow), later in a window that appends them. stat: 0, an OS
+  !> error number (nothing new reached `path`; it holds what it held), or -1 (HDF5).
   subroutine write_rows(self, summary, stat)
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
+    integer :: close_stat
 
     stat = 0
     if (.not. self%enabled) return
@@ -362,19 +368,20 @@ contains
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
       if (stat == 0) call self%file%store(self%path, .false., stat)
       if (stat /= 0) return
-      call self%file%close(stat)
-      self%on_disk = stat == 0
+      self%on_disk = .true.
+      call self%file%store(self%spare, .false., stat)
+      self%failure = stat
+      call self%file%close(close_stat)
+      if (stat == 0) stat = close_stat
     else
-      ! A reader holding the file open defers the write to a later step, until the buffer is full.
-      call append_window(self, stat, defer=.not. (self%points%full() .or. self%steps%full()))
+      ! A reader holding the spare open (it opened the file before the last exchange) defers the
+      ! write to a later step, until the buffer is full.
+      call write_window(self, summary%status, summary, stat, defer=.not. (self%points%full() .or. self%steps%full()))
       if (stat == file_in_use) then      ! try again in 50 ms
         call system_clock(self%last_write)
         self%last_write = self%last_write - int((write_interval - 0.05_real64)*self%clock_rate, int64)
         stat = 0
-        return
       end if
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat, numbers_only=.true.)
-      call close_window(self, stat)
     end if
   end subroutine write_rows
 
@@ -405,12 +412,15 @@ contains
       if (stat == 0) call summary_attributes(self, summary%status, summary, stat, final=.true.)
       if (stat == 0) call self%file%store(self%path, self%durable, stat)
       call self%file%close(ignored)
+      call remove_file(self%spare, ignored)       ! of an earlier run killed with this output
       self%on_disk = stat == 0
       return
     else
-      call append_window(self, stat)
+      call write_window(self, summary%status, summary, stat, final=.true.)
+      call remove_file(self%spare, ignored)
       if (stat > 0) then
-        ! No room for the rows: keep those of the last window, and say why in the status.
+        ! No room for the rows: keep those of the last window, and say why in the status (written
+        ! in place, as the spare is gone; the space it held makes room).
         stopped = summary
         stopped%failure_kind = failure_io
         call self%file%open_existing(self%path, .true., check_stat)
@@ -419,8 +429,6 @@ contains
         call self%file%close(ignored)
         return
       end if
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat, final=.true.)
-      call close_window(self, stat)
       if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
       if (stat /= 0) return
     end if
@@ -428,36 +436,69 @@ contains
     if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%disk_steps) stat = -2
   end subroutine finish
 
-  ! Opens the file on disk for appending the buffered rows, after reserving their space (plus
-  ! room for attributes), and writes them. defer: return file_in_use if a reader has it open.
-  subroutine append_window(self, stat, defer)
+  ! A window: opens the spare after reserving space for the rows it lacks (those of the last window
+  ! and the buffered ones, plus room for attributes), appends them, writes the attributes (all of
+  ! them if `final`, else the numbers) and closes it; then the spare takes the name `path` and the
+  ! old file becomes the spare, which lacks only this window's rows. A reader that opened the
+  ! file before the last exchange may still have the spare open: with `defer` the window waits
+  ! (stat = file_in_use), else the spare is replaced by a copy of `path` and the reader keeps
+  ! its file as it was. After a failure the spare is not used again.
+  subroutine write_window(self, status, summary, stat, defer, final)
     type(run_file), intent(inout) :: self
+    character(len=*), intent(in) :: status
+    type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
-    logical, intent(in), optional :: defer
-    integer :: wait_ms
+    logical, intent(in), optional :: defer, final
+    integer(int64) :: points_kept, steps_kept
+    integer :: close_stat, steps_before, newton_before
+    logical :: last, waiting
 
-    wait_ms = 5000
-    if (present(defer)) then
-      if (defer) wait_ms = -1
-    end if
-    call self%file%open_existing(self%path, .true., stat, reserve=self%points%window_bytes() + &
-                                 self%steps%window_bytes() + 65536_int64, wait_ms=wait_ms)
+    stat = self%failure
     if (stat /= 0) return
-    call system_clock(self%last_write)
-    call self%points%write(self%file, .false., stat)
-    if (stat == 0) call self%steps%write(self%file, .false., stat)
-    if (stat == 0) call rows_on_disk(self)
-  end subroutine append_window
+    waiting = .false.
+    if (present(defer)) waiting = defer
+    last = .false.
+    if (present(final)) last = final
+    call open_spare(stat)
+    if (stat == file_in_use .and. waiting) return
+    if (stat == file_in_use) then
+      call copy_file(self%path, self%spare, stat)
+      call self%points%forget(self%points%written)
+      call self%steps%forget(self%steps%written)
+      if (stat == 0) call open_spare(stat)
+    end if
+    if (stat == 0) then
+      call system_clock(self%last_write)
+      points_kept = self%points%written
+      steps_kept = self%steps%written
+      steps_before = self%disk_steps
+      newton_before = self%disk_newton
+      call self%points%write(self%file, .false., stat, keep=.true.)
+      if (stat == 0) call self%steps%write(self%file, .false., stat, keep=.true.)
+      if (stat == 0) call rows_on_disk(self)
+      if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. last, final=last)
+      call self%file%close(close_stat)
+      if (stat == 0) stat = close_stat
+      if (stat == 0) call exchange_files(self%spare, self%path, stat)
+      if (stat /= 0) then          ! `path` holds what it held
+        self%disk_steps = steps_before
+        self%disk_newton = newton_before
+      end if
+    end if
+    self%failure = stat
+    if (stat /= 0) return
+    call self%points%forget(points_kept)
+    call self%steps%forget(steps_kept)
 
-  ! Closes a window; stat keeps its first failure.
-  subroutine close_window(self, stat)
-    type(run_file), intent(inout) :: self
-    integer, intent(inout) :: stat
-    integer :: close_stat
+  contains
 
-    call self%file%close(close_stat)
-    if (stat == 0) stat = close_stat
-  end subroutine close_window
+    subroutine open_spare(stat)
+      integer, intent(out) :: stat
+
+      call self%file%open_existing(self%spare, .true., stat, reserve=self%points%window_bytes() + &
+                                   self%steps%window_bytes() + 65536_int64, wait_ms=-1)
+    end subroutine open_spare
+  end subroutine write_window
 
   ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
   ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
@@ -469,11 +510,13 @@ contains
     type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
     logical, intent(in), optional :: numbers_only, final
-    logical :: units
+    logical :: units, texts
 
     stat = 0
     units = self%file%fresh         ! the units attributes go with the first write
-    if (.not. present(numbers_only)) then
+    texts = .true.
+    if (present(numbers_only)) texts = .not. numbers_only
+    if (texts) then
       call self%file%set_text('status', status, stat)
       if (stat == 0) call self%file%set_text('failure_kind', summary%failure_kind, stat)
     end if

@@ -20,19 +20,19 @@ HERE = Path(__file__).resolve().parent
 _SHIM = {}
 
 
-def _shim_library():
-    """Compiles the LD_PRELOAD shim once per process; its path."""
-    if "path" not in _SHIM:
+def shim_library(name):
+    """Compiles the LD_PRELOAD shim tests/e2e/<name>.c once per process; its path."""
+    if name not in _SHIM:
         compiler = shutil.which("cc") or shutil.which("gcc")
         if compiler is None:
-            raise RuntimeError("no C compiler for the full-disk shim")
-        folder = Path(tempfile.mkdtemp(prefix="eme_full_disk_"))
+            raise RuntimeError(f"no C compiler for the shim {name}.c")
+        folder = Path(tempfile.mkdtemp(prefix=f"eme_{name}_"))
         atexit.register(shutil.rmtree, folder, True)
-        library = folder / "full_disk.so"
-        subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(library), str(HERE / "full_disk.c"), "-ldl"],
+        library = folder / f"{name}.so"
+        subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(library), str(HERE / f"{name}.c"), "-ldl"],
                        check=True)
-        _SHIM["path"] = library
-    return _SHIM["path"]
+        _SHIM[name] = library
+    return _SHIM[name]
 
 
 def _try_tmpfs(folder, size_bytes):
@@ -54,7 +54,7 @@ class SmallDisk:
         self.size = size
         self.env = dict(os.environ)
         if not self.tmpfs:
-            self.env.update(LD_PRELOAD=str(_shim_library()), EME_FULL_DISK_DIR=str(self.folder),
+            self.env.update(LD_PRELOAD=str(shim_library("full_disk")), EME_FULL_DISK_DIR=str(self.folder),
                             EME_FULL_DISK_BYTES=str(size))
 
     @property
