@@ -8,7 +8,7 @@ module namelist_text
   use number_text, only: integer_text
   implicit none (type, external)
   private
-  public :: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, lowercase
+  public :: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, lowercase, blanked
   public :: max_input_bytes, joined
 
   !> The largest input file read: namelists are small, and a wrong file is not read whole.
@@ -107,7 +107,7 @@ contains
     call check_groups(text, path, stat, message)
   end subroutine read_source_text
 
-  ! A line with its control characters (tab, carriage return, NUL) as blanks.
+  !> A line with its control characters (tab, newline, carriage return, NUL) as blanks.
   pure function blanked(line) result(clean)
     character(len=*), intent(in) :: line
     character(len=len(line)) :: clean

@@ -11,6 +11,7 @@ module run_output
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use hdf5_series, only: hdf5_file, series_table, check_run_file, file_in_use
   use namelist_group, only: group_field, field_real, field_integer, field_logical
+  use namelist_text, only: lowercase
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
@@ -689,7 +690,7 @@ contains
     if (stat == 0) call file%set_text('petsc_options', petsc_options, stat)
     if (stat == 0) call file%set_text('namelist', namelist_of_run(config), stat)
     do i = 2, size(library_names)
-      if (stat == 0) call file%set_text('version_'//lower(trim(library_names(i))), &
+      if (stat == 0) call file%set_text('version_'//lowercase(trim(library_names(i))), &
                                         library_version(trim(library_names(i))), stat)
     end do
     if (stat == 0) call file%set_text('host', host(1:index(host, c_null_char) - 1), stat)
@@ -747,17 +748,6 @@ contains
       v(5:7), merge('+', '-', v(4) >= 0), abs(v(4))/60, mod(abs(v(4)), 60)
     text = trim(buffer)
   end function iso_time
-
-  pure function lower(text) result(lowered)
-    character(len=*), intent(in) :: text
-    character(len=len(text)) :: lowered
-    integer :: i
-
-    lowered = text
-    do i = 1, len(text)
-      if (text(i:i) >= 'A' .and. text(i:i) <= 'Z') lowered(i:i) = achar(iachar(text(i:i)) + 32)
-    end do
-  end function lower
 
   ! The units of a vector dataset's `count` columns: the model's (<state>), the constraints'
   ! (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.

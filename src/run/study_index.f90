@@ -25,6 +25,7 @@ module study_index
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
   use effective_namelist, only: namelist_of_run
+  use namelist_text, only: blanked
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -374,7 +375,7 @@ contains
       write (number, '(es25.17e3)') self%results(c)%metrics(m)
       line = line//tab//trim(adjustl(number))
     end do
-    line = line//tab//plain(trim(self%results(c)%status))//tab//plain(case_overrides(self%study, c))//new_line('a')
+    line = line//tab//blanked(trim(self%results(c)%status))//tab//blanked(case_overrides(self%study, c))//new_line('a')
   end function journal_line
 
   ! Applies the journal's lines (each the latest result of its case) over what index.h5 gave. A
@@ -420,7 +421,7 @@ contains
         skipped = skipped + 1
         cycle
       end if
-      if (trim(line(index(line, tab, back=.true.) + 1:)) /= plain(case_overrides(self%study, c))) then
+      if (trim(line(index(line, tab, back=.true.) + 1:)) /= blanked(case_overrides(self%study, c))) then
         stat = 1
         message = self%journal_path//' belongs to a different study (case '//integer_text(c)//' differs); use ' &
                   //'another output_dir or remove it'
@@ -531,18 +532,6 @@ contains
     write (buffer, '("case_", i5.5, ".h5")') c
     name = trim(buffer)
   end function case_name
-
-  ! A text on one line without tabs (tabs and newlines become blanks).
-  pure function plain(text) result(line)
-    character(len=*), intent(in) :: text
-    character(len=len(text)) :: line
-    integer :: i
-
-    line = text
-    do i = 1, len(line)
-      if (line(i:i) == tab .or. line(i:i) == new_line('a') .or. line(i:i) == achar(13)) line(i:i) = ' '
-    end do
-  end function plain
 
   subroutine add_note(notes, text)
     character(len=:), allocatable, intent(inout) :: notes
