@@ -52,6 +52,11 @@ program eme_run
     write (error_unit, '(a)') 'eme_run: '//message
     exit_status = 2
   else
+    if (allocated(config%warnings)) then
+      do stat = 1, size(config%warnings)
+        write (error_unit, '(a)') 'eme_run: warning: '//trim(config%warnings(stat))
+      end do
+    end if
     if (progress_wanted()) then
       call run_simulation(config, summary, stat, message, progress=print_progress)
     else
@@ -70,6 +75,8 @@ program eme_run
       summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
       summary%angular_momentum_drift, ', Newton/step ', &
       real(summary%newton_iterations, real64)/max(1, summary%steps_completed), ', ', summary%wall_seconds, ' s'
+    if (stat == 0 .and. summary%rejected_steps > 0) write (output_unit, '(a, i0, a, i0, a)') '  step-size control: ', &
+      summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'
     unused = unused_petsc_options()
     if (len(unused) > 0) write (error_unit, '(a)') 'eme_run: warning: PETSc options that nothing used: '//unused
   end if

@@ -11,22 +11,47 @@
 !> grid; the per-step dataset `substeps` records how many steps made each output step, and the
 !> multipliers recorded are their time averages, so that dt times the recorded heat supply is the
 !> heat the substeps supplied. A step that fails even in halves ends the run.
+!>
+!> With &integrator tolerance the schemes choose their steps instead (docs/integrators.md, Adaptive
+!> steps): each step's local error is estimated from the continuous field
+!> (src/integrator/local_error_estimate), a PI controller (src/integrator/step_size_control) accepts
+!> the step if the estimate's weighted norm is at most tolerance * h / (1 s) (error per unit step:
+!> the global error then grows like the tolerance per simulated second, tolerance-proportional)
+!> and proposes the next, and a step without a physical root is a rejection like any other (no
+!> halving). A rejected step is recomputed from the old state and never reported; the
+!> run lands on t_end exactly, dt being the first trial step. Every accepted step is a full step of
+!> the scheme, so the structure holds on each.
 module discrete_gradient_stepper
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint
   use pendulum_step_kernel, only: pendulum_step, build_pendulum_step, condensed_offset
   use snes_solver, only: newton_solver
-  use solver_options, only: step_solver_options, read_solver_options
+  use solver_options, only: step_solver_options, read_solver_options, read_step_control_options
   use retry_strategies, only: root_search, find_root
+  use invariant_function, only: domain_ok
+  use constrained_flow, only: constrained_field
+  use local_error_estimate, only: hermite_defect_estimate, weighted_rms_norm
+  use step_size_control, only: step_controller
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use solver_description, only: add_setting, text_setting, number_setting
-  use number_text, only: integer_text
+  use number_text, only: integer_text, scientific_text
   implicit none (type, external)
   private
   public :: step_solver, new_eme, new_midpoint
+  public :: rejection_error, rejection_no_root, rejection_domain, rejection_underflow
+
+  !> Why an adaptive step was rejected (the counts of each step's rejections by reason, in this
+  !> order, are its datasets rejected_error, rejected_no_root and rejected_domain).
+  integer, parameter :: rejection_error = 1, rejection_no_root = 2, rejection_domain = 3
+  !> The smallest trial step, relative to max(1 s, t): below it the run stops ('step-size underflow').
+  real(real64), parameter :: rejection_underflow = 1.0e-12_real64
+  integer, parameter :: max_rejections_per_step = 60
+  !> The tolerance bounds the local error per this much simulated time (error per unit step).
+  real(real64), parameter :: unit_time = 1.0_real64
 
   !> What the substeps of one output step add up to.
   type :: substep_tally
@@ -47,6 +72,16 @@ module discrete_gradient_stepper
     logical :: fused = .false.             !! the kernel solves the steps
     integer :: max_halvings = 6            !! a step is solved in halves down to dt/2**max_halvings
     type(newton_solver) :: solver
+    ! The local error estimate and the step-size control (module header).
+    logical :: adaptive = .false.          !! &integrator tolerance given: the steps are chosen
+    logical :: estimating = .false.        !! each step's estimate is computed (adaptive, or -eme_error_estimate)
+    real(real64) :: tolerance = 0.0_real64
+    real(real64) :: error_scale = 1.0_real64   !! -eme_error_scale
+    real(real64) :: t_end = 0.0_real64
+    type(step_controller) :: controller
+    real(real64), allocatable :: z_field(:), field(:)   !! a state and the continuous field there
+    real(real64), allocatable :: x_last(:), increment(:)  !! the last accepted state and step (predictor)
+    real(real64) :: h_last = 0.0_real64
   contains
     procedure :: start
     procedure :: advance
@@ -92,6 +127,17 @@ contains
     call read_solver_options(options, ierr)
     if (ierr /= 0) return
     self%max_halvings = options%max_halvings
+    call read_step_control_options(self%estimating, self%error_scale, ierr)
+    if (ierr /= 0) return
+    self%adaptive = choice%tolerance_given
+    self%estimating = self%estimating .or. self%adaptive
+    self%tolerance = choice%tolerance
+    self%t_end = choice%t_end
+    ! The estimate is O(h**3); per unit step, O(h**2).
+    call self%controller%restart(choice%dt, 2.0_real64)
+    if (allocated(self%z_field)) deallocate (self%z_field, self%field)
+    if (allocated(self%x_last)) deallocate (self%x_last, self%increment)
+    self%h_last = 0.0_real64
     self%fused = .false.
     if (options%fused_kernel) call build_pendulum_step(self%problem, self%kernel, self%fused)
     if (self%fused) then
@@ -101,7 +147,8 @@ contains
     end if
   end subroutine start
 
-  !> The per-step dataset of these schemes: the substeps of each output step.
+  !> The per-step datasets of these schemes: the substeps of each output step; with an estimate,
+  !> its norm; with step-size control, the accepted step and the rejections by reason.
   function diagnostics(self) result(specs)
     class(step_solver), intent(in) :: self
     type(step_diagnostic), allocatable :: specs(:)
@@ -109,10 +156,21 @@ contains
     specs = [step_diagnostic('substeps', '1', 'steps of the scheme in the output step: 1, or more where halves '// &
                              'replaced a step without a root (-eme_max_halvings deep); multipliers are then the '// &
                              'substeps'' time averages', 'sum')]
+    if (self%estimating) specs = [specs, step_diagnostic('error_estimate', '1', 'the local error estimate''s '// &
+                                  'weighted RMS norm (times -eme_error_scale); adaptive steps keep it <= tolerance h/(1 s)', &
+                                  'max')]
+    if (self%adaptive) specs = [specs, &
+      step_diagnostic('step_size', 's', 'the accepted step (with &output every, the sum of the row''s steps)', 'sum'), &
+      step_diagnostic('rejected_steps', '1', 'trial steps rejected before the accepted one, for any reason', 'sum'), &
+      step_diagnostic('rejected_error', '1', 'trial steps rejected because the error estimate exceeded tolerance', &
+                      'sum'), &
+      step_diagnostic('rejected_no_root', '1', 'trial steps rejected because Newton found no root', 'sum'), &
+      step_diagnostic('rejected_domain', '1', 'trial steps rejected because every root (or the field) left the '// &
+                      'model''s domain', 'sum')]
   end function diagnostics
 
-  !> The step's SNES as it was set up (command-line options applied), with the kernel it solves
-  !> and the halving depth.
+  !> The step's SNES as it was set up (command-line options applied), with the kernel it solves,
+  !> the halving depth and the step-size control.
   function describe_solver(self) result(report)
     class(step_solver), intent(in) :: self
     type(solver_report) :: report
@@ -122,10 +180,15 @@ contains
     if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
     call add_setting(report, text_setting('eme_fused_kernel', merge('true ', 'false', self%fused)))
     call add_setting(report, number_setting('eme_max_halvings', real(self%max_halvings, real64)))
+    call add_setting(report, text_setting('step_control', merge('PI controller on the local error estimate  ', &
+                                                                'fixed steps (halved where no root is found)', &
+                                                                self%adaptive)))
+    if (self%estimating) call add_setting(report, number_setting('eme_error_scale', self%error_scale))
   end function describe_solver
 
   !> One step of dt from x_old, in halves where needed (module header); on acceptance, the
-  !> temperatures the (last sub)step's K0 used.
+  !> temperatures the (last sub)step's K0 used. With step-size control, one accepted step of the
+  !> controller's choosing instead (adaptive_step).
   subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
     class(step_solver), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
@@ -133,28 +196,50 @@ contains
     type(step_report), intent(out) :: report
     integer, intent(out) :: ierr
     type(substep_tally) :: tally
-    integer :: stat, n
+    real(real64) :: estimate_norm
+    integer :: n
 
     n = self%problem%model%state_size
     allocate (tally%multiplier_integral(size(x_old) - n))
     tally%multiplier_integral = 0.0_real64
     tally%reason = ''
     tally%last_rejection = ''
+    if (self%adaptive) then
+      call adaptive_step(self, x_old, t_old, x_new, tally, report, ierr)
+      call finish_report(self, tally, x_new, report, ierr)
+      return
+    end if
     call step_or_halve(self, x_old, dt, guess, x_new, 0, tally, report%accepted, ierr)
+    if (ierr == 0 .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/dt
+    call finish_report(self, tally, x_new, report, ierr)
+    report%diagnostics = [real(tally%substeps, real64)]
+    if (.not. self%estimating .or. ierr /= 0 .or. .not. report%accepted) return
+    call estimate_step(self, x_old(1:n), x_new(1:n), dt, estimate_norm)
+    report%diagnostics = [report%diagnostics, estimate_norm]
+  end subroutine advance
+
+  ! The report of a step from what its (sub)steps did; on acceptance the temperatures the (last
+  ! sub)step's K0 used.
+  subroutine finish_report(self, tally, x_new, report, ierr)
+    class(step_solver), intent(inout) :: self
+    type(substep_tally), intent(in) :: tally
+    real(real64), intent(in) :: x_new(:)
+    type(step_report), intent(inout) :: report
+    integer, intent(in) :: ierr
+    integer :: stat
+
     report%strategy = tally%strategy
     report%newton_iterations = tally%newton_iterations
     report%solves = tally%solves
     report%rejected = tally%rejected
     report%reason = tally%reason
     report%last_rejection = tally%last_rejection
-    report%diagnostics = [real(tally%substeps, real64)]
     report%halvings = max(0, tally%substeps - 1)     ! each halving adds one substep
     report%residual_norm = self%solver%last_residual_norm
     report%converged_reason = self%solver%last_reason
     allocate (report%scheme_temperature(self%problem%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
     if (ierr /= 0 .or. .not. report%accepted) return
-    if (tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/dt
     if (self%fused) then
       call self%kernel%scheme_temperatures(x_new(condensed_offset + 1:), report%scheme_temperature, stat)
     else
@@ -164,7 +249,153 @@ contains
       report%accepted = .false.
       report%reason = 'the scheme temperatures of the root are undefined'
     end if
-  end subroutine advance
+  end subroutine finish_report
+
+  ! One accepted step from x_old at t_old, of the step the controller proposes (module header):
+  ! trial steps are solved from the old state (predictor: the last accepted step, scaled), and
+  ! each one whose root is missing, unphysical or too inaccurate is rejected and retried smaller.
+  ! The run stops when the trial step falls below rejection_underflow (relative to max(1 s, t)) or
+  ! max_rejections_per_step were rejected.
+  subroutine adaptive_step(self, x_old, t_old, x_new, tally, report, ierr)
+    class(step_solver), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), t_old
+    real(real64), intent(out) :: x_new(:)
+    type(substep_tally), intent(inout) :: tally
+    type(step_report), intent(inout) :: report
+    integer, intent(out) :: ierr
+    type(root_search) :: search
+    real(real64) :: h, err, estimate_norm, guess(size(x_old)), estimate(self%problem%model%state_size)
+    real(real64) :: f_old(self%problem%model%state_size), f_new(self%problem%model%state_size)
+    integer :: n, stat, attempt, rejected(3)
+    logical :: landing
+
+    ierr = 0
+    n = self%problem%model%state_size
+    rejected = 0
+    h = 0.0_real64
+    err = ieee_value(1.0_real64, ieee_quiet_nan)
+    estimate_norm = err
+    report%accepted = .false.
+    x_new = x_old
+    call field_at(self, x_old(1:n), f_old, stat)
+    if (stat /= domain_ok) then
+      tally%reason = 'the continuous vector field is undefined at the step''s start (the state left the model''s domain)'
+      call record_rejections()
+      return
+    end if
+    do attempt = 1, max_rejections_per_step + 1
+      call self%controller%trial_step(t_old, self%t_end, h, landing)
+      if (h < rejection_underflow*max(1.0_real64, abs(t_old))) then
+        tally%reason = 'step-size underflow: the trial step fell below '//scientific_text(h)//' s (last rejection: ' &
+                       //tally%reason//')'
+        exit
+      else if (attempt > max_rejections_per_step) then
+        tally%reason = 'more than '//integer_text(max_rejections_per_step)//' trial steps rejected (last: ' &
+                       //tally%reason//')'
+        exit
+      end if
+      guess = x_old
+      if (allocated(self%x_last)) then
+        if (same_state(self%x_last, x_old)) guess = x_old + (h/self%h_last)*self%increment
+      end if
+      call solve_step(self, x_old, h, guess, x_new, .false., search, ierr)
+      tally%newton_iterations = tally%newton_iterations + search%newton_iterations
+      tally%solves = tally%solves + search%solves
+      tally%rejected = tally%rejected + search%rejected_roots
+      if (len(search%last_rejection) > 0) tally%last_rejection = search%last_rejection
+      if (ierr /= 0) return
+      if (.not. search%accepted) then
+        if (search%rejected_roots > 0) then
+          rejected(rejection_domain) = rejected(rejection_domain) + 1
+        else
+          rejected(rejection_no_root) = rejected(rejection_no_root) + 1
+        end if
+        tally%reason = search%reason
+        call self%controller%reject_failure(h)
+        cycle
+      end if
+      call hermite_defect_estimate(self%problem%model, self%problem%constraints, x_old(1:n), f_old, x_new(1:n), h, &
+                                   estimate, f_new, stat)
+      if (stat /= domain_ok) then
+        rejected(rejection_domain) = rejected(rejection_domain) + 1
+        tally%reason = 'the continuous vector field is undefined at the step''s end or middle'
+        call self%controller%reject_failure(h)
+        cycle
+      end if
+      ! Error per unit step: the estimate's norm per second of the step against the tolerance.
+      estimate_norm = self%error_scale*weighted_rms_norm(estimate, x_old(1:n), x_new(1:n))
+      err = estimate_norm/(h/unit_time)/self%tolerance
+      if (err > 1.0_real64) then
+        rejected(rejection_error) = rejected(rejection_error) + 1
+        tally%reason = 'the error estimate per second '//scientific_text(err*self%tolerance)//' exceeded the tolerance'
+        call self%controller%reject_error(h, err)
+        cycle
+      end if
+      call self%controller%accept(h, err)
+      report%accepted = .true.
+      tally%substeps = 1
+      tally%strategy = search%strategy
+      tally%reason = ''
+      self%z_field = x_new(1:n)
+      self%field = f_new
+      self%x_last = x_new
+      self%increment = x_new - x_old
+      self%h_last = h
+      report%chose_time = .true.
+      report%time = t_old + h
+      if (landing) report%time = self%t_end
+      exit
+    end do
+    call record_rejections()
+
+  contains
+
+    subroutine record_rejections()
+      report%rejected_steps = sum(rejected)
+      report%diagnostics = [1.0_real64, estimate_norm, h, real(sum(rejected), real64), real(rejected, real64)]
+      if (.not. report%accepted) report%diagnostics(2:3) = ieee_value(1.0_real64, ieee_quiet_nan)
+    end subroutine record_rejections
+  end subroutine adaptive_step
+
+  ! The weighted norm of the local error estimate of the step of h from z_old to z_new (NaN where
+  ! the field is undefined); the field at z_new is kept for the next step.
+  subroutine estimate_step(self, z_old, z_new, h, norm)
+    class(step_solver), intent(inout) :: self
+    real(real64), intent(in) :: z_old(:), z_new(:), h
+    real(real64), intent(out) :: norm
+    real(real64) :: f_old(size(z_old)), f_new(size(z_old)), estimate(size(z_old))
+    integer :: stat
+
+    norm = ieee_value(1.0_real64, ieee_quiet_nan)
+    call field_at(self, z_old, f_old, stat)
+    if (stat /= domain_ok) return
+    call hermite_defect_estimate(self%problem%model, self%problem%constraints, z_old, f_old, z_new, h, estimate, &
+                                 f_new, stat)
+    if (stat /= domain_ok) return
+    norm = self%error_scale*weighted_rms_norm(estimate, z_old, z_new)
+    self%z_field = z_new
+    self%field = f_new
+  end subroutine estimate_step
+
+  ! The continuous field at z, from the last step's end when z is that state.
+  subroutine field_at(self, z, f, stat)
+    class(step_solver), intent(inout) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+
+    stat = domain_ok
+    if (allocated(self%z_field)) then
+      if (same_state(self%z_field, z)) then
+        f = self%field
+        return
+      end if
+    end if
+    call constrained_field(self%problem%model, self%problem%constraints, z, f, stat)
+    if (stat /= domain_ok) return
+    self%z_field = z
+    self%field = f
+  end subroutine field_at
 
   ! The step of h from x_old, or, if no strategy finds its root, its two halves (each in halves
   ! where needed) from the predictors interpolated and extrapolated from `guess`; `depth` halvings
@@ -237,6 +468,14 @@ contains
       call find_root(self%solver, self%problem, start, guess, x_new, search, ierr, continuing)
     end if
   end subroutine solve_step
+
+  ! Whether a and b are the same state, bit for bit (the last step's end, kept).
+  pure logical function same_state(a, b)
+    real(real64), intent(in) :: a(:), b(:)
+
+    same_state = size(a) == size(b)
+    if (same_state) same_state = maxval(abs(a - b)) <= 0.0_real64
+  end function same_state
 
   !> Frees the SNES objects.
   subroutine release(self, ierr)

@@ -39,6 +39,11 @@ module integrator_registry
     logical :: takes_constraints = .false.
     logical :: uses_discrete_gradient = .false.     !! reads discrete_gradient and metric
     logical :: adaptive = .false.                   !! chooses its own steps (reads tolerance)
+    !> Has a local error estimate or signal that &integrator tolerance switches on: EME and the
+    !> midpoint rule then choose their steps, the fixed-step relaxed schemes reject a step whose
+    !> relaxation parameter leaves its band.
+    logical :: error_control = .false.
+    logical :: reads_newton_settings = .true.       !! solves nonlinear systems with newton_tol, newton_max_iterations
     logical :: chooses_time = .false.               !! reaches times of its own (relaxation, adaptive steps)
     !> Integrates the constrained flow in continuous time (the constraints' continuous forms,
     !> index-1 multipliers): the initial state must satisfy the hidden constraints too.
@@ -63,11 +68,11 @@ contains
     entries = [ &
       integrator_entry(name='eme', family=family_discrete_gradient, label='EME', &
         description='energy-momentum-entropy scheme (15): discrete gradients, one SNES system per step', &
-        takes_constraints=.true., uses_discrete_gradient=.true., build=new_eme, &
+        takes_constraints=.true., uses_discrete_gradient=.true., error_control=.true., build=new_eme, &
         scheme_temperature='discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'), &
       integrator_entry(name='midpoint', family=family_discrete_gradient, label='MP', &
         description='implicit midpoint rule: the exact partials at the midpoint, one SNES system per step', &
-        takes_constraints=.true., build=new_midpoint, &
+        takes_constraints=.true., error_control=.true., build=new_midpoint, &
         scheme_temperature='temperatures at the step''s midpoint, where K0 is evaluated'), &
       integrator_entry(name='ts_midpoint', family=family_petsc_ts, label='TS-midpoint', &
         description='PETSc TSTHETA with theta = 1/2: the implicit midpoint rule with PETSc''s SNES defaults', &
@@ -75,33 +80,33 @@ contains
       integrator_entry(name='ts_bdf2', family=family_petsc_ts, label='BDF2', description='PETSc TSBDF of order 2', &
         scheme_temperature=ts_temperature, build=new_ts_bdf2), &
       integrator_entry(name='ts_rk4', family=family_petsc_ts, label='RK4', &
-        description='PETSc TSRK 4: the classic explicit Runge-Kutta method', &
+        description='PETSc TSRK 4: the classic explicit Runge-Kutta method', reads_newton_settings=.false., &
         scheme_temperature=ts_temperature, build=new_ts_rk4), &
       integrator_entry(name='ts_rk5dp', family=family_petsc_ts, label='RK5DP', &
         description='PETSc TSRK 5dp: adaptive Dormand-Prince at tolerance, landing on every output time', &
-        adaptive=.true., scheme_temperature=ts_temperature, build=new_ts_rk5dp), &
+        adaptive=.true., reads_newton_settings=.false., scheme_temperature=ts_temperature, build=new_ts_rk5dp), &
       integrator_entry(name='relaxed_rk4', family=family_relaxation, label='RRK4', &
         description='classic RK4 with energy relaxation and an exact J projection, in entropy variables', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        chooses_time=.true., error_control=.true., reads_newton_settings=.false., scheme_temperature=relaxed_temperature, &
         takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_rk4), &
       integrator_entry(name='relaxed_rk8', family=family_relaxation, label='RRK8', &
         description='Cooper-Verner order 8 (11 stages, weights >= 0), relaxed as relaxed_rk4', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        chooses_time=.true., error_control=.true., reads_newton_settings=.false., scheme_temperature=relaxed_temperature, &
         takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_rk8), &
       integrator_entry(name='relaxed_dp853', family=family_relaxation, label='RDP853', &
         description='Dormand-Prince 8(5,3), relaxed, adaptive at tolerance, with the entropy guard; dt is its first step', &
-        adaptive=.true., chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        adaptive=.true., chooses_time=.true., reads_newton_settings=.false., scheme_temperature=relaxed_temperature, &
         takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_dp853), &
       integrator_entry(name='relaxed_gauss6', family=family_relaxation, label='RGauss6', &
         description='Gauss-Legendre with 3 stages (order 6, implicit, stages solved by SNES), relaxed', &
-        chooses_time=.true., scheme_temperature=relaxed_temperature, &
+        chooses_time=.true., error_control=.true., scheme_temperature=relaxed_temperature, &
         takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_gauss6), &
       integrator_entry(name='cvode_bdf', family=family_sundials, label='CVODE-BDF', &
         description='SUNDIALS CVODE: variable-order BDF, Newton with the analytic Jacobian, adaptive at tolerance', &
-        adaptive=.true., scheme_temperature=cvode_temperature, build=new_cvode_bdf), &
+        adaptive=.true., reads_newton_settings=.false., scheme_temperature=cvode_temperature, build=new_cvode_bdf), &
       integrator_entry(name='cvode_adams', family=family_sundials, label='CVODE-Adams', &
         description='SUNDIALS CVODE: variable-order Adams-Moulton, fixed-point iteration, adaptive at tolerance', &
-        adaptive=.true., scheme_temperature=cvode_temperature, build=new_cvode_adams)]
+        adaptive=.true., reads_newton_settings=.false., scheme_temperature=cvode_temperature, build=new_cvode_adams)]
   end function registered_integrators
 
   !> The entry named `name` (found = .false. if there is none).

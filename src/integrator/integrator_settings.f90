@@ -18,6 +18,9 @@ module integrator_settings
     real(real64) :: newton_tol = 1.0e-8_real64       !! Newton's tolerance on the residual and the update
     integer :: newton_max_iterations = 50            !! per nonlinear solve
     real(real64) :: tolerance = 1.0e-10_real64       !! absolute and relative, per step, of every adaptive method
+    !> The input set `tolerance`: the integrators with an error estimate but fixed steps by
+    !> default (EME, the midpoint rule) control their steps, the relaxed ones test gamma.
+    logical :: tolerance_given = .false.
   end type integrator_choice
 
 contains

@@ -25,6 +25,7 @@ module stepper
     integer :: solves = 0                !! nonlinear solves (continuation stages included), or TS steps taken
     integer :: rejected = 0              !! roots rejected as unphysical, or TS steps rejected
     integer :: halvings = 0              !! failed attempts replaced by two halves (EME's substeps, relaxed RK)
+    integer :: rejected_steps = 0        !! trial steps rejected by step-size control before the accepted one
     real(real64), allocatable :: scheme_temperature(:)   !! the temperatures the step's K0 used
     character(len=:), allocatable :: reason              !! why the step failed (if it did)
     character(len=:), allocatable :: last_rejection      !! why the last rejected root was rejected

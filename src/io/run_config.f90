@@ -16,7 +16,7 @@ module run_config
   use model_constraint, only: constraint_slot
   use constrained_flow, only: initial_inconsistency
   use model_registry, only: select_scene
-  use namelist_text, only: namelist_item, read_source_text, group_names, item_name, reals_text, joined
+  use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, joined
   use number_text, only: integer_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
                             invalid_value_message, choices_text, value_origin
@@ -46,6 +46,8 @@ module run_config
     character(len=16) :: discrete_gradient = 'gonzalez'
     character(len=16) :: metric = 'nondimensional'
     character(len=4096) :: file = ''                 !! PATH_MAX
+    !> Settings the input gave that the chosen integrator does not read (the drivers warn).
+    character(len=400), allocatable :: warnings(:)
   end type run_configuration
 
 contains
@@ -133,6 +135,7 @@ contains
                   //choices_text(integrator_names(.true.))
         return
       end if
+      call note_unused_settings(text, path, extra, entry, config)
       if (entry%continuous_constraints .and. config%scene%constraint_count() > 0) then
         call check_continuous_start(config, entry, stat, message)
         if (stat /= 0) then
@@ -157,6 +160,43 @@ contains
                                       outputs(findloc(outputs%name, 'compression', dim=1)))
     end if
   end subroutine read_run_config
+
+  ! The &integrator fields the input set (file or overrides): `tolerance` switches step control on
+  ! for the integrators with error control; each one the chosen integrator does not read is
+  ! named in a warning, with what reads it.
+  subroutine note_unused_settings(text, path, extra, entry, config)
+    character(len=*), intent(in) :: text, path
+    type(namelist_item), intent(in) :: extra(:)
+    type(integrator_entry), intent(in) :: entry
+    type(run_configuration), intent(inout) :: config
+    type(namelist_item), allocatable :: items(:)
+    character(len=24), parameter :: watched(6) = [character(len=24) :: 'tolerance', 'ts_tolerance', &
+      'discrete_gradient', 'metric', 'newton_tol', 'newton_max_iterations']
+    character(len=:), allocatable :: name, readers
+    integer :: i
+
+    allocate (config%warnings(0))
+    call group_items(text, 'integrator', watched, path, items, extra)
+    do i = 1, size(items)
+      name = item_name(items(i)%item)
+      if (.not. any(watched == name)) cycle
+      select case (name)
+      case ('tolerance', 'ts_tolerance')
+        config%integrator%tolerance_given = .true.
+        if (entry%adaptive .or. entry%error_control) cycle
+        readers = 'the adaptive integrators and those with error control'
+      case ('discrete_gradient', 'metric')
+        if (entry%uses_discrete_gradient) cycle
+        readers = 'scheme = ''eme'''
+      case default
+        if (entry%reads_newton_settings) cycle
+        readers = 'the integrators that solve nonlinear systems by Newton''s method'
+      end select
+      if (any(index(config%warnings, items(i)%origin//': &integrator: '//name//' ') == 1)) cycle
+      config%warnings = [character(len=400) :: config%warnings, items(i)%origin//': &integrator: '//name// &
+                         ' is not used by scheme = '''//trim(entry%name)//''' (read by '//readers//')']
+    end do
+  end subroutine note_unused_settings
 
   ! An integrator of the continuous constrained flow needs constraints with a continuous-time
   ! form and an initial state that satisfies their hidden constraints (dg/dt = 0).

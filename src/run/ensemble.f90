@@ -431,7 +431,8 @@ contains
                       summary%energy_drift, &
                       summary%min_entropy_increment, summary%max_lyapunov_increment, &
                       summary%angular_momentum_drift, summary%min_temperature, &
-                      real(summary%halved_steps, real64), real(rank, real64), 0.0_real64]
+                      real(summary%halved_steps, real64), real(summary%rejected_steps, real64), &
+                      real(rank, real64), 0.0_real64]
   end subroutine run_case
 
 end module ensemble

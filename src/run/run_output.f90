@@ -116,6 +116,7 @@ module run_output
     !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
     real(real64) :: min_temperature = huge(1.0_real64)
     integer :: halved_steps = 0          !! failed attempts of the completed steps replaced by two halves
+    integer :: rejected_steps = 0        !! trial steps that step-size control rejected (adaptive runs)
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
   end type run_summary
@@ -530,9 +531,10 @@ contains
     call number('newton_iterations_total', real(self%disk_newton, real64), '1', .true.)
     if (stat == 0) call self%file%set_reals('run_figures', [summary%energy_drift, summary%min_entropy_increment, &
                                            summary%max_lyapunov_increment, summary%angular_momentum_drift, &
-                                           summary%min_temperature, real(summary%halved_steps, real64)], stat)
+                                           summary%min_temperature, real(summary%halved_steps, real64), &
+                                           real(summary%rejected_steps, real64)], stat)
     if (stat == 0 .and. units) call self%file%set_texts('run_figures_units', &
-                                                        [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1'], stat)
+                                                        [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], stat)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
     self%file%fresh = .false.

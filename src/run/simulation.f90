@@ -105,7 +105,7 @@ contains
     real(real64) :: t_end, time_old, cpu_before, cpu_after
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
     integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps, signal
-    logical :: found, finished, writing, replace
+    logical :: found, finished, writing, replace, chooses_time
 
     call system_clock(clock_start, clock_rate)
     clock_progress = clock_start
@@ -170,21 +170,23 @@ contains
       call new_integrator(own)
       integrator => own
     end if
+    ! The integrator starts first: the datasets of its own figures can depend on its settings.
+    call integrator%start(config%integrator, model, constraints, z0, ierr)
+    if (ierr /= 0) call fail(failure_library, 'PETSc failed to set up the solver')
     if (writing) then
       allocate (added(0))
       if (present(extras)) added = extras
       if (present(durable)) output%durable = durable
       call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                         petsc_options_in_force(), ierr)
-      if (ierr /= 0) then
+                         petsc_options_in_force(), io_stat)
+      if (io_stat /= 0) then
+        stat = 0
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
         if (.not. present(reusable)) call integrator%release(release_ierr)
         return
       end if
     end if
-    call integrator%start(config%integrator, model, constraints, z0, ierr)
     if (ierr /= 0) then
-      call fail(failure_library, 'PETSc failed to set up the solver')
       summary%status = 'incomplete: PETSc failed to set up the solver'
       if (.not. present(reusable)) call integrator%release(release_ierr)
       call close_output()
@@ -207,6 +209,8 @@ contains
     ! times go on until they reach t_end (the last step lands on it).
     max_steps = max(1000000, 100*summary%steps_planned)
     finished = summary%steps_planned == 0
+    ! Integrators that choose their times: those of the registry, and EME with a tolerance.
+    chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
     do while (.not. finished)
       signal = interrupting_signal()
       if (signal /= 0) then
@@ -220,7 +224,7 @@ contains
         exit
       end if
       n = n + 1
-      if (.not. entry%chooses_time) time = (n - 1)*dt
+      if (.not. chooses_time) time = (n - 1)*dt
       time_old = time
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call cpu_time(cpu_before)
@@ -231,7 +235,7 @@ contains
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
         exit
       end if
-      if (entry%chooses_time) then
+      if (report%chose_time) then
         time = report%time
         finished = time >= t_end
       else
@@ -247,6 +251,7 @@ contains
       ! step's are not counted), as newton_iterations_total / steps_completed in the file.
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       summary%halved_steps = summary%halved_steps + report%halvings
+      summary%rejected_steps = summary%rejected_steps + report%rejected_steps
       ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
       do k = 1, size(constraints)
         boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))

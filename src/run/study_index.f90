@@ -34,17 +34,18 @@ module study_index
 
   integer, parameter :: status_length = 256
   integer, parameter :: kind_length = 16
-  integer, parameter :: metric_count = 13
+  integer, parameter :: metric_count = 14
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
-  ! halved_steps, rank, run_count
-  integer, parameter :: m_steps = 1, m_rank = 12, m_run_count = 13
+  ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), rank, run_count
+  integer, parameter :: m_steps = 1, m_rank = 13, m_run_count = 14
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
     'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
     'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'min_temperature', &
-    'halved_steps', 'rank', 'run_count']
+    'halved_steps', 'rejected_steps', 'rank', 'run_count']
   logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
-                                                            .false., .false., .false., .false., .true., .true., .true.]
+                                                            .false., .false., .false., .false., .true., .true., .true., &
+                                                            .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
   character(len=1), parameter :: tab = achar(9)
 
@@ -516,7 +517,7 @@ contains
     if (stat == 0) call file%get_reals('study_rank', rank, stat)
     call file%close(ignored)
     if (stat /= 0) return
-    if (size(number) /= 1 .or. size(figures) /= 6) return
+    if (size(number) /= 1 .or. size(figures) /= 7) return
     if (nint(number(1)) /= c .or. overrides /= case_overrides(self%study, c)) return
     self%results(c)%status = 'complete'
     self%results(c)%failure_kind = 'none'

@@ -12,7 +12,10 @@ typedef struct {
 } eme_option;
 
 /* The step solver's options (README: Solver), then the run's (README: Set-up and use). */
-enum { CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MAX_HALVINGS, PROGRESS, OVERWRITE, OPTION_COUNT };
+enum {
+    CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MAX_HALVINGS, ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE,
+    OPTION_COUNT
+};
 static const eme_option options[OPTION_COUNT] = {
     {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors"},
     {"-eme_fused_kernel", "<true>",
@@ -27,6 +30,12 @@ static const eme_option options[OPTION_COUNT] = {
     {"-eme_max_halvings", "<6>",
      "A step whose root no retry strategy finds is replaced by two half steps, recursively up to this depth "
      "(0 to 30; 0: the run stops at such a step)"},
+    {"-eme_error_estimate", "<false>",
+     "Compute and record the local error estimate of every step of EME and the midpoint rule also at fixed steps "
+     "(with &integrator tolerance it is always on: it chooses the steps)"},
+    {"-eme_error_scale", "<1>",
+     "Multiply the local error estimate by this factor (> 0) before the step-size controller sees it: above 1 is "
+     "more cautious (the tests use it to plant a wrong estimate)"},
     {"-eme_progress", "<terminal>",
      "Print a progress line on stderr at most every 2 s (simulated time, steps, rate, time left); default: when "
      "stderr is a terminal"},
@@ -78,6 +87,25 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
     PetscCheck(depth >= 0 && depth <= 30, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
                "-eme_max_halvings takes 0 to 30, not %" PetscInt_FMT, depth);
     *max_halvings = (int)depth;
+    PetscOptionsEnd();
+    PetscFunctionReturn(0);
+}
+
+/* Reads -eme_error_estimate into *record (0 or 1) and -eme_error_scale into *scale (> 0); their
+ * values on entry are the defaults. Returns a PETSc error code (PETSC_ERR_ARG_OUTOFRANGE for a
+ * scale that is not positive). */
+PetscErrorCode eme_read_step_control_options(int *record, double *scale)
+{
+    PetscReal factor = *scale;
+    const char *section = "docs/integrators.md: Adaptive steps";
+
+    PetscFunctionBeginUser;
+    PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step-size control (eme_run, eme_ensemble)", NULL);
+    PetscCall(bool_option(PetscOptionsObject, ERROR_ESTIMATE, section, record, NULL));
+    PetscCall(PetscOptionsReal(options[ERROR_SCALE].name, options[ERROR_SCALE].help, section, factor, &factor, NULL));
+    PetscCheck(factor > 0, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "-eme_error_scale takes a number > 0, not %g",
+               (double)factor);
+    *scale = (double)factor;
     PetscOptionsEnd();
     PetscFunctionReturn(0);
 }

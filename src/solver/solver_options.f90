@@ -10,11 +10,15 @@
 !>   -eme_final_chord false       a new Jacobian for every Newton iteration
 !> and one for the step itself:
 !>   -eme_max_halvings N          halve a step whose root is not found, recursively, N times at most
+!> and two for the local error estimate (src/integrator/local_error_estimate):
+!>   -eme_error_estimate          record it also at fixed steps
+!>   -eme_error_scale F           multiply it by F before the step-size controller sees it
 module solver_options
-  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_double
+  use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
   private
-  public :: step_solver_options, read_solver_options, option_given
+  public :: step_solver_options, read_solver_options, option_given, read_step_control_options
 
   !> The switches and the halving depth, with their defaults.
   type :: step_solver_options
@@ -32,6 +36,13 @@ module solver_options
       integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings
       integer(c_int) :: ierr
     end function eme_read_solver_options
+
+    function eme_read_step_control_options(record, scale) bind(C, name='eme_read_step_control_options') result(ierr)
+      import :: c_int, c_double
+      integer(c_int), intent(inout) :: record
+      real(c_double), intent(inout) :: scale
+      integer(c_int) :: ierr
+    end function eme_read_step_control_options
 
     function eme_option_given(text, given) bind(C, name='eme_option_given') result(ierr)
       import :: c_int, c_char
@@ -60,6 +71,22 @@ contains
     options%lean_snes = flags(3) /= 0
     options%final_chord = flags(4) /= 0
   end subroutine read_solver_options
+
+  !> -eme_error_estimate (default .false.) and -eme_error_scale (default 1). ierr /= 0 for a PETSc
+  !> error (a value of the wrong kind, or a scale that is not positive).
+  subroutine read_step_control_options(record_estimate, error_scale, ierr)
+    logical, intent(out) :: record_estimate
+    real(real64), intent(out) :: error_scale
+    integer, intent(out) :: ierr
+    integer(c_int) :: record
+    real(c_double) :: scale
+
+    record = 0
+    scale = 1.0_c_double
+    ierr = int(eme_read_step_control_options(record, scale))
+    record_estimate = record /= 0
+    error_scale = real(scale, real64)
+  end subroutine read_step_control_options
 
   !> Whether the name of an option the user gave contains `text` (e.g. 'view', '-snes_compare').
   subroutine option_given(text, given, ierr)

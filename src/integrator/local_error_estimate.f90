@@ -1,0 +1,56 @@
+!> A local error estimate for one-step methods, from the continuous vector field f (of the
+!> constrained flow, src/integrator/constrained_flow) at the step's two ends and at one more point
+!> (docs/integrators.md, Adaptive steps).
+!>
+!> The cubic Hermite interpolant H of (z_n, f_n) and (z_{n+1}, f_{n+1}) over the step of h has, at
+!> the step's middle,
+!>   H(1/2)  = (z_n + z_{n+1})/2 + h (f_n - f_{n+1})/8,
+!>   H'(1/2) = 3 (z_{n+1} - z_n)/(2 h) - (f_n + f_{n+1})/4.
+!> For the exact solution through z_n the defect d = H'(1/2) - f(H(1/2)) is O(h**4): the
+!> interpolation error's derivative vanishes at the middle. An error e in z_{n+1} changes it by
+!> 3 e/(2 h) + O(e), so the method's local error is
+!>   e ~ (2 h/3) d,
+!> asymptotically exact for any method of order >= 1 (for EME and the midpoint rule, O(h**3)).
+!> f_{n+1} is the next step's f_n, so a step costs two evaluations of f.
+module local_error_estimate
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: domain_ok
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use constrained_flow, only: constrained_field
+  implicit none (type, external)
+  private
+  public :: hermite_defect_estimate, weighted_rms_norm
+
+contains
+
+  !> The estimate e of the local error of the step of h from z_old (where the field is f_old) to
+  !> z_new; f_new is the field at z_new. stat /= domain_ok if a field is undefined.
+  pure subroutine hermite_defect_estimate(model, constraints, z_old, f_old, z_new, h, estimate, f_new, stat)
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z_old(:), f_old(:), z_new(:), h
+    real(real64), intent(out) :: estimate(:), f_new(:)
+    integer, intent(out) :: stat
+    real(real64) :: z_middle(size(z_old)), f_middle(size(z_old)), slope_middle(size(z_old))
+
+    estimate = 0.0_real64
+    call constrained_field(model, constraints, z_new, f_new, stat)
+    if (stat /= domain_ok) return
+    z_middle = 0.5_real64*(z_old + z_new) + 0.125_real64*h*(f_old - f_new)
+    slope_middle = 1.5_real64*(z_new - z_old)/h - 0.25_real64*(f_old + f_new)
+    call constrained_field(model, constraints, z_middle, f_middle, stat)
+    if (stat /= domain_ok) return
+    estimate = (2.0_real64*h/3.0_real64)*(slope_middle - f_middle)
+  end subroutine hermite_defect_estimate
+
+  !> The root mean square of e_i / (1 + max(|z_old,i|, |z_new,i|)): an error measured absolutely
+  !> where a component is below 1 and relatively above (the scale relaxed_dp853 uses). A step of
+  !> tolerance tol is accepted when this norm is at most tol.
+  pure real(real64) function weighted_rms_norm(estimate, z_old, z_new) result(norm)
+    real(real64), intent(in) :: estimate(:), z_old(:), z_new(:)
+
+    norm = sqrt(sum((estimate/(1.0_real64 + max(abs(z_old), abs(z_new))))**2)/size(estimate))
+  end function weighted_rms_norm
+
+end module local_error_estimate
