@@ -18,7 +18,7 @@ module constrained_flow
   use number_text, only: scientific_text
   implicit none (type, external)
   private
-  public :: constrained_field, project_state, bath_temperature_of, initial_inconsistency
+  public :: constrained_field, project_state, bath_temperature_of, initial_inconsistency, slaved_entries
 
 contains
 
@@ -67,6 +67,32 @@ contains
     end do
     if (present(jacobian)) jacobian = matmul(df, chain)
   end subroutine constrained_field
+
+  !> The entries of z that the constraints' continuous forms slave to the others (g2: tau_a, set
+  !> from Theta_a = thetabar): their rate is not the field's but follows from the others'.
+  pure function slaved_entries(model, constraints, z) result(slaved)
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z(:)
+    logical :: slaved(size(z))
+    real(real64) :: w(size(z)), chain(size(z), size(z))
+    integer :: k, i, stat
+
+    slaved = .false.
+    if (size(constraints) == 0) return
+    w = z
+    chain = 0.0_real64
+    do i = 1, size(z)
+      chain(i, i) = 1.0_real64
+    end do
+    ! A slaved entry's row of the chain rule no longer depends on the entry itself.
+    do k = 1, size(constraints)
+      call constraints(k)%item%slave_state(model, w, stat, chain)
+    end do
+    do i = 1, size(z)
+      slaved(i) = abs(chain(i, i)) < 0.5_real64
+    end do
+  end function slaved_entries
 
   !> z back onto the constraints and the conserved momentum component `momentum` (see above);
   !> stat /= domain_ok if a slaved entry has no value or the conditions are degenerate.

@@ -265,7 +265,7 @@ contains
     integer, intent(out) :: ierr
     type(root_search) :: search
     real(real64) :: h, err, estimate_norm, guess(size(x_old)), estimate(self%problem%model%state_size)
-    real(real64) :: f_old(self%problem%model%state_size), f_new(self%problem%model%state_size)
+    real(real64), dimension(self%problem%model%state_size) :: f_old, f_new
     integer :: n, stat, attempt, rejected(3)
     logical :: landing
 
@@ -353,7 +353,10 @@ contains
     subroutine record_rejections()
       report%rejected_steps = sum(rejected)
       report%diagnostics = [1.0_real64, estimate_norm, h, real(sum(rejected), real64), real(rejected, real64)]
-      if (.not. report%accepted) report%diagnostics(2:3) = ieee_value(1.0_real64, ieee_quiet_nan)
+      if (report%accepted) return
+      report%diagnostics(2:3) = ieee_value(1.0_real64, ieee_quiet_nan)
+      report%chose_time = .true.       ! where the last trial step would have ended
+      report%time = t_old + h
     end subroutine record_rejections
   end subroutine adaptive_step
 
@@ -363,7 +366,7 @@ contains
     class(step_solver), intent(inout) :: self
     real(real64), intent(in) :: z_old(:), z_new(:), h
     real(real64), intent(out) :: norm
-    real(real64) :: f_old(size(z_old)), f_new(size(z_old)), estimate(size(z_old))
+    real(real64), dimension(size(z_old)) :: f_old, f_new, estimate
     integer :: stat
 
     norm = ieee_value(1.0_real64, ieee_quiet_nan)

@@ -12,12 +12,19 @@
 !>   e ~ (2 h/3) d,
 !> asymptotically exact for any method of order >= 1 (for EME and the midpoint rule, O(h**3)).
 !> f_{n+1} is the next step's f_n, so a step costs two evaluations of f.
+!>
+!> With the temperature constraint g2 the slaved entry tau_a carries no estimate of its own: its
+!> field row is not its rate (the continuous form slaves it to Theta_a = thetabar), and its error
+!> follows from the others'. The fixed-length constraint g1 is not taken with step control
+!> (src/io/run_config): the discrete-gradient step enforces g1 on positions only, and its end
+!> momenta carry a normal velocity q1.v1 of alternating sign that grows from step to step and that
+!> smaller steps make harder, not easier, to solve (measured: docs/integrators.md).
 module local_error_estimate
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: domain_ok
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
-  use constrained_flow, only: constrained_field
+  use constrained_flow, only: constrained_field, slaved_entries
   implicit none (type, external)
   private
   public :: hermite_defect_estimate, weighted_rms_norm
@@ -42,6 +49,7 @@ contains
     call constrained_field(model, constraints, z_middle, f_middle, stat)
     if (stat /= domain_ok) return
     estimate = (2.0_real64*h/3.0_real64)*(slope_middle - f_middle)
+    where (slaved_entries(model, constraints, z_new)) estimate = 0.0_real64
   end subroutine hermite_defect_estimate
 
   !> The root mean square of e_i / (1 + max(|z_old,i|, |z_new,i|)): an error measured absolutely

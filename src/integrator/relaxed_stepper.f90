@@ -18,6 +18,14 @@
 !> tolerance (absolute and relative per step, DOP853's error norm and controller), dt being its
 !> first trial step. The implicit Gauss-Legendre stages are solved by PETSc SNES.
 !>
+!> The relaxation parameter is an error signal: gamma = 1 + O(h**(p-1)) for a method of order p,
+!> so at steps whose local error is about the tolerance tol, |gamma - 1| ~ tol**((p-1)/(p+1)). With
+!> a tolerance in force (relaxed_dp853 always; the fixed-step schemes when &integrator tolerance is
+!> given) a step with |gamma - 1| > gamma_band_factor tol**((p-1)/(p+1)) is rejected like a step
+!> without a relaxation root (measured on the paper and low-viscosity scenes with relaxed_dp853 at
+!> tolerances 1e-4 to 1e-10: |gamma - 1| has its median at 0.003 to 0.02 of tol**(7/9) and its
+!> largest value at 2.5 times it; docs/integrators.md).
+!>
 !> Constraints enter through their continuous-time forms (src/integrator/constrained_flow): g1
 !> by its index-1 force and the projection, g2 as a heat bath at thetabar, for which the relaxed
 !> functional is V = E - thetabar S with V_{n+1} - V_n = -thetabar gamma e_S <= 0.
@@ -36,7 +44,7 @@ module relaxed_stepper
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use solver_description, only: add_setting, text_setting, no_solver
-  use number_text, only: integer_text
+  use number_text, only: integer_text, fixed_text, scientific_text
   implicit none (type, external)
   private
   public :: relaxed_runge_kutta, new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
@@ -47,6 +55,8 @@ module relaxed_stepper
   ! DOP853's step-size controller: safety factor and the bounds of h_new/h.
   real(real64), parameter :: safety = 0.9_real64, shrink_limit = 0.333_real64, grow_limit = 6.0_real64
   integer, parameter :: max_error_rejections = 100
+  !> The band of the relaxation parameter at a tolerance (module header).
+  real(real64), parameter :: gamma_band_factor = 10.0_real64
   !> A step that would leave less than landing_slack h to t_end lands on t_end instead: a last
   !> step of round-off size would carry no information for relaxation to work with.
   real(real64), parameter :: landing_slack = 0.01_real64
@@ -62,6 +72,7 @@ module relaxed_stepper
     real(real64) :: t = 0.0_real64
     real(real64) :: t_end = 0.0_real64
     real(real64) :: tolerance = 0.0_real64
+    real(real64) :: gamma_band = huge(1.0_real64)       !! the largest |gamma - 1| accepted
     real(real64) :: h_next = 0.0_real64                 !! the adaptive method's next trial step
     ! The implicit method's stage system and its solver.
     type(stage_system) :: stages
@@ -70,7 +81,7 @@ module relaxed_stepper
     integer :: newton_max_iterations = 0
     real(real64), allocatable :: last_stages(:)         !! the last step's K, the next predictor
     ! What the current output step did, and what the last committed step replaced.
-    integer :: attempts = 0, rejections = 0, halvings = 0, newton_iterations = 0
+    integer :: attempts = 0, rejections = 0, halvings = 0, newton_iterations = 0, gamma_rejections = 0
     real(real64) :: last_gamma = 1.0_real64, entropy_production = 0.0_real64
     character(len=:), allocatable :: last_failure
     real(real64), allocatable :: z_saved(:)
@@ -129,7 +140,10 @@ contains
                              'rejected attempts replaced by two halves (every rejection but the error test''s)', 'sum'), &
              step_diagnostic('entropy_production', 'J/K', &
                              'gamma e_S summed over the step''s substeps: the entropy change the step''s stages give', &
-                             'sum')]
+                             'sum'), &
+             step_diagnostic('rejected_gamma', '1', &
+                             'attempts rejected because |gamma - 1| left the band of the tolerance (with a '// &
+                             'tolerance in force), each replaced by smaller steps', 'sum')]
   end function diagnostics
 
   !> The implicit stages' SNES (Gauss-Legendre) as it was set up; none for explicit stages.
@@ -171,6 +185,9 @@ contains
     self%t = 0.0_real64
     self%t_end = choice%t_end
     self%tolerance = choice%tolerance
+    self%gamma_band = huge(1.0_real64)
+    if (self%adaptive .or. choice%tolerance_given) self%gamma_band = gamma_band_factor* &
+      choice%tolerance**(real(self%tableau%order - 1, real64)/real(self%tableau%order + 1, real64))
     self%h_next = choice%dt
     self%newton_tol = choice%newton_tol
     self%newton_max_iterations = choice%newton_max_iterations
@@ -204,6 +221,7 @@ contains
     self%attempts = 0
     self%rejections = 0
     self%halvings = 0
+    self%gamma_rejections = 0
     self%newton_iterations = 0
     self%entropy_production = 0.0_real64
     self%last_failure = ''
@@ -224,8 +242,9 @@ contains
     report%rejected = self%rejections
     report%newton_iterations = self%newton_iterations
     report%halvings = self%halvings
+    report%rejected_steps = self%rejections
     report%diagnostics = [self%last_gamma, real(self%rejections, real64), real(self%halvings, real64), &
-                          self%entropy_production]
+                          self%entropy_production, real(self%gamma_rejections, real64)]
     if (self%tableau%implicit) then
       report%residual_norm = self%solver%last_residual_norm
       report%converged_reason = self%solver%last_reason
@@ -370,6 +389,13 @@ contains
     call relax(self%model, self%constraints, self%z, d, e_s, gamma, z_new, ok, evaluations)
     if (.not. ok) then
       self%last_failure = 'no relaxation root gamma in [0.2, 2]'
+      return
+    end if
+    if (abs(gamma - 1.0_real64) > self%gamma_band) then
+      ok = .false.
+      self%gamma_rejections = self%gamma_rejections + 1
+      self%last_failure = 'gamma = '//fixed_text(gamma, 6)//' outside the band |gamma - 1| <= '// &
+                          scientific_text(self%gamma_band)//' of the tolerance'
       return
     end if
     if (.not. landing .and. self%t + (gamma + landing_slack)*h >= self%t_end) then

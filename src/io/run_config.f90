@@ -138,10 +138,12 @@ contains
       call note_unused_settings(text, path, extra, entry, config)
       if (entry%continuous_constraints .and. config%scene%constraint_count() > 0) then
         call check_continuous_start(config, entry, stat, message)
-        if (stat /= 0) then
-          message = value_origin(text, 'integrator', 'scheme', path, extra)//': '//message
-          return
-        end if
+      else if (entry%error_control .and. choice%tolerance_given .and. config%scene%constraint_count() > 0) then
+        call check_controllable_constraints(config, entry, stat, message)
+      end if
+      if (stat /= 0) then
+        message = value_origin(text, 'integrator', 'scheme', path, extra)//': '//message
+        return
       end if
     end associate
 
@@ -228,6 +230,37 @@ contains
                 'velocity): '//why
     end if
   end subroutine check_continuous_start
+
+  ! Step-size control of a discrete-gradient step measures its error against the continuous flow
+  ! (src/integrator/local_error_estimate): a constraint without a continuous form, or with a hidden
+  ! constraint that the step does not enforce (g1: q1.v1 = 0), is refused with a tolerance.
+  subroutine check_controllable_constraints(config, entry, stat, message)
+    type(run_configuration), intent(in) :: config
+    type(integrator_entry), intent(in) :: entry
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:), gradient(:)
+    real(real64) :: value
+    logical :: hidden
+    integer :: k
+
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
+    if (stat /= 0) return
+    allocate (gradient(size(z0)))
+    do k = 1, size(constraints)
+      call constraints(k)%item%momentum_condition(model, z0, hidden, value, gradient)
+      if (constraints(k)%item%continuous_form .and. .not. hidden) cycle
+      stat = 1
+      message = '&integrator: tolerance with scheme = '''//trim(entry%name)//''' and the '// &
+                trim(constraints(k)%item%name)//' constraint: step-size control is not available with it (the '// &
+                'step keeps the constraint on positions but not its hidden constraint on velocities, whose error '// &
+                'no step size reduces); allowed: fixed steps (no tolerance), or relaxed_dp853, which chooses its '// &
+                'steps with this constraint'
+      return
+    end do
+  end subroutine check_controllable_constraints
 
   !> The fields of &integrator (README, Input).
   function integrator_fields(config) result(fields)
