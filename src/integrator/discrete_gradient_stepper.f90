@@ -52,6 +52,9 @@ module discrete_gradient_stepper
   integer, parameter :: max_rejections_per_step = 60
   !> The tolerance bounds the local error per this much simulated time (error per unit step).
   real(real64), parameter :: unit_time = 1.0_real64
+  !> The weighted norm of an estimate that is all rounding: the Newton root is exact to its
+  !> rounding, about eps |z| (README, Solver), and the estimate's difference quotient takes it over.
+  real(real64), parameter :: rounding_level = 64*epsilon(1.0_real64)
 
   !> What the substeps of one output step add up to.
   type :: substep_tally
@@ -322,9 +325,10 @@ contains
         call self%controller%reject_failure(h)
         cycle
       end if
-      ! Error per unit step: the estimate's norm per second of the step against the tolerance.
+      ! Error per unit step: the estimate's norm per second of the step against the tolerance, or
+      ! at the estimate's rounding level (which tiny steps would otherwise never get below).
       estimate_norm = self%error_scale*weighted_rms_norm(estimate, x_old(1:n), x_new(1:n))
-      err = estimate_norm/(h/unit_time)/self%tolerance
+      err = estimate_norm/(self%tolerance*h/unit_time + rounding_level)
       if (err > 1.0_real64) then
         rejected(rejection_error) = rejected(rejection_error) + 1
         tally%reason = 'the error estimate per second '//scientific_text(err*self%tolerance)//' exceeded the tolerance'

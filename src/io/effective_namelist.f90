@@ -2,12 +2,14 @@
 !> model's groups, &integrator, &output) with the values after defaults and overrides (a study
 !> case's sweep values). Reals are written with the fewest digits that read back to the same
 !> number, so that running the text again gives the same run. A field that is another's old
-!> name (ts_tolerance) is left out.
+!> name (ts_tolerance) is left out, and so is `tolerance` where the input did not set it and the
+!> integrator does not always read it (set, it switches step control on).
 module effective_namelist
   use, intrinsic :: iso_fortran_env, only: real64
   use run_config, only: run_configuration, integrator_fields, output_fields
   use namelist_group, only: group_field, field_real, field_integer, field_logical
   use number_text, only: integer_text
+  use integrator_registry, only: integrator_entry, find_integrator
   implicit none (type, external)
   private
   public :: namelist_of_run, exact_real_text
@@ -19,6 +21,9 @@ contains
     type(run_configuration), intent(in), target :: config
     character(len=:), allocatable :: text
     character(len=16), allocatable :: groups(:)
+    type(integrator_entry) :: entry
+    type(group_field), allocatable :: fields(:)
+    logical :: found
     integer :: g
 
     text = ''
@@ -26,7 +31,11 @@ contains
     do g = 1, size(groups)
       text = text//group_text(trim(groups(g)), config%scene%fields(trim(groups(g))))
     end do
-    text = text//group_text('integrator', integrator_fields(config))//group_text('output', output_fields(config))
+    fields = integrator_fields(config)
+    call find_integrator(config%integrator%scheme, entry, found)
+    if (.not. (config%integrator%tolerance_given .or. entry%adaptive)) &
+      fields = pack(fields, fields%name /= 'tolerance' .and. fields%name /= 'ts_tolerance')
+    text = text//group_text('integrator', fields)//group_text('output', output_fields(config))
   end function namelist_of_run
 
   ! '&group' and a line per field, closed by '/'.
