@@ -225,8 +225,10 @@ $(FIGURES)/temperatures_jz.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_
 
 # Convergence, work-precision and stability studies on 2 ranks, then their analysis: charts in
 # results/figures, numbers in results/study/summary.h5 (README, Speed and accuracy).
-STUDIES := convergence convergence_reference work_precision work_precision_adaptive work_precision_reference \
-           stability_paper stability_hard
+HARD_SCENES := low_viscosity stiff_spring high_conductivity temperature_gap
+STUDIES := convergence convergence_reference work_precision work_precision_adaptive work_precision_step_control \
+           work_precision_reference stability_paper stability_hard \
+           $(foreach s,$(HARD_SCENES),stability_$(s) stability_$(s)_tolerance)
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
 # Each study prints its start, a progress line every 2 s and its summary.
@@ -235,6 +237,8 @@ study: all $(VENV)/.python-deps
 	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml || exit 1; done
 	$(PYTHON) postprocess/study_analysis.py --study-dir results/study -o results/figures \
 	  --summary results/study/summary.h5
+	$(PYTHON) postprocess/estimate_tracking.py --bin $(BIN) -o results/figures/estimate_tracking \
+	  --data results/study/estimate_tracking.h5
 
 # Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
 # 1e-6 at t = 5 s of every scheme, then the per-step cost of every scheme against a LAPACK Newton

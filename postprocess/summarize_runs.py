@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Prints the summary table of one or more eme_run result files.
 
-For each run: status, steps, the relative energy balance error max_n |E_n - E_0 - Q_n| / |E_0|
+For each run: status, steps (accepted ones), the trial steps rejected by step-size control or
+halving (integrators that reject steps: rejected_steps; '-' for the others), the relative energy balance error max_n |E_n - E_0 - Q_n| / |E_0|
 (Q_n is the heat supplied through constraint g2, zero without it, so this is the energy drift),
 the smallest entropy increment, the largest Lyapunov increment, the J_z drift
 max_n |J_z,n - J_z,0|, the largest constraint residual, the mean Newton iterations per step and
@@ -23,7 +24,7 @@ from trajectory import IDENTITY_ATTRIBUTES, Run, RunFileError, cut_to_common_len
 
 POINT_DATASETS = ("energy", "entropy", "lyapunov", "angular_momentum")
 STEP_DATASETS = ("newton_iterations",)
-OPTIONAL = ("boundary_heat", "constraint_residual")
+OPTIONAL = ("boundary_heat", "constraint_residual", "rejected_steps")
 
 
 def read(path):
@@ -36,7 +37,7 @@ def read(path):
         for name in (*POINT_DATASETS, *STEP_DATASETS, *OPTIONAL):
             if name in f:
                 run.data[name] = f[name][()]
-                run.rows[name] = "step" if name in STEP_DATASETS else "point"
+                run.rows[name] = "step" if name in (*STEP_DATASETS, "rejected_steps") else "point"
     absent = [name for name in (*IDENTITY_ATTRIBUTES, "discrete_gradient") if name not in run.attrs]
     if absent:
         run.problems.append("root attributes " + ", ".join(absent) + " missing")
@@ -52,6 +53,7 @@ def summarize(path):
     heat = data.get("boundary_heat", np.zeros_like(energy))
     jz = data["angular_momentum"][:, 2]        # columns J_x J_y J_z (README, Output layout)
     constraint = data.get("constraint_residual")
+    rejected = data.get("rejected_steps")
     gradient = attrs.get("discrete_gradient", "none")
     constraints = attrs.get("constraints", "none")
     status = run.status
@@ -64,6 +66,7 @@ def summarize(path):
                + (f" + {constraints}" if constraints != "none" else ""),
         "status": status,
         "steps": steps,
+        "rejected": "-" if rejected is None else str(int(rejected.sum())),
         "energy_drift": float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0])),
         "min_dS": float(np.diff(entropy).min()) if steps else float("nan"),
         "max_dV": float(np.diff(lyapunov).max()) if steps else float("nan"),
@@ -74,7 +77,8 @@ def summarize(path):
     }
 
 
-COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"), ("energy_drift", "energy balance", "{:.2e}"),
+COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"), ("rejected", "rejected", "{}"),
+           ("energy_drift", "energy balance", "{:.2e}"),
            ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
            ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("constraint", "max |g|", "{}"),
            ("newton_per_step", "Newton/step", "{:.2f}"),

@@ -9,7 +9,7 @@ module command_help
   use model_registry, only: select_scene, model_names
   use run_config, only: run_configuration, integrator_fields, output_fields
   use study_config, only: study_fields, sweep_fields, max_sweep_values
-  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
+  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count, family_relaxation
   implicit none (type, external)
   private
   public :: print_run_help, print_study_help, print_integrators, has_argument
@@ -150,21 +150,36 @@ contains
 
     entries = registered_integrators()
     if (tabular) write (unit, '(a)') 'name'//tab//'family'//tab//'label'//tab//'takes_constraints'//tab//'adaptive' &
-      //tab//'description'
+      //tab//'error_control'//tab//'description'
     do i = 1, size(entries)
       associate (e => entries(i))
         if (tabular) then
           write (unit, '(a)') trim(e%name)//tab//trim(e%family)//tab//trim(e%label)//tab// &
             trim(merge('yes', 'no ', e%takes_constraints))//tab//trim(merge('yes', 'no ', e%adaptive))//tab// &
-            trim(e%description)
+            trim(merge('yes', 'no ', e%error_control))//tab//trim(e%description)
         else
           write (unit, '(4x, a, t20, a)') trim(e%name), trim(e%description)
           write (unit, '(t20, a)') 'family '//trim(e%family)//'; '//trim(merge('takes constraints   ', &
-            'no constraints      ', e%takes_constraints))//'; '//trim(merge('adaptive steps', 'fixed steps   ', &
-            e%adaptive))
+            'no constraints      ', e%takes_constraints))//'; '//trim(steps_text(e))
         end if
       end associate
     end do
   end subroutine print_integrators
+
+  ! How an integrator's steps are chosen, for --help.
+  function steps_text(entry) result(text)
+    type(integrator_entry), intent(in) :: entry
+    character(len=:), allocatable :: text
+
+    if (entry%adaptive) then
+      text = 'adaptive steps'
+    else if (entry%error_control .and. entry%family == family_relaxation) then
+      text = 'fixed steps; with a tolerance, gamma outside its band rejects a step'
+    else if (entry%error_control) then
+      text = 'fixed steps; adaptive with a tolerance'
+    else
+      text = 'fixed steps'
+    end if
+  end function steps_text
 
 end module command_help

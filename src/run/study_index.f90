@@ -285,7 +285,7 @@ contains
     type(table_columns) :: columns
     type(integrator_entry) :: entries(integrator_count)
     character(len=status_length) :: texts(4, integrator_count)
-    real(real64) :: numbers(3, integrator_count)
+    real(real64) :: numbers(4, integrator_count)
     integer :: i
 
     call columns%add('name', len(entries(1)%name))
@@ -295,12 +295,13 @@ contains
     call columns%add('takes_constraints', column_integer)
     call columns%add('uses_discrete_gradient', column_integer)
     call columns%add('adaptive', column_integer)
+    call columns%add('error_control', column_integer)
     entries = registered_integrators()
     do i = 1, size(entries)
       texts(:, i) = [character(len=status_length) :: entries(i)%name, entries(i)%label, entries(i)%family, &
                      entries(i)%description]
       numbers(:, i) = merge(1.0_real64, 0.0_real64, [entries(i)%takes_constraints, entries(i)%uses_discrete_gradient, &
-                                                     entries(i)%adaptive])
+                                                     entries(i)%adaptive, entries(i)%error_control])
     end do
     call columns%write(file%id, 'integrators', numbers, texts, stat)
   end subroutine write_registry
