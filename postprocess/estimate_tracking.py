@@ -134,18 +134,21 @@ def draw(results, output):
         data = np.array(rows).reshape(-1, 5)
         true = data[:, 4]
         span = np.array([true.min() / 3, true.max() * 3])
-        ax.fill_between(span, span / 2, span * 2, color="0.9", label="factor 2")
+        ax.fill_between(span, span / 2, span * 2, color="0.9")
         ax.plot(span, span, color="0.5", lw=0.8)
-        points = ax.scatter(true, data[:, 2], c=np.log10(data[:, 0]), cmap="viridis", s=14, marker="o",
-                            label="Hermite defect (used)")
-        ax.scatter(true, data[:, 3], c=np.log10(data[:, 0]), cmap="viridis", s=14, marker="x",
-                   label="Milne (quadratic predictor)")
+        points = ax.scatter(true, data[:, 2], c=np.log10(data[:, 0]), cmap="viridis", s=14, marker="o")
+        ax.scatter(true, data[:, 3], c=np.log10(data[:, 0]), cmap="viridis", s=14, marker="x")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("true local error (weighted RMS)")
         ax.set_title(scene.replace("_", " ") + " scene")
     np.atleast_1d(axes)[0].set_ylabel("estimate")
-    np.atleast_1d(axes)[0].legend(loc="upper left", fontsize=7)
+    handles = [plotting.plt.matplotlib.patches.Patch(color="0.9", label="factor 2"),
+               plotting.plt.matplotlib.lines.Line2D([], [], color="0.3", marker="o", linestyle="none",
+                                                    label="Hermite defect (used)"),
+               plotting.plt.matplotlib.lines.Line2D([], [], color="0.3", marker="x", linestyle="none",
+                                                    label="Milne, quadratic predictor")]
+    np.atleast_1d(axes)[0].legend(handles=handles, loc="upper left")
     colorbar = figure.colorbar(points, ax=axes, shrink=0.9)
     colorbar.set_label("log10 dt [s]")
     caption = ("EME_theta's local error estimate against its true local error (CVODE-BDF at tolerance "

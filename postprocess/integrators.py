@@ -7,9 +7,15 @@ order and their colours from here, so that a new integrator needs no change in t
 # Colours by position in the registry (the first five are those the gallery has always used);
 # as many as the registry has integrators, so that no two share a colour.
 PALETTE = ("tab:red", "tab:blue", "tab:cyan", "tab:green", "tab:purple", "tab:orange", "tab:brown",
-           "tab:pink", "tab:olive", "tab:gray", "navy", "goldenrod", "black", "lime")
+           "tab:pink", "tab:olive", "tab:gray", "navy", "goldenrod", "black", "lime", "teal", "maroon",
+           "darkviolet", "sienna", "crimson", "darkkhaki", "slateblue", "darkcyan")
 
-_KNOWN = {}     # name -> {"position": int, "label": str, "family": str}
+_KNOWN = {}     # name -> {"position": int, "label": str, "family": str, "adaptive": bool, "error_control": bool}
+_REGISTRY_SIZE = [0]    # integrators of the last index registered
+# A scheme with error control run with a tolerance (EME and the midpoint rule then choose their
+# steps, the fixed-step relaxed schemes check gamma) is a curve of its own: its name carries this
+# suffix and its label "-tol".
+TOLERANCE_SUFFIX = "+tolerance"
 
 
 def _text(value):
@@ -20,9 +26,26 @@ def register_index(handle):
     """Registers the integrators of an open study index (h5py File), if it has /integrators."""
     if "integrators" not in handle:
         return
-    for position, row in enumerate(handle["integrators"][()]):
+    table = handle["integrators"][()]
+    for position, row in enumerate(table):
+        flags = {flag: bool(row[flag]) if flag in table.dtype.names else False
+                 for flag in ("adaptive", "error_control")}
         _KNOWN[_text(row["name"])] = {"position": position, "label": _text(row["label"]),
-                                      "family": _text(row["family"])}
+                                      "family": _text(row["family"]), **flags}
+    _REGISTRY_SIZE[0] = len(table)
+
+
+def tolerance_variant(name):
+    """The name of `name` run with a tolerance: itself if the tolerance changes nothing about how
+    it is named (an adaptive scheme, or one without error control), else a variant placed after
+    every registered integrator (in the base's order), labelled LABEL-tol."""
+    known = _KNOWN.get(name)
+    if known is None or known.get("adaptive") or not known.get("error_control"):
+        return name
+    variant = name + TOLERANCE_SUFFIX
+    _KNOWN.setdefault(variant, {**known, "position": _REGISTRY_SIZE[0] + known["position"],
+                                "label": known["label"] + "-tol"})
+    return variant
 
 
 def register_run(attrs):
@@ -44,5 +67,5 @@ def label(name):
 
 
 def colour(name):
-    """The integrator's colour: by its place in the registry."""
+    """The integrator's colour: by its place in the registry (tolerance variants after it)."""
     return PALETTE[position(name) % len(PALETTE)] if name in _KNOWN else "black"

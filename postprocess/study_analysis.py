@@ -24,6 +24,7 @@ import h5py
 import numpy as np
 
 import integrators
+import stability_sets
 import study_plots
 from plotting import run_script
 from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
@@ -55,12 +56,13 @@ OUTCOMES = ("kept", "energy", "lyapunov", "solver", "nonphysical")
 FLAG_LYAPUNOV, FLAG_TEMPERATURE = "V", "T"
 
 STUDIES = ("convergence", "convergence_reference", "work_precision", "work_precision_adaptive",
-           "work_precision_reference", "stability_paper", "stability_hard")
+           "work_precision_step_control", "work_precision_reference", "stability_paper", "stability_hard",
+           *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES for kind in ("", "_tolerance")))
 # Work-precision (inputs/study_work_precision*.nml): fixed-step and adaptive cases at t = 5 s
 # against work_precision_reference (case 1, cross-checked by case 2). Points within
 # WORK_PRECISION_FACTOR of the cross-check level measure the reference and are left out; the
 # findings name each scheme's cheapest case that meets each of TARGETS.
-WORK_PRECISION = ("work_precision", "work_precision_adaptive")
+WORK_PRECISION = ("work_precision", "work_precision_adaptive", "work_precision_step_control")
 WORK_PRECISION_FACTOR = 10.0
 TARGETS = (1e-4, 1e-6)
 SCENES = {"paper": "stability_paper", "hard": "stability_hard"}
@@ -96,6 +98,8 @@ def read_index(folder):
     for case in cases:
         row = {name: case[name].decode() if isinstance(case[name], bytes) else case[name].item()
                for name in cases.dtype.names}
+        if "tolerance" in row:
+            row["scheme"] = integrators.tolerance_variant(row["scheme"])
         row["path"] = path.parent / row["file"]
         row["index"] = path
         row["repeats"] = repeats
@@ -334,7 +338,7 @@ def write_dataset(group, name, values, units, description):
     dataset.attrs["description"] = description
 
 
-def write_summary(path, conv, wp, structure, maps):
+def write_summary(path, conv, wp, structure, maps, sets):
     """The numbers behind every figure, one group per figure."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -425,6 +429,7 @@ def write_summary(path, conv, wp, structure, maps):
                           "Runge-Kutta schemes; the index's halved_steps)")
             write_dataset(g, "kept_count", (grid["outcome"] == 0).sum(axis=1), "1",
                           "dt values at which the scheme finished with everything kept")
+        stability_sets.write_summary(f, sets, write_dataset)
     print(f"wrote {path}")
 
 
@@ -497,10 +502,12 @@ def main(argv=None):
     wp = work_precision(study_dir)
     structure = structure_cost(read_index(study_dir / SCENES["paper"]))
     maps = {scene: stability_map(read_index(study_dir / folder)) for scene, folder in SCENES.items()}
+    sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive)
     study_plots.save_all(output, conv, wp, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR),
                          work_precision_factor=WORK_PRECISION_FACTOR)
-    write_summary(args.summary, conv, wp, structure, maps)
-    for line in findings(conv, wp, structure, maps):
+    stability_sets.figure(sets, output / "study_stability_set")
+    write_summary(args.summary, conv, wp, structure, maps, sets)
+    for line in findings(conv, wp, structure, maps) + stability_sets.findings(sets):
         print(line)
 
 
