@@ -12,6 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "postprocess"))
 
+import stability_sets  # noqa: E402
 import study_analysis  # noqa: E402
 import study_plots  # noqa: E402
 from figure_checks import (drawn_font_sizes, marked_lines, pdf_font_kinds, pdf_width_inches,  # noqa: E402
@@ -187,6 +188,24 @@ STUDIES = {
 &sweep field = 'tolerance', values = 1e-10, 1e-13 /""",
 }
 STUDIES["stability_hard"] = STUDIES["stability_paper"]
+# EME with step-size control over its tolerance, on the work-precision scene.
+STUDIES["work_precision_step_control"] = """&sweep field = 't_end', values = 2*0.4 /
+&sweep field = 'scheme', texts = 'eme', 'eme' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'temperature' /
+&sweep field = 'dt', values = 2*0.2 /
+&sweep field = 'tolerance', values = 1e-3, 1e-4 /"""
+# The harder scene set, tiny: per scene a fixed-step study over dt and a step-controlled one over
+# the tolerance (the scene itself is the base's: the analysis reads only the indexes).
+for _scene in stability_sets.SCENES:
+    STUDIES[f"stability_{_scene}"] = """&sweep field = 't_end', values = 4*0.6 /
+&sweep field = 'scheme', texts = 'eme', 'eme', 'relaxed_rk4', 'ts_rk4' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'temperature', 'temperature', 'temperature' /
+&sweep field = 'dt', values = 0.1, 0.3, 0.3, 0.3 /"""
+    STUDIES[f"stability_{_scene}_tolerance"] = """&sweep field = 't_end', values = 4*0.6 /
+&sweep field = 'scheme', texts = 'eme', 'eme', 'relaxed_rk4', 'cvode_bdf' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'temperature', 'temperature', 'temperature' /
+&sweep field = 'dt', values = 4*0.3 /
+&sweep field = 'tolerance', values = 1e-2, 1e-3, 1e-4, 1e-4 /"""
 EXPECTED_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("EME_theta", 0.2): "solver",
                      ("TS-midpoint_u", 0.1): "solver", ("RRK4_theta", 0.5): "kept"}
 
@@ -223,7 +242,7 @@ def analysed(studies, tmp_path_factory):
 
 
 @pytest.mark.parametrize("name", ["study_convergence", "study_work_precision", "study_structure_cost",
-                                  "study_stability_map"])
+                                  "study_stability_map", "study_stability_set"])
 def test_script_writes_png_and_pdf(analysed, name):
     output, _ = analysed
     png = (output / "figures" / f"{name}.png").read_bytes()
@@ -265,7 +284,7 @@ def test_summary_holds_every_figure_s_numbers_with_units(studies, analysed):
         for dataset in ("scheme", "study", "dt", "tolerance", "error", "shown", "solve_time_seconds",
                         "energy_drift", "cross_check_level"):
             assert f"work_precision/{dataset}" in names
-        assert len(f["work_precision/error"]) == 8
+        assert len(f["work_precision/error"]) == 10     # 4 fixed-step, 4 adaptive, 2 step-controlled
         orders = dict(zip(text(f["convergence/fit_scheme"][()]), f["convergence/fitted_order"][()]))
         assert orders["EME_theta"] == pytest.approx(2.0, abs=0.3)
         assert orders["RK4_theta"] == pytest.approx(4.0, abs=0.5)
@@ -395,3 +414,42 @@ def test_an_unreadable_index_is_named_without_a_traceback(studies, tmp_path):
     result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert f"{index}: cannot open as a study index" in result.stderr
+
+
+# ---------------------------------------------------------------- the harder scene set
+@pytest.mark.parametrize("status, reason", [
+    # Statuses as eme_run writes them (copied from runs of the harder scene set).
+    ("failed: incomplete: step 34 (t = 14.2517 s): a step halved 12 times still failed (last: no relaxation root "
+     "gamma in [0.2, 2])", "gamma"),
+    ("failed: incomplete: step 3 (t = 0.7 s): a step halved 12 times still failed (last: gamma = 0.412345 outside "
+     "the band |gamma - 1| <= 2.5E-03 of the tolerance)", "gamma"),
+    ("failed: incomplete: step 2 (t = 0.5 s): step-size underflow: the trial step fell below 3.0E-13 s (last "
+     "rejection: no root from the predictor or from the old state (last: Newton did not converge: DIVERGED_MAX_IT))",
+     "step budget"),
+    ("failed: incomplete: t_end not reached in 1000000 steps", "step budget"),
+    ("failed: incomplete: step 4 (t = 0.8000 s): no root from the predictor or from the old state (last: Newton "
+     "did not converge: DIVERGED_LOCAL_MIN) (also in steps of dt/64)", "no root"),
+    ("failed: incomplete: step 29 (t = 8.7000 s): PETSc TS: the Newton solve of an implicit step diverged "
+     "(TS_DIVERGED_NONLINEAR_SOLVE)", "no root"),
+    ("failed: incomplete: step 1 (t = 0.2000 s): the state left the model's domain (a non-positive temperature, "
+     "or a blow-up)", "domain"),
+    ("failed: incomplete: step 2 (t = 1.0000 s): PETSc TS: a stage left the model's domain, a non-positive "
+     "temperature or spring length (TS_DIVERGED_STEP_REJECTED)", "domain"),
+    ("failed: incomplete: step 9 (t = 3.0 s): SUNDIALS CVODE failed (CV_TOO_MUCH_WORK)", "solver"),
+])
+def test_a_failure_is_classified_by_its_reason(status, reason):
+    assert stability_sets.failure_reason(status) == reason
+
+
+def test_the_set_map_and_the_step_controlled_curves(analysed):
+    """Every scene's two maps are in the summary with their outcomes; EME run with a tolerance is
+    a curve of its own (EME-tol) beside fixed-step EME in the work-precision findings."""
+    output, stdout = analysed
+    with h5py.File(output / "summary.h5", "r") as f:
+        for scene in stability_sets.SCENES:
+            fixed, controlled = f[f"stability_set/{scene}/fixed"], f[f"stability_set/{scene}/tolerance"]
+            assert [s.decode() for s in fixed["scheme"][()]] == ["EME", "RK4", "RRK4"]
+            assert [s.decode() for s in controlled["scheme"][()]] == ["CVODE-BDF", "EME-tol", "RRK4-tol"]
+            np.testing.assert_array_equal(controlled["tolerance"][()], [1e-2, 1e-3, 1e-4])
+            assert (fixed["outcome"][()][0] >= 0).sum() == 2 and (controlled["outcome"][()] >= 0).sum() == 4
+    assert "work precision EME-tol_theta" in stdout and "stability low viscosity (tolerance) EME-tol" in stdout
