@@ -162,12 +162,42 @@ contains
       call say(manager, 'eme_ensemble: '//notes(start:start + i - 2))
       start = start + i
     end do
+    call say_warnings(manager, study)
     call say(manager, 'eme_ensemble: '//integer_text(size(study%cases))//' cases, '//integer_text(size(manager%queue)) &
              //' to run ('//integer_text(manager%done)//' complete from an earlier run), on '//integer_text(ranks) &
              //' rank'//repeat('s', merge(0, 1, ranks == 1))//trim(merge('; only the index is kept (index_only)', &
                                                                       '                                     ', &
                                                                       study%index_only)))
   end subroutine prepare
+
+  ! Each swept setting that a case's integrator does not read, once, with how many cases (the
+  ! base input is a template every case shares: its settings for other integrators are not named).
+  subroutine say_warnings(manager, study)
+    type(study_manager), intent(inout) :: manager
+    type(study_definition), intent(in) :: study
+    character(len=400), allocatable :: seen(:)
+    integer, allocatable :: cases(:)
+    integer :: c, k, w
+
+    allocate (seen(0), cases(0))
+    do c = 1, size(study%cases)
+      if (.not. allocated(study%cases(c)%config%warnings)) cycle
+      do w = 1, size(study%cases(c)%config%warnings)
+        if (index(study%cases(c)%config%warnings(w), study%input_file//': &sweep') /= 1) cycle
+        k = findloc(seen, study%cases(c)%config%warnings(w), dim=1)
+        if (k == 0) then
+          seen = [seen, study%cases(c)%config%warnings(w)]
+          cases = [cases, 1]
+        else
+          cases(k) = cases(k) + 1
+        end if
+      end do
+    end do
+    do k = 1, size(seen)
+      call say(manager, 'eme_ensemble: warning: '//trim(seen(k))//' ('//integer_text(cases(k))//' case'// &
+               repeat('s', merge(0, 1, cases(k) == 1))//')')
+    end do
+  end subroutine say_warnings
 
   subroutine manage(manager, outcome)
     type(study_manager), intent(inout) :: manager
