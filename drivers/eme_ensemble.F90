@@ -10,7 +10,8 @@ program eme_ensemble
   use study_config, only: study_definition, read_study
   use ensemble, only: run_study, study_outcome, world_rank
   use command_help, only: print_study_help, print_integrators
-  use command_line, only: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
+  use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
+                          petsc_help_requested, unused_petsc_options
   use library_versions, only: print_versions
   implicit none
 
@@ -19,6 +20,7 @@ program eme_ensemble
   type(command_arguments) :: arguments
   character(len=:), allocatable :: message, unused
   integer :: stat, rank, exit_status
+  logical :: help
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_ensemble', [character(len=16) :: '--help', '-h', '--version', '--integrators'], &
@@ -33,14 +35,23 @@ program eme_ensemble
     call print_integrators(output_unit, tabular=.true.)
     stop
   end if
-  PetscCallA(PetscInitialize(ierr))
-  PetscCallA(detach_input_file(arguments, ierr))
+  PetscCallA(initialize_petsc(arguments, ierr))
   rank = world_rank()
   exit_status = 0
-  if (stat /= 0) then
+  help = petsc_help_requested()
+  if (help) then
+    if (rank == 0) call print_study_help(output_unit)
+  else if (stat /= 0) then
     if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
     exit_status = 2
   else
+    call check_own_options(stat, message)
+    if (stat /= 0) then
+      if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
+      exit_status = 2
+    end if
+  end if
+  if (exit_status == 0 .and. .not. help) then
     ! Every rank reads and validates the study: the expansion is cheap and deterministic.
     call read_study(arguments%input_file, study, stat, message)
     if (stat /= 0) then

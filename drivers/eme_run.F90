@@ -4,17 +4,20 @@
 !> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error,
 !> 128 + N after signal N (SIGTERM, SIGINT: the file is kept, marked incomplete).
 !> eme_run --help (or -h), --version, --integrators (the registry as a table) and --output-schema
-!> (the HDF5 layout as a table) print and exit with status 0.
+!> (the HDF5 layout as a table) print and exit with status 0; so does PETSc's -help, which also
+!> lists the options the run's solver reads (set up from FILE.nml, not run). One process only:
+!> several ranks are refused (eme_ensemble runs studies on several).
 program eme_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
   use run_config, only: run_configuration, read_run_config
-  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status
+  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only
   use run_options, only: progress_wanted
   use run_output, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
-  use command_line, only: command_arguments, parse_command_line, detach_input_file, unused_petsc_options
+  use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
+                          petsc_help_requested, unused_petsc_options
   use library_versions, only: print_versions
   implicit none
 
@@ -22,7 +25,7 @@ program eme_run
   type(run_summary) :: summary
   type(command_arguments) :: arguments
   character(len=:), allocatable :: message, unused
-  integer :: stat, exit_status
+  integer :: stat, exit_status, ranks, rank, help_stat
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_run', [character(len=16) :: '--help', '-h', '--version', '--integrators', &
@@ -40,21 +43,57 @@ program eme_run
   else if (arguments%has_flag('--output-schema')) then
     call print_output_schema()
     stop
-  else if (stat /= 0) then
-    write (error_unit, '(a)') 'eme_run: '//message
-    stop 2, quiet=.true.
   end if
-  PetscCallA(PetscInitialize(ierr))
-  PetscCallA(detach_input_file(arguments, ierr))
+  PetscCallA(initialize_petsc(arguments, ierr))
+  PetscCallMPIA(MPI_Comm_size(PETSC_COMM_WORLD, ranks, ierr))
+  PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
   exit_status = 0
-  call read_run_config(arguments%input_file, config, stat, message)
-  if (stat /= 0) then
+  if (ranks > 1) then
+    ! Every rank would write the same file: a study of several cases is eme_ensemble's.
+    if (rank == 0) write (error_unit, '(a, i0, a)') 'eme_run: runs one case on one process, not on ', ranks, &
+      ' ranks; for several cases on several ranks: mpirun -n N eme_ensemble STUDY.nml (README, Studies)'
+    exit_status = 2
+  else if (petsc_help_requested()) then
+    ! PETSc's -help: the usage, then every option the run's solver reads as it is set up.
+    call print_run_help(output_unit)
+    if (stat == 0) then
+      call read_run_config(arguments%input_file, config, help_stat, message)
+      if (help_stat == 0) call set_up_only(config, help_stat, message)
+      if (help_stat /= 0) then
+        write (error_unit, '(a)') 'eme_run: '//message
+        exit_status = 2
+      end if
+    end if
+  else if (stat /= 0) then
     write (error_unit, '(a)') 'eme_run: '//message
     exit_status = 2
   else
+    call check_own_options(stat, message)
+    if (stat /= 0) then
+      write (error_unit, '(a)') 'eme_run: '//message
+      exit_status = 2
+    else
+      call read_run_config(arguments%input_file, config, stat, message)
+      if (stat /= 0) then
+        write (error_unit, '(a)') 'eme_run: '//message
+        exit_status = 2
+      else
+        call run_case()
+      end if
+    end if
+  end if
+  PetscCallA(PetscFinalize(ierr))
+  if (exit_status /= 0) stop exit_status, quiet=.true.
+
+contains
+
+  ! The run of `config`, its summary line and warnings; sets exit_status.
+  subroutine run_case()
+    integer :: k
+
     if (allocated(config%warnings)) then
-      do stat = 1, size(config%warnings)
-        write (error_unit, '(a)') 'eme_run: warning: '//trim(config%warnings(stat))
+      do k = 1, size(config%warnings)
+        write (error_unit, '(a)') 'eme_run: warning: '//trim(config%warnings(k))
       end do
     end if
     if (progress_wanted()) then
@@ -79,11 +118,7 @@ program eme_run
       summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'
     unused = unused_petsc_options()
     if (len(unused) > 0) write (error_unit, '(a)') 'eme_run: warning: PETSc options that nothing used: '//unused
-  end if
-  PetscCallA(PetscFinalize(ierr))
-  if (exit_status /= 0) stop exit_status, quiet=.true.
-
-contains
+  end subroutine run_case
 
   ! A progress line on stderr (simulation sends one at most every 2 s).
   subroutine print_progress(text)

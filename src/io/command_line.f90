@@ -1,32 +1,47 @@
 !> The drivers' command line: the program's own options (--help, -h, --version, ...), exactly
 !> one input file, and PETSc options before or after it. A PETSc option ('-name') takes the next
 !> argument as its value, as PETSc reads it, unless that argument ends in '.nml': then it is the
-!> input file, and `detach_input_file` turns the option back into a flag once PETSc has read the
-!> command line. `unused_petsc_options` lists the options nothing used, as -options_left would.
+!> input file. `initialize_petsc` hands PETSc the command line without the input file, so that
+!> no option takes it for its value (-help FILE.nml, -info FILE.nml). `check_own_options` checks
+!> the -eme_* options' values before anything reads them; `unused_petsc_options` lists the
+!> options nothing used, as -options_left would.
 module command_line
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use number_text, only: integer_text
   use namelist_text, only: joined
   implicit none (type, external)
   private
-  public :: command_arguments, parse_command_line, detach_input_file, unused_petsc_options, benchmark_repeats
+  public :: command_arguments, parse_command_line, initialize_petsc, check_own_options, petsc_help_requested
+  public :: unused_petsc_options, benchmark_repeats
 
   !> What the command line asked for.
   type :: command_arguments
     character(len=:), allocatable :: input_file          !! '' when none was given
     character(len=32), allocatable :: flags(:)           !! the program's own options that were given
-    character(len=:), allocatable :: option_before_file  !! the PETSc option PETSc takes the file for the value of
+    integer :: file_position = 0                         !! the input file's place on the command line (0: none)
   contains
     procedure :: has_flag
   end type command_arguments
 
   interface
     ! src/io/petsc_option_checks.c
-    function c_option_as_flag(name) result(status) bind(c, name='eme_petsc_option_as_flag')
+    function c_petsc_initialize(arguments, count) result(status) bind(c, name='eme_petsc_initialize')
       import :: c_char, c_int
-      character(kind=c_char), intent(in) :: name(*)
+      character(kind=c_char), intent(in) :: arguments(*)
+      integer(c_int), value :: count
       integer(c_int) :: status
-    end function c_option_as_flag
+    end function c_petsc_initialize
+    function c_help_requested() result(requested) bind(c, name='eme_petsc_help_requested')
+      import :: c_int
+      integer(c_int) :: requested
+    end function c_help_requested
+    ! src/solver/petsc_options.c
+    function c_check_own_options(message, size) result(status) bind(c, name='eme_check_own_options')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: message(*)
+      integer(c_int), value :: size
+      integer(c_int) :: status
+    end function c_check_own_options
     function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
       import :: c_char, c_int
       character(kind=c_char), intent(out) :: text(*)
@@ -46,18 +61,16 @@ contains
     type(command_arguments), intent(out) :: arguments
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=:), allocatable :: argument, previous, files
+    character(len=:), allocatable :: argument, files
     logical :: after_petsc_option
     integer :: i, file_count
 
     allocate (arguments%flags(0))
     arguments%input_file = ''
-    arguments%option_before_file = ''
     stat = 0
     message = ''
     files = ''
     file_count = 0
-    previous = ''
     after_petsc_option = .false.
     do i = 1, command_argument_count()
       argument = command_argument(i)
@@ -74,13 +87,14 @@ contains
       else if (after_petsc_option .and. .not. ends_with_nml(argument)) then
         after_petsc_option = .false.    ! the option's value
       else
-        if (after_petsc_option) arguments%option_before_file = previous
         file_count = file_count + 1
-        if (file_count == 1) arguments%input_file = argument
+        if (file_count == 1) then
+          arguments%input_file = argument
+          arguments%file_position = i
+        end if
         files = files//' '''//argument//''''
         after_petsc_option = .false.
       end if
-      previous = argument
     end do
     if (stat /= 0) return
     if (file_count == 0) then
@@ -119,15 +133,42 @@ contains
     has_flag = any(self%flags == flag)
   end function has_flag
 
-  !> After PetscInitialize: PETSc took an input file that followed an option for that option's
-  !> value; make the option a flag again. stat /= 0 if PETSc refused.
-  subroutine detach_input_file(arguments, stat)
+  !> PetscInitialize with the command line without the input file and the program's own options
+  !> (PETSc then never takes the file for an option's value). stat: PETSc's error code.
+  subroutine initialize_petsc(arguments, stat)
     type(command_arguments), intent(in) :: arguments
     integer, intent(out) :: stat
+    character(len=:), allocatable :: list, argument
+    integer :: i, count
 
-    stat = 0
-    if (len(arguments%option_before_file) > 0) stat = int(c_option_as_flag(arguments%option_before_file//c_null_char))
-  end subroutine detach_input_file
+    list = command_argument(0)//c_null_char
+    count = 1
+    do i = 1, command_argument_count()
+      argument = command_argument(i)
+      if (i == arguments%file_position .or. arguments%has_flag(argument)) cycle
+      list = list//argument//c_null_char
+      count = count + 1
+    end do
+    stat = int(c_petsc_initialize(list, int(count, c_int)))
+  end subroutine initialize_petsc
+
+  !> After PetscInitialize: stat /= 0 with "-name value: allowed: ..." if an -eme_* option has a
+  !> value it does not take (bad input: nothing has been read or written yet).
+  subroutine check_own_options(stat, message)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(kind=c_char, len=512) :: buffer
+
+    buffer = ''
+    stat = int(c_check_own_options(buffer, len(buffer, kind=c_int)))
+    message = buffer(1:index(buffer, c_null_char) - 1)
+    if (stat == 2) message = 'PETSc could not list its options database'
+  end subroutine check_own_options
+
+  !> Whether PETSc's -help was given (after PetscInitialize).
+  logical function petsc_help_requested()
+    petsc_help_requested = c_help_requested() /= 0
+  end function petsc_help_requested
 
   !> Before PetscFinalize, on every rank (collective): the PETSc options that nothing used on
   !> any rank, blank-separated ('' on ranks other than 0, and if every option was used).
@@ -141,7 +182,7 @@ contains
     names = buffer(1:index(buffer, c_null_char) - 1)
   end function unused_petsc_options
 
-  ! Argument i, whatever its length.
+  ! Argument i (0: the program's name), whatever its length.
   function command_argument(i) result(argument)
     integer, intent(in) :: i
     character(len=:), allocatable :: argument

@@ -1,13 +1,43 @@
 /* The PETSc options database as the drivers' command line needs it (src/io/command_line.f90):
- * an option that PETSc took the input file for as its value becomes a flag again, and the
- * options that nothing used on any rank are listed at the end, as -options_left would. */
+ * PETSc is initialized with the command line without the input file (so that no option takes
+ * FILE.nml for its value: -help FILE.nml, -info FILE.nml), and the options that nothing used on
+ * any rank are listed at the end, as -options_left would. */
+#include <stdlib.h>
 #include <string.h>
 #include <petscsys.h>
 
-/* Option `name` (with its '-') becomes a flag without a value; 0 on success. */
-int eme_petsc_option_as_flag(const char *name)
+/* PetscInitialize (and PetscInitializeFortran) with the `count` arguments in `arguments`, each
+ * NUL-terminated, one after another, the program's name first. Returns a PETSc error code. */
+int eme_petsc_initialize(const char *arguments, int count)
 {
-    return PetscOptionsSetValue(NULL, name, NULL) == 0 ? 0 : -1;
+    /* PETSc keeps argc and argv for PetscGetArgs: they live as long as the program. */
+    static int argc;
+    static char **argv;
+    PetscErrorCode ierr;
+
+    argv = malloc(((size_t)count + 1) * sizeof *argv);
+    if (argv == NULL) return PETSC_ERR_MEM;
+    for (int i = 0; i < count; ++i) {
+        size_t length = strlen(arguments) + 1;
+        argv[i] = malloc(length);
+        if (argv[i] == NULL) return PETSC_ERR_MEM;
+        memcpy(argv[i], arguments, length);
+        arguments += length;
+    }
+    argv[count] = NULL;
+    argc = count;
+    ierr = PetscInitialize(&argc, &argv, NULL, NULL);
+    if (ierr) return (int)ierr;
+    return (int)PetscInitializeFortran();
+}
+
+/* Whether PETSc's -help was given (1) or not (0). */
+int eme_petsc_help_requested(void)
+{
+    PetscBool set = PETSC_FALSE;
+
+    if (PetscOptionsHasName(NULL, NULL, "-help", &set) != 0) return 0;
+    return set == PETSC_TRUE;
 }
 
 /* The options (blank-separated, each with its '-') that were set but never used on any rank

@@ -25,7 +25,7 @@ module simulation
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
-  public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status
+  public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status, set_up_only
 
   real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
 
@@ -412,6 +412,31 @@ contains
       jz = j(3)
     end function angular_momentum_z
   end subroutine run_simulation
+
+  !> Sets up the run's integrator and frees it again, without integrating or writing anything:
+  !> every option it reads is read (PETSc's -help lists them). stat /= 0 with a message if the
+  !> scene cannot be built or PETSc fails.
+  subroutine set_up_only(config, stat, message)
+    type(run_configuration), intent(in) :: config
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    class(time_stepper), allocatable :: integrator
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    type(integrator_entry) :: entry
+    real(real64), allocatable :: z0(:)
+    logical :: found
+    integer :: ierr
+
+    call find_integrator(config%integrator%scheme, entry, found)
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
+    if (stat /= 0) return
+    call entry%build(integrator)
+    call integrator%start(config%integrator, model, constraints, z0, stat)
+    call integrator%release(ierr)
+    if (stat == 0) stat = ierr
+    if (stat /= 0) message = 'PETSc failed to set up the solver'
+  end subroutine set_up_only
 
   ! Whether `path` is a run file that reads back complete.
   logical function holds_complete_run(path)

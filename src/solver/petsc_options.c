@@ -5,10 +5,18 @@
  * (PETSc's options database has no prefix query), and the database's text, for the provenance a
  * run file records. For src/solver/solver_options.f90 and src/run/run_options.F90. */
 #include <petscsys.h>
+#include <ctype.h>
+#include <stdlib.h>
 #include <string.h>
+#include <strings.h>
+
+/* What values an option takes: a logical, an integer in [minimum, maximum], a real > minimum. */
+typedef enum { LOGICAL, INTEGER, REAL } eme_option_kind;
 
 typedef struct {
     const char *name, *value, *help;
+    eme_option_kind kind;
+    double minimum, maximum;
 } eme_option;
 
 /* The step solver's options (README: Solver), then the run's (README: Set-up and use). */
@@ -17,32 +25,104 @@ enum {
     OPTION_COUNT
 };
 static const eme_option options[OPTION_COUNT] = {
-    {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors"},
+    {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors",
+     LOGICAL, 0, 0},
     {"-eme_fused_kernel", "<true>",
      "Solve the double pendulum's step by its fused kernel on the condensed unknowns (9 plus multipliers); "
-     "false: the generic residual on 15 plus multipliers"},
+     "false: the generic residual on 15 plus multipliers",
+     LOGICAL, 0, 0},
     {"-eme_lean_snes", "<true>",
      "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a full-step shell line search, "
-     "unless options need SNES's own Jacobian"},
+     "unless options need SNES's own Jacobian",
+     LOGICAL, 0, 0},
     {"-eme_final_chord", "<true>",
      "Confirm a root whose residual is below tolerance after a small update with the existing LU factors instead "
-     "of a new Jacobian (lean SNES only)"},
+     "of a new Jacobian (lean SNES only)",
+     LOGICAL, 0, 0},
     {"-eme_max_halvings", "<6>",
      "A step whose root no retry strategy finds is replaced by two half steps, recursively up to this depth "
-     "(0 to 30; 0: the run stops at such a step)"},
+     "(0 to 30; 0: the run stops at such a step)",
+     INTEGER, 0, 30},
     {"-eme_error_estimate", "<false>",
      "Compute and record the local error estimate of every step of EME and the midpoint rule also at fixed steps "
-     "(with &integrator tolerance it is always on: it chooses the steps)"},
+     "(with &integrator tolerance it is always on: it chooses the steps)",
+     LOGICAL, 0, 0},
     {"-eme_error_scale", "<1>",
      "Multiply the local error estimate by this factor (> 0) before the step-size controller sees it: above 1 is "
-     "more cautious (the tests use it to plant a wrong estimate)"},
+     "more cautious (the tests use it to plant a wrong estimate)",
+     REAL, 0, 0},
     {"-eme_progress", "<terminal>",
      "Print a progress line on stderr at most every 2 s (simulated time, steps, rate, time left); default: when "
-     "stderr is a terminal"},
+     "stderr is a terminal",
+     LOGICAL, 0, 0},
     {"-eme_overwrite", "<false>",
      "Replace an existing complete output file, as &output overwrite = .true. does (a run that does not complete "
-     "never replaces one)"},
+     "never replaces one)",
+     LOGICAL, 0, 0},
 };
+
+/* Whether `text` is a value PETSc reads as a logical (an empty value is a flag: true). */
+static int is_logical(const char *text)
+{
+    static const char *const words[] = {"", "true", "false", "yes", "no", "on", "off", "1", "0"};
+
+    for (size_t i = 0; i < sizeof words / sizeof words[0]; ++i)
+        if (strcasecmp(text, words[i]) == 0) return 1;
+    return 0;
+}
+
+/* 0 if `value` is allowed for option o, else 1 with "-name value: allowed: ..." in `message`. */
+static int check_value(const eme_option *o, const char *value, char *message, int size)
+{
+    char *end = NULL;
+    int allowed;
+
+    if (o->kind == LOGICAL) {
+        allowed = is_logical(value);
+    } else if (o->kind == INTEGER) {
+        long number = strtol(value, &end, 10);
+        allowed = end != value && *end == '\0' && number >= o->minimum && number <= o->maximum;
+    } else {
+        double number = strtod(value, &end);
+        allowed = end != value && *end == '\0' && number > o->minimum && number < 1e300;
+    }
+    if (allowed) return 0;
+    if (o->kind == LOGICAL)
+        snprintf(message, (size_t)size, "%s %s: allowed: true or false (or nothing: true)", o->name, value);
+    else if (o->kind == INTEGER)
+        snprintf(message, (size_t)size, "%s %s: allowed: an integer from %g to %g", o->name, value, o->minimum,
+                 o->maximum);
+    else
+        snprintf(message, (size_t)size, "%s %s: allowed: a number > %g", o->name, value, o->minimum);
+    return 1;
+}
+
+/* Checks the value of every -eme_* option given before anything reads it: 0 if all are allowed,
+ * else 1 with "-name value: allowed: ..." in `message` (`size` bytes). A bad value is bad input
+ * (the drivers exit with status 2 and write nothing), not a PETSc error. Returns 2 for a PETSc
+ * error. */
+int eme_check_own_options(char *message, int size)
+{
+    char *all, *token, *next;
+    int status = 0;
+
+    message[0] = '\0';
+    /* The database as text ("-name value -flag ..."): reading it marks no option as used, so an
+     * option the run does not read is still named as unused at the end. */
+    if (PetscOptionsGetAll(NULL, &all) != 0) return 2;
+    for (token = strtok(all, " "); token != NULL && status == 0; token = next) {
+        next = strtok(NULL, " ");
+        for (int i = 0; i < OPTION_COUNT; ++i) {
+            if (strcmp(token, options[i].name) != 0) continue;
+            /* The next token is the value unless it is another option (a negative number is a value). */
+            int has_value = next != NULL && !(next[0] == '-' && !isdigit((unsigned char)next[1]) && next[1] != '.');
+            status = check_value(&options[i], has_value ? next : "", message, size);
+            if (has_value) next = strtok(NULL, " ");
+        }
+    }
+    PetscFree(all);
+    return status;
+}
 
 /* The name, default and description of option i (0-based), for --help; 1 past the last. */
 int eme_option_help(int i, char *name, char *value, char *help, int size)

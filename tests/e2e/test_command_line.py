@@ -154,3 +154,60 @@ def test_ensemble_warns_only_about_options_no_rank_used(tmp_path, eme_run_binary
     with h5py.File(output / "index.h5", "r") as f:
         cases = f["cases"][()]
     assert len(set(cases["rank"])) == 2     # both ranks ran cases
+
+
+# ---------------------------------------------------------------- edges a new user hits (issue 24)
+def files_in(folder):
+    return sorted(p.name for p in Path(folder).iterdir())
+
+
+@pytest.mark.parametrize("arguments", [["-help", "{a}"], ["{a}", "-help"], ["-help"]])
+def test_petsc_help_prints_the_help_and_writes_nothing(tmp_path, scene, arguments, eme_run_binary):
+    """PETSc's -help before or after the input file (or without one) prints the usage and, with a
+    file, every option the run's solver reads, then exits 0 without integrating: nothing is written.
+    Before: `-help FILE.nml` made PETSc take FILE.nml for -help's value and abort (exit 62)."""
+    a, output = scene("a")
+    result = run("eme_run", *[x.format(a=a) for x in arguments])
+    assert result.returncode == 0, result.stderr
+    assert "usage: eme_run" in result.stdout
+    if "{a}" in arguments:
+        assert "-eme_max_halvings" in result.stdout and "-snes_atol" in result.stdout
+    assert files_in(tmp_path) == ["a.nml"]
+
+
+def test_an_nml_argument_is_never_an_option_value(tmp_path, scene, eme_run_binary):
+    """-info FILE.nml: -info is a flag (PETSc's info goes to stdout), FILE.nml the input; before,
+    PETSc took FILE.nml as -info's log file name and wrote FILE.nml.0."""
+    a, output = scene("a")
+    result = run("eme_run", "-info", a)
+    assert result.returncode == 0, result.stderr
+    assert "PetscInitialize" in result.stdout
+    assert files_in(tmp_path) == ["a.h5", "a.nml"]
+
+
+@pytest.mark.parametrize("option, value, allowed", [
+    ("-eme_max_halvings", "40", "an integer from 0 to 30"), ("-eme_max_halvings", "two", "an integer from 0 to 30"),
+    ("-eme_fused_kernel", "maybe", "true or false"), ("-eme_error_scale", "-1", "a number > 0"),
+    ("-eme_progress", "2", "true or false")])
+def test_a_bad_option_value_is_bad_input_and_writes_nothing(tmp_path, scene, option, value, allowed,
+                                                            eme_run_binary):
+    """Before: -eme_max_halvings 40 was a PETSc error in the solver's set-up: exit 1 and a stray
+    FILE.part."""
+    a, _ = scene("a")
+    for program in PROGRAMS:
+        result = run(program, a, option, value)
+        assert result.returncode == 2, (program, result.stderr)
+        assert f"{program}: {option} {value}: allowed: {allowed}" in result.stderr
+        assert "PETSC ERROR" not in result.stderr
+        assert files_in(tmp_path) == ["a.nml"]
+
+
+def test_eme_run_refuses_more_than_one_rank(tmp_path, scene, eme_run_binary):
+    """Before: both ranks wrote the same file (and one of five tries failed)."""
+    a, _ = scene("a")
+    result = subprocess.run([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(a)], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 2
+    assert "eme_run: runs one case on one process, not on 2 ranks" in result.stderr
+    assert "mpirun -n N eme_ensemble STUDY.nml" in result.stderr
+    assert files_in(tmp_path) == ["a.nml"]
