@@ -56,7 +56,7 @@ def files_study():
     FILES_OUTPUT.parent.mkdir(parents=True, exist_ok=True)
     path = FILES_OUTPUT.parent / "bench_ensemble_files.nml"
     values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(200))
-    path.write_text(f"&study base = 'inputs/paper_fig4_eme_theta.nml', output_dir = '{FILES_OUTPUT}' /\n"
+    path.write_text(f"&study base = '{ROOT / 'inputs' / 'paper_fig4_eme_theta.nml'}', output_dir = '{FILES_OUTPUT}' /\n"
                     f"&sweep field = 'theta(2)', values = {values} /\n")
     return path
 
@@ -71,7 +71,9 @@ def half_studies():
         output = ROOT / "results" / f"bench_ensemble_half{k + 1}"
         path = output.parent / f"bench_ensemble_half{k + 1}.nml"
         half = text[:sweep.start()] + f"&sweep field = 'theta(1)', values = {', '.join(part)} /" + text[sweep.end():]
-        path.write_text(half.replace("output_dir = 'results/bench_ensemble'", f"output_dir = '{output}'"))
+        half = half.replace("output_dir = '../results/bench_ensemble'", f"output_dir = '{output}'")
+        path.write_text(half.replace("base = 'paper_fig4_eme_theta.nml'",
+                                     f"base = '{ROOT / 'inputs' / 'paper_fig4_eme_theta.nml'}'"))
         halves.append((path, output))
     return halves
 

@@ -22,7 +22,7 @@ module run_config
                             invalid_value_message, choices_text, value_origin
   implicit none (type, external)
   private
-  public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable
+  public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable, field_length
 
   !> The run-level groups, read after the model's.
   character(len=*), parameter :: run_groups(2) = [character(len=16) :: 'integrator', 'output']
@@ -345,6 +345,36 @@ contains
                     associated(x%real_values, y%real_values) .or. associated(x%integer_value, y%integer_value) .or. &
                     associated(x%logical_value, y%logical_value) .or. associated(x%text_value, y%text_value)
   end function same_variable
+
+  !> The number of values field `name` of the eme_run groups holds: 1 for a scalar, the array's
+  !> size for an array of reals (mass: 2, gravity: 3), 0 if there is no such field.
+  integer function field_length(name)
+    character(len=*), intent(in) :: name
+    type(run_configuration), target :: defaults
+    type(group_field), allocatable :: table(:)
+    type(namelist_item) :: no_items(0)
+    character(len=16), allocatable :: groups(:)
+    character(len=:), allocatable :: message
+    integer :: g, k, stat
+
+    field_length = 0
+    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+    call defaults%scene%group_names(groups)
+    do g = 1, size(groups) + 2
+      if (g <= size(groups)) then
+        table = defaults%scene%fields(trim(groups(g)))
+      else if (g == size(groups) + 1) then
+        table = integrator_fields(defaults)
+      else
+        table = output_fields(defaults)
+      end if
+      k = findloc(table%name, name, dim=1)
+      if (k == 0) cycle
+      field_length = 1
+      if (associated(table(k)%real_values)) field_length = size(table(k)%real_values)
+      return
+    end do
+  end function field_length
 
   ! Whether `name` is a field of one of the groups.
   logical function is_field(config, groups, name)

@@ -9,7 +9,7 @@ module study_config
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, lowercase, item_name
   use namelist_group, only: group_field, text_field, reals_field, texts_field, logical_field, integer_field, &
                             read_group, invalid_value_message, parse_subscript
-  use run_config, only: run_configuration, read_run_config, same_variable
+  use run_config, only: run_configuration, read_run_config, same_variable, field_length
   use integrator_settings, only: step_count
   use number_text, only: integer_text
   implicit none (type, external)
@@ -21,11 +21,14 @@ module study_config
   !> A study of this many cases or more keeps only its index unless &study index_only says otherwise.
   integer, parameter :: index_only_from = 1000
 
-  !> One swept field and its values, as namelist value texts ('0.15' or '''eme''').
+  !> One swept field and its values, one namelist value text per case ('0.15', '''eme''', or for
+  !> an array or a section of `elements` reals, '1.0, 2.0'). The index has a column per element.
   type :: study_sweep
     character(len=:), allocatable :: field
     logical :: textual = .false.
-    character(len=64), allocatable :: values(:)
+    integer :: elements = 1              !! values per case
+    integer :: first_element = 1         !! the subscript of the first (field(i:j): i)
+    character(len=256), allocatable :: values(:)
   end type study_sweep
 
   !> One case: its overrides of the base scene, validated configuration and cost estimate.
@@ -97,6 +100,33 @@ contains
     end if
   end subroutine read_study
 
+  ! `path` as seen from the folder of `file`: itself if absolute or empty, else the folder's path
+  ! and it (a file in the current folder: `path` itself).
+  pure function beside(file, path) result(resolved)
+    character(len=*), intent(in) :: file, path
+    character(len=:), allocatable :: resolved
+    integer :: slash
+
+    resolved = path
+    if (len(path) == 0) return
+    if (path(1:1) == '/') return
+    slash = index(file, '/', back=.true.)
+    if (slash > 0) resolved = file(1:slash)//path
+  end function beside
+
+  ! Whether &study sets output_dir.
+  logical function output_dir_given(text, path)
+    character(len=*), intent(in) :: text, path
+    type(namelist_item), allocatable :: items(:)
+    integer :: k
+
+    call group_items(text, 'study', [character(len=1) ::], path, items)
+    output_dir_given = .false.
+    do k = 1, size(items)
+      if (item_name(items(k)%item) == 'output_dir') output_dir_given = .true.
+    end do
+  end function output_dir_given
+
   ! Whether &study sets index_only.
   logical function index_only_given(text, path)
     character(len=*), intent(in) :: text, path
@@ -135,8 +165,12 @@ contains
     if (stat /= 0) return
     definition%index_only = index_only
     definition%repeats = repeats
-    definition%base = trim(base)
+    ! Paths in the study file are relative to its folder (the default output_dir, like eme_run's
+    ! default output file, to the current one).
+    definition%base = beside(definition%input_file, trim(base))
     definition%output_dir = trim(output_dir)
+    if (output_dir_given(text, definition%input_file)) definition%output_dir = beside(definition%input_file, &
+                                                                                       trim(output_dir))
     definition%combine = trim(lowercase(combine))
     if (len(definition%base) == 0) then
       stat = 1
@@ -186,22 +220,75 @@ contains
                 'one list without gaps'
       return
     end if
-    allocate (new_sweep%values(n))
+    if (.not. new_sweep%textual) then
+      call sweep_elements(new_sweep, stat, message)
+      if (stat /= 0) then
+        message = definition%input_file//': &sweep '''//new_sweep%field//''': '//message
+        return
+      end if
+      if (mod(n, new_sweep%elements) /= 0) then
+        stat = 1
+        message = definition%input_file//': &sweep '''//new_sweep%field//''': '//integer_text(n)//' values for '// &
+                  integer_text(new_sweep%elements)//' elements; allowed: a multiple of '// &
+                  integer_text(new_sweep%elements)//', the elements of each case one case after another'
+        return
+      end if
+    end if
+    allocate (new_sweep%values(n/new_sweep%elements))
+    new_sweep%values = ''
     do i = 1, n
       if (new_sweep%textual .and. is_logical_literal(texts(i))) then
         ! Logical fields (fix_length, fix_temperature) take .true. and .false. unquoted.
         new_sweep%values(i) = trim(adjustl(texts(i)))
       else if (new_sweep%textual) then
         new_sweep%values(i) = ''''//trim(texts(i))//''''
-      else if (abs(values(i)) < 1.0e15_real64 .and. abs(values(i) - anint(values(i))) <= 0.0_real64) then
-        ! Whole numbers as integers, so that integer fields (newton_max_iterations) take them too.
-        write (new_sweep%values(i), '(i0)') nint(values(i), int64)
       else
-        write (new_sweep%values(i), '(g0)') values(i)
+        associate (value => new_sweep%values((i - 1)/new_sweep%elements + 1))
+          if (len_trim(value) > 0) value = trim(value)//', '
+          value = trim(value)//number_value(values(i))
+        end associate
       end if
     end do
     call append_sweep(definition%sweeps, new_sweep)
   end subroutine read_sweep_group
+
+  ! How many values a numeric sweep gives each case: a section field(i:j) j - i + 1, a whole array
+  ! its size, anything else 1 (the case's validation refuses what does not fit the field).
+  subroutine sweep_elements(sweep, stat, message)
+    type(study_sweep), intent(inout) :: sweep
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    integer :: first, last, open_at
+
+    stat = 0
+    message = ''
+    open_at = index(sweep%field, '(')
+    if (open_at == 0) then
+      sweep%elements = max(1, field_length(sweep%field))
+      return
+    end if
+    first = 1
+    last = huge(1)
+    call parse_subscript(sweep%field(open_at + 1:), first, last, stat, message)
+    if (stat /= 0) return
+    sweep%first_element = first
+    sweep%elements = last - first + 1
+  end subroutine sweep_elements
+
+  ! A swept number as namelist text: whole numbers as integers, so that integer fields
+  ! (newton_max_iterations) take them too.
+  function number_value(x) result(text)
+    real(real64), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=32) :: buffer
+
+    if (abs(x) < 1.0e15_real64 .and. abs(x - anint(x)) <= 0.0_real64) then
+      write (buffer, '(i0)') nint(x, int64)
+    else
+      write (buffer, '(g0)') x
+    end if
+    text = trim(buffer)
+  end function number_value
 
   !> The fields of &study, bound to the variables that receive them.
   function study_fields(base, output_dir, combine, index_only, repeats) result(fields)
@@ -211,9 +298,10 @@ contains
     type(group_field) :: fields(5)
 
     fields = [ &
-      text_field('base', base, 'the path of an eme_run namelist (the base scene)', ''), &
-      text_field('output_dir', output_dir, 'a directory for the case files and index.h5 (default results/<study name>)', &
-                 ''), &
+      text_field('base', base, 'the path of an eme_run namelist (the base scene), relative to the study file''s '// &
+                 'folder', ''), &
+      text_field('output_dir', output_dir, 'a directory for the case files and index.h5, relative to the study '// &
+                 'file''s folder (default results/<study name> in the current folder)', ''), &
       text_field('combine', combine, "'product' or 'zip' (product: the first sweep varies slowest)", ''), &
       logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false.: a '// &
                     'case file per case too (default: .false. below '//integer_text(index_only_from)//' cases, '// &
@@ -230,8 +318,10 @@ contains
     type(group_field) :: fields(3)
 
     fields = [ &
-      text_field('field', field, 'the name of an eme_run namelist field, e.g. ''dt'' or ''theta(2)''', ''), &
-      reals_field('values', values, 'up to 256 real numbers', '', open_length=.true.), &
+      text_field('field', field, 'the name of an eme_run namelist field, e.g. ''dt'', ''theta(2)'', an array '// &
+                 '''mass'' or a section ''p2(1:2)''', ''), &
+      reals_field('values', values, 'up to 256 real numbers; for an array or section of k elements, k per case '// &
+                  'one case after another', '', open_length=.true.), &
       texts_field('texts', texts, 'up to 256 quoted texts, e.g. ''eme'', ''midpoint''')]
   end function sweep_fields
 
@@ -361,6 +451,8 @@ contains
       call move_alloc(sweeps(i)%field, longer(i)%field)
       call move_alloc(sweeps(i)%values, longer(i)%values)
       longer(i)%textual = sweeps(i)%textual
+      longer(i)%elements = sweeps(i)%elements
+      longer(i)%first_element = sweeps(i)%first_element
     end do
     longer(size(longer)) = new_sweep
     call move_alloc(longer, sweeps)

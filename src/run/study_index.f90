@@ -197,11 +197,18 @@ contains
     call columns%add('case', column_integer)
     call columns%add('file', 64)
     do s = 1, size(study%sweeps)
-      if (study%sweeps(s)%textual) then
-        call columns%add(study%sweeps(s)%field, 64)
-      else
-        call columns%add(study%sweeps(s)%field, column_real)
-      end if
+      associate (sweep => study%sweeps(s))
+        if (sweep%textual) then
+          call columns%add(sweep%field, 64)
+        else if (sweep%elements == 1) then
+          call columns%add(sweep%field, column_real)
+        else
+          ! An array or section: a column per element, name(i).
+          do m = sweep%first_element, sweep%first_element + sweep%elements - 1
+            call columns%add(element_name(sweep%field, m), column_real)
+          end do
+        end if
+      end associate
     end do
     call columns%add('status', status_length)
     call columns%add('failure_kind', kind_length)
@@ -216,7 +223,7 @@ contains
     integer, intent(in) :: c
     real(real64), allocatable, intent(out) :: numbers(:)
     character(len=64), allocatable, intent(out) :: texts(:)
-    real(real64) :: value
+    real(real64), allocatable :: values(:)
     integer :: s, ios
 
     numbers = [real(c, real64)]
@@ -226,13 +233,29 @@ contains
         if (sweep%textual) then
           texts = [character(len=64) :: texts, unquoted(item(index(item, '=') + 1:))]
         else
-          read (item(index(item, '=') + 1:), *, iostat=ios) value
-          if (ios /= 0) value = ieee_value(value, ieee_quiet_nan)
-          numbers = [numbers, value]
+          allocate (values(sweep%elements))
+          read (item(index(item, '=') + 1:), *, iostat=ios) values
+          if (ios /= 0) values = ieee_value(1.0_real64, ieee_quiet_nan)
+          numbers = [numbers, values]
+          deallocate (values)
         end if
       end associate
     end do
   end subroutine case_parameters
+
+  ! 'name(i)' for element i of the swept array or section `field` ('mass' or 'p2(1:2)').
+  pure function element_name(field, i) result(name)
+    character(len=*), intent(in) :: field
+    integer, intent(in) :: i
+    character(len=:), allocatable :: name
+    character(len=16) :: number
+    integer :: open_at
+
+    open_at = index(field, '(')
+    if (open_at == 0) open_at = len(field) + 1
+    write (number, '(i0)') i
+    name = field(1:open_at - 1)//'('//trim(number)//')'
+  end function element_name
 
   ! Writes index.h5: built in memory, written as index.h5.tmp (synced) and renamed over index.h5.
   subroutine write_index(self, stat, message)

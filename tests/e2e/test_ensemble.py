@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 from conftest import BIN, ROOT, read_run, run_eme
+
+BASE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
 from faults import check_run_file, signal_after, wait_for
 
 MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
@@ -402,27 +404,59 @@ def test_a_logical_field_is_swept(tmp_path, eme_run_binary):
 
 
 @pytest.mark.parametrize("text,words", [
-    ("&study base = 'inputs/paper_fig4_eme_theta.nml' /\n&sweep field = 'dtt', values = 0.1 /\n",
+    ("&study base = '{BASE}' /\n&sweep field = 'dtt', values = 0.1 /\n",
      ["&sweep 'dtt'", "'dtt' is not a field of an eme_run namelist group"]),
-    ("&study base = 'inputs/paper_fig4_eme_theta.nml' /\n&sweep field = 'dt', values = -0.1 /\n",
+    ("&study base = '{BASE}' /\n&sweep field = 'dt', values = -0.1 /\n",
      ["&sweep 'dt'", "dt = -0.1 is not allowed", "case 1 of the study"]),
-    ("&study base = 'inputs/paper_fig4_eme_theta.nml', combine = 'zip' /\n"
+    ("&study base = '{BASE}', combine = 'zip' /\n"
      "&sweep field = 'dt', values = 0.1, 0.2 /\n&sweep field = 't_end', values = 1.0 /\n",
      ["combine = 'zip' needs sweeps of equal length"]),
     ("&study combine = 'cartesian' /\n", ["&study", "base is missing"]),
-    ("&study base = 'inputs/paper_fig4_eme_theta.nml', combine = 'cartesian' /\n",
+    ("&study base = '{BASE}', combine = 'cartesian' /\n",
      ["combine = 'cartesian' is not allowed", "'product' or 'zip'"]),
     ("&studdy base = 'x' /\n", ["unknown namelist group &studdy"]),
     ("&study base = 'inputs/missing.nml' /\n", ["inputs/missing.nml: cannot read the input file"]),
-    ("&study base = 'inputs/paper_fig4_eme_theta.nml' /\n&sweep field = 'scheme', texts = 'eme', 'rk4' /\n",
+    ("&study base = '{BASE}' /\n&sweep field = 'scheme', texts = 'eme', 'rk4' /\n",
      ["scheme = 'rk4' is not allowed", "case 2 of the study"]),
 ])
 def test_bad_study_input(tmp_path, eme_run_binary, text, words):
     output = tmp_path / "out"
-    study = write_study(tmp_path, text, name=f"bad_{tmp_path.name}")   # its default output_dir is unused
+    study = write_study(tmp_path, text.replace("{BASE}", str(BASE)), name=f"bad_{tmp_path.name}")   # its default output_dir is unused
     result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 2
     assert str(study) in result.stderr or "inputs/missing.nml" in result.stderr
     for word in words:
         assert word in result.stderr, result.stderr
     assert not output.exists() and not (ROOT / "results" / study.stem).exists()
+
+
+def test_array_sweeps_and_paths_relative_to_the_study_file(tmp_path, eme_run_binary):
+    """Sweeps over a section ('p2(1:2)') and a whole array ('mass'), two values per case, in a
+    product and in a zip; base and output_dir relative to the study file's folder, run from
+    another folder. Before: every such sweep was refused ('p2(1:2)' took one value per case), and
+    base was looked up in the current folder."""
+    folder = tmp_path / "studies"
+    folder.mkdir()
+    (folder / "scene.nml").write_text("&integrator t_end = 0.3 /\n")
+    for combine, count in (("product", 4), ("zip", 2)):
+        study = folder / f"{combine}.nml"
+        study.write_text(f"&study base = 'scene.nml', output_dir = 'out_{combine}', combine = '{combine}' /\n"
+                         "&sweep field = 'p2(1:2)', values = -1, -1,  -2, -3 /\n"
+                         "&sweep field = 'mass', values = 1, 1,  2, 3 /\n")
+        result = subprocess.run([str(BIN / "eme_ensemble"), str(study.relative_to(tmp_path))], capture_output=True,
+                                text=True, cwd=tmp_path, timeout=120)
+        assert result.returncode == 0, result.stderr
+        index = read_index(folder / f"out_{combine}")
+        assert len(index) == count
+        pairs = [((r["p2(1)"], r["p2(2)"]), (r["mass(1)"], r["mass(2)"])) for r in index]
+        expected = [((-1, -1), (1, 1)), ((-1, -1), (2, 3)), ((-2, -3), (1, 1)), ((-2, -3), (2, 3))]
+        assert pairs == (expected if combine == "product" else [expected[0], expected[3]])
+        for row in index:
+            run = read_run(folder / f"out_{combine}" / row["file"].decode())
+            assert list(run["attrs"]["mass"]) == [row["mass(1)"], row["mass(2)"]]
+            np.testing.assert_array_equal(run["state"][0, 9:11], [row["p2(1)"], row["p2(2)"]])
+    bad = folder / "bad.nml"
+    bad.write_text("&study base = 'scene.nml' /\n&sweep field = 'mass', values = 1, 2, 3 /\n")
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(bad)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert "&sweep 'mass': 3 values for 2 elements; allowed: a multiple of 2" in result.stderr
