@@ -86,6 +86,7 @@ module hdf5_series
     procedure :: set_reals
     procedure :: set_integer
     procedure :: set_texts
+    procedure :: set_dataset_texts
     procedure :: get_text
     procedure :: get_reals
   end type hdf5_file
@@ -256,6 +257,22 @@ contains
 
     stat = int(c_write_text_array_attribute(int(self%id, c_int64_t), name//c_null_char, joined_lines(values)//c_null_char))
   end subroutine set_texts
+
+  !> Array of texts as one attribute of the dataset `dataset` (h5py: an array of str).
+  subroutine set_dataset_texts(self, dataset, name, values, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: dataset, name, values(:)
+    integer, intent(out) :: stat
+    integer(hid_t) :: dataset_id
+    integer :: close_stat
+
+    call h5dopen_f(self%id, dataset, dataset_id, stat)
+    if (stat /= 0) return
+    stat = int(c_write_text_array_attribute(int(dataset_id, c_int64_t), name//c_null_char, &
+                                            joined_lines(values)//c_null_char))
+    call h5dclose_f(dataset_id, close_stat)
+    if (stat == 0) stat = close_stat
+  end subroutine set_dataset_texts
 
   !> Scalar real attribute on the file root; with `units`, a text attribute <name>_units too.
   subroutine set_real(self, name, value, stat, units)

@@ -23,6 +23,7 @@ module run_config
   implicit none (type, external)
   private
   public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable, field_length
+  public :: field_units
 
   !> The run-level groups, read after the model's.
   character(len=*), parameter :: run_groups(2) = [character(len=16) :: 'integrator', 'output']
@@ -350,6 +351,25 @@ contains
   !> size for an array of reals (mass: 2, gravity: 3), 0 if there is no such field.
   integer function field_length(name)
     character(len=*), intent(in) :: name
+    character(len=:), allocatable :: units
+
+    call field_facts(name, field_length, units)
+  end function field_length
+
+  !> The units of field `name` of the eme_run groups ('' for a text or logical field, or none).
+  function field_units(name) result(units)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: units
+    integer :: length
+
+    call field_facts(name, length, units)
+  end function field_units
+
+  ! The number of values and the units of field `name` (0 and '' if there is none).
+  subroutine field_facts(name, field_length, units)
+    character(len=*), intent(in) :: name
+    integer, intent(out) :: field_length
+    character(len=:), allocatable, intent(out) :: units
     type(run_configuration), target :: defaults
     type(group_field), allocatable :: table(:)
     type(namelist_item) :: no_items(0)
@@ -358,6 +378,7 @@ contains
     integer :: g, k, stat
 
     field_length = 0
+    units = ''
     call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
     call defaults%scene%group_names(groups)
     do g = 1, size(groups) + 2
@@ -372,9 +393,10 @@ contains
       if (k == 0) cycle
       field_length = 1
       if (associated(table(k)%real_values)) field_length = size(table(k)%real_values)
+      units = trim(table(k)%units)
       return
     end do
-  end function field_length
+  end subroutine field_facts
 
   ! Whether `name` is a field of one of the groups.
   logical function is_field(config, groups, name)

@@ -8,10 +8,8 @@
 !> `eme_run --output-schema` prints the table; the Python tests check real files against it.
 module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use hdf5_series, only: hdf5_file, series_table, check_run_file, file_in_use
   use namelist_group, only: group_field, field_real, field_integer, field_logical
-  use namelist_text, only: lowercase
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
@@ -19,7 +17,7 @@ module run_output
   use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
-  use library_versions, only: library_names, library_version
+  use provenance, only: write_provenance, iso_time
   use stepper, only: step_report, step_diagnostic, solver_report
   use build_info, only: code_version
   use filesystem, only: sync_file, exchange_files, copy_file, remove_file, os_error_text
@@ -132,13 +130,6 @@ module run_output
   real(real64), parameter :: write_interval = 1.0_real64   !! seconds between writes of a long run
   integer, parameter :: buffer_bytes = 4*1024*1024          !! rows held in memory between writes, at most
 
-  interface
-    subroutine c_host_name(text, size) bind(c, name='eme_host_name')
-      import :: c_char, c_int
-      character(kind=c_char), intent(out) :: text(*)
-      integer(c_int), value :: size
-    end subroutine c_host_name
-  end interface
 
   !> A run's file and its two tables of rows (points and steps). It is built in memory and
   !> reaches the disk when the run ends or after write_interval seconds (or a full buffer),
@@ -205,7 +196,10 @@ contains
     call system_clock(self%last_write, self%clock_rate)
     call self%file%create_in_memory(stat)
     if (stat == 0) call write_run_attributes(self%file, config, entry, model, constraints, stat)
-    if (stat == 0) call write_provenance(self%file, config, petsc_options, stat)
+    if (stat == 0) call write_provenance(self%file, 'EME run of '//config%input_file//': '//trim(entry%label)//', '// &
+                                         trim(thermo_variable_names(config%integrator%thermo_variable)), &
+                                         petsc_options, stat)
+    if (stat == 0) call self%file%set_text('namelist', namelist_of_run(config), stat)
     do k = 1, size(extras)
       if (stat /= 0) exit
       if (allocated(extras(k)%text)) then
@@ -676,80 +670,6 @@ contains
       if (stat == 0) call file%set_real(name, value, stat, units=units)
     end subroutine real_attribute
   end subroutine write_run_attributes
-
-  ! How the run was made: the command line, the PETSc options in force, the effective namelist,
-  ! the versions of every library, the host and the start time (end_time comes at the end).
-  subroutine write_provenance(file, config, petsc_options, stat)
-    type(hdf5_file), intent(in) :: file
-    type(run_configuration), intent(in), target :: config
-    character(len=*), intent(in) :: petsc_options
-    integer, intent(out) :: stat
-    character(kind=c_char, len=256) :: host
-    integer :: i
-
-    call c_host_name(host, len(host, kind=c_int))
-    call file%set_text('command_line', command_line(), stat)
-    if (stat == 0) call file%set_text('petsc_options', petsc_options, stat)
-    if (stat == 0) call file%set_text('namelist', namelist_of_run(config), stat)
-    do i = 2, size(library_names)
-      if (stat == 0) call file%set_text('version_'//lowercase(trim(library_names(i))), &
-                                        library_version(trim(library_names(i))), stat)
-    end do
-    if (stat == 0) call file%set_text('host', host(1:index(host, c_null_char) - 1), stat)
-    if (stat == 0) call file%set_text('start_time', iso_time(), stat)
-  end subroutine write_provenance
-
-  ! The program's command line, an argument quoted for a POSIX shell where it needs it.
-  function command_line() result(text)
-    character(len=:), allocatable :: text
-    character(len=:), allocatable :: argument
-    character(len=*), parameter :: plain = 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_./=:,+@%'
-    integer :: i, length
-
-    text = ''
-    do i = 0, command_argument_count()
-      call get_command_argument(i, length=length)
-      allocate (character(len=length) :: argument)
-      call get_command_argument(i, argument)
-      if (i > 0) text = text//' '
-      if (len(argument) > 0 .and. verify(argument, plain) == 0) then
-        text = text//argument
-      else
-        text = text//shell_quoted(argument)
-      end if
-      deallocate (argument)
-    end do
-  end function command_line
-
-  ! The text in single quotes, a quote inside written as '\''.
-  pure function shell_quoted(text) result(quoted)
-    character(len=*), intent(in) :: text
-    character(len=:), allocatable :: quoted
-    character(len=*), parameter :: quote = achar(39), escaped = achar(39)//achar(92)//achar(39)//achar(39)
-    integer :: i
-
-    quoted = quote
-    do i = 1, len(text)
-      if (text(i:i) == quote) then
-        quoted = quoted//escaped
-      else
-        quoted = quoted//text(i:i)
-      end if
-    end do
-    quoted = quoted//quote
-  end function shell_quoted
-
-  ! Now as ISO 8601 local time with its UTC offset, e.g. 2024-05-01T14:03:07+02:00.
-  function iso_time() result(text)
-    character(len=:), allocatable :: text
-    integer :: v(8)
-    character(len=32) :: buffer
-
-    call date_and_time(values=v)
-    write (buffer, '(i4.4, "-", i2.2, "-", i2.2, "T", i2.2, ":", i2.2, ":", i2.2, a, i2.2, ":", i2.2)') v(1:3), &
-      v(5:7), merge('+', '-', v(4) >= 0), abs(v(4))/60, mod(abs(v(4)), 60)
-    text = trim(buffer)
-  end function iso_time
 
   ! The units of a vector dataset's `count` columns: the model's (<state>), the constraints'
   ! (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.

@@ -24,8 +24,11 @@ module study_index
   use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
+  use provenance, only: write_provenance, iso_time
+  use run_options, only: petsc_options_in_force
+  use run_config, only: field_units
   use effective_namelist, only: namelist_of_run
-  use namelist_text, only: blanked
+  use namelist_text, only: blanked, item_name
   use number_text, only: integer_text
   implicit none (type, external)
   private
@@ -43,6 +46,9 @@ module study_index
     'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
     'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'min_temperature', &
     'halved_steps', 'rejected_steps', 'rank', 'run_count']
+  !> The metrics' units, in order.
+  character(len=*), parameter :: metric_units(metric_count) = [character(len=3) :: '1', '1', '1', 's', 's', '1', &
+                                                                'J/K', 'J', 'J s', 'K', '1', '1', '1', '1']
   logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
                                                             .false., .false., .false., .false., .true., .true., .true., &
                                                             .true.]
@@ -62,6 +68,7 @@ module study_index
     type(table_columns) :: columns
     type(case_result), allocatable :: results(:)
     character(len=:), allocatable :: index_path, journal_path
+    character(len=:), allocatable :: started       !! when this run of the study began (ISO 8601)
     integer(int64) :: last_write = 0, clock_rate = 1
   contains
     procedure :: open => open_index
@@ -108,6 +115,7 @@ contains
     integer :: c, rebuilt, rejected
 
     self%study => study
+    self%started = iso_time()
     self%index_path = study%output_dir//'/index.h5'
     self%journal_path = study%output_dir//'/index.journal'
     notes = ''
@@ -243,6 +251,32 @@ contains
     end do
   end subroutine case_parameters
 
+  ! The attribute column_units of /cases: the units of every column, in order ('' for a text).
+  subroutine column_units(file, study, stat)
+    type(hdf5_file), intent(in) :: file
+    type(study_definition), intent(in) :: study
+    integer, intent(out) :: stat
+    character(len=24), allocatable :: units(:)
+    character(len=24) :: unit
+    integer :: s, k
+
+    units = [character(len=24) :: '1', '']
+    do s = 1, size(study%sweeps)
+      associate (sweep => study%sweeps(s))
+        if (sweep%textual) then
+          units = [character(len=24) :: units, '']
+        else
+          unit = field_units(item_name(sweep%field))
+          do k = 1, sweep%elements
+            units = [character(len=24) :: units, unit]
+          end do
+        end if
+      end associate
+    end do
+    units = [character(len=24) :: units, '', '', metric_units]
+    call file%set_dataset_texts('cases', 'column_units', units, stat)
+  end subroutine column_units
+
   ! 'name(i)' for element i of the swept array or section `field` ('mass' or 'p2(1:2)').
   pure function element_name(field, i) result(name)
     character(len=*), intent(in) :: field
@@ -291,6 +325,10 @@ contains
     if (stat == 0) call file%set_integer('index_only', merge(1, 0, self%study%index_only), stat)
     if (stat == 0) call file%set_integer('repeats', self%study%repeats, stat)
     if (stat == 0) call file%set_text('code_version', code_version, stat)
+    if (stat == 0) call write_provenance(file, 'EME study '//self%study%input_file//': '// &
+                                         integer_text(size(self%results))//' cases', petsc_options_in_force(), stat, &
+                                         started=self%started)
+    if (stat == 0) call column_units(file, self%study, stat)
     if (stat == 0) call write_registry(file, stat)
     if (stat == 0) call file%store(self%index_path, .true., stat)
     call file%close(ignored)
