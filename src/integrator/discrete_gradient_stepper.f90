@@ -37,7 +37,7 @@ module discrete_gradient_stepper
   use step_size_control, only: step_controller
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
-  use solver_description, only: add_setting, text_setting, number_setting
+  use solver_description, only: add_setting, text_setting, number_setting, integer_setting
   use number_text, only: integer_text, scientific_text
   implicit none (type, external)
   private
@@ -182,7 +182,7 @@ contains
     call self%solver%describe(report, ierr)
     if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
     call add_setting(report, text_setting('eme_fused_kernel', merge('true ', 'false', self%fused)))
-    call add_setting(report, number_setting('eme_max_halvings', real(self%max_halvings, real64)))
+    call add_setting(report, integer_setting('eme_max_halvings', self%max_halvings))
     call add_setting(report, text_setting('step_control', merge('PI controller on the local error estimate  ', &
                                                                 'fixed steps (halved where no root is found)', &
                                                                 self%adaptive)))

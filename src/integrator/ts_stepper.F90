@@ -16,7 +16,7 @@ module ts_stepper
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, solver_report, no_residual, accept_in_domain
-  use solver_description, only: add_setting, text_setting, number_setting, set_petsc_reasons, reasons_ts
+  use solver_description, only: add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, reasons_ts
   use dense_assembly, only: assemble_jacobian
   implicit none
   private
@@ -303,7 +303,7 @@ contains
       call add_setting(report, number_setting('snes_atol', atol))
       call add_setting(report, number_setting('snes_rtol', rtol))
       call add_setting(report, number_setting('snes_stol', stol))
-      call add_setting(report, number_setting('snes_max_it', real(max_iterations, real64)))
+      call add_setting(report, integer_setting('snes_max_it', max_iterations))
       call add_setting(report, text_setting('ksp_type', ksp_type))
       call add_setting(report, text_setting('pc_type', pc_type))
     end if

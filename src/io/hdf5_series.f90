@@ -30,6 +30,7 @@ module hdf5_series
   !> One dataset fed from columns offset+1 .. offset+width of its table's rows.
   type :: series
     character(len=:), allocatable :: name, units, description, columns, rows, source
+    character(len=:), allocatable :: coordinates         !! CF auxiliary coordinates, '' for none
     integer :: width = 1
     logical :: vector = .false.          !! (rows, width) if true, (rows) if false
     logical :: integer_valued = .false.
@@ -367,17 +368,18 @@ contains
 
   !> Adds a dataset of `width` values per row (a (rows, width) dataset if vector, else (rows))
   !> with `units` and `description` attributes, `columns` (names separated by blanks) and
-  !> `column_units` for a vector, `rows` (what a row is) and `source` (who defines it); `combine`
-  !> says what a file row that stands for several given rows holds ('last' by default). It is
-  !> created in a file by the table's first `write`.
+  !> `column_units` for a vector, `rows` (what a row is), `source` (who defines it) and CF
+  !> `coordinates` (auxiliary coordinate datasets); no `units` where they are ''. `combine` says
+  !> what a file row that stands for several given rows holds ('last' by default). It is created
+  !> in a file by the table's first `write`.
   subroutine define(self, name, width, vector, units, description, integer_valued, columns, rows, source, &
-                    column_units, combine)
+                    column_units, combine, coordinates)
     class(series_table), intent(inout) :: self
     character(len=*), intent(in) :: name, units, description
     integer, intent(in) :: width
     logical, intent(in) :: vector
     logical, intent(in), optional :: integer_valued
-    character(len=*), intent(in), optional :: columns, rows, source, combine
+    character(len=*), intent(in), optional :: columns, rows, source, combine, coordinates
     character(len=*), intent(in), optional :: column_units(:)
     type(series) :: item
 
@@ -387,6 +389,8 @@ contains
     item%columns = ''
     item%rows = ''
     item%source = ''
+    item%coordinates = ''
+    if (present(coordinates)) item%coordinates = coordinates
     if (present(columns)) item%columns = columns
     if (present(rows)) item%rows = rows
     if (present(source)) item%source = source
@@ -663,8 +667,11 @@ contains
     ! A new dataset has no attributes: no existence queries.
     fresh_object%id = file%id
     fresh_object%fresh = .true.
-    call fresh_object%set_text('units', item%units, stat, dataset)
+    stat = 0
+    if (len(item%units) > 0) call fresh_object%set_text('units', item%units, stat, dataset)
     if (stat == 0) call fresh_object%set_text('description', item%description, stat, dataset)
+    if (stat == 0 .and. len(item%coordinates) > 0) call fresh_object%set_text('coordinates', item%coordinates, stat, &
+                                                                               dataset)
     if (stat == 0 .and. len(item%columns) > 0) call fresh_object%set_text('columns', item%columns, stat, dataset)
     if (stat == 0 .and. len(item%rows) > 0) call fresh_object%set_text('rows', item%rows, stat, dataset)
     if (stat == 0 .and. len(item%source) > 0) call fresh_object%set_text('source', item%source, stat, dataset)
@@ -733,6 +740,7 @@ contains
     do i = 1, size(items)
       call move_alloc(items(i)%name, longer(i)%name)
       call move_alloc(items(i)%units, longer(i)%units)
+      call move_alloc(items(i)%coordinates, longer(i)%coordinates)
       call move_alloc(items(i)%description, longer(i)%description)
       call move_alloc(items(i)%columns, longer(i)%columns)
       call move_alloc(items(i)%rows, longer(i)%rows)

@@ -47,7 +47,7 @@ module run_output
   !> Units of a dataset whose columns differ in units.
   character(len=*), parameter :: per_column = '<columns>'
 
-  type(output_dataset), parameter :: output_schema(21) = [ &
+  type(output_dataset), parameter :: output_schema(22) = [ &
     output_dataset('time', 'point', '', 's', .false., 'last', &
                    'time t_n of each point; the dimension scale of every per-point dataset'), &
     output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
@@ -64,6 +64,9 @@ module run_output
     output_dataset('step', 'step', '', '1', .true., 'last', &
                    'the number n (from 1) of the last step the row stands for: the row''s step, or with &output '// &
                    'every = N the N steps up to n; the dimension scale of every per-step dataset'), &
+    output_dataset('step_end_time', 'step', '', 's', .false., 'last', &
+                   'the time at the end of the row''s (last) step: the time coordinate of every per-step dataset '// &
+                   '(their attribute coordinates)'), &
     output_dataset('newton_iterations', 'step', '', '1', .true., 'sum', &
                    'Newton iterations of the step, summed over every solve it took (retries, continuation stages, '// &
                    'substeps); newton_iterations_total / steps_completed is the mean per step'), &
@@ -220,7 +223,7 @@ contains
     do k = 1, size(diagnostics)
       call self%steps%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
                              trim(diagnostics(k)%description), rows='step', source='integrator', &
-                             combine=diagnostics(k)%combine)
+                             combine=diagnostics(k)%combine, coordinates=coordinates(diagnostics(k)%name, 'step'))
     end do
     ! Both tables gain a row per step: together they buffer at most buffer_bytes.
     self%points%capacity_rows = max(1024, buffer_bytes/(8*(self%points%row_width + self%steps%row_width)))
@@ -239,17 +242,29 @@ contains
       if (spec%name == 'scheme_temperature') description = trim(entry%scheme_temperature)
       if (len(columns) == 0) then
         call table%define(trim(spec%name), 1, .false., trim(spec%units), description, &
-                          integer_valued=spec%integer_valued, rows=trim(spec%rows), combine=spec%combine)
+                          integer_valued=spec%integer_valued, rows=trim(spec%rows), combine=spec%combine, &
+                          coordinates=coordinates(spec%name, spec%rows))
         return
       end if
       units = column_units(spec, model, constraints, count_words(columns))
+      ! Columns of different units (the state) carry column_units only: no one units is right.
       common = trim(units(1))
-      if (any(units /= units(1))) common = 'per column: column_units'
+      if (any(units /= units(1))) common = ''
       call table%define(trim(spec%name), count_words(columns), .true., common, description, &
                         integer_valued=spec%integer_valued, columns=columns, rows=trim(spec%rows), &
-                        column_units=units, combine=spec%combine)
+                        column_units=units, combine=spec%combine, coordinates=coordinates(spec%name, spec%rows))
     end subroutine define
   end subroutine create
+
+  ! The CF auxiliary coordinate of a dataset: step_end_time for a per-step one (but the step
+  ! scale and step_end_time itself), none for the others.
+  pure function coordinates(name, rows) result(text)
+    character(len=*), intent(in) :: name, rows
+    character(len=:), allocatable :: text
+
+    text = ''
+    if (rows == 'step' .and. name /= 'step' .and. name /= 'step_end_time') text = 'step_end_time'
+  end function coordinates
 
   !> The solver the integrator used (after its `start`): each setting as a root attribute
   !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
@@ -265,6 +280,8 @@ contains
       associate (item => report%settings(k))
         if (allocated(item%text)) then
           call self%file%set_text('solver_'//trim(item%name), item%text, stat)
+        else if (item%integer_valued) then
+          call self%file%set_integer('solver_'//trim(item%name), nint(item%value), stat, units=trim(item%units))
         else
           call self%file%set_real('solver_'//trim(item%name), item%value, stat, units=trim(item%units))
         end if
@@ -286,12 +303,13 @@ contains
     if (self%steps%pending_count == 0 .or. self%steps%pending_count >= self%every) call commit_rows(self)
   end subroutine record_point
 
-  !> Records step n for every per-step dataset, in the schema's order, then the integrator's
-  !> diagnostics: `cpu_seconds` its CPU time, `entropy_increment` S_n - S_(n-1) and
+  !> Records step n, ending at `time`, for every per-step dataset, in the schema's order, then the
+  !> integrator's diagnostics: `cpu_seconds` its CPU time, `entropy_increment` S_n - S_(n-1) and
   !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
-  subroutine record_step(self, n, report, multipliers, cpu_seconds, entropy_increment, lyapunov_increment)
+  subroutine record_step(self, n, time, report, multipliers, cpu_seconds, entropy_increment, lyapunov_increment)
     class(run_file), intent(inout) :: self
     integer, intent(in) :: n
+    real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), cpu_seconds, entropy_increment, lyapunov_increment
     real(real64), allocatable :: diagnostics(:)
@@ -299,7 +317,8 @@ contains
     if (.not. self%enabled) return
     allocate (diagnostics(0))
     if (allocated(report%diagnostics)) diagnostics = report%diagnostics
-    call self%steps%accumulate([real(n, real64), real(report%newton_iterations, real64), report%scheme_temperature, &
+    call self%steps%accumulate([real(n, real64), time, real(report%newton_iterations, real64), &
+                                report%scheme_temperature, &
                                 real(report%strategy, real64), real(report%solves, real64), &
                                 real(report%rejected, real64), report%residual_norm, &
                                 real(report%converged_reason, real64), cpu_seconds, entropy_increment, &

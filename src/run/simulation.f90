@@ -261,7 +261,7 @@ contains
       x_previous = x
       x = x_new
       call observe(x(1:n_state), energy, entropy, lyapunov)
-      call output%record_step(n, report, x(n_state + 1:), cpu_after - cpu_before, entropy - entropy_old, &
+      call output%record_step(n, time, report, x(n_state + 1:), cpu_after - cpu_before, entropy - entropy_old, &
                               lyapunov - lyapunov_old)
       call record_point(time, x(1:n_state))
       summary%steps_completed = n

@@ -30,7 +30,7 @@ module snes_solver
   use dense_lu, only: lu_factors
   use dense_assembly, only: assemble_jacobian
   use solver_options, only: step_solver_options, read_solver_options, option_given
-  use solver_description, only: solver_report, add_setting, text_setting, number_setting, set_petsc_reasons, &
+  use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
                                 reasons_snes
   implicit none
   private
@@ -287,9 +287,9 @@ contains
     call add_setting(report, number_setting('snes_atol', atol))
     call add_setting(report, number_setting('snes_rtol', rtol))
     call add_setting(report, number_setting('snes_stol', stol))
-    call add_setting(report, number_setting('snes_max_it', real(max_iterations, real64)))
-    call add_setting(report, number_setting('snes_max_funcs', real(max_evaluations, real64)))
-    call add_setting(report, number_setting('snes_lag_jacobian', real(lag, real64)))
+    call add_setting(report, integer_setting('snes_max_it', max_iterations))
+    call add_setting(report, integer_setting('snes_max_funcs', max_evaluations))
+    call add_setting(report, integer_setting('snes_lag_jacobian', lag))
     call add_setting(report, text_setting('snes_convergence_test', 'retry_strategies newton_converged: |F| <= '// &
                                           'snes_atol after an update <= max(snes_atol, snes_stol |x|), or both at '// &
                                           'their rounding'))

@@ -7,7 +7,8 @@ module solver_description
   use, intrinsic :: iso_c_binding, only: c_int, c_char
   implicit none (type, external)
   private
-  public :: setting, solver_report, text_setting, number_setting, no_solver, add_setting, set_petsc_reasons
+  public :: setting, solver_report, text_setting, number_setting, integer_setting, no_solver, add_setting
+  public :: set_petsc_reasons
   public :: reasons_snes, reasons_ts
 
   !> Families of PETSc converged reasons (src/solver/converged_reasons.c).
@@ -29,6 +30,7 @@ module solver_description
     character(len=32) :: name = ''
     character(len=:), allocatable :: text
     real(real64) :: value = 0.0_real64
+    logical :: integer_valued = .false.   !! a count or a flag (written as an integer)
     character(len=8) :: units = '1'
   end type setting
 
@@ -63,6 +65,17 @@ contains
   end function number_setting
 
   !> An integrator that solves no nonlinear system (explicit stages): reason 0 on every step.
+  !> An integer setting (an iteration limit, a lag, a depth).
+  function integer_setting(name, value) result(item)
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: value
+    type(setting) :: item
+
+    item%name = name
+    item%value = real(value, real64)
+    item%integer_valued = .true.
+  end function integer_setting
+
   function no_solver(what) result(report)
     character(len=*), intent(in) :: what
     type(solver_report) :: report

@@ -125,6 +125,9 @@ def test_provenance_attributes(tmp_path, eme_run_binary):
         assert float(tokens[tokens.index(option) + 1]) == value, tokens
     # ... and they reached the solver, which reports its settings as used.
     assert attrs["solver_snes_max_it"] == 40 and attrs["solver_snes_rtol"] == 1e-9
+    # Counts are stored as integers, not as floats.
+    for name in ("solver_snes_max_it", "solver_snes_max_funcs", "solver_snes_lag_jacobian", "solver_eme_max_halvings"):
+        assert np.asarray(attrs[name]).dtype.kind == "i", name
 
     groups = parse_namelist(text(attrs["namelist"]))
     assert {"model", "initial", "constraints", "integrator", "output"} <= set(groups), set(groups)
@@ -282,8 +285,13 @@ def test_xarray_sees_time_and_step(tmp_path, eme_run_binary):
             kinds[rows].append(name)
             variable = ds[name]
             assert variable.dims[0] == ("time" if rows == "point" else "step"), (name, variable.dims)
-            assert variable.attrs["units"] == text(dataset.attrs["units"]), name
+            # Units as the file has them; none on a dataset of columns of different units (state).
+            assert variable.attrs.get("units") == (text(dataset.attrs["units"]) if "units" in dataset.attrs
+                                                   else None), name
             assert np.array_equal(variable.values, dataset[()], equal_nan=True), name
+            if rows == "step" and name != "step_end_time":
+                # Per-step data have the steps' end times as a time coordinate.
+                np.testing.assert_array_equal(variable["step_end_time"].values, f["time"][1:])
             if dataset.ndim == 2:
                 columns = text(dataset.attrs["columns"])
                 assert columns == " ".join(columns.split()), f"{name}: blanks in columns {columns!r}"
@@ -295,6 +303,11 @@ def test_xarray_sees_time_and_step(tmp_path, eme_run_binary):
         assert {"newton_iterations", "residual_norm", "converged_reason", "cpu_seconds",
                 "multiplier"} <= set(kinds["step"]), kinds
         assert ds["energy"].attrs["units"] == "J" and ds["temperature"].attrs["units"] == "K"
+        assert "units" not in ds["state"].attrs and len(f["state"].attrs["column_units"]) == 15
+        # CF global attributes: what the file is, who made it how, after which paper.
+        assert ds.attrs["Conventions"] == "CF-1.8" and "Valdes y Beck" in ds.attrs["references"]
+        assert ds.attrs["title"].startswith("EME run of ") and ds.attrs["source"].startswith("eme ")
+        assert ds.attrs["history"].endswith(text(f.attrs["command_line"])) and "institution" in ds.attrs
         assert list(ds["multiplier_column"].values) == ["lambda_length", "lambda_temperature"]
         assert np.array_equal(ds["temperature"].sel(temperature_column="theta_2").values, f["temperature"][:, 1])
 
