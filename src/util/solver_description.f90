@@ -122,11 +122,13 @@ contains
       longer(i)%name = report%settings(i)%name
       if (allocated(report%settings(i)%text)) call move_alloc(report%settings(i)%text, longer(i)%text)
       longer(i)%value = report%settings(i)%value
+      longer(i)%integer_valued = report%settings(i)%integer_valued
       longer(i)%units = report%settings(i)%units
     end do
     longer(size(longer))%name = item%name
     if (allocated(item%text)) longer(size(longer))%text = item%text
     longer(size(longer))%value = item%value
+    longer(size(longer))%integer_valued = item%integer_valued
     longer(size(longer))%units = item%units
     call move_alloc(longer, report%settings)
   end subroutine add_setting
