@@ -78,7 +78,7 @@ $(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJ
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test run constraints figures study bench clean python-lock
+.PHONY: all deps test run constraints figures study bench clean python-lock version
 
 all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
 
@@ -109,12 +109,17 @@ $(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
 
-# The code version is recompiled in only when `git describe` changes.
-VERSION := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
+# The code's version: the release number of the file VERSION and, in a git checkout, `git describe`
+# ("0.9.0 (git cb77f99-dirty)"); a source tarball without .git has the release number alone. It
+# is recompiled in only when it changes. `make version` prints it.
+RELEASE := $(shell cat VERSION 2>/dev/null || echo unknown)
+GIT_DESCRIPTION := $(shell [ "$$(git rev-parse --show-toplevel 2>/dev/null)" = "$(CURDIR)" ] && \
+                     git describe --always --dirty 2>/dev/null)
+VERSION := $(RELEASE)$(if $(GIT_DESCRIPTION), (git $(GIT_DESCRIPTION)))
 $(BUILD)/version.stamp: FORCE
 	@mkdir -p $(BUILD)
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
-$(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp
+$(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp VERSION
 $(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
@@ -132,7 +137,7 @@ PYTHON_LOCK := postprocess/requirements.lock
 deps: $(BUILD)/.native-deps $(VENV)/.python-deps
 
 # Every goal but these needs the libraries (no goal means `all`).
-ifneq ($(filter-out clean python-lock,$(or $(MAKECMDGOALS),all)),)
+ifneq ($(filter-out clean python-lock version,$(or $(MAKECMDGOALS),all)),)
 include $(BUILD)/config.mk
 endif
 
@@ -255,6 +260,9 @@ constraints: all $(VENV)/.python-deps
 
 test: all $(VENV)/.python-deps
 	$(PYTHON) tests/run_tests.py --bin $(TESTBIN)
+
+version:
+	@echo '$(VERSION)'
 
 clean:
 	rm -rf $(BUILD)

@@ -1,4 +1,5 @@
-!> The code version baked in at build time (git describe, from the Makefile).
+!> The code version baked in at build time: the release number of the file VERSION, with `git
+!> describe` in a git checkout (from the Makefile), e.g. '0.9.0 (git cb77f99)'.
 module build_info
   implicit none (type, external)
   private

@@ -27,7 +27,7 @@ module library_versions
 
 contains
 
-  !> The version of `name` (one of library_names): the code's git description, the library's
+  !> The version of `name` (one of library_names): the code's release and git description, the library's
   !> version as it reports it, or 'unknown' if it does not answer.
   function library_version(name) result(version)
     character(len=*), intent(in) :: name

@@ -56,15 +56,31 @@ def test_version_names_the_code_and_every_library(program, eme_run_binary):
     assert result.returncode == 0 and result.stderr == ""
     lines = result.stdout.splitlines()
     git = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True, cwd=ROOT)
-    assert lines[0].startswith(f"{program} (eme) ") and len(lines[0].split()[-1]) >= 7
+    # "eme_run (eme) 0.9.0 (git cb77f99)": the release of the file VERSION and the git description.
+    release = (ROOT / "VERSION").read_text().strip()
+    assert re.fullmatch(r"\d+\.\d+\.\d+", release)
+    match = re.fullmatch(rf"{program} \(eme\) {re.escape(release)} \(git ([0-9a-z.-]+)\)", lines[0])
+    assert match, lines[0]
     if git.returncode == 0:
         # The build's version is the commit it was built from (the tree may have changed since).
-        assert lines[0].split()[-1].split("-dirty")[0] == git.stdout.strip().split("-dirty")[0]
+        assert match.group(1).split("-dirty")[0] == git.stdout.strip().split("-dirty")[0]
     found = dict(line.split(": ", 1) for line in lines[1:])
     assert set(found) >= {"PETSc", "HDF5", "MPI", "SUNDIALS", "LAPACK", "compiler"}
     for library, version in library_versions_from_elsewhere().items():
         assert found[library].startswith(version), (library, found[library], version)
     assert re.fullmatch(r"\d+\.\d+\.\d+", found["LAPACK"])
+
+
+def test_a_source_tarball_knows_its_release(tmp_path):
+    """A tree without .git (a source tarball, git archive) records the release number of VERSION,
+    not 'unknown' as before."""
+    tree = tmp_path / "tarball"
+    tree.mkdir()
+    for name in ("Makefile", "VERSION"):
+        shutil.copy(ROOT / name, tree / name)
+    result = subprocess.run(["make", "-s", "version"], capture_output=True, text=True, cwd=tree, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == (ROOT / "VERSION").read_text().strip()
 
 
 @pytest.fixture
