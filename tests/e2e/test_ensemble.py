@@ -375,6 +375,25 @@ def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, 
     assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
 
 
+def test_the_slurm_example_fails_when_the_requeue_fails(tmp_path, eme_run_binary):
+    """If scontrol cannot requeue the job (a stand-in that fails), the script exits non-zero, so
+    that Slurm reports the unfinished study as failed. Before: it exited 0."""
+    output = tmp_path / "out"
+    study = large_study(tmp_path, output)
+    tools = tmp_path / "bin"
+    tools.mkdir()
+    (tools / "scontrol").write_text("#!/bin/sh\necho 'scontrol: error: Invalid job id' >&2\nexit 1\n")
+    (tools / "scontrol").chmod(0o755)
+    env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242",
+               EME_LAUNCHER=" ".join([*MPIRUN, "-n", "2"]))
+    script = ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)]
+    code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
+                                  start_marker=output / "case_00002.h5")
+    assert code == 1, out + err
+    assert "scontrol requeue 4242 failed: the study is unfinished" in err
+    assert "pending" in {s.decode() for s in read_index(output)["status"]}
+
+
 def test_single_rank_without_mpirun(small_study, tmp_path):
     study, output = small_study
     result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, cwd=ROOT)
