@@ -2,13 +2,14 @@
 increments X_{n+1} - X_n, for EME_s, EME_theta and EME_u (one run file each).
 
 Increments are drawn on a symmetric-log axis, so a round-off increment of 1e-12 and a
-midpoint-rule increment of 1 J are both readable and the sign is the side of zero. Colour and
-marker say the thermodynamic variable; --compare runs are dashed with open markers.
+midpoint-rule increment of 1 J are both readable and the sign is the side of zero. Every run has its own colour and
+marker (by thermodynamic variable, or by scheme and variable; plotting.run_styles); --compare runs
+are dashed with open markers; --labels names the runs.
 
 Example: plot_balance.py eme_s.h5 eme_theta.h5 eme_u.h5 --compare mp_s.h5 mp_theta.h5 mp_u.h5 -o fig4
 """
-from plotting import (DOUBLE_COLUMN, add_compare_argument, argument_parser, flat_aware_limits, increment_axis,
-                      parse_arguments, plot_marked, plot_points, plt, run_script, save, styled_runs)
+from plotting import (DOUBLE_COLUMN, add_compare_argument, apply_labels, argument_parser, flat_aware_limits,
+                      increment_axis, parse_arguments, plot_marked, plot_points, plt, run_script, save, styled_runs)
 from trajectory import increments, read_run
 
 TITLE = "Energy, entropy and Lyapunov function and their per-step increments"
@@ -45,6 +46,7 @@ def main(argv=None):
     needed = [name for name, _, _ in QUANTITIES]
     runs = [read_run(path, needed) for path in args.files]
     compare = [read_run(path, needed) for path in args.compare]
+    apply_labels(parser, args.labels, [*runs, *compare])
     return save(make_figure(runs, compare), args.output, TITLE, [*runs, *compare])
 
 

@@ -1,9 +1,9 @@
 """Spring temperatures theta_1, theta_2 and the angular momentum drift J_z,n - J_z,0 over time,
-for one or more runs (one curve per run file; colour and marker say the thermodynamic
-variable; --compare runs are dashed with open markers). One journal column wide.
+for one or more runs (one curve per run file, each in its own colour and marker; --compare
+runs are dashed with open markers; --labels names them). One journal column wide.
 """
-from plotting import (SINGLE_COLUMN, add_compare_argument, argument_parser, parse_arguments, plot_marked, plt,
-                      run_script, save, styled_runs)
+from plotting import (SINGLE_COLUMN, add_compare_argument, apply_labels, argument_parser, parse_arguments,
+                      plot_marked, plt, run_script, save, styled_runs)
 from trajectory import jz_drift, read_run
 
 TITLE = "Spring temperatures and angular momentum drift"
@@ -33,6 +33,7 @@ def main(argv=None):
     needed = ["temperature", "angular_momentum"]
     runs = [read_run(path, needed) for path in args.files]
     compare = [read_run(path, needed) for path in args.compare]
+    apply_labels(parser, args.labels, [*runs, *compare])
     return save(make_figure(runs, compare), args.output, TITLE, [*runs, *compare])
 
 

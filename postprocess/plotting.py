@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import SymmetricalLogLocator  # noqa: E402
 
+import integrators  # noqa: E402
 from trajectory import RunFileError  # noqa: E402
 
 # Journal column widths [in]: one column and the full text width.
@@ -126,11 +127,6 @@ def save(fig, output, title, runs=(), lines=()):
     return paths
 
 
-def colour(run):
-    """The run's line colour, by thermodynamic variable."""
-    return VARIABLE_COLOURS.get(run.attrs["thermo_variable"], "black")
-
-
 def variable_position(variable):
     """Place of a thermodynamic variable in VARIABLE_ORDER (unknown ones after)."""
     return VARIABLE_ORDER.index(variable) if variable in VARIABLE_ORDER else len(VARIABLE_ORDER)
@@ -145,21 +141,65 @@ def curve_style(colour, position, filled=True, linestyle="-", shapes=0):
                 markerfacecolor=colour if filled else "none", zorder=2 + 0.1 * position)
 
 
-def run_style(run, compare=False):
-    """A run's curve: colour and nested marker by thermodynamic variable; a compared run is
-    dashed with open markers."""
-    return curve_style(colour(run), variable_position(run.attrs["thermo_variable"]),
-                       filled=not compare, linestyle="--" if compare else "-")
+# Markers of runs that their variables do not tell apart, large to small so that coinciding points
+# of several runs stay visible.
+DISTINCT_MARKERS = (("o", 5.5), ("s", 4.6), ("D", 3.9), ("^", 3.6), ("v", 3.3), ("p", 3.0), ("X", 2.8),
+                    ("*", 2.6), ("P", 2.4), ("h", 2.2))
+# Colours of runs that neither their variable nor their scheme tells apart (Okabe-Ito, then tab10).
+RUN_COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",
+               "tab:brown", "tab:gray", "tab:olive", "tab:purple")
+
+
+def run_styles(runs, compare=False):
+    """One style per run, no two alike in colour or in marker: colour and nested marker by
+    thermodynamic variable while the variables tell the runs apart (the paper's Fig. 4); else a
+    marker of its own per run, in the scheme's colour (the registry's) while the schemes tell the
+    runs apart, otherwise in a colour of its own. Compared runs are dashed with open markers."""
+    keys = [(run.attrs["scheme"], run.attrs["thermo_variable"]) for run in runs]
+    variables = [variable for _, variable in keys]
+    styles = []
+    for index, (scheme, variable) in enumerate(keys):
+        if len(set(variables)) == len(runs):
+            style = curve_style(VARIABLE_COLOURS.get(variable, "black"), variable_position(variable))
+        else:
+            colour = (integrators.colour(scheme) if len(set(keys)) == len(runs) and
+                      len({s for s, _ in keys}) == len(runs) else RUN_COLOURS[index % len(RUN_COLOURS)])
+            marker, size = DISTINCT_MARKERS[index % len(DISTINCT_MARKERS)]
+            style = dict(color=colour, marker=marker, markersize=size, linestyle="-", markerfacecolor=colour,
+                         zorder=2 + 0.1 * index)
+        if compare:
+            style.update(linestyle="--", markerfacecolor="none")
+        styles.append(style)
+    return styles
 
 
 def styled_runs(runs, compare=()):
-    """(run, style) pairs: the runs, then the compared runs (dashed, open markers)."""
-    return [(run, run_style(run)) for run in runs] + [(run, run_style(run, compare=True)) for run in compare]
+    """(run, style) pairs: the runs, then the compared runs (dashed, open markers), each set
+    told apart by run_styles."""
+    return list(zip(runs, run_styles(runs))) + list(zip(compare, run_styles(compare, compare=True)))
 
 
 def add_compare_argument(parser):
     parser.add_argument("--compare", nargs="+", default=[], metavar="FILE.h5",
                         help="midpoint-rule (or any other) runs to overlay, dashed with open markers")
+    parser.add_argument("--labels", nargs="+", default=None, metavar="LABEL",
+                        help="legend labels, one per file (FILE.h5 ... then the --compare files), instead of "
+                             "the scheme, variable and dt; matplotlib math text such as '$\\Delta t$' works")
+
+
+def apply_labels(parser, labels, runs):
+    """Gives each run its --labels entry (a usage error unless there is one per run); without
+    --labels, runs whose labels coincide get their file names added."""
+    if labels is not None:
+        if len(labels) != len(runs):
+            parser.error(f"--labels: {len(labels)} labels for {len(runs)} files; allowed: one per file")
+        for run, label in zip(runs, labels):
+            run.custom_label = label
+        return
+    names = [run.label for run in runs]
+    for run in runs:
+        if names.count(run.label) > 1:
+            run.custom_label = f"{run.label} ({run.path.stem})"
 
 
 def plot_marked(ax, x, y, style, **more):

@@ -33,6 +33,9 @@ OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442"
                    "solver": "#56B4E9", "nonphysical": "#303030"}
 NOT_RUN_COLOUR = "white"
 SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene"}
+LEGEND_COLUMNS = 4
+# The stability map's rows [in]: both scenes side by side, so that the map fits a page.
+MAP_ROW_HEIGHT = 0.2
 
 
 def key_rank(key):
@@ -176,8 +179,9 @@ def floored(values):
 
 def structure_figure(structure, source):
     """Energy error and entropy-law violation against solve time, complete cases."""
-    fig, axes = plt.subplots(1, 2, figsize=(DOUBLE_COLUMN, 4.6), sharex=True)
     rows = structure["rows"]
+    legend_rows = -(-len(curve_keys(rows)) // LEGEND_COLUMNS)
+    fig, axes = plt.subplots(1, 2, figsize=(DOUBLE_COLUMN, 3.6 + 0.17 * legend_rows), sharex=True)
     panels = (("energy", r"energy error max$_n$ |$E_n - E_0$| / |$E_0$|"),
               ("violation", r"entropy decrease max(0, $-$min$_n$ ($S_{n+1} - S_n$)) [J/K]"))
     for ax, (name, ylabel) in zip(axes, panels):
@@ -195,9 +199,10 @@ def structure_figure(structure, source):
     epsilon = axes[0].axhline(np.finfo(float).eps, color="black", linewidth=0.6, linestyle=":")
     axes[0].legend([floor, epsilon], [rf"zeros and values < $10^{{{np.log10(LOG_FLOOR):.0f}}}$", "machine epsilon"],
                    loc="center left", bbox_to_anchor=(0.0, 0.42))
-    # One legend column per scheme: its curves in the three variables.
+    # Four columns, in registry order: the legend stays inside the figure's width (12 columns, one
+    # per scheme, were clipped).
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=max(1, -(-len(handles) // len(VARIABLE_ORDER))))
+    fig.legend(handles, labels, loc="outside lower center", ncols=LEGEND_COLUMNS)
     zero = [plain_name(*key) for key in curve_keys(rows)
             if np.all(structure["violation"][members(rows, key)] == 0)]
     return fig, "Structure against cost: energy error and entropy decrease against solve time", [
@@ -208,46 +213,52 @@ def structure_figure(structure, source):
 
 
 def stability_figure(maps):
-    """One panel per scene, stacked: rows = schemes, columns = dt, cells coloured by outcome."""
+    """One panel per scene, side by side (the same schemes in the same rows): rows = schemes,
+    columns = dt, cells coloured by outcome; fits a page."""
     outcomes = list(OUTCOME_TEXT)
     colours = ListedColormap([NOT_RUN_COLOUR] + [OUTCOME_COLOURS[o] for o in outcomes])
-    heights = [len(grid["keys"]) for grid in maps.values()]
-    fig, axes = plt.subplots(len(maps), 1, figsize=(DOUBLE_COLUMN, 0.2 * sum(heights) + 0.6 * len(maps) + 1.6),
-                             height_ratios=heights, squeeze=False)
-    for ax, (scene, grid) in zip(axes[:, 0], maps.items()):
+    rows = max(len(grid["keys"]) for grid in maps.values())
+    fig, axes = plt.subplots(1, len(maps), figsize=(DOUBLE_COLUMN, MAP_ROW_HEIGHT * rows + 2.9), sharey=True,
+                             squeeze=False)
+    keys = next(iter(maps.values()))["keys"]
+    for ax, (scene, grid) in zip(axes[0], maps.items()):
+        if grid["keys"] != keys:
+            raise ValueError("the stability studies' schemes differ: the side-by-side map needs the same rows")
         outcome = grid["outcome"]
         ax.pcolormesh(outcome + 1, cmap=colours, vmin=0, vmax=len(outcomes), edgecolors="white",
                       linewidth=1.0)
         for i, j in np.ndindex(outcome.shape):
             text = grid["flags"][i, j]
             if np.isfinite(grid["failed_at"][i, j]):
-                text = f"{grid['failed_at'][i, j]:g} s" + (f" {text}" if text else "")
-            if grid["halved"][i, j]:
-                text = (f"{text} " if text else "") + f"h{grid['halved'][i, j]}"
+                text = f"{grid['failed_at'][i, j]:.0f}s" + (f"{text}" if text else "")
+            elif grid["halved"][i, j]:
+                text = (f"{text}" if text else "") + f"h{grid['halved'][i, j]}"
             if text:
                 dark = outcome[i, j] >= 0 and outcomes[outcome[i, j]] == "nonphysical"
                 ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", color="white" if dark else "black")
         # Categorical axes: one labelled tick per cell.
-        ax.set_xticks(np.arange(len(grid["dt"])) + 0.5, [f"{dt:g}" for dt in grid["dt"]])
+        ax.set_xticks(np.arange(len(grid["dt"])) + 0.5, [f"{dt:g}" for dt in grid["dt"]], rotation=90)
         ax.set_yticks(np.arange(len(grid["keys"])) + 0.5, [label(*key) for key in grid["keys"]])
         ax.tick_params(length=0)
-        ax.invert_yaxis()
         ax.set_xlabel(r"time step $\Delta t$ [s]")
-        ax.set_title(f"{SCENE_TITLES.get(scene, scene)}: {grid['scene']}", loc="left")
+        ax.set_title(SCENE_TITLES.get(scene, scene))
+    axes[0, 0].invert_yaxis()
     handles = [Patch(facecolor=OUTCOME_COLOURS[o], edgecolor="0.5", label=OUTCOME_TEXT[o]) for o in outcomes]
     handles.append(Patch(facecolor=NOT_RUN_COLOUR, edgecolor="0.5", label="not in the study"))
-    for text in ("in a cell: V = V also rose (energy error decides the colour)",
+    for text in ("in a cell: 9s = the case failed in the step ending at t = 9 s",
+                 "V = V also rose (energy error decides the colour)",
                  "T = the solver's last rejected root had a temperature <= 0",
-                 "9 s = the case failed in the step ending at t = 9 s",
                  "h3 = 3 steps were rejected and replaced by two halves"):
         handles.append(Line2D([], [], linestyle="none", label=text))
     fig.legend(handles=handles, loc="outside lower center", ncols=1, handlelength=1.5)
     return fig, "Stability map: outcome of every case", [
+        "Scenes: " + "; ".join(f"{SCENE_TITLES.get(scene, scene)}: {grid['scene']}" for scene, grid in maps.items()),
         "Studies: " + "; ".join(f"{SCENE_TITLES.get(scene, scene)}: {grid['source']}" for scene, grid in maps.items()),
         "Precedence: a failed case counts as failed; our solver's 'no root' (it rejected or missed every root) "
         "is a solver failure, marked T when the last rejected root had a temperature <= 0; a finished case with "
         "a temperature <= 0 in /temperature (checked for every finished case) is non-physical; then energy error "
-        "> 1e-6 (marked V when V also rose), then V rising by > 1e-8 J."]
+        "> 1e-6 (marked V when V also rose), then V rising by > 1e-8 J. Failure times are rounded to whole "
+        "seconds (the summary file has them exactly)."]
 
 
 def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor):

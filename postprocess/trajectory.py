@@ -100,7 +100,9 @@ class Run:
     @property
     def label(self):
         """Legend name in the paper's notation with the time step, e.g. EME_theta, dt = 0.15 s,
-        and the incomplete mark."""
+        and the incomplete mark; or the label a plot's --labels gave the run."""
+        if getattr(self, "custom_label", None):
+            return self.custom_label
         text = self.short_label
         if "dt" in self.attrs:
             text += rf", $\Delta t$ = {self.attrs['dt']:g} s"

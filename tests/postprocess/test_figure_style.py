@@ -188,3 +188,41 @@ def test_run_data_are_what_the_files_hold(files):
     run = read_run(files["eme", "entropy"], BALANCE)
     np.testing.assert_array_equal(run.data["energy"], run_data(40, 0.15)["energy"])
     assert not run.incomplete
+
+
+# ---------------------------------------------------------------- runs told apart (issue 24)
+@pytest.mark.parametrize("script", [plot_balance, plot_temperatures])
+def test_runs_of_one_variable_and_several_schemes_are_told_apart(tmp_path, script):
+    """EME_s, RRK8_s and CVODE-BDF_s (one variable, three schemes): three colours and three
+    markers. Before, all three were blue circles."""
+    paths = [write_run(tmp_path / f"{scheme}.h5", steps=20, attributes={
+        "scheme": scheme, "scheme_label": label, "thermo_variable": "entropy", "dt": 0.15})[0]
+        for scheme, label in (("eme", "EME"), ("relaxed_rk8", "RRK8"), ("cvode_bdf", "CVODE-BDF"))]
+    runs = [read_run(path, BALANCE + ["temperature", "angular_momentum"]) for path in paths]
+    fig = script.make_figure(runs)
+    lines = [line for line in fig.axes[0].get_lines() if line.get_label() and not line.get_label().startswith("_")]
+    assert len(lines) == 3
+    assert len({matplotlib.colors.to_hex(line.get_color()) for line in lines}) == 3
+    assert len({line.get_marker() for line in lines}) == 3
+    plotting.plt.close(fig)
+
+
+def test_labels_name_the_runs_and_same_labels_get_the_file(tmp_path):
+    paths = [write_run(tmp_path / f"run_{k}.h5", steps=10, attributes={
+        "scheme": "eme", "scheme_label": "EME", "thermo_variable": "temperature", "dt": 0.15})[0] for k in (1, 2)]
+    output = tmp_path / "figure"
+    plot_balance.main([*map(str, paths), "--labels", "coarse", "fine", "-o", str(output)])
+    caption = (tmp_path / "figure.txt").read_text()
+    assert output.with_suffix(".png").exists() and "run_1.h5" in caption
+    runs = [read_run(path, BALANCE) for path in paths]
+    plotting.apply_labels(None, None, runs)       # without --labels: two equal labels get their files
+    assert [run.label for run in runs] == [r"EME$_{\theta}$, $\Delta t$ = 0.15 s (run_1)",
+                                           r"EME$_{\theta}$, $\Delta t$ = 0.15 s (run_2)"]
+    fig = plot_balance.make_figure([read_run(path, BALANCE) for path in paths])
+    for run, label in zip(runs, ("coarse", "fine")):
+        run.custom_label = label
+    fig = plot_balance.make_figure(runs)
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["coarse", "fine"]
+    plotting.plt.close("all")
+    with pytest.raises(SystemExit):
+        plot_balance.main([*map(str, paths), "--labels", "only one", "-o", str(output)])

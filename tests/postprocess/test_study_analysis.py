@@ -453,3 +453,32 @@ def test_the_set_map_and_the_step_controlled_curves(analysed):
             np.testing.assert_array_equal(controlled["tolerance"][()], [1e-2, 1e-3, 1e-4])
             assert (fixed["outcome"][()][0] >= 0).sum() == 2 and (controlled["outcome"][()] >= 0).sum() == 4
     assert "work precision EME-tol_theta" in stdout and "stability low viscosity (tolerance) EME-tol" in stdout
+
+
+def test_every_scheme_s_legend_and_map_fit_the_page(studies):
+    """With every registered integrator in every variable (36 curves, 33 map rows per scene), the
+    structure-against-cost legend lies inside the figure and the stability map fits a page.
+    Before: 12 legend columns in 7 in (EME and MP cut off), and a map 7 x 16 in."""
+    study_analysis.read_index(studies / "stability_paper")        # registers the integrators
+    with h5py.File(studies / "stability_paper" / "index.h5", "r") as f:
+        names = [row["name"].decode() for row in f["integrators"][()]]
+    variables = ("entropy", "temperature", "internal_energy")
+    rows = [{"scheme": n, "thermo_variable": v, "dt": dt, "index": studies / "x"} for n in names
+            for v in variables for dt in (0.1, 0.2)]
+    structure = {"rows": rows, "solve_time": np.geomspace(1e-3, 1, len(rows)),
+                 "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows))}
+    fig, _, _ = study_plots.structure_figure(structure, "synthetic")
+    fig.canvas.draw()
+    box, page = fig.legends[0].get_window_extent(), fig.bbox
+    assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0 and box.y1 <= page.y1
+    assert len(fig.legends[0].get_texts()) == len(names) * 3
+    keys = [(n, v) for n in names for v in variables if not n.startswith("ts_") or n == "ts_rk4"]
+    steps = np.array([0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0])
+    grid = {"keys": keys, "dt": steps, "outcome": np.zeros((len(keys), 10), dtype=int),
+            "flags": np.full((len(keys), 10), "", dtype=object), "failed_at": np.full((len(keys), 10), np.nan),
+            "halved": np.zeros((len(keys), 10), dtype=int), "scene": "synthetic", "source": "synthetic"}
+    fig, _, _ = study_plots.stability_figure({"paper": grid, "hard": grid})
+    width, height = fig.get_size_inches()
+    assert width <= 7.0 and height <= 10.0, (width, height)
+    assert min(drawn_font_sizes(fig)) >= 8
+    plt.close("all")
