@@ -131,7 +131,8 @@ def assert_same_run(single_path, case_path):
             assert np.array_equal(single[name], case[name]), name
     # Timing and provenance: the namelists differ in &output file, the command lines in the program.
     timing = {"wall_time_seconds", "solve_time_seconds", "input_file", "code_version", "study", "study_case",
-              "study_overrides", "study_rank", "start_time", "end_time", "command_line", "namelist"}
+              "study_overrides", "study_rank", "start_time", "end_time", "command_line", "namelist", "history",
+              "title"}
     for name, value in single["attrs"].items():
         if name not in timing:
             assert np.array_equal(value, case["attrs"][name]), name

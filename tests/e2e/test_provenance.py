@@ -139,10 +139,12 @@ def test_provenance_attributes(tmp_path, eme_run_binary):
 
     version = text(attrs["code_version"])
     assert version and version != "unknown"
-    described = re.fullmatch(r"(?:.*-g)?([0-9a-f]{7,40})(?:-dirty)?", version)
-    assert described, f"code_version {version!r} is not a git description"
+    # The release of the file VERSION and, in a checkout, the git description.
+    described = re.fullmatch(r"(\d+\.\d+\.\d+) \(git (?:.*-g)?([0-9a-f]{7,40})(?:-dirty)?\)", version)
+    assert described, f"code_version {version!r} is not 'RELEASE (git DESCRIPTION)'"
+    assert described.group(1) == (ROOT / "VERSION").read_text().strip()
     if shutil.which("git") and (ROOT / ".git").exists():
-        known = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", described.group(1) + "^{commit}"],
+        known = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", described.group(2) + "^{commit}"],
                                capture_output=True)
         assert known.returncode == 0, f"code_version {version!r} names no commit of {ROOT}"
 

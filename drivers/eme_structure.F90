@@ -1,0 +1,43 @@
+!> eme_structure FILE.nml OUT.h5: the GENERIC structure of FILE.nml's scene at its initial state:
+!> the matrices L and K of eq. (8) with grad E and grad S, for each thermodynamic variable, into
+!> OUT.h5 (src/run/structure_file). postprocess/plot_structure.py draws them (the paper's Fig. 2).
+!> Exit status: 0 written, 2 bad input or usage (nothing written), 1 HDF5 failed.
+program eme_structure
+#include <petsc/finclude/petscsys.h>
+  use petscsys
+  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use run_config, only: run_configuration, read_run_config
+  use structure_file, only: write_structure_file
+  implicit none
+
+  type(run_configuration) :: config
+  character(len=:), allocatable :: message
+  character(len=4096) :: input, output
+  integer :: stat, exit_status
+  PetscErrorCode :: ierr
+
+  if (command_argument_count() /= 2) then
+    write (error_unit, '(a)') 'usage: eme_structure FILE.nml OUT.h5 (L, K, grad E, grad S of the scene at its '// &
+      'initial state, for each thermodynamic variable)'
+    stop 2, quiet=.true.
+  end if
+  call get_command_argument(1, input)
+  call get_command_argument(2, output)
+  PetscCallA(PetscInitializeNoArguments(ierr))
+  exit_status = 0
+  call read_run_config(trim(input), config, stat, message)
+  if (stat /= 0) then
+    write (error_unit, '(a)') 'eme_structure: '//message
+    exit_status = 2
+  else
+    call write_structure_file(config, trim(output), stat, message)
+    if (stat /= 0) then
+      write (error_unit, '(a)') 'eme_structure: '//message
+      exit_status = 1
+    else
+      write (output_unit, '(a)') 'eme_structure: wrote '//trim(output)
+    end if
+  end if
+  PetscCallA(PetscFinalize(ierr))
+  if (exit_status /= 0) stop exit_status, quiet=.true.
+end program eme_structure
