@@ -212,10 +212,17 @@ EME_FILES := $(foreach v,entropy theta internal_energy,results/paper_fig4_eme_$(
 MIDPOINT_FILES := $(foreach v,entropy theta internal_energy,results/paper_fig4_midpoint_$(v).h5)
 FIG5_FILES := $(foreach c,fixed_length fixed_temperature both,results/paper_fig5_$(c).h5)
 PLOT_DEPS := postprocess/plotting.py postprocess/trajectory.py postprocess/integrators.py $(VENV)/.python-deps
-FIGURE_FILES := $(foreach f,fig3_snapshots fig4_eme fig4_eme_vs_midpoint fig5_constrained temperatures_jz,$(FIGURES)/$(f).png)
+FIGURE_FILES := $(foreach f,fig2_structure fig3_snapshots fig4_eme fig4_eme_vs_midpoint fig5_constrained \
+                temperatures_jz,$(FIGURES)/$(f).png)
 
 figures: $(FIGURE_FILES)
 
+# Fig. 2: L and K of eq. (8) at the paper scene's initial state, for each thermodynamic variable.
+results/structure.h5: inputs/paper_fig3.nml $(BIN)/eme_structure
+	@mkdir -p results
+	$(BIN)/eme_structure $< $@
+$(FIGURES)/fig2_structure.png: results/structure.h5 postprocess/plot_structure.py $(PLOT_DEPS)
+	$(PYTHON) postprocess/plot_structure.py $< -o $(basename $@)
 # Fig. 3 at the paper's times 0, 8, 16 and 24 s, from the EME_theta run on [0, 24] s.
 $(FIGURES)/fig3_snapshots.png: results/paper_fig3.h5 postprocess/plot_snapshots.py $(PLOT_DEPS)
 	$(PYTHON) postprocess/plot_snapshots.py $< --times 0 8 16 24 -o $(basename $@)

@@ -86,6 +86,8 @@ def make_figure(matrices):
             image = draw_matrix(axes[row, column], data[name], data["columns"],
                                 f"${name}$, {symbol}: {np.count_nonzero(data[name])} nonzero entries")
             bar = fig.colorbar(image, ax=axes[row, column], shrink=0.85)
+            top = 10.0 ** np.floor(np.log10(np.max(np.abs(data[name]))))
+            bar.set_ticks([-top, -top * 1e-4, 0.0, top * 1e-4, top])
             bar.set_label(f"entry of ${name}$ (white: exactly 0)")
     return fig
 
