@@ -18,7 +18,6 @@ BUILD := build
 OBJ := $(BUILD)/obj
 MOD := $(BUILD)/mod
 BIN := $(BUILD)/bin
-TESTBIN := $(BUILD)/tests
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 
@@ -46,11 +45,7 @@ CFLAGS := -O2 -g -Wall -Wextra -std=c11 $(ARCH_FLAGS)
 LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c))
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
-UNIT_TESTS := $(basename $(notdir $(wildcard tests/unit/test_*.f90 tests/unit/test_*.F90)))
-TEST_SUPPORT_SOURCES := $(wildcard tests/unit/support/*.f90 tests/oracles/*.f90)
-TEST_SUPPORT := $(patsubst %,$(OBJ)/%.o,$(basename $(TEST_SUPPORT_SOURCES)))
-FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90) $(TEST_SUPPORT_SOURCES) \
-    $(wildcard tests/unit/test_*.f90 tests/unit/test_*.F90)
+FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90)
 
 # obj: the objects of the modules it uses (only modules of this project have a source file).
 $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
@@ -71,16 +66,15 @@ $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solv
 $(OBJ)/src/solver/snes_solver.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
 $(OBJ)/src/model/length_constraint.o \
 $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
-$(OBJ)/src/model/pendulum_model.o $(OBJ)/tests/unit/support/single_spring_model.o $(OBJ)/src/model/invariant_function.o \
-$(OBJ)/tests/unit/support/scripted_solver.o $(OBJ)/src/solver/lapack_newton.o: FFLAGS += -Wno-unused-dummy-argument
+$(OBJ)/src/model/pendulum_model.o $(OBJ)/src/model/invariant_function.o \
+$(OBJ)/src/solver/lapack_newton.o: FFLAGS += -Wno-unused-dummy-argument
 $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): FFLAGS += $(KERNEL_FLAGS)
-$(patsubst %,$(OBJ)/tests/unit/%.o,$(UNIT_TESTS)): $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
 .PHONY: all deps test run constraints figures study bench clean python-lock version
 
-all: $(patsubst %,$(BIN)/%,$(DRIVERS)) $(patsubst %,$(TESTBIN)/%,$(UNIT_TESTS))
+all: $(patsubst %,$(BIN)/%,$(DRIVERS))
 
 $(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
@@ -105,9 +99,61 @@ SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdens
                  -lsundials_sunnonlinsolfixedpoint
 LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas
 
-$(TESTBIN)/%: $(OBJ)/tests/unit/%.o $(TEST_SUPPORT) $(LIBRARY_OBJECTS)
+# ---------------------------------------------------------------- unit tests
+# The suites tests/unit/test_*.pf are pFUnit tests (tests/README.md). They run under pFUnit when
+# PFUNIT_DIR names an installation (make test PFUNIT_DIR=...; with its include/PFUNIT.mk) or one
+# is found where .ci/run builds it, ~/.cache/pfunit-4.14/PFUNIT-4.14; else (PFUNIT_DIR=none, or
+# none found) under the fallback runner of tests/unit/fallback, which reads the same files. Each
+# runner builds in a folder of its own, build/unit-<runner>, one program per suite in its bin/.
+PFUNIT_DIR ?= $(firstword $(wildcard $(HOME)/.cache/pfunit-4.14/PFUNIT-4.14))
+UNIT_RUNNER := $(if $(wildcard $(PFUNIT_DIR)/include/PFUNIT.mk),pfunit,fallback)
+UNIT := $(BUILD)/unit-$(UNIT_RUNNER)
+TESTBIN := $(UNIT)/bin
+UNIT_SUITES := $(basename $(notdir $(wildcard tests/unit/test_*.pf)))
+UNIT_PROGRAMS := $(patsubst %,$(TESTBIN)/%,$(UNIT_SUITES))
+UNIT_OBJECTS := $(patsubst %,$(UNIT)/%.o,$(UNIT_SUITES))
+UNIT_DRIVERS := $(patsubst %,$(UNIT)/%_driver.o,$(UNIT_SUITES))
+all: $(UNIT_PROGRAMS)
+TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values fixtures scripted_solver single_spring_model paper_free_energy)
+UNIT_FFLAGS = -J$(UNIT)/mod -I$(UNIT)/mod $(filter-out -J$(MOD),$(FFLAGS)) -Wno-unused-dummy-argument
+ifeq ($(UNIT_RUNNER),pfunit)
+include $(PFUNIT_DIR)/include/PFUNIT.mk
+UNIT_FLAGS = $(PFUNIT_EXTRA_FFLAGS)
+UNIT_LIBS = $(PFUNIT_LIBRARIES)
+FUNIT :=
+$(UNIT)/%.F90: tests/unit/%.pf | $(UNIT)/mod
+	$(PFUNIT_BIN_DIR)/funitproc $< $@ > /dev/null
+$(UNIT)/%_suites.inc: | $(UNIT)/mod
+	echo 'ADD_TEST_SUITE($*_suite)' > $@
+$(UNIT_DRIVERS): $(UNIT)/%_driver.o: $(UNIT)/%_suites.inc $(UNIT)/%.o
+	$(FC) $(UNIT_FFLAGS) -ffree-line-length-none $(UNIT_FLAGS) -D_TEST_SUITES='"$<"' -c $(PFUNIT_INCLUDE_DIR)/driver.F90 -o $@
+else
+UNIT_FLAGS :=
+UNIT_LIBS :=
+# The fallback's module funit, in place of pFUnit's.
+FUNIT := $(UNIT)/funit.o
+$(UNIT)/%.F90 $(UNIT)/%_driver.F90: tests/unit/%.pf tests/unit/fallback/pf_lite.py | $(UNIT)/mod
+	python3 tests/unit/fallback/pf_lite.py $< $(UNIT)
+$(UNIT_DRIVERS): $(UNIT)/%_driver.o: $(UNIT)/%_driver.F90 $(UNIT)/%.o
+	$(FC) $(UNIT_FFLAGS) -ffree-line-length-none -c $< -o $@
+$(UNIT)/funit.o: tests/unit/fallback/funit.f90 | $(UNIT)/mod
+	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) -c $< -o $@
+endif
+$(UNIT)/mod:
+	@mkdir -p $@
+# Test support (tests/unit/support, tests/oracles), then each suite, then its driver.
+$(UNIT)/%.o: tests/unit/support/%.f90 $(FUNIT) $(LIBRARY_OBJECTS) | $(UNIT)/mod
+	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) $(UNIT_FLAGS) $(PETSC_INCLUDES) -c $< -o $@
+$(UNIT)/%.o: tests/oracles/%.f90 $(LIBRARY_OBJECTS) | $(UNIT)/mod
+	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) -c $< -o $@
+$(UNIT)/fixtures.o: $(UNIT)/close_values.o
+$(UNIT_OBJECTS): $(UNIT)/%.o: $(UNIT)/%.F90 $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
+	$(FC) $(UNIT_FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) $(UNIT_FLAGS) -c $< -o $@
+$(TESTBIN)/%: $(UNIT)/%_driver.o $(UNIT)/%.o $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
-	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
+	$(FC) $(FFLAGS) -o $@ $^ $(UNIT_LIBS) $(LINK_LIBS)
+# The generated sources are kept for reading the failures' lines.
+.PRECIOUS: $(UNIT)/%.F90 $(UNIT)/%_driver.F90 $(UNIT)/%_suites.inc
 
 # The code's version: the release number of the file VERSION and, in a git checkout, `git describe`
 # ("0.9.0 (git cb77f99-dirty)"); a source tarball without .git has the release number alone. It
@@ -266,7 +312,7 @@ constraints: all $(VENV)/.python-deps
 	$(call run_and_summarize,$(CONSTRAINT_RUNS))
 
 test: all $(VENV)/.python-deps
-	$(PYTHON) tests/run_tests.py --bin $(TESTBIN)
+	$(PYTHON) tests/run_tests.py --bin $(TESTBIN) --runner '$(UNIT_RUNNER)' --pfunit-dir '$(PFUNIT_DIR)'
 
 version:
 	@echo '$(VERSION)'

@@ -1,12 +1,18 @@
 #!/usr/bin/env python3
-"""Runs every test and ends with one line: "N passed, M failed".
+"""Runs every test and ends with one line: "N passed, M failed" (tests/README.md).
 
-Fortran unit-test programs (build/tests/test_*) register their tests by name (`test_x --list`);
-each test runs in a process of its own (`test_x NAME`) and prints one "PASS ..." or "FAIL ..."
-line per check; a test that dies without reporting a failure counts as one failure. The Python tests
-(end-to-end runs of the drivers, postprocessing) run under pytest and are counted per test.
+The Fortran unit tests are pFUnit suites (tests/unit/test_*.pf), built as one program per suite
+in build/tests, under pFUnit or the fallback runner (the Makefile chooses; --runner says which,
+and the first line printed names it). Under pFUnit each suite program runs once and writes TAP;
+pFUnit's own summary is printed. Under the fallback runner each test runs in a process of its
+own (`test_x NAME`), so that a crash fails that test and hides no other. A suite that dies
+without reporting counts as one failure. The Python tests (end-to-end runs of the drivers,
+postprocessing) run under pytest. Counted are tests: a pFUnit test (each parameterized case one)
+and a pytest test.
 """
 import argparse
+import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -14,47 +20,81 @@ import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+TAP_LINE = re.compile(r"^\s*(not ok|ok)\b(?:\s+\d+)?\s*-?\s*(.*)$")
 
 
-def run_fortran(binary_dir):
-    """Runs every registered test of every program in a process of its own (tests/unit/test_runner.f90),
-    so that a crash in one test is reported as that test's failure and hides no other."""
-    passed = failed = 0
-    for program in sorted(Path(binary_dir).glob("test_*")):
-        listing = subprocess.run([str(program), "--list"], capture_output=True, text=True, cwd=ROOT)
-        names = listing.stdout.split("\n") if listing.returncode == 0 else []
-        names = [name for name in names if name.strip()]
-        if not names:
-            print(f"FAIL {program.name}: --list gave no tests (exit status {listing.returncode})\n"
-                  f"{listing.stderr[-2000:]}")
-            failed += 1
+def tap_counts(lines):
+    """(passed, failed names) from TAP-like 'ok - NAME' and 'not ok - NAME' lines."""
+    passed, failed = 0, []
+    for line in lines:
+        match = TAP_LINE.match(line)
+        if not match:
             continue
-        program_passed = program_failed = 0
-        for name in names:
-            result = subprocess.run([str(program), name], capture_output=True, text=True, cwd=ROOT)
-            lines = result.stdout.splitlines()
-            passes = sum(line.startswith("PASS ") for line in lines)
-            failures = [line for line in lines if line.startswith("FAIL ")]
-            for line in failures:
-                print(line)
-            if result.returncode != 0 and not failures:
-                print(f"FAIL {program.name} {name}: exited with status {result.returncode}\n{result.stderr[-2000:]}")
-                failures = ["crash"]
-            if passes + len(failures) == 0:
-                print(f"FAIL {program.name} {name}: made no check")
-                failures = ["no check"]
-            program_passed += passes
-            program_failed += len(failures)
-        print(f"{program.name}: {len(names)} tests, {program_passed} checks passed, {program_failed} failed")
-        passed += program_passed
-        failed += program_failed
+        if match.group(1) == "ok":
+            passed += 1
+        else:
+            failed.append(match.group(2).strip())
     return passed, failed
 
 
-def run_pytest(paths):
+def run_pfunit_suite(program):
+    """One suite under pFUnit: (passed, failed)."""
+    with tempfile.TemporaryDirectory() as scratch:
+        tap = Path(scratch) / "suite.tap"
+        result = subprocess.run([str(program), "-t", str(tap)], capture_output=True, text=True, cwd=ROOT)
+        lines = tap.read_text().splitlines() if tap.exists() else []
+    passed, failed = tap_counts(lines)
+    summary = [line for line in result.stdout.splitlines() if line.strip() and set(line.strip()) - {"."}]
+    print(f"{program.name}:", *summary[-3:] if not failed else summary, sep="\n  ")
+    if result.returncode not in (0, 2) or passed + len(failed) == 0:
+        print(f"FAIL {program.name}: exited with status {result.returncode} after {passed + len(failed)} tests\n"
+              f"{result.stderr[-2000:]}")
+        failed.append("crash")
+    return passed, len(failed)
+
+
+def run_fallback_suite(program):
+    """One suite under the fallback runner, each test in a process of its own: (passed, failed)."""
+    listing = subprocess.run([str(program), "--list"], capture_output=True, text=True, cwd=ROOT)
+    names = [name for name in listing.stdout.splitlines() if name.strip()] if listing.returncode == 0 else []
+    if not names:
+        print(f"FAIL {program.name}: --list gave no tests (exit status {listing.returncode})\n{listing.stderr[-2000:]}")
+        return 0, 1
+    passed = failed = 0
+    for name in names:
+        result = subprocess.run([str(program), name], capture_output=True, text=True, cwd=ROOT)
+        ok, not_ok = tap_counts(result.stdout.splitlines())
+        if not_ok:
+            print(result.stdout.rstrip())
+        if ok + len(not_ok) != 1:
+            print(f"FAIL {program.name} {name}: exited with status {result.returncode} without a verdict\n"
+                  f"{result.stdout[-2000:]}{result.stderr[-2000:]}")
+            not_ok = ["crash"]
+            ok = 0
+        passed += ok
+        failed += len(not_ok)
+    print(f"{program.name}: {len(names)} tests, {passed} passed, {failed} failed")
+    return passed, failed
+
+
+def run_units(binary_dir, runner):
+    passed = failed = 0
+    programs = sorted(Path(binary_dir).glob("test_*"))
+    if not programs:
+        print(f"FAIL unit tests: no suite programs in {binary_dir} (run make first)")
+        return 0, 1
+    for program in programs:
+        p, f = run_pfunit_suite(program) if runner == "pfunit" else run_fallback_suite(program)
+        passed += p
+        failed += f
+    return passed, failed
+
+
+def run_pytest(paths, workers):
     with tempfile.TemporaryDirectory() as scratch:
         report = Path(scratch) / "pytest.xml"
-        result = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+        parallel = ["-n", str(workers)] if workers > 1 else []
+        result = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *parallel,
                                  f"--junitxml={report}", *paths], cwd=ROOT)
         if not report.exists():
             print(f"FAIL pytest: no report (exit status {result.returncode})")
@@ -71,13 +111,25 @@ def run_pytest(paths):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--bin", default=str(ROOT / "build" / "tests"), help="folder of Fortran test programs")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--bin", default=str(ROOT / "build" / "tests"), help="folder of the unit-test suite programs")
+    parser.add_argument("--runner", choices=("pfunit", "fallback"), default="fallback",
+                        help="the runner the suites were built for (the Makefile's UNIT_RUNNER)")
+    parser.add_argument("--pfunit-dir", default="", help="the pFUnit installation (for the first line)")
+    parser.add_argument("--workers", type=int, default=int(os.environ.get("EME_TEST_WORKERS", "1")),
+                        help="pytest workers (pytest-xdist); default EME_TEST_WORKERS or 1")
     parser.add_argument("pytest_paths", nargs="*", default=["tests"], help="pytest targets (default: tests)")
     args = parser.parse_args()
-    fortran_passed, fortran_failed = run_fortran(args.bin)
-    python_passed, python_failed = run_pytest(args.pytest_paths)
-    passed, failed = fortran_passed + python_passed, fortran_failed + python_failed
+    if args.runner == "pfunit":
+        print(f"unit tests: pFUnit ({args.pfunit_dir})")
+    else:
+        print("unit tests: the fallback runner of tests/unit/fallback (no pFUnit found: give PFUNIT_DIR, or see "
+              "tests/README.md)")
+    unit_passed, unit_failed = run_units(args.bin, args.runner)
+    python_passed, python_failed = run_pytest(args.pytest_paths, args.workers)
+    print(f"unit tests: {unit_passed} passed, {unit_failed} failed; pytest: {python_passed} passed, "
+          f"{python_failed} failed")
+    passed, failed = unit_passed + python_passed, unit_failed + python_failed
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0
 

@@ -2,7 +2,8 @@
 !> central-difference checks of analytic derivatives (tolerance ~ sqrt(epsilon), CONVENTIONS).
 module fixtures
   use, intrinsic :: iso_fortran_env, only: real64
-  use assertions, only: test_suite
+  use funit, only: assertTrue
+  use close_values, only: is_close, closeness
   use invariant_function, only: invariant_functions
   use model_parameters, only: pendulum_parameters
   use paper_free_energy, only: paper_psi
@@ -78,8 +79,7 @@ contains
   end function random_state
 
   !> Checks grad and Hessian of `fun` at x against central differences with steps h(:).
-  subroutine check_derivatives(suite, name, fun, x, h, k)
-    type(test_suite), intent(inout) :: suite
+  subroutine check_derivatives(name, fun, x, h, k)
     character(len=*), intent(in) :: name
     class(invariant_functions), intent(in) :: fun
     real(real64), intent(in) :: x(:), h(:)
@@ -100,10 +100,13 @@ contains
       fd_g(i, :) = (fp - fm)/(2*h(i))
       fd_h(:, i, :) = (gp - gm)/(2*h(i))
     end do
-    call suite%check_close(name//' gradient', reshape(g, [size(g)]), reshape(fd_g, [size(g)]), &
-                           rtol=1.0e-6_real64, atol=1.0e-7_real64*maxval(abs(g)))
-    call suite%check_close(name//' Hessian', reshape(hess, [size(hess)]), reshape(fd_h, [size(hess)]), &
-                           rtol=1.0e-6_real64, atol=1.0e-7_real64*maxval(abs(hess)))
+    call assertTrue(is_close(reshape(g, [size(g)]), reshape(fd_g, [size(g)]), 1.0e-6_real64, &
+                             1.0e-7_real64*maxval(abs(g))), name//' gradient: '// &
+                    closeness(reshape(g, [size(g)]), reshape(fd_g, [size(g)]), 1.0e-6_real64, 1.0e-7_real64*maxval(abs(g))))
+    call assertTrue(is_close(reshape(hess, [size(hess)]), reshape(fd_h, [size(hess)]), 1.0e-6_real64, &
+                             1.0e-7_real64*maxval(abs(hess))), name//' Hessian: '// &
+                    closeness(reshape(hess, [size(hess)]), reshape(fd_h, [size(hess)]), 1.0e-6_real64, &
+                              1.0e-7_real64*maxval(abs(hess))))
   end subroutine check_derivatives
 
   !> Largest entry of |J - J_fd| / (1 + |J|), J_fd by central differences of the problem's
