@@ -132,7 +132,7 @@ UNIT_FLAGS :=
 UNIT_LIBS :=
 # The fallback's module funit, in place of pFUnit's.
 FUNIT := $(UNIT)/funit.o
-$(UNIT)/%.F90 $(UNIT)/%_driver.F90: tests/unit/%.pf tests/unit/fallback/pf_lite.py | $(UNIT)/mod
+$(UNIT)/%.F90 $(UNIT)/%_driver.F90: tests/unit/%.pf tests/unit/fallback/pf_lite.py tests/unit/fallback/driver_template.F90 | $(UNIT)/mod
 	python3 tests/unit/fallback/pf_lite.py $< $(UNIT)
 $(UNIT_DRIVERS): $(UNIT)/%_driver.o: $(UNIT)/%_driver.F90 $(UNIT)/%.o
 	$(FC) $(UNIT_FFLAGS) -ffree-line-length-none -c $< -o $@

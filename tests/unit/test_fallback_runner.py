@@ -108,11 +108,11 @@ def test_an_unknown_name_is_refused(sample):
     assert result.returncode == 2 and "no test named 'missing'" in result.stdout
 
 
-@pytest.mark.parametrize("line, words", [("  @testCase(constructor=new_case)", "@testCase is not in the fallback's subset"),
+@pytest.mark.parametrize("line, words", [("  @mpiTest(npes=[1, 2])", "@mpiTest is not in the fallback's subset"),
                                           ("  @assertTrue(x .and. &", "must be one whole line")])
 def test_syntax_outside_the_subset_is_refused(tmp_path, line, words):
     (tmp_path / "test_bad.pf").write_text(SUITE.replace("contains\n", f"{line}\ncontains\n", 1)
-                                          if "testCase" in line else SUITE.replace(
+                                          if "mpiTest" in line else SUITE.replace(
                                               "    @assertFalse(.false.)", line))
     result = subprocess.run([sys.executable, str(FALLBACK / "pf_lite.py"), str(tmp_path / "test_bad.pf"),
                              str(tmp_path / "out")], capture_output=True, text=True)

@@ -1,14 +1,16 @@
 !> The part of pFUnit's `funit` API the project's tests use, for machines without pFUnit
 !> (tests/README.md, Unit tests): assertTrue, assertFalse and assertEqual (integers; reals with an
 !> absolute tolerance, scalars and arrays) with pFUnit's arguments (message, tolerance, location),
-!> anyExceptions, SourceLocation, and what tests/unit/fallback/pf_lite.py's drivers need to run a
-!> test and report it. A failed assertion prints pFUnit's kind of report (the test, the location,
+!> anyExceptions, SourceLocation, the base types of parameterized tests (AbstractTestParameter
+!> with its toString, ParameterizedTestCase), and what tests/unit/fallback/pf_lite.py's drivers
+!> need to run a test and report it. A failed assertion prints pFUnit's kind of report (the test, the location,
 !> the message, expected and actual) and marks the running test failed.
 module funit
   use, intrinsic :: iso_fortran_env, only: real64, output_unit
   implicit none
   private
   public :: assertTrue, assertFalse, assertEqual, anyExceptions, SourceLocation
+  public :: AbstractTestParameter, ParameterizedTestCase
   public :: fallback_start_test, fallback_test_failed
 
   !> Where an assertion stands in its .pf file.
@@ -16,6 +18,24 @@ module funit
     character(len=256) :: file_name = '<unknown file>'
     integer :: line_number = 0
   end type SourceLocation
+
+  !> A parameter of a parameterized test; toString names it in the test's name.
+  type, abstract :: AbstractTestParameter
+  contains
+    procedure(parameter_text), deferred :: toString
+  end type AbstractTestParameter
+
+  !> The test object a parameterized test receives as `this`.
+  type :: ParameterizedTestCase
+  end type ParameterizedTestCase
+
+  abstract interface
+    function parameter_text(this) result(text)
+      import :: AbstractTestParameter
+      class(AbstractTestParameter), intent(in) :: this
+      character(:), allocatable :: text
+    end function parameter_text
+  end interface
 
   interface assertEqual
     module procedure equal_integers, equal_reals, equal_real_arrays

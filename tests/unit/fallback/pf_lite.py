@@ -4,6 +4,13 @@ module tests/unit/fallback/funit.f90 runs, plus a driver program (tests/README.m
 
 It handles exactly the part of pFUnit's syntax the project's tests use, and refuses the rest:
   @test              before `subroutine NAME()`: a test
+  @test(cases = [1, 2, 3])
+                     before `subroutine NAME(this)`: a test run once per case (integer literals,
+                     as pFUnit reads them), with `this` made by the @testCase constructor from
+                     the @testParameter constructor's parameter of the case; named
+                     NAME[the parameter's toString]
+  @testParameter(constructor=F)   before the parameter type (extends AbstractTestParameter)
+  @testCase(constructor=G)        before the test-case type (extends ParameterizedTestCase)
   @before            before `subroutine NAME()`: called before every test of the suite
   @assertTrue(...)   \\
   @assertFalse(...)   > one line each: `call assertX(..., location=...)`, then the test returns
@@ -21,7 +28,13 @@ import sys
 from pathlib import Path
 
 ASSERTIONS = ("assertTrue", "assertFalse", "assertEqual")
-SUBROUTINE = re.compile(r"^\s*subroutine\s+(\w+)\s*\(\s*\)", re.IGNORECASE)
+SUBROUTINE = re.compile(r"^\s*subroutine\s+(\w+)\s*\(\s*(this)?\s*\)", re.IGNORECASE)
+TYPE = re.compile(r"^\s*type\s*,\s*extends\s*\(\s*\w+\s*\)\s*::\s*(\w+)", re.IGNORECASE)
+CASES = re.compile(r"^@test\s*\(\s*cases\s*=\s*\[([^\]]*)\]\s*\)$", re.IGNORECASE)
+CONSTRUCTOR = re.compile(r"^@(testParameter|testCase)\s*\(\s*constructor\s*=\s*(\w+)\s*\)$", re.IGNORECASE)
+SUBSET = ("@test, @test(cases = [...]), @testParameter, @testCase, @before, @assertTrue, @assertFalse, "
+          "@assertEqual")
+DRIVER = Path(__file__).with_name("driver_template.F90")
 
 
 class SyntaxProblem(Exception):
@@ -47,116 +60,118 @@ def closing_parenthesis(text, start):
     return -1
 
 
+def assertion(line, name, number):
+    """The Fortran of one @assert line, or None if the line is none."""
+    match = re.match(r"^(\s*)@(\w+)(.*)$", line)
+    if not match:
+        return None
+    indent, directive, rest = match.groups()
+    if directive not in ASSERTIONS:
+        raise SyntaxProblem(f"{name}:{number}: @{directive} is not in the fallback's subset of pFUnit ({SUBSET})")
+    end = closing_parenthesis(rest, rest.find("("))
+    if not rest.lstrip().startswith("(") or end < 0 or rest[end + 1:].strip():
+        raise SyntaxProblem(f"{name}:{number}: @{directive}(...) must be one whole line")
+    arguments = rest[rest.find("(") + 1:end]
+    return [f"{indent}call {directive}({arguments}, location=SourceLocation('{name}', {number}))",
+            f"{indent}if (anyExceptions()) return"]
+
+
 def translate(source, name):
-    """(Fortran text, module name, tests, before) of a .pf text."""
-    lines, out, tests, before, pending = source.split("\n"), [], [], None, None
-    module = None
-    for number, line in enumerate(lines, start=1):
+    """(Fortran text, suite) of a .pf text. suite: module, tests [(name, cases or None)], before,
+    and the parameterized tests' case type, case constructor and parameter constructor."""
+    out = []
+    suite = {"module": None, "tests": [], "before": None, "case_type": None, "case": None, "parameter": None}
+    pending = pending_type = None
+    for number, line in enumerate(source.split("\n"), start=1):
         stripped = line.strip()
         match = re.match(r"^module\s+(\w+)\s*$", stripped, re.IGNORECASE)
-        if match and module is None:
-            module = match.group(1)
+        if match and suite["module"] is None:
+            suite["module"] = match.group(1)
         if pending:
             match = SUBROUTINE.match(line)
             if match:
-                if pending == "@test":
-                    tests.append(match.group(1))
+                if pending[0] == "@before":
+                    suite["before"] = match.group(1)
+                elif (pending[1] is None) != (match.group(2) is None):
+                    raise SyntaxProblem(f"{name}:{number}: a test with cases takes `this`, a test without none")
                 else:
-                    before = match.group(1)
+                    suite["tests"].append((match.group(1), pending[1]))
                 pending = None
             elif stripped and not stripped.startswith("!"):
-                raise SyntaxProblem(f"{name}:{number}: {pending} must stand right before 'subroutine NAME()'")
+                raise SyntaxProblem(f"{name}:{number}: {pending[0]} must stand right before 'subroutine NAME()'")
+        if pending_type:
+            match = TYPE.match(line)
+            if match:
+                if pending_type == "testcase":
+                    suite["case_type"] = match.group(1)
+                pending_type = None
         if stripped.lower() in ("@test", "@test()", "@before"):
-            pending = "@test" if stripped.lower().startswith("@test") else "@before"
+            pending = ("@before" if stripped.lower() == "@before" else "@test", None)
             continue
-        match = re.match(r"^(\s*)@(\w+)(.*)$", line)
+        match = CASES.match(stripped)
         if match:
-            indent, directive, rest = match.groups()
-            if directive not in ASSERTIONS:
-                raise SyntaxProblem(f"{name}:{number}: @{directive} is not in the fallback's subset of pFUnit "
-                                    "(@test, @before, @assertTrue, @assertFalse, @assertEqual)")
-            end = closing_parenthesis(rest, rest.find("("))
-            if not rest.lstrip().startswith("(") or end < 0 or rest[end + 1:].strip():
-                raise SyntaxProblem(f"{name}:{number}: @{directive}(...) must be one whole line")
-            arguments = rest[rest.find("(") + 1:end]
-            out.append(f"{indent}call {directive}({arguments}, location=SourceLocation('{name}', {number}))")
-            out.append(f"{indent}if (anyExceptions()) return")
+            cases = [case.strip() for case in match.group(1).split(",") if case.strip()]
+            if not cases or not all(re.fullmatch(r"[+-]?\d+", case) for case in cases):
+                raise SyntaxProblem(f"{name}:{number}: cases must be integer literals, as pFUnit reads them")
+            pending = ("@test", cases)
             continue
-        out.append(line)
-    if module is None:
+        match = CONSTRUCTOR.match(stripped)
+        if match:
+            pending_type = match.group(1).lower()
+            suite["case" if pending_type == "testcase" else "parameter"] = match.group(2)
+            continue
+        translated = assertion(line, name, number)
+        out.extend(translated if translated else [line])
+    if suite["module"] is None:
         raise SyntaxProblem(f"{name}: no 'module NAME' line")
-    if not tests:
+    if not suite["tests"]:
         raise SyntaxProblem(f"{name}: no @test")
-    return "\n".join(out), module, tests, before
+    if any(cases for _, cases in suite["tests"]) and not (suite["case_type"] and suite["case"] and suite["parameter"]):
+        raise SyntaxProblem(f"{name}: tests with cases need @testParameter(constructor=...) and "
+                            "@testCase(constructor=...) types")
+    return "\n".join(out), suite
 
 
-def driver(module, tests, before):
-    """The program that runs the suite's tests."""
-    names = ", ".join(f"'{test}'" for test in tests)
-    width = max(len(test) for test in tests)
-    cases = "\n".join(f"    case ({k})\n      call {test}()" for k, test in enumerate(tests, start=1))
-    setup = f"\n    call {before}()" if before else ""
-    uses = ", ".join(tests + ([before] if before else []))
-    return f"""! Generated by tests/unit/fallback/pf_lite.py from {module}.pf: runs its tests without pFUnit.
-program {module}_driver
-  use funit, only: fallback_start_test, fallback_test_failed
-  use {module}, only: {uses}
-  implicit none
-  character(len={width}), parameter :: names({len(tests)}) = [character(len={width}) :: {names}]
-  character(len=256) :: argument
-  integer :: k, i, run_count, failures
-
-  run_count = 0
-  failures = 0
-  if (command_argument_count() == 0) then
-    do k = 1, size(names)
-      call run(k)
-    end do
-  else
-    call get_command_argument(1, argument)
-    if (argument == '--list') then
-      do k = 1, size(names)
-        write (*, '(a)') trim(names(k))
-      end do
-      stop
-    end if
-    do i = 1, command_argument_count()
-      call get_command_argument(i, argument)
-      k = findloc(names, trim(argument), dim=1)
-      if (k == 0) then
-        write (*, '(a)') '{module}: no test named '''//trim(argument)//'''; --list names them'
-        stop 2
-      end if
-      call run(k)
-    end do
-  end if
-  if (failures == 0) then
-    write (*, '(a, i0, a)') 'OK (', run_count, ' tests)'
-  else
-    write (*, '(a, i0, a, i0)') 'FAILURES!!! Tests run: ', run_count, ', Failures: ', failures
-    stop 1
-  end if
-
-contains
-
-  subroutine run(k)
-    integer, intent(in) :: k
-
-    call fallback_start_test('{module}.'//trim(names(k))){setup}
-    select case (k)
-{cases}
-    end select
-    run_count = run_count + 1
-    if (fallback_test_failed()) then
-      failures = failures + 1
-      write (*, '(a)') 'not ok - {module}.'//trim(names(k))
-    else
-      write (*, '(a)') 'ok - {module}.'//trim(names(k))
-    end if
-    flush (6)
-  end subroutine run
-end program {module}_driver
-"""
+def driver(suite):
+    """The program that runs the suite's tests, each case of a parameterized test on its own
+    (tests/unit/fallback/driver_template.F90 filled in)."""
+    runs = []          # (test, the statements that run it, its case or None)
+    for test, cases in suite["tests"]:
+        if cases is None:
+            runs.append((test, f"call {test}()", None))
+        else:
+            for case in cases:
+                runs.append((test, f"this = {suite['case']}({suite['parameter']}({case}))\n"
+                                   f"      call {test}(this)", case))
+    used = {test for test, _ in suite["tests"]}
+    if suite["before"]:
+        used.add(suite["before"])
+    if suite["case_type"]:
+        used |= {suite["case_type"], suite["case"], suite["parameter"]}
+    names = "\n".join(f"    case ({k})\n      text = '{test}'"
+                      + (f"//'['//text_of({suite['parameter']}({case}))//']'" if case is not None else "")
+                      for k, (test, _, case) in enumerate(runs, start=1))
+    text_of = ""
+    if suite["case_type"]:
+        text_of = (f"\n  ! A parameter's name (its toString).\n  function text_of(parameter) result(text)\n"
+                   f"    class(AbstractTestParameter), intent(in) :: parameter\n"
+                   f"    character(len=:), allocatable :: text\n\n    text = parameter%toString()\n"
+                   f"  end function text_of\n")
+    fills = {
+        "MODULE": suite["module"],
+        "USES": ", ".join(sorted(used)),
+        "COUNT": str(len(runs)),
+        "NAMES": names,
+        "CASES": "\n".join(f"    case ({k})\n      {statements}" for k, (_, statements, _) in enumerate(runs, start=1)),
+        "BEFORE": f"\n    call {suite['before']}()" if suite["before"] else "",
+        "THIS": f"\n    type({suite['case_type']}) :: this" if suite["case_type"] else "",
+        "FUNIT_USES": ", AbstractTestParameter" if suite["case_type"] else "",
+        "TEXT_OF": text_of,
+    }
+    text = DRIVER.read_text()
+    for key, value in fills.items():
+        text = text.replace(f"@{key}@", value)
+    return text
 
 
 def main(argv):
@@ -165,14 +180,14 @@ def main(argv):
         return 2
     source, output = Path(argv[1]), Path(argv[2])
     try:
-        text, module, tests, before = translate(source.read_text(), source.name)
+        text, suite = translate(source.read_text(), source.name)
     except SyntaxProblem as problem:
         print(f"pf_lite.py: {problem}", file=sys.stderr)
         return 1
     output.mkdir(parents=True, exist_ok=True)
     (output / f"{source.stem}.F90").write_text(f"! Generated by tests/unit/fallback/pf_lite.py from {source}.\n"
                                                 + text)
-    (output / f"{source.stem}_driver.F90").write_text(driver(module, tests, before))
+    (output / f"{source.stem}_driver.F90").write_text(driver(suite))
     return 0
 
 
