@@ -256,24 +256,19 @@ contains
     type(hdf5_file), intent(in) :: file
     type(study_definition), intent(in) :: study
     integer, intent(out) :: stat
-    character(len=24), allocatable :: units(:)
-    character(len=24) :: unit
-    integer :: s, k
+    character(len=24) :: units(2 + sum(study%sweeps%elements) + 2 + metric_count)
+    integer :: s, next
 
-    units = [character(len=24) :: '1', '']
+    units = ''
+    units(1) = '1'                        ! case; file is a text
+    next = 3
     do s = 1, size(study%sweeps)
       associate (sweep => study%sweeps(s))
-        if (sweep%textual) then
-          units = [character(len=24) :: units, '']
-        else
-          unit = field_units(item_name(sweep%field))
-          do k = 1, sweep%elements
-            units = [character(len=24) :: units, unit]
-          end do
-        end if
+        if (.not. sweep%textual) units(next:next + sweep%elements - 1) = field_units(item_name(sweep%field))
+        next = next + sweep%elements
       end associate
     end do
-    units = [character(len=24) :: units, '', '', metric_units]
+    units(next + 2:) = metric_units       ! after status and failure_kind
     call file%set_dataset_texts('cases', 'column_units', units, stat)
   end subroutine column_units
 

@@ -1,5 +1,5 @@
 !> Namelist files as text: the whole file without comments, its group names, and a group split
-!> into `name = value` items, so that src/io/namelist_group reads each item on its own (a failing
+!> into `name = value` items, so that src/util/namelist_group reads each item on its own (a failing
 !> item is known by name) and extra items (overrides) can follow the file's.
 module namelist_text
   use, intrinsic :: iso_fortran_env, only: real64
@@ -23,7 +23,7 @@ module namelist_text
   end type namelist_item
 
   interface
-    ! src/io/input_file_check.c: 0 and the size of a readable regular file, else -1 and the reason.
+    ! src/util/input_file_check.c: 0 and the size of a readable regular file, else -1 and the reason.
     function c_check_input_file(path, size, reason, reason_size) result(status) bind(c, name='eme_check_input_file')
       import :: c_char, c_int, c_long_long
       character(kind=c_char), intent(in) :: path(*)

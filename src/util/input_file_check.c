@@ -1,6 +1,6 @@
 /* Whether an input file can be read as a namelist, asked of the OS before Fortran opens it:
  * a FIFO would block Fortran's open and a device (/dev/zero) would never end, so the file is
- * opened non-blocking and must be a regular file. Called from src/io/namelist_text.f90. */
+ * opened non-blocking and must be a regular file. Called from src/util/namelist_text.f90. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <fcntl.h>

@@ -1,0 +1,60 @@
+"""The layers of docs/architecture.md hold in the code: no module uses one of a higher layer
+(folder), and the module graph has no cycle. The checks see a planted upward `use` and a planted
+cycle in a copy of the sources."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import module_graph  # noqa: E402
+
+
+def test_the_code_keeps_its_layers_and_has_no_cycle():
+    nodes, edges = module_graph.graph(ROOT)
+    assert len(nodes) > 60 and len(edges) > 200          # the whole code was read
+    assert module_graph.upward(nodes, edges) == []
+    assert module_graph.cycles(nodes, edges) == []
+    # Fortran's calls of C are edges too: the run file's output calls the HDF5 storage shim.
+    assert ("hdf5_series", "hdf5_storage.c") in edges
+
+
+@pytest.fixture
+def copy(tmp_path):
+    for folder in ("src", "drivers"):
+        shutil.copytree(ROOT / folder, tmp_path / folder)
+    return tmp_path
+
+
+def test_a_planted_upward_use_is_found(copy):
+    text = (copy / "src" / "util" / "number_text.f90").read_text()
+    (copy / "src" / "util" / "number_text.f90").write_text(
+        text.replace("  implicit none", "  use simulation, only: run_simulation\n  implicit none", 1))
+    result = subprocess.run([sys.executable, str(ROOT / "tests" / "architecture" / "module_graph.py"), "--check",
+                             "--root", str(copy)], capture_output=True, text=True)
+    assert result.returncode == 1
+    assert "number_text (util) uses simulation (run), a higher layer" in result.stdout
+
+
+def test_a_planted_cycle_is_found(copy):
+    text = (copy / "src" / "util" / "statistics.f90").read_text()
+    (copy / "src" / "util" / "statistics.f90").write_text(
+        text.replace("  implicit none", "  use number_text, only: integer_text\n  implicit none", 1))
+    text = (copy / "src" / "util" / "number_text.f90").read_text()
+    (copy / "src" / "util" / "number_text.f90").write_text(
+        text.replace("  implicit none", "  use statistics, only: median\n  implicit none", 1))
+    nodes, edges = module_graph.graph(copy)
+    cycle = module_graph.cycles(nodes, edges)
+    assert set(cycle) == {"number_text", "statistics"}
+
+
+def test_the_graph_is_drawn(tmp_path):
+    result = subprocess.run([sys.executable, str(ROOT / "tests" / "architecture" / "module_graph.py"), "-o",
+                             str(tmp_path / "graph")], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "graph.svg").read_text().startswith("<?xml")
+    assert (tmp_path / "graph.png").read_bytes().startswith(b"\x89PNG")
