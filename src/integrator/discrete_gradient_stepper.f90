@@ -267,7 +267,7 @@ contains
     type(step_report), intent(inout) :: report
     integer, intent(out) :: ierr
     type(root_search) :: search
-    real(real64) :: h, err, estimate_norm, guess(size(x_old)), estimate(self%problem%model%state_size)
+    real(real64) :: h, h_unshortened, err, estimate_norm, guess(size(x_old)), estimate(self%problem%model%state_size)
     real(real64), dimension(self%problem%model%state_size) :: f_old, f_new
     integer :: n, stat, attempt, rejected(3)
     logical :: landing
@@ -287,7 +287,7 @@ contains
       return
     end if
     do attempt = 1, max_rejections_per_step + 1
-      call self%controller%trial_step(t_old, self%t_end, h, landing)
+      call self%controller%trial_step(t_old, min(self%t_end, self%stop_time), h, landing)
       if (h < rejection_underflow*max(1.0_real64, abs(t_old))) then
         tally%reason = 'step-size underflow: the trial step fell below '//scientific_text(h)//' s (last rejection: ' &
                        //tally%reason//')'
@@ -335,7 +335,10 @@ contains
         call self%controller%reject_error(h, err)
         cycle
       end if
+      h_unshortened = self%controller%h
       call self%controller%accept(h, err)
+      ! A step shortened to land on an output time does not shrink the next one.
+      if (landing) self%controller%h = max(self%controller%h, h_unshortened)
       report%accepted = .true.
       tally%substeps = 1
       tally%strategy = search%strategy
@@ -347,7 +350,7 @@ contains
       self%h_last = h
       report%chose_time = .true.
       report%time = t_old + h
-      if (landing) report%time = self%t_end
+      if (landing) report%time = min(self%t_end, self%stop_time)
       exit
     end do
     call record_rejections()

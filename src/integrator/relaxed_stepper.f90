@@ -231,8 +231,8 @@ contains
     report%scheme_temperature = 0.0_real64
     if (self%adaptive) then
       call adaptive_step(self, ok, ierr)
-    else if (self%t + (1.0_real64 + landing_slack)*dt >= self%t_end) then
-      call step_or_halve(self, self%t_end - self%t, .true., 0, ok, ierr)
+    else if (self%t + (1.0_real64 + landing_slack)*dt >= landing_time(self)) then
+      call step_or_halve(self, landing_time(self) - self%t, .true., 0, ok, ierr)
     else
       call step_or_halve(self, dt, .false., 0, ok, ierr)
     end if
@@ -324,8 +324,8 @@ contains
     ierr = 0
     h = self%h_next
     do tries = 1, max_error_rejections
-      landing = self%t + (1.0_real64 + landing_slack)*h >= self%t_end
-      if (landing) h = self%t_end - self%t
+      landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time(self)
+      if (landing) h = landing_time(self) - self%t
       call relaxed_step(self, h, landing, ok, error_norm, ierr)
       if (ierr /= 0) return
       if (ok .and. error_norm <= 1.0_real64) then
@@ -398,9 +398,9 @@ contains
                           scientific_text(self%gamma_band)//' of the tolerance'
       return
     end if
-    if (.not. landing .and. self%t + (gamma + landing_slack)*h >= self%t_end) then
+    if (.not. landing .and. self%t + (gamma + landing_slack)*h >= landing_time(self)) then
       self%attempts = self%attempts - 1
-      call relaxed_step(self, self%t_end - self%t, .true., ok, error_norm, ierr)
+      call relaxed_step(self, landing_time(self) - self%t, .true., ok, error_norm, ierr)
       return
     end if
     if (self%tableau%embedded) error_norm = dop853_error_norm(self, h, k, z_new)
@@ -504,5 +504,12 @@ contains
     if (denominator <= 0.0_real64) denominator = 1.0_real64
     error_norm = abs(h)*err5/sqrt(size(z_new)*denominator)
   end function dop853_error_norm
+
+  !> The time the next step lands on when it reaches it: t_end, or an earlier output time.
+  pure real(real64) function landing_time(self)
+    class(relaxed_runge_kutta), intent(in) :: self
+
+    landing_time = min(self%t_end, self%stop_time)
+  end function landing_time
 
 end module relaxed_stepper

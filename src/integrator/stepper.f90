@@ -53,6 +53,9 @@ module stepper
   !> step_report%time and the run goes on until t_end; the others step to n dt.
   type, abstract :: time_stepper
     character(len=16) :: scheme = ''     !! the registry name it was built for
+    !> An integrator that chooses its times does not step past this time: the step that reaches
+    !> it lands on it (the time loop sets it to the next output time of &output interval).
+    real(real64) :: stop_time = huge(1.0_real64)
   contains
     procedure(start_interface), deferred :: start
     procedure(advance_interface), deferred :: advance

@@ -41,6 +41,10 @@ module run_config
     real(real64) :: theta_r = 300.0_real64       !! the Lyapunov reference temperature [K]
     logical :: overwrite = .false.               !! replace an existing complete output file
     integer :: output_every = 1                  !! a file row per this many steps (&output every)
+    !> A file row at every multiple of this time [s], 0 for none (&output interval): for the
+    !> integrators that choose their times, whose steps then land on those times.
+    real(real64) :: output_interval = 0.0_real64
+    logical :: chooses_times = .false.           !! the integrator chooses its times (registry, or a tolerance)
     integer :: compression = 0                   !! deflate level of the datasets, 0 (none) to 9
     ! The texts of the &integrator and &output fields, as read.
     character(len=16) :: thermo_variable = 'temperature'
@@ -137,6 +141,7 @@ contains
         return
       end if
       call note_unused_settings(text, path, extra, entry, config)
+      config%chooses_times = entry%chooses_time .or. (entry%error_control .and. choice%tolerance_given)
       if (entry%continuous_constraints .and. config%scene%constraint_count() > 0) then
         call check_continuous_start(config, entry, stat, message)
       else if (entry%error_control .and. choice%tolerance_given .and. config%scene%constraint_count() > 0) then
@@ -161,6 +166,16 @@ contains
       stat = 1
       message = invalid_value_message(value_origin(text, 'output', 'compression', path, extra), 'output', &
                                       outputs(findloc(outputs%name, 'compression', dim=1)))
+    else if (config%output_interval > 0.0_real64 .and. .not. config%chooses_times) then
+      stat = 1
+      message = value_origin(text, 'output', 'interval', path, extra)//': &output: interval = '// &
+                reals_text([config%output_interval])//' needs an integrator that chooses its steps (a relaxed '// &
+                'scheme, or eme or midpoint with a tolerance); scheme = '''//trim(config%integrator%scheme)// &
+                ''' writes on the grid of dt: set dt to the output interval, or use every'
+    else if (config%output_interval > 0.0_real64 .and. config%output_every > 1) then
+      stat = 1
+      message = value_origin(text, 'output', 'interval', path, extra)//': &output: interval and every both '// &
+                'choose the rows written; allowed: one of them'
     end if
   end subroutine read_run_config
 
@@ -303,7 +318,10 @@ contains
                  'K', minimum=0.0_real64, exclusive=.true.), &
       logical_field('overwrite', config%overwrite, '.true. or .false. (default): replace an existing complete file'), &
       integer_field('every', config%output_every, 'an integer >= 1 (default 1): write every N-th point, each step '// &
-                    'row standing for the N steps before it (sums, extremes; README, Output layout)', minimum=1), &
+                    'row standing for the N steps before it (sums, extremes; docs/output.md)', minimum=1), &
+      real_field('interval', config%output_interval, 'a real number >= 0 [s] (default 0: off): with an '// &
+                 'integrator that chooses its steps, they land on every multiple of it and a row is written there '// &
+                 '(and at t_end), each step row standing for the steps since the last', 's', minimum=0.0_real64), &
       integer_field('compression', config%compression, 'an integer 0 (default: none) to 9: gzip level of the '// &
                     'datasets (with the shuffle filter)', minimum=0)]
   end function output_fields

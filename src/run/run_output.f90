@@ -154,6 +154,7 @@ module run_output
     logical :: durable = .true.         !! the finished file is synced to disk (fsync)
     integer(int64) :: last_write = 0, clock_rate = 1
     integer :: every = 1                !! steps per row (&output every)
+    logical :: by_interval = .false.    !! rows at output times instead (&output interval)
     integer :: last_step = 0            !! the last step recorded
     integer :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
     integer :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
@@ -192,6 +193,7 @@ contains
     self%spare = path//'.spare'
     self%enabled = .true.
     self%every = config%output_every
+    self%by_interval = config%output_interval > 0.0_real64
     self%points%compression = config%compression
     self%steps%compression = config%compression
     self%points%scale = .true.
@@ -292,15 +294,22 @@ contains
   end subroutine record_solver
 
   !> Records the point after step n (or the initial point) for every per-point dataset, in the
-  !> schema's order. The rows of steps not yet in the file are completed every `every` steps
-  !> (the initial point at once).
-  subroutine record_point(self, time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals)
+  !> schema's order. The rows of steps not yet in the file are completed every `every` steps, or
+  !> with &output interval when `row_due` (the initial point at once).
+  subroutine record_point(self, time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals, row_due)
     class(run_file), intent(inout) :: self
     real(real64), intent(in) :: time, z(:), theta(:), energy, entropy, lyapunov, momentum(3), heat, residuals(:)
+    logical, intent(in) :: row_due
+    logical :: due
 
     if (.not. self%enabled) return
     call self%points%accumulate([time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals])
-    if (self%steps%pending_count == 0 .or. self%steps%pending_count >= self%every) call commit_rows(self)
+    if (self%by_interval) then
+      due = row_due
+    else
+      due = self%steps%pending_count >= self%every
+    end if
+    if (self%steps%pending_count == 0 .or. due) call commit_rows(self)
   end subroutine record_point
 
   !> Records step n, ending at `time`, for every per-step dataset, in the schema's order, then the
@@ -627,6 +636,7 @@ contains
     call real_attribute('quotient_threshold', quotient_threshold, '1')
     if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
     if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
+    if (stat == 0) call file%set_real('output_interval', config%output_interval, stat, units='s')
     if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')
     do a = 1, model%subsystem_count()
       associate (part => model%subsystems(a))

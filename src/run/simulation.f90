@@ -105,7 +105,8 @@ contains
     real(real64) :: t_end, time_old, cpu_before, cpu_after
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
     integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps, signal
-    logical :: found, finished, writing, replace, chooses_time
+    logical :: found, finished, writing, replace, chooses_time, row_due
+    integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
     clock_progress = clock_start
@@ -202,7 +203,8 @@ contains
     call observe(z0, energy, entropy, lyapunov)
     energy_0 = energy
     jz_0 = angular_momentum_z(z0)
-    call record_point(0.0_real64, z0)
+    call record_point(0.0_real64, z0, .true.)
+    outputs_passed = 0
     x_previous = x
     call system_clock(clock_loop)
     ! Integrators on the output grid take steps_planned steps to n dt; those that choose their
@@ -226,6 +228,8 @@ contains
       n = n + 1
       if (.not. chooses_time) time = (n - 1)*dt
       time_old = time
+      ! With &output interval the step lands on the next output time when it reaches it.
+      if (config%output_interval > 0.0_real64) integrator%stop_time = (outputs_passed + 1)*config%output_interval
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call cpu_time(cpu_before)
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
@@ -263,7 +267,13 @@ contains
       call observe(x(1:n_state), energy, entropy, lyapunov)
       call output%record_step(n, time, report, x(n_state + 1:), cpu_after - cpu_before, entropy - entropy_old, &
                               lyapunov - lyapunov_old)
-      call record_point(time, x(1:n_state))
+      row_due = .false.
+      do while (config%output_interval > 0.0_real64 .and. &
+                time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
+        outputs_passed = outputs_passed + 1
+        row_due = .true.
+      end do
+      call record_point(time, x(1:n_state), row_due)
       summary%steps_completed = n
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
@@ -343,15 +353,16 @@ contains
     end subroutine observe
 
     ! One point: the state with what it is judged by, and the active constraints' g.
-    subroutine record_point(time, z)
+    subroutine record_point(time, z, row_due)
       real(real64), intent(in) :: time, z(:)
+      logical, intent(in) :: row_due     !! an output time (&output interval): the point is written
       integer :: k, domain
 
       do k = 1, size(constraints)
         call constraints(k)%item%value(model, z, residuals(k), domain)
       end do
       call output%record_point(time, z, theta, energy, entropy, lyapunov, model%angular_momentum(z), boundary_heat, &
-                               residuals)
+                               residuals, row_due)
     end subroutine record_point
 
     ! Writes the file's last rows and final attributes, reads it back, and gives it its final

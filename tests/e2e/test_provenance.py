@@ -206,7 +206,7 @@ def test_namelist_text_agrees_with_the_attributes(scene_runs, scene):
                 continue
             if field == "overwrite":        # how the file may be written, not the run: no attribute
                 continue
-            name = "output_every" if field == "every" else field
+            name = {"every": "output_every", "interval": "output_interval"}.get(field, field)
             assert name in attrs, f"&{group} {field} has no root attribute {name}"
             attribute = attrs[name]
             compared.append(field)
@@ -351,7 +351,7 @@ def test_every_parameter_has_units(tmp_path, eme_run_binary):
         for fields in groups.values():
             for field, raw in fields.items():
                 if isinstance(namelist_value(raw), list):
-                    name = "output_every" if field == "every" else field
+                    name = {"every": "output_every", "interval": "output_interval"}.get(field, field)
                     assert f"{name}_units" in attrs, f"parameter {field} has no {name}_units"
         missing = [name for name, value in attrs.items() if not name.endswith("_units")
                    and np.asarray(value).dtype.kind in "iuf" and f"{name}_units" not in attrs]
