@@ -28,7 +28,7 @@ CC := mpicc
 # build/config.mk (section set-up).
 WARNINGS := -Wall -Wextra -fimplicit-none
 # Optimization of the step kernel (src/scheme, src/model, the LU) and the instruction set
-# (README, Per-step cost). Never -ffast-math: the structure-preserving residual needs IEEE
+# (docs/performance.md). Never -ffast-math: the structure-preserving residual needs IEEE
 # semantics and its NaN checks. ARCH_FLAGS is empty, so the binaries run on any x86-64 CPU;
 # `make clean && make ARCH_FLAGS=-march=native` builds for this machine's CPU only.
 KERNEL_FLAGS ?= -O3
@@ -288,7 +288,7 @@ $(FIGURES)/temperatures_jz.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_
 	$(PYTHON) postprocess/plot_temperatures.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(basename $@)
 
 # Convergence, work-precision and stability studies on 2 ranks, then their analysis: charts in
-# results/figures, numbers in results/study/summary.h5 (README, Speed and accuracy).
+# results/figures, numbers in results/study/summary.h5 (docs/performance.md).
 HARD_SCENES := low_viscosity stiff_spring high_conductivity temperature_gap
 STUDIES := convergence convergence_reference work_precision work_precision_adaptive work_precision_step_control \
            work_precision_reference stability_paper stability_hard \
@@ -313,12 +313,23 @@ bench: all $(VENV)/.python-deps
 	$(BIN)/eme_accuracy_bench 5
 	$(BIN)/eme_bench 21
 
-# The constraint scenes for EME_s and EME_u, and g2 without conduction (README, Constraints).
+# The constraint scenes for EME_s and EME_u, and g2 without conduction (docs/constraints.md).
 constraints: all $(VENV)/.python-deps
 	$(call run_and_summarize,$(CONSTRAINT_RUNS))
 
-test: all $(VENV)/.python-deps
-	$(PYTHON) tests/run_tests.py --bin $(TESTBIN) --runner '$(UNIT_RUNNER)' --pfunit-dir '$(PFUNIT_DIR)'
+# Every test (CI runs this), pytest on TEST_WORKERS processes; `make check` is the quick loop:
+# the unit tests and a fast subset of the end-to-end tests (tests/run_tests.py, QUICK_TESTS).
+TEST_WORKERS ?= $(shell nproc 2>/dev/null || echo 1)
+RUN_TESTS = $(PYTHON) tests/run_tests.py --bin $(TESTBIN) --runner '$(UNIT_RUNNER)' --pfunit-dir '$(PFUNIT_DIR)' \
+            --workers $(TEST_WORKERS)
+# Both build on TEST_WORKERS processes too.
+test: $(VENV)/.python-deps
+	@$(MAKE) --no-print-directory -j$(TEST_WORKERS) all
+	$(RUN_TESTS)
+
+check: $(VENV)/.python-deps
+	@$(MAKE) --no-print-directory -j$(TEST_WORKERS) all
+	$(RUN_TESTS) --quick
 
 version:
 	@echo '$(VERSION)'

@@ -1,5 +1,5 @@
 !> eme_accuracy_bench [REPEATS] [PETSc options]: CPU time to a given accuracy on the paper scene
-!> at t = 5 s (make bench; README "High-order structure-preserving integrators"). A benchmark,
+!> at t = 5 s (make bench; docs/performance.md). A benchmark,
 !> not a test.
 !>
 !> The error of a run is max(|q, p, gamma - reference|, |theta_a - reference|/theta_ref) at

@@ -51,7 +51,7 @@ program eme_run
   if (ranks > 1) then
     ! Every rank would write the same file: a study of several cases is eme_ensemble's.
     if (rank == 0) write (error_unit, '(a, i0, a)') 'eme_run: runs one case on one process, not on ', ranks, &
-      ' ranks; for several cases on several ranks: mpirun -n N eme_ensemble STUDY.nml (README, Studies)'
+      ' ranks; for several cases on several ranks: mpirun -n N eme_ensemble STUDY.nml (docs/performance.md)'
     exit_status = 2
   else if (petsc_help_requested()) then
     ! PETSc's -help: the usage, then every option the run's solver reads as it is set up.

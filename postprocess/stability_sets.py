@@ -1,4 +1,4 @@
-"""The harder scene set of the stability study (make study; README, Studies): where each
+"""The harder scene set of the stability study (make study; docs/performance.md): where each
 integrator fails and why.
 
 Four scenes, each a change of the paper's (inputs/study_stability_<scene>.nml and

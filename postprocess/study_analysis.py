@@ -1,4 +1,4 @@
-"""Analysis of the parameter studies of `make study` (README, "Ensemble studies").
+"""Analysis of the parameter studies of `make study` (docs/studies.md).
 
 Reads STUDY_DIR/{convergence, convergence_reference, work_precision, work_precision_adaptive,
 work_precision_reference, stability_paper, stability_hard}/index.h5 and the case files the

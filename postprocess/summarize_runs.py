@@ -51,7 +51,7 @@ def summarize(path):
     data, attrs, steps = run.data, run.attrs, run.steps
     energy, entropy, lyapunov = data["energy"], data["entropy"], data["lyapunov"]
     heat = data.get("boundary_heat", np.zeros_like(energy))
-    jz = data["angular_momentum"][:, 2]        # columns J_x J_y J_z (README, Output layout)
+    jz = data["angular_momentum"][:, 2]        # columns J_x J_y J_z (docs/output.md)
     constraint = data.get("constraint_residual")
     rejected = data.get("rejected_steps")
     gradient = attrs.get("discrete_gradient", "none")

@@ -1,4 +1,4 @@
-"""Reads eme_run output files (README, "Output layout (HDF5)") and extracts what the plots show.
+"""Reads eme_run output files (docs/output.md) and extracts what the plots show.
 
 Every dataset and attribute is looked up by its documented name; columns of 2-D datasets are
 found through their `columns` attribute, never by position. A file that cannot be used (not
@@ -188,7 +188,7 @@ def _column_names(value):
 
 def cut_to_common_length(run, others=None):
     """Per-point datasets have N+1 rows and per-step ones N, as each dataset's `rows` attribute
-    says (README, Output layout). A file killed while writing may hold more rows in some; the
+    says (docs/output.md). A file killed while writing may hold more rows in some; the
     datasets read are cut to the steps that every dataset holds (those read and `others`, name:
     (rows, length) of datasets not read), and the cut is recorded as a problem."""
     lengths = {name: (run.rows.get(name, "point"), len(values)) for name, values in run.data.items()}

@@ -7,8 +7,11 @@ and the first line printed names it). Under pFUnit each suite program runs once 
 pFUnit's own summary is printed. Under the fallback runner each test runs in a process of its
 own (`test_x NAME`), so that a crash fails that test and hides no other. A suite that dies
 without reporting counts as one failure. The Python tests (end-to-end runs of the drivers,
-postprocessing) run under pytest. Counted are tests: a pFUnit test (each parameterized case one)
-and a pytest test.
+postprocessing) run under pytest, on --workers processes (pytest-xdist). Counted are tests: a
+pFUnit test (each parameterized case one) and a pytest test.
+
+--quick (make check) runs the unit tests and QUICK_TESTS only: one or two files per area, chosen
+to exercise every driver, the paper scene, the input checks and the file layout in about a minute.
 """
 import argparse
 import os
@@ -20,6 +23,14 @@ import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+# The fast subset of make check: the paper scene's structure, bad input and the command line, the
+# file layout and provenance, adaptive steps, the structure figure's statements, the layers, and
+# the scripts on synthetic files. The slow ones (kills, signals, studies, convergence) are left to
+# make test.
+QUICK_TESTS = ["tests/e2e/test_paper_scene.py", "tests/e2e/test_bad_input.py", "tests/e2e/test_command_line.py",
+               "tests/e2e/test_output_schema.py", "tests/e2e/test_structure_figure.py",
+               "tests/architecture/test_layers.py", "tests/postprocess/test_trajectory.py",
+               "tests/e2e/test_adaptive.py::test_rejected_steps_are_never_written_and_the_run_lands_on_t_end"]
 TAP_LINE = re.compile(r"^\s*(not ok|ok)\b(?:\s+\d+)?\s*-?\s*(.*)$")
 
 
@@ -118,8 +129,11 @@ def main():
     parser.add_argument("--pfunit-dir", default="", help="the pFUnit installation (for the first line)")
     parser.add_argument("--workers", type=int, default=int(os.environ.get("EME_TEST_WORKERS", "1")),
                         help="pytest workers (pytest-xdist); default EME_TEST_WORKERS or 1")
+    parser.add_argument("--quick", action="store_true", help="the unit tests and QUICK_TESTS only (make check)")
     parser.add_argument("pytest_paths", nargs="*", default=["tests"], help="pytest targets (default: tests)")
     args = parser.parse_args()
+    if args.quick:
+        args.pytest_paths = QUICK_TESTS
     if args.runner == "pfunit":
         print(f"unit tests: pFUnit ({args.pfunit_dir})")
     else:

@@ -1,4 +1,4 @@
-!> Butcher tableaux of the relaxed Runge-Kutta family (HIGH_ORDER.md): stages
+!> Butcher tableaux of the relaxed Runge-Kutta family (docs/integrators.md): stages
 !> g_i = z + h sum_j a_ij k_j, k_i = f(g_i), update z + h sum_i b_i k_i. Each is typed from its
 !> source and checked by tests/unit/test_relaxed_runge_kutta (row sums c_i = sum_j a_ij, and the
 !> order on problems with known solutions):
@@ -42,7 +42,7 @@ contains
     t%c = row_sums(t%a)
   end function classic_rk4
 
-  !> Cooper and Verner's method of order 8 with 11 stages (HIGH_ORDER.md).
+  !> Cooper and Verner's method of order 8 with 11 stages (docs/integrators.md).
   pure function cooper_verner8() result(t)
     type(butcher_tableau) :: t
     real(real64) :: r

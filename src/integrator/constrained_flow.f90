@@ -1,4 +1,4 @@
-!> The continuous constrained flow that the relaxed Runge-Kutta family integrates (HIGH_ORDER.md,
+!> The continuous constrained flow that the relaxed Runge-Kutta family integrates (docs/integrators.md,
 !> Constraints), built from each active constraint's continuous-time form
 !> (src/structure/model_constraint):
 !>  - the field F(z) = f(sigma(z)) + N lambda: the continuous GENERIC field at the state whose

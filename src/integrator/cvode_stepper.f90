@@ -1,5 +1,5 @@
 !> SUNDIALS CVODE baselines on the continuous GENERIC field f(z) = L grad E + K grad S of any
-!> model (FORMULATION section 4) with its analytic Jacobian, through src/integrator/cvode_shim.c:
+!> model (docs/formulation.md section 4) with its analytic Jacobian, through src/integrator/cvode_shim.c:
 !>   cvode_bdf    variable-order BDF (orders 1-5), Newton on CVODE's dense direct solver with
 !>                the analytic Jacobian
 !>   cvode_adams  variable-order Adams-Moulton (orders 1-12) with fixed-point iteration, the

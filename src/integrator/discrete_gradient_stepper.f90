@@ -53,7 +53,7 @@ module discrete_gradient_stepper
   !> The tolerance bounds the local error per this much simulated time (error per unit step).
   real(real64), parameter :: unit_time = 1.0_real64
   !> The weighted norm of an estimate that is all rounding: the Newton root is exact to its
-  !> rounding, about eps |z| (README, Solver), and the estimate's difference quotient takes it over.
+  !> rounding, about eps |z| (docs/integrators.md), and the estimate's difference quotient takes it over.
   real(real64), parameter :: rounding_level = 64*epsilon(1.0_real64)
 
   !> What the substeps of one output step add up to.
@@ -102,7 +102,7 @@ contains
     allocate (integrator, source=step_solver(partials_rule=partials_discrete_gradient))
   end subroutine new_eme
 
-  !> The implicit midpoint rule (FORMULATION section 6).
+  !> The implicit midpoint rule (docs/formulation.md section 6).
   subroutine new_midpoint(integrator)
     class(time_stepper), allocatable, intent(out) :: integrator
 

@@ -1,4 +1,4 @@
-!> The settings of the &integrator namelist group that the integrators read (README, Input).
+!> The settings of the &integrator namelist group that the integrators read (docs/input.md).
 module integrator_settings
   use, intrinsic :: iso_fortran_env, only: real64
   use thermo_variable, only: tau_temperature

@@ -1,5 +1,5 @@
 !> Relaxation of a Runge-Kutta step (Ketcheson 2019; Ranocha, Sayyari, Dalcin, Parsani,
-!> Ketcheson 2020; HIGH_ORDER.md): the step z + d is replaced by z_new(gamma) = P(z + gamma d),
+!> Ketcheson 2020; docs/integrators.md): the step z + d is replaced by z_new(gamma) = P(z + gamma d),
 !> where P projects onto the constraints and the conserved component of the angular momentum
 !> (src/integrator/constrained_flow: positions, then the momenta, then slaved entries), and
 !> gamma is the root near 1 of
@@ -23,7 +23,7 @@ module relaxation
   private
   public :: relax, gamma_min, gamma_max
 
-  !> The gamma a step may take (HIGH_ORDER.md); outside, the step is rejected.
+  !> The gamma a step may take (docs/integrators.md); outside, the step is rejected.
   real(real64), parameter :: gamma_min = 0.2_real64, gamma_max = 2.0_real64
   integer, parameter :: max_secant_steps = 30
   real(real64), parameter :: settled = 1.0e-13_real64   !! a secant step this small ends the iteration

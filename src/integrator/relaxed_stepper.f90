@@ -1,4 +1,4 @@
-!> Relaxed Runge-Kutta integrators (HIGH_ORDER.md): every step keeps E exactly, the conserved
+!> Relaxed Runge-Kutta integrators (docs/integrators.md): every step keeps E exactly, the conserved
 !> component of J exactly, S non-decreasing and V = E - theta_R S non-increasing, at order 4 to 8.
 !>
 !> The step runs in entropy variables (tau = s), whatever the run's thermodynamic variable: there

@@ -1,5 +1,5 @@
 !> PETSc TS baselines on the continuous GENERIC vector field f(z) = L grad E + K grad S of any
-!> model (its vector field at exact partials, FORMULATION section 4) and its exact Jacobian:
+!> model (its vector field at exact partials, docs/formulation.md section 4) and its exact Jacobian:
 !>   ts_midpoint  TSTHETA with theta = 1/2, the implicit midpoint rule as PETSc does it
 !>   ts_bdf2      TSBDF of order 2
 !>   ts_rk4       TSRK 4, the classic explicit Runge-Kutta method

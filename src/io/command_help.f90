@@ -61,7 +61,7 @@ contains
     write (unit, '(a)') 'usage: eme_run [PETSc options] FILE.nml [PETSc options]', &
       '       eme_run --help | -h | --version | --integrators | --output-schema', '', &
       'Integrates one scene of the thermoviscoelastic double pendulum (Valdes y Beck & Betsch, PAMM 2023)', &
-      'and writes an HDF5 file (&output file; README, Output layout).', '', &
+      'and writes an HDF5 file (&output file; docs/output.md).', '', &
       '  --help, -h        this text', &
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &

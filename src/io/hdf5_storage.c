@@ -1,5 +1,5 @@
 /* How the code's HDF5 files reach the disk, so that a full disk or a kill never leaves a file
- * that lies (README, What the code promises):
+ * that lies (docs/faults.md):
  *  - a new file is built in memory (HDF5's core driver) and written in one checked write, so
  *    HDF5 itself never meets a write error on creation;
  *  - later writes (appended rows, final attributes) happen in a window: disk space for them is

@@ -1,5 +1,4 @@
-!> How an output file was made, as root attributes of a run file and of a study index (README,
-!> Output layout): the command line, the PETSc options in force, the versions of the code and of
+!> How an output file was made, as root attributes of a run file and of a study index (docs/output.md): the command line, the PETSc options in force, the versions of the code and of
 !> every library, the host and the start time, and the CF global attributes (title, institution,
 !> source, history, references, Conventions) that netCDF and xarray readers look for.
 module provenance

@@ -278,7 +278,7 @@ contains
     end do
   end subroutine check_controllable_constraints
 
-  !> The fields of &integrator (README, Input).
+  !> The fields of &integrator (docs/input.md).
   function integrator_fields(config) result(fields)
     type(run_configuration), intent(in), target :: config
     type(group_field), allocatable :: fields(:)
@@ -307,7 +307,7 @@ contains
     end associate
   end function integrator_fields
 
-  !> The fields of &output (README, Input).
+  !> The fields of &output (docs/input.md).
   function output_fields(config) result(fields)
     type(run_configuration), intent(in), target :: config
     type(group_field), allocatable :: fields(:)

@@ -1,5 +1,5 @@
 !> State layout and the mechanical (non-spring) parts of the double pendulum:
-!> mass matrix (1), kinetic energy, gravity and angular momentum (FORMULATION section 2).
+!> mass matrix (1), kinetic energy, gravity and angular momentum (docs/formulation.md section 2).
 !> z = (q1, q2, p1, p2, gamma, tau1, tau2); q2 is m2's position relative to m1.
 module double_pendulum
   use, intrinsic :: iso_fortran_env, only: real64
@@ -73,7 +73,7 @@ contains
     force(:, 2) = params%mass(2)*params%gravity
   end function gravity_force
 
-  !> J = q1 x p1 + q2 x p2 (FORMULATION section 2).
+  !> J = q1 x p1 + q2 x p2 (docs/formulation.md section 2).
   pure function angular_momentum(z) result(j)
     real(real64), intent(in) :: z(:)
     real(real64) :: j(3)

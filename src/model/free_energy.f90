@@ -1,4 +1,4 @@
-!> Free energies (16)-(17) of the two springs in closed form (FORMULATION section 3): the
+!> Free energies (16)-(17) of the two springs in closed form (docs/formulation.md section 3): the
 !> mechanical parts e_a and sigma_a as functions of the invariant C = q.q (and gamma), with
 !> gradient and Hessian, and eta(theta) of eq. (17).
 !> u_a = e_a + Cap_a (theta - theta_ref) and s_a = sigma_a + Cap_a ln(theta/theta_ref);
@@ -13,7 +13,7 @@ module free_energy
   public :: spring_law, spring_law_of, mechanical_parts, mechanical_parts_at, mechanical_difference
   public :: mechanical_difference_at, viscosity
 
-  !> Coefficients of spring a's closed forms (FORMULATION section 3). Spring 1 has no Maxwell
+  !> Coefficients of spring a's closed forms (docs/formulation.md section 3). Spring 1 has no Maxwell
   !> element: its beta_v, maxwell_ref and maxwell_slope are zero, so one formula serves both.
   type :: spring_law
     real(real64) :: natural_length = 1.0_real64  !! l_a^0
@@ -48,7 +48,7 @@ contains
     law%heat_capacity = (1.0_real64 + law%beta_v)*params%heat_capacity(a)
   end function spring_law_of
 
-  !> e_a and sigma_a with gradients and Hessians in (C, gamma), C = l^2 > 0 (FORMULATION section 3).
+  !> e_a and sigma_a with gradients and Hessians in (C, gamma), C = l^2 > 0 (docs/formulation.md section 3).
   pure subroutine mechanical_parts(law, c, gamma, e, sigma, de, dsigma, d2e, d2sigma)
     type(spring_law), intent(in) :: law
     real(real64), intent(in) :: c, gamma

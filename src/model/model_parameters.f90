@@ -6,7 +6,7 @@ module model_parameters
   private
   public :: pendulum_parameters
 
-  !> Table 1 of the paper, in SI units (FORMULATION section 1: treat all values as plain SI numbers).
+  !> Table 1 of the paper, in SI units (docs/formulation.md section 1: treat all values as plain SI numbers).
   type :: pendulum_parameters
     real(real64) :: mass(2) = [1.0_real64, 1.0_real64]                !! m_a [kg]
     real(real64) :: natural_length(2) = [1.5_real64, 2.0_real64]      !! lambda_a^0 [m]

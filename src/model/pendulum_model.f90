@@ -89,7 +89,7 @@ contains
     call spring_invariants(z, a, x, dx_dz)
   end subroutine invariants
 
-  !> The written-out field of FORMULATION section 4 (pendulum_vector_field).
+  !> The written-out field of docs/formulation.md section 4 (pendulum_vector_field).
   pure subroutine pendulum_field(self, z, partials, f, df_dz, df_dpartials)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:), partials(:, :, :)
@@ -125,7 +125,7 @@ contains
     end do
   end function mechanical_energy_gradient
 
-  !> J = q1 x p1 + q2 x p2 (FORMULATION section 2).
+  !> J = q1 x p1 + q2 x p2 (docs/formulation.md section 2).
   pure function pendulum_angular_momentum(self, z) result(j)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)

@@ -1,4 +1,4 @@
-!> The double pendulum's input: the groups &model (Table 1's data), &initial (FORMULATION
+!> The double pendulum's input: the groups &model (Table 1's data), &initial (docs/formulation.md
 !> section 1's state, with temperatures whatever the thermodynamic variable) and &constraints
 !> (g1, g2 of eq. (13)). Defaults are the paper's scene. A constraint must hold at t = 0, or the
 !> first step would jump onto it and do work: `length` defaults to |q1(0)| and must equal it,
@@ -54,7 +54,7 @@ contains
     names = [character(len=16) :: 'model', 'initial', 'constraints']
   end subroutine group_names
 
-  !> The fields of one group (README, Input).
+  !> The fields of one group (docs/input.md).
   function fields(self, group) result(table)
     class(double_pendulum_scene), intent(in), target :: self
     character(len=*), intent(in) :: group
@@ -178,7 +178,7 @@ contains
     end if
   end subroutine build
 
-  !> theta_ref, or the fixed temperature of spring 1 under g2 (FORMULATION section 7).
+  !> theta_ref, or the fixed temperature of spring 1 under g2 (docs/formulation.md section 7).
   pure function default_theta_r(self) result(theta_r)
     class(double_pendulum_scene), intent(in) :: self
     real(real64) :: theta_r

@@ -1,5 +1,5 @@
 !> The GENERIC vector field f = L grad E + K grad S of eq. (8), written out component by
-!> component (FORMULATION section 4), with its derivatives for the Newton Jacobian:
+!> component (docs/formulation.md section 4), with its derivatives for the Newton Jacobian:
 !>   dq/dt       = m^-1 p
 !>   dp_a/dt     = -grad_qa V_g - 2 q_a (dU_a/dC - Theta_a dS_a/dC)
 !>   dgamma/dt   = (Theta_2/eta(Theta_2)) y,  y = dS_2/dgamma - (dU_2/dgamma)/Theta_2

@@ -1,5 +1,5 @@
 !> The spring potentials U_a and S_a as functions of the invariants x = (C, [gamma,] tau_a),
-!> for each choice of the thermodynamic variable tau (FORMULATION section 3, table).
+!> for each choice of the thermodynamic variable tau (docs/formulation.md section 3, table).
 !> Spring 1 has n = 2 invariants (C1, tau1), spring 2 has n = 3 (C2, gamma, tau2).
 module thermo_variable
   use, intrinsic :: iso_fortran_env, only: real64
@@ -37,7 +37,7 @@ module thermo_variable
 
 contains
 
-  !> theta(x) in closed form, from the table in FORMULATION section 3 (it equals eq. (2)'s
+  !> theta(x) in closed form, from the table in docs/formulation.md section 3 (it equals eq. (2)'s
   !> d_tau U / d_tau S, which the tests check); stat reports a domain violation.
   pure subroutine spring_temperature(self, x, theta, stat)
     class(spring_potential), intent(in) :: self
@@ -54,7 +54,7 @@ contains
     call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
   end subroutine spring_temperature
 
-  !> U_a and S_a with gradients and Hessians in x (FORMULATION section 3, table).
+  !> U_a and S_a with gradients and Hessians in x (docs/formulation.md section 3, table).
   pure subroutine evaluate_potentials(self, x, f, grad, hess, stat)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: x(:)
@@ -74,7 +74,7 @@ contains
     call potentials_from_parts(self, x(self%n_invariants), theta, e, sigma, de, dsigma, d2e, d2sigma, grad, hess, f)
   end subroutine evaluate_potentials
 
-  !> The table of FORMULATION section 3 from the mechanical parts e, sigma (with their (C, gamma)
+  !> The table of docs/formulation.md section 3 from the mechanical parts e, sigma (with their (C, gamma)
   !> derivatives) and the temperature theta at invariants x = (C, [gamma,] tau): the gradient,
   !> optionally the Hessian and the values of (U_a, S_a). evaluate_potentials and the fused step
   !> kernel (src/scheme/pendulum_step_kernel) both assemble them here.
@@ -142,7 +142,7 @@ contains
     end select
   end subroutine potentials_from_parts
 
-  !> U(b) - U(a) and S(b) - S(a) without cancellation (FORMULATION section 3 table, term by
+  !> U(b) - U(a) and S(b) - S(a) without cancellation (docs/formulation.md section 3 table, term by
   !> term): the mechanical parts by `mechanical_difference`, ln(theta_b/theta_a) by log1p, and
   !> theta_b - theta_a by expm1 for tau = s.
   pure subroutine potential_difference(self, a, b, delta, stat)
@@ -226,7 +226,7 @@ contains
   end subroutine tau_from_temperature
 
   !> Typical sizes of the invariants, for the nondimensional discrete-gradient metric
-  !> (FORMULATION section 5): C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref.
+  !> (docs/formulation.md section 5): C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref.
   pure function metric_scale(self) result(scale)
     class(spring_potential), intent(in) :: self
     real(real64) :: scale(self%n_invariants)
@@ -265,7 +265,7 @@ contains
     stat = domain_ok
   end subroutine mechanical_state
 
-  !> theta from tau and the mechanical parts e, sigma (table of FORMULATION section 3).
+  !> theta from tau and the mechanical parts e, sigma (table of docs/formulation.md section 3).
   pure subroutine temperature_of(self, tau, e, sigma, theta, stat)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: tau, e, sigma

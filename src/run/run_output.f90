@@ -1,4 +1,4 @@
-!> The HDF5 file of one run (README, Output layout): its datasets, declared once in
+!> The HDF5 file of one run (docs/output.md): its datasets, declared once in
 !> `output_schema` with their names, rows (one per point t_n, or one per step), units, descriptions
 !> and how a row that stands for several steps combines them (&output every), and its root
 !> attributes: the integrator (with its registry entry and its solver's settings as used), every

@@ -1,6 +1,6 @@
 /* SIGTERM and SIGINT (a batch scheduler's warning, Ctrl-C) are caught, not obeyed at once: the
  * handler only records the signal, and the time loop and the ensemble's scheduler look at it
- * between steps, stop, and leave their files marked (README, What the code promises). The handler
+ * between steps, stop, and leave their files marked (docs/faults.md). The handler
  * then restores the default action, so a second signal ends the process at once. SIGXFSZ is
  * ignored, so that a file-size limit (ulimit -f) makes writes fail with EFBIG, which the code
  * reports, instead of killing the process. Called from Fortran (src/run/run_signals.f90). */

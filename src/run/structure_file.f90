@@ -1,4 +1,4 @@
-!> The GENERIC structure of a scene as an HDF5 file (the paper's Fig. 2; README, Figures): for each
+!> The GENERIC structure of a scene as an HDF5 file (the paper's Fig. 2; docs/figures.md): for each
 !> thermodynamic variable tau = s, theta, u, the Poisson matrix L and the friction matrix K of
 !> eq. (8) (src/structure/structure_matrices: L = M_S L0 M_S^T, K = M_E K0 M_E^T) with grad E and
 !> grad S, at the scene's initial state, in the run files' state layout. One group per variable

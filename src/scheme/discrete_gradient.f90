@@ -1,4 +1,4 @@
-!> Discrete gradients D f(a, b) of functions of a spring's invariants (FORMULATION section 5).
+!> Discrete gradients D f(a, b) of functions of a spring's invariants (docs/formulation.md section 5).
 !> Both satisfy the directionality condition D f . (b - a) = f(b) - f(a) and tend to grad f
 !> as b -> a. Each also returns its exact Jacobian d(D f)/db for Newton's method.
 !>  - Gonzalez [1]: D f = grad f(m) + (f(b) - f(a) - grad f(m).d) / (d.W d) W d, with

@@ -4,7 +4,7 @@
 !> Condensed: the position rows of R(z') = (z' - z)/h - f(z_mid, partials) are linear,
 !>   q' = q + h m^-1 p_mid,   p_mid = (p + p')/2,
 !> so q' is eliminated exactly and Newton runs on y = (p1', p2', gamma', tau1', tau2', multipliers):
-!> 9 unknowns plus one per active constraint (FORMULATION section 7). The residual of y is the
+!> 9 unknowns plus one per active constraint (docs/formulation.md section 7). The residual of y is the
 !> generic residual's rows of p, gamma, tau and the constraints at z'(y); its Jacobian is
 !>   dR/dy = dR/dz'|_(p, gamma, tau, multipliers) + dR/dq' (h/2) m^-1.
 !> Fused: one pass computes the residual and, when asked, the Jacobian, sharing every logarithm,
@@ -459,7 +459,7 @@ contains
   end subroutine gonzalez_derivatives
 
   !> The temperature of spring a at the new state and, optionally, its gradient in the spring's
-  !> invariants (FORMULATION section 3: theta = tau; theta_ref exp((s - sigma)/Cap); theta_ref +
+  !> invariants (docs/formulation.md section 3: theta = tau; theta_ref exp((s - sigma)/Cap); theta_ref +
   !> (u - e)/Cap).
   pure subroutine new_temperature(self, a, point, theta, dtheta_dx, stat)
     class(pendulum_step), intent(in) :: self
@@ -583,7 +583,7 @@ contains
       end do
       residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - point%rate
       residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
-      ! Constraints (FORMULATION section 7).
+      ! Constraints (docs/formulation.md section 7).
       point%lambda_length = 0.0_real64
       if (self%length_row > 0) then
         point%lambda_length = y(self%length_row)

@@ -1,11 +1,11 @@
 !> Residual and analytic Jacobian of one time step of any model (src/structure/model_interface):
 !>   R(z') = (z' - z)/dt - f(z_mid, partials),   z_mid = (z + z')/2,
 !> where f is the model's GENERIC vector field and `partials` are
-!>  - discrete gradients (EME, eq. (15), FORMULATION section 5): of U_a and S_a between the
+!>  - discrete gradients (EME, eq. (15), docs/formulation.md section 5): of U_a and S_a between the
 !>    invariants of z and z', per subsystem; K0 then sees the discrete temperatures
 !>    Theta_a = D_tau U_a / D_tau S_a;
-!>  - midpoint partials (FORMULATION section 6): the exact partials at z_mid.
-!> Active constraints (FORMULATION section 7) append their multipliers to the unknowns and their
+!>  - midpoint partials (docs/formulation.md section 6): the exact partials at z_mid.
+!> Active constraints (docs/formulation.md section 7) append their multipliers to the unknowns and their
 !> equations g(z') = 0 to the residual. For the solver it is a nonlinear_system whose
 !> continuation parameter s solves the step of s dt from the same old state.
 module step_residual
@@ -181,7 +181,7 @@ contains
   end subroutine scheme_temperatures
 
   !> Why x' is not a physical root of the step ('' if it is): the temperatures at z' and the
-  !> temperatures the scheme's K0 used must be positive (FORMULATION section 5).
+  !> temperatures the scheme's K0 used must be positive (docs/formulation.md section 5).
   pure subroutine check_root(self, x, problem_text)
     class(step_problem), intent(in) :: self
     real(real64), intent(in) :: x(:)

@@ -1,4 +1,4 @@
-/* The legends of the converged reasons the run files record per step (README, Output layout):
+/* The legends of the converged reasons the run files record per step (docs/output.md):
  * PETSc's own names for SNESConvergedReason and TSConvergedReason, from PETSc's string tables,
  * over the range of each enumeration in petscsnes.h and petscts.h. For src/solver/snes_solver.F90
  * and src/integrator/ts_stepper.F90. */

@@ -1,5 +1,5 @@
 !> LU factors of a small dense matrix by LAPACK: dgetf2 (unblocked; for 9 to 17 unknowns it
-!> costs half of the blocked dgetrf that PETSc's dense LU calls, README per-step cost), and the
+!> costs half of the blocked dgetrf that PETSc's dense LU calls, docs/performance.md), and the
 !> solves of dgetrs by its parts (dlaswp, two dtrsv).
 !> The step solver's shell preconditioner keeps them, and its chord predictor reuses them.
 module dense_lu

@@ -19,7 +19,7 @@ typedef struct {
     double minimum, maximum;
 } eme_option;
 
-/* The step solver's options (README: Solver), then the run's (README: Set-up and use). */
+/* The step solver's options (docs/integrators.md), then the run's (docs/running.md). */
 enum {
     CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MAX_HALVINGS, ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE,
     OPTION_COUNT
@@ -155,7 +155,7 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
                                        int *max_halvings)
 {
     PetscInt depth = *max_halvings;
-    const char *section = "README: Solver";
+    const char *section = "docs/integrators.md";
 
     PetscFunctionBeginUser;
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME step solver (eme_run, eme_ensemble, eme_bench)", "SNES");
@@ -195,7 +195,7 @@ PetscErrorCode eme_read_step_control_options(int *record, double *scale)
  * error code. */
 PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite)
 {
-    const char *section = "README: Set-up and use";
+    const char *section = "docs/running.md";
 
     PetscFunctionBeginUser;
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME run (eme_run, eme_ensemble)", NULL);

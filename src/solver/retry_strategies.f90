@@ -1,5 +1,5 @@
 !> How a time step's nonlinear system is attacked, whatever solves it: a root is accepted only if
-!> the solver converged AND the root is physical (the problem's check_root, FORMULATION
+!> the solver converged AND the root is physical (the problem's check_root, docs/formulation.md
 !> section 5), and a step that fails is retried, always for the same step:
 !>   1. from the caller's predictor, improved by the finder's last linearization (a chord step);
 !>   2. from the old state;
@@ -31,7 +31,7 @@ module retry_strategies
   !> A root finder may confirm a root with the LU factors it has (a final chord step instead of a
   !> new Jacobian) once the residual is below its tolerance after an update of at most this
   !> 2-norm: the chord step's residual is then ~ |update| times the tolerance, at the residual's
-  !> rounding (README, Solver: measured, 1e-3 let the energy drift over 2000 steps of 0.01 s grow
+  !> rounding (docs/integrators.md: measured, 1e-3 let the energy drift over 2000 steps of 0.01 s grow
   !> threefold, 1e-4 does not).
   real(real64), parameter :: chord_update_limit = 1.0e-4_real64
 
@@ -92,7 +92,7 @@ module retry_strategies
 
 contains
 
-  !> Newton's convergence test, scale-aware (README, Solver): converged when the residual is below
+  !> Newton's convergence test, scale-aware (docs/integrators.md): converged when the residual is below
   !> the tolerance and so was the update that produced it (or the initial guess already solves the
   !> system: iteration 0), or when both are at their rounding: the update below rounding_factor eps
   !> state_scale and the residual below rounding_factor eps residual_scale, the scales of the

@@ -8,7 +8,7 @@
 !> different units, and backtracking on its 2-norm can stall where full steps converge; the
 !> fallback is 'bt' (or 'basic' if the command line chose 'bt').
 !>
-!> Two ways to drive SNES (README, per-step cost):
+!> Two ways to drive SNES (docs/performance.md):
 !>  - lean (the default): SNES never computes a Jacobian (SNESSetLagJacobian -1). The shell
 !>    preconditioner evaluates it at SNES's current iterate and factors it when it is applied,
 !>    once per Newton iteration, or confirms a root with the factors it has (the final chord
@@ -390,7 +390,7 @@ contains
 
   !> The chord step x - J_old^-1 R(x) with the last Jacobian's LU factors (from the last
   !> solve): a residual and a back-substitution instead of a Newton iteration, which saves about
-  !> one iteration per step (README, per-step cost). Nothing happens without factors.
+  !> one iteration per step (docs/performance.md). Nothing happens without factors.
   subroutine refine(self, problem, x)
     class(newton_solver), intent(inout) :: self
     class(nonlinear_system), intent(in) :: problem

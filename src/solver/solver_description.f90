@@ -1,4 +1,4 @@
-!> What an integrator's solver used, as a run file records it (README, Output layout): its
+!> What an integrator's solver used, as a run file records it (docs/output.md): its
 !> settings as they stood after the options database was applied (e.g. SNES's absolute
 !> tolerance after -snes_atol), and the legend of its per-step converged reason (the solver's
 !> own numbering and names, e.g. PETSc's SNESConvergedReason).

@@ -1,7 +1,7 @@
 !> The step solver's run-time choices from PETSc's options database (src/solver/petsc_options.c
 !> registers them, so that PETSc's -help lists them with their descriptions), and which options a
 !> user gave, by part of their name. Each switch undoes one of the step's speed-ups, for
-!> measuring what it buys (README, per-step cost):
+!> measuring what it buys (docs/performance.md):
 !>   -eme_chord_predictor false   no chord refinement of the predictor
 !>   -eme_fused_kernel false      the generic residual on the full unknowns instead of the fused,
 !>                                condensed kernel (src/scheme/pendulum_step_kernel)

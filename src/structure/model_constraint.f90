@@ -1,7 +1,7 @@
 !> Constraints g(z) = 0 of eq. (13) with Lagrange multipliers, as a model offers them: each
 !> active constraint adds its multiplier lambda to the unknowns of a step, its generalized force
 !> (the paper's N lambda) to the state rows of the step residual, and its equation g(z') = 0 as
-!> the multiplier's row (FORMULATION section 7).
+!> the multiplier's row (docs/formulation.md section 7).
 !>
 !> Integrators of the continuous flow (the relaxed Runge-Kutta family) use a constraint's
 !> continuous-time form instead, when it has one (`continuous_form`): a map that slaves state

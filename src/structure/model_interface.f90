@@ -1,5 +1,5 @@
 !> What a model must provide for the time integrators: a GENERIC system with Mielke's split
-!> (paper eqs. (4)-(12), FORMULATION section 4) made of thermodynamic subsystems.
+!> (paper eqs. (4)-(12), docs/formulation.md section 4) made of thermodynamic subsystems.
 !>
 !> The state z has `state_size` entries. Subsystem a owns a pair of potentials (U_a, S_a) as
 !> functions of its invariants x_a(z) = (mechanical invariants, tau_a): tau_a is the subsystem's
@@ -29,7 +29,7 @@ module model_interface
     integer :: invariant_count                               !! n_a, tau_a being the last
     integer, allocatable :: columns(:)                       !! the columns of z that x_a depends on
     integer :: tau_column                                    !! tau_a's column of z
-    real(real64), allocatable :: metric_scale(:)             !! typical sizes of x_a (FORMULATION section 5)
+    real(real64), allocatable :: metric_scale(:)             !! typical sizes of x_a (docs/formulation.md section 5)
   end type subsystem
 
   !> A GENERIC model with Mielke's split.
@@ -190,7 +190,7 @@ contains
   end subroutine energy_difference
 
   !> The same physical state in `target`'s thermodynamic variable: every subsystem's tau from its
-  !> temperature at the same mechanical invariants (FORMULATION section 3's closed forms).
+  !> temperature at the same mechanical invariants (docs/formulation.md section 3's closed forms).
   pure subroutine convert_state(self, z, target, z_target, stat)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)

@@ -1,5 +1,5 @@
 !> Oracle: the GENERIC structure with Mielke's split assembled as dense matrices for any model
-!> of src/structure/model_interface (paper eqs. (7)-(9), FORMULATION section 4):
+!> of src/structure/model_interface (paper eqs. (7)-(9), docs/formulation.md section 4):
 !>   L = M_S L0 M_S^T,   K = M_E K0 M_E^T,   zdot = L grad E + K grad S.
 !> Every quantity is built from `partials`, the derivatives of U_a and S_a in subsystem a's
 !> invariants: exact ones at a state give the continuous structure, discrete gradients the

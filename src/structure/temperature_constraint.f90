@@ -1,8 +1,8 @@
 !> Constraint g2 of eq. (13) for any subsystem a of a model: Theta_a(z) = thetabar, held by a heat
 !> supply lambda (a power, [W]) from the surroundings into tau_a: lambda / D_tau U_a in tau_a's
-!> row of the step, so that E_{n+1} - E_n = dt lambda exactly (FORMULATION section 7).
+!> row of the step, so that E_{n+1} - E_n = dt lambda exactly (docs/formulation.md section 7).
 !>
-!> Its continuous-time form (the relaxed Runge-Kutta family; HIGH_ORDER.md, Constraints): tau_a
+!> Its continuous-time form (the relaxed Runge-Kutta family; docs/integrators.md, Constraints): tau_a
 !> is slaved to the mechanical invariants by Theta_a = thetabar, so the subsystem is an
 !> isothermal one in a heat bath at thetabar, and the conserved energy gives way to the Lyapunov
 !> function V = E - thetabar S.

@@ -1,5 +1,5 @@
 !> Order statistics of timings: the median of repeated measurements (benchmarks report medians,
-!> as README "Per-step cost" explains).
+!> as docs/performance.md explains).
 module statistics
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Fault campaign (not a test: it takes minutes): many kills, signals and full disks at random
-moments and sizes, and a count of what they left behind. The README's figures come from it.
+moments and sizes, and a count of what they left behind. docs/faults.md's figures come from it.
 
   .venv/bin/python tests/e2e/fault_campaign.py [--runs N] [--study-runs M] [--seed S] [--only NAME ...]
 
@@ -14,7 +14,7 @@ What counts as bad: a file under its final name that is neither complete (read b
 incomplete with a reason; a crash (a signal other than the one sent); a full disk not reported
 with the OS's reason, file and input file; a study that does not finish on restart, or reruns a
 case it had recorded complete with a good file. A FILE.part that cannot be read after SIGKILL
-is counted apart (the README states this risk)."""
+is counted apart (docs/faults.md states this risk)."""
 import argparse
 import collections
 import os

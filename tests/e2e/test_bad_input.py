@@ -228,7 +228,7 @@ def test_long_paths_are_not_cut(tmp_path, eme_run_binary):
 
 
 def test_paper_data_above_350_K_is_not_refused(tmp_path, eme_run_binary):
-    """mu2^neq(theta) = 5 - 0.1 (theta - 300) is 0 at 350 K and negative above (FORMULATION
+    """mu2^neq(theta) = 5 - 0.1 (theta - 300) is 0 at 350 K and negative above (docs/formulation.md
     section 1): that is the paper's data, not an input error."""
     output = tmp_path / "hot.h5"
     namelist = tmp_path / "hot.nml"

@@ -115,7 +115,7 @@ def test_options_before_or_after_the_input_file(scene, order, eme_run_binary):
     plain_path, plain_output = scene("plain")
     assert run("eme_run", plain_path).returncode == 0
     with h5py.File(plain_output, "r") as f:
-        # -snes_linesearch_type selects PETSc's standard SNES path (README, Solver), which reaches
+        # -snes_linesearch_type selects PETSc's standard SNES path (docs/integrators.md), which reaches
         # the same roots to rounding, not bit for bit.
         np.testing.assert_allclose(f["state"][()], state, rtol=0, atol=1e-12)
 

@@ -1,5 +1,5 @@
 """Constraints g1 (fixed length of spring 1) and g2 (fixed temperature of spring 1), eq. (13)
-and FORMULATION section 7, on the paper's scene at dt = 0.15 s."""
+and docs/formulation.md section 7, on the paper's scene at dt = 0.15 s."""
 import re
 
 import h5py
@@ -93,7 +93,7 @@ def lyapunov_decomposition_excess(data):
 
 @pytest.mark.parametrize("variable", ["entropy", "internal_energy"])
 def test_fixed_temperature_s_and_u_on_the_paper_scene(runner, variable):
-    # What we report in the README: theta_1 is held and the energy balance is exact; the
+    # What we report in docs/constraints.md: theta_1 is held and the energy balance is exact; the
     # discrete temperature differs from 280 K, yet V falls on every step of this scene,
     # because conduction from the hot spring dissipates more than the exchange term adds.
     data = runner("temperature", {"fix_temperature": True}, variable)

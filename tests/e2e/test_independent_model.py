@@ -4,15 +4,15 @@ evolution equations, used as a reference for the project's integrators on a shor
 What this establishes: on a scene that breaks every symmetry of the paper's (unequal masses and
 springs, other Table 1 values, gravity off the z axis, a non-mirror-symmetric initial state with
 gamma != 0), eme_run's final q, p, gamma and temperatures agree with an RK4 solution of the
-equations typed here from the paper (eqs. (1), (6), (12), (16), (17)) and FORMULATION section 4:
+equations typed here from the paper (eqs. (1), (6), (12), (16), (17)) and docs/formulation.md section 4:
 to 1e-10 for the adaptive ts_rk5dp baseline (ts_tolerance 1e-12), and to a few times the
 measured O(dt^2) error for EME (dt = 0.001) in each thermodynamic variable; and E, S at t = 0 agree with the project's /energy, /entropy to round-off.
 
 What it is independent of: nothing under src/ (the Fortran model) or tests/unit/ was read to
-write it. The free energies are coded as the paper writes (16)-(17), not in FORMULATION
+write it. The free energies are coded as the paper writes (16)-(17), not in docs/formulation.md
 section 3's closed forms; their derivatives are written by hand from (16)-(17) and checked
 against complex-step differentiation below. The only project code used is tests/conftest.py
-(to write the namelist and run the driver) and the documented HDF5 layout (README).
+(to write the namelist and run the driver) and the documented HDF5 layout (docs/output.md).
 
 The reference verifies itself before it judges the code: its energy E = T + V_g + U_1 + U_2 is
 conserved to 1e-10 relative (measured ~4e-14) and its entropy S never decreases; halving its step changes the end state
@@ -69,7 +69,7 @@ TOL_STATE_FUNCTIONS = 1e-12   # E and S at t = 0, relative
 
 @dataclass(frozen=True)
 class Params:
-    """The &model group as plain numbers (README "Input"; Table 1 names in comments)."""
+    """The &model group as plain numbers (docs/input.md; Table 1 names in comments)."""
     m1: float
     m2: float                 # m_alpha
     l0: tuple                 # lambda_alpha^0
@@ -88,7 +88,7 @@ class Params:
 
 
 def params_from(model):
-    """Params from a &model dict with the README's field names."""
+    """Params from a &model dict with the field names of docs/input.md."""
     return Params(
         m1=model["mass"][0], m2=model["mass"][1], l0=tuple(model["natural_length"]),
         mu_c=tuple(model["mu_eq_const"]), mu_t=tuple(model["mu_eq_slope"]),
@@ -181,7 +181,7 @@ def spring_derivatives(P, l1, l2, th1, th2, gamma):
 
 
 # ---------------------------------------------------------------------------------------------
-# Mechanics, eq. (1) and section 2 of FORMULATION; the state is y = (q1, q2, p1, p2, gamma,
+# Mechanics, eq. (1) and section 2 of docs/formulation.md; the state is y = (q1, q2, p1, p2, gamma,
 # theta1, theta2) (temperature as thermodynamic variable, same column order as /state).
 # ---------------------------------------------------------------------------------------------
 
@@ -200,18 +200,18 @@ def rhs(P, y, minv):
     """Continuous evolution equations in the temperature variable.
 
     - qdot = m^-1 p (eq. (1), p = m qdot).
-    - pdot_a = -grad_{q_a} V_g - (d psi_a/d l_a) q_a/l_a at constant theta: FORMULATION 4's
+    - pdot_a = -grad_{q_a} V_g - (d psi_a/d l_a) q_a/l_a at constant theta: docs/formulation.md section 4's
       -(grad_qa E - Theta_a grad_qa S_a) with tau = theta is -grad_qa (U_a - theta S_a) =
-      -grad_qa psi_a, plus gravity V_g = -(m1+m2) g.q1 - m2 g.q2 (FORMULATION 2).
+      -grad_qa psi_a, plus gravity V_g = -(m1+m2) g.q1 - m2 g.q2 (docs/formulation.md section 2).
     - gammadot = -(1/eta(theta_2)) d psi_2/d gamma: K0's gamma entry theta_2/eta (eq. (12))
-      times y = -d_gamma psi_2/theta_2 (FORMULATION 4).
+      times y = -d_gamma psi_2/theta_2 (docs/formulation.md section 4).
     - entropy balance (tau = s rows of K = M_E K0 M_E^T, eq. (12); the reversible tau = s rows
-      vanish, FORMULATION 4): ds_1/dt = kappa (theta_2 - theta_1)/theta_1 and
+      vanish, docs/formulation.md section 4): ds_1/dt = kappa (theta_2 - theta_1)/theta_1 and
       ds_2/dt = kappa (theta_1 - theta_2)/theta_2 + eta gammadot^2/theta_2, where the last term
-      is FORMULATION 4's -(d_gamma U_2/d_s U_2) gammadot with d_gamma U_2|_s = d_gamma psi_2|_theta
+      is docs/formulation.md section 4's -(d_gamma U_2/d_s U_2) gammadot with d_gamma U_2|_s = d_gamma psi_2|_theta
       = -eta gammadot and d_s U_2 = theta_2 (viscous dissipation, >= 0).
     - thetadot_a from ds_a/dt = s_a,l ldot_a + s_a,gamma gammadot + s_a,theta thetadot_a, which
-      reproduces FORMULATION 4's tau = theta rows (d_theta S = Cap/theta, d_theta U = Cap).
+      reproduces docs/formulation.md section 4's tau = theta rows (d_theta S = Cap/theta, d_theta U = Cap).
     """
     q1, q2, p1, p2, gamma, th1, th2 = split(y)
     qdot = minv @ y[6:12]

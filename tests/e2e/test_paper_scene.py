@@ -2,7 +2,7 @@
 
 EME, every thermodynamic variable and both discrete gradients: energy and J_z conserved,
 entropy non-decreasing and V non-increasing on every step. The midpoint rule keeps exactly
-the structure of FORMULATION section 6 and visibly loses the rest.
+the structure of docs/formulation.md section 6 and visibly loses the rest.
 """
 import numpy as np
 import pytest

@@ -3,7 +3,7 @@ the PETSc options, the effective namelist, versions, host and dates), the stored
 again gives the same file, xarray sees named dimensions and coordinates, every parameter carries
 its units, &output every keeps every N-th point with step rows that combine their N steps, and
 &output compression gzips the datasets without changing a bit. Each check is against something
-the test knows by itself: the argv it passed, the clock, pkg-config, README's Input table, the
+the test knows by itself: the argv it passed, the clock, pkg-config, the table of docs/input.md, the
 rows of a run written without a stride, a run written without compression."""
 import os
 import re
@@ -20,9 +20,9 @@ import xarray
 
 from conftest import BIN, ROOT, namelist_text, read_run, run_eme
 
-# Units of README's Input table, by field (the root attribute of the same name carries them in
+# Units of the table of docs/input.md, by field (the root attribute of the same name carries them in
 # <name>_units).
-README_UNITS = {
+INPUT_TABLE_UNITS = {
     "mass": "kg", "natural_length": "m", "mu_eq_const": "J", "mu_eq_slope": "J/K", "mu_neq_const": "J/m^2",
     "mu_neq_slope": "J/(K m^2)", "heat_capacity": "J/K", "viscosity_const": "J s/m^2", "viscosity_activation": "K",
     "conductivity": "J/(K s)", "theta_ref": "K", "beta": "J/K", "beta_v": "1", "gravity": "m/s^2",
@@ -215,7 +215,7 @@ def test_namelist_text_agrees_with_the_attributes(scene_runs, scene):
             elif isinstance(value, str):
                 stored = text(attribute)
                 # Schemes without a discrete gradient record 'none' for it and its metric
-                # (README, Output layout); the nondimensional metric adds its scales.
+                # (docs/output.md); the nondimensional metric adds its scales.
                 same = stored == value or stored.startswith(value + ":") or (
                     field in ("discrete_gradient", "metric") and stored == "none"
                     and text(attrs["scheme_family"]) != "discrete_gradient_step")
@@ -338,15 +338,15 @@ def test_state_columns_name_the_thermodynamic_variable(tmp_path, eme_run_binary,
 
 
 def test_every_parameter_has_units(tmp_path, eme_run_binary):
-    """Each numeric root attribute has <name>_units; those of README's Input table say its unit;
+    """Each numeric root attribute has <name>_units; those of the table of docs/input.md say its unit;
     no units attribute anywhere is the non-unit 'SI' or empty."""
     path = run_ok(tmp_path, "units", {"constraints": {"fix_temperature": True},
                                       "integrator": {"dt": 0.2, "t_end": 0.6}})
     with h5py.File(path, "r") as f:
         attrs = dict(f.attrs)
-        wrong = {name: text(attrs.get(f"{name}_units")) for name, unit in README_UNITS.items()
+        wrong = {name: text(attrs.get(f"{name}_units")) for name, unit in INPUT_TABLE_UNITS.items()
                  if text(attrs.get(f"{name}_units")) != unit}
-        assert not wrong, f"units differing from README's Input table: {wrong}"
+        assert not wrong, f"units differing from the table of docs/input.md: {wrong}"
         groups = parse_namelist(text(attrs["namelist"]))
         for fields in groups.values():
             for field, raw in fields.items():

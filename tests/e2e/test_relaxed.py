@@ -1,7 +1,7 @@
 """The relaxed Runge-Kutta family on the paper scene: on every step E and J_z are kept to
 round-off, S never falls and V never rises, and S_{n+1} - S_n is the step's gamma e_S, in every
 thermodynamic variable, at the paper's dt and at dt = 0.5 s, where steps are halved; each scheme
-converges at its order; and the constraint scenes keep what HIGH_ORDER.md promises: g1 with its
+converges at its order; and the constraint scenes keep what docs/integrators.md promises: g1 with its
 hidden constraint, g2 as a heat bath with V = E - thetabar S falling by -thetabar gamma e_S."""
 import numpy as np
 import pytest
@@ -106,8 +106,7 @@ def test_fixed_length(tmp_path, eme_run_binary, scheme):
 @pytest.mark.parametrize("scheme", RELAXED)
 @pytest.mark.parametrize("length,conductivity", [(False, 1.0), (True, 1.0), (False, 0.0)])
 def test_heat_bath(tmp_path, eme_run_binary, scheme, length, conductivity):
-    # Without conduction V still falls on every step (EME_s and EME_u let it rise there: README,
-    # Constraints): the relaxation makes its change -thetabar gamma e_S exactly.
+    # Without conduction V still falls on every step (EME_s and EME_u let it rise there: docs/constraints.md): the relaxation makes its change -thetabar gamma e_S exactly.
     constraints = {"fix_temperature": True, "fix_length": length}
     run = relaxed_run(tmp_path, "bath", scheme, constraints=constraints, initial=CONSISTENT,
                       model={"conductivity": conductivity}, integrator={"thermo_variable": "entropy"})

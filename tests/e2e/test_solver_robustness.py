@@ -1,4 +1,4 @@
-"""A solver that does not give up too early (README, Solver): Newton's convergence test is
+"""A solver that does not give up too early (docs/integrators.md): Newton's convergence test is
 scale-aware, so a tight newton_tol or a small dt ends where rounding ends the iteration instead
 of failing the run; a step without a root at dt is replaced by halves, each a full step of the
 scheme, so the structure holds over the output step, which stays on the user's grid."""

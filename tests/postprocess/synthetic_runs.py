@@ -1,4 +1,4 @@
-"""Run files built with h5py that follow README "Output layout (HDF5)" exactly, with known numbers.
+"""Run files built with h5py that follow docs/output.md exactly, with known numbers.
 
 Used where eme_run cannot (yet) produce the case: constrained runs, missing datasets,
 permuted state columns, hand-made values."""

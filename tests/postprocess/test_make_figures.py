@@ -1,7 +1,7 @@
 """`make figures` from a clean clone: every figure is drawn after the runs it shows, which make
 runs from their inputs (results/NAME.h5 from inputs/NAME.nml), and after the Python set-up.
 Checked with `make -n` (what make would do) in a fresh clone of this repository's last commit,
-so that no build is needed; README, Figures, gives the real run's numbers."""
+so that no build is needed; docs/figures.md, gives the real run's numbers."""
 import re
 import shutil
 import subprocess

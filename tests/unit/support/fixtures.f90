@@ -45,7 +45,7 @@ contains
     x = low + (high - low)*x
   end function uniform
 
-  !> The paper's initial state (FORMULATION section 1) in the model's thermodynamic variable.
+  !> The paper's initial state (docs/formulation.md section 1) in the model's thermodynamic variable.
   function paper_state(model) result(z)
     type(pendulum), intent(in) :: model
     real(real64) :: z(state_size)

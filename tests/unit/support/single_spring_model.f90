@@ -5,7 +5,7 @@
 !>   z = (q(3), p(3), gamma, tau),   invariants (C = q.q, gamma, tau),
 !>   dq/dt = p/m,   dp/dt = m g - 2 q (U_C - Theta S_C),   dgamma/dt = (Theta S_gamma - U_gamma)/eta(Theta),
 !>   dtau/dt = -2 S_C q.(p/m)/S_tau - (U_gamma/U_tau) dgamma/dt,   Theta = U_tau/S_tau,
-!> FORMULATION section 4 with one spring; L0 is canonical on (q, p), K0 has Theta/eta(Theta) on gamma.
+!> docs/formulation.md section 4 with one spring; L0 is canonical on (q, p), K0 has Theta/eta(Theta) on gamma.
 module single_spring_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
