@@ -2,6 +2,7 @@
  * PETSc is initialized with the command line without the input file (so that no option takes
  * FILE.nml for its value: -help FILE.nml, -info FILE.nml), and the options that nothing used on
  * any rank are listed at the end, as -options_left would. */
+#define _POSIX_C_SOURCE 200809L
 #include <stdlib.h>
 #include <string.h>
 #include <petscsys.h>
@@ -26,6 +27,11 @@ int eme_petsc_initialize(const char *arguments, int count)
     }
     argv[count] = NULL;
     argc = count;
+    /* A program started without mpirun is an MPI singleton; Open MPI then starts a daemon for it
+     * unless told not to, which costs 0.1 s of every start (measured: 0.37 s against 0.27 s for a
+     * run refused at its input). Nothing here spawns processes, so the daemon is not needed. The
+     * user's setting wins; other MPIs ignore the variable; under mpirun it does not apply. */
+    if (setenv("OMPI_MCA_ess_singleton_isolated", "1", 0) != 0) return PETSC_ERR_SYS;
     ierr = PetscInitialize(&argc, &argv, NULL, NULL);
     if (ierr) return (int)ierr;
     return (int)PetscInitializeFortran();
