@@ -63,7 +63,7 @@ $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/
 $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/converged_reasons.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
-$(OBJ)/src/solver/snes_solver.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
+$(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/snes_shell.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
 $(OBJ)/src/model/length_constraint.o \
 $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
 $(OBJ)/src/model/pendulum_model.o $(OBJ)/src/structure/invariant_function.o \

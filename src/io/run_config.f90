@@ -16,8 +16,8 @@ module run_config
   use model_constraint, only: constraint_slot
   use constrained_flow, only: initial_inconsistency
   use model_registry, only: select_scene
-  use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, reals_text, joined
-  use number_text, only: integer_text
+  use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, joined
+  use number_text, only: integer_text, reals_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
                             invalid_value_message, choices_text, value_origin
   implicit none (type, external)

@@ -5,7 +5,8 @@
 !> `temperature` defaults to theta(1) and must equal it.
 module pendulum_scene
   use, intrinsic :: iso_fortran_env, only: real64
-  use namelist_text, only: namelist_item, reals_text
+  use namelist_text, only: namelist_item
+  use number_text, only: reals_text
   use namelist_group, only: group_field, real_field, reals_field, logical_field, text_field, read_group, &
                             invalid_value_message, value_origin
   use model_parameters, only: pendulum_parameters

@@ -24,38 +24,17 @@ module snes_solver
 #include <petsc/finclude/petscsnes.h>
   use petscsnes
   use, intrinsic :: iso_fortran_env, only: real64
-  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, final_chord_step, newton_converged
-  use dense_lu, only: lu_factors
+  use retry_strategies, only: root_finder
   use dense_assembly, only: assemble_jacobian
+  use snes_shell, only: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, &
+                        factor_operator, apply_lu, full_step
   use solver_options, only: step_solver_options, read_solver_options, option_given
   use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
                                 reasons_snes
   implicit none
   private
   public :: newton_solver
-
-  ! SNES_LINESEARCH_FAILED_DOMAIN of petscsnes.h (PETSc 3.18 has no Fortran name for it).
-  PetscEnum, parameter :: line_search_failed_domain = 2
-
-  !> What the callbacks see (PETSc holds this context's address): the problem, the LU factors
-  !> and, within a solve, what the lean preconditioner needs to choose between a new Jacobian and
-  !> the factors it has.
-  type :: solver_context
-    class(nonlinear_system), pointer :: problem => null()
-    type(lu_factors) :: lu
-    SNES :: snes
-    logical :: lean = .false.
-    logical :: final_chord = .true.
-    real(real64) :: tolerance = 0.0_real64          !! the convergence test's absolute tolerance
-    real(real64) :: residual_norm = huge(1.0_real64)  !! at SNES's current iterate
-    real(real64) :: update_norm = huge(1.0_real64)    !! of the update that led there
-    real(real64) :: state_scale = 0.0_real64          !! the problem's rounding scales (newton_converged)
-    real(real64) :: residual_scale = 0.0_real64
-    logical :: chord_taken = .false.                !! the last iteration reused the factors
-    integer :: factorizations = 0                   !! LU factorizations since the solver was made
-  end type solver_context
 
   !> The PETSc objects of a solver. Do not copy it after `prepare`: PETSc holds the address of
   !> `context`.
@@ -88,29 +67,6 @@ module snes_solver
     procedure, private :: create
     procedure, private :: set_line_search
   end type newton_solver
-
-  ! PETSc needs these interfaces to pass a Fortran derived type as a shell's context.
-  interface
-    subroutine PCShellSetContext(pc, context, ierr)
-      import :: tPC, solver_context
-      PC, intent(in) :: pc
-      type(solver_context), intent(in) :: context
-      PetscErrorCode, intent(out) :: ierr
-    end subroutine PCShellSetContext
-    subroutine PCShellGetContext(pc, context, ierr)
-      import :: tPC, solver_context
-      PC, intent(in) :: pc
-      type(solver_context), pointer, intent(out) :: context
-      PetscErrorCode, intent(out) :: ierr
-    end subroutine PCShellGetContext
-    !> The dense matrix's values without changing its state (dense_read.c).
-    function eme_dense_read(matrix, values) bind(C, name='eme_dense_read') result(ierr)
-      import :: c_int, c_double
-      type(*), intent(in) :: matrix
-      real(c_double), intent(out) :: values(*)
-      integer(c_int) :: ierr
-    end function eme_dense_read
-  end interface
 
 contains
 
@@ -417,196 +373,5 @@ contains
       PetscCall(self%set_line_search(self%line_search, ierr))
     end if
   end subroutine use_fallback
-
-  ! SNES convergence test: retry_strategies' newton_converged with SNES's absolute tolerance
-  ! (-snes_atol changes it) and relative update tolerance (-snes_stol > 0 adds it).
-  subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
-    SNES, intent(in) :: snes
-    PetscInt, intent(in) :: iteration
-    PetscReal, intent(in) :: x_norm, update_norm, residual_norm
-    SNESConvergedReason, intent(out) :: reason
-    type(solver_context), intent(in) :: context
-    PetscErrorCode, intent(out) :: ierr
-    PetscReal :: atol, rtol, stol
-    PetscInt :: max_iterations, max_evaluations
-
-    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
-    if (.not. (residual_norm <= huge(residual_norm))) then
-      reason = SNES_DIVERGED_FNORM_NAN
-    else if (newton_converged(int(iteration), residual_norm, update_norm, x_norm, atol, stol, context%state_scale, &
-                              context%residual_scale)) then
-      reason = SNES_CONVERGED_FNORM_ABS
-    else
-      reason = SNES_CONVERGED_ITERATING
-    end if
-  end subroutine converged_on_update
-
-  ! SNES callback: the residual; a point outside the problem's domain is a domain error, which
-  ! makes the line search shorten the step. Its norm is the current iterate's for the lean
-  ! preconditioner (SNESSolve evaluates the initial residual here).
-  subroutine form_residual(snes, x, f, context, ierr)
-    SNES, intent(in) :: snes
-    Vec, intent(in) :: x
-    Vec, intent(in) :: f
-    type(solver_context), intent(inout) :: context
-    PetscErrorCode, intent(out) :: ierr
-    PetscScalar, pointer :: x_values(:), f_values(:)
-    integer :: stat
-
-    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
-    PetscCall(VecGetArrayF90(f, f_values, ierr))
-    call context%problem%evaluate_residual(x_values, f_values, stat)
-    if (stat /= 0) f_values = huge(1.0_real64)
-    context%residual_norm = norm2(f_values)
-    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
-    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
-    if (stat /= 0) then
-      PetscCall(SNESSetFunctionDomainError(snes, ierr))
-    end if
-  end subroutine form_residual
-
-  ! SNES callback (standard way): the analytic Jacobian, written straight into the dense matrix.
-  subroutine form_jacobian(snes, x, jacobian, preconditioner, context, ierr)
-    SNES, intent(in) :: snes
-    Vec, intent(in) :: x
-    Mat, intent(in) :: jacobian
-    Mat, intent(in) :: preconditioner
-    type(solver_context), intent(in) :: context
-    PetscErrorCode, intent(out) :: ierr
-    PetscScalar, pointer :: x_values(:), entries(:, :)
-    real(real64) :: residual(context%problem%unknowns())
-    integer :: stat
-
-    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
-    PetscCall(MatDenseGetArrayF90(preconditioner, entries, ierr))
-    call context%problem%evaluate(x_values, residual, entries, stat)
-    PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
-    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
-    PetscCall(assemble_jacobian(jacobian, preconditioner, ierr))
-    if (stat /= 0) then
-      PetscCall(SNESSetJacobianDomainError(snes, ierr))
-    end if
-  end subroutine form_jacobian
-
-  ! Shell preconditioner set-up (standard way): factor the new matrix, read without changing its
-  ! state. PETSc keeps a failure reason until told otherwise, so a good factorization clears it.
-  ! The lean way factors when the preconditioner is applied.
-  subroutine factor_operator(pc, ierr)
-    PC, intent(in) :: pc
-    PetscErrorCode, intent(out) :: ierr
-    type(solver_context), pointer :: context
-    Mat :: operator, preconditioner
-    integer :: info
-
-    PetscCall(PCShellGetContext(pc, context, ierr))
-    if (context%lean) return
-    PetscCall(PCGetOperators(pc, operator, preconditioner, ierr))
-    ierr = eme_dense_read(preconditioner, context%lu%factors)
-    if (ierr /= 0) return
-    call context%lu%factor_in_place(info)
-    context%factorizations = context%factorizations + 1
-    if (info /= 0) then
-      PetscCall(PCSetFailedReason(pc, PC_FACTOR_NUMERIC_ZEROPIVOT, ierr))
-    else
-      PetscCall(PCSetFailedReason(pc, PC_NOERROR, ierr))
-    end if
-  end subroutine factor_operator
-
-  ! Shell application: y = J^-1 x from the factors. The lean way first evaluates the Jacobian at
-  ! SNES's iterate and factors it, unless the final chord step confirms the root with the factors
-  ! at hand (module header).
-  subroutine apply_lu(pc, x, y, ierr)
-    PC, intent(in) :: pc
-    Vec, intent(in) :: x
-    Vec, intent(in) :: y
-    PetscErrorCode, intent(out) :: ierr
-    type(solver_context), pointer :: context
-    PetscScalar, pointer :: x_values(:), y_values(:)
-    integer :: info
-
-    PetscCall(PCShellGetContext(pc, context, ierr))
-    if (context%lean) then
-      if (final_chord_step(context%final_chord, context%lu%ready, context%chord_taken, context%residual_norm, &
-                           context%tolerance, context%update_norm)) then
-        context%chord_taken = .true.
-      else
-        context%chord_taken = .false.
-        PetscCall(factor_jacobian(context, info, ierr))
-        if (info /= 0) then
-          PetscCall(PCSetFailedReason(pc, PC_FACTOR_NUMERIC_ZEROPIVOT, ierr))
-          return
-        end if
-        PetscCall(PCSetFailedReason(pc, PC_NOERROR, ierr))
-      end if
-    end if
-    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
-    PetscCall(VecGetArrayF90(y, y_values, ierr))
-    y_values = x_values
-    call context%lu%solve(y_values, info)
-    PetscCall(VecRestoreArrayF90(y, y_values, ierr))
-    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
-    if (info /= 0) then
-      PetscCall(PCSetFailedReason(pc, PC_SUBPC_ERROR, ierr))
-    end if
-  end subroutine apply_lu
-
-  ! The lean way's Jacobian at SNES's current iterate (whose residual the problem may have kept),
-  ! written into the LU's own array and factored there; info /= 0 for a point outside the domain
-  ! or a zero pivot.
-  subroutine factor_jacobian(context, info, ierr)
-    type(solver_context), intent(inout) :: context
-    integer, intent(out) :: info
-    PetscErrorCode, intent(out) :: ierr
-    Vec :: iterate
-    PetscScalar, pointer :: values(:)
-    integer :: stat
-
-    PetscCall(SNESGetSolution(context%snes, iterate, ierr))
-    PetscCall(VecGetArrayReadF90(iterate, values, ierr))
-    call context%problem%evaluate_jacobian(values, context%lu%factors, stat)
-    PetscCall(VecRestoreArrayReadF90(iterate, values, ierr))
-    info = stat
-    context%lu%ready = .false.
-    if (stat /= 0) return
-    call context%lu%factor_in_place(info)
-    context%factorizations = context%factorizations + 1
-  end subroutine factor_jacobian
-
-  ! Shell line search (the lean way's 'basic'): the full Newton step X - Y, its residual, and the
-  ! norms SNES would otherwise compute again. A step outside the domain fails the line search and
-  ! leaves X where it was, as 'basic' does.
-  subroutine full_step(line_search, context, ierr)
-    SNESLineSearch, intent(in) :: line_search
-    type(solver_context), intent(inout) :: context
-    PetscErrorCode, intent(out) :: ierr
-    Vec :: x, f, y, w, g
-    PetscScalar, pointer :: x_values(:), f_values(:), y_values(:)
-    real(real64) :: trial(context%problem%unknowns()), residual(size(trial)), x_norm, residual_norm, update_norm
-    integer :: stat
-
-    PetscCall(SNESLineSearchGetVecs(line_search, x, f, y, w, g, ierr))
-    PetscCall(VecGetArrayReadF90(y, y_values, ierr))
-    PetscCall(VecGetArrayF90(x, x_values, ierr))
-    trial = x_values - y_values
-    update_norm = norm2(y_values)
-    call context%problem%evaluate_residual(trial, residual, stat)
-    if (stat == 0) then
-      x_values = trial
-      x_norm = norm2(trial)
-      residual_norm = norm2(residual)
-    end if
-    PetscCall(VecRestoreArrayF90(x, x_values, ierr))
-    PetscCall(VecRestoreArrayReadF90(y, y_values, ierr))
-    if (stat /= 0) then
-      PetscCall(SNESLineSearchSetReason(line_search, line_search_failed_domain, ierr))
-      return
-    end if
-    PetscCall(VecGetArrayF90(f, f_values, ierr))
-    f_values = residual
-    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
-    PetscCall(SNESLineSearchSetNorms(line_search, x_norm, residual_norm, update_norm, ierr))
-    context%residual_norm = residual_norm
-    context%update_norm = update_norm
-  end subroutine full_step
 
 end module snes_solver

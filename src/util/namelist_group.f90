@@ -10,9 +10,9 @@
 !> p2(1:2) = 2*0.5); texts are quoted; logical values are .true. or .false. (or T, F).
 module namelist_group
   use, intrinsic :: iso_fortran_env, only: real64
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use namelist_text, only: namelist_item, group_items, item_name, reals_text
-  use number_text, only: integer_text
+  use namelist_text, only: namelist_item, group_items, item_name
+  use namelist_values, only: read_reals, read_texts, read_integer, read_logical, single_item, parse_subscript
+  use number_text, only: integer_text, reals_text
   implicit none (type, external)
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
@@ -346,131 +346,6 @@ contains
     end select
     if (stat /= 0) stat = value_problem
   end subroutine apply_item
-
-  ! Exactly size(values) values from the text (list-directed), or 1 to size(values) if
-  ! open_length; fewer, more, an empty value between commas, NaN and Inf are errors (with the
-  ! reason). The text is read twice, into arrays preset to 0 and to 1: an element that differs
-  ! was left unassigned by the list.
-  subroutine read_reals(text, values, stat, reason, open_length)
-    character(len=*), intent(in) :: text
-    real(real64), intent(inout) :: values(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: reason
-    logical, intent(in), optional :: open_length
-    real(real64) :: zeros(size(values) + 1), ones(size(values) + 1)
-    logical :: assigned(size(values) + 1), open
-    integer :: given
-    character(len=len(text) + 2) :: ended
-
-    reason = ''
-    open = .false.
-    if (present(open_length)) open = open_length
-    zeros = 0.0_real64
-    ones = 1.0_real64
-    ended = text//' /'                             ! '/' ends list-directed input early
-    read (ended, *, iostat=stat) zeros
-    if (stat == 0) read (ended, *, iostat=stat) ones
-    if (stat /= 0) then
-      stat = value_problem
-      return
-    end if
-    stat = value_problem
-    if (.not. all(ieee_is_finite(zeros))) then
-      reason = 'NaN and Inf are not allowed'
-      return
-    end if
-    assigned = abs(zeros - ones) < 0.5_real64
-    given = count(assigned)
-    if (given > 0 .and. .not. all(assigned(1:given))) then
-      reason = 'a value is missing between commas'
-    else if (given > size(values)) then
-      reason = 'more than '//integer_text(size(values))//' values'
-    else if (given == 0) then
-      reason = 'no value'
-    else if (given < size(values) .and. .not. open) then
-      reason = integer_text(size(values))//' values needed, '//integer_text(given)//' given'
-    else
-      values(1:given) = zeros(1:given)
-      stat = 0
-    end if
-  end subroutine read_reals
-
-  ! Up to size(values) quoted texts; one more is an error.
-  subroutine read_texts(text, values, stat)
-    character(len=*), intent(in) :: text
-    character(len=64), intent(inout) :: values(:)
-    integer, intent(out) :: stat
-    character(len=64) :: probe(size(values) + 1)
-    integer :: probe_stat
-    character(len=len(text) + 2) :: ended
-
-    ended = text//' /'
-    read (ended, *, iostat=stat) values
-    if (stat /= 0) return
-    read (text, *, iostat=probe_stat) probe
-    if (probe_stat == 0) stat = value_problem
-  end subroutine read_texts
-
-  subroutine read_integer(text, value, stat)
-    character(len=*), intent(in) :: text
-    integer, intent(inout) :: value
-    integer, intent(out) :: stat
-
-    read (text, *, iostat=stat) value
-    if (stat == 0 .and. .not. single_item(text)) stat = value_problem
-  end subroutine read_integer
-
-  subroutine read_logical(text, value, stat)
-    character(len=*), intent(in) :: text
-    logical, intent(inout) :: value
-    integer, intent(out) :: stat
-
-    read (text, *, iostat=stat) value
-    if (stat == 0 .and. .not. single_item(text)) stat = value_problem
-  end subroutine read_logical
-
-  ! Whether the text holds one list item only (a second one makes the field's value wrong).
-  logical function single_item(text)
-    character(len=*), intent(in) :: text
-    character(len=len(text)) :: items(2)
-    integer :: stat
-
-    read (text, *, iostat=stat) items
-    single_item = stat /= 0
-  end function single_item
-
-  !> The subscript 'i)' or 'i:j)' (the text after '('), within first:last, which it narrows to
-  !> i:j; stat /= 0 with the reason if it is not one or out of range.
-  subroutine parse_subscript(text, first, last, stat, reason)
-    character(len=*), intent(in) :: text
-    integer, intent(inout) :: first, last
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: reason
-    integer :: colon, close_at, lower, upper
-
-    close_at = index(text, ')')
-    stat = 1
-    reason = 'subscript ('//trim(text)//' is not closed'
-    if (close_at == 0) return
-    reason = 'subscript ('//text(1:close_at)//' is not i or i:j'
-    colon = index(text(1:close_at - 1), ':')
-    if (colon == 0) then
-      read (text(1:close_at - 1), *, iostat=stat) lower
-      upper = lower
-    else
-      read (text(1:colon - 1), *, iostat=stat) lower
-      if (stat == 0) read (text(colon + 1:close_at - 1), *, iostat=stat) upper
-    end if
-    if (stat /= 0) return
-    if (lower < first .or. upper > last .or. upper < lower) then
-      stat = 1
-      reason = 'subscript ('//text(1:close_at)//' is out of range'
-      return
-    end if
-    first = lower
-    last = upper
-    reason = ''
-  end subroutine parse_subscript
 
   ! Whether the field's value keeps its bounds, non-zero rule and choices.
   logical function within_bounds(field)
