@@ -14,7 +14,7 @@ program eme_run
   use run_config, only: run_configuration, read_run_config
   use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only
   use run_options, only: progress_wanted
-  use run_output, only: print_output_schema
+  use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options

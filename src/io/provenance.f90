@@ -3,7 +3,7 @@
 !> source, history, references, Conventions) that netCDF and xarray readers look for.
 module provenance
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
-  use hdf5_series, only: hdf5_file
+  use hdf5_files, only: hdf5_file
   use namelist_text, only: lowercase
   use library_versions, only: library_names, library_version
   use build_info, only: code_version

@@ -1,98 +1,29 @@
-!> The HDF5 file of one run (docs/output.md): its datasets, declared once in
-!> `output_schema` with their names, rows (one per point t_n, or one per step), units, descriptions
-!> and how a row that stands for several steps combines them (&output every), and its root
-!> attributes: the integrator (with its registry entry and its solver's settings as used), every
-!> field of the model's namelist groups under its namelist name with its units (<name>_units),
-!> and provenance (command line, PETSc options, the effective namelist, versions, host, dates).
-!> `/time` and `/step` are the dimension scales of the per-point and per-step datasets.
-!> `eme_run --output-schema` prints the table; the Python tests check real files against it.
+!> The HDF5 file of one run (docs/output.md): the datasets of src/run/run_schema (and the
+!> integrator's own), fed a point and a step at a time, the root attributes of src/run/run_attributes,
+!> the solver's settings as used, provenance (command line, PETSc options, the effective namelist,
+!> versions, host, dates), and the run's outcome (status, failure kind, figures, times); and when
+!> and how it reaches the disk (below, run_file). `/time` and `/step` are the dimension scales of
+!> the per-point and per-step datasets.
 module run_output
-  use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit
-  use hdf5_series, only: hdf5_file, series_table, check_run_file, file_in_use
-  use namelist_group, only: group_field, field_real, field_integer, field_logical
+  use, intrinsic :: iso_fortran_env, only: real64, int64
+  use hdf5_files, only: hdf5_file, check_run_file, file_in_use
+  use hdf5_series, only: series_table
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
   use thermo_variable, only: thermo_variable_names
-  use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
   use provenance, only: write_provenance, iso_time
+  use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
+  use run_attributes, only: write_run_attributes
   use stepper, only: step_report, step_diagnostic, solver_report
-  use build_info, only: code_version
   use filesystem, only: sync_file, exchange_files, copy_file, remove_file, os_error_text
   implicit none (type, external)
   private
-  public :: run_file, run_summary, extra_attribute, output_dataset, output_schema, print_output_schema
+  public :: run_file, run_summary, extra_attribute
   public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
             failure_library
-
-  !> One dataset of the layout. `columns` names a vector's columns; the run fills in the
-  !> entries of the model's state (<state>), of its subsystems (<subsystems>) and of the active
-  !> constraints (<constraints>), prefixed as written (theta_<subsystems> gives theta_1 theta_2).
-  !> Units '<columns>': per column (the attribute column_units, from the model or the
-  !> constraints). Datasets of constraints exist only when a constraint is active. `combine`: what
-  !> a row holds that stands for several steps (&output every = N): the last step's value, or the
-  !> sum, min, max or mean over the steps.
-  type :: output_dataset
-    character(len=24) :: name
-    character(len=5) :: rows                !! 'point' (N+1 rows) or 'step' (N rows)
-    character(len=24) :: columns            !! '' for a (rows) dataset
-    character(len=9) :: units
-    logical :: integer_valued
-    character(len=4) :: combine
-    character(len=240) :: description
-  end type output_dataset
-
-  !> Units of a dataset whose columns differ in units.
-  character(len=*), parameter :: per_column = '<columns>'
-
-  type(output_dataset), parameter :: output_schema(22) = [ &
-    output_dataset('time', 'point', '', 's', .false., 'last', &
-                   'time t_n of each point; the dimension scale of every per-point dataset'), &
-    output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
-                   'the state z in the run''s thermodynamic variable; `columns` names its entries'), &
-    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'last', 'spring temperatures'), &
-    output_dataset('energy', 'point', '', 'J', .false., 'last', 'total energy E = T + V_g + U_1 + U_2'), &
-    output_dataset('entropy', 'point', '', 'J/K', .false., 'last', 'total entropy S = S_1 + S_2'), &
-    output_dataset('lyapunov', 'point', '', 'J', .false., 'last', 'V = E - theta_r S, eq. (14)'), &
-    output_dataset('angular_momentum', 'point', 'J_x J_y J_z', 'J s', .false., 'last', 'J = q1 x p1 + q2 x p2'), &
-    output_dataset('boundary_heat', 'point', '', 'J', .false., 'last', &
-                   'heat supplied through constraints since t = 0, sum of dt times their heat supply (zero without)'), &
-    output_dataset('constraint_residual', 'point', 'g_<constraints>', per_column, .false., 'last', &
-                   'g(z) of the active constraints (see the attribute constraint_meanings)'), &
-    output_dataset('step', 'step', '', '1', .true., 'last', &
-                   'the number n (from 1) of the last step the row stands for: the row''s step, or with &output '// &
-                   'every = N the N steps up to n; the dimension scale of every per-step dataset'), &
-    output_dataset('step_end_time', 'step', '', 's', .false., 'last', &
-                   'the time at the end of the row''s (last) step: the time coordinate of every per-step dataset '// &
-                   '(their attribute coordinates)'), &
-    output_dataset('newton_iterations', 'step', '', '1', .true., 'sum', &
-                   'Newton iterations of the step, summed over every solve it took (retries, continuation stages, '// &
-                   'substeps); newton_iterations_total / steps_completed is the mean per step'), &
-    output_dataset('scheme_temperature', 'step', 'Theta_<subsystems>', 'K', .false., 'last', &
-                   '<the integrator''s entry in the registry says>'), &
-    output_dataset('solver_strategy', 'step', '', '1', .true., 'max', &
-                   'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 4-6 the same with the &
-                   &fallback line search; 0 for PETSc TS'), &
-    output_dataset('snes_solves', 'step', '', '1', .true., 'sum', &
-                   'SNESSolve calls of the step (continuation stages included), or TS steps taken for PETSc TS'), &
-    output_dataset('rejected_roots', 'step', '', '1', .true., 'sum', &
-                   'converged roots rejected as unphysical (non-positive temperature), or TS steps rejected'), &
-    output_dataset('residual_norm', 'step', '', '1', .false., 'max', &
-                   '2-norm of the final residual of the step''s last nonlinear solve, as the solver''s convergence '// &
-                   'test measured it (root attribute solver_snes_atol); NaN where the step solves no nonlinear system '// &
-                   '(explicit stages, CVODE)'), &
-    output_dataset('converged_reason', 'step', '', '1', .true., 'last', &
-                   'the solver''s converged reason of the step''s last solve, in its own numbering (flag_values, '// &
-                   'flag_meanings): SNESConvergedReason, TSConvergedReason, CVode''s flag; 0 without a solver'), &
-    output_dataset('cpu_seconds', 'step', '', 's', .false., 'sum', 'CPU time of the step (the integrator''s advance)'), &
-    output_dataset('min_entropy_increment', 'step', '', 'J/K', .false., 'min', &
-                   'S_n - S_(n-1) of the step; of a row that stands for several steps, the smallest of theirs'), &
-    output_dataset('max_lyapunov_increment', 'step', '', 'J', .false., 'max', &
-                   'V_n - V_(n-1) of the step; of a row that stands for several steps, the largest of theirs'), &
-    output_dataset('multiplier', 'step', 'lambda_<constraints>', per_column, .false., 'mean', &
-                   'Lagrange multipliers of the active constraints (see the attribute constraint_meanings)')]
 
   !> Why a run did not complete, in a word (file attribute and study index column `failure_kind`).
   character(len=*), parameter :: failure_none = 'none'              !! complete (or not yet run)
@@ -225,7 +156,7 @@ contains
     do k = 1, size(diagnostics)
       call self%steps%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
                              trim(diagnostics(k)%description), rows='step', source='integrator', &
-                             combine=diagnostics(k)%combine, coordinates=coordinates(diagnostics(k)%name, 'step'))
+                             combine=diagnostics(k)%combine, coordinates=dataset_coordinates(diagnostics(k)%name, 'step'))
     end do
     ! Both tables gain a row per step: together they buffer at most buffer_bytes.
     self%points%capacity_rows = max(1024, buffer_bytes/(8*(self%points%row_width + self%steps%row_width)))
@@ -245,7 +176,7 @@ contains
       if (len(columns) == 0) then
         call table%define(trim(spec%name), 1, .false., trim(spec%units), description, &
                           integer_valued=spec%integer_valued, rows=trim(spec%rows), combine=spec%combine, &
-                          coordinates=coordinates(spec%name, spec%rows))
+                          coordinates=dataset_coordinates(spec%name, spec%rows))
         return
       end if
       units = column_units(spec, model, constraints, count_words(columns))
@@ -254,19 +185,9 @@ contains
       if (any(units /= units(1))) common = ''
       call table%define(trim(spec%name), count_words(columns), .true., common, description, &
                         integer_valued=spec%integer_valued, columns=columns, rows=trim(spec%rows), &
-                        column_units=units, combine=spec%combine, coordinates=coordinates(spec%name, spec%rows))
+                        column_units=units, combine=spec%combine, coordinates=dataset_coordinates(spec%name, spec%rows))
     end subroutine define
   end subroutine create
-
-  ! The CF auxiliary coordinate of a dataset: step_end_time for a per-step one (but the step
-  ! scale and step_end_time itself), none for the others.
-  pure function coordinates(name, rows) result(text)
-    character(len=*), intent(in) :: name, rows
-    character(len=:), allocatable :: text
-
-    text = ''
-    if (rows == 'step' .and. name /= 'step' .and. name /= 'step_end_time') text = 'step_end_time'
-  end function coordinates
 
   !> The solver the integrator used (after its `start`): each setting as a root attribute
   !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
@@ -578,208 +499,5 @@ contains
       end if
     end subroutine number
   end subroutine summary_attributes
-
-  !> The schema as tab-separated lines: name, rows, columns, units, description.
-  subroutine print_output_schema()
-    type(output_dataset) :: spec
-    integer :: k
-
-    write (output_unit, '(a)') 'name'//achar(9)//'rows'//achar(9)//'columns'//achar(9)//'units'//achar(9)// &
-      'combine'//achar(9)//'description'
-    do k = 1, size(output_schema)
-      spec = output_schema(k)
-      write (output_unit, '(a)') trim(spec%name)//achar(9)//trim(spec%rows)//achar(9)//trim(spec%columns)//achar(9) &
-        //trim(spec%units)//achar(9)//trim(spec%combine)//achar(9)//trim(spec%description)
-    end do
-  end subroutine print_output_schema
-
-  ! The integrator, the model's input and provenance as root attributes, under the namelists'
-  ! names.
-  subroutine write_run_attributes(file, config, entry, model, constraints, stat)
-    type(hdf5_file), intent(in) :: file
-    type(run_configuration), intent(in) :: config
-    type(integrator_entry), intent(in) :: entry
-    class(generic_model), intent(in) :: model
-    type(constraint_slot), intent(in) :: constraints(:)
-    integer, intent(out) :: stat
-    character(len=16), allocatable :: groups(:)
-    character(len=:), allocatable :: gradient, metric, names, meanings
-    integer :: a, g, k
-
-    gradient = 'none'
-    metric = 'none'
-    associate (choice => config%integrator)
-      if (entry%uses_discrete_gradient) then
-        gradient = trim(discrete_gradient_names(choice%discrete_gradient))
-        metric = trim(metric_names(choice%metric))
-        if (choice%metric == metric_nondimensional) metric = metric// &
-          ': C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
-      end if
-      stat = 0
-      call text('scheme', trim(entry%name))
-      call text('scheme_family', trim(entry%family))
-      call text('scheme_label', trim(entry%label))
-      call text('scheme_description', trim(entry%description))
-      call text('thermo_variable', trim(thermo_variable_names(choice%thermo_variable)))
-      call text('discrete_gradient', gradient)
-      call text('metric', metric)
-      call text('input_file', config%input_file)
-      call text('code_version', code_version)
-      call real_attribute('dt', choice%dt, 's')
-      call real_attribute('t_end', choice%t_end, 's')
-      call real_attribute('theta_r', config%theta_r, 'K')
-      call real_attribute('newton_tol', choice%newton_tol, '1')
-      call real_attribute('tolerance', choice%tolerance, '1')
-      call real_attribute('ts_tolerance', choice%tolerance, '1')   ! the old name, for old scripts
-      if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat, units='1')
-    end associate
-    call real_attribute('quotient_threshold', quotient_threshold, '1')
-    if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
-    if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
-    if (stat == 0) call file%set_real('output_interval', config%output_interval, stat, units='s')
-    if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')
-    do a = 1, model%subsystem_count()
-      associate (part => model%subsystems(a))
-        if (stat == 0) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, stat, &
-                                           units='those of the subsystem''s invariants (attribute metric)')
-      end associate
-    end do
-    call config%scene%group_names(groups)
-    do g = 1, size(groups)
-      call field_attributes(config%scene%fields(trim(groups(g))))
-    end do
-    names = ''
-    meanings = ''
-    do k = 1, size(constraints)
-      associate (c => constraints(k)%item)
-        if (k > 1) names = names//', '
-        names = names//trim(c%name)
-        meanings = meanings//trim(c%name)//': '//trim(c%meaning)//' [g: '//trim(c%value_units)//', lambda: ' &
-                   //trim(c%multiplier_units)//']; '
-      end associate
-    end do
-    if (len(names) == 0) names = 'none'
-    call text('constraints', names)
-    if (len(meanings) > 0) call text('constraint_meanings', meanings(1:len(meanings) - 2))
-
-  contains
-
-    ! Each field of a namelist group as an attribute under its name (logicals as 0 or 1).
-    subroutine field_attributes(fields)
-      type(group_field), intent(in) :: fields(:)
-      integer :: i
-
-      do i = 1, size(fields)
-        if (stat /= 0) return
-        select case (fields(i)%kind)
-        case (field_real)
-          if (associated(fields(i)%real_value)) then
-            call file%set_real(trim(fields(i)%name), fields(i)%real_value, stat, units=trim(fields(i)%units))
-          else
-            call file%set_reals(trim(fields(i)%name), fields(i)%real_values, stat, units=trim(fields(i)%units))
-          end if
-        case (field_integer)
-          call file%set_integer(trim(fields(i)%name), fields(i)%integer_value, stat, units='1')
-        case (field_logical)
-          call file%set_integer(trim(fields(i)%name), merge(1, 0, fields(i)%logical_value), stat, units='1')
-        case default
-          call file%set_text(trim(fields(i)%name), trim(fields(i)%text_value), stat)
-        end select
-      end do
-    end subroutine field_attributes
-
-    subroutine text(name, value)
-      character(len=*), intent(in) :: name, value
-      if (stat == 0) call file%set_text(name, value, stat)
-    end subroutine text
-
-    subroutine real_attribute(name, value, units)
-      character(len=*), intent(in) :: name, units
-      real(real64), intent(in) :: value
-      if (stat == 0) call file%set_real(name, value, stat, units=units)
-    end subroutine real_attribute
-  end subroutine write_run_attributes
-
-  ! The units of a vector dataset's `count` columns: the model's (<state>), the constraints'
-  ! (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.
-  function column_units(spec, model, constraints, count) result(units)
-    type(output_dataset), intent(in) :: spec
-    class(generic_model), intent(in) :: model
-    type(constraint_slot), intent(in) :: constraints(:)
-    integer, intent(in) :: count
-    character(len=16) :: units(count)
-    integer :: k
-
-    if (spec%columns == '<state>') then
-      call model%column_units(units)
-    else if (index(spec%columns, '<constraints>') > 0) then
-      do k = 1, count
-        if (spec%name == 'multiplier') then
-          units(k) = constraints(k)%item%multiplier_units
-        else
-          units(k) = constraints(k)%item%value_units
-        end if
-      end do
-    else
-      units = spec%units
-    end if
-  end function column_units
-
-  ! The columns of a schema entry for this run.
-  function expanded_columns(template, model, constraints) result(columns)
-    character(len=*), intent(in) :: template
-    class(generic_model), intent(in) :: model
-    type(constraint_slot), intent(in) :: constraints(:)
-    character(len=:), allocatable :: columns
-    character(len=:), allocatable :: prefix
-    integer :: at, i
-
-    columns = ''
-    if (template == '<state>') then
-      do i = 1, model%state_size
-        columns = columns//' '//trim(model%column_names(i))
-      end do
-    else if (index(template, '<subsystems>') > 0) then
-      at = index(template, '<subsystems>')
-      prefix = template(1:at - 1)
-      do i = 1, model%subsystem_count()
-        columns = columns//' '//prefix//achar(iachar('0') + i)
-      end do
-    else if (index(template, '<constraints>') > 0) then
-      at = index(template, '<constraints>')
-      prefix = template(1:at - 1)
-      do i = 1, size(constraints)
-        columns = columns//' '//prefix//trim(constraints(i)%item%name)
-      end do
-    else
-      columns = trim(template)
-    end if
-    columns = trim(adjustl(columns))
-  end function expanded_columns
-
-  pure integer function count_words(text)
-    character(len=*), intent(in) :: text
-    integer :: i
-
-    count_words = 0
-    do i = 1, len(text)
-      if (text(i:i) /= ' ' .and. (i == 1)) count_words = count_words + 1
-      if (i > 1) then
-        if (text(i:i) /= ' ' .and. text(i - 1:i - 1) == ' ') count_words = count_words + 1
-      end if
-    end do
-  end function count_words
-
-  ! A name without blanks ('spring 1' -> 'spring1').
-  pure function squeezed(name) result(plain)
-    character(len=*), intent(in) :: name
-    character(len=:), allocatable :: plain
-    integer :: i
-
-    plain = ''
-    do i = 1, len_trim(name)
-      if (name(i:i) /= ' ') plain = plain//name(i:i)
-    end do
-  end function squeezed
 
 end module run_output

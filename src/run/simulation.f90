@@ -20,7 +20,7 @@ module simulation
                         failure_input, failure_io, failure_interrupted, failure_library
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, petsc_options_in_force
-  use hdf5_series, only: check_run_file
+  use hdf5_files, only: check_run_file
   use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)

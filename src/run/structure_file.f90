@@ -13,7 +13,7 @@ module structure_file
   use structure_matrices, only: poisson_matrix, friction_matrix, energy_gradient, entropy_gradient
   use thermo_variable, only: thermo_variable_names, tau_entropy, tau_internal_energy
   use run_config, only: run_configuration
-  use hdf5_series, only: hdf5_file
+  use hdf5_files, only: hdf5_file
   use provenance, only: write_provenance
   use run_options, only: petsc_options_in_force
   use namelist_text, only: joined

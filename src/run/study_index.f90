@@ -19,7 +19,7 @@ module study_index
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
-  use hdf5_series, only: hdf5_file, check_run_file
+  use hdf5_files, only: hdf5_file, check_run_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
   use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count

@@ -19,8 +19,8 @@ def test_the_code_keeps_its_layers_and_has_no_cycle():
     assert len(nodes) > 60 and len(edges) > 200          # the whole code was read
     assert module_graph.upward(nodes, edges) == []
     assert module_graph.cycles(nodes, edges) == []
-    # Fortran's calls of C are edges too: the run file's output calls the HDF5 storage shim.
-    assert ("hdf5_series", "hdf5_storage.c") in edges
+    # Fortran's calls of C are edges too: the HDF5 files call the storage shim.
+    assert ("hdf5_files", "hdf5_storage.c") in edges
 
 
 @pytest.fixture

@@ -1,0 +1,404 @@
+!> The HDF5 files of the output, written so that a full disk or a kill never leaves a file that
+!> lies (src/io/hdf5_storage.c says how): a file is built in memory and written in one checked
+!> write (`create_in_memory`, `store`), or opened for appending after the disk space of what will
+!> be added was reserved, waiting for readers that hold it open (`open_existing`); the root's and
+!> the datasets' attributes (text attributes are UTF-8 variable-length strings, which h5py reads
+!> as str; numbers are rewritten in place when their size is unchanged); and the read-back check
+!> of a run file (`check_run_file`). The tables of rows that grow in such a file are hdf5_series'.
+module hdf5_files
+  use, intrinsic :: iso_fortran_env, only: real64, int64
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
+  use hdf5, only: hid_t, hsize_t, h5open_f, h5eset_auto_f, h5fclose_f, h5screate_simple_f, h5screate_f, &
+                  h5sclose_f, H5S_SCALAR_F, h5dopen_f, h5dclose_f, &
+                  H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, h5acreate_f, h5aclose_f, h5awrite_f, h5aexists_f, h5adelete_f, &
+                  h5aopen_f, h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
+  implicit none (type, external)
+  private
+  public :: hdf5_file, check_run_file, file_in_use
+
+  integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
+
+  !> An open HDF5 file (in memory until stored, or on disk).
+  type :: hdf5_file
+    integer(hid_t) :: id = -1
+    logical :: fresh = .false.           !! created by this process: no attribute exists yet
+  contains
+    procedure :: create_in_memory
+    procedure :: store
+    procedure :: open_existing
+    procedure :: close => close_file
+    procedure :: set_text
+    procedure :: set_real
+    procedure :: set_reals
+    procedure :: set_integer
+    procedure :: set_integers
+    procedure :: set_texts
+    procedure :: set_dataset_texts
+    procedure :: get_text
+    procedure :: get_reals
+  end type hdf5_file
+
+  ! h5open_f rebuilds HDF5's table of Fortran types on every call (~1.5 ms): call it once.
+  logical, save :: library_open = .false.
+  integer, save :: memory_files = 0
+
+  interface
+    function c_write_text_attribute(object, name, value, fresh) result(status) &
+        bind(c, name='eme_h5_write_text_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object   ! hid_t is int64_t in HDF5 1.10
+      character(kind=c_char), intent(in) :: name(*), value(*)
+      integer(c_int), value :: fresh
+      integer(c_int) :: status
+    end function c_write_text_attribute
+    function c_write_text_array_attribute(object, name, joined) result(status) &
+        bind(c, name='eme_h5_write_text_array_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object
+      character(kind=c_char), intent(in) :: name(*), joined(*)
+      integer(c_int) :: status
+    end function c_write_text_array_attribute
+    function c_read_text_attribute(object, name, text, capacity) result(status) &
+        bind(c, name='eme_h5_read_text_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object
+      character(kind=c_char), intent(in) :: name(*)
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: capacity
+      integer(c_int) :: status
+    end function c_read_text_attribute
+    function c_create_in_memory(label, file) result(status) bind(c, name='eme_h5_create_in_memory')
+      import :: c_char, c_int, c_int64_t
+      character(kind=c_char), intent(in) :: label(*)
+      integer(c_int64_t), intent(out) :: file
+      integer(c_int) :: status
+    end function c_create_in_memory
+    function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: sync
+      integer(c_int) :: status
+    end function c_store_image
+    function c_open_file(path, writable, reserve, wait_ms, file) result(status) bind(c, name='eme_h5_open_file')
+      import :: c_char, c_int, c_long, c_int64_t
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: writable, wait_ms
+      integer(c_long), value :: reserve
+      integer(c_int64_t), intent(out) :: file
+      integer(c_int) :: status
+    end function c_open_file
+    function c_check_run_file(path, status_text, capacity, steps) result(status) bind(c, name='eme_h5_check_run_file')
+      import :: c_char, c_int, c_long
+      character(kind=c_char), intent(in) :: path(*)
+      character(kind=c_char), intent(out) :: status_text(*)
+      integer(c_int), value :: capacity
+      integer(c_long), intent(out) :: steps
+      integer(c_int) :: status
+    end function c_check_run_file
+  end interface
+
+contains
+
+  !> Creates an empty file in memory; `store` writes it to disk. stat = -1 on an HDF5 failure.
+  subroutine create_in_memory(self, stat)
+    class(hdf5_file), intent(inout) :: self
+    integer, intent(out) :: stat
+    character(len=32) :: label
+    integer(c_int64_t) :: id
+
+    call open_library(stat)
+    if (stat /= 0) return
+    memory_files = memory_files + 1
+    write (label, '("eme_memory_file_", i0)') memory_files
+    stat = int(c_create_in_memory(trim(label)//c_null_char, id))
+    self%id = int(id, hid_t)
+    self%fresh = .true.
+  end subroutine create_in_memory
+
+  !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
+  !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).
+  subroutine store(self, path, sync, stat)
+    class(hdf5_file), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    logical, intent(in) :: sync
+    integer, intent(out) :: stat
+
+    stat = int(c_store_image(int(self%id, c_int64_t), trim(path)//c_null_char, merge(1_c_int, 0_c_int, sync)))
+  end subroutine store
+
+  !> Opens an existing file read-only, or for writing after reserving `reserve` bytes of disk for
+  !> what will be added (default 64 KiB). A writer waits for readers that hold the file open:
+  !> with `wait_ms` < 0 not at all (stat = file_in_use, write later), else up to wait_ms
+  !> milliseconds (default 5000), then it writes without HDF5's lock. stat: 0, an OS error number
+  !> from the reservation (the file is untouched), file_in_use, or -1 (HDF5 could not open it).
+  subroutine open_existing(self, path, writable, stat, reserve, wait_ms)
+    class(hdf5_file), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    logical, intent(in) :: writable
+    integer, intent(out) :: stat
+    integer(int64), intent(in), optional :: reserve
+    integer, intent(in), optional :: wait_ms
+    integer(c_int64_t) :: id
+    integer(c_long) :: bytes
+    integer(c_int) :: patience
+
+    call open_library(stat)
+    if (stat /= 0) return
+    bytes = 65536
+    if (present(reserve)) bytes = int(reserve, c_long)
+    patience = 5000
+    if (present(wait_ms)) patience = int(wait_ms, c_int)
+    stat = int(c_open_file(trim(path)//c_null_char, merge(1_c_int, 0_c_int, writable), bytes, patience, id))
+    self%id = int(id, hid_t)
+    self%fresh = .false.
+  end subroutine open_existing
+
+  !> Closes the file. (The HDF5 library stays open: other files may be in use.)
+  subroutine close_file(self, stat)
+    class(hdf5_file), intent(inout) :: self
+    integer, intent(out) :: stat
+
+    stat = 0
+    if (self%id < 0) return
+    call h5fclose_f(self%id, stat)
+    self%id = -1
+  end subroutine close_file
+
+  !> Text attribute on the file root, or on object `object` if given (replaces an old value).
+  subroutine set_text(self, name, value, stat, object)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name, value
+    integer, intent(out) :: stat
+    integer(hid_t), intent(in), optional :: object
+    integer(hid_t) :: target_id
+
+    target_id = self%id
+    if (present(object)) target_id = object
+    stat = int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, value//c_null_char, &
+                                      merge(1_c_int, 0_c_int, self%fresh)))
+  end subroutine set_text
+
+  !> Array of texts as one attribute on the file root, or on object `object` if given (h5py: an
+  !> array of str).
+  subroutine set_texts(self, name, values, stat, object)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name, values(:)
+    integer, intent(out) :: stat
+    integer(hid_t), intent(in), optional :: object
+    integer(hid_t) :: target_id
+
+    target_id = self%id
+    if (present(object)) target_id = object
+    stat = int(c_write_text_array_attribute(int(target_id, c_int64_t), name//c_null_char, joined_lines(values)//c_null_char))
+  end subroutine set_texts
+
+  !> Array of texts as one attribute of the dataset `dataset` (h5py: an array of str).
+  subroutine set_dataset_texts(self, dataset, name, values, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: dataset, name, values(:)
+    integer, intent(out) :: stat
+    integer(hid_t) :: dataset_id
+    integer :: close_stat
+
+    call h5dopen_f(self%id, dataset, dataset_id, stat)
+    if (stat /= 0) return
+    stat = int(c_write_text_array_attribute(int(dataset_id, c_int64_t), name//c_null_char, &
+                                            joined_lines(values)//c_null_char))
+    call h5dclose_f(dataset_id, close_stat)
+    if (stat == 0) stat = close_stat
+  end subroutine set_dataset_texts
+
+  !> Scalar real attribute on the file root; with `units`, a text attribute <name>_units too.
+  subroutine set_real(self, name, value, stat, units)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    real(real64), intent(in) :: value
+    integer, intent(out) :: stat
+    character(len=*), intent(in), optional :: units
+
+    call write_numeric_attribute(self%id, name, [value], .true., self%fresh, stat)
+    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
+  end subroutine set_real
+
+  !> Real-array attribute on the file root; with `units`, a text attribute <name>_units too.
+  subroutine set_reals(self, name, values, stat, units)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    real(real64), intent(in) :: values(:)
+    integer, intent(out) :: stat
+    character(len=*), intent(in), optional :: units
+
+    call write_numeric_attribute(self%id, name, values, .false., self%fresh, stat)
+    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
+  end subroutine set_reals
+
+  !> Scalar integer attribute on the file root; with `units`, a text attribute <name>_units too.
+  subroutine set_integer(self, name, value, stat, units)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: value
+    integer, intent(out) :: stat
+    character(len=*), intent(in), optional :: units
+
+    call write_numeric_attribute(self%id, name, [real(value, real64)], .true., self%fresh, stat, integer_valued=.true.)
+    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
+  end subroutine set_integer
+
+  !> Integer-array attribute on the file root, or on object `object` if given.
+  subroutine set_integers(self, name, values, stat, object)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: values(:)
+    integer, intent(out) :: stat
+    integer(hid_t), intent(in), optional :: object
+    integer(hid_t) :: target_id
+
+    target_id = self%id
+    if (present(object)) target_id = object
+    call write_numeric_attribute(target_id, name, real(values, real64), .false., self%fresh, stat, integer_valued=.true.)
+  end subroutine set_integers
+
+  !> The text attribute `name` of the file root; stat /= 0 if it is missing.
+  subroutine get_text(self, name, value, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable, intent(out) :: value
+    integer, intent(out) :: stat
+    character(len=4096) :: buffer
+
+    stat = int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, int(len(buffer), c_int)))
+    value = buffer(1:max(0, index(buffer, c_null_char) - 1))
+  end subroutine get_text
+
+  !> The numeric attribute `name` of the file root (a scalar or an array, as reals); stat /= 0 if
+  !> it is missing or not numeric.
+  subroutine get_reals(self, name, values, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name
+    real(real64), allocatable, intent(out) :: values(:)
+    integer, intent(out) :: stat
+    integer(hid_t) :: attribute, space
+    integer(hsize_t) :: points, dims(1)
+    integer :: ignored
+
+    allocate (values(0))
+    call h5aopen_f(self%id, name, attribute, stat)
+    if (stat /= 0) return
+    call h5aget_space_f(attribute, space, stat)
+    if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
+    if (stat == 0) then
+      deallocate (values)
+      allocate (values(points))
+      dims = [points]
+      call h5aread_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
+      call h5sclose_f(space, ignored)
+    end if
+    call h5aclose_f(attribute, ignored)
+  end subroutine get_reals
+
+  !> Reads the run file at `path` back: its status and steps_completed, and whether every
+  !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
+  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). stat: 0 all holds,
+  !> 1 unreadable, 2 no status, 3 lengths disagree.
+  subroutine check_run_file(path, status, steps_completed, stat)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: status
+    integer, intent(out) :: steps_completed, stat
+    character(len=1024) :: buffer
+    integer(c_long) :: steps
+
+    call open_library(stat)
+    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps))
+    status = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    steps_completed = int(steps)
+  end subroutine check_run_file
+
+  ! The texts, each trimmed and ended by a newline.
+  pure function joined_lines(texts) result(joined)
+    character(len=*), intent(in) :: texts(:)
+    character(len=:), allocatable :: joined
+    integer :: i
+
+    joined = ''
+    do i = 1, size(texts)
+      joined = joined//trim(texts(i))//new_line('a')
+    end do
+  end function joined_lines
+
+  ! Opens the HDF5 library once per process, with its own error printing off.
+  subroutine open_library(stat)
+    integer, intent(out) :: stat
+
+    stat = 0
+    if (library_open) return
+    call h5open_f(stat)
+    if (stat == 0) call h5eset_auto_f(0, stat)
+    library_open = stat == 0
+  end subroutine open_library
+
+  subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
+    integer(hid_t), intent(in) :: object
+    character(len=*), intent(in) :: name
+    real(real64), intent(in) :: values(:)
+    logical, intent(in) :: scalar, fresh
+    integer, intent(out) :: stat
+    logical, intent(in), optional :: integer_valued
+    integer(hid_t) :: space, attribute
+    integer(hsize_t) :: dims(1), points
+    logical :: exists, as_integer
+    integer :: ignored, close_stat
+
+    as_integer = .false.
+    if (present(integer_valued)) as_integer = integer_valued
+    dims = [int(size(values), hsize_t)]
+    stat = 0
+    if (.not. fresh) then
+      call h5aexists_f(object, name, exists, stat)
+      if (stat /= 0) return
+      if (exists) then
+        ! In place if the stored attribute has the same number of values (no change to the object
+        ! header's layout); otherwise it is replaced.
+        call h5aopen_f(object, name, attribute, stat)
+        if (stat /= 0) return
+        call h5aget_space_f(attribute, space, stat)
+        if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
+        if (stat == 0) call h5sclose_f(space, ignored)
+        if (stat == 0 .and. points == size(values, kind=hsize_t)) then
+          call write_values()
+          return
+        end if
+        call h5aclose_f(attribute, ignored)
+        call h5adelete_f(object, name, stat)
+        if (stat /= 0) return
+      end if
+    end if
+    if (scalar) then
+      call h5screate_f(H5S_SCALAR_F, space, stat)
+    else
+      call h5screate_simple_f(1, dims, space, stat)
+    end if
+    if (stat /= 0) return
+    if (as_integer) then
+      call h5acreate_f(object, name, H5T_NATIVE_INTEGER, space, attribute, stat)
+    else
+      call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
+    end if
+    if (stat == 0) call write_values()    ! created: write, then close whatever the write did
+    call h5sclose_f(space, ignored)
+
+  contains
+
+    ! Writes the values into the open attribute and closes it; stat keeps the first failure.
+    subroutine write_values()
+      if (as_integer) then
+        call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
+      else
+        call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
+      end if
+      call h5aclose_f(attribute, close_stat)
+      if (stat == 0) stat = close_stat
+    end subroutine write_values
+  end subroutine write_numeric_attribute
+
+end module hdf5_files

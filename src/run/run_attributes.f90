@@ -1,0 +1,141 @@
+!> The root attributes of a run file that say what was run: the integrator (its registry entry,
+!> thermodynamic variable, discrete gradient and metric, step settings), every field of the
+!> model's namelist groups under its namelist name with its units (<name>_units), the output
+!> settings and the active constraints (docs/output.md).
+module run_attributes
+  use, intrinsic :: iso_fortran_env, only: real64
+  use hdf5_files, only: hdf5_file
+  use namelist_group, only: group_field, field_real, field_integer, field_logical
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use integrator_registry, only: integrator_entry
+  use thermo_variable, only: thermo_variable_names
+  use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
+  use run_config, only: run_configuration
+  use build_info, only: code_version
+  implicit none (type, external)
+  private
+  public :: write_run_attributes
+
+contains
+
+  !> The integrator, the model's input and the output settings as root attributes of `file`,
+  !> under the namelists' names.
+  subroutine write_run_attributes(file, config, entry, model, constraints, stat)
+    type(hdf5_file), intent(in) :: file
+    type(run_configuration), intent(in) :: config
+    type(integrator_entry), intent(in) :: entry
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    integer, intent(out) :: stat
+    character(len=16), allocatable :: groups(:)
+    character(len=:), allocatable :: gradient, metric, names, meanings
+    integer :: a, g, k
+
+    gradient = 'none'
+    metric = 'none'
+    associate (choice => config%integrator)
+      if (entry%uses_discrete_gradient) then
+        gradient = trim(discrete_gradient_names(choice%discrete_gradient))
+        metric = trim(metric_names(choice%metric))
+        if (choice%metric == metric_nondimensional) metric = metric// &
+          ': C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
+      end if
+      stat = 0
+      call text('scheme', trim(entry%name))
+      call text('scheme_family', trim(entry%family))
+      call text('scheme_label', trim(entry%label))
+      call text('scheme_description', trim(entry%description))
+      call text('thermo_variable', trim(thermo_variable_names(choice%thermo_variable)))
+      call text('discrete_gradient', gradient)
+      call text('metric', metric)
+      call text('input_file', config%input_file)
+      call text('code_version', code_version)
+      call real_attribute('dt', choice%dt, 's')
+      call real_attribute('t_end', choice%t_end, 's')
+      call real_attribute('theta_r', config%theta_r, 'K')
+      call real_attribute('newton_tol', choice%newton_tol, '1')
+      call real_attribute('tolerance', choice%tolerance, '1')
+      call real_attribute('ts_tolerance', choice%tolerance, '1')   ! the old name, for old scripts
+      if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat, units='1')
+    end associate
+    call real_attribute('quotient_threshold', quotient_threshold, '1')
+    if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
+    if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
+    if (stat == 0) call file%set_real('output_interval', config%output_interval, stat, units='s')
+    if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')
+    do a = 1, model%subsystem_count()
+      associate (part => model%subsystems(a))
+        if (stat == 0) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, stat, &
+                                           units='those of the subsystem''s invariants (attribute metric)')
+      end associate
+    end do
+    call config%scene%group_names(groups)
+    do g = 1, size(groups)
+      call field_attributes(config%scene%fields(trim(groups(g))))
+    end do
+    names = ''
+    meanings = ''
+    do k = 1, size(constraints)
+      associate (c => constraints(k)%item)
+        if (k > 1) names = names//', '
+        names = names//trim(c%name)
+        meanings = meanings//trim(c%name)//': '//trim(c%meaning)//' [g: '//trim(c%value_units)//', lambda: ' &
+                   //trim(c%multiplier_units)//']; '
+      end associate
+    end do
+    if (len(names) == 0) names = 'none'
+    call text('constraints', names)
+    if (len(meanings) > 0) call text('constraint_meanings', meanings(1:len(meanings) - 2))
+
+  contains
+
+    ! Each field of a namelist group as an attribute under its name (logicals as 0 or 1).
+    subroutine field_attributes(fields)
+      type(group_field), intent(in) :: fields(:)
+      integer :: i
+
+      do i = 1, size(fields)
+        if (stat /= 0) return
+        select case (fields(i)%kind)
+        case (field_real)
+          if (associated(fields(i)%real_value)) then
+            call file%set_real(trim(fields(i)%name), fields(i)%real_value, stat, units=trim(fields(i)%units))
+          else
+            call file%set_reals(trim(fields(i)%name), fields(i)%real_values, stat, units=trim(fields(i)%units))
+          end if
+        case (field_integer)
+          call file%set_integer(trim(fields(i)%name), fields(i)%integer_value, stat, units='1')
+        case (field_logical)
+          call file%set_integer(trim(fields(i)%name), merge(1, 0, fields(i)%logical_value), stat, units='1')
+        case default
+          call file%set_text(trim(fields(i)%name), trim(fields(i)%text_value), stat)
+        end select
+      end do
+    end subroutine field_attributes
+
+    subroutine text(name, value)
+      character(len=*), intent(in) :: name, value
+      if (stat == 0) call file%set_text(name, value, stat)
+    end subroutine text
+
+    subroutine real_attribute(name, value, units)
+      character(len=*), intent(in) :: name, units
+      real(real64), intent(in) :: value
+      if (stat == 0) call file%set_real(name, value, stat, units=units)
+    end subroutine real_attribute
+  end subroutine write_run_attributes
+
+  ! A name without blanks ('spring 1' -> 'spring1').
+  pure function squeezed(name) result(plain)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: plain
+    integer :: i
+
+    plain = ''
+    do i = 1, len_trim(name)
+      if (name(i:i) /= ' ') plain = plain//name(i:i)
+    end do
+  end function squeezed
+
+end module run_attributes

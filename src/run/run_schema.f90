@@ -1,0 +1,179 @@
+!> The layout of a run file (docs/output.md): every dataset a run writes, declared once in
+!> `output_schema` with its name, rows (one per point t_n, or one per step), units, description
+!> and how a row that stands for several steps combines them (&output every); the columns and
+!> column units a dataset takes for a run's model and constraints; and the CF auxiliary
+!> coordinate of the per-step datasets. `eme_run --output-schema` prints the table; the Python
+!> tests check real files against it.
+module run_schema
+  use, intrinsic :: iso_fortran_env, only: output_unit
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  implicit none (type, external)
+  private
+  public :: output_dataset, output_schema, per_column, print_output_schema, dataset_coordinates, column_units, &
+            expanded_columns, count_words
+
+  !> One dataset of the layout. `columns` names a vector's columns; the run fills in the
+  !> entries of the model's state (<state>), of its subsystems (<subsystems>) and of the active
+  !> constraints (<constraints>), prefixed as written (theta_<subsystems> gives theta_1 theta_2).
+  !> Units '<columns>': per column (the attribute column_units, from the model or the
+  !> constraints). Datasets of constraints exist only when a constraint is active. `combine`: what
+  !> a row holds that stands for several steps (&output every = N): the last step's value, or the
+  !> sum, min, max or mean over the steps.
+  type :: output_dataset
+    character(len=24) :: name
+    character(len=5) :: rows                !! 'point' (N+1 rows) or 'step' (N rows)
+    character(len=24) :: columns            !! '' for a (rows) dataset
+    character(len=9) :: units
+    logical :: integer_valued
+    character(len=4) :: combine
+    character(len=240) :: description
+  end type output_dataset
+
+  !> Units of a dataset whose columns differ in units.
+  character(len=*), parameter :: per_column = '<columns>'
+
+  type(output_dataset), parameter :: output_schema(22) = [ &
+    output_dataset('time', 'point', '', 's', .false., 'last', &
+                   'time t_n of each point; the dimension scale of every per-point dataset'), &
+    output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
+                   'the state z in the run''s thermodynamic variable; `columns` names its entries'), &
+    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'last', 'spring temperatures'), &
+    output_dataset('energy', 'point', '', 'J', .false., 'last', 'total energy E = T + V_g + U_1 + U_2'), &
+    output_dataset('entropy', 'point', '', 'J/K', .false., 'last', 'total entropy S = S_1 + S_2'), &
+    output_dataset('lyapunov', 'point', '', 'J', .false., 'last', 'V = E - theta_r S, eq. (14)'), &
+    output_dataset('angular_momentum', 'point', 'J_x J_y J_z', 'J s', .false., 'last', 'J = q1 x p1 + q2 x p2'), &
+    output_dataset('boundary_heat', 'point', '', 'J', .false., 'last', &
+                   'heat supplied through constraints since t = 0, sum of dt times their heat supply (zero without)'), &
+    output_dataset('constraint_residual', 'point', 'g_<constraints>', per_column, .false., 'last', &
+                   'g(z) of the active constraints (see the attribute constraint_meanings)'), &
+    output_dataset('step', 'step', '', '1', .true., 'last', &
+                   'the number n (from 1) of the last step the row stands for: the row''s step, or with &output '// &
+                   'every = N the N steps up to n; the dimension scale of every per-step dataset'), &
+    output_dataset('step_end_time', 'step', '', 's', .false., 'last', &
+                   'the time at the end of the row''s (last) step: the time coordinate of every per-step dataset '// &
+                   '(their attribute coordinates)'), &
+    output_dataset('newton_iterations', 'step', '', '1', .true., 'sum', &
+                   'Newton iterations of the step, summed over every solve it took (retries, continuation stages, '// &
+                   'substeps); newton_iterations_total / steps_completed is the mean per step'), &
+    output_dataset('scheme_temperature', 'step', 'Theta_<subsystems>', 'K', .false., 'last', &
+                   '<the integrator''s entry in the registry says>'), &
+    output_dataset('solver_strategy', 'step', '', '1', .true., 'max', &
+                   'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 4-6 the same with the &
+                   &fallback line search; 0 for PETSc TS'), &
+    output_dataset('snes_solves', 'step', '', '1', .true., 'sum', &
+                   'SNESSolve calls of the step (continuation stages included), or TS steps taken for PETSc TS'), &
+    output_dataset('rejected_roots', 'step', '', '1', .true., 'sum', &
+                   'converged roots rejected as unphysical (non-positive temperature), or TS steps rejected'), &
+    output_dataset('residual_norm', 'step', '', '1', .false., 'max', &
+                   '2-norm of the final residual of the step''s last nonlinear solve, as the solver''s convergence '// &
+                   'test measured it (root attribute solver_snes_atol); NaN where the step solves no nonlinear system '// &
+                   '(explicit stages, CVODE)'), &
+    output_dataset('converged_reason', 'step', '', '1', .true., 'last', &
+                   'the solver''s converged reason of the step''s last solve, in its own numbering (flag_values, '// &
+                   'flag_meanings): SNESConvergedReason, TSConvergedReason, CVode''s flag; 0 without a solver'), &
+    output_dataset('cpu_seconds', 'step', '', 's', .false., 'sum', 'CPU time of the step (the integrator''s advance)'), &
+    output_dataset('min_entropy_increment', 'step', '', 'J/K', .false., 'min', &
+                   'S_n - S_(n-1) of the step; of a row that stands for several steps, the smallest of theirs'), &
+    output_dataset('max_lyapunov_increment', 'step', '', 'J', .false., 'max', &
+                   'V_n - V_(n-1) of the step; of a row that stands for several steps, the largest of theirs'), &
+    output_dataset('multiplier', 'step', 'lambda_<constraints>', per_column, .false., 'mean', &
+                   'Lagrange multipliers of the active constraints (see the attribute constraint_meanings)')]
+
+contains
+
+  !> The schema as tab-separated lines: name, rows, columns, units, description.
+  subroutine print_output_schema()
+    type(output_dataset) :: spec
+    integer :: k
+
+    write (output_unit, '(a)') 'name'//achar(9)//'rows'//achar(9)//'columns'//achar(9)//'units'//achar(9)// &
+      'combine'//achar(9)//'description'
+    do k = 1, size(output_schema)
+      spec = output_schema(k)
+      write (output_unit, '(a)') trim(spec%name)//achar(9)//trim(spec%rows)//achar(9)//trim(spec%columns)//achar(9) &
+        //trim(spec%units)//achar(9)//trim(spec%combine)//achar(9)//trim(spec%description)
+    end do
+  end subroutine print_output_schema
+
+  ! The CF auxiliary coordinate of a dataset: step_end_time for a per-step one (but the step
+  ! scale and step_end_time itself), none for the others.
+  pure function dataset_coordinates(name, rows) result(text)
+    character(len=*), intent(in) :: name, rows
+    character(len=:), allocatable :: text
+
+    text = ''
+    if (rows == 'step' .and. name /= 'step' .and. name /= 'step_end_time') text = 'step_end_time'
+  end function dataset_coordinates
+
+  ! The units of a vector dataset's `count` columns: the model's (<state>), the constraints'
+  ! (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.
+  function column_units(spec, model, constraints, count) result(units)
+    type(output_dataset), intent(in) :: spec
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    integer, intent(in) :: count
+    character(len=16) :: units(count)
+    integer :: k
+
+    if (spec%columns == '<state>') then
+      call model%column_units(units)
+    else if (index(spec%columns, '<constraints>') > 0) then
+      do k = 1, count
+        if (spec%name == 'multiplier') then
+          units(k) = constraints(k)%item%multiplier_units
+        else
+          units(k) = constraints(k)%item%value_units
+        end if
+      end do
+    else
+      units = spec%units
+    end if
+  end function column_units
+
+  ! The columns of a schema entry for this run.
+  function expanded_columns(template, model, constraints) result(columns)
+    character(len=*), intent(in) :: template
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    character(len=:), allocatable :: columns
+    character(len=:), allocatable :: prefix
+    integer :: at, i
+
+    columns = ''
+    if (template == '<state>') then
+      do i = 1, model%state_size
+        columns = columns//' '//trim(model%column_names(i))
+      end do
+    else if (index(template, '<subsystems>') > 0) then
+      at = index(template, '<subsystems>')
+      prefix = template(1:at - 1)
+      do i = 1, model%subsystem_count()
+        columns = columns//' '//prefix//achar(iachar('0') + i)
+      end do
+    else if (index(template, '<constraints>') > 0) then
+      at = index(template, '<constraints>')
+      prefix = template(1:at - 1)
+      do i = 1, size(constraints)
+        columns = columns//' '//prefix//trim(constraints(i)%item%name)
+      end do
+    else
+      columns = trim(template)
+    end if
+    columns = trim(adjustl(columns))
+  end function expanded_columns
+
+  pure integer function count_words(text)
+    character(len=*), intent(in) :: text
+    integer :: i
+
+    count_words = 0
+    do i = 1, len(text)
+      if (text(i:i) /= ' ' .and. (i == 1)) count_words = count_words + 1
+      if (i > 1) then
+        if (text(i:i) /= ' ' .and. text(i - 1:i - 1) == ' ') count_words = count_words + 1
+      end if
+    end do
+  end function count_words
+
+end module run_schema
