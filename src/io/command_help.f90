@@ -1,6 +1,6 @@
 !> What the drivers print for --help, and the integrator table: the input groups and their
 !> fields come from the namelist tables, the integrators from the registry, so a new field,
-!> integrator or model appears here by itself. (The output layout is printed by run_output.)
+!> integrator or model appears here by itself. (The output layout is printed by run_schema.)
 module command_help
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char

@@ -5,13 +5,13 @@
  *  - later writes (appended rows, final attributes) happen in a window: disk space for them is
  *    reserved first (posix_fallocate: a full disk is reported there, by the OS, before HDF5
  *    writes anything), then the file is opened, written and closed. A run writes its windows in
- *    a spare copy and then exchanges the names (src/run/run_output.f90), because a kill inside
+ *    a spare copy and then exchanges the names (src/io/crash_safe_file.f90), because a kill inside
  *    HDF5's writes can leave a file that HDF5 cannot read: the file under the run's name is
  *    always closed and whole;
  *  - a file written whole is checked by its size on disk; one grown in windows is read back.
  * HDF5 1.10 crashes at exit after a failed H5Fclose (HDFFV-11052); with the space reserved,
  * closes do not fail for want of space. Called from Fortran through bind(C)
- * (src/io/hdf5_series.f90). Functions return 0 on success, an errno value for an OS failure,
+ * (src/io/hdf5_files.f90). Functions return 0 on success, an errno value for an OS failure,
  * or -1 for an HDF5 failure. */
 #define _DEFAULT_SOURCE /* flock, usleep */
 #include <errno.h>

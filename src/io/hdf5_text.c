@@ -1,7 +1,7 @@
 /* Variable-length UTF-8 string attributes for HDF5 objects.
  * HDF5 1.10's Fortran API has no H5T_VARIABLE, and fixed-length strings come back from h5py
  * as bytes; variable-length UTF-8 strings come back as str. Called from Fortran through
- * bind(C) (src/io/hdf5_series.f90). Returns 0 on success, -1 on any HDF5 error. */
+ * bind(C) (src/io/hdf5_files.f90). Returns 0 on success, -1 on any HDF5 error. */
 #include <hdf5.h>
 #include <stdio.h>
 #include <stdlib.h>

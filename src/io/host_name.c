@@ -1,4 +1,4 @@
-/* The machine's host name, for the provenance a run file records (src/run/run_output.f90). */
+/* The machine's host name, for the provenance a run file records (src/io/provenance.f90). */
 #define _DEFAULT_SOURCE /* gethostname */
 #include <stdio.h>
 #include <unistd.h>

@@ -17,7 +17,8 @@ module ensemble
                      MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
-  use study_index, only: case_index, case_result, case_file, case_overrides, status_length, kind_length, metric_count
+  use study_index, only: case_index, case_result, status_length, kind_length, metric_count
+  use study_case_files, only: case_file, case_overrides
   use run_config, only: run_configuration
   use run_output, only: failure_io, failure_interrupted
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name

@@ -5,9 +5,10 @@
 !> and how it reaches the disk (below, run_file). `/time` and `/step` are the dimension scales of
 !> the per-point and per-step datasets.
 module run_output
-  use, intrinsic :: iso_fortran_env, only: real64, int64
-  use hdf5_files, only: hdf5_file, check_run_file, file_in_use
+  use, intrinsic :: iso_fortran_env, only: real64
+  use hdf5_files, only: check_run_file
   use hdf5_series, only: series_table
+  use crash_safe_file, only: safe_file, file_in_use
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
@@ -18,7 +19,7 @@ module run_output
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
   use run_attributes, only: write_run_attributes
   use stepper, only: step_report, step_diagnostic, solver_report
-  use filesystem, only: sync_file, exchange_files, copy_file, remove_file, os_error_text
+  use filesystem, only: os_error_text
   implicit none (type, external)
   private
   public :: run_file, run_summary, extra_attribute
@@ -61,29 +62,19 @@ module run_output
     integer :: number = 0
   end type extra_attribute
 
-  real(real64), parameter :: write_interval = 1.0_real64   !! seconds between writes of a long run
   integer, parameter :: buffer_bytes = 4*1024*1024          !! rows held in memory between writes, at most
+  integer, parameter :: point_rows = 1, step_rows = 2      !! the file's two tables
 
-
-  !> A run's file and its two tables of rows (points and steps). It is built in memory and
-  !> reaches the disk when the run ends or after write_interval seconds (or a full buffer),
+  !> A run's file (src/io/crash_safe_file) and its two tables of rows, points and steps. It is
+  !> built in memory and reaches the disk when the run ends or after a second (or a full buffer),
   !> whichever comes first; from then on, buffered rows are appended in a window at least every
-  !> write_interval seconds (src/io/hdf5_series). The file at `path` is never written in place,
-  !> because a kill inside HDF5's writes can leave a file it cannot read: a window writes the
-  !> copy `path`.spare, which lags one window behind, and then exchanges the two names. So `path`
-  !> always names a closed, readable file whose points and steps agree in length (step_rows says
-  !> how many step rows, steps_completed how many steps they stand for). With every = N, a point
-  !> row is kept every N steps (and the last), and a step row stands for the steps since the
-  !> previous point row.
+  !> second. `path` always names a closed, readable file whose points and steps agree in length
+  !> (step_rows says how many step rows, steps_completed how many steps they stand for). With
+  !> every = N, a point row is kept every N steps (and the last), and a step row stands for the
+  !> steps since the previous point row.
   type :: run_file
-    type(hdf5_file) :: file
-    type(series_table) :: points, steps
-    character(len=:), allocatable :: path, spare
+    type(safe_file) :: store
     logical :: enabled = .false.        !! .false.: nothing is recorded (an index-only study)
-    logical :: on_disk = .false.        !! the file exists at `path`
-    integer :: failure = 0              !! the first failed write (its stat): later windows fail with it
-    logical :: durable = .true.         !! the finished file is synced to disk (fsync)
-    integer(int64) :: last_write = 0, clock_rate = 1
     integer :: every = 1                !! steps per row (&output every)
     logical :: by_interval = .false.    !! rows at output times instead (&output interval)
     integer :: last_step = 0            !! the last step recorded
@@ -120,47 +111,46 @@ contains
     type(output_dataset) :: spec
     integer :: k
 
-    self%path = path
-    self%spare = path//'.spare'
+    call self%store%start(path, 2, stat)
     self%enabled = .true.
     self%every = config%output_every
     self%by_interval = config%output_interval > 0.0_real64
-    self%points%compression = config%compression
-    self%steps%compression = config%compression
-    self%points%scale = .true.
-    self%steps%scale = .true.
-    call system_clock(self%last_write, self%clock_rate)
-    call self%file%create_in_memory(stat)
-    if (stat == 0) call write_run_attributes(self%file, config, entry, model, constraints, stat)
-    if (stat == 0) call write_provenance(self%file, 'EME run of '//config%input_file//': '//trim(entry%label)//', '// &
+    self%store%tables(point_rows)%compression = config%compression
+    self%store%tables(step_rows)%compression = config%compression
+    self%store%tables(point_rows)%scale = .true.
+    self%store%tables(step_rows)%scale = .true.
+    if (stat == 0) call write_run_attributes(self%store%file, config, entry, model, constraints, stat)
+    if (stat == 0) call write_provenance(self%store%file, 'EME run of '//config%input_file//': '//trim(entry%label)//', '// &
                                          trim(thermo_variable_names(config%integrator%thermo_variable)), &
                                          petsc_options, stat)
-    if (stat == 0) call self%file%set_text('namelist', namelist_of_run(config), stat)
+    if (stat == 0) call self%store%file%set_text('namelist', namelist_of_run(config), stat)
     do k = 1, size(extras)
       if (stat /= 0) exit
       if (allocated(extras(k)%text)) then
-        call self%file%set_text(trim(extras(k)%name), extras(k)%text, stat)
+        call self%store%file%set_text(trim(extras(k)%name), extras(k)%text, stat)
       else
-        call self%file%set_integer(trim(extras(k)%name), extras(k)%number, stat, units='1')
+        call self%store%file%set_integer(trim(extras(k)%name), extras(k)%number, stat, units='1')
       end if
     end do
     do k = 1, size(output_schema)
       spec = output_schema(k)
       if (index(spec%columns, '<constraints>') > 0 .and. size(constraints) == 0) cycle
       if (spec%rows == 'point') then
-        call define(self%points)
+        call define(self%store%tables(point_rows))
       else
-        call define(self%steps)
+        call define(self%store%tables(step_rows))
       end if
     end do
     do k = 1, size(diagnostics)
-      call self%steps%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
+      call self%store%tables(step_rows)%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
                              trim(diagnostics(k)%description), rows='step', source='integrator', &
                              combine=diagnostics(k)%combine, coordinates=dataset_coordinates(diagnostics(k)%name, 'step'))
     end do
     ! Both tables gain a row per step: together they buffer at most buffer_bytes.
-    self%points%capacity_rows = max(1024, buffer_bytes/(8*(self%points%row_width + self%steps%row_width)))
-    self%steps%capacity_rows = self%points%capacity_rows
+    associate (points => self%store%tables(point_rows), steps => self%store%tables(step_rows))
+      points%capacity_rows = max(1024, buffer_bytes/(8*(points%row_width + steps%row_width)))
+      steps%capacity_rows = points%capacity_rows
+    end associate
 
   contains
 
@@ -202,16 +192,16 @@ contains
     do k = 1, size(report%settings)
       associate (item => report%settings(k))
         if (allocated(item%text)) then
-          call self%file%set_text('solver_'//trim(item%name), item%text, stat)
+          call self%store%file%set_text('solver_'//trim(item%name), item%text, stat)
         else if (item%integer_valued) then
-          call self%file%set_integer('solver_'//trim(item%name), nint(item%value), stat, units=trim(item%units))
+          call self%store%file%set_integer('solver_'//trim(item%name), nint(item%value), stat, units=trim(item%units))
         else
-          call self%file%set_real('solver_'//trim(item%name), item%value, stat, units=trim(item%units))
+          call self%store%file%set_real('solver_'//trim(item%name), item%value, stat, units=trim(item%units))
         end if
       end associate
       if (stat /= 0) return
     end do
-    call self%steps%set_flags('converged_reason', report%reason_codes, report%reason_names)
+    call self%store%tables(step_rows)%set_flags('converged_reason', report%reason_codes, report%reason_names)
   end subroutine record_solver
 
   !> Records the point after step n (or the initial point) for every per-point dataset, in the
@@ -224,13 +214,13 @@ contains
     logical :: due
 
     if (.not. self%enabled) return
-    call self%points%accumulate([time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals])
+    call self%store%tables(point_rows)%accumulate([time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals])
     if (self%by_interval) then
       due = row_due
     else
-      due = self%steps%pending_count >= self%every
+      due = self%store%tables(step_rows)%pending_count >= self%every
     end if
-    if (self%steps%pending_count == 0 .or. due) call commit_rows(self)
+    if (self%store%tables(step_rows)%pending_count == 0 .or. due) call commit_rows(self)
   end subroutine record_point
 
   !> Records step n, ending at `time`, for every per-step dataset, in the schema's order, then the
@@ -247,7 +237,7 @@ contains
     if (.not. self%enabled) return
     allocate (diagnostics(0))
     if (allocated(report%diagnostics)) diagnostics = report%diagnostics
-    call self%steps%accumulate([real(n, real64), time, real(report%newton_iterations, real64), &
+    call self%store%tables(step_rows)%accumulate([real(n, real64), time, real(report%newton_iterations, real64), &
                                 report%scheme_temperature, &
                                 real(report%strategy, real64), real(report%solves, real64), &
                                 real(report%rejected, real64), report%residual_norm, &
@@ -261,9 +251,9 @@ contains
   subroutine commit_rows(self)
     type(run_file), intent(inout) :: self
 
-    call self%points%commit()
-    if (self%steps%pending_count == 0) return
-    call self%steps%commit()
+    call self%store%tables(point_rows)%commit()
+    if (self%store%tables(step_rows)%pending_count == 0) return
+    call self%store%tables(step_rows)%commit()
     self%committed_steps = self%last_step
     self%committed_newton = self%committed_newton + self%newton_pending
     self%newton_pending = 0
@@ -277,57 +267,27 @@ contains
     self%disk_newton = self%committed_newton
   end subroutine rows_on_disk
 
-  !> Whether buffered rows are due on disk: write_interval seconds since the last write, or a
-  !> full buffer. Call it after a whole step (its step row and end point) was recorded.
+  !> Whether buffered rows are due on disk: a second since the last write, or a full buffer.
+  !> Call it after a whole step (its step row and end point) was recorded.
   logical function write_due(self)
     class(run_file), intent(in) :: self
-    integer(int64) :: now
 
     write_due = .false.
-    if (.not. self%enabled) return
-    if (self%points%full() .or. self%steps%full()) then
-      write_due = .true.
-    else
-      call system_clock(now)
-      write_due = real(now - self%last_write, real64) >= write_interval*real(self%clock_rate, real64)
-    end if
+    if (self%enabled) write_due = self%store%write_due()
   end function write_due
 
   !> Writes the buffered rows and the run's attributes so far (`summary`, status 'incomplete:
-  !> running'): the first time the whole file is created at `path` and as its spare (datasets
-  !> chunked, as more rows will follow), later in a window that appends them. stat: 0, an OS
-  !> error number (nothing new reached `path`; it holds what it held), or -1 (HDF5).
+  !> running'): the first time the whole file, later in a window that appends them; a window
+  !> whose spare a reader holds open waits for a later step, until the buffer is full. stat: 0,
+  !> an OS error number (nothing new reached the file; it holds what it held), or -1 (HDF5).
   subroutine write_rows(self, summary, stat)
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
     integer, intent(out) :: stat
-    integer :: close_stat
 
     stat = 0
     if (.not. self%enabled) return
-    if (.not. self%on_disk) then
-      call system_clock(self%last_write)
-      call self%points%write(self%file, .false., stat)
-      if (stat == 0) call self%steps%write(self%file, .false., stat)
-      if (stat == 0) call rows_on_disk(self)
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat)
-      if (stat == 0) call self%file%store(self%path, .false., stat)
-      if (stat /= 0) return
-      self%on_disk = .true.
-      call self%file%store(self%spare, .false., stat)
-      self%failure = stat
-      call self%file%close(close_stat)
-      if (stat == 0) stat = close_stat
-    else
-      ! A reader holding the spare open (it opened the file before the last exchange) defers the
-      ! write to a later step, until the buffer is full.
-      call write_window(self, summary%status, summary, stat, defer=.not. (self%points%full() .or. self%steps%full()))
-      if (stat == file_in_use) then      ! try again in 50 ms
-        call system_clock(self%last_write)
-        self%last_write = self%last_write - int((write_interval - 0.05_real64)*self%clock_rate, int64)
-        stat = 0
-      end if
-    end if
+    call write_file(self, summary%status, summary, .false., stat)
   end subroutine write_rows
 
   !> Writes what is buffered and the final attributes: status, failure_kind, steps_planned,
@@ -345,105 +305,58 @@ contains
     type(run_summary) :: stopped
     character(len=:), allocatable :: status_read
     integer :: steps_read, check_stat, ignored
+    logical :: whole
 
     stat = 0
     if (.not. self%enabled) return
-    if (self%steps%pending_count > 0) call commit_rows(self)
-    if (.not. self%on_disk) then
-      ! Written whole from memory; store checks that the disk holds every byte.
-      call self%points%write(self%file, .true., stat)
-      if (stat == 0) call self%steps%write(self%file, .true., stat)
-      if (stat == 0) call rows_on_disk(self)
-      if (stat == 0) call summary_attributes(self, summary%status, summary, stat, final=.true.)
-      if (stat == 0) call self%file%store(self%path, self%durable, stat)
-      call self%file%close(ignored)
-      call remove_file(self%spare, ignored)       ! of an earlier run killed with this output
-      self%on_disk = stat == 0
+    if (self%store%tables(step_rows)%pending_count > 0) call commit_rows(self)
+    whole = .not. self%store%on_disk
+    call write_file(self, summary%status, summary, .true., stat)
+    if (whole) return                   ! written whole from memory: store checked every byte
+    if (stat > 0) then
+      ! No room for the rows: keep those of the last window, and say why in the status.
+      stopped = summary
+      stopped%failure_kind = failure_io
+      call self%store%open_in_place(check_stat)
+      if (check_stat == 0) call summary_attributes(self, 'incomplete: cannot write the output file: '// &
+                                                   os_error_text(stat), stopped, check_stat, final=.true.)
+      call self%store%file%close(ignored)
       return
-    else
-      call write_window(self, summary%status, summary, stat, final=.true.)
-      call remove_file(self%spare, ignored)
-      if (stat > 0) then
-        ! No room for the rows: keep those of the last window, and say why in the status (written
-        ! in place, as the spare is gone; the space it held makes room).
-        stopped = summary
-        stopped%failure_kind = failure_io
-        call self%file%open_existing(self%path, .true., check_stat)
-        if (check_stat == 0) call summary_attributes(self, 'incomplete: cannot write the output file: '// &
-                                                     os_error_text(stat), stopped, check_stat, final=.true.)
-        call self%file%close(ignored)
-        return
-      end if
-      if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
-      if (stat /= 0) return
     end if
-    call check_run_file(self%path, status_read, steps_read, check_stat)
+    if (stat /= 0) return
+    call check_run_file(self%store%path, status_read, steps_read, check_stat)
     if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%disk_steps) stat = -2
   end subroutine finish
 
-  ! A window: opens the spare after reserving space for the rows it lacks (those of the last window
-  ! and the buffered ones, plus room for attributes), appends them, writes the attributes (all of
-  ! them if `final`, else the numbers) and closes it; then the spare takes the name `path` and the
-  ! old file becomes the spare, which lacks only this window's rows. A reader that opened the
-  ! file before the last exchange may still have the spare open: with `defer` the window waits
-  ! (stat = file_in_use), else the spare is replaced by a copy of `path` and the reader keeps
-  ! its file as it was. After a failure the spare is not used again.
-  subroutine write_window(self, status, summary, stat, defer, final)
+  ! One write of the file: the buffered rows, then the attributes of the outcome so far (all of
+  ! them the first time and at the end, else the numbers, written in place). After a failed
+  ! window the counts of the steps on disk are those the file still holds.
+  subroutine write_file(self, status, summary, final, stat)
     type(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
     type(run_summary), intent(in) :: summary
+    logical, intent(in) :: final
     integer, intent(out) :: stat
-    logical, intent(in), optional :: defer, final
-    integer(int64) :: points_kept, steps_kept
-    integer :: close_stat, steps_before, newton_before
-    logical :: last, waiting
+    integer :: steps_before, newton_before
+    logical :: whole
 
-    stat = self%failure
-    if (stat /= 0) return
-    waiting = .false.
-    if (present(defer)) waiting = defer
-    last = .false.
-    if (present(final)) last = final
-    call open_spare(stat)
-    if (stat == file_in_use .and. waiting) return
-    if (stat == file_in_use) then
-      call copy_file(self%path, self%spare, stat)
-      call self%points%forget(self%points%written)
-      call self%steps%forget(self%steps%written)
-      if (stat == 0) call open_spare(stat)
+    steps_before = self%disk_steps
+    newton_before = self%disk_newton
+    whole = .not. self%store%on_disk
+    call self%store%begin_rows(final, stat, defer=.not. (final .or. self%store%buffers_full()))
+    if (stat == file_in_use .and. .not. final) then    ! tried again 50 ms later
+      stat = 0
+      return
     end if
-    if (stat == 0) then
-      call system_clock(self%last_write)
-      points_kept = self%points%written
-      steps_kept = self%steps%written
-      steps_before = self%disk_steps
-      newton_before = self%disk_newton
-      call self%points%write(self%file, .false., stat, keep=.true.)
-      if (stat == 0) call self%steps%write(self%file, .false., stat, keep=.true.)
-      if (stat == 0) call rows_on_disk(self)
-      if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. last, final=last)
-      call self%file%close(close_stat)
-      if (stat == 0) stat = close_stat
-      if (stat == 0) call exchange_files(self%spare, self%path, stat)
-      if (stat /= 0) then          ! `path` holds what it held
-        self%disk_steps = steps_before
-        self%disk_newton = newton_before
-      end if
+    if (stat == 0) call rows_on_disk(self)
+    if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. (whole .or. final), &
+                                           final=final)
+    call self%store%end_rows(stat)
+    if (stat /= 0 .and. .not. whole) then       ! a failed window leaves the file as it was
+      self%disk_steps = steps_before
+      self%disk_newton = newton_before
     end if
-    self%failure = stat
-    if (stat /= 0) return
-    call self%points%forget(points_kept)
-    call self%steps%forget(steps_kept)
-
-  contains
-
-    subroutine open_spare(stat)
-      integer, intent(out) :: stat
-
-      call self%file%open_existing(self%spare, .true., stat, reserve=self%points%window_bytes() + &
-                                   self%steps%window_bytes() + 65536_int64, wait_ms=-1)
-    end subroutine open_spare
-  end subroutine write_window
+  end subroutine write_file
 
   ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
   ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
@@ -458,29 +371,29 @@ contains
     logical :: units, texts
 
     stat = 0
-    units = self%file%fresh         ! the units attributes go with the first write
+    units = self%store%file%fresh         ! the units attributes go with the first write
     texts = .true.
     if (present(numbers_only)) texts = .not. numbers_only
     if (texts) then
-      call self%file%set_text('status', status, stat)
-      if (stat == 0) call self%file%set_text('failure_kind', summary%failure_kind, stat)
+      call self%store%file%set_text('status', status, stat)
+      if (stat == 0) call self%store%file%set_text('failure_kind', summary%failure_kind, stat)
     end if
     if (present(final)) then
-      if (stat == 0 .and. final) call self%file%set_text('end_time', iso_time(), stat)
+      if (stat == 0 .and. final) call self%store%file%set_text('end_time', iso_time(), stat)
     end if
     call number('steps_planned', real(summary%steps_planned, real64), '1', .true.)
     call number('steps_completed', real(self%disk_steps, real64), '1', .true.)
-    call number('step_rows', real(self%steps%written, real64), '1', .true.)
+    call number('step_rows', real(self%store%tables(step_rows)%written, real64), '1', .true.)
     call number('newton_iterations_total', real(self%disk_newton, real64), '1', .true.)
-    if (stat == 0) call self%file%set_reals('run_figures', [summary%energy_drift, summary%min_entropy_increment, &
+    if (stat == 0) call self%store%file%set_reals('run_figures', [summary%energy_drift, summary%min_entropy_increment, &
                                            summary%max_lyapunov_increment, summary%angular_momentum_drift, &
                                            summary%min_temperature, real(summary%halved_steps, real64), &
                                            real(summary%rejected_steps, real64)], stat)
-    if (stat == 0 .and. units) call self%file%set_texts('run_figures_units', &
+    if (stat == 0 .and. units) call self%store%file%set_texts('run_figures_units', &
                                                         [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], stat)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
-    self%file%fresh = .false.
+    self%store%file%fresh = .false.
 
   contains
 
@@ -491,11 +404,11 @@ contains
 
       if (stat /= 0) return
       if (integer_valued) then
-        if (units) call self%file%set_integer(name, nint(value), stat, units=unit)
-        if (.not. units) call self%file%set_integer(name, nint(value), stat)
+        if (units) call self%store%file%set_integer(name, nint(value), stat, units=unit)
+        if (.not. units) call self%store%file%set_integer(name, nint(value), stat)
       else
-        if (units) call self%file%set_real(name, value, stat, units=unit)
-        if (.not. units) call self%file%set_real(name, value, stat)
+        if (units) call self%store%file%set_real(name, value, stat, units=unit)
+        if (.not. units) call self%store%file%set_real(name, value, stat)
       end if
     end subroutine number
   end subroutine summary_attributes

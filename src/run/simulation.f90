@@ -177,7 +177,7 @@ contains
     if (writing) then
       allocate (added(0))
       if (present(extras)) added = extras
-      if (present(durable)) output%durable = durable
+      if (present(durable)) output%store%durable = durable
       call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
                          petsc_options_in_force(), io_stat)
       if (io_stat /= 0) then
@@ -376,7 +376,7 @@ contains
       call output%finish(summary, finish_stat)
       if (finish_stat /= 0) then
         summary%status = 'incomplete: cannot write the output file: '//io_reason(finish_stat)
-        if (output%on_disk) then
+        if (output%store%on_disk) then
           kept = '; '//part//' keeps the '//integer_text(output%disk_steps)//' steps written before'
         else
           kept = '; nothing was kept'
@@ -392,7 +392,7 @@ contains
         if (stat == 0) message = config%output_file//' keeps the earlier complete run; this run''s file is '//part
         return
       end if
-      call rename_file(part, config%output_file, rename_stat, sync=output%durable)
+      call rename_file(part, config%output_file, rename_stat, sync=output%store%durable)
       if (rename_stat /= 0) then
         stat = 0
         call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file//''' ('//config%input_file &

@@ -19,7 +19,7 @@ module study_index
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
-  use hdf5_files, only: hdf5_file, check_run_file
+  use hdf5_files, only: hdf5_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
   use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
@@ -29,15 +29,15 @@ module study_index
   use run_config, only: field_units
   use effective_namelist, only: namelist_of_run
   use namelist_text, only: blanked, item_name
+  use study_case_files, only: case_file, case_name, case_overrides, case_file_checks_out, case_from_file
+  use study_journal, only: case_result, journal_entry, status_length, kind_length, metric_count, journal_line, &
+                           read_journal, start_journal
   use number_text, only: integer_text
   implicit none (type, external)
   private
-  public :: case_index, case_result, case_file, case_overrides, status_length, kind_length, metric_count, m_rank, &
+  public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
             m_run_count
 
-  integer, parameter :: status_length = 256
-  integer, parameter :: kind_length = 16
-  integer, parameter :: metric_count = 14
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
   ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), rank, run_count
@@ -53,14 +53,6 @@ module study_index
                                                             .false., .false., .false., .false., .true., .true., .true., &
                                                             .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
-  character(len=1), parameter :: tab = achar(9)
-
-  !> What happened to one case (an index row without its parameters).
-  type :: case_result
-    character(len=status_length) :: status = 'pending'
-    character(len=kind_length) :: failure_kind = 'none'
-    real(real64) :: metrics(metric_count) = 0.0_real64
-  end type case_result
 
   !> The open index of a study and every case's result.
   type :: case_index
@@ -78,29 +70,6 @@ module study_index
 
 contains
 
-  !> The file of case c: output_dir/case_NNNNN.h5.
-  pure function case_file(study, c) result(path)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: c
-    character(len=:), allocatable :: path
-
-    path = study%output_dir//'/'//case_name(c)
-  end function case_file
-
-  !> Case c's overrides of the base scene as one line ('dt = 0.1; scheme = ''eme''').
-  pure function case_overrides(study, c) result(text)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: c
-    character(len=:), allocatable :: text
-    integer :: s
-
-    text = ''
-    do s = 1, size(study%cases(c)%overrides)
-      if (s > 1) text = text//'; '
-      text = text//trim(study%cases(c)%overrides(s)%item)
-    end do
-  end function case_overrides
-
   !> Creates the output directory and a fresh index.h5 with a row per case, keeping the results
   !> of earlier runs of the same study (from index.h5, the journal and the case files) that still
   !> check out; pending(c) says which cases are to run. `notes` tells the user what the restart
@@ -112,7 +81,9 @@ contains
     character(len=:), allocatable, intent(out) :: notes
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
+    type(case_result) :: from_file
     integer :: c, rebuilt, rejected
+    logical :: found
 
     self%study => study
     self%started = iso_time()
@@ -136,12 +107,16 @@ contains
     if (.not. study%index_only) then
       do c = 1, size(study%cases)
         if (self%results(c)%status == 'complete') then
-          if (.not. file_checks_out(self, c)) then
+          if (.not. case_file_checks_out(study, c, nint(self%results(c)%metrics(m_steps)))) then
             rejected = rejected + 1
             self%results(c)%status = 'pending'
           end if
         else if (file_exists(case_file(study, c))) then
-          if (rebuild_from_file(self, c)) rebuilt = rebuilt + 1
+          call case_from_file(study, c, from_file, found)
+          if (found) then
+            self%results(c) = from_file
+            rebuilt = rebuilt + 1
+          end if
         end if
       end do
     end if
@@ -155,7 +130,11 @@ contains
     end do
     call system_clock(self%last_write, self%clock_rate)
     call write_index(self, stat, message)
-    if (stat == 0) call start_journal(self, stat, message)
+    if (stat == 0) then
+      call start_journal(self%journal_path, 'eme_ensemble results of '//study%input_file//', '// &
+                         integer_text(size(self%results))//' cases: case, failure_kind, metrics, status, overrides', stat)
+      if (stat /= 0) message = 'cannot write '//self%journal_path//' ('//study%input_file//'): '//os_error_text(stat)
+    end if
   end subroutine open_index
 
   !> Stores case c's result (its run count one higher): appended to the journal at once, and in
@@ -173,7 +152,7 @@ contains
     self%results(c)%failure_kind = result%failure_kind
     self%results(c)%metrics(1:m_rank) = result%metrics(1:m_rank)
     self%results(c)%metrics(m_run_count) = self%results(c)%metrics(m_run_count) + 1
-    call append_text(self%journal_path, journal_line(self, c), .false., stat)
+    call append_text(self%journal_path, journal_line(c, self%results(c), case_overrides(self%study, c)), .false., stat)
     if (stat /= 0) then
       message = 'cannot append to '//self%journal_path//' ('//self%study%input_file//'): '//os_error_text(stat)
       return
@@ -420,176 +399,38 @@ contains
     end do
   end subroutine read_previous_index
 
-  ! One journal line: case, failure_kind, the metrics, status and overrides, separated by tabs.
-  function journal_line(self, c) result(line)
-    type(case_index), intent(in) :: self
-    integer, intent(in) :: c
-    character(len=:), allocatable :: line
-    character(len=32) :: number
-    integer :: m
-
-    line = integer_text(c)//tab//trim(self%results(c)%failure_kind)
-    do m = 1, metric_count
-      write (number, '(es25.17e3)') self%results(c)%metrics(m)
-      line = line//tab//trim(adjustl(number))
-    end do
-    line = line//tab//blanked(trim(self%results(c)%status))//tab//blanked(case_overrides(self%study, c))//new_line('a')
-  end function journal_line
-
   ! Applies the journal's lines (each the latest result of its case) over what index.h5 gave. A
-  ! line that does not parse (a torn last line) is skipped; one of another study is an error.
+  ! line that does not parse, or names no case of the study, is skipped; one of another study
+  ! (its overrides differ) is an error.
   subroutine replay_journal(self, notes, stat, message)
     type(case_index), intent(inout) :: self
     character(len=:), allocatable, intent(inout) :: notes
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
-    character(len=:), allocatable :: text, line
-    type(case_result) :: result
-    integer :: unit, size_bytes, start, finish, c, applied, skipped, ios
-    character(len=256) :: io_message
+    type(journal_entry), allocatable :: entries(:)
+    integer :: k, c, applied, skipped
 
-    stat = 0
-    message = ''
-    if (.not. file_exists(self%journal_path)) return
-    inquire (file=self%journal_path, size=size_bytes)
-    allocate (character(len=max(0, size_bytes)) :: text)
-    open (newunit=unit, file=self%journal_path, access='stream', form='unformatted', status='old', action='read', &
-          iostat=ios, iomsg=io_message)
-    if (ios == 0) read (unit, iostat=ios, iomsg=io_message) text
-    if (ios == 0) close (unit)
-    if (ios /= 0) then
-      stat = 1
-      message = 'cannot read '//self%journal_path//': '//trim(io_message)
-      return
-    end if
+    call read_journal(self%journal_path, entries, skipped, stat, message)
+    if (stat /= 0) return
     applied = 0
-    skipped = 0
-    start = 1
-    do while (start <= len(text))
-      finish = index(text(start:), new_line('a'))
-      if (finish == 0) then       ! no newline: a line cut short by a kill
-        skipped = skipped + 1
-        exit
-      end if
-      line = text(start:start + finish - 2)
-      start = start + finish
-      if (line(1:min(1, len(line))) == '#') cycle
-      call parse_journal_line(line, c, result, ios)
-      if (ios /= 0 .or. c < 1 .or. c > size(self%results)) then
+    do k = 1, size(entries)
+      c = entries(k)%case_number
+      if (c < 1 .or. c > size(self%results)) then
         skipped = skipped + 1
         cycle
       end if
-      if (trim(line(index(line, tab, back=.true.) + 1:)) /= blanked(case_overrides(self%study, c))) then
+      if (entries(k)%overrides /= blanked(case_overrides(self%study, c))) then
         stat = 1
         message = self%journal_path//' belongs to a different study (case '//integer_text(c)//' differs); use ' &
                   //'another output_dir or remove it'
         return
       end if
-      self%results(c) = result
+      self%results(c) = entries(k)%result
       applied = applied + 1
     end do
     if (applied > 0) call add_note(notes, integer_text(applied)//' results taken from '//self%journal_path)
     if (skipped > 0) call add_note(notes, integer_text(skipped)//' damaged lines of '//self%journal_path//' skipped')
   end subroutine replay_journal
-
-  ! case, failure_kind, metrics, status (the overrides, last, are checked by the caller).
-  subroutine parse_journal_line(line, c, result, stat)
-    character(len=*), intent(in) :: line
-    integer, intent(out) :: c
-    type(case_result), intent(out) :: result
-    integer, intent(out) :: stat
-    integer :: field, start, finish, m
-
-    c = 0
-    stat = 1
-    start = 1
-    do field = 1, metric_count + 3
-      finish = index(line(start:), tab)
-      if (finish == 0) return
-      finish = start + finish - 2
-      select case (field)
-      case (1)
-        read (line(start:finish), *, iostat=stat) c
-      case (2)
-        result%failure_kind = line(start:finish)
-      case (3:metric_count + 2)
-        m = field - 2
-        read (line(start:finish), *, iostat=stat) result%metrics(m)
-      case default
-        result%status = line(start:finish)
-      end select
-      if (stat /= 0) return
-      start = finish + 2
-    end do
-    stat = 0
-  end subroutine parse_journal_line
-
-  ! A fresh journal: one comment line naming the study.
-  subroutine start_journal(self, stat, message)
-    type(case_index), intent(inout) :: self
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
-
-    message = ''
-    call remove_file(self%journal_path, stat)
-    if (stat == 0) call append_text(self%journal_path, '# eme_ensemble results of '//self%study%input_file//', ' &
-                                    //integer_text(size(self%results))//' cases: case, failure_kind, ' &
-                                    //'metrics, status, overrides'//new_line('a'), .false., stat)
-    if (stat /= 0) message = 'cannot write '//self%journal_path//' ('//self%study%input_file//'): '//os_error_text(stat)
-  end subroutine start_journal
-
-  ! Whether case c's file reads back complete with the recorded number of steps.
-  logical function file_checks_out(self, c)
-    type(case_index), intent(in) :: self
-    integer, intent(in) :: c
-    character(len=:), allocatable :: status
-    integer :: steps, stat
-
-    call check_run_file(case_file(self%study, c), status, steps, stat)
-    file_checks_out = stat == 0 .and. status == 'complete' .and. steps == nint(self%results(c)%metrics(m_steps))
-  end function file_checks_out
-
-  ! Takes case c's row from its file, if the file is this case's (its study_case and
-  ! study_overrides attributes) and reads back complete.
-  logical function rebuild_from_file(self, c)
-    type(case_index), intent(inout) :: self
-    integer, intent(in) :: c
-    type(hdf5_file) :: file
-    character(len=:), allocatable :: status, overrides
-    real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
-    integer :: steps, stat, ignored
-
-    rebuild_from_file = .false.
-    call check_run_file(case_file(self%study, c), status, steps, stat)
-    if (stat /= 0 .or. status /= 'complete') return
-    call file%open_existing(case_file(self%study, c), .false., stat)
-    if (stat /= 0) return
-    call file%get_reals('study_case', number, stat)
-    if (stat == 0) call file%get_text('study_overrides', overrides, stat)
-    if (stat == 0) call file%get_reals('run_figures', figures, stat)
-    if (stat == 0) call file%get_reals('steps_planned', planned, stat)
-    if (stat == 0) call file%get_reals('newton_iterations_total', newton, stat)
-    if (stat == 0) call file%get_reals('wall_time_seconds', wall, stat)
-    if (stat == 0) call file%get_reals('solve_time_seconds', solve, stat)
-    if (stat == 0) call file%get_reals('study_rank', rank, stat)
-    call file%close(ignored)
-    if (stat /= 0) return
-    if (size(number) /= 1 .or. size(figures) /= 7) return
-    if (nint(number(1)) /= c .or. overrides /= case_overrides(self%study, c)) return
-    self%results(c)%status = 'complete'
-    self%results(c)%failure_kind = 'none'
-    self%results(c)%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, rank(1), 1.0_real64]
-    rebuild_from_file = .true.
-  end function rebuild_from_file
-
-  pure function case_name(c) result(name)
-    integer, intent(in) :: c
-    character(len=:), allocatable :: name
-    character(len=16) :: buffer
-
-    write (buffer, '("case_", i5.5, ".h5")') c
-    name = trim(buffer)
-  end function case_name
 
   subroutine add_note(notes, text)
     character(len=:), allocatable, intent(inout) :: notes

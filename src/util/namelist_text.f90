@@ -2,7 +2,6 @@
 !> into `name = value` items, so that src/util/namelist_group reads each item on its own (a failing
 !> item is known by name) and extra items (overrides) can follow the file's.
 module namelist_text
-  use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long_long, c_null_char
   use number_text, only: integer_text
   implicit none (type, external)

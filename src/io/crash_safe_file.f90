@@ -1,0 +1,214 @@
+!> A crash-safe HDF5 file that grows by rows (docs/faults.md): whatever stops the writer (a
+!> kill, a full disk, a signal), `path` names a closed, readable file whose tables agree in
+!> length, holding the rows of its last completed write.
+!>
+!> The file is built in memory (src/io/hdf5_files) with its tables of rows (src/io/hdf5_series)
+!> and reaches the disk in one checked write, at the end or at its first write. From then on,
+!> buffered rows are appended in windows, never to `path` itself, because a kill inside HDF5's
+!> writes can leave a file it cannot read: a window opens the spare copy `path`.spare, which lags
+!> one window behind, after reserving the disk space it will need, appends the rows, lets the
+!> caller write its attributes, closes it and exchanges the two names, so that the old file
+!> becomes the spare. A reader that opened the file before the last exchange may still hold the
+!> spare open: a window that may wait returns file_in_use and is retried 50 ms later; one that
+!> cannot wait replaces the spare by a copy of `path`, and the reader keeps its file as it was.
+!> After a failed write the spare is not used again: `path` keeps what it held.
+!>
+!> Use: `start`; define the tables' datasets and set attributes on `file`; append rows to the
+!> tables; when `write_due`, `begin_rows`, write the attributes that go with the rows into
+!> `file`, and `end_rows`; at the end the same with final = .true.
+module crash_safe_file
+  use, intrinsic :: iso_fortran_env, only: real64, int64
+  use hdf5_files, only: hdf5_file, file_in_use
+  use hdf5_series, only: series_table
+  use filesystem, only: sync_file, exchange_files, copy_file, remove_file
+  implicit none (type, external)
+  private
+  public :: safe_file, file_in_use
+
+  !> Bytes reserved beyond the rows of a window, for attributes.
+  integer(int64), parameter :: attribute_room = 65536
+
+  !> The file, its tables and where a write stands.
+  type :: safe_file
+    type(hdf5_file) :: file                       !! in memory until on disk; open from begin_rows to end_rows
+    type(series_table), allocatable :: tables(:)
+    character(len=:), allocatable :: path, spare
+    logical :: on_disk = .false.                  !! the file exists at `path`
+    logical :: durable = .true.                   !! the finished file is synced to disk (fsync)
+    integer :: failure = 0                        !! the first failed write (its stat): later windows fail with it
+    real(real64) :: write_interval = 1.0_real64   !! seconds between windows
+    integer(int64) :: last_write = 0, clock_rate = 1
+    logical, private :: final = .false.           !! the write under way is the last
+    logical, private :: whole = .false.           !! ... and writes the file whole from memory
+    integer(int64), allocatable, private :: kept(:)   !! each table's rows of the last window, which the spare lacked
+  contains
+    procedure :: start
+    procedure :: buffers_full
+    procedure :: write_due
+    procedure :: begin_rows
+    procedure :: end_rows
+    procedure :: open_in_place
+  end type safe_file
+
+contains
+
+  !> An empty file in memory for `path` with `table_count` tables (to be defined by the caller).
+  !> stat = -1 if HDF5 failed.
+  subroutine start(self, path, table_count, stat)
+    class(safe_file), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: table_count
+    integer, intent(out) :: stat
+
+    self%path = path
+    self%spare = path//'.spare'
+    allocate (self%tables(table_count))
+    allocate (self%kept(table_count))
+    call system_clock(self%last_write, self%clock_rate)
+    call self%file%create_in_memory(stat)
+  end subroutine start
+
+  !> Whether a table's buffer is full (its rows must be written before more are appended).
+  logical function buffers_full(self)
+    class(safe_file), intent(in) :: self
+    integer :: k
+
+    buffers_full = .false.
+    do k = 1, size(self%tables)
+      buffers_full = buffers_full .or. self%tables(k)%full()
+    end do
+  end function buffers_full
+
+  !> Whether buffered rows are due on disk: write_interval seconds since the last write, or a
+  !> full buffer.
+  logical function write_due(self)
+    class(safe_file), intent(in) :: self
+    integer(int64) :: now
+
+    if (self%buffers_full()) then
+      write_due = .true.
+    else
+      call system_clock(now)
+      write_due = real(now - self%last_write, real64) >= self%write_interval*real(self%clock_rate, real64)
+    end if
+  end function write_due
+
+  !> Writes the buffered rows of every table: the first time into the file in memory (contiguous
+  !> datasets if `final`, else chunked ones, as more rows will follow), later in a window into the
+  !> spare. The file is then open for the attributes that go with the rows; end_rows finishes the
+  !> write. With `defer`, a window whose spare a reader holds open is put off (stat = file_in_use,
+  !> retried 50 ms later; call no end_rows then). stat: 0, an OS error number, or -1 (HDF5).
+  subroutine begin_rows(self, final, stat, defer)
+    class(safe_file), intent(inout) :: self
+    logical, intent(in) :: final
+    integer, intent(out) :: stat
+    logical, intent(in), optional :: defer
+    logical :: waiting
+    integer :: k
+
+    self%final = final
+    self%whole = .not. self%on_disk
+    call system_clock(self%last_write)
+    stat = 0
+    if (self%whole) then
+      do k = 1, size(self%tables)
+        if (stat == 0) call self%tables(k)%write(self%file, final, stat)
+      end do
+      return
+    end if
+    stat = self%failure
+    if (stat /= 0) return
+    waiting = .false.
+    if (present(defer)) waiting = defer
+    call open_spare(stat)
+    if (stat == file_in_use .and. waiting) then
+      self%last_write = self%last_write - int((self%write_interval - 0.05_real64)*self%clock_rate, int64)
+      return
+    end if
+    if (stat == file_in_use) then
+      call copy_file(self%path, self%spare, stat)
+      do k = 1, size(self%tables)
+        call self%tables(k)%forget(self%tables(k)%written)
+      end do
+      if (stat == 0) call open_spare(stat)
+    end if
+    if (stat /= 0) then
+      self%failure = stat
+      return
+    end if
+    do k = 1, size(self%tables)
+      self%kept(k) = self%tables(k)%written
+      if (stat == 0) call self%tables(k)%write(self%file, .false., stat, keep=.true.)
+    end do
+    if (stat /= 0) self%failure = stat
+
+  contains
+
+    subroutine open_spare(stat)
+      integer, intent(out) :: stat
+      integer(int64) :: bytes
+      integer :: k
+
+      bytes = attribute_room
+      do k = 1, size(self%tables)
+        bytes = bytes + self%tables(k)%window_bytes()
+      end do
+      call self%file%open_existing(self%spare, .true., stat, reserve=bytes, wait_ms=-1)
+    end subroutine open_spare
+  end subroutine begin_rows
+
+  !> Finishes the write begun by begin_rows; `stat` comes in as the attributes' (0 if they were
+  !> written) and goes out as the write's. The first time the file is stored at `path` (synced if
+  !> durable and final) and, unless final, as the spare; later the spare is closed and takes the
+  !> name `path`. At the end the spare is removed, and a durable file synced. On failure `path`
+  !> holds what it held.
+  subroutine end_rows(self, stat)
+    class(safe_file), intent(inout) :: self
+    integer, intent(inout) :: stat
+    integer :: close_stat, ignored, k
+
+    if (self%whole) then
+      if (stat == 0) call self%file%store(self%path, self%durable .and. self%final, stat)
+      if (self%final) then
+        call self%file%close(ignored)
+        call remove_file(self%spare, ignored)        ! of an earlier run killed with this output
+        self%on_disk = stat == 0
+        return
+      end if
+      if (stat /= 0) return
+      self%on_disk = .true.
+      call self%file%store(self%spare, .false., stat)
+      self%failure = stat
+      call self%file%close(close_stat)
+      if (stat == 0) stat = close_stat
+      return
+    end if
+    call self%file%close(close_stat)           ! (not open if the spare could not be opened)
+    if (self%failure /= 0) then
+      stat = self%failure
+    else
+      if (stat == 0) stat = close_stat
+      if (stat == 0) call exchange_files(self%spare, self%path, stat)
+      self%failure = stat
+      if (stat == 0) then
+        do k = 1, size(self%tables)
+          call self%tables(k)%forget(self%kept(k))
+        end do
+      end if
+    end if
+    if (.not. self%final) return
+    call remove_file(self%spare, ignored)
+    if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
+  end subroutine end_rows
+
+  !> Opens `path` itself for writing (no spare, no window): the last resort, after a final
+  !> window failed for want of space, to say in an attribute why its rows are missing (the space
+  !> the removed spare held makes room). Close `file` afterwards.
+  subroutine open_in_place(self, stat)
+    class(safe_file), intent(inout) :: self
+    integer, intent(out) :: stat
+
+    call self%file%open_existing(self%path, .true., stat)
+  end subroutine open_in_place
+
+end module crash_safe_file

@@ -1,0 +1,94 @@
+!> The case files of a study: case c's file output_dir/case_NNNNN.h5, its overrides of the base
+!> scene as one line, and what a restart reads back from a case file: whether it checks out
+!> (complete, with the recorded number of steps) and, when the index has lost it, the case's
+!> result (if the file names this case and its overrides, and reads back complete).
+module study_case_files
+  use, intrinsic :: iso_fortran_env, only: real64
+  use study_config, only: study_definition
+  use study_journal, only: case_result
+  use hdf5_files, only: hdf5_file, check_run_file
+  implicit none (type, external)
+  private
+  public :: case_file, case_name, case_overrides, case_file_checks_out, case_from_file
+
+contains
+
+  !> The file of case c: output_dir/case_NNNNN.h5.
+  pure function case_file(study, c) result(path)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: c
+    character(len=:), allocatable :: path
+
+    path = study%output_dir//'/'//case_name(c)
+  end function case_file
+
+  !> Case c's overrides of the base scene as one line ('dt = 0.1; scheme = ''eme''').
+  pure function case_overrides(study, c) result(text)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: c
+    character(len=:), allocatable :: text
+    integer :: s
+
+    text = ''
+    do s = 1, size(study%cases(c)%overrides)
+      if (s > 1) text = text//'; '
+      text = text//trim(study%cases(c)%overrides(s)%item)
+    end do
+  end function case_overrides
+
+  !> Whether case c's file reads back complete with `steps` steps.
+  logical function case_file_checks_out(study, c, steps_recorded)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: c, steps_recorded
+    character(len=:), allocatable :: status
+    integer :: steps, stat
+
+    call check_run_file(case_file(study, c), status, steps, stat)
+    case_file_checks_out = stat == 0 .and. status == 'complete' .and. steps == steps_recorded
+  end function case_file_checks_out
+
+  !> Case c's result from its file, if the file is this case's (its study_case and
+  !> study_overrides attributes) and reads back complete: found.
+  subroutine case_from_file(study, c, result, found)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: c
+    type(case_result), intent(out) :: result
+    logical, intent(out) :: found
+    type(hdf5_file) :: file
+    character(len=:), allocatable :: status, overrides
+    real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
+    integer :: steps, stat, ignored
+
+    found = .false.
+    call check_run_file(case_file(study, c), status, steps, stat)
+    if (stat /= 0 .or. status /= 'complete') return
+    call file%open_existing(case_file(study, c), .false., stat)
+    if (stat /= 0) return
+    call file%get_reals('study_case', number, stat)
+    if (stat == 0) call file%get_text('study_overrides', overrides, stat)
+    if (stat == 0) call file%get_reals('run_figures', figures, stat)
+    if (stat == 0) call file%get_reals('steps_planned', planned, stat)
+    if (stat == 0) call file%get_reals('newton_iterations_total', newton, stat)
+    if (stat == 0) call file%get_reals('wall_time_seconds', wall, stat)
+    if (stat == 0) call file%get_reals('solve_time_seconds', solve, stat)
+    if (stat == 0) call file%get_reals('study_rank', rank, stat)
+    call file%close(ignored)
+    if (stat /= 0) return
+    if (size(number) /= 1 .or. size(figures) /= 7) return
+    if (nint(number(1)) /= c .or. overrides /= case_overrides(study, c)) return
+    result%status = 'complete'
+    result%failure_kind = 'none'
+    result%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, rank(1), 1.0_real64]
+    found = .true.
+  end subroutine case_from_file
+
+  pure function case_name(c) result(name)
+    integer, intent(in) :: c
+    character(len=:), allocatable :: name
+    character(len=16) :: buffer
+
+    write (buffer, '("case_", i5.5, ".h5")') c
+    name = trim(buffer)
+  end function case_name
+
+end module study_case_files
