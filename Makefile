@@ -47,11 +47,13 @@ LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
 FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90)
 
-# obj: the objects of the modules it uses (only modules of this project have a source file).
+# obj: the objects of the modules it uses, and a submodule's of its parent (only modules of this
+# project have a source file).
 $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 	@mkdir -p $(BUILD)
 	@for f in $(FORTRAN_SOURCES); do \
-	  for m in $$(sed -n 's/^ *use  *\([A-Za-z_0-9]*\).*/\1/p' $$f | tr A-Z a-z | sort -u); do \
+	  for m in $$(sed -n 's/^ *use  *\([A-Za-z_0-9]*\).*/\1/p; s/^ *submodule *( *\([A-Za-z_0-9]*\) *).*/\1/p' $$f | \
+	              tr A-Z a-z | sort -u); do \
 	    for d in $(FORTRAN_SOURCES); do \
 	      case $$d in */$$m.f90|*/$$m.F90) echo "$(OBJ)/$${f%.*}.o: $(OBJ)/$${d%.*}.o";; esac; \
 	    done; \

@@ -35,6 +35,9 @@ module pendulum_step_kernel
   implicit none (type, external)
   private
   public :: pendulum_step, build_pendulum_step, condensed_offset
+  ! For the submodules pendulum_step_residual and pendulum_step_jacobian only: gfortran gives a
+  ! module's private procedures internal linkage, which submodules, compiled apart, cannot reach.
+  public :: velocity, gamma_of, new_temperature
 
   !> y = x(condensed_offset + 1:): the positions are the first 6 of the generic unknowns x.
   integer, parameter :: condensed_offset = 6
@@ -120,6 +123,32 @@ module pendulum_step_kernel
     procedure :: scheme_temperatures
   end type pendulum_step
 
+  interface
+    !> The values pass at y (positions, momenta, each spring's partials and what the Jacobian
+    !> reuses) (src/scheme/pendulum_step_residual).
+    module pure subroutine values_pass(self, y, point, stat)
+      class(pendulum_step), intent(in) :: self
+      real(real64), intent(in) :: y(:)
+      type(step_point), intent(inout) :: point
+      integer, intent(out) :: stat
+    end subroutine values_pass
+    !> The condensed residual at y, after its values pass (src/scheme/pendulum_step_residual).
+    module pure subroutine residual_pass(self, y, point, residual, stat)
+      class(pendulum_step), intent(in) :: self
+      real(real64), intent(in) :: y(:)
+      type(step_point), intent(inout) :: point
+      real(real64), intent(out) :: residual(:)
+      integer, intent(out) :: stat
+    end subroutine residual_pass
+    !> The derivative pass and dR/dy at a point whose residual pass is done
+    !> (src/scheme/pendulum_step_jacobian).
+    module pure subroutine jacobian_pass(self, point, jacobian, stat)
+      class(pendulum_step), intent(in) :: self
+      type(step_point), intent(inout) :: point
+      real(real64), intent(out) :: jacobian(:, :)
+      integer, intent(out) :: stat
+    end subroutine jacobian_pass
+  end interface
 
 contains
 
@@ -285,179 +314,6 @@ contains
     if (n == 3) gamma_of = x(2)
   end function gamma_of
 
-  !> The values pass at y: positions, midpoint, and every spring's partials. stat /= 0: a point
-  !> the scheme needs is outside the model's domain.
-  pure subroutine values_pass(self, y, point, stat)
-    class(pendulum_step), intent(in) :: self
-    real(real64), intent(in) :: y(:)
-    type(step_point), intent(inout) :: point
-    integer, intent(out) :: stat
-    integer :: a, n
-
-    point%p_new(:, 1) = y(1:3)
-    point%p_new(:, 2) = y(4:6)
-    point%gamma_new = y(row_gamma)
-    point%tau_new = y(row_tau)
-    point%v = velocity(self, y)
-    point%q_new = self%q_old + (self%fraction*self%dt)*point%v
-    point%q_mid = 0.5_real64*(self%q_old + point%q_new)
-    stat = self%old_stat
-    if (stat /= domain_ok) return
-    do a = 1, 2
-      n = a + 1
-      associate (sp => point%spring(a))
-        if (self%partials_rule == partials_midpoint) then
-          ! Exact partials at the invariants of z_mid: dC_mid/dq' = q_mid, d(gamma, tau)_mid/d(gamma, tau)' = 1/2.
-          sp%mid(1) = dot_product(point%q_mid(:, a), point%q_mid(:, a))
-          if (a == 2) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
-          sp%mid(n) = 0.5_real64*(self%tau_old(a) + point%tau_new(a))
-          point%chain_c(:, a) = point%q_mid(:, a)
-          point%chain_other = 0.5_real64
-          call midpoint_values(self, a, sp, stat)
-          point%partials(1:n, :, a) = sp%grad_m(1:n, :)
-        else
-          ! Discrete gradients between the invariants of z and z': dC'/dq' = 2 q'.
-          sp%x(1) = dot_product(point%q_new(:, a), point%q_new(:, a))
-          if (a == 2) sp%x(2) = point%gamma_new
-          sp%x(n) = point%tau_new(a)
-          point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
-          point%chain_other = 1.0_real64
-          if (self%gradient == gradient_gonzalez) then
-            call gonzalez_values(self, a, sp, point%partials(1:n, :, a), stat)
-          else
-            call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), &
-                                      self%scale(1:n, a), point%partials(1:n, :, a), stat=stat)
-          end if
-        end if
-      end associate
-      if (stat /= domain_ok) return
-    end do
-  end subroutine values_pass
-
-  !> The derivative pass at a point whose values pass is done: dP/dxi for every spring.
-  pure subroutine derivative_pass(self, point, stat)
-    class(pendulum_step), intent(in) :: self
-    type(step_point), intent(inout) :: point
-    integer, intent(out) :: stat
-    real(real64) :: partials(3, 2), hess(3, 3, 2)
-    integer :: a, n
-
-    stat = domain_ok
-    do a = 1, 2
-      n = a + 1
-      associate (sp => point%spring(a))
-        if (self%partials_rule == partials_midpoint) then
-          call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, &
-                                     sp%d2e, sp%d2sigma, partials(1:n, :), hess(1:n, 1:n, :))
-        else if (self%gradient == gradient_gonzalez) then
-          call gonzalez_derivatives(self, a, sp, hess(1:n, 1:n, :))
-        else
-          call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
-                                    partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
-          if (stat /= domain_ok) return
-        end if
-        point%dpartials(1:n, 1:n, :, a) = hess(1:n, 1:n, :)
-      end associate
-    end do
-  end subroutine derivative_pass
-
-  !> The mechanical parts, temperature and exact partials of spring a at sp%mid.
-  pure subroutine midpoint_values(self, a, sp, stat)
-    class(pendulum_step), intent(in) :: self
-    integer, intent(in) :: a
-    type(spring_pass), intent(inout) :: sp
-    integer, intent(out) :: stat
-    integer :: n
-
-    n = a + 1
-    if (.not. (sp%mid(1) > 0.0_real64)) then
-      stat = domain_nonpositive_length
-      return
-    end if
-    call mechanical_parts(self%spring(a)%law, sp%mid(1), gamma_of(sp%mid, n), sp%e, sp%sigma, sp%de, sp%dsigma, &
-                          sp%d2e, sp%d2sigma)
-    call temperature_of(self%spring(a), sp%mid(n), sp%e, sp%sigma, sp%theta_mid, stat)
-    if (stat /= domain_ok) return
-    call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
-                               sp%d2sigma, sp%grad_m(1:n, :))
-  end subroutine midpoint_values
-
-  !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x, with the
-  !> old state's logarithm, root and temperature reused and the new point's ln(l/l0) and 1/l kept
-  !> for the derivative pass (src/scheme/discrete_gradient).
-  pure subroutine gonzalez_values(self, a, sp, dg, stat)
-    class(pendulum_step), intent(in) :: self
-    integer, intent(in) :: a
-    type(spring_pass), intent(inout) :: sp
-    real(real64), intent(out) :: dg(:, :)
-    integer, intent(out) :: stat
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), delta_e, delta_sigma, delta_theta, length_b
-    integer :: n
-
-    n = a + 1
-    associate (old => self%old(a), spring => self%spring(a), x => sp%x(1:n), d => sp%d(1:n))
-      d = x - old%x(1:n)
-      sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
-      sp%dwd = dot_product(d, sp%weight(1:n)*d)
-      sp%mid(1:n) = 0.5_real64*(old%x(1:n) + x)
-      call midpoint_values(self, a, sp, stat)
-      if (stat /= domain_ok) return
-      sp%small = sqrt(sp%dwd) < quotient_threshold
-      if (sp%small) then
-        ! The fallback below the threshold: the midpoint derivative.
-        dg = sp%grad_m(1:n, :)
-        return
-      end if
-      ! The difference f(x) - f(x_old) without cancellation, sharing ln(l/l0) and 1/l at x.
-      if (.not. (x(1) > 0.0_real64)) then
-        stat = domain_nonpositive_length
-        return
-      end if
-      sp%delta_log = 0.5_real64*log1p(d(1)/old%x(1))
-      length_b = sqrt(x(1))
-      sp%inv_b = 1.0_real64/length_b
-      call mechanical_difference_at(spring%law, old%log_stretch, sp%delta_log, sp%inv_b, &
-                                    -d(1)*old%inv_length*sp%inv_b/(old%length + length_b), gamma_of(old%x, n), &
-                                    gamma_of(x, n), delta_e, delta_sigma)
-      call difference_from_parts(spring, old%x(n), d(n), old%theta, delta_e, delta_sigma, sp%delta_f, delta_theta)
-      sp%theta_b = old%theta + delta_theta
-      if (.not. (sp%theta_b > 0.0_real64)) then
-        ! Rounding can take theta_old + delta_theta to zero where theta itself is tiny: decide by theta.
-        call mechanical_parts_at(spring%law, x(1), old%log_stretch + sp%delta_log, sp%inv_b, gamma_of(x, n), &
-                                 e, sigma, de, dsigma, d2e, d2sigma)
-        call temperature_of(spring, x(n), e, sigma, sp%theta_b, stat)
-        if (stat /= domain_ok) return
-      end if
-      call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg)
-    end associate
-  end subroutine gonzalez_values
-
-  !> The derivative of Gonzalez's discrete gradient in x' from its values pass.
-  pure subroutine gonzalez_derivatives(self, a, sp, ddg)
-    class(pendulum_step), intent(in) :: self
-    integer, intent(in) :: a
-    type(spring_pass), intent(in) :: sp
-    real(real64), intent(out) :: ddg(:, :, :)
-    real(real64) :: grad(3, 2), hess_m(3, 3, 2), grad_b(3, 2), dg(3, 2)
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
-    integer :: n
-
-    n = a + 1
-    associate (spring => self%spring(a))
-      call potentials_from_parts(spring, sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
-                                 sp%d2sigma, grad(1:n, :), hess_m(1:n, 1:n, :))
-      if (sp%small) then
-        ddg = 0.5_real64*hess_m(1:n, 1:n, :)
-        return
-      end if
-      call mechanical_parts_at(spring%law, sp%x(1), self%old(a)%log_stretch + sp%delta_log, sp%inv_b, &
-                               gamma_of(sp%x, n), e, sigma, de, dsigma, d2e, d2sigma)
-      call potentials_from_parts(spring, sp%x(n), sp%theta_b, e, sigma, de, dsigma, d2e, d2sigma, grad_b(1:n, :))
-      call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
-                               hess_m(1:n, 1:n, :), grad_b(1:n, :), ddg)
-    end associate
-  end subroutine gonzalez_derivatives
-
   !> The temperature of spring a at the new state and, optionally, its gradient in the spring's
   !> invariants (docs/formulation.md section 3: theta = tau; theta_ref exp((s - sigma)/Cap); theta_ref +
   !> (u - e)/Cap).
@@ -546,200 +402,6 @@ contains
     end if
     call jacobian_pass(self, self%kept, jacobian, stat)
   end subroutine evaluate_jacobian
-
-  ! The values pass and the residual at y; the point keeps the residual's scalars.
-  pure subroutine residual_pass(self, y, point, residual, stat)
-    class(pendulum_step), intent(in) :: self
-    real(real64), intent(in) :: y(:)
-    type(step_point), intent(inout) :: point
-    real(real64), intent(out) :: residual(:)
-    integer, intent(out) :: stat
-    real(real64) :: h, theta_new
-    integer :: a, b, n
-
-    h = self%fraction*self%dt
-    call values_pass(self, y, point, stat)
-    if (stat /= domain_ok) return
-    associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
-               work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
-      do a = 1, 2
-        n = a + 1
-        theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
-        thermal_force(a) = partials(1, potential_u, a) - theta(a)*partials(1, potential_s, a)
-        work(a) = dot_product(point%q_mid(:, a), point%v(:, a))
-        work_ratio(a) = partials(1, potential_s, a)/partials(n, potential_s, a)
-        inv_u_tau(a) = 1.0_real64/partials(n, potential_u, a)
-      end do
-      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2.
-      point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
-      point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
-      point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
-      do a = 1, 2
-        b = 3 - a
-        residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%p_old(:, a))/h &
-                                                     - self%force(:, a) + 2.0_real64*thermal_force(a)*point%q_mid(:, a)
-        residual(row_tau(a)) = (point%tau_new(a) - self%tau_old(a))/h + 2.0_real64*work_ratio(a)*work(a) &
-                               - self%params%conductivity*(theta(b) - theta(a))*inv_u_tau(a)
-      end do
-      residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - point%rate
-      residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
-      ! Constraints (docs/formulation.md section 7).
-      point%lambda_length = 0.0_real64
-      if (self%length_row > 0) then
-        point%lambda_length = y(self%length_row)
-        residual(1:3) = residual(1:3) + point%lambda_length*point%q_mid(:, 1)
-        residual(self%length_row) = 0.5_real64*(dot_product(point%q_new(:, 1), point%q_new(:, 1)) - self%length**2)
-      end if
-      point%lambda_temperature = 0.0_real64
-      if (self%temperature_row > 0) then
-        point%lambda_temperature = y(self%temperature_row)
-        a = self%temperature_part
-        residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
-        call new_temperature(self, a, point, theta_new, stat=stat)
-        if (stat /= domain_ok) return
-        residual(self%temperature_row) = theta_new - self%temperature
-      end if
-    end associate
-    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
-  end subroutine residual_pass
-
-  ! The derivative pass and dR/dy at a point whose residual pass is done.
-  pure subroutine jacobian_pass(self, point, jacobian, stat)
-    class(pendulum_step), intent(in) :: self
-    type(step_point), intent(inout) :: point
-    real(real64), intent(out) :: jacobian(:, :)
-    integer, intent(out) :: stat
-    real(real64) :: theta_new, dtheta_new(3)
-
-    call derivative_pass(self, point, stat)
-    if (stat /= domain_ok) return
-    dtheta_new = 0.0_real64
-    if (self%temperature_row > 0) then
-      call new_temperature(self, self%temperature_part, point, theta_new, dtheta_new(1:self%temperature_part + 1), stat)
-      if (stat /= domain_ok) return
-    end if
-    call assemble_jacobian(self, point, dtheta_new, jacobian)
-  end subroutine jacobian_pass
-
-  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.
-  pure subroutine assemble_jacobian(self, point, dtheta_new, jacobian)
-    class(pendulum_step), intent(in) :: self
-    type(step_point), intent(in) :: point
-    real(real64), intent(in) :: dtheta_new(3)
-    real(real64), intent(out) :: jacobian(:, :)
-    ! Derivatives in the variables xi_a of each spring (1..n_a) of the scalars the rows use.
-    real(real64) :: dtheta(3, 2), dforce(3, 2), dratio(3, 2), dinv_u(3, 2), drate(3), dheating(3), dinv_eta
-    ! Each row's derivative in xi of each spring, then in q' (condensed at the end), and the
-    ! Jacobian, in arrays of fixed size (no descriptors, no vector subscripts in the loops).
-    real(real64) :: drow(max_rows, 3, 2), dq(max_rows, 3, 2), jac(max_rows, max_rows)
-    real(real64) :: kappa, s_tau, h
-    integer :: a, b, n, l, i, col, rows, p0
-
-    rows = size(jacobian, 1)
-    h = self%fraction*self%dt
-    kappa = self%params%conductivity
-    jac(1:rows, 1:rows) = 0.0_real64
-    dq(1:rows, :, :) = 0.0_real64
-    drow(1:rows, :, :) = 0.0_real64
-    associate (partials => point%partials, dp => point%dpartials, theta => point%theta, &
-               thermal_force => point%thermal_force, work => point%work, work_ratio => point%work_ratio, &
-               inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &
-               lambda_length => point%lambda_length, lambda_temperature => point%lambda_temperature)
-      do a = 1, 2
-        n = a + 1
-        s_tau = partials(n, potential_s, a)
-        do l = 1, n
-          dtheta(l, a) = (dp(n, l, potential_u, a) - theta(a)*dp(n, l, potential_s, a))/s_tau
-          dforce(l, a) = dp(1, l, potential_u, a) - theta(a)*dp(1, l, potential_s, a) &
-                         - partials(1, potential_s, a)*dtheta(l, a)
-          dratio(l, a) = (dp(1, l, potential_s, a) - work_ratio(a)*dp(n, l, potential_s, a))/s_tau
-          dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
-        end do
-      end do
-      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
-      dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
-      do l = 1, 3
-        drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
-                    - dp(2, l, potential_u, 2))*inv_eta &
-                   + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
-        dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
-      end do
-
-    do a = 1, 2
-      b = 3 - a
-      n = a + 1
-      p0 = 3*(a - 1)                  ! the rows (and columns) of p_a are p0 + 1..p0 + 3
-      do l = 1, n
-        ! momentum rows: 2 T_a q_mid_a
-        drow(p0 + 1:p0 + 3, l, a) = 2.0_real64*point%q_mid(:, a)*dforce(l, a)
-        ! tau_a rows: 2 (S_C/S_tau) w - kappa (Theta_b - Theta_a)/U_tau
-        drow(row_tau(a), l, a) = drow(row_tau(a), l, a) + 2.0_real64*work(a)*dratio(l, a) &
-                                 + kappa*dtheta(l, a)*inv_u_tau(a) &
-                                 - kappa*(theta(b) - theta(a))*dinv_u(l, a)
-      end do
-      do l = 1, b + 1
-        drow(row_tau(a), l, b) = drow(row_tau(a), l, b) - kappa*dtheta(l, b)*inv_u_tau(a)
-      end do
-    end do
-    drow(row_gamma, :, 2) = -drate
-    drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
-    if (self%temperature_row > 0) then
-      a = self%temperature_part
-      drow(row_tau(a), 1:a + 1, a) = drow(row_tau(a), 1:a + 1, a) - lambda_temperature*dinv_u(1:a + 1, a)
-    end if
-
-    ! Through the partials' variables xi into the columns of q', gamma', tau'.
-    do a = 1, 2
-      n = a + 1
-      do i = 1, 3
-        dq(1:rows, i, a) = drow(1:rows, 1, a)*point%chain_c(i, a)
-      end do
-      if (a == 2) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
-      jac(1:rows, row_tau(a)) = drow(1:rows, n, a)*point%chain_other
-    end do
-
-    ! Direct dependencies: (z' - z)/h, q_mid in the forces, w = q_mid.v.
-    do col = 1, row_tau(2)
-      jac(col, col) = jac(col, col) + 1.0_real64/h
-    end do
-    do a = 1, 2
-      p0 = 3*(a - 1)
-      do i = 1, 3
-        dq(p0 + i, i, a) = dq(p0 + i, i, a) + thermal_force(a)
-      end do
-      ! w_a = q_mid_a . v_a: dw/dq_a' = v_a/2, dw/dp_b' = q_mid_a m^-1_ab/2.
-      dq(row_tau(a), :, a) = dq(row_tau(a), :, a) + work_ratio(a)*point%v(:, a)
-      do b = 1, 2
-        jac(row_tau(a), 3*b - 2:3*b) = jac(row_tau(a), 3*b - 2:3*b) &
-                                       + work_ratio(a)*self%inverse_mass(a, b)*point%q_mid(:, a)
-      end do
-    end do
-    if (self%length_row > 0) then
-      do i = 1, 3
-        dq(i, i, 1) = dq(i, i, 1) + 0.5_real64*lambda_length
-      end do
-      jac(1:3, self%length_row) = point%q_mid(:, 1)
-      dq(self%length_row, :, 1) = point%q_new(:, 1)
-    end if
-    if (self%temperature_row > 0) then
-      a = self%temperature_part
-      n = a + 1
-      jac(row_tau(a), self%temperature_row) = -inv_u_tau(a)
-      ! g2 = theta(z') - temperature, through the invariants of z' (C' = q'.q').
-      dq(self%temperature_row, :, a) = dtheta_new(1)*2.0_real64*point%q_new(:, a)
-      if (a == 2) jac(self%temperature_row, row_gamma) = dtheta_new(2)
-      jac(self%temperature_row, row_tau(a)) = dtheta_new(n)
-    end if
-
-    ! Condensation: q_a' = q_a + h m^-1 p_mid, so dq_a'/dp_b' = (h/2) m^-1_ab.
-    do b = 1, 2
-      do a = 1, 2
-        jac(1:rows, 3*b - 2:3*b) = jac(1:rows, 3*b - 2:3*b) + (0.5_real64*h*self%inverse_mass(a, b))*dq(1:rows, :, a)
-      end do
-    end do
-    jacobian = jac(1:rows, 1:rows)
-    end associate
-  end subroutine assemble_jacobian
 
   !> The temperatures the scheme's K0 uses at y: discrete (EME) or midpoint temperatures.
   pure subroutine scheme_temperatures(self, y, theta, stat)

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The module graph of the code, drawn from its sources (make docs; docs/architecture.md).
 
-Nodes are the Fortran modules and programs of src/<folder>/ and drivers/, and the C files of
+Nodes are the Fortran modules, submodules and programs of src/<folder>/ and drivers/, and the C files of
 src/<folder>/ that Fortran calls (bind(C, name='...') interfaces matched to the C functions
 defined in them). Edges are `use` statements between the project's modules and those calls. The
 folders are the layers, lowest first (LAYERS): a module may use its own folder's modules and
@@ -30,6 +30,8 @@ LAYERS = {
 }
 USE = re.compile(r"^\s*use\s*(?:,\s*\w+\s*)?(?:::)?\s*(\w+)", re.IGNORECASE | re.MULTILINE)
 UNIT = re.compile(r"^\s*(module|program)\s+(\w+)\s*$", re.IGNORECASE | re.MULTILINE)
+# A submodule (the implementation of part of a module, in a file of its own) uses its parent.
+SUBMODULE = re.compile(r"^\s*submodule\s*\(\s*(\w+)\s*\)\s*(\w+)\s*$", re.IGNORECASE | re.MULTILINE)
 BIND = re.compile(r"bind\s*\(\s*c\s*,\s*name\s*=\s*['\"](\w+)['\"]", re.IGNORECASE)
 C_FUNCTION = re.compile(r"^[A-Za-z_][\w \*]*?\b(\w+)\s*\([^;{]*\)\s*\{", re.MULTILINE)
 
@@ -55,12 +57,14 @@ def graph(root=ROOT):
             for name in C_FUNCTION.findall(text):
                 defined[name] = path.name
             continue
-        match = UNIT.search(text)
+        match = UNIT.search(text) or SUBMODULE.search(text)
         if not match:
             continue
         name = match.group(2).lower()
         nodes[name] = (layer, path)
         uses[name] = {used.lower() for used in USE.findall(text)}
+        if match.re is SUBMODULE:
+            uses[name].add(match.group(1).lower())
         calls[name] = set(BIND.findall(text))
     edges = set()
     for name in uses:

@@ -1,0 +1,198 @@
+!> The Jacobian half of the double pendulum's fused step kernel (src/scheme/pendulum_step_kernel):
+!> the derivative pass, which differentiates each spring's partials (Gonzalez's quotient and its
+!> fallback, or the midpoint rule's exact partials) in the variables they depend on, and the
+!> assembly of the condensed Jacobian dR/dy = dR/dz'|_y + dR/dq' (h/2) m^-1 from them and the
+!> scalars the residual's pass kept at the same point.
+submodule (pendulum_step_kernel) pendulum_step_jacobian
+  implicit none (type, external)
+
+contains
+
+  ! The derivative pass and dR/dy at a point whose residual pass is done.
+  module procedure jacobian_pass
+    real(real64) :: theta_new, dtheta_new(3)
+
+    call derivative_pass(self, point, stat)
+    if (stat /= domain_ok) return
+    dtheta_new = 0.0_real64
+    if (self%temperature_row > 0) then
+      call new_temperature(self, self%temperature_part, point, theta_new, dtheta_new(1:self%temperature_part + 1), stat)
+      if (stat /= domain_ok) return
+    end if
+    call assemble_jacobian(self, point, dtheta_new, jacobian)
+  end procedure jacobian_pass
+
+  !> The derivative pass at a point whose values pass is done: dP/dxi for every spring.
+  pure subroutine derivative_pass(self, point, stat)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(inout) :: point
+    integer, intent(out) :: stat
+    real(real64) :: partials(3, 2), hess(3, 3, 2)
+    integer :: a, n
+
+    stat = domain_ok
+    do a = 1, 2
+      n = a + 1
+      associate (sp => point%spring(a))
+        if (self%partials_rule == partials_midpoint) then
+          call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, &
+                                     sp%d2e, sp%d2sigma, partials(1:n, :), hess(1:n, 1:n, :))
+        else if (self%gradient == gradient_gonzalez) then
+          call gonzalez_derivatives(self, a, sp, hess(1:n, 1:n, :))
+        else
+          call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
+                                    partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
+          if (stat /= domain_ok) return
+        end if
+        point%dpartials(1:n, 1:n, :, a) = hess(1:n, 1:n, :)
+      end associate
+    end do
+  end subroutine derivative_pass
+
+  !> The derivative of Gonzalez's discrete gradient in x' from its values pass.
+  pure subroutine gonzalez_derivatives(self, a, sp, ddg)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(spring_pass), intent(in) :: sp
+    real(real64), intent(out) :: ddg(:, :, :)
+    real(real64) :: grad(3, 2), hess_m(3, 3, 2), grad_b(3, 2), dg(3, 2)
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    integer :: n
+
+    n = a + 1
+    associate (spring => self%spring(a))
+      call potentials_from_parts(spring, sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
+                                 sp%d2sigma, grad(1:n, :), hess_m(1:n, 1:n, :))
+      if (sp%small) then
+        ddg = 0.5_real64*hess_m(1:n, 1:n, :)
+        return
+      end if
+      call mechanical_parts_at(spring%law, sp%x(1), self%old(a)%log_stretch + sp%delta_log, sp%inv_b, &
+                               gamma_of(sp%x, n), e, sigma, de, dsigma, d2e, d2sigma)
+      call potentials_from_parts(spring, sp%x(n), sp%theta_b, e, sigma, de, dsigma, d2e, d2sigma, grad_b(1:n, :))
+      call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
+                               hess_m(1:n, 1:n, :), grad_b(1:n, :), ddg)
+    end associate
+  end subroutine gonzalez_derivatives
+
+  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.
+  pure subroutine assemble_jacobian(self, point, dtheta_new, jacobian)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(in) :: point
+    real(real64), intent(in) :: dtheta_new(3)
+    real(real64), intent(out) :: jacobian(:, :)
+    ! Derivatives in the variables xi_a of each spring (1..n_a) of the scalars the rows use.
+    real(real64) :: dtheta(3, 2), dforce(3, 2), dratio(3, 2), dinv_u(3, 2), drate(3), dheating(3), dinv_eta
+    ! Each row's derivative in xi of each spring, then in q' (condensed at the end), and the
+    ! Jacobian, in arrays of fixed size (no descriptors, no vector subscripts in the loops).
+    real(real64) :: drow(max_rows, 3, 2), dq(max_rows, 3, 2), jac(max_rows, max_rows)
+    real(real64) :: kappa, s_tau, h
+    integer :: a, b, n, l, i, col, rows, p0
+
+    rows = size(jacobian, 1)
+    h = self%fraction*self%dt
+    kappa = self%params%conductivity
+    jac(1:rows, 1:rows) = 0.0_real64
+    dq(1:rows, :, :) = 0.0_real64
+    drow(1:rows, :, :) = 0.0_real64
+    associate (partials => point%partials, dp => point%dpartials, theta => point%theta, &
+               thermal_force => point%thermal_force, work => point%work, work_ratio => point%work_ratio, &
+               inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &
+               lambda_length => point%lambda_length, lambda_temperature => point%lambda_temperature)
+      do a = 1, 2
+        n = a + 1
+        s_tau = partials(n, potential_s, a)
+        do l = 1, n
+          dtheta(l, a) = (dp(n, l, potential_u, a) - theta(a)*dp(n, l, potential_s, a))/s_tau
+          dforce(l, a) = dp(1, l, potential_u, a) - theta(a)*dp(1, l, potential_s, a) &
+                         - partials(1, potential_s, a)*dtheta(l, a)
+          dratio(l, a) = (dp(1, l, potential_s, a) - work_ratio(a)*dp(n, l, potential_s, a))/s_tau
+          dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
+        end do
+      end do
+      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
+      dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
+      do l = 1, 3
+        drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
+                    - dp(2, l, potential_u, 2))*inv_eta &
+                   + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
+        dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
+      end do
+
+    do a = 1, 2
+      b = 3 - a
+      n = a + 1
+      p0 = 3*(a - 1)                  ! the rows (and columns) of p_a are p0 + 1..p0 + 3
+      do l = 1, n
+        ! momentum rows: 2 T_a q_mid_a
+        drow(p0 + 1:p0 + 3, l, a) = 2.0_real64*point%q_mid(:, a)*dforce(l, a)
+        ! tau_a rows: 2 (S_C/S_tau) w - kappa (Theta_b - Theta_a)/U_tau
+        drow(row_tau(a), l, a) = drow(row_tau(a), l, a) + 2.0_real64*work(a)*dratio(l, a) &
+                                 + kappa*dtheta(l, a)*inv_u_tau(a) &
+                                 - kappa*(theta(b) - theta(a))*dinv_u(l, a)
+      end do
+      do l = 1, b + 1
+        drow(row_tau(a), l, b) = drow(row_tau(a), l, b) - kappa*dtheta(l, b)*inv_u_tau(a)
+      end do
+    end do
+    drow(row_gamma, :, 2) = -drate
+    drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
+    if (self%temperature_row > 0) then
+      a = self%temperature_part
+      drow(row_tau(a), 1:a + 1, a) = drow(row_tau(a), 1:a + 1, a) - lambda_temperature*dinv_u(1:a + 1, a)
+    end if
+
+    ! Through the partials' variables xi into the columns of q', gamma', tau'.
+    do a = 1, 2
+      n = a + 1
+      do i = 1, 3
+        dq(1:rows, i, a) = drow(1:rows, 1, a)*point%chain_c(i, a)
+      end do
+      if (a == 2) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
+      jac(1:rows, row_tau(a)) = drow(1:rows, n, a)*point%chain_other
+    end do
+
+    ! Direct dependencies: (z' - z)/h, q_mid in the forces, w = q_mid.v.
+    do col = 1, row_tau(2)
+      jac(col, col) = jac(col, col) + 1.0_real64/h
+    end do
+    do a = 1, 2
+      p0 = 3*(a - 1)
+      do i = 1, 3
+        dq(p0 + i, i, a) = dq(p0 + i, i, a) + thermal_force(a)
+      end do
+      ! w_a = q_mid_a . v_a: dw/dq_a' = v_a/2, dw/dp_b' = q_mid_a m^-1_ab/2.
+      dq(row_tau(a), :, a) = dq(row_tau(a), :, a) + work_ratio(a)*point%v(:, a)
+      do b = 1, 2
+        jac(row_tau(a), 3*b - 2:3*b) = jac(row_tau(a), 3*b - 2:3*b) &
+                                       + work_ratio(a)*self%inverse_mass(a, b)*point%q_mid(:, a)
+      end do
+    end do
+    if (self%length_row > 0) then
+      do i = 1, 3
+        dq(i, i, 1) = dq(i, i, 1) + 0.5_real64*lambda_length
+      end do
+      jac(1:3, self%length_row) = point%q_mid(:, 1)
+      dq(self%length_row, :, 1) = point%q_new(:, 1)
+    end if
+    if (self%temperature_row > 0) then
+      a = self%temperature_part
+      n = a + 1
+      jac(row_tau(a), self%temperature_row) = -inv_u_tau(a)
+      ! g2 = theta(z') - temperature, through the invariants of z' (C' = q'.q').
+      dq(self%temperature_row, :, a) = dtheta_new(1)*2.0_real64*point%q_new(:, a)
+      if (a == 2) jac(self%temperature_row, row_gamma) = dtheta_new(2)
+      jac(self%temperature_row, row_tau(a)) = dtheta_new(n)
+    end if
+
+    ! Condensation: q_a' = q_a + h m^-1 p_mid, so dq_a'/dp_b' = (h/2) m^-1_ab.
+    do b = 1, 2
+      do a = 1, 2
+        jac(1:rows, 3*b - 2:3*b) = jac(1:rows, 3*b - 2:3*b) + (0.5_real64*h*self%inverse_mass(a, b))*dq(1:rows, :, a)
+      end do
+    end do
+    jacobian = jac(1:rows, 1:rows)
+    end associate
+  end subroutine assemble_jacobian
+
+end submodule pendulum_step_jacobian

@@ -1,0 +1,178 @@
+!> The residual half of the double pendulum's fused step kernel (src/scheme/pendulum_step_kernel):
+!> the values pass at a point y of the condensed unknowns (the new and midpoint positions from the
+!> condensation, each spring's invariants, its partials by Gonzalez's quotient with its fallback
+!> or by the midpoint rule, sharing every logarithm, root and exponential of the spring
+!> potentials), and the residual's rows of p, gamma, tau and the constraints from it.
+submodule (pendulum_step_kernel) pendulum_step_residual
+  implicit none (type, external)
+
+contains
+
+  ! The values pass and the residual at y; the point keeps the residual's scalars.
+  module procedure residual_pass
+    real(real64) :: h, theta_new
+    integer :: a, b, n
+
+    h = self%fraction*self%dt
+    call values_pass(self, y, point, stat)
+    if (stat /= domain_ok) return
+    associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
+               work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
+      do a = 1, 2
+        n = a + 1
+        theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
+        thermal_force(a) = partials(1, potential_u, a) - theta(a)*partials(1, potential_s, a)
+        work(a) = dot_product(point%q_mid(:, a), point%v(:, a))
+        work_ratio(a) = partials(1, potential_s, a)/partials(n, potential_s, a)
+        inv_u_tau(a) = 1.0_real64/partials(n, potential_u, a)
+      end do
+      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2.
+      point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
+      point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
+      point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
+      do a = 1, 2
+        b = 3 - a
+        residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%p_old(:, a))/h &
+                                                     - self%force(:, a) + 2.0_real64*thermal_force(a)*point%q_mid(:, a)
+        residual(row_tau(a)) = (point%tau_new(a) - self%tau_old(a))/h + 2.0_real64*work_ratio(a)*work(a) &
+                               - self%params%conductivity*(theta(b) - theta(a))*inv_u_tau(a)
+      end do
+      residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - point%rate
+      residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
+      ! Constraints (docs/formulation.md section 7).
+      point%lambda_length = 0.0_real64
+      if (self%length_row > 0) then
+        point%lambda_length = y(self%length_row)
+        residual(1:3) = residual(1:3) + point%lambda_length*point%q_mid(:, 1)
+        residual(self%length_row) = 0.5_real64*(dot_product(point%q_new(:, 1), point%q_new(:, 1)) - self%length**2)
+      end if
+      point%lambda_temperature = 0.0_real64
+      if (self%temperature_row > 0) then
+        point%lambda_temperature = y(self%temperature_row)
+        a = self%temperature_part
+        residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
+        call new_temperature(self, a, point, theta_new, stat=stat)
+        if (stat /= domain_ok) return
+        residual(self%temperature_row) = theta_new - self%temperature
+      end if
+    end associate
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
+  end procedure residual_pass
+
+  !> The values pass at y: positions, midpoint, and every spring's partials. stat /= 0: a point
+  !> the scheme needs is outside the model's domain.
+  module procedure values_pass
+    integer :: a, n
+
+    point%p_new(:, 1) = y(1:3)
+    point%p_new(:, 2) = y(4:6)
+    point%gamma_new = y(row_gamma)
+    point%tau_new = y(row_tau)
+    point%v = velocity(self, y)
+    point%q_new = self%q_old + (self%fraction*self%dt)*point%v
+    point%q_mid = 0.5_real64*(self%q_old + point%q_new)
+    stat = self%old_stat
+    if (stat /= domain_ok) return
+    do a = 1, 2
+      n = a + 1
+      associate (sp => point%spring(a))
+        if (self%partials_rule == partials_midpoint) then
+          ! Exact partials at the invariants of z_mid: dC_mid/dq' = q_mid, d(gamma, tau)_mid/d(gamma, tau)' = 1/2.
+          sp%mid(1) = dot_product(point%q_mid(:, a), point%q_mid(:, a))
+          if (a == 2) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
+          sp%mid(n) = 0.5_real64*(self%tau_old(a) + point%tau_new(a))
+          point%chain_c(:, a) = point%q_mid(:, a)
+          point%chain_other = 0.5_real64
+          call midpoint_values(self, a, sp, stat)
+          point%partials(1:n, :, a) = sp%grad_m(1:n, :)
+        else
+          ! Discrete gradients between the invariants of z and z': dC'/dq' = 2 q'.
+          sp%x(1) = dot_product(point%q_new(:, a), point%q_new(:, a))
+          if (a == 2) sp%x(2) = point%gamma_new
+          sp%x(n) = point%tau_new(a)
+          point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
+          point%chain_other = 1.0_real64
+          if (self%gradient == gradient_gonzalez) then
+            call gonzalez_values(self, a, sp, point%partials(1:n, :, a), stat)
+          else
+            call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), &
+                                      self%scale(1:n, a), point%partials(1:n, :, a), stat=stat)
+          end if
+        end if
+      end associate
+      if (stat /= domain_ok) return
+    end do
+  end procedure values_pass
+
+  !> The mechanical parts, temperature and exact partials of spring a at sp%mid.
+  pure subroutine midpoint_values(self, a, sp, stat)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(spring_pass), intent(inout) :: sp
+    integer, intent(out) :: stat
+    integer :: n
+
+    n = a + 1
+    if (.not. (sp%mid(1) > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    call mechanical_parts(self%spring(a)%law, sp%mid(1), gamma_of(sp%mid, n), sp%e, sp%sigma, sp%de, sp%dsigma, &
+                          sp%d2e, sp%d2sigma)
+    call temperature_of(self%spring(a), sp%mid(n), sp%e, sp%sigma, sp%theta_mid, stat)
+    if (stat /= domain_ok) return
+    call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
+                               sp%d2sigma, sp%grad_m(1:n, :))
+  end subroutine midpoint_values
+
+  !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x, with the
+  !> old state's logarithm, root and temperature reused and the new point's ln(l/l0) and 1/l kept
+  !> for the derivative pass (src/scheme/discrete_gradient).
+  pure subroutine gonzalez_values(self, a, sp, dg, stat)
+    class(pendulum_step), intent(in) :: self
+    integer, intent(in) :: a
+    type(spring_pass), intent(inout) :: sp
+    real(real64), intent(out) :: dg(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), delta_e, delta_sigma, delta_theta, length_b
+    integer :: n
+
+    n = a + 1
+    associate (old => self%old(a), spring => self%spring(a), x => sp%x(1:n), d => sp%d(1:n))
+      d = x - old%x(1:n)
+      sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
+      sp%dwd = dot_product(d, sp%weight(1:n)*d)
+      sp%mid(1:n) = 0.5_real64*(old%x(1:n) + x)
+      call midpoint_values(self, a, sp, stat)
+      if (stat /= domain_ok) return
+      sp%small = sqrt(sp%dwd) < quotient_threshold
+      if (sp%small) then
+        ! The fallback below the threshold: the midpoint derivative.
+        dg = sp%grad_m(1:n, :)
+        return
+      end if
+      ! The difference f(x) - f(x_old) without cancellation, sharing ln(l/l0) and 1/l at x.
+      if (.not. (x(1) > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      sp%delta_log = 0.5_real64*log1p(d(1)/old%x(1))
+      length_b = sqrt(x(1))
+      sp%inv_b = 1.0_real64/length_b
+      call mechanical_difference_at(spring%law, old%log_stretch, sp%delta_log, sp%inv_b, &
+                                    -d(1)*old%inv_length*sp%inv_b/(old%length + length_b), gamma_of(old%x, n), &
+                                    gamma_of(x, n), delta_e, delta_sigma)
+      call difference_from_parts(spring, old%x(n), d(n), old%theta, delta_e, delta_sigma, sp%delta_f, delta_theta)
+      sp%theta_b = old%theta + delta_theta
+      if (.not. (sp%theta_b > 0.0_real64)) then
+        ! Rounding can take theta_old + delta_theta to zero where theta itself is tiny: decide by theta.
+        call mechanical_parts_at(spring%law, x(1), old%log_stretch + sp%delta_log, sp%inv_b, gamma_of(x, n), &
+                                 e, sigma, de, dsigma, d2e, d2sigma)
+        call temperature_of(spring, x(n), e, sigma, sp%theta_b, stat)
+        if (stat /= domain_ok) return
+      end if
+      call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg)
+    end associate
+  end subroutine gonzalez_values
+
+end submodule pendulum_step_residual
