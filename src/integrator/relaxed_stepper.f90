@@ -49,6 +49,9 @@ module relaxed_stepper
   private
   public :: relaxed_runge_kutta, new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
   public :: max_halvings
+  ! For the submodule relaxed_step_control only: gfortran gives a module's private procedures
+  ! internal linkage, which submodules, compiled apart, cannot reach.
+  public :: relaxed_step, landing_time
 
   !> Depth of the halving of a rejected step: 2^12 substeps at most.
   integer, parameter :: max_halvings = 12
@@ -94,6 +97,22 @@ module relaxed_stepper
     procedure :: describe_solver
     procedure, private :: restore
   end type relaxed_runge_kutta
+
+  interface
+    !> One accepted step of relaxed_dp853 at its tolerance (src/integrator/relaxed_step_control).
+    module subroutine adaptive_step(self, ok, ierr)
+      class(relaxed_runge_kutta), intent(inout) :: self
+      logical, intent(out) :: ok
+      integer, intent(out) :: ierr
+    end subroutine adaptive_step
+    !> DOP853's error norm of the step of h with stage derivatives k to z_new
+    !> (src/integrator/relaxed_step_control).
+    module function dop853_error_norm(self, h, k, z_new) result(error_norm)
+      class(relaxed_runge_kutta), intent(in) :: self
+      real(real64), intent(in) :: h, k(:, :), z_new(:)
+      real(real64) :: error_norm
+    end function dop853_error_norm
+  end interface
 
 contains
 
@@ -308,49 +327,6 @@ contains
     end if
   end subroutine step_or_halve
 
-  ! One accepted step of the adaptive method: DOP853's error norm (Hairer, Norsett, Wanner)
-  ! against `tolerance`, h_new = h min(6, max(1/3, 0.9 err^(-1/8))), and no growth right after a
-  ! rejection, as DOP853 does; a failed or guarded step is halved. The step that reaches t_end
-  ! lands on it.
-  subroutine adaptive_step(self, ok, ierr)
-    class(relaxed_runge_kutta), intent(inout) :: self
-    logical, intent(out) :: ok
-    integer, intent(out) :: ierr
-    real(real64) :: h, error_norm, factor
-    logical :: landing
-    integer :: tries
-
-    ok = .false.
-    ierr = 0
-    h = self%h_next
-    do tries = 1, max_error_rejections
-      landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time(self)
-      if (landing) h = landing_time(self) - self%t
-      call relaxed_step(self, h, landing, ok, error_norm, ierr)
-      if (ierr /= 0) return
-      if (ok .and. error_norm <= 1.0_real64) then
-        factor = grow_limit
-        if (error_norm > 0.0_real64) factor = min(grow_limit, max(shrink_limit, safety*error_norm**(-0.125_real64)))
-        if (tries > 1) factor = min(factor, 1.0_real64)
-        if (.not. landing) self%h_next = h*factor
-        return
-      end if
-      self%rejections = self%rejections + 1
-      if (ok) then
-        ! Relaxed, but not accepted by the error test: undo and retry smaller.
-        call self%restore()
-        h = h*max(shrink_limit, safety*error_norm**(-0.125_real64))
-        ok = .false.
-      else
-        h = 0.5_real64*h
-        self%halvings = self%halvings + 1
-      end if
-      if (h <= 1.0e-14_real64*max(1.0_real64, abs(self%t))) exit
-    end do
-    self%last_failure = 'the adaptive step shrank below round-off or was rejected ' &
-                        //integer_text(max_error_rejections)//' times (last: '//self%last_failure//')'
-  end subroutine adaptive_step
-
   ! One relaxed step of h from the current state, committed when ok (state, time, figures):
   ! the stages, d = h sum_i b_i k_i and e_S = h sum_i b_i sum_a k_i(tau_a), then the relaxation.
   ! landing: the time goes to t + h exactly. A step whose relaxed time would pass t_end, or leave
@@ -488,22 +464,6 @@ contains
     end do
     ok = .true.
   end subroutine stage_derivatives
-
-  ! DOP853's error norm of a step of h: err5 = sum ((sum_j e5_j k_j)/sk)^2, err3 likewise with e3,
-  ! sk = tolerance (1 + max(|z|, |z_new|)), err = |h| err5 / sqrt(n (err5 + 0.01 err3)).
-  function dop853_error_norm(self, h, k, z_new) result(error_norm)
-    class(relaxed_runge_kutta), intent(in) :: self
-    real(real64), intent(in) :: h, k(:, :), z_new(:)
-    real(real64) :: error_norm
-    real(real64) :: scale(size(z_new)), err5, err3, denominator
-
-    scale = self%tolerance*(1.0_real64 + max(abs(self%z), abs(z_new)))
-    err5 = sum((matmul(k, self%tableau%e5)/scale)**2)
-    err3 = sum((matmul(k, self%tableau%e3)/scale)**2)
-    denominator = err5 + 0.01_real64*err3
-    if (denominator <= 0.0_real64) denominator = 1.0_real64
-    error_norm = abs(h)*err5/sqrt(size(z_new)*denominator)
-  end function dop853_error_norm
 
   !> The time the next step lands on when it reaches it: t_end, or an earlier output time.
   pure real(real64) function landing_time(self)

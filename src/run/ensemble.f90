@@ -20,7 +20,7 @@ module ensemble
   use study_index, only: case_index, case_result, status_length, kind_length, metric_count
   use study_case_files, only: case_file, case_overrides
   use run_config, only: run_configuration
-  use run_output, only: failure_io, failure_interrupted
+  use run_outcome, only: failure_io, failure_interrupted
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute
   use statistics, only: median

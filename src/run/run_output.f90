@@ -16,43 +16,14 @@ module run_output
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
   use provenance, only: write_provenance, iso_time
+  use run_outcome, only: run_summary, failure_io
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
   use run_attributes, only: write_run_attributes
   use stepper, only: step_report, step_diagnostic, solver_report
   use filesystem, only: os_error_text
   implicit none (type, external)
   private
-  public :: run_file, run_summary, extra_attribute
-  public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
-            failure_library
-
-  !> Why a run did not complete, in a word (file attribute and study index column `failure_kind`).
-  character(len=*), parameter :: failure_none = 'none'              !! complete (or not yet run)
-  character(len=*), parameter :: failure_solver = 'solver'          !! no acceptable root, or the solver diverged
-  character(len=*), parameter :: failure_domain = 'domain'          !! the state left the model's domain
-  character(len=*), parameter :: failure_input = 'input'            !! the input cannot be run as given
-  character(len=*), parameter :: failure_io = 'io'                  !! the output could not be written
-  character(len=*), parameter :: failure_interrupted = 'interrupted'  !! SIGTERM or SIGINT
-  character(len=*), parameter :: failure_library = 'library'        !! PETSc or HDF5 failed
-
-  !> The figures a run is judged by, as the summary table prints them.
-  type :: run_summary
-    character(len=:), allocatable :: status       !! 'complete' or 'incomplete: <reason>'
-    character(len=:), allocatable :: failure_kind !! one of the failure_* words above
-    integer :: steps_planned = 0
-    integer :: steps_completed = 0
-    integer :: newton_iterations = 0
-    real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
-    real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
-    real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
-    real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
-    !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
-    real(real64) :: min_temperature = huge(1.0_real64)
-    integer :: halved_steps = 0          !! failed attempts of the completed steps replaced by two halves
-    integer :: rejected_steps = 0        !! trial steps that step-size control rejected (adaptive runs)
-    real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
-    real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
-  end type run_summary
+  public :: run_file, extra_attribute
 
   !> A root attribute a caller adds to the file (an ensemble case names its study and case): a
   !> text if `text` is allocated, else the integer `number`.

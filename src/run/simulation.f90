@@ -16,8 +16,9 @@ module simulation
   use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
-  use run_output, only: run_file, run_summary, extra_attribute, failure_none, failure_solver, failure_domain, &
-                        failure_input, failure_io, failure_interrupted, failure_library
+  use run_output, only: run_file, extra_attribute
+  use run_outcome, only: run_summary, io_reason, step_failure_kind, failure_none, failure_solver, failure_domain, &
+                         failure_input, failure_io, failure_interrupted, failure_library
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, petsc_options_in_force
   use hdf5_files, only: check_run_file
@@ -74,7 +75,7 @@ contains
   !> stat /= 0, with a message naming the file, the input file and the OS's reason, if the output
   !> could not be written, a library failed, or the output file holds a complete run that may
   !> not be replaced; a run that stops early is reported through summary%status. Either way
-  !> summary%failure_kind says why in a word (src/run/run_output's failure_* words).
+  !> summary%failure_kind says why in a word (src/run/run_outcome's failure_* words).
   !> With `reusable`, the caller's integrator is used when it is of the configured kind (an
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
   !> the next run; without, the run builds and frees its own. `progress` receives a line at most
@@ -460,32 +461,5 @@ contains
     call check_run_file(path, status, steps, stat)
     holds_complete_run = stat == 0 .and. status == 'complete'
   end function holds_complete_run
-
-  ! An OS error number in words; -1: an HDF5 failure; -2: the file did not read back.
-  function io_reason(stat) result(text)
-    integer, intent(in) :: stat
-    character(len=:), allocatable :: text
-
-    select case (stat)
-    case (-1)
-      text = 'HDF5 failed'
-    case (-2)
-      text = 'the file did not read back as written'
-    case default
-      text = os_error_text(stat)
-    end select
-  end function io_reason
-
-  ! The failure kind of a step the integrator could not take, from its reason (the solver's
-  ! "no root" first: its last attempt may name a non-positive temperature it refused).
-  pure function step_failure_kind(reason) result(kind)
-    character(len=*), intent(in) :: reason
-    character(len=:), allocatable :: kind
-
-    kind = failure_solver
-    if (index(reason, 'no root') > 0) return
-    if (index(reason, 'domain') > 0 .or. index(reason, 'non-positive') > 0 .or. index(reason, 'blow-up') > 0 .or. &
-        index(reason, 'undefined') > 0) kind = failure_domain
-  end function step_failure_kind
 
 end module simulation

@@ -1,0 +1,64 @@
+!> Step-size control of relaxed_dp853 (src/integrator/relaxed_stepper): DOP853's error norm
+!> (Hairer, Norsett and Wanner) of the embedded orders 5 and 3 against the tolerance, and the
+!> controller that accepts or rejects a relaxed step and proposes the next.
+!> (A .F90 file, compiled as the PETSc sources are, without -std: the parent's scope, which it
+!> inherits, holds the PETSc types of its SNES solver.)
+submodule (relaxed_stepper) relaxed_step_control
+  implicit none (type, external)
+
+contains
+
+  ! One accepted step of the adaptive method: DOP853's error norm (Hairer, Norsett, Wanner)
+  ! against `tolerance`, h_new = h min(6, max(1/3, 0.9 err^(-1/8))), and no growth right after a
+  ! rejection, as DOP853 does; a failed or guarded step is halved. The step that reaches t_end
+  ! lands on it.
+  module procedure adaptive_step
+    real(real64) :: h, error_norm, factor
+    logical :: landing
+    integer :: tries
+
+    ok = .false.
+    ierr = 0
+    h = self%h_next
+    do tries = 1, max_error_rejections
+      landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time(self)
+      if (landing) h = landing_time(self) - self%t
+      call relaxed_step(self, h, landing, ok, error_norm, ierr)
+      if (ierr /= 0) return
+      if (ok .and. error_norm <= 1.0_real64) then
+        factor = grow_limit
+        if (error_norm > 0.0_real64) factor = min(grow_limit, max(shrink_limit, safety*error_norm**(-0.125_real64)))
+        if (tries > 1) factor = min(factor, 1.0_real64)
+        if (.not. landing) self%h_next = h*factor
+        return
+      end if
+      self%rejections = self%rejections + 1
+      if (ok) then
+        ! Relaxed, but not accepted by the error test: undo and retry smaller.
+        call self%restore()
+        h = h*max(shrink_limit, safety*error_norm**(-0.125_real64))
+        ok = .false.
+      else
+        h = 0.5_real64*h
+        self%halvings = self%halvings + 1
+      end if
+      if (h <= 1.0e-14_real64*max(1.0_real64, abs(self%t))) exit
+    end do
+    self%last_failure = 'the adaptive step shrank below round-off or was rejected ' &
+                        //integer_text(max_error_rejections)//' times (last: '//self%last_failure//')'
+  end procedure adaptive_step
+
+  ! DOP853's error norm of a step of h: err5 = sum ((sum_j e5_j k_j)/sk)^2, err3 likewise with e3,
+  ! sk = tolerance (1 + max(|z|, |z_new|)), err = |h| err5 / sqrt(n (err5 + 0.01 err3)).
+  module procedure dop853_error_norm
+    real(real64) :: scale(size(z_new)), err5, err3, denominator
+
+    scale = self%tolerance*(1.0_real64 + max(abs(self%z), abs(z_new)))
+    err5 = sum((matmul(k, self%tableau%e5)/scale)**2)
+    err3 = sum((matmul(k, self%tableau%e3)/scale)**2)
+    denominator = err5 + 0.01_real64*err3
+    if (denominator <= 0.0_real64) denominator = 1.0_real64
+    error_norm = abs(h)*err5/sqrt(size(z_new)*denominator)
+  end procedure dop853_error_norm
+
+end submodule relaxed_step_control
