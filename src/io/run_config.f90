@@ -331,33 +331,12 @@ contains
   logical function same_variable(name_a, name_b)
     character(len=*), intent(in) :: name_a, name_b
     type(run_configuration), target :: defaults
-    type(group_field), allocatable :: table(:)
     type(group_field) :: x, y
-    type(namelist_item) :: no_items(0)
-    character(len=16), allocatable :: groups(:)
-    character(len=:), allocatable :: message
     logical :: found_a, found_b
-    integer :: g, k, stat
 
-    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
-    call defaults%scene%group_names(groups)
-    found_a = .false.
-    found_b = .false.
-    do g = 1, size(groups) + 2
-      if (g <= size(groups)) then
-        table = defaults%scene%fields(trim(groups(g)))
-      else if (g == size(groups) + 1) then
-        table = integrator_fields(defaults)
-      else
-        table = output_fields(defaults)
-      end if
-      k = findloc(table%name, name_a, dim=1)
-      if (k > 0) x = table(k)
-      found_a = found_a .or. k > 0
-      k = findloc(table%name, name_b, dim=1)
-      if (k > 0) y = table(k)
-      found_b = found_b .or. k > 0
-    end do
+    call default_run(defaults)
+    call find_field(defaults, name_a, x, found_a)
+    call find_field(defaults, name_b, y, found_b)
     same_variable = found_a .and. found_b
     if (.not. same_variable) return
     same_variable = x%name == y%name .or. associated(x%real_value, y%real_value) .or. &
@@ -369,35 +348,54 @@ contains
   !> size for an array of reals (mass: 2, gravity: 3), 0 if there is no such field.
   integer function field_length(name)
     character(len=*), intent(in) :: name
-    character(len=:), allocatable :: units
+    type(run_configuration), target :: defaults
+    type(group_field) :: field
+    logical :: found
 
-    call field_facts(name, field_length, units)
+    call default_run(defaults)
+    call find_field(defaults, name, field, found)
+    field_length = 0
+    if (.not. found) return
+    field_length = 1
+    if (associated(field%real_values)) field_length = size(field%real_values)
   end function field_length
 
   !> The units of field `name` of the eme_run groups ('' for a text or logical field, or none).
   function field_units(name) result(units)
     character(len=*), intent(in) :: name
     character(len=:), allocatable :: units
-    integer :: length
+    type(run_configuration), target :: defaults
+    type(group_field) :: field
+    logical :: found
 
-    call field_facts(name, length, units)
+    call default_run(defaults)
+    call find_field(defaults, name, field, found)
+    units = ''
+    if (found) units = trim(field%units)
   end function field_units
 
-  ! The number of values and the units of field `name` (0 and '' if there is none).
-  subroutine field_facts(name, field_length, units)
-    character(len=*), intent(in) :: name
-    integer, intent(out) :: field_length
-    character(len=:), allocatable, intent(out) :: units
-    type(run_configuration), target :: defaults
-    type(group_field), allocatable :: table(:)
+  ! A run configuration with the default scene, whose fields hold the defaults.
+  subroutine default_run(defaults)
+    type(run_configuration), intent(out) :: defaults
     type(namelist_item) :: no_items(0)
-    character(len=16), allocatable :: groups(:)
     character(len=:), allocatable :: message
-    integer :: g, k, stat
+    integer :: stat
 
-    field_length = 0
-    units = ''
     call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+  end subroutine default_run
+
+  ! The field `name` of the eme_run groups, bound to the variables of `defaults` (found =
+  ! .false. if there is none).
+  subroutine find_field(defaults, name, field, found)
+    type(run_configuration), intent(in), target :: defaults
+    character(len=*), intent(in) :: name
+    type(group_field), intent(out) :: field
+    logical, intent(out) :: found
+    type(group_field), allocatable :: table(:)
+    character(len=16), allocatable :: groups(:)
+    integer :: g, k
+
+    found = .false.
     call defaults%scene%group_names(groups)
     do g = 1, size(groups) + 2
       if (g <= size(groups)) then
@@ -409,12 +407,11 @@ contains
       end if
       k = findloc(table%name, name, dim=1)
       if (k == 0) cycle
-      field_length = 1
-      if (associated(table(k)%real_values)) field_length = size(table(k)%real_values)
-      units = trim(table(k)%units)
+      field = table(k)
+      found = .true.
       return
     end do
-  end subroutine field_facts
+  end subroutine find_field
 
   ! Whether `name` is a field of one of the groups.
   logical function is_field(config, groups, name)

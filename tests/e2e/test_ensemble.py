@@ -351,19 +351,25 @@ def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
     assert all(s == b"complete" for s in read_index(output)["status"])
 
 
-def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, eme_run_binary):
-    """inputs/slurm_study.sbatch run as Slurm would: SIGTERM to the batch script before the time
-    limit stops the study cleanly and requeues the job (a stand-in scontrol records the call);
-    the requeued job finishes the study and does not requeue."""
+def slurm_job(tmp_path, scontrol):
+    """The Slurm example on a large study, with a stand-in `scontrol` (the script's text) first on
+    PATH: (output folder, the batch script's command, its environment)."""
     output = tmp_path / "out"
     study = large_study(tmp_path, output)
     tools = tmp_path / "bin"
     tools.mkdir()
-    (tools / "scontrol").write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
+    (tools / "scontrol").write_text(scontrol)
     (tools / "scontrol").chmod(0o755)
     env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242",
                EME_LAUNCHER=" ".join([*MPIRUN, "-n", "2"]))
-    script = ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)]
+    return output, ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)], env
+
+
+def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, eme_run_binary):
+    """inputs/slurm_study.sbatch run as Slurm would: SIGTERM to the batch script before the time
+    limit stops the study cleanly and requeues the job (a stand-in scontrol records the call);
+    the requeued job finishes the study and does not requeue."""
+    output, script, env = slurm_job(tmp_path, f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
     code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
                                   start_marker=output / "case_00002.h5")
     assert code == 0, out + err
@@ -379,15 +385,7 @@ def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, 
 def test_the_slurm_example_fails_when_the_requeue_fails(tmp_path, eme_run_binary):
     """If scontrol cannot requeue the job (a stand-in that fails), the script exits non-zero, so
     that Slurm reports the unfinished study as failed. Before: it exited 0."""
-    output = tmp_path / "out"
-    study = large_study(tmp_path, output)
-    tools = tmp_path / "bin"
-    tools.mkdir()
-    (tools / "scontrol").write_text("#!/bin/sh\necho 'scontrol: error: Invalid job id' >&2\nexit 1\n")
-    (tools / "scontrol").chmod(0o755)
-    env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242",
-               EME_LAUNCHER=" ".join([*MPIRUN, "-n", "2"]))
-    script = ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)]
+    output, script, env = slurm_job(tmp_path, "#!/bin/sh\necho 'scontrol: error: Invalid job id' >&2\nexit 1\n")
     code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
                                   start_marker=output / "case_00002.h5")
     assert code == 1, out + err
