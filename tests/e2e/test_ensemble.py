@@ -478,3 +478,30 @@ def test_array_sweeps_and_paths_relative_to_the_study_file(tmp_path, eme_run_bin
     result = subprocess.run([str(BIN / "eme_ensemble"), str(bad)], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
     assert "&sweep 'mass': 3 values for 2 elements; allowed: a multiple of 2" in result.stderr
+
+
+def test_the_index_carries_units_and_the_run_files_provenance(small_study, tmp_path):
+    """The index, the only record of a large study, says the unit of every column (one per
+    column, in order: the swept field's from the input tables, seconds for times, '' for texts)
+    and carries the provenance a run file carries (CF global attributes, command line, PETSc
+    options, versions, host, start time), with a history naming the study. Before: no units and
+    only the study's settings."""
+    study, output = small_study
+    result = ensemble(study, ranks=2)
+    assert result.returncode == 0, result.stderr
+    run, _ = run_eme(tmp_path, "single", {"integrator": {"t_end": 0.3}})
+    assert run.returncode == 0, run.stderr
+    with h5py.File(output / "index.h5", "r") as f, h5py.File(tmp_path / "single.h5", "r") as single:
+        cases = f["cases"]
+        units = dict(zip(cases.dtype.names, [u.decode() if isinstance(u, bytes) else u
+                                             for u in cases.attrs["column_units"]]))
+        assert len(units) == len(cases.dtype.names)
+        assert units["dt"] == "s" and units["wall_time_seconds"] == "s" and units["min_temperature"] == "K"
+        assert units["status"] == "" and units["scheme"] == "" and units["case"] == "1"
+        provenance = ["Conventions", "title", "institution", "source", "history", "references", "command_line",
+                      "petsc_options", "code_version", "host", "start_time"]
+        versions = sorted(name for name in single.attrs if name.startswith("version_"))
+        assert versions and set(provenance + versions) <= set(f.attrs)
+        assert f.attrs["Conventions"] == single.attrs["Conventions"] == "CF-1.8"
+        assert str(study) in f.attrs["history"] and "eme_ensemble" in f.attrs["command_line"]
+        assert all(f.attrs[name] == single.attrs[name] for name in versions + ["code_version", "references"])
