@@ -195,14 +195,14 @@ contains
   end subroutine record_point
 
   !> Records step n, ending at `time`, for every per-step dataset, in the schema's order, then the
-  !> integrator's diagnostics: `cpu_seconds` its CPU time, `entropy_increment` S_n - S_(n-1) and
+  !> integrator's diagnostics: `step_seconds` its wall-clock time, `entropy_increment` S_n - S_(n-1) and
   !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
-  subroutine record_step(self, n, time, report, multipliers, cpu_seconds, entropy_increment, lyapunov_increment)
+  subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment)
     class(run_file), intent(inout) :: self
     integer, intent(in) :: n
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
-    real(real64), intent(in) :: multipliers(:), cpu_seconds, entropy_increment, lyapunov_increment
+    real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
     real(real64), allocatable :: diagnostics(:)
 
     if (.not. self%enabled) return
@@ -212,7 +212,7 @@ contains
                                 report%scheme_temperature, &
                                 real(report%strategy, real64), real(report%solves, real64), &
                                 real(report%rejected, real64), report%residual_norm, &
-                                real(report%converged_reason, real64), cpu_seconds, entropy_increment, &
+                                real(report%converged_reason, real64), step_seconds, entropy_increment, &
                                 lyapunov_increment, multipliers, diagnostics])
     self%last_step = n
     self%newton_pending = self%newton_pending + report%newton_iterations

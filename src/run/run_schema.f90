@@ -72,7 +72,7 @@ module run_schema
     output_dataset('converged_reason', 'step', '', '1', .true., 'last', &
                    'the solver''s converged reason of the step''s last solve, in its own numbering (flag_values, '// &
                    'flag_meanings): SNESConvergedReason, TSConvergedReason, CVode''s flag; 0 without a solver'), &
-    output_dataset('cpu_seconds', 'step', '', 's', .false., 'sum', 'CPU time of the step (the integrator''s advance)'), &
+    output_dataset('step_seconds', 'step', '', 's', .false., 'sum', 'wall-clock time of the step (the integrator''s advance)'), &
     output_dataset('min_entropy_increment', 'step', '', 'J/K', .false., 'min', &
                    'S_n - S_(n-1) of the step; of a row that stands for several steps, the smallest of theirs'), &
     output_dataset('max_lyapunov_increment', 'step', '', 'J', .false., 'max', &

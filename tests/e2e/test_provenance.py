@@ -39,7 +39,7 @@ INPUT_TABLE_UNITS = {
 COMBINE = {
     "step": "last", "newton_iterations": "sum", "scheme_temperature": "last", "solver_strategy": "max",
     "snes_solves": "sum", "rejected_roots": "sum", "residual_norm": "max", "converged_reason": "last",
-    "cpu_seconds": "sum", "min_entropy_increment": "min", "max_lyapunov_increment": "max",
+    "step_seconds": "sum", "min_entropy_increment": "min", "max_lyapunov_increment": "max",
     "multiplier": "mean", "substeps": "sum"}
 
 # The symbol of the state's last two entries for each thermodynamic variable, and their units.
@@ -302,7 +302,7 @@ def test_xarray_sees_time_and_step(tmp_path, eme_run_binary):
                 assert all(entry == entry.strip() and entry for entry in entries), (name, entries)
                 assert entries == columns.split(), (name, entries, columns)
         assert {"energy", "temperature", "state", "constraint_residual"} <= set(kinds["point"]), kinds
-        assert {"newton_iterations", "residual_norm", "converged_reason", "cpu_seconds",
+        assert {"newton_iterations", "residual_norm", "converged_reason", "step_seconds",
                 "multiplier"} <= set(kinds["step"]), kinds
         assert ds["energy"].attrs["units"] == "J" and ds["temperature"].attrs["units"] == "K"
         assert "units" not in ds["state"].attrs and len(f["state"].attrs["column_units"]) == 15
@@ -400,7 +400,7 @@ def check_stride(full_path, stride_path, every, schema):
         if name in COMBINE and name in schema:
             assert schema[name] == rule, f"/{name}: --output-schema says {schema[name]}, the description {rule}"
         assert stride[name].shape[0] == len(groups), name
-        if name == "cpu_seconds":
+        if name == "step_seconds":
             continue        # measured, not reproducible: below
         pieces = [full[name][a:b] for a, b in groups]
         expected = {"sum": lambda p: p.sum(axis=0), "last": lambda p: p[-1], "min": lambda p: p.min(axis=0),
@@ -438,13 +438,13 @@ def test_every_n_steps(tmp_path, eme_run_binary, schema_combine):
     np.testing.assert_array_equal(stride["time"], 0.125 * np.arange(21))
     np.testing.assert_array_equal(stride["step"], 4 * np.arange(1, 21))
     assert stride["newton_iterations"].sum() == full["newton_iterations"].sum()
-    # CPU times are measured, and two runs differ by +-35 % here: a row of 16 steps holds their
+    # step times are measured, and two runs differ by +-35 % here: a row of 16 steps holds their
     # sum, about 16 steps' worth; the last step's, their mean or their largest would be 1 to 3.
     # (The first row, with the set-up of step 1, is left out.)
     wide = check_stride(full_path, run_ok(tmp_path, "wide", {**scene, "output": {"every": 16}}), 16,
                         schema_combine)[1]
-    per_row, per_step = np.median(wide["cpu_seconds"][1:]), np.median(full["cpu_seconds"][16:])
-    assert per_row > 6 * per_step, (wide["cpu_seconds"], full["cpu_seconds"])
+    per_row, per_step = np.median(wide["step_seconds"][1:]), np.median(full["step_seconds"][16:])
+    assert per_row > 6 * per_step, (wide["step_seconds"], full["step_seconds"])
 
 
 def test_every_n_steps_with_a_shorter_last_row(tmp_path, eme_run_binary, schema_combine):
@@ -482,7 +482,7 @@ def test_compression_keeps_every_bit(tmp_path, eme_run_binary):
             assert dataset.compression == "gzip" and dataset.compression_opts == 4, (name, dataset.compression)
             assert dataset.shuffle, name
             assert plain[name].compression is None, name
-            if name != "cpu_seconds":       # measured
+            if name != "step_seconds":       # measured
                 assert np.array_equal(dataset[()], plain[name][()], equal_nan=True), name
         assert set(plain) == set(packed)
 
