@@ -307,13 +307,15 @@ study: all $(VENV)/.python-deps
 	  --data results/study/estimate_tracking.h5
 
 # Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
-# 1e-6 at t = 5 s of every scheme, then the per-step cost of every scheme against a LAPACK Newton
-# floor. The last line is machine-readable.
+# 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a LAPACK Newton
+# floor, then what eme_run's step costs against eme_bench's (alternating). Each part ends with a
+# machine-readable line.
 bench: all $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
 	$(BIN)/eme_accuracy_bench 5
 	$(BIN)/eme_bench 21
+	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (docs/constraints.md).
 constraints: all $(VENV)/.python-deps
