@@ -154,7 +154,7 @@ $(UNIT)/%.o: tests/unit/support/%.f90 $(FUNIT) $(LIBRARY_OBJECTS) | $(UNIT)/mod
 	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) $(UNIT_FLAGS) $(PETSC_INCLUDES) -c $< -o $@
 $(UNIT)/%.o: tests/oracles/%.f90 $(LIBRARY_OBJECTS) | $(UNIT)/mod
 	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) -c $< -o $@
-$(UNIT)/fixtures.o: $(UNIT)/close_values.o
+$(UNIT)/fixtures.o: $(UNIT)/close_values.o $(UNIT)/paper_free_energy.o
 $(UNIT_OBJECTS): $(UNIT)/%.o: $(UNIT)/%.F90 $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
 	$(FC) $(UNIT_FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) $(UNIT_FLAGS) -c $< -o $@
 $(TESTBIN)/%: $(UNIT)/%_driver.o $(UNIT)/%.o $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)

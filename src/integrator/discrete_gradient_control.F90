@@ -18,7 +18,7 @@ contains
   ! max_rejections_per_step were rejected.
   module procedure adaptive_step
     type(root_search) :: search
-    real(real64) :: h, h_unshortened, err, estimate_norm, guess(size(x_old)), estimate(self%problem%model%state_size)
+    real(real64) :: h, h_unshortened, err, estimate_norm, guess(size(x_old))
     real(real64), dimension(self%problem%model%state_size) :: f_old, f_new
     integer :: n, stat, attempt, rejected(3)
     logical :: landing
@@ -68,8 +68,7 @@ contains
         call self%controller%reject_failure(h)
         cycle
       end if
-      call hermite_defect_estimate(self%problem%model, self%problem%constraints, x_old(1:n), f_old, x_new(1:n), h, &
-                                   estimate, f_new, stat)
+      call estimate_norm_of(self, x_old(1:n), f_old, x_new(1:n), h, estimate_norm, f_new, stat)
       if (stat /= domain_ok) then
         rejected(rejection_domain) = rejected(rejection_domain) + 1
         tally%reason = 'the continuous vector field is undefined at the step''s end or middle'
@@ -78,7 +77,6 @@ contains
       end if
       ! Error per unit step: the estimate's norm per second of the step against the tolerance, or
       ! at the estimate's rounding level (which tiny steps would otherwise never get below).
-      estimate_norm = self%error_scale*weighted_rms_norm(estimate, x_old(1:n), x_new(1:n))
       err = estimate_norm/(self%tolerance*h/unit_time + rounding_level)
       if (err > 1.0_real64) then
         rejected(rejection_error) = rejected(rejection_error) + 1
@@ -121,19 +119,35 @@ contains
   ! The weighted norm of the local error estimate of the step of h from z_old to z_new (NaN where
   ! the field is undefined); the field at z_new is kept for the next step.
   module procedure estimate_step
-    real(real64), dimension(size(z_old)) :: f_old, f_new, estimate
+    real(real64), dimension(size(z_old)) :: f_old, f_new
+    real(real64) :: estimate_norm
     integer :: stat
 
     norm = ieee_value(1.0_real64, ieee_quiet_nan)
     call field_at(self, z_old, f_old, stat)
     if (stat /= domain_ok) return
-    call hermite_defect_estimate(self%problem%model, self%problem%constraints, z_old, f_old, z_new, h, estimate, &
-                                 f_new, stat)
+    call estimate_norm_of(self, z_old, f_old, z_new, h, estimate_norm, f_new, stat)
     if (stat /= domain_ok) return
-    norm = self%error_scale*weighted_rms_norm(estimate, z_old, z_new)
+    norm = estimate_norm
     self%z_field = z_new
     self%field = f_new
   end procedure estimate_step
+
+  ! The weighted norm (times -eme_error_scale) of the local error estimate of the step of h from
+  ! z_old, where the field is f_old, to z_new, and the field f_new at z_new; stat /= domain_ok
+  ! where a field is undefined.
+  subroutine estimate_norm_of(self, z_old, f_old, z_new, h, norm, f_new, stat)
+    class(step_solver), intent(in) :: self
+    real(real64), intent(in) :: z_old(:), f_old(:), z_new(:), h
+    real(real64), intent(out) :: norm, f_new(:)
+    integer, intent(out) :: stat
+    real(real64) :: estimate(size(z_old))
+
+    norm = ieee_value(1.0_real64, ieee_quiet_nan)
+    call hermite_defect_estimate(self%problem%model, self%problem%constraints, z_old, f_old, z_new, h, estimate, &
+                                 f_new, stat)
+    if (stat == domain_ok) norm = self%error_scale*weighted_rms_norm(estimate, z_old, z_new)
+  end subroutine estimate_norm_of
 
   ! The continuous field at z, from the last step's end when z is that state.
   subroutine field_at(self, z, f, stat)

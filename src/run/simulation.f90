@@ -103,6 +103,7 @@ contains
     character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
+    real(real64) :: momentum(3)           !! the angular momentum of the state `observe` saw last
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
@@ -204,7 +205,7 @@ contains
 
     call observe(z0, energy, entropy, lyapunov)
     energy_0 = energy
-    jz_0 = angular_momentum_z(z0)
+    jz_0 = momentum(3)
     call record_point(0.0_real64, z0, .true.)
     outputs_passed = 0
     x_previous = x
@@ -280,7 +281,7 @@ contains
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
-      summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(angular_momentum_z(x(1:n_state)) - jz_0))
+      summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(momentum(3) - jz_0))
       if (output%write_due()) then
         call set_times(.true.)
         call output%write_rows(summary, io_stat)
@@ -345,6 +346,7 @@ contains
       integer :: domain
 
       call model%observe(z, energy, entropy, theta, domain)
+      momentum = model%angular_momentum(z)
       lyapunov = energy - config%theta_r*entropy
       ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
       if (.not. all(abs(theta) <= huge(1.0_real64))) then
@@ -354,7 +356,8 @@ contains
       end if
     end subroutine observe
 
-    ! One point: the state with what it is judged by, and the active constraints' g.
+    ! One point: the state `observe` saw last, with what it is judged by (its temperatures, energy,
+    ! entropy, V and momentum, kept by observe), and the active constraints' g.
     subroutine record_point(time, z, row_due)
       real(real64), intent(in) :: time, z(:)
       logical, intent(in) :: row_due     !! an output time (&output interval): the point is written
@@ -363,7 +366,7 @@ contains
       do k = 1, size(constraints)
         call constraints(k)%item%value(model, z, residuals(k), domain)
       end do
-      call output%record_point(time, z, theta, energy, entropy, lyapunov, model%angular_momentum(z), boundary_heat, &
+      call output%record_point(time, z, theta, energy, entropy, lyapunov, momentum, boundary_heat, &
                                residuals, row_due)
     end subroutine record_point
 
@@ -416,14 +419,6 @@ contains
                     //' s left')
     end subroutine report_progress
 
-    pure function angular_momentum_z(z) result(jz)
-      real(real64), intent(in) :: z(:)
-      real(real64) :: jz
-      real(real64) :: j(3)
-
-      j = model%angular_momentum(z)
-      jz = j(3)
-    end function angular_momentum_z
   end subroutine run_simulation
 
   !> Sets up the run's integrator and frees it again, without integrating or writing anything:
