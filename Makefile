@@ -95,7 +95,7 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) -o $@ $^ $(LINK_LIBS)
 
-# LAPACK and BLAS (the ones PETSc uses) are called directly by the step solver's LU;
+# LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
 SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense \
                  -lsundials_sunnonlinsolfixedpoint

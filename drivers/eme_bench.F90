@@ -5,7 +5,7 @@
 !> Every discrete-gradient case is timed twice per repeat, alternately: through the integrator as
 !> a run uses it (PETSc SNES on the fused kernel, the retry strategies), and on the floor, the same
 !> steps solved by a hand-written Newton loop on the same fused kernel (same predictor and chord
-!> refinement, same final chord step, same convergence test and root check, LAPACK's LU, no
+!> refinement, same final chord step, same convergence test and root check, the same dense LU, no
 !> PETSc; src/solver/lapack_newton). Each repeat runs every case in turn, and each case alternates
 !> SNES and floor, in one process, so that the machine's drifts spread over all cases and stay out
 !> of the ratio; reported are the medians of each and the median of the per-repeat ratios. The

@@ -1,14 +1,20 @@
 #!/usr/bin/env python3
-"""What the program a user runs costs per step against the benchmarked step (make bench).
+"""The speed ratios of issue 22, each the median of alternating repeats in this one script (make bench).
 
 eme_run integrates the paper scene with EME_theta over 200 s (1334 steps of 0.15 s, the file
 written at the end); its cost per step is the file's solve_time_seconds (the time loop, with the
-per-step energy, entropy and rows) over its steps. eme_bench times the same scheme's stepping
-loop alone ("EME_temperature", through SNES). The two alternate, REPEATS times, in this one
-script, so that the shared machine's drifts reach both; printed are the medians and the median of
-the per-pair ratios, last as the line `eme_run_over_bench=<ratio>`.
+per-step energy, entropy and rows) over its steps. eme_bench (3 repeats per call) times the same
+scheme's stepping loop alone ("EME_temperature", through SNES), the hand-written Newton floor on
+the same kernel, and SUNDIALS CVODE-BDF's internal step on the same scene. The two programs
+alternate, REPEATS times, so that the shared machine's drifts reach both; printed are the medians
+of the per-pair ratios, one per line with its target:
+  snes_over_floor              eme_bench EME_theta / the floor                       (target 1.3)
+  eme_over_cvode               eme_bench EME_theta / CVODE-BDF per internal step     (target 1.5)
+  eme_run_over_cvode           eme_run per step / CVODE-BDF per internal step        (target 1.8)
+  eme_run_over_bench           eme_run per step / eme_bench EME_theta                (target 1.15)
 """
 import argparse
+import re
 import statistics
 import subprocess
 import sys
@@ -33,14 +39,22 @@ def eme_run_us_per_step(binary, folder):
         return 1e6 * float(f.attrs["solve_time_seconds"]) / int(f.attrs["steps_completed"])
 
 
-def bench_us_per_step(binary, repeats):
-    """eme_bench's SNES us per step of EME_temperature (its table's first number)."""
+TARGETS = {"snes_over_floor": 1.3, "eme_over_cvode": 1.5, "eme_run_over_cvode": 1.8, "eme_run_over_bench": 1.15}
+
+
+def bench_figures(binary, repeats):
+    """From one eme_bench: EME_temperature's SNES and floor us per step, CVODE-BDF's us per internal step."""
     result = subprocess.run([str(binary), str(repeats)], check=True, capture_output=True, text=True)
+    snes = floor = cvode = None
     for line in result.stdout.splitlines():
-        words = line.split()
-        if words and words[0] == "EME_temperature":
-            return float(words[1])
-    raise RuntimeError("eme_bench printed no EME_temperature row:\n" + result.stdout)
+        row = re.match(r"EME_temperature\s+([0-9.]+)\s+([0-9.]+)", line)
+        if row:
+            snes, floor = float(row.group(1)), float(row.group(2))
+        elif line.startswith("cvode_bdf_temperature"):
+            cvode = float(re.search(r"([0-9.]+) us each", line).group(1))
+    if None in (snes, floor, cvode):
+        raise RuntimeError("eme_bench printed no EME_temperature or cvode_bdf_temperature row:\n" + result.stdout)
+    return snes, floor, cvode
 
 
 def main():
@@ -49,18 +63,24 @@ def main():
     parser.add_argument("--repeats", type=int, default=7, help="alternating pairs (default 7)")
     args = parser.parse_args()
     bin_dir = Path(args.bin)
-    runs, benches, ratios = [], [], []
+    runs, benches, ratios = [], [], {name: [] for name in TARGETS}
     with tempfile.TemporaryDirectory() as scratch:
         for _ in range(args.repeats):
             run = eme_run_us_per_step(bin_dir / "eme_run", Path(scratch))
-            bench = bench_us_per_step(bin_dir / "eme_bench", 3)
+            snes, floor, cvode = bench_figures(bin_dir / "eme_bench", 3)
             runs.append(run)
-            benches.append(bench)
-            ratios.append(run / bench)
+            benches.append(snes)
+            ratios["snes_over_floor"].append(snes / floor)
+            ratios["eme_over_cvode"].append(snes / cvode)
+            ratios["eme_run_over_cvode"].append(run / cvode)
+            ratios["eme_run_over_bench"].append(run / snes)
     print(f"eme_run on the paper scene (EME_theta, 1334 steps): {statistics.median(runs):.2f} us/step; "
           f"eme_bench EME_temperature: {statistics.median(benches):.2f} us/step "
           f"(medians of {args.repeats} alternating pairs)")
-    print(f"eme_run_over_bench={statistics.median(ratios):.3f}")
+    for name, target in TARGETS.items():
+        value = statistics.median(ratios[name])
+        verdict = "met" if value <= target else f"missed by {100 * (value / target - 1):.0f} %"
+        print(f"{name}={value:.3f}  (target {target}: {verdict})")
     return 0
 
 

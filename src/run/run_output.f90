@@ -182,10 +182,18 @@ contains
     class(run_file), intent(inout) :: self
     real(real64), intent(in) :: time, z(:), theta(:), energy, entropy, lyapunov, momentum(3), heat, residuals(:)
     logical, intent(in) :: row_due
+    real(real64) :: row(8 + size(z) + size(theta) + size(residuals))
+    integer :: filled
     logical :: due
 
     if (.not. self%enabled) return
-    call self%store%tables(point_rows)%accumulate([time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals])
+    filled = 0
+    call put(row, filled, [time])
+    call put(row, filled, z)
+    call put(row, filled, theta)
+    call put(row, filled, [energy, entropy, lyapunov, momentum, heat])
+    call put(row, filled, residuals)
+    call self%store%tables(point_rows)%accumulate(row)
     if (self%by_interval) then
       due = row_due
     else
@@ -203,20 +211,40 @@ contains
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
-    real(real64), allocatable :: diagnostics(:)
+    real(real64) :: row(12 + size(multipliers) + diagnostic_count(report))
+    integer :: filled
 
     if (.not. self%enabled) return
-    allocate (diagnostics(0))
-    if (allocated(report%diagnostics)) diagnostics = report%diagnostics
-    call self%store%tables(step_rows)%accumulate([real(n, real64), time, real(report%newton_iterations, real64), &
-                                report%scheme_temperature, &
-                                real(report%strategy, real64), real(report%solves, real64), &
-                                real(report%rejected, real64), report%residual_norm, &
-                                real(report%converged_reason, real64), step_seconds, entropy_increment, &
-                                lyapunov_increment, multipliers, diagnostics])
+    filled = 0
+    call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64), report%scheme_temperature, &
+                           real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
+                           report%residual_norm, real(report%converged_reason, real64), step_seconds, entropy_increment, &
+                           lyapunov_increment])
+    call put(row, filled, multipliers)
+    if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
+    call self%store%tables(step_rows)%accumulate(row)
     self%last_step = n
     self%newton_pending = self%newton_pending + report%newton_iterations
   end subroutine record_step
+
+  ! values into row after its first `filled` entries (a row is built on the stack: the step loop
+  ! allocates nothing).
+  pure subroutine put(row, filled, values)
+    real(real64), intent(inout) :: row(:)
+    integer, intent(inout) :: filled
+    real(real64), intent(in) :: values(:)
+
+    row(filled + 1:filled + size(values)) = values
+    filled = filled + size(values)
+  end subroutine put
+
+  ! How many diagnostics the integrator reported for its step.
+  pure integer function diagnostic_count(report)
+    type(step_report), intent(in) :: report
+
+    diagnostic_count = 0
+    if (allocated(report%diagnostics)) diagnostic_count = size(report%diagnostics)
+  end function diagnostic_count
 
   ! Completes the pending point row and the step row of the steps since the last one.
   subroutine commit_rows(self)

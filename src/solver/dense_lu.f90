@@ -1,7 +1,10 @@
-!> LU factors of a small dense matrix by LAPACK: dgetf2 (unblocked; for 9 to 17 unknowns it
-!> costs half of the blocked dgetrf that PETSc's dense LU calls, docs/performance.md), and the
-!> solves of dgetrs by its parts (dlaswp, two dtrsv).
-!> The step solver's shell preconditioner keeps them, and its chord predictor reuses them.
+!> LU factors with partial pivoting of the small dense matrices of one step (9 to 17 unknowns), and
+!> their solves. The arithmetic is LAPACK's unblocked dgetf2 and BLAS dtrsv, column by column in
+!> the same order, written out as loops the compiler inlines: at this size the reference BLAS
+!> calls (idamax, dswap, dscal, dger per column) cost several times the arithmetic
+!> (docs/performance.md, "The kernel at the floor"). The step solver's shell preconditioner keeps
+!> the factors, and its chord predictor reuses them; tests/unit/test_dense_lu.pf checks them
+!> against LAPACK's dgesv.
 module dense_lu
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
@@ -19,30 +22,6 @@ module dense_lu
     procedure :: factor_in_place
     procedure :: solve
   end type lu_factors
-
-  interface
-    !> LU factorization with partial pivoting, unblocked: A = P L U.
-    subroutine dgetf2(m, n, a, lda, ipiv, info)
-      import :: real64
-      integer, intent(in) :: m, n, lda
-      real(real64), intent(inout) :: a(lda, *)
-      integer, intent(out) :: ipiv(*), info
-    end subroutine dgetf2
-    !> The row interchanges of the factorization applied to x (LAPACK).
-    subroutine dlaswp(n, a, lda, k1, k2, ipiv, incx)
-      import :: real64
-      integer, intent(in) :: n, lda, k1, k2, ipiv(*), incx
-      real(real64), intent(inout) :: a(lda, *)
-    end subroutine dlaswp
-    !> x := A^-1 x for a triangular A (BLAS level 2).
-    subroutine dtrsv(uplo, trans, diag, n, a, lda, x, incx)
-      import :: real64
-      character, intent(in) :: uplo, trans, diag
-      integer, intent(in) :: n, lda, incx
-      real(real64), intent(in) :: a(lda, *)
-      real(real64), intent(inout) :: x(*)
-    end subroutine dtrsv
-  end interface
 
 contains
 
@@ -67,29 +46,100 @@ contains
   end subroutine factor
 
   !> Factors the matrix a caller wrote into `factors` (saves a copy); info as `factor`.
-  subroutine factor_in_place(self, info)
+  pure subroutine factor_in_place(self, info)
     class(lu_factors), intent(inout) :: self
     integer, intent(out) :: info
-    integer :: n
 
-    n = size(self%pivots)
-    call dgetf2(n, n, self%factors, n, self%pivots, info)
+    call factor_pivoted(size(self%pivots), self%factors, self%pivots, info)
     self%ready = info == 0
   end subroutine factor_in_place
 
-  !> b := A^-1 b with the factors: what dgetrs does for one right-hand side, by the level-2 BLAS
-  !> triangular solves (dgetrs calls the level-3 dtrsm, whose overhead dominates at this size).
-  subroutine solve(self, b, info)
+  !> A = P L U in place (L unit lower, U upper), as LAPACK's dgetf2: column k's pivot is its
+  !> largest entry in magnitude at or below the diagonal, whose row is swapped into row k; the
+  !> column below the pivot is scaled by the pivot's reciprocal and the rank-1 update applied
+  !> column by column. info = k > 0 if the k-th pivot is zero (the factors are then incomplete).
+  pure subroutine factor_pivoted(n, a, pivots, info)
+    integer, intent(in) :: n
+    real(real64), intent(inout) :: a(n, n)
+    integer, intent(out) :: pivots(n)
+    integer, intent(out) :: info
+    real(real64) :: swapped, reciprocal, largest, multiplier
+    integer :: k, i, j, p
+
+    info = 0
+    do k = 1, n
+      p = k
+      largest = abs(a(k, k))
+      do i = k + 1, n
+        if (abs(a(i, k)) > largest) then
+          p = i
+          largest = abs(a(i, k))
+        end if
+      end do
+      pivots(k) = p
+      if (.not. (largest > 0.0_real64)) then
+        if (info == 0) info = k
+        cycle
+      end if
+      if (p /= k) then
+        do j = 1, n
+          swapped = a(k, j)
+          a(k, j) = a(p, j)
+          a(p, j) = swapped
+        end do
+      end if
+      reciprocal = 1.0_real64/a(k, k)
+      do i = k + 1, n
+        a(i, k) = a(i, k)*reciprocal
+      end do
+      do j = k + 1, n
+        multiplier = a(k, j)
+        do i = k + 1, n
+          a(i, j) = a(i, j) - a(i, k)*multiplier
+        end do
+      end do
+    end do
+  end subroutine factor_pivoted
+
+  !> b := A^-1 b with the factors, as LAPACK's dgetrs for one right-hand side.
+  pure subroutine solve(self, b, info)
     class(lu_factors), intent(in) :: self
     real(real64), intent(inout) :: b(:)
     integer, intent(out) :: info
-    integer :: n
 
-    n = size(self%pivots)
-    call dlaswp(1, b, n, 1, n, self%pivots, 1)
-    call dtrsv('L', 'N', 'U', n, self%factors, n, b, 1)
-    call dtrsv('U', 'N', 'N', n, self%factors, n, b, 1)
+    call solve_pivoted(size(self%pivots), self%factors, self%pivots, b)
     info = 0
   end subroutine solve
+
+  !> The row interchanges of the factorization applied to b, then L y = P b forward and U x = y
+  !> backward, column by column (BLAS dtrsv's order).
+  pure subroutine solve_pivoted(n, a, pivots, b)
+    integer, intent(in) :: n
+    real(real64), intent(in) :: a(n, n)
+    integer, intent(in) :: pivots(n)
+    real(real64), intent(inout) :: b(n)
+    real(real64) :: swapped
+    integer :: k, i, p
+
+    do k = 1, n
+      p = pivots(k)
+      if (p /= k) then
+        swapped = b(k)
+        b(k) = b(p)
+        b(p) = swapped
+      end if
+    end do
+    do k = 1, n - 1
+      do i = k + 1, n
+        b(i) = b(i) - b(k)*a(i, k)
+      end do
+    end do
+    do k = n, 1, -1
+      b(k) = b(k)/a(k, k)
+      do i = 1, k - 1
+        b(i) = b(i) - b(k)*a(i, k)
+      end do
+    end do
+  end subroutine solve_pivoted
 
 end module dense_lu

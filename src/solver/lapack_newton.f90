@@ -1,4 +1,4 @@
-!> Newton's method by hand on a nonlinear_system, with LAPACK's LU (src/solver/dense_lu) and no
+!> Newton's method by hand on a nonlinear_system, with the small dense LU (src/solver/dense_lu) and no
 !> PETSc: the same iteration as the lean SNES path (src/solver/snes_solver) -- full steps, a new
 !> Jacobian and LU per iteration except the final chord step, the same convergence test -- for
 !> the benchmark's floor (drivers/eme_bench) and the tests that check that SNES adds nothing to

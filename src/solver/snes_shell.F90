@@ -1,7 +1,7 @@
 !> What PETSc SNES calls back while snes_solver's Newton iterations run, and the context they
 !> share (PETSc holds its address): the residual and the analytic Jacobian of the problem, the
 !> convergence test of the retry strategies, the shell preconditioner that factors the Jacobian
-!> with LAPACK's LU (or, on the lean way, confirms a root with the factors it has: the final chord
+!> with dense_lu's LU (or, on the lean way, confirms a root with the factors it has: the final chord
 !> step), and the shell line search that takes the full Newton step (docs/integrators.md).
 module snes_shell
 #include <petsc/finclude/petscsnes.h>

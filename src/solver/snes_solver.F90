@@ -1,7 +1,7 @@
 !> PETSc SNES on a nonlinear_system of any size (src/solver/nonlinear_problem), as the root
 !> finder of the retry strategies (src/solver/retry_strategies). One SNES, vector pair and dense
 !> matrix live as long as the solver and are reused for every solve (and, in an ensemble, for
-!> every case of the same size). The linear solves are exact: LU by LAPACK (src/solver/dense_lu)
+!> every case of the same size). The linear solves are exact: LU with partial pivoting (src/solver/dense_lu)
 !> in a shell preconditioner, whose factors also serve the chord predictor. SNESSetFromOptions
 !> comes last, so -snes_monitor, -snes_converged_reason, -snes_test_jacobian, -pc_type lu, ...
 !> work from the command line. Newton takes full steps by default: the residual's rows carry
@@ -140,7 +140,7 @@ contains
     PetscCall(PCShellSetContext(pc, self%context, ierr))
     PetscCall(PCShellSetSetUp(pc, factor_operator, ierr))
     PetscCall(PCShellSetApply(pc, apply_lu, ierr))
-    PetscCall(PCShellSetName(pc, 'dense LU by LAPACK dgetf2, solves by dlaswp and BLAS dtrsv', ierr))
+    PetscCall(PCShellSetName(pc, 'dense LU with partial pivoting (src/solver/dense_lu)', ierr))
     max_evaluations = 10000
     PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, int(max_iterations, kind(rows)), max_evaluations, ierr))
     PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, self%context, PETSC_NULL_FUNCTION, ierr))
