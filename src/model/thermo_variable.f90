@@ -233,6 +233,7 @@ contains
     integer :: n
 
     n = self%n_invariants
+    if (n < 2) return          ! (never: a spring has C and tau; says so to the optimizer)
     scale(1) = self%law%natural_length**2
     if (n == 3) scale(2) = 1.0_real64
     select case (self%variable)
