@@ -68,7 +68,7 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 -include $(BUILD)/fortran.deps
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o \
-$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/converged_reasons.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o: CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
 $(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/snes_shell.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
@@ -313,9 +313,9 @@ study: all $(VENV)/.python-deps
 	  --data results/study/estimate_tracking.h5
 
 # Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
-# 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a LAPACK Newton
-# floor, then what eme_run's step costs against eme_bench's (alternating). Each part ends with a
-# machine-readable line.
+# 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a hand-written
+# Newton floor, then issue 22's four speed ratios, each on its own line with its target
+# (bench_eme_run.py: eme_run and eme_bench alternating). Each part ends with machine-readable lines.
 bench: all $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3

@@ -12,6 +12,7 @@ module snes_shell
   use retry_strategies, only: final_chord_step, newton_converged
   use dense_lu, only: lu_factors
   use dense_assembly, only: assemble_jacobian
+  use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   implicit none
   private
   public :: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, factor_operator, &
@@ -96,15 +97,17 @@ contains
     type(solver_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), f_values(:)
+    integer :: n
     integer :: stat
 
-    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
-    PetscCall(VecGetArrayF90(f, f_values, ierr))
+    n = context%problem%unknowns()
+    PetscCall(borrow_read(x, n, x_values, ierr))
+    PetscCall(borrow(f, n, f_values, ierr))
     call context%problem%evaluate_residual(x_values, f_values, stat)
     if (stat /= 0) f_values = huge(1.0_real64)
     context%residual_norm = norm2(f_values)
-    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
-    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    PetscCall(give_back(f, f_values, ierr))
+    PetscCall(give_back_read(x, x_values, ierr))
     if (stat /= 0) then
       PetscCall(SNESSetFunctionDomainError(snes, ierr))
     end if
@@ -119,14 +122,16 @@ contains
     type(solver_context), intent(in) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: x_values(:), entries(:, :)
+    integer :: n
     real(real64) :: residual(context%problem%unknowns())
     integer :: stat
 
-    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
+    n = context%problem%unknowns()
+    PetscCall(borrow_read(x, n, x_values, ierr))
     PetscCall(MatDenseGetArrayF90(preconditioner, entries, ierr))
     call context%problem%evaluate(x_values, residual, entries, stat)
     PetscCall(MatDenseRestoreArrayF90(preconditioner, entries, ierr))
-    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    PetscCall(give_back_read(x, x_values, ierr))
     PetscCall(assemble_jacobian(jacobian, preconditioner, ierr))
     if (stat /= 0) then
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
@@ -167,6 +172,7 @@ contains
     PetscErrorCode, intent(out) :: ierr
     type(solver_context), pointer :: context
     PetscScalar, pointer :: x_values(:), y_values(:)
+    integer :: n
     integer :: info
 
     PetscCall(PCShellGetContext(pc, context, ierr))
@@ -184,12 +190,13 @@ contains
         PetscCall(PCSetFailedReason(pc, PC_NOERROR, ierr))
       end if
     end if
-    PetscCall(VecGetArrayReadF90(x, x_values, ierr))
-    PetscCall(VecGetArrayF90(y, y_values, ierr))
+    n = context%problem%unknowns()
+    PetscCall(borrow_read(x, n, x_values, ierr))
+    PetscCall(borrow(y, n, y_values, ierr))
     y_values = x_values
     call context%lu%solve(y_values, info)
-    PetscCall(VecRestoreArrayF90(y, y_values, ierr))
-    PetscCall(VecRestoreArrayReadF90(x, x_values, ierr))
+    PetscCall(give_back(y, y_values, ierr))
+    PetscCall(give_back_read(x, x_values, ierr))
     if (info /= 0) then
       PetscCall(PCSetFailedReason(pc, PC_SUBPC_ERROR, ierr))
     end if
@@ -204,12 +211,14 @@ contains
     PetscErrorCode, intent(out) :: ierr
     Vec :: iterate
     PetscScalar, pointer :: values(:)
+    integer :: n
     integer :: stat
 
     PetscCall(SNESGetSolution(context%snes, iterate, ierr))
-    PetscCall(VecGetArrayReadF90(iterate, values, ierr))
+    n = context%problem%unknowns()
+    PetscCall(borrow_read(iterate, n, values, ierr))
     call context%problem%evaluate_jacobian(values, context%lu%factors, stat)
-    PetscCall(VecRestoreArrayReadF90(iterate, values, ierr))
+    PetscCall(give_back_read(iterate, values, ierr))
     info = stat
     context%lu%ready = .false.
     if (stat /= 0) return
@@ -226,12 +235,14 @@ contains
     PetscErrorCode, intent(out) :: ierr
     Vec :: x, f, y, w, g
     PetscScalar, pointer :: x_values(:), f_values(:), y_values(:)
+    integer :: n
     real(real64) :: trial(context%problem%unknowns()), residual(size(trial)), x_norm, residual_norm, update_norm
     integer :: stat
 
     PetscCall(SNESLineSearchGetVecs(line_search, x, f, y, w, g, ierr))
-    PetscCall(VecGetArrayReadF90(y, y_values, ierr))
-    PetscCall(VecGetArrayF90(x, x_values, ierr))
+    n = context%problem%unknowns()
+    PetscCall(borrow_read(y, n, y_values, ierr))
+    PetscCall(borrow(x, n, x_values, ierr))
     trial = x_values - y_values
     update_norm = norm2(y_values)
     call context%problem%evaluate_residual(trial, residual, stat)
@@ -240,15 +251,15 @@ contains
       x_norm = norm2(trial)
       residual_norm = norm2(residual)
     end if
-    PetscCall(VecRestoreArrayF90(x, x_values, ierr))
-    PetscCall(VecRestoreArrayReadF90(y, y_values, ierr))
+    PetscCall(give_back(x, x_values, ierr))
+    PetscCall(give_back_read(y, y_values, ierr))
     if (stat /= 0) then
       PetscCall(SNESLineSearchSetReason(line_search, line_search_failed_domain, ierr))
       return
     end if
-    PetscCall(VecGetArrayF90(f, f_values, ierr))
+    PetscCall(borrow(f, n, f_values, ierr))
     f_values = residual
-    PetscCall(VecRestoreArrayF90(f, f_values, ierr))
+    PetscCall(give_back(f, f_values, ierr))
     PetscCall(SNESLineSearchSetNorms(line_search, x_norm, residual_norm, update_norm, ierr))
     context%residual_norm = residual_norm
     context%update_norm = update_norm

@@ -27,6 +27,7 @@ module snes_solver
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: root_finder
   use dense_assembly, only: assemble_jacobian
+  use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use snes_shell, only: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, &
                         factor_operator, apply_lu, full_step
   use solver_options, only: step_solver_options, read_solver_options, option_given
@@ -294,9 +295,9 @@ contains
     if (self%context%lean .and. self%context%final_chord) then
       PetscCall(tolerance_of(self%snes, self%context%tolerance, ierr))
     end if
-    PetscCall(VecGetArrayF90(self%x, values, ierr))
+    PetscCall(borrow(self%x, self%n, values, ierr))
     values = initial
-    PetscCall(VecRestoreArrayF90(self%x, values, ierr))
+    PetscCall(give_back(self%x, values, ierr))
     if (self%quiet) then
       PetscCall(PetscOptionsPushGetViewerOff(PETSC_TRUE, ierr))
     end if
@@ -309,9 +310,9 @@ contains
     PetscCall(SNESGetFunctionNorm(self%snes, self%last_residual_norm, ierr))
     self%last_reason = int(snes_reason)
     iterations = int(its)
-    PetscCall(VecGetArrayReadF90(self%x, values, ierr))
+    PetscCall(borrow_read(self%x, self%n, values, ierr))
     root = values
-    PetscCall(VecRestoreArrayReadF90(self%x, values, ierr))
+    PetscCall(give_back_read(self%x, values, ierr))
     converged = snes_reason > 0
     if (.not. converged) converged = at_rounding_floor()
     if (.not. converged) then
