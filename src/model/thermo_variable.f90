@@ -28,6 +28,7 @@ module thermo_variable
     procedure :: evaluate => evaluate_potentials
     procedure :: difference => potential_difference
     procedure :: temperature => spring_temperature
+    procedure :: values_and_temperature => spring_values_and_temperature
     procedure :: tau_from_temperature
     procedure :: metric_scale
   end type spring_potential
@@ -53,6 +54,23 @@ contains
     end if
     call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
   end subroutine spring_temperature
+
+  !> (U_a, S_a) and the temperature at x from one evaluation of the mechanical parts (a run
+  !> observes them every step; evaluate and temperature would compute the parts twice).
+  pure subroutine spring_values_and_temperature(self, x, f, theta, stat)
+    class(spring_potential), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), theta
+    integer, intent(out) :: stat
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), grad(size(x), 2)
+
+    theta = 0.0_real64
+    call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
+    if (stat /= domain_ok) return
+    call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
+    if (stat /= domain_ok) return
+    call potentials_from_parts(self, x(self%n_invariants), theta, e, sigma, de, dsigma, d2e, d2sigma, grad, f=f)
+  end subroutine spring_values_and_temperature
 
   !> U_a and S_a with gradients and Hessians in x (docs/formulation.md section 3, table).
   pure subroutine evaluate_potentials(self, x, f, grad, hess, stat)

@@ -24,6 +24,7 @@ module invariant_function
     procedure(evaluate_interface), deferred :: evaluate
     procedure :: difference
     procedure :: temperature
+    procedure :: values_and_temperature
     procedure :: tau_from_temperature
   end type invariant_functions
 
@@ -72,6 +73,21 @@ contains
     theta = g(size(x), potential_u)/g(size(x), potential_s)
     if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
   end subroutine temperature
+
+  !> f(x) and the temperature at x, what a run observes of a state each step. This default
+  !> evaluates and then asks for the temperature; functions that share the work override it.
+  pure subroutine values_and_temperature(self, x, f, theta, stat)
+    class(invariant_functions), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), theta
+    integer, intent(out) :: stat
+    real(real64) :: g(size(x), size(f))
+
+    theta = 0.0_real64
+    call self%evaluate(x, f, g, stat=stat)
+    if (stat /= domain_ok) return
+    call self%temperature(x, theta, stat)
+  end subroutine values_and_temperature
 
   !> The value of tau (the last invariant) that gives temperature theta at the mechanical
   !> invariants (the others). This default cannot invert: stat = domain_overflow; functions with

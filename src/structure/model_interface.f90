@@ -219,7 +219,7 @@ contains
     real(real64), intent(in) :: z(:)
     real(real64), intent(out) :: energy, entropy, temperature(:)
     integer, intent(out) :: stat
-    real(real64) :: f(2), grad(self%max_invariants, 2), x(self%max_invariants)
+    real(real64) :: f(2), x(self%max_invariants)
     integer :: a, n
 
     energy = self%mechanical_energy(z)
@@ -229,9 +229,7 @@ contains
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
-      call self%subsystems(a)%potentials%evaluate(x(1:n), f, grad(1:n, :), stat=stat)
-      if (stat /= domain_ok) return
-      call self%subsystems(a)%potentials%temperature(x(1:n), temperature(a), stat)
+      call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat)
       if (stat /= domain_ok) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
