@@ -69,7 +69,7 @@ program eme_ensemble
         exit_status = 128 + outcome%signal
       end if
       if (stat == 0 .and. rank == 0) then
-        write (output_unit, '(a, i0, a, i0, a, i0, a, i0, a, f10.2, a)') 'eme_ensemble: ', outcome%cases, ' cases: ', &
+        write (output_unit, '(a, i0, a, i0, a, i0, a, i0, a, f10.3, a)') 'eme_ensemble: ', outcome%cases, ' cases: ', &
           outcome%complete, ' complete (', outcome%skipped, ' from an earlier run), ', outcome%failed, &
           ' failed; wall time', outcome%wall_seconds, ' s; index '//study%output_dir//'/index.h5'
       end if

@@ -15,8 +15,12 @@ compare runs made seconds apart; medians over `--repeats` are reported:
   - the machine's own ceiling for it: the index-only study split in two halves, run as two
     independent single-rank studies at the same time (no scheduling between them), T_1 / (2 T_pair).
     On a machine whose cores slow each other down, or that other work shares, this ceiling is
-    below 1, and T_pair / T_2 is what the scheduler achieves of it.
-The last line is machine-readable.
+    below 1, and T_pair / T_2 is what the scheduler achieves of it;
+  - the cost of a case file: the 200 cases with files against the same 200 cases index-only, on
+    one rank, run right after each other, (T_files - T_index) / 200, set beside the case's own
+    compute time (its time loop, the index's solve_time_seconds).
+Cases per second of each study on 1 and 2 ranks and the file cost are printed on lines of their
+own; the last line is machine-readable.
 """
 import argparse
 import os
@@ -35,6 +39,7 @@ ROOT = Path(__file__).resolve().parent.parent
 INDEX_ONLY_STUDY = ROOT / "inputs" / "bench_ensemble.nml"
 OUTPUT = ROOT / "results" / "bench_ensemble"
 FILES_OUTPUT = ROOT / "results" / "bench_ensemble_files"
+SAME_CASES_OUTPUT = ROOT / "results" / "bench_ensemble_files_index_only"
 MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
 
 
@@ -51,12 +56,14 @@ def machine():
     return f"{model}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
-def files_study():
-    """The study with case files: 200 cases of theta(2), written next to its output."""
-    FILES_OUTPUT.parent.mkdir(parents=True, exist_ok=True)
-    path = FILES_OUTPUT.parent / "bench_ensemble_files.nml"
+def files_study(output=FILES_OUTPUT, index_only=False):
+    """The study with case files: 200 cases of theta(2), written next to its output (or the
+    same cases index-only)."""
+    output.parent.mkdir(parents=True, exist_ok=True)
+    path = output.parent / f"{output.name}.nml"
     values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(200))
-    path.write_text(f"&study base = '{ROOT / 'inputs' / 'paper_fig4_eme_theta.nml'}', output_dir = '{FILES_OUTPUT}' /\n"
+    only = ", index_only = .true." if index_only else ""
+    path.write_text(f"&study base = '{ROOT / 'inputs' / 'paper_fig4_eme_theta.nml'}', output_dir = '{output}'{only} /\n"
                     f"&sweep field = 'theta(2)', values = {values} /\n")
     return path
 
@@ -121,10 +128,16 @@ def main(argv=None):
     studies = {"index-only": (INDEX_ONLY_STUDY, OUTPUT), "with files": (files_study(), FILES_OUTPUT)}
     runs = {(name, ranks): [] for name in studies for ranks in (1, 2)}
     halves, pairs = half_studies(), []
+    same_cases = files_study(SAME_CASES_OUTPUT, index_only=True)
+    file_costs, case_times = [], []
     for _ in range(args.repeats):
         for name, (study, output) in studies.items():
             for ranks in (1, 2):
                 runs[name, ranks].append(run_once(study, output, ranks))
+        without = run_once(same_cases, SAME_CASES_OUTPUT, 1)
+        with_files = runs["with files", 1][-1]
+        file_costs.append((with_files[0] - without[0]) / with_files[3])
+        case_times.append(without[2] / without[3])
         pairs.append(run_pair(halves))
     summary = {}
     for name in studies:
@@ -149,9 +162,22 @@ def main(argv=None):
             summary["ceiling"], summary["achieved"] = ceiling, achieved
             print(f"{name}: two independent single-rank halves at once: {statistics.median(pairs):.3f} s, the "
                   f"machine's ceiling for the efficiency {ceiling:.3f}; 2 ranks reach {achieved:.3f} of it")
+    for name in studies:
+        for ranks in (1, 2):
+            measured = runs[name, ranks]
+            print(f"cases/s, {name}, {ranks} rank{'s' if ranks > 1 else ''}: "
+                  f"{statistics.median(r[3] / r[0] for r in measured):.1f} (median of {args.repeats})")
+    file_cost, case_time = statistics.median(file_costs), statistics.median(case_times)
+    print(f"file cost per case: {1e3 * file_cost:.3f} ms (200 cases with files minus the same cases index-only, "
+          f"1 rank, median of {args.repeats})")
+    print(f"case compute time: {1e3 * case_time:.3f} ms (time loop, solve_time_seconds; file cost / case time "
+          f"{file_cost / case_time:.2f})")
+    print(f"efficiency at 2 ranks against the machine's ceiling: index-only {summary['achieved']:.3f}, with files "
+          f"{summary['with files', 'efficiency'] / summary['ceiling']:.3f}")
     print(f"ensemble_overhead_index_only={100 * summary['index-only', 1]:.2f}% "
           f"efficiency_2_ranks={summary['index-only', 'efficiency']:.3f} machine_ceiling={summary['ceiling']:.3f} "
-          f"ensemble_overhead_with_files={100 * summary['with files', 1]:.2f}%")
+          f"ensemble_overhead_with_files={100 * summary['with files', 1]:.2f}% "
+          f"file_cost_per_case_ms={1e3 * file_cost:.3f} case_time_ms={1e3 * case_time:.3f}")
     return 0
 
 

@@ -18,7 +18,7 @@
 !> `file`, and `end_rows`; at the end the same with final = .true.
 module crash_safe_file
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use hdf5_files, only: hdf5_file, file_in_use
+  use hdf5_files, only: hdf5_file, file_template, file_in_use
   use hdf5_series, only: series_table
   use filesystem, only: sync_file, exchange_files, copy_file, remove_file
   implicit none (type, external)
@@ -52,20 +52,26 @@ module crash_safe_file
 
 contains
 
-  !> An empty file in memory for `path` with `table_count` tables (to be defined by the caller).
-  !> stat = -1 if HDF5 failed.
-  subroutine start(self, path, table_count, stat)
+  !> An empty file in memory for `path` with `table_count` tables (to be defined by the caller),
+  !> made from `template` if given (src/io/hdf5_files: the root attributes of a series of
+  !> similar files; settled at the first write). stat = -1 if HDF5 failed.
+  subroutine start(self, path, table_count, stat, template)
     class(safe_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     integer, intent(in) :: table_count
     integer, intent(out) :: stat
+    type(file_template), intent(inout), target, optional :: template
 
     self%path = path
     self%spare = path//'.spare'
     allocate (self%tables(table_count))
     allocate (self%kept(table_count))
     call system_clock(self%last_write, self%clock_rate)
-    call self%file%create_in_memory(stat)
+    if (present(template)) then
+      call self%file%create_from_template(template, stat)
+    else
+      call self%file%create_in_memory(stat)
+    end if
   end subroutine start
 
   !> Whether a table's buffer is full (its rows must be written before more are appended).
@@ -111,6 +117,7 @@ contains
     call system_clock(self%last_write)
     stat = 0
     if (self%whole) then
+      call self%file%settle_template(stat)        ! the root attributes are all set: no more template
       do k = 1, size(self%tables)
         if (stat == 0) call self%tables(k)%write(self%file, final, stat)
       end do

@@ -14,16 +14,43 @@ module hdf5_files
                   h5aopen_f, h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
   implicit none (type, external)
   private
-  public :: hdf5_file, check_run_file, file_in_use
+  public :: hdf5_file, file_template, check_run_file, file_in_use
 
   integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
+
+  !> A root attribute of a template: its name and value (a kind letter and the value's bytes).
+  type :: remembered_attribute
+    character(len=:), allocatable :: name, value
+  end type remembered_attribute
+
+  !> The root attributes that a series of similar files share (a study's case files), kept
+  !> by whoever writes the series: the image of its first file, taken before any dataset was
+  !> written, and each root attribute that file then held. A file made from it
+  !> (`create_from_template`) starts as that image, writes only the attributes whose values
+  !> differ and removes those it does not set (`settle_template`), so it holds what the same
+  !> calls would have written into an empty file; one HDF5 attribute costs 2 to 5 us, and a run
+  !> file has about 150 on its root (docs/performance.md, Ensemble throughput).
+  type :: file_template
+    logical :: ready = .false.           !! the image and its attributes are kept
+    logical, private :: recording = .false.
+    character(len=:), allocatable, private :: image
+    type(remembered_attribute), allocatable, private :: attributes(:)
+    integer, private :: count = 0
+    logical, allocatable, private :: touched(:)
+    integer, private :: cursor = 0
+  end type file_template
 
   !> An open HDF5 file (in memory until stored, or on disk).
   type :: hdf5_file
     integer(hid_t) :: id = -1
     logical :: fresh = .false.           !! created by this process: no attribute exists yet
+    !> While the root attributes are written, the template they are recorded in or compared with
+    !> (a pointer, so that the attribute writers keep intent(in)).
+    type(file_template), pointer :: template => null()
   contains
     procedure :: create_in_memory
+    procedure :: create_from_template
+    procedure :: settle_template
     procedure :: store
     procedure :: open_existing
     procedure :: close => close_file
@@ -73,6 +100,25 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_create_in_memory
+    function c_image_size(file) result(size) bind(c, name='eme_h5_image_size')
+      import :: c_long, c_int64_t
+      integer(c_int64_t), value :: file
+      integer(c_long) :: size
+    end function c_image_size
+    function c_copy_image(file, image, size) result(status) bind(c, name='eme_h5_copy_image')
+      import :: c_char, c_int, c_long, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(out) :: image(*)
+      integer(c_long), value :: size
+      integer(c_int) :: status
+    end function c_copy_image
+    function c_open_image(label, image, size, file) result(status) bind(c, name='eme_h5_open_image')
+      import :: c_char, c_int, c_long, c_int64_t
+      character(kind=c_char), intent(in) :: label(*), image(*)
+      integer(c_long), value :: size
+      integer(c_int64_t), intent(out) :: file
+      integer(c_int) :: status
+    end function c_open_image
     function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: file
@@ -115,6 +161,69 @@ contains
     self%id = int(id, hid_t)
     self%fresh = .true.
   end subroutine create_in_memory
+
+  !> Creates a file in memory from `template` (type file_template): as an empty file whose root
+  !> attributes are recorded in it if it holds none yet, else as a copy of the template's image,
+  !> whose root attributes are then rewritten only where they differ. Call settle_template once
+  !> the root attributes are set, before any dataset is written. stat = -1 on an HDF5 failure.
+  subroutine create_from_template(self, template, stat)
+    class(hdf5_file), intent(inout) :: self
+    type(file_template), intent(inout), target :: template
+    integer, intent(out) :: stat
+    character(len=32) :: label
+    integer(c_int64_t) :: id
+
+    if (.not. template%ready) then
+      call self%create_in_memory(stat)
+      if (stat /= 0) return
+      template%recording = .true.
+      template%count = 0
+      if (.not. allocated(template%attributes)) allocate (template%attributes(256))
+      self%template => template
+      return
+    end if
+    call open_library(stat)
+    if (stat /= 0) return
+    memory_files = memory_files + 1
+    write (label, '("eme_memory_file_", i0)') memory_files
+    stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
+    self%id = int(id, hid_t)
+    self%fresh = .true.
+    template%recording = .false.
+    template%touched = [(.false., id = 1, template%count)]
+    template%cursor = 0
+    self%template => template
+  end subroutine create_from_template
+
+  !> Ends the root attributes' writing from a template (create_from_template): a recorded file
+  !> leaves its image in the template, a file made from one loses the template's attributes it
+  !> did not set. Nothing to do for a file without a template. stat = -1 on an HDF5 failure.
+  subroutine settle_template(self, stat)
+    class(hdf5_file), intent(inout) :: self
+    integer, intent(out) :: stat
+    integer(c_long) :: size
+    integer :: k
+
+    stat = 0
+    if (.not. associated(self%template)) return
+    associate (template => self%template)
+      if (template%recording) then
+        template%recording = .false.
+        size = c_image_size(int(self%id, c_int64_t))
+        if (size > 0) then
+          if (allocated(template%image)) deallocate (template%image)
+          allocate (character(len=size) :: template%image)
+          template%ready = c_copy_image(int(self%id, c_int64_t), template%image, size) == 0
+        end if
+      else
+        do k = 1, template%count
+          if (stat /= 0) exit
+          if (.not. template%touched(k)) call h5adelete_f(self%id, template%attributes(k)%name, stat)
+        end do
+      end if
+    end associate
+    nullify (self%template)
+  end subroutine settle_template
 
   !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
   !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).
@@ -172,11 +281,19 @@ contains
     integer, intent(out) :: stat
     integer(hid_t), intent(in), optional :: object
     integer(hid_t) :: target_id
+    logical :: write, fresh
 
     target_id = self%id
-    if (present(object)) target_id = object
+    fresh = self%fresh
+    if (present(object)) then
+      target_id = object
+    else
+      call compare_with_template(self%template, name, 't'//value, write, fresh, self%fresh)
+      stat = 0
+      if (.not. write) return
+    end if
     stat = int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, value//c_null_char, &
-                                      merge(1_c_int, 0_c_int, self%fresh)))
+                                      merge(1_c_int, 0_c_int, fresh)))
   end subroutine set_text
 
   !> Array of texts as one attribute on the file root, or on object `object` if given (h5py: an
@@ -187,9 +304,16 @@ contains
     integer, intent(out) :: stat
     integer(hid_t), intent(in), optional :: object
     integer(hid_t) :: target_id
+    logical :: write, fresh
 
     target_id = self%id
-    if (present(object)) target_id = object
+    if (present(object)) then
+      target_id = object
+    else
+      call compare_with_template(self%template, name, 'a'//joined_lines(values), write, fresh, self%fresh)
+      stat = 0
+      if (.not. write) return
+    end if
     stat = int(c_write_text_array_attribute(int(target_id, c_int64_t), name//c_null_char, joined_lines(values)//c_null_char))
   end subroutine set_texts
 
@@ -216,8 +340,11 @@ contains
     real(real64), intent(in) :: value
     integer, intent(out) :: stat
     character(len=*), intent(in), optional :: units
+    logical :: write, fresh
 
-    call write_numeric_attribute(self%id, name, [value], .true., self%fresh, stat)
+    call compare_with_template(self%template, name, 'r'//bytes_of([value]), write, fresh, self%fresh)
+    stat = 0
+    if (write) call write_numeric_attribute(self%id, name, [value], .true., fresh, stat)
     if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
   end subroutine set_real
 
@@ -228,8 +355,11 @@ contains
     real(real64), intent(in) :: values(:)
     integer, intent(out) :: stat
     character(len=*), intent(in), optional :: units
+    logical :: write, fresh
 
-    call write_numeric_attribute(self%id, name, values, .false., self%fresh, stat)
+    call compare_with_template(self%template, name, 'v'//bytes_of(values), write, fresh, self%fresh)
+    stat = 0
+    if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, stat)
     if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
   end subroutine set_reals
 
@@ -240,8 +370,11 @@ contains
     integer, intent(in) :: value
     integer, intent(out) :: stat
     character(len=*), intent(in), optional :: units
+    logical :: write, fresh
 
-    call write_numeric_attribute(self%id, name, [real(value, real64)], .true., self%fresh, stat, integer_valued=.true.)
+    call compare_with_template(self%template, name, 'i'//bytes_of([real(value, real64)]), write, fresh, self%fresh)
+    stat = 0
+    if (write) call write_numeric_attribute(self%id, name, [real(value, real64)], .true., fresh, stat, integer_valued=.true.)
     if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
   end subroutine set_integer
 
@@ -253,10 +386,18 @@ contains
     integer, intent(out) :: stat
     integer(hid_t), intent(in), optional :: object
     integer(hid_t) :: target_id
+    logical :: write, fresh
 
     target_id = self%id
-    if (present(object)) target_id = object
-    call write_numeric_attribute(target_id, name, real(values, real64), .false., self%fresh, stat, integer_valued=.true.)
+    fresh = self%fresh
+    write = .true.
+    if (present(object)) then
+      target_id = object
+    else
+      call compare_with_template(self%template, name, 'n'//bytes_of(real(values, real64)), write, fresh, self%fresh)
+    end if
+    stat = 0
+    if (write) call write_numeric_attribute(target_id, name, real(values, real64), .false., fresh, stat, integer_valued=.true.)
   end subroutine set_integers
 
   !> The text attribute `name` of the file root; stat /= 0 if it is missing.
@@ -313,6 +454,63 @@ contains
     status = buffer(1:max(0, index(buffer, c_null_char) - 1))
     steps_completed = int(steps)
   end subroutine check_run_file
+
+  ! A root attribute `name` about to be written with `value` (a kind letter and its bytes):
+  ! recorded while a template records; against a template, `write` only if the template's value
+  ! differs, and `fresh` (no existence query) only if the template has no such attribute.
+  ! Without a template: written, fresh as the file is.
+  subroutine compare_with_template(template, name, value, write, fresh, file_fresh)
+    type(file_template), pointer, intent(in) :: template
+    character(len=*), intent(in) :: name, value
+    logical, intent(out) :: write, fresh
+    logical, intent(in) :: file_fresh
+    type(remembered_attribute), allocatable :: larger(:)
+    integer :: k, i
+
+    write = .true.
+    fresh = file_fresh
+    if (.not. associated(template)) return
+    if (template%recording) then
+      if (template%count == size(template%attributes)) then
+        allocate (larger(2*template%count))
+        do i = 1, template%count
+          call move_alloc(template%attributes(i)%name, larger(i)%name)
+          call move_alloc(template%attributes(i)%value, larger(i)%value)
+        end do
+        call move_alloc(larger, template%attributes)
+      end if
+      template%count = template%count + 1
+      template%attributes(template%count)%name = name
+      template%attributes(template%count)%value = value
+      return
+    end if
+    ! The attributes come in the template's order: look at the next one first.
+    k = 0
+    if (template%cursor < template%count) then
+      if (template%attributes(template%cursor + 1)%name == name) k = template%cursor + 1
+    end if
+    if (k == 0) then
+      do i = 1, template%count
+        if (template%attributes(i)%name == name) then
+          k = i
+          exit
+        end if
+      end do
+    end if
+    if (k == 0) return                  ! not in the template: created as in a new file
+    template%cursor = k
+    template%touched(k) = .true.
+    fresh = .false.
+    write = template%attributes(k)%value /= value .or. len(template%attributes(k)%value) /= len(value)
+  end subroutine compare_with_template
+
+  ! The bytes of `values`, as a text to compare.
+  pure function bytes_of(values) result(bytes)
+    real(real64), intent(in) :: values(:)
+    character(len=8*size(values)) :: bytes
+
+    bytes = transfer(values, bytes)
+  end function bytes_of
 
   ! The texts, each trimmed and ended by a newline.
   pure function joined_lines(texts) result(joined)

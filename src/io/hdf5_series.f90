@@ -68,23 +68,21 @@ module hdf5_series
   end type series_table
 
   interface
-    function c_make_scale(scale, name) result(status) bind(c, name='eme_h5_make_scale')
+    function c_column_scale(file, name, joined, scale) result(status) bind(c, name='eme_h5_column_scale')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(in) :: name(*), joined(*)
+      integer(c_int64_t), intent(out) :: scale
+      integer(c_int) :: status
+    end function c_column_scale
+    function c_attach_scales(scale, name, count, datasets, columns) result(status) bind(c, name='eme_h5_attach_scales')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: scale
       character(kind=c_char), intent(in) :: name(*)
+      integer(c_int), value :: count
+      integer(c_int64_t), intent(in) :: datasets(*), columns(*)
       integer(c_int) :: status
-    end function c_make_scale
-    function c_column_scale(file, dataset, name, joined) result(status) bind(c, name='eme_h5_column_scale')
-      import :: c_char, c_int, c_int64_t
-      integer(c_int64_t), value :: file, dataset
-      character(kind=c_char), intent(in) :: name(*), joined(*)
-      integer(c_int) :: status
-    end function c_column_scale
-    function c_attach_row_scale(dataset, scale) result(status) bind(c, name='eme_h5_attach_row_scale')
-      import :: c_int, c_int64_t
-      integer(c_int64_t), value :: dataset, scale
-      integer(c_int) :: status
-    end function c_attach_row_scale
+    end function c_attach_scales
   end interface
 
 contains
@@ -245,9 +243,13 @@ contains
     logical, intent(in), optional :: keep
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
+    integer(hid_t) :: opened(size(self%items))   !! the new datasets, while their scales are attached
     integer :: i, rank, ignored, close_stat
+    logical :: attaching
 
     stat = 0
+    attaching = .not. self%created .and. self%scale
+    opened = -1
     do i = 1, size(self%items)
       associate (item => self%items(i), first => self%items(i)%offset + 1, last => self%items(i)%offset + self%items(i)%width)
         rank = merge(2, 1, item%vector)
@@ -268,7 +270,7 @@ contains
           call create_dataset(file, item, rank, extent, final, self%chunk_rows, self%compression, dataset, stat)
           if (stat /= 0) then
             if (dataset >= 0) call h5dclose_f(dataset, ignored)
-            return
+            exit
           end if
         end if
         if (stat == 0 .and. self%buffered > 0) then
@@ -289,12 +291,21 @@ contains
             call h5sclose_f(file_space, ignored)
           end if
         end if
-        call h5dclose_f(dataset, close_stat)
-        if (stat == 0) stat = close_stat
-        if (stat /= 0) return
+        if (attaching .and. stat == 0) then
+          opened(i) = dataset               ! kept open for attach_scale
+        else
+          call h5dclose_f(dataset, close_stat)
+          if (stat == 0) stat = close_stat
+        end if
+        if (stat /= 0) exit
       end associate
     end do
-    if (.not. self%created .and. self%scale) call attach_scale(file, self%items, stat)
+    if (attaching .and. stat == 0) call attach_scale(file, self%items, opened, stat)
+    if (attaching) then
+      do i = 1, size(opened)
+        if (opened(i) >= 0) call h5dclose_f(opened(i), ignored)
+      end do
+    end if
     if (stat /= 0) return
     self%created = .true.
     self%written = self%first_row + self%buffered
@@ -318,28 +329,29 @@ contains
   end subroutine forget
 
   ! Makes the first dataset the dimension scale (named after it) of the other datasets' rows,
-  ! and gives each vector dataset X the scale X_column of its columns' names.
-  subroutine attach_scale(file, items, stat)
+  ! and gives each vector dataset X the scale X_column of its columns' names
+  ! (src/io/hdf5_scales.c: every scale attribute written once).
+  subroutine attach_scale(file, items, opened, stat)
     type(hdf5_file), intent(in) :: file
     type(series), intent(in) :: items(:)
+    integer(hid_t), intent(in) :: opened(:)    !! the datasets of `items`, open
     integer, intent(out) :: stat
-    integer(hid_t) :: scale, dataset
+    integer(c_int64_t) :: datasets(size(items) - 1), columns(size(items) - 1)
     integer :: i, ignored
 
-    call h5dopen_f(file%id, items(1)%name, scale, stat)
-    if (stat /= 0) return
-    stat = int(c_make_scale(int(scale, c_int64_t), items(1)%name//c_null_char))
+    datasets = int(opened(2:), c_int64_t)
+    columns = -1
+    stat = 0
     do i = 2, size(items)
       if (stat /= 0) exit
-      call h5dopen_f(file%id, items(i)%name, dataset, stat)
-      if (stat /= 0) exit
-      stat = int(c_attach_row_scale(int(dataset, c_int64_t), int(scale, c_int64_t)))
-      if (stat == 0 .and. items(i)%vector) stat = int(c_column_scale(int(file%id, c_int64_t), int(dataset, c_int64_t), &
-                                                      items(i)%name//'_column'//c_null_char, &
-                                                      words_as_lines(items(i)%columns)//c_null_char))
-      call h5dclose_f(dataset, ignored)
+      if (items(i)%vector) stat = int(c_column_scale(int(file%id, c_int64_t), items(i)%name//'_column'//c_null_char, &
+                                                     words_as_lines(items(i)%columns)//c_null_char, columns(i - 1)))
     end do
-    call h5dclose_f(scale, ignored)
+    if (stat == 0) stat = int(c_attach_scales(int(opened(1), c_int64_t), items(1)%name//c_null_char, &
+                                              int(size(items) - 1, c_int), datasets, columns))
+    do i = 1, size(columns)
+      if (columns(i) >= 0) call h5dclose_f(int(columns(i), hid_t), ignored)
+    end do
   end subroutine attach_scale
 
   ! Creates one dataset of the table with its attributes: contiguous of `extent` if `final`,

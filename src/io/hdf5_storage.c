@@ -43,6 +43,33 @@ int eme_h5_create_in_memory(const char *label, hid_t *file)
     return status;
 }
 
+/* The size of the image of the in-memory file `file` (flushed first), or -1. */
+long eme_h5_image_size(hid_t file)
+{
+    if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0) return -1;
+    ssize_t size = H5Fget_file_image(file, NULL, 0);
+    return size > 0 ? (long)size : -1;
+}
+
+/* Copies the image of `file` (of `size` bytes: eme_h5_image_size) into `image`. */
+int eme_h5_copy_image(hid_t file, void *image, long size)
+{
+    return H5Fget_file_image(file, image, (size_t)size) == (ssize_t)size ? 0 : -1;
+}
+
+/* A writable in-memory file (core driver, no backing store) that starts as a copy of `image`
+ * (`size` bytes); `label` as for eme_h5_create_in_memory. */
+int eme_h5_open_image(const char *label, const void *image, long size, hid_t *file)
+{
+    *file = -1;
+    hid_t access = H5Pcreate(H5P_FILE_ACCESS);
+    if (access < 0) return -1;
+    if (H5Pset_fapl_core(access, 64 * 1024, 0) >= 0 && H5Pset_file_image(access, (void *)image, (size_t)size) >= 0)
+        *file = H5Fopen(label, H5F_ACC_RDWR, access);
+    H5Pclose(access);
+    return *file >= 0 ? 0 : -1;
+}
+
 int eme_rename_file(const char *from, const char *to, int sync);                 /* posix_files.c */
 
 /* Writes the image of the in-memory file `file` as the whole of `path` (fsync'd with `sync`):

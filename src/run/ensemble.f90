@@ -25,6 +25,7 @@ module ensemble
   use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute
   use statistics, only: median
   use stepper, only: time_stepper
+  use hdf5_files, only: file_template
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
@@ -205,6 +206,7 @@ contains
     type(study_outcome), intent(inout) :: outcome
     type(case_result) :: result
     class(time_stepper), allocatable :: integrator
+    type(file_template), target :: template     !! the root attributes of the rank's case files
     character(len=:), allocatable :: message
     integer :: c, skipped, ierr, stat
 
@@ -213,7 +215,7 @@ contains
       call manager%after_step()
       c = take_next(manager)
       if (c == 0) exit
-      call run_case(manager%study, c, 0, result, integrator, manager)
+      call run_case(manager%study, c, 0, result, integrator, template, manager)
       call record(manager, c, result)
     end do
     ! Nothing left to start: collect the last results and stop every worker.
@@ -370,6 +372,7 @@ contains
     integer, intent(in) :: rank
     type(case_result) :: result
     class(time_stepper), allocatable :: integrator
+    type(file_template), target :: template     !! the root attributes of the rank's case files
     type(MPI_Request) :: asked
     real(real64) :: message(message_length)
     character(len=status_length + kind_length) :: texts
@@ -384,7 +387,7 @@ contains
       call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
     end if
     do while (current(1) /= 0)
-      call run_case(study, current(1), rank, result, integrator)
+      call run_case(study, current(1), rank, result, integrator, template)
       call MPI_Wait(asked, MPI_STATUS_IGNORE)
       message(1:metric_count + 1) = [real(current(1), real64), result%metrics]
       texts = result%status//result%failure_kind
@@ -413,12 +416,15 @@ contains
   ! ------------------------------------------------------------------ one case, any rank
 
   ! One case with the rank's integrator, reused from case to case (run_simulation replaces it
-  ! when a case needs another kind). Its file names its study, case number, overrides and rank.
-  subroutine run_case(study, c, rank, result, integrator, observer)
+  ! when a case needs another kind), and the rank's template of its case files' root attributes
+  ! (the first case's; a case writes only those that differ). Its file names its study, case
+  ! number, overrides and rank.
+  subroutine run_case(study, c, rank, result, integrator, template, observer)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: c, rank
     type(case_result), intent(out) :: result
     class(time_stepper), allocatable, intent(inout), target :: integrator
+    type(file_template), intent(inout), target :: template
     class(run_observer), intent(inout), optional :: observer
     type(run_configuration) :: config
     type(run_summary) :: summary
@@ -442,7 +448,8 @@ contains
     ! gets the median of the time loops' durations, so timings on a shared machine do not zig-zag.
     do r = 1, study%repeats
       call run_simulation(config, summary, stat, message, observer, integrator, &
-                          keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false.)
+                          keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
+                          template=template)
       solve_seconds(r) = summary%solve_seconds
       if (stat /= 0 .or. summary%status /= 'complete') exit
     end do

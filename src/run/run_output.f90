@@ -6,7 +6,7 @@
 !> the per-point and per-step datasets.
 module run_output
   use, intrinsic :: iso_fortran_env, only: real64
-  use hdf5_files, only: check_run_file
+  use hdf5_files, only: check_run_file, file_template
   use hdf5_series, only: series_table
   use crash_safe_file, only: safe_file, file_in_use
   use model_interface, only: generic_model
@@ -67,8 +67,10 @@ contains
   !> Prepares the run file for `path` in memory with its attributes and the datasets' layout:
   !> the schema's, then one per step for each of the integrator's own diagnostics (attribute
   !> source = integrator). `petsc_options` are the options in force (the database's text).
-  !> Nothing is written to `path` yet. stat = -1 if HDF5 failed.
-  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, stat)
+  !> Nothing is written to `path` yet. With `template` (a study rank's, kept from case to case),
+  !> the root attributes start from those of the first file made with it, and only those that
+  !> differ are written (src/io/hdf5_files, file_template). stat = -1 if HDF5 failed.
+  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, stat, template)
     class(run_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(run_configuration), intent(in), target :: config
@@ -79,10 +81,11 @@ contains
     type(extra_attribute), intent(in) :: extras(:)
     character(len=*), intent(in) :: petsc_options
     integer, intent(out) :: stat
+    type(file_template), intent(inout), target, optional :: template
     type(output_dataset) :: spec
     integer :: k
 
-    call self%store%start(path, 2, stat)
+    call self%store%start(path, 2, stat, template)
     self%enabled = .true.
     self%every = config%output_every
     self%by_interval = config%output_interval > 0.0_real64

@@ -21,7 +21,7 @@ module simulation
                          failure_input, failure_io, failure_interrupted, failure_library
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, petsc_options_in_force
-  use hdf5_files, only: check_run_file
+  use hdf5_files, only: check_run_file, file_template
   use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
@@ -81,7 +81,8 @@ contains
   !> the next run; without, the run builds and frees its own. `progress` receives a line at most
   !> every 2 s; `extras` are root attributes added to the file. The finished file is synced to
   !> disk unless `durable` is .false. (an ensemble's case: its index is the record).
-  subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable)
+  subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, &
+                            template)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
@@ -92,6 +93,7 @@ contains
     logical, intent(in), optional :: keep_file
     type(extra_attribute), intent(in), optional :: extras(:)
     logical, intent(in), optional :: durable
+    type(file_template), intent(inout), target, optional :: template
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -182,7 +184,7 @@ contains
       if (present(extras)) added = extras
       if (present(durable)) output%store%durable = durable
       call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                         petsc_options_in_force(), io_stat)
+                         petsc_options_in_force(), io_stat, template)
       if (io_stat /= 0) then
         stat = 0
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')

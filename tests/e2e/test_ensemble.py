@@ -411,14 +411,17 @@ def test_a_logical_field_is_swept(tmp_path, eme_run_binary):
     study = write_study(tmp_path, f"""&study base = '{ROOT / "inputs" / "paper_fig4_eme_theta.nml"}',
   output_dir = '{output}' /
 &sweep field = 't_end', values = 0.6 /
-&sweep field = 'fix_temperature', texts = '.false.', '.true.' /
+&sweep field = 'fix_temperature', texts = '.true.', '.false.', '.true.' /
 """)
     result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 0, result.stderr
-    assert [s.decode() for s in read_index(output)["fix_temperature"]] == [".false.", ".true."]
-    runs = [read_run(output / f"case_0000{c}.h5") for c in (1, 2)]
-    assert [run["attrs"]["fix_temperature"] for run in runs] == [0, 1]
-    assert [run["attrs"]["unknowns"] for run in runs] == [15, 16]
+    assert [s.decode() for s in read_index(output)["fix_temperature"]] == [".true.", ".false.", ".true."]
+    runs = [read_run(output / f"case_0000{c}.h5") for c in (1, 2, 3)]
+    assert [run["attrs"]["fix_temperature"] for run in runs] == [1, 0, 1]
+    assert [run["attrs"]["unknowns"] for run in runs] == [16, 15, 16]
+    # On one rank each case's file starts from the first's root attributes (the rank's
+    # template): the constrained cases' constraint_meanings must not reach the unconstrained one.
+    assert ["constraint_meanings" in run["attrs"] for run in runs] == [True, False, True]
 
 
 @pytest.mark.parametrize("text,words", [
