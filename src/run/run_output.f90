@@ -214,18 +214,22 @@ contains
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
-    real(real64) :: row(12 + size(multipliers) + diagnostic_count(report))
-    integer :: filled
 
     if (.not. self%enabled) return
-    filled = 0
-    call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64), report%scheme_temperature, &
-                           real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
-                           report%residual_norm, real(report%converged_reason, real64), step_seconds, entropy_increment, &
-                           lyapunov_increment])
-    call put(row, filled, multipliers)
-    if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
-    call self%store%tables(step_rows)%accumulate(row)
+    block
+      real(real64) :: row(self%store%tables(step_rows)%row_width)    ! the schema's datasets, then the diagnostics
+      integer :: filled
+
+      filled = 0
+      call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64)])
+      call put(row, filled, report%scheme_temperature)
+      call put(row, filled, [real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
+                             report%residual_norm, real(report%converged_reason, real64), step_seconds, entropy_increment, &
+                             lyapunov_increment])
+      call put(row, filled, multipliers)
+      if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
+      call self%store%tables(step_rows)%accumulate(row(:filled))
+    end block
     self%last_step = n
     self%newton_pending = self%newton_pending + report%newton_iterations
   end subroutine record_step
@@ -240,14 +244,6 @@ contains
     row(filled + 1:filled + size(values)) = values
     filled = filled + size(values)
   end subroutine put
-
-  ! How many diagnostics the integrator reported for its step.
-  pure integer function diagnostic_count(report)
-    type(step_report), intent(in) :: report
-
-    diagnostic_count = 0
-    if (allocated(report%diagnostics)) diagnostic_count = size(report%diagnostics)
-  end function diagnostic_count
 
   ! Completes the pending point row and the step row of the steps since the last one.
   subroutine commit_rows(self)
