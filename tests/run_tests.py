@@ -24,13 +24,17 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 # The fast subset of make check: the paper scene's structure, bad input and the command line, the
-# file layout and provenance, adaptive steps, the structure figure's statements, the layers, and
-# the scripts on synthetic files. The slow ones (kills, signals, studies, convergence) are left to
-# make test.
+# file layout and provenance, adaptive steps, the step rows, a one-rank study, the structure
+# figure's statements, the layers, and the scripts on synthetic files. The slow ones (kills,
+# signals, studies, convergence) are left to make test.
 QUICK_TESTS = ["tests/e2e/test_paper_scene.py", "tests/e2e/test_bad_input.py", "tests/e2e/test_command_line.py",
                "tests/e2e/test_output_schema.py", "tests/e2e/test_structure_figure.py",
                "tests/architecture/test_layers.py", "tests/postprocess/test_trajectory.py",
-               "tests/e2e/test_adaptive.py::test_rejected_steps_are_never_written_and_the_run_lands_on_t_end"]
+               "tests/e2e/test_adaptive.py::test_rejected_steps_are_never_written_and_the_run_lands_on_t_end",
+               # the step rows: an integrator's diagnostics, rows that stand for several steps, a study
+               "tests/e2e/test_adaptive.py::test_gamma_outside_its_band_is_a_rejected_step",
+               "tests/e2e/test_provenance.py::test_every_n_steps",
+               "tests/e2e/test_ensemble.py::test_single_rank_without_mpirun"]
 TAP_LINE = re.compile(r"^\s*(not ok|ok)\b(?:\s+\d+)?\s*-?\s*(.*)$")
 
 
