@@ -2,7 +2,7 @@
 !> their solves. The arithmetic is LAPACK's unblocked dgetf2 and BLAS dtrsv, column by column in
 !> the same order, written out as loops the compiler inlines: at this size the reference BLAS
 !> calls (idamax, dswap, dscal, dger per column) cost several times the arithmetic
-!> (docs/performance.md, "The kernel at the floor"). The step solver's shell preconditioner keeps
+!> (docs/performance.md, "Issue 22's four ratios"). The step solver's shell preconditioner keeps
 !> the factors, and its chord predictor reuses them; tests/unit/test_dense_lu.pf checks them
 !> against LAPACK's dgesv.
 module dense_lu

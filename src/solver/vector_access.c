@@ -2,7 +2,7 @@
  * which maps it onto a Fortran array for the SNES callbacks. PETSc's Fortran accessors
  * (VecGetArrayF90, VecGetArrayReadF90 and their restores) build and free a Fortran array
  * descriptor on every call: on these 9-unknown systems that was about 4,800 instructions per
- * step, 7 % of the SNES step (docs/performance.md, "The kernel at the floor"). The vector comes
+ * step, 7 % of the SNES step (docs/performance.md, "Issue 22's four ratios"). The vector comes
  * from Fortran by reference, as PETSc's own Fortran interfaces pass it. */
 #include <petscvec.h>
 

@@ -1,6 +1,6 @@
 !> A PETSc vector's n entries as a Fortran array pointer, lent and given back through PETSc's C
 !> accessors (src/solver/vector_access.c) instead of its Fortran ones, which build an array
-!> descriptor per call (docs/performance.md, "The kernel at the floor"). The vector is passed as
+!> descriptor per call (docs/performance.md, "Issue 22's four ratios"). The vector is passed as
 !> PETSc's Fortran interfaces pass it; no PETSc module is needed here.
 module vector_arrays
   use, intrinsic :: iso_fortran_env, only: real64
