@@ -190,7 +190,7 @@ contains
     self%id = int(id, hid_t)
     self%fresh = .true.
     template%recording = .false.
-    template%touched = [(.false., id = 1, template%count)]
+    template%touched = spread(.false., 1, template%count)
     template%cursor = 0
     self%template => template
   end subroutine create_from_template
