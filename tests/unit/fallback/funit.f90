@@ -38,7 +38,7 @@ module funit
   end interface
 
   interface assertEqual
-    module procedure equal_integers, equal_reals, equal_real_arrays
+    module procedure equal_integers, equal_integer_arrays, equal_reals, equal_real_arrays, equal_real_matrices
   end interface assertEqual
 
   character(len=:), allocatable, save :: current_test
@@ -91,6 +91,29 @@ contains
     call fail(trim(detail)//'>', message, location)
   end subroutine equal_integers
 
+  !> expected(i) == found(i) for every i.
+  subroutine equal_integer_arrays(expected, found, message, location)
+    integer, intent(in) :: expected(:), found(:)
+    character(len=*), intent(in), optional :: message
+    type(SourceLocation), intent(in), optional :: location
+    character(len=160) :: detail
+    integer :: i
+
+    if (size(expected) /= size(found)) then
+      write (detail, '(a, i0, a, i0)') 'ArrayAssertEqual failure: expected size ', size(expected), ', actual size ', &
+        size(found)
+      call fail(trim(detail), message, location)
+      return
+    end if
+    do i = 1, size(expected)
+      if (expected(i) == found(i)) cycle
+      write (detail, '(a, i0, a, i0, a, i0, a)') 'ArrayAssertEqual failure: expected <', expected(i), '>, actual <', &
+        found(i), '> at index [', i, ']'
+      call fail(trim(detail), message, location)
+      return
+    end do
+  end subroutine equal_integer_arrays
+
   subroutine equal_reals(expected, found, tolerance, message, location)
     real(real64), intent(in) :: expected, found
     real(real64), intent(in), optional :: tolerance
@@ -128,6 +151,21 @@ contains
       return
     end do
   end subroutine equal_real_arrays
+
+  !> Matrices compared entry by entry, as pFUnit compares them (column-major index in the message).
+  subroutine equal_real_matrices(expected, found, tolerance, message, location)
+    real(real64), intent(in) :: expected(:, :), found(:, :)
+    real(real64), intent(in), optional :: tolerance
+    character(len=*), intent(in), optional :: message
+    type(SourceLocation), intent(in), optional :: location
+
+    if (any(shape(expected) /= shape(found))) then
+      call fail('ArrayAssertEqual failure: the shapes differ', message, location)
+      return
+    end if
+    call equal_real_arrays(reshape(expected, [size(expected)]), reshape(found, [size(found)]), tolerance, message, &
+                           location)
+  end subroutine equal_real_matrices
 
   ! Reports a failure of the running test, as pFUnit prints it.
   subroutine fail(detail, message, location)
