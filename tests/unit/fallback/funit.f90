@@ -91,27 +91,13 @@ contains
     call fail(trim(detail)//'>', message, location)
   end subroutine equal_integers
 
-  !> expected(i) == found(i) for every i.
+  !> expected(i) == found(i) for every i (compared as reals: exact for the integers of a test).
   subroutine equal_integer_arrays(expected, found, message, location)
     integer, intent(in) :: expected(:), found(:)
     character(len=*), intent(in), optional :: message
     type(SourceLocation), intent(in), optional :: location
-    character(len=160) :: detail
-    integer :: i
 
-    if (size(expected) /= size(found)) then
-      write (detail, '(a, i0, a, i0)') 'ArrayAssertEqual failure: expected size ', size(expected), ', actual size ', &
-        size(found)
-      call fail(trim(detail), message, location)
-      return
-    end if
-    do i = 1, size(expected)
-      if (expected(i) == found(i)) cycle
-      write (detail, '(a, i0, a, i0, a, i0, a)') 'ArrayAssertEqual failure: expected <', expected(i), '>, actual <', &
-        found(i), '> at index [', i, ']'
-      call fail(trim(detail), message, location)
-      return
-    end do
+    call equal_real_arrays(real(expected, real64), real(found, real64), message=message, location=location)
   end subroutine equal_integer_arrays
 
   subroutine equal_reals(expected, found, tolerance, message, location)
