@@ -309,7 +309,10 @@ def peak_memory_kib(tmp_path, name, t_end):
 
 
 def test_memory_does_not_grow_with_steps(tmp_path, eme_run_binary):
-    """Rows wait in a buffer of at most 4 MiB between writes: beyond it, memory stays flat."""
+    """Rows wait in a buffer of at most 4 MiB between writes: beyond it, memory stays flat. Five
+    times the steps may add at most one buffer (the writes are due by time as well as by size, so
+    how full the buffer is at the peak depends on the machine's load: measured growth 1.0 to 2.1
+    MiB); rows kept for the whole run would add 30 MB."""
     short = peak_memory_kib(tmp_path, "short", 300.0)    # 30000 steps: the buffer is full
     long = peak_memory_kib(tmp_path, "long", 1500.0)     # 150000 steps: 150000 rows x 31 values = 37 MB
-    assert long - short < 2048, f"peak RSS grew from {short} KiB to {long} KiB"
+    assert long - short < 4096, f"peak RSS grew from {short} KiB to {long} KiB"
