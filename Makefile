@@ -77,9 +77,6 @@ $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o 
 $(OBJ)/src/model/pendulum_model.o $(OBJ)/src/structure/invariant_function.o \
 $(OBJ)/src/solver/lapack_newton.o: FFLAGS += -Wno-unused-dummy-argument
 $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): FFLAGS += $(KERNEL_FLAGS)
-# The row tables copy a column of their buffer (up to 4 MiB) for each dataset they write: on the
-# heap, not the stack (-fstack-arrays put it there, and a larger buffer overflowed an 8 MiB stack).
-$(OBJ)/src/io/hdf5_series.o: FFLAGS += -fno-stack-arrays
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
