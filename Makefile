@@ -75,7 +75,7 @@ $(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/snes_shell.o $(filter $(OBJ)/s
 $(OBJ)/src/model/length_constraint.o \
 $(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
 $(OBJ)/src/model/pendulum_model.o $(OBJ)/src/structure/invariant_function.o \
-$(OBJ)/src/solver/lapack_newton.o: FFLAGS += -Wno-unused-dummy-argument
+$(OBJ)/src/solver/hand_newton.o: FFLAGS += -Wno-unused-dummy-argument
 $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): FFLAGS += $(KERNEL_FLAGS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 

@@ -6,7 +6,7 @@
 !> a run uses it (PETSc SNES on the fused kernel, the retry strategies), and on the floor, the same
 !> steps solved by a hand-written Newton loop on the same fused kernel (same predictor and chord
 !> refinement, same final chord step, same convergence test and root check, the same dense LU, no
-!> PETSc; src/solver/lapack_newton). Each repeat runs every case in turn, and each case alternates
+!> PETSc; src/solver/hand_newton). Each repeat runs every case in turn, and each case alternates
 !> SNES and floor, in one process, so that the machine's drifts spread over all cases and stay out
 !> of the ratio; reported are the medians of each and the median of the per-repeat ratios. The
 !> PETSc TS baselines are timed alone afterwards, for reference. SUNDIALS CVODE (cvode_bdf at the
@@ -24,7 +24,7 @@ program eme_bench
   use pendulum_scene, only: double_pendulum_scene
   use pendulum_step_kernel, only: pendulum_step, build_pendulum_step, condensed_offset
   use retry_strategies, only: root_search, find_root
-  use lapack_newton, only: newton_loop
+  use hand_newton, only: newton_loop
   use solver_options, only: step_solver_options, read_solver_options
   use integrator_settings, only: integrator_choice
   use integrator_registry, only: integrator_entry, find_integrator
@@ -288,7 +288,7 @@ contains
   end function snes_run
 
   ! The same steps on the floor: the stepper's search (src/integrator/discrete_gradient_stepper)
-  ! on the kernel with the LAPACK Newton loop as its root finder.
+  ! on the kernel with the hand-written Newton loop as its root finder.
   function floor_run(floor, kernel, x0, iterations) result(us)
     type(newton_loop), intent(inout) :: floor
     type(pendulum_step), intent(inout), target :: kernel

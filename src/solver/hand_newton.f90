@@ -3,7 +3,7 @@
 !> Jacobian and LU per iteration except the final chord step, the same convergence test -- for
 !> the benchmark's floor (drivers/eme_bench) and the tests that check that SNES adds nothing to
 !> the iteration.
-module lapack_newton
+module hand_newton
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: root_finder, final_chord_step, newton_converged
@@ -116,4 +116,4 @@ contains
     ierr = 0
   end subroutine use_fallback
 
-end module lapack_newton
+end module hand_newton
