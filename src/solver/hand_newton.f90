@@ -8,6 +8,7 @@ module hand_newton
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: root_finder, final_chord_step, newton_converged
   use dense_lu, only: lu_factors
+  use euclidean_norm, only: two_norm
   implicit none (type, external)
   private
   public :: newton_loop
@@ -63,9 +64,9 @@ contains
     update_norm = huge(1.0_real64)
     call problem%evaluate_residual(root, residual, stat)
     if (stat /= 0) return
-    residual_norm = norm2(residual)
+    residual_norm = two_norm(residual)
     call problem%rounding_scales(state_scale, residual_scale)
-    converged = newton_converged(0, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, state_scale, &
+    converged = newton_converged(0, residual_norm, update_norm, two_norm(root), self%tolerance, 0.0_real64, state_scale, &
                                  residual_scale)
     do while (.not. converged .and. iterations < self%max_iterations)
       iterations = iterations + 1
@@ -82,11 +83,11 @@ contains
       update = residual
       call self%lu%solve(update, info)
       root = root - update
-      update_norm = norm2(update)
+      update_norm = two_norm(update)
       call problem%evaluate_residual(root, residual, stat)
       if (stat /= 0) return
-      residual_norm = norm2(residual)
-      converged = newton_converged(iterations, residual_norm, update_norm, norm2(root), self%tolerance, 0.0_real64, &
+      residual_norm = two_norm(residual)
+      converged = newton_converged(iterations, residual_norm, update_norm, two_norm(root), self%tolerance, 0.0_real64, &
                                    state_scale, residual_scale)
     end do
     if (converged) reason = ''

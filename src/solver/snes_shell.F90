@@ -11,6 +11,7 @@ module snes_shell
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: final_chord_step, newton_converged
   use dense_lu, only: lu_factors
+  use euclidean_norm, only: two_norm
   use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   implicit none
@@ -105,7 +106,7 @@ contains
     PetscCall(borrow(f, n, f_values, ierr))
     call context%problem%evaluate_residual(x_values, f_values, stat)
     if (stat /= 0) f_values = huge(1.0_real64)
-    context%residual_norm = norm2(f_values)
+    context%residual_norm = two_norm(f_values)
     PetscCall(give_back(f, f_values, ierr))
     PetscCall(give_back_read(x, x_values, ierr))
     if (stat /= 0) then
@@ -244,12 +245,12 @@ contains
     PetscCall(borrow_read(y, n, y_values, ierr))
     PetscCall(borrow(x, n, x_values, ierr))
     trial = x_values - y_values
-    update_norm = norm2(y_values)
+    update_norm = two_norm(y_values)
     call context%problem%evaluate_residual(trial, residual, stat)
     if (stat == 0) then
       x_values = trial
-      x_norm = norm2(trial)
-      residual_norm = norm2(residual)
+      x_norm = two_norm(trial)
+      residual_norm = two_norm(residual)
     end if
     PetscCall(give_back(x, x_values, ierr))
     PetscCall(give_back_read(y, y_values, ierr))
