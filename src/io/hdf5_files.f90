@@ -30,10 +30,18 @@ module hdf5_files
   !> differ and removes those it does not set (`settle_template`), so it holds what the same
   !> calls would have written into an empty file; one HDF5 attribute costs 2 to 5 us, and a run
   !> file has about 150 on its root (docs/performance.md, Ensemble throughput).
+  !> The template keeps a second image of its first file, taken once the datasets were written
+  !> (before the attributes of the run's outcome), with the layout of those datasets (names,
+  !> shapes, attributes: hdf5_series' `layout`). While the files keep that layout, a file starts
+  !> from this image and writes only its datasets' values (`template_datasets`): creating the
+  !> datasets and their attributes was half of a case file's cost.
   type :: file_template
     logical :: ready = .false.           !! the image and its attributes are kept
     logical, private :: recording = .false.
     character(len=:), allocatable, private :: image
+    character(len=:), allocatable, private :: dataset_image   !! the first file with its datasets
+    character(len=:), allocatable, private :: layout          !! of the datasets in dataset_image
+    character(len=:), allocatable, private :: last_layout     !! of the latest file's datasets
     type(remembered_attribute), allocatable, private :: attributes(:)
     integer, private :: count = 0
     logical, allocatable, private :: touched(:)
@@ -47,10 +55,16 @@ module hdf5_files
     !> While the root attributes are written, the template they are recorded in or compared with
     !> (a pointer, so that the attribute writers keep intent(in)).
     type(file_template), pointer :: template => null()
+    !> The template the file was made from, until its datasets are written (template_datasets).
+    type(file_template), pointer, private :: origin => null()
+    logical, private :: first_of_template = .false.   !! the file whose images the template keeps
+    logical, private :: holds_datasets = .false.      !! made from the template's dataset_image
   contains
     procedure :: create_in_memory
     procedure :: create_from_template
     procedure :: settle_template
+    procedure :: template_datasets
+    procedure :: keep_template_datasets
     procedure :: store
     procedure :: open_existing
     procedure :: close => close_file
@@ -119,6 +133,11 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_open_image
+    function c_delete_root_links(file) result(status) bind(c, name='eme_h5_delete_root_links')
+      import :: c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      integer(c_int) :: status
+    end function c_delete_root_links
     function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: file
@@ -180,14 +199,26 @@ contains
       template%count = 0
       if (.not. allocated(template%attributes)) allocate (template%attributes(256))
       self%template => template
+      self%origin => template
+      self%first_of_template = .true.
       return
     end if
     call open_library(stat)
     if (stat /= 0) return
     memory_files = memory_files + 1
     write (label, '("eme_memory_file_", i0)') memory_files
-    stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
+    ! With its datasets while the latest file had the first's layout (a study's files mostly do).
+    self%holds_datasets = .false.
+    if (allocated(template%dataset_image) .and. allocated(template%last_layout)) &
+      self%holds_datasets = template%last_layout == template%layout
+    if (self%holds_datasets) then
+      stat = int(c_open_image(trim(label)//c_null_char, template%dataset_image, len(template%dataset_image, kind=c_long), id))
+    else
+      stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
+    end if
     self%id = int(id, hid_t)
+    self%origin => template
+    self%first_of_template = .false.
     self%fresh = .true.
     template%recording = .false.
     template%touched = spread(.false., 1, template%count)
@@ -224,6 +255,58 @@ contains
     end associate
     nullify (self%template)
   end subroutine settle_template
+
+  !> After settle_template, before the datasets are written, with their `layout` (hdf5_series;
+  !> '' for none to share): `held` if the file holds them already, from its template's image,
+  !> so that only their values are to be written. A file whose template datasets differ loses
+  !> them (they are created anew). Nothing held for a file without a template. stat = -1 on an
+  !> HDF5 failure.
+  subroutine template_datasets(self, layout, held, stat)
+    class(hdf5_file), intent(inout) :: self
+    character(len=*), intent(in) :: layout
+    logical, intent(out) :: held
+    integer, intent(out) :: stat
+
+    held = .false.
+    stat = 0
+    if (.not. associated(self%origin)) return
+    associate (template => self%origin)
+      if (self%first_of_template) then
+        template%layout = layout
+      else if (self%holds_datasets) then
+        held = len(layout) > 0 .and. layout == template%layout
+        if (.not. held) stat = int(c_delete_root_links(int(self%id, c_int64_t)))
+      end if
+      template%last_layout = layout
+    end associate
+  end subroutine template_datasets
+
+  !> Once the datasets are written (before the attributes that differ from file to file): the
+  !> first file of a template leaves its image there (template_datasets). stat = -1 on an HDF5
+  !> failure.
+  subroutine keep_template_datasets(self, stat)
+    class(hdf5_file), intent(inout) :: self
+    integer, intent(out) :: stat
+    integer(c_long) :: size
+
+    stat = 0
+    if (.not. associated(self%origin)) return
+    associate (template => self%origin)
+      if (self%first_of_template .and. template%ready .and. len(template%layout) > 0) then
+        size = c_image_size(int(self%id, c_int64_t))
+        if (size <= 0) then
+          stat = -1
+        else
+          if (allocated(template%dataset_image)) deallocate (template%dataset_image)
+          allocate (character(len=size) :: template%dataset_image)
+          stat = int(c_copy_image(int(self%id, c_int64_t), template%dataset_image, size))
+          if (stat /= 0) deallocate (template%dataset_image)
+        end if
+      end if
+    end associate
+    nullify (self%origin)
+    self%first_of_template = .false.
+  end subroutine keep_template_datasets
 
   !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
   !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).

@@ -63,6 +63,7 @@ module hdf5_series
     procedure :: commit
     procedure :: full
     procedure :: window_bytes
+    procedure :: layout
     procedure :: write => write_table
     procedure :: forget
   end type series_table
@@ -231,24 +232,90 @@ contains
     end do
   end function window_bytes
 
+  !> What the table's first write (`final` or not) would create in a file, as a text: every
+  !> dataset's name, shape, layout and attributes (the values aside). Two tables of the same
+  !> layout create the same datasets; '' if the datasets exist already or the write would not
+  !> fill them whole.
+  function layout(self, final) result(text)
+    class(series_table), intent(in) :: self
+    logical, intent(in) :: final
+    character(len=:), allocatable :: text
+    character(len=:), allocatable :: buffer
+    character(len=64) :: numbers
+    integer :: i, k, used
+
+    text = ''
+    if (self%created .or. self%first_row /= 0) return
+    allocate (character(len=4096) :: buffer)
+    used = 0
+    write (numbers, '(l1, 1x, l1, 3(1x, i0))') final, self%scale, self%compression, self%chunk_rows, self%buffered
+    call add(trim(numbers))
+    do i = 1, size(self%items)
+      associate (item => self%items(i))
+        write (numbers, '(i0, 1x, l1, 1x, l1)') item%width, item%vector, item%integer_valued
+        call add(item%name)
+        call add(trim(numbers))
+        call add(item%units)
+        call add(item%description)
+        call add(item%columns)
+        call add(item%rows)
+        call add(item%source)
+        call add(item%coordinates)
+        if (allocated(item%column_units)) then
+          do k = 1, size(item%column_units)
+            call add(trim(item%column_units(k)))
+          end do
+        end if
+        if (allocated(item%flag_values)) then
+          do k = 1, size(item%flag_values)
+            write (numbers, '(i0)') item%flag_values(k)
+            call add(trim(numbers))
+          end do
+          call add(item%flag_meanings)
+        end if
+      end associate
+    end do
+    text = buffer(1:used)
+
+  contains
+
+    ! Appends `piece` and a separator (NUL) to buffer(1:used), growing it as needed.
+    subroutine add(piece)
+      character(len=*), intent(in) :: piece
+      character(len=:), allocatable :: larger
+
+      if (used + len(piece) + 1 > len(buffer)) then
+        allocate (character(len=2*(used + len(piece) + 1)) :: larger)
+        larger(1:used) = buffer(1:used)
+        call move_alloc(larger, buffer)
+      end if
+      buffer(used + 1:used + len(piece)) = piece
+      buffer(used + len(piece) + 1:used + len(piece) + 1) = achar(0)
+      used = used + len(piece) + 1
+    end subroutine add
+  end function layout
+
   !> Writes the buffered rows to every dataset of the table in `file`, which holds first_row rows,
   !> and empties the buffer, unless `keep` (then `forget` drops the rows once no file needs them).
   !> The first write creates the datasets: contiguous of exactly the buffered rows if `final` (no
-  !> row will follow), chunked and extendible otherwise.
-  subroutine write_table(self, file, final, stat, keep)
+  !> row will follow), chunked and extendible otherwise; with `held`, the file holds them already,
+  !> as that write would create them (the table's `layout`), and only their values are written.
+  subroutine write_table(self, file, final, stat, keep, held)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
     logical, intent(in) :: final
     integer, intent(out) :: stat
-    logical, intent(in), optional :: keep
+    logical, intent(in), optional :: keep, held
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
     integer(hid_t) :: opened(size(self%items))   !! the new datasets, while their scales are attached
     integer :: i, rank, ignored, close_stat
-    logical :: attaching
+    logical :: attaching, exists
 
     stat = 0
-    attaching = .not. self%created .and. self%scale
+    exists = self%created
+    if (present(held)) exists = exists .or. held
+    attaching = .not. exists .and. self%scale
     opened = -1
     do i = 1, size(self%items)
       associate (item => self%items(i), first => self%items(i)%offset + 1, last => self%items(i)%offset + self%items(i)%width)
@@ -262,10 +329,10 @@ contains
           offset = [self%first_row, 0_hsize_t]
           count = [int(self%buffered, hsize_t), 0_hsize_t]
         end if
-        if (self%created) then
+        if (exists) then
           call h5dopen_f(file%id, item%name, dataset, stat)
           if (stat /= 0) return
-          call h5dset_extent_f(dataset, extent(1:rank), stat)
+          if (self%created) call h5dset_extent_f(dataset, extent(1:rank), stat)
         else
           call create_dataset(file, item, rank, extent, final, self%chunk_rows, self%compression, dataset, stat)
           if (stat /= 0) then

@@ -13,7 +13,7 @@
  * closes do not fail for want of space. Called from Fortran through bind(C)
  * (src/io/hdf5_files.f90). Functions return 0 on success, an errno value for an OS failure,
  * or -1 for an HDF5 failure. */
-#define _DEFAULT_SOURCE /* flock, usleep */
+#define _DEFAULT_SOURCE /* flock, usleep, strdup */
 #include <errno.h>
 #include <fcntl.h>
 #include <hdf5.h>
@@ -68,6 +68,40 @@ int eme_h5_open_image(const char *label, const void *image, long size, hid_t *fi
         *file = H5Fopen(label, H5F_ACC_RDWR, access);
     H5Pclose(access);
     return *file >= 0 ? 0 : -1;
+}
+
+/* Collects the names of the root group's links (H5Literate callback). */
+static herr_t collect_link(hid_t group, const char *name, const H5L_info_t *info, void *data)
+{
+    (void)group;
+    (void)info;
+    char ***names = data;
+    size_t count = 0;
+    while ((*names)[count] != NULL) ++count;
+    if (count % 32 == 31) {
+        char **larger = realloc(*names, (count + 33) * sizeof **names);
+        if (larger == NULL) return -1;
+        *names = larger;
+    }
+    (*names)[count] = strdup(name);
+    (*names)[count + 1] = NULL;
+    return (*names)[count] == NULL ? -1 : 0;
+}
+
+/* Removes every link of the root group of `file` (the datasets of a template's image that a
+ * file does not share: hdf5_files, template_datasets). */
+int eme_h5_delete_root_links(hid_t file)
+{
+    char **names = calloc(32, sizeof *names);
+    if (names == NULL) return -1;
+    hsize_t position = 0;
+    int status = H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, collect_link, &names) < 0 ? -1 : 0;
+    for (size_t i = 0; names[i] != NULL; ++i) {
+        if (status == 0 && H5Ldelete(file, names[i], H5P_DEFAULT) < 0) status = -1;
+        free(names[i]);
+    }
+    free(names);
+    return status;
 }
 
 int eme_rename_file(const char *from, const char *to, int sync);                 /* posix_files.c */

@@ -148,6 +148,48 @@ def test_case_file_equals_eme_run(small_study, tmp_path):
     assert_same_run(path, output / "case_00002.h5")
 
 
+def dataset_layout(path):
+    """Each dataset's shape, type, attributes (the scales' references aside) and dimension scales."""
+    with h5py.File(path, "r") as f:
+        return {name: (d.shape, d.dtype.str, {k: v for k, v in d.attrs.items() if k not in ("DIMENSION_LIST", "REFERENCE_LIST")},
+                       [[scale.name for scale in dim.values()] for dim in d.dims])
+                for name, d in f.items()}
+
+
+def assert_same_layout(single_path, case_path):
+    single, case = dataset_layout(single_path), dataset_layout(case_path)
+    assert single.keys() == case.keys()
+    for name, (shape, dtype, attrs, dims) in single.items():
+        assert (shape, dtype, dims) == case[name][:2] + case[name][3:], name
+        assert attrs.keys() == case[name][2].keys(), name
+        for key, value in attrs.items():
+            assert np.array_equal(value, case[name][2][key]), (name, key)
+
+
+def test_case_files_of_one_rank_with_a_changing_shape(tmp_path, eme_run_binary):
+    """On one rank, a case file starts from the first case's image with its datasets while the
+    cases keep its shape (src/io/hdf5_files, file_template): case 3 has more rows (its file
+    drops the first's datasets and makes its own), case 4 follows one of another shape, cases 2
+    and 5 reuse the datasets. Each must be the file eme_run writes for the case, datasets,
+    their attributes and dimension scales included."""
+    output = tmp_path / "out"
+    study = write_study(tmp_path, f"""&study base = '{BASE}', output_dir = '{output}' /
+&sweep field = 't_end', values = 0.6, 0.6, 0.9, 0.6, 0.6 /
+""")
+    result = ensemble(study, ranks=1)
+    assert result.returncode == 0, result.stderr
+    assert read_index(output)["steps_completed"].tolist() == [4, 4, 6, 4, 4]
+    references = {}
+    for t_end in (0.6, 0.9):
+        result, references[t_end] = run_eme(tmp_path, f"single_{t_end}", {
+            "integrator": {"scheme": "eme", "thermo_variable": "temperature", "dt": 0.15, "t_end": t_end,
+                           "discrete_gradient": "gonzalez", "newton_tol": 1e-8}})
+        assert result.returncode == 0, result.stderr
+    for c, t_end in enumerate((0.6, 0.6, 0.9, 0.6, 0.6), start=1):
+        assert_same_run(references[t_end], output / f"case_{c:05d}.h5")
+        assert_same_layout(references[t_end], output / f"case_{c:05d}.h5")
+
+
 def test_restart_reruns_only_what_is_not_complete(small_study):
     study, output = small_study
     assert ensemble(study).returncode == 0
