@@ -118,8 +118,8 @@ contains
     call system_clock(self%last_write)
     stat = 0
     if (self%whole) then
-      call self%file%settle_template(stat)        ! the root attributes are all set: no more template
-      ! A file made from a template may hold its datasets already: then only their values are written.
+      ! A file made from a template may take its datasets from there: then only their values are
+      ! given, before the file opens (settle_template, when the root attributes are all set).
       layout = ''
       do k = 1, size(self%tables)
         table_layout = self%tables(k)%layout(final)
@@ -129,10 +129,13 @@ contains
         end if
         layout = layout//achar(10)//table_layout
       end do
-      held = .false.
-      if (stat == 0) call self%file%template_datasets(layout, held, stat)
+      call self%file%template_datasets(layout, held)
       do k = 1, size(self%tables)
-        if (stat == 0) call self%tables(k)%write(self%file, final, stat, held=held)
+        if (stat == 0 .and. held) call self%tables(k)%write(self%file, final, stat, held=.true.)
+      end do
+      if (stat == 0) call self%file%settle_template(stat)
+      do k = 1, size(self%tables)
+        if (stat == 0 .and. .not. held) call self%tables(k)%write(self%file, final, stat)
       end do
       if (stat == 0) call self%file%keep_template_datasets(stat)
       return

@@ -299,7 +299,8 @@ contains
   !> and empties the buffer, unless `keep` (then `forget` drops the rows once no file needs them).
   !> The first write creates the datasets: contiguous of exactly the buffered rows if `final` (no
   !> row will follow), chunked and extendible otherwise; with `held`, the file holds them already,
-  !> as that write would create them (the table's `layout`), and only their values are written.
+  !> as that write would create them (the table's `layout`), and only their values are given to
+  !> it (hdf5_file's put_values, before the file is open).
   subroutine write_table(self, file, final, stat, keep, held)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
@@ -310,15 +311,20 @@ contains
     integer(hsize_t) :: extent(2), offset(2), count(2)
     integer(hid_t) :: opened(size(self%items))   !! the new datasets, while their scales are attached
     integer :: i, rank, ignored, close_stat
-    logical :: attaching, exists
+    logical :: attaching, filling
 
     stat = 0
-    exists = self%created
-    if (present(held)) exists = exists .or. held
-    attaching = .not. exists .and. self%scale
+    filling = .false.
+    if (present(held)) filling = held .and. .not. self%created
+    attaching = .not. (self%created .or. filling) .and. self%scale
     opened = -1
     do i = 1, size(self%items)
       associate (item => self%items(i), first => self%items(i)%offset + 1, last => self%items(i)%offset + self%items(i)%width)
+        if (filling) then
+          if (self%buffered > 0) call fill(item, self%buffer(first:last, 1:self%buffered))
+          if (stat /= 0) exit
+          cycle
+        end if
         rank = merge(2, 1, item%vector)
         if (item%vector) then
           extent = [int(item%width, hsize_t), self%first_row + self%buffered]
@@ -329,10 +335,10 @@ contains
           offset = [self%first_row, 0_hsize_t]
           count = [int(self%buffered, hsize_t), 0_hsize_t]
         end if
-        if (exists) then
+        if (self%created) then
           call h5dopen_f(file%id, item%name, dataset, stat)
           if (stat /= 0) return
-          if (self%created) call h5dset_extent_f(dataset, extent(1:rank), stat)
+          call h5dset_extent_f(dataset, extent(1:rank), stat)
         else
           call create_dataset(file, item, rank, extent, final, self%chunk_rows, self%compression, dataset, stat)
           if (stat /= 0) then
@@ -380,6 +386,23 @@ contains
       if (keep) return
     end if
     call self%forget(self%written)
+
+  contains
+
+    ! The values of `item` (its columns of the buffered rows) as the bytes of its stored type:
+    ! rows after rows, as HDF5 lays out a (rows, width) dataset.
+    subroutine fill(item, values)
+      type(series), intent(in) :: item
+      real(real64), intent(in) :: values(:, :)
+      character(len=merge(4, 8, item%integer_valued)*size(values)) :: bytes
+
+      if (item%integer_valued) then
+        bytes = transfer(nint(values), bytes)
+      else
+        bytes = transfer(values, bytes)
+      end if
+      call file%put_values(item%name, bytes, stat)
+    end subroutine fill
   end subroutine write_table
 
   !> Drops the buffered rows before row `rows` (from 0): every file holds them.

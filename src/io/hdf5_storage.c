@@ -13,9 +13,10 @@
  * closes do not fail for want of space. Called from Fortran through bind(C)
  * (src/io/hdf5_files.f90). Functions return 0 on success, an errno value for an OS failure,
  * or -1 for an HDF5 failure. */
-#define _DEFAULT_SOURCE /* flock, usleep, strdup */
+#define _DEFAULT_SOURCE /* flock, usleep */
 #include <errno.h>
 #include <fcntl.h>
+#include <stdint.h>
 #include <hdf5.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -70,38 +71,58 @@ int eme_h5_open_image(const char *label, const void *image, long size, hid_t *fi
     return *file >= 0 ? 0 : -1;
 }
 
-/* Collects the names of the root group's links (H5Literate callback). */
-static herr_t collect_link(hid_t group, const char *name, const H5L_info_t *info, void *data)
+/* What eme_h5_numeric_datasets gathers. */
+typedef struct {
+    char *names;
+    int capacity, used;
+    int64_t *offsets, *sizes;
+    int count, room, status;
+} numeric_list;
+
+/* For each dataset of the root group of native doubles or ints: its name and where its values
+ * lie in the file (H5Literate callback). */
+static herr_t list_numeric(hid_t group, const char *name, const H5L_info_t *info, void *data)
 {
-    (void)group;
     (void)info;
-    char ***names = data;
-    size_t count = 0;
-    while ((*names)[count] != NULL) ++count;
-    if (count % 32 == 31) {
-        char **larger = realloc(*names, (count + 33) * sizeof **names);
-        if (larger == NULL) return -1;
-        *names = larger;
+    numeric_list *list = data;
+    hid_t dataset = H5Dopen2(group, name, H5P_DEFAULT);
+    if (dataset < 0) return list->status = -1;
+    hid_t type = H5Dget_type(dataset);
+    int numeric = type >= 0 && (H5Tequal(type, H5T_NATIVE_DOUBLE) > 0 || H5Tequal(type, H5T_NATIVE_INT) > 0);
+    if (numeric) {
+        haddr_t offset = H5Dget_offset(dataset);
+        hsize_t size = H5Dget_storage_size(dataset);
+        size_t length = strlen(name);
+        if (size > 0 && offset == HADDR_UNDEF) list->status = 1;     /* chunked: not in one place */
+        else if (list->count == list->room || list->used + (int)length + 2 > list->capacity) list->status = -1;
+        else {
+            memcpy(list->names + list->used, name, length);
+            list->names[list->used + length] = '\n';
+            list->used += (int)length + 1;
+            list->offsets[list->count] = size > 0 ? (int64_t)offset : 0;
+            list->sizes[list->count] = (int64_t)size;
+            list->count++;
+        }
     }
-    (*names)[count] = strdup(name);
-    (*names)[count + 1] = NULL;
-    return (*names)[count] == NULL ? -1 : 0;
+    if (type >= 0) H5Tclose(type);
+    H5Dclose(dataset);
+    return list->status == 0 ? 0 : 1;
 }
 
-/* Removes every link of the root group of `file` (the datasets of a template's image that a
- * file does not share: hdf5_files, template_datasets). */
-int eme_h5_delete_root_links(hid_t file)
+/* The root group's datasets of native doubles or ints in `file`: their names, each ended by a
+ * newline, in `names` (NUL-terminated, `capacity` bytes), and the offset and size in bytes of
+ * each one's values in the file, in `offsets` and `sizes` (*count of them at most; on return,
+ * how many). Returns 0, 1 if one of them is not stored in one place (chunked), -1 on an HDF5
+ * error or too little room. */
+int eme_h5_numeric_datasets(hid_t file, char *names, int capacity, int64_t *offsets, int64_t *sizes, int *count)
 {
-    char **names = calloc(32, sizeof *names);
-    if (names == NULL) return -1;
+    numeric_list list = {names, capacity, 0, offsets, sizes, 0, *count, 0};
     hsize_t position = 0;
-    int status = H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, collect_link, &names) < 0 ? -1 : 0;
-    for (size_t i = 0; names[i] != NULL; ++i) {
-        if (status == 0 && H5Ldelete(file, names[i], H5P_DEFAULT) < 0) status = -1;
-        free(names[i]);
-    }
-    free(names);
-    return status;
+    if (capacity < 1) return -1;
+    if (H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, list_numeric, &list) < 0) list.status = -1;
+    names[list.used] = '\0';
+    *count = list.count;
+    return list.status;
 }
 
 int eme_rename_file(const char *from, const char *to, int sync);                 /* posix_files.c */
