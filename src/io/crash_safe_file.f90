@@ -109,7 +109,8 @@ contains
     logical, intent(in) :: final
     integer, intent(out) :: stat
     logical, intent(in), optional :: defer
-    logical :: waiting
+    character(len=:), allocatable :: layout, table_layout
+    logical :: waiting, held
     integer :: k
 
     self%final = final
@@ -117,10 +118,26 @@ contains
     call system_clock(self%last_write)
     stat = 0
     if (self%whole) then
-      call self%file%settle_template(stat)        ! the root attributes are all set: no more template
+      ! A file made from a template may take its datasets from there: then only their values are
+      ! given, before the file opens (settle_template, when the root attributes are all set).
+      layout = ''
       do k = 1, size(self%tables)
-        if (stat == 0) call self%tables(k)%write(self%file, final, stat)
+        table_layout = self%tables(k)%layout(final)
+        if (len(table_layout) == 0) then
+          layout = ''                             ! a table not to be written whole: nothing shared
+          exit
+        end if
+        layout = layout//achar(10)//table_layout
       end do
+      call self%file%template_datasets(layout, held)
+      do k = 1, size(self%tables)
+        if (stat == 0 .and. held) call self%tables(k)%write(self%file, final, stat, held=.true.)
+      end do
+      if (stat == 0) call self%file%settle_template(stat)
+      do k = 1, size(self%tables)
+        if (stat == 0 .and. .not. held) call self%tables(k)%write(self%file, final, stat)
+      end do
+      if (stat == 0) call self%file%keep_template_datasets(stat)
       return
     end if
     stat = self%failure

@@ -30,10 +30,25 @@ module hdf5_files
   !> differ and removes those it does not set (`settle_template`), so it holds what the same
   !> calls would have written into an empty file; one HDF5 attribute costs 2 to 5 us, and a run
   !> file has about 150 on its root (docs/performance.md, Ensemble throughput).
+  !> The template keeps a second image of its first file, taken once the datasets were written
+  !> (before the attributes of the run's outcome), with the layout of those datasets (names,
+  !> shapes, attributes: hdf5_series' `layout`) and where each dataset's values lie in it
+  !> (contiguous datasets of native numbers: H5Dget_offset). A file of that layout starts from a
+  !> copy of this image with its own values put in place (`template_datasets`, `put_values`):
+  !> creating the datasets and their attributes was half of a case file's cost, opening them to
+  !> write the values a fifth of what was left. Such a file opens only then: the root attributes
+  !> that differ wait in the template until `settle_template`.
   type :: file_template
     logical :: ready = .false.           !! the image and its attributes are kept
     logical, private :: recording = .false.
     character(len=:), allocatable, private :: image
+    character(len=:), allocatable, private :: dataset_image   !! the first file with its datasets
+    character(len=:), allocatable, private :: layout          !! of the datasets in dataset_image
+    character(len=:), allocatable, private :: names           !! its numeric datasets, each ended by a newline
+    integer(int64), allocatable, private :: offsets(:), sizes(:)   !! their values' place in it (bytes)
+    character(len=:), allocatable, private :: copy            !! dataset_image, with a file's values
+    type(remembered_attribute), allocatable, private :: waiting(:)   !! root attributes not yet written
+    integer, private :: waiting_count = 0
     type(remembered_attribute), allocatable, private :: attributes(:)
     integer, private :: count = 0
     logical, allocatable, private :: touched(:)
@@ -47,10 +62,18 @@ module hdf5_files
     !> While the root attributes are written, the template they are recorded in or compared with
     !> (a pointer, so that the attribute writers keep intent(in)).
     type(file_template), pointer :: template => null()
+    !> The template the file was made from, until its datasets are written (template_datasets).
+    type(file_template), pointer, private :: origin => null()
+    logical, private :: first_of_template = .false.   !! the file whose images the template keeps
+    logical, private :: deferred = .false.            !! not open yet: its root attributes wait
+    logical, private :: from_datasets = .false.       !! to open from the template's copy
   contains
     procedure :: create_in_memory
     procedure :: create_from_template
     procedure :: settle_template
+    procedure :: template_datasets
+    procedure :: put_values
+    procedure :: keep_template_datasets
     procedure :: store
     procedure :: open_existing
     procedure :: close => close_file
@@ -119,6 +142,16 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_open_image
+    function c_numeric_datasets(file, names, capacity, offsets, sizes, count) result(status) &
+        bind(c, name='eme_h5_numeric_datasets')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(out) :: names(*)
+      integer(c_int), value :: capacity
+      integer(c_int64_t), intent(out) :: offsets(*), sizes(*)
+      integer(c_int), intent(inout) :: count
+      integer(c_int) :: status
+    end function c_numeric_datasets
     function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: file
@@ -163,15 +196,16 @@ contains
   end subroutine create_in_memory
 
   !> Creates a file in memory from `template` (type file_template): as an empty file whose root
-  !> attributes are recorded in it if it holds none yet, else as a copy of the template's image,
-  !> whose root attributes are then rewritten only where they differ. Call settle_template once
-  !> the root attributes are set, before any dataset is written. stat = -1 on an HDF5 failure.
+  !> attributes are recorded in it if it holds none yet; else the file is opened only at
+  !> settle_template, as a copy of one of the template's images, and until then its root
+  !> attributes are compared with the template's and those that differ wait there. So between
+  !> this call and settle_template only the root attribute writers (set_text .. set_integers,
+  !> without `object`) may be used. Call template_datasets and settle_template once the root
+  !> attributes are set, before any dataset is written. stat = -1 on an HDF5 failure.
   subroutine create_from_template(self, template, stat)
     class(hdf5_file), intent(inout) :: self
     type(file_template), intent(inout), target :: template
     integer, intent(out) :: stat
-    character(len=32) :: label
-    integer(c_int64_t) :: id
 
     if (.not. template%ready) then
       call self%create_in_memory(stat)
@@ -180,28 +214,85 @@ contains
       template%count = 0
       if (.not. allocated(template%attributes)) allocate (template%attributes(256))
       self%template => template
+      self%origin => template
+      self%first_of_template = .true.
       return
     end if
     call open_library(stat)
     if (stat /= 0) return
-    memory_files = memory_files + 1
-    write (label, '("eme_memory_file_", i0)') memory_files
-    stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
-    self%id = int(id, hid_t)
+    self%id = -1
+    self%deferred = .true.
+    self%from_datasets = .false.
+    self%origin => template
+    self%first_of_template = .false.
     self%fresh = .true.
+    template%waiting_count = 0
+    if (.not. allocated(template%waiting)) allocate (template%waiting(64))
     template%recording = .false.
     template%touched = spread(.false., 1, template%count)
     template%cursor = 0
     self%template => template
   end subroutine create_from_template
 
+  !> Before the datasets are written, with their `layout` (hdf5_series; '' for none to share):
+  !> `held` if the file will hold them from its template's image (then `put_values` gives each
+  !> numeric dataset its values, and nothing else is written to them). The first file of a
+  !> template records the layout. Nothing held for a file without a template.
+  subroutine template_datasets(self, layout, held)
+    class(hdf5_file), intent(inout) :: self
+    character(len=*), intent(in) :: layout
+    logical, intent(out) :: held
+
+    held = .false.
+    if (.not. associated(self%origin)) return
+    associate (template => self%origin)
+      if (self%first_of_template) then
+        template%layout = layout
+      else if (self%deferred .and. allocated(template%dataset_image)) then
+        held = len(layout) > 0 .and. layout == template%layout
+        if (held) template%copy = template%dataset_image
+      end if
+    end associate
+    self%from_datasets = held
+  end subroutine template_datasets
+
+  !> The values of the numeric dataset `name` of a file that holds its template's datasets
+  !> (template_datasets), as the bytes of the stored type: `bytes` must fill the dataset.
+  !> stat = -1 if the template has no such dataset or not of that size.
+  subroutine put_values(self, name, bytes, stat)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: name, bytes
+    integer, intent(out) :: stat
+    integer :: k, first, last
+
+    stat = -1
+    if (.not. (associated(self%origin) .and. self%from_datasets)) return
+    associate (template => self%origin)
+      first = 1
+      do k = 1, size(template%offsets)
+        last = first + index(template%names(first:), new_line('a')) - 2
+        if (template%names(first:last) == name) then
+          if (template%sizes(k) /= len(bytes, int64)) return
+          template%copy(template%offsets(k) + 1:template%offsets(k) + template%sizes(k)) = bytes
+          stat = 0
+          return
+        end if
+        first = last + 2
+      end do
+    end associate
+  end subroutine put_values
+
   !> Ends the root attributes' writing from a template (create_from_template): a recorded file
-  !> leaves its image in the template, a file made from one loses the template's attributes it
-  !> did not set. Nothing to do for a file without a template. stat = -1 on an HDF5 failure.
+  !> leaves its image in the template; a file made from one is opened (from the image with its
+  !> datasets if template_datasets said so, else from the root attributes' image), given the
+  !> root attributes that differ and loses the template's attributes it did not set. Nothing to
+  !> do for a file without a template. stat = -1 on an HDF5 failure.
   subroutine settle_template(self, stat)
     class(hdf5_file), intent(inout) :: self
     integer, intent(out) :: stat
     integer(c_long) :: size
+    integer(c_int64_t) :: id
+    character(len=32) :: label
     integer :: k
 
     stat = 0
@@ -216,6 +307,22 @@ contains
           template%ready = c_copy_image(int(self%id, c_int64_t), template%image, size) == 0
         end if
       else
+        if (self%deferred) then
+          memory_files = memory_files + 1
+          write (label, '("eme_memory_file_", i0)') memory_files
+          if (self%from_datasets) then
+            stat = int(c_open_image(trim(label)//c_null_char, template%copy, len(template%copy, kind=c_long), id))
+          else
+            stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
+          end if
+          self%id = int(id, hid_t)
+          self%deferred = .false.
+          do k = 1, template%waiting_count
+            if (stat /= 0) exit
+            call write_remembered(self%id, template%waiting(k), stat)
+          end do
+          template%waiting_count = 0
+        end if
         do k = 1, template%count
           if (stat /= 0) exit
           if (.not. template%touched(k)) call h5adelete_f(self%id, template%attributes(k)%name, stat)
@@ -224,6 +331,42 @@ contains
     end associate
     nullify (self%template)
   end subroutine settle_template
+
+  !> Once the datasets are written (before the attributes that differ from file to file): the
+  !> first file of a template leaves there its image and where its numeric datasets' values lie
+  !> (template_datasets), if they are all contiguous. stat = -1 on an HDF5 failure.
+  subroutine keep_template_datasets(self, stat)
+    class(hdf5_file), intent(inout) :: self
+    integer, intent(out) :: stat
+    integer(c_long) :: image_size
+    integer(c_int) :: count
+    character(len=8192) :: names
+    integer(c_int64_t) :: offsets(256), sizes(256)
+
+    stat = 0
+    if (.not. associated(self%origin)) return
+    associate (template => self%origin)
+      if (self%first_of_template .and. template%ready .and. len(template%layout) > 0) then
+        count = int(size(offsets), c_int)
+        ! 1: a dataset whose values do not lie in one place (chunked, or of another type): none kept.
+        stat = int(c_numeric_datasets(int(self%id, c_int64_t), names, int(len(names), c_int), offsets, sizes, count))
+        image_size = c_image_size(int(self%id, c_int64_t))
+        if (stat == 0 .and. image_size > 0) then
+          template%names = names(1:index(names, c_null_char) - 1)
+          template%offsets = int(offsets(1:count), int64)
+          template%sizes = int(sizes(1:count), int64)
+          allocate (character(len=image_size) :: template%dataset_image)
+          stat = int(c_copy_image(int(self%id, c_int64_t), template%dataset_image, image_size))
+          if (stat /= 0) deallocate (template%dataset_image)
+        else if (stat == 1 .or. image_size <= 0) then
+          stat = merge(0, -1, image_size > 0)
+        end if
+      end if
+    end associate
+    nullify (self%origin)
+    self%first_of_template = .false.
+    self%from_datasets = .false.
+  end subroutine keep_template_datasets
 
   !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
   !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).
@@ -288,7 +431,7 @@ contains
     if (present(object)) then
       target_id = object
     else
-      call compare_with_template(self%template, name, 't'//value, write, fresh, self%fresh)
+      call compare_with_template(self%template, name, 't'//value, write, fresh, self%fresh, self%deferred)
       stat = 0
       if (.not. write) return
     end if
@@ -310,7 +453,7 @@ contains
     if (present(object)) then
       target_id = object
     else
-      call compare_with_template(self%template, name, 'a'//joined_lines(values), write, fresh, self%fresh)
+      call compare_with_template(self%template, name, 'a'//joined_lines(values), write, fresh, self%fresh, self%deferred)
       stat = 0
       if (.not. write) return
     end if
@@ -342,7 +485,7 @@ contains
     character(len=*), intent(in), optional :: units
     logical :: write, fresh
 
-    call compare_with_template(self%template, name, 'r'//bytes_of([value]), write, fresh, self%fresh)
+    call compare_with_template(self%template, name, 'r'//bytes_of([value]), write, fresh, self%fresh, self%deferred)
     stat = 0
     if (write) call write_numeric_attribute(self%id, name, [value], .true., fresh, stat)
     if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
@@ -357,7 +500,7 @@ contains
     character(len=*), intent(in), optional :: units
     logical :: write, fresh
 
-    call compare_with_template(self%template, name, 'v'//bytes_of(values), write, fresh, self%fresh)
+    call compare_with_template(self%template, name, 'v'//bytes_of(values), write, fresh, self%fresh, self%deferred)
     stat = 0
     if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, stat)
     if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
@@ -372,7 +515,7 @@ contains
     character(len=*), intent(in), optional :: units
     logical :: write, fresh
 
-    call compare_with_template(self%template, name, 'i'//bytes_of([real(value, real64)]), write, fresh, self%fresh)
+    call compare_with_template(self%template, name, 'i'//bytes_of([real(value, real64)]), write, fresh, self%fresh, self%deferred)
     stat = 0
     if (write) call write_numeric_attribute(self%id, name, [real(value, real64)], .true., fresh, stat, integer_valued=.true.)
     if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
@@ -394,7 +537,7 @@ contains
     if (present(object)) then
       target_id = object
     else
-      call compare_with_template(self%template, name, 'n'//bytes_of(real(values, real64)), write, fresh, self%fresh)
+      call compare_with_template(self%template, name, 'n'//bytes_of(real(values, real64)), write, fresh, self%fresh, self%deferred)
     end if
     stat = 0
     if (write) call write_numeric_attribute(target_id, name, real(values, real64), .false., fresh, stat, integer_valued=.true.)
@@ -457,31 +600,21 @@ contains
 
   ! A root attribute `name` about to be written with `value` (a kind letter and its bytes):
   ! recorded while a template records; against a template, `write` only if the template's value
-  ! differs, and `fresh` (no existence query) only if the template has no such attribute.
+  ! differs, and `fresh` (no existence query) only if the template has no such attribute; in a
+  ! `deferred` file (not open yet), what is to be written waits in the template instead.
   ! Without a template: written, fresh as the file is.
-  subroutine compare_with_template(template, name, value, write, fresh, file_fresh)
+  subroutine compare_with_template(template, name, value, write, fresh, file_fresh, deferred)
     type(file_template), pointer, intent(in) :: template
     character(len=*), intent(in) :: name, value
     logical, intent(out) :: write, fresh
-    logical, intent(in) :: file_fresh
-    type(remembered_attribute), allocatable :: larger(:)
+    logical, intent(in) :: file_fresh, deferred
     integer :: k, i
 
     write = .true.
     fresh = file_fresh
     if (.not. associated(template)) return
     if (template%recording) then
-      if (template%count == size(template%attributes)) then
-        allocate (larger(2*template%count))
-        do i = 1, template%count
-          call move_alloc(template%attributes(i)%name, larger(i)%name)
-          call move_alloc(template%attributes(i)%value, larger(i)%value)
-        end do
-        call move_alloc(larger, template%attributes)
-      end if
-      template%count = template%count + 1
-      template%attributes(template%count)%name = name
-      template%attributes(template%count)%value = value
+      call remember(template%attributes, template%count, name, value)
       return
     end if
     ! The attributes come in the template's order: look at the next one first.
@@ -497,12 +630,68 @@ contains
         end if
       end do
     end if
-    if (k == 0) return                  ! not in the template: created as in a new file
-    template%cursor = k
-    template%touched(k) = .true.
-    fresh = .false.
-    write = template%attributes(k)%value /= value .or. len(template%attributes(k)%value) /= len(value)
+    if (k /= 0) then                    ! else not in the template: created as in a new file
+      template%cursor = k
+      template%touched(k) = .true.
+      fresh = .false.
+      write = template%attributes(k)%value /= value .or. len(template%attributes(k)%value) /= len(value)
+    end if
+    if (write .and. deferred) then
+      call remember(template%waiting, template%waiting_count, name, merge('F', 'E', fresh)//value)
+      write = .false.
+    end if
   end subroutine compare_with_template
+
+  ! Appends (name, value) to list(1:count), growing the list as needed.
+  subroutine remember(list, count, name, value)
+    type(remembered_attribute), allocatable, intent(inout) :: list(:)
+    integer, intent(inout) :: count
+    character(len=*), intent(in) :: name, value
+    type(remembered_attribute), allocatable :: larger(:)
+    integer :: i
+
+    if (count == size(list)) then
+      allocate (larger(2*count))
+      do i = 1, count
+        call move_alloc(list(i)%name, larger(i)%name)
+        call move_alloc(list(i)%value, larger(i)%value)
+      end do
+      call move_alloc(larger, list)
+    end if
+    count = count + 1
+    list(count)%name = name
+    list(count)%value = value
+  end subroutine remember
+
+  ! Writes a root attribute that waited (compare_with_template) into the now open file `file`:
+  ! its value is 'F' (fresh) or 'E' (may exist), the kind letter and the value's bytes.
+  subroutine write_remembered(file, attribute, stat)
+    integer(hid_t), intent(in) :: file
+    type(remembered_attribute), intent(in) :: attribute
+    integer, intent(out) :: stat
+    logical :: fresh
+    integer :: count
+
+    fresh = attribute%value(1:1) == 'F'
+    count = (len(attribute%value) - 2)/8
+    associate (letter => attribute%value(2:2), bytes => attribute%value(3:))
+      select case (letter)
+      case ('t')
+        stat = int(c_write_text_attribute(int(file, c_int64_t), attribute%name//c_null_char, bytes//c_null_char, &
+                                          merge(1_c_int, 0_c_int, fresh)))
+      case ('a')
+        stat = int(c_write_text_array_attribute(int(file, c_int64_t), attribute%name//c_null_char, bytes//c_null_char))
+      case ('r', 'i')
+        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .true., fresh, stat, &
+                                     integer_valued=letter == 'i')
+      case ('v', 'n')
+        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .false., fresh, stat, &
+                                     integer_valued=letter == 'n')
+      case default
+        stat = -1
+      end select
+    end associate
+  end subroutine write_remembered
 
   ! The bytes of `values`, as a text to compare.
   pure function bytes_of(values) result(bytes)

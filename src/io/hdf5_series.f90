@@ -63,6 +63,7 @@ module hdf5_series
     procedure :: commit
     procedure :: full
     procedure :: window_bytes
+    procedure :: layout
     procedure :: write => write_table
     procedure :: forget
   end type series_table
@@ -231,27 +232,99 @@ contains
     end do
   end function window_bytes
 
+  !> What the table's first write (`final` or not) would create in a file, as a text: every
+  !> dataset's name, shape, layout and attributes (the values aside). Two tables of the same
+  !> layout create the same datasets; '' if the datasets exist already or the write would not
+  !> fill them whole.
+  function layout(self, final) result(text)
+    class(series_table), intent(in) :: self
+    logical, intent(in) :: final
+    character(len=:), allocatable :: text
+    character(len=:), allocatable :: buffer
+    character(len=64) :: numbers
+    integer :: i, k, used
+
+    text = ''
+    if (self%created .or. self%first_row /= 0) return
+    allocate (character(len=4096) :: buffer)
+    used = 0
+    write (numbers, '(l1, 1x, l1, 3(1x, i0))') final, self%scale, self%compression, self%chunk_rows, self%buffered
+    call add(trim(numbers))
+    do i = 1, size(self%items)
+      associate (item => self%items(i))
+        write (numbers, '(i0, 1x, l1, 1x, l1)') item%width, item%vector, item%integer_valued
+        call add(item%name)
+        call add(trim(numbers))
+        call add(item%units)
+        call add(item%description)
+        call add(item%columns)
+        call add(item%rows)
+        call add(item%source)
+        call add(item%coordinates)
+        if (allocated(item%column_units)) then
+          do k = 1, size(item%column_units)
+            call add(trim(item%column_units(k)))
+          end do
+        end if
+        if (allocated(item%flag_values)) then
+          do k = 1, size(item%flag_values)
+            write (numbers, '(i0)') item%flag_values(k)
+            call add(trim(numbers))
+          end do
+          call add(item%flag_meanings)
+        end if
+      end associate
+    end do
+    text = buffer(1:used)
+
+  contains
+
+    ! Appends `piece` and a separator (NUL) to buffer(1:used), growing it as needed.
+    subroutine add(piece)
+      character(len=*), intent(in) :: piece
+      character(len=:), allocatable :: larger
+
+      if (used + len(piece) + 1 > len(buffer)) then
+        allocate (character(len=2*(used + len(piece) + 1)) :: larger)
+        larger(1:used) = buffer(1:used)
+        call move_alloc(larger, buffer)
+      end if
+      buffer(used + 1:used + len(piece)) = piece
+      buffer(used + len(piece) + 1:used + len(piece) + 1) = achar(0)
+      used = used + len(piece) + 1
+    end subroutine add
+  end function layout
+
   !> Writes the buffered rows to every dataset of the table in `file`, which holds first_row rows,
   !> and empties the buffer, unless `keep` (then `forget` drops the rows once no file needs them).
   !> The first write creates the datasets: contiguous of exactly the buffered rows if `final` (no
-  !> row will follow), chunked and extendible otherwise.
-  subroutine write_table(self, file, final, stat, keep)
+  !> row will follow), chunked and extendible otherwise; with `held`, the file holds them already,
+  !> as that write would create them (the table's `layout`), and only their values are given to
+  !> it (hdf5_file's put_values, before the file is open).
+  subroutine write_table(self, file, final, stat, keep, held)
     class(series_table), intent(inout) :: self
     type(hdf5_file), intent(in) :: file
     logical, intent(in) :: final
     integer, intent(out) :: stat
-    logical, intent(in), optional :: keep
+    logical, intent(in), optional :: keep, held
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
     integer(hid_t) :: opened(size(self%items))   !! the new datasets, while their scales are attached
     integer :: i, rank, ignored, close_stat
-    logical :: attaching
+    logical :: attaching, filling
 
     stat = 0
-    attaching = .not. self%created .and. self%scale
+    filling = .false.
+    if (present(held)) filling = held .and. .not. self%created
+    attaching = .not. (self%created .or. filling) .and. self%scale
     opened = -1
     do i = 1, size(self%items)
       associate (item => self%items(i), first => self%items(i)%offset + 1, last => self%items(i)%offset + self%items(i)%width)
+        if (filling) then
+          if (self%buffered > 0) call fill(item, self%buffer(first:last, 1:self%buffered))
+          if (stat /= 0) exit
+          cycle
+        end if
         rank = merge(2, 1, item%vector)
         if (item%vector) then
           extent = [int(item%width, hsize_t), self%first_row + self%buffered]
@@ -313,6 +386,23 @@ contains
       if (keep) return
     end if
     call self%forget(self%written)
+
+  contains
+
+    ! The values of `item` (its columns of the buffered rows) as the bytes of its stored type:
+    ! rows after rows, as HDF5 lays out a (rows, width) dataset.
+    subroutine fill(item, values)
+      type(series), intent(in) :: item
+      real(real64), intent(in) :: values(:, :)
+      character(len=merge(4, 8, item%integer_valued)*size(values)) :: bytes
+
+      if (item%integer_valued) then
+        bytes = transfer(nint(values), bytes)
+      else
+        bytes = transfer(values, bytes)
+      end if
+      call file%put_values(item%name, bytes, stat)
+    end subroutine fill
   end subroutine write_table
 
   !> Drops the buffered rows before row `rows` (from 0): every file holds them.

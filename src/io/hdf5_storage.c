@@ -16,6 +16,7 @@
 #define _DEFAULT_SOURCE /* flock, usleep */
 #include <errno.h>
 #include <fcntl.h>
+#include <stdint.h>
 #include <hdf5.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,6 +69,60 @@ int eme_h5_open_image(const char *label, const void *image, long size, hid_t *fi
         *file = H5Fopen(label, H5F_ACC_RDWR, access);
     H5Pclose(access);
     return *file >= 0 ? 0 : -1;
+}
+
+/* What eme_h5_numeric_datasets gathers. */
+typedef struct {
+    char *names;
+    int capacity, used;
+    int64_t *offsets, *sizes;
+    int count, room, status;
+} numeric_list;
+
+/* For each dataset of the root group of native doubles or ints: its name and where its values
+ * lie in the file (H5Literate callback). */
+static herr_t list_numeric(hid_t group, const char *name, const H5L_info_t *info, void *data)
+{
+    (void)info;
+    numeric_list *list = data;
+    hid_t dataset = H5Dopen2(group, name, H5P_DEFAULT);
+    if (dataset < 0) return list->status = -1;
+    hid_t type = H5Dget_type(dataset);
+    int numeric = type >= 0 && (H5Tequal(type, H5T_NATIVE_DOUBLE) > 0 || H5Tequal(type, H5T_NATIVE_INT) > 0);
+    if (numeric) {
+        haddr_t offset = H5Dget_offset(dataset);
+        hsize_t size = H5Dget_storage_size(dataset);
+        size_t length = strlen(name);
+        if (size > 0 && offset == HADDR_UNDEF) list->status = 1;     /* chunked: not in one place */
+        else if (list->count == list->room || list->used + (int)length + 2 > list->capacity) list->status = -1;
+        else {
+            memcpy(list->names + list->used, name, length);
+            list->names[list->used + length] = '\n';
+            list->used += (int)length + 1;
+            list->offsets[list->count] = size > 0 ? (int64_t)offset : 0;
+            list->sizes[list->count] = (int64_t)size;
+            list->count++;
+        }
+    }
+    if (type >= 0) H5Tclose(type);
+    H5Dclose(dataset);
+    return list->status == 0 ? 0 : 1;
+}
+
+/* The root group's datasets of native doubles or ints in `file`: their names, each ended by a
+ * newline, in `names` (NUL-terminated, `capacity` bytes), and the offset and size in bytes of
+ * each one's values in the file, in `offsets` and `sizes` (*count of them at most; on return,
+ * how many). Returns 0, 1 if one of them is not stored in one place (chunked), -1 on an HDF5
+ * error or too little room. */
+int eme_h5_numeric_datasets(hid_t file, char *names, int capacity, int64_t *offsets, int64_t *sizes, int *count)
+{
+    numeric_list list = {names, capacity, 0, offsets, sizes, 0, *count, 0};
+    hsize_t position = 0;
+    if (capacity < 1) return -1;
+    if (H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, list_numeric, &list) < 0) list.status = -1;
+    names[list.used] = '\0';
+    *count = list.count;
+    return list.status;
 }
 
 int eme_rename_file(const char *from, const char *to, int sync);                 /* posix_files.c */

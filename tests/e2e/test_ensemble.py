@@ -148,6 +148,55 @@ def test_case_file_equals_eme_run(small_study, tmp_path):
     assert_same_run(path, output / "case_00002.h5")
 
 
+def dataset_layout(path):
+    """Each dataset's shape, type, storage, attributes (the scales' references aside) and
+    dimension scales."""
+    with h5py.File(path, "r") as f:
+        return {name: (d.shape, d.dtype.str, d.chunks, d.compression,
+                       [[scale.name for scale in dim.values()] for dim in d.dims],
+                       {k: v for k, v in d.attrs.items() if k not in ("DIMENSION_LIST", "REFERENCE_LIST")})
+                for name, d in f.items()}
+
+
+def assert_same_layout(single_path, case_path):
+    single, case = dataset_layout(single_path), dataset_layout(case_path)
+    assert single.keys() == case.keys()
+    for name, (*storage, attrs) in single.items():
+        assert storage == list(case[name][:-1]), name
+        assert attrs.keys() == case[name][-1].keys(), name
+        for key, value in attrs.items():
+            assert np.array_equal(value, case[name][-1][key]), (name, key)
+
+
+@pytest.mark.parametrize("compression", [0, 4])
+def test_case_files_of_one_rank_with_a_changing_shape(tmp_path, eme_run_binary, compression):
+    """On one rank, a case file of the first case's shape starts from that case's image with its
+    datasets, its own values put in place (src/io/hdf5_files, file_template): cases 2, 4 and 5
+    (the longest cases run first: case 1 is the rank's first); case 3 has fewer rows and makes
+    its datasets itself. Deflated datasets are chunked: no
+    values to put in place, every file makes its own. Each must be the file eme_run writes for
+    the case: the datasets' values, attributes, storage and dimension scales, and the root
+    attributes."""
+    output = tmp_path / "out"
+    study = write_study(tmp_path, f"""&study base = '{BASE}', output_dir = '{output}', combine = 'zip' /
+&sweep field = 't_end', values = 0.9, 0.9, 0.6, 0.9, 0.9 /
+&sweep field = 'compression', values = {", ".join([str(compression)] * 5)} /
+""")
+    result = ensemble(study, ranks=1)
+    assert result.returncode == 0, result.stderr
+    assert read_index(output)["steps_completed"].tolist() == [6, 6, 4, 6, 6]
+    references = {}
+    for t_end in (0.6, 0.9):
+        result, references[t_end] = run_eme(tmp_path, f"single_{t_end}", {
+            "integrator": {"scheme": "eme", "thermo_variable": "temperature", "dt": 0.15, "t_end": t_end,
+                           "discrete_gradient": "gonzalez", "newton_tol": 1e-8},
+            "output": {"compression": compression}})
+        assert result.returncode == 0, result.stderr
+    for c, t_end in enumerate((0.9, 0.9, 0.6, 0.9, 0.9), start=1):
+        assert_same_run(references[t_end], output / f"case_{c:05d}.h5")
+        assert_same_layout(references[t_end], output / f"case_{c:05d}.h5")
+
+
 def test_restart_reruns_only_what_is_not_complete(small_study):
     study, output = small_study
     assert ensemble(study).returncode == 0
