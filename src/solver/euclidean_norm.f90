@@ -1,8 +1,8 @@
 !> The 2-norm of the Newton loops' vectors (residuals, updates, iterates; 9 to 17 numbers, a dozen
 !> norms a step): the plain sum of squares wherever it neither overflows nor loses accuracy to
 !> underflow, else the sum of squares of x scaled by its largest entry. (gfortran's norm2 divides
-!> every entry by a running scale, which costs more, and it starts that scale at 1, so that a
-!> vector of entries below 1e-154 has norm 0.)
+!> every entry by a running scale, which costs more, and it starts that scale at 1, so that its
+!> norm of a vector of entries below 1e-154 loses digits, and below 1e-162 is 0.)
 module euclidean_norm
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
