@@ -137,7 +137,7 @@ contains
       do k = 1, size(self%tables)
         if (stat == 0 .and. .not. held) call self%tables(k)%write(self%file, final, stat)
       end do
-      if (stat == 0) call self%file%keep_template_datasets(stat)
+      if (stat == 0) call self%file%keep_template_datasets()
       return
     end if
     stat = self%failure

@@ -334,32 +334,31 @@ contains
 
   !> Once the datasets are written (before the attributes that differ from file to file): the
   !> first file of a template leaves there its image and where its numeric datasets' values lie
-  !> (template_datasets), if they are all contiguous. stat = -1 on an HDF5 failure.
-  subroutine keep_template_datasets(self, stat)
+  !> (template_datasets), if they are all contiguous. Keeping them only saves later files work:
+  !> if they cannot be kept, later files make their own datasets.
+  subroutine keep_template_datasets(self)
     class(hdf5_file), intent(inout) :: self
-    integer, intent(out) :: stat
     integer(c_long) :: image_size
     integer(c_int) :: count
     character(len=8192) :: names
     integer(c_int64_t) :: offsets(256), sizes(256)
 
-    stat = 0
     if (.not. associated(self%origin)) return
     associate (template => self%origin)
       if (self%first_of_template .and. template%ready .and. len(template%layout) > 0) then
         count = int(size(offsets), c_int)
-        ! 1: a dataset whose values do not lie in one place (chunked, or of another type): none kept.
-        stat = int(c_numeric_datasets(int(self%id, c_int64_t), names, int(len(names), c_int), offsets, sizes, count))
-        image_size = c_image_size(int(self%id, c_int64_t))
-        if (stat == 0 .and. image_size > 0) then
-          template%names = names(1:index(names, c_null_char) - 1)
-          template%offsets = int(offsets(1:count), int64)
-          template%sizes = int(sizes(1:count), int64)
-          allocate (character(len=image_size) :: template%dataset_image)
-          stat = int(c_copy_image(int(self%id, c_int64_t), template%dataset_image, image_size))
-          if (stat /= 0) deallocate (template%dataset_image)
-        else if (stat == 1 .or. image_size <= 0) then
-          stat = merge(0, -1, image_size > 0)
+        ! Nonzero: a dataset whose values do not lie in one place (chunked), more datasets or names
+        ! than the room here, or an HDF5 error; each only leaves later files to make their datasets.
+        if (c_numeric_datasets(int(self%id, c_int64_t), names, int(len(names), c_int), offsets, sizes, count) == 0) then
+          image_size = c_image_size(int(self%id, c_int64_t))
+          if (image_size > 0) then
+            template%names = names(1:index(names, c_null_char) - 1)
+            template%offsets = int(offsets(1:count), int64)
+            template%sizes = int(sizes(1:count), int64)
+            allocate (character(len=image_size) :: template%dataset_image)
+            if (c_copy_image(int(self%id, c_int64_t), template%dataset_image, image_size) /= 0) &
+              deallocate (template%dataset_image)
+          end if
         end if
       end if
     end associate
