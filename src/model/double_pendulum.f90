@@ -51,7 +51,8 @@ contains
     real(real64) :: t
     real(real64) :: p(3, 2)
 
-    p = reshape(z(p_index(1, 1):p_index(3, 2)), [3, 2])
+    p(:, 1) = z(p_index(1, 1):p_index(3, 1))     ! contiguous sections: no reshape call a step
+    p(:, 2) = z(p_index(1, 2):p_index(3, 2))
     t = 0.5_real64*sum(p*inverse_mass_times(params, p))
   end function kinetic_energy
 
@@ -60,8 +61,11 @@ contains
     type(pendulum_parameters), intent(in) :: params
     real(real64), intent(in) :: z(:)
     real(real64) :: vg
+    real(real64) :: q(3, 2)
 
-    vg = -sum(gravity_force(params)*reshape(z(q_index(1, 1):q_index(3, 2)), [3, 2]))
+    q(:, 1) = z(q_index(1, 1):q_index(3, 1))
+    q(:, 2) = z(q_index(1, 2):q_index(3, 2))
+    vg = -sum(gravity_force(params)*q)
   end function gravity_potential
 
   !> -grad_q V_g: the constant gravity forces on the coordinates q1 and q2, as columns.
@@ -78,7 +82,8 @@ contains
     real(real64), intent(in) :: z(:)
     real(real64) :: j(3)
 
-    j = cross(z(q_index(:, 1)), z(p_index(:, 1))) + cross(z(q_index(:, 2)), z(p_index(:, 2)))
+    j = cross(z(q_index(1, 1):q_index(3, 1)), z(p_index(1, 1):p_index(3, 1))) &
+        + cross(z(q_index(1, 2):q_index(3, 2)), z(p_index(1, 2):p_index(3, 2)))
   end function angular_momentum
 
   !> Spring a's invariants x = (C, tau) for a = 1 or (C, gamma, tau) for a = 2, C = q_a.q_a,
