@@ -15,6 +15,9 @@ module hdf5_files
   implicit none (type, external)
   private
   public :: hdf5_file, file_template, check_run_file, file_in_use
+  ! For the submodule hdf5_file_templates only: gfortran gives a module's private procedures
+  ! internal linkage, which a submodule, compiled apart, cannot reach.
+  public :: open_library, write_numeric_attribute
 
   integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
 
@@ -177,6 +180,38 @@ module hdf5_files
     end function c_check_run_file
   end interface
 
+
+  ! The template half (src/io/hdf5_file_templates): a rank's case files start from its first one.
+  interface
+    module subroutine create_from_template(self, template, stat)
+      class(hdf5_file), intent(inout) :: self
+      type(file_template), intent(inout), target :: template
+      integer, intent(out) :: stat
+    end subroutine create_from_template
+    module subroutine template_datasets(self, layout, held)
+      class(hdf5_file), intent(inout) :: self
+      character(len=*), intent(in) :: layout
+      logical, intent(out) :: held
+    end subroutine template_datasets
+    module subroutine put_values(self, name, bytes, stat)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name, bytes
+      integer, intent(out) :: stat
+    end subroutine put_values
+    module subroutine settle_template(self, stat)
+      class(hdf5_file), intent(inout) :: self
+      integer, intent(out) :: stat
+    end subroutine settle_template
+    module subroutine keep_template_datasets(self)
+      class(hdf5_file), intent(inout) :: self
+    end subroutine keep_template_datasets
+    module subroutine compare_with_template(template, name, value, write, fresh, file_fresh, deferred)
+      type(file_template), pointer, intent(in) :: template
+      character(len=*), intent(in) :: name, value
+      logical, intent(out) :: write, fresh
+      logical, intent(in) :: file_fresh, deferred
+    end subroutine compare_with_template
+  end interface
 contains
 
   !> Creates an empty file in memory; `store` writes it to disk. stat = -1 on an HDF5 failure.
@@ -194,178 +229,6 @@ contains
     self%id = int(id, hid_t)
     self%fresh = .true.
   end subroutine create_in_memory
-
-  !> Creates a file in memory from `template` (type file_template): as an empty file whose root
-  !> attributes are recorded in it if it holds none yet; else the file is opened only at
-  !> settle_template, as a copy of one of the template's images, and until then its root
-  !> attributes are compared with the template's and those that differ wait there. So between
-  !> this call and settle_template only the root attribute writers (set_text .. set_integers,
-  !> without `object`) may be used. Call template_datasets and settle_template once the root
-  !> attributes are set, before any dataset is written. stat = -1 on an HDF5 failure.
-  subroutine create_from_template(self, template, stat)
-    class(hdf5_file), intent(inout) :: self
-    type(file_template), intent(inout), target :: template
-    integer, intent(out) :: stat
-
-    if (.not. template%ready) then
-      call self%create_in_memory(stat)
-      if (stat /= 0) return
-      template%recording = .true.
-      template%count = 0
-      if (.not. allocated(template%attributes)) allocate (template%attributes(256))
-      self%template => template
-      self%origin => template
-      self%first_of_template = .true.
-      return
-    end if
-    call open_library(stat)
-    if (stat /= 0) return
-    self%id = -1
-    self%deferred = .true.
-    self%from_datasets = .false.
-    self%origin => template
-    self%first_of_template = .false.
-    self%fresh = .true.
-    template%waiting_count = 0
-    if (.not. allocated(template%waiting)) allocate (template%waiting(64))
-    template%recording = .false.
-    template%touched = spread(.false., 1, template%count)
-    template%cursor = 0
-    self%template => template
-  end subroutine create_from_template
-
-  !> Before the datasets are written, with their `layout` (hdf5_series; '' for none to share):
-  !> `held` if the file will hold them from its template's image (then `put_values` gives each
-  !> numeric dataset its values, and nothing else is written to them). The first file of a
-  !> template records the layout. Nothing held for a file without a template.
-  subroutine template_datasets(self, layout, held)
-    class(hdf5_file), intent(inout) :: self
-    character(len=*), intent(in) :: layout
-    logical, intent(out) :: held
-
-    held = .false.
-    if (.not. associated(self%origin)) return
-    associate (template => self%origin)
-      if (self%first_of_template) then
-        template%layout = layout
-      else if (self%deferred .and. allocated(template%dataset_image)) then
-        held = len(layout) > 0 .and. layout == template%layout
-        if (held) template%copy = template%dataset_image
-      end if
-    end associate
-    self%from_datasets = held
-  end subroutine template_datasets
-
-  !> The values of the numeric dataset `name` of a file that holds its template's datasets
-  !> (template_datasets), as the bytes of the stored type: `bytes` must fill the dataset.
-  !> stat = -1 if the template has no such dataset or not of that size.
-  subroutine put_values(self, name, bytes, stat)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name, bytes
-    integer, intent(out) :: stat
-    integer :: k, first, last
-
-    stat = -1
-    if (.not. (associated(self%origin) .and. self%from_datasets)) return
-    associate (template => self%origin)
-      first = 1
-      do k = 1, size(template%offsets)
-        last = first + index(template%names(first:), new_line('a')) - 2
-        if (template%names(first:last) == name) then
-          if (template%sizes(k) /= len(bytes, int64)) return
-          template%copy(template%offsets(k) + 1:template%offsets(k) + template%sizes(k)) = bytes
-          stat = 0
-          return
-        end if
-        first = last + 2
-      end do
-    end associate
-  end subroutine put_values
-
-  !> Ends the root attributes' writing from a template (create_from_template): a recorded file
-  !> leaves its image in the template; a file made from one is opened (from the image with its
-  !> datasets if template_datasets said so, else from the root attributes' image), given the
-  !> root attributes that differ and loses the template's attributes it did not set. Nothing to
-  !> do for a file without a template. stat = -1 on an HDF5 failure.
-  subroutine settle_template(self, stat)
-    class(hdf5_file), intent(inout) :: self
-    integer, intent(out) :: stat
-    integer(c_long) :: size
-    integer(c_int64_t) :: id
-    character(len=32) :: label
-    integer :: k
-
-    stat = 0
-    if (.not. associated(self%template)) return
-    associate (template => self%template)
-      if (template%recording) then
-        template%recording = .false.
-        size = c_image_size(int(self%id, c_int64_t))
-        if (size > 0) then
-          if (allocated(template%image)) deallocate (template%image)
-          allocate (character(len=size) :: template%image)
-          template%ready = c_copy_image(int(self%id, c_int64_t), template%image, size) == 0
-        end if
-      else
-        if (self%deferred) then
-          memory_files = memory_files + 1
-          write (label, '("eme_memory_file_", i0)') memory_files
-          if (self%from_datasets) then
-            stat = int(c_open_image(trim(label)//c_null_char, template%copy, len(template%copy, kind=c_long), id))
-          else
-            stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
-          end if
-          self%id = int(id, hid_t)
-          self%deferred = .false.
-          do k = 1, template%waiting_count
-            if (stat /= 0) exit
-            call write_remembered(self%id, template%waiting(k), stat)
-          end do
-          template%waiting_count = 0
-        end if
-        do k = 1, template%count
-          if (stat /= 0) exit
-          if (.not. template%touched(k)) call h5adelete_f(self%id, template%attributes(k)%name, stat)
-        end do
-      end if
-    end associate
-    nullify (self%template)
-  end subroutine settle_template
-
-  !> Once the datasets are written (before the attributes that differ from file to file): the
-  !> first file of a template leaves there its image and where its numeric datasets' values lie
-  !> (template_datasets), if they are all contiguous. Keeping them only saves later files work:
-  !> if they cannot be kept, later files make their own datasets.
-  subroutine keep_template_datasets(self)
-    class(hdf5_file), intent(inout) :: self
-    integer(c_long) :: image_size
-    integer(c_int) :: count
-    character(len=8192) :: names
-    integer(c_int64_t) :: offsets(256), sizes(256)
-
-    if (.not. associated(self%origin)) return
-    associate (template => self%origin)
-      if (self%first_of_template .and. template%ready .and. len(template%layout) > 0) then
-        count = int(size(offsets), c_int)
-        ! Nonzero: a dataset whose values do not lie in one place (chunked), more datasets or names
-        ! than the room here, or an HDF5 error; each only leaves later files to make their datasets.
-        if (c_numeric_datasets(int(self%id, c_int64_t), names, int(len(names), c_int), offsets, sizes, count) == 0) then
-          image_size = c_image_size(int(self%id, c_int64_t))
-          if (image_size > 0) then
-            template%names = names(1:index(names, c_null_char) - 1)
-            template%offsets = int(offsets(1:count), int64)
-            template%sizes = int(sizes(1:count), int64)
-            allocate (character(len=image_size) :: template%dataset_image)
-            if (c_copy_image(int(self%id, c_int64_t), template%dataset_image, image_size) /= 0) &
-              deallocate (template%dataset_image)
-          end if
-        end if
-      end if
-    end associate
-    nullify (self%origin)
-    self%first_of_template = .false.
-    self%from_datasets = .false.
-  end subroutine keep_template_datasets
 
   !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
   !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).
@@ -597,101 +460,6 @@ contains
     steps_completed = int(steps)
   end subroutine check_run_file
 
-  ! A root attribute `name` about to be written with `value` (a kind letter and its bytes):
-  ! recorded while a template records; against a template, `write` only if the template's value
-  ! differs, and `fresh` (no existence query) only if the template has no such attribute; in a
-  ! `deferred` file (not open yet), what is to be written waits in the template instead.
-  ! Without a template: written, fresh as the file is.
-  subroutine compare_with_template(template, name, value, write, fresh, file_fresh, deferred)
-    type(file_template), pointer, intent(in) :: template
-    character(len=*), intent(in) :: name, value
-    logical, intent(out) :: write, fresh
-    logical, intent(in) :: file_fresh, deferred
-    integer :: k, i
-
-    write = .true.
-    fresh = file_fresh
-    if (.not. associated(template)) return
-    if (template%recording) then
-      call remember(template%attributes, template%count, name, value)
-      return
-    end if
-    ! The attributes come in the template's order: look at the next one first.
-    k = 0
-    if (template%cursor < template%count) then
-      if (template%attributes(template%cursor + 1)%name == name) k = template%cursor + 1
-    end if
-    if (k == 0) then
-      do i = 1, template%count
-        if (template%attributes(i)%name == name) then
-          k = i
-          exit
-        end if
-      end do
-    end if
-    if (k /= 0) then                    ! else not in the template: created as in a new file
-      template%cursor = k
-      template%touched(k) = .true.
-      fresh = .false.
-      write = template%attributes(k)%value /= value .or. len(template%attributes(k)%value) /= len(value)
-    end if
-    if (write .and. deferred) then
-      call remember(template%waiting, template%waiting_count, name, merge('F', 'E', fresh)//value)
-      write = .false.
-    end if
-  end subroutine compare_with_template
-
-  ! Appends (name, value) to list(1:count), growing the list as needed.
-  subroutine remember(list, count, name, value)
-    type(remembered_attribute), allocatable, intent(inout) :: list(:)
-    integer, intent(inout) :: count
-    character(len=*), intent(in) :: name, value
-    type(remembered_attribute), allocatable :: larger(:)
-    integer :: i
-
-    if (count == size(list)) then
-      allocate (larger(2*count))
-      do i = 1, count
-        call move_alloc(list(i)%name, larger(i)%name)
-        call move_alloc(list(i)%value, larger(i)%value)
-      end do
-      call move_alloc(larger, list)
-    end if
-    count = count + 1
-    list(count)%name = name
-    list(count)%value = value
-  end subroutine remember
-
-  ! Writes a root attribute that waited (compare_with_template) into the now open file `file`:
-  ! its value is 'F' (fresh) or 'E' (may exist), the kind letter and the value's bytes.
-  subroutine write_remembered(file, attribute, stat)
-    integer(hid_t), intent(in) :: file
-    type(remembered_attribute), intent(in) :: attribute
-    integer, intent(out) :: stat
-    logical :: fresh
-    integer :: count
-
-    fresh = attribute%value(1:1) == 'F'
-    count = (len(attribute%value) - 2)/8
-    associate (letter => attribute%value(2:2), bytes => attribute%value(3:))
-      select case (letter)
-      case ('t')
-        stat = int(c_write_text_attribute(int(file, c_int64_t), attribute%name//c_null_char, bytes//c_null_char, &
-                                          merge(1_c_int, 0_c_int, fresh)))
-      case ('a')
-        stat = int(c_write_text_array_attribute(int(file, c_int64_t), attribute%name//c_null_char, bytes//c_null_char))
-      case ('r', 'i')
-        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .true., fresh, stat, &
-                                     integer_valued=letter == 'i')
-      case ('v', 'n')
-        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .false., fresh, stat, &
-                                     integer_valued=letter == 'n')
-      case default
-        stat = -1
-      end select
-    end associate
-  end subroutine write_remembered
-
   ! The bytes of `values`, as a text to compare.
   pure function bytes_of(values) result(bytes)
     real(real64), intent(in) :: values(:)
@@ -713,7 +481,7 @@ contains
   end function joined_lines
 
   ! Opens the HDF5 library once per process, with its own error printing off.
-  subroutine open_library(stat)
+  module subroutine open_library(stat)
     integer, intent(out) :: stat
 
     stat = 0
@@ -723,7 +491,7 @@ contains
     library_open = stat == 0
   end subroutine open_library
 
-  subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
+  module subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
     integer(hid_t), intent(in) :: object
     character(len=*), intent(in) :: name
     real(real64), intent(in) :: values(:)

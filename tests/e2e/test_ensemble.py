@@ -295,8 +295,10 @@ def test_a_study_from_elsewhere_is_refused(small_study, tmp_path):
 INDEX_ONLY_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
 &sweep field = 'theta(2)', values = {values} /
 """
-# 1200 paper-scene cases (a sweep takes at most 256 values, so two of 40 and 30): long enough, at
-# about 3 ms a case on 2 ranks, for a signal 0.3 s after the first case to find the study running.
+# 2400 paper-scene cases (a sweep takes at most 256 values, so two of 40 and 60): long enough, at
+# about 1.2 ms a case on 2 ranks (about 3 s), for a signal 0.3 s after the second case to find the
+# study running, even though the ranks stop about 0.7 s after mpirun gets SIGTERM (measured once here).
+# 1200 cases were no longer enough once a case file cost less than its case.
 LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .false. /
 &sweep field = 'theta(1)', values = {values1} /
 &sweep field = 'theta(2)', values = {values2} /
@@ -307,7 +309,7 @@ def large_study(tmp_path, output):
     return write_study(tmp_path, LARGE_STUDY.format(
         base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
         values1=", ".join(f"{270 + 0.5 * i:.1f}" for i in range(40)),
-        values2=", ".join(f"{340 + 0.5 * i:.1f}" for i in range(30))))
+        values2=", ".join(f"{340 + 0.5 * i:.1f}" for i in range(60))))
 
 
 def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
@@ -388,7 +390,7 @@ def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
     assert "SIGTERM received: no new cases" in out
     index = read_index(output)
     statuses = [s.decode() for s in index["status"]]
-    assert 2 <= statuses.count("complete") < 1200 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
+    assert 2 <= statuses.count("complete") < 2400 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
     assert set(statuses) <= {"complete", "pending", "incomplete: interrupted by SIGTERM"}
     assert not (output / "index.journal").exists() and not list(output.glob("*.part"))
     for row in index:
