@@ -54,6 +54,8 @@ CFLAGS := -O2 -g -Wall -Wextra -std=c11 $(ARCH_FLAGS)
 LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c))
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
+# Programs in C that need PETSc alone (drivers/snes_overhead.c: PETSc SNES timed by itself).
+C_DRIVERS := $(basename $(notdir $(wildcard drivers/*.c)))
 FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90)
 
 # obj: the objects of the modules it uses, and a submodule's of its parent (only modules of this
@@ -71,7 +73,8 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 -include $(BUILD)/fortran.deps
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o \
-$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o: CFLAGS += $(PETSC_FLAGS)
+$(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o \
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed.
 $(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/snes_shell.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
@@ -85,7 +88,7 @@ $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 # ---------------------------------------------------------------- rules
 .PHONY: all deps test check run constraints figures study bench clean python-lock version docs
 
-all: $(patsubst %,$(BIN)/%,$(DRIVERS))
+all: $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
 
 $(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
@@ -103,6 +106,10 @@ $(OBJ)/%.o: %.c | $(BUILD)/.native-deps
 $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) $(PROGRAM_LINK_FLAGS) -o $@ $^ $(LINK_LIBS)
+
+$(patsubst %,$(BIN)/%,$(C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -o $@ $< $(PETSC_LIBS)
 
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.

@@ -12,6 +12,14 @@ of the per-pair ratios, one per line with its target:
   eme_over_cvode               eme_bench EME_theta / CVODE-BDF per internal step     (target 1.5)
   eme_run_over_cvode           eme_run per step / CVODE-BDF per internal step        (target 1.8)
   eme_run_over_bench           eme_run per step / eme_bench EME_theta                (target 1.15)
+and then what the first three targets allow PETSc. With a floor F, a CVODE-BDF internal step C and
+P per step for the SNES machinery around the same kernel and Newton iterations,
+snes_over_floor = 1 + P/F <= 1.3 needs F >= P/0.3 and eme_over_cvode = (F + P)/C <= 1.5 needs
+F <= 1.5 C - P: both at once only if P <= 1.5 C 0.3/1.3 = 0.346 C. Printed are P as measured
+(EME_theta minus the floor, medians over the pairs) and PETSc's part of it by itself
+(snes_overhead, run once: SNES in the same configuration with callbacks that only copy a vector,
+its fixed cost plus its cost per iteration times EME_theta's Newton iterations per step), and what
+SNESSolve costs around a solver of our own (an SNESSHELL whose solve does nothing).
 """
 import argparse
 import re
@@ -47,18 +55,30 @@ TARGETS = {"snes_over_floor": 1.3, "eme_over_cvode": 1.5, "eme_run_over_cvode": 
 
 
 def bench_figures(binary, repeats):
-    """From one eme_bench: EME_temperature's SNES and floor us per step, CVODE-BDF's us per internal step."""
+    """From one eme_bench: EME_temperature's SNES and floor us per step, CVODE-BDF's us per internal step,
+    EME_temperature's Newton iterations per step."""
     result = subprocess.run([str(binary), str(repeats)], check=True, capture_output=True, text=True)
-    snes = floor = cvode = None
+    snes = floor = cvode = newton = None
     for line in result.stdout.splitlines():
         row = re.match(r"EME_temperature\s+([0-9.]+)\s+([0-9.]+)", line)
         if row:
             snes, floor = float(row.group(1)), float(row.group(2))
         elif line.startswith("cvode_bdf_temperature"):
             cvode = float(re.search(r"([0-9.]+) us each", line).group(1))
-    if None in (snes, floor, cvode):
-        raise RuntimeError("eme_bench printed no EME_temperature or cvode_bdf_temperature row:\n" + result.stdout)
-    return snes, floor, cvode
+        elif line.startswith("us_per_step="):
+            newton = float(re.search(r"newton_per_step=([0-9.]+)", line).group(1))
+    if None in (snes, floor, cvode, newton):
+        raise RuntimeError("eme_bench printed no EME_temperature, cvode_bdf_temperature or last row:\n" + result.stdout)
+    return snes, floor, cvode, newton
+
+
+def snes_by_itself(binary):
+    """snes_overhead's fixed cost of a solve, its cost per Newton iteration, and an SNESSHELL's solve, us."""
+    result = subprocess.run([str(binary)], check=True, capture_output=True, text=True)
+    found = re.search(r"snes_fixed_us=([0-9.]+) snes_per_iteration_us=([0-9.]+) snes_shell_us=([0-9.]+)", result.stdout)
+    if not found:
+        raise RuntimeError("snes_overhead printed no snes_fixed_us= line:\n" + result.stdout)
+    return tuple(float(value) for value in found.groups())
 
 
 def main():
@@ -67,13 +87,17 @@ def main():
     parser.add_argument("--repeats", type=int, default=7, help="alternating pairs (default 7)")
     args = parser.parse_args()
     bin_dir = Path(args.bin)
-    runs, benches, ratios = [], [], {name: [] for name in TARGETS}
+    runs, benches, shares, cvodes, floors = [], [], [], [], []
+    ratios = {name: [] for name in TARGETS}
     with tempfile.TemporaryDirectory() as scratch:
         for _ in range(args.repeats):
             run = eme_run_us_per_step(bin_dir / "eme_run", Path(scratch))
-            snes, floor, cvode = bench_figures(bin_dir / "eme_bench", 3)
+            snes, floor, cvode, newton = bench_figures(bin_dir / "eme_bench", 3)
             runs.append(run)
             benches.append(snes)
+            shares.append(snes - floor)
+            cvodes.append(cvode)
+            floors.append(floor)
             ratios["snes_over_floor"].append(snes / floor)
             ratios["eme_over_cvode"].append(snes / cvode)
             ratios["eme_run_over_cvode"].append(run / cvode)
@@ -85,6 +109,19 @@ def main():
         value = statistics.median(ratios[name])
         verdict = "met" if value <= target else f"missed by {100 * (value / target - 1):.0f} %"
         print(f"{name}={value:.3f}  (target {target}: {verdict})")
+        fixed, per_iteration, shell = snes_by_itself(bin_dir / "snes_overhead")
+    share, cvode, floor = (statistics.median(values) for values in (shares, cvodes, floors))
+    alone = fixed + per_iteration * newton
+    limit = 1.5 * 0.3 / 1.3 * cvode
+    print(f"petsc_share_us={share:.2f}  (EME_theta minus the floor: {share / cvode:.2f} x CVODE-BDF's internal step "
+          f"of {cvode:.2f} us; the floor {floor:.2f} us)")
+    print(f"petsc_alone_us={alone:.2f}  (snes_overhead: {fixed:.3f} + {per_iteration:.3f} us per iteration at "
+          f"{newton:.2f} iterations per step: {alone / cvode:.2f} x CVODE)")
+    print(f"  snes_over_floor <= 1.3 and eme_over_cvode <= 1.5 together allow at most {limit:.2f} us "
+          f"(0.346 x CVODE): PETSc by itself takes {alone / limit:.2f} times that. With PETSc's own share only, "
+          f"eme_over_cvode <= 1.5 would need a floor <= {1.5 * cvode - alone:.2f} us and snes_over_floor <= 1.3 "
+          f"a floor >= {alone / 0.3:.2f} us")
+    print(f"  SNESSolve of an SNESSHELL (a Newton loop of our own inside SNES, not PETSc's): {shell:.2f} us per solve")
     return 0
 
 

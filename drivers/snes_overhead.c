@@ -1,0 +1,212 @@
+/* snes_overhead [SOLVES]: what PETSc SNES costs by itself on a system of the step's size, with
+ * callbacks that do next to nothing (make bench; docs/performance.md, "Issue 22's four ratios").
+ *
+ * The SNES is configured as src/solver/snes_solver.F90 configures the step's solver on its lean
+ * way: NEWTONLS with the Jacobian never recomputed by SNES (lag -1), KSPPREONLY, a shell
+ * preconditioner, a shell line search that takes the full step and sets the norms, a convergence
+ * test of our own, and the option viewers switched off around SNESSolve. Here the residual is
+ * F(x) = x (a vector copy), the preconditioner a copy and the convergence test stops after exactly
+ * K iterations, so that all that is timed is PETSc's machinery around the callbacks: SNESSolve,
+ * SNESSolve_NEWTONLS, KSPSolve, PCApply, the line search's bookkeeping. For K = 1..6 the program
+ * times SOLVES solves (default 20000) per round, alternating the K's, over 7 rounds, and prints
+ * the median us per solve and the least-squares line a + b K through them. In the same rounds it
+ * times SNESSolve of an SNESSHELL whose solve does nothing: what SNESSolve costs around a Newton
+ * loop that is not PETSc's (docs/performance.md, "Issue 22's four ratios").
+ */
+#define _POSIX_C_SOURCE 199309L /* clock_gettime under -std=c11 */
+#include <petscsnes.h>
+#include <time.h>
+
+#define MAX_ITERATIONS 6
+#define ROUNDS 7
+#define UNKNOWNS 9
+
+static PetscInt iterations_wanted = 1;
+
+static PetscErrorCode copy_residual(SNES snes, Vec x, Vec f, void *context)
+{
+  (void)snes;
+  (void)context;
+  return VecCopy(x, f);
+}
+
+static PetscErrorCode keep_jacobian(SNES snes, Vec x, Mat jacobian, Mat preconditioner, void *context)
+{
+  (void)snes;
+  (void)x;
+  (void)jacobian;
+  (void)preconditioner;
+  (void)context;
+  return 0;
+}
+
+static PetscErrorCode copy_preconditioner(PC pc, Vec x, Vec y)
+{
+  (void)pc;
+  return VecCopy(x, y);
+}
+
+/* The full step x - y, the residual there and the three norms, as snes_shell's full_step. */
+static PetscErrorCode full_step(SNESLineSearch line_search, void *context)
+{
+  Vec x, f, y, w, g;
+  PetscReal x_norm, f_norm, y_norm;
+  SNES snes;
+
+  (void)context;
+  PetscFunctionBeginUser;
+  PetscCall(SNESLineSearchGetVecs(line_search, &x, &f, &y, &w, &g));
+  PetscCall(SNESLineSearchGetSNES(line_search, &snes));
+  PetscCall(VecAXPY(x, -1.0, y));
+  PetscCall(SNESComputeFunction(snes, x, f));
+  PetscCall(VecNorm(x, NORM_2, &x_norm));
+  PetscCall(VecNorm(f, NORM_2, &f_norm));
+  PetscCall(VecNorm(y, NORM_2, &y_norm));
+  PetscCall(SNESLineSearchSetNorms(line_search, x_norm, f_norm, y_norm));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode after_wanted_iterations(SNES snes, PetscInt iteration, PetscReal x_norm, PetscReal update_norm,
+                                              PetscReal residual_norm, SNESConvergedReason *reason, void *context)
+{
+  (void)snes;
+  (void)x_norm;
+  (void)update_norm;
+  (void)residual_norm;
+  (void)context;
+  *reason = iteration >= iterations_wanted ? SNES_CONVERGED_FNORM_ABS : SNES_CONVERGED_ITERATING;
+  return 0;
+}
+
+static double seconds(void)
+{
+  struct timespec now;
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return (double)now.tv_sec + 1e-9 * (double)now.tv_nsec;
+}
+
+static PetscErrorCode solve_nothing(SNES snes, Vec x)
+{
+  (void)x;
+  return SNESSetConvergedReason(snes, SNES_CONVERGED_FNORM_ABS);
+}
+
+/* us per solve of `solves` SNESSolves of `snes` from x = 1, option viewers off as in the step solver. */
+static PetscErrorCode time_solves(SNES snes, Vec x, long solves, double *us)
+{
+  double start = seconds();
+
+  PetscFunctionBeginUser;
+  for (long i = 0; i < solves; i++) {
+    PetscCall(VecSet(x, 1.0));
+    PetscCall(PetscOptionsPushGetViewerOff(PETSC_TRUE));
+    PetscCall(SNESSolve(snes, NULL, x));
+    PetscCall(PetscOptionsPopGetViewerOff());
+  }
+  *us = 1e6 * (seconds() - start) / (double)solves;
+  PetscFunctionReturn(0);
+}
+
+static int by_value(const void *a, const void *b)
+{
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+int main(int argc, char **argv)
+{
+  SNES snes, shell;
+  KSP ksp;
+  PC pc;
+  SNESLineSearch line_search;
+  Vec x, r;
+  Mat jacobian;
+  long solves = 20000;
+  double times[MAX_ITERATIONS][ROUNDS], median[MAX_ITERATIONS], shell_times[ROUNDS];
+
+  if (argc > 1 && argv[1][0] != '-') {
+    char *end;
+    solves = strtol(argv[1], &end, 10);
+    if (*end != '\0' || solves < 1) {
+      fprintf(stderr, "snes_overhead: SOLVES must be a whole number >= 1, not '%s'\n", argv[1]);
+      return 1;
+    }
+  }
+  PetscCall(PetscInitialize(&argc, &argv, NULL, NULL));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, UNKNOWNS, &x));
+  PetscCall(VecDuplicate(x, &r));
+  PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, UNKNOWNS, UNKNOWNS, NULL, &jacobian));
+  PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY));
+  PetscCall(SNESCreate(PETSC_COMM_SELF, &snes));
+  PetscCall(SNESSetType(snes, SNESNEWTONLS));
+  PetscCall(SNESSetFunction(snes, r, copy_residual, NULL));
+  PetscCall(SNESSetJacobian(snes, jacobian, jacobian, keep_jacobian, NULL));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPSetType(ksp, KSPPREONLY));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCSHELL));
+  PetscCall(PCShellSetApply(pc, copy_preconditioner));
+  PetscCall(SNESSetTolerances(snes, 1e-8, 0.0, 0.0, 50, 10000));
+  PetscCall(SNESSetConvergenceTest(snes, after_wanted_iterations, NULL, NULL));
+  PetscCall(SNESSetFromOptions(snes));
+  PetscCall(SNESSetLagJacobian(snes, -1));
+  PetscCall(SNESGetLineSearch(snes, &line_search));
+  PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHSHELL));
+  PetscCall(SNESLineSearchShellSetUserFunc(line_search, full_step, NULL));
+  PetscCall(SNESCreate(PETSC_COMM_SELF, &shell));
+  PetscCall(SNESSetType(shell, SNESSHELL));
+  PetscCall(SNESShellSetSolve(shell, solve_nothing));
+  PetscCall(SNESSetFunction(shell, r, copy_residual, NULL));
+  PetscCall(SNESSetFromOptions(shell));
+
+  for (int round = -1; round < ROUNDS; round++) { /* round -1: the warm-up */
+    double us;
+
+    for (int k = 1; k <= MAX_ITERATIONS; k++) {
+      PetscInt taken;
+
+      iterations_wanted = k;
+      PetscCall(time_solves(snes, x, solves, &us));
+      if (round >= 0) times[k - 1][round] = us;
+      PetscCall(SNESGetIterationNumber(snes, &taken));
+      PetscCheck(taken == k, PETSC_COMM_SELF, PETSC_ERR_PLIB, "SNES took %d iterations, not %d", (int)taken, k);
+    }
+    PetscCall(time_solves(shell, x, solves, &us));
+    if (round >= 0) shell_times[round] = us;
+  }
+
+  {
+    double sum_k = 0, sum_t = 0, sum_kk = 0, sum_kt = 0, slope, intercept;
+    const int n = MAX_ITERATIONS;
+
+    PetscCall(PetscPrintf(PETSC_COMM_SELF,
+                          "PETSc SNES by itself on %d unknowns, the step solver's lean configuration, callbacks that copy "
+                          "a vector; medians of %d rounds of %ld solves:\n",
+                          UNKNOWNS, ROUNDS, solves));
+    for (int k = 1; k <= n; k++) {
+      qsort(times[k - 1], ROUNDS, sizeof(double), by_value);
+      median[k - 1] = times[k - 1][ROUNDS / 2];
+      PetscCall(PetscPrintf(PETSC_COMM_SELF, "  %d Newton iteration%s per solve: %.3f us per solve\n", k,
+                            k == 1 ? "" : "s", median[k - 1]));
+      sum_k += k;
+      sum_t += median[k - 1];
+      sum_kk += (double)k * k;
+      sum_kt += k * median[k - 1];
+    }
+    slope = (n * sum_kt - sum_k * sum_t) / (n * sum_kk - sum_k * sum_k);
+    intercept = (sum_t - slope * sum_k) / n;
+    qsort(shell_times, ROUNDS, sizeof(double), by_value);
+    PetscCall(PetscPrintf(PETSC_COMM_SELF, "  SNESSHELL whose solve does nothing: %.3f us per solve\n",
+                          shell_times[ROUNDS / 2]));
+    PetscCall(PetscPrintf(PETSC_COMM_SELF, "snes_fixed_us=%.3f snes_per_iteration_us=%.3f snes_shell_us=%.3f\n",
+                          intercept, slope, shell_times[ROUNDS / 2]));
+  }
+  PetscCall(SNESDestroy(&shell));
+  PetscCall(SNESDestroy(&snes));
+  PetscCall(MatDestroy(&jacobian));
+  PetscCall(VecDestroy(&r));
+  PetscCall(VecDestroy(&x));
+  PetscCall(PetscFinalize());
+  return 0;
+}
