@@ -325,7 +325,8 @@ study: all $(VENV)/.python-deps
 # Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
 # 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a hand-written
 # Newton floor, then issue 22's four speed ratios, each on its own line with its target
-# (bench_eme_run.py: eme_run and eme_bench alternating). Each part ends with machine-readable lines.
+# (bench_eme_run.py: eme_run and eme_bench alternating), and PETSc SNES timed by itself
+# (snes_overhead) beside what the ratios leave it. Each part ends with machine-readable lines.
 bench: all $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
