@@ -2,22 +2,21 @@
 !> lies (src/io/hdf5_storage.c says how): a file is built in memory and written in one checked
 !> write (`create_in_memory`, `store`), or opened for appending after the disk space of what will
 !> be added was reserved, waiting for readers that hold it open (`open_existing`); the root's and
-!> the datasets' attributes (text attributes are UTF-8 variable-length strings, which h5py reads
-!> as str; numbers are rewritten in place when their size is unchanged); and the read-back check
-!> of a run file (`check_run_file`). The tables of rows that grow in such a file are hdf5_series'.
+!> the datasets' attributes (src/io/hdf5_file_attributes: text attributes are UTF-8
+!> variable-length strings, which h5py reads as str; numbers are rewritten in place when their
+!> size is unchanged); a series of similar files made from the first one's image
+!> (src/io/hdf5_file_templates); and the read-back check of a run file (`check_run_file`). The
+!> tables of rows that grow in such a file are hdf5_series'.
 module hdf5_files
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
-  use hdf5, only: hid_t, hsize_t, h5open_f, h5eset_auto_f, h5fclose_f, h5screate_simple_f, h5screate_f, &
-                  h5sclose_f, H5S_SCALAR_F, h5dopen_f, h5dclose_f, &
-                  H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, h5acreate_f, h5aclose_f, h5awrite_f, h5aexists_f, h5adelete_f, &
-                  h5aopen_f, h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
+  use hdf5, only: hid_t, h5open_f, h5eset_auto_f, h5fclose_f, h5adelete_f
   implicit none (type, external)
   private
   public :: hdf5_file, file_template, check_run_file, file_in_use
-  ! For the submodule hdf5_file_templates only: gfortran gives a module's private procedures
-  ! internal linkage, which a submodule, compiled apart, cannot reach.
-  public :: open_library, write_numeric_attribute
+  ! For the submodules only: gfortran gives a module's private procedures internal linkage,
+  ! which a submodule, compiled apart, cannot reach.
+  public :: open_library
 
   integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
 
@@ -180,7 +179,6 @@ module hdf5_files
     end function c_check_run_file
   end interface
 
-
   ! The template half (src/io/hdf5_file_templates): a rank's case files start from its first one.
   interface
     module subroutine create_from_template(self, template, stat)
@@ -212,6 +210,76 @@ module hdf5_files
       logical, intent(in) :: file_fresh, deferred
     end subroutine compare_with_template
   end interface
+
+  ! The attributes (src/io/hdf5_file_attributes): written, rewritten in place, read back.
+  interface
+    module subroutine set_text(self, name, value, stat, object)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name, value
+      integer, intent(out) :: stat
+      integer(hid_t), intent(in), optional :: object
+    end subroutine set_text
+    module subroutine set_texts(self, name, values, stat, object)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name, values(:)
+      integer, intent(out) :: stat
+      integer(hid_t), intent(in), optional :: object
+    end subroutine set_texts
+    module subroutine set_dataset_texts(self, dataset, name, values, stat)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: dataset, name, values(:)
+      integer, intent(out) :: stat
+    end subroutine set_dataset_texts
+    module subroutine set_real(self, name, value, stat, units)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name
+      real(real64), intent(in) :: value
+      integer, intent(out) :: stat
+      character(len=*), intent(in), optional :: units
+    end subroutine set_real
+    module subroutine set_reals(self, name, values, stat, units)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name
+      real(real64), intent(in) :: values(:)
+      integer, intent(out) :: stat
+      character(len=*), intent(in), optional :: units
+    end subroutine set_reals
+    module subroutine set_integer(self, name, value, stat, units)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name
+      integer, intent(in) :: value
+      integer, intent(out) :: stat
+      character(len=*), intent(in), optional :: units
+    end subroutine set_integer
+    module subroutine set_integers(self, name, values, stat, object)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name
+      integer, intent(in) :: values(:)
+      integer, intent(out) :: stat
+      integer(hid_t), intent(in), optional :: object
+    end subroutine set_integers
+    module subroutine get_text(self, name, value, stat)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name
+      character(len=:), allocatable, intent(out) :: value
+      integer, intent(out) :: stat
+    end subroutine get_text
+    module subroutine get_reals(self, name, values, stat)
+      class(hdf5_file), intent(in) :: self
+      character(len=*), intent(in) :: name
+      real(real64), allocatable, intent(out) :: values(:)
+      integer, intent(out) :: stat
+    end subroutine get_reals
+    module subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
+      integer(hid_t), intent(in) :: object
+      character(len=*), intent(in) :: name
+      real(real64), intent(in) :: values(:)
+      logical, intent(in) :: scalar, fresh
+      integer, intent(out) :: stat
+      logical, intent(in), optional :: integer_valued
+    end subroutine write_numeric_attribute
+  end interface
+
 contains
 
   !> Creates an empty file in memory; `store` writes it to disk. stat = -1 on an HDF5 failure.
@@ -279,170 +347,6 @@ contains
     self%id = -1
   end subroutine close_file
 
-  !> Text attribute on the file root, or on object `object` if given (replaces an old value).
-  subroutine set_text(self, name, value, stat, object)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name, value
-    integer, intent(out) :: stat
-    integer(hid_t), intent(in), optional :: object
-    integer(hid_t) :: target_id
-    logical :: write, fresh
-
-    target_id = self%id
-    fresh = self%fresh
-    if (present(object)) then
-      target_id = object
-    else
-      call compare_with_template(self%template, name, 't'//value, write, fresh, self%fresh, self%deferred)
-      stat = 0
-      if (.not. write) return
-    end if
-    stat = int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, value//c_null_char, &
-                                      merge(1_c_int, 0_c_int, fresh)))
-  end subroutine set_text
-
-  !> Array of texts as one attribute on the file root, or on object `object` if given (h5py: an
-  !> array of str).
-  subroutine set_texts(self, name, values, stat, object)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name, values(:)
-    integer, intent(out) :: stat
-    integer(hid_t), intent(in), optional :: object
-    integer(hid_t) :: target_id
-    logical :: write, fresh
-
-    target_id = self%id
-    if (present(object)) then
-      target_id = object
-    else
-      call compare_with_template(self%template, name, 'a'//joined_lines(values), write, fresh, self%fresh, self%deferred)
-      stat = 0
-      if (.not. write) return
-    end if
-    stat = int(c_write_text_array_attribute(int(target_id, c_int64_t), name//c_null_char, joined_lines(values)//c_null_char))
-  end subroutine set_texts
-
-  !> Array of texts as one attribute of the dataset `dataset` (h5py: an array of str).
-  subroutine set_dataset_texts(self, dataset, name, values, stat)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: dataset, name, values(:)
-    integer, intent(out) :: stat
-    integer(hid_t) :: dataset_id
-    integer :: close_stat
-
-    call h5dopen_f(self%id, dataset, dataset_id, stat)
-    if (stat /= 0) return
-    stat = int(c_write_text_array_attribute(int(dataset_id, c_int64_t), name//c_null_char, &
-                                            joined_lines(values)//c_null_char))
-    call h5dclose_f(dataset_id, close_stat)
-    if (stat == 0) stat = close_stat
-  end subroutine set_dataset_texts
-
-  !> Scalar real attribute on the file root; with `units`, a text attribute <name>_units too.
-  subroutine set_real(self, name, value, stat, units)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name
-    real(real64), intent(in) :: value
-    integer, intent(out) :: stat
-    character(len=*), intent(in), optional :: units
-    logical :: write, fresh
-
-    call compare_with_template(self%template, name, 'r'//bytes_of([value]), write, fresh, self%fresh, self%deferred)
-    stat = 0
-    if (write) call write_numeric_attribute(self%id, name, [value], .true., fresh, stat)
-    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
-  end subroutine set_real
-
-  !> Real-array attribute on the file root; with `units`, a text attribute <name>_units too.
-  subroutine set_reals(self, name, values, stat, units)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name
-    real(real64), intent(in) :: values(:)
-    integer, intent(out) :: stat
-    character(len=*), intent(in), optional :: units
-    logical :: write, fresh
-
-    call compare_with_template(self%template, name, 'v'//bytes_of(values), write, fresh, self%fresh, self%deferred)
-    stat = 0
-    if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, stat)
-    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
-  end subroutine set_reals
-
-  !> Scalar integer attribute on the file root; with `units`, a text attribute <name>_units too.
-  subroutine set_integer(self, name, value, stat, units)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name
-    integer, intent(in) :: value
-    integer, intent(out) :: stat
-    character(len=*), intent(in), optional :: units
-    logical :: write, fresh
-
-    call compare_with_template(self%template, name, 'i'//bytes_of([real(value, real64)]), write, fresh, self%fresh, self%deferred)
-    stat = 0
-    if (write) call write_numeric_attribute(self%id, name, [real(value, real64)], .true., fresh, stat, integer_valued=.true.)
-    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
-  end subroutine set_integer
-
-  !> Integer-array attribute on the file root, or on object `object` if given.
-  subroutine set_integers(self, name, values, stat, object)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name
-    integer, intent(in) :: values(:)
-    integer, intent(out) :: stat
-    integer(hid_t), intent(in), optional :: object
-    integer(hid_t) :: target_id
-    logical :: write, fresh
-
-    target_id = self%id
-    fresh = self%fresh
-    write = .true.
-    if (present(object)) then
-      target_id = object
-    else
-      call compare_with_template(self%template, name, 'n'//bytes_of(real(values, real64)), write, fresh, self%fresh, self%deferred)
-    end if
-    stat = 0
-    if (write) call write_numeric_attribute(target_id, name, real(values, real64), .false., fresh, stat, integer_valued=.true.)
-  end subroutine set_integers
-
-  !> The text attribute `name` of the file root; stat /= 0 if it is missing.
-  subroutine get_text(self, name, value, stat)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name
-    character(len=:), allocatable, intent(out) :: value
-    integer, intent(out) :: stat
-    character(len=4096) :: buffer
-
-    stat = int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, int(len(buffer), c_int)))
-    value = buffer(1:max(0, index(buffer, c_null_char) - 1))
-  end subroutine get_text
-
-  !> The numeric attribute `name` of the file root (a scalar or an array, as reals); stat /= 0 if
-  !> it is missing or not numeric.
-  subroutine get_reals(self, name, values, stat)
-    class(hdf5_file), intent(in) :: self
-    character(len=*), intent(in) :: name
-    real(real64), allocatable, intent(out) :: values(:)
-    integer, intent(out) :: stat
-    integer(hid_t) :: attribute, space
-    integer(hsize_t) :: points, dims(1)
-    integer :: ignored
-
-    allocate (values(0))
-    call h5aopen_f(self%id, name, attribute, stat)
-    if (stat /= 0) return
-    call h5aget_space_f(attribute, space, stat)
-    if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
-    if (stat == 0) then
-      deallocate (values)
-      allocate (values(points))
-      dims = [points]
-      call h5aread_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
-      call h5sclose_f(space, ignored)
-    end if
-    call h5aclose_f(attribute, ignored)
-  end subroutine get_reals
-
   !> Reads the run file at `path` back: its status and steps_completed, and whether every
   !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
   !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). stat: 0 all holds,
@@ -460,26 +364,6 @@ contains
     steps_completed = int(steps)
   end subroutine check_run_file
 
-  ! The bytes of `values`, as a text to compare.
-  pure function bytes_of(values) result(bytes)
-    real(real64), intent(in) :: values(:)
-    character(len=8*size(values)) :: bytes
-
-    bytes = transfer(values, bytes)
-  end function bytes_of
-
-  ! The texts, each trimmed and ended by a newline.
-  pure function joined_lines(texts) result(joined)
-    character(len=*), intent(in) :: texts(:)
-    character(len=:), allocatable :: joined
-    integer :: i
-
-    joined = ''
-    do i = 1, size(texts)
-      joined = joined//trim(texts(i))//new_line('a')
-    end do
-  end function joined_lines
-
   ! Opens the HDF5 library once per process, with its own error printing off.
   module subroutine open_library(stat)
     integer, intent(out) :: stat
@@ -490,69 +374,5 @@ contains
     if (stat == 0) call h5eset_auto_f(0, stat)
     library_open = stat == 0
   end subroutine open_library
-
-  module subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
-    integer(hid_t), intent(in) :: object
-    character(len=*), intent(in) :: name
-    real(real64), intent(in) :: values(:)
-    logical, intent(in) :: scalar, fresh
-    integer, intent(out) :: stat
-    logical, intent(in), optional :: integer_valued
-    integer(hid_t) :: space, attribute
-    integer(hsize_t) :: dims(1), points
-    logical :: exists, as_integer
-    integer :: ignored, close_stat
-
-    as_integer = .false.
-    if (present(integer_valued)) as_integer = integer_valued
-    dims = [int(size(values), hsize_t)]
-    stat = 0
-    if (.not. fresh) then
-      call h5aexists_f(object, name, exists, stat)
-      if (stat /= 0) return
-      if (exists) then
-        ! In place if the stored attribute has the same number of values (no change to the object
-        ! header's layout); otherwise it is replaced.
-        call h5aopen_f(object, name, attribute, stat)
-        if (stat /= 0) return
-        call h5aget_space_f(attribute, space, stat)
-        if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
-        if (stat == 0) call h5sclose_f(space, ignored)
-        if (stat == 0 .and. points == size(values, kind=hsize_t)) then
-          call write_values()
-          return
-        end if
-        call h5aclose_f(attribute, ignored)
-        call h5adelete_f(object, name, stat)
-        if (stat /= 0) return
-      end if
-    end if
-    if (scalar) then
-      call h5screate_f(H5S_SCALAR_F, space, stat)
-    else
-      call h5screate_simple_f(1, dims, space, stat)
-    end if
-    if (stat /= 0) return
-    if (as_integer) then
-      call h5acreate_f(object, name, H5T_NATIVE_INTEGER, space, attribute, stat)
-    else
-      call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
-    end if
-    if (stat == 0) call write_values()    ! created: write, then close whatever the write did
-    call h5sclose_f(space, ignored)
-
-  contains
-
-    ! Writes the values into the open attribute and closes it; stat keeps the first failure.
-    subroutine write_values()
-      if (as_integer) then
-        call h5awrite_f(attribute, H5T_NATIVE_INTEGER, nint(values), dims, stat)
-      else
-        call h5awrite_f(attribute, H5T_NATIVE_DOUBLE, values, dims, stat)
-      end if
-      call h5aclose_f(attribute, close_stat)
-      if (stat == 0) stat = close_stat
-    end subroutine write_values
-  end subroutine write_numeric_attribute
 
 end module hdf5_files
