@@ -12,7 +12,7 @@ of the per-pair ratios, one per line with its target:
   eme_over_cvode               eme_bench EME_theta / CVODE-BDF per internal step     (target 1.5)
   eme_run_over_cvode           eme_run per step / CVODE-BDF per internal step        (target 1.8)
   eme_run_over_bench           eme_run per step / eme_bench EME_theta                (target 1.15)
-and then what the first three targets allow PETSc. With a floor F, a CVODE-BDF internal step C and
+and then what the first two targets allow PETSc. With a floor F, a CVODE-BDF internal step C and
 P per step for the SNES machinery around the same kernel and Newton iterations,
 snes_over_floor = 1 + P/F <= 1.3 needs F >= P/0.3 and eme_over_cvode = (F + P)/C <= 1.5 needs
 F <= 1.5 C - P: both at once only if P <= 1.5 C 0.3/1.3 = 0.346 C. Printed are P as measured
@@ -109,7 +109,7 @@ def main():
         value = statistics.median(ratios[name])
         verdict = "met" if value <= target else f"missed by {100 * (value / target - 1):.0f} %"
         print(f"{name}={value:.3f}  (target {target}: {verdict})")
-        fixed, per_iteration, shell = snes_by_itself(bin_dir / "snes_overhead")
+    fixed, per_iteration, shell = snes_by_itself(bin_dir / "snes_overhead")
     share, cvode, floor = (statistics.median(values) for values in (shares, cvodes, floors))
     alone = fixed + per_iteration * newton
     limit = 1.5 * 0.3 / 1.3 * cvode
