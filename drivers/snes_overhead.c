@@ -46,19 +46,17 @@ static PetscErrorCode copy_preconditioner(PC pc, Vec x, Vec y)
   return VecCopy(x, y);
 }
 
-/* The full step x - y, the residual there and the three norms, as snes_shell's full_step. */
+/* The full step x - y, the residual there and the three norms, as snes_shell's full_step (which
+ * evaluates the residual itself, not through SNESComputeFunction). */
 static PetscErrorCode full_step(SNESLineSearch line_search, void *context)
 {
   Vec x, f, y, w, g;
   PetscReal x_norm, f_norm, y_norm;
-  SNES snes;
 
-  (void)context;
   PetscFunctionBeginUser;
   PetscCall(SNESLineSearchGetVecs(line_search, &x, &f, &y, &w, &g));
-  PetscCall(SNESLineSearchGetSNES(line_search, &snes));
   PetscCall(VecAXPY(x, -1.0, y));
-  PetscCall(SNESComputeFunction(snes, x, f));
+  PetscCall(copy_residual(NULL, x, f, context));
   PetscCall(VecNorm(x, NORM_2, &x_norm));
   PetscCall(VecNorm(f, NORM_2, &f_norm));
   PetscCall(VecNorm(y, NORM_2, &y_norm));
