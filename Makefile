@@ -109,7 +109,7 @@ $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)
 
 $(patsubst %,$(BIN)/%,$(C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -o $@ $< $(PETSC_LIBS)
+	$(CC) $(CFLAGS) -o $@ $< $(PETSC_LIBS) -lm
 
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.

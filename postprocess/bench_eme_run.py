@@ -4,10 +4,11 @@
 eme_run integrates the paper scene with EME_theta over 200 s (1334 steps of 0.15 s, the file
 written at the end); its cost per step is the file's solve_time_seconds (the time loop, with the
 per-step energy, entropy and rows) over its steps, the median of 3 runs. eme_bench (3 repeats
-per call) times the same scheme's stepping loop alone ("EME_temperature", through SNES), the hand-written Newton floor on
-the same kernel, and SUNDIALS CVODE-BDF's internal step on the same scene. The two programs
-alternate, REPEATS times, so that the shared machine's drifts reach both; printed are the medians
-of the per-pair ratios, one per line with its target:
+per call) times the same scheme's stepping loop alone ("EME_temperature", through SNES), the
+hand-written Newton floor on the same kernel, and SUNDIALS CVODE-BDF's internal step on the same
+scene. The programs (with snes_overhead, below) alternate, REPEATS times, so that the shared
+machine's drifts reach all of them; printed are the medians of the per-pair ratios, one per line
+with its target:
   snes_over_floor              eme_bench EME_theta / the floor                       (target 1.3)
   eme_over_cvode               eme_bench EME_theta / CVODE-BDF per internal step     (target 1.5)
   eme_run_over_cvode           eme_run per step / CVODE-BDF per internal step        (target 1.8)
@@ -16,10 +17,11 @@ and then what the first two targets allow PETSc. With a floor F, a CVODE-BDF int
 P per step for the SNES machinery around the same kernel and Newton iterations,
 snes_over_floor = 1 + P/F <= 1.3 needs F >= P/0.3 and eme_over_cvode = (F + P)/C <= 1.5 needs
 F <= 1.5 C - P: both at once only if P <= 1.5 C 0.3/1.3 = 0.346 C. Printed are P as measured
-(EME_theta minus the floor, medians over the pairs) and PETSc's part of it by itself
-(snes_overhead, run once: SNES in the same configuration with callbacks that only copy a vector,
-its fixed cost plus its cost per iteration times EME_theta's Newton iterations per step), and what
-SNESSolve costs around a solver of our own (an SNESSHELL whose solve does nothing).
+(EME_theta minus the floor) and PETSc's part of it by itself (snes_overhead, in every pair: SNES
+in the same configuration with callbacks that only copy 9 numbers, its fixed cost plus its cost
+per iteration times EME_theta's Newton iterations per step), each as a median over the pairs of
+its ratio to that pair's CVODE step, and what SNESSolve costs around a solver of our own (an
+SNESSHELL whose solve does nothing).
 """
 import argparse
 import re
@@ -66,16 +68,16 @@ def bench_figures(binary, repeats):
         elif line.startswith("cvode_bdf_temperature"):
             cvode = float(re.search(r"([0-9.]+) us each", line).group(1))
         elif line.startswith("us_per_step="):
-            newton = float(re.search(r"newton_per_step=([0-9.]+)", line).group(1))
+            newton = float(re.search(r"newton_per_step=(\S+)", line).group(1))
     if None in (snes, floor, cvode, newton):
         raise RuntimeError("eme_bench printed no EME_temperature, cvode_bdf_temperature or last row:\n" + result.stdout)
     return snes, floor, cvode, newton
 
 
-def snes_by_itself(binary):
+def snes_by_itself(binary, solves=5000):
     """snes_overhead's fixed cost of a solve, its cost per Newton iteration, and an SNESSHELL's solve, us."""
-    result = subprocess.run([str(binary)], check=True, capture_output=True, text=True)
-    found = re.search(r"snes_fixed_us=([0-9.]+) snes_per_iteration_us=([0-9.]+) snes_shell_us=([0-9.]+)", result.stdout)
+    result = subprocess.run([str(binary), str(solves)], check=True, capture_output=True, text=True)
+    found = re.search(r"snes_fixed_us=(\S+) snes_per_iteration_us=(\S+) snes_shell_us=(\S+)", result.stdout)
     if not found:
         raise RuntimeError("snes_overhead printed no snes_fixed_us= line:\n" + result.stdout)
     return tuple(float(value) for value in found.groups())
@@ -87,41 +89,48 @@ def main():
     parser.add_argument("--repeats", type=int, default=7, help="alternating pairs (default 7)")
     args = parser.parse_args()
     bin_dir = Path(args.bin)
-    runs, benches, shares, cvodes, floors = [], [], [], [], []
+    runs, benches, floors, cvodes, newtons, fixeds, slopes, shells = ([] for _ in range(8))
     ratios = {name: [] for name in TARGETS}
+    ratios.update(share=[], alone=[])
     with tempfile.TemporaryDirectory() as scratch:
         for _ in range(args.repeats):
             run = eme_run_us_per_step(bin_dir / "eme_run", Path(scratch))
             snes, floor, cvode, newton = bench_figures(bin_dir / "eme_bench", 3)
-            runs.append(run)
-            benches.append(snes)
-            shares.append(snes - floor)
-            cvodes.append(cvode)
-            floors.append(floor)
+            fixed, per_iteration, shell = snes_by_itself(bin_dir / "snes_overhead")
+            for values, value in zip((runs, benches, floors, cvodes, newtons, fixeds, slopes, shells),
+                                     (run, snes, floor, cvode, newton, fixed, per_iteration, shell)):
+                values.append(value)
             ratios["snes_over_floor"].append(snes / floor)
             ratios["eme_over_cvode"].append(snes / cvode)
             ratios["eme_run_over_cvode"].append(run / cvode)
             ratios["eme_run_over_bench"].append(run / snes)
-    print(f"eme_run on the paper scene (EME_theta, 1334 steps): {statistics.median(runs):.2f} us/step; "
-          f"eme_bench EME_temperature: {statistics.median(benches):.2f} us/step "
+            ratios["share"].append((snes - floor) / cvode)
+            ratios["alone"].append((fixed + per_iteration * newton) / cvode)
+    median = statistics.median
+    print(f"eme_run on the paper scene (EME_theta, 1334 steps): {median(runs):.2f} us/step; "
+          f"eme_bench EME_temperature: {median(benches):.2f} us/step "
           f"(medians of {args.repeats} alternating pairs)")
     for name, target in TARGETS.items():
-        value = statistics.median(ratios[name])
-        verdict = "met" if value <= target else f"missed by {100 * (value / target - 1):.0f} %"
+        value = median(ratios[name])
+        excess = 100 * (value / target - 1)
+        verdict = "met" if value <= target else f"missed by {excess:.{0 if excess >= 1 else 1}f} %"
         print(f"{name}={value:.3f}  (target {target}: {verdict})")
-    fixed, per_iteration, shell = snes_by_itself(bin_dir / "snes_overhead")
-    share, cvode, floor = (statistics.median(values) for values in (shares, cvodes, floors))
-    alone = fixed + per_iteration * newton
-    limit = 1.5 * 0.3 / 1.3 * cvode
-    print(f"petsc_share_us={share:.2f}  (EME_theta minus the floor: {share / cvode:.2f} x CVODE-BDF's internal step "
+    floor_target, cvode_target = TARGETS["snes_over_floor"], TARGETS["eme_over_cvode"]
+    # P/(floor_target - 1) <= F <= cvode_target C - P  <=>  P <= cvode_target (floor_target - 1)/floor_target C
+    limit = cvode_target * (floor_target - 1) / floor_target
+    cvode, floor, newton, share, alone = (median(values) for values in (cvodes, floors, newtons, ratios["share"],
+                                                                        ratios["alone"]))
+    print(f"petsc_share_us={share * cvode:.2f}  (EME_theta minus the floor: {share:.2f} x CVODE-BDF's internal step "
           f"of {cvode:.2f} us; the floor {floor:.2f} us)")
-    print(f"petsc_alone_us={alone:.2f}  (snes_overhead: {fixed:.3f} + {per_iteration:.3f} us per iteration at "
-          f"{newton:.2f} iterations per step: {alone / cvode:.2f} x CVODE)")
-    print(f"  snes_over_floor <= 1.3 and eme_over_cvode <= 1.5 together allow at most {limit:.2f} us "
-          f"(0.346 x CVODE): PETSc by itself takes {alone / limit:.2f} times that. With PETSc's own share only, "
-          f"eme_over_cvode <= 1.5 would need a floor <= {1.5 * cvode - alone:.2f} us and snes_over_floor <= 1.3 "
-          f"a floor >= {alone / 0.3:.2f} us")
-    print(f"  SNESSolve of an SNESSHELL (a Newton loop of our own inside SNES, not PETSc's): {shell:.2f} us per solve")
+    print(f"petsc_alone_us={alone * cvode:.2f}  (snes_overhead: {median(fixeds):.3f} + {median(slopes):.3f} us per "
+          f"iteration at {newton:.2f} iterations per step: {alone:.2f} x CVODE)")
+    print(f"  snes_over_floor <= {floor_target} and eme_over_cvode <= {cvode_target} together allow at most "
+          f"{limit:.3f} x CVODE = {limit * cvode:.2f} us: PETSc by itself takes {alone / limit:.2f} times that. "
+          f"With PETSc's own share only, eme_over_cvode <= {cvode_target} would need a floor <= "
+          f"{(cvode_target - alone) * cvode:.2f} us and snes_over_floor <= {floor_target} a floor >= "
+          f"{alone * cvode / (floor_target - 1):.2f} us")
+    print(f"  SNESSolve of an SNESSHELL (a Newton loop of our own inside SNES, not PETSc's): {median(shells):.2f} us "
+          f"per solve")
     return 0
 
 

@@ -8,6 +8,18 @@ submodule (hdf5_files) hdf5_file_attributes
                   h5aread_f, h5aget_space_f, h5sget_simple_extent_npoints_f
   implicit none (type, external)
 
+  interface
+    function c_read_text_attribute(object, name, text, capacity) result(status) &
+        bind(c, name='eme_h5_read_text_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object
+      character(kind=c_char), intent(in) :: name(*)
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: capacity
+      integer(c_int) :: status
+    end function c_read_text_attribute
+  end interface
+
 contains
 
   !> Text attribute on the file root, or on object `object` if given (replaces an old value).

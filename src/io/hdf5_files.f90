@@ -10,7 +10,7 @@
 module hdf5_files
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
-  use hdf5, only: hid_t, h5open_f, h5eset_auto_f, h5fclose_f, h5adelete_f
+  use hdf5, only: hid_t, h5open_f, h5eset_auto_f, h5fclose_f, h5adelete_f   ! h5adelete_f: for the submodules
   implicit none (type, external)
   private
   public :: hdf5_file, file_template, check_run_file, file_in_use
@@ -110,15 +110,6 @@ module hdf5_files
       character(kind=c_char), intent(in) :: name(*), joined(*)
       integer(c_int) :: status
     end function c_write_text_array_attribute
-    function c_read_text_attribute(object, name, text, capacity) result(status) &
-        bind(c, name='eme_h5_read_text_attribute')
-      import :: c_char, c_int, c_int64_t
-      integer(c_int64_t), value :: object
-      character(kind=c_char), intent(in) :: name(*)
-      character(kind=c_char), intent(out) :: text(*)
-      integer(c_int), value :: capacity
-      integer(c_int) :: status
-    end function c_read_text_attribute
     function c_create_in_memory(label, file) result(status) bind(c, name='eme_h5_create_in_memory')
       import :: c_char, c_int, c_int64_t
       character(kind=c_char), intent(in) :: label(*)
