@@ -6,7 +6,7 @@
 module hand_newton
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, final_chord_step, newton_converged
+  use retry_strategies, only: root_finder, final_chord_step, newton_converged, chord_refinement
   use dense_lu, only: lu_factors
   use euclidean_norm, only: two_norm
   implicit none (type, external)
@@ -98,14 +98,8 @@ contains
     class(newton_loop), intent(inout) :: self
     class(nonlinear_system), intent(in) :: problem
     real(real64), intent(inout) :: x(:)
-    real(real64) :: residual(size(x))
-    integer :: stat, info
 
-    if (.not. (self%lu%ready .and. self%chord_predictor)) return
-    call problem%evaluate(x, residual, stat=stat)
-    if (stat /= 0) return
-    call self%lu%solve(residual, info)
-    if (info == 0) x = x - residual
+    if (self%chord_predictor) call chord_refinement(self%lu, problem, x)
   end subroutine refine
 
   !> The loop has no other line search: the fallback round repeats the first.

@@ -11,13 +11,14 @@
 module retry_strategies
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
+  use dense_lu, only: lu_factors
   use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: root_finder, root_search, find_root
   public :: strategy_predictor, strategy_old_state, strategy_continuation, strategies_per_round
   public :: max_continuation_solves, first_continuation_fraction, smallest_continuation_increment
-  public :: chord_update_limit, newton_converged, rounding_factor, final_chord_step
+  public :: chord_update_limit, newton_converged, rounding_factor, final_chord_step, chord_refinement
 
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
@@ -125,6 +126,24 @@ contains
     final_chord_step = enabled .and. factors_ready .and. .not. chord_taken .and. residual_norm <= tolerance .and. &
                        update_norm <= chord_update_limit
   end function final_chord_step
+
+  !> The chord step x - J_old^-1 R(x) with the last Jacobian's LU factors (from the last solve):
+  !> a residual and a back-substitution instead of a Newton iteration, which saves about one
+  !> iteration per step (docs/performance.md). Both Newton loops (src/solver/snes_solver and
+  !> src/solver/hand_newton) refine their predictor with it; nothing happens without factors.
+  subroutine chord_refinement(lu, problem, x)
+    type(lu_factors), intent(in) :: lu
+    class(nonlinear_system), intent(in) :: problem
+    real(real64), intent(inout) :: x(:)
+    real(real64) :: residual(size(x))
+    integer :: stat, info
+
+    if (.not. lu%ready) return
+    call problem%evaluate(x, residual, stat=stat)
+    if (stat /= 0) return
+    call lu%solve(residual, info)
+    if (info == 0) x = x - residual
+  end subroutine chord_refinement
 
   !> Searches the root of `problem` (at s = 1) by the strategies above. `predictor` is the
   !> caller's guess; `start` is the old state (a root at s -> 0), both of the problem's size.

@@ -25,7 +25,7 @@ module snes_solver
   use petscsnes
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder
+  use retry_strategies, only: root_finder, chord_refinement
   use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use snes_shell, only: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, &
@@ -345,21 +345,14 @@ contains
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
   end subroutine tolerance_of
 
-  !> The chord step x - J_old^-1 R(x) with the last Jacobian's LU factors (from the last
-  !> solve): a residual and a back-substitution instead of a Newton iteration, which saves about
-  !> one iteration per step (docs/performance.md). Nothing happens without factors.
+  !> The predictor's chord refinement with the last solve's LU factors (retry_strategies'
+  !> chord_refinement), unless -eme_chord_predictor false.
   subroutine refine(self, problem, x)
     class(newton_solver), intent(inout) :: self
     class(nonlinear_system), intent(in) :: problem
     real(real64), intent(inout) :: x(:)
-    real(real64) :: residual(size(x))
-    integer :: stat, info
 
-    if (.not. (self%context%lu%ready .and. self%options%chord_predictor)) return
-    call problem%evaluate(x, residual, stat=stat)
-    if (stat /= 0) return
-    call self%context%lu%solve(residual, info)
-    if (info == 0) x = x - residual
+    if (self%options%chord_predictor) call chord_refinement(self%context%lu, problem, x)
   end subroutine refine
 
   !> Switches to the fallback line search, or back to the primary one.
