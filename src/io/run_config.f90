@@ -9,7 +9,7 @@ module run_config
   use, intrinsic :: iso_fortran_env, only: real64
   use thermo_variable, only: thermo_variable_names
   use discrete_gradient, only: discrete_gradient_names, metric_names
-  use integrator_settings, only: integrator_choice
+  use integrator_settings, only: integrator_choice, step_count, default_step_budget
   use integrator_registry, only: integrator_entry, find_integrator, integrator_names
   use model_scene, only: scene
   use model_interface, only: generic_model
@@ -113,15 +113,6 @@ contains
     if (stat /= 0) return
     call read_group(text, 'integrator', integrator_fields(config), path, stat, message, extra)
     if (stat /= 0) return
-    if (config%integrator%t_end/config%integrator%dt >= real(huge(1), real64)) then
-      ! The time loop counts steps in a default integer.
-      stat = 1
-      message = value_origin(text, 'integrator', 't_end', path, extra)//': &integrator: t_end = '// &
-                reals_text([config%integrator%t_end])//' with dt = '//reals_text([config%integrator%dt])//' needs '// &
-                reals_text([config%integrator%t_end/config%integrator%dt])//' steps, more than a run can count; '// &
-                'allowed: t_end/dt < '//integer_text(huge(1))
-      return
-    end if
     associate (choice => config%integrator)
       choice%thermo_variable = findloc(thermo_variable_names, config%thermo_variable, dim=1)
       choice%discrete_gradient = findloc(discrete_gradient_names, config%discrete_gradient, dim=1)
@@ -142,6 +133,8 @@ contains
       end if
       call note_unused_settings(text, path, extra, entry, config)
       config%chooses_times = entry%chooses_time .or. (entry%error_control .and. choice%tolerance_given)
+      call check_step_plan(text, path, extra, config, stat, message)
+      if (stat /= 0) return
       if (entry%continuous_constraints .and. config%scene%constraint_count() > 0) then
         call check_continuous_start(config, entry, stat, message)
       else if (entry%error_control .and. choice%tolerance_given .and. config%scene%constraint_count() > 0) then
@@ -178,6 +171,38 @@ contains
                 'choose the rows written; allowed: one of them'
     end if
   end subroutine read_run_config
+
+  ! One rule for dt and t_end: a fixed-step integrator takes ceiling(t_end/dt) steps of dt, so a dt
+  ! above t_end (a run that would step past its end) is refused, and so is a plan above the step
+  ! budget; for an integrator that chooses its steps dt is the first trial step (or the output
+  ! interval), capped at t_end.
+  subroutine check_step_plan(text, path, extra, config, stat, message)
+    character(len=*), intent(in) :: text, path
+    type(namelist_item), intent(in) :: extra(:)
+    type(run_configuration), intent(inout) :: config
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+
+    stat = 0
+    message = ''
+    associate (choice => config%integrator)
+      if (config%chooses_times) then
+        choice%dt = min(choice%dt, choice%t_end)
+      else if (choice%dt > choice%t_end) then
+        stat = 1
+        message = value_origin(text, 'integrator', 'dt', path, extra)//': &integrator: dt = '// &
+                  reals_text([choice%dt])//' is longer than t_end = '//reals_text([choice%t_end])//'; allowed: '// &
+                  'dt <= t_end (scheme = '''//trim(choice%scheme)//''' takes fixed steps of dt)'
+      else if (step_count(choice) > choice%max_steps) then
+        stat = 1
+        message = value_origin(text, 'integrator', 't_end', path, extra)//': &integrator: t_end = '// &
+                  reals_text([choice%t_end])//' with dt = '//reals_text([choice%dt])//' needs '// &
+                  reals_text([choice%t_end/choice%dt])//' steps, more than max_steps = '// &
+                  integer_text(choice%max_steps)//'; allowed: t_end/dt <= max_steps (raise max_steps, up to '// &
+                  integer_text(huge(1))//', or choose a longer dt)'
+      end if
+    end associate
+  end subroutine check_step_plan
 
   ! The &integrator fields the input set (file or overrides): `tolerance` switches step control on
   ! for the integrators with error control; each one the chosen integrator does not read is
@@ -303,7 +328,10 @@ contains
         real_field('ts_tolerance', c%tolerance, 'the same as tolerance (its old name)', '1', minimum=0.0_real64, &
                    exclusive=.true.), &
         integer_field('newton_max_iterations', c%newton_max_iterations, &
-                      'an integer >= 1 (Newton iterations per solve)', minimum=1)]
+                      'an integer >= 1 (Newton iterations per solve)', minimum=1), &
+        integer_field('max_steps', c%max_steps, 'an integer >= 1 (default '//integer_text(default_step_budget)// &
+                      '): the most accepted steps of the run; a fixed-step run that needs more is refused, one '// &
+                      'that chooses its steps stops there (exit status 3)', minimum=1)]
     end associate
   end function integrator_fields
 

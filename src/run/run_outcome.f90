@@ -2,13 +2,13 @@
 !> in a word (the failure kind: the run file's attribute and the study index's column
 !> `failure_kind`), and the figures it is judged by (docs/output.md, docs/studies.md).
 module run_outcome
-  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_fortran_env, only: real64, int64
   use filesystem, only: os_error_text
   implicit none (type, external)
   private
   public :: run_summary, io_reason, step_failure_kind
   public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
-            failure_library
+            failure_library, failure_step_budget
 
   !> Why a run did not complete, in a word (file attribute and study index column `failure_kind`).
   character(len=*), parameter :: failure_none = 'none'              !! complete (or not yet run)
@@ -18,22 +18,24 @@ module run_outcome
   character(len=*), parameter :: failure_io = 'io'                  !! the output could not be written
   character(len=*), parameter :: failure_interrupted = 'interrupted'  !! SIGTERM or SIGINT
   character(len=*), parameter :: failure_library = 'library'        !! PETSc or HDF5 failed
+  !> the run took &integrator max_steps accepted steps before t_end (integrators that choose their steps)
+  character(len=*), parameter :: failure_step_budget = 'step_budget'
 
   !> The figures a run is judged by, as the summary table prints them.
   type :: run_summary
     character(len=:), allocatable :: status       !! 'complete' or 'incomplete: <reason>'
     character(len=:), allocatable :: failure_kind !! one of the failure_* words above
-    integer :: steps_planned = 0
-    integer :: steps_completed = 0
-    integer :: newton_iterations = 0
+    integer(int64) :: steps_planned = 0
+    integer(int64) :: steps_completed = 0
+    integer(int64) :: newton_iterations = 0
     real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
     real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
     real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
     real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
     !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
     real(real64) :: min_temperature = huge(1.0_real64)
-    integer :: halved_steps = 0          !! failed attempts of the completed steps replaced by two halves
-    integer :: rejected_steps = 0        !! trial steps that step-size control rejected (adaptive runs)
+    integer(int64) :: halved_steps = 0     !! failed attempts of the completed steps replaced by two halves
+    integer(int64) :: rejected_steps = 0   !! trial steps that step-size control rejected (adaptive runs)
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
   end type run_summary

@@ -5,7 +5,7 @@
 !> and how it reaches the disk (below, run_file). `/time` and `/step` are the dimension scales of
 !> the per-point and per-step datasets.
 module run_output
-  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_fortran_env, only: real64, int64
   use hdf5_files, only: check_run_file, file_template
   use hdf5_series, only: series_table
   use crash_safe_file, only: safe_file, file_in_use
@@ -52,10 +52,10 @@ module run_output
     logical :: enabled = .false.        !! .false.: nothing is recorded (an index-only study)
     integer :: every = 1                !! steps per row (&output every)
     logical :: by_interval = .false.    !! rows at output times instead (&output interval)
-    integer :: last_step = 0            !! the last step recorded
-    integer :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
-    integer :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
-    integer :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
+    integer(int64) :: last_step = 0            !! the last step recorded
+    integer(int64) :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
+    integer(int64) :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
+    integer(int64) :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
   contains
     procedure :: create
     procedure :: record_solver
@@ -214,7 +214,7 @@ contains
   !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
   subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment)
     class(run_file), intent(inout) :: self
-    integer, intent(in) :: n
+    integer(int64), intent(in) :: n
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
@@ -339,7 +339,7 @@ contains
     type(run_summary), intent(in) :: summary
     logical, intent(in) :: final
     integer, intent(out) :: stat
-    integer :: steps_before, newton_before
+    integer(int64) :: steps_before, newton_before
     logical :: whole
 
     steps_before = self%disk_steps
@@ -405,7 +405,9 @@ contains
       logical, intent(in) :: integer_valued
 
       if (stat /= 0) return
-      if (integer_valued) then
+      ! A count beyond the default integer's range (Newton iterations of a billion steps) is
+      ! written as a double, which holds it exactly.
+      if (integer_valued .and. abs(value) < real(huge(1), real64)) then
         if (units) call self%store%file%set_integer(name, nint(value), stat, units=unit)
         if (.not. units) call self%store%file%set_integer(name, nint(value), stat)
       else

@@ -18,7 +18,7 @@ module simulation
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute
   use run_outcome, only: run_summary, io_reason, step_failure_kind, failure_none, failure_solver, failure_domain, &
-                         failure_input, failure_io, failure_interrupted, failure_library
+                         failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, petsc_options_in_force
   use hdf5_files, only: check_run_file, file_template
@@ -60,7 +60,7 @@ contains
     select case (summary%failure_kind)
     case (failure_none)
       exit_status = 0
-    case (failure_solver, failure_domain)
+    case (failure_solver, failure_domain, failure_step_budget)
       exit_status = 3
     case (failure_input)
       exit_status = 2
@@ -109,7 +109,8 @@ contains
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
-    integer :: n, k, n_state, io_stat, ierr, release_ierr, max_steps, signal
+    integer(int64) :: n             !! steps taken (accepted)
+    integer :: k, n_state, io_stat, ierr, release_ierr, signal
     logical :: found, finished, writing, replace, chooses_time, row_due
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
@@ -212,10 +213,10 @@ contains
     outputs_passed = 0
     x_previous = x
     call system_clock(clock_loop)
-    ! Integrators on the output grid take steps_planned steps to n dt; those that choose their
-    ! times go on until they reach t_end (the last step lands on it).
-    max_steps = max(1000000, 100*summary%steps_planned)
-    finished = summary%steps_planned == 0
+    ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
+    ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
+    ! step lands on it), or until the step budget (&integrator max_steps) is spent.
+    finished = .false.
     ! Integrators that choose their times: those of the registry, and EME with a tolerance.
     chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
     do while (.not. finished)
@@ -225,9 +226,10 @@ contains
         summary%failure_kind = failure_interrupted
         exit
       end if
-      if (n == max_steps) then
-        summary%status = 'incomplete: t_end not reached in '//integer_text(max_steps)//' steps'
-        summary%failure_kind = failure_solver
+      if (n == config%integrator%max_steps) then
+        summary%status = 'incomplete: the step budget is spent: '//integer_text(n)//' steps reached t = '// &
+                         fixed_text(time, 6)//' s of t_end = '//fixed_text(t_end, 6)//' s (raise &integrator max_steps)'
+        summary%failure_kind = failure_step_budget
         exit
       end if
       n = n + 1

@@ -153,6 +153,8 @@ contains
     stat = 0
     message = ''
     call group_items(text, group, field_names(fields), origin, items, extra, occurrence)
+    call check_single_setting(group, fields, items, stat, message)
+    if (stat /= 0) return
     do i = 1, size(items)
       k = field_index(fields, item_name(items(i)%item))
       if (k == 0) then
@@ -269,6 +271,75 @@ contains
   end function choices_text
 
   ! ------------------------------------------------------------------ helpers
+
+  ! The first pair of items from one origin that set the same variable: the same name and
+  ! subscript written twice (dt = 0.1, dt = 0.2), or two names of one field (a field and its old
+  ! name). Overrides (a study's sweep) come from another origin and replace the file's value.
+  subroutine check_single_setting(group, fields, items, stat, message)
+    character(len=*), intent(in) :: group
+    type(group_field), intent(in) :: fields(:)
+    type(namelist_item), intent(in) :: items(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    integer :: i, j
+
+    stat = 0
+    message = ''
+    do i = 1, size(items)
+      do j = i + 1, size(items)
+        if (items(i)%origin /= items(j)%origin) cycle
+        if (setting_key(items(i)%item) == setting_key(items(j)%item)) then
+          stat = 1
+          message = items(i)%origin//': &'//group//': '//setting_key(items(i)%item)//' is given twice; allowed: '// &
+                    'each field once in its group'
+          return
+        end if
+        if (.not. same_target(fields, item_name(items(i)%item), item_name(items(j)%item))) cycle
+        stat = 1
+        message = items(i)%origin//': &'//group//': '//item_name(items(i)%item)//' and '//item_name(items(j)%item)// &
+                  ' set the same field; allowed: one of them'
+        return
+      end do
+    end do
+  end subroutine check_single_setting
+
+  ! 'name(subscript)' of an item, lower case and without blanks.
+  pure function setting_key(item) result(key)
+    character(len=*), intent(in) :: item
+    character(len=:), allocatable :: key
+    integer :: i, equals
+
+    equals = index(item, '=')
+    if (equals == 0) equals = len(item) + 1
+    key = ''
+    do i = 1, equals - 1
+      if (item(i:i) == ' ') cycle
+      if (item(i:i) >= 'A' .and. item(i:i) <= 'Z') then
+        key = key//achar(iachar(item(i:i)) + 32)
+      else
+        key = key//item(i:i)
+      end if
+    end do
+  end function setting_key
+
+  ! Whether two different field names of the table are bound to the same variable.
+  logical function same_target(fields, name_a, name_b)
+    type(group_field), intent(in) :: fields(:)
+    character(len=*), intent(in) :: name_a, name_b
+    integer :: a, b
+
+    same_target = .false.
+    if (name_a == name_b) return
+    a = field_index(fields, name_a)
+    b = field_index(fields, name_b)
+    if (a == 0 .or. b == 0) return
+    same_target = associated(fields(a)%real_value, fields(b)%real_value) .or. &
+                  associated(fields(a)%real_values, fields(b)%real_values) .or. &
+                  associated(fields(a)%integer_value, fields(b)%integer_value) .or. &
+                  associated(fields(a)%logical_value, fields(b)%logical_value) .or. &
+                  associated(fields(a)%text_value, fields(b)%text_value)
+  end function same_target
+
 
   ! Applies 'name[(i[:j])] = value' to the field. stat: 0, value_problem (the value does not fit
   ! the field) or subscript_problem; `reason` says why, when more than the allowed text helps.

@@ -77,6 +77,16 @@ contains
       message = path//': cannot read the input file: '//trim(io_message)
       return
     end if
+    ! A text file holds no control bytes but tabs and line ends: a NUL or other control byte is a
+    ! binary file or a damaged one, never silently read as a blank.
+    stat = control_byte_at(raw)
+    if (stat /= 0) then
+      message = path//': line '//integer_text(count([(raw(start:start) == achar(10), start = 1, stat - 1)]) + 1)// &
+                ': byte '//integer_text(stat)//' is the control character '//integer_text(iachar(raw(stat:stat)))// &
+                '; allowed: a text file (printable characters, tabs and line ends)'
+      stat = 1
+      return
+    end if
     text = repeat(' ', len(raw) + 1)      ! each line adds a blank, each newline goes
     length = 0
     line_number = 0
@@ -105,7 +115,22 @@ contains
     call check_groups(text, path, stat, message)
   end subroutine read_source_text
 
-  !> A line with its control characters (tab, newline, carriage return, NUL) as blanks.
+  ! The position of the first control byte other than tab, line feed, form feed and carriage
+  ! return (0 if none).
+  pure integer function control_byte_at(raw)
+    character(len=*), intent(in) :: raw
+    integer :: i, code
+
+    control_byte_at = 0
+    do i = 1, len(raw)
+      code = iachar(raw(i:i))
+      if (code >= 32 .or. code == 9 .or. code == 10 .or. code == 12 .or. code == 13) cycle
+      control_byte_at = i
+      return
+    end do
+  end function control_byte_at
+
+  !> A line with its control characters (tab, newline, carriage return) as blanks.
   pure function blanked(line) result(clean)
     character(len=*), intent(in) :: line
     character(len=len(line)) :: clean

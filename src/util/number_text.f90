@@ -1,22 +1,35 @@
 !> Numbers as text for messages and status lines.
 module number_text
-  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   implicit none (type, external)
   private
   public :: integer_text, fixed_text, scientific_text, reals_text
 
+  !> An integer (default or 64-bit) without blanks.
+  interface integer_text
+    module procedure default_integer_text, long_integer_text
+  end interface integer_text
+
 contains
 
-  !> An integer without blanks.
-  pure function integer_text(i) result(text)
+  pure function long_integer_text(i) result(text)
+    integer(int64), intent(in) :: i
+    character(len=:), allocatable :: text
+    character(len=24) :: buffer
+
+    write (buffer, '(i0)') i
+    text = trim(buffer)
+  end function long_integer_text
+
+  pure function default_integer_text(i) result(text)
     integer, intent(in) :: i
     character(len=:), allocatable :: text
     character(len=16) :: buffer
 
     write (buffer, '(i0)') i
     text = trim(buffer)
-  end function integer_text
+  end function default_integer_text
 
   !> A real in fixed notation with `decimals` digits after the point, without blanks.
   pure function fixed_text(x, decimals) result(text)

@@ -80,11 +80,28 @@ CASES = {
     "range past the end": ("&initial theta(1:3) = 3*300 /\n", ["theta(1:3)", "out of range"]),
     "subscript on a scalar": ("&integrator t_end(1) = 0.3 /\n", ["&integrator: t_end(1):", "'t_end' takes no subscript"]),
     "subscript not a number": ("&initial theta(a) = 300 /\n", ["&initial: theta(a):", "is not i or i:j"]),
-    # Step count past the integer range (the time loop counts steps in a default integer).
-    "step count overflow": ("&integrator t_end = 5000, dt = 1e-6 /\n",
-                            ["&integrator", "t_end = 5000", "steps, more than a run can count",
-                             "allowed: t_end/dt < 2147483647"]),
-    "step count overflow, huge t_end": ("&integrator t_end = 1e300 /\n", ["more than a run can count"]),
+    # Step counts past the step budget (&integrator max_steps, default 1e8), and past any integer.
+    "step count over the budget": ("&integrator t_end = 5000, dt = 1e-6 /\n",
+                                   ["&integrator", "t_end = 5000", "needs 5e9 steps, more than max_steps = 100000000",
+                                    "allowed: t_end/dt <= max_steps"]),
+    "step count overflow, huge t_end": ("&integrator t_end = 1e300 /\n", ["more than max_steps"]),
+    "plan over a budget the input sets": ("&integrator max_steps = 100 /\n",
+                                          ["&integrator", "needs 133.3", "more than max_steps = 100"]),
+    "zero step budget": ("&integrator max_steps = 0 /\n", ["&integrator", "max_steps = 0", "an integer >= 1"]),
+    # One rule for dt and t_end: a fixed step longer than the run is refused (it would step past
+    # t_end; tiny t_end made runs of 0 steps "complete").
+    "fixed step longer than the run": ("&integrator dt = 150, t_end = 20 /\n",
+                                       ["&integrator", "dt = 150.0 is longer than t_end = 20.0", "dt <= t_end"]),
+    "tiny t_end": ("&integrator t_end = 1e-17 /\n", ["&integrator", "t_end = 1e-17", "dt <= t_end"]),
+    "denormal t_end": ("&integrator t_end = 1e-320 /\n", ["&integrator", "dt <= t_end"]),
+    "huge dt": ("&integrator dt = 1e308 /\n", ["&integrator", "dt = 1e308", "dt <= t_end"]),
+    # Conflicts: one field set twice, or through its old name too; a control byte in the file.
+    "field given twice": ("&integrator dt = 0.1, dt = 0.2 /\n", ["&integrator", "dt is given twice"]),
+    "subscript given twice": ("&initial theta(2) = 300, theta( 2 ) = 310 /\n",
+                              ["&initial", "theta(2) is given twice"]),
+    "field and its old name": ("&integrator scheme = 'relaxed_dp853', tolerance = 1e-6, ts_tolerance = 1e-7 /\n",
+                               ["&integrator", "tolerance and ts_tolerance set the same field", "one of them"]),
+    "NUL byte": ("&integrator dt = 0.1\0 /\n", ["line 1", "control character 0", "a text file"]),
     # A tolerance so loose that Newton accepts its predictor.
     "loose newton_tol": ("&integrator newton_tol = 100 /\n", ["&integrator", "newton_tol = 100",
                                                               "a real number > 0 and <= 0.01"]),
@@ -153,8 +170,10 @@ def test_a_file_without_groups_is_refused(tmp_path, eme_run_binary, case):
     }[case]
     namelist.write_bytes(content)
     words = ["no namelist group found", "allowed groups: &model, &initial, &constraints, &integrator, &output"]
-    if case in ("random bytes", "random text"):
+    if case == "random text":
         words = ["text outside any namelist group"]
+    elif case in ("random bytes", "binary zeros"):
+        words = ["is the control character", "allowed: a text file"]
     with_results = tmp_path / "run"
     with_results.mkdir()
     # The default output file is results/<input name>.h5 relative to the working directory.

@@ -27,10 +27,16 @@ def test_groups_on_one_line_upper_case_and_comments(tmp_path, eme_run_binary):
     np.testing.assert_allclose(data["temperature"][0], [280.0, 360.0])
 
 
-def test_later_assignment_wins(tmp_path, eme_run_binary):
+def test_an_assignment_repeated_is_refused_not_overwritten(tmp_path, eme_run_binary):
+    """Fortran's namelist READ lets the later assignment win; a repeated field is more often a
+    copy-paste slip than intent, so it is refused, naming the field, and nothing is written."""
     output = tmp_path / "run.h5"
-    run_text(tmp_path, f"&integrator dt = 0.2, t_end = 0.4, dt = 0.1 /\n&output file = '{output}' /\n")
-    assert read_run(output)["attrs"]["dt"] == 0.1
+    namelist = tmp_path / "scene.nml"
+    namelist.write_text(f"&integrator dt = 0.2, t_end = 0.4, DT = 0.1 /\n&output file = '{output}' /\n")
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True)
+    assert result.returncode == 2
+    assert "&integrator: dt is given twice" in result.stderr
+    assert not output.exists()
 
 
 def test_long_lines_and_a_last_line_without_newline(tmp_path, eme_run_binary):
