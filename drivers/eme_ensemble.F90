@@ -11,7 +11,8 @@ program eme_ensemble
   use ensemble, only: run_study, study_outcome, world_rank
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
-                          petsc_help_requested, unused_petsc_options
+                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
+  use simulation, only: set_up_only
   use library_versions, only: print_versions
   implicit none
 
@@ -35,7 +36,11 @@ program eme_ensemble
     call print_integrators(output_unit, tabular=.true.)
     stop
   end if
-  PetscCallA(initialize_petsc(arguments, ierr))
+  call initialize_petsc(arguments, ierr)
+  if (ierr /= 0) then
+    write (error_unit, '(a)') 'eme_ensemble: PETSc could not start with the options given: '//petsc_error_text()
+    stop 2, quiet=.true.
+  end if
   rank = world_rank()
   exit_status = 0
   help = petsc_help_requested()
@@ -46,6 +51,7 @@ program eme_ensemble
     exit_status = 2
   else
     call check_own_options(stat, message)
+    if (stat == 0) call check_petsc_viewer_files(stat, message)
     if (stat /= 0) then
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
       exit_status = 2
@@ -54,6 +60,7 @@ program eme_ensemble
   if (exit_status == 0 .and. .not. help) then
     ! Every rank reads and validates the study: the expansion is cheap and deterministic.
     call read_study(arguments%input_file, study, stat, message)
+    if (stat == 0) call check_solver_options()
     if (stat /= 0) then
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
       exit_status = 2
@@ -77,10 +84,37 @@ program eme_ensemble
       if (len(unused) > 0) write (error_unit, '(a)') 'eme_ensemble: warning: PETSc options that nothing used: '//unused
     end if
   end if
-  PetscCallA(PetscFinalize(ierr))
+  call PetscFinalize(ierr)
+  ! After a refusal its reason was said: PETSc's failure to write a refused -log_view file is not news.
+  if (ierr /= 0 .and. exit_status == 0) then
+    if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: PETSc failed at its finalization: '//petsc_error_text()
+    exit_status = 1
+  end if
   if (exit_status /= 0) stop exit_status, quiet=.true.
 
 contains
+
+  ! Every integrator of the study set up once, unwritten, before any case runs: PETSc options
+  ! that one of them cannot take are bad input for the whole study (exit 2, no case run).
+  subroutine check_solver_options()
+    character(len=24), allocatable :: checked(:)      ! scheme and thermodynamic variable of each set-up
+    character(len=24) :: key
+    integer :: c
+
+    allocate (checked(0))
+    do c = 1, size(study%cases)
+      associate (choice => study%cases(c)%config%integrator)
+        write (key, '(a, 1x, i0)') trim(choice%scheme), choice%thermo_variable
+      end associate
+      if (any(checked == key)) cycle
+      checked = [checked, key]
+      call set_up_only(study%cases(c)%config, stat, message)
+      if (stat /= 0) then
+        message = study%cases(c)%config%input_file//': '//message
+        return
+      end if
+    end do
+  end subroutine check_solver_options
 
   ! The study's start, progress and warning lines, as they come.
   subroutine print_line(text)

@@ -17,7 +17,7 @@ program eme_run
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
-                          petsc_help_requested, unused_petsc_options
+                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use library_versions, only: print_versions
   implicit none
 
@@ -44,7 +44,12 @@ program eme_run
     call print_output_schema()
     stop
   end if
-  PetscCallA(initialize_petsc(arguments, ierr))
+  call initialize_petsc(arguments, ierr)
+  if (ierr /= 0) then
+    ! A PETSc option that PETSc itself refuses at start (-options_file of a missing file, ...).
+    write (error_unit, '(a)') 'eme_run: PETSc could not start with the options given: '//petsc_error_text()
+    stop 2, quiet=.true.
+  end if
   PetscCallMPIA(MPI_Comm_size(PETSC_COMM_WORLD, ranks, ierr))
   PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
   exit_status = 0
@@ -69,11 +74,14 @@ program eme_run
     exit_status = 2
   else
     call check_own_options(stat, message)
+    if (stat == 0) call check_petsc_viewer_files(stat, message)
     if (stat /= 0) then
       write (error_unit, '(a)') 'eme_run: '//message
       exit_status = 2
     else
       call read_run_config(arguments%input_file, config, stat, message)
+      ! The solver set up once, unwritten: PETSc options it cannot take are bad input.
+      if (stat == 0) call set_up_only(config, stat, message)
       if (stat /= 0) then
         write (error_unit, '(a)') 'eme_run: '//message
         exit_status = 2
@@ -82,7 +90,12 @@ program eme_run
       end if
     end if
   end if
-  PetscCallA(PetscFinalize(ierr))
+  call PetscFinalize(ierr)
+  ! After a refusal its reason was said: PETSc's failure to write a refused -log_view file is not news.
+  if (ierr /= 0 .and. exit_status == 0) then
+    write (error_unit, '(a)') 'eme_run: PETSc failed at its finalization: '//petsc_error_text()
+    exit_status = 1
+  end if
   if (exit_status /= 0) stop exit_status, quiet=.true.
 
 contains

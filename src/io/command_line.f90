@@ -12,7 +12,7 @@ module command_line
   implicit none (type, external)
   private
   public :: command_arguments, parse_command_line, initialize_petsc, check_own_options, petsc_help_requested
-  public :: unused_petsc_options, benchmark_repeats
+  public :: unused_petsc_options, benchmark_repeats, petsc_error_text, check_petsc_viewer_files
 
   !> What the command line asked for.
   type :: command_arguments
@@ -42,6 +42,21 @@ module command_line
       integer(c_int), value :: size
       integer(c_int) :: status
     end function c_check_own_options
+    function c_capture_errors() result(status) bind(c, name='eme_petsc_capture_errors')
+      import :: c_int
+      integer(c_int) :: status
+    end function c_capture_errors
+    subroutine c_error_text(text, size) bind(c, name='eme_petsc_error_text')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+    end subroutine c_error_text
+    function c_check_viewer_files(message, size) result(status) bind(c, name='eme_petsc_check_viewer_files')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: message(*)
+      integer(c_int), value :: size
+      integer(c_int) :: status
+    end function c_check_viewer_files
     function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
       import :: c_char, c_int
       character(kind=c_char), intent(out) :: text(*)
@@ -149,8 +164,34 @@ contains
       list = list//argument//c_null_char
       count = count + 1
     end do
-    stat = int(c_petsc_initialize(list, int(count, c_int)))
+    ! PETSc's errors come back as codes with a message (petsc_error_text), never as a traceback.
+    stat = int(c_capture_errors())
+    if (stat == 0) stat = int(c_petsc_initialize(list, int(count, c_int)))
   end subroutine initialize_petsc
+
+  !> The first message of PETSc's latest error, on one line ('' if none).
+  function petsc_error_text() result(text)
+    character(len=:), allocatable :: text
+    character(kind=c_char, len=1024) :: buffer
+
+    buffer = ''
+    call c_error_text(buffer, len(buffer, kind=c_int))
+    text = buffer(1:max(0, index(buffer, c_null_char) - 1))
+  end function petsc_error_text
+
+  !> After PetscInitialize: stat /= 0 with a message if an option asks PETSc to write a file
+  !> (-log_view :FILE, -snes_view ascii:FILE, ...) that cannot be written, which PETSc would find
+  !> out only when the run has ended.
+  subroutine check_petsc_viewer_files(stat, message)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    character(kind=c_char, len=2048) :: buffer
+
+    buffer = ''
+    stat = int(c_check_viewer_files(buffer, len(buffer, kind=c_int)))
+    message = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    if (stat == 2) message = 'PETSc could not list its options database'
+  end subroutine check_petsc_viewer_files
 
   !> After PetscInitialize: stat /= 0 with "-name value: allowed: ..." if an -eme_* option has a
   !> value it does not take (bad input: nothing has been read or written yet).

@@ -22,6 +22,8 @@ module simulation
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, petsc_options_in_force
   use hdf5_files, only: check_run_file, file_template
+  use output_path, only: check_output_path
+  use command_line, only: petsc_error_text
   use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text
   use number_text, only: integer_text, fixed_text
   implicit none (type, external)
@@ -138,6 +140,13 @@ contains
       return
     end if
     if (writing) then
+      replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
+      if (config%overwrite) replace = .true.
+      call check_output_path(config%output_file, config%input_file, replace, stat, message)
+      if (stat /= 0) then
+        summary%failure_kind = failure_input
+        return
+      end if
       call make_parent_directories(config%output_file, stat)
       if (stat /= 0) then
         ierr = stat
@@ -146,8 +155,6 @@ contains
                   //config%input_file//', &output: file): '//os_error_text(ierr))
         return
       end if
-      replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
-      if (config%overwrite) replace = .true.
       if (.not. replace) replace = .not. holds_complete_run(config%output_file)
       if (.not. replace) then
         call fail(failure_input, config%output_file//' holds a complete run, which is kept; to replace it, set '// &
@@ -179,7 +186,12 @@ contains
     end if
     ! The integrator starts first: the datasets of its own figures can depend on its settings.
     call integrator%start(config%integrator, model, constraints, z0, ierr)
-    if (ierr /= 0) call fail(failure_library, 'PETSc failed to set up the solver')
+    if (ierr /= 0) then
+      ! The drivers set the solver up once before (set_up_only), so this is rare: nothing is written.
+      call fail(failure_input, config%input_file//': '//setup_failure_text())
+      if (.not. present(reusable)) call integrator%release(release_ierr)
+      return
+    end if
     if (writing) then
       allocate (added(0))
       if (present(extras)) added = extras
@@ -192,12 +204,6 @@ contains
         if (.not. present(reusable)) call integrator%release(release_ierr)
         return
       end if
-    end if
-    if (ierr /= 0) then
-      summary%status = 'incomplete: PETSc failed to set up the solver'
-      if (.not. present(reusable)) call integrator%release(release_ierr)
-      call close_output()
-      return
     end if
     call output%record_solver(integrator%describe_solver(), ierr)
     if (ierr /= 0) then
@@ -426,8 +432,9 @@ contains
   end subroutine run_simulation
 
   !> Sets up the run's integrator and frees it again, without integrating or writing anything:
-  !> every option it reads is read (PETSc's -help lists them). stat /= 0 with a message if the
-  !> scene cannot be built or PETSc fails.
+  !> every option it reads is read (PETSc's -help lists them), so the drivers call it before a
+  !> run to refuse bad PETSc options (an unknown type) with nothing written. stat /= 0 with a
+  !> message if the scene cannot be built or PETSc fails.
   subroutine set_up_only(config, stat, message)
     type(run_configuration), intent(in) :: config
     integer, intent(out) :: stat
@@ -445,10 +452,19 @@ contains
     if (stat /= 0) return
     call entry%build(integrator)
     call integrator%start(config%integrator, model, constraints, z0, stat)
+    if (stat /= 0) message = setup_failure_text()
     call integrator%release(ierr)
+    if (stat == 0 .and. ierr /= 0) message = 'PETSc could not free the solver: '//petsc_error_text()
     if (stat == 0) stat = ierr
-    if (stat /= 0) message = 'PETSc failed to set up the solver'
   end subroutine set_up_only
+
+  ! Why the solver could not be set up: PETSc's own words (an unknown -snes_type, ...).
+  function setup_failure_text() result(text)
+    character(len=:), allocatable :: text
+
+    text = 'PETSc could not set up the solver with the options given: '//petsc_error_text()// &
+           '; allowed: the options of docs/running.md and PETSc''s own (eme_run FILE.nml -help lists them)'
+  end function setup_failure_text
 
   ! Whether `path` is a run file that reads back complete.
   logical function holds_complete_run(path)

@@ -101,8 +101,9 @@ contains
   !> |z| and |z|/h). Quadratic convergence then leaves a residual ~ tolerance^2 or at its rounding
   !> floor, so the discrete conservation laws, exact at a root, hold to round-off. The residual of a
   !> step scales like 1/dt: the second condition lets a tight tolerance or a small dt end where
-  !> rounding ends the iteration instead of failing the step. update_tolerance is an extra relative
-  !> one on the update (PETSc's -snes_stol; 0 by default).
+  !> rounding ends the iteration instead of failing the step. update_tolerance > 0 (PETSc's
+  !> -snes_stol; 0 by default) is one more condition on the update, |dx| <= update_tolerance |x|:
+  !> an option can make the test stricter, never looser.
   pure logical function newton_converged(iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
                                          state_scale, residual_scale)
     integer, intent(in) :: iteration
@@ -110,7 +111,8 @@ contains
     real(real64), intent(in) :: state_scale, residual_scale
 
     newton_converged = residual_norm <= tolerance .and. &
-                       (iteration == 0 .or. update_norm <= max(tolerance, update_tolerance*x_norm))
+                       (iteration == 0 .or. (update_norm <= tolerance .and. &
+                                             (update_tolerance <= 0.0_real64 .or. update_norm <= update_tolerance*x_norm)))
     if (iteration > 0) newton_converged = newton_converged .or. &
                                           (update_norm <= rounding_factor*epsilon(1.0_real64)*state_scale .and. &
                                            residual_norm <= rounding_factor*epsilon(1.0_real64)*residual_scale)

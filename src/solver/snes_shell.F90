@@ -32,6 +32,8 @@ module snes_shell
     logical :: lean = .false.
     logical :: final_chord = .true.
     real(real64) :: tolerance = 0.0_real64          !! the convergence test's absolute tolerance
+    real(real64) :: newton_tol = 0.0_real64         !! the input's (&integrator newton_tol): no option loosens it
+    integer :: accepted_at = -1                     !! the iteration our convergence test accepted (-1: none)
     real(real64) :: residual_norm = huge(1.0_real64)  !! at SNES's current iterate
     real(real64) :: update_norm = huge(1.0_real64)    !! of the update that led there
     real(real64) :: state_scale = 0.0_real64          !! the problem's rounding scales (newton_converged)
@@ -65,14 +67,15 @@ module snes_shell
 
 contains
 
-  ! SNES convergence test: retry_strategies' newton_converged with SNES's absolute tolerance
-  ! (-snes_atol changes it) and relative update tolerance (-snes_stol > 0 adds it).
+  ! SNES convergence test: retry_strategies' newton_converged with the input's newton_tol, or
+  ! SNES's absolute tolerance where -snes_atol makes it smaller, and SNES's relative update
+  ! tolerance (-snes_stol > 0 adds a condition). Options make the test stricter, never looser.
   subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
     SNES, intent(in) :: snes
     PetscInt, intent(in) :: iteration
     PetscReal, intent(in) :: x_norm, update_norm, residual_norm
     SNESConvergedReason, intent(out) :: reason
-    type(solver_context), intent(in) :: context
+    type(solver_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
     PetscReal :: atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
@@ -80,9 +83,10 @@ contains
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (newton_converged(int(iteration), residual_norm, update_norm, x_norm, atol, stol, context%state_scale, &
-                              context%residual_scale)) then
+    else if (newton_converged(int(iteration), residual_norm, update_norm, x_norm, min(atol, context%newton_tol), stol, &
+                              context%state_scale, context%residual_scale)) then
       reason = SNES_CONVERGED_FNORM_ABS
+      context%accepted_at = int(iteration)
     else
       reason = SNES_CONVERGED_ITERATING
     end if

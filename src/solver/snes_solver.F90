@@ -25,7 +25,8 @@ module snes_solver
   use petscsnes
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, chord_refinement
+  use retry_strategies, only: root_finder, chord_refinement, rounding_factor
+  use euclidean_norm, only: two_norm
   use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use snes_shell, only: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, &
@@ -291,10 +292,9 @@ contains
     self%context%update_norm = huge(1.0_real64)
     self%context%chord_taken = .false.
     call problem%rounding_scales(self%context%state_scale, self%context%residual_scale)
-    self%context%tolerance = self%newton_tol
-    if (self%context%lean .and. self%context%final_chord) then
-      PetscCall(tolerance_of(self%snes, self%context%tolerance, ierr))
-    end if
+    self%context%newton_tol = self%newton_tol
+    self%context%accepted_at = -1
+    PetscCall(tolerance_of(self, self%context%tolerance, ierr))
     PetscCall(borrow(self%x, self%n, values, ierr))
     values = initial
     PetscCall(give_back(self%x, values, ierr))
@@ -314,6 +314,17 @@ contains
     root = values
     PetscCall(give_back_read(self%x, values, ierr))
     converged = snes_reason > 0
+    ! SNES stopped by a test other than ours (an option replaced it, or -snes_type ksponly): the
+    ! root is accepted only if our test accepts its residual.
+    if (converged .and. self%context%accepted_at /= int(its)) then
+      converged = root_confirmed()
+      if (.not. converged) then
+        PetscCall(SNESGetConvergedReasonString(self%snes, reason_text, ierr))
+        reason = 'Newton did not converge: SNES stopped ('//trim(reason_text)//') by a test other than the '// &
+                 'project''s, at a residual above newton_tol'
+        return
+      end if
+    end if
     if (.not. converged) converged = at_rounding_floor()
     if (.not. converged) then
       PetscCall(SNESGetConvergedReasonString(self%snes, reason_text, ierr))
@@ -329,20 +340,35 @@ contains
       at_rounding_floor = .false.
       if (snes_reason /= SNES_DIVERGED_LINE_SEARCH) return
       PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
-      PetscCall(tolerance_of(self%snes, atol, ierr))
+      PetscCall(tolerance_of(self, atol, ierr))
       at_rounding_floor = residual_norm <= atol
     end function at_rounding_floor
+
+    ! The residual at the root SNES returned, against the tolerance or its rounding floor.
+    logical function root_confirmed()
+      real(real64) :: residual(size(root)), norm
+      integer :: stat
+
+      root_confirmed = .false.
+      call problem%evaluate_residual(root, residual, stat)
+      if (stat /= 0) return
+      norm = two_norm(residual)
+      root_confirmed = norm <= self%context%tolerance .or. &
+                       norm <= rounding_factor*epsilon(1.0_real64)*self%context%residual_scale
+    end function root_confirmed
   end subroutine solve
 
-  ! The absolute tolerance SNES holds (-snes_atol may have changed newton_tol).
-  subroutine tolerance_of(snes, atol, ierr)
-    SNES, intent(in) :: snes
+  ! The absolute tolerance of the convergence test: the input's newton_tol, or SNES's where
+  ! -snes_atol made it smaller (an option never loosens it).
+  subroutine tolerance_of(self, atol, ierr)
+    class(newton_solver), intent(in) :: self
     real(real64), intent(out) :: atol
     PetscErrorCode, intent(out) :: ierr
-    PetscReal :: rtol, stol
+    PetscReal :: snes_atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
 
-    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+    PetscCall(SNESGetTolerances(self%snes, snes_atol, rtol, stol, max_iterations, max_evaluations, ierr))
+    atol = min(snes_atol, self%newton_tol)
   end subroutine tolerance_of
 
   !> The predictor's chord refinement with the last solve's LU factors (retry_strategies'
