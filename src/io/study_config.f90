@@ -18,6 +18,8 @@ module study_config
 
   integer, parameter :: max_sweep_values = 256
   integer, parameter :: max_cases = 100000
+  !> The most runs of one case (&study repeats): a timing median needs a few, not millions.
+  integer, parameter :: max_repeats = 1000
   !> A study of this many cases or more keeps only its index unless &study index_only says otherwise.
   integer, parameter :: index_only_from = 1000
 
@@ -306,8 +308,8 @@ contains
       logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false.: a '// &
                     'case file per case too (default: .false. below '//integer_text(index_only_from)//' cases, '// &
                     '.true. from there)'), &
-      integer_field('repeats', repeats, 'an integer >= 1: runs of each case, timed; the index holds the median '// &
-                    'solve time (default 1)', minimum=1)]
+      integer_field('repeats', repeats, 'an integer from 1 to '//integer_text(max_repeats)//': runs of each case, '// &
+                    'timed; the index holds the median solve time (default 1)', minimum=1, maximum=max_repeats)]
   end function study_fields
 
   !> The fields of &sweep, bound to the variables that receive them.

@@ -430,7 +430,7 @@ contains
     type(run_summary) :: summary
     type(extra_attribute) :: extras(4)
     character(len=:), allocatable :: message
-    real(real64) :: solve_seconds(study%repeats)
+    real(real64), allocatable :: solve_seconds(:)      ! on the heap: its size is the input's
     integer :: stat, r
 
     config = study%cases(c)%config
@@ -446,6 +446,7 @@ contains
     extras(4)%number = rank
     ! With &study repeats = R the case runs R times, only the last keeping its file; the index
     ! gets the median of the time loops' durations, so timings on a shared machine do not zig-zag.
+    allocate (solve_seconds(study%repeats))
     do r = 1, study%repeats
       call run_simulation(config, summary, stat, message, observer, integrator, &
                           keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &

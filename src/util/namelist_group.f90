@@ -82,15 +82,16 @@ contains
   end function reals_field
 
   !> An integer field.
-  function integer_field(name, variable, allowed, minimum) result(field)
+  function integer_field(name, variable, allowed, minimum, maximum) result(field)
     character(len=*), intent(in) :: name, allowed
     integer, intent(in), target :: variable
-    integer, intent(in), optional :: minimum
+    integer, intent(in), optional :: minimum, maximum
     type(group_field) :: field
 
     field = group_field(name=name, allowed=allowed, units='1', kind=field_integer)
     field%integer_value => variable
     if (present(minimum)) field%minimum = real(minimum, real64)
+    if (present(maximum)) field%maximum = real(maximum, real64)
   end function integer_field
 
   !> A logical field.
@@ -441,7 +442,8 @@ contains
       if (field%check_equal) within_bounds = within_bounds .and. &
                                              all(abs(values - field%required) <= 1.0e-12_real64*abs(field%required))
     case (field_integer)
-      within_bounds = real(field%integer_value, real64) >= field%minimum
+      within_bounds = real(field%integer_value, real64) >= field%minimum .and. &
+                      real(field%integer_value, real64) <= field%maximum
     case (field_text)
       if (allocated(field%choices)) within_bounds = is_choice(trim(field%text_value), field%choices)
     end select

@@ -98,3 +98,16 @@ def test_different_elements_of_one_array_may_be_swept(tmp_path, base, eme_run_bi
     assert result.returncode == 0, result.stderr
     with h5py.File(output / "case_00002.h5", "r") as f:
         assert list(f.attrs["theta"]) == [300.0, 340.0]
+
+
+@pytest.mark.parametrize("repeats", [5000000, 1001, 0])
+def test_repeats_beyond_its_bound_are_refused_not_a_crash(tmp_path, base, eme_run_binary, repeats):
+    """repeats = 5000000 sized an array on the stack and ended in SIGSEGV with index files left."""
+    output = tmp_path / "out"
+    study = tmp_path / "study.nml"
+    study.write_text(f"&study base = '{base}', output_dir = '{output}', repeats = {repeats} /\n"
+                     "&sweep field = 'dt', values = 0.1 /\n")
+    result = ensemble(study)
+    assert result.returncode == 2, result.stderr
+    assert f"&study: repeats = {repeats} is not allowed; allowed: an integer from 1 to 1000" in result.stderr
+    assert not output.exists()
