@@ -19,7 +19,7 @@ module run_config
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, joined
   use number_text, only: integer_text, reals_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
-                            invalid_value_message, choices_text, value_origin
+                            invalid_value_message, choices_text, value_origin, absolute_temperature, celsius_suspects
   implicit none (type, external)
   private
   public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable, field_length
@@ -170,7 +170,28 @@ contains
       message = value_origin(text, 'output', 'interval', path, extra)//': &output: interval and every both '// &
                 'choose the rows written; allowed: one of them'
     end if
+    if (stat /= 0) return
+    call note_celsius_temperatures(text, path, extra, config)
   end subroutine read_run_config
+
+  ! A temperature level the input set below 150 K (theta = 7, 77) is most likely degrees Celsius:
+  ! each such field gets a warning (the run goes on: 100 K is a possible, if unusual, scene).
+  subroutine note_celsius_temperatures(text, path, extra, config)
+    character(len=*), intent(in) :: text, path
+    type(namelist_item), intent(in) :: extra(:)
+    type(run_configuration), intent(inout), target :: config
+    character(len=16), allocatable :: groups(:)
+    character(len=400), allocatable :: suspects(:)
+    integer :: g
+
+    call config%scene%group_names(groups)
+    do g = 1, size(groups)
+      call celsius_suspects(text, trim(groups(g)), config%scene%fields(trim(groups(g))), path, suspects, extra)
+      config%warnings = [character(len=400) :: config%warnings, suspects]
+    end do
+    call celsius_suspects(text, 'output', output_fields(config), path, suspects, extra)
+    config%warnings = [character(len=400) :: config%warnings, suspects]
+  end subroutine note_celsius_temperatures
 
   ! One rule for dt and t_end: a fixed-step integrator takes ceiling(t_end/dt) steps of dt, so a dt
   ! above t_end (a run that would step past its end) is refused, and so is a plan above the step
@@ -342,8 +363,8 @@ contains
 
     fields = [ &
       text_field('file', config%file, 'a path ending in .h5 (default results/<input name>.h5)', ''), &
-      real_field('theta_r', config%theta_r, 'a real number > 0 [K] (default theta_ref, or the fixed temperature)', &
-                 'K', minimum=0.0_real64, exclusive=.true.), &
+      absolute_temperature(real_field('theta_r', config%theta_r, 'a real number > 0 [K] (default theta_ref, or the '// &
+                                      'fixed temperature)', 'K', minimum=0.0_real64, exclusive=.true.)), &
       logical_field('overwrite', config%overwrite, '.true. or .false. (default): replace an existing complete file'), &
       integer_field('every', config%output_every, 'an integer >= 1 (default 1): write every N-th point, each step '// &
                     'row standing for the N steps before it (sums, extremes; docs/output.md)', minimum=1), &

@@ -8,7 +8,7 @@ module pendulum_scene
   use namelist_text, only: namelist_item
   use number_text, only: reals_text
   use namelist_group, only: group_field, real_field, reals_field, logical_field, text_field, read_group, &
-                            invalid_value_message, value_origin
+                            invalid_value_message, value_origin, absolute_temperature
   use model_parameters, only: pendulum_parameters
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
@@ -84,7 +84,8 @@ contains
           real_field('viscosity_activation', p%viscosity_activation, 'a real number > 0 [K] (eq. (17))', 'K', &
                      minimum=0.0_real64, exclusive=.true.), &
           real_field('conductivity', p%conductivity, 'a real number >= 0 [J/(K s)]', 'J/(K s)', minimum=0.0_real64), &
-          real_field('theta_ref', p%theta_ref, 'a real number > 0 [K]', 'K', minimum=0.0_real64, exclusive=.true.), &
+          absolute_temperature(real_field('theta_ref', p%theta_ref, 'a real number > 0 [K]', 'K', minimum=0.0_real64, &
+                                          exclusive=.true.)), &
           real_field('beta', p%beta, 'a real number [J/K]', 'J/K'), &
           real_field('beta_v', p%beta_v, 'a real number >= 0', '1', minimum=0.0_real64), &
           reals_field('gravity', p%gravity, 'three real numbers [m/s^2]', 'm/s^2')]
@@ -96,16 +97,17 @@ contains
         reals_field('p1', self%p1, 'three real numbers [N s]', 'N s'), &
         reals_field('p2', self%p2, 'three real numbers [N s]', 'N s'), &
         real_field('gamma', self%gamma, 'a real number [m]', 'm'), &
-        reals_field('theta', self%theta, 'two real numbers > 0 [K], below theta_ref + mu_eq_const/mu_eq_slope '// &
-                    '(where a spring''s stiffness, eq. (17), would reach 0)', 'K', minimum=0.0_real64, exclusive=.true.)]
+        absolute_temperature(reals_field('theta', self%theta, 'two real numbers > 0 [K], below theta_ref + '// &
+                                         'mu_eq_const/mu_eq_slope (where a spring''s stiffness, eq. (17), would reach 0)', &
+                                         'K', minimum=0.0_real64, exclusive=.true.))]
     case ('constraints')
       table = [ &
         logical_field('fix_length', self%fix_length, '.true. or .false.'), &
         real_field('length', self%length, 'a real number > 0 equal to |q1| at t = 0 [m]', 'm', minimum=0.0_real64, &
                    exclusive=.true.), &
         logical_field('fix_temperature', self%fix_temperature, '.true. or .false.'), &
-        real_field('temperature', self%temperature, 'a real number > 0 equal to theta(1) at t = 0 [K]', 'K', &
-                   minimum=0.0_real64, exclusive=.true.)]
+        absolute_temperature(real_field('temperature', self%temperature, 'a real number > 0 equal to theta(1) at '// &
+                                        't = 0 [K]', 'K', minimum=0.0_real64, exclusive=.true.))]
       ! A constraint must hold at t = 0.
       table(2)%check_equal = .true.
       table(2)%required = norm2(self%q1)

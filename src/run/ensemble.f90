@@ -173,7 +173,8 @@ contains
   end subroutine prepare
 
   ! Each swept setting that a case's integrator does not read, once, with how many cases (the
-  ! base input is a template every case shares: its settings for other integrators are not named).
+  ! base input is a template every case shares: its settings for other integrators are not named),
+  ! and each temperature that looks like degrees Celsius, once for the study.
   subroutine say_warnings(manager, study)
     type(study_manager), intent(inout) :: manager
     type(study_definition), intent(in) :: study
@@ -185,7 +186,8 @@ contains
     do c = 1, size(study%cases)
       if (.not. allocated(study%cases(c)%config%warnings)) cycle
       do w = 1, size(study%cases(c)%config%warnings)
-        if (index(study%cases(c)%config%warnings(w), study%input_file//': &sweep') /= 1) cycle
+        if (index(study%cases(c)%config%warnings(w), study%input_file//': &sweep') /= 1 .and. &
+            index(study%cases(c)%config%warnings(w), 'looks like degrees Celsius') == 0) cycle
         k = findloc(seen, study%cases(c)%config%warnings(w), dim=1)
         if (k == 0) then
           seen = [seen, study%cases(c)%config%warnings(w)]

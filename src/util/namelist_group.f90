@@ -17,7 +17,7 @@ module namelist_group
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
   public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
-  public :: describe_group, parse_subscript
+  public :: describe_group, parse_subscript, absolute_temperature, celsius_suspects
   public :: field_real, field_integer, field_logical, field_text
 
   integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
@@ -45,7 +45,12 @@ module namelist_group
     logical :: check_equal = .false.              !! a real that must equal `required` (relative 1e-12)
     real(real64) :: required = 0.0_real64
     character(len=:), allocatable :: choices      !! the allowed texts, separated by blanks ('' = any)
+    !> A temperature level in kelvin (not a difference): a value below celsius_below K is
+    !> more likely degrees Celsius, and the drivers warn.
+    logical :: absolute_temperature = .false.
   end type group_field
+
+  real(real64), parameter :: celsius_below = 150.0_real64
 
 contains
 
@@ -125,6 +130,46 @@ contains
     field%text_values => variable
     field%open_length = .true.
   end function texts_field
+
+  !> The field, marked as a temperature level in kelvin (group_field's absolute_temperature).
+  function absolute_temperature(field) result(marked)
+    type(group_field), intent(in) :: field
+    type(group_field) :: marked
+
+    marked = field
+    marked%absolute_temperature = .true.
+  end function absolute_temperature
+
+  !> The fields of &group that the input set (file or overrides) and that are temperature levels
+  !> below celsius_below K, each as 'origin: &group: name = value K'.
+  subroutine celsius_suspects(text, group, fields, origin, suspects, extra)
+    character(len=*), intent(in) :: text, group, origin
+    type(group_field), intent(in) :: fields(:)
+    character(len=400), allocatable, intent(out) :: suspects(:)
+    type(namelist_item), intent(in), optional :: extra(:)
+    type(namelist_item), allocatable :: items(:)
+    integer :: k, i
+
+    allocate (suspects(0))
+    call group_items(text, group, field_names(fields), origin, items, extra)
+    do k = 1, size(fields)
+      if (.not. fields(k)%absolute_temperature) cycle
+      if (associated(fields(k)%real_value)) then
+        if (fields(k)%real_value >= celsius_below) cycle
+      else if (associated(fields(k)%real_values)) then
+        if (all(fields(k)%real_values >= celsius_below)) cycle
+      else
+        cycle
+      end if
+      do i = size(items), 1, -1
+        if (item_name(items(i)%item) /= trim(fields(k)%name)) cycle
+        suspects = [character(len=400) :: suspects, items(i)%origin//': &'//group//': '//trim(fields(k)%name)//' = '// &
+                    field_value_text(fields(k))//' K looks like degrees Celsius (below '// &
+                    reals_text([celsius_below])//' K); temperatures are absolute, in kelvin']
+        exit
+      end do
+    end do
+  end subroutine celsius_suspects
 
   subroutine set_bounds(field, minimum, exclusive)
     type(group_field), intent(inout) :: field
