@@ -33,13 +33,18 @@ contains
   !> gamma and z_new = P(z + gamma d) with r(gamma) = 0 to round-off; found = .false. when no
   !> root lies in [gamma_min, gamma_max] or an evaluation leaves the model's domain.
   !> `evaluations` counts the energy differences taken.
-  subroutine relax(model, constraints, z, d, entropy_estimate, gamma, z_new, found, evaluations)
+  subroutine relax(model, constraints, z, d, entropy_estimate, gamma, z_new, found, evaluations, resolution)
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z(:), d(:), entropy_estimate
     real(real64), intent(out) :: gamma, z_new(:)
     logical, intent(out) :: found
     integer, intent(out) :: evaluations
+    !> How far rounding alone moves the root: the floor of r over its slope in gamma (2 floor /
+    !> |dq/dgamma| at the root). A short step's r(gamma) is flat (its slope ~ |d|^2), so this
+    !> grows like (|z|/|d|)^2 eps: at tight tolerances and in slivers of steps it can exceed the
+    !> band an order allows, which then cannot be asked of gamma.
+    real(real64), intent(out), optional :: resolution
     real(real64) :: momentum, bath, floor, g_a, g_b, q_a, q_b, g_next, best, best_r
     integer :: k, stat
     logical :: stalled
@@ -83,6 +88,11 @@ contains
       if (stalled .or. best_r <= 0.125_real64*floor) exit
     end do
     gamma = best
+    if (present(resolution)) then
+      resolution = huge(1.0_real64)
+      if (abs(g_b - g_a) > 0.0_real64 .and. abs(q_b - q_a) > 0.0_real64) &
+        resolution = 2.0_real64*floor/abs((q_b - q_a)/(g_b - g_a))
+    end if
     found = best_r <= floor .and. gamma >= gamma_min .and. gamma <= gamma_max
     if (found) call increment(gamma, stat)
     found = found .and. stat == domain_ok

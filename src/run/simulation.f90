@@ -242,7 +242,12 @@ contains
       if (.not. chooses_time) time = (n - 1)*dt
       time_old = time
       ! With &output interval the step lands on the next output time when it reaches it.
-      if (config%output_interval > 0.0_real64) integrator%stop_time = (outputs_passed + 1)*config%output_interval
+      if (config%output_interval > 0.0_real64) then
+        ! An output time within rounding of t_end (199*0.3 = 59.699999999999996 for t_end = 59.7) is
+        ! t_end: else the run lands there and is left a sliver of 7e-15 s to step.
+        integrator%stop_time = (outputs_passed + 1)*config%output_interval
+        if (integrator%stop_time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))) integrator%stop_time = t_end
+      end if
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call system_clock(step_start)
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
