@@ -14,7 +14,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 import integrators
-from plotting import DOUBLE_COLUMN, VARIABLE_ORDER, curve_style, plt, save, variable_position
+from plotting import DOUBLE_COLUMN, MIN_FONT_POINTS, VARIABLE_ORDER, curve_style, plt, save, variable_position
 from trajectory import VARIABLE_NAMES, VARIABLE_SYMBOLS
 VARIABLE_LINES = {"entropy": "-", "temperature": "--", "internal_energy": ":"}
 
@@ -261,12 +261,18 @@ def stability_figure(maps):
         "seconds (the summary file has them exactly)."]
 
 
-def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor):
-    """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt."""
+def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor, load_lines=None):
+    """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt;
+    `load_lines` adds a caption line per figure name (the machine's load of a timing chart)."""
+    load_lines = load_lines or {}
     output = Path(output)
     source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
     for name, (fig, title, lines) in (("study_convergence", convergence_figure(conv, wp, fit_rule)),
                                       ("study_work_precision", work_precision_figure(wp, work_precision_factor)),
                                       ("study_structure_cost", structure_figure(structure, source)),
                                       ("study_stability_map", stability_figure(maps))):
-        save(fig, output / name, title, lines=lines)
+        if "BUSY" in load_lines.get(name, ""):
+            # A busy machine's timings are marked on the chart itself, not only in its caption.
+            fig.text(0.005, 0.995, "measured on a busy machine (see the caption)", ha="left", va="top",
+                     color="tab:red", fontsize=MIN_FONT_POINTS)
+        save(fig, output / name, title, lines=lines + ([load_lines[name]] if name in load_lines else []))

@@ -1,5 +1,7 @@
 """postprocess/study_analysis.py: the error norm, the order fit and the outcome classification on
 hand-made inputs, and the whole script on tiny studies run with eme_ensemble."""
+import json
+import os
 import shutil
 import subprocess
 import sys
@@ -27,6 +29,7 @@ ENSEMBLE = ROOT / "build" / "bin" / "eme_ensemble"
 SCRIPT = ROOT / "postprocess" / "study_analysis.py"
 BASE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
 MECHANICAL_GAMMA = study_analysis.MECHANICAL_COLUMNS.index("gamma")
+WORK_PRECISION_STUDIES = study_analysis.WORK_PRECISION
 
 
 # ---------------------------------------------------------------- error norm
@@ -227,8 +230,10 @@ def studies(tmp_path_factory):
         namelist = directory / f"{name}.nml"
         namelist.write_text(f"&study\n  base = '{BASE}'\n  output_dir = '{directory / 'study' / name}'\n"
                             f"  combine = '{combine}'\n  index_only = {index_only}\n/\n{sweeps}\n")
-        result = subprocess.run([str(ENSEMBLE), str(namelist)], capture_output=True, text=True,
-                                timeout=300, cwd=ROOT)
+        # As make study runs them: the machine's load recorded around each (machine_load.py).
+        result = subprocess.run([sys.executable, str(ROOT / "postprocess" / "machine_load.py"), "--record",
+                                 str(directory / "study" / f"{name}.load.json"), "--", str(ENSEMBLE), str(namelist)],
+                                capture_output=True, text=True, timeout=300, cwd=ROOT)
         assert result.returncode == 0, result.stderr
     return directory / "study"
 
@@ -482,3 +487,44 @@ def test_every_scheme_s_legend_and_map_fit_the_page(studies):
     assert width <= 7.0 and height <= 10.0, (width, height)
     assert min(drawn_font_sizes(fig)) >= 8
     plt.close("all")
+
+
+# ---------------------------------------------------------------- the machine's load
+TIMED = {"study_work_precision": ("work_precision", WORK_PRECISION_STUDIES),
+         "study_structure_cost": ("structure_cost", ("stability_paper",))}
+
+
+@pytest.mark.parametrize("chart", TIMED)
+def test_timing_charts_record_the_load_and_cores_in_caption_and_summary(analysed, studies, chart):
+    output, _ = analysed
+    group, names = TIMED[chart]
+    records = [json.loads((studies / f"{name}.load.json").read_text()) for name in names]
+    caption = (output / "figures" / f"{chart}.txt").read_text()
+    with h5py.File(output / "summary.h5", "r") as f:
+        attrs = dict(f[group].attrs)
+    # The highest of the studies' loads, as each study's record holds it.
+    assert attrs["load_recorded"] == 1
+    assert attrs["load_average_before"] == max(r["load_average_before"] for r in records)
+    assert attrs["load_average_after"] == max(r["load_average_after"] for r in records)
+    assert attrs["cores"] == len(os.sched_getaffinity(0))
+    assert f"{attrs['load_average_before']:.2f} before" in caption and f"{attrs['cores']} cores" in caption
+    assert ("BUSY" in caption) == bool(attrs["busy"])
+
+
+def test_a_busy_or_unrecorded_load_is_said(studies, tmp_path):
+    """A study run while others loaded the machine (a planted record: load 3.0 on the cores before
+    it) makes a warning, a BUSY caption and a mark on the chart; a study without a record says the
+    conditions are unknown."""
+    copy = tmp_path / "study"
+    shutil.copytree(studies, copy)
+    record = json.loads((copy / "work_precision.load.json").read_text())
+    record.update(load_average_before=3.0 * record["cores"], load_average_after=0.0)
+    (copy / "work_precision.load.json").write_text(json.dumps(record))
+    (copy / "stability_paper.load.json").unlink()
+    result = run_script(copy, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 0, result.stderr
+    assert "study_work_precision: warning: the machine was busy" in result.stderr
+    assert "BUSY" in (tmp_path / "figures" / "study_work_precision.txt").read_text()
+    assert "Machine load: not recorded" in (tmp_path / "figures" / "study_structure_cost.txt").read_text()
+    with h5py.File(tmp_path / "summary.h5", "r") as f:
+        assert f["work_precision"].attrs["busy"] == 1 and f["structure_cost"].attrs["load_recorded"] == 0
