@@ -63,9 +63,24 @@ class Run:
         return self.status != "complete" or bool(self.problems)
 
     @property
-    def steps(self):
-        """Completed steps N: the per-point datasets hold N+1 rows (after cut_to_common_length)."""
+    def rows_written(self):
+        """Step rows in the file: the per-point datasets hold one more (after cut_to_common_length)."""
         return min(len(values) for name, values in self.data.items() if self.rows.get(name) != "step") - 1
+
+    @property
+    def steps(self):
+        """Completed steps N: the number of the last step the rows reach (/step; with &output every
+        or interval a row stands for several steps), else the rows written (files without /step)."""
+        step = self.data.get("step")
+        if step is not None and len(step) and self.rows_written:
+            return int(step[min(len(step), self.rows_written) - 1])
+        return self.rows_written
+
+    @property
+    def strided(self):
+        """True when a row stands for more than one step (&output every or interval)."""
+        step = self.data.get("step")
+        return step is not None and len(step) > 0 and self.steps != self.rows_written
 
     def column(self, dataset, name):
         """Column `name` of a 2-D dataset, located through the dataset's `columns` attribute."""
@@ -162,7 +177,9 @@ def read_run(path, datasets, attributes=()):
         absent = [name for name in DESCRIPTION_ATTRIBUTES if name not in run.attrs and name != "status"]
         if absent:
             run.problems.append("root attributes " + ", ".join(absent) + " missing")
-        for name in ("time", *datasets):
+        # /step says which steps the rows stand for (files of older versions may lack it).
+        wanted = ("time", *datasets, *(("step",) if "step" in handle and "step" not in datasets else ()))
+        for name in wanted:
             if name not in handle or not isinstance(handle[name], h5py.Dataset):
                 raise RunFileError(f"{path}: dataset '/{name}' is missing")
             run.data[name] = handle[name][()]
