@@ -86,9 +86,12 @@ $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(L
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test check run constraints figures study bench clean python-lock version docs
+.PHONY: all programs deps test check run constraints figures study bench clean python-lock version docs
 
-all: $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
+# The programs alone (make run, figures, study, bench and constraints need no unit tests).
+PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
+programs: $(PROGRAMS)
+all: $(PROGRAMS)
 
 $(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
@@ -274,7 +277,7 @@ define run_and_summarize
 	@$(PYTHON) postprocess/summarize_runs.py $(foreach r,$(1),results/$(r).h5)
 endef
 
-run: all $(VENV)/.python-deps
+run: programs $(VENV)/.python-deps
 	$(call run_and_summarize,$(PAPER_RUNS))
 	@$(MAKE) --no-print-directory figures
 
@@ -318,7 +321,7 @@ MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
 # Each study prints its start, a progress line every 2 s and its summary; the machine's load around
 # it goes to results/study/NAME.load.json (postprocess/machine_load.py), for the charts' captions.
-study: all $(VENV)/.python-deps
+study: programs $(VENV)/.python-deps
 	@for s in $(STUDIES); do rm -rf results/study/$$s results/study/$$s.load.json; \
 	  $(PYTHON) postprocess/machine_load.py --record results/study/$$s.load.json --own 2 -- \
 	    $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml || exit 1; done
@@ -333,7 +336,7 @@ study: all $(VENV)/.python-deps
 # (bench_eme_run.py: eme_run and eme_bench alternating), and PETSc SNES timed by itself
 # (snes_overhead) beside what the ratios leave it. Each part ends with machine-readable lines and
 # the machine's load around it (postprocess/machine_load.py; a warning when it was busy).
-bench: all $(VENV)/.python-deps
+bench: programs $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
 	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_accuracy_bench.load.json -- $(BIN)/eme_accuracy_bench 5
@@ -341,7 +344,7 @@ bench: all $(VENV)/.python-deps
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (docs/constraints.md).
-constraints: all $(VENV)/.python-deps
+constraints: programs $(VENV)/.python-deps
 	$(call run_and_summarize,$(CONSTRAINT_RUNS))
 
 # Every test (CI runs this), pytest on TEST_WORKERS processes; `make check` is the quick loop:

@@ -7,6 +7,7 @@ naming the file and what is missing. A file that a killed or stopped run left be
 as far as it goes: a missing descriptive attribute is named, datasets of different lengths are
 cut to the steps they all hold, and the run counts as incomplete (Run.problems says why).
 """
+import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,8 +84,11 @@ class Run:
         return step is not None and len(step) > 0 and self.steps != self.rows_written
 
     def column(self, dataset, name):
-        """Column `name` of a 2-D dataset, located through the dataset's `columns` attribute."""
+        """Column `name` of a 2-D dataset, located through the dataset's `columns` attribute; the
+        state's thermodynamic columns in either spelling (theta_1, and theta1 of older files)."""
         names = self.columns.get(dataset)
+        if names is not None and name not in names:
+            name = next((other for other in column_spellings(name) if other in names), name)
         if names is None or name not in names:
             raise RunFileError(f"{self.path}: dataset /{dataset} has no column '{name}' "
                                f"in its 'columns' attribute (it names: {names})")
@@ -195,6 +199,16 @@ def read_run(path, datasets, attributes=()):
                   and "rows" in item.attrs}
     cut_to_common_length(run, others)
     return run
+
+
+def column_spellings(name):
+    """A column's name and its other spelling: theta_1 and theta1, s_2 and s2 (older files wrote
+    /state's thermodynamic columns without the underscore)."""
+    match = re.fullmatch(r"(s|theta|u)_?([0-9]+)", name)
+    if not match:
+        return [name]
+    symbol, number = match.groups()
+    return [name, *(other for other in (f"{symbol}_{number}", f"{symbol}{number}") if other != name)]
 
 
 def _column_names(value):
