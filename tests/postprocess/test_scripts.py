@@ -189,6 +189,27 @@ def test_temperatures_and_jz_drift(eme_files, tmp_path):
     plt.close(fig)
 
 
+def test_compared_temperatures_get_a_column_of_panels_of_their_own(eme_files):
+    """EME in three variables against the midpoint rule in three: the files in the left column,
+    the compared runs in the right, three curves each, the rows on the same y axes."""
+    needed = ["temperature", "angular_momentum"]
+    runs = [read_run(p, needed) for p in eme(eme_files)]
+    compare = [read_run(p, needed) for p in midpoint(eme_files)]
+    fig = plot_temperatures.make_figure(runs, compare)
+    grid = np.array(fig.axes).reshape(3, 2)
+    for column, drawn in enumerate((runs, compare)):
+        assert "MP" in grid[0, column].get_title() if column else "EME" in grid[0, column].get_title()
+        for row, name in enumerate(("theta_1", "theta_2")):
+            lines = grid[row, column].get_lines()
+            assert len(lines) == 3
+            for run, line in zip(drawn, lines):
+                np.testing.assert_array_equal(line.get_ydata(), run.column("temperature", name))
+                assert line.get_linestyle() == ("--" if column else "-")
+        assert grid[0, 0].get_ylim() == grid[0, 1].get_ylim()
+    assert len(fig.legends[0].get_texts()) == 6
+    plt.close(fig)
+
+
 # ---------------------------------------------------------------- Fig. 3: snapshots
 def test_snapshots_and_animation(eme_files, tmp_path, capsys):
     path = eme_files["eme", "temperature"]
