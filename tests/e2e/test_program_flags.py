@@ -2,7 +2,6 @@
 and exits with status 0, runs nothing (no benchmark, no run) and needs no input file."""
 import re
 import subprocess
-from pathlib import Path
 
 import pytest
 
