@@ -86,9 +86,12 @@ $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(L
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all deps test check run constraints figures study bench clean python-lock version docs
+.PHONY: all programs deps test check run constraints figures study bench clean python-lock version docs
 
-all: $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
+# The programs alone (make run, figures, study, bench and constraints need no unit tests).
+PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
+programs: $(PROGRAMS)
+all: $(PROGRAMS)
 
 $(OBJ)/%.o: %.f90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
@@ -191,6 +194,9 @@ $(BUILD)/version.stamp: FORCE
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
 $(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp VERSION
 $(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
+# snes_overhead (C, PETSc alone) prints the same version.
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): $(BUILD)/version.stamp VERSION
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): CFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up
@@ -271,7 +277,7 @@ define run_and_summarize
 	@$(PYTHON) postprocess/summarize_runs.py $(foreach r,$(1),results/$(r).h5)
 endef
 
-run: all $(VENV)/.python-deps
+run: programs $(VENV)/.python-deps
 	$(call run_and_summarize,$(PAPER_RUNS))
 	@$(MAKE) --no-print-directory figures
 
@@ -313,10 +319,12 @@ STUDIES := convergence convergence_reference work_precision work_precision_adapt
            $(foreach s,$(HARD_SCENES),stability_$(s) stability_$(s)_tolerance)
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
-# Each study prints its start, a progress line every 2 s and its summary.
-study: all $(VENV)/.python-deps
-	@for s in $(STUDIES); do rm -rf results/study/$$s; \
-	  $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml || exit 1; done
+# Each study prints its start, a progress line every 2 s and its summary; the machine's load around
+# it goes to results/study/NAME.load.json (postprocess/machine_load.py), for the charts' captions.
+study: programs $(VENV)/.python-deps
+	@for s in $(STUDIES); do rm -rf results/study/$$s results/study/$$s.load.json; \
+	  $(PYTHON) postprocess/machine_load.py --record results/study/$$s.load.json --own 2 -- \
+	    $(MPIRUN) -n 2 $(BIN)/eme_ensemble inputs/study_$$s.nml || exit 1; done
 	$(PYTHON) postprocess/study_analysis.py --study-dir results/study -o results/figures \
 	  --summary results/study/summary.h5
 	$(PYTHON) postprocess/estimate_tracking.py --bin $(BIN) -o results/figures/estimate_tracking \
@@ -326,16 +334,17 @@ study: all $(VENV)/.python-deps
 # 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a hand-written
 # Newton floor, then issue 22's four speed ratios, each on its own line with its target
 # (bench_eme_run.py: eme_run and eme_bench alternating), and PETSc SNES timed by itself
-# (snes_overhead) beside what the ratios leave it. Each part ends with machine-readable lines.
-bench: all $(VENV)/.python-deps
+# (snes_overhead) beside what the ratios leave it. Each part ends with machine-readable lines and
+# the machine's load around it (postprocess/machine_load.py; a warning when it was busy).
+bench: programs $(VENV)/.python-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
-	$(BIN)/eme_accuracy_bench 5
-	$(BIN)/eme_bench 21
+	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_accuracy_bench.load.json -- $(BIN)/eme_accuracy_bench 5
+	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_bench.load.json -- $(BIN)/eme_bench 21
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (docs/constraints.md).
-constraints: all $(VENV)/.python-deps
+constraints: programs $(VENV)/.python-deps
 	$(call run_and_summarize,$(CONSTRAINT_RUNS))
 
 # Every test (CI runs this), pytest on TEST_WORKERS processes; `make check` is the quick loop:

@@ -23,7 +23,8 @@ program eme_accuracy_bench
   use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use statistics, only: median
-  use command_line, only: benchmark_repeats
+  use command_line, only: benchmark_repeats, petsc_help_requested
+  use library_versions, only: print_versions
   implicit none
 
   !> A scheme under test: its registry name, whether it is adaptive (calibrated in tolerance,
@@ -66,21 +67,24 @@ program eme_accuracy_bench
   real(real64), allocatable :: z0(:), reference(:), end_state(:)
   real(real64) :: cross_check, seconds, cvode_seconds
   integer :: repeats, k, c, run, steps, stat
-  character(len=32) :: argument
   character(len=:), allocatable :: message
   PetscErrorCode :: ierr
 
-  if (command_argument_count() >= 1) then
-    call get_command_argument(1, argument)
-    if (argument == '--help' .or. argument == '-h') then
-      write (output_unit, '(a)') 'usage: eme_accuracy_bench [REPEATS] [PETSc options]', '', &
-        'CPU time to an error of 1e-4 and 1e-6 at t = 5 s on the paper scene for the relaxed Runge-Kutta', &
-        'schemes, CVODE, ts_rk5dp and EME_theta: each setting calibrated to its target, then the median of', &
-        'REPEATS (default 5) alternating runs. A benchmark, not a test; the last line is machine-readable.'
-      stop
-    end if
+  ! --help, -h and --version answer at once, wherever they stand, without PETSc and without timing.
+  if (has_argument([character(len=6) :: '--help', '-h'])) then
+    call print_usage()
+    stop
+  else if (has_argument(['--version'])) then
+    call print_versions(output_unit, 'eme_accuracy_bench')
+    stop
   end if
   PetscCallA(PetscInitialize(ierr))
+  if (petsc_help_requested()) then
+    ! PETSc's -help (PETSc has printed its own options): the usage, and no benchmark.
+    call print_usage()
+    PetscCallA(PetscFinalize(ierr))
+    stop
+  end if
   call benchmark_repeats(5, repeats, stat)
   if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
   call scene%build(tau_temperature, model, z0, constraints, stat, message)
@@ -132,6 +136,29 @@ program eme_accuracy_bench
   PetscCallA(PetscFinalize(ierr))
 
 contains
+
+  !> The usage and what the benchmark does (--help, -h, and PETSc's -help).
+  subroutine print_usage()
+    write (output_unit, '(a)') 'usage: eme_accuracy_bench [REPEATS] [PETSc options]', '', &
+      'CPU time to an error of 1e-4 and 1e-6 at t = 5 s on the paper scene for the relaxed Runge-Kutta', &
+      'schemes, CVODE, ts_rk5dp and EME_theta: each setting calibrated to its target, then the median of', &
+      'REPEATS (default 5) alternating runs. A benchmark, not a test; the last line is machine-readable.', '', &
+      '--help, -h: this text; --version: the code''s and the libraries'' versions; -help: PETSc''s help and', &
+      'this text. Each prints and exits with status 0.'
+  end subroutine print_usage
+
+  !> Whether one of `flags` is on the command line.
+  logical function has_argument(flags)
+    character(len=*), intent(in) :: flags(:)
+    character(len=64) :: argument
+    integer :: k
+
+    has_argument = .false.
+    do k = 1, command_argument_count()
+      call get_command_argument(k, argument)
+      if (any(flags == argument)) has_argument = .true.
+    end do
+  end function has_argument
 
   ! A benchmark that cannot run says why and exits with status 1.
   subroutine fail(text)

@@ -31,7 +31,8 @@ program eme_bench
   use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
   use statistics, only: median
-  use command_line, only: benchmark_repeats
+  use command_line, only: benchmark_repeats, petsc_help_requested
+  use library_versions, only: print_versions
   implicit none
 
   integer, parameter :: steps = 134, max_iterations = 50
@@ -65,23 +66,24 @@ program eme_bench
   real(real64), allocatable :: times(:), cvode_times(:), cvode_internal(:), eme_over_cvode(:)
   integer :: cvode_steps, cvode_solves
   integer :: repeats, k, iterations, stat, theta_case, run
-  character(len=32) :: argument
   PetscErrorCode :: ierr
 
-  if (command_argument_count() >= 1) then
-    call get_command_argument(1, argument)
-    if (argument == '--help' .or. argument == '-h') then
-      write (output_unit, '(a)') 'usage: eme_bench [REPEATS] [PETSc options]', '', &
-        'Times the stepping loop of every scheme on the paper scene and the Fig. 5 constrained scenes (134', &
-        'steps of 0.15 s): per repeat, alternately through PETSc SNES as a run does and by a hand-written', &
-        'Newton loop on the same fused kernel (the floor); medians of REPEATS runs (default 15) after a', &
-        'warm-up, per step, with Newton iterations per step; the PETSc TS baselines alone. The -eme_*', &
-        'options (-help lists them) switch the speed-ups off one by one. A benchmark, not a test: the last', &
-        'line is machine-readable: us_per_step=... snes_over_floor=... newton_per_step=...'
-      stop
-    end if
+  ! --help, -h and --version answer at once, wherever they stand, without PETSc and without timing.
+  if (has_argument([character(len=6) :: '--help', '-h'])) then
+    call print_usage()
+    stop
+  else if (has_argument(['--version'])) then
+    call print_versions(output_unit, 'eme_bench')
+    stop
   end if
   PetscCallA(PetscInitialize(ierr))
+  if (petsc_help_requested()) then
+    ! PETSc's -help: the usage, then (as PETSc prints them while they are read) the -eme_* options.
+    call print_usage()
+    call read_solver_options(options, ierr)
+    PetscCallA(PetscFinalize(ierr))
+    stop
+  end if
   call benchmark_repeats(15, repeats, stat)
   if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
   call read_solver_options(options, ierr)
@@ -151,6 +153,32 @@ program eme_bench
   PetscCallA(PetscFinalize(ierr))
 
 contains
+
+  !> The usage and what the benchmark does (--help, -h, and PETSc's -help before its option list).
+  subroutine print_usage()
+    write (output_unit, '(a)') 'usage: eme_bench [REPEATS] [PETSc options]', '', &
+      'Times the stepping loop of every scheme on the paper scene and the Fig. 5 constrained scenes (134', &
+      'steps of 0.15 s): per repeat, alternately through PETSc SNES as a run does and by a hand-written', &
+      'Newton loop on the same fused kernel (the floor); medians of REPEATS runs (default 15) after a', &
+      'warm-up, per step, with Newton iterations per step; the PETSc TS baselines alone. The -eme_*', &
+      'options (-help lists them) switch the speed-ups off one by one. A benchmark, not a test: the last', &
+      'line is machine-readable: us_per_step=... snes_over_floor=... newton_per_step=...', '', &
+      '--help, -h: this text; --version: the code''s and the libraries'' versions; -help: this text and', &
+      'the PETSc options the benchmark reads. Each prints and exits with status 0.'
+  end subroutine print_usage
+
+  !> Whether one of `flags` is on the command line.
+  logical function has_argument(flags)
+    character(len=*), intent(in) :: flags(:)
+    character(len=64) :: argument
+    integer :: k
+
+    has_argument = .false.
+    do k = 1, command_argument_count()
+      call get_command_argument(k, argument)
+      if (any(flags == argument)) has_argument = .true.
+    end do
+  end function has_argument
 
   ! A benchmark that cannot run says why and exits with status 1.
   subroutine fail(text)

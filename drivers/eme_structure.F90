@@ -1,13 +1,15 @@
 !> eme_structure FILE.nml OUT.h5: the GENERIC structure of FILE.nml's scene at its initial state:
 !> the matrices L and K of eq. (8) with grad E and grad S, for each thermodynamic variable, into
 !> OUT.h5 (src/run/structure_file). postprocess/plot_structure.py draws them (the paper's Fig. 2).
-!> Exit status: 0 written, 2 bad input or usage (nothing written), 1 HDF5 failed.
+!> Exit status: 0 written, 2 bad input or usage (nothing written), 1 HDF5 failed. --help, -h, -help
+!> and --version print and exit with status 0.
 program eme_structure
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use run_config, only: run_configuration, read_run_config
   use structure_file, only: write_structure_file
+  use library_versions, only: print_versions
   implicit none
 
   type(run_configuration) :: config
@@ -16,9 +18,16 @@ program eme_structure
   integer :: stat, exit_status
   PetscErrorCode :: ierr
 
+  ! --help, -h, PETSc's -help and --version answer at once, wherever they stand.
+  if (has_argument([character(len=6) :: '--help', '-h', '-help'])) then
+    call print_usage(output_unit)
+    stop
+  else if (has_argument(['--version'])) then
+    call print_versions(output_unit, 'eme_structure')
+    stop
+  end if
   if (command_argument_count() /= 2) then
-    write (error_unit, '(a)') 'usage: eme_structure FILE.nml OUT.h5 (L, K, grad E, grad S of the scene at its '// &
-      'initial state, for each thermodynamic variable)'
+    call print_usage(error_unit)
     stop 2, quiet=.true.
   end if
   call get_command_argument(1, input)
@@ -40,4 +49,30 @@ program eme_structure
   end if
   PetscCallA(PetscFinalize(ierr))
   if (exit_status /= 0) stop exit_status, quiet=.true.
+
+contains
+
+  !> The usage line and what the program writes.
+  subroutine print_usage(unit)
+    integer, intent(in) :: unit
+
+    write (unit, '(a)') 'usage: eme_structure FILE.nml OUT.h5 (L, K, grad E, grad S of the scene at its '// &
+      'initial state, for each thermodynamic variable)', &
+      '--help, -h, -help: this text; --version: the code''s and the libraries'' versions. Exit status: 0 '// &
+      'written, 2 bad input or usage (nothing written), 1 HDF5 failed.'
+  end subroutine print_usage
+
+  !> Whether one of `flags` is on the command line.
+  logical function has_argument(flags)
+    character(len=*), intent(in) :: flags(:)
+    character(len=64) :: argument
+    integer :: k
+
+    has_argument = .false.
+    do k = 1, command_argument_count()
+      call get_command_argument(k, argument)
+      if (any(flags == argument)) has_argument = .true.
+    end do
+  end function has_argument
+
 end program eme_structure

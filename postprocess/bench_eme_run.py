@@ -22,6 +22,10 @@ in the same configuration with callbacks that only copy 9 numbers, its fixed cos
 per iteration times EME_theta's Newton iterations per step), each as a median over the pairs of
 its ratio to that pair's CVODE step, and what SNESSolve costs around a solver of our own (an
 SNESSHELL whose solve does nothing).
+
+The machine's load (machine_load.py) before and after the alternating pairs and its cores end the
+table, with a warning when it was busy. A program that fails ends the script with its own
+message (its stderr and stdout) and exit status 1.
 """
 import argparse
 import re
@@ -33,10 +37,26 @@ from pathlib import Path
 
 import h5py
 
+import machine_load
+
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = """&integrator scheme = 'eme', thermo_variable = 'temperature', dt = 0.15, t_end = 200.0 /
 &output file = '{file}', overwrite = .true. /
 """
+
+
+class ProgramFailed(Exception):
+    """A benchmarked program exited with an error; the message holds what it printed."""
+
+
+def run_program(command):
+    """Runs a program with its output captured; its stdout, or ProgramFailed with its own message."""
+    result = subprocess.run([str(part) for part in command], capture_output=True, text=True)
+    if result.returncode != 0:
+        said = "\n".join(text.strip() for text in (result.stderr, result.stdout) if text.strip())
+        raise ProgramFailed(f"{' '.join(str(part) for part in command)} exited with status {result.returncode}:\n"
+                            + (said or "(it printed nothing)"))
+    return result.stdout
 
 
 def eme_run_us_per_step(binary, folder, runs=3):
@@ -47,7 +67,7 @@ def eme_run_us_per_step(binary, folder, runs=3):
     namelist.write_text(SCENE.format(file=output))
     times = []
     for _ in range(runs):
-        subprocess.run([str(binary), str(namelist)], check=True, capture_output=True)
+        run_program([binary, namelist])
         with h5py.File(output, "r") as f:
             times.append(1e6 * float(f.attrs["solve_time_seconds"]) / int(f.attrs["steps_completed"]))
     return statistics.median(times)
@@ -59,9 +79,9 @@ TARGETS = {"snes_over_floor": 1.3, "eme_over_cvode": 1.5, "eme_run_over_cvode": 
 def bench_figures(binary, repeats):
     """From one eme_bench: EME_temperature's SNES and floor us per step, CVODE-BDF's us per internal step,
     EME_temperature's Newton iterations per step."""
-    result = subprocess.run([str(binary), str(repeats)], check=True, capture_output=True, text=True)
+    stdout = run_program([binary, repeats])
     snes = floor = cvode = newton = None
-    for line in result.stdout.splitlines():
+    for line in stdout.splitlines():
         row = re.match(r"EME_temperature\s+([0-9.]+)\s+([0-9.]+)", line)
         if row:
             snes, floor = float(row.group(1)), float(row.group(2))
@@ -70,30 +90,38 @@ def bench_figures(binary, repeats):
         elif line.startswith("us_per_step="):
             newton = float(re.search(r"newton_per_step=(\S+)", line).group(1))
     if None in (snes, floor, cvode, newton):
-        raise RuntimeError("eme_bench printed no EME_temperature, cvode_bdf_temperature or last row:\n" + result.stdout)
+        raise ProgramFailed("eme_bench printed no EME_temperature, cvode_bdf_temperature or last row:\n" + stdout)
     return snes, floor, cvode, newton
 
 
 def snes_by_itself(binary, solves=5000):
     """snes_overhead's fixed cost of a solve, its cost per Newton iteration, and an SNESSHELL's solve, us."""
-    result = subprocess.run([str(binary), str(solves)], check=True, capture_output=True, text=True)
-    found = re.search(r"snes_fixed_us=(\S+) snes_per_iteration_us=(\S+) snes_shell_us=(\S+)", result.stdout)
+    stdout = run_program([binary, solves])
+    found = re.search(r"snes_fixed_us=(\S+) snes_per_iteration_us=(\S+) snes_shell_us=(\S+)", stdout)
     if not found:
-        raise RuntimeError("snes_overhead printed no snes_fixed_us= line:\n" + result.stdout)
+        raise ProgramFailed("snes_overhead printed no snes_fixed_us= line:\n" + stdout)
     return tuple(float(value) for value in found.groups())
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="folder of eme_run and eme_bench")
     parser.add_argument("--repeats", type=int, default=7, help="alternating pairs (default 7)")
-    args = parser.parse_args()
-    bin_dir = Path(args.bin)
+    args = parser.parse_args(argv)
+    try:
+        return report(Path(args.bin), args.repeats)
+    except ProgramFailed as error:
+        print(f"bench_eme_run.py: error: {error}", file=sys.stderr)
+        return 1
+
+
+def report(bin_dir, repeats):
+    """Runs the alternating pairs and prints the ratios (ProgramFailed if a program fails)."""
     runs, benches, floors, cvodes, newtons, fixeds, slopes, shells = ([] for _ in range(8))
     ratios = {name: [] for name in TARGETS}
     ratios.update(share=[], alone=[])
-    with tempfile.TemporaryDirectory() as scratch:
-        for _ in range(args.repeats):
+    with tempfile.TemporaryDirectory() as scratch, machine_load.measured(own=1) as load:
+        for _ in range(repeats):
             run = eme_run_us_per_step(bin_dir / "eme_run", Path(scratch))
             snes, floor, cvode, newton = bench_figures(bin_dir / "eme_bench", 3)
             fixed, per_iteration, shell = snes_by_itself(bin_dir / "snes_overhead")
@@ -109,7 +137,7 @@ def main():
     median = statistics.median
     print(f"eme_run on the paper scene (EME_theta, 1334 steps): {median(runs):.2f} us/step; "
           f"eme_bench EME_temperature: {median(benches):.2f} us/step "
-          f"(medians of {args.repeats} alternating pairs)")
+          f"(medians of {repeats} alternating pairs)")
     for name, target in TARGETS.items():
         value = median(ratios[name])
         excess = 100 * (value / target - 1)
@@ -131,6 +159,11 @@ def main():
           f"{alone * cvode / (floor_target - 1):.2f} us")
     print(f"  SNESSolve of an SNESSHELL (a Newton loop of our own inside SNES, not PETSc's): {median(shells):.2f} us "
           f"per solve")
+    print(load.text())
+    print(f"load_average_before={load.before:.2f} load_average_after={load.after:.2f} cores={load.cores} "
+          f"busy={int(load.busy)}")
+    if load.busy:
+        print(f"bench_eme_run.py: {load.warning()}", file=sys.stderr)
     return 0
 
 

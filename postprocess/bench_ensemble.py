@@ -20,7 +20,9 @@ compare runs made seconds apart; medians over `--repeats` are reported:
     one rank, run right after each other, (T_files - T_index) / 200, set beside the case's own
     compute time (its time loop, the index's solve_time_seconds).
 Cases per second of each study on 1 and 2 ranks and the file cost are printed on lines of their
-own; the last line is machine-readable.
+own; then the machine's load (machine_load.py: the 1-minute load average before and after the
+runs, the cores, a warning when it was busy); the last line is machine-readable and ends with the
+load.
 """
 import argparse
 import os
@@ -34,6 +36,8 @@ import time
 from pathlib import Path
 
 import h5py
+
+import machine_load
 
 ROOT = Path(__file__).resolve().parent.parent
 INDEX_ONLY_STUDY = ROOT / "inputs" / "bench_ensemble.nml"
@@ -130,7 +134,16 @@ def main(argv=None):
     halves, pairs = half_studies(), []
     same_cases = files_study(SAME_CASES_OUTPUT, index_only=True)
     file_costs, case_times = [], []
-    for _ in range(args.repeats):
+    # Two ranks at most run at once (the 2-rank studies, the two halves).
+    with machine_load.measured(own=2) as load:
+        repeat_runs(args.repeats, studies, runs, halves, pairs, same_cases, file_costs, case_times)
+    report(args.repeats, studies, runs, pairs, file_costs, case_times, load)
+    return 0
+
+
+def repeat_runs(repeats, studies, runs, halves, pairs, same_cases, file_costs, case_times):
+    """The alternating runs, repeat by repeat, their figures appended to the lists given."""
+    for _ in range(repeats):
         for name, (study, output) in studies.items():
             for ranks in (1, 2):
                 runs[name, ranks].append(run_once(study, output, ranks))
@@ -139,6 +152,10 @@ def main(argv=None):
         file_costs.append((with_files[0] - without[0]) / with_files[3])
         case_times.append(without[2] / without[3])
         pairs.append(run_pair(halves))
+
+
+def report(repeats, studies, runs, pairs, file_costs, case_times, load):
+    """Prints the medians, the ratios and the machine's load."""
     summary = {}
     for name in studies:
         for ranks in (1, 2):
@@ -150,7 +167,7 @@ def main(argv=None):
             per_case = statistics.median((ranks * r[0] - r[2]) / r[3] for r in measured)
             loop = statistics.median(r[2] / r[3] for r in measured)
             summary[name, ranks] = overhead
-            print(f"{name}, {ranks} rank(s): {cases} cases, median of {args.repeats}: study {study:.3f} s = "
+            print(f"{name}, {ranks} rank(s): {cases} cases, median of {repeats}: study {study:.3f} s = "
                   f"{cases / study:.1f} cases/s (whole mpirun {command:.3f} s); time loop {1e3 * loop:.2f} ms per "
                   f"case; overhead per case {1e3 * per_case:.3f} ms = {100 * overhead:.1f} % of its loop")
         efficiency = statistics.median(one[0] / (2 * two[0]) for one, two in zip(runs[name, 1], runs[name, 2]))
@@ -166,19 +183,23 @@ def main(argv=None):
         for ranks in (1, 2):
             measured = runs[name, ranks]
             print(f"cases/s, {name}, {ranks} rank{'s' if ranks > 1 else ''}: "
-                  f"{statistics.median(r[3] / r[0] for r in measured):.1f} (median of {args.repeats})")
+                  f"{statistics.median(r[3] / r[0] for r in measured):.1f} (median of {repeats})")
     file_cost, case_time = statistics.median(file_costs), statistics.median(case_times)
     print(f"file cost per case: {1e3 * file_cost:.3f} ms (200 cases with files minus the same cases index-only, "
-          f"1 rank, median of {args.repeats})")
+          f"1 rank, median of {repeats})")
     print(f"case compute time: {1e3 * case_time:.3f} ms (time loop, solve_time_seconds; file cost / case time "
           f"{file_cost / case_time:.2f})")
+    print(load.text())
     print(f"efficiency at 2 ranks against the machine's ceiling: index-only {summary['achieved']:.3f}, with files "
           f"{summary['with files', 'efficiency'] / summary['ceiling']:.3f}")
     print(f"ensemble_overhead_index_only={100 * summary['index-only', 1]:.2f}% "
           f"efficiency_2_ranks={summary['index-only', 'efficiency']:.3f} machine_ceiling={summary['ceiling']:.3f} "
           f"ensemble_overhead_with_files={100 * summary['with files', 1]:.2f}% "
-          f"file_cost_per_case_ms={1e3 * file_cost:.3f} case_time_ms={1e3 * case_time:.3f}")
-    return 0
+          f"file_cost_per_case_ms={1e3 * file_cost:.3f} case_time_ms={1e3 * case_time:.3f} "
+          f"load_average_before={load.before:.2f} load_average_after={load.after:.2f} cores={load.cores} "
+          f"busy={int(load.busy)}")
+    if load.busy:
+        print(f"bench_ensemble.py: {load.warning()}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -69,3 +69,33 @@ def label(name):
 def colour(name):
     """The integrator's colour: by its place in the registry (tolerance variants after it)."""
     return PALETTE[position(name) % len(PALETTE)] if name in _KNOWN else "black"
+
+
+# Colours by scheme family (the registry's `family`), Okabe-Ito, so that the study charts give one
+# colour to a family and one marker to each scheme in it; titles for the family panels.
+FAMILY_COLOURS = {"discrete_gradient_step": "#D55E00", "relaxation": "#0072B2", "petsc_ts": "#009E73",
+                  "sundials_cvode": "#CC79A7"}
+FAMILY_TITLES = {"discrete_gradient_step": "discrete-gradient steps (EME, midpoint rule)",
+                 "relaxation": "relaxed Runge-Kutta", "petsc_ts": "PETSc TS", "sundials_cvode": "SUNDIALS CVODE"}
+# One marker per scheme, by its place in the registry (tolerance variants after every integrator).
+SCHEME_MARKERS = ("o", "s", "D", "^", "v", "<", ">", "p", "h", "X", "P", "*", "d", "H", "8")
+
+
+def family(name):
+    """The integrator's family in the registry ('' when unknown)."""
+    return _KNOWN[name].get("family", "") if name in _KNOWN else ""
+
+
+def family_colour(name):
+    """The colour of the integrator's family (black for a family without one)."""
+    return FAMILY_COLOURS.get(family(name), "black")
+
+
+def family_title(name):
+    """A family's title for a panel, or the family's own name."""
+    return FAMILY_TITLES.get(name, name or "other")
+
+
+def marker(name):
+    """The integrator's marker: by its place in the registry."""
+    return SCHEME_MARKERS[position(name) % len(SCHEME_MARKERS)]

@@ -4,7 +4,11 @@ increments X_{n+1} - X_n, for EME_s, EME_theta and EME_u (one run file each).
 Increments are drawn on a symmetric-log axis, so a round-off increment of 1e-12 and a
 midpoint-rule increment of 1 J are both readable and the sign is the side of zero. Every run has its own colour and
 marker (by thermodynamic variable, or by scheme and variable; plotting.run_styles); --compare runs
-are dashed with open markers; --labels names the runs.
+are dashed with open markers; --labels names the runs. A long run shows the extremes of each
+stretch of steps rather than a marker per step (plotting.thinned). A file written with &output
+every or interval holds every N-th point: its increments are over the steps between written
+points, as the axis label and the caption say (its per-step extremes of S and V are the
+datasets /min_entropy_increment and /max_lyapunov_increment, which summarize_runs.py reports).
 
 Example: plot_balance.py eme_s.h5 eme_theta.h5 eme_u.h5 --compare mp_s.h5 mp_theta.h5 mp_u.h5 -o fig4
 """
@@ -34,7 +38,10 @@ def make_figure(runs, compare=()):
         values_ax.set_ylabel(value_label)
         increments_ax.set_ylabel(increment_label)
     axes[-1, 0].set_xlabel(r"time $t_n$ [s]")
-    axes[-1, 1].set_xlabel(r"time $t_{n+1}$ [s] (increment of step $n \to n+1$)")
+    if any(run.strided for run, _ in drawn):
+        axes[-1, 1].set_xlabel(r"time $t_{n+1}$ [s] (increment between written points $n \to n+1$)")
+    else:
+        axes[-1, 1].set_xlabel(r"time $t_{n+1}$ [s] (increment of step $n \to n+1$)")
     fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
     return fig
 
@@ -47,7 +54,9 @@ def main(argv=None):
     runs = [read_run(path, needed) for path in args.files]
     compare = [read_run(path, needed) for path in args.compare]
     apply_labels(parser, args.labels, [*runs, *compare])
-    return save(make_figure(runs, compare), args.output, TITLE, [*runs, *compare])
+    strided = [f"{run.path}: {run.rows_written} rows for {run.steps} steps (&output every or interval): its "
+               "increments are between written points, not per step" for run in [*runs, *compare] if run.strided]
+    return save(make_figure(runs, compare), args.output, TITLE, [*runs, *compare], lines=strided)
 
 
 if __name__ == "__main__":

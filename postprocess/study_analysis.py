@@ -11,12 +11,16 @@ convergence and work-precision indexes name (the stability studies keep only the
   study_structure_cost     energy error and entropy decrease against solve time (paper scene)
   study_stability_map      outcome of every case of the two stability studies
 (each as .png and .pdf), one HDF5 file SUMMARY with the numbers behind every figure, and
-prints the findings as plain lines. A scheme is a scheme and thermodynamic variable pair,
+prints the findings as plain lines. The timing charts (work precision, structure against cost)
+state in their captions and in SUMMARY the machine's load while their studies ran, from the
+STUDY_DIR/NAME.load.json that make study writes around each study (machine_load.py), and a
+warning goes to stderr when the machine was busy. A scheme is a scheme and thermodynamic variable pair,
 named as in the paper (EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u) with the labels of the
 integrator registry, which every index carries (/integrators).
 """
 import argparse
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +28,7 @@ import h5py
 import numpy as np
 
 import integrators
+import machine_load
 import stability_sets
 import study_plots
 from plotting import run_script
@@ -338,8 +343,29 @@ def write_dataset(group, name, values, units, description):
     dataset.attrs["description"] = description
 
 
-def write_summary(path, conv, wp, structure, maps, sets):
-    """The numbers behind every figure, one group per figure."""
+def study_loads(study_dir):
+    """The machine's load while the timed studies ran, per timing chart: a MachineLoad over its
+    studies (the highest loads), or None when a study has no NAME.load.json."""
+    charts = {"study_work_precision": WORK_PRECISION, "study_structure_cost": (SCENES["paper"],)}
+    loads = {}
+    for chart, names in charts.items():
+        records = [machine_load.read(Path(study_dir) / f"{name}.load.json") for name in names]
+        loads[chart] = None if None in records else machine_load.combined(records)
+    return loads
+
+
+def load_caption(load, names):
+    """The caption line of a timing chart's machine load."""
+    if load is None:
+        return (f"Machine load: not recorded (no {', '.join(f'{name}.load.json' for name in names)} beside the "
+                "studies; make study writes them): the timings' conditions are unknown.")
+    return f"Studies {', '.join(names)}: {load.text()}."
+
+
+def write_summary(path, conv, wp, structure, maps, sets, loads=None):
+    """The numbers behind every figure, one group per figure; the timing groups carry the machine's
+    load as attributes (load_recorded 0 when it was not)."""
+    loads = loads or {}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     rows = conv["rows"]
@@ -390,6 +416,7 @@ def write_summary(path, conv, wp, structure, maps, sets):
         write_dataset(g, "energy_drift", [r["energy_drift"] for r in wrows], "1", "max_n |E_n - E_0| / |E_0|")
         write_dataset(g, "cross_check_level", wp["level"], "1",
                       "the same error norm between the cross-check and the reference")
+        write_load(g, loads.get("study_work_precision"))
         g = f.create_group("structure_cost")
         g.attrs["description"] = "complete cases of stability_paper (figure study_structure_cost)"
         srows = structure["rows"]
@@ -403,6 +430,7 @@ def write_summary(path, conv, wp, structure, maps, sets):
                       "max(0, -min_n (S_{n+1} - S_n)): the largest entropy decrease in a step")
         write_dataset(g, "plot_floor", study_plots.LOG_FLOOR, "1 (energy), J/K (entropy)",
                       "values below it, exact zeros included, are drawn at it on the log axes")
+        write_load(g, loads.get("study_structure_cost"))
         for scene, grid in maps.items():
             g = f.create_group(f"stability/{scene}")
             g.attrs["description"] = (f"outcome of each case of {SCENES[scene]} (figure study_stability_map); "
@@ -431,6 +459,15 @@ def write_summary(path, conv, wp, structure, maps, sets):
                           "dt values at which the scheme finished with everything kept")
         stability_sets.write_summary(f, sets, write_dataset)
     print(f"wrote {path}")
+
+
+def write_load(group, load):
+    """The machine's load during the group's timings as attributes of the group."""
+    group.attrs["load_recorded"] = int(load is not None)
+    if load is not None:
+        for name, value in load.attributes().items():
+            group.attrs[name] = value
+        group.attrs["load_description"] = load.text()
 
 
 def findings(conv, wp, structure, maps):
@@ -503,10 +540,16 @@ def main(argv=None):
     structure = structure_cost(read_index(study_dir / SCENES["paper"]))
     maps = {scene: stability_map(read_index(study_dir / folder)) for scene, folder in SCENES.items()}
     sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive)
+    loads = study_loads(study_dir)
+    load_lines = {"study_work_precision": load_caption(loads["study_work_precision"], WORK_PRECISION),
+                  "study_structure_cost": load_caption(loads["study_structure_cost"], (SCENES["paper"],))}
     study_plots.save_all(output, conv, wp, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR),
-                         work_precision_factor=WORK_PRECISION_FACTOR)
+                         work_precision_factor=WORK_PRECISION_FACTOR, load_lines=load_lines)
     stability_sets.figure(sets, output / "study_stability_set")
-    write_summary(args.summary, conv, wp, structure, maps, sets)
+    write_summary(args.summary, conv, wp, structure, maps, sets, loads)
+    for chart, load in loads.items():
+        if load is not None and load.busy:
+            print(f"study_analysis.py: {chart}: {load.warning()}", file=sys.stderr)
     for line in findings(conv, wp, structure, maps) + stability_sets.findings(sets):
         print(line)
 

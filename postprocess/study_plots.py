@@ -2,9 +2,13 @@
 
 A curve or map row is a scheme and thermodynamic variable pair, e.g. ("eme", "temperature"),
 labelled in the paper's notation (EME_theta) with the label the integrator registry gives
-(postprocess/integrators.py). Colour says the scheme, marker and line style the thermodynamic
-variable. The figures use the paper style of plotting.py; what each shows in detail (reference,
-fit rule, classification) goes to its caption file and metadata.
+(postprocess/integrators.py). Colour says the scheme's family (discrete-gradient steps, relaxed
+Runge-Kutta, PETSc TS, CVODE), the marker the scheme, line style and fill the thermodynamic
+variable (solid and filled: s; dashed and open, larger: theta; dotted and filled, smaller: u, so
+that coinciding curves stay visible). The timing charts (work precision, structure against cost)
+give each family a row of panels of its own with its legend beside it, the other families' curves
+in light grey behind, on the same axes. The figures use the paper style of plotting.py; what each
+shows in detail (reference, fit rule, classification) goes to its caption file and metadata.
 """
 from pathlib import Path
 
@@ -14,9 +18,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 import integrators
-from plotting import DOUBLE_COLUMN, VARIABLE_ORDER, curve_style, plt, save, variable_position
+from plotting import DOUBLE_COLUMN, MIN_FONT_POINTS, plt, save, variable_position
 from trajectory import VARIABLE_NAMES, VARIABLE_SYMBOLS
-VARIABLE_LINES = {"entropy": "-", "temperature": "--", "internal_energy": ":"}
 
 # Log axes cannot show 0: values below LOG_FLOOR (exact zeros included) are drawn at it. Relative
 # energy round-off is ~1e-16 and an entropy round-off ~1e-16 J/K (S ~ 2 J/K), so 1e-17 sits below
@@ -33,7 +36,6 @@ OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442"
                    "solver": "#56B4E9", "nonphysical": "#303030"}
 NOT_RUN_COLOUR = "white"
 SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene"}
-LEGEND_COLUMNS = 4
 # The stability map's rows [in]: both scenes side by side, so that the map fits a page.
 MAP_ROW_HEIGHT = 0.2
 
@@ -59,24 +61,48 @@ def label(scheme, variable):
     return rf"{integrators.label(scheme)}$_{{{VARIABLE_SYMBOLS.get(variable, variable)}}}$"
 
 
+# Variable by line style, fill and size (largest drawn first, so a smaller marker on a coinciding
+# point shows inside a larger one).
+VARIABLE_MARKS = {"entropy": ("-", True, 4.6), "temperature": ("--", False, 6.2), "internal_energy": (":", True, 2.8)}
+BACKGROUND = "0.82"
+
+
 def style(key):
-    """Line and marker style of one scheme: the variable's nested marker, open where a smaller
-    one may sit inside it, in shapes that alternate from scheme to scheme of the registry (so
-    that MP and TS-midpoint, whose errors coincide, both show)."""
+    """Line and marker of one scheme and variable: the family's colour, the scheme's marker, the
+    variable's line style, fill and size."""
     scheme, variable = key
-    position = variable_position(variable)
-    return curve_style(integrators.colour(scheme), position, filled=position >= len(VARIABLE_ORDER) - 1,
-                       linestyle=VARIABLE_LINES.get(variable, "-."), shapes=integrators.position(scheme))
+    colour = integrators.family_colour(scheme)
+    linestyle, filled, size = VARIABLE_MARKS.get(variable, ("-.", True, 4.0))
+    return dict(color=colour, marker=integrators.marker(scheme), markersize=size, linestyle=linestyle,
+                markerfacecolor=colour if filled else "white", zorder=3 + 0.1 * (7 - size))
+
+
+def families(keys):
+    """The families of the (scheme, variable) pairs in registry order, each with its pairs."""
+    grouped = {}
+    for key in keys:
+        grouped.setdefault(integrators.family(key[0]), []).append(key)
+    return list(grouped.items())
+
+
+# A family's row of panels: at least this high [in], and high enough for its legend beside it.
+FAMILY_ROW_HEIGHT = 1.45
+LEGEND_ENTRY_HEIGHT = 0.155
+
+
+def family_rows(grouped, columns, extra_entries=0):
+    """A figure of one row of panels per family, a page wide, the panels sharing their axes; each
+    row as high as its legend (one entry per scheme and variable, plus `extra_entries`) needs."""
+    heights = [max(FAMILY_ROW_HEIGHT, LEGEND_ENTRY_HEIGHT * (len(keys) + extra_entries) + 0.3)
+               for _, keys in grouped] or [FAMILY_ROW_HEIGHT]
+    return plt.subplots(len(heights), columns, figsize=(DOUBLE_COLUMN, 0.8 + sum(heights)), sharex=True,
+                        sharey="col", squeeze=False, height_ratios=heights)
 
 
 def members(rows, key):
     """Indices of the rows of one scheme, by ascending dt, then tolerance (adaptive schemes)."""
     chosen = [i for i, row in enumerate(rows) if (row["scheme"], row["thermo_variable"]) == key]
     return sorted(chosen, key=lambda i: (rows[i]["dt"], rows[i].get("tolerance", 0.0)))
-
-
-def legend_right(fig, ax):
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper")
 
 
 def error_axes(ax, conv, x_values, with_fit):
@@ -144,30 +170,43 @@ def convergence_figure(conv, wp, fit_rule):
 
 
 def work_precision_figure(wp, factor):
-    """Error at t = 5 s against the median solve time, log-log; lower left is better."""
-    fig, ax = plt.subplots(figsize=(DOUBLE_COLUMN, 4.4))
+    """Error at t = 5 s against the median solve time, log-log, one panel per scheme family (the
+    other families in grey behind); lower left is better."""
     rows, errors = wp["rows"], wp["errors"]
     time = np.array([row["solve_time_seconds"] for row in rows])
+    grouped = families(curve_keys(rows))
+    fig, axes = family_rows(grouped, 1, extra_entries=1)
+    curves = {}
     for key in curve_keys(rows):
         chosen = [i for i in members(rows, key) if wp["shown"][i]]
         chosen.sort(key=lambda i: -errors[i])
-        adaptive = "tolerance" in rows[chosen[0]] if chosen else False
-        ax.plot(time[chosen], errors[chosen], label=label(*key) + (" (tolerance)" if adaptive else ""),
-                **style(key))
-    ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.", label="|reference $-$ cross-check|")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_ylim(1e-11, 1.0)
-    ax.set_xlabel("solve time of one case on one rank, median of the study's repeats [s]")
-    ax.set_ylabel(r"error at $t$ = 5 s: max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, "
+        curves[key] = chosen
+    for ax, (family, keys) in zip(axes[:, 0], grouped):
+        for key, chosen in curves.items():
+            if key not in keys:
+                ax.plot(time[chosen], errors[chosen], color=BACKGROUND, linewidth=0.6, zorder=1)
+        for key in keys:
+            chosen = curves[key]
+            adaptive = "tolerance" in rows[chosen[0]] if chosen else False
+            ax.plot(time[chosen], errors[chosen], label=label(*key) + (" (tolerance)" if adaptive else ""),
+                    **style(key))
+        ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.", label="|reference $-$ cross-check|")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylim(1e-11, 1.0)
+        ax.set_title(integrators.family_title(family), loc="left")
+        ax.grid(True, which="major")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[-1, 0].set_xlabel("solve time of one case on one rank, median of the study's repeats [s]")
+    fig.supylabel(r"error at $t$ = 5 s: max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, "
                   r"|$\Delta\theta_a$|/$\theta_{ref}$)")
-    ax.grid(True, which="major")
-    legend_right(fig, ax)
     reference, cross_check = wp["reference"], wp["cross_check"]
     repeats = sorted({row.get("repeats", 1) for row in rows})
     return fig, "Work-precision at t = 5 s: error against solve time (lower left is better)", [
         f"Reference: {reference.path}; cross-check: {cross_check.path}; |reference - cross-check| = "
         f"{wp['level']:.1e} (dash-dot line); points with error below {factor:g} times it are left out.",
+        "One row per scheme family (colour), a marker per scheme, line style and fill per thermodynamic "
+        "variable; the other families' curves in grey behind, on the same axes.",
         "Points along a curve: the dt of a fixed-step scheme, or the tolerance of an adaptive one. "
         f"Solve time: the time loop of one case on one rank, the median of {'/'.join(map(str, repeats))} runs.",
         f"Cases: {len(rows)} complete" + (f"; left out (not complete): {len(wp['left_out'])}" if wp["left_out"] else "")]
@@ -178,38 +217,49 @@ def floored(values):
 
 
 def structure_figure(structure, source):
-    """Energy error and entropy-law violation against solve time, complete cases."""
+    """Energy error and entropy-law violation against solve time, complete cases: one row of two
+    panels per scheme family (the other families in grey behind), its legend beside it."""
     rows = structure["rows"]
-    legend_rows = -(-len(curve_keys(rows)) // LEGEND_COLUMNS)
-    fig, axes = plt.subplots(1, 2, figsize=(DOUBLE_COLUMN, 3.6 + 0.17 * legend_rows), sharex=True)
-    panels = (("energy", r"energy error max$_n$ |$E_n - E_0$| / |$E_0$|"),
-              ("violation", r"entropy decrease max(0, $-$min$_n$ ($S_{n+1} - S_n$)) [J/K]"))
-    for ax, (name, ylabel) in zip(axes, panels):
-        for key in curve_keys(rows):
-            chosen = members(rows, key)
-            ax.plot(structure["solve_time"][chosen], floored(structure[name][chosen]),
-                    label=label(*key), **style(key))
-        floor = ax.axhspan(LOG_FLOOR / 10, LOG_FLOOR * 2, color="0.88", zorder=0)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_ylim(bottom=LOG_FLOOR / 10)
+    grouped = families(curve_keys(rows))
+    fig, axes = family_rows(grouped, 2)
+    panels = (("energy", "energy error"), ("violation", "entropy decrease [J/K]"))
+    floor = epsilon = None
+    for row_axes, (family, keys) in zip(axes, grouped):
+        for ax, (name, _) in zip(row_axes, panels):
+            for key in curve_keys(rows):
+                chosen = members(rows, key)
+                if key in keys:
+                    ax.plot(structure["solve_time"][chosen], floored(structure[name][chosen]), label=label(*key),
+                            **style(key))
+                else:
+                    ax.plot(structure["solve_time"][chosen], floored(structure[name][chosen]), color=BACKGROUND,
+                            linewidth=0.6, zorder=1)
+            floor = ax.axhspan(LOG_FLOOR / 10, LOG_FLOOR * 2, color="0.92", zorder=0)
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_ylim(bottom=LOG_FLOOR / 10)
+            ax.grid(True, which="major")
+        epsilon = row_axes[0].axhline(np.finfo(float).eps, color="black", linewidth=0.6, linestyle=":")
+        row_axes[0].set_title(integrators.family_title(family), loc="left")
+        row_axes[1].legend(*row_axes[0].get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    for row_axes in axes:
+        for ax, (_, ylabel) in zip(row_axes, panels):
+            ax.set_ylabel(ylabel)
+    for ax in axes[-1]:
         ax.set_xlabel("solve time of one case [s]")
-        ax.set_ylabel(ylabel)
-        ax.grid(True, which="major")
-    epsilon = axes[0].axhline(np.finfo(float).eps, color="black", linewidth=0.6, linestyle=":")
-    axes[0].legend([floor, epsilon], [rf"zeros and values < $10^{{{np.log10(LOG_FLOOR):.0f}}}$", "machine epsilon"],
-                   loc="center left", bbox_to_anchor=(0.0, 0.42))
-    # Four columns, in registry order: the legend stays inside the figure's width (12 columns, one
-    # per scheme, were clipped).
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=LEGEND_COLUMNS)
+    fig.legend([floor, epsilon], [rf"zeros and values < $10^{{{np.log10(LOG_FLOOR):.0f}}}$", "machine epsilon"],
+               loc="outside lower center", ncols=2)
     zero = [plain_name(*key) for key in curve_keys(rows)
             if np.all(structure["violation"][members(rows, key)] == 0)]
     return fig, "Structure against cost: energy error and entropy decrease against solve time", [
         f"Complete cases of {source} ([0, t_end], dt from the study), one point per case, curves "
-        "ordered by dt; failed cases are left out. From the index: energy_drift and "
+        "ordered by dt; failed cases are left out. Energy error: max_n |E_n - E_0| / |E_0|; entropy decrease: "
+        "max(0, -min_n (S_(n+1) - S_n)) [J/K]. From the index: energy_drift and "
         f"min_entropy_increment. Exact zeros and values below {LOG_FLOOR:.0e} are drawn at {LOG_FLOOR:.0e} "
-        "(grey band).", "Entropy decrease zero on every finished case: " + ", ".join(zero)]
+        "(grey band).",
+        "One row per scheme family (colour), a marker per scheme, line style and fill per thermodynamic "
+        "variable; the other families' curves in grey behind, on the same axes.",
+        "Entropy decrease zero on every finished case: " + ", ".join(zero)]
 
 
 def stability_figure(maps):
@@ -261,12 +311,18 @@ def stability_figure(maps):
         "seconds (the summary file has them exactly)."]
 
 
-def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor):
-    """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt."""
+def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor, load_lines=None):
+    """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt;
+    `load_lines` adds a caption line per figure name (the machine's load of a timing chart)."""
+    load_lines = load_lines or {}
     output = Path(output)
     source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
     for name, (fig, title, lines) in (("study_convergence", convergence_figure(conv, wp, fit_rule)),
                                       ("study_work_precision", work_precision_figure(wp, work_precision_factor)),
                                       ("study_structure_cost", structure_figure(structure, source)),
                                       ("study_stability_map", stability_figure(maps))):
-        save(fig, output / name, title, lines=lines)
+        if "BUSY" in load_lines.get(name, ""):
+            # A busy machine's timings are marked on the chart itself, not only in its caption.
+            fig.text(0.005, 0.995, "measured on a busy machine (see the caption)", ha="left", va="top",
+                     color="tab:red", fontsize=MIN_FONT_POINTS)
+        save(fig, output / name, title, lines=lines + ([load_lines[name]] if name in load_lines else []))

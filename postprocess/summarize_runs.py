@@ -6,7 +6,13 @@ halving (integrators that reject steps: rejected_steps; '-' for the others), the
 (Q_n is the heat supplied through constraint g2, zero without it, so this is the energy drift),
 the smallest entropy increment, the largest Lyapunov increment, the J_z drift
 max_n |J_z,n - J_z,0|, the largest constraint residual, the mean Newton iterations per step and
-the wall time. Everything is read from the HDF5 files.
+the wall time. Everything is read from the HDF5 files, and gives eme_run's own summary line
+for any &output every or interval: the steps are the last step the rows reach (/step), the
+increments the per-step records /min_entropy_increment and /max_lyapunov_increment (a row that
+stands for several steps holds their least and largest), Newton/step the summed
+/newton_iterations over the steps; the energy balance and the J_z drift of a complete file are its
+run_figures, which eme_run took over every step (an incomplete file's: over the points written).
+Files without the per-step records (older versions) give the increments between written points.
 
 A file that a killed or stopped run left behind is summarised as far as it goes, its status
 marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5, damaged, without
@@ -24,7 +30,10 @@ from trajectory import IDENTITY_ATTRIBUTES, Run, RunFileError, cut_to_common_len
 
 POINT_DATASETS = ("energy", "entropy", "lyapunov", "angular_momentum")
 STEP_DATASETS = ("newton_iterations",)
-OPTIONAL = ("boundary_heat", "constraint_residual", "rejected_steps")
+OPTIONAL = ("boundary_heat", "constraint_residual", "rejected_steps", "step", "min_entropy_increment",
+            "max_lyapunov_increment")
+# run_figures (docs/output.md): what eme_run took over every step, in this order.
+RUN_FIGURES = ("energy_drift", "min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift")
 
 
 def read(path):
@@ -37,12 +46,21 @@ def read(path):
         for name in (*POINT_DATASETS, *STEP_DATASETS, *OPTIONAL):
             if name in f:
                 run.data[name] = f[name][()]
-                run.rows[name] = "step" if name in (*STEP_DATASETS, "rejected_steps") else "point"
+                rows = f[name].attrs.get("rows", "step" if name in (*STEP_DATASETS, "rejected_steps") else "point")
+                run.rows[name] = rows.decode() if isinstance(rows, bytes) else str(rows)
     absent = [name for name in (*IDENTITY_ATTRIBUTES, "discrete_gradient") if name not in run.attrs]
     if absent:
         run.problems.append("root attributes " + ", ".join(absent) + " missing")
     cut_to_common_length(run)
     return run
+
+
+def whole_run_figures(run):
+    """run_figures by name when the file is complete (eme_run's figures over every step), else {}."""
+    figures = run.attrs.get("run_figures")
+    if run.incomplete or figures is None or len(figures) < len(RUN_FIGURES):
+        return {}
+    return dict(zip(RUN_FIGURES, (float(value) for value in figures)))
 
 
 def summarize(path):
@@ -56,6 +74,18 @@ def summarize(path):
     rejected = data.get("rejected_steps")
     gradient = attrs.get("discrete_gradient", "none")
     constraints = attrs.get("constraints", "none")
+    whole = whole_run_figures(run)
+    rows = run.rows_written
+    # The per-step records cover every step, whatever the stride; the points' differences only
+    # when every step has its row.
+    if rows and "min_entropy_increment" in data:
+        min_ds = float(np.min(data["min_entropy_increment"][:rows]))
+    else:
+        min_ds = float(np.diff(entropy).min()) if rows else float("nan")
+    if rows and "max_lyapunov_increment" in data:
+        max_dv = float(np.max(data["max_lyapunov_increment"][:rows]))
+    else:
+        max_dv = float(np.diff(lyapunov).max()) if rows else float("nan")
     status = run.status
     if run.incomplete:
         status = f"{run.incomplete_mark} ({'; '.join([run.status, *run.problems])})"
@@ -66,13 +96,13 @@ def summarize(path):
                + (f" + {constraints}" if constraints != "none" else ""),
         "status": status,
         "steps": steps,
-        "rejected": "-" if rejected is None else str(int(rejected.sum())),
-        "energy_drift": float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0])),
-        "min_dS": float(np.diff(entropy).min()) if steps else float("nan"),
-        "max_dV": float(np.diff(lyapunov).max()) if steps else float("nan"),
-        "jz_drift": float(np.max(np.abs(jz - jz[0]))),
+        "rejected": "-" if rejected is None else str(int(rejected[:rows].sum())),
+        "energy_drift": whole.get("energy_drift", float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0]))),
+        "min_dS": min_ds,
+        "max_dV": max_dv,
+        "jz_drift": whole.get("angular_momentum_drift", float(np.max(np.abs(jz - jz[0])))),
         "constraint": "-" if constraint is None or constraint.size == 0 else f"{np.abs(constraint).max():.1e}",
-        "newton_per_step": float(data["newton_iterations"].mean()) if steps else float("nan"),
+        "newton_per_step": float(data["newton_iterations"][:rows].sum()) / steps if steps else float("nan"),
         "wall_s": f"{attrs['wall_time_seconds']:.3f}" if "wall_time_seconds" in attrs else "-",
     }
 

@@ -7,6 +7,7 @@ naming the file and what is missing. A file that a killed or stopped run left be
 as far as it goes: a missing descriptive attribute is named, datasets of different lengths are
 cut to the steps they all hold, and the run counts as incomplete (Run.problems says why).
 """
+import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,13 +64,31 @@ class Run:
         return self.status != "complete" or bool(self.problems)
 
     @property
-    def steps(self):
-        """Completed steps N: the per-point datasets hold N+1 rows (after cut_to_common_length)."""
+    def rows_written(self):
+        """Step rows in the file: the per-point datasets hold one more (after cut_to_common_length)."""
         return min(len(values) for name, values in self.data.items() if self.rows.get(name) != "step") - 1
 
+    @property
+    def steps(self):
+        """Completed steps N: the number of the last step the rows reach (/step; with &output every
+        or interval a row stands for several steps), else the rows written (files without /step)."""
+        step = self.data.get("step")
+        if step is not None and len(step) and self.rows_written:
+            return int(step[min(len(step), self.rows_written) - 1])
+        return self.rows_written
+
+    @property
+    def strided(self):
+        """True when a row stands for more than one step (&output every or interval)."""
+        step = self.data.get("step")
+        return step is not None and len(step) > 0 and self.steps != self.rows_written
+
     def column(self, dataset, name):
-        """Column `name` of a 2-D dataset, located through the dataset's `columns` attribute."""
+        """Column `name` of a 2-D dataset, located through the dataset's `columns` attribute; the
+        state's thermodynamic columns in either spelling (theta_1, and theta1 of older files)."""
         names = self.columns.get(dataset)
+        if names is not None and name not in names:
+            name = next((other for other in column_spellings(name) if other in names), name)
         if names is None or name not in names:
             raise RunFileError(f"{self.path}: dataset /{dataset} has no column '{name}' "
                                f"in its 'columns' attribute (it names: {names})")
@@ -162,7 +181,9 @@ def read_run(path, datasets, attributes=()):
         absent = [name for name in DESCRIPTION_ATTRIBUTES if name not in run.attrs and name != "status"]
         if absent:
             run.problems.append("root attributes " + ", ".join(absent) + " missing")
-        for name in ("time", *datasets):
+        # /step says which steps the rows stand for (files of older versions may lack it).
+        wanted = ("time", *datasets, *(("step",) if "step" in handle and "step" not in datasets else ()))
+        for name in wanted:
             if name not in handle or not isinstance(handle[name], h5py.Dataset):
                 raise RunFileError(f"{path}: dataset '/{name}' is missing")
             run.data[name] = handle[name][()]
@@ -178,6 +199,16 @@ def read_run(path, datasets, attributes=()):
                   and "rows" in item.attrs}
     cut_to_common_length(run, others)
     return run
+
+
+def column_spellings(name):
+    """A column's name and its other spelling: theta_1 and theta1, s_2 and s2 (older files wrote
+    /state's thermodynamic columns without the underscore)."""
+    match = re.fullmatch(r"(s|theta|u)_?([0-9]+)", name)
+    if not match:
+        return [name]
+    symbol, number = match.groups()
+    return [name, *(other for other in (f"{symbol}_{number}", f"{symbol}{number}") if other != name)]
 
 
 def _column_names(value):

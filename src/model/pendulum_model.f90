@@ -63,7 +63,8 @@ contains
         part%invariant_count = a + 1
         part%columns = spring_columns(a)
         part%tau_column = tau_index(a)
-        model%column_names(tau_index(a)) = trim(tau_symbols(variable))//achar(iachar('0') + a)
+        ! s_1, theta_1, u_1: spelt as /temperature's columns theta_1 theta_2 (docs/output.md).
+        model%column_names(tau_index(a)) = trim(tau_symbols(variable))//'_'//achar(iachar('0') + a)
         part%metric_scale = model%spring(a)%metric_scale()
       end associate
     end do

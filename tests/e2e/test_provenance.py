@@ -43,8 +43,8 @@ COMBINE = {
     "multiplier": "mean", "substeps": "sum"}
 
 # The symbol of the state's last two entries for each thermodynamic variable, and their units.
-VARIABLE_COLUMNS = {"entropy": (["s1", "s2"], "J/K"), "temperature": (["theta1", "theta2"], "K"),
-                    "internal_energy": (["u1", "u2"], "J")}
+VARIABLE_COLUMNS = {"entropy": (["s_1", "s_2"], "J/K"), "temperature": (["theta_1", "theta_2"], "K"),
+                    "internal_energy": (["u_1", "u_2"], "J")}
 
 
 def text(value):

@@ -32,7 +32,7 @@ def structure(tmp_path_factory):
 def test_the_state_layout_is_the_run_files(structure):
     _, data, columns = structure
     assert columns[:13] == "q1_x q1_y q1_z q2_x q2_y q2_z p1_x p1_y p1_z p2_x p2_y p2_z gamma".split()
-    assert columns[13:] == ["theta1", "theta2"]
+    assert columns[13:] == ["theta_1", "theta_2"]
     np.testing.assert_allclose(data["temperature"]["state"][13:], [280.0, 350.0])
 
 

@@ -63,7 +63,8 @@ def written_figures(files, directory):
         "constrained": (plot_constrained.main([str(files[n]) for n in ("length", "temperature", "both")]
                                               + ["-o", str(directory / "c")]), DOUBLE_COLUMN),
         "temperatures": (plot_temperatures.main([*map(str, eme), "--compare", *map(str, midpoint),
-                                                 "-o", str(directory / "t")]), SINGLE_COLUMN),
+                                                 "-o", str(directory / "t")]), DOUBLE_COLUMN),
+        "temperatures alone": (plot_temperatures.main([*map(str, eme), "-o", str(directory / "t1")]), SINGLE_COLUMN),
         "snapshots": (plot_snapshots.main([str(eme[1]), "--no-animation", "--times", "0", "2", "4", "6",
                                            "-o", str(directory / "s")]), DOUBLE_COLUMN),
     }

@@ -22,6 +22,7 @@ import plot_balance  # noqa: E402
 import plot_constrained  # noqa: E402
 import plot_snapshots  # noqa: E402
 import plot_temperatures  # noqa: E402
+import plotting  # noqa: E402
 from plotting import DOUBLE_COLUMN, figure_texts as texts_of, plt  # noqa: E402
 from synthetic_runs import constraint_attributes, write_run  # noqa: E402
 from trajectory import CONSTRAINT_ATTRIBUTES, RunFileError, read_run  # noqa: E402
@@ -185,6 +186,27 @@ def test_temperatures_and_jz_drift(eme_files, tmp_path):
         np.testing.assert_array_equal(fig.axes[1].get_lines()[index].get_ydata(), theta[:, 1])
         np.testing.assert_array_equal(fig.axes[2].get_lines()[index].get_ydata(), jz - jz[0])
     assert "[K]" in fig.axes[0].get_ylabel() and "[J s]" in fig.axes[2].get_ylabel()
+    plt.close(fig)
+
+
+def test_compared_temperatures_get_a_column_of_panels_of_their_own(eme_files):
+    """EME in three variables against the midpoint rule in three: the files in the left column,
+    the compared runs in the right, three curves each, the rows on the same y axes."""
+    needed = ["temperature", "angular_momentum"]
+    runs = [read_run(p, needed) for p in eme(eme_files)]
+    compare = [read_run(p, needed) for p in midpoint(eme_files)]
+    fig = plot_temperatures.make_figure(runs, compare)
+    grid = np.array(fig.axes).reshape(3, 2)
+    for column, drawn in enumerate((runs, compare)):
+        assert "MP" in grid[0, column].get_title() if column else "EME" in grid[0, column].get_title()
+        for row, name in enumerate(("theta_1", "theta_2")):
+            lines = grid[row, column].get_lines()
+            assert len(lines) == 3
+            for run, line in zip(drawn, lines):
+                np.testing.assert_array_equal(line.get_ydata(), run.column("temperature", name))
+                assert line.get_linestyle() == ("--" if column else "-")
+        assert grid[0, 0].get_ylim() == grid[0, 1].get_ylim()
+    assert len(fig.legends[0].get_texts()) == 6
     plt.close(fig)
 
 
@@ -352,3 +374,47 @@ def test_command_line_names_a_missing_dataset(eme_files, tmp_path):
     assert result.returncode == 2
     assert result.stderr.strip() == f"plot_balance.py: error: {path}: dataset '/lyapunov' is missing"
     assert not (tmp_path / "out.png").exists()
+
+
+def test_a_long_run_draws_the_extremes_of_each_stretch_not_a_marker_per_step(tmp_path):
+    """40,000 steps: at most MAX_POINT_MARKERS increments per series, among them the largest and
+    the smallest (a single negative entropy increment planted in the middle stays drawn)."""
+    steps = 40_000
+    n = np.arange(steps + 1, dtype=float)
+    entropy = 1.7 + 1e-4 * n + 1e-9 * np.sin(n)
+    entropy[20_001:] -= 5e-4                  # step 20,000 -> 20,001 lowers S
+    path, _ = write_run(tmp_path / "long.h5", steps=steps, data={"entropy": entropy,
+                                                                 "lyapunov": 600.0 - 300.0 * entropy})
+    fig = plot_balance.make_figure([read_run(path, BALANCE)])
+    increments_ax = fig.axes[3]                                 # entropy row, increments
+    (line,) = increments_ax.get_lines()
+    drawn = np.asarray(line.get_ydata())
+    assert len(drawn) <= plotting.MAX_POINT_MARKERS < steps
+    expected = np.diff(entropy)
+    assert drawn.min() == expected.min() < 0 and drawn.max() == expected.max()
+    assert set(drawn) <= set(expected)                          # the file's increments, none made up
+    plt.close(fig)
+
+
+def test_a_strided_run_s_increments_are_labelled_between_written_points(tmp_path):
+    """A file of eme_run with &output every = 5: the axis and the caption say the increments are
+    between written points; the same run written every step says per step."""
+    labels = {}
+    for every in (1, 5):
+        output = tmp_path / f"every{every}.h5"
+        namelist = tmp_path / f"every{every}.nml"
+        namelist.write_text(f"&integrator t_end = 1.5 /\n&output file = '{output}', every = {every} /\n")
+        result = subprocess.run([str(EME_RUN), str(namelist)], capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0, result.stderr
+        png, _, caption = plot_balance.main([str(output), "-o", str(tmp_path / f"fig{every}")])
+        labels[every] = (texts_of_saved(output), caption.read_text())
+    assert "increment of step" in labels[1][0] and "between written points" not in labels[1][1]
+    assert "between written points" in labels[5][0]
+    assert "2 rows for 10 steps" in labels[5][1] and "increments are between written points" in labels[5][1]
+
+
+def texts_of_saved(path):
+    fig = plot_balance.make_figure([read_run(path, BALANCE)])
+    text = "\n".join(texts_of(fig))
+    plt.close(fig)
+    return text

@@ -1,11 +1,14 @@
 """postprocess/study_analysis.py: the error norm, the order fit and the outcome classification on
 hand-made inputs, and the whole script on tiny studies run with eme_ensemble."""
+import json
+import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import h5py
+import matplotlib
 import numpy as np
 import pytest
 
@@ -27,6 +30,7 @@ ENSEMBLE = ROOT / "build" / "bin" / "eme_ensemble"
 SCRIPT = ROOT / "postprocess" / "study_analysis.py"
 BASE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
 MECHANICAL_GAMMA = study_analysis.MECHANICAL_COLUMNS.index("gamma")
+WORK_PRECISION_STUDIES = study_analysis.WORK_PRECISION
 
 
 # ---------------------------------------------------------------- error norm
@@ -227,8 +231,10 @@ def studies(tmp_path_factory):
         namelist = directory / f"{name}.nml"
         namelist.write_text(f"&study\n  base = '{BASE}'\n  output_dir = '{directory / 'study' / name}'\n"
                             f"  combine = '{combine}'\n  index_only = {index_only}\n/\n{sweeps}\n")
-        result = subprocess.run([str(ENSEMBLE), str(namelist)], capture_output=True, text=True,
-                                timeout=300, cwd=ROOT)
+        # As make study runs them: the machine's load recorded around each (machine_load.py).
+        result = subprocess.run([sys.executable, str(ROOT / "postprocess" / "machine_load.py"), "--record",
+                                 str(directory / "study" / f"{name}.load.json"), "--", str(ENSEMBLE), str(namelist)],
+                                capture_output=True, text=True, timeout=300, cwd=ROOT)
         assert result.returncode == 0, result.stderr
     return directory / "study"
 
@@ -469,9 +475,15 @@ def test_every_scheme_s_legend_and_map_fit_the_page(studies):
                  "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows))}
     fig, _, _ = study_plots.structure_figure(structure, "synthetic")
     fig.canvas.draw()
-    box, page = fig.legends[0].get_window_extent(), fig.bbox
-    assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0 and box.y1 <= page.y1
-    assert len(fig.legends[0].get_texts()) == len(names) * 3
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend()] + list(fig.legends)
+    page = fig.bbox
+    for legend in legends:
+        box = legend.get_window_extent()
+        assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0 and box.y1 <= page.y1
+    # One legend per family row, together naming every scheme in every variable once.
+    entries = [text.get_text() for legend in legends[:-1] for text in legend.get_texts()]
+    assert len(entries) == len(set(entries)) == len(names) * 3
+    assert fig.get_size_inches()[1] <= 10.0 and min(drawn_font_sizes(fig)) >= 8
     keys = [(n, v) for n in names for v in variables if not n.startswith("ts_") or n == "ts_rk4"]
     steps = np.array([0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0])
     grid = {"keys": keys, "dt": steps, "outcome": np.zeros((len(keys), 10), dtype=int),
@@ -481,4 +493,105 @@ def test_every_scheme_s_legend_and_map_fit_the_page(studies):
     width, height = fig.get_size_inches()
     assert width <= 7.0 and height <= 10.0, (width, height)
     assert min(drawn_font_sizes(fig)) >= 8
+    plt.close("all")
+
+
+# ---------------------------------------------------------------- the machine's load
+TIMED = {"study_work_precision": ("work_precision", WORK_PRECISION_STUDIES),
+         "study_structure_cost": ("structure_cost", ("stability_paper",))}
+
+
+@pytest.mark.parametrize("chart", TIMED)
+def test_timing_charts_record_the_load_and_cores_in_caption_and_summary(analysed, studies, chart):
+    output, _ = analysed
+    group, names = TIMED[chart]
+    records = [json.loads((studies / f"{name}.load.json").read_text()) for name in names]
+    caption = (output / "figures" / f"{chart}.txt").read_text()
+    with h5py.File(output / "summary.h5", "r") as f:
+        attrs = dict(f[group].attrs)
+    # The highest of the studies' loads, as each study's record holds it.
+    assert attrs["load_recorded"] == 1
+    assert attrs["load_average_before"] == max(r["load_average_before"] for r in records)
+    assert attrs["load_average_after"] == max(r["load_average_after"] for r in records)
+    assert attrs["cores"] == len(os.sched_getaffinity(0))
+    assert f"{attrs['load_average_before']:.2f} before" in caption and f"{attrs['cores']} cores" in caption
+    assert ("BUSY" in caption) == bool(attrs["busy"])
+
+
+def test_a_busy_or_unrecorded_load_is_said(studies, tmp_path):
+    """A study run while others loaded the machine (a planted record: load 3.0 on the cores before
+    it) makes a warning, a BUSY caption and a mark on the chart; a study without a record says the
+    conditions are unknown."""
+    copy = tmp_path / "study"
+    shutil.copytree(studies, copy)
+    record = json.loads((copy / "work_precision.load.json").read_text())
+    record.update(load_average_before=3.0 * record["cores"], load_average_after=0.0)
+    (copy / "work_precision.load.json").write_text(json.dumps(record))
+    (copy / "stability_paper.load.json").unlink()
+    result = run_script(copy, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 0, result.stderr
+    assert "study_work_precision: warning: the machine was busy" in result.stderr
+    assert "BUSY" in (tmp_path / "figures" / "study_work_precision.txt").read_text()
+    assert "Machine load: not recorded" in (tmp_path / "figures" / "study_structure_cost.txt").read_text()
+    with h5py.File(tmp_path / "summary.h5", "r") as f:
+        assert f["work_precision"].attrs["busy"] == 1 and f["structure_cost"].attrs["load_recorded"] == 0
+
+
+# ---------------------------------------------------------------- schemes told apart
+def every_scheme_rows(studies):
+    study_analysis.read_index(studies / "stability_paper")        # registers the integrators
+    with h5py.File(studies / "stability_paper" / "index.h5", "r") as f:
+        names = [row["name"].decode() for row in f["integrators"][()]]
+    return names, [{"scheme": n, "thermo_variable": v, "dt": dt, "index": studies / "x"} for n in names
+                   for v in ("entropy", "temperature", "internal_energy") for dt in (0.1, 0.2)]
+
+
+def coloured_lines(ax):
+    return [line for line in ax.get_lines() if line.get_marker() not in (None, "", "None", "none")]
+
+
+def test_structure_chart_gives_each_family_a_row_a_colour_and_each_scheme_a_marker(studies):
+    """36 curves: one row of panels per family, its curves in the family's colour, a marker per
+    scheme within the row, the other families grey behind; every curve drawn in colour once."""
+    names, rows = every_scheme_rows(studies)
+    structure = {"rows": rows, "solve_time": np.geomspace(1e-3, 1, len(rows)),
+                 "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows))}
+    fig, _, _ = study_plots.structure_figure(structure, "synthetic")
+    grid = np.array(fig.axes).reshape(-1, 2)
+    families = list(dict.fromkeys(study_analysis.integrators.family(name) for name in names))
+    assert len(grid) == len(families) == 4
+    drawn = []
+    for row_axes, family in zip(grid, families):
+        schemes = [name for name in names if study_analysis.integrators.family(name) == family]
+        for ax in row_axes:
+            lines = coloured_lines(ax)
+            assert len(lines) == 3 * len(schemes)
+            assert {matplotlib.colors.to_hex(line.get_color()) for line in lines} == \
+                {matplotlib.colors.to_hex(study_analysis.integrators.FAMILY_COLOURS[family])}
+            # A marker per scheme; the three variables of a scheme share it, told apart by line style.
+            markers = {}
+            for line in lines:
+                markers.setdefault(line.get_marker(), set()).add(line.get_linestyle())
+            assert len(markers) == len(schemes) and all(len(styles) == 3 for styles in markers.values())
+            grey = [line for line in ax.get_lines() if line not in lines
+                    and matplotlib.colors.to_hex(line.get_color()) == matplotlib.colors.to_hex(study_plots.BACKGROUND)]
+            assert len(grey) == 3 * (len(names) - len(schemes))
+        drawn += [line.get_label() for line in coloured_lines(row_axes[0])]
+    assert len(drawn) == len(set(drawn)) == 3 * len(names)
+    plt.close("all")
+
+
+def test_work_precision_chart_gives_each_family_a_panel(studies):
+    wp = study_analysis.work_precision(studies)
+    fig, _, lines = study_plots.work_precision_figure(wp, 10.0)
+    keys = study_plots.curve_keys(wp["rows"])
+    families = list(dict.fromkeys(study_analysis.integrators.family(scheme) for scheme, _ in keys))
+    assert len(fig.axes) == len(families) >= 3
+    for ax, family in zip(fig.axes, families):
+        mine = [key for key in keys if study_analysis.integrators.family(key[0]) == family]
+        assert study_analysis.integrators.family_title(family) == ax.get_title(loc="left")
+        assert len(coloured_lines(ax)) == len(mine)
+        assert {line.get_marker() for line in coloured_lines(ax)} == \
+            {study_analysis.integrators.marker(scheme) for scheme, _ in mine}
+    assert any("One row per scheme family" in line for line in lines)
     plt.close("all")
