@@ -170,11 +170,12 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_open_file
-    function c_check_run_file(path, status_text, capacity, steps) result(status) bind(c, name='eme_h5_check_run_file')
+    function c_check_run_file(path, status_text, capacity, steps, whole) result(status) &
+        bind(c, name='eme_h5_check_run_file')
       import :: c_char, c_int, c_long
       character(kind=c_char), intent(in) :: path(*)
       character(kind=c_char), intent(out) :: status_text(*)
-      integer(c_int), value :: capacity
+      integer(c_int), value :: capacity, whole
       integer(c_long), intent(out) :: steps
       integer(c_int) :: status
     end function c_check_run_file
@@ -350,17 +351,25 @@ contains
 
   !> Reads the run file at `path` back: its status and steps_completed, and whether every
   !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
-  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). stat: 0 all holds,
-  !> 1 unreadable, 2 no status, 3 lengths disagree.
-  subroutine check_run_file(path, status, steps_completed, stat)
+  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). With `whole`, also
+  !> every dataset read whole (their checksums) and the summary attributes (newton_iterations_total,
+  !> run_figures) checked against the datasets they summarise. stat: 0 all holds, 1 unreadable,
+  !> 2 no status, 3 lengths disagree, 4 a dataset fails its checksum, 5 a summary disagrees.
+  subroutine check_run_file(path, status, steps_completed, stat, whole)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: status
     integer, intent(out) :: steps_completed, stat
+    logical, intent(in), optional :: whole
     character(len=1024) :: buffer
     integer(c_long) :: steps
+    integer(c_int) :: reading
 
+    reading = 0
+    if (present(whole)) reading = merge(1, 0, whole)
+    buffer = c_null_char
+    steps = -1
     call open_library(stat)
-    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps))
+    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps, reading))
     status = buffer(1:max(0, index(buffer, c_null_char) - 1))
     steps_completed = int(steps)
   end subroutine check_run_file

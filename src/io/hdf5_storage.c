@@ -16,6 +16,8 @@
 #define _DEFAULT_SOURCE /* flock, usleep */
 #include <errno.h>
 #include <fcntl.h>
+#include <float.h>
+#include <math.h>
 #include <stdint.h>
 #include <hdf5.h>
 #include <stdio.h>
@@ -423,13 +425,167 @@ static long long integer_attribute(hid_t file, const char *name)
     return value;
 }
 
+/* Every value of dataset `name` of `file` as doubles (numbers; NULL for other types or on a
+ * failed read: a checksum that does not hold) and their count in *count; 0, or -1 if the
+ * dataset cannot be read whole. A dataset of texts is read and its texts freed. */
+static int read_values(hid_t file, const char *name, double **values, hssize_t *count)
+{
+    *values = NULL;
+    *count = 0;
+    hid_t dataset = H5Dopen2(file, name, H5P_DEFAULT);
+    if (dataset < 0) return -1;
+    hid_t space = H5Dget_space(dataset), stored = H5Dget_type(dataset);
+    int status = -1;
+    if (space >= 0 && stored >= 0 && (*count = H5Sget_simple_extent_npoints(space)) >= 0) {
+        if (H5Tget_class(stored) == H5T_INTEGER || H5Tget_class(stored) == H5T_FLOAT) {
+            *values = malloc((size_t)(*count > 0 ? *count : 1) * sizeof **values);
+            if (*values != NULL && H5Dread(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, *values) >= 0)
+                status = 0;
+        } else {
+            hid_t memory = H5Tget_native_type(stored, H5T_DIR_ASCEND);
+            size_t size = memory >= 0 ? H5Tget_size(memory) : 0;
+            void *buffer = size > 0 ? malloc((size_t)(*count > 0 ? *count : 1) * size) : NULL;
+            if (buffer != NULL && H5Dread(dataset, memory, H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer) >= 0) {
+                status = 0;
+                if (H5Tis_variable_str(memory) > 0 || H5Tdetect_class(memory, H5T_VLEN) > 0)
+                    H5Dvlen_reclaim(memory, space, H5P_DEFAULT, buffer);
+            }
+            free(buffer);
+            if (memory >= 0) H5Tclose(memory);
+        }
+    }
+    if (status != 0) {
+        free(*values);
+        *values = NULL;
+    }
+    if (stored >= 0) H5Tclose(stored);
+    if (space >= 0) H5Sclose(space);
+    H5Dclose(dataset);
+    return status;
+}
+
+/* Reads every dataset of the root group whole (H5Literate callback): a damaged chunk fails its
+ * Fletcher-32 checksum here. */
+static herr_t read_whole(hid_t group, const char *name, const H5L_info_t *info, void *data)
+{
+    (void)info;
+    int *failures = data;
+    H5O_info_t object;
+    if (H5Oget_info_by_name(group, name, &object, H5P_DEFAULT) < 0) {
+        ++*failures;
+        return 0;
+    }
+    if (object.type != H5O_TYPE_DATASET) return 0;
+    double *values;
+    hssize_t count;
+    if (read_values(group, name, &values, &count) != 0) ++*failures;
+    free(values);
+    return 0;
+}
+
+/* Whether `recorded` (from an attribute) is what the datasets give, `found`: the same number
+ * (both NaN alike), or within a few units of the last place for a figure the reader
+ * recomputes in another order. */
+static int same_figure(double recorded, double found)
+{
+    if (recorded != recorded || found != found) return (recorded != recorded) == (found != found);
+    return fabs(recorded - found) <= 4 * DBL_EPSILON * fmax(fabs(recorded), fabs(found));
+}
+
+/* The dataset `name` of `file` whole, or NULL if the file has none (*count 0); -1 if it cannot
+ * be read. */
+static int optional_values(hid_t file, const char *name, double **values, hssize_t *count)
+{
+    *values = NULL;
+    *count = 0;
+    if (H5Lexists(file, name, H5P_DEFAULT) <= 0) return 0;
+    return read_values(file, name, values, count);
+}
+
+/* The summary attributes of a run file against the datasets they summarise (src/run/simulation
+ * .f90 computes both): newton_iterations_total is the sum of newton_iterations; run_figures'
+ * min_entropy_increment and max_lyapunov_increment are the extremes of those datasets, and its
+ * energy drift, J_z drift and lowest temperature are those of the points stored (equal when
+ * every point is stored, else no better than the points show). 0 if all holds (or the file
+ * predates the attributes), 1 if not, -1 if a dataset cannot be read. */
+static int check_figures(hid_t file, long long steps)
+{
+    double figures[7];
+    int mismatches = 0, failed = 0;
+    if (steps <= 0 || H5Aexists(file, "run_figures") <= 0) return 0;
+    hid_t attribute = H5Aopen(file, "run_figures", H5P_DEFAULT);
+    hid_t shape = attribute >= 0 ? H5Aget_space(attribute) : -1;
+    int readable = shape >= 0 && H5Sget_simple_extent_npoints(shape) == 7 &&
+                   H5Aread(attribute, H5T_NATIVE_DOUBLE, figures) >= 0;
+    if (shape >= 0) H5Sclose(shape);
+    if (attribute >= 0) H5Aclose(attribute);
+    if (!readable) return 1;
+    long long newton_total = integer_attribute(file, "newton_iterations_total");
+    double *newton, *dS, *dV, *energy, *heat, *momentum, *theta;
+    hssize_t n_newton, n_dS, n_dV, n_energy, n_heat, n_momentum, n_theta;
+    failed |= optional_values(file, "newton_iterations", &newton, &n_newton);
+    failed |= optional_values(file, "min_entropy_increment", &dS, &n_dS);
+    failed |= optional_values(file, "max_lyapunov_increment", &dV, &n_dV);
+    failed |= optional_values(file, "energy", &energy, &n_energy);
+    failed |= optional_values(file, "boundary_heat", &heat, &n_heat);
+    failed |= optional_values(file, "angular_momentum", &momentum, &n_momentum);
+    failed |= optional_values(file, "temperature", &theta, &n_theta);
+    if (!failed) {
+        long long points = n_energy;
+        int every_point = points == steps + 1;
+        if (newton != NULL && newton_total >= 0) {
+            double sum = 0;
+            for (hssize_t i = 0; i < n_newton; ++i) sum += newton[i];
+            mismatches += sum != (double)newton_total;
+        }
+        if (dS != NULL && n_dS > 0) {
+            double low = dS[0];
+            for (hssize_t i = 1; i < n_dS; ++i) low = fmin(low, dS[i]);
+            mismatches += !same_figure(figures[1], low);
+        }
+        if (dV != NULL && n_dV > 0) {
+            double high = dV[0];
+            for (hssize_t i = 1; i < n_dV; ++i) high = fmax(high, dV[i]);
+            mismatches += !same_figure(figures[2], high);
+        }
+        /* Figures over the points: recomputed, then equal (every point) or bounded by the record. */
+        double found[3] = {0, 0, HUGE_VAL};
+        int have[3] = {0, 0, 0};
+        if (energy != NULL && points > 0 && (heat == NULL || n_heat == points)) {
+            for (hssize_t i = 0; i < points; ++i)
+                found[0] = fmax(found[0], fabs(energy[i] - energy[0] - (heat ? heat[i] : 0)) / fabs(energy[0]));
+            have[0] = 1;
+        }
+        if (momentum != NULL && n_momentum == 3 * points && points > 0) {
+            for (hssize_t i = 0; i < points; ++i) found[1] = fmax(found[1], fabs(momentum[3 * i + 2] - momentum[2]));
+            have[1] = 1;
+        }
+        if (theta != NULL && n_theta > 0) {
+            for (hssize_t i = 0; i < n_theta; ++i) found[2] = theta[i] != theta[i] ? NAN : fmin(found[2], theta[i]);
+            have[2] = 1;
+        }
+        const int slot[3] = {0, 3, 4};
+        for (int k = 0; k < 3; ++k) {
+            if (!have[k]) continue;
+            double recorded = figures[slot[k]];
+            if (every_point) mismatches += !same_figure(recorded, found[k]);
+            else if (k < 2) mismatches += !(found[k] <= recorded * (1 + 4 * DBL_EPSILON));
+            else mismatches += !(recorded <= found[k] || (recorded != recorded && found[k] != found[k]));
+        }
+    }
+    free(newton), free(dS), free(dV), free(energy), free(heat), free(momentum), free(theta);
+    return failed ? -1 : mismatches > 0;
+}
+
 /* Reads a run file back: its `status` into `status` (capacity bytes) and `steps_completed`, and
  * checks that every per-point dataset has R + 1 rows and every per-step dataset R rows, R being
  * the attribute step_rows (a row can stand for several steps: &output every), or
- * steps_completed in files without it. Returns 0 if all holds, 1 if the file cannot be opened,
- * 2 if status or steps_completed is missing, 3 if a dataset has the wrong length or cannot be
- * read. */
-int eme_h5_check_run_file(const char *path, char *status, int capacity, long *steps_completed)
+ * steps_completed in files without it. With `whole`, it also reads every dataset whole (a
+ * damaged chunk fails its checksum) and checks the summary attributes against the datasets
+ * (check_figures). Returns 0 if all holds, 1 if the file cannot be opened, 2 if status or
+ * steps_completed is missing, 3 if a dataset has the wrong length or cannot be read, 4 if a
+ * dataset fails its checksum (`whole`), 5 if a summary attribute disagrees with the datasets. */
+int eme_h5_check_run_file(const char *path, char *status, int capacity, long *steps_completed, int whole)
 {
     hid_t file;
     status[0] = '\0';
@@ -445,6 +601,14 @@ int eme_h5_check_run_file(const char *path, char *status, int capacity, long *st
         if (rows < 0 || H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, check_rows, &check) < 0)
             check.mismatches++;
         result = check.mismatches == 0 && check.datasets > 0 ? 0 : 3;
+        if (result == 0 && whole) {
+            int failures = 0;
+            position = 0;
+            if (H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, read_whole, &failures) < 0 || failures > 0)
+                result = 4;
+            else if (check_figures(file, steps) != 0)
+                result = 5;
+        }
     }
     if (H5Fclose(file) < 0 && result == 0) result = 1;
     return result;

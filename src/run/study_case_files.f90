@@ -43,7 +43,7 @@ contains
     character(len=:), allocatable :: status
     integer :: steps, stat
 
-    call check_run_file(case_file(study, c), status, steps, stat)
+    call check_run_file(case_file(study, c), status, steps, stat, whole=.true.)
     case_file_checks_out = stat == 0 .and. status == 'complete' .and. steps == steps_recorded
   end function case_file_checks_out
 
@@ -60,7 +60,7 @@ contains
     integer :: steps, stat, ignored
 
     found = .false.
-    call check_run_file(case_file(study, c), status, steps, stat)
+    call check_run_file(case_file(study, c), status, steps, stat, whole=.true.)
     if (stat /= 0 .or. status /= 'complete') return
     call file%open_existing(case_file(study, c), .false., stat)
     if (stat /= 0) return
