@@ -12,8 +12,11 @@
 !> per result, appended whole); a restart replays the journal over index.h5. A case file holds
 !> its case number, overrides and figures too, so a missing or damaged index is rebuilt from the
 !> case files (and the journal). On a restart every case recorded complete is checked against its
-!> file (it opens, says complete, and its datasets have the recorded number of rows), and a case
-!> that fails the check runs again. In an index-only study (&study index_only) there are no case
+!> file (it opens, says complete, its datasets have the recorded number of rows and pass their
+!> checksums, its summary attributes are what its datasets give, and it names the case's
+!> overrides), and a case that fails the check runs again. An earlier run's cases are matched
+!> to this study's by their swept values (index.h5) or overrides (journal, case files), so a
+!> study whose sweeps grew keeps its finished cases and renames their files. In an index-only study (&study index_only) there are no case
 !> files: index.h5 and the journal are the record.
 module study_index
   use, intrinsic :: iso_fortran_env, only: real64, int64
