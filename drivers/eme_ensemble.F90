@@ -68,7 +68,7 @@ program eme_ensemble
       call run_study(study, outcome, stat, message, print_line)
       if (stat /= 0) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
-        exit_status = 1
+        exit_status = merge(2, 1, stat == 2)     ! 2: output_dir holds another study's finished cases
       else if (outcome%io_failure) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: stopped: '//outcome%io_message
         exit_status = 1

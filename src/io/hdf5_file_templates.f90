@@ -76,6 +76,8 @@ contains
         if (template%names(first:last) == name) then
           if (template%sizes(k) /= len(bytes, int64)) return
           template%copy(template%offsets(k) + 1:template%offsets(k) + template%sizes(k)) = bytes
+          if (template%sealed(k)) call c_seal_chunk(template%copy(template%offsets(k) + 1:), &
+                                                    int(template%sizes(k), c_long))
           stat = 0
           return
         end if
@@ -134,29 +136,37 @@ contains
 
   !> Once the datasets are written (before the attributes that differ from file to file): the
   !> first file of a template leaves there its image and where its numeric datasets' values lie
-  !> (template_datasets), if they are all contiguous. Keeping them only saves later files work:
-  !> if they cannot be kept, later files make their own datasets.
+  !> (template_datasets), if each lies in one place (contiguous, or one chunk with its checksum).
+  !> Keeping them only saves later files work: if they cannot be kept, later files make their
+  !> own datasets.
   module procedure keep_template_datasets
     integer(c_long) :: image_size
     integer(c_int) :: count
     character(len=8192) :: names
+    character(len=:), allocatable :: image
     integer(c_int64_t) :: offsets(256), sizes(256)
+    integer(c_int) :: sealed(256)
 
     if (.not. associated(self%origin)) return
     associate (template => self%origin)
       if (self%first_of_template .and. template%ready .and. len(template%layout) > 0) then
+        image_size = c_image_size(int(self%id, c_int64_t))
+        if (image_size > 0) then
+          allocate (character(len=image_size) :: image)
+          if (c_copy_image(int(self%id, c_int64_t), image, image_size) /= 0) image_size = 0
+        end if
         count = int(size(offsets), c_int)
-        ! Nonzero: a dataset whose values do not lie in one place (chunked), more datasets or names
-        ! than the room here, or an HDF5 error; each only leaves later files to make their datasets.
-        if (c_numeric_datasets(int(self%id, c_int64_t), names, int(len(names), c_int), offsets, sizes, count) == 0) then
-          image_size = c_image_size(int(self%id, c_int64_t))
-          if (image_size > 0) then
+        ! Nonzero: a dataset whose values do not lie in one place (several chunks, or a checksum
+        ! not computed as here), more datasets or names than the room here, or an HDF5 error;
+        ! each only leaves later files to make their datasets.
+        if (image_size > 0) then
+          if (c_numeric_datasets(int(self%id, c_int64_t), image, image_size, names, int(len(names), c_int), offsets, &
+                                 sizes, sealed, count) == 0) then
             template%names = names(1:index(names, c_null_char) - 1)
             template%offsets = int(offsets(1:count), int64)
             template%sizes = int(sizes(1:count), int64)
-            allocate (character(len=image_size) :: template%dataset_image)
-            if (c_copy_image(int(self%id, c_int64_t), template%dataset_image, image_size) /= 0) &
-              deallocate (template%dataset_image)
+            template%sealed = sealed(1:count) /= 0
+            call move_alloc(image, template%dataset_image)
           end if
         end if
       end if

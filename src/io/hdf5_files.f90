@@ -35,8 +35,9 @@ module hdf5_files
   !> The template keeps a second image of its first file, taken once the datasets were written
   !> (before the attributes of the run's outcome), with the layout of those datasets (names,
   !> shapes, attributes: hdf5_series' `layout`) and where each dataset's values lie in it
-  !> (contiguous datasets of native numbers: H5Dget_offset). A file of that layout starts from a
-  !> copy of this image with its own values put in place (`template_datasets`, `put_values`):
+  !> (datasets of native numbers, contiguous or of one chunk followed by its Fletcher-32
+  !> checksum). A file of that layout starts from a copy of this image with its own values put
+  !> in place, checksums recomputed (`template_datasets`, `put_values`):
   !> creating the datasets and their attributes was half of a case file's cost, opening them to
   !> write the values a fifth of what was left. Such a file opens only then: the root attributes
   !> that differ wait in the template until `settle_template`.
@@ -48,6 +49,7 @@ module hdf5_files
     character(len=:), allocatable, private :: layout          !! of the datasets in dataset_image
     character(len=:), allocatable, private :: names           !! its numeric datasets, each ended by a newline
     integer(int64), allocatable, private :: offsets(:), sizes(:)   !! their values' place in it (bytes)
+    logical, allocatable, private :: sealed(:)        !! a Fletcher-32 checksum follows the values
     character(len=:), allocatable, private :: copy            !! dataset_image, with a file's values
     type(remembered_attribute), allocatable, private :: waiting(:)   !! root attributes not yet written
     integer, private :: waiting_count = 0
@@ -135,16 +137,24 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_open_image
-    function c_numeric_datasets(file, names, capacity, offsets, sizes, count) result(status) &
-        bind(c, name='eme_h5_numeric_datasets')
-      import :: c_char, c_int, c_int64_t
+    function c_numeric_datasets(file, image, image_size, names, capacity, offsets, sizes, sealed, count) &
+        result(status) bind(c, name='eme_h5_numeric_datasets')
+      import :: c_char, c_int, c_long, c_int64_t
       integer(c_int64_t), value :: file
+      character(kind=c_char), intent(in) :: image(*)
+      integer(c_long), value :: image_size
       character(kind=c_char), intent(out) :: names(*)
       integer(c_int), value :: capacity
       integer(c_int64_t), intent(out) :: offsets(*), sizes(*)
+      integer(c_int), intent(out) :: sealed(*)
       integer(c_int), intent(inout) :: count
       integer(c_int) :: status
     end function c_numeric_datasets
+    subroutine c_seal_chunk(data, size) bind(c, name='eme_h5_seal_chunk')
+      import :: c_char, c_long
+      character(kind=c_char), intent(inout) :: data(*)
+      integer(c_long), value :: size
+    end subroutine c_seal_chunk
     function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: file
@@ -160,11 +170,12 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_open_file
-    function c_check_run_file(path, status_text, capacity, steps) result(status) bind(c, name='eme_h5_check_run_file')
+    function c_check_run_file(path, status_text, capacity, steps, whole) result(status) &
+        bind(c, name='eme_h5_check_run_file')
       import :: c_char, c_int, c_long
       character(kind=c_char), intent(in) :: path(*)
       character(kind=c_char), intent(out) :: status_text(*)
-      integer(c_int), value :: capacity
+      integer(c_int), value :: capacity, whole
       integer(c_long), intent(out) :: steps
       integer(c_int) :: status
     end function c_check_run_file
@@ -340,17 +351,25 @@ contains
 
   !> Reads the run file at `path` back: its status and steps_completed, and whether every
   !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
-  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). stat: 0 all holds,
-  !> 1 unreadable, 2 no status, 3 lengths disagree.
-  subroutine check_run_file(path, status, steps_completed, stat)
+  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). With `whole`, also
+  !> every dataset read whole (their checksums) and the summary attributes (newton_iterations_total,
+  !> run_figures) checked against the datasets they summarise. stat: 0 all holds, 1 unreadable,
+  !> 2 no status, 3 lengths disagree, 4 a dataset fails its checksum, 5 a summary disagrees.
+  subroutine check_run_file(path, status, steps_completed, stat, whole)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: status
     integer, intent(out) :: steps_completed, stat
+    logical, intent(in), optional :: whole
     character(len=1024) :: buffer
     integer(c_long) :: steps
+    integer(c_int) :: reading
 
+    reading = 0
+    if (present(whole)) reading = merge(1, 0, whole)
+    buffer = c_null_char
+    steps = -1
     call open_library(stat)
-    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps))
+    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps, reading))
     status = buffer(1:max(0, index(buffer, c_null_char) - 1))
     steps_completed = int(steps)
   end subroutine check_run_file

@@ -3,9 +3,9 @@
 !> reserved, to a copy that then takes the file's name: src/run/run_output.f90).
 !> A `series_table` groups datasets that gain a row together (one per time point, or one per
 !> step). Rows are buffered in memory (bounded: `capacity_rows`) and written a window at a time.
-!> Datasets whose final length is known when they are first written are contiguous; the others
-!> are chunked and extendible, and deflated (with the shuffle filter) when a compression level is
-!> set. Datasets are (rows) or (rows, width) as h5py shows them. A table's first dataset can be
+!> Datasets whose final length is known when they are first written are made of that length,
+!> the others extendible; every dataset of more than one value is chunked with HDF5's Fletcher-32
+!> checksum, and deflated (with the shuffle filter) when a compression level is set. Datasets are (rows) or (rows, width) as h5py shows them. A table's first dataset can be
 !> the HDF5 dimension scale of the others' rows (src/io/hdf5_scales.c). A row of the file can
 !> stand for several rows given to the table (`accumulate`, then `commit`): each dataset keeps
 !> the last, the sum, the minimum, the maximum or the mean of them.
@@ -216,7 +216,9 @@ contains
     if (self%compression > 0) chunks = chunks + 1
     window_bytes = 0
     do i = 1, size(self%items)
-      window_bytes = window_bytes + chunks*chunk*self%items(i)%width*merge(4, 8, self%items(i)%integer_valued) + 4096
+      ! (4 bytes a chunk: its Fletcher-32 checksum)
+      window_bytes = window_bytes + chunks*(chunk*self%items(i)%width*merge(4, 8, self%items(i)%integer_valued) + 4) &
+                     + 4096
     end do
   end function window_bytes
 

@@ -6,7 +6,7 @@ submodule (hdf5_series) hdf5_series_datasets
   use hdf5, only: hid_t, hsize_t, h5screate_simple_f, h5sclose_f, H5S_UNLIMITED_F, H5S_SELECT_SET_F, &
                   h5sselect_hyperslab_f, h5pcreate_f, h5pclose_f, h5pset_chunk_f, h5pset_layout_f, H5D_CONTIGUOUS_F, &
                   H5P_DATASET_CREATE_F, h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dset_extent_f, h5dget_space_f, &
-                  h5pset_deflate_f, h5pset_shuffle_f, H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER
+                  h5pset_deflate_f, h5pset_shuffle_f, h5pset_fletcher32_f, H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER
   implicit none (type, external)
 
   interface
@@ -160,9 +160,12 @@ contains
     end do
   end subroutine attach_scale
 
-  ! Creates one dataset of the table with its attributes: contiguous of `extent` if `final`,
-  ! chunked with an unlimited row count otherwise; chunked and deflated at level `compression`
-  ! (after the shuffle filter) if that is > 0 and there are rows.
+  ! Creates one dataset of the table with its attributes: chunked with an unlimited row count,
+  ! or of `extent` if `final` (one chunk of every row up to chunk_rows); deflated at level
+  ! `compression` (after the shuffle filter) if that is > 0. Every dataset of more than one
+  ! value carries HDF5's Fletcher-32 checksum, first in the filter pipeline (over the values
+  ! themselves), so that a damaged chunk fails its read instead of giving other numbers; one of
+  ! at most one value is contiguous (docs/output.md, Checksums).
   subroutine create_dataset(file, item, rank, extent, final, chunk_rows, compression, dataset, stat)
     type(hdf5_file), intent(in) :: file
     type(series), intent(in) :: item
@@ -175,7 +178,7 @@ contains
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: max_dims(2), chunk(2)
     integer :: ignored
-    logical :: compressed
+    logical :: compressed, checked
 
     dataset = -1
     kind = H5T_NATIVE_DOUBLE
@@ -188,17 +191,19 @@ contains
       max_dims = extent
       chunk(rank) = min(chunk(rank), extent(rank))
     end if
-    compressed = compression > 0 .and. chunk(rank) > 0
+    checked = .not. final .or. product(extent(1:rank)) > 1
+    compressed = compression > 0 .and. chunk(rank) > 0 .and. checked
     call h5screate_simple_f(rank, extent(1:rank), space, stat, max_dims(1:rank))
     if (stat /= 0) return
     call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
     if (stat == 0) then
-      if (final .and. .not. compressed) then
+      if (.not. checked) then
         call h5pset_layout_f(properties, H5D_CONTIGUOUS_F, stat)
       else
         call h5pset_chunk_f(properties, rank, chunk(1:rank), stat)
       end if
     end if
+    if (stat == 0 .and. checked) call h5pset_fletcher32_f(properties, stat)
     if (stat == 0 .and. compressed) call h5pset_shuffle_f(properties, stat)
     if (stat == 0 .and. compressed) call h5pset_deflate_f(properties, compression, stat)
     if (stat == 0) call h5dcreate_f(file%id, item%name, kind, space, dataset, stat, properties)

@@ -1,16 +1,22 @@
 !> A table as one HDF5 compound dataset made by HDF5's high-level table API (H5TB): h5py loads it
 !> in one call as a numpy structured array (`f["cases"][:]`), and HDF5's table tools know it
-!> (attributes CLASS = TABLE, TITLE, FIELD_n_NAME). Columns are chosen at run time (a study's
-!> sweeps name some of them): real64, integer or fixed-length UTF-8 text, NUL-padded so that h5py
-!> gives the text without trailing blanks. Tables are written whole (H5TBmake_table, then one
-!> H5TBwrite_fields_name per column) and read whole, column by column by name: a column the
-!> file lacks (an index written before the column existed) reads as 0 or as an empty text.
+!> (attributes CLASS = TABLE, VERSION, TITLE, FIELD_n_NAME, as H5TBmake_table writes them).
+!> Columns are chosen at run time (a study's sweeps name some of them): real64, integer or
+!> fixed-length UTF-8 text, NUL-padded so that h5py gives the text without trailing blanks. The
+!> dataset is chunked with HDF5's Fletcher-32 checksum (which H5TBmake_table cannot give), so
+!> that a damaged byte fails the read instead of changing a row. Tables are written whole (made
+!> here, then one H5TBwrite_fields_name per column) and read whole, column by column by name: a
+!> column the file lacks (an index written before the column existed) reads as 0 or as an empty
+!> text.
 module hdf5_table
   use, intrinsic :: iso_fortran_env, only: real64
   use hdf5, only: hid_t, hsize_t, size_t, H5T_NATIVE_DOUBLE, H5T_NATIVE_INTEGER, H5T_NATIVE_CHARACTER, &
                   H5T_STR_NULLPAD_F, H5T_CSET_UTF8_F, h5tcopy_f, h5tset_size_f, h5tset_strpad_f, h5tset_cset_f, &
-                  h5tclose_f, h5lexists_f
-  use h5tb, only: h5tbmake_table_f, h5tbwrite_field_name_f, h5tbread_field_name_f, h5tbget_table_info_f, &
+                  h5tclose_f, h5lexists_f, h5tcreate_f, h5tinsert_f, H5T_COMPOUND_F, h5screate_simple_f, h5sclose_f, &
+                  H5S_UNLIMITED_F, h5pcreate_f, h5pclose_f, h5pset_chunk_f, h5pset_fletcher32_f, H5P_DATASET_CREATE_F, &
+                  h5dcreate_f, h5dclose_f
+  use h5lt, only: h5ltset_attribute_string_f
+  use h5tb, only: h5tbwrite_field_name_f, h5tbread_field_name_f, h5tbget_table_info_f, &
                   h5tbget_field_info_f
   implicit none (type, external)
   private
@@ -96,8 +102,7 @@ contains
     do i = 2, size(sizes)
       offsets(i) = offsets(i - 1) + sizes(i - 1)
     end do
-    call h5tbmake_table_f(name, file, name, size(self%widths, kind=hsize_t), rows, sum(sizes), self%names, offsets, &
-                          types, int(max(1, min(chunk_rows, size(numbers, 2))), hsize_t), 0, stat)
+    call make_table(self, file, name, rows, types, sizes, offsets, stat)
     do i = 1, size(types)
       if (self%widths(i) > 0) call h5tclose_f(types(i), ignored)
     end do
@@ -120,6 +125,51 @@ contains
       end select
     end do
   end subroutine write_table
+
+  ! Creates the empty table `name` of `rows` rows (compound, its members the columns) with the
+  ! attributes of HDF5's table API, chunked with a Fletcher-32 checksum.
+  subroutine make_table(self, file, name, rows, types, sizes, offsets, stat)
+    type(table_columns), intent(in) :: self
+    integer(hid_t), intent(in) :: file
+    character(len=*), intent(in) :: name
+    integer(hsize_t), intent(in) :: rows
+    integer(hid_t), intent(in) :: types(:)
+    integer(size_t), intent(in) :: sizes(:), offsets(:)
+    integer, intent(out) :: stat
+    integer(hid_t) :: row_type, space, properties, dataset
+    character(len=16) :: field
+    integer :: i, ignored
+
+    call h5tcreate_f(H5T_COMPOUND_F, sum(sizes), row_type, stat)
+    if (stat /= 0) return
+    do i = 1, size(types)
+      if (stat == 0) call h5tinsert_f(row_type, trim(self%names(i)), offsets(i), types(i), stat)
+    end do
+    if (stat == 0) call h5screate_simple_f(1, [rows], space, stat, [H5S_UNLIMITED_F])
+    if (stat /= 0) then
+      call h5tclose_f(row_type, ignored)
+      return
+    end if
+    call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
+    if (stat == 0) call h5pset_chunk_f(properties, 1, [int(max(1_hsize_t, min(int(chunk_rows, hsize_t), rows)), hsize_t)], &
+                                       stat)
+    if (stat == 0) call h5pset_fletcher32_f(properties, stat)
+    if (stat == 0) call h5dcreate_f(file, name, row_type, space, dataset, stat, properties)
+    if (stat == 0) then
+      call h5dclose_f(dataset, stat)
+      if (stat == 0) call h5ltset_attribute_string_f(file, name, 'CLASS', 'TABLE', stat)
+      if (stat == 0) call h5ltset_attribute_string_f(file, name, 'VERSION', '3.0', stat)
+      if (stat == 0) call h5ltset_attribute_string_f(file, name, 'TITLE', name, stat)
+      do i = 1, size(types)
+        if (stat /= 0) exit
+        write (field, '("FIELD_", i0, "_NAME")') i - 1
+        call h5ltset_attribute_string_f(file, name, trim(field), trim(self%names(i)), stat)
+      end do
+    end if
+    call h5pclose_f(properties, ignored)
+    call h5sclose_f(space, ignored)
+    call h5tclose_f(row_type, ignored)
+  end subroutine make_table
 
   !> Reads every row of table `name` (table_rows of them) as write_table wrote them, column by
   !> column by name; columns the file lacks read as 0 or ''.

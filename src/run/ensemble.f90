@@ -345,6 +345,7 @@ contains
     type(study_manager), intent(inout) :: manager
     logical, intent(in) :: final
     real(real64) :: now, elapsed, remaining
+    character(len=:), allocatable :: interrupted
 
     now = MPI_Wtime()
     if (.not. final .and. now - manager%last_progress < progress_interval) return
@@ -352,9 +353,16 @@ contains
     elapsed = now - manager%started
     remaining = 0.0_real64
     if (manager%done_cost > 0) remaining = elapsed*(manager%planned_cost - manager%done_cost)/manager%done_cost
-    call say(manager, 'eme_ensemble: '//integer_text(manager%done)//'/'//integer_text(size(manager%index%results)) &
-             //' cases done, '//integer_text(manager%failed)//' failed, '//fixed_text(elapsed, 1) &
-             //' s elapsed, about '//fixed_text(remaining, 1)//' s left')
+    ! What the index holds: a case interrupted by a signal or not run yet is neither complete nor failed.
+    associate (results => manager%index%results)
+      interrupted = ''
+      if (count(results%status(1:11) == 'incomplete:') > 0) &
+        interrupted = integer_text(count(results%status(1:11) == 'incomplete:'))//' interrupted, '
+      call say(manager, 'eme_ensemble: '//integer_text(count(results%status == 'complete'))//'/'// &
+               integer_text(size(results))//' cases complete, '//integer_text(count(results%status(1:7) == 'failed:')) &
+               //' failed, '//interrupted//fixed_text(elapsed, 1)//' s elapsed, about '//fixed_text(remaining, 1)// &
+               ' s left')
+    end associate
   end subroutine progress
 
   ! Hands a line to the driver's reporter, if it gave one.

@@ -1,7 +1,8 @@
 !> The case files of a study: case c's file output_dir/case_NNNNN.h5, its overrides of the base
 !> scene as one line, and what a restart reads back from a case file: whether it checks out
-!> (complete, with the recorded number of steps) and, when the index has lost it, the case's
-!> result (if the file names this case and its overrides, and reads back complete).
+!> (complete, with the recorded number of steps, its checksums and summary attributes holding,
+!> and its overrides this case's) and, when the index has lost it, the result and overrides of a
+!> complete case file, which the index matches to a case by its overrides.
 module study_case_files
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
@@ -9,7 +10,7 @@ module study_case_files
   use hdf5_files, only: hdf5_file, check_run_file
   implicit none (type, external)
   private
-  public :: case_file, case_name, case_overrides, case_file_checks_out, case_from_file
+  public :: case_file, case_name, case_overrides, case_file_checks_out, read_case_file
 
 contains
 
@@ -36,33 +37,42 @@ contains
     end do
   end function case_overrides
 
-  !> Whether case c's file reads back complete with `steps` steps.
+  !> Whether case c's file reads back complete with `steps` steps, its datasets whole (their
+  !> checksums) and its summary attributes as its datasets give them, and names case c's
+  !> overrides (files written before they did are taken on their status alone).
   logical function case_file_checks_out(study, c, steps_recorded)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: c, steps_recorded
-    character(len=:), allocatable :: status
-    integer :: steps, stat
+    character(len=:), allocatable :: status, overrides
+    type(hdf5_file) :: file
+    integer :: steps, stat, ignored
 
-    call check_run_file(case_file(study, c), status, steps, stat)
+    call check_run_file(case_file(study, c), status, steps, stat, whole=.true.)
     case_file_checks_out = stat == 0 .and. status == 'complete' .and. steps == steps_recorded
+    if (.not. case_file_checks_out) return
+    call file%open_existing(case_file(study, c), .false., stat)
+    if (stat == 0) call file%get_text('study_overrides', overrides, stat)
+    call file%close(ignored)
+    if (stat == 0) case_file_checks_out = overrides == case_overrides(study, c)
   end function case_file_checks_out
-
-  !> Case c's result from its file, if the file is this case's (its study_case and
-  !> study_overrides attributes) and reads back complete: found.
-  subroutine case_from_file(study, c, result, found)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: c
+  !> The result and overrides of the case file at `path`, if it reads back complete (as
+  !> case_file_checks_out) and names its study's case (study_case, study_overrides): found. The
+  !> caller matches it to a case by its overrides, not by its number, which moves when sweeps grow.
+  subroutine read_case_file(path, result, overrides, found)
+    character(len=*), intent(in) :: path
     type(case_result), intent(out) :: result
+    character(len=:), allocatable, intent(out) :: overrides
     logical, intent(out) :: found
     type(hdf5_file) :: file
-    character(len=:), allocatable :: status, overrides
+    character(len=:), allocatable :: status
     real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
     integer :: steps, stat, ignored
 
     found = .false.
-    call check_run_file(case_file(study, c), status, steps, stat)
+    overrides = ''
+    call check_run_file(path, status, steps, stat, whole=.true.)
     if (stat /= 0 .or. status /= 'complete') return
-    call file%open_existing(case_file(study, c), .false., stat)
+    call file%open_existing(path, .false., stat)
     if (stat /= 0) return
     call file%get_reals('study_case', number, stat)
     if (stat == 0) call file%get_text('study_overrides', overrides, stat)
@@ -75,12 +85,11 @@ contains
     call file%close(ignored)
     if (stat /= 0) return
     if (size(number) /= 1 .or. size(figures) /= 7) return
-    if (nint(number(1)) /= c .or. overrides /= case_overrides(study, c)) return
     result%status = 'complete'
     result%failure_kind = 'none'
     result%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, rank(1), 1.0_real64]
     found = .true.
-  end subroutine case_from_file
+  end subroutine read_case_file
 
   pure function case_name(c) result(name)
     integer, intent(in) :: c

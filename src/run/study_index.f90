@@ -12,8 +12,11 @@
 !> per result, appended whole); a restart replays the journal over index.h5. A case file holds
 !> its case number, overrides and figures too, so a missing or damaged index is rebuilt from the
 !> case files (and the journal). On a restart every case recorded complete is checked against its
-!> file (it opens, says complete, and its datasets have the recorded number of rows), and a case
-!> that fails the check runs again. In an index-only study (&study index_only) there are no case
+!> file (it opens, says complete, its datasets have the recorded number of rows and pass their
+!> checksums, its summary attributes are what its datasets give, and it names the case's
+!> overrides), and a case that fails the check runs again. An earlier run's cases are matched
+!> to this study's by their swept values (index.h5) or overrides (journal, case files), so a
+!> study whose sweeps grew keeps its finished cases and renames their files. In an index-only study (&study index_only) there are no case
 !> files: index.h5 and the journal are the record.
 module study_index
   use, intrinsic :: iso_fortran_env, only: real64, int64
@@ -21,7 +24,7 @@ module study_index
   use study_config, only: study_definition
   use hdf5_files, only: hdf5_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
-  use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text
+  use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text, rename_file
   use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
   use build_info, only: code_version
   use provenance, only: write_provenance, iso_time
@@ -29,14 +32,14 @@ module study_index
   use run_config, only: field_units
   use effective_namelist, only: namelist_of_run
   use namelist_text, only: blanked, item_name
-  use study_case_files, only: case_file, case_name, case_overrides, case_file_checks_out, case_from_file
+  use study_case_files, only: case_file, case_name, case_overrides, case_file_checks_out, read_case_file
   use study_journal, only: case_result, journal_entry, status_length, kind_length, metric_count, journal_line, &
                            read_journal, start_journal
   use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
-            m_run_count
+            m_run_count, refused
 
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
@@ -53,6 +56,15 @@ module study_index
                                                             .false., .false., .false., .false., .true., .true., .true., &
                                                             .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
+  !> open_index's stat when output_dir holds another study's finished cases (bad input).
+  integer, parameter :: refused = 2
+
+  !> Case numbers ordered by a text key (a case's swept values or its overrides), to find a case
+  !> of this study from an earlier run's record, whose numbers move when sweeps grow.
+  type :: case_lookup
+    character(len=:), allocatable :: keys(:)
+    integer, allocatable :: order(:)          !! keys(order(i)) ascend
+  end type case_lookup
 
   !> The open index of a study and every case's result.
   type :: case_index
@@ -72,8 +84,12 @@ contains
 
   !> Creates the output directory and a fresh index.h5 with a row per case, keeping the results
   !> of earlier runs of the same study (from index.h5, the journal and the case files) that still
-  !> check out; pending(c) says which cases are to run. `notes` tells the user what the restart
-  !> found (empty if nothing to say). A different study in output_dir is an error.
+  !> check out; pending(c) says which cases are to run. An earlier run's cases are matched to
+  !> this study's by their swept values, not their numbers: a study whose sweeps grew keeps every
+  !> finished case and renames its file where its number moved. `notes` tells the user what the
+  !> restart found (empty if nothing to say). stat = `refused` (bad input) if output_dir holds a
+  !> finished case that this study does not have (a changed value) or ran from another base
+  !> scene; 1 if the output directory cannot be written.
   subroutine open_index(self, study, pending, notes, stat, message)
     class(case_index), intent(inout) :: self
     type(study_definition), intent(in), target :: study
@@ -82,8 +98,12 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     type(case_result) :: from_file
-    integer :: c, rebuilt, rejected
+    type(case_lookup) :: by_overrides
+    character(len=:), allocatable :: overrides
+    integer, allocatable :: earlier(:)    !! each case's number in the earlier run whose result it holds (0: none)
+    integer :: c, k, rebuilt, rejected, moved
     logical :: found
+    logical, allocatable :: claimed(:)
 
     self%study => study
     self%started = iso_time()
@@ -91,6 +111,7 @@ contains
     self%journal_path = study%output_dir//'/index.journal'
     notes = ''
     allocate (self%results(size(study%cases)), pending(size(study%cases)))
+    allocate (earlier(size(study%cases)), source=0)
     call define_columns(study, self%columns)
     call make_directories(study%output_dir, stat)
     if (stat /= 0) then
@@ -98,31 +119,62 @@ contains
                 os_error_text(stat)
       return
     end if
-    call read_previous_index(self, notes, stat, message)
+    call overrides_lookup(study, by_overrides)
+    call read_previous_index(self, earlier, notes, stat, message)
     if (stat /= 0) return
-    call replay_journal(self, notes, stat, message)
+    call replay_journal(self, by_overrides, earlier, notes, stat, message)
     if (stat /= 0) return
     rebuilt = 0
     rejected = 0
+    moved = 0
     if (.not. study%index_only) then
+      call move_files(study, earlier, self%results, moved, stat, message)
+      if (stat /= 0) return
       do c = 1, size(study%cases)
         if (self%results(c)%status == 'complete') then
           if (.not. case_file_checks_out(study, c, nint(self%results(c)%metrics(m_steps)))) then
             rejected = rejected + 1
             self%results(c)%status = 'pending'
           end if
-        else if (file_exists(case_file(study, c))) then
-          call case_from_file(study, c, from_file, found)
-          if (found) then
-            self%results(c) = from_file
-            rebuilt = rebuilt + 1
-          end if
         end if
+      end do
+      ! Complete case files that no recorded result accounts for (a damaged or removed index):
+      ! each is matched to its case by its overrides, and renamed if its number moved.
+      allocate (claimed(size(study%cases)), source=.false.)
+      do c = 1, size(study%cases)
+        if (self%results(c)%status == 'complete') claimed(c) = .true.
+      end do
+      do k = 1, size(study%cases)
+        if (claimed(k)) cycle
+        if (.not. file_exists(case_file(study, k))) cycle
+        call read_case_file(case_file(study, k), from_file, overrides, found)
+        if (.not. found) cycle
+        c = find_case(by_overrides, blanked(overrides))
+        if (c == 0) cycle
+        if (self%results(c)%status == 'complete') cycle
+        if (c /= k) then
+          if (claimed(c)) cycle                                  ! taken already
+          if (file_exists(case_file(study, c))) cycle           ! another file there: the case runs again
+          call rename_file(case_file(study, k), case_file(study, c), stat)
+          if (stat /= 0) then
+            message = 'cannot rename '//case_file(study, k)//' to '//case_file(study, c)//': '//os_error_text(stat)
+            stat = 1
+            return
+          end if
+          moved = moved + 1
+        end if
+        from_file%metrics(m_run_count) = max(1.0_real64, self%results(c)%metrics(m_run_count))
+        self%results(c) = from_file
+        claimed(c) = .true.
+        rebuilt = rebuilt + 1
       end do
     end if
     if (rebuilt > 0) call add_note(notes, integer_text(rebuilt)//' complete cases recovered from their files')
+    if (moved > 0) call add_note(notes, integer_text(moved)//' case files renamed: their cases'' numbers moved as ' &
+                                 //'the sweeps grew')
     if (rejected > 0) call add_note(notes, integer_text(rejected)//' cases recorded complete whose files do not ' &
-                                    //'check out (missing, unreadable, incomplete or short) run again')
+                                    //'check out (missing, unreadable, damaged, incomplete, short, or with figures ' &
+                                    //'that their data do not give) run again')
     do c = 1, size(study%cases)
       pending(c) = self%results(c)%status /= 'complete'
       if (pending(c)) self%results(c)%status = 'pending'
@@ -136,6 +188,48 @@ contains
       if (stat /= 0) message = 'cannot write '//self%journal_path//' ('//study%input_file//'): '//os_error_text(stat)
     end if
   end subroutine open_index
+
+  ! Renames the file of each complete result taken from an earlier run whose case number moved
+  ! (earlier(c) /= c) to the case's new name: first every one to case_NNNNN.h5.moving, then each
+  ! to its name, so that no file is replaced before it moved. A .moving file left by a killed
+  ! restart is finished first.
+  subroutine move_files(study, earlier, results, moved, stat, message)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: earlier(:)
+    type(case_result), intent(in) :: results(:)
+    integer, intent(out) :: moved, stat
+    character(len=:), allocatable, intent(out) :: message
+    integer :: c
+
+    moved = 0
+    stat = 0
+    message = ''
+    do c = 1, size(study%cases)
+      if (stat /= 0) exit
+      if (file_exists(case_file(study, c)//'.moving')) call move(case_file(study, c)//'.moving', case_file(study, c))
+    end do
+    do c = 1, size(study%cases)
+      if (stat /= 0) exit
+      if (earlier(c) == 0 .or. earlier(c) == c .or. results(c)%status /= 'complete') cycle
+      if (.not. file_exists(case_file(study, earlier(c)))) cycle      ! the check then finds it missing
+      call move(case_file(study, earlier(c)), case_file(study, c)//'.moving')
+    end do
+    do c = 1, size(study%cases)
+      if (stat /= 0) exit
+      if (.not. file_exists(case_file(study, c)//'.moving')) cycle
+      call move(case_file(study, c)//'.moving', case_file(study, c))
+      moved = moved + 1
+    end do
+
+  contains
+
+    subroutine move(from, to)
+      character(len=*), intent(in) :: from, to
+
+      call rename_file(from, to, stat)
+      if (stat /= 0) message = 'cannot rename '//from//' to '//to//' ('//study%input_file//'): '//os_error_text(stat)
+    end subroutine move
+  end subroutine move_files
 
   !> Stores case c's result (its run count one higher): appended to the journal at once, and in
   !> index.h5 at the next rewrite (at most index_interval seconds later, or at close).
@@ -341,19 +435,24 @@ contains
     call columns%write(file%id, 'integrators', numbers, texts, stat)
   end subroutine write_registry
 
-  ! Results of an earlier run of the same study from its index.h5, if there is one. A damaged
-  ! index is set aside (the journal and case files rebuild it); a different case list (other
-  ! sweeps or values) is an error: the old files would not match their rows.
-  subroutine read_previous_index(self, notes, stat, message)
+  ! Results of an earlier run of the same study from its index.h5, if there is one, each given
+  ! to this study's case with the same swept values (earlier(c): its row there). A damaged index
+  ! (it does not open, or a checksum fails) is set aside: the journal and case files rebuild it.
+  ! Refused: a finished case that this study does not have (a changed value), or case 1 of the
+  ! earlier run given other input than this study gives it (a changed base scene).
+  subroutine read_previous_index(self, earlier, notes, stat, message)
     type(case_index), intent(inout) :: self
+    integer, intent(inout) :: earlier(:)
     character(len=:), allocatable, intent(inout) :: notes
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     type(hdf5_file) :: old
+    type(case_lookup) :: by_values
     real(real64), allocatable :: numbers(:, :), parameters(:)
     character(len=status_length), allocatable :: texts(:, :)
     character(len=64), allocatable :: parameter_texts(:)
-    integer :: c, rows, n_numbers, n_texts, ignored
+    character(len=:), allocatable :: first_input
+    integer :: c, r, rows, n_numbers, n_texts, n_parameters, ignored
 
     stat = 0
     message = ''
@@ -361,17 +460,11 @@ contains
     call old%open_existing(self%index_path, .false., stat)
     rows = -1
     if (stat == 0) rows = table_rows(old%id, 'cases')
+    if (stat == 0 .and. rows >= 0) call old%get_text('case_1_input', first_input, stat)
     if (stat /= 0 .or. rows < 0) then
       call old%close(ignored)
       stat = 0
       call add_note(notes, self%index_path//' cannot be read; it is rebuilt from the journal and the case files')
-      return
-    end if
-    if (rows /= size(self%results)) then
-      call old%close(ignored)
-      stat = 1
-      message = self%index_path//' belongs to a different study (its case count differs); use another output_dir '// &
-                'or remove it'
       return
     end if
     n_numbers = self%columns%numeric_count()
@@ -381,29 +474,49 @@ contains
     call old%close(ignored)
     if (stat /= 0) then
       stat = 0
-      call add_note(notes, self%index_path//' cannot be read; it is rebuilt from the journal and the case files')
+      call add_note(notes, self%index_path//' cannot be read (damaged: a checksum fails); it is rebuilt from the '// &
+                    'journal and the case files')
       return
     end if
-    do c = 1, rows
-      call case_parameters(self%study, c, parameters, parameter_texts)
-      if (any(abs(numbers(1:size(parameters), c) - parameters) > 0.0_real64) .or. &
-          any(texts(2:n_texts - 2, c) /= parameter_texts)) then
-        stat = 1
-        message = self%index_path//' belongs to a different study (case '//integer_text(c)// &
-                  ' differs); use another output_dir or remove it'
+    call values_lookup(self%study, by_values)
+    call case_parameters(self%study, 1, parameters, parameter_texts)
+    n_parameters = size(parameters)
+    do r = 1, rows
+      c = find_case(by_values, values_key(numbers(2:n_parameters, r), texts(2:n_texts - 2, r)))
+      if (c == 0) then
+        if (texts(n_texts - 1, r) /= 'complete') cycle       ! not finished: nothing is lost
+        stat = refused
+        message = self%index_path//': case '//integer_text(r)//' ('//row_values(self, numbers(:, r), texts(:, r))// &
+                  ') is complete, but '//self%study%input_file//' has no case with these values (a changed or '// &
+                  'removed value); use another output_dir, or remove this one to start afresh'
         return
       end if
-      self%results(c)%status = texts(n_texts - 1, c)
-      self%results(c)%failure_kind = texts(n_texts, c)(1:kind_length)
-      self%results(c)%metrics = numbers(size(parameters) + 1:, c)
+      if (r == 1) then
+        if (namelist_of_run(self%study%cases(c)%config) /= first_input) then
+          stat = refused
+          message = self%index_path//': its cases ran from another base scene than '//self%study%base//' now gives '// &
+                    '(case 1''s input differs); use another output_dir, or remove this one to start afresh'
+          return
+        end if
+      end if
+      self%results(c)%status = texts(n_texts - 1, r)
+      self%results(c)%failure_kind = texts(n_texts, r)(1:kind_length)
+      self%results(c)%metrics = numbers(n_parameters + 1:, r)
+      earlier(c) = r
     end do
+    if (rows /= size(self%results) .or. any(earlier /= 0 .and. earlier /= [(c, c=1, size(earlier))])) &
+      call add_note(notes, 'the sweeps changed since '//self%index_path//' was written: '// &
+                    integer_text(count(earlier /= 0))//' of its '//integer_text(rows)//' cases are in this study, ' &
+                    //'matched by their swept values')
   end subroutine read_previous_index
 
-  ! Applies the journal's lines (each the latest result of its case) over what index.h5 gave. A
-  ! line that does not parse, or names no case of the study, is skipped; one of another study
-  ! (its overrides differ) is an error.
-  subroutine replay_journal(self, notes, stat, message)
+  ! Applies the journal's lines (each the latest result of its case) over what index.h5 gave,
+  ! each to this study's case with the same overrides. A line that does not parse is skipped; a
+  ! complete case that this study does not have is refused, as in read_previous_index.
+  subroutine replay_journal(self, by_overrides, earlier, notes, stat, message)
     type(case_index), intent(inout) :: self
+    type(case_lookup), intent(in) :: by_overrides
+    integer, intent(inout) :: earlier(:)
     character(len=:), allocatable, intent(inout) :: notes
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
@@ -414,23 +527,168 @@ contains
     if (stat /= 0) return
     applied = 0
     do k = 1, size(entries)
-      c = entries(k)%case_number
-      if (c < 1 .or. c > size(self%results)) then
-        skipped = skipped + 1
-        cycle
-      end if
-      if (entries(k)%overrides /= blanked(case_overrides(self%study, c))) then
-        stat = 1
-        message = self%journal_path//' belongs to a different study (case '//integer_text(c)//' differs); use ' &
-                  //'another output_dir or remove it'
+      c = find_case(by_overrides, entries(k)%overrides)
+      if (c == 0) then
+        if (entries(k)%result%status /= 'complete') cycle
+        stat = refused
+        message = self%journal_path//': case '//integer_text(entries(k)%case_number)//' ('//entries(k)%overrides// &
+                  ') is complete, but '//self%study%input_file//' has no case with these values (a changed or '// &
+                  'removed value); use another output_dir, or remove this one to start afresh'
         return
       end if
       self%results(c) = entries(k)%result
+      earlier(c) = entries(k)%case_number
       applied = applied + 1
     end do
     if (applied > 0) call add_note(notes, integer_text(applied)//' results taken from '//self%journal_path)
     if (skipped > 0) call add_note(notes, integer_text(skipped)//' damaged lines of '//self%journal_path//' skipped')
   end subroutine replay_journal
+
+  ! An index row's swept values as 'field = value; ...', for messages.
+  function row_values(self, numbers, texts) result(text)
+    type(case_index), intent(in) :: self
+    real(real64), intent(in) :: numbers(:)
+    character(len=*), intent(in) :: texts(:)
+    character(len=:), allocatable :: text
+    character(len=32) :: number
+    integer :: i, k, t
+
+    text = ''
+    k = 0
+    t = 0
+    do i = 1, size(self%columns%widths)
+      if (self%columns%widths(i) <= 0) then
+        k = k + 1
+      else
+        t = t + 1
+      end if
+      if (i <= 2) cycle                                   ! case, file
+      if (trim(self%columns%names(i)) == 'status') exit
+      if (len(text) > 0) text = text//'; '
+      if (self%columns%widths(i) <= 0) then
+        write (number, '(g0)') numbers(k)
+        text = text//trim(self%columns%names(i))//' = '//trim(number)
+      else
+        text = text//trim(self%columns%names(i))//' = '''//trim(texts(t))//''''
+      end if
+    end do
+  end function row_values
+
+  ! The key of a case's swept values: its numbers exactly, then its texts.
+  pure function values_key(numbers, texts) result(key)
+    real(real64), intent(in) :: numbers(:)
+    character(len=*), intent(in) :: texts(:)
+    character(len=:), allocatable :: key
+    character(len=32) :: number
+    integer :: i
+
+    key = ''
+    do i = 1, size(numbers)
+      write (number, '(es25.17e3)') numbers(i)
+      key = key//trim(adjustl(number))//achar(9)
+    end do
+    do i = 1, size(texts)
+      key = key//trim(texts(i))//achar(9)
+    end do
+  end function values_key
+
+  ! This study's cases by their swept values (values_key).
+  subroutine values_lookup(study, lookup)
+    type(study_definition), intent(in) :: study
+    type(case_lookup), intent(out) :: lookup
+    real(real64), allocatable :: parameters(:)
+    character(len=64), allocatable :: parameter_texts(:)
+    integer :: c, longest
+
+    longest = 0
+    do c = 1, size(study%cases)
+      call case_parameters(study, c, parameters, parameter_texts)
+      longest = max(longest, len(values_key(parameters(2:), parameter_texts)))
+    end do
+    allocate (character(len=longest) :: lookup%keys(size(study%cases)))
+    do c = 1, size(study%cases)
+      call case_parameters(study, c, parameters, parameter_texts)
+      lookup%keys(c) = values_key(parameters(2:), parameter_texts)
+    end do
+    call order_keys(lookup)
+  end subroutine values_lookup
+
+  ! This study's cases by their overrides (as the journal and case files hold them, blanked).
+  subroutine overrides_lookup(study, lookup)
+    type(study_definition), intent(in) :: study
+    type(case_lookup), intent(out) :: lookup
+    integer :: c, longest
+
+    longest = 0
+    do c = 1, size(study%cases)
+      longest = max(longest, len(case_overrides(study, c)))
+    end do
+    allocate (character(len=longest) :: lookup%keys(size(study%cases)))
+    do c = 1, size(study%cases)
+      lookup%keys(c) = blanked(case_overrides(study, c))
+    end do
+    call order_keys(lookup)
+  end subroutine overrides_lookup
+
+  ! Orders the lookup's keys (a merge sort of their numbers, bottom up).
+  subroutine order_keys(lookup)
+    type(case_lookup), intent(inout) :: lookup
+    integer, allocatable :: merged(:)
+    integer :: width, first, middle, last, i, j, k, n
+
+    n = size(lookup%keys)
+    lookup%order = [(i, i=1, n)]
+    allocate (merged(n))
+    width = 1
+    do while (width < n)
+      do first = 1, n, 2*width
+        middle = min(first + width - 1, n)
+        last = min(first + 2*width - 1, n)
+        i = first
+        j = middle + 1
+        do k = first, last
+          if (j > last) then
+            merged(k) = lookup%order(i)
+            i = i + 1
+          else if (i > middle) then
+            merged(k) = lookup%order(j)
+            j = j + 1
+          else if (llt(lookup%keys(lookup%order(j)), lookup%keys(lookup%order(i)))) then
+            merged(k) = lookup%order(j)
+            j = j + 1
+          else
+            merged(k) = lookup%order(i)
+            i = i + 1
+          end if
+        end do
+      end do
+      lookup%order = merged
+      width = 2*width
+    end do
+  end subroutine order_keys
+
+  ! The case whose key is `key` (binary search), or 0.
+  integer function find_case(lookup, key)
+    type(case_lookup), intent(in) :: lookup
+    character(len=*), intent(in) :: key
+    integer :: low, high, middle
+
+    find_case = 0
+    if (len_trim(key) > len(lookup%keys)) return
+    low = 1
+    high = size(lookup%order)
+    do while (low <= high)
+      middle = (low + high)/2
+      if (lookup%keys(lookup%order(middle)) == key) then
+        find_case = lookup%order(middle)
+        return
+      else if (llt(lookup%keys(lookup%order(middle)), key)) then
+        low = middle + 1
+      else
+        high = middle - 1
+      end if
+    end do
+  end function find_case
 
   subroutine add_note(notes, text)
     character(len=:), allocatable, intent(inout) :: notes

@@ -283,13 +283,18 @@ def test_a_damaged_index_is_rebuilt_from_the_case_files(small_study, damage):
 
 
 def test_a_study_from_elsewhere_is_refused(small_study, tmp_path):
+    """A finished case (case 1, complete) whose value changed: bad input, exit 2, nothing written.
+    (A changed value of a case that did not finish is no loss: tests/e2e/test_damaged_studies.py
+    has the grown and changed studies.)"""
     study, output = small_study
     assert ensemble(study).returncode == 0
-    other = write_study(tmp_path, SMALL_STUDY.replace("0.3, 0.15, 0.15, 0.15", "0.3, 0.15, 0.15, 0.2").format(
+    before = {p.name: p.stat().st_mtime_ns for p in output.iterdir()}
+    other = write_study(tmp_path, SMALL_STUDY.replace("0.3, 0.15, 0.15, 0.15", "0.25, 0.15, 0.15, 0.15").format(
         base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output), name="other")
     result = ensemble(other)
-    assert result.returncode == 1
-    assert "belongs to a different study (case 4 differs)" in result.stderr
+    assert result.returncode == 2
+    assert "case 1 (" in result.stderr and "is complete, but" in result.stderr
+    assert {p.name: p.stat().st_mtime_ns for p in output.iterdir()} == before
 
 
 INDEX_ONLY_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
