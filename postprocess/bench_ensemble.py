@@ -82,7 +82,7 @@ def half_studies():
         output = ROOT / "results" / f"bench_ensemble_half{k + 1}"
         path = output.parent / f"bench_ensemble_half{k + 1}.nml"
         half = text[:sweep.start()] + f"&sweep field = 'theta(1)', values = {', '.join(part)} /" + text[sweep.end():]
-        half = half.replace("output_dir = '../results/bench_ensemble'", f"output_dir = '{output}'")
+        half = half.replace("output_dir = 'results/bench_ensemble'", f"output_dir = '{output}'")
         path.write_text(half.replace("base = 'paper_fig4_eme_theta.nml'",
                                      f"base = '{ROOT / 'inputs' / 'paper_fig4_eme_theta.nml'}'"))
         halves.append((path, output))

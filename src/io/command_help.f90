@@ -69,6 +69,10 @@ contains
       (trim(petsc_options_text(i)), i = 1, size(petsc_options_text))
     call print_own_options(unit)
     write (unit, '(a)') '', exit_codes, '', &
+      'Paths: an output path (&output file, a study''s output_dir) is relative to the current folder; a path', &
+      'that names another input (a study''s base) is relative to the file that names it.', &
+      'Steps: a fixed-step integrator takes ceiling(t_end/dt) steps of dt and ends at that multiple of dt', &
+      '(20.1 s for t_end = 20, dt = 0.15; dt > t_end is refused); one that chooses its steps lands on t_end.', '', &
       'Input: a namelist file with any of these groups (models: '//model_names()//'); left-out fields keep', &
       'their defaults, the paper''s scene:'
     call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
@@ -108,7 +112,9 @@ contains
       'output_dir/index.h5 (/cases) records every case''s status and figures, and running the study again', &
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
       '2 bad study input or usage (nothing is written), 1 the index or a case''s output could not be written,', &
-      '128 + N after signal N (the study stopped cleanly; running it again goes on).', '', &
+      '128 + N after signal N (the study stopped cleanly; running it again goes on).', &
+      'Paths: base is relative to the study file''s folder, output_dir (and its default results/<study name>)', &
+      'to the current folder.', '', &
       (trim(petsc_options_text(i)), i = 1, size(petsc_options_text))
     call print_own_options(unit)
     write (unit, '(a)') '', &

@@ -104,6 +104,33 @@ contains
 
   ! `path` as seen from the folder of `file`: itself if absolute or empty, else the folder's path
   ! and it (a file in the current folder: `path` itself).
+  ! The path as a user reads it: no './' segments, no repeated or trailing '/' ('..' is kept: it
+  ! need not cancel the folder before it when that is a symbolic link).
+  pure function tidy_path(path) result(tidy)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: tidy
+    integer :: at
+
+    tidy = path
+    do
+      at = index(tidy, '//')
+      if (at == 0) exit
+      tidy = tidy(1:at)//tidy(at + 2:)
+    end do
+    do
+      at = index(tidy, '/./')
+      if (at == 0) exit
+      tidy = tidy(1:at)//tidy(at + 3:)
+    end do
+    do while (len(tidy) > 2)
+      if (tidy(1:2) /= './') exit
+      tidy = tidy(3:)
+    end do
+    if (len(tidy) > 1) then
+      if (tidy(len(tidy):) == '/') tidy = tidy(1:len(tidy) - 1)
+    end if
+  end function tidy_path
+
   pure function beside(file, path) result(resolved)
     character(len=*), intent(in) :: file, path
     character(len=:), allocatable :: resolved
@@ -115,19 +142,6 @@ contains
     slash = index(file, '/', back=.true.)
     if (slash > 0) resolved = file(1:slash)//path
   end function beside
-
-  ! Whether &study sets output_dir.
-  logical function output_dir_given(text, path)
-    character(len=*), intent(in) :: text, path
-    type(namelist_item), allocatable :: items(:)
-    integer :: k
-
-    call group_items(text, 'study', [character(len=1) ::], path, items)
-    output_dir_given = .false.
-    do k = 1, size(items)
-      if (item_name(items(k)%item) == 'output_dir') output_dir_given = .true.
-    end do
-  end function output_dir_given
 
   ! Whether &study sets index_only.
   logical function index_only_given(text, path)
@@ -167,12 +181,11 @@ contains
     if (stat /= 0) return
     definition%index_only = index_only
     definition%repeats = repeats
-    ! Paths in the study file are relative to its folder (the default output_dir, like eme_run's
-    ! default output file, to the current one).
-    definition%base = beside(definition%input_file, trim(base))
-    definition%output_dir = trim(output_dir)
-    if (output_dir_given(text, definition%input_file)) definition%output_dir = beside(definition%input_file, &
-                                                                                       trim(output_dir))
+    ! One rule for paths (docs/input.md): a path that names another input file (base) is relative
+    ! to the file that names it; an output path (output_dir, and its default) is relative to the
+    ! current folder, the run directory, as eme_run's &output file is.
+    definition%base = tidy_path(beside(definition%input_file, trim(base)))
+    definition%output_dir = tidy_path(trim(output_dir))
     definition%combine = trim(lowercase(combine))
     if (len(definition%base) == 0) then
       stat = 1
@@ -301,9 +314,9 @@ contains
 
     fields = [ &
       text_field('base', base, 'the path of an eme_run namelist (the base scene), relative to the study file''s '// &
-                 'folder', ''), &
-      text_field('output_dir', output_dir, 'a directory for the case files and index.h5, relative to the study '// &
-                 'file''s folder (default results/<study name> in the current folder)', ''), &
+                 'folder (an input names its inputs relative to itself)', ''), &
+      text_field('output_dir', output_dir, 'a directory for the case files and index.h5, relative to the current '// &
+                 'folder, as every output path (default results/<study name>)', ''), &
       text_field('combine', combine, "'product' or 'zip' (product: the first sweep varies slowest)", ''), &
       logical_field('index_only', index_only, '.true.: only the index row per case, no case files; .false.: a '// &
                     'case file per case too (default: .false. below '//integer_text(index_only_from)//' cases, '// &

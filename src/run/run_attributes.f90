@@ -58,6 +58,7 @@ contains
       call real_attribute('tolerance', choice%tolerance, '1')
       call real_attribute('ts_tolerance', choice%tolerance, '1')   ! the old name, for old scripts
       if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat, units='1')
+      if (stat == 0) call file%set_integer('max_steps', choice%max_steps, stat, units='1')
     end associate
     call real_attribute('quotient_threshold', quotient_threshold, '1')
     if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')

@@ -347,7 +347,7 @@ def test_a_study_of_1000_cases_keeps_only_its_index_unless_told(tmp_path, eme_ru
   output_dir = '{output}'
   {given}
 /
-&sweep field = 't_end', values = 0.1 /
+&sweep field = 't_end', values = 0.15 /
 &sweep field = 'theta(1)', values = {", ".join(f"{270 + i:.1f}" for i in range(40))} /
 &sweep field = 'theta(2)', values = {", ".join(f"{340 + i:.1f}" for i in range(25))} /
 """)
@@ -507,11 +507,12 @@ def test_bad_study_input(tmp_path, eme_run_binary, text, words):
     assert not output.exists() and not (ROOT / "results" / study.stem).exists()
 
 
-def test_array_sweeps_and_paths_relative_to_the_study_file(tmp_path, eme_run_binary):
+def test_array_sweeps_and_the_one_path_rule(tmp_path, eme_run_binary):
     """Sweeps over a section ('p2(1:2)') and a whole array ('mass'), two values per case, in a
-    product and in a zip; base and output_dir relative to the study file's folder, run from
-    another folder. Before: every such sweep was refused ('p2(1:2)' took one value per case), and
-    base was looked up in the current folder."""
+    product and in a zip; run from another folder, base (an input the study file names) is found
+    beside the study file and output_dir (an output) in the current folder, as eme_run's &output
+    file. Before: every such sweep was refused ('p2(1:2)' took one value per case); output_dir
+    was relative to the study file while its default and eme_run's outputs were not."""
     folder = tmp_path / "studies"
     folder.mkdir()
     (folder / "scene.nml").write_text("&integrator t_end = 0.3 /\n")
@@ -523,13 +524,15 @@ def test_array_sweeps_and_paths_relative_to_the_study_file(tmp_path, eme_run_bin
         result = subprocess.run([str(BIN / "eme_ensemble"), str(study.relative_to(tmp_path))], capture_output=True,
                                 text=True, cwd=tmp_path, timeout=120)
         assert result.returncode == 0, result.stderr
-        index = read_index(folder / f"out_{combine}")
+        assert not (folder / f"out_{combine}").exists()
+        assert f"index out_{combine}/index.h5" in result.stdout
+        index = read_index(tmp_path / f"out_{combine}")
         assert len(index) == count
         pairs = [((r["p2(1)"], r["p2(2)"]), (r["mass(1)"], r["mass(2)"])) for r in index]
         expected = [((-1, -1), (1, 1)), ((-1, -1), (2, 3)), ((-2, -3), (1, 1)), ((-2, -3), (2, 3))]
         assert pairs == (expected if combine == "product" else [expected[0], expected[3]])
         for row in index:
-            run = read_run(folder / f"out_{combine}" / row["file"].decode())
+            run = read_run(tmp_path / f"out_{combine}" / row["file"].decode())
             assert list(run["attrs"]["mass"]) == [row["mass(1)"], row["mass(2)"]]
             np.testing.assert_array_equal(run["state"][0, 9:11], [row["p2(1)"], row["p2(2)"]])
     bad = folder / "bad.nml"
