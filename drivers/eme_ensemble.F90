@@ -8,7 +8,7 @@ program eme_ensemble
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use study_config, only: study_definition, read_study
-  use ensemble, only: run_study, study_outcome, world_rank
+  use ensemble, only: run_study, study_outcome, world_rank, study_in_use
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options
@@ -61,7 +61,7 @@ program eme_ensemble
       call run_study(study, outcome, stat, message, print_line)
       if (stat /= 0) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
-        exit_status = 1
+        exit_status = merge(2, 1, stat == study_in_use)
       else if (outcome%io_failure) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: stopped: '//outcome%io_message
         exit_status = 1
