@@ -31,16 +31,19 @@ FILE_SYSTEMS = {"exchange": {}, "hard link": {"EME_KILL_NO_EXCHANGE": "1"},
                 "copy": {"EME_KILL_NO_EXCHANGE": "1", "EME_KILL_NO_LINK": "1"}}
 
 
-def run_killed(folder, at=None, log=None, extra=None):
+def run_killed(folder, at=None, log=None, extra=None, slow=False):
     """Runs eme_run with its output in `folder` (emptied first), killed before its `at`-th file
-    operation there; the return code and the output path."""
+    operation there (with `slow`, on a machine that seems 100 times slower: the LD_PRELOAD shim
+    fast_clock.c); the return code and the output path."""
     folder.mkdir(parents=True, exist_ok=True)
     for old in folder.iterdir():
         old.unlink()
     output = folder / "run.h5"
     namelist = folder.with_suffix(".nml")
     namelist.write_text(namelist_text({"integrator": RUN, "output": {"file": str(output)}}))
-    env = dict(os.environ, LD_PRELOAD=str(shim_library("kill_at_write")), EME_KILL_DIR=str(folder),
+    shims = [shim_library("fast_clock")] if slow else []
+    shims.append(shim_library("kill_at_write"))
+    env = dict(os.environ, LD_PRELOAD=":".join(str(shim) for shim in shims), EME_KILL_DIR=str(folder),
                EME_WRITE_EVERY_ROWS=WRITE_EVERY_ROWS, **(extra or {}))
     if at is not None:
         env["EME_KILL_AT"] = str(at)
@@ -113,3 +116,14 @@ def test_a_kill_at_any_file_operation_leaves_a_readable_file(uninterrupted, file
     kept = sorted({steps for steps in outcomes.values() if steps is not None})
     # The kills land before the first write, after it, after the window and after the run.
     assert None in outcomes.values() and len(kept) >= 3 and kept[-1] == 40000, kept
+
+
+def test_the_file_operations_do_not_depend_on_the_clock(uninterrupted, tmp_path):
+    """On a machine that seems 100 times slower (its monotonic clock runs 100 times faster) the
+    run makes the same file operations in the same order: the kill points above are the same on
+    a loaded machine. (With writes due by the clock, 205 operations became 2385.)"""
+    _, _, operations = uninterrupted
+    log = tmp_path / "slow.log"
+    code, output = run_killed(tmp_path / "slow", log=log, slow=True)
+    assert code == 0 and check_run_file(output) == ("complete", 40000)
+    assert [line.split()[1] for line in log.read_text().splitlines()] == operations["exchange"]
