@@ -1,7 +1,7 @@
 !> mpirun -n P eme_ensemble [PETSc options] STUDY.nml [PETSc options]: runs the cases of a parameter study on
 !> P ranks (docs/studies.md). Exit status: 0 every case was attempted (failed cases
-!> are results, recorded in the index with their reason), 2 bad study input (nothing is
-!> written), 1 the index or a case's output could not be written, 128 + N after signal N (the
+!> are results, recorded in the index with their reason), 2 bad study input, or another study
+!> running in the same output_dir (nothing is written), 1 the index or a case's output could not be written, 128 + N after signal N (the
 !> study stopped cleanly; running it again goes on).
 program eme_ensemble
 #include <petsc/finclude/petscsys.h>

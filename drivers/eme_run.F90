@@ -1,7 +1,7 @@
 !> eme_run [PETSc options] FILE.nml [PETSc options]: one run of the thermoviscoelastic double pendulum.
 !> Reads the namelist, integrates, writes the HDF5 file named in &output and prints a
-!> one-line summary. Exit status: 0 complete, 2 bad input or usage (no output file is
-!> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error,
+!> one-line summary. Exit status: 0 complete, 2 bad input or usage, or another run writing the
+!> same output (no output file is written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error,
 !> 128 + N after signal N (SIGTERM, SIGINT: the file is kept, marked incomplete).
 !> eme_run --help (or -h), --version, --integrators (the registry as a table) and --output-schema
 !> (the HDF5 layout as a table) print and exit with status 0; so does PETSc's -help, which also
