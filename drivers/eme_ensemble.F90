@@ -1,14 +1,14 @@
 !> mpirun -n P eme_ensemble [PETSc options] STUDY.nml [PETSc options]: runs the cases of a parameter study on
 !> P ranks (docs/studies.md). Exit status: 0 every case was attempted (failed cases
-!> are results, recorded in the index with their reason), 2 bad study input (nothing is
-!> written), 1 the index or a case's output could not be written, 128 + N after signal N (the
+!> are results, recorded in the index with their reason), 2 bad study input, or another study
+!> running in the same output_dir (nothing is written), 1 the index or a case's output could not be written, 128 + N after signal N (the
 !> study stopped cleanly; running it again goes on).
 program eme_ensemble
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use study_config, only: study_definition, read_study
-  use ensemble, only: run_study, study_outcome, world_rank
+  use ensemble, only: run_study, study_outcome, world_rank, study_in_use
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
@@ -68,7 +68,8 @@ program eme_ensemble
       call run_study(study, outcome, stat, message, print_line)
       if (stat /= 0) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
-        exit_status = merge(2, 1, stat == 2)     ! 2: output_dir holds another study's finished cases
+        ! 2 (bad input): another study holds output_dir, or it holds finished cases this study lacks
+        exit_status = merge(2, 1, stat == study_in_use)
       else if (outcome%io_failure) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: stopped: '//outcome%io_message
         exit_status = 1

@@ -1,7 +1,7 @@
 !> eme_run [PETSc options] FILE.nml [PETSc options]: one run of the thermoviscoelastic double pendulum.
 !> Reads the namelist, integrates, writes the HDF5 file named in &output and prints a
-!> one-line summary. Exit status: 0 complete, 2 bad input or usage (no output file is
-!> written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error,
+!> one-line summary. Exit status: 0 complete, 2 bad input or usage, or another run writing the
+!> same output (no output file is written), 3 the run stopped early (the file is kept, marked incomplete), 1 I/O or PETSc error,
 !> 128 + N after signal N (SIGTERM, SIGINT: the file is kept, marked incomplete).
 !> eme_run --help (or -h), --version, --integrators (the registry as a table) and --output-schema
 !> (the HDF5 layout as a table) print and exit with status 0; so does PETSc's -help, which also
@@ -19,6 +19,7 @@ program eme_run
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use library_versions, only: print_versions
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, os_error_text
   implicit none
 
   type(run_configuration) :: config
@@ -102,8 +103,28 @@ contains
 
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
+    type(output_lock) :: lock
+    character(len=:), allocatable :: holder
     integer :: k
 
+    ! One writer per output: a second run of the same file is refused before it writes anything.
+    call lock_output(lock, config%output_file//'.lock', stat, holder)
+    if (stat == lock_held_elsewhere) then
+      if (len(holder) == 0) holder = 'another process'
+      write (error_unit, '(a)') 'eme_run: '//config%output_file//' (&output file in '//config%input_file// &
+        ') is being written by '//holder//', which holds '//config%output_file//'.lock; this run is refused '// &
+        'and writes nothing'
+      exit_status = 2
+      return
+    else if (stat == lock_not_offered) then
+      write (error_unit, '(a)') 'eme_run: warning: the file system of '//config%output_file//' offers no lock; '// &
+        'a second run writing it at the same time would not be refused'
+    else if (stat /= 0) then
+      write (error_unit, '(a)') 'eme_run: cannot create the lock file '''//config%output_file//'.lock'' ('// &
+        config%input_file//', &output: file): '//os_error_text(stat)
+      exit_status = 1
+      return
+    end if
     if (allocated(config%warnings)) then
       do k = 1, size(config%warnings)
         write (error_unit, '(a)') 'eme_run: warning: '//trim(config%warnings(k))
@@ -114,6 +135,7 @@ contains
     else
       call run_simulation(config, summary, stat, message)
     end if
+    call unlock_output(lock)
     exit_status = run_exit_status(summary)
     if (stat /= 0) then
       write (error_unit, '(a)') 'eme_run: '//message

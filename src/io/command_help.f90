@@ -15,7 +15,8 @@ module command_help
   public :: print_run_help, print_study_help, print_integrators, has_argument
 
   character(len=*), parameter :: exit_codes = &
-    'Exit status: 0 complete, 2 bad input or usage (nothing is written), 3 the run stopped early (its file is '// &
+    'Exit status: 0 complete, 2 bad input or usage, or another run writing the same output (nothing is '// &
+    'written), 3 the run stopped early (its file is '// &
     'kept, marked incomplete, with the reason), 1 an I/O or PETSc error, 128 + N after signal N (SIGTERM: 143, '// &
     'SIGINT: 130; the file is kept, marked incomplete).'
   character(len=*), parameter :: petsc_options_text(4) = [character(len=100) :: &
@@ -111,7 +112,8 @@ contains
       'eme_run scene, the base scene with one value of each sweep. Each case writes output_dir/case_NNNNN.h5;', &
       'output_dir/index.h5 (/cases) records every case''s status and figures, and running the study again', &
       'redoes only what is not complete. Exit status: 0 every case was attempted (failed cases are results),', &
-      '2 bad study input or usage (nothing is written), 1 the index or a case''s output could not be written,', &
+      '2 bad study input or usage, or another study running in output_dir (nothing is written),', &
+      '1 the index or a case''s output could not be written,', &
       '128 + N after signal N (the study stopped cleanly; running it again goes on).', &
       'Paths: base is relative to the study file''s folder, output_dir (and its default results/<study name>)', &
       'to the current folder.', '', &

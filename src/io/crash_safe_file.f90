@@ -16,6 +16,11 @@
 !> Use: `start`; define the tables' datasets and set attributes on `file`; append rows to the
 !> tables; when `write_due`, `begin_rows`, write the attributes that go with the rows into
 !> `file`, and `end_rows`; at the end the same with final = .true.
+!>
+!> Writes fall due by the clock (write_interval), so the sequence of file operations of a run
+!> depends on the machine's speed. The testing hook EME_WRITE_EVERY_ROWS=N (environment) makes
+!> them fall due every N rows instead, and never by the clock: a test that kills a run at its
+!> K-th file operation then meets the same sequence on a busy machine (docs/faults.md).
 module crash_safe_file
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use hdf5_files, only: hdf5_file, file_template, file_in_use
@@ -38,6 +43,7 @@ module crash_safe_file
     integer :: failure = 0                        !! the first failed write (its stat): later windows fail with it
     real(real64) :: write_interval = 1.0_real64   !! seconds between windows
     integer(int64) :: last_write = 0, clock_rate = 1
+    integer(int64) :: write_every_rows = 0        !! > 0: writes fall due by rows, not time (testing hook)
     logical, private :: final = .false.           !! the write under way is the last
     logical, private :: whole = .false.           !! ... and writes the file whole from memory
     integer(int64), allocatable, private :: kept(:)   !! each table's rows of the last window, which the spare lacked
@@ -64,6 +70,7 @@ contains
 
     self%path = path
     self%spare = path//'.spare'
+    self%write_every_rows = rows_hook()
     allocate (self%tables(table_count))
     allocate (self%kept(table_count))
     call system_clock(self%last_write, self%clock_rate)
@@ -90,9 +97,17 @@ contains
   logical function write_due(self)
     class(safe_file), intent(in) :: self
     integer(int64) :: now
+    integer :: k
 
     if (self%buffers_full()) then
       write_due = .true.
+    else if (self%write_every_rows > 0) then
+      write_due = .false.
+      do k = 1, size(self%tables)
+        associate (table => self%tables(k))
+          write_due = write_due .or. table%first_row + table%buffered - table%written >= self%write_every_rows
+        end associate
+      end do
     else
       call system_clock(now)
       write_due = real(now - self%last_write, real64) >= self%write_interval*real(self%clock_rate, real64)
@@ -224,6 +239,18 @@ contains
     call remove_file(self%spare, ignored)
     if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
   end subroutine end_rows
+
+  ! EME_WRITE_EVERY_ROWS from the environment: a positive row count, or 0 (unset or not a count).
+  integer(int64) function rows_hook()
+    character(len=32) :: text
+    integer :: length, stat
+
+    rows_hook = 0
+    call get_environment_variable('EME_WRITE_EVERY_ROWS', text, length, stat)
+    if (stat /= 0 .or. length == 0) return
+    read (text, *, iostat=stat) rows_hook
+    if (stat /= 0 .or. rows_hook < 0) rows_hook = 0
+  end function rows_hook
 
   !> Opens `path` itself for writing (no spare, no window): the last resort, after a final
   !> window failed for want of space, to say in an attribute why its rows are missing (the space

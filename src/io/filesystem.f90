@@ -1,11 +1,23 @@
 !> File-system operations (src/io/posix_files.c) with Fortran strings. Each returns stat = 0 on
-!> success, else the OS's error number, which os_error_text turns into the OS's words.
+!> success, else the OS's error number, which os_error_text turns into the OS's words. The lock of
+!> an output (lock_output) makes one process its only writer (docs/faults.md).
 module filesystem
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_null_char
   implicit none (type, external)
   private
   public :: make_directories, make_parent_directories, rename_file, exchange_files, copy_file, remove_file, &
-            file_exists, append_text, reserve_space, sync_file, os_error_text, stderr_is_terminal
+            file_exists, append_text, reserve_space, sync_file, os_error_text, stderr_is_terminal, &
+            output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
+
+  !> lock_output's stat besides 0 and an OS error number: another live process holds the lock;
+  !> the file system offers no working lock (the output is then written unguarded).
+  integer, parameter :: lock_held_elsewhere = -1, lock_not_offered = -2
+
+  !> The lock of an output while this process holds it: the lock file, open.
+  type :: output_lock
+    character(len=:), allocatable :: path
+    integer(c_int) :: descriptor = -1
+  end type output_lock
 
   interface
     function c_make_directories(path) result(status) bind(c, name='eme_make_directories')
@@ -62,6 +74,19 @@ module filesystem
       integer(c_int), value :: error, capacity
       character(kind=c_char), intent(out) :: text(*)
     end subroutine c_os_error_text
+    function c_lock_output(path, descriptor, holder, capacity) result(status) bind(c, name='eme_lock_output')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), intent(out) :: descriptor
+      character(kind=c_char), intent(out) :: holder(*)
+      integer(c_int), value :: capacity
+      integer(c_int) :: status
+    end function c_lock_output
+    subroutine c_unlock_output(path, descriptor) bind(c, name='eme_unlock_output')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: descriptor
+    end subroutine c_unlock_output
     function c_stderr_is_terminal() result(status) bind(c, name='eme_stderr_is_terminal')
       import :: c_int
       integer(c_int) :: status
@@ -176,5 +201,32 @@ contains
   logical function stderr_is_terminal()
     stderr_is_terminal = c_stderr_is_terminal() == 1
   end function stderr_is_terminal
+
+  !> Takes the lock file `path` (created, with its folder) for this process: an exclusive lock
+  !> the OS releases when the process ends, however it ends, so the lock file a killed writer
+  !> left behind is taken again. stat: 0 (held until unlock_output or the end of the process),
+  !> lock_held_elsewhere (`holder` names the live process that holds it, e.g. 'process 4242 on
+  !> host node7', or is empty), lock_not_offered (the file system has no working lock; nothing is
+  !> held), or an OS error number.
+  subroutine lock_output(lock, path, stat, holder)
+    type(output_lock), intent(out) :: lock
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: holder
+    character(len=512) :: buffer
+
+    lock%path = path
+    stat = int(c_lock_output(trim(path)//c_null_char, lock%descriptor, buffer, int(len(buffer), c_int)))
+    holder = buffer(1:max(0, index(buffer, c_null_char) - 1))
+  end subroutine lock_output
+
+  !> Lets go of the lock (its file is removed); nothing to do if it is not held.
+  subroutine unlock_output(lock)
+    type(output_lock), intent(inout) :: lock
+
+    if (lock%descriptor < 0) return
+    call c_unlock_output(lock%path//c_null_char, lock%descriptor)
+    lock%descriptor = -1
+  end subroutine unlock_output
 
 end module filesystem

@@ -1,12 +1,14 @@
 /* File-system operations for the Fortran code that standard Fortran lacks or cannot check:
  * directories, atomic rename, exchange and copy, whole-file writes and line appends with their OS
- * error, disk space reserved ahead of a write, and whether stderr is a terminal. Each returns 0
- * on success or the errno value of the failure (eme_os_error_text turns it into the OS's words). */
+ * error, disk space reserved ahead of a write, the lock that makes one process the only writer
+ * of an output, and whether stderr is a terminal. Each returns 0 on success or the errno value
+ * of the failure (eme_os_error_text turns it into the OS's words). */
 #define _GNU_SOURCE /* renameat2 */
 #include <errno.h>
 #include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -206,4 +208,80 @@ int eme_sync_file(const char *path)
 int eme_stderr_is_terminal(void)
 {
     return isatty(STDERR_FILENO) ? 1 : 0;
+}
+
+/* eme_lock_output's answers besides 0 and an errno value. */
+enum { lock_held_elsewhere = -1, lock_not_offered = -2 };
+
+/* The line a lock holder leaves in its lock file, as `holder` text for the refused process. */
+static void read_holder(int fd, char *holder, int capacity)
+{
+    ssize_t got = pread(fd, holder, (size_t)capacity - 1, 0);
+    if (got < 0) got = 0;
+    holder[got] = '\0';
+    char *end = strchr(holder, '\n');
+    if (end != NULL) *end = '\0';
+}
+
+/* Makes this process the only writer of an output: an exclusive flock(2) on the lock file `path`
+ * (created, with its directory), which the OS releases when the process ends, however it ends,
+ * so a killed writer's lock file is no obstacle. On success *descriptor is the open lock file
+ * (eme_unlock_output releases it) and the file holds a line naming this process and its host.
+ * Returns 0; lock_held_elsewhere if a live process holds the lock (`holder` gets its line, or
+ * ""); lock_not_offered if the file system has no working flock (ENOLCK, EOPNOTSUPP, ENOSYS:
+ * some NFS and Lustre mounts); else the errno value. */
+int eme_lock_output(const char *path, int *descriptor, char *holder, int capacity)
+{
+    *descriptor = -1;
+    if (capacity < 1) return EINVAL;
+    holder[0] = '\0';
+    for (int attempt = 0; attempt < 100; ++attempt) {
+        int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+        if (fd < 0 && errno == ENOENT) {
+            char directory[4096];
+            const char *slash = strrchr(path, '/');
+            if (slash != NULL && slash != path) {
+                snprintf(directory, sizeof directory, "%.*s", (int)(slash - path), path);
+                int error = eme_make_directories(directory);
+                if (error != 0) return error;
+                fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+            }
+        }
+        if (fd < 0) return errno;
+        while (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+            int error = errno;
+            if (error == EINTR) continue;
+            if (error == EWOULDBLOCK) read_holder(fd, holder, capacity);
+            close(fd);
+            if (error == EWOULDBLOCK) return lock_held_elsewhere;
+            if (error == ENOLCK || error == EOPNOTSUPP || error == ENOSYS) return lock_not_offered;
+            return error;
+        }
+        /* The holder before us removes the file as it lets go; if it did so after our open, our
+         * lock is on a file that no longer has the name, and a third process could lock a new
+         * file of that name: then start again. */
+        struct stat held, named;
+        if (fstat(fd, &held) == 0 && stat(path, &named) == 0 && held.st_dev == named.st_dev &&
+            held.st_ino == named.st_ino) {
+            char line[512], host[256];
+            if (gethostname(host, sizeof host) != 0) snprintf(host, sizeof host, "unknown");
+            host[sizeof host - 1] = '\0';
+            int length = snprintf(line, sizeof line, "process %ld on host %s\n", (long)getpid(), host);
+            /* Only the message of a refused writer needs the line: a full disk does not stop the run. */
+            if (ftruncate(fd, 0) == 0) (void)!pwrite(fd, line, (size_t)length, 0);
+            *descriptor = fd;
+            return 0;
+        }
+        close(fd);
+    }
+    return EAGAIN;
+}
+
+/* Lets go of a lock taken by eme_lock_output: removes the lock file while still holding it, then
+ * closes it (which releases the lock). Nothing to do for descriptor -1. */
+void eme_unlock_output(const char *path, int descriptor)
+{
+    if (descriptor < 0) return;
+    (void)unlink(path);
+    close(descriptor);
 }

@@ -27,9 +27,13 @@ module ensemble
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
   use number_text, only: integer_text, fixed_text
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, os_error_text
   implicit none (type, external)
   private
-  public :: run_study, study_outcome, world_rank, line_reporter
+  public :: run_study, study_outcome, world_rank, line_reporter, study_in_use
+
+  !> run_study's stat when another study holds the lock of output_dir (the drivers' exit status 2).
+  integer, parameter :: study_in_use = 2
 
   integer, parameter :: tag_request = 1, tag_status = 2, tag_assign = 3
   integer, parameter :: message_length = metric_count + 2    !! case, metrics, leaving
@@ -79,9 +83,10 @@ contains
     call MPI_Comm_rank(MPI_COMM_WORLD, world_rank)
   end function world_rank
 
-  !> Runs every pending case of `study`. Collective over MPI_COMM_WORLD. stat /= 0 (on every
-  !> rank) if the index could not be prepared; failed cases are not errors. Rank 0 hands its
-  !> start line, progress lines and warnings to `report`.
+  !> Runs every pending case of `study`. Collective over MPI_COMM_WORLD. stat (on every rank):
+  !> study_in_use if another study holds output_dir (nothing is written), 1 if the index could
+  !> not be prepared; failed cases are not errors. Rank 0 hands its start line, progress lines and
+  !> warnings to `report`.
   subroutine run_study(study, outcome, stat, message, report)
     type(study_definition), intent(inout), target :: study
     type(study_outcome), intent(out) :: outcome
@@ -89,6 +94,7 @@ contains
     character(len=:), allocatable, intent(out) :: message
     procedure(line_reporter), optional :: report
     type(study_manager) :: manager
+    type(output_lock) :: lock                 !! rank 0's: one study at a time in output_dir
     integer :: rank, ranks, flag(1), counts(7)
 
     call MPI_Comm_rank(MPI_COMM_WORLD, rank)
@@ -99,12 +105,15 @@ contains
     outcome%io_message = ''
     stat = 0
     outcome%cases = size(study%cases)
-    if (rank == 0) call prepare(manager, study, ranks, stat, message)
+    if (rank == 0) call lock_directory(study, lock, stat, message, report)
+    if (rank == 0 .and. stat == 0) call prepare(manager, study, ranks, stat, message)
+    if (stat /= 0 .and. stat /= study_in_use) stat = 1
     flag = stat
     call MPI_Bcast(flag, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
     stat = flag(1)
     if (stat /= 0) then
       if (rank /= 0) message = 'rank 0 could not prepare the study index'
+      call unlock_output(lock)
       return
     end if
     if (rank == 0) then
@@ -122,7 +131,35 @@ contains
     outcome%index_errors = counts(4)
     outcome%signal = counts(5)
     outcome%io_failure = counts(6) == 1
+    call unlock_output(lock)
   end subroutine run_study
+
+  ! Takes the lock of the study's output_dir (created if missing), output_dir/study.lock, so that
+  ! a second study there is refused before it writes anything. stat: 0, study_in_use, or an OS
+  ! error number, with a message.
+  subroutine lock_directory(study, lock, stat, message, report)
+    type(study_definition), intent(in) :: study
+    type(output_lock), intent(out) :: lock
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(inout) :: message
+    procedure(line_reporter), optional :: report
+    character(len=:), allocatable :: holder
+
+    call lock_output(lock, study%output_dir//'/study.lock', stat, holder)
+    if (stat == lock_held_elsewhere) then
+      if (len(holder) == 0) holder = 'another process'
+      message = study%output_dir//' (output_dir of '//study%input_file//') is in use by another study, '//holder// &
+                ', which holds '//study%output_dir//'/study.lock; this study is refused and writes nothing'
+      stat = study_in_use
+    else if (stat == lock_not_offered) then
+      stat = 0
+      if (present(report)) call report('eme_ensemble: warning: the file system of '//study%output_dir//' offers no '// &
+                                       'lock; a second study there at the same time would not be refused')
+    else if (stat /= 0) then
+      message = study%input_file//': cannot create the lock file '''//study%output_dir//'/study.lock'': '// &
+                os_error_text(stat)
+    end if
+  end subroutine lock_directory
 
   ! ------------------------------------------------------------------ rank 0
 

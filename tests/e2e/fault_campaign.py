@@ -8,12 +8,15 @@ Categories (N or M tries each, random moments or sizes):
   run_kill_long / run_kill_short     SIGKILL to eme_run (20 million steps / the paper scene)
   run_term_long / run_term_short     SIGTERM or SIGINT to eme_run
   run_full_disk                      eme_run on a disk of random size (1 kB to 50 MB)
+  run_twice                          a second eme_run of the same file (another scheme), started
+                                     0 to 1.5 s after the first
   study_kill / study_term            SIGKILL to every rank / SIGTERM to mpirun, then a restart
   study_full_disk                    a study on a small disk, then a restart with room
 What counts as bad: a file under its final name that is neither complete (read back) nor marked
 incomplete with a reason; a crash (a signal other than the one sent); a full disk not reported
 with the OS's reason, file and input file; a study that does not finish on restart, or reruns a
-case it had recorded complete with a good file. A FILE.part that cannot be read after SIGKILL
+case it had recorded complete with a good file; two runs of one file that both write it (both
+exit 0, or the file is not the one run that completed). A FILE.part that cannot be read after SIGKILL
 is counted apart (docs/faults.md states this risk)."""
 import argparse
 import collections
@@ -142,6 +145,38 @@ def category_run_full_disk(folder, rng):
     return bad, f"{method}: {outcome}", False
 
 
+def category_run_twice(folder, rng):
+    """The reporter's two writers: 60,000 EME steps, then the midpoint rule into the same file.
+    One of them writes it (the other is refused: exit 2, nothing written; or, started after the
+    first finished, refused for the complete file it finds), and the file is that run's."""
+    output = folder / "same.h5"
+    runs = {}
+    for scheme in ("eme", "midpoint"):
+        runs[scheme] = folder / f"{scheme}.nml"
+        runs[scheme].write_text(namelist_text({"integrator": {"dt": 0.001, "t_end": 60.0, "scheme": scheme},
+                                               "output": {"file": str(output)}}))
+    first = subprocess.Popen([str(BIN / "eme_run"), str(runs["eme"])], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, text=True)
+    time.sleep(rng.uniform(0.0, 1.5))
+    second = subprocess.run([str(BIN / "eme_run"), str(runs["midpoint"])], capture_output=True, text=True)
+    _, first_err = first.communicate()
+    codes = (first.returncode, second.returncode)
+    bad = judge_final(output)
+    writers = [scheme for scheme, code in zip(runs, codes) if code == 0]
+    if len(writers) != 1 or any(code not in (0, 2) for code in codes):
+        bad = bad or f"exit statuses {codes}: {(first_err + second.stderr)[-300:]}"
+    elif not bad:
+        with h5py.File(output, "r") as f:
+            if f.attrs["scheme"] != writers[0] or check_run_file(output) != ("complete", 60000):
+                bad = f"the file is not the {writers[0]} run's: {f.attrs['scheme']}"
+    refused = second.stderr if codes[1] == 2 else first_err
+    why = "in use" if "is being written by" in refused else "complete" if "holds a complete run" in refused else "?"
+    leftovers = sorted(p.name for p in folder.iterdir() if p.name.startswith("same.h5."))
+    if leftovers:
+        bad = bad or f"left behind: {leftovers}"
+    return bad, f"{writers[0] if len(writers) == 1 else writers} wrote, the other refused ({why})", False
+
+
 STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
 &sweep field = 'theta(1)', values = {values1} /
 &sweep field = 'theta(2)', values = {values2} /
@@ -259,6 +294,7 @@ CATEGORIES = {
     "run_term_long": lambda folder, rng: category_run_signal(folder, rng, True, False),
     "run_term_short": lambda folder, rng: category_run_signal(folder, rng, False, False),
     "run_full_disk": category_run_full_disk,
+    "run_twice": category_run_twice,
     "study_kill": lambda folder, rng: category_study_signal(folder, rng, True),
     "study_term": lambda folder, rng: category_study_signal(folder, rng, False),
     "study_full_disk": category_study_full_disk,

@@ -5,7 +5,9 @@
  * the process with SIGKILL before that operation reaches the file system. So the files are left
  * exactly as operations 1 .. K-1 made them, which is what a kill at any instant between two
  * system calls leaves. $EME_KILL_LOG names a file that gets a line "K operation" for each
- * operation (without $EME_KILL_AT: the whole run's list). To stand for file systems that lack
+ * operation (without $EME_KILL_AT: the whole run's list). $EME_KILL_SIGNAL names another signal
+ * by number (19, SIGSTOP: the process stops there, holding what it holds, until SIGCONT lets it
+ * perform the operation and go on). To stand for file systems that lack
  * them, $EME_KILL_NO_EXCHANGE makes renameat2(RENAME_EXCHANGE) fail with EINVAL (as on NFS) and
  * $EME_KILL_NO_LINK makes link fail with EPERM (as on FAT). Everything else passes through. */
 #define _GNU_SOURCE
@@ -65,7 +67,10 @@ static void operation(int watched, const char *name)
         }
     }
     const char *at = getenv("EME_KILL_AT");
-    if (at != NULL && operations == atol(at)) raise(SIGKILL);
+    if (at != NULL && operations == atol(at)) {
+        const char *number = getenv("EME_KILL_SIGNAL");
+        raise(number != NULL ? atoi(number) : SIGKILL);
+    }
 }
 
 ssize_t write(int fd, const void *data, size_t size)

@@ -6,7 +6,9 @@ file is there reads back with h5py, its points and steps agree in length, and it
 first rows of the uninterrupted run, bit for bit.
 
 The run (40,000 EME steps) makes its first write and then two windows, each of which appends
-rows to the spare copy and exchanges the names (src/run/run_output.f90). Before the spare copy,
+rows to the spare copy and exchanges the names (src/run/run_output.f90). Writes fall due every
+15,000 rows here (the testing hook EME_WRITE_EVERY_ROWS), not by the clock: the killed runs must
+meet the uninterrupted run's sequence of operations however busy the machine is. Before the spare copy,
 windows wrote FILE.part in place, and 72 of the 189 kill points left it unreadable ('addr
 overflow') or with datasets longer than its step_rows. The exchange is tested as the file
 systems offer it: renameat2 RENAME_EXCHANGE, the hard link of NFS and Lustre (no exchange), and
@@ -23,21 +25,26 @@ from conftest import BIN, namelist_text
 from faults import check_run_file, shim_library
 
 RUN = {"dt": 0.05, "t_end": 2000.0}
+WRITE_EVERY_ROWS = "15000"
 COMPARED = ["time", "state", "temperature", "energy", "newton_iterations", "converged_reason"]
 FILE_SYSTEMS = {"exchange": {}, "hard link": {"EME_KILL_NO_EXCHANGE": "1"},
                 "copy": {"EME_KILL_NO_EXCHANGE": "1", "EME_KILL_NO_LINK": "1"}}
 
 
-def run_killed(folder, at=None, log=None, extra=None):
+def run_killed(folder, at=None, log=None, extra=None, slow=False):
     """Runs eme_run with its output in `folder` (emptied first), killed before its `at`-th file
-    operation there; the return code and the output path."""
+    operation there (with `slow`, on a machine that seems 100 times slower: the LD_PRELOAD shim
+    fast_clock.c); the return code and the output path."""
     folder.mkdir(parents=True, exist_ok=True)
     for old in folder.iterdir():
         old.unlink()
     output = folder / "run.h5"
     namelist = folder.with_suffix(".nml")
     namelist.write_text(namelist_text({"integrator": RUN, "output": {"file": str(output)}}))
-    env = dict(os.environ, LD_PRELOAD=str(shim_library("kill_at_write")), EME_KILL_DIR=str(folder), **(extra or {}))
+    shims = [shim_library("fast_clock")] if slow else []
+    shims.append(shim_library("kill_at_write"))
+    env = dict(os.environ, LD_PRELOAD=":".join(str(shim) for shim in shims), EME_KILL_DIR=str(folder),
+               EME_WRITE_EVERY_ROWS=WRITE_EVERY_ROWS, **(extra or {}))
     if at is not None:
         env["EME_KILL_AT"] = str(at)
     if log is not None:
@@ -96,7 +103,7 @@ def test_a_kill_at_any_file_operation_leaves_a_readable_file(uninterrupted, file
             status, steps = check_run_file(part)
             assert status in ("incomplete: running", "complete"), (at, status)
         else:                                  # killed before the first write reached its name
-            assert all(p.name.endswith(".tmp") for p in folder.iterdir()), (at, list(folder.iterdir()))
+            assert all(p.name.endswith((".tmp", ".lock")) for p in folder.iterdir()), (at, list(folder.iterdir()))
             return at, None
         got = rows(found)
         for name in COMPARED:
@@ -109,3 +116,14 @@ def test_a_kill_at_any_file_operation_leaves_a_readable_file(uninterrupted, file
     kept = sorted({steps for steps in outcomes.values() if steps is not None})
     # The kills land before the first write, after it, after the window and after the run.
     assert None in outcomes.values() and len(kept) >= 3 and kept[-1] == 40000, kept
+
+
+def test_the_file_operations_do_not_depend_on_the_clock(uninterrupted, tmp_path):
+    """On a machine that seems 100 times slower (its monotonic clock runs 100 times faster) the
+    run makes the same file operations in the same order: the kill points above are the same on
+    a loaded machine. (With writes due by the clock, 205 operations became 2385.)"""
+    _, _, operations = uninterrupted
+    log = tmp_path / "slow.log"
+    code, output = run_killed(tmp_path / "slow", log=log, slow=True)
+    assert code == 0 and check_run_file(output) == ("complete", 40000)
+    assert [line.split()[1] for line in log.read_text().splitlines()] == operations["exchange"]
