@@ -143,12 +143,18 @@ contains
       write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
       if (len(message) > 0) write (error_unit, '(a)') 'eme_run: '//message
     end if
-    if (stat == 0) write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
-      & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
-      summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
-      summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
-      summary%angular_momentum_drift, ', Newton/step ', &
-      real(summary%newton_iterations, real64)/max(1, summary%steps_completed), ', ', summary%wall_seconds, ' s'
+    ! Figures of no step would be NaN: a run that completed none says so instead.
+    if (stat == 0 .and. summary%steps_completed == 0) then
+      write (output_unit, '(a, ": ", a, ", 0/", i0, " steps: no step completed, ", f8.3, a)') config%output_file, &
+        summary%status, summary%steps_planned, summary%wall_seconds, ' s'
+    else if (stat == 0) then
+      write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
+        & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
+        summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
+        summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
+        summary%angular_momentum_drift, ', Newton/step ', &
+        real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', summary%wall_seconds, ' s'
+    end if
     if (stat == 0 .and. summary%rejected_steps > 0) write (output_unit, '(a, i0, a, i0, a)') '  step-size control: ', &
       summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'
     unused = unused_petsc_options()

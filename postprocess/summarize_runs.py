@@ -21,6 +21,7 @@ the datasets) is named on stderr with the reason, and the exit status is then 2.
 usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
 """
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -115,6 +116,13 @@ COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "
            ("wall_s", "wall [s]", "{}"), ("status", "status", "{}")]
 
 
+def cell(value, fmt):
+    """A figure as the table prints it; '-' where a run has none (no step completed), never 'nan'."""
+    if isinstance(value, float) and math.isnan(value):
+        return "-"
+    return fmt.format(value)
+
+
 def markdown_row(cells):
     """One Markdown table row; a '|' inside a cell (as in 'max |g|') is escaped."""
     return "| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |"
@@ -133,7 +141,7 @@ def main(argv=None):
             print(f"summarize_runs.py: error: {error}", file=sys.stderr)
             unusable += 1
             continue
-        rows.append([fmt.format(row[key]) for key, _, fmt in COLUMNS])
+        rows.append([cell(row[key], fmt) for key, _, fmt in COLUMNS])
     headers = [title for _, title, _ in COLUMNS]
     if rows and args.markdown:
         print(markdown_row(headers))

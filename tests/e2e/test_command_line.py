@@ -154,8 +154,10 @@ def test_unused_petsc_options_are_warned(scene, eme_run_binary):
 
 
 def test_ensemble_warns_only_about_options_no_rank_used(tmp_path, eme_run_binary):
-    """A TS option is used by the rank that runs the TS case only: no warning for it, whichever
-    rank that was; a misspelt option is named once, by rank 0."""
+    """A TS option is read by the TS case's solver: no warning for it, whichever rank ran that case
+    (every rank also sets up each of the study's integrators once before the first case, to refuse
+    bad options before anything runs); a misspelt option is named once, by rank 0. Which rank runs
+    which case depends on timing and is not asserted."""
     base = tmp_path / "base.nml"
     base.write_text("&integrator t_end = 0.6 /\n")
     output = tmp_path / "out"
@@ -168,8 +170,7 @@ def test_ensemble_warns_only_about_options_no_rank_used(tmp_path, eme_run_binary
     assert result.stderr.count("warning") == 1
     assert "eme_ensemble: warning: PETSc options that nothing used: -bogus_option\n" in result.stderr
     with h5py.File(output / "index.h5", "r") as f:
-        cases = f["cases"][()]
-    assert len(set(cases["rank"])) == 2     # both ranks ran cases
+        assert len(f["cases"]) == 4
 
 
 # ---------------------------------------------------------------- edges a new user hits (issue 24)

@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import BIN, namelist_text, read_run, run_eme
+from conftest import BIN, ROOT, namelist_text, read_run, run_eme
 
 PAPER_SHORT = {"integrator": {"scheme": "eme", "dt": 0.15, "t_end": 1.5}}
 
@@ -197,3 +197,15 @@ def test_an_adaptive_first_step_longer_than_the_run_is_capped(tmp_path, eme_run_
     data = read_run(output)
     assert data["attrs"]["steps_completed"] >= 1
     assert data["time"][-1] == pytest.approx(0.05, rel=1e-12)
+
+
+def test_a_run_that_completes_no_step_prints_no_nan(tmp_path, eme_run_binary):
+    """A run that fails its first step (here: one Newton iteration allowed) says it completed no
+    step; its summary line printed 'min dS = NaN' before. So does summarize_runs.py on its file."""
+    result, output = run_eme(tmp_path, "first_step", PAPER_SHORT, "-snes_max_it", "1")
+    assert result.returncode == 3, result.stderr
+    assert "0/10 steps: no step completed" in result.stdout
+    assert "NaN" not in result.stdout + result.stderr
+    summary = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "postprocess" / "summarize_runs.py"),
+                              str(output)], capture_output=True, text=True)
+    assert "nan" not in summary.stdout.lower(), summary.stdout
