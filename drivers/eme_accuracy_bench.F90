@@ -23,7 +23,7 @@ program eme_accuracy_bench
   use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use statistics, only: median
-  use command_line, only: benchmark_repeats, petsc_help_requested
+  use command_line, only: benchmark_repeats, petsc_help_requested, has_argument
   use library_versions, only: print_versions
   implicit none
 
@@ -147,18 +147,6 @@ contains
       'this text. Each prints and exits with status 0.'
   end subroutine print_usage
 
-  !> Whether one of `flags` is on the command line.
-  logical function has_argument(flags)
-    character(len=*), intent(in) :: flags(:)
-    character(len=64) :: argument
-    integer :: k
-
-    has_argument = .false.
-    do k = 1, command_argument_count()
-      call get_command_argument(k, argument)
-      if (any(flags == argument)) has_argument = .true.
-    end do
-  end function has_argument
 
   ! A benchmark that cannot run says why and exits with status 1.
   subroutine fail(text)

@@ -31,7 +31,7 @@ program eme_bench
   use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
   use statistics, only: median
-  use command_line, only: benchmark_repeats, petsc_help_requested
+  use command_line, only: benchmark_repeats, petsc_help_requested, has_argument
   use library_versions, only: print_versions
   implicit none
 
@@ -167,18 +167,6 @@ contains
       'the PETSc options the benchmark reads. Each prints and exits with status 0.'
   end subroutine print_usage
 
-  !> Whether one of `flags` is on the command line.
-  logical function has_argument(flags)
-    character(len=*), intent(in) :: flags(:)
-    character(len=64) :: argument
-    integer :: k
-
-    has_argument = .false.
-    do k = 1, command_argument_count()
-      call get_command_argument(k, argument)
-      if (any(flags == argument)) has_argument = .true.
-    end do
-  end function has_argument
 
   ! A benchmark that cannot run says why and exits with status 1.
   subroutine fail(text)

@@ -10,6 +10,7 @@ program eme_structure
   use run_config, only: run_configuration, read_run_config
   use structure_file, only: write_structure_file
   use library_versions, only: print_versions
+  use command_line, only: has_argument
   implicit none
 
   type(run_configuration) :: config
@@ -61,18 +62,5 @@ contains
       '--help, -h, -help: this text; --version: the code''s and the libraries'' versions. Exit status: 0 '// &
       'written, 2 bad input or usage (nothing written), 1 HDF5 failed.'
   end subroutine print_usage
-
-  !> Whether one of `flags` is on the command line.
-  logical function has_argument(flags)
-    character(len=*), intent(in) :: flags(:)
-    character(len=64) :: argument
-    integer :: k
-
-    has_argument = .false.
-    do k = 1, command_argument_count()
-      call get_command_argument(k, argument)
-      if (any(flags == argument)) has_argument = .true.
-    end do
-  end function has_argument
 
 end program eme_structure

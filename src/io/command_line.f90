@@ -12,7 +12,7 @@ module command_line
   implicit none (type, external)
   private
   public :: command_arguments, parse_command_line, initialize_petsc, check_own_options, petsc_help_requested
-  public :: unused_petsc_options, benchmark_repeats, petsc_error_text, check_petsc_viewer_files
+  public :: unused_petsc_options, benchmark_repeats, petsc_error_text, check_petsc_viewer_files, has_argument
 
   !> What the command line asked for.
   type :: command_arguments
@@ -140,6 +140,18 @@ contains
     read (first, *, iostat=stat) repeats
     if (stat == 0 .and. repeats < 1) stat = 1
   end subroutine benchmark_repeats
+
+  !> Whether one of `flags` stands anywhere on the command line (before PETSc starts: the
+  !> benchmarks answer --help and --version without running).
+  logical function has_argument(flags)
+    character(len=*), intent(in) :: flags(:)
+    integer :: k
+
+    has_argument = .false.
+    do k = 1, command_argument_count()
+      if (any(flags == command_argument(k))) has_argument = .true.
+    end do
+  end function has_argument
 
   pure logical function has_flag(self, flag)
     class(command_arguments), intent(in) :: self
