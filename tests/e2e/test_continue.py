@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import BIN, namelist_text
+from conftest import BIN, ROOT, namelist_text
 from faults import shim_library
 
 NOT_COMPARED = {"step_seconds"}          # wall-clock times of the steps
@@ -159,3 +159,40 @@ def test_refusals_keep_the_file(tmp_path):
     result = eme_run(namelist, "-eme_continue")
     assert result.returncode == 2 and "complete" in result.stderr, result.stderr
     assert path.read_bytes() == complete
+
+
+def test_the_slurm_run_example_continues_after_requeue(tmp_path):
+    """inputs/slurm_run.sbatch run as Slurm would: SIGTERM to the batch script stops the run and
+    requeues the job (a stand-in scontrol records the call); the requeued job continues the run
+    from its file, which ends complete and equal to the uninterrupted run."""
+    root = ROOT
+    if not (root / "build" / "bin" / "eme_run").exists():
+        pytest.skip("the script runs build/bin/eme_run of the checkout")
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 60.0}
+    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, {})
+    assert eme_run(reference_nml).returncode == 0
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    tools = tmp_path / "bin"
+    tools.mkdir()
+    (tools / "scontrol").write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
+    (tools / "scontrol").chmod(0o755)
+    env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242")
+    script = ["bash", str(root / "inputs" / "slurm_run.sbatch"), str(namelist)]
+    job = subprocess.Popen(script, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    part = path.with_name(path.name + ".part")
+    while not part.exists() and job.poll() is None:
+        time.sleep(0.02)
+    job.send_signal(signal.SIGTERM)
+    out, err = job.communicate(timeout=600)
+    assert job.returncode == 0, out + err
+    assert "time limit near" in out
+    assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
+    with h5py.File(path, "r") as f:
+        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM"
+        started = f.attrs["start_time"]
+    result = subprocess.run(script, cwd=root, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
+    assert_same_datasets(path, reference)
+    with h5py.File(path, "r") as f:      # continued, not run again from t = 0
+        assert f.attrs["start_time"] == started
