@@ -15,7 +15,7 @@ module run_output
   use thermo_variable, only: thermo_variable_names
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
-  use provenance, only: write_provenance, iso_time
+  use provenance, only: write_provenance, iso_time, command_line
   use run_outcome, only: run_summary, failure_io
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
   use run_attributes, only: write_run_attributes
@@ -48,6 +48,7 @@ module run_output
     real(real64), allocatable :: x(:)            !! the unknowns: state and multipliers
     real(real64), allocatable :: x_previous(:)   !! those of the step before (the predictor's base)
     real(real64), allocatable :: integrator_state(:)   !! the integrator's own (time_stepper's resume_state)
+    character(len=:), allocatable :: history     !! the file's CF history, which a continuation extends
   end type resume_record
 
   !> Rows held in memory between writes, at most. Each write copies a dataset's columns of them
@@ -74,6 +75,7 @@ module run_output
     integer(int64) :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
     integer(int64) :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
     type(resume_record) :: resume        !! the state after the last completed row (note_resume_state)
+    character(len=:), allocatable :: history   !! a continued run's history, written with every write
   contains
     procedure :: create
     procedure :: record_solver
@@ -409,6 +411,8 @@ contains
     self%committed_newton = record%summary%newton_iterations
     self%disk_newton = record%summary%newton_iterations
     self%resume = record
+    ! The file keeps its provenance; its CF history says when and how it was continued.
+    self%history = record%history//new_line('a')//iso_time()//': '//command_line()
   end subroutine continue_file
 
   !> Reads the resume record of the run file `path` with its status and the effective namelist it
@@ -432,6 +436,8 @@ contains
       call file%close(ignored)
       return
     end if
+    call file%get_text('history', record%history, read_stat)
+    if (read_stat /= 0) record%history = ''
     call file%get_reals('resume_numbers', numbers, ignored)
     if (ignored == 0 .and. size(numbers) == 16) then
       call file%get_reals('resume_x', record%x, stat)
@@ -502,6 +508,8 @@ contains
     if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. (whole .or. final), &
                                            final=final)
     if (stat == 0 .and. self%resume%held) call resume_attributes(self%resume, self%store%file, stat)
+    ! (at every write: the spare, one write behind, holds the old history until written again)
+    if (stat == 0 .and. allocated(self%history)) call self%store%file%set_text('history', self%history, stat)
     call self%store%end_rows(stat)
     if (stat /= 0 .and. .not. whole) then       ! a failed window leaves the file as it was
       self%disk_steps = steps_before

@@ -76,6 +76,9 @@ def test_sigterm_then_continue_is_bit_identical_with_every(tmp_path):
     result = eme_run(namelist, "-eme_continue")
     assert result.returncode == 0, result.stderr
     assert_same_datasets(path, reference)
+    with h5py.File(path, "r") as f:
+        history = f.attrs["history"].splitlines()
+    assert len(history) == 2 and history[1].endswith("run.nml -eme_continue"), history
 
 
 def test_step_budget_then_continue_adaptive_with_interval(tmp_path):
@@ -196,3 +199,4 @@ def test_the_slurm_run_example_continues_after_requeue(tmp_path):
     assert_same_datasets(path, reference)
     with h5py.File(path, "r") as f:      # continued, not run again from t = 0
         assert f.attrs["start_time"] == started
+        assert f.attrs["history"].endswith("-eme_continue")
