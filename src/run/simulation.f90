@@ -85,9 +85,12 @@ contains
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
   !> the next run; without, the run builds and frees its own. `progress` receives a line at most
   !> every 2 s; `extras` are root attributes added to the file. The finished file is synced to
-  !> disk unless `durable` is .false. (an ensemble's case: its index is the record).
+  !> disk unless `durable` is .false. (an ensemble's case: its index is the record). The run
+  !> continues the one its file holds if the command line asks (-eme_continue: else it fails with
+  !> failure_input); with `resume_if_possible` instead, it does when it can (an interrupted case of
+  !> a study) and starts from t = 0 otherwise.
   subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, &
-                            template)
+                            template, resume_if_possible)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
@@ -99,6 +102,7 @@ contains
     type(extra_attribute), intent(in), optional :: extras(:)
     logical, intent(in), optional :: durable
     type(file_template), intent(inout), target, optional :: template
+    logical, intent(in), optional :: resume_if_possible
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -144,9 +148,22 @@ contains
       return
     end if
     continuing = .false.
-    if (writing) continuing = continue_requested()
+    if (writing) then
+      if (present(resume_if_possible)) then
+        continuing = resume_if_possible
+      else
+        continuing = continue_requested()
+      end if
+    end if
     if (continuing) then
       call find_resume_record()
+      if (stat /= 0 .and. present(resume_if_possible)) then
+        ! Nothing to continue from: the run starts from t = 0, as it would have.
+        stat = 0
+        message = ''
+        summary%failure_kind = failure_none
+        continuing = .false.
+      end if
       if (stat /= 0) return
     end if
     if (writing .and. .not. continuing) then
@@ -206,8 +223,13 @@ contains
       allocate (added(0))
       if (present(extras)) added = extras
       if (present(durable)) output%store%durable = durable
-      call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                         petsc_options_in_force(), io_stat, template)
+      if (continuing) then      ! the file exists: nothing of it comes from a template
+        call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
+                           petsc_options_in_force(), io_stat)
+      else
+        call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
+                           petsc_options_in_force(), io_stat, template)
+      end if
       if (io_stat /= 0) then
         stat = 0
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')

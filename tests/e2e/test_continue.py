@@ -200,3 +200,31 @@ def test_the_slurm_run_example_continues_after_requeue(tmp_path):
     with h5py.File(path, "r") as f:      # continued, not run again from t = 0
         assert f.attrs["start_time"] == started
         assert f.attrs["history"].endswith("-eme_continue")
+
+
+def test_an_interrupted_study_case_continues(tmp_path):
+    """A study stopped by SIGTERM during its only case: run again, the case continues from its
+    file (its history says so) and ends equal to the same run made at once."""
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 100.0}
+    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, {"every": 3})
+    assert eme_run(reference_nml).returncode == 0
+    base, _ = write_namelist(tmp_path, "base", dict(integrator, dt=0.1), {"every": 3})
+    output = tmp_path / "study"
+    study = tmp_path / "study.nml"
+    study.write_text(f"&study base = '{base}', output_dir = '{output}' /\n&sweep field = 'dt', values = 0.0002 /\n")
+    process = subprocess.Popen([str(BIN / "eme_ensemble"), str(study)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    part = output / "case_00001.h5.part"
+    while not part.exists() and process.poll() is None:
+        time.sleep(0.02)
+    process.send_signal(signal.SIGTERM)
+    out, err = process.communicate(timeout=600)
+    case = output / "case_00001.h5"
+    with h5py.File(case, "r") as f:
+        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM", out + err
+        assert len(f.attrs["history"].splitlines()) == 1
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    with h5py.File(case, "r") as f:
+        assert len(f.attrs["history"].splitlines()) == 2
+    assert_same_datasets(case, reference)
