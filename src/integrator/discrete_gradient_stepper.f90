@@ -407,7 +407,9 @@ contains
       self%increment = x - x_previous
     end if
     associate (lu => self%solver%context%lu)
-      lu%ready = nint(values(6)) == 1 .and. m > 0
+      ! Factors of another system size (another -eme_fused_kernel) are not this solver's: the
+      ! next predictor then goes without the chord refinement.
+      lu%ready = nint(values(6)) == 1 .and. m > 0 .and. m == self%solver%n
       if (.not. lu%ready) return
       if (allocated(lu%factors)) deallocate (lu%factors)
       if (allocated(lu%pivots)) deallocate (lu%pivots)
