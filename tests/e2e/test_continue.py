@@ -81,11 +81,12 @@ def test_sigterm_then_continue_is_bit_identical_with_every(tmp_path):
     assert len(history) == 2 and history[1].endswith("run.nml -eme_continue"), history
 
 
-def test_step_budget_then_continue_adaptive_with_interval(tmp_path):
-    """Adaptive EME (&integrator tolerance) with &output interval stopped by max_steps between two
-    output times, then continued with a larger max_steps: the step-size controller's state is
-    restored, so the continued steps are those of the uninterrupted run."""
-    integrator = {"scheme": "eme", "dt": 0.01, "t_end": 6.0, "tolerance": 1e-4, "max_steps": 1000000}
+@pytest.mark.parametrize("scheme", ["eme", "midpoint"])
+def test_step_budget_then_continue_adaptive_with_interval(tmp_path, scheme):
+    """Adaptive EME and midpoint rule (&integrator tolerance) with &output interval stopped by
+    max_steps between two output times, then continued with a larger max_steps: the step-size
+    controller's state is restored, so the continued steps are those of the uninterrupted run."""
+    integrator = {"scheme": scheme, "dt": 0.01, "t_end": 6.0, "tolerance": 1e-4, "max_steps": 1000000}
     output = {"interval": 0.25}
     reference_nml, reference = write_namelist(tmp_path, "reference", integrator, output)
     assert eme_run(reference_nml).returncode == 0
