@@ -16,7 +16,7 @@ module run_output
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
   use provenance, only: write_provenance, iso_time, command_line
-  use run_outcome, only: run_summary, failure_io
+  use run_outcome, only: run_summary, failure_io, failure_interrupted, failure_step_budget
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
   use run_attributes, only: write_run_attributes
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
@@ -39,6 +39,10 @@ module run_output
   !> resume_x_previous.
   type :: resume_record
     logical :: held = .false.
+    !> the run stopped early in a way that continuing can remedy: a signal, a kill (status
+    !> 'incomplete: running'), the step budget, a failed write; not a complete run, nor a step
+    !> that could not be solved
+    logical :: stopped_early = .false.
     integer(int64) :: step = 0                   !! steps taken
     real(real64) :: time = 0.0_real64            !! the time reached
     integer :: outputs_passed = 0                !! output times (&output interval) reached
@@ -424,6 +428,7 @@ contains
     integer, intent(out) :: stat
     type(hdf5_file) :: file
     real(real64), allocatable :: numbers(:)
+    character(len=:), allocatable :: kind
     integer :: ignored, read_stat
 
     status = ''
@@ -436,6 +441,10 @@ contains
       call file%close(ignored)
       return
     end if
+    call file%get_text('failure_kind', kind, read_stat)
+    if (read_stat /= 0) kind = ''
+    record%stopped_early = status == 'incomplete: running' .or. kind == failure_interrupted .or. &
+                           kind == failure_step_budget .or. kind == failure_io
     call file%get_text('history', record%history, read_stat)
     if (read_stat /= 0) record%history = ''
     call file%get_reals('resume_numbers', numbers, ignored)

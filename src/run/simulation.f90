@@ -397,7 +397,7 @@ contains
       type(resume_record) :: candidate
       character(len=:), allocatable :: status, stored, source, where
       integer :: read_stat, copy_stat
-      logical :: complete, any_file
+      logical :: complete, any_file, beyond
 
       where = ' ('//config%input_file//', -eme_continue)'
       if (entry%family /= family_discrete_gradient) then
@@ -410,7 +410,7 @@ contains
       if (file_exists(config%output_file)) then
         call read_resume_record(config%output_file, candidate, status, stored, read_stat)
         complete = read_stat == 0 .and. status == 'complete'
-        if (read_stat == 0 .and. candidate%held .and. .not. complete) then
+        if (read_stat == 0 .and. candidate%held .and. candidate%stopped_early) then
           resume = candidate
           source = config%output_file
         end if
@@ -422,7 +422,7 @@ contains
       end if
       if (file_exists(part)) then
         call read_resume_record(part, candidate, status, stored, read_stat)
-        if (read_stat == 0 .and. candidate%held .and. status /= 'complete') then
+        if (read_stat == 0 .and. candidate%held .and. candidate%stopped_early) then
           if (len(source) == 0) then
             resume = candidate
             source = part
@@ -436,8 +436,9 @@ contains
         any_file = file_exists(config%output_file)
         if (.not. any_file) any_file = file_exists(part)
         if (any_file) then
-          call fail(failure_input, config%output_file//' (or its .part) holds no state to continue from (a file '// &
-                    'of an older version, or not a run file)'//where//'; allowed: a file this version wrote')
+          call fail(failure_input, config%output_file//' (or its .part) holds no run to continue (a run that '// &
+                    'stopped at a step it could not solve, a file of an older version, or not a run file)'//where// &
+                    '; allowed: the file of a run stopped by a signal, a kill, its step budget or a failed write')
         else
           call fail(failure_input, 'neither '//config%output_file//' nor '//part//' exists'//where// &
                     '; allowed: the output file of a run that stopped early')
@@ -449,6 +450,18 @@ contains
         call fail(failure_input, source//': its input differs from '//config%input_file//': '// &
                   first_difference(stored, namelist_of_run(config))//where//'; allowed: the same input, with '// &
                   '&integrator t_end and max_steps changed only')
+        return
+      end if
+      ! The run must have somewhere to go: a later t_end (or, at fixed steps, more steps).
+      if (entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)) then
+        beyond = resume%time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))
+      else
+        beyond = resume%step >= step_count(config%integrator)
+      end if
+      if (beyond) then
+        call fail(failure_input, source//': its run reached t = '//fixed_text(resume%time, 6)//' s, and &integrator '// &
+                  't_end = '//fixed_text(t_end, 6)//' s in '//config%input_file//' leaves nothing to continue'//where// &
+                  '; allowed: a later t_end')
         return
       end if
       if (source /= part) then

@@ -229,3 +229,25 @@ def test_an_interrupted_study_case_continues(tmp_path):
     with h5py.File(case, "r") as f:
         assert len(f.attrs["history"].splitlines()) == 2
     assert_same_datasets(case, reference)
+
+
+def test_refused_when_nothing_is_left_or_the_step_failed(tmp_path):
+    """t_end lowered below the time the file reached: exit 2, file unchanged. A run that stopped at
+    a step it could not solve (failure_kind solver) would stop there again: refused as well."""
+    integrator = {"scheme": "eme", "dt": 0.001, "t_end": 3.0, "tolerance": 1e-4, "max_steps": 50}
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    assert eme_run(namelist).returncode == 3
+    with h5py.File(path, "r") as f:
+        reached = f.attrs["resume_numbers"][1]
+    assert reached > 0.002
+    before = path.read_bytes()
+    write_namelist(tmp_path, "run", dict(integrator, t_end=0.002), {})
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2 and "a later t_end" in result.stderr, result.stderr
+    assert path.read_bytes() == before
+
+    write_namelist(tmp_path, "run", dict(integrator, max_steps=100000), {})
+    with h5py.File(path, "r+") as f:
+        f.attrs["failure_kind"] = "solver"
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2 and "holds no run to continue" in result.stderr, result.stderr
