@@ -94,6 +94,8 @@ module discrete_gradient_stepper
     procedure :: release
     procedure :: diagnostics
     procedure :: describe_solver
+    procedure :: resume_state
+    procedure :: restore_state
   end type step_solver
 
   interface
@@ -356,5 +358,64 @@ contains
     ierr = 0
     if (self%solver%created) call self%solver%destroy(ierr)
   end subroutine release
+
+  !> What a step leaves for the next (a continued run restores it, bit for bit): the step-size
+  !> controller's next trial step and error history, the last step's length (the adaptive
+  !> predictor's scale), and the LU factors of the last Newton iteration (the chord refinement of
+  !> the next predictor). Layout: h, err_old, has_history, h_last, x_last given, LU ready, LU order
+  !> m, the m*m factors, the m pivots.
+  subroutine resume_state(self, values)
+    class(step_solver), intent(in) :: self
+    real(real64), allocatable, intent(inout) :: values(:)
+    integer :: m
+
+    m = 0
+    associate (lu => self%solver%context%lu)
+      if (lu%ready) m = size(lu%pivots)
+      if (allocated(values)) then
+        if (size(values) /= 7 + m*m + m) deallocate (values)
+      end if
+      if (.not. allocated(values)) allocate (values(7 + m*m + m))
+      values(1:7) = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
+                     self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), &
+                     merge(1.0_real64, 0.0_real64, lu%ready), real(m, real64)]
+      if (m > 0) then
+        values(8:7 + m*m) = reshape(lu%factors(1:m, 1:m), [m*m])
+        values(8 + m*m:) = real(lu%pivots(1:m), real64)
+      end if
+    end associate
+  end subroutine resume_state
+
+  !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its layout.
+  subroutine restore_state(self, values, x, x_previous, ierr)
+    class(step_solver), intent(inout) :: self
+    real(real64), intent(in) :: values(:), x(:), x_previous(:)
+    integer, intent(out) :: ierr
+    integer :: m
+
+    ierr = 1
+    if (size(values) < 7) return
+    m = nint(values(7))
+    if (m < 0 .or. size(values) /= 7 + m*m + m) return
+    ierr = 0
+    self%controller%h = values(1)
+    self%controller%err_old = values(2)
+    self%controller%has_history = nint(values(3)) == 1
+    self%h_last = values(4)
+    if (nint(values(5)) == 1) then
+      self%x_last = x
+      self%increment = x - x_previous
+    end if
+    associate (lu => self%solver%context%lu)
+      ! Factors of another system size (another -eme_fused_kernel) are not this solver's: the
+      ! next predictor then goes without the chord refinement.
+      lu%ready = nint(values(6)) == 1 .and. m > 0 .and. m == self%solver%n
+      if (.not. lu%ready) return
+      if (allocated(lu%factors)) deallocate (lu%factors)
+      if (allocated(lu%pivots)) deallocate (lu%pivots)
+      lu%factors = reshape(values(8:7 + m*m), [m, m])
+      lu%pivots = nint(values(8 + m*m:))
+    end associate
+  end subroutine restore_state
 
 end module discrete_gradient_stepper

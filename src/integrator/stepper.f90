@@ -62,6 +62,8 @@ module stepper
     procedure(release_interface), deferred :: release
     procedure :: diagnostics
     procedure :: describe_solver
+    procedure :: resume_state
+    procedure :: restore_state
   end type time_stepper
 
   abstract interface
@@ -114,6 +116,30 @@ contains
 
     report = no_solver('the integrator reports no solver')
   end function describe_solver
+
+  !> What the integrator carries from one step to the next beyond the unknowns (docs/faults.md,
+  !> Continuing a run), as numbers that restore_state takes back; none by default.
+  subroutine resume_state(self, values)
+    class(time_stepper), intent(in) :: self
+    real(real64), allocatable, intent(inout) :: values(:)
+
+    if (allocated(values)) then
+      if (size(values) == 0) return
+      deallocate (values)
+    end if
+    allocate (values(0))
+  end subroutine resume_state
+
+  !> Takes back what resume_state gave after `start`, at the state x reached from x_previous.
+  !> ierr /= 0 if `values` are not the integrator's; by default there is nothing to take.
+  subroutine restore_state(self, values, x, x_previous, ierr)
+    class(time_stepper), intent(inout) :: self
+    real(real64), intent(in) :: values(:), x(:), x_previous(:)
+    integer, intent(out) :: ierr
+
+    ierr = 0
+    if (size(values) /= 0) ierr = 1
+  end subroutine restore_state
 
   !> Accepts a step whose end state z_new is finite and in the model's domain (its temperatures
   !> then go to report%scheme_temperature); otherwise says why not.

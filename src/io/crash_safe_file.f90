@@ -40,6 +40,8 @@ module crash_safe_file
     character(len=:), allocatable :: path, spare
     logical :: on_disk = .false.                  !! the file exists at `path`
     logical :: durable = .true.                   !! the finished file is synced to disk (fsync)
+    !> A final write from memory makes chunked, extendible datasets too (a run that may be continued)
+    logical :: extendible = .false.
     integer :: failure = 0                        !! the first failed write (its stat): later windows fail with it
     real(real64) :: write_interval = 1.0_real64   !! seconds between windows
     integer(int64) :: last_write = 0, clock_rate = 1
@@ -54,6 +56,7 @@ module crash_safe_file
     procedure :: begin_rows
     procedure :: end_rows
     procedure :: open_in_place
+    procedure :: resume_from
   end type safe_file
 
 contains
@@ -137,7 +140,7 @@ contains
       ! given, before the file opens (settle_template, when the root attributes are all set).
       layout = ''
       do k = 1, size(self%tables)
-        table_layout = self%tables(k)%layout(final)
+        table_layout = self%tables(k)%layout(final .and. .not. self%extendible)
         if (len(table_layout) == 0) then
           layout = ''                             ! a table not to be written whole: nothing shared
           exit
@@ -146,11 +149,12 @@ contains
       end do
       call self%file%template_datasets(layout, held)
       do k = 1, size(self%tables)
-        if (stat == 0 .and. held) call self%tables(k)%write(self%file, final, stat, held=.true.)
+        if (stat == 0 .and. held) call self%tables(k)%write(self%file, final .and. .not. self%extendible, stat, &
+                                                            held=.true.)
       end do
       if (stat == 0) call self%file%settle_template(stat)
       do k = 1, size(self%tables)
-        if (stat == 0 .and. .not. held) call self%tables(k)%write(self%file, final, stat)
+        if (stat == 0 .and. .not. held) call self%tables(k)%write(self%file, final .and. .not. self%extendible, stat)
       end do
       if (stat == 0) call self%file%keep_template_datasets()
       return
@@ -261,5 +265,28 @@ contains
 
     call self%file%open_existing(self%path, .true., stat)
   end subroutine open_in_place
+
+  !> Continues the file that `path` holds (its tables defined as when it was made): the file in
+  !> memory is dropped, the spare becomes a copy of `path`, and each table k goes on from row
+  !> rows(k) (later rows of the file are replaced by the next write). stat: 0, an OS error
+  !> number, or -1 (HDF5).
+  subroutine resume_from(self, rows, stat)
+    class(safe_file), intent(inout) :: self
+    integer(int64), intent(in) :: rows(:)
+    integer, intent(out) :: stat
+    integer :: k
+
+    call self%file%close(stat)
+    if (stat == 0) call copy_file(self%path, self%spare, stat)
+    if (stat /= 0) return
+    self%on_disk = .true.
+    self%file%fresh = .false.
+    do k = 1, size(self%tables)
+      self%tables(k)%created = .true.
+      self%tables(k)%first_row = rows(k)
+      self%tables(k)%written = rows(k)
+      self%tables(k)%buffered = 0
+    end do
+  end subroutine resume_from
 
 end module crash_safe_file

@@ -495,9 +495,10 @@ contains
     ! gets the median of the time loops' durations, so timings on a shared machine do not zig-zag.
     allocate (solve_seconds(study%repeats))
     do r = 1, study%repeats
+      ! An interrupted case (its file incomplete, with the same input) continues from its file.
       call run_simulation(config, summary, stat, message, observer, integrator, &
                           keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
-                          template=template)
+                          template=template, resume_if_possible=study%repeats == 1)
       solve_seconds(r) = summary%solve_seconds
       if (stat /= 0 .or. summary%status /= 'complete') exit
     end do

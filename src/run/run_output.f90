@@ -6,7 +6,7 @@
 !> the per-point and per-step datasets.
 module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use hdf5_files, only: check_run_file, file_template
+  use hdf5_files, only: hdf5_file, check_run_file, file_template
   use hdf5_series, only: series_table
   use crash_safe_file, only: safe_file, file_in_use
   use model_interface, only: generic_model
@@ -15,15 +15,15 @@ module run_output
   use thermo_variable, only: thermo_variable_names
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
-  use provenance, only: write_provenance, iso_time
-  use run_outcome, only: run_summary, failure_io
+  use provenance, only: write_provenance, iso_time, command_line
+  use run_outcome, only: run_summary, failure_io, failure_interrupted, failure_step_budget
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
   use run_attributes, only: write_run_attributes
-  use stepper, only: step_report, step_diagnostic, solver_report
+  use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use filesystem, only: os_error_text
   implicit none (type, external)
   private
-  public :: run_file, extra_attribute
+  public :: run_file, extra_attribute, resume_record, read_resume_record
 
   !> A root attribute a caller adds to the file (an ensemble case names its study and case): a
   !> text if `text` is allocated, else the integer `number`.
@@ -32,6 +32,28 @@ module run_output
     character(len=:), allocatable :: text
     integer :: number = 0
   end type extra_attribute
+
+  !> The state of a run after its last completed row (docs/faults.md, Continuing a run): what the
+  !> time loop needs to go on from there as if it had not stopped. Stored with every write of the
+  !> file as the root attributes resume_numbers (the scalars below, in order), resume_x and
+  !> resume_x_previous.
+  type :: resume_record
+    logical :: held = .false.
+    !> the run stopped early in a way that continuing can remedy: a signal, a kill (status
+    !> 'incomplete: running'), the step budget, a failed write; not a complete run, nor a step
+    !> that could not be solved
+    logical :: stopped_early = .false.
+    integer(int64) :: step = 0                   !! steps taken
+    real(real64) :: time = 0.0_real64            !! the time reached
+    integer :: outputs_passed = 0                !! output times (&output interval) reached
+    real(real64) :: energy_0 = 0.0_real64, jz_0 = 0.0_real64, boundary_heat = 0.0_real64
+    integer(int64) :: point_rows = 0, step_rows = 0   !! the rows of the two tables up to that step
+    type(run_summary) :: summary                 !! its counts and figures (not its texts or times)
+    real(real64), allocatable :: x(:)            !! the unknowns: state and multipliers
+    real(real64), allocatable :: x_previous(:)   !! those of the step before (the predictor's base)
+    real(real64), allocatable :: integrator_state(:)   !! the integrator's own (time_stepper's resume_state)
+    character(len=:), allocatable :: history     !! the file's CF history, which a continuation extends
+  end type resume_record
 
   !> Rows held in memory between writes, at most. Each write copies a dataset's columns of them
   !> to a temporary on the stack (-fstack-arrays; faster per case file than a heap copy or a
@@ -56,6 +78,8 @@ module run_output
     integer(int64) :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
     integer(int64) :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
     integer(int64) :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
+    type(resume_record) :: resume        !! the state after the last completed row (note_resume_state)
+    character(len=:), allocatable :: history   !! a continued run's history, written with every write
   contains
     procedure :: create
     procedure :: record_solver
@@ -64,6 +88,8 @@ module run_output
     procedure :: write_due
     procedure :: write_rows
     procedure :: finish
+    procedure :: note_resume_state
+    procedure :: continue_file
   end type run_file
 
 contains
@@ -313,6 +339,9 @@ contains
     if (.not. self%enabled) return
     if (self%store%tables(step_rows)%pending_count > 0) call commit_rows(self)
     whole = .not. self%store%on_disk
+    ! An incomplete run may be continued: its datasets must be able to grow.
+    self%store%extendible = summary%status /= 'complete'
+
     call write_file(self, summary%status, summary, .true., stat)
     if (whole) return                   ! written whole from memory: store checked every byte
     if (stat > 0) then
@@ -329,6 +358,140 @@ contains
     call check_run_file(self%store%path, status_read, steps_read, check_stat)
     if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%disk_steps) stat = -2
   end subroutine finish
+
+  !> Notes the state after step n when record_point has just completed a row with it (call it after
+  !> every step, and after the initial point, with the summary updated): every later write of the
+  !> file stores it, as the state its rows end at.
+  subroutine note_resume_state(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
+                               integrator)
+    class(run_file), intent(inout) :: self
+    class(time_stepper), intent(in) :: integrator
+    integer(int64), intent(in) :: n
+    real(real64), intent(in) :: time, energy_0, jz_0, boundary_heat, x(:), x_previous(:)
+    integer, intent(in) :: outputs_passed
+    type(run_summary), intent(in) :: summary
+
+    if (.not. self%enabled .or. self%committed_steps /= n) return
+    if (self%store%tables(step_rows)%pending_count > 0) return
+    associate (record => self%resume)
+      record%held = .true.
+      record%step = n
+      record%time = time
+      record%outputs_passed = outputs_passed
+      record%energy_0 = energy_0
+      record%jz_0 = jz_0
+      record%boundary_heat = boundary_heat
+      record%point_rows = self%store%tables(point_rows)%first_row + self%store%tables(point_rows)%buffered
+      record%step_rows = self%store%tables(step_rows)%first_row + self%store%tables(step_rows)%buffered
+      record%summary%newton_iterations = summary%newton_iterations
+      record%summary%energy_drift = summary%energy_drift
+      record%summary%min_entropy_increment = summary%min_entropy_increment
+      record%summary%max_lyapunov_increment = summary%max_lyapunov_increment
+      record%summary%angular_momentum_drift = summary%angular_momentum_drift
+      record%summary%min_temperature = summary%min_temperature
+      record%summary%halved_steps = summary%halved_steps
+      record%summary%rejected_steps = summary%rejected_steps
+      if (.not. allocated(record%x)) allocate (record%x(size(x)), record%x_previous(size(x)))
+      record%x = x
+      record%x_previous = x_previous
+      call integrator%resume_state(record%integrator_state)
+    end associate
+  end subroutine note_resume_state
+
+  !> Goes on with the file that record came from, now at this file's path (a copy of it): the file
+  !> made by `create` in memory is dropped, and the next write appends the rows after record's to
+  !> the file's. stat: 0, an OS error number, or -1 (HDF5).
+  subroutine continue_file(self, record, stat)
+    class(run_file), intent(inout) :: self
+    type(resume_record), intent(in) :: record
+    integer, intent(out) :: stat
+
+    stat = 0
+    if (.not. self%enabled) return
+    call self%store%resume_from([record%point_rows, record%step_rows], stat)
+    self%last_step = record%step
+    self%committed_steps = record%step
+    self%disk_steps = record%step
+    self%committed_newton = record%summary%newton_iterations
+    self%disk_newton = record%summary%newton_iterations
+    self%resume = record
+    ! The file keeps its provenance; its CF history says when and how it was continued.
+    self%history = record%history//new_line('a')//iso_time()//': '//command_line()
+  end subroutine continue_file
+
+  !> Reads the resume record of the run file `path` with its status and the effective namelist it
+  !> was run with; record%held is .false. if it has none. stat /= 0 if the file cannot be read.
+  subroutine read_resume_record(path, record, status, namelist_text, stat)
+    character(len=*), intent(in) :: path
+    type(resume_record), intent(out) :: record
+    character(len=:), allocatable, intent(out) :: status, namelist_text
+    integer, intent(out) :: stat
+    type(hdf5_file) :: file
+    real(real64), allocatable :: numbers(:)
+    character(len=:), allocatable :: kind
+    integer :: ignored, read_stat
+
+    status = ''
+    namelist_text = ''
+    call file%open_existing(path, .false., stat)
+    if (stat /= 0) return
+    call file%get_text('status', status, stat)
+    if (stat == 0) call file%get_text('namelist', namelist_text, stat)
+    if (stat /= 0) then
+      call file%close(ignored)
+      return
+    end if
+    call file%get_text('failure_kind', kind, read_stat)
+    if (read_stat /= 0) kind = ''
+    record%stopped_early = status == 'incomplete: running' .or. kind == failure_interrupted .or. &
+                           kind == failure_step_budget .or. kind == failure_io
+    call file%get_text('history', record%history, read_stat)
+    if (read_stat /= 0) record%history = ''
+    call file%get_reals('resume_numbers', numbers, ignored)
+    if (ignored == 0 .and. size(numbers) == 16) then
+      call file%get_reals('resume_x', record%x, stat)
+      if (stat == 0) call file%get_reals('resume_x_previous', record%x_previous, stat)
+      call file%get_reals('resume_integrator', record%integrator_state, read_stat)
+      if (read_stat /= 0) record%integrator_state = [real(real64) ::]
+      record%held = stat == 0
+      record%step = nint(numbers(1), int64)
+      record%time = numbers(2)
+      record%outputs_passed = nint(numbers(3))
+      record%energy_0 = numbers(4)
+      record%jz_0 = numbers(5)
+      record%boundary_heat = numbers(6)
+      record%point_rows = nint(numbers(7), int64)
+      record%step_rows = nint(numbers(8), int64)
+      record%summary%newton_iterations = nint(numbers(9), int64)
+      record%summary%energy_drift = numbers(10)
+      record%summary%min_entropy_increment = numbers(11)
+      record%summary%max_lyapunov_increment = numbers(12)
+      record%summary%angular_momentum_drift = numbers(13)
+      record%summary%min_temperature = numbers(14)
+      record%summary%halved_steps = nint(numbers(15), int64)
+      record%summary%rejected_steps = nint(numbers(16), int64)
+    end if
+    call file%close(ignored)
+  end subroutine read_resume_record
+
+  ! The resume record as root attributes (read_resume_record reads them).
+  subroutine resume_attributes(record, file, stat)
+    type(resume_record), intent(in) :: record
+    type(hdf5_file), intent(inout) :: file
+    integer, intent(out) :: stat
+
+    call file%set_reals('resume_numbers', [real(record%step, real64), record%time, real(record%outputs_passed, real64), &
+                        record%energy_0, record%jz_0, record%boundary_heat, real(record%point_rows, real64), &
+                        real(record%step_rows, real64), real(record%summary%newton_iterations, real64), &
+                        record%summary%energy_drift, record%summary%min_entropy_increment, &
+                        record%summary%max_lyapunov_increment, record%summary%angular_momentum_drift, &
+                        record%summary%min_temperature, real(record%summary%halved_steps, real64), &
+                        real(record%summary%rejected_steps, real64)], stat)
+    if (stat == 0) call file%set_reals('resume_x', record%x, stat)
+    if (stat == 0) call file%set_reals('resume_x_previous', record%x_previous, stat)
+    if (stat == 0 .and. size(record%integrator_state) > 0) &
+      call file%set_reals('resume_integrator', record%integrator_state, stat)
+  end subroutine resume_attributes
 
   ! One write of the file: the buffered rows, then the attributes of the outcome so far (all of
   ! them the first time and at the end, else the numbers, written in place). After a failed
@@ -353,6 +516,9 @@ contains
     if (stat == 0) call rows_on_disk(self)
     if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. (whole .or. final), &
                                            final=final)
+    if (stat == 0 .and. self%resume%held) call resume_attributes(self%resume, self%store%file, stat)
+    ! (at every write: the spare, one write behind, holds the old history until written again)
+    if (stat == 0 .and. allocated(self%history)) call self%store%file%set_text('history', self%history, stat)
     call self%store%end_rows(stat)
     if (stat /= 0 .and. .not. whole) then       ! a failed window leaves the file as it was
       self%disk_steps = steps_before

@@ -6,26 +6,29 @@
 !> not replaced unless asked (&output overwrite, -eme_overwrite). A run ends early, cleanly, when
 !> a step cannot be solved, when SIGTERM or SIGINT arrives, or when the output cannot be
 !> written: the file then keeps every step written before, its `status` reads 'incomplete:
-!> <reason>' and its `failure_kind` says why in a word.
+!> <reason>' and its `failure_kind` says why in a word. Every write stores the state after its last
+!> row (run_output's resume record), so that -eme_continue goes on from there, appending to the
+!> file (docs/faults.md, Continuing a run).
 module simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
-  use run_output, only: run_file, extra_attribute
+  use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
   use run_outcome, only: run_summary, io_reason, step_failure_kind, failure_none, failure_solver, failure_domain, &
                          failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use run_options, only: overwrite_requested, petsc_options_in_force
+  use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
   use hdf5_files, only: check_run_file, file_template
   use output_path, only: check_output_path
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text
+  use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text, copy_file
   use number_text, only: integer_text, fixed_text
+  use effective_namelist, only: namelist_of_run
   implicit none (type, external)
   private
   public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status, set_up_only
@@ -82,9 +85,12 @@ contains
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
   !> the next run; without, the run builds and frees its own. `progress` receives a line at most
   !> every 2 s; `extras` are root attributes added to the file. The finished file is synced to
-  !> disk unless `durable` is .false. (an ensemble's case: its index is the record).
+  !> disk unless `durable` is .false. (an ensemble's case: its index is the record). The run
+  !> continues the one its file holds if the command line asks (-eme_continue: else it fails with
+  !> failure_input); with `resume_if_possible` instead, it does when it can (an interrupted case of
+  !> a study) and starts from t = 0 otherwise.
   subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, &
-                            template)
+                            template, resume_if_possible)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
@@ -96,6 +102,7 @@ contains
     type(extra_attribute), intent(in), optional :: extras(:)
     logical, intent(in), optional :: durable
     type(file_template), intent(inout), target, optional :: template
+    logical, intent(in), optional :: resume_if_possible
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -104,6 +111,7 @@ contains
     type(step_report) :: report
     type(run_file) :: output
     type(extra_attribute), allocatable :: added(:)
+    type(resume_record) :: resume       !! the state a continued run starts from
     character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
@@ -113,7 +121,7 @@ contains
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
     integer(int64) :: n             !! steps taken (accepted)
     integer :: k, n_state, io_stat, ierr, release_ierr, signal
-    logical :: found, finished, writing, replace, chooses_time, row_due
+    logical :: found, finished, writing, replace, chooses_time, row_due, continuing
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
@@ -139,7 +147,26 @@ contains
       summary%failure_kind = failure_input
       return
     end if
+    continuing = .false.
     if (writing) then
+      if (present(resume_if_possible)) then
+        continuing = resume_if_possible
+      else
+        continuing = continue_requested()
+      end if
+    end if
+    if (continuing) then
+      call find_resume_record()
+      if (stat /= 0 .and. present(resume_if_possible)) then
+        ! Nothing to continue from: the run starts from t = 0, as it would have.
+        stat = 0
+        message = ''
+        summary%failure_kind = failure_none
+        continuing = .false.
+      end if
+      if (stat /= 0) return
+    end if
+    if (writing .and. .not. continuing) then
       replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
       if (config%overwrite) replace = .true.
       call check_output_path(config%output_file, config%input_file, replace, stat, message)
@@ -196,8 +223,13 @@ contains
       allocate (added(0))
       if (present(extras)) added = extras
       if (present(durable)) output%store%durable = durable
-      call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                         petsc_options_in_force(), io_stat, template)
+      if (continuing) then      ! the file exists: nothing of it comes from a template
+        call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
+                           petsc_options_in_force(), io_stat)
+      else
+        call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
+                           petsc_options_in_force(), io_stat, template)
+      end if
       if (io_stat /= 0) then
         stat = 0
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
@@ -212,12 +244,32 @@ contains
       return
     end if
 
-    call observe(z0, energy, entropy, lyapunov)
-    energy_0 = energy
-    jz_0 = momentum(3)
-    call record_point(0.0_real64, z0, .true.)
-    outputs_passed = 0
-    x_previous = x
+    if (continuing) then
+      call output%continue_file(resume, io_stat)
+      if (io_stat /= 0) then
+        call fail(failure_io, "cannot continue the output file '"//part//"' ("//config%input_file//'): ' &
+                  //io_reason(io_stat))
+        if (.not. present(reusable)) call integrator%release(release_ierr)
+        return
+      end if
+      call restore(resume)
+      call integrator%restore_state(resume%integrator_state, x, x_previous, ierr)
+      if (ierr /= 0) then
+        call fail(failure_input, part//": its integrator state does not fit &integrator scheme = '"// &
+                  trim(entry%name)//"' ("//config%input_file//', -eme_continue); allowed: a file of the same input')
+        if (.not. present(reusable)) call integrator%release(release_ierr)
+        return
+      end if
+    else
+      call observe(z0, energy, entropy, lyapunov)
+      energy_0 = energy
+      jz_0 = momentum(3)
+      call record_point(0.0_real64, z0, .true.)
+      outputs_passed = 0
+      x_previous = x
+      call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
+                                    integrator)
+    end if
     call system_clock(clock_loop)
     ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
     ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
@@ -297,6 +349,8 @@ contains
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
       summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(momentum(3) - jz_0))
+      call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
+                                    integrator)
       if (output%write_due()) then
         call set_times(.true.)
         call output%write_rows(summary, io_stat)
@@ -335,6 +389,114 @@ contains
       call entry%build(made)
       made%scheme = entry%name
     end subroutine new_integrator
+
+    ! -eme_continue: the resume record of the output file, or of FILE.part (the one further on,
+    ! if both hold one), which FILE.part becomes a copy of. Fails (failure_input) if the file
+    ! holds a complete run or no record, or was run with another input than t_end and max_steps.
+    subroutine find_resume_record()
+      type(resume_record) :: candidate
+      character(len=:), allocatable :: status, stored, source, where
+      integer :: read_stat, copy_stat
+      logical :: complete, any_file, beyond
+
+      where = ' ('//config%input_file//', -eme_continue)'
+      if (entry%family /= family_discrete_gradient) then
+        call fail(failure_input, config%input_file//": &integrator scheme = '"//trim(entry%name)// &
+                  "' cannot continue a run yet; allowed with -eme_continue: eme, midpoint")
+        return
+      end if
+      source = ''
+      complete = .false.
+      if (file_exists(config%output_file)) then
+        call read_resume_record(config%output_file, candidate, status, stored, read_stat)
+        complete = read_stat == 0 .and. status == 'complete'
+        if (read_stat == 0 .and. candidate%held .and. candidate%stopped_early) then
+          resume = candidate
+          source = config%output_file
+        end if
+      end if
+      if (complete) then
+        call fail(failure_input, config%output_file//' holds a complete run: there is nothing to continue'//where// &
+                  '; allowed: the file of a run that stopped early')
+        return
+      end if
+      if (file_exists(part)) then
+        call read_resume_record(part, candidate, status, stored, read_stat)
+        if (read_stat == 0 .and. candidate%held .and. candidate%stopped_early) then
+          if (len(source) == 0) then
+            resume = candidate
+            source = part
+          else if (candidate%step > resume%step) then
+            resume = candidate
+            source = part
+          end if
+        end if
+      end if
+      if (len(source) == 0) then
+        any_file = file_exists(config%output_file)
+        if (.not. any_file) any_file = file_exists(part)
+        if (any_file) then
+          call fail(failure_input, config%output_file//' (or its .part) holds no run to continue (a run that '// &
+                    'stopped at a step it could not solve, a file of an older version, or not a run file)'//where// &
+                    '; allowed: the file of a run stopped by a signal, a kill, its step budget or a failed write')
+        else
+          call fail(failure_input, 'neither '//config%output_file//' nor '//part//' exists'//where// &
+                    '; allowed: the output file of a run that stopped early')
+        end if
+        return
+      end if
+      call read_resume_record(source, candidate, status, stored, read_stat)
+      if (len(first_difference(stored, namelist_of_run(config))) > 0) then
+        call fail(failure_input, source//': its input differs from '//config%input_file//': '// &
+                  first_difference(stored, namelist_of_run(config))//where//'; allowed: the same input, with '// &
+                  '&integrator t_end and max_steps changed only')
+        return
+      end if
+      ! The run must have somewhere to go: a later t_end (or, at fixed steps, more steps).
+      if (entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)) then
+        beyond = resume%time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))
+      else
+        beyond = resume%step >= step_count(config%integrator)
+      end if
+      if (beyond) then
+        call fail(failure_input, source//': its run reached t = '//fixed_text(resume%time, 6)//' s, and &integrator '// &
+                  't_end = '//fixed_text(t_end, 6)//' s in '//config%input_file//' leaves nothing to continue'//where// &
+                  '; allowed: a later t_end')
+        return
+      end if
+      if (source /= part) then
+        call copy_file(source, part, copy_stat)
+        if (copy_stat /= 0) then
+          call fail(failure_io, "cannot copy '"//source//"' to '"//part//"' ("//config%input_file//'): '// &
+                    os_error_text(copy_stat))
+          return
+        end if
+      end if
+    end subroutine find_resume_record
+
+    ! The loop's state as `record` stored it (the point after its step was recorded).
+    subroutine restore(record)
+      type(resume_record), intent(in) :: record
+
+      n = record%step
+      time = record%time
+      outputs_passed = record%outputs_passed
+      energy_0 = record%energy_0
+      jz_0 = record%jz_0
+      boundary_heat = record%boundary_heat
+      x = record%x
+      x_previous = record%x_previous
+      summary%newton_iterations = record%summary%newton_iterations
+      summary%energy_drift = record%summary%energy_drift
+      summary%min_entropy_increment = record%summary%min_entropy_increment
+      summary%max_lyapunov_increment = record%summary%max_lyapunov_increment
+      summary%angular_momentum_drift = record%summary%angular_momentum_drift
+      summary%halved_steps = record%summary%halved_steps
+      summary%rejected_steps = record%summary%rejected_steps
+      summary%steps_completed = n
+      call observe(x(1:n_state), energy, entropy, lyapunov)
+      summary%min_temperature = record%summary%min_temperature
+    end subroutine restore
 
     ! Records a failure that is not the method's (the first one wins) with its message.
     subroutine fail(kind, text)
@@ -470,6 +632,48 @@ contains
     text = 'PETSc could not set up the solver with the options given: '//petsc_error_text()// &
            '; allowed: the options of docs/running.md and PETSc''s own (eme_run FILE.nml -help lists them)'
   end function setup_failure_text
+
+  ! The first line (a field of the effective namelist, src/io/effective_namelist) in which `stored`
+  ! and `given` differ, other than t_end and max_steps, as 'stored' against 'given'; '' if none.
+  function first_difference(stored, given) result(text)
+    character(len=*), intent(in) :: stored, given
+    character(len=:), allocatable :: text
+    character(len=:), allocatable :: a, b
+    integer :: ia, ib
+
+    text = ''
+    ia = 1
+    ib = 1
+    do
+      call next_line(stored, ia, a)
+      call next_line(given, ib, b)
+      if (a /= b) then
+        text = "'"//trim(adjustl(a))//"' against '"//trim(adjustl(b))//"'"
+        return
+      end if
+      if (ia > len(stored) .and. ib > len(given)) return
+    end do
+
+  contains
+
+    ! The next line from position `at` that is not t_end or max_steps ('' at the end).
+    subroutine next_line(text, at, line)
+      character(len=*), intent(in) :: text
+      integer, intent(inout) :: at
+      character(len=:), allocatable, intent(out) :: line
+      integer :: length
+
+      line = ''
+      do while (at <= len(text))
+        length = index(text(at:), new_line('a')) - 1
+        if (length < 0) length = len(text) - at + 1
+        line = text(at:at + length - 1)
+        at = at + length + 1
+        if (index(adjustl(line), 't_end ') /= 1 .and. index(adjustl(line), 'max_steps ') /= 1) return
+        line = ''
+      end do
+    end subroutine next_line
+  end function first_difference
 
   ! Whether `path` is a run file that reads back complete.
   logical function holds_complete_run(path)

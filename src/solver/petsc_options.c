@@ -22,7 +22,7 @@ typedef struct {
 /* The step solver's options (docs/integrators.md), then the run's (docs/running.md). */
 enum {
     CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MAX_HALVINGS, ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE,
-    OPTION_COUNT
+    CONTINUE, OPTION_COUNT
 };
 static const eme_option options[OPTION_COUNT] = {
     {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors",
@@ -58,6 +58,10 @@ static const eme_option options[OPTION_COUNT] = {
     {"-eme_overwrite", "<false>",
      "Replace an existing complete output file, as &output overwrite = .true. does (a run that does not complete "
      "never replaces one)",
+     LOGICAL, 0, 0},
+    {"-eme_continue", "<false>",
+     "Continue the run that FILE (or FILE.part) holds from its last written state, appending to it "
+     "(docs/faults.md: Continuing a run)",
      LOGICAL, 0, 0},
 };
 
@@ -190,10 +194,10 @@ PetscErrorCode eme_read_step_control_options(int *record, double *scale)
     PetscFunctionReturn(0);
 }
 
-/* Reads -eme_progress (into *progress, and whether it was given into *progress_given) and
- * -eme_overwrite (into *overwrite); the flags' values on entry are the defaults. Returns a PETSc
- * error code. */
-PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite)
+/* Reads -eme_progress (into *progress, and whether it was given into *progress_given),
+ * -eme_overwrite (into *overwrite) and -eme_continue (into *resume); the flags' values on entry
+ * are the defaults. Returns a PETSc error code. */
+PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite, int *resume)
 {
     const char *section = "docs/running.md";
 
@@ -201,6 +205,7 @@ PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *ove
     PetscOptionsBegin(PETSC_COMM_SELF, NULL, "EME run (eme_run, eme_ensemble)", NULL);
     PetscCall(bool_option(PetscOptionsObject, PROGRESS, section, progress, progress_given));
     PetscCall(bool_option(PetscOptionsObject, OVERWRITE, section, overwrite, NULL));
+    PetscCall(bool_option(PetscOptionsObject, CONTINUE, section, resume, NULL));
     PetscOptionsEnd();
     PetscFunctionReturn(0);
 }

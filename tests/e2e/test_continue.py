@@ -1,0 +1,253 @@
+"""eme_run FILE.nml -eme_continue: a run stopped early (SIGTERM, the step budget, a SIGKILL that
+left FILE.part) goes on from the state its file stores after its last row, appending to the file.
+For EME the continued file's datasets equal those of the uninterrupted run bit for bit (the
+per-step wall times aside): the file stores the unknowns, the predictor's previous state, the
+summary's accumulators, the step-size controller and the LU factors of the last Newton
+iteration (the chord refinement of the next predictor). Input that cannot be continued is
+refused with exit status 2, and the file is left as it was."""
+import os
+import signal
+import subprocess
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import BIN, ROOT, namelist_text
+from faults import shim_library
+
+NOT_COMPARED = {"step_seconds"}          # wall-clock times of the steps
+
+
+def write_namelist(folder, name, integrator, output):
+    path = folder / f"{name}.nml"
+    output = dict(output, file=str(folder / f"{name}.h5"))
+    path.write_text(namelist_text({"integrator": integrator, "output": output}))
+    return path, folder / f"{name}.h5"
+
+
+def eme_run(namelist, *options, env=None):
+    return subprocess.run([str(BIN / "eme_run"), str(namelist), *options], capture_output=True, text=True,
+                          timeout=600, env=env)
+
+
+def datasets(path):
+    with h5py.File(path, "r") as f:
+        return {name: f[name][()] for name in f if name not in NOT_COMPARED}, dict(f.attrs)
+
+
+def assert_same_datasets(continued, reference):
+    got, got_attrs = datasets(continued)
+    expected, expected_attrs = datasets(reference)
+    assert sorted(got) == sorted(expected)
+    for name, values in expected.items():
+        assert got[name].shape == values.shape, name
+        if values.dtype.kind == "O":
+            assert list(got[name]) == list(values), name
+        else:
+            # bit for bit (NaN included): the bytes, not the values
+            assert got[name].tobytes() == values.tobytes(), f"{name} differs in " \
+                f"{np.count_nonzero(got[name] != values)} entries"
+    for name in ("status", "steps_completed", "step_rows", "newton_iterations_total", "run_figures"):
+        assert np.array_equal(got_attrs[name], expected_attrs[name]), name
+
+
+def test_sigterm_then_continue_is_bit_identical_with_every(tmp_path):
+    """SIGTERM once the run's file exists, with every = 7: the file's last row then stands for
+    fewer than 7 steps; the continued run restarts from the last whole row and replaces it."""
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 100.0}
+    output = {"every": 7}
+    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, output)
+    assert eme_run(reference_nml).returncode == 0
+    namelist, path = write_namelist(tmp_path, "run", integrator, output)
+    process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    part = path.with_name(path.name + ".part")
+    while not part.exists() and process.poll() is None:
+        time.sleep(0.02)
+    process.send_signal(signal.SIGTERM)
+    process.communicate(timeout=600)
+    assert process.returncode == 128 + signal.SIGTERM, "the run ended before the signal: make it longer"
+    with h5py.File(path, "r") as f:
+        stopped_at = int(f.attrs["steps_completed"])
+        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM"
+    assert 0 < stopped_at < 500000
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(path, reference)
+    with h5py.File(path, "r") as f:
+        history = f.attrs["history"].splitlines()
+    assert len(history) == 2 and history[1].endswith("run.nml -eme_continue"), history
+
+
+@pytest.mark.parametrize("scheme", ["eme", "midpoint"])
+def test_step_budget_then_continue_adaptive_with_interval(tmp_path, scheme):
+    """Adaptive EME and midpoint rule (&integrator tolerance) with &output interval stopped by
+    max_steps between two output times, then continued with a larger max_steps: the step-size
+    controller's state is restored, so the continued steps are those of the uninterrupted run."""
+    integrator = {"scheme": scheme, "dt": 0.01, "t_end": 6.0, "tolerance": 1e-4, "max_steps": 1000000}
+    output = {"interval": 0.25}
+    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, output)
+    assert eme_run(reference_nml).returncode == 0
+    with h5py.File(reference, "r") as f:
+        total = int(f.attrs["steps_completed"])
+    assert total > 100
+    namelist, path = write_namelist(tmp_path, "run", dict(integrator, max_steps=total // 3), output)
+    stopped = eme_run(namelist)
+    assert stopped.returncode == 3, stopped.stderr
+    with h5py.File(path, "r") as f:
+        assert f.attrs["failure_kind"] == "step_budget"
+        assert f.attrs["resume_numbers"][0] <= total // 3
+    write_namelist(tmp_path, "run", integrator, output)
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(path, reference)
+
+
+KILL_RUN = {"scheme": "eme", "dt": 0.05, "t_end": 2000.0}
+
+
+def test_sigkill_part_is_continued(tmp_path):
+    """A SIGKILL (the LD_PRELOAD shim kill_at_write.c, at a chosen file operation) leaves only
+    FILE.part; -eme_continue goes on from it, and the file takes its final name complete."""
+    reference_nml, reference = write_namelist(tmp_path, "reference", KILL_RUN, {})
+    assert eme_run(reference_nml).returncode == 0
+    folder = tmp_path / "killed"
+    folder.mkdir()
+    log = tmp_path / "operations.log"
+    namelist, path = write_namelist(folder, "run", KILL_RUN, {})
+    shim = dict(os.environ, LD_PRELOAD=str(shim_library("kill_at_write")), EME_KILL_DIR=str(folder))
+    assert eme_run(namelist, env=dict(shim, EME_KILL_LOG=str(log))).returncode == 0
+    operations = len(log.read_text().splitlines())
+    path.unlink()
+    killed = eme_run(namelist, env=dict(shim, EME_KILL_AT=str(operations * 2 // 3)))
+    assert killed.returncode == -signal.SIGKILL
+    part = path.with_name(path.name + ".part")
+    assert part.exists() and not path.exists()
+    with h5py.File(part, "r") as f:
+        assert 0 < f.attrs["resume_numbers"][0] < 40000
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 0, result.stderr
+    assert path.exists() and not part.exists()
+    assert_same_datasets(path, reference)
+
+
+def test_refusals_keep_the_file(tmp_path):
+    """A complete file, another input, no file, or an integrator that cannot continue: exit 2, one
+    line naming the file and what is allowed, and the file unchanged."""
+    integrator = {"scheme": "eme", "dt": 0.01, "t_end": 3.0, "tolerance": 1e-4, "max_steps": 50}
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    assert eme_run(namelist).returncode == 3
+    before = path.read_bytes()
+
+    write_namelist(tmp_path, "run", dict(integrator, dt=0.02, max_steps=100000), {})
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2
+    assert "dt = 0.02" in result.stderr and "t_end and max_steps" in result.stderr, result.stderr
+    assert path.read_bytes() == before
+
+    write_namelist(tmp_path, "run", dict(integrator, scheme="relaxed_dp853", max_steps=100000), {})
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2
+    assert "relaxed_dp853" in result.stderr and "allowed" in result.stderr, result.stderr
+    assert path.read_bytes() == before
+
+    other, _ = write_namelist(tmp_path, "absent", integrator, {})
+    result = eme_run(other, "-eme_continue")
+    assert result.returncode == 2 and "absent.h5" in result.stderr, result.stderr
+
+    write_namelist(tmp_path, "run", dict(integrator, max_steps=100000), {})
+    assert eme_run(namelist, "-eme_continue").returncode == 0
+    complete = path.read_bytes()
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2 and "complete" in result.stderr, result.stderr
+    assert path.read_bytes() == complete
+
+
+def test_the_slurm_run_example_continues_after_requeue(tmp_path):
+    """inputs/slurm_run.sbatch run as Slurm would: SIGTERM to the batch script stops the run and
+    requeues the job (a stand-in scontrol records the call); the requeued job continues the run
+    from its file, which ends complete and equal to the uninterrupted run."""
+    root = ROOT
+    if not (root / "build" / "bin" / "eme_run").exists():
+        pytest.skip("the script runs build/bin/eme_run of the checkout")
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 60.0}
+    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, {})
+    assert eme_run(reference_nml).returncode == 0
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    tools = tmp_path / "bin"
+    tools.mkdir()
+    (tools / "scontrol").write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
+    (tools / "scontrol").chmod(0o755)
+    env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242")
+    script = ["bash", str(root / "inputs" / "slurm_run.sbatch"), str(namelist)]
+    job = subprocess.Popen(script, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    part = path.with_name(path.name + ".part")
+    while not part.exists() and job.poll() is None:
+        time.sleep(0.02)
+    job.send_signal(signal.SIGTERM)
+    out, err = job.communicate(timeout=600)
+    assert job.returncode == 0, out + err
+    assert "time limit near" in out
+    assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
+    with h5py.File(path, "r") as f:
+        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM"
+        started = f.attrs["start_time"]
+    result = subprocess.run(script, cwd=root, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
+    assert_same_datasets(path, reference)
+    with h5py.File(path, "r") as f:      # continued, not run again from t = 0
+        assert f.attrs["start_time"] == started
+        assert f.attrs["history"].endswith("-eme_continue")
+
+
+def test_an_interrupted_study_case_continues(tmp_path):
+    """A study stopped by SIGTERM during its only case: run again, the case continues from its
+    file (its history says so) and ends equal to the same run made at once."""
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 100.0}
+    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, {"every": 3})
+    assert eme_run(reference_nml).returncode == 0
+    base, _ = write_namelist(tmp_path, "base", dict(integrator, dt=0.1), {"every": 3})
+    output = tmp_path / "study"
+    study = tmp_path / "study.nml"
+    study.write_text(f"&study base = '{base}', output_dir = '{output}' /\n&sweep field = 'dt', values = 0.0002 /\n")
+    process = subprocess.Popen([str(BIN / "eme_ensemble"), str(study)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    part = output / "case_00001.h5.part"
+    while not part.exists() and process.poll() is None:
+        time.sleep(0.02)
+    process.send_signal(signal.SIGTERM)
+    out, err = process.communicate(timeout=600)
+    case = output / "case_00001.h5"
+    with h5py.File(case, "r") as f:
+        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM", out + err
+        assert len(f.attrs["history"].splitlines()) == 1
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    with h5py.File(case, "r") as f:
+        assert len(f.attrs["history"].splitlines()) == 2
+    assert_same_datasets(case, reference)
+
+
+def test_refused_when_nothing_is_left_or_the_step_failed(tmp_path):
+    """t_end lowered below the time the file reached: exit 2, file unchanged. A run that stopped at
+    a step it could not solve (failure_kind solver) would stop there again: refused as well."""
+    integrator = {"scheme": "eme", "dt": 0.001, "t_end": 3.0, "tolerance": 1e-4, "max_steps": 50}
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    assert eme_run(namelist).returncode == 3
+    with h5py.File(path, "r") as f:
+        reached = f.attrs["resume_numbers"][1]
+    assert reached > 0.002
+    before = path.read_bytes()
+    write_namelist(tmp_path, "run", dict(integrator, t_end=0.002), {})
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2 and "a later t_end" in result.stderr, result.stderr
+    assert path.read_bytes() == before
+
+    write_namelist(tmp_path, "run", dict(integrator, max_steps=100000), {})
+    with h5py.File(path, "r+") as f:
+        f.attrs["failure_kind"] = "solver"
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 2 and "holds no run to continue" in result.stderr, result.stderr
