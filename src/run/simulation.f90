@@ -305,7 +305,7 @@ contains
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
       call system_clock(step_end)
       if (ierr /= 0) then
-        call fail(failure_library, 'PETSc failed during the solve')
+        call fail(failure_library, 'PETSc failed during the solve: '//petsc_error_text())
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
         exit
       end if
@@ -376,7 +376,7 @@ contains
     end if
     if (.not. present(reusable)) then
       call integrator%release(release_ierr)
-      if (release_ierr /= 0) call fail(failure_library, 'PETSc failed to free the solver')
+      if (release_ierr /= 0) call fail(failure_library, 'PETSc failed to free the solver: '//petsc_error_text())
     end if
     call close_output()
     call set_times(.false.)
