@@ -475,10 +475,11 @@ contains
   end subroutine read_resume_record
 
   ! The resume record as root attributes (read_resume_record reads them).
-  subroutine resume_attributes(record, file, stat)
+  subroutine resume_attributes(record, file, stat, with_units)
     type(resume_record), intent(in) :: record
     type(hdf5_file), intent(inout) :: file
     integer, intent(out) :: stat
+    logical, intent(in) :: with_units     !! the texts too (the first and the last write)
 
     call file%set_reals('resume_numbers', [real(record%step, real64), record%time, real(record%outputs_passed, real64), &
                         record%energy_0, record%jz_0, record%boundary_heat, real(record%point_rows, real64), &
@@ -491,6 +492,14 @@ contains
     if (stat == 0) call file%set_reals('resume_x_previous', record%x_previous, stat)
     if (stat == 0 .and. size(record%integrator_state) > 0) &
       call file%set_reals('resume_integrator', record%integrator_state, stat)
+    if (stat /= 0 .or. .not. with_units) return
+    ! The units, entry by entry for resume_numbers; the vectors carry the units of their entries.
+    call file%set_texts('resume_numbers_units', [character(len=3) :: '1', 's', '1', 'J', 'J s', 'J', '1', '1', '1', &
+                                                 '1', 'J/K', 'J', 'J s', 'K', '1', '1'], stat)
+    if (stat == 0) call file%set_text('resume_x_units', 'the units of /state''s columns, then the multipliers''', stat)
+    if (stat == 0) call file%set_text('resume_x_previous_units', 'as resume_x', stat)
+    if (stat == 0 .and. size(record%integrator_state) > 0) &
+      call file%set_text('resume_integrator_units', 'mixed: the integrator''s own state (docs/faults.md)', stat)
   end subroutine resume_attributes
 
   ! One write of the file: the buffered rows, then the attributes of the outcome so far (all of
@@ -516,7 +525,8 @@ contains
     if (stat == 0) call rows_on_disk(self)
     if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. (whole .or. final), &
                                            final=final)
-    if (stat == 0 .and. self%resume%held) call resume_attributes(self%resume, self%store%file, stat)
+    if (stat == 0 .and. self%resume%held) call resume_attributes(self%resume, self%store%file, stat, &
+                                                                 with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)
     if (stat == 0 .and. allocated(self%history)) call self%store%file%set_text('history', self%history, stat)
     call self%store%end_rows(stat)
