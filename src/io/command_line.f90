@@ -188,7 +188,7 @@ contains
 
     buffer = ''
     call c_error_text(buffer, len(buffer, kind=c_int))
-    text = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    text = c_string(buffer)
   end function petsc_error_text
 
   !> After PetscInitialize: stat /= 0 with a message if an option asks PETSc to write a file
@@ -201,7 +201,7 @@ contains
 
     buffer = ''
     stat = int(c_check_viewer_files(buffer, len(buffer, kind=c_int)))
-    message = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    message = c_string(buffer)
     if (stat == 2) message = 'PETSc could not list its options database'
   end subroutine check_petsc_viewer_files
 
@@ -214,7 +214,7 @@ contains
 
     buffer = ''
     stat = int(c_check_own_options(buffer, len(buffer, kind=c_int)))
-    message = buffer(1:index(buffer, c_null_char) - 1)
+    message = c_string(buffer)
     if (stat == 2) message = 'PETSc could not list its options database'
   end subroutine check_own_options
 
@@ -232,7 +232,7 @@ contains
     buffer = ''
     names = ''
     if (c_unused_options(buffer, len(buffer, kind=c_int)) /= 0) return
-    names = buffer(1:index(buffer, c_null_char) - 1)
+    names = c_string(buffer)
   end function unused_petsc_options
 
   ! Argument i (0: the program's name), whatever its length.
@@ -261,5 +261,16 @@ contains
     ends_with_nml = .false.
     if (len(argument) > 4) ends_with_nml = argument(len(argument) - 3:) == '.nml'
   end function ends_with_nml
+
+  ! The text a C function wrote into `buffer`, up to its NUL (all of it if there is none).
+  pure function c_string(buffer) result(text)
+    character(len=*), intent(in) :: buffer
+    character(len=:), allocatable :: text
+    integer :: nul
+
+    nul = index(buffer, c_null_char)
+    if (nul == 0) nul = len(buffer) + 1
+    text = buffer(1:nul - 1)
+  end function c_string
 
 end module command_line
