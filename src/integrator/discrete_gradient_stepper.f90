@@ -362,41 +362,29 @@ contains
   !> What a step leaves for the next (a continued run restores it, bit for bit): the step-size
   !> controller's next trial step and error history, the last step's length (the adaptive
   !> predictor's scale), and the LU factors of the last Newton iteration (the chord refinement of
-  !> the next predictor). Layout: h, err_old, has_history, h_last, x_last given, LU ready, LU order
-  !> m, the m*m factors, the m pivots.
+  !> the next predictor). Layout: h, err_old, has_history, h_last, x_last given, then the
+  !> factors as lu_factors' as_values.
   subroutine resume_state(self, values)
     class(step_solver), intent(in) :: self
     real(real64), allocatable, intent(inout) :: values(:)
-    integer :: m
 
-    m = 0
-    associate (lu => self%solver%context%lu)
-      if (lu%ready) m = size(lu%pivots)
-      if (allocated(values)) then
-        if (size(values) /= 7 + m*m + m) deallocate (values)
-      end if
-      if (.not. allocated(values)) allocate (values(7 + m*m + m))
-      values(1:7) = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
-                     self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), &
-                     merge(1.0_real64, 0.0_real64, lu%ready), real(m, real64)]
-      if (m > 0) then
-        values(8:7 + m*m) = reshape(lu%factors(1:m, 1:m), [m*m])
-        values(8 + m*m:) = real(lu%pivots(1:m), real64)
-      end if
-    end associate
+    values = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
+              self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), self%solver%context%lu%as_values()]
   end subroutine resume_state
 
   !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its layout.
+  !> Factors of another system size (another -eme_fused_kernel) are not this solver's: the next
+  !> predictor then goes without the chord refinement.
   subroutine restore_state(self, values, x, x_previous, ierr)
     class(step_solver), intent(inout) :: self
     real(real64), intent(in) :: values(:), x(:), x_previous(:)
     integer, intent(out) :: ierr
-    integer :: m
+    logical :: ok
 
     ierr = 1
-    if (size(values) < 7) return
-    m = nint(values(7))
-    if (m < 0 .or. size(values) /= 7 + m*m + m) return
+    if (size(values) < 5) return
+    call self%solver%context%lu%from_values(values(6:), self%solver%n, ok)
+    if (.not. ok) return
     ierr = 0
     self%controller%h = values(1)
     self%controller%err_old = values(2)
@@ -406,16 +394,6 @@ contains
       self%x_last = x
       self%increment = x - x_previous
     end if
-    associate (lu => self%solver%context%lu)
-      ! Factors of another system size (another -eme_fused_kernel) are not this solver's: the
-      ! next predictor then goes without the chord refinement.
-      lu%ready = nint(values(6)) == 1 .and. m > 0 .and. m == self%solver%n
-      if (.not. lu%ready) return
-      if (allocated(lu%factors)) deallocate (lu%factors)
-      if (allocated(lu%pivots)) deallocate (lu%pivots)
-      lu%factors = reshape(values(8:7 + m*m), [m, m])
-      lu%pivots = nint(values(8 + m*m:))
-    end associate
   end subroutine restore_state
 
 end module discrete_gradient_stepper

@@ -15,7 +15,7 @@ module simulation
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
+  use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
@@ -400,11 +400,6 @@ contains
       logical :: complete, any_file, beyond
 
       where = ' ('//config%input_file//', -eme_continue)'
-      if (entry%family /= family_discrete_gradient) then
-        call fail(failure_input, config%input_file//": &integrator scheme = '"//trim(entry%name)// &
-                  "' cannot continue a run yet; allowed with -eme_continue: eme, midpoint")
-        return
-      end if
       source = ''
       complete = .false.
       if (file_exists(config%output_file)) then
