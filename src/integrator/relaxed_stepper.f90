@@ -32,7 +32,7 @@
 module relaxed_stepper
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: domain_ok
-  use thermo_variable, only: tau_entropy
+  use thermo_variable_kinds, only: tau_entropy
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3

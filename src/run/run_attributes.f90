@@ -9,7 +9,7 @@ module run_attributes
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
-  use thermo_variable, only: thermo_variable_names
+  use thermo_variable_kinds, only: thermo_variable_names
   use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use run_config, only: run_configuration
   use build_info, only: code_version

@@ -12,7 +12,7 @@ module run_output
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
-  use thermo_variable, only: thermo_variable_names
+  use thermo_variable_kinds, only: thermo_variable_names
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
   use provenance, only: write_provenance, iso_time, command_line

@@ -1,7 +1,7 @@
 !> The thermoviscoelastic double pendulum as a GENERIC model (src/structure/model_interface):
 !> two springs, each a subsystem with (U_a, S_a) in its invariants (C_a, [gamma,] tau_a) for one
 !> choice of thermodynamic variable; kinetic energy and gravity as the mechanical energy; the
-!> written-out vector field of src/model/pendulum_vector_field.
+!> written-out vector field of src/model/pendulum/pendulum_vector_field.
 module pendulum_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
