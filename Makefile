@@ -74,13 +74,13 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o $(OBJ)/src/io/petsc_errors.o \
 $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o \
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): CFLAGS += $(PETSC_FLAGS)
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
 # some arguments are not needed. By folder (a model's folder included), so a new module needs no
 # edit here.
 $(filter $(OBJ)/src/solver/% $(OBJ)/src/structure/% $(OBJ)/src/integrator/% $(OBJ)/src/model/%,$(LIBRARY_OBJECTS)): \
-  FFLAGS += -Wno-unused-dummy-argument
-$(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): FFLAGS += $(KERNEL_FLAGS)
+  private FFLAGS += -Wno-unused-dummy-argument
+$(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): private FFLAGS += $(KERNEL_FLAGS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
@@ -191,10 +191,10 @@ $(BUILD)/version.stamp: FORCE
 	@mkdir -p $(BUILD)
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
 $(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp VERSION
-$(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
+$(OBJ)/src/io/build_info.o: private FFLAGS += -DEME_VERSION='"$(VERSION)"'
 # snes_overhead (C, PETSc alone) prints the same version.
 $(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): $(BUILD)/version.stamp VERSION
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): CFLAGS += -DEME_VERSION='"$(VERSION)"'
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up

@@ -245,8 +245,8 @@ contains
         report%reason = 'PETSc TS: the Newton solve of an implicit step diverged (TS_DIVERGED_NONLINEAR_SOLVE)'
       case (TS_DIVERGED_STEP_REJECTED)
         if (self%context%domain_rejections > 0) then
-          report%reason = 'PETSc TS: a stage left the model''s domain, a non-positive temperature or spring ' &
-                          //'length (TS_DIVERGED_STEP_REJECTED)'
+          report%reason = 'PETSc TS: a stage left the model''s domain, a non-positive temperature or length ' &
+                          //'(TS_DIVERGED_STEP_REJECTED)'
         else
           report%reason = 'PETSc TS: too many rejected steps (TS_DIVERGED_STEP_REJECTED)'
         end if
