@@ -194,6 +194,8 @@ contains
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
     allocate (theta(model%subsystem_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    summary%energy_units = model%words%energy_units
+    summary%entropy_units = model%words%entropy_units
     ! A model without a conserved momentum has no drift figure.
     if (model%conserved_momentum_column == 0) then
       summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
