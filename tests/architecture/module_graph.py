@@ -159,6 +159,11 @@ def box_label(folder):
     return folder if folder.split("/")[0] == "drivers" else f"src/{folder}"
 
 
+def box_counts(files, inside):
+    """The second line of a folder's box: its files and the edges between them."""
+    return f"{files} file{'s' * (files != 1)}, {inside} edge{'s' * (inside != 1)} within"
+
+
 def draw_modules(nodes, edges):
     """One band per layer (lowest at the bottom), modules as labelled boxes, uses as arrows; the
     modules of a subfolder are framed together in their layer's band."""
@@ -252,7 +257,7 @@ def draw_folders(nodes, edges):
         inside = counts.get((folder, folder), 0)
         ax.text(LABEL_WIDTH + indent + 0.1, y_of(folder) + 0.07, box_label(folder), ha="left", va="center",
                 fontsize=9, family="monospace", zorder=3)
-        ax.text(LABEL_WIDTH + indent + 0.1, y_of(folder) - 0.12, f"{n} files, {inside} edges within", ha="left",
+        ax.text(LABEL_WIDTH + indent + 0.1, y_of(folder) - 0.12, box_counts(n, inside), ha="left",
                 va="center", fontsize=7, color="0.3", zorder=3)
     # Each arc ends at a port of its own on the box's right side. Top to bottom: the arcs to folders
     # above, nearest first, then those to folders below, farthest first; so arcs that share a box
@@ -283,8 +288,8 @@ def draw_folders(nodes, edges):
                 fontweight="bold", zorder=4, bbox=dict(boxstyle="round,pad=0.12", facecolor="white", edgecolor="none"))
     ax.text(0.1, height - 0.2, "Folders in their layers (lowest at the bottom)", ha="left", va="center", fontsize=10,
             fontweight="bold")
-    ax.text(0.1, height - 0.43, "An arrow points from a folder to one it uses; its number counts the `use`s and C "
-            "calls between their files.", ha="left", va="center", fontsize=7.5)
+    ax.text(0.1, height - 0.43, "An arrow points from a folder to one it uses, in the user's colour; its number counts "
+            "the use statements and C calls between their files.", ha="left", va="center", fontsize=7.5)
     return fig, 200
 
 

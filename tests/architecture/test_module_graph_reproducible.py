@@ -59,7 +59,7 @@ def test_the_folder_graph_shows_every_folder_and_its_counts():
     files, counts = module_graph.folder_graph(nodes, edges)
     for folder, n in files.items():
         assert module_graph.box_label(folder) in texts
-        assert f"{n} files, {counts.get((folder, folder), 0)} edges within" in texts
+        assert module_graph.box_counts(n, counts.get((folder, folder), 0)) in texts
     # One number per arrow, each the count of its pair of folders (both ways where two folders use
     # each other, as the model and its subfolder do).
     numbers = sorted(int(text) for text in texts if text.isdigit())
