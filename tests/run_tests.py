@@ -12,7 +12,8 @@ pFUnit test (each parameterized case one) and a pytest test.
 
 --quick (make check) runs the unit tests and QUICK_TESTS only: one or two files per area, chosen
 to exercise every driver, the paper scene, the input checks and the file layout, without the
-tests marked `drawing` (they draw figures with matplotlib, the slowest part; make test runs them).
+tests marked `drawing` (they draw figures with matplotlib, the slowest part, or check the drawn
+ones; make test runs them).
 """
 import argparse
 import os

@@ -14,6 +14,7 @@ with its number of edges) and module_graph (every module and edge, one band per 
 """
 import argparse
 import hashlib
+import html
 import re
 import sys
 from collections import Counter, defaultdict, namedtuple
@@ -56,11 +57,16 @@ def sources(root=ROOT):
     return found
 
 
+def layer_of(folder):
+    """A folder's layer: its first component (`model/pendulum` is in `model`)."""
+    return folder.split("/")[0]
+
+
 def graph(root=ROOT):
     """(nodes {name: Node(layer, path, folder)}, edges {(from, to)}) of the code under `root`."""
     nodes, uses, calls, defined = {}, defaultdict(set), defaultdict(set), {}
     for path, folder in sources(root):
-        node = Node(folder.split("/")[0], path, folder)
+        node = Node(layer_of(folder), path, folder)
         text = path.read_text(errors="replace")
         if path.suffix == ".c":
             nodes[path.name] = node
@@ -130,7 +136,7 @@ def folder_graph(nodes, edges):
     The folders come lowest layer first, and in a layer by their path, so the layer's own folder
     comes before its subfolders."""
     order = list(LAYERS)
-    folders = sorted({node.folder for node in nodes.values()}, key=lambda f: (order.index(f.split("/")[0]), f))
+    folders = sorted({node.folder for node in nodes.values()}, key=lambda f: (order.index(layer_of(f)), f))
     files = Counter(node.folder for node in nodes.values())
     counts = Counter((nodes[a].folder, nodes[b].folder) for a, b in edges)
     return {folder: files[folder] for folder in folders}, dict(sorted(counts.items()))
@@ -152,11 +158,11 @@ def descriptions(nodes, edges):
 def described(svg_text):
     """The description an SVG drawn by this script carries ('' when it has none)."""
     match = re.search(r"<dc:description>(.*?)</dc:description>", svg_text, re.DOTALL)
-    return match.group(1).replace("&gt;", ">").replace("&lt;", "<").replace("&amp;", "&") if match else ""
+    return html.unescape(match.group(1)) if match else ""
 
 
 def box_label(folder):
-    return folder if folder.split("/")[0] == "drivers" else f"src/{folder}"
+    return folder if layer_of(folder) == "drivers" else f"src/{folder}"
 
 
 def box_counts(files, inside):
@@ -242,7 +248,7 @@ def draw_folders(nodes, edges):
 
     right = LABEL_WIDTH + BOX_WIDTH
     for number, layer in enumerate(order, start=1):
-        members = [f for f in files if f.split("/")[0] == layer]
+        members = [f for f in files if layer_of(f) == layer]
         if not members:
             continue
         low, high = y_of(members[0]) - SLOT / 2 + 0.03, y_of(members[-1]) + SLOT / 2 - 0.03
@@ -275,7 +281,7 @@ def draw_folders(nodes, edges):
             port[(folder, arc)] = y_of(folder) + 0.4 * BOX_HEIGHT * (1 - 2 * (k + 0.5) / len(ends))
     heaviest = max((n for _, _, n in arcs), default=1)
     for a, b, n in arcs:
-        bad = order.index(b.split("/")[0]) > order.index(a.split("/")[0])
+        bad = order.index(layer_of(b)) > order.index(layer_of(a))
         colour = "red" if bad else ARC_COLOURS[slot[a] % len(ARC_COLOURS)]
         start, end = port[(a, (a, b))], port[(b, (a, b))]
         apex = reach[(a, b)] * REACH + 0.12

@@ -31,12 +31,9 @@ def test_two_drawings_of_the_same_sources_are_the_same_bytes(tmp_path):
     draw(tmp_path / "first", seed=1)
     draw(tmp_path / "second", seed=2)
     for name in PICTURES:
-        svg, png = ((tmp_path / "first" / name).with_suffix(suffix).read_bytes() for suffix in (".svg", ".png"))
-        assert svg.startswith(b"<?xml") and png.startswith(b"\x89PNG") and len(png) > 10_000, name
-        for suffix in (".svg", ".png"):
-            first = (tmp_path / "first" / name).with_suffix(suffix).read_bytes()
-            second = (tmp_path / "second" / name).with_suffix(suffix).read_bytes()
-            assert first == second, name + suffix
+        for suffix, start in ((".svg", b"<?xml"), (".png", b"\x89PNG")):
+            first, second = ((tmp_path / run / name).with_suffix(suffix).read_bytes() for run in ("first", "second"))
+            assert first.startswith(start) and len(first) > 10_000 and first == second, name + suffix
 
 
 def test_the_committed_pictures_are_drawn_from_the_current_sources():
@@ -52,6 +49,7 @@ def test_the_committed_pictures_are_drawn_from_the_current_sources():
 def test_the_folder_graph_shows_every_folder_and_its_counts():
     import matplotlib
     matplotlib.use("Agg")
+    import matplotlib.pyplot
 
     nodes, edges = module_graph.graph(ROOT)
     fig, _ = module_graph.draw_folders(nodes, edges)
@@ -65,3 +63,4 @@ def test_the_folder_graph_shows_every_folder_and_its_counts():
     numbers = sorted(int(text) for text in texts if text.isdigit())
     assert numbers == sorted(n for (a, b), n in counts.items() if a != b)
     assert len(numbers) > 25
+    matplotlib.pyplot.close(fig)
