@@ -215,8 +215,10 @@ def draw_modules(nodes, edges):
 # an arc on their right whose reach grows with the number of slots it spans, so that no arrow
 # crosses a box and every count stands at its own arc's apex.
 SLOT, BOX_WIDTH, BOX_HEIGHT, LABEL_WIDTH, REACH, INDENT = 0.72, 2.1, 0.5, 1.15, 0.42, 0.18
+CHARACTER_WIDTH = 0.075     # inches, of the 9-point monospaced folder names
+# A colour per folder that uses others (red is kept for an arrow to a higher layer).
 ARC_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
-               "tab:cyan", "0.35")
+               "tab:cyan", "0.35", "black", "#8c6d31", "#393b79")
 
 
 def draw_folders(nodes, edges):
@@ -234,7 +236,9 @@ def draw_folders(nodes, edges):
     # An arc's reach in slots; of two arcs between the same folders, the upward one reaches further.
     reach = {(a, b): abs(slot[a] - slot[b]) + (0.5 if (b, a) in counts and slot[a] < slot[b] else 0.0)
              for a, b, _ in arcs}
-    width = LABEL_WIDTH + BOX_WIDTH + (max(reach.values(), default=0) + 0.8) * REACH + 0.2
+    box_width = max([BOX_WIDTH] + [INDENT * f.count("/") + CHARACTER_WIDTH * len(box_label(f)) + 0.3 for f in files])
+    users = sorted({a for a, _, _ in arcs}, key=slot.get)
+    width = LABEL_WIDTH + box_width + (max(reach.values(), default=0) + 0.8) * REACH + 0.2
     top = 0.62
     height = len(files) * SLOT + top + 0.08
     fig = plt.figure(figsize=(width, height))
@@ -246,7 +250,7 @@ def draw_folders(nodes, edges):
     def y_of(folder):
         return 0.08 + (slot[folder] + 0.5) * SLOT
 
-    right = LABEL_WIDTH + BOX_WIDTH
+    right = LABEL_WIDTH + box_width
     for number, layer in enumerate(order, start=1):
         members = [f for f in files if layer_of(f) == layer]
         if not members:
@@ -258,7 +262,7 @@ def draw_folders(nodes, edges):
                 fontweight="bold")
     for folder, n in files.items():
         indent = INDENT * folder.count("/")
-        ax.add_patch(Rectangle((LABEL_WIDTH + indent, y_of(folder) - BOX_HEIGHT / 2), BOX_WIDTH - indent, BOX_HEIGHT,
+        ax.add_patch(Rectangle((LABEL_WIDTH + indent, y_of(folder) - BOX_HEIGHT / 2), box_width - indent, BOX_HEIGHT,
                                facecolor="white", edgecolor="0.25", linewidth=0.8, zorder=2))
         inside = counts.get((folder, folder), 0)
         ax.text(LABEL_WIDTH + indent + 0.1, y_of(folder) + 0.07, box_label(folder), ha="left", va="center",
@@ -282,7 +286,7 @@ def draw_folders(nodes, edges):
     heaviest = max((n for _, _, n in arcs), default=1)
     for a, b, n in arcs:
         bad = order.index(layer_of(b)) > order.index(layer_of(a))
-        colour = "red" if bad else ARC_COLOURS[slot[a] % len(ARC_COLOURS)]
+        colour = "red" if bad else ARC_COLOURS[users.index(a) % len(ARC_COLOURS)]
         start, end = port[(a, (a, b))], port[(b, (a, b))]
         apex = reach[(a, b)] * REACH + 0.12
         control = apex / 0.75       # a cubic Bezier with both controls at `control` peaks at 3/4 of it
