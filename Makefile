@@ -366,7 +366,7 @@ version:
 
 # The module graph of docs/architecture.md, drawn from the sources.
 docs: $(VENV)/.python-deps
-	$(PYTHON) tests/architecture/module_graph.py -o docs/architecture/module_graph
+	$(PYTHON) tests/architecture/module_graph.py -o docs/architecture
 
 clean:
 	rm -rf $(BUILD)
