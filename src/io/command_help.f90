@@ -10,7 +10,7 @@ module command_help
   use model_scene, only: scene
   use run_config, only: run_configuration, integrator_fields, output_fields
   use study_config, only: study_fields, sweep_fields, max_sweep_values
-  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count, family_relaxation
+  use integrator_registry, only: integrator_entry, registered_integrators, family_relaxation
   implicit none (type, external)
   private
   public :: print_run_help, print_study_help, print_integrators, has_argument
@@ -163,11 +163,11 @@ contains
   subroutine print_integrators(unit, tabular)
     integer, intent(in) :: unit
     logical, intent(in) :: tabular
-    type(integrator_entry) :: entries(integrator_count)
+    type(integrator_entry), allocatable :: entries(:)
     character(len=*), parameter :: tab = achar(9)
     integer :: i
 
-    entries = registered_integrators()
+    allocate (entries, source=registered_integrators())
     if (tabular) write (unit, '(a)') 'name'//tab//'family'//tab//'label'//tab//'takes_constraints'//tab//'adaptive' &
       //tab//'error_control'//tab//'description'
     do i = 1, size(entries)

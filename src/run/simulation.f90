@@ -15,7 +15,7 @@ module simulation
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
@@ -395,8 +395,7 @@ contains
     subroutine new_integrator(made)
       class(time_stepper), allocatable, intent(out) :: made
 
-      call entry%build(made)
-      made%scheme = entry%name
+      call build_integrator(entry, made)
     end subroutine new_integrator
 
     ! -eme_continue: the resume record of the output file, or of FILE.part (the one further on,
@@ -643,7 +642,7 @@ contains
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
     if (stat /= 0) return
-    call entry%build(integrator)
+    call build_integrator(entry, integrator)
     call integrator%start(config%integrator, model, constraints, z0, stat)
     if (stat /= 0) message = setup_failure_text()
     call integrator%release(ierr)
