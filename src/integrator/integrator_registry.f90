@@ -46,6 +46,9 @@ module integrator_registry
     logical :: error_control = .false.
     logical :: reads_newton_settings = .true.       !! solves nonlinear systems with newton_tol, newton_max_iterations
     logical :: chooses_time = .false.               !! reaches times of its own (relaxation, adaptive steps)
+    !> Keeps the structure on every step, to round-off: E, the model's conserved momentum,
+    !> dS >= 0 and dV <= 0 (EME, the relaxed schemes); tests/e2e/test_conformance_steps checks it.
+    logical :: keeps_structure = .false.
     !> Integrates the constrained flow in continuous time (the constraints' continuous forms,
     !> index-1 multipliers): the initial state must satisfy the hidden constraints too.
     logical :: continuous_constraints = .false.
@@ -69,7 +72,7 @@ contains
     entries = [ &
       integrator_entry(name='eme', family=family_discrete_gradient, label='EME', &
         description='energy-momentum-entropy scheme (15): discrete gradients, one SNES system per step', &
-        takes_constraints=.true., uses_discrete_gradient=.true., error_control=.true., build=new_eme, &
+        takes_constraints=.true., uses_discrete_gradient=.true., error_control=.true., keeps_structure=.true., build=new_eme, &
         scheme_temperature='discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'), &
       integrator_entry(name='midpoint', family=family_discrete_gradient, label='MP', &
         description='implicit midpoint rule: the exact partials at the midpoint, one SNES system per step', &
@@ -111,7 +114,7 @@ contains
                                    description=tableaux(k)%description, adaptive=tableau%embedded, chooses_time=.true., &
                                    error_control=.not. tableau%embedded, reads_newton_settings=tableau%implicit, &
                                    scheme_temperature=relaxed_temperature, takes_constraints=.true., &
-                                   continuous_constraints=.true., build=new_relaxed_runge_kutta)
+                                   continuous_constraints=.true., keeps_structure=.true., build=new_relaxed_runge_kutta)
       end do
     end function relaxed_rows
   end function registered_integrators

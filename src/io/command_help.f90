@@ -169,13 +169,14 @@ contains
 
     allocate (entries, source=registered_integrators())
     if (tabular) write (unit, '(a)') 'name'//tab//'family'//tab//'label'//tab//'takes_constraints'//tab//'adaptive' &
-      //tab//'error_control'//tab//'description'
+      //tab//'error_control'//tab//'keeps_structure'//tab//'description'
     do i = 1, size(entries)
       associate (e => entries(i))
         if (tabular) then
           write (unit, '(a)') trim(e%name)//tab//trim(e%family)//tab//trim(e%label)//tab// &
             trim(merge('yes', 'no ', e%takes_constraints))//tab//trim(merge('yes', 'no ', e%adaptive))//tab// &
-            trim(merge('yes', 'no ', e%error_control))//tab//trim(e%description)
+            trim(merge('yes', 'no ', e%error_control))//tab//trim(merge('yes', 'no ', e%keeps_structure))//tab// &
+            trim(e%description)
         else
           write (unit, '(4x, a, t20, a)') trim(e%name), trim(e%description)
           write (unit, '(t20, a)') 'family '//trim(e%family)//'; '//trim(merge('takes constraints   ', &

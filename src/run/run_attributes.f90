@@ -63,6 +63,12 @@ contains
     call real_attribute('quotient_threshold', quotient_threshold, '1')
     if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
     if (stat == 0) call file%set_integer('schema_version', schema_version, stat, units='1')
+    ! The momentum whose drift run_figures reports (a column of /angular_momentum), 'none' if none.
+    if (model%conserved_momentum_column > 0) then
+      call text('conserved_momentum', trim(model%momentum_names(model%conserved_momentum_column)))
+    else
+      call text('conserved_momentum', 'none')
+    end if
     if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
     if (stat == 0) call file%set_real('output_interval', config%output_interval, stat, units='s')
     if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')
