@@ -54,8 +54,11 @@ CFLAGS := -O2 -g -Wall -Wextra -std=c11 $(ARCH_FLAGS)
 LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c))
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
+# Programs in C on SUNDIALS CVODE alone, compiled and linked without MPI, PETSc or HDF5
+# (drivers/cvode_baseline.c: the whole-run baseline of make bench).
+CVODE_C_DRIVERS := cvode_baseline
 # Programs in C that need PETSc alone (drivers/snes_overhead.c: PETSc SNES timed by itself).
-C_DRIVERS := $(basename $(notdir $(wildcard drivers/*.c)))
+C_DRIVERS := $(filter-out $(CVODE_C_DRIVERS),$(basename $(notdir $(wildcard drivers/*.c))))
 FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90)
 
 # obj: the objects of the modules it uses, and a submodule's of its parent (only modules of this
@@ -89,7 +92,7 @@ $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 .PHONY: all programs deps test check run constraints figures study bench clean python-lock version docs
 
 # The programs alone (make run, figures, study, bench and constraints need no unit tests).
-PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
+PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS) $(CVODE_C_DRIVERS))
 programs: $(PROGRAMS)
 all: $(PROGRAMS)
 
@@ -114,10 +117,20 @@ $(patsubst %,$(BIN)/%,$(C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -o $@ $< $(PETSC_LIBS) -lm
 
+# The C compiler itself, not MPI's wrapper, for the programs on SUNDIALS alone.
+SERIAL_CC ?= cc
+$(patsubst %,$(OBJ)/drivers/%.o,$(CVODE_C_DRIVERS)): $(OBJ)/drivers/%.o: drivers/%.c | $(BUILD)/.native-deps
+	@mkdir -p $(dir $@)
+	$(SERIAL_CC) $(CFLAGS) $(SUNDIALS_FLAGS) -c $< -o $@
+$(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
+	@mkdir -p $(dir $@)
+	$(SERIAL_CC) $(CFLAGS) -o $@ $< $(SUNDIALS_LDFLAGS) $(CVODE_LIBS) -lm
+
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
-# SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
-SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense \
-                 -lsundials_sunnonlinsolfixedpoint
+# SUNDIALS CVODE with its dense direct solver serves the CVODE baselines (BDF with Newton), and
+# its fixed-point solver CVODE-Adams.
+CVODE_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
+SUNDIALS_LIBS := $(CVODE_LIBS) -lsundials_sunnonlinsolfixedpoint
 LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas
 
 # ---------------------------------------------------------------- unit tests
