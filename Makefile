@@ -6,7 +6,7 @@
 #   make constraints  the constraints with EME_s and EME_u, and without conduction
 #   make figures      the figures of the paper scenes (runs what is missing or outdated first)
 #   make study        convergence, work-precision and stability studies, and their charts
-#   make bench        ensemble throughput and per-step cost (benchmarks, not tests)
+#   make bench        ensemble throughput, per-step cost and instructions (benchmarks, not tests)
 #   make python-lock  pin every Python package anew after postprocess/requirements.txt changed
 #   make clean        remove what the build made
 SHELL := /bin/bash
@@ -89,7 +89,7 @@ $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(L
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all programs deps test check run constraints figures study bench clean python-lock version docs
+.PHONY: all programs deps test check run constraints figures study bench bench-deps clean python-lock version docs
 
 # The programs alone (make run, figures, study, bench and constraints need no unit tests).
 PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS) $(CVODE_C_DRIVERS))
@@ -347,14 +347,29 @@ study: programs $(VENV)/.python-deps
 # 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a hand-written
 # Newton floor, then issue 22's four speed ratios, each on its own line with its target
 # (bench_eme_run.py: eme_run and eme_bench alternating), and PETSc SNES timed by itself
-# (snes_overhead) beside what the ratios leave it. Each part ends with machine-readable lines and
-# the machine's load around it (postprocess/machine_load.py; a warning when it was busy).
-bench: programs $(VENV)/.python-deps
+# (snes_overhead) beside what the ratios leave it; then issue 34's ratios against CVODE-BDF on
+# the same model (bench_cvode_baseline.py): instructions per step by callgrind, and a whole
+# eme_run against the C program with CVODE alone (cvode_baseline). Each part ends with
+# machine-readable lines and the machine's load around it (postprocess/machine_load.py; a
+# warning when it was busy).
+bench: programs $(VENV)/.python-deps bench-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
 	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_accuracy_bench.load.json -- $(BIN)/eme_accuracy_bench 5
 	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_bench.load.json -- $(BIN)/eme_bench 21
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
+	$(PYTHON) postprocess/bench_cvode_baseline.py --bin $(BIN) --repeats 15
+
+# make bench counts instructions with valgrind's callgrind (perf stat says "not supported" on
+# these machines): installed with apt-get on Debian as root (not with EME_SETUP_APT=no), else
+# the rule says what to install.
+bench-deps:
+	@command -v valgrind >/dev/null && command -v callgrind_annotate >/dev/null || \
+	if [ "$$(id -u)" = 0 ] && [ "$${EME_SETUP_APT:-yes}" != no ] && command -v apt-get >/dev/null; then \
+	  echo "Installing valgrind with apt-get (make bench's instruction counts)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq valgrind >/dev/null; \
+	else echo "make bench counts instructions with valgrind's callgrind: install valgrind (Debian: apt-get" \
+	  "install valgrind; Spack: spack install valgrind; conda-forge: conda install valgrind)" >&2; exit 1; fi
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (docs/constraints.md).
 constraints: programs $(VENV)/.python-deps
