@@ -207,9 +207,9 @@ $(BUILD)/version.stamp: FORCE
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
 $(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp VERSION
 $(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
-# snes_overhead (C, PETSc alone) prints the same version.
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): $(BUILD)/version.stamp VERSION
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): CFLAGS += -DEME_VERSION='"$(VERSION)"'
+# The programs in C (snes_overhead, cvode_baseline) print the same version.
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): $(BUILD)/version.stamp VERSION
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): CFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up

@@ -20,7 +20,8 @@
  *   error_test_failures=N nonlinear_failures=N
  * --check-jacobian also compares the analytic Jacobian at the final state with central
  * differences of the right-hand side (jacobian_deviation=<largest deviation, relative to the
- * largest entry of its row>). Exit status 0, 1 when CVODE fails, 2 on bad usage.
+ * largest entry of its row>). Exit status 0, 1 when CVODE fails, 2 on bad usage; --help, -h,
+ * -help and --version print and exit with status 0.
  */
 #include <math.h>
 #include <stdio.h>
@@ -29,8 +30,14 @@
 
 #include <cvode/cvode.h>
 #include <nvector/nvector_serial.h>
+#include <sundials/sundials_version.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
+
+/* The code's version, from the Makefile ("0.9.0 (git cb77f99)"), as the other programs print it. */
+#ifndef EME_VERSION
+#define EME_VERSION "unknown"
+#endif
 
 #define N_STATE 15
 /* z's columns (docs/formulation.md section 2): q_a at Q(a), p_a at P(a), a = 0, 1 for springs 1, 2. */
@@ -258,8 +265,19 @@ static int usage(FILE *stream, int status) {
                   "The paper scene (Table 1, theta variable) with SUNDIALS CVODE BDF alone: Newton, dense solver,\n"
                   "analytic Jacobian (--difference-quotients: CVODE's), rtol = atol = TOL (1e-10) to t = T (20 s).\n"
                   "Prints the final state and CVODE's counts; --check-jacobian also the analytic Jacobian's\n"
-                  "deviation from central differences at the final state.\n");
+                  "deviation from central differences at the final state.\n\n"
+                  "--help, -h, -help: this text; --version: the code's and the libraries' versions. Each prints\n"
+                  "and exits with status 0.\n");
   return status;
+}
+
+/* The program's, SUNDIALS' (as the library reports it) and the compiler's versions, in the other
+ * programs' format. */
+static int print_versions(void) {
+  char sundials[64] = "unknown";
+  SUNDIALSGetVersion(sundials, (int)sizeof sundials);
+  printf("cvode_baseline (eme) %s\nSUNDIALS: %s\ncompiler: GCC version %s\n", EME_VERSION, sundials, __VERSION__);
+  return 0;
 }
 
 /* A positive number from text, or 0 where the text is not one. */
@@ -274,8 +292,12 @@ int main(int argc, char **argv) {
   int difference_quotients = 0, check_jacobian = 0, flag;
   parameters model = table1;
 
+  /* --help, -h, -help and --version answer at once, wherever they stand. */
   for (int i = 1; i < argc; ++i) {
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) return usage(stdout, 0);
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h") || !strcmp(argv[i], "-help")) return usage(stdout, 0);
+    if (!strcmp(argv[i], "--version")) return print_versions();
+  }
+  for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--difference-quotients")) difference_quotients = 1;
     else if (!strcmp(argv[i], "--check-jacobian")) check_jacobian = 1;
     else if (!strcmp(argv[i], "--tolerance") && i + 1 < argc && (tolerance = positive_number(argv[++i])) > 0.0) continue;
