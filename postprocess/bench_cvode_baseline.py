@@ -22,7 +22,7 @@ libraries' constructors) and their share of the process.
 
 Whole run: the process wall time of eme_run on the paper scene (inputs/paper_fig4_eme_theta.nml,
 its file in a scratch folder) and of cvode_baseline (to t = 20 s), alternating, the order
-flipped every repeat; the medians and the median of the per-pair ratios:
+flipped every repeat; the medians and the median of the per-pair ratios (their CPU times beside):
   whole_run_over_cvode_baseline    eme_run's process / cvode_baseline's process           (target 2.5)
 
 Each part ends with the machine's load around it (machine_load.py). A program that fails, or a
@@ -31,9 +31,9 @@ missing valgrind, ends the script with the message and exit status 1.
 import argparse
 import os
 import re
+import resource
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -146,11 +146,14 @@ def instructions(bin_dir, folder):
     load.report("bench_cvode_baseline.py")
 
 
-def wall(command):
-    """The process's wall time, s (ProgramFailed if it fails)."""
+def wall_and_cpu(command):
+    """The process's wall time and CPU time (user and system), s (ProgramFailed if it fails)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     run_program(command)
-    return time.perf_counter() - start
+    elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return elapsed, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
 
 
 def whole_runs(bin_dir, folder, repeats):
@@ -162,11 +165,15 @@ def whole_runs(bin_dir, folder, repeats):
     with machine_load.measured(own=1) as load:
         for repeat in range(repeats):
             for name in (list(programs) if repeat % 2 == 0 else reversed(list(programs))):
-                times[name].append(wall(programs[name]))
+                times[name].append(wall_and_cpu(programs[name]))
     median = statistics.median
-    ratio = median(run / c for run, c in zip(times["eme_run"], times["cvode_baseline"]))
+    walls, cpus = ({name: [t[k] for t in times[name]] for name in times} for k in (0, 1))
+    ratio = median(run / c for run, c in zip(walls["eme_run"], walls["cvode_baseline"]))
     print(f"whole run (process wall, medians of {repeats} alternating pairs): eme_run on the paper scene "
-          f"{1e3 * median(times['eme_run']):.1f} ms, cvode_baseline to t = 20 s {1e3 * median(times['cvode_baseline']):.1f} ms")
+          f"{1e3 * median(walls['eme_run']):.1f} ms, cvode_baseline to t = 20 s "
+          f"{1e3 * median(walls['cvode_baseline']):.1f} ms; their CPU times {1e3 * median(cpus['eme_run']):.1f} and "
+          f"{1e3 * median(cpus['cvode_baseline']):.1f} ms (ratio "
+          f"{median(run / c for run, c in zip(cpus['eme_run'], cpus['cvode_baseline'])):.3f})")
     print(target_line("whole_run_over_cvode_baseline", ratio, TARGETS["whole_run_over_cvode_baseline"]))
     load.report("bench_cvode_baseline.py")
 
