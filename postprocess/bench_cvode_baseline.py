@@ -28,7 +28,6 @@ flipped every repeat; the medians and the median of the per-pair ratios (their C
 Each part ends with the machine's load around it (machine_load.py). A program that fails, or a
 missing valgrind, ends the script with the message and exit status 1.
 """
-import argparse
 import os
 import re
 import resource
@@ -42,7 +41,7 @@ from pathlib import Path
 import h5py
 
 import machine_load
-from bench_eme_run import ProgramFailed, run_program, target_line
+from bench_eme_run import ProgramFailed, bench_main, run_program, target_line
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER_SCENE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
@@ -178,19 +177,16 @@ def whole_runs(bin_dir, folder, repeats):
     load.report("bench_cvode_baseline.py")
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="folder of eme_run and cvode_baseline")
-    parser.add_argument("--repeats", type=int, default=15, help="alternating pairs of whole runs (default 15)")
-    args = parser.parse_args(argv)
-    try:
-        with tempfile.TemporaryDirectory(prefix="bench_cvode_baseline_") as scratch:
-            instructions(Path(args.bin), Path(scratch))
-            whole_runs(Path(args.bin), Path(scratch), args.repeats)
-    except ProgramFailed as error:
-        print(f"bench_cvode_baseline.py: error: {error}", file=sys.stderr)
-        return 1
+def measure(bin_dir, repeats):
+    """Both parts, in a scratch folder of their own."""
+    with tempfile.TemporaryDirectory(prefix="bench_cvode_baseline_") as scratch:
+        instructions(bin_dir, Path(scratch))
+        whole_runs(bin_dir, Path(scratch), repeats)
     return 0
+
+
+def main(argv=None):
+    return bench_main(argv, __doc__, "eme_run and cvode_baseline", 15, measure)
 
 
 if __name__ == "__main__":

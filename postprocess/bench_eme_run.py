@@ -112,16 +112,23 @@ def snes_by_itself(binary, solves=5000):
     return tuple(float(value) for value in found.groups())
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="folder of eme_run and eme_bench")
-    parser.add_argument("--repeats", type=int, default=7, help="alternating pairs (default 7)")
+def bench_main(argv, description, programs, repeats, measure):
+    """The command line of a bench script: --bin (the folder of `programs`) and --repeats (default
+    `repeats`); returns measure(bin folder, repeats), or 1 after printing the message of a
+    program that failed (ProgramFailed) as the script's error."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--bin", default=str(ROOT / "build" / "bin"), help=f"folder of {programs}")
+    parser.add_argument("--repeats", type=int, default=repeats, help=f"alternating pairs (default {repeats})")
     args = parser.parse_args(argv)
     try:
-        return report(Path(args.bin), args.repeats)
+        return measure(Path(args.bin), args.repeats)
     except ProgramFailed as error:
-        print(f"bench_eme_run.py: error: {error}", file=sys.stderr)
+        print(f"{Path(sys.argv[0]).name}: error: {error}", file=sys.stderr)
         return 1
+
+
+def main(argv=None):
+    return bench_main(argv, __doc__, "eme_run, eme_bench and snes_overhead", 7, report)
 
 
 def report(bin_dir, repeats):
