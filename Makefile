@@ -51,7 +51,7 @@ CFLAGS := -O2 -g -Wall -Wextra -std=c11 $(ARCH_FLAGS)
 # ---------------------------------------------------------------- sources
 # Every source file is found by its folder: a new module needs no Makefile edit. Module
 # dependencies are read from the `use` statements (a module lives in the file of its name).
-LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c))
+LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c src/*/*/*.f90 src/*/*/*.F90 src/*/*/*.c))
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
 # Programs in C on SUNDIALS CVODE alone, compiled and linked without MPI, PETSc or HDF5
@@ -77,15 +77,13 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o $(OBJ)/src/io/petsc_errors.o \
 $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o \
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): CFLAGS += $(PETSC_FLAGS)
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
-# some arguments are not needed.
-$(OBJ)/src/solver/snes_solver.o $(OBJ)/src/solver/snes_shell.o $(filter $(OBJ)/src/integrator/%,$(LIBRARY_OBJECTS)) \
-$(OBJ)/src/model/length_constraint.o \
-$(OBJ)/src/structure/temperature_constraint.o $(OBJ)/src/model/pendulum_scene.o \
-$(OBJ)/src/model/pendulum_model.o $(OBJ)/src/structure/invariant_function.o \
-$(OBJ)/src/solver/hand_newton.o: FFLAGS += -Wno-unused-dummy-argument
-$(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): FFLAGS += $(KERNEL_FLAGS)
+# some arguments are not needed. By folder (a model's folder included), so a new module needs no
+# edit here.
+$(filter $(OBJ)/src/solver/% $(OBJ)/src/structure/% $(OBJ)/src/integrator/% $(OBJ)/src/model/%,$(LIBRARY_OBJECTS)): \
+  private FFLAGS += -Wno-unused-dummy-argument
+$(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): private FFLAGS += $(KERNEL_FLAGS)
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
@@ -206,10 +204,10 @@ $(BUILD)/version.stamp: FORCE
 	@mkdir -p $(BUILD)
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
 $(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp VERSION
-$(OBJ)/src/io/build_info.o: FFLAGS += -DEME_VERSION='"$(VERSION)"'
+$(OBJ)/src/io/build_info.o: private FFLAGS += -DEME_VERSION='"$(VERSION)"'
 # The programs in C (snes_overhead, cvode_baseline) print the same version.
 $(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): $(BUILD)/version.stamp VERSION
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): CFLAGS += -DEME_VERSION='"$(VERSION)"'
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): private CFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up

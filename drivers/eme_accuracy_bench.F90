@@ -15,7 +15,7 @@ program eme_accuracy_bench
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: real64, output_unit, error_unit
-  use thermo_variable, only: tau_temperature
+  use thermo_variable_kinds, only: tau_temperature
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use pendulum_scene, only: double_pendulum_scene

@@ -18,7 +18,7 @@ program eme_bench
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: real64, int64, output_unit, error_unit
-  use thermo_variable, only: tau_entropy, tau_temperature, tau_internal_energy
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use pendulum_scene, only: double_pendulum_scene

@@ -11,6 +11,7 @@ program eme_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use run_config, only: run_configuration, read_run_config
   use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only
   use run_options, only: progress_wanted
@@ -104,7 +105,8 @@ contains
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
     type(output_lock) :: lock
-    character(len=:), allocatable :: holder
+    character(len=:), allocatable :: holder, momentum_part
+    character(len=9) :: number
     integer :: k
 
     ! One writer per output: a second run of the same file is refused before it writes anything.
@@ -148,12 +150,18 @@ contains
       write (output_unit, '(a, ": ", a, ", 0/", i0, " steps: no step completed, ", f8.3, a)') config%output_file, &
         summary%status, summary%steps_planned, summary%wall_seconds, ' s'
     else if (stat == 0) then
+      ! The momentum drift only for a model with a conserved momentum (NaN otherwise).
+      momentum_part = ''
+      if (.not. ieee_is_nan(summary%angular_momentum_drift)) then
+        write (number, '(es9.2)') summary%angular_momentum_drift
+        momentum_part = ', |d'//trim(summary%conserved_momentum)//'| <= '//number
+      end if
       write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
-        & es9.2, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
+        & a, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
         summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
-        summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J, |dJz| <= ', &
-        summary%angular_momentum_drift, ', Newton/step ', &
-        real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', summary%wall_seconds, ' s'
+        summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J', momentum_part, &
+        ', Newton/step ', real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', &
+        summary%wall_seconds, ' s'
     end if
     if (stat == 0 .and. summary%rejected_steps > 0) write (output_unit, '(a, i0, a, i0, a)') '  step-size control: ', &
       summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'

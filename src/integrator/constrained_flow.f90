@@ -112,15 +112,21 @@ contains
     do k = 1, size(constraints)
       call constraints(k)%item%project_positions(model, z)
     end do
-    ! The conditions linear in the momenta at the new positions: J.a = momentum, c_k = 0.
-    m = 1
-    gradients(:, 1) = model%conserved_momentum_gradient(z)
-    residuals(1) = model%conserved_momentum(z) - momentum
+    ! The conditions linear in the momenta at the new positions: J.a = momentum (for a model with
+    ! a conserved momentum), c_k = 0.
+    m = 0
+    if (model%conserved_momentum_column > 0) then
+      m = 1
+      gradients(:, 1) = model%conserved_momentum_gradient(z)
+      residuals(1) = model%conserved_momentum(z) - momentum
+    end if
     do k = 1, size(constraints)
       call constraints(k)%item%momentum_condition(model, z, has, residuals(m + 1), gradients(:, m + 1))
       if (has) m = m + 1
     end do
-    if (m == 1) then
+    if (m == 0) then
+      continue
+    else if (m == 1) then
       ! One condition: no linear solve.
       gram(1, 1) = dot_product(gradients(:, 1), gradients(:, 1))
       if (gram(1, 1) > 0.0_real64) z = z - residuals(1)/gram(1, 1)*gradients(:, 1)
@@ -175,7 +181,11 @@ contains
     do k = 1, size(z)
       if (abs(z(k) - z0(k)) > 0.0_real64) changes = changes//', '//trim(model%column_names(k))//' = '//scientific_text(z(k))
     end do
-    text = text//'; the nearest state that satisfies it with the same angular momentum has '//changes(3:)
+    if (model%conserved_momentum_column > 0) then
+      text = text//'; the nearest state that satisfies it with the same conserved momentum has '//changes(3:)
+    else
+      text = text//'; the nearest state that satisfies it has '//changes(3:)
+    end if
   end function initial_inconsistency
 
 end module constrained_flow

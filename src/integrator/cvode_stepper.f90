@@ -35,12 +35,17 @@ module cvode_stepper
     type(c_ptr) :: handle = c_null_ptr
     !> CVODE's cumulative counts at the last output step (eme_cvode_statistics).
     integer(c_long) :: counts(6) = 0
+    real(real64) :: time = 0.0_real64          !! the time CVODE's state is at (after the last output step)
+    type(c_ptr) :: context_address = c_null_ptr   !! c_loc(context), which CVODE hands the callbacks
   contains
     procedure :: start
     procedure :: advance
     procedure :: release
     procedure :: diagnostics
     procedure :: describe_solver
+    procedure :: resume_state
+    procedure :: restore_state
+    procedure, private :: create
   end type cvode_baseline
 
   interface
@@ -114,13 +119,47 @@ contains
     call self%release(ierr)
     if (allocated(self%context%model)) deallocate (self%context%model)
     allocate (self%context%model, source=model)
-    self%counts = 0
     self%tolerance = choice%tolerance
-    ierr = eme_cvode_create(int(size(z0), c_int), merge(1_c_int, 0_c_int, self%bdf), 0.0_c_double, z0, &
-                            choice%tolerance, choice%tolerance, c_funloc(field), c_funloc(field_jacobian), &
-                            c_loc(self%context), self%handle)
+    self%context_address = c_loc(self%context)
+    call self%create(0.0_real64, z0, ierr)
     if (size(constraints) > 0) ierr = 1
   end subroutine start
+
+  ! CVODE from state z at time t, without history: its first step is of order 1.
+  subroutine create(self, t, z, ierr)
+    class(cvode_baseline), intent(inout) :: self
+    real(real64), intent(in) :: t, z(:)
+    integer, intent(out) :: ierr
+
+    self%counts = 0
+    self%time = t
+    ierr = eme_cvode_create(int(size(z), c_int), merge(1_c_int, 0_c_int, self%bdf), t, z, self%tolerance, &
+                            self%tolerance, c_funloc(field), c_funloc(field_jacobian), self%context_address, self%handle)
+  end subroutine create
+
+  !> A continued run cannot restore CVODE's history (its Nordsieck array and order), only its
+  !> time: CVODE starts again from the run's last state, at order 1 with a step of its choice,
+  !> and the continued run is correct to its tolerance, not bit for bit (docs/faults.md).
+  subroutine resume_state(self, values)
+    class(cvode_baseline), intent(in) :: self
+    real(real64), allocatable, intent(inout) :: values(:)
+
+    values = [self%time]
+  end subroutine resume_state
+
+  !> A new CVODE run from the state x at the time resume_state gave; ierr = 1 if `values` are
+  !> not resume_state's, or CVODE cannot be set up.
+  subroutine restore_state(self, values, x, x_previous, ierr)
+    class(cvode_baseline), intent(inout) :: self
+    real(real64), intent(in) :: values(:), x(:), x_previous(:)
+    integer, intent(out) :: ierr
+
+    ierr = 1
+    if (size(values) /= 1) return
+    call self%release(ierr)
+    if (ierr /= 0) return
+    call self%create(values(1), x(1:self%context%model%state_size), ierr)
+  end subroutine restore_state
 
   !> Integrates from CVODE's current state to t_old + dt exactly. x_old and guess are not
   !> needed: CVODE carries its state and history from one output step to the next.
@@ -141,6 +180,7 @@ contains
     allocate (report%scheme_temperature(self%context%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
     flag = eme_cvode_advance(self%handle, t_old + dt, x_new, t_reached)
+    self%time = t_reached
     report%converged_reason = int(flag)
     ierr = eme_cvode_statistics(self%handle, counts, last_order, last_step)
     if (ierr /= 0) return

@@ -1,10 +1,10 @@
 !> The one-step schemes of the paper, each step one nonlinear system solved by Newton's method in
 !> PETSc SNES (src/solver/snes_solver) under the retry strategies (src/solver/retry_strategies):
 !> EME, whose partials are discrete gradients, and the implicit midpoint rule, whose partials are
-!> the exact ones at the midpoint. The double pendulum's step, with or without its constraints, is
-!> solved on the condensed unknowns by the fused kernel (src/scheme/pendulum_step_kernel); any
-!> other model or constraint by the generic residual (src/scheme/step_residual), which
-!> -eme_fused_kernel false also selects.
+!> the exact ones at the midpoint. A model that offers a fused step (src/scheme/condensed_step,
+!> registered in src/model/model_registry; the double pendulum's, with or without its
+!> constraints) has its steps solved on its condensed unknowns; any other model or constraint by
+!> the generic residual (src/scheme/step_residual), which -eme_fused_kernel false also selects.
 !> A step of dt whose root no strategy finds is replaced by two steps of dt/2 of the same scheme,
 !> recursively, down to dt/2**6 (-eme_max_halvings changes the depth): each is a full step, so the
 !> structure holds on every substep and so over the output step. The output stays on the user's
@@ -27,7 +27,8 @@ module discrete_gradient_stepper
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint
-  use pendulum_step_kernel, only: pendulum_step, build_pendulum_step, condensed_offset
+  use condensed_step, only: condensed_step_problem
+  use model_registry, only: fused_step_of
   use snes_solver, only: newton_solver
   use solver_options, only: step_solver_options, read_solver_options, read_step_control_options
   use retry_strategies, only: root_search, find_root
@@ -74,7 +75,7 @@ module discrete_gradient_stepper
   type, extends(time_stepper) :: step_solver
     integer :: partials_rule = partials_discrete_gradient
     type(step_problem) :: problem          !! the generic step (kept up to date also when fused)
-    type(pendulum_step) :: kernel          !! the fused, condensed step
+    class(condensed_step_problem), allocatable :: kernel   !! the model's fused step, if it offers one
     logical :: fused = .false.             !! the kernel solves the steps
     integer :: max_halvings = 6            !! a step is solved in halves down to dt/2**max_halvings
     type(newton_solver) :: solver
@@ -166,7 +167,8 @@ contains
     if (allocated(self%x_last)) deallocate (self%x_last, self%increment)
     self%h_last = 0.0_real64
     self%fused = .false.
-    if (options%fused_kernel) call build_pendulum_step(self%problem, self%kernel, self%fused)
+    if (allocated(self%kernel)) deallocate (self%kernel)
+    if (options%fused_kernel) call fused_step_of(self%problem, self%kernel, self%fused)
     if (self%fused) then
       call self%solver%prepare(self%kernel, choice%newton_tol, choice%newton_max_iterations, ierr)
     else
@@ -268,7 +270,7 @@ contains
     report%scheme_temperature = 0.0_real64
     if (ierr /= 0 .or. .not. report%accepted) return
     if (self%fused) then
-      call self%kernel%scheme_temperatures(x_new(condensed_offset + 1:), report%scheme_temperature, stat)
+      call self%kernel%scheme_temperatures(x_new(self%kernel%eliminated + 1:), report%scheme_temperature, stat)
     else
       call self%problem%scheme_temperatures(x_new, report%scheme_temperature, stat)
     end if
@@ -339,9 +341,9 @@ contains
       call self%kernel%set_old_state(x_old)
       self%kernel%dt = h
       block
-        real(real64) :: y_new(size(guess) - condensed_offset)
+        real(real64) :: y_new(size(guess) - self%kernel%eliminated)
 
-        call find_root(self%solver, self%kernel, start(condensed_offset + 1:), self%kernel%condense(guess), y_new, &
+        call find_root(self%solver, self%kernel, start(self%kernel%eliminated + 1:), self%kernel%condense(guess), y_new, &
                        search, ierr, continuing)
         x_new = self%kernel%expand(y_new)
       end block
@@ -362,41 +364,29 @@ contains
   !> What a step leaves for the next (a continued run restores it, bit for bit): the step-size
   !> controller's next trial step and error history, the last step's length (the adaptive
   !> predictor's scale), and the LU factors of the last Newton iteration (the chord refinement of
-  !> the next predictor). Layout: h, err_old, has_history, h_last, x_last given, LU ready, LU order
-  !> m, the m*m factors, the m pivots.
+  !> the next predictor). Layout: h, err_old, has_history, h_last, x_last given, then the
+  !> factors as lu_factors' as_values.
   subroutine resume_state(self, values)
     class(step_solver), intent(in) :: self
     real(real64), allocatable, intent(inout) :: values(:)
-    integer :: m
 
-    m = 0
-    associate (lu => self%solver%context%lu)
-      if (lu%ready) m = size(lu%pivots)
-      if (allocated(values)) then
-        if (size(values) /= 7 + m*m + m) deallocate (values)
-      end if
-      if (.not. allocated(values)) allocate (values(7 + m*m + m))
-      values(1:7) = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
-                     self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), &
-                     merge(1.0_real64, 0.0_real64, lu%ready), real(m, real64)]
-      if (m > 0) then
-        values(8:7 + m*m) = reshape(lu%factors(1:m, 1:m), [m*m])
-        values(8 + m*m:) = real(lu%pivots(1:m), real64)
-      end if
-    end associate
+    values = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
+              self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), self%solver%context%lu%as_values()]
   end subroutine resume_state
 
   !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its layout.
+  !> Factors of another system size (another -eme_fused_kernel) are not this solver's: the next
+  !> predictor then goes without the chord refinement.
   subroutine restore_state(self, values, x, x_previous, ierr)
     class(step_solver), intent(inout) :: self
     real(real64), intent(in) :: values(:), x(:), x_previous(:)
     integer, intent(out) :: ierr
-    integer :: m
+    logical :: ok
 
     ierr = 1
-    if (size(values) < 7) return
-    m = nint(values(7))
-    if (m < 0 .or. size(values) /= 7 + m*m + m) return
+    if (size(values) < 5) return
+    call self%solver%context%lu%from_values(values(6:), self%solver%n, ok)
+    if (.not. ok) return
     ierr = 0
     self%controller%h = values(1)
     self%controller%err_old = values(2)
@@ -406,16 +396,6 @@ contains
       self%x_last = x
       self%increment = x - x_previous
     end if
-    associate (lu => self%solver%context%lu)
-      ! Factors of another system size (another -eme_fused_kernel) are not this solver's: the
-      ! next predictor then goes without the chord refinement.
-      lu%ready = nint(values(6)) == 1 .and. m > 0 .and. m == self%solver%n
-      if (.not. lu%ready) return
-      if (allocated(lu%factors)) deallocate (lu%factors)
-      if (allocated(lu%pivots)) deallocate (lu%pivots)
-      lu%factors = reshape(values(8:7 + m*m), [m, m])
-      lu%pivots = nint(values(8 + m*m:))
-    end associate
   end subroutine restore_state
 
 end module discrete_gradient_stepper

@@ -1,7 +1,7 @@
 !> The settings of the &integrator namelist group that the integrators read (docs/input.md).
 module integrator_settings
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use thermo_variable, only: tau_temperature
+  use thermo_variable_kinds, only: tau_temperature
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional
   implicit none (type, external)
   private

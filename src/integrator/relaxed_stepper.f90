@@ -32,7 +32,7 @@
 module relaxed_stepper
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: domain_ok
-  use thermo_variable, only: tau_entropy
+  use thermo_variable_kinds, only: tau_entropy
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3
@@ -95,6 +95,8 @@ module relaxed_stepper
     procedure :: release
     procedure :: diagnostics
     procedure :: describe_solver
+    procedure :: resume_state
+    procedure :: restore_state
     procedure, private :: restore
   end type relaxed_runge_kutta
 
@@ -466,6 +468,52 @@ contains
     end do
     ok = .true.
   end subroutine stage_derivatives
+
+  !> What a step leaves for the next (a continued run restores it, bit for bit): the time, the
+  !> adaptive method's next trial step, the state in entropy variables (the run's file holds it in
+  !> the run's own variable, which converts back only to rounding), and for implicit stages the
+  !> last step's stage derivatives (the next predictor) and the stage solver's LU factors (its
+  !> chord refinement). Layout: t, h_next, n, z(1:n), m, last_stages(1:m) (m = 0: none), then
+  !> the factors as lu_factors' as_values.
+  subroutine resume_state(self, values)
+    class(relaxed_runge_kutta), intent(in) :: self
+    real(real64), allocatable, intent(inout) :: values(:)
+    real(real64), allocatable :: stages(:), factors(:)
+
+    allocate (stages(0))
+    if (allocated(self%last_stages)) stages = self%last_stages
+    factors = [0.0_real64, 0.0_real64]
+    if (self%tableau%implicit) factors = self%solver%context%lu%as_values()
+    values = [self%t, self%h_next, real(size(self%z), real64), self%z, real(size(stages), real64), stages, factors]
+  end subroutine resume_state
+
+  !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its
+  !> layout for this run's state.
+  subroutine restore_state(self, values, x, x_previous, ierr)
+    class(relaxed_runge_kutta), intent(inout) :: self
+    real(real64), intent(in) :: values(:), x(:), x_previous(:)
+    integer, intent(out) :: ierr
+    integer :: n, m, solver_order
+    logical :: ok
+
+    ierr = 1
+    n = size(self%z)
+    if (size(values) < 4 + n) return
+    if (nint(values(3)) /= n) return
+    m = nint(values(4 + n))
+    if (m /= 0 .and. m /= n*self%tableau%stages) return
+    if (size(values) < 4 + n + m) return
+    solver_order = 0
+    if (self%tableau%implicit) solver_order = self%solver%n
+    call self%solver%context%lu%from_values(values(5 + n + m:), solver_order, ok)
+    if (.not. ok) return
+    ierr = 0
+    self%t = values(1)
+    self%h_next = values(2)
+    self%z = values(4:3 + n)
+    if (allocated(self%last_stages)) deallocate (self%last_stages)
+    if (m > 0) self%last_stages = values(5 + n:4 + n + m)
+  end subroutine restore_state
 
   !> The time the next step lands on when it reaches it: t_end, or an earlier output time.
   pure real(real64) function landing_time(self)

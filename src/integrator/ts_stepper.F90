@@ -55,11 +55,14 @@ module ts_stepper
     PetscInt :: snes_iterations = 0
     PetscInt :: steps = 0
     PetscInt :: rejections = 0
+    real(real64) :: next_step = 0.0_real64   !! the step TS holds after the last output step (ts_rk5dp's next trial)
   contains
     procedure :: start
     procedure :: advance
     procedure :: release
     procedure :: describe_solver
+    procedure :: resume_state
+    procedure :: restore_state
   end type ts_baseline
 
 contains
@@ -223,6 +226,7 @@ contains
       PetscCall(TSGetSNES(self%ts, snes, ierr))
       PetscCall(SNESGetFunctionNorm(snes, report%residual_norm, ierr))
     end if
+    PetscCall(TSGetTimeStep(self%ts, self%next_step, ierr))
     PetscCall(TSGetSNESIterations(self%ts, snes_iterations, ierr))
     PetscCall(TSGetStepNumber(self%ts, steps, ierr))
     PetscCall(TSGetStepRejections(self%ts, rejections, ierr))
@@ -241,8 +245,8 @@ contains
         report%reason = 'PETSc TS: the Newton solve of an implicit step diverged (TS_DIVERGED_NONLINEAR_SOLVE)'
       case (TS_DIVERGED_STEP_REJECTED)
         if (self%context%domain_rejections > 0) then
-          report%reason = 'PETSc TS: a stage left the model''s domain, a non-positive temperature or spring ' &
-                          //'length (TS_DIVERGED_STEP_REJECTED)'
+          report%reason = 'PETSc TS: a stage left the model''s domain, a non-positive temperature or length ' &
+                          //'(TS_DIVERGED_STEP_REJECTED)'
         else
           report%reason = 'PETSc TS: too many rejected steps (TS_DIVERGED_STEP_REJECTED)'
         end if
@@ -254,6 +258,33 @@ contains
     end if
     call accept_in_domain(self%context%model, x_new, report)
   end subroutine advance
+
+  !> What an output step leaves for the next beyond the state: the step TS holds (ts_rk5dp's
+  !> next trial step). A multistep method's history (BDF2's earlier states) is not kept: a
+  !> continued ts_bdf2 run starts again as at t = 0, with one step of order 1, and is correct to
+  !> its order, not bit for bit (docs/faults.md).
+  subroutine resume_state(self, values)
+    class(ts_baseline), intent(in) :: self
+    real(real64), allocatable, intent(inout) :: values(:)
+
+    values = [self%next_step]
+  end subroutine resume_state
+
+  !> The TS's state becomes x (the time comes with each advance), its step resume_state's;
+  !> ierr = 1 if `values` are not resume_state's.
+  subroutine restore_state(self, values, x, x_previous, ierr)
+    class(ts_baseline), intent(inout) :: self
+    real(real64), intent(in) :: values(:), x(:), x_previous(:)
+    integer, intent(out) :: ierr
+    PetscScalar, pointer :: state(:)
+
+    ierr = 1
+    if (size(values) /= 1) return
+    PetscCall(VecGetArrayF90(self%x, state, ierr))
+    state = x(1:size(state))
+    PetscCall(VecRestoreArrayF90(self%x, state, ierr))
+    PetscCall(TSSetTimeStep(self%ts, values(1), ierr))
+  end subroutine restore_state
 
   !> The TS as the options database left it (after TSSetFromOptions): type, adaptivity and
   !> tolerances, and for the implicit methods their SNES and linear solver; PETSc's names of the

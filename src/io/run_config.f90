@@ -7,7 +7,7 @@
 !> items of the group the name belongs to, and validated with them.
 module run_config
   use, intrinsic :: iso_fortran_env, only: real64
-  use thermo_variable, only: thermo_variable_names
+  use thermo_variable_kinds, only: thermo_variable_names
   use discrete_gradient, only: discrete_gradient_names, metric_names
   use integrator_settings, only: integrator_choice, step_count, default_step_budget
   use integrator_registry, only: integrator_entry, find_integrator, integrator_names

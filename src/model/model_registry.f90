@@ -1,21 +1,64 @@
-!> The models the code offers, by the name &model model_name selects (default: the paper's
-!> double pendulum). Adding a model: its modules in src/model (a generic_model, a scene with its
-!> namelist groups) and one case below.
+!> The models the code offers, one line each in `registered_models`: the name &model model_name
+!> selects (default: the paper's double pendulum), the maker of its scene (its namelist groups,
+!> src/model/model_scene) and, if the model has one, the maker of its fused step
+!> (src/scheme/condensed_step). Adding a model: its folder src/model/NAME/ and one line below
+!> (docs/development.md, Adding a model). This is the only module outside a model's folder
+!> that uses the model's modules (tests/architecture/test_layers.py).
 module model_registry
   use namelist_text, only: namelist_item, group_items, item_name
   use model_scene, only: scene
-  use pendulum_scene, only: double_pendulum_scene, double_pendulum_name
+  use step_residual, only: step_problem
+  use condensed_step, only: condensed_step_problem
+  use pendulum_scene, only: double_pendulum_name, new_double_pendulum_scene
+  use pendulum_step_kernel, only: pendulum_fused_step
   implicit none (type, external)
   private
-  public :: select_scene, model_names
+  public :: select_scene, model_names, fused_step_of
+
+  !> One model.
+  type :: model_entry
+    character(len=24) :: name = ''
+    procedure(scene_maker), pointer, nopass :: make_scene => null()
+    !> The model's fused step for a step problem; not associated: the generic step serves.
+    procedure(fused_step_maker), pointer, nopass :: make_fused_step => null()
+  end type model_entry
+
+  abstract interface
+    subroutine scene_maker(made)
+      import :: scene
+      class(scene), allocatable, intent(out) :: made
+    end subroutine scene_maker
+
+    !> The fused step of `problem` if it is this model's and the fused step covers the scheme and
+    !> the active constraints (built); otherwise built = .false.
+    subroutine fused_step_maker(problem, kernel, built)
+      import :: step_problem, condensed_step_problem
+      type(step_problem), intent(in) :: problem
+      class(condensed_step_problem), allocatable, intent(out) :: kernel
+      logical, intent(out) :: built
+    end subroutine fused_step_maker
+  end interface
 
 contains
 
-  !> The names of the models, blank-separated.
-  pure function model_names() result(names)
-    character(len=:), allocatable :: names
+  !> The registry: the first line is the default model.
+  function registered_models() result(entries)
+    type(model_entry), allocatable :: entries(:)
 
-    names = double_pendulum_name
+    entries = [model_entry(double_pendulum_name, new_double_pendulum_scene, pendulum_fused_step)]
+  end function registered_models
+
+  !> The names of the models, blank-separated.
+  function model_names() result(names)
+    character(len=:), allocatable :: names
+    type(model_entry), allocatable :: entries(:)
+    integer :: i
+
+    entries = registered_models()
+    names = trim(entries(1)%name)
+    do i = 2, size(entries)
+      names = names//' '//trim(entries(i)%name)
+    end do
   end function model_names
 
   !> The scene of the model that &model model_name (in the text or the `extra` items) names;
@@ -27,13 +70,15 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
     type(namelist_item), allocatable :: items(:)
+    type(model_entry), allocatable :: entries(:)
     character(len=64) :: name
     character(len=:), allocatable :: where
     integer :: i
 
     stat = 0
     message = ''
-    name = double_pendulum_name
+    entries = registered_models()
+    name = entries(1)%name
     where = origin
     call group_items(text, 'model', [character(len=24) :: 'model_name'], origin, items, extra)
     do i = 1, size(items)
@@ -41,14 +86,37 @@ contains
       read (items(i)%item(index(items(i)%item, '=') + 1:), *, iostat=stat) name
       where = items(i)%origin
     end do
-    select case (trim(name))
-    case (double_pendulum_name)
-      if (stat == 0) allocate (double_pendulum_scene :: selected)
-    case default
+    if (stat == 0) then
       stat = 1
-    end select
-    if (stat /= 0) message = where//': &model: model_name = '''//trim(name)//''' is not allowed; allowed: ''' &
-                             //model_names()//''''
+      do i = 1, size(entries)
+        if (trim(name) /= trim(entries(i)%name)) cycle
+        call entries(i)%make_scene(selected)
+        stat = 0
+      end do
+    end if
+    if (stat /= 0) then
+      message = where//': &model: model_name = '''//trim(name)//''' is not allowed; allowed: '''//trim(entries(1)%name)//''''
+      do i = 2, size(entries)
+        message = message//', '''//trim(entries(i)%name)//''''
+      end do
+    end if
   end subroutine select_scene
+
+  !> The fused step that `problem`'s model offers for it, if any (built = .false.: none).
+  subroutine fused_step_of(problem, kernel, built)
+    type(step_problem), intent(in) :: problem
+    class(condensed_step_problem), allocatable, intent(out) :: kernel
+    logical, intent(out) :: built
+    type(model_entry), allocatable :: entries(:)
+    integer :: i
+
+    built = .false.
+    entries = registered_models()
+    do i = 1, size(entries)
+      if (.not. associated(entries(i)%make_fused_step)) cycle
+      call entries(i)%make_fused_step(problem, kernel, built)
+      if (built) return
+    end do
+  end subroutine fused_step_of
 
 end module model_registry

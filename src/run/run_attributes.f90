@@ -9,10 +9,11 @@ module run_attributes
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
-  use thermo_variable, only: thermo_variable_names
+  use thermo_variable_kinds, only: thermo_variable_names
   use discrete_gradient, only: discrete_gradient_names, metric_names, metric_nondimensional, quotient_threshold
   use run_config, only: run_configuration
   use build_info, only: code_version
+  use run_schema, only: schema_version
   implicit none (type, external)
   private
   public :: write_run_attributes
@@ -38,8 +39,7 @@ contains
       if (entry%uses_discrete_gradient) then
         gradient = trim(discrete_gradient_names(choice%discrete_gradient))
         metric = trim(metric_names(choice%metric))
-        if (choice%metric == metric_nondimensional) metric = metric// &
-          ': C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
+        if (choice%metric == metric_nondimensional) metric = metric//': '//trim(model%words%metric_scales)
       end if
       stat = 0
       call text('scheme', trim(entry%name))
@@ -62,6 +62,7 @@ contains
     end associate
     call real_attribute('quotient_threshold', quotient_threshold, '1')
     if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
+    if (stat == 0) call file%set_integer('schema_version', schema_version, stat, units='1')
     if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
     if (stat == 0) call file%set_real('output_interval', config%output_interval, stat, units='s')
     if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')

@@ -31,7 +31,9 @@ module run_outcome
     real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
     real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
     real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
-    real(real64) :: angular_momentum_drift = 0.0_real64  !! max_n |J_z,n - J_z,0|
+    !> max_n |J_n - J_0| of the model's conserved momentum (J_z for the pendulum); NaN for a model without
+    real(real64) :: angular_momentum_drift = 0.0_real64
+    character(len=8) :: conserved_momentum = ''   !! its name for the summary line (Jz); '' if none
     !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
     real(real64) :: min_temperature = huge(1.0_real64)
     integer(int64) :: halved_steps = 0     !! failed attempts of the completed steps replaced by two halves

@@ -12,12 +12,13 @@ module run_output
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
-  use thermo_variable, only: thermo_variable_names
+  use thermo_variable_kinds, only: thermo_variable_names
   use run_config, only: run_configuration
   use effective_namelist, only: namelist_of_run
   use provenance, only: write_provenance, iso_time, command_line
   use run_outcome, only: run_summary, failure_io, failure_interrupted, failure_step_budget
-  use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words
+  use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words, &
+                        dataset_description
   use run_attributes, only: write_run_attributes
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use filesystem, only: os_error_text
@@ -139,6 +140,7 @@ contains
     do k = 1, size(output_schema)
       spec = output_schema(k)
       if (index(spec%columns, '<constraints>') > 0 .and. size(constraints) == 0) cycle
+      if (spec%columns == '<momenta>' .and. model%momentum_count() == 0) cycle
       if (spec%rows == 'point') then
         call define(self%store%tables(point_rows))
       else
@@ -165,7 +167,7 @@ contains
       character(len=:), allocatable :: common
 
       columns = expanded_columns(spec%columns, model, constraints)
-      description = trim(spec%description)
+      description = dataset_description(spec, model)
       if (spec%name == 'scheme_temperature') description = trim(entry%scheme_temperature)
       if (len(columns) == 0) then
         call table%define(trim(spec%name), 1, .false., trim(spec%units), description, &
@@ -213,9 +215,9 @@ contains
   !> with &output interval when `row_due` (the initial point at once).
   subroutine record_point(self, time, z, theta, energy, entropy, lyapunov, momentum, heat, residuals, row_due)
     class(run_file), intent(inout) :: self
-    real(real64), intent(in) :: time, z(:), theta(:), energy, entropy, lyapunov, momentum(3), heat, residuals(:)
+    real(real64), intent(in) :: time, z(:), theta(:), energy, entropy, lyapunov, momentum(:), heat, residuals(:)
     logical, intent(in) :: row_due
-    real(real64) :: row(8 + size(z) + size(theta) + size(residuals))
+    real(real64) :: row(5 + size(z) + size(theta) + size(momentum) + size(residuals))
     integer :: filled
     logical :: due
 

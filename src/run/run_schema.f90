@@ -11,11 +11,18 @@ module run_schema
   implicit none (type, external)
   private
   public :: output_dataset, output_schema, per_column, print_output_schema, dataset_coordinates, column_units, &
-            expanded_columns, count_words
+            expanded_columns, count_words, schema_version, model_says, dataset_description
+
+  !> The version of this layout, the run file's root attribute schema_version (absent before 2).
+  !> 2: the model describes its datasets (model_says), and a model without momenta has no
+  !> angular_momentum dataset.
+  integer, parameter :: schema_version = 2
 
   !> One dataset of the layout. `columns` names a vector's columns; the run fills in the
-  !> entries of the model's state (<state>), of its subsystems (<subsystems>) and of the active
-  !> constraints (<constraints>), prefixed as written (theta_<subsystems> gives theta_1 theta_2).
+  !> entries of the model's state (<state>), of its subsystems (<subsystems>), of its momenta
+  !> (<momenta>) and of the active constraints (<constraints>), prefixed as written
+  !> (theta_<subsystems> gives theta_1 theta_2). A description (or units) model_says comes from
+  !> the model's words (dataset_description).
   !> Units '<columns>': per column (the attribute column_units, from the model or the
   !> constraints). Datasets of constraints exist only when a constraint is active. `combine`: what
   !> a row holds that stands for several steps (&output every = N): the last step's value, or the
@@ -32,17 +39,20 @@ module run_schema
 
   !> Units of a dataset whose columns differ in units.
   character(len=*), parameter :: per_column = '<columns>'
+  !> A description or units the run's model gives (src/structure/model_interface, model_words).
+  character(len=*), parameter :: model_says = '<the model says>'
 
   type(output_dataset), parameter :: output_schema(22) = [ &
     output_dataset('time', 'point', '', 's', .false., 'last', &
                    'time t_n of each point; the dimension scale of every per-point dataset'), &
     output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
                    'the state z in the run''s thermodynamic variable; `columns` names its entries'), &
-    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'last', 'spring temperatures'), &
-    output_dataset('energy', 'point', '', 'J', .false., 'last', 'total energy E = T + V_g + U_1 + U_2'), &
-    output_dataset('entropy', 'point', '', 'J/K', .false., 'last', 'total entropy S = S_1 + S_2'), &
+    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'last', model_says), &
+    output_dataset('energy', 'point', '', 'J', .false., 'last', model_says), &
+    output_dataset('entropy', 'point', '', 'J/K', .false., 'last', model_says), &
     output_dataset('lyapunov', 'point', '', 'J', .false., 'last', 'V = E - theta_r S, eq. (14)'), &
-    output_dataset('angular_momentum', 'point', 'J_x J_y J_z', 'J s', .false., 'last', 'J = q1 x p1 + q2 x p2'), &
+    output_dataset('angular_momentum', 'point', '<momenta>', per_column, .false., 'last', &
+                   model_says//'; only for a model with momenta'), &
     output_dataset('boundary_heat', 'point', '', 'J', .false., 'last', &
                    'heat supplied through constraints since t = 0, sum of dt times their heat supply (zero without)'), &
     output_dataset('constraint_residual', 'point', 'g_<constraints>', per_column, .false., 'last', &
@@ -106,8 +116,28 @@ contains
     if (rows == 'step' .and. name /= 'step' .and. name /= 'step_end_time') text = 'step_end_time'
   end function dataset_coordinates
 
-  ! The units of a vector dataset's `count` columns: the model's (<state>), the constraints'
-  ! (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.
+  !> A dataset's description for this run: the model's words where the schema says model_says.
+  function dataset_description(spec, model) result(text)
+    type(output_dataset), intent(in) :: spec
+    class(generic_model), intent(in) :: model
+    character(len=:), allocatable :: text
+
+    text = trim(spec%description)
+    if (index(spec%description, model_says) /= 1) return
+    select case (spec%name)
+    case ('temperature')
+      text = trim(model%words%temperature)
+    case ('energy')
+      text = trim(model%words%energy)
+    case ('entropy')
+      text = trim(model%words%entropy)
+    case ('angular_momentum')
+      text = trim(model%words%momenta)
+    end select
+  end function dataset_description
+
+  ! The units of a vector dataset's `count` columns: the model's (<state>; <momenta>), the
+  ! constraints' (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.
   function column_units(spec, model, constraints, count) result(units)
     type(output_dataset), intent(in) :: spec
     class(generic_model), intent(in) :: model
@@ -118,6 +148,8 @@ contains
 
     if (spec%columns == '<state>') then
       call model%column_units(units)
+    else if (spec%columns == '<momenta>') then
+      units = model%words%momentum_units
     else if (index(spec%columns, '<constraints>') > 0) then
       do k = 1, count
         if (spec%name == 'multiplier') then
@@ -144,6 +176,10 @@ contains
     if (template == '<state>') then
       do i = 1, model%state_size
         columns = columns//' '//trim(model%column_names(i))
+      end do
+    else if (template == '<momenta>') then
+      do i = 1, model%momentum_count()
+        columns = columns//' '//trim(model%momentum_names(i))
       end do
     else if (index(template, '<subsystems>') > 0) then
       at = index(template, '<subsystems>')

@@ -15,7 +15,7 @@ module simulation
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
+  use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
@@ -115,7 +115,7 @@ contains
     character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
-    real(real64) :: momentum(3)           !! the angular momentum of the state `observe` saw last
+    real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
@@ -193,7 +193,13 @@ contains
     n_state = model%state_size
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
-    allocate (theta(model%subsystem_count()), residuals(size(constraints)))
+    allocate (theta(model%subsystem_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    ! A model without a conserved momentum has no drift figure.
+    if (model%conserved_momentum_column == 0) then
+      summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
+    else
+      summary%conserved_momentum = squeezed_name(model%momentum_names(model%conserved_momentum_column))
+    end if
     x = 0.0_real64
     x(1:n_state) = z0
     boundary_heat = 0.0_real64
@@ -263,7 +269,7 @@ contains
     else
       call observe(z0, energy, entropy, lyapunov)
       energy_0 = energy
-      jz_0 = momentum(3)
+      jz_0 = conserved_momentum()
       call record_point(0.0_real64, z0, .true.)
       outputs_passed = 0
       x_previous = x
@@ -348,7 +354,8 @@ contains
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
-      summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(momentum(3) - jz_0))
+      if (model%conserved_momentum_column > 0) &
+        summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(conserved_momentum() - jz_0))
       call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
                                     integrator)
       if (output%write_due()) then
@@ -400,11 +407,6 @@ contains
       logical :: complete, any_file, beyond
 
       where = ' ('//config%input_file//', -eme_continue)'
-      if (entry%family /= family_discrete_gradient) then
-        call fail(failure_input, config%input_file//": &integrator scheme = '"//trim(entry%name)// &
-                  "' cannot continue a run yet; allowed with -eme_continue: eme, midpoint")
-        return
-      end if
       source = ''
       complete = .false.
       if (file_exists(config%output_file)) then
@@ -523,7 +525,7 @@ contains
       integer :: domain
 
       call model%observe(z, energy, entropy, theta, domain)
-      momentum = model%angular_momentum(z)
+      momentum = model%momenta(z)
       lyapunov = energy - config%theta_r*entropy
       ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
       if (.not. all(abs(theta) <= huge(1.0_real64))) then
@@ -532,6 +534,28 @@ contains
         summary%min_temperature = min(summary%min_temperature, minval(theta))
       end if
     end subroutine observe
+
+    ! A momentum's name without its underscores (J_z: Jz), as the summary line prints it.
+    pure function squeezed_name(name) result(squeezed)
+      character(len=*), intent(in) :: name
+      character(len=len(name)) :: squeezed
+      integer :: i, k
+
+      squeezed = ''
+      k = 0
+      do i = 1, len_trim(name)
+        if (name(i:i) == '_') cycle
+        k = k + 1
+        squeezed(k:k) = name(i:i)
+      end do
+    end function squeezed_name
+
+    ! The conserved momentum at the state `observe` saw last; NaN for a model without one (no
+    ! drift figure).
+    real(real64) function conserved_momentum()
+      conserved_momentum = ieee_value(1.0_real64, ieee_quiet_nan)
+      if (model%conserved_momentum_column > 0) conserved_momentum = momentum(model%conserved_momentum_column)
+    end function conserved_momentum
 
     ! One point: the state `observe` saw last, with what it is judged by (its temperatures, energy,
     ! entropy, V and momentum, kept by observe), and the active constraints' g.

@@ -11,7 +11,7 @@ module structure_file
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use structure_matrices, only: poisson_matrix, friction_matrix, energy_gradient, entropy_gradient
-  use thermo_variable, only: thermo_variable_names, tau_entropy, tau_internal_energy
+  use thermo_variable_kinds, only: thermo_variable_names, tau_entropy, tau_internal_energy
   use run_config, only: run_configuration
   use hdf5_files, only: hdf5_file
   use provenance, only: write_provenance

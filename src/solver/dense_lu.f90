@@ -21,6 +21,8 @@ module dense_lu
     procedure :: factor
     procedure :: factor_in_place
     procedure :: solve
+    procedure :: as_values
+    procedure :: from_values
   end type lu_factors
 
 contains
@@ -100,6 +102,48 @@ contains
       end do
     end do
   end subroutine factor_pivoted
+
+  !> The factors as numbers, for a continued run (from_values takes them back, bit for bit):
+  !> whether they are ready (1 or 0), their order m, the m*m factors by columns and the m pivots;
+  !> [0, 0] when none are ready.
+  pure function as_values(self) result(values)
+    class(lu_factors), intent(in) :: self
+    real(real64), allocatable :: values(:)
+    integer :: m
+
+    if (.not. self%ready) then
+      values = [0.0_real64, 0.0_real64]
+      return
+    end if
+    m = size(self%pivots)
+    values = [1.0_real64, real(m, real64), reshape(self%factors, [m*m]), real(self%pivots, real64)]
+  end function as_values
+
+  !> Takes back what as_values gave. Factors of another order than n (another system) are not
+  !> taken: then none are ready. ok = .false. if `values` are not as_values' layout.
+  pure subroutine from_values(self, values, n, ok)
+    class(lu_factors), intent(inout) :: self
+    real(real64), intent(in) :: values(:)
+    integer, intent(in) :: n
+    logical, intent(out) :: ok
+    integer :: m
+
+    self%ready = .false.
+    ok = .false.
+    if (size(values) < 2) return
+    m = nint(values(2))
+    if (nint(values(1)) == 0) then
+      ok = size(values) == 2
+      return
+    end if
+    if (m < 1 .or. size(values) /= 2 + m*m + m) return
+    ok = .true.
+    if (m /= n) return
+    call self%reset(n)
+    self%factors = reshape(values(3:2 + m*m), [m, m])
+    self%pivots = nint(values(3 + m*m:))
+    self%ready = .true.
+  end subroutine from_values
 
   !> b := A^-1 b with the factors, as LAPACK's dgetrs for one right-hand side.
   pure subroutine solve(self, b, info)

@@ -28,8 +28,9 @@ static const eme_option options[OPTION_COUNT] = {
     {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors",
      LOGICAL, 0, 0},
     {"-eme_fused_kernel", "<true>",
-     "Solve the double pendulum's step by its fused kernel on the condensed unknowns (9 plus multipliers); "
-     "false: the generic residual on 15 plus multipliers",
+     "Solve EME's and the midpoint rule's steps by the model's fused step on its condensed unknowns, where the "
+     "model offers one (the double pendulum: 9 plus multipliers); false: the generic residual on all unknowns "
+     "(the pendulum: 15 plus multipliers)",
      LOGICAL, 0, 0},
     {"-eme_lean_snes", "<true>",
      "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a full-step shell line search, "

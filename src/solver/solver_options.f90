@@ -3,8 +3,8 @@
 !> user gave, by part of their name. Each switch undoes one of the step's speed-ups, for
 !> measuring what it buys (docs/performance.md):
 !>   -eme_chord_predictor false   no chord refinement of the predictor
-!>   -eme_fused_kernel false      the generic residual on the full unknowns instead of the fused,
-!>                                condensed kernel (src/scheme/pendulum_step_kernel)
+!>   -eme_fused_kernel false      the generic residual on the full unknowns instead of the model's
+!>                                fused, condensed step (src/scheme/condensed_step), where it has one
 !>   -eme_lean_snes false         SNES builds the Jacobian (SNESComputeJacobian) and takes its
 !>                                'basic' line search
 !>   -eme_final_chord false       a new Jacobian for every Newton iteration

@@ -110,7 +110,7 @@ contains
 
     select case (stat)
     case (domain_nonpositive_length)
-      text = 'a non-positive spring length'
+      text = 'a non-positive length'
     case (domain_nonpositive_temperature)
       text = 'a non-positive temperature'
     case (domain_overflow)

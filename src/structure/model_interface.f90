@@ -13,13 +13,17 @@
 !>
 !> A new model extends `generic_model`: it fills `state_size`, `column_names` and `subsystems`
 !> when it is built, implements the deferred procedures and says its columns' units
-!> (`column_units`, 'unknown' by default). Everything else here is generic.
+!> (`column_units`, 'unknown' by default). It describes itself to the output (`words`) and
+!> declares its momenta, if it has any (`momentum_names`, `momenta`, and the one that is a first
+!> integral: `conserved_momentum_column`, `conserved_momentum` and its gradient); a model without
+!> has no momentum dataset, no drift figure and no momentum in the relaxed schemes' projection.
+!> Everything else here is generic.
 module model_interface
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_overflow
   implicit none (type, external)
   private
-  public :: generic_model, subsystem
+  public :: generic_model, subsystem, model_words
 
   !> One thermodynamic subsystem (a spring, with its temperature). The model's builder sets every
   !> component.
@@ -32,8 +36,24 @@ module model_interface
     real(real64), allocatable :: metric_scale(:)             !! typical sizes of x_a (docs/formulation.md section 5)
   end type subsystem
 
+  !> How the output and the messages describe a model (docs/output.md); generic by default.
+  type :: model_words
+    character(len=120) :: temperature = 'temperatures theta_a = dU_a/dS_a of the subsystems'
+    character(len=120) :: energy = 'total energy E: the mechanical energy and the subsystems'' U_a'
+    character(len=120) :: entropy = 'total entropy S: the sum of the subsystems'' S_a'
+    character(len=120) :: momenta = ''           !! the momentum dataset's description
+    character(len=16) :: momentum_units = ''
+    !> What the nondimensional metric of the discrete gradients divides each invariant by.
+    character(len=160) :: metric_scales = 'each invariant by its typical size (attributes metric_scale_*)'
+  end type model_words
+
   !> A GENERIC model with Mielke's split.
   type, abstract :: generic_model
+    type(model_words) :: words
+    !> The columns of the momentum dataset (angular_momentum); none: the model has no momenta.
+    character(len=8), allocatable :: momentum_names(:)
+    !> The column of momentum_names that is a first integral (its drift is reported); 0: none.
+    integer :: conserved_momentum_column = 0
     integer :: state_size = 0
     integer :: thermo_variable = 0                           !! thermo_variable's tau_* of every subsystem
     character(len=16), allocatable :: column_names(:)        !! of z, in the model's thermodynamic variable
@@ -44,12 +64,13 @@ module model_interface
     procedure(vector_field_interface), deferred :: vector_field
     procedure(scalar_of_state), deferred :: mechanical_energy
     procedure(vector_of_state), deferred :: mechanical_energy_gradient
-    procedure(momentum_interface), deferred :: angular_momentum
     procedure(poisson_interface), deferred :: poisson_matrix_0
     procedure(friction_interface), deferred :: friction_matrix_0
     procedure(in_variable_interface), deferred :: in_variable
-    procedure(scalar_of_state), deferred :: conserved_momentum
-    procedure(vector_of_state), deferred :: conserved_momentum_gradient
+    procedure :: conserved_momentum
+    procedure :: conserved_momentum_gradient
+    procedure :: momenta
+    procedure :: momentum_count
     procedure :: mechanical_energy_difference
     procedure :: energy_difference
     procedure :: convert_state
@@ -94,8 +115,7 @@ module model_interface
       class(generic_model), allocatable, intent(out) :: other
     end subroutine in_variable_interface
 
-    !> A scalar function of the state: the mechanical energy (kinetic and gravity), or the
-    !> component of the angular momentum that is a first integral (along gravity).
+    !> A scalar function of the state: the mechanical energy (kinetic and gravity).
     pure function scalar_of_state(self, z) result(value)
       import :: generic_model, real64
       class(generic_model), intent(in) :: self
@@ -103,22 +123,13 @@ module model_interface
       real(real64) :: value
     end function scalar_of_state
 
-    !> A gradient in z: of the mechanical energy; of the conserved momentum component, which is
-    !> linear in the momenta, with respect to the momenta only (zero in the other columns).
+    !> A gradient in z: of the mechanical energy.
     pure function vector_of_state(self, z) result(gradient)
       import :: generic_model, real64
       class(generic_model), intent(in) :: self
       real(real64), intent(in) :: z(:)
       real(real64) :: gradient(size(z))
     end function vector_of_state
-
-    !> The angular momentum J(z), whose component along gravity is a first integral.
-    pure function momentum_interface(self, z) result(j)
-      import :: generic_model, real64
-      class(generic_model), intent(in) :: self
-      real(real64), intent(in) :: z(:)
-      real(real64) :: j(3)
-    end function momentum_interface
 
     !> L0 of eq. (8): the Poisson matrix of the split, in z's layout.
     pure function poisson_interface(self) result(l0)
@@ -138,7 +149,42 @@ module model_interface
 
 contains
 
-  !> Number of subsystems.
+  !> The momenta the output records, in the order of momentum_names; none by default.
+  pure function momenta(self, z) result(values)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: values(self%momentum_count())
+
+    values = 0.0_real64
+  end function momenta
+
+  !> The number of momenta the model declares (0: none).
+  pure integer function momentum_count(self)
+    class(generic_model), intent(in) :: self
+
+    momentum_count = 0
+    if (allocated(self%momentum_names)) momentum_count = size(self%momentum_names)
+  end function momentum_count
+
+  !> The momentum that is a first integral (conserved_momentum_column's, or a combination along a
+  !> symmetry axis), linear in the momenta; 0 for a model without (then never called).
+  pure function conserved_momentum(self, z) result(value)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: value
+
+    value = 0.0_real64
+  end function conserved_momentum
+
+  !> The gradient of conserved_momentum in z: nonzero in the momenta only.
+  pure function conserved_momentum_gradient(self, z) result(gradient)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradient(size(z))
+
+    gradient = 0.0_real64
+  end function conserved_momentum_gradient
+
   !> The units of z's columns (the output's column_units); 'unknown' unless the model says.
   pure subroutine column_units(self, units)
     class(generic_model), intent(in) :: self
@@ -147,6 +193,7 @@ contains
     units = 'unknown'
   end subroutine column_units
 
+  !> Number of subsystems.
   pure integer function subsystem_count(self)
     class(generic_model), intent(in) :: self
 

@@ -37,7 +37,7 @@ contains
     bath%name = 'temperature'
     bath%multiplier_units = 'W'
     bath%value_units = 'K'
-    bath%meaning = 'g = Theta - temperature of the held spring; lambda: the heat supply into it'
+    bath%meaning = 'g = Theta - temperature of the held subsystem; lambda: the heat supply into it'
     bath%supplies_heat = .true.
     bath%part = part
     bath%temperature = temperature

@@ -21,8 +21,9 @@ LAYERS = {
     "util": "numbers as text, medians, solver descriptions, the namelist language (lexer, typed fields)",
     "solver": "nonlinear solving for any problem: the problem's interface, PETSc SNES, LU, retry strategies",
     "structure": "the GENERIC contract: the model interface, potentials in invariants, constraints, L and K",
-    "model": "the double pendulum: free energies, thermodynamic variables, the mechanics, its scenes",
-    "scheme": "discrete gradients, the step residual and Jacobian, the pendulum's fused step kernel",
+    "scheme": "discrete gradients, the generic step residual and Jacobian, the interface of a fused step",
+    "model": "the model registry and scenes; each model in a folder of its own (pendulum/: free energies, "
+             "thermodynamic variables, the mechanics, its scene and its fused step)",
     "integrator": "time steppers (EME, midpoint, relaxed Runge-Kutta, TS, CVODE), the registry, step control",
     "io": "run and study input, help texts, versions, provenance, HDF5 files and file-system helpers",
     "run": "the time loop, the run file's schema, signals, the MPI ensemble and its index",
@@ -41,7 +42,7 @@ def sources(root=ROOT):
     found = []
     for layer in LAYERS:
         folder = root / "drivers" if layer == "drivers" else root / "src" / layer
-        for path in sorted(folder.glob("*")):
+        for path in sorted(folder.rglob("*")):
             if path.suffix in (".f90", ".F90", ".c"):
                 found.append((path, layer))
     return found

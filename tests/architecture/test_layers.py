@@ -30,6 +30,36 @@ def copy(tmp_path):
     return tmp_path
 
 
+def foreign_uses_of_model_rooms(root):
+    """Uses of a module in a model's own folder (src/model/NAME/) from outside that folder, other
+    than the model registry's (its one registration line) and the drivers'."""
+    nodes, edges = module_graph.graph(root)
+    model_root = root / "src" / "model"
+
+    def room(name):
+        path = nodes[name][1]
+        return path.parent if path.parent != model_root and model_root in path.parents else None
+
+    return sorted((user, used) for user, used in edges
+                  if room(used) is not None and room(user) != room(used)
+                  and user != "model_registry" and nodes[user][0] != "drivers")
+
+
+def test_a_model_keeps_to_its_folder():
+    """No module outside a model's folder uses the model's modules (the engine speaks no
+    pendulum): the pendulum's modules are used from src/model/pendulum/, the registry and the
+    drivers only."""
+    assert (ROOT / "src" / "model" / "pendulum" / "pendulum_model.f90").exists()
+    assert foreign_uses_of_model_rooms(ROOT) == []
+
+
+def test_a_planted_use_of_a_model_module_is_found(copy):
+    text = (copy / "src" / "integrator" / "relaxed_stepper.f90").read_text()
+    (copy / "src" / "integrator" / "relaxed_stepper.f90").write_text(
+        text.replace("  implicit none", "  use pendulum_model, only: pendulum\n  implicit none", 1))
+    assert foreign_uses_of_model_rooms(copy) == [("relaxed_stepper", "pendulum_model")]
+
+
 def test_a_planted_upward_use_is_found(copy):
     text = (copy / "src" / "util" / "number_text.f90").read_text()
     (copy / "src" / "util" / "number_text.f90").write_text(

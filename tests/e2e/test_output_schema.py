@@ -43,6 +43,8 @@ def test_run_files_follow_the_schema(tmp_path, eme_run_binary, schema, constrain
     result, path = run_eme(tmp_path, "run", groups)
     assert result.returncode == 0, result.stderr
     with h5py.File(path, "r") as f:
+        assert f.attrs["schema_version"] == 2
+        assert text(f["energy"].attrs["description"]) == "total energy E = T + V_g + U_1 + U_2"
         for name, dataset in f.items():
             if text(dataset.attrs.get("source", "")) == "integrator":
                 # the integrator's own per-step figures (its `diagnostics`, e.g. EME's substeps)
@@ -59,7 +61,11 @@ def test_run_files_follow_the_schema(tmp_path, eme_run_binary, schema, constrain
             assert text(dataset.attrs["rows"]) == spec["rows"], name
             if spec["units"] != "<columns>":
                 assert text(dataset.attrs["units"]) == spec["units"], name
-            if name != "scheme_temperature":       # its description comes from the registry entry
+            if spec["description"].startswith("<the model says>"):
+                # the model's own words (model_words), for the pendulum in its terms
+                description = text(dataset.attrs["description"])
+                assert description and "<" not in description, name
+            elif name != "scheme_temperature":       # its description comes from the registry entry
                 assert text(dataset.attrs["description"]) == spec["description"], name
             expected_rows = len(f["time"]) - (1 if spec["rows"] == "step" else 0)
             assert dataset.shape[0] == expected_rows, name

@@ -1,5 +1,5 @@
 !> Oracle for the tests: the free energies psi_a(l, theta, gamma) of eqs. (16)-(17) typed
-!> literally as the paper writes them, independent of the closed forms of src/model/free_energy.
+!> literally as the paper writes them, independent of the closed forms of src/model/pendulum/free_energy.
 module paper_free_energy
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters

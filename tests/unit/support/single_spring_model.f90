@@ -32,7 +32,7 @@ module single_spring_model
     procedure :: vector_field
     procedure :: mechanical_energy
     procedure :: mechanical_energy_gradient
-    procedure :: angular_momentum
+    procedure :: momenta => angular_momentum
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
@@ -59,6 +59,8 @@ contains
     allocate (model%column_names(size(column_names)))
     model%column_names(:) = column_names
     model%max_invariants = 3
+    model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
+    model%conserved_momentum_column = 3
     allocate (model%subsystems(1))
     associate (part => model%subsystems(1))
       part%name = 'spring'
@@ -163,7 +165,7 @@ contains
   pure function angular_momentum(self, z) result(j)
     class(single_spring), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: j(3)
+    real(real64) :: j(self%momentum_count())
 
     j = [z(2)*z(6) - z(3)*z(5), z(3)*z(4) - z(1)*z(6), z(1)*z(5) - z(2)*z(4)]
   end function angular_momentum
@@ -206,7 +208,7 @@ contains
     real(real64) :: j_z
     real(real64) :: j(3)
 
-    j = self%angular_momentum(z)
+    j = self%momenta(z)
     j_z = j(3)
   end function conserved_momentum
 

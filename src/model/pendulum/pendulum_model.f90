@@ -1,7 +1,7 @@
 !> The thermoviscoelastic double pendulum as a GENERIC model (src/structure/model_interface):
 !> two springs, each a subsystem with (U_a, S_a) in its invariants (C_a, [gamma,] tau_a) for one
 !> choice of thermodynamic variable; kinetic energy and gravity as the mechanical energy; the
-!> written-out vector field of src/model/pendulum_vector_field.
+!> written-out vector field of src/model/pendulum/pendulum_vector_field.
 module pendulum_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
@@ -26,7 +26,7 @@ module pendulum_model
     procedure :: vector_field => pendulum_field
     procedure :: mechanical_energy
     procedure :: mechanical_energy_gradient
-    procedure :: angular_momentum => pendulum_angular_momentum
+    procedure :: momenta => pendulum_angular_momentum
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
@@ -52,6 +52,16 @@ contains
     allocate (model%column_names(state_size))
     model%column_names(:) = state_column_names
     model%max_invariants = 3
+    model%words%temperature = 'spring temperatures'
+    model%words%energy = 'total energy E = T + V_g + U_1 + U_2'
+    model%words%entropy = 'total entropy S = S_1 + S_2'
+    model%words%momenta = 'J = q1 x p1 + q2 x p2'
+    model%words%momentum_units = 'J s'
+    model%words%metric_scales = 'C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
+    ! J_z: the component about the gravity axis of the paper's scenes (conserved_momentum is J
+    ! along gravity's direction, whatever it is).
+    model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
+    model%conserved_momentum_column = 3
     allocate (model%subsystems(2))
     do a = 1, 2
       model%spring(a)%law = spring_law_of(params, a)
@@ -126,11 +136,11 @@ contains
     end do
   end function mechanical_energy_gradient
 
-  !> J = q1 x p1 + q2 x p2 (docs/formulation.md section 2).
+  !> The momenta: J = q1 x p1 + q2 x p2 (docs/formulation.md section 2).
   pure function pendulum_angular_momentum(self, z) result(j)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: j(3)
+    real(real64) :: j(self%momentum_count())
 
     j = angular_momentum(z)
   end function pendulum_angular_momentum

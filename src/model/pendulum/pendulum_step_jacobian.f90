@@ -1,4 +1,4 @@
-!> The Jacobian half of the double pendulum's fused step kernel (src/scheme/pendulum_step_kernel):
+!> The Jacobian half of the double pendulum's fused step kernel (src/model/pendulum/pendulum_step_kernel):
 !> the derivative pass, which differentiates each spring's partials (Gonzalez's quotient and its
 !> fallback, or the midpoint rule's exact partials) in the variables they depend on, and the
 !> assembly of the condensed Jacobian dR/dy = dR/dz'|_y + dR/dq' (h/2) m^-1 from them and the

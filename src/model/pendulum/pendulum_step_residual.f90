@@ -1,4 +1,4 @@
-!> The residual half of the double pendulum's fused step kernel (src/scheme/pendulum_step_kernel):
+!> The residual half of the double pendulum's fused step kernel (src/model/pendulum/pendulum_step_kernel):
 !> the values pass at a point y of the condensed unknowns (the new and midpoint positions from the
 !> condensation, each spring's invariants, its partials by Gonzalez's quotient with its fallback
 !> or by the midpoint rule, sharing every logarithm, root and exponential of the spring

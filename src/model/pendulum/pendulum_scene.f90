@@ -18,7 +18,7 @@ module pendulum_scene
   use temperature_constraint, only: make_fixed_temperature
   implicit none (type, external)
   private
-  public :: double_pendulum_scene, double_pendulum_name
+  public :: double_pendulum_scene, double_pendulum_name, new_double_pendulum_scene
 
   character(len=*), parameter :: double_pendulum_name = 'double_pendulum'
 
@@ -46,6 +46,13 @@ module pendulum_scene
   end type double_pendulum_scene
 
 contains
+
+  !> A scene of the double pendulum with the defaults (the model registry's maker).
+  subroutine new_double_pendulum_scene(made)
+    class(scene), allocatable, intent(out) :: made
+
+    allocate (double_pendulum_scene :: made)
+  end subroutine new_double_pendulum_scene
 
   !> &model, &initial, &constraints.
   pure subroutine group_names(self, names)

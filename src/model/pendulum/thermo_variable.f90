@@ -7,17 +7,10 @@ module thermo_variable
                                 domain_nonpositive_temperature, domain_overflow
   use free_energy, only: spring_law, mechanical_parts, mechanical_difference
   use special_functions, only: log1p, expm1
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
   implicit none (type, external)
   private
-  public :: tau_entropy, tau_temperature, tau_internal_energy, thermo_variable_names
   public :: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
-
-  integer, parameter :: tau_entropy = 1          !! tau = s
-  integer, parameter :: tau_temperature = 2      !! tau = theta
-  integer, parameter :: tau_internal_energy = 3  !! tau = u
-  !> Namelist spellings, indexed by the constants above.
-  character(len=*), parameter :: thermo_variable_names(3) = &
-    [character(len=15) :: 'entropy', 'temperature', 'internal_energy']
 
   !> f = (U_a, S_a) of one spring in its invariants.
   type, extends(invariant_functions) :: spring_potential
@@ -95,7 +88,7 @@ contains
   !> The table of docs/formulation.md section 3 from the mechanical parts e, sigma (with their (C, gamma)
   !> derivatives) and the temperature theta at invariants x = (C, [gamma,] tau): the gradient,
   !> optionally the Hessian and the values of (U_a, S_a). evaluate_potentials and the fused step
-  !> kernel (src/scheme/pendulum_step_kernel) both assemble them here.
+  !> kernel (src/model/pendulum/pendulum_step_kernel) both assemble them here.
   pure subroutine potentials_from_parts(self, tau, theta, e, sigma, de, dsigma, d2e, d2sigma, grad, hess, f)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: tau, theta, e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)

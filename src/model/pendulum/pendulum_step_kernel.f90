@@ -21,8 +21,8 @@ module pendulum_step_kernel
   use special_functions, only: log1p
   use model_parameters, only: pendulum_parameters
   use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
-  use thermo_variable, only: spring_potential, tau_temperature, tau_entropy, temperature_of, potentials_from_parts, &
-                             difference_from_parts
+  use thermo_variable, only: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
+  use thermo_variable_kinds, only: tau_temperature, tau_entropy
   use double_pendulum, only: q_index, p_index, gravity_force
   use pendulum_model, only: pendulum
   use model_constraint, only: constraint_slot
@@ -30,11 +30,11 @@ module pendulum_step_kernel
   use temperature_constraint, only: fixed_temperature
   use discrete_gradient, only: gradient_gonzalez, metric_euclidean, quotient_threshold, gonzalez_from_parts, &
                                discrete_gradient_of
-  use nonlinear_problem, only: nonlinear_system
+  use condensed_step, only: condensed_step_problem
   use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint, root_problem_text
   implicit none (type, external)
   private
-  public :: pendulum_step, build_pendulum_step, condensed_offset
+  public :: pendulum_step, build_pendulum_step, pendulum_fused_step, condensed_offset
   ! For the submodules pendulum_step_residual and pendulum_step_jacobian only: gfortran gives a
   ! module's private procedures internal linkage, which submodules, compiled apart, cannot reach.
   public :: velocity, gamma_of, new_temperature
@@ -85,13 +85,12 @@ module pendulum_step_kernel
   end type step_point
 
   !> The condensed step of one scheme for the double pendulum.
-  type, extends(nonlinear_system) :: pendulum_step
+  type, extends(condensed_step_problem) :: pendulum_step
     type(pendulum_parameters) :: params
     type(spring_potential) :: spring(2)
     integer :: partials_rule = partials_discrete_gradient
     integer :: gradient = gradient_gonzalez
     real(real64) :: scale(3, 2) = 1.0_real64       !! the discrete gradients' metric scales
-    real(real64) :: dt = 0.0_real64
     real(real64) :: fraction = 1.0_real64          !! continuation: the step of fraction*dt
     real(real64) :: q_old(3, 2) = 0.0_real64, p_old(3, 2) = 0.0_real64   !! the old state z
     real(real64) :: gamma_old = 0.0_real64, tau_old(2) = 0.0_real64
@@ -125,14 +124,14 @@ module pendulum_step_kernel
 
   interface
     !> The values pass at y (positions, momenta, each spring's partials and what the Jacobian
-    !> reuses) (src/scheme/pendulum_step_residual).
+    !> reuses) (src/model/pendulum/pendulum_step_residual).
     module pure subroutine values_pass(self, y, point, stat)
       class(pendulum_step), intent(in) :: self
       real(real64), intent(in) :: y(:)
       type(step_point), intent(inout) :: point
       integer, intent(out) :: stat
     end subroutine values_pass
-    !> The condensed residual at y, after its values pass (src/scheme/pendulum_step_residual).
+    !> The condensed residual at y, after its values pass (src/model/pendulum/pendulum_step_residual).
     module pure subroutine residual_pass(self, y, point, residual, stat)
       class(pendulum_step), intent(in) :: self
       real(real64), intent(in) :: y(:)
@@ -141,7 +140,7 @@ module pendulum_step_kernel
       integer, intent(out) :: stat
     end subroutine residual_pass
     !> The derivative pass and dR/dy at a point whose residual pass is done
-    !> (src/scheme/pendulum_step_jacobian).
+    !> (src/model/pendulum/pendulum_step_jacobian).
     module pure subroutine jacobian_pass(self, point, jacobian, stat)
       class(pendulum_step), intent(in) :: self
       type(step_point), intent(inout) :: point
@@ -178,6 +177,7 @@ contains
     kernel%partials_rule = problem%partials_rule
     kernel%gradient = problem%gradient
     kernel%dt = problem%dt
+    kernel%eliminated = condensed_offset
     kernel%fraction = problem%fraction
     associate (m1 => kernel%params%mass(1), m2 => kernel%params%mass(2))
       kernel%inverse_mass = reshape([1.0_real64, -1.0_real64, -1.0_real64, (m1 + m2)/m2], [2, 2])/m1
@@ -200,6 +200,17 @@ contains
     call kernel%set_old_state(problem%z_old)
     built = .true.
   end subroutine build_pendulum_step
+
+  !> The fused step for `problem` as the model registry offers it (build_pendulum_step's).
+  subroutine pendulum_fused_step(problem, kernel, built)
+    type(step_problem), intent(in) :: problem
+    class(condensed_step_problem), allocatable, intent(out) :: kernel
+    logical, intent(out) :: built
+    type(pendulum_step) :: made
+
+    call build_pendulum_step(problem, made, built)
+    if (built) allocate (kernel, source=made)
+  end subroutine pendulum_fused_step
 
   pure integer function unknowns(self)
     class(pendulum_step), intent(in) :: self
@@ -264,7 +275,7 @@ contains
   pure function expand(self, y) result(x)
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: y(:)
-    real(real64) :: x(size(y) + condensed_offset)
+    real(real64) :: x(size(y) + self%eliminated)
     real(real64) :: v(3, 2)
 
     v = velocity(self, y)
@@ -278,7 +289,7 @@ contains
   pure function condense(self, x) result(y)
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: x(:)
-    real(real64) :: y(size(x) - condensed_offset)
+    real(real64) :: y(size(x) - self%eliminated)
     real(real64) :: v(3, 2), p_mid(3, 2), m1, m2
 
     m1 = self%params%mass(1)
