@@ -1,6 +1,6 @@
 /* cvode_baseline [--tolerance TOL] [--t-end T] [--difference-quotients] [--check-jacobian]:
  * the paper scene with SUNDIALS CVODE alone, the whole-run baseline of `make bench`
- * (docs/performance.md, "Against a C program with CVODE alone").
+ * (docs/performance.md, section "Issue 34").
  *
  * A minimal C program of the same model as eme_run's paper scene: the thermoviscoelastic double
  * pendulum with Table 1's data and the initial state of docs/formulation.md section 1, in the

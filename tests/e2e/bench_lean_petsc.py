@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""What a leaner PETSc would give eme_run's start (docs/performance.md, "Against a C program with
-CVODE alone"), estimated by measurement. Not a test, not part of `make test` or `make bench`:
+"""What a leaner PETSc would give eme_run's start (docs/performance.md, section
+"Issue 34"), estimated by measurement. Not a test, not part of `make test` or `make bench`:
 
     .venv/bin/python tests/e2e/bench_lean_petsc.py [--repeats 15]
 
