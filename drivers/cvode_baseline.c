@@ -300,8 +300,10 @@ int main(int argc, char **argv) {
   for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--difference-quotients")) difference_quotients = 1;
     else if (!strcmp(argv[i], "--check-jacobian")) check_jacobian = 1;
-    else if (!strcmp(argv[i], "--tolerance") && i + 1 < argc && (tolerance = positive_number(argv[++i])) > 0.0) continue;
-    else if (!strcmp(argv[i], "--t-end") && i + 1 < argc && (t_end = positive_number(argv[++i])) > 0.0) continue;
+    else if (!strcmp(argv[i], "--tolerance") && i + 1 < argc && (tolerance = positive_number(argv[++i])) > 0.0)
+      continue;
+    else if (!strcmp(argv[i], "--t-end") && i + 1 < argc && (t_end = positive_number(argv[++i])) > 0.0)
+      continue;
     else {
       fprintf(stderr, "cvode_baseline: bad argument '%s' (TOL and T: numbers > 0)\n", argv[i]);
       return usage(stderr, 2);

@@ -70,7 +70,8 @@ def callgrind(command, folder, name, functions=()):
     """Runs command under callgrind: its total instructions and the inclusive instructions of each
     function in `functions` (a function callgrind_annotate names `file:function`), and its stdout."""
     profile = folder / f"{name}.callgrind"
-    stdout = run_program(["valgrind", "--tool=callgrind", f"--callgrind-out-file={profile}", *command], env=NO_CLOCKED_WRITES)
+    stdout = run_program(["valgrind", "--tool=callgrind", f"--callgrind-out-file={profile}", *command],
+                         env=NO_CLOCKED_WRITES)
     annotated = run_program(["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(profile)])
     total = re.search(r"^\s*([0-9,]+)\s.*PROGRAM TOTALS", annotated, re.MULTILINE)
     if not total:

@@ -17,7 +17,7 @@ Newton iterations bit for bit; the script then alternates, repeat by repeat:
   - eme_run on the paper scene with Debian's PETSc, with the lean copy, and cvode_baseline:
     process wall and CPU time, medians;
 and prints the shared objects each loads, the dynamic loader's own statistics
-(LD_DEBUG=statistics) and, with valgrind, the instructions before main of both. An estimate: a
+(LD_DEBUG=statistics) and, with valgrind, the instructions before main of each. An estimate: a
 real PETSc built without external packages would also drop the stub, the remaining symbol
 lookups, libX11 and OpenCL from the start, and could differ in its own code.
 """
@@ -46,6 +46,7 @@ KEPT = ("liblapack", "libblas", "libhdf5", "libmpi", "libm.", "libstdc++", "libg
 
 
 def tool_output(command, **options):
+    """A tool's stdout (it must exit 0)."""
     return subprocess.run(command, capture_output=True, text=True, check=True, **options).stdout
 
 
@@ -60,6 +61,7 @@ def petsc_library():
 
 
 def defined_symbols(library):
+    """The dynamic symbols a shared library defines, without their versions."""
     return {line.split()[-1].split("@")[0] for line in tool_output(["nm", "-D", "--defined-only", str(library)])
             .splitlines() if line.strip()}
 
