@@ -146,7 +146,8 @@ UNIT_PROGRAMS := $(patsubst %,$(TESTBIN)/%,$(UNIT_SUITES))
 UNIT_OBJECTS := $(patsubst %,$(UNIT)/%.o,$(UNIT_SUITES))
 UNIT_DRIVERS := $(patsubst %,$(UNIT)/%_driver.o,$(UNIT_SUITES))
 all: $(UNIT_PROGRAMS)
-TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values fixtures scripted_solver single_spring_model paper_free_energy)
+TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values fixtures scripted_solver single_spring_model paper_free_energy \
+                model_conformance)
 UNIT_INCLUDES = -I$(UNIT)/mod $(filter-out -J$(MOD),$(FFLAGS)) -Wno-unused-dummy-argument
 UNIT_FFLAGS = -J$(UNIT)/mod $(UNIT_INCLUDES)
 ifeq ($(UNIT_RUNNER),pfunit)
@@ -185,6 +186,7 @@ $(UNIT)/%.o: tests/unit/support/%.f90 $(FUNIT) $(LIBRARY_OBJECTS) | $(UNIT)/mod
 $(UNIT)/%.o: tests/oracles/%.f90 $(LIBRARY_OBJECTS) | $(UNIT)/mod
 	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) -c $< -o $@
 $(UNIT)/fixtures.o: $(UNIT)/close_values.o $(UNIT)/paper_free_energy.o
+$(UNIT)/model_conformance.o: $(UNIT)/close_values.o
 $(UNIT_OBJECTS): $(UNIT)/%.o: $(UNIT)/%.F90 $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
 	$(FC) $(UNIT_FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) $(UNIT_FLAGS) -c $< -o $@
 $(TESTBIN)/%: $(UNIT)/%_driver.o $(UNIT)/%.o $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
@@ -392,7 +394,7 @@ version:
 
 # The module graph of docs/architecture.md, drawn from the sources.
 docs: $(VENV)/.python-deps
-	$(PYTHON) tests/architecture/module_graph.py -o docs/architecture/module_graph
+	$(PYTHON) tests/architecture/module_graph.py -o docs/architecture
 
 clean:
 	rm -rf $(BUILD)

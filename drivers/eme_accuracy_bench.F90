@@ -20,7 +20,7 @@ program eme_accuracy_bench
   use model_constraint, only: constraint_slot
   use pendulum_scene, only: double_pendulum_scene
   use integrator_settings, only: integrator_choice
-  use integrator_registry, only: integrator_entry, find_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use stepper, only: time_stepper, step_report
   use statistics, only: median
   use command_line, only: benchmark_repeats, petsc_help_requested, has_argument
@@ -215,7 +215,7 @@ contains
     end if
     ! A scheme on the output grid n dt needs a dt that divides t_end.
     if (.not. (adaptive .or. entry%chooses_time)) choice%dt = t_end/ceiling(t_end/setting - 1.0e-9_real64)
-    call entry%build(integrator)
+    call build_integrator(entry, integrator)
     call integrator%start(choice, model, constraints, z0, ierr)
     if (ierr /= 0) call fail('cannot start '//name)
     x = z0

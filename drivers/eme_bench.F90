@@ -27,7 +27,7 @@ program eme_bench
   use hand_newton, only: newton_loop
   use solver_options, only: step_solver_options, read_solver_options
   use integrator_settings, only: integrator_choice
-  use integrator_registry, only: integrator_entry, find_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
   use statistics, only: median
@@ -207,7 +207,7 @@ contains
     c%choice%thermo_variable = tau_temperature
     call find_integrator('cvode_bdf', entry, found)
     if (.not. found) call fail('no integrator cvode_bdf')
-    call entry%build(c%integrator)
+    call build_integrator(entry, c%integrator)
   end subroutine set_up_cvode
 
   ! A case's integrator, scene and floor.
@@ -223,7 +223,7 @@ contains
     c%choice%thermo_variable = c%variable
     call find_integrator(trim(c%scheme), entry, found)
     if (.not. found) call fail('no integrator '//trim(c%scheme))
-    call entry%build(c%integrator)
+    call build_integrator(entry, c%integrator)
     call start_run(c%integrator, c%choice, c%model, c%constraints, c%z0, c%label)
     select type (integrator => c%integrator)
     type is (step_solver)
@@ -354,7 +354,7 @@ contains
     choice%thermo_variable = tau_temperature
     call find_integrator(name, entry, found)
     if (.not. found) call fail('no integrator '//name)
-    call entry%build(integrator)
+    call build_integrator(entry, integrator)
     do run = 0, repeats
       call integrator%start(choice, model, constraints, z0, ierr)    ! a TS carries its state
       if (ierr /= 0) call fail('PETSc failed to set up '//name)

@@ -159,7 +159,8 @@ contains
       write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
         & a, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
         summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
-        summary%min_entropy_increment, ' J/K, max dV = ', summary%max_lyapunov_increment, ' J', momentum_part, &
+        summary%min_entropy_increment, ' '//trim(summary%entropy_units)//', max dV = ', summary%max_lyapunov_increment, &
+        ' '//trim(summary%energy_units), momentum_part, &
         ', Newton/step ', real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', &
         summary%wall_seconds, ' s'
     end if

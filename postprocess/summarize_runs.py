@@ -29,10 +29,11 @@ import numpy as np
 
 from trajectory import IDENTITY_ATTRIBUTES, Run, RunFileError, cut_to_common_length, root_attributes, run_file
 
-POINT_DATASETS = ("energy", "entropy", "lyapunov", "angular_momentum")
+POINT_DATASETS = ("energy", "entropy", "lyapunov")
 STEP_DATASETS = ("newton_iterations",)
+# angular_momentum: only for a model with momenta (the pendulum; not the gas containers).
 OPTIONAL = ("boundary_heat", "constraint_residual", "rejected_steps", "step", "min_entropy_increment",
-            "max_lyapunov_increment")
+            "max_lyapunov_increment", "angular_momentum")
 # run_figures (docs/output.md): what eme_run took over every step, in this order.
 RUN_FIGURES = ("energy_drift", "min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift")
 
@@ -49,11 +50,17 @@ def read(path):
                 run.data[name] = f[name][()]
                 rows = f[name].attrs.get("rows", "step" if name in (*STEP_DATASETS, "rejected_steps") else "point")
                 run.rows[name] = rows.decode() if isinstance(rows, bytes) else str(rows)
+        run.units = {name: text_of(f[name].attrs.get("units", "")) for name in ("energy", "entropy")}
     absent = [name for name in (*IDENTITY_ATTRIBUTES, "discrete_gradient") if name not in run.attrs]
     if absent:
         run.problems.append("root attributes " + ", ".join(absent) + " missing")
     cut_to_common_length(run)
     return run
+
+
+def text_of(value):
+    """An attribute as str (h5py gives bytes or str)."""
+    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def whole_run_figures(run):
@@ -70,7 +77,7 @@ def summarize(path):
     data, attrs, steps = run.data, run.attrs, run.steps
     energy, entropy, lyapunov = data["energy"], data["entropy"], data["lyapunov"]
     heat = data.get("boundary_heat", np.zeros_like(energy))
-    jz = data["angular_momentum"][:, 2]        # columns J_x J_y J_z (docs/output.md)
+    momenta = data.get("angular_momentum")      # columns J_x J_y J_z (docs/output.md), if the model has them
     constraint = data.get("constraint_residual")
     rejected = data.get("rejected_steps")
     gradient = attrs.get("discrete_gradient", "none")
@@ -101,7 +108,9 @@ def summarize(path):
         "energy_drift": whole.get("energy_drift", float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0]))),
         "min_dS": min_ds,
         "max_dV": max_dv,
-        "jz_drift": whole.get("angular_momentum_drift", float(np.max(np.abs(jz - jz[0])))),
+        "jz_drift": float("nan") if momenta is None else
+        whole.get("angular_momentum_drift", float(np.max(np.abs(momenta[:, 2] - momenta[0, 2])))),
+        "energy_units": run.units["energy"], "entropy_units": run.units["entropy"],
         "constraint": "-" if constraint is None or constraint.size == 0 else f"{np.abs(constraint).max():.1e}",
         "newton_per_step": float(data["newton_iterations"][:rows].sum()) / steps if steps else float("nan"),
         "wall_s": f"{attrs['wall_time_seconds']:.3f}" if "wall_time_seconds" in attrs else "-",
@@ -114,6 +123,21 @@ COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "
            ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("constraint", "max |g|", "{}"),
            ("newton_per_step", "Newton/step", "{:.2f}"),
            ("wall_s", "wall [s]", "{}"), ("status", "status", "{}")]
+
+
+def table_columns(rows):
+    """COLUMNS for these rows: no Jz column when no run has momenta, and the units of dS and dV
+    the runs' models give (the pendulum's J/K and J; none in the header where models differ)."""
+    columns = [column for column in COLUMNS
+               if column[0] != "jz_drift" or any(not math.isnan(row["jz_drift"]) for row in rows)]
+    units = {key: {row[key] for row in rows} for key in ("entropy_units", "energy_units")}
+    titled = []
+    for key, title, fmt in columns:
+        if key in ("min_dS", "max_dV"):
+            kind = units["entropy_units" if key == "min_dS" else "energy_units"]
+            title = title.split(" [")[0] + (f" [{kind.pop()}]" if len(kind) == 1 else "")
+        titled.append((key, title, fmt))
+    return titled
 
 
 def cell(value, fmt):
@@ -141,8 +165,10 @@ def main(argv=None):
             print(f"summarize_runs.py: error: {error}", file=sys.stderr)
             unusable += 1
             continue
-        rows.append([cell(row[key], fmt) for key, _, fmt in COLUMNS])
-    headers = [title for _, title, _ in COLUMNS]
+        rows.append(row)
+    columns = table_columns(rows)
+    headers = [title for _, title, _ in columns]
+    rows = [[cell(row[key], fmt) for key, _, fmt in columns] for row in rows]
     if rows and args.markdown:
         print(markdown_row(headers))
         print("|" + "---|" * len(headers))

@@ -12,6 +12,11 @@ ROOT = Path(__file__).resolve().parent.parent
 BIN = Path(os.environ.get("EME_BIN_DIR", ROOT / "build" / "bin"))
 
 
+def pytest_configure(config):
+    # make check's quick set leaves these out (tests/run_tests.py --quick); make test runs them.
+    config.addinivalue_line("markers", "drawing: draws a figure or checks a drawn one (make test only, not make check)")
+
+
 def namelist_text(groups):
     """Namelist text from {'integrator': {'dt': 0.1, 'scheme': 'eme'}, ...}."""
 

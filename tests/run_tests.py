@@ -11,7 +11,9 @@ postprocessing) run under pytest, on --workers processes (pytest-xdist). Counted
 pFUnit test (each parameterized case one) and a pytest test.
 
 --quick (make check) runs the unit tests and QUICK_TESTS only: one or two files per area, chosen
-to exercise every driver, the paper scene, the input checks and the file layout in about a minute.
+to exercise every driver, the paper scene, the input checks and the file layout, without the
+tests marked `drawing` (they draw figures with matplotlib, the slowest part, or check the drawn
+ones; make test runs them).
 """
 import argparse
 import os
@@ -25,8 +27,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 # The fast subset of make check: the paper scene's structure, bad input and the command line, the
 # file layout and provenance, adaptive steps, the step rows, a one-rank study, the structure
-# figure's statements, the layers, and the scripts on synthetic files. The slow ones (kills,
-# signals, studies, convergence) are left to make test.
+# file's statements, the layers, and the scripts on synthetic files. The slow ones (kills,
+# signals, studies, convergence, and the drawings: QUICK_SELECTION) are left to make test.
 QUICK_TESTS = ["tests/e2e/test_paper_scene.py", "tests/e2e/test_bad_input.py", "tests/e2e/test_command_line.py",
                "tests/e2e/test_output_schema.py", "tests/e2e/test_structure_figure.py",
                "tests/architecture/test_layers.py", "tests/postprocess/test_trajectory.py",
@@ -35,6 +37,7 @@ QUICK_TESTS = ["tests/e2e/test_paper_scene.py", "tests/e2e/test_bad_input.py", "
                "tests/e2e/test_adaptive.py::test_gamma_outside_its_band_is_a_rejected_step",
                "tests/e2e/test_provenance.py::test_every_n_steps",
                "tests/e2e/test_ensemble.py::test_single_rank_without_mpirun"]
+QUICK_SELECTION = ["-m", "not drawing"]
 TAP_LINE = re.compile(r"^\s*(not ok|ok)\b(?:\s+\d+)?\s*-?\s*(.*)$")
 
 
@@ -105,12 +108,12 @@ def run_units(binary_dir, runner):
     return passed, failed
 
 
-def run_pytest(paths, workers):
+def run_pytest(paths, workers, selection=()):
     with tempfile.TemporaryDirectory() as scratch:
         report = Path(scratch) / "pytest.xml"
         parallel = ["-n", str(workers)] if workers > 1 else []
         result = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *parallel,
-                                 f"--junitxml={report}", *paths], cwd=ROOT)
+                                 *selection, f"--junitxml={report}", *paths], cwd=ROOT)
         if not report.exists():
             print(f"FAIL pytest: no report (exit status {result.returncode})")
             return 0, 1
@@ -133,18 +136,20 @@ def main():
     parser.add_argument("--pfunit-dir", default="", help="the pFUnit installation (for the first line)")
     parser.add_argument("--workers", type=int, default=int(os.environ.get("EME_TEST_WORKERS", "1")),
                         help="pytest workers (pytest-xdist); default EME_TEST_WORKERS or 1")
-    parser.add_argument("--quick", action="store_true", help="the unit tests and QUICK_TESTS only (make check)")
+    parser.add_argument("--quick", action="store_true",
+                        help="the unit tests and QUICK_TESTS, drawings left out (make check)")
     parser.add_argument("pytest_paths", nargs="*", default=["tests"], help="pytest targets (default: tests)")
     args = parser.parse_args()
+    selection = []
     if args.quick:
-        args.pytest_paths = QUICK_TESTS
+        args.pytest_paths, selection = QUICK_TESTS, QUICK_SELECTION
     if args.runner == "pfunit":
         print(f"unit tests: pFUnit ({args.pfunit_dir})")
     else:
         print("unit tests: the fallback runner of tests/unit/fallback (no pFUnit found: give PFUNIT_DIR, or see "
               "tests/README.md)")
     unit_passed, unit_failed = run_units(args.bin, args.runner)
-    python_passed, python_failed = run_pytest(args.pytest_paths, args.workers)
+    python_passed, python_failed = run_pytest(args.pytest_paths, args.workers, selection)
     print(f"unit tests: {unit_passed} passed, {unit_failed} failed; pytest: {python_passed} passed, "
           f"{python_failed} failed")
     passed, failed = unit_passed + python_passed, unit_failed + python_failed

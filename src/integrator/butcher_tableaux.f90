@@ -9,11 +9,15 @@
 !>    12 stages of order 8 with two negative weights and embedded error estimators of orders 5
 !>    and 3;
 !>  - Gauss-Legendre collocation with 3 stages, order 6, implicit, all weights > 0.
+!> Each is a relaxed integrator by one line of `registered_tableaux` (its name, label, description
+!> and tableau); the integrator registry makes its row from it, with the capabilities the tableau
+!> implies (embedded weights: adaptive at the tolerance; implicit: stages solved by SNES).
 module butcher_tableaux
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
   private
   public :: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3
+  public :: tableau_entry, registered_tableaux, tableau_named
 
   !> A Runge-Kutta method; `implicit` when a has entries on or above the diagonal.
   type :: butcher_tableau
@@ -28,7 +32,55 @@ module butcher_tableaux
     real(real64), allocatable :: e5(:), e3(:)
   end type butcher_tableau
 
+  !> A relaxed Runge-Kutta integrator as data: &integrator scheme = name.
+  type :: tableau_entry
+    character(len=16) :: name = ''
+    character(len=16) :: label = ''                 !! for figures
+    character(len=100) :: description = ''
+    procedure(tableau_maker), pointer, nopass :: make => null()
+  end type tableau_entry
+
+  abstract interface
+    pure function tableau_maker() result(t)
+      import :: butcher_tableau
+      type(butcher_tableau) :: t
+    end function tableau_maker
+  end interface
+
 contains
+
+  !> The relaxed integrators, a line each.
+  pure function registered_tableaux() result(entries)
+    type(tableau_entry), allocatable :: entries(:)
+
+    entries = [ &
+      tableau_entry('relaxed_rk4', 'RRK4', 'classic RK4 with energy relaxation and an exact J projection, in '// &
+                    'entropy variables', classic_rk4), &
+      tableau_entry('relaxed_rk8', 'RRK8', 'Cooper-Verner order 8 (11 stages, weights >= 0), relaxed as relaxed_rk4', &
+                    cooper_verner8), &
+      tableau_entry('relaxed_dp853', 'RDP853', 'Dormand-Prince 8(5,3), relaxed, adaptive at tolerance, with the '// &
+                    'entropy guard; dt is its first step', dormand_prince853), &
+      tableau_entry('relaxed_gauss6', 'RGauss6', 'Gauss-Legendre with 3 stages (order 6, implicit, stages solved '// &
+                    'by SNES), relaxed', gauss_legendre3)]
+  end function registered_tableaux
+
+  !> The tableau of the relaxed integrator `name`; found = .false. if there is none.
+  subroutine tableau_named(name, tableau, found)
+    character(len=*), intent(in) :: name
+    type(butcher_tableau), intent(out) :: tableau
+    logical, intent(out) :: found
+    type(tableau_entry), allocatable :: entries(:)
+    integer :: i
+
+    allocate (entries, source=registered_tableaux())
+    found = .false.
+    do i = 1, size(entries)
+      if (trim(entries(i)%name) /= trim(name)) cycle
+      tableau = entries(i)%make()
+      found = .true.
+      return
+    end do
+  end subroutine tableau_named
 
   !> Classic RK4, order 4.
   pure function classic_rk4() result(t)

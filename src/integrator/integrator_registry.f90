@@ -2,19 +2,20 @@
 !> family, what it supports and how to build it. The input's allowed values, the output's
 !> attributes, --help and the Python scripts (through the attributes the output carries) all
 !> take names and capabilities from here. Adding an integrator: write its module (extend
-!> time_stepper, src/integrator/stepper) and add one row to `registered_integrators`.
+!> time_stepper, src/integrator/stepper) and add one row to `registered_integrators`; adding a
+!> relaxed Runge-Kutta method: one line of src/integrator/butcher_tableaux's registered_tableaux,
+!> whose rows this table takes in.
 module integrator_registry
   use stepper, only: time_stepper
   use discrete_gradient_stepper, only: new_eme, new_midpoint
   use ts_stepper, only: new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
-  use relaxed_stepper, only: new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
+  use relaxed_stepper, only: new_relaxed_runge_kutta
+  use butcher_tableaux, only: butcher_tableau, tableau_entry, registered_tableaux
   use cvode_stepper, only: new_cvode_bdf, new_cvode_adams
   implicit none (type, external)
   private
-  public :: integrator_entry, registered_integrators, find_integrator, integrator_names, integrator_count
+  public :: integrator_entry, registered_integrators, find_integrator, integrator_names, build_integrator
   public :: family_discrete_gradient, family_petsc_ts, family_relaxation, family_sundials
-
-  integer, parameter :: integrator_count = 12   !! the rows of the table below
 
   !> The families, as the output's `scheme_family` attribute names them.
   character(len=*), parameter :: family_discrete_gradient = 'discrete_gradient_step'  !! one SNES system per step
@@ -57,7 +58,7 @@ contains
 
   !> The table.
   function registered_integrators() result(entries)
-    type(integrator_entry) :: entries(integrator_count)
+    type(integrator_entry), allocatable :: entries(:)
     character(len=*), parameter :: ts_temperature = &
       'temperatures at the end of the step (PETSc TS baselines have no discrete temperature)'
     character(len=*), parameter :: cvode_temperature = &
@@ -85,39 +86,56 @@ contains
       integrator_entry(name='ts_rk5dp', family=family_petsc_ts, label='RK5DP', &
         description='PETSc TSRK 5dp: adaptive Dormand-Prince at tolerance, landing on every output time', &
         adaptive=.true., reads_newton_settings=.false., scheme_temperature=ts_temperature, build=new_ts_rk5dp), &
-      integrator_entry(name='relaxed_rk4', family=family_relaxation, label='RRK4', &
-        description='classic RK4 with energy relaxation and an exact J projection, in entropy variables', &
-        chooses_time=.true., error_control=.true., reads_newton_settings=.false., scheme_temperature=relaxed_temperature, &
-        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_rk4), &
-      integrator_entry(name='relaxed_rk8', family=family_relaxation, label='RRK8', &
-        description='Cooper-Verner order 8 (11 stages, weights >= 0), relaxed as relaxed_rk4', &
-        chooses_time=.true., error_control=.true., reads_newton_settings=.false., scheme_temperature=relaxed_temperature, &
-        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_rk8), &
-      integrator_entry(name='relaxed_dp853', family=family_relaxation, label='RDP853', &
-        description='Dormand-Prince 8(5,3), relaxed, adaptive at tolerance, with the entropy guard; dt is its first step', &
-        adaptive=.true., chooses_time=.true., reads_newton_settings=.false., scheme_temperature=relaxed_temperature, &
-        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_dp853), &
-      integrator_entry(name='relaxed_gauss6', family=family_relaxation, label='RGauss6', &
-        description='Gauss-Legendre with 3 stages (order 6, implicit, stages solved by SNES), relaxed', &
-        chooses_time=.true., error_control=.true., scheme_temperature=relaxed_temperature, &
-        takes_constraints=.true., continuous_constraints=.true., build=new_relaxed_gauss6), &
+      relaxed_rows(), &
       integrator_entry(name='cvode_bdf', family=family_sundials, label='CVODE-BDF', &
         description='SUNDIALS CVODE: variable-order BDF, Newton with the analytic Jacobian, adaptive at tolerance', &
         adaptive=.true., reads_newton_settings=.false., scheme_temperature=cvode_temperature, build=new_cvode_bdf), &
       integrator_entry(name='cvode_adams', family=family_sundials, label='CVODE-Adams', &
         description='SUNDIALS CVODE: variable-order Adams-Moulton, fixed-point iteration, adaptive at tolerance', &
         adaptive=.true., reads_newton_settings=.false., scheme_temperature=cvode_temperature, build=new_cvode_adams)]
+
+  contains
+
+    ! A row per relaxed tableau, its capabilities from the tableau.
+    function relaxed_rows() result(rows)
+      type(integrator_entry), allocatable :: rows(:)
+      type(tableau_entry), allocatable :: tableaux(:)
+      type(butcher_tableau) :: tableau
+      integer :: k
+
+      allocate (tableaux, source=registered_tableaux())
+      allocate (rows(size(tableaux)))
+      do k = 1, size(tableaux)
+        tableau = tableaux(k)%make()
+        rows(k) = integrator_entry(name=tableaux(k)%name, family=family_relaxation, label=tableaux(k)%label, &
+                                   description=tableaux(k)%description, adaptive=tableau%embedded, chooses_time=.true., &
+                                   error_control=.not. tableau%embedded, reads_newton_settings=tableau%implicit, &
+                                   scheme_temperature=relaxed_temperature, takes_constraints=.true., &
+                                   continuous_constraints=.true., build=new_relaxed_runge_kutta)
+      end do
+    end function relaxed_rows
   end function registered_integrators
+
+
+  !> A new, unstarted integrator of `entry`, knowing its registry name (the relaxed integrators
+  !> take their tableau by it).
+  subroutine build_integrator(entry, integrator)
+    type(integrator_entry), intent(in) :: entry
+    class(time_stepper), allocatable, intent(out) :: integrator
+
+    call entry%build(integrator)
+    integrator%scheme = entry%name
+  end subroutine build_integrator
 
   !> The entry named `name` (found = .false. if there is none).
   subroutine find_integrator(name, entry, found)
     character(len=*), intent(in) :: name
     type(integrator_entry), intent(out) :: entry
     logical, intent(out) :: found
-    type(integrator_entry) :: entries(integrator_count)
+    type(integrator_entry), allocatable :: entries(:)
     integer :: i
 
-    entries = registered_integrators()
+    allocate (entries, source=registered_integrators())
     found = .false.
     do i = 1, size(entries)
       if (entries(i)%name /= name) cycle
@@ -131,10 +149,10 @@ contains
   function integrator_names(constrained) result(list)
     logical, intent(in) :: constrained
     character(len=:), allocatable :: list
-    type(integrator_entry) :: entries(integrator_count)
+    type(integrator_entry), allocatable :: entries(:)
     integer :: i
 
-    entries = registered_integrators()
+    allocate (entries, source=registered_integrators())
     list = ''
     do i = 1, size(entries)
       if (constrained .and. .not. entries(i)%takes_constraints) cycle

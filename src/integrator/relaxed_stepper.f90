@@ -35,7 +35,7 @@ module relaxed_stepper
   use thermo_variable_kinds, only: tau_entropy
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
-  use butcher_tableaux, only: butcher_tableau, classic_rk4, cooper_verner8, dormand_prince853, gauss_legendre3
+  use butcher_tableaux, only: butcher_tableau, tableau_named
   use relaxation, only: relax
   use constrained_flow, only: constrained_field, project_state
   use collocation_stages, only: stage_system
@@ -47,7 +47,7 @@ module relaxed_stepper
   use number_text, only: integer_text, fixed_text, scientific_text
   implicit none (type, external)
   private
-  public :: relaxed_runge_kutta, new_relaxed_rk4, new_relaxed_rk8, new_relaxed_dp853, new_relaxed_gauss6
+  public :: relaxed_runge_kutta, new_relaxed_runge_kutta
   public :: max_halvings
   ! For the submodule relaxed_step_control only: gfortran gives a module's private procedures
   ! internal linkage, which submodules, compiled apart, cannot reach.
@@ -118,33 +118,13 @@ module relaxed_stepper
 
 contains
 
-  !> Classic RK4, relaxed.
-  subroutine new_relaxed_rk4(integrator)
+  !> A relaxed Runge-Kutta integrator; `start` takes the tableau its registry name (scheme)
+  !> names (src/integrator/butcher_tableaux, registered_tableaux).
+  subroutine new_relaxed_runge_kutta(integrator)
     class(time_stepper), allocatable, intent(out) :: integrator
 
-    allocate (integrator, source=relaxed_runge_kutta(tableau=classic_rk4()))
-  end subroutine new_relaxed_rk4
-
-  !> Cooper-Verner 8, relaxed.
-  subroutine new_relaxed_rk8(integrator)
-    class(time_stepper), allocatable, intent(out) :: integrator
-
-    allocate (integrator, source=relaxed_runge_kutta(tableau=cooper_verner8()))
-  end subroutine new_relaxed_rk8
-
-  !> Dormand-Prince 8(5,3), relaxed, adaptive, with the entropy guard.
-  subroutine new_relaxed_dp853(integrator)
-    class(time_stepper), allocatable, intent(out) :: integrator
-
-    allocate (integrator, source=relaxed_runge_kutta(tableau=dormand_prince853(), adaptive=.true.))
-  end subroutine new_relaxed_dp853
-
-  !> Gauss-Legendre with 3 stages (order 6, implicit), relaxed.
-  subroutine new_relaxed_gauss6(integrator)
-    class(time_stepper), allocatable, intent(out) :: integrator
-
-    allocate (integrator, source=relaxed_runge_kutta(tableau=gauss_legendre3()))
-  end subroutine new_relaxed_gauss6
+    allocate (relaxed_runge_kutta :: integrator)
+  end subroutine new_relaxed_runge_kutta
 
   !> The per-step figures of a relaxed step.
   function diagnostics(self) result(specs)
@@ -190,8 +170,16 @@ contains
     real(real64), intent(in) :: z0(:)
     integer, intent(out) :: ierr
     integer :: stat
+    logical :: found
 
     ierr = 0
+    call tableau_named(self%scheme, self%tableau, found)
+    if (.not. found) then
+      ierr = 1
+      return
+    end if
+    ! Embedded weights: adaptive at the tolerance (relaxed_dp853).
+    self%adaptive = self%tableau%embedded
     self%constraints = constraints
     if (allocated(self%user_model)) deallocate (self%user_model)
     allocate (self%user_model, source=model)

@@ -7,9 +7,10 @@ module command_help
   use namelist_text, only: namelist_item
   use namelist_group, only: describe_group
   use model_registry, only: select_scene, model_names
+  use model_scene, only: scene
   use run_config, only: run_configuration, integrator_fields, output_fields
   use study_config, only: study_fields, sweep_fields, max_sweep_values
-  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count, family_relaxation
+  use integrator_registry, only: integrator_entry, registered_integrators, family_relaxation
   implicit none (type, external)
   private
   public :: print_run_help, print_study_help, print_integrators, has_argument
@@ -56,13 +57,14 @@ contains
     type(run_configuration), target :: defaults
     type(namelist_item) :: no_items(0)
     character(len=16), allocatable :: groups(:)
-    character(len=:), allocatable :: message
+    character(len=:), allocatable :: message, names, name
+    class(scene), allocatable, target :: scene_of_model
     integer :: g, i, stat
 
     write (unit, '(a)') 'usage: eme_run [PETSc options] FILE.nml [PETSc options]', &
       '       eme_run --help | -h | --version | --integrators | --output-schema', '', &
-      'Integrates one scene of the thermoviscoelastic double pendulum (Valdes y Beck & Betsch, PAMM 2023)', &
-      'and writes an HDF5 file (&output file; docs/output.md).', '', &
+      'Integrates one scene of a GENERIC model (&model model_name: by default the thermoviscoelastic double', &
+      'pendulum of Valdes y Beck & Betsch, PAMM 2023) and writes an HDF5 file (&output file; docs/output.md).', '', &
       '  --help, -h        this text', &
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &
@@ -74,13 +76,22 @@ contains
       'that names another input (a study''s base) is relative to the file that names it.', &
       'Steps: a fixed-step integrator takes ceiling(t_end/dt) steps of dt and ends at that multiple of dt', &
       '(20.1 s for t_end = 20, dt = 0.15; dt > t_end is refused); one that chooses its steps lands on t_end.', '', &
-      'Input: a namelist file with any of these groups (models: '//model_names()//'); left-out fields keep', &
-      'their defaults, the paper''s scene:'
-    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
-    call defaults%scene%group_names(groups)
-    do g = 1, size(groups)
-      call describe_group(unit, trim(groups(g)), defaults%scene%fields(trim(groups(g))))
+      'Input: a namelist file with the groups of its model and &integrator and &output; left-out fields', &
+      'keep their defaults (for the double pendulum, the paper''s scene). The models: '//model_names()//'.'
+    names = model_names()//' '
+    do while (len_trim(names) > 0)
+      names = adjustl(names)
+      name = names(1:index(names, ' ') - 1)
+      names = names(index(names, ' ') + 1:)
+      write (unit, '(a)') '', 'Model '''//name//''' (&model model_name = '''//name//'''):'
+      call select_scene("&model model_name = '"//name//"' /", 'defaults', no_items, scene_of_model, stat, message)
+      call scene_of_model%group_names(groups)
+      do g = 1, size(groups)
+        call describe_group(unit, trim(groups(g)), scene_of_model%fields(trim(groups(g))))
+      end do
     end do
+    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+    write (unit, '(a)') '', 'Every model:'
     call describe_group(unit, 'integrator', integrator_fields(defaults))
     call describe_group(unit, 'output', output_fields(defaults))
     write (unit, '(a)') '', 'Integrators (&integrator scheme):'
@@ -152,11 +163,11 @@ contains
   subroutine print_integrators(unit, tabular)
     integer, intent(in) :: unit
     logical, intent(in) :: tabular
-    type(integrator_entry) :: entries(integrator_count)
+    type(integrator_entry), allocatable :: entries(:)
     character(len=*), parameter :: tab = achar(9)
     integer :: i
 
-    entries = registered_integrators()
+    allocate (entries, source=registered_integrators())
     if (tabular) write (unit, '(a)') 'name'//tab//'family'//tab//'label'//tab//'takes_constraints'//tab//'adaptive' &
       //tab//'error_control'//tab//'description'
     do i = 1, size(entries)

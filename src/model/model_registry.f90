@@ -11,6 +11,7 @@ module model_registry
   use condensed_step, only: condensed_step_problem
   use pendulum_scene, only: double_pendulum_name, new_double_pendulum_scene
   use pendulum_step_kernel, only: pendulum_fused_step
+  use gas_scene, only: gas_containers_name, new_gas_containers_scene
   implicit none (type, external)
   private
   public :: select_scene, model_names, fused_step_of
@@ -41,11 +42,12 @@ module model_registry
 
 contains
 
-  !> The registry: the first line is the default model.
-  function registered_models() result(entries)
+  !> The registry, a line per model; the first is the default model.
+  pure function registered_models() result(entries)
     type(model_entry), allocatable :: entries(:)
 
-    entries = [model_entry(double_pendulum_name, new_double_pendulum_scene, pendulum_fused_step)]
+    entries = [model_entry(double_pendulum_name, new_double_pendulum_scene, pendulum_fused_step), &
+               model_entry(gas_containers_name, new_gas_containers_scene)]
   end function registered_models
 
   !> The names of the models, blank-separated.
@@ -54,7 +56,7 @@ contains
     type(model_entry), allocatable :: entries(:)
     integer :: i
 
-    entries = registered_models()
+    allocate (entries, source=registered_models())
     names = trim(entries(1)%name)
     do i = 2, size(entries)
       names = names//' '//trim(entries(i)%name)
@@ -77,7 +79,7 @@ contains
 
     stat = 0
     message = ''
-    entries = registered_models()
+    allocate (entries, source=registered_models())
     name = entries(1)%name
     where = origin
     call group_items(text, 'model', [character(len=24) :: 'model_name'], origin, items, extra)
@@ -111,7 +113,7 @@ contains
     integer :: i
 
     built = .false.
-    entries = registered_models()
+    allocate (entries, source=registered_models())
     do i = 1, size(entries)
       if (.not. associated(entries(i)%make_fused_step)) cycle
       call entries(i)%make_fused_step(problem, kernel, built)

@@ -34,6 +34,7 @@ module run_outcome
     !> max_n |J_n - J_0| of the model's conserved momentum (J_z for the pendulum); NaN for a model without
     real(real64) :: angular_momentum_drift = 0.0_real64
     character(len=8) :: conserved_momentum = ''   !! its name for the summary line (Jz); '' if none
+    character(len=16) :: energy_units = 'J', entropy_units = 'J/K'   !! the model's, for the summary line
     !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
     real(real64) :: min_temperature = huge(1.0_real64)
     integer(int64) :: halved_steps = 0     !! failed attempts of the completed steps replaced by two halves

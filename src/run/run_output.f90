@@ -18,7 +18,7 @@ module run_output
   use provenance, only: write_provenance, iso_time, command_line
   use run_outcome, only: run_summary, failure_io, failure_interrupted, failure_step_budget
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words, &
-                        dataset_description
+                        dataset_description, dataset_units
   use run_attributes, only: write_run_attributes
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use filesystem, only: os_error_text
@@ -170,7 +170,7 @@ contains
       description = dataset_description(spec, model)
       if (spec%name == 'scheme_temperature') description = trim(entry%scheme_temperature)
       if (len(columns) == 0) then
-        call table%define(trim(spec%name), 1, .false., trim(spec%units), description, &
+        call table%define(trim(spec%name), 1, .false., dataset_units(spec, model), description, &
                           integer_valued=spec%integer_valued, rows=trim(spec%rows), combine=spec%combine, &
                           coordinates=dataset_coordinates(spec%name, spec%rows))
         return

@@ -11,7 +11,7 @@ module run_schema
   implicit none (type, external)
   private
   public :: output_dataset, output_schema, per_column, print_output_schema, dataset_coordinates, column_units, &
-            expanded_columns, count_words, schema_version, model_says, dataset_description
+            expanded_columns, count_words, schema_version, model_says, dataset_description, dataset_units
 
   !> The version of this layout, the run file's root attribute schema_version (absent before 2).
   !> 2: the model describes its datasets (model_says), and a model without momenta has no
@@ -41,19 +41,21 @@ module run_schema
   character(len=*), parameter :: per_column = '<columns>'
   !> A description or units the run's model gives (src/structure/model_interface, model_words).
   character(len=*), parameter :: model_says = '<the model says>'
+  !> The model's units of energy, entropy and temperature (J, J/K and K for the pendulum).
+  character(len=*), parameter :: energy_units = '<E>', entropy_units = '<S>', theta_units = '<theta>'
 
   type(output_dataset), parameter :: output_schema(22) = [ &
     output_dataset('time', 'point', '', 's', .false., 'last', &
                    'time t_n of each point; the dimension scale of every per-point dataset'), &
     output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
                    'the state z in the run''s thermodynamic variable; `columns` names its entries'), &
-    output_dataset('temperature', 'point', 'theta_<subsystems>', 'K', .false., 'last', model_says), &
-    output_dataset('energy', 'point', '', 'J', .false., 'last', model_says), &
-    output_dataset('entropy', 'point', '', 'J/K', .false., 'last', model_says), &
-    output_dataset('lyapunov', 'point', '', 'J', .false., 'last', 'V = E - theta_r S, eq. (14)'), &
+    output_dataset('temperature', 'point', 'theta_<subsystems>', theta_units, .false., 'last', model_says), &
+    output_dataset('energy', 'point', '', energy_units, .false., 'last', model_says), &
+    output_dataset('entropy', 'point', '', entropy_units, .false., 'last', model_says), &
+    output_dataset('lyapunov', 'point', '', energy_units, .false., 'last', 'V = E - theta_r S, eq. (14)'), &
     output_dataset('angular_momentum', 'point', '<momenta>', per_column, .false., 'last', &
                    model_says//'; only for a model with momenta'), &
-    output_dataset('boundary_heat', 'point', '', 'J', .false., 'last', &
+    output_dataset('boundary_heat', 'point', '', energy_units, .false., 'last', &
                    'heat supplied through constraints since t = 0, sum of dt times their heat supply (zero without)'), &
     output_dataset('constraint_residual', 'point', 'g_<constraints>', per_column, .false., 'last', &
                    'g(z) of the active constraints (see the attribute constraint_meanings)'), &
@@ -66,7 +68,7 @@ module run_schema
     output_dataset('newton_iterations', 'step', '', '1', .true., 'sum', &
                    'Newton iterations of the step, summed over every solve it took (retries, continuation stages, '// &
                    'substeps); newton_iterations_total / steps_completed is the mean per step'), &
-    output_dataset('scheme_temperature', 'step', 'Theta_<subsystems>', 'K', .false., 'last', &
+    output_dataset('scheme_temperature', 'step', 'Theta_<subsystems>', theta_units, .false., 'last', &
                    '<the integrator''s entry in the registry says>'), &
     output_dataset('solver_strategy', 'step', '', '1', .true., 'max', &
                    'what found the root: 1 predictor, 2 old state, 3 continuation in dt (same dt); 4-6 the same with the &
@@ -83,9 +85,9 @@ module run_schema
                    'the solver''s converged reason of the step''s last solve, in its own numbering (flag_values, '// &
                    'flag_meanings): SNESConvergedReason, TSConvergedReason, CVode''s flag; 0 without a solver'), &
     output_dataset('step_seconds', 'step', '', 's', .false., 'sum', 'wall-clock time of the step (the integrator''s advance)'), &
-    output_dataset('min_entropy_increment', 'step', '', 'J/K', .false., 'min', &
+    output_dataset('min_entropy_increment', 'step', '', entropy_units, .false., 'min', &
                    'S_n - S_(n-1) of the step; of a row that stands for several steps, the smallest of theirs'), &
-    output_dataset('max_lyapunov_increment', 'step', '', 'J', .false., 'max', &
+    output_dataset('max_lyapunov_increment', 'step', '', energy_units, .false., 'max', &
                    'V_n - V_(n-1) of the step; of a row that stands for several steps, the largest of theirs'), &
     output_dataset('multiplier', 'step', 'lambda_<constraints>', per_column, .false., 'mean', &
                    'Lagrange multipliers of the active constraints (see the attribute constraint_meanings)')]
@@ -136,6 +138,24 @@ contains
     end select
   end function dataset_description
 
+  !> A dataset's units for this run: the model's where the schema names a model's units.
+  function dataset_units(spec, model) result(units)
+    type(output_dataset), intent(in) :: spec
+    class(generic_model), intent(in) :: model
+    character(len=:), allocatable :: units
+
+    select case (spec%units)
+    case (energy_units)
+      units = trim(model%words%energy_units)
+    case (entropy_units)
+      units = trim(model%words%entropy_units)
+    case (theta_units)
+      units = trim(model%words%temperature_units)
+    case default
+      units = trim(spec%units)
+    end select
+  end function dataset_units
+
   ! The units of a vector dataset's `count` columns: the model's (<state>; <momenta>), the
   ! constraints' (<constraints>: g's for constraint_residual, lambda's for multiplier), else the schema's.
   function column_units(spec, model, constraints, count) result(units)
@@ -159,7 +179,7 @@ contains
         end if
       end do
     else
-      units = spec%units
+      units = dataset_units(spec, model)
     end if
   end function column_units
 

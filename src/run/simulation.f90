@@ -15,7 +15,7 @@ module simulation
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
@@ -194,6 +194,8 @@ contains
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
     allocate (theta(model%subsystem_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    summary%energy_units = model%words%energy_units
+    summary%entropy_units = model%words%entropy_units
     ! A model without a conserved momentum has no drift figure.
     if (model%conserved_momentum_column == 0) then
       summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
@@ -393,8 +395,7 @@ contains
     subroutine new_integrator(made)
       class(time_stepper), allocatable, intent(out) :: made
 
-      call entry%build(made)
-      made%scheme = entry%name
+      call build_integrator(entry, made)
     end subroutine new_integrator
 
     ! -eme_continue: the resume record of the output file, or of FILE.part (the one further on,
@@ -641,7 +642,7 @@ contains
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
     if (stat /= 0) return
-    call entry%build(integrator)
+    call build_integrator(entry, integrator)
     call integrator%start(config%integrator, model, constraints, z0, stat)
     if (stat /= 0) message = setup_failure_text()
     call integrator%release(ierr)

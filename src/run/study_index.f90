@@ -25,7 +25,7 @@ module study_index
   use hdf5_files, only: hdf5_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
   use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text, rename_file
-  use integrator_registry, only: integrator_entry, registered_integrators, integrator_count
+  use integrator_registry, only: integrator_entry, registered_integrators
   use build_info, only: code_version
   use provenance, only: write_provenance, iso_time
   use run_options, only: petsc_options_in_force
@@ -412,10 +412,13 @@ contains
     type(hdf5_file), intent(in) :: file
     integer, intent(out) :: stat
     type(table_columns) :: columns
-    type(integrator_entry) :: entries(integrator_count)
-    character(len=status_length) :: texts(4, integrator_count)
-    real(real64) :: numbers(4, integrator_count)
+    type(integrator_entry), allocatable :: entries(:)
+    character(len=status_length), allocatable :: texts(:, :)
+    real(real64), allocatable :: numbers(:, :)
     integer :: i
+
+    allocate (entries, source=registered_integrators())
+    allocate (texts(4, size(entries)), numbers(4, size(entries)))
 
     call columns%add('name', len(entries(1)%name))
     call columns%add('label', len(entries(1)%label))
@@ -425,7 +428,6 @@ contains
     call columns%add('uses_discrete_gradient', column_integer)
     call columns%add('adaptive', column_integer)
     call columns%add('error_control', column_integer)
-    entries = registered_integrators()
     do i = 1, size(entries)
       texts(:, i) = [character(len=status_length) :: entries(i)%name, entries(i)%label, entries(i)%family, &
                      entries(i)%description]

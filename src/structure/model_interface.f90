@@ -43,6 +43,9 @@ module model_interface
     character(len=120) :: entropy = 'total entropy S: the sum of the subsystems'' S_a'
     character(len=120) :: momenta = ''           !! the momentum dataset's description
     character(len=16) :: momentum_units = ''
+    character(len=16) :: energy_units = 'J'       !! of E, V, heat and U_a
+    character(len=16) :: entropy_units = 'J/K'    !! of S and S_a
+    character(len=16) :: temperature_units = 'K'
     !> What the nondimensional metric of the discrete gradients divides each invariant by.
     character(len=160) :: metric_scales = 'each invariant by its typical size (attributes metric_scale_*)'
   end type model_words

@@ -1,6 +1,7 @@
 """The layers of docs/architecture.md hold in the code: no module uses one of a higher layer
-(folder), and the module graph has no cycle. The checks see a planted upward `use` and a planted
-cycle in a copy of the sources."""
+(folder), and the module graph has no cycle. The checks see a planted upward `use`, a planted
+cycle and a file in no layer in a copy of the sources, and read a subfolder as a folder of its
+layer. (The pictures: test_module_graph_reproducible.py.)"""
 import shutil
 import subprocess
 import sys
@@ -17,6 +18,7 @@ import module_graph  # noqa: E402
 def test_the_code_keeps_its_layers_and_has_no_cycle():
     nodes, edges = module_graph.graph(ROOT)
     assert len(nodes) > 60 and len(edges) > 200          # the whole code was read
+    assert module_graph.unlayered(nodes) == []
     assert module_graph.upward(nodes, edges) == []
     assert module_graph.cycles(nodes, edges) == []
     # Fortran's calls of C are edges too: the HDF5 files call the storage shim.
@@ -82,9 +84,31 @@ def test_a_planted_cycle_is_found(copy):
     assert set(cycle) == {"number_text", "statistics"}
 
 
-def test_the_graph_is_drawn(tmp_path):
-    result = subprocess.run([sys.executable, str(ROOT / "tests" / "architecture" / "module_graph.py"), "-o",
-                             str(tmp_path / "graph")], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
-    assert (tmp_path / "graph.svg").read_text().startswith("<?xml")
-    assert (tmp_path / "graph.png").read_bytes().startswith(b"\x89PNG")
+def test_a_subfolder_is_a_folder_of_its_layer(copy):
+    # A second model in a folder of its own, beside src/model/pendulum/.
+    (copy / "src" / "model" / "spring").mkdir()
+    (copy / "src" / "model" / "spring" / "spring_model.f90").write_text(
+        "module spring_model\n  use model_interface, only: model\n  use model_scene, only: scene\n"
+        "  implicit none\nend module spring_model\n")
+    nodes, edges = module_graph.graph(copy)
+    assert (nodes["spring_model"].layer, nodes["spring_model"].folder) == ("model", "model/spring")
+    assert (nodes["pendulum_model"].layer, nodes["pendulum_model"].folder) == ("model", "model/pendulum")
+    assert (nodes["model_registry"].layer, nodes["model_registry"].folder) == ("model", "model")
+    files, counts = module_graph.folder_graph(nodes, edges)
+    folders = list(files)
+    band = [folder for folder in folders if module_graph.layer_of(folder) == "model"]
+    start = folders.index("model")                          # one band: the layer's folder, then each model's
+    assert folders[start:start + len(band)] == band == sorted(band) and band[0] == "model"
+    assert {"model/pendulum", "model/spring"} <= set(band)
+    assert files["model/spring"] == 1
+    assert counts[("model/spring", "model")] == counts[("model/spring", "structure")] == 1
+    assert sum(counts.values()) == len(edges)
+
+
+def test_a_file_in_no_layer_is_found(copy):
+    (copy / "src" / "extras").mkdir()
+    (copy / "src" / "extras" / "stray.f90").write_text("module stray\n  implicit none\nend module stray\n")
+    result = subprocess.run([sys.executable, str(ROOT / "tests" / "architecture" / "module_graph.py"), "--check",
+                             "--root", str(copy)], capture_output=True, text=True)
+    assert result.returncode == 1
+    assert "src/extras/stray.f90 is in src/extras, which is in no layer" in result.stdout

@@ -109,7 +109,7 @@ CASES = {
     # Eq. (17): mu^eq, mu^neq constants and slopes, eta_cst and eta_theta > 0; heat capacities > 0.
     "mu_eq_const zero": ("&model mu_eq_const = 200, 0 /\n", ["&model", "mu_eq_const", "two real numbers > 0 [J]",
                                                            "eq. (17)"]),
-    "mu_eq_slope negative": ("&model mu_eq_slope = -0.5, 0.5 /\n", ["&model", "mu_eq_slope", "> 0 [J/K]"]),
+    "mu_eq_slope negative": ("&model mu_eq_slope = -0.5, 0.5 /\n", ["&model", "mu_eq_slope", ">= 0 [J/K]"]),
     "mu_neq_const zero": ("&model mu_neq_const = 0 /\n", ["&model", "mu_neq_const = 0", "> 0"]),
     "mu_neq_slope negative": ("&model mu_neq_slope = -0.1 /\n", ["&model", "mu_neq_slope = -0.1", "> 0"]),
     "viscosity_const zero": ("&model viscosity_const = 0 /\n", ["&model", "viscosity_const = 0", "> 0"]),

@@ -299,9 +299,10 @@ def _text(value):
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-def run_project(tmp_path, name, integrator):
-    """Runs eme_run on the scene; returns (t_end, end state in the temperature variable, run)."""
-    result, path = run_eme(tmp_path, name, {"model": MODEL, "initial": INITIAL,
+def run_project(tmp_path, name, integrator, model=None):
+    """Runs eme_run on the scene (or with `model`'s &model instead); returns (t_end, end state in
+    the temperature variable, run)."""
+    result, path = run_eme(tmp_path, name, {"model": model or MODEL, "initial": INITIAL,
                                             "integrator": integrator})
     assert result.returncode == 0, f"eme_run {integrator} failed:\n{result.stdout}\n{result.stderr}"
     data = read_run(path)
@@ -420,6 +421,24 @@ def test_project_matches_independent_reference(tmp_path, eme_run_binary, case):
         assert rel <= TOL_STATE_FUNCTIONS, (
             f"{case}: {what} at t = 0: project {theirs!r}, reference {ours!r}, relative "
             f"difference {rel:.3e}, tolerance {TOL_STATE_FUNCTIONS:.0e}")
+
+
+def test_a_stiffness_independent_of_temperature(tmp_path, eme_run_binary):
+    """mu_eq_slope = 0 (a stiffness that does not depend on temperature, as the thermoelastic
+    pendulum of Romero's dataset has) is accepted, and the project follows the reference with it:
+    ts_rk5dp at tolerance 1e-12 to 1e-9, EME to its O(dt^2) error; the reference itself moves by
+    far more than that from the scene with slopes (the test sees the slope)."""
+    model = dict(MODEL, mu_eq_slope=[0.0, 0.0])
+    P0 = params_from(model)
+    y_ref = reference(P0, T_END)
+    assert np.abs(y_ref - reference(P, T_END)).max() > 1e-6
+    t_end, y, _ = run_project(tmp_path, "slope0_rk5dp", {"scheme": "ts_rk5dp", "dt": 0.01, "t_end": T_END,
+                                                       "tolerance": 1e-12}, model)
+    assert max(relative_errors(y, y_ref)) < 1e-9
+    t_end, y, data = run_project(tmp_path, "slope0_eme", {"scheme": "eme", "dt": 0.001, "t_end": T_END,
+                                                        "newton_tol": 1e-12}, model)
+    assert max(relative_errors(y, y_ref)) < 1e-5
+    assert np.abs(data["energy"] - data["energy"][0]).max() < 1e-12 * abs(data["energy"][0])
 
 
 PERTURBATIONS = {

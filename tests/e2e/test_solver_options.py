@@ -43,7 +43,7 @@ def test_help_lists_the_eme_options(tmp_path, eme_run_binary):
     result, _ = run_eme(tmp_path, "help", SCENE, "-help")
     assert result.returncode == 0, result.stderr
     for option, words in [("-eme_chord_predictor", "chord step with the last step's LU factors"),
-                          ("-eme_fused_kernel", "fused kernel on the condensed unknowns"),
+                          ("-eme_fused_kernel", "fused step on its condensed unknowns"),
                           ("-eme_lean_snes", "inside the shell preconditioner"),
                           ("-eme_final_chord", "existing LU factors instead of a new Jacobian"),
                           ("-eme_max_halvings", "replaced by two half steps, recursively")]:

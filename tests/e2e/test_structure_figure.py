@@ -73,6 +73,7 @@ def test_l_is_skew_k_positive_semidefinite_and_both_degenerate(structure, variab
     assert np.abs(grad_s).max() > 0 and np.abs(grad_e).max() > 0
 
 
+@pytest.mark.drawing
 def test_the_figure_is_drawn(structure, tmp_path):
     path, data, _ = structure
     output = tmp_path / "fig2"

@@ -78,8 +78,8 @@ contains
                       exclusive=.true.), &
           reals_field('mu_eq_const', p%mu_eq_const, 'two real numbers > 0 [J] (eq. (17))', 'J', minimum=0.0_real64, &
                       exclusive=.true.), &
-          reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers > 0 [J/K] (eq. (17))', 'J/K', minimum=0.0_real64, &
-                      exclusive=.true.), &
+          reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers >= 0 [J/K] (eq. (17); 0: a stiffness that '// &
+                      'does not depend on temperature)', 'J/K', minimum=0.0_real64), &
           real_field('mu_neq_const', p%mu_neq_const, 'a real number > 0 [J/m^2] (eq. (17))', 'J/m^2', &
                      minimum=0.0_real64, exclusive=.true.), &
           real_field('mu_neq_slope', p%mu_neq_slope, 'a real number > 0 [J/(K m^2)] (eq. (17))', 'J/(K m^2)', &
@@ -105,7 +105,8 @@ contains
         reals_field('p2', self%p2, 'three real numbers [N s]', 'N s'), &
         real_field('gamma', self%gamma, 'a real number [m]', 'm'), &
         absolute_temperature(reals_field('theta', self%theta, 'two real numbers > 0 [K], below theta_ref + '// &
-                                         'mu_eq_const/mu_eq_slope (where a spring''s stiffness, eq. (17), would reach 0)', &
+                                         'mu_eq_const/mu_eq_slope (where a spring''s stiffness, eq. (17), would reach 0; '// &
+                                         'no bound where mu_eq_slope = 0)', &
                                          'K', minimum=0.0_real64, exclusive=.true.))]
     case ('constraints')
       table = [ &
