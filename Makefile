@@ -6,7 +6,7 @@
 #   make constraints  the constraints with EME_s and EME_u, and without conduction
 #   make figures      the figures of the paper scenes (runs what is missing or outdated first)
 #   make study        convergence, work-precision and stability studies, and their charts
-#   make bench        ensemble throughput and per-step cost (benchmarks, not tests)
+#   make bench        ensemble throughput, per-step cost and instructions (benchmarks, not tests)
 #   make python-lock  pin every Python package anew after postprocess/requirements.txt changed
 #   make clean        remove what the build made
 SHELL := /bin/bash
@@ -54,8 +54,11 @@ CFLAGS := -O2 -g -Wall -Wextra -std=c11 $(ARCH_FLAGS)
 LIBRARY_SOURCES := $(sort $(wildcard src/*/*.f90 src/*/*.F90 src/*/*.c src/*/*/*.f90 src/*/*/*.F90 src/*/*/*.c))
 LIBRARY_OBJECTS := $(patsubst %,$(OBJ)/%.o,$(basename $(LIBRARY_SOURCES)))
 DRIVERS := $(basename $(notdir $(wildcard drivers/*.F90)))
+# Programs in C on SUNDIALS CVODE alone, compiled and linked without MPI, PETSc or HDF5
+# (drivers/cvode_baseline.c: the whole-run baseline of make bench).
+CVODE_C_DRIVERS := cvode_baseline
 # Programs in C that need PETSc alone (drivers/snes_overhead.c: PETSc SNES timed by itself).
-C_DRIVERS := $(basename $(notdir $(wildcard drivers/*.c)))
+C_DRIVERS := $(filter-out $(CVODE_C_DRIVERS),$(basename $(notdir $(wildcard drivers/*.c))))
 FORTRAN_SOURCES := $(filter %.f90 %.F90,$(LIBRARY_SOURCES)) $(wildcard drivers/*.F90)
 
 # obj: the objects of the modules it uses, and a submodule's of its parent (only modules of this
@@ -84,10 +87,10 @@ $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(L
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all programs deps test check run constraints figures study bench clean python-lock version docs
+.PHONY: all programs deps test check run constraints figures study bench bench-deps clean python-lock version docs
 
 # The programs alone (make run, figures, study, bench and constraints need no unit tests).
-PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS))
+PROGRAMS := $(patsubst %,$(BIN)/%,$(DRIVERS) $(C_DRIVERS) $(CVODE_C_DRIVERS))
 programs: $(PROGRAMS)
 all: $(PROGRAMS)
 
@@ -112,10 +115,20 @@ $(patsubst %,$(BIN)/%,$(C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -o $@ $< $(PETSC_LIBS) -lm
 
+# The C compiler itself, not MPI's wrapper, for the programs on SUNDIALS alone.
+SERIAL_CC ?= cc
+$(patsubst %,$(OBJ)/drivers/%.o,$(CVODE_C_DRIVERS)): $(OBJ)/drivers/%.o: drivers/%.c | $(BUILD)/.native-deps
+	@mkdir -p $(dir $@)
+	$(SERIAL_CC) $(CFLAGS) $(SUNDIALS_FLAGS) -c $< -o $@
+$(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
+	@mkdir -p $(dir $@)
+	$(SERIAL_CC) $(CFLAGS) -o $@ $< $(SUNDIALS_LDFLAGS) $(CVODE_LIBS) -lm
+
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
-# SUNDIALS CVODE with its dense direct solver serves the CVODE baselines.
-SUNDIALS_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense \
-                 -lsundials_sunnonlinsolfixedpoint
+# SUNDIALS CVODE with its dense direct solver serves the CVODE baselines (BDF with Newton), and
+# its fixed-point solver CVODE-Adams.
+CVODE_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
+SUNDIALS_LIBS := $(CVODE_LIBS) -lsundials_sunnonlinsolfixedpoint
 LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas
 
 # ---------------------------------------------------------------- unit tests
@@ -194,9 +207,9 @@ $(BUILD)/version.stamp: FORCE
 	@echo '$(VERSION)' | cmp -s - $@ || echo '$(VERSION)' > $@
 $(OBJ)/src/io/build_info.o: $(BUILD)/version.stamp VERSION
 $(OBJ)/src/io/build_info.o: private FFLAGS += -DEME_VERSION='"$(VERSION)"'
-# snes_overhead (C, PETSc alone) prints the same version.
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): $(BUILD)/version.stamp VERSION
-$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += -DEME_VERSION='"$(VERSION)"'
+# The programs in C (snes_overhead, cvode_baseline) print the same version.
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): $(BUILD)/version.stamp VERSION
+$(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS) $(CVODE_C_DRIVERS)): private CFLAGS += -DEME_VERSION='"$(VERSION)"'
 .PHONY: FORCE
 
 # ---------------------------------------------------------------- set-up
@@ -334,14 +347,29 @@ study: programs $(VENV)/.python-deps
 # 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a hand-written
 # Newton floor, then issue 22's four speed ratios, each on its own line with its target
 # (bench_eme_run.py: eme_run and eme_bench alternating), and PETSc SNES timed by itself
-# (snes_overhead) beside what the ratios leave it. Each part ends with machine-readable lines and
-# the machine's load around it (postprocess/machine_load.py; a warning when it was busy).
-bench: programs $(VENV)/.python-deps
+# (snes_overhead) beside what the ratios leave it; then issue 34's ratios against CVODE-BDF on
+# the same model (bench_cvode_baseline.py): instructions per step by callgrind, and a whole
+# eme_run against the C program with CVODE alone (cvode_baseline). Each part ends with
+# machine-readable lines and the machine's load around it (postprocess/machine_load.py; a
+# warning when it was busy).
+bench: programs $(VENV)/.python-deps bench-deps
 	@echo "machine: $$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $$(nproc) cores, $$(uname -sr)"
 	$(PYTHON) postprocess/bench_ensemble.py --repeats 3
 	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_accuracy_bench.load.json -- $(BIN)/eme_accuracy_bench 5
 	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_bench.load.json -- $(BIN)/eme_bench 21
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
+	$(PYTHON) postprocess/bench_cvode_baseline.py --bin $(BIN) --repeats 15
+
+# make bench counts instructions with valgrind's callgrind (perf stat says "not supported" on
+# these machines): installed with apt-get on Debian as root (not with EME_SETUP_APT=no), else
+# the rule says what to install.
+bench-deps:
+	@command -v valgrind >/dev/null && command -v callgrind_annotate >/dev/null || \
+	if [ "$$(id -u)" = 0 ] && [ "$${EME_SETUP_APT:-yes}" != no ] && command -v apt-get >/dev/null; then \
+	  echo "Installing valgrind with apt-get (make bench's instruction counts)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq valgrind >/dev/null; \
+	else echo "make bench counts instructions with valgrind's callgrind: install valgrind (Debian: apt-get" \
+	  "install valgrind; Spack: spack install valgrind; conda-forge: conda install valgrind)" >&2; exit 1; fi
 
 # The constraint scenes for EME_s and EME_u, and g2 without conduction (docs/constraints.md).
 constraints: programs $(VENV)/.python-deps

@@ -49,9 +49,10 @@ class ProgramFailed(Exception):
     """A benchmarked program exited with an error; the message holds what it printed."""
 
 
-def run_program(command):
-    """Runs a program with its output captured; its stdout, or ProgramFailed with its own message."""
-    result = subprocess.run([str(part) for part in command], capture_output=True, text=True)
+def run_program(command, env=None):
+    """Runs a program with its output captured (in environment `env`, else this one's); its stdout,
+    or ProgramFailed with its own message."""
+    result = subprocess.run([str(part) for part in command], capture_output=True, text=True, env=env)
     if result.returncode != 0:
         said = "\n".join(text.strip() for text in (result.stderr, result.stdout) if text.strip())
         raise ProgramFailed(f"{' '.join(str(part) for part in command)} exited with status {result.returncode}:\n"
@@ -74,6 +75,14 @@ def eme_run_us_per_step(binary, folder, runs=3):
 
 
 TARGETS = {"snes_over_floor": 1.3, "eme_over_cvode": 1.5, "eme_run_over_cvode": 1.8, "eme_run_over_bench": 1.15}
+
+
+def target_line(name, value, target):
+    """A ratio's machine-readable line with its target: `name=1.234  (target 1.5: met)` or
+    `(target 1.5: missed by 12 %)`, the format of every ratio make bench prints."""
+    excess = 100 * (value / target - 1)
+    verdict = "met" if value <= target else f"missed by {excess:.{0 if excess >= 1 else 1}f} %"
+    return f"{name}={value:.3f}  (target {target}: {verdict})"
 
 
 def bench_figures(binary, repeats):
@@ -103,16 +112,23 @@ def snes_by_itself(binary, solves=5000):
     return tuple(float(value) for value in found.groups())
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="folder of eme_run and eme_bench")
-    parser.add_argument("--repeats", type=int, default=7, help="alternating pairs (default 7)")
+def bench_main(argv, description, programs, repeats, measure):
+    """The command line of a bench script: --bin (the folder of `programs`) and --repeats (default
+    `repeats`); returns measure(bin folder, repeats), or 1 after printing the message of a
+    program that failed (ProgramFailed) as the script's error."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--bin", default=str(ROOT / "build" / "bin"), help=f"folder of {programs}")
+    parser.add_argument("--repeats", type=int, default=repeats, help=f"alternating pairs (default {repeats})")
     args = parser.parse_args(argv)
     try:
-        return report(Path(args.bin), args.repeats)
+        return measure(Path(args.bin), args.repeats)
     except ProgramFailed as error:
-        print(f"bench_eme_run.py: error: {error}", file=sys.stderr)
+        print(f"{Path(sys.argv[0]).name}: error: {error}", file=sys.stderr)
         return 1
+
+
+def main(argv=None):
+    return bench_main(argv, __doc__, "eme_run, eme_bench and snes_overhead", 7, report)
 
 
 def report(bin_dir, repeats):
@@ -139,10 +155,7 @@ def report(bin_dir, repeats):
           f"eme_bench EME_temperature: {median(benches):.2f} us/step "
           f"(medians of {repeats} alternating pairs)")
     for name, target in TARGETS.items():
-        value = median(ratios[name])
-        excess = 100 * (value / target - 1)
-        verdict = "met" if value <= target else f"missed by {excess:.{0 if excess >= 1 else 1}f} %"
-        print(f"{name}={value:.3f}  (target {target}: {verdict})")
+        print(target_line(name, median(ratios[name]), target))
     floor_target, cvode_target = TARGETS["snes_over_floor"], TARGETS["eme_over_cvode"]
     # P/(floor_target - 1) <= F <= cvode_target C - P  <=>  P <= cvode_target (floor_target - 1)/floor_target C
     limit = cvode_target * (floor_target - 1) / floor_target
@@ -159,11 +172,7 @@ def report(bin_dir, repeats):
           f"{alone * cvode / (floor_target - 1):.2f} us")
     print(f"  SNESSolve of an SNESSHELL (a Newton loop of our own inside SNES, not PETSc's): {median(shells):.2f} us "
           f"per solve")
-    print(load.text())
-    print(f"load_average_before={load.before:.2f} load_average_after={load.after:.2f} cores={load.cores} "
-          f"busy={int(load.busy)}")
-    if load.busy:
-        print(f"bench_eme_run.py: {load.warning()}", file=sys.stderr)
+    load.report("bench_eme_run.py")
     return 0
 
 

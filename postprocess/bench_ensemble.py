@@ -196,8 +196,7 @@ def report(repeats, studies, runs, pairs, file_costs, case_times, load):
           f"efficiency_2_ranks={summary['index-only', 'efficiency']:.3f} machine_ceiling={summary['ceiling']:.3f} "
           f"ensemble_overhead_with_files={100 * summary['with files', 1]:.2f}% "
           f"file_cost_per_case_ms={1e3 * file_cost:.3f} case_time_ms={1e3 * case_time:.3f} "
-          f"load_average_before={load.before:.2f} load_average_after={load.after:.2f} cores={load.cores} "
-          f"busy={int(load.busy)}")
+          f"{load.fields()}")
     if load.busy:
         print(f"bench_ensemble.py: {load.warning()}", file=sys.stderr)
 

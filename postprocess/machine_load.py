@@ -76,6 +76,19 @@ class MachineLoad:
                 f"{self.after:.2f} after, {self.own} own process{'es' if self.own != 1 else ''}, {self.cores} "
                 "cores): its timings are not comparable with an idle machine's") if self.busy else ""
 
+    def fields(self):
+        """The machine-readable fields that end a bench part: load_average_before=... busy=0."""
+        return (f"load_average_before={self.before:.2f} load_average_after={self.after:.2f} cores={self.cores} "
+                f"busy={int(self.busy)}")
+
+    def report(self, program):
+        """Prints the load line and the fields line that end a bench part, and `program`'s warning
+        to stderr when the machine was busy."""
+        print(self.text())
+        print(self.fields())
+        if self.busy:
+            print(f"{program}: {self.warning()}", file=sys.stderr)
+
     def attributes(self):
         """The figures as HDF5 attributes or JSON fields."""
         return {"load_average_before": self.before, "load_average_after": self.after, "cores": self.cores,

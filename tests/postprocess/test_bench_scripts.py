@@ -67,3 +67,27 @@ def test_the_wrapper_records_the_load_and_keeps_the_commands_status(tmp_path):
     assert (load.before, load.after, load.cores, load.own) == (fields["load_average_before"],
                                                               fields["load_average_after"], fields["cores"], 2)
     assert machine_load.read(tmp_path / "absent.json") is None
+
+
+def test_bench_cvode_baseline_says_when_valgrind_is_missing(tmp_path):
+    """Without valgrind on PATH the instruction counts stop with one line that names it."""
+    empty = tmp_path / "no_tools"
+    empty.mkdir()
+    result = subprocess.run([sys.executable, str(POSTPROCESS / "bench_cvode_baseline.py"), "--bin", str(BIN)],
+                            capture_output=True, text=True, timeout=60, env=dict(os.environ, PATH=str(empty)))
+    assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+    assert "valgrind is not installed" in result.stderr, result.stderr
+
+
+def test_bench_cvode_baseline_scenes_are_the_paper_scene_with_what_they_change(tmp_path):
+    """The namelists of the instruction counts: the paper scene's input with another t_end and scheme."""
+    import bench_cvode_baseline
+    output = tmp_path / "scene.h5"
+    namelist = tmp_path / "scene.nml"
+    namelist.write_text(bench_cvode_baseline.scene_text(output, 0.3, "cvode_bdf"))
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    import h5py
+    with h5py.File(output, "r") as f:
+        assert f.attrs["scheme"] == "cvode_bdf" and f.attrs["steps_completed"] == 2
+        assert f.attrs["dt"] == 0.15 and f["snes_solves"][()].sum() > 2
