@@ -369,9 +369,20 @@ contains
   subroutine resume_state(self, values)
     class(step_solver), intent(in) :: self
     real(real64), allocatable, intent(inout) :: values(:)
+    integer :: n
 
-    values = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
-              self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), self%solver%context%lu%as_values()]
+    ! Kept from call to call (a record is noted after every row): nothing is allocated per step.
+    n = 5 + self%solver%context%lu%value_count()
+    if (allocated(values)) then
+      if (size(values) /= n) deallocate (values)
+    end if
+    if (.not. allocated(values)) allocate (values(n))
+    values(1) = self%controller%h
+    values(2) = self%controller%err_old
+    values(3) = merge(1.0_real64, 0.0_real64, self%controller%has_history)
+    values(4) = self%h_last
+    values(5) = merge(1.0_real64, 0.0_real64, allocated(self%x_last))
+    call self%solver%context%lu%put_values(values(6:))
   end subroutine resume_state
 
   !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its layout.

@@ -22,6 +22,8 @@ module dense_lu
     procedure :: factor_in_place
     procedure :: solve
     procedure :: as_values
+    procedure :: value_count
+    procedure :: put_values
     procedure :: from_values
   end type lu_factors
 
@@ -109,15 +111,34 @@ contains
   pure function as_values(self) result(values)
     class(lu_factors), intent(in) :: self
     real(real64), allocatable :: values(:)
-    integer :: m
 
-    if (.not. self%ready) then
-      values = [0.0_real64, 0.0_real64]
-      return
-    end if
-    m = size(self%pivots)
-    values = [1.0_real64, real(m, real64), reshape(self%factors, [m*m]), real(self%pivots, real64)]
+    allocate (values(self%value_count()))
+    call self%put_values(values)
   end function as_values
+
+  !> The number of as_values' numbers.
+  pure integer function value_count(self)
+    class(lu_factors), intent(in) :: self
+
+    value_count = 2
+    if (self%ready) value_count = 2 + size(self%pivots)*(size(self%pivots) + 1)
+  end function value_count
+
+  !> as_values into `values` (of value_count numbers): a caller that keeps its array allocates nothing.
+  pure subroutine put_values(self, values)
+    class(lu_factors), intent(in) :: self
+    real(real64), intent(out) :: values(:)
+    integer :: m, j
+
+    values(1:2) = 0.0_real64
+    if (.not. self%ready) return
+    m = size(self%pivots)
+    values(1:2) = [1.0_real64, real(m, real64)]
+    do j = 1, m
+      values(3 + (j - 1)*m:2 + j*m) = self%factors(:, j)
+    end do
+    values(3 + m*m:) = real(self%pivots, real64)
+  end subroutine put_values
 
   !> Takes back what as_values gave. Factors of another order than n (another system) are not
   !> taken: then none are ready. ok = .false. if `values` are not as_values' layout.
