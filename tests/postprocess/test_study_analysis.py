@@ -217,32 +217,16 @@ EXPECTED_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("EME_
                      ("TS-midpoint_u", 0.1): "solver", ("RRK4_theta", 0.5): "kept"}
 # The gas containers (base inputs/gas_containers.nml), tiny: a stability study on [0, 2] with one
 # case per outcome the scene gives (EME and RRK4 keep everything, MP_s drifts in energy, RK4 leaves
-# the domain in its first step of 1, BDF2 loses its Newton root in its second), and a work-precision
-# set on [0, 0.4] with its reference (relaxed_rk8 at dt = 0.005, cross-checked by CVODE-Adams).
+# the domain in its first step of 1, BDF2 loses its Newton root in its second), and the pendulum's
+# work-precision sweeps on [0, 0.4] with their reference (relaxed_rk8 at dt = 0.005, cross-checked by
+# CVODE-Adams).
 GAS_STUDIES = {
     "gas_stability": """&sweep field = 't_end', values = 5*2.0 /
 &sweep field = 'scheme', texts = 'eme', 'midpoint', 'ts_rk4', 'ts_bdf2', 'relaxed_rk4' /
 &sweep field = 'thermo_variable', texts = 'temperature', 'entropy', 'temperature', 'temperature', 'temperature' /
 &sweep field = 'dt', values = 0.1, 0.1, 1.0, 1.0, 0.5 /""",
-    "gas_work_precision": """&sweep field = 't_end', values = 4*0.4 /
-&sweep field = 'scheme', texts = 'eme', 'eme', 'relaxed_rk8', 'relaxed_rk8' /
-&sweep field = 'thermo_variable', texts = 'temperature', 'temperature', 'temperature', 'temperature' /
-&sweep field = 'dt', values = 0.02, 0.01, 0.1, 0.05 /""",
-    "gas_work_precision_adaptive": """&sweep field = 't_end', values = 4*0.4 /
-&sweep field = 'scheme', texts = 'relaxed_dp853', 'relaxed_dp853', 'cvode_bdf', 'cvode_bdf' /
-&sweep field = 'thermo_variable', texts = 'temperature', 'temperature', 'temperature', 'temperature' /
-&sweep field = 'dt', values = 4*0.2 /
-&sweep field = 'tolerance', values = 1e-5, 1e-8, 1e-5, 1e-8 /""",
-    "gas_work_precision_step_control": """&sweep field = 't_end', values = 2*0.4 /
-&sweep field = 'scheme', texts = 'eme', 'eme' /
-&sweep field = 'thermo_variable', texts = 'temperature', 'temperature' /
-&sweep field = 'dt', values = 2*0.2 /
-&sweep field = 'tolerance', values = 1e-3, 1e-4 /""",
-    "gas_work_precision_reference": """&sweep field = 't_end', values = 0.4, 0.4 /
-&sweep field = 'scheme', texts = 'relaxed_rk8', 'cvode_adams' /
-&sweep field = 'thermo_variable', texts = 'temperature', 'temperature' /
-&sweep field = 'dt', values = 0.005, 0.2 /
-&sweep field = 'tolerance', values = 1e-10, 1e-13 /""",
+    **{f"gas_{name}": STUDIES[name] for name in ("work_precision", "work_precision_adaptive",
+                                                 "work_precision_step_control", "work_precision_reference")},
 }
 STUDIES.update(GAS_STUDIES)
 EXPECTED_GAS_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("RK4_theta", 1.0): "nonphysical",
