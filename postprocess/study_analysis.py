@@ -284,7 +284,8 @@ def work_precision(study_dir, model="pendulum"):
                 cheapest[key, target] = min(meeting, key=lambda i: rows[i]["solve_time_seconds"])
     return {"rows": rows, "errors": errors, "shown": shown, "level": level, "reference": reference,
             "cross_check": cross_check, "left_out": left_out, "cheapest": cheapest, "model": model,
-            "title": studies.title, "norm": studies.error_norm, "norm_label": studies.norm_label}
+            "title": studies.title, "norm": studies.error_norm, "norm_label": studies.norm_label,
+            "end": f"t = {reference.time:g}" + ("" if studies.nondimensional else " s")}
 
 
 # ---------------------------------------------------------------- structure and stability
@@ -504,8 +505,7 @@ def write_convergence(g, conv):
 
 def write_work_precision(g, wp):
     """One model's work-precision numbers."""
-    wrows, title = wp["rows"], MODELS[wp["model"]].title
-    end = f"t = {wp['reference'].time:g}"
+    wrows, title, end = wp["rows"], wp["title"], wp["end"]
     g.attrs["description"] = (f"{title}: error at {end} against the reference, and against solve time "
                               "(figure study_work_precision" + ("; right panel of study_convergence)"
                                                                  if wp["model"] == "pendulum" else ")"))
@@ -598,7 +598,7 @@ def convergence_findings(conv):
 def work_precision_findings(wp):
     """One model's work-precision findings: each scheme's cheapest case per target."""
     prefix = f"work precision{MODELS[wp['model']].finding_tag}"
-    lines = [f"{prefix}: reference {wp['reference'].path} at t = {wp['reference'].time:g}; cross-check "
+    lines = [f"{prefix}: reference {wp['reference'].path} at {wp['end']}; cross-check "
              f"{wp['cross_check'].path}: |reference - cross-check| = {wp['level']:.2e}"]
     wrows, cheapest = wp["rows"], wp["cheapest"]
     for target in TARGETS:

@@ -8,8 +8,9 @@ variable (solid and filled: s; dashed and open, larger: theta; dotted and filled
 that coinciding curves stay visible). The timing charts (work precision, structure against cost)
 give each family a row of panels of its own with its legend beside it, the other families' curves
 in light grey behind, on the same axes; work precision has a column of them per model (the
-double pendulum, the gas containers), and the stability map a panel per scene. The figures use the paper style of plotting.py; what each
-shows in detail (reference, fit rule, classification) goes to its caption file and metadata.
+double pendulum, the gas containers), and the stability map a panel per scene. The figures use
+the paper style of plotting.py; what each shows in detail (reference, fit rule, classification)
+goes to its caption file and metadata.
 """
 from pathlib import Path
 
@@ -201,7 +202,7 @@ def work_precision_figure(wps, factor):
             ax.set_yscale("log")
             ax.set_ylim(bottom, 1.0)
             ax.grid(True, which="major")
-        axes[0, column].set_title(f"{wp['title']}, t = {wp['reference'].time:g}\n{wp['norm_label']}")
+        axes[0, column].set_title(f"{wp['title']}, {wp['end']}\n{wp['norm_label']}")
         axes[-1, column].set_xlabel("solve time, one rank [s]")
     for row_axes, (family, _) in zip(axes, grouped):
         # One legend per family, beside its row: a curve carries the same marks in every column.
@@ -213,7 +214,7 @@ def work_precision_figure(wps, factor):
     fig.supylabel("error at t = T, in the norm above each column")
     repeats = sorted({row.get("repeats", 1) for wp in wps.values() for row in wp["rows"]})
     return fig, "Work-precision: error against solve time (lower left is better)", [
-        *(f"{wp['title']}: error at t = {wp['reference'].time:g}, {wp['norm']}. Reference: {wp['reference'].path}; "
+        *(f"{wp['title']}: error at {wp['end']}, {wp['norm']}. Reference: {wp['reference'].path}; "
           f"cross-check: {wp['cross_check'].path}; |reference - cross-check| = {wp['level']:.1e} (dash-dot line); "
           f"points with error below {factor:g} times it are left out. Cases: {len(wp['rows'])} complete"
           + (f"; left out (not complete): {len(wp['left_out'])}" if wp["left_out"] else "") + "."

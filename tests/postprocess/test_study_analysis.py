@@ -631,7 +631,7 @@ def test_work_precision_chart_gives_each_model_a_column_and_each_family_a_row(st
     families = list(dict.fromkeys(integrators.family(scheme) for scheme, _ in keys))
     grid = np.array(fig.axes).reshape(len(families), 2)
     assert len(families) >= 3
-    assert [ax.get_title().splitlines()[0] for ax in grid[0]] == ["double pendulum, t = 0.4", "gas containers, t = 0.4"]
+    assert [ax.get_title().splitlines()[0] for ax in grid[0]] == ["double pendulum, t = 0.4 s", "gas containers, t = 0.4"]
     for row_axes, family in zip(grid, families):
         assert row_axes[-1].get_legend().get_title().get_text() == integrators.family_title(family)
         for ax, wp in zip(row_axes, wps.values()):
