@@ -325,11 +325,14 @@ $(FIGURES)/temperatures_jz.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_
 	$(PYTHON) postprocess/plot_temperatures.py $(EME_FILES) --compare $(MIDPOINT_FILES) -o $(basename $@)
 
 # Convergence, work-precision and stability studies on 2 ranks, then their analysis: charts in
-# results/figures, numbers in results/study/summary.h5 (docs/performance.md).
+# results/figures, numbers in results/study/summary.h5 (docs/performance.md). The gas containers'
+# work-precision and stability studies (GAS_STUDIES) go beside the pendulum's in the same charts.
 HARD_SCENES := low_viscosity stiff_spring high_conductivity temperature_gap
+GAS_STUDIES := gas_work_precision gas_work_precision_adaptive gas_work_precision_step_control \
+               gas_work_precision_reference gas_stability
 STUDIES := convergence convergence_reference work_precision work_precision_adaptive work_precision_step_control \
            work_precision_reference stability_paper stability_hard \
-           $(foreach s,$(HARD_SCENES),stability_$(s) stability_$(s)_tolerance)
+           $(foreach s,$(HARD_SCENES),stability_$(s) stability_$(s)_tolerance) $(GAS_STUDIES)
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
 # Each study prints its start, a progress line every 2 s and its summary; the machine's load around

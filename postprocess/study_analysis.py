@@ -1,22 +1,27 @@
 """Analysis of the parameter studies of `make study` (docs/studies.md).
 
-Reads STUDY_DIR/{convergence, convergence_reference, work_precision, work_precision_adaptive,
-work_precision_reference, stability_paper, stability_hard}/index.h5 and the case files the
-convergence and work-precision indexes name (the stability studies keep only their index:
-&study index_only), and writes to OUT:
+Reads STUDY_DIR/NAME/index.h5 of every study of the models chosen (MODELS; --models, default
+all: the double pendulum's convergence, work-precision and stability studies, the gas
+containers' work-precision and stability studies) and the case files the convergence and
+work-precision indexes name (the stability studies keep only their index: &study index_only),
+and writes to OUT:
   study_convergence        error at t = T against dt, with each fixed-step scheme's fitted order,
                            and the adaptive schemes' error at t = 5 s against their tolerance
   study_work_precision     error at t = 5 s against the solve time (median of the study's
-                           repeats), fixed-step schemes over dt, adaptive ones over tolerance
+                           repeats), fixed-step schemes over dt, adaptive ones over tolerance:
+                           a column of panels per model
   study_structure_cost     energy error and entropy decrease against solve time (paper scene)
-  study_stability_map      outcome of every case of the two stability studies
-(each as .png and .pdf), one HDF5 file SUMMARY with the numbers behind every figure, and
-prints the findings as plain lines. The timing charts (work precision, structure against cost)
-state in their captions and in SUMMARY the machine's load while their studies ran, from the
-STUDY_DIR/NAME.load.json that make study writes around each study (machine_load.py), and a
-warning goes to stderr when the machine was busy. A scheme is a scheme and thermodynamic variable pair,
-named as in the paper (EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u) with the labels of the
-integrator registry, which every index carries (/integrators).
+  study_stability_map      outcome of every case of the stability studies, a panel per scene
+  study_stability_set      the pendulum's harder scene set (stability_sets.py)
+(each as .png and .pdf; convergence, structure against cost and the scene set are the
+pendulum's, drawn when it is chosen), one HDF5 file SUMMARY with the numbers behind every
+figure, and prints the findings as plain lines. The timing charts (work precision, structure
+against cost) state in their captions and in SUMMARY the machine's load while their studies
+ran, from the STUDY_DIR/NAME.load.json that make study writes around each study
+(machine_load.py), and a warning goes to stderr when the machine was busy. A scheme is a scheme
+and thermodynamic variable pair, named as in the paper (EME_theta, MP_u, TS-midpoint_s,
+BDF2_theta, RK4_u) with the labels of the integrator registry, which every index carries
+(/integrators).
 """
 import argparse
 import re
@@ -33,12 +38,11 @@ import stability_sets
 import study_plots
 from plotting import run_script
 from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
-from trajectory import RunFileError, read_run
+from trajectory import THERMODYNAMIC_COLUMN, RunFileError, read_run
 
 # study_convergence_reference.nml: case 1 (temperature variable, tolerance 1e-13) is the
 # reference, case 2 (entropy variable, tolerance 1e-12) an independent cross-check of it.
 REFERENCE_CASE, CROSS_CHECK_CASE = 1, 2
-MECHANICAL_COLUMNS = ("q1_x q1_y q1_z q2_x q2_y q2_z p1_x p1_y p1_z p2_x p2_y p2_z gamma").split()
 TEMPERATURE_COLUMNS = ("theta_1", "theta_2")
 # Asymptotic range of the order fit: the FIT_POINTS smallest dt (a factor 4 in dt with the
 # study's halving) among the errors above MEANINGFUL_FACTOR times the cross-check level;
@@ -60,17 +64,55 @@ OUTCOMES = ("kept", "energy", "lyapunov", "solver", "nonphysical")
 # root had a non-positive temperature (on a "no root" failure).
 FLAG_LYAPUNOV, FLAG_TEMPERATURE = "V", "T"
 
-STUDIES = ("convergence", "convergence_reference", "work_precision", "work_precision_adaptive",
-           "work_precision_step_control", "work_precision_reference", "stability_paper", "stability_hard",
-           *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES for kind in ("", "_tolerance")))
-# Work-precision (inputs/study_work_precision*.nml): fixed-step and adaptive cases at t = 5 s
-# against work_precision_reference (case 1, cross-checked by case 2). Points within
-# WORK_PRECISION_FACTOR of the cross-check level measure the reference and are left out; the
-# findings name each scheme's cheapest case that meets each of TARGETS.
+# Work-precision (inputs/study_work_precision*.nml, inputs/study_gas_work_precision*.nml): fixed-step
+# and adaptive cases at t = 5 against the model's reference study (case 1, cross-checked by case
+# 2). Points within WORK_PRECISION_FACTOR of the cross-check level measure the reference and are
+# left out; the findings name each scheme's cheapest case that meets each of TARGETS.
 WORK_PRECISION = ("work_precision", "work_precision_adaptive", "work_precision_step_control")
 WORK_PRECISION_FACTOR = 10.0
 TARGETS = (1e-4, 1e-6)
-SCENES = {"paper": "stability_paper", "hard": "stability_hard"}
+
+
+@dataclass(frozen=True)
+class ModelStudies:
+    """The studies of one model in make study: its work-precision studies (timed) and their
+    reference, its stability map's scenes (scene: study), what its summary group and findings
+    are called, whether it is nondimensional (units 1, times without s) and its work-precision
+    error norm (final_point, state_error), in words and in the figure's math text."""
+    title: str
+    work_precision: tuple
+    reference: str
+    scenes: dict
+    summary_group: str
+    finding_tag: str
+    nondimensional: bool
+    error_norm: str
+    norm_label: str
+
+
+MODELS = {
+    "pendulum": ModelStudies(
+        title="double pendulum", work_precision=WORK_PRECISION, reference="work_precision_reference",
+        scenes={"paper": "stability_paper", "hard": "stability_hard"}, summary_group="work_precision",
+        finding_tag="", nondimensional=False,
+        error_norm="max(|q, p, gamma - reference| [SI], |theta_a - reference|/theta_ref)",
+        norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, |$\Delta\theta_a$|/$\theta_{ref}$)"),
+    # Nondimensional (its units are 1, its temperatures compared unscaled), no momenta (its
+    # angular_momentum_drift is NaN).
+    "gas": ModelStudies(
+        title="gas containers", work_precision=tuple(f"gas_{name}" for name in WORK_PRECISION),
+        reference="gas_work_precision_reference", scenes={"gas": "gas_stability"},
+        summary_group="gas_work_precision", finding_tag=" (gas containers)", nondimensional=True,
+        error_norm="max(|q, p - reference|, |theta_a - reference|)",
+        norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\theta_a$|)"),
+}
+# The pendulum's own charts: convergence, structure against cost (of its paper scene), the harder set.
+STRUCTURE_SCENE = "paper"
+SCENES = {scene: study for model in MODELS.values() for scene, study in model.scenes.items()}
+STUDIES = ("convergence", "convergence_reference",
+           *(study for model in MODELS.values() for study in (*model.work_precision, model.reference)),
+           *SCENES.values(), *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
+                               for kind in ("", "_tolerance")))
 INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
                 "solve_time_seconds", "energy_drift", "min_entropy_increment",
                 "max_lyapunov_increment", "min_temperature", "halved_steps")
@@ -124,32 +166,49 @@ def row_by_case(rows, case):
 # ---------------------------------------------------------------- convergence
 @dataclass
 class FinalPoint:
-    """The last state of a run: q, p, gamma (by /state column names) and the temperatures."""
+    """The last state of a run: its mechanical entries (every /state column but the thermodynamic
+    variable's, named by `columns`: q, p and gamma of the pendulum, q and p of the gas
+    containers), the temperatures, and the scale theta_ref they are compared in."""
     path: Path
     time: float
     mechanical: np.ndarray
     temperatures: np.ndarray
     theta_ref: float
+    columns: tuple
 
 
 def final_point(path):
-    """The last point of a run file, columns found through the `columns` attributes."""
-    run = read_run(path, ["state", "temperature"], ["theta_ref"])
-    mechanical = np.array([run.column("state", name)[-1] for name in MECHANICAL_COLUMNS])
+    """The last point of a run file, columns found through the `columns` attributes. Temperatures
+    in K are scaled by the root attribute theta_ref; a nondimensional model's (units 1) by 1."""
+    run = read_run(path, ["state", "temperature"])
+    if run.units.get("temperature") == "1":
+        theta_ref = 1.0
+    elif "theta_ref" in run.attrs:
+        theta_ref = float(run.attrs["theta_ref"])
+    else:
+        raise RunFileError(f"{path}: root attribute 'theta_ref' is missing")
+    if "state" not in run.columns:
+        raise RunFileError(f"{path}: dataset /state has no column names: its 'columns' attribute is missing")
+    columns = tuple(name for name in run.columns["state"] if not THERMODYNAMIC_COLUMN.fullmatch(name))
+    mechanical = np.array([run.column("state", name)[-1] for name in columns])
     temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS])
-    return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures,
-                      float(run.attrs["theta_ref"]))
+    return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures, theta_ref, columns)
 
 
 def state_error(point, reference):
-    """max(|q, p, gamma difference|, |theta_a difference| / theta_ref) at the common end time."""
+    """max(|mechanical difference|, |theta_a difference| / theta_ref) at the common end time, the
+    mechanical entries matched by name."""
     if abs(point.time - reference.time) > 1e-9 * max(1.0, abs(reference.time)):
         raise StudyError(f"{point.path} ends at t = {point.time:.10g} s but the reference "
                          f"{reference.path} at t = {reference.time:.10g} s: errors need the same T")
     if point.theta_ref != reference.theta_ref:
-        raise StudyError(f"{point.path}: theta_ref = {point.theta_ref:g} K, the reference "
-                         f"{reference.path} has {reference.theta_ref:g} K")
-    mechanical = np.max(np.abs(point.mechanical - reference.mechanical))
+        raise StudyError(f"{point.path}: theta_ref = {point.theta_ref:g}, the reference "
+                         f"{reference.path} has {reference.theta_ref:g}")
+    if sorted(point.columns) != sorted(reference.columns):
+        raise StudyError(f"{point.path}: /state columns {' '.join(point.columns)}, the reference "
+                         f"{reference.path} has {' '.join(reference.columns)}: not the same model")
+    mine = point.mechanical[[point.columns.index(name) for name in reference.columns]]
+    mechanical = np.max(np.abs(mine - reference.mechanical))
     thermal = np.max(np.abs(point.temperatures - reference.temperatures)) / reference.theta_ref
     return float(max(mechanical, thermal))
 
@@ -203,16 +262,18 @@ def setting(row):
     return row["tolerance"] if "tolerance" in row else row["dt"]
 
 
-def work_precision(study_dir):
-    """Errors at t = 5 s of every complete work-precision case against the reference, which of
-    them stand clear of the reference's level, and each scheme's cheapest case per target."""
-    reference, cross_check, level = reference_pair(Path(study_dir) / "work_precision_reference")
+def work_precision(study_dir, model="pendulum"):
+    """Errors at t = 5 of every complete work-precision case of a model (MODELS) against its
+    reference, which of them stand clear of the reference's level, and each scheme's cheapest
+    case per target."""
+    studies = MODELS[model]
+    reference, cross_check, level = reference_pair(Path(study_dir) / studies.reference)
     rows, left_out = [], []
-    for folder in WORK_PRECISION:
+    for folder in studies.work_precision:
         for row in read_index(Path(study_dir) / folder):
             (rows if row["status"] == "complete" else left_out).append(row)
     if not rows:
-        raise StudyError(f"{Path(study_dir)}: no complete work-precision case")
+        raise StudyError(f"{Path(study_dir)}: no complete work-precision case of the {studies.title}")
     errors = np.array([state_error(final_point(row["path"]), reference) for row in rows])
     shown = errors >= WORK_PRECISION_FACTOR * level
     cheapest = {}
@@ -222,7 +283,9 @@ def work_precision(study_dir):
             if meeting:
                 cheapest[key, target] = min(meeting, key=lambda i: rows[i]["solve_time_seconds"])
     return {"rows": rows, "errors": errors, "shown": shown, "level": level, "reference": reference,
-            "cross_check": cross_check, "left_out": left_out, "cheapest": cheapest}
+            "cross_check": cross_check, "left_out": left_out, "cheapest": cheapest, "model": model,
+            "title": studies.title, "norm": studies.error_norm, "norm_label": studies.norm_label,
+            "end": f"t = {reference.time:g}" + ("" if studies.nondimensional else " s")}
 
 
 # ---------------------------------------------------------------- structure and stability
@@ -267,8 +330,9 @@ def classify(status, energy_drift, max_lyapunov_increment, positive_temperatures
     return ("lyapunov" if lyapunov_rose else "kept"), ""
 
 
-def stability_map(rows):
-    """Outcome grid of one stability study: rows = schemes, columns = dt (-1 where not run)."""
+def stability_map(rows, nondimensional=False):
+    """Outcome grid of one stability study: rows = schemes, columns = dt (-1 where not run); a
+    nondimensional model's (units 1) says so."""
     keys = curve_keys(rows)
     steps = sorted({row["dt"] for row in rows})
     outcome = np.full((len(keys), len(steps)), -1, dtype=int)
@@ -302,7 +366,7 @@ def stability_map(rows):
             "max_lyapunov_increment": lyapunov, "temperatures_positive": positive_grid,
             "temperatures_checked": checked, "halved": halved,
             "source": rows[0]["index"].parent if rows else "-",
-            "scene": scene_description(rows[0]) if rows else "-"}
+            "scene": scene_description(rows[0]) if rows else "-", "nondimensional": nondimensional}
 
 
 def namelist_values(text, name):
@@ -312,15 +376,30 @@ def namelist_values(text, name):
     return [float(value.replace("d", "e").replace("D", "e")) for value in match.group(1).split(",")] if match else []
 
 
+def namelist_group(text, group):
+    """The fields of one group of namelist text as the code writes it ('&group', one field a
+    line, '/'), each as 'name = value', or [] if the group is not there."""
+    match = re.search(rf"^\s*&{re.escape(group)}\s*$(.*?)^\s*/\s*$", text,
+                      flags=re.MULTILINE | re.DOTALL | re.IGNORECASE)
+    return [line.strip() for line in match.group(1).splitlines() if line.strip()] if match else []
+
+
 def scene_description(row):
     """Interval and initial state of a study's scene, from its index's case_1_input (every case
-    shares all but the swept fields), so a study without case files has one too."""
+    shares all but the swept fields), so a study without case files has one too: the pendulum's
+    p2 and theta with their units, another model's name, parameters and &initial as written."""
     text = row["case_1_input"]
     t_end, p2, theta = (namelist_values(text, name) for name in ("t_end", "p2", "theta"))
-    if not (t_end and p2 and theta):
-        raise StudyError(f"{row['index']}: attribute case_1_input lacks t_end, p2 or theta")
-    return (f"[0, {t_end[0]:g}] s, p2(0) = ({', '.join(f'{v:g}' for v in p2)}) N s, theta(0) = "
-            f"({', '.join(f'{v:g}' for v in theta)}) K")
+    model = namelist_group(text, "model")
+    if not t_end or not (p2 and theta or model):
+        raise StudyError(f"{row['index']}: attribute case_1_input lacks t_end, or the pendulum's p2 and "
+                         "theta and a &model group")
+    if p2 and theta:
+        return (f"[0, {t_end[0]:g}] s, p2(0) = ({', '.join(f'{v:g}' for v in p2)}) N s, theta(0) = "
+                f"({', '.join(f'{v:g}' for v in theta)}) K")
+    fields = [field.split("=", 1) for field in model + namelist_group(text, "initial")]
+    return f"[0, {t_end[0]:g}], " + ", ".join(
+        f"{name.strip()} = " + (f"({value.strip()})" if "," in value else value.strip()) for name, value in fields)
 
 
 def structure_cost(rows):
@@ -343,10 +422,17 @@ def write_dataset(group, name, values, units, description):
     dataset.attrs["description"] = description
 
 
-def study_loads(study_dir):
-    """The machine's load while the timed studies ran, per timing chart: a MachineLoad over its
-    studies (the highest loads), or None when a study has no NAME.load.json."""
-    charts = {"study_work_precision": WORK_PRECISION, "study_structure_cost": (SCENES["paper"],)}
+def timed_charts(models):
+    """The timing charts of the chosen models and the studies each one times."""
+    charts = {"study_work_precision": tuple(study for model in models for study in MODELS[model].work_precision)}
+    if "pendulum" in models:
+        charts["study_structure_cost"] = (SCENES[STRUCTURE_SCENE],)
+    return charts
+
+
+def study_loads(study_dir, charts):
+    """The machine's load while the timed studies ran, per timing chart ({chart: studies}): a
+    MachineLoad over its studies (the highest loads), or None when a study has no NAME.load.json."""
     loads = {}
     for chart, names in charts.items():
         records = [machine_load.read(Path(study_dir) / f"{name}.load.json") for name in names]
@@ -362,103 +448,127 @@ def load_caption(load, names):
     return f"Studies {', '.join(names)}: {load.text()}."
 
 
-def write_summary(path, conv, wp, structure, maps, sets, loads=None):
-    """The numbers behind every figure, one group per figure; the timing groups carry the machine's
-    load as attributes (load_recorded 0 when it was not)."""
+def write_summary(path, conv, wps, structure, maps, sets, loads=None):
+    """The numbers behind every figure, one group per figure (per model for work precision, per
+    scene for the stability map); the timing groups carry the machine's load as attributes
+    (load_recorded 0 when it was not). conv, structure and sets may be None (pendulum not chosen)."""
     loads = loads or {}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    rows = conv["rows"]
-    names = [plain_name(row["scheme"], row["thermo_variable"]) for row in rows]
     with h5py.File(path, "w") as f:
         f.attrs["description"] = "numbers behind the study figures of postprocess/study_analysis.py"
-        g = f.create_group("convergence")
-        g.attrs["description"] = ("error at t = T against the reference, and against solve time "
-                                  "(figures study_convergence, study_work_precision)")
-        write_dataset(g, "scheme", names, "1", "scheme and thermodynamic variable of each case")
-        write_dataset(g, "case", [row["case"] for row in rows], "1", "case number in convergence/index.h5")
-        write_dataset(g, "dt", [row["dt"] for row in rows], "s", "time step")
-        write_dataset(g, "error", conv["errors"], "1", "max(|q, p, gamma - reference| [SI], "
-                      "|theta_a - reference|/theta_ref) at t = T")
-        write_dataset(g, "solve_time_seconds", [row["solve_time_seconds"] for row in rows], "s",
-                      "solve_time_seconds of the index: the time loop of the case")
-        write_dataset(g, "end_time", conv["reference"].time, "s", "T, where errors are taken")
-        write_dataset(g, "cross_check_level", conv["level"], "1",
-                      "the same error norm between the cross-check and the reference")
-        fit_names = [plain_name(*key) for key in conv["fits"]]
-        fits = list(conv["fits"].values())
-        write_dataset(g, "fit_scheme", fit_names, "1", "scheme of each fitted order")
-        write_dataset(g, "fitted_order", [fit["order"] for fit in fits], "1",
-                      f"least-squares slope of log(error) on log(dt) over the {FIT_POINTS} smallest dt "
-                      f"with error > {MEANINGFUL_FACTOR:g} x cross_check_level")
-        write_dataset(g, "fit_constant", [fit["constant"] for fit in fits], "1", "C of error = C dt^order")
-        write_dataset(g, "fit_dt_min", [fit["dt"].min() if len(fit["dt"]) else np.nan for fit in fits], "s",
-                      "smallest dt of the fit")
-        write_dataset(g, "fit_dt_max", [fit["dt"].max() if len(fit["dt"]) else np.nan for fit in fits], "s",
-                      "largest dt of the fit")
-        g = f.create_group("work_precision")
-        g.attrs["description"] = ("error at t = 5 s against the reference, and against solve time "
-                                  "(figure study_work_precision; right panel of study_convergence)")
-        wrows = wp["rows"]
-        write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in wrows], "1",
-                      "scheme and thermodynamic variable of each case")
-        write_dataset(g, "study", [r["index"].parent.name for r in wrows], "1", "the study of each case")
-        write_dataset(g, "case", [r["case"] for r in wrows], "1", "case number in the study's index.h5")
-        write_dataset(g, "dt", [r["dt"] for r in wrows], "s", "time step (adaptive schemes: output interval)")
-        write_dataset(g, "tolerance", [r.get("tolerance", np.nan) for r in wrows], "1",
-                      "tolerance of an adaptive scheme (NaN for fixed-step schemes)")
-        write_dataset(g, "error", wp["errors"], "1", "max(|q, p, gamma - reference| [SI], "
-                      "|theta_a - reference|/theta_ref) at t = 5 s")
-        write_dataset(g, "shown", wp["shown"].astype(int), "1",
-                      f"1: error >= {WORK_PRECISION_FACTOR:g} x cross_check_level, drawn in the figure")
-        write_dataset(g, "solve_time_seconds", [r["solve_time_seconds"] for r in wrows], "s",
-                      "solve_time_seconds of the index: the time loop of the case (median of the repeats)")
-        write_dataset(g, "energy_drift", [r["energy_drift"] for r in wrows], "1", "max_n |E_n - E_0| / |E_0|")
-        write_dataset(g, "cross_check_level", wp["level"], "1",
-                      "the same error norm between the cross-check and the reference")
-        write_load(g, loads.get("study_work_precision"))
-        g = f.create_group("structure_cost")
-        g.attrs["description"] = "complete cases of stability_paper (figure study_structure_cost)"
-        srows = structure["rows"]
-        write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in srows], "1",
-                      "scheme and thermodynamic variable of each case")
-        write_dataset(g, "case", [r["case"] for r in srows], "1", "case number in stability_paper/index.h5")
-        write_dataset(g, "dt", [r["dt"] for r in srows], "s", "time step")
-        write_dataset(g, "solve_time_seconds", structure["solve_time"], "s", "the time loop of the case")
-        write_dataset(g, "energy_drift", structure["energy"], "1", "max_n |E_n - E_0| / |E_0|")
-        write_dataset(g, "entropy_violation", structure["violation"], "J/K",
-                      "max(0, -min_n (S_{n+1} - S_n)): the largest entropy decrease in a step")
-        write_dataset(g, "plot_floor", study_plots.LOG_FLOOR, "1 (energy), J/K (entropy)",
-                      "values below it, exact zeros included, are drawn at it on the log axes")
-        write_load(g, loads.get("study_structure_cost"))
+        if conv is not None:
+            write_convergence(f.create_group("convergence"), conv)
+        for model, wp in wps.items():
+            g = f.create_group(MODELS[model].summary_group)
+            write_work_precision(g, wp)
+            write_load(g, loads.get("study_work_precision"))
+        if structure is not None:
+            g = f.create_group("structure_cost")
+            write_structure(g, structure)
+            write_load(g, loads.get("study_structure_cost"))
         for scene, grid in maps.items():
-            g = f.create_group(f"stability/{scene}")
-            g.attrs["description"] = (f"outcome of each case of {SCENES[scene]} (figure study_stability_map); "
-                                      "rows: scheme, columns: dt")
-            write_dataset(g, "scheme", [plain_name(*key) for key in grid["keys"]], "1", "row: scheme")
-            write_dataset(g, "dt", grid["dt"], "s", "column: time step")
-            write_dataset(g, "outcome", grid["outcome"], "1", "index into outcome_names; -1: not run")
-            write_dataset(g, "outcome_names", [study_plots.OUTCOME_TEXT[o] for o in OUTCOMES], "1",
-                          "outcome classes, in the order of the outcome codes")
-            write_dataset(g, "flags", grid["flags"], "1", f"{FLAG_LYAPUNOV}: V also rose; "
-                          f"{FLAG_TEMPERATURE}: the last root the solver rejected had a non-positive temperature")
-            write_dataset(g, "case", grid["case"], "1", f"case number in {SCENES[scene]}/index.h5")
-            write_dataset(g, "failed_at", grid["failed_at"], "s", "end time of the step that failed (NaN: finished)")
-            write_dataset(g, "status", grid["status"], "1", "status of the case in the index")
-            write_dataset(g, "energy_drift", grid["energy_drift"], "1",
-                          f"max_n |E_n - E_0| / |E_0| over the completed steps; kept: <= {ENERGY_TOLERANCE:g}")
-            write_dataset(g, "max_lyapunov_increment", grid["max_lyapunov_increment"], "J",
-                          f"max_n (V_{{n+1}} - V_n) over the completed steps; kept: <= {LYAPUNOV_TOLERANCE:g} J")
-            write_dataset(g, "temperatures_positive", grid["temperatures_positive"], "1",
-                          "1: every temperature of the finished case was finite and > 0 (the index's "
-                          "min_temperature); 0: not; -1: not checked (failed case, or not run)")
-            write_dataset(g, "halved_steps", grid["halved"], "1",
-                          "failed attempts replaced by two halves (EME and the midpoint rule, the relaxed "
-                          "Runge-Kutta schemes; the index's halved_steps)")
-            write_dataset(g, "kept_count", (grid["outcome"] == 0).sum(axis=1), "1",
-                          "dt values at which the scheme finished with everything kept")
-        stability_sets.write_summary(f, sets, write_dataset)
+            write_stability(f.create_group(f"stability/{scene}"), scene, grid)
+        if sets is not None:
+            stability_sets.write_summary(f, sets, write_dataset)
     print(f"wrote {path}")
+
+
+def write_convergence(g, conv):
+    """The convergence figure's numbers."""
+    rows = conv["rows"]
+    g.attrs["description"] = ("error at t = T against the reference, and against solve time "
+                              "(figures study_convergence, study_work_precision)")
+    write_dataset(g, "scheme", [plain_name(row["scheme"], row["thermo_variable"]) for row in rows], "1",
+                  "scheme and thermodynamic variable of each case")
+    write_dataset(g, "case", [row["case"] for row in rows], "1", "case number in convergence/index.h5")
+    write_dataset(g, "dt", [row["dt"] for row in rows], "s", "time step")
+    write_dataset(g, "error", conv["errors"], "1", "max(|q, p, gamma - reference| [SI], "
+                  "|theta_a - reference|/theta_ref) at t = T")
+    write_dataset(g, "solve_time_seconds", [row["solve_time_seconds"] for row in rows], "s",
+                  "solve_time_seconds of the index: the time loop of the case")
+    write_dataset(g, "end_time", conv["reference"].time, "s", "T, where errors are taken")
+    write_dataset(g, "cross_check_level", conv["level"], "1",
+                  "the same error norm between the cross-check and the reference")
+    fit_names = [plain_name(*key) for key in conv["fits"]]
+    fits = list(conv["fits"].values())
+    write_dataset(g, "fit_scheme", fit_names, "1", "scheme of each fitted order")
+    write_dataset(g, "fitted_order", [fit["order"] for fit in fits], "1",
+                  f"least-squares slope of log(error) on log(dt) over the {FIT_POINTS} smallest dt "
+                  f"with error > {MEANINGFUL_FACTOR:g} x cross_check_level")
+    write_dataset(g, "fit_constant", [fit["constant"] for fit in fits], "1", "C of error = C dt^order")
+    write_dataset(g, "fit_dt_min", [fit["dt"].min() if len(fit["dt"]) else np.nan for fit in fits], "s",
+                  "smallest dt of the fit")
+    write_dataset(g, "fit_dt_max", [fit["dt"].max() if len(fit["dt"]) else np.nan for fit in fits], "s",
+                  "largest dt of the fit")
+
+
+def write_work_precision(g, wp):
+    """One model's work-precision numbers."""
+    wrows, title, end = wp["rows"], wp["title"], wp["end"]
+    g.attrs["description"] = (f"{title}: error at {end} against the reference, and against solve time "
+                              "(figure study_work_precision" + ("; right panel of study_convergence)"
+                                                                 if wp["model"] == "pendulum" else ")"))
+    write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in wrows], "1",
+                  "scheme and thermodynamic variable of each case")
+    write_dataset(g, "study", [r["index"].parent.name for r in wrows], "1", "the study of each case")
+    write_dataset(g, "case", [r["case"] for r in wrows], "1", "case number in the study's index.h5")
+    write_dataset(g, "dt", [r["dt"] for r in wrows], "s", "time step (adaptive schemes: output interval)")
+    write_dataset(g, "tolerance", [r.get("tolerance", np.nan) for r in wrows], "1",
+                  "tolerance of an adaptive scheme (NaN for fixed-step schemes)")
+    write_dataset(g, "error", wp["errors"], "1", f"{MODELS[wp['model']].error_norm} at {end}")
+    write_dataset(g, "shown", wp["shown"].astype(int), "1",
+                  f"1: error >= {WORK_PRECISION_FACTOR:g} x cross_check_level, drawn in the figure")
+    write_dataset(g, "solve_time_seconds", [r["solve_time_seconds"] for r in wrows], "s",
+                  "solve_time_seconds of the index: the time loop of the case (median of the repeats)")
+    write_dataset(g, "energy_drift", [r["energy_drift"] for r in wrows], "1", "max_n |E_n - E_0| / |E_0|")
+    write_dataset(g, "cross_check_level", wp["level"], "1",
+                  "the same error norm between the cross-check and the reference")
+
+
+def write_structure(g, structure):
+    """The structure-against-cost figure's numbers (the pendulum's paper scene)."""
+    g.attrs["description"] = "complete cases of stability_paper (figure study_structure_cost)"
+    srows = structure["rows"]
+    write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in srows], "1",
+                  "scheme and thermodynamic variable of each case")
+    write_dataset(g, "case", [r["case"] for r in srows], "1", "case number in stability_paper/index.h5")
+    write_dataset(g, "dt", [r["dt"] for r in srows], "s", "time step")
+    write_dataset(g, "solve_time_seconds", structure["solve_time"], "s", "the time loop of the case")
+    write_dataset(g, "energy_drift", structure["energy"], "1", "max_n |E_n - E_0| / |E_0|")
+    write_dataset(g, "entropy_violation", structure["violation"], "J/K",
+                  "max(0, -min_n (S_{n+1} - S_n)): the largest entropy decrease in a step")
+    write_dataset(g, "plot_floor", study_plots.LOG_FLOOR, "1 (energy), J/K (entropy)",
+                  "values below it, exact zeros included, are drawn at it on the log axes")
+
+
+def write_stability(g, scene, grid):
+    """One scene's panel of the stability map, in its model's units."""
+    energy_unit, time_unit = ("1", "1") if grid["nondimensional"] else ("J", "s")
+    g.attrs["description"] = (f"outcome of each case of {SCENES[scene]} (figure study_stability_map); "
+                              "rows: scheme, columns: dt")
+    write_dataset(g, "scheme", [plain_name(*key) for key in grid["keys"]], "1", "row: scheme")
+    write_dataset(g, "dt", grid["dt"], time_unit, "column: time step")
+    write_dataset(g, "outcome", grid["outcome"], "1", "index into outcome_names; -1: not run")
+    write_dataset(g, "outcome_names", [study_plots.OUTCOME_TEXT[o] for o in OUTCOMES], "1",
+                  "outcome classes, in the order of the outcome codes")
+    write_dataset(g, "flags", grid["flags"], "1", f"{FLAG_LYAPUNOV}: V also rose; "
+                  f"{FLAG_TEMPERATURE}: the last root the solver rejected had a non-positive temperature")
+    write_dataset(g, "case", grid["case"], "1", f"case number in {SCENES[scene]}/index.h5")
+    write_dataset(g, "failed_at", grid["failed_at"], time_unit, "end time of the step that failed (NaN: finished)")
+    write_dataset(g, "status", grid["status"], "1", "status of the case in the index")
+    write_dataset(g, "energy_drift", grid["energy_drift"], "1",
+                  f"max_n |E_n - E_0| / |E_0| over the completed steps; kept: <= {ENERGY_TOLERANCE:g}")
+    write_dataset(g, "max_lyapunov_increment", grid["max_lyapunov_increment"], energy_unit,
+                  f"max_n (V_{{n+1}} - V_n) over the completed steps; kept: <= {LYAPUNOV_TOLERANCE:g} {energy_unit}")
+    write_dataset(g, "temperatures_positive", grid["temperatures_positive"], "1",
+                  "1: every temperature of the finished case was finite and > 0 (the index's "
+                  "min_temperature); 0: not; -1: not checked (failed case, or not run)")
+    write_dataset(g, "halved_steps", grid["halved"], "1",
+                  "failed attempts replaced by two halves (EME and the midpoint rule, the relaxed "
+                  "Runge-Kutta schemes; the index's halved_steps)")
+    write_dataset(g, "kept_count", (grid["outcome"] == 0).sum(axis=1), "1",
+                  "dt values at which the scheme finished with everything kept")
 
 
 def write_load(group, load):
@@ -470,8 +580,8 @@ def write_load(group, load):
         group.attrs["load_description"] = load.text()
 
 
-def findings(conv, wp, structure, maps):
-    """The findings as plain lines of numbers."""
+def convergence_findings(conv):
+    """The convergence study's findings."""
     reference, cross_check = conv["reference"], conv["cross_check"]
     lines = [f"convergence: reference {reference.path} at T = {reference.time:g} s; cross-check "
              f"{cross_check.path}: |reference - cross-check| = {conv['level']:.2e}"]
@@ -482,16 +592,22 @@ def findings(conv, wp, structure, maps):
         lines.append(f"convergence {plain_name(*key)}: fitted order {fit['order']:.2f} over dt = "
                      + ", ".join(f"{dt:g}" for dt in fit["dt"]) + f" s; error {conv['errors'][finest]:.2e} "
                      f"at dt = {conv['rows'][finest]['dt']:g} s in {conv['rows'][finest]['solve_time_seconds']:.2e} s")
-    lines.append(f"work precision: reference {wp['reference'].path} at t = {wp['reference'].time:g} s; cross-check "
-                 f"{wp['cross_check'].path}: |reference - cross-check| = {wp['level']:.2e}")
+    return lines
+
+
+def work_precision_findings(wp):
+    """One model's work-precision findings: each scheme's cheapest case per target."""
+    prefix = f"work precision{MODELS[wp['model']].finding_tag}"
+    lines = [f"{prefix}: reference {wp['reference'].path} at {wp['end']}; cross-check "
+             f"{wp['cross_check'].path}: |reference - cross-check| = {wp['level']:.2e}"]
     wrows, cheapest = wp["rows"], wp["cheapest"]
     for target in TARGETS:
         for key in curve_keys(wrows):
             if (key, target) not in cheapest:
-                lines.append(f"work precision {plain_name(*key)}: no case reached {target:.0e}")
+                lines.append(f"{prefix} {plain_name(*key)}: no case reached {target:.0e}")
                 continue
             i = cheapest[key, target]
-            text = (f"work precision {plain_name(*key)}: error <= {target:.0e} at "
+            text = (f"{prefix} {plain_name(*key)}: error <= {target:.0e} at "
                     f"{'tolerance' if 'tolerance' in wrows[i] else 'dt'} {setting(wrows[i]):g}: error "
                     f"{wp['errors'][i]:.2e} in {wrows[i]['solve_time_seconds']:.2e} s, energy error "
                     f"{wrows[i]['energy_drift']:.1e}")
@@ -500,12 +616,24 @@ def findings(conv, wp, structure, maps):
                     ratio = wrows[i]["solve_time_seconds"] / wrows[cheapest[anchor, target]]["solve_time_seconds"]
                     text += f"; {ratio:.3g} x {plain_name(*anchor)}'s time"
             lines.append(text)
+    return lines
+
+
+def structure_findings(structure):
+    """The paper scene's structure against cost, per scheme."""
     srows = structure["rows"]
+    lines = []
     for key in curve_keys(srows):
         chosen = members(srows, key)
         lines.append(f"structure (paper scene, {len(chosen)} finished cases) {plain_name(*key)}: max energy "
                      f"error {structure['energy'][chosen].max():.2e}, max entropy decrease "
                      f"{structure['violation'][chosen].max():.2e} J/K")
+    return lines
+
+
+def stability_findings(maps):
+    """Per scheme the dt it kept everything at on each scene; every failed case; per scene the counts."""
+    lines = []
     for key in sorted({key for grid in maps.values() for key in grid["keys"]}, key=key_rank):
         parts = []
         for scene, grid in maps.items():
@@ -515,8 +643,9 @@ def findings(conv, wp, structure, maps):
     for scene, grid in maps.items():
         for i, j in zip(*np.nonzero(np.isfinite(grid["failed_at"]))):
             flag = f" ({grid['flags'][i, j]})" if grid["flags"][i, j] else ""
-            lines.append(f"stability {SCENE_TITLES[scene]}: {plain_name(*grid['keys'][i])} at dt = {grid['dt'][j]:g} s "
-                         f"failed in the step ending at t = {grid['failed_at'][i, j]:g} s: "
+            unit = "" if grid["nondimensional"] else " s"
+            lines.append(f"stability {SCENE_TITLES[scene]}: {plain_name(*grid['keys'][i])} at dt = {grid['dt'][j]:g}{unit} "
+                         f"failed in the step ending at t = {grid['failed_at'][i, j]:g}{unit}: "
                          f"{OUTCOMES[grid['outcome'][i, j]]}{flag} (case {grid['case'][i, j]})")
         counts = ", ".join(f"{o} {(grid['outcome'] == k).sum()}" for k, o in enumerate(OUTCOMES))
         lines.append(f"stability {SCENE_TITLES[scene]}: {counts}; temperatures checked in "
@@ -524,33 +653,55 @@ def findings(conv, wp, structure, maps):
     return lines
 
 
+def analyse(study_dir, models):
+    """(conv, wps, structure, maps, sets) of the chosen models' studies: the convergence study, the
+    work precision of each model ({model: result}), structure against cost, the stability map's
+    grids ({scene: grid}) and the harder scene set; conv, structure and sets are the pendulum's,
+    None when it is not chosen."""
+    study_dir = Path(study_dir)
+    pendulum = "pendulum" in models
+    conv = convergence(study_dir) if pendulum else None
+    wps = {model: work_precision(study_dir, model) for model in models}
+    structure = structure_cost(read_index(study_dir / SCENES[STRUCTURE_SCENE])) if pendulum else None
+    maps = {scene: stability_map(read_index(study_dir / folder), MODELS[model].nondimensional)
+            for model in models for scene, folder in MODELS[model].scenes.items()}
+    sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive) if pendulum else None
+    return conv, wps, structure, maps, sets
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--study-dir", default="results/study", metavar="STUDY_DIR",
-                        help="folder holding the four study folders (default: %(default)s)")
+                        help="folder holding the study folders (default: %(default)s)")
     parser.add_argument("-o", "--output", default="results/figures", metavar="OUT",
                         help="folder for the figures (default: %(default)s)")
     parser.add_argument("--summary", default="results/study/summary.h5", metavar="SUMMARY",
                         help="HDF5 file of the numbers behind the figures (default: %(default)s)")
+    parser.add_argument("--models", nargs="+", choices=list(MODELS), default=list(MODELS), metavar="MODEL",
+                        help="the models whose studies to analyse, of " + ", ".join(MODELS)
+                        + " (default: all; each needs every one of its studies)")
     args = parser.parse_args(argv)
     study_dir, output = Path(args.study_dir), Path(args.output)
-    conv = convergence(study_dir)
-    wp = work_precision(study_dir)
-    structure = structure_cost(read_index(study_dir / SCENES["paper"]))
-    maps = {scene: stability_map(read_index(study_dir / folder)) for scene, folder in SCENES.items()}
-    sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive)
-    loads = study_loads(study_dir)
-    load_lines = {"study_work_precision": load_caption(loads["study_work_precision"], WORK_PRECISION),
-                  "study_structure_cost": load_caption(loads["study_structure_cost"], (SCENES["paper"],))}
-    study_plots.save_all(output, conv, wp, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR),
+    models = [model for model in MODELS if model in args.models]
+    pendulum = "pendulum" in models
+    conv, wps, structure, maps, sets = analyse(study_dir, models)
+    charts = timed_charts(models)
+    loads = study_loads(study_dir, charts)
+    load_lines = {chart: load_caption(loads[chart], names) for chart, names in charts.items()}
+    study_plots.save_all(output, conv, wps, structure, maps, fit_rule=(FIT_POINTS, MEANINGFUL_FACTOR),
                          work_precision_factor=WORK_PRECISION_FACTOR, load_lines=load_lines)
-    stability_sets.figure(sets, output / "study_stability_set")
-    write_summary(args.summary, conv, wp, structure, maps, sets, loads)
+    if pendulum:
+        stability_sets.figure(sets, output / "study_stability_set")
+    write_summary(args.summary, conv, wps, structure, maps, sets, loads)
     for chart, load in loads.items():
         if load is not None and load.busy:
             print(f"study_analysis.py: {chart}: {load.warning()}", file=sys.stderr)
-    for line in findings(conv, wp, structure, maps) + stability_sets.findings(sets):
+    lines = [*(convergence_findings(conv) if pendulum else []),
+             *(line for wp in wps.values() for line in work_precision_findings(wp)),
+             *(structure_findings(structure) if pendulum else []), *stability_findings(maps),
+             *(stability_sets.findings(sets) if pendulum else [])]
+    for line in lines:
         print(line)
 
 

@@ -7,8 +7,10 @@ Runge-Kutta, PETSc TS, CVODE), the marker the scheme, line style and fill the th
 variable (solid and filled: s; dashed and open, larger: theta; dotted and filled, smaller: u, so
 that coinciding curves stay visible). The timing charts (work precision, structure against cost)
 give each family a row of panels of its own with its legend beside it, the other families' curves
-in light grey behind, on the same axes. The figures use the paper style of plotting.py; what each
-shows in detail (reference, fit rule, classification) goes to its caption file and metadata.
+in light grey behind, on the same axes; work precision has a column of them per model (the
+double pendulum, the gas containers), and the stability map a panel per scene. The figures use
+the paper style of plotting.py; what each shows in detail (reference, fit rule, classification)
+goes to its caption file and metadata.
 """
 from pathlib import Path
 
@@ -28,15 +30,15 @@ LOG_FLOOR = 1e-17
 OUTCOME_TEXT = {
     "kept": "finished, everything kept (energy error <= 1e-6, V non-increasing, temperatures > 0)",
     "energy": "finished, energy error > 1e-6",
-    "lyapunov": "finished, energy kept, V rose (max dV > 1e-8 J)",
+    "lyapunov": "finished, energy kept, V rose (max dV > 1e-8 J; gas containers: 1e-8, nondimensional)",
     "solver": "failed: no solution of a step (Newton divergence, no root, halving exhausted)",
     "nonphysical": "failed: non-physical state or blow-up",
 }
 OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442",
                    "solver": "#56B4E9", "nonphysical": "#303030"}
 NOT_RUN_COLOUR = "white"
-SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene"}
-# The stability map's rows [in]: both scenes side by side, so that the map fits a page.
+SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas containers"}
+# The stability map's rows [in]: the scenes side by side, so that the map fits a page.
 MAP_ROW_HEIGHT = 0.2
 
 
@@ -90,13 +92,13 @@ FAMILY_ROW_HEIGHT = 1.45
 LEGEND_ENTRY_HEIGHT = 0.155
 
 
-def family_rows(grouped, columns, extra_entries=0):
+def family_rows(grouped, columns, extra_entries=0, sharex=True, sharey="col"):
     """A figure of one row of panels per family, a page wide, the panels sharing their axes; each
     row as high as its legend (one entry per scheme and variable, plus `extra_entries`) needs."""
     heights = [max(FAMILY_ROW_HEIGHT, LEGEND_ENTRY_HEIGHT * (len(keys) + extra_entries) + 0.3)
                for _, keys in grouped] or [FAMILY_ROW_HEIGHT]
-    return plt.subplots(len(heights), columns, figsize=(DOUBLE_COLUMN, 0.8 + sum(heights)), sharex=True,
-                        sharey="col", squeeze=False, height_ratios=heights)
+    return plt.subplots(len(heights), columns, figsize=(DOUBLE_COLUMN, 0.8 + sum(heights)), sharex=sharex,
+                        sharey=sharey, squeeze=False, height_ratios=heights)
 
 
 def members(rows, key):
@@ -169,47 +171,59 @@ def convergence_figure(conv, wp, fit_rule):
             f"points below {wp['level']:.1e} x 10 (the dash-dot line is the cross-check level) are left out."]
 
 
-def work_precision_figure(wp, factor):
-    """Error at t = 5 s against the median solve time, log-log, one panel per scheme family (the
-    other families in grey behind); lower left is better."""
-    rows, errors = wp["rows"], wp["errors"]
-    time = np.array([row["solve_time_seconds"] for row in rows])
-    grouped = families(curve_keys(rows))
-    fig, axes = family_rows(grouped, 1, extra_entries=1)
-    curves = {}
-    for key in curve_keys(rows):
-        chosen = [i for i in members(rows, key) if wp["shown"][i]]
-        chosen.sort(key=lambda i: -errors[i])
-        curves[key] = chosen
-    for ax, (family, keys) in zip(axes[:, 0], grouped):
-        for key, chosen in curves.items():
-            if key not in keys:
-                ax.plot(time[chosen], errors[chosen], color=BACKGROUND, linewidth=0.6, zorder=1)
-        for key in keys:
-            chosen = curves[key]
-            adaptive = "tolerance" in rows[chosen[0]] if chosen else False
-            ax.plot(time[chosen], errors[chosen], label=label(*key) + (" (tolerance)" if adaptive else ""),
-                    **style(key))
-        ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.", label="|reference $-$ cross-check|")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_ylim(1e-11, 1.0)
-        ax.set_title(integrators.family_title(family), loc="left")
-        ax.grid(True, which="major")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    axes[-1, 0].set_xlabel("solve time of one case on one rank, median of the study's repeats [s]")
-    fig.supylabel(r"error at $t$ = 5 s: max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, "
-                  r"|$\Delta\theta_a$|/$\theta_{ref}$)")
-    reference, cross_check = wp["reference"], wp["cross_check"]
-    repeats = sorted({row.get("repeats", 1) for row in rows})
-    return fig, "Work-precision at t = 5 s: error against solve time (lower left is better)", [
-        f"Reference: {reference.path}; cross-check: {cross_check.path}; |reference - cross-check| = "
-        f"{wp['level']:.1e} (dash-dot line); points with error below {factor:g} times it are left out.",
-        "One row per scheme family (colour), a marker per scheme, line style and fill per thermodynamic "
-        "variable; the other families' curves in grey behind, on the same axes.",
+def work_precision_figure(wps, factor):
+    """Error at the reference's time against the median solve time, log-log: a column of panels per
+    model ({model: work_precision result}), a row per scheme family (the other families in grey
+    behind), the family named by the row's legend; lower left is better."""
+    grouped = families(sorted({key for wp in wps.values() for key in curve_keys(wp["rows"])}, key=key_rank))
+    fig, axes = family_rows(grouped, len(wps), extra_entries=1, sharex="col", sharey=True)
+    # Down to the decade below the lowest reference level, so that every level line shows.
+    bottom = min(1e-11, 10.0 ** np.floor(np.log10(min(wp["level"] for wp in wps.values()))))
+    for column, wp in enumerate(wps.values()):
+        rows, errors = wp["rows"], wp["errors"]
+        time = np.array([row["solve_time_seconds"] for row in rows])
+        curves = {}
+        for key in curve_keys(rows):
+            chosen = [i for i in members(rows, key) if wp["shown"][i]]
+            chosen.sort(key=lambda i: -errors[i])
+            curves[key] = chosen
+        for ax, (family, keys) in zip(axes[:, column], grouped):
+            for key, chosen in curves.items():
+                if key not in keys:
+                    ax.plot(time[chosen], errors[chosen], color=BACKGROUND, linewidth=0.6, zorder=1)
+            for key in keys:
+                chosen = curves.get(key)
+                if chosen:
+                    ax.plot(time[chosen], errors[chosen], label=label(*key)
+                            + (" (tolerance)" if "tolerance" in rows[chosen[0]] else ""), **style(key))
+            ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.",
+                       label="|reference $-$ cross-check|")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_ylim(bottom, 1.0)
+            ax.grid(True, which="major")
+        axes[0, column].set_title(f"{wp['title']}, {wp['end']}\n{wp['norm_label']}")
+        axes[-1, column].set_xlabel("solve time, one rank [s]")
+    for row_axes, (family, _) in zip(axes, grouped):
+        # One legend per family, beside its row: a curve carries the same marks in every column.
+        entries = {}
+        for ax in row_axes:
+            entries.update((text, handle) for handle, text in zip(*ax.get_legend_handles_labels()))
+        row_axes[-1].legend(entries.values(), entries.keys(), title=integrators.family_title(family),
+                            loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.supylabel("error at t = T, in the norm above each column")
+    repeats = sorted({row.get("repeats", 1) for wp in wps.values() for row in wp["rows"]})
+    return fig, "Work-precision: error against solve time (lower left is better)", [
+        *(f"{wp['title']}: error at {wp['end']}, {wp['norm']}. Reference: {wp['reference'].path}; "
+          f"cross-check: {wp['cross_check'].path}; |reference - cross-check| = {wp['level']:.1e} (dash-dot line); "
+          f"points with error below {factor:g} times it are left out. Cases: {len(wp['rows'])} complete"
+          + (f"; left out (not complete): {len(wp['left_out'])}" if wp["left_out"] else "") + "."
+          for wp in wps.values()),
+        "A column per model, a row per scheme family (colour; the family names its row's legend), a marker "
+        "per scheme, line style and fill per thermodynamic variable; the other families' curves in grey "
+        "behind, on the same axes.",
         "Points along a curve: the dt of a fixed-step scheme, or the tolerance of an adaptive one. "
-        f"Solve time: the time loop of one case on one rank, the median of {'/'.join(map(str, repeats))} runs.",
-        f"Cases: {len(rows)} complete" + (f"; left out (not complete): {len(wp['left_out'])}" if wp["left_out"] else "")]
+        f"Solve time: the time loop of one case on one rank, the median of {'/'.join(map(str, repeats))} runs."]
 
 
 def floored(values):
@@ -262,18 +276,28 @@ def structure_figure(structure, source):
         "Entropy decrease zero on every finished case: " + ", ".join(zero)]
 
 
+def on_rows(grid, keys):
+    """A stability grid with a row for each of `keys` (in that order), not run where it has none."""
+    rows = [grid["keys"].index(key) if key in grid["keys"] else -1 for key in keys]
+    shaped = dict(grid, keys=list(keys))
+    for name, empty in (("outcome", -1), ("flags", ""), ("failed_at", np.nan), ("halved", 0)):
+        values = np.asarray(grid[name])
+        shaped[name] = np.stack([values[i] if i >= 0 else np.full(values.shape[1:], empty, dtype=values.dtype)
+                                 for i in rows])
+    return shaped
+
+
 def stability_figure(maps):
-    """One panel per scene, side by side (the same schemes in the same rows): rows = schemes,
-    columns = dt, cells coloured by outcome; fits a page."""
+    """One panel per scene, side by side, the schemes of every scene in the same rows (a scheme a
+    scene did not run is white there): rows = schemes, columns = dt, cells coloured by outcome;
+    fits a page."""
     outcomes = list(OUTCOME_TEXT)
     colours = ListedColormap([NOT_RUN_COLOUR] + [OUTCOME_COLOURS[o] for o in outcomes])
-    rows = max(len(grid["keys"]) for grid in maps.values())
-    fig, axes = plt.subplots(1, len(maps), figsize=(DOUBLE_COLUMN, MAP_ROW_HEIGHT * rows + 2.9), sharey=True,
+    keys = sorted({key for grid in maps.values() for key in grid["keys"]}, key=key_rank)
+    fig, axes = plt.subplots(1, len(maps), figsize=(DOUBLE_COLUMN, MAP_ROW_HEIGHT * len(keys) + 2.9), sharey=True,
                              squeeze=False)
-    keys = next(iter(maps.values()))["keys"]
     for ax, (scene, grid) in zip(axes[0], maps.items()):
-        if grid["keys"] != keys:
-            raise ValueError("the stability studies' schemes differ: the side-by-side map needs the same rows")
+        grid = on_rows(grid, keys)
         outcome = grid["outcome"]
         ax.pcolormesh(outcome + 1, cmap=colours, vmin=0, vmax=len(outcomes), edgecolors="white",
                       linewidth=1.0)
@@ -290,7 +314,7 @@ def stability_figure(maps):
         ax.set_xticks(np.arange(len(grid["dt"])) + 0.5, [f"{dt:g}" for dt in grid["dt"]], rotation=90)
         ax.set_yticks(np.arange(len(grid["keys"])) + 0.5, [label(*key) for key in grid["keys"]])
         ax.tick_params(length=0)
-        ax.set_xlabel(r"time step $\Delta t$ [s]")
+        ax.set_xlabel(r"time step $\Delta t$" + ("" if grid.get("nondimensional") else " [s]"))
         ax.set_title(SCENE_TITLES.get(scene, scene))
     axes[0, 0].invert_yaxis()
     handles = [Patch(facecolor=OUTCOME_COLOURS[o], edgecolor="0.5", label=OUTCOME_TEXT[o]) for o in outcomes]
@@ -311,18 +335,25 @@ def stability_figure(maps):
         "seconds (the summary file has them exactly)."]
 
 
-def save_all(output, conv, wp, structure, maps, fit_rule, work_precision_factor, load_lines=None):
-    """Writes the four figures to OUTPUT/study_*.png and .pdf, with their captions in .txt;
-    `load_lines` adds a caption line per figure name (the machine's load of a timing chart)."""
+def save_all(output, conv, wps, structure, maps, fit_rule, work_precision_factor, load_lines=None):
+    """Writes the figures to OUTPUT/study_*.png and .pdf, with their captions in .txt: work precision
+    ({model: result}) and the stability map, and the pendulum's convergence and structure against
+    cost unless conv and structure are None; `load_lines` adds a caption line per figure name (the
+    machine's load of a timing chart)."""
     load_lines = load_lines or {}
     output = Path(output)
-    source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
-    for name, (fig, title, lines) in (("study_convergence", convergence_figure(conv, wp, fit_rule)),
-                                      ("study_work_precision", work_precision_figure(wp, work_precision_factor)),
-                                      ("study_structure_cost", structure_figure(structure, source)),
-                                      ("study_stability_map", stability_figure(maps))):
+    figures = {"study_work_precision": lambda: work_precision_figure(wps, work_precision_factor),
+               "study_stability_map": lambda: stability_figure(maps)}
+    if conv is not None:
+        figures["study_convergence"] = lambda: convergence_figure(conv, wps["pendulum"], fit_rule)
+    if structure is not None:
+        source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
+        figures["study_structure_cost"] = lambda: structure_figure(structure, source)
+    for name, draw in figures.items():
+        fig, title, lines = draw()
         if "BUSY" in load_lines.get(name, ""):
-            # A busy machine's timings are marked on the chart itself, not only in its caption.
-            fig.text(0.005, 0.995, "measured on a busy machine (see the caption)", ha="left", va="top",
+            # A busy machine's timings are marked on the chart itself, not only in its caption (top
+            # right: the panels' titles are at the left or in the middle).
+            fig.text(0.995, 0.995, "measured on a busy machine (see the caption)", ha="right", va="top",
                      color="tab:red", fontsize=MIN_FONT_POINTS)
         save(fig, output / name, title, lines=lines + ([load_lines[name]] if name in load_lines else []))

@@ -23,6 +23,9 @@ IDENTITY_ATTRIBUTES = ("scheme", "thermo_variable")
 DESCRIPTION_ATTRIBUTES = ("discrete_gradient", "dt", "theta_r", "input_file", "status", "code_version")
 CONSTRAINT_ATTRIBUTES = ("constraints", "fix_length", "length", "fix_temperature", "temperature")
 
+# A /state column of the thermodynamic variable: s_1, theta_2, u_1 (older files: s1, theta2, u1).
+THERMODYNAMIC_COLUMN = re.compile(r"(s|theta|u)_?([0-9]+)")
+
 # Subscripts of the paper's scheme names EME_s, EME_theta, EME_u.
 VARIABLE_SYMBOLS = {"entropy": "s", "temperature": r"\theta", "internal_energy": "u"}
 VARIABLE_NAMES = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
@@ -51,6 +54,7 @@ class Run:
     data: dict = field(default_factory=dict)
     columns: dict = field(default_factory=dict)  # dataset name -> its `columns` attribute, split
     rows: dict = field(default_factory=dict)     # dataset name -> its `rows` attribute: point or step
+    units: dict = field(default_factory=dict)    # dataset name -> its `units` attribute
     problems: list = field(default_factory=list)  # why the file is incomplete beyond its status
 
     @property
@@ -189,6 +193,8 @@ def read_run(path, datasets, attributes=()):
             run.data[name] = handle[name][()]
             if "columns" in handle[name].attrs:
                 run.columns[name] = _column_names(handle[name].attrs["columns"])
+            if "units" in handle[name].attrs:
+                run.units[name] = _plain(handle[name].attrs["units"])
             if "rows" in handle[name].attrs:
                 run.rows[name] = _plain(handle[name].attrs["rows"])
             elif name != "time":
@@ -204,7 +210,7 @@ def read_run(path, datasets, attributes=()):
 def column_spellings(name):
     """A column's name and its other spelling: theta_1 and theta1, s_2 and s2 (older files wrote
     /state's thermodynamic columns without the underscore)."""
-    match = re.fullmatch(r"(s|theta|u)_?([0-9]+)", name)
+    match = THERMODYNAMIC_COLUMN.fullmatch(name)
     if not match:
         return [name]
     symbol, number = match.groups()

@@ -7,7 +7,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-STATE_COLUMNS = ("q1_x q1_y q1_z q2_x q2_y q2_z p1_x p1_y p1_z p2_x p2_y p2_z gamma tau1 tau2").split()
+STATE_COLUMNS = ("q1_x q1_y q1_z q2_x q2_y q2_z p1_x p1_y p1_z p2_x p2_y p2_z gamma theta_1 theta_2").split()
 UNITS = {"time": "s", "state": "SI", "temperature": "K", "energy": "J", "entropy": "J/K",
          "lyapunov": "J", "angular_momentum": "J s", "newton_iterations": "1",
          "scheme_temperature": "K", "solver_strategy": "1", "snes_solves": "1",

@@ -29,14 +29,16 @@ from trajectory import RunFileError  # noqa: E402
 ENSEMBLE = ROOT / "build" / "bin" / "eme_ensemble"
 SCRIPT = ROOT / "postprocess" / "study_analysis.py"
 BASE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
-MECHANICAL_GAMMA = study_analysis.MECHANICAL_COLUMNS.index("gamma")
-WORK_PRECISION_STUDIES = study_analysis.WORK_PRECISION
+GAS_BASE = ROOT / "inputs" / "gas_containers.nml"
+# The pendulum's /state columns but its thermodynamic variable's, as final_point keeps them.
+PENDULUM_MECHANICAL = tuple(STATE_COLUMNS[:13])
 
 
 # ---------------------------------------------------------------- error norm
-def point(mechanical=None, temperatures=(300.0, 350.0), time=2.0, theta_ref=300.0, name="run.h5"):
-    mechanical = np.zeros(13) if mechanical is None else np.asarray(mechanical, float)
-    return FinalPoint(Path(name), time, mechanical, np.asarray(temperatures, float), theta_ref)
+def point(mechanical=None, temperatures=(300.0, 350.0), time=2.0, theta_ref=300.0, name="run.h5",
+          columns=PENDULUM_MECHANICAL):
+    mechanical = np.zeros(len(columns)) if mechanical is None else np.asarray(mechanical, float)
+    return FinalPoint(Path(name), time, mechanical, np.asarray(temperatures, float), theta_ref, tuple(columns))
 
 
 def test_error_is_the_largest_mechanical_or_scaled_temperature_difference():
@@ -49,11 +51,11 @@ def test_error_is_the_largest_mechanical_or_scaled_temperature_difference():
 
 
 def test_error_reads_q_p_gamma_and_temperatures_by_column_name_not_tau(tmp_path):
-    # /state columns written in reverse order, and tau1, tau2 far apart: they must not count.
+    # /state columns written in reverse order, and tau = (theta_1, theta_2) far apart: they must not count.
     steps = 3
     state = np.zeros((steps + 1, 15))
     state[-1, STATE_COLUMNS.index("gamma")] = 0.25
-    state[-1, STATE_COLUMNS.index("tau1")] = 1e6
+    state[-1, STATE_COLUMNS.index("theta_1")] = 1e6
     temperature = np.full((steps + 1, 2), 300.0)
     temperature[-1] = (300.0, 330.0)                              # 30 K / 300 K = 0.1
     attributes = {"theta_ref": 300.0}
@@ -62,7 +64,8 @@ def test_error_reads_q_p_gamma_and_temperatures_by_column_name_not_tau(tmp_path)
     reference, _ = write_run(tmp_path / "reference.h5", steps, {"state": np.zeros((steps + 1, 15)),
                              "temperature": np.full((steps + 1, 2), 300.0)}, attributes)
     last = final_point(case)
-    assert last.mechanical[MECHANICAL_GAMMA] == 0.25 and last.time == pytest.approx(0.3)
+    assert last.mechanical[last.columns.index("gamma")] == 0.25 and last.time == pytest.approx(0.3)
+    assert sorted(last.columns) == sorted(PENDULUM_MECHANICAL)
     assert state_error(last, final_point(reference)) == pytest.approx(0.25)
     temperature[-1] = (300.0, 450.0)                              # now the temperature decides: 0.5
     case, _ = write_run(tmp_path / "case2.h5", steps, {"state": state, "temperature": temperature}, attributes)
@@ -212,6 +215,22 @@ for _scene in stability_sets.SCENES:
 &sweep field = 'tolerance', values = 1e-2, 1e-3, 1e-4, 1e-4 /"""
 EXPECTED_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("EME_theta", 0.2): "solver",
                      ("TS-midpoint_u", 0.1): "solver", ("RRK4_theta", 0.5): "kept"}
+# The gas containers (base inputs/gas_containers.nml), tiny: a stability study on [0, 2] with one
+# case per outcome the scene gives (EME and RRK4 keep everything, MP_s drifts in energy, RK4 leaves
+# the domain in its first step of 1, BDF2 loses its Newton root in its second), and the pendulum's
+# work-precision sweeps on [0, 0.4] with their reference (relaxed_rk8 at dt = 0.005, cross-checked by
+# CVODE-Adams).
+GAS_STUDIES = {
+    "gas_stability": """&sweep field = 't_end', values = 5*2.0 /
+&sweep field = 'scheme', texts = 'eme', 'midpoint', 'ts_rk4', 'ts_bdf2', 'relaxed_rk4' /
+&sweep field = 'thermo_variable', texts = 'temperature', 'entropy', 'temperature', 'temperature', 'temperature' /
+&sweep field = 'dt', values = 0.1, 0.1, 1.0, 1.0, 0.5 /""",
+    **{f"gas_{name}": STUDIES[name] for name in ("work_precision", "work_precision_adaptive",
+                                                 "work_precision_step_control", "work_precision_reference")},
+}
+STUDIES.update(GAS_STUDIES)
+EXPECTED_GAS_OUTCOMES = {("EME_theta", 0.1): "kept", ("MP_s", 0.1): "energy", ("RK4_theta", 1.0): "nonphysical",
+                         ("BDF2_theta", 1.0): "solver", ("RRK4_theta", 0.5): "kept"}
 
 
 def run_script(study_dir, output, summary):
@@ -221,15 +240,16 @@ def run_script(study_dir, output, summary):
 
 @pytest.fixture(scope="module")
 def studies(tmp_path_factory):
-    """STUDY_DIR with the seven tiny studies, run with eme_ensemble on one rank; the stability
-    studies keep only their index, as make study's do."""
+    """STUDY_DIR with the tiny studies, run with eme_ensemble on one rank; the stability studies
+    keep only their index, as make study's do."""
     assert ENSEMBLE.exists(), f"{ENSEMBLE} is missing: run `make` in {ROOT} first"
     directory = tmp_path_factory.mktemp("studies")
     for name, sweeps in STUDIES.items():
         combine = "product" if name == "convergence" else "zip"
-        index_only = ".true." if name.startswith("stability") else ".false."     # as make study's
+        index_only = ".true." if "stability" in name else ".false."     # as make study's
+        base = GAS_BASE if name in GAS_STUDIES else BASE
         namelist = directory / f"{name}.nml"
-        namelist.write_text(f"&study\n  base = '{BASE}'\n  output_dir = '{directory / 'study' / name}'\n"
+        namelist.write_text(f"&study\n  base = '{base}'\n  output_dir = '{directory / 'study' / name}'\n"
                             f"  combine = '{combine}'\n  index_only = {index_only}\n/\n{sweeps}\n")
         # As make study runs them: the machine's load recorded around each (machine_load.py).
         result = subprocess.run([sys.executable, str(ROOT / "postprocess" / "machine_load.py"), "--record",
@@ -268,7 +288,7 @@ def test_summary_holds_every_figure_s_numbers_with_units(studies, analysed):
         f.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
         for name in names:
             assert {"units", "description"} <= set(f[name].attrs), name
-        for scene in ("paper", "hard"):
+        for scene in ("paper", "hard", "gas"):
             for dataset in ("scheme", "dt", "outcome", "outcome_names", "flags", "case", "kept_count"):
                 assert f"stability/{scene}/{dataset}" in names
         for dataset in ("scheme", "dt", "error", "solve_time_seconds", "cross_check_level", "fit_scheme",
@@ -287,10 +307,15 @@ def test_summary_holds_every_figure_s_numbers_with_units(studies, analysed):
         # The relaxed case at dt = 0.5 s halves steps, and only it.
         halved = f["stability/paper/halved_steps"][()]
         assert halved[schemes.index("RRK4_theta"), steps.index(0.5)] > 0 and halved.sum() == halved.max()
-        for dataset in ("scheme", "study", "dt", "tolerance", "error", "shown", "solve_time_seconds",
-                        "energy_drift", "cross_check_level"):
-            assert f"work_precision/{dataset}" in names
-        assert len(f["work_precision/error"]) == 10     # 4 fixed-step, 4 adaptive, 2 step-controlled
+        for group in ("work_precision", "gas_work_precision"):
+            for dataset in ("scheme", "study", "dt", "tolerance", "error", "shown", "solve_time_seconds",
+                            "energy_drift", "cross_check_level"):
+                assert f"{group}/{dataset}" in names
+            assert len(f[f"{group}/error"]) == 10     # 4 fixed-step, 4 adaptive, 2 step-controlled
+        # The gas containers are nondimensional: their V and dt have the unit 1, the pendulum's J and s.
+        assert f["stability/gas/max_lyapunov_increment"].attrs["units"] == "1"
+        assert f["stability/gas/dt"].attrs["units"] == "1"
+        assert f["stability/paper/max_lyapunov_increment"].attrs["units"] == "J"
         orders = dict(zip(text(f["convergence/fit_scheme"][()]), f["convergence/fitted_order"][()]))
         assert orders["EME_theta"] == pytest.approx(2.0, abs=0.3)
         assert orders["RK4_theta"] == pytest.approx(4.0, abs=0.5)
@@ -317,16 +342,26 @@ def test_summary_numbers_are_the_files_numbers(studies, analysed):
         q_check, theta_check, _ = last(studies / "convergence_reference" / "case_00002.h5")
         level = max(np.abs(q_check - q_ref).max(), np.abs(theta_check - theta_ref_values).max() / theta_ref)
         assert f["convergence/cross_check_level"][()] == pytest.approx(level, rel=1e-12)
-    q_ref, theta_ref_values, theta_ref = last(studies / "work_precision_reference" / "case_00001.h5")
-    with h5py.File(output / "summary.h5", "r") as f:
-        for study, case, error, time in zip(text(f["work_precision/study"][()]), f["work_precision/case"][()],
-                                            f["work_precision/error"][()], f["work_precision/solve_time_seconds"][()]):
-            with h5py.File(studies / study / "index.h5", "r") as index:
-                row = {row["case"]: row for row in index["cases"][()]}[case]
-            q, theta, _ = last(studies / study / row["file"].decode())
-            expected = max(np.abs(q - q_ref).max(), np.abs(theta - theta_ref_values).max() / theta_ref)
-            assert error == pytest.approx(expected, rel=1e-12, abs=0)
-            assert time == row["solve_time_seconds"]
+    # The gas containers' q, p are /state's first two columns; their temperatures are compared
+    # unscaled (units 1, no theta_ref).
+    for group, reference, mechanical, scaled in (("work_precision", "work_precision_reference", 13, True),
+                                                 ("gas_work_precision", "gas_work_precision_reference", 2, False)):
+        def last_point(path):
+            with h5py.File(path, "r") as f:
+                return (f["state"][-1, :mechanical], f["temperature"][-1],
+                        f.attrs["theta_ref"] if scaled else 1.0)
+
+        q_ref, theta_ref_values, theta_ref = last_point(studies / reference / "case_00001.h5")
+        with h5py.File(output / "summary.h5", "r") as f:
+            assert len(f[f"{group}/error"]) > 0
+            for study, case, error, time in zip(text(f[f"{group}/study"][()]), f[f"{group}/case"][()],
+                                                f[f"{group}/error"][()], f[f"{group}/solve_time_seconds"][()]):
+                with h5py.File(studies / study / "index.h5", "r") as index:
+                    row = {row["case"]: row for row in index["cases"][()]}[case]
+                q, theta, _ = last_point(studies / study / row["file"].decode())
+                expected = max(np.abs(q - q_ref).max(), np.abs(theta - theta_ref_values).max() / theta_ref)
+                assert error == pytest.approx(expected, rel=1e-12, abs=0)
+                assert time == row["solve_time_seconds"]
     with h5py.File(output / "summary.h5", "r") as f, \
             h5py.File(studies / "stability_paper" / "index.h5", "r") as index:
         rows = {row["case"]: row for row in index["cases"][()]}
@@ -341,11 +376,15 @@ def test_findings_are_printed(analysed):
     _, stdout = analysed
     assert "convergence: reference" in stdout and "|reference - cross-check| = " in stdout
     assert "convergence EME_theta: fitted order " in stdout
-    assert "stability EME_theta: finished with everything kept at 1 of 2 dt (paper scene), 1 of 2 dt (harder scene)" \
-        in stdout
+    assert "stability EME_theta: finished with everything kept at 1 of 2 dt (paper scene), 1 of 2 dt (harder " \
+        "scene), 1 of 1 dt (gas containers)" in stdout
     assert "stability MP_s: finished with everything kept at 0 of 1 dt (paper scene)" in stdout
     assert "work precision: reference" in stdout
     assert "work precision RRK8_theta: error <= 1e-04 at dt " in stdout and "x CVODE-BDF_theta's time" in stdout
+    # The gas containers: their own lines, times without s (nondimensional).
+    assert "work precision (gas containers): reference" in stdout
+    assert "work precision (gas containers) RRK8_theta: error <= 1e-04 at dt " in stdout
+    assert "stability gas containers: RK4_theta at dt = 1 failed in the step ending at t = 1: nonphysical" in stdout
 
 
 def test_a_missing_columns_attribute_names_the_file(studies, tmp_path):
@@ -383,13 +422,9 @@ def test_charts_are_a_page_wide_with_truetype_fonts_and_a_caption(analysed, name
 
 
 def test_charts_text_is_at_least_8_pt_and_legends_explain_every_marker(studies):
-    conv = study_analysis.convergence(studies)
-    structure = study_analysis.structure_cost(study_analysis.read_index(studies / "stability_paper"))
-    maps = {scene: study_analysis.stability_map(study_analysis.read_index(studies / folder))
-            for scene, folder in study_analysis.SCENES.items()}
-    wp = study_analysis.work_precision(studies)
-    made = {"convergence": study_plots.convergence_figure(conv, wp, (3, 100.0)),
-            "work_precision": study_plots.work_precision_figure(wp, 10.0),
+    conv, wps, structure, maps, _ = study_analysis.analyse(studies, list(study_analysis.MODELS))
+    made = {"convergence": study_plots.convergence_figure(conv, wps["pendulum"], (3, 100.0)),
+            "work_precision": study_plots.work_precision_figure(wps, 10.0),
             "structure": study_plots.structure_figure(structure, studies / "stability_paper"),
             "stability": study_plots.stability_figure(maps)}
     for name, (fig, title, lines) in made.items():
@@ -489,7 +524,7 @@ def test_every_scheme_s_legend_and_map_fit_the_page(studies):
     grid = {"keys": keys, "dt": steps, "outcome": np.zeros((len(keys), 10), dtype=int),
             "flags": np.full((len(keys), 10), "", dtype=object), "failed_at": np.full((len(keys), 10), np.nan),
             "halved": np.zeros((len(keys), 10), dtype=int), "scene": "synthetic", "source": "synthetic"}
-    fig, _, _ = study_plots.stability_figure({"paper": grid, "hard": grid})
+    fig, _, _ = study_plots.stability_figure({"paper": grid, "hard": grid, "gas": grid})
     width, height = fig.get_size_inches()
     assert width <= 7.0 and height <= 10.0, (width, height)
     assert min(drawn_font_sizes(fig)) >= 8
@@ -497,6 +532,9 @@ def test_every_scheme_s_legend_and_map_fit_the_page(studies):
 
 
 # ---------------------------------------------------------------- the machine's load
+# The work-precision chart's load is the highest of every model's timed work-precision studies.
+WORK_PRECISION_STUDIES = ("work_precision", "work_precision_adaptive", "work_precision_step_control",
+                          "gas_work_precision", "gas_work_precision_adaptive", "gas_work_precision_step_control")
 TIMED = {"study_work_precision": ("work_precision", WORK_PRECISION_STUDIES),
          "study_structure_cost": ("structure_cost", ("stability_paper",))}
 
@@ -581,17 +619,121 @@ def test_structure_chart_gives_each_family_a_row_a_colour_and_each_scheme_a_mark
     plt.close("all")
 
 
-def test_work_precision_chart_gives_each_family_a_panel(studies):
-    wp = study_analysis.work_precision(studies)
-    fig, _, lines = study_plots.work_precision_figure(wp, 10.0)
-    keys = study_plots.curve_keys(wp["rows"])
-    families = list(dict.fromkeys(study_analysis.integrators.family(scheme) for scheme, _ in keys))
-    assert len(fig.axes) == len(families) >= 3
-    for ax, family in zip(fig.axes, families):
-        mine = [key for key in keys if study_analysis.integrators.family(key[0]) == family]
-        assert study_analysis.integrators.family_title(family) == ax.get_title(loc="left")
-        assert len(coloured_lines(ax)) == len(mine)
-        assert {line.get_marker() for line in coloured_lines(ax)} == \
-            {study_analysis.integrators.marker(scheme) for scheme, _ in mine}
-    assert any("One row per scheme family" in line for line in lines)
+def test_work_precision_chart_gives_each_model_a_column_and_each_family_a_row(studies):
+    """A column per model (the pendulum's, the gas containers'), a row per family named by its
+    legend; each panel draws its model's curves of its family in colour, a marker per scheme,
+    through that model's errors and solve times."""
+    wps = {model: study_analysis.work_precision(studies, model) for model in ("pendulum", "gas")}
+    fig, _, lines = study_plots.work_precision_figure(wps, 10.0)
+    integrators = study_analysis.integrators
+    keys = sorted({key for wp in wps.values() for key in study_plots.curve_keys(wp["rows"])},
+                  key=study_plots.key_rank)
+    families = list(dict.fromkeys(integrators.family(scheme) for scheme, _ in keys))
+    grid = np.array(fig.axes).reshape(len(families), 2)
+    assert len(families) >= 3
+    assert [ax.get_title().splitlines()[0] for ax in grid[0]] == ["double pendulum, t = 0.4 s", "gas containers, t = 0.4"]
+    for row_axes, family in zip(grid, families):
+        assert row_axes[-1].get_legend().get_title().get_text() == integrators.family_title(family)
+        for ax, wp in zip(row_axes, wps.values()):
+            mine = [key for key in study_plots.curve_keys(wp["rows"]) if integrators.family(key[0]) == family]
+            drawn = coloured_lines(ax)
+            assert len(drawn) == len(mine)
+            assert {line.get_marker() for line in drawn} == {integrators.marker(scheme) for scheme, _ in mine}
+            shown = set(wp["errors"][wp["shown"]])
+            assert all(set(line.get_ydata()) <= shown for line in drawn)
+    # The gas column has the gas curves: its EME curve runs through the gas errors, not the pendulum's.
+    gas_eme = [i for i in study_plots.members(wps["gas"]["rows"], ("eme", "temperature")) if wps["gas"]["shown"][i]]
+    eme_lines = [line for line in coloured_lines(grid[0, 1]) if line.get_marker() == integrators.marker("eme")]
+    assert len(gas_eme) == 2 and sorted(eme_lines[0].get_ydata()) == sorted(wps["gas"]["errors"][gas_eme])
+    assert any("A column per model, a row per scheme family" in line for line in lines)
+    assert any(line.startswith("gas containers: error at t = 0.4") for line in lines)
     plt.close("all")
+
+
+# ---------------------------------------------------------------- the gas containers beside the pendulum
+def test_the_stability_map_has_a_gas_panel_with_the_gas_outcomes(analysed, studies):
+    """The summary's stability/gas grid holds each gas case's outcome, and the map draws it as a
+    third panel, its rows those of every scene (a scheme the gas study did not run is white)."""
+    output, _ = analysed
+    with h5py.File(output / "summary.h5", "r") as f:
+        grid = f["stability/gas/outcome"][()]
+        schemes, steps = text(f["stability/gas/scheme"][()]), list(f["stability/gas/dt"][()])
+        codes = {(schemes[i], steps[j]): study_analysis.OUTCOMES[grid[i, j]] for i, j in zip(*np.nonzero(grid >= 0))}
+        failed_at = f["stability/gas/failed_at"][()]
+        assert failed_at[schemes.index("RK4_theta"), steps.index(1.0)] == 1.0
+        assert failed_at[schemes.index("BDF2_theta"), steps.index(1.0)] == 2.0
+    assert codes == EXPECTED_GAS_OUTCOMES
+    _, _, _, maps, _ = study_analysis.analyse(studies, list(study_analysis.MODELS))
+    fig, _, lines = study_plots.stability_figure(maps)
+    assert [ax.get_title() for ax in fig.axes] == ["paper scene", "harder scene", "gas containers"]
+    assert fig.axes[2].get_xlabel() == r"time step $\Delta t$" and fig.axes[0].get_xlabel().endswith("[s]")
+    rows = [label.get_text() for label in fig.axes[0].get_yticklabels()]
+    keys = sorted({key for grid in maps.values() for key in grid["keys"]}, key=study_plots.key_rank)
+    assert rows == [study_plots.label(*key) for key in keys]
+    cells = fig.axes[2].collections[0].get_array().reshape(len(keys), -1) - 1      # drawn as outcome + 1
+    for (name, dt), outcome in EXPECTED_GAS_OUTCOMES.items():
+        row = [study_plots.plain_name(*key) for key in keys].index(name)
+        assert cells[row, list(maps["gas"]["dt"]).index(dt)] == study_analysis.OUTCOMES.index(outcome)
+    # TS-midpoint_u ran only on the pendulum's scenes: white (not run) in the gas panel.
+    assert np.all(cells[[study_plots.plain_name(*key) for key in keys].index("TS-midpoint_u")] == -1)
+    assert any("gas containers: [0, 2], model_name = 'gas_containers', friction = 8.0, q = 1.0" in line
+               for line in lines)
+    plt.close("all")
+
+
+def test_nan_angular_momentum_drift_is_no_trouble(studies, analysed, tmp_path):
+    """The gas containers have no momenta: their indexes hold angular_momentum_drift = NaN. With NaN
+    planted in every index (the pendulum's too) the analysis still runs and finds the same."""
+    for name in GAS_STUDIES:
+        with h5py.File(studies / name / "index.h5", "r") as index:
+            assert np.all(np.isnan(index["cases"]["angular_momentum_drift"]))
+    copy = tmp_path / "study"
+    shutil.copytree(studies, copy)
+    for index_path in copy.glob("*/index.h5"):
+        with h5py.File(index_path, "r+") as index:
+            cases = index["cases"][()]
+            cases["angular_momentum_drift"] = np.nan
+            index["cases"][...] = cases
+    result = run_script(copy, tmp_path / "figures", tmp_path / "summary.h5")
+    assert result.returncode == 0, result.stderr
+    output, _ = analysed
+    with h5py.File(tmp_path / "summary.h5", "r") as planted, h5py.File(output / "summary.h5", "r") as original:
+        for scene in ("paper", "hard", "gas"):
+            np.testing.assert_array_equal(planted[f"stability/{scene}/outcome"][()],
+                                          original[f"stability/{scene}/outcome"][()])
+        np.testing.assert_array_equal(planted["gas_work_precision/error"][()], original["gas_work_precision/error"][()])
+
+
+def test_the_gas_studies_alone_with_models_gas(studies, tmp_path):
+    """--models gas analyses the gas containers' studies without the pendulum's: the work-precision
+    chart and the stability map, each with the gas alone; without --models the missing pendulum
+    studies are named (exit 2)."""
+    only = tmp_path / "study"
+    only.mkdir()
+    for name in GAS_STUDIES:
+        shutil.copytree(studies / name, only / name)
+        shutil.copy(studies / f"{name}.load.json", only)
+    figures = tmp_path / "figures"
+    result = subprocess.run([sys.executable, str(SCRIPT), "--study-dir", str(only), "-o", str(figures),
+                             "--summary", str(tmp_path / "summary.h5"), "--models", "gas"],
+                            capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    assert sorted(path.name for path in figures.glob("*.png")) == ["study_stability_map.png",
+                                                                  "study_work_precision.png"]
+    with h5py.File(tmp_path / "summary.h5", "r") as f:
+        assert sorted(f) == ["gas_work_precision", "stability"] and sorted(f["stability"]) == ["gas"]
+    assert "gas_work_precision_step_control" in (figures / "study_work_precision.txt").read_text()
+    assert "work precision (gas containers) EME_theta" in result.stdout and "convergence" not in result.stdout
+    result = run_script(only, tmp_path / "all", tmp_path / "all.h5")
+    assert result.returncode == 2 and "cannot open" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_gas_case_is_not_compared_with_a_pendulum_reference():
+    """The error norm matches /state's mechanical entries by name: a gas point (q, p) against a
+    pendulum reference (q1_x ... gamma) is refused, not compared entry by entry."""
+    gas = point([1.0, 2.0], (1.8, 4.9), theta_ref=1.0, name="gas.h5", columns=("q", "p"))
+    with pytest.raises(StudyError, match=r"gas\.h5: /state columns q p, the reference .* not the same model"):
+        state_error(gas, point(theta_ref=1.0))
+    # Unscaled temperatures (theta_ref 1): 0.25 in theta_2 is an error of 0.25.
+    assert state_error(point([1.0, 2.0], (1.8, 5.15), theta_ref=1.0, columns=("p", "q")[::-1]), gas) == \
+        pytest.approx(0.25)

@@ -27,7 +27,7 @@ def test_jz_drift_is_z_component_minus_its_initial_value(tmp_path):
 
 
 def test_positions_follow_the_columns_attribute_and_q2_is_relative(tmp_path):
-    # Columns written in reverse order: guessing positions 0..5 would read tau2, tau1, gamma, ...
+    # Columns written in reverse order: guessing positions 0..5 would read theta_2, theta_1, gamma, ...
     path, data = write_run(tmp_path / "run.h5", columns=STATE_COLUMNS[::-1])
     m1, m2 = trajectory.mass_positions(read_run(path, ["state"]))
     q1, q2 = data["state"][:, 0:3], data["state"][:, 3:6]
