@@ -11,10 +11,14 @@
 !> Two ways to drive SNES (docs/performance.md):
 !>  - lean (the default): SNES never computes a Jacobian (SNESSetLagJacobian -1). The shell
 !>    preconditioner evaluates it at SNES's current iterate and factors it when it is applied,
-!>    once per Newton iteration, or confirms a root with the factors it has (the final chord
-!>    step: the residual is below the tolerance after an update below chord_update_limit). A
-!>    shell line search takes the full step and hands SNES the norms it computed. SNES's viewer
-!>    lookups are switched off around SNESSolve when no option asks for a viewer.
+!>    whenever the modified Newton (src/solver/modified_newton) finds the factors it has no
+!>    longer contracting: factors are kept across iterations and across steps of the same length.
+!>    With -eme_modified_newton false, once per Newton iteration, or it confirms a root with the
+!>    factors it has (the final chord step: the residual is below the tolerance after an update
+!>    below chord_update_limit). A shell line search takes the full step and hands SNES the norms
+!>    it computed; the modified Newton needs it (PETSc's line searches select a new Jacobian every
+!>    iteration). SNES's viewer lookups are switched off around SNESSolve when no option asks for a
+!>    viewer.
 !>  - standard: SNESComputeJacobian calls form_jacobian, PCSetUp factors the matrix (read without
 !>    changing its state, so once per iteration), the line search is PETSc's. Taken when an
 !>    option needs SNES's own Jacobian (-snes_test_jacobian, -snes_compare_*, -snes_mf*,
@@ -52,6 +56,7 @@ module snes_solver
     logical :: created = .false.
     type(step_solver_options) :: options
     logical :: shell_line_search = .false.          !! the full-step shell instead of 'basic'
+    logical :: shell_in_use = .false.               !! the line search now is the shell
     logical :: quiet = .false.                      !! no option asks for a viewer
     character(len=16) :: line_search = ''           !! the primary line search type
     character(len=16) :: fallback_line_search = ''  !! the retry strategies' fallback
@@ -64,6 +69,7 @@ module snes_solver
     procedure :: refine
     procedure :: use_fallback
     procedure :: lean
+    procedure :: keeps_factors
     procedure :: factorizations
     procedure :: describe
     procedure, private :: create
@@ -164,6 +170,7 @@ contains
     end do
     self%context%lean = self%options%lean_snes .and. .not. needs_snes_jacobian
     self%context%final_chord = self%options%final_chord
+    self%context%reuse%chord_iterations = self%options%chord_iterations
     if (self%context%lean) then
       lag = -1
       PetscCall(SNESSetLagJacobian(self%snes, lag, ierr))
@@ -193,7 +200,8 @@ contains
     SNESLineSearch :: line_search
 
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
-    if (self%shell_line_search .and. kind == SNESLINESEARCHBASIC) then
+    self%shell_in_use = self%shell_line_search .and. kind == SNESLINESEARCHBASIC
+    if (self%shell_in_use) then
       PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHSHELL, ierr))
       PetscCall(SNESLineSearchShellSetUserFunc(line_search, full_step, self%context, ierr))
     else
@@ -220,6 +228,14 @@ contains
 
     lean = self%context%lean
   end function lean
+
+  !> Whether the lean way keeps its LU factors while they contract (module header), where its
+  !> full-step line search is in use.
+  logical function keeps_factors(self)
+    class(newton_solver), intent(in) :: self
+
+    keeps_factors = self%options%modified_newton .and. self%context%lean .and. self%shell_line_search
+  end function keeps_factors
 
   !> The SNES as the options database left it (after SNESSetFromOptions): type, tolerances, line
   !> searches, linear solver, the lean way's choices, and PETSc's names of its converged reasons.
@@ -257,6 +273,8 @@ contains
     call add_setting(report, text_setting('pc_type', pc_type))
     call add_setting(report, text_setting('eme_lean_snes', merge('true ', 'false', self%context%lean)))
     call add_setting(report, text_setting('eme_final_chord', merge('true ', 'false', self%context%final_chord)))
+    call add_setting(report, text_setting('eme_modified_newton', merge('true ', 'false', self%keeps_factors())))
+    call add_setting(report, integer_setting('eme_chord_iterations', self%context%reuse%chord_iterations))
     call add_setting(report, text_setting('eme_chord_predictor', merge('true ', 'false', self%options%chord_predictor)))
     call set_petsc_reasons(report, reasons_snes, ierr)
   end subroutine describe
@@ -292,6 +310,11 @@ contains
     self%context%update_norm = huge(1.0_real64)
     self%context%chord_taken = .false.
     call problem%rounding_scales(self%context%state_scale, self%context%residual_scale)
+    self%context%step_length = problem%step_length()
+    ! Chord iterations stop at an error limit from the problem's rounding scale and step length.
+    self%context%reuse%enabled = self%keeps_factors() .and. self%shell_in_use .and. self%context%state_scale > 0.0_real64 &
+                                 .and. self%context%step_length > 0.0_real64
+    call self%context%reuse%begin_solve()
     self%context%newton_tol = self%newton_tol
     self%context%accepted_at = -1
     PetscCall(tolerance_of(self, self%context%tolerance, ierr))
@@ -378,7 +401,8 @@ contains
     class(nonlinear_system), intent(in) :: problem
     real(real64), intent(inout) :: x(:)
 
-    if (self%options%chord_predictor) call chord_refinement(self%context%lu, problem, x)
+    if (self%options%chord_predictor) call chord_refinement(self%context%lu, problem, x, self%context%reuse%carried_update, &
+                                                             self%context%reuse%carried_residual)
   end subroutine refine
 
   !> Switches to the fallback line search, or back to the primary one.
