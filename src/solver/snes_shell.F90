@@ -35,8 +35,8 @@ module snes_shell
     SNES :: snes
     logical :: lean = .false.
     logical :: final_chord = .true.
-    real(real64) :: tolerance = 0.0_real64          !! the convergence test's absolute tolerance
-    real(real64) :: newton_tol = 0.0_real64         !! the input's (&integrator newton_tol): no option loosens it
+    real(real64) :: tolerance = 0.0_real64          !! the convergence test's absolute tolerance, min(newton_tol, -snes_atol)
+    real(real64) :: update_tolerance = 0.0_real64   !! SNES's relative update tolerance (-snes_stol)
     integer :: accepted_at = -1                     !! the iteration our convergence test accepted (-1: none)
     real(real64) :: residual_norm = huge(1.0_real64)  !! at SNES's current iterate
     real(real64) :: update_norm = huge(1.0_real64)    !! of the update that led there
@@ -71,9 +71,11 @@ module snes_shell
 
 contains
 
-  ! SNES convergence test: retry_strategies' newton_converged with the input's newton_tol, or
-  ! SNES's absolute tolerance where -snes_atol makes it smaller, and SNES's relative update
-  ! tolerance (-snes_stol > 0 adds a condition). Options make the test stricter, never looser.
+  ! SNES convergence test: the modified Newton's record's (retry_strategies' newton_converged after
+  ! a Newton update) with the input's newton_tol, or SNES's absolute tolerance where -snes_atol
+  ! makes it smaller, and SNES's relative update tolerance (-snes_stol > 0 adds a condition), as
+  ! the solver keeps them (they change only where it sets them). Options make the test stricter,
+  ! never looser.
   subroutine converged_on_update(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
     SNES, intent(in) :: snes
     PetscInt, intent(in) :: iteration
@@ -81,14 +83,12 @@ contains
     SNESConvergedReason, intent(out) :: reason
     type(solver_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
-    PetscReal :: atol, rtol, stol
-    PetscInt :: max_iterations, max_evaluations
 
-    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+    ierr = 0
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (context%reuse%converged(int(iteration), residual_norm, update_norm, x_norm, min(atol, context%newton_tol), &
-                                     stol, context%state_scale, context%residual_scale)) then
+    else if (context%reuse%converged(int(iteration), residual_norm, update_norm, x_norm, context%tolerance, &
+                                     context%update_tolerance, context%state_scale, context%residual_scale)) then
       reason = SNES_CONVERGED_FNORM_ABS
       context%accepted_at = int(iteration)
     else

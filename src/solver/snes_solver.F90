@@ -99,6 +99,7 @@ contains
         PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, iterations, PETSC_DEFAULT_INTEGER, ierr))
         self%newton_tol = newton_tol
         self%max_iterations = max_iterations
+        PetscCall(keep_tolerances(self, ierr))
       end if
       return
     end if
@@ -155,6 +156,7 @@ contains
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESSetFromOptions(self%snes, ierr))
+    PetscCall(keep_tolerances(self, ierr))
     PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
     PetscCall(read_solver_options(self%options, ierr))
 
@@ -174,6 +176,8 @@ contains
     if (self%context%lean) then
       lag = -1
       PetscCall(SNESSetLagJacobian(self%snes, lag, ierr))
+      ! The preconditioner's operator never changes: PCSetUp (twice an iteration) returns at once.
+      PetscCall(PCSetReusePreconditioner(pc, PETSC_TRUE, ierr))
     end if
     PetscCall(option_given('-snes_linesearch_type', given, ierr))
     self%shell_line_search = self%context%lean .and. .not. given
@@ -315,9 +319,7 @@ contains
     self%context%reuse%enabled = self%keeps_factors() .and. self%shell_in_use .and. self%context%state_scale > 0.0_real64 &
                                  .and. self%context%step_length > 0.0_real64
     call self%context%reuse%begin_solve()
-    self%context%newton_tol = self%newton_tol
     self%context%accepted_at = -1
-    PetscCall(tolerance_of(self, self%context%tolerance, ierr))
     PetscCall(borrow(self%x, self%n, values, ierr))
     values = initial
     PetscCall(give_back(self%x, values, ierr))
@@ -357,14 +359,13 @@ contains
   contains
 
     logical function at_rounding_floor()
-      PetscReal :: residual_norm, atol
+      PetscReal :: residual_norm
       PetscErrorCode :: ierr
 
       at_rounding_floor = .false.
       if (snes_reason /= SNES_DIVERGED_LINE_SEARCH) return
       PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
-      PetscCall(tolerance_of(self, atol, ierr))
-      at_rounding_floor = residual_norm <= atol
+      at_rounding_floor = residual_norm <= self%context%tolerance
     end function at_rounding_floor
 
     ! The residual at the root SNES returned, against the tolerance or its rounding floor.
@@ -381,18 +382,20 @@ contains
     end function root_confirmed
   end subroutine solve
 
-  ! The absolute tolerance of the convergence test: the input's newton_tol, or SNES's where
-  ! -snes_atol made it smaller (an option never loosens it).
-  subroutine tolerance_of(self, atol, ierr)
-    class(newton_solver), intent(in) :: self
-    real(real64), intent(out) :: atol
+  ! The convergence test's tolerances, read from SNES once each time they are set (create and
+  ! prepare) instead of in every test: the absolute one is the input's newton_tol, or SNES's where
+  ! -snes_atol made it smaller (an option never loosens it); the relative update tolerance is
+  ! -snes_stol's.
+  subroutine keep_tolerances(self, ierr)
+    class(newton_solver), intent(inout) :: self
     PetscErrorCode, intent(out) :: ierr
     PetscReal :: snes_atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
 
     PetscCall(SNESGetTolerances(self%snes, snes_atol, rtol, stol, max_iterations, max_evaluations, ierr))
-    atol = min(snes_atol, self%newton_tol)
-  end subroutine tolerance_of
+    self%context%tolerance = min(snes_atol, self%newton_tol)
+    self%context%update_tolerance = stol
+  end subroutine keep_tolerances
 
   !> The predictor's chord refinement with the last solve's LU factors (retry_strategies'
   !> chord_refinement), unless -eme_chord_predictor false.
