@@ -7,7 +7,7 @@
 module hand_newton
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
-  use retry_strategies, only: root_finder, final_chord_step, newton_converged, chord_refinement
+  use retry_strategies, only: root_finder, final_chord_step, chord_refinement
   use dense_lu, only: lu_factors
   use euclidean_norm, only: two_norm
   use modified_newton, only: factor_record
