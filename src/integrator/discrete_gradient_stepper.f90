@@ -362,9 +362,8 @@ contains
   !> What a step leaves for the next (a continued run restores it, bit for bit): the step-size
   !> controller's next trial step and error history, the last step's length (the adaptive
   !> predictor's scale), and the LU factors of the last Newton iteration (the chord refinement of
-  !> the next predictor) with the step length they belong to (the modified Newton keeps them for
-  !> steps of that length, src/solver/modified_newton). Layout: h, err_old, has_history, h_last,
-  !> x_last given, LU ready, LU order m, the m*m factors, the m pivots, the factors' step length.
+  !> the next predictor). Layout: h, err_old, has_history, h_last, x_last given, LU ready, LU order
+  !> m, the m*m factors, the m pivots.
   subroutine resume_state(self, values)
     class(step_solver), intent(in) :: self
     real(real64), allocatable, intent(inout) :: values(:)
@@ -374,17 +373,16 @@ contains
     associate (lu => self%solver%context%lu)
       if (lu%ready) m = size(lu%pivots)
       if (allocated(values)) then
-        if (size(values) /= 8 + m*m + m) deallocate (values)
+        if (size(values) /= 7 + m*m + m) deallocate (values)
       end if
-      if (.not. allocated(values)) allocate (values(8 + m*m + m))
+      if (.not. allocated(values)) allocate (values(7 + m*m + m))
       values(1:7) = [self%controller%h, self%controller%err_old, merge(1.0_real64, 0.0_real64, self%controller%has_history), &
                      self%h_last, merge(1.0_real64, 0.0_real64, allocated(self%x_last)), &
                      merge(1.0_real64, 0.0_real64, lu%ready), real(m, real64)]
       if (m > 0) then
         values(8:7 + m*m) = reshape(lu%factors(1:m, 1:m), [m*m])
-        values(8 + m*m:7 + m*m + m) = real(lu%pivots(1:m), real64)
+        values(8 + m*m:) = real(lu%pivots(1:m), real64)
       end if
-      values(8 + m*m + m) = self%solver%context%reuse%step_length
     end associate
   end subroutine resume_state
 
@@ -398,8 +396,7 @@ contains
     ierr = 1
     if (size(values) < 7) return
     m = nint(values(7))
-    ! A record of the version before the factors' step length has none: they are then made anew.
-    if (m < 0 .or. (size(values) /= 8 + m*m + m .and. size(values) /= 7 + m*m + m)) return
+    if (m < 0 .or. size(values) /= 7 + m*m + m) return
     ierr = 0
     self%controller%h = values(1)
     self%controller%err_old = values(2)
@@ -417,9 +414,7 @@ contains
       if (allocated(lu%factors)) deallocate (lu%factors)
       if (allocated(lu%pivots)) deallocate (lu%pivots)
       lu%factors = reshape(values(8:7 + m*m), [m, m])
-      lu%pivots = nint(values(8 + m*m:7 + m*m + m))
-      self%solver%context%reuse%step_length = -1.0_real64
-      if (size(values) == 8 + m*m + m) self%solver%context%reuse%step_length = values(8 + m*m + m)
+      lu%pivots = nint(values(8 + m*m:))
     end associate
   end subroutine restore_state
 
