@@ -77,11 +77,11 @@ contains
                          step_length > 0.0_real64
     call self%reuse%begin_solve()
     converged = self%reuse%converged(0, residual_norm, update_norm, two_norm(root), self%tolerance, 0.0_real64, &
-                                     state_scale, residual_scale)
+                                     state_scale, residual_scale, step_length)
     do while (.not. converged .and. iterations < self%max_iterations)
       iterations = iterations + 1
       if (self%reuse%enabled) then
-        refactor = self%reuse%must_factor(self%lu%ready, step_length, residual_norm, state_scale)
+        refactor = self%reuse%must_factor(self%lu%ready, residual_norm, state_scale, step_length)
       else
         chord_taken = final_chord_step(self%final_chord, self%lu%ready, chord_taken, residual_norm, self%tolerance, &
                                        update_norm)
@@ -94,7 +94,7 @@ contains
           if (stat /= 0) return
           call self%lu%factor_in_place(info)
           if (info /= 0) return
-          call self%reuse%factored(step_length)
+          call self%reuse%factored()
         else
           call self%reuse%kept()
         end if
@@ -113,7 +113,7 @@ contains
       call self%reuse%updated(update_norm, residual_norm)
       residual_norm = two_norm(residual)
       converged = self%reuse%converged(iterations, residual_norm, update_norm, two_norm(root), self%tolerance, &
-                                       0.0_real64, state_scale, residual_scale)
+                                       0.0_real64, state_scale, residual_scale, step_length)
     end do
     if (converged) reason = ''
   end subroutine solve
@@ -124,8 +124,7 @@ contains
     class(nonlinear_system), intent(in) :: problem
     real(real64), intent(inout) :: x(:)
 
-    if (self%chord_predictor) call chord_refinement(self%lu, problem, x, self%reuse%carried_update, &
-                                                       self%reuse%carried_residual)
+    if (self%chord_predictor) call chord_refinement(self%lu, problem, x)
   end subroutine refine
 
   !> The loop has no other line search: the fallback round repeats the first, with a new Jacobian

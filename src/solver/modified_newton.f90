@@ -1,20 +1,21 @@
-!> The modified Newton of the lean step solver (docs/integrators.md, "Convergence"): the LU
-!> factors are kept across Newton iterations, and across steps of the same length, while their
-!> observed contraction would bring the iterate to the acceptance level within chord_iterations
-!> more iterations; they are made anew when it would not (the contraction got worse than that
-!> threshold), when the step length changes, or when nothing measured them. An iteration with kept
-!> factors (a chord iteration) converges linearly, so its iterate is accepted only where the error
-!> its contraction leaves, rate/(1 - rate) |update|, is below chord_error_limit: eps |z|/64 times
-!> the step length in seconds (chord_error_rate), which bounds what chord iterates add over a run
-!> of T seconds to T/(64 s) ulps of |z|; a Newton update (new factors) is accepted by
-!> retry_strategies' newton_converged, as without the modified Newton.
+!> The modified Newton of the lean step solver (docs/integrators.md, "Convergence"): within a
+!> solve, the LU factors are kept across Newton iterations while their observed contraction would
+!> bring the iterate to the acceptance level within chord_iterations more iterations; they are
+!> made anew when it would not (the contraction got worse than that threshold), and at a solve's
+!> first iteration (the previous solve's factors serve only the predictor's chord step: on the
+!> next step's system they contract too slowly to certify a root at round-off, measured in
+!> docs/performance.md). An iteration with kept factors (a chord iteration) converges linearly,
+!> so its iterate is accepted only where the error its contraction leaves, rate/(1 - rate)
+!> |update|, is below chord_error_limit: eps |z|/64 times the step length in seconds, which
+!> bounds what chord iterates add over a run of T seconds to T/(64 s) ulps of |z|; a Newton
+!> update (new factors) is accepted by retry_strategies' newton_converged, as without the
+!> modified Newton.
 !>
-!> A contraction is measured on the residual's 2-norm, r_k/r_(k-1): for kept factors it is theirs;
-!> for the Newton update that made them, it is the chord rate of the new factors (Newton's error
-!> e_k = c e_(k-1)^2, and chord steps with factors made at e_(k-1) contract by c e_(k-1)). The
-!> chord acceptance uses the updates' ratio with the same factors (the error bound is in the
-!> unknowns' norm). The predictor's chord step with the factors at hand (before the solve) is
-!> their first measured update. Pure Fortran, shared by the SNES shell (src/solver/snes_shell) and
+!> The contraction that decides is the last update's residual ratio r_k/r_(k-1): for kept factors
+!> it is theirs; for the Newton update that made them, it is the chord rate of the new factors
+!> (Newton's error falls from e to c e^2, and chord steps with factors made at e contract by c e).
+!> The acceptance uses the ratio of two updates of the solve with the same factors (the error bound
+!> is in the unknowns' norm). Pure Fortran, shared by the SNES shell (src/solver/snes_shell) and
 !> the hand-written loop (src/solver/hand_newton), so that both take the same iterations.
 module modified_newton
   use, intrinsic :: iso_fortran_env, only: real64
@@ -32,19 +33,16 @@ module modified_newton
   !> energy, whose |z| the internal energies dominate).
   real(real64), parameter :: chord_error_rate = 1.0_real64/64
 
-  !> What is known of the LU factors in use: the step length they were made for, and, within a
-  !> solve, whether they were made for the update just taken and how they contract.
+  !> What is known, within a solve, of the LU factors in use: whether they were made for the
+  !> update just taken and how they contract.
   type :: factor_record
     logical :: enabled = .false.                  !! the modified Newton (else a Jacobian every iteration)
     integer :: chord_iterations = default_chord_iterations
-    real(real64) :: step_length = -1.0_real64     !! the problem's step length the factors belong to (< 0: none)
     logical :: fresh = .false.                    !! the last update used factors made at its start point
     real(real64) :: last_update = 0.0_real64      !! 2-norm of the last update with these factors (0: none yet)
+    real(real64) :: start_residual = 0.0_real64   !! the residual's 2-norm where it started
     real(real64) :: update_rate = 0.0_real64      !! their last two updates' ratio, if `measured`
     logical :: measured = .false.
-    real(real64) :: start_residual = 0.0_real64   !! the residual's 2-norm where the last update started (0: none)
-    real(real64) :: carried_update = 0.0_real64   !! the predictor's chord step with them before the solve (0: none) ...
-    real(real64) :: carried_residual = 0.0_real64 !! ... and the residual it started from
   contains
     procedure :: begin_solve
     procedure :: must_factor
@@ -64,46 +62,44 @@ contains
     chord_error_limit = chord_error_rate*epsilon(1.0_real64)*state_scale*step_length
   end function chord_error_limit
 
-  !> A solve starts: the predictor's chord step, if it was taken with the factors at hand, is
-  !> their first update.
+  !> A solve starts: no update has been made with the factors at hand in it.
   pure subroutine begin_solve(self)
     class(factor_record), intent(inout) :: self
 
     self%fresh = .false.
-    self%last_update = self%carried_update
-    self%start_residual = self%carried_residual
-    self%carried_update = 0.0_real64
-    self%carried_residual = 0.0_real64
+    self%last_update = 0.0_real64
+    self%start_residual = 0.0_real64
     self%measured = .false.
   end subroutine begin_solve
 
   !> Whether the next iteration, at a residual of 2-norm `residual_norm`, must make new factors for
-  !> a problem of `step_length` and rounding scale `state_scale`: there are none, they belong to
-  !> another step length, nothing measured them, or their contraction rate (the last update's
+  !> a step of `step_length` whose unknowns have the rounding scale `state_scale`: there are none,
+  !> no update of this solve was made with them, or their contraction rate (the last update's
   !> residual ratio) is above largest_rate or would not bring the error, about rate/(1 - rate)
-  !> times the last update, below chord_error_limit within chord_iterations more iterations.
-  pure logical function must_factor(self, ready, step_length, residual_norm, state_scale)
+  !> times the last update, below chord_error_limit within chord_iterations more iterations, or
+  !> not at all: rate times the updates' rounding above the limit (at small steps, where only
+  !> Newton's quadratic convergence reaches it, a chord iteration would be spent for nothing).
+  pure logical function must_factor(self, ready, residual_norm, state_scale, step_length)
     class(factor_record), intent(in) :: self
     logical, intent(in) :: ready
-    real(real64), intent(in) :: step_length, residual_norm, state_scale
+    real(real64), intent(in) :: residual_norm, state_scale, step_length
     real(real64) :: rate
 
-    must_factor = .not. ready .or. abs(step_length - self%step_length) > 0.0_real64 .or. &
-                  .not. (self%start_residual > 0.0_real64 .and. self%last_update > 0.0_real64)
+    must_factor = .not. (ready .and. self%last_update > 0.0_real64 .and. self%start_residual > 0.0_real64)
     if (must_factor) return
     rate = residual_norm/self%start_residual
     must_factor = .not. (rate <= largest_rate)
     if (must_factor) return
-    must_factor = .not. (self%last_update*rate**(self%chord_iterations + 1)/(1.0_real64 - rate) <= &
+    ! The updates cannot fall below their rounding, about eps |z|/8 (0.1 to 0.3 eps |z| measured).
+    must_factor = .not. (rate/(1.0_real64 - rate)*max(self%last_update*rate**self%chord_iterations, &
+                                                      epsilon(1.0_real64)*state_scale/8) <= &
                          chord_error_limit(state_scale, step_length))
   end function must_factor
 
-  !> New factors were made at the current iterate, for a problem of `step_length`.
-  pure subroutine factored(self, step_length)
+  !> New factors were made at the current iterate.
+  pure subroutine factored(self)
     class(factor_record), intent(inout) :: self
-    real(real64), intent(in) :: step_length
 
-    self%step_length = step_length
     self%fresh = .true.
     self%last_update = 0.0_real64
     self%measured = .false.
@@ -129,15 +125,16 @@ contains
     self%start_residual = start_residual
   end subroutine updated
 
-  !> The convergence test of the iterate the last update reached: retry_strategies'
-  !> newton_converged after a Newton update (new factors), at iteration 0, or without the modified
-  !> Newton; chord_converged after a chord update. Arguments as newton_converged's.
+  !> The convergence test of the iterate the last update reached, in a step of `step_length`:
+  !> retry_strategies' newton_converged after a Newton update (new factors), at iteration 0, or
+  !> without the modified Newton; chord_converged after a chord update. The other arguments as
+  !> newton_converged's.
   pure logical function converged(self, iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
-                                  state_scale, residual_scale)
+                                  state_scale, residual_scale, step_length)
     class(factor_record), intent(in) :: self
     integer, intent(in) :: iteration
     real(real64), intent(in) :: residual_norm, update_norm, x_norm, tolerance, update_tolerance
-    real(real64), intent(in) :: state_scale, residual_scale
+    real(real64), intent(in) :: state_scale, residual_scale, step_length
 
     if (.not. self%enabled .or. self%fresh .or. iteration == 0) then
       converged = newton_converged(iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
@@ -146,7 +143,7 @@ contains
       converged = .false.
     else
       converged = chord_converged(residual_norm, update_norm, self%update_rate, x_norm, tolerance, update_tolerance, &
-                                  chord_error_limit(state_scale, self%step_length), residual_scale)
+                                  chord_error_limit(state_scale, step_length), residual_scale)
     end if
   end function converged
 

@@ -13,7 +13,6 @@ module retry_strategies
   use nonlinear_problem, only: nonlinear_system
   use dense_lu, only: lu_factors
   use number_text, only: integer_text
-  use euclidean_norm, only: two_norm
   implicit none (type, external)
   private
   public :: root_finder, root_search, find_root
@@ -116,7 +115,7 @@ contains
       ! alone it leaves an error ~ tolerance in the step that no Newton update has squared, which
       ! shows in the invariants (J_z drifted 5.7e-12 J s over 2e5 steps of 3e-4 s at newton_tol =
       ! 1e-12 with 30 % of the steps accepted at their predictor; 1e-13 with an update each).
-      newton_converged = residual_norm <= 0.0_real64     ! a norm: exactly 0
+      newton_converged = residual_norm <= 0.0_real64      ! a norm: exactly 0
       return
     end if
     newton_converged = residual_norm <= tolerance .and. update_norm <= tolerance .and. &
@@ -141,30 +140,18 @@ contains
   !> a residual and a back-substitution instead of a Newton iteration, which saves about one
   !> iteration per step (docs/performance.md). Both Newton loops (src/solver/snes_solver and
   !> src/solver/hand_newton) refine their predictor with it; nothing happens without factors.
-  !> update_norm and residual_norm: the 2-norms of the chord step taken and of the residual it
-  !> started from (0 if none was taken), the first measure of the factors' contraction for the
-  !> modified Newton (src/solver/modified_newton).
-  subroutine chord_refinement(lu, problem, x, update_norm, residual_norm)
+  subroutine chord_refinement(lu, problem, x)
     type(lu_factors), intent(in) :: lu
     class(nonlinear_system), intent(in) :: problem
     real(real64), intent(inout) :: x(:)
-    real(real64), intent(out) :: update_norm, residual_norm
     real(real64) :: residual(size(x))
     integer :: stat, info
 
-    update_norm = 0.0_real64
-    residual_norm = 0.0_real64
     if (.not. lu%ready) return
     call problem%evaluate(x, residual, stat=stat)
     if (stat /= 0) return
-    residual_norm = two_norm(residual)
     call lu%solve(residual, info)
-    if (info /= 0) then
-      residual_norm = 0.0_real64
-      return
-    end if
-    x = x - residual
-    update_norm = two_norm(residual)
+    if (info == 0) x = x - residual
   end subroutine chord_refinement
 
   !> Searches the root of `problem` (at s = 1) by the strategies above. `predictor` is the

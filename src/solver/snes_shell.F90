@@ -88,7 +88,8 @@ contains
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
     else if (context%reuse%converged(int(iteration), residual_norm, update_norm, x_norm, context%tolerance, &
-                                     context%update_tolerance, context%state_scale, context%residual_scale)) then
+                                     context%update_tolerance, context%state_scale, context%residual_scale, &
+                                     context%step_length)) then
       reason = SNES_CONVERGED_FNORM_ABS
       context%accepted_at = int(iteration)
     else
@@ -190,8 +191,8 @@ contains
     n = context%problem%unknowns()
     if (context%lean) then
       if (context%reuse%enabled) then
-        refactor = context%reuse%must_factor(context%lu%ready, context%step_length, context%residual_norm, &
-                                             context%state_scale)
+        refactor = context%reuse%must_factor(context%lu%ready, context%residual_norm, context%state_scale, &
+                                             context%step_length)
       else
         context%chord_taken = final_chord_step(context%final_chord, context%lu%ready, context%chord_taken, &
                                                context%residual_norm, context%tolerance, context%update_norm)
@@ -237,7 +238,7 @@ contains
     if (stat /= 0) return
     call context%lu%factor_in_place(info)
     context%factorizations = context%factorizations + 1
-    if (info == 0) call context%reuse%factored(context%step_length)
+    if (info == 0) call context%reuse%factored()
   end subroutine factor_jacobian
 
   ! Shell line search (the lean way's 'basic'): the full Newton step X - Y, its residual, and the

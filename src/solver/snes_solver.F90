@@ -12,7 +12,7 @@
 !>  - lean (the default): SNES never computes a Jacobian (SNESSetLagJacobian -1). The shell
 !>    preconditioner evaluates it at SNES's current iterate and factors it when it is applied,
 !>    whenever the modified Newton (src/solver/modified_newton) finds the factors it has no
-!>    longer contracting: factors are kept across iterations and across steps of the same length.
+!>    longer contracting: factors are kept across the iterations of a solve.
 !>    With -eme_modified_newton false, once per Newton iteration, or it confirms a root with the
 !>    factors it has (the final chord step: the residual is below the tolerance after an update
 !>    below chord_update_limit). A shell line search takes the full step and hands SNES the norms
@@ -404,8 +404,7 @@ contains
     class(nonlinear_system), intent(in) :: problem
     real(real64), intent(inout) :: x(:)
 
-    if (self%options%chord_predictor) call chord_refinement(self%context%lu, problem, x, self%context%reuse%carried_update, &
-                                                             self%context%reuse%carried_residual)
+    if (self%options%chord_predictor) call chord_refinement(self%context%lu, problem, x)
   end subroutine refine
 
   !> Switches to the fallback line search, or back to the primary one.
