@@ -40,8 +40,8 @@ static const eme_option options[OPTION_COUNT] = {
      "of a new Jacobian (lean SNES with -eme_modified_newton false only)",
      LOGICAL, 0, 0},
     {"-eme_modified_newton", "<true>",
-     "Keep the LU factors across Newton iterations and steps of the same length while they contract, and iterate "
-     "chord steps to rounding (lean SNES only); false: a new Jacobian every Newton iteration",
+     "Keep the LU factors across the Newton iterations of a step while they contract, and accept a chord iterate "
+     "only at rounding (lean SNES only); false: a new Jacobian every Newton iteration",
      LOGICAL, 0, 0},
     {"-eme_chord_iterations", "<2>",
      "The modified Newton keeps the LU factors while their observed contraction brings the error to its acceptance "

@@ -1,8 +1,9 @@
 """The modified Newton (src/solver/modified_newton, -eme_modified_newton true by default) keeps the
 LU factors within a step while they contract and accepts a chord iterate only where the error it
 leaves is below eps |z| h/(64 s). A chord iterate's error is systematic, so it could add up from
-step to step where a random one averages out: a run of 10,000 steps of 0.01 s, every one of which
-ends on a chord iterate, must keep its energy balance and J_z within the random walk of round-off,
+step to step where a random one averages out: a run of 10,000 steps of 0.01 s, which end on a
+chord iterate (one LU a step for two Newton iterations), must keep its energy balance and J_z
+within the random walk of round-off,
 32 sqrt(N) ulps of |E_0| and |J_z,0| (measured 1.1e-13 and 6.9e-14 J s; before the modified
 Newton 3.6e-14 and 8.8e-14 on a trajectory that, chaotic over 100 s, is another one). Chord
 iterates accepted at looser limits are caught by the stiff scene's J_z bound

@@ -46,7 +46,7 @@ def test_help_lists_the_eme_options(tmp_path, eme_run_binary):
                           ("-eme_fused_kernel", "fused kernel on the condensed unknowns"),
                           ("-eme_lean_snes", "inside the shell preconditioner"),
                           ("-eme_final_chord", "existing LU factors instead of a new Jacobian"),
-                          ("-eme_modified_newton", "Keep the LU factors across Newton iterations and steps"),
+                          ("-eme_modified_newton", "Keep the LU factors across the Newton iterations of a step"),
                           ("-eme_chord_iterations", "within this many chord iterations"),
                           ("-eme_max_halvings", "replaced by two half steps, recursively")]:
         # PETSc's own help line (the usage printed before it lists the options too, in its own form).
