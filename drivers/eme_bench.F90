@@ -235,6 +235,8 @@ contains
     call c%floor%prepare(c%kernel%unknowns(), newton_tol, max_iterations)
     c%floor%chord_predictor = options%chord_predictor
     c%floor%final_chord = options%final_chord
+    c%floor%modified_newton = options%modified_newton
+    c%floor%reuse%chord_iterations = options%chord_iterations
     allocate (c%snes_times(repeats), c%floor_times(repeats))
   end subroutine set_up_case
 

@@ -38,6 +38,7 @@ module step_residual
     procedure :: check_root
     procedure :: set_continuation
     procedure :: rounding_scales
+    procedure :: step_length
     procedure :: scheme_partials
     procedure :: scheme_temperatures
   end type step_problem
@@ -68,6 +69,13 @@ contains
     state_scale = norm2(self%z_old)
     residual_scale = state_scale/(self%fraction*self%dt)
   end subroutine rounding_scales
+
+  !> The step's length, s dt under continuation (its Jacobian's factors serve only steps of it).
+  pure real(real64) function step_length(self)
+    class(step_problem), intent(in) :: self
+
+    step_length = self%fraction*self%dt
+  end function step_length
 
   !> R(x') and optionally dR/dx' for x' = (z', multipliers of the active constraints).
   !> stat /= 0: z' (or a point the scheme needs) is outside the model's domain, e.g. a

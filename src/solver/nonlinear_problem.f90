@@ -1,7 +1,8 @@
 !> What the nonlinear solvers need from a problem R(x) = 0 of any size: the residual with its
 !> Jacobian, a physical check of a root, a continuation parameter s in (0, 1] that deforms
 !> the problem into an easier one (s = 1 is the problem itself; as s -> 0 a known point, such
-!> as a time step's old state, becomes a root), and optionally the scales of its rounding.
+!> as a time step's old state, becomes a root), and optionally the scales of its rounding and the
+!> step length its Jacobian belongs to.
 module nonlinear_problem
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
@@ -16,6 +17,7 @@ module nonlinear_problem
     procedure(check_root_interface), deferred :: check_root
     procedure(continuation_interface), deferred :: set_continuation
     procedure :: rounding_scales
+    procedure :: step_length
     procedure :: evaluate_residual
     procedure :: evaluate_jacobian
   end type nonlinear_system
@@ -89,5 +91,14 @@ contains
     state_scale = 0.0_real64
     residual_scale = 0.0_real64
   end subroutine rounding_scales
+
+  !> The length of the time step whose equation this is (s dt under continuation): LU factors of
+  !> the Jacobian serve the next step only if its length is the same (src/solver/modified_newton).
+  !> This default is no time step (0): factors are not carried from one solve to the next.
+  pure real(real64) function step_length(self)
+    class(nonlinear_system), intent(in) :: self
+
+    step_length = 0.0_real64
+  end function step_length
 
 end module nonlinear_problem

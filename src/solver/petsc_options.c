@@ -21,8 +21,8 @@ typedef struct {
 
 /* The step solver's options (docs/integrators.md), then the run's (docs/running.md). */
 enum {
-    CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MAX_HALVINGS, ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE,
-    CONTINUE, OPTION_COUNT
+    CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MODIFIED_NEWTON, CHORD_ITERATIONS, MAX_HALVINGS,
+    ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE, CONTINUE, OPTION_COUNT
 };
 static const eme_option options[OPTION_COUNT] = {
     {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors",
@@ -38,8 +38,16 @@ static const eme_option options[OPTION_COUNT] = {
      LOGICAL, 0, 0},
     {"-eme_final_chord", "<true>",
      "Confirm a root whose residual is below tolerance after a small update with the existing LU factors instead "
-     "of a new Jacobian (lean SNES only)",
+     "of a new Jacobian (lean SNES with -eme_modified_newton false only)",
      LOGICAL, 0, 0},
+    {"-eme_modified_newton", "<true>",
+     "Keep the LU factors across the Newton iterations of a step while they contract, and accept a chord iterate "
+     "only at rounding (lean SNES only); false: a new Jacobian every Newton iteration",
+     LOGICAL, 0, 0},
+    {"-eme_chord_iterations", "<2>",
+     "The modified Newton keeps the LU factors while their observed contraction brings the error to its acceptance "
+     "level within this many chord iterations, else it makes new ones (1 to 10)",
+     INTEGER, 1, 10},
     {"-eme_max_halvings", "<6>",
      "A step whose root no retry strategy finds is replaced by two half steps, recursively up to this depth "
      "(0 to 30; 0: the run stops at such a step)",
@@ -153,13 +161,14 @@ static PetscErrorCode bool_option(PetscOptionItems *PetscOptionsObject, int whic
     PetscFunctionReturn(0);
 }
 
-/* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes and -eme_final_chord into the
- * four flags (0 or 1) and -eme_max_halvings into max_halvings (0 to 30); their values on entry are
- * the defaults. Returns a PETSc error code (PETSC_ERR_ARG_OUTOFRANGE for a depth outside 0..30). */
+/* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes, -eme_final_chord and
+ * -eme_modified_newton into the five flags (0 or 1), -eme_chord_iterations into *chord_iterations
+ * (1 to 10) and -eme_max_halvings into *max_halvings (0 to 30); their values on entry are the
+ * defaults. Returns a PETSc error code (PETSC_ERR_ARG_OUTOFRANGE for a number out of its range). */
 PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *final_chord,
-                                       int *max_halvings)
+                                       int *modified_newton, int *chord_iterations, int *max_halvings)
 {
-    PetscInt depth = *max_halvings;
+    PetscInt depth = *max_halvings, chords = *chord_iterations;
     const char *section = "docs/integrators.md";
 
     PetscFunctionBeginUser;
@@ -168,6 +177,12 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
     PetscCall(bool_option(PetscOptionsObject, FUSED_KERNEL, section, fused_kernel, NULL));
     PetscCall(bool_option(PetscOptionsObject, LEAN_SNES, section, lean_snes, NULL));
     PetscCall(bool_option(PetscOptionsObject, FINAL_CHORD, section, final_chord, NULL));
+    PetscCall(bool_option(PetscOptionsObject, MODIFIED_NEWTON, section, modified_newton, NULL));
+    PetscCall(PetscOptionsInt(options[CHORD_ITERATIONS].name, options[CHORD_ITERATIONS].help, section, chords, &chords,
+                              NULL));
+    PetscCheck(chords >= 1 && chords <= 10, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
+               "-eme_chord_iterations takes 1 to 10, not %" PetscInt_FMT, chords);
+    *chord_iterations = (int)chords;
     PetscCall(PetscOptionsInt(options[MAX_HALVINGS].name, options[MAX_HALVINGS].help, section, depth, &depth, NULL));
     PetscCheck(depth >= 0 && depth <= 30, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
                "-eme_max_halvings takes 0 to 30, not %" PetscInt_FMT, depth);

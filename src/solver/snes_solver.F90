@@ -11,10 +11,14 @@
 !> Two ways to drive SNES (docs/performance.md):
 !>  - lean (the default): SNES never computes a Jacobian (SNESSetLagJacobian -1). The shell
 !>    preconditioner evaluates it at SNES's current iterate and factors it when it is applied,
-!>    once per Newton iteration, or confirms a root with the factors it has (the final chord
-!>    step: the residual is below the tolerance after an update below chord_update_limit). A
-!>    shell line search takes the full step and hands SNES the norms it computed. SNES's viewer
-!>    lookups are switched off around SNESSolve when no option asks for a viewer.
+!>    whenever the modified Newton (src/solver/modified_newton) finds the factors it has no
+!>    longer contracting: factors are kept across the iterations of a solve.
+!>    With -eme_modified_newton false, once per Newton iteration, or it confirms a root with the
+!>    factors it has (the final chord step: the residual is below the tolerance after an update
+!>    below chord_update_limit). A shell line search takes the full step and hands SNES the norms
+!>    it computed; the modified Newton needs it (PETSc's line searches select a new Jacobian every
+!>    iteration). SNES's viewer lookups are switched off around SNESSolve when no option asks for a
+!>    viewer.
 !>  - standard: SNESComputeJacobian calls form_jacobian, PCSetUp factors the matrix (read without
 !>    changing its state, so once per iteration), the line search is PETSc's. Taken when an
 !>    option needs SNES's own Jacobian (-snes_test_jacobian, -snes_compare_*, -snes_mf*,
@@ -52,6 +56,7 @@ module snes_solver
     logical :: created = .false.
     type(step_solver_options) :: options
     logical :: shell_line_search = .false.          !! the full-step shell instead of 'basic'
+    logical :: shell_in_use = .false.               !! the line search now is the shell
     logical :: quiet = .false.                      !! no option asks for a viewer
     character(len=16) :: line_search = ''           !! the primary line search type
     character(len=16) :: fallback_line_search = ''  !! the retry strategies' fallback
@@ -64,6 +69,7 @@ module snes_solver
     procedure :: refine
     procedure :: use_fallback
     procedure :: lean
+    procedure :: keeps_factors
     procedure :: factorizations
     procedure :: describe
     procedure, private :: create
@@ -93,6 +99,7 @@ contains
         PetscCall(SNESSetTolerances(self%snes, newton_tol, PETSC_DEFAULT_REAL, PETSC_DEFAULT_REAL, iterations, PETSC_DEFAULT_INTEGER, ierr))
         self%newton_tol = newton_tol
         self%max_iterations = max_iterations
+        PetscCall(keep_tolerances(self, ierr))
       end if
       return
     end if
@@ -149,6 +156,7 @@ contains
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESSetFromOptions(self%snes, ierr))
+    PetscCall(keep_tolerances(self, ierr))
     PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
     PetscCall(read_solver_options(self%options, ierr))
 
@@ -164,9 +172,12 @@ contains
     end do
     self%context%lean = self%options%lean_snes .and. .not. needs_snes_jacobian
     self%context%final_chord = self%options%final_chord
+    self%context%reuse%chord_iterations = self%options%chord_iterations
     if (self%context%lean) then
       lag = -1
       PetscCall(SNESSetLagJacobian(self%snes, lag, ierr))
+      ! The preconditioner's operator never changes: PCSetUp (twice an iteration) returns at once.
+      PetscCall(PCSetReusePreconditioner(pc, PETSC_TRUE, ierr))
     end if
     PetscCall(option_given('-snes_linesearch_type', given, ierr))
     self%shell_line_search = self%context%lean .and. .not. given
@@ -193,7 +204,8 @@ contains
     SNESLineSearch :: line_search
 
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
-    if (self%shell_line_search .and. kind == SNESLINESEARCHBASIC) then
+    self%shell_in_use = self%shell_line_search .and. kind == SNESLINESEARCHBASIC
+    if (self%shell_in_use) then
       PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHSHELL, ierr))
       PetscCall(SNESLineSearchShellSetUserFunc(line_search, full_step, self%context, ierr))
     else
@@ -220,6 +232,14 @@ contains
 
     lean = self%context%lean
   end function lean
+
+  !> Whether the lean way keeps its LU factors while they contract (module header), where its
+  !> full-step line search is in use.
+  logical function keeps_factors(self)
+    class(newton_solver), intent(in) :: self
+
+    keeps_factors = self%options%modified_newton .and. self%context%lean .and. self%shell_line_search
+  end function keeps_factors
 
   !> The SNES as the options database left it (after SNESSetFromOptions): type, tolerances, line
   !> searches, linear solver, the lean way's choices, and PETSc's names of its converged reasons.
@@ -257,6 +277,8 @@ contains
     call add_setting(report, text_setting('pc_type', pc_type))
     call add_setting(report, text_setting('eme_lean_snes', merge('true ', 'false', self%context%lean)))
     call add_setting(report, text_setting('eme_final_chord', merge('true ', 'false', self%context%final_chord)))
+    call add_setting(report, text_setting('eme_modified_newton', merge('true ', 'false', self%keeps_factors())))
+    call add_setting(report, integer_setting('eme_chord_iterations', self%context%reuse%chord_iterations))
     call add_setting(report, text_setting('eme_chord_predictor', merge('true ', 'false', self%options%chord_predictor)))
     call set_petsc_reasons(report, reasons_snes, ierr)
   end subroutine describe
@@ -292,9 +314,12 @@ contains
     self%context%update_norm = huge(1.0_real64)
     self%context%chord_taken = .false.
     call problem%rounding_scales(self%context%state_scale, self%context%residual_scale)
-    self%context%newton_tol = self%newton_tol
+    self%context%step_length = problem%step_length()
+    ! Chord iterations stop at an error limit from the problem's rounding scale and step length.
+    self%context%reuse%enabled = self%keeps_factors() .and. self%shell_in_use .and. self%context%state_scale > 0.0_real64 &
+                                 .and. self%context%step_length > 0.0_real64
+    call self%context%reuse%begin_solve()
     self%context%accepted_at = -1
-    PetscCall(tolerance_of(self, self%context%tolerance, ierr))
     PetscCall(borrow(self%x, self%n, values, ierr))
     values = initial
     PetscCall(give_back(self%x, values, ierr))
@@ -334,14 +359,13 @@ contains
   contains
 
     logical function at_rounding_floor()
-      PetscReal :: residual_norm, atol
+      PetscReal :: residual_norm
       PetscErrorCode :: ierr
 
       at_rounding_floor = .false.
       if (snes_reason /= SNES_DIVERGED_LINE_SEARCH) return
       PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
-      PetscCall(tolerance_of(self, atol, ierr))
-      at_rounding_floor = residual_norm <= atol
+      at_rounding_floor = residual_norm <= self%context%tolerance
     end function at_rounding_floor
 
     ! The residual at the root SNES returned, against the tolerance or its rounding floor.
@@ -358,18 +382,20 @@ contains
     end function root_confirmed
   end subroutine solve
 
-  ! The absolute tolerance of the convergence test: the input's newton_tol, or SNES's where
-  ! -snes_atol made it smaller (an option never loosens it).
-  subroutine tolerance_of(self, atol, ierr)
-    class(newton_solver), intent(in) :: self
-    real(real64), intent(out) :: atol
+  ! The convergence test's tolerances, read from SNES once each time they are set (create and
+  ! prepare) instead of in every test: the absolute one is the input's newton_tol, or SNES's where
+  ! -snes_atol made it smaller (an option never loosens it); the relative update tolerance is
+  ! -snes_stol's.
+  subroutine keep_tolerances(self, ierr)
+    class(newton_solver), intent(inout) :: self
     PetscErrorCode, intent(out) :: ierr
     PetscReal :: snes_atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
 
     PetscCall(SNESGetTolerances(self%snes, snes_atol, rtol, stol, max_iterations, max_evaluations, ierr))
-    atol = min(snes_atol, self%newton_tol)
-  end subroutine tolerance_of
+    self%context%tolerance = min(snes_atol, self%newton_tol)
+    self%context%update_tolerance = stol
+  end subroutine keep_tolerances
 
   !> The predictor's chord refinement with the last solve's LU factors (retry_strategies'
   !> chord_refinement), unless -eme_chord_predictor false.

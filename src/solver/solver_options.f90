@@ -7,7 +7,12 @@
 !>                                fused, condensed step (src/scheme/condensed_step), where it has one
 !>   -eme_lean_snes false         SNES builds the Jacobian (SNESComputeJacobian) and takes its
 !>                                'basic' line search
-!>   -eme_final_chord false       a new Jacobian for every Newton iteration
+!>   -eme_modified_newton false   a new Jacobian for every Newton iteration (but the final chord
+!>                                step) instead of keeping the LU factors while they contract
+!>   -eme_final_chord false       (with -eme_modified_newton false) not even the final chord step
+!> and the modified Newton's threshold (src/solver/modified_newton):
+!>   -eme_chord_iterations M      keep the LU factors while their contraction reaches the acceptance
+!>                                level within M chord iterations (1 to 10)
 !> and one for the step itself:
 !>   -eme_max_halvings N          halve a step whose root is not found, recursively, N times at most
 !> and two for the local error estimate (src/integrator/local_error_estimate):
@@ -16,24 +21,28 @@
 module solver_options
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_double
   use, intrinsic :: iso_fortran_env, only: real64
+  use modified_newton, only: default_chord_iterations
   implicit none (type, external)
   private
   public :: step_solver_options, read_solver_options, option_given, read_step_control_options
 
-  !> The switches and the halving depth, with their defaults.
+  !> The switches, the modified Newton's threshold and the halving depth, with their defaults.
   type :: step_solver_options
     logical :: chord_predictor = .true.
     logical :: fused_kernel = .true.
     logical :: lean_snes = .true.
     logical :: final_chord = .true.
+    logical :: modified_newton = .true.
+    integer :: chord_iterations = default_chord_iterations
     integer :: max_halvings = 6
   end type step_solver_options
 
   interface
-    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings) &
-      bind(C, name='eme_read_solver_options') result(ierr)
+    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, final_chord, modified_newton, &
+                                     chord_iterations, max_halvings) bind(C, name='eme_read_solver_options') result(ierr)
       import :: c_int
-      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord, max_halvings
+      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord, modified_newton, &
+                                       chord_iterations, max_halvings
       integer(c_int) :: ierr
     end function eme_read_solver_options
 
@@ -55,21 +64,24 @@ module solver_options
 contains
 
   !> The switches as the options database sets them. ierr /= 0 for a PETSc error (e.g. a value
-  !> that is not a logical, or a depth outside 0..30).
+  !> that is not a logical, a depth outside 0..30 or chord iterations outside 1..10).
   subroutine read_solver_options(options, ierr)
     type(step_solver_options), intent(out) :: options
     integer, intent(out) :: ierr
-    integer(c_int) :: flags(4), depth
+    integer(c_int) :: flags(5), depth, chords
 
     flags = merge(1_c_int, 0_c_int, [options%chord_predictor, options%fused_kernel, options%lean_snes, &
-                                     options%final_chord])
+                                     options%final_chord, options%modified_newton])
     depth = int(options%max_halvings, c_int)
-    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(4), depth))
+    chords = int(options%chord_iterations, c_int)
+    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(4), flags(5), chords, depth))
     options%max_halvings = int(depth)
     options%chord_predictor = flags(1) /= 0
     options%fused_kernel = flags(2) /= 0
     options%lean_snes = flags(3) /= 0
     options%final_chord = flags(4) /= 0
+    options%modified_newton = flags(5) /= 0
+    options%chord_iterations = int(chords)
   end subroutine read_solver_options
 
   !> -eme_error_estimate (default .false.) and -eme_error_scale (default 1). ierr /= 0 for a PETSc

@@ -205,7 +205,7 @@ def test_an_nml_argument_is_never_an_option_value(tmp_path, scene, eme_run_binar
 @pytest.mark.parametrize("option, value, allowed", [
     ("-eme_max_halvings", "40", "an integer from 0 to 30"), ("-eme_max_halvings", "two", "an integer from 0 to 30"),
     ("-eme_fused_kernel", "maybe", "true or false"), ("-eme_error_scale", "-1", "a number > 0"),
-    ("-eme_progress", "2", "true or false")])
+    ("-eme_progress", "2", "true or false"), ("-eme_chord_iterations", "0", "an integer from 1 to 10")])
 def test_a_bad_option_value_is_bad_input_and_writes_nothing(tmp_path, scene, option, value, allowed,
                                                             eme_run_binary):
     """Before: -eme_max_halvings 40 was a PETSc error in the solver's set-up: exit 1 and a stray

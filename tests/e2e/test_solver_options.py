@@ -46,6 +46,8 @@ def test_help_lists_the_eme_options(tmp_path, eme_run_binary):
                           ("-eme_fused_kernel", "fused step on its condensed unknowns"),
                           ("-eme_lean_snes", "inside the shell preconditioner"),
                           ("-eme_final_chord", "existing LU factors instead of a new Jacobian"),
+                          ("-eme_modified_newton", "Keep the LU factors across the Newton iterations of a step"),
+                          ("-eme_chord_iterations", "within this many chord iterations"),
                           ("-eme_max_halvings", "replaced by two half steps, recursively")]:
         # PETSc's own help line (the usage printed before it lists the options too, in its own form).
         line = next((l for l in result.stdout.splitlines() if l.strip().startswith(option + ":")
@@ -54,7 +56,7 @@ def test_help_lists_the_eme_options(tmp_path, eme_run_binary):
 
 
 @pytest.mark.parametrize("option", ["-eme_fused_kernel", "-eme_lean_snes", "-eme_final_chord",
-                                    "-eme_chord_predictor"])
+                                    "-eme_chord_predictor", "-eme_modified_newton"])
 def test_each_speedup_leaves_the_trajectory(tmp_path, eme_run_binary, option):
     scene = {"integrator": {"t_end": 3.0}, "constraints": {"fix_length": True}}
     _, fast_path = run_eme(tmp_path, "fast", scene)

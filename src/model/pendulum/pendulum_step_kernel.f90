@@ -117,6 +117,7 @@ module pendulum_step_kernel
     procedure :: set_continuation
     procedure :: set_old_state
     procedure :: rounding_scales
+    procedure :: step_length
     procedure :: expand
     procedure :: condense
     procedure :: scheme_temperatures
@@ -270,6 +271,13 @@ contains
     state_scale = sqrt(sum(self%q_old**2) + sum(self%p_old**2) + self%gamma_old**2 + sum(self%tau_old**2))
     residual_scale = state_scale/(self%fraction*self%dt)
   end subroutine rounding_scales
+
+  !> The step's length, s dt under continuation (its Jacobian's factors serve only steps of it).
+  pure real(real64) function step_length(self)
+    class(pendulum_step), intent(in) :: self
+
+    step_length = self%fraction*self%dt
+  end function step_length
 
   !> The generic unknowns x = (q', y) of the condensed unknowns y.
   pure function expand(self, y) result(x)
