@@ -85,38 +85,26 @@ def test_sigterm_then_continue_is_bit_identical_with_every(tmp_path):
     assert len(history) == 2 and history[1].endswith("run.nml -eme_continue"), history
 
 
-@pytest.mark.parametrize("scheme", ["eme", "midpoint"])
-def test_step_budget_then_continue_adaptive_with_interval(tmp_path, scheme):
-    """Adaptive EME and midpoint rule (&integrator tolerance) with &output interval stopped by
-    max_steps between two output times, then continued with a larger max_steps: the step-size
-    controller's state is restored, so the continued steps are those of the uninterrupted run."""
-    integrator = {"scheme": scheme, "dt": 0.01, "t_end": 6.0, "tolerance": 1e-4, "max_steps": 1000000}
-    output = {"interval": 0.25}
-    reference_nml, reference = write_namelist(tmp_path, "reference", integrator, output)
-    assert eme_run(reference_nml).returncode == 0
-    with h5py.File(reference, "r") as f:
-        total = int(f.attrs["steps_completed"])
-    assert total > 100
-    namelist, path = write_namelist(tmp_path, "run", dict(integrator, max_steps=total // 3), output)
-    stopped = eme_run(namelist)
-    assert stopped.returncode == 3, stopped.stderr
-    with h5py.File(path, "r") as f:
-        assert f.attrs["failure_kind"] == "step_budget"
-        assert f.attrs["resume_numbers"][0] <= total // 3
-    write_namelist(tmp_path, "run", integrator, output)
-    result = eme_run(namelist, "-eme_continue")
-    assert result.returncode == 0, result.stderr
-    assert_same_datasets(path, reference)
+BUDGET_CASES = {
+    # Adaptive EME and midpoint rule (&integrator tolerance): the step-size controller's state.
+    "eme": {"scheme": "eme", "tolerance": 1e-4, "t_end": 6.0},
+    "midpoint": {"scheme": "midpoint", "tolerance": 1e-4, "t_end": 6.0},
+    # The relaxed schemes: their state in entropy variables (the file's state is in the run's own
+    # variable, which converts back only to rounding), next trial step, last stages and factors.
+    "relaxed_rk4": {"scheme": "relaxed_rk4"},
+    "relaxed_rk8": {"scheme": "relaxed_rk8"},
+    "relaxed_gauss6": {"scheme": "relaxed_gauss6"},
+    "relaxed_dp853": {"scheme": "relaxed_dp853", "tolerance": 1e-6},
+}
 
 
-@pytest.mark.parametrize("scheme, extra", [("relaxed_rk4", {}), ("relaxed_rk8", {}), ("relaxed_gauss6", {}),
-                                           ("relaxed_dp853", {"tolerance": 1e-6})])
-def test_step_budget_then_continue_relaxed(tmp_path, scheme, extra):
-    """The relaxed schemes stopped by max_steps, then continued: their state in entropy variables
-    (the file's state is in the run's own variable, which converts back only to rounding), next
-    trial step, last stages and stage factors are restored, so the continued steps are those of
-    the uninterrupted run, bit for bit."""
-    integrator = {"scheme": scheme, "dt": 0.01, "t_end": 3.0, "thermo_variable": "temperature", **extra}
+@pytest.mark.parametrize("case", list(BUDGET_CASES))
+def test_step_budget_then_continue_with_interval(tmp_path, case):
+    """An integrator that chooses its steps, with &output interval, stopped by max_steps between
+    two output times, then continued with a larger max_steps: what it carries from step to step
+    is restored, so the continued steps are those of the uninterrupted run, bit for bit."""
+    integrator = {"dt": 0.01, "t_end": 3.0, "thermo_variable": "temperature", "max_steps": 1000000,
+                  **BUDGET_CASES[case]}
     output = {"interval": 0.25}
     reference_nml, reference = write_namelist(tmp_path, "reference", integrator, output)
     assert eme_run(reference_nml).returncode == 0
@@ -126,6 +114,9 @@ def test_step_budget_then_continue_relaxed(tmp_path, scheme, extra):
     namelist, path = write_namelist(tmp_path, "run", dict(integrator, max_steps=total // 3), output)
     stopped = eme_run(namelist)
     assert stopped.returncode == 3, stopped.stderr
+    with h5py.File(path, "r") as f:
+        assert f.attrs["failure_kind"] == "step_budget"
+        assert f.attrs["resume_numbers"][0] <= total // 3
     write_namelist(tmp_path, "run", integrator, output)
     result = eme_run(namelist, "-eme_continue")
     assert result.returncode == 0, result.stderr
