@@ -84,7 +84,8 @@ $(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += $(PETSC_FLAGS)
 $(filter $(OBJ)/src/solver/% $(OBJ)/src/structure/% $(OBJ)/src/integrator/% $(OBJ)/src/model/%,$(LIBRARY_OBJECTS)): \
   private FFLAGS += -Wno-unused-dummy-argument
 $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(LIBRARY_OBJECTS)): private FFLAGS += $(KERNEL_FLAGS)
-$(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): $(LIBRARY_OBJECTS)
+# A driver is recompiled when a module it uses changes (fortran.deps); the others only come first.
+$(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): | $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
 .PHONY: all programs deps test check run constraints figures study bench bench-deps clean python-lock version docs

@@ -1,17 +1,15 @@
 !> The models the code offers, one line each in `registered_models`: the name &model model_name
 !> selects (default: the paper's double pendulum), the maker of its scene (its namelist groups,
 !> src/model/model_scene) and, if the model has one, the maker of its fused step
-!> (src/scheme/condensed_step). Adding a model: its folder src/model/NAME/ and one line below
-!> (docs/development.md, Adding a model). This is the only module outside a model's folder
-!> that uses the model's modules (tests/architecture/test_layers.py).
+!> (src/scheme/condensed_step). Adding a model: its folder src/model/NAME/ and one line in the
+!> submodule src/model/model_registry_lines.f90 (docs/development.md, Adding a model), the only
+!> code outside a model's folder that uses the model's modules (tests/architecture/test_layers.py).
+!> An edit of the lines recompiles that submodule alone, and the programs relink.
 module model_registry
   use namelist_text, only: namelist_item, group_items, item_name
   use model_scene, only: scene
   use step_residual, only: step_problem
   use condensed_step, only: condensed_step_problem
-  use pendulum_scene, only: double_pendulum_name, new_double_pendulum_scene
-  use pendulum_step_kernel, only: pendulum_fused_step
-  use gas_scene, only: gas_containers_name, new_gas_containers_scene
   implicit none (type, external)
   private
   public :: select_scene, model_names, fused_step_of
@@ -40,15 +38,15 @@ module model_registry
     end subroutine fused_step_maker
   end interface
 
+  interface
+    !> The registry, a line per model; the first is the default model (model_registry_lines).
+    module function registered_models() result(entries)
+      type(model_entry), allocatable :: entries(:)
+    end function registered_models
+  end interface
+
 contains
 
-  !> The registry, a line per model; the first is the default model.
-  pure function registered_models() result(entries)
-    type(model_entry), allocatable :: entries(:)
-
-    entries = [model_entry(double_pendulum_name, new_double_pendulum_scene, pendulum_fused_step), &
-               model_entry(gas_containers_name, new_gas_containers_scene)]
-  end function registered_models
 
   !> The names of the models, blank-separated.
   function model_names() result(names)

@@ -34,7 +34,8 @@ def copy(tmp_path):
 
 def foreign_uses_of_model_rooms(root):
     """Uses of a module in a model's own folder (src/model/NAME/) from outside that folder, other
-    than the model registry's (its one registration line) and the drivers'."""
+    than the registry's lines (model_registry_lines, a model's one registration line) and the
+    drivers'."""
     nodes, edges = module_graph.graph(root)
     model_root = root / "src" / "model"
 
@@ -44,7 +45,7 @@ def foreign_uses_of_model_rooms(root):
 
     return sorted((user, used) for user, used in edges
                   if room(used) is not None and room(user) != room(used)
-                  and user != "model_registry" and nodes[user][0] != "drivers")
+                  and user != "model_registry_lines" and nodes[user][0] != "drivers")
 
 
 def test_a_model_keeps_to_its_folder():
