@@ -410,15 +410,20 @@ contains
   end function field_length
 
   !> The units of field `name` of the eme_run groups ('' for a text or logical field, or none).
-  function field_units(name) result(units)
+  function field_units(name, config) result(units)
     character(len=*), intent(in) :: name
+    type(run_configuration), intent(in), target, optional :: config   !! whose model's fields (default: the default model's)
     character(len=:), allocatable :: units
     type(run_configuration), target :: defaults
     type(group_field) :: field
     logical :: found
 
-    call default_run(defaults)
-    call find_field(defaults, name, field, found)
+    if (present(config)) then
+      call find_field(config, name, field, found)
+    else
+      call default_run(defaults)
+      call find_field(defaults, name, field, found)
+    end if
     units = ''
     if (found) units = trim(field%units)
   end function field_units

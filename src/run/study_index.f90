@@ -29,7 +29,9 @@ module study_index
   use build_info, only: code_version
   use provenance, only: write_provenance, iso_time
   use run_options, only: petsc_options_in_force
-  use run_config, only: field_units
+  use run_config, only: field_units, run_configuration, read_run_config
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
   use effective_namelist, only: namelist_of_run
   use namelist_text, only: blanked, item_name
   use study_case_files, only: case_file, case_name, case_overrides, case_file_checks_out, read_case_file
@@ -45,6 +47,8 @@ module study_index
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
   ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), rank, run_count
   integer, parameter :: m_steps = 1, m_rank = 13, m_run_count = 14
+  !> The figures whose units are the model's.
+  integer, parameter :: m_entropy_increment = 7, m_lyapunov_increment = 8, m_momentum_drift = 9, m_min_temperature = 10
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
     'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
     'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'min_temperature', &
@@ -324,24 +328,46 @@ contains
     end do
   end subroutine case_parameters
 
-  ! The attribute column_units of /cases: the units of every column, in order ('' for a text).
+  ! The attribute column_units of /cases: the units of every column, in order ('' for a text):
+  ! the swept fields' and the figures' in the units of the base file's model (the gas containers'
+  ! are nondimensional; a model without a conserved momentum has no momentum units).
   subroutine column_units(file, study, stat)
     type(hdf5_file), intent(in) :: file
     type(study_definition), intent(in) :: study
     integer, intent(out) :: stat
     character(len=24) :: units(2 + sum(study%sweeps%elements) + 2 + metric_count)
-    integer :: s, next
+    type(run_configuration), target :: base
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:)
+    character(len=:), allocatable :: message
+    integer :: s, next, base_stat
 
+    call read_run_config(study%base, base, base_stat, message)
+    if (base_stat == 0) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, base_stat, message)
     units = ''
     units(1) = '1'                        ! case; file is a text
     next = 3
     do s = 1, size(study%sweeps)
       associate (sweep => study%sweeps(s))
-        if (.not. sweep%textual) units(next:next + sweep%elements - 1) = field_units(item_name(sweep%field))
+        if (.not. sweep%textual) then
+          if (base_stat == 0) then
+            units(next:next + sweep%elements - 1) = field_units(item_name(sweep%field), base)
+          else
+            units(next:next + sweep%elements - 1) = field_units(item_name(sweep%field))
+          end if
+        end if
         next = next + sweep%elements
       end associate
     end do
     units(next + 2:) = metric_units       ! after status and failure_kind
+    if (base_stat == 0) then
+      units(next + 1 + m_entropy_increment) = model%words%entropy_units
+      units(next + 1 + m_lyapunov_increment) = model%words%energy_units
+      units(next + 1 + m_momentum_drift) = '1'
+      if (model%conserved_momentum_column > 0) units(next + 1 + m_momentum_drift) = model%words%momentum_units
+      units(next + 1 + m_min_temperature) = model%words%temperature_units
+    end if
     call file%set_dataset_texts('cases', 'column_units', units, stat)
   end subroutine column_units
 

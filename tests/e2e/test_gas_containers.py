@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import BIN, run_eme
+from conftest import BIN, namelist_text, run_eme
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "oracles"))
 import gas_containers as oracle  # noqa: E402
@@ -128,3 +128,23 @@ def test_the_work_precision_reference_matches_the_oracle(tmp_path):
     folder = tmp_path / "results" / "study" / "gas_work_precision_reference"
     errors = [np.max(np.abs(final_entropy_state(folder / f"case_0000{case}.h5") - exact)) for case in (1, 2)]
     assert errors[0] < 1e-12 and errors[1] < 1e-10, errors
+
+
+def test_a_study_of_it_has_its_units(tmp_path):
+    """A study of the containers sweeping their own field: the index's column_units are the
+    model's (nondimensional), not the pendulum's J, J/K, J s and K."""
+    base = tmp_path / "base.nml"
+    base.write_text(namelist_text({"model": MODEL, "initial": INITIAL,
+                                   "integrator": {"scheme": "eme", "dt": 0.05, "t_end": 1.0}}))
+    study = tmp_path / "study.nml"
+    study.write_text(f"&study base = '{base}', output_dir = '{tmp_path / 'study'}', index_only = .true. /\n"
+                     "&sweep field = 'friction', values = 1, 8 /\n")
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    with h5py.File(tmp_path / "study" / "index.h5", "r") as f:
+        cases = f["cases"]
+        units = dict(zip(cases.dtype.names, (u.decode() if isinstance(u, bytes) else u
+                                             for u in cases.attrs["column_units"])))
+    assert units["friction"] == "1"
+    for name in ("min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift", "min_temperature"):
+        assert units[name] == "1", name
