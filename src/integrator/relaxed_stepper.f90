@@ -466,13 +466,24 @@ contains
   subroutine resume_state(self, values)
     class(relaxed_runge_kutta), intent(in) :: self
     real(real64), allocatable, intent(inout) :: values(:)
-    real(real64), allocatable :: stages(:), factors(:)
+    integer :: n, m, count
 
-    allocate (stages(0))
-    if (allocated(self%last_stages)) stages = self%last_stages
-    factors = [0.0_real64, 0.0_real64]
-    if (self%tableau%implicit) factors = self%solver%context%lu%as_values()
-    values = [self%t, self%h_next, real(size(self%z), real64), self%z, real(size(stages), real64), stages, factors]
+    ! Kept from call to call (a record is noted after every row): nothing is allocated per step.
+    n = size(self%z)
+    m = 0
+    if (allocated(self%last_stages)) m = size(self%last_stages)
+    count = 4 + n + m + 2
+    if (self%tableau%implicit) count = 4 + n + m + self%solver%context%lu%value_count()
+    if (allocated(values)) then
+      if (size(values) /= count) deallocate (values)
+    end if
+    if (.not. allocated(values)) allocate (values(count))
+    values(1:3) = [self%t, self%h_next, real(n, real64)]
+    values(4:3 + n) = self%z
+    values(4 + n) = real(m, real64)
+    if (m > 0) values(5 + n:4 + n + m) = self%last_stages
+    values(5 + n + m:) = 0.0_real64
+    if (self%tableau%implicit) call self%solver%context%lu%put_values(values(5 + n + m:))
   end subroutine resume_state
 
   !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its

@@ -23,7 +23,7 @@ module model_interface
   use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_overflow
   implicit none (type, external)
   private
-  public :: generic_model, subsystem, model_words
+  public :: generic_model, subsystem, model_words, add_temperature_chain
 
   !> One thermodynamic subsystem (a spring, with its temperature). The model's builder sets every
   !> component.
@@ -444,5 +444,23 @@ contains
       theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
     end do
   end function partials_temperatures
+
+  !> A written-out field's df/dpartials gains the chain through each subsystem's temperature
+  !> Theta_a = dU_a/dtau / dS_a/dtau (eq. (2)): df_dtheta(:, a) = df/dTheta_a at fixed partials,
+  !> tau_slots(a) the slot of tau_a among subsystem a's invariants.
+  pure subroutine add_temperature_chain(partials, tau_slots, df_dtheta, df_dpartials)
+    real(real64), intent(in) :: partials(:, :, :), df_dtheta(:, :)
+    integer, intent(in) :: tau_slots(:)
+    real(real64), intent(inout) :: df_dpartials(:, :, :, :)
+    integer :: a
+
+    do a = 1, size(tau_slots)
+      associate (t => tau_slots(a), s_tau => partials(tau_slots(a), potential_s, a))
+        df_dpartials(:, t, potential_u, a) = df_dpartials(:, t, potential_u, a) + df_dtheta(:, a)/s_tau
+        df_dpartials(:, t, potential_s, a) = df_dpartials(:, t, potential_s, a) &
+          - df_dtheta(:, a)*(partials(t, potential_u, a)/s_tau)/s_tau
+      end associate
+    end do
+  end subroutine add_temperature_chain
 
 end module model_interface

@@ -11,7 +11,7 @@
 module gas_model
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: potential_u, potential_s
-  use model_interface, only: generic_model
+  use model_interface, only: generic_model, add_temperature_chain
   use gas_potential, only: container_potential
   implicit none (type, external)
   private
@@ -141,13 +141,7 @@ contains
           df_dtheta(tau_columns(a), b) = self%friction/(theta(b)**2*u_tau)
         end associate
       end do
-      ! Theta_a = dU_a/dtau / dS_a/dtau
-      do a = 1, 2
-        df_dpartials(:, slot_tau, potential_u, a) = df_dpartials(:, slot_tau, potential_u, a) &
-          + df_dtheta(:, a)/partials(slot_tau, potential_s, a)
-        df_dpartials(:, slot_tau, potential_s, a) = df_dpartials(:, slot_tau, potential_s, a) &
-          - df_dtheta(:, a)*theta(a)/partials(slot_tau, potential_s, a)
-      end do
+      call add_temperature_chain(partials, [slot_tau, slot_tau], df_dtheta, df_dpartials)
     end if
   end subroutine vector_field
 

@@ -15,6 +15,7 @@ module pendulum_vector_field
   use model_parameters, only: pendulum_parameters
   use free_energy, only: viscosity
   use invariant_function, only: potential_u, potential_s
+  use model_interface, only: add_temperature_chain
   use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, inverse_mass_times, gravity_force
   implicit none (type, external)
   private
@@ -111,13 +112,7 @@ contains
       df_dpartials(gamma_index, slot_gamma, potential_s, 2) = theta(2)*inv_eta
       df_dpartials(gamma_index, slot_gamma, potential_u, 2) = -inv_eta
       df_dtheta(gamma_index, 2) = drate_dtheta
-      ! Theta_a = dU_a/dtau / dS_a/dtau
-      do a = 1, 2
-        df_dpartials(:, tau_slot(a), potential_u, a) = df_dpartials(:, tau_slot(a), potential_u, a) &
-          + df_dtheta(:, a)/partials(tau_slot(a), potential_s, a)
-        df_dpartials(:, tau_slot(a), potential_s, a) = df_dpartials(:, tau_slot(a), potential_s, a) &
-          - df_dtheta(:, a)*theta(a)/partials(tau_slot(a), potential_s, a)
-      end do
+      call add_temperature_chain(partials, tau_slot, df_dtheta, df_dpartials)
       ! tau_2 row's viscous heating -(U_gamma/U_tau2) rate_gamma: rate_gamma's full row, then own terms.
       do j = 1, 2
         do i = 1, 3
