@@ -4,7 +4,7 @@
 !> only drivers print it and exit. Pure kernels called on every Newton iteration (the
 !> potentials, the invariants, the field) return only the code, which their first caller that
 !> can afford a message wraps into a failure_type.
-module failure
+module failures
   implicit none (type, external)
   private
   public :: failure_type, fail, failure_code_name
@@ -105,4 +105,4 @@ contains
     end select
   end function failure_code_name
 
-end module failure
+end module failures
