@@ -40,7 +40,7 @@ contains
     law%stiffness_slope = params%mu_eq_slope(a)
     law%beta = params%beta
     law%theta_ref = params%theta_ref
-    if (a == 2) then
+    if (a == 2 .and. params%viscous()) then
       law%beta_v = params%beta_v
       law%maxwell_ref = params%mu_neq_const + params%mu_neq_slope*params%theta_ref
       law%maxwell_slope = params%mu_neq_slope

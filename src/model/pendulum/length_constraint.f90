@@ -13,7 +13,7 @@ module length_constraint
   use invariant_function, only: domain_ok
   use model_interface, only: generic_model
   use model_constraint, only: constraint
-  use double_pendulum, only: q_index, p_index
+  use double_pendulum, only: pendulum_layout
   use number_text, only: scientific_text
   implicit none (type, external)
   private
@@ -23,6 +23,7 @@ module length_constraint
   type, extends(constraint) :: fixed_length
     real(real64) :: length = 1.0_real64
     real(real64) :: mass_1 = 1.0_real64
+    integer, allocatable :: q1_columns(:), p1_columns(:), p2_columns(:)   !! in the scene's layout
   contains
     procedure :: add_terms
     procedure :: value
@@ -34,9 +35,10 @@ module length_constraint
 
 contains
 
-  !> The constraint |q1| = length on mass 1 of mass mass_1.
-  pure function make_fixed_length(length, mass_1) result(rod)
+  !> The constraint |q1| = length on mass 1 of mass mass_1, in the scene's `layout`.
+  pure function make_fixed_length(length, mass_1, layout) result(rod)
     real(real64), intent(in) :: length, mass_1
+    type(pendulum_layout), intent(in) :: layout
     type(fixed_length) :: rod
 
     rod%name = 'length'
@@ -45,6 +47,9 @@ contains
     rod%meaning = 'g = (q1.q1 - length^2)/2; lambda: the force -lambda q1_mid on p1'
     rod%length = length
     rod%mass_1 = mass_1
+    rod%q1_columns = layout%q(1:layout%dimension, 1)
+    rod%p1_columns = layout%p(1:layout%dimension, 1)
+    rod%p2_columns = layout%p(1:layout%dimension, 2)
     rod%continuous_form = .true.
   end function make_fixed_length
 
@@ -60,15 +65,15 @@ contains
     integer :: i
 
     stat = domain_ok
-    associate (q1 => z_new(q_index(:, 1)))
-      residual(p_index(:, 1)) = residual(p_index(:, 1)) + lambda*z_mid(q_index(:, 1))
+    associate (q1 => z_new(self%q1_columns))
+      residual(self%p1_columns) = residual(self%p1_columns) + lambda*z_mid(self%q1_columns)
       residual(row) = 0.5_real64*(dot_product(q1, q1) - self%length**2)
       if (present(jacobian)) then
-        jacobian(p_index(:, 1), row) = z_mid(q_index(:, 1))
-        do i = 1, 3
-          jacobian(p_index(i, 1), q_index(i, 1)) = jacobian(p_index(i, 1), q_index(i, 1)) + 0.5_real64*lambda
+        jacobian(self%p1_columns, row) = z_mid(self%q1_columns)
+        do i = 1, size(self%q1_columns)
+          jacobian(self%p1_columns(i), self%q1_columns(i)) = jacobian(self%p1_columns(i), self%q1_columns(i)) + 0.5_real64*lambda
         end do
-        jacobian(row, q_index(:, 1)) = q1
+        jacobian(row, self%q1_columns) = q1
       end if
     end associate
   end subroutine add_terms
@@ -82,7 +87,7 @@ contains
     integer, intent(out) :: stat
 
     stat = domain_ok
-    g = 0.5_real64*(dot_product(z(q_index(:, 1)), z(q_index(:, 1))) - self%length**2)
+    g = 0.5_real64*(dot_product(z(self%q1_columns), z(self%q1_columns)) - self%length**2)
   end subroutine value
 
   !> f_p1 <- f_p1 - lambda q1 with the index-1 multiplier (above), and its derivative.
@@ -93,26 +98,27 @@ contains
     real(real64), intent(inout) :: f(:)
     real(real64), intent(out) :: multiplier
     real(real64), intent(inout), optional :: jacobian(:, :)
-    real(real64) :: q1(3), v1(3), a1(3), length_squared, dlambda(size(z))
+    real(real64), dimension(size(self%q1_columns)) :: q1, v1, a1
+    real(real64) :: length_squared, dlambda(size(z))
     integer :: i
 
-    q1 = z(q_index(:, 1))
-    v1 = (z(p_index(:, 1)) - z(p_index(:, 2)))/self%mass_1
-    a1 = f(p_index(:, 1)) - f(p_index(:, 2))            ! m1 times the unconstrained dv1/dt
+    q1 = z(self%q1_columns)
+    v1 = (z(self%p1_columns) - z(self%p2_columns))/self%mass_1
+    a1 = f(self%p1_columns) - f(self%p2_columns)            ! m1 times the unconstrained dv1/dt
     length_squared = dot_product(q1, q1)
     multiplier = (self%mass_1*dot_product(v1, v1) + dot_product(q1, a1))/length_squared
     if (present(jacobian)) then
-      dlambda = matmul(q1, jacobian(p_index(:, 1), :) - jacobian(p_index(:, 2), :))
-      dlambda(p_index(:, 1)) = dlambda(p_index(:, 1)) + 2*v1
-      dlambda(p_index(:, 2)) = dlambda(p_index(:, 2)) - 2*v1
-      dlambda(q_index(:, 1)) = dlambda(q_index(:, 1)) + a1 - 2*multiplier*q1
+      dlambda = matmul(q1, jacobian(self%p1_columns, :) - jacobian(self%p2_columns, :))
+      dlambda(self%p1_columns) = dlambda(self%p1_columns) + 2*v1
+      dlambda(self%p2_columns) = dlambda(self%p2_columns) - 2*v1
+      dlambda(self%q1_columns) = dlambda(self%q1_columns) + a1 - 2*multiplier*q1
       dlambda = dlambda/length_squared
-      do i = 1, 3
-        jacobian(p_index(i, 1), :) = jacobian(p_index(i, 1), :) - q1(i)*dlambda
-        jacobian(p_index(i, 1), q_index(i, 1)) = jacobian(p_index(i, 1), q_index(i, 1)) - multiplier
+      do i = 1, size(self%q1_columns)
+        jacobian(self%p1_columns(i), :) = jacobian(self%p1_columns(i), :) - q1(i)*dlambda
+        jacobian(self%p1_columns(i), self%q1_columns(i)) = jacobian(self%p1_columns(i), self%q1_columns(i)) - multiplier
       end do
     end if
-    f(p_index(:, 1)) = f(p_index(:, 1)) - multiplier*q1
+    f(self%p1_columns) = f(self%p1_columns) - multiplier*q1
   end subroutine add_force
 
   !> q1 <- q1 length/|q1|.
@@ -121,7 +127,7 @@ contains
     class(generic_model), intent(in) :: model
     real(real64), intent(inout) :: z(:)
 
-    z(q_index(:, 1)) = z(q_index(:, 1))*(self%length/norm2(z(q_index(:, 1))))
+    z(self%q1_columns) = z(self%q1_columns)*(self%length/norm2(z(self%q1_columns)))
   end subroutine project_positions
 
   !> dg1/dt = q1.v1 = q1.(p1 - p2)/m1, linear in the momenta.
@@ -134,8 +140,8 @@ contains
 
     has = .true.
     gradient = 0.0_real64
-    gradient(p_index(:, 1)) = z(q_index(:, 1))/self%mass_1
-    gradient(p_index(:, 2)) = -z(q_index(:, 1))/self%mass_1
+    gradient(self%p1_columns) = z(self%q1_columns)/self%mass_1
+    gradient(self%p2_columns) = -z(self%q1_columns)/self%mass_1
     value = dot_product(gradient, z)
   end subroutine momentum_condition
 
@@ -150,7 +156,7 @@ contains
 
     call self%momentum_condition(model, z, has, rate, gradient)
     text = ''
-    if (abs(rate) > 1.0e-12_real64*norm2(z(q_index(:, 1)))*norm2(z(p_index(:, 1)) - z(p_index(:, 2)))/self%mass_1) &
+    if (abs(rate) > 1.0e-12_real64*norm2(z(self%q1_columns))*norm2(z(self%p1_columns) - z(self%p2_columns))/self%mass_1) &
       text = 'the fixed length needs q1.v1 = 0 at t = 0 (v1 = (p1 - p2)/m1 tangent to the sphere |q1| = length, '// &
              'as the constrained motion keeps it), but q1.v1 = '//scientific_text(rate)//' m^2/s'
   end function inconsistency

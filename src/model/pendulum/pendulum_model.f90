@@ -1,17 +1,15 @@
 !> The thermoviscoelastic double pendulum as a GENERIC model (src/structure/model_interface):
 !> two springs, each a subsystem with (U_a, S_a) in its invariants (C_a, [gamma,] tau_a) for one
 !> choice of thermodynamic variable; kinetic energy and gravity as the mechanical energy; the
-!> written-out vector field of src/model/pendulum/pendulum_vector_field.
+!> written-out vector field of src/model/pendulum/pendulum_vector_field. The scene's parts
+!> (params%spring_law, params%dimension) decide its unknowns (double_pendulum's layout).
 module pendulum_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
   use free_energy, only: spring_law_of, viscosity
   use thermo_variable, only: spring_potential
   use model_interface, only: generic_model
-  use double_pendulum, only: state_size, q_index, p_index, gamma_index, tau_index, state_column_names, &
-                             state_column_units, tau_symbols, tau_units, &
-                             kinetic_energy, gravity_potential, gravity_force, inverse_mass_times, &
-                             angular_momentum, spring_invariants, spring_columns, cross
+  use double_pendulum, only: pendulum_layout, make_layout, tau_symbols, inverse_mass_times, cross
   use pendulum_vector_field, only: vector_field
   implicit none (type, external)
   private
@@ -20,6 +18,7 @@ module pendulum_model
   !> Parameters and the spring potentials (U_a, S_a) in the chosen thermodynamic variable.
   type, extends(generic_model) :: pendulum
     type(pendulum_parameters) :: params
+    type(pendulum_layout) :: layout
     type(spring_potential) :: spring(2)
   contains
     procedure :: invariants
@@ -47,34 +46,42 @@ contains
     integer :: a
 
     model%params = params
+    model%layout = make_layout(params%dimension, params%viscous())
     model%thermo_variable = variable
-    model%state_size = state_size
-    allocate (model%column_names(state_size))
-    model%column_names(:) = state_column_names
-    model%max_invariants = 3
+    model%state_size = model%layout%state_size
+    allocate (model%column_names(model%state_size))
+    model%column_names(:) = model%layout%column_names()
+    model%max_invariants = maxval([(model%layout%invariant_count(a), a=1, 2)])
     model%words%temperature = 'spring temperatures'
     model%words%energy = 'total energy E = T + V_g + U_1 + U_2'
     model%words%entropy = 'total entropy S = S_1 + S_2'
-    model%words%momenta = 'J = q1 x p1 + q2 x p2'
     model%words%momentum_units = 'J s'
     model%words%metric_scales = 'C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
-    ! J_z: the component about the gravity axis of the paper's scenes (conserved_momentum is J
-    ! along gravity's direction, whatever it is).
-    model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
-    model%conserved_momentum_column = 3
+    if (params%dimension == 3) then
+      ! J_z: the component about the gravity axis of the paper's scenes (conserved_momentum is J
+      ! along gravity's direction, whatever it is).
+      model%words%momenta = 'J = q1 x p1 + q2 x p2'
+      model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
+      model%conserved_momentum_column = 3
+    else if (norm2(params%gravity(1:2)) <= 0.0_real64) then
+      ! In the plane without gravity: J about the plane's normal; with gravity, no momentum is kept.
+      model%words%momenta = 'J = q1_x p1_y - q1_y p1_x + q2_x p2_y - q2_y p2_x'
+      model%momentum_names = [character(len=8) :: 'J']
+      model%conserved_momentum_column = 1
+    end if
     allocate (model%subsystems(2))
     do a = 1, 2
       model%spring(a)%law = spring_law_of(params, a)
       model%spring(a)%variable = variable
-      model%spring(a)%n_invariants = a + 1
+      model%spring(a)%n_invariants = model%layout%invariant_count(a)
       associate (part => model%subsystems(a))
         part%name = 'spring '//achar(iachar('0') + a)
         allocate (part%potentials, source=model%spring(a))
-        part%invariant_count = a + 1
-        part%columns = spring_columns(a)
-        part%tau_column = tau_index(a)
+        part%invariant_count = model%layout%invariant_count(a)
+        part%columns = model%layout%spring_columns(a)
+        part%tau_column = model%layout%tau(a)
         ! s_1, theta_1, u_1: spelt as /temperature's columns theta_1 theta_2 (docs/output.md).
-        model%column_names(tau_index(a)) = trim(tau_symbols(variable))//'_'//achar(iachar('0') + a)
+        model%column_names(model%layout%tau(a)) = trim(tau_symbols(variable))//'_'//achar(iachar('0') + a)
         part%metric_scale = model%spring(a)%metric_scale()
       end associate
     end do
@@ -85,8 +92,7 @@ contains
     class(pendulum), intent(in) :: self
     character(len=*), intent(out) :: units(:)
 
-    units = state_column_units
-    units(tau_index) = tau_units(self%thermo_variable)
+    units = self%layout%column_units(self%thermo_variable)
   end subroutine pendulum_column_units
 
   !> Spring a's invariants (C_a, [gamma,] tau_a) and their derivatives in its columns.
@@ -97,7 +103,7 @@ contains
     real(real64), intent(out) :: x(:)
     real(real64), intent(out), optional :: dx_dz(:, :)
 
-    call spring_invariants(z, a, x, dx_dz)
+    call self%layout%spring_invariants(z, a, x, dx_dz)
   end subroutine invariants
 
   !> The written-out field of docs/formulation.md section 4 (pendulum_vector_field).
@@ -107,7 +113,7 @@ contains
     real(real64), intent(out) :: f(:)
     real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
 
-    call vector_field(self%params, z, partials, f, df_dz, df_dpartials)
+    call vector_field(self%params, self%layout, z, partials, f, df_dz, df_dpartials)
   end subroutine pendulum_field
 
   !> T + V_g: kinetic energy (6) and gravity.
@@ -116,7 +122,7 @@ contains
     real(real64), intent(in) :: z(:)
     real(real64) :: energy
 
-    energy = kinetic_energy(self%params, z) + gravity_potential(self%params, z)
+    energy = self%layout%kinetic_energy(self%params, z) + self%layout%gravity_potential(self%params, z)
   end function mechanical_energy
 
   !> grad (T + V_g): -gravity forces on q, m^-1 p on p.
@@ -124,37 +130,46 @@ contains
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: gradient(size(z))
-    real(real64) :: force(3, 2), v(3, 2)
+    real(real64) :: force(self%layout%dimension, 2), v(self%layout%dimension, 2)
     integer :: a
 
-    force = gravity_force(self%params)
-    v = inverse_mass_times(self%params, reshape(z(p_index(1, 1):p_index(3, 2)), [3, 2]))
+    force = self%layout%gravity_force(self%params)
+    v = inverse_mass_times(self%params, self%layout%momenta(z))
     gradient = 0.0_real64
     do a = 1, 2
-      gradient(q_index(:, a)) = -force(:, a)
-      gradient(p_index(:, a)) = v(:, a)
+      gradient(self%layout%q(1:self%layout%dimension, a)) = -force(:, a)
+      gradient(self%layout%p(1:self%layout%dimension, a)) = v(:, a)
     end do
   end function mechanical_energy_gradient
 
-  !> The momenta: J = q1 x p1 + q2 x p2 (docs/formulation.md section 2).
+  !> The momenta: J = q1 x p1 + q2 x p2 (docs/formulation.md section 2), in the plane its
+  !> component about the normal.
   pure function pendulum_angular_momentum(self, z) result(j)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: j(self%momentum_count())
+    real(real64) :: all_components(3)
 
-    j = angular_momentum(z)
+    all_components = self%layout%angular_momentum(z)
+    if (size(j) == 3) then
+      j = all_components
+    else if (size(j) == 1) then
+      j = all_components(3)
+    end if
   end function pendulum_angular_momentum
 
   !> L0 of eq. (12): the canonical symplectic matrix on (q, p), zero elsewhere.
   pure function poisson_matrix_0(self) result(l0)
     class(pendulum), intent(in) :: self
     real(real64) :: l0(self%state_size, self%state_size)
-    integer :: i
+    integer :: i, a
 
     l0 = 0.0_real64
-    do i = 1, 6
-      l0(q_index(1, 1) - 1 + i, p_index(1, 1) - 1 + i) = 1.0_real64
-      l0(p_index(1, 1) - 1 + i, q_index(1, 1) - 1 + i) = -1.0_real64
+    do a = 1, 2
+      do i = 1, self%layout%dimension
+        l0(self%layout%q(i, a), self%layout%p(i, a)) = 1.0_real64
+        l0(self%layout%p(i, a), self%layout%q(i, a)) = -1.0_real64
+      end do
     end do
   end function poisson_matrix_0
 
@@ -168,9 +183,9 @@ contains
 
     theta = self%partials_temperatures(partials)
     k0 = 0.0_real64
-    k0(gamma_index, gamma_index) = theta(2)/viscosity(self%params, theta(2))
+    if (self%layout%viscous) k0(self%layout%gamma, self%layout%gamma) = theta(2)/viscosity(self%params, theta(2))
     conduction = self%params%conductivity*theta(1)*theta(2)
-    k0(tau_index, tau_index) = reshape([conduction, -conduction, -conduction, conduction], [2, 2])
+    k0(self%layout%tau, self%layout%tau) = reshape([conduction, -conduction, -conduction, conduction], [2, 2])
   end function friction_matrix_0
 
   !> The pendulum in another thermodynamic variable.
@@ -188,7 +203,7 @@ contains
     real(real64), intent(in) :: z(:)
     real(real64) :: j_axis
 
-    j_axis = dot_product(angular_momentum(z), conserved_axis(self%params))
+    j_axis = dot_product(self%layout%angular_momentum(z), conserved_axis(self%params))
   end function conserved_momentum
 
   !> d(J.a)/dp: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
@@ -196,13 +211,18 @@ contains
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: gradient(size(z))
-    real(real64) :: axis(3)
-    integer :: a
+    real(real64) :: axis(3), q(3)
+    integer :: a, d
 
+    d = self%layout%dimension
     axis = conserved_axis(self%params)
     gradient = 0.0_real64
     do a = 1, 2
-      gradient(p_index(:, a)) = cross(axis, z(q_index(:, a)))
+      q = 0.0_real64
+      q(1:d) = z(self%layout%q(1:d, a))
+      associate (gradient_p => cross(axis, q))
+        gradient(self%layout%p(1:d, a)) = gradient_p(1:d)
+      end associate
     end do
   end function conserved_momentum_gradient
 
@@ -212,45 +232,50 @@ contains
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z_a(:), z_b(:)
     real(real64) :: delta
-    real(real64) :: p_a(3, 2), p_b(3, 2), q_a(3, 2), q_b(3, 2)
+    real(real64) :: p_a(self%layout%dimension, 2), p_b(self%layout%dimension, 2)
+    real(real64) :: q_a(self%layout%dimension, 2), q_b(self%layout%dimension, 2)
 
-    p_a = reshape(z_a(p_index(1, 1):p_index(3, 2)), [3, 2])
-    p_b = reshape(z_b(p_index(1, 1):p_index(3, 2)), [3, 2])
-    q_a = reshape(z_a(q_index(1, 1):q_index(3, 2)), [3, 2])
-    q_b = reshape(z_b(q_index(1, 1):q_index(3, 2)), [3, 2])
+    p_a = self%layout%momenta(z_a)
+    p_b = self%layout%momenta(z_b)
+    q_a = self%layout%positions(z_a)
+    q_b = self%layout%positions(z_b)
     delta = 0.5_real64*sum((p_b - p_a)*inverse_mass_times(self%params, p_b + p_a)) &
-            - sum(gravity_force(self%params)*(q_b - q_a))
+            - sum(self%layout%gravity_force(self%params)*(q_b - q_a))
   end function pendulum_energy_difference
 
-  ! The direction of gravity, or e_z without it.
+  ! The direction of gravity in space, or e_z without it; the plane's normal e_z in the plane.
   pure function conserved_axis(params) result(axis)
     type(pendulum_parameters), intent(in) :: params
     real(real64) :: axis(3)
 
     axis = [0.0_real64, 0.0_real64, 1.0_real64]
-    if (norm2(params%gravity) > 0.0_real64) axis = params%gravity/norm2(params%gravity)
+    if (params%dimension == 3 .and. norm2(params%gravity) > 0.0_real64) axis = params%gravity/norm2(params%gravity)
   end function conserved_axis
 
-  !> The state z built from positions, momenta, gamma and spring temperatures theta(2).
+  !> The state z built from positions, momenta (`dimension` components each), gamma (used with
+  !> the viscous branch only) and spring temperatures theta(2).
   pure subroutine state_from_temperatures(self, q1, q2, p1, p2, gamma, theta, z, stat)
     class(pendulum), intent(in) :: self
-    real(real64), intent(in) :: q1(3), q2(3), p1(3), p2(3), gamma, theta(2)
-    real(real64), intent(out) :: z(state_size)
+    real(real64), intent(in) :: q1(:), q2(:), p1(:), p2(:), gamma, theta(2)
+    real(real64), intent(out) :: z(:)
     integer, intent(out) :: stat
     real(real64) :: x(3)
-    integer :: a
+    integer :: a, n
 
-    z(q_index(:, 1)) = q1
-    z(q_index(:, 2)) = q2
-    z(p_index(:, 1)) = p1
-    z(p_index(:, 2)) = p2
-    z(gamma_index) = gamma
-    z(tau_index) = 0.0_real64
-    do a = 1, 2
-      call spring_invariants(z, a, x(1:a + 1))
-      call self%spring(a)%tau_from_temperature(x(1:a), theta(a), z(tau_index(a)), stat)
-      if (stat /= 0) return
-    end do
+    associate (layout => self%layout, d => self%layout%dimension)
+      z(layout%q(1:d, 1)) = q1
+      z(layout%q(1:d, 2)) = q2
+      z(layout%p(1:d, 1)) = p1
+      z(layout%p(1:d, 2)) = p2
+      if (layout%viscous) z(layout%gamma) = gamma
+      z(layout%tau) = 0.0_real64
+      do a = 1, 2
+        n = layout%invariant_count(a)
+        call layout%spring_invariants(z, a, x(1:n))
+        call self%spring(a)%tau_from_temperature(x(1:n - 1), theta(a), z(layout%tau(a)), stat)
+        if (stat /= 0) return
+      end do
+    end associate
   end subroutine state_from_temperatures
 
 end module pendulum_model

@@ -1,15 +1,17 @@
 !> The double pendulum's input: the groups &model (Table 1's data), &initial (docs/formulation.md
 !> section 1's state, with temperatures whatever the thermodynamic variable) and &constraints
-!> (g1, g2 of eq. (13)). Defaults are the paper's scene. A constraint must hold at t = 0, or the
+!> (g1, g2 of eq. (13)). Defaults are the paper's scene. &model's `spring_law` and `dimension`
+!> declare the scene's parts (docs/formulation.md section 9): the other groups then have the
+!> fields of those parts only, and a field of another part is refused by name. A constraint must hold at t = 0, or the
 !> first step would jump onto it and do work: `length` defaults to |q1(0)| and must equal it,
 !> `temperature` defaults to theta(1) and must equal it.
 module pendulum_scene
   use, intrinsic :: iso_fortran_env, only: real64
-  use namelist_text, only: namelist_item
+  use namelist_text, only: namelist_item, group_items, item_name
   use number_text, only: reals_text
-  use namelist_group, only: group_field, real_field, reals_field, logical_field, text_field, read_group, &
-                            invalid_value_message, value_origin, absolute_temperature
-  use model_parameters, only: pendulum_parameters
+  use namelist_group, only: group_field, real_field, reals_field, integer_field, logical_field, text_field, &
+                            read_group, invalid_value_message, value_origin, absolute_temperature, field_names
+  use model_parameters, only: pendulum_parameters, spring_law_names
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
@@ -21,6 +23,9 @@ module pendulum_scene
   public :: double_pendulum_scene, double_pendulum_name, new_double_pendulum_scene
 
   character(len=*), parameter :: double_pendulum_name = 'double_pendulum'
+  !> &model's fields of the viscous branch, which the thermoelastic law does not have.
+  character(len=*), parameter :: viscous_model_fields(5) = [character(len=24) :: 'mu_neq_const', 'mu_neq_slope', &
+                                                            'viscosity_const', 'viscosity_activation', 'beta_v']
 
   !> The values of the three groups, in their namelist names.
   type, extends(scene) :: double_pendulum_scene
@@ -70,44 +75,9 @@ contains
 
     select case (group)
     case ('model')
-      associate (p => self%params)
-        table = [ &
-          text_field('model_name', self%model_name, "the model: 'double_pendulum'", double_pendulum_name), &
-          reals_field('mass', p%mass, 'two real numbers > 0 [kg]', 'kg', minimum=0.0_real64, exclusive=.true.), &
-          reals_field('natural_length', p%natural_length, 'two real numbers > 0 [m]', 'm', minimum=0.0_real64, &
-                      exclusive=.true.), &
-          reals_field('mu_eq_const', p%mu_eq_const, 'two real numbers > 0 [J] (eq. (17))', 'J', minimum=0.0_real64, &
-                      exclusive=.true.), &
-          reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers >= 0 [J/K] (eq. (17); 0: a stiffness that '// &
-                      'does not depend on temperature)', 'J/K', minimum=0.0_real64), &
-          real_field('mu_neq_const', p%mu_neq_const, 'a real number > 0 [J/m^2] (eq. (17))', 'J/m^2', &
-                     minimum=0.0_real64, exclusive=.true.), &
-          real_field('mu_neq_slope', p%mu_neq_slope, 'a real number > 0 [J/(K m^2)] (eq. (17))', 'J/(K m^2)', &
-                     minimum=0.0_real64, exclusive=.true.), &
-          reals_field('heat_capacity', p%heat_capacity, 'two real numbers > 0 [J/K]', 'J/K', minimum=0.0_real64, &
-                      exclusive=.true.), &
-          real_field('viscosity_const', p%viscosity_const, 'a real number > 0 [J s/m^2] (eq. (17))', 'J s/m^2', &
-                     minimum=0.0_real64, exclusive=.true.), &
-          real_field('viscosity_activation', p%viscosity_activation, 'a real number > 0 [K] (eq. (17))', 'K', &
-                     minimum=0.0_real64, exclusive=.true.), &
-          real_field('conductivity', p%conductivity, 'a real number >= 0 [J/(K s)]', 'J/(K s)', minimum=0.0_real64), &
-          absolute_temperature(real_field('theta_ref', p%theta_ref, 'a real number > 0 [K]', 'K', minimum=0.0_real64, &
-                                          exclusive=.true.)), &
-          real_field('beta', p%beta, 'a real number [J/K]', 'J/K'), &
-          real_field('beta_v', p%beta_v, 'a real number >= 0', '1', minimum=0.0_real64), &
-          reals_field('gravity', p%gravity, 'three real numbers [m/s^2]', 'm/s^2')]
-      end associate
+      table = model_fields(self, every_part=.false.)
     case ('initial')
-      table = [ &
-        reals_field('q1', self%q1, 'three real numbers, not all zero [m]', 'm', nonzero=.true.), &
-        reals_field('q2', self%q2, 'three real numbers, not all zero [m]', 'm', nonzero=.true.), &
-        reals_field('p1', self%p1, 'three real numbers [N s]', 'N s'), &
-        reals_field('p2', self%p2, 'three real numbers [N s]', 'N s'), &
-        real_field('gamma', self%gamma, 'a real number [m]', 'm'), &
-        absolute_temperature(reals_field('theta', self%theta, 'two real numbers > 0 [K], below theta_ref + '// &
-                                         'mu_eq_const/mu_eq_slope (where a spring''s stiffness, eq. (17), would reach 0; '// &
-                                         'no bound where mu_eq_slope = 0)', &
-                                         'K', minimum=0.0_real64, exclusive=.true.))]
+      table = initial_fields(self, every_part=.false.)
     case ('constraints')
       table = [ &
         logical_field('fix_length', self%fix_length, '.true. or .false.'), &
@@ -126,8 +96,105 @@ contains
     end select
   end function fields
 
+  !> &model's fields for the scene's spring law and dimension, or (every_part) the fields of
+  !> every law with vectors of up to three values: the first pass, which learns the parts.
+  function model_fields(self, every_part) result(table)
+    class(double_pendulum_scene), intent(in), target :: self
+    logical, intent(in) :: every_part
+    type(group_field), allocatable :: table(:)
+    integer :: d
+
+    d = self%params%dimension
+    if (every_part) d = 3
+    associate (p => self%params)
+      table = [ &
+        text_field('model_name', self%model_name, "the model: 'double_pendulum'", double_pendulum_name), &
+        text_field('spring_law', p%spring_law, "'thermoviscoelastic' (the paper's springs) or 'thermoelastic' "// &
+                   "(no viscous branch: no gamma, mu_neq_*, viscosity_* or beta_v)", spring_law_names), &
+        integer_field('dimension', p%dimension, '3 (spatial) or 2 (planar, y vertical: q1, q2, p1, p2 and '// &
+                      'gravity take two values; gravity defaults to 0, -9.81)', minimum=2, maximum=3), &
+        reals_field('mass', p%mass, 'two real numbers > 0 [kg]', 'kg', minimum=0.0_real64, exclusive=.true.), &
+        reals_field('natural_length', p%natural_length, 'two real numbers > 0 [m]', 'm', minimum=0.0_real64, &
+                    exclusive=.true.), &
+        reals_field('mu_eq_const', p%mu_eq_const, 'two real numbers > 0 [J] (eq. (17))', 'J', minimum=0.0_real64, &
+                    exclusive=.true.), &
+        reals_field('mu_eq_slope', p%mu_eq_slope, 'two real numbers >= 0 [J/K] (eq. (17); 0: a stiffness that '// &
+                    'does not depend on temperature)', 'J/K', minimum=0.0_real64), &
+        real_field('mu_neq_const', p%mu_neq_const, 'a real number > 0 [J/m^2] (eq. (17); thermoviscoelastic)', &
+                   'J/m^2', minimum=0.0_real64, exclusive=.true.), &
+        real_field('mu_neq_slope', p%mu_neq_slope, 'a real number > 0 [J/(K m^2)] (eq. (17); thermoviscoelastic)', &
+                   'J/(K m^2)', minimum=0.0_real64, exclusive=.true.), &
+        reals_field('heat_capacity', p%heat_capacity, 'two real numbers > 0 [J/K]', 'J/K', minimum=0.0_real64, &
+                    exclusive=.true.), &
+        real_field('viscosity_const', p%viscosity_const, 'a real number > 0 [J s/m^2] (eq. (17); '// &
+                   'thermoviscoelastic)', 'J s/m^2', minimum=0.0_real64, exclusive=.true.), &
+        real_field('viscosity_activation', p%viscosity_activation, 'a real number > 0 [K] (eq. (17); '// &
+                   'thermoviscoelastic)', 'K', minimum=0.0_real64, exclusive=.true.), &
+        real_field('conductivity', p%conductivity, 'a real number >= 0 [J/(K s)]', 'J/(K s)', minimum=0.0_real64), &
+        absolute_temperature(real_field('theta_ref', p%theta_ref, 'a real number > 0 [K]', 'K', minimum=0.0_real64, &
+                                        exclusive=.true.)), &
+        real_field('beta', p%beta, 'a real number [J/K]', 'J/K'), &
+        real_field('beta_v', p%beta_v, 'a real number >= 0 (thermoviscoelastic)', '1', minimum=0.0_real64), &
+        reals_field('gravity', p%gravity(1:d), vector_text(d, '[m/s^2]'), 'm/s^2', open_length=every_part)]
+      if (.not. (every_part .or. p%viscous())) table = without(table, viscous_model_fields)
+    end associate
+  end function model_fields
+
+  !> &initial's fields for the scene's parts (every_part: all of them, vectors of up to three).
+  function initial_fields(self, every_part) result(table)
+    class(double_pendulum_scene), intent(in), target :: self
+    logical, intent(in) :: every_part
+    type(group_field), allocatable :: table(:)
+    integer :: d
+
+    d = self%params%dimension
+    if (every_part) d = 3
+    table = [ &
+      reals_field('q1', self%q1(1:d), vector_text(d, 'not all zero [m]'), 'm', nonzero=.true., open_length=every_part), &
+      reals_field('q2', self%q2(1:d), vector_text(d, 'not all zero [m]'), 'm', nonzero=.true., open_length=every_part), &
+      reals_field('p1', self%p1(1:d), vector_text(d, '[N s]'), 'N s', open_length=every_part), &
+      reals_field('p2', self%p2(1:d), vector_text(d, '[N s]'), 'N s', open_length=every_part), &
+      real_field('gamma', self%gamma, 'a real number [m] (thermoviscoelastic)', 'm'), &
+      absolute_temperature(reals_field('theta', self%theta, 'two real numbers > 0 [K], below theta_ref + '// &
+                                       'mu_eq_const/mu_eq_slope (where a spring''s stiffness, eq. (17), would reach 0; '// &
+                                       'no bound where mu_eq_slope = 0)', &
+                                       'K', minimum=0.0_real64, exclusive=.true.))]
+    if (.not. (every_part .or. self%params%viscous())) table = without(table, [character(len=24) :: 'gamma'])
+  end function initial_fields
+
+  ! The table without the fields called `names` (a loop: gfortran 12 mishandles array
+  ! constructors and pack of types with allocatable character components).
+  function without(table, names) result(kept)
+    type(group_field), intent(in) :: table(:)
+    character(len=*), intent(in) :: names(:)
+    type(group_field), allocatable :: kept(:)
+    integer :: i, k
+
+    allocate (kept(count([(all(names /= table(i)%name), i=1, size(table))])))
+    k = 0
+    do i = 1, size(table)
+      if (any(names == table(i)%name)) cycle
+      k = k + 1
+      kept(k) = table(i)
+    end do
+  end function without
+
+  ! "three real numbers, <rest>" or "two ..." for a vector of the scene's dimension.
+  pure function vector_text(dimension, rest) result(text)
+    integer, intent(in) :: dimension
+    character(len=*), intent(in) :: rest
+    character(len=:), allocatable :: text
+
+    if (dimension == 3) then
+      text = 'three real numbers (two with dimension = 2), '//rest
+    else
+      text = 'two real numbers (dimension = 2), '//rest
+    end if
+  end function vector_text
+
   !> Reads &model, &initial and &constraints in that order (the constraints' defaults come from
-  !> the initial state).
+  !> the initial state). &model is read twice: first with every law's fields, to learn the
+  !> scene's parts, then with the fields of those parts.
   subroutine read(self, text, origin, extra, stat, message)
     class(double_pendulum_scene), intent(inout), target :: self
     character(len=*), intent(in) :: text, origin
@@ -135,13 +202,31 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
 
-    type(group_field), allocatable :: initial_fields(:)
+    type(double_pendulum_scene), target :: probe
+    type(group_field), allocatable :: initial_table(:)
     real(real64) :: stiffness(2)
 
+    call read_group(text, 'model', model_fields(probe, every_part=.true.), origin, stat, message, extra)
+    if (stat /= 0) return
+    self%params%spring_law = probe%params%spring_law
+    self%params%dimension = probe%params%dimension
+    if (self%params%dimension == 2) then
+      self%params%gravity = [0.0_real64, -9.81_real64, 0.0_real64]
+      self%q1(3) = 0.0_real64
+      self%q2(3) = 0.0_real64
+      self%p1(3) = 0.0_real64
+      self%p2(3) = 0.0_real64
+    end if
+    call refuse_other_parts(self, text, 'model', model_fields(probe, every_part=.true.), self%fields('model'), &
+                            origin, extra, stat, message)
+    if (stat /= 0) return
     call read_group(text, 'model', self%fields('model'), origin, stat, message, extra)
     if (stat /= 0) return
-    initial_fields = self%fields('initial')
-    call read_group(text, 'initial', initial_fields, origin, stat, message, extra)
+    initial_table = self%fields('initial')
+    call refuse_other_parts(self, text, 'initial', initial_fields(probe, every_part=.true.), initial_table, &
+                            origin, extra, stat, message)
+    if (stat /= 0) return
+    call read_group(text, 'initial', initial_table, origin, stat, message, extra)
     if (stat /= 0) return
     ! mu^eq_a(theta_a) of eq. (17) at t = 0: a spring with no stiffness has no equilibrium.
     associate (p => self%params)
@@ -150,7 +235,7 @@ contains
     if (any(stiffness <= 0.0_real64)) then
       stat = 1
       message = invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), 'initial', &
-                                      initial_fields(findloc(initial_fields%name, 'theta', dim=1)))// &
+                                      initial_table(findloc(initial_table%name, 'theta', dim=1)))// &
                 ' (the stiffness mu_eq(theta) of eq. (17) is '//reals_text(stiffness)//' J)'
       return
     end if
@@ -158,6 +243,45 @@ contains
     self%temperature = self%theta(1)
     call read_group(text, 'constraints', self%fields('constraints'), origin, stat, message, extra)
   end subroutine read
+
+  ! A field that another part of the model has (in `every_field`, not in `scene_fields`) is
+  ! refused with the part that lacks it, rather than as an unknown field.
+  subroutine refuse_other_parts(self, text, group, every_field, scene_fields, origin, extra, stat, message)
+    class(double_pendulum_scene), intent(in) :: self
+    character(len=*), intent(in) :: text, group, origin
+    type(group_field), intent(in) :: every_field(:), scene_fields(:)
+    type(namelist_item), intent(in) :: extra(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: message
+    type(namelist_item), allocatable :: items(:)
+    character(len=:), allocatable :: name
+    integer :: i
+
+    stat = 0
+    message = ''
+    call group_items(text, group, field_names(every_field), origin, items, extra)
+    do i = 1, size(items)
+      name = item_name(items(i)%item)
+      if (any(field_names(scene_fields) == name) .or. .not. any(field_names(every_field) == name)) cycle
+      stat = 1
+      message = items(i)%origin//': &'//group//': '//name//' is not a field of spring_law = '''// &
+                trim(self%params%spring_law)//''' (it has no viscous branch); allowed: '// &
+                names_list(scene_fields)
+      return
+    end do
+  end subroutine refuse_other_parts
+
+  ! 'a, b, c' of a table's field names.
+  function names_list(table) result(text)
+    type(group_field), intent(in) :: table(:)
+    character(len=:), allocatable :: text
+    integer :: i
+
+    text = trim(table(1)%name)
+    do i = 2, size(table)
+      text = text//', '//trim(table(i)%name)
+    end do
+  end function names_list
 
   !> The pendulum in thermodynamic variable `variable`, the initial state and the constraints.
   subroutine build(self, variable, model, z0, constraints, stat, message)
@@ -174,14 +298,17 @@ contains
     message = ''
     pendulum_of_scene = make_pendulum(self%params, variable)
     allocate (z0(pendulum_of_scene%state_size))
-    call pendulum_of_scene%state_from_temperatures(self%q1, self%q2, self%p1, self%p2, self%gamma, self%theta, z0, stat)
+    associate (d => self%params%dimension)
+      call pendulum_of_scene%state_from_temperatures(self%q1(1:d), self%q2(1:d), self%p1(1:d), self%p2(1:d), &
+                                                     self%gamma, self%theta, z0, stat)
+    end associate
     if (stat /= 0) message = '&initial: the initial state lies outside the model''s domain'
     allocate (model, source=pendulum_of_scene)
     allocate (constraints(self%constraint_count()))
     k = 0
     if (self%fix_length) then
       k = k + 1
-      allocate (constraints(k)%item, source=make_fixed_length(self%length, self%params%mass(1)))
+      allocate (constraints(k)%item, source=make_fixed_length(self%length, self%params%mass(1), pendulum_of_scene%layout))
     end if
     if (self%fix_temperature) then
       k = k + 1

@@ -23,7 +23,7 @@ module pendulum_step_kernel
   use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
   use thermo_variable, only: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
   use thermo_variable_kinds, only: tau_temperature, tau_entropy
-  use double_pendulum, only: q_index, p_index, gravity_force
+  use double_pendulum, only: q_index, p_index, full_layout
   use pendulum_model, only: pendulum
   use model_constraint, only: constraint_slot
   use length_constraint, only: fixed_length
@@ -163,6 +163,7 @@ contains
     built = .false.
     select type (model => problem%model)
     type is (pendulum)
+      if (.not. model%layout%is_full()) return    ! written for the spatial viscous scene's 15 unknowns
       kernel%params = model%params
       kernel%spring = model%spring
       do a = 1, 2
@@ -183,7 +184,7 @@ contains
     associate (m1 => kernel%params%mass(1), m2 => kernel%params%mass(2))
       kernel%inverse_mass = reshape([1.0_real64, -1.0_real64, -1.0_real64, (m1 + m2)/m2], [2, 2])/m1
     end associate
-    kernel%force = gravity_force(kernel%params)
+    kernel%force = full_layout%gravity_force(kernel%params)
     kernel%constraint_count = size(problem%constraints)
     do k = 1, size(problem%constraints)
       select type (item => problem%constraints(k)%item)
