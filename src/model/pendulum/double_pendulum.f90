@@ -2,8 +2,8 @@
 !> mass matrix (1), kinetic energy, gravity and angular momentum (docs/formulation.md section 2).
 !> The full layout is z = (q1, q2, p1, p2, gamma, tau1, tau2), 15 unknowns, q2 being m2's position
 !> relative to m1; a scene that needs less (docs/formulation.md section 9) has its own
-!> `pendulum_layout`: planar positions and momenta (dimension 2, y vertical) and no gamma
-!> without the viscous branch.
+!> `pendulum_layout`: planar positions and momenta (dimension 2, y vertical), no gamma without
+!> the viscous branch, and no tau for elastic springs.
 module double_pendulum
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
@@ -23,15 +23,16 @@ module double_pendulum
   integer, parameter :: tau_index(2) = [14, 15]
 
   !> Where a scene's unknowns sit in z: q1, q2, p1, p2 (`dimension` components each), gamma
-  !> (the viscous branch only) and tau1, tau2.
+  !> (the viscous branch only) and tau1, tau2 (thermal springs only).
   type :: pendulum_layout
     integer :: dimension = 3
     logical :: viscous = .true.
+    logical :: thermal = .true.
     integer :: state_size = state_size
     integer :: q(3, 2) = q_index                !! q(1:dimension, a): q_a's columns
     integer :: p(3, 2) = p_index                !! p(1:dimension, a): p_a's columns
     integer :: gamma = gamma_index              !! 0 without the viscous branch
-    integer :: tau(2) = tau_index
+    integer :: tau(2) = tau_index               !! 0 for elastic springs
   contains
     procedure :: positions
     procedure :: momenta
@@ -58,15 +59,17 @@ module double_pendulum
 
 contains
 
-  !> The layout of a scene in `dimension` (2 or 3) with or without the viscous branch.
-  pure function make_layout(dimension, viscous) result(layout)
+  !> The layout of a scene in `dimension` (2 or 3) with or without the viscous branch and the
+  !> thermodynamic variables (an elastic scene has neither).
+  pure function make_layout(dimension, viscous, thermal) result(layout)
     integer, intent(in) :: dimension
-    logical, intent(in) :: viscous
+    logical, intent(in) :: viscous, thermal
     type(pendulum_layout) :: layout
     integer :: i
 
     layout%dimension = dimension
     layout%viscous = viscous
+    layout%thermal = thermal
     layout%q = 0
     layout%p = 0
     layout%q(1:dimension, 1) = [(i, i=1, dimension)]
@@ -74,15 +77,16 @@ contains
     layout%p(1:dimension, :) = 2*dimension + layout%q(1:dimension, :)
     layout%gamma = 0
     if (viscous) layout%gamma = 4*dimension + 1
-    layout%tau = 4*dimension + merge(1, 0, viscous) + [1, 2]
-    layout%state_size = layout%tau(2)
+    layout%tau = 0
+    if (thermal) layout%tau = 4*dimension + merge(1, 0, viscous) + [1, 2]
+    layout%state_size = 4*dimension + merge(1, 0, viscous) + merge(2, 0, thermal)
   end function make_layout
 
   !> The spatial thermoviscoelastic layout, for which the fused step kernel is written.
   pure logical function is_full(self)
     class(pendulum_layout), intent(in) :: self
 
-    is_full = self%dimension == 3 .and. self%viscous
+    is_full = self%dimension == 3 .and. self%viscous .and. self%thermal
   end function is_full
 
   !> q_a as the columns of a (dimension, 2) array.
@@ -166,8 +170,8 @@ contains
     j = cross(q(:, 1), p(:, 1)) + cross(q(:, 2), p(:, 2))
   end function angular_momentum
 
-  !> Spring a's invariants x = (C, [gamma,] tau), C = q_a.q_a, gamma for spring 2 of the viscous
-  !> branch, and optionally dx_dz(i, j) = d x(i)/d z(spring_columns(a)(j)).
+  !> Spring a's invariants x = (C, [gamma,] [tau]), C = q_a.q_a, gamma for spring 2 of the viscous
+  !> branch, tau for thermal springs, and optionally dx_dz(i, j) = d x(i)/d z(spring_columns(a)(j)).
   pure subroutine spring_invariants(self, z, a, x, dx_dz)
     class(pendulum_layout), intent(in) :: self
     real(real64), intent(in) :: z(:)
@@ -180,27 +184,28 @@ contains
     n = self%invariant_count(a)
     x(1) = dot_product(z(self%q(1:d, a)), z(self%q(1:d, a)))
     if (n == 3) x(2) = z(self%gamma)
-    x(n) = z(self%tau(a))
+    if (self%thermal) x(n) = z(self%tau(a))
     if (present(dx_dz)) then
-      ! columns (q_a, [gamma,] tau_a): dC/dq = 2 q; gamma and tau are columns of z themselves.
+      ! columns (q_a, [gamma,] [tau_a]): dC/dq = 2 q; gamma and tau are columns of z themselves.
       dx_dz = 0.0_real64
       dx_dz(1, 1:d) = 2.0_real64*z(self%q(1:d, a))
       if (n == 3) dx_dz(2, d + 1) = 1.0_real64
-      dx_dz(n, d + n - 1) = 1.0_real64
+      if (self%thermal) dx_dz(n, d + n - 1) = 1.0_real64
     end if
   end subroutine spring_invariants
 
-  !> The number of spring a's invariants: (C, tau), or (C, gamma, tau) for spring 2 with the
-  !> viscous branch.
+  !> The number of spring a's invariants: (C, tau), (C, gamma, tau) for spring 2 with the
+  !> viscous branch, or C alone for an elastic spring.
   pure integer function invariant_count(self, a)
     class(pendulum_layout), intent(in) :: self
     integer, intent(in) :: a
 
-    invariant_count = 2
+    invariant_count = 1
+    if (self%thermal) invariant_count = 2
     if (a == 2 .and. self%viscous) invariant_count = 3
   end function invariant_count
 
-  !> The columns of z spring a's invariants depend on: q_a, [gamma,] tau_a.
+  !> The columns of z spring a's invariants depend on: q_a, [gamma,] [tau_a].
   pure function spring_columns(self, a) result(columns)
     class(pendulum_layout), intent(in) :: self
     integer, intent(in) :: a
@@ -208,7 +213,7 @@ contains
 
     columns = self%q(1:self%dimension, a)
     if (self%invariant_count(a) == 3) columns = [columns, self%gamma]
-    columns = [columns, self%tau(a)]
+    if (self%thermal) columns = [columns, self%tau(a)]
   end function spring_columns
 
   !> The columns' names: q1_x, ..., p2_y or p2_z, [gamma,] tau1, tau2 (the model renames the
@@ -225,6 +230,7 @@ contains
       end do
     end do
     if (self%viscous) names(self%gamma) = 'gamma'
+    if (.not. self%thermal) return
     names(self%tau(1)) = 'tau1'
     names(self%tau(2)) = 'tau2'
   end function column_names
@@ -241,7 +247,7 @@ contains
       units(self%p(1:self%dimension, a)) = 'N s'
     end do
     if (self%viscous) units(self%gamma) = 'm'
-    units(self%tau) = tau_units(variable)
+    if (self%thermal) units(self%tau) = tau_units(variable)
   end function column_units
 
   !> The cross product a x b.

@@ -47,9 +47,10 @@ contains
     rod%meaning = 'g = (q1.q1 - length^2)/2; lambda: the force -lambda q1_mid on p1'
     rod%length = length
     rod%mass_1 = mass_1
-    rod%q1_columns = layout%q(1:layout%dimension, 1)
-    rod%p1_columns = layout%p(1:layout%dimension, 1)
-    rod%p2_columns = layout%p(1:layout%dimension, 2)
+    allocate (rod%q1_columns(layout%dimension), rod%p1_columns(layout%dimension), rod%p2_columns(layout%dimension))
+    rod%q1_columns(:) = layout%q(1:layout%dimension, 1)
+    rod%p1_columns(:) = layout%p(1:layout%dimension, 1)
+    rod%p2_columns(:) = layout%p(1:layout%dimension, 2)
     rod%continuous_form = .true.
   end function make_fixed_length
 

@@ -4,16 +4,17 @@ module model_parameters
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none (type, external)
   private
-  public :: pendulum_parameters, law_thermoviscoelastic, law_thermoelastic, spring_law_names
+  public :: pendulum_parameters, law_thermoviscoelastic, law_thermoelastic, law_elastic, spring_law_names
 
   !> The rungs of the ladder (docs/formulation.md section 9), `spring_law`'s values.
   character(len=*), parameter :: law_thermoviscoelastic = 'thermoviscoelastic'
   character(len=*), parameter :: law_thermoelastic = 'thermoelastic'
-  character(len=*), parameter :: spring_law_names = law_thermoviscoelastic//' '//law_thermoelastic
+  character(len=*), parameter :: law_elastic = 'elastic'
+  character(len=*), parameter :: spring_law_names = law_thermoviscoelastic//' '//law_thermoelastic//' '//law_elastic
 
   !> Table 1 of the paper, in SI units (docs/formulation.md section 1: treat all values as plain SI numbers).
   type :: pendulum_parameters
-    character(len=24) :: spring_law = law_thermoviscoelastic        !! the rung: with or without the viscous branch
+    character(len=24) :: spring_law = law_thermoviscoelastic        !! the rung: elastic, thermoelastic or thermoviscoelastic
     integer :: dimension = 3                                          !! 3: spatial; 2: planar, y vertical
     real(real64) :: mass(2) = [1.0_real64, 1.0_real64]                !! m_a [kg]
     real(real64) :: natural_length(2) = [1.5_real64, 2.0_real64]      !! lambda_a^0 [m]
@@ -31,6 +32,7 @@ module model_parameters
     real(real64) :: gravity(3) = [0.0_real64, 0.0_real64, -9.81_real64] !! g [m/s^2]
   contains
     procedure :: viscous
+    procedure :: thermal
   end type pendulum_parameters
 
 contains
@@ -41,5 +43,12 @@ contains
 
     viscous = self%spring_law == law_thermoviscoelastic
   end function viscous
+
+  !> True for the thermal laws: each spring has a thermodynamic variable and a temperature.
+  pure logical function thermal(self)
+    class(pendulum_parameters), intent(in) :: self
+
+    thermal = self%spring_law /= law_elastic
+  end function thermal
 
 end module model_parameters

@@ -8,6 +8,7 @@ module pendulum_model
   use model_parameters, only: pendulum_parameters
   use free_energy, only: spring_law_of, viscosity
   use thermo_variable, only: spring_potential
+  use elastic_potential, only: elastic_spring, make_elastic_spring
   use model_interface, only: generic_model
   use double_pendulum, only: pendulum_layout, make_layout, tau_symbols, inverse_mass_times, cross
   use pendulum_vector_field, only: vector_field
@@ -46,7 +47,7 @@ contains
     integer :: a
 
     model%params = params
-    model%layout = make_layout(params%dimension, params%viscous())
+    model%layout = make_layout(params%dimension, params%viscous(), params%thermal())
     model%thermo_variable = variable
     model%state_size = model%layout%state_size
     allocate (model%column_names(model%state_size))
@@ -76,15 +77,24 @@ contains
       model%spring(a)%n_invariants = model%layout%invariant_count(a)
       associate (part => model%subsystems(a))
         part%name = 'spring '//achar(iachar('0') + a)
-        allocate (part%potentials, source=model%spring(a))
         part%invariant_count = model%layout%invariant_count(a)
         part%columns = model%layout%spring_columns(a)
         part%tau_column = model%layout%tau(a)
-        ! s_1, theta_1, u_1: spelt as /temperature's columns theta_1 theta_2 (docs/output.md).
-        model%column_names(model%layout%tau(a)) = trim(tau_symbols(variable))//'_'//achar(iachar('0') + a)
-        part%metric_scale = model%spring(a)%metric_scale()
+        if (params%thermal()) then
+          allocate (part%potentials, source=model%spring(a))
+          ! s_1, theta_1, u_1: spelt as /temperature's columns theta_1 theta_2 (docs/output.md).
+          model%column_names(model%layout%tau(a)) = trim(tau_symbols(variable))//'_'//achar(iachar('0') + a)
+          part%metric_scale = model%spring(a)%metric_scale()
+        else
+          allocate (part%potentials, source=make_elastic_spring(params, a))
+          part%metric_scale = [params%natural_length(a)**2]
+        end if
       end associate
     end do
+    if (.not. params%thermal()) then
+      model%words%energy = 'total energy E = T + V_g + W_1 + W_2'
+      model%words%metric_scales = 'C by (l^0)^2'
+    end if
   end function make_pendulum
 
   !> The units of z's columns: m, N s, m (gamma), and tau_a's in the model's variable.
@@ -181,8 +191,9 @@ contains
     real(real64) :: k0(self%state_size, self%state_size)
     real(real64) :: theta(2), conduction
 
-    theta = self%partials_temperatures(partials)
     k0 = 0.0_real64
+    if (.not. self%layout%thermal) return      ! elastic springs: no dissipation
+    theta = self%partials_temperatures(partials)
     if (self%layout%viscous) k0(self%layout%gamma, self%layout%gamma) = theta(2)/viscosity(self%params, theta(2))
     conduction = self%params%conductivity*theta(1)*theta(2)
     k0(self%layout%tau, self%layout%tau) = reshape([conduction, -conduction, -conduction, conduction], [2, 2])
@@ -268,6 +279,8 @@ contains
       z(layout%p(1:d, 1)) = p1
       z(layout%p(1:d, 2)) = p2
       if (layout%viscous) z(layout%gamma) = gamma
+      stat = 0
+      if (.not. layout%thermal) return
       z(layout%tau) = 0.0_real64
       do a = 1, 2
         n = layout%invariant_count(a)

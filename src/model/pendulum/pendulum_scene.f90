@@ -26,6 +26,9 @@ module pendulum_scene
   !> &model's fields of the viscous branch, which the thermoelastic law does not have.
   character(len=*), parameter :: viscous_model_fields(5) = [character(len=24) :: 'mu_neq_const', 'mu_neq_slope', &
                                                             'viscosity_const', 'viscosity_activation', 'beta_v']
+  !> &model's thermal fields, which the elastic law does not have.
+  character(len=*), parameter :: thermal_model_fields(5) = [character(len=24) :: 'mu_eq_slope', 'heat_capacity', &
+                                                            'conductivity', 'theta_ref', 'beta']
 
   !> The values of the three groups, in their namelist names.
   type, extends(scene) :: double_pendulum_scene
@@ -91,6 +94,7 @@ contains
       table(2)%required = norm2(self%q1)
       table(4)%check_equal = .true.
       table(4)%required = self%theta(1)
+      if (.not. self%params%thermal()) table = without(table, [character(len=24) :: 'fix_temperature', 'temperature'])
     case default
       allocate (table(0))
     end select
@@ -109,8 +113,10 @@ contains
     associate (p => self%params)
       table = [ &
         text_field('model_name', self%model_name, "the model: 'double_pendulum'", double_pendulum_name), &
-        text_field('spring_law', p%spring_law, "'thermoviscoelastic' (the paper's springs) or 'thermoelastic' "// &
-                   "(no viscous branch: no gamma, mu_neq_*, viscosity_* or beta_v)", spring_law_names), &
+        text_field('spring_law', p%spring_law, "'thermoviscoelastic' (the paper's springs), 'thermoelastic' "// &
+                   "(no viscous branch: no gamma, mu_neq_*, viscosity_* or beta_v) or 'elastic' (no thermal "// &
+                   "variables either: springs of stiffness mu_eq_const; no theta, mu_eq_slope, heat_capacity, "// &
+                   "conductivity, theta_ref, beta or fix_temperature)", spring_law_names), &
         integer_field('dimension', p%dimension, '3 (spatial) or 2 (planar, y vertical: q1, q2, p1, p2 and '// &
                       'gravity take two values; gravity defaults to 0, -9.81)', minimum=2, maximum=3), &
         reals_field('mass', p%mass, 'two real numbers > 0 [kg]', 'kg', minimum=0.0_real64, exclusive=.true.), &
@@ -137,6 +143,7 @@ contains
         real_field('beta_v', p%beta_v, 'a real number >= 0 (thermoviscoelastic)', '1', minimum=0.0_real64), &
         reals_field('gravity', p%gravity(1:d), vector_text(d, '[m/s^2]'), 'm/s^2', open_length=every_part)]
       if (.not. (every_part .or. p%viscous())) table = without(table, viscous_model_fields)
+      if (.not. (every_part .or. p%thermal())) table = without(table, thermal_model_fields)
     end associate
   end function model_fields
 
@@ -160,6 +167,7 @@ contains
                                        'no bound where mu_eq_slope = 0)', &
                                        'K', minimum=0.0_real64, exclusive=.true.))]
     if (.not. (every_part .or. self%params%viscous())) table = without(table, [character(len=24) :: 'gamma'])
+    if (.not. (every_part .or. self%params%thermal())) table = without(table, [character(len=24) :: 'theta'])
   end function initial_fields
 
   ! The table without the fields called `names` (a loop: gfortran 12 mishandles array
@@ -228,11 +236,14 @@ contains
     if (stat /= 0) return
     call read_group(text, 'initial', initial_table, origin, stat, message, extra)
     if (stat /= 0) return
+    call refuse_other_parts(self, text, 'constraints', probe%fields('constraints'), &
+                            self%fields('constraints'), origin, extra, stat, message)
+    if (stat /= 0) return
     ! mu^eq_a(theta_a) of eq. (17) at t = 0: a spring with no stiffness has no equilibrium.
     associate (p => self%params)
       stiffness = p%mu_eq_const - p%mu_eq_slope*(self%theta - p%theta_ref)
     end associate
-    if (any(stiffness <= 0.0_real64)) then
+    if (self%params%thermal() .and. any(stiffness <= 0.0_real64)) then
       stat = 1
       message = invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), 'initial', &
                                       initial_table(findloc(initial_table%name, 'theta', dim=1)))// &
@@ -265,7 +276,9 @@ contains
       if (any(field_names(scene_fields) == name) .or. .not. any(field_names(every_field) == name)) cycle
       stat = 1
       message = items(i)%origin//': &'//group//': '//name//' is not a field of spring_law = '''// &
-                trim(self%params%spring_law)//''' (it has no viscous branch); allowed: '// &
+                trim(self%params%spring_law)//''' ('//trim(merge('it has no viscous branch    ', &
+                                                                  'elastic springs have no heat', &
+                                                                  self%params%thermal()))//'); allowed: '// &
                 names_list(scene_fields)
       return
     end do

@@ -47,7 +47,8 @@ contains
     p = layout%momenta(z)
     v = inverse_mass_times(params, p)
     force = layout%gravity_force(params)
-    theta = [(partials(tau_slot(a), potential_u, a)/partials(tau_slot(a), potential_s, a), a=1, 2)]
+    theta = 0.0_real64                 ! elastic springs: S = 0, no temperature
+    if (layout%thermal) theta = [(partials(tau_slot(a), potential_u, a)/partials(tau_slot(a), potential_s, a), a=1, 2)]
     inverse_mass = reshape([1.0_real64, -1.0_real64, -1.0_real64, &
                             (params%mass(1) + params%mass(2))/params%mass(2)], [2, 2])/params%mass(1)
 
@@ -71,9 +72,9 @@ contains
         work_rate(a) = dot_product(q, v(:, a))
         f(layout%q(1:d, a)) = v(:, a)
         f(layout%p(1:d, a)) = force(:, a) - 2.0_real64*thermal_force(a)*q
-        f(layout%tau(a)) = -2.0_real64*partials(slot_c, potential_s, a)*work_rate(a) &
-                           /partials(tau_slot(a), potential_s, a) &
-                           + params%conductivity*(theta(b) - theta(a))/partials(tau_slot(a), potential_u, a)
+        if (layout%thermal) f(layout%tau(a)) = -2.0_real64*partials(slot_c, potential_s, a)*work_rate(a) &
+                                               /partials(tau_slot(a), potential_s, a) &
+                                               + params%conductivity*(theta(b) - theta(a))/partials(tau_slot(a), potential_u, a)
       end associate
     end do
     if (layout%viscous) then
@@ -88,6 +89,7 @@ contains
           do i = 1, d
             df_dz(layout%q(i, a), layout%p(i, b)) = inverse_mass(a, b)
           end do
+          if (.not. layout%thermal) cycle
           ! d(q_a . v_a)/dp_b = q_a m^-1_ab
           df_dz(layout%tau(a), layout%p(1:d, b)) = -2.0_real64*partials(slot_c, potential_s, a) &
             /partials(tau_slot(a), potential_s, a)*inverse_mass(a, b)*z(layout%q(1:d, a))
@@ -95,7 +97,7 @@ contains
         do i = 1, d
           df_dz(layout%p(i, a), layout%q(i, a)) = -2.0_real64*thermal_force(a)
         end do
-        df_dz(layout%tau(a), layout%q(1:d, a)) = -2.0_real64*partials(slot_c, potential_s, a) &
+        if (layout%thermal) df_dz(layout%tau(a), layout%q(1:d, a)) = -2.0_real64*partials(slot_c, potential_s, a) &
                                                  /partials(tau_slot(a), potential_s, a)*v(:, a)
       end do
     end if
@@ -112,6 +114,7 @@ contains
           df_dpartials(p_rows, slot_c, potential_u, a) = -2.0_real64*q
           df_dpartials(p_rows, slot_c, potential_s, a) = 2.0_real64*theta(a)*q
           df_dtheta(p_rows, a) = 2.0_real64*s_c*q
+          if (.not. layout%thermal) cycle
           ! tau rows: reversible part and conduction
           df_dpartials(tau_row, slot_c, potential_s, a) = -2.0_real64*work_rate(a)/s_tau
           df_dpartials(tau_row, tau_slot(a), potential_s, a) = 2.0_real64*s_c*work_rate(a)/s_tau**2
@@ -129,7 +132,7 @@ contains
         df_dpartials(layout%gamma, slot_gamma, potential_u, 2) = -inv_eta
         df_dtheta(layout%gamma, 2) = drate_dtheta
       end if
-      call add_temperature_chain(partials, tau_slot, df_dtheta, df_dpartials)
+      if (layout%thermal) call add_temperature_chain(partials, tau_slot, df_dtheta, df_dpartials)
       if (layout%viscous) then
         ! tau_2 row's viscous heating -(U_gamma/U_tau2) rate_gamma: rate_gamma's full row, then own terms.
         do j = 1, 2
