@@ -208,7 +208,7 @@ def report(columns, counts, timed, repeats):
           f"instructions: callgrind, runs to t = {LONG:g} s minus runs to {SHORT:g} s, {steps} steps; time: "
           f"process wall and CPU of runs to t = {LONG_TIMED:g} s minus runs to {SHORT:g} s, medians of {repeats} "
           f"repeats, the scenes rotated; ratios to (a), of time the medians of the per-repeat ratios):")
-    header = (f"  {'scene':<54} {'unknowns':>8} {'Newton/step':>11} {'instr/step':>11} {'/Newton':>8} "
+    header = (f"  {'scene':<62} {'unknowns':>8} {'Newton/step':>11} {'instr/step':>11} {'/Newton':>8} "
               f"{'process':>8} {'ratio':>6} {'wall us':>8} {'CPU us':>7} {'loop us':>8} {'/Newton':>8} "
               f"{'wall ratio':>10} {'CPU ratio':>9}")
     print(header)
@@ -218,7 +218,7 @@ def report(columns, counts, timed, repeats):
         run = timed[name]
         wall, cpu, loop, newton_timed = (median(run[key]) for key in ("wall", "cpu", "loop", "newton"))
         wall_ratio, cpu_ratio = median(run["wall_ratio"]), median(run["cpu_ratio"])
-        print(f"  {rung.label:<54} {len(columns[name]):>8} {count['newton']:>11.2f} {count['step']:>11,.0f} "
+        print(f"  {rung.label:<62} {len(columns[name]):>8} {count['newton']:>11.2f} {count['step']:>11,.0f} "
               f"{count['step'] / count['newton']:>8,.0f} {count['process']:>8,.0f} {count['step'] / full['step']:>6.3f} "
               f"{wall:>8.2f} {cpu:>7.2f} {loop:>8.2f} {wall / newton_timed:>8.2f} {wall_ratio:>10.3f} {cpu_ratio:>9.3f}")
         lines.append(f"rung={name} unknowns={len(columns[name])} newton_per_step={count['newton']:.3f} "
