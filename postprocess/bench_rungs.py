@@ -219,7 +219,8 @@ def report(columns, counts, timed, repeats):
         wall, cpu, loop, newton_timed = (median(run[key]) for key in ("wall", "cpu", "loop", "newton"))
         wall_ratio, cpu_ratio = median(run["wall_ratio"]), median(run["cpu_ratio"])
         print(f"  {rung.label:<62} {len(columns[name]):>8} {count['newton']:>11.2f} {count['step']:>11,.0f} "
-              f"{count['step'] / count['newton']:>8,.0f} {count['process']:>8,.0f} {count['step'] / full['step']:>6.3f} "
+              f"{count['step'] / count['newton']:>8,.0f} {count['process']:>8,.0f} "
+              f"{count['step'] / full['step']:>6.3f} "
               f"{wall:>8.2f} {cpu:>7.2f} {loop:>8.2f} {wall / newton_timed:>8.2f} {wall_ratio:>10.3f} {cpu_ratio:>9.3f}")
         lines.append(f"rung={name} unknowns={len(columns[name])} newton_per_step={count['newton']:.3f} "
                      f"step_instructions={count['step']:.0f} process_instructions={count['process']:.0f} "
