@@ -220,14 +220,15 @@ def report(columns, counts, timed, repeats):
         wall_ratio, cpu_ratio = median(run["wall_ratio"]), median(run["cpu_ratio"])
         print(f"  {rung.label:<62} {len(columns[name]):>8} {count['newton']:>11.2f} {count['step']:>11,.0f} "
               f"{count['step'] / count['newton']:>8,.0f} {count['process']:>8,.0f} "
-              f"{count['step'] / full['step']:>6.3f} "
-              f"{wall:>8.2f} {cpu:>7.2f} {loop:>8.2f} {wall / newton_timed:>8.2f} {wall_ratio:>10.3f} {cpu_ratio:>9.3f}")
+              f"{count['step'] / full['step']:>6.3f} {wall:>8.2f} {cpu:>7.2f} {loop:>8.2f} "
+              f"{wall / newton_timed:>8.2f} {wall_ratio:>10.3f} {cpu_ratio:>9.3f}")
         lines.append(f"rung={name} unknowns={len(columns[name])} newton_per_step={count['newton']:.3f} "
                      f"step_instructions={count['step']:.0f} process_instructions={count['process']:.0f} "
                      f"instructions_per_newton={count['step'] / count['newton']:.0f} "
                      f"instructions_over_full={count['step'] / full['step']:.3f} "
                      f"process_instructions_over_full={count['process'] / full['process']:.3f} "
-                     f"timed_newton_per_step={newton_timed:.3f} wall_us_per_step={wall:.3f} cpu_us_per_step={cpu:.3f} "
+                     f"timed_newton_per_step={newton_timed:.3f} wall_us_per_step={wall:.3f} "
+                     f"cpu_us_per_step={cpu:.3f} "
                      f"loop_us_per_step={loop:.3f} wall_over_full={wall_ratio:.3f} cpu_over_full={cpu_ratio:.3f}")
     print("  (instr/step: the stepper's advance; process: the whole eme_run per step; Newton/step over the "
           f"instruction counts' {steps} steps; us per Newton iteration at the timed runs' Newton/step)")
