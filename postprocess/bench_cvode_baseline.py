@@ -146,11 +146,12 @@ def instructions(bin_dir, folder):
     load.report("bench_cvode_baseline.py")
 
 
-def wall_and_cpu(command):
-    """The process's wall time and CPU time (user and system), s (ProgramFailed if it fails)."""
+def wall_and_cpu(command, env=None):
+    """The process's wall time and CPU time (user and system), s (ProgramFailed if it fails); in
+    environment `env`, else this one's."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    run_program(command)
+    run_program(command, env=env)
     elapsed = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return elapsed, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
