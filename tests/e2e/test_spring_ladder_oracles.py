@@ -28,7 +28,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import read_run, run_eme
+from conftest import ROOT, read_namelist, read_run, run_eme
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "oracles"))
 import spring_ladder as oracle  # noqa: E402
@@ -113,6 +113,25 @@ def test_the_dataset_convention_gives_the_projects_momenta():
     got = oracle.kinetic_and_gravity(oracle.ROMERO, q1, q2, p1, p2)
     assert abs(got - expected) < 1e-15 * expected, (got, expected)
     np.testing.assert_allclose(q1 + q2, x2)
+
+
+@pytest.mark.parametrize("name, scene, initial, law", [
+    ("romero_thermoelastic", oracle.ROMERO, oracle.ROMERO_INITIAL, "thermoelastic"),
+    ("gonzalez_elastic", oracle.GONZALEZ, oracle.GONZALEZ_INITIAL, "elastic")])
+def test_the_published_inputs_state_the_oracles_scenes(name, scene, initial, law):
+    """inputs/NAME.nml gives the scene the oracle integrates, number for number: its law, planar,
+    and every parameter and initial value the rung has (and none it lacks)."""
+    groups = read_namelist(ROOT / "inputs" / f"{name}.nml")
+    model, start = groups["model"], groups["initial"]
+    assert (model.pop("spring_law"), model.pop("dimension")) == (law, 2)
+    expected = {"mass": list(scene.mass), "natural_length": list(scene.natural_length),
+                "mu_eq_const": list(scene.mu_eq_const), "gravity": list(scene.gravity)}
+    if law == "thermoelastic":
+        expected.update(mu_eq_slope=list(scene.mu_eq_slope), beta=scene.beta,
+                        heat_capacity=list(scene.heat_capacity), theta_ref=scene.theta_ref,
+                        conductivity=scene.conductivity)
+    assert model == expected, (model, expected)
+    assert start == initial, (start, initial)
 
 
 # ---------------------------------------------------------------- against today's full model
