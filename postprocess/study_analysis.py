@@ -179,9 +179,12 @@ class FinalPoint:
 
 def final_point(path):
     """The last point of a run file, columns found through the `columns` attributes. Temperatures
-    in K are scaled by the root attribute theta_ref; a nondimensional model's (units 1) by 1."""
-    run = read_run(path, ["state", "temperature"])
-    if run.units.get("temperature") == "1":
+    in K are scaled by the root attribute theta_ref; a nondimensional model's (units 1) by 1; a run
+    without temperatures (elastic springs) has none and needs no theta_ref."""
+    run = read_run(path, ["state"], optional=["temperature"])
+    if not run.has("temperature"):
+        theta_ref = 1.0
+    elif run.units.get("temperature") == "1":
         theta_ref = 1.0
     elif "theta_ref" in run.attrs:
         theta_ref = float(run.attrs["theta_ref"])
@@ -191,7 +194,8 @@ def final_point(path):
         raise RunFileError(f"{path}: dataset /state has no column names: its 'columns' attribute is missing")
     columns = tuple(name for name in run.columns["state"] if not THERMODYNAMIC_COLUMN.fullmatch(name))
     mechanical = np.array([run.column("state", name)[-1] for name in columns])
-    temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS])
+    temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS
+                             if run.has("temperature")])
     return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures, theta_ref, columns)
 
 
@@ -209,7 +213,11 @@ def state_error(point, reference):
                          f"{reference.path} has {' '.join(reference.columns)}: not the same model")
     mine = point.mechanical[[point.columns.index(name) for name in reference.columns]]
     mechanical = np.max(np.abs(mine - reference.mechanical))
-    thermal = np.max(np.abs(point.temperatures - reference.temperatures)) / reference.theta_ref
+    if point.temperatures.size != reference.temperatures.size:
+        raise StudyError(f"{point.path}: {point.temperatures.size} temperatures, the reference "
+                         f"{reference.path} has {reference.temperatures.size}: not the same model")
+    thermal = (np.max(np.abs(point.temperatures - reference.temperatures)) / reference.theta_ref
+               if point.temperatures.size else 0.0)
     return float(max(mechanical, thermal))
 
 
@@ -330,9 +338,17 @@ def classify(status, energy_drift, max_lyapunov_increment, positive_temperatures
     return ("lyapunov" if lyapunov_rose else "kept"), ""
 
 
+def without_temperatures(row):
+    """True for a study of elastic springs (its case_1_input's spring_law): no temperatures to
+    check and no V beside E (V = E), so its cells are judged by the energy alone."""
+    return bool(re.search(r"^\s*spring_law\s*=\s*'elastic'", row.get("case_1_input", ""),
+                          flags=re.MULTILINE | re.IGNORECASE))
+
+
 def stability_map(rows, nondimensional=False):
     """Outcome grid of one stability study: rows = schemes, columns = dt (-1 where not run); a
-    nondimensional model's (units 1) says so."""
+    nondimensional model's (units 1) says so. A study of elastic springs has no temperatures to
+    check and no V of its own: its lyapunov figures, NaN in the index, are not held against it."""
     keys = curve_keys(rows)
     steps = sorted({row["dt"] for row in rows})
     outcome = np.full((len(keys), len(steps)), -1, dtype=int)
@@ -351,11 +367,15 @@ def stability_map(rows, nondimensional=False):
                              f"{plain_name(*keys[i])} at dt = {row['dt']:g} s")
         positive = True
         halved[i, j] = row["halved_steps"]
-        if row["status"] == "complete":
+        mechanical = without_temperatures(row)
+        if row["status"] == "complete" and not mechanical:
             positive = temperatures_positive(row["min_temperature"])
             positive_grid[i, j] = int(positive)
             checked += 1
-        name, flag = classify(row["status"], row["energy_drift"], row["max_lyapunov_increment"], positive)
+        lyapunov_increment = row["max_lyapunov_increment"]
+        if mechanical and not np.isfinite(lyapunov_increment):
+            lyapunov_increment = 0.0            # V = E: the energy error decides
+        name, flag = classify(row["status"], row["energy_drift"], lyapunov_increment, positive)
         outcome[i, j], flags[i, j], case[i, j] = OUTCOMES.index(name), flag, row["case"]
         status[i, j], energy[i, j], lyapunov[i, j] = (row["status"], row["energy_drift"],
                                                       row["max_lyapunov_increment"])
