@@ -88,6 +88,9 @@ class ModelStudies:
     nondimensional: bool
     error_norm: str
     norm_label: str
+    # Scenes drawn when their study is there (scene: study): the spring ladder's published scenes
+    # (issue 32), whose studies need an eme_run with &model spring_law.
+    optional_scenes: tuple = ()
 
 
 MODELS = {
@@ -96,7 +99,8 @@ MODELS = {
         scenes={"paper": "stability_paper", "hard": "stability_hard"}, summary_group="work_precision",
         finding_tag="", nondimensional=False,
         error_norm="max(|q, p, gamma - reference| [SI], |theta_a - reference|/theta_ref)",
-        norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, |$\Delta\theta_a$|/$\theta_{ref}$)"),
+        norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, |$\Delta\theta_a$|/$\theta_{ref}$)",
+        optional_scenes=(("gonzalez", "stability_gonzalez_elastic"), ("romero", "stability_romero_thermoelastic"))),
     # Nondimensional (its units are 1, its temperatures compared unscaled), no momenta (its
     # angular_momentum_drift is NaN).
     "gas": ModelStudies(
@@ -108,10 +112,12 @@ MODELS = {
 }
 # The pendulum's own charts: convergence, structure against cost (of its paper scene), the harder set.
 STRUCTURE_SCENE = "paper"
-SCENES = {scene: study for model in MODELS.values() for scene, study in model.scenes.items()}
+SCENES = {scene: study for model in MODELS.values()
+          for scene, study in (*model.scenes.items(), *model.optional_scenes)}
 STUDIES = ("convergence", "convergence_reference",
            *(study for model in MODELS.values() for study in (*model.work_precision, model.reference)),
-           *SCENES.values(), *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
+           *(study for model in MODELS.values() for study in model.scenes.values()),
+           *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
                                for kind in ("", "_tolerance")))
 INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
                 "solve_time_seconds", "energy_drift", "min_entropy_increment",
@@ -673,6 +679,14 @@ def stability_findings(maps):
     return lines
 
 
+def stability_scenes(study_dir, model):
+    """(scene, study folder) pairs of a model's stability map: its scenes, then its optional scenes
+    whose study index is in study_dir (the spring ladder's, once issue 32's eme_run made them)."""
+    return [*MODELS[model].scenes.items(),
+            *((scene, folder) for scene, folder in MODELS[model].optional_scenes
+              if (Path(study_dir) / folder / "index.h5").exists())]
+
+
 def analyse(study_dir, models):
     """(conv, wps, structure, maps, sets) of the chosen models' studies: the convergence study, the
     work precision of each model ({model: result}), structure against cost, the stability map's
@@ -684,7 +698,7 @@ def analyse(study_dir, models):
     wps = {model: work_precision(study_dir, model) for model in models}
     structure = structure_cost(read_index(study_dir / SCENES[STRUCTURE_SCENE])) if pendulum else None
     maps = {scene: stability_map(read_index(study_dir / folder), MODELS[model].nondimensional)
-            for model in models for scene, folder in MODELS[model].scenes.items()}
+            for model in models for scene, folder in stability_scenes(study_dir, model)}
     sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive) if pendulum else None
     return conv, wps, structure, maps, sets
 

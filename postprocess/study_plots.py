@@ -37,7 +37,8 @@ OUTCOME_TEXT = {
 OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442",
                    "solver": "#56B4E9", "nonphysical": "#303030"}
 NOT_RUN_COLOUR = "white"
-SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas containers"}
+SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas containers",
+                "gonzalez": "elastic scene", "romero": "Romero's thermoelastic scene"}
 # The stability map's rows [in]: the scenes side by side, so that the map fits a page.
 MAP_ROW_HEIGHT = 0.2
 

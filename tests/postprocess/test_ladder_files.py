@@ -201,3 +201,15 @@ def test_stability_cells_of_elastic_springs_need_no_temperature(tmp_path):
     assert grid["temperatures_checked"] == 0
     label = study_plots.integrators.label("eme")
     assert (study_plots.plain_name("eme", "none"), study_plots.plain_name("eme", "entropy")) == (label, f"{label}_s")
+
+
+def test_the_ladders_stability_scenes_join_the_map_when_their_studies_exist(tmp_path):
+    """The pendulum's map: paper and harder scene always; the elastic and Romero's scenes once
+    make study has their indexes (stability_gonzalez_elastic, stability_romero_thermoelastic)."""
+    assert [scene for scene, _ in study_analysis.stability_scenes(tmp_path, "pendulum")] == ["paper", "hard"]
+    for folder in ("stability_gonzalez_elastic", "stability_romero_thermoelastic"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "index.h5").write_bytes(b"")
+    scenes = study_analysis.stability_scenes(tmp_path, "pendulum")
+    assert scenes[2:] == [("gonzalez", "stability_gonzalez_elastic"), ("romero", "stability_romero_thermoelastic")]
+    assert all(scene in study_plots.SCENE_TITLES for scene, _ in scenes)
