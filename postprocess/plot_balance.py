@@ -57,10 +57,10 @@ def main(argv=None):
     parser = argument_parser(__doc__)
     add_compare_argument(parser)
     args = parse_arguments(parser, argv)
-    # E of every run; S and V where the run has them (not elastic springs).
-    optional = [name for name, _, _ in QUANTITIES[1:]]
-    runs = [read_run(path, ["energy"], optional=optional) for path in args.files]
-    compare = [read_run(path, ["energy"], optional=optional) for path in args.compare]
+    # E of every run; S and V of every run with thermal unknowns (not of elastic springs).
+    thermal = [name for name, _, _ in QUANTITIES[1:]]
+    runs = [read_run(path, ["energy"], thermal_datasets=thermal) for path in args.files]
+    compare = [read_run(path, ["energy"], thermal_datasets=thermal) for path in args.compare]
     apply_labels(parser, args.labels, [*runs, *compare])
     strided = [f"{run.path}: {run.rows_written} rows for {run.steps} steps (&output every or interval): its "
                "increments are between written points, not per step" for run in [*runs, *compare] if run.strided]

@@ -57,7 +57,7 @@ def make_figure(runs):
 
 def main(argv=None):
     args = parse_arguments(argument_parser(__doc__), argv)
-    runs = [read_run(path, ["energy"], CONSTRAINT_ATTRIBUTES, optional=["entropy", "lyapunov"]) for path in args.files]
+    runs = [read_run(path, ["energy"], CONSTRAINT_ATTRIBUTES, thermal_datasets=["entropy", "lyapunov"]) for path in args.files]
     return save(make_figure(runs), args.output, TITLE, runs)
 
 

@@ -227,7 +227,7 @@ def main(argv=None):
     parser.add_argument("--dpi", type=int, default=150,
                         help="animation resolution in pixels per inch of its 7-in width (default 150)")
     args = parse_arguments(parser, argv)
-    runs = [read_run(path, ["state"], optional=["temperature"]) for path in args.files]
+    runs = [read_run(path, ["state"], thermal_datasets=["temperature"]) for path in args.files]
     last = max(run.data["time"][-1] for run in runs)
     times = args.times if args.times else list(np.linspace(0.0, last, 4))
     if not any(snapshot_steps(run.data["time"], times)[0] for run in runs):

@@ -72,9 +72,10 @@ def main(argv=None):
     parser = argument_parser(__doc__)
     add_compare_argument(parser)
     args = parse_arguments(parser, argv)
-    optional = ["temperature", "angular_momentum"]
-    runs = [read_run(path, [], optional=optional) for path in args.files]
-    compare = [read_run(path, [], optional=optional) for path in args.compare]
+    # The temperatures of every run with thermal unknowns; the momenta where the scene has them.
+    runs = [read_run(path, [], optional=["angular_momentum"], thermal_datasets=["temperature"]) for path in args.files]
+    compare = [read_run(path, [], optional=["angular_momentum"], thermal_datasets=["temperature"])
+               for path in args.compare]
     apply_labels(parser, args.labels, [*runs, *compare])
     return save(make_figure(runs, compare), args.output, TITLE, [*runs, *compare])
 

@@ -187,7 +187,7 @@ def final_point(path):
     """The last point of a run file, columns found through the `columns` attributes. Temperatures
     in K are scaled by the root attribute theta_ref; a nondimensional model's (units 1) by 1; a run
     without temperatures (elastic springs) has none and needs no theta_ref."""
-    run = read_run(path, ["state"], optional=["temperature"])
+    run = read_run(path, ["state"], thermal_datasets=["temperature"])
     if not run.has("temperature"):
         theta_ref = 1.0
     elif run.units.get("temperature") == "1":

@@ -43,7 +43,9 @@ RUN_FIGURES = ("energy_drift", "min_entropy_increment", "max_lyapunov_increment"
 def read(path):
     """The datasets the table needs and every root attribute, cut to the steps they all hold."""
     with run_file(path) as f:
-        for name in (*POINT_DATASETS, *STEP_DATASETS):
+        # S and V belong to every file with thermal unknowns (not to elastic springs').
+        thermal_points = ("entropy", "lyapunov") if "temperature" in f else ()
+        for name in (*POINT_DATASETS, *thermal_points, *STEP_DATASETS):
             if name not in f:
                 raise RunFileError(f"{path}: dataset /{name} is missing; is this an eme_run file?")
         run = Run(Path(path), root_attributes(f))

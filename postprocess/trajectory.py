@@ -188,10 +188,12 @@ def thermal(handle):
     return "temperature" in handle
 
 
-def read_run(path, datasets, attributes=(), optional=()):
+def read_run(path, datasets, attributes=(), optional=(), thermal_datasets=()):
     """Reads the named datasets and every root attribute of a run file; `attributes` are required
-    besides IDENTITY_ATTRIBUTES; the `optional` datasets are read where the file has them (a rung
-    of the spring ladder may have no /temperature, /entropy, /lyapunov or /angular_momentum)."""
+    besides IDENTITY_ATTRIBUTES; the `optional` datasets are read where the file has them (a scene
+    may have no /angular_momentum), and the `thermal_datasets` are required of a file with thermal
+    unknowns (a /temperature) and absent from one without (elastic springs: no /temperature,
+    /entropy or /lyapunov)."""
     path = Path(path)
     with run_file(path) as handle:
         identity = [name for name in IDENTITY_ATTRIBUTES if name != "thermo_variable" or thermal(handle)]
@@ -209,6 +211,8 @@ def read_run(path, datasets, attributes=(), optional=()):
         if absent:
             run.problems.append("root attributes " + ", ".join(absent) + " missing")
         # /step says which steps the rows stand for (files of older versions may lack it).
+        if thermal(handle):
+            datasets = (*datasets, *thermal_datasets)
         wanted = ("time", *datasets, *(("step",) if "step" in handle and "step" not in datasets else ()),
                   *(name for name in optional if name in handle and name not in datasets))
         for name in wanted:
