@@ -331,9 +331,11 @@ $(FIGURES)/temperatures_jz.png: $(EME_FILES) $(MIDPOINT_FILES) postprocess/plot_
 HARD_SCENES := low_viscosity stiff_spring high_conductivity temperature_gap
 GAS_STUDIES := gas_work_precision gas_work_precision_adaptive gas_work_precision_step_control \
                gas_work_precision_reference gas_stability
+# The spring ladder's published scenes (issue 32): their stability maps beside the paper scene's.
+LADDER_STUDIES := stability_gonzalez_elastic stability_romero_thermoelastic
 STUDIES := convergence convergence_reference work_precision work_precision_adaptive work_precision_step_control \
            work_precision_reference stability_paper stability_hard \
-           $(foreach s,$(HARD_SCENES),stability_$(s) stability_$(s)_tolerance) $(GAS_STUDIES)
+           $(foreach s,$(HARD_SCENES),stability_$(s) stability_$(s)_tolerance) $(GAS_STUDIES) $(LADDER_STUDIES)
 MPIRUN := mpirun --allow-run-as-root --oversubscribe
 
 # Each study prints its start, a progress line every 2 s and its summary; the machine's load around

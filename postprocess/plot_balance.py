@@ -23,16 +23,23 @@ QUANTITIES = [("energy", "$E$ [J]", r"$E_{n+1}-E_n$ [J]"),
 
 
 def make_figure(runs, compare=()):
-    """Values (left) and increments (right) of E, S, V; `compare` runs are drawn dashed."""
-    fig, axes = plt.subplots(len(QUANTITIES), 2, figsize=(DOUBLE_COLUMN, 6.2), sharex=True)
+    """Values (left) and increments (right) of E, S, V; `compare` runs are drawn dashed. S and V
+    are drawn for the runs that have them (elastic springs have no entropy): a row only where
+    some run has its quantity."""
     drawn = styled_runs(runs, compare)
-    for row, (name, value_label, increment_label) in enumerate(QUANTITIES):
+    quantities = [quantity for quantity in QUANTITIES if any(run.has(quantity[0]) for run, _ in drawn)]
+    fig, axes = plt.subplots(len(quantities), 2, figsize=(DOUBLE_COLUMN, 6.2 * len(quantities) / len(QUANTITIES)
+                                                          + (0.6 if len(quantities) < len(QUANTITIES) else 0)),
+                             sharex=True, squeeze=False)
+    for row, (name, value_label, increment_label) in enumerate(quantities):
         values_ax, increments_ax = axes[row]
         for run, style in drawn:
+            if not run.has(name):
+                continue
             time, values = run.data["time"], run.data[name]
             plot_marked(values_ax, time, values, style, label=run.label)
             plot_points(increments_ax, time[1:], increments(values), style)
-        everything = [run for run, _ in drawn]
+        everything = [run for run, _ in drawn if run.has(name)]
         flat_aware_limits(values_ax, [r.data[name] for r in everything])
         increment_axis(increments_ax, [increments(r.data[name]) for r in everything])
         values_ax.set_ylabel(value_label)
@@ -50,9 +57,10 @@ def main(argv=None):
     parser = argument_parser(__doc__)
     add_compare_argument(parser)
     args = parse_arguments(parser, argv)
-    needed = [name for name, _, _ in QUANTITIES]
-    runs = [read_run(path, needed) for path in args.files]
-    compare = [read_run(path, needed) for path in args.compare]
+    # E of every run; S and V of every run with thermal unknowns (not of elastic springs).
+    thermal = [name for name, _, _ in QUANTITIES[1:]]
+    runs = [read_run(path, ["energy"], thermal_datasets=thermal) for path in args.files]
+    compare = [read_run(path, ["energy"], thermal_datasets=thermal) for path in args.compare]
     apply_labels(parser, args.labels, [*runs, *compare])
     strided = [f"{run.path}: {run.rows_written} rows for {run.steps} steps (&output every or interval): its "
                "increments are between written points, not per step" for run in [*runs, *compare] if run.strided]

@@ -35,12 +35,14 @@ def make_figure(runs):
                             linestyle=LINESTYLES[references.index(theta_r) % len(LINESTYLES)][0])
         time = run.data["time"]
         for (name, _), ax in zip(PANELS, axes.flat):
-            plot_marked(ax, time, run.data[name], style, label=label)
-        plot_points(axes[1, 1], time[1:], increments(run.data["lyapunov"]), style)
+            if run.has(name):         # elastic springs have no S and no V
+                plot_marked(ax, time, run.data[name], style, label=label)
+        if run.has("lyapunov"):
+            plot_points(axes[1, 1], time[1:], increments(run.data["lyapunov"]), style)
     for (_, label), ax in zip(PANELS, axes.flat):
         ax.set_ylabel(label)
         ax.ticklabel_format(axis="y", useOffset=False)
-    increment_axis(axes[1, 1], [increments(run.data["lyapunov"]) for run in runs])
+    increment_axis(axes[1, 1], [increments(run.data["lyapunov"]) for run in runs if run.has("lyapunov")])
     axes[1, 1].set_ylabel(r"$V_{n+1} - V_n$ [J]")
     if len(references) > 1:
         note = (r"$V$ of each run with its own $\theta_R$: "
@@ -55,7 +57,7 @@ def make_figure(runs):
 
 def main(argv=None):
     args = parse_arguments(argument_parser(__doc__), argv)
-    runs = [read_run(path, [name for name, _ in PANELS], CONSTRAINT_ATTRIBUTES) for path in args.files]
+    runs = [read_run(path, ["energy"], CONSTRAINT_ATTRIBUTES, thermal_datasets=["entropy", "lyapunov"]) for path in args.files]
     return save(make_figure(runs), args.output, TITLE, runs)
 
 

@@ -3,7 +3,10 @@
 Each snapshot shows the origin (support), the masses m1 at q1 and m2 at q1 + q2 (q2 is
 relative to m1) and the two springs coloured by their temperatures (a perceptually uniform
 map trimmed so that no temperature is drawn near-white, and a dark outline), in two
-projections: side view x-z (gravity points to -z) and top view x-y. One row pair per run file.
+projections: side view x-z (gravity points to -z) and top view x-y. One row pair per run file;
+a planar run (columns q1_x q1_y ..., y vertical) has one row, its plane x-y. Springs without
+temperatures (elastic springs, no /temperature) are drawn in one colour, and without any the
+figure has no colour bar.
 
 Animation (unless --no-animation): OUT_animation.mp4 with matplotlib's ffmpeg writer when
 ffmpeg is available (the imageio-ffmpeg wheel of postprocess/requirements.txt brings one, or
@@ -20,10 +23,13 @@ import numpy as np
 
 from plotting import (DOUBLE_COLUMN, argument_parser, output_stem, parse_arguments, plt, run_script,
                       save)
-from trajectory import mass_positions, read_run, snapshot_steps
+from trajectory import dimension, mass_positions, read_run, snapshot_steps
 
 TITLE = "Snapshots of the thermoviscoelastic double pendulum"
 PLANES = [((0, 2), "x [m]", "side view\nz [m]"), ((0, 1), "x [m]", "top view\ny [m]")]
+# A planar run's one plane (y vertical, gravity along -y).
+PLANAR_PLANES = [((0, 1), "x [m]", "plane\ny [m]")]
+PLAIN_SPRING_COLOUR = "0.35"
 # plasma without its light-yellow top: every temperature is drawn clearly darker than white.
 COLOUR_MAP = ListedColormap(matplotlib.colormaps["plasma"](np.linspace(0.0, 0.82, 256)), name="plasma_trimmed")
 SPRING_OUTLINE = [patheffects.Stroke(linewidth=4.2, foreground="0.15"), patheffects.Normal()]
@@ -44,9 +50,20 @@ def ffmpeg_available():
 
 
 def pendulum_points(run):
-    """Origin, m1 and m2 positions per step, (N+1, 3, 3)."""
+    """Origin, m1 and m2 positions per step, (N+1, 3, 3); a planar run's (x, y) with z = 0."""
     m1, m2 = mass_positions(run)
-    return np.stack([np.zeros_like(m1), m1, m2], axis=1)
+    points = np.stack([np.zeros_like(m1), m1, m2], axis=1)
+    return np.pad(points, ((0, 0), (0, 0), (0, 3 - points.shape[2])))
+
+
+def planes(run):
+    """The projections of a run's panels: side and top view, or a planar run's plane."""
+    return PLANES if dimension(run) == 3 else PLANAR_PLANES
+
+
+def temperatures_of(run):
+    """/temperature of a run, or None for springs without temperatures."""
+    return run.data.get("temperature")
 
 
 def view_limits(runs):
@@ -59,8 +76,12 @@ def view_limits(runs):
 
 
 def temperature_scale(runs):
-    """One colour scale for both springs of every run, so colours compare across panels."""
-    temperatures = np.concatenate([run.data["temperature"].ravel() for run in runs])
+    """One colour scale for both springs of every run, so colours compare across panels; None
+    when no run has temperatures."""
+    found = [run.data["temperature"].ravel() for run in runs if "temperature" in run.data]
+    if not found:
+        return None
+    temperatures = np.concatenate(found)
     return matplotlib.colors.Normalize(temperatures.min(), temperatures.max())
 
 
@@ -71,8 +92,8 @@ class PendulumView:
         (i, j), xlabel, ylabel = plane
         self.axes = (i, j)
         self.path, = ax.plot([], [], color=PATH_COLOUR, linewidth=0.6, zorder=1)
-        self.springs = LineCollection([], cmap=COLOUR_MAP, norm=norm, linewidths=2.8, zorder=2,
-                                      path_effects=SPRING_OUTLINE)
+        coloured = dict(cmap=COLOUR_MAP, norm=norm) if norm is not None else dict(colors=PLAIN_SPRING_COLOUR)
+        self.springs = LineCollection([], **coloured, linewidths=2.8, zorder=2, path_effects=SPRING_OUTLINE)
         ax.add_collection(self.springs)
         self.masses, = ax.plot([], [], **MASS_STYLE, zorder=3)
         ax.plot([0], [0], **ORIGIN_STYLE, zorder=3)
@@ -87,46 +108,53 @@ class PendulumView:
         i, j = self.axes
         now = points[step][:, [i, j]]
         self.springs.set_segments([now[0:2], now[1:3]])
-        self.springs.set_array(np.asarray(temperatures[step]))
+        if temperatures is not None:
+            self.springs.set_array(np.asarray(temperatures[step]))
+        else:
+            self.springs.set_color(PLAIN_SPRING_COLOUR)
         self.masses.set_data(now[1:, 0], now[1:, 1])
         self.path.set_data(points[: step + 1, 2, i], points[: step + 1, 2, j])
 
 
-def legend_handles():
+def legend_handles(coloured=True):
     """What the markers and lines of a panel are (the springs' colours have the colour bar)."""
     return [Line2D([], [], **ORIGIN_STYLE, label="origin (support)"),
             Line2D([], [], **MASS_STYLE, label="masses $m_1$ at $q_1$, $m_2$ at $q_1 + q_2$"),
             Line2D([], [], color=PATH_COLOUR, linewidth=0.6, label="path of $m_2$ so far"),
-            Line2D([], [], color=COLOUR_MAP(0.5), linewidth=2.8, path_effects=SPRING_OUTLINE,
-                   label="springs, coloured by temperature")]
+            Line2D([], [], color=COLOUR_MAP(0.5) if coloured else PLAIN_SPRING_COLOUR, linewidth=2.8,
+                   path_effects=SPRING_OUTLINE,
+                   label="springs, coloured by temperature" if coloured else "springs (no temperatures)")]
 
 
 def finish_figure(fig, axes, norm):
-    """Colour bar and the legend of markers and lines."""
-    colour_bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes, shrink=0.8,
-                              aspect=25)
-    colour_bar.set_label(r"spring temperature $\theta_a$ [K]")
-    fig.legend(handles=legend_handles(), loc="outside lower center", ncols=2)
+    """Colour bar (when some run has temperatures) and the legend of markers and lines."""
+    if norm is not None:
+        colour_bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes, shrink=0.8,
+                                  aspect=25)
+        colour_bar.set_label(r"spring temperature $\theta_a$ [K]")
+    fig.legend(handles=legend_handles(norm is not None), loc="outside lower center", ncols=2)
 
 
 def make_figure(runs, times):
-    """Snapshot columns (one per time) and, per run, a side-view and a top-view row."""
+    """Snapshot columns (one per time) and, per run, a side-view and a top-view row (a planar
+    run: one row, its plane)."""
     limits, norm = view_limits(runs), temperature_scale(runs)
     selections = [snapshot_steps(run.data["time"], times) for run in runs]
     columns = max(len(steps) for steps, _ in selections)
     if columns == 0:
         raise ValueError(f"no requested time {list(times)} lies within any run")
     panel = (DOUBLE_COLUMN - 0.9) / max(columns, 3)
-    fig, axes = plt.subplots(2 * len(runs), columns, figsize=(DOUBLE_COLUMN, 2 * len(runs) * panel + 1.1),
+    first_rows = np.cumsum([0] + [len(planes(run)) for run in runs])
+    fig, axes = plt.subplots(first_rows[-1], columns, figsize=(DOUBLE_COLUMN, first_rows[-1] * panel + 1.1),
                              squeeze=False, sharex="col", sharey="row")
     for r, (run, (steps, dropped)) in enumerate(zip(runs, selections)):
         if dropped:
             print(f"{run.path}: times {dropped} s lie past its last step "
                   f"t = {run.data['time'][-1]:g} s and are left out")
-        points, temperatures = pendulum_points(run), run.data["temperature"]
+        points, temperatures = pendulum_points(run), temperatures_of(run)
         for c in range(columns):
-            for p, plane in enumerate(PLANES):
-                ax = axes[2 * r + p, c]
+            for p, plane in enumerate(planes(run)):
+                ax = axes[first_rows[r] + p, c]
                 view = PendulumView(ax, plane, limits, norm)
                 ax.label_outer()  # the panels share their scales: labels on the outer ones
                 if c >= len(steps):
@@ -158,7 +186,9 @@ def write_animation(runs, output, max_frames, dpi):
                              sharex=True)
     panels = []
     for run, row in zip(runs, axes):
-        views = [PendulumView(ax, plane, limits, norm) for ax, plane in zip(row, PLANES)]
+        views = [PendulumView(ax, plane, limits, norm) for ax, plane in zip(row, planes(run))]
+        for ax in row[len(views):]:
+            ax.set_visible(False)        # a planar run has one plane
         panels.append((run, pendulum_points(run), views, row[0].set_title("", loc="left")))
     finish_figure(fig, axes, norm)
 
@@ -167,7 +197,7 @@ def write_animation(runs, output, max_frames, dpi):
             # The last completed step at or before t: an incomplete run stops at its last step.
             step = int(np.searchsorted(run.data["time"], t + 1e-9 * smallest_dt, side="right")) - 1
             for view in views:
-                view.show(points, run.data["temperature"], step)
+                view.show(points, temperatures_of(run), step)
             title.set_text(f"{run.label}: $t_n$ = {run.data['time'][step]:.2f} s")
 
     suffix, writer = animation_writer()
@@ -197,7 +227,7 @@ def main(argv=None):
     parser.add_argument("--dpi", type=int, default=150,
                         help="animation resolution in pixels per inch of its 7-in width (default 150)")
     args = parse_arguments(parser, argv)
-    runs = [read_run(path, ["state", "temperature"]) for path in args.files]
+    runs = [read_run(path, ["state"], thermal_datasets=["temperature"]) for path in args.files]
     last = max(run.data["time"][-1] for run in runs)
     times = args.times if args.times else list(np.linspace(0.0, last, 4))
     if not any(snapshot_steps(run.data["time"], times)[0] for run in runs):

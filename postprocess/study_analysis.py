@@ -88,6 +88,9 @@ class ModelStudies:
     nondimensional: bool
     error_norm: str
     norm_label: str
+    # Scenes drawn when their study is there (scene: study): the spring ladder's published scenes
+    # (issue 32), whose studies need an eme_run with &model spring_law.
+    optional_scenes: tuple = ()
 
 
 MODELS = {
@@ -96,7 +99,8 @@ MODELS = {
         scenes={"paper": "stability_paper", "hard": "stability_hard"}, summary_group="work_precision",
         finding_tag="", nondimensional=False,
         error_norm="max(|q, p, gamma - reference| [SI], |theta_a - reference|/theta_ref)",
-        norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, |$\Delta\theta_a$|/$\theta_{ref}$)"),
+        norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, |$\Delta\theta_a$|/$\theta_{ref}$)",
+        optional_scenes=(("gonzalez", "stability_gonzalez_elastic"), ("romero", "stability_romero_thermoelastic"))),
     # Nondimensional (its units are 1, its temperatures compared unscaled), no momenta (its
     # angular_momentum_drift is NaN).
     "gas": ModelStudies(
@@ -108,10 +112,12 @@ MODELS = {
 }
 # The pendulum's own charts: convergence, structure against cost (of its paper scene), the harder set.
 STRUCTURE_SCENE = "paper"
-SCENES = {scene: study for model in MODELS.values() for scene, study in model.scenes.items()}
+SCENES = {scene: study for model in MODELS.values()
+          for scene, study in (*model.scenes.items(), *model.optional_scenes)}
 STUDIES = ("convergence", "convergence_reference",
            *(study for model in MODELS.values() for study in (*model.work_precision, model.reference)),
-           *SCENES.values(), *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
+           *(study for model in MODELS.values() for study in model.scenes.values()),
+           *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
                                for kind in ("", "_tolerance")))
 INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
                 "solve_time_seconds", "energy_drift", "min_entropy_increment",
@@ -179,9 +185,12 @@ class FinalPoint:
 
 def final_point(path):
     """The last point of a run file, columns found through the `columns` attributes. Temperatures
-    in K are scaled by the root attribute theta_ref; a nondimensional model's (units 1) by 1."""
-    run = read_run(path, ["state", "temperature"])
-    if run.units.get("temperature") == "1":
+    in K are scaled by the root attribute theta_ref; a nondimensional model's (units 1) by 1; a run
+    without temperatures (elastic springs) has none and needs no theta_ref."""
+    run = read_run(path, ["state"], thermal_datasets=["temperature"])
+    if not run.has("temperature"):
+        theta_ref = 1.0
+    elif run.units.get("temperature") == "1":
         theta_ref = 1.0
     elif "theta_ref" in run.attrs:
         theta_ref = float(run.attrs["theta_ref"])
@@ -191,7 +200,8 @@ def final_point(path):
         raise RunFileError(f"{path}: dataset /state has no column names: its 'columns' attribute is missing")
     columns = tuple(name for name in run.columns["state"] if not THERMODYNAMIC_COLUMN.fullmatch(name))
     mechanical = np.array([run.column("state", name)[-1] for name in columns])
-    temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS])
+    temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS
+                             if run.has("temperature")])
     return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures, theta_ref, columns)
 
 
@@ -209,7 +219,11 @@ def state_error(point, reference):
                          f"{reference.path} has {' '.join(reference.columns)}: not the same model")
     mine = point.mechanical[[point.columns.index(name) for name in reference.columns]]
     mechanical = np.max(np.abs(mine - reference.mechanical))
-    thermal = np.max(np.abs(point.temperatures - reference.temperatures)) / reference.theta_ref
+    if point.temperatures.size != reference.temperatures.size:
+        raise StudyError(f"{point.path}: {point.temperatures.size} temperatures, the reference "
+                         f"{reference.path} has {reference.temperatures.size}: not the same model")
+    thermal = (np.max(np.abs(point.temperatures - reference.temperatures)) / reference.theta_ref
+               if point.temperatures.size else 0.0)
     return float(max(mechanical, thermal))
 
 
@@ -330,9 +344,17 @@ def classify(status, energy_drift, max_lyapunov_increment, positive_temperatures
     return ("lyapunov" if lyapunov_rose else "kept"), ""
 
 
+def without_temperatures(row):
+    """True for a study of elastic springs (its case_1_input's spring_law): no temperatures to
+    check and no V beside E (V = E), so its cells are judged by the energy alone."""
+    return bool(re.search(r"^\s*spring_law\s*=\s*'elastic'", row.get("case_1_input", ""),
+                          flags=re.MULTILINE | re.IGNORECASE))
+
+
 def stability_map(rows, nondimensional=False):
     """Outcome grid of one stability study: rows = schemes, columns = dt (-1 where not run); a
-    nondimensional model's (units 1) says so."""
+    nondimensional model's (units 1) says so. A study of elastic springs has no temperatures to
+    check and no V of its own: its lyapunov figures, NaN in the index, are not held against it."""
     keys = curve_keys(rows)
     steps = sorted({row["dt"] for row in rows})
     outcome = np.full((len(keys), len(steps)), -1, dtype=int)
@@ -351,11 +373,15 @@ def stability_map(rows, nondimensional=False):
                              f"{plain_name(*keys[i])} at dt = {row['dt']:g} s")
         positive = True
         halved[i, j] = row["halved_steps"]
-        if row["status"] == "complete":
+        mechanical = without_temperatures(row)
+        if row["status"] == "complete" and not mechanical:
             positive = temperatures_positive(row["min_temperature"])
             positive_grid[i, j] = int(positive)
             checked += 1
-        name, flag = classify(row["status"], row["energy_drift"], row["max_lyapunov_increment"], positive)
+        lyapunov_increment = row["max_lyapunov_increment"]
+        if mechanical and not np.isfinite(lyapunov_increment):
+            lyapunov_increment = 0.0            # V = E: the energy error decides
+        name, flag = classify(row["status"], row["energy_drift"], lyapunov_increment, positive)
         outcome[i, j], flags[i, j], case[i, j] = OUTCOMES.index(name), flag, row["case"]
         status[i, j], energy[i, j], lyapunov[i, j] = (row["status"], row["energy_drift"],
                                                       row["max_lyapunov_increment"])
@@ -653,6 +679,14 @@ def stability_findings(maps):
     return lines
 
 
+def stability_scenes(study_dir, model):
+    """(scene, study folder) pairs of a model's stability map: its scenes, then its optional scenes
+    whose study index is in study_dir (the spring ladder's, once issue 32's eme_run made them)."""
+    return [*MODELS[model].scenes.items(),
+            *((scene, folder) for scene, folder in MODELS[model].optional_scenes
+              if (Path(study_dir) / folder / "index.h5").exists())]
+
+
 def analyse(study_dir, models):
     """(conv, wps, structure, maps, sets) of the chosen models' studies: the convergence study, the
     work precision of each model ({model: result}), structure against cost, the stability map's
@@ -664,7 +698,7 @@ def analyse(study_dir, models):
     wps = {model: work_precision(study_dir, model) for model in models}
     structure = structure_cost(read_index(study_dir / SCENES[STRUCTURE_SCENE])) if pendulum else None
     maps = {scene: stability_map(read_index(study_dir / folder), MODELS[model].nondimensional)
-            for model in models for scene, folder in MODELS[model].scenes.items()}
+            for model in models for scene, folder in stability_scenes(study_dir, model)}
     sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive) if pendulum else None
     return conv, wps, structure, maps, sets
 

@@ -37,7 +37,8 @@ OUTCOME_TEXT = {
 OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442",
                    "solver": "#56B4E9", "nonphysical": "#303030"}
 NOT_RUN_COLOUR = "white"
-SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas containers"}
+SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas containers",
+                "gonzalez": "elastic scene", "romero": "Romero's thermoelastic scene"}
 # The stability map's rows [in]: the scenes side by side, so that the map fits a page.
 MAP_ROW_HEIGHT = 0.2
 
@@ -53,13 +54,21 @@ def curve_keys(rows):
     return sorted({(row["scheme"], row["thermo_variable"]) for row in rows}, key=key_rank)
 
 
+# The thermo_variable of a run without thermal unknowns (elastic springs): no subscript.
+NO_VARIABLE = ("none", "")
+
+
 def plain_name(scheme, variable):
-    """EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u."""
+    """EME_theta, MP_u, TS-midpoint_s, BDF2_theta, RK4_u; EME for elastic springs (no variable)."""
+    if variable in NO_VARIABLE:
+        return integrators.label(scheme)
     return f"{integrators.label(scheme)}_{VARIABLE_NAMES.get(variable, variable)}"
 
 
 def label(scheme, variable):
-    """The paper's notation with a subscript, for legends and axes."""
+    """The paper's notation with a subscript, for legends and axes (none without a variable)."""
+    if variable in NO_VARIABLE:
+        return integrators.label(scheme)
     return rf"{integrators.label(scheme)}$_{{{VARIABLE_SYMBOLS.get(variable, variable)}}}$"
 
 

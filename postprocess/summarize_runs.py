@@ -27,13 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from trajectory import IDENTITY_ATTRIBUTES, Run, RunFileError, cut_to_common_length, root_attributes, run_file
+from trajectory import (IDENTITY_ATTRIBUTES, NO_VARIABLE, Run, RunFileError, conserved_momentum,
+                        cut_to_common_length, root_attributes, run_file)
 
-POINT_DATASETS = ("energy", "entropy", "lyapunov")
+POINT_DATASETS = ("energy",)
 STEP_DATASETS = ("newton_iterations",)
-# angular_momentum: only for a model with momenta (the pendulum; not the gas containers).
-OPTIONAL = ("boundary_heat", "constraint_residual", "rejected_steps", "step", "min_entropy_increment",
-            "max_lyapunov_increment", "angular_momentum")
+# angular_momentum: only for a scene with momenta (not the gas containers, nor a planar pendulum
+# under gravity); entropy and lyapunov: not for elastic springs (no thermal unknowns).
+OPTIONAL = ("entropy", "lyapunov", "boundary_heat", "constraint_residual", "rejected_steps", "step",
+            "min_entropy_increment", "max_lyapunov_increment", "angular_momentum")
 # run_figures (docs/output.md): what eme_run took over every step, in this order.
 RUN_FIGURES = ("energy_drift", "min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift")
 
@@ -41,7 +43,9 @@ RUN_FIGURES = ("energy_drift", "min_entropy_increment", "max_lyapunov_increment"
 def read(path):
     """The datasets the table needs and every root attribute, cut to the steps they all hold."""
     with run_file(path) as f:
-        for name in (*POINT_DATASETS, *STEP_DATASETS):
+        # S and V belong to every file with thermal unknowns (not to elastic springs').
+        thermal_points = ("entropy", "lyapunov") if "temperature" in f else ()
+        for name in (*POINT_DATASETS, *thermal_points, *STEP_DATASETS):
             if name not in f:
                 raise RunFileError(f"{path}: dataset /{name} is missing; is this an eme_run file?")
         run = Run(Path(path), root_attributes(f))
@@ -50,8 +54,13 @@ def read(path):
                 run.data[name] = f[name][()]
                 rows = f[name].attrs.get("rows", "step" if name in (*STEP_DATASETS, "rejected_steps") else "point")
                 run.rows[name] = rows.decode() if isinstance(rows, bytes) else str(rows)
-        run.units = {name: text_of(f[name].attrs.get("units", "")) for name in ("energy", "entropy")}
-    absent = [name for name in (*IDENTITY_ATTRIBUTES, "discrete_gradient") if name not in run.attrs]
+        run.units = {name: text_of(f[name].attrs.get("units", "")) if name in f else ""
+                     for name in ("energy", "entropy")}
+        if "angular_momentum" in f and "columns" in f["angular_momentum"].attrs:
+            run.columns["angular_momentum"] = text_of(f["angular_momentum"].attrs["columns"]).split()
+        thermal = "temperature" in f
+    identity = [name for name in IDENTITY_ATTRIBUTES if name != "thermo_variable" or thermal]
+    absent = [name for name in (*identity, "discrete_gradient") if name not in run.attrs]
     if absent:
         run.problems.append("root attributes " + ", ".join(absent) + " missing")
     cut_to_common_length(run)
@@ -75,9 +84,11 @@ def summarize(path):
     """The table row of one run file, as a dict of numbers and strings."""
     run = read(path)
     data, attrs, steps = run.data, run.attrs, run.steps
-    energy, entropy, lyapunov = data["energy"], data["entropy"], data["lyapunov"]
+    energy, entropy, lyapunov = data["energy"], data.get("entropy"), data.get("lyapunov")
     heat = data.get("boundary_heat", np.zeros_like(energy))
-    momenta = data.get("angular_momentum")      # columns J_x J_y J_z (docs/output.md), if the model has them
+    # The conserved component of /angular_momentum (J_z, or the planar scalar J), if the scene has one.
+    momentum = conserved_momentum(run) if "angular_momentum" in data else None
+    momenta = None if momentum is None else data["angular_momentum"]
     constraint = data.get("constraint_residual")
     rejected = data.get("rejected_steps")
     gradient = attrs.get("discrete_gradient", "none")
@@ -86,20 +97,26 @@ def summarize(path):
     rows = run.rows_written
     # The per-step records cover every step, whatever the stride; the points' differences only
     # when every step has its row.
-    if rows and "min_entropy_increment" in data:
+    # Without thermal unknowns (no /entropy) there is no dS and no V to report.
+    if entropy is None:
+        min_ds = max_dv = float("nan")
+    elif rows and "min_entropy_increment" in data:
         min_ds = float(np.min(data["min_entropy_increment"][:rows]))
     else:
         min_ds = float(np.diff(entropy).min()) if rows else float("nan")
-    if rows and "max_lyapunov_increment" in data:
+    if entropy is None:
+        pass
+    elif rows and "max_lyapunov_increment" in data:
         max_dv = float(np.max(data["max_lyapunov_increment"][:rows]))
     else:
-        max_dv = float(np.diff(lyapunov).max()) if rows else float("nan")
+        max_dv = float(np.diff(lyapunov).max()) if rows and lyapunov is not None else float("nan")
+    variable = attrs.get("thermo_variable", "none" if entropy is None else "?")
     status = run.status
     if run.incomplete:
         status = f"{run.incomplete_mark} ({'; '.join([run.status, *run.problems])})"
     return {
         "file": run.path.stem,
-        "run": f"{attrs.get('scheme', '?')}/{attrs.get('thermo_variable', '?')}"
+        "run": f"{attrs.get('scheme', '?')}" + ("" if variable in NO_VARIABLE else f"/{variable}")
                + (f"/{gradient}" if gradient != "none" else "")
                + (f" + {constraints}" if constraints != "none" else ""),
         "status": status,
@@ -109,7 +126,10 @@ def summarize(path):
         "min_dS": min_ds,
         "max_dV": max_dv,
         "jz_drift": float("nan") if momenta is None else
-        whole.get("angular_momentum_drift", float(np.max(np.abs(momenta[:, 2] - momenta[0, 2])))),
+        whole.get("angular_momentum_drift", float(np.max(np.abs(run.column("angular_momentum", momentum)
+                                                                 - run.column("angular_momentum", momentum)[0])))),
+        "momentum": momentum,
+        "has_entropy": entropy is not None,
         "energy_units": run.units["energy"], "entropy_units": run.units["entropy"],
         "constraint": "-" if constraint is None or constraint.size == 0 else f"{np.abs(constraint).max():.1e}",
         "newton_per_step": float(data["newton_iterations"][:rows].sum()) / steps if steps else float("nan"),
@@ -126,16 +146,22 @@ COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "
 
 
 def table_columns(rows):
-    """COLUMNS for these rows: no Jz column when no run has momenta, and the units of dS and dV
-    the runs' models give (the pendulum's J/K and J; none in the header where models differ)."""
-    columns = [column for column in COLUMNS
-               if column[0] != "jz_drift" or any(not math.isnan(row["jz_drift"]) for row in rows)]
-    units = {key: {row[key] for row in rows} for key in ("entropy_units", "energy_units")}
+    """COLUMNS for these rows: no momentum column when no run has a conserved momentum, titled by
+    the runs' conserved component (Jz, or the planar scalar J; J where they differ); no dS and dV
+    columns when no run has an entropy (elastic springs); and the units of dS and dV the runs'
+    models give (the pendulum's J/K and J; none in the header where models differ)."""
+    entropy = any(row["has_entropy"] for row in rows) or not rows
+    has = {"jz_drift": any(not math.isnan(row["jz_drift"]) for row in rows), "min_dS": entropy, "max_dV": entropy}
+    columns = [column for column in COLUMNS if has.get(column[0], True)]
+    units = {key: {row[key] for row in rows if row[key]} for key in ("entropy_units", "energy_units")}
+    momenta = {row.get("momentum") for row in rows if row.get("momentum")}
     titled = []
     for key, title, fmt in columns:
         if key in ("min_dS", "max_dV"):
             kind = units["entropy_units" if key == "min_dS" else "energy_units"]
             title = title.split(" [")[0] + (f" [{kind.pop()}]" if len(kind) == 1 else "")
+        if key == "jz_drift" and momenta and momenta != {"J_z"}:
+            title = ("J" if momenta == {"J"} else "J (conserved)") + " drift [J s]"
         titled.append((key, title, fmt))
     return titled
 

@@ -17,8 +17,11 @@ import numpy as np
 
 import integrators
 
-# The run's identity: a figure cannot name or colour a run without them.
+# The run's identity: a figure cannot name or colour a run without them. A run without thermal
+# unknowns (the elastic springs, docs/formulation.md section 9: no /temperature) may lack
+# thermo_variable or give it as 'none': it is then 'none', and its names carry no subscript.
 IDENTITY_ATTRIBUTES = ("scheme", "thermo_variable")
+NO_VARIABLE = ("none", "")
 # Attributes every figure states when the file has them (a killed run may lack some).
 DESCRIPTION_ATTRIBUTES = ("discrete_gradient", "dt", "theta_r", "input_file", "status", "code_version")
 CONSTRAINT_ATTRIBUTES = ("constraints", "fix_length", "length", "fix_temperature", "temperature")
@@ -100,17 +103,25 @@ class Run:
 
     @property
     def name(self):
-        """Plain scheme name as in the paper, e.g. EME_theta or MP_u."""
+        """Plain scheme name as in the paper, e.g. EME_theta or MP_u (EME without thermal unknowns)."""
         scheme = integrators.label(self.attrs["scheme"])
         variable = self.attrs["thermo_variable"]
+        if variable in NO_VARIABLE:
+            return scheme
         return f"{scheme}_{VARIABLE_NAMES.get(variable, variable)}"
 
     @property
     def short_label(self):
-        """The paper's notation, e.g. EME_theta, in math text."""
+        """The paper's notation, e.g. EME_theta, in math text (EME without thermal unknowns)."""
         scheme = integrators.label(self.attrs["scheme"])
+        if self.attrs["thermo_variable"] in NO_VARIABLE:
+            return scheme
         symbol = VARIABLE_SYMBOLS.get(self.attrs["thermo_variable"], self.attrs["thermo_variable"])
         return rf"{scheme}$_{{{symbol}}}$"
+
+    def has(self, dataset):
+        """True when the dataset was read (an optional one the file has)."""
+        return dataset in self.data
 
     @property
     def incomplete_mark(self):
@@ -137,6 +148,8 @@ class Run:
     def description(self):
         """One line stating scheme, thermodynamic variable, dt, input file, file and status."""
         a = {name: self.attrs.get(name, "(missing)") for name in DESCRIPTION_ATTRIBUTES}
+        if self.attrs.get("thermo_variable") in NO_VARIABLE and "theta_r" not in self.attrs:
+            a["theta_r"] = "none"
         for name, unit in (("dt", "s"), ("theta_r", "K")):
             if name in self.attrs:
                 a[name] = f"{self.attrs[name]:g} {unit}"
@@ -170,23 +183,38 @@ def root_attributes(handle):
     return {name: _plain(value) for name, value in handle.attrs.items()}
 
 
-def read_run(path, datasets, attributes=()):
+def thermal(handle):
+    """True when an open run file has thermal unknowns (a /temperature dataset)."""
+    return "temperature" in handle
+
+
+def read_run(path, datasets, attributes=(), optional=(), thermal_datasets=()):
     """Reads the named datasets and every root attribute of a run file; `attributes` are required
-    besides IDENTITY_ATTRIBUTES."""
+    besides IDENTITY_ATTRIBUTES; the `optional` datasets are read where the file has them (a scene
+    may have no /angular_momentum), and the `thermal_datasets` are required of a file with thermal
+    unknowns (a /temperature) and absent from one without (elastic springs: no /temperature,
+    /entropy or /lyapunov)."""
     path = Path(path)
     with run_file(path) as handle:
-        missing = [name for name in (*IDENTITY_ATTRIBUTES, *attributes) if name not in handle.attrs]
+        identity = [name for name in IDENTITY_ATTRIBUTES if name != "thermo_variable" or thermal(handle)]
+        missing = [name for name in (*identity, *attributes) if name not in handle.attrs]
         if missing:
             raise RunFileError(f"{path}: root attribute{'s' if len(missing) > 1 else ''} "
                                + ", ".join(f"'{name}'" for name in missing)
                                + (" are" if len(missing) > 1 else " is") + " missing")
         run = Run(path, root_attributes(handle))
+        run.attrs.setdefault("thermo_variable", "none")
         integrators.register_run(run.attrs)
-        absent = [name for name in DESCRIPTION_ATTRIBUTES if name not in run.attrs and name != "status"]
+        # theta_r is the Lyapunov function's: a run without thermal unknowns has none.
+        absent = [name for name in DESCRIPTION_ATTRIBUTES if name not in run.attrs and name != "status"
+                  and (name != "theta_r" or thermal(handle))]
         if absent:
             run.problems.append("root attributes " + ", ".join(absent) + " missing")
         # /step says which steps the rows stand for (files of older versions may lack it).
-        wanted = ("time", *datasets, *(("step",) if "step" in handle and "step" not in datasets else ()))
+        if thermal(handle):
+            datasets = (*datasets, *thermal_datasets)
+        wanted = ("time", *datasets, *(("step",) if "step" in handle and "step" not in datasets else ()),
+                  *(name for name in optional if name in handle and name not in datasets))
         for name in wanted:
             if name not in handle or not isinstance(handle[name], h5py.Dataset):
                 raise RunFileError(f"{path}: dataset '/{name}' is missing")
@@ -248,10 +276,20 @@ def increments(values):
     return values[1:] - values[:-1]
 
 
+def dimension(run):
+    """3 for a spatial pendulum (/state has q1_z), 2 for a planar one (q1_x q1_y, y vertical)."""
+    names = run.columns.get("state")
+    if names is None:
+        raise RunFileError(f"{run.path}: dataset /state has no column names: its 'columns' attribute is missing")
+    return 3 if any(other in names for other in ("q1_z",)) else 2
+
+
 def mass_positions(run):
-    """Positions of m1 and m2, each (N+1, 3): m1 is at q1, m2 at q1 + q2 (q2 is relative to m1)."""
-    q1 = np.column_stack([run.column("state", f"q1_{axis}") for axis in "xyz"])
-    q2 = np.column_stack([run.column("state", f"q2_{axis}") for axis in "xyz"])
+    """Positions of m1 and m2, each (N+1, d) with d = dimension(run) (x y z, or x y of a planar
+    run): m1 is at q1, m2 at q1 + q2 (q2 is relative to m1)."""
+    axes = "xyz"[:dimension(run)]
+    q1 = np.column_stack([run.column("state", f"q1_{axis}") for axis in axes])
+    q2 = np.column_stack([run.column("state", f"q2_{axis}") for axis in axes])
     return q1, q1 + q2
 
 
@@ -259,6 +297,28 @@ def jz_drift(run):
     """J_z,n - J_z,0 from the J_z column of /angular_momentum."""
     jz = run.column("angular_momentum", "J_z")
     return jz - jz[0]
+
+
+def conserved_momentum(run):
+    """The name of the run's conserved momentum column: the root attribute conserved_momentum
+    where the file has it (J_z in 3D with gravity along z, J of a planar run without gravity,
+    'none'), else J_z (files of earlier versions), else None when the run has no momenta."""
+    name = run.attrs.get("conserved_momentum")
+    if name is not None:
+        return None if name in NO_VARIABLE else name
+    names = run.columns.get("angular_momentum")
+    if names is None:
+        return None
+    return next((other for other in ("J_z", "J") if other in names), None)
+
+
+def momentum_drift(run):
+    """(name, J_n - J_0) of the run's conserved momentum, or (None, None) when it has none."""
+    name = conserved_momentum(run)
+    if name is None or "angular_momentum" not in run.data:
+        return None, None
+    values = run.column("angular_momentum", name)
+    return name, values - values[0]
 
 
 def snapshot_steps(time, requested):

@@ -37,6 +37,34 @@ def namelist_text(groups):
     return "\n".join(lines) + "\n"
 
 
+def read_namelist(path):
+    """The groups of a namelist file as the project's inputs write them (one field a line,
+    `name = value[, value ...]`, comments after `!`), as {'group': {'field': value}}: texts
+    without their quotes, logicals as bool, integers (no point, no exponent) as int, other numbers
+    as float, several values as a list.
+    The inverse of namelist_text for such files, so a test can run a shipped input with changes."""
+    groups, group = {}, None
+    for line in Path(path).read_text().splitlines():
+        line = line.split("!", 1)[0].strip()
+        if not line:
+            continue
+        if line.startswith("&"):
+            group = groups.setdefault(line[1:].strip().lower(), {})
+        elif line == "/":
+            group = None
+        else:
+            name, text = (part.strip() for part in line.split("=", 1))
+            values = [v.strip() for v in text.split(",")]
+            if values[0][:1] in "'\"":
+                group[name.lower()] = values[0][1:-1]
+            elif values[0].lower() in (".true.", ".false."):
+                group[name.lower()] = values[0].lower() == ".true."
+            else:
+                numbers = [int(v) if v.lstrip("+-").isdigit() else float(v.lower().replace("d", "e")) for v in values]
+                group[name.lower()] = numbers[0] if len(numbers) == 1 else numbers
+    return groups
+
+
 def run_eme(directory, name, groups, *options, timeout=300):
     """Runs eme_run on a namelist built from `groups`; the output goes to directory/name.h5.
 

@@ -96,3 +96,74 @@ def write_run(path, steps=4, data=None, attributes=None, drop=(), columns=STATE_
             if name not in drop:
                 f.attrs[name] = value
     return Path(path), datasets
+
+
+def ladder_columns(law, dimension):
+    """/state's columns of a rung of the spring ladder (issue 32): the planar or spatial q1, q2,
+    p1, p2, then gamma (thermoviscoelastic only), then the two thermal columns (not elastic)."""
+    axes = "xyz"[:dimension]
+    names = [f"{vector}_{axis}" for vector in ("q1", "q2", "p1", "p2") for axis in axes]
+    if law == "thermoviscoelastic":
+        names.append("gamma")
+    if law != "elastic":
+        names += ["theta_1", "theta_2"]
+    return names
+
+
+def write_ladder_run(path, law="elastic", dimension=2, gravity=False, steps=4, dt=0.1, thermo_variable=True):
+    """A run file of one rung as the ladder's files are laid out: no /temperature, /entropy or
+    /lyapunov for elastic springs, /angular_momentum only where the scene has momenta (3D:
+    J_x J_y J_z; 2D without gravity: J; 2D with gravity: none) with the root attribute
+    conserved_momentum naming the conserved one. thermo_variable=False leaves that attribute out
+    (an elastic run may not write it). Returns the path and the datasets written."""
+    n = np.arange(steps + 1, dtype=float)
+    time = dt * n
+    columns = ladder_columns(law, dimension)
+    state = np.zeros((steps + 1, len(columns)))
+    values = {"q1_x": np.cos(time), "q1_y": np.sin(time) - 1.0, "q1_z": 0.1 * time,
+              "q2_x": 1.0 + 0 * time, "q2_y": -time, "q2_z": 0.05 * time,
+              "p1_x": 0.5 + 0 * time, "p1_y": 0.25 * n, "p2_x": -n, "gamma": 0.01 * n,
+              "theta_1": 280 + n, "theta_2": 350 - n}
+    for i, name in enumerate(columns):
+        state[:, i] = values.get(name, 0 * time)
+    energy = 3.9 + n ** 2 * 1e-15
+    datasets = {"time": time, "state": state, "energy": energy,
+                "newton_iterations": np.full(steps, 3, dtype=np.int32),
+                "solver_strategy": np.ones(steps, dtype=np.int32), "snes_solves": np.ones(steps, dtype=np.int32),
+                "rejected_roots": np.zeros(steps, dtype=np.int32), "boundary_heat": np.zeros(steps + 1)}
+    thermal = law != "elastic"
+    if thermal:
+        datasets["temperature"] = np.column_stack([280 + n, 350 - 2 * n])
+        datasets["entropy"] = 1.7 + 0.01 * n
+        datasets["lyapunov"] = energy - 300.0 * datasets["entropy"]
+        datasets["scheme_temperature"] = np.column_stack([281 + n[:-1], 349 - n[:-1]])
+    momentum_columns = ["J_x", "J_y", "J_z"] if dimension == 3 else (["J"] if not gravity else [])
+    if momentum_columns:
+        datasets["angular_momentum"] = np.column_stack([4.3 + 1e-14 * n ** 2 * (k + 1)
+                                                        for k in range(len(momentum_columns))])
+    conserved = {3: "J_z", 2: "none" if gravity else "J"}[dimension]
+    attrs = run_attributes(steps, dt)
+    attrs.update(spring_law=law, dimension=dimension, conserved_momentum=conserved,
+                 q1=np.zeros(dimension), mass=np.array([1.0, 1.0]), natural_length=np.array([1.0, 1.0]))
+    if not thermal:
+        attrs.pop("theta")
+        attrs.pop("theta_r")
+        attrs["thermo_variable"] = "none"
+        if not thermo_variable:
+            attrs.pop("thermo_variable")
+    units = dict(UNITS, state="SI")
+    with h5py.File(Path(path), "w") as f:
+        for name, value in datasets.items():
+            f[name] = value
+            f[name].attrs["units"] = units[name]
+            f[name].attrs["description"] = f"synthetic {name}"
+            f[name].attrs["rows"] = "step" if name in PER_STEP else "point"
+        f["state"].attrs["columns"] = " ".join(columns)
+        if thermal:
+            f["temperature"].attrs["columns"] = "theta_1 theta_2"
+            f["scheme_temperature"].attrs["columns"] = "Theta_1 Theta_2"
+        if momentum_columns:
+            f["angular_momentum"].attrs["columns"] = " ".join(momentum_columns)
+        for name, value in attrs.items():
+            f.attrs[name] = value
+    return Path(path), datasets
