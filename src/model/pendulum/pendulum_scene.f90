@@ -210,7 +210,7 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: message
 
-    type(double_pendulum_scene), target :: probe
+    type(double_pendulum_scene), target :: probe, every_law   ! every_law keeps the defaults: all fields
     type(group_field), allocatable :: initial_table(:)
     real(real64) :: stiffness(2)
 
@@ -236,7 +236,7 @@ contains
     if (stat /= 0) return
     call read_group(text, 'initial', initial_table, origin, stat, message, extra)
     if (stat /= 0) return
-    call refuse_other_parts(self, text, 'constraints', probe%fields('constraints'), &
+    call refuse_other_parts(self, text, 'constraints', every_law%fields('constraints'), &
                             self%fields('constraints'), origin, extra, stat, message)
     if (stat /= 0) return
     ! mu^eq_a(theta_a) of eq. (17) at t = 0: a spring with no stiffness has no equilibrium.
