@@ -10,7 +10,7 @@
 !> must hold at t = 0; and q1 scaled back to |q1| = length after a step.
 module length_constraint
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none
   use model_interface, only: generic_model
   use model_constraint, only: constraint
   use double_pendulum, only: q_index, p_index
@@ -59,7 +59,7 @@ contains
     integer, intent(out) :: stat
     integer :: i
 
-    stat = domain_ok
+    stat = failure_none
     associate (q1 => z_new(q_index(:, 1)))
       residual(p_index(:, 1)) = residual(p_index(:, 1)) + lambda*z_mid(q_index(:, 1))
       residual(row) = 0.5_real64*(dot_product(q1, q1) - self%length**2)
@@ -81,7 +81,7 @@ contains
     real(real64), intent(out) :: g
     integer, intent(out) :: stat
 
-    stat = domain_ok
+    stat = failure_none
     g = 0.5_real64*(dot_product(z(q_index(:, 1)), z(q_index(:, 1))) - self%length**2)
   end subroutine value
 

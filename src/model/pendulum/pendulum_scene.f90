@@ -16,6 +16,7 @@ module pendulum_scene
   use pendulum_model, only: pendulum, make_pendulum
   use length_constraint, only: make_fixed_length
   use temperature_constraint, only: make_fixed_temperature
+  use failures, only: failure_type, fail, failure_input
   implicit none (type, external)
   private
   public :: double_pendulum_scene, double_pendulum_name, new_double_pendulum_scene
@@ -128,54 +129,50 @@ contains
 
   !> Reads &model, &initial and &constraints in that order (the constraints' defaults come from
   !> the initial state).
-  subroutine read(self, text, origin, extra, stat, message)
+  subroutine read(self, text, origin, extra, failure)
     class(double_pendulum_scene), intent(inout), target :: self
     character(len=*), intent(in) :: text, origin
     type(namelist_item), intent(in) :: extra(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
 
     type(group_field), allocatable :: initial_fields(:)
     real(real64) :: stiffness(2)
 
-    call read_group(text, 'model', self%fields('model'), origin, stat, message, extra)
-    if (stat /= 0) return
+    call read_group(text, 'model', self%fields('model'), origin, failure, extra)
+    if (failure%failed()) return
     initial_fields = self%fields('initial')
-    call read_group(text, 'initial', initial_fields, origin, stat, message, extra)
-    if (stat /= 0) return
+    call read_group(text, 'initial', initial_fields, origin, failure, extra)
+    if (failure%failed()) return
     ! mu^eq_a(theta_a) of eq. (17) at t = 0: a spring with no stiffness has no equilibrium.
     associate (p => self%params)
       stiffness = p%mu_eq_const - p%mu_eq_slope*(self%theta - p%theta_ref)
     end associate
     if (any(stiffness <= 0.0_real64)) then
-      stat = 1
-      message = invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), 'initial', &
-                                      initial_fields(findloc(initial_fields%name, 'theta', dim=1)))// &
-                ' (the stiffness mu_eq(theta) of eq. (17) is '//reals_text(stiffness)//' J)'
+      call fail(failure, failure_input, invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), &
+                'initial', initial_fields(findloc(initial_fields%name, 'theta', dim=1)))// &
+                ' (the stiffness mu_eq(theta) of eq. (17) is '//reals_text(stiffness)//' J)', 'theta')
       return
     end if
     self%length = norm2(self%q1)
     self%temperature = self%theta(1)
-    call read_group(text, 'constraints', self%fields('constraints'), origin, stat, message, extra)
+    call read_group(text, 'constraints', self%fields('constraints'), origin, failure, extra)
   end subroutine read
 
   !> The pendulum in thermodynamic variable `variable`, the initial state and the constraints.
-  subroutine build(self, variable, model, z0, constraints, stat, message)
+  subroutine build(self, variable, model, z0, constraints, failure)
     class(double_pendulum_scene), intent(in) :: self
     integer, intent(in) :: variable
     class(generic_model), allocatable, intent(out) :: model
     real(real64), allocatable, intent(out) :: z0(:)
     type(constraint_slot), allocatable, intent(out) :: constraints(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(pendulum) :: pendulum_of_scene
-    integer :: k
+    integer :: k, stat
 
-    message = ''
     pendulum_of_scene = make_pendulum(self%params, variable)
     allocate (z0(pendulum_of_scene%state_size))
     call pendulum_of_scene%state_from_temperatures(self%q1, self%q2, self%p1, self%p2, self%gamma, self%theta, z0, stat)
-    if (stat /= 0) message = '&initial: the initial state lies outside the model''s domain'
+    if (stat /= 0) call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', '&initial')
     allocate (model, source=pendulum_of_scene)
     allocate (constraints(self%constraint_count()))
     k = 0
