@@ -691,7 +691,9 @@ contains
     if (failure%failed()) return
     call build_integrator(entry, integrator)
     call integrator%start(config%integrator, model, constraints, z0, failure)
-    if (failure%failed()) failure%message = setup_failure_text()
+    ! PETSc's own words say what was refused; the message is the whole story (the drivers print it
+    ! as before), so the PETSc procedure's origin is not added.
+    if (failure%failed()) call set_failure(failure, code_input, setup_failure_text())
     call integrator%release(release_failure)
     if (.not. failure%failed() .and. release_failure%failed()) &
       call set_failure(failure, code_library, 'PETSc could not free the solver: '//petsc_error_text(), &
