@@ -23,6 +23,7 @@ program eme_accuracy_bench
   use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use stepper, only: time_stepper, step_report
   use statistics, only: median
+  use failures, only: failure_type
   use command_line, only: benchmark_repeats, petsc_help_requested, has_argument
   use library_versions, only: print_versions
   implicit none
@@ -67,8 +68,8 @@ program eme_accuracy_bench
   real(real64), allocatable :: z0(:), reference(:), end_state(:)
   real(real64) :: cross_check, seconds, cvode_seconds
   integer :: repeats, k, c, run, steps, stat
-  character(len=:), allocatable :: message
   PetscErrorCode :: ierr
+  type(failure_type) :: failure
 
   ! --help, -h and --version answer at once, wherever they stand, without PETSc and without timing.
   if (has_argument([character(len=6) :: '--help', '-h'])) then
@@ -87,8 +88,8 @@ program eme_accuracy_bench
   end if
   call benchmark_repeats(5, repeats, stat)
   if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
-  call scene%build(tau_temperature, model, z0, constraints, stat, message)
-  if (stat /= 0) call fail(message)
+  call scene%build(tau_temperature, model, z0, constraints, failure)
+  if (failure%failed()) call fail(failure%message)
 
   call integrate('ts_rk5dp', .true., 1.0e-13_real64, reference, seconds, steps)
   call integrate('relaxed_dp853', .true., 1.0e-13_real64, end_state, seconds, steps)
@@ -216,8 +217,8 @@ contains
     ! A scheme on the output grid n dt needs a dt that divides t_end.
     if (.not. (adaptive .or. entry%chooses_time)) choice%dt = t_end/ceiling(t_end/setting - 1.0e-9_real64)
     call build_integrator(entry, integrator)
-    call integrator%start(choice, model, constraints, z0, ierr)
-    if (ierr /= 0) call fail('cannot start '//name)
+    call integrator%start(choice, model, constraints, z0, failure)
+    if (failure%failed()) call fail('cannot start '//name)
     x = z0
     x_previous = z0
     time = 0.0_real64
@@ -227,8 +228,8 @@ contains
     if (present(energy_error)) energy_error = 0.0_real64
     call cpu_time(start)
     do while (.not. finished)
-      call integrator%advance(x, time, choice%dt, 2*x - x_previous, x_new, report, ierr)
-      if (ierr /= 0 .or. .not. report%accepted) call fail('a step of '//trim(name)//' failed: '//report%reason)
+      call integrator%advance(x, time, choice%dt, 2*x - x_previous, x_new, report, failure)
+      if (failure%failed() .or. .not. report%accepted) call fail('a step of '//trim(name)//' failed: '//report%reason)
       steps = steps + 1
       if (entry%chooses_time) then
         time = report%time
@@ -247,7 +248,7 @@ contains
     seconds = finish - start
     if (abs(time - t_end) > 1.0e-12_real64*t_end) call fail(name//' did not end at t = 5 s')
     state = x
-    call integrator%release(ierr)
+    call integrator%release(failure)
   end subroutine integrate
 
   ! The study's error measure against the reference (temperatures relative to theta_ref = 300 K).

@@ -31,6 +31,7 @@ program eme_bench
   use discrete_gradient_stepper, only: step_solver
   use stepper, only: time_stepper, step_report
   use statistics, only: median
+  use failures, only: failure_type
   use command_line, only: benchmark_repeats, petsc_help_requested, has_argument
   use library_versions, only: print_versions
   implicit none
@@ -67,6 +68,7 @@ program eme_bench
   integer :: cvode_steps, cvode_solves
   integer :: repeats, k, iterations, stat, theta_case, run
   PetscErrorCode :: ierr
+  type(failure_type) :: failure
 
   ! --help, -h and --version answer at once, wherever they stand, without PETSc and without timing.
   if (has_argument([character(len=6) :: '--help', '-h'])) then
@@ -80,14 +82,14 @@ program eme_bench
   if (petsc_help_requested()) then
     ! PETSc's -help: the usage, then (as PETSc prints them while they are read) the -eme_* options.
     call print_usage()
-    call read_solver_options(options, ierr)
+    call read_solver_options(options, failure)
     PetscCallA(PetscFinalize(ierr))
     stop
   end if
   call benchmark_repeats(15, repeats, stat)
   if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
-  call read_solver_options(options, ierr)
-  if (ierr /= 0) call fail('cannot read the -eme_* options')
+  call read_solver_options(options, failure)
+  if (failure%failed()) call fail('cannot read the -eme_* options')
   allocate (times(repeats), cvode_times(repeats), cvode_internal(repeats), eme_over_cvode(repeats))
 
   cases = [bench_case('EME_entropy', 'eme', tau_entropy), bench_case('EME_temperature', 'eme', tau_temperature), &
@@ -113,8 +115,8 @@ program eme_bench
     do k = 1, size(cases)
       call repeat_case(cases(k), run)
     end do
-    call cvode%integrator%start(cvode%choice, cvode%model, cvode%constraints, cvode%z0, ierr)   ! CVODE carries its state
-    if (ierr /= 0) call fail('SUNDIALS CVODE failed to start')
+    call cvode%integrator%start(cvode%choice, cvode%model, cvode%constraints, cvode%z0, failure)   ! CVODE carries its state
+    if (failure%failed()) call fail('SUNDIALS CVODE failed to start')
     times(1) = snes_run(cvode%integrator, cvode%x0, cvode_steps, cvode_solves)
     if (run > 0) then
       cvode_times(run) = times(1)
@@ -122,10 +124,10 @@ program eme_bench
       eme_over_cvode(run) = cases(theta_case)%snes_times(run)/cvode_internal(run)
     end if
   end do
-  call cvode%integrator%release(ierr)
+  call cvode%integrator%release(failure)
   do k = 1, size(cases)
-    call cases(k)%integrator%release(ierr)
-    if (ierr /= 0) call fail('PETSc failed to free '//trim(cases(k)%label))
+    call cases(k)%integrator%release(failure)
+    if (failure%failed()) call fail('PETSc failed to free '//trim(cases(k)%label))
     associate (c => cases(k))
       write (output_unit, '(a, t34, f12.2, f14.2, f14.3, f14.2, f14.2, f14.2)') trim(c%label), median(c%snes_times), &
         median(c%floor_times), median(c%snes_times/c%floor_times), real(c%snes_iterations, real64)/steps, &
@@ -184,14 +186,13 @@ contains
     real(real64), allocatable, intent(out) :: z0(:), x0(:)
     type(constraint_slot), allocatable, intent(out) :: constraints(:)
     type(double_pendulum_scene) :: scene
-    character(len=:), allocatable :: message
 
     scene%fix_length = c%fix_length
     scene%length = norm2(scene%q1)
     scene%fix_temperature = c%fix_temperature
     scene%temperature = scene%theta(1)
-    call scene%build(c%variable, model, z0, constraints, stat, message)
-    if (stat /= 0) call fail(message)
+    call scene%build(c%variable, model, z0, constraints, failure)
+    if (failure%failed()) call fail(failure%message)
     x0 = [z0, spread(0.0_real64, 1, size(constraints))]
   end subroutine set_scene
 
@@ -262,8 +263,8 @@ contains
     real(real64), intent(in) :: z0(:)
     character(len=*), intent(in) :: label
 
-    call integrator%start(choice, model, constraints, z0, ierr)
-    if (ierr /= 0) call fail('PETSc failed to set up '//trim(label))
+    call integrator%start(choice, model, constraints, z0, failure)
+    if (failure%failed()) call fail('PETSc failed to set up '//trim(label))
   end subroutine start_run
 
   ! The LU factorizations of a discrete-gradient integrator's solver so far.
@@ -294,8 +295,8 @@ contains
     solves = 0
     call system_clock(start, rate)
     do n = 1, steps
-      call integrator%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, ierr)
-      if (ierr /= 0 .or. .not. report%accepted) call fail('a step failed: '//report%reason)
+      call integrator%advance(x, (n - 1)*dt, dt, 2*x - x_previous, x_new, report, failure)
+      if (failure%failed() .or. .not. report%accepted) call fail('a step failed: '//report%reason)
       iterations = iterations + report%newton_iterations
       solves = solves + report%solves
       x_previous = x
@@ -326,7 +327,7 @@ contains
     do n = 1, steps
       call kernel%set_old_state(x)
       guess = 2*x - x_previous
-      call find_root(floor, kernel, x(condensed_offset + 1:), kernel%condense(guess), y, search, ierr)
+      call find_root(floor, kernel, x(condensed_offset + 1:), kernel%condense(guess), y, search, failure)
       if (.not. search%accepted) call fail('a floor step failed: '//search%reason)
       iterations = iterations + search%newton_iterations
       x_previous = x
@@ -358,11 +359,11 @@ contains
     if (.not. found) call fail('no integrator '//name)
     call build_integrator(entry, integrator)
     do run = 0, repeats
-      call integrator%start(choice, model, constraints, z0, ierr)    ! a TS carries its state
-      if (ierr /= 0) call fail('PETSc failed to set up '//name)
+      call integrator%start(choice, model, constraints, z0, failure)    ! a TS carries its state
+      if (failure%failed()) call fail('PETSc failed to set up '//name)
       times(max(run, 1)) = snes_run(integrator, x0, iterations, solves)
     end do
-    call integrator%release(ierr)
+    call integrator%release(failure)
   end subroutine time_ts
 
 end program eme_bench

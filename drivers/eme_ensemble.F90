@@ -14,6 +14,7 @@ program eme_ensemble
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use simulation, only: set_up_only
   use library_versions, only: print_versions
+  use failures, only: failure_type
   implicit none
 
   type(study_definition), target :: study
@@ -21,6 +22,7 @@ program eme_ensemble
   type(command_arguments) :: arguments
   character(len=:), allocatable :: message, unused
   integer :: stat, rank, exit_status
+  type(failure_type) :: failure
   logical :: help
   PetscErrorCode :: ierr
 
@@ -59,7 +61,9 @@ program eme_ensemble
   end if
   if (exit_status == 0 .and. .not. help) then
     ! Every rank reads and validates the study: the expansion is cheap and deterministic.
-    call read_study(arguments%input_file, study, stat, message)
+    call read_study(arguments%input_file, study, failure)
+    stat = failure%code
+    if (failure%failed()) message = failure%text()
     if (stat == 0) call check_solver_options()
     if (stat /= 0) then
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
@@ -109,9 +113,10 @@ contains
       end associate
       if (any(checked == key)) cycle
       checked = [checked, key]
-      call set_up_only(study%cases(c)%config, stat, message)
-      if (stat /= 0) then
-        message = study%cases(c)%config%input_file//': '//message
+      call set_up_only(study%cases(c)%config, failure)
+      if (failure%failed()) then
+        stat = 1
+        message = study%cases(c)%config%input_file//': '//failure%message
         return
       end if
     end do

@@ -21,13 +21,15 @@ program eme_run
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, os_error_text
+  use failures, only: failure_type
   implicit none
 
   type(run_configuration) :: config
   type(run_summary) :: summary
   type(command_arguments) :: arguments
   character(len=:), allocatable :: message, unused
-  integer :: stat, exit_status, ranks, rank, help_stat
+  integer :: stat, exit_status, ranks, rank
+  type(failure_type) :: failure
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_run', [character(len=16) :: '--help', '-h', '--version', '--integrators', &
@@ -64,10 +66,10 @@ program eme_run
     ! PETSc's -help: the usage, then every option the run's solver reads as it is set up.
     call print_run_help(output_unit)
     if (stat == 0) then
-      call read_run_config(arguments%input_file, config, help_stat, message)
-      if (help_stat == 0) call set_up_only(config, help_stat, message)
-      if (help_stat /= 0) then
-        write (error_unit, '(a)') 'eme_run: '//message
+      call read_run_config(arguments%input_file, config, failure)
+      if (.not. failure%failed()) call set_up_only(config, failure)
+      if (failure%failed()) then
+        write (error_unit, '(a)') 'eme_run: '//failure%text()
         exit_status = 2
       end if
     end if
@@ -81,11 +83,11 @@ program eme_run
       write (error_unit, '(a)') 'eme_run: '//message
       exit_status = 2
     else
-      call read_run_config(arguments%input_file, config, stat, message)
+      call read_run_config(arguments%input_file, config, failure)
       ! The solver set up once, unwritten: PETSc options it cannot take are bad input.
-      if (stat == 0) call set_up_only(config, stat, message)
-      if (stat /= 0) then
-        write (error_unit, '(a)') 'eme_run: '//message
+      if (.not. failure%failed()) call set_up_only(config, failure)
+      if (failure%failed()) then
+        write (error_unit, '(a)') 'eme_run: '//failure%text()
         exit_status = 2
       else
         call run_case()
@@ -133,17 +135,18 @@ contains
       end do
     end if
     if (progress_wanted()) then
-      call run_simulation(config, summary, stat, message, progress=print_progress)
+      call run_simulation(config, summary, failure, progress=print_progress)
     else
-      call run_simulation(config, summary, stat, message)
+      call run_simulation(config, summary, failure)
     end if
     call unlock_output(lock)
     exit_status = run_exit_status(summary)
-    if (stat /= 0) then
-      write (error_unit, '(a)') 'eme_run: '//message
+    stat = failure%code
+    if (failure%failed()) then
+      write (error_unit, '(a)') 'eme_run: '//failure%text()
     else if (summary%status /= 'complete') then
       write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
-      if (len(message) > 0) write (error_unit, '(a)') 'eme_run: '//message
+      if (len(summary%note) > 0) write (error_unit, '(a)') 'eme_run: '//summary%note
     end if
     ! Figures of no step would be NaN: a run that completed none says so instead.
     if (stat == 0 .and. summary%steps_completed == 0) then

@@ -11,12 +11,14 @@ program eme_structure
   use structure_file, only: write_structure_file
   use library_versions, only: print_versions
   use command_line, only: has_argument
+  use failures, only: failure_type
   implicit none
 
   type(run_configuration) :: config
   character(len=:), allocatable :: message
   character(len=4096) :: input, output
   integer :: stat, exit_status
+  type(failure_type) :: failure
   PetscErrorCode :: ierr
 
   ! --help, -h, PETSc's -help and --version answer at once, wherever they stand.
@@ -35,9 +37,9 @@ program eme_structure
   call get_command_argument(2, output)
   PetscCallA(PetscInitializeNoArguments(ierr))
   exit_status = 0
-  call read_run_config(trim(input), config, stat, message)
-  if (stat /= 0) then
-    write (error_unit, '(a)') 'eme_structure: '//message
+  call read_run_config(trim(input), config, failure)
+  if (failure%failed()) then
+    write (error_unit, '(a)') 'eme_structure: '//failure%text()
     exit_status = 2
   else
     call write_structure_file(config, trim(output), stat, message)

@@ -6,7 +6,7 @@
 !> Its continuation parameter scales h: at s -> 0 every K_i = f(z) is a root.
 module collocation_stages
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok, domain_overflow
+  use failures, only: failure_none, domain_overflow
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use constrained_flow, only: constrained_field
@@ -82,7 +82,7 @@ contains
       else
         call constrained_field(self%model, self%constraints, y(:, i), f, stat)
       end if
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       residual((i - 1)*n + 1:i*n) = x((i - 1)*n + 1:i*n) - f
       if (present(jacobian)) then
         do j = 1, s
@@ -106,7 +106,7 @@ contains
 
     problem_text = ''
     call self%evaluate(x, residual, stat=stat)
-    if (stat /= domain_ok) problem_text = 'a stage value lies outside the model''s domain'
+    if (stat /= failure_none) problem_text = 'a stage value lies outside the model''s domain'
   end subroutine check_root
 
 

@@ -11,7 +11,7 @@
 !>    in entropy variables the entropy of the free subsystems is untouched.
 module constrained_flow
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none, domain_degenerate
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use dense_lu, only: lu_factors
@@ -23,7 +23,7 @@ module constrained_flow
 contains
 
   !> F(z) = f(sigma(z)) + N lambda and optionally dF/dz; multipliers(k): constraint k's lambda.
-  !> stat /= domain_ok outside the model's domain.
+  !> stat /= failure_none outside the model's domain.
   pure subroutine constrained_field(model, constraints, z, f, stat, jacobian, multipliers)
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
@@ -49,14 +49,14 @@ contains
       else
         call constraints(k)%item%slave_state(model, w, stat)
       end if
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
     end do
     if (present(jacobian)) then
       call model%continuous_field(w, f, stat, df)
     else
       call model%continuous_field(w, f, stat)
     end if
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     do k = 1, size(constraints)
       if (present(jacobian)) then
         call constraints(k)%item%add_force(model, w, f, lambda, df)
@@ -95,7 +95,8 @@ contains
   end function slaved_entries
 
   !> z back onto the constraints and the conserved momentum component `momentum` (see above);
-  !> stat /= domain_ok if a slaved entry has no value or the conditions are degenerate.
+  !> stat: a domain code if a slaved entry has no value, domain_degenerate if the conditions are
+  !> degenerate.
   subroutine project_state(model, constraints, momentum, z, stat)
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
@@ -108,7 +109,7 @@ contains
     integer :: k, m, info
     logical :: has
 
-    stat = domain_ok
+    stat = failure_none
     do k = 1, size(constraints)
       call constraints(k)%item%project_positions(model, z)
     end do
@@ -136,14 +137,14 @@ contains
       call factors%factor(gram(1:m, 1:m), info)
       if (info == 0) call factors%solve(residuals(1:m), info)
       if (info /= 0) then
-        stat = domain_ok + 1
+        stat = domain_degenerate
         return
       end if
       z = z - matmul(gradients(:, 1:m), residuals(1:m))
     end if
     do k = 1, size(constraints)
       call constraints(k)%item%slave_state(model, z, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
     end do
   end subroutine project_state
 
@@ -176,7 +177,7 @@ contains
     if (len(text) == 0) return
     z = z0
     call project_state(model, constraints, model%conserved_momentum(z0), z, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     changes = ''
     do k = 1, size(z)
       if (abs(z(k) - z0(k)) > 0.0_real64) changes = changes//', '//trim(model%column_names(k))//' = '//scientific_text(z(k))

@@ -18,6 +18,7 @@ module cvode_stepper
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report, accept_in_domain
   use solver_description, only: add_setting, text_setting, number_setting
   use number_text, only: fixed_text
+  use failures, only: failure_type, fail, fail_on_code, failure_input, failure_mismatch
   implicit none (type, external)
   private
   public :: cvode_baseline, new_cvode_bdf, new_cvode_adams
@@ -106,35 +107,37 @@ contains
   end subroutine new_cvode_adams
 
   !> A new CVODE run of `model` from z0 at t = 0 with the &integrator tolerance as relative and
-  !> absolute tolerance; an earlier run's CVODE is freed first. ierr /= 0 if CVODE cannot be set
+  !> absolute tolerance; an earlier run's CVODE is freed first. A failure if CVODE cannot be set
   !> up (or for constraints, which the input refuses).
-  subroutine start(self, choice, model, constraints, z0, ierr)
+  subroutine start(self, choice, model, constraints, z0, failure)
     class(cvode_baseline), intent(inout), target :: self
     type(integrator_choice), intent(in) :: choice
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z0(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
-    call self%release(ierr)
+    call self%release(failure)
     if (allocated(self%context%model)) deallocate (self%context%model)
     allocate (self%context%model, source=model)
     self%tolerance = choice%tolerance
     self%context_address = c_loc(self%context)
-    call self%create(0.0_real64, z0, ierr)
-    if (size(constraints) > 0) ierr = 1
+    call self%create(0.0_real64, z0, failure)
+    if (size(constraints) > 0) call fail(failure, failure_input, 'CVODE takes no constraints', 'cvode_baseline%start')
   end subroutine start
 
   ! CVODE from state z at time t, without history: its first step is of order 1.
-  subroutine create(self, t, z, ierr)
+  subroutine create(self, t, z, failure)
     class(cvode_baseline), intent(inout) :: self
     real(real64), intent(in) :: t, z(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
+    integer :: code
 
     self%counts = 0
     self%time = t
-    ierr = eme_cvode_create(int(size(z), c_int), merge(1_c_int, 0_c_int, self%bdf), t, z, self%tolerance, &
-                            self%tolerance, c_funloc(field), c_funloc(field_jacobian), self%context_address, self%handle)
+    code = eme_cvode_create(int(size(z), c_int), merge(1_c_int, 0_c_int, self%bdf), t, z, self%tolerance, &
+                         self%tolerance, c_funloc(field), c_funloc(field_jacobian), self%context_address, self%handle)
+    call fail_on_code(failure, code, 'cvode_baseline%create', 'SUNDIALS could not set CVODE up')
   end subroutine create
 
   !> A continued run cannot restore CVODE's history (its Nordsieck array and order), only its
@@ -147,34 +150,36 @@ contains
     values = [self%time]
   end subroutine resume_state
 
-  !> A new CVODE run from the state x at the time resume_state gave; ierr = 1 if `values` are
-  !> not resume_state's, or CVODE cannot be set up.
-  subroutine restore_state(self, values, x, x_previous, ierr)
+  !> A new CVODE run from the state x at the time resume_state gave; a failure if `values` are
+  !> not resume_state's (failure_mismatch), or CVODE cannot be set up.
+  subroutine restore_state(self, values, x, x_previous, failure)
     class(cvode_baseline), intent(inout) :: self
     real(real64), intent(in) :: values(:), x(:), x_previous(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
-    ierr = 1
-    if (size(values) /= 1) return
-    call self%release(ierr)
-    if (ierr /= 0) return
-    call self%create(values(1), x(1:self%context%model%state_size), ierr)
+    if (size(values) /= 1) then
+      call fail(failure, failure_mismatch, 'the stored integrator state is not CVODE''s time', &
+                'cvode_baseline%restore_state')
+      return
+    end if
+    call self%release(failure)
+    if (failure%failed()) return
+    call self%create(values(1), x(1:self%context%model%state_size), failure)
   end subroutine restore_state
 
   !> Integrates from CVODE's current state to t_old + dt exactly. x_old and guess are not
   !> needed: CVODE carries its state and history from one output step to the next.
-  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, failure)
     class(cvode_baseline), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
     real(real64), intent(out) :: x_new(:)
     type(step_report), intent(out) :: report
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     integer(c_long) :: counts(6)
     integer(c_int) :: flag, last_order
     real(c_double) :: t_reached, last_step
     character(kind=c_char, len=40) :: name
 
-    ierr = 0
     report%reason = ''
     report%last_rejection = ''
     allocate (report%scheme_temperature(self%context%model%subsystem_count()))
@@ -182,8 +187,9 @@ contains
     flag = eme_cvode_advance(self%handle, t_old + dt, x_new, t_reached)
     self%time = t_reached
     report%converged_reason = int(flag)
-    ierr = eme_cvode_statistics(self%handle, counts, last_order, last_step)
-    if (ierr /= 0) return
+    call fail_on_code(failure, int(eme_cvode_statistics(self%handle, counts, last_order, last_step)), &
+                      'cvode_baseline%advance', 'SUNDIALS could not report CVODE''s statistics')
+    if (failure%failed()) return
     report%diagnostics = [real(last_order, real64), last_step, real(counts(2) - self%counts(2), real64)]
     report%solves = int(counts(1) - self%counts(1))
     report%newton_iterations = int(counts(4) - self%counts(4))
@@ -239,11 +245,10 @@ contains
   end function describe_solver
 
   !> Frees CVODE's memory.
-  subroutine release(self, ierr)
+  subroutine release(self, failure)
     class(cvode_baseline), intent(inout) :: self
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
-    ierr = 0
     if (c_associated(self%handle)) call eme_cvode_free(self%handle)
   end subroutine release
 

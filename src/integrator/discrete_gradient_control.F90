@@ -23,7 +23,6 @@ contains
     integer :: n, stat, attempt, rejected(3)
     logical :: landing
 
-    ierr = 0
     n = self%problem%model%state_size
     rejected = 0
     h = 0.0_real64
@@ -32,7 +31,7 @@ contains
     report%accepted = .false.
     x_new = x_old
     call field_at(self, x_old(1:n), f_old, stat)
-    if (stat /= domain_ok) then
+    if (stat /= failure_none) then
       tally%reason = 'the continuous vector field is undefined at the step''s start (the state left the model''s domain)'
       call record_rejections()
       return
@@ -52,12 +51,12 @@ contains
       if (allocated(self%x_last)) then
         if (same_state(self%x_last, x_old)) guess = x_old + (h/self%h_last)*self%increment
       end if
-      call solve_step(self, x_old, h, guess, x_new, .false., search, ierr)
+      call solve_step(self, x_old, h, guess, x_new, .false., search, failure)
       tally%newton_iterations = tally%newton_iterations + search%newton_iterations
       tally%solves = tally%solves + search%solves
       tally%rejected = tally%rejected + search%rejected_roots
       if (len(search%last_rejection) > 0) tally%last_rejection = search%last_rejection
-      if (ierr /= 0) return
+      if (failure%failed()) return
       if (.not. search%accepted) then
         if (search%rejected_roots > 0) then
           rejected(rejection_domain) = rejected(rejection_domain) + 1
@@ -69,7 +68,7 @@ contains
         cycle
       end if
       call estimate_norm_of(self, x_old(1:n), f_old, x_new(1:n), h, estimate_norm, f_new, stat)
-      if (stat /= domain_ok) then
+      if (stat /= failure_none) then
         rejected(rejection_domain) = rejected(rejection_domain) + 1
         tally%reason = 'the continuous vector field is undefined at the step''s end or middle'
         call self%controller%reject_failure(h)
@@ -125,16 +124,16 @@ contains
 
     norm = ieee_value(1.0_real64, ieee_quiet_nan)
     call field_at(self, z_old, f_old, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call estimate_norm_of(self, z_old, f_old, z_new, h, estimate_norm, f_new, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     norm = estimate_norm
     self%z_field = z_new
     self%field = f_new
   end procedure estimate_step
 
   ! The weighted norm (times -eme_error_scale) of the local error estimate of the step of h from
-  ! z_old, where the field is f_old, to z_new, and the field f_new at z_new; stat /= domain_ok
+  ! z_old, where the field is f_old, to z_new, and the field f_new at z_new; stat /= failure_none
   ! where a field is undefined.
   subroutine estimate_norm_of(self, z_old, f_old, z_new, h, norm, f_new, stat)
     class(step_solver), intent(in) :: self
@@ -146,7 +145,7 @@ contains
     norm = ieee_value(1.0_real64, ieee_quiet_nan)
     call hermite_defect_estimate(self%problem%model, self%problem%constraints, z_old, f_old, z_new, h, estimate, &
                                  f_new, stat)
-    if (stat == domain_ok) norm = self%error_scale*weighted_rms_norm(estimate, z_old, z_new)
+    if (stat == failure_none) norm = self%error_scale*weighted_rms_norm(estimate, z_old, z_new)
   end subroutine estimate_norm_of
 
   ! The continuous field at z, from the last step's end when z is that state.
@@ -156,7 +155,7 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
 
-    stat = domain_ok
+    stat = failure_none
     if (allocated(self%z_field)) then
       if (same_state(self%z_field, z)) then
         f = self%field
@@ -164,7 +163,7 @@ contains
       end if
     end if
     call constrained_field(self%problem%model, self%problem%constraints, z, f, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     self%z_field = z
     self%field = f
   end subroutine field_at

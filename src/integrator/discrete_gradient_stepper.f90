@@ -32,7 +32,7 @@ module discrete_gradient_stepper
   use snes_solver, only: newton_solver
   use solver_options, only: step_solver_options, read_solver_options, read_step_control_options
   use retry_strategies, only: root_search, find_root
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none, failure_type, fail, failure_mismatch
   use constrained_flow, only: constrained_field
   use local_error_estimate, only: hermite_defect_estimate, weighted_rms_norm
   use step_size_control, only: step_controller
@@ -101,13 +101,13 @@ module discrete_gradient_stepper
 
   interface
     !> One accepted step of the size the controller chooses (src/integrator/discrete_gradient_control.F90).
-    module subroutine adaptive_step(self, x_old, t_old, x_new, tally, report, ierr)
+    module subroutine adaptive_step(self, x_old, t_old, x_new, tally, report, failure)
       class(step_solver), intent(inout), target :: self
       real(real64), intent(in) :: x_old(:), t_old
       real(real64), intent(out) :: x_new(:)
       type(substep_tally), intent(inout) :: tally
       type(step_report), intent(inout) :: report
-      integer, intent(out) :: ierr
+      type(failure_type), intent(out) :: failure
     end subroutine adaptive_step
     !> The weighted norm of the local error estimate of the step of h from z_old to z_new (NaN
     !> where the field is undefined) (src/integrator/discrete_gradient_control.F90).
@@ -135,13 +135,13 @@ contains
   end subroutine new_midpoint
 
   !> The step problem of the run; the SNES objects are reused when the size is the same.
-  subroutine start(self, choice, model, constraints, z0, ierr)
+  subroutine start(self, choice, model, constraints, z0, failure)
     class(step_solver), intent(inout), target :: self
     type(integrator_choice), intent(in) :: choice
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z0(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     type(step_solver_options) :: options
 
     if (allocated(self%problem%model)) deallocate (self%problem%model)
@@ -152,11 +152,11 @@ contains
     self%problem%metric = choice%metric
     self%problem%dt = choice%dt
     self%problem%z_old = z0
-    call read_solver_options(options, ierr)
-    if (ierr /= 0) return
+    call read_solver_options(options, failure)
+    if (failure%failed()) return
     self%max_halvings = options%max_halvings
-    call read_step_control_options(self%estimating, self%error_scale, ierr)
-    if (ierr /= 0) return
+    call read_step_control_options(self%estimating, self%error_scale, failure)
+    if (failure%failed()) return
     self%adaptive = choice%tolerance_given
     self%estimating = self%estimating .or. self%adaptive
     self%tolerance = choice%tolerance
@@ -170,9 +170,9 @@ contains
     if (allocated(self%kernel)) deallocate (self%kernel)
     if (options%fused_kernel) call fused_step_of(self%problem, self%kernel, self%fused)
     if (self%fused) then
-      call self%solver%prepare(self%kernel, choice%newton_tol, choice%newton_max_iterations, ierr)
+      call self%solver%prepare(self%kernel, choice%newton_tol, choice%newton_max_iterations, failure)
     else
-      call self%solver%prepare(self%problem, choice%newton_tol, choice%newton_max_iterations, ierr)
+      call self%solver%prepare(self%problem, choice%newton_tol, choice%newton_max_iterations, failure)
     end if
   end subroutine start
 
@@ -203,10 +203,10 @@ contains
   function describe_solver(self) result(report)
     class(step_solver), intent(in) :: self
     type(solver_report) :: report
-    integer :: ierr
+    type(failure_type) :: failure
 
-    call self%solver%describe(report, ierr)
-    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
+    call self%solver%describe(report, failure)
+    if (failure%failed()) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
     call add_setting(report, text_setting('eme_fused_kernel', merge('true ', 'false', self%fused)))
     call add_setting(report, integer_setting('eme_max_halvings', self%max_halvings))
     call add_setting(report, text_setting('step_control', merge('PI controller on the local error estimate  ', &
@@ -218,12 +218,12 @@ contains
   !> One step of dt from x_old, in halves where needed (module header); on acceptance, the
   !> temperatures the (last sub)step's K0 used. With step-size control, one accepted step of the
   !> controller's choosing instead (adaptive_step).
-  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, failure)
     class(step_solver), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
     real(real64), intent(out) :: x_new(:)
     type(step_report), intent(out) :: report
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     type(substep_tally) :: tally
     real(real64) :: estimate_norm
     integer :: n
@@ -234,27 +234,27 @@ contains
     tally%reason = ''
     tally%last_rejection = ''
     if (self%adaptive) then
-      call adaptive_step(self, x_old, t_old, x_new, tally, report, ierr)
-      call finish_report(self, tally, x_new, report, ierr)
+      call adaptive_step(self, x_old, t_old, x_new, tally, report, failure)
+      call finish_report(self, tally, x_new, report, failure)
       return
     end if
-    call step_or_halve(self, x_old, dt, guess, x_new, 0, tally, report%accepted, ierr)
-    if (ierr == 0 .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/dt
-    call finish_report(self, tally, x_new, report, ierr)
+    call step_or_halve(self, x_old, dt, guess, x_new, 0, tally, report%accepted, failure)
+    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/dt
+    call finish_report(self, tally, x_new, report, failure)
     report%diagnostics = [real(tally%substeps, real64)]
-    if (.not. self%estimating .or. ierr /= 0 .or. .not. report%accepted) return
+    if (.not. self%estimating .or. failure%failed() .or. .not. report%accepted) return
     call estimate_step(self, x_old(1:n), x_new(1:n), dt, estimate_norm)
     report%diagnostics = [report%diagnostics, estimate_norm]
   end subroutine advance
 
   ! The report of a step from what its (sub)steps did; on acceptance the temperatures the (last
   ! sub)step's K0 used.
-  subroutine finish_report(self, tally, x_new, report, ierr)
+  subroutine finish_report(self, tally, x_new, report, failure)
     class(step_solver), intent(inout) :: self
     type(substep_tally), intent(in) :: tally
     real(real64), intent(in) :: x_new(:)
     type(step_report), intent(inout) :: report
-    integer, intent(in) :: ierr
+    type(failure_type), intent(in) :: failure
     integer :: stat
 
     report%strategy = tally%strategy
@@ -268,7 +268,7 @@ contains
     report%converged_reason = self%solver%last_reason
     allocate (report%scheme_temperature(self%problem%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
-    if (ierr /= 0 .or. .not. report%accepted) return
+    if (failure%failed() .or. .not. report%accepted) return
     if (self%fused) then
       call self%kernel%scheme_temperatures(x_new(self%kernel%eliminated + 1:), report%scheme_temperature, stat)
     else
@@ -283,50 +283,50 @@ contains
   ! The step of h from x_old, or, if no strategy finds its root, its two halves (each in halves
   ! where needed) from the predictors interpolated and extrapolated from `guess`; `depth` halvings
   ! made h. The last substep leaves its problem set up (scheme_temperatures).
-  recursive subroutine step_or_halve(self, x_old, h, guess, x_new, depth, tally, accepted, ierr)
+  recursive subroutine step_or_halve(self, x_old, h, guess, x_new, depth, tally, accepted, failure)
     class(step_solver), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), h, guess(:)
     real(real64), intent(out) :: x_new(:)
     integer, intent(in) :: depth
     type(substep_tally), intent(inout) :: tally
     logical, intent(out) :: accepted
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     type(root_search) :: search
     real(real64) :: x_half(size(x_old))
 
-    call solve_step(self, x_old, h, guess, x_new, depth == 0, search, ierr)
+    call solve_step(self, x_old, h, guess, x_new, depth == 0, search, failure)
     tally%newton_iterations = tally%newton_iterations + search%newton_iterations
     tally%solves = tally%solves + search%solves
     tally%rejected = tally%rejected + search%rejected_roots
     if (len(search%last_rejection) > 0) tally%last_rejection = search%last_rejection
-    accepted = search%accepted .and. ierr == 0
+    accepted = search%accepted .and. .not. failure%failed()
     if (accepted) then
       tally%substeps = tally%substeps + 1
       tally%strategy = max(tally%strategy, search%strategy)
       tally%multiplier_integral = tally%multiplier_integral + h*x_new(size(x_old) - size(tally%multiplier_integral) + 1:)
       return
     end if
-    if (ierr /= 0) return
+    if (failure%failed()) return
     if (depth == self%max_halvings) then
       tally%reason = search%reason
       if (depth > 0) tally%reason = search%reason//' (also in steps of dt/'//integer_text(2**depth)//')'
       return
     end if
     call step_or_halve(self, x_old, 0.5_real64*h, x_old + 0.5_real64*(guess - x_old), x_half, depth + 1, tally, &
-                       accepted, ierr)
+                       accepted, failure)
     if (.not. accepted) return
-    call step_or_halve(self, x_half, 0.5_real64*h, 2*x_half - x_old, x_new, depth + 1, tally, accepted, ierr)
+    call step_or_halve(self, x_half, 0.5_real64*h, 2*x_half - x_old, x_new, depth + 1, tally, accepted, failure)
   end subroutine step_or_halve
 
   ! One search for the root of the step of h from x_old (no halving); with continuation in s if
   ! `continuing`.
-  subroutine solve_step(self, x_old, h, guess, x_new, continuing, search, ierr)
+  subroutine solve_step(self, x_old, h, guess, x_new, continuing, search, failure)
     class(step_solver), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), h, guess(:)
     real(real64), intent(out) :: x_new(:)
     logical, intent(in) :: continuing
     type(root_search), intent(out) :: search
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     real(real64) :: start(size(guess))
 
     associate (n => self%problem%model%state_size)
@@ -344,21 +344,20 @@ contains
         real(real64) :: y_new(size(guess) - self%kernel%eliminated)
 
         call find_root(self%solver, self%kernel, start(self%kernel%eliminated + 1:), self%kernel%condense(guess), y_new, &
-                       search, ierr, continuing)
+                       search, failure, continuing)
         x_new = self%kernel%expand(y_new)
       end block
     else
-      call find_root(self%solver, self%problem, start, guess, x_new, search, ierr, continuing)
+      call find_root(self%solver, self%problem, start, guess, x_new, search, failure, continuing)
     end if
   end subroutine solve_step
 
   !> Frees the SNES objects.
-  subroutine release(self, ierr)
+  subroutine release(self, failure)
     class(step_solver), intent(inout) :: self
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
-    ierr = 0
-    if (self%solver%created) call self%solver%destroy(ierr)
+    if (self%solver%created) call self%solver%destroy(failure)
   end subroutine release
 
   !> What a step leaves for the next (a continued run restores it, bit for bit): the step-size
@@ -385,20 +384,21 @@ contains
     call self%solver%context%lu%put_values(values(6:))
   end subroutine resume_state
 
-  !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its layout.
+  !> Takes back what resume_state gave (after `start`); a failure (failure_mismatch) if `values`
+  !> do not fit its layout.
   !> Factors of another system size (another -eme_fused_kernel) are not this solver's: the next
   !> predictor then goes without the chord refinement.
-  subroutine restore_state(self, values, x, x_previous, ierr)
+  subroutine restore_state(self, values, x, x_previous, failure)
     class(step_solver), intent(inout) :: self
     real(real64), intent(in) :: values(:), x(:), x_previous(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     logical :: ok
 
-    ierr = 1
+    call fail(failure, failure_mismatch, 'the stored integrator state does not fit the step solver''s layout', &
+              'step_solver%restore_state')
     if (size(values) < 5) return
     call self%solver%context%lu%from_values(values(6:), self%solver%n, ok)
     if (.not. ok) return
-    ierr = 0
     self%controller%h = values(1)
     self%controller%err_old = values(2)
     self%controller%has_history = nint(values(3)) == 1
@@ -407,6 +407,7 @@ contains
       self%x_last = x
       self%increment = x - x_previous
     end if
+    failure = failure_type()
   end subroutine restore_state
 
 end module discrete_gradient_stepper

@@ -21,7 +21,7 @@
 !> smaller steps make harder, not easier, to solve (measured: docs/integrators.md).
 module local_error_estimate
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use constrained_flow, only: constrained_field, slaved_entries
@@ -32,7 +32,7 @@ module local_error_estimate
 contains
 
   !> The estimate e of the local error of the step of h from z_old (where the field is f_old) to
-  !> z_new; f_new is the field at z_new. stat /= domain_ok if a field is undefined.
+  !> z_new; f_new is the field at z_new. stat /= failure_none if a field is undefined.
   pure subroutine hermite_defect_estimate(model, constraints, z_old, f_old, z_new, h, estimate, f_new, stat)
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
@@ -43,11 +43,11 @@ contains
 
     estimate = 0.0_real64
     call constrained_field(model, constraints, z_new, f_new, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     z_middle = 0.5_real64*(z_old + z_new) + 0.125_real64*h*(f_old - f_new)
     slope_middle = 1.5_real64*(z_new - z_old)/h - 0.25_real64*(f_old + f_new)
     call constrained_field(model, constraints, z_middle, f_middle, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     estimate = (2.0_real64*h/3.0_real64)*(slope_middle - f_middle)
     where (slaved_entries(model, constraints, z_new)) estimate = 0.0_real64
   end subroutine hermite_defect_estimate

@@ -15,7 +15,8 @@
 !> below that floor is a root; an accurate small step can have r(1) below it already.
 module relaxation
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok, potential_u, potential_s
+  use invariant_function, only: potential_u, potential_s
+  use failures, only: failure_none, domain_overflow
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use constrained_flow, only: project_state, bath_temperature_of
@@ -55,17 +56,17 @@ contains
     momentum = model%conserved_momentum(z)
     bath = bath_temperature_of(constraints)
     call rounding_floor(floor, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     ! r(0) = 0: the secant runs on q(gamma) = r(gamma)/gamma, whose root is the nontrivial one,
     ! from gamma = 1 (an order-p step has r(1) = O(h^(p+1))) and 1 - 1e-3. It always takes a
     ! secant step: r(1) is the method's own energy error, which may lie below the floor and yet
     ! accumulate over many steps if accepted; the secant's root has only rounding left in r.
     g_a = 1.0_real64
     call scaled_residual(g_a, q_a, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     g_b = 1.0_real64 - 1.0e-3_real64
     call scaled_residual(g_b, q_b, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     best = 1.0_real64
     best_r = abs(q_a)
     ! Secant steps (q is nearly linear near the root, so they converge fast) until |r| is an
@@ -80,7 +81,7 @@ contains
       q_a = q_b
       g_b = g_next
       call scaled_residual(g_b, q_b, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       if (abs(q_b*g_b) < best_r) then
         best = g_b
         best_r = abs(q_b*g_b)
@@ -95,7 +96,7 @@ contains
     end if
     found = best_r <= floor .and. gamma >= gamma_min .and. gamma <= gamma_max
     if (found) call increment(gamma, stat)
-    found = found .and. stat == domain_ok
+    found = found .and. stat == failure_none
 
   contains
 
@@ -107,7 +108,7 @@ contains
 
       floor = 0.0_real64
       call model%exact_partials(z, partials, stat=stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       weights = abs(model%mechanical_energy_gradient(z) + model%subsystem_gradient(z, partials, potential_u))
       if (bath > 0.0_real64) weights = weights + bath*abs(model%subsystem_gradient(z, partials, potential_s))
       floor = 8*epsilon(1.0_real64)*sum(abs(z)*weights)
@@ -131,12 +132,12 @@ contains
       real(real64) :: energy_change, entropy_change
 
       call increment(g, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       call model%energy_difference(z, z_new, energy_change, stat, entropy_change)
       evaluations = evaluations + 1
       q = energy_change/g
       if (bath > 0.0_real64) q = q - bath*(entropy_change/g - entropy_estimate)
-      if (.not. (abs(q) <= huge(q))) stat = domain_ok + 1
+      if (.not. (abs(q) <= huge(q))) stat = domain_overflow
     end subroutine scaled_residual
   end subroutine relax
 

@@ -18,13 +18,12 @@ contains
     integer :: tries
 
     ok = .false.
-    ierr = 0
     h = self%h_next
     do tries = 1, max_error_rejections
       landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time(self)
       if (landing) h = landing_time(self) - self%t
-      call relaxed_step(self, h, landing, ok, error_norm, ierr)
-      if (ierr /= 0) return
+      call relaxed_step(self, h, landing, ok, error_norm, failure)
+      if (failure%failed()) return
       if (ok .and. error_norm <= 1.0_real64) then
         factor = grow_limit
         if (error_norm > 0.0_real64) factor = min(grow_limit, max(shrink_limit, safety*error_norm**(-0.125_real64)))

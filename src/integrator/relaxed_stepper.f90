@@ -31,7 +31,7 @@
 !> functional is V = E - thetabar S with V_{n+1} - V_n = -thetabar gamma e_S <= 0.
 module relaxed_stepper
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none, failure_type, fail, failure_code_name, failure_input, failure_mismatch
   use thermo_variable_kinds, only: tau_entropy
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
@@ -102,10 +102,10 @@ module relaxed_stepper
 
   interface
     !> One accepted step of relaxed_dp853 at its tolerance (src/integrator/relaxed_step_control).
-    module subroutine adaptive_step(self, ok, ierr)
+    module subroutine adaptive_step(self, ok, failure)
       class(relaxed_runge_kutta), intent(inout) :: self
       logical, intent(out) :: ok
-      integer, intent(out) :: ierr
+      type(failure_type), intent(out) :: failure
     end subroutine adaptive_step
     !> DOP853's error norm of the step of h with stage derivatives k to z_new
     !> (src/integrator/relaxed_step_control).
@@ -151,31 +151,30 @@ contains
   function describe_solver(self) result(report)
     class(relaxed_runge_kutta), intent(in) :: self
     type(solver_report) :: report
-    integer :: ierr
+    type(failure_type) :: failure
 
     if (.not. self%tableau%implicit) then
       report = no_solver('explicit stages')
       return
     end if
-    call self%solver%describe(report, ierr)
-    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
+    call self%solver%describe(report, failure)
+    if (failure%failed()) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
   end function describe_solver
 
   !> The run's models (its own variable and entropy variables) and the initial state.
-  subroutine start(self, choice, model, constraints, z0, ierr)
+  subroutine start(self, choice, model, constraints, z0, failure)
     class(relaxed_runge_kutta), intent(inout), target :: self
     type(integrator_choice), intent(in) :: choice
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z0(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     integer :: stat
     logical :: found
 
-    ierr = 0
     call tableau_named(self%scheme, self%tableau, found)
     if (.not. found) then
-      ierr = 1
+      call fail(failure, failure_input, 'no tableau named '''//trim(self%scheme)//'''', 'relaxed_runge_kutta%start')
       return
     end if
     ! Embedded weights: adaptive at the tolerance (relaxed_dp853).
@@ -189,8 +188,9 @@ contains
     allocate (self%z(size(z0)))
     call model%convert_state(z0, self%model, self%z, stat)
     ! The input has checked that z0 satisfies the constraints; this removes the conversion's round-off.
-    if (stat == domain_ok) call project_state(self%model, constraints, self%model%conserved_momentum(self%z), self%z, stat)
-    if (stat /= domain_ok) ierr = 1
+    if (stat == failure_none) call project_state(self%model, constraints, self%model%conserved_momentum(self%z), self%z, stat)
+    if (stat /= failure_none) call fail(failure, stat, 'the initial state cannot be taken to the entropy '// &
+                                        'variables and projected: '//failure_code_name(stat), 'relaxed_runge_kutta%start')
     self%t = 0.0_real64
     self%t_end = choice%t_end
     self%tolerance = choice%tolerance
@@ -201,30 +201,29 @@ contains
     self%newton_tol = choice%newton_tol
     self%newton_max_iterations = choice%newton_max_iterations
     if (allocated(self%last_stages)) deallocate (self%last_stages)
-    if (self%tableau%implicit) then
+    if (self%tableau%implicit .and. .not. failure%failed()) then
       if (allocated(self%stages%model)) deallocate (self%stages%model)
       allocate (self%stages%model, source=self%model)
       self%stages%constraints = constraints
       self%stages%a = self%tableau%a
       self%stages%z = self%z
       self%stages%h = choice%dt
-      call self%solver%prepare(self%stages, choice%newton_tol, choice%newton_max_iterations, ierr)
+      call self%solver%prepare(self%stages, choice%newton_tol, choice%newton_max_iterations, failure)
     end if
   end subroutine start
 
   !> One output step: a relaxed step of dt (fixed-step schemes) or one accepted adaptive step,
   !> landing on t_end when it reaches it. x_old is not needed: the integrator keeps its state.
-  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, failure)
     class(relaxed_runge_kutta), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
     real(real64), intent(out) :: x_new(:)
     type(step_report), intent(out) :: report
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     real(real64) :: energy, entropy, z_start(size(self%z)), t_start, f(size(self%z)), energy_change
     logical :: ok
     integer :: stat, n, k
 
-    ierr = 0
     z_start = self%z
     t_start = self%t
     self%attempts = 0
@@ -239,11 +238,11 @@ contains
     allocate (report%scheme_temperature(self%model%subsystem_count()))
     report%scheme_temperature = 0.0_real64
     if (self%adaptive) then
-      call adaptive_step(self, ok, ierr)
+      call adaptive_step(self, ok, failure)
     else if (self%t + (1.0_real64 + landing_slack)*dt >= landing_time(self)) then
-      call step_or_halve(self, landing_time(self) - self%t, .true., 0, ok, ierr)
+      call step_or_halve(self, landing_time(self) - self%t, .true., 0, ok, failure)
     else
-      call step_or_halve(self, dt, .false., 0, ok, ierr)
+      call step_or_halve(self, dt, .false., 0, ok, failure)
     end if
     report%chose_time = .true.
     report%time = self%t
@@ -258,49 +257,48 @@ contains
       report%residual_norm = self%solver%last_residual_norm
       report%converged_reason = self%solver%last_reason
     end if
-    if (ierr /= 0) return
+    if (failure%failed()) return
     if (.not. ok) then
       report%reason = self%last_failure
       return
     end if
     n = size(self%z)
     call self%model%convert_state(self%z, self%user_model, x_new(1:n), stat)
-    if (stat == domain_ok) call self%user_model%observe(x_new(1:n), energy, entropy, report%scheme_temperature, stat)
+    if (stat == failure_none) call self%user_model%observe(x_new(1:n), energy, entropy, report%scheme_temperature, stat)
     ! The multipliers: the index-1 lambda at the new state; a heat bath's mean power over the step.
-    if (stat == domain_ok .and. size(self%constraints) > 0) &
+    if (stat == failure_none .and. size(self%constraints) > 0) &
       call constrained_field(self%model, self%constraints, self%z, f, stat, multipliers=x_new(n + 1:))
     do k = 1, size(self%constraints)
-      if (stat /= domain_ok .or. .not. self%constraints(k)%item%supplies_heat) cycle
+      if (stat /= failure_none .or. .not. self%constraints(k)%item%supplies_heat) cycle
       call self%model%energy_difference(z_start, self%z, energy_change, stat)
       x_new(n + k) = energy_change/(self%t - t_start)
     end do
-    report%accepted = stat == domain_ok
+    report%accepted = stat == failure_none
     if (.not. report%accepted) report%reason = 'the state left the model''s domain'
   end subroutine advance
 
   !> Frees the stage solver's PETSc objects.
-  subroutine release(self, ierr)
+  subroutine release(self, failure)
     class(relaxed_runge_kutta), intent(inout) :: self
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
-    ierr = 0
-    if (self%solver%created) call self%solver%destroy(ierr)
+    if (self%solver%created) call self%solver%destroy(failure)
   end subroutine release
 
   ! A step of h (landing: the time goes to t + h exactly), or, if it is rejected, two halves,
   ! recursively; ok = .false. when halving went past max_halvings.
-  recursive subroutine step_or_halve(self, h, landing, depth, ok, ierr)
+  recursive subroutine step_or_halve(self, h, landing, depth, ok, failure)
     class(relaxed_runge_kutta), intent(inout) :: self
     real(real64), intent(in) :: h
     logical, intent(in) :: landing
     integer, intent(in) :: depth
     logical, intent(out) :: ok
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     real(real64) :: target_time, error_norm
 
     target_time = self%t + h
-    call relaxed_step(self, h, landing, ok, error_norm, ierr)
-    if (ok .or. ierr /= 0) return
+    call relaxed_step(self, h, landing, ok, error_norm, failure)
+    if (ok .or. failure%failed()) return
     self%rejections = self%rejections + 1
     self%halvings = self%halvings + 1
     if (depth == max_halvings) then
@@ -308,12 +306,12 @@ contains
                           //self%last_failure//')'
       return
     end if
-    call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, ierr)
-    if (.not. ok .or. ierr /= 0) return
+    call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, failure)
+    if (.not. ok .or. failure%failed()) return
     if (landing) then
-      call step_or_halve(self, target_time - self%t, .true., depth + 1, ok, ierr)
+      call step_or_halve(self, target_time - self%t, .true., depth + 1, ok, failure)
     else
-      call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, ierr)
+      call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, failure)
     end if
   end subroutine step_or_halve
 
@@ -322,22 +320,21 @@ contains
   ! landing: the time goes to t + h exactly. A step whose relaxed time would pass t_end, or leave
   ! less than landing_slack h before it, is redone as the landing step. error_norm: DOP853's
   ! error norm (0 without embedded weights).
-  recursive subroutine relaxed_step(self, h, landing, ok, error_norm, ierr)
+  recursive subroutine relaxed_step(self, h, landing, ok, error_norm, failure)
     class(relaxed_runge_kutta), intent(inout) :: self
     real(real64), intent(in) :: h
     logical, intent(in) :: landing
     logical, intent(out) :: ok
     real(real64), intent(out) :: error_norm
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     real(real64) :: k(size(self%z), self%tableau%stages), d(size(self%z)), z_new(size(self%z)), e_s, gamma, resolution
     integer :: evaluations, a
 
     ok = .false.
-    ierr = 0
     error_norm = 0.0_real64
     self%attempts = self%attempts + 1
-    call stage_derivatives(self, h, k, ok, ierr)
-    if (.not. ok .or. ierr /= 0) return
+    call stage_derivatives(self, h, k, ok, failure)
+    if (.not. ok .or. failure%failed()) return
     ok = .false.
     d = h*matmul(k, self%tableau%b)
     e_s = 0.0_real64
@@ -368,7 +365,7 @@ contains
     end if
     if (.not. landing .and. self%t + (gamma + landing_slack)*h >= landing_time(self)) then
       self%attempts = self%attempts - 1
-      call relaxed_step(self, landing_time(self) - self%t, .true., ok, error_norm, ierr)
+      call relaxed_step(self, landing_time(self) - self%t, .true., ok, error_norm, failure)
       return
     end if
     if (self%tableau%embedded) error_norm = dop853_error_norm(self, h, k, z_new)
@@ -400,26 +397,25 @@ contains
   ! implicit stage system solved by SNES (k_i recomputed from the final stage values, so the
   ! entropy identity does not depend on the solver's tolerance). ok = .false. with last_failure
   ! when a stage leaves the domain or the solve fails.
-  subroutine stage_derivatives(self, h, k, ok, ierr)
+  subroutine stage_derivatives(self, h, k, ok, failure)
     class(relaxed_runge_kutta), intent(inout) :: self
     real(real64), intent(in) :: h
     real(real64), intent(out) :: k(:, :)
     logical, intent(out) :: ok
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     real(real64) :: g(size(self%z)), y(size(self%z), self%tableau%stages)
     real(real64), allocatable :: start(:), predictor(:), solution(:)
     type(root_search) :: search
     integer :: i, stat, s, n
 
     ok = .false.
-    ierr = 0
     s = self%tableau%stages
     n = size(self%z)
     if (.not. self%tableau%implicit) then
       do i = 1, s
         g = self%z + h*matmul(k(:, 1:i - 1), self%tableau%a(i, 1:i - 1))
         call constrained_field(self%model, self%constraints, g, k(:, i), stat)
-        if (stat /= domain_ok) then
+        if (stat /= failure_none) then
           self%last_failure = 'stage '//integer_text(i)//' left the model''s domain or is not finite'
           return
         end if
@@ -428,7 +424,7 @@ contains
       return
     end if
     call constrained_field(self%model, self%constraints, self%z, g, stat)
-    if (stat /= domain_ok) then
+    if (stat /= failure_none) then
       self%last_failure = 'the state left the model''s domain'
       return
     end if
@@ -438,9 +434,9 @@ contains
     allocate (solution(n*s))
     self%stages%z = self%z
     self%stages%h = h
-    call find_root(self%solver, self%stages, start, predictor, solution, search, ierr)
+    call find_root(self%solver, self%stages, start, predictor, solution, search, failure)
     self%newton_iterations = self%newton_iterations + search%newton_iterations
-    if (ierr /= 0) return
+    if (failure%failed()) return
     if (.not. search%accepted) then
       self%last_failure = 'the stage equations: '//search%reason
       return
@@ -449,7 +445,7 @@ contains
     y = self%stages%stage_values(solution)
     do i = 1, s
       call constrained_field(self%model, self%constraints, y(:, i), k(:, i), stat)
-      if (stat /= domain_ok) then
+      if (stat /= failure_none) then
         self%last_failure = 'stage '//integer_text(i)//' left the model''s domain'
         return
       end if
@@ -486,16 +482,17 @@ contains
     if (self%tableau%implicit) call self%solver%context%lu%put_values(values(5 + n + m:))
   end subroutine resume_state
 
-  !> Takes back what resume_state gave (after `start`); ierr = 1 if `values` do not fit its
-  !> layout for this run's state.
-  subroutine restore_state(self, values, x, x_previous, ierr)
+  !> Takes back what resume_state gave (after `start`); a failure (failure_mismatch) if `values`
+  !> do not fit its layout for this run's state.
+  subroutine restore_state(self, values, x, x_previous, failure)
     class(relaxed_runge_kutta), intent(inout) :: self
     real(real64), intent(in) :: values(:), x(:), x_previous(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     integer :: n, m, solver_order
     logical :: ok
 
-    ierr = 1
+    call fail(failure, failure_mismatch, 'the stored integrator state does not fit the relaxed scheme''s layout', &
+              'relaxed_runge_kutta%restore_state')
     n = size(self%z)
     if (size(values) < 4 + n) return
     if (nint(values(3)) /= n) return
@@ -506,12 +503,12 @@ contains
     if (self%tableau%implicit) solver_order = self%solver%n
     call self%solver%context%lu%from_values(values(5 + n + m:), solver_order, ok)
     if (.not. ok) return
-    ierr = 0
     self%t = values(1)
     self%h_next = values(2)
     self%z = values(4:3 + n)
     if (allocated(self%last_stages)) deallocate (self%last_stages)
     if (m > 0) self%last_stages = values(5 + n:4 + n + m)
+    failure = failure_type()
   end subroutine restore_state
 
   !> The time the next step lands on when it reaches it: t_end, or an earlier output time.

@@ -10,6 +10,7 @@ module stepper
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
   use solver_description, only: solver_report, no_solver
+  use failures, only: failure_type, fail, failure_mismatch
   implicit none (type, external)
   private
   public :: time_stepper, step_report, step_diagnostic, solver_report, no_residual, accept_in_domain
@@ -67,34 +68,34 @@ module stepper
   end type time_stepper
 
   abstract interface
-    !> Prepares a run of `model` from state z0 at t = 0 with the active `constraints`. ierr /= 0
-    !> only for a library error.
-    subroutine start_interface(self, choice, model, constraints, z0, ierr)
-      import :: time_stepper, integrator_choice, generic_model, constraint_slot, real64
+    !> Prepares a run of `model` from state z0 at t = 0 with the active `constraints`. A failure
+    !> for a library error, or an initial state the integrator cannot take.
+    subroutine start_interface(self, choice, model, constraints, z0, failure)
+      import :: time_stepper, integrator_choice, generic_model, constraint_slot, real64, failure_type
       class(time_stepper), intent(inout), target :: self
       type(integrator_choice), intent(in) :: choice
       class(generic_model), intent(in) :: model
       type(constraint_slot), intent(in) :: constraints(:)
       real(real64), intent(in) :: z0(:)
-      integer, intent(out) :: ierr
+      type(failure_type), intent(out) :: failure
     end subroutine start_interface
 
     !> From x_old (at time t_old) to x_new at t_old + dt; `guess` is a predictor the integrator
-    !> may use. ierr /= 0 only for a library error; a step that cannot be done is reported.
-    subroutine advance_interface(self, x_old, t_old, dt, guess, x_new, report, ierr)
-      import :: time_stepper, step_report, real64
+    !> may use. A failure only for a library error; a step that cannot be done is reported.
+    subroutine advance_interface(self, x_old, t_old, dt, guess, x_new, report, failure)
+      import :: time_stepper, step_report, real64, failure_type
       class(time_stepper), intent(inout), target :: self
       real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
       real(real64), intent(out) :: x_new(:)
       type(step_report), intent(out) :: report
-      integer, intent(out) :: ierr
+      type(failure_type), intent(out) :: failure
     end subroutine advance_interface
 
     !> Frees what the stepper holds (library objects); it can start again afterwards.
-    subroutine release_interface(self, ierr)
-      import :: time_stepper
+    subroutine release_interface(self, failure)
+      import :: time_stepper, failure_type
       class(time_stepper), intent(inout) :: self
-      integer, intent(out) :: ierr
+      type(failure_type), intent(out) :: failure
     end subroutine release_interface
   end interface
 
@@ -131,14 +132,14 @@ contains
   end subroutine resume_state
 
   !> Takes back what resume_state gave after `start`, at the state x reached from x_previous.
-  !> ierr /= 0 if `values` are not the integrator's; by default there is nothing to take.
-  subroutine restore_state(self, values, x, x_previous, ierr)
+  !> A failure (failure_mismatch) if `values` are not the integrator's; by default there is
+  !> nothing to take.
+  subroutine restore_state(self, values, x, x_previous, failure)
     class(time_stepper), intent(inout) :: self
     real(real64), intent(in) :: values(:), x(:), x_previous(:)
-    integer, intent(out) :: ierr
-
-    ierr = 0
-    if (size(values) /= 0) ierr = 1
+    type(failure_type), intent(out) :: failure
+    if (size(values) /= 0) call fail(failure, failure_mismatch, 'the stored integrator state has '// &
+                                     'values this integrator does not keep', 'time_stepper%restore_state')
   end subroutine restore_state
 
   !> Accepts a step whose end state z_new is finite and in the model's domain (its temperatures

@@ -18,6 +18,7 @@ module ts_stepper
   use stepper, only: time_stepper, step_report, solver_report, no_residual, accept_in_domain
   use solver_description, only: add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, reasons_ts
   use dense_assembly, only: assemble_jacobian
+  use failures, only: failure_type, fail, fail_on_code, failure_input, failure_mismatch
   implicit none
   private
   public :: ts_baseline, new_ts_midpoint, new_ts_bdf2, new_ts_rk4, new_ts_rk5dp
@@ -95,24 +96,81 @@ contains
     allocate (integrator, source=ts_baseline(method=ts_rk5dp))
   end subroutine new_ts_rk5dp
 
-  !> Creates the TS of the run for `model` from state z0 at t = 0 with step dt (the first step
-  !> for ts_rk5dp), Newton tolerance and iteration limit (implicit methods) and tolerance
-  !> tolerance (ts_rk5dp); a TS of an earlier run is destroyed first. The TS baselines take no
-  !> constraints (the registry says so, and the input refuses them).
-  subroutine start(self, choice, model, constraints, z0, ierr)
+  !> Creates the TS of the run (start_petsc); a failure if PETSc fails, or for constraints, which
+  !> the TS baselines take none of (the registry says so, and the input refuses them).
+  subroutine start(self, choice, model, constraints, z0, failure)
     class(ts_baseline), intent(inout), target :: self
     type(integrator_choice), intent(in) :: choice
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z0(:)
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call start_petsc(self, choice, model, constraints, z0, ierr)
+    call fail_on_code(failure, ierr, 'ts_baseline%start', 'PETSc could not set up the TS')
+    if (size(constraints) > 0) call fail(failure, failure_input, 'the PETSc TS baselines take no constraints', &
+                                         'ts_baseline%start')
+  end subroutine start
+
+  !> Frees the PETSc objects; a failure if PETSc fails.
+  subroutine release(self, failure)
+    class(ts_baseline), intent(inout) :: self
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call release_petsc(self, ierr)
+    call fail_on_code(failure, ierr, 'ts_baseline%release', 'PETSc could not free the TS')
+  end subroutine release
+
+  !> Integrates to t_old + dt (advance_petsc); a failure only for a PETSc error.
+  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, failure)
+    class(ts_baseline), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call advance_petsc(self, x_old, t_old, dt, guess, x_new, report, ierr)
+    call fail_on_code(failure, ierr, 'ts_baseline%advance', 'PETSc failed in TSSolve')
+  end subroutine advance
+
+  !> The TS's state becomes x (the time comes with each advance), its step resume_state's; a
+  !> failure (failure_mismatch) if `values` are not resume_state's, or if PETSc fails.
+  subroutine restore_state(self, values, x, x_previous, failure)
+    class(ts_baseline), intent(inout) :: self
+    real(real64), intent(in) :: values(:), x(:), x_previous(:)
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    if (size(values) /= 1) then
+      call fail(failure, failure_mismatch, 'the stored integrator state is not the TS''s step', &
+                'ts_baseline%restore_state')
+      return
+    end if
+    call restore_state_petsc(self, values, x, ierr)
+    call fail_on_code(failure, ierr, 'ts_baseline%restore_state', 'PETSc could not restore the TS')
+  end subroutine restore_state
+
+  ! Creates the TS of the run for `model` from state z0 at t = 0 with step dt (the first step
+  ! for ts_rk5dp), Newton tolerance and iteration limit (implicit methods) and tolerance
+  ! tolerance (ts_rk5dp); a TS of an earlier run is destroyed first. It takes no
+  ! constraints.
+  subroutine start_petsc(self, choice, model, constraints, z0, ierr)
+    class(ts_baseline), intent(inout), target :: self
+    type(integrator_choice), intent(in) :: choice
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    real(real64), intent(in) :: z0(:)
+    PetscErrorCode, intent(out) :: ierr
     SNES :: snes
     TSAdapt :: adapt
     PetscScalar, pointer :: values(:)
     PetscInt :: n, max_iterations, max_evaluations, max_steps
 
     if (self%created) then
-      PetscCall(self%release(ierr))
+      PetscCall(release_petsc(self, ierr))
     end if
     if (allocated(self%context%model)) deallocate (self%context%model)
     allocate (self%context%model, source=model)
@@ -172,13 +230,12 @@ contains
       PetscCall(TSSetMaxStepRejections(self%ts, 0, ierr))
     end if
     PetscCall(TSSetFromOptions(self%ts, ierr))
-    if (size(constraints) > 0) ierr = PETSC_ERR_ARG_WRONG   ! the input refuses constraints for TS
-  end subroutine start
+  end subroutine start_petsc
 
-  !> Frees the PETSc objects.
-  subroutine release(self, ierr)
+  ! Frees the PETSc objects.
+  subroutine release_petsc(self, ierr)
     class(ts_baseline), intent(inout) :: self
-    integer, intent(out) :: ierr
+    PetscErrorCode, intent(out) :: ierr
 
     ierr = 0
     if (.not. self%created) return
@@ -188,16 +245,16 @@ contains
     if (self%context%implicit) then
       PetscCall(MatDestroy(self%jacobian, ierr))
     end if
-  end subroutine release
+  end subroutine release_petsc
 
-  !> Integrates from the TS's current state to t_old + dt. x_old and guess are not needed: the
-  !> TS carries its state (and BDF2 its history) from one output step to the next.
-  subroutine advance(self, x_old, t_old, dt, guess, x_new, report, ierr)
+  ! Integrates from the TS's current state to t_old + dt. x_old and guess are not needed: the
+  ! TS carries its state (and BDF2 its history) from one output step to the next.
+  subroutine advance_petsc(self, x_old, t_old, dt, guess, x_new, report, ierr)
     class(ts_baseline), intent(inout), target :: self
     real(real64), intent(in) :: x_old(:), t_old, dt, guess(:)
     real(real64), intent(out) :: x_new(:)
     type(step_report), intent(out) :: report
-    integer, intent(out) :: ierr
+    PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: values(:)
     TSConvergedReason :: converged
     SNES :: snes
@@ -257,7 +314,7 @@ contains
       return
     end if
     call accept_in_domain(self%context%model, x_new, report)
-  end subroutine advance
+  end subroutine advance_petsc
 
   !> What an output step leaves for the next beyond the state: the step TS holds (ts_rk5dp's
   !> next trial step). A multistep method's history (BDF2's earlier states) is not kept: a
@@ -270,21 +327,18 @@ contains
     values = [self%next_step]
   end subroutine resume_state
 
-  !> The TS's state becomes x (the time comes with each advance), its step resume_state's;
-  !> ierr = 1 if `values` are not resume_state's.
-  subroutine restore_state(self, values, x, x_previous, ierr)
+  ! The TS's state becomes x, its step values(1) (restore_state has checked the size).
+  subroutine restore_state_petsc(self, values, x, ierr)
     class(ts_baseline), intent(inout) :: self
-    real(real64), intent(in) :: values(:), x(:), x_previous(:)
-    integer, intent(out) :: ierr
+    real(real64), intent(in) :: values(:), x(:)
+    PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: state(:)
 
-    ierr = 1
-    if (size(values) /= 1) return
     PetscCall(VecGetArrayF90(self%x, state, ierr))
     state = x(1:size(state))
     PetscCall(VecRestoreArrayF90(self%x, state, ierr))
     PetscCall(TSSetTimeStep(self%ts, values(1), ierr))
-  end subroutine restore_state
+  end subroutine restore_state_petsc
 
   !> The TS as the options database left it (after TSSetFromOptions): type, adaptivity and
   !> tolerances, and for the implicit methods their SNES and linear solver; PETSc's names of the
@@ -294,8 +348,11 @@ contains
     type(solver_report) :: report
     PetscErrorCode :: ierr
 
+    type(failure_type) :: failure
+
     call describe_ts(self, report, ierr)
-    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the TS'))
+    if (ierr == 0) call set_petsc_reasons(report, reasons_ts, failure)
+    if (ierr /= 0 .or. failure%failed()) call add_setting(report, text_setting('error', 'PETSc could not describe the TS'))
   end function describe_solver
 
   subroutine describe_ts(self, report, ierr)
@@ -338,7 +395,6 @@ contains
       call add_setting(report, text_setting('ksp_type', ksp_type))
       call add_setting(report, text_setting('pc_type', pc_type))
     end if
-    call set_petsc_reasons(report, reasons_ts, ierr)
   end subroutine describe_ts
 
   ! Dense LU for the implicit methods' Newton solves, as for the EME schemes.

@@ -8,6 +8,7 @@ module command_help
   use namelist_group, only: describe_group
   use model_registry, only: select_scene, model_names
   use model_scene, only: scene
+  use failures, only: failure_type
   use run_config, only: run_configuration, integrator_fields, output_fields
   use study_config, only: study_fields, sweep_fields, max_sweep_values
   use integrator_registry, only: integrator_entry, registered_integrators, family_relaxation
@@ -57,9 +58,10 @@ contains
     type(run_configuration), target :: defaults
     type(namelist_item) :: no_items(0)
     character(len=16), allocatable :: groups(:)
-    character(len=:), allocatable :: message, names, name
+    character(len=:), allocatable :: names, name
     class(scene), allocatable, target :: scene_of_model
-    integer :: g, i, stat
+    integer :: g, i
+    type(failure_type) :: failure
 
     write (unit, '(a)') 'usage: eme_run [PETSc options] FILE.nml [PETSc options]', &
       '       eme_run --help | -h | --version | --integrators | --output-schema', '', &
@@ -84,13 +86,13 @@ contains
       name = names(1:index(names, ' ') - 1)
       names = names(index(names, ' ') + 1:)
       write (unit, '(a)') '', 'Model '''//name//''' (&model model_name = '''//name//'''):'
-      call select_scene("&model model_name = '"//name//"' /", 'defaults', no_items, scene_of_model, stat, message)
+      call select_scene("&model model_name = '"//name//"' /", 'defaults', no_items, scene_of_model, failure)
       call scene_of_model%group_names(groups)
       do g = 1, size(groups)
         call describe_group(unit, trim(groups(g)), scene_of_model%fields(trim(groups(g))))
       end do
     end do
-    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+    call select_scene(' ', 'defaults', no_items, defaults%scene, failure)
     write (unit, '(a)') '', 'Every model:'
     call describe_group(unit, 'integrator', integrator_fields(defaults))
     call describe_group(unit, 'output', output_fields(defaults))

@@ -16,6 +16,7 @@ module run_config
   use model_constraint, only: constraint_slot
   use constrained_flow, only: initial_inconsistency
   use model_registry, only: select_scene
+  use failures, only: failure_type, fail, failure_input
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, joined
   use number_text, only: integer_text, reals_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
@@ -57,13 +58,12 @@ module run_config
 
 contains
 
-  !> Reads and validates `path` (then `overrides`, if any); on failure stat /= 0 and `message`
-  !> says what and where.
-  subroutine read_run_config(path, config, stat, message, overrides)
+  !> Reads and validates `path` (then `overrides`, if any); a failure (failure_input, or
+  !> failure_io for an unreadable file) whose message says what and where.
+  subroutine read_run_config(path, config, failure, overrides)
     character(len=*), intent(in) :: path
     type(run_configuration), intent(out), target :: config
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(namelist_item), intent(in), optional :: overrides(:)
     type(namelist_item), allocatable :: extra(:)
     type(group_field), allocatable :: outputs(:)
@@ -75,102 +75,98 @@ contains
     integer :: i
 
     config%input_file = path
-    call read_source_text(path, text, stat, message)
-    if (stat /= 0) return
+    call read_source_text(path, text, failure)
+    if (failure%failed()) return
     allocate (extra(0))
     if (present(overrides)) extra = overrides
-    call select_scene(text, path, extra, config%scene, stat, message)
-    if (stat /= 0) return
+    call select_scene(text, path, extra, config%scene, failure)
+    if (failure%failed()) return
     call config%scene%group_names(allowed_groups)
     allowed_groups = [character(len=16) :: allowed_groups, run_groups]
     call group_names(text, groups)
     if (size(groups) == 0) then
-      stat = 1
-      message = path//': no namelist group found (an empty file, only comments, or not a namelist); allowed groups: ' &
-                //'&'//joined(allowed_groups, ', &')//', each written &name field = value, ... /'
+      call fail(failure, failure_input, path &
+          //': no namelist group found (an empty file, only comments, or not a namelist); allowed groups: ' &
+                //'&'//joined(allowed_groups, ', &')//', each written &name field = value, ... /')
       return
     end if
     do i = 1, size(groups)
       if (.not. any(allowed_groups == groups(i))) then
-        stat = 1
-        message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &'//joined(allowed_groups, ', &')
+        call fail(failure, failure_input, path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &' &
+            //joined(allowed_groups, ', &'))
         return
       else if (count(groups == groups(i)) > 1) then
-        stat = 1
-        message = path//': &'//trim(groups(i))//' appears '//integer_text(count(groups == groups(i)))// &
-                  ' times; allowed: each group once (put all its fields in one group)'
+        call fail(failure, failure_input, path//': &'//trim(groups(i))//' appears '//integer_text(count(groups == groups(i)))// &
+                  ' times; allowed: each group once (put all its fields in one group)')
         return
       end if
     end do
     do i = 1, size(extra)
       if (is_field(config, allowed_groups, item_name(extra(i)%item))) cycle
-      stat = 1
-      message = extra(i)%origin//': '''//item_name(extra(i)%item)//''' is not a field of an eme_run namelist group'
+      call fail(failure, failure_input, extra(i)%origin//': '''//item_name(extra(i)%item) &
+          //''' is not a field of an eme_run namelist group')
       return
     end do
 
-    call config%scene%read(text, path, extra, stat, message)
-    if (stat /= 0) return
-    call read_group(text, 'integrator', integrator_fields(config), path, stat, message, extra)
-    if (stat /= 0) return
+    call config%scene%read(text, path, extra, failure)
+    if (failure%failed()) return
+    call read_group(text, 'integrator', integrator_fields(config), path, failure, extra)
+    if (failure%failed()) return
     associate (choice => config%integrator)
       choice%thermo_variable = findloc(thermo_variable_names, config%thermo_variable, dim=1)
       choice%discrete_gradient = findloc(discrete_gradient_names, config%discrete_gradient, dim=1)
       choice%metric = findloc(metric_names, config%metric, dim=1)
       call find_integrator(choice%scheme, entry, found)
       if (.not. entry%thermo_variables(choice%thermo_variable)) then
-        stat = 1
-        message = value_origin(text, 'integrator', 'thermo_variable', path, extra)//': &integrator: scheme = '''// &
-                  trim(choice%scheme)//''' does not take thermo_variable = '''//trim(config%thermo_variable)//''''
+        call fail(failure, failure_input, value_origin(text, 'integrator', 'thermo_variable', path, extra) &
+            //': &integrator: scheme = '''// &
+                  trim(choice%scheme)//''' does not take thermo_variable = '''//trim(config%thermo_variable)//'''')
         return
       end if
       if (.not. entry%takes_constraints .and. config%scene%constraint_count() > 0) then
-        stat = 1
-        message = value_origin(text, 'integrator', 'scheme', path, extra)//': &integrator: scheme = '''// &
+        call fail(failure, failure_input, value_origin(text, 'integrator', 'scheme', path, extra)//': &integrator: scheme = '''// &
                   trim(choice%scheme)//''' integrates the unconstrained model only; allowed with &constraints: ' &
-                  //choices_text(integrator_names(.true.))
+                  //choices_text(integrator_names(.true.)))
         return
       end if
       call note_unused_settings(text, path, extra, entry, config)
       config%chooses_times = entry%chooses_time .or. (entry%error_control .and. choice%tolerance_given)
-      call check_step_plan(text, path, extra, config, stat, message)
-      if (stat /= 0) return
+      call check_step_plan(text, path, extra, config, failure)
+      if (failure%failed()) return
       if (entry%continuous_constraints .and. config%scene%constraint_count() > 0) then
-        call check_continuous_start(config, entry, stat, message)
+        call check_continuous_start(config, entry, failure)
       else if (entry%error_control .and. choice%tolerance_given .and. config%scene%constraint_count() > 0) then
-        call check_controllable_constraints(config, entry, stat, message)
+        call check_controllable_constraints(config, entry, failure)
       end if
-      if (stat /= 0) then
-        message = value_origin(text, 'integrator', 'scheme', path, extra)//': '//message
+      if (failure%failed()) then
+        failure%message = value_origin(text, 'integrator', 'scheme', path, extra)//': '//failure%message
         return
       end if
     end associate
 
     config%theta_r = config%scene%default_theta_r()
     config%file = default_output_file(path)
-    call read_group(text, 'output', output_fields(config), path, stat, message, extra)
-    if (stat /= 0) return
+    call read_group(text, 'output', output_fields(config), path, failure, extra)
+    if (failure%failed()) return
     config%output_file = trim(config%file)
     outputs = output_fields(config)
     if (.not. (len_trim(config%file) > 3 .and. index(config%file, '.h5', back=.true.) == len_trim(config%file) - 2)) then
-      stat = 1
-      message = invalid_value_message(value_origin(text, 'output', 'file', path, extra), 'output', outputs(1))
+      call fail(failure, failure_input, invalid_value_message(value_origin(text, 'output', 'file', path, extra), 'output', &
+          outputs(1)))
     else if (config%compression > max_compression) then
-      stat = 1
-      message = invalid_value_message(value_origin(text, 'output', 'compression', path, extra), 'output', &
-                                      outputs(findloc(outputs%name, 'compression', dim=1)))
+      call fail(failure, failure_input, invalid_value_message(value_origin(text, 'output', 'compression', path, extra), 'output', &
+                                      outputs(findloc(outputs%name, 'compression', dim=1))))
     else if (config%output_interval > 0.0_real64 .and. .not. config%chooses_times) then
-      stat = 1
-      message = value_origin(text, 'output', 'interval', path, extra)//': &output: interval = '// &
+      call fail(failure, failure_input, value_origin(text, 'output', 'interval', path, extra)//': &output: interval = '// &
                 reals_text([config%output_interval])//' needs an integrator that chooses its steps (a relaxed '// &
                 'scheme, or eme or midpoint with a tolerance); scheme = '''//trim(config%integrator%scheme)// &
-                ''' writes on the grid of dt: set dt to the output interval, or use every'
+                ''' writes on the grid of dt: set dt to the output interval, or use every')
     else if (config%output_interval > 0.0_real64 .and. config%output_every > 1) then
-      stat = 1
-      message = value_origin(text, 'output', 'interval', path, extra)//': &output: interval and every both '// &
-                'choose the rows written; allowed: one of them'
+      call fail(failure, failure_input, value_origin(text, 'output', 'interval', path, extra) &
+          //': &output: interval and every both '// &
+                'choose the rows written; allowed: one of them')
     end if
-    if (stat /= 0) return
+    if (failure%failed()) return
     call note_celsius_temperatures(text, path, extra, config)
   end subroutine read_run_config
 
@@ -197,30 +193,25 @@ contains
   ! above t_end (a run that would step past its end) is refused, and so is a plan above the step
   ! budget; for an integrator that chooses its steps dt is the first trial step (or the output
   ! interval), capped at t_end.
-  subroutine check_step_plan(text, path, extra, config, stat, message)
+  subroutine check_step_plan(text, path, extra, config, failure)
     character(len=*), intent(in) :: text, path
     type(namelist_item), intent(in) :: extra(:)
     type(run_configuration), intent(inout) :: config
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
 
-    stat = 0
-    message = ''
     associate (choice => config%integrator)
       if (config%chooses_times) then
         choice%dt = min(choice%dt, choice%t_end)
       else if (choice%dt > choice%t_end) then
-        stat = 1
-        message = value_origin(text, 'integrator', 'dt', path, extra)//': &integrator: dt = '// &
+        call fail(failure, failure_input, value_origin(text, 'integrator', 'dt', path, extra)//': &integrator: dt = '// &
                   reals_text([choice%dt])//' is longer than t_end = '//reals_text([choice%t_end])//'; allowed: '// &
-                  'dt <= t_end (scheme = '''//trim(choice%scheme)//''' takes fixed steps of dt)'
+                  'dt <= t_end (scheme = '''//trim(choice%scheme)//''' takes fixed steps of dt)')
       else if (step_count(choice) > choice%max_steps) then
-        stat = 1
-        message = value_origin(text, 'integrator', 't_end', path, extra)//': &integrator: t_end = '// &
+        call fail(failure, failure_input, value_origin(text, 'integrator', 't_end', path, extra)//': &integrator: t_end = '// &
                   reals_text([choice%t_end])//' with dt = '//reals_text([choice%dt])//' needs '// &
                   reals_text([choice%t_end/choice%dt])//' steps, more than max_steps = '// &
                   integer_text(choice%max_steps)//'; allowed: t_end/dt <= max_steps (raise max_steps, up to '// &
-                  integer_text(huge(1))//', or choose a longer dt)'
+                  integer_text(huge(1))//', or choose a longer dt)')
       end if
     end associate
   end subroutine check_step_plan
@@ -264,43 +255,41 @@ contains
 
   ! An integrator of the continuous constrained flow needs constraints with a continuous-time
   ! form and an initial state that satisfies their hidden constraints (dg/dt = 0).
-  subroutine check_continuous_start(config, entry, stat, message)
+  subroutine check_continuous_start(config, entry, failure)
     type(run_configuration), intent(in) :: config
     type(integrator_entry), intent(in) :: entry
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     class(generic_model), allocatable :: model
     type(constraint_slot), allocatable :: constraints(:)
     real(real64), allocatable :: z0(:)
     character(len=:), allocatable :: why
     integer :: k
 
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
-    if (stat /= 0) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
+    if (failure%failed()) return
     do k = 1, size(constraints)
       if (constraints(k)%item%continuous_form) cycle
-      stat = 1
-      message = '&constraints: scheme = '''//trim(entry%name)//''' integrates the constrained flow in continuous '// &
-                'time, and the '//trim(constraints(k)%item%name)//' constraint has no continuous-time form'
+      call fail(failure, failure_input, '&constraints: scheme = '''//trim(entry%name) &
+          //''' integrates the constrained flow in continuous '// &
+                'time, and the '//trim(constraints(k)%item%name)//' constraint has no continuous-time form')
       return
     end do
     why = initial_inconsistency(model, constraints, z0)
     if (len(why) > 0) then
-      stat = 1
-      message = '&initial: scheme = '''//trim(entry%name)//''' integrates the constrained motion in continuous '// &
+      call fail(failure, failure_input, '&initial: scheme = '''//trim(entry%name) &
+          //''' integrates the constrained motion in continuous '// &
                 'time (EME and the midpoint rule enforce the constraints at each step''s end and take any initial '// &
-                'velocity): '//why
+                'velocity): '//why)
     end if
   end subroutine check_continuous_start
 
   ! Step-size control of a discrete-gradient step measures its error against the continuous flow
   ! (src/integrator/local_error_estimate): a constraint without a continuous form, or with a hidden
   ! constraint that the step does not enforce (g1: q1.v1 = 0), is refused with a tolerance.
-  subroutine check_controllable_constraints(config, entry, stat, message)
+  subroutine check_controllable_constraints(config, entry, failure)
     type(run_configuration), intent(in) :: config
     type(integrator_entry), intent(in) :: entry
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     class(generic_model), allocatable :: model
     type(constraint_slot), allocatable :: constraints(:)
     real(real64), allocatable :: z0(:), gradient(:)
@@ -308,18 +297,17 @@ contains
     logical :: hidden
     integer :: k
 
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
-    if (stat /= 0) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
+    if (failure%failed()) return
     allocate (gradient(size(z0)))
     do k = 1, size(constraints)
       call constraints(k)%item%momentum_condition(model, z0, hidden, value, gradient)
       if (constraints(k)%item%continuous_form .and. .not. hidden) cycle
-      stat = 1
-      message = '&integrator: tolerance with scheme = '''//trim(entry%name)//''' and the '// &
+      call fail(failure, failure_input, '&integrator: tolerance with scheme = '''//trim(entry%name)//''' and the '// &
                 trim(constraints(k)%item%name)//' constraint: step-size control is not available with it (the '// &
                 'step keeps the constraint on positions but not its hidden constraint on velocities, whose error '// &
                 'no step size reduces); allowed: fixed steps (no tolerance), or relaxed_dp853, which chooses its '// &
-                'steps with this constraint'
+                'steps with this constraint')
       return
     end do
   end subroutine check_controllable_constraints
@@ -432,10 +420,9 @@ contains
   subroutine default_run(defaults)
     type(run_configuration), intent(out) :: defaults
     type(namelist_item) :: no_items(0)
-    character(len=:), allocatable :: message
-    integer :: stat
+    type(failure_type) :: failure
 
-    call select_scene(' ', 'defaults', no_items, defaults%scene, stat, message)
+    call select_scene(' ', 'defaults', no_items, defaults%scene, failure)
   end subroutine default_run
 
   ! The field `name` of the eme_run groups, bound to the variables of `defaults` (found =

@@ -12,6 +12,7 @@ module study_config
   use run_config, only: run_configuration, read_run_config, same_variable, field_length
   use integrator_settings, only: step_count
   use number_text, only: integer_text
+  use failures, only: failure_type, fail, failure_input
   implicit none (type, external)
   private
   public :: study_definition, study_case, read_study, study_fields, sweep_fields, max_sweep_values
@@ -56,47 +57,46 @@ module study_config
 contains
 
   !> Reads `path`, expands and validates every case; stat /= 0 with a message on bad input.
-  subroutine read_study(path, study, stat, message)
+  subroutine read_study(path, study, failure)
     character(len=*), intent(in) :: path
     type(study_definition), intent(out) :: study
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: text
     character(len=32), allocatable :: groups(:)
     integer :: i
 
     study%input_file = path
-    call read_source_text(path, text, stat, message)
-    if (stat /= 0) return
+    call read_source_text(path, text, failure)
+    if (failure%failed()) return
     call group_names(text, groups)
-    stat = 1
     if (size(groups) == 0) then
-      message = path//': no namelist group found (an empty file, only comments, or not a namelist); allowed groups: '// &
-                '&study, &sweep, each written &name field = value, ... /'
+      call fail(failure, failure_input, path//': no namelist group found (an empty file, only comments, or not a '// &
+                'namelist); allowed groups: &study, &sweep, each written &name field = value, ... /')
       return
     end if
     do i = 1, size(groups)
       if (groups(i) /= 'study' .and. groups(i) /= 'sweep') then
-        message = path//': unknown namelist group &'//trim(groups(i))//'; allowed groups: &study, &sweep'
+        call fail(failure, failure_input, path//': unknown namelist group &'//trim(groups(i))// &
+                  '; allowed groups: &study, &sweep')
         return
       end if
     end do
     if (count(groups == 'study') > 1) then
-      message = path//': &study appears '//integer_text(count(groups == 'study'))//' times; allowed: one &study group '// &
-                'and one &sweep group per swept field'
+      call fail(failure, failure_input, path//': &study appears '//integer_text(count(groups == 'study'))// &
+                ' times; allowed: one &study group and one &sweep group per swept field')
       return
     end if
-    call read_study_group(text, study, stat, message)
-    if (stat /= 0) return
+    call read_study_group(text, study, failure)
+    if (failure%failed()) return
     allocate (study%sweeps(0))
     do i = 1, count(groups == 'sweep')
-      call read_sweep_group(text, i, study, stat, message)
-      if (stat /= 0) return
+      call read_sweep_group(text, i, study, failure)
+      if (failure%failed()) return
     end do
-    call check_collisions(study, stat, message)
-    if (stat /= 0) return
-    call expand_cases(study, stat, message)
-    if (stat /= 0) return
+    call check_collisions(study, failure)
+    if (failure%failed()) return
+    call expand_cases(study, failure)
+    if (failure%failed()) return
     if (size(study%cases) >= index_only_from) then
       if (.not. index_only_given(text, path)) study%index_only = .true.
     end if
@@ -156,11 +156,10 @@ contains
     end do
   end function index_only_given
 
-  subroutine read_study_group(text, definition, stat, message)
+  subroutine read_study_group(text, definition, failure)
     character(len=*), intent(in) :: text
     type(study_definition), intent(inout) :: definition
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=4096), target :: base, output_dir
     character(len=16), target :: combine
     logical, target :: index_only
@@ -177,8 +176,8 @@ contains
     index_only = .false.
     repeats = 1
     fields = study_fields(base, output_dir, combine, index_only, repeats)
-    call read_group(text, 'study', fields, definition%input_file, stat, message)
-    if (stat /= 0) return
+    call read_group(text, 'study', fields, definition%input_file, failure)
+    if (failure%failed()) return
     definition%index_only = index_only
     definition%repeats = repeats
     ! One rule for paths (docs/input.md): a path that names another input file (base) is relative
@@ -188,23 +187,19 @@ contains
     definition%output_dir = tidy_path(trim(output_dir))
     definition%combine = trim(lowercase(combine))
     if (len(definition%base) == 0) then
-      stat = 1
-      message = definition%input_file//': &study: base is missing; allowed: '//trim(fields(1)%allowed)
+      call fail(failure, failure_input, definition%input_file//': &study: base is missing; allowed: '//trim(fields(1)%allowed))
     else if (definition%combine /= 'product' .and. definition%combine /= 'zip') then
-      stat = 1
-      message = invalid_value_message(definition%input_file, 'study', fields(3))
+      call fail(failure, failure_input, invalid_value_message(definition%input_file, 'study', fields(3)))
     else if (len(definition%output_dir) == 0) then
-      stat = 1
-      message = invalid_value_message(definition%input_file, 'study', fields(2))
+      call fail(failure, failure_input, invalid_value_message(definition%input_file, 'study', fields(2)))
     end if
   end subroutine read_study_group
 
-  subroutine read_sweep_group(text, occurrence, definition, stat, message)
+  subroutine read_sweep_group(text, occurrence, definition, failure)
     character(len=*), intent(in) :: text
     integer, intent(in) :: occurrence
     type(study_definition), intent(inout) :: definition
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=64), target :: field
     real(real64), target :: values(max_sweep_values)
     character(len=64), target :: texts(max_sweep_values)
@@ -216,13 +211,13 @@ contains
     values = ieee_value(1.0_real64, ieee_quiet_nan)
     texts = ''
     fields = sweep_fields(field, values, texts)
-    call read_group(text, 'sweep', fields, definition%input_file, stat, message, occurrence=occurrence)
-    if (stat /= 0) return
+    call read_group(text, 'sweep', fields, definition%input_file, failure, occurrence=occurrence)
+    if (failure%failed()) return
     new_sweep%field = trim(lowercase(adjustl(field)))
     if (len(new_sweep%field) == 0) then
-      stat = 1
-      message = definition%input_file//': &sweep number '//integer_text(occurrence)//': field is missing; allowed: ' &
-                //trim(fields(1)%allowed)
+      call fail(failure, failure_input, definition%input_file//': &sweep number '//integer_text(occurrence) &
+          //': field is missing; allowed: ' &
+                //trim(fields(1)%allowed))
       return
     end if
     n = count(.not. ieee_is_nan(values))
@@ -230,22 +225,22 @@ contains
     if (new_sweep%textual) n = count(len_trim(texts) > 0)
     if (n == 0 .or. (new_sweep%textual .and. any(len_trim(texts(n + 1:)) > 0)) .or. &
         (.not. new_sweep%textual .and. (any(len_trim(texts) > 0) .or. any(ieee_is_nan(values(1:n)))))) then
-      stat = 1
-      message = definition%input_file//': &sweep '''//new_sweep%field//''': give either values (numbers) or texts, '// &
-                'one list without gaps'
+      call fail(failure, failure_input, definition%input_file//': &sweep '''//new_sweep%field &
+          //''': give either values (numbers) or texts, '// &
+                'one list without gaps')
       return
     end if
     if (.not. new_sweep%textual) then
-      call sweep_elements(new_sweep, stat, message)
-      if (stat /= 0) then
-        message = definition%input_file//': &sweep '''//new_sweep%field//''': '//message
+      call sweep_elements(new_sweep, failure)
+      if (failure%failed()) then
+        failure%message = definition%input_file//': &sweep '''//new_sweep%field//''': '//failure%message
         return
       end if
       if (mod(n, new_sweep%elements) /= 0) then
-        stat = 1
-        message = definition%input_file//': &sweep '''//new_sweep%field//''': '//integer_text(n)//' values for '// &
+        call fail(failure, failure_input, definition%input_file//': &sweep '''//new_sweep%field//''': '//integer_text(n) &
+            //' values for '// &
                   integer_text(new_sweep%elements)//' elements; allowed: a multiple of '// &
-                  integer_text(new_sweep%elements)//', the elements of each case one case after another'
+                  integer_text(new_sweep%elements)//', the elements of each case one case after another')
         return
       end if
     end if
@@ -269,14 +264,11 @@ contains
 
   ! How many values a numeric sweep gives each case: a section field(i:j) j - i + 1, a whole array
   ! its size, anything else 1 (the case's validation refuses what does not fit the field).
-  subroutine sweep_elements(sweep, stat, message)
+  subroutine sweep_elements(sweep, failure)
     type(study_sweep), intent(inout) :: sweep
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     integer :: first, last, open_at
 
-    stat = 0
-    message = ''
     open_at = index(sweep%field, '(')
     if (open_at == 0) then
       sweep%elements = max(1, field_length(sweep%field))
@@ -284,8 +276,8 @@ contains
     end if
     first = 1
     last = huge(1)
-    call parse_subscript(sweep%field(open_at + 1:), first, last, stat, message)
-    if (stat /= 0) return
+    call parse_subscript(sweep%field(open_at + 1:), first, last, failure)
+    if (failure%failed()) return
     sweep%first_element = first
     sweep%elements = last - first + 1
   end subroutine sweep_elements
@@ -343,17 +335,15 @@ contains
   ! Cases that would collide: two sweeps that set the same variable (or overlapping elements of
   ! it: 'theta' and 'theta(2)'; a field and its old name), and a sweep of the output file, which
   ! the study names for each case.
-  subroutine check_collisions(study, stat, message)
+  subroutine check_collisions(study, failure)
     type(study_definition), intent(in) :: study
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     integer :: s, t, first(2), last(2)
 
-    stat = 1
     do s = 1, size(study%sweeps)
       if (item_name(study%sweeps(s)%field) == 'file') then
-        message = study%input_file//': &sweep ''file'': the study writes each case to output_dir/case_NNNNN.h5; '// &
-                  'allowed: any eme_run field but &output file'
+        call fail(failure, failure_input, study%input_file//': &sweep ''file'': the study writes each case to '// &
+                  'output_dir/case_NNNNN.h5; allowed: any eme_run field but &output file', 'file')
         return
       end if
       do t = 1, s - 1
@@ -361,14 +351,12 @@ contains
         call element_range(study%sweeps(t)%field, first(1), last(1))
         call element_range(study%sweeps(s)%field, first(2), last(2))
         if (max(first(1), first(2)) > min(last(1), last(2))) cycle
-        message = study%input_file//': &sweep '''//study%sweeps(t)%field//''' and &sweep '''//study%sweeps(s)%field// &
-                  ''' set the same value, and the later would overwrite the earlier in every case; allowed: '// &
-                  'each field (or array element) in one sweep'
+        call fail(failure, failure_input, study%input_file//': &sweep '''//study%sweeps(t)%field//''' and &sweep '''// &
+                  study%sweeps(s)%field//''' set the same value, and the later would overwrite the earlier in every '// &
+                  'case; allowed: each field (or array element) in one sweep', study%sweeps(s)%field)
         return
       end do
     end do
-    stat = 0
-    message = ''
   end subroutine check_collisions
 
   ! The elements first:last that a sweep field 'name', 'name(i)' or 'name(i:j)' sets (all of
@@ -377,30 +365,26 @@ contains
   subroutine element_range(field, first, last)
     character(len=*), intent(in) :: field
     integer, intent(out) :: first, last
-    character(len=:), allocatable :: reason
-    integer :: open_at, stat
+    type(failure_type) :: failure
+    integer :: open_at
 
     first = 1
     last = huge(1)
     open_at = index(field, '(')
     if (open_at == 0) return
-    call parse_subscript(field(open_at + 1:), first, last, stat, reason)
-    if (stat == 0) return
+    call parse_subscript(field(open_at + 1:), first, last, failure)
+    if (.not. failure%failed()) return
     first = 1
     last = huge(1)
   end subroutine element_range
 
   ! The cases: a Cartesian product (first sweep slowest) or the zip of the sweeps. Each is read
   ! and validated as eme_run would read the base scene with the case's overrides.
-  subroutine expand_cases(study, stat, message)
+  subroutine expand_cases(study, failure)
     type(study_definition), intent(inout) :: study
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     integer :: n_sweeps, n_cases, c, s, remainder, pick(max(1, size(study%sweeps)))
-    character(len=:), allocatable :: case_message
 
-    stat = 0
-    message = ''
     n_sweeps = size(study%sweeps)
     if (n_sweeps == 0) then
       n_cases = 1
@@ -408,9 +392,8 @@ contains
       n_cases = size(study%sweeps(1)%values)
       do s = 2, n_sweeps
         if (size(study%sweeps(s)%values) /= n_cases) then
-          stat = 1
-          message = study%input_file//': &study: combine = ''zip'' needs sweeps of equal length; '''// &
-                    study%sweeps(s)%field//''' differs from '''//study%sweeps(1)%field//''''
+          call fail(failure, failure_input, study%input_file//': &study: combine = ''zip'' needs sweeps of equal length; '''// &
+                    study%sweeps(s)%field//''' differs from '''//study%sweeps(1)%field//'''')
           return
         end if
       end do
@@ -418,8 +401,7 @@ contains
       n_cases = 1
       do s = 1, n_sweeps
         if (n_cases > max_cases/size(study%sweeps(s)%values)) then
-          stat = 1
-          message = study%input_file//': the product of the sweeps has more than 100000 cases'
+          call fail(failure, failure_input, study%input_file//': the product of the sweeps has more than 100000 cases')
           return
         end if
         n_cases = n_cases*size(study%sweeps(s)%values)
@@ -444,9 +426,9 @@ contains
           this%overrides(s) = namelist_item(study%sweeps(s)%field//' = '//trim(study%sweeps(s)%values(pick(s))), &
                                             study%input_file//': &sweep '''//study%sweeps(s)%field//'''')
         end do
-        call read_run_config(study%base, this%config, stat, case_message, this%overrides)
-        if (stat /= 0) then
-          message = case_message//' (case '//integer_text(c)//' of the study)'
+        call read_run_config(study%base, this%config, failure, this%overrides)
+        if (failure%failed()) then
+          failure%message = failure%message//' (case '//integer_text(c)//' of the study)'
           return
         end if
         this%cost = real(step_count(this%config%integrator), real64)

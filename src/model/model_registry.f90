@@ -10,6 +10,7 @@ module model_registry
   use model_scene, only: scene
   use step_residual, only: step_problem
   use condensed_step, only: condensed_step_problem
+  use failures, only: failure_type, fail, failure_input
   implicit none (type, external)
   private
   public :: select_scene, model_names, fused_step_of
@@ -62,21 +63,19 @@ contains
   end function model_names
 
   !> The scene of the model that &model model_name (in the text or the `extra` items) names;
-  !> stat /= 0 with a message if it names none.
-  subroutine select_scene(text, origin, extra, selected, stat, message)
+  !> a failure (failure_input, origin model_name) if it names none.
+  subroutine select_scene(text, origin, extra, selected, failure)
     character(len=*), intent(in) :: text, origin
     type(namelist_item), intent(in) :: extra(:)
     class(scene), allocatable, intent(out) :: selected
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(namelist_item), allocatable :: items(:)
     type(model_entry), allocatable :: entries(:)
     character(len=64) :: name
-    character(len=:), allocatable :: where
-    integer :: i
+    character(len=:), allocatable :: where, message
+    integer :: i, stat
 
     stat = 0
-    message = ''
     allocate (entries, source=registered_models())
     name = entries(1)%name
     where = origin
@@ -99,6 +98,7 @@ contains
       do i = 2, size(entries)
         message = message//', '''//trim(entries(i)%name)//''''
       end do
+      call fail(failure, failure_input, message, 'model_name')
     end if
   end subroutine select_scene
 

@@ -8,6 +8,7 @@ module model_scene
   use namelist_group, only: group_field
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: scene
@@ -40,27 +41,27 @@ module model_scene
     end function fields_interface
 
     !> Reads and checks the scene's groups from `text` (the input file `origin`, comments
-    !> removed) and the `extra` items; stat /= 0 with a message naming file, group and field.
-    subroutine read_interface(self, text, origin, extra, stat, message)
-      import :: scene, namelist_item
+    !> removed) and the `extra` items; a failure (failure_input) with a message naming file,
+    !> group and field.
+    subroutine read_interface(self, text, origin, extra, failure)
+      import :: scene, namelist_item, failure_type
       class(scene), intent(inout), target :: self
       character(len=*), intent(in) :: text, origin
       type(namelist_item), intent(in) :: extra(:)
-      integer, intent(out) :: stat
-      character(len=:), allocatable, intent(out) :: message
+      type(failure_type), intent(out) :: failure
     end subroutine read_interface
 
     !> The model in thermodynamic variable `variable` (thermo_variable's tau_*), its initial
-    !> state z0 and its active constraints; stat /= 0 if the initial state is outside the domain.
-    subroutine build_interface(self, variable, model, z0, constraints, stat, message)
-      import :: scene, generic_model, constraint_slot, real64
+    !> state z0 and its active constraints; a failure (its domain code) if the initial state is
+    !> outside the domain.
+    subroutine build_interface(self, variable, model, z0, constraints, failure)
+      import :: scene, generic_model, constraint_slot, real64, failure_type
       class(scene), intent(in) :: self
       integer, intent(in) :: variable
       class(generic_model), allocatable, intent(out) :: model
       real(real64), allocatable, intent(out) :: z0(:)
       type(constraint_slot), allocatable, intent(out) :: constraints(:)
-      integer, intent(out) :: stat
-      character(len=:), allocatable, intent(out) :: message
+      type(failure_type), intent(out) :: failure
     end subroutine build_interface
 
     !> The Lyapunov reference temperature theta_R a run uses unless &output sets it [K].

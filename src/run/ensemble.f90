@@ -28,6 +28,7 @@ module ensemble
   use hdf5_files, only: file_template
   use number_text, only: integer_text, fixed_text
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, os_error_text
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: run_study, study_outcome, world_rank, line_reporter, study_in_use
@@ -247,7 +248,8 @@ contains
     class(time_stepper), allocatable :: integrator
     type(file_template), target :: template     !! the root attributes of the rank's case files
     character(len=:), allocatable :: message
-    integer :: c, skipped, ierr, stat
+    integer :: c, skipped, stat
+    type(failure_type) :: release_failure
 
     skipped = manager%done
     do
@@ -261,7 +263,7 @@ contains
     do while (manager%active_workers > 0)
       call serve_one(manager, blocking=.true.)
     end do
-    if (allocated(integrator)) call integrator%release(ierr)
+    if (allocated(integrator)) call integrator%release(release_failure)
     call progress(manager, final=.true.)
     outcome%complete = count(manager%index%results%status == 'complete')
     outcome%failed = count(manager%index%results%status(1:7) == 'failed:')
@@ -423,7 +425,8 @@ contains
     type(MPI_Request) :: asked
     real(real64) :: message(message_length)
     character(len=status_length + kind_length) :: texts
-    integer :: current(1), next(1), ierr
+    integer :: current(1), next(1)
+    type(failure_type) :: release_failure
 
     message = 0.0_real64
     texts = ''
@@ -448,7 +451,7 @@ contains
     message(message_length) = leaving
     call request(message, texts)
     call MPI_Recv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
-    if (allocated(integrator)) call integrator%release(ierr)
+    if (allocated(integrator)) call integrator%release(release_failure)
   end subroutine work
 
   ! A request to rank 0: the last result (case 0: none) and whether the worker is leaving.
@@ -476,9 +479,9 @@ contains
     type(run_configuration) :: config
     type(run_summary) :: summary
     type(extra_attribute) :: extras(4)
-    character(len=:), allocatable :: message
+    type(failure_type) :: failure
     real(real64), allocatable :: solve_seconds(:)      ! on the heap: its size is the input's
-    integer :: stat, r
+    integer :: r
 
     config = study%cases(c)%config
     config%output_file = case_file(study, c)
@@ -496,17 +499,17 @@ contains
     allocate (solve_seconds(study%repeats))
     do r = 1, study%repeats
       ! An interrupted case (its file incomplete, with the same input) continues from its file.
-      call run_simulation(config, summary, stat, message, observer, integrator, &
+      call run_simulation(config, summary, failure, observer, integrator, &
                           keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
                           template=template, resume_if_possible=study%repeats == 1)
       solve_seconds(r) = summary%solve_seconds
-      if (stat /= 0 .or. summary%status /= 'complete') exit
+      if (failure%failed() .or. summary%status /= 'complete') exit
     end do
     if (r > study%repeats) summary%solve_seconds = median(solve_seconds)
     if (summary%failure_kind == failure_interrupted) then
       result%status = summary%status
-    else if (stat /= 0) then
-      result%status = 'failed: '//message
+    else if (failure%failed()) then
+      result%status = 'failed: '//failure%message
     else if (summary%status == 'complete') then
       result%status = 'complete'
     else

@@ -25,6 +25,8 @@ module run_outcome
   type :: run_summary
     character(len=:), allocatable :: status       !! 'complete' or 'incomplete: <reason>'
     character(len=:), allocatable :: failure_kind !! one of the failure_* words above
+    !> what the driver adds to an early stop's status (why the earlier complete file was kept, ...)
+    character(len=:), allocatable :: note
     integer(int64) :: steps_planned = 0
     integer(int64) :: steps_completed = 0
     integer(int64) :: newton_iterations = 0

@@ -29,6 +29,8 @@ module simulation
   use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text, copy_file
   use number_text, only: integer_text, fixed_text
   use effective_namelist, only: namelist_of_run
+  use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
+                      code_interrupted => failure_interrupted, code_library => failure_library
   implicit none (type, external)
   private
   public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status, set_up_only
@@ -77,9 +79,10 @@ contains
   end function exit_status
 
   !> Runs `config` and writes its HDF5 file (none if keep_file is .false.: an index-only study).
-  !> stat /= 0, with a message naming the file, the input file and the OS's reason, if the output
-  !> could not be written, a library failed, or the output file holds a complete run that may
-  !> not be replaced; a run that stops early is reported through summary%status. Either way
+  !> A failure (its code from the failure kind, its origin the input file), with a message naming
+  !> the file, the input file and the OS's reason, if the output could not be written, a library
+  !> failed, or the output file holds a complete run that may not be replaced; a run that stops
+  !> early is reported through summary%status (and summary%note). Either way
   !> summary%failure_kind says why in a word (src/run/run_outcome's failure_* words).
   !> With `reusable`, the caller's integrator is used when it is of the configured kind (an
   !> ensemble rank keeps its PETSc objects from case to case), replaced otherwise, and left for
@@ -89,8 +92,51 @@ contains
   !> continues the one its file holds if the command line asks (-eme_continue: else it fails with
   !> failure_input); with `resume_if_possible` instead, it does when it can (an interrupted case of
   !> a study) and starts from t = 0 otherwise.
-  subroutine run_simulation(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, &
+  subroutine run_simulation(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, &
                             template, resume_if_possible)
+    type(run_configuration), intent(in), target :: config
+    type(run_summary), intent(out) :: summary
+    type(failure_type), intent(out) :: failure
+    class(run_observer), intent(inout), optional :: observer
+    class(time_stepper), allocatable, intent(inout), target, optional :: reusable
+    procedure(line_reporter), optional :: progress
+    logical, intent(in), optional :: keep_file
+    type(extra_attribute), intent(in), optional :: extras(:)
+    logical, intent(in), optional :: durable
+    type(file_template), intent(inout), target, optional :: template
+    logical, intent(in), optional :: resume_if_possible
+    integer :: stat
+    character(len=:), allocatable :: message
+
+    call simulate(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, template, &
+                  resume_if_possible)
+    if (stat /= 0) then
+      call set_failure(failure, failure_code_of(summary%failure_kind), message, config%input_file)
+    else
+      summary%note = message
+    end if
+  end subroutine run_simulation
+
+  ! The failures' code of a run's failure kind (a word of run_outcome).
+  pure integer function failure_code_of(kind)
+    character(len=*), intent(in) :: kind
+
+    select case (kind)
+    case (failure_input)
+      failure_code_of = code_input
+    case (failure_io)
+      failure_code_of = code_io
+    case (failure_interrupted)
+      failure_code_of = code_interrupted
+    case default
+      failure_code_of = code_library
+    end select
+  end function failure_code_of
+
+  ! run_simulation's time loop; stat /= 0 with `message` for a failure that is not the method's
+  ! (the time loop's many exits set them as they go), a message with stat = 0 is a note.
+  subroutine simulate(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, &
+                      template, resume_if_possible)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     integer, intent(out) :: stat
@@ -120,7 +166,8 @@ contains
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
     integer(int64) :: n             !! steps taken (accepted)
-    integer :: k, n_state, io_stat, ierr, release_ierr, signal
+    integer :: k, n_state, io_stat, ierr, signal
+    type(failure_type) :: step_failure, release_failure
     logical :: found, finished, writing, replace, chooses_time, row_due, continuing
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
@@ -141,9 +188,10 @@ contains
     part = config%output_file//'.part'
     call install_interrupt_handlers(ierr)
     call find_integrator(config%integrator%scheme, entry, found)
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
-    if (stat /= 0) then
-      message = config%input_file//': '//message
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, step_failure)
+    if (step_failure%failed()) then
+      stat = 1
+      message = config%input_file//': '//step_failure%message
       summary%failure_kind = failure_input
       return
     end if
@@ -209,7 +257,7 @@ contains
     if (present(reusable)) then
       if (allocated(reusable)) then
         if (reusable%scheme /= entry%name) then
-          call reusable%release(ierr)
+          call reusable%release(release_failure)
           deallocate (reusable)
         end if
       end if
@@ -220,11 +268,11 @@ contains
       integrator => own
     end if
     ! The integrator starts first: the datasets of its own figures can depend on its settings.
-    call integrator%start(config%integrator, model, constraints, z0, ierr)
-    if (ierr /= 0) then
+    call integrator%start(config%integrator, model, constraints, z0, step_failure)
+    if (step_failure%failed()) then
       ! The drivers set the solver up once before (set_up_only), so this is rare: nothing is written.
       call fail(failure_input, config%input_file//': '//setup_failure_text())
-      if (.not. present(reusable)) call integrator%release(release_ierr)
+      if (.not. present(reusable)) call integrator%release(release_failure)
       return
     end if
     if (writing) then
@@ -241,14 +289,14 @@ contains
       if (io_stat /= 0) then
         stat = 0
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
-        if (.not. present(reusable)) call integrator%release(release_ierr)
+        if (.not. present(reusable)) call integrator%release(release_failure)
         return
       end if
     end if
     call output%record_solver(integrator%describe_solver(), ierr)
     if (ierr /= 0) then
       call fail(failure_library, 'HDF5 could not record the solver in '''//part//''' ('//config%input_file//')')
-      if (.not. present(reusable)) call integrator%release(release_ierr)
+      if (.not. present(reusable)) call integrator%release(release_failure)
       return
     end if
 
@@ -257,15 +305,15 @@ contains
       if (io_stat /= 0) then
         call fail(failure_io, "cannot continue the output file '"//part//"' ("//config%input_file//'): ' &
                   //io_reason(io_stat))
-        if (.not. present(reusable)) call integrator%release(release_ierr)
+        if (.not. present(reusable)) call integrator%release(release_failure)
         return
       end if
       call restore(resume)
-      call integrator%restore_state(resume%integrator_state, x, x_previous, ierr)
-      if (ierr /= 0) then
+      call integrator%restore_state(resume%integrator_state, x, x_previous, step_failure)
+      if (step_failure%failed()) then
         call fail(failure_input, part//": its integrator state does not fit &integrator scheme = '"// &
                   trim(entry%name)//"' ("//config%input_file//', -eme_continue); allowed: a file of the same input')
-        if (.not. present(reusable)) call integrator%release(release_ierr)
+        if (.not. present(reusable)) call integrator%release(release_failure)
         return
       end if
     else
@@ -310,9 +358,9 @@ contains
       end if
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call system_clock(step_start)
-      call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, ierr)
+      call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, step_failure)
       call system_clock(step_end)
-      if (ierr /= 0) then
+      if (step_failure%failed()) then
         call fail(failure_library, 'PETSc failed during the solve: '//petsc_error_text())
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
         exit
@@ -384,8 +432,8 @@ contains
       summary%steps_planned = n
     end if
     if (.not. present(reusable)) then
-      call integrator%release(release_ierr)
-      if (release_ierr /= 0) call fail(failure_library, 'PETSc failed to free the solver: '//petsc_error_text())
+      call integrator%release(release_failure)
+      if (release_failure%failed()) call fail(failure_library, 'PETSc failed to free the solver: '//petsc_error_text())
     end if
     call close_output()
     call set_times(.false.)
@@ -621,33 +669,35 @@ contains
                     //' s left')
     end subroutine report_progress
 
-  end subroutine run_simulation
+  end subroutine simulate
 
   !> Sets up the run's integrator and frees it again, without integrating or writing anything:
   !> every option it reads is read (PETSc's -help lists them), so the drivers call it before a
-  !> run to refuse bad PETSc options (an unknown type) with nothing written. stat /= 0 with a
-  !> message if the scene cannot be built or PETSc fails.
-  subroutine set_up_only(config, stat, message)
+  !> run to refuse bad PETSc options (an unknown type) with nothing written. A failure if the
+  !> scene cannot be built (its domain code) or PETSc fails (failure_library, in PETSc's words).
+  subroutine set_up_only(config, failure)
     type(run_configuration), intent(in) :: config
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     class(time_stepper), allocatable :: integrator
     class(generic_model), allocatable :: model
     type(constraint_slot), allocatable :: constraints(:)
     type(integrator_entry) :: entry
     real(real64), allocatable :: z0(:)
     logical :: found
-    integer :: ierr
+    type(failure_type) :: release_failure
 
     call find_integrator(config%integrator%scheme, entry, found)
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, stat, message)
-    if (stat /= 0) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
+    if (failure%failed()) return
     call build_integrator(entry, integrator)
-    call integrator%start(config%integrator, model, constraints, z0, stat)
-    if (stat /= 0) message = setup_failure_text()
-    call integrator%release(ierr)
-    if (stat == 0 .and. ierr /= 0) message = 'PETSc could not free the solver: '//petsc_error_text()
-    if (stat == 0) stat = ierr
+    call integrator%start(config%integrator, model, constraints, z0, failure)
+    ! PETSc's own words say what was refused; the message is the whole story (the drivers print it
+    ! as before), so the PETSc procedure's origin is not added.
+    if (failure%failed()) call set_failure(failure, code_input, setup_failure_text())
+    call integrator%release(release_failure)
+    if (.not. failure%failed() .and. release_failure%failed()) &
+      call set_failure(failure, code_library, 'PETSc could not free the solver: '//petsc_error_text(), &
+                       'set_up_only')
   end subroutine set_up_only
 
   ! Why the solver could not be set up: PETSc's own words (an unknown -snes_type, ...).

@@ -17,6 +17,7 @@ module structure_file
   use provenance, only: write_provenance
   use run_options, only: petsc_options_in_force
   use namelist_text, only: joined
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: write_structure_file
@@ -36,6 +37,7 @@ contains
     integer(hid_t) :: file, group
     type(hdf5_file) :: root
     integer :: variable, n, close_stat
+    type(failure_type) :: failure
     character(len=:), allocatable :: columns
 
     call h5open_f(stat)
@@ -51,8 +53,12 @@ contains
     if (stat == 0) call root%set_text('input_file', config%input_file, stat)
     do variable = tau_entropy, tau_internal_energy
       if (stat /= 0) exit
-      call config%scene%build(variable, model, z0, constraints, stat, message)
-      if (stat /= 0) exit
+      call config%scene%build(variable, model, z0, constraints, failure)
+      if (failure%failed()) then
+        stat = failure%code
+        message = failure%message
+        exit
+      end if
       n = model%state_size
       allocate (partials(model%max_invariants, 2, model%subsystem_count()))
       call model%exact_partials(z0, partials, stat=stat)

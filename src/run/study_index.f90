@@ -38,6 +38,7 @@ module study_index
   use study_journal, only: case_result, journal_entry, status_length, kind_length, metric_count, journal_line, &
                            read_journal, start_journal
   use number_text, only: integer_text
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
@@ -340,11 +341,13 @@ contains
     class(generic_model), allocatable :: model
     type(constraint_slot), allocatable :: constraints(:)
     real(real64), allocatable :: z0(:)
-    character(len=:), allocatable :: message
+    type(failure_type) :: base_failure
     integer :: s, next, base_stat
 
-    call read_run_config(study%base, base, base_stat, message)
-    if (base_stat == 0) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, base_stat, message)
+    call read_run_config(study%base, base, base_failure)
+    if (.not. base_failure%failed()) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, &
+                                                           base_failure)
+    base_stat = base_failure%code
     units = ''
     units(1) = '1'                        ! case; file is a text
     next = 3

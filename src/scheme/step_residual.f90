@@ -10,7 +10,7 @@
 !> continuation parameter s solves the step of s dt from the same old state.
 module step_residual
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok, domain_nonpositive_temperature, domain_overflow, domain_text
+  use failures, only: failure_none, domain_nonpositive_temperature, domain_overflow, failure_code_name
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional, metric_euclidean, discrete_gradient_of
@@ -100,7 +100,7 @@ contains
       z_mid = 0.5_real64*(self%z_old + x(1:n))
       if (present(jacobian)) then
         call self%scheme_partials(x, partials, dpartials_dz, stat)
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
         call self%model%vector_field(z_mid, partials, f, df_dz, df_dpartials)
         jacobian = 0.0_real64
         jacobian(1:n, 1:n) = -0.5_real64*df_dz
@@ -110,14 +110,14 @@ contains
         end do
       else
         call self%scheme_partials(x, partials, stat=stat)
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
         call self%model%vector_field(z_mid, partials, f)
       end if
       residual(1:n) = (x(1:n) - self%z_old)/step - f
       do k = 1, size(self%constraints)
         call self%constraints(k)%item%add_terms(self%model, x(1:n), z_mid, partials, dpartials_dz, x(n + k), n + k, &
                                                 residual, jacobian, stat)
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
       end do
     end block
     if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
@@ -144,7 +144,7 @@ contains
       return
     end if
     partials = 0.0_real64
-    stat = domain_ok
+    stat = failure_none
     if (present(dpartials_dz)) dpartials_dz = 0.0_real64
     do a = 1, self%model%subsystem_count()
       associate (part => self%model%subsystems(a))
@@ -165,7 +165,7 @@ contains
           call discrete_gradient_of(self%gradient, part%potentials, x_old(1:n), x_new(1:n), scale(1:n), g(1:n, :), &
                                     stat=stat)
         end if
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
         partials(1:n, :, a) = g(1:n, :)
         ! Chain rule through x' = x(z'), e.g. (q'.q', [gamma'], tau').
         if (present(dpartials_dz)) call self%model%chain_to_state(a, dg(1:n, 1:n, :), dx(1:n, 1:m), dpartials_dz)
@@ -184,7 +184,7 @@ contains
 
     theta = 0.0_real64
     call self%scheme_partials(z_new, partials, stat=stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     theta = self%model%partials_temperatures(partials)
   end subroutine scheme_temperatures
 
@@ -198,9 +198,9 @@ contains
     integer :: stat, scheme_stat, which
 
     call self%model%temperatures(x(1:self%model%state_size), theta, stat, which)
-    scheme_stat = domain_ok
+    scheme_stat = failure_none
     theta_scheme = 0.0_real64
-    if (stat == domain_ok) call self%scheme_temperatures(x, theta_scheme, scheme_stat)
+    if (stat == failure_none) call self%scheme_temperatures(x, theta_scheme, scheme_stat)
     which = max(which, 1)
     call root_problem_text(self%partials_rule, stat, which, theta, self%model%subsystems(which)%name, &
                            scheme_stat, theta_scheme, problem_text)
@@ -208,7 +208,7 @@ contains
 
   !> The reason a root is not physical ('' if it is) from the temperatures at the new state
   !> (`new_stat` and the subsystem `which` that failed first, named `name`) and the scheme's
-  !> temperatures (`scheme_stat`, not looked at unless new_stat is domain_ok).
+  !> temperatures (`scheme_stat`, not looked at unless new_stat is failure_none).
   pure subroutine root_problem_text(partials_rule, new_stat, which, theta_new, name, scheme_stat, theta_scheme, &
                                     problem_text)
     integer, intent(in) :: partials_rule, new_stat, which, scheme_stat
@@ -223,11 +223,11 @@ contains
       write (text, '(a, i0, a, es10.3, a)') 'non-positive temperature at the new state (theta_', which, ' = ', &
         theta_new(which), ' K)'
       problem_text = trim(text)
-    else if (new_stat /= domain_ok) then
-      problem_text = trim(name)//' at the new state is outside the model''s domain ('//domain_text(new_stat)//')'
-    else if (scheme_stat /= domain_ok .and. scheme_stat /= domain_nonpositive_temperature) then
-      problem_text = 'the scheme''s temperatures are undefined between the states ('//domain_text(scheme_stat)//')'
-    else if (scheme_stat /= domain_ok .or. .not. all(theta_scheme > 0.0_real64 .and. theta_scheme < huge(1.0_real64))) then
+    else if (new_stat /= failure_none) then
+      problem_text = trim(name)//' at the new state is outside the model''s domain ('//failure_code_name(new_stat)//')'
+    else if (scheme_stat /= failure_none .and. scheme_stat /= domain_nonpositive_temperature) then
+      problem_text = 'the scheme''s temperatures are undefined between the states ('//failure_code_name(scheme_stat)//')'
+    else if (scheme_stat /= failure_none .or. .not. all(theta_scheme > 0.0_real64 .and. theta_scheme < huge(1.0_real64))) then
       if (partials_rule == partials_discrete_gradient) then
         problem_text = 'non-positive discrete temperature (D_tau U/D_tau S ='
       else

@@ -11,6 +11,7 @@ module hand_newton
   use dense_lu, only: lu_factors
   use euclidean_norm, only: two_norm
   use modified_newton, only: factor_record
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: newton_loop
@@ -48,20 +49,20 @@ contains
 
   !> Newton from `initial` until the convergence test says so (modified_newton's, which is
   !> retry_strategies' newton_converged after every Newton update).
-  subroutine solve(self, problem, initial, root, converged, reason, iterations, ierr)
+  subroutine solve(self, problem, initial, root, converged, reason, iterations, failure)
     class(newton_loop), intent(inout) :: self
     class(nonlinear_system), intent(inout), target :: problem
     real(real64), intent(in) :: initial(:)
     real(real64), intent(out) :: root(:)
     logical, intent(out) :: converged
     character(len=:), allocatable, intent(out) :: reason
-    integer, intent(out) :: iterations, ierr
+    integer, intent(out) :: iterations
+    type(failure_type), intent(out) :: failure
     real(real64) :: residual(size(initial)), update(size(initial)), trial(size(initial)), trial_residual(size(initial))
     real(real64) :: residual_norm, update_norm, state_scale, residual_scale, step_length
     integer :: info, stat
     logical :: chord_taken, refactor
 
-    ierr = 0
     iterations = 0
     reason = 'Newton did not converge'
     root = initial
@@ -129,12 +130,11 @@ contains
 
   !> The loop has no other line search: the fallback round repeats the first, with a new Jacobian
   !> every iteration as the SNES solver's (whose fallback line search is PETSc's).
-  subroutine use_fallback(self, on, ierr)
+  subroutine use_fallback(self, on, failure)
     class(newton_loop), intent(inout) :: self
     logical, intent(in) :: on
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
-    ierr = 0
     self%fallback = on
   end subroutine use_fallback
 

@@ -13,6 +13,7 @@ module retry_strategies
   use nonlinear_problem, only: nonlinear_system
   use dense_lu, only: lu_factors
   use number_text, only: integer_text
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: root_finder, root_search, find_root
@@ -62,16 +63,17 @@ module retry_strategies
 
   abstract interface
     !> One solve from `initial`. converged: the solver met its tolerance (root physical or not);
-    !> otherwise `reason` says why not. ierr /= 0 only for a library error.
-    subroutine solve_interface(self, problem, initial, root, converged, reason, iterations, ierr)
-      import :: root_finder, nonlinear_system, real64
+    !> otherwise `reason` says why not. A failure only for a library error.
+    subroutine solve_interface(self, problem, initial, root, converged, reason, iterations, failure)
+      import :: root_finder, nonlinear_system, real64, failure_type
       class(root_finder), intent(inout) :: self
       class(nonlinear_system), intent(inout), target :: problem
       real(real64), intent(in) :: initial(:)
       real(real64), intent(out) :: root(:)
       logical, intent(out) :: converged
       character(len=:), allocatable, intent(out) :: reason
-      integer, intent(out) :: iterations, ierr
+      integer, intent(out) :: iterations
+      type(failure_type), intent(out) :: failure
     end subroutine solve_interface
 
     !> x improved with what the finder kept of its last linearization, if anything.
@@ -83,11 +85,11 @@ module retry_strategies
     end subroutine refine_interface
 
     !> Switches the finder's fallback (the other line search) on or off.
-    subroutine fallback_interface(self, on, ierr)
-      import :: root_finder
+    subroutine fallback_interface(self, on, failure)
+      import :: root_finder, failure_type
       class(root_finder), intent(inout) :: self
       logical, intent(in) :: on
-      integer, intent(out) :: ierr
+      type(failure_type), intent(out) :: failure
     end subroutine fallback_interface
   end interface
 
@@ -156,16 +158,17 @@ contains
 
   !> Searches the root of `problem` (at s = 1) by the strategies above. `predictor` is the
   !> caller's guess; `start` is the old state (a root at s -> 0), both of the problem's size.
-  !> ierr /= 0 only for a library error; a search that fails is reported in `search`.
-  subroutine find_root(finder, problem, start, predictor, root, search, ierr, continue_in_s)
+  !> A failure only for a library error; a search that fails is reported in `search`.
+  subroutine find_root(finder, problem, start, predictor, root, search, failure, continue_in_s)
     class(root_finder), intent(inout) :: finder
     class(nonlinear_system), intent(inout), target :: problem
     real(real64), intent(in) :: start(:), predictor(:)
     real(real64), intent(out) :: root(:)
     type(root_search), intent(out) :: search
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     logical, intent(in), optional :: continue_in_s    !! .false.: no continuation (strategies 3, 6)
-    integer :: offset, fallback_ierr
+    type(failure_type) :: fallback_failure
+    integer :: offset
     logical :: continuing
 
     continuing = .true.
@@ -175,13 +178,13 @@ contains
     search%last_rejection = ''
     offset = 0
     call strategies()
-    if (search%accepted .or. ierr /= 0) return
-    call finder%use_fallback(.true., ierr)
-    if (ierr /= 0) return
+    if (search%accepted .or. failure%failed()) return
+    call finder%use_fallback(.true., failure)
+    if (failure%failed()) return
     offset = strategies_per_round
     call strategies()
-    call finder%use_fallback(.false., fallback_ierr)
-    if (ierr == 0) ierr = fallback_ierr
+    call finder%use_fallback(.false., fallback_failure)
+    if (.not. failure%failed()) failure = fallback_failure
     call problem%set_continuation(1.0_real64)
 
   contains
@@ -194,10 +197,10 @@ contains
       call problem%set_continuation(1.0_real64)
       call finder%refine(problem, guess)
       call attempt(guess, 1.0_real64, offset + strategy_predictor)
-      if (search%accepted .or. ierr /= 0) return
+      if (search%accepted .or. failure%failed()) return
       if (maxval(abs(start - predictor)) > 0.0_real64) then
         call attempt(start, 1.0_real64, offset + strategy_old_state)
-        if (search%accepted .or. ierr /= 0) return
+        if (search%accepted .or. failure%failed()) return
       end if
       if (continuing) then
         call continuation()
@@ -215,7 +218,7 @@ contains
       character(len=:), allocatable :: why
 
       call solve_once(initial, fraction, ok, why)
-      if (ierr /= 0) return
+      if (failure%failed()) return
       if (ok) then
         search%accepted = .true.
         search%strategy = strategy
@@ -245,7 +248,7 @@ contains
           trial = path_root
         end if
         call solve_once(trial, s_try, ok, why)
-        if (ierr /= 0) return
+        if (failure%failed()) return
         if (ok) then
           if (s_try >= 1.0_real64) then
             search%accepted = .true.
@@ -277,8 +280,8 @@ contains
 
       ok = .false.
       call problem%set_continuation(s)
-      call finder%solve(problem, initial, root, converged, why, iterations, ierr)
-      if (ierr /= 0) return
+      call finder%solve(problem, initial, root, converged, why, iterations, failure)
+      if (failure%failed()) return
       search%newton_iterations = search%newton_iterations + iterations
       search%solves = search%solves + 1
       if (.not. converged) return

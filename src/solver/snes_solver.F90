@@ -24,6 +24,10 @@
 !>    option needs SNES's own Jacobian (-snes_test_jacobian, -snes_compare_*, -snes_mf*,
 !>    -snes_fd*, -snes_lag_jacobian, -pc_type, -ksp_type, another -snes_type) or -eme_lean_snes
 !>    false; the line search is PETSc's whenever -snes_linesearch_type is given.
+!>
+!> Errors: each public procedure returns a failure_type; its PETSc calls sit in a private twin
+!> (`*_petsc`) with PETSc's own ierr, whose PetscCall returns early, and the public procedure
+!> turns that code into a failure (failures' fail_on_code).
 module snes_solver
 #include <petsc/finclude/petscsnes.h>
   use petscsnes
@@ -38,6 +42,7 @@ module snes_solver
   use solver_options, only: step_solver_options, read_solver_options, option_given
   use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
                                 reasons_snes
+  use failures, only: failure_type, fail_on_code
   implicit none
   private
   public :: newton_solver
@@ -78,11 +83,73 @@ module snes_solver
 
 contains
 
-  !> Makes the solver ready for `problem` (which must stay at its address while in use), with
+  !> Makes the solver ready for `problem` (prepare_petsc); a failure if PETSc fails.
+  subroutine prepare(self, problem, newton_tol, max_iterations, failure)
+    class(newton_solver), intent(inout), target :: self
+    class(nonlinear_system), intent(in), target :: problem
+    real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call prepare_petsc(self, problem, newton_tol, max_iterations, ierr)
+    call fail_on_code(failure, ierr, 'newton_solver%prepare', 'PETSc could not set up SNES')
+  end subroutine prepare
+
+  !> Frees the PETSc objects; a failure if PETSc fails.
+  subroutine destroy(self, failure)
+    class(newton_solver), intent(inout) :: self
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call destroy_petsc(self, ierr)
+    call fail_on_code(failure, ierr, 'newton_solver%destroy', 'PETSc could not free SNES')
+  end subroutine destroy
+
+  !> The SNES's settings and PETSc's names of its converged reasons (describe_petsc).
+  subroutine describe(self, report, failure)
+    class(newton_solver), intent(in) :: self
+    type(solver_report), intent(inout) :: report
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call describe_petsc(self, report, ierr)
+    call fail_on_code(failure, ierr, 'newton_solver%describe', 'PETSc could not describe SNES')
+    if (.not. failure%failed()) call set_petsc_reasons(report, reasons_snes, failure)
+  end subroutine describe
+
+  !> One SNESSolve of `problem` from `initial` (solve_petsc); a failure only for a PETSc error.
+  subroutine solve(self, problem, initial, root, converged, reason, iterations, failure)
+    class(newton_solver), intent(inout) :: self
+    class(nonlinear_system), intent(inout), target :: problem
+    real(real64), intent(in) :: initial(:)
+    real(real64), intent(out) :: root(:)
+    logical, intent(out) :: converged
+    character(len=:), allocatable, intent(out) :: reason
+    integer, intent(out) :: iterations
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call solve_petsc(self, problem, initial, root, converged, reason, iterations, ierr)
+    call fail_on_code(failure, ierr, 'newton_solver%solve', 'PETSc failed in SNESSolve')
+  end subroutine solve
+
+  !> Switches to the fallback line search, or back to the primary one; a failure if PETSc fails.
+  subroutine use_fallback(self, on, failure)
+    class(newton_solver), intent(inout) :: self
+    logical, intent(in) :: on
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call use_fallback_petsc(self, on, ierr)
+    call fail_on_code(failure, ierr, 'newton_solver%use_fallback', 'PETSc could not change the line search')
+  end subroutine use_fallback
+
+  ! Makes the solver ready for `problem` (which must stay at its address while in use), with
   !> absolute tolerance newton_tol on the 2-norm of the residual and at most max_iterations
   !> Newton iterations per solve. Reuses the PETSc objects when the size is the same, forgetting
   !> the old problem's LU factors; changed tolerances are applied, command-line options kept.
-  subroutine prepare(self, problem, newton_tol, max_iterations, ierr)
+  subroutine prepare_petsc(self, problem, newton_tol, max_iterations, ierr)
     class(newton_solver), intent(inout), target :: self
     class(nonlinear_system), intent(in), target :: problem
     real(real64), intent(in) :: newton_tol
@@ -104,10 +171,10 @@ contains
       return
     end if
     if (self%created) then
-      PetscCall(self%destroy(ierr))
+      PetscCall(destroy_petsc(self, ierr))
     end if
     PetscCall(self%create(problem%unknowns(), newton_tol, max_iterations, ierr))
-  end subroutine prepare
+  end subroutine prepare_petsc
 
   ! Creates the SNES for n unknowns.
   subroutine create(self, n, newton_tol, max_iterations, ierr)
@@ -116,6 +183,7 @@ contains
     real(real64), intent(in) :: newton_tol
     integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
+    type(failure_type) :: options_failure
     KSP :: ksp
     PC :: pc
     SNESLineSearch :: line_search
@@ -158,7 +226,11 @@ contains
     PetscCall(SNESSetFromOptions(self%snes, ierr))
     PetscCall(keep_tolerances(self, ierr))
     PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
-    PetscCall(read_solver_options(self%options, ierr))
+    call read_solver_options(self%options, options_failure)
+    if (options_failure%failed()) then
+      ierr = options_failure%code     ! nonzero: create's callers see a failed PETSc call
+      return
+    end if
 
     ! Lean only where SNES would not look at its Jacobian: Newton line search, LU in our shell.
     PetscCall(SNESGetType(self%snes, snes_type, ierr))
@@ -214,7 +286,7 @@ contains
   end subroutine set_line_search
 
   !> Frees the PETSc objects.
-  subroutine destroy(self, ierr)
+  subroutine destroy_petsc(self, ierr)
     class(newton_solver), intent(inout) :: self
     PetscErrorCode, intent(out) :: ierr
 
@@ -224,7 +296,7 @@ contains
     PetscCall(MatDestroy(self%jacobian, ierr))
     PetscCall(VecDestroy(self%r, ierr))
     PetscCall(VecDestroy(self%x, ierr))
-  end subroutine destroy
+  end subroutine destroy_petsc
 
   !> Whether the solver drives SNES the lean way (module header).
   logical function lean(self)
@@ -243,7 +315,7 @@ contains
 
   !> The SNES as the options database left it (after SNESSetFromOptions): type, tolerances, line
   !> searches, linear solver, the lean way's choices, and PETSc's names of its converged reasons.
-  subroutine describe(self, report, ierr)
+  subroutine describe_petsc(self, report, ierr)
     class(newton_solver), intent(in) :: self
     type(solver_report), intent(inout) :: report
     PetscErrorCode, intent(out) :: ierr
@@ -280,8 +352,7 @@ contains
     call add_setting(report, text_setting('eme_modified_newton', merge('true ', 'false', self%keeps_factors())))
     call add_setting(report, integer_setting('eme_chord_iterations', self%context%reuse%chord_iterations))
     call add_setting(report, text_setting('eme_chord_predictor', merge('true ', 'false', self%options%chord_predictor)))
-    call set_petsc_reasons(report, reasons_snes, ierr)
-  end subroutine describe
+  end subroutine describe_petsc
 
   !> LU factorizations since the solver was made.
   integer function factorizations(self)
@@ -293,14 +364,15 @@ contains
   !> One SNESSolve of `problem` (of the size the solver was prepared for; it must stay at its
   !> address during the solve) from `initial`. A line search that fails on a residual already below the
   !> tolerance counts as converged: the residual sits at its rounding floor there.
-  subroutine solve(self, problem, initial, root, converged, reason, iterations, ierr)
+  subroutine solve_petsc(self, problem, initial, root, converged, reason, iterations, ierr)
     class(newton_solver), intent(inout) :: self
     class(nonlinear_system), intent(inout), target :: problem
     real(real64), intent(in) :: initial(:)
     real(real64), intent(out) :: root(:)
     logical, intent(out) :: converged
     character(len=:), allocatable, intent(out) :: reason
-    integer, intent(out) :: iterations, ierr
+    integer, intent(out) :: iterations
+    PetscErrorCode, intent(out) :: ierr
     PetscScalar, pointer :: values(:)
     SNESConvergedReason :: snes_reason
     PetscInt :: its
@@ -380,7 +452,7 @@ contains
       root_confirmed = norm <= self%context%tolerance .or. &
                        norm <= rounding_factor*epsilon(1.0_real64)*self%context%residual_scale
     end function root_confirmed
-  end subroutine solve
+  end subroutine solve_petsc
 
   ! The convergence test's tolerances, read from SNES once each time they are set (create and
   ! prepare) instead of in every test: the absolute one is the input's newton_tol, or SNES's where
@@ -408,16 +480,16 @@ contains
   end subroutine refine
 
   !> Switches to the fallback line search, or back to the primary one.
-  subroutine use_fallback(self, on, ierr)
+  subroutine use_fallback_petsc(self, on, ierr)
     class(newton_solver), intent(inout) :: self
     logical, intent(in) :: on
-    integer, intent(out) :: ierr
+    PetscErrorCode, intent(out) :: ierr
 
     if (on) then
       PetscCall(self%set_line_search(self%fallback_line_search, ierr))
     else
       PetscCall(self%set_line_search(self%line_search, ierr))
     end if
-  end subroutine use_fallback
+  end subroutine use_fallback_petsc
 
 end module snes_solver

@@ -5,6 +5,7 @@
 module solver_description
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_int, c_char
+  use failures, only: failure_type, fail, failure_library
   implicit none (type, external)
   private
   public :: setting, solver_report, text_setting, number_setting, integer_setting, no_solver, add_setting
@@ -86,18 +87,20 @@ contains
   end function no_solver
 
   !> The report's legend: PETSc's converged reasons of `family` (reasons_snes or reasons_ts) with
-  !> PETSc's names. stat /= 0 if PETSc's table does not fit.
-  subroutine set_petsc_reasons(report, family, stat)
+  !> PETSc's names. A failure (failure_library) if PETSc's table does not fit.
+  subroutine set_petsc_reasons(report, family, failure)
     type(solver_report), intent(inout) :: report
     integer, intent(in) :: family
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer(c_int) :: codes(64)
     character(kind=c_char, len=4096) :: names
     integer :: count, i, start, finish
 
     count = int(c_converged_reasons(int(family, c_int), int(size(codes), c_int), codes, names, len(names, kind=c_int)))
-    stat = merge(0, 1, count > 0)
-    if (stat /= 0) return
+    if (count <= 0) then
+      call fail(failure, failure_library, 'PETSc''s table of converged reasons does not fit', 'set_petsc_reasons')
+      return
+    end if
     report%reason_codes = int(codes(1:count))
     allocate (report%reason_names(count))
     start = 1

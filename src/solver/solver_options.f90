@@ -22,6 +22,7 @@ module solver_options
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_double
   use, intrinsic :: iso_fortran_env, only: real64
   use modified_newton, only: default_chord_iterations
+  use failures, only: failure_type, fail_on_code
   implicit none (type, external)
   private
   public :: step_solver_options, read_solver_options, option_given, read_step_control_options
@@ -63,12 +64,14 @@ module solver_options
 
 contains
 
-  !> The switches as the options database sets them. ierr /= 0 for a PETSc error (e.g. a value
-  !> that is not a logical, a depth outside 0..30 or chord iterations outside 1..10).
-  subroutine read_solver_options(options, ierr)
+  !> The switches as the options database sets them. A failure (failure_library) for a PETSc
+  !> error (e.g. a value that is not a logical, a depth outside 0..30 or chord iterations outside
+  !> 1..10).
+  subroutine read_solver_options(options, failure)
     type(step_solver_options), intent(out) :: options
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
     integer(c_int) :: flags(5), depth, chords
+    integer :: ierr
 
     flags = merge(1_c_int, 0_c_int, [options%chord_predictor, options%fused_kernel, options%lean_snes, &
                                      options%final_chord, options%modified_newton])
@@ -82,14 +85,16 @@ contains
     options%final_chord = flags(4) /= 0
     options%modified_newton = flags(5) /= 0
     options%chord_iterations = int(chords)
+    call fail_on_code(failure, ierr, 'read_solver_options', 'PETSc refused an -eme_ solver option')
   end subroutine read_solver_options
 
-  !> -eme_error_estimate (default .false.) and -eme_error_scale (default 1). ierr /= 0 for a PETSc
-  !> error (a value of the wrong kind, or a scale that is not positive).
-  subroutine read_step_control_options(record_estimate, error_scale, ierr)
+  !> -eme_error_estimate (default .false.) and -eme_error_scale (default 1). A failure
+  !> (failure_library) for a PETSc error (a value of the wrong kind, or a scale that is not positive).
+  subroutine read_step_control_options(record_estimate, error_scale, failure)
     logical, intent(out) :: record_estimate
     real(real64), intent(out) :: error_scale
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
+    integer :: ierr
     integer(c_int) :: record
     real(c_double) :: scale
 
@@ -98,9 +103,11 @@ contains
     ierr = int(eme_read_step_control_options(record, scale))
     record_estimate = record /= 0
     error_scale = real(scale, real64)
+    call fail_on_code(failure, ierr, 'read_step_control_options', 'PETSc refused an -eme_error_ option')
   end subroutine read_step_control_options
 
   !> Whether the name of an option the user gave contains `text` (e.g. 'view', '-snes_compare').
+  !> A PETSc-style helper (ierr, for PetscCall) of snes_solver's PETSc-side routines.
   subroutine option_given(text, given, ierr)
     character(len=*), intent(in) :: text
     logical, intent(out) :: given

@@ -1,22 +1,17 @@
 !> Abstract vector of scalar functions f: R^n -> R^k of a subsystem's invariant variables
 !> x = (mechanical invariants, tau), e.g. a spring's (U_a, S_a) of (C, [gamma,] tau). Discrete
 !> gradients (src/scheme) work on any extension of it. Evaluations outside the functions'
-!> domain report one of the domain_* codes instead of stopping.
+!> domain report one of failures' domain_* codes instead of stopping (a bare code, not a
+!> failure_type: these run on every Newton iteration, docs/development.md "Errors").
 module invariant_function
   use, intrinsic :: iso_fortran_env, only: real64
+  use failures, only: failure_none, domain_nonpositive_temperature, domain_overflow
   implicit none (type, external)
   private
   public :: invariant_functions, potential_u, potential_s
-  public :: domain_ok, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow, domain_text
 
   integer, parameter :: potential_u = 1  !! index of the internal energy U_a in f(:)
   integer, parameter :: potential_s = 2  !! index of the entropy S_a in f(:)
-
-  !> Outcomes of an evaluation: inside the domain, or why not.
-  integer, parameter :: domain_ok = 0
-  integer, parameter :: domain_nonpositive_length = 1
-  integer, parameter :: domain_nonpositive_temperature = 2
-  integer, parameter :: domain_overflow = 3
 
   !> k functions of n invariants, evaluated with gradient and (optionally) Hessian.
   type, abstract :: invariant_functions
@@ -30,7 +25,7 @@ module invariant_function
 
   abstract interface
     !> f(j) = f_j(x), grad(:, j) = grad f_j, hess(:, :, j) = Hessian of f_j.
-    !> stat /= domain_ok means x lies outside the functions' domain; outputs are then undefined.
+    !> stat /= failure_none means x lies outside the functions' domain; outputs are then undefined.
     pure subroutine evaluate_interface(self, x, f, grad, hess, stat)
       import :: invariant_functions, real64
       class(invariant_functions), intent(in) :: self
@@ -53,7 +48,7 @@ contains
     real(real64) :: f_a(size(delta)), f_b(size(delta)), g(size(a), size(delta))
 
     call self%evaluate(a, f_a, g, stat=stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call self%evaluate(b, f_b, g, stat=stat)
     delta = f_b - f_a
   end subroutine difference
@@ -69,7 +64,7 @@ contains
 
     theta = 0.0_real64
     call self%evaluate(x, f, g, stat=stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     theta = g(size(x), potential_u)/g(size(x), potential_s)
     if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
   end subroutine temperature
@@ -85,7 +80,7 @@ contains
 
     theta = 0.0_real64
     call self%evaluate(x, f, g, stat=stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call self%temperature(x, theta, stat)
   end subroutine values_and_temperature
 
@@ -102,22 +97,5 @@ contains
     tau = 0.0_real64
     stat = domain_overflow
   end subroutine tau_from_temperature
-
-  !> What a domain status means, for messages.
-  pure function domain_text(stat) result(text)
-    integer, intent(in) :: stat
-    character(len=:), allocatable :: text
-
-    select case (stat)
-    case (domain_nonpositive_length)
-      text = 'a non-positive length'
-    case (domain_nonpositive_temperature)
-      text = 'a non-positive temperature'
-    case (domain_overflow)
-      text = 'an overflow'
-    case default
-      text = 'inside the domain'
-    end select
-  end function domain_text
 
 end module invariant_function

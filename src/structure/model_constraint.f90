@@ -12,7 +12,7 @@
 !> function V = E - thetabar S. The defaults do nothing.
 module model_constraint
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none
   use model_interface, only: generic_model
   implicit none (type, external)
   private
@@ -91,7 +91,7 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(inout), optional :: chain(:, :)
 
-    stat = domain_ok
+    stat = failure_none
   end subroutine slave_state
 
   !> f <- f + N lambda, the constraint force with its index-1 multiplier lambda(z, f) for the

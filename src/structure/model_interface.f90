@@ -20,7 +20,8 @@
 !> Everything else here is generic.
 module model_interface
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_overflow
+  use invariant_function, only: invariant_functions, potential_u, potential_s
+  use failures, only: failure_none, domain_overflow
   implicit none (type, external)
   private
   public :: generic_model, subsystem, model_words, add_temperature_chain
@@ -227,13 +228,13 @@ contains
 
     delta = self%mechanical_energy_difference(z_a, z_b)
     if (present(entropy_delta)) entropy_delta = 0.0_real64
-    stat = domain_ok
+    stat = failure_none
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
       call self%invariants(z_a, a, x_a(1:n))
       call self%invariants(z_b, a, x_b(1:n))
       call self%subsystems(a)%potentials%difference(x_a(1:n), x_b(1:n), part, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       delta = delta + part(potential_u)
       if (present(entropy_delta)) entropy_delta = entropy_delta + part(potential_s)
     end do
@@ -251,15 +252,15 @@ contains
     integer :: a, n
 
     z_target = z
-    stat = domain_ok
+    stat = failure_none
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       call self%subsystems(a)%potentials%temperature(x(1:n), theta, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       call target%subsystems(a)%potentials%tau_from_temperature(x(1:n - 1), theta, &
                                                                 z_target(self%subsystems(a)%tau_column), stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
     end do
   end subroutine convert_state
 
@@ -275,12 +276,12 @@ contains
     energy = self%mechanical_energy(z)
     entropy = 0.0_real64
     temperature = 0.0_real64
-    stat = domain_ok
+    stat = failure_none
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
     end do
@@ -302,7 +303,7 @@ contains
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       call self%subsystems(a)%potentials%temperature(x(1:n), theta(a), stat)
-      if (stat /= domain_ok) then
+      if (stat /= failure_none) then
         which = a
         return
       end if
@@ -322,7 +323,7 @@ contains
     integer :: a, n, m
 
     partials = 0.0_real64
-    stat = domain_ok
+    stat = failure_none
     if (present(dpartials_dz)) dpartials_dz = 0.0_real64
     do a = 1, size(self%subsystems)
       associate (part => self%subsystems(a))
@@ -335,7 +336,7 @@ contains
           call self%invariants(z, a, x(1:n))
           call part%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
         end if
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
         partials(1:n, :, a) = g(1:n, :)
         if (present(dpartials_dz)) call self%chain_to_state(a, h(1:n, 1:n, :), dx(1:n, 1:m), dpartials_dz)
       end associate
@@ -343,7 +344,7 @@ contains
   end subroutine exact_partials
 
   !> The continuous field f(z) = L grad E + K grad S (eq. (8)) at the exact partials, and
-  !> optionally its Jacobian df/dz (through the partials by the chain rule); stat /= domain_ok
+  !> optionally its Jacobian df/dz (through the partials by the chain rule); stat /= failure_none
   !> outside the model's domain or where f is not finite.
   pure subroutine continuous_field(self, z, f, stat, jacobian)
     class(generic_model), intent(in) :: self
@@ -357,12 +358,12 @@ contains
 
     if (present(jacobian)) then
       call self%exact_partials(z, partials, dpartials, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       call self%vector_field(z, partials, f, jacobian, df_dpartials)
       call self%add_partials_chain(df_dpartials, dpartials, 1.0_real64, jacobian)
     else
       call self%exact_partials(z, partials, stat=stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       call self%vector_field(z, partials, f)
     end if
     if (.not. all(abs(f) <= huge(1.0_real64))) stat = domain_overflow

@@ -8,7 +8,8 @@
 !> function V = E - thetabar S.
 module temperature_constraint
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: potential_u, potential_s, domain_ok
+  use invariant_function, only: potential_u, potential_s
+  use failures, only: failure_none
   use model_interface, only: generic_model
   use model_constraint, only: constraint
   implicit none (type, external)
@@ -62,7 +63,7 @@ contains
     u_tau = partials(n, potential_u, self%part)
     residual(tau) = residual(tau) - lambda/u_tau
     call temperature_gradient(model, self%part, z_new, theta, dtheta_dz, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     residual(row) = theta - self%temperature
     if (present(jacobian)) then
       jacobian(tau, row) = -1.0_real64/u_tau
@@ -103,9 +104,9 @@ contains
     tau = model%subsystems(self%part)%tau_column
     call model%invariants(z, self%part, x(1:n))
     call model%subsystems(self%part)%potentials%tau_from_temperature(x(1:n - 1), self%temperature, z(tau), stat)
-    if (stat /= domain_ok .or. .not. present(chain)) return
+    if (stat /= failure_none .or. .not. present(chain)) return
     call temperature_gradient(model, self%part, z, theta, dtheta_dz, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     row = -dtheta_dz/dtheta_dz(tau)
     row(tau) = 0.0_real64
     chain(tau, :) = matmul(row, chain)
@@ -136,7 +137,7 @@ contains
     m = size(model%subsystems(a)%columns)
     call model%invariants(z, a, x(1:n), dx(1:n, 1:m))
     call model%subsystems(a)%potentials%evaluate(x(1:n), f, g(1:n, :), h(1:n, 1:n, :), stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     associate (u_tau => g(n, potential_u), s_tau => g(n, potential_s))
       theta = u_tau/s_tau
       dtheta_dx(1:n) = (h(n, 1:n, potential_u)*s_tau - u_tau*h(n, 1:n, potential_s))/s_tau**2

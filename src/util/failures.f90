@@ -7,24 +7,27 @@
 module failures
   implicit none (type, external)
   private
-  public :: failure_type, fail, failure_code_name
-  public :: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
+  public :: failure_type, fail, failure_code_name, fail_on_code
+  public :: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow, domain_degenerate
   public :: failure_input, failure_io, failure_library, failure_not_converged, failure_mismatch, &
             failure_interrupted
 
-  !> The one enumeration of what can go wrong. Codes 1 to 3 are the domain codes the kernels
+  !> The one enumeration of what can go wrong. Codes 1 to 4 are the domain codes the kernels
   !> return; the model's words (model_interface) say what "length" or "temperature" means in it.
   enum, bind(c)
     enumerator :: failure_none = 0                  !! nothing failed
     enumerator :: domain_nonpositive_length = 1     !! a state outside the model's domain: a length <= 0
     enumerator :: domain_nonpositive_temperature = 2 !! a state outside the domain: a temperature <= 0
     enumerator :: domain_overflow = 3               !! an evaluation overflowed (or cannot be done)
-    enumerator :: failure_input = 4                 !! an input names a value that is not allowed
-    enumerator :: failure_io = 5                    !! a file or directory could not be read or written
-    enumerator :: failure_library = 6               !! PETSc, HDF5, SUNDIALS, MPI or the C runtime failed
-    enumerator :: failure_not_converged = 7         !! an iteration (Newton, a root search) did not converge
-    enumerator :: failure_mismatch = 8              !! data does not fit what reads it (a resume record, a file)
-    enumerator :: failure_interrupted = 9           !! a signal or a limit stopped the work
+    !> conditions that determine the state are degenerate there (the constraints' and the conserved
+    !> momentum's gradients dependent: relaxed schemes' projection)
+    enumerator :: domain_degenerate = 4
+    enumerator :: failure_input = 5                 !! an input names a value that is not allowed
+    enumerator :: failure_io = 6                    !! a file or directory could not be read or written
+    enumerator :: failure_library = 7               !! PETSc, HDF5, SUNDIALS, MPI or the C runtime failed
+    enumerator :: failure_not_converged = 8         !! an iteration (Newton, a root search) did not converge
+    enumerator :: failure_mismatch = 9              !! data does not fit what reads it (a resume record, a file)
+    enumerator :: failure_interrupted = 10          !! a signal or a limit stopped the work
   end enum
 
   !> What went wrong: `code` (failure_none when nothing did), a message for people and the
@@ -52,6 +55,25 @@ contains
     if (present(origin)) report%origin = origin
   end subroutine fail
 
+  !> Turns a library's nonzero return code (a PetscErrorCode, a C shim's int) into a
+  !> failure_library at `origin`, with `what` as the message (the library's code appended); a zero
+  !> code leaves `report` as it was. The one place where such codes become failures.
+  pure subroutine fail_on_code(report, code, origin, what)
+    type(failure_type), intent(inout) :: report
+    integer, intent(in) :: code
+    character(len=*), intent(in) :: origin
+    character(len=*), intent(in), optional :: what
+    character(len=12) :: number
+
+    if (code == 0) return
+    write (number, '(i0)') code
+    if (present(what)) then
+      call fail(report, failure_library, what//' (code '//trim(number)//')', origin)
+    else
+      call fail(report, failure_library, 'a library call failed with code '//trim(number), origin)
+    end if
+  end subroutine fail_on_code
+
   !> True when something went wrong.
   elemental logical function failed(self)
     class(failure_type), intent(in) :: self
@@ -59,7 +81,8 @@ contains
     failed = self%code /= failure_none
   end function failed
 
-  !> The failure as one line for people: "message (in origin)", or the code's name alone.
+  !> The failure as one line for people: "message (in origin)", or the code's name alone; the
+  !> origin is left out where the message already names it (an input's field, a file's path).
   pure function text(self) result(line)
     class(failure_type), intent(in) :: self
     character(len=:), allocatable :: line
@@ -70,7 +93,7 @@ contains
       line = failure_code_name(self%code)
     end if
     if (allocated(self%origin)) then
-      if (len(self%origin) > 0) line = line//' (in '//self%origin//')'
+      if (len(self%origin) > 0 .and. index(line, self%origin) == 0) line = line//' (in '//self%origin//')'
     end if
   end function text
 
@@ -88,6 +111,8 @@ contains
       name = 'a non-positive temperature'
     case (domain_overflow)
       name = 'an overflow'
+    case (domain_degenerate)
+      name = 'degenerate conditions'
     case (failure_input)
       name = 'an input that is not allowed'
     case (failure_io)

@@ -13,6 +13,7 @@ module namelist_group
   use namelist_text, only: namelist_item, group_items, item_name
   use namelist_values, only: read_reals, read_texts, read_integer, read_logical, single_item, parse_subscript
   use number_text, only: integer_text, reals_text
+  use failures, only: failure_type, fail, failure_input
   implicit none (type, external)
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
@@ -183,48 +184,46 @@ contains
   ! ------------------------------------------------------------------ reading
 
   !> Reads group &group of `text` (and the `extra` items that name its fields) into the fields'
-  !> variables and checks them; stat /= 0 with `message` on the first problem. `origin` is the
+  !> variables and checks them; on the first problem a failure (failure_input) whose message
+  !> names the file, group and field and whose origin is the field's name. `origin` is the
   !> file's name, for messages.
-  subroutine read_group(text, group, fields, origin, stat, message, extra, occurrence)
+  subroutine read_group(text, group, fields, origin, failure, extra, occurrence)
     character(len=*), intent(in) :: text, group, origin
     type(group_field), intent(in) :: fields(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(namelist_item), intent(in), optional :: extra(:)
     integer, intent(in), optional :: occurrence
     type(namelist_item), allocatable :: items(:)
     character(len=:), allocatable :: reason
-    integer :: i, k
+    integer :: i, k, problem
 
-    stat = 0
-    message = ''
     call group_items(text, group, field_names(fields), origin, items, extra, occurrence)
-    call check_single_setting(group, fields, items, stat, message)
-    if (stat /= 0) return
+    call check_single_setting(group, fields, items, failure)
+    if (failure%failed()) return
     do i = 1, size(items)
       k = field_index(fields, item_name(items(i)%item))
       if (k == 0) then
-        stat = 1
-        message = items(i)%origin//': &'//group//': unknown field '''//item_name(items(i)%item)//'''; allowed: ' &
-                  //names_text(fields)
+        call fail(failure, failure_input, items(i)%origin//': &'//group//': unknown field '''// &
+                  item_name(items(i)%item)//'''; allowed: '//names_text(fields), item_name(items(i)%item))
         return
       end if
-      call apply_item(fields(k), items(i)%item, stat, reason)
-      if (stat == subscript_problem) then
-        message = items(i)%origin//': &'//group//': '//trim(adjustl(items(i)%item(1:index(items(i)%item, '=') - 1))) &
-                  //': '//reason
+      call apply_item(fields(k), items(i)%item, problem, reason)
+      if (problem == subscript_problem) then
+        call fail(failure, failure_input, items(i)%origin//': &'//group//': '// &
+                  trim(adjustl(items(i)%item(1:index(items(i)%item, '=') - 1)))//': '//reason, trim(fields(k)%name))
         return
-      else if (stat /= 0) then
+      else if (problem /= 0) then
         if (len(reason) > 0) reason = ' ('//reason//')'
-        message = items(i)%origin//': &'//group//': field '''//trim(fields(k)%name)//''' cannot take the value ' &
-                  //quoted_value(items(i)%item)//reason//'; allowed: '//trim(fields(k)%allowed)
+        call fail(failure, failure_input, items(i)%origin//': &'//group//': field '''//trim(fields(k)%name)// &
+                  ''' cannot take the value '//quoted_value(items(i)%item)//reason//'; allowed: '// &
+                  trim(fields(k)%allowed), trim(fields(k)%name))
         return
       end if
     end do
     do k = 1, size(fields)
       if (within_bounds(fields(k))) cycle
-      stat = 1
-      message = invalid_value_message(origin_of(items, fields(k)%name, origin), group, fields(k))
+      call fail(failure, failure_input, invalid_value_message(origin_of(items, fields(k)%name, origin), group, &
+                fields(k)), trim(fields(k)%name))
       return
     end do
   end subroutine read_group
@@ -321,29 +320,24 @@ contains
   ! The first pair of items from one origin that set the same variable: the same name and
   ! subscript written twice (dt = 0.1, dt = 0.2), or two names of one field (a field and its old
   ! name). Overrides (a study's sweep) come from another origin and replace the file's value.
-  subroutine check_single_setting(group, fields, items, stat, message)
+  subroutine check_single_setting(group, fields, items, failure)
     character(len=*), intent(in) :: group
     type(group_field), intent(in) :: fields(:)
     type(namelist_item), intent(in) :: items(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     integer :: i, j
 
-    stat = 0
-    message = ''
     do i = 1, size(items)
       do j = i + 1, size(items)
         if (items(i)%origin /= items(j)%origin) cycle
         if (setting_key(items(i)%item) == setting_key(items(j)%item)) then
-          stat = 1
-          message = items(i)%origin//': &'//group//': '//setting_key(items(i)%item)//' is given twice; allowed: '// &
-                    'each field once in its group'
+          call fail(failure, failure_input, items(i)%origin//': &'//group//': '//setting_key(items(i)%item)// &
+                    ' is given twice; allowed: each field once in its group', setting_key(items(i)%item))
           return
         end if
         if (.not. same_target(fields, item_name(items(i)%item), item_name(items(j)%item))) cycle
-        stat = 1
-        message = items(i)%origin//': &'//group//': '//item_name(items(i)%item)//' and '//item_name(items(j)%item)// &
-                  ' set the same field; allowed: one of them'
+        call fail(failure, failure_input, items(i)%origin//': &'//group//': '//item_name(items(i)%item)//' and '// &
+                  item_name(items(j)%item)//' set the same field; allowed: one of them', item_name(items(i)%item))
         return
       end do
     end do
@@ -387,15 +381,17 @@ contains
   end function same_target
 
 
-  ! Applies 'name[(i[:j])] = value' to the field. stat: 0, value_problem (the value does not fit
-  ! the field) or subscript_problem; `reason` says why, when more than the allowed text helps.
-  subroutine apply_item(field, item, stat, reason)
+  ! Applies 'name[(i[:j])] = value' to the field. `problem`: 0, value_problem (the value does not
+  ! fit the field) or subscript_problem, which read_group words differently; `reason` says why,
+  ! when more than the allowed text helps.
+  subroutine apply_item(field, item, problem, reason)
     type(group_field), intent(in) :: field
     character(len=*), intent(in) :: item
-    integer, intent(out) :: stat
+    integer, intent(out) :: problem
     character(len=:), allocatable, intent(out) :: reason
     character(len=:), allocatable :: value, text_buffer
-    integer :: first, last, equals, open_at
+    integer :: first, last, equals, open_at, stat
+    type(failure_type) :: failure
     real(real64) :: one(1)
 
     reason = ''
@@ -409,25 +405,26 @@ contains
     last = 1
     if (associated(field%real_values)) last = size(field%real_values)
     if (open_at > 0) then
-      stat = subscript_problem
+      problem = subscript_problem
       if (.not. associated(field%real_values)) then
         reason = 'field '''//trim(field%name)//''' takes no subscript'
         return
       end if
-      call parse_subscript(item(open_at + 1:equals - 1), first, last, stat, reason)
-      if (stat /= 0) then
-        stat = subscript_problem
-        reason = reason//'; '''//trim(field%name)//''' has elements 1 to '//integer_text(size(field%real_values))
+      call parse_subscript(item(open_at + 1:equals - 1), first, last, failure)
+      if (failure%failed()) then
+        reason = failure%message//'; '''//trim(field%name)//''' has elements 1 to '// &
+                 integer_text(size(field%real_values))
         return
       end if
     end if
-    stat = value_problem
+    problem = value_problem
     if (len_trim(value) == 0) then
       reason = 'no value'
       return
     end if
     if (associated(field%real_values)) then
-      call read_reals(value, field%real_values(first:last), stat, reason, field%open_length)
+      call read_reals(value, field%real_values(first:last), failure, field%open_length)
+      call take_outcome()
       return
     end if
     if (associated(field%text_values)) then
@@ -435,18 +432,26 @@ contains
         reason = 'texts are quoted'
         return
       end if
-      call read_texts(value, field%text_values, stat)
+      call read_texts(value, field%text_values, failure)
+      call take_outcome()
       return
     end if
+    stat = 0
     select case (field%kind)
     case (field_real)
       one = field%real_value
-      call read_reals(value, one, stat, reason)
-      if (stat == 0) field%real_value = one(1)
+      call read_reals(value, one, failure)
+      if (.not. failure%failed()) field%real_value = one(1)
+      call take_outcome()
+      return
     case (field_integer)
-      call read_integer(value, field%integer_value, stat)
+      call read_integer(value, field%integer_value, failure)
+      call take_outcome()
+      return
     case (field_logical)
-      call read_logical(value, field%logical_value, stat)
+      call read_logical(value, field%logical_value, failure)
+      call take_outcome()
+      return
     case default
       if (index('''"', value(1:1)) == 0) then
         reason = 'texts are quoted'
@@ -461,7 +466,18 @@ contains
       end if
       if (stat == 0) field%text_value = trim(text_buffer)
     end select
-    if (stat /= 0) stat = value_problem
+    problem = 0
+    if (stat /= 0) problem = value_problem
+
+  contains
+
+    ! The value reader's outcome as the problem and its reason.
+    subroutine take_outcome()
+      problem = 0
+      if (.not. failure%failed()) return
+      problem = value_problem
+      reason = failure%message
+    end subroutine take_outcome
   end subroutine apply_item
 
   ! Whether the field's value keeps its bounds, non-zero rule and choices.

@@ -4,6 +4,7 @@
 module namelist_text
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long_long, c_null_char
   use number_text, only: integer_text
+  use failures, only: failure_type, fail, failure_input, failure_io
   implicit none (type, external)
   private
   public :: namelist_item, read_source_text, group_names, group_items, item_name, lowercase, blanked
@@ -38,31 +39,29 @@ contains
   !> readable regular file of at most max_input_bytes (a FIFO or a device is refused, not waited
   !> on) holding namelist groups '&name items /' and nothing else. A file without any group comes
   !> back with no group: the caller, who knows the allowed groups, refuses it.
-  subroutine read_source_text(path, text, stat, message)
+  subroutine read_source_text(path, text, failure)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: text
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: raw, code
     character(len=4096) :: io_message
     character(kind=c_char, len=512) :: reason
     character :: quote
     integer(c_long_long) :: size
-    integer :: unit, ios, line_number, start, finish, length
+    integer :: unit, ios, line_number, start, finish, length, stat
     logical :: group_seen
 
     text = ''
-    message = ''
     reason = ''
     stat = int(c_check_input_file(path//c_null_char, size, reason, len(reason, kind=c_int)))
     if (stat /= 0) then
-      message = path//': cannot read the input file: '//c_text(reason)
+      call fail(failure, failure_io, path//': cannot read the input file: '//c_text(reason), path)
       return
     end if
     if (size > max_input_bytes) then
-      stat = 1
-      message = path//': cannot read the input file: it has more than '//integer_text(max_input_bytes)// &
-                ' bytes; allowed: a namelist file of at most '//integer_text(max_input_bytes)//' bytes'
+      call fail(failure, failure_input, path//': cannot read the input file: it has more than '// &
+                integer_text(max_input_bytes)//' bytes; allowed: a namelist file of at most '// &
+                integer_text(max_input_bytes)//' bytes', path)
       return
     end if
     ! The whole file at once (its size is known), then line by line.
@@ -74,17 +73,17 @@ contains
     if (stat == 0) close (unit, iostat=stat, iomsg=io_message)
     if (stat /= 0) then
       close (unit, iostat=ios)
-      message = path//': cannot read the input file: '//trim(io_message)
+      call fail(failure, failure_io, path//': cannot read the input file: '//trim(io_message), path)
       return
     end if
     ! A text file holds no control bytes but tabs and line ends: a NUL or other control byte is a
     ! binary file or a damaged one, never silently read as a blank.
     stat = control_byte_at(raw)
     if (stat /= 0) then
-      message = path//': line '//integer_text(count([(raw(start:start) == achar(10), start = 1, stat - 1)]) + 1)// &
-                ': byte '//integer_text(stat)//' is the control character '//integer_text(iachar(raw(stat:stat)))// &
-                '; allowed: a text file (printable characters, tabs and line ends)'
-      stat = 1
+      call fail(failure, failure_input, path//': line '// &
+                integer_text(count([(raw(start:start) == achar(10), start = 1, stat - 1)]) + 1)//': byte '// &
+                integer_text(stat)//' is the control character '//integer_text(iachar(raw(stat:stat)))// &
+                '; allowed: a text file (printable characters, tabs and line ends)', path)
       return
     end if
     text = repeat(' ', len(raw) + 1)      ! each line adds a blank, each newline goes
@@ -104,15 +103,15 @@ contains
       quote = ' '
       if (group_seen) quote = open_quote(code)
       if (quote /= ' ') then
-        stat = 1
-        message = path//': line '//integer_text(line_number)//': '//last_group(text(1:length))//'a text opened by '// &
-                  quote//' is not closed on its line; allowed: '//syntax
+        call fail(failure, failure_input, path//': line '//integer_text(line_number)//': '// &
+                  last_group(text(1:length))//'a text opened by '//quote//' is not closed on its line; allowed: '// &
+                  syntax, path)
         return
       end if
       start = finish + 2
     end do
     text = text(1:length)
-    call check_groups(text, path, stat, message)
+    call check_groups(text, path, failure)
   end subroutine read_source_text
 
   ! The position of the first control byte other than tab, line feed, form feed and carriage
@@ -173,15 +172,13 @@ contains
   ! outside a group (a group whose '&' was forgotten), every group closed by '/' outside quotes
   ! before the next '&', and no '/' right after '=' (an unquoted path, file = /tmp/x.h5, would
   ! close the group there).
-  subroutine check_groups(text, path, stat, message)
+  subroutine check_groups(text, path, failure)
     character(len=*), intent(in) :: text, path
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: name
     character :: quote
     integer :: i, j, name_end, closed, last
 
-    stat = 1
     i = 1
     do
       do while (i <= len(text))
@@ -190,14 +187,15 @@ contains
       end do
       if (i > len(text)) exit
       if (text(i:i) /= '&') then
-        message = path//': text outside any namelist group: '''//excerpt(text(i:))// &
-                  ''' (was a group''s ''&'' forgotten?); allowed: '//syntax
+        call fail(failure, failure_input, path//': text outside any namelist group: '''//excerpt(text(i:))// &
+                  ''' (was a group''s ''&'' forgotten?); allowed: '//syntax, path)
         return
       end if
       name_end = i + verify(text(i + 1:)//' ', name_characters) - 1
       name = lowercase(text(i + 1:name_end))
       if (len(name) == 0) then
-        message = path//': ''&'' without a group name at '''//excerpt(text(i:))//'''; allowed: '//syntax
+        call fail(failure, failure_input, path//': ''&'' without a group name at '''//excerpt(text(i:))// &
+                  '''; allowed: '//syntax, path)
         return
       end if
       closed = 0
@@ -208,7 +206,8 @@ contains
         else if (text(j:j) == '''' .or. text(j:j) == '"') then
           quote = text(j:j)
         else if (text(j:j) == '&') then
-          message = path//': &'//name//' is not closed by ''/'' before '''//excerpt(text(j:))//'''; allowed: '//syntax
+          call fail(failure, failure_input, path//': &'//name//' is not closed by ''/'' before '''// &
+                    excerpt(text(j:))//'''; allowed: '//syntax, path)
           return
         else if (text(j:j) == '/') then
           closed = j
@@ -216,22 +215,22 @@ contains
         end if
       end do
       if (quote /= ' ') then
-        message = path//': &'//name//': a text opened by '//quote//' is not closed; allowed: '//syntax
+        call fail(failure, failure_input, path//': &'//name//': a text opened by '//quote// &
+                  ' is not closed; allowed: '//syntax, path)
         return
       else if (closed == 0) then
-        message = path//': &'//name//' is not closed by ''/''; allowed: '//syntax
+        call fail(failure, failure_input, path//': &'//name//' is not closed by ''/''; allowed: '//syntax, path)
         return
       end if
       last = name_end + len_trim(text(name_end + 1:closed - 1))
       if (text(last:last) == '=') then
-        message = path//': &'//name//': field '''//item_name(last_name(text(name_end + 1:last)))//''' has no value '// &
-                  'before the ''/'' that closes the group; texts are quoted, as in file = ''/tmp/x.h5'''
+        call fail(failure, failure_input, path//': &'//name//': field '''// &
+                  item_name(last_name(text(name_end + 1:last)))//''' has no value '// &
+                  'before the ''/'' that closes the group; texts are quoted, as in file = ''/tmp/x.h5''', path)
         return
       end if
       i = closed + 1
     end do
-    stat = 0
-    message = ''
   end subroutine check_groups
 
   ! 'name =' at the end of a group body.

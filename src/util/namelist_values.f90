@@ -1,17 +1,16 @@
 !> The values of namelist items as Fortran reads list-directed input: reals (an exact count, or
 !> up to a count), quoted texts, an integer, a logical, each checked to be one item where one is
-!> expected, and array subscripts i or i:j within a range. stat /= 0 says the text is not such a
-!> value (with the reason where there is more to say); the group reader (namelist_group) names the
+!> expected, and array subscripts i or i:j within a range. A failure (failure_input) says the text
+!> is not such a value (its message the reason where there is more to say, else empty); the group reader (namelist_group) names the
 !> field and what it allows.
 module namelist_values
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use number_text, only: integer_text
+  use failures, only: failure_type, fail, failure_input
   implicit none (type, external)
   private
   public :: read_reals, read_texts, read_integer, read_logical, single_item, parse_subscript
-
-  integer, parameter :: bad_value = 1
 
 contains
 
@@ -19,15 +18,15 @@ contains
   ! open_length; fewer, more, an empty value between commas, NaN and Inf are errors (with the
   ! reason). The text is read twice, into arrays preset to 0 and to 1: an element that differs
   ! was left unassigned by the list.
-  subroutine read_reals(text, values, stat, reason, open_length)
+  subroutine read_reals(text, values, failure, open_length)
     character(len=*), intent(in) :: text
     real(real64), intent(inout) :: values(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: reason
+    type(failure_type), intent(out) :: failure
     logical, intent(in), optional :: open_length
+    character(len=:), allocatable :: reason
     real(real64) :: zeros(size(values) + 1), ones(size(values) + 1)
     logical :: assigned(size(values) + 1), open
-    integer :: given
+    integer :: given, stat
     character(len=len(text) + 2) :: ended
 
     reason = ''
@@ -39,12 +38,11 @@ contains
     read (ended, *, iostat=stat) zeros
     if (stat == 0) read (ended, *, iostat=stat) ones
     if (stat /= 0) then
-      stat = bad_value
+      call fail(failure, failure_input, '')
       return
     end if
-    stat = bad_value
     if (.not. all(ieee_is_finite(zeros))) then
-      reason = 'NaN and Inf are not allowed'
+      call fail(failure, failure_input, 'NaN and Inf are not allowed')
       return
     end if
     assigned = abs(zeros - ones) < 0.5_real64
@@ -59,42 +57,46 @@ contains
       reason = integer_text(size(values))//' values needed, '//integer_text(given)//' given'
     else
       values(1:given) = zeros(1:given)
-      stat = 0
+      return
     end if
+    call fail(failure, failure_input, reason)
   end subroutine read_reals
 
   ! Up to size(values) quoted texts; one more is an error.
-  subroutine read_texts(text, values, stat)
+  subroutine read_texts(text, values, failure)
     character(len=*), intent(in) :: text
     character(len=64), intent(inout) :: values(:)
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=64) :: probe(size(values) + 1)
-    integer :: probe_stat
+    integer :: stat, probe_stat
     character(len=len(text) + 2) :: ended
 
     ended = text//' /'
     read (ended, *, iostat=stat) values
-    if (stat /= 0) return
-    read (text, *, iostat=probe_stat) probe
-    if (probe_stat == 0) stat = bad_value
+    if (stat == 0) read (text, *, iostat=probe_stat) probe
+    if (stat /= 0 .or. probe_stat == 0) call fail(failure, failure_input, '')
   end subroutine read_texts
 
-  subroutine read_integer(text, value, stat)
+  ! One integer.
+  subroutine read_integer(text, value, failure)
     character(len=*), intent(in) :: text
     integer, intent(inout) :: value
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+    integer :: stat
 
     read (text, *, iostat=stat) value
-    if (stat == 0 .and. .not. single_item(text)) stat = bad_value
+    if (stat /= 0 .or. .not. single_item(text)) call fail(failure, failure_input, '')
   end subroutine read_integer
 
-  subroutine read_logical(text, value, stat)
+  ! One logical.
+  subroutine read_logical(text, value, failure)
     character(len=*), intent(in) :: text
     logical, intent(inout) :: value
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+    integer :: stat
 
     read (text, *, iostat=stat) value
-    if (stat == 0 .and. .not. single_item(text)) stat = bad_value
+    if (stat /= 0 .or. .not. single_item(text)) call fail(failure, failure_input, '')
   end subroutine read_logical
 
   ! Whether the text holds one list item only (a second one makes the field's value wrong).
@@ -108,19 +110,18 @@ contains
   end function single_item
 
   !> The subscript 'i)' or 'i:j)' (the text after '('), within first:last, which it narrows to
-  !> i:j; stat /= 0 with the reason if it is not one or out of range.
-  subroutine parse_subscript(text, first, last, stat, reason)
+  !> i:j; a failure (failure_input) with the reason if it is not one or out of range.
+  subroutine parse_subscript(text, first, last, failure)
     character(len=*), intent(in) :: text
     integer, intent(inout) :: first, last
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: reason
-    integer :: colon, close_at, lower, upper
+    type(failure_type), intent(out) :: failure
+    integer :: colon, close_at, lower, upper, stat
 
     close_at = index(text, ')')
-    stat = 1
-    reason = 'subscript ('//trim(text)//' is not closed'
-    if (close_at == 0) return
-    reason = 'subscript ('//text(1:close_at)//' is not i or i:j'
+    if (close_at == 0) then
+      call fail(failure, failure_input, 'subscript ('//trim(text)//' is not closed')
+      return
+    end if
     colon = index(text(1:close_at - 1), ':')
     if (colon == 0) then
       read (text(1:close_at - 1), *, iostat=stat) lower
@@ -129,15 +130,16 @@ contains
       read (text(1:colon - 1), *, iostat=stat) lower
       if (stat == 0) read (text(colon + 1:close_at - 1), *, iostat=stat) upper
     end if
-    if (stat /= 0) return
+    if (stat /= 0) then
+      call fail(failure, failure_input, 'subscript ('//text(1:close_at)//' is not i or i:j')
+      return
+    end if
     if (lower < first .or. upper > last .or. upper < lower) then
-      stat = 1
-      reason = 'subscript ('//text(1:close_at)//' is out of range'
+      call fail(failure, failure_input, 'subscript ('//text(1:close_at)//' is out of range')
       return
     end if
     first = lower
     last = upper
-    reason = ''
   end subroutine parse_subscript
 
 end module namelist_values

@@ -6,8 +6,8 @@
 !> and S = ln v + (3/2) ln u (an ideal monatomic gas, nondimensional).
 module gas_potential
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_nonpositive_length, &
-                                domain_nonpositive_temperature, domain_overflow
+  use invariant_function, only: invariant_functions, potential_u, potential_s
+  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
   use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
   implicit none (type, external)
   private
@@ -41,7 +41,7 @@ contains
     if (present(hess)) hess = 0.0_real64
     v = x(1)
     tau = x(2)
-    stat = domain_ok
+    stat = failure_none
     if (.not. (v > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
@@ -93,7 +93,7 @@ contains
 
     call self%evaluate(x, f, grad, stat=stat)
     theta = 0.0_real64
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     select case (self%variable)
     case (tau_entropy, tau_internal_energy)
       theta = (2.0_real64/3.0_real64)*f(potential_u)
@@ -113,7 +113,7 @@ contains
     integer, intent(out) :: stat
 
     tau = 0.0_real64
-    stat = domain_ok
+    stat = failure_none
     if (.not. (mechanical(1) > 0.0_real64)) then
       stat = domain_nonpositive_length
       return

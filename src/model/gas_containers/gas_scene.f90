@@ -8,7 +8,7 @@ module gas_scene
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none, failure_type, fail, failure_input
   use thermo_variable_kinds, only: tau_entropy
   use gas_model, only: gas_containers, make_gas_containers
   implicit none (type, external)
@@ -72,41 +72,39 @@ contains
   end function fields
 
   !> Reads &model and &initial; q must leave both containers a volume.
-  subroutine read(self, text, origin, extra, stat, message)
+  subroutine read(self, text, origin, extra, failure)
     class(gas_containers_scene), intent(inout), target :: self
     character(len=*), intent(in) :: text, origin
     type(namelist_item), intent(in) :: extra(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
 
-    call read_group(text, 'model', self%fields('model'), origin, stat, message, extra)
-    if (stat /= 0) return
-    call read_group(text, 'initial', self%fields('initial'), origin, stat, message, extra)
-    if (stat /= 0) return
+    call read_group(text, 'model', self%fields('model'), origin, failure, extra)
+    if (failure%failed()) return
+    call read_group(text, 'initial', self%fields('initial'), origin, failure, extra)
+    if (failure%failed()) return
     if (self%q >= 2.0_real64) then
-      stat = 1
-      message = origin//': &initial: q is not allowed: the second container''s volume 2 - q would not be > 0; '// &
-                'allowed: a real number in (0, 2)'
+      call fail(failure, failure_input, origin//': &initial: q is not allowed: the second container''s volume 2 - q '// &
+                'would not be > 0; allowed: a real number in (0, 2)', 'q')
     end if
   end subroutine read
 
   !> The model in thermodynamic variable `variable` and the initial state (no constraints).
-  subroutine build(self, variable, model, z0, constraints, stat, message)
+  subroutine build(self, variable, model, z0, constraints, failure)
     class(gas_containers_scene), intent(in) :: self
     integer, intent(in) :: variable
     class(generic_model), allocatable, intent(out) :: model
     real(real64), allocatable, intent(out) :: z0(:)
     type(constraint_slot), allocatable, intent(out) :: constraints(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(gas_containers) :: in_entropy
+    integer :: stat
 
-    message = ''
     in_entropy = make_gas_containers(self%friction, tau_entropy)
     allocate (model, source=make_gas_containers(self%friction, variable))
     allocate (z0(model%state_size), constraints(0))
     call in_entropy%convert_state([self%q, self%p, self%entropy], model, z0, stat)
-    if (stat /= domain_ok) message = '&initial: the initial state lies outside the model''s domain'
+    if (stat /= failure_none) call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', &
+                                        '&initial')
   end subroutine build
 
   !> theta_R = 1 (the model is nondimensional).

@@ -5,8 +5,8 @@
 module elastic_potential
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
-  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, &
-                                domain_nonpositive_length, domain_overflow
+  use invariant_function, only: invariant_functions, potential_u, potential_s
+  use failures, only: failure_none, domain_nonpositive_length, domain_overflow
   use free_energy, only: spring_law, mechanical_parts, mechanical_difference
   implicit none (type, external)
   private
@@ -53,7 +53,7 @@ contains
       stat = domain_nonpositive_length
       return
     end if
-    stat = domain_ok
+    stat = failure_none
     call mechanical_parts(self%law, x(1), 0.0_real64, e, sigma, de, dsigma, d2e, d2sigma)
     f(potential_u) = e
     grad(1, potential_u) = de(1)
@@ -73,7 +73,7 @@ contains
       stat = domain_nonpositive_length
       return
     end if
-    stat = domain_ok
+    stat = failure_none
     call mechanical_difference(self%law, a(1), 0.0_real64, b(1), 0.0_real64, delta(potential_u), delta_sigma)
     delta(potential_s) = 0.0_real64
   end subroutine elastic_difference

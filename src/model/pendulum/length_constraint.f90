@@ -10,7 +10,7 @@
 !> must hold at t = 0; and q1 scaled back to |q1| = length after a step.
 module length_constraint
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: domain_ok
+  use failures, only: failure_none
   use model_interface, only: generic_model
   use model_constraint, only: constraint
   use double_pendulum, only: pendulum_layout
@@ -65,7 +65,7 @@ contains
     integer, intent(out) :: stat
     integer :: i
 
-    stat = domain_ok
+    stat = failure_none
     associate (q1 => z_new(self%q1_columns))
       residual(self%p1_columns) = residual(self%p1_columns) + lambda*z_mid(self%q1_columns)
       residual(row) = 0.5_real64*(dot_product(q1, q1) - self%length**2)
@@ -87,7 +87,7 @@ contains
     real(real64), intent(out) :: g
     integer, intent(out) :: stat
 
-    stat = domain_ok
+    stat = failure_none
     g = 0.5_real64*(dot_product(z(self%q1_columns), z(self%q1_columns)) - self%length**2)
   end subroutine value
 

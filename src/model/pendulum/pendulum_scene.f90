@@ -12,6 +12,7 @@ module pendulum_scene
   use namelist_group, only: group_field, real_field, reals_field, integer_field, logical_field, text_field, &
                             read_group, invalid_value_message, value_origin, absolute_temperature, field_names
   use model_parameters, only: pendulum_parameters, spring_law_names
+  use failures, only: failure_type, fail, failure_input
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
@@ -203,19 +204,18 @@ contains
   !> Reads &model, &initial and &constraints in that order (the constraints' defaults come from
   !> the initial state). &model is read twice: first with every law's fields, to learn the
   !> scene's parts, then with the fields of those parts.
-  subroutine read(self, text, origin, extra, stat, message)
+  subroutine read(self, text, origin, extra, failure)
     class(double_pendulum_scene), intent(inout), target :: self
     character(len=*), intent(in) :: text, origin
     type(namelist_item), intent(in) :: extra(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
 
     type(double_pendulum_scene), target :: probe, every_law   ! every_law keeps the defaults: all fields
     type(group_field), allocatable :: initial_table(:)
     real(real64) :: stiffness(2)
 
-    call read_group(text, 'model', model_fields(probe, every_part=.true.), origin, stat, message, extra)
-    if (stat /= 0) return
+    call read_group(text, 'model', model_fields(probe, every_part=.true.), origin, failure, extra)
+    if (failure%failed()) return
     self%params%spring_law = probe%params%spring_law
     self%params%dimension = probe%params%dimension
     if (self%params%dimension == 2) then
@@ -226,60 +226,54 @@ contains
       self%p2(3) = 0.0_real64
     end if
     call refuse_other_parts(self, text, 'model', model_fields(probe, every_part=.true.), self%fields('model'), &
-                            origin, extra, stat, message)
-    if (stat /= 0) return
-    call read_group(text, 'model', self%fields('model'), origin, stat, message, extra)
-    if (stat /= 0) return
+                            origin, extra, failure)
+    if (failure%failed()) return
+    call read_group(text, 'model', self%fields('model'), origin, failure, extra)
+    if (failure%failed()) return
     initial_table = self%fields('initial')
     call refuse_other_parts(self, text, 'initial', initial_fields(probe, every_part=.true.), initial_table, &
-                            origin, extra, stat, message)
-    if (stat /= 0) return
-    call read_group(text, 'initial', initial_table, origin, stat, message, extra)
-    if (stat /= 0) return
+                            origin, extra, failure)
+    if (failure%failed()) return
+    call read_group(text, 'initial', initial_table, origin, failure, extra)
+    if (failure%failed()) return
     call refuse_other_parts(self, text, 'constraints', every_law%fields('constraints'), &
-                            self%fields('constraints'), origin, extra, stat, message)
-    if (stat /= 0) return
+                            self%fields('constraints'), origin, extra, failure)
+    if (failure%failed()) return
     ! mu^eq_a(theta_a) of eq. (17) at t = 0: a spring with no stiffness has no equilibrium.
     associate (p => self%params)
       stiffness = p%mu_eq_const - p%mu_eq_slope*(self%theta - p%theta_ref)
     end associate
     if (self%params%thermal() .and. any(stiffness <= 0.0_real64)) then
-      stat = 1
-      message = invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), 'initial', &
-                                      initial_table(findloc(initial_table%name, 'theta', dim=1)))// &
-                ' (the stiffness mu_eq(theta) of eq. (17) is '//reals_text(stiffness)//' J)'
+      call fail(failure, failure_input, invalid_value_message(value_origin(text, 'initial', 'theta', origin, extra), &
+                'initial', initial_table(findloc(initial_table%name, 'theta', dim=1)))// &
+                ' (the stiffness mu_eq(theta) of eq. (17) is '//reals_text(stiffness)//' J)', 'theta')
       return
     end if
     self%length = norm2(self%q1)
     self%temperature = self%theta(1)
-    call read_group(text, 'constraints', self%fields('constraints'), origin, stat, message, extra)
+    call read_group(text, 'constraints', self%fields('constraints'), origin, failure, extra)
   end subroutine read
 
   ! A field that another part of the model has (in `every_field`, not in `scene_fields`) is
   ! refused with the part that lacks it, rather than as an unknown field.
-  subroutine refuse_other_parts(self, text, group, every_field, scene_fields, origin, extra, stat, message)
+  subroutine refuse_other_parts(self, text, group, every_field, scene_fields, origin, extra, failure)
     class(double_pendulum_scene), intent(in) :: self
     character(len=*), intent(in) :: text, group, origin
     type(group_field), intent(in) :: every_field(:), scene_fields(:)
     type(namelist_item), intent(in) :: extra(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(namelist_item), allocatable :: items(:)
     character(len=:), allocatable :: name
     integer :: i
 
-    stat = 0
-    message = ''
     call group_items(text, group, field_names(every_field), origin, items, extra)
     do i = 1, size(items)
       name = item_name(items(i)%item)
       if (any(field_names(scene_fields) == name) .or. .not. any(field_names(every_field) == name)) cycle
-      stat = 1
-      message = items(i)%origin//': &'//group//': '//name//' is not a field of spring_law = '''// &
-                trim(self%params%spring_law)//''' ('//trim(merge('it has no viscous branch    ', &
-                                                                  'elastic springs have no heat', &
-                                                                  self%params%thermal()))//'); allowed: '// &
-                names_list(scene_fields)
+      call fail(failure, failure_input, items(i)%origin//': &'//group//': '//name// &
+                ' is not a field of spring_law = '''//trim(self%params%spring_law)//''' ('// &
+                trim(merge('it has no viscous branch    ', 'elastic springs have no heat', self%params%thermal()))// &
+                '); allowed: '//names_list(scene_fields), name)
       return
     end do
   end subroutine refuse_other_parts
@@ -297,25 +291,23 @@ contains
   end function names_list
 
   !> The pendulum in thermodynamic variable `variable`, the initial state and the constraints.
-  subroutine build(self, variable, model, z0, constraints, stat, message)
+  subroutine build(self, variable, model, z0, constraints, failure)
     class(double_pendulum_scene), intent(in) :: self
     integer, intent(in) :: variable
     class(generic_model), allocatable, intent(out) :: model
     real(real64), allocatable, intent(out) :: z0(:)
     type(constraint_slot), allocatable, intent(out) :: constraints(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(pendulum) :: pendulum_of_scene
-    integer :: k
+    integer :: k, stat
 
-    message = ''
     pendulum_of_scene = make_pendulum(self%params, variable)
     allocate (z0(pendulum_of_scene%state_size))
     associate (d => self%params%dimension)
       call pendulum_of_scene%state_from_temperatures(self%q1(1:d), self%q2(1:d), self%p1(1:d), self%p2(1:d), &
                                                      self%gamma, self%theta, z0, stat)
     end associate
-    if (stat /= 0) message = '&initial: the initial state lies outside the model''s domain'
+    if (stat /= 0) call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', '&initial')
     allocate (model, source=pendulum_of_scene)
     allocate (constraints(self%constraint_count()))
     k = 0

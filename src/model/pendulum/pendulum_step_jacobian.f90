@@ -13,11 +13,11 @@ contains
     real(real64) :: theta_new, dtheta_new(3)
 
     call derivative_pass(self, point, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     dtheta_new = 0.0_real64
     if (self%temperature_row > 0) then
       call new_temperature(self, self%temperature_part, point, theta_new, dtheta_new(1:self%temperature_part + 1), stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
     end if
     call assemble_jacobian(self, point, dtheta_new, jacobian)
   end procedure jacobian_pass
@@ -30,7 +30,7 @@ contains
     real(real64) :: partials(3, 2), hess(3, 3, 2)
     integer :: a, n
 
-    stat = domain_ok
+    stat = failure_none
     do a = 1, 2
       n = a + 1
       associate (sp => point%spring(a))
@@ -42,7 +42,7 @@ contains
         else
           call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
                                     partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
-          if (stat /= domain_ok) return
+          if (stat /= failure_none) return
         end if
         point%dpartials(1:n, 1:n, :, a) = hess(1:n, 1:n, :)
       end associate

@@ -16,8 +16,8 @@
 !> in every thermodynamic variable; constraints g1 (fixed length) and g2 (fixed temperature).
 module pendulum_step_kernel
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: potential_u, potential_s, domain_ok, domain_nonpositive_length, &
-                                domain_nonpositive_temperature, domain_overflow
+  use invariant_function, only: potential_u, potential_s
+  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
   use special_functions, only: log1p
   use model_parameters, only: pendulum_parameters
   use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
@@ -95,7 +95,7 @@ module pendulum_step_kernel
     real(real64) :: q_old(3, 2) = 0.0_real64, p_old(3, 2) = 0.0_real64   !! the old state z
     real(real64) :: gamma_old = 0.0_real64, tau_old(2) = 0.0_real64
     type(spring_old_state) :: old(2)
-    integer :: old_stat = domain_ok                !! the old state's domain status
+    integer :: old_stat = failure_none                !! the old state's domain status
     real(real64) :: inverse_mass(2, 2) = 0.0_real64
     real(real64) :: force(3, 2) = 0.0_real64       !! gravity
     integer :: constraint_count = 0
@@ -242,7 +242,7 @@ contains
     self%gamma_old = z(13)
     self%tau_old = z(14:15)
     self%kept_valid = .false.
-    self%old_stat = domain_ok
+    self%old_stat = failure_none
     do a = 1, 2
       n = a + 1
       associate (old => self%old(a), law => self%spring(a)%law)
@@ -259,7 +259,7 @@ contains
         call mechanical_parts_at(law, old%x(1), old%log_stretch, old%inv_length, gamma_of(old%x, n), &
                                  e, sigma, de, dsigma, d2e, d2sigma)
         call temperature_of(self%spring(a), old%x(n), e, sigma, old%theta, self%old_stat)
-        if (self%old_stat /= domain_ok) return
+        if (self%old_stat /= failure_none) return
       end associate
     end do
   end subroutine set_old_state
@@ -388,7 +388,7 @@ contains
     type(step_point) :: point
 
     call residual_pass(self, x, point, residual, stat)
-    if (stat /= domain_ok .or. .not. present(jacobian)) return
+    if (stat /= failure_none .or. .not. present(jacobian)) return
     call jacobian_pass(self, point, jacobian, stat)
   end subroutine evaluate
 
@@ -400,7 +400,7 @@ contains
     integer, intent(out) :: stat
 
     call residual_pass(self, x, self%kept, residual, stat)
-    self%kept_valid = stat == domain_ok
+    self%kept_valid = stat == failure_none
     self%kept_y(1:size(x)) = x
     self%kept_h = self%fraction*self%dt
   end subroutine evaluate_residual
@@ -415,10 +415,10 @@ contains
 
     if (.not. kept_for(self, x)) then
       call residual_pass(self, x, self%kept, residual, stat)
-      self%kept_valid = stat == domain_ok
+      self%kept_valid = stat == failure_none
       self%kept_y(1:size(x)) = x
       self%kept_h = self%fraction*self%dt
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
     end if
     call jacobian_pass(self, self%kept, jacobian, stat)
   end subroutine evaluate_jacobian
@@ -434,7 +434,7 @@ contains
 
     theta = 0.0_real64
     call values_at(self, y, point, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     do a = 1, 2
       theta(a) = point%partials(a + 1, potential_u, a)/point%partials(a + 1, potential_s, a)
     end do
@@ -450,7 +450,7 @@ contains
 
     if (kept_for(self, y)) then
       point = self%kept
-      stat = domain_ok
+      stat = failure_none
     else
       call values_pass(self, y, point, stat)
     end if
@@ -480,12 +480,12 @@ contains
     which = 1
     do a = 1, 2
       call new_temperature(self, a, point, theta_new(a), stat=stat)
-      if (stat /= domain_ok) then
+      if (stat /= failure_none) then
         which = a
         exit
       end if
     end do
-    if (scheme_stat == domain_ok) theta_scheme = [(point%partials(a + 1, potential_u, a) &
+    if (scheme_stat == failure_none) theta_scheme = [(point%partials(a + 1, potential_u, a) &
                                                    /point%partials(a + 1, potential_s, a), a=1, 2)]
     call root_problem_text(self%partials_rule, stat, which, theta_new, 'spring '//achar(iachar('0') + which), &
                            scheme_stat, theta_scheme, problem_text)

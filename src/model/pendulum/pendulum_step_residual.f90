@@ -15,7 +15,7 @@ contains
 
     h = self%fraction*self%dt
     call values_pass(self, y, point, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
                work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
       do a = 1, 2
@@ -52,7 +52,7 @@ contains
         a = self%temperature_part
         residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
         call new_temperature(self, a, point, theta_new, stat=stat)
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
         residual(self%temperature_row) = theta_new - self%temperature
       end if
     end associate
@@ -72,7 +72,7 @@ contains
     point%q_new = self%q_old + (self%fraction*self%dt)*point%v
     point%q_mid = 0.5_real64*(self%q_old + point%q_new)
     stat = self%old_stat
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     do a = 1, 2
       n = a + 1
       associate (sp => point%spring(a))
@@ -100,7 +100,7 @@ contains
           end if
         end if
       end associate
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
     end do
   end procedure values_pass
 
@@ -120,7 +120,7 @@ contains
     call mechanical_parts(self%spring(a)%law, sp%mid(1), gamma_of(sp%mid, n), sp%e, sp%sigma, sp%de, sp%dsigma, &
                           sp%d2e, sp%d2sigma)
     call temperature_of(self%spring(a), sp%mid(n), sp%e, sp%sigma, sp%theta_mid, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
                                sp%d2sigma, sp%grad_m(1:n, :))
   end subroutine midpoint_values
@@ -144,7 +144,7 @@ contains
       sp%dwd = dot_product(d, sp%weight(1:n)*d)
       sp%mid(1:n) = 0.5_real64*(old%x(1:n) + x)
       call midpoint_values(self, a, sp, stat)
-      if (stat /= domain_ok) return
+      if (stat /= failure_none) return
       sp%small = sqrt(sp%dwd) < quotient_threshold
       if (sp%small) then
         ! The fallback below the threshold: the midpoint derivative.
@@ -169,7 +169,7 @@ contains
         call mechanical_parts_at(spring%law, x(1), old%log_stretch + sp%delta_log, sp%inv_b, gamma_of(x, n), &
                                  e, sigma, de, dsigma, d2e, d2sigma)
         call temperature_of(spring, x(n), e, sigma, sp%theta_b, stat)
-        if (stat /= domain_ok) return
+        if (stat /= failure_none) return
       end if
       call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg)
     end associate

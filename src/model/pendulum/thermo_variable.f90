@@ -3,8 +3,8 @@
 !> Spring 1 has n = 2 invariants (C1, tau1), spring 2 has n = 3 (C2, gamma, tau2).
 module thermo_variable
   use, intrinsic :: iso_fortran_env, only: real64
-  use invariant_function, only: invariant_functions, potential_u, potential_s, domain_ok, domain_nonpositive_length, &
-                                domain_nonpositive_temperature, domain_overflow
+  use invariant_function, only: invariant_functions, potential_u, potential_s
+  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
   use free_energy, only: spring_law, mechanical_parts, mechanical_difference
   use special_functions, only: log1p, expm1
   use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
@@ -41,7 +41,7 @@ contains
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
 
     call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
-    if (stat /= domain_ok) then
+    if (stat /= failure_none) then
       theta = 0.0_real64
       return
     end if
@@ -59,9 +59,9 @@ contains
 
     theta = 0.0_real64
     call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call potentials_from_parts(self, x(self%n_invariants), theta, e, sigma, de, dsigma, d2e, d2sigma, grad, f=f)
   end subroutine spring_values_and_temperature
 
@@ -79,9 +79,9 @@ contains
     grad = 0.0_real64
     if (present(hess)) hess = 0.0_real64
     call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call potentials_from_parts(self, x(self%n_invariants), theta, e, sigma, de, dsigma, d2e, d2sigma, grad, hess, f)
   end subroutine evaluate_potentials
 
@@ -168,11 +168,11 @@ contains
     n = self%n_invariants
     delta = 0.0_real64
     call mechanical_state(self, a, e, sigma, de, dsigma, d2e, d2sigma, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call temperature_of(self, a(n), e, sigma, theta_a, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     call self%temperature(b, theta_b, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     gamma_a = 0.0_real64
     gamma_b = 0.0_real64
     if (n == 3) then
@@ -225,7 +225,7 @@ contains
     x = 0.0_real64
     x(1:self%n_invariants - 1) = mechanical(1:self%n_invariants - 1)
     call mechanical_state(self, x(1:self%n_invariants), e, sigma, de, dsigma, d2e, d2sigma, stat)
-    if (stat /= domain_ok) return
+    if (stat /= failure_none) return
     select case (self%variable)
     case (tau_temperature)
       tau = theta
@@ -274,7 +274,7 @@ contains
     gamma = 0.0_real64
     if (self%n_invariants == 3) gamma = x(2)
     call mechanical_parts(self%law, x(1), gamma, e, sigma, de, dsigma, d2e, d2sigma)
-    stat = domain_ok
+    stat = failure_none
   end subroutine mechanical_state
 
   !> theta from tau and the mechanical parts e, sigma (table of docs/formulation.md section 3).
@@ -285,7 +285,7 @@ contains
     integer, intent(out) :: stat
     real(real64) :: exponent
 
-    stat = domain_ok
+    stat = failure_none
     select case (self%variable)
     case (tau_temperature)
       theta = tau

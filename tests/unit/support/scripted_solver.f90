@@ -4,6 +4,7 @@ module scripted_solver
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: root_finder
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: line_problem, scripted_finder
@@ -74,18 +75,18 @@ contains
     self%s = s
   end subroutine line_set_continuation
 
-  subroutine scripted_solve(self, problem, initial, root, converged, reason, iterations, ierr)
+  subroutine scripted_solve(self, problem, initial, root, converged, reason, iterations, failure)
     class(scripted_finder), intent(inout) :: self
     class(nonlinear_system), intent(inout), target :: problem
     real(real64), intent(in) :: initial(:)
     real(real64), intent(out) :: root(:)
     logical, intent(out) :: converged
     character(len=:), allocatable, intent(out) :: reason
-    integer, intent(out) :: iterations, ierr
+    integer, intent(out) :: iterations
+    type(failure_type), intent(out) :: failure
     real(real64) :: residual(size(initial))
     integer :: stat
 
-    ierr = 0
     iterations = 3
     self%solves = self%solves + 1
     self%starts(self%solves) = initial(1)
@@ -117,13 +118,13 @@ contains
     x = x - 0.5_real64*residual       ! half a Newton step: visible in the solve's start
   end subroutine scripted_refine
 
-  subroutine scripted_use_fallback(self, on, ierr)
+  subroutine scripted_use_fallback(self, on, failure)
     class(scripted_finder), intent(inout) :: self
     logical, intent(in) :: on
-    integer, intent(out) :: ierr
+    type(failure_type), intent(out) :: failure
 
     self%fallback = on
-    ierr = 0
+
   end subroutine scripted_use_fallback
 
 end module scripted_solver
