@@ -107,8 +107,9 @@ contains
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
     type(output_lock) :: lock
-    character(len=:), allocatable :: holder, momentum_part
+    character(len=:), allocatable :: holder, momentum_part, thermal_part
     character(len=9) :: number
+    character(len=10) :: wide
     integer :: k
 
     ! One writer per output: a second run of the same file is refused before it writes anything.
@@ -159,11 +160,17 @@ contains
         write (number, '(es9.2)') summary%angular_momentum_drift
         momentum_part = ', |d'//trim(summary%conserved_momentum)//'| <= '//number
       end if
-      write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, es10.2, a, es10.2, a, &
-        & a, a, f6.2, a, f8.3, a)') config%output_file, summary%status, summary%steps_completed, &
-        summary%steps_planned, 'energy balance <= ', summary%energy_drift, ', min dS = ', &
-        summary%min_entropy_increment, ' '//trim(summary%entropy_units)//', max dV = ', summary%max_lyapunov_increment, &
-        ' '//trim(summary%energy_units), momentum_part, &
+      ! dS and dV only for a model with an entropy (NaN for a mechanical one: V = E).
+      thermal_part = ''
+      if (.not. ieee_is_nan(summary%min_entropy_increment)) then
+        write (wide, '(es10.2)') summary%min_entropy_increment
+        thermal_part = ', min dS = '//wide//' '//trim(summary%entropy_units)
+        write (wide, '(es10.2)') summary%max_lyapunov_increment
+        thermal_part = thermal_part//', max dV = '//wide//' '//trim(summary%energy_units)
+      end if
+      write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, a, a, f6.2, a, f8.3, a)') &
+        config%output_file, summary%status, summary%steps_completed, &
+        summary%steps_planned, 'energy balance <= ', summary%energy_drift, thermal_part, momentum_part, &
         ', Newton/step ', real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', &
         summary%wall_seconds, ' s'
     end if

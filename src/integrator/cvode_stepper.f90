@@ -182,7 +182,7 @@ contains
 
     report%reason = ''
     report%last_rejection = ''
-    allocate (report%scheme_temperature(self%context%model%subsystem_count()))
+    allocate (report%scheme_temperature(self%context%model%temperature_count()))
     report%scheme_temperature = 0.0_real64
     flag = eme_cvode_advance(self%handle, t_old + dt, x_new, t_reached)
     self%time = t_reached

@@ -266,7 +266,7 @@ contains
     report%halvings = max(0, tally%substeps - 1)     ! each halving adds one substep
     report%residual_norm = self%solver%last_residual_norm
     report%converged_reason = self%solver%last_reason
-    allocate (report%scheme_temperature(self%problem%model%subsystem_count()))
+    allocate (report%scheme_temperature(self%problem%model%temperature_count()))
     report%scheme_temperature = 0.0_real64
     if (failure%failed() .or. .not. report%accepted) return
     if (self%fused) then

@@ -235,7 +235,7 @@ contains
     self%last_failure = ''
     report%reason = ''
     report%last_rejection = ''
-    allocate (report%scheme_temperature(self%model%subsystem_count()))
+    allocate (report%scheme_temperature(self%model%temperature_count()))
     report%scheme_temperature = 0.0_real64
     if (self%adaptive) then
       call adaptive_step(self, ok, failure)
@@ -338,7 +338,7 @@ contains
     ok = .false.
     d = h*matmul(k, self%tableau%b)
     e_s = 0.0_real64
-    do a = 1, self%model%subsystem_count()
+    do a = 1, self%model%temperature_count()
       e_s = e_s + h*dot_product(self%tableau%b, k(self%model%subsystems(a)%tau_column, :))
     end do
     if (.not. all(abs(d) <= huge(1.0_real64))) then

@@ -263,7 +263,7 @@ contains
 
     report%reason = ''
     report%last_rejection = ''
-    allocate (report%scheme_temperature(self%context%model%subsystem_count()))
+    allocate (report%scheme_temperature(self%context%model%temperature_count()))
     report%scheme_temperature = 0.0_real64
     self%context%domain_rejections = 0
     ! Start from the exact output time: the TS's own sum of steps drifts by rounding, and a

@@ -20,7 +20,8 @@ module run_config
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, joined
   use number_text, only: integer_text, reals_text
   use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
-                            invalid_value_message, choices_text, value_origin, absolute_temperature, celsius_suspects
+                            invalid_value_message, choices_text, value_origin, absolute_temperature, celsius_suspects, &
+                            given_origin
   implicit none (type, external)
   private
   public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable, field_length
@@ -167,8 +168,32 @@ contains
                 'choose the rows written; allowed: one of them')
     end if
     if (failure%failed()) return
+    call refuse_thermal_settings(text, path, extra, config, failure)
+    if (failure%failed()) return
     call note_celsius_temperatures(text, path, extra, config)
   end subroutine read_run_config
+
+  ! A scene without temperatures (elastic springs) takes no thermodynamic variable and no
+  ! Lyapunov reference temperature: either, if given, is refused with the scene's reason.
+  subroutine refuse_thermal_settings(text, path, extra, config, failure)
+    character(len=*), intent(in) :: text, path
+    type(namelist_item), intent(in) :: extra(:)
+    type(run_configuration), intent(in), target :: config
+    type(failure_type), intent(out) :: failure
+    character(len=:), allocatable :: reason, where
+
+    reason = config%scene%without_temperatures()
+    if (len(reason) == 0) return
+    where = given_origin(text, 'integrator', integrator_fields(config), path, 'thermo_variable', extra)
+    if (len(where) > 0) then
+      call fail(failure, failure_input, where//': &integrator: thermo_variable is not allowed: '//reason// &
+                '; allowed: leave it out', 'thermo_variable')
+      return
+    end if
+    where = given_origin(text, 'output', output_fields(config), path, 'theta_r', extra)
+    if (len(where) > 0) call fail(failure, failure_input, where//': &output: theta_r is not allowed: '//reason// &
+                                  '; allowed: leave it out', 'theta_r')
+  end subroutine refuse_thermal_settings
 
   ! A temperature level the input set below 150 K (theta = 7, 77) is most likely degrees Celsius:
   ! each such field gets a warning (the run goes on: 100 K is a possible, if unusual, scene).

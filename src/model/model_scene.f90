@@ -22,6 +22,7 @@ module model_scene
     procedure(build_interface), deferred :: build
     procedure(theta_interface), deferred :: default_theta_r
     procedure(count_interface), deferred :: constraint_count
+    procedure :: without_temperatures
   end type scene
 
   abstract interface
@@ -77,5 +78,17 @@ module model_scene
       class(scene), intent(in) :: self
     end function count_interface
   end interface
+
+contains
+
+  !> Why the scene has no temperatures ('' when it has them, the default): a scene of a
+  !> mechanical model (elastic springs) has no thermodynamic variable and no V = E - theta_r S,
+  !> so &integrator thermo_variable and &output theta_r are refused with this reason.
+  pure function without_temperatures(self) result(reason)
+    class(scene), intent(in) :: self
+    character(len=:), allocatable :: reason
+
+    reason = ''
+  end function without_temperatures
 
 end module model_scene

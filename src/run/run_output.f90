@@ -18,6 +18,7 @@ module run_output
   use provenance, only: write_provenance, iso_time, command_line
   use run_outcome, only: run_summary, failure_io, failure_interrupted, failure_step_budget
   use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words, &
+                        thermal_only, &
                         dataset_description, dataset_units
   use run_attributes, only: write_run_attributes
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
@@ -75,6 +76,7 @@ module run_output
     logical :: enabled = .false.        !! .false.: nothing is recorded (an index-only study)
     integer :: every = 1                !! steps per row (&output every)
     logical :: by_interval = .false.    !! rows at output times instead (&output interval)
+    logical :: thermal = .true.         !! the model has temperatures and an entropy (the thermal datasets)
     integer(int64) :: last_step = 0            !! the last step recorded
     integer(int64) :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
     integer(int64) :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
@@ -119,6 +121,7 @@ contains
     call self%store%start(path, 2, stat, template)
     self%enabled = .true.
     self%every = config%output_every
+    self%thermal = model%temperature_count() > 0
     self%by_interval = config%output_interval > 0.0_real64
     self%store%tables(point_rows)%compression = config%compression
     self%store%tables(step_rows)%compression = config%compression
@@ -141,6 +144,7 @@ contains
       spec = output_schema(k)
       if (index(spec%columns, '<constraints>') > 0 .and. size(constraints) == 0) cycle
       if (spec%columns == '<momenta>' .and. model%momentum_count() == 0) cycle
+      if (thermal_only(spec%name) .and. model%temperature_count() == 0) cycle
       if (spec%rows == 'point') then
         call define(self%store%tables(point_rows))
       else
@@ -226,9 +230,13 @@ contains
     call put(row, filled, [time])
     call put(row, filled, z)
     call put(row, filled, theta)
-    call put(row, filled, [energy, entropy, lyapunov, momentum, heat])
+    if (self%thermal) then
+      call put(row, filled, [energy, entropy, lyapunov, momentum, heat])
+    else
+      call put(row, filled, [energy, momentum, heat])
+    end if
     call put(row, filled, residuals)
-    call self%store%tables(point_rows)%accumulate(row)
+    call self%store%tables(point_rows)%accumulate(row(:filled))
     if (self%by_interval) then
       due = row_due
     else
@@ -256,8 +264,8 @@ contains
       call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64)])
       call put(row, filled, report%scheme_temperature)
       call put(row, filled, [real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
-                             report%residual_norm, real(report%converged_reason, real64), step_seconds, entropy_increment, &
-                             lyapunov_increment])
+                             report%residual_norm, real(report%converged_reason, real64), step_seconds])
+      if (self%thermal) call put(row, filled, [entropy_increment, lyapunov_increment])
       call put(row, filled, multipliers)
       if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
       call self%store%tables(step_rows)%accumulate(row(:filled))

@@ -11,7 +11,7 @@ module run_schema
   implicit none (type, external)
   private
   public :: output_dataset, output_schema, per_column, print_output_schema, dataset_coordinates, column_units, &
-            expanded_columns, count_words, schema_version, model_says, dataset_description, dataset_units
+            expanded_columns, count_words, schema_version, model_says, dataset_description, dataset_units, thermal_only
 
   !> The version of this layout, the run file's root attribute schema_version (absent before 2).
   !> 2: the model describes its datasets (model_says), and a model without momenta has no
@@ -92,7 +92,19 @@ module run_schema
     output_dataset('multiplier', 'step', 'lambda_<constraints>', per_column, .false., 'mean', &
                    'Lagrange multipliers of the active constraints (see the attribute constraint_meanings)')]
 
+  !> The datasets of a model with temperatures and an entropy (a mechanical model has none).
+  character(len=*), parameter :: thermal_datasets(6) = [character(len=24) :: 'temperature', 'entropy', 'lyapunov', &
+                                                       'scheme_temperature', 'min_entropy_increment', &
+                                                       'max_lyapunov_increment']
+
 contains
+
+  !> True for a dataset only a model with temperatures and an entropy has.
+  pure logical function thermal_only(name)
+    character(len=*), intent(in) :: name
+
+    thermal_only = any(thermal_datasets == name)
+  end function thermal_only
 
   !> The schema as tab-separated lines: name, rows, columns, units, description.
   subroutine print_output_schema()

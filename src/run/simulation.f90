@@ -241,7 +241,7 @@ contains
     n_state = model%state_size
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
-    allocate (theta(model%subsystem_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    allocate (theta(model%temperature_count()), residuals(size(constraints)), momentum(model%momentum_count()))
     summary%energy_units = model%words%energy_units
     summary%entropy_units = model%words%entropy_units
     ! A model without a conserved momentum has no drift figure.
@@ -421,10 +421,13 @@ contains
       if (present(observer)) call observer%after_step()
       if (present(progress)) call report_progress()
     end do
-    if (summary%steps_completed == 0) then
+    ! No step, or a model without entropy (elastic springs: S = 0, V = E, no temperatures): no
+    ! entropy or V figure and no temperature.
+    if (summary%steps_completed == 0 .or. model%temperature_count() == 0) then
       summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
       summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
     end if
+    if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
     call set_times(.true.)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'

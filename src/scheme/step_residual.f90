@@ -194,7 +194,7 @@ contains
     class(step_problem), intent(in) :: self
     real(real64), intent(in) :: x(:)
     character(len=:), allocatable, intent(out) :: problem_text
-    real(real64) :: theta(self%model%subsystem_count()), theta_scheme(self%model%subsystem_count())
+    real(real64) :: theta(self%model%temperature_count()), theta_scheme(self%model%temperature_count())
     integer :: stat, scheme_stat, which
 
     call self%model%temperatures(x(1:self%model%state_size), theta, stat, which)

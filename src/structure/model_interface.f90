@@ -33,7 +33,7 @@ module model_interface
     class(invariant_functions), allocatable :: potentials   !! (U_a, S_a) of the invariants x_a
     integer :: invariant_count                               !! n_a, tau_a being the last
     integer, allocatable :: columns(:)                       !! the columns of z that x_a depends on
-    integer :: tau_column                                    !! tau_a's column of z
+    integer :: tau_column                                    !! tau_a's column of z; 0: no thermodynamic variable
     real(real64), allocatable :: metric_scale(:)             !! typical sizes of x_a (docs/formulation.md section 5)
   end type subsystem
 
@@ -79,6 +79,7 @@ module model_interface
     procedure :: energy_difference
     procedure :: convert_state
     procedure :: subsystem_count
+    procedure :: temperature_count
     procedure :: column_units
     procedure :: observe
     procedure :: temperatures
@@ -204,6 +205,15 @@ contains
     subsystem_count = size(self%subsystems)
   end function subsystem_count
 
+  !> Number of temperatures: the subsystems with a thermodynamic variable. A model's subsystems
+  !> all have one (a thermal model) or none (a mechanical one, e.g. elastic springs: potentials
+  !> of mechanical invariants alone, S = 0, no temperatures, no entropy).
+  pure integer function temperature_count(self)
+    class(generic_model), intent(in) :: self
+
+    temperature_count = count(self%subsystems%tau_column > 0)
+  end function temperature_count
+
   !> (T + V_g)(z_b) - (T + V_g)(z_a). This default subtracts two values; models override it with
   !> a form free of cancellation (kinetic energy is quadratic, gravity linear).
   pure function mechanical_energy_difference(self, z_a, z_b) result(delta)
@@ -254,6 +264,7 @@ contains
     z_target = z
     stat = failure_none
     do a = 1, size(self%subsystems)
+      if (self%subsystems(a)%tau_column == 0) cycle
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       call self%subsystems(a)%potentials%temperature(x(1:n), theta, stat)
@@ -270,7 +281,7 @@ contains
     real(real64), intent(in) :: z(:)
     real(real64), intent(out) :: energy, entropy, temperature(:)
     integer, intent(out) :: stat
-    real(real64) :: f(2), x(self%max_invariants)
+    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2)
     integer :: a, n
 
     energy = self%mechanical_energy(z)
@@ -280,7 +291,11 @@ contains
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
-      call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat)
+      if (self%subsystems(a)%tau_column > 0) then
+        call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat)
+      else
+        call self%subsystems(a)%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
+      end if
       if (stat /= failure_none) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
@@ -299,7 +314,8 @@ contains
 
     theta = 0.0_real64
     which = 0
-    do a = 1, size(self%subsystems)
+    stat = failure_none
+    do a = 1, self%temperature_count()
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       call self%subsystems(a)%potentials%temperature(x(1:n), theta(a), stat)
@@ -437,10 +453,10 @@ contains
   pure function partials_temperatures(self, partials) result(theta)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: partials(:, :, :)
-    real(real64) :: theta(size(self%subsystems))
+    real(real64) :: theta(self%temperature_count())
     integer :: a, n
 
-    do a = 1, size(self%subsystems)
+    do a = 1, size(theta)
       n = self%subsystems(a)%invariant_count
       theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
     end do

@@ -49,7 +49,7 @@ contains
     do i = 1, model%state_size
       mt(i, i) = 1.0_real64
     end do
-    do a = 1, model%subsystem_count()
+    do a = 1, model%temperature_count()      ! a mechanical model (no tau) has M = I: L = L0, K = K0
       associate (part => model%subsystems(a))
         n = part%invariant_count
         m = size(part%columns)

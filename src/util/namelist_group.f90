@@ -18,7 +18,7 @@ module namelist_group
   private
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
   public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
-  public :: describe_group, parse_subscript, absolute_temperature, celsius_suspects
+  public :: describe_group, parse_subscript, absolute_temperature, celsius_suspects, given_origin
   public :: field_real, field_integer, field_logical, field_text
 
   integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
@@ -227,6 +227,25 @@ contains
       return
     end do
   end subroutine read_group
+
+  !> Where &group of `text` (or an `extra` item) sets the field `name` ('' if nowhere): for a
+  !> setting that a scene refuses after the group was read.
+  function given_origin(text, group, fields, origin, name, extra) result(where)
+    character(len=*), intent(in) :: text, group, origin, name
+    type(group_field), intent(in) :: fields(:)
+    type(namelist_item), intent(in), optional :: extra(:)
+    character(len=:), allocatable :: where
+    type(namelist_item), allocatable :: items(:)
+    integer :: i
+
+    where = ''
+    call group_items(text, group, field_names(fields), origin, items, extra)
+    do i = 1, size(items)
+      if (item_name(items(i)%item) /= name) cycle
+      where = items(i)%origin
+      return
+    end do
+  end function given_origin
 
   !> "origin: &group: field = value is not allowed; allowed: ...", for a field whose value (as it
   !> stands now) breaks a rule of the group.

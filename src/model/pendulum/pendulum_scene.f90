@@ -52,6 +52,7 @@ module pendulum_scene
     procedure :: build
     procedure :: default_theta_r
     procedure :: constraint_count
+    procedure :: without_temperatures
   end type double_pendulum_scene
 
 contains
@@ -336,5 +337,15 @@ contains
 
     constraint_count = count([self%fix_length, self%fix_temperature])
   end function constraint_count
+
+  !> Elastic springs have no thermodynamic variables: why, for run-level fields that need them.
+  pure function without_temperatures(self) result(reason)
+    class(double_pendulum_scene), intent(in) :: self
+    character(len=:), allocatable :: reason
+
+    reason = ''
+    if (.not. self%params%thermal()) reason = 'spring_law = '''//trim(self%params%spring_law)// &
+                                              ''' has no thermodynamic variables and no entropy'
+  end function without_temperatures
 
 end module pendulum_scene
