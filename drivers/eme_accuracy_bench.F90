@@ -67,7 +67,7 @@ program eme_accuracy_bench
   type(configuration) :: configurations(size(candidates)*size(targets))
   real(real64), allocatable :: z0(:), reference(:), end_state(:)
   real(real64) :: cross_check, seconds, cvode_seconds
-  integer :: repeats, k, c, run, steps, stat
+  integer :: repeats, k, c, run, steps
   PetscErrorCode :: ierr
   type(failure_type) :: failure
 
@@ -86,8 +86,8 @@ program eme_accuracy_bench
     PetscCallA(PetscFinalize(ierr))
     stop
   end if
-  call benchmark_repeats(5, repeats, stat)
-  if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
+  call benchmark_repeats(5, repeats, failure)
+  if (failure%failed()) call fail(failure%message)
   call scene%build(tau_temperature, model, z0, constraints, failure)
   if (failure%failed()) call fail(failure%message)
 

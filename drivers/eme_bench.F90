@@ -66,7 +66,7 @@ program eme_bench
   type(step_solver_options) :: options
   real(real64), allocatable :: times(:), cvode_times(:), cvode_internal(:), eme_over_cvode(:)
   integer :: cvode_steps, cvode_solves
-  integer :: repeats, k, iterations, stat, theta_case, run
+  integer :: repeats, k, iterations, theta_case, run
   PetscErrorCode :: ierr
   type(failure_type) :: failure
 
@@ -86,8 +86,8 @@ program eme_bench
     PetscCallA(PetscFinalize(ierr))
     stop
   end if
-  call benchmark_repeats(15, repeats, stat)
-  if (stat /= 0) call fail('REPEATS must be a whole number >= 1')
+  call benchmark_repeats(15, repeats, failure)
+  if (failure%failed()) call fail(failure%message)
   call read_solver_options(options, failure)
   if (failure%failed()) call fail('cannot read the -eme_* options')
   allocate (times(repeats), cvode_times(repeats), cvode_internal(repeats), eme_over_cvode(repeats))

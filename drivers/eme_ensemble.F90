@@ -8,13 +8,13 @@ program eme_ensemble
   use petscsys
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use study_config, only: study_definition, read_study
-  use ensemble, only: run_study, study_outcome, world_rank, study_in_use
+  use ensemble, only: run_study, study_outcome, world_rank
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use simulation, only: set_up_only
   use library_versions, only: print_versions
-  use failures, only: failure_type
+  use failures, only: failure_type, failure_input
   implicit none
 
   type(study_definition), target :: study
@@ -22,12 +22,12 @@ program eme_ensemble
   type(command_arguments) :: arguments
   character(len=:), allocatable :: message, unused
   integer :: stat, rank, exit_status
-  type(failure_type) :: failure
+  type(failure_type) :: failure, startup
   logical :: help
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_ensemble', [character(len=16) :: '--help', '-h', '--version', '--integrators'], &
-                          arguments, stat, message)
+                          arguments, failure)
   if (arguments%has_flag('--help') .or. arguments%has_flag('-h')) then
     call print_study_help(output_unit)
     stop
@@ -38,8 +38,8 @@ program eme_ensemble
     call print_integrators(output_unit, tabular=.true.)
     stop
   end if
-  call initialize_petsc(arguments, ierr)
-  if (ierr /= 0) then
+  call initialize_petsc(arguments, startup)
+  if (startup%failed()) then
     write (error_unit, '(a)') 'eme_ensemble: PETSc could not start with the options given: '//petsc_error_text()
     stop 2, quiet=.true.
   end if
@@ -48,14 +48,14 @@ program eme_ensemble
   help = petsc_help_requested()
   if (help) then
     if (rank == 0) call print_study_help(output_unit)
-  else if (stat /= 0) then
-    if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
+  else if (failure%failed()) then
+    if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//failure%text()
     exit_status = 2
   else
-    call check_own_options(stat, message)
-    if (stat == 0) call check_petsc_viewer_files(stat, message)
-    if (stat /= 0) then
-      if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
+    call check_own_options(failure)
+    if (.not. failure%failed()) call check_petsc_viewer_files(failure)
+    if (failure%failed()) then
+      if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//failure%text()
       exit_status = 2
     end if
   end if
@@ -69,11 +69,12 @@ program eme_ensemble
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
       exit_status = 2
     else
-      call run_study(study, outcome, stat, message, print_line)
-      if (stat /= 0) then
-        if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//message
+      call run_study(study, outcome, failure, print_line)
+      stat = failure%code
+      if (failure%failed()) then
+        if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//failure%text()
         ! 2 (bad input): another study holds output_dir, or it holds finished cases this study lacks
-        exit_status = merge(2, 1, stat == study_in_use)
+        exit_status = merge(2, 1, failure%code == failure_input)
       else if (outcome%io_failure) then
         if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: stopped: '//outcome%io_message
         exit_status = 1

@@ -20,20 +20,20 @@ program eme_run
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use library_versions, only: print_versions
-  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, os_error_text
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
   use failures, only: failure_type
   implicit none
 
   type(run_configuration) :: config
   type(run_summary) :: summary
   type(command_arguments) :: arguments
-  character(len=:), allocatable :: message, unused
+  character(len=:), allocatable :: unused
   integer :: stat, exit_status, ranks, rank
-  type(failure_type) :: failure
+  type(failure_type) :: failure, startup
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_run', [character(len=16) :: '--help', '-h', '--version', '--integrators', &
-                          '--output-schema'], arguments, stat, message)
+                          '--output-schema'], arguments, failure)
   ! These need neither PETSc nor an input file.
   if (arguments%has_flag('--help') .or. arguments%has_flag('-h')) then
     call print_run_help(output_unit)
@@ -48,8 +48,8 @@ program eme_run
     call print_output_schema()
     stop
   end if
-  call initialize_petsc(arguments, ierr)
-  if (ierr /= 0) then
+  call initialize_petsc(arguments, startup)
+  if (startup%failed()) then
     ! A PETSc option that PETSc itself refuses at start (-options_file of a missing file, ...).
     write (error_unit, '(a)') 'eme_run: PETSc could not start with the options given: '//petsc_error_text()
     stop 2, quiet=.true.
@@ -65,7 +65,7 @@ program eme_run
   else if (petsc_help_requested()) then
     ! PETSc's -help: the usage, then every option the run's solver reads as it is set up.
     call print_run_help(output_unit)
-    if (stat == 0) then
+    if (.not. failure%failed()) then
       call read_run_config(arguments%input_file, config, failure)
       if (.not. failure%failed()) call set_up_only(config, failure)
       if (failure%failed()) then
@@ -73,14 +73,14 @@ program eme_run
         exit_status = 2
       end if
     end if
-  else if (stat /= 0) then
-    write (error_unit, '(a)') 'eme_run: '//message
+  else if (failure%failed()) then
+    write (error_unit, '(a)') 'eme_run: '//failure%text()
     exit_status = 2
   else
-    call check_own_options(stat, message)
-    if (stat == 0) call check_petsc_viewer_files(stat, message)
-    if (stat /= 0) then
-      write (error_unit, '(a)') 'eme_run: '//message
+    call check_own_options(failure)
+    if (.not. failure%failed()) call check_petsc_viewer_files(failure)
+    if (failure%failed()) then
+      write (error_unit, '(a)') 'eme_run: '//failure%text()
       exit_status = 2
     else
       call read_run_config(arguments%input_file, config, failure)
@@ -108,27 +108,28 @@ contains
   subroutine run_case()
     type(output_lock) :: lock
     character(len=:), allocatable :: holder, momentum_part, thermal_part
+    integer :: found
     character(len=9) :: number
     character(len=10) :: wide
     integer :: k
 
     ! One writer per output: a second run of the same file is refused before it writes anything.
-    call lock_output(lock, config%output_file//'.lock', stat, holder)
-    if (stat == lock_held_elsewhere) then
+    call lock_output(lock, config%output_file//'.lock', found, holder, failure)
+    if (failure%failed()) then
+      write (error_unit, '(a)') 'eme_run: cannot create the lock file '''//config%output_file//'.lock'' ('// &
+        config%input_file//', &output: file): '//failure%message
+      exit_status = 1
+      return
+    else if (found == lock_held_elsewhere) then
       if (len(holder) == 0) holder = 'another process'
       write (error_unit, '(a)') 'eme_run: '//config%output_file//' (&output file in '//config%input_file// &
         ') is being written by '//holder//', which holds '//config%output_file//'.lock; this run is refused '// &
         'and writes nothing'
       exit_status = 2
       return
-    else if (stat == lock_not_offered) then
+    else if (found == lock_not_offered) then
       write (error_unit, '(a)') 'eme_run: warning: the file system of '//config%output_file//' offers no lock; '// &
         'a second run writing it at the same time would not be refused'
-    else if (stat /= 0) then
-      write (error_unit, '(a)') 'eme_run: cannot create the lock file '''//config%output_file//'.lock'' ('// &
-        config%input_file//', &output: file): '//os_error_text(stat)
-      exit_status = 1
-      return
     end if
     if (allocated(config%warnings)) then
       do k = 1, size(config%warnings)

@@ -15,9 +15,8 @@ program eme_structure
   implicit none
 
   type(run_configuration) :: config
-  character(len=:), allocatable :: message
   character(len=4096) :: input, output
-  integer :: stat, exit_status
+  integer :: exit_status
   type(failure_type) :: failure
   PetscErrorCode :: ierr
 
@@ -42,9 +41,9 @@ program eme_structure
     write (error_unit, '(a)') 'eme_structure: '//failure%text()
     exit_status = 2
   else
-    call write_structure_file(config, trim(output), stat, message)
-    if (stat /= 0) then
-      write (error_unit, '(a)') 'eme_structure: '//message
+    call write_structure_file(config, trim(output), failure)
+    if (failure%failed()) then
+      write (error_unit, '(a)') 'eme_structure: '//failure%text()
       exit_status = 1
     else
       write (output_unit, '(a)') 'eme_structure: wrote '//trim(output)

@@ -9,6 +9,7 @@ module command_line
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use number_text, only: integer_text
   use namelist_text, only: joined
+  use failures, only: failure_type, fail, fail_on_code, failure_input, failure_library
   implicit none (type, external)
   private
   public :: command_arguments, parse_command_line, initialize_petsc, check_own_options, petsc_help_requested
@@ -68,22 +69,19 @@ module command_line
 contains
 
   !> Reads the command line. `own_options` are the program's options ('--help', '-h', ...), which
-  !> take no value. stat /= 0 with a message for an unknown '--option', no input file or more
-  !> than one; the caller acts on flags such as --help before it looks at stat.
-  subroutine parse_command_line(program_name, own_options, arguments, stat, message)
+  !> take no value. A failure (failure_input) for an unknown '--option', no input file or more
+  !> than one; the caller acts on flags such as --help before it looks at the failure.
+  subroutine parse_command_line(program_name, own_options, arguments, failure)
     character(len=*), intent(in) :: program_name
     character(len=*), intent(in) :: own_options(:)
     type(command_arguments), intent(out) :: arguments
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: argument, files
     logical :: after_petsc_option
     integer :: i, file_count
 
     allocate (arguments%flags(0))
     arguments%input_file = ''
-    stat = 0
-    message = ''
     files = ''
     file_count = 0
     after_petsc_option = .false.
@@ -93,11 +91,9 @@ contains
         arguments%flags = [character(len=32) :: arguments%flags, argument]
         after_petsc_option = .false.
       else if (is_option(argument)) then
-        if (argument(1:2) == '--' .and. stat == 0) then
-          stat = 2
-          message = 'unknown option '''//argument//'''; allowed: '//joined(own_options, ', ')// &
-                    ', one input file, and PETSc options (one ''-'', e.g. -snes_monitor)'
-        end if
+        if (argument(1:2) == '--' .and. .not. failure%failed()) &
+          call fail(failure, failure_input, 'unknown option '''//argument//'''; allowed: '//joined(own_options, ', ')// &
+                    ', one input file, and PETSc options (one ''-'', e.g. -snes_monitor)')
         after_petsc_option = .true.
       else if (after_petsc_option .and. .not. ends_with_nml(argument)) then
         after_petsc_option = .false.    ! the option's value
@@ -111,34 +107,32 @@ contains
         after_petsc_option = .false.
       end if
     end do
-    if (stat /= 0) return
+    if (failure%failed()) return
     if (file_count == 0) then
-      stat = 2
-      message = 'no input file; usage: '//program_name//' [options] FILE.nml [PETSc options]; '// &
-                program_name//' --help tells more'
+      call fail(failure, failure_input, 'no input file; usage: '//program_name//' [options] FILE.nml [PETSc options]; '// &
+                program_name//' --help tells more')
     else if (file_count > 1) then
-      stat = 2
-      message = integer_text(file_count)//' input files:'//files//'; allowed: exactly one input file (an argument '// &
-                'after a PETSc option is its value unless it ends in .nml)'
+      call fail(failure, failure_input, integer_text(file_count)//' input files:'//files//'; allowed: exactly one '// &
+                'input file (an argument after a PETSc option is its value unless it ends in .nml)')
     end if
   end subroutine parse_command_line
 
   !> Whether the program's own option `flag` was given.
   !> A benchmark's REPEATS: its first argument when that is not an option, else `default`;
-  !> stat /= 0 when it is not a whole number >= 1.
-  subroutine benchmark_repeats(default, repeats, stat)
+  !> a failure (failure_input) when it is not a whole number >= 1.
+  subroutine benchmark_repeats(default, repeats, failure)
     integer, intent(in) :: default
     integer, intent(out) :: repeats
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: first
+    integer :: ios
 
     repeats = default
-    stat = 0
     if (command_argument_count() < 1) return
     first = command_argument(1)
     if (is_option(first)) return
-    read (first, *, iostat=stat) repeats
-    if (stat == 0 .and. repeats < 1) stat = 1
+    read (first, *, iostat=ios) repeats
+    if (ios /= 0 .or. repeats < 1) call fail(failure, failure_input, 'REPEATS must be a whole number >= 1', 'REPEATS')
   end subroutine benchmark_repeats
 
   !> Whether one of `flags` stands anywhere on the command line (before PETSc starts: the
@@ -161,10 +155,12 @@ contains
   end function has_flag
 
   !> PetscInitialize with the command line without the input file and the program's own options
-  !> (PETSc then never takes the file for an option's value). stat: PETSc's error code.
-  subroutine initialize_petsc(arguments, stat)
+  !> (PETSc then never takes the file for an option's value). A failure (failure_library, PETSc's
+  !> code) if PETSc could not start; petsc_error_text() has PETSc's words.
+  subroutine initialize_petsc(arguments, failure)
     type(command_arguments), intent(in) :: arguments
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+    integer :: stat
     character(len=:), allocatable :: list, argument
     integer :: i, count
 
@@ -179,6 +175,7 @@ contains
     ! PETSc's errors come back as codes with a message (petsc_error_text), never as a traceback.
     stat = int(c_capture_errors())
     if (stat == 0) stat = int(c_petsc_initialize(list, int(count, c_int)))
+    call fail_on_code(failure, stat, 'PetscInitialize', 'PETSc could not start')
   end subroutine initialize_petsc
 
   !> The first message of PETSc's latest error, on one line ('' if none).
@@ -191,31 +188,44 @@ contains
     text = c_string(buffer)
   end function petsc_error_text
 
-  !> After PetscInitialize: stat /= 0 with a message if an option asks PETSc to write a file
+  !> After PetscInitialize: a failure (failure_input) if an option asks PETSc to write a file
   !> (-log_view :FILE, -snes_view ascii:FILE, ...) that cannot be written, which PETSc would find
-  !> out only when the run has ended.
-  subroutine check_petsc_viewer_files(stat, message)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+  !> out only when the run has ended; failure_library if PETSc cannot list its options.
+  subroutine check_petsc_viewer_files(failure)
+    type(failure_type), intent(out) :: failure
     character(kind=c_char, len=2048) :: buffer
+    integer :: status
 
     buffer = ''
-    stat = int(c_check_viewer_files(buffer, len(buffer, kind=c_int)))
-    message = c_string(buffer)
-    if (stat == 2) message = 'PETSc could not list its options database'
+    status = int(c_check_viewer_files(buffer, len(buffer, kind=c_int)))
+    call option_failure(failure, status, c_string(buffer))
   end subroutine check_petsc_viewer_files
 
-  !> After PetscInitialize: stat /= 0 with "-name value: allowed: ..." if an -eme_* option has a
-  !> value it does not take (bad input: nothing has been read or written yet).
-  subroutine check_own_options(stat, message)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+  ! The C shims' answer about the options (0 all fine, 2 the database could not be listed, else
+  ! the option named in `text` is refused) as a failure.
+  subroutine option_failure(failure, status, text)
+    type(failure_type), intent(inout) :: failure
+    integer, intent(in) :: status
+    character(len=*), intent(in) :: text
+
+    if (status == 0) return
+    if (status == 2) then
+      call fail(failure, failure_library, 'PETSc could not list its options database')
+    else
+      call fail(failure, failure_input, text)
+    end if
+  end subroutine option_failure
+
+  !> After PetscInitialize: a failure (failure_input) with "-name value: allowed: ..." if an -eme_*
+  !> option has a value it does not take (bad input: nothing has been read or written yet).
+  subroutine check_own_options(failure)
+    type(failure_type), intent(out) :: failure
     character(kind=c_char, len=512) :: buffer
+    integer :: status
 
     buffer = ''
-    stat = int(c_check_own_options(buffer, len(buffer, kind=c_int)))
-    message = c_string(buffer)
-    if (stat == 2) message = 'PETSc could not list its options database'
+    status = int(c_check_own_options(buffer, len(buffer, kind=c_int)))
+    call option_failure(failure, status, c_string(buffer))
   end subroutine check_own_options
 
   !> Whether PETSc's -help was given (after PetscInitialize).

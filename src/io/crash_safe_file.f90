@@ -9,7 +9,7 @@
 !> one window behind, after reserving the disk space it will need, appends the rows, lets the
 !> caller write its attributes, closes it and exchanges the two names, so that the old file
 !> becomes the spare. A reader that opened the file before the last exchange may still hold the
-!> spare open: a window that may wait returns file_in_use and is retried 50 ms later; one that
+!> spare open: a window that may wait is deferred and retried 50 ms later; one that
 !> cannot wait replaces the spare by a copy of `path`, and the reader keeps its file as it was.
 !> After a failed write the spare is not used again: `path` keeps what it held.
 !>
@@ -23,12 +23,13 @@
 !> K-th file operation then meets the same sequence on a busy machine (docs/faults.md).
 module crash_safe_file
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use hdf5_files, only: hdf5_file, file_template, file_in_use
+  use hdf5_files, only: hdf5_file, file_template
   use hdf5_series, only: series_table
   use filesystem, only: sync_file, exchange_files, copy_file, remove_file
+  use failures, only: failure_type
   implicit none (type, external)
   private
-  public :: safe_file, file_in_use
+  public :: safe_file
 
   !> Bytes reserved beyond the rows of a window, for attributes.
   integer(int64), parameter :: attribute_room = 65536
@@ -42,7 +43,7 @@ module crash_safe_file
     logical :: durable = .true.                   !! the finished file is synced to disk (fsync)
     !> A final write from memory makes chunked, extendible datasets too (a run that may be continued)
     logical :: extendible = .false.
-    integer :: failure = 0                        !! the first failed write (its stat): later windows fail with it
+    type(failure_type) :: failure                 !! the first failed write: later windows fail with it
     real(real64) :: write_interval = 1.0_real64   !! seconds between windows
     integer(int64) :: last_write = 0, clock_rate = 1
     integer(int64) :: write_every_rows = 0        !! > 0: writes fall due by rows, not time (testing hook)
@@ -63,12 +64,12 @@ contains
 
   !> An empty file in memory for `path` with `table_count` tables (to be defined by the caller),
   !> made from `template` if given (src/io/hdf5_files: the root attributes of a series of
-  !> similar files; settled at the first write). stat = -1 if HDF5 failed.
-  subroutine start(self, path, table_count, stat, template)
+  !> similar files; settled at the first write). A failure if HDF5 failed.
+  subroutine start(self, path, table_count, failure, template)
     class(safe_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     integer, intent(in) :: table_count
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     type(file_template), intent(inout), target, optional :: template
 
     self%path = path
@@ -78,9 +79,9 @@ contains
     allocate (self%kept(table_count))
     call system_clock(self%last_write, self%clock_rate)
     if (present(template)) then
-      call self%file%create_from_template(template, stat)
+      call self%file%create_from_template(template, failure)
     else
-      call self%file%create_in_memory(stat)
+      call self%file%create_in_memory(failure)
     end if
   end subroutine start
 
@@ -120,21 +121,22 @@ contains
   !> Writes the buffered rows of every table: the first time into the file in memory (contiguous
   !> datasets if `final`, else chunked ones, as more rows will follow), later in a window into the
   !> spare. The file is then open for the attributes that go with the rows; end_rows finishes the
-  !> write. With `defer`, a window whose spare a reader holds open is put off (stat = file_in_use,
-  !> retried 50 ms later; call no end_rows then). stat: 0, an OS error number, or -1 (HDF5).
-  subroutine begin_rows(self, final, stat, defer)
+  !> write. With `defer`, a window whose spare a reader holds open is put off (`deferred`, no
+  !> failure: retried 50 ms later; call no end_rows then). A failure: the OS's words or HDF5's.
+  subroutine begin_rows(self, final, failure, defer, deferred)
     class(safe_file), intent(inout) :: self
     logical, intent(in) :: final
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     logical, intent(in), optional :: defer
+    logical, intent(out), optional :: deferred
     character(len=:), allocatable :: layout, table_layout
-    logical :: waiting, held
+    logical :: waiting, held, busy
     integer :: k
 
     self%final = final
     self%whole = .not. self%on_disk
+    if (present(deferred)) deferred = .false.
     call system_clock(self%last_write)
-    stat = 0
     if (self%whole) then
       ! A file made from a template may take its datasets from there: then only their values are
       ! given, before the file opens (settle_template, when the root attributes are all set).
@@ -149,46 +151,50 @@ contains
       end do
       call self%file%template_datasets(layout, held)
       do k = 1, size(self%tables)
-        if (stat == 0 .and. held) call self%tables(k)%write(self%file, final .and. .not. self%extendible, stat, &
-                                                            held=.true.)
+        if (.not. failure%failed() .and. held) &
+          call self%tables(k)%write(self%file, final .and. .not. self%extendible, failure, held=.true.)
       end do
-      if (stat == 0) call self%file%settle_template(stat)
+      if (.not. failure%failed()) call self%file%settle_template(failure)
       do k = 1, size(self%tables)
-        if (stat == 0 .and. .not. held) call self%tables(k)%write(self%file, final .and. .not. self%extendible, stat)
+        if (.not. failure%failed() .and. .not. held) &
+          call self%tables(k)%write(self%file, final .and. .not. self%extendible, failure)
       end do
-      if (stat == 0) call self%file%keep_template_datasets()
+      if (.not. failure%failed()) call self%file%keep_template_datasets()
       return
     end if
-    stat = self%failure
-    if (stat /= 0) return
+    failure = self%failure
+    if (failure%failed()) return
     waiting = .false.
     if (present(defer)) waiting = defer
-    call open_spare(stat)
-    if (stat == file_in_use .and. waiting) then
+    call open_spare(failure, busy)
+    if (busy .and. waiting) then
       self%last_write = self%last_write - int((self%write_interval - 0.05_real64)*self%clock_rate, int64)
+      failure = failure_type()
+      if (present(deferred)) deferred = .true.
       return
     end if
-    if (stat == file_in_use) then
-      call copy_file(self%path, self%spare, stat)
+    if (busy) then
+      call copy_file(self%path, self%spare, failure)
       do k = 1, size(self%tables)
         call self%tables(k)%forget(self%tables(k)%written)
       end do
-      if (stat == 0) call open_spare(stat)
+      if (.not. failure%failed()) call open_spare(failure, busy)
     end if
-    if (stat /= 0) then
-      self%failure = stat
+    if (failure%failed()) then
+      self%failure = failure
       return
     end if
     do k = 1, size(self%tables)
       self%kept(k) = self%tables(k)%written
-      if (stat == 0) call self%tables(k)%write(self%file, .false., stat, keep=.true.)
+      if (.not. failure%failed()) call self%tables(k)%write(self%file, .false., failure, keep=.true.)
     end do
-    if (stat /= 0) self%failure = stat
+    if (failure%failed()) self%failure = failure
 
   contains
 
-    subroutine open_spare(stat)
-      integer, intent(out) :: stat
+    subroutine open_spare(failure, busy)
+      type(failure_type), intent(out) :: failure
+      logical, intent(out) :: busy
       integer(int64) :: bytes
       integer :: k
 
@@ -196,44 +202,45 @@ contains
       do k = 1, size(self%tables)
         bytes = bytes + self%tables(k)%window_bytes()
       end do
-      call self%file%open_existing(self%spare, .true., stat, reserve=bytes, wait_ms=-1)
+      call self%file%open_existing(self%spare, .true., failure, reserve=bytes, wait_ms=-1, busy=busy)
     end subroutine open_spare
   end subroutine begin_rows
 
-  !> Finishes the write begun by begin_rows; `stat` comes in as the attributes' (0 if they were
-  !> written) and goes out as the write's. The first time the file is stored at `path` (synced if
-  !> durable and final) and, unless final, as the spare; later the spare is closed and takes the
+  !> Finishes the write begun by begin_rows; `failure` comes in as the attributes' (none if they
+  !> were written) and goes out as the write's. The first time the file is stored at `path` (synced
+  !> if durable and final) and, unless final, as the spare; later the spare is closed and takes the
   !> name `path`. At the end the spare is removed, and a durable file synced. On failure `path`
   !> holds what it held.
-  subroutine end_rows(self, stat)
+  subroutine end_rows(self, failure)
     class(safe_file), intent(inout) :: self
-    integer, intent(inout) :: stat
-    integer :: close_stat, ignored, k
+    type(failure_type), intent(inout) :: failure
+    type(failure_type) :: closing, ignored
+    integer :: k
 
     if (self%whole) then
-      if (stat == 0) call self%file%store(self%path, self%durable .and. self%final, stat)
+      if (.not. failure%failed()) call self%file%store(self%path, self%durable .and. self%final, failure)
       if (self%final) then
         call self%file%close(ignored)
         call remove_file(self%spare, ignored)        ! of an earlier run killed with this output
-        self%on_disk = stat == 0
+        self%on_disk = .not. failure%failed()
         return
       end if
-      if (stat /= 0) return
+      if (failure%failed()) return
       self%on_disk = .true.
-      call self%file%store(self%spare, .false., stat)
-      self%failure = stat
-      call self%file%close(close_stat)
-      if (stat == 0) stat = close_stat
+      call self%file%store(self%spare, .false., failure)
+      self%failure = failure
+      call self%file%close(closing)
+      if (.not. failure%failed()) failure = closing
       return
     end if
-    call self%file%close(close_stat)           ! (not open if the spare could not be opened)
-    if (self%failure /= 0) then
-      stat = self%failure
+    call self%file%close(closing)           ! (not open if the spare could not be opened)
+    if (self%failure%failed()) then
+      failure = self%failure
     else
-      if (stat == 0) stat = close_stat
-      if (stat == 0) call exchange_files(self%spare, self%path, stat)
-      self%failure = stat
-      if (stat == 0) then
+      if (.not. failure%failed()) failure = closing
+      if (.not. failure%failed()) call exchange_files(self%spare, self%path, failure)
+      self%failure = failure
+      if (.not. failure%failed()) then
         do k = 1, size(self%tables)
           call self%tables(k)%forget(self%kept(k))
         end do
@@ -241,7 +248,7 @@ contains
     end if
     if (.not. self%final) return
     call remove_file(self%spare, ignored)
-    if (stat == 0 .and. self%durable) call sync_file(self%path, stat)
+    if (.not. failure%failed() .and. self%durable) call sync_file(self%path, failure)
   end subroutine end_rows
 
   ! EME_WRITE_EVERY_ROWS from the environment: a positive row count, or 0 (unset or not a count).
@@ -259,26 +266,26 @@ contains
   !> Opens `path` itself for writing (no spare, no window): the last resort, after a final
   !> window failed for want of space, to say in an attribute why its rows are missing (the space
   !> the removed spare held makes room). Close `file` afterwards.
-  subroutine open_in_place(self, stat)
+  subroutine open_in_place(self, failure)
     class(safe_file), intent(inout) :: self
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    call self%file%open_existing(self%path, .true., stat)
+    call self%file%open_existing(self%path, .true., failure)
   end subroutine open_in_place
 
   !> Continues the file that `path` holds (its tables defined as when it was made): the file in
   !> memory is dropped, the spare becomes a copy of `path`, and each table k goes on from row
-  !> rows(k) (later rows of the file are replaced by the next write). stat: 0, an OS error
-  !> number, or -1 (HDF5).
-  subroutine resume_from(self, rows, stat)
+  !> rows(k) (later rows of the file are replaced by the next write). A failure: the OS's words
+  !> or HDF5's.
+  subroutine resume_from(self, rows, failure)
     class(safe_file), intent(inout) :: self
     integer(int64), intent(in) :: rows(:)
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer :: k
 
-    call self%file%close(stat)
-    if (stat == 0) call copy_file(self%path, self%spare, stat)
-    if (stat /= 0) return
+    call self%file%close(failure)
+    if (.not. failure%failed()) call copy_file(self%path, self%spare, failure)
+    if (failure%failed()) return
     self%on_disk = .true.
     self%file%fresh = .false.
     do k = 1, size(self%tables)

@@ -1,17 +1,19 @@
-!> File-system operations (src/io/posix_files.c) with Fortran strings. Each returns stat = 0 on
-!> success, else the OS's error number, which os_error_text turns into the OS's words. The lock of
-!> an output (lock_output) makes one process its only writer (docs/faults.md).
+!> File-system operations (src/io/posix_files.c) with Fortran strings. Each returns a failure:
+!> failure_io with the OS's words for its error number as the message (os_error_text) and the
+!> path as origin; callers put their context before those words. The lock of an output
+!> (lock_output) makes one process its only writer (docs/faults.md).
 module filesystem
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_null_char
+  use failures, only: failure_type, fail, failure_io
   implicit none (type, external)
   private
   public :: make_directories, make_parent_directories, rename_file, exchange_files, copy_file, remove_file, &
-            file_exists, append_text, reserve_space, sync_file, os_error_text, stderr_is_terminal, &
-            output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
+            file_exists, append_text, reserve_space, sync_file, os_error_text, os_failure, stderr_is_terminal, &
+            output_lock, lock_output, unlock_output, lock_taken, lock_held_elsewhere, lock_not_offered
 
-  !> lock_output's stat besides 0 and an OS error number: another live process holds the lock;
-  !> the file system offers no working lock (the output is then written unguarded).
-  integer, parameter :: lock_held_elsewhere = -1, lock_not_offered = -2
+  !> What lock_output found, besides a failure: the lock is this process's; another live process
+  !> holds it; the file system offers no working lock (the output is then written unguarded).
+  integer, parameter :: lock_taken = 0, lock_held_elsewhere = -1, lock_not_offered = -2
 
   !> The lock of an output while this process holds it: the lock file, open.
   type :: output_lock
@@ -96,61 +98,61 @@ module filesystem
 contains
 
   !> mkdir -p path.
-  subroutine make_directories(path, stat)
+  subroutine make_directories(path, failure)
     character(len=*), intent(in) :: path
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_make_directories(trim(path)//c_null_char))
+    call os_failure(failure, int(c_make_directories(trim(path)//c_null_char)), path)
   end subroutine make_directories
 
   !> Creates the directory that will hold `file` (nothing to do for a bare file name).
-  subroutine make_parent_directories(file, stat)
+  subroutine make_parent_directories(file, failure)
     character(len=*), intent(in) :: file
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer :: slash
 
-    stat = 0
     slash = index(file, '/', back=.true.)
-    if (slash > 1) call make_directories(file(1:slash - 1), stat)
+    if (slash > 1) call make_directories(file(1:slash - 1), failure)
   end subroutine make_parent_directories
 
   !> Renames `from` to `to`, replacing `to` atomically; with `sync` (default) the directory entry
   !> is on disk on return.
-  subroutine rename_file(from, to, stat, sync)
+  subroutine rename_file(from, to, failure, sync)
     character(len=*), intent(in) :: from, to
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     logical, intent(in), optional :: sync
     logical :: durable
 
     durable = .true.
     if (present(sync)) durable = sync
-    stat = int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char, merge(1_c_int, 0_c_int, durable)))
+    call os_failure(failure, int(c_rename_file(trim(from)//c_null_char, trim(to)//c_null_char, &
+                                               merge(1_c_int, 0_c_int, durable))), from)
   end subroutine rename_file
 
   !> Gives the file `newer` the name `path`, and the file that had that name the name `newer`;
-  !> `path` names a whole file at every instant (src/io/posix_files.c). stat: 0 or an OS error.
-  subroutine exchange_files(newer, path, stat)
+  !> `path` names a whole file at every instant (src/io/posix_files.c).
+  subroutine exchange_files(newer, path, failure)
     character(len=*), intent(in) :: newer, path
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_exchange_files(trim(newer)//c_null_char, trim(path)//c_null_char))
+    call os_failure(failure, int(c_exchange_files(trim(newer)//c_null_char, trim(path)//c_null_char)), path)
   end subroutine exchange_files
 
   !> Copies the file `from` as `to`, which is replaced whole (a process that has the old `to` open
-  !> keeps it as it was). stat: 0 or an OS error.
-  subroutine copy_file(from, to, stat)
+  !> keeps it as it was).
+  subroutine copy_file(from, to, failure)
     character(len=*), intent(in) :: from, to
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_copy_file(trim(from)//c_null_char, trim(to)//c_null_char))
+    call os_failure(failure, int(c_copy_file(trim(from)//c_null_char, trim(to)//c_null_char)), from)
   end subroutine copy_file
 
   !> Removes `path`; a missing file is no error.
-  subroutine remove_file(path, stat)
+  subroutine remove_file(path, failure)
     character(len=*), intent(in) :: path
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_remove_file(trim(path)//c_null_char))
+    call os_failure(failure, int(c_remove_file(trim(path)//c_null_char)), path)
   end subroutine remove_file
 
   !> Whether `path` is an existing regular file.
@@ -161,30 +163,31 @@ contains
   end function file_exists
 
   !> Appends `text` (whole lines) to `path`, creating it; with `sync` it is on disk on return.
-  subroutine append_text(path, text, sync, stat)
+  subroutine append_text(path, text, sync, failure)
     character(len=*), intent(in) :: path, text
     logical, intent(in) :: sync
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_append_text(trim(path)//c_null_char, text, int(len(text), c_long), merge(1_c_int, 0_c_int, sync)))
+    call os_failure(failure, int(c_append_text(trim(path)//c_null_char, text, int(len(text), c_long), &
+                                               merge(1_c_int, 0_c_int, sync))), path)
   end subroutine append_text
 
   !> Allocates `bytes` of disk space at the end of the existing file `path`, so that writes into
   !> them cannot fail for want of space (ENOSPC or EFBIG come back here instead).
-  subroutine reserve_space(path, bytes, stat)
+  subroutine reserve_space(path, bytes, failure)
     character(len=*), intent(in) :: path
     integer(c_long), intent(in) :: bytes
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_reserve_space(trim(path)//c_null_char, bytes))
+    call os_failure(failure, int(c_reserve_space(trim(path)//c_null_char, bytes)), path)
   end subroutine reserve_space
 
   !> Puts the data of the existing file `path` on disk (fsync).
-  subroutine sync_file(path, stat)
+  subroutine sync_file(path, failure)
     character(len=*), intent(in) :: path
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_sync_file(trim(path)//c_null_char))
+    call os_failure(failure, int(c_sync_file(trim(path)//c_null_char)), path)
   end subroutine sync_file
 
   !> The OS's words for error number `error` ('No space left on device').
@@ -197,6 +200,16 @@ contains
     text = buffer(1:max(0, index(buffer, c_null_char) - 1))
   end function os_error_text
 
+  !> Sets `failure` to failure_io with the OS's words for `error` (an errno) and `origin` (the path);
+  !> error 0 leaves it as it was. The one place where the OS's error numbers become failures.
+  subroutine os_failure(failure, error, origin)
+    type(failure_type), intent(inout) :: failure
+    integer, intent(in) :: error
+    character(len=*), intent(in) :: origin
+
+    if (error /= 0) call fail(failure, failure_io, os_error_text(error), origin)
+  end subroutine os_failure
+
   !> Whether standard error is a terminal.
   logical function stderr_is_terminal()
     stderr_is_terminal = c_stderr_is_terminal() == 1
@@ -204,20 +217,28 @@ contains
 
   !> Takes the lock file `path` (created, with its folder) for this process: an exclusive lock
   !> the OS releases when the process ends, however it ends, so the lock file a killed writer
-  !> left behind is taken again. stat: 0 (held until unlock_output or the end of the process),
-  !> lock_held_elsewhere (`holder` names the live process that holds it, e.g. 'process 4242 on
-  !> host node7', or is empty), lock_not_offered (the file system has no working lock; nothing is
-  !> held), or an OS error number.
-  subroutine lock_output(lock, path, stat, holder)
+  !> left behind is taken again. `found`: lock_taken (held until unlock_output or the end of the
+  !> process), lock_held_elsewhere (`holder` names the live process that holds it, e.g. 'process
+  !> 4242 on host node7', or is empty), lock_not_offered (the file system has no working lock;
+  !> nothing is held); a failure (the OS's words) if the lock file cannot be made.
+  subroutine lock_output(lock, path, found, holder, failure)
     type(output_lock), intent(out) :: lock
     character(len=*), intent(in) :: path
-    integer, intent(out) :: stat
+    integer, intent(out) :: found
     character(len=:), allocatable, intent(out) :: holder
+    type(failure_type), intent(out) :: failure
     character(len=512) :: buffer
+    integer :: status
 
     lock%path = path
-    stat = int(c_lock_output(trim(path)//c_null_char, lock%descriptor, buffer, int(len(buffer), c_int)))
+    status = int(c_lock_output(trim(path)//c_null_char, lock%descriptor, buffer, int(len(buffer), c_int)))
     holder = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    found = lock_taken
+    if (status == lock_held_elsewhere .or. status == lock_not_offered) then
+      found = status
+    else
+      call os_failure(failure, status, path)
+    end if
   end subroutine lock_output
 
   !> Lets go of the lock (its file is removed); nothing to do if it is not held.

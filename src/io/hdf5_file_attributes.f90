@@ -33,11 +33,10 @@ contains
       target_id = object
     else
       call compare_with_template(self%template, name, 't'//value, write, fresh, self%fresh, self%deferred)
-      stat = 0
       if (.not. write) return
     end if
-    stat = int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, value//c_null_char, &
-                                      merge(1_c_int, 0_c_int, fresh)))
+    call hdf5_failure(failure, int(c_write_text_attribute(int(target_id, c_int64_t), name//c_null_char, &
+                                   value//c_null_char, merge(1_c_int, 0_c_int, fresh))), name)
   end procedure set_text
 
   !> Array of texts as one attribute on the file root, or on object `object` if given (h5py: an
@@ -51,23 +50,25 @@ contains
       target_id = object
     else
       call compare_with_template(self%template, name, 'a'//joined_lines(values), write, fresh, self%fresh, self%deferred)
-      stat = 0
       if (.not. write) return
     end if
-    stat = int(c_write_text_array_attribute(int(target_id, c_int64_t), name//c_null_char, joined_lines(values)//c_null_char))
+    call hdf5_failure(failure, int(c_write_text_array_attribute(int(target_id, c_int64_t), name//c_null_char, &
+                                                                 joined_lines(values)//c_null_char)), name)
   end procedure set_texts
 
   !> Array of texts as one attribute of the dataset `dataset` (h5py: an array of str).
   module procedure set_dataset_texts
     integer(hid_t) :: dataset_id
-    integer :: close_stat
+    integer :: stat, close_stat
 
     call h5dopen_f(self%id, dataset, dataset_id, stat)
-    if (stat /= 0) return
-    stat = int(c_write_text_array_attribute(int(dataset_id, c_int64_t), name//c_null_char, &
-                                            joined_lines(values)//c_null_char))
-    call h5dclose_f(dataset_id, close_stat)
-    if (stat == 0) stat = close_stat
+    if (stat == 0) then
+      stat = int(c_write_text_array_attribute(int(dataset_id, c_int64_t), name//c_null_char, &
+                                              joined_lines(values)//c_null_char))
+      call h5dclose_f(dataset_id, close_stat)
+      if (stat == 0) stat = close_stat
+    end if
+    call hdf5_failure(failure, stat, dataset//' '//name)
   end procedure set_dataset_texts
 
   !> Scalar real attribute on the file root; with `units`, a text attribute <name>_units too.
@@ -75,9 +76,8 @@ contains
     logical :: write, fresh
 
     call compare_with_template(self%template, name, 'r'//bytes_of([value]), write, fresh, self%fresh, self%deferred)
-    stat = 0
-    if (write) call write_numeric_attribute(self%id, name, [value], .true., fresh, stat)
-    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
+    if (write) call write_numeric_attribute(self%id, name, [value], .true., fresh, failure)
+    if (.not. failure%failed() .and. present(units)) call self%set_text(name//'_units', units, failure)
   end procedure set_real
 
   !> Real-array attribute on the file root; with `units`, a text attribute <name>_units too.
@@ -85,9 +85,8 @@ contains
     logical :: write, fresh
 
     call compare_with_template(self%template, name, 'v'//bytes_of(values), write, fresh, self%fresh, self%deferred)
-    stat = 0
-    if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, stat)
-    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
+    if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, failure)
+    if (.not. failure%failed() .and. present(units)) call self%set_text(name//'_units', units, failure)
   end procedure set_reals
 
   !> Scalar integer attribute on the file root; with `units`, a text attribute <name>_units too.
@@ -95,9 +94,9 @@ contains
     logical :: write, fresh
 
     call compare_with_template(self%template, name, 'i'//bytes_of([real(value, real64)]), write, fresh, self%fresh, self%deferred)
-    stat = 0
-    if (write) call write_numeric_attribute(self%id, name, [real(value, real64)], .true., fresh, stat, integer_valued=.true.)
-    if (stat == 0 .and. present(units)) call self%set_text(name//'_units', units, stat)
+    if (write) call write_numeric_attribute(self%id, name, [real(value, real64)], .true., fresh, failure, &
+                                            integer_valued=.true.)
+    if (.not. failure%failed() .and. present(units)) call self%set_text(name//'_units', units, failure)
   end procedure set_integer
 
   !> Integer-array attribute on the file root, or on object `object` if given.
@@ -113,27 +112,29 @@ contains
     else
       call compare_with_template(self%template, name, 'n'//bytes_of(real(values, real64)), write, fresh, self%fresh, self%deferred)
     end if
-    stat = 0
-    if (write) call write_numeric_attribute(target_id, name, real(values, real64), .false., fresh, stat, integer_valued=.true.)
+    if (write) call write_numeric_attribute(target_id, name, real(values, real64), .false., fresh, failure, &
+                                            integer_valued=.true.)
   end procedure set_integers
 
-  !> The text attribute `name` of the file root; stat /= 0 if it is missing.
+  !> The text attribute `name` of the file root; a failure if it is missing.
   module procedure get_text
     character(len=4096) :: buffer
 
-    stat = int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, int(len(buffer), c_int)))
+    call hdf5_failure(failure, int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, &
+                                                         int(len(buffer), c_int))), name)
     value = buffer(1:max(0, index(buffer, c_null_char) - 1))
   end procedure get_text
 
-  !> The numeric attribute `name` of the file root (a scalar or an array, as reals); stat /= 0 if
+  !> The numeric attribute `name` of the file root (a scalar or an array, as reals); a failure if
   !> it is missing or not numeric.
   module procedure get_reals
     integer(hid_t) :: attribute, space
     integer(hsize_t) :: points, dims(1)
-    integer :: ignored
+    integer :: stat, ignored
 
     allocate (values(0))
     call h5aopen_f(self%id, name, attribute, stat)
+    call hdf5_failure(failure, stat, name)
     if (stat /= 0) return
     call h5aget_space_f(attribute, space, stat)
     if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
@@ -145,6 +146,7 @@ contains
       call h5sclose_f(space, ignored)
     end if
     call h5aclose_f(attribute, ignored)
+    call hdf5_failure(failure, stat, name)
   end procedure get_reals
 
   !> A numeric attribute of `object`: a scalar or an array of `values`, stored as integers if
@@ -154,45 +156,48 @@ contains
     integer(hid_t) :: space, attribute
     integer(hsize_t) :: dims(1), points
     logical :: exists, as_integer
-    integer :: ignored, close_stat
+    integer :: stat, ignored, close_stat
 
     as_integer = .false.
     if (present(integer_valued)) as_integer = integer_valued
     dims = [int(size(values), hsize_t)]
     stat = 0
-    if (.not. fresh) then
-      call h5aexists_f(object, name, exists, stat)
-      if (stat /= 0) return
-      if (exists) then
-        ! In place if the stored attribute has the same number of values (no change to the object
-        ! header's layout); otherwise it is replaced.
-        call h5aopen_f(object, name, attribute, stat)
-        if (stat /= 0) return
-        call h5aget_space_f(attribute, space, stat)
-        if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
-        if (stat == 0) call h5sclose_f(space, ignored)
-        if (stat == 0 .and. points == size(values, kind=hsize_t)) then
-          call write_values()
-          return
+    steps: block
+      if (.not. fresh) then
+        call h5aexists_f(object, name, exists, stat)
+        if (stat /= 0) exit steps
+        if (exists) then
+          ! In place if the stored attribute has the same number of values (no change to the object
+          ! header's layout); otherwise it is replaced.
+          call h5aopen_f(object, name, attribute, stat)
+          if (stat /= 0) exit steps
+          call h5aget_space_f(attribute, space, stat)
+          if (stat == 0) call h5sget_simple_extent_npoints_f(space, points, stat)
+          if (stat == 0) call h5sclose_f(space, ignored)
+          if (stat == 0 .and. points == size(values, kind=hsize_t)) then
+            call write_values()
+            exit steps
+          end if
+          call h5aclose_f(attribute, ignored)
+          call h5adelete_f(object, name, stat)
+          if (stat /= 0) exit steps
         end if
-        call h5aclose_f(attribute, ignored)
-        call h5adelete_f(object, name, stat)
-        if (stat /= 0) return
       end if
-    end if
-    if (scalar) then
-      call h5screate_f(H5S_SCALAR_F, space, stat)
-    else
-      call h5screate_simple_f(1, dims, space, stat)
-    end if
-    if (stat /= 0) return
-    if (as_integer) then
-      call h5acreate_f(object, name, H5T_NATIVE_INTEGER, space, attribute, stat)
-    else
-      call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
-    end if
-    if (stat == 0) call write_values()    ! created: write, then close whatever the write did
-    call h5sclose_f(space, ignored)
+      if (scalar) then
+        call h5screate_f(H5S_SCALAR_F, space, stat)
+      else
+        call h5screate_simple_f(1, dims, space, stat)
+      end if
+      if (stat /= 0) exit steps
+      if (as_integer) then
+        call h5acreate_f(object, name, H5T_NATIVE_INTEGER, space, attribute, stat)
+      else
+        call h5acreate_f(object, name, H5T_NATIVE_DOUBLE, space, attribute, stat)
+      end if
+      if (stat == 0) call write_values()    ! created: write, then close whatever the write did
+      call h5sclose_f(space, ignored)
+    end block steps
+    call hdf5_failure(failure, stat, name)
 
   contains
 

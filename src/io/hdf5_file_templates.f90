@@ -14,11 +14,11 @@ contains
   !> attributes are compared with the template's and those that differ wait there. So between
   !> this call and settle_template only the root attribute writers (set_text .. set_integers,
   !> without `object`) may be used. Call template_datasets and settle_template once the root
-  !> attributes are set, before any dataset is written. stat = -1 on an HDF5 failure.
+  !> attributes are set, before any dataset is written. A failure if HDF5 failed.
   module procedure create_from_template
     if (.not. template%ready) then
-      call self%create_in_memory(stat)
-      if (stat /= 0) return
+      call self%create_in_memory(failure)
+      if (failure%failed()) return
       template%recording = .true.
       template%count = 0
       if (.not. allocated(template%attributes)) allocate (template%attributes(256))
@@ -27,8 +27,8 @@ contains
       self%first_of_template = .true.
       return
     end if
-    call open_library(stat)
-    if (stat /= 0) return
+    call open_library(failure)
+    if (failure%failed()) return
     self%id = -1
     self%deferred = .true.
     self%from_datasets = .false.
@@ -63,11 +63,11 @@ contains
 
   !> The values of the numeric dataset `name` of a file that holds its template's datasets
   !> (template_datasets), as the bytes of the stored type: `bytes` must fill the dataset.
-  !> stat = -1 if the template has no such dataset or not of that size.
+  !> A failure if the template has no such dataset or not of that size.
   module procedure put_values
     integer :: k, first, last
 
-    stat = -1
+    call hdf5_failure(failure, -1, name)
     if (.not. (associated(self%origin) .and. self%from_datasets)) return
     associate (template => self%origin)
       first = 1
@@ -78,7 +78,7 @@ contains
           template%copy(template%offsets(k) + 1:template%offsets(k) + template%sizes(k)) = bytes
           if (template%sealed(k)) call c_seal_chunk(template%copy(template%offsets(k) + 1:), &
                                                     int(template%sizes(k), c_long))
-          stat = 0
+          failure = failure_type()
           return
         end if
         first = last + 2
@@ -90,12 +90,12 @@ contains
   !> leaves its image in the template; a file made from one is opened (from the image with its
   !> datasets if template_datasets said so, else from the root attributes' image), given the
   !> root attributes that differ and loses the template's attributes it did not set. Nothing to
-  !> do for a file without a template. stat = -1 on an HDF5 failure.
+  !> do for a file without a template. A failure if HDF5 failed.
   module procedure settle_template
     integer(c_long) :: size
     integer(c_int64_t) :: id
     character(len=32) :: label
-    integer :: k
+    integer :: k, stat
 
     stat = 0
     if (.not. associated(self%template)) return
@@ -119,15 +119,17 @@ contains
           end if
           self%id = int(id, hid_t)
           self%deferred = .false.
+          call hdf5_failure(failure, stat, 'settle_template')
           do k = 1, template%waiting_count
-            if (stat /= 0) exit
-            call write_remembered(self%id, template%waiting(k), stat)
+            if (failure%failed()) exit
+            call write_remembered(self%id, template%waiting(k), failure)
           end do
           template%waiting_count = 0
         end if
         do k = 1, template%count
-          if (stat /= 0) exit
+          if (failure%failed()) exit
           if (.not. template%touched(k)) call h5adelete_f(self%id, template%attributes(k)%name, stat)
+          call hdf5_failure(failure, stat, template%attributes(k)%name)
         end do
       end if
     end associate
@@ -239,10 +241,10 @@ contains
 
   ! Writes a root attribute that waited (compare_with_template) into the now open file `file`:
   ! its value is 'F' (fresh) or 'E' (may exist), the kind letter and the value's bytes.
-  subroutine write_remembered(file, attribute, stat)
+  subroutine write_remembered(file, attribute, failure)
     integer(hid_t), intent(in) :: file
     type(remembered_attribute), intent(in) :: attribute
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     logical :: fresh
     integer :: count
 
@@ -251,18 +253,19 @@ contains
     associate (letter => attribute%value(2:2), bytes => attribute%value(3:))
       select case (letter)
       case ('t')
-        stat = int(c_write_text_attribute(int(file, c_int64_t), attribute%name//c_null_char, bytes//c_null_char, &
-                                          merge(1_c_int, 0_c_int, fresh)))
+        call hdf5_failure(failure, int(c_write_text_attribute(int(file, c_int64_t), attribute%name//c_null_char, &
+                                       bytes//c_null_char, merge(1_c_int, 0_c_int, fresh))), attribute%name)
       case ('a')
-        stat = int(c_write_text_array_attribute(int(file, c_int64_t), attribute%name//c_null_char, bytes//c_null_char))
+        call hdf5_failure(failure, int(c_write_text_array_attribute(int(file, c_int64_t), attribute%name//c_null_char, &
+                                                                     bytes//c_null_char)), attribute%name)
       case ('r', 'i')
-        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .true., fresh, stat, &
+        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .true., fresh, failure, &
                                      integer_valued=letter == 'i')
       case ('v', 'n')
-        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .false., fresh, stat, &
-                                     integer_valued=letter == 'n')
+        call write_numeric_attribute(file, attribute%name, transfer(bytes, [0.0_real64], count), .false., fresh, &
+                                     failure, integer_valued=letter == 'n')
       case default
-        stat = -1
+        call hdf5_failure(failure, -1, attribute%name)
       end select
     end associate
   end subroutine write_remembered

@@ -11,9 +11,11 @@ module hdf5_files
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
   use hdf5, only: hid_t, h5open_f, h5eset_auto_f, h5fclose_f, h5adelete_f   ! h5adelete_f: for the submodules
+  use failures, only: failure_type, fail, failure_io, failure_library, failure_mismatch
+  use filesystem, only: os_failure
   implicit none (type, external)
   private
-  public :: hdf5_file, file_template, check_run_file, file_in_use
+  public :: hdf5_file, file_template, check_run_file, hdf5_failure
   ! For the submodules only: gfortran gives a module's private procedures internal linkage,
   ! which a submodule, compiled apart, cannot reach.
   public :: open_library
@@ -183,24 +185,24 @@ module hdf5_files
 
   ! The template half (src/io/hdf5_file_templates): a rank's case files start from its first one.
   interface
-    module subroutine create_from_template(self, template, stat)
+    module subroutine create_from_template(self, template, failure)
       class(hdf5_file), intent(inout) :: self
       type(file_template), intent(inout), target :: template
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
     end subroutine create_from_template
     module subroutine template_datasets(self, layout, held)
       class(hdf5_file), intent(inout) :: self
       character(len=*), intent(in) :: layout
       logical, intent(out) :: held
     end subroutine template_datasets
-    module subroutine put_values(self, name, bytes, stat)
+    module subroutine put_values(self, name, bytes, failure)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name, bytes
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
     end subroutine put_values
-    module subroutine settle_template(self, stat)
+    module subroutine settle_template(self, failure)
       class(hdf5_file), intent(inout) :: self
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
     end subroutine settle_template
     module subroutine keep_template_datasets(self)
       class(hdf5_file), intent(inout) :: self
@@ -215,137 +217,149 @@ module hdf5_files
 
   ! The attributes (src/io/hdf5_file_attributes): written, rewritten in place, read back.
   interface
-    module subroutine set_text(self, name, value, stat, object)
+    module subroutine set_text(self, name, value, failure, object)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name, value
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       integer(hid_t), intent(in), optional :: object
     end subroutine set_text
-    module subroutine set_texts(self, name, values, stat, object)
+    module subroutine set_texts(self, name, values, failure, object)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name, values(:)
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       integer(hid_t), intent(in), optional :: object
     end subroutine set_texts
-    module subroutine set_dataset_texts(self, dataset, name, values, stat)
+    module subroutine set_dataset_texts(self, dataset, name, values, failure)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: dataset, name, values(:)
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
     end subroutine set_dataset_texts
-    module subroutine set_real(self, name, value, stat, units)
+    module subroutine set_real(self, name, value, failure, units)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       real(real64), intent(in) :: value
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       character(len=*), intent(in), optional :: units
     end subroutine set_real
-    module subroutine set_reals(self, name, values, stat, units)
+    module subroutine set_reals(self, name, values, failure, units)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       real(real64), intent(in) :: values(:)
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       character(len=*), intent(in), optional :: units
     end subroutine set_reals
-    module subroutine set_integer(self, name, value, stat, units)
+    module subroutine set_integer(self, name, value, failure, units)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       integer, intent(in) :: value
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       character(len=*), intent(in), optional :: units
     end subroutine set_integer
-    module subroutine set_integers(self, name, values, stat, object)
+    module subroutine set_integers(self, name, values, failure, object)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       integer, intent(in) :: values(:)
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       integer(hid_t), intent(in), optional :: object
     end subroutine set_integers
-    module subroutine get_text(self, name, value, stat)
+    module subroutine get_text(self, name, value, failure)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       character(len=:), allocatable, intent(out) :: value
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
     end subroutine get_text
-    module subroutine get_reals(self, name, values, stat)
+    module subroutine get_reals(self, name, values, failure)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       real(real64), allocatable, intent(out) :: values(:)
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
     end subroutine get_reals
-    module subroutine write_numeric_attribute(object, name, values, scalar, fresh, stat, integer_valued)
+    module subroutine write_numeric_attribute(object, name, values, scalar, fresh, failure, integer_valued)
       integer(hid_t), intent(in) :: object
       character(len=*), intent(in) :: name
       real(real64), intent(in) :: values(:)
       logical, intent(in) :: scalar, fresh
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       logical, intent(in), optional :: integer_valued
     end subroutine write_numeric_attribute
   end interface
 
 contains
 
-  !> Creates an empty file in memory; `store` writes it to disk. stat = -1 on an HDF5 failure.
-  subroutine create_in_memory(self, stat)
+  !> Creates an empty file in memory; `store` writes it to disk. A failure if HDF5 failed.
+  subroutine create_in_memory(self, failure)
     class(hdf5_file), intent(inout) :: self
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=32) :: label
     integer(c_int64_t) :: id
 
-    call open_library(stat)
-    if (stat /= 0) return
+    call open_library(failure)
+    if (failure%failed()) return
     memory_files = memory_files + 1
     write (label, '("eme_memory_file_", i0)') memory_files
-    stat = int(c_create_in_memory(trim(label)//c_null_char, id))
+    call hdf5_failure(failure, int(c_create_in_memory(trim(label)//c_null_char, id)), 'create_in_memory')
     self%id = int(id, hid_t)
     self%fresh = .true.
   end subroutine create_in_memory
 
   !> Writes the in-memory file as the whole of `path` (on disk before return with `sync`); the
-  !> file stays open. stat: 0, an OS error number (the partial file is removed), or -1 (HDF5).
-  subroutine store(self, path, sync, stat)
+  !> file stays open. A failure (hdf5_failure): the OS's words (the partial file is removed), or HDF5's.
+  subroutine store(self, path, sync, failure)
     class(hdf5_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     logical, intent(in) :: sync
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_store_image(int(self%id, c_int64_t), trim(path)//c_null_char, merge(1_c_int, 0_c_int, sync)))
+    call hdf5_failure(failure, int(c_store_image(int(self%id, c_int64_t), trim(path)//c_null_char, &
+                                                 merge(1_c_int, 0_c_int, sync))), path)
   end subroutine store
 
   !> Opens an existing file read-only, or for writing after reserving `reserve` bytes of disk for
   !> what will be added (default 64 KiB). A writer waits for readers that hold the file open:
-  !> with `wait_ms` < 0 not at all (stat = file_in_use, write later), else up to wait_ms
-  !> milliseconds (default 5000), then it writes without HDF5's lock. stat: 0, an OS error number
-  !> from the reservation (the file is untouched), file_in_use, or -1 (HDF5 could not open it).
-  subroutine open_existing(self, path, writable, stat, reserve, wait_ms)
+  !> with `wait_ms` < 0 not at all (`busy`, with a failure: write later), else up to wait_ms
+  !> milliseconds (default 5000), then it writes without HDF5's lock. A failure: the OS's words
+  !> from the reservation (the file is untouched), a reader holding the file (`busy`), or HDF5's
+  !> (it could not open it).
+  subroutine open_existing(self, path, writable, failure, reserve, wait_ms, busy)
     class(hdf5_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     logical, intent(in) :: writable
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer(int64), intent(in), optional :: reserve
     integer, intent(in), optional :: wait_ms
+    logical, intent(out), optional :: busy
     integer(c_int64_t) :: id
     integer(c_long) :: bytes
     integer(c_int) :: patience
+    integer :: stat
 
-    call open_library(stat)
-    if (stat /= 0) return
+    if (present(busy)) busy = .false.
+    call open_library(failure)
+    if (failure%failed()) return
     bytes = 65536
     if (present(reserve)) bytes = int(reserve, c_long)
     patience = 5000
     if (present(wait_ms)) patience = int(wait_ms, c_int)
     stat = int(c_open_file(trim(path)//c_null_char, merge(1_c_int, 0_c_int, writable), bytes, patience, id))
+    if (stat == file_in_use) then
+      if (present(busy)) busy = .true.
+      call fail(failure, failure_io, 'a reader holds the file open', path)
+    else
+      call hdf5_failure(failure, stat, path)
+    end if
     self%id = int(id, hid_t)
     self%fresh = .false.
   end subroutine open_existing
 
   !> Closes the file. (The HDF5 library stays open: other files may be in use.)
-  subroutine close_file(self, stat)
+  subroutine close_file(self, failure)
     class(hdf5_file), intent(inout) :: self
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+    integer :: stat
 
-    stat = 0
     if (self%id < 0) return
     call h5fclose_f(self%id, stat)
+    call hdf5_failure(failure, stat, 'close')
     self%id = -1
   end subroutine close_file
 
@@ -353,36 +367,73 @@ contains
   !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
   !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). With `whole`, also
   !> every dataset read whole (their checksums) and the summary attributes (newton_iterations_total,
-  !> run_figures) checked against the datasets they summarise. stat: 0 all holds, 1 unreadable,
-  !> 2 no status, 3 lengths disagree, 4 a dataset fails its checksum, 5 a summary disagrees.
-  subroutine check_run_file(path, status, steps_completed, stat, whole)
+  !> run_figures) checked against the datasets they summarise. A failure unless all holds:
+  !> failure_io if the file is unreadable, else failure_mismatch (no status, lengths disagree, a
+  !> dataset fails its checksum, a summary disagrees: the message says which).
+  subroutine check_run_file(path, status, steps_completed, failure, whole)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: status
-    integer, intent(out) :: steps_completed, stat
+    integer, intent(out) :: steps_completed
+    type(failure_type), intent(out) :: failure
     logical, intent(in), optional :: whole
     character(len=1024) :: buffer
     integer(c_long) :: steps
     integer(c_int) :: reading
+    integer :: stat
 
     reading = 0
     if (present(whole)) reading = merge(1, 0, whole)
     buffer = c_null_char
     steps = -1
-    call open_library(stat)
-    if (stat == 0) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), steps, reading))
+    call open_library(failure)
+    stat = 1
+    if (.not. failure%failed()) stat = int(c_check_run_file(trim(path)//c_null_char, buffer, int(len(buffer), c_int), &
+                                                            steps, reading))
     status = buffer(1:max(0, index(buffer, c_null_char) - 1))
     steps_completed = int(steps)
+    select case (stat)
+    case (0)
+    case (2)
+      call fail(failure, failure_mismatch, 'the run file has no status', path)
+    case (3)
+      call fail(failure, failure_mismatch, 'the run file''s dataset lengths disagree', path)
+    case (4)
+      call fail(failure, failure_mismatch, 'a dataset of the run file fails its checksum', path)
+    case (5)
+      call fail(failure, failure_mismatch, 'a summary attribute of the run file disagrees with its datasets', path)
+    case default
+      call fail(failure, failure_io, 'the run file cannot be read', path)
+    end select
   end subroutine check_run_file
 
-  ! Opens the HDF5 library once per process, with its own error printing off.
-  module subroutine open_library(stat)
-    integer, intent(out) :: stat
+  !> Turns a storage status into a failure at `origin` (0 leaves `failure` as it was): an OS error
+  !> number (> 0) is the OS's words (failure_io); -2, the file did not read back as written
+  !> (failure_mismatch); any other, HDF5 failed (failure_library). The messages are those the
+  !> callers put after "cannot write the output file ...: ".
+  subroutine hdf5_failure(failure, status, origin)
+    type(failure_type), intent(inout) :: failure
+    integer, intent(in) :: status
+    character(len=*), intent(in) :: origin
 
-    stat = 0
+    if (status > 0) then
+      call os_failure(failure, status, origin)
+    else if (status == -2) then
+      call fail(failure, failure_mismatch, 'the file did not read back as written', origin)
+    else if (status /= 0) then
+      call fail(failure, failure_library, 'HDF5 failed', origin)
+    end if
+  end subroutine hdf5_failure
+
+  ! Opens the HDF5 library once per process, with its own error printing off.
+  module subroutine open_library(failure)
+    type(failure_type), intent(out) :: failure
+    integer :: stat
+
     if (library_open) return
     call h5open_f(stat)
     if (stat == 0) call h5eset_auto_f(0, stat)
     library_open = stat == 0
+    call hdf5_failure(failure, stat, 'the HDF5 library')
   end subroutine open_library
 
 end module hdf5_files

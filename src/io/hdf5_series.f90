@@ -11,7 +11,8 @@
 !> the last, the sum, the minimum, the maximum or the mean of them.
 module hdf5_series
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use hdf5_files, only: hdf5_file
+  use hdf5_files, only: hdf5_file, hdf5_failure
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: series_table
@@ -65,11 +66,11 @@ module hdf5_series
 
   ! The datasets' creation and writing (src/io/hdf5_series_datasets.f90).
   interface
-    module subroutine write_table(self, file, final, stat, keep, held)
+    module subroutine write_table(self, file, final, failure, keep, held)
       class(series_table), intent(inout) :: self
       type(hdf5_file), intent(in) :: file
       logical, intent(in) :: final
-      integer, intent(out) :: stat
+      type(failure_type), intent(out) :: failure
       logical, intent(in), optional :: keep, held
     end subroutine write_table
   end interface

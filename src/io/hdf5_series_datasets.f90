@@ -39,7 +39,7 @@ contains
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: extent(2), offset(2), count(2)
     integer(hid_t) :: opened(size(self%items))   !! the new datasets, while their scales are attached
-    integer :: i, rank, ignored, close_stat
+    integer :: i, rank, ignored, close_stat, stat
     logical :: attaching, filling
 
     stat = 0
@@ -66,11 +66,12 @@ contains
         end if
         if (self%created) then
           call h5dopen_f(file%id, item%name, dataset, stat)
-          if (stat /= 0) return
+          if (stat /= 0) exit
           call h5dset_extent_f(dataset, extent(1:rank), stat)
         else
-          call create_dataset(file, item, rank, extent, final, self%chunk_rows, self%compression, dataset, stat)
-          if (stat /= 0) then
+          call create_dataset(file, item, rank, extent, final, self%chunk_rows, self%compression, dataset, failure)
+          if (failure%failed()) then
+            stat = -1
             if (dataset >= 0) call h5dclose_f(dataset, ignored)
             exit
           end if
@@ -102,12 +103,16 @@ contains
         if (stat /= 0) exit
       end associate
     end do
-    if (attaching .and. stat == 0) call attach_scale(file, self%items, opened, stat)
+    if (attaching .and. stat == 0) then
+      call attach_scale(file, self%items, opened, failure)
+      if (failure%failed()) stat = -1
+    end if
     if (attaching) then
       do i = 1, size(opened)
         if (opened(i) >= 0) call h5dclose_f(opened(i), ignored)
       end do
     end if
+    if (.not. failure%failed()) call hdf5_failure(failure, stat, 'write_table')
     if (stat /= 0) return
     self%created = .true.
     self%written = self%first_row + self%buffered
@@ -130,20 +135,21 @@ contains
       else
         bytes = transfer(values, bytes)
       end if
-      call file%put_values(item%name, bytes, stat)
+      call file%put_values(item%name, bytes, failure)
+      if (failure%failed()) stat = -1
     end subroutine fill
   end procedure write_table
 
   ! Makes the first dataset the dimension scale (named after it) of the other datasets' rows,
   ! and gives each vector dataset X the scale X_column of its columns' names
   ! (src/io/hdf5_scales.c: every scale attribute written once).
-  subroutine attach_scale(file, items, opened, stat)
+  subroutine attach_scale(file, items, opened, failure)
     type(hdf5_file), intent(in) :: file
     type(series), intent(in) :: items(:)
     integer(hid_t), intent(in) :: opened(:)    !! the datasets of `items`, open
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer(c_int64_t) :: datasets(size(items) - 1), columns(size(items) - 1)
-    integer :: i, ignored
+    integer :: i, ignored, stat
 
     datasets = int(opened(2:), c_int64_t)
     columns = -1
@@ -158,6 +164,7 @@ contains
     do i = 1, size(columns)
       if (columns(i) >= 0) call h5dclose_f(int(columns(i), hid_t), ignored)
     end do
+    call hdf5_failure(failure, stat, 'attach_scale')
   end subroutine attach_scale
 
   ! Creates one dataset of the table with its attributes: chunked with an unlimited row count,
@@ -166,18 +173,18 @@ contains
   ! value carries HDF5's Fletcher-32 checksum, first in the filter pipeline (over the values
   ! themselves), so that a damaged chunk fails its read instead of giving other numbers; one of
   ! at most one value is contiguous (docs/output.md, Checksums).
-  subroutine create_dataset(file, item, rank, extent, final, chunk_rows, compression, dataset, stat)
+  subroutine create_dataset(file, item, rank, extent, final, chunk_rows, compression, dataset, failure)
     type(hdf5_file), intent(in) :: file
     type(series), intent(in) :: item
     integer, intent(in) :: rank, chunk_rows, compression
     integer(hsize_t), intent(in) :: extent(2)
     logical, intent(in) :: final
     integer(hid_t), intent(out) :: dataset
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     type(hdf5_file) :: fresh_object
     integer(hid_t) :: space, properties, kind
     integer(hsize_t) :: max_dims(2), chunk(2)
-    integer :: ignored
+    integer :: ignored, stat
     logical :: compressed, checked
 
     dataset = -1
@@ -194,6 +201,7 @@ contains
     checked = .not. final .or. product(extent(1:rank)) > 1
     compressed = compression > 0 .and. chunk(rank) > 0 .and. checked
     call h5screate_simple_f(rank, extent(1:rank), space, stat, max_dims(1:rank))
+    call hdf5_failure(failure, stat, item%name)
     if (stat /= 0) return
     call h5pcreate_f(H5P_DATASET_CREATE_F, properties, stat)
     if (stat == 0) then
@@ -209,23 +217,25 @@ contains
     if (stat == 0) call h5dcreate_f(file%id, item%name, kind, space, dataset, stat, properties)
     call h5pclose_f(properties, ignored)
     call h5sclose_f(space, ignored)
+    call hdf5_failure(failure, stat, item%name)
     if (stat /= 0) return
     ! A new dataset has no attributes: no existence queries.
     fresh_object%id = file%id
     fresh_object%fresh = .true.
-    stat = 0
-    if (len(item%units) > 0) call fresh_object%set_text('units', item%units, stat, dataset)
-    if (stat == 0) call fresh_object%set_text('description', item%description, stat, dataset)
-    if (stat == 0 .and. len(item%coordinates) > 0) call fresh_object%set_text('coordinates', item%coordinates, stat, &
-                                                                               dataset)
-    if (stat == 0 .and. len(item%columns) > 0) call fresh_object%set_text('columns', item%columns, stat, dataset)
-    if (stat == 0 .and. len(item%rows) > 0) call fresh_object%set_text('rows', item%rows, stat, dataset)
-    if (stat == 0 .and. len(item%source) > 0) call fresh_object%set_text('source', item%source, stat, dataset)
-    if (stat == 0 .and. allocated(item%column_units)) call fresh_object%set_texts('column_units', item%column_units, &
-                                                                                 stat, dataset)
-    if (stat == 0 .and. allocated(item%flag_values)) then
-      call fresh_object%set_integers('flag_values', item%flag_values, stat, dataset)
-      if (stat == 0) call fresh_object%set_text('flag_meanings', item%flag_meanings, stat, dataset)
+    if (len(item%units) > 0) call fresh_object%set_text('units', item%units, failure, dataset)
+    if (.not. failure%failed()) call fresh_object%set_text('description', item%description, failure, dataset)
+    if (.not. failure%failed() .and. len(item%coordinates) > 0) &
+      call fresh_object%set_text('coordinates', item%coordinates, failure, dataset)
+    if (.not. failure%failed() .and. len(item%columns) > 0) &
+      call fresh_object%set_text('columns', item%columns, failure, dataset)
+    if (.not. failure%failed() .and. len(item%rows) > 0) call fresh_object%set_text('rows', item%rows, failure, dataset)
+    if (.not. failure%failed() .and. len(item%source) > 0) &
+      call fresh_object%set_text('source', item%source, failure, dataset)
+    if (.not. failure%failed() .and. allocated(item%column_units)) &
+      call fresh_object%set_texts('column_units', item%column_units, failure, dataset)
+    if (.not. failure%failed() .and. allocated(item%flag_values)) then
+      call fresh_object%set_integers('flag_values', item%flag_values, failure, dataset)
+      if (.not. failure%failed()) call fresh_object%set_text('flag_meanings', item%flag_meanings, failure, dataset)
     end if
   end subroutine create_dataset
 

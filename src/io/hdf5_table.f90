@@ -18,6 +18,8 @@ module hdf5_table
   use h5lt, only: h5ltset_attribute_string_f
   use h5tb, only: h5tbwrite_field_name_f, h5tbread_field_name_f, h5tbget_table_info_f, &
                   h5tbget_field_info_f
+  use hdf5_files, only: hdf5_failure
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: table_columns, column_real, column_integer, table_rows
@@ -83,20 +85,21 @@ contains
 
   !> Creates table `name` in the open file and writes every row: numbers(:, r) are row r's
   !> numeric columns in column order, texts(:, r) its text columns.
-  subroutine write_table(self, file, name, numbers, texts, stat)
+  subroutine write_table(self, file, name, numbers, texts, failure)
     class(table_columns), intent(in) :: self
     integer(hid_t), intent(in) :: file
     character(len=*), intent(in) :: name
     real(real64), intent(in) :: numbers(:, :)
     character(len=*), intent(in) :: texts(:, :)
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer(hid_t) :: types(size(self%widths))
     integer(size_t) :: sizes(size(self%widths)), offsets(size(self%widths))
     integer(hsize_t) :: rows
-    integer :: i, k, t, ignored
+    integer :: i, k, t, ignored, stat
 
     rows = size(numbers, 2, kind=hsize_t)
     call column_types(self, types, sizes, stat)
+    call hdf5_failure(failure, stat, name)
     if (stat /= 0) return
     offsets(1) = 0
     do i = 2, size(sizes)
@@ -124,6 +127,7 @@ contains
                                     nul_padded(texts(t, :), self%widths(i)), stat)
       end select
     end do
+    call hdf5_failure(failure, stat, name)
   end subroutine write_table
 
   ! Creates the empty table `name` of `rows` rows (compound, its members the columns) with the
@@ -173,58 +177,61 @@ contains
 
   !> Reads every row of table `name` (table_rows of them) as write_table wrote them, column by
   !> column by name; columns the file lacks read as 0 or ''.
-  subroutine read_table(self, file, name, numbers, texts, stat)
+  subroutine read_table(self, file, name, numbers, texts, failure)
     class(table_columns), intent(in) :: self
     integer(hid_t), intent(in) :: file
     character(len=*), intent(in) :: name
     real(real64), intent(out) :: numbers(:, :)
     character(len=*), intent(out) :: texts(:, :)
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=name_length), allocatable :: stored(:)
     integer(size_t), allocatable :: stored_sizes(:), stored_offsets(:)
     integer(size_t) :: row_size
     integer(hsize_t) :: fields, rows
     real(real64), allocatable :: reals(:)
     integer, allocatable :: integers(:)
-    integer :: i, k, t
+    integer :: i, k, t, stat
 
     numbers = 0.0_real64
     texts = ''
-    call h5tbget_table_info_f(file, name, fields, rows, stat)
-    if (stat /= 0) return
-    if (rows /= size(numbers, 2, kind=hsize_t)) then
-      stat = -1
-      return
-    end if
-    allocate (stored(fields), stored_sizes(fields), stored_offsets(fields))
-    stored = ''
-    call h5tbget_field_info_f(file, name, fields, stored, stored_sizes, stored_offsets, row_size, stat)
-    if (stat /= 0) return
-    allocate (reals(rows), integers(rows))
-    k = 0
-    t = 0
-    do i = 1, size(self%widths)
-      if (self%widths(i) <= 0) then
-        k = k + 1
-      else
-        t = t + 1
+    steps: block
+      call h5tbget_table_info_f(file, name, fields, rows, stat)
+      if (stat /= 0) exit steps
+      if (rows /= size(numbers, 2, kind=hsize_t)) then
+        stat = -1
+        exit steps
       end if
-      if (rows == 0 .or. .not. any(stored == self%names(i))) cycle
-      select case (self%widths(i))
-      case (column_real)
-        call h5tbread_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, 8_size_t, reals, stat)
-        numbers(k, :) = reals
-      case (column_integer)
-        call h5tbread_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, &
-                                   int(storage_size(integers)/8, size_t), integers, stat)
-        numbers(k, :) = real(integers, real64)
-      case default
-        ! In the file's width, which a table written by another version may have changed.
-        call read_texts(file, name, trim(self%names(i)), int(stored_sizes(findloc(stored, self%names(i), dim=1))), &
-                        texts(t, :), stat)
-      end select
-      if (stat /= 0) return
-    end do
+      allocate (stored(fields), stored_sizes(fields), stored_offsets(fields))
+      stored = ''
+      call h5tbget_field_info_f(file, name, fields, stored, stored_sizes, stored_offsets, row_size, stat)
+      if (stat /= 0) exit steps
+      allocate (reals(rows), integers(rows))
+      k = 0
+      t = 0
+      do i = 1, size(self%widths)
+        if (self%widths(i) <= 0) then
+          k = k + 1
+        else
+          t = t + 1
+        end if
+        if (rows == 0 .or. .not. any(stored == self%names(i))) cycle
+        select case (self%widths(i))
+        case (column_real)
+          call h5tbread_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, 8_size_t, reals, stat)
+          numbers(k, :) = reals
+        case (column_integer)
+          call h5tbread_field_name_f(file, name, trim(self%names(i)), 0_hsize_t, rows, &
+                                     int(storage_size(integers)/8, size_t), integers, stat)
+          numbers(k, :) = real(integers, real64)
+        case default
+          ! In the file's width, which a table written by another version may have changed.
+          call read_texts(file, name, trim(self%names(i)), int(stored_sizes(findloc(stored, self%names(i), dim=1))), &
+                          texts(t, :), stat)
+        end select
+        if (stat /= 0) exit steps
+      end do
+    end block steps
+    call hdf5_failure(failure, stat, name)
   end subroutine read_table
 
   ! Text column `column` of table `name`, stored `width` characters wide, without its NULs.

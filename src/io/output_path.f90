@@ -5,6 +5,7 @@
 module output_path
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use hdf5, only: h5fis_hdf5_f
+  use failures, only: failure_type, fail, failure_input
   implicit none (type, external)
   private
   public :: check_output_path
@@ -26,42 +27,37 @@ module output_path
 
 contains
 
-  !> stat /= 0 with a message naming the input file, &output file and what is allowed if
-  !> `output_file` must not be written: it is `input_file` itself, a directory or another
-  !> non-regular file, or (unless `replace_allowed`) an existing file that is not HDF5.
-  subroutine check_output_path(output_file, input_file, replace_allowed, stat, message)
+  !> A failure (failure_input) with a message naming the input file, &output file and what is
+  !> allowed if `output_file` must not be written: it is `input_file` itself, a directory or
+  !> another non-regular file, or (unless `replace_allowed`) an existing file that is not HDF5.
+  subroutine check_output_path(output_file, input_file, replace_allowed, failure)
     character(len=*), intent(in) :: output_file, input_file
     logical, intent(in) :: replace_allowed
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: where
     logical :: is_hdf5
     integer :: hdf5_stat
 
-    stat = 0
-    message = ''
     where = input_file//': &output: file = '''//output_file//''''
     select case (c_path_kind(output_file//c_null_char))
     case (path_absent)
       return
     case (path_regular)
       if (c_same_file(output_file//c_null_char, input_file//c_null_char) /= 0) then
-        stat = 1
-        message = where//' is the input file itself; allowed: another path ending in .h5'
+        call fail(failure, failure_input, where//' is the input file itself; allowed: another path ending in .h5', &
+                  input_file)
         return
       end if
       if (replace_allowed) return
       call h5fis_hdf5_f(output_file, is_hdf5, hdf5_stat)
       if (hdf5_stat == 0 .and. is_hdf5) return
-      stat = 1
-      message = where//' exists and is not an HDF5 file, and is kept; allowed: another path, or '// &
-                '&output overwrite = .true. (or -eme_overwrite) to replace it'
+      call fail(failure, failure_input, where//' exists and is not an HDF5 file, and is kept; allowed: another '// &
+                'path, or &output overwrite = .true. (or -eme_overwrite) to replace it', input_file)
     case (path_directory)
-      stat = 1
-      message = where//' is a directory; allowed: the path of a file ending in .h5'
+      call fail(failure, failure_input, where//' is a directory; allowed: the path of a file ending in .h5', input_file)
     case default
-      stat = 1
-      message = where//' exists and is not a regular file; allowed: the path of a file ending in .h5'
+      call fail(failure, failure_input, where//' exists and is not a regular file; allowed: the path of a file '// &
+                'ending in .h5', input_file)
     end select
   end subroutine check_output_path
 

@@ -4,6 +4,7 @@
 module provenance
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
   use hdf5_files, only: hdf5_file
+  use failures, only: failure_type
   use namelist_text, only: lowercase
   use library_versions, only: library_names, library_version
   use build_info, only: code_version
@@ -30,10 +31,10 @@ contains
   !> The provenance attributes of `file`, whose content `title` describes in a line, made by a
   !> program that began at `started` (default: now). The CF `institution` is the environment
   !> variable EME_INSTITUTION ('unknown' without it).
-  subroutine write_provenance(file, title, petsc_options, stat, started)
+  subroutine write_provenance(file, title, petsc_options, failure, started)
     type(hdf5_file), intent(in) :: file
     character(len=*), intent(in) :: title, petsc_options
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=*), intent(in), optional :: started
     character(kind=c_char, len=256) :: host
     character(len=256) :: institution
@@ -49,21 +50,21 @@ contains
     command = command_line()
     call get_environment_variable('EME_INSTITUTION', institution, length, env_stat)
     if (env_stat /= 0 .or. length == 0) institution = 'unknown'
-    call file%set_text('command_line', command, stat)
-    if (stat == 0) call file%set_text('petsc_options', petsc_options, stat)
+    call file%set_text('command_line', command, failure)
+    if (.not. failure%failed()) call file%set_text('petsc_options', petsc_options, failure)
     do i = 2, size(library_names)
-      if (stat == 0) call file%set_text('version_'//lowercase(trim(library_names(i))), &
-                                        library_version(trim(library_names(i))), stat)
+      if (.not. failure%failed()) call file%set_text('version_'//lowercase(trim(library_names(i))), &
+                                        library_version(trim(library_names(i))), failure)
     end do
-    if (stat == 0) call file%set_text('host', host(1:index(host, c_null_char) - 1), stat)
-    if (stat == 0) call file%set_text('start_time', began, stat)
-    if (stat == 0) call file%set_text('Conventions', 'CF-1.8', stat)
-    if (stat == 0) call file%set_text('title', title, stat)
-    if (stat == 0) call file%set_text('institution', trim(institution), stat)
-    if (stat == 0) call file%set_text('source', 'eme '//code_version//' (Fortran and C; PETSc '// &
-                                      library_version('PETSc')//', HDF5 '//library_version('HDF5')//')', stat)
-    if (stat == 0) call file%set_text('history', began//': '//command, stat)
-    if (stat == 0) call file%set_text('references', paper, stat)
+    if (.not. failure%failed()) call file%set_text('host', host(1:index(host, c_null_char) - 1), failure)
+    if (.not. failure%failed()) call file%set_text('start_time', began, failure)
+    if (.not. failure%failed()) call file%set_text('Conventions', 'CF-1.8', failure)
+    if (.not. failure%failed()) call file%set_text('title', title, failure)
+    if (.not. failure%failed()) call file%set_text('institution', trim(institution), failure)
+    if (.not. failure%failed()) call file%set_text('source', 'eme '//code_version//' (Fortran and C; PETSc '// &
+                                      library_version('PETSc')//', HDF5 '//library_version('HDF5')//')', failure)
+    if (.not. failure%failed()) call file%set_text('history', began//': '//command, failure)
+    if (.not. failure%failed()) call file%set_text('references', paper, failure)
   end subroutine write_provenance
 
   !> The program's command line, an argument quoted for a POSIX shell where it needs it.

@@ -27,14 +27,13 @@ module ensemble
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
   use number_text, only: integer_text, fixed_text
-  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, os_error_text
-  use failures, only: failure_type
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
+  use failures, only: failure_type, fail, code_input => failure_input, code_io => failure_io
   implicit none (type, external)
   private
-  public :: run_study, study_outcome, world_rank, line_reporter, study_in_use
+  public :: run_study, study_outcome, world_rank, line_reporter
 
   !> run_study's stat when another study holds the lock of output_dir (the drivers' exit status 2).
-  integer, parameter :: study_in_use = 2
 
   integer, parameter :: tag_request = 1, tag_status = 2, tag_assign = 3
   integer, parameter :: message_length = metric_count + 2    !! case, metrics, leaving
@@ -84,36 +83,33 @@ contains
     call MPI_Comm_rank(MPI_COMM_WORLD, world_rank)
   end function world_rank
 
-  !> Runs every pending case of `study`. Collective over MPI_COMM_WORLD. stat (on every rank):
-  !> study_in_use if another study holds output_dir (nothing is written), 1 if the index could
-  !> not be prepared; failed cases are not errors. Rank 0 hands its start line, progress lines and
+  !> Runs every pending case of `study`. Collective over MPI_COMM_WORLD. A failure (on every
+  !> rank, with rank 0's code): failure_input if another study holds output_dir (nothing is
+  !> written) or output_dir holds cases this study refuses, another code if the index could not
+  !> be prepared; failed cases are not failures. Rank 0 hands its start line, progress lines and
   !> warnings to `report`.
-  subroutine run_study(study, outcome, stat, message, report)
+  subroutine run_study(study, outcome, failure, report)
     type(study_definition), intent(inout), target :: study
     type(study_outcome), intent(out) :: outcome
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     procedure(line_reporter), optional :: report
     type(study_manager) :: manager
     type(output_lock) :: lock                 !! rank 0's: one study at a time in output_dir
+    type(failure_type) :: handlers
     integer :: rank, ranks, flag(1), counts(7)
 
     call MPI_Comm_rank(MPI_COMM_WORLD, rank)
     call MPI_Comm_size(MPI_COMM_WORLD, ranks)
-    call install_interrupt_handlers(stat)
+    call install_interrupt_handlers(handlers)     ! (a study without them still runs)
     if (present(report)) manager%report => report
-    message = ''
     outcome%io_message = ''
-    stat = 0
     outcome%cases = size(study%cases)
-    if (rank == 0) call lock_directory(study, lock, stat, message, report)
-    if (rank == 0 .and. stat == 0) call prepare(manager, study, ranks, stat, message)
-    if (stat /= 0 .and. stat /= study_in_use) stat = 1
-    flag = stat
+    if (rank == 0) call lock_directory(study, lock, failure, report)
+    if (rank == 0 .and. .not. failure%failed()) call prepare(manager, study, ranks, failure)
+    flag = failure%code
     call MPI_Bcast(flag, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
-    stat = flag(1)
-    if (stat /= 0) then
-      if (rank /= 0) message = 'rank 0 could not prepare the study index'
+    if (flag(1) /= 0) then
+      if (rank /= 0) call fail(failure, flag(1), 'rank 0 could not prepare the study index')
       call unlock_output(lock)
       return
     end if
@@ -136,40 +132,39 @@ contains
   end subroutine run_study
 
   ! Takes the lock of the study's output_dir (created if missing), output_dir/study.lock, so that
-  ! a second study there is refused before it writes anything. stat: 0, study_in_use, or an OS
-  ! error number, with a message.
-  subroutine lock_directory(study, lock, stat, message, report)
+  ! a second study there is refused before it writes anything. A failure: failure_input (the
+  ! directory is in use), or the OS's words (the lock file cannot be made).
+  subroutine lock_directory(study, lock, failure, report)
     type(study_definition), intent(in) :: study
     type(output_lock), intent(out) :: lock
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(inout) :: message
+    type(failure_type), intent(out) :: failure
     procedure(line_reporter), optional :: report
-    character(len=:), allocatable :: holder
+    character(len=:), allocatable :: holder, reason
+    integer :: found
 
-    call lock_output(lock, study%output_dir//'/study.lock', stat, holder)
-    if (stat == lock_held_elsewhere) then
+    call lock_output(lock, study%output_dir//'/study.lock', found, holder, failure)
+    if (failure%failed()) then
+      reason = failure%message
+      call fail(failure, code_io, study%input_file//': cannot create the lock file '''//study%output_dir// &
+                '/study.lock'': '//reason, study%input_file)
+    else if (found == lock_held_elsewhere) then
       if (len(holder) == 0) holder = 'another process'
-      message = study%output_dir//' (output_dir of '//study%input_file//') is in use by another study, '//holder// &
-                ', which holds '//study%output_dir//'/study.lock; this study is refused and writes nothing'
-      stat = study_in_use
-    else if (stat == lock_not_offered) then
-      stat = 0
+      call fail(failure, code_input, study%output_dir//' (output_dir of '//study%input_file//') is in use by '// &
+                'another study, '//holder//', which holds '//study%output_dir//'/study.lock; this study is '// &
+                'refused and writes nothing', study%output_dir)
+    else if (found == lock_not_offered) then
       if (present(report)) call report('eme_ensemble: warning: the file system of '//study%output_dir//' offers no '// &
                                        'lock; a second study there at the same time would not be refused')
-    else if (stat /= 0) then
-      message = study%input_file//': cannot create the lock file '''//study%output_dir//'/study.lock'': '// &
-                os_error_text(stat)
     end if
   end subroutine lock_directory
 
   ! ------------------------------------------------------------------ rank 0
 
-  subroutine prepare(manager, study, ranks, stat, message)
+  subroutine prepare(manager, study, ranks, failure)
     type(study_manager), intent(inout) :: manager
     type(study_definition), intent(in), target :: study
     integer, intent(in) :: ranks
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: notes
     integer :: c, i, j, start
     logical, allocatable :: pending(:)
@@ -179,8 +174,8 @@ contains
     manager%started = MPI_Wtime()
     manager%last_progress = manager%started
     manager%io_message = ''
-    call manager%index%open(study, pending, notes, stat, message)
-    if (stat /= 0) return
+    call manager%index%open(study, pending, notes, failure)
+    if (failure%failed()) return
     ! The queue: pending cases, largest planned cost first (stable for equal costs).
     manager%queue = pack([(c, c=1, size(study%cases))], pending)
     do i = 2, size(manager%queue)
@@ -247,9 +242,8 @@ contains
     type(case_result) :: result
     class(time_stepper), allocatable :: integrator
     type(file_template), target :: template     !! the root attributes of the rank's case files
-    character(len=:), allocatable :: message
-    integer :: c, skipped, stat
-    type(failure_type) :: release_failure
+    integer :: c, skipped
+    type(failure_type) :: release_failure, closing
 
     skipped = manager%done
     do
@@ -269,10 +263,10 @@ contains
     outcome%failed = count(manager%index%results%status(1:7) == 'failed:')
     outcome%skipped = skipped
     outcome%wall_seconds = MPI_Wtime() - manager%started
-    call manager%index%close(stat, message)
-    if (stat /= 0) then
-      call index_failed(manager, message)
-      call say(manager, 'eme_ensemble: '//message//'; '//manager%index%journal_path//' holds every result; running '// &
+    call manager%index%close(closing)
+    if (closing%failed()) then
+      call index_failed(manager, closing)
+      call say(manager, 'eme_ensemble: '//closing%message//'; '//manager%index%journal_path//' holds every result; running '// &
                'the study again (with room) rewrites the index')
     end if
     outcome%index_errors = manager%index_errors
@@ -353,14 +347,13 @@ contains
     type(study_manager), intent(inout) :: manager
     integer, intent(in) :: c
     type(case_result), intent(in) :: result
-    character(len=:), allocatable :: message
-    integer :: stat
+    type(failure_type) :: recording
 
     manager%done = manager%done + 1
     if (result%status(1:7) == 'failed:') manager%failed = manager%failed + 1
     manager%done_cost = manager%done_cost + manager%study%cases(c)%cost
-    call manager%index%record(c, result, stat, message)
-    if (stat /= 0) call index_failed(manager, message)
+    call manager%index%record(c, result, recording)
+    if (recording%failed()) call index_failed(manager, recording)
     if (result%failure_kind == failure_io .and. len(manager%io_message) == 0) then
       manager%io_message = 'case '//integer_text(c)//': '//trim(result%status)
       manager%stopping = .true.
@@ -369,13 +362,14 @@ contains
     end if
   end subroutine record
 
-  subroutine index_failed(manager, message)
+  ! The index could not be written: counted, said once, and no new cases start.
+  subroutine index_failed(manager, failure)
     type(study_manager), intent(inout) :: manager
-    character(len=*), intent(in) :: message
+    type(failure_type), intent(in) :: failure
 
     manager%index_errors = manager%index_errors + 1
-    if (len(manager%io_message) == 0) manager%io_message = message
-    if (.not. manager%stopping) call say(manager, 'eme_ensemble: '//message//'; no new cases start')
+    if (len(manager%io_message) == 0) manager%io_message = failure%message
+    if (.not. manager%stopping) call say(manager, 'eme_ensemble: '//failure%message//'; no new cases start')
     manager%stopping = .true.
   end subroutine index_failed
 

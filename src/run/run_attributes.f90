@@ -5,6 +5,7 @@
 module run_attributes
   use, intrinsic :: iso_fortran_env, only: real64
   use hdf5_files, only: hdf5_file
+  use failures, only: failure_type
   use namelist_group, only: group_field, field_real, field_integer, field_logical
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
@@ -22,13 +23,13 @@ contains
 
   !> The integrator, the model's input and the output settings as root attributes of `file`,
   !> under the namelists' names.
-  subroutine write_run_attributes(file, config, entry, model, constraints, stat)
+  subroutine write_run_attributes(file, config, entry, model, constraints, failure)
     type(hdf5_file), intent(in) :: file
     type(run_configuration), intent(in) :: config
     type(integrator_entry), intent(in) :: entry
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=16), allocatable :: groups(:)
     character(len=:), allocatable :: gradient, metric, names, meanings
     integer :: a, g, k
@@ -41,7 +42,6 @@ contains
         metric = trim(metric_names(choice%metric))
         if (choice%metric == metric_nondimensional) metric = metric//': '//trim(model%words%metric_scales)
       end if
-      stat = 0
       call text('scheme', trim(entry%name))
       call text('scheme_family', trim(entry%family))
       call text('scheme_label', trim(entry%label))
@@ -57,24 +57,24 @@ contains
       call real_attribute('newton_tol', choice%newton_tol, '1')
       call real_attribute('tolerance', choice%tolerance, '1')
       call real_attribute('ts_tolerance', choice%tolerance, '1')   ! the old name, for old scripts
-      if (stat == 0) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, stat, units='1')
-      if (stat == 0) call file%set_integer('max_steps', choice%max_steps, stat, units='1')
+      if (.not. failure%failed()) call file%set_integer('newton_max_iterations', choice%newton_max_iterations, failure, units='1')
+      if (.not. failure%failed()) call file%set_integer('max_steps', choice%max_steps, failure, units='1')
     end associate
     call real_attribute('quotient_threshold', quotient_threshold, '1')
-    if (stat == 0) call file%set_integer('unknowns', model%state_size + size(constraints), stat, units='1')
-    if (stat == 0) call file%set_integer('schema_version', schema_version, stat, units='1')
+    if (.not. failure%failed()) call file%set_integer('unknowns', model%state_size + size(constraints), failure, units='1')
+    if (.not. failure%failed()) call file%set_integer('schema_version', schema_version, failure, units='1')
     ! The momentum whose drift run_figures reports (a column of /angular_momentum), 'none' if none.
     if (model%conserved_momentum_column > 0) then
       call text('conserved_momentum', trim(model%momentum_names(model%conserved_momentum_column)))
     else
       call text('conserved_momentum', 'none')
     end if
-    if (stat == 0) call file%set_integer('output_every', config%output_every, stat, units='1')
-    if (stat == 0) call file%set_real('output_interval', config%output_interval, stat, units='s')
-    if (stat == 0) call file%set_integer('compression', config%compression, stat, units='1')
+    if (.not. failure%failed()) call file%set_integer('output_every', config%output_every, failure, units='1')
+    if (.not. failure%failed()) call file%set_real('output_interval', config%output_interval, failure, units='s')
+    if (.not. failure%failed()) call file%set_integer('compression', config%compression, failure, units='1')
     do a = 1, model%subsystem_count()
       associate (part => model%subsystems(a))
-        if (stat == 0) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, stat, &
+        if (.not. failure%failed()) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, failure, &
                                            units='those of the subsystem''s invariants (attribute metric)')
       end associate
     end do
@@ -104,33 +104,33 @@ contains
       integer :: i
 
       do i = 1, size(fields)
-        if (stat /= 0) return
+        if (failure%failed()) return
         select case (fields(i)%kind)
         case (field_real)
           if (associated(fields(i)%real_value)) then
-            call file%set_real(trim(fields(i)%name), fields(i)%real_value, stat, units=trim(fields(i)%units))
+            call file%set_real(trim(fields(i)%name), fields(i)%real_value, failure, units=trim(fields(i)%units))
           else
-            call file%set_reals(trim(fields(i)%name), fields(i)%real_values, stat, units=trim(fields(i)%units))
+            call file%set_reals(trim(fields(i)%name), fields(i)%real_values, failure, units=trim(fields(i)%units))
           end if
         case (field_integer)
-          call file%set_integer(trim(fields(i)%name), fields(i)%integer_value, stat, units='1')
+          call file%set_integer(trim(fields(i)%name), fields(i)%integer_value, failure, units='1')
         case (field_logical)
-          call file%set_integer(trim(fields(i)%name), merge(1, 0, fields(i)%logical_value), stat, units='1')
+          call file%set_integer(trim(fields(i)%name), merge(1, 0, fields(i)%logical_value), failure, units='1')
         case default
-          call file%set_text(trim(fields(i)%name), trim(fields(i)%text_value), stat)
+          call file%set_text(trim(fields(i)%name), trim(fields(i)%text_value), failure)
         end select
       end do
     end subroutine field_attributes
 
     subroutine text(name, value)
       character(len=*), intent(in) :: name, value
-      if (stat == 0) call file%set_text(name, value, stat)
+      if (.not. failure%failed()) call file%set_text(name, value, failure)
     end subroutine text
 
     subroutine real_attribute(name, value, units)
       character(len=*), intent(in) :: name, units
       real(real64), intent(in) :: value
-      if (stat == 0) call file%set_real(name, value, stat, units=units)
+      if (.not. failure%failed()) call file%set_real(name, value, failure, units=units)
     end subroutine real_attribute
   end subroutine write_run_attributes
 

@@ -3,10 +3,9 @@
 !> `failure_kind`), and the figures it is judged by (docs/output.md, docs/studies.md).
 module run_outcome
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use filesystem, only: os_error_text
   implicit none (type, external)
   private
-  public :: run_summary, io_reason, step_failure_kind
+  public :: run_summary, step_failure_kind
   public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
             failure_library, failure_step_budget
 
@@ -46,22 +45,6 @@ module run_outcome
   end type run_summary
 
 contains
-
-  !> An output error (an OS error number, or -1: HDF5 failed; -2: the file did not read back) in
-  !> words.
-  function io_reason(stat) result(text)
-    integer, intent(in) :: stat
-    character(len=:), allocatable :: text
-
-    select case (stat)
-    case (-1)
-      text = 'HDF5 failed'
-    case (-2)
-      text = 'the file did not read back as written'
-    case default
-      text = os_error_text(stat)
-    end select
-  end function io_reason
 
   !> The failure kind of a step the integrator could not take, from its reason (the solver's
   !> "no root" first: its last attempt may name a non-positive temperature it refused).

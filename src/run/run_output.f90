@@ -8,7 +8,7 @@ module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use hdf5_files, only: hdf5_file, check_run_file, file_template
   use hdf5_series, only: series_table
-  use crash_safe_file, only: safe_file, file_in_use
+  use crash_safe_file, only: safe_file
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
@@ -22,7 +22,7 @@ module run_output
                         dataset_description, dataset_units
   use run_attributes, only: write_run_attributes
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
-  use filesystem, only: os_error_text
+  use failures, only: failure_type, fail, code_io => failure_io, failure_mismatch
   implicit none (type, external)
   private
   public :: run_file, extra_attribute, resume_record, read_resume_record
@@ -102,8 +102,8 @@ contains
   !> source = integrator). `petsc_options` are the options in force (the database's text).
   !> Nothing is written to `path` yet. With `template` (a study rank's, kept from case to case),
   !> the root attributes start from those of the first file made with it, and only those that
-  !> differ are written (src/io/hdf5_files, file_template). stat = -1 if HDF5 failed.
-  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, stat, template)
+  !> differ are written (src/io/hdf5_files, file_template). A failure if HDF5 failed.
+  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, failure, template)
     class(run_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(run_configuration), intent(in), target :: config
@@ -113,12 +113,12 @@ contains
     type(step_diagnostic), intent(in) :: diagnostics(:)
     type(extra_attribute), intent(in) :: extras(:)
     character(len=*), intent(in) :: petsc_options
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     type(file_template), intent(inout), target, optional :: template
     type(output_dataset) :: spec
     integer :: k
 
-    call self%store%start(path, 2, stat, template)
+    call self%store%start(path, 2, failure, template)
     self%enabled = .true.
     self%every = config%output_every
     self%thermal = model%temperature_count() > 0
@@ -127,17 +127,18 @@ contains
     self%store%tables(step_rows)%compression = config%compression
     self%store%tables(point_rows)%scale = .true.
     self%store%tables(step_rows)%scale = .true.
-    if (stat == 0) call write_run_attributes(self%store%file, config, entry, model, constraints, stat)
-    if (stat == 0) call write_provenance(self%store%file, 'EME run of '//config%input_file//': '//trim(entry%label)//', '// &
+    if (.not. failure%failed()) call write_run_attributes(self%store%file, config, entry, model, constraints, failure)
+    if (.not. failure%failed()) call write_provenance(self%store%file, 'EME run of '//config%input_file//': '// &
+                                         trim(entry%label)//', '// &
                                          trim(thermo_variable_names(config%integrator%thermo_variable)), &
-                                         petsc_options, stat)
-    if (stat == 0) call self%store%file%set_text('namelist', namelist_of_run(config), stat)
+                                         petsc_options, failure)
+    if (.not. failure%failed()) call self%store%file%set_text('namelist', namelist_of_run(config), failure)
     do k = 1, size(extras)
-      if (stat /= 0) exit
+      if (failure%failed()) exit
       if (allocated(extras(k)%text)) then
-        call self%store%file%set_text(trim(extras(k)%name), extras(k)%text, stat)
+        call self%store%file%set_text(trim(extras(k)%name), extras(k)%text, failure)
       else
-        call self%store%file%set_integer(trim(extras(k)%name), extras(k)%number, stat, units='1')
+        call self%store%file%set_integer(trim(extras(k)%name), extras(k)%number, failure, units='1')
       end if
     end do
     do k = 1, size(output_schema)
@@ -191,25 +192,24 @@ contains
 
   !> The solver the integrator used (after its `start`): each setting as a root attribute
   !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
-  subroutine record_solver(self, report, stat)
+  subroutine record_solver(self, report, failure)
     class(run_file), intent(inout) :: self
     type(solver_report), intent(in) :: report
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer :: k
-
-    stat = 0
     if (.not. self%enabled) return
     do k = 1, size(report%settings)
       associate (item => report%settings(k))
         if (allocated(item%text)) then
-          call self%store%file%set_text('solver_'//trim(item%name), item%text, stat)
+          call self%store%file%set_text('solver_'//trim(item%name), item%text, failure)
         else if (item%integer_valued) then
-          call self%store%file%set_integer('solver_'//trim(item%name), nint(item%value), stat, units=trim(item%units))
+          call self%store%file%set_integer('solver_'//trim(item%name), nint(item%value), failure, &
+                                           units=trim(item%units))
         else
-          call self%store%file%set_real('solver_'//trim(item%name), item%value, stat, units=trim(item%units))
+          call self%store%file%set_real('solver_'//trim(item%name), item%value, failure, units=trim(item%units))
         end if
       end associate
-      if (stat /= 0) return
+      if (failure%failed()) return
     end do
     call self%store%tables(step_rows)%set_flags('converged_reason', report%reason_codes, report%reason_names)
   end subroutine record_solver
@@ -316,57 +316,55 @@ contains
 
   !> Writes the buffered rows and the run's attributes so far (`summary`, status 'incomplete:
   !> running'): the first time the whole file, later in a window that appends them; a window
-  !> whose spare a reader holds open waits for a later step, until the buffer is full. stat: 0,
-  !> an OS error number (nothing new reached the file; it holds what it held), or -1 (HDF5).
-  subroutine write_rows(self, summary, stat)
+  !> whose spare a reader holds open waits for a later step, until the buffer is full. A failure:
+  !> the OS's words (nothing new reached the file; it holds what it held), or HDF5's.
+  subroutine write_rows(self, summary, failure)
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
-    integer, intent(out) :: stat
-
-    stat = 0
+    type(failure_type), intent(out) :: failure
     if (.not. self%enabled) return
-    call write_file(self, summary%status, summary, .false., stat)
+    call write_file(self, summary%status, summary, .false., failure)
   end subroutine write_rows
 
   !> Writes what is buffered and the final attributes: status, failure_kind, steps_planned,
   !> steps_completed (the step rows in the file), the summary's figures and times. The file is
   !> then closed and synced (unless not durable) and checked: a file written whole from memory by
   !> its size on disk, one grown in windows by reading it back (every dataset's length against
-  !> steps_completed, and the status). stat: 0, an OS error number, -1 (HDF5) or -2 (the disk
-  !> does not hold what was written).
+  !> steps_completed, and the status). A failure: the OS's words (failure_io), HDF5's, or
+  !> failure_mismatch (the disk does not hold what was written).
   !> If the rows cannot be written for want of space, the file keeps the rows of its last
   !> window, and its status says why if that much can still be written.
-  subroutine finish(self, summary, stat)
+  subroutine finish(self, summary, failure)
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     type(run_summary) :: stopped
     character(len=:), allocatable :: status_read
-    integer :: steps_read, check_stat, ignored
+    integer :: steps_read
+    type(failure_type) :: check, ignored
     logical :: whole
-
-    stat = 0
     if (.not. self%enabled) return
     if (self%store%tables(step_rows)%pending_count > 0) call commit_rows(self)
     whole = .not. self%store%on_disk
     ! An incomplete run may be continued: its datasets must be able to grow.
     self%store%extendible = summary%status /= 'complete'
 
-    call write_file(self, summary%status, summary, .true., stat)
+    call write_file(self, summary%status, summary, .true., failure)
     if (whole) return                   ! written whole from memory: store checked every byte
-    if (stat > 0) then
+    if (failure%code == code_io) then
       ! No room for the rows: keep those of the last window, and say why in the status.
       stopped = summary
       stopped%failure_kind = failure_io
-      call self%store%open_in_place(check_stat)
-      if (check_stat == 0) call summary_attributes(self, 'incomplete: cannot write the output file: '// &
-                                                   os_error_text(stat), stopped, check_stat, final=.true.)
+      call self%store%open_in_place(check)
+      if (.not. check%failed()) call summary_attributes(self, 'incomplete: cannot write the output file: '// &
+                                                        failure%message, stopped, check, final=.true.)
       call self%store%file%close(ignored)
       return
     end if
-    if (stat /= 0) return
-    call check_run_file(self%store%path, status_read, steps_read, check_stat)
-    if (check_stat /= 0 .or. status_read /= summary%status .or. steps_read /= self%disk_steps) stat = -2
+    if (failure%failed()) return
+    call check_run_file(self%store%path, status_read, steps_read, check)
+    if (check%failed() .or. status_read /= summary%status .or. steps_read /= self%disk_steps) &
+      call fail(failure, failure_mismatch, 'the file did not read back as written', self%store%path)
   end subroutine finish
 
   !> Notes the state after step n when record_point has just completed a row with it (call it after
@@ -410,15 +408,13 @@ contains
 
   !> Goes on with the file that record came from, now at this file's path (a copy of it): the file
   !> made by `create` in memory is dropped, and the next write appends the rows after record's to
-  !> the file's. stat: 0, an OS error number, or -1 (HDF5).
-  subroutine continue_file(self, record, stat)
+  !> the file's. A failure: the OS's words or HDF5's.
+  subroutine continue_file(self, record, failure)
     class(run_file), intent(inout) :: self
     type(resume_record), intent(in) :: record
-    integer, intent(out) :: stat
-
-    stat = 0
+    type(failure_type), intent(out) :: failure
     if (.not. self%enabled) return
-    call self%store%resume_from([record%point_rows, record%step_rows], stat)
+    call self%store%resume_from([record%point_rows, record%step_rows], failure)
     self%last_step = record%step
     self%committed_steps = record%step
     self%disk_steps = record%step
@@ -430,40 +426,40 @@ contains
   end subroutine continue_file
 
   !> Reads the resume record of the run file `path` with its status and the effective namelist it
-  !> was run with; record%held is .false. if it has none. stat /= 0 if the file cannot be read.
-  subroutine read_resume_record(path, record, status, namelist_text, stat)
+  !> was run with; record%held is .false. if it has none. failure%failed() if the file cannot be read.
+  subroutine read_resume_record(path, record, status, namelist_text, failure)
     character(len=*), intent(in) :: path
     type(resume_record), intent(out) :: record
     character(len=:), allocatable, intent(out) :: status, namelist_text
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     type(hdf5_file) :: file
     real(real64), allocatable :: numbers(:)
     character(len=:), allocatable :: kind
-    integer :: ignored, read_stat
+    type(failure_type) :: ignored, reading
 
     status = ''
     namelist_text = ''
-    call file%open_existing(path, .false., stat)
-    if (stat /= 0) return
-    call file%get_text('status', status, stat)
-    if (stat == 0) call file%get_text('namelist', namelist_text, stat)
-    if (stat /= 0) then
+    call file%open_existing(path, .false., failure)
+    if (failure%failed()) return
+    call file%get_text('status', status, failure)
+    if (.not. failure%failed()) call file%get_text('namelist', namelist_text, failure)
+    if (failure%failed()) then
       call file%close(ignored)
       return
     end if
-    call file%get_text('failure_kind', kind, read_stat)
-    if (read_stat /= 0) kind = ''
+    call file%get_text('failure_kind', kind, reading)
+    if (reading%failed()) kind = ''
     record%stopped_early = status == 'incomplete: running' .or. kind == failure_interrupted .or. &
                            kind == failure_step_budget .or. kind == failure_io
-    call file%get_text('history', record%history, read_stat)
-    if (read_stat /= 0) record%history = ''
-    call file%get_reals('resume_numbers', numbers, ignored)
-    if (ignored == 0 .and. size(numbers) == 16) then
-      call file%get_reals('resume_x', record%x, stat)
-      if (stat == 0) call file%get_reals('resume_x_previous', record%x_previous, stat)
-      call file%get_reals('resume_integrator', record%integrator_state, read_stat)
-      if (read_stat /= 0) record%integrator_state = [real(real64) ::]
-      record%held = stat == 0
+    call file%get_text('history', record%history, reading)
+    if (reading%failed()) record%history = ''
+    call file%get_reals('resume_numbers', numbers, reading)
+    if (.not. reading%failed() .and. size(numbers) == 16) then
+      call file%get_reals('resume_x', record%x, failure)
+      if (.not. failure%failed()) call file%get_reals('resume_x_previous', record%x_previous, failure)
+      call file%get_reals('resume_integrator', record%integrator_state, reading)
+      if (reading%failed()) record%integrator_state = [real(real64) ::]
+      record%held = .not. failure%failed()
       record%step = nint(numbers(1), int64)
       record%time = numbers(2)
       record%outputs_passed = nint(numbers(3))
@@ -485,10 +481,10 @@ contains
   end subroutine read_resume_record
 
   ! The resume record as root attributes (read_resume_record reads them).
-  subroutine resume_attributes(record, file, stat, with_units)
+  subroutine resume_attributes(record, file, failure, with_units)
     type(resume_record), intent(in) :: record
     type(hdf5_file), intent(inout) :: file
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     logical, intent(in) :: with_units     !! the texts too (the first and the last write)
 
     call file%set_reals('resume_numbers', [real(record%step, real64), record%time, real(record%outputs_passed, real64), &
@@ -497,50 +493,51 @@ contains
                         record%summary%energy_drift, record%summary%min_entropy_increment, &
                         record%summary%max_lyapunov_increment, record%summary%angular_momentum_drift, &
                         record%summary%min_temperature, real(record%summary%halved_steps, real64), &
-                        real(record%summary%rejected_steps, real64)], stat)
-    if (stat == 0) call file%set_reals('resume_x', record%x, stat)
-    if (stat == 0) call file%set_reals('resume_x_previous', record%x_previous, stat)
-    if (stat == 0 .and. size(record%integrator_state) > 0) &
-      call file%set_reals('resume_integrator', record%integrator_state, stat)
-    if (stat /= 0 .or. .not. with_units) return
+                        real(record%summary%rejected_steps, real64)], failure)
+    if (.not. failure%failed()) call file%set_reals('resume_x', record%x, failure)
+    if (.not. failure%failed()) call file%set_reals('resume_x_previous', record%x_previous, failure)
+    if (.not. failure%failed() .and. size(record%integrator_state) > 0) &
+      call file%set_reals('resume_integrator', record%integrator_state, failure)
+    if (failure%failed() .or. .not. with_units) return
     ! The units, entry by entry for resume_numbers; the vectors carry the units of their entries.
     call file%set_texts('resume_numbers_units', [character(len=3) :: '1', 's', '1', 'J', 'J s', 'J', '1', '1', '1', &
-                                                 '1', 'J/K', 'J', 'J s', 'K', '1', '1'], stat)
-    if (stat == 0) call file%set_text('resume_x_units', 'the units of /state''s columns, then the multipliers''', stat)
-    if (stat == 0) call file%set_text('resume_x_previous_units', 'as resume_x', stat)
-    if (stat == 0 .and. size(record%integrator_state) > 0) &
-      call file%set_text('resume_integrator_units', 'mixed: the integrator''s own state (docs/faults.md)', stat)
+                                                 '1', 'J/K', 'J', 'J s', 'K', '1', '1'], failure)
+    if (.not. failure%failed()) call file%set_text('resume_x_units', &
+                                                   'the units of /state''s columns, then the multipliers''', failure)
+    if (.not. failure%failed()) call file%set_text('resume_x_previous_units', 'as resume_x', failure)
+    if (.not. failure%failed() .and. size(record%integrator_state) > 0) &
+      call file%set_text('resume_integrator_units', 'mixed: the integrator''s own state (docs/faults.md)', failure)
   end subroutine resume_attributes
 
   ! One write of the file: the buffered rows, then the attributes of the outcome so far (all of
   ! them the first time and at the end, else the numbers, written in place). After a failed
   ! window the counts of the steps on disk are those the file still holds.
-  subroutine write_file(self, status, summary, final, stat)
+  subroutine write_file(self, status, summary, final, failure)
     type(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
     type(run_summary), intent(in) :: summary
     logical, intent(in) :: final
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     integer(int64) :: steps_before, newton_before
-    logical :: whole
+    logical :: whole, deferred
 
     steps_before = self%disk_steps
     newton_before = self%disk_newton
     whole = .not. self%store%on_disk
-    call self%store%begin_rows(final, stat, defer=.not. (final .or. self%store%buffers_full()))
-    if (stat == file_in_use .and. .not. final) then    ! tried again 50 ms later
-      stat = 0
+    call self%store%begin_rows(final, failure, defer=.not. (final .or. self%store%buffers_full()), deferred=deferred)
+    if (deferred .and. .not. final) then    ! tried again 50 ms later
       return
     end if
-    if (stat == 0) call rows_on_disk(self)
-    if (stat == 0) call summary_attributes(self, status, summary, stat, numbers_only=.not. (whole .or. final), &
-                                           final=final)
-    if (stat == 0 .and. self%resume%held) call resume_attributes(self%resume, self%store%file, stat, &
+    if (.not. failure%failed()) call rows_on_disk(self)
+    if (.not. failure%failed()) call summary_attributes(self, status, summary, failure, &
+                                                        numbers_only=.not. (whole .or. final), final=final)
+    if (.not. failure%failed() .and. self%resume%held) call resume_attributes(self%resume, self%store%file, failure, &
                                                                  with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)
-    if (stat == 0 .and. allocated(self%history)) call self%store%file%set_text('history', self%history, stat)
-    call self%store%end_rows(stat)
-    if (stat /= 0 .and. .not. whole) then       ! a failed window leaves the file as it was
+    if (.not. failure%failed() .and. allocated(self%history)) &
+      call self%store%file%set_text('history', self%history, failure)
+    call self%store%end_rows(failure)
+    if (failure%failed() .and. .not. whole) then       ! a failed window leaves the file as it was
       self%disk_steps = steps_before
       self%disk_newton = newton_before
     end if
@@ -550,35 +547,35 @@ contains
   ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
   ! steps; `final` adds end_time. numbers_only: the texts (status, failure_kind) are as the file
   ! holds them, and numbers are written in place.
-  subroutine summary_attributes(self, status, summary, stat, numbers_only, final)
+  subroutine summary_attributes(self, status, summary, failure, numbers_only, final)
     type(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
     type(run_summary), intent(in) :: summary
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     logical, intent(in), optional :: numbers_only, final
     logical :: units, texts
-
-    stat = 0
     units = self%store%file%fresh         ! the units attributes go with the first write
     texts = .true.
     if (present(numbers_only)) texts = .not. numbers_only
     if (texts) then
-      call self%store%file%set_text('status', status, stat)
-      if (stat == 0) call self%store%file%set_text('failure_kind', summary%failure_kind, stat)
+      call self%store%file%set_text('status', status, failure)
+      if (.not. failure%failed()) call self%store%file%set_text('failure_kind', summary%failure_kind, failure)
     end if
     if (present(final)) then
-      if (stat == 0 .and. final) call self%store%file%set_text('end_time', iso_time(), stat)
+      if (.not. failure%failed() .and. final) call self%store%file%set_text('end_time', iso_time(), failure)
     end if
     call number('steps_planned', real(summary%steps_planned, real64), '1', .true.)
     call number('steps_completed', real(self%disk_steps, real64), '1', .true.)
     call number('step_rows', real(self%store%tables(step_rows)%written, real64), '1', .true.)
     call number('newton_iterations_total', real(self%disk_newton, real64), '1', .true.)
-    if (stat == 0) call self%store%file%set_reals('run_figures', [summary%energy_drift, summary%min_entropy_increment, &
+    if (.not. failure%failed()) call self%store%file%set_reals('run_figures', [summary%energy_drift, &
+                                           summary%min_entropy_increment, &
                                            summary%max_lyapunov_increment, summary%angular_momentum_drift, &
                                            summary%min_temperature, real(summary%halved_steps, real64), &
-                                           real(summary%rejected_steps, real64)], stat)
-    if (stat == 0 .and. units) call self%store%file%set_texts('run_figures_units', &
-                                                        [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], stat)
+                                           real(summary%rejected_steps, real64)], failure)
+    if (.not. failure%failed() .and. units) call self%store%file%set_texts('run_figures_units', &
+                                                        [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], &
+                                                        failure)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
     self%store%file%fresh = .false.
@@ -590,15 +587,15 @@ contains
       real(real64), intent(in) :: value
       logical, intent(in) :: integer_valued
 
-      if (stat /= 0) return
+      if (failure%failed()) return
       ! A count beyond the default integer's range (Newton iterations of a billion steps) is
       ! written as a double, which holds it exactly.
       if (integer_valued .and. abs(value) < real(huge(1), real64)) then
-        if (units) call self%store%file%set_integer(name, nint(value), stat, units=unit)
-        if (.not. units) call self%store%file%set_integer(name, nint(value), stat)
+        if (units) call self%store%file%set_integer(name, nint(value), failure, units=unit)
+        if (.not. units) call self%store%file%set_integer(name, nint(value), failure)
       else
-        if (units) call self%store%file%set_real(name, value, stat, units=unit)
-        if (.not. units) call self%store%file%set_real(name, value, stat)
+        if (units) call self%store%file%set_real(name, value, failure, units=unit)
+        if (.not. units) call self%store%file%set_real(name, value, failure)
       end if
     end subroutine number
   end subroutine summary_attributes

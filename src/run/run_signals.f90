@@ -4,6 +4,7 @@
 !> exit with 128 + the signal number, as a shell reports a process killed by it.
 module run_signals
   use, intrinsic :: iso_c_binding, only: c_int
+  use failures, only: failure_type, fail_on_code
   implicit none (type, external)
   private
   public :: install_interrupt_handlers, interrupting_signal, signal_name
@@ -27,11 +28,12 @@ module run_signals
 contains
 
   !> Catches SIGTERM and SIGINT from now on (call after PetscInitialize, which may install
-  !> handlers of its own); stat /= 0 if the OS refused.
-  subroutine install_interrupt_handlers(stat)
-    integer, intent(out) :: stat
+  !> handlers of its own); a failure (failure_library, the C shim's code) if the OS refused.
+  subroutine install_interrupt_handlers(failure)
+    type(failure_type), intent(out) :: failure
 
-    stat = int(c_install_interrupt_handlers())
+    call fail_on_code(failure, int(c_install_interrupt_handlers()), 'install_interrupt_handlers', &
+                      'the OS refused a handler for SIGTERM or SIGINT')
   end subroutine install_interrupt_handlers
 
   !> The signal number of the first SIGTERM or SIGINT caught, or 0.

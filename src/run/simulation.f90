@@ -19,14 +19,14 @@ module simulation
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
-  use run_outcome, only: run_summary, io_reason, step_failure_kind, failure_none, failure_solver, failure_domain, &
+  use run_outcome, only: run_summary, step_failure_kind, failure_none, failure_solver, failure_domain, &
                          failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
   use hdf5_files, only: check_run_file, file_template
   use output_path, only: check_output_path
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, os_error_text, copy_file
+  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file
   use number_text, only: integer_text, fixed_text
   use effective_namelist, only: namelist_of_run
   use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
@@ -105,16 +105,9 @@ contains
     logical, intent(in), optional :: durable
     type(file_template), intent(inout), target, optional :: template
     logical, intent(in), optional :: resume_if_possible
-    integer :: stat
-    character(len=:), allocatable :: message
 
-    call simulate(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, template, &
+    call simulate(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, template, &
                   resume_if_possible)
-    if (stat /= 0) then
-      call set_failure(failure, failure_code_of(summary%failure_kind), message, config%input_file)
-    else
-      summary%note = message
-    end if
   end subroutine run_simulation
 
   ! The failures' code of a run's failure kind (a word of run_outcome).
@@ -133,14 +126,14 @@ contains
     end select
   end function failure_code_of
 
-  ! run_simulation's time loop; stat /= 0 with `message` for a failure that is not the method's
-  ! (the time loop's many exits set them as they go), a message with stat = 0 is a note.
-  subroutine simulate(config, summary, stat, message, observer, reusable, progress, keep_file, extras, durable, &
+  ! run_simulation's time loop: a failure that is not the method's (the time loop's many exits
+  ! set it as they go, its code from the failure kind, its origin the input file); summary%note
+  ! says what the driver adds to a run without one.
+  subroutine simulate(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, &
                       template, resume_if_possible)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     class(run_observer), intent(inout), optional :: observer
     class(time_stepper), allocatable, intent(inout), target, optional :: reusable
     procedure(line_reporter), optional :: progress
@@ -166,16 +159,15 @@ contains
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
     integer(int64) :: n             !! steps taken (accepted)
-    integer :: k, n_state, io_stat, ierr, signal
-    type(failure_type) :: step_failure, release_failure
+    integer :: k, n_state, signal
+    type(failure_type) :: step_failure, release_failure, io_failure
     logical :: found, finished, writing, replace, chooses_time, row_due, continuing
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
     clock_progress = clock_start
     clock_loop = clock_start
-    message = ''
-    stat = 0
+    summary%note = ''
     summary%status = 'incomplete: running'
     summary%failure_kind = failure_none
     summary%steps_planned = step_count(config%integrator)
@@ -186,13 +178,11 @@ contains
     writing = .true.
     if (present(keep_file)) writing = keep_file
     part = config%output_file//'.part'
-    call install_interrupt_handlers(ierr)
+    call install_interrupt_handlers(io_failure)     ! (a run without them still runs)
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, step_failure)
     if (step_failure%failed()) then
-      stat = 1
-      message = config%input_file//': '//step_failure%message
-      summary%failure_kind = failure_input
+      call fail(failure_input, config%input_file//': '//step_failure%message)
       return
     end if
     continuing = .false.
@@ -205,29 +195,26 @@ contains
     end if
     if (continuing) then
       call find_resume_record()
-      if (stat /= 0 .and. present(resume_if_possible)) then
+      if (failure%failed() .and. present(resume_if_possible)) then
         ! Nothing to continue from: the run starts from t = 0, as it would have.
-        stat = 0
-        message = ''
+        failure = failure_type()
         summary%failure_kind = failure_none
         continuing = .false.
       end if
-      if (stat /= 0) return
+      if (failure%failed()) return
     end if
     if (writing .and. .not. continuing) then
       replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
       if (config%overwrite) replace = .true.
-      call check_output_path(config%output_file, config%input_file, replace, stat, message)
-      if (stat /= 0) then
-        summary%failure_kind = failure_input
+      call check_output_path(config%output_file, config%input_file, replace, io_failure)
+      if (io_failure%failed()) then
+        call fail(failure_input, io_failure%message)
         return
       end if
-      call make_parent_directories(config%output_file, stat)
-      if (stat /= 0) then
-        ierr = stat
-        stat = 0
+      call make_parent_directories(config%output_file, io_failure)
+      if (io_failure%failed()) then
         call fail(failure_io, 'cannot create the directory of the output file '''//config%output_file//''' (' &
-                  //config%input_file//', &output: file): '//os_error_text(ierr))
+                  //config%input_file//', &output: file): '//io_failure%message)
         return
       end if
       if (.not. replace) replace = .not. holds_complete_run(config%output_file)
@@ -281,30 +268,30 @@ contains
       if (present(durable)) output%store%durable = durable
       if (continuing) then      ! the file exists: nothing of it comes from a template
         call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                           petsc_options_in_force(), io_stat)
+                           petsc_options_in_force(), io_failure)
       else
         call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                           petsc_options_in_force(), io_stat, template)
+                           petsc_options_in_force(), io_failure, template)
       end if
-      if (io_stat /= 0) then
-        stat = 0
+      if (io_failure%failed()) then
+        failure = failure_type()
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
         if (.not. present(reusable)) call integrator%release(release_failure)
         return
       end if
     end if
-    call output%record_solver(integrator%describe_solver(), ierr)
-    if (ierr /= 0) then
+    call output%record_solver(integrator%describe_solver(), io_failure)
+    if (io_failure%failed()) then
       call fail(failure_library, 'HDF5 could not record the solver in '''//part//''' ('//config%input_file//')')
       if (.not. present(reusable)) call integrator%release(release_failure)
       return
     end if
 
     if (continuing) then
-      call output%continue_file(resume, io_stat)
-      if (io_stat /= 0) then
+      call output%continue_file(resume, io_failure)
+      if (io_failure%failed()) then
         call fail(failure_io, "cannot continue the output file '"//part//"' ("//config%input_file//'): ' &
-                  //io_reason(io_stat))
+                  //io_failure%message)
         if (.not. present(reusable)) call integrator%release(release_failure)
         return
       end if
@@ -410,11 +397,11 @@ contains
                                     integrator)
       if (output%write_due()) then
         call set_times(.true.)
-        call output%write_rows(summary, io_stat)
-        if (io_stat /= 0) then
-          summary%status = 'incomplete: cannot write the output file: '//io_reason(io_stat)
+        call output%write_rows(summary, io_failure)
+        if (io_failure%failed()) then
+          summary%status = 'incomplete: cannot write the output file: '//io_failure%message
           call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): ' &
-                    //io_reason(io_stat))
+                    //io_failure%message)
           exit
         end if
       end if
@@ -455,16 +442,16 @@ contains
     subroutine find_resume_record()
       type(resume_record) :: candidate
       character(len=:), allocatable :: status, stored, source, where
-      integer :: read_stat, copy_stat
+      type(failure_type) :: reading, copying
       logical :: complete, any_file, beyond
 
       where = ' ('//config%input_file//', -eme_continue)'
       source = ''
       complete = .false.
       if (file_exists(config%output_file)) then
-        call read_resume_record(config%output_file, candidate, status, stored, read_stat)
-        complete = read_stat == 0 .and. status == 'complete'
-        if (read_stat == 0 .and. candidate%held .and. candidate%stopped_early) then
+        call read_resume_record(config%output_file, candidate, status, stored, reading)
+        complete = .not. reading%failed() .and. status == 'complete'
+        if (.not. reading%failed() .and. candidate%held .and. candidate%stopped_early) then
           resume = candidate
           source = config%output_file
         end if
@@ -475,8 +462,8 @@ contains
         return
       end if
       if (file_exists(part)) then
-        call read_resume_record(part, candidate, status, stored, read_stat)
-        if (read_stat == 0 .and. candidate%held .and. candidate%stopped_early) then
+        call read_resume_record(part, candidate, status, stored, reading)
+        if (.not. reading%failed() .and. candidate%held .and. candidate%stopped_early) then
           if (len(source) == 0) then
             resume = candidate
             source = part
@@ -499,7 +486,7 @@ contains
         end if
         return
       end if
-      call read_resume_record(source, candidate, status, stored, read_stat)
+      call read_resume_record(source, candidate, status, stored, reading)
       if (len(first_difference(stored, namelist_of_run(config))) > 0) then
         call fail(failure_input, source//': its input differs from '//config%input_file//': '// &
                   first_difference(stored, namelist_of_run(config))//where//'; allowed: the same input, with '// &
@@ -519,10 +506,10 @@ contains
         return
       end if
       if (source /= part) then
-        call copy_file(source, part, copy_stat)
-        if (copy_stat /= 0) then
+        call copy_file(source, part, copying)
+        if (copying%failed()) then
           call fail(failure_io, "cannot copy '"//source//"' to '"//part//"' ("//config%input_file//'): '// &
-                    os_error_text(copy_stat))
+                    copying%message)
           return
         end if
       end if
@@ -556,9 +543,8 @@ contains
     subroutine fail(kind, text)
       character(len=*), intent(in) :: kind, text
 
-      if (stat /= 0) return
-      stat = 1
-      message = text
+      if (failure%failed()) return
+      call set_failure(failure, failure_code_of(kind), text, config%input_file)
       summary%failure_kind = kind
     end subroutine fail
 
@@ -626,35 +612,36 @@ contains
     ! Writes the file's last rows and final attributes, reads it back, and gives it its final
     ! name; an incomplete run does not take the name of a complete one.
     subroutine close_output()
-      integer :: finish_stat, rename_stat
+      type(failure_type) :: finishing, renaming
       character(len=:), allocatable :: kept
 
       if (.not. writing) return
       call set_times(.false.)
-      call output%finish(summary, finish_stat)
-      if (finish_stat /= 0) then
-        summary%status = 'incomplete: cannot write the output file: '//io_reason(finish_stat)
+      call output%finish(summary, finishing)
+      if (finishing%failed()) then
+        summary%status = 'incomplete: cannot write the output file: '//finishing%message
         if (output%store%on_disk) then
           kept = '; '//part//' keeps the '//integer_text(output%disk_steps)//' steps written before'
         else
           kept = '; nothing was kept'
         end if
-        stat = 0
+        failure = failure_type()
         call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): ' &
-                  //io_reason(finish_stat)//kept)
+                  //finishing%message//kept)
         return
       end if
       replace = summary%status == 'complete'
       if (.not. replace) replace = .not. holds_complete_run(config%output_file)
       if (.not. replace) then
-        if (stat == 0) message = config%output_file//' keeps the earlier complete run; this run''s file is '//part
+        if (.not. failure%failed()) summary%note = config%output_file//' keeps the earlier complete run; this run''s '// &
+                                                   'file is '//part
         return
       end if
-      call rename_file(part, config%output_file, rename_stat, sync=output%store%durable)
-      if (rename_stat /= 0) then
-        stat = 0
+      call rename_file(part, config%output_file, renaming, sync=output%store%durable)
+      if (renaming%failed()) then
+        failure = failure_type()
         call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file//''' ('//config%input_file &
-                  //'): '//os_error_text(rename_stat))
+                  //'): '//renaming%message)
       end if
     end subroutine close_output
 
@@ -757,12 +744,13 @@ contains
   logical function holds_complete_run(path)
     character(len=*), intent(in) :: path
     character(len=:), allocatable :: status
-    integer :: steps, stat
+    integer :: steps
+    type(failure_type) :: checking
 
     holds_complete_run = .false.
     if (.not. file_exists(path)) return
-    call check_run_file(path, status, steps, stat)
-    holds_complete_run = stat == 0 .and. status == 'complete'
+    call check_run_file(path, status, steps, checking)
+    holds_complete_run = .not. checking%failed() .and. status == 'complete'
   end function holds_complete_run
 
 end module simulation

@@ -17,53 +17,56 @@ module structure_file
   use provenance, only: write_provenance
   use run_options, only: petsc_options_in_force
   use namelist_text, only: joined
-  use failures, only: failure_type
+  use failures, only: failure_type, fail, failure_input, failure_library
   implicit none (type, external)
   private
   public :: write_structure_file
 
 contains
 
-  !> Writes the structure of `config`'s scene at its initial state to `path`. stat /= 0 with a
-  !> message if the scene cannot be built, its partials are undefined or HDF5 fails.
-  subroutine write_structure_file(config, path, stat, message)
+  !> Writes the structure of `config`'s scene at its initial state to `path`. A failure if the
+  !> scene cannot be built (its own), its partials are undefined (failure_input) or HDF5 fails
+  !> (failure_library, `path` as origin).
+  subroutine write_structure_file(config, path, failure)
     type(run_configuration), intent(in) :: config
     character(len=*), intent(in) :: path
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     class(generic_model), allocatable :: model
     type(constraint_slot), allocatable :: constraints(:)
     real(real64), allocatable :: z0(:), partials(:, :, :)
     integer(hid_t) :: file, group
     type(hdf5_file) :: root
-    integer :: variable, n, close_stat
-    type(failure_type) :: failure
+    integer :: variable, n, close_stat, stat
+    type(failure_type) :: step
     character(len=:), allocatable :: columns
 
     call h5open_f(stat)
     if (stat == 0) call h5fcreate_f(path, H5F_ACC_TRUNC_F, file, stat)
     if (stat /= 0) then
-      message = 'HDF5 cannot create '//path
+      call fail(failure, failure_library, 'HDF5 cannot create '//path, path)
       return
     end if
     root%id = file
     root%fresh = .true.
     call write_provenance(root, 'GENERIC structure (L, K of eq. (8)) of '//config%input_file//' at its initial '// &
-                          'state, for each thermodynamic variable', petsc_options_in_force(), stat)
-    if (stat == 0) call root%set_text('input_file', config%input_file, stat)
+                          'state, for each thermodynamic variable', petsc_options_in_force(), step)
+    if (.not. step%failed()) call root%set_text('input_file', config%input_file, step)
+    if (step%failed()) stat = -1
     do variable = tau_entropy, tau_internal_energy
       if (stat /= 0) exit
-      call config%scene%build(variable, model, z0, constraints, failure)
-      if (failure%failed()) then
-        stat = failure%code
-        message = failure%message
+      call config%scene%build(variable, model, z0, constraints, step)
+      if (step%failed()) then
+        ! The scene's own words, as the driver printed them before (no origin added).
+        call fail(failure, step%code, step%message)
+        stat = step%code
         exit
       end if
       n = model%state_size
       allocate (partials(model%max_invariants, 2, model%subsystem_count()))
       call model%exact_partials(z0, partials, stat=stat)
       if (stat /= 0) then
-        message = config%input_file//': the initial state is outside the model''s domain'
+        call fail(failure, failure_input, config%input_file//': the initial state is outside the model''s domain', &
+                  config%input_file)
         exit
       end if
       columns = joined(model%column_names, ' ')
@@ -76,15 +79,14 @@ contains
       call h5gclose_f(group, close_stat)
       if (stat == 0) stat = close_stat
       deallocate (partials)
-      if (stat /= 0 .and. .not. allocated(message)) message = 'HDF5 failed to write '//path
+      if (stat /= 0 .and. .not. failure%failed()) call fail(failure, failure_library, 'HDF5 failed to write '//path, path)
     end do
     call h5fclose_f(file, close_stat)
     if (stat == 0 .and. close_stat /= 0) then
       stat = close_stat
-      message = 'HDF5 failed to close '//path
+      call fail(failure, failure_library, 'HDF5 failed to close '//path, path)
     end if
-    if (stat == 0) message = ''
-    if (stat /= 0 .and. .not. allocated(message)) message = 'HDF5 failed to write '//path
+    if (stat /= 0 .and. .not. failure%failed()) call fail(failure, failure_library, 'HDF5 failed to write '//path, path)
 
   contains
 

@@ -8,6 +8,7 @@ module study_case_files
   use study_config, only: study_definition
   use study_journal, only: case_result
   use hdf5_files, only: hdf5_file, check_run_file
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: case_file, case_name, case_overrides, case_file_checks_out, read_case_file
@@ -45,15 +46,16 @@ contains
     integer, intent(in) :: c, steps_recorded
     character(len=:), allocatable :: status, overrides
     type(hdf5_file) :: file
-    integer :: steps, stat, ignored
+    integer :: steps
+    type(failure_type) :: failure, ignored
 
-    call check_run_file(case_file(study, c), status, steps, stat, whole=.true.)
-    case_file_checks_out = stat == 0 .and. status == 'complete' .and. steps == steps_recorded
+    call check_run_file(case_file(study, c), status, steps, failure, whole=.true.)
+    case_file_checks_out = .not. failure%failed() .and. status == 'complete' .and. steps == steps_recorded
     if (.not. case_file_checks_out) return
-    call file%open_existing(case_file(study, c), .false., stat)
-    if (stat == 0) call file%get_text('study_overrides', overrides, stat)
+    call file%open_existing(case_file(study, c), .false., failure)
+    if (.not. failure%failed()) call file%get_text('study_overrides', overrides, failure)
     call file%close(ignored)
-    if (stat == 0) case_file_checks_out = overrides == case_overrides(study, c)
+    if (.not. failure%failed()) case_file_checks_out = overrides == case_overrides(study, c)
   end function case_file_checks_out
   !> The result and overrides of the case file at `path`, if it reads back complete (as
   !> case_file_checks_out) and names its study's case (study_case, study_overrides): found. The
@@ -66,24 +68,25 @@ contains
     type(hdf5_file) :: file
     character(len=:), allocatable :: status
     real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
-    integer :: steps, stat, ignored
+    integer :: steps
+    type(failure_type) :: failure, ignored
 
     found = .false.
     overrides = ''
-    call check_run_file(path, status, steps, stat, whole=.true.)
-    if (stat /= 0 .or. status /= 'complete') return
-    call file%open_existing(path, .false., stat)
-    if (stat /= 0) return
-    call file%get_reals('study_case', number, stat)
-    if (stat == 0) call file%get_text('study_overrides', overrides, stat)
-    if (stat == 0) call file%get_reals('run_figures', figures, stat)
-    if (stat == 0) call file%get_reals('steps_planned', planned, stat)
-    if (stat == 0) call file%get_reals('newton_iterations_total', newton, stat)
-    if (stat == 0) call file%get_reals('wall_time_seconds', wall, stat)
-    if (stat == 0) call file%get_reals('solve_time_seconds', solve, stat)
-    if (stat == 0) call file%get_reals('study_rank', rank, stat)
+    call check_run_file(path, status, steps, failure, whole=.true.)
+    if (failure%failed() .or. status /= 'complete') return
+    call file%open_existing(path, .false., failure)
+    if (failure%failed()) return
+    call file%get_reals('study_case', number, failure)
+    if (.not. failure%failed()) call file%get_text('study_overrides', overrides, failure)
+    if (.not. failure%failed()) call file%get_reals('run_figures', figures, failure)
+    if (.not. failure%failed()) call file%get_reals('steps_planned', planned, failure)
+    if (.not. failure%failed()) call file%get_reals('newton_iterations_total', newton, failure)
+    if (.not. failure%failed()) call file%get_reals('wall_time_seconds', wall, failure)
+    if (.not. failure%failed()) call file%get_reals('solve_time_seconds', solve, failure)
+    if (.not. failure%failed()) call file%get_reals('study_rank', rank, failure)
     call file%close(ignored)
-    if (stat /= 0) return
+    if (failure%failed()) return
     if (size(number) /= 1 .or. size(figures) /= 7) return
     result%status = 'complete'
     result%failure_kind = 'none'

@@ -24,7 +24,7 @@ module study_index
   use study_config, only: study_definition
   use hdf5_files, only: hdf5_file
   use hdf5_table, only: table_columns, column_real, column_integer, table_rows
-  use filesystem, only: make_directories, remove_file, file_exists, append_text, os_error_text, rename_file
+  use filesystem, only: make_directories, remove_file, file_exists, append_text, rename_file
   use integrator_registry, only: integrator_entry, registered_integrators
   use build_info, only: code_version
   use provenance, only: write_provenance, iso_time
@@ -38,11 +38,11 @@ module study_index
   use study_journal, only: case_result, journal_entry, status_length, kind_length, metric_count, journal_line, &
                            read_journal, start_journal
   use number_text, only: integer_text
-  use failures, only: failure_type
+  use failures, only: failure_type, fail, failure_input, failure_io, failure_library
   implicit none (type, external)
   private
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
-            m_run_count, refused
+            m_run_count
 
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
@@ -61,8 +61,6 @@ module study_index
                                                             .false., .false., .false., .false., .true., .true., .true., &
                                                             .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
-  !> open_index's stat when output_dir holds another study's finished cases (bad input).
-  integer, parameter :: refused = 2
 
   !> Case numbers ordered by a text key (a case's swept values or its overrides), to find a case
   !> of this study from an earlier run's record, whose numbers move when sweeps grow.
@@ -92,16 +90,16 @@ contains
   !> check out; pending(c) says which cases are to run. An earlier run's cases are matched to
   !> this study's by their swept values, not their numbers: a study whose sweeps grew keeps every
   !> finished case and renames its file where its number moved. `notes` tells the user what the
-  !> restart found (empty if nothing to say). stat = `refused` (bad input) if output_dir holds a
-  !> finished case that this study does not have (a changed value) or ran from another base
-  !> scene; 1 if the output directory cannot be written.
-  subroutine open_index(self, study, pending, notes, stat, message)
+  !> restart found (empty if nothing to say). A failure: failure_input (refused) if output_dir
+  !> holds a finished case that this study does not have (a changed value) or ran from another
+  !> base scene; failure_io (or failure_library: HDF5) if the output directory cannot be written.
+  subroutine open_index(self, study, pending, notes, failure)
     class(case_index), intent(inout) :: self
     type(study_definition), intent(in), target :: study
     logical, allocatable, intent(out) :: pending(:)
     character(len=:), allocatable, intent(out) :: notes
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
+    character(len=:), allocatable :: reason
     type(case_result) :: from_file
     type(case_lookup) :: by_overrides
     character(len=:), allocatable :: overrides
@@ -118,23 +116,24 @@ contains
     allocate (self%results(size(study%cases)), pending(size(study%cases)))
     allocate (earlier(size(study%cases)), source=0)
     call define_columns(study, self%columns)
-    call make_directories(study%output_dir, stat)
-    if (stat /= 0) then
-      message = study%input_file//': cannot create the output directory '''//study%output_dir//''': '// &
-                os_error_text(stat)
+    call make_directories(study%output_dir, failure)
+    if (failure%failed()) then
+      reason = failure%message
+      call fail(failure, failure_io, study%input_file//': cannot create the output directory '''//study%output_dir// &
+                ''': '//reason, study%output_dir)
       return
     end if
     call overrides_lookup(study, by_overrides)
-    call read_previous_index(self, earlier, notes, stat, message)
-    if (stat /= 0) return
-    call replay_journal(self, by_overrides, earlier, notes, stat, message)
-    if (stat /= 0) return
+    call read_previous_index(self, earlier, notes, failure)
+    if (failure%failed()) return
+    call replay_journal(self, by_overrides, earlier, notes, failure)
+    if (failure%failed()) return
     rebuilt = 0
     rejected = 0
     moved = 0
     if (.not. study%index_only) then
-      call move_files(study, earlier, self%results, moved, stat, message)
-      if (stat /= 0) return
+      call move_files(study, earlier, self%results, moved, failure)
+      if (failure%failed()) return
       do c = 1, size(study%cases)
         if (self%results(c)%status == 'complete') then
           if (.not. case_file_checks_out(study, c, nint(self%results(c)%metrics(m_steps)))) then
@@ -160,10 +159,11 @@ contains
         if (c /= k) then
           if (claimed(c)) cycle                                  ! taken already
           if (file_exists(case_file(study, c))) cycle           ! another file there: the case runs again
-          call rename_file(case_file(study, k), case_file(study, c), stat)
-          if (stat /= 0) then
-            message = 'cannot rename '//case_file(study, k)//' to '//case_file(study, c)//': '//os_error_text(stat)
-            stat = 1
+          call rename_file(case_file(study, k), case_file(study, c), failure)
+          if (failure%failed()) then
+            reason = failure%message
+            call fail(failure, failure_io, 'cannot rename '//case_file(study, k)//' to '//case_file(study, c)//': '// &
+                      reason, case_file(study, k))
             return
           end if
           moved = moved + 1
@@ -186,11 +186,16 @@ contains
       if (pending(c)) self%results(c)%failure_kind = 'none'
     end do
     call system_clock(self%last_write, self%clock_rate)
-    call write_index(self, stat, message)
-    if (stat == 0) then
+    call write_index(self, failure)
+    if (.not. failure%failed()) then
       call start_journal(self%journal_path, 'eme_ensemble results of '//study%input_file//', '// &
-                         integer_text(size(self%results))//' cases: case, failure_kind, metrics, status, overrides', stat)
-      if (stat /= 0) message = 'cannot write '//self%journal_path//' ('//study%input_file//'): '//os_error_text(stat)
+                         integer_text(size(self%results))//' cases: case, failure_kind, metrics, status, overrides', &
+                         failure)
+      if (failure%failed()) then
+        reason = failure%message
+        call fail(failure, failure_io, 'cannot write '//self%journal_path//' ('//study%input_file//'): '//reason, &
+                  self%journal_path)
+      end if
     end if
   end subroutine open_index
 
@@ -198,29 +203,27 @@ contains
   ! (earlier(c) /= c) to the case's new name: first every one to case_NNNNN.h5.moving, then each
   ! to its name, so that no file is replaced before it moved. A .moving file left by a killed
   ! restart is finished first.
-  subroutine move_files(study, earlier, results, moved, stat, message)
+  subroutine move_files(study, earlier, results, moved, failure)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: earlier(:)
     type(case_result), intent(in) :: results(:)
-    integer, intent(out) :: moved, stat
-    character(len=:), allocatable, intent(out) :: message
+    integer, intent(out) :: moved
+    type(failure_type), intent(out) :: failure
     integer :: c
 
     moved = 0
-    stat = 0
-    message = ''
     do c = 1, size(study%cases)
-      if (stat /= 0) exit
+      if (failure%failed()) exit
       if (file_exists(case_file(study, c)//'.moving')) call move(case_file(study, c)//'.moving', case_file(study, c))
     end do
     do c = 1, size(study%cases)
-      if (stat /= 0) exit
+      if (failure%failed()) exit
       if (earlier(c) == 0 .or. earlier(c) == c .or. results(c)%status /= 'complete') cycle
       if (.not. file_exists(case_file(study, earlier(c)))) cycle      ! the check then finds it missing
       call move(case_file(study, earlier(c)), case_file(study, c)//'.moving')
     end do
     do c = 1, size(study%cases)
-      if (stat /= 0) exit
+      if (failure%failed()) exit
       if (.not. file_exists(case_file(study, c)//'.moving')) cycle
       call move(case_file(study, c)//'.moving', case_file(study, c))
       moved = moved + 1
@@ -230,48 +233,58 @@ contains
 
     subroutine move(from, to)
       character(len=*), intent(in) :: from, to
+      character(len=:), allocatable :: reason
 
-      call rename_file(from, to, stat)
-      if (stat /= 0) message = 'cannot rename '//from//' to '//to//' ('//study%input_file//'): '//os_error_text(stat)
+      call rename_file(from, to, failure)
+      if (failure%failed()) then
+        reason = failure%message
+        call fail(failure, failure_io, 'cannot rename '//from//' to '//to//' ('//study%input_file//'): '//reason, from)
+      end if
     end subroutine move
   end subroutine move_files
 
   !> Stores case c's result (its run count one higher): appended to the journal at once, and in
   !> index.h5 at the next rewrite (at most index_interval seconds later, or at close).
-  subroutine record(self, c, result, stat, message)
+  subroutine record(self, c, result, failure)
     class(case_index), intent(inout) :: self
     integer, intent(in) :: c
     type(case_result), intent(in) :: result
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
+    character(len=:), allocatable :: reason
     integer(int64) :: now
 
-    message = ''
     self%results(c)%status = result%status
     self%results(c)%failure_kind = result%failure_kind
     self%results(c)%metrics(1:m_rank) = result%metrics(1:m_rank)
     self%results(c)%metrics(m_run_count) = self%results(c)%metrics(m_run_count) + 1
-    call append_text(self%journal_path, journal_line(c, self%results(c), case_overrides(self%study, c)), .false., stat)
-    if (stat /= 0) then
-      message = 'cannot append to '//self%journal_path//' ('//self%study%input_file//'): '//os_error_text(stat)
+    call append_text(self%journal_path, journal_line(c, self%results(c), case_overrides(self%study, c)), .false., &
+                     failure)
+    if (failure%failed()) then
+      reason = failure%message
+      call fail(failure, failure_io, 'cannot append to '//self%journal_path//' ('//self%study%input_file//'): '// &
+                reason, self%journal_path)
       return
     end if
     call system_clock(now)
     if (real(now - self%last_write, real64) >= index_interval*real(self%clock_rate, real64)) then
-      call write_index(self, stat, message)
+      call write_index(self, failure)
       self%last_write = now
     end if
   end subroutine record
 
   !> Writes the final index.h5 and empties the journal, whose lines it now holds.
-  subroutine close_index(self, stat, message)
+  subroutine close_index(self, failure)
     class(case_index), intent(inout) :: self
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
+    character(len=:), allocatable :: reason
 
-    call write_index(self, stat, message)
-    if (stat == 0) call remove_file(self%journal_path, stat)
-    if (stat /= 0 .and. len(message) == 0) message = 'cannot remove '//self%journal_path//': '//os_error_text(stat)
+    call write_index(self, failure)
+    if (failure%failed()) return
+    call remove_file(self%journal_path, failure)
+    if (failure%failed()) then
+      reason = failure%message
+      call fail(failure, failure_io, 'cannot remove '//self%journal_path//': '//reason, self%journal_path)
+    end if
   end subroutine close_index
 
   ! case, file, one column per sweep, status, failure_kind, the metrics (rank and run_count last).
@@ -332,10 +345,10 @@ contains
   ! The attribute column_units of /cases: the units of every column, in order ('' for a text):
   ! the swept fields' and the figures' in the units of the base file's model (the gas containers'
   ! are nondimensional; a model without a conserved momentum has no momentum units).
-  subroutine column_units(file, study, stat)
+  subroutine column_units(file, study, failure)
     type(hdf5_file), intent(in) :: file
     type(study_definition), intent(in) :: study
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     character(len=24) :: units(2 + sum(study%sweeps%elements) + 2 + metric_count)
     type(run_configuration), target :: base
     class(generic_model), allocatable :: model
@@ -371,7 +384,7 @@ contains
       if (model%conserved_momentum_column > 0) units(next + 1 + m_momentum_drift) = model%words%momentum_units
       units(next + 1 + m_min_temperature) = model%words%temperature_units
     end if
-    call file%set_dataset_texts('cases', 'column_units', units, stat)
+    call file%set_dataset_texts('cases', 'column_units', units, failure)
   end subroutine column_units
 
   ! 'name(i)' for element i of the swept array or section `field` ('mass' or 'p2(1:2)').
@@ -389,17 +402,17 @@ contains
   end function element_name
 
   ! Writes index.h5: built in memory, written as index.h5.tmp (synced) and renamed over index.h5.
-  subroutine write_index(self, stat, message)
+  subroutine write_index(self, failure)
     type(case_index), intent(inout) :: self
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(hdf5_file) :: file
     real(real64), allocatable :: numbers(:, :), parameters(:)
     character(len=status_length), allocatable :: texts(:, :)
     character(len=64), allocatable :: parameter_texts(:)
-    integer :: c, n_numbers, n_texts, ignored
+    character(len=:), allocatable :: reason
+    type(failure_type) :: ignored
+    integer :: c, n_numbers, n_texts
 
-    message = ''
     n_numbers = self%columns%numeric_count()
     n_texts = self%columns%text_count()
     allocate (numbers(n_numbers, size(self%results)), texts(n_texts, size(self%results)))
@@ -412,34 +425,36 @@ contains
       texts(n_texts - 1, c) = self%results(c)%status
       texts(n_texts, c) = self%results(c)%failure_kind
     end do
-    call file%create_in_memory(stat)
-    if (stat == 0) call self%columns%write(file%id, 'cases', numbers, texts, stat)
-    if (stat == 0) call file%set_text('study', self%study%input_file, stat)
-    if (stat == 0) call file%set_text('base', self%study%base, stat)
-    if (stat == 0) call file%set_text('combine', self%study%combine, stat)
+    call file%create_in_memory(failure)
+    if (.not. failure%failed()) call self%columns%write(file%id, 'cases', numbers, texts, failure)
+    if (.not. failure%failed()) call file%set_text('study', self%study%input_file, failure)
+    if (.not. failure%failed()) call file%set_text('base', self%study%base, failure)
+    if (.not. failure%failed()) call file%set_text('combine', self%study%combine, failure)
     ! What every case shares (all but the swept fields): the scene without opening a case file.
-    if (stat == 0) call file%set_text('case_1_input', namelist_of_run(self%study%cases(1)%config), stat)
-    if (stat == 0) call file%set_integer('index_only', merge(1, 0, self%study%index_only), stat)
-    if (stat == 0) call file%set_integer('repeats', self%study%repeats, stat)
-    if (stat == 0) call file%set_text('code_version', code_version, stat)
-    if (stat == 0) call write_provenance(file, 'EME study '//self%study%input_file//': '// &
-                                         integer_text(size(self%results))//' cases', petsc_options_in_force(), stat, &
+    if (.not. failure%failed()) call file%set_text('case_1_input', namelist_of_run(self%study%cases(1)%config), failure)
+    if (.not. failure%failed()) call file%set_integer('index_only', merge(1, 0, self%study%index_only), failure)
+    if (.not. failure%failed()) call file%set_integer('repeats', self%study%repeats, failure)
+    if (.not. failure%failed()) call file%set_text('code_version', code_version, failure)
+    if (.not. failure%failed()) call write_provenance(file, 'EME study '//self%study%input_file//': '// &
+                                         integer_text(size(self%results))//' cases', petsc_options_in_force(), failure, &
                                          started=self%started)
-    if (stat == 0) call column_units(file, self%study, stat)
-    if (stat == 0) call write_registry(file, stat)
-    if (stat == 0) call file%store(self%index_path, .true., stat)
+    if (.not. failure%failed()) call column_units(file, self%study, failure)
+    if (.not. failure%failed()) call write_registry(file, failure)
+    if (.not. failure%failed()) call file%store(self%index_path, .true., failure)
     call file%close(ignored)
-    if (stat > 0) then
-      message = 'cannot write '//self%index_path//' ('//self%study%input_file//'): '//os_error_text(stat)
-    else if (stat /= 0) then
-      message = 'HDF5 failed to build '//self%index_path
+    if (failure%code == failure_io) then           ! the OS's words
+      reason = failure%message
+      call fail(failure, failure_io, 'cannot write '//self%index_path//' ('//self%study%input_file//'): '//reason, &
+                self%index_path)
+    else if (failure%failed()) then
+      call fail(failure, failure_library, 'HDF5 failed to build '//self%index_path, self%index_path)
     end if
   end subroutine write_index
 
   ! The dataset /integrators: one row per registered integrator.
-  subroutine write_registry(file, stat)
+  subroutine write_registry(file, failure)
     type(hdf5_file), intent(in) :: file
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
     type(table_columns) :: columns
     type(integrator_entry), allocatable :: entries(:)
     character(len=status_length), allocatable :: texts(:, :)
@@ -463,7 +478,7 @@ contains
       numbers(:, i) = merge(1.0_real64, 0.0_real64, [entries(i)%takes_constraints, entries(i)%uses_discrete_gradient, &
                                                      entries(i)%adaptive, entries(i)%error_control])
     end do
-    call columns%write(file%id, 'integrators', numbers, texts, stat)
+    call columns%write(file%id, 'integrators', numbers, texts, failure)
   end subroutine write_registry
 
   ! Results of an earlier run of the same study from its index.h5, if there is one, each given
@@ -471,40 +486,36 @@ contains
   ! (it does not open, or a checksum fails) is set aside: the journal and case files rebuild it.
   ! Refused: a finished case that this study does not have (a changed value), or case 1 of the
   ! earlier run given other input than this study gives it (a changed base scene).
-  subroutine read_previous_index(self, earlier, notes, stat, message)
+  subroutine read_previous_index(self, earlier, notes, failure)
     type(case_index), intent(inout) :: self
     integer, intent(inout) :: earlier(:)
     character(len=:), allocatable, intent(inout) :: notes
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
+    type(failure_type) :: reading, ignored
     type(hdf5_file) :: old
     type(case_lookup) :: by_values
     real(real64), allocatable :: numbers(:, :), parameters(:)
     character(len=status_length), allocatable :: texts(:, :)
     character(len=64), allocatable :: parameter_texts(:)
     character(len=:), allocatable :: first_input
-    integer :: c, r, rows, n_numbers, n_texts, n_parameters, ignored
+    integer :: c, r, rows, n_numbers, n_texts, n_parameters
 
-    stat = 0
-    message = ''
     if (.not. file_exists(self%index_path)) return
-    call old%open_existing(self%index_path, .false., stat)
+    call old%open_existing(self%index_path, .false., reading)
     rows = -1
-    if (stat == 0) rows = table_rows(old%id, 'cases')
-    if (stat == 0 .and. rows >= 0) call old%get_text('case_1_input', first_input, stat)
-    if (stat /= 0 .or. rows < 0) then
+    if (.not. reading%failed()) rows = table_rows(old%id, 'cases')
+    if (.not. reading%failed() .and. rows >= 0) call old%get_text('case_1_input', first_input, reading)
+    if (reading%failed() .or. rows < 0) then
       call old%close(ignored)
-      stat = 0
       call add_note(notes, self%index_path//' cannot be read; it is rebuilt from the journal and the case files')
       return
     end if
     n_numbers = self%columns%numeric_count()
     n_texts = self%columns%text_count()
     allocate (numbers(n_numbers, rows), texts(n_texts, rows))
-    call self%columns%read(old%id, 'cases', numbers, texts, stat)
+    call self%columns%read(old%id, 'cases', numbers, texts, reading)
     call old%close(ignored)
-    if (stat /= 0) then
-      stat = 0
+    if (reading%failed()) then
       call add_note(notes, self%index_path//' cannot be read (damaged: a checksum fails); it is rebuilt from the '// &
                     'journal and the case files')
       return
@@ -516,17 +527,17 @@ contains
       c = find_case(by_values, values_key(numbers(2:n_parameters, r), texts(2:n_texts - 2, r)))
       if (c == 0) then
         if (texts(n_texts - 1, r) /= 'complete') cycle       ! not finished: nothing is lost
-        stat = refused
-        message = self%index_path//': case '//integer_text(r)//' ('//row_values(self, numbers(:, r), texts(:, r))// &
-                  ') is complete, but '//self%study%input_file//' has no case with these values (a changed or '// &
-                  'removed value); use another output_dir, or remove this one to start afresh'
+        call fail(failure, failure_input, self%index_path//': case '//integer_text(r)//' ('// &
+                  row_values(self, numbers(:, r), texts(:, r))//') is complete, but '//self%study%input_file// &
+                  ' has no case with these values (a changed or removed value); use another output_dir, or remove '// &
+                  'this one to start afresh', self%index_path)
         return
       end if
       if (r == 1) then
         if (namelist_of_run(self%study%cases(c)%config) /= first_input) then
-          stat = refused
-          message = self%index_path//': its cases ran from another base scene than '//self%study%base//' now gives '// &
-                    '(case 1''s input differs); use another output_dir, or remove this one to start afresh'
+          call fail(failure, failure_input, self%index_path//': its cases ran from another base scene than '// &
+                    self%study%base//' now gives (case 1''s input differs); use another output_dir, or remove this '// &
+                    'one to start afresh', self%index_path)
           return
         end if
       end if
@@ -544,27 +555,26 @@ contains
   ! Applies the journal's lines (each the latest result of its case) over what index.h5 gave,
   ! each to this study's case with the same overrides. A line that does not parse is skipped; a
   ! complete case that this study does not have is refused, as in read_previous_index.
-  subroutine replay_journal(self, by_overrides, earlier, notes, stat, message)
+  subroutine replay_journal(self, by_overrides, earlier, notes, failure)
     type(case_index), intent(inout) :: self
     type(case_lookup), intent(in) :: by_overrides
     integer, intent(inout) :: earlier(:)
     character(len=:), allocatable, intent(inout) :: notes
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: message
+    type(failure_type), intent(out) :: failure
     type(journal_entry), allocatable :: entries(:)
     integer :: k, c, applied, skipped
 
-    call read_journal(self%journal_path, entries, skipped, stat, message)
-    if (stat /= 0) return
+    call read_journal(self%journal_path, entries, skipped, failure)
+    if (failure%failed()) return
     applied = 0
     do k = 1, size(entries)
       c = find_case(by_overrides, entries(k)%overrides)
       if (c == 0) then
         if (entries(k)%result%status /= 'complete') cycle
-        stat = refused
-        message = self%journal_path//': case '//integer_text(entries(k)%case_number)//' ('//entries(k)%overrides// &
-                  ') is complete, but '//self%study%input_file//' has no case with these values (a changed or '// &
-                  'removed value); use another output_dir, or remove this one to start afresh'
+        call fail(failure, failure_input, self%journal_path//': case '//integer_text(entries(k)%case_number)//' ('// &
+                  entries(k)%overrides//') is complete, but '//self%study%input_file//' has no case with these '// &
+                  'values (a changed or removed value); use another output_dir, or remove this one to start afresh', &
+                  self%journal_path)
         return
       end if
       self%results(c) = entries(k)%result

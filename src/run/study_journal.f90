@@ -8,6 +8,7 @@ module study_journal
   use filesystem, only: remove_file, file_exists, append_text
   use namelist_text, only: blanked
   use number_text, only: integer_text
+  use failures, only: failure_type, fail, failure_io
   implicit none (type, external)
   private
   public :: case_result, journal_entry, status_length, kind_length, metric_count
@@ -52,19 +53,18 @@ contains
   end function journal_line
 
   !> The journal's lines at `path` (none if there is no journal), in order; `skipped` counts the
-  !> lines that do not parse (a torn last line). stat /= 0 with a message if it cannot be read.
-  subroutine read_journal(path, entries, skipped, stat, message)
+  !> lines that do not parse (a torn last line). A failure (failure_io) if it cannot be read.
+  subroutine read_journal(path, entries, skipped, failure)
     character(len=*), intent(in) :: path
     type(journal_entry), allocatable, intent(out) :: entries(:)
-    integer, intent(out) :: skipped, stat
-    character(len=:), allocatable, intent(out) :: message
+    integer, intent(out) :: skipped
+    type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: text, line
     integer :: unit, size_bytes, start, finish, count, ios
     character(len=256) :: io_message
+    logical :: parsed
 
-    stat = 0
     skipped = 0
-    message = ''
     allocate (entries(0))
     if (.not. file_exists(path)) return
     inquire (file=path, size=size_bytes)
@@ -74,8 +74,7 @@ contains
     if (ios == 0) read (unit, iostat=ios, iomsg=io_message) text
     if (ios == 0) close (unit)
     if (ios /= 0) then
-      stat = 1
-      message = 'cannot read '//path//': '//trim(io_message)
+      call fail(failure, failure_io, 'cannot read '//path//': '//trim(io_message), path)
       return
     end if
     deallocate (entries)
@@ -91,8 +90,8 @@ contains
       line = text(start:start + finish - 2)
       start = start + finish
       if (line(1:min(1, len(line))) == '#') cycle
-      call parse_line(line, entries(count + 1), ios)
-      if (ios /= 0) then
+      call parse_line(line, entries(count + 1), parsed)
+      if (.not. parsed) then
         skipped = skipped + 1
         cycle
       end if
@@ -102,21 +101,23 @@ contains
   end subroutine read_journal
 
   !> A fresh journal at `path` whose first line names the study: `header`.
-  subroutine start_journal(path, header, stat)
+  subroutine start_journal(path, header, failure)
     character(len=*), intent(in) :: path, header
-    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
 
-    call remove_file(path, stat)
-    if (stat == 0) call append_text(path, '# '//header//new_line('a'), .false., stat)
+    call remove_file(path, failure)
+    if (.not. failure%failed()) call append_text(path, '# '//header//new_line('a'), .false., failure)
   end subroutine start_journal
 
-  ! case, failure_kind, metrics, status, overrides.
-  subroutine parse_line(line, entry, stat)
+  ! case, failure_kind, metrics, status, overrides; `parsed` unless the line is cut short or a
+  ! number does not read.
+  subroutine parse_line(line, entry, parsed)
     character(len=*), intent(in) :: line
     type(journal_entry), intent(out) :: entry
-    integer, intent(out) :: stat
-    integer :: field, start, finish, m
+    logical, intent(out) :: parsed
+    integer :: field, start, finish, m, stat
 
+    parsed = .false.
     stat = 1
     start = 1
     do field = 1, metric_count + 3
@@ -138,7 +139,7 @@ contains
       start = finish + 2
     end do
     entry%overrides = trim(line(start:))
-    stat = 0
+    parsed = .true.
   end subroutine parse_line
 
   pure integer function count_lines(text)
