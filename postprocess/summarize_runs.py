@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trajectory import (IDENTITY_ATTRIBUTES, NO_VARIABLE, Run, RunFileError, conserved_momentum,
+from trajectory import (IDENTITY_ATTRIBUTES, NO_VARIABLE, Run, RunFileError, conserved_momentum, thermal,
                         cut_to_common_length, root_attributes, run_file)
 
 POINT_DATASETS = ("energy",)
@@ -44,7 +44,7 @@ def read(path):
     """The datasets the table needs and every root attribute, cut to the steps they all hold."""
     with run_file(path) as f:
         # S and V belong to every file with thermal unknowns (not to elastic springs').
-        thermal_points = ("entropy", "lyapunov") if "temperature" in f else ()
+        thermal_points = ("entropy", "lyapunov") if thermal(f) else ()
         for name in (*POINT_DATASETS, *thermal_points, *STEP_DATASETS):
             if name not in f:
                 raise RunFileError(f"{path}: dataset /{name} is missing; is this an eme_run file?")
@@ -58,8 +58,8 @@ def read(path):
                      for name in ("energy", "entropy")}
         if "angular_momentum" in f and "columns" in f["angular_momentum"].attrs:
             run.columns["angular_momentum"] = text_of(f["angular_momentum"].attrs["columns"]).split()
-        thermal = "temperature" in f
-    identity = [name for name in IDENTITY_ATTRIBUTES if name != "thermo_variable" or thermal]
+        has_thermal = thermal(f)
+    identity = [name for name in IDENTITY_ATTRIBUTES if name != "thermo_variable" or has_thermal]
     absent = [name for name in (*identity, "discrete_gradient") if name not in run.attrs]
     if absent:
         run.problems.append("root attributes " + ", ".join(absent) + " missing")

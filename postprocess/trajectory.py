@@ -184,7 +184,11 @@ def root_attributes(handle):
 
 
 def thermal(handle):
-    """True when an open run file has thermal unknowns (a /temperature dataset)."""
+    """True when an open run file has thermal unknowns: its thermo_variable is not 'none' (eme_run
+    writes 'none' for elastic springs); a file without the attribute, by its /temperature."""
+    variable = handle.attrs.get("thermo_variable")
+    if variable is not None:
+        return _plain(variable) != "none"
     return "temperature" in handle
 
 
@@ -308,7 +312,12 @@ def conserved_momentum(run):
         return None if name in NO_VARIABLE else name
     names = run.columns.get("angular_momentum")
     if names is None:
-        return None
+        # Earlier versions wrote J = (J_x, J_y, J_z) without column names.
+        momenta = run.data.get("angular_momentum")
+        if momenta is None or momenta.ndim != 2 or momenta.shape[1] != 3:
+            return None
+        run.columns["angular_momentum"] = ["J_x", "J_y", "J_z"]
+        return "J_z"
     return next((other for other in ("J_z", "J") if other in names), None)
 
 

@@ -46,14 +46,19 @@ contains
       call text('scheme_family', trim(entry%family))
       call text('scheme_label', trim(entry%label))
       call text('scheme_description', trim(entry%description))
-      call text('thermo_variable', trim(thermo_variable_names(choice%thermo_variable)))
+      ! A model without temperatures (elastic springs) has no thermodynamic variable and no V.
+      if (model%temperature_count() > 0) then
+        call text('thermo_variable', trim(thermo_variable_names(choice%thermo_variable)))
+      else
+        call text('thermo_variable', 'none')
+      end if
       call text('discrete_gradient', gradient)
       call text('metric', metric)
       call text('input_file', config%input_file)
       call text('code_version', code_version)
       call real_attribute('dt', choice%dt, 's')
       call real_attribute('t_end', choice%t_end, 's')
-      call real_attribute('theta_r', config%theta_r, 'K')
+      if (model%temperature_count() > 0) call real_attribute('theta_r', config%theta_r, 'K')
       call real_attribute('newton_tol', choice%newton_tol, '1')
       call real_attribute('tolerance', choice%tolerance, '1')
       call real_attribute('ts_tolerance', choice%tolerance, '1')   ! the old name, for old scripts

@@ -52,6 +52,7 @@ def test_missing_dataset_is_named(tmp_path):
     path = tmp_path / "broken.h5"
     with h5py.File(path, "w") as f:
         f["energy"] = [1.0]
+        f.attrs["thermo_variable"] = "entropy"      # a thermal run's file, which must have /entropy
     with pytest.raises(summarize_runs.RunFileError, match="dataset /entropy is missing"):
         summarize_runs.summarize(path)
     result = subprocess.run([sys.executable, str(ROOT / "postprocess" / "summarize_runs.py"), str(path)],
