@@ -119,7 +119,7 @@ STUDIES = ("convergence", "convergence_reference",
            *(study for model in MODELS.values() for study in model.scenes.values()),
            *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
                                for kind in ("", "_tolerance")))
-INDEX_FIELDS = ("case", "file", "scheme", "thermo_variable", "dt", "status", "steps_completed",
+INDEX_FIELDS = ("case", "file", "scheme", "dt", "status", "steps_completed",
                 "solve_time_seconds", "energy_drift", "min_entropy_increment",
                 "max_lyapunov_increment", "min_temperature", "halved_steps")
 
@@ -151,6 +151,8 @@ def read_index(folder):
     for case in cases:
         row = {name: case[name].decode() if isinstance(case[name], bytes) else case[name].item()
                for name in cases.dtype.names}
+        # A study that sweeps no thermodynamic variable (the elastic rung has none) has no field.
+        row.setdefault("thermo_variable", "none")
         if "tolerance" in row:
             row["scheme"] = integrators.tolerance_variant(row["scheme"])
         row["path"] = path.parent / row["file"]

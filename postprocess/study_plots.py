@@ -38,7 +38,7 @@ OUTCOME_COLOURS = {"kept": "#009E73", "energy": "#E69F00", "lyapunov": "#F0E442"
                    "solver": "#56B4E9", "nonphysical": "#303030"}
 NOT_RUN_COLOUR = "white"
 SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas containers",
-                "gonzalez": "elastic scene", "romero": "Romero's thermoelastic scene"}
+                "gonzalez": "elastic (Gonzalez)", "romero": "Romero's\nthermoelastic"}
 # The stability map's rows [in]: the scenes side by side, so that the map fits a page.
 MAP_ROW_HEIGHT = 0.2
 
