@@ -2,7 +2,8 @@
 !> the derivative pass, which differentiates each spring's partials (Gonzalez's quotient and its
 !> fallback, or the midpoint rule's exact partials) in the variables they depend on, and the
 !> assembly of the condensed Jacobian dR/dy = dR/dz'|_y + dR/dq' (h/2) m^-1 from them and the
-!> scalars the residual's pass kept at the same point.
+!> scalars the residual's pass kept at the same point, in the kernel's internal numbering (a
+!> reduced layout's rows and columns are picked from it at the end).
 submodule (pendulum_step_kernel) pendulum_step_jacobian
   implicit none (type, external)
 
@@ -16,7 +17,8 @@ contains
     if (stat /= domain_ok) return
     dtheta_new = 0.0_real64
     if (self%temperature_row > 0) then
-      call new_temperature(self, self%temperature_part, point, theta_new, dtheta_new(1:self%temperature_part + 1), stat)
+      call new_temperature(self, self%temperature_part, point, theta_new, &
+                           dtheta_new(1:self%spring(self%temperature_part)%n_invariants), stat)
       if (stat /= domain_ok) return
     end if
     call assemble_jacobian(self, point, dtheta_new, jacobian)
@@ -32,7 +34,7 @@ contains
 
     stat = domain_ok
     do a = 1, 2
-      n = a + 1
+      n = self%spring(a)%n_invariants
       associate (sp => point%spring(a))
         if (self%partials_rule == partials_midpoint) then
           call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, &
@@ -59,7 +61,7 @@ contains
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
     integer :: n
 
-    n = a + 1
+    n = self%spring(a)%n_invariants
     associate (spring => self%spring(a))
       call potentials_from_parts(spring, sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
                                  sp%d2sigma, grad(1:n, :), hess_m(1:n, 1:n, :))
@@ -87,9 +89,9 @@ contains
     ! Jacobian, in arrays of fixed size (no descriptors, no vector subscripts in the loops).
     real(real64) :: drow(max_rows, 3, 2), dq(max_rows, 3, 2), jac(max_rows, max_rows)
     real(real64) :: kappa, s_tau, h
-    integer :: a, b, n, l, i, col, rows, p0
+    integer :: a, b, n, l, i, col, rows, p0, nb
 
-    rows = size(jacobian, 1)
+    rows = self%internal_count
     h = self%fraction*self%dt
     kappa = self%params%conductivity
     jac(1:rows, 1:rows) = 0.0_real64
@@ -100,7 +102,7 @@ contains
                inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &
                lambda_length => point%lambda_length, lambda_temperature => point%lambda_temperature)
       do a = 1, 2
-        n = a + 1
+        n = self%spring(a)%n_invariants
         s_tau = partials(n, potential_s, a)
         do l = 1, n
           dtheta(l, a) = (dp(n, l, potential_u, a) - theta(a)*dp(n, l, potential_s, a))/s_tau
@@ -110,18 +112,23 @@ contains
           dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
         end do
       end do
-      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
-      dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
-      do l = 1, 3
-        drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
-                    - dp(2, l, potential_u, 2))*inv_eta &
-                   + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
-        dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
-      end do
+      drate = 0.0_real64
+      dheating = 0.0_real64
+      if (self%viscous) then
+        ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
+        dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
+        do l = 1, 3
+          drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
+                      - dp(2, l, potential_u, 2))*inv_eta &
+                     + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
+          dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
+        end do
+      end if
 
     do a = 1, 2
       b = 3 - a
-      n = a + 1
+      n = self%spring(a)%n_invariants
+      nb = self%spring(b)%n_invariants
       p0 = 3*(a - 1)                  ! the rows (and columns) of p_a are p0 + 1..p0 + 3
       do l = 1, n
         ! momentum rows: 2 T_a q_mid_a
@@ -131,24 +138,27 @@ contains
                                  + kappa*dtheta(l, a)*inv_u_tau(a) &
                                  - kappa*(theta(b) - theta(a))*dinv_u(l, a)
       end do
-      do l = 1, b + 1
+      do l = 1, nb
         drow(row_tau(a), l, b) = drow(row_tau(a), l, b) - kappa*dtheta(l, b)*inv_u_tau(a)
       end do
     end do
-    drow(row_gamma, :, 2) = -drate
-    drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
+    if (self%viscous) then
+      drow(row_gamma, :, 2) = -drate
+      drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
+    end if
     if (self%temperature_row > 0) then
       a = self%temperature_part
-      drow(row_tau(a), 1:a + 1, a) = drow(row_tau(a), 1:a + 1, a) - lambda_temperature*dinv_u(1:a + 1, a)
+      n = self%spring(a)%n_invariants
+      drow(row_tau(a), 1:n, a) = drow(row_tau(a), 1:n, a) - lambda_temperature*dinv_u(1:n, a)
     end if
 
     ! Through the partials' variables xi into the columns of q', gamma', tau'.
     do a = 1, 2
-      n = a + 1
+      n = self%spring(a)%n_invariants
       do i = 1, 3
         dq(1:rows, i, a) = drow(1:rows, 1, a)*point%chain_c(i, a)
       end do
-      if (a == 2) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
+      if (n == 3) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
       jac(1:rows, row_tau(a)) = drow(1:rows, n, a)*point%chain_other
     end do
 
@@ -177,11 +187,11 @@ contains
     end if
     if (self%temperature_row > 0) then
       a = self%temperature_part
-      n = a + 1
+      n = self%spring(a)%n_invariants
       jac(row_tau(a), self%temperature_row) = -inv_u_tau(a)
       ! g2 = theta(z') - temperature, through the invariants of z' (C' = q'.q').
       dq(self%temperature_row, :, a) = dtheta_new(1)*2.0_real64*point%q_new(:, a)
-      if (a == 2) jac(self%temperature_row, row_gamma) = dtheta_new(2)
+      if (n == 3) jac(self%temperature_row, row_gamma) = dtheta_new(2)
       jac(self%temperature_row, row_tau(a)) = dtheta_new(n)
     end if
 
@@ -191,7 +201,14 @@ contains
         jac(1:rows, 3*b - 2:3*b) = jac(1:rows, 3*b - 2:3*b) + (0.5_real64*h*self%inverse_mass(a, b))*dq(1:rows, :, a)
       end do
     end do
-    jacobian = jac(1:rows, 1:rows)
+    if (self%full) then
+      jacobian = jac(1:rows, 1:rows)
+    else
+      ! The layout's rows and columns of the internal ones (the third components' and gamma's dropped).
+      associate (kept => self%internal_of(1:size(jacobian, 1)))
+        jacobian = jac(kept, kept)
+      end associate
+    end if
     end associate
   end subroutine assemble_jacobian
 

@@ -7,6 +7,14 @@
 !> 9 unknowns plus one per active constraint (docs/formulation.md section 7). The residual of y is the
 !> generic residual's rows of p, gamma, tau and the constraints at z'(y); its Jacobian is
 !>   dR/dy = dR/dz'|_(p, gamma, tau, multipliers) + dR/dq' (h/2) m^-1.
+!> Layouts: every thermal rung of the ladder (double_pendulum's pendulum_layout), spatial or planar,
+!> with or without gamma. Inside, the kernel always works on the full layout's numbering (3
+!> components per vector, gamma's row, rows 1..9 and the multipliers after them): a planar scene's
+!> third components and a thermoelastic scene's gamma stay zero and their rows are dropped where
+!> y, R and dR/dy cross the interface (internal_of). So the full layout runs the very code it ran
+!> before (the same operations in the same order, bit for bit), and a reduced one pays only for
+!> the zeros it carries, not for a second copy of the kernel; the viscous rate, its heating and
+!> spring 2's gamma invariant are skipped without the viscous branch.
 !> Fused: one pass computes the residual and, when asked, the Jacobian, sharing every logarithm,
 !> root and exponential of the spring potentials and the discrete-gradient quotients between them.
 !> Old-state quantities (the invariants, ln(l/l0), 1/l and the temperatures of z) are computed once
@@ -23,7 +31,7 @@ module pendulum_step_kernel
   use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
   use thermo_variable, only: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
   use thermo_variable_kinds, only: tau_temperature, tau_entropy
-  use double_pendulum, only: q_index, p_index, full_layout
+  use double_pendulum, only: p_index, pendulum_layout
   use pendulum_model, only: pendulum
   use model_constraint, only: constraint_slot
   use length_constraint, only: fixed_length
@@ -37,17 +45,19 @@ module pendulum_step_kernel
   public :: pendulum_step, build_pendulum_step, pendulum_fused_step, condensed_offset
   ! For the submodules pendulum_step_residual and pendulum_step_jacobian only: gfortran gives a
   ! module's private procedures internal linkage, which submodules, compiled apart, cannot reach.
-  public :: velocity, gamma_of, new_temperature
+  public :: velocity, new_momenta, gamma_of, new_temperature
 
-  !> y = x(condensed_offset + 1:): the positions are the first 6 of the generic unknowns x.
+  !> y = x(condensed_offset + 1:) in the full layout: the positions are the first 6 of the generic
+  !> unknowns x (the first 2*dimension in any layout: pendulum_step%eliminated).
   integer, parameter :: condensed_offset = 6
   integer, parameter :: row_gamma = 7
   integer, parameter :: row_tau(2) = [8, 9]
   integer, parameter :: max_rows = 11          !! 9 and both multipliers
+  integer, parameter :: identity_rows(max_rows) = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]
 
   !> What a step needs of a spring's old state.
   type :: spring_old_state
-    real(real64) :: x(3) = 0.0_real64             !! invariants (C, [gamma,] tau)
+    real(real64) :: x(3) = 0.0_real64             !! invariants (C, [gamma,] tau): n_invariants of them
     real(real64) :: log_stretch = 0.0_real64      !! L = ln(l/l0)
     real(real64) :: inv_length = 0.0_real64       !! 1/l
     real(real64) :: length = 0.0_real64           !! l = sqrt(C)
@@ -81,12 +91,19 @@ module pendulum_step_kernel
     real(real64) :: theta(2) = 0.0_real64, thermal_force(2) = 0.0_real64, work(2) = 0.0_real64
     real(real64) :: work_ratio(2) = 0.0_real64, inv_u_tau(2) = 0.0_real64
     real(real64) :: inv_eta = 0.0_real64, rate = 0.0_real64, heating = 0.0_real64
+    real(real64) :: lambda(2) = 0.0_real64        !! the multipliers of g1 and g2 in y (0: inactive)
     real(real64) :: lambda_length = 0.0_real64, lambda_temperature = 0.0_real64
   end type step_point
 
   !> The condensed step of one scheme for the double pendulum.
   type, extends(condensed_step_problem) :: pendulum_step
     type(pendulum_parameters) :: params
+    type(pendulum_layout) :: layout                !! where the scene's unknowns sit in z
+    logical :: full = .true.                       !! the full layout: y in the internal numbering
+    logical :: viscous = .true.                    !! gamma and the viscous rate
+    integer :: internal_count = row_tau(2)         !! internal rows: 9 and the multipliers
+    !> internal_of(j): the internal row (1..max_rows) of y's unknown j and of R's row j.
+    integer :: internal_of(max_rows) = identity_rows
     type(spring_potential) :: spring(2)
     integer :: partials_rule = partials_discrete_gradient
     integer :: gradient = gradient_gonzalez
@@ -99,9 +116,11 @@ module pendulum_step_kernel
     real(real64) :: inverse_mass(2, 2) = 0.0_real64
     real(real64) :: force(3, 2) = 0.0_real64       !! gravity
     integer :: constraint_count = 0
-    integer :: length_row = 0                      !! g1's row and multiplier (0: inactive)
+    integer :: length_row = 0                      !! g1's internal row and multiplier (0: inactive)
+    integer :: length_unknown = 0                  !! ... and its multiplier's place in y
     real(real64) :: length = 0.0_real64
-    integer :: temperature_row = 0                 !! g2's row and multiplier (0: inactive)
+    integer :: temperature_row = 0                 !! g2's internal row and multiplier (0: inactive)
+    integer :: temperature_unknown = 0             !! ... and its multiplier's place in y
     integer :: temperature_part = 1
     real(real64) :: temperature = 0.0_real64
     type(step_point) :: kept                       !! the last residual's pass (evaluate_residual)
@@ -152,47 +171,71 @@ module pendulum_step_kernel
 
 contains
 
-  !> The kernel for `problem` if its model is the double pendulum and it knows every active
-  !> constraint; `built` = .false. otherwise (the generic residual then serves).
+  !> The kernel for `problem` if its model is the double pendulum with thermal springs (any
+  !> dimension, with or without gamma) and it knows every active constraint; `built` = .false.
+  !> otherwise (the generic residual then serves; the elastic rung has no thermal unknowns, and
+  !> the kernel's rows are written around them).
   subroutine build_pendulum_step(problem, kernel, built)
     type(step_problem), intent(in) :: problem
     type(pendulum_step), intent(out) :: kernel
     logical, intent(out) :: built
-    integer :: k, a
+    integer :: k, a, d, n, base
 
     built = .false.
     select type (model => problem%model)
     type is (pendulum)
-      if (.not. model%layout%is_full()) return    ! written for the spatial viscous scene's 15 unknowns
+      if (.not. model%layout%thermal) return
       kernel%params = model%params
+      kernel%layout = model%layout
       kernel%spring = model%spring
       do a = 1, 2
+        n = model%spring(a)%n_invariants
         if (problem%metric == metric_euclidean) then
-          kernel%scale(1:a + 1, a) = 1.0_real64
+          kernel%scale(1:n, a) = 1.0_real64
         else
-          kernel%scale(1:a + 1, a) = model%subsystems(a)%metric_scale
+          kernel%scale(1:n, a) = model%subsystems(a)%metric_scale
         end if
       end do
     class default
       return
     end select
+    d = kernel%layout%dimension
+    kernel%full = kernel%layout%is_full()
+    kernel%viscous = kernel%layout%viscous
     kernel%partials_rule = problem%partials_rule
     kernel%gradient = problem%gradient
     kernel%dt = problem%dt
-    kernel%eliminated = condensed_offset
+    kernel%eliminated = 2*d
     kernel%fraction = problem%fraction
     associate (m1 => kernel%params%mass(1), m2 => kernel%params%mass(2))
       kernel%inverse_mass = reshape([1.0_real64, -1.0_real64, -1.0_real64, (m1 + m2)/m2], [2, 2])/m1
     end associate
-    kernel%force = full_layout%gravity_force(kernel%params)
+    kernel%force = 0.0_real64
+    kernel%force(1:d, :) = kernel%layout%gravity_force(kernel%params)
+    ! y = (p1 (d), p2 (d), [gamma,] tau1, tau2, multipliers) in the internal numbering's rows
+    ! (p_a's components at 3(a - 1) + i, gamma 7, tau 8 and 9, the multipliers from 10).
+    kernel%internal_of = 0
+    kernel%internal_of(1:d) = [(k, k=1, d)]
+    kernel%internal_of(d + 1:2*d) = [(3 + k, k=1, d)]
+    base = 2*d
+    if (kernel%viscous) then
+      base = base + 1
+      kernel%internal_of(base) = row_gamma
+    end if
+    kernel%internal_of(base + 1:base + 2) = row_tau
+    base = base + 2
     kernel%constraint_count = size(problem%constraints)
+    kernel%internal_count = row_tau(2) + kernel%constraint_count
     do k = 1, size(problem%constraints)
+      kernel%internal_of(base + k) = row_tau(2) + k
       select type (item => problem%constraints(k)%item)
       type is (fixed_length)
         kernel%length_row = row_tau(2) + k
+        kernel%length_unknown = base + k
         kernel%length = item%length
       type is (fixed_temperature)
         kernel%temperature_row = row_tau(2) + k
+        kernel%temperature_unknown = base + k
         kernel%temperature_part = item%part
         kernel%temperature = item%temperature
       class default
@@ -214,10 +257,11 @@ contains
     if (built) allocate (kernel, source=made)
   end subroutine pendulum_fused_step
 
+  !> y's size: the layout's momenta, [gamma,] tau1, tau2 and the multipliers.
   pure integer function unknowns(self)
     class(pendulum_step), intent(in) :: self
 
-    unknowns = row_tau(2) + self%constraint_count
+    unknowns = self%layout%state_size - self%eliminated + self%constraint_count
   end function unknowns
 
   !> The step of s dt from the same old state.
@@ -233,22 +277,27 @@ contains
     class(pendulum_step), intent(inout) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
-    integer :: a, n
+    integer :: a, n, d
 
-    self%q_old(:, 1) = z(q_index(:, 1))
-    self%q_old(:, 2) = z(q_index(:, 2))
-    self%p_old(:, 1) = z(p_index(:, 1))
-    self%p_old(:, 2) = z(p_index(:, 2))
-    self%gamma_old = z(13)
-    self%tau_old = z(14:15)
+    ! A planar scene's third components and a thermoelastic scene's gamma stay 0 (module header).
+    d = self%layout%dimension
+    self%q_old = 0.0_real64
+    self%p_old = 0.0_real64
+    self%q_old(1:d, 1) = z(self%layout%q(1:d, 1))
+    self%q_old(1:d, 2) = z(self%layout%q(1:d, 2))
+    self%p_old(1:d, 1) = z(self%layout%p(1:d, 1))
+    self%p_old(1:d, 2) = z(self%layout%p(1:d, 2))
+    self%gamma_old = 0.0_real64
+    if (self%viscous) self%gamma_old = z(self%layout%gamma)
+    self%tau_old = z(self%layout%tau)
     self%kept_valid = .false.
     self%old_stat = domain_ok
     do a = 1, 2
-      n = a + 1
+      n = self%spring(a)%n_invariants
       associate (old => self%old(a), law => self%spring(a)%law)
-        old%x(1) = dot_product(z(q_index(:, a)), z(q_index(:, a)))
-        if (a == 2) old%x(2) = z(13)
-        old%x(n) = z(13 + a)
+        old%x(1) = dot_product(self%q_old(:, a), self%q_old(:, a))
+        if (n == 3) old%x(2) = self%gamma_old
+        old%x(n) = self%tau_old(a)
         if (.not. (old%x(1) > 0.0_real64)) then
           self%old_stat = domain_nonpositive_length
           return
@@ -286,11 +335,13 @@ contains
     real(real64), intent(in) :: y(:)
     real(real64) :: x(size(y) + self%eliminated)
     real(real64) :: v(3, 2)
+    integer :: d
 
-    v = velocity(self, y)
-    x(1:3) = self%q_old(:, 1) + (self%fraction*self%dt)*v(:, 1)
-    x(4:6) = self%q_old(:, 2) + (self%fraction*self%dt)*v(:, 2)
-    x(condensed_offset + 1:) = y
+    d = self%layout%dimension
+    v = velocity(self, new_momenta(self, y))
+    x(1:d) = self%q_old(1:d, 1) + (self%fraction*self%dt)*v(1:d, 1)
+    x(d + 1:2*d) = self%q_old(1:d, 2) + (self%fraction*self%dt)*v(1:d, 2)
+    x(2*d + 1:) = y
   end function expand
 
   !> The condensed unknowns y whose q'(y) is the positions of x: the momenta p' = 2 m (q' - q)/h - p
@@ -300,27 +351,47 @@ contains
     real(real64), intent(in) :: x(:)
     real(real64) :: y(size(x) - self%eliminated)
     real(real64) :: v(3, 2), p_mid(3, 2), m1, m2
+    integer :: d
 
+    d = self%layout%dimension
     m1 = self%params%mass(1)
     m2 = self%params%mass(2)
-    v(:, 1) = (x(1:3) - self%q_old(:, 1))/(self%fraction*self%dt)
-    v(:, 2) = (x(4:6) - self%q_old(:, 2))/(self%fraction*self%dt)
+    v(1:d, 1) = (x(1:d) - self%q_old(1:d, 1))/(self%fraction*self%dt)
+    v(1:d, 2) = (x(d + 1:2*d) - self%q_old(1:d, 2))/(self%fraction*self%dt)
     ! m = [[m1 + m2, m2], [m2, m2]] (q2 relative to m1), the inverse of m^-1.
-    p_mid(:, 1) = (m1 + m2)*v(:, 1) + m2*v(:, 2)
-    p_mid(:, 2) = m2*(v(:, 1) + v(:, 2))
-    y = x(condensed_offset + 1:)
-    y(1:3) = 2.0_real64*p_mid(:, 1) - self%p_old(:, 1)
-    y(4:6) = 2.0_real64*p_mid(:, 2) - self%p_old(:, 2)
+    p_mid(1:d, 1) = (m1 + m2)*v(1:d, 1) + m2*v(1:d, 2)
+    p_mid(1:d, 2) = m2*(v(1:d, 1) + v(1:d, 2))
+    y = x(2*d + 1:)
+    y(1:d) = 2.0_real64*p_mid(1:d, 1) - self%p_old(1:d, 1)
+    y(d + 1:2*d) = 2.0_real64*p_mid(1:d, 2) - self%p_old(1:d, 2)
   end function condense
 
-  ! v = m^-1 p_mid for the new momenta in y.
-  pure function velocity(self, y) result(v)
+  ! The new momenta p_a' of y as columns, a planar scene's third components 0.
+  pure function new_momenta(self, y) result(p_new)
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: y(:)
+    real(real64) :: p_new(3, 2)
+    integer :: d
+
+    if (self%full) then
+      p_new(:, 1) = y(1:3)
+      p_new(:, 2) = y(4:6)
+    else
+      d = self%layout%dimension
+      p_new = 0.0_real64
+      p_new(1:d, 1) = y(1:d)
+      p_new(1:d, 2) = y(d + 1:2*d)
+    end if
+  end function new_momenta
+
+  ! v = m^-1 p_mid for the new momenta p_new.
+  pure function velocity(self, p_new) result(v)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: p_new(3, 2)
     real(real64) :: v(3, 2), p_mid(3, 2)
 
-    p_mid(:, 1) = 0.5_real64*(self%p_old(:, 1) + y(1:3))
-    p_mid(:, 2) = 0.5_real64*(self%p_old(:, 2) + y(4:6))
+    p_mid(:, 1) = 0.5_real64*(self%p_old(:, 1) + p_new(:, 1))
+    p_mid(:, 2) = 0.5_real64*(self%p_old(:, 2) + p_new(:, 2))
     v(:, 1) = self%inverse_mass(1, 1)*p_mid(:, 1) + self%inverse_mass(1, 2)*p_mid(:, 2)
     v(:, 2) = self%inverse_mass(2, 1)*p_mid(:, 1) + self%inverse_mass(2, 2)*p_mid(:, 2)
   end function velocity
@@ -347,7 +418,7 @@ contains
     real(real64) :: c, e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), cap
     integer :: n
 
-    n = a + 1
+    n = self%spring(a)%n_invariants
     theta = 0.0_real64
     c = dot_product(point%q_new(:, a), point%q_new(:, a))
     if (.not. (c > 0.0_real64)) then
@@ -359,7 +430,7 @@ contains
       call temperature_of(self%spring(a), point%tau_new(a), 0.0_real64, 0.0_real64, theta, stat)
       return
     end if
-    call mechanical_parts(self%spring(a)%law, c, merge(point%gamma_new, 0.0_real64, a == 2), e, sigma, de, dsigma, &
+    call mechanical_parts(self%spring(a)%law, c, merge(point%gamma_new, 0.0_real64, n == 3), e, sigma, de, dsigma, &
                           d2e, d2sigma)
     call temperature_of(self%spring(a), point%tau_new(a), e, sigma, theta, stat)
     if (.not. present(dtheta_dx)) return
@@ -436,7 +507,9 @@ contains
     call values_at(self, y, point, stat)
     if (stat /= domain_ok) return
     do a = 1, 2
-      theta(a) = point%partials(a + 1, potential_u, a)/point%partials(a + 1, potential_s, a)
+      associate (n => self%spring(a)%n_invariants)
+        theta(a) = point%partials(n, potential_u, a)/point%partials(n, potential_s, a)
+      end associate
     end do
   end subroutine scheme_temperatures
 
@@ -485,8 +558,8 @@ contains
         exit
       end if
     end do
-    if (scheme_stat == domain_ok) theta_scheme = [(point%partials(a + 1, potential_u, a) &
-                                                   /point%partials(a + 1, potential_s, a), a=1, 2)]
+    if (scheme_stat == domain_ok) theta_scheme = [(point%partials(self%spring(a)%n_invariants, potential_u, a) &
+                                                   /point%partials(self%spring(a)%n_invariants, potential_s, a), a=1, 2)]
     call root_problem_text(self%partials_rule, stat, which, theta_new, 'spring '//achar(iachar('0') + which), &
                            scheme_stat, theta_scheme, problem_text)
   end subroutine check_root

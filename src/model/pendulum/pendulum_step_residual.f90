@@ -2,7 +2,8 @@
 !> the values pass at a point y of the condensed unknowns (the new and midpoint positions from the
 !> condensation, each spring's invariants, its partials by Gonzalez's quotient with its fallback
 !> or by the midpoint rule, sharing every logarithm, root and exponential of the spring
-!> potentials), and the residual's rows of p, gamma, tau and the constraints from it.
+!> potentials), and the residual's rows of p, gamma, tau and the constraints from it, in the
+!> kernel's internal numbering (the full layout's; a reduced layout's rows are picked from it).
 submodule (pendulum_step_kernel) pendulum_step_residual
   implicit none (type, external)
 
@@ -10,26 +11,53 @@ contains
 
   ! The values pass and the residual at y; the point keeps the residual's scalars.
   module procedure residual_pass
+    real(real64) :: internal(max_rows)
+
+    call values_pass(self, y, point, stat)
+    if (stat /= domain_ok) return
+    if (self%full) then
+      call residual_rows(self, point, residual, stat)
+    else
+      ! The layout's rows of the internal ones (the third components' and gamma's dropped).
+      call residual_rows(self, point, internal(1:self%internal_count), stat)
+      residual = internal(self%internal_of(1:size(residual)))
+    end if
+    if (stat /= domain_ok) return
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
+  end procedure residual_pass
+
+  ! The residual's internal rows at a point whose values pass is done.
+  pure subroutine residual_rows(self, point, residual, stat)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(inout) :: point
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
     real(real64) :: h, theta_new
     integer :: a, b, n
 
+    stat = domain_ok
     h = self%fraction*self%dt
-    call values_pass(self, y, point, stat)
-    if (stat /= domain_ok) return
     associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
                work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
       do a = 1, 2
-        n = a + 1
+        n = self%spring(a)%n_invariants
         theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
         thermal_force(a) = partials(1, potential_u, a) - theta(a)*partials(1, potential_s, a)
         work(a) = dot_product(point%q_mid(:, a), point%v(:, a))
         work_ratio(a) = partials(1, potential_s, a)/partials(n, potential_s, a)
         inv_u_tau(a) = 1.0_real64/partials(n, potential_u, a)
       end do
-      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2.
-      point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
-      point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
-      point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
+      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2;
+      ! without the viscous branch gamma's row is 0 = (0 - 0)/h - 0, and dropped.
+      if (self%viscous) then
+        point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
+        point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
+        point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
+      else
+        point%inv_eta = 0.0_real64
+        point%rate = 0.0_real64
+        point%heating = 0.0_real64
+      end if
       do a = 1, 2
         b = 3 - a
         residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%p_old(:, a))/h &
@@ -38,17 +66,17 @@ contains
                                - self%params%conductivity*(theta(b) - theta(a))*inv_u_tau(a)
       end do
       residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - point%rate
-      residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
+      if (self%viscous) residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
       ! Constraints (docs/formulation.md section 7).
       point%lambda_length = 0.0_real64
       if (self%length_row > 0) then
-        point%lambda_length = y(self%length_row)
+        point%lambda_length = point%lambda(1)
         residual(1:3) = residual(1:3) + point%lambda_length*point%q_mid(:, 1)
         residual(self%length_row) = 0.5_real64*(dot_product(point%q_new(:, 1), point%q_new(:, 1)) - self%length**2)
       end if
       point%lambda_temperature = 0.0_real64
       if (self%temperature_row > 0) then
-        point%lambda_temperature = y(self%temperature_row)
+        point%lambda_temperature = point%lambda(2)
         a = self%temperature_part
         residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
         call new_temperature(self, a, point, theta_new, stat=stat)
@@ -56,30 +84,39 @@ contains
         residual(self%temperature_row) = theta_new - self%temperature
       end if
     end associate
-    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
-  end procedure residual_pass
+  end subroutine residual_rows
 
   !> The values pass at y: positions, midpoint, and every spring's partials. stat /= 0: a point
   !> the scheme needs is outside the model's domain.
   module procedure values_pass
-    integer :: a, n
+    integer :: a, n, base
 
-    point%p_new(:, 1) = y(1:3)
-    point%p_new(:, 2) = y(4:6)
-    point%gamma_new = y(row_gamma)
-    point%tau_new = y(row_tau)
-    point%v = velocity(self, y)
+    point%p_new = new_momenta(self, y)
+    if (self%full) then
+      point%gamma_new = y(row_gamma)
+      point%tau_new = y(row_tau)
+    else
+      base = self%eliminated
+      point%gamma_new = 0.0_real64
+      if (self%viscous) point%gamma_new = y(base + 1)
+      point%tau_new = y(base + merge(1, 0, self%viscous) + [1, 2])
+    end if
+    ! The multipliers of g1 and g2 (0 if inactive), for the residual's rows.
+    point%lambda = 0.0_real64
+    if (self%length_unknown > 0) point%lambda(1) = y(self%length_unknown)
+    if (self%temperature_unknown > 0) point%lambda(2) = y(self%temperature_unknown)
+    point%v = velocity(self, point%p_new)
     point%q_new = self%q_old + (self%fraction*self%dt)*point%v
     point%q_mid = 0.5_real64*(self%q_old + point%q_new)
     stat = self%old_stat
     if (stat /= domain_ok) return
     do a = 1, 2
-      n = a + 1
+      n = self%spring(a)%n_invariants
       associate (sp => point%spring(a))
         if (self%partials_rule == partials_midpoint) then
           ! Exact partials at the invariants of z_mid: dC_mid/dq' = q_mid, d(gamma, tau)_mid/d(gamma, tau)' = 1/2.
           sp%mid(1) = dot_product(point%q_mid(:, a), point%q_mid(:, a))
-          if (a == 2) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
+          if (n == 3) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
           sp%mid(n) = 0.5_real64*(self%tau_old(a) + point%tau_new(a))
           point%chain_c(:, a) = point%q_mid(:, a)
           point%chain_other = 0.5_real64
@@ -88,7 +125,7 @@ contains
         else
           ! Discrete gradients between the invariants of z and z': dC'/dq' = 2 q'.
           sp%x(1) = dot_product(point%q_new(:, a), point%q_new(:, a))
-          if (a == 2) sp%x(2) = point%gamma_new
+          if (n == 3) sp%x(2) = point%gamma_new
           sp%x(n) = point%tau_new(a)
           point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
           point%chain_other = 1.0_real64
@@ -112,7 +149,7 @@ contains
     integer, intent(out) :: stat
     integer :: n
 
-    n = a + 1
+    n = self%spring(a)%n_invariants
     if (.not. (sp%mid(1) > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
@@ -137,7 +174,7 @@ contains
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), delta_e, delta_sigma, delta_theta, length_b
     integer :: n
 
-    n = a + 1
+    n = self%spring(a)%n_invariants
     associate (old => self%old(a), spring => self%spring(a), x => sp%x(1:n), d => sp%d(1:n))
       d = x - old%x(1:n)
       sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
