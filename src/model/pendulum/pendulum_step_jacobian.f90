@@ -17,8 +17,7 @@ contains
     if (stat /= domain_ok) return
     dtheta_new = 0.0_real64
     if (self%temperature_row > 0) then
-      call new_temperature(self, self%temperature_part, point, theta_new, &
-                           dtheta_new(1:self%spring(self%temperature_part)%n_invariants), stat)
+      call new_temperature(self, self%temperature_part, point, theta_new, dtheta_new(1:self%temperature_part + 1), stat)
       if (stat /= domain_ok) return
     end if
     call assemble_jacobian(self, point, dtheta_new, jacobian)
@@ -34,7 +33,7 @@ contains
 
     stat = domain_ok
     do a = 1, 2
-      n = self%spring(a)%n_invariants
+      n = a + 1
       associate (sp => point%spring(a))
         if (self%partials_rule == partials_midpoint) then
           call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, &
@@ -61,7 +60,7 @@ contains
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
     integer :: n
 
-    n = self%spring(a)%n_invariants
+    n = a + 1
     associate (spring => self%spring(a))
       call potentials_from_parts(spring, sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
                                  sp%d2sigma, grad(1:n, :), hess_m(1:n, 1:n, :))
@@ -89,7 +88,7 @@ contains
     ! Jacobian, in arrays of fixed size (no descriptors, no vector subscripts in the loops).
     real(real64) :: drow(max_rows, 3, 2), dq(max_rows, 3, 2), jac(max_rows, max_rows)
     real(real64) :: kappa, s_tau, h
-    integer :: a, b, n, l, i, col, rows, p0, nb
+    integer :: a, b, n, l, i, col, rows, p0
 
     rows = self%internal_count
     h = self%fraction*self%dt
@@ -102,7 +101,7 @@ contains
                inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &
                lambda_length => point%lambda_length, lambda_temperature => point%lambda_temperature)
       do a = 1, 2
-        n = self%spring(a)%n_invariants
+        n = a + 1
         s_tau = partials(n, potential_s, a)
         do l = 1, n
           dtheta(l, a) = (dp(n, l, potential_u, a) - theta(a)*dp(n, l, potential_s, a))/s_tau
@@ -127,8 +126,7 @@ contains
 
     do a = 1, 2
       b = 3 - a
-      n = self%spring(a)%n_invariants
-      nb = self%spring(b)%n_invariants
+      n = a + 1
       p0 = 3*(a - 1)                  ! the rows (and columns) of p_a are p0 + 1..p0 + 3
       do l = 1, n
         ! momentum rows: 2 T_a q_mid_a
@@ -138,7 +136,7 @@ contains
                                  + kappa*dtheta(l, a)*inv_u_tau(a) &
                                  - kappa*(theta(b) - theta(a))*dinv_u(l, a)
       end do
-      do l = 1, nb
+      do l = 1, b + 1
         drow(row_tau(a), l, b) = drow(row_tau(a), l, b) - kappa*dtheta(l, b)*inv_u_tau(a)
       end do
     end do
@@ -148,17 +146,16 @@ contains
     end if
     if (self%temperature_row > 0) then
       a = self%temperature_part
-      n = self%spring(a)%n_invariants
-      drow(row_tau(a), 1:n, a) = drow(row_tau(a), 1:n, a) - lambda_temperature*dinv_u(1:n, a)
+      drow(row_tau(a), 1:a + 1, a) = drow(row_tau(a), 1:a + 1, a) - lambda_temperature*dinv_u(1:a + 1, a)
     end if
 
     ! Through the partials' variables xi into the columns of q', gamma', tau'.
     do a = 1, 2
-      n = self%spring(a)%n_invariants
+      n = a + 1
       do i = 1, 3
         dq(1:rows, i, a) = drow(1:rows, 1, a)*point%chain_c(i, a)
       end do
-      if (n == 3) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
+      if (a == 2) jac(1:rows, row_gamma) = drow(1:rows, 2, 2)*point%chain_other
       jac(1:rows, row_tau(a)) = drow(1:rows, n, a)*point%chain_other
     end do
 
@@ -187,11 +184,11 @@ contains
     end if
     if (self%temperature_row > 0) then
       a = self%temperature_part
-      n = self%spring(a)%n_invariants
+      n = a + 1
       jac(row_tau(a), self%temperature_row) = -inv_u_tau(a)
       ! g2 = theta(z') - temperature, through the invariants of z' (C' = q'.q').
       dq(self%temperature_row, :, a) = dtheta_new(1)*2.0_real64*point%q_new(:, a)
-      if (n == 3) jac(self%temperature_row, row_gamma) = dtheta_new(2)
+      if (a == 2) jac(self%temperature_row, row_gamma) = dtheta_new(2)
       jac(self%temperature_row, row_tau(a)) = dtheta_new(n)
     end if
 

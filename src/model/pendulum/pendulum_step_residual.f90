@@ -40,7 +40,7 @@ contains
     associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
                work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
       do a = 1, 2
-        n = self%spring(a)%n_invariants
+        n = a + 1
         theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
         thermal_force(a) = partials(1, potential_u, a) - theta(a)*partials(1, potential_s, a)
         work(a) = dot_product(point%q_mid(:, a), point%v(:, a))
@@ -111,12 +111,12 @@ contains
     stat = self%old_stat
     if (stat /= domain_ok) return
     do a = 1, 2
-      n = self%spring(a)%n_invariants
+      n = a + 1
       associate (sp => point%spring(a))
         if (self%partials_rule == partials_midpoint) then
           ! Exact partials at the invariants of z_mid: dC_mid/dq' = q_mid, d(gamma, tau)_mid/d(gamma, tau)' = 1/2.
           sp%mid(1) = dot_product(point%q_mid(:, a), point%q_mid(:, a))
-          if (n == 3) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
+          if (a == 2) sp%mid(2) = 0.5_real64*(self%gamma_old + point%gamma_new)
           sp%mid(n) = 0.5_real64*(self%tau_old(a) + point%tau_new(a))
           point%chain_c(:, a) = point%q_mid(:, a)
           point%chain_other = 0.5_real64
@@ -125,7 +125,7 @@ contains
         else
           ! Discrete gradients between the invariants of z and z': dC'/dq' = 2 q'.
           sp%x(1) = dot_product(point%q_new(:, a), point%q_new(:, a))
-          if (n == 3) sp%x(2) = point%gamma_new
+          if (a == 2) sp%x(2) = point%gamma_new
           sp%x(n) = point%tau_new(a)
           point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
           point%chain_other = 1.0_real64
@@ -149,7 +149,7 @@ contains
     integer, intent(out) :: stat
     integer :: n
 
-    n = self%spring(a)%n_invariants
+    n = a + 1
     if (.not. (sp%mid(1) > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
@@ -174,7 +174,7 @@ contains
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), delta_e, delta_sigma, delta_theta, length_b
     integer :: n
 
-    n = self%spring(a)%n_invariants
+    n = a + 1
     associate (old => self%old(a), spring => self%spring(a), x => sp%x(1:n), d => sp%d(1:n))
       d = x - old%x(1:n)
       sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
