@@ -90,7 +90,8 @@ contains
     real(real64) :: kappa, s_tau, h
     integer :: a, b, n, l, i, col, rows, p0
 
-    rows = self%internal_count
+    rows = size(jacobian, 1)
+    if (.not. self%full) rows = self%internal_count
     h = self%fraction*self%dt
     kappa = self%params%conductivity
     jac(1:rows, 1:rows) = 0.0_real64
@@ -111,18 +112,16 @@ contains
           dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
         end do
       end do
-      drate = 0.0_real64
-      dheating = 0.0_real64
-      if (self%viscous) then
-        ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
-        dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
-        do l = 1, 3
-          drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
-                      - dp(2, l, potential_u, 2))*inv_eta &
-                     + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
-          dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
-        end do
-      end if
+      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17). Without the viscous branch 1/eta,
+      ! the rate, its heating and spring 2's gamma partials and their derivatives are all 0, so
+      ! drate and dheating are 0 too, with no branch the full layout would pay for.
+      dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
+      do l = 1, 3
+        drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
+                    - dp(2, l, potential_u, 2))*inv_eta &
+                   + (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*dinv_eta*dtheta(l, 2)
+        dheating(l) = (dp(2, l, potential_u, 2) - heating*dp(3, l, potential_u, 2))*inv_u_tau(2)
+      end do
 
     do a = 1, 2
       b = 3 - a
@@ -140,10 +139,8 @@ contains
         drow(row_tau(a), l, b) = drow(row_tau(a), l, b) - kappa*dtheta(l, b)*inv_u_tau(a)
       end do
     end do
-    if (self%viscous) then
-      drow(row_gamma, :, 2) = -drate
-      drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
-    end if
+    drow(row_gamma, :, 2) = -drate
+    drow(row_tau(2), :, 2) = drow(row_tau(2), :, 2) + dheating*rate + heating*drate
     if (self%temperature_row > 0) then
       a = self%temperature_part
       drow(row_tau(a), 1:a + 1, a) = drow(row_tau(a), 1:a + 1, a) - lambda_temperature*dinv_u(1:a + 1, a)

@@ -95,7 +95,6 @@ module pendulum_step_kernel
     real(real64) :: theta(2) = 0.0_real64, thermal_force(2) = 0.0_real64, work(2) = 0.0_real64
     real(real64) :: work_ratio(2) = 0.0_real64, inv_u_tau(2) = 0.0_real64
     real(real64) :: inv_eta = 0.0_real64, rate = 0.0_real64, heating = 0.0_real64
-    real(real64) :: lambda(2) = 0.0_real64        !! the multipliers of g1 and g2 in y (0: inactive)
     real(real64) :: lambda_length = 0.0_real64, lambda_temperature = 0.0_real64
   end type step_point
 
@@ -155,7 +154,8 @@ module pendulum_step_kernel
       type(step_point), intent(inout) :: point
       integer, intent(out) :: stat
     end subroutine values_pass
-    !> The condensed residual at y, after its values pass (src/model/pendulum/pendulum_step_residual).
+    !> The condensed residual at y in the internal rows, after its values pass
+    !> (src/model/pendulum/pendulum_step_residual).
     module pure subroutine residual_pass(self, y, point, residual, stat)
       class(pendulum_step), intent(in) :: self
       real(real64), intent(in) :: y(:)
@@ -344,14 +344,20 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: y(:)
     real(real64) :: x(size(y) + self%eliminated)
-    real(real64) :: v(3, 2)
+    real(real64) :: v(3, 2), q_new(3, 2)
     integer :: d
 
-    d = self%layout%dimension
     v = velocity(self, new_momenta(self, y))
-    x(1:d) = self%q_old(1:d, 1) + (self%fraction*self%dt)*v(1:d, 1)
-    x(d + 1:2*d) = self%q_old(1:d, 2) + (self%fraction*self%dt)*v(1:d, 2)
-    x(2*d + 1:) = y
+    q_new = self%q_old + (self%fraction*self%dt)*v
+    if (self%full) then
+      x(1:3) = q_new(:, 1)
+      x(4:6) = q_new(:, 2)
+    else
+      d = self%layout%dimension
+      x(1:d) = q_new(1:d, 1)
+      x(d + 1:2*d) = q_new(1:d, 2)
+    end if
+    x(self%eliminated + 1:) = y
   end function expand
 
   !> The condensed unknowns y whose q'(y) is the positions of x: the momenta p' = 2 m (q' - q)/h - p
@@ -360,20 +366,33 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: x(:)
     real(real64) :: y(size(x) - self%eliminated)
-    real(real64) :: v(3, 2), p_mid(3, 2), m1, m2
+    real(real64) :: q_new(3, 2), v(3, 2), p_mid(3, 2), p_new(3, 2), m1, m2
     integer :: d
 
     d = self%layout%dimension
+    if (self%full) then
+      q_new(:, 1) = x(1:3)
+      q_new(:, 2) = x(4:6)
+    else
+      q_new = 0.0_real64
+      q_new(1:d, 1) = x(1:d)
+      q_new(1:d, 2) = x(d + 1:2*d)
+    end if
     m1 = self%params%mass(1)
     m2 = self%params%mass(2)
-    v(1:d, 1) = (x(1:d) - self%q_old(1:d, 1))/(self%fraction*self%dt)
-    v(1:d, 2) = (x(d + 1:2*d) - self%q_old(1:d, 2))/(self%fraction*self%dt)
+    v = (q_new - self%q_old)/(self%fraction*self%dt)
     ! m = [[m1 + m2, m2], [m2, m2]] (q2 relative to m1), the inverse of m^-1.
-    p_mid(1:d, 1) = (m1 + m2)*v(1:d, 1) + m2*v(1:d, 2)
-    p_mid(1:d, 2) = m2*(v(1:d, 1) + v(1:d, 2))
-    y = x(2*d + 1:)
-    y(1:d) = 2.0_real64*p_mid(1:d, 1) - self%p_old(1:d, 1)
-    y(d + 1:2*d) = 2.0_real64*p_mid(1:d, 2) - self%p_old(1:d, 2)
+    p_mid(:, 1) = (m1 + m2)*v(:, 1) + m2*v(:, 2)
+    p_mid(:, 2) = m2*(v(:, 1) + v(:, 2))
+    p_new = 2.0_real64*p_mid - self%p_old
+    y = x(self%eliminated + 1:)
+    if (self%full) then
+      y(1:3) = p_new(:, 1)
+      y(4:6) = p_new(:, 2)
+    else
+      y(1:d) = p_new(1:d, 1)
+      y(d + 1:2*d) = p_new(1:d, 2)
+    end if
   end function condense
 
   ! The new momenta p_a' of y as columns, a planar scene's third components 0.
@@ -468,10 +487,30 @@ contains
     integer, intent(out) :: stat
     type(step_point) :: point
 
-    call residual_pass(self, x, point, residual, stat)
+    call layout_residual(self, x, point, residual, stat)
     if (stat /= domain_ok .or. .not. present(jacobian)) return
     call jacobian_pass(self, point, jacobian, stat)
   end subroutine evaluate
+
+  ! The residual pass at y with R in y's rows: the internal rows themselves in the full layout, else
+  ! the layout's rows picked from them (a planar scene's third components and gamma dropped: the
+  ! rows dropped are 0, so the overflow check of the internal rows is the layout's).
+  pure subroutine layout_residual(self, y, point, residual, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    type(step_point), intent(inout) :: point
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
+    real(real64) :: internal(max_rows)
+
+    if (self%full) then
+      call residual_pass(self, y, point, residual, stat)
+    else
+      internal = 0.0_real64
+      call residual_pass(self, y, point, internal(1:self%internal_count), stat)
+      residual = internal(self%internal_of(1:size(residual)))
+    end if
+  end subroutine layout_residual
 
   !> R(y), keeping the pass for a Jacobian at the same y (evaluate_jacobian).
   subroutine evaluate_residual(self, x, residual, stat)
@@ -480,7 +519,7 @@ contains
     real(real64), intent(out) :: residual(:)
     integer, intent(out) :: stat
 
-    call residual_pass(self, x, self%kept, residual, stat)
+    call layout_residual(self, x, self%kept, residual, stat)
     self%kept_valid = stat == domain_ok
     self%kept_y(1:size(x)) = x
     self%kept_h = self%fraction*self%dt
@@ -495,7 +534,7 @@ contains
     real(real64) :: residual(size(x))
 
     if (.not. kept_for(self, x)) then
-      call residual_pass(self, x, self%kept, residual, stat)
+      call layout_residual(self, x, self%kept, residual, stat)
       self%kept_valid = stat == domain_ok
       self%kept_y(1:size(x)) = x
       self%kept_h = self%fraction*self%dt

@@ -9,34 +9,14 @@ submodule (pendulum_step_kernel) pendulum_step_residual
 
 contains
 
-  ! The values pass and the residual at y; the point keeps the residual's scalars.
+  ! The values pass and the residual's internal rows at y; the point keeps the residual's scalars.
   module procedure residual_pass
-    real(real64) :: internal(max_rows)
-
-    call values_pass(self, y, point, stat)
-    if (stat /= domain_ok) return
-    if (self%full) then
-      call residual_rows(self, point, residual, stat)
-    else
-      ! The layout's rows of the internal ones (the third components' and gamma's dropped).
-      call residual_rows(self, point, internal(1:self%internal_count), stat)
-      residual = internal(self%internal_of(1:size(residual)))
-    end if
-    if (stat /= domain_ok) return
-    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
-  end procedure residual_pass
-
-  ! The residual's internal rows at a point whose values pass is done.
-  pure subroutine residual_rows(self, point, residual, stat)
-    class(pendulum_step), intent(in) :: self
-    type(step_point), intent(inout) :: point
-    real(real64), intent(out) :: residual(:)
-    integer, intent(out) :: stat
     real(real64) :: h, theta_new
     integer :: a, b, n
 
-    stat = domain_ok
     h = self%fraction*self%dt
+    call values_pass(self, y, point, stat)
+    if (stat /= domain_ok) return
     associate (partials => point%partials, theta => point%theta, thermal_force => point%thermal_force, &
                work => point%work, work_ratio => point%work_ratio, inv_u_tau => point%inv_u_tau)
       do a = 1, 2
@@ -48,7 +28,8 @@ contains
         inv_u_tau(a) = 1.0_real64/partials(n, potential_u, a)
       end do
       ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2;
-      ! without the viscous branch gamma's row is 0 = (0 - 0)/h - 0, and dropped.
+      ! without the viscous branch they are 0 (no exponential spent on eta), gamma's row is
+      ! 0 = (0 - 0)/h - 0 and dropped.
       if (self%viscous) then
         point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
         point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
@@ -66,17 +47,17 @@ contains
                                - self%params%conductivity*(theta(b) - theta(a))*inv_u_tau(a)
       end do
       residual(row_gamma) = (point%gamma_new - self%gamma_old)/h - point%rate
-      if (self%viscous) residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
+      residual(row_tau(2)) = residual(row_tau(2)) + point%heating*point%rate
       ! Constraints (docs/formulation.md section 7).
       point%lambda_length = 0.0_real64
       if (self%length_row > 0) then
-        point%lambda_length = point%lambda(1)
+        point%lambda_length = y(self%length_unknown)
         residual(1:3) = residual(1:3) + point%lambda_length*point%q_mid(:, 1)
         residual(self%length_row) = 0.5_real64*(dot_product(point%q_new(:, 1), point%q_new(:, 1)) - self%length**2)
       end if
       point%lambda_temperature = 0.0_real64
       if (self%temperature_row > 0) then
-        point%lambda_temperature = point%lambda(2)
+        point%lambda_temperature = y(self%temperature_unknown)
         a = self%temperature_part
         residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
         call new_temperature(self, a, point, theta_new, stat=stat)
@@ -84,27 +65,26 @@ contains
         residual(self%temperature_row) = theta_new - self%temperature
       end if
     end associate
-  end subroutine residual_rows
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
+  end procedure residual_pass
 
   !> The values pass at y: positions, midpoint, and every spring's partials. stat /= 0: a point
   !> the scheme needs is outside the model's domain.
   module procedure values_pass
     integer :: a, n, base
 
-    point%p_new = new_momenta(self, y)
     if (self%full) then
+      point%p_new(:, 1) = y(1:3)
+      point%p_new(:, 2) = y(4:6)
       point%gamma_new = y(row_gamma)
       point%tau_new = y(row_tau)
     else
+      point%p_new = new_momenta(self, y)
       base = self%eliminated
       point%gamma_new = 0.0_real64
       if (self%viscous) point%gamma_new = y(base + 1)
       point%tau_new = y(base + merge(1, 0, self%viscous) + [1, 2])
     end if
-    ! The multipliers of g1 and g2 (0 if inactive), for the residual's rows.
-    point%lambda = 0.0_real64
-    if (self%length_unknown > 0) point%lambda(1) = y(self%length_unknown)
-    if (self%temperature_unknown > 0) point%lambda(2) = y(self%temperature_unknown)
     point%v = velocity(self, point%p_new)
     point%q_new = self%q_old + (self%fraction*self%dt)*point%v
     point%q_mid = 0.5_real64*(self%q_old + point%q_new)
