@@ -61,7 +61,7 @@ module pendulum_step_kernel
 
   !> What a step needs of a spring's old state.
   type :: spring_old_state
-    real(real64) :: x(3) = 0.0_real64             !! invariants (C, [gamma,] tau): n_invariants of them
+    real(real64) :: x(3) = 0.0_real64             !! invariants (C, [gamma,] tau)
     real(real64) :: log_stretch = 0.0_real64      !! L = ln(l/l0)
     real(real64) :: inv_length = 0.0_real64       !! 1/l
     real(real64) :: length = 0.0_real64           !! l = sqrt(C)
