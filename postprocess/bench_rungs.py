@@ -7,14 +7,15 @@ thermo_variable 'temperature' (EME_theta), Gonzalez's discrete gradient, dt = 0.
 1e-8), the namelist being that file's with a &model and an &initial group in front:
   full                       the paper scene as it is: spatial, thermoviscoelastic, gravity (0, 0,
                              -9.81); 15 unknowns; its EME step runs the fused, hand-optimised kernel
-                             (src/model/pendulum/pendulum_step_kernel.f90)
+                             (src/model/pendulum/pendulum_step_kernel.f90), as every thermal rung's does
   spatial_thermoelastic      spring_law = 'thermoelastic': the same initial state without gamma; 14
   planar_thermoviscoelastic  dimension = 2: the x and y components of the paper's initial state (q1 =
                              (1, 0), q2 = (3, 0), p1 = (0, 0), p2 = (-1, -1)), gravity (0, -9.81); 11
   planar_thermoelastic       both; 10 unknowns
   full_generic               not a rung: the full model with -eme_fused_kernel false, the generic path
                              (src/scheme/step_residual.f90 through the model interface) that the
-                             reduced rungs take, so that the fused kernel's worth shows beside them
+                             reduced rungs took before the kernel served them (the elastic rung's
+                             still), so that the fused kernel's worth shows beside them
 The scenes share their data, not their motion: with gravity along z the spatial pendulum starts
 swinging out of the x-y plane of its initial state, while the planar one falls in its plane under
 gravity along -y, and the thermoelastic springs lose the viscous branch's dissipation. Their

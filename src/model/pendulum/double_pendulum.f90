@@ -13,8 +13,8 @@ module double_pendulum
   public :: pendulum_layout, make_layout, full_layout
   public :: tau_symbols, tau_units, inverse_mass_times, cross
 
-  !> The full (spatial, thermoviscoelastic) layout's columns, which the fused step kernel
-  !> (pendulum_step_kernel) is written for.
+  !> The full (spatial, thermoviscoelastic) layout's columns, whose numbering the fused step kernel
+  !> (pendulum_step_kernel) works in for every thermal layout.
   integer, parameter :: state_size = 15
   !> q_index(:, a) and p_index(:, a) are the columns of q_a and p_a in z.
   integer, parameter :: q_index(3, 2) = reshape([1, 2, 3, 4, 5, 6], [3, 2])
@@ -82,7 +82,7 @@ contains
     layout%state_size = 4*dimension + merge(1, 0, viscous) + merge(2, 0, thermal)
   end function make_layout
 
-  !> The spatial thermoviscoelastic layout, for which the fused step kernel is written.
+  !> The spatial thermoviscoelastic layout, which the fused step kernel serves without picking rows.
   pure logical function is_full(self)
     class(pendulum_layout), intent(in) :: self
 

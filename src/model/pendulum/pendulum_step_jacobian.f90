@@ -2,7 +2,8 @@
 !> the derivative pass, which differentiates each spring's partials (Gonzalez's quotient and its
 !> fallback, or the midpoint rule's exact partials) in the variables they depend on, and the
 !> assembly of the condensed Jacobian dR/dy = dR/dz'|_y + dR/dq' (h/2) m^-1 from them and the
-!> scalars the residual's pass kept at the same point.
+!> scalars the residual's pass kept at the same point, in the kernel's internal numbering (a
+!> reduced layout's rows and columns are picked from it at the end).
 submodule (pendulum_step_kernel) pendulum_step_jacobian
   implicit none (type, external)
 
@@ -90,6 +91,7 @@ contains
     integer :: a, b, n, l, i, col, rows, p0
 
     rows = size(jacobian, 1)
+    if (.not. self%full) rows = self%internal_count
     h = self%fraction*self%dt
     kappa = self%params%conductivity
     jac(1:rows, 1:rows) = 0.0_real64
@@ -110,7 +112,9 @@ contains
           dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
         end do
       end do
-      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17).
+      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17). Without the viscous branch 1/eta,
+      ! the rate, its heating and spring 2's gamma partials and their derivatives are all 0, so
+      ! drate and dheating are 0 too, with no branch the full layout would pay for.
       dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
       do l = 1, 3
         drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
@@ -191,7 +195,14 @@ contains
         jac(1:rows, 3*b - 2:3*b) = jac(1:rows, 3*b - 2:3*b) + (0.5_real64*h*self%inverse_mass(a, b))*dq(1:rows, :, a)
       end do
     end do
-    jacobian = jac(1:rows, 1:rows)
+    if (self%full) then
+      jacobian = jac(1:rows, 1:rows)
+    else
+      ! The layout's rows and columns of the internal ones (the third components' and gamma's dropped).
+      associate (kept => self%internal_of(1:size(jacobian, 1)))
+        jacobian = jac(kept, kept)
+      end associate
+    end if
     end associate
   end subroutine assemble_jacobian
 

@@ -7,6 +7,18 @@
 !> 9 unknowns plus one per active constraint (docs/formulation.md section 7). The residual of y is the
 !> generic residual's rows of p, gamma, tau and the constraints at z'(y); its Jacobian is
 !>   dR/dy = dR/dz'|_(p, gamma, tau, multipliers) + dR/dq' (h/2) m^-1.
+!> Layouts: every thermal rung of the ladder (double_pendulum's pendulum_layout), spatial or planar,
+!> with or without gamma. Inside, the kernel always works on the full layout's numbering and
+!> shapes (3 components per vector, spring 2's invariants (C, gamma, tau), rows 1..9 and the
+!> multipliers after them): a planar scene's third components and a thermoelastic scene's gamma
+!> stay zero, and their rows and columns are dropped where y, R and dR/dy cross the interface
+!> (internal_of). A thermoelastic spring 2 has no Maxwell branch (beta_v = 0, A = 0), so its
+!> potentials do not depend on gamma: its gamma partials are exactly 0 and the others are those
+!> of (C, tau). So the full layout runs the code it ran before with its sizes known to the
+!> compiler (the same operations in the same order, bit for bit; sizes taken from the layout at
+!> run time cost it 7 % more instructions a step), and a reduced layout pays for the zeros it
+!> carries, not for a second copy of the kernel; without the viscous branch the viscous rate and
+!> its heating (an exponential a point) are skipped.
 !> Fused: one pass computes the residual and, when asked, the Jacobian, sharing every logarithm,
 !> root and exponential of the spring potentials and the discrete-gradient quotients between them.
 !> Old-state quantities (the invariants, ln(l/l0), 1/l and the temperatures of z) are computed once
@@ -23,7 +35,7 @@ module pendulum_step_kernel
   use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
   use thermo_variable, only: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
   use thermo_variable_kinds, only: tau_temperature, tau_entropy
-  use double_pendulum, only: q_index, p_index, full_layout
+  use double_pendulum, only: p_index, pendulum_layout
   use pendulum_model, only: pendulum
   use model_constraint, only: constraint_slot
   use length_constraint, only: fixed_length
@@ -37,13 +49,15 @@ module pendulum_step_kernel
   public :: pendulum_step, build_pendulum_step, pendulum_fused_step, condensed_offset
   ! For the submodules pendulum_step_residual and pendulum_step_jacobian only: gfortran gives a
   ! module's private procedures internal linkage, which submodules, compiled apart, cannot reach.
-  public :: velocity, gamma_of, new_temperature
+  public :: velocity, new_momenta, gamma_of, new_temperature
 
-  !> y = x(condensed_offset + 1:): the positions are the first 6 of the generic unknowns x.
+  !> y = x(condensed_offset + 1:) in the full layout: the positions are the first 6 of the generic
+  !> unknowns x (the first 2*dimension in any layout: pendulum_step%eliminated).
   integer, parameter :: condensed_offset = 6
   integer, parameter :: row_gamma = 7
   integer, parameter :: row_tau(2) = [8, 9]
   integer, parameter :: max_rows = 11          !! 9 and both multipliers
+  integer, parameter :: identity_rows(max_rows) = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]
 
   !> What a step needs of a spring's old state.
   type :: spring_old_state
@@ -87,6 +101,12 @@ module pendulum_step_kernel
   !> The condensed step of one scheme for the double pendulum.
   type, extends(condensed_step_problem) :: pendulum_step
     type(pendulum_parameters) :: params
+    type(pendulum_layout) :: layout                !! where the scene's unknowns sit in z
+    logical :: full = .true.                       !! the full layout: y in the internal numbering
+    logical :: viscous = .true.                    !! gamma and the viscous rate
+    integer :: internal_count = row_tau(2)         !! internal rows: 9 and the multipliers
+    !> internal_of(j): the internal row (1..max_rows) of y's unknown j and of R's row j.
+    integer :: internal_of(max_rows) = identity_rows
     type(spring_potential) :: spring(2)
     integer :: partials_rule = partials_discrete_gradient
     integer :: gradient = gradient_gonzalez
@@ -99,9 +119,11 @@ module pendulum_step_kernel
     real(real64) :: inverse_mass(2, 2) = 0.0_real64
     real(real64) :: force(3, 2) = 0.0_real64       !! gravity
     integer :: constraint_count = 0
-    integer :: length_row = 0                      !! g1's row and multiplier (0: inactive)
+    integer :: length_row = 0                      !! g1's internal row and multiplier (0: inactive)
+    integer :: length_unknown = 0                  !! ... and its multiplier's place in y
     real(real64) :: length = 0.0_real64
-    integer :: temperature_row = 0                 !! g2's row and multiplier (0: inactive)
+    integer :: temperature_row = 0                 !! g2's internal row and multiplier (0: inactive)
+    integer :: temperature_unknown = 0             !! ... and its multiplier's place in y
     integer :: temperature_part = 1
     real(real64) :: temperature = 0.0_real64
     type(step_point) :: kept                       !! the last residual's pass (evaluate_residual)
@@ -132,7 +154,8 @@ module pendulum_step_kernel
       type(step_point), intent(inout) :: point
       integer, intent(out) :: stat
     end subroutine values_pass
-    !> The condensed residual at y, after its values pass (src/model/pendulum/pendulum_step_residual).
+    !> The condensed residual at y in the internal rows, after its values pass
+    !> (src/model/pendulum/pendulum_step_residual).
     module pure subroutine residual_pass(self, y, point, residual, stat)
       class(pendulum_step), intent(in) :: self
       real(real64), intent(in) :: y(:)
@@ -152,47 +175,77 @@ module pendulum_step_kernel
 
 contains
 
-  !> The kernel for `problem` if its model is the double pendulum and it knows every active
-  !> constraint; `built` = .false. otherwise (the generic residual then serves).
+  !> The kernel for `problem` if its model is the double pendulum with thermal springs (any
+  !> dimension, with or without gamma) and it knows every active constraint; `built` = .false.
+  !> otherwise (the generic residual then serves; the elastic rung has no thermal unknowns, and
+  !> the kernel's rows are written around them).
   subroutine build_pendulum_step(problem, kernel, built)
     type(step_problem), intent(in) :: problem
     type(pendulum_step), intent(out) :: kernel
     logical, intent(out) :: built
-    integer :: k, a
+    integer :: k, a, d, n, base
 
     built = .false.
     select type (model => problem%model)
     type is (pendulum)
-      if (.not. model%layout%is_full()) return    ! written for the spatial viscous scene's 15 unknowns
+      if (.not. model%layout%thermal) return
       kernel%params = model%params
+      kernel%layout = model%layout
       kernel%spring = model%spring
+      ! Spring 2 with its invariants (C, gamma, tau) in every layout: a thermoelastic one's gamma
+      ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1.
+      kernel%spring(2)%n_invariants = 3
       do a = 1, 2
+        n = model%spring(a)%n_invariants
         if (problem%metric == metric_euclidean) then
-          kernel%scale(1:a + 1, a) = 1.0_real64
+          kernel%scale(:, a) = 1.0_real64
         else
-          kernel%scale(1:a + 1, a) = model%subsystems(a)%metric_scale
+          kernel%scale(:, a) = 1.0_real64
+          kernel%scale(1, a) = model%subsystems(a)%metric_scale(1)
+          kernel%scale(a + 1, a) = model%subsystems(a)%metric_scale(n)
+          if (n == 3) kernel%scale(2, a) = model%subsystems(a)%metric_scale(2)
         end if
       end do
     class default
       return
     end select
+    d = kernel%layout%dimension
+    kernel%full = kernel%layout%is_full()
+    kernel%viscous = kernel%layout%viscous
     kernel%partials_rule = problem%partials_rule
     kernel%gradient = problem%gradient
     kernel%dt = problem%dt
-    kernel%eliminated = condensed_offset
+    kernel%eliminated = 2*d
     kernel%fraction = problem%fraction
     associate (m1 => kernel%params%mass(1), m2 => kernel%params%mass(2))
       kernel%inverse_mass = reshape([1.0_real64, -1.0_real64, -1.0_real64, (m1 + m2)/m2], [2, 2])/m1
     end associate
-    kernel%force = full_layout%gravity_force(kernel%params)
+    kernel%force = 0.0_real64
+    kernel%force(1:d, :) = kernel%layout%gravity_force(kernel%params)
+    ! y = (p1 (d), p2 (d), [gamma,] tau1, tau2, multipliers) in the internal numbering's rows
+    ! (p_a's components at 3(a - 1) + i, gamma 7, tau 8 and 9, the multipliers from 10).
+    kernel%internal_of = 0
+    kernel%internal_of(1:d) = [(k, k=1, d)]
+    kernel%internal_of(d + 1:2*d) = [(3 + k, k=1, d)]
+    base = 2*d
+    if (kernel%viscous) then
+      base = base + 1
+      kernel%internal_of(base) = row_gamma
+    end if
+    kernel%internal_of(base + 1:base + 2) = row_tau
+    base = base + 2
     kernel%constraint_count = size(problem%constraints)
+    kernel%internal_count = row_tau(2) + kernel%constraint_count
     do k = 1, size(problem%constraints)
+      kernel%internal_of(base + k) = row_tau(2) + k
       select type (item => problem%constraints(k)%item)
       type is (fixed_length)
         kernel%length_row = row_tau(2) + k
+        kernel%length_unknown = base + k
         kernel%length = item%length
       type is (fixed_temperature)
         kernel%temperature_row = row_tau(2) + k
+        kernel%temperature_unknown = base + k
         kernel%temperature_part = item%part
         kernel%temperature = item%temperature
       class default
@@ -214,10 +267,11 @@ contains
     if (built) allocate (kernel, source=made)
   end subroutine pendulum_fused_step
 
+  !> y's size: the layout's momenta, [gamma,] tau1, tau2 and the multipliers.
   pure integer function unknowns(self)
     class(pendulum_step), intent(in) :: self
 
-    unknowns = row_tau(2) + self%constraint_count
+    unknowns = self%layout%state_size - self%eliminated + self%constraint_count
   end function unknowns
 
   !> The step of s dt from the same old state.
@@ -233,22 +287,27 @@ contains
     class(pendulum_step), intent(inout) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
-    integer :: a, n
+    integer :: a, n, d
 
-    self%q_old(:, 1) = z(q_index(:, 1))
-    self%q_old(:, 2) = z(q_index(:, 2))
-    self%p_old(:, 1) = z(p_index(:, 1))
-    self%p_old(:, 2) = z(p_index(:, 2))
-    self%gamma_old = z(13)
-    self%tau_old = z(14:15)
+    ! A planar scene's third components and a thermoelastic scene's gamma stay 0 (module header).
+    d = self%layout%dimension
+    self%q_old = 0.0_real64
+    self%p_old = 0.0_real64
+    self%q_old(1:d, 1) = z(self%layout%q(1:d, 1))
+    self%q_old(1:d, 2) = z(self%layout%q(1:d, 2))
+    self%p_old(1:d, 1) = z(self%layout%p(1:d, 1))
+    self%p_old(1:d, 2) = z(self%layout%p(1:d, 2))
+    self%gamma_old = 0.0_real64
+    if (self%viscous) self%gamma_old = z(self%layout%gamma)
+    self%tau_old = z(self%layout%tau)
     self%kept_valid = .false.
     self%old_stat = failure_none
     do a = 1, 2
       n = a + 1
       associate (old => self%old(a), law => self%spring(a)%law)
-        old%x(1) = dot_product(z(q_index(:, a)), z(q_index(:, a)))
-        if (a == 2) old%x(2) = z(13)
-        old%x(n) = z(13 + a)
+        old%x(1) = dot_product(self%q_old(:, a), self%q_old(:, a))
+        if (a == 2) old%x(2) = self%gamma_old
+        old%x(n) = self%tau_old(a)
         if (.not. (old%x(1) > 0.0_real64)) then
           self%old_stat = domain_nonpositive_length
           return
@@ -285,12 +344,20 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: y(:)
     real(real64) :: x(size(y) + self%eliminated)
-    real(real64) :: v(3, 2)
+    real(real64) :: v(3, 2), q_new(3, 2)
+    integer :: d
 
-    v = velocity(self, y)
-    x(1:3) = self%q_old(:, 1) + (self%fraction*self%dt)*v(:, 1)
-    x(4:6) = self%q_old(:, 2) + (self%fraction*self%dt)*v(:, 2)
-    x(condensed_offset + 1:) = y
+    v = velocity(self, new_momenta(self, y))
+    q_new = self%q_old + (self%fraction*self%dt)*v
+    if (self%full) then
+      x(1:3) = q_new(:, 1)
+      x(4:6) = q_new(:, 2)
+    else
+      d = self%layout%dimension
+      x(1:d) = q_new(1:d, 1)
+      x(d + 1:2*d) = q_new(1:d, 2)
+    end if
+    x(self%eliminated + 1:) = y
   end function expand
 
   !> The condensed unknowns y whose q'(y) is the positions of x: the momenta p' = 2 m (q' - q)/h - p
@@ -299,28 +366,61 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: x(:)
     real(real64) :: y(size(x) - self%eliminated)
-    real(real64) :: v(3, 2), p_mid(3, 2), m1, m2
+    real(real64) :: q_new(3, 2), v(3, 2), p_mid(3, 2), p_new(3, 2), m1, m2
+    integer :: d
 
+    d = self%layout%dimension
+    if (self%full) then
+      q_new(:, 1) = x(1:3)
+      q_new(:, 2) = x(4:6)
+    else
+      q_new = 0.0_real64
+      q_new(1:d, 1) = x(1:d)
+      q_new(1:d, 2) = x(d + 1:2*d)
+    end if
     m1 = self%params%mass(1)
     m2 = self%params%mass(2)
-    v(:, 1) = (x(1:3) - self%q_old(:, 1))/(self%fraction*self%dt)
-    v(:, 2) = (x(4:6) - self%q_old(:, 2))/(self%fraction*self%dt)
+    v = (q_new - self%q_old)/(self%fraction*self%dt)
     ! m = [[m1 + m2, m2], [m2, m2]] (q2 relative to m1), the inverse of m^-1.
     p_mid(:, 1) = (m1 + m2)*v(:, 1) + m2*v(:, 2)
     p_mid(:, 2) = m2*(v(:, 1) + v(:, 2))
-    y = x(condensed_offset + 1:)
-    y(1:3) = 2.0_real64*p_mid(:, 1) - self%p_old(:, 1)
-    y(4:6) = 2.0_real64*p_mid(:, 2) - self%p_old(:, 2)
+    p_new = 2.0_real64*p_mid - self%p_old
+    y = x(self%eliminated + 1:)
+    if (self%full) then
+      y(1:3) = p_new(:, 1)
+      y(4:6) = p_new(:, 2)
+    else
+      y(1:d) = p_new(1:d, 1)
+      y(d + 1:2*d) = p_new(1:d, 2)
+    end if
   end function condense
 
-  ! v = m^-1 p_mid for the new momenta in y.
-  pure function velocity(self, y) result(v)
+  ! The new momenta p_a' of y as columns, a planar scene's third components 0.
+  pure function new_momenta(self, y) result(p_new)
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: y(:)
+    real(real64) :: p_new(3, 2)
+    integer :: d
+
+    if (self%full) then
+      p_new(:, 1) = y(1:3)
+      p_new(:, 2) = y(4:6)
+    else
+      d = self%layout%dimension
+      p_new = 0.0_real64
+      p_new(1:d, 1) = y(1:d)
+      p_new(1:d, 2) = y(d + 1:2*d)
+    end if
+  end function new_momenta
+
+  ! v = m^-1 p_mid for the new momenta p_new.
+  pure function velocity(self, p_new) result(v)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: p_new(3, 2)
     real(real64) :: v(3, 2), p_mid(3, 2)
 
-    p_mid(:, 1) = 0.5_real64*(self%p_old(:, 1) + y(1:3))
-    p_mid(:, 2) = 0.5_real64*(self%p_old(:, 2) + y(4:6))
+    p_mid(:, 1) = 0.5_real64*(self%p_old(:, 1) + p_new(:, 1))
+    p_mid(:, 2) = 0.5_real64*(self%p_old(:, 2) + p_new(:, 2))
     v(:, 1) = self%inverse_mass(1, 1)*p_mid(:, 1) + self%inverse_mass(1, 2)*p_mid(:, 2)
     v(:, 2) = self%inverse_mass(2, 1)*p_mid(:, 1) + self%inverse_mass(2, 2)*p_mid(:, 2)
   end function velocity
@@ -387,10 +487,30 @@ contains
     integer, intent(out) :: stat
     type(step_point) :: point
 
-    call residual_pass(self, x, point, residual, stat)
+    call layout_residual(self, x, point, residual, stat)
     if (stat /= failure_none .or. .not. present(jacobian)) return
     call jacobian_pass(self, point, jacobian, stat)
   end subroutine evaluate
+
+  ! The residual pass at y with R in y's rows: the internal rows themselves in the full layout, else
+  ! the layout's rows picked from them (a planar scene's third components and gamma dropped: the
+  ! rows dropped are 0, so the overflow check of the internal rows is the layout's).
+  pure subroutine layout_residual(self, y, point, residual, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    type(step_point), intent(inout) :: point
+    real(real64), intent(out) :: residual(:)
+    integer, intent(out) :: stat
+    real(real64) :: internal(max_rows)
+
+    if (self%full) then
+      call residual_pass(self, y, point, residual, stat)
+    else
+      internal = 0.0_real64
+      call residual_pass(self, y, point, internal(1:self%internal_count), stat)
+      residual = internal(self%internal_of(1:size(residual)))
+    end if
+  end subroutine layout_residual
 
   !> R(y), keeping the pass for a Jacobian at the same y (evaluate_jacobian).
   subroutine evaluate_residual(self, x, residual, stat)
@@ -399,7 +519,7 @@ contains
     real(real64), intent(out) :: residual(:)
     integer, intent(out) :: stat
 
-    call residual_pass(self, x, self%kept, residual, stat)
+    call layout_residual(self, x, self%kept, residual, stat)
     self%kept_valid = stat == failure_none
     self%kept_y(1:size(x)) = x
     self%kept_h = self%fraction*self%dt
@@ -414,7 +534,7 @@ contains
     real(real64) :: residual(size(x))
 
     if (.not. kept_for(self, x)) then
-      call residual_pass(self, x, self%kept, residual, stat)
+      call layout_residual(self, x, self%kept, residual, stat)
       self%kept_valid = stat == failure_none
       self%kept_y(1:size(x)) = x
       self%kept_h = self%fraction*self%dt

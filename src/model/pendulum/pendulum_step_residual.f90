@@ -2,13 +2,14 @@
 !> the values pass at a point y of the condensed unknowns (the new and midpoint positions from the
 !> condensation, each spring's invariants, its partials by Gonzalez's quotient with its fallback
 !> or by the midpoint rule, sharing every logarithm, root and exponential of the spring
-!> potentials), and the residual's rows of p, gamma, tau and the constraints from it.
+!> potentials), and the residual's rows of p, gamma, tau and the constraints from it, in the
+!> kernel's internal numbering (the full layout's; a reduced layout's rows are picked from it).
 submodule (pendulum_step_kernel) pendulum_step_residual
   implicit none (type, external)
 
 contains
 
-  ! The values pass and the residual at y; the point keeps the residual's scalars.
+  ! The values pass and the residual's internal rows at y; the point keeps the residual's scalars.
   module procedure residual_pass
     real(real64) :: h, theta_new
     integer :: a, b, n
@@ -26,10 +27,18 @@ contains
         work_ratio(a) = partials(1, potential_s, a)/partials(n, potential_s, a)
         inv_u_tau(a) = 1.0_real64/partials(n, potential_u, a)
       end do
-      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2.
-      point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
-      point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
-      point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
+      ! Viscous rate (Theta_2 dS_2/dgamma - dU_2/dgamma)/eta(Theta_2) and its heating of tau_2;
+      ! without the viscous branch they are 0 (no exponential spent on eta), gamma's row is
+      ! 0 = (0 - 0)/h - 0 and dropped.
+      if (self%viscous) then
+        point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
+        point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
+        point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
+      else
+        point%inv_eta = 0.0_real64
+        point%rate = 0.0_real64
+        point%heating = 0.0_real64
+      end if
       do a = 1, 2
         b = 3 - a
         residual(p_index(:, a) - condensed_offset) = (point%p_new(:, a) - self%p_old(:, a))/h &
@@ -42,13 +51,13 @@ contains
       ! Constraints (docs/formulation.md section 7).
       point%lambda_length = 0.0_real64
       if (self%length_row > 0) then
-        point%lambda_length = y(self%length_row)
+        point%lambda_length = y(self%length_unknown)
         residual(1:3) = residual(1:3) + point%lambda_length*point%q_mid(:, 1)
         residual(self%length_row) = 0.5_real64*(dot_product(point%q_new(:, 1), point%q_new(:, 1)) - self%length**2)
       end if
       point%lambda_temperature = 0.0_real64
       if (self%temperature_row > 0) then
-        point%lambda_temperature = y(self%temperature_row)
+        point%lambda_temperature = y(self%temperature_unknown)
         a = self%temperature_part
         residual(row_tau(a)) = residual(row_tau(a)) - point%lambda_temperature*inv_u_tau(a)
         call new_temperature(self, a, point, theta_new, stat=stat)
@@ -62,13 +71,21 @@ contains
   !> The values pass at y: positions, midpoint, and every spring's partials. stat /= 0: a point
   !> the scheme needs is outside the model's domain.
   module procedure values_pass
-    integer :: a, n
+    integer :: a, n, base
 
-    point%p_new(:, 1) = y(1:3)
-    point%p_new(:, 2) = y(4:6)
-    point%gamma_new = y(row_gamma)
-    point%tau_new = y(row_tau)
-    point%v = velocity(self, y)
+    if (self%full) then
+      point%p_new(:, 1) = y(1:3)
+      point%p_new(:, 2) = y(4:6)
+      point%gamma_new = y(row_gamma)
+      point%tau_new = y(row_tau)
+    else
+      point%p_new = new_momenta(self, y)
+      base = self%eliminated
+      point%gamma_new = 0.0_real64
+      if (self%viscous) point%gamma_new = y(base + 1)
+      point%tau_new = y(base + merge(1, 0, self%viscous) + [1, 2])
+    end if
+    point%v = velocity(self, point%p_new)
     point%q_new = self%q_old + (self%fraction*self%dt)*point%v
     point%q_mid = 0.5_real64*(self%q_old + point%q_new)
     stat = self%old_stat
