@@ -12,6 +12,10 @@ thermo_variable 'temperature' (EME_theta), Gonzalez's discrete gradient, dt = 0.
   planar_thermoviscoelastic  dimension = 2: the x and y components of the paper's initial state (q1 =
                              (1, 0), q2 = (3, 0), p1 = (0, 0), p2 = (-1, -1)), gravity (0, -9.81); 11
   planar_thermoelastic       both; 10 unknowns
+  spatial_elastic            spring_law = 'elastic': no thermal unknowns (springs of stiffness
+                             mu_eq_const, no thermo_variable); 12 unknowns, the generic path (the
+                             fused kernel is written for thermal springs)
+  planar_elastic             elastic and planar; 8 unknowns
   full_generic               not a rung: the full model with -eme_fused_kernel false, the generic path
                              (src/scheme/step_residual.f90 through the model interface) that the
                              reduced rungs took before the kernel served them (the elastic rung's
@@ -23,7 +27,7 @@ Newton iterations per step differ a little, so each cost is printed beside its N
 per step and divided by them too (per Newton iteration).
 
 Before measuring, each scene is run to t = 10 s and its file must have the rung's spring_law,
-dimension and state columns (15, 14, 11, 10; 15 for full_generic), and the planar scenes the x and
+dimension and state columns (15, 14, 11, 10, 12, 8; 15 for full_generic), and the planar scenes the x and
 y components of the full scene's initial state; else the script ends with exit status 1 naming
 the scene.
 
@@ -48,6 +52,7 @@ bench_eme_run.py):
 Each part ends with the machine's load around it (machine_load.py). A program that fails, a scene
 with the wrong columns, or a missing valgrind end the script with the message and exit status 1.
 """
+import re
 import shutil
 import statistics
 import sys
@@ -93,6 +98,9 @@ RUNGS = (
     Rung("planar_thermoelastic", "(d) planar thermoelastic",
          "spring_law = 'thermoelastic', dimension = 2, gravity = 0.0, -9.81", PLANAR_INITIAL, 10,
          "thermoelastic", 2),
+    Rung("spatial_elastic", "(e) spatial elastic (generic path)", "spring_law = 'elastic'", "", 12, "elastic", 3),
+    Rung("planar_elastic", "(f) planar elastic (generic path)", "spring_law = 'elastic', dimension = 2, gravity = 0.0, -9.81",
+         PLANAR_INITIAL, 8, "elastic", 2),
     Rung("full_generic", "(a) on the generic path (-eme_fused_kernel false)", "", "", 15,
          "thermoviscoelastic", 3, ("-eme_fused_kernel", "false")),
 )
@@ -104,7 +112,10 @@ def rung_text(rung, file, t_end):
     with its file in `file` and t_end."""
     model = ", ".join(["model_name = 'double_pendulum'"] + ([rung.model] if rung.model else []))
     initial = f"&initial {rung.initial} /\n" if rung.initial else ""
-    return f"&model {model} /\n{initial}{scene_text(file, t_end)}"
+    text = scene_text(file, t_end)
+    if rung.spring_law == "elastic":      # elastic springs have no thermodynamic variable to choose
+        text = re.sub(r"^\s*thermo_variable\s*=.*\n", "", text, flags=re.MULTILINE)
+    return f"&model {model} /\n{initial}{text}"
 
 
 def run_rung(bin_dir, folder, rung, t_end, under=None):

@@ -152,7 +152,8 @@ def test_bench_rungs_labels_each_rungs_counts_and_ratios(tmp_path):
             fields = dict(field.split("=", 1) for field in line.split())
             rungs[fields["rung"]] = fields
     expected = {"full": (15, 15000), "spatial_thermoelastic": (14, 14000), "planar_thermoviscoelastic": (11, 11000),
-                "planar_thermoelastic": (10, 10000), "full_generic": (15, 15500)}
+                "planar_thermoelastic": (10, 10000), "spatial_elastic": (12, 12000), "planar_elastic": (8, 8000),
+                "full_generic": (15, 15500)}
     assert list(rungs) == list(expected)
     for name, (unknowns, step) in expected.items():
         fields = rungs[name]
@@ -173,7 +174,7 @@ def test_bench_rungs_labels_each_rungs_counts_and_ratios(tmp_path):
     assert "(target 0.7: " in time_line
     # The table: one row per scene, in order, with its unknowns.
     rows = [line for line in result.stdout.splitlines() if line.startswith("  (") and "unknowns" not in line]
-    assert [row.split()[0] for row in rows[:5]] == ["(a)", "(b)", "(c)", "(d)", "(a)"]
+    assert [row.split()[0] for row in rows[:7]] == ["(a)", "(b)", "(c)", "(d)", "(e)", "(f)", "(a)"]
     assert "planar thermoelastic" in rows[3] and rows[3].split()[3] == "10"
     assert result.stdout.count("load_average_before=") == 2
 
