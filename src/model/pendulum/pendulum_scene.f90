@@ -7,7 +7,7 @@
 !> `temperature` defaults to theta(1) and must equal it.
 module pendulum_scene
   use, intrinsic :: iso_fortran_env, only: real64
-  use namelist_text, only: namelist_item, group_items, item_name
+  use namelist_text, only: namelist_item, group_items, item_name, joined
   use number_text, only: reals_text
   use namelist_group, only: group_field, real_field, reals_field, integer_field, logical_field, text_field, &
                             read_group, invalid_value_message, value_origin, absolute_temperature, field_names
@@ -274,22 +274,10 @@ contains
       call fail(failure, failure_input, items(i)%origin//': &'//group//': '//name// &
                 ' is not a field of spring_law = '''//trim(self%params%spring_law)//''' ('// &
                 trim(merge('it has no viscous branch    ', 'elastic springs have no heat', self%params%thermal()))// &
-                '); allowed: '//names_list(scene_fields), name)
+                '); allowed: '//joined(field_names(scene_fields), ', '), name)
       return
     end do
   end subroutine refuse_other_parts
-
-  ! 'a, b, c' of a table's field names.
-  function names_list(table) result(text)
-    type(group_field), intent(in) :: table(:)
-    character(len=:), allocatable :: text
-    integer :: i
-
-    text = trim(table(1)%name)
-    do i = 2, size(table)
-      text = text//', '//trim(table(i)%name)
-    end do
-  end function names_list
 
   !> The pendulum in thermodynamic variable `variable`, the initial state and the constraints.
   subroutine build(self, variable, model, z0, constraints, failure)
