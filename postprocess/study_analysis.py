@@ -102,7 +102,7 @@ MODELS = {
         norm_label=r"max(|$\Delta q$|, |$\Delta p$|, |$\Delta\gamma$|, |$\Delta\theta_a$|/$\theta_{ref}$)",
         optional_scenes=(("gonzalez", "stability_gonzalez_elastic"), ("romero", "stability_romero_thermoelastic"))),
     # Nondimensional (its units are 1, its temperatures compared unscaled), no momenta (its
-    # angular_momentum_drift is NaN).
+    # index has no angular_momentum_drift; read_index gives NaN).
     "gas": ModelStudies(
         title="gas containers", work_precision=tuple(f"gas_{name}" for name in WORK_PRECISION),
         reference="gas_work_precision_reference", scenes={"gas": "gas_stability"},
@@ -119,9 +119,12 @@ STUDIES = ("convergence", "convergence_reference",
            *(study for model in MODELS.values() for study in model.scenes.values()),
            *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
                                for kind in ("", "_tolerance")))
-INDEX_FIELDS = ("case", "file", "scheme", "dt", "status", "steps_completed",
-                "solve_time_seconds", "energy_drift", "min_entropy_increment",
-                "max_lyapunov_increment", "min_temperature", "halved_steps")
+INDEX_FIELDS = ("case", "file", "scheme", "dt", "status", "steps_completed", "solve_time_seconds", "energy_drift",
+                "halved_steps")
+# Figures an index has only when its cases' model has them: no angular_momentum_drift without a
+# conserved momentum (the gas containers, a planar pendulum with gravity), no thermal figures
+# without temperatures (elastic springs). A row lacking one holds NaN, as older indexes did.
+MODEL_FIELDS = ("min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift", "min_temperature")
 
 
 class StudyError(RunFileError):
@@ -153,6 +156,8 @@ def read_index(folder):
                for name in cases.dtype.names}
         # A study that sweeps no thermodynamic variable (the elastic rung has none) has no field.
         row.setdefault("thermo_variable", "none")
+        for name in MODEL_FIELDS:
+            row.setdefault(name, float("nan"))
         if "tolerance" in row:
             row["scheme"] = integrators.tolerance_variant(row["scheme"])
         row["path"] = path.parent / row["file"]

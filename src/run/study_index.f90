@@ -1,6 +1,10 @@
 !> The index of a study: output_dir/index.h5, whose dataset /cases has one row per case
 !> (h5py: f['cases'][:]): case, file, one column per sweep, status ('complete', 'failed: <reason>',
-!> 'incomplete: interrupted by <signal>' or 'pending'), failure_kind and the case's figures. The
+!> 'incomplete: interrupted by <signal>' or 'pending'), failure_kind and the case's figures: those
+!> the cases' models can have (no angular_momentum_drift column when no case's model has a conserved
+!> momentum, no min_entropy_increment, max_lyapunov_increment or min_temperature when none has
+!> temperatures; the journal, the ranks' messages and a case's result keep all metric_count
+!> figures, NaN where a model has none, so that only the file's columns depend on the model). The
 !> dataset /integrators holds the integrator registry (name, label, family, capabilities), so
 !> the scripts that chart a study name and order its schemes as the code does. The attribute
 !> case_1_input is case 1's input as namelist text (all groups and fields, defaults included):
@@ -74,6 +78,8 @@ module study_index
     type(study_definition), pointer :: study => null()
     type(table_columns) :: columns
     type(case_result), allocatable :: results(:)
+    integer, allocatable :: shown(:)               !! the metrics that are columns of /cases, in order
+    character(len=24) :: units(metric_count) = ''  !! the metrics' units in the base file's model
     character(len=:), allocatable :: index_path, journal_path
     character(len=:), allocatable :: started       !! when this run of the study began (ISO 8601)
     integer(int64) :: last_write = 0, clock_rate = 1
@@ -115,7 +121,8 @@ contains
     notes = ''
     allocate (self%results(size(study%cases)), pending(size(study%cases)))
     allocate (earlier(size(study%cases)), source=0)
-    call define_columns(study, self%columns)
+    call choose_metrics(study, self%shown, self%units)
+    call define_columns(study, self%shown, self%columns)
     call make_directories(study%output_dir, failure)
     if (failure%failed()) then
       reason = failure%message
@@ -287,9 +294,62 @@ contains
     end if
   end subroutine close_index
 
-  ! case, file, one column per sweep, status, failure_kind, the metrics (rank and run_count last).
-  subroutine define_columns(study, columns)
+  ! Which metrics the index shows, and their units. A figure that no case's model has (a drift of
+  ! the conserved momentum, the thermal figures) would be a column of NaN: it is left out. Every
+  ! case's model is asked, not only the base file's, since a sweep may change the model (a planar
+  ! scene's dimension, gravity); the asking stops once every figure is shown (the pendulum's
+  ! scenes: at case 1). Should no case's model build (a refused scene fails in its case), every
+  ! figure is shown, as before models chose. Units: the base file's model's (as its sweeps').
+  subroutine choose_metrics(study, shown, units)
     type(study_definition), intent(in) :: study
+    integer, allocatable, intent(out) :: shown(:)
+    character(len=24), intent(out) :: units(metric_count)
+    type(run_configuration), target :: base
+    class(generic_model), allocatable :: model
+    type(constraint_slot), allocatable :: constraints(:)
+    real(real64), allocatable :: z0(:)
+    type(failure_type) :: building
+    logical :: any_built, momentum, thermal
+    integer :: c, m
+
+    units = metric_units
+    call read_run_config(study%base, base, building)
+    if (.not. building%failed()) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, building)
+    if (.not. building%failed()) then
+      units(m_entropy_increment) = model%words%entropy_units
+      units(m_lyapunov_increment) = model%words%energy_units
+      units(m_momentum_drift) = '1'
+      if (model%conserved_momentum_column > 0) units(m_momentum_drift) = model%words%momentum_units
+      units(m_min_temperature) = model%words%temperature_units
+    end if
+    any_built = .false.
+    momentum = .false.
+    thermal = .false.
+    do c = 1, size(study%cases)
+      if (allocated(model)) deallocate (model)
+      associate (config => study%cases(c)%config)
+        call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
+      end associate
+      if (building%failed()) cycle
+      any_built = .true.
+      momentum = momentum .or. model%conserved_momentum_column > 0
+      thermal = thermal .or. model%temperature_count() > 0
+      if (momentum .and. thermal) exit
+    end do
+    if (.not. any_built) then
+      momentum = .true.
+      thermal = .true.
+    end if
+    shown = pack([(m, m=1, metric_count)], [(m /= m_momentum_drift .or. momentum, m=1, metric_count)] .and. &
+                 [(all(m /= [m_entropy_increment, m_lyapunov_increment, m_min_temperature]) .or. thermal, &
+                   m=1, metric_count)])
+  end subroutine choose_metrics
+
+  ! case, file, one column per sweep, status, failure_kind, the shown metrics (rank and run_count
+  ! last).
+  subroutine define_columns(study, shown, columns)
+    type(study_definition), intent(in) :: study
+    integer, intent(in) :: shown(:)
     type(table_columns), intent(out) :: columns
     integer :: s, m
 
@@ -311,8 +371,8 @@ contains
     end do
     call columns%add('status', status_length)
     call columns%add('failure_kind', kind_length)
-    do m = 1, metric_count
-      call columns%add(trim(metric_names(m)), merge(column_integer, column_real, metric_is_integer(m)))
+    do m = 1, size(shown)
+      call columns%add(trim(metric_names(shown(m))), merge(column_integer, column_real, metric_is_integer(shown(m))))
     end do
   end subroutine define_columns
 
@@ -344,30 +404,24 @@ contains
 
   ! The attribute column_units of /cases: the units of every column, in order ('' for a text):
   ! the swept fields' and the figures' in the units of the base file's model (the gas containers'
-  ! are nondimensional; a model without a conserved momentum has no momentum units).
-  subroutine column_units(file, study, failure)
+  ! are nondimensional).
+  subroutine column_units(file, self, failure)
     type(hdf5_file), intent(in) :: file
-    type(study_definition), intent(in) :: study
+    type(case_index), intent(in) :: self
     type(failure_type), intent(out) :: failure
-    character(len=24) :: units(2 + sum(study%sweeps%elements) + 2 + metric_count)
+    character(len=24) :: units(2 + sum(self%study%sweeps%elements) + 2 + size(self%shown))
     type(run_configuration), target :: base
-    class(generic_model), allocatable :: model
-    type(constraint_slot), allocatable :: constraints(:)
-    real(real64), allocatable :: z0(:)
     type(failure_type) :: base_failure
-    integer :: s, next, base_stat
+    integer :: s, next
 
-    call read_run_config(study%base, base, base_failure)
-    if (.not. base_failure%failed()) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, &
-                                                           base_failure)
-    base_stat = base_failure%code
+    call read_run_config(self%study%base, base, base_failure)
     units = ''
     units(1) = '1'                        ! case; file is a text
     next = 3
-    do s = 1, size(study%sweeps)
-      associate (sweep => study%sweeps(s))
+    do s = 1, size(self%study%sweeps)
+      associate (sweep => self%study%sweeps(s))
         if (.not. sweep%textual) then
-          if (base_stat == 0) then
+          if (.not. base_failure%failed()) then
             units(next:next + sweep%elements - 1) = field_units(item_name(sweep%field), base)
           else
             units(next:next + sweep%elements - 1) = field_units(item_name(sweep%field))
@@ -376,14 +430,7 @@ contains
         next = next + sweep%elements
       end associate
     end do
-    units(next + 2:) = metric_units       ! after status and failure_kind
-    if (base_stat == 0) then
-      units(next + 1 + m_entropy_increment) = model%words%entropy_units
-      units(next + 1 + m_lyapunov_increment) = model%words%energy_units
-      units(next + 1 + m_momentum_drift) = '1'
-      if (model%conserved_momentum_column > 0) units(next + 1 + m_momentum_drift) = model%words%momentum_units
-      units(next + 1 + m_min_temperature) = model%words%temperature_units
-    end if
+    units(next + 2:) = self%units(self%shown)       ! after status and failure_kind
     call file%set_dataset_texts('cases', 'column_units', units, failure)
   end subroutine column_units
 
@@ -418,7 +465,7 @@ contains
     allocate (numbers(n_numbers, size(self%results)), texts(n_texts, size(self%results)))
     do c = 1, size(self%results)
       call case_parameters(self%study, c, parameters, parameter_texts)
-      numbers(:, c) = [parameters, self%results(c)%metrics]
+      numbers(:, c) = [parameters, self%results(c)%metrics(self%shown)]
       texts(1, c) = ''
       if (.not. self%study%index_only) texts(1, c) = case_name(c)
       texts(2:n_texts - 2, c) = parameter_texts
@@ -438,7 +485,7 @@ contains
     if (.not. failure%failed()) call write_provenance(file, 'EME study '//self%study%input_file//': '// &
                                          integer_text(size(self%results))//' cases', petsc_options_in_force(), failure, &
                                          started=self%started)
-    if (.not. failure%failed()) call column_units(file, self%study, failure)
+    if (.not. failure%failed()) call column_units(file, self, failure)
     if (.not. failure%failed()) call write_registry(file, failure)
     if (.not. failure%failed()) call file%store(self%index_path, .true., failure)
     call file%close(ignored)
@@ -543,7 +590,9 @@ contains
       end if
       self%results(c)%status = texts(n_texts - 1, r)
       self%results(c)%failure_kind = texts(n_texts, r)(1:kind_length)
-      self%results(c)%metrics = numbers(n_parameters + 1:, r)
+      ! A figure that is no column (the model has none) is NaN, as the case's run gives it.
+      self%results(c)%metrics = ieee_value(1.0_real64, ieee_quiet_nan)
+      self%results(c)%metrics(self%shown) = numbers(n_parameters + 1:, r)
       earlier(c) = r
     end do
     if (rows /= size(self%results) .or. any(earlier /= 0 .and. earlier /= [(c, c=1, size(earlier))])) &
