@@ -314,7 +314,8 @@ contains
 
     units = metric_units
     call read_run_config(study%base, base, building)
-    if (.not. building%failed()) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, building)
+    if (.not. building%failed()) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, &
+                                                       building)
     if (.not. building%failed()) then
       units(m_entropy_increment) = model%words%entropy_units
       units(m_lyapunov_increment) = model%words%energy_units
