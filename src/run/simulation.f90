@@ -91,46 +91,10 @@ contains
   !> disk unless `durable` is .false. (an ensemble's case: its index is the record). The run
   !> continues the one its file holds if the command line asks (-eme_continue: else it fails with
   !> failure_input); with `resume_if_possible` instead, it does when it can (an interrupted case of
-  !> a study) and starts from t = 0 otherwise.
+  !> a study) and starts from t = 0 otherwise. The time loop's many exits set `failure` as they
+  !> go; summary%note says what the driver adds to a run without one.
   subroutine run_simulation(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, &
                             template, resume_if_possible)
-    type(run_configuration), intent(in), target :: config
-    type(run_summary), intent(out) :: summary
-    type(failure_type), intent(out) :: failure
-    class(run_observer), intent(inout), optional :: observer
-    class(time_stepper), allocatable, intent(inout), target, optional :: reusable
-    procedure(line_reporter), optional :: progress
-    logical, intent(in), optional :: keep_file
-    type(extra_attribute), intent(in), optional :: extras(:)
-    logical, intent(in), optional :: durable
-    type(file_template), intent(inout), target, optional :: template
-    logical, intent(in), optional :: resume_if_possible
-
-    call simulate(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, template, &
-                  resume_if_possible)
-  end subroutine run_simulation
-
-  ! The failures' code of a run's failure kind (a word of run_outcome).
-  pure integer function failure_code_of(kind)
-    character(len=*), intent(in) :: kind
-
-    select case (kind)
-    case (failure_input)
-      failure_code_of = code_input
-    case (failure_io)
-      failure_code_of = code_io
-    case (failure_interrupted)
-      failure_code_of = code_interrupted
-    case default
-      failure_code_of = code_library
-    end select
-  end function failure_code_of
-
-  ! run_simulation's time loop: a failure that is not the method's (the time loop's many exits
-  ! set it as they go, its code from the failure kind, its origin the input file); summary%note
-  ! says what the driver adds to a run without one.
-  subroutine simulate(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, &
-                      template, resume_if_possible)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     type(failure_type), intent(out) :: failure
@@ -659,7 +623,23 @@ contains
                     //' s left')
     end subroutine report_progress
 
-  end subroutine simulate
+  end subroutine run_simulation
+
+  ! The failures' code of a run's failure kind (a word of run_outcome).
+  pure integer function failure_code_of(kind)
+    character(len=*), intent(in) :: kind
+
+    select case (kind)
+    case (failure_input)
+      failure_code_of = code_input
+    case (failure_io)
+      failure_code_of = code_io
+    case (failure_interrupted)
+      failure_code_of = code_interrupted
+    case default
+      failure_code_of = code_library
+    end select
+  end function failure_code_of
 
   !> Sets up the run's integrator and frees it again, without integrating or writing anything:
   !> every option it reads is read (PETSc's -help lists them), so the drivers call it before a

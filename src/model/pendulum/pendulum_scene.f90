@@ -110,8 +110,7 @@ contains
     type(group_field), allocatable :: table(:)
     integer :: d
 
-    d = self%params%dimension
-    if (every_part) d = 3
+    d = merge(3, self%params%dimension, every_part)
     associate (p => self%params)
       table = [ &
         text_field('model_name', self%model_name, "the model: 'double_pendulum'", double_pendulum_name), &
@@ -156,8 +155,7 @@ contains
     type(group_field), allocatable :: table(:)
     integer :: d
 
-    d = self%params%dimension
-    if (every_part) d = 3
+    d = merge(3, self%params%dimension, every_part)
     table = [ &
       reals_field('q1', self%q1(1:d), vector_text(d, 'not all zero [m]'), 'm', nonzero=.true., open_length=every_part), &
       reals_field('q2', self%q2(1:d), vector_text(d, 'not all zero [m]'), 'm', nonzero=.true., open_length=every_part), &
