@@ -155,11 +155,12 @@ contains
       write (output_unit, '(a, ": ", a, ", 0/", i0, " steps: no step completed, ", f8.3, a)') config%output_file, &
         summary%status, summary%steps_planned, summary%wall_seconds, ' s'
     else if (stat == 0) then
-      ! The momentum drift only for a model with a conserved momentum (NaN otherwise).
+      ! The momentum drift only for a model with a conserved momentum (NaN otherwise): the largest
+      ! over its components, each named (|dJz|; |dJx|, |dJy|, |dJz| without gravity).
       momentum_part = ''
       if (.not. ieee_is_nan(summary%angular_momentum_drift)) then
         write (number, '(es9.2)') summary%angular_momentum_drift
-        momentum_part = ', |d'//trim(summary%conserved_momentum)//'| <= '//number
+        momentum_part = ', '//drift_names(summary%conserved_momentum)//' <= '//number
       end if
       ! dS and dV only for a model with an entropy (NaN for a mechanical one: V = E).
       thermal_part = ''
@@ -177,9 +178,47 @@ contains
     end if
     if (stat == 0 .and. summary%rejected_steps > 0) write (output_unit, '(a, i0, a, i0, a)') '  step-size control: ', &
       summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'
+    ! A complete run whose accuracy is in doubt (the file's attribute `warnings`; docs/integrators.md).
+    if (stat == 0 .and. allocated(summary%warnings)) then
+      if (len(summary%warnings) > 0) write (error_unit, '(a)') 'eme_run: warning: '//config%output_file//': '// &
+        summary%warnings
+    end if
     unused = unused_petsc_options()
     if (len(unused) > 0) write (error_unit, '(a)') 'eme_run: warning: PETSc options that nothing used: '//unused
   end subroutine run_case
+
+  ! '|dJz|' for the names 'J_z'; '|dJx|, |dJy|, |dJz|' for 'J_x J_y J_z' (underscores dropped).
+  pure function drift_names(names) result(text)
+    character(len=*), intent(in) :: names
+    character(len=:), allocatable :: text
+    integer :: i, start
+    logical :: word_ends
+
+    text = ''
+    start = 1
+    do i = 1, len_trim(names) + 1
+      word_ends = i > len_trim(names)
+      if (.not. word_ends) word_ends = names(i:i) == ' '
+      if (.not. word_ends) cycle
+      if (i > start) then
+        if (len(text) > 0) text = text//', '
+        text = text//'|d'//without_underscores(names(start:i - 1))//'|'
+      end if
+      start = i + 1
+    end do
+  end function drift_names
+
+  ! `name` without its underscores (J_z: Jz).
+  pure function without_underscores(name) result(plain)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: plain
+    integer :: i
+
+    plain = ''
+    do i = 1, len(name)
+      if (name(i:i) /= '_') plain = plain//name(i:i)
+    end do
+  end function without_underscores
 
   ! A progress line on stderr (simulation sends one at most every 2 s).
   subroutine print_progress(text)

@@ -158,6 +158,8 @@ def read_index(folder):
         row.setdefault("thermo_variable", "none")
         for name in MODEL_FIELDS:
             row.setdefault(name, float("nan"))
+        # 1: a complete case whose accuracy is in doubt (its file's `warnings`); older indexes: 0.
+        row.setdefault("warned", 0)
         if "tolerance" in row:
             row["scheme"] = integrators.tolerance_variant(row["scheme"])
         row["path"] = path.parent / row["file"]

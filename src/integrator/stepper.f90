@@ -65,6 +65,7 @@ module stepper
     procedure :: describe_solver
     procedure :: resume_state
     procedure :: restore_state
+    procedure :: accuracy_warnings
   end type time_stepper
 
   abstract interface
@@ -141,6 +142,15 @@ contains
     if (size(values) /= 0) call fail(failure, failure_mismatch, 'the stored integrator state has '// &
                                      'values this integrator does not keep', 'time_stepper%restore_state')
   end subroutine restore_state
+
+  !> What the integrator's record of the run so far says against trusting its accuracy, as one
+  !> text with the figures behind it ('' if nothing); by default nothing.
+  function accuracy_warnings(self) result(text)
+    class(time_stepper), intent(in) :: self
+    character(len=:), allocatable :: text
+
+    text = ''
+  end function accuracy_warnings
 
   !> Accepts a step whose end state z_new is finite and in the model's domain (its temperatures
   !> then go to report%scheme_temperature); otherwise says why not.

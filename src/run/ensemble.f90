@@ -516,7 +516,7 @@ contains
                       summary%min_entropy_increment, summary%max_lyapunov_increment, &
                       summary%angular_momentum_drift, summary%min_temperature, &
                       real(summary%halved_steps, real64), real(summary%rejected_steps, real64), &
-                      real(rank, real64), 0.0_real64]
+                      merge(1.0_real64, 0.0_real64, len(summary%warnings) > 0), real(rank, real64), 0.0_real64]
   end subroutine run_case
 
 end module ensemble

@@ -32,14 +32,19 @@ module run_outcome
     real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
     real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
     real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
-    !> max_n |J_n - J_0| of the model's conserved momentum (J_z for the pendulum); NaN for a model without
+    !> max_n |J_n - J_0| of the model's conserved momentum components, the largest over them (J_z
+    !> alone for the paper's pendulum); NaN for a model without
     real(real64) :: angular_momentum_drift = 0.0_real64
-    character(len=8) :: conserved_momentum = ''   !! its name for the summary line (Jz); '' if none
+    !> the conserved components' names separated by blanks ('J_z', 'J_x J_y J_z'); '' if none
+    character(len=:), allocatable :: conserved_momentum
     character(len=16) :: energy_units = 'J', entropy_units = 'J/K'   !! the model's, for the summary line
     !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
     real(real64) :: min_temperature = huge(1.0_real64)
     integer(int64) :: halved_steps = 0     !! failed attempts of the completed steps replaced by two halves
     integer(int64) :: rejected_steps = 0   !! trial steps that step-size control rejected (adaptive runs)
+    !> what the integrator's record of a complete run says against trusting its accuracy (the
+    !> run file's attribute `warnings`, docs/integrators.md); '' if nothing
+    character(len=:), allocatable :: warnings
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
   end type run_summary

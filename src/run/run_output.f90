@@ -48,6 +48,8 @@ module run_output
     integer(int64) :: step = 0                   !! steps taken
     real(real64) :: time = 0.0_real64            !! the time reached
     integer :: outputs_passed = 0                !! output times (&output interval) reached
+    !> jz_0: the first conserved momentum component's initial value (the time loop takes them all
+    !> from the initial state, which the same input builds again)
     real(real64) :: energy_0 = 0.0_real64, jz_0 = 0.0_real64, boundary_heat = 0.0_real64
     integer(int64) :: point_rows = 0, step_rows = 0   !! the rows of the two tables up to that step
     type(run_summary) :: summary                 !! its counts and figures (not its texts or times)
@@ -563,6 +565,11 @@ contains
     end if
     if (present(final)) then
       if (.not. failure%failed() .and. final) call self%store%file%set_text('end_time', iso_time(), failure)
+      ! A complete run's accuracy warnings (docs/integrators.md), beside its status.
+      if (allocated(summary%warnings) .and. status == 'complete') then
+        if (.not. failure%failed() .and. final .and. len(summary%warnings) > 0) &
+          call self%store%file%set_text('warnings', summary%warnings, failure)
+      end if
     end if
     call number('steps_planned', real(summary%steps_planned, real64), '1', .true.)
     call number('steps_completed', real(self%disk_steps, real64), '1', .true.)

@@ -117,8 +117,10 @@ contains
     type(resume_record) :: resume       !! the state a continued run starts from
     character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
-    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
+    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
     real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
+    real(real64), allocatable :: conserved(:)  !! its conserved momentum components there
+    real(real64), allocatable :: conserved_0(:)   !! and at the initial state
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
@@ -132,6 +134,8 @@ contains
     clock_progress = clock_start
     clock_loop = clock_start
     summary%note = ''
+    summary%conserved_momentum = ''
+    summary%warnings = ''
     summary%status = 'incomplete: running'
     summary%failure_kind = failure_none
     summary%steps_planned = step_count(config%integrator)
@@ -192,15 +196,18 @@ contains
     n_state = model%state_size
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
-    allocate (theta(model%temperature_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    allocate (theta(model%temperature_count()), residuals(size(constraints)), momentum(model%momentum_count()), &
+              conserved(model%conserved_count()))
     summary%energy_units = model%words%energy_units
     summary%entropy_units = model%words%entropy_units
     ! A model without a conserved momentum has no drift figure.
-    if (model%conserved_momentum_column == 0) then
-      summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
-    else
-      summary%conserved_momentum = squeezed_name(model%momentum_names(model%conserved_momentum_column))
-    end if
+    if (model%conserved_count() == 0) summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
+    do k = 1, model%conserved_count()
+      if (k > 1) summary%conserved_momentum = summary%conserved_momentum//' '
+      summary%conserved_momentum = summary%conserved_momentum//trim(model%conserved(k)%name)
+    end do
+    ! The conserved components at t = 0 (a continued run's too: its input builds the same z0).
+    conserved_0 = model%conserved_momenta(z0)
     x = 0.0_real64
     x(1:n_state) = z0
     boundary_heat = 0.0_real64
@@ -270,12 +277,11 @@ contains
     else
       call observe(z0, energy, entropy, lyapunov)
       energy_0 = energy
-      jz_0 = conserved_momentum()
       call record_point(0.0_real64, z0, .true.)
       outputs_passed = 0
       x_previous = x
-      call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
-                                    integrator)
+      call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
+                                    x_previous, integrator)
     end if
     call system_clock(clock_loop)
     ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
@@ -355,10 +361,10 @@ contains
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
-      if (model%conserved_momentum_column > 0) &
-        summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(conserved_momentum() - jz_0))
-      call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
-                                    integrator)
+      if (size(conserved) > 0) &
+        summary%angular_momentum_drift = max(summary%angular_momentum_drift, maxval(abs(conserved - conserved_0)))
+      call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
+                                    x_previous, integrator)
       if (output%write_due()) then
         call set_times(.true.)
         call output%write_rows(summary, io_failure)
@@ -382,6 +388,7 @@ contains
     call set_times(.true.)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
+      summary%warnings = integrator%accuracy_warnings()
       ! An integrator that chooses its times planned t_end/dt steps; it took n.
       summary%steps_planned = n
     end if
@@ -487,7 +494,6 @@ contains
       time = record%time
       outputs_passed = record%outputs_passed
       energy_0 = record%energy_0
-      jz_0 = record%jz_0
       boundary_heat = record%boundary_heat
       x = record%x
       x_previous = record%x_previous
@@ -528,6 +534,7 @@ contains
 
       call model%observe(z, energy, entropy, theta, domain)
       momentum = model%momenta(z)
+      conserved = model%conserved_momenta(z)
       lyapunov = energy - config%theta_r*entropy
       ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
       if (.not. all(abs(theta) <= huge(1.0_real64))) then
@@ -537,27 +544,11 @@ contains
       end if
     end subroutine observe
 
-    ! A momentum's name without its underscores (J_z: Jz), as the summary line prints it.
-    pure function squeezed_name(name) result(squeezed)
-      character(len=*), intent(in) :: name
-      character(len=len(name)) :: squeezed
-      integer :: i, k
-
-      squeezed = ''
-      k = 0
-      do i = 1, len_trim(name)
-        if (name(i:i) == '_') cycle
-        k = k + 1
-        squeezed(k:k) = name(i:i)
-      end do
-    end function squeezed_name
-
-    ! The conserved momentum at the state `observe` saw last; NaN for a model without one (no
-    ! drift figure).
-    real(real64) function conserved_momentum()
-      conserved_momentum = ieee_value(1.0_real64, ieee_quiet_nan)
-      if (model%conserved_momentum_column > 0) conserved_momentum = momentum(model%conserved_momentum_column)
-    end function conserved_momentum
+    ! The first conserved component's initial value, which the resume record keeps (0 if none).
+    real(real64) function first_conserved_0()
+      first_conserved_0 = 0.0_real64
+      if (size(conserved_0) > 0) first_conserved_0 = conserved_0(1)
+    end function first_conserved_0
 
     ! One point: the state `observe` saw last, with what it is judged by (its temperatures, energy,
     ! entropy, V and momentum, kept by observe), and the active constraints' g.

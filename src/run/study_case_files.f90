@@ -66,10 +66,10 @@ contains
     character(len=:), allocatable, intent(out) :: overrides
     logical, intent(out) :: found
     type(hdf5_file) :: file
-    character(len=:), allocatable :: status
+    character(len=:), allocatable :: status, warnings
     real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
     integer :: steps
-    type(failure_type) :: failure, ignored
+    type(failure_type) :: failure, ignored, warned
 
     found = .false.
     overrides = ''
@@ -85,12 +85,15 @@ contains
     if (.not. failure%failed()) call file%get_reals('wall_time_seconds', wall, failure)
     if (.not. failure%failed()) call file%get_reals('solve_time_seconds', solve, failure)
     if (.not. failure%failed()) call file%get_reals('study_rank', rank, failure)
+    ! A complete run whose accuracy is in doubt has the attribute warnings (docs/integrators.md).
+    call file%get_text('warnings', warnings, warned)
     call file%close(ignored)
     if (failure%failed()) return
     if (size(number) /= 1 .or. size(figures) /= 7) return
     result%status = 'complete'
     result%failure_kind = 'none'
-    result%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, rank(1), 1.0_real64]
+    result%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, &
+                      merge(0.0_real64, 1.0_real64, warned%failed()), rank(1), 1.0_real64]
     found = .true.
   end subroutine read_case_file
 

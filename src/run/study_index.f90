@@ -50,20 +50,21 @@ module study_index
 
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
-  ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), rank, run_count
-  integer, parameter :: m_steps = 1, m_rank = 13, m_run_count = 14
+  ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), warned (1 if the
+  ! complete case's file has the attribute warnings: its accuracy is in doubt), rank, run_count
+  integer, parameter :: m_steps = 1, m_rank = 14, m_run_count = 15
   !> The figures whose units are the model's.
   integer, parameter :: m_entropy_increment = 7, m_lyapunov_increment = 8, m_momentum_drift = 9, m_min_temperature = 10
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
     'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
     'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'min_temperature', &
-    'halved_steps', 'rejected_steps', 'rank', 'run_count']
+    'halved_steps', 'rejected_steps', 'warned', 'rank', 'run_count']
   !> The metrics' units, in order.
   character(len=*), parameter :: metric_units(metric_count) = [character(len=3) :: '1', '1', '1', 's', 's', '1', &
-                                                                'J/K', 'J', 'J s', 'K', '1', '1', '1', '1']
+                                                                'J/K', 'J', 'J s', 'K', '1', '1', '1', '1', '1']
   logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
                                                             .false., .false., .false., .false., .true., .true., .true., &
-                                                            .true.]
+                                                            .true., .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
 
   !> Case numbers ordered by a text key (a case's swept values or its overrides), to find a case
@@ -320,7 +321,7 @@ contains
       units(m_entropy_increment) = model%words%entropy_units
       units(m_lyapunov_increment) = model%words%energy_units
       units(m_momentum_drift) = '1'
-      if (model%conserved_momentum_column > 0) units(m_momentum_drift) = model%words%momentum_units
+      if (model%conserved_count() > 0) units(m_momentum_drift) = model%words%momentum_units
       units(m_min_temperature) = model%words%temperature_units
     end if
     any_built = .false.
@@ -333,7 +334,7 @@ contains
       end associate
       if (building%failed()) cycle
       any_built = .true.
-      momentum = momentum .or. model%conserved_momentum_column > 0
+      momentum = momentum .or. model%conserved_count() > 0
       thermal = thermal .or. model%temperature_count() > 0
       if (momentum .and. thermal) exit
     end do

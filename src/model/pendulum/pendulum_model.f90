@@ -9,7 +9,7 @@ module pendulum_model
   use free_energy, only: spring_law_of, viscosity
   use thermo_variable, only: spring_potential
   use elastic_potential, only: elastic_spring, make_elastic_spring
-  use model_interface, only: generic_model
+  use model_interface, only: generic_model, angular_momentum_components, component_values, conserved_component
   use double_pendulum, only: pendulum_layout, make_layout, tau_symbols, inverse_mass_times, cross
   use pendulum_vector_field, only: vector_field
   implicit none (type, external)
@@ -30,8 +30,8 @@ module pendulum_model
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
-    procedure :: conserved_momentum
-    procedure :: conserved_momentum_gradient
+    procedure :: conserved_momenta
+    procedure :: conserved_momenta_gradient
     procedure :: mechanical_energy_difference => pendulum_energy_difference
     procedure :: state_from_temperatures
     procedure :: column_units => pendulum_column_units
@@ -59,16 +59,16 @@ contains
     model%words%momentum_units = 'J s'
     model%words%metric_scales = 'C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
     if (params%dimension == 3) then
-      ! J_z: the component about the gravity axis of the paper's scenes (conserved_momentum is J
-      ! along gravity's direction, whatever it is).
+      ! In space J is recorded whole; gravity keeps its component along g (J_z in the paper's
+      ! scenes), no gravity all three (docs/formulation.md section 2).
       model%words%momenta = 'J = q1 x p1 + q2 x p2'
       model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
-      model%conserved_momentum_column = 3
-    else if (norm2(params%gravity(1:2)) <= 0.0_real64) then
+      model%conserved = angular_momentum_components(params%gravity)
+    else if (.not. any(abs(params%gravity(1:2)) > 0.0_real64)) then
       ! In the plane without gravity: J about the plane's normal; with gravity, no momentum is kept.
       model%words%momenta = 'J = q1_x p1_y - q1_y p1_x + q2_x p2_y - q2_y p2_x'
       model%momentum_names = [character(len=8) :: 'J']
-      model%conserved_momentum_column = 1
+      model%conserved = [conserved_component('J', [0.0_real64, 0.0_real64, 1.0_real64])]
     end if
     allocate (model%subsystems(2))
     do a = 1, 2
@@ -208,34 +208,35 @@ contains
     allocate (other, source=make_pendulum(self%params, variable))
   end subroutine in_variable
 
-  !> J.a with a = g/|g| (e_z without gravity): the component of J that gravity leaves conserved.
-  pure function conserved_momentum(self, z) result(j_axis)
+  !> The conserved components J.a of J = q1 x p1 + q2 x p2 (their axes a: `conserved`).
+  pure function conserved_momenta(self, z) result(values)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: j_axis
+    real(real64) :: values(self%conserved_count())
 
-    j_axis = dot_product(self%layout%angular_momentum(z), conserved_axis(self%params))
-  end function conserved_momentum
+    values = component_values(self%conserved, self%layout%angular_momentum(z))
+  end function conserved_momenta
 
-  !> d(J.a)/dp: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
-  pure function conserved_momentum_gradient(self, z) result(gradient)
+  !> d(J.a)/dp for each axis a: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
+  pure function conserved_momenta_gradient(self, z) result(gradients)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: gradient(size(z))
-    real(real64) :: axis(3), q(3)
-    integer :: a, d
+    real(real64) :: gradients(size(z), self%conserved_count())
+    real(real64) :: q(3)
+    integer :: a, d, k
 
     d = self%layout%dimension
-    axis = conserved_axis(self%params)
-    gradient = 0.0_real64
-    do a = 1, 2
-      q = 0.0_real64
-      q(1:d) = z(self%layout%q(1:d, a))
-      associate (gradient_p => cross(axis, q))
-        gradient(self%layout%p(1:d, a)) = gradient_p(1:d)
-      end associate
+    gradients = 0.0_real64
+    do k = 1, size(gradients, 2)
+      do a = 1, 2
+        q = 0.0_real64
+        q(1:d) = z(self%layout%q(1:d, a))
+        associate (gradient_p => cross(self%conserved(k)%axis, q))
+          gradients(self%layout%p(1:d, a), k) = gradient_p(1:d)
+        end associate
+      end do
     end do
-  end function conserved_momentum_gradient
+  end function conserved_momenta_gradient
 
   !> (T + V_g)(z_b) - (T + V_g)(z_a) without cancellation: T is quadratic, so its difference is
   !> 1/2 (p_b - p_a).m^-1 (p_b + p_a); V_g is linear.
@@ -253,15 +254,6 @@ contains
     delta = 0.5_real64*sum((p_b - p_a)*inverse_mass_times(self%params, p_b + p_a)) &
             - sum(self%layout%gravity_force(self%params)*(q_b - q_a))
   end function pendulum_energy_difference
-
-  ! The direction of gravity in space, or e_z without it; the plane's normal e_z in the plane.
-  pure function conserved_axis(params) result(axis)
-    type(pendulum_parameters), intent(in) :: params
-    real(real64) :: axis(3)
-
-    axis = [0.0_real64, 0.0_real64, 1.0_real64]
-    if (params%dimension == 3 .and. norm2(params%gravity) > 0.0_real64) axis = params%gravity/norm2(params%gravity)
-  end function conserved_axis
 
   !> The state z built from positions, momenta (`dimension` components each), gamma (used with
   !> the viscous branch only) and spring temperatures theta(2).
