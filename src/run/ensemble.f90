@@ -17,7 +17,7 @@ module ensemble
                      MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
-  use study_index, only: case_index, case_result, status_length, kind_length, metric_count
+  use study_index, only: case_index, case_result, status_length, kind_length, metric_count, m_warned
   use study_case_files, only: case_file, case_overrides
   use run_config, only: run_configuration
   use run_outcome, only: failure_io, failure_interrupted
@@ -378,7 +378,8 @@ contains
     type(study_manager), intent(inout) :: manager
     logical, intent(in) :: final
     real(real64) :: now, elapsed, remaining
-    character(len=:), allocatable :: interrupted
+    character(len=:), allocatable :: interrupted, warned
+    integer :: warned_cases
 
     now = MPI_Wtime()
     if (.not. final .and. now - manager%last_progress < progress_interval) return
@@ -391,8 +392,13 @@ contains
       interrupted = ''
       if (count(results%status(1:11) == 'incomplete:') > 0) &
         interrupted = integer_text(count(results%status(1:11) == 'incomplete:'))//' interrupted, '
+      ! Complete cases whose accuracy is in doubt (the index's column warned; docs/integrators.md).
+      warned = ''
+      warned_cases = count(results%status == 'complete' .and. results%metrics(m_warned) > 0)
+      if (warned_cases > 0) warned = ' ('//integer_text(warned_cases)//' warned)'
       call say(manager, 'eme_ensemble: '//integer_text(count(results%status == 'complete'))//'/'// &
-               integer_text(size(results))//' cases complete, '//integer_text(count(results%status(1:7) == 'failed:')) &
+               integer_text(size(results))//' cases complete'//warned//', '// &
+               integer_text(count(results%status(1:7) == 'failed:')) &
                //' failed, '//interrupted//fixed_text(elapsed, 1)//' s elapsed, about '//fixed_text(remaining, 1)// &
                ' s left')
     end associate

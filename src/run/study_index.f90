@@ -46,13 +46,13 @@ module study_index
   implicit none (type, external)
   private
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
-            m_run_count
+            m_run_count, m_warned
 
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
   ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), warned (1 if the
   ! complete case's file has the attribute warnings: its accuracy is in doubt), rank, run_count
-  integer, parameter :: m_steps = 1, m_rank = 14, m_run_count = 15
+  integer, parameter :: m_steps = 1, m_warned = 13, m_rank = 14, m_run_count = 15
   !> The figures whose units are the model's.
   integer, parameter :: m_entropy_increment = 7, m_lyapunov_increment = 8, m_momentum_drift = 9, m_min_temperature = 10
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &

@@ -58,6 +58,7 @@ contains
     model%words%entropy = 'total entropy S = S_1 + S_2'
     model%words%momentum_units = 'J s'
     model%words%metric_scales = 'C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
+    allocate (model%conserved(0))
     if (params%dimension == 3) then
       ! In space J is recorded whole; gravity keeps its component along g (J_z in the paper's
       ! scenes), no gravity all three (docs/formulation.md section 2).
