@@ -515,8 +515,10 @@ static double conserved_momentum_drift(hid_t file, const double *momentum, hssiz
     if (H5Aexists(file, "conserved_momentum_axes") > 0) {
         hid_t attribute = H5Aopen(file, "conserved_momentum_axes", H5P_DEFAULT);
         hid_t shape = attribute >= 0 ? H5Aget_space(attribute) : -1;
-        count = shape >= 0 ? H5Sget_simple_extent_npoints(shape) / 3 : 0;
-        int readable = count >= 1 && count <= 3 && H5Aread(attribute, H5T_NATIVE_DOUBLE, axes) >= 0;
+        hssize_t numbers = shape >= 0 ? H5Sget_simple_extent_npoints(shape) : 0;
+        count = numbers / 3;
+        int readable = numbers == 3 * count && count >= 1 && count <= 3 &&
+                       H5Aread(attribute, H5T_NATIVE_DOUBLE, axes) >= 0;
         if (shape >= 0) H5Sclose(shape);
         if (attribute >= 0) H5Aclose(attribute);
         if (!readable) return -1;

@@ -219,23 +219,27 @@ contains
   pure function angular_momentum_components(gravity) result(components)
     real(real64), intent(in) :: gravity(3)
     type(conserved_component), allocatable :: components(:)
-    character(len=*), parameter :: axis_names(3) = ['x', 'y', 'z']
-    real(real64) :: unit_axes(3, 3)
     integer :: i
 
-    unit_axes = reshape([1.0_real64, 0.0_real64, 0.0_real64, 0.0_real64, 1.0_real64, 0.0_real64, &
-                         0.0_real64, 0.0_real64, 1.0_real64], [3, 3])
     if (.not. any(abs(gravity) > 0.0_real64)) then
-      components = [(conserved_component('J_'//axis_names(i), unit_axes(:, i)), i=1, 3)]
-      return
+      components = [(about_coordinate_axis(i), i=1, 3)]
+    else if (count(abs(gravity) > 0.0_real64) == 1) then
+      components = [about_coordinate_axis(maxloc(abs(gravity), 1))]
+    else
+      components = [conserved_component('J_g', gravity/norm2(gravity))]
     end if
-    do i = 1, 3
-      if (count(abs(gravity) > 0.0_real64) == 1 .and. abs(gravity(i)) > 0.0_real64) then
-        components = [conserved_component('J_'//axis_names(i), unit_axes(:, i))]
-        return
-      end if
-    end do
-    components = [conserved_component('J_g', gravity/norm2(gravity))]
+
+  contains
+
+    ! J_x, J_y or J_z (i = 1, 2, 3) with its unit axis.
+    pure function about_coordinate_axis(i) result(component)
+      integer, intent(in) :: i
+      type(conserved_component) :: component
+
+      component%name = 'J_'//'xyz'(i:i)
+      component%axis = 0.0_real64
+      component%axis(i) = 1.0_real64
+    end function about_coordinate_axis
   end function angular_momentum_components
 
   !> The components' values J.axis of an angular momentum j (in the order x, y, z of the sum, as the
