@@ -22,8 +22,7 @@ module simulation
   use run_outcome, only: run_summary, step_failure_kind, failure_none, failure_solver, failure_domain, &
                          failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget, &
                          failure_balance
-  use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, conserved_momenta_mask, &
-                           applicable_balances
+  use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, applicable_balances
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
@@ -128,7 +127,6 @@ contains
     type(balanced_state) :: balance_old, balance_new
     real(real64) :: figures(balance_count), step_heat
     logical :: checked(balance_count), has_balance(balance_count), resolved
-    logical, allocatable :: conserved(:)
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
@@ -216,7 +214,6 @@ contains
     boundary_heat = 0.0_real64
     checked = checked_balances(entry, model, constraints)
     has_balance = applicable_balances(model)
-    conserved = conserved_momenta_mask(model)
 
     if (present(reusable)) then
       if (allocated(reusable)) then
@@ -631,7 +628,7 @@ contains
         step_heat = step_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
       end do
       call observe_state(x_new(1:n_state))
-      figures = balance_figures(model, balance_old, balance_new, conserved, step_heat, config%theta_r)
+      figures = balance_figures(model, balance_old, balance_new, step_heat, config%theta_r)
     end subroutine measure
 
     ! A momentum's name without its underscores (J_z: Jz), as the summary line prints it.

@@ -23,7 +23,7 @@ module step_balances
   private
   public :: balance_count, balance_energy, balance_momentum, balance_entropy, balance_lyapunov
   public :: balance_names, balance_bound_ulps, balanced_state, observe_balances, balance_figures
-  public :: applicable_balances, conserved_momenta_mask
+  public :: applicable_balances, conserved_momenta
 
   integer, parameter :: balance_energy = 1, balance_momentum = 2, balance_entropy = 3, balance_lyapunov = 4
   integer, parameter :: balance_count = 4
@@ -38,20 +38,25 @@ module step_balances
     real(real64) :: energy_scale = 0.0_real64
     real(real64) :: entropy = 0.0_real64
     real(real64) :: entropy_scale = 0.0_real64
-    real(real64), allocatable :: momenta(:)        !! the model's momenta (all of them)
+    real(real64), allocatable :: momenta(:)        !! the model's momenta (all of them, for the output)
+    real(real64), allocatable :: conserved(:)      !! those that are first integrals (conserved_momenta)
     real(real64) :: momentum_scale = 0.0_real64
   end type balanced_state
 
 contains
 
-  !> Which momenta of the model (in the order of its momentum_names) are first integrals.
-  pure function conserved_momenta_mask(model) result(mask)
+  !> The model's momenta that are first integrals, at z (none for a model without).
+  pure function conserved_momenta(model, z) result(values)
     class(generic_model), intent(in) :: model
-    logical :: mask(model%momentum_count())
-    integer :: k
+    real(real64), intent(in) :: z(:)
+    real(real64), allocatable :: values(:)
 
-    mask = [(k == model%conserved_momentum_column, k = 1, size(mask))]
-  end function conserved_momenta_mask
+    if (model%conserved_momentum_column > 0) then
+      values = [model%conserved_momentum(z)]
+    else
+      allocate (values(0))
+    end if
+  end function conserved_momenta
 
   !> The balances the model has: the energy always, the momentum with a conserved momentum, the
   !> entropy and V with temperatures.
@@ -60,7 +65,7 @@ contains
     logical :: mask(balance_count)
 
     mask = .true.
-    mask(balance_momentum) = any(conserved_momenta_mask(model))
+    mask(balance_momentum) = model%conserved_momentum_column > 0
     mask(balance_entropy) = model%temperature_count() > 0
     mask(balance_lyapunov) = mask(balance_entropy)
   end function applicable_balances
@@ -76,28 +81,27 @@ contains
 
     call model%observe(z, state%energy, state%entropy, temperature, stat, state%energy_scale, state%entropy_scale)
     state%momenta = model%momenta(z)
+    state%conserved = conserved_momenta(model, z)
     state%momentum_scale = model%momentum_scale(z)
   end subroutine observe_balances
 
   !> The four figures of the step from `old` to `new` (module header), in ulps of their scales;
-  !> `conserved` flags the momenta that are first integrals, `heat` is Q and theta_r the
-  !> Lyapunov function's reference temperature. A figure the model cannot have (no conserved
-  !> momentum; no entropy) is NaN.
-  pure function balance_figures(model, old, new, conserved, heat, theta_r) result(figures)
+  !> `heat` is Q and theta_r the Lyapunov function's reference temperature. A figure the model
+  !> cannot have (no conserved momentum; no entropy) is NaN.
+  pure function balance_figures(model, old, new, heat, theta_r) result(figures)
     class(generic_model), intent(in) :: model
     type(balanced_state), intent(in) :: old, new
-    logical, intent(in) :: conserved(:)
     real(real64), intent(in) :: heat, theta_r
     real(real64) :: figures(balance_count)
     integer :: k
 
     figures = ieee_value(1.0_real64, ieee_quiet_nan)
     figures(balance_energy) = in_ulps(abs(new%energy - old%energy - heat), old%energy_scale + new%energy_scale + abs(heat))
-    if (any(conserved)) then
+    if (size(new%conserved) > 0) then
       figures(balance_momentum) = 0.0_real64
-      do k = 1, size(conserved)
-        if (conserved(k)) figures(balance_momentum) = max(figures(balance_momentum), &
-          in_ulps(abs(new%momenta(k) - old%momenta(k)), old%momentum_scale + new%momentum_scale))
+      do k = 1, size(new%conserved)
+        figures(balance_momentum) = max(figures(balance_momentum), &
+          in_ulps(abs(new%conserved(k) - old%conserved(k)), old%momentum_scale + new%momentum_scale))
       end do
     end if
     if (model%temperature_count() > 0) then
