@@ -268,19 +268,20 @@ contains
   !> integrator's diagnostics: `step_seconds` its wall-clock time, `entropy_increment` S_n - S_(n-1) and
   !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
   subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment, &
-                         balances, resolved)
+                         balances, has_balance, resolved)
     class(run_file), intent(inout) :: self
     integer(int64), intent(in) :: n
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
-    real(real64), intent(in) :: balances(:)   !! the model's balance figures, in the columns' order
+    real(real64), intent(in) :: balances(:)   !! the balance figures (step_balances' order)
+    logical, intent(in) :: has_balance(:)     !! which of them the model has (the dataset's columns)
     logical, intent(in) :: resolved           !! solved again with the default solver settings
 
     if (.not. self%enabled) return
     block
       real(real64) :: row(self%store%tables(step_rows)%row_width)    ! the schema's datasets, then the diagnostics
-      integer :: filled
+      integer :: filled, k
 
       filled = 0
       call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64)])
@@ -288,7 +289,13 @@ contains
       call put(row, filled, [real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
                              report%residual_norm, real(report%converged_reason, real64), step_seconds])
       if (self%thermal) call put(row, filled, [entropy_increment, lyapunov_increment])
-      call put(row, filled, [balances, merge(1.0_real64, 0.0_real64, resolved)])
+      do k = 1, size(balances)
+        if (.not. has_balance(k)) cycle
+        filled = filled + 1
+        row(filled) = balances(k)
+      end do
+      filled = filled + 1
+      row(filled) = merge(1.0_real64, 0.0_real64, resolved)
       call put(row, filled, multipliers)
       if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
       call self%store%tables(step_rows)%accumulate(row(:filled))

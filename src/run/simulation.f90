@@ -352,7 +352,7 @@ contains
       x = x_new
       call take_observation(energy, entropy, lyapunov)
       call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(clock_rate, real64), &
-                              entropy - entropy_old, lyapunov - lyapunov_old, pack(figures, has_balance), resolved)
+                              entropy - entropy_old, lyapunov - lyapunov_old, figures, has_balance, resolved)
       row_due = .false.
       do while (config%output_interval > 0.0_real64 .and. &
                 time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
@@ -540,6 +540,7 @@ contains
       integer :: domain
 
       call observe_balances(model, z, balance_new, theta, domain)
+      momentum = model%momenta(z)
     end subroutine observe_state
 
     subroutine observe(z, energy, entropy, lyapunov)
@@ -557,7 +558,6 @@ contains
 
       energy = balance_new%energy
       entropy = balance_new%entropy
-      momentum = balance_new%momenta
       balance_old = balance_new
       lyapunov = energy - config%theta_r*entropy
       ! The lowest temperature so far; NaN (for good) once a temperature is not finite.

@@ -32,31 +32,34 @@ module step_balances
   !> The bounds, in ulps of each balance's scale (measured margins: docs/faults.md).
   real(real64), parameter :: balance_bound_ulps(balance_count) = [32.0_real64, 32.0_real64, 32.0_real64, 32.0_real64]
 
-  !> What the balances need of one state.
+  !> The most momenta a model conserves (the three components of an angular momentum).
+  integer, parameter :: max_conserved = 3
+
+  !> What the balances need of one state (no allocatable part: the time loop keeps two and copies
+  !> one into the other every step).
   type :: balanced_state
     real(real64) :: energy = 0.0_real64
     real(real64) :: energy_scale = 0.0_real64
     real(real64) :: entropy = 0.0_real64
     real(real64) :: entropy_scale = 0.0_real64
-    real(real64), allocatable :: momenta(:)        !! the model's momenta (all of them, for the output)
-    real(real64), allocatable :: conserved(:)      !! those that are first integrals (conserved_momenta)
+    integer :: conserved_count = 0                   !! the model's conserved momenta (conserved_momenta)
+    real(real64) :: conserved(max_conserved) = 0.0_real64
     real(real64) :: momentum_scale = 0.0_real64
   end type balanced_state
 
 contains
 
-  !> The model's momenta that are first integrals, at z (none for a model without).
-  pure function conserved_momenta(model, z) result(values)
+  !> The model's momenta that are first integrals, at z, into state%conserved.
+  pure subroutine conserved_momenta(model, z, state)
     class(generic_model), intent(in) :: model
     real(real64), intent(in) :: z(:)
-    real(real64), allocatable :: values(:)
+    type(balanced_state), intent(inout) :: state
 
-    if (model%conserved_momentum_column > 0) then
-      values = [model%conserved_momentum(z)]
-    else
-      allocate (values(0))
-    end if
-  end function conserved_momenta
+    state%conserved_count = 0
+    if (model%conserved_momentum_column == 0) return
+    state%conserved_count = 1
+    state%conserved(1) = model%conserved_momentum(z)
+  end subroutine conserved_momenta
 
   !> The balances the model has: the energy always, the momentum with a conserved momentum, the
   !> entropy and V with temperatures.
@@ -80,9 +83,8 @@ contains
     integer, intent(out) :: stat
 
     call model%observe(z, state%energy, state%entropy, temperature, stat, state%energy_scale, state%entropy_scale)
-    state%momenta = model%momenta(z)
-    state%conserved = conserved_momenta(model, z)
-    state%momentum_scale = model%momentum_scale(z)
+    call conserved_momenta(model, z, state)
+    if (state%conserved_count > 0) state%momentum_scale = model%momentum_scale(z)
   end subroutine observe_balances
 
   !> The four figures of the step from `old` to `new` (module header), in ulps of their scales;
@@ -97,9 +99,9 @@ contains
 
     figures = ieee_value(1.0_real64, ieee_quiet_nan)
     figures(balance_energy) = in_ulps(abs(new%energy - old%energy - heat), old%energy_scale + new%energy_scale + abs(heat))
-    if (size(new%conserved) > 0) then
+    if (new%conserved_count > 0) then
       figures(balance_momentum) = 0.0_real64
-      do k = 1, size(new%conserved)
+      do k = 1, new%conserved_count
         figures(balance_momentum) = max(figures(balance_momentum), &
           in_ulps(abs(new%conserved(k) - old%conserved(k)), old%momentum_scale + new%momentum_scale))
       end do

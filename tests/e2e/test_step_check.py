@@ -193,3 +193,24 @@ def test_disparate_masses_complete_with_their_balances_or_stop_honestly(tmp_path
         guaranteed = text(f.attrs["balance_guarantees"]).split()
         for name in guaranteed:
             assert np.all(figures[:, columns.index(name)] <= 32), name
+
+
+def test_a_study_checks_its_cases_too(tmp_path, eme_run_binary):
+    """Through eme_ensemble, with the option on its command line: every case file is complete
+    with its steps solved again where they broke a balance, and keeps its guarantees."""
+    groups = {key: dict(value) for key, value in scene().items()}
+    groups["output"] = {"file": str(tmp_path / "base.h5")}
+    (tmp_path / "base.nml").write_text(namelist_text(groups))
+    (tmp_path / "study.nml").write_text(
+        f"&study base = 'base.nml', output_dir = '{tmp_path / 'out'}', index_only = .false. /\n"
+        "&sweep field = 'dt', values = 0.05, 0.1 /\n")
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(tmp_path / "study.nml"), "-snes_lag_jacobian", "100"],
+                            capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    cases = sorted((tmp_path / "out").glob("case_*.h5"))
+    assert len(cases) == 2
+    for case in cases:
+        with h5py.File(case, "r") as f:
+            assert text(f.attrs["status"]) == "complete" and f.attrs["resolved_steps"] > 0
+            columns = text(f["balance"].attrs["columns"]).split()
+            assert np.all(f["balance"][()][:, columns.index("energy")] <= 32 * f["substeps"][()])
