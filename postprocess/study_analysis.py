@@ -5,8 +5,8 @@ any study against a reference.
   study_analysis.py INDEX.h5 [INDEX.h5 ...] --reference REF.h5 [--reference-case N] [--cross-check FILE.h5]
                     [--cross-check-case N] [-o OUT] [--name NAME] [--summary SUMMARY] [--time cpu|wall]
 
-The first reads STUDY_DIR/NAME/index.h5 of every study of the models chosen (MODELS; --models, default
-all: the double pendulum's convergence, work-precision and stability studies, the gas
+The first reads STUDY_DIR/NAME/index.h5 of every study of the models chosen (MODELS; --models,
+default all: the double pendulum's convergence, work-precision and stability studies, the gas
 containers' work-precision and stability studies) and the case files the convergence and
 work-precision indexes name (the stability studies keep only their index: &study index_only),
 and writes to OUT:
@@ -36,10 +36,11 @@ charts the time loop's wall time (solve_time_seconds) instead. Their axes and ca
 They state in their captions and in SUMMARY the machine's load while their studies ran, from the
 STUDY_DIR/NAME.load.json that make study writes around each study (machine_load.py) or else from
 the load averages each index records at its study's start and end, and a warning goes to stderr
-when the machine was busy. A scheme is a scheme
-and thermodynamic variable pair, named as in the paper (EME_theta, MP_u, TS-midpoint_s,
-BDF2_theta, RK4_u) with the labels of the integrator registry, which every index carries
-(/integrators).
+when the machine was busy.
+
+A scheme is a scheme and thermodynamic variable pair, named as in the paper (EME_theta, MP_u,
+TS-midpoint_s, BDF2_theta, RK4_u) with the labels of the integrator registry, which every index
+carries (/integrators).
 """
 import argparse
 import re
@@ -349,7 +350,7 @@ def work_precision(study_dir, model="pendulum", time_kind="cpu"):
 
 
 def split_complete(indexes):
-    """The rows of several indexes' rows: (complete ones, the others)."""
+    """The rows of several indexes (each a list of rows), split: (the complete ones, the others)."""
     rows, left_out = [], []
     for index_rows in indexes:
         for row in index_rows:

@@ -517,12 +517,10 @@ contains
     end subroutine fail
 
     ! The whole run's seconds so far, and the time loop's while it runs, in wall time and in the
-    ! process's CPU time. The CPU clock is Fortran's cpu_time (gfortran: getrusage, the user and
-    ! system time of all the process's threads, to the microsecond: enough for cases of 0.1 ms and
-    ! more, and portable); it is read inside the wall clock's readings, so that a CPU span lies
-    ! within its wall span. On an ensemble's rank 0 the time loop includes the requests it answers
-    ! between its steps, in CPU time as in wall time (docs/studies.md). A processor without a CPU
-    ! clock (cpu_time negative) gives NaN.
+    ! process's CPU time. The CPU clock is Fortran's cpu_time, portable and, in gfortran, getrusage:
+    ! user and system time of all the process's threads to the microsecond, enough for cases of
+    ! 0.1 ms and more. It is read inside the wall clock's readings, so that a CPU span lies within
+    ! its wall span. A processor without a CPU clock (cpu_time negative) gives NaN.
     subroutine set_times(in_loop)
       logical, intent(in) :: in_loop
       real(real64) :: cpu_now

@@ -86,7 +86,7 @@ module study_index
     character(len=:), allocatable :: index_path, journal_path
     character(len=:), allocatable :: started       !! when this run of the study began (ISO 8601)
     !> The machine's load when this run of the study began and ended (end: once it has), and the
-    !> study's ranks, which the load counts among its processes (docs/studies.md, Index).
+    !> study's ranks, which the load counts among its processes (docs/studies.md, Timings).
     type(machine_load) :: load_start, load_end
     logical :: ended = .false.
     integer :: ranks = 1
