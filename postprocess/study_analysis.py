@@ -31,7 +31,7 @@ OUT/NAME.h5). With a cross-check, points within 10 times its distance from the r
 left out.
 
 The timing charts' time is the CPU time of each case's process over its time loop (the index's
-solve_cpu_time_seconds), which other work sharing the cores does not inflate; `--time wall`
+solve_cpu_time_seconds), which waiting for a core does not add to; `--time wall`
 charts the time loop's wall time (solve_time_seconds) instead. Their axes and captions say which.
 They state in their captions and in SUMMARY the machine's load while their studies ran, from the
 STUDY_DIR/NAME.load.json that make study writes around each study (machine_load.py) or else from
@@ -899,8 +899,8 @@ def main(argv=None):
                         "index's folder name)")
     parser.add_argument("--time", choices=tuple(TIME_COLUMNS), default="cpu",
                         help="the timing charts' time: cpu, the CPU time of the case's process over its time loop "
-                        "(default; other work on the machine does not inflate it), or wall, the time loop's wall "
-                        "time")
+                        "(default; waiting for a core that other work holds does not add to it), or wall, the time "
+                        "loop's wall time")
     parser.add_argument("--study-dir", default="results/study", metavar="STUDY_DIR",
                         help="folder holding the study folders (default: %(default)s)")
     parser.add_argument("-o", "--output", default="results/figures", metavar="OUT",

@@ -44,7 +44,7 @@ MAP_ROW_HEIGHT = 0.2
 # The timing charts' time (study_analysis.py --time): the axis's words and the caption's account of it.
 TIME_AXES = {
     "cpu": ("solve CPU time", "the CPU time of the case's process over its time loop (the index's "
-            "solve_cpu_time_seconds), which other work sharing the cores does not inflate"),
+            "solve_cpu_time_seconds), to which waiting for a core that other work holds does not add"),
     "wall": ("solve wall time", "the wall time of the case's time loop (the index's solve_time_seconds), which "
              "other work sharing the cores inflates"),
 }
