@@ -49,6 +49,10 @@ module run_outcome
     real(real64) :: max_balance(4) = -huge(1.0_real64)
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
+    !> The CPU time of the run's process (all its threads, user and system) over the same spans:
+    !> unlike the wall times, without the time spent waiting for a core that other work holds
+    real(real64) :: cpu_seconds = 0.0_real64
+    real(real64) :: solve_cpu_seconds = 0.0_real64
   end type run_summary
 
 contains

@@ -619,6 +619,8 @@ contains
     if (.not. failure%failed()) call self%store%file%set_reals('balance_max_ulps', summary%max_balance, failure)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
+    call number('solve_cpu_time_seconds', summary%solve_cpu_seconds, 's', .false.)
+    call number('cpu_time_seconds', summary%cpu_seconds, 's', .false.)
     self%store%file%fresh = .false.
 
   contains

@@ -130,6 +130,7 @@ contains
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
+    real(real64) :: cpu_start, cpu_loop    !! the process's CPU time at the run's and the time loop's start
     integer(int64) :: n             !! steps taken (accepted)
     integer :: n_state, signal
     type(failure_type) :: step_failure, release_failure, io_failure
@@ -137,8 +138,10 @@ contains
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
+    call cpu_time(cpu_start)
     clock_progress = clock_start
     clock_loop = clock_start
+    cpu_loop = cpu_start
     summary%note = ''
     summary%status = 'incomplete: running'
     summary%failure_kind = failure_none
@@ -288,6 +291,7 @@ contains
                                     integrator)
     end if
     call system_clock(clock_loop)
+    call cpu_time(cpu_loop)
     ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
     ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
     ! step lands on it), or until the step budget (&integrator max_steps) is spent.
@@ -525,13 +529,26 @@ contains
       summary%failure_kind = kind
     end subroutine fail
 
-    ! The whole run's seconds so far, and the time loop's while it runs.
+    ! The whole run's seconds so far, and the time loop's while it runs, in wall time and in the
+    ! process's CPU time. The CPU clock is Fortran's cpu_time, portable and, in gfortran, getrusage:
+    ! user and system time of all the process's threads to the microsecond, enough for cases of
+    ! 0.1 ms and more. It is read inside the wall clock's readings, so that a CPU span lies within
+    ! its wall span. A processor without a CPU clock (cpu_time negative) gives NaN.
     subroutine set_times(in_loop)
       logical, intent(in) :: in_loop
+      real(real64) :: cpu_now
 
+      call cpu_time(cpu_now)
       call system_clock(clock_now)
       if (in_loop) summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
       summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
+      if (cpu_start < 0) then
+        summary%cpu_seconds = ieee_value(1.0_real64, ieee_quiet_nan)
+        summary%solve_cpu_seconds = summary%cpu_seconds
+        return
+      end if
+      if (in_loop) summary%solve_cpu_seconds = cpu_now - cpu_loop
+      summary%cpu_seconds = cpu_now - cpu_start
     end subroutine set_times
 
     ! The balances' quantities at z (into balance_new) and its temperatures (into theta).
