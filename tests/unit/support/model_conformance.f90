@@ -3,8 +3,9 @@
 !> structure_matrices -- the degeneracy conditions (5) L grad S = 0 and K grad E = 0, skew L and
 !> symmetric positive semidefinite K, eq. (9) for M_S^T grad S and M_E^T grad E, for exact
 !> partials and both discrete gradients; the written-out vector field equals L grad E + K grad S;
-!> its derivatives against central differences; the conserved momentum components constant along
-!> the continuous field, with their gradients in the momenta against central differences.
+!> its derivatives against central differences; the conserved momentum components (at most
+!> three) constant along the continuous field, with their gradients in the momenta against
+!> central differences.
 !> check_model runs them all at states around a scene's initial state; test_model_conformance
 !> runs it over every registered model.
 module model_conformance
@@ -203,6 +204,7 @@ contains
     integer :: stat, j, k
 
     if (model%conserved_count() == 0) return
+    call assertTrue(model%conserved_count() <= 3, 'at most three conserved components (an angular momentum''s), '//label)
     call model%continuous_field(z, f, stat)
     call assertTrue(stat == 0, 'the continuous field at a state near the scene''s, '//label)
     if (stat /= 0) return
