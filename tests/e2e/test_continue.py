@@ -123,6 +123,27 @@ def test_step_budget_then_continue_with_interval(tmp_path, case):
     assert_same_datasets(path, reference)
 
 
+def test_the_summary_line_counts_the_steps_done(tmp_path):
+    """An integrator that chooses its steps has no plan of steps: eme_run's line says "N steps",
+    N the file's steps_completed, when the step budget stops it, when it is continued and stopped
+    again, and when it completes. Before, it printed t_end/dt, a fixed step's plan, as the plan:
+    "3000/600 steps". A fixed-step run still says "N/M steps", M = ceiling(t_end/dt)."""
+    adaptive = {"scheme": "eme", "tolerance": 1e-4, "dt": 0.01, "t_end": 6.0}
+    for budget, options, code in ((20, (), 3), (3000, ("-eme_continue",), 3), (1000000, ("-eme_continue",), 0)):
+        namelist, path = write_namelist(tmp_path, "adaptive", dict(adaptive, max_steps=budget), {})
+        result = eme_run(namelist, *options)
+        assert result.returncode == code, result.stderr
+        with h5py.File(path, "r") as f:
+            steps = int(f.attrs["steps_completed"])
+        assert steps == budget or code == 0
+        assert f"{path}: {'complete' if code == 0 else 'incomplete: the step budget is spent'}" in result.stdout
+        assert f", {steps} steps, energy balance" in result.stdout, result.stdout
+    assert steps > 3000
+    namelist, path = write_namelist(tmp_path, "fixed", {"scheme": "eme", "dt": 0.15, "t_end": 0.5}, {})
+    result = eme_run(namelist)
+    assert result.returncode == 0 and f"{path}: complete, 4/4 steps, energy balance" in result.stdout, result.stdout
+
+
 def killed_and_continued(tmp_path, integrator, write_every_rows):
     """The uninterrupted run of `integrator` and the same run SIGKILLed at two thirds of its file
     operations (writes fall due every `write_every_rows` rows, not by the clock), then continued
