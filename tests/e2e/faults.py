@@ -134,12 +134,6 @@ def _in_mask(mask, number):
     return bool(int(mask or "0", 16) >> (int(number) - 1) & 1)
 
 
-def signal_pending(pid, number):
-    """Whether signal `number` waits for delivery to the process (it is stopped, say)."""
-    status = process_status(pid)
-    return _in_mask(status.get("SigPnd"), number) or _in_mask(status.get("ShdPnd"), number)
-
-
 def signal_caught(pid, number):
     """Whether the process has a handler for signal `number` (a shell's trap is set)."""
     return _in_mask(process_status(pid).get("SigCgt"), number)
