@@ -27,9 +27,9 @@
 !> largest value at 2.5 times it; docs/integrators.md).
 !>
 !> Accuracy warnings: without a tolerance in force nothing bounds the local error of a fixed
-!> step, and E, the momenta and dS >= 0 hold all the same (Romero's thermoelastic scene with
-!> relaxed_rk4 at dt = 0.15 s: 1297 trial steps halved, |gamma - 1| up to 0.80, the entropy
-!> production 3.42 times the true one). A run that halved a step without a tolerance, or whose
+!> step, and E, the momenta and dS >= 0 hold all the same (the thermoelastic scene,
+!> inputs/romero_thermoelastic.nml, with relaxed_rk4 at dt = 0.15 s: 1297 trial steps halved,
+!> |gamma - 1| up to 0.80, the entropy production 3.42 times the true one). A run that halved a step without a tolerance, or whose
 !> gamma moved more than gamma_warning_deviation from 1 (beyond what rounding resolves), says so
 !> at its end (accuracy_warnings; docs/integrators.md, Accuracy warnings).
 !>

@@ -2,9 +2,10 @@
 warnings): with no tolerance in force, any step rejected and halved, or in any relaxed run a
 relaxation factor more than 0.1 from 1, gives the complete file a `warnings` attribute (the
 status stays 'complete'), a warning line on eme_run's stderr, 'complete (warned)' in
-summarize_runs.py's status column, and the flag `warned` in a study's index. Romero's scene with
-relaxed_rk4 in entropy variables over 30 s (issue 40) is the reference: at dt = 0.15 s it halves
-steps and its entropy production is 3.4 times the one at dt = 0.009375 s, which is not warned."""
+summarize_runs.py's status column, and the flag `warned` in a study's index. The thermoelastic
+scene (inputs/romero_thermoelastic.nml) with relaxed_rk4 in entropy variables over 30 s (issue 40)
+is the reference: at dt = 0.15 s it halves steps and its entropy production is 3.4 times the one
+at dt = 0.009375 s, which is not warned."""
 import re
 import subprocess
 import sys
@@ -21,7 +22,7 @@ WARNING = re.compile(r"(?:(\d+) trial steps rejected \((\d+) halved\))?(?: and )
 
 
 def romero(tmp_path, name, *options, **integrator):
-    """Romero's scene with relaxed_rk4 in entropy variables to t = 30 s (EME's settings left out)."""
+    """The thermoelastic scene with relaxed_rk4 in entropy variables to t = 30 s (EME's settings left out)."""
     groups = {key: dict(fields) for key, fields in ROMERO.items() if key != "output"}
     for unused in ("discrete_gradient", "newton_tol"):
         groups["integrator"].pop(unused)
@@ -86,7 +87,7 @@ def test_gamma_far_from_one_alone_is_warned(tmp_path, eme_run_binary):
 def test_rejections_under_a_tolerance_are_not_warned(tmp_path, eme_run_binary, scheme, integrator):
     """Under a tolerance rejecting steps is the control at work (the fixed-step scheme's gamma band,
     the adaptive scheme's error test), and it is the remedy: relaxed_rk4 at tolerance 1e-6 halves
-    steps and gets Romero's entropy production to 1 %."""
+    steps and gets the thermoelastic scene's entropy production to 1 %."""
     result, path = romero(tmp_path, "controlled", scheme=scheme, **integrator)
     assert result.returncode == 0, result.stderr
     run = read_run(path)
