@@ -29,8 +29,8 @@ def momentum_label(name):
 
 def make_figure(runs, compare=()):
     """theta_1 (top), theta_2 (middle) from /temperature and the conserved momentum's drift
-    (bottom: J_z, or the planar scalar J; of several components, the one that drifts furthest); the `compare` runs in a column of their own, dashed,
-    the rows sharing their y axes. A run without temperatures (elastic springs) or without a
+    (bottom: J_z, or the planar scalar J; of several components, the one that drifts furthest);
+    the `compare` runs in a column of their own, dashed, the rows sharing their y axes. A run without temperatures (elastic springs) or without a
     conserved momentum (a planar scene under gravity) is left out of those rows, and a row no run
     has is not drawn."""
     sets = [list(zip(runs, styles)) for runs, styles in ((runs, run_styles(runs)),

@@ -2,24 +2,25 @@
 """Prints the summary table of one or more eme_run result files.
 
 For each run: status, steps (accepted ones), the trial steps rejected by step-size control or
-halving (integrators that reject steps: rejected_steps; '-' for the others), the relative energy balance error max_n |E_n - E_0 - Q_n| / |E_0|
-(Q_n is the heat supplied through constraint g2, zero without it, so this is the energy drift),
-the smallest entropy increment, the largest Lyapunov increment, the conserved momentum's drift
-max_n |J_n - J_0| (the largest over the conserved components: J_z, J_y, J_g along an oblique
-gravity, or J_x, J_y and J_z without gravity; the column is titled by them), the largest constraint
-residual, the mean Newton iterations per step and the wall time. Everything is read from the HDF5 files, and gives eme_run's own summary line
-for any &output every or interval: the steps are the last step the rows reach (/step), the
-increments the per-step records /min_entropy_increment and /max_lyapunov_increment (a row that
-stands for several steps holds their least and largest), Newton/step the summed
-/newton_iterations over the steps; the energy balance and the momentum drift of a complete file are its
-run_figures, which eme_run took over every step (an incomplete file's: over the points written).
-Files without the per-step records (older versions) give the increments between written points.
+halving (integrators that reject steps: rejected_steps; '-' for the others), the relative energy
+balance error max_n |E_n - E_0 - Q_n| / |E_0| (Q_n is the heat supplied through constraint g2, zero
+without it, so this is the energy drift), the smallest entropy increment, the largest Lyapunov
+increment, the conserved momentum's drift max_n |J_n - J_0| (the largest over the conserved
+components: J_z, J_y, J_g along an oblique gravity, or J_x, J_y and J_z without gravity; the column
+is titled by them), the largest constraint residual, the mean Newton iterations per step and the
+wall time. Everything is read from the HDF5 files, and gives eme_run's own summary line for any
+&output every or interval: the steps are the last step the rows reach (/step), the increments the
+per-step records /min_entropy_increment and /max_lyapunov_increment (a row that stands for several
+steps holds their least and largest), Newton/step the summed /newton_iterations over the steps; the
+energy balance and the momentum drift of a complete file are its run_figures, which eme_run took
+over every step (an incomplete file's: over the points written). Files without the per-step records
+(older versions) give the increments between written points.
 
-A complete file whose accuracy is in doubt (its attribute `warnings`: a fixed-step relaxed run
-that halved steps, docs/integrators.md) has the status 'complete (warned)', and its warning
-follows the table as a footnote. A file that a killed or stopped run left behind is summarised
-as far as it goes, its status marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5, damaged, without
-the datasets) is named on stderr with the reason, and the exit status is then 2.
+A complete file whose accuracy is in doubt (its attribute `warnings`: a fixed-step relaxed run that
+halved steps, docs/integrators.md) has the status 'complete (warned)', and its warning follows the
+table as a footnote. A file that a killed or stopped run left behind is summarised as far as it
+goes, its status marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5,
+damaged, without the datasets) is named on stderr with the reason, and the exit status is then 2.
 
 usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
 """
@@ -155,9 +156,8 @@ COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "
 def table_columns(rows):
     """COLUMNS for these rows: no momentum column when no run has a conserved momentum, titled by
     the runs' conserved components (Jz; Jx,Jy,Jz; the planar scalar J; 'J (conserved)' where they
-    differ); no dS and dV
-    columns when no run has an entropy (elastic springs); and the units of dS and dV the runs'
-    models give (the pendulum's J/K and J; none in the header where models differ)."""
+    differ); no dS and dV columns when no run has an entropy (elastic springs); and the units of dS
+    and dV the runs' models give (the pendulum's J/K and J; none in the header where models differ)."""
     entropy = any(row["has_entropy"] for row in rows) or not rows
     has = {"jz_drift": any(not math.isnan(row["jz_drift"]) for row in rows), "min_dS": entropy, "max_dV": entropy}
     columns = [column for column in COLUMNS if has.get(column[0], True)]
