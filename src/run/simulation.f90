@@ -654,11 +654,15 @@ contains
     type(integrator_entry) :: entry
     real(real64), allocatable :: z0(:)
     logical :: found
-    type(failure_type) :: release_failure
+    type(failure_type) :: release_failure, building
 
     call find_integrator(config%integrator%scheme, entry, found)
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
-    if (failure%failed()) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
+    if (building%failed()) then
+      ! The scene's words with the input file, as the time loop gives them.
+      call set_failure(failure, building%code, config%input_file//': '//building%message)
+      return
+    end if
     call build_integrator(entry, integrator)
     call integrator%start(config%integrator, model, constraints, z0, failure)
     ! PETSc's own words say what was refused; the message is the whole story (the drivers print it
