@@ -239,6 +239,38 @@ def test_refusals_keep_the_file(tmp_path):
     assert path.read_bytes() == complete
 
 
+def test_the_step_budget_counts_the_whole_run_and_the_file_says_which_applied(tmp_path):
+    """max_steps is the whole run's budget, continued or not (issue 41 item 7: a run stopped at 50
+    steps, continued with max_steps = 10, ran 104,849 steps to completion and its file still said
+    50). A budget at or below the steps taken is refused (exit 2, file unchanged); a larger one
+    stops the run at that total, and the file's namelist and attributes say the budget and end
+    time that applied: the namelist that, run from t = 0, gives the same file."""
+    integrator = {"scheme": "eme", "dt": 0.01, "t_end": 5.0, "tolerance": 1.0e-7, "max_steps": 50}
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    assert eme_run(namelist).returncode == 3
+    before = path.read_bytes()
+    for budget in (10, 50):
+        write_namelist(tmp_path, "run", dict(integrator, max_steps=budget), {})
+        result = eme_run(namelist, "-eme_continue")
+        assert result.returncode == 2, result.stderr
+        assert f"max_steps = {budget}" in result.stderr and "allowed: max_steps > 50" in result.stderr, result.stderr
+        assert path.read_bytes() == before
+
+    write_namelist(tmp_path, "run", dict(integrator, t_end=6.0, max_steps=80), {})
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 3, result.stderr
+    reference_nml, reference = write_namelist(tmp_path, "reference", dict(integrator, t_end=6.0, max_steps=80), {})
+    assert eme_run(reference_nml).returncode == 3
+    assert_same_datasets(path, reference)
+    with h5py.File(path, "r") as f, h5py.File(reference, "r") as g:
+        assert f.attrs["failure_kind"] == "step_budget" and f.attrs["steps_completed"] == 80
+        assert f.attrs["max_steps"] == 80 and f.attrs["t_end"] == 6.0
+        # The namelists differ in the output file's name alone.
+        lines = [line for line in f.attrs["namelist"].splitlines() if not line.strip().startswith("file =")]
+        assert "  max_steps = 80" in lines and "  t_end = 6.0" in lines
+        assert lines == [line for line in g.attrs["namelist"].splitlines() if not line.strip().startswith("file =")]
+
+
 def test_the_slurm_run_example_continues_after_requeue(tmp_path):
     """inputs/slurm_run.sbatch run as Slurm would: SIGTERM to the batch script stops the run and
     requeues the job (a stand-in scontrol records the call); the requeued job continues the run
