@@ -39,10 +39,9 @@ module modified_newton
   type :: factor_record
     logical :: enabled = .false.                  !! the modified Newton (else a Jacobian every iteration)
     integer :: chord_iterations = default_chord_iterations
-    logical :: fresh = .false.                    !! the last update used factors made at its start point
     !> the last update used factors kept from an earlier iterate of the solve (a chord update: the
-    !> modified Newton's, or without it the final chord step); .false. where no caller says
-    !> (PETSc's own preconditioner set-up)
+    !> modified Newton's, or without it the final chord step), not made at its start point;
+    !> .false. where no caller says (PETSc's own preconditioner set-up)
     logical :: chord = .false.
     real(real64) :: last_update = 0.0_real64      !! 2-norm of the last update with these factors (0: none yet)
     real(real64) :: start_residual = 0.0_real64   !! the residual's 2-norm where it started
@@ -71,7 +70,6 @@ contains
   pure subroutine begin_solve(self)
     class(factor_record), intent(inout) :: self
 
-    self%fresh = .false.
     self%chord = .false.
     self%last_update = 0.0_real64
     self%start_residual = 0.0_real64
@@ -106,7 +104,6 @@ contains
   pure subroutine factored(self)
     class(factor_record), intent(inout) :: self
 
-    self%fresh = .true.
     self%chord = .false.
     self%last_update = 0.0_real64
     self%measured = .false.
@@ -116,7 +113,6 @@ contains
   pure subroutine kept(self)
     class(factor_record), intent(inout) :: self
 
-    self%fresh = .false.
     self%chord = .true.
   end subroutine kept
 
