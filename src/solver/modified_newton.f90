@@ -136,15 +136,16 @@ contains
   !> before it: min dS = -4.97e-14, 56 ulps of S, on the gas containers without friction at
   !> dt = 0.5, docs/integrators.md). The other arguments as newton_converged's.
   pure logical function converged(self, iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
-                                  state_scale, residual_scale, step_length)
+                                  state_scale, residual_scale, step_length, previous_residual)
     class(factor_record), intent(in) :: self
     integer, intent(in) :: iteration
     real(real64), intent(in) :: residual_norm, update_norm, x_norm, tolerance, update_tolerance
     real(real64), intent(in) :: state_scale, residual_scale, step_length
+    real(real64), intent(in), optional :: previous_residual   !! the residual before the update (stagnation)
 
     if (.not. self%chord .or. iteration == 0) then
       converged = newton_converged(iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
-                                   state_scale, residual_scale)
+                                   state_scale, residual_scale, previous_residual)
     else if (.not. self%measured) then
       converged = .false.
     else
