@@ -187,8 +187,8 @@ def test_history_methods_continue_to_their_tolerance(tmp_path, scheme, extra):
 
 def test_the_step_check_s_records_continue_with_the_run(tmp_path):
     """The step check's records across a continuation: with a lagged Jacobian the paper scene's
-    steps 1 and 5 (of 20) break a balance and are solved again (/resolved 1), and the energy and
-    momentum figures of the steps before the kill stay the run's largest. Killed (after step 15)
+    steps 1 and 5 (of 20) break a balance and are solved again (/resolved 1), and a balance's
+    largest figure lies before the kill (the momentum's, 14.8 ulps at step 6). Killed (after step 15)
     and continued, the file's /balance and /resolved rows, resolved_steps and balance_max_ulps
     equal the uninterrupted run's: the continuation took the killed file's totals from its
     resume_balances, which are those of its rows, resolved steps, then each balance's largest
@@ -201,7 +201,7 @@ def test_the_step_check_s_records_continue_with_the_run(tmp_path):
         resolved, figures = f["resolved"][()], f["balance"][()]
         assert f["balance"].attrs["columns"] == "energy momentum entropy lyapunov"
     assert 0 < resolved[:stopped_at].sum() == resolved.sum() == stopped["resolved_steps"]
-    assert np.all(figures[:stopped_at, :2].max(axis=0) > figures[stopped_at:, :2].max(axis=0))
+    assert np.any(figures[:stopped_at].max(axis=0) > figures[stopped_at:].max(axis=0))
     assert stopped["resume_balances"].tolist() == [resolved[:stopped_at].sum(), *figures[:stopped_at].max(axis=0)]
 
 
