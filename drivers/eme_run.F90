@@ -21,8 +21,8 @@ program eme_run
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
-  use number_text, only: integer_text, fixed_text, scientific_text
   use failures, only: failure_type
+  use number_text, only: integer_text, fixed_text, scientific_text
   implicit none
 
   type(run_configuration) :: config
@@ -108,7 +108,7 @@ contains
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
     type(output_lock) :: lock
-    character(len=:), allocatable :: holder, momentum_part, thermal_part
+    character(len=:), allocatable :: holder, momentum_part, thermal_part, steps_done
     integer :: found
     integer :: k
 
@@ -149,10 +149,14 @@ contains
       write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
       if (len(summary%note) > 0) write (error_unit, '(a)') 'eme_run: '//summary%note
     end if
+    ! The steps done, out of the plan where there is one: an integrator that chooses its steps
+    ! has none (t_end/dt is a fixed step's count, not its own).
+    steps_done = integer_text(summary%steps_completed)
+    if (.not. summary%steps_chosen) steps_done = steps_done//'/'//integer_text(summary%steps_planned)
     ! Figures of no step would be NaN: a run that completed none says so instead. Every figure
     ! keeps its column when it fits and is written whole when it does not (number_text).
     if (stat == 0 .and. summary%steps_completed == 0) then
-      write (output_unit, '(a)') config%output_file//': '//summary%status//', 0/'//integer_text(summary%steps_planned)// &
+      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//steps_done// &
         ' steps: no step completed, '//fixed_text(summary%wall_seconds, 3, width=8)//' s'
     else if (stat == 0) then
       ! The momentum drift only for a model with a conserved momentum (NaN otherwise).
@@ -164,8 +168,7 @@ contains
       if (.not. ieee_is_nan(summary%min_entropy_increment)) thermal_part = ', min dS = '// &
         scientific_text(summary%min_entropy_increment, 2, width=10)//' '//trim(summary%entropy_units)//', max dV = '// &
         scientific_text(summary%max_lyapunov_increment, 2, width=10)//' '//trim(summary%energy_units)
-      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//integer_text(summary%steps_completed)// &
-        '/'//integer_text(summary%steps_planned)//' steps, energy balance <= '// &
+      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//steps_done//' steps, energy balance <= '// &
         scientific_text(summary%energy_drift, 2, width=9)//thermal_part//momentum_part//', Newton/step '// &
         fixed_text(real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), 2, width=6)//', '// &
         fixed_text(summary%wall_seconds, 3, width=8)//' s'
