@@ -127,10 +127,11 @@ $(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines (BDF with Newton), and
-# its fixed-point solver CVODE-Adams.
+# its fixed-point solver CVODE-Adams; zlib (HDF5's own dependency) gives the CRC-32 of a file's
+# texts (src/io/hdf5_text_checksum.c).
 CVODE_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
 SUNDIALS_LIBS := $(CVODE_LIBS) -lsundials_sunnonlinsolfixedpoint
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas -lz
 
 # ---------------------------------------------------------------- unit tests
 # The suites tests/unit/test_*.pf are pFUnit tests (tests/README.md). They run under pFUnit when

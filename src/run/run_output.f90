@@ -83,6 +83,9 @@ module run_output
     integer(int64) :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
     type(resume_record) :: resume        !! the state after the last completed row (note_resume_state)
     character(len=:), allocatable :: history   !! a continued run's history, written with every write
+    !> a continued run: its status and failure_kind are written with every write too (the file and
+    !> its spare held those of the run that stopped, 'incomplete: the step budget is spent', ...)
+    logical :: continued = .false.
   contains
     procedure :: create
     procedure :: record_solver
@@ -421,6 +424,7 @@ contains
     self%committed_newton = record%summary%newton_iterations
     self%disk_newton = record%summary%newton_iterations
     self%resume = record
+    self%continued = .true.
     ! The file keeps its provenance; its CF history says when and how it was continued.
     self%history = record%history//new_line('a')//iso_time()//': '//command_line()
   end subroutine continue_file
@@ -530,7 +534,8 @@ contains
     end if
     if (.not. failure%failed()) call rows_on_disk(self)
     if (.not. failure%failed()) call summary_attributes(self, status, summary, failure, &
-                                                        numbers_only=.not. (whole .or. final), final=final)
+                                                        numbers_only=.not. (whole .or. final .or. self%continued), &
+                                                        final=final)
     if (.not. failure%failed() .and. self%resume%held) call resume_attributes(self%resume, self%store%file, failure, &
                                                                  with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)

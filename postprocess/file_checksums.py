@@ -1,0 +1,69 @@
+"""The checksum of an output file's texts (docs/output.md, Checksums), for every script that reads
+run files or study indexes.
+
+HDF5 keeps the characters of variable-length strings (text attributes such as `status`,
+`namelist`, `columns`, and the column-name datasets) in its global heap, which has no checksum of
+its own: a damaged byte there reads as another text. eme_run and eme_ensemble store the CRC-32 of
+every such text in the root attribute `text_checksum`; `check_texts` computes it again from the
+file as documented and raises DamagedFileError when it differs. A file written before the
+attribute existed has none and is taken as it is.
+"""
+import zlib
+
+import h5py
+import numpy as np
+
+CHECKSUM_ATTRIBUTE = "text_checksum"
+_RAW = h5py.string_dtype("ascii")       # variable-length strings read as their bytes, undecoded
+
+
+class DamagedFileError(OSError):
+    """A text of the file is not the one its text_checksum was computed from."""
+
+
+def _is_text(dtype):
+    info = h5py.check_string_dtype(dtype)
+    return info is not None and info.length is None
+
+
+def _raw_texts(read, shape):
+    """The bytes of each variable-length string an HDF5 read gives, as a flat list."""
+    values = np.empty(shape, dtype=_RAW)
+    read(values, h5py.h5t.py_create(_RAW))
+    return [value or b"" for value in values.ravel()]
+
+
+def _record(object_name, name, texts):
+    return (object_name.encode() + b"\0" + name.encode() + b"\0" + b"".join(text + b"\0" for text in texts)
+            + b"\x1e")
+
+
+def _object_records(object_name, item):
+    """The records of one object: its text attributes by name, then a text dataset's values."""
+    for name in sorted(item.attrs, key=lambda text: text.encode()):
+        attribute = h5py.h5a.open(item.id, name.encode())
+        if _is_text(attribute.dtype):
+            yield _record(object_name, name, _raw_texts(attribute.read, attribute.shape))
+    if isinstance(item, h5py.Dataset) and _is_text(item.dtype):
+        yield _record(object_name, "", _raw_texts(lambda out, mtype: item.id.read(h5py.h5s.ALL, h5py.h5s.ALL, out,
+                                                                                  mtype), item.shape))
+
+
+def text_checksum(handle):
+    """The CRC-32 of the texts of an open file: the root group's ("/"), then each object of the
+    root group's by name, as src/io/hdf5_text.c computes it."""
+    crc = 0
+    for object_name, item in [("/", handle), *sorted(handle.items(), key=lambda pair: pair[0].encode())]:
+        for record in _object_records(object_name, item):
+            crc = zlib.crc32(record, crc)
+    return crc
+
+
+def check_texts(handle, path):
+    """Raises DamagedFileError naming `path` if the open file's texts fail their checksum."""
+    if CHECKSUM_ATTRIBUTE not in handle.attrs:
+        return
+    stored = int(handle.attrs[CHECKSUM_ATTRIBUTE])
+    if text_checksum(handle) != stored:
+        raise DamagedFileError(f"{path}: a text of the file fails its checksum ({CHECKSUM_ATTRIBUTE}): "
+                               "the file is damaged")
