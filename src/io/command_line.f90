@@ -15,7 +15,7 @@ module command_line
   private
   public :: command_arguments, parse_command_line, initialize_petsc, check_own_options, petsc_help_requested
   public :: unused_petsc_options, benchmark_repeats, petsc_error_text, check_petsc_file_options, has_argument, &
-            launcher_rank
+            launcher_rank, forget_petsc_file_options
 
   !> What the command line asked for.
   type :: command_arguments
@@ -63,6 +63,10 @@ module command_line
       character(kind=c_char), intent(out) :: message(*)
       integer(c_int) :: status
     end function c_check_option_files
+    function c_forget_file_options() result(status) bind(c, name='eme_petsc_forget_file_options')
+      import :: c_int
+      integer(c_int) :: status
+    end function c_forget_file_options
     function c_launcher_rank() result(rank) bind(c, name='eme_launcher_rank')
       import :: c_int
       integer(c_int) :: rank
@@ -216,6 +220,13 @@ contains
                                       merge(1_c_int, 0_c_int, study_folders), buffer, len(buffer, kind=c_int)))
     call option_failure(failure, status, c_string(buffer))
   end subroutine check_petsc_file_options
+
+  !> Before PetscFinalize of a run refused before it ran (exit status 2): the options that have
+  !> PETSc write a file are forgotten, so that nothing is written (PETSc writes -log_view's file
+  !> as it finalizes).
+  subroutine forget_petsc_file_options()
+    if (c_forget_file_options() /= 0) return      ! (a database that cannot be listed: nothing to forget)
+  end subroutine forget_petsc_file_options
 
   !> The rank the launcher (mpirun, srun) gave this process before MPI starts, or 0.
   integer function launcher_rank()

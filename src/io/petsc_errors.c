@@ -317,7 +317,7 @@ int eme_petsc_check_option_files(int started, const char *arguments, int count, 
 {
     option_list list = {NULL, 0, 0};
     int status = 0, rank = process_rank(started);
-    char path[PATH_MAX], label[512], targets[2][PATH_MAX];
+    char path[PATH_MAX], label[512], targets[2][PATH_MAX], refused[256] = "";
 
     message[0] = '\0';
     if (started) {
@@ -327,6 +327,7 @@ int eme_petsc_check_option_files(int started, const char *arguments, int count, 
     }
     for (int i = 0; i < list.count && status == 0; ++i) {
         int viewer, n = option_targets(&list.pairs[i], rank, targets, &viewer);
+        snprintf(refused, sizeof refused, "%s", list.pairs[i].name);
         for (int k = 0; k < n && status == 0; ++k) {
             const char *what = protected_label(files, targets[k], 0, path, label);
             if (what == NULL) what = protected_label(folders, targets[k], 1, path, label);
@@ -353,6 +354,13 @@ int eme_petsc_check_option_files(int started, const char *arguments, int count, 
             }
         }
     }
+    /* A refused option is taken out of the database: PETSc would still write -log_view's or
+     * -options_view's file as it finalizes. */
+    if (started && status == 1) {
+        char option[300];
+        snprintf(option, sizeof option, "-%s", refused);
+        (void)PetscOptionsClearValue(NULL, option);
+    }
     free_options(&list);
     if (!started) return status;
     /* Every rank takes the first refusing rank's answer, so that all go on or all stop. */
@@ -364,4 +372,21 @@ int eme_petsc_check_option_files(int started, const char *arguments, int count, 
         MPI_Bcast(message, size, MPI_CHAR, first, PETSC_COMM_WORLD) != MPI_SUCCESS)
         return status;
     return shared;
+}
+
+/* Takes every option that has PETSc write a file (option_targets) out of the database: a run
+ * refused before it ran writes nothing, and PETSc would still write -log_view's file as it
+ * finalizes. 0, or -1 if the database cannot be listed. */
+int eme_petsc_forget_file_options(void)
+{
+    option_list list = {NULL, 0, 0};
+    char targets[2][PATH_MAX], option[300];
+    int viewer, status = options_in_database(&list);
+    for (int i = 0; i < list.count; ++i) {
+        if (option_targets(&list.pairs[i], process_rank(1), targets, &viewer) == 0) continue;
+        snprintf(option, sizeof option, "-%s", list.pairs[i].name);
+        (void)PetscOptionsClearValue(NULL, option);
+    }
+    free_options(&list);
+    return status;
 }
