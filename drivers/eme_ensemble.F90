@@ -12,7 +12,7 @@ program eme_ensemble
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
-                          launcher_rank, forget_petsc_file_options, has_argument
+                          launcher_rank, forget_petsc_file_options
   use output_path, only: protected_entry, protected_entries
   use simulation, only: set_up_only
   use library_versions, only: print_versions
@@ -58,15 +58,6 @@ program eme_ensemble
   if (startup%failed()) then
     if (launcher_rank() == 0) write (error_unit, '(a)') 'eme_ensemble: '//startup%text()
     stop 2, quiet=.true.
-  end if
-  ! A command line or a study that cannot be run is refused before PETSc starts (and opens
-  ! files); PETSc's -help aside, which lists the options even so.
-  if (.not. has_argument([character(len=5) :: '-help'])) then
-    if (.not. failure%failed()) failure = study_failure
-    if (failure%failed()) then
-      if (launcher_rank() == 0) write (error_unit, '(a)') 'eme_ensemble: '//failure%text()
-      stop 2, quiet=.true.
-    end if
   end if
   call initialize_petsc(arguments, startup)
   if (startup%failed()) then

@@ -19,7 +19,7 @@ program eme_run
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
-                          forget_petsc_file_options, has_argument
+                          forget_petsc_file_options
   use output_path, only: check_outside_studies, run_own_files, protected_entries
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
@@ -65,15 +65,6 @@ program eme_run
   if (startup%failed()) then
     write (error_unit, '(a)') 'eme_run: '//startup%text()
     stop 2, quiet=.true.
-  end if
-  ! A command line or an input that cannot be run is refused before PETSc starts (and opens
-  ! files); PETSc's -help aside, which lists the options even so.
-  if (.not. has_argument([character(len=5) :: '-help'])) then
-    if (.not. failure%failed()) failure = config_failure
-    if (failure%failed()) then
-      write (error_unit, '(a)') 'eme_run: '//failure%text()
-      stop 2, quiet=.true.
-    end if
   end if
   call initialize_petsc(arguments, startup)
   if (startup%failed()) then
