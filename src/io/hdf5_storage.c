@@ -32,6 +32,8 @@ int eme_reserve_space(const char *path, long bytes);                            
 int eme_h5_read_text_attribute(hid_t object, const char *name, char *text, int capacity);  /* hdf5_text.c */
 int eme_h5_verify_texts(hid_t file);                                              /* hdf5_text_checksum.c */
 int eme_h5_texts_begin(hid_t file, int read_back);                                /* hdf5_text_checksum.c */
+void eme_h5_texts_end(hid_t file);                                                /* hdf5_text_checksum.c */
+int eme_h5_texts_move(hid_t from, hid_t to);                                      /* hdf5_text_checksum.c */
 
 /* A new, empty HDF5 file in memory (core driver, no backing store); `label` names it in HDF5's
  * list of open files and must differ between files open at once. Its format is HDF5 1.8's
@@ -354,18 +356,30 @@ int eme_h5_open_file(const char *path, int writable, long reserve, int wait_ms, 
     }
     struct stat before;
     if (writable && stat(path, &before) != 0) return errno;
-    if (writable) {
-        int error = eme_reserve_space(path, reserve);
-        if (error != 0) return error;
-    }
     hid_t access = H5Pcreate(H5P_FILE_ACCESS);
     if (access < 0) return -1;
+    /* A writer's texts are read back first, for the checksum it writes at the close
+     * (hdf5_text_checksum.c), in an open of their own: read in the writer's open, the global heap
+     * would take the new texts where it has room, and the writes would depend on the texts' lengths. */
+    hid_t reader = -1;
+    if (writable && H5Pset_file_locking(access, 0, 1) >= 0) reader = H5Fopen(path, H5F_ACC_RDONLY, access);
+    int read = reader >= 0 && eme_h5_texts_begin(reader, 1) == 0;
+    if (reader >= 0) H5Fclose(reader);
+    int error = !writable ? 0 : !read ? -1 : eme_reserve_space(path, reserve);
+    if (error == 0) {
+        H5Pclose(access);
+        access = H5Pcreate(H5P_FILE_ACCESS);
+    }
+    if (error != 0 || access < 0) {
+        if (read) eme_h5_texts_end(reader);
+        if (access >= 0) H5Pclose(access);
+        return error != 0 ? error : -1;
+    }
     unsigned mode = writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY;
     if (!unlocked) *file = H5Fopen(path, mode, access);
     if (*file < 0 && writable && H5Pset_file_locking(access, 0, 1) >= 0) *file = H5Fopen(path, mode, access);
     H5Pclose(access);
-    /* A writer's texts are read back once, for the checksum it writes at the close (hdf5_text_checksum.c). */
-    if (*file >= 0 && writable && eme_h5_texts_begin(*file, 1) != 0) {
+    if (writable && eme_h5_texts_move(reader, *file) != 0 && *file >= 0) {
         H5Fclose(*file);
         *file = -1;
     }

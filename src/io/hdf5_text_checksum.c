@@ -315,6 +315,21 @@ void eme_h5_texts_end(hid_t file)
     book->file = -1;
 }
 
+/* Gives the book of `from` (a file closed since) to `to` (the same file opened again); with `to`
+ * < 0 it is dropped. 0, or -1 if `from` has no book. */
+int eme_h5_texts_move(hid_t from, hid_t to)
+{
+    text_book *book = book_of_file(from);
+    if (book == NULL) return -1;
+    if (to < 0) {
+        eme_h5_texts_end(from);
+        return 0;
+    }
+    if (to != from) eme_h5_texts_end(to);   /* (a stale book of the id, if any) */
+    book->file = to;
+    return 0;
+}
+
 /* The book of `file` as bytes (each record: its length in 20 digits, then its bytes) in `buffer`
  * of `capacity` bytes; returns the size needed (call with capacity 0 to learn it), -1 if the file
  * has no book. A template keeps it with its image (src/io/hdf5_file_templates.f90). */
