@@ -184,7 +184,8 @@ contains
   end procedure keep_template_datasets
 
   ! The texts the open file `id` holds, as the book of its text checksum keeps them
-  ! (src/io/hdf5_text_checksum.c): kept with an image of the file, for the files made from it. '' if none.
+  ! (src/io/hdf5_text_checksum.c): kept with an image of the file, for the files made from it.
+  ! '' if none.
   function book_of(id) result(text)
     integer(hid_t), intent(in) :: id
     character(len=:), allocatable :: text

@@ -377,8 +377,8 @@ contains
   end subroutine store
 
   !> Writes the root attribute text_checksum, the checksum of every variable-length text of the
-  !> file (src/io/hdf5_text_checksum.c; docs/output.md, Checksums): `store` and the close of a file opened
-  !> for writing do it, after the last text was written. A failure if HDF5 failed.
+  !> file (src/io/hdf5_text_checksum.c; docs/output.md, Checksums): `store` and the close of a
+  !> file opened for writing do it, after the last text was written. A failure if HDF5 failed.
   subroutine seal_texts(self, failure)
     class(hdf5_file), intent(in) :: self
     type(failure_type), intent(out) :: failure

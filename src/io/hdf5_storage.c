@@ -356,25 +356,26 @@ int eme_h5_open_file(const char *path, int writable, long reserve, int wait_ms, 
     }
     struct stat before;
     if (writable && stat(path, &before) != 0) return errno;
-    hid_t access = H5Pcreate(H5P_FILE_ACCESS);
-    if (access < 0) return -1;
     /* A writer's texts are read back first, for the checksum it writes at the close
      * (hdf5_text_checksum.c), in an open of their own: read in the writer's open, the global heap
-     * would take the new texts where it has room, and the writes would depend on the texts' lengths. */
+     * would take the new texts where it has room, and the file operations would depend on the
+     * texts' lengths. */
     hid_t reader = -1;
-    if (writable && H5Pset_file_locking(access, 0, 1) >= 0) reader = H5Fopen(path, H5F_ACC_RDONLY, access);
-    int read = reader >= 0 && eme_h5_texts_begin(reader, 1) == 0;
-    if (reader >= 0) H5Fclose(reader);
-    int error = !writable ? 0 : !read ? -1 : eme_reserve_space(path, reserve);
-    if (error == 0) {
-        H5Pclose(access);
-        access = H5Pcreate(H5P_FILE_ACCESS);
+    if (writable) {
+        hid_t quiet = H5Pcreate(H5P_FILE_ACCESS);
+        if (quiet >= 0 && H5Pset_file_locking(quiet, 0, 1) >= 0) reader = H5Fopen(path, H5F_ACC_RDONLY, quiet);
+        if (quiet >= 0) H5Pclose(quiet);
+        int read = reader >= 0 && eme_h5_texts_begin(reader, 1) == 0;
+        if (reader >= 0) H5Fclose(reader);
+        if (!read) return -1;
+        int error = eme_reserve_space(path, reserve);
+        if (error != 0) {
+            eme_h5_texts_end(reader);
+            return error;
+        }
     }
-    if (error != 0 || access < 0) {
-        if (read) eme_h5_texts_end(reader);
-        if (access >= 0) H5Pclose(access);
-        return error != 0 ? error : -1;
-    }
+    hid_t access = H5Pcreate(H5P_FILE_ACCESS);
+    if (access < 0) return -1;
     unsigned mode = writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY;
     if (!unlocked) *file = H5Fopen(path, mode, access);
     if (*file < 0 && writable && H5Pset_file_locking(access, 0, 1) >= 0) *file = H5Fopen(path, mode, access);
