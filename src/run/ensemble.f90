@@ -27,8 +27,7 @@ module ensemble
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
   use number_text, only: integer_text, fixed_text
-  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, lock_state, &
-                        lock_intact, lock_removed, take_lock_again, lock_taken
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, recheck_lock
   use failures, only: failure_type, fail, code_input => failure_input, code_io => failure_io
   implicit none (type, external)
   private
@@ -375,22 +374,16 @@ contains
   subroutine guard_lock(manager)
     type(study_manager), intent(inout) :: manager
     character(len=:), allocatable :: holder, what
-    integer :: state, found
-    type(failure_type) :: taking
+    logical :: retaken
 
     if (manager%lock_lost) return
-    state = lock_state(manager%lock)
-    if (state == lock_intact) return
-    manager%lock_lost = .true.
+    call recheck_lock(manager%lock, manager%lock_lost, retaken, what, holder)
+    if (.not. manager%lock_lost) return
     manager%stopping = .true.
-    what = 'replaced by another process''s'
-    if (state == lock_removed) what = 'removed'
-    call take_lock_again(manager%lock, found, holder, taking)
-    manager%index_lost = found /= lock_taken .or. taking%failed()
+    manager%index_lost = .not. retaken
     manager%io_message = manager%lock%path//' was '//what//' while the study ran, so that a second study could '// &
                          'start in '//manager%study%output_dir//'; no new cases start'
     if (manager%index_lost) then
-      if (len(holder) == 0) holder = 'another process'
       manager%io_message = manager%io_message//', and the index is left to '//holder//', which holds the lock now'
     else
       manager%io_message = manager%io_message//' (the lock was taken again; run the study again to go on)'

@@ -26,8 +26,7 @@ module simulation
   use hdf5_files, only: check_run_file, check_file_integrity, file_template
   use output_path, only: check_output_path
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file, output_lock, lock_state, &
-                        lock_intact, lock_removed, take_lock_again, lock_taken
+  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text
   use effective_namelist, only: namelist_of_run
   use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
@@ -634,24 +633,18 @@ contains
     ! it writes nothing more.
     subroutine guard_lock()
       character(len=:), allocatable :: holder, what
-      integer :: state, found
-      type(failure_type) :: taking
+      logical :: retaken
 
       if (.not. present(lock) .or. lock_lost) return
-      state = lock_state(lock)
-      if (state == lock_intact) return
-      lock_lost = .true.
-      what = 'replaced by another process''s'
-      if (state == lock_removed) what = 'removed'
+      call recheck_lock(lock, lock_lost, retaken, what, holder)
+      if (.not. lock_lost) return
       summary%status = 'incomplete: the lock '//lock%path//' was '//what//' while the run wrote'
       summary%failure_kind = failure_io
-      call take_lock_again(lock, found, holder, taking)
-      if (found == lock_taken .and. .not. taking%failed()) then
+      if (retaken) then
         call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
                   what//' while the run wrote, so that a second writer could start: the run stops after '// &
                   integer_text(n)//' steps; it took the lock again, and '//part//' is marked incomplete')
       else
-        if (len(holder) == 0) holder = 'another process'
         writing = .false.
         call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
                   what//' while the run wrote, and '//holder//' holds it now: the run stops after '// &
