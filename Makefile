@@ -76,6 +76,7 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 -include $(BUILD)/fortran.deps
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o $(OBJ)/src/io/petsc_errors.o \
+$(OBJ)/src/io/petsc_option_files.o \
 $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o \
 $(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;

@@ -55,6 +55,7 @@ module command_line
       character(kind=c_char), intent(out) :: text(*)
       integer(c_int), value :: size
     end subroutine c_error_text
+    ! src/io/petsc_option_files.c
     function c_check_option_files(started, arguments, count, files, folders, study_folders, message, size) &
         result(status) bind(c, name='eme_petsc_check_option_files')
       import :: c_char, c_int

@@ -3,7 +3,7 @@
 !> not a run file of this project (a study's index.h5, another program's data: never, whatever
 !> `overwrite` says), not over a file that is not HDF5 unless replacing was asked for, and (for
 !> eme_run) not into a study's output folder, whose files are the study's; and which files a run
-!> or a study owns, so that no PETSc option may write over them (src/io/petsc_errors.c;
+!> or a study owns, so that no PETSc option may write over them (src/io/petsc_option_files.c;
 !> docs/faults.md, "What never ends complete by mistake").
 module output_path
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
@@ -105,7 +105,7 @@ contains
               protected_entry(output_file//'.part.kept', 'a temporary name of the output file')
   end function run_own_files
 
-  !> A path and what it is, as the option checks take them (src/io/petsc_errors.c): each on a line.
+  !> A path and what it is, as the option checks take them (src/io/petsc_option_files.c): each on a line.
   pure function protected_entry(path, label) result(entry)
     character(len=*), intent(in) :: path, label
     character(len=:), allocatable :: entry

@@ -1,5 +1,5 @@
 /* What stands at a path, where a path leads, and whether two paths name one file
- * (src/io/output_path.f90, src/io/petsc_errors.c): the checks that keep a run from replacing
+ * (src/io/output_path.f90, src/io/petsc_option_files.c): the checks that keep a run from replacing
  * its own input, a directory, a stranger's file or a study's files, and PETSc's own output from
  * landing on any of them. */
 #define _DEFAULT_SOURCE /* realpath, readlink, lstat */
