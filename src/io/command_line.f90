@@ -39,6 +39,12 @@ module command_line
       import :: c_int
       integer(c_int) :: requested
     end function c_help_requested
+    function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+      integer(c_int) :: status
+    end function c_unused_options
     ! src/solver/petsc_options.c
     function c_check_own_options(message, size) result(status) bind(c, name='eme_check_own_options')
       import :: c_char, c_int
@@ -72,12 +78,6 @@ module command_line
       import :: c_int
       integer(c_int) :: rank
     end function c_launcher_rank
-    function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
-      import :: c_char, c_int
-      character(kind=c_char), intent(out) :: text(*)
-      integer(c_int), value :: size
-      integer(c_int) :: status
-    end function c_unused_options
   end interface
 
 contains
