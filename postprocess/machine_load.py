@@ -9,7 +9,8 @@ end), so the load of the others is estimated as the larger of the load before an
 after less the measurement's own processes; the machine counts as busy when that exceeds half
 the cores.
 
-As a program it wraps a command (make study wraps each mpirun of eme_ensemble):
+A study index records the same load itself (eme_ensemble: `from_index`). As a program it wraps
+a command (make study wraps each mpirun of eme_ensemble):
 
   machine_load.py --record FILE.json [--own N] -- COMMAND [ARGUMENT ...]
 
@@ -121,6 +122,20 @@ def read(path):
     fields = json.loads(path.read_text())
     return MachineLoad(before=fields["load_average_before"], after=fields["load_average_after"],
                        cores=fields["cores"], own=fields["own_processes"])
+
+
+def from_index(path):
+    """The MachineLoad a study index records (its 1-minute load averages at the study's start and
+    end, its cores and ranks: eme_ensemble writes them), or None when it records none or the study
+    has not ended (docs/studies.md, Index)."""
+    import h5py        # (only here: the program itself needs no h5py)
+
+    with h5py.File(path, "r") as index:
+        attrs = index.attrs
+        if not {"load_average_start", "load_average_end", "cores_start", "ranks"} <= set(attrs):
+            return None
+        return MachineLoad(before=float(attrs["load_average_start"][0]), after=float(attrs["load_average_end"][0]),
+                           cores=int(attrs["cores_start"]), own=int(attrs["ranks"]))
 
 
 def main(argv=None):

@@ -1,7 +1,12 @@
-"""Analysis of the parameter studies of `make study` (docs/studies.md).
+"""Analysis of the parameter studies of `make study` (docs/studies.md), and the work precision of
+any study against a reference.
 
-Reads STUDY_DIR/NAME/index.h5 of every study of the models chosen (MODELS; --models, default
-all: the double pendulum's convergence, work-precision and stability studies, the gas
+  study_analysis.py [--study-dir STUDY_DIR] [-o OUT] [--summary SUMMARY] [--models MODEL ...] [--time cpu|wall]
+  study_analysis.py INDEX.h5 [INDEX.h5 ...] --reference REF.h5 [--reference-case N] [--cross-check FILE.h5]
+                    [--cross-check-case N] [-o OUT] [--name NAME] [--summary SUMMARY] [--time cpu|wall]
+
+The first reads STUDY_DIR/NAME/index.h5 of every study of the models chosen (MODELS; --models,
+default all: the double pendulum's convergence, work-precision and stability studies, the gas
 containers' work-precision and stability studies) and the case files the convergence and
 work-precision indexes name (the stability studies keep only their index: &study index_only),
 and writes to OUT:
@@ -15,13 +20,27 @@ and writes to OUT:
   study_stability_set      the pendulum's harder scene set (stability_sets.py)
 (each as .png and .pdf; convergence, structure against cost and the scene set are the
 pendulum's, drawn when it is chosen), one HDF5 file SUMMARY with the numbers behind every
-figure, and prints the findings as plain lines. The timing charts (work precision, structure
-against cost) state in their captions and in SUMMARY the machine's load while their studies
-ran, from the STUDY_DIR/NAME.load.json that make study writes around each study
-(machine_load.py), and a warning goes to stderr when the machine was busy. A scheme is a scheme
-and thermodynamic variable pair, named as in the paper (EME_theta, MP_u, TS-midpoint_s,
-BDF2_theta, RK4_u) with the labels of the integrator registry, which every index carries
-(/integrators).
+figure, and prints the findings as plain lines.
+
+The second charts any study with case files the same way as study_work_precision: the error at
+t_end of every complete case of the INDEX.h5 studies against REF.h5 (a run file, or case N of a
+study index), the largest difference of any mechanical entry and of any temperature over
+theta_ref (the norm is named on the chart), against solve time, into OUT/NAME.png, .pdf and
+.txt (NAME: work_precision_ and the first index's folder), its numbers into SUMMARY (default
+OUT/NAME.h5). With a cross-check, points within 10 times its distance from the reference are
+left out.
+
+The timing charts' time is the CPU time of each case's process over its time loop (the index's
+solve_cpu_time_seconds), which waiting for a core does not add to; `--time wall`
+charts the time loop's wall time (solve_time_seconds) instead. Their axes and captions say which.
+They state in their captions and in SUMMARY the machine's load while their studies ran, from the
+STUDY_DIR/NAME.load.json that make study writes around each study (machine_load.py) or else from
+the load averages each index records at its study's start and end, and a warning goes to stderr
+when the machine was busy.
+
+A scheme is a scheme and thermodynamic variable pair, named as in the paper (EME_theta, MP_u,
+TS-midpoint_s, BDF2_theta, RK4_u) with the labels of the integrator registry, which every index
+carries (/integrators).
 """
 import argparse
 import re
@@ -120,8 +139,13 @@ STUDIES = ("convergence", "convergence_reference",
            *(study for model in MODELS.values() for study in model.scenes.values()),
            *(f"stability_{scene}{kind}" for scene in stability_sets.SCENES
                                for kind in ("", "_tolerance")))
-INDEX_FIELDS = ("case", "file", "scheme", "dt", "status", "steps_completed", "solve_time_seconds", "energy_drift",
-                "halved_steps")
+INDEX_FIELDS = ("case", "file", "status", "steps_completed", "solve_time_seconds", "energy_drift", "halved_steps")
+# Fields a study need not sweep: a row without one takes case 1's value from case_1_input (every
+# case shares it but for the swept fields). A study that sweeps no thermodynamic variable has
+# "none" (the elastic rung has none): its curves are named by the scheme alone.
+SHARED_FIELDS = ("scheme", "dt")
+# The timing charts' time (--time): the index column of each kind.
+TIME_COLUMNS = {"cpu": "solve_cpu_time_seconds", "wall": "solve_time_seconds"}
 # Figures an index has only when its cases' model has them: no angular_momentum_drift without a
 # conserved momentum (the gas containers, a planar pendulum with gravity), no thermal figures
 # without temperatures (elastic springs). A row lacking one holds NaN, as older indexes did.
@@ -133,8 +157,11 @@ class StudyError(RunFileError):
 
 
 def read_index(folder):
-    """Rows of FOLDER/index.h5 /cases as dicts (text fields decoded), each with its case 'path'."""
-    path = Path(folder) / "index.h5"
+    """Rows of FOLDER/index.h5 (or of the index file FOLDER names) /cases as dicts (text fields
+    decoded), each with its case 'path'."""
+    path = Path(folder)
+    if path.suffix != ".h5":
+        path = path / "index.h5"
     try:
         handle = h5py.File(path, "r")
     except OSError as error:
@@ -153,13 +180,18 @@ def read_index(folder):
             case_1_input = case_1_input.decode()
         integrators.register_index(handle)
     missing = [name for name in INDEX_FIELDS if name not in (cases.dtype.names or ())]
+    shared = {name: namelist_text_value(case_1_input, name) for name in SHARED_FIELDS
+              if name not in (cases.dtype.names or ())}
+    missing += [name for name, value in shared.items() if value is None]
     if missing:
         raise StudyError(f"{path}: /cases has no field {', '.join(missing)}")
+    if "dt" in shared:
+        shared["dt"] = float(shared["dt"].replace("d", "e").replace("D", "e"))
     rows = []
     for case in cases:
         row = {name: case[name].decode() if isinstance(case[name], bytes) else case[name].item()
                for name in cases.dtype.names}
-        # A study that sweeps no thermodynamic variable (the elastic rung has none) has no field.
+        row.update(shared)
         row.setdefault("thermo_variable", "none")
         for name in MODEL_FIELDS:
             row.setdefault(name, float("nan"))
@@ -171,6 +203,23 @@ def read_index(folder):
         row["case_1_input"] = case_1_input
         rows.append(row)
     return rows
+
+
+def namelist_text_value(text, name):
+    """The value of field `name` in namelist text as the code writes it (one field a line), a
+    quoted text unquoted; None if the field is not there."""
+    match = re.search(rf"^\s*{re.escape(name)}\s*=\s*(.+?)\s*$", text, flags=re.MULTILINE | re.IGNORECASE)
+    return match.group(1).strip("'\"") if match else None
+
+
+def solve_times(rows, kind):
+    """The solve times of index rows of the kind chosen (TIME_COLUMNS: 'cpu' or 'wall')."""
+    column = TIME_COLUMNS[kind]
+    for row in rows:
+        if column not in row:
+            raise StudyError(f"{row['index']}: /cases has no field {column} (an index written before CPU times "
+                             "were recorded): run the study again, or chart wall times with --time wall")
+    return np.array([row[column] for row in rows], dtype=float)
 
 
 def row_by_case(rows, case):
@@ -193,6 +242,7 @@ class FinalPoint:
     temperatures: np.ndarray
     theta_ref: float
     columns: tuple
+    time_units: str = "s"
 
 
 def final_point(path):
@@ -214,7 +264,8 @@ def final_point(path):
     mechanical = np.array([run.column("state", name)[-1] for name in columns])
     temperatures = np.array([run.column("temperature", name)[-1] for name in TEMPERATURE_COLUMNS
                              if run.has("temperature")])
-    return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures, theta_ref, columns)
+    return FinalPoint(Path(path), float(run.data["time"][-1]), mechanical, temperatures, theta_ref, columns,
+                      run.units.get("time", "s"))
 
 
 def state_error(point, reference):
@@ -288,30 +339,49 @@ def setting(row):
     return row["tolerance"] if "tolerance" in row else row["dt"]
 
 
-def work_precision(study_dir, model="pendulum"):
+def work_precision(study_dir, model="pendulum", time_kind="cpu"):
     """Errors at t = 5 of every complete work-precision case of a model (MODELS) against its
-    reference, which of them stand clear of the reference's level, and each scheme's cheapest
-    case per target."""
+    reference, which of them stand clear of the reference's level, their solve times of the kind
+    chosen (TIME_COLUMNS), and each scheme's cheapest case per target."""
     studies = MODELS[model]
     reference, cross_check, level = reference_pair(Path(study_dir) / studies.reference)
-    rows, left_out = [], []
-    for folder in studies.work_precision:
-        for row in read_index(Path(study_dir) / folder):
-            (rows if row["status"] == "complete" else left_out).append(row)
+    rows, left_out = split_complete(read_index(Path(study_dir) / folder) for folder in studies.work_precision)
     if not rows:
         raise StudyError(f"{Path(study_dir)}: no complete work-precision case of the {studies.title}")
+    return work_precision_result(rows, left_out, reference, cross_check, level, time_kind, model=model,
+                                 title=studies.title, norm=studies.error_norm, norm_label=studies.norm_label,
+                                 finding_tag=studies.finding_tag, summary_group=studies.summary_group,
+                                 end=f"t = {reference.time:g}" + ("" if studies.nondimensional else " s"))
+
+
+def split_complete(indexes):
+    """The rows of several indexes (each a list of rows), split: (the complete ones, the others)."""
+    rows, left_out = [], []
+    for index_rows in indexes:
+        for row in index_rows:
+            (rows if row["status"] == "complete" else left_out).append(row)
+    return rows, left_out
+
+
+def work_precision_result(rows, left_out, reference, cross_check, level, time_kind, **described):
+    """The work-precision figure's numbers of complete cases against a reference: errors, which
+    of them stand clear of the cross-check's level (all non-zero ones without a cross-check:
+    level None), the solve times of the kind chosen, each scheme's cheapest case per target; with
+    `described` (model, title, norm, norm_label, finding_tag, end, summary_group, figure) as the
+    figure, findings and summary name them."""
     errors = np.array([state_error(final_point(row["path"]), reference) for row in rows])
-    shown = errors >= WORK_PRECISION_FACTOR * level
+    shown = errors >= WORK_PRECISION_FACTOR * level if level is not None else errors > 0
+    time = solve_times(rows, time_kind)
     cheapest = {}
     for key in curve_keys(rows):
         for target in TARGETS:
             meeting = [i for i in members(rows, key) if shown[i] and errors[i] <= target]
             if meeting:
-                cheapest[key, target] = min(meeting, key=lambda i: rows[i]["solve_time_seconds"])
+                cheapest[key, target] = min(meeting, key=lambda i: time[i])
     return {"rows": rows, "errors": errors, "shown": shown, "level": level, "reference": reference,
-            "cross_check": cross_check, "left_out": left_out, "cheapest": cheapest, "model": model,
-            "title": studies.title, "norm": studies.error_norm, "norm_label": studies.norm_label,
-            "end": f"t = {reference.time:g}" + ("" if studies.nondimensional else " s")}
+            "cross_check": cross_check, "left_out": left_out, "cheapest": cheapest, "time": time,
+            "time_kind": time_kind, "model": None, "finding_tag": "", "summary_group": "work_precision",
+            "figure": "study_work_precision", **described}
 
 
 # ---------------------------------------------------------------- structure and stability
@@ -440,11 +510,12 @@ def scene_description(row):
         f"{name.strip()} = " + (f"({value.strip()})" if "," in value else value.strip()) for name, value in fields)
 
 
-def structure_cost(rows):
-    """Complete cases of one study: solve time, energy error and entropy violation per scheme."""
+def structure_cost(rows, time_kind="cpu"):
+    """Complete cases of one study: solve time (of the kind chosen), energy error and entropy
+    violation per scheme."""
     complete = [row for row in rows if row["status"] == "complete"]
-    return {"rows": complete,
-            "solve_time": np.array([row["solve_time_seconds"] for row in complete]),
+    return {"rows": complete, "time_kind": time_kind,
+            "solve_time": solve_times(complete, time_kind),
             "energy": np.array([row["energy_drift"] for row in complete]),
             "violation": entropy_violation([row["min_entropy_increment"] for row in complete])}
 
@@ -470,19 +541,29 @@ def timed_charts(models):
 
 def study_loads(study_dir, charts):
     """The machine's load while the timed studies ran, per timing chart ({chart: studies}): a
-    MachineLoad over its studies (the highest loads), or None when a study has no NAME.load.json."""
-    loads = {}
-    for chart, names in charts.items():
-        records = [machine_load.read(Path(study_dir) / f"{name}.load.json") for name in names]
-        loads[chart] = None if None in records else machine_load.combined(records)
-    return loads
+    MachineLoad over its studies (the highest loads), or None when a study has none recorded."""
+    return {chart: studies_load(Path(study_dir) / name for name in names) for chart, names in charts.items()}
+
+
+def studies_load(folders):
+    """The highest load over studies (their folders), each from the NAME.load.json beside its
+    folder (make study records it around the study's mpirun) or else from its index (eme_ensemble
+    records it at the study's start and end); None when a study has neither."""
+    records = []
+    for folder in folders:
+        record = machine_load.read(folder.parent / f"{folder.name}.load.json")
+        if record is None and (folder / "index.h5").exists():
+            record = machine_load.from_index(folder / "index.h5")
+        records.append(record)
+    return None if None in records else machine_load.combined(records)
 
 
 def load_caption(load, names):
     """The caption line of a timing chart's machine load."""
     if load is None:
         return (f"Machine load: not recorded (no {', '.join(f'{name}.load.json' for name in names)} beside the "
-                "studies; make study writes them): the timings' conditions are unknown.")
+                "studies, as make study writes, and no load averages in their indexes, as eme_ensemble writes at "
+                "a study's end): the timings' conditions are unknown.")
     return f"Studies {', '.join(names)}: {load.text()}."
 
 
@@ -498,7 +579,7 @@ def write_summary(path, conv, wps, structure, maps, sets, loads=None):
         if conv is not None:
             write_convergence(f.create_group("convergence"), conv)
         for model, wp in wps.items():
-            g = f.create_group(MODELS[model].summary_group)
+            g = f.create_group(wp["summary_group"])
             write_work_precision(g, wp)
             write_load(g, loads.get("study_work_precision"))
         if structure is not None:
@@ -523,8 +604,7 @@ def write_convergence(g, conv):
     write_dataset(g, "dt", [row["dt"] for row in rows], "s", "time step")
     write_dataset(g, "error", conv["errors"], "1", "max(|q, p, gamma - reference| [SI], "
                   "|theta_a - reference|/theta_ref) at t = T")
-    write_dataset(g, "solve_time_seconds", [row["solve_time_seconds"] for row in rows], "s",
-                  "solve_time_seconds of the index: the time loop of the case")
+    write_times(g, rows, "the time loop of the case")
     write_dataset(g, "end_time", conv["reference"].time, "s", "T, where errors are taken")
     write_dataset(g, "cross_check_level", conv["level"], "1",
                   "the same error norm between the cross-check and the reference")
@@ -545,8 +625,9 @@ def write_work_precision(g, wp):
     """One model's work-precision numbers."""
     wrows, title, end = wp["rows"], wp["title"], wp["end"]
     g.attrs["description"] = (f"{title}: error at {end} against the reference, and against solve time "
-                              "(figure study_work_precision" + ("; right panel of study_convergence)"
-                                                                 if wp["model"] == "pendulum" else ")"))
+                              f"(figure {wp['figure']}"
+                              + ("; right panel of study_convergence)" if wp["model"] == "pendulum" else ")"))
+    g.attrs["chart_time"] = f"{wp['time_kind']}: {study_plots.TIME_AXES[wp['time_kind']][1]}"
     write_dataset(g, "scheme", [plain_name(r["scheme"], r["thermo_variable"]) for r in wrows], "1",
                   "scheme and thermodynamic variable of each case")
     write_dataset(g, "study", [r["index"].parent.name for r in wrows], "1", "the study of each case")
@@ -554,14 +635,24 @@ def write_work_precision(g, wp):
     write_dataset(g, "dt", [r["dt"] for r in wrows], "s", "time step (adaptive schemes: output interval)")
     write_dataset(g, "tolerance", [r.get("tolerance", np.nan) for r in wrows], "1",
                   "tolerance of an adaptive scheme (NaN for fixed-step schemes)")
-    write_dataset(g, "error", wp["errors"], "1", f"{MODELS[wp['model']].error_norm} at {end}")
+    write_dataset(g, "error", wp["errors"], "1", f"{wp['norm']} at {end}")
     write_dataset(g, "shown", wp["shown"].astype(int), "1",
-                  f"1: error >= {WORK_PRECISION_FACTOR:g} x cross_check_level, drawn in the figure")
-    write_dataset(g, "solve_time_seconds", [r["solve_time_seconds"] for r in wrows], "s",
-                  "solve_time_seconds of the index: the time loop of the case (median of the repeats)")
+                  f"1: error >= {WORK_PRECISION_FACTOR:g} x cross_check_level, drawn in the figure"
+                  if wp["level"] is not None else "1: error > 0, drawn in the figure (no cross-check)")
+    write_times(g, wrows, "the time loop of the case (median of the repeats)")
     write_dataset(g, "energy_drift", [r["energy_drift"] for r in wrows], "1", "max_n |E_n - E_0| / |E_0|")
-    write_dataset(g, "cross_check_level", wp["level"], "1",
-                  "the same error norm between the cross-check and the reference")
+    if wp["level"] is not None:
+        write_dataset(g, "cross_check_level", wp["level"], "1",
+                      "the same error norm between the cross-check and the reference")
+
+
+def write_times(g, rows, what):
+    """The rows' solve times, wall and (where the index has them) CPU, as the index gives them."""
+    write_dataset(g, "solve_time_seconds", [row["solve_time_seconds"] for row in rows], "s",
+                  f"solve_time_seconds of the index: the wall time of {what}")
+    if all(TIME_COLUMNS["cpu"] in row for row in rows):
+        write_dataset(g, "solve_cpu_time_seconds", [row[TIME_COLUMNS["cpu"]] for row in rows], "s",
+                      f"solve_cpu_time_seconds of the index: the CPU time of the case's process over {what}")
 
 
 def write_structure(g, structure):
@@ -572,7 +663,8 @@ def write_structure(g, structure):
                   "scheme and thermodynamic variable of each case")
     write_dataset(g, "case", [r["case"] for r in srows], "1", "case number in stability_paper/index.h5")
     write_dataset(g, "dt", [r["dt"] for r in srows], "s", "time step")
-    write_dataset(g, "solve_time_seconds", structure["solve_time"], "s", "the time loop of the case")
+    write_times(g, srows, "the time loop of the case")
+    g.attrs["chart_time"] = f"{structure['time_kind']}: {study_plots.TIME_AXES[structure['time_kind']][1]}"
     write_dataset(g, "energy_drift", structure["energy"], "1", "max_n |E_n - E_0| / |E_0|")
     write_dataset(g, "entropy_violation", structure["violation"], "J/K",
                   "max(0, -min_n (S_{n+1} - S_n)): the largest entropy decrease in a step")
@@ -629,16 +721,19 @@ def convergence_findings(conv):
         finest = members(conv["rows"], key)[0]
         lines.append(f"convergence {plain_name(*key)}: fitted order {fit['order']:.2f} over dt = "
                      + ", ".join(f"{dt:g}" for dt in fit["dt"]) + f" s; error {conv['errors'][finest]:.2e} "
-                     f"at dt = {conv['rows'][finest]['dt']:g} s in {conv['rows'][finest]['solve_time_seconds']:.2e} s")
+                     f"at dt = {conv['rows'][finest]['dt']:g} s in {conv['rows'][finest]['solve_time_seconds']:.2e} s "
+                     "(wall)")
     return lines
 
 
 def work_precision_findings(wp):
     """One model's work-precision findings: each scheme's cheapest case per target."""
-    prefix = f"work precision{MODELS[wp['model']].finding_tag}"
-    lines = [f"{prefix}: reference {wp['reference'].path} at {wp['end']}; cross-check "
-             f"{wp['cross_check'].path}: |reference - cross-check| = {wp['level']:.2e}"]
-    wrows, cheapest = wp["rows"], wp["cheapest"]
+    prefix = f"work precision{wp['finding_tag']}"
+    lines = [f"{prefix}: reference {wp['reference'].path} at {wp['end']}; "
+             + (f"cross-check {wp['cross_check'].path}: |reference - cross-check| = {wp['level']:.2e}"
+                if wp["level"] is not None else "no cross-check")
+             + f"; times: {study_plots.TIME_AXES[wp['time_kind']][0]}"]
+    wrows, cheapest, time = wp["rows"], wp["cheapest"], wp["time"]
     for target in TARGETS:
         for key in curve_keys(wrows):
             if (key, target) not in cheapest:
@@ -647,11 +742,10 @@ def work_precision_findings(wp):
             i = cheapest[key, target]
             text = (f"{prefix} {plain_name(*key)}: error <= {target:.0e} at "
                     f"{'tolerance' if 'tolerance' in wrows[i] else 'dt'} {setting(wrows[i]):g}: error "
-                    f"{wp['errors'][i]:.2e} in {wrows[i]['solve_time_seconds']:.2e} s, energy error "
-                    f"{wrows[i]['energy_drift']:.1e}")
+                    f"{wp['errors'][i]:.2e} in {time[i]:.2e} s, energy error {wrows[i]['energy_drift']:.1e}")
             for anchor in (("cvode_bdf", "temperature"), ("eme", "temperature")):
                 if (anchor, target) in cheapest:
-                    ratio = wrows[i]["solve_time_seconds"] / wrows[cheapest[anchor, target]]["solve_time_seconds"]
+                    ratio = time[i] / time[cheapest[anchor, target]]
                     text += f"; {ratio:.3g} x {plain_name(*anchor)}'s time"
             lines.append(text)
     return lines
@@ -699,39 +793,139 @@ def stability_scenes(study_dir, model):
               if (Path(study_dir) / folder / "index.h5").exists())]
 
 
-def analyse(study_dir, models):
+def analyse(study_dir, models, time_kind="cpu"):
     """(conv, wps, structure, maps, sets) of the chosen models' studies: the convergence study, the
     work precision of each model ({model: result}), structure against cost, the stability map's
     grids ({scene: grid}) and the harder scene set; conv, structure and sets are the pendulum's,
-    None when it is not chosen."""
+    None when it is not chosen. The timing charts' time is of the kind chosen (TIME_COLUMNS)."""
     study_dir = Path(study_dir)
     pendulum = "pendulum" in models
     conv = convergence(study_dir) if pendulum else None
-    wps = {model: work_precision(study_dir, model) for model in models}
-    structure = structure_cost(read_index(study_dir / SCENES[STRUCTURE_SCENE])) if pendulum else None
+    wps = {model: work_precision(study_dir, model, time_kind) for model in models}
+    structure = structure_cost(read_index(study_dir / SCENES[STRUCTURE_SCENE]), time_kind) if pendulum else None
     maps = {scene: stability_map(read_index(study_dir / folder), MODELS[model].nondimensional)
             for model in models for scene, folder in stability_scenes(study_dir, model)}
     sets = stability_sets.analyse(study_dir, read_index, classify, temperatures_positive) if pendulum else None
     return conv, wps, structure, maps, sets
 
 
+# ---------------------------------------------------------------- any study against a reference
+def solution_point(path, case):
+    """The final point of a solution given as a run file, or as case `case` of a study index."""
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as handle:
+            is_index = "cases" in handle
+    except OSError as error:
+        raise StudyError(f"{path}: cannot open as an HDF5 file ({error})") from None
+    if not is_index:
+        return final_point(path)
+    row = row_by_case(read_index(path), case)
+    if row["status"] != "complete":
+        raise StudyError(f"{path}: case {case} is not complete ({row['status']}): it cannot be the reference")
+    if not row["file"]:
+        raise StudyError(f"{path}: an index-only study keeps no case files: case {case} has no final state")
+    return final_point(row["path"])
+
+
+GREEK = ("alpha", "beta", "gamma", "theta", "lambda", "mu")       # column names drawn as their letter
+
+
+def error_metric(reference):
+    """state_error's norm for the model of `reference` (a FinalPoint), in words and as the chart's
+    math text: the largest difference of any mechanical entry, and of any temperature scaled by
+    theta_ref (unscaled when theta_ref is 1: a nondimensional model's)."""
+    groups = list(dict.fromkeys(re.match(r"[A-Za-z]*", name).group(0) or name for name in reference.columns))
+    words = f"max over the {len(reference.columns)} mechanical entries ({', '.join(groups)}) of |z - z_ref|"
+    symbols = [rf"|$\Delta\{group}$|" if group in GREEK else rf"|$\Delta {group}$|" for group in groups]
+    if reference.temperatures.size and reference.theta_ref != 1.0:
+        words += (" and over the temperatures of |theta_a - theta_a,ref| / theta_ref (theta_ref = "
+                  f"{reference.theta_ref:g} K)")
+        symbols.append(r"|$\Delta\theta_a$|/$\theta_{ref}$")
+    elif reference.temperatures.size:
+        words += " and over the temperatures of |theta_a - theta_a,ref| (unscaled)"
+        symbols.append(r"|$\Delta\theta_a$|")
+    return words, f"max({', '.join(symbols)})"
+
+
+def any_study(args):
+    """The work-precision chart, summary and findings of the studies args.indexes names against
+    args.reference (and args.cross_check), on the time args.time."""
+    folders = [Path(path).parent if Path(path).suffix == ".h5" else Path(path) for path in args.indexes]
+    rows, left_out = split_complete(read_index(path) for path in args.indexes)
+    if not rows:
+        raise StudyError(f"{', '.join(map(str, args.indexes))}: no complete case")
+    for row in rows:
+        if not row["file"]:
+            raise StudyError(f"{row['index']}: an index-only study keeps no case files: its cases' errors cannot "
+                             "be computed (run it with &study index_only = .false.)")
+    reference = solution_point(args.reference, args.reference_case)
+    cross_check = solution_point(args.cross_check, args.cross_check_case) if args.cross_check else None
+    level = state_error(cross_check, reference) if cross_check else None
+    norm, norm_label = error_metric(reference)
+    model = namelist_text_value(rows[0]["case_1_input"], "model_name") or "model"
+    name = args.name or f"work_precision_{folders[0].name}"
+    wp = work_precision_result(
+        rows, left_out, reference, cross_check, level, args.time, figure=name,
+        title=f"{model.replace('_', ' ')}: {', '.join(folder.name for folder in folders)}", norm=norm,
+        norm_label=norm_label, end=f"t = {reference.time:g}" + ("" if reference.time_units == "1" else
+                                                                 f" {reference.time_units}"))
+    load = studies_load(folders)
+    output = Path(args.output)
+    study_plots.save_chart(output / name, study_plots.work_precision_figure({name: wp}, WORK_PRECISION_FACTOR),
+                           load_caption(load, [str(folder) for folder in folders]))
+    write_summary(args.summary or output / f"{name}.h5", None, {name: wp}, None, {}, None,
+                  {"study_work_precision": load})
+    if load is not None and load.busy:
+        print(f"study_analysis.py: {name}: {load.warning()}", file=sys.stderr)
+    for line in work_precision_findings(wp):
+        print(line)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("indexes", nargs="*", metavar="INDEX.h5",
+                        help="study indexes (or their folders) of any study with case files: chart their complete "
+                        "cases' error against --reference over their solve time, instead of make study's studies")
+    parser.add_argument("--reference", metavar="REF.h5",
+                        help="with INDEX.h5: the reference solution, a run file or a study index (its case "
+                        "--reference-case)")
+    parser.add_argument("--reference-case", type=int, default=1, metavar="N",
+                        help="the reference's case when REF.h5 is an index (default: %(default)s)")
+    parser.add_argument("--cross-check", metavar="FILE.h5",
+                        help="with INDEX.h5: an independent second solution (run file or index, its case "
+                        "--cross-check-case); its distance from the reference is drawn as a level, and points "
+                        f"within {WORK_PRECISION_FACTOR:g} times it are left out")
+    parser.add_argument("--cross-check-case", type=int, default=1, metavar="N",
+                        help="the cross-check's case when FILE.h5 is an index (default: %(default)s)")
+    parser.add_argument("--name", metavar="NAME",
+                        help="with INDEX.h5: the chart's file name in OUT (default: work_precision_ and the first "
+                        "index's folder name)")
+    parser.add_argument("--time", choices=tuple(TIME_COLUMNS), default="cpu",
+                        help="the timing charts' time: cpu, the CPU time of the case's process over its time loop "
+                        "(default; waiting for a core that other work holds does not add to it), or wall, the time "
+                        "loop's wall time")
     parser.add_argument("--study-dir", default="results/study", metavar="STUDY_DIR",
                         help="folder holding the study folders (default: %(default)s)")
     parser.add_argument("-o", "--output", default="results/figures", metavar="OUT",
                         help="folder for the figures (default: %(default)s)")
-    parser.add_argument("--summary", default="results/study/summary.h5", metavar="SUMMARY",
-                        help="HDF5 file of the numbers behind the figures (default: %(default)s)")
+    parser.add_argument("--summary", metavar="SUMMARY",
+                        help="HDF5 file of the numbers behind the figures (default: results/study/summary.h5; with "
+                        "INDEX.h5, OUT/NAME.h5)")
     parser.add_argument("--models", nargs="+", choices=list(MODELS), default=list(MODELS), metavar="MODEL",
                         help="the models whose studies to analyse, of " + ", ".join(MODELS)
                         + " (default: all; each needs every one of its studies)")
     args = parser.parse_args(argv)
+    if bool(args.indexes) != bool(args.reference):
+        parser.error("INDEX.h5 and --reference go together: a study is charted against a reference")
+    if args.indexes:
+        any_study(args)
+        return
     study_dir, output = Path(args.study_dir), Path(args.output)
     models = [model for model in MODELS if model in args.models]
     pendulum = "pendulum" in models
-    conv, wps, structure, maps, sets = analyse(study_dir, models)
+    conv, wps, structure, maps, sets = analyse(study_dir, models, args.time)
     charts = timed_charts(models)
     loads = study_loads(study_dir, charts)
     load_lines = {chart: load_caption(loads[chart], names) for chart, names in charts.items()}
@@ -739,7 +933,7 @@ def main(argv=None):
                          work_precision_factor=WORK_PRECISION_FACTOR, load_lines=load_lines)
     if pendulum:
         stability_sets.figure(sets, output / "study_stability_set")
-    write_summary(args.summary, conv, wps, structure, maps, sets, loads)
+    write_summary(args.summary or "results/study/summary.h5", conv, wps, structure, maps, sets, loads)
     for chart, load in loads.items():
         if load is not None and load.busy:
             print(f"study_analysis.py: {chart}: {load.warning()}", file=sys.stderr)

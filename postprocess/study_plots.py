@@ -41,6 +41,13 @@ SCENE_TITLES = {"paper": "paper scene", "hard": "harder scene", "gas": "gas cont
                 "gonzalez": "elastic (Gonzalez)", "romero": "Romero's\nthermoelastic"}
 # The stability map's rows [in]: the scenes side by side, so that the map fits a page.
 MAP_ROW_HEIGHT = 0.2
+# The timing charts' time (study_analysis.py --time): the axis's words and the caption's account of it.
+TIME_AXES = {
+    "cpu": ("solve CPU time", "the CPU time of the case's process over its time loop (the index's "
+            "solve_cpu_time_seconds), to which waiting for a core that other work holds does not add"),
+    "wall": ("solve wall time", "the wall time of the case's time loop (the index's solve_time_seconds), which "
+             "other work sharing the cores inflates"),
+}
 
 
 def key_rank(key):
@@ -181,16 +188,20 @@ def convergence_figure(conv, wp, fit_rule):
 
 
 def work_precision_figure(wps, factor):
-    """Error at the reference's time against the median solve time, log-log: a column of panels per
-    model ({model: work_precision result}), a row per scheme family (the other families in grey
-    behind), the family named by the row's legend; lower left is better."""
+    """Error at the reference's time against the median solve time (CPU or wall: each result's
+    time_kind), log-log: a column of panels per model or study ({name: work_precision result}), a
+    row per scheme family (the other families in grey behind), the family named by the row's
+    legend; lower left is better. A result without a cross-check has level None: no level line."""
     grouped = families(sorted({key for wp in wps.values() for key in curve_keys(wp["rows"])}, key=key_rank))
-    fig, axes = family_rows(grouped, len(wps), extra_entries=1, sharex="col", sharey=True)
-    # Down to the decade below the lowest reference level, so that every level line shows.
-    bottom = min(1e-11, 10.0 ** np.floor(np.log10(min(wp["level"] for wp in wps.values()))))
+    levels = [wp["level"] for wp in wps.values() if wp["level"] is not None]
+    fig, axes = family_rows(grouped, len(wps), extra_entries=1 if levels else 0, sharex="col", sharey=True)
+    # Down to the decade below the lowest reference level (or error), so that every level line shows.
+    lowest = min(levels + [float(np.min(wp["errors"][wp["shown"]])) for wp in wps.values() if wp["shown"].any()],
+                 default=1e-11)
+    bottom = min(1e-11, 10.0 ** np.floor(np.log10(lowest)))
+    time_kinds = sorted({wp["time_kind"] for wp in wps.values()})
     for column, wp in enumerate(wps.values()):
-        rows, errors = wp["rows"], wp["errors"]
-        time = np.array([row["solve_time_seconds"] for row in rows])
+        rows, errors, time = wp["rows"], wp["errors"], wp["time"]
         curves = {}
         for key in curve_keys(rows):
             chosen = [i for i in members(rows, key) if wp["shown"][i]]
@@ -205,14 +216,15 @@ def work_precision_figure(wps, factor):
                 if chosen:
                     ax.plot(time[chosen], errors[chosen], label=label(*key)
                             + (" (tolerance)" if "tolerance" in rows[chosen[0]] else ""), **style(key))
-            ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.",
-                       label="|reference $-$ cross-check|")
+            if wp["level"] is not None:
+                ax.axhline(wp["level"], color="black", linewidth=0.8, linestyle="-.",
+                           label="|reference $-$ cross-check|")
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_ylim(bottom, 1.0)
             ax.grid(True, which="major")
         axes[0, column].set_title(f"{wp['title']}, {wp['end']}\n{wp['norm_label']}")
-        axes[-1, column].set_xlabel("solve time, one rank [s]")
+        axes[-1, column].set_xlabel(f"{TIME_AXES[wp['time_kind']][0]}, one rank [s]")
     for row_axes, (family, _) in zip(axes, grouped):
         # One legend per family, beside its row: a curve carries the same marks in every column.
         entries = {}
@@ -222,17 +234,22 @@ def work_precision_figure(wps, factor):
                             loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.supylabel("error at t = T, in the norm above each column")
     repeats = sorted({row.get("repeats", 1) for wp in wps.values() for row in wp["rows"]})
-    return fig, "Work-precision: error against solve time (lower left is better)", [
+    words = " and ".join(TIME_AXES[kind][0] for kind in time_kinds)
+    return fig, f"Work-precision: error against {words} (lower left is better)", [
         *(f"{wp['title']}: error at {wp['end']}, {wp['norm']}. Reference: {wp['reference'].path}; "
-          f"cross-check: {wp['cross_check'].path}; |reference - cross-check| = {wp['level']:.1e} (dash-dot line); "
-          f"points with error below {factor:g} times it are left out. Cases: {len(wp['rows'])} complete"
+          + (f"cross-check: {wp['cross_check'].path}; |reference - cross-check| = {wp['level']:.1e} (dash-dot "
+             f"line); points with error below {factor:g} times it are left out."
+             if wp["level"] is not None else "no cross-check: how far the reference itself is from the exact "
+             "solution is not known, and a case with error 0 (the reference itself) is left out.")
+          + f" Cases: {len(wp['rows'])} complete"
           + (f"; left out (not complete): {len(wp['left_out'])}" if wp["left_out"] else "") + "."
           for wp in wps.values()),
-        "A column per model, a row per scheme family (colour; the family names its row's legend), a marker "
-        "per scheme, line style and fill per thermodynamic variable; the other families' curves in grey "
-        "behind, on the same axes.",
+        f"A column per {'model' if len(wps) > 1 else 'study'}, a row per scheme family (colour; the family names "
+        "its row's legend), a marker per scheme, line style and fill per thermodynamic variable; the other "
+        "families' curves in grey behind, on the same axes.",
         "Points along a curve: the dt of a fixed-step scheme, or the tolerance of an adaptive one. "
-        f"Solve time: the time loop of one case on one rank, the median of {'/'.join(map(str, repeats))} runs."]
+        f"Solve time: {'; '.join(TIME_AXES[kind][1] for kind in time_kinds)}; of one case on one rank, the median "
+        f"of {'/'.join(map(str, repeats))} runs."]
 
 
 def floored(values):
@@ -269,17 +286,18 @@ def structure_figure(structure, source):
         for ax, (_, ylabel) in zip(row_axes, panels):
             ax.set_ylabel(ylabel)
     for ax in axes[-1]:
-        ax.set_xlabel("solve time of one case [s]")
+        ax.set_xlabel(f"{TIME_AXES[structure['time_kind']][0]} of one case [s]")
     fig.legend([floor, epsilon], [rf"zeros and values < $10^{{{np.log10(LOG_FLOOR):.0f}}}$", "machine epsilon"],
                loc="outside lower center", ncols=2)
     zero = [plain_name(*key) for key in curve_keys(rows)
             if np.all(structure["violation"][members(rows, key)] == 0)]
-    return fig, "Structure against cost: energy error and entropy decrease against solve time", [
+    time_words = TIME_AXES[structure["time_kind"]][0]
+    return fig, f"Structure against cost: energy error and entropy decrease against {time_words}", [
         f"Complete cases of {source} ([0, t_end], dt from the study), one point per case, curves "
         "ordered by dt; failed cases are left out. Energy error: max_n |E_n - E_0| / |E_0|; entropy decrease: "
         "max(0, -min_n (S_(n+1) - S_n)) [J/K]. From the index: energy_drift and "
         f"min_entropy_increment. Exact zeros and values below {LOG_FLOOR:.0e} are drawn at {LOG_FLOOR:.0e} "
-        "(grey band).",
+        f"(grey band). Solve time: {TIME_AXES[structure['time_kind']][1]}.",
         "One row per scheme family (colour), a marker per scheme, line style and fill per thermodynamic "
         "variable; the other families' curves in grey behind, on the same axes.",
         "Entropy decrease zero on every finished case: " + ", ".join(zero)]
@@ -359,10 +377,16 @@ def save_all(output, conv, wps, structure, maps, fit_rule, work_precision_factor
         source = structure["rows"][0]["index"].parent if structure["rows"] else "-"
         figures["study_structure_cost"] = lambda: structure_figure(structure, source)
     for name, draw in figures.items():
-        fig, title, lines = draw()
-        if "BUSY" in load_lines.get(name, ""):
-            # A busy machine's timings are marked on the chart itself, not only in its caption (top
-            # right: the panels' titles are at the left or in the middle).
-            fig.text(0.995, 0.995, "measured on a busy machine (see the caption)", ha="right", va="top",
-                     color="tab:red", fontsize=MIN_FONT_POINTS)
-        save(fig, output / name, title, lines=lines + ([load_lines[name]] if name in load_lines else []))
+        save_chart(output / name, draw(), load_lines.get(name))
+
+
+def save_chart(path, drawn, load_line=None):
+    """Writes PATH.png, .pdf and .txt of a drawn chart, (figure, title, caption lines), with the
+    machine's load as the caption's last line; a busy machine's timings are marked on the chart
+    itself, not only in its caption (top right: the panels' titles are at the left or in the
+    middle)."""
+    fig, title, lines = drawn
+    if "BUSY" in (load_line or ""):
+        fig.text(0.995, 0.995, "measured on a busy machine (see the caption)", ha="right", va="top",
+                 color="tab:red", fontsize=MIN_FONT_POINTS)
+    save(fig, path, title, lines=lines + ([load_line] if load_line else []))

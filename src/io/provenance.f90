@@ -1,8 +1,11 @@
 !> How an output file was made, as root attributes of a run file and of a study index (docs/output.md): the command line, the PETSc options in force, the versions of the code and of
 !> every library, the host and the start time, and the CF global attributes (title, institution,
-!> source, history, references, Conventions) that netCDF and xarray readers look for.
+!> source, history, references, Conventions) that netCDF and xarray readers look for; and the
+!> machine's load, which a study index records at its start and end (docs/studies.md).
 module provenance
-  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
+  use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char, c_double
+  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use hdf5_files, only: hdf5_file
   use failures, only: failure_type
   use namelist_text, only: lowercase
@@ -10,7 +13,13 @@ module provenance
   use build_info, only: code_version
   implicit none (type, external)
   private
-  public :: write_provenance, iso_time, command_line
+  public :: write_provenance, iso_time, command_line, machine_load, machine_load_now
+
+  !> The machine's load at one moment: what a timing taken then shared the cores with.
+  type :: machine_load
+    real(real64) :: averages(3) = 0.0_real64   !! the 1-, 5- and 15-minute load averages; NaN where the OS gives none
+    integer :: cores = 0                       !! the cores online (0 if unknown)
+  end type machine_load
 
   !> The paper the code implements (the CF `references` attribute).
   character(len=*), parameter :: paper = 'V. Valdes y Beck, P. Betsch: Energy-Momentum-Entropy consistent time '// &
@@ -24,6 +33,12 @@ module provenance
       character(kind=c_char), intent(out) :: text(*)
       integer(c_int), value :: size
     end subroutine c_host_name
+    ! src/io/host_name.c: -1 for a load average the OS does not give, 0 for unknown cores
+    subroutine c_machine_load(averages, cores) bind(c, name='eme_machine_load')
+      import :: c_double, c_int
+      real(c_double), intent(out) :: averages(3)
+      integer(c_int), intent(out) :: cores
+    end subroutine c_machine_load
   end interface
 
 contains
@@ -106,6 +121,18 @@ contains
     end do
     quoted = quoted//quote
   end function shell_quoted
+
+  !> The machine's load averages and cores online now (getloadavg and sysconf).
+  function machine_load_now() result(load)
+    type(machine_load) :: load
+    real(c_double) :: averages(3)
+    integer(c_int) :: cores
+
+    call c_machine_load(averages, cores)
+    load%averages = real(averages, real64)
+    where (averages < 0) load%averages = ieee_value(1.0_real64, ieee_quiet_nan)
+    load%cores = int(cores)
+  end function machine_load_now
 
   !> Now as ISO 8601 local time with its UTC offset, e.g. 2024-05-01T14:03:07+02:00.
   function iso_time() result(text)

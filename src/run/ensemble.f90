@@ -176,7 +176,7 @@ contains
     manager%started = MPI_Wtime()
     manager%last_progress = manager%started
     manager%io_message = ''
-    call manager%index%open(study, pending, notes, failure)
+    call manager%index%open(study, pending, notes, failure, ranks)
     if (failure%failed()) return
     ! The queue: pending cases, largest planned cost first (stable for equal costs).
     manager%queue = pack([(c, c=1, size(study%cases))], pending)
@@ -503,7 +503,7 @@ contains
     type(run_summary) :: summary
     type(extra_attribute) :: extras(4)
     type(failure_type) :: failure
-    real(real64), allocatable :: solve_seconds(:)      ! on the heap: its size is the input's
+    real(real64), allocatable :: solve_seconds(:), solve_cpu_seconds(:)      ! on the heap: their size is the input's
     integer :: r
 
     config = study%cases(c)%config
@@ -518,17 +518,22 @@ contains
     extras(4)%name = 'study_rank'
     extras(4)%number = rank
     ! With &study repeats = R the case runs R times, only the last keeping its file; the index
-    ! gets the median of the time loops' durations, so timings on a shared machine do not zig-zag.
-    allocate (solve_seconds(study%repeats))
+    ! gets the median of the time loops' durations (wall and CPU, each its own median), so timings
+    ! on a shared machine do not zig-zag.
+    allocate (solve_seconds(study%repeats), solve_cpu_seconds(study%repeats))
     do r = 1, study%repeats
       ! An interrupted case (its file incomplete, with the same input) continues from its file.
       call run_simulation(config, summary, failure, observer, integrator, &
                           keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
                           template=template, resume_if_possible=study%repeats == 1)
       solve_seconds(r) = summary%solve_seconds
+      solve_cpu_seconds(r) = summary%solve_cpu_seconds
       if (failure%failed() .or. summary%status /= 'complete') exit
     end do
-    if (r > study%repeats) summary%solve_seconds = median(solve_seconds)
+    if (r > study%repeats) then
+      summary%solve_seconds = median(solve_seconds)
+      summary%solve_cpu_seconds = median(solve_cpu_seconds)
+    end if
     if (summary%failure_kind == failure_interrupted) then
       result%status = summary%status
     else if (failure%failed()) then
@@ -541,7 +546,7 @@ contains
     result%failure_kind = summary%failure_kind
     result%metrics = [real(summary%steps_completed, real64), real(summary%steps_planned, real64), &
                       real(summary%newton_iterations, real64), summary%wall_seconds, summary%solve_seconds, &
-                      summary%energy_drift, &
+                      summary%cpu_seconds, summary%solve_cpu_seconds, summary%energy_drift, &
                       summary%min_entropy_increment, summary%max_lyapunov_increment, &
                       summary%angular_momentum_drift, summary%min_temperature, &
                       real(summary%halved_steps, real64), real(summary%rejected_steps, real64), &

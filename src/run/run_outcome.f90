@@ -7,7 +7,7 @@ module run_outcome
   private
   public :: run_summary, step_failure_kind
   public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
-            failure_library, failure_step_budget
+            failure_library, failure_step_budget, failure_balance
 
   !> Why a run did not complete, in a word (file attribute and study index column `failure_kind`).
   character(len=*), parameter :: failure_none = 'none'              !! complete (or not yet run)
@@ -19,6 +19,9 @@ module run_outcome
   character(len=*), parameter :: failure_library = 'library'        !! PETSc or HDF5 failed
   !> the run took &integrator max_steps accepted steps before t_end (integrators that choose their steps)
   character(len=*), parameter :: failure_step_budget = 'step_budget'
+  !> an accepted step broke a balance its integrator guarantees, also when solved again with the
+  !> model's default solver settings (docs/faults.md, Every accepted step checked)
+  character(len=*), parameter :: failure_balance = 'balance'
 
   !> The figures a run is judged by, as the summary table prints them.
   type :: run_summary
@@ -40,8 +43,16 @@ module run_outcome
     real(real64) :: min_temperature = huge(1.0_real64)
     integer(int64) :: halved_steps = 0     !! failed attempts of the completed steps replaced by two halves
     integer(int64) :: rejected_steps = 0   !! trial steps that step-size control rejected (adaptive runs)
+    !> steps that broke a guaranteed balance and were solved again with the default solver settings
+    integer(int64) :: resolved_steps = 0
+    !> the largest figure of each balance over the run (step_balances' order), NaN where it has none
+    real(real64) :: max_balance(4) = -huge(1.0_real64)
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
+    !> The CPU time of the run's process (all its threads, user and system) over the same spans:
+    !> unlike the wall times, without the time spent waiting for a core that other work holds
+    real(real64) :: cpu_seconds = 0.0_real64
+    real(real64) :: solve_cpu_seconds = 0.0_real64
   end type run_summary
 
 contains

@@ -21,6 +21,8 @@ module run_output
                         thermal_only, &
                         dataset_description, dataset_units
   use run_attributes, only: write_run_attributes
+  use step_check, only: checked_balances
+  use step_balances, only: balance_names, balance_bound_ulps
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use failures, only: failure_type, fail, code_io => failure_io, failure_mismatch
   implicit none (type, external)
@@ -136,6 +138,9 @@ contains
                                          trim(thermo_variable_names(config%integrator%thermo_variable)), &
                                          petsc_options, failure)
     if (.not. failure%failed()) call self%store%file%set_text('namelist', namelist_of_run(config), failure)
+    if (.not. failure%failed()) call self%store%file%set_text('balance_guarantees', &
+                                  checked_names(checked_balances(entry, model, constraints)), failure)
+    if (.not. failure%failed()) call self%store%file%set_reals('balance_bound_ulps', balance_bound_ulps, failure)
     do k = 1, size(extras)
       if (failure%failed()) exit
       if (allocated(extras(k)%text)) then
@@ -195,6 +200,20 @@ contains
 
   !> The solver the integrator used (after its `start`): each setting as a root attribute
   !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
+  ! The balances checked on every step, blank-separated ('none' if none).
+  function checked_names(checked) result(names)
+    logical, intent(in) :: checked(:)
+    character(len=:), allocatable :: names
+    integer :: k
+
+    names = ''
+    do k = 1, size(checked)
+      if (checked(k)) names = names//' '//trim(balance_names(k))
+    end do
+    names = trim(adjustl(names))
+    if (len(names) == 0) names = 'none'
+  end function checked_names
+
   subroutine record_solver(self, report, failure)
     class(run_file), intent(inout) :: self
     type(solver_report), intent(in) :: report
@@ -251,17 +270,21 @@ contains
   !> Records step n, ending at `time`, for every per-step dataset, in the schema's order, then the
   !> integrator's diagnostics: `step_seconds` its wall-clock time, `entropy_increment` S_n - S_(n-1) and
   !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
-  subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment)
+  subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment, &
+                         balances, has_balance, resolved)
     class(run_file), intent(inout) :: self
     integer(int64), intent(in) :: n
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
+    real(real64), intent(in) :: balances(:)   !! the balance figures (step_balances' order)
+    logical, intent(in) :: has_balance(:)     !! which of them the model has (the dataset's columns)
+    logical, intent(in) :: resolved           !! solved again with the default solver settings
 
     if (.not. self%enabled) return
     block
       real(real64) :: row(self%store%tables(step_rows)%row_width)    ! the schema's datasets, then the diagnostics
-      integer :: filled
+      integer :: filled, k
 
       filled = 0
       call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64)])
@@ -269,6 +292,13 @@ contains
       call put(row, filled, [real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
                              report%residual_norm, real(report%converged_reason, real64), step_seconds])
       if (self%thermal) call put(row, filled, [entropy_increment, lyapunov_increment])
+      do k = 1, size(balances)
+        if (.not. has_balance(k)) cycle
+        filled = filled + 1
+        row(filled) = balances(k)
+      end do
+      filled = filled + 1
+      row(filled) = merge(1.0_real64, 0.0_real64, resolved)
       call put(row, filled, multipliers)
       if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
       call self%store%tables(step_rows)%accumulate(row(:filled))
@@ -402,6 +432,8 @@ contains
       record%summary%min_temperature = summary%min_temperature
       record%summary%halved_steps = summary%halved_steps
       record%summary%rejected_steps = summary%rejected_steps
+      record%summary%resolved_steps = summary%resolved_steps
+      record%summary%max_balance = summary%max_balance
       if (.not. allocated(record%x)) allocate (record%x(size(x)), record%x_previous(size(x)))
       record%x = x
       record%x_previous = x_previous
@@ -480,6 +512,11 @@ contains
       record%summary%min_temperature = numbers(14)
       record%summary%halved_steps = nint(numbers(15), int64)
       record%summary%rejected_steps = nint(numbers(16), int64)
+      call file%get_reals('resume_balances', numbers, reading)
+      if (.not. reading%failed() .and. size(numbers) == 1 + size(record%summary%max_balance)) then
+        record%summary%resolved_steps = nint(numbers(1), int64)
+        record%summary%max_balance = numbers(2:)
+      end if
     end if
     call file%close(ignored)
   end subroutine read_resume_record
@@ -498,6 +535,8 @@ contains
                         record%summary%max_lyapunov_increment, record%summary%angular_momentum_drift, &
                         record%summary%min_temperature, real(record%summary%halved_steps, real64), &
                         real(record%summary%rejected_steps, real64)], failure)
+    if (.not. failure%failed()) call file%set_reals('resume_balances', [real(record%summary%resolved_steps, real64), &
+                                                                        record%summary%max_balance], failure)
     if (.not. failure%failed()) call file%set_reals('resume_x', record%x, failure)
     if (.not. failure%failed()) call file%set_reals('resume_x_previous', record%x_previous, failure)
     if (.not. failure%failed() .and. size(record%integrator_state) > 0) &
@@ -581,8 +620,12 @@ contains
     if (.not. failure%failed() .and. units) call self%store%file%set_texts('run_figures_units', &
                                                         [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], &
                                                         failure)
+    call number('resolved_steps', real(summary%resolved_steps, real64), '1', .true.)
+    if (.not. failure%failed()) call self%store%file%set_reals('balance_max_ulps', summary%max_balance, failure)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
+    call number('solve_cpu_time_seconds', summary%solve_cpu_seconds, 's', .false.)
+    call number('cpu_time_seconds', summary%cpu_seconds, 's', .false.)
     self%store%file%fresh = .false.
 
   contains

@@ -20,7 +20,10 @@ module simulation
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
   use run_outcome, only: run_summary, step_failure_kind, failure_none, failure_solver, failure_domain, &
-                         failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget
+                         failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget, &
+                         failure_balance
+  use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, applicable_balances
+  use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
   use hdf5_files, only: check_run_file, check_file_integrity, file_template
@@ -67,7 +70,7 @@ contains
     select case (summary%failure_kind)
     case (failure_none)
       exit_status = 0
-    case (failure_solver, failure_domain, failure_step_budget)
+    case (failure_solver, failure_domain, failure_step_budget, failure_balance)
       exit_status = 3
     case (failure_input)
       exit_status = 2
@@ -124,19 +127,27 @@ contains
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
     real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
+    ! The step check (src/run/step_check): the balances' quantities before and after the step,
+    ! the step's figures, which balances are checked, and which momenta are conserved.
+    type(balanced_state) :: balance_old, balance_new
+    real(real64) :: figures(balance_count), step_heat
+    logical :: checked(balance_count), has_balance(balance_count), resolved
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
+    real(real64) :: cpu_start, cpu_loop    !! the process's CPU time at the run's and the time loop's start
     integer(int64) :: n             !! steps taken (accepted)
-    integer :: k, n_state, signal
+    integer :: n_state, signal
     type(failure_type) :: step_failure, release_failure, io_failure
     logical :: found, finished, writing, replace, chooses_time, row_due, continuing
     logical :: lock_lost                !! the output's lock was removed or replaced (guard_lock)
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
+    call cpu_time(cpu_start)
     clock_progress = clock_start
     clock_loop = clock_start
+    cpu_loop = cpu_start
     summary%note = ''
     summary%status = 'incomplete: running'
     summary%failure_kind = failure_none
@@ -211,6 +222,8 @@ contains
     x = 0.0_real64
     x(1:n_state) = z0
     boundary_heat = 0.0_real64
+    checked = checked_balances(entry, model, constraints)
+    has_balance = applicable_balances(model)
 
     if (present(reusable)) then
       if (allocated(reusable)) then
@@ -285,6 +298,7 @@ contains
                                     integrator)
     end if
     call system_clock(clock_loop)
+    call cpu_time(cpu_loop)
     ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
     ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
     ! step lands on it), or until the step budget (&integrator max_steps) is spent.
@@ -335,22 +349,21 @@ contains
         summary%failure_kind = step_failure_kind(report%reason)
         exit
       end if
+      call check_step(resolved)
+      if (failure%failed() .or. summary%failure_kind /= failure_none) exit
       ! Newton iterations per step: those of the completed steps over their number (a failed
       ! step's are not counted), as newton_iterations_total / steps_completed in the file.
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       summary%halved_steps = summary%halved_steps + report%halvings
       summary%rejected_steps = summary%rejected_steps + report%rejected_steps
-      ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
-      do k = 1, size(constraints)
-        boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
-      end do
+      boundary_heat = boundary_heat + step_heat
       entropy_old = entropy
       lyapunov_old = lyapunov
       x_previous = x
       x = x_new
-      call observe(x(1:n_state), energy, entropy, lyapunov)
+      call take_observation(energy, entropy, lyapunov)
       call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(clock_rate, real64), &
-                              entropy - entropy_old, lyapunov - lyapunov_old)
+                              entropy - entropy_old, lyapunov - lyapunov_old, figures, has_balance, resolved)
       row_due = .false.
       do while (config%output_interval > 0.0_real64 .and. &
                 time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
@@ -388,6 +401,8 @@ contains
       summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
     end if
     if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
+    where (.not. has_balance .or. summary%steps_completed == 0) summary%max_balance = ieee_value(1.0_real64, &
+                                                                                                 ieee_quiet_nan)
     call set_times(.true.)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
@@ -514,6 +529,8 @@ contains
       summary%angular_momentum_drift = record%summary%angular_momentum_drift
       summary%halved_steps = record%summary%halved_steps
       summary%rejected_steps = record%summary%rejected_steps
+      summary%resolved_steps = record%summary%resolved_steps
+      summary%max_balance = record%summary%max_balance
       summary%steps_completed = n
       call observe(x(1:n_state), energy, entropy, lyapunov)
       summary%min_temperature = record%summary%min_temperature
@@ -528,22 +545,53 @@ contains
       summary%failure_kind = kind
     end subroutine fail
 
-    ! The whole run's seconds so far, and the time loop's while it runs.
+    ! The whole run's seconds so far, and the time loop's while it runs, in wall time and in the
+    ! process's CPU time. The CPU clock is Fortran's cpu_time, portable and, in gfortran, getrusage:
+    ! user and system time of all the process's threads to the microsecond, enough for cases of
+    ! 0.1 ms and more. It is read inside the wall clock's readings, so that a CPU span lies within
+    ! its wall span. A processor without a CPU clock (cpu_time negative) gives NaN.
     subroutine set_times(in_loop)
       logical, intent(in) :: in_loop
+      real(real64) :: cpu_now
 
+      call cpu_time(cpu_now)
       call system_clock(clock_now)
       if (in_loop) summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
       summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
+      if (cpu_start < 0) then
+        summary%cpu_seconds = ieee_value(1.0_real64, ieee_quiet_nan)
+        summary%solve_cpu_seconds = summary%cpu_seconds
+        return
+      end if
+      if (in_loop) summary%solve_cpu_seconds = cpu_now - cpu_loop
+      summary%cpu_seconds = cpu_now - cpu_start
     end subroutine set_times
+
+    ! The balances' quantities at z (into balance_new) and its temperatures (into theta).
+    subroutine observe_state(z)
+      real(real64), intent(in) :: z(:)
+      integer :: domain
+
+      call observe_balances(model, z, balance_new, theta, domain)
+      momentum = model%momenta(z)
+    end subroutine observe_state
 
     subroutine observe(z, energy, entropy, lyapunov)
       real(real64), intent(in) :: z(:)
       real(real64), intent(out) :: energy, entropy, lyapunov
-      integer :: domain
 
-      call model%observe(z, energy, entropy, theta, domain)
-      momentum = model%momenta(z)
+      call observe_state(z)
+      call take_observation(energy, entropy, lyapunov)
+    end subroutine observe
+
+    ! The figures of the state observe_state saw last (balance_new, theta), which becomes the
+    ! old state of the next step's check.
+    subroutine take_observation(energy, entropy, lyapunov)
+      real(real64), intent(out) :: energy, entropy, lyapunov
+
+      energy = balance_new%energy
+      entropy = balance_new%entropy
+      balance_old = balance_new
       lyapunov = energy - config%theta_r*entropy
       ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
       if (.not. all(abs(theta) <= huge(1.0_real64))) then
@@ -551,7 +599,70 @@ contains
       else if (.not. ieee_is_nan(summary%min_temperature)) then
         summary%min_temperature = min(summary%min_temperature, minval(theta))
       end if
-    end subroutine observe
+    end subroutine take_observation
+
+    ! The check of the step the integrator just accepted, from x to x_new (src/run/step_check):
+    ! its heat through the constraints (step_heat; a multiplier is the step's mean rate, lambda_2 a
+    ! heat power, so the heat is rate times the step), its balance figures, and, where it breaks a
+    ! guaranteed balance, the step solved again with the model's default solver settings (then
+    ! `resolved`). A step that still breaks one ends the run (failure_balance), as does a re-solve
+    ! without a root; a library failure sets `failure`.
+    subroutine check_step(resolved)
+      logical, intent(out) :: resolved
+      integer :: broken, first_iterations
+      type(failure_type) :: resolving
+
+      resolved = .false.
+      call measure()
+      broken = broken_balance(figures, checked, report%halvings + 1)
+      if (broken == 0) then
+        call note_figures()
+        return
+      end if
+      resolved = .true.
+      summary%resolved_steps = summary%resolved_steps + 1
+      first_iterations = report%newton_iterations
+      call integrator%resolve(x, time_old, time - time_old, 2*x - x_previous, x_new, report, resolving)
+      report%newton_iterations = report%newton_iterations + first_iterations
+      if (resolving%failed()) then
+        call fail(failure_library, 'PETSc failed during the solve: '//petsc_error_text())
+        summary%status = 'incomplete: PETSc error in step '//integer_text(n)
+        return
+      end if
+      if (.not. report%accepted) then
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
+                         balance_text(broken, figures)//'; solved again with the default solver settings: '// &
+                         report%reason
+        summary%failure_kind = failure_balance
+        return
+      end if
+      call measure()
+      broken = broken_balance(figures, checked, report%halvings + 1)
+      if (broken == 0) then
+        call note_figures()
+        return
+      end if
+      summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
+                       balance_text(broken, figures)//', also when solved again with the default solver settings'
+      summary%failure_kind = failure_balance
+    end subroutine check_step
+
+    ! The run's largest figures, with an accepted step's.
+    subroutine note_figures()
+      where (has_balance) summary%max_balance = max(summary%max_balance, figures)
+    end subroutine note_figures
+
+    ! step_heat and the figures of the step from x to x_new; balance_new and theta become x_new's.
+    subroutine measure()
+      integer :: k
+
+      step_heat = 0.0_real64
+      do k = 1, size(constraints)
+        step_heat = step_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
+      end do
+      call observe_state(x_new(1:n_state))
+      figures = balance_figures(model, balance_old, balance_new, step_heat, config%theta_r)
+    end subroutine measure
 
     ! A momentum's name without its underscores (J_z: Jz), as the summary line prints it.
     pure function squeezed_name(name) result(squeezed)
@@ -706,7 +817,8 @@ contains
     call integrator%start(config%integrator, model, constraints, z0, failure)
     ! PETSc's own words say what was refused; the message is the whole story (the drivers print it
     ! as before), so the PETSc procedure's origin is not added.
-    if (failure%failed()) call set_failure(failure, code_input, setup_failure_text())
+    ! A refusal of the solver's own (failure_input) says what and why in its words.
+    if (failure%failed() .and. failure%code /= code_input) call set_failure(failure, code_input, setup_failure_text())
     call integrator%release(release_failure)
     if (.not. failure%failed() .and. release_failure%failed()) &
       call set_failure(failure, code_library, 'PETSc could not free the solver: '//petsc_error_text(), &

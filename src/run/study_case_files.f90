@@ -5,6 +5,7 @@
 !> complete case file, which the index matches to a case by its overrides.
 module study_case_files
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
   use study_journal, only: case_result
   use hdf5_files, only: hdf5_file, check_run_file
@@ -67,9 +68,10 @@ contains
     logical, intent(out) :: found
     type(hdf5_file) :: file
     character(len=:), allocatable :: status
-    real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:)
+    real(real64), allocatable :: number(:), figures(:), planned(:), newton(:), wall(:), solve(:), rank(:), &
+                                 cpu(:), solve_cpu(:)
     integer :: steps
-    type(failure_type) :: failure, ignored
+    type(failure_type) :: failure, ignored, unmeasured
 
     found = .false.
     overrides = ''
@@ -85,12 +87,21 @@ contains
     if (.not. failure%failed()) call file%get_reals('wall_time_seconds', wall, failure)
     if (.not. failure%failed()) call file%get_reals('solve_time_seconds', solve, failure)
     if (.not. failure%failed()) call file%get_reals('study_rank', rank, failure)
+    ! A file written before CPU times were recorded has none: NaN, not measured.
+    if (.not. failure%failed()) call file%get_reals('cpu_time_seconds', cpu, unmeasured)
+    if (.not. failure%failed() .and. .not. unmeasured%failed()) &
+      call file%get_reals('solve_cpu_time_seconds', solve_cpu, unmeasured)
+    if (unmeasured%failed()) then
+      cpu = [ieee_value(1.0_real64, ieee_quiet_nan)]
+      solve_cpu = cpu
+    end if
     call file%close(ignored)
     if (failure%failed()) return
     if (size(number) /= 1 .or. size(figures) /= 7) return
     result%status = 'complete'
     result%failure_kind = 'none'
-    result%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), figures, rank(1), 1.0_real64]
+    result%metrics = [real(steps, real64), planned(1), newton(1), wall(1), solve(1), cpu(1), solve_cpu(1), figures, &
+                      rank(1), 1.0_real64]
     found = .true.
   end subroutine read_case_file
 

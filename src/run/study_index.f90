@@ -31,7 +31,7 @@ module study_index
   use filesystem, only: make_directories, remove_file, file_exists, append_text, rename_file
   use integrator_registry, only: integrator_entry, registered_integrators
   use build_info, only: code_version
-  use provenance, only: write_provenance, iso_time
+  use provenance, only: write_provenance, iso_time, machine_load, machine_load_now
   use run_options, only: petsc_options_in_force
   use run_config, only: field_units, run_configuration, read_run_config
   use model_interface, only: generic_model
@@ -49,21 +49,24 @@ module study_index
             m_run_count
 
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
-  ! energy_drift, min_entropy_increment, max_lyapunov_increment, angular_momentum_drift, min_temperature,
-  ! halved_steps, rejected_steps (the run file's run_figures from energy_drift on), rank, run_count
-  integer, parameter :: m_steps = 1, m_rank = 13, m_run_count = 14
+  ! cpu_time_seconds, solve_cpu_time_seconds (the process's CPU time over the run and over its time
+  ! loop, beside the wall times), energy_drift, min_entropy_increment, max_lyapunov_increment,
+  ! angular_momentum_drift, min_temperature, halved_steps, rejected_steps (the run file's run_figures
+  ! from energy_drift on), rank, run_count
+  integer, parameter :: m_steps = 1, m_cpu = 6, m_solve_cpu = 7, m_rank = 15, m_run_count = 16
   !> The figures whose units are the model's.
-  integer, parameter :: m_entropy_increment = 7, m_lyapunov_increment = 8, m_momentum_drift = 9, m_min_temperature = 10
+  integer, parameter :: m_entropy_increment = 9, m_lyapunov_increment = 10, m_momentum_drift = 11, &
+                        m_min_temperature = 12
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
-    'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'energy_drift', &
-    'min_entropy_increment', 'max_lyapunov_increment', 'angular_momentum_drift', 'min_temperature', &
-    'halved_steps', 'rejected_steps', 'rank', 'run_count']
+    'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'cpu_time_seconds', &
+    'solve_cpu_time_seconds', 'energy_drift', 'min_entropy_increment', 'max_lyapunov_increment', &
+    'angular_momentum_drift', 'min_temperature', 'halved_steps', 'rejected_steps', 'rank', 'run_count']
   !> The metrics' units, in order.
-  character(len=*), parameter :: metric_units(metric_count) = [character(len=3) :: '1', '1', '1', 's', 's', '1', &
-                                                                'J/K', 'J', 'J s', 'K', '1', '1', '1', '1']
+  character(len=*), parameter :: metric_units(metric_count) = [character(len=3) :: '1', '1', '1', 's', 's', 's', &
+                                                                's', '1', 'J/K', 'J', 'J s', 'K', '1', '1', '1', '1']
   logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
-                                                            .false., .false., .false., .false., .true., .true., .true., &
-                                                            .true.]
+                                                            .false., .false., .false., .false., .false., .false., &
+                                                            .true., .true., .true., .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
 
   !> Case numbers ordered by a text key (a case's swept values or its overrides), to find a case
@@ -82,6 +85,11 @@ module study_index
     character(len=24) :: units(metric_count) = ''  !! the metrics' units in the base file's model
     character(len=:), allocatable :: index_path, journal_path
     character(len=:), allocatable :: started       !! when this run of the study began (ISO 8601)
+    !> The machine's load when this run of the study began and ended (end: once it has), and the
+    !> study's ranks, which the load counts among its processes (docs/studies.md, Timings).
+    type(machine_load) :: load_start, load_end
+    logical :: ended = .false.
+    integer :: ranks = 1
     integer(int64) :: last_write = 0, clock_rate = 1
   contains
     procedure :: open => open_index
@@ -99,12 +107,14 @@ contains
   !> restart found (empty if nothing to say). A failure: failure_input (refused) if output_dir
   !> holds a finished case that this study does not have (a changed value) or ran from another
   !> base scene; failure_io (or failure_library: HDF5) if the output directory cannot be written.
-  subroutine open_index(self, study, pending, notes, failure)
+  !> `ranks`: the study's MPI ranks (default 1), recorded beside the machine's load.
+  subroutine open_index(self, study, pending, notes, failure, ranks)
     class(case_index), intent(inout) :: self
     type(study_definition), intent(in), target :: study
     logical, allocatable, intent(out) :: pending(:)
     character(len=:), allocatable, intent(out) :: notes
     type(failure_type), intent(out) :: failure
+    integer, intent(in), optional :: ranks
     character(len=:), allocatable :: reason
     type(case_result) :: from_file
     type(case_lookup) :: by_overrides
@@ -116,6 +126,8 @@ contains
 
     self%study => study
     self%started = iso_time()
+    self%load_start = machine_load_now()
+    if (present(ranks)) self%ranks = ranks
     self%index_path = study%output_dir//'/index.h5'
     self%journal_path = study%output_dir//'/index.journal'
     notes = ''
@@ -279,12 +291,15 @@ contains
     end if
   end subroutine record
 
-  !> Writes the final index.h5 and empties the journal, whose lines it now holds.
+  !> Writes the final index.h5, with the machine's load at the end, and empties the journal,
+  !> whose lines it now holds.
   subroutine close_index(self, failure)
     class(case_index), intent(inout) :: self
     type(failure_type), intent(out) :: failure
     character(len=:), allocatable :: reason
 
+    self%load_end = machine_load_now()
+    self%ended = .true.
     call write_index(self, failure)
     if (failure%failed()) return
     call remove_file(self%journal_path, failure)
@@ -486,6 +501,7 @@ contains
     if (.not. failure%failed()) call write_provenance(file, 'EME study '//self%study%input_file//': '// &
                                          integer_text(size(self%results))//' cases', petsc_options_in_force(), failure, &
                                          started=self%started)
+    if (.not. failure%failed()) call load_attributes(file, self, failure)
     if (.not. failure%failed()) call column_units(file, self, failure)
     if (.not. failure%failed()) call write_registry(file, failure)
     if (.not. failure%failed()) call file%store(self%index_path, .true., failure)
@@ -498,6 +514,21 @@ contains
       call fail(failure, failure_library, 'HDF5 failed to build '//self%index_path, self%index_path)
     end if
   end subroutine write_index
+
+  ! The machine's load averages (1, 5 and 15 minutes) and cores online when this run of the study
+  ! began, and when it ended (once it has), and its ranks: what its timings shared the machine with.
+  subroutine load_attributes(file, self, failure)
+    type(hdf5_file), intent(in) :: file
+    type(case_index), intent(in) :: self
+    type(failure_type), intent(out) :: failure
+
+    call file%set_reals('load_average_start', self%load_start%averages, failure)
+    if (.not. failure%failed()) call file%set_integer('cores_start', self%load_start%cores, failure)
+    if (.not. failure%failed()) call file%set_integer('ranks', self%ranks, failure)
+    if (.not. self%ended) return
+    if (.not. failure%failed()) call file%set_reals('load_average_end', self%load_end%averages, failure)
+    if (.not. failure%failed()) call file%set_integer('cores_end', self%load_end%cores, failure)
+  end subroutine load_attributes
 
   ! The dataset /integrators: one row per registered integrator.
   subroutine write_registry(file, failure)
@@ -596,6 +627,9 @@ contains
       ! A figure that is no column (the model has none) is NaN, as the case's run gives it.
       self%results(c)%metrics = ieee_value(1.0_real64, ieee_quiet_nan)
       self%results(c)%metrics(self%shown) = numbers(n_parameters + 1:, r)
+      ! An index written before CPU times were recorded reads them as 0: not measured.
+      where (.not. self%results(c)%metrics([m_cpu, m_solve_cpu]) > 0) &
+        self%results(c)%metrics([m_cpu, m_solve_cpu]) = ieee_value(1.0_real64, ieee_quiet_nan)
       earlier(c) = r
     end do
     if (rows /= size(self%results) .or. any(earlier /= 0 .and. earlier /= [(c, c=1, size(earlier))])) &

@@ -130,15 +130,16 @@ contains
   !> without the modified Newton; chord_converged after a chord update. The other arguments as
   !> newton_converged's.
   pure logical function converged(self, iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
-                                  state_scale, residual_scale, step_length)
+                                  state_scale, residual_scale, step_length, previous_residual)
     class(factor_record), intent(in) :: self
     integer, intent(in) :: iteration
     real(real64), intent(in) :: residual_norm, update_norm, x_norm, tolerance, update_tolerance
     real(real64), intent(in) :: state_scale, residual_scale, step_length
+    real(real64), intent(in), optional :: previous_residual   !! the residual before the update (stagnation)
 
     if (.not. self%enabled .or. self%fresh .or. iteration == 0) then
       converged = newton_converged(iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
-                                   state_scale, residual_scale)
+                                   state_scale, residual_scale, previous_residual)
     else if (.not. self%measured) then
       converged = .false.
     else

@@ -76,6 +76,8 @@ module model_interface
     procedure :: momenta
     procedure :: momentum_count
     procedure :: mechanical_energy_difference
+    procedure :: mechanical_energy_scale
+    procedure :: momentum_scale
     procedure :: energy_difference
     procedure :: convert_state
     procedure :: subsystem_count
@@ -214,6 +216,27 @@ contains
     temperature_count = count(self%subsystems%tau_column > 0)
   end function temperature_count
 
+  !> The rounding scale of the mechanical energy at z: the sum of the absolute values of the terms
+  !> it is summed from (src/structure/step_balances). This default is |T + V_g|; a model whose
+  !> terms can cancel (kinetic against gravity) overrides it.
+  pure real(real64) function mechanical_energy_scale(self, z)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+
+    mechanical_energy_scale = abs(self%mechanical_energy(z))
+  end function mechanical_energy_scale
+
+  !> The rounding scale of the momenta at z: the sum of the absolute values of the terms each
+  !> momentum is summed from, the largest over the momenta (src/structure/step_balances). This
+  !> default is the largest |momentum|; a model whose terms can cancel overrides it.
+  pure real(real64) function momentum_scale(self, z)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+
+    momentum_scale = 0.0_real64
+    if (self%momentum_count() > 0) momentum_scale = maxval(abs(self%momenta(z)))
+  end function momentum_scale
+
   !> (T + V_g)(z_b) - (T + V_g)(z_a). This default subtracts two values; models override it with
   !> a form free of cancellation (kinetic energy is quadratic, gravity linear).
   pure function mechanical_energy_difference(self, z_a, z_b) result(delta)
@@ -275,18 +298,24 @@ contains
     end do
   end subroutine convert_state
 
-  !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z.
-  pure subroutine observe(self, z, energy, entropy, temperature, stat)
+  !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z; optionally
+  !> the rounding scales of E and S (src/structure/step_balances): the mechanical energy's
+  !> (mechanical_energy_scale) plus sum_a |U_a| + Theta_a |S_a| (U_a = F_a + Theta_a S_a is summed
+  !> from terms of these sizes), and sum_a |S_a|.
+  pure subroutine observe(self, z, energy, entropy, temperature, stat, energy_scale, entropy_scale)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64), intent(out) :: energy, entropy, temperature(:)
     integer, intent(out) :: stat
-    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2)
+    real(real64), intent(out), optional :: energy_scale, entropy_scale
+    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2), u_scale, s_scale
     integer :: a, n
 
     energy = self%mechanical_energy(z)
     entropy = 0.0_real64
     temperature = 0.0_real64
+    u_scale = 0.0_real64
+    s_scale = 0.0_real64
     stat = failure_none
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
@@ -299,7 +328,12 @@ contains
       if (stat /= failure_none) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
+      u_scale = u_scale + abs(f(potential_u))
+      if (self%subsystems(a)%tau_column > 0) u_scale = u_scale + temperature(a)*abs(f(potential_s))
+      s_scale = s_scale + abs(f(potential_s))
     end do
+    if (present(energy_scale)) energy_scale = self%mechanical_energy_scale(z) + u_scale
+    if (present(entropy_scale)) entropy_scale = s_scale
   end subroutine observe
 
   !> The subsystems' temperatures at z; stat reports the first that is outside the domain in

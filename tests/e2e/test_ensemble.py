@@ -130,7 +130,7 @@ def assert_same_run(single_path, case_path):
         if name not in ("attrs", "step_seconds"):
             assert np.array_equal(single[name], case[name]), name
     # Timing and provenance: the namelists differ in &output file, the command lines in the program.
-    timing = {"wall_time_seconds", "solve_time_seconds", "input_file", "code_version", "study", "study_case",
+    timing = {"wall_time_seconds", "solve_time_seconds", "cpu_time_seconds", "solve_cpu_time_seconds", "input_file", "code_version", "study", "study_case",
               "study_overrides", "study_rank", "start_time", "end_time", "command_line", "namelist", "history",
               "title", "text_checksum"}
     for name, value in single["attrs"].items():
@@ -273,12 +273,13 @@ def test_a_damaged_index_is_rebuilt_from_the_case_files(small_study, damage):
     assert "1 to run (3 complete from an earlier run)" in result.stdout
     after = read_index(output)
     for name in before.dtype.names:
-        if name in ("run_count", "wall_time_seconds"):
+        if name in ("run_count", "wall_time_seconds", "cpu_time_seconds"):
             continue
         equal_nan = before[name].dtype.kind == "f"
         assert np.array_equal(before[name][:3], after[name][:3], equal_nan=equal_nan), name
-    for row in after[:3]:     # the file's wall time: the run up to closing its file
-        assert row["wall_time_seconds"] == read_run(output / row["file"].decode())["attrs"]["wall_time_seconds"]
+    for row in after[:3]:     # the file's wall and CPU times: the run up to closing its file
+        for name in ("wall_time_seconds", "cpu_time_seconds"):
+            assert row[name] == read_run(output / row["file"].decode())["attrs"][name]
     assert after["run_count"].tolist() == [1, 1, 1, 1]     # the failed case's earlier run is not on record
 
 
@@ -334,7 +335,8 @@ def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
     lean, full = indexes[".true."], indexes[".false."]
     assert lean["file"].tolist() == [b""] * 4 and full["file"].tolist()[0] == b"case_00001.h5"
     for name in lean.dtype.names:
-        if name not in ("file", "wall_time_seconds", "solve_time_seconds", "rank"):
+        if name not in ("file", "wall_time_seconds", "solve_time_seconds", "cpu_time_seconds", "solve_cpu_time_seconds",
+                        "rank"):
             assert np.array_equal(lean[name], full[name]), name
 
 

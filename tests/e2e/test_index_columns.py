@@ -108,7 +108,7 @@ def test_the_index_has_the_figures_its_model_has(tmp_path, eme_run_binary, scene
     assert again.dtype == cases.dtype
     np.testing.assert_array_equal(again["run_count"], [1, 1])
     for name in cases.dtype.names:
-        if name not in ("wall_time_seconds", "solve_time_seconds", "rank"):
+        if name not in ("wall_time_seconds", "solve_time_seconds", "cpu_time_seconds", "solve_cpu_time_seconds", "rank"):
             np.testing.assert_array_equal(again[name], cases[name], err_msg=name)
     # Without the index, the case files rebuild it, in the same columns.
     (output / "index.h5").unlink()
@@ -141,6 +141,7 @@ def test_an_index_only_study_resumes_from_its_journal_without_the_column(tmp_pat
         pending["status"] = b"pending"
         f["cases"][...] = pending
     figures = ("steps_completed", "steps_planned", "newton_iterations", "wall_time_seconds", "solve_time_seconds",
+               "cpu_time_seconds", "solve_cpu_time_seconds",
                "energy_drift", "min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift",
                "min_temperature", "halved_steps", "rejected_steps", "rank", "run_count")
     lines = ["# journal\n"]

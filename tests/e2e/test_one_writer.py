@@ -26,8 +26,8 @@ FIRST = "&integrator dt=0.001, t_end=60 /\n&output file='same.h5' /\n"
 SECOND = "&integrator dt=0.001, t_end=60, scheme='midpoint' /\n&output file='same.h5' /\n"
 STOP_AT = 3                                  # the third file operation: the lock is held and named
 TIMED = {"step_seconds"}                     # datasets of wall-clock times
-TIMED_ATTRIBUTES = {"start_time", "end_time", "history", "wall_time_seconds", "solve_time_seconds",
-                    "text_checksum"}                 # (the checksum of the texts, the times among them)
+TIMED_ATTRIBUTES = {"start_time", "end_time", "history", "wall_time_seconds", "solve_time_seconds", "cpu_time_seconds",
+                    "solve_cpu_time_seconds", "text_checksum"}   # (text_checksum: the times are among its texts)
 
 
 def stopped_writer(command, folder, cwd=None, stop_at=STOP_AT, signal_number=signal.SIGSTOP):

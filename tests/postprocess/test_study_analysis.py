@@ -507,7 +507,8 @@ def test_every_scheme_s_legend_and_map_fit_the_page(studies):
     rows = [{"scheme": n, "thermo_variable": v, "dt": dt, "index": studies / "x"} for n in names
             for v in variables for dt in (0.1, 0.2)]
     structure = {"rows": rows, "solve_time": np.geomspace(1e-3, 1, len(rows)),
-                 "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows))}
+                 "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows)),
+                 "time_kind": "cpu"}
     fig, _, _ = study_plots.structure_figure(structure, "synthetic")
     fig.canvas.draw()
     legends = [ax.get_legend() for ax in fig.axes if ax.get_legend()] + list(fig.legends)
@@ -558,14 +559,16 @@ def test_timing_charts_record_the_load_and_cores_in_caption_and_summary(analysed
 
 def test_a_busy_or_unrecorded_load_is_said(studies, tmp_path):
     """A study run while others loaded the machine (a planted record: load 3.0 on the cores before
-    it) makes a warning, a BUSY caption and a mark on the chart; a study without a record says the
-    conditions are unknown."""
+    it) makes a warning, a BUSY caption and a mark on the chart; a study without a record (neither
+    beside it nor in its index) says the conditions are unknown."""
     copy = tmp_path / "study"
     shutil.copytree(studies, copy)
     record = json.loads((copy / "work_precision.load.json").read_text())
     record.update(load_average_before=3.0 * record["cores"], load_average_after=0.0)
     (copy / "work_precision.load.json").write_text(json.dumps(record))
     (copy / "stability_paper.load.json").unlink()
+    with h5py.File(copy / "stability_paper" / "index.h5", "r+") as index:
+        del index.attrs["load_average_end"]             # as a study that did not end leaves it
     result = run_script(copy, tmp_path / "figures", tmp_path / "summary.h5")
     assert result.returncode == 0, result.stderr
     assert "study_work_precision: warning: the machine was busy" in result.stderr
@@ -593,7 +596,8 @@ def test_structure_chart_gives_each_family_a_row_a_colour_and_each_scheme_a_mark
     scheme within the row, the other families grey behind; every curve drawn in colour once."""
     names, rows = every_scheme_rows(studies)
     structure = {"rows": rows, "solve_time": np.geomspace(1e-3, 1, len(rows)),
-                 "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows))}
+                 "energy": np.geomspace(1e-15, 1e-1, len(rows)), "violation": np.zeros(len(rows)),
+                 "time_kind": "cpu"}
     fig, _, _ = study_plots.structure_figure(structure, "synthetic")
     grid = np.array(fig.axes).reshape(-1, 2)
     families = list(dict.fromkeys(study_analysis.integrators.family(name) for name in names))

@@ -25,6 +25,8 @@ module pendulum_model
     procedure :: invariants
     procedure :: vector_field => pendulum_field
     procedure :: mechanical_energy
+    procedure :: mechanical_energy_scale
+    procedure :: momentum_scale
     procedure :: mechanical_energy_gradient
     procedure :: momenta => pendulum_angular_momentum
     procedure :: poisson_matrix_0
@@ -134,6 +136,35 @@ contains
 
     energy = self%layout%kinetic_energy(self%params, z) + self%layout%gravity_potential(self%params, z)
   end function mechanical_energy
+
+  !> The rounding scale of T + V_g (model_interface): T's terms p_a.(m^-1 p)_b in absolute value,
+  !> 1/2 (|p1|^2/m1 + 2 |p1||p2|/m1 + (m1+m2)/(m1 m2) |p2|^2), and gravity's |f_a . q_a|.
+  pure real(real64) function mechanical_energy_scale(self, z)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: p(self%layout%dimension, 2), q(self%layout%dimension, 2), force(self%layout%dimension, 2)
+    real(real64) :: p1, p2, m1, m2
+
+    p = self%layout%momenta(z)
+    q = self%layout%positions(z)
+    force = self%layout%gravity_force(self%params)
+    p1 = norm2(p(:, 1))
+    p2 = norm2(p(:, 2))
+    m1 = self%params%mass(1)
+    m2 = self%params%mass(2)
+    mechanical_energy_scale = 0.5_real64*(p1**2/m1 + 2*p1*p2/m1 + (m1 + m2)/(m1*m2)*p2**2) + sum(abs(force*q))
+  end function mechanical_energy_scale
+
+  !> The rounding scale of J = q1 x p1 + q2 x p2 (model_interface): |q1||p1| + |q2||p2|.
+  pure real(real64) function momentum_scale(self, z)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: p(self%layout%dimension, 2), q(self%layout%dimension, 2)
+
+    p = self%layout%momenta(z)
+    q = self%layout%positions(z)
+    momentum_scale = norm2(q(:, 1))*norm2(p(:, 1)) + norm2(q(:, 2))*norm2(p(:, 2))
+  end function momentum_scale
 
   !> grad (T + V_g): -gravity forces on q, m^-1 p on p.
   pure function mechanical_energy_gradient(self, z) result(gradient)
