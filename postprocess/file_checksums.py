@@ -51,7 +51,7 @@ def _object_records(object_name, item):
 
 def text_checksum(handle):
     """The CRC-32 of the texts of an open file: the root group's ("/"), then each object of the
-    root group's by name, as src/io/hdf5_text.c computes it."""
+    root group's by name, as src/io/hdf5_text_checksum.c computes it."""
     crc = 0
     for object_name, item in [("/", handle), *sorted(handle.items(), key=lambda pair: pair[0].encode())]:
         for record in _object_records(object_name, item):

@@ -21,6 +21,7 @@ LD_PRELOAD shim kill_at_write.c, and writes fall due by rows (EME_WRITE_EVERY_RO
 import fcntl
 import io
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -414,7 +415,73 @@ def flip_text_byte(path, text):
     path.write_bytes(bytes(data))
 
 
-@pytest.mark.parametrize("damage", ["a chunk", "a text"])
+def test_the_step_checks_records_are_under_the_checksums(tmp_path):
+    """What every accepted step's check writes (docs/faults.md, Every accepted step checked): a
+    flipped bit in the values of /balance or /resolved fails their read (Fletcher-32); in the
+    stored value of a numeric root attribute of the check (balance_bound_ulps, balance_max_ulps,
+    resume_balances), the attribute's read (the checksum of HDF5 1.8's attribute storage); in
+    balance_guarantees, the check of text_checksum."""
+    path = one_step_run(tmp_path)
+    with h5py.File(path, "r") as f:
+        assert f["balance"].shape == (1, 4) and f["resolved"].shape == (1,)
+        attributes = {name: f.attrs[name] for name in ("balance_bound_ulps", "balance_max_ulps", "resume_balances")}
+        guarantees = f.attrs["balance_guarantees"].encode()
+    for name in ("balance", "resolved"):
+        damaged = tmp_path / f"damaged_{name}.h5"
+        shutil.copy(path, damaged)
+        flip_chunk_byte(damaged, name, at=1)
+        with h5py.File(damaged, "r") as f:
+            with pytest.raises(OSError, match="Fletcher32"):
+                f[name][()]
+    data = path.read_bytes()
+    for name, value in attributes.items():
+        stored = np.asarray(value, dtype="<f8").tobytes()
+        places = [match.start() for match in re.finditer(re.escape(stored), data)]
+        refused = 0
+        for at in places:                 # the attribute's bytes, and stale copies in free space
+            damaged = bytearray(data)
+            damaged[at + 3] ^= 0x10
+            with h5py.File(io.BytesIO(bytes(damaged)), "r") as f:
+                try:
+                    read = f.attrs[name]
+                except (OSError, KeyError):
+                    refused += 1
+                    continue
+            assert np.array_equal(read, value), (name, at, read)
+        assert places and refused >= 1, (name, places)
+    changed = 0
+    for offset, size in heap_objects(data):      # the text's heap object, and stale copies
+        if data[offset:offset + size] != guarantees:
+            continue
+        damaged = bytearray(data)
+        damaged[offset + size // 2] ^= 0x01
+        with h5py.File(io.BytesIO(bytes(damaged)), "r") as f:
+            if f.attrs["balance_guarantees"].encode() == guarantees:
+                continue
+            changed += 1
+            with pytest.raises(DamagedFileError, match="text_checksum"):
+                check_texts(f, path)
+    assert changed == 1
+
+
+def test_a_study_case_whose_balance_is_damaged_runs_again(tmp_path):
+    """A study's restart reads each complete case file whole: a flipped bit in case_00001.h5's
+    /balance makes that case run again, and only that one."""
+    make_study(tmp_path)
+    assert ensemble(tmp_path).returncode == 0
+    out = tmp_path / "out"
+    before = {p.name: p.stat().st_ino for p in out.glob("case_*.h5")}
+    flip_chunk_byte(out / "case_00001.h5", "balance", at=1)
+    again = ensemble(tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "1 to run" in again.stdout, again.stdout
+    after = {p.name: p.stat().st_ino for p in out.glob("case_*.h5")}
+    assert after["case_00001.h5"] != before["case_00001.h5"] and after["case_00002.h5"] == before["case_00002.h5"]
+    with h5py.File(out / "case_00001.h5", "r") as f:
+        f["balance"][()]
+
+
+@pytest.mark.parametrize("damage", ["a chunk", "a balance chunk", "a text"])
 def test_continuing_a_damaged_file_names_it_as_the_input(tmp_path, damage):
     """-eme_continue from a file with a damaged chunk (or text) is refused with exit 2 and one line
     naming that file as damaged, not as a write that failed; the file is left as it was."""
@@ -424,6 +491,8 @@ def test_continuing_a_damaged_file_names_it_as_the_input(tmp_path, damage):
     assert eme_run(tmp_path, "run.nml").returncode == 3
     if damage == "a chunk":
         flip_chunk_byte(tmp_path / "run.h5", "state")
+    elif damage == "a balance chunk":
+        flip_chunk_byte(tmp_path / "run.h5", "balance")
     else:
         with h5py.File(tmp_path / "run.h5", "r") as f:
             flip_text_byte(tmp_path / "run.h5", f.attrs["namelist"].encode())

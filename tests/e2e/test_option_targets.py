@@ -6,10 +6,12 @@ that file is the run's input, its output, FILE.part, FILE.part.spare or FILE.loc
 a study's folder, whether named directly, through '..' or through a symbolic link; nothing is run
 or written, and the target is left byte for byte. Before, `-log_view :o.h5` wrote PETSc's log
 over the complete o.h5 the run had just reported, and `-history o.nml` appended to the input of a
-run that was refused. Options whose files are the user's own still work.
+run that was refused. Options whose files are the user's own still work. The same holds for an
+option read from PETSC_OPTIONS, an options file or .petscrc.
 
 PETSc 3.18 writes `-info FILE` and `-log_trace FILE` to FILE.RANK (FILE.0 here): those two reach a
 protected file through a symbolic link FILE.0 that points at it."""
+import os
 import shutil
 import subprocess
 
@@ -102,6 +104,25 @@ def test_an_option_writing_a_run_file_is_refused(run_folder, form, target):
                             text=True, timeout=120)
     assert_refused(result, "eme_run", options, written)
     assert snapshot(run_folder) == before                 # the target and everything else untouched
+
+
+@pytest.mark.parametrize("option", [["-history", "run.nml"], ["-log_view", ":o.h5"]])
+@pytest.mark.parametrize("route", ["PETSC_OPTIONS", "-options_file", ".petscrc"])
+def test_an_option_given_outside_the_command_line_is_refused_too(run_folder, route, option):
+    """The same refusal for an option PETSc reads from PETSC_OPTIONS, an options file or the
+    folder's .petscrc, which PETSc reads as it starts (-history's file it opens then)."""
+    environment = dict(os.environ)
+    command = [str(BIN / "eme_run"), "run.nml"]
+    if route == "PETSC_OPTIONS":
+        environment["PETSC_OPTIONS"] = " ".join(option)
+    else:
+        name = "opts.txt" if route == "-options_file" else ".petscrc"
+        (run_folder / name).write_text(" ".join(option) + "\n")
+        command += ["-options_file", name] if route == "-options_file" else []
+    before = snapshot(run_folder)
+    result = subprocess.run(command, cwd=run_folder, capture_output=True, text=True, timeout=120, env=environment)
+    assert_refused(result, "eme_run", option, option[1].lstrip(":"))
+    assert snapshot(run_folder) == before
 
 
 STUDY_TARGETS = ["study.nml", "base.nml", "out/index.h5", "out/case_00001.h5", "out/index.journal", "out/study.lock",
