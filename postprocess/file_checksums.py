@@ -51,19 +51,26 @@ def _object_records(object_name, item):
 
 def text_checksum(handle):
     """The CRC-32 of the texts of an open file: the root group's ("/"), then each object of the
-    root group's by name, as src/io/hdf5_text_checksum.c computes it."""
+    root group's by name, as src/io/hdf5_text_checksum.c computes it. An object that cannot be
+    opened raises (h5py's KeyError or OSError; its items() would give None for it)."""
     crc = 0
-    for object_name, item in [("/", handle), *sorted(handle.items(), key=lambda pair: pair[0].encode())]:
-        for record in _object_records(object_name, item):
+    for name in ["/", *sorted(handle, key=lambda text: text.encode())]:
+        for record in _object_records(name, handle if name == "/" else handle[name]):
             crc = zlib.crc32(record, crc)
     return crc
 
 
 def check_texts(handle, path):
-    """Raises DamagedFileError naming `path` if the open file's texts fail their checksum."""
-    if CHECKSUM_ATTRIBUTE not in handle.attrs:
-        return
-    stored = int(handle.attrs[CHECKSUM_ATTRIBUTE])
-    if text_checksum(handle) != stored:
+    """Raises DamagedFileError naming `path` if the open file's texts fail their checksum, or if
+    one of its objects or texts cannot be read (a damaged object header)."""
+    try:
+        if CHECKSUM_ATTRIBUTE not in handle.attrs:
+            return
+        stored = int(handle.attrs[CHECKSUM_ATTRIBUTE])
+        computed = text_checksum(handle)
+    except (OSError, KeyError, RuntimeError, ValueError) as error:
+        raise DamagedFileError(f"{path}: an object or a text of the file cannot be read ({error}): "
+                               "the file is damaged") from None
+    if computed != stored:
         raise DamagedFileError(f"{path}: a text of the file fails its checksum ({CHECKSUM_ATTRIBUTE}): "
                                "the file is damaged")

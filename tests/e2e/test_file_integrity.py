@@ -379,6 +379,48 @@ def test_a_flipped_byte_in_any_text_fails_the_checksum(tmp_path):
     assert changed > 150 and caught == changed, (changed, caught)
 
 
+def object_headers(data):
+    """(offset, size) of the messages of every version-2 object header of the file, read by the
+    HDF5 file format specification (IV.A.1.b: 'OHDR', version, flags; the times if flags bit 5,
+    the attribute phase change values if bit 4; the size of chunk 0 in 1 << (flags & 3) bytes;
+    the messages)."""
+    found = []
+    for match in re.finditer(b"OHDR", data):
+        flags = data[match.start() + 5]
+        cursor = match.start() + 6 + (16 if flags & 0x20 else 0) + (4 if flags & 0x10 else 0)
+        width = 1 << (flags & 0x03)
+        found.append((cursor + width, int.from_bytes(data[cursor:cursor + width], "little")))
+    return found
+
+
+def test_a_damaged_object_header_is_refused_as_damage(tmp_path):
+    """A flipped bit in the messages of any object header: the file does not open, or the check
+    of its texts, which opens every object, raises DamagedFileError naming the file (before, an
+    object h5py could not open came as None and the check died of an AttributeError: a traceback
+    and exit 1 from summarize_runs.py); summarize_runs.py exits 2 naming the file."""
+    path = one_step_run(tmp_path)
+    data = path.read_bytes()
+    headers = object_headers(data)
+    refused = 0
+    for offset, size in headers:
+        damaged = bytearray(data)
+        damaged[offset + size // 2] ^= 0x01
+        try:
+            handle = h5py.File(io.BytesIO(bytes(damaged)), "r")
+        except OSError:
+            continue                         # the root group's: the file does not open
+        with handle:
+            with pytest.raises(DamagedFileError, match=str(path)):
+                check_texts(handle, path)
+        refused += 1
+        if refused == 1:
+            copy = tmp_path / "damaged_header.h5"
+            copy.write_bytes(bytes(damaged))
+            result = summarize(copy)
+            assert result.returncode == 2 and str(copy) in result.stderr, result.stderr
+    assert len(headers) >= 25 and refused >= len(headers) - 1, (len(headers), refused)
+
+
 def test_summarize_and_a_study_refuse_a_damaged_text(tmp_path):
     """The status of a run file, the namelist of a study's case file and case_1_input of its index,
     each with a flipped byte: summarize_runs.py exits 2 naming the file and the checksum; the
