@@ -60,6 +60,12 @@ def text_checksum(handle):
     return crc
 
 
+def seal_texts(handle):
+    """Writes text_checksum of a file open for writing whose texts were changed on purpose (a tool
+    that edits run files with h5py): without it, the readers take the file for damaged."""
+    handle.attrs.create(CHECKSUM_ATTRIBUTE, text_checksum(handle), dtype=np.uint32)
+
+
 def check_texts(handle, path):
     """Raises DamagedFileError naming `path` if the open file's texts fail their checksum, or if
     one of its objects or texts cannot be read (a damaged object header)."""
