@@ -141,6 +141,7 @@ contains
     if (.not. failure%failed()) call self%store%file%set_text('balance_guarantees', &
                                   checked_names(checked_balances(entry, model, constraints)), failure)
     if (.not. failure%failed()) call self%store%file%set_reals('balance_bound_ulps', balance_bound_ulps, failure)
+    if (.not. failure%failed()) call self%store%file%set_text('balance_bound_ulps_units', '1', failure)
     do k = 1, size(extras)
       if (failure%failed()) exit
       if (allocated(extras(k)%text)) then
@@ -545,6 +546,7 @@ contains
     ! The units, entry by entry for resume_numbers; the vectors carry the units of their entries.
     call file%set_texts('resume_numbers_units', [character(len=3) :: '1', 's', '1', 'J', 'J s', 'J', '1', '1', '1', &
                                                  '1', 'J/K', 'J', 'J s', 'K', '1', '1'], failure)
+    if (.not. failure%failed()) call file%set_text('resume_balances_units', '1', failure)
     if (.not. failure%failed()) call file%set_text('resume_x_units', &
                                                    'the units of /state''s columns, then the multipliers''', failure)
     if (.not. failure%failed()) call file%set_text('resume_x_previous_units', 'as resume_x', failure)
@@ -622,6 +624,7 @@ contains
                                                         failure)
     call number('resolved_steps', real(summary%resolved_steps, real64), '1', .true.)
     if (.not. failure%failed()) call self%store%file%set_reals('balance_max_ulps', summary%max_balance, failure)
+    if (.not. failure%failed() .and. units) call self%store%file%set_text('balance_max_ulps_units', '1', failure)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
     call number('solve_cpu_time_seconds', summary%solve_cpu_seconds, 's', .false.)

@@ -44,13 +44,17 @@ module retry_strategies
   real(real64), parameter :: rounding_factor = 16.0_real64
 
   !> Newton has reached its rounding floor where a Newton update of at most stagnation_update
-  !> |x| (relative: far inside quadratic convergence, whose next residual would be ~1e-16 of the
-  !> last) no longer lowers the residual by stagnation_ratio (newton_converged). Where the floor is
-  !> set by the field's terms rather than by |z| (conduction kappa Theta ~ 9e4 W where the
-  !> internal energies are ~6 J: docs/integrators.md, Convergence), the rounding test cannot see
-  !> it; this one does, and the step check (src/run/step_check) then judges the balances.
+  !> state_scale (relative: far inside quadratic convergence, whose next residual would be ~1e-16
+  !> of the last) no longer lowers the residual by stagnation_ratio, and the residual is within
+  !> stagnation_residual residual_scale (newton_converged). Where the floor is set by the field's
+  !> terms rather than by |z| (conduction kappa Theta ~ 9e4 W where the internal energies are ~6
+  !> J: docs/integrators.md, Convergence), the rounding test cannot see it; this one does, and the
+  !> step check (src/run/step_check) then judges the balances. Both scales are the old state's,
+  !> never the iterate's: measured against |x|, a diverging Newton (a multiplier at 2.5e28 in a
+  !> stiff scene with fixed length and temperature) passed as stagnated.
   real(real64), parameter :: stagnation_update = 1.0e-8_real64
   real(real64), parameter :: stagnation_ratio = 0.5_real64
+  real(real64), parameter :: stagnation_residual = 1.0e-8_real64
 
   !> Something that solves a nonlinear_system from an initial guess (e.g. PETSc SNES).
   type, abstract :: root_finder
@@ -139,8 +143,9 @@ contains
                        (update_norm <= rounding_factor*epsilon(1.0_real64)*state_scale .and. &
                         residual_norm <= rounding_factor*epsilon(1.0_real64)*residual_scale)
     if (newton_converged .or. .not. present(previous_residual)) return
-    newton_converged = iteration >= 2 .and. update_norm <= stagnation_update*max(x_norm, state_scale) .and. &
-                       residual_norm >= stagnation_ratio*previous_residual .and. residual_norm <= huge(residual_norm)
+    newton_converged = iteration >= 2 .and. update_norm <= stagnation_update*state_scale .and. &
+                       residual_norm >= stagnation_ratio*previous_residual .and. &
+                       residual_norm <= stagnation_residual*residual_scale
   end function newton_converged
 
   !> Whether a Newton iteration may confirm the root with the factors at hand instead of a new

@@ -300,15 +300,16 @@ contains
 
   !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z; optionally
   !> the rounding scales of E and S (src/structure/step_balances): the mechanical energy's
-  !> (mechanical_energy_scale) plus sum_a |U_a| + Theta_a |S_a| (U_a = F_a + Theta_a S_a is summed
-  !> from terms of these sizes), and sum_a |S_a|.
+  !> (mechanical_energy_scale) plus sum_a scale(U_a), and sum_a scale(S_a): the potentials' own
+  !> rounding scales (invariant_function's values_and_temperature; |U_a| and |S_a| where there is
+  !> no temperature).
   pure subroutine observe(self, z, energy, entropy, temperature, stat, energy_scale, entropy_scale)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64), intent(out) :: energy, entropy, temperature(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: energy_scale, entropy_scale
-    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2), u_scale, s_scale
+    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2), u_scale, s_scale, scales(2)
     integer :: a, n
 
     energy = self%mechanical_energy(z)
@@ -321,16 +322,16 @@ contains
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       if (self%subsystems(a)%tau_column > 0) then
-        call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat)
+        call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat, scales)
       else
         call self%subsystems(a)%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
+        scales = abs(f)
       end if
       if (stat /= failure_none) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
-      u_scale = u_scale + abs(f(potential_u))
-      if (self%subsystems(a)%tau_column > 0) u_scale = u_scale + temperature(a)*abs(f(potential_s))
-      s_scale = s_scale + abs(f(potential_s))
+      u_scale = u_scale + scales(potential_u)
+      s_scale = s_scale + scales(potential_s)
     end do
     if (present(energy_scale)) energy_scale = self%mechanical_energy_scale(z) + u_scale
     if (present(entropy_scale)) entropy_scale = s_scale

@@ -46,12 +46,18 @@ def balances(y):
     kinetic = 0.5 * p @ MINV @ p
     gravity_terms = np.concatenate([(P.m1 + P.m2) * g * q1, P.m2 * g * q2])
     energy = kinetic - gravity_terms.sum() + u1 + u2
-    energy_scale = (0.5 * np.abs(p) @ np.abs(MINV) @ np.abs(p) + np.abs(gravity_terms).sum()
-                    + abs(u1) + th1 * abs(d["s1"]) + abs(u2) + th2 * abs(d["s2"]))
+    # A spring's U_a = e_a + c_a (theta_a - theta_ref) and S_a = sigma_a + c_a ln(theta_a/theta_ref)
+    # (eqs. (16)-(17)); the thermal terms' rounding is c_a theta_a eps and c_a eps (docs/faults.md).
+    thermal = [(P.c[a], th) for a, th in enumerate((th1, th2))]
+    e_parts = [u - c * (th - P.theta_ref) for u, (c, th) in zip((u1, u2), thermal)]
+    sigma_parts = [s - c * np.log(th / P.theta_ref) for s, (c, th) in zip((d["s1"], d["s2"]), thermal)]
+    u_scales = [abs(e) + c * (th + P.theta_ref) for e, (c, th) in zip(e_parts, thermal)]
+    s_scales = [abs(sg) + c * (1 + abs(np.log(th / P.theta_ref))) for sg, (c, th) in zip(sigma_parts, thermal)]
+    energy_scale = 0.5 * np.abs(p) @ np.abs(MINV) @ np.abs(p) + np.abs(gravity_terms).sum() + sum(u_scales)
     axis = g / np.linalg.norm(g)
     momentum = (np.cross(q1, p1) + np.cross(q2, p2)) @ axis
     momentum_scale = np.linalg.norm(q1) * np.linalg.norm(p1) + np.linalg.norm(q2) * np.linalg.norm(p2)
-    return {"E": energy, "sE": energy_scale, "S": d["s1"] + d["s2"], "sS": abs(d["s1"]) + abs(d["s2"]),
+    return {"E": energy, "sE": energy_scale, "S": d["s1"] + d["s2"], "sS": sum(s_scales),
             "J": momentum, "sJ": momentum_scale}
 
 
