@@ -24,6 +24,7 @@ program eme_run
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
   use failures, only: failure_type
+  use number_text, only: integer_text
   implicit none
 
   type(run_configuration) :: config
@@ -127,7 +128,7 @@ contains
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
     type(output_lock) :: lock
-    character(len=:), allocatable :: holder, momentum_part, thermal_part
+    character(len=:), allocatable :: holder, momentum_part, thermal_part, steps_done
     integer :: found
     character(len=9) :: number
     character(len=10) :: wide
@@ -170,10 +171,14 @@ contains
       write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
       if (len(summary%note) > 0) write (error_unit, '(a)') 'eme_run: '//summary%note
     end if
+    ! The steps done, out of the plan where there is one: an integrator that chooses its steps
+    ! has none (t_end/dt is a fixed step's count, not its own).
+    steps_done = integer_text(summary%steps_completed)
+    if (.not. summary%steps_chosen) steps_done = steps_done//'/'//integer_text(summary%steps_planned)
     ! Figures of no step would be NaN: a run that completed none says so instead.
     if (stat == 0 .and. summary%steps_completed == 0) then
-      write (output_unit, '(a, ": ", a, ", 0/", i0, " steps: no step completed, ", f8.3, a)') config%output_file, &
-        summary%status, summary%steps_planned, summary%wall_seconds, ' s'
+      write (output_unit, '(a, ": ", a, ", ", a, " steps: no step completed, ", f8.3, a)') config%output_file, &
+        summary%status, steps_done, summary%wall_seconds, ' s'
     else if (stat == 0) then
       ! The momentum drift only for a model with a conserved momentum (NaN otherwise).
       momentum_part = ''
@@ -189,9 +194,9 @@ contains
         write (wide, '(es10.2)') summary%max_lyapunov_increment
         thermal_part = thermal_part//', max dV = '//wide//' '//trim(summary%energy_units)
       end if
-      write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, a, a, f6.2, a, f8.3, a)') &
-        config%output_file, summary%status, summary%steps_completed, &
-        summary%steps_planned, 'energy balance <= ', summary%energy_drift, thermal_part, momentum_part, &
+      write (output_unit, '(a, ": ", a, ", ", a, " steps, ", a, es9.2, a, a, a, f6.2, a, f8.3, a)') &
+        config%output_file, summary%status, steps_done, 'energy balance <= ', summary%energy_drift, thermal_part, &
+        momentum_part, &
         ', Newton/step ', real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', &
         summary%wall_seconds, ' s'
     end if

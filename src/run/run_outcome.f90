@@ -30,6 +30,8 @@ module run_outcome
     !> what the driver adds to an early stop's status (why the earlier complete file was kept, ...)
     character(len=:), allocatable :: note
     integer(int64) :: steps_planned = 0
+    !> the integrator chose its steps: steps_planned is then t_end/dt's count (a fixed step's plan) until it completes
+    logical :: steps_chosen = .false.
     integer(int64) :: steps_completed = 0
     integer(int64) :: newton_iterations = 0
     real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat

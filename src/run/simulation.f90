@@ -305,6 +305,7 @@ contains
     finished = .false.
     ! Integrators that choose their times: those of the registry, and EME with a tolerance.
     chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
+    summary%steps_chosen = chooses_time
     do while (.not. finished)
       signal = interrupting_signal()
       if (signal /= 0) then

@@ -7,7 +7,7 @@
 !>
 !> Values are read as Fortran reads list-directed input (repeat counts such as 2*0.5 included);
 !> an array takes exactly its number of values, or one value per subscript (theta(2) = 350,
-!> p2(1:2) = 2*0.5); texts are quoted; logical values are .true. or .false. (or T, F).
+!> p2(1:2) = 2*0.5); texts need quotes; logical values are .true. or .false. (or T, F).
 module namelist_group
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item, group_items, item_name
@@ -400,6 +400,23 @@ contains
   end function same_target
 
 
+  ! 'name = 'a', 'b'' for an unquoted value 'a, b': how the item is written with its texts quoted.
+  pure function quoted_example(name, value) result(example)
+    character(len=*), intent(in) :: name, value
+    character(len=:), allocatable :: example
+    integer :: start, comma
+
+    example = name//' = '
+    start = 1
+    do
+      comma = index(value(start:), ',')
+      if (comma == 0) exit
+      example = example//''''//trim(adjustl(value(start:start + comma - 2)))//''', '
+      start = start + comma
+    end do
+    example = example//''''//trim(adjustl(value(start:)))//''''
+  end function quoted_example
+
   ! Applies 'name[(i[:j])] = value' to the field. `problem`: 0, value_problem (the value does not
   ! fit the field) or subscript_problem, which read_group words differently; `reason` says why,
   ! when more than the allowed text helps.
@@ -448,7 +465,7 @@ contains
     end if
     if (associated(field%text_values)) then
       if (index('''"', value(1:1)) == 0) then
-        reason = 'texts are quoted'
+        reason = 'texts need quotes: '//quoted_example(trim(field%name), value)
         return
       end if
       call read_texts(value, field%text_values, failure)
@@ -473,7 +490,7 @@ contains
       return
     case default
       if (index('''"', value(1:1)) == 0) then
-        reason = 'texts are quoted'
+        reason = 'texts need quotes: '//quoted_example(trim(field%name), value)
         return
       end if
       allocate (character(len=len(value)) :: text_buffer)

@@ -49,7 +49,12 @@ CASES = {
                                         ["line 3", "&integrator", 'a text opened by " is not closed']),
     "$end syntax": ("$integrator t_end = 0.3 $end\n", ["text outside any namelist group", "'$integrator"]),
     # Values.
-    "unquoted text": ("&integrator scheme = eme /\n", ["&integrator", "'scheme'", "texts are quoted"]),
+    "unquoted text": ("&integrator scheme = eme /\n", ["&integrator", "'scheme'", "texts need quotes: scheme = 'eme'"]),
+    # An unquoted relative path: its '/' closed the group, and the rest was "text outside any group".
+    "unquoted path": ("&output file = results/x.h5 /\n",
+                      ["&output", "field 'file'", "results/x.h5", "texts need quotes: file = 'results/x.h5'"]),
+    "unquoted path before another field": ("&output file = run/x.h5, overwrite = .true. /\n",
+                                           ["&output", "field 'file'", "texts need quotes: file = 'run/x.h5'"]),
     "two texts for one": ("&integrator scheme = 'eme' 'midpoint' /\n", ["&integrator", "'scheme'",
                                                                        "cannot take the value"]),
     "too few values": ("&initial theta = 300 /\n", ["&initial", "'theta'", "2 values needed, 1 given",
@@ -226,8 +231,8 @@ def test_an_unquoted_path_is_refused_not_dropped(tmp_path, eme_run_binary):
     """file = /tmp/x.h5 ends the group at its first '/': the rest was silently dropped before."""
     namelist = tmp_path / "scene.nml"
     namelist.write_text(f"&integrator t_end = 0.3 /\n&output file = {tmp_path}/x.h5 /\n")
-    refused(tmp_path, [str(namelist)], ["&output: field 'file' has no value before the '/' that closes the group",
-                                        "texts are quoted"], namelist)
+    refused(tmp_path, [str(namelist)], ["&output: field 'file' has the unquoted value", "closes the group",
+                                        f"texts need quotes: file = '{tmp_path}/x.h5'"], namelist)
 
 
 def test_long_paths_are_not_cut(tmp_path, eme_run_binary):

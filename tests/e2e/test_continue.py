@@ -12,14 +12,13 @@ with exit status 2, and the file is left as it was."""
 import os
 import signal
 import subprocess
-import time
 
 import h5py
 import numpy as np
 import pytest
 
 from conftest import BIN, ROOT, namelist_text
-from faults import shim_library
+from faults import held_process, operation_shim, signal_caught, wait_for
 
 NOT_COMPARED = {"step_seconds"}          # wall-clock times of the steps
 
@@ -58,25 +57,24 @@ def assert_same_datasets(continued, reference):
 
 
 def test_sigterm_then_continue_is_bit_identical_with_every(tmp_path):
-    """SIGTERM once the run's file exists, with every = 7: the file's last row then stands for
-    fewer than 7 steps; the continued run restarts from the last whole row and replaces it."""
-    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 100.0}
+    """SIGTERM once the run's file exists, with every = 7, then -eme_continue: the continued file
+    equals the uninterrupted run's. The run sends itself the SIGTERM (the LD_PRELOAD shim
+    kill_at_write.c) at its first window, after its first write (writes every 1000 rows: the
+    testing hook EME_WRITE_EVERY_ROWS), so the signal finds it running on any machine."""
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 20.0}
     output = {"every": 7}
     reference_nml, reference = write_namelist(tmp_path, "reference", integrator, output)
     assert eme_run(reference_nml).returncode == 0
-    namelist, path = write_namelist(tmp_path, "run", integrator, output)
-    process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    part = path.with_name(path.name + ".part")
-    while not part.exists() and process.poll() is None:
-        time.sleep(0.02)
-    process.send_signal(signal.SIGTERM)
-    process.communicate(timeout=600)
-    assert process.returncode == 128 + signal.SIGTERM, "the run ended before the signal: make it longer"
+    folder = tmp_path / "run"
+    folder.mkdir()
+    namelist, path = write_namelist(folder, "run", integrator, output)
+    stopped = eme_run(namelist, env=dict(operation_shim(folder, at=1, match=".part.spare", signal_number=signal.SIGTERM),
+                                         EME_WRITE_EVERY_ROWS="1000"))
+    assert stopped.returncode == 128 + signal.SIGTERM, stopped.stderr
     with h5py.File(path, "r") as f:
         stopped_at = int(f.attrs["steps_completed"])
         assert f.attrs["status"] == "incomplete: interrupted by SIGTERM"
-    assert 0 < stopped_at < 500000
+    assert 0 < stopped_at < 100000
     result = eme_run(namelist, "-eme_continue")
     assert result.returncode == 0, result.stderr
     assert_same_datasets(path, reference)
@@ -123,6 +121,27 @@ def test_step_budget_then_continue_with_interval(tmp_path, case):
     assert_same_datasets(path, reference)
 
 
+def test_the_summary_line_counts_the_steps_done(tmp_path):
+    """An integrator that chooses its steps has no plan of steps: eme_run's line says "N steps",
+    N the file's steps_completed, when the step budget stops it, when it is continued and stopped
+    again, and when it completes. Before, it printed t_end/dt, a fixed step's plan, as the plan:
+    "3000/600 steps". A fixed-step run still says "N/M steps", M = ceiling(t_end/dt)."""
+    adaptive = {"scheme": "eme", "tolerance": 1e-4, "dt": 0.01, "t_end": 6.0}
+    for budget, options, code in ((20, (), 3), (3000, ("-eme_continue",), 3), (1000000, ("-eme_continue",), 0)):
+        namelist, path = write_namelist(tmp_path, "adaptive", dict(adaptive, max_steps=budget), {})
+        result = eme_run(namelist, *options)
+        assert result.returncode == code, result.stderr
+        with h5py.File(path, "r") as f:
+            steps = int(f.attrs["steps_completed"])
+        assert steps == budget or code == 0
+        assert f"{path}: {'complete' if code == 0 else 'incomplete: the step budget is spent'}" in result.stdout
+        assert f", {steps} steps, energy balance" in result.stdout, result.stdout
+    assert steps > 3000
+    namelist, path = write_namelist(tmp_path, "fixed", {"scheme": "eme", "dt": 0.15, "t_end": 0.5}, {})
+    result = eme_run(namelist)
+    assert result.returncode == 0 and f"{path}: complete, 4/4 steps, energy balance" in result.stdout, result.stdout
+
+
 def killed_and_continued(tmp_path, integrator, write_every_rows):
     """The uninterrupted run of `integrator` and the same run SIGKILLed at two thirds of its file
     operations (writes fall due every `write_every_rows` rows, not by the clock), then continued
@@ -130,8 +149,7 @@ def killed_and_continued(tmp_path, integrator, write_every_rows):
     folder = tmp_path / "runs"
     folder.mkdir()
     log = tmp_path / "operations.log"
-    shim = dict(os.environ, LD_PRELOAD=str(shim_library("kill_at_write")), EME_KILL_DIR=str(folder),
-                EME_WRITE_EVERY_ROWS=str(write_every_rows))
+    shim = dict(operation_shim(folder), EME_WRITE_EVERY_ROWS=str(write_every_rows))
     reference_nml, reference = write_namelist(folder, "reference", integrator, {})
     assert eme_run(reference_nml, env=dict(shim, EME_KILL_LOG=str(log))).returncode == 0
     operations = len(log.read_text().splitlines())
@@ -184,14 +202,17 @@ KILL_RUN = {"scheme": "eme", "dt": 0.05, "t_end": 2000.0}
 
 def test_sigkill_part_is_continued(tmp_path):
     """A SIGKILL (the LD_PRELOAD shim kill_at_write.c, at a chosen file operation) leaves only
-    FILE.part; -eme_continue goes on from it, and the file takes its final name complete."""
+    FILE.part; -eme_continue goes on from it, and the file takes its final name complete. Writes
+    fall due every 15,000 rows (the testing hook EME_WRITE_EVERY_ROWS), not by the clock, so the
+    killed run makes the logged run's operations on any machine (by the clock, a busy logged run
+    made more windows than a quick killed one reached)."""
     reference_nml, reference = write_namelist(tmp_path, "reference", KILL_RUN, {})
     assert eme_run(reference_nml).returncode == 0
     folder = tmp_path / "killed"
     folder.mkdir()
     log = tmp_path / "operations.log"
     namelist, path = write_namelist(folder, "run", KILL_RUN, {})
-    shim = dict(os.environ, LD_PRELOAD=str(shim_library("kill_at_write")), EME_KILL_DIR=str(folder))
+    shim = dict(operation_shim(folder), EME_WRITE_EVERY_ROWS="15000")
     assert eme_run(namelist, env=dict(shim, EME_KILL_LOG=str(log))).returncode == 0
     operations = len(log.read_text().splitlines())
     path.unlink()
@@ -242,25 +263,34 @@ def test_refusals_keep_the_file(tmp_path):
 def test_the_slurm_run_example_continues_after_requeue(tmp_path):
     """inputs/slurm_run.sbatch run as Slurm would: SIGTERM to the batch script stops the run and
     requeues the job (a stand-in scontrol records the call); the requeued job continues the run
-    from its file, which ends complete and equal to the uninterrupted run."""
+    from its file, which ends complete and equal to the uninterrupted run. The run holds at its
+    first window (the LD_PRELOAD shim kill_at_write.c) until it has caught the SIGTERM the script
+    passes on, so the signal finds it running on any machine."""
     root = ROOT
     if not (root / "build" / "bin" / "eme_run").exists():
         pytest.skip("the script runs build/bin/eme_run of the checkout")
-    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 60.0}
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 20.0}
     reference_nml, reference = write_namelist(tmp_path, "reference", integrator, {})
     assert eme_run(reference_nml).returncode == 0
-    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    folder = tmp_path / "run"
+    folder.mkdir()
+    namelist, path = write_namelist(folder, "run", integrator, {})
     tools = tmp_path / "bin"
     tools.mkdir()
     (tools / "scontrol").write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
     (tools / "scontrol").chmod(0o755)
     env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242")
     script = ["bash", str(root / "inputs" / "slurm_run.sbatch"), str(namelist)]
-    job = subprocess.Popen(script, cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    part = path.with_name(path.name + ".part")
-    while not part.exists() and job.poll() is None:
-        time.sleep(0.02)
-    job.send_signal(signal.SIGTERM)
+    release = tmp_path / "release"
+    held = dict(operation_shim(folder, at=1, match=".part.spare", hold=release, env=env), EME_WRITE_EVERY_ROWS="1000")
+    job = subprocess.Popen(script, cwd=root, env=held, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        run = held_process(release)
+        assert wait_for(lambda: signal_caught(job.pid, signal.SIGTERM)), "the script set no trap for SIGTERM"
+        job.send_signal(signal.SIGTERM)
+        assert wait_for(lambda: not signal_caught(run, signal.SIGTERM)), "the held run never caught SIGTERM"
+    finally:
+        release.touch()
     out, err = job.communicate(timeout=600)
     assert job.returncode == 0, out + err
     assert "time limit near" in out
@@ -279,24 +309,25 @@ def test_the_slurm_run_example_continues_after_requeue(tmp_path):
 
 def test_an_interrupted_study_case_continues(tmp_path):
     """A study stopped by SIGTERM during its only case: run again, the case continues from its
-    file (its history says so) and ends equal to the same run made at once."""
-    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 100.0}
+    file (its history says so) and ends equal to the same run made at once. The study sends
+    itself the SIGTERM (the LD_PRELOAD shim kill_at_write.c) at the case's first window, after
+    its first write (every 1000 rows: the testing hook EME_WRITE_EVERY_ROWS)."""
+    integrator = {"scheme": "eme", "dt": 0.0002, "t_end": 20.0}
     reference_nml, reference = write_namelist(tmp_path, "reference", integrator, {"every": 3})
     assert eme_run(reference_nml).returncode == 0
     base, _ = write_namelist(tmp_path, "base", dict(integrator, dt=0.1), {"every": 3})
     output = tmp_path / "study"
+    output.mkdir()
     study = tmp_path / "study.nml"
     study.write_text(f"&study base = '{base}', output_dir = '{output}' /\n&sweep field = 'dt', values = 0.0002 /\n")
-    process = subprocess.Popen([str(BIN / "eme_ensemble"), str(study)], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    part = output / "case_00001.h5.part"
-    while not part.exists() and process.poll() is None:
-        time.sleep(0.02)
-    process.send_signal(signal.SIGTERM)
-    out, err = process.communicate(timeout=600)
+    env = dict(operation_shim(output, at=1, match="case_00001.h5.part.spare", signal_number=signal.SIGTERM),
+               EME_WRITE_EVERY_ROWS="1000")
+    stopped = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, timeout=600,
+                             env=env)
+    assert stopped.returncode == 128 + signal.SIGTERM, stopped.stdout + stopped.stderr
     case = output / "case_00001.h5"
     with h5py.File(case, "r") as f:
-        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM", out + err
+        assert f.attrs["status"] == "incomplete: interrupted by SIGTERM", stopped.stdout + stopped.stderr
         assert len(f.attrs["history"].splitlines()) == 1
     result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -2,8 +2,8 @@
 (docs/faults.md, Every accepted step checked), stated alike by the README, docs/faults.md and
 every run file; checked here where round-off shows (EME without conduction: almost no entropy is
 produced, and single steps lower S by a few ulps), from the file's own figures and, more
-crudely, from its points (dS >= -32 eps max|S|, dV <= 64 eps |E_0|, which the per-step bounds
-imply on this scene)."""
+differently, from its points (dS >= -32 eps max|S|, dV <= 64 eps |E_0|: tighter than the
+per-step bounds, whose scales hold the springs' thermal terms Cap theta, and met on this scene)."""
 import re
 
 import h5py

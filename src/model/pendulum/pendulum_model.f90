@@ -148,8 +148,8 @@ contains
     p = self%layout%momenta(z)
     q = self%layout%positions(z)
     force = self%layout%gravity_force(self%params)
-    p1 = norm2(p(:, 1))
-    p2 = norm2(p(:, 2))
+    p1 = sqrt(dot_product(p(:, 1), p(:, 1)))      ! not norm2: a scale needs no guard against overflow
+    p2 = sqrt(dot_product(p(:, 2), p(:, 2)))
     m1 = self%params%mass(1)
     m2 = self%params%mass(2)
     mechanical_energy_scale = 0.5_real64*(p1**2/m1 + 2*p1*p2/m1 + (m1 + m2)/(m1*m2)*p2**2) + sum(abs(force*q))
@@ -163,7 +163,8 @@ contains
 
     p = self%layout%momenta(z)
     q = self%layout%positions(z)
-    momentum_scale = norm2(q(:, 1))*norm2(p(:, 1)) + norm2(q(:, 2))*norm2(p(:, 2))
+    momentum_scale = sqrt(dot_product(q(:, 1), q(:, 1))*dot_product(p(:, 1), p(:, 1))) &
+                     + sqrt(dot_product(q(:, 2), q(:, 2))*dot_product(p(:, 2), p(:, 2)))
   end function momentum_scale
 
   !> grad (T + V_g): -gravity forces on q, m^-1 p on p.
