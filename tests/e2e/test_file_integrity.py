@@ -80,11 +80,12 @@ def stopped(command, folder, cwd, stop_at, **settings):
 
 
 def operations(command, folder, log, **settings):
-    """The file operations in `folder` of `command`, run whole under the shim, by number."""
+    """The file operations in `folder` of `command`, run whole under the shim: {number: name} (the
+    log's lines are "number name path [other path]")."""
     result = subprocess.run(command, cwd=folder, capture_output=True, text=True, timeout=600,
                             env=shim(folder, EME_KILL_LOG=log, **settings))
     assert result.returncode in (0, 3), result.stderr
-    return {int(number): name for number, name in (line.split() for line in log.read_text().splitlines())}
+    return {int(fields[0]): fields[1] for fields in (line.split() for line in log.read_text().splitlines())}
 
 
 def lock_is_held(path):
