@@ -24,7 +24,7 @@ program eme_run
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
   use failures, only: failure_type
-  use number_text, only: integer_text
+  use number_text, only: integer_text, fixed_text, scientific_text
   implicit none
 
   type(run_configuration) :: config
@@ -130,8 +130,6 @@ contains
     type(output_lock) :: lock
     character(len=:), allocatable :: holder, momentum_part, thermal_part, steps_done
     integer :: found
-    character(len=9) :: number
-    character(len=10) :: wide
     integer :: k
 
     ! One writer per output: a second run of the same file is refused before it writes anything.
@@ -175,30 +173,25 @@ contains
     ! has none (t_end/dt is a fixed step's count, not its own).
     steps_done = integer_text(summary%steps_completed)
     if (.not. summary%steps_chosen) steps_done = steps_done//'/'//integer_text(summary%steps_planned)
-    ! Figures of no step would be NaN: a run that completed none says so instead.
+    ! Figures of no step would be NaN: a run that completed none says so instead. Every figure
+    ! keeps its column when it fits and is written whole when it does not (number_text).
     if (stat == 0 .and. summary%steps_completed == 0) then
-      write (output_unit, '(a, ": ", a, ", ", a, " steps: no step completed, ", f8.3, a)') config%output_file, &
-        summary%status, steps_done, summary%wall_seconds, ' s'
+      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//steps_done// &
+        ' steps: no step completed, '//fixed_text(summary%wall_seconds, 3, width=8)//' s'
     else if (stat == 0) then
       ! The momentum drift only for a model with a conserved momentum (NaN otherwise).
       momentum_part = ''
-      if (.not. ieee_is_nan(summary%angular_momentum_drift)) then
-        write (number, '(es9.2)') summary%angular_momentum_drift
-        momentum_part = ', |d'//trim(summary%conserved_momentum)//'| <= '//number
-      end if
+      if (.not. ieee_is_nan(summary%angular_momentum_drift)) momentum_part = ', |d'//trim(summary%conserved_momentum)// &
+        '| <= '//scientific_text(summary%angular_momentum_drift, 2, width=9)
       ! dS and dV only for a model with an entropy (NaN for a mechanical one: V = E).
       thermal_part = ''
-      if (.not. ieee_is_nan(summary%min_entropy_increment)) then
-        write (wide, '(es10.2)') summary%min_entropy_increment
-        thermal_part = ', min dS = '//wide//' '//trim(summary%entropy_units)
-        write (wide, '(es10.2)') summary%max_lyapunov_increment
-        thermal_part = thermal_part//', max dV = '//wide//' '//trim(summary%energy_units)
-      end if
-      write (output_unit, '(a, ": ", a, ", ", a, " steps, ", a, es9.2, a, a, a, f6.2, a, f8.3, a)') &
-        config%output_file, summary%status, steps_done, 'energy balance <= ', summary%energy_drift, thermal_part, &
-        momentum_part, &
-        ', Newton/step ', real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', &
-        summary%wall_seconds, ' s'
+      if (.not. ieee_is_nan(summary%min_entropy_increment)) thermal_part = ', min dS = '// &
+        scientific_text(summary%min_entropy_increment, 2, width=10)//' '//trim(summary%entropy_units)//', max dV = '// &
+        scientific_text(summary%max_lyapunov_increment, 2, width=10)//' '//trim(summary%energy_units)
+      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//steps_done//' steps, energy balance <= '// &
+        scientific_text(summary%energy_drift, 2, width=9)//thermal_part//momentum_part//', Newton/step '// &
+        fixed_text(real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), 2, width=6)//', '// &
+        fixed_text(summary%wall_seconds, 3, width=8)//' s'
     end if
     if (stat == 0 .and. summary%rejected_steps > 0) write (output_unit, '(a, i0, a, i0, a)') '  step-size control: ', &
       summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'

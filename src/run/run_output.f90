@@ -85,9 +85,11 @@ module run_output
     integer(int64) :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
     type(resume_record) :: resume        !! the state after the last completed row (note_resume_state)
     character(len=:), allocatable :: history   !! a continued run's history, written with every write
-    !> a continued run: its status and failure_kind are written with every write too (the file and
-    !> its spare held those of the run that stopped, 'incomplete: the step budget is spent', ...)
-    logical :: continued = .false.
+    !> a continued run's effective namelist, &integrator t_end and max_steps (those that applied),
+    !> written with every write as its history is
+    character(len=:), allocatable :: continued_namelist
+    real(real64) :: continued_t_end = 0.0_real64
+    integer :: continued_max_steps = 0
   contains
     procedure :: create
     procedure :: record_solver
@@ -442,12 +444,15 @@ contains
     end associate
   end subroutine note_resume_state
 
-  !> Goes on with the file that record came from, now at this file's path (a copy of it): the file
-  !> made by `create` in memory is dropped, and the next write appends the rows after record's to
-  !> the file's. A failure: the OS's words or HDF5's.
-  subroutine continue_file(self, record, failure)
+  !> Goes on with the file that record came from, now at this file's path (a copy of it), with the
+  !> input `config`: the file made by `create` in memory is dropped, and the next write appends the
+  !> rows after record's to the file's, and stores config's effective namelist, t_end and max_steps
+  !> (which alone may differ from the file's: docs/faults.md, Continuing a run). A failure: the
+  !> OS's words or HDF5's.
+  subroutine continue_file(self, record, config, failure)
     class(run_file), intent(inout) :: self
     type(resume_record), intent(in) :: record
+    type(run_configuration), intent(in), target :: config
     type(failure_type), intent(out) :: failure
     if (.not. self%enabled) return
     call self%store%resume_from([record%point_rows, record%step_rows], failure)
@@ -457,9 +462,12 @@ contains
     self%committed_newton = record%summary%newton_iterations
     self%disk_newton = record%summary%newton_iterations
     self%resume = record
-    self%continued = .true.
-    ! The file keeps its provenance; its CF history says when and how it was continued.
+    ! The file keeps its provenance; its CF history says when and how it was continued, and its
+    ! input the end time and step budget that applied.
     self%history = record%history//new_line('a')//iso_time()//': '//command_line()
+    self%continued_namelist = namelist_of_run(config)
+    self%continued_t_end = config%integrator%t_end
+    self%continued_max_steps = config%integrator%max_steps
   end subroutine continue_file
 
   !> Reads the resume record of the run file `path` with its status and the effective namelist it
@@ -574,20 +582,33 @@ contains
       return
     end if
     if (.not. failure%failed()) call rows_on_disk(self)
+    ! A continued run (its history held) writes its status with every write: the file and its spare
+    ! held the status of the run that stopped ('incomplete: the step budget is spent', ...).
     if (.not. failure%failed()) call summary_attributes(self, status, summary, failure, &
-                                                        numbers_only=.not. (whole .or. final .or. self%continued), &
-                                                        final=final)
+                                                        numbers_only=.not. (whole .or. final .or. &
+                                                                            allocated(self%history)), final=final)
     if (.not. failure%failed() .and. self%resume%held) call resume_attributes(self%resume, self%store%file, failure, &
                                                                  with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)
-    if (.not. failure%failed() .and. allocated(self%history)) &
-      call self%store%file%set_text('history', self%history, failure)
+    if (.not. failure%failed() .and. allocated(self%history)) call continued_attributes(self, failure)
     call self%store%end_rows(failure)
     if (failure%failed() .and. .not. whole) then       ! a failed window leaves the file as it was
       self%disk_steps = steps_before
       self%disk_newton = newton_before
     end if
   end subroutine write_file
+
+  ! A continued run's history and the input it was continued with: its effective namelist and the
+  ! attributes t_end and max_steps, the only fields that may differ from the file's.
+  subroutine continued_attributes(self, failure)
+    type(run_file), intent(inout) :: self
+    type(failure_type), intent(out) :: failure
+
+    call self%store%file%set_text('history', self%history, failure)
+    if (.not. failure%failed()) call self%store%file%set_text('namelist', self%continued_namelist, failure)
+    if (.not. failure%failed()) call self%store%file%set_real('t_end', self%continued_t_end, failure)
+    if (.not. failure%failed()) call self%store%file%set_integer('max_steps', self%continued_max_steps, failure)
+  end subroutine continued_attributes
 
   ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
   ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those

@@ -272,7 +272,7 @@ contains
     end if
 
     if (continuing) then
-      call output%continue_file(resume, io_failure)
+      call output%continue_file(resume, config, io_failure)
       if (io_failure%failed()) then
         call fail(failure_io, "cannot continue the output file '"//part//"' ("//config%input_file//'): ' &
                   //io_failure%message)
@@ -313,7 +313,7 @@ contains
         summary%failure_kind = failure_interrupted
         exit
       end if
-      if (n == config%integrator%max_steps) then
+      if (n >= config%integrator%max_steps) then
         summary%status = 'incomplete: the step budget is spent: '//integer_text(n)//' steps reached t = '// &
                          fixed_text(time, 6)//' s of t_end = '//fixed_text(t_end, 6)//' s (raise &integrator max_steps)'
         summary%failure_kind = failure_step_budget
@@ -427,7 +427,8 @@ contains
 
     ! -eme_continue: the resume record of the output file, or of FILE.part (the one further on,
     ! if both hold one), which FILE.part becomes a copy of. Fails (failure_input) if the file
-    ! holds a complete run or no record, or was run with another input than t_end and max_steps.
+    ! holds a complete run or no record, was run with another input than t_end and max_steps, or
+    ! has reached t_end or max_steps (the budget of the whole run, not of the continuation).
     subroutine find_resume_record()
       type(resume_record) :: candidate
       character(len=:), allocatable :: status, stored, source, where
@@ -499,6 +500,14 @@ contains
         call fail(failure_input, source//': its run reached t = '//fixed_text(resume%time, 6)//' s, and &integrator '// &
                   't_end = '//fixed_text(t_end, 6)//' s in '//config%input_file//' leaves nothing to continue'//where// &
                   '; allowed: a later t_end')
+        return
+      end if
+      ! The step budget counts the whole run's steps, those before the continuation too.
+      if (resume%step >= config%integrator%max_steps) then
+        call fail(failure_input, source//': its run took '//integer_text(resume%step)//' steps, and &integrator '// &
+                  'max_steps = '//integer_text(config%integrator%max_steps)//' in '//config%input_file//', the '// &
+                  'budget of the whole run, leaves none to add'//where//'; allowed: max_steps > '// &
+                  integer_text(resume%step))
         return
       end if
       if (source /= part) then
@@ -809,11 +818,15 @@ contains
     type(integrator_entry) :: entry
     real(real64), allocatable :: z0(:)
     logical :: found
-    type(failure_type) :: release_failure
+    type(failure_type) :: release_failure, building
 
     call find_integrator(config%integrator%scheme, entry, found)
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
-    if (failure%failed()) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
+    if (building%failed()) then
+      ! The scene's words with the input file, as the time loop gives them.
+      call set_failure(failure, building%code, config%input_file//': '//building%message)
+      return
+    end if
     call build_integrator(entry, integrator)
     call integrator%start(config%integrator, model, constraints, z0, failure)
     ! PETSc's own words say what was refused; the message is the whole story (the drivers print it

@@ -33,9 +33,9 @@ module retry_strategies
 
   !> A root finder may confirm a root with the LU factors it has (a final chord step instead of a
   !> new Jacobian) once the residual is below its tolerance after an update of at most this
-  !> 2-norm: the chord step's residual is then ~ |update| times the tolerance, at the residual's
-  !> rounding (docs/integrators.md: measured, 1e-3 let the energy drift over 2000 steps of 0.01 s grow
-  !> threefold, 1e-4 does not).
+  !> 2-norm: the chord step's error is then ~ |update| times its own update, and its iterate is
+  !> accepted only by the chord test of src/solver/modified_newton (docs/integrators.md: measured,
+  !> 1e-3 let the energy drift over 2000 steps of 0.01 s grow threefold, 1e-4 does not).
   real(real64), parameter :: chord_update_limit = 1.0e-4_real64
 
   !> Updates and residuals within rounding_factor eps of their scales are at the rounding of a

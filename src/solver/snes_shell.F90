@@ -265,7 +265,7 @@ contains
     trial = x_values - y_values
     update_norm = two_norm(y_values)
     call context%problem%evaluate_residual(trial, residual, stat)
-    if (stat /= 0 .and. context%reuse%enabled .and. .not. context%reuse%fresh) then
+    if (stat /= 0 .and. context%reuse%enabled .and. context%reuse%chord) then
       call factor_jacobian(context, x_values, info)
       if (info == 0) then
         PetscCall(borrow_read(f, n, f_values, ierr))

@@ -54,6 +54,10 @@ def assert_same_datasets(continued, reference):
                 f"{np.count_nonzero(got[name] != values)} entries"
     for name in ("status", "steps_completed", "step_rows", "newton_iterations_total", "run_figures"):
         assert np.array_equal(got_attrs[name], expected_attrs[name]), name
+    # The step check's totals (NaN for a balance the model has not): bit for bit too.
+    for name in ("resolved_steps", "balance_max_ulps"):
+        assert np.asarray(got_attrs[name]).tobytes() == np.asarray(expected_attrs[name]).tobytes(), \
+            (name, got_attrs[name], expected_attrs[name])
 
 
 def test_sigterm_then_continue_is_bit_identical_with_every(tmp_path):
@@ -142,26 +146,28 @@ def test_the_summary_line_counts_the_steps_done(tmp_path):
     assert result.returncode == 0 and f"{path}: complete, 4/4 steps, energy balance" in result.stdout, result.stdout
 
 
-def killed_and_continued(tmp_path, integrator, write_every_rows):
+def killed_and_continued(tmp_path, integrator, write_every_rows, options=()):
     """The uninterrupted run of `integrator` and the same run SIGKILLed at two thirds of its file
     operations (writes fall due every `write_every_rows` rows, not by the clock), then continued
-    with -eme_continue: the two files' paths and the step the kill left the file at."""
+    with -eme_continue, each with the command-line `options`: the two files' paths, the step the
+    kill left the file at and the killed file's root attributes."""
     folder = tmp_path / "runs"
     folder.mkdir()
     log = tmp_path / "operations.log"
     shim = dict(operation_shim(folder), EME_WRITE_EVERY_ROWS=str(write_every_rows))
     reference_nml, reference = write_namelist(folder, "reference", integrator, {})
-    assert eme_run(reference_nml, env=dict(shim, EME_KILL_LOG=str(log))).returncode == 0
+    assert eme_run(reference_nml, *options, env=dict(shim, EME_KILL_LOG=str(log))).returncode == 0
     operations = len(log.read_text().splitlines())
     namelist, path = write_namelist(folder, "run", integrator, {})
-    assert eme_run(namelist, env=dict(shim, EME_KILL_AT=str(operations * 2 // 3))).returncode == -signal.SIGKILL
+    killed = eme_run(namelist, *options, env=dict(shim, EME_KILL_AT=str(operations * 2 // 3)))
+    assert killed.returncode == -signal.SIGKILL
     with h5py.File(path.with_name(path.name + ".part"), "r") as f:
-        stopped_at = int(f.attrs["resume_numbers"][0])
-    result = eme_run(namelist, "-eme_continue")
+        stopped = dict(f.attrs)
+    result = eme_run(namelist, "-eme_continue", *options)
     assert result.returncode == 0, result.stderr
     with h5py.File(path, "r") as f:
         assert f.attrs["status"] == "complete" and len(f.attrs["history"].splitlines()) == 2
-    return reference, path, stopped_at
+    return reference, path, int(stopped["resume_numbers"][0]), stopped
 
 
 @pytest.mark.parametrize("scheme, extra", [("ts_midpoint", {}), ("ts_rk4", {}),
@@ -171,7 +177,7 @@ def test_ts_one_step_methods_continue_bit_for_bit(tmp_path, scheme, extra):
     of its steps in an output step) the next step TS held are restored, so the continued file
     equals the uninterrupted run's."""
     integrator = {"scheme": scheme, "dt": 0.01, "t_end": 2.0, **extra}
-    reference, path, stopped_at = killed_and_continued(tmp_path, integrator, 4)
+    reference, path, stopped_at, _ = killed_and_continued(tmp_path, integrator, 4)
     assert 0 < stopped_at < 200
     assert_same_datasets(path, reference)
 
@@ -184,7 +190,7 @@ def test_history_methods_continue_to_their_tolerance(tmp_path, scheme, extra):
     continued run's error against a CVODE solution at 1e-13 is within twice the uninterrupted
     run's (measured: 0.83 to 1.09 times it)."""
     integrator = {"scheme": scheme, "dt": 0.01, "t_end": 2.0, **extra}
-    reference, path, stopped_at = killed_and_continued(tmp_path, integrator, 40)
+    reference, path, stopped_at, _ = killed_and_continued(tmp_path, integrator, 40)
     assert 0 < stopped_at < 200
     truth_nml, truth = write_namelist(tmp_path, "truth", {"scheme": "cvode_bdf", "dt": 0.01, "t_end": 2.0,
                                                           "tolerance": 1e-13}, {})
@@ -195,6 +201,26 @@ def test_history_methods_continue_to_their_tolerance(tmp_path, scheme, extra):
     assert not np.array_equal(continued, uninterrupted), "continued without restarting its history?"
     error = np.abs(uninterrupted[-1] - exact[-1]).max()
     assert np.abs(continued[-1] - exact[-1]).max() <= 2 * error, (error, np.abs(continued[-1] - exact[-1]).max())
+
+
+def test_the_step_check_s_records_continue_with_the_run(tmp_path):
+    """The step check's records across a continuation: with a lagged Jacobian the paper scene's
+    steps 1 and 5 (of 20) break a balance and are solved again (/resolved 1), and a balance's
+    largest figure lies before the kill (the momentum's, 14.8 ulps at step 6). Killed (after step 15)
+    and continued, the file's /balance and /resolved rows, resolved_steps and balance_max_ulps
+    equal the uninterrupted run's: the continuation took the killed file's totals from its
+    resume_balances, which are those of its rows, resolved steps, then each balance's largest
+    figure."""
+    integrator = {"scheme": "eme", "thermo_variable": "temperature", "dt": 0.05, "t_end": 1.0}
+    reference, path, stopped_at, stopped = killed_and_continued(tmp_path, integrator, 4,
+                                                                ("-snes_lag_jacobian", "100"))
+    assert_same_datasets(path, reference)
+    with h5py.File(reference, "r") as f:
+        resolved, figures = f["resolved"][()], f["balance"][()]
+        assert f["balance"].attrs["columns"] == "energy momentum entropy lyapunov"
+    assert 0 < resolved[:stopped_at].sum() == resolved.sum() == stopped["resolved_steps"]
+    assert np.any(figures[:stopped_at].max(axis=0) > figures[stopped_at:].max(axis=0))
+    assert stopped["resume_balances"].tolist() == [resolved[:stopped_at].sum(), *figures[:stopped_at].max(axis=0)]
 
 
 KILL_RUN = {"scheme": "eme", "dt": 0.05, "t_end": 2000.0}
@@ -258,6 +284,38 @@ def test_refusals_keep_the_file(tmp_path):
     result = eme_run(namelist, "-eme_continue")
     assert result.returncode == 2 and "complete" in result.stderr, result.stderr
     assert path.read_bytes() == complete
+
+
+def test_the_step_budget_counts_the_whole_run_and_the_file_says_which_applied(tmp_path):
+    """max_steps is the whole run's budget, continued or not (issue 41 item 7: a run stopped at 50
+    steps, continued with max_steps = 10, ran 104,849 steps to completion and its file still said
+    50). A budget at or below the steps taken is refused (exit 2, file unchanged); a larger one
+    stops the run at that total, and the file's namelist and attributes say the budget and end
+    time that applied: the namelist that, run from t = 0, gives the same file."""
+    integrator = {"scheme": "eme", "dt": 0.01, "t_end": 5.0, "tolerance": 1.0e-7, "max_steps": 50}
+    namelist, path = write_namelist(tmp_path, "run", integrator, {})
+    assert eme_run(namelist).returncode == 3
+    before = path.read_bytes()
+    for budget in (10, 50):
+        write_namelist(tmp_path, "run", dict(integrator, max_steps=budget), {})
+        result = eme_run(namelist, "-eme_continue")
+        assert result.returncode == 2, result.stderr
+        assert f"max_steps = {budget}" in result.stderr and "allowed: max_steps > 50" in result.stderr, result.stderr
+        assert path.read_bytes() == before
+
+    write_namelist(tmp_path, "run", dict(integrator, t_end=6.0, max_steps=80), {})
+    result = eme_run(namelist, "-eme_continue")
+    assert result.returncode == 3, result.stderr
+    reference_nml, reference = write_namelist(tmp_path, "reference", dict(integrator, t_end=6.0, max_steps=80), {})
+    assert eme_run(reference_nml).returncode == 3
+    assert_same_datasets(path, reference)
+    with h5py.File(path, "r") as f, h5py.File(reference, "r") as g:
+        assert f.attrs["failure_kind"] == "step_budget" and f.attrs["steps_completed"] == 80
+        assert f.attrs["max_steps"] == 80 and f.attrs["t_end"] == 6.0
+        # The namelists differ in the output file's name alone.
+        lines = [line for line in f.attrs["namelist"].splitlines() if not line.strip().startswith("file =")]
+        assert "  max_steps = 80" in lines and "  t_end = 6.0" in lines
+        assert lines == [line for line in g.attrs["namelist"].splitlines() if not line.strip().startswith("file =")]
 
 
 def test_the_slurm_run_example_continues_after_requeue(tmp_path):
