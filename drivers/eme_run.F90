@@ -18,7 +18,9 @@ program eme_run
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
-                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
+                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
+                          forget_petsc_file_options
+  use output_path, only: check_outside_studies, run_own_files, protected_entries
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
   use failures, only: failure_type
@@ -30,7 +32,8 @@ program eme_run
   type(command_arguments) :: arguments
   character(len=:), allocatable :: unused
   integer :: stat, exit_status, ranks, rank
-  type(failure_type) :: failure, startup
+  type(failure_type) :: failure, startup, config_failure
+  character(len=:), allocatable :: own_files     !! the files of the run, which no PETSc option may write
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_run', [character(len=16) :: '--help', '-h', '--version', '--integrators', &
@@ -48,6 +51,21 @@ program eme_run
   else if (arguments%has_flag('--output-schema')) then
     call print_output_schema()
     stop
+  end if
+  ! The run's own files are known before PETSc starts, which opens the files of some options
+  ! (-history, -info, -log_trace) as it starts: an option that would write one is refused first.
+  own_files = protected_entries(arguments%given_files, 'an input file')
+  if (.not. failure%failed()) then
+    call read_run_config(arguments%input_file, config, config_failure)
+    if (.not. config_failure%failed()) then
+      own_files = run_own_files(config%output_file, arguments%input_file)
+      call check_outside_studies(config%output_file, config%input_file, config_failure)
+    end if
+  end if
+  call check_petsc_file_options(arguments, .false., own_files, '', .true., startup)
+  if (startup%failed()) then
+    write (error_unit, '(a)') 'eme_run: '//startup%text()
+    stop 2, quiet=.true.
   end if
   call initialize_petsc(arguments, startup)
   if (startup%failed()) then
@@ -79,12 +97,12 @@ program eme_run
     exit_status = 2
   else
     call check_own_options(failure)
-    if (.not. failure%failed()) call check_petsc_viewer_files(failure)
+    if (.not. failure%failed()) call check_petsc_file_options(arguments, .true., own_files, '', .true., failure)
     if (failure%failed()) then
       write (error_unit, '(a)') 'eme_run: '//failure%text()
       exit_status = 2
     else
-      call read_run_config(arguments%input_file, config, failure)
+      failure = config_failure       ! (read before PETSc started)
       ! The solver set up once, unwritten: PETSc options it cannot take are bad input.
       if (.not. failure%failed()) call set_up_only(config, failure)
       if (failure%failed()) then
@@ -95,6 +113,8 @@ program eme_run
       end if
     end if
   end if
+  ! A run refused before it ran writes nothing, PETSc's -log_view file included.
+  if (exit_status == 2) call forget_petsc_file_options()
   call PetscFinalize(ierr)
   ! After a refusal its reason was said: PETSc's failure to write a refused -log_view file is not news.
   if (ierr /= 0 .and. exit_status == 0) then
@@ -136,9 +156,9 @@ contains
       end do
     end if
     if (progress_wanted()) then
-      call run_simulation(config, summary, failure, progress=print_progress)
+      call run_simulation(config, summary, failure, progress=print_progress, lock=lock)
     else
-      call run_simulation(config, summary, failure)
+      call run_simulation(config, summary, failure, lock=lock)
     end if
     call unlock_output(lock)
     exit_status = run_exit_status(summary)

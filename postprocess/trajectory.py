@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 import integrators
+from file_checksums import DamagedFileError, check_texts
 
 # The run's identity: a figure cannot name or colour a run without them. A run without thermal
 # unknowns (the elastic springs, docs/formulation.md section 9: no /temperature) may lack
@@ -164,14 +165,18 @@ class Run:
 
 @contextmanager
 def run_file(path):
-    """The run file open for reading; failures to open or read it raise RunFileError naming it."""
+    """The run file open for reading, its texts checked against their checksum
+    (file_checksums); failures to open or read it raise RunFileError naming it."""
     try:
         handle = h5py.File(path, "r")
     except OSError as error:
         raise RunFileError(f"{path}: cannot open as an HDF5 run file ({error})") from None
     try:
         with handle:
+            check_texts(handle, path)
             yield handle
+    except DamagedFileError as error:
+        raise RunFileError(str(error)) from None
     except (OSError, RuntimeError, KeyError) as error:
         # HDF5 reports a truncated or damaged file only when its data are read.
         raise RunFileError(f"{path}: cannot read the file ({type(error).__name__}: {error}); "

@@ -584,8 +584,11 @@ contains
       return
     end if
     if (.not. failure%failed()) call rows_on_disk(self)
+    ! A continued run (its history held) writes its status with every write: the file and its spare
+    ! held the status of the run that stopped ('incomplete: the step budget is spent', ...).
     if (.not. failure%failed()) call summary_attributes(self, status, summary, failure, &
-                                                        numbers_only=.not. (whole .or. final), final=final)
+                                                        numbers_only=.not. (whole .or. final .or. &
+                                                                            allocated(self%history)), final=final)
     if (.not. failure%failed() .and. self%resume%held) call resume_attributes(self%resume, self%store%file, failure, &
                                                                  with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)

@@ -26,10 +26,10 @@ module simulation
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
-  use hdf5_files, only: check_run_file, file_template
+  use hdf5_files, only: check_run_file, check_file_integrity, file_template
   use output_path, only: check_output_path
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file
+  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text
   use effective_namelist, only: namelist_of_run
   use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
@@ -94,10 +94,14 @@ contains
   !> disk unless `durable` is .false. (an ensemble's case: its index is the record). The run
   !> continues the one its file holds if the command line asks (-eme_continue: else it fails with
   !> failure_input); with `resume_if_possible` instead, it does when it can (an interrupted case of
-  !> a study) and starts from t = 0 otherwise. The time loop's many exits set `failure` as they
+  !> a study) and starts from t = 0 otherwise. With `lock` (eme_run's lock of the output), the
+  !> run checks before each write that the lock file is still the one it holds: one removed or
+  !> replaced behind its back stops the run (failure_io), and the file is written once more,
+  !> marked with the reason, only if the lock can be taken again (else another writer has it, and
+  !> the file is left as the last write made it). The time loop's many exits set `failure` as they
   !> go; summary%note says what the driver adds to a run without one.
   subroutine run_simulation(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, &
-                            template, resume_if_possible)
+                            template, resume_if_possible, lock)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     type(failure_type), intent(out) :: failure
@@ -109,6 +113,7 @@ contains
     logical, intent(in), optional :: durable
     type(file_template), intent(inout), target, optional :: template
     logical, intent(in), optional :: resume_if_possible
+    type(output_lock), intent(inout), optional :: lock
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -136,6 +141,7 @@ contains
     integer :: k, n_state, signal
     type(failure_type) :: step_failure, release_failure, io_failure
     logical :: found, finished, writing, replace, chooses_time, row_due, continuing
+    logical :: lock_lost                !! the output's lock was removed or replaced (guard_lock)
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
@@ -154,6 +160,7 @@ contains
     time = 0.0_real64
     n = 0
     writing = .true.
+    lock_lost = .false.
     if (present(keep_file)) writing = keep_file
     part = config%output_file//'.part'
     call install_interrupt_handlers(io_failure)     ! (a run without them still runs)
@@ -379,6 +386,8 @@ contains
       call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
                                     x_previous, integrator)
       if (output%write_due()) then
+        call guard_lock()
+        if (lock_lost) exit
         call set_times(.true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) then
@@ -471,6 +480,13 @@ contains
           call fail(failure_input, 'neither '//config%output_file//' nor '//part//' exists'//where// &
                     '; allowed: the output file of a run that stopped early')
         end if
+        return
+      end if
+      ! A damaged file is named as the input it is, before anything is copied or appended.
+      call check_file_integrity(source, reading)
+      if (reading%failed()) then
+        call fail(failure_input, source//': '//reading%message//'; it cannot be continued'//where//'; allowed: '// &
+                  'an undamaged file of a run that stopped early (or run afresh without -eme_continue)')
         return
       end if
       call read_resume_record(source, candidate, status, stored, reading)
@@ -690,6 +706,8 @@ contains
       character(len=:), allocatable :: kept
 
       if (.not. writing) return
+      call guard_lock()
+      if (.not. writing) return
       call set_times(.false.)
       call output%finish(summary, finishing)
       if (finishing%failed()) then
@@ -718,6 +736,31 @@ contains
                   //'): '//renaming%message)
       end if
     end subroutine close_output
+
+    ! Before a write: whether the output's lock (eme_run's) is still this process's. If its file
+    ! was removed or replaced, another writer can be in: lock_lost, the run stops (the status says
+    ! why), and writes its file again (marked incomplete) only if it takes the lock again; else
+    ! it writes nothing more.
+    subroutine guard_lock()
+      character(len=:), allocatable :: holder, what
+      logical :: retaken
+
+      if (.not. present(lock) .or. lock_lost) return
+      call recheck_lock(lock, lock_lost, retaken, what, holder)
+      if (.not. lock_lost) return
+      summary%status = 'incomplete: the lock '//lock%path//' was '//what//' while the run wrote'
+      summary%failure_kind = failure_io
+      if (retaken) then
+        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
+                  what//' while the run wrote, so that a second writer could start: the run stops after '// &
+                  integer_text(n)//' steps; it took the lock again, and '//part//' is marked incomplete')
+      else
+        writing = .false.
+        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
+                  what//' while the run wrote, and '//holder//' holds it now: the run stops after '// &
+                  integer_text(n)//' steps and writes nothing more ('//part//' is left as its last write made it)')
+      end if
+    end subroutine guard_lock
 
     ! Every 2 s at most: simulated time, steps, rate and the time left.
     subroutine report_progress()

@@ -563,7 +563,8 @@ contains
 
   ! Results of an earlier run of the same study from its index.h5, if there is one, each given
   ! to this study's case with the same swept values (earlier(c): its row there). A damaged index
-  ! (it does not open, or a checksum fails) is set aside: the journal and case files rebuild it.
+  ! (it does not open, or a checksum of its rows or texts fails) is set aside: the journal and
+  ! case files rebuild it.
   ! Refused: a finished case that this study does not have (a changed value), or case 1 of the
   ! earlier run given other input than this study gives it (a changed base scene).
   subroutine read_previous_index(self, earlier, notes, failure)
@@ -582,6 +583,7 @@ contains
 
     if (.not. file_exists(self%index_path)) return
     call old%open_existing(self%index_path, .false., reading)
+    if (.not. reading%failed()) call old%check_texts(self%index_path, reading)
     rows = -1
     if (.not. reading%failed()) rows = table_rows(old%id, 'cases')
     if (.not. reading%failed() .and. rows >= 0) call old%get_text('case_1_input', first_input, reading)

@@ -10,6 +10,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -17,6 +18,8 @@ from pathlib import Path
 import h5py
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent.parent / "postprocess"))
+from file_checksums import check_texts  # noqa: E402
 _SHIM = {}
 
 
@@ -156,9 +159,11 @@ def processes_naming(text):
 
 def check_run_file(path):
     """What a reader finds in a run file: (status, steps_completed). Raises if the file cannot
-    be read, lacks its status, or a dataset's length disagrees with the step rows (step_rows, or
-    steps_completed in older files: per-point datasets rows + 1, per-step datasets rows)."""
+    be read, lacks its status, a text fails the file's text_checksum (docs/output.md), or a
+    dataset's length disagrees with the step rows (step_rows, or steps_completed in older files:
+    per-point datasets rows + 1, per-step datasets rows)."""
     with h5py.File(path, "r") as f:
+        check_texts(f, path)
         status = f.attrs["status"]
         steps = int(f.attrs["steps_completed"])
         step_rows = int(f.attrs.get("step_rows", steps))
