@@ -237,23 +237,46 @@ contains
     integer :: n
 
     n = self%problem%model%state_size
-    allocate (tally%multiplier_integral(size(x_old) - n))
-    tally%multiplier_integral = 0.0_real64
-    tally%reason = ''
-    tally%last_rejection = ''
+    call start_tally(tally, size(x_old) - n)
     if (self%adaptive) then
       call adaptive_step(self, x_old, t_old, x_new, tally, report, failure)
       call finish_report(self, tally, x_new, report, failure)
       return
     end if
-    call step_or_halve(self, x_old, dt, guess, x_new, 0, tally, report%accepted, failure)
-    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/dt
-    call finish_report(self, tally, x_new, report, failure)
+    call halved_step(self, x_old, dt, guess, x_new, tally, report, failure)
     report%diagnostics = [real(tally%substeps, real64)]
     if (.not. self%estimating .or. failure%failed() .or. .not. report%accepted) return
     call estimate_step(self, x_old(1:n), x_new(1:n), dt, estimate_norm)
     report%diagnostics = [report%diagnostics, estimate_norm]
   end subroutine advance
+
+  ! A tally of substeps with no substep yet, for a step with n_multipliers multipliers.
+  subroutine start_tally(tally, n_multipliers)
+    type(substep_tally), intent(out) :: tally
+    integer, intent(in) :: n_multipliers
+
+    allocate (tally%multiplier_integral(n_multipliers))
+    tally%multiplier_integral = 0.0_real64
+    tally%reason = ''
+    tally%last_rejection = ''
+  end subroutine start_tally
+
+  ! The step of h from x_old in halves where needed (step_or_halve), its multipliers the
+  ! substeps' time averages, and its report.
+  subroutine halved_step(self, x_old, h, guess, x_new, tally, report, failure)
+    class(step_solver), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), h, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(substep_tally), intent(inout) :: tally
+    type(step_report), intent(inout) :: report
+    type(failure_type), intent(out) :: failure
+    integer :: n
+
+    n = self%problem%model%state_size
+    call step_or_halve(self, x_old, h, guess, x_new, 0, tally, report%accepted, failure)
+    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/h
+    call finish_report(self, tally, x_new, report, failure)
+  end subroutine halved_step
 
   ! The report of a step from what its (sub)steps did; on acceptance the temperatures the (last
   ! sub)step's K0 used.
@@ -395,14 +418,9 @@ contains
     end if
     if (failure%failed()) return
     n = self%problem%model%state_size
-    allocate (tally%multiplier_integral(size(x_old) - n))
-    tally%multiplier_integral = 0.0_real64
-    tally%reason = ''
-    tally%last_rejection = ''
+    call start_tally(tally, size(x_old) - n)
     self%resolving = .true.
-    call step_or_halve(self, x_old, h, guess, x_new, 0, tally, report%accepted, failure)
-    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/h
-    call finish_report(self, tally, x_new, report, failure)
+    call halved_step(self, x_old, h, guess, x_new, tally, report, failure)
     self%resolving = .false.
     report%chose_time = self%adaptive
     report%time = t_old + h
