@@ -587,8 +587,8 @@ contains
       real(real64), intent(in) :: z(:)
       integer :: domain
 
-      call observe_balances(model, z, balance_new, theta, domain)
       momentum = model%momenta(z)
+      call observe_balances(model, z, balance_new, theta, domain, momentum)
     end subroutine observe_state
 
     subroutine observe(z, energy, entropy, lyapunov)
@@ -676,7 +676,7 @@ contains
         step_heat = step_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
       end do
       call observe_state(x_new(1:n_state))
-      figures = balance_figures(model, balance_old, balance_new, step_heat, config%theta_r)
+      figures = balance_figures(has_balance, balance_old, balance_new, step_heat, config%theta_r)
     end subroutine measure
 
     ! The first conserved component's initial value, which the resume record keeps (0 if none).

@@ -15,7 +15,7 @@
 !> when it is built, implements the deferred procedures and says its columns' units
 !> (`column_units`, 'unknown' by default). It describes itself to the output (`words`) and
 !> declares its momenta, if it has any (`momentum_names`, `momenta`), and the components of them
-!> that are first integrals (`conserved`: each with its name and axis; `conserved_momenta` and
+!> that are first integrals (`conserved`: each with its name and axis; `conserved_in_momenta` and
 !> their gradients in the momenta; `angular_momentum_components` gives those of an angular
 !> momentum under gravity, docs/formulation.md section 2); a model without momenta has no momentum
 !> dataset, and one without conserved components no drift figure and no momentum in the relaxed
@@ -86,6 +86,7 @@ module model_interface
     procedure(in_variable_interface), deferred :: in_variable
     procedure :: conserved_count
     procedure :: conserved_momenta
+    procedure :: conserved_in_momenta
     procedure :: conserved_momenta_gradient
     procedure :: momenta
     procedure :: momentum_count
@@ -195,15 +196,26 @@ contains
     if (allocated(self%conserved)) conserved_count = size(self%conserved)
   end function conserved_count
 
-  !> The conserved components' values at z, in the order of `conserved`, each linear in the
-  !> momenta; none by default (a model with components overrides this).
+  !> The conserved components' values at z, in the order of `conserved`: those of the momenta
+  !> there (conserved_in_momenta).
   pure function conserved_momenta(self, z) result(values)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: values(self%conserved_count())
 
-    values = 0.0_real64
+    values = self%conserved_in_momenta(self%momenta(z))
   end function conserved_momenta
+
+  !> The conserved components' values, in the order of `conserved`, from the momenta (`momenta`'s
+  !> values, in the order of momentum_names), each linear in them; none by default (a model with
+  !> components overrides this). So a caller that has the momenta need not compute them again.
+  pure function conserved_in_momenta(self, momenta) result(values)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: momenta(:)
+    real(real64) :: values(self%conserved_count())
+
+    values = 0.0_real64
+  end function conserved_in_momenta
 
   !> gradients(:, k): the derivative of component k in the momenta, zero in every other column of z
   !> (the directions in which the relaxed schemes' projection moves the momenta); none by default.

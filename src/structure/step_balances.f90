@@ -23,7 +23,7 @@ module step_balances
   private
   public :: balance_count, balance_energy, balance_momentum, balance_entropy, balance_lyapunov
   public :: balance_names, balance_bound_ulps, balanced_state, observe_balances, balance_figures
-  public :: applicable_balances, conserved_momenta
+  public :: applicable_balances
 
   integer, parameter :: balance_energy = 1, balance_momentum = 2, balance_entropy = 3, balance_lyapunov = 4
   integer, parameter :: balance_count = 4
@@ -43,24 +43,12 @@ module step_balances
     real(real64) :: energy_scale = 0.0_real64
     real(real64) :: entropy = 0.0_real64
     real(real64) :: entropy_scale = 0.0_real64
-    integer :: conserved_count = 0                   !! the model's conserved momenta (conserved_momenta)
+    integer :: conserved_count = 0                   !! the model's conserved momenta (observe_balances)
     real(real64) :: conserved(max_conserved) = 0.0_real64
     real(real64) :: momentum_scale = 0.0_real64
   end type balanced_state
 
 contains
-
-  !> The model's momenta that are first integrals, at z, into state%conserved: every conserved
-  !> component (model_interface's conserved_momenta: all three of J without gravity), so that the
-  !> momentum figure is the largest over them.
-  pure subroutine conserved_momenta(model, z, state)
-    class(generic_model), intent(in) :: model
-    real(real64), intent(in) :: z(:)
-    type(balanced_state), intent(inout) :: state
-
-    state%conserved_count = model%conserved_count()
-    if (state%conserved_count > 0) state%conserved(1:state%conserved_count) = model%conserved_momenta(z)
-  end subroutine conserved_momenta
 
   !> The balances the model has: the energy always, the momentum with a conserved momentum, the
   !> entropy and V with temperatures.
@@ -75,24 +63,33 @@ contains
   end function applicable_balances
 
   !> The balances' quantities at z and the model's temperatures there; stat /= failure_none
-  !> outside the model's domain.
-  pure subroutine observe_balances(model, z, state, temperature, stat)
+  !> outside the model's domain. The conserved momenta are every conserved component (all three
+  !> of J without gravity: the momentum figure is the largest over them), taken from `momenta`
+  !> (the model's momenta at z) when the caller has them.
+  pure subroutine observe_balances(model, z, state, temperature, stat, momenta)
     class(generic_model), intent(in) :: model
     real(real64), intent(in) :: z(:)
     type(balanced_state), intent(inout) :: state
     real(real64), intent(out) :: temperature(:)
     integer, intent(out) :: stat
+    real(real64), intent(in), optional :: momenta(:)
 
     call model%observe(z, state%energy, state%entropy, temperature, stat, state%energy_scale, state%entropy_scale)
-    call conserved_momenta(model, z, state)
-    if (state%conserved_count > 0) state%momentum_scale = model%momentum_scale(z)
+    state%conserved_count = model%conserved_count()
+    if (state%conserved_count == 0) return
+    if (present(momenta)) then
+      state%conserved(1:state%conserved_count) = model%conserved_in_momenta(momenta)
+    else
+      state%conserved(1:state%conserved_count) = model%conserved_momenta(z)
+    end if
+    state%momentum_scale = model%momentum_scale(z)
   end subroutine observe_balances
 
   !> The four figures of the step from `old` to `new` (module header), in ulps of their scales;
   !> `heat` is Q and theta_r the Lyapunov function's reference temperature. A figure the model
-  !> cannot have (no conserved momentum; no entropy) is NaN.
-  pure function balance_figures(model, old, new, heat, theta_r) result(figures)
-    class(generic_model), intent(in) :: model
+  !> cannot have (not `applicable`: applicable_balances of the model) is NaN.
+  pure function balance_figures(applicable, old, new, heat, theta_r) result(figures)
+    logical, intent(in) :: applicable(balance_count)
     type(balanced_state), intent(in) :: old, new
     real(real64), intent(in) :: heat, theta_r
     real(real64) :: figures(balance_count)
@@ -100,14 +97,14 @@ contains
 
     figures = ieee_value(1.0_real64, ieee_quiet_nan)
     figures(balance_energy) = in_ulps(abs(new%energy - old%energy - heat), old%energy_scale + new%energy_scale + abs(heat))
-    if (new%conserved_count > 0) then
+    if (applicable(balance_momentum)) then
       figures(balance_momentum) = 0.0_real64
       do k = 1, new%conserved_count
         figures(balance_momentum) = max(figures(balance_momentum), &
           in_ulps(abs(new%conserved(k) - old%conserved(k)), old%momentum_scale + new%momentum_scale))
       end do
     end if
-    if (model%temperature_count() > 0) then
+    if (applicable(balance_entropy)) then
       figures(balance_entropy) = in_ulps(old%entropy - new%entropy, old%entropy_scale + new%entropy_scale)
       figures(balance_lyapunov) = in_ulps((new%energy - old%energy) - theta_r*(new%entropy - old%entropy), &
                                           old%energy_scale + new%energy_scale + &

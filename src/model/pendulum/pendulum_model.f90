@@ -32,7 +32,7 @@ module pendulum_model
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
-    procedure :: conserved_momenta
+    procedure :: conserved_in_momenta
     procedure :: conserved_momenta_gradient
     procedure :: mechanical_energy_difference => pendulum_energy_difference
     procedure :: state_from_temperatures
@@ -139,33 +139,46 @@ contains
   end function mechanical_energy
 
   !> The rounding scale of T + V_g (model_interface): T's terms p_a.(m^-1 p)_b in absolute value,
-  !> 1/2 (|p1|^2/m1 + 2 |p1||p2|/m1 + (m1+m2)/(m1 m2) |p2|^2), and gravity's |f_a . q_a|.
+  !> 1/2 (|p1|^2/m1 + 2 |p1||p2|/m1 + (m1+m2)/(m1 m2) |p2|^2), and gravity's |f_a . q_a| summed
+  !> by component, f_1 = (m1+m2) g and f_2 = m2 g (read from z in place: the step check's cost).
   pure real(real64) function mechanical_energy_scale(self, z)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: p(self%layout%dimension, 2), q(self%layout%dimension, 2), force(self%layout%dimension, 2)
-    real(real64) :: p1, p2, m1, m2
+    real(real64) :: p1_squared, p2_squared, gravity_terms, m1, m2
+    integer :: i
 
-    p = self%layout%momenta(z)
-    q = self%layout%positions(z)
-    force = self%layout%gravity_force(self%params)
-    p1 = sqrt(dot_product(p(:, 1), p(:, 1)))      ! not norm2: a scale needs no guard against overflow
-    p2 = sqrt(dot_product(p(:, 2), p(:, 2)))
     m1 = self%params%mass(1)
     m2 = self%params%mass(2)
-    mechanical_energy_scale = 0.5_real64*(p1**2/m1 + 2*p1*p2/m1 + (m1 + m2)/(m1*m2)*p2**2) + sum(abs(force*q))
+    p1_squared = 0.0_real64
+    p2_squared = 0.0_real64
+    gravity_terms = 0.0_real64
+    associate (q => self%layout%q, p => self%layout%p, g => self%params%gravity)
+      do i = 1, self%layout%dimension
+        p1_squared = p1_squared + z(p(i, 1))**2
+        p2_squared = p2_squared + z(p(i, 2))**2
+        gravity_terms = gravity_terms + abs(g(i))*((m1 + m2)*abs(z(q(i, 1))) + m2*abs(z(q(i, 2))))
+      end do
+    end associate
+    mechanical_energy_scale = 0.5_real64*(p1_squared/m1 + 2*sqrt(p1_squared*p2_squared)/m1 &
+                                          + (m1 + m2)/(m1*m2)*p2_squared) + gravity_terms
   end function mechanical_energy_scale
 
   !> The rounding scale of J = q1 x p1 + q2 x p2 (model_interface): |q1||p1| + |q2||p2|.
   pure real(real64) function momentum_scale(self, z)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: p(self%layout%dimension, 2), q(self%layout%dimension, 2)
+    real(real64) :: q_squared(2), p_squared(2)
+    integer :: i
 
-    p = self%layout%momenta(z)
-    q = self%layout%positions(z)
-    momentum_scale = sqrt(dot_product(q(:, 1), q(:, 1))*dot_product(p(:, 1), p(:, 1))) &
-                     + sqrt(dot_product(q(:, 2), q(:, 2))*dot_product(p(:, 2), p(:, 2)))
+    q_squared = 0.0_real64
+    p_squared = 0.0_real64
+    associate (q => self%layout%q, p => self%layout%p)
+      do i = 1, self%layout%dimension
+        q_squared = q_squared + z(q(i, :))**2
+        p_squared = p_squared + z(p(i, :))**2
+      end do
+    end associate
+    momentum_scale = sum(sqrt(q_squared*p_squared))
   end function momentum_scale
 
   !> grad (T + V_g): -gravity forces on q, m^-1 p on p.
@@ -241,14 +254,20 @@ contains
     allocate (other, source=make_pendulum(self%params, variable))
   end subroutine in_variable
 
-  !> The conserved components J.a of J = q1 x p1 + q2 x p2 (their axes a: `conserved`).
-  pure function conserved_momenta(self, z) result(values)
+  !> The conserved components J.a of J = q1 x p1 + q2 x p2 (their axes a: `conserved`) from the
+  !> momenta: J itself in space; in the plane its one component, about the normal.
+  pure function conserved_in_momenta(self, momenta) result(values)
     class(pendulum), intent(in) :: self
-    real(real64), intent(in) :: z(:)
+    real(real64), intent(in) :: momenta(:)
     real(real64) :: values(self%conserved_count())
 
-    values = component_values(self%conserved, self%layout%angular_momentum(z))
-  end function conserved_momenta
+    if (size(values) == 0) return      ! in the plane under gravity
+    if (size(momenta) == 1) then
+      values = momenta(1)
+    else
+      values = component_values(self%conserved, momenta)
+    end if
+  end function conserved_in_momenta
 
   !> d(J.a)/dp for each axis a: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
   pure function conserved_momenta_gradient(self, z) result(gradients)

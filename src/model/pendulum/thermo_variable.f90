@@ -55,7 +55,9 @@ contains
   !> tau = theta, given by exp from tau = s, summed onto theta_ref from tau = u, or converted from
   !> the variable a scheme integrates in), so Cap (theta - theta_ref) is known to Cap theta eps and
   !> Cap ln(theta/theta_ref) to Cap eps: U_a's scale is |e| + Cap (theta + theta_ref), S_a's is
-  !> |sigma| + Cap (1 + |ln(theta/theta_ref)|) (docs/faults.md, Every accepted step checked).
+  !> |sigma| + Cap (1 + |ln(theta/theta_ref)|) (docs/faults.md, Every accepted step checked), with
+  !> Cap |ln(theta/theta_ref)| read as |S_a - sigma| (S_a = sigma + Cap ln(theta/theta_ref) in
+  !> every variable), not from a second logarithm.
   pure subroutine spring_values_and_temperature(self, x, f, theta, stat, scales)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: x(:)
@@ -75,7 +77,7 @@ contains
     if (present(scales)) then
       cap = self%law%heat_capacity
       scales(potential_u) = abs(e) + cap*(theta + self%law%theta_ref)
-      scales(potential_s) = abs(sigma) + cap*(1.0_real64 + abs(log(theta/self%law%theta_ref)))
+      scales(potential_s) = abs(sigma) + cap + abs(f(potential_s) - sigma)
     end if
   end subroutine spring_values_and_temperature
 

@@ -36,7 +36,7 @@ module single_spring_model
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
-    procedure :: conserved_momenta
+    procedure :: conserved_in_momenta
     procedure :: conserved_momenta_gradient
     procedure :: state_from_temperature
   end type single_spring
@@ -201,14 +201,14 @@ contains
     allocate (other, source=make_single_spring(self%params, variable))
   end subroutine in_variable
 
-  !> J.a about each conserved axis a (J_z under the tests' gravity along z).
-  pure function conserved_momenta(self, z) result(values)
+  !> J.a about each conserved axis a (J_z under the tests' gravity along z), from J.
+  pure function conserved_in_momenta(self, momenta) result(values)
     class(single_spring), intent(in) :: self
-    real(real64), intent(in) :: z(:)
+    real(real64), intent(in) :: momenta(:)
     real(real64) :: values(self%conserved_count())
 
-    values = component_values(self%conserved, self%momenta(z))
-  end function conserved_momenta
+    values = component_values(self%conserved, momenta)
+  end function conserved_in_momenta
 
   !> d(J.a)/dp = a x q for each conserved axis a.
   pure function conserved_momenta_gradient(self, z) result(gradients)
