@@ -12,6 +12,7 @@
 module spring_chain_partials
   use, intrinsic :: iso_fortran_env, only: real64
   use failures, only: failure_none
+  use invariant_function, only: potential_u, potential_s
   use step_residual, only: partials_discrete_gradient, partials_midpoint
   use spring_chain_spring, only: chain_spring, spring_invariants
   use spring_chain_layout, only: spring_slots, slots_of
@@ -95,7 +96,7 @@ contains
           part%dpartials(i, k, 1:s%size) = matmul(second(i, 1:n, k), dx_dslot(1:n, 1:s%size))
         end do
       end do
-      if (n >= 2) part%theta = part%partials(n, 1)/part%partials(n, 2)
+      if (n >= 2) part%theta = part%partials(n, potential_u)/part%partials(n, potential_s)
     end associate
 
   contains
