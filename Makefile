@@ -76,6 +76,7 @@ $(BUILD)/fortran.deps: $(FORTRAN_SOURCES) Makefile
 -include $(BUILD)/fortran.deps
 
 $(OBJ)/src/integrator/ts_domain.o $(OBJ)/src/io/version_queries.o $(OBJ)/src/io/petsc_option_checks.o $(OBJ)/src/io/petsc_errors.o \
+$(OBJ)/src/io/petsc_option_files.o \
 $(OBJ)/src/solver/petsc_options.o $(OBJ)/src/solver/dense_read.o $(OBJ)/src/solver/vector_access.o $(OBJ)/src/solver/converged_reasons.o \
 $(patsubst %,$(OBJ)/drivers/%.o,$(C_DRIVERS)): private CFLAGS += $(PETSC_FLAGS)
 # Callbacks, interface implementations and default implementations have fixed argument lists;
@@ -127,10 +128,11 @@ $(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines (BDF with Newton), and
-# its fixed-point solver CVODE-Adams.
+# its fixed-point solver CVODE-Adams; zlib (HDF5's own dependency) gives the CRC-32 of a file's
+# texts (src/io/hdf5_text_checksum.c).
 CVODE_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
 SUNDIALS_LIBS := $(CVODE_LIBS) -lsundials_sunnonlinsolfixedpoint
-LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas
+LINK_LIBS = $(PETSC_LIBS) $(HDF5_LIBS) $(SUNDIALS_LDFLAGS) $(SUNDIALS_LIBS) -llapack -lblas -lz
 
 # ---------------------------------------------------------------- unit tests
 # The suites tests/unit/test_*.pf are pFUnit tests (tests/README.md). They run under pFUnit when

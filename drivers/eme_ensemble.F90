@@ -11,7 +11,9 @@ program eme_ensemble
   use ensemble, only: run_study, study_outcome, world_rank
   use command_help, only: print_study_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
-                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
+                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
+                          launcher_rank, forget_petsc_file_options
+  use output_path, only: protected_entry, protected_entries
   use simulation, only: set_up_only
   use library_versions, only: print_versions
   use failures, only: failure_type, failure_input
@@ -22,7 +24,8 @@ program eme_ensemble
   type(command_arguments) :: arguments
   character(len=:), allocatable :: message, unused
   integer :: stat, rank, exit_status
-  type(failure_type) :: failure, startup
+  type(failure_type) :: failure, startup, study_failure
+  character(len=:), allocatable :: own_files, own_folders   !! the study's, which no PETSc option may write
   logical :: help
   PetscErrorCode :: ierr
 
@@ -37,6 +40,24 @@ program eme_ensemble
   else if (arguments%has_flag('--integrators')) then
     call print_integrators(output_unit, tabular=.true.)
     stop
+  end if
+  ! The study's files are known before PETSc starts, which opens the files of some options
+  ! (-history, -info, -log_trace) as it starts: an option that would write one is refused first.
+  ! Every rank reads and validates the study: the expansion is cheap and deterministic.
+  own_files = protected_entries(arguments%given_files, 'an input file')
+  own_folders = ''
+  if (.not. failure%failed()) then
+    call read_study(arguments%input_file, study, study_failure)
+    if (.not. study_failure%failed()) then
+      own_files = own_files//protected_entry(study%base, 'the study''s base input file')
+      own_folders = protected_entry(study%output_dir, 'in the study''s output folder (output_dir of '// &
+                                    study%input_file//')')
+    end if
+  end if
+  call check_petsc_file_options(arguments, .false., own_files, own_folders, .false., startup)
+  if (startup%failed()) then
+    if (launcher_rank() == 0) write (error_unit, '(a)') 'eme_ensemble: '//startup%text()
+    stop 2, quiet=.true.
   end if
   call initialize_petsc(arguments, startup)
   if (startup%failed()) then
@@ -53,15 +74,15 @@ program eme_ensemble
     exit_status = 2
   else
     call check_own_options(failure)
-    if (.not. failure%failed()) call check_petsc_viewer_files(failure)
+    if (.not. failure%failed()) &
+      call check_petsc_file_options(arguments, .true., own_files, own_folders, .false., failure)
     if (failure%failed()) then
       if (rank == 0) write (error_unit, '(a)') 'eme_ensemble: '//failure%text()
       exit_status = 2
     end if
   end if
   if (exit_status == 0 .and. .not. help) then
-    ! Every rank reads and validates the study: the expansion is cheap and deterministic.
-    call read_study(arguments%input_file, study, failure)
+    failure = study_failure            ! (read before PETSc started)
     stat = failure%code
     if (failure%failed()) message = failure%text()
     if (stat == 0) call check_solver_options()
@@ -90,6 +111,8 @@ program eme_ensemble
       if (len(unused) > 0) write (error_unit, '(a)') 'eme_ensemble: warning: PETSc options that nothing used: '//unused
     end if
   end if
+  ! A study refused before it ran writes nothing, PETSc's -log_view file included.
+  if (exit_status == 2) call forget_petsc_file_options()
   call PetscFinalize(ierr)
   ! After a refusal its reason was said: PETSc's failure to write a refused -log_view file is not news.
   if (ierr /= 0 .and. exit_status == 0) then

@@ -18,10 +18,13 @@ program eme_run
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
-                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_viewer_files
+                          petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
+                          forget_petsc_file_options
+  use output_path, only: check_outside_studies, run_own_files, protected_entries
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
   use failures, only: failure_type
+  use number_text, only: integer_text, fixed_text, scientific_text
   implicit none
 
   type(run_configuration) :: config
@@ -29,7 +32,8 @@ program eme_run
   type(command_arguments) :: arguments
   character(len=:), allocatable :: unused
   integer :: stat, exit_status, ranks, rank
-  type(failure_type) :: failure, startup
+  type(failure_type) :: failure, startup, config_failure
+  character(len=:), allocatable :: own_files     !! the files of the run, which no PETSc option may write
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_run', [character(len=16) :: '--help', '-h', '--version', '--integrators', &
@@ -47,6 +51,21 @@ program eme_run
   else if (arguments%has_flag('--output-schema')) then
     call print_output_schema()
     stop
+  end if
+  ! The run's own files are known before PETSc starts, which opens the files of some options
+  ! (-history, -info, -log_trace) as it starts: an option that would write one is refused first.
+  own_files = protected_entries(arguments%given_files, 'an input file')
+  if (.not. failure%failed()) then
+    call read_run_config(arguments%input_file, config, config_failure)
+    if (.not. config_failure%failed()) then
+      own_files = run_own_files(config%output_file, arguments%input_file)
+      call check_outside_studies(config%output_file, config%input_file, config_failure)
+    end if
+  end if
+  call check_petsc_file_options(arguments, .false., own_files, '', .true., startup)
+  if (startup%failed()) then
+    write (error_unit, '(a)') 'eme_run: '//startup%text()
+    stop 2, quiet=.true.
   end if
   call initialize_petsc(arguments, startup)
   if (startup%failed()) then
@@ -78,12 +97,12 @@ program eme_run
     exit_status = 2
   else
     call check_own_options(failure)
-    if (.not. failure%failed()) call check_petsc_viewer_files(failure)
+    if (.not. failure%failed()) call check_petsc_file_options(arguments, .true., own_files, '', .true., failure)
     if (failure%failed()) then
       write (error_unit, '(a)') 'eme_run: '//failure%text()
       exit_status = 2
     else
-      call read_run_config(arguments%input_file, config, failure)
+      failure = config_failure       ! (read before PETSc started)
       ! The solver set up once, unwritten: PETSc options it cannot take are bad input.
       if (.not. failure%failed()) call set_up_only(config, failure)
       if (failure%failed()) then
@@ -94,6 +113,8 @@ program eme_run
       end if
     end if
   end if
+  ! A run refused before it ran writes nothing, PETSc's -log_view file included.
+  if (exit_status == 2) call forget_petsc_file_options()
   call PetscFinalize(ierr)
   ! After a refusal its reason was said: PETSc's failure to write a refused -log_view file is not news.
   if (ierr /= 0 .and. exit_status == 0) then
@@ -107,10 +128,8 @@ contains
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
     type(output_lock) :: lock
-    character(len=:), allocatable :: holder, momentum_part, thermal_part
+    character(len=:), allocatable :: holder, momentum_part, thermal_part, steps_done
     integer :: found
-    character(len=9) :: number
-    character(len=10) :: wide
     integer :: k
 
     ! One writer per output: a second run of the same file is refused before it writes anything.
@@ -137,9 +156,9 @@ contains
       end do
     end if
     if (progress_wanted()) then
-      call run_simulation(config, summary, failure, progress=print_progress)
+      call run_simulation(config, summary, failure, progress=print_progress, lock=lock)
     else
-      call run_simulation(config, summary, failure)
+      call run_simulation(config, summary, failure, lock=lock)
     end if
     call unlock_output(lock)
     exit_status = run_exit_status(summary)
@@ -150,36 +169,74 @@ contains
       write (error_unit, '(a)') 'eme_run: '//config%output_file//': '//summary%status
       if (len(summary%note) > 0) write (error_unit, '(a)') 'eme_run: '//summary%note
     end if
-    ! Figures of no step would be NaN: a run that completed none says so instead.
+    ! The steps done, out of the plan where there is one: an integrator that chooses its steps
+    ! has none (t_end/dt is a fixed step's count, not its own).
+    steps_done = integer_text(summary%steps_completed)
+    if (.not. summary%steps_chosen) steps_done = steps_done//'/'//integer_text(summary%steps_planned)
+    ! Figures of no step would be NaN: a run that completed none says so instead. Every figure
+    ! keeps its column when it fits and is written whole when it does not (number_text).
     if (stat == 0 .and. summary%steps_completed == 0) then
-      write (output_unit, '(a, ": ", a, ", 0/", i0, " steps: no step completed, ", f8.3, a)') config%output_file, &
-        summary%status, summary%steps_planned, summary%wall_seconds, ' s'
+      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//steps_done// &
+        ' steps: no step completed, '//fixed_text(summary%wall_seconds, 3, width=8)//' s'
     else if (stat == 0) then
-      ! The momentum drift only for a model with a conserved momentum (NaN otherwise).
+      ! The momentum drift only for a model with a conserved momentum (NaN otherwise): the largest
+      ! over its components, each named (|dJz|; |dJx|, |dJy|, |dJz| without gravity).
       momentum_part = ''
-      if (.not. ieee_is_nan(summary%angular_momentum_drift)) then
-        write (number, '(es9.2)') summary%angular_momentum_drift
-        momentum_part = ', |d'//trim(summary%conserved_momentum)//'| <= '//number
-      end if
+      if (.not. ieee_is_nan(summary%angular_momentum_drift)) momentum_part = ', '// &
+        drift_names(summary%conserved_momentum)//' <= '//scientific_text(summary%angular_momentum_drift, 2, width=9)
       ! dS and dV only for a model with an entropy (NaN for a mechanical one: V = E).
       thermal_part = ''
-      if (.not. ieee_is_nan(summary%min_entropy_increment)) then
-        write (wide, '(es10.2)') summary%min_entropy_increment
-        thermal_part = ', min dS = '//wide//' '//trim(summary%entropy_units)
-        write (wide, '(es10.2)') summary%max_lyapunov_increment
-        thermal_part = thermal_part//', max dV = '//wide//' '//trim(summary%energy_units)
-      end if
-      write (output_unit, '(a, ": ", a, ", ", i0, "/", i0, " steps, ", a, es9.2, a, a, a, f6.2, a, f8.3, a)') &
-        config%output_file, summary%status, summary%steps_completed, &
-        summary%steps_planned, 'energy balance <= ', summary%energy_drift, thermal_part, momentum_part, &
-        ', Newton/step ', real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), ', ', &
-        summary%wall_seconds, ' s'
+      if (.not. ieee_is_nan(summary%min_entropy_increment)) thermal_part = ', min dS = '// &
+        scientific_text(summary%min_entropy_increment, 2, width=10)//' '//trim(summary%entropy_units)//', max dV = '// &
+        scientific_text(summary%max_lyapunov_increment, 2, width=10)//' '//trim(summary%energy_units)
+      write (output_unit, '(a)') config%output_file//': '//summary%status//', '//steps_done//' steps, energy balance <= '// &
+        scientific_text(summary%energy_drift, 2, width=9)//thermal_part//momentum_part//', Newton/step '// &
+        fixed_text(real(summary%newton_iterations, real64)/real(summary%steps_completed, real64), 2, width=6)//', '// &
+        fixed_text(summary%wall_seconds, 3, width=8)//' s'
     end if
     if (stat == 0 .and. summary%rejected_steps > 0) write (output_unit, '(a, i0, a, i0, a)') '  step-size control: ', &
       summary%steps_completed, ' steps accepted, ', summary%rejected_steps, ' rejected'
+    ! A complete run whose accuracy is in doubt (the file's attribute `warnings`; docs/integrators.md).
+    if (stat == 0 .and. allocated(summary%warnings)) then
+      if (len(summary%warnings) > 0) write (error_unit, '(a)') 'eme_run: warning: '//config%output_file//': '// &
+        summary%warnings
+    end if
     unused = unused_petsc_options()
     if (len(unused) > 0) write (error_unit, '(a)') 'eme_run: warning: PETSc options that nothing used: '//unused
   end subroutine run_case
+
+  ! '|dJz|' for the names 'J_z'; '|dJx|, |dJy|, |dJz|' for 'J_x J_y J_z' (underscores dropped).
+  pure function drift_names(names) result(text)
+    character(len=*), intent(in) :: names
+    character(len=:), allocatable :: text
+    integer :: i, start
+    logical :: word_ends
+
+    text = ''
+    start = 1
+    do i = 1, len_trim(names) + 1
+      word_ends = i > len_trim(names)
+      if (.not. word_ends) word_ends = names(i:i) == ' '
+      if (.not. word_ends) cycle
+      if (i > start) then
+        if (len(text) > 0) text = text//', '
+        text = text//'|d'//without_underscores(names(start:i - 1))//'|'
+      end if
+      start = i + 1
+    end do
+  end function drift_names
+
+  ! `name` without its underscores (J_z: Jz).
+  pure function without_underscores(name) result(plain)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: plain
+    integer :: i
+
+    plain = ''
+    do i = 1, len(name)
+      if (name(i:i) /= '_') plain = plain//name(i:i)
+    end do
+  end function without_underscores
 
   ! A progress line on stderr (simulation sends one at most every 2 s).
   subroutine print_progress(text)

@@ -18,13 +18,19 @@ def set_title(runs):
     return ", ".join(dict.fromkeys(run.name.rsplit("_", 1)[0] for run in runs))
 
 
-MOMENTUM_LABELS = {"J_z": r"$J_{z,n} - J_{z,0}$ [J s]", "J": r"$J_n - J_0$ [J s]"}
+MOMENTUM_LABELS = {"J": r"$J_n - J_0$ [J s]"}
+
+
+def momentum_label(name):
+    """The drift's axis label: J_n - J_0 of the planar J, J_{y,n} - J_{y,0} of J_y (J_x, J_z, J_g)."""
+    axis = name.split("_")[-1]
+    return MOMENTUM_LABELS.get(name, rf"$J_{{{axis},n}} - J_{{{axis},0}}$ [J s]")
 
 
 def make_figure(runs, compare=()):
     """theta_1 (top), theta_2 (middle) from /temperature and the conserved momentum's drift
-    (bottom: J_z, or the planar scalar J); the `compare` runs in a column of their own, dashed,
-    the rows sharing their y axes. A run without temperatures (elastic springs) or without a
+    (bottom: J_z, or the planar scalar J; of several components, the one that drifts furthest);
+    the `compare` runs in a column of their own, dashed, the rows sharing their y axes. A run without temperatures (elastic springs) or without a
     conserved momentum (a planar scene under gravity) is left out of those rows, and a row no run
     has is not drawn."""
     sets = [list(zip(runs, styles)) for runs, styles in ((runs, run_styles(runs)),
@@ -55,7 +61,7 @@ def make_figure(runs, compare=()):
             axes[0, column].set_title(set_title([run for run, _ in drawn]) + (" (--compare)" if column else ""))
         axes[-1, column].set_xlabel(r"time $t_n$ [s]")
     labels = {"theta_1": r"$\theta_1$ (spring 1) [K]", "theta_2": r"$\theta_2$ (spring 2) [K]",
-              "momentum": MOMENTUM_LABELS[momenta.pop()] if len(momenta) == 1 else
+              "momentum": momentum_label(momenta.pop()) if len(momenta) == 1 else
               r"conserved momentum drift ($J_z$ or $J$) [J s]"}
     for row, name in enumerate(names):
         axes[row, 0].set_ylabel(labels[name])

@@ -55,6 +55,7 @@ import integrators
 import machine_load
 import stability_sets
 import study_plots
+from file_checksums import DamagedFileError, check_texts
 from plotting import run_script
 from study_plots import SCENE_TITLES, curve_keys, key_rank, members, plain_name
 from trajectory import THERMODYNAMIC_COLUMN, RunFileError, read_run
@@ -166,6 +167,10 @@ def read_index(folder):
     except OSError as error:
         raise StudyError(f"{path}: cannot open as a study index ({error})") from None
     with handle:
+        try:
+            check_texts(handle, path)
+        except DamagedFileError as error:
+            raise StudyError(str(error)) from None
         if "cases" not in handle:
             raise StudyError(f"{path}: dataset '/cases' is missing")
         cases = handle["cases"][()]
@@ -190,6 +195,8 @@ def read_index(folder):
         row.setdefault("thermo_variable", "none")
         for name in MODEL_FIELDS:
             row.setdefault(name, float("nan"))
+        # 1: a complete case whose accuracy is in doubt (its file's `warnings`); older indexes: 0.
+        row.setdefault("warned", 0)
         if "tolerance" in row:
             row["scheme"] = integrators.tolerance_variant(row["scheme"])
         row["path"] = path.parent / row["file"]

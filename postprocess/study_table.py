@@ -33,6 +33,8 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from file_checksums import DamagedFileError, check_texts
+
 # Fields of /cases around the swept ones: 'case', 'file', the swept fields, then 'status' and the
 # figures (docs/studies.md).
 FIRST_FIGURE_FIELD = "status"
@@ -71,6 +73,10 @@ def read_index(path):
     except OSError as error:
         raise StudyIndexError(f"{path}: cannot open as a study index ({error})") from None
     with handle:
+        try:
+            check_texts(handle, path)
+        except DamagedFileError as error:
+            raise StudyIndexError(str(error)) from None
         if "cases" not in handle:
             raise StudyIndexError(f"{path}: dataset '/cases' is missing; is this an eme_ensemble index.h5?")
         table = handle["cases"]

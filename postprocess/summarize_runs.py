@@ -2,21 +2,25 @@
 """Prints the summary table of one or more eme_run result files.
 
 For each run: status, steps (accepted ones), the trial steps rejected by step-size control or
-halving (integrators that reject steps: rejected_steps; '-' for the others), the relative energy balance error max_n |E_n - E_0 - Q_n| / |E_0|
-(Q_n is the heat supplied through constraint g2, zero without it, so this is the energy drift),
-the smallest entropy increment, the largest Lyapunov increment, the J_z drift
-max_n |J_z,n - J_z,0|, the largest constraint residual, the mean Newton iterations per step and
-the wall time. Everything is read from the HDF5 files, and gives eme_run's own summary line
-for any &output every or interval: the steps are the last step the rows reach (/step), the
-increments the per-step records /min_entropy_increment and /max_lyapunov_increment (a row that
-stands for several steps holds their least and largest), Newton/step the summed
-/newton_iterations over the steps; the energy balance and the J_z drift of a complete file are its
-run_figures, which eme_run took over every step (an incomplete file's: over the points written).
-Files without the per-step records (older versions) give the increments between written points.
+halving (integrators that reject steps: rejected_steps; '-' for the others), the relative energy
+balance error max_n |E_n - E_0 - Q_n| / |E_0| (Q_n is the heat supplied through constraint g2, zero
+without it, so this is the energy drift), the smallest entropy increment, the largest Lyapunov
+increment, the conserved momentum's drift max_n |J_n - J_0| (the largest over the conserved
+components: J_z, J_y, J_g along an oblique gravity, or J_x, J_y and J_z without gravity; the column
+is titled by them), the largest constraint residual, the mean Newton iterations per step and the
+wall time. Everything is read from the HDF5 files, and gives eme_run's own summary line for any
+&output every or interval: the steps are the last step the rows reach (/step), the increments the
+per-step records /min_entropy_increment and /max_lyapunov_increment (a row that stands for several
+steps holds their least and largest), Newton/step the summed /newton_iterations over the steps; the
+energy balance and the momentum drift of a complete file are its run_figures, which eme_run took
+over every step (an incomplete file's: over the points written). Files without the per-step records
+(older versions) give the increments between written points.
 
-A file that a killed or stopped run left behind is summarised as far as it goes, its status
-marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5, damaged, without
-the datasets) is named on stderr with the reason, and the exit status is then 2.
+A complete file whose accuracy is in doubt (its attribute `warnings`: a fixed-step relaxed run that
+halved steps, docs/integrators.md) has the status 'complete (warned)', and its warning follows the
+table as a footnote. A file that a killed or stopped run left behind is summarised as far as it
+goes, its status marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5,
+damaged, without the datasets) is named on stderr with the reason, and the exit status is then 2.
 
 usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
 """
@@ -27,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from trajectory import (IDENTITY_ATTRIBUTES, NO_VARIABLE, Run, RunFileError, conserved_momentum, thermal,
-                        cut_to_common_length, root_attributes, run_file)
+from trajectory import (IDENTITY_ATTRIBUTES, NO_VARIABLE, Run, RunFileError, conserved_momentum, conserved_values,
+                        thermal, cut_to_common_length, root_attributes, run_file)
 
 POINT_DATASETS = ("energy",)
 STEP_DATASETS = ("newton_iterations",)
@@ -86,9 +90,9 @@ def summarize(path):
     data, attrs, steps = run.data, run.attrs, run.steps
     energy, entropy, lyapunov = data["energy"], data.get("entropy"), data.get("lyapunov")
     heat = data.get("boundary_heat", np.zeros_like(energy))
-    # The conserved component of /angular_momentum (J_z, or the planar scalar J), if the scene has one.
+    # The conserved components of /angular_momentum (J_z, J_x J_y J_z, the planar J, ...), if any.
     momentum = conserved_momentum(run) if "angular_momentum" in data else None
-    momenta = None if momentum is None else data["angular_momentum"]
+    conserved = conserved_values(run) if momentum else {}
     constraint = data.get("constraint_residual")
     rejected = data.get("rejected_steps")
     gradient = attrs.get("discrete_gradient", "none")
@@ -112,8 +116,11 @@ def summarize(path):
         max_dv = float(np.diff(lyapunov).max()) if rows and lyapunov is not None else float("nan")
     variable = attrs.get("thermo_variable", "none" if entropy is None else "?")
     status = run.status
+    warnings = attrs.get("warnings", "") if not run.incomplete else ""
     if run.incomplete:
         status = f"{run.incomplete_mark} ({'; '.join([run.status, *run.problems])})"
+    elif warnings:
+        status = f"{run.status} (warned)"
     return {
         "file": run.path.stem,
         "run": f"{attrs.get('scheme', '?')}" + ("" if variable in NO_VARIABLE else f"/{variable}")
@@ -125,10 +132,11 @@ def summarize(path):
         "energy_drift": whole.get("energy_drift", float(np.max(np.abs(energy - energy[0] - heat)) / abs(energy[0]))),
         "min_dS": min_ds,
         "max_dV": max_dv,
-        "jz_drift": float("nan") if momenta is None else
-        whole.get("angular_momentum_drift", float(np.max(np.abs(run.column("angular_momentum", momentum)
-                                                                 - run.column("angular_momentum", momentum)[0])))),
-        "momentum": momentum,
+        "jz_drift": float("nan") if not conserved else
+        whole.get("angular_momentum_drift", max(float(np.max(np.abs(values - values[0])))
+                                                for values in conserved.values())),
+        "momentum": " ".join(momentum) if momentum else None,
+        "warnings": warnings,
         "has_entropy": entropy is not None,
         "energy_units": run.units["energy"], "entropy_units": run.units["entropy"],
         "constraint": "-" if constraint is None or constraint.size == 0 else f"{np.abs(constraint).max():.1e}",
@@ -147,9 +155,9 @@ COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "
 
 def table_columns(rows):
     """COLUMNS for these rows: no momentum column when no run has a conserved momentum, titled by
-    the runs' conserved component (Jz, or the planar scalar J; J where they differ); no dS and dV
-    columns when no run has an entropy (elastic springs); and the units of dS and dV the runs'
-    models give (the pendulum's J/K and J; none in the header where models differ)."""
+    the runs' conserved components (Jz; Jx,Jy,Jz; the planar scalar J; 'J (conserved)' where they
+    differ); no dS and dV columns when no run has an entropy (elastic springs); and the units of dS
+    and dV the runs' models give (the pendulum's J/K and J; none in the header where models differ)."""
     entropy = any(row["has_entropy"] for row in rows) or not rows
     has = {"jz_drift": any(not math.isnan(row["jz_drift"]) for row in rows), "min_dS": entropy, "max_dV": entropy}
     columns = [column for column in COLUMNS if has.get(column[0], True)]
@@ -160,8 +168,9 @@ def table_columns(rows):
         if key in ("min_dS", "max_dV"):
             kind = units["entropy_units" if key == "min_dS" else "energy_units"]
             title = title.split(" [")[0] + (f" [{kind.pop()}]" if len(kind) == 1 else "")
-        if key == "jz_drift" and momenta and momenta != {"J_z"}:
-            title = ("J" if momenta == {"J"} else "J (conserved)") + " drift [J s]"
+        if key == "jz_drift" and momenta:
+            names = momenta.pop().replace("_", "").replace(" ", ",") if len(momenta) == 1 else "J (conserved)"
+            title = f"{names} drift [J s]"
         titled.append((key, title, fmt))
     return titled
 
@@ -183,7 +192,7 @@ def main(argv=None):
     parser.add_argument("files", nargs="+", help="eme_run HDF5 files")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     args = parser.parse_args(argv)
-    rows, unusable = [], 0
+    rows, unusable, warned = [], 0, []
     for path in args.files:
         try:
             row = summarize(path)
@@ -192,6 +201,8 @@ def main(argv=None):
             unusable += 1
             continue
         rows.append(row)
+        if row["warnings"]:
+            warned.append(f"{row['file']}: warned: {row['warnings']}")
     columns = table_columns(rows)
     headers = [title for _, title, _ in columns]
     rows = [[cell(row[key], fmt) for key, _, fmt in columns] for row in rows]
@@ -205,6 +216,10 @@ def main(argv=None):
         print("  ".join(h.ljust(w) for h, w in zip(headers, widths)).rstrip())
         for row in rows:
             print("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
+    if rows and warned:
+        print()
+        for line in warned:
+            print(line)
     return 2 if unusable else 0
 
 

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 import integrators
+from file_checksums import DamagedFileError, check_texts
 
 # The run's identity: a figure cannot name or colour a run without them. A run without thermal
 # unknowns (the elastic springs, docs/formulation.md section 9: no /temperature) may lack
@@ -164,14 +165,18 @@ class Run:
 
 @contextmanager
 def run_file(path):
-    """The run file open for reading; failures to open or read it raise RunFileError naming it."""
+    """The run file open for reading, its texts checked against their checksum
+    (file_checksums); failures to open or read it raise RunFileError naming it."""
     try:
         handle = h5py.File(path, "r")
     except OSError as error:
         raise RunFileError(f"{path}: cannot open as an HDF5 run file ({error})") from None
     try:
         with handle:
+            check_texts(handle, path)
             yield handle
+    except DamagedFileError as error:
+        raise RunFileError(str(error)) from None
     except (OSError, RuntimeError, KeyError) as error:
         # HDF5 reports a truncated or damaged file only when its data are read.
         raise RunFileError(f"{path}: cannot read the file ({type(error).__name__}: {error}); "
@@ -304,12 +309,13 @@ def jz_drift(run):
 
 
 def conserved_momentum(run):
-    """The name of the run's conserved momentum column: the root attribute conserved_momentum
-    where the file has it (J_z in 3D with gravity along z, J of a planar run without gravity,
-    'none'), else J_z (files of earlier versions), else None when the run has no momenta."""
-    name = run.attrs.get("conserved_momentum")
-    if name is not None:
-        return None if name in NO_VARIABLE else name
+    """The names of the run's conserved momentum components, a tuple: the root attribute
+    conserved_momentum, names separated by blanks (('J_z',) in 3D with gravity along z, ('J_g',) off
+    the axes, ('J_x', 'J_y', 'J_z') without gravity, ('J',) in a plane without gravity); in files of
+    earlier versions the column J_z (or the planar J); None when the run has none."""
+    names = run.attrs.get("conserved_momentum")
+    if names is not None:
+        return None if names in NO_VARIABLE else tuple(str(names).split())
     names = run.columns.get("angular_momentum")
     if names is None:
         # Earlier versions wrote J = (J_x, J_y, J_z) without column names.
@@ -317,17 +323,37 @@ def conserved_momentum(run):
         if momenta is None or momenta.ndim != 2 or momenta.shape[1] != 3:
             return None
         run.columns["angular_momentum"] = ["J_x", "J_y", "J_z"]
-        return "J_z"
-    return next((other for other in ("J_z", "J") if other in names), None)
+        return ("J_z",)
+    name = next((other for other in ("J_z", "J") if other in names), None)
+    return None if name is None else (name,)
+
+
+def conserved_values(run):
+    """{name: J_n.a} of each conserved component: /angular_momentum's column of that name, else
+    its columns J_x J_y J_z dotted with the component's axis (root attribute
+    conserved_momentum_axes, three numbers a component: J_g); {} when the run has none."""
+    names = conserved_momentum(run)
+    if names is None or "angular_momentum" not in run.data:
+        return {}
+    axes = np.reshape(np.asarray(run.attrs.get("conserved_momentum_axes", np.zeros(3 * len(names))), float), (-1, 3))
+    values = {}
+    for name, axis in zip(names, axes):
+        if name in (run.columns.get("angular_momentum") or ()):
+            values[name] = run.column("angular_momentum", name)
+        else:
+            j = [run.column("angular_momentum", f"J_{letter}") for letter in "xyz"]
+            values[name] = j[0] * axis[0] + j[1] * axis[1] + j[2] * axis[2]
+    return values
 
 
 def momentum_drift(run):
-    """(name, J_n - J_0) of the run's conserved momentum, or (None, None) when it has none."""
-    name = conserved_momentum(run)
-    if name is None or "angular_momentum" not in run.data:
+    """(name, J_n - J_0) of the run's conserved momentum component that drifts furthest, or
+    (None, None) when it has none."""
+    drifts = {name: values - values[0] for name, values in conserved_values(run).items()}
+    if not drifts:
         return None, None
-    values = run.column("angular_momentum", name)
-    return name, values - values[0]
+    name = max(drifts, key=lambda other: np.max(np.abs(drifts[other])))
+    return name, drifts[name]
 
 
 def snapshot_steps(time, requested):

@@ -4,17 +4,16 @@
 !>  - the field F(z) = f(sigma(z)) + N lambda: the continuous GENERIC field at the state whose
 !>    slaved entries (g2: tau_a with Theta_a = thetabar) are set from the others, plus the
 !>    constraint forces with their index-1 multipliers (g1);
-!>  - the projection after a step: positions back onto g = 0, then the momenta onto the
-!>    conserved angular momentum and every hidden constraint dg/dt = 0 at once (the least
-!>    change of p: p <- p - G^T (G G^T)^-1 r for the conditions' gradients G and residuals r),
-!>    then the slaved entries again. Only positions and momenta move (and slaved entries), so
-!>    in entropy variables the entropy of the free subsystems is untouched.
+!>  - the projection after a step: positions back onto g = 0, then the momenta onto every
+!>    conserved momentum component and every hidden constraint dg/dt = 0 at once (the least
+!>    change of p: p <- p - G (G^T G)^-1 r for the conditions' gradients G, one a column, and
+!>    residuals r), then the slaved entries again. Only positions and momenta move (and slaved
+!>    entries), so in entropy variables the entropy of the free subsystems is untouched.
 module constrained_flow
   use, intrinsic :: iso_fortran_env, only: real64
-  use failures, only: failure_none, domain_degenerate
+  use failures, only: failure_none
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
-  use dense_lu, only: lu_factors
   use number_text, only: scientific_text
   implicit none (type, external)
   private
@@ -94,54 +93,55 @@ contains
     end do
   end function slaved_entries
 
-  !> z back onto the constraints and the conserved momentum component `momentum` (see above);
-  !> stat: a domain code if a slaved entry has no value, domain_degenerate if the conditions are
-  !> degenerate.
-  subroutine project_state(model, constraints, momentum, z, stat)
+  !> z back onto the constraints and the conserved momentum components' values `momenta` (the
+  !> model's conserved_momenta; see above); stat: a domain code if a slaved entry has no value.
+  !> The least change solves G^T dp = -r by Gram-Schmidt on G's columns: a condition whose
+  !> gradient depends on the others' (to sqrt(eps) of its length) is implied by them and left
+  !> out, as J along the line of a straight pendulum, zero whatever p (its gradient is then 0).
+  subroutine project_state(model, constraints, momenta, z, stat)
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
-    real(real64), intent(in) :: momentum
+    real(real64), intent(in) :: momenta(:)
     real(real64), intent(inout) :: z(:)
     integer, intent(out) :: stat
-    real(real64) :: gradients(size(z), size(constraints) + 1), residuals(size(constraints) + 1)
-    real(real64) :: gram(size(constraints) + 1, size(constraints) + 1)
-    type(lu_factors) :: factors
-    integer :: k, m, info
+    real(real64) :: gradients(size(z), size(momenta) + size(constraints)), residuals(size(momenta) + size(constraints))
+    real(real64) :: basis(size(z), size(momenta) + size(constraints)), coefficients(size(momenta) + size(constraints))
+    real(real64) :: w(size(z)), r, overlap, length
+    integer :: k, j, i, m, kept
     logical :: has
 
     stat = failure_none
     do k = 1, size(constraints)
       call constraints(k)%item%project_positions(model, z)
     end do
-    ! The conditions linear in the momenta at the new positions: J.a = momentum (for a model with
-    ! a conserved momentum), c_k = 0.
-    m = 0
-    if (model%conserved_momentum_column > 0) then
-      m = 1
-      gradients(:, 1) = model%conserved_momentum_gradient(z)
-      residuals(1) = model%conserved_momentum(z) - momentum
+    ! The conditions linear in the momenta at the new positions: each conserved component's value
+    ! (J.a = momenta(k)), c_k = 0.
+    m = size(momenta)
+    if (m > 0) then
+      gradients(:, 1:m) = model%conserved_momenta_gradient(z)
+      residuals(1:m) = model%conserved_momenta(z) - momenta
     end if
     do k = 1, size(constraints)
       call constraints(k)%item%momentum_condition(model, z, has, residuals(m + 1), gradients(:, m + 1))
       if (has) m = m + 1
     end do
-    if (m == 0) then
-      continue
-    else if (m == 1) then
-      ! One condition: no linear solve.
-      gram(1, 1) = dot_product(gradients(:, 1), gradients(:, 1))
-      if (gram(1, 1) > 0.0_real64) z = z - residuals(1)/gram(1, 1)*gradients(:, 1)
-    else
-      gram(1:m, 1:m) = matmul(transpose(gradients(:, 1:m)), gradients(:, 1:m))
-      call factors%reset(m)
-      call factors%factor(gram(1:m, 1:m), info)
-      if (info == 0) call factors%solve(residuals(1:m), info)
-      if (info /= 0) then
-        stat = domain_degenerate
-        return
-      end if
-      z = z - matmul(gradients(:, 1:m), residuals(1:m))
-    end if
+    ! G = Q R column by column, and R^T y = r by forward substitution as it goes: dz = -Q y.
+    kept = 0
+    do j = 1, m
+      w = gradients(:, j)
+      r = residuals(j)
+      do i = 1, kept
+        overlap = dot_product(basis(:, i), w)
+        w = w - overlap*basis(:, i)
+        r = r - overlap*coefficients(i)
+      end do
+      length = norm2(w)
+      if (.not. (length > sqrt(epsilon(1.0_real64))*norm2(gradients(:, j)))) cycle
+      kept = kept + 1
+      basis(:, kept) = w/length
+      coefficients(kept) = r/length
+    end do
+    if (kept > 0) z = z - matmul(basis(:, 1:kept), coefficients(1:kept))
     do k = 1, size(constraints)
       call constraints(k)%item%slave_state(model, z, stat)
       if (stat /= failure_none) return
@@ -160,7 +160,7 @@ contains
   end function bath_temperature_of
 
   !> Why z0 cannot start the constrained continuous flow ('' if it can), with the nearest state
-  !> that can (the projection above, which keeps the conserved momentum), column by column.
+  !> that can (the projection above, which keeps the conserved momenta), column by column.
   function initial_inconsistency(model, constraints, z0) result(text)
     class(generic_model), intent(in) :: model
     type(constraint_slot), intent(in) :: constraints(:)
@@ -176,14 +176,14 @@ contains
     end do
     if (len(text) == 0) return
     z = z0
-    call project_state(model, constraints, model%conserved_momentum(z0), z, stat)
+    call project_state(model, constraints, model%conserved_momenta(z0), z, stat)
     if (stat /= failure_none) return
     changes = ''
     do k = 1, size(z)
       if (abs(z(k) - z0(k)) > 0.0_real64) changes = changes//', '//trim(model%column_names(k))//' = '//scientific_text(z(k))
     end do
-    if (model%conserved_momentum_column > 0) then
-      text = text//'; the nearest state that satisfies it with the same conserved momentum has '//changes(3:)
+    if (model%conserved_count() > 0) then
+      text = text//'; the nearest state that satisfies it with the same conserved momenta has '//changes(3:)
     else
       text = text//'; the nearest state that satisfies it has '//changes(3:)
     end if

@@ -79,6 +79,11 @@ module discrete_gradient_stepper
     logical :: fused = .false.             !! the kernel solves the steps
     integer :: max_halvings = 6            !! a step is solved in halves down to dt/2**max_halvings
     type(newton_solver) :: solver
+    !> The step check's re-solve (src/run/step_check): a solver with the defaults alone, made on
+    !> the first step that needs it, and whether it solves the steps now.
+    type(newton_solver) :: default_solver
+    logical :: resolving = .false.
+    integer :: max_iterations = 50         !! &integrator newton_max_iterations
     ! The local error estimate and the step-size control (module header).
     logical :: adaptive = .false.          !! &integrator tolerance given: the steps are chosen
     logical :: estimating = .false.        !! each step's estimate is computed (adaptive, or -eme_error_estimate)
@@ -97,6 +102,7 @@ module discrete_gradient_stepper
     procedure :: describe_solver
     procedure :: resume_state
     procedure :: restore_state
+    procedure :: resolve
   end type step_solver
 
   interface
@@ -167,6 +173,8 @@ contains
     if (allocated(self%x_last)) deallocate (self%x_last, self%increment)
     self%h_last = 0.0_real64
     self%fused = .false.
+    self%resolving = .false.
+    self%max_iterations = choice%newton_max_iterations
     if (allocated(self%kernel)) deallocate (self%kernel)
     if (options%fused_kernel) call fused_step_of(self%problem, self%kernel, self%fused)
     if (self%fused) then
@@ -229,23 +237,46 @@ contains
     integer :: n
 
     n = self%problem%model%state_size
-    allocate (tally%multiplier_integral(size(x_old) - n))
-    tally%multiplier_integral = 0.0_real64
-    tally%reason = ''
-    tally%last_rejection = ''
+    call start_tally(tally, size(x_old) - n)
     if (self%adaptive) then
       call adaptive_step(self, x_old, t_old, x_new, tally, report, failure)
       call finish_report(self, tally, x_new, report, failure)
       return
     end if
-    call step_or_halve(self, x_old, dt, guess, x_new, 0, tally, report%accepted, failure)
-    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/dt
-    call finish_report(self, tally, x_new, report, failure)
+    call halved_step(self, x_old, dt, guess, x_new, tally, report, failure)
     report%diagnostics = [real(tally%substeps, real64)]
     if (.not. self%estimating .or. failure%failed() .or. .not. report%accepted) return
     call estimate_step(self, x_old(1:n), x_new(1:n), dt, estimate_norm)
     report%diagnostics = [report%diagnostics, estimate_norm]
   end subroutine advance
+
+  ! A tally of substeps with no substep yet, for a step with n_multipliers multipliers.
+  subroutine start_tally(tally, n_multipliers)
+    type(substep_tally), intent(out) :: tally
+    integer, intent(in) :: n_multipliers
+
+    allocate (tally%multiplier_integral(n_multipliers))
+    tally%multiplier_integral = 0.0_real64
+    tally%reason = ''
+    tally%last_rejection = ''
+  end subroutine start_tally
+
+  ! The step of h from x_old in halves where needed (step_or_halve), its multipliers the
+  ! substeps' time averages, and its report.
+  subroutine halved_step(self, x_old, h, guess, x_new, tally, report, failure)
+    class(step_solver), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), h, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(substep_tally), intent(inout) :: tally
+    type(step_report), intent(inout) :: report
+    type(failure_type), intent(out) :: failure
+    integer :: n
+
+    n = self%problem%model%state_size
+    call step_or_halve(self, x_old, h, guess, x_new, 0, tally, report%accepted, failure)
+    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/h
+    call finish_report(self, tally, x_new, report, failure)
+  end subroutine halved_step
 
   ! The report of a step from what its (sub)steps did; on acceptance the temperatures the (last
   ! sub)step's K0 used.
@@ -264,8 +295,13 @@ contains
     report%reason = tally%reason
     report%last_rejection = tally%last_rejection
     report%halvings = max(0, tally%substeps - 1)     ! each halving adds one substep
-    report%residual_norm = self%solver%last_residual_norm
-    report%converged_reason = self%solver%last_reason
+    if (self%resolving) then
+      report%residual_norm = self%default_solver%last_residual_norm
+      report%converged_reason = self%default_solver%last_reason
+    else
+      report%residual_norm = self%solver%last_residual_norm
+      report%converged_reason = self%solver%last_reason
+    end if
     allocate (report%scheme_temperature(self%problem%model%temperature_count()))
     report%scheme_temperature = 0.0_real64
     if (failure%failed() .or. .not. report%accepted) return
@@ -343,14 +379,59 @@ contains
       block
         real(real64) :: y_new(size(guess) - self%kernel%eliminated)
 
-        call find_root(self%solver, self%kernel, start(self%kernel%eliminated + 1:), self%kernel%condense(guess), y_new, &
-                       search, failure, continuing)
+        if (self%resolving) then
+          call find_root(self%default_solver, self%kernel, start(self%kernel%eliminated + 1:), &
+                         self%kernel%condense(guess), y_new, search, failure, continuing)
+        else
+          call find_root(self%solver, self%kernel, start(self%kernel%eliminated + 1:), self%kernel%condense(guess), &
+                         y_new, search, failure, continuing)
+        end if
         x_new = self%kernel%expand(y_new)
       end block
+    else if (self%resolving) then
+      call find_root(self%default_solver, self%problem, start, guess, x_new, search, failure, continuing)
     else
       call find_root(self%solver, self%problem, start, guess, x_new, search, failure, continuing)
     end if
   end subroutine solve_step
+
+  !> The step of h from x_old solved again by a solver with the defaults alone (no command-line
+  !> option), to its rounding floor (newton_tol 0: only the rounding and stagnation tests of
+  !> retry_strategies accept), in halves where needed; for an adaptive run too, at the step it
+  !> accepted (no estimate).
+  subroutine resolve(self, x_old, t_old, h, guess, x_new, report, failure)
+    class(step_solver), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), t_old, h, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    type(failure_type), intent(out) :: failure
+    type(substep_tally) :: tally
+    real(real64) :: estimate_norm
+    integer :: n
+
+    if (self%fused) then
+      call self%default_solver%prepare(self%kernel, 0.0_real64, max(self%max_iterations, 50), failure, &
+                                       from_options=.false.)
+    else
+      call self%default_solver%prepare(self%problem, 0.0_real64, max(self%max_iterations, 50), failure, &
+                                       from_options=.false.)
+    end if
+    if (failure%failed()) return
+    n = self%problem%model%state_size
+    call start_tally(tally, size(x_old) - n)
+    self%resolving = .true.
+    call halved_step(self, x_old, h, guess, x_new, tally, report, failure)
+    self%resolving = .false.
+    report%chose_time = self%adaptive
+    report%time = t_old + h
+    ! The datasets of diagnostics(): substeps, then the estimate, then the adaptive step's figures.
+    report%diagnostics = [real(tally%substeps, real64)]
+    if (.not. self%estimating) return
+    estimate_norm = ieee_value(1.0_real64, ieee_quiet_nan)
+    if (.not. failure%failed() .and. report%accepted) call estimate_step(self, x_old(1:n), x_new(1:n), h, estimate_norm)
+    report%diagnostics = [report%diagnostics, estimate_norm]
+    if (self%adaptive) report%diagnostics = [report%diagnostics, h, 0.0_real64, 0.0_real64, 0.0_real64, 0.0_real64]
+  end subroutine resolve
 
   !> Frees the SNES objects.
   subroutine release(self, failure)
@@ -358,6 +439,7 @@ contains
     type(failure_type), intent(out) :: failure
 
     if (self%solver%created) call self%solver%destroy(failure)
+    if (self%default_solver%created .and. .not. failure%failed()) call self%default_solver%destroy(failure)
   end subroutine release
 
   !> What a step leaves for the next (a continued run restores it, bit for bit): the step-size

@@ -8,10 +8,16 @@
 !> whose rows this table takes in.
 module integrator_registry
   use stepper, only: time_stepper
+  use step_balances, only: balance_count
   implicit none (type, external)
   private
   public :: integrator_entry, registered_integrators, find_integrator, integrator_names, build_integrator
+  public :: keeps_structure, all_balances, momentum_balance
   public :: family_discrete_gradient, family_petsc_ts, family_relaxation, family_sundials
+
+  !> The guarantees of a structure-preserving scheme, and of one that keeps the momenta alone.
+  logical, parameter :: all_balances(balance_count) = .true.
+  logical, parameter :: momentum_balance(balance_count) = [.false., .true., .false., .false.]
 
   !> The families, as the output's `scheme_family` attribute names them.
   character(len=*), parameter :: family_discrete_gradient = 'discrete_gradient_step'  !! one SNES system per step
@@ -42,9 +48,11 @@ module integrator_registry
     logical :: error_control = .false.
     logical :: reads_newton_settings = .true.       !! solves nonlinear systems with newton_tol, newton_max_iterations
     logical :: chooses_time = .false.               !! reaches times of its own (relaxation, adaptive steps)
-    !> Keeps the structure on every step, to round-off: E, the model's conserved momentum,
-    !> dS >= 0 and dV <= 0 (EME, the relaxed schemes); tests/e2e/test_conformance_steps checks it.
-    logical :: keeps_structure = .false.
+    !> The balances (src/structure/step_balances: energy, momentum, entropy, lyapunov) it keeps on
+    !> every accepted step to round-off, which the time loop checks after each step against their
+    !> bounds (docs/faults.md): all four for EME and the relaxed schemes, the momenta for the
+    !> midpoint rule, none for the baselines.
+    logical :: guarantees(balance_count) = .false.
     !> Integrates the constrained flow in continuous time (the constraints' continuous forms,
     !> index-1 multipliers): the initial state must satisfy the hidden constraints too.
     logical :: continuous_constraints = .false.
@@ -62,7 +70,13 @@ module integrator_registry
 
 contains
 
+  !> Whether the entry keeps the whole structure on every step (E, the conserved momenta, dS >= 0,
+  !> dV <= 0); tests/e2e/test_conformance_steps checks it.
+  pure logical function keeps_structure(entry)
+    type(integrator_entry), intent(in) :: entry
 
+    keeps_structure = all(entry%guarantees)
+  end function keeps_structure
 
   !> A new, unstarted integrator of `entry`, knowing its registry name (the relaxed integrators
   !> take their tableau by it).

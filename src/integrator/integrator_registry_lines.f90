@@ -22,11 +22,11 @@ contains
     entries = [ &
       integrator_entry(name='eme', family=family_discrete_gradient, label='EME', &
         description='energy-momentum-entropy scheme (15): discrete gradients, one SNES system per step', &
-        takes_constraints=.true., uses_discrete_gradient=.true., error_control=.true., keeps_structure=.true., build=new_eme, &
+        takes_constraints=.true., uses_discrete_gradient=.true., error_control=.true., guarantees=all_balances, build=new_eme, &
         scheme_temperature='discrete temperatures D_tau U_a / D_tau S_a of the step, where K0 is evaluated'), &
       integrator_entry(name='midpoint', family=family_discrete_gradient, label='MP', &
         description='implicit midpoint rule: the exact partials at the midpoint, one SNES system per step', &
-        takes_constraints=.true., error_control=.true., build=new_midpoint, &
+        takes_constraints=.true., error_control=.true., guarantees=momentum_balance, build=new_midpoint, &
         scheme_temperature='temperatures at the step''s midpoint, where K0 is evaluated'), &
       integrator_entry(name='ts_midpoint', family=family_petsc_ts, label='TS-midpoint', &
         description='PETSc TSTHETA with theta = 1/2: the implicit midpoint rule with PETSc''s SNES defaults', &
@@ -64,7 +64,7 @@ contains
                                    description=tableaux(k)%description, adaptive=tableau%embedded, chooses_time=.true., &
                                    error_control=.not. tableau%embedded, reads_newton_settings=tableau%implicit, &
                                    scheme_temperature=relaxed_temperature, takes_constraints=.true., &
-                                   continuous_constraints=.true., keeps_structure=.true., build=new_relaxed_runge_kutta)
+                                   continuous_constraints=.true., guarantees=all_balances, build=new_relaxed_runge_kutta)
       end do
     end function relaxed_rows
   end procedure registered_integrators

@@ -1,6 +1,6 @@
 !> Relaxation of a Runge-Kutta step (Ketcheson 2019; Ranocha, Sayyari, Dalcin, Parsani,
 !> Ketcheson 2020; docs/integrators.md): the step z + d is replaced by z_new(gamma) = P(z + gamma d),
-!> where P projects onto the constraints and the conserved component of the angular momentum
+!> where P projects onto the constraints and every conserved component of the momenta
 !> (src/integrator/constrained_flow: positions, then the momenta, then slaved entries), and
 !> gamma is the root near 1 of
 !>   r(gamma) = [E(z_new) - E(z)] - thetabar [S(z_new) - S(z) - gamma e_S] = 0,
@@ -46,14 +46,14 @@ contains
     !> grows like (|z|/|d|)^2 eps: at tight tolerances and in slivers of steps it can exceed the
     !> band an order allows, which then cannot be asked of gamma.
     real(real64), intent(out), optional :: resolution
-    real(real64) :: momentum, bath, floor, g_a, g_b, q_a, q_b, g_next, best, best_r
+    real(real64) :: momenta(model%conserved_count()), bath, floor, g_a, g_b, q_a, q_b, g_next, best, best_r
     integer :: k, stat
     logical :: stalled
 
     found = .false.
     evaluations = 0
     gamma = 1.0_real64
-    momentum = model%conserved_momentum(z)
+    momenta = model%conserved_momenta(z)
     bath = bath_temperature_of(constraints)
     call rounding_floor(floor, stat)
     if (stat /= failure_none) return
@@ -121,7 +121,7 @@ contains
       integer, intent(out) :: stat
 
       z_new = z + g*d
-      call project_state(model, constraints, momentum, z_new, stat)
+      call project_state(model, constraints, momenta, z_new, stat)
     end subroutine increment
 
     ! q = r(g)/g at z_new = P(z + g d).

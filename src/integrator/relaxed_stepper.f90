@@ -1,10 +1,10 @@
-!> Relaxed Runge-Kutta integrators (docs/integrators.md): every step keeps E exactly, the conserved
-!> component of J exactly, S non-decreasing and V = E - theta_R S non-increasing, at order 4 to 8.
+!> Relaxed Runge-Kutta integrators (docs/integrators.md): every step keeps E exactly, every conserved
+!> component of the momenta exactly, S non-decreasing and V = E - theta_R S non-increasing, at order 4 to 8.
 !>
 !> The step runs in entropy variables (tau = s), whatever the run's thermodynamic variable: there
 !> S is linear in z, L grad S = 0 everywhere, and every stage has positive temperatures. With
 !> d = h sum_i b_i f(g_i) and e_S = h sum_i b_i grad S.f(g_i) = h sum_i b_i sigma(g_i), sigma >= 0,
-!> the relaxed update P(z + gamma d) (projected onto the constraints and the conserved J;
+!> the relaxed update P(z + gamma d) (projected onto the constraints and the conserved momenta;
 !> src/integrator/relaxation) has
 !>   S_{n+1} - S_n = gamma e_S   exactly (to rounding),
 !> which is >= 0 when every b_i >= 0 (RK4, Cooper-Verner 8, Gauss-Legendre 3) and is guarded
@@ -26,6 +26,13 @@
 !> tolerances 1e-4 to 1e-10: |gamma - 1| has its median at 0.003 to 0.02 of tol**(7/9) and its
 !> largest value at 2.5 times it; docs/integrators.md).
 !>
+!> Accuracy warnings: without a tolerance in force nothing bounds the local error of a fixed
+!> step, and E, the momenta and dS >= 0 hold all the same (the thermoelastic scene,
+!> inputs/romero_thermoelastic.nml, with relaxed_rk4 at dt = 0.15 s: 1297 trial steps halved,
+!> |gamma - 1| up to 0.80, the entropy production 3.42 times the true one). A run that halved a step without a tolerance, or whose
+!> gamma moved more than gamma_warning_deviation from 1 (beyond what rounding resolves), says so
+!> at its end (accuracy_warnings; docs/integrators.md, Accuracy warnings).
+!>
 !> Constraints enter through their continuous-time forms (src/integrator/constrained_flow): g1
 !> by its index-1 force and the projection, g2 as a heat bath at thetabar, for which the relaxed
 !> functional is V = E - thetabar S with V_{n+1} - V_n = -thetabar gamma e_S <= 0.
@@ -44,7 +51,7 @@ module relaxed_stepper
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use solver_description, only: add_setting, text_setting, no_solver
-  use number_text, only: integer_text, fixed_text, scientific_text
+  use number_text, only: integer_text, fixed_text, scientific_text, reals_text
   implicit none (type, external)
   private
   public :: relaxed_runge_kutta, new_relaxed_runge_kutta
@@ -63,6 +70,8 @@ module relaxed_stepper
   !> A step that would leave less than landing_slack h to t_end lands on t_end instead: a last
   !> step of round-off size would carry no information for relaxation to work with.
   real(real64), parameter :: landing_slack = 0.01_real64
+  !> The largest |gamma - 1| of an accepted (sub)step that passes without a warning (module header).
+  real(real64), parameter :: gamma_warning_deviation = 0.1_real64
 
   !> A relaxed Runge-Kutta integrator and its state in entropy variables.
   type, extends(time_stepper) :: relaxed_runge_kutta
@@ -89,6 +98,11 @@ module relaxed_stepper
     character(len=:), allocatable :: last_failure
     real(real64), allocatable :: z_saved(:)
     real(real64) :: t_saved = 0.0_real64, gamma_saved = 1.0_real64, production_saved = 0.0_real64
+    ! The run's record for its accuracy warnings: rejected and halved attempts of the accepted
+    ! steps, and the largest |gamma - 1| of an accepted (sub)step beyond its rounding resolution.
+    integer :: run_rejections = 0, run_halvings = 0
+    real(real64) :: max_gamma_deviation = 0.0_real64, deviation_saved = 0.0_real64
+    real(real64) :: dt = 0.0_real64                    !! the nominal step, for the warnings' words
   contains
     procedure :: start
     procedure :: advance
@@ -97,6 +111,7 @@ module relaxed_stepper
     procedure :: describe_solver
     procedure :: resume_state
     procedure :: restore_state
+    procedure :: accuracy_warnings
     procedure, private :: restore
   end type relaxed_runge_kutta
 
@@ -188,7 +203,7 @@ contains
     allocate (self%z(size(z0)))
     call model%convert_state(z0, self%model, self%z, stat)
     ! The input has checked that z0 satisfies the constraints; this removes the conversion's round-off.
-    if (stat == failure_none) call project_state(self%model, constraints, self%model%conserved_momentum(self%z), self%z, stat)
+    if (stat == failure_none) call project_state(self%model, constraints, self%model%conserved_momenta(self%z), self%z, stat)
     if (stat /= failure_none) call fail(failure, stat, 'the initial state cannot be taken to the entropy '// &
                                         'variables and projected: '//failure_code_name(stat), 'relaxed_runge_kutta%start')
     self%t = 0.0_real64
@@ -198,6 +213,10 @@ contains
     if (self%adaptive .or. choice%tolerance_given) self%gamma_band = gamma_band_factor* &
       choice%tolerance**(real(self%tableau%order - 1, real64)/real(self%tableau%order + 1, real64))
     self%h_next = choice%dt
+    self%dt = choice%dt
+    self%run_rejections = 0
+    self%run_halvings = 0
+    self%max_gamma_deviation = 0.0_real64
     self%newton_tol = choice%newton_tol
     self%newton_max_iterations = choice%newton_max_iterations
     if (allocated(self%last_stages)) deallocate (self%last_stages)
@@ -275,7 +294,39 @@ contains
     end do
     report%accepted = stat == failure_none
     if (.not. report%accepted) report%reason = 'the state left the model''s domain'
+    self%run_rejections = self%run_rejections + self%rejections
+    self%run_halvings = self%run_halvings + self%halvings
   end subroutine advance
+
+  !> A complete run's warning, with its counts and figure, when its accuracy is in doubt: a
+  !> fixed-step run without a tolerance that rejected (and halved) a step, or any run whose gamma
+  !> moved more than gamma_warning_deviation from 1 (an adaptive run's rejections are its control
+  !> at work, as are a fixed-step run's under a tolerance's gamma band); '' otherwise.
+  function accuracy_warnings(self) result(text)
+    class(relaxed_runge_kutta), intent(in) :: self
+    character(len=:), allocatable :: text
+    logical :: uncontrolled
+
+    text = ''
+    uncontrolled = .not. (self%adaptive .or. self%gamma_band < huge(1.0_real64))
+    if (uncontrolled .and. self%run_rejections > 0) &
+      text = integer_text(self%run_rejections)//' trial steps rejected ('//integer_text(self%run_halvings)// &
+             ' halved)'
+    if (self%max_gamma_deviation > gamma_warning_deviation) then
+      if (len(text) > 0) text = text//' and '
+      text = text//'|gamma - 1| up to '//fixed_text(self%max_gamma_deviation, 3)//' (over '// &
+             fixed_text(gamma_warning_deviation, 1)//')'
+    end if
+    if (len(text) == 0) return
+    if (self%adaptive .or. .not. uncontrolled) then
+      text = text//': the steps of '//trim(self%scheme)//' at this tolerance are long for its accuracy (E, the '// &
+             'momenta and dS >= 0 hold all the same); a smaller &integrator tolerance is the remedy (docs/integrators.md)'
+    else
+      text = text//': dt = '//reals_text([self%dt])//' s is too long for '//trim(self%scheme)// &
+             '''s accuracy, which nothing controlled (E, the momenta and dS >= 0 hold all the same); '// &
+             '&integrator tolerance is the remedy (docs/integrators.md)'
+    end if
+  end function accuracy_warnings
 
   !> Frees the stage solver's PETSc objects.
   subroutine release(self, failure)
@@ -373,6 +424,7 @@ contains
     self%t_saved = self%t
     self%gamma_saved = self%last_gamma
     self%production_saved = self%entropy_production
+    self%deviation_saved = self%max_gamma_deviation
     self%z = z_new
     if (landing) then
       self%t = self%t + h
@@ -381,6 +433,7 @@ contains
     end if
     self%last_gamma = gamma
     self%entropy_production = self%entropy_production + gamma*e_s
+    if (abs(gamma - 1.0_real64) > resolution) self%max_gamma_deviation = max(self%max_gamma_deviation, abs(gamma - 1.0_real64))
   end subroutine relaxed_step
 
   ! Undoes the last committed step (the adaptive method's error test refused it).
@@ -391,6 +444,7 @@ contains
     self%t = self%t_saved
     self%last_gamma = self%gamma_saved
     self%entropy_production = self%production_saved
+    self%max_gamma_deviation = self%deviation_saved
   end subroutine restore
 
   ! The stage derivatives k_i = f(g_i) of a step of h: explicit stages one after another, or the
@@ -455,10 +509,11 @@ contains
 
   !> What a step leaves for the next (a continued run restores it, bit for bit): the time, the
   !> adaptive method's next trial step, the state in entropy variables (the run's file holds it in
-  !> the run's own variable, which converts back only to rounding), and for implicit stages the
-  !> last step's stage derivatives (the next predictor) and the stage solver's LU factors (its
-  !> chord refinement). Layout: t, h_next, n, z(1:n), m, last_stages(1:m) (m = 0: none), then
-  !> the factors as lu_factors' as_values.
+  !> the run's own variable, which converts back only to rounding), for implicit stages the
+  !> last step's stage derivatives (the next predictor), the record behind the accuracy warnings,
+  !> and the stage solver's LU factors (its chord refinement). Layout: t, h_next, n, z(1:n), m,
+  !> last_stages(1:m) (m = 0: none), run_rejections, run_halvings, max_gamma_deviation, then the
+  !> factors as lu_factors' as_values.
   subroutine resume_state(self, values)
     class(relaxed_runge_kutta), intent(in) :: self
     real(real64), allocatable, intent(inout) :: values(:)
@@ -468,8 +523,8 @@ contains
     n = size(self%z)
     m = 0
     if (allocated(self%last_stages)) m = size(self%last_stages)
-    count = 4 + n + m + 2
-    if (self%tableau%implicit) count = 4 + n + m + self%solver%context%lu%value_count()
+    count = 7 + n + m + 2
+    if (self%tableau%implicit) count = 7 + n + m + self%solver%context%lu%value_count()
     if (allocated(values)) then
       if (size(values) /= count) deallocate (values)
     end if
@@ -478,8 +533,10 @@ contains
     values(4:3 + n) = self%z
     values(4 + n) = real(m, real64)
     if (m > 0) values(5 + n:4 + n + m) = self%last_stages
-    values(5 + n + m:) = 0.0_real64
-    if (self%tableau%implicit) call self%solver%context%lu%put_values(values(5 + n + m:))
+    values(5 + n + m:7 + n + m) = [real(self%run_rejections, real64), real(self%run_halvings, real64), &
+                                   self%max_gamma_deviation]
+    values(8 + n + m:) = 0.0_real64
+    if (self%tableau%implicit) call self%solver%context%lu%put_values(values(8 + n + m:))
   end subroutine resume_state
 
   !> Takes back what resume_state gave (after `start`); a failure (failure_mismatch) if `values`
@@ -498,16 +555,19 @@ contains
     if (nint(values(3)) /= n) return
     m = nint(values(4 + n))
     if (m /= 0 .and. m /= n*self%tableau%stages) return
-    if (size(values) < 4 + n + m) return
+    if (size(values) < 7 + n + m) return
     solver_order = 0
     if (self%tableau%implicit) solver_order = self%solver%n
-    call self%solver%context%lu%from_values(values(5 + n + m:), solver_order, ok)
+    call self%solver%context%lu%from_values(values(8 + n + m:), solver_order, ok)
     if (.not. ok) return
     self%t = values(1)
     self%h_next = values(2)
     self%z = values(4:3 + n)
     if (allocated(self%last_stages)) deallocate (self%last_stages)
     if (m > 0) self%last_stages = values(5 + n:4 + n + m)
+    self%run_rejections = nint(values(5 + n + m))
+    self%run_halvings = nint(values(6 + n + m))
+    self%max_gamma_deviation = values(7 + n + m)
     failure = failure_type()
   end subroutine restore_state
 

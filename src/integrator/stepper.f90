@@ -65,6 +65,8 @@ module stepper
     procedure :: describe_solver
     procedure :: resume_state
     procedure :: restore_state
+    procedure :: accuracy_warnings
+    procedure :: resolve
   end type time_stepper
 
   abstract interface
@@ -141,6 +143,32 @@ contains
     if (size(values) /= 0) call fail(failure, failure_mismatch, 'the stored integrator state has '// &
                                      'values this integrator does not keep', 'time_stepper%restore_state')
   end subroutine restore_state
+
+  !> What the integrator's record of the run so far says against trusting its accuracy, as one
+  !> text with the figures behind it ('' if nothing); by default nothing.
+  function accuracy_warnings(self) result(text)
+    class(time_stepper), intent(in) :: self
+    character(len=:), allocatable :: text
+
+    text = ''
+  end function accuracy_warnings
+
+  !> The step of h from x_old (at t_old) solved again with the model's default solver settings,
+  !> whatever the command line set, and to the solver's rounding floor: the time loop's remedy for
+  !> an accepted step that broke a balance the integrator guarantees (src/run/step_check). By
+  !> default an integrator has no other settings: the step is not accepted, with the reason.
+  subroutine resolve(self, x_old, t_old, h, guess, x_new, report, failure)
+    class(time_stepper), intent(inout), target :: self
+    real(real64), intent(in) :: x_old(:), t_old, h, guess(:)
+    real(real64), intent(out) :: x_new(:)
+    type(step_report), intent(out) :: report
+    type(failure_type), intent(out) :: failure
+
+    x_new = x_old
+    report%accepted = .false.
+    report%reason = 'the integrator has no default solver settings to solve it again with'
+    failure = failure_type()
+  end subroutine resolve
 
   !> Accepts a step whose end state z_new is finite and in the model's domain (its temperatures
   !> then go to report%scheme_temperature); otherwise says why not.

@@ -11,7 +11,8 @@ module command_help
   use failures, only: failure_type
   use run_config, only: run_configuration, integrator_fields, output_fields
   use study_config, only: study_fields, sweep_fields, max_sweep_values
-  use integrator_registry, only: integrator_entry, registered_integrators, family_relaxation
+  use integrator_registry, only: integrator_entry, registered_integrators, family_relaxation, keeps_structure
+  use step_balances, only: balance_names
   implicit none (type, external)
   private
   public :: print_run_help, print_study_help, print_integrators, has_argument
@@ -171,14 +172,14 @@ contains
 
     allocate (entries, source=registered_integrators())
     if (tabular) write (unit, '(a)') 'name'//tab//'family'//tab//'label'//tab//'takes_constraints'//tab//'adaptive' &
-      //tab//'error_control'//tab//'keeps_structure'//tab//'description'
+      //tab//'error_control'//tab//'keeps_structure'//tab//'guarantees'//tab//'description'
     do i = 1, size(entries)
       associate (e => entries(i))
         if (tabular) then
           write (unit, '(a)') trim(e%name)//tab//trim(e%family)//tab//trim(e%label)//tab// &
             trim(merge('yes', 'no ', e%takes_constraints))//tab//trim(merge('yes', 'no ', e%adaptive))//tab// &
-            trim(merge('yes', 'no ', e%error_control))//tab//trim(merge('yes', 'no ', e%keeps_structure))//tab// &
-            trim(e%description)
+            trim(merge('yes', 'no ', e%error_control))//tab//trim(merge('yes', 'no ', keeps_structure(e)))//tab// &
+            guarantee_names(e)//tab//trim(e%description)
         else
           write (unit, '(4x, a, t20, a)') trim(e%name), trim(e%description)
           write (unit, '(t20, a)') 'family '//trim(e%family)//'; '//trim(merge('takes constraints   ', &
@@ -187,6 +188,23 @@ contains
       end associate
     end do
   end subroutine print_integrators
+
+  ! The balances an integrator guarantees on every step, comma-separated ('none' if none).
+  function guarantee_names(entry) result(names)
+    type(integrator_entry), intent(in) :: entry
+    character(len=:), allocatable :: names
+    integer :: k
+
+    names = ''
+    do k = 1, size(entry%guarantees)
+      if (entry%guarantees(k)) names = names//','//trim(balance_names(k))
+    end do
+    if (len(names) == 0) then
+      names = 'none'
+    else
+      names = names(2:)
+    end if
+  end function guarantee_names
 
   ! How an integrator's steps are chosen, for --help.
   function steps_text(entry) result(text)

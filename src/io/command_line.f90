@@ -3,7 +3,8 @@
 !> argument as its value, as PETSc reads it, unless that argument ends in '.nml': then it is the
 !> input file. `initialize_petsc` hands PETSc the command line without the input file, so that
 !> no option takes it for its value (-help FILE.nml, -info FILE.nml). `check_own_options` checks
-!> the -eme_* options' values before anything reads them; `unused_petsc_options` lists the
+!> the -eme_* options' values before anything reads them; `check_petsc_file_options` the files
+!> PETSc's options would write, before PETSc starts and after; `unused_petsc_options` lists the
 !> options nothing used, as -options_left would.
 module command_line
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_null_char
@@ -13,13 +14,15 @@ module command_line
   implicit none (type, external)
   private
   public :: command_arguments, parse_command_line, initialize_petsc, check_own_options, petsc_help_requested
-  public :: unused_petsc_options, benchmark_repeats, petsc_error_text, check_petsc_viewer_files, has_argument
+  public :: unused_petsc_options, benchmark_repeats, petsc_error_text, check_petsc_file_options, has_argument, &
+            launcher_rank, forget_petsc_file_options
 
   !> What the command line asked for.
   type :: command_arguments
     character(len=:), allocatable :: input_file          !! '' when none was given
     character(len=32), allocatable :: flags(:)           !! the program's own options that were given
     integer :: file_position = 0                         !! the input file's place on the command line (0: none)
+    character(len=:), allocatable :: given_files         !! every argument taken for an input file, each on a line
   contains
     procedure :: has_flag
   end type command_arguments
@@ -36,6 +39,12 @@ module command_line
       import :: c_int
       integer(c_int) :: requested
     end function c_help_requested
+    function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+      integer(c_int) :: status
+    end function c_unused_options
     ! src/solver/petsc_options.c
     function c_check_own_options(message, size) result(status) bind(c, name='eme_check_own_options')
       import :: c_char, c_int
@@ -52,18 +61,23 @@ module command_line
       character(kind=c_char), intent(out) :: text(*)
       integer(c_int), value :: size
     end subroutine c_error_text
-    function c_check_viewer_files(message, size) result(status) bind(c, name='eme_petsc_check_viewer_files')
+    ! src/io/petsc_option_files.c
+    function c_check_option_files(started, arguments, count, files, folders, study_folders, message, size) &
+        result(status) bind(c, name='eme_petsc_check_option_files')
       import :: c_char, c_int
+      integer(c_int), value :: started, count, study_folders, size
+      character(kind=c_char), intent(in) :: arguments(*), files(*), folders(*)
       character(kind=c_char), intent(out) :: message(*)
-      integer(c_int), value :: size
       integer(c_int) :: status
-    end function c_check_viewer_files
-    function c_unused_options(text, size) result(status) bind(c, name='eme_petsc_unused_options')
-      import :: c_char, c_int
-      character(kind=c_char), intent(out) :: text(*)
-      integer(c_int), value :: size
+    end function c_check_option_files
+    function c_forget_file_options() result(status) bind(c, name='eme_petsc_forget_file_options')
+      import :: c_int
       integer(c_int) :: status
-    end function c_unused_options
+    end function c_forget_file_options
+    function c_launcher_rank() result(rank) bind(c, name='eme_launcher_rank')
+      import :: c_int
+      integer(c_int) :: rank
+    end function c_launcher_rank
   end interface
 
 contains
@@ -82,6 +96,7 @@ contains
 
     allocate (arguments%flags(0))
     arguments%input_file = ''
+    arguments%given_files = ''
     files = ''
     file_count = 0
     after_petsc_option = .false.
@@ -104,6 +119,7 @@ contains
           arguments%file_position = i
         end if
         files = files//' '''//argument//''''
+        arguments%given_files = arguments%given_files//argument//new_line('a')
         after_petsc_option = .false.
       end if
     end do
@@ -161,20 +177,13 @@ contains
     type(command_arguments), intent(in) :: arguments
     type(failure_type), intent(out) :: failure
     integer :: stat
-    character(len=:), allocatable :: list, argument
-    integer :: i, count
+    character(len=:), allocatable :: list
+    integer :: count
 
-    list = command_argument(0)//c_null_char
-    count = 1
-    do i = 1, command_argument_count()
-      argument = command_argument(i)
-      if (i == arguments%file_position .or. arguments%has_flag(argument)) cycle
-      list = list//argument//c_null_char
-      count = count + 1
-    end do
+    call petsc_arguments(arguments, list, count)
     ! PETSc's errors come back as codes with a message (petsc_error_text), never as a traceback.
     stat = int(c_capture_errors())
-    if (stat == 0) stat = int(c_petsc_initialize(list, int(count, c_int)))
+    if (stat == 0) stat = int(c_petsc_initialize(command_argument(0)//c_null_char//list, int(count + 1, c_int)))
     call fail_on_code(failure, stat, 'PetscInitialize', 'PETSc could not start')
   end subroutine initialize_petsc
 
@@ -188,18 +197,61 @@ contains
     text = c_string(buffer)
   end function petsc_error_text
 
-  !> After PetscInitialize: a failure (failure_input) if an option asks PETSc to write a file
-  !> (-log_view :FILE, -snes_view ascii:FILE, ...) that cannot be written, which PETSc would find
-  !> out only when the run has ended; failure_library if PETSc cannot list its options.
-  subroutine check_petsc_viewer_files(failure)
+  !> A failure (failure_input, "option -NAME VALUE: ...") if an option would have PETSc write a
+  !> file (-log_view :FILE, -snes_view binary:FILE, -info FILE, -history FILE, ...) that is one of
+  !> `files` or lies in one of `folders` (each path and what it is on two lines:
+  !> output_path's protected_entry), or with `study_folders` in a study's output folder. Before
+  !> PetscInitialize (`started` .false.) the options are the command line's, PETSC_OPTIONS' and
+  !> their options files' (PETSc opens the files of -history, -info and -log_trace as it starts);
+  !> after, PETSc's database, and each viewer file must be writable too (PETSc would find out
+  !> only at the end of the run; collective then). failure_library if PETSc cannot list its options.
+  subroutine check_petsc_file_options(arguments, started, files, folders, study_folders, failure)
+    type(command_arguments), intent(in) :: arguments
+    logical, intent(in) :: started, study_folders
+    character(len=*), intent(in) :: files, folders
     type(failure_type), intent(out) :: failure
     character(kind=c_char, len=2048) :: buffer
-    integer :: status
+    character(len=:), allocatable :: list
+    integer :: status, count
 
+    call petsc_arguments(arguments, list, count)
     buffer = ''
-    status = int(c_check_viewer_files(buffer, len(buffer, kind=c_int)))
+    status = int(c_check_option_files(merge(1_c_int, 0_c_int, started), list//c_null_char, int(count, c_int), &
+                                      files//c_null_char, folders//c_null_char, &
+                                      merge(1_c_int, 0_c_int, study_folders), buffer, len(buffer, kind=c_int)))
     call option_failure(failure, status, c_string(buffer))
-  end subroutine check_petsc_viewer_files
+  end subroutine check_petsc_file_options
+
+  !> Before PetscFinalize of a run refused before it ran (exit status 2): the options that have
+  !> PETSc write a file are forgotten, so that nothing is written (PETSc writes -log_view's file
+  !> as it finalizes).
+  subroutine forget_petsc_file_options()
+    if (c_forget_file_options() /= 0) return      ! (a database that cannot be listed: nothing to forget)
+  end subroutine forget_petsc_file_options
+
+  !> The rank the launcher (mpirun, srun) gave this process before MPI starts, or 0.
+  integer function launcher_rank()
+    launcher_rank = int(c_launcher_rank())
+  end function launcher_rank
+
+  ! The command line as PETSc is given it: without the program's name, the input file and the
+  ! program's own options; each argument ended by a NUL, `count` of them.
+  subroutine petsc_arguments(arguments, list, count)
+    type(command_arguments), intent(in) :: arguments
+    character(len=:), allocatable, intent(out) :: list
+    integer, intent(out) :: count
+    character(len=:), allocatable :: argument
+    integer :: i
+
+    list = ''
+    count = 0
+    do i = 1, command_argument_count()
+      argument = command_argument(i)
+      if (i == arguments%file_position .or. arguments%has_flag(argument)) cycle
+      list = list//argument//c_null_char
+      count = count + 1
+    end do
+  end subroutine petsc_arguments
 
   ! The C shims' answer about the options (0 all fine, 2 the database could not be listed, else
   ! the option named in `text` is refused) as a failure.

@@ -9,11 +9,15 @@ module filesystem
   private
   public :: make_directories, make_parent_directories, rename_file, exchange_files, copy_file, remove_file, &
             file_exists, append_text, reserve_space, sync_file, os_error_text, os_failure, stderr_is_terminal, &
-            output_lock, lock_output, unlock_output, lock_taken, lock_held_elsewhere, lock_not_offered
+            output_lock, lock_output, unlock_output, lock_taken, lock_held_elsewhere, lock_not_offered, &
+            recheck_lock
 
   !> What lock_output found, besides a failure: the lock is this process's; another live process
   !> holds it; the file system offers no working lock (the output is then written unguarded).
   integer, parameter :: lock_taken = 0, lock_held_elsewhere = -1, lock_not_offered = -2
+  ! What lock_state finds: the lock file is still the one this process locked; it was removed;
+  ! another file has its name (another writer's).
+  integer, parameter :: lock_intact = 0, lock_removed = 1, lock_replaced = 2
 
   !> The lock of an output while this process holds it: the lock file, open.
   type :: output_lock
@@ -84,6 +88,12 @@ module filesystem
       integer(c_int), value :: capacity
       integer(c_int) :: status
     end function c_lock_output
+    function c_lock_state(path, descriptor) result(state) bind(c, name='eme_lock_state')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: descriptor
+      integer(c_int) :: state
+    end function c_lock_state
     subroutine c_unlock_output(path, descriptor) bind(c, name='eme_unlock_output')
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: path(*)
@@ -241,7 +251,62 @@ contains
     end if
   end subroutine lock_output
 
-  !> Lets go of the lock (its file is removed); nothing to do if it is not held.
+  ! Whether the lock file is still the one this process locked (lock_intact), or was removed
+  ! (lock_removed) or replaced (lock_replaced) behind its back: the lock guards nothing once its
+  ! file lost its name. lock_intact for a lock not held (nothing to guard).
+  integer function lock_state(lock)
+    type(output_lock), intent(in) :: lock
+
+    lock_state = lock_intact
+    if (lock%descriptor < 0) return
+    lock_state = int(c_lock_state(lock%path//c_null_char, lock%descriptor))
+    if (lock_state < 0) lock_state = lock_intact
+  end function lock_state
+
+  ! After the lock was lost (lock_state): takes the lock file at its path again, as lock_output
+  ! (found: lock_taken, lock_held_elsewhere with its holder, ...); the lost one is let go.
+  subroutine take_lock_again(lock, found, holder, failure)
+    type(output_lock), intent(inout) :: lock
+    integer, intent(out) :: found
+    character(len=:), allocatable, intent(out) :: holder
+    type(failure_type), intent(out) :: failure
+    type(output_lock) :: again
+
+    call lock_output(again, lock%path, found, holder, failure)
+    call unlock_output(lock)          ! (its file lost the name: nothing is removed)
+    lock = again
+  end subroutine take_lock_again
+
+  !> Before a write: whether `lock` is still this process's (lock_state). If its file was removed
+  !> or replaced (`lost`), another writer can be in: the lock is taken again if it can be
+  !> (`retaken`; else `holder` names who holds it now), and `what` says what became of it
+  !> ('removed', 'replaced by another process''s').
+  subroutine recheck_lock(lock, lost, retaken, what, holder)
+    type(output_lock), intent(inout) :: lock
+    logical, intent(out) :: lost, retaken
+    character(len=:), allocatable, intent(out) :: what, holder
+    integer :: state, found
+    type(failure_type) :: taking
+
+    state = lock_state(lock)
+    lost = state /= lock_intact
+    retaken = .false.
+    what = ''
+    holder = ''
+    if (.not. lost) return
+    select case (state)
+    case (lock_removed)
+      what = 'removed'
+    case (lock_replaced)
+      what = 'replaced by another process''s'
+    end select
+    call take_lock_again(lock, found, holder, taking)
+    retaken = found == lock_taken .and. .not. taking%failed()
+    if (.not. retaken .and. len(holder) == 0) holder = 'another process'
+  end subroutine recheck_lock
+
+  !> Lets go of the lock (its file is removed if it still has its name); nothing to do if it is
+  !> not held.
   subroutine unlock_output(lock)
     type(output_lock), intent(inout) :: lock
 

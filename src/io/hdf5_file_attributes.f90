@@ -179,7 +179,7 @@ contains
             exit steps
           end if
           call h5aclose_f(attribute, ignored)
-          call h5adelete_f(object, name, stat)
+          stat = int(c_delete_attribute(int(object, c_int64_t), name//c_null_char))
           if (stat /= 0) exit steps
         end if
       end if

@@ -107,6 +107,7 @@ contains
           if (allocated(template%image)) deallocate (template%image)
           allocate (character(len=size) :: template%image)
           template%ready = c_copy_image(int(self%id, c_int64_t), template%image, size) == 0
+          template%image_texts = book_of(self%id)
         end if
       else
         if (self%deferred) then
@@ -114,8 +115,10 @@ contains
           write (label, '("eme_memory_file_", i0)') memory_files
           if (self%from_datasets) then
             stat = int(c_open_image(trim(label)//c_null_char, template%copy, len(template%copy, kind=c_long), id))
+            if (stat == 0) stat = start_book(id, template%dataset_texts)
           else
             stat = int(c_open_image(trim(label)//c_null_char, template%image, len(template%image, kind=c_long), id))
+            if (stat == 0) stat = start_book(id, template%image_texts)
           end if
           self%id = int(id, hid_t)
           self%deferred = .false.
@@ -128,7 +131,8 @@ contains
         end if
         do k = 1, template%count
           if (failure%failed()) exit
-          if (.not. template%touched(k)) call h5adelete_f(self%id, template%attributes(k)%name, stat)
+          if (.not. template%touched(k)) &
+            stat = int(c_delete_attribute(int(self%id, c_int64_t), template%attributes(k)%name//c_null_char))
           call hdf5_failure(failure, stat, template%attributes(k)%name)
         end do
       end if
@@ -169,6 +173,7 @@ contains
             template%sizes = int(sizes(1:count), int64)
             template%sealed = sealed(1:count) /= 0
             call move_alloc(image, template%dataset_image)
+            template%dataset_texts = book_of(self%id)
           end if
         end if
       end if
@@ -177,6 +182,37 @@ contains
     self%first_of_template = .false.
     self%from_datasets = .false.
   end procedure keep_template_datasets
+
+  ! The texts the open file `id` holds, as the book of its text checksum keeps them
+  ! (src/io/hdf5_text_checksum.c): kept with an image of the file, for the files made from it.
+  ! '' if none.
+  function book_of(id) result(text)
+    integer(hid_t), intent(in) :: id
+    character(len=:), allocatable :: text
+    integer(c_long) :: size
+
+    text = ''
+    size = c_texts_export(int(id, c_int64_t), text, 0_c_long)
+    if (size <= 0) return
+    deallocate (text)
+    allocate (character(len=size) :: text)
+    if (c_texts_export(int(id, c_int64_t), text, size) /= size) text = ''
+  end function book_of
+
+  ! Starts the book of the text checksum of `id`, a file just opened from an image, from the texts
+  ! kept with the image (read back from the file if none were kept). 0, or -1.
+  integer function start_book(id, texts)
+    integer(c_int64_t), intent(in) :: id
+    character(len=:), allocatable, intent(in) :: texts
+
+    if (allocated(texts)) then
+      if (len(texts) > 0) then
+        start_book = int(c_texts_import(id, texts, len(texts, kind=c_long)))
+        return
+      end if
+    end if
+    start_book = int(c_texts_begin(id, 1_c_int))
+  end function start_book
 
   ! A root attribute `name` about to be written with `value` (a kind letter and its bytes):
   ! recorded while a template records; against a template, `write` only if the template's value

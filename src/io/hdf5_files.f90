@@ -10,17 +10,21 @@
 module hdf5_files
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
-  use hdf5, only: hid_t, h5open_f, h5eset_auto_f, h5fclose_f, h5adelete_f   ! h5adelete_f: for the submodules
+  use hdf5, only: hid_t, h5open_f, h5eset_auto_f, h5fclose_f
   use failures, only: failure_type, fail, failure_io, failure_library, failure_mismatch
   use filesystem, only: os_failure
   implicit none (type, external)
   private
-  public :: hdf5_file, file_template, check_run_file, hdf5_failure
+  public :: hdf5_file, file_template, check_run_file, check_file_integrity, hdf5_failure, hdf5_file_kind, &
+            not_hdf5, run_file_kind, other_hdf5
   ! For the submodules only: gfortran gives a module's private procedures internal linkage,
   ! which a submodule, compiled apart, cannot reach.
   public :: open_library
 
   integer, parameter :: file_in_use = -3   !! open_existing: a reader holds the file open
+  !> What hdf5_file_kind finds at a path: no HDF5 file that opens, a run file of this project,
+  !> another HDF5 file.
+  integer, parameter :: not_hdf5 = 0, run_file_kind = 1, other_hdf5 = 2
 
   !> A root attribute of a template: its name and value (a kind letter and the value's bytes).
   type :: remembered_attribute
@@ -47,7 +51,9 @@ module hdf5_files
     logical :: ready = .false.           !! the image and its attributes are kept
     logical, private :: recording = .false.
     character(len=:), allocatable, private :: image
+    character(len=:), allocatable, private :: image_texts     !! the texts of image, as the checksum's book keeps them
     character(len=:), allocatable, private :: dataset_image   !! the first file with its datasets
+    character(len=:), allocatable, private :: dataset_texts   !! the texts of dataset_image
     character(len=:), allocatable, private :: layout          !! of the datasets in dataset_image
     character(len=:), allocatable, private :: names           !! its numeric datasets, each ended by a newline
     integer(int64), allocatable, private :: offsets(:), sizes(:)   !! their values' place in it (bytes)
@@ -73,6 +79,7 @@ module hdf5_files
     logical, private :: first_of_template = .false.   !! the file whose images the template keeps
     logical, private :: deferred = .false.            !! not open yet: its root attributes wait
     logical, private :: from_datasets = .false.       !! to open from the template's copy
+    logical, private :: writable = .false.            !! opened on disk for writing: sealed at close
   contains
     procedure :: create_in_memory
     procedure :: create_from_template
@@ -83,6 +90,8 @@ module hdf5_files
     procedure :: store
     procedure :: open_existing
     procedure :: close => close_file
+    procedure :: seal_texts
+    procedure :: check_texts
     procedure :: set_text
     procedure :: set_real
     procedure :: set_reals
@@ -181,6 +190,57 @@ module hdf5_files
       integer(c_long), intent(out) :: steps
       integer(c_int) :: status
     end function c_check_run_file
+    function c_file_kind(path) result(kind) bind(c, name='eme_h5_file_kind')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: kind
+    end function c_file_kind
+    function c_check_integrity(path) result(status) bind(c, name='eme_h5_check_integrity')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: status
+    end function c_check_integrity
+    ! src/io/hdf5_text_checksum.c
+    function c_seal_texts(file) result(status) bind(c, name='eme_h5_seal_texts')
+      import :: c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      integer(c_int) :: status
+    end function c_seal_texts
+    function c_verify_texts(file) result(status) bind(c, name='eme_h5_verify_texts')
+      import :: c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      integer(c_int) :: status
+    end function c_verify_texts
+    function c_texts_begin(file, read_back) result(status) bind(c, name='eme_h5_texts_begin')
+      import :: c_int, c_int64_t
+      integer(c_int64_t), value :: file
+      integer(c_int), value :: read_back
+      integer(c_int) :: status
+    end function c_texts_begin
+    subroutine c_texts_end(file) bind(c, name='eme_h5_texts_end')
+      import :: c_int64_t
+      integer(c_int64_t), value :: file
+    end subroutine c_texts_end
+    function c_texts_export(file, buffer, capacity) result(size) bind(c, name='eme_h5_texts_export')
+      import :: c_char, c_long, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(out) :: buffer(*)
+      integer(c_long), value :: capacity
+      integer(c_long) :: size
+    end function c_texts_export
+    function c_texts_import(file, buffer, size) result(status) bind(c, name='eme_h5_texts_import')
+      import :: c_char, c_int, c_long, c_int64_t
+      integer(c_int64_t), value :: file
+      character(kind=c_char), intent(in) :: buffer(*)
+      integer(c_long), value :: size
+      integer(c_int) :: status
+    end function c_texts_import
+    function c_delete_attribute(object, name) result(status) bind(c, name='eme_h5_delete_attribute')
+      import :: c_char, c_int, c_int64_t
+      integer(c_int64_t), value :: object
+      character(kind=c_char), intent(in) :: name(*)
+      integer(c_int) :: status
+    end function c_delete_attribute
   end interface
 
   ! The template half (src/io/hdf5_file_templates): a rank's case files start from its first one.
@@ -310,9 +370,39 @@ contains
     logical, intent(in) :: sync
     type(failure_type), intent(out) :: failure
 
+    call self%seal_texts(failure)
+    if (failure%failed()) return
     call hdf5_failure(failure, int(c_store_image(int(self%id, c_int64_t), trim(path)//c_null_char, &
                                                  merge(1_c_int, 0_c_int, sync))), path)
   end subroutine store
+
+  !> Writes the root attribute text_checksum, the checksum of every variable-length text of the
+  !> file (src/io/hdf5_text_checksum.c; docs/output.md, Checksums): `store` and the close of a
+  !> file opened for writing do it, after the last text was written. A failure if HDF5 failed.
+  subroutine seal_texts(self, failure)
+    class(hdf5_file), intent(in) :: self
+    type(failure_type), intent(out) :: failure
+
+    call hdf5_failure(failure, int(c_seal_texts(int(self%id, c_int64_t))), 'text_checksum')
+  end subroutine seal_texts
+
+  !> A failure (failure_mismatch) if the file's texts are not those its text_checksum was computed
+  !> from (a damaged text), failure_io if one cannot be read; nothing for a file written before
+  !> text_checksum existed.
+  subroutine check_texts(self, path, failure)
+    class(hdf5_file), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(failure_type), intent(out) :: failure
+
+    select case (c_verify_texts(int(self%id, c_int64_t)))
+    case (0, 2)
+    case (1)
+      call fail(failure, failure_mismatch, 'a text of the file fails its checksum (text_checksum): the file is '// &
+                'damaged', path)
+    case default
+      call fail(failure, failure_io, 'a text of the file cannot be read: the file is damaged', path)
+    end select
+  end subroutine check_texts
 
   !> Opens an existing file read-only, or for writing after reserving `reserve` bytes of disk for
   !> what will be added (default 64 KiB). A writer waits for readers that hold the file open:
@@ -349,27 +439,33 @@ contains
     end if
     self%id = int(id, hid_t)
     self%fresh = .false.
+    self%writable = writable .and. .not. failure%failed()
   end subroutine open_existing
 
-  !> Closes the file. (The HDF5 library stays open: other files may be in use.)
+  !> Closes the file, a file opened for writing after sealing its texts (seal_texts). (The HDF5
+  !> library stays open: other files may be in use.)
   subroutine close_file(self, failure)
     class(hdf5_file), intent(inout) :: self
     type(failure_type), intent(out) :: failure
     integer :: stat
 
     if (self%id < 0) return
+    if (self%writable) call self%seal_texts(failure)
+    call c_texts_end(int(self%id, c_int64_t))
     call h5fclose_f(self%id, stat)
-    call hdf5_failure(failure, stat, 'close')
+    if (.not. failure%failed()) call hdf5_failure(failure, stat, 'close')
     self%id = -1
+    self%writable = .false.
   end subroutine close_file
 
   !> Reads the run file at `path` back: its status and steps_completed, and whether every
   !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
   !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). With `whole`, also
-  !> every dataset read whole (their checksums) and the summary attributes (newton_iterations_total,
-  !> run_figures) checked against the datasets they summarise. A failure unless all holds:
-  !> failure_io if the file is unreadable, else failure_mismatch (no status, lengths disagree, a
-  !> dataset fails its checksum, a summary disagrees: the message says which).
+  !> every dataset read whole and the texts checked (their checksums) and the summary attributes
+  !> (newton_iterations_total, run_figures) checked against the datasets they summarise. A failure
+  !> unless all holds: failure_io if the file is unreadable, else failure_mismatch (no status,
+  !> lengths disagree, a dataset or a text fails its checksum, a summary disagrees: the message
+  !> says which).
   subroutine check_run_file(path, status, steps_completed, failure, whole)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: status
@@ -401,10 +497,46 @@ contains
       call fail(failure, failure_mismatch, 'a dataset of the run file fails its checksum', path)
     case (5)
       call fail(failure, failure_mismatch, 'a summary attribute of the run file disagrees with its datasets', path)
+    case (6)
+      call fail(failure, failure_mismatch, 'a text of the run file fails its checksum (text_checksum)', path)
     case default
       call fail(failure, failure_io, 'the run file cannot be read', path)
     end select
   end subroutine check_run_file
+
+  !> What the existing file at `path` is: not_hdf5 (or an HDF5 file that does not open), a run
+  !> file of this project (run_file_kind: its root has status and steps_completed), or another
+  !> HDF5 file (other_hdf5: a study's index.h5, another program's data).
+  integer function hdf5_file_kind(path)
+    character(len=*), intent(in) :: path
+    type(failure_type) :: failure
+
+    hdf5_file_kind = not_hdf5
+    call open_library(failure)
+    if (.not. failure%failed()) hdf5_file_kind = int(c_file_kind(trim(path)//c_null_char))
+  end function hdf5_file_kind
+
+  !> A failure unless every dataset of the file at `path` reads whole (their Fletcher-32 checksums)
+  !> and its texts are those its text_checksum was computed from: failure_io if it cannot be
+  !> opened, else failure_mismatch saying which (src/io/hdf5_storage.c).
+  subroutine check_file_integrity(path, failure)
+    character(len=*), intent(in) :: path
+    type(failure_type), intent(out) :: failure
+    integer :: stat
+
+    call open_library(failure)
+    if (failure%failed()) return
+    stat = int(c_check_integrity(trim(path)//c_null_char))
+    select case (stat)
+    case (0)
+    case (4)
+      call fail(failure, failure_mismatch, 'a dataset fails its checksum (Fletcher-32): the file is damaged', path)
+    case (6)
+      call fail(failure, failure_mismatch, 'a text fails its checksum (text_checksum): the file is damaged', path)
+    case default
+      call fail(failure, failure_io, 'the file cannot be read as HDF5: it is damaged', path)
+    end select
+  end subroutine check_file_integrity
 
   !> Turns a storage status into a failure at `origin` (0 leaves `failure` as it was): an OS error
   !> number (> 0) is the OS's words (failure_io); -2, the file did not read back as written

@@ -12,6 +12,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+int eme_h5_note_texts(hid_t object, const char *name, char *const *texts, size_t count);   /* hdf5_text_checksum.c */
+
 /* The entries of `joined` (each ended by a newline) as strings in *copy (to be freed with the
  * returned array); NULL if there is none or memory is short. */
 static char **split_lines(const char *joined, size_t *count, char **copy)
@@ -84,14 +86,17 @@ int eme_h5_write_text_array_attribute(hid_t object, const char *name, const char
         if (H5Awrite(attribute, text.type, text.entries) >= 0) status = 0;
         H5Aclose(attribute);
     }
+    if (status == 0) (void)eme_h5_note_texts(object, name, text.entries, text.count);
     text_array_close(&text);
     return status;
 }
 
 /* Creates dataset `name` in `file` holding `joined` (each entry ended by a newline) as
  * variable-length UTF-8 strings and makes it the dimension scale `name`; *scale is left open
- * (the caller attaches it with eme_h5_attach_scales and closes it). The write converts through a
- * buffer of its own size: HDF5's default is a 1 MiB buffer, cleared for every write. */
+ * (the caller attaches it with eme_h5_attach_scales and closes it). HDF5 takes no filter on a
+ * variable-length type, so no Fletcher-32 here: the texts are under the file's text_checksum
+ * (hdf5_text_checksum.c). The write converts through a buffer of its own size: HDF5's default
+ * is a 1 MiB buffer, cleared for every write. */
 int eme_h5_column_scale(hid_t file, const char *name, const char *joined, hid_t *scale)
 {
     struct text_array text;
@@ -102,8 +107,10 @@ int eme_h5_column_scale(hid_t file, const char *name, const char *joined, hid_t 
     if (transfer >= 0 && H5Pset_buffer(transfer, text.count * sizeof(char *) + 64, NULL, NULL) >= 0) {
         *scale = H5Dcreate2(file, name, text.type, text.space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
         if (*scale >= 0 && H5Dwrite(*scale, text.type, H5S_ALL, H5S_ALL, transfer, text.entries) >= 0 &&
-            H5DSset_scale(*scale, name) >= 0)
+            H5DSset_scale(*scale, name) >= 0) {
             status = 0;
+            (void)eme_h5_note_texts(*scale, "", text.entries, text.count);   /* (a failure drops the book) */
+        }
     }
     if (transfer >= 0) H5Pclose(transfer);
     text_array_close(&text);

@@ -4,7 +4,7 @@
 !> A `series_table` groups datasets that gain a row together (one per time point, or one per
 !> step). Rows are buffered in memory (bounded: `capacity_rows`) and written a window at a time.
 !> Datasets whose final length is known when they are first written are made of that length,
-!> the others extendible; every dataset of more than one value is chunked with HDF5's Fletcher-32
+!> the others extendible; every dataset that holds a value is chunked with HDF5's Fletcher-32
 !> checksum, and deflated (with the shuffle filter) when a compression level is set. Datasets are (rows) or (rows, width) as h5py shows them. A table's first dataset can be
 !> the HDF5 dimension scale of the others' rows (src/io/hdf5_scales.c). A row of the file can
 !> stand for several rows given to the table (`accumulate`, then `commit`): each dataset keeps

@@ -169,10 +169,10 @@ contains
 
   ! Creates one dataset of the table with its attributes: chunked with an unlimited row count,
   ! or of `extent` if `final` (one chunk of every row up to chunk_rows); deflated at level
-  ! `compression` (after the shuffle filter) if that is > 0. Every dataset of more than one
-  ! value carries HDF5's Fletcher-32 checksum, first in the filter pipeline (over the values
-  ! themselves), so that a damaged chunk fails its read instead of giving other numbers; one of
-  ! at most one value is contiguous (docs/output.md, Checksums).
+  ! `compression` (after the shuffle filter) if that is > 0. Every dataset that holds a value,
+  ! one or many, carries HDF5's Fletcher-32 checksum, first in the filter pipeline (over the
+  ! values themselves), so that a damaged chunk fails its read instead of giving other numbers;
+  ! only an empty one (no chunk to check) is contiguous (docs/output.md, Checksums).
   subroutine create_dataset(file, item, rank, extent, final, chunk_rows, compression, dataset, failure)
     type(hdf5_file), intent(in) :: file
     type(series), intent(in) :: item
@@ -198,7 +198,7 @@ contains
       max_dims = extent
       chunk(rank) = min(chunk(rank), extent(rank))
     end if
-    checked = .not. final .or. product(extent(1:rank)) > 1
+    checked = .not. final .or. product(extent(1:rank)) > 0
     compressed = compression > 0 .and. chunk(rank) > 0 .and. checked
     call h5screate_simple_f(rank, extent(1:rank), space, stat, max_dims(1:rank))
     call hdf5_failure(failure, stat, item%name)

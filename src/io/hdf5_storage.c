@@ -30,6 +30,10 @@
 int eme_write_whole_file(const char *path, const void *data, long size, int sync);  /* posix_files.c */
 int eme_reserve_space(const char *path, long bytes);                              /* posix_files.c */
 int eme_h5_read_text_attribute(hid_t object, const char *name, char *text, int capacity);  /* hdf5_text.c */
+int eme_h5_verify_texts(hid_t file);                                              /* hdf5_text_checksum.c */
+int eme_h5_texts_begin(hid_t file, int read_back);                                /* hdf5_text_checksum.c */
+void eme_h5_texts_end(hid_t file);                                                /* hdf5_text_checksum.c */
+int eme_h5_texts_move(hid_t from, hid_t to);                                      /* hdf5_text_checksum.c */
 
 /* A new, empty HDF5 file in memory (core driver, no backing store); `label` names it in HDF5's
  * list of open files and must differ between files open at once. Its format is HDF5 1.8's
@@ -48,7 +52,7 @@ int eme_h5_create_in_memory(const char *label, hid_t *file)
     if (access >= 0 && creation >= 0 && H5Pset_fapl_core(access, 64 * 1024, 0) >= 0 &&
         H5Pset_libver_bounds(access, H5F_LIBVER_V18, H5F_LIBVER_V18) >= 0 && H5Pset_istore_k(creation, 4) >= 0) {
         *file = H5Fcreate(label, H5F_ACC_TRUNC, creation, access);
-        if (*file >= 0) status = 0;
+        if (*file >= 0) status = eme_h5_texts_begin(*file, 0);
     }
     if (creation >= 0) H5Pclose(creation);
     if (access >= 0) H5Pclose(access);
@@ -352,9 +356,23 @@ int eme_h5_open_file(const char *path, int writable, long reserve, int wait_ms, 
     }
     struct stat before;
     if (writable && stat(path, &before) != 0) return errno;
+    /* A writer's texts are read back first, for the checksum it writes at the close
+     * (hdf5_text_checksum.c), in an open of their own: read in the writer's open, the global heap
+     * would take the new texts where it has room, and the file operations would depend on the
+     * texts' lengths. */
+    hid_t reader = -1;
     if (writable) {
+        hid_t quiet = H5Pcreate(H5P_FILE_ACCESS);
+        if (quiet >= 0 && H5Pset_file_locking(quiet, 0, 1) >= 0) reader = H5Fopen(path, H5F_ACC_RDONLY, quiet);
+        if (quiet >= 0) H5Pclose(quiet);
+        int read = reader >= 0 && eme_h5_texts_begin(reader, 1) == 0;
+        if (reader >= 0) H5Fclose(reader);
+        if (!read) return -1;
         int error = eme_reserve_space(path, reserve);
-        if (error != 0) return error;
+        if (error != 0) {
+            eme_h5_texts_end(reader);
+            return error;
+        }
     }
     hid_t access = H5Pcreate(H5P_FILE_ACCESS);
     if (access < 0) return -1;
@@ -362,6 +380,10 @@ int eme_h5_open_file(const char *path, int writable, long reserve, int wait_ms, 
     if (!unlocked) *file = H5Fopen(path, mode, access);
     if (*file < 0 && writable && H5Pset_file_locking(access, 0, 1) >= 0) *file = H5Fopen(path, mode, access);
     H5Pclose(access);
+    if (writable && eme_h5_texts_move(reader, *file) != 0 && *file >= 0) {
+        H5Fclose(*file);
+        *file = -1;
+    }
     if (*file < 0 && writable) (void)truncate(path, before.st_size);   /* give the reservation back */
     return *file >= 0 ? 0 : -1;
 }
@@ -502,12 +524,50 @@ static int optional_values(hid_t file, const char *name, double **values, hssize
     return read_values(file, name, values, count);
 }
 
+/* The largest drift max_n |J_n.a - J_0.a| over the conserved momentum components of a run file
+ * (their axes a: the root attribute conserved_momentum_axes, 3 numbers each) from the `points`
+ * rows of /angular_momentum, `columns` wide (J_x J_y J_z, or the planar J about e_z); files
+ * older than the attribute conserved J_z. Summed in the order the time loop sums them
+ * (src/structure/model_interface.f90, component_values); -1 if the axes cannot be read, -2 if
+ * no component is conserved (conserved_momentum = 'none'). */
+static double conserved_momentum_drift(hid_t file, const double *momentum, hssize_t points, hssize_t columns)
+{
+    double axes[3 * 3] = {0, 0, 1};
+    hssize_t count = 1;
+    if (H5Aexists(file, "conserved_momentum_axes") > 0) {
+        hid_t attribute = H5Aopen(file, "conserved_momentum_axes", H5P_DEFAULT);
+        hid_t shape = attribute >= 0 ? H5Aget_space(attribute) : -1;
+        hssize_t numbers = shape >= 0 ? H5Sget_simple_extent_npoints(shape) : 0;
+        count = numbers / 3;
+        int readable = numbers == 3 * count && count >= 1 && count <= 3 &&
+                       H5Aread(attribute, H5T_NATIVE_DOUBLE, axes) >= 0;
+        if (shape >= 0) H5Sclose(shape);
+        if (attribute >= 0) H5Aclose(attribute);
+        if (!readable) return -1;
+    } else if (H5Aexists(file, "conserved_momentum") > 0) {
+        return -2;
+    }
+    double drift = 0;
+    for (hssize_t k = 0; k < count; ++k) {
+        const double *a = axes + 3 * k;
+        double first = 0;
+        for (hssize_t i = 0; i < points; ++i) {
+            const double *j = momentum + columns * i;
+            double value = columns == 3 ? j[0] * a[0] + j[1] * a[1] + j[2] * a[2] : j[0] * a[2];
+            if (i == 0) first = value;
+            drift = fmax(drift, fabs(value - first));
+        }
+    }
+    return drift;
+}
+
 /* The summary attributes of a run file against the datasets they summarise (src/run/simulation
  * .f90 computes both): newton_iterations_total is the sum of newton_iterations; run_figures'
  * min_entropy_increment and max_lyapunov_increment are the extremes of those datasets, and its
- * energy drift, J_z drift and lowest temperature are those of the points stored (equal when
- * every point is stored, else no better than the points show). 0 if all holds (or the file
- * predates the attributes), 1 if not, -1 if a dataset cannot be read. */
+ * energy drift, conserved momentum drift (conserved_momentum_drift) and lowest temperature are
+ * those of the points stored (equal when every point is stored, else no better than the points
+ * show). 0 if all holds (or the file predates the attributes), 1 if not, -1 if a dataset cannot
+ * be read. */
 static int check_figures(hid_t file, long long steps)
 {
     double figures[7];
@@ -556,9 +616,10 @@ static int check_figures(hid_t file, long long steps)
                 found[0] = fmax(found[0], fabs(energy[i] - energy[0] - (heat ? heat[i] : 0)) / fabs(energy[0]));
             have[0] = 1;
         }
-        if (momentum != NULL && n_momentum == 3 * points && points > 0) {
-            for (hssize_t i = 0; i < points; ++i) found[1] = fmax(found[1], fabs(momentum[3 * i + 2] - momentum[2]));
-            have[1] = 1;
+        if (momentum != NULL && points > 0 && (n_momentum == 3 * points || n_momentum == points)) {
+            found[1] = conserved_momentum_drift(file, momentum, points, n_momentum / points);
+            have[1] = found[1] >= 0;
+            mismatches += found[1] == -1;
         }
         if (theta != NULL && n_theta > 0) {
             for (hssize_t i = 0; i < n_theta; ++i) found[2] = theta[i] != theta[i] ? NAN : fmin(found[2], theta[i]);
@@ -577,14 +638,50 @@ static int check_figures(hid_t file, long long steps)
     return failed ? -1 : mismatches > 0;
 }
 
+/* Whether the open `file` reads whole: every dataset of its root group (a damaged chunk fails its
+ * Fletcher-32 checksum), and its texts against their checksum (eme_h5_verify_texts). 0 if so, 4
+ * if a dataset cannot be read, 6 if a text fails its checksum or cannot be read. */
+static int file_integrity(hid_t file)
+{
+    int failures = 0;
+    hsize_t position = 0;
+    if (H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, read_whole, &failures) < 0 || failures > 0) return 4;
+    int texts = eme_h5_verify_texts(file);
+    return texts == 0 || texts == 2 ? 0 : 6;
+}
+
+/* Whether the HDF5 file at `path` is whole (file_integrity): 0, 1 if it cannot be opened, 4 or 6. */
+int eme_h5_check_integrity(const char *path)
+{
+    hid_t file;
+    if (eme_h5_open_file(path, 0, 0, 0, &file) != 0) return 1;
+    int result = file_integrity(file);
+    if (H5Fclose(file) < 0 && result == 0) result = 1;
+    return result;
+}
+
+/* What the file at `path` is: 1 a run file of this project (its root has the attributes status
+ * and steps_completed, as every run file has had), 2 another HDF5 file (a study's index.h5,
+ * another program's data), 0 no HDF5 file that opens. */
+int eme_h5_file_kind(const char *path)
+{
+    hid_t file;
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);     /* (called before the Fortran side opened HDF5 too) */
+    if (H5Fis_hdf5(path) <= 0 || eme_h5_open_file(path, 0, 0, 0, &file) != 0) return 0;
+    int kind = H5Aexists(file, "status") > 0 && H5Aexists(file, "steps_completed") > 0 ? 1 : 2;
+    H5Fclose(file);
+    return kind;
+}
+
 /* Reads a run file back: its `status` into `status` (capacity bytes) and `steps_completed`, and
  * checks that every per-point dataset has R + 1 rows and every per-step dataset R rows, R being
  * the attribute step_rows (a row can stand for several steps: &output every), or
  * steps_completed in files without it. With `whole`, it also reads every dataset whole (a
- * damaged chunk fails its checksum) and checks the summary attributes against the datasets
- * (check_figures). Returns 0 if all holds, 1 if the file cannot be opened, 2 if status or
- * steps_completed is missing, 3 if a dataset has the wrong length or cannot be read, 4 if a
- * dataset fails its checksum (`whole`), 5 if a summary attribute disagrees with the datasets. */
+ * damaged chunk fails its checksum), checks its texts against their checksum, and checks the
+ * summary attributes against the datasets (check_figures). Returns 0 if all holds, 1 if the file
+ * cannot be opened, 2 if status or steps_completed is missing, 3 if a dataset has the wrong
+ * length or cannot be read, 4 if a dataset fails its checksum (`whole`), 5 if a summary attribute
+ * disagrees with the datasets, 6 if a text fails its checksum (`whole`). */
 int eme_h5_check_run_file(const char *path, char *status, int capacity, long *steps_completed, int whole)
 {
     hid_t file;
@@ -602,12 +699,8 @@ int eme_h5_check_run_file(const char *path, char *status, int capacity, long *st
             check.mismatches++;
         result = check.mismatches == 0 && check.datasets > 0 ? 0 : 3;
         if (result == 0 && whole) {
-            int failures = 0;
-            position = 0;
-            if (H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, &position, read_whole, &failures) < 0 || failures > 0)
-                result = 4;
-            else if (check_figures(file, steps) != 0)
-                result = 5;
+            result = file_integrity(file);
+            if (result == 0 && check_figures(file, steps) != 0) result = 5;
         }
     }
     if (H5Fclose(file) < 0 && result == 0) result = 1;

@@ -6,9 +6,22 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-/* Writes attribute `name` = `value`. On a `fresh` object (created by this process, with no
- * attributes yet) no existence query is made; otherwise an old value is replaced. */
+int eme_h5_note_texts(hid_t object, const char *name, char *const *texts, size_t count);   /* hdf5_text_checksum.c */
+
+static int write_text(hid_t object, const char *name, const char *value, int fresh);
+
+/* Writes attribute `name` = `value` and notes it for the file's text checksum. On a
+ * `fresh` object (created by this process, with no attributes yet) no existence query is made;
+ * otherwise an old value is replaced. */
 int eme_h5_write_text_attribute(hid_t object, const char *name, const char *value, int fresh)
+{
+    char *texts[1] = {(char *)value};
+    int status = write_text(object, name, value, fresh);
+    if (status == 0) (void)eme_h5_note_texts(object, name, texts, 1);
+    return status;
+}
+
+static int write_text(hid_t object, const char *name, const char *value, int fresh)
 {
     hid_t type = H5Tcopy(H5T_C_S1);
     if (type < 0) return -1;

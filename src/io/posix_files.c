@@ -277,11 +277,24 @@ int eme_lock_output(const char *path, int *descriptor, char *holder, int capacit
     return EAGAIN;
 }
 
-/* Lets go of a lock taken by eme_lock_output: removes the lock file while still holding it, then
- * closes it (which releases the lock). Nothing to do for descriptor -1. */
+/* Whether the lock file at `path` is still the file the open `descriptor` holds locked (an
+ * eme_lock_output's): 0 if so; 1 if no file has the name (it was removed); 2 if another file has
+ * it (removed and made again, by another writer); -1 for descriptor -1. Anyone can remove the
+ * name of a file another process has locked: the lock then guards nothing. */
+int eme_lock_state(const char *path, int descriptor)
+{
+    struct stat held, named;
+    if (descriptor < 0 || fstat(descriptor, &held) != 0) return -1;
+    if (stat(path, &named) != 0) return 1;
+    return held.st_dev == named.st_dev && held.st_ino == named.st_ino ? 0 : 2;
+}
+
+/* Lets go of a lock taken by eme_lock_output: removes the lock file while still holding it, if
+ * the name is still that file's (never another writer's lock file), then closes it (which
+ * releases the lock). Nothing to do for descriptor -1. */
 void eme_unlock_output(const char *path, int descriptor)
 {
     if (descriptor < 0) return;
-    (void)unlink(path);
+    if (eme_lock_state(path, descriptor) == 0) (void)unlink(path);
     close(descriptor);
 }

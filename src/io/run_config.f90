@@ -364,8 +364,9 @@ contains
         integer_field('newton_max_iterations', c%newton_max_iterations, &
                       'an integer >= 1 (Newton iterations per solve)', minimum=1), &
         integer_field('max_steps', c%max_steps, 'an integer >= 1 (default '//integer_text(default_step_budget)// &
-                      '): the most accepted steps of the run; a fixed-step run that needs more is refused, one '// &
-                      'that chooses its steps stops there (exit status 3)', minimum=1)]
+                      '): the most accepted steps of the whole run (with -eme_continue, the steps before count '// &
+                      'too); a fixed-step run that needs more is refused, one that chooses its steps stops there '// &
+                      '(exit status 3)', minimum=1)]
     end associate
   end function integrator_fields
 

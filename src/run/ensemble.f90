@@ -17,7 +17,7 @@ module ensemble
                      MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
-  use study_index, only: case_index, case_result, status_length, kind_length, metric_count
+  use study_index, only: case_index, case_result, status_length, kind_length, metric_count, m_warned
   use study_case_files, only: case_file, case_overrides
   use run_config, only: run_configuration
   use run_outcome, only: failure_io, failure_interrupted
@@ -27,7 +27,7 @@ module ensemble
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
   use number_text, only: integer_text, fixed_text
-  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, recheck_lock
   use failures, only: failure_type, fail, code_input => failure_input, code_io => failure_io
   implicit none (type, external)
   private
@@ -67,6 +67,9 @@ module ensemble
     integer :: index_errors = 0
     logical :: stopping = .false.             !! hand out no more cases
     character(len=:), allocatable :: io_message
+    type(output_lock) :: lock                 !! output_dir/study.lock: one study at a time in output_dir
+    logical :: lock_lost = .false.            !! it was removed or replaced behind the study's back
+    logical :: index_lost = .false.           !! ... and another study holds it: the index is not ours
     procedure(line_reporter), pointer, nopass :: report => null()
     real(real64) :: started = 0.0_real64
     real(real64) :: last_progress = 0.0_real64
@@ -93,8 +96,7 @@ contains
     type(study_outcome), intent(out) :: outcome
     type(failure_type), intent(out) :: failure
     procedure(line_reporter), optional :: report
-    type(study_manager) :: manager
-    type(output_lock) :: lock                 !! rank 0's: one study at a time in output_dir
+    type(study_manager) :: manager            !! (rank 0's, with the lock of output_dir)
     type(failure_type) :: handlers
     integer :: rank, ranks, flag(1), counts(7)
 
@@ -104,13 +106,13 @@ contains
     if (present(report)) manager%report => report
     outcome%io_message = ''
     outcome%cases = size(study%cases)
-    if (rank == 0) call lock_directory(study, lock, failure, report)
+    if (rank == 0) call lock_directory(study, manager%lock, failure, report)
     if (rank == 0 .and. .not. failure%failed()) call prepare(manager, study, ranks, failure)
     flag = failure%code
     call MPI_Bcast(flag, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
     if (flag(1) /= 0) then
       if (rank /= 0) call fail(failure, flag(1), 'rank 0 could not prepare the study index')
-      call unlock_output(lock)
+      call unlock_output(manager%lock)
       return
     end if
     if (rank == 0) then
@@ -128,7 +130,7 @@ contains
     outcome%index_errors = counts(4)
     outcome%signal = counts(5)
     outcome%io_failure = counts(6) == 1
-    call unlock_output(lock)
+    call unlock_output(manager%lock)
   end subroutine run_study
 
   ! Takes the lock of the study's output_dir (created if missing), output_dir/study.lock, so that
@@ -263,7 +265,8 @@ contains
     outcome%failed = count(manager%index%results%status(1:7) == 'failed:')
     outcome%skipped = skipped
     outcome%wall_seconds = MPI_Wtime() - manager%started
-    call manager%index%close(closing)
+    call guard_lock(manager)
+    if (.not. manager%index_lost) call manager%index%close(closing)
     if (closing%failed()) then
       call index_failed(manager, closing)
       call say(manager, 'eme_ensemble: '//closing%message//'; '//manager%index%journal_path//' holds every result; running '// &
@@ -352,6 +355,8 @@ contains
     manager%done = manager%done + 1
     if (result%status(1:7) == 'failed:') manager%failed = manager%failed + 1
     manager%done_cost = manager%done_cost + manager%study%cases(c)%cost
+    call guard_lock(manager)
+    if (manager%index_lost) return
     call manager%index%record(c, result, recording)
     if (recording%failed()) call index_failed(manager, recording)
     if (result%failure_kind == failure_io .and. len(manager%io_message) == 0) then
@@ -361,6 +366,30 @@ contains
                'is room)')
     end if
   end subroutine record
+
+  ! Before the index is written: whether output_dir/study.lock is still the study's. Removed or
+  ! replaced behind its back, it lets a second study in: no new cases start and the study ends as
+  ! after a failed write (exit 1); the index and the journal are written on only if the lock can
+  ! be taken again, else they are the other study's now.
+  subroutine guard_lock(manager)
+    type(study_manager), intent(inout) :: manager
+    character(len=:), allocatable :: holder, what
+    logical :: retaken
+
+    if (manager%lock_lost) return
+    call recheck_lock(manager%lock, manager%lock_lost, retaken, what, holder)
+    if (.not. manager%lock_lost) return
+    manager%stopping = .true.
+    manager%index_lost = .not. retaken
+    manager%io_message = manager%lock%path//' was '//what//' while the study ran, so that a second study could '// &
+                         'start in '//manager%study%output_dir//'; no new cases start'
+    if (manager%index_lost) then
+      manager%io_message = manager%io_message//', and the index is left to '//holder//', which holds the lock now'
+    else
+      manager%io_message = manager%io_message//' (the lock was taken again; run the study again to go on)'
+    end if
+    call say(manager, 'eme_ensemble: '//manager%io_message)
+  end subroutine guard_lock
 
   ! The index could not be written: counted, said once, and no new cases start.
   subroutine index_failed(manager, failure)
@@ -378,7 +407,8 @@ contains
     type(study_manager), intent(inout) :: manager
     logical, intent(in) :: final
     real(real64) :: now, elapsed, remaining
-    character(len=:), allocatable :: interrupted
+    character(len=:), allocatable :: interrupted, warned
+    integer :: warned_cases
 
     now = MPI_Wtime()
     if (.not. final .and. now - manager%last_progress < progress_interval) return
@@ -391,8 +421,13 @@ contains
       interrupted = ''
       if (count(results%status(1:11) == 'incomplete:') > 0) &
         interrupted = integer_text(count(results%status(1:11) == 'incomplete:'))//' interrupted, '
+      ! Complete cases whose accuracy is in doubt (the index's column warned; docs/integrators.md).
+      warned = ''
+      warned_cases = count(results%status == 'complete' .and. results%metrics(m_warned) > 0)
+      if (warned_cases > 0) warned = ' ('//integer_text(warned_cases)//' warned)'
       call say(manager, 'eme_ensemble: '//integer_text(count(results%status == 'complete'))//'/'// &
-               integer_text(size(results))//' cases complete, '//integer_text(count(results%status(1:7) == 'failed:')) &
+               integer_text(size(results))//' cases complete'//warned//', '// &
+               integer_text(count(results%status(1:7) == 'failed:')) &
                //' failed, '//interrupted//fixed_text(elapsed, 1)//' s elapsed, about '//fixed_text(remaining, 1)// &
                ' s left')
     end associate
@@ -521,7 +556,7 @@ contains
                       summary%min_entropy_increment, summary%max_lyapunov_increment, &
                       summary%angular_momentum_drift, summary%min_temperature, &
                       real(summary%halved_steps, real64), real(summary%rejected_steps, real64), &
-                      real(rank, real64), 0.0_real64]
+                      merge(1.0_real64, 0.0_real64, len(summary%warnings) > 0), real(rank, real64), 0.0_real64]
   end subroutine run_case
 
 end module ensemble

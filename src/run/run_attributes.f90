@@ -68,12 +68,19 @@ contains
     call real_attribute('quotient_threshold', quotient_threshold, '1')
     if (.not. failure%failed()) call file%set_integer('unknowns', model%state_size + size(constraints), failure, units='1')
     if (.not. failure%failed()) call file%set_integer('schema_version', schema_version, failure, units='1')
-    ! The momentum whose drift run_figures reports (a column of /angular_momentum), 'none' if none.
-    if (model%conserved_momentum_column > 0) then
-      call text('conserved_momentum', trim(model%momentum_names(model%conserved_momentum_column)))
-    else
-      call text('conserved_momentum', 'none')
-    end if
+    ! The conserved momentum components whose largest drift run_figures reports, by name separated
+    ! by blanks (a column of /angular_momentum, or J_g), 'none' if none, and their axes: component
+    ! k's value is /angular_momentum's J_x, J_y, J_z dotted with axis k (a planar J: J itself).
+    names = ''
+    do k = 1, model%conserved_count()
+      if (k > 1) names = names//' '
+      names = names//trim(model%conserved(k)%name)
+    end do
+    if (len(names) == 0) names = 'none'
+    call text('conserved_momentum', names)
+    if (model%conserved_count() > 0 .and. .not. failure%failed()) &
+      call file%set_reals('conserved_momentum_axes', [(model%conserved(k)%axis, k=1, model%conserved_count())], &
+                          failure, units='1')
     if (.not. failure%failed()) call file%set_integer('output_every', config%output_every, failure, units='1')
     if (.not. failure%failed()) call file%set_real('output_interval', config%output_interval, failure, units='s')
     if (.not. failure%failed()) call file%set_integer('compression', config%compression, failure, units='1')

@@ -7,7 +7,7 @@ module run_outcome
   private
   public :: run_summary, step_failure_kind
   public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
-            failure_library, failure_step_budget
+            failure_library, failure_step_budget, failure_balance
 
   !> Why a run did not complete, in a word (file attribute and study index column `failure_kind`).
   character(len=*), parameter :: failure_none = 'none'              !! complete (or not yet run)
@@ -19,6 +19,9 @@ module run_outcome
   character(len=*), parameter :: failure_library = 'library'        !! PETSc or HDF5 failed
   !> the run took &integrator max_steps accepted steps before t_end (integrators that choose their steps)
   character(len=*), parameter :: failure_step_budget = 'step_budget'
+  !> an accepted step broke a balance its integrator guarantees, also when solved again with the
+  !> model's default solver settings (docs/faults.md, Every accepted step checked)
+  character(len=*), parameter :: failure_balance = 'balance'
 
   !> The figures a run is judged by, as the summary table prints them.
   type :: run_summary
@@ -27,19 +30,30 @@ module run_outcome
     !> what the driver adds to an early stop's status (why the earlier complete file was kept, ...)
     character(len=:), allocatable :: note
     integer(int64) :: steps_planned = 0
+    !> the integrator chose its steps: steps_planned is then t_end/dt's count (a fixed step's plan) until it completes
+    logical :: steps_chosen = .false.
     integer(int64) :: steps_completed = 0
     integer(int64) :: newton_iterations = 0
     real(real64) :: energy_drift = 0.0_real64            !! max_n |E_n - E_0 - Q_n| / |E_0|, Q: boundary heat
     real(real64) :: min_entropy_increment = huge(1.0_real64)    !! NaN without a completed step
     real(real64) :: max_lyapunov_increment = -huge(1.0_real64)  !! NaN without a completed step
-    !> max_n |J_n - J_0| of the model's conserved momentum (J_z for the pendulum); NaN for a model without
+    !> max_n |J_n - J_0| of the model's conserved momentum components, the largest over them (J_z
+    !> alone for the paper's pendulum); NaN for a model without
     real(real64) :: angular_momentum_drift = 0.0_real64
-    character(len=8) :: conserved_momentum = ''   !! its name for the summary line (Jz); '' if none
+    !> the conserved components' names separated by blanks ('J_z', 'J_x J_y J_z'); '' if none
+    character(len=:), allocatable :: conserved_momentum
     character(len=16) :: energy_units = 'J', entropy_units = 'J/K'   !! the model's, for the summary line
     !> The lowest temperature of any subsystem at any recorded point; NaN once one is not finite.
     real(real64) :: min_temperature = huge(1.0_real64)
     integer(int64) :: halved_steps = 0     !! failed attempts of the completed steps replaced by two halves
     integer(int64) :: rejected_steps = 0   !! trial steps that step-size control rejected (adaptive runs)
+    !> what the integrator's record of a complete run says against trusting its accuracy (the
+    !> run file's attribute `warnings`, docs/integrators.md); '' if nothing
+    character(len=:), allocatable :: warnings
+    !> steps that broke a guaranteed balance and were solved again with the default solver settings
+    integer(int64) :: resolved_steps = 0
+    !> the largest figure of each balance over the run (step_balances' order), NaN where it has none
+    real(real64) :: max_balance(4) = -huge(1.0_real64)
     real(real64) :: wall_seconds = 0.0_real64             !! the whole run, file set-up and closing included
     real(real64) :: solve_seconds = 0.0_real64            !! the time loop alone
     !> The CPU time of the run's process (all its threads, user and system) over the same spans:

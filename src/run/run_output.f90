@@ -21,6 +21,8 @@ module run_output
                         thermal_only, &
                         dataset_description, dataset_units
   use run_attributes, only: write_run_attributes
+  use step_check, only: checked_balances
+  use step_balances, only: balance_names, balance_bound_ulps
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use failures, only: failure_type, fail, code_io => failure_io, failure_mismatch
   implicit none (type, external)
@@ -48,6 +50,8 @@ module run_output
     integer(int64) :: step = 0                   !! steps taken
     real(real64) :: time = 0.0_real64            !! the time reached
     integer :: outputs_passed = 0                !! output times (&output interval) reached
+    !> jz_0: the first conserved momentum component's initial value (the time loop takes them all
+    !> from the initial state, which the same input builds again)
     real(real64) :: energy_0 = 0.0_real64, jz_0 = 0.0_real64, boundary_heat = 0.0_real64
     integer(int64) :: point_rows = 0, step_rows = 0   !! the rows of the two tables up to that step
     type(run_summary) :: summary                 !! its counts and figures (not its texts or times)
@@ -83,6 +87,11 @@ module run_output
     integer(int64) :: disk_steps = 0, disk_newton = 0             !! of the steps in rows on disk
     type(resume_record) :: resume        !! the state after the last completed row (note_resume_state)
     character(len=:), allocatable :: history   !! a continued run's history, written with every write
+    !> a continued run's effective namelist, &integrator t_end and max_steps (those that applied),
+    !> written with every write as its history is
+    character(len=:), allocatable :: continued_namelist
+    real(real64) :: continued_t_end = 0.0_real64
+    integer :: continued_max_steps = 0
   contains
     procedure :: create
     procedure :: record_solver
@@ -133,6 +142,10 @@ contains
                                          trim(thermo_variable_names(config%integrator%thermo_variable)), &
                                          petsc_options, failure)
     if (.not. failure%failed()) call self%store%file%set_text('namelist', namelist_of_run(config), failure)
+    if (.not. failure%failed()) call self%store%file%set_text('balance_guarantees', &
+                                  checked_names(checked_balances(entry, model, constraints)), failure)
+    if (.not. failure%failed()) call self%store%file%set_reals('balance_bound_ulps', balance_bound_ulps, failure)
+    if (.not. failure%failed()) call self%store%file%set_text('balance_bound_ulps_units', '1', failure)
     do k = 1, size(extras)
       if (failure%failed()) exit
       if (allocated(extras(k)%text)) then
@@ -192,6 +205,20 @@ contains
 
   !> The solver the integrator used (after its `start`): each setting as a root attribute
   !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
+  ! The balances checked on every step, blank-separated ('none' if none).
+  function checked_names(checked) result(names)
+    logical, intent(in) :: checked(:)
+    character(len=:), allocatable :: names
+    integer :: k
+
+    names = ''
+    do k = 1, size(checked)
+      if (checked(k)) names = names//' '//trim(balance_names(k))
+    end do
+    names = trim(adjustl(names))
+    if (len(names) == 0) names = 'none'
+  end function checked_names
+
   subroutine record_solver(self, report, failure)
     class(run_file), intent(inout) :: self
     type(solver_report), intent(in) :: report
@@ -248,17 +275,21 @@ contains
   !> Records step n, ending at `time`, for every per-step dataset, in the schema's order, then the
   !> integrator's diagnostics: `step_seconds` its wall-clock time, `entropy_increment` S_n - S_(n-1) and
   !> `lyapunov_increment` V_n - V_(n-1). Call it before the step's record_point.
-  subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment)
+  subroutine record_step(self, n, time, report, multipliers, step_seconds, entropy_increment, lyapunov_increment, &
+                         balances, has_balance, resolved)
     class(run_file), intent(inout) :: self
     integer(int64), intent(in) :: n
     real(real64), intent(in) :: time      !! the step's end time
     type(step_report), intent(in) :: report
     real(real64), intent(in) :: multipliers(:), step_seconds, entropy_increment, lyapunov_increment
+    real(real64), intent(in) :: balances(:)   !! the balance figures (step_balances' order)
+    logical, intent(in) :: has_balance(:)     !! which of them the model has (the dataset's columns)
+    logical, intent(in) :: resolved           !! solved again with the default solver settings
 
     if (.not. self%enabled) return
     block
       real(real64) :: row(self%store%tables(step_rows)%row_width)    ! the schema's datasets, then the diagnostics
-      integer :: filled
+      integer :: filled, k
 
       filled = 0
       call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64)])
@@ -266,6 +297,13 @@ contains
       call put(row, filled, [real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
                              report%residual_norm, real(report%converged_reason, real64), step_seconds])
       if (self%thermal) call put(row, filled, [entropy_increment, lyapunov_increment])
+      do k = 1, size(balances)
+        if (.not. has_balance(k)) cycle
+        filled = filled + 1
+        row(filled) = balances(k)
+      end do
+      filled = filled + 1
+      row(filled) = merge(1.0_real64, 0.0_real64, resolved)
       call put(row, filled, multipliers)
       if (allocated(report%diagnostics)) call put(row, filled, report%diagnostics)
       call self%store%tables(step_rows)%accumulate(row(:filled))
@@ -399,6 +437,8 @@ contains
       record%summary%min_temperature = summary%min_temperature
       record%summary%halved_steps = summary%halved_steps
       record%summary%rejected_steps = summary%rejected_steps
+      record%summary%resolved_steps = summary%resolved_steps
+      record%summary%max_balance = summary%max_balance
       if (.not. allocated(record%x)) allocate (record%x(size(x)), record%x_previous(size(x)))
       record%x = x
       record%x_previous = x_previous
@@ -406,12 +446,15 @@ contains
     end associate
   end subroutine note_resume_state
 
-  !> Goes on with the file that record came from, now at this file's path (a copy of it): the file
-  !> made by `create` in memory is dropped, and the next write appends the rows after record's to
-  !> the file's. A failure: the OS's words or HDF5's.
-  subroutine continue_file(self, record, failure)
+  !> Goes on with the file that record came from, now at this file's path (a copy of it), with the
+  !> input `config`: the file made by `create` in memory is dropped, and the next write appends the
+  !> rows after record's to the file's, and stores config's effective namelist, t_end and max_steps
+  !> (which alone may differ from the file's: docs/faults.md, Continuing a run). A failure: the
+  !> OS's words or HDF5's.
+  subroutine continue_file(self, record, config, failure)
     class(run_file), intent(inout) :: self
     type(resume_record), intent(in) :: record
+    type(run_configuration), intent(in), target :: config
     type(failure_type), intent(out) :: failure
     if (.not. self%enabled) return
     call self%store%resume_from([record%point_rows, record%step_rows], failure)
@@ -421,8 +464,12 @@ contains
     self%committed_newton = record%summary%newton_iterations
     self%disk_newton = record%summary%newton_iterations
     self%resume = record
-    ! The file keeps its provenance; its CF history says when and how it was continued.
+    ! The file keeps its provenance; its CF history says when and how it was continued, and its
+    ! input the end time and step budget that applied.
     self%history = record%history//new_line('a')//iso_time()//': '//command_line()
+    self%continued_namelist = namelist_of_run(config)
+    self%continued_t_end = config%integrator%t_end
+    self%continued_max_steps = config%integrator%max_steps
   end subroutine continue_file
 
   !> Reads the resume record of the run file `path` with its status and the effective namelist it
@@ -476,6 +523,11 @@ contains
       record%summary%min_temperature = numbers(14)
       record%summary%halved_steps = nint(numbers(15), int64)
       record%summary%rejected_steps = nint(numbers(16), int64)
+      call file%get_reals('resume_balances', numbers, reading)
+      if (.not. reading%failed() .and. size(numbers) == 1 + size(record%summary%max_balance)) then
+        record%summary%resolved_steps = nint(numbers(1), int64)
+        record%summary%max_balance = numbers(2:)
+      end if
     end if
     call file%close(ignored)
   end subroutine read_resume_record
@@ -494,6 +546,8 @@ contains
                         record%summary%max_lyapunov_increment, record%summary%angular_momentum_drift, &
                         record%summary%min_temperature, real(record%summary%halved_steps, real64), &
                         real(record%summary%rejected_steps, real64)], failure)
+    if (.not. failure%failed()) call file%set_reals('resume_balances', [real(record%summary%resolved_steps, real64), &
+                                                                        record%summary%max_balance], failure)
     if (.not. failure%failed()) call file%set_reals('resume_x', record%x, failure)
     if (.not. failure%failed()) call file%set_reals('resume_x_previous', record%x_previous, failure)
     if (.not. failure%failed() .and. size(record%integrator_state) > 0) &
@@ -502,6 +556,7 @@ contains
     ! The units, entry by entry for resume_numbers; the vectors carry the units of their entries.
     call file%set_texts('resume_numbers_units', [character(len=3) :: '1', 's', '1', 'J', 'J s', 'J', '1', '1', '1', &
                                                  '1', 'J/K', 'J', 'J s', 'K', '1', '1'], failure)
+    if (.not. failure%failed()) call file%set_text('resume_balances_units', '1', failure)
     if (.not. failure%failed()) call file%set_text('resume_x_units', &
                                                    'the units of /state''s columns, then the multipliers''', failure)
     if (.not. failure%failed()) call file%set_text('resume_x_previous_units', 'as resume_x', failure)
@@ -529,19 +584,33 @@ contains
       return
     end if
     if (.not. failure%failed()) call rows_on_disk(self)
+    ! A continued run (its history held) writes its status with every write: the file and its spare
+    ! held the status of the run that stopped ('incomplete: the step budget is spent', ...).
     if (.not. failure%failed()) call summary_attributes(self, status, summary, failure, &
-                                                        numbers_only=.not. (whole .or. final), final=final)
+                                                        numbers_only=.not. (whole .or. final .or. &
+                                                                            allocated(self%history)), final=final)
     if (.not. failure%failed() .and. self%resume%held) call resume_attributes(self%resume, self%store%file, failure, &
                                                                  with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)
-    if (.not. failure%failed() .and. allocated(self%history)) &
-      call self%store%file%set_text('history', self%history, failure)
+    if (.not. failure%failed() .and. allocated(self%history)) call continued_attributes(self, failure)
     call self%store%end_rows(failure)
     if (failure%failed() .and. .not. whole) then       ! a failed window leaves the file as it was
       self%disk_steps = steps_before
       self%disk_newton = newton_before
     end if
   end subroutine write_file
+
+  ! A continued run's history and the input it was continued with: its effective namelist and the
+  ! attributes t_end and max_steps, the only fields that may differ from the file's.
+  subroutine continued_attributes(self, failure)
+    type(run_file), intent(inout) :: self
+    type(failure_type), intent(out) :: failure
+
+    call self%store%file%set_text('history', self%history, failure)
+    if (.not. failure%failed()) call self%store%file%set_text('namelist', self%continued_namelist, failure)
+    if (.not. failure%failed()) call self%store%file%set_real('t_end', self%continued_t_end, failure)
+    if (.not. failure%failed()) call self%store%file%set_integer('max_steps', self%continued_max_steps, failure)
+  end subroutine continued_attributes
 
   ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
   ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
@@ -563,6 +632,11 @@ contains
     end if
     if (present(final)) then
       if (.not. failure%failed() .and. final) call self%store%file%set_text('end_time', iso_time(), failure)
+      ! A complete run's accuracy warnings (docs/integrators.md), beside its status.
+      if (allocated(summary%warnings) .and. status == 'complete') then
+        if (.not. failure%failed() .and. final .and. len(summary%warnings) > 0) &
+          call self%store%file%set_text('warnings', summary%warnings, failure)
+      end if
     end if
     call number('steps_planned', real(summary%steps_planned, real64), '1', .true.)
     call number('steps_completed', real(self%disk_steps, real64), '1', .true.)
@@ -576,6 +650,9 @@ contains
     if (.not. failure%failed() .and. units) call self%store%file%set_texts('run_figures_units', &
                                                         [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], &
                                                         failure)
+    call number('resolved_steps', real(summary%resolved_steps, real64), '1', .true.)
+    if (.not. failure%failed()) call self%store%file%set_reals('balance_max_ulps', summary%max_balance, failure)
+    if (.not. failure%failed() .and. units) call self%store%file%set_text('balance_max_ulps_units', '1', failure)
     call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
     call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
     call number('solve_cpu_time_seconds', summary%solve_cpu_seconds, 's', .false.)

@@ -8,6 +8,7 @@ module run_schema
   use, intrinsic :: iso_fortran_env, only: output_unit
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
+  use step_balances, only: balance_count, balance_names, applicable_balances
   implicit none (type, external)
   private
   public :: output_dataset, output_schema, per_column, print_output_schema, dataset_coordinates, column_units, &
@@ -44,7 +45,7 @@ module run_schema
   !> The model's units of energy, entropy and temperature (J, J/K and K for the pendulum).
   character(len=*), parameter :: energy_units = '<E>', entropy_units = '<S>', theta_units = '<theta>'
 
-  type(output_dataset), parameter :: output_schema(22) = [ &
+  type(output_dataset), parameter :: output_schema(24) = [ &
     output_dataset('time', 'point', '', 's', .false., 'last', &
                    'time t_n of each point; the dimension scale of every per-point dataset'), &
     output_dataset('state', 'point', '<state>', per_column, .false., 'last', &
@@ -89,6 +90,12 @@ module run_schema
                    'S_n - S_(n-1) of the step; of a row that stands for several steps, the smallest of theirs'), &
     output_dataset('max_lyapunov_increment', 'step', '', energy_units, .false., 'max', &
                    'V_n - V_(n-1) of the step; of a row that stands for several steps, the largest of theirs'), &
+    output_dataset('balance', 'step', '<balances>', '1', .false., 'max', &
+                   'the balances |dE - Q|, max |dJ_k| (conserved), -dS and dV in ulps of their scales '// &
+                   '(docs/faults.md); a guaranteed one (balance_guarantees) above balance_bound_ulps stops the run'), &
+    output_dataset('resolved', 'step', '', '1', .true., 'sum', &
+                   '1 where the accepted step broke a guaranteed balance and was solved again with the model''s '// &
+                   'default solver settings (the balance figures are the second solve''s), else 0'), &
     output_dataset('multiplier', 'step', 'lambda_<constraints>', per_column, .false., 'mean', &
                    'Lagrange multipliers of the active constraints (see the attribute constraint_meanings)')]
 
@@ -202,6 +209,7 @@ contains
     type(constraint_slot), intent(in) :: constraints(:)
     character(len=:), allocatable :: columns
     character(len=:), allocatable :: prefix
+    logical :: mask(balance_count)
     integer :: at, i
 
     columns = ''
@@ -212,6 +220,11 @@ contains
     else if (template == '<momenta>') then
       do i = 1, model%momentum_count()
         columns = columns//' '//trim(model%momentum_names(i))
+      end do
+    else if (template == '<balances>') then
+      mask = applicable_balances(model)
+      do i = 1, balance_count
+        if (mask(i)) columns = columns//' '//trim(balance_names(i))
       end do
     else if (index(template, '<subsystems>') > 0) then
       at = index(template, '<subsystems>')

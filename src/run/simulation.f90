@@ -20,13 +20,16 @@ module simulation
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
   use run_outcome, only: run_summary, step_failure_kind, failure_none, failure_solver, failure_domain, &
-                         failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget
+                         failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget, &
+                         failure_balance
+  use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, applicable_balances
+  use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
-  use hdf5_files, only: check_run_file, file_template
+  use hdf5_files, only: check_run_file, check_file_integrity, file_template
   use output_path, only: check_output_path
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file
+  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text
   use effective_namelist, only: namelist_of_run
   use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
@@ -67,7 +70,7 @@ contains
     select case (summary%failure_kind)
     case (failure_none)
       exit_status = 0
-    case (failure_solver, failure_domain, failure_step_budget)
+    case (failure_solver, failure_domain, failure_step_budget, failure_balance)
       exit_status = 3
     case (failure_input)
       exit_status = 2
@@ -91,10 +94,14 @@ contains
   !> disk unless `durable` is .false. (an ensemble's case: its index is the record). The run
   !> continues the one its file holds if the command line asks (-eme_continue: else it fails with
   !> failure_input); with `resume_if_possible` instead, it does when it can (an interrupted case of
-  !> a study) and starts from t = 0 otherwise. The time loop's many exits set `failure` as they
+  !> a study) and starts from t = 0 otherwise. With `lock` (eme_run's lock of the output), the
+  !> run checks before each write that the lock file is still the one it holds: one removed or
+  !> replaced behind its back stops the run (failure_io), and the file is written once more,
+  !> marked with the reason, only if the lock can be taken again (else another writer has it, and
+  !> the file is left as the last write made it). The time loop's many exits set `failure` as they
   !> go; summary%note says what the driver adds to a run without one.
   subroutine run_simulation(config, summary, failure, observer, reusable, progress, keep_file, extras, durable, &
-                            template, resume_if_possible)
+                            template, resume_if_possible, lock)
     type(run_configuration), intent(in), target :: config
     type(run_summary), intent(out) :: summary
     type(failure_type), intent(out) :: failure
@@ -106,6 +113,7 @@ contains
     logical, intent(in), optional :: durable
     type(file_template), intent(inout), target, optional :: template
     logical, intent(in), optional :: resume_if_possible
+    type(output_lock), intent(inout), optional :: lock
     class(time_stepper), allocatable, target :: own
     class(time_stepper), pointer :: integrator
     class(generic_model), allocatable :: model
@@ -117,8 +125,14 @@ contains
     type(resume_record) :: resume       !! the state a continued run starts from
     character(len=:), allocatable :: part
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
-    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, jz_0, time, boundary_heat, dt
+    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
     real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
+    real(real64), allocatable :: conserved_0(:)   !! the conserved momentum components at the initial state
+    ! The step check (src/run/step_check): the balances' quantities before and after the step,
+    ! the step's figures, which balances are checked, and which momenta are conserved.
+    type(balanced_state) :: balance_old, balance_new
+    real(real64) :: figures(balance_count), step_heat
+    logical :: checked(balance_count), has_balance(balance_count), resolved
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
@@ -127,6 +141,7 @@ contains
     integer :: k, n_state, signal
     type(failure_type) :: step_failure, release_failure, io_failure
     logical :: found, finished, writing, replace, chooses_time, row_due, continuing
+    logical :: lock_lost                !! the output's lock was removed or replaced (guard_lock)
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
     call system_clock(clock_start, clock_rate)
@@ -135,6 +150,8 @@ contains
     clock_loop = clock_start
     cpu_loop = cpu_start
     summary%note = ''
+    summary%conserved_momentum = ''
+    summary%warnings = ''
     summary%status = 'incomplete: running'
     summary%failure_kind = failure_none
     summary%steps_planned = step_count(config%integrator)
@@ -143,6 +160,7 @@ contains
     time = 0.0_real64
     n = 0
     writing = .true.
+    lock_lost = .false.
     if (present(keep_file)) writing = keep_file
     part = config%output_file//'.part'
     call install_interrupt_handlers(io_failure)     ! (a run without them still runs)
@@ -199,14 +217,18 @@ contains
     summary%energy_units = model%words%energy_units
     summary%entropy_units = model%words%entropy_units
     ! A model without a conserved momentum has no drift figure.
-    if (model%conserved_momentum_column == 0) then
-      summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
-    else
-      summary%conserved_momentum = squeezed_name(model%momentum_names(model%conserved_momentum_column))
-    end if
+    if (model%conserved_count() == 0) summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
+    do k = 1, model%conserved_count()
+      if (k > 1) summary%conserved_momentum = summary%conserved_momentum//' '
+      summary%conserved_momentum = summary%conserved_momentum//trim(model%conserved(k)%name)
+    end do
+    ! The conserved components at t = 0 (a continued run's too: its input builds the same z0).
+    conserved_0 = model%conserved_momenta(z0)
     x = 0.0_real64
     x(1:n_state) = z0
     boundary_heat = 0.0_real64
+    checked = checked_balances(entry, model, constraints)
+    has_balance = applicable_balances(model)
 
     if (present(reusable)) then
       if (allocated(reusable)) then
@@ -255,7 +277,7 @@ contains
     end if
 
     if (continuing) then
-      call output%continue_file(resume, io_failure)
+      call output%continue_file(resume, config, io_failure)
       if (io_failure%failed()) then
         call fail(failure_io, "cannot continue the output file '"//part//"' ("//config%input_file//'): ' &
                   //io_failure%message)
@@ -273,12 +295,11 @@ contains
     else
       call observe(z0, energy, entropy, lyapunov)
       energy_0 = energy
-      jz_0 = conserved_momentum()
       call record_point(0.0_real64, z0, .true.)
       outputs_passed = 0
       x_previous = x
-      call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
-                                    integrator)
+      call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
+                                    x_previous, integrator)
     end if
     call system_clock(clock_loop)
     call cpu_time(cpu_loop)
@@ -288,6 +309,7 @@ contains
     finished = .false.
     ! Integrators that choose their times: those of the registry, and EME with a tolerance.
     chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
+    summary%steps_chosen = chooses_time
     do while (.not. finished)
       signal = interrupting_signal()
       if (signal /= 0) then
@@ -295,7 +317,7 @@ contains
         summary%failure_kind = failure_interrupted
         exit
       end if
-      if (n == config%integrator%max_steps) then
+      if (n >= config%integrator%max_steps) then
         summary%status = 'incomplete: the step budget is spent: '//integer_text(n)//' steps reached t = '// &
                          fixed_text(time, 6)//' s of t_end = '//fixed_text(t_end, 6)//' s (raise &integrator max_steps)'
         summary%failure_kind = failure_step_budget
@@ -332,22 +354,21 @@ contains
         summary%failure_kind = step_failure_kind(report%reason)
         exit
       end if
+      call check_step(resolved)
+      if (failure%failed() .or. summary%failure_kind /= failure_none) exit
       ! Newton iterations per step: those of the completed steps over their number (a failed
       ! step's are not counted), as newton_iterations_total / steps_completed in the file.
       summary%newton_iterations = summary%newton_iterations + report%newton_iterations
       summary%halved_steps = summary%halved_steps + report%halvings
       summary%rejected_steps = summary%rejected_steps + report%rejected_steps
-      ! A multiplier is the step's mean rate (lambda_2: heat power), so the heat is rate times the step.
-      do k = 1, size(constraints)
-        boundary_heat = boundary_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
-      end do
+      boundary_heat = boundary_heat + step_heat
       entropy_old = entropy
       lyapunov_old = lyapunov
       x_previous = x
       x = x_new
-      call observe(x(1:n_state), energy, entropy, lyapunov)
+      call take_observation(energy, entropy, lyapunov)
       call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(clock_rate, real64), &
-                              entropy - entropy_old, lyapunov - lyapunov_old)
+                              entropy - entropy_old, lyapunov - lyapunov_old, figures, has_balance, resolved)
       row_due = .false.
       do while (config%output_interval > 0.0_real64 .and. &
                 time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
@@ -359,11 +380,14 @@ contains
       summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
       summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
       summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
-      if (model%conserved_momentum_column > 0) &
-        summary%angular_momentum_drift = max(summary%angular_momentum_drift, abs(conserved_momentum() - jz_0))
-      call output%note_resume_state(n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
-                                    integrator)
+      ! The conserved components' drift, from the step check's values of them (observe_balances).
+      if (size(conserved_0) > 0) summary%angular_momentum_drift = max(summary%angular_momentum_drift, &
+        maxval(abs(balance_new%conserved(1:size(conserved_0)) - conserved_0)))
+      call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
+                                    x_previous, integrator)
       if (output%write_due()) then
+        call guard_lock()
+        if (lock_lost) exit
         call set_times(.true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) then
@@ -383,9 +407,12 @@ contains
       summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
     end if
     if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
+    where (.not. has_balance .or. summary%steps_completed == 0) summary%max_balance = ieee_value(1.0_real64, &
+                                                                                                 ieee_quiet_nan)
     call set_times(.true.)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
+      summary%warnings = integrator%accuracy_warnings()
       ! An integrator that chooses its times planned t_end/dt steps; it took n.
       summary%steps_planned = n
     end if
@@ -406,7 +433,8 @@ contains
 
     ! -eme_continue: the resume record of the output file, or of FILE.part (the one further on,
     ! if both hold one), which FILE.part becomes a copy of. Fails (failure_input) if the file
-    ! holds a complete run or no record, or was run with another input than t_end and max_steps.
+    ! holds a complete run or no record, was run with another input than t_end and max_steps, or
+    ! has reached t_end or max_steps (the budget of the whole run, not of the continuation).
     subroutine find_resume_record()
       type(resume_record) :: candidate
       character(len=:), allocatable :: status, stored, source, where
@@ -454,6 +482,13 @@ contains
         end if
         return
       end if
+      ! A damaged file is named as the input it is, before anything is copied or appended.
+      call check_file_integrity(source, reading)
+      if (reading%failed()) then
+        call fail(failure_input, source//': '//reading%message//'; it cannot be continued'//where//'; allowed: '// &
+                  'an undamaged file of a run that stopped early (or run afresh without -eme_continue)')
+        return
+      end if
       call read_resume_record(source, candidate, status, stored, reading)
       if (len(first_difference(stored, namelist_of_run(config))) > 0) then
         call fail(failure_input, source//': its input differs from '//config%input_file//': '// &
@@ -471,6 +506,14 @@ contains
         call fail(failure_input, source//': its run reached t = '//fixed_text(resume%time, 6)//' s, and &integrator '// &
                   't_end = '//fixed_text(t_end, 6)//' s in '//config%input_file//' leaves nothing to continue'//where// &
                   '; allowed: a later t_end')
+        return
+      end if
+      ! The step budget counts the whole run's steps, those before the continuation too.
+      if (resume%step >= config%integrator%max_steps) then
+        call fail(failure_input, source//': its run took '//integer_text(resume%step)//' steps, and &integrator '// &
+                  'max_steps = '//integer_text(config%integrator%max_steps)//' in '//config%input_file//', the '// &
+                  'budget of the whole run, leaves none to add'//where//'; allowed: max_steps > '// &
+                  integer_text(resume%step))
         return
       end if
       if (source /= part) then
@@ -491,7 +534,6 @@ contains
       time = record%time
       outputs_passed = record%outputs_passed
       energy_0 = record%energy_0
-      jz_0 = record%jz_0
       boundary_heat = record%boundary_heat
       x = record%x
       x_previous = record%x_previous
@@ -502,6 +544,8 @@ contains
       summary%angular_momentum_drift = record%summary%angular_momentum_drift
       summary%halved_steps = record%summary%halved_steps
       summary%rejected_steps = record%summary%rejected_steps
+      summary%resolved_steps = record%summary%resolved_steps
+      summary%max_balance = record%summary%max_balance
       summary%steps_completed = n
       call observe(x(1:n_state), energy, entropy, lyapunov)
       summary%min_temperature = record%summary%min_temperature
@@ -538,13 +582,31 @@ contains
       summary%cpu_seconds = cpu_now - cpu_start
     end subroutine set_times
 
+    ! The balances' quantities at z (into balance_new) and its temperatures (into theta).
+    subroutine observe_state(z)
+      real(real64), intent(in) :: z(:)
+      integer :: domain
+
+      momentum = model%momenta(z)
+      call observe_balances(model, z, balance_new, theta, domain, momentum)
+    end subroutine observe_state
+
     subroutine observe(z, energy, entropy, lyapunov)
       real(real64), intent(in) :: z(:)
       real(real64), intent(out) :: energy, entropy, lyapunov
-      integer :: domain
 
-      call model%observe(z, energy, entropy, theta, domain)
-      momentum = model%momenta(z)
+      call observe_state(z)
+      call take_observation(energy, entropy, lyapunov)
+    end subroutine observe
+
+    ! The figures of the state observe_state saw last (balance_new, theta), which becomes the
+    ! old state of the next step's check.
+    subroutine take_observation(energy, entropy, lyapunov)
+      real(real64), intent(out) :: energy, entropy, lyapunov
+
+      energy = balance_new%energy
+      entropy = balance_new%entropy
+      balance_old = balance_new
       lyapunov = energy - config%theta_r*entropy
       ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
       if (.not. all(abs(theta) <= huge(1.0_real64))) then
@@ -552,29 +614,76 @@ contains
       else if (.not. ieee_is_nan(summary%min_temperature)) then
         summary%min_temperature = min(summary%min_temperature, minval(theta))
       end if
-    end subroutine observe
+    end subroutine take_observation
 
-    ! A momentum's name without its underscores (J_z: Jz), as the summary line prints it.
-    pure function squeezed_name(name) result(squeezed)
-      character(len=*), intent(in) :: name
-      character(len=len(name)) :: squeezed
-      integer :: i, k
+    ! The check of the step the integrator just accepted, from x to x_new (src/run/step_check):
+    ! its heat through the constraints (step_heat; a multiplier is the step's mean rate, lambda_2 a
+    ! heat power, so the heat is rate times the step), its balance figures, and, where it breaks a
+    ! guaranteed balance, the step solved again with the model's default solver settings (then
+    ! `resolved`). A step that still breaks one ends the run (failure_balance), as does a re-solve
+    ! without a root; a library failure sets `failure`.
+    subroutine check_step(resolved)
+      logical, intent(out) :: resolved
+      integer :: broken, first_iterations
+      type(failure_type) :: resolving
 
-      squeezed = ''
-      k = 0
-      do i = 1, len_trim(name)
-        if (name(i:i) == '_') cycle
-        k = k + 1
-        squeezed(k:k) = name(i:i)
+      resolved = .false.
+      call measure()
+      broken = broken_balance(figures, checked, report%halvings + 1)
+      if (broken == 0) then
+        call note_figures()
+        return
+      end if
+      resolved = .true.
+      summary%resolved_steps = summary%resolved_steps + 1
+      first_iterations = report%newton_iterations
+      call integrator%resolve(x, time_old, time - time_old, 2*x - x_previous, x_new, report, resolving)
+      report%newton_iterations = report%newton_iterations + first_iterations
+      if (resolving%failed()) then
+        call fail(failure_library, 'PETSc failed during the solve: '//petsc_error_text())
+        summary%status = 'incomplete: PETSc error in step '//integer_text(n)
+        return
+      end if
+      if (.not. report%accepted) then
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
+                         balance_text(broken, figures)//'; solved again with the default solver settings: '// &
+                         report%reason
+        summary%failure_kind = failure_balance
+        return
+      end if
+      call measure()
+      broken = broken_balance(figures, checked, report%halvings + 1)
+      if (broken == 0) then
+        call note_figures()
+        return
+      end if
+      summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
+                       balance_text(broken, figures)//', also when solved again with the default solver settings'
+      summary%failure_kind = failure_balance
+    end subroutine check_step
+
+    ! The run's largest figures, with an accepted step's.
+    subroutine note_figures()
+      where (has_balance) summary%max_balance = max(summary%max_balance, figures)
+    end subroutine note_figures
+
+    ! step_heat and the figures of the step from x to x_new; balance_new and theta become x_new's.
+    subroutine measure()
+      integer :: k
+
+      step_heat = 0.0_real64
+      do k = 1, size(constraints)
+        step_heat = step_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
       end do
-    end function squeezed_name
+      call observe_state(x_new(1:n_state))
+      figures = balance_figures(has_balance, balance_old, balance_new, step_heat, config%theta_r)
+    end subroutine measure
 
-    ! The conserved momentum at the state `observe` saw last; NaN for a model without one (no
-    ! drift figure).
-    real(real64) function conserved_momentum()
-      conserved_momentum = ieee_value(1.0_real64, ieee_quiet_nan)
-      if (model%conserved_momentum_column > 0) conserved_momentum = momentum(model%conserved_momentum_column)
-    end function conserved_momentum
+    ! The first conserved component's initial value, which the resume record keeps (0 if none).
+    real(real64) function first_conserved_0()
+      first_conserved_0 = 0.0_real64
+      if (size(conserved_0) > 0) first_conserved_0 = conserved_0(1)
+    end function first_conserved_0
 
     ! One point: the state `observe` saw last, with what it is judged by (its temperatures, energy,
     ! entropy, V and momentum, kept by observe), and the active constraints' g.
@@ -596,6 +705,8 @@ contains
       type(failure_type) :: finishing, renaming
       character(len=:), allocatable :: kept
 
+      if (.not. writing) return
+      call guard_lock()
       if (.not. writing) return
       call set_times(.false.)
       call output%finish(summary, finishing)
@@ -625,6 +736,31 @@ contains
                   //'): '//renaming%message)
       end if
     end subroutine close_output
+
+    ! Before a write: whether the output's lock (eme_run's) is still this process's. If its file
+    ! was removed or replaced, another writer can be in: lock_lost, the run stops (the status says
+    ! why), and writes its file again (marked incomplete) only if it takes the lock again; else
+    ! it writes nothing more.
+    subroutine guard_lock()
+      character(len=:), allocatable :: holder, what
+      logical :: retaken
+
+      if (.not. present(lock) .or. lock_lost) return
+      call recheck_lock(lock, lock_lost, retaken, what, holder)
+      if (.not. lock_lost) return
+      summary%status = 'incomplete: the lock '//lock%path//' was '//what//' while the run wrote'
+      summary%failure_kind = failure_io
+      if (retaken) then
+        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
+                  what//' while the run wrote, so that a second writer could start: the run stops after '// &
+                  integer_text(n)//' steps; it took the lock again, and '//part//' is marked incomplete')
+      else
+        writing = .false.
+        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
+                  what//' while the run wrote, and '//holder//' holds it now: the run stops after '// &
+                  integer_text(n)//' steps and writes nothing more ('//part//' is left as its last write made it)')
+      end if
+    end subroutine guard_lock
 
     ! Every 2 s at most: simulated time, steps, rate and the time left.
     subroutine report_progress()
@@ -671,16 +807,21 @@ contains
     type(integrator_entry) :: entry
     real(real64), allocatable :: z0(:)
     logical :: found
-    type(failure_type) :: release_failure
+    type(failure_type) :: release_failure, building
 
     call find_integrator(config%integrator%scheme, entry, found)
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
-    if (failure%failed()) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
+    if (building%failed()) then
+      ! The scene's words with the input file, as the time loop gives them.
+      call set_failure(failure, building%code, config%input_file//': '//building%message)
+      return
+    end if
     call build_integrator(entry, integrator)
     call integrator%start(config%integrator, model, constraints, z0, failure)
     ! PETSc's own words say what was refused; the message is the whole story (the drivers print it
     ! as before), so the PETSc procedure's origin is not added.
-    if (failure%failed()) call set_failure(failure, code_input, setup_failure_text())
+    ! A refusal of the solver's own (failure_input) says what and why in its words.
+    if (failure%failed() .and. failure%code /= code_input) call set_failure(failure, code_input, setup_failure_text())
     call integrator%release(release_failure)
     if (.not. failure%failed() .and. release_failure%failed()) &
       call set_failure(failure, code_library, 'PETSc could not free the solver: '//petsc_error_text(), &

@@ -46,27 +46,28 @@ module study_index
   implicit none (type, external)
   private
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
-            m_run_count
+            m_run_count, m_warned
 
   ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
   ! cpu_time_seconds, solve_cpu_time_seconds (the process's CPU time over the run and over its time
   ! loop, beside the wall times), energy_drift, min_entropy_increment, max_lyapunov_increment,
   ! angular_momentum_drift, min_temperature, halved_steps, rejected_steps (the run file's run_figures
-  ! from energy_drift on), rank, run_count
-  integer, parameter :: m_steps = 1, m_cpu = 6, m_solve_cpu = 7, m_rank = 15, m_run_count = 16
+  ! from energy_drift on), warned (1 if the complete case's file has the attribute warnings: its
+  ! accuracy is in doubt), rank, run_count
+  integer, parameter :: m_steps = 1, m_cpu = 6, m_solve_cpu = 7, m_warned = 15, m_rank = 16, m_run_count = 17
   !> The figures whose units are the model's.
   integer, parameter :: m_entropy_increment = 9, m_lyapunov_increment = 10, m_momentum_drift = 11, &
                         m_min_temperature = 12
   character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
     'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'cpu_time_seconds', &
     'solve_cpu_time_seconds', 'energy_drift', 'min_entropy_increment', 'max_lyapunov_increment', &
-    'angular_momentum_drift', 'min_temperature', 'halved_steps', 'rejected_steps', 'rank', 'run_count']
+    'angular_momentum_drift', 'min_temperature', 'halved_steps', 'rejected_steps', 'warned', 'rank', 'run_count']
   !> The metrics' units, in order.
   character(len=*), parameter :: metric_units(metric_count) = [character(len=3) :: '1', '1', '1', 's', 's', 's', &
-                                                                's', '1', 'J/K', 'J', 'J s', 'K', '1', '1', '1', '1']
+                                                                's', '1', 'J/K', 'J', 'J s', 'K', '1', '1', '1', '1', '1']
   logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
                                                             .false., .false., .false., .false., .false., .false., &
-                                                            .true., .true., .true., .true.]
+                                                            .true., .true., .true., .true., .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
 
   !> Case numbers ordered by a text key (a case's swept values or its overrides), to find a case
@@ -335,7 +336,7 @@ contains
       units(m_entropy_increment) = model%words%entropy_units
       units(m_lyapunov_increment) = model%words%energy_units
       units(m_momentum_drift) = '1'
-      if (model%conserved_momentum_column > 0) units(m_momentum_drift) = model%words%momentum_units
+      if (model%conserved_count() > 0) units(m_momentum_drift) = model%words%momentum_units
       units(m_min_temperature) = model%words%temperature_units
     end if
     any_built = .false.
@@ -348,7 +349,7 @@ contains
       end associate
       if (building%failed()) cycle
       any_built = .true.
-      momentum = momentum .or. model%conserved_momentum_column > 0
+      momentum = momentum .or. model%conserved_count() > 0
       thermal = thermal .or. model%temperature_count() > 0
       if (momentum .and. thermal) exit
     end do
@@ -562,7 +563,8 @@ contains
 
   ! Results of an earlier run of the same study from its index.h5, if there is one, each given
   ! to this study's case with the same swept values (earlier(c): its row there). A damaged index
-  ! (it does not open, or a checksum fails) is set aside: the journal and case files rebuild it.
+  ! (it does not open, or a checksum of its rows or texts fails) is set aside: the journal and
+  ! case files rebuild it.
   ! Refused: a finished case that this study does not have (a changed value), or case 1 of the
   ! earlier run given other input than this study gives it (a changed base scene).
   subroutine read_previous_index(self, earlier, notes, failure)
@@ -581,6 +583,7 @@ contains
 
     if (.not. file_exists(self%index_path)) return
     call old%open_existing(self%index_path, .false., reading)
+    if (.not. reading%failed()) call old%check_texts(self%index_path, reading)
     rows = -1
     if (.not. reading%failed()) rows = table_rows(old%id, 'cases')
     if (.not. reading%failed() .and. rows >= 0) call old%get_text('case_1_input', first_input, reading)

@@ -16,7 +16,7 @@ module study_journal
 
   integer, parameter :: status_length = 256
   integer, parameter :: kind_length = 16
-  integer, parameter :: metric_count = 16
+  integer, parameter :: metric_count = 17
   character(len=1), parameter :: tab = achar(9)
 
   !> What happened to one case (an index row without its parameters).

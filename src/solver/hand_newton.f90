@@ -59,7 +59,7 @@ contains
     integer, intent(out) :: iterations
     type(failure_type), intent(out) :: failure
     real(real64) :: residual(size(initial)), update(size(initial)), trial(size(initial)), trial_residual(size(initial))
-    real(real64) :: residual_norm, update_norm, state_scale, residual_scale, step_length
+    real(real64) :: residual_norm, previous_residual, update_norm, state_scale, residual_scale, step_length
     integer :: info, stat
     logical :: chord_taken, refactor
 
@@ -112,9 +112,10 @@ contains
       residual = trial_residual
       update_norm = two_norm(update)
       call self%reuse%updated(update_norm, residual_norm)
+      previous_residual = residual_norm
       residual_norm = two_norm(residual)
       converged = self%reuse%converged(iterations, residual_norm, update_norm, two_norm(root), self%tolerance, &
-                                       0.0_real64, state_scale, residual_scale, step_length)
+                                       0.0_real64, state_scale, residual_scale, step_length, previous_residual)
     end do
     if (converged) reason = ''
   end subroutine solve

@@ -262,3 +262,17 @@ PetscErrorCode eme_options_in_force(char *text, int size)
     PetscCall(PetscFree(all));
     PetscFunctionReturn(0);
 }
+
+/* *set = 1 if the option `name` (NUL-terminated, exactly, e.g. "-snes_mf") is in the database,
+ * with its value (or "") in `value` (`size` bytes, cut if longer). Returns a PETSc error code. */
+PetscErrorCode eme_option_value(const char *name, char *value, int size, int *set)
+{
+    PetscBool found;
+
+    PetscFunctionBeginUser;
+    value[0] = '\0';
+    PetscCall(PetscOptionsGetString(NULL, NULL, name, value, (size_t)size, &found));
+    if (!found) PetscCall(PetscOptionsHasName(NULL, NULL, name, &found));
+    *set = found ? 1 : 0;
+    PetscFunctionReturn(0);
+}

@@ -20,6 +20,7 @@ module retry_strategies
   public :: strategy_predictor, strategy_old_state, strategy_continuation, strategies_per_round
   public :: max_continuation_solves, first_continuation_fraction, smallest_continuation_increment
   public :: chord_update_limit, newton_converged, rounding_factor, final_chord_step, chord_refinement
+  public :: stagnation_update, stagnation_ratio
 
   integer, parameter :: strategy_predictor = 1
   integer, parameter :: strategy_old_state = 2
@@ -32,15 +33,28 @@ module retry_strategies
 
   !> A root finder may confirm a root with the LU factors it has (a final chord step instead of a
   !> new Jacobian) once the residual is below its tolerance after an update of at most this
-  !> 2-norm: the chord step's residual is then ~ |update| times the tolerance, at the residual's
-  !> rounding (docs/integrators.md: measured, 1e-3 let the energy drift over 2000 steps of 0.01 s grow
-  !> threefold, 1e-4 does not).
+  !> 2-norm: the chord step's error is then ~ |update| times its own update, and its iterate is
+  !> accepted only by the chord test of src/solver/modified_newton (docs/integrators.md: measured,
+  !> 1e-3 let the energy drift over 2000 steps of 0.01 s grow threefold, 1e-4 does not).
   real(real64), parameter :: chord_update_limit = 1.0e-4_real64
 
   !> Updates and residuals within rounding_factor eps of their scales are at the rounding of a
   !> root (newton_converged). At the rounding floor the measured updates are 0.1 to 0.3 eps |z|
   !> and the residuals 0.1 to 0.3 eps |z|/h; the last quadratic step before it, 80 to 900 eps |z|.
   real(real64), parameter :: rounding_factor = 16.0_real64
+
+  !> Newton has reached its rounding floor where a Newton update of at most stagnation_update
+  !> state_scale (relative: far inside quadratic convergence, whose next residual would be ~1e-16
+  !> of the last) no longer lowers the residual by stagnation_ratio, and the residual is within
+  !> stagnation_residual residual_scale (newton_converged). Where the floor is set by the field's
+  !> terms rather than by |z| (conduction kappa Theta ~ 9e4 W where the internal energies are ~6
+  !> J: docs/integrators.md, Convergence), the rounding test cannot see it; this one does, and the
+  !> step check (src/run/step_check) then judges the balances. Both scales are the old state's,
+  !> never the iterate's: measured against |x|, a diverging Newton (a multiplier at 2.5e28 in a
+  !> stiff scene with fixed length and temperature) passed as stagnated.
+  real(real64), parameter :: stagnation_update = 1.0e-8_real64
+  real(real64), parameter :: stagnation_ratio = 0.5_real64
+  real(real64), parameter :: stagnation_residual = 1.0e-8_real64
 
   !> Something that solves a nonlinear_system from an initial guess (e.g. PETSc SNES).
   type, abstract :: root_finder
@@ -105,12 +119,15 @@ contains
   !> step scales like 1/dt: the second condition lets a tight tolerance or a small dt end where
   !> rounding ends the iteration instead of failing the step. update_tolerance > 0 (PETSc's
   !> -snes_stol; 0 by default) is one more condition on the update, |dx| <= update_tolerance |x|:
-  !> an option can make the test stricter, never looser.
+  !> an option can make the test stricter, never looser. With `previous_residual` (the residual
+  !> before this update), a Newton that has stagnated at its rounding floor (stagnation_update,
+  !> stagnation_ratio) has converged as far as arithmetic allows, whatever the tolerance.
   pure logical function newton_converged(iteration, residual_norm, update_norm, x_norm, tolerance, update_tolerance, &
-                                         state_scale, residual_scale)
+                                         state_scale, residual_scale, previous_residual)
     integer, intent(in) :: iteration
     real(real64), intent(in) :: residual_norm, update_norm, x_norm, tolerance, update_tolerance
     real(real64), intent(in) :: state_scale, residual_scale
+    real(real64), intent(in), optional :: previous_residual
 
     if (iteration == 0) then
       ! An initial guess is accepted only if it solves the system exactly: below the tolerance
@@ -125,6 +142,10 @@ contains
     newton_converged = newton_converged .or. &
                        (update_norm <= rounding_factor*epsilon(1.0_real64)*state_scale .and. &
                         residual_norm <= rounding_factor*epsilon(1.0_real64)*residual_scale)
+    if (newton_converged .or. .not. present(previous_residual)) return
+    newton_converged = iteration >= 2 .and. update_norm <= stagnation_update*state_scale .and. &
+                       residual_norm >= stagnation_ratio*previous_residual .and. &
+                       residual_norm <= stagnation_residual*residual_scale
   end function newton_converged
 
   !> Whether a Newton iteration may confirm the root with the factors at hand instead of a new

@@ -40,6 +40,7 @@ module snes_shell
     integer :: accepted_at = -1                     !! the iteration our convergence test accepted (-1: none)
     real(real64) :: residual_norm = huge(1.0_real64)  !! at SNES's current iterate
     real(real64) :: update_norm = huge(1.0_real64)    !! of the update that led there
+    real(real64) :: previous_residual = huge(1.0_real64)  !! the residual the convergence test saw before
     real(real64) :: state_scale = 0.0_real64          !! the problem's rounding scales (newton_converged)
     real(real64) :: residual_scale = 0.0_real64
     logical :: chord_taken = .false.                !! the last iteration reused the factors
@@ -89,12 +90,13 @@ contains
       reason = SNES_DIVERGED_FNORM_NAN
     else if (context%reuse%converged(int(iteration), residual_norm, update_norm, x_norm, context%tolerance, &
                                      context%update_tolerance, context%state_scale, context%residual_scale, &
-                                     context%step_length)) then
+                                     context%step_length, context%previous_residual)) then
       reason = SNES_CONVERGED_FNORM_ABS
       context%accepted_at = int(iteration)
     else
       reason = SNES_CONVERGED_ITERATING
     end if
+    context%previous_residual = residual_norm
   end subroutine converged_on_update
 
   ! SNES callback: the residual; a point outside the problem's domain is a domain error, which
@@ -263,7 +265,7 @@ contains
     trial = x_values - y_values
     update_norm = two_norm(y_values)
     call context%problem%evaluate_residual(trial, residual, stat)
-    if (stat /= 0 .and. context%reuse%enabled .and. .not. context%reuse%fresh) then
+    if (stat /= 0 .and. context%reuse%enabled .and. context%reuse%chord) then
       call factor_jacobian(context, x_values, info)
       if (info == 0) then
         PetscCall(borrow_read(f, n, f_values, ierr))

@@ -39,10 +39,10 @@ module snes_solver
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use snes_shell, only: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, &
                         factor_operator, apply_lu, full_step
-  use solver_options, only: step_solver_options, read_solver_options, option_given
+  use solver_options, only: step_solver_options, read_solver_options, option_given, option_value
   use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
                                 reasons_snes
-  use failures, only: failure_type, fail_on_code
+  use failures, only: failure_type, fail_on_code, fail, failure_input
   implicit none
   private
   public :: newton_solver
@@ -60,6 +60,9 @@ module snes_solver
     integer :: max_iterations = 0
     logical :: created = .false.
     type(step_solver_options) :: options
+    !> Set up from the options database (the command line, PETSC_OPTIONS); .false.: the defaults
+    !> alone, whatever the options say (the step check's re-solve, src/run/step_check).
+    logical :: from_options = .true.
     logical :: shell_line_search = .false.          !! the full-step shell instead of 'basic'
     logical :: shell_in_use = .false.               !! the line search now is the shell
     logical :: quiet = .false.                      !! no option asks for a viewer
@@ -83,15 +86,28 @@ module snes_solver
 
 contains
 
-  !> Makes the solver ready for `problem` (prepare_petsc); a failure if PETSc fails.
-  subroutine prepare(self, problem, newton_tol, max_iterations, failure)
+  !> Makes the solver ready for `problem` (prepare_petsc); a failure if PETSc fails. With
+  !> from_options = .false. (kept from the first call), the solver ignores the options database:
+  !> PETSc's and this code's defaults, a full Newton to the tolerance or the rounding floor.
+  subroutine prepare(self, problem, newton_tol, max_iterations, failure, from_options)
     class(newton_solver), intent(inout), target :: self
     class(nonlinear_system), intent(in), target :: problem
     real(real64), intent(in) :: newton_tol
     integer, intent(in) :: max_iterations
     type(failure_type), intent(out) :: failure
+    logical, intent(in), optional :: from_options
     PetscErrorCode :: ierr
+    character(len=:), allocatable :: refusal
 
+    if (present(from_options) .and. .not. self%created) self%from_options = from_options
+    if (self%from_options) then
+      ! Before SNES reads them: -snes_type vinewtonrsls crashes PETSc 3.18 in SNESSetFromOptions.
+      call refused_options(refusal, ierr)
+      call fail_on_code(failure, ierr, 'newton_solver%prepare', 'PETSc could not read its options')
+      if (.not. failure%failed() .and. len(refusal) > 0) &
+        call fail(failure, failure_input, refusal, 'the command line or PETSC_OPTIONS')
+      if (failure%failed()) return
+    end if
     call prepare_petsc(self, problem, newton_tol, max_iterations, ierr)
     call fail_on_code(failure, ierr, 'newton_solver%prepare', 'PETSc could not set up SNES')
   end subroutine prepare
@@ -176,6 +192,57 @@ contains
     PetscCall(self%create(problem%unknowns(), newton_tol, max_iterations, ierr))
   end subroutine prepare_petsc
 
+  ! What the options database asks of this solver that it cannot do (a dense system, its own LU
+  ! in a shell preconditioner, no DM, no bounds), as the refusal's text ('' if nothing): the SNES
+  ! types that need a DM, an AIJ matrix, sub-solvers or callbacks it does not have, or that solve
+  ! variational inequalities (vinewtonrsls crashed in PETSc 3.18); a matrix-free preconditioning
+  ! matrix (-snes_mf: the shell reads the dense matrix) and coloring (-snes_fd_color: AIJ only);
+  ! a factorization package other than PETSc's own (none takes a dense matrix); no iteration.
+  subroutine refused_options(refusal, ierr)
+    character(len=:), allocatable, intent(out) :: refusal
+    PetscErrorCode, intent(out) :: ierr
+    character(len=*), parameter :: refused_types(*) = [character(len=16) :: 'composite', 'ngs', 'nasm', 'aspin', &
+                                                        'shell', 'patch', 'vinewtonrsls', 'vinewtonssls', 'python']
+    character(len=*), parameter :: why = ' (the dense step of this model: no DM, its own LU in a shell '// &
+                                         'preconditioner, docs/running.md); '
+    character(len=64) :: snes_type, value
+    integer :: max_iterations, status
+    logical :: set
+
+    refusal = ''
+    PetscCall(option_value('-snes_type', snes_type, set, ierr))
+    if (set .and. any(refused_types == snes_type)) then
+      refusal = '-snes_type '//trim(snes_type)//' cannot solve this model''s steps'//why// &
+                'allowed: newtonls (the default), newtontr, newtontrdc, nrichardson, ncg, ngmres, anderson, qn, ms, '// &
+                'fas, ksponly'
+      return
+    end if
+    PetscCall(option_value('-snes_mf', value, set, ierr))
+    if (set) then
+      refusal = '-snes_mf cannot serve this model''s steps'//why//'allowed: -snes_mf_operator, -snes_fd'
+      return
+    end if
+    PetscCall(option_value('-snes_fd_color', value, set, ierr))
+    if (set) then
+      refusal = '-snes_fd_color cannot serve this model''s steps (coloring needs an AIJ matrix)'//why// &
+                'allowed: -snes_fd, -snes_mf_operator'
+      return
+    end if
+    PetscCall(option_value('-pc_factor_mat_solver_type', value, set, ierr))
+    if (set .and. value /= 'petsc') then
+      refusal = '-pc_factor_mat_solver_type '//trim(value)//' does not factor a dense matrix'//why// &
+                'allowed: petsc'
+      return
+    end if
+    PetscCall(option_value('-snes_max_it', value, set, ierr))
+    if (.not. set) return
+    read (value, *, iostat=status) max_iterations
+    if (status == 0 .and. max_iterations < 1) then
+      refusal = '-snes_max_it must allow at least one Newton iteration'//why//'allowed: an integer >= 1'
+      return
+    end if
+  end subroutine refused_options
+
   ! Creates the SNES for n unknowns.
   subroutine create(self, n, newton_tol, max_iterations, ierr)
     class(newton_solver), intent(inout), target :: self
@@ -223,14 +290,16 @@ contains
     PetscCall(SNESSetConvergenceTest(self%snes, converged_on_update, self%context, PETSC_NULL_FUNCTION, ierr))
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
-    PetscCall(SNESSetFromOptions(self%snes, ierr))
+    if (self%from_options) then
+      PetscCall(SNESSetFromOptions(self%snes, ierr))
+      call read_solver_options(self%options, options_failure)
+      if (options_failure%failed()) then
+        ierr = options_failure%code     ! nonzero: create's callers see a failed PETSc call
+        return
+      end if
+    end if
     PetscCall(keep_tolerances(self, ierr))
     PetscCall(SNESLineSearchGetType(line_search, self%line_search, ierr))
-    call read_solver_options(self%options, options_failure)
-    if (options_failure%failed()) then
-      ierr = options_failure%code     ! nonzero: create's callers see a failed PETSc call
-      return
-    end if
 
     ! Lean only where SNES would not look at its Jacobian: Newton line search, LU in our shell.
     PetscCall(SNESGetType(self%snes, snes_type, ierr))
@@ -239,6 +308,7 @@ contains
     PetscCall(SNESGetLagJacobian(self%snes, lag, ierr))
     needs_snes_jacobian = snes_type /= SNESNEWTONLS .or. ksp_type /= KSPPREONLY .or. pc_type /= PCSHELL .or. lag /= 1
     do k = 1, size(jacobian_options)
+      if (.not. self%from_options) exit
       PetscCall(option_given(trim(jacobian_options(k)), given, ierr))
       needs_snes_jacobian = needs_snes_jacobian .or. given
     end do
@@ -251,7 +321,10 @@ contains
       ! The preconditioner's operator never changes: PCSetUp (twice an iteration) returns at once.
       PetscCall(PCSetReusePreconditioner(pc, PETSC_TRUE, ierr))
     end if
-    PetscCall(option_given('-snes_linesearch_type', given, ierr))
+    given = .false.
+    if (self%from_options) then
+      PetscCall(option_given('-snes_linesearch_type', given, ierr))
+    end if
     self%shell_line_search = self%context%lean .and. .not. given
     if (self%line_search == SNESLINESEARCHBT) then
       self%fallback_line_search = SNESLINESEARCHBASIC
@@ -262,6 +335,7 @@ contains
     ! Viewers: -snes_view, -snes_converged_reason, -ksp_view_*, -mat_view, ..., monitors and draws.
     self%quiet = .true.
     do k = 1, size(viewer_options)
+      if (.not. self%from_options) exit
       PetscCall(option_given(trim(viewer_options(k)), given, ierr))
       self%quiet = self%quiet .and. .not. given
     end do
@@ -384,6 +458,7 @@ contains
     self%context%problem => problem
     self%context%residual_norm = huge(1.0_real64)
     self%context%update_norm = huge(1.0_real64)
+    self%context%previous_residual = huge(1.0_real64)
     self%context%chord_taken = .false.
     call problem%rounding_scales(self%context%state_scale, self%context%residual_scale)
     self%context%step_length = problem%step_length()

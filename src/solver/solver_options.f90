@@ -25,7 +25,7 @@ module solver_options
   use failures, only: failure_type, fail_on_code
   implicit none (type, external)
   private
-  public :: step_solver_options, read_solver_options, option_given, read_step_control_options
+  public :: step_solver_options, read_solver_options, option_given, read_step_control_options, option_value
 
   !> The switches, the modified Newton's threshold and the halving depth, with their defaults.
   type :: step_solver_options
@@ -60,6 +60,15 @@ module solver_options
       integer(c_int), intent(out) :: given
       integer(c_int) :: ierr
     end function eme_option_given
+
+    function eme_option_value(name, value, size, set) bind(C, name='eme_option_value') result(ierr)
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: name(*)
+      character(kind=c_char), intent(out) :: value(*)
+      integer(c_int), value :: size
+      integer(c_int), intent(out) :: set
+      integer(c_int) :: ierr
+    end function eme_option_value
   end interface
 
 contains
@@ -117,5 +126,25 @@ contains
     ierr = int(eme_option_given(text//c_null_char, found))
     given = found /= 0
   end subroutine option_given
+
+  !> Whether the option `name` (exactly, e.g. '-snes_mf') is set, and its value ('' if it has
+  !> none). A PETSc-style helper (ierr, for PetscCall) of snes_solver's PETSc-side routines.
+  subroutine option_value(name, value, set, ierr)
+    character(len=*), intent(in) :: name
+    character(len=*), intent(out) :: value
+    logical, intent(out) :: set
+    integer, intent(out) :: ierr
+    character(kind=c_char) :: buffer(len(value) + 1)
+    integer(c_int) :: found
+    integer :: i
+
+    ierr = int(eme_option_value(name//c_null_char, buffer, int(size(buffer), c_int), found))
+    set = found /= 0
+    value = ''
+    do i = 1, len(value)
+      if (buffer(i) == c_null_char) exit
+      value(i:i) = buffer(i)
+    end do
+  end subroutine option_value
 
 end module solver_options

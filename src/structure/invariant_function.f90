@@ -69,19 +69,26 @@ contains
     if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
   end subroutine temperature
 
-  !> f(x) and the temperature at x, what a run observes of a state each step. This default
-  !> evaluates and then asks for the temperature; functions that share the work override it.
-  pure subroutine values_and_temperature(self, x, f, theta, stat)
+  !> f(x) and the temperature at x, what a run observes of a state each step; optionally the
+  !> rounding scales of f: the sums of the absolute values of the terms each f_j is computed from
+  !> (src/structure/step_balances divides the step's balances by them). This default evaluates and
+  !> then asks for the temperature, and takes |S| as S's scale and |U| + Theta |S| as U's (a U
+  !> summed as F + Theta S); functions that share the work or sum other terms override it.
+  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
     class(invariant_functions), intent(in) :: self
     real(real64), intent(in) :: x(:)
     real(real64), intent(out) :: f(:), theta
     integer, intent(out) :: stat
+    real(real64), intent(out), optional :: scales(:)
     real(real64) :: g(size(x), size(f))
 
     theta = 0.0_real64
     call self%evaluate(x, f, g, stat=stat)
+    if (present(scales)) scales = 0.0_real64
     if (stat /= failure_none) return
     call self%temperature(x, theta, stat)
+    if (present(scales) .and. size(f) == 2) &
+      scales = [abs(f(potential_u)) + theta*abs(f(potential_s)), abs(f(potential_s))]
   end subroutine values_and_temperature
 
   !> The value of tau (the last invariant) that gives temperature theta at the mechanical

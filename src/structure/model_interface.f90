@@ -14,17 +14,20 @@
 !> A new model extends `generic_model`: it fills `state_size`, `column_names` and `subsystems`
 !> when it is built, implements the deferred procedures and says its columns' units
 !> (`column_units`, 'unknown' by default). It describes itself to the output (`words`) and
-!> declares its momenta, if it has any (`momentum_names`, `momenta`, and the one that is a first
-!> integral: `conserved_momentum_column`, `conserved_momentum` and its gradient); a model without
-!> has no momentum dataset, no drift figure and no momentum in the relaxed schemes' projection.
-!> Everything else here is generic.
+!> declares its momenta, if it has any (`momentum_names`, `momenta`), and the components of them
+!> that are first integrals (`conserved`: each with its name and axis; `conserved_in_momenta` and
+!> their gradients in the momenta; `angular_momentum_components` gives those of an angular
+!> momentum under gravity, docs/formulation.md section 2); a model without momenta has no momentum
+!> dataset, and one without conserved components no drift figure and no momentum in the relaxed
+!> schemes' projection. Everything else here is generic.
 module model_interface
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions, potential_u, potential_s
   use failures, only: failure_none, domain_overflow
   implicit none (type, external)
   private
-  public :: generic_model, subsystem, model_words, add_temperature_chain
+  public :: generic_model, subsystem, model_words, conserved_component, add_temperature_chain
+  public :: angular_momentum_components, component_values
 
   !> One thermodynamic subsystem (a spring, with its temperature). The model's builder sets every
   !> component.
@@ -51,13 +54,23 @@ module model_interface
     character(len=160) :: metric_scales = 'each invariant by its typical size (attributes metric_scale_*)'
   end type model_words
 
+  !> A component of the momenta that is a first integral, such as the angular momentum about the
+  !> axis of gravity: its name (a column of the momentum dataset, or a name of its own such as J_g)
+  !> and, for a component of an angular momentum, its unit axis in space.
+  type :: conserved_component
+    character(len=8) :: name = ''
+    real(real64) :: axis(3) = 0.0_real64
+  end type conserved_component
+
   !> A GENERIC model with Mielke's split.
   type, abstract :: generic_model
     type(model_words) :: words
     !> The columns of the momentum dataset (angular_momentum); none: the model has no momenta.
     character(len=8), allocatable :: momentum_names(:)
-    !> The column of momentum_names that is a first integral (its drift is reported); 0: none.
-    integer :: conserved_momentum_column = 0
+    !> The components of the momenta that are first integrals, in the order of conserved_momenta
+    !> (their drifts are reported, the relaxed schemes keep each, the step check measures each);
+    !> none: unallocated or empty; at most three (those of an angular momentum).
+    type(conserved_component), allocatable :: conserved(:)
     integer :: state_size = 0
     integer :: thermo_variable = 0                           !! thermo_variable's tau_* of every subsystem
     character(len=16), allocatable :: column_names(:)        !! of z, in the model's thermodynamic variable
@@ -71,11 +84,15 @@ module model_interface
     procedure(poisson_interface), deferred :: poisson_matrix_0
     procedure(friction_interface), deferred :: friction_matrix_0
     procedure(in_variable_interface), deferred :: in_variable
-    procedure :: conserved_momentum
-    procedure :: conserved_momentum_gradient
+    procedure :: conserved_count
+    procedure :: conserved_momenta
+    procedure :: conserved_in_momenta
+    procedure :: conserved_momenta_gradient
     procedure :: momenta
     procedure :: momentum_count
     procedure :: mechanical_energy_difference
+    procedure :: mechanical_energy_scale
+    procedure :: momentum_scale
     procedure :: energy_difference
     procedure :: convert_state
     procedure :: subsystem_count
@@ -171,24 +188,87 @@ contains
     if (allocated(self%momentum_names)) momentum_count = size(self%momentum_names)
   end function momentum_count
 
-  !> The momentum that is a first integral (conserved_momentum_column's, or a combination along a
-  !> symmetry axis), linear in the momenta; 0 for a model without (then never called).
-  pure function conserved_momentum(self, z) result(value)
+  !> The number of conserved momentum components (0: none).
+  pure integer function conserved_count(self)
+    class(generic_model), intent(in) :: self
+
+    conserved_count = 0
+    if (allocated(self%conserved)) conserved_count = size(self%conserved)
+  end function conserved_count
+
+  !> The conserved components' values at z, in the order of `conserved`: those of the momenta
+  !> there (conserved_in_momenta).
+  pure function conserved_momenta(self, z) result(values)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: value
+    real(real64) :: values(self%conserved_count())
 
-    value = 0.0_real64
-  end function conserved_momentum
+    values = self%conserved_in_momenta(self%momenta(z))
+  end function conserved_momenta
 
-  !> The gradient of conserved_momentum in z: nonzero in the momenta only.
-  pure function conserved_momentum_gradient(self, z) result(gradient)
+  !> The conserved components' values, in the order of `conserved`, from the momenta (`momenta`'s
+  !> values, in the order of momentum_names), each linear in them; none by default (a model with
+  !> components overrides this). So a caller that has the momenta need not compute them again.
+  pure function conserved_in_momenta(self, momenta) result(values)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: momenta(:)
+    real(real64) :: values(self%conserved_count())
+
+    values = 0.0_real64
+  end function conserved_in_momenta
+
+  !> gradients(:, k): the derivative of component k in the momenta, zero in every other column of z
+  !> (the directions in which the relaxed schemes' projection moves the momenta); none by default.
+  pure function conserved_momenta_gradient(self, z) result(gradients)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: gradient(size(z))
+    real(real64) :: gradients(size(z), self%conserved_count())
 
-    gradient = 0.0_real64
-  end function conserved_momentum_gradient
+    gradients = 0.0_real64
+  end function conserved_momenta_gradient
+
+  !> The components of an angular momentum J (about a fixed point, in space) that a uniform
+  !> gravity g leaves conserved (docs/formulation.md section 2): all three, J_x, J_y and J_z,
+  !> without gravity; else the one along g: named J_x, J_y or J_z with that coordinate axis when g
+  !> lies along one (either sign), or J_g with the axis g/|g|.
+  pure function angular_momentum_components(gravity) result(components)
+    real(real64), intent(in) :: gravity(3)
+    type(conserved_component), allocatable :: components(:)
+    integer :: i
+
+    if (.not. any(abs(gravity) > 0.0_real64)) then
+      components = [(about_coordinate_axis(i), i=1, 3)]
+    else if (count(abs(gravity) > 0.0_real64) == 1) then
+      components = [about_coordinate_axis(maxloc(abs(gravity), 1))]
+    else
+      components = [conserved_component('J_g', gravity/norm2(gravity))]
+    end if
+
+  contains
+
+    ! J_x, J_y or J_z (i = 1, 2, 3) with its unit axis.
+    pure function about_coordinate_axis(i) result(component)
+      integer, intent(in) :: i
+      type(conserved_component) :: component
+
+      component%name = 'J_'//'xyz'(i:i)
+      component%axis = 0.0_real64
+      component%axis(i) = 1.0_real64
+    end function about_coordinate_axis
+  end function angular_momentum_components
+
+  !> The components' values J.axis of an angular momentum j (in the order x, y, z of the sum, as the
+  !> run file's readers take them from its columns).
+  pure function component_values(components, j) result(values)
+    type(conserved_component), intent(in) :: components(:)
+    real(real64), intent(in) :: j(3)
+    real(real64) :: values(size(components))
+    integer :: k
+
+    do k = 1, size(components)
+      values(k) = j(1)*components(k)%axis(1) + j(2)*components(k)%axis(2) + j(3)*components(k)%axis(3)
+    end do
+  end function component_values
 
   !> The units of z's columns (the output's column_units); 'unknown' unless the model says.
   pure subroutine column_units(self, units)
@@ -213,6 +293,27 @@ contains
 
     temperature_count = count(self%subsystems%tau_column > 0)
   end function temperature_count
+
+  !> The rounding scale of the mechanical energy at z: the sum of the absolute values of the terms
+  !> it is summed from (src/structure/step_balances). This default is |T + V_g|; a model whose
+  !> terms can cancel (kinetic against gravity) overrides it.
+  pure real(real64) function mechanical_energy_scale(self, z)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+
+    mechanical_energy_scale = abs(self%mechanical_energy(z))
+  end function mechanical_energy_scale
+
+  !> The rounding scale of the momenta at z: the sum of the absolute values of the terms each
+  !> momentum is summed from, the largest over the momenta (src/structure/step_balances). This
+  !> default is the largest |momentum|; a model whose terms can cancel overrides it.
+  pure real(real64) function momentum_scale(self, z)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+
+    momentum_scale = 0.0_real64
+    if (self%momentum_count() > 0) momentum_scale = maxval(abs(self%momenta(z)))
+  end function momentum_scale
 
   !> (T + V_g)(z_b) - (T + V_g)(z_a). This default subtracts two values; models override it with
   !> a form free of cancellation (kinetic energy is quadratic, gravity linear).
@@ -275,31 +376,43 @@ contains
     end do
   end subroutine convert_state
 
-  !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z.
-  pure subroutine observe(self, z, energy, entropy, temperature, stat)
+  !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z; optionally
+  !> the rounding scales of E and S (src/structure/step_balances): the mechanical energy's
+  !> (mechanical_energy_scale) plus sum_a scale(U_a), and sum_a scale(S_a): the potentials' own
+  !> rounding scales (invariant_function's values_and_temperature; |U_a| and |S_a| where there is
+  !> no temperature).
+  pure subroutine observe(self, z, energy, entropy, temperature, stat, energy_scale, entropy_scale)
     class(generic_model), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64), intent(out) :: energy, entropy, temperature(:)
     integer, intent(out) :: stat
-    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2)
+    real(real64), intent(out), optional :: energy_scale, entropy_scale
+    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2), u_scale, s_scale, scales(2)
     integer :: a, n
 
     energy = self%mechanical_energy(z)
     entropy = 0.0_real64
     temperature = 0.0_real64
+    u_scale = 0.0_real64
+    s_scale = 0.0_real64
     stat = failure_none
     do a = 1, size(self%subsystems)
       n = self%subsystems(a)%invariant_count
       call self%invariants(z, a, x(1:n))
       if (self%subsystems(a)%tau_column > 0) then
-        call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat)
+        call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat, scales)
       else
         call self%subsystems(a)%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
+        scales = abs(f)
       end if
       if (stat /= failure_none) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
+      u_scale = u_scale + scales(potential_u)
+      s_scale = s_scale + scales(potential_s)
     end do
+    if (present(energy_scale)) energy_scale = self%mechanical_energy_scale(z) + u_scale
+    if (present(entropy_scale)) entropy_scale = s_scale
   end subroutine observe
 
   !> The subsystems' temperatures at z; stat reports the first that is outside the domain in

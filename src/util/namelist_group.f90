@@ -7,7 +7,7 @@
 !>
 !> Values are read as Fortran reads list-directed input (repeat counts such as 2*0.5 included);
 !> an array takes exactly its number of values, or one value per subscript (theta(2) = 350,
-!> p2(1:2) = 2*0.5); texts are quoted; logical values are .true. or .false. (or T, F).
+!> p2(1:2) = 2*0.5); texts need quotes; logical values are .true. or .false. (or T, F).
 module namelist_group
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item, group_items, item_name
@@ -336,22 +336,37 @@ contains
 
   ! ------------------------------------------------------------------ helpers
 
-  ! The first pair of items from one origin that set the same variable: the same name and
-  ! subscript written twice (dt = 0.1, dt = 0.2), or two names of one field (a field and its old
-  ! name). Overrides (a study's sweep) come from another origin and replace the file's value.
+  ! The first pair of items from one origin that set the same variable or element: a field twice
+  ! (dt = 0.1, dt = 0.2), an element twice (x(1) = 1, x(1) = 2), an element of an array given
+  ! whole and by subscript (theta = 300, 300, theta(2) = 310) or by overlapping ranges (an array
+  ! given whole sets every element, also one that takes up to its size of values), or two names
+  ! of one field (a field and its old name). Overrides (a study's sweep) come from another origin
+  ! and replace the file's value. An item of an unknown field or with a bad subscript is left to
+  ! read_group, which says what is wrong with it.
   subroutine check_single_setting(group, fields, items, failure)
     character(len=*), intent(in) :: group
     type(group_field), intent(in) :: fields(:)
     type(namelist_item), intent(in) :: items(:)
     type(failure_type), intent(out) :: failure
+    integer :: first(size(items)), last(size(items)), field(size(items))
+    character(len=:), allocatable :: element
     integer :: i, j
 
     do i = 1, size(items)
+      call element_range(fields, items(i)%item, field(i), first(i), last(i))
+    end do
+    do i = 1, size(items)
+      if (field(i) == 0) cycle
       do j = i + 1, size(items)
-        if (items(i)%origin /= items(j)%origin) cycle
-        if (setting_key(items(i)%item) == setting_key(items(j)%item)) then
-          call fail(failure, failure_input, items(i)%origin//': &'//group//': '//setting_key(items(i)%item)// &
-                    ' is given twice; allowed: each field once in its group', setting_key(items(i)%item))
+        if (field(j) == 0 .or. items(i)%origin /= items(j)%origin) cycle
+        if (field(i) == field(j)) then
+          if (max(first(i), first(j)) > min(last(i), last(j))) cycle
+          element = setting_key(items(i)%item)
+          if (element /= setting_key(items(j)%item)) element = item_name(items(i)%item)//'('// &
+                                                               integer_text(max(first(i), first(j)))//')'
+          call fail(failure, failure_input, items(i)%origin//': &'//group//': '//element//' is given twice ('// &
+                    as_written(items(i)%item)//' and '//as_written(items(j)%item)//'); allowed: each field and '// &
+                    'each element once in its group', trim(fields(field(i))%name))
           return
         end if
         if (.not. same_target(fields, item_name(items(i)%item), item_name(items(j)%item))) cycle
@@ -361,6 +376,47 @@ contains
       end do
     end do
   end subroutine check_single_setting
+
+  ! The field an item sets (its index in the table) and the elements first:last it sets (1:1 for
+  ! a scalar, every element for an array given whole); field 0 for an unknown field, a subscript
+  ! on a scalar, or a subscript that is not one or out of range.
+  subroutine element_range(fields, item, field, first, last)
+    type(group_field), intent(in) :: fields(:)
+    character(len=*), intent(in) :: item
+    integer, intent(out) :: field, first, last
+    type(failure_type) :: failure
+    integer :: equals, open_at
+
+    field = field_index(fields, item_name(item))
+    first = 1
+    last = 1
+    equals = index(item, '=')
+    if (field == 0 .or. equals == 0) then
+      field = 0
+      return
+    end if
+    if (associated(fields(field)%real_values)) last = size(fields(field)%real_values)
+    if (associated(fields(field)%text_values)) last = size(fields(field)%text_values)
+    open_at = index(item(1:equals), '(')
+    if (open_at == 0) return
+    if (.not. associated(fields(field)%real_values)) then
+      field = 0
+      return
+    end if
+    call parse_subscript(item(open_at + 1:equals - 1), first, last, failure)
+    if (failure%failed()) field = 0
+  end subroutine element_range
+
+  ! An item as the file writes it, without the comma that separates it from the next.
+  pure function as_written(item) result(text)
+    character(len=*), intent(in) :: item
+    character(len=:), allocatable :: text
+
+    text = trim(adjustl(item))
+    if (len(text) > 0) then
+      if (text(len(text):) == ',') text = trim(text(1:len(text) - 1))
+    end if
+  end function as_written
 
   ! 'name(subscript)' of an item, lower case and without blanks.
   pure function setting_key(item) result(key)
@@ -399,6 +455,23 @@ contains
                   associated(fields(a)%text_value, fields(b)%text_value)
   end function same_target
 
+
+  ! 'name = 'a', 'b'' for an unquoted value 'a, b': how the item is written with its texts quoted.
+  pure function quoted_example(name, value) result(example)
+    character(len=*), intent(in) :: name, value
+    character(len=:), allocatable :: example
+    integer :: start, comma
+
+    example = name//' = '
+    start = 1
+    do
+      comma = index(value(start:), ',')
+      if (comma == 0) exit
+      example = example//''''//trim(adjustl(value(start:start + comma - 2)))//''', '
+      start = start + comma
+    end do
+    example = example//''''//trim(adjustl(value(start:)))//''''
+  end function quoted_example
 
   ! Applies 'name[(i[:j])] = value' to the field. `problem`: 0, value_problem (the value does not
   ! fit the field) or subscript_problem, which read_group words differently; `reason` says why,
@@ -448,7 +521,7 @@ contains
     end if
     if (associated(field%text_values)) then
       if (index('''"', value(1:1)) == 0) then
-        reason = 'texts are quoted'
+        reason = 'texts need quotes: '//quoted_example(trim(field%name), value)
         return
       end if
       call read_texts(value, field%text_values, failure)
@@ -473,7 +546,7 @@ contains
       return
     case default
       if (index('''"', value(1:1)) == 0) then
-        reason = 'texts are quoted'
+        reason = 'texts need quotes: '//quoted_example(trim(field%name), value)
         return
       end if
       allocate (character(len=len(value)) :: text_buffer)

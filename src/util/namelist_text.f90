@@ -170,8 +170,8 @@ contains
 
   ! Checks that the text is a sequence of groups '&name items /' and nothing else: no text
   ! outside a group (a group whose '&' was forgotten), every group closed by '/' outside quotes
-  ! before the next '&', and no '/' right after '=' (an unquoted path, file = /tmp/x.h5, would
-  ! close the group there).
+  ! before the next '&', and no '/' inside a value or right after '=' (an unquoted path, file =
+  ! results/x.h5 or file = /tmp/x.h5, would close the group there).
   subroutine check_groups(text, path, failure)
     character(len=*), intent(in) :: text, path
     type(failure_type), intent(out) :: failure
@@ -222,15 +222,43 @@ contains
         call fail(failure, failure_input, path//': &'//name//' is not closed by ''/''; allowed: '//syntax, path)
         return
       end if
+      if (index(' &', text(closed + 1:min(closed + 1, len(text)))) == 0) then
+        call refuse_unquoted_path(text(name_end + 1:closed - 1), text(closed:))
+        return
+      end if
       last = name_end + len_trim(text(name_end + 1:closed - 1))
       if (text(last:last) == '=') then
         call fail(failure, failure_input, path//': &'//name//': field '''// &
                   item_name(last_name(text(name_end + 1:last)))//''' has no value '// &
-                  'before the ''/'' that closes the group; texts are quoted, as in file = ''/tmp/x.h5''', path)
+                  'before the ''/'' that closes the group; texts need quotes, as in file = ''results/x.h5''', path)
         return
       end if
       i = closed + 1
     end do
+
+  contains
+
+    ! The '/' closing the group is followed by more of a word: the last item's value is an
+    ! unquoted path whose first '/' ended the group ('results/x.h5' or '/tmp/x.h5').
+    subroutine refuse_unquoted_path(body, rest)
+      character(len=*), intent(in) :: body, rest
+      character(len=:), allocatable :: field, value
+      integer :: equals, k
+
+      equals = 0
+      do k = 1, len(body)
+        if (body(k:k) == '=' .and. .not. quoted_at(body, k)) equals = k
+      end do
+      value = trim(adjustl(body(equals + 1:)))//rest(1:scan(rest//' ', ' ,') - 1)
+      if (equals == 0) then
+        call fail(failure, failure_input, path//': &'//name//': '''//excerpt(value)//''' is not a field = value ' &
+                  //'item; allowed: '//syntax, path)
+        return
+      end if
+      field = item_name(last_name(body(1:equals)))
+      call fail(failure, failure_input, path//': &'//name//': field '''//field//''' has the unquoted value '// &
+                value//', whose ''/'' closes the group; texts need quotes: '//field//' = '''//value//'''', path)
+    end subroutine refuse_unquoted_path
   end subroutine check_groups
 
   ! 'name =' at the end of a group body.

@@ -6,6 +6,10 @@ module number_text
   private
   public :: integer_text, fixed_text, scientific_text, reals_text
 
+  !> fixed_text's largest magnitude in fixed notation: above it, fixed notation shows digits that
+  !> a double (15 to 17 significant digits) does not hold.
+  real(real64), parameter :: fixed_limit = 1.0e15_real64
+
   !> An integer (default or 64-bit) without blanks.
   interface integer_text
     module procedure default_integer_text, long_integer_text
@@ -31,25 +35,54 @@ contains
     text = trim(buffer)
   end function default_integer_text
 
-  !> A real in fixed notation with `decimals` digits after the point, without blanks.
-  pure function fixed_text(x, decimals) result(text)
+  !> A real in fixed notation with `decimals` digits after the point, without blanks (right-aligned
+  !> in `width` characters if given and the text is shorter). Where fixed notation would not say
+  !> the number, it is written as scientific_text writes it with `decimals` digits after the point
+  !> (at least one): from 1e15 up, where it would show more digits than a double holds (1e300
+  !> filled a field of 40 with stars), and below half a unit of its last decimal, where it would
+  !> read 0 (1e-20 with 3 decimals); NaN and Inf as such.
+  pure function fixed_text(x, decimals, width) result(text)
     real(real64), intent(in) :: x
     integer, intent(in) :: decimals
+    integer, intent(in), optional :: width
     character(len=:), allocatable :: text
     character(len=40) :: buffer
 
-    write (buffer, '(f40.'//integer_text(decimals)//')') x
-    text = trim(adjustl(buffer))
+    if (.not. abs(x) < fixed_limit .or. (abs(x) > 0.0_real64 .and. abs(x) < 0.5_real64*10.0_real64**(-decimals))) then
+      text = scientific_text(x, max(1, decimals))
+    else
+      write (buffer, '(f40.'//integer_text(decimals)//')') x
+      text = trim(adjustl(buffer))
+    end if
+    if (present(width)) text = right_aligned(text, width)
   end function fixed_text
 
-  !> A real in scientific notation with 4 digits after the point, without blanks.
-  pure function scientific_text(x) result(text)
+  !> A real in scientific notation, d.ddddE+xx with `decimals` digits after the point (4 unless
+  !> given) and an exponent of at least two digits (all of its digits, 1.0000E-300), without
+  !> blanks (right-aligned in `width` characters if given and the text is shorter); NaN, Inf and
+  !> -Inf as such.
+  pure function scientific_text(x, decimals, width) result(text)
     real(real64), intent(in) :: x
+    integer, intent(in), optional :: decimals, width
     character(len=:), allocatable :: text
-    character(len=16) :: buffer
+    character(len=48) :: buffer
+    integer :: digits, exponent_at, exponent
 
-    write (buffer, '(es16.4)') x
-    text = trim(adjustl(buffer))
+    digits = 4
+    if (present(decimals)) digits = decimals
+    if (ieee_is_nan(x)) then
+      text = 'NaN'
+    else if (abs(x) > huge(x)) then
+      text = trim(merge('Inf ', '-Inf', x > 0))
+    else
+      ! The exponent's field of 3 digits holds every double's; it is written again without padding.
+      write (buffer, '(es48.'//integer_text(digits)//'e3)') x
+      exponent_at = index(buffer, 'E')
+      read (buffer(exponent_at + 1:), *) exponent
+      write (buffer(exponent_at + 1:), '(sp, i0.2)') exponent
+      text = trim(adjustl(buffer))
+    end if
+    if (present(width)) text = right_aligned(text, width)
   end function scientific_text
 
   !> Values as a user would write them, to 6 significant digits: 280.0, 0.011, -0.1, 1e-8, 5e9.
@@ -104,5 +137,14 @@ contains
     end do
     text = number(1:last)
   end function without_trailing_zeros
+
+  ! The text right-aligned in `width` characters; a longer text is kept whole.
+  pure function right_aligned(text, width) result(aligned)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: width
+    character(len=:), allocatable :: aligned
+
+    aligned = repeat(' ', max(0, width - len(text)))//text
+  end function right_aligned
 
 end module number_text

@@ -10,6 +10,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -17,6 +18,8 @@ from pathlib import Path
 import h5py
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent.parent / "postprocess"))
+from file_checksums import check_texts  # noqa: E402
 _SHIM = {}
 
 
@@ -84,16 +87,83 @@ def small_disk(folder, size):
 
 
 def mpirun_env_options(env):
-    """mpirun -x options that pass the shim's variables on to the ranks."""
-    names = [name for name in ("LD_PRELOAD", "EME_FULL_DISK_DIR", "EME_FULL_DISK_BYTES") if name in env]
+    """mpirun -x options that pass the shims' variables on to the ranks."""
+    names = [name for name in ("LD_PRELOAD", "EME_FULL_DISK_DIR", "EME_FULL_DISK_BYTES", "EME_KILL_DIR", "EME_KILL_AT",
+                               "EME_KILL_MATCH", "EME_KILL_SIGNAL", "EME_KILL_HOLD", "EME_KILL_LOG",
+                               "EME_WRITE_EVERY_ROWS") if name in env]
     return [option for name in names for option in ("-x", name)]
+
+
+def operation_shim(folder, at=None, match=None, signal_number=None, hold=None, log=None, env=None):
+    """The environment (os.environ or `env`, plus these) that loads the LD_PRELOAD shim
+    kill_at_write.c for the file operations under `folder`: at the `at`-th of them (counting only
+    those on a path containing `match`, if given) the process gets `signal_number` (default
+    SIGKILL), or, with `hold` (a path), waits there until that file exists (held_process);
+    `log` names a file that lists every operation with its path(s)."""
+    env = dict(os.environ if env is None else env, LD_PRELOAD=str(shim_library("kill_at_write")),
+               EME_KILL_DIR=str(folder))
+    for name, value in (("EME_KILL_AT", at), ("EME_KILL_MATCH", match), ("EME_KILL_LOG", log),
+                        ("EME_KILL_HOLD", hold)):
+        if value is not None:
+            env[name] = str(value)
+    if signal_number is not None:
+        env["EME_KILL_SIGNAL"] = str(int(signal_number))
+    return env
+
+
+def held_process(hold):
+    """The id of the process that holds at its chosen file operation (operation_shim's `hold`),
+    once it does."""
+    held = Path(f"{hold}.held")
+    assert wait_for(held.exists), f"no process reached its chosen file operation ({held} is missing)"
+    return int(held.read_text())
+
+
+def process_status(pid):
+    """The fields of /proc/PID/status ({} once the process has gone)."""
+    try:
+        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except OSError:
+        return {}
+    return dict(line.split(":\t", 1) for line in lines if ":\t" in line)
+
+
+def is_stopped(pid):
+    """Whether the process is stopped by a signal (SIGSTOP: state T)."""
+    return process_status(pid).get("State", "").startswith("T")
+
+
+def _in_mask(mask, number):
+    return bool(int(mask or "0", 16) >> (int(number) - 1) & 1)
+
+
+def signal_caught(pid, number):
+    """Whether the process has a handler for signal `number` (a shell's trap is set)."""
+    return _in_mask(process_status(pid).get("SigCgt"), number)
+
+
+def processes_naming(text):
+    """The ids of the processes whose command line contains `text` (Linux /proc; no procps needed)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            command = (entry / "cmdline").read_bytes()
+        except OSError:        # the process has ended meanwhile
+            continue
+        if text.encode() in command:
+            found.append(int(entry.name))
+    return found
 
 
 def check_run_file(path):
     """What a reader finds in a run file: (status, steps_completed). Raises if the file cannot
-    be read, lacks its status, or a dataset's length disagrees with the step rows (step_rows, or
-    steps_completed in older files: per-point datasets rows + 1, per-step datasets rows)."""
+    be read, lacks its status, a text fails the file's text_checksum (docs/output.md), or a
+    dataset's length disagrees with the step rows (step_rows, or steps_completed in older files:
+    per-point datasets rows + 1, per-step datasets rows)."""
     with h5py.File(path, "r") as f:
+        check_texts(f, path)
         status = f.attrs["status"]
         steps = int(f.attrs["steps_completed"])
         step_rows = int(f.attrs.get("step_rows", steps))

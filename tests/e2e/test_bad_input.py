@@ -49,7 +49,12 @@ CASES = {
                                         ["line 3", "&integrator", 'a text opened by " is not closed']),
     "$end syntax": ("$integrator t_end = 0.3 $end\n", ["text outside any namelist group", "'$integrator"]),
     # Values.
-    "unquoted text": ("&integrator scheme = eme /\n", ["&integrator", "'scheme'", "texts are quoted"]),
+    "unquoted text": ("&integrator scheme = eme /\n", ["&integrator", "'scheme'", "texts need quotes: scheme = 'eme'"]),
+    # An unquoted relative path: its '/' closed the group, and the rest was "text outside any group".
+    "unquoted path": ("&output file = results/x.h5 /\n",
+                      ["&output", "field 'file'", "results/x.h5", "texts need quotes: file = 'results/x.h5'"]),
+    "unquoted path before another field": ("&output file = run/x.h5, overwrite = .true. /\n",
+                                           ["&output", "field 'file'", "texts need quotes: file = 'run/x.h5'"]),
     "two texts for one": ("&integrator scheme = 'eme' 'midpoint' /\n", ["&integrator", "'scheme'",
                                                                        "cannot take the value"]),
     "too few values": ("&initial theta = 300 /\n", ["&initial", "'theta'", "2 values needed, 1 given",
@@ -99,6 +104,14 @@ CASES = {
     "field given twice": ("&integrator dt = 0.1, dt = 0.2 /\n", ["&integrator", "dt is given twice"]),
     "subscript given twice": ("&initial theta(2) = 300, theta( 2 ) = 310 /\n",
                               ["&initial", "theta(2) is given twice"]),
+    # An element set twice by any two items (issue 41 item 11: the whole array, then one element, was taken).
+    "array whole, then an element": ("&initial theta = 300, 300, theta(2) = 310 /\n",
+                                     ["&initial", "theta(2) is given twice", "theta = 300, 300", "theta(2) = 310",
+                                      "each element once"]),
+    "element, then the array whole": ("&initial theta(1) = 300, theta = 300, 310 /\n",
+                                      ["&initial", "theta(1) is given twice"]),
+    "overlapping range and element": ("&initial p2(1:2) = 2*0.5, p2(2) = 1 /\n", ["&initial", "p2(2) is given twice"]),
+    "array whole twice": ("&model mass = 1, 2, mass = 1, 3 /\n", ["&model", "mass is given twice"]),
     "field and its old name": ("&integrator scheme = 'relaxed_dp853', tolerance = 1e-6, ts_tolerance = 1e-7 /\n",
                                ["&integrator", "tolerance and ts_tolerance set the same field", "one of them"]),
     "NUL byte": ("&integrator dt = 0.1\0 /\n", ["line 1", "control character 0", "a text file"]),
@@ -122,6 +135,13 @@ CASES = {
     "no stiffness at the initial temperature": ("&initial theta = 280, 800 /\n",
                                                 ["&initial", "theta = 280.0, 800.0", "is 210.0, -50.0 J",
                                                  "below theta_ref + mu_eq_const/mu_eq_slope"]),
+    # The gas containers' initial state outside the model's domain: the message names the file
+    # too (issue 41 item 11: it began '&initial:').
+    "gas entropy overflowing its energy": ("&model model_name = 'gas_containers' /\n&initial entropy = 1e300, 3 /\n",
+                                           ["&initial", "entropy = 1e300, 3.0", "an overflow", "allowed: entropies"]),
+    "gas entropy with no temperature": ("&model model_name = 'gas_containers' /\n&initial entropy = 1.5, -1e300 /\n",
+                                        ["&initial", "entropy = 1.5, -1e300", "a non-positive temperature",
+                                         "allowed: entropies"]),
     # Texts.
     "output not .h5": ("&output_x /\n", ["unknown namelist group &output_x"]),
     "path too long": ("&output file = '" + "x" * 5000 + ".h5' /\n", ["&output", "'file'", "longer than 4096 characters"]),
@@ -226,8 +246,8 @@ def test_an_unquoted_path_is_refused_not_dropped(tmp_path, eme_run_binary):
     """file = /tmp/x.h5 ends the group at its first '/': the rest was silently dropped before."""
     namelist = tmp_path / "scene.nml"
     namelist.write_text(f"&integrator t_end = 0.3 /\n&output file = {tmp_path}/x.h5 /\n")
-    refused(tmp_path, [str(namelist)], ["&output: field 'file' has no value before the '/' that closes the group",
-                                        "texts are quoted"], namelist)
+    refused(tmp_path, [str(namelist)], ["&output: field 'file' has the unquoted value", "closes the group",
+                                        f"texts need quotes: file = '{tmp_path}/x.h5'"], namelist)
 
 
 def test_long_paths_are_not_cut(tmp_path, eme_run_binary):

@@ -6,7 +6,6 @@ import re
 import signal
 import subprocess
 import time
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -15,7 +14,8 @@ import pytest
 from conftest import BIN, ROOT, read_run, run_eme
 
 BASE = ROOT / "inputs" / "paper_fig4_eme_theta.nml"
-from faults import check_run_file, signal_after, wait_for
+from faults import (check_run_file, held_process, is_stopped, mpirun_env_options, operation_shim,
+                    processes_naming, signal_caught, wait_for)
 
 MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
 # Cases zipped: two EME variants, a midpoint case, and a deliberately failing one: with one
@@ -45,20 +45,13 @@ def ensemble(study, ranks=3, timeout=300):
 
 
 def kill_processes_naming(text):
-    """SIGKILL every process whose command line contains `text` (Linux /proc; no procps needed).
-    Open MPI puts its ranks in process groups of their own, so a process group kill misses them."""
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
+    """SIGKILL every process whose command line contains `text`. Open MPI puts its ranks in
+    process groups of their own, so a process group kill misses them."""
+    for pid in processes_naming(text):
         try:
-            command = (entry / "cmdline").read_bytes()
-        except OSError:        # the process has ended meanwhile
-            continue
-        if text.encode() in command:
-            try:
-                os.kill(int(entry.name), signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
 
 
 def read_index(output):
@@ -132,7 +125,7 @@ def assert_same_run(single_path, case_path):
     # Timing and provenance: the namelists differ in &output file, the command lines in the program.
     timing = {"wall_time_seconds", "solve_time_seconds", "cpu_time_seconds", "solve_cpu_time_seconds", "input_file", "code_version", "study", "study_case",
               "study_overrides", "study_rank", "start_time", "end_time", "command_line", "namelist", "history",
-              "title"}
+              "title", "text_checksum"}
     for name, value in single["attrs"].items():
         if name not in timing:
             assert np.array_equal(value, case["attrs"][name]), name
@@ -214,28 +207,34 @@ def test_restart_reruns_only_what_is_not_complete(small_study):
 
 
 def test_killed_study_restarts_to_completion(tmp_path, eme_run_binary):
+    """SIGKILL while a study has one case file complete and a second case half-written: no file
+    under a final name looks finished unless it is, and the restart (on two ranks) completes the
+    study, continuing the half-written case from its FILE.part. The kill comes from the LD_PRELOAD
+    shim kill_at_write.c, at the second case's first window (writes every 1000 rows: the
+    testing hook EME_WRITE_EVERY_ROWS), on one rank so that the cases run in order, the largest
+    first: the same point on any machine. (Timed by the clock, the kill found no FILE.part on a
+    busy machine, the second case having finished in the meantime.)"""
     output = tmp_path / "out"
-    study = write_study(tmp_path, f"""&study base = '{ROOT / "inputs" / "paper_fig4_eme_theta.nml"}',
-  output_dir = '{output}' /
+    output.mkdir()
+    study = write_study(tmp_path, f"""&study base = '{BASE}', output_dir = '{output}', combine = 'zip' /
 &sweep field = 'thermo_variable', texts = 'entropy', 'temperature', 'internal_energy' /
-&sweep field = 'dt', values = 0.004, 0.002, 0.001 /
+&sweep field = 'dt', values = 0.001, 0.002, 0.004 /
 """)
-    process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), str(study)], cwd=ROOT,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    # Kill once a case has finished while another has written part of its file (the largest
-    # cases run first, and a case writes its file after 4096 steps or 1 s).
-    assert wait_for(lambda: list(output.glob("case_*.h5")) and list(output.glob("*.part")))
-    kill_processes_naming(str(study))
-    process.wait()
-    # No file under a final name may look finished unless it is.
-    for path in output.glob("case_*.h5"):
-        with h5py.File(path, "r") as f:
-            assert f.attrs["status"] != "incomplete: running", path
-    assert list(output.glob("*.part")), "the kill should have caught cases mid-run"
+    env = dict(operation_shim(output, at=1, match="case_00002.h5.part.spare"), EME_WRITE_EVERY_ROWS="1000")
+    killed = subprocess.run([str(BIN / "eme_ensemble"), str(study)], cwd=ROOT, env=env, capture_output=True, text=True,
+                            timeout=600)
+    assert killed.returncode == -signal.SIGKILL, killed.stdout + killed.stderr
+    assert check_run_file(output / "case_00001.h5") == ("complete", 20000)
+    status, steps = check_run_file(output / "case_00002.h5.part")
+    assert status == "incomplete: running" and 0 < steps < 10000
+    assert not (output / "case_00002.h5").exists() and not list(output.glob("case_00003.h5*"))
     result = ensemble(study, ranks=2)
     assert result.returncode == 0, result.stderr
     index = read_index(output)
     assert all(s == b"complete" for s in index["status"])
+    assert not list(output.glob("*.part"))
+    with h5py.File(output / "case_00002.h5", "r") as f:     # continued from its FILE.part, not run again
+        assert len(f.attrs["history"].splitlines()) == 2 and f.attrs["steps_completed"] == 10000
 
 
 def test_restart_checks_complete_case_files(small_study):
@@ -301,10 +300,10 @@ def test_a_study_from_elsewhere_is_refused(small_study, tmp_path):
 INDEX_ONLY_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = {index_only} /
 &sweep field = 'theta(2)', values = {values} /
 """
-# 2400 paper-scene cases (a sweep takes at most 256 values, so two of 40 and 60): long enough, at
-# about 1.2 ms a case on 2 ranks (about 3 s), for a signal 0.3 s after the second case to find the
-# study running, even though the ranks stop about 0.7 s after mpirun gets SIGTERM (measured once here).
-# 1200 cases were no longer enough once a case file cost less than its case.
+# 60 paper-scene cases: the tests below stop the study at a chosen file operation (the LD_PRELOAD
+# shim kill_at_write.c) after a few of them, so that cases are left whatever the machine's speed.
+# (Signalled by the clock, 0.3 s after its second case, the study needed 2400 cases to be still
+# running on an idle machine, and could still finish first on a busy one.)
 LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .false. /
 &sweep field = 'theta(1)', values = {values1} /
 &sweep field = 'theta(2)', values = {values2} /
@@ -314,8 +313,8 @@ LARGE_STUDY = """&study base = '{base}', output_dir = '{output}', index_only = .
 def large_study(tmp_path, output):
     return write_study(tmp_path, LARGE_STUDY.format(
         base=ROOT / "inputs" / "paper_fig4_eme_theta.nml", output=output,
-        values1=", ".join(f"{270 + 0.5 * i:.1f}" for i in range(40)),
-        values2=", ".join(f"{340 + 0.5 * i:.1f}" for i in range(60))))
+        values1=", ".join(f"{270 + 0.5 * i:.1f}" for i in range(10)),
+        values2=", ".join(f"{340 + 0.5 * i:.1f}" for i in range(6))))
 
 
 def test_an_index_only_study_matches_the_full_one(tmp_path, eme_run_binary):
@@ -368,13 +367,19 @@ def test_a_killed_index_only_study_resumes_from_its_journal(tmp_path, eme_run_bi
     values = ", ".join(f"{340 + 0.1 * i:.1f}" for i in range(200))
     study = write_study(tmp_path, INDEX_ONLY_STUDY.format(base=ROOT / "inputs" / "paper_fig4_eme_theta.nml",
                                                          output=output, index_only=".true.", values=values))
-    process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_ensemble"), str(study)], cwd=ROOT,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    # Rank 0 keeps the journal: the shim stops it (SIGSTOP) before its 25th operation on it (the
+    # removal of an old one, the header, then a line per result), so the study cannot end before
+    # the kill, however fast it runs.
+    output.mkdir()
+    env = operation_shim(output, at=25, match="index.journal", signal_number=signal.SIGSTOP)
+    process = subprocess.Popen([*MPIRUN, "-n", "2", *mpirun_env_options(env), str(BIN / "eme_ensemble"), str(study)],
+                               cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     journal = output / "index.journal"
-    wait_for(lambda: journal.exists() and journal.read_text().count("\n") > 20)
+    assert wait_for(lambda: any(is_stopped(pid) for pid in processes_naming(str(study))))
     kill_processes_naming(str(study))
     process.wait()
     recorded = journal.read_text().count("\n") - 1
+    assert recorded >= 20
     result = ensemble(study, ranks=2)
     assert result.returncode == 0, result.stderr
     match = re.search(r"(\d+) results taken from .*index.journal", result.stdout)
@@ -388,16 +393,21 @@ def test_a_killed_index_only_study_resumes_from_its_journal(tmp_path, eme_run_bi
 def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
     """SIGTERM (one rank, no mpirun: its exit status is ours): no new case, the running one ends
     marked interrupted, the index is written and the journal emptied; exit 143; a restart
-    finishes the study."""
+    finishes the study. The study sends itself the SIGTERM (the LD_PRELOAD shim kill_at_write.c)
+    at its first file operation on case 3's file: cases 1 and 2 are complete by then."""
     output = tmp_path / "out"
+    output.mkdir()
     study = large_study(tmp_path, output)
-    code, out, err = signal_after([str(BIN / "eme_ensemble"), str(study)], 0.3, signal.SIGTERM, cwd=ROOT,
-                                  start_marker=output / "case_00002.h5")
+    result = subprocess.run([str(BIN / "eme_ensemble"), str(study)], cwd=ROOT, capture_output=True, text=True,
+                            timeout=600, env=operation_shim(output, at=1, match="case_00003.h5",
+                                                            signal_number=signal.SIGTERM))
+    code, out, err = result.returncode, result.stdout, result.stderr
     assert code == 143, err
     assert "SIGTERM received: no new cases" in out
     index = read_index(output)
     statuses = [s.decode() for s in index["status"]]
-    assert 2 <= statuses.count("complete") < 2400 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
+    assert 2 <= statuses.count("complete") <= 3 and statuses.count("incomplete: interrupted by SIGTERM") <= 1
+    assert statuses.count("pending") >= 57
     assert set(statuses) <= {"complete", "pending", "incomplete: interrupted by SIGTERM"}
     assert not (output / "index.journal").exists() and not list(output.glob("*.part"))
     for row in index:
@@ -410,9 +420,15 @@ def test_sigterm_stops_a_study_cleanly(tmp_path, eme_run_binary):
 
 
 def slurm_job(tmp_path, scontrol):
-    """The Slurm example on a large study, with a stand-in `scontrol` (the script's text) first on
-    PATH: (output folder, the batch script's command, its environment)."""
+    """The Slurm example on a study of 60 cases, with a stand-in `scontrol` (the script's text)
+    first on PATH, run as Slurm would up to its warning: SIGTERM to the batch script while the
+    study runs. Rank 0 holds at its fifth operation on the journal (the LD_PRELOAD shim
+    kill_at_write.c: three cases recorded), so the study cannot end first; the test sends the
+    SIGTERM once the script's trap is set, waits until the held rank has caught it (Open MPI's
+    mpirun passes it on 1 s later), and lets the rank go on. The script's (return code, stdout,
+    stderr), the output folder, and the script's command and environment (without the shim)."""
     output = tmp_path / "out"
+    output.mkdir()
     study = large_study(tmp_path, output)
     tools = tmp_path / "bin"
     tools.mkdir()
@@ -420,16 +436,27 @@ def slurm_job(tmp_path, scontrol):
     (tools / "scontrol").chmod(0o755)
     env = dict(os.environ, PATH=f"{tools}:{os.environ['PATH']}", SLURM_JOB_ID="4242",
                EME_LAUNCHER=" ".join([*MPIRUN, "-n", "2"]))
-    return output, ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)], env
+    script = ["bash", str(ROOT / "inputs" / "slurm_study.sbatch"), str(study)]
+    release = tmp_path / "release"
+    held = operation_shim(output, at=5, match="index.journal", hold=release, env=env)
+    held["EME_LAUNCHER"] = " ".join([*MPIRUN, "-n", "2", *mpirun_env_options(held)])
+    job = subprocess.Popen(script, env=held, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        rank = held_process(release)
+        assert wait_for(lambda: signal_caught(job.pid, signal.SIGTERM)), "the script set no trap for SIGTERM"
+        job.send_signal(signal.SIGTERM)
+        assert wait_for(lambda: not signal_caught(rank, signal.SIGTERM)), "the held rank never caught SIGTERM"
+    finally:
+        release.touch()
+    out, err = job.communicate(timeout=600)
+    return (job.returncode, out, err), output, script, env
 
 
 def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, eme_run_binary):
     """inputs/slurm_study.sbatch run as Slurm would: SIGTERM to the batch script before the time
     limit stops the study cleanly and requeues the job (a stand-in scontrol records the call);
     the requeued job finishes the study and does not requeue."""
-    output, script, env = slurm_job(tmp_path, f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
-    code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
-                                  start_marker=output / "case_00002.h5")
+    (code, out, err), output, script, env = slurm_job(tmp_path, f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'scontrol.log'}\n")
     assert code == 0, out + err
     assert "time limit near" in out
     assert (tmp_path / "scontrol.log").read_text() == "requeue 4242\n"
@@ -443,9 +470,7 @@ def test_the_slurm_example_requeues_a_study_stopped_by_its_time_limit(tmp_path, 
 def test_the_slurm_example_fails_when_the_requeue_fails(tmp_path, eme_run_binary):
     """If scontrol cannot requeue the job (a stand-in that fails), the script exits non-zero, so
     that Slurm reports the unfinished study as failed. Before: it exited 0."""
-    output, script, env = slurm_job(tmp_path, "#!/bin/sh\necho 'scontrol: error: Invalid job id' >&2\nexit 1\n")
-    code, out, err = signal_after(script, 0.3, signal.SIGTERM, env=env, cwd=ROOT,
-                                  start_marker=output / "case_00002.h5")
+    (code, out, err), output, _, _ = slurm_job(tmp_path, "#!/bin/sh\necho 'scontrol: error: Invalid job id' >&2\nexit 1\n")
     assert code == 1, out + err
     assert "scontrol requeue 4242 failed: the study is unfinished" in err
     assert "pending" in {s.decode() for s in read_index(output)["status"]}

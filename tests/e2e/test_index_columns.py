@@ -143,7 +143,7 @@ def test_an_index_only_study_resumes_from_its_journal_without_the_column(tmp_pat
     figures = ("steps_completed", "steps_planned", "newton_iterations", "wall_time_seconds", "solve_time_seconds",
                "cpu_time_seconds", "solve_cpu_time_seconds",
                "energy_drift", "min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift",
-               "min_temperature", "halved_steps", "rejected_steps", "rank", "run_count")
+               "min_temperature", "halved_steps", "rejected_steps", "warned", "rank", "run_count")
     lines = ["# journal\n"]
     for row, case_overrides in zip(cases, overrides):
         values = [float("nan") if name not in cases.dtype.names else float(row[name]) for name in figures]

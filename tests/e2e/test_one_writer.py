@@ -27,7 +27,7 @@ SECOND = "&integrator dt=0.001, t_end=60, scheme='midpoint' /\n&output file='sam
 STOP_AT = 3                                  # the third file operation: the lock is held and named
 TIMED = {"step_seconds"}                     # datasets of wall-clock times
 TIMED_ATTRIBUTES = {"start_time", "end_time", "history", "wall_time_seconds", "solve_time_seconds", "cpu_time_seconds",
-                    "solve_cpu_time_seconds"}
+                    "solve_cpu_time_seconds", "text_checksum"}   # (text_checksum: the times are among its texts)
 
 
 def stopped_writer(command, folder, cwd=None, stop_at=STOP_AT, signal_number=signal.SIGSTOP):

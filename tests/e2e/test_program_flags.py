@@ -12,7 +12,7 @@ PROGRAMS = sorted(path.stem for pattern in ("*.F90", "*.c") for path in (ROOT / 
 # What a program prints when it does its work rather than answer a flag: the machine-readable last
 # lines of the benchmarks (us_per_step=..., rrk8_1e-6_ms=..., snes_fixed_us=...) and a run's or a
 # study's summary.
-WORK_DONE = re.compile(r"^(\w+=[-+]?\d|.*: complete, \d+/\d+ steps|eme_ensemble: \d+ cases)", re.MULTILINE)
+WORK_DONE = re.compile(r"^(\w+=[-+]?\d|.*: complete, (\d+/)?\d+ steps|eme_ensemble: \d+ cases)", re.MULTILINE)
 
 
 def run(program, flag):

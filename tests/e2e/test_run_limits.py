@@ -209,3 +209,13 @@ def test_a_run_that_completes_no_step_prints_no_nan(tmp_path, eme_run_binary):
     summary = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "postprocess" / "summarize_runs.py"),
                               str(output)], capture_output=True, text=True)
     assert "nan" not in summary.stdout.lower(), summary.stdout
+
+
+def test_a_huge_step_prints_its_time(tmp_path, eme_run_binary):
+    """dt = t_end = 1e300: the first step leaves the domain; the status line says at which time
+    (issue 41 item 11: 't = ' and 40 stars), and no printed figure is stars."""
+    result, output = run_eme(tmp_path, "huge", {"integrator": {"scheme": "eme", "dt": 1e300, "t_end": 1e300}})
+    assert result.returncode == 3, result.stderr
+    assert "(t = 1.0000E+300 s)" in result.stderr, result.stderr
+    assert "*" not in result.stdout + result.stderr
+    assert read_run(output)["attrs"]["status"].startswith("incomplete: step 1 (t = 1.0000E+300 s)")

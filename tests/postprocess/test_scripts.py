@@ -24,6 +24,7 @@ import plot_snapshots  # noqa: E402
 import plot_temperatures  # noqa: E402
 import plotting  # noqa: E402
 from plotting import DOUBLE_COLUMN, figure_texts as texts_of, plt  # noqa: E402
+from file_checksums import seal_texts  # noqa: E402
 from synthetic_runs import constraint_attributes, write_run  # noqa: E402
 from trajectory import CONSTRAINT_ATTRIBUTES, RunFileError, read_run  # noqa: E402
 
@@ -95,6 +96,7 @@ def truncated_copy(source, target, steps, status):
             f[name].attrs.update(attrs)
         f.attrs["status"] = status
         f.attrs["steps_completed"] = steps
+        seal_texts(f)
     return target
 
 
@@ -369,6 +371,7 @@ def test_command_line_names_a_missing_dataset(eme_files, tmp_path):
     shutil.copy(eme_files["eme", "entropy"], path)
     with h5py.File(path, "r+") as f:
         del f["lyapunov"]
+        seal_texts(f)                        # a file without it, not a damaged one
     result = subprocess.run([sys.executable, str(POSTPROCESS / "plot_balance.py"), str(path),
                              "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2

@@ -23,6 +23,7 @@ from figure_checks import (drawn_font_sizes, marked_lines, pdf_font_kinds, pdf_w
 from plotting import plt  # noqa: E402
 from study_analysis import (FinalPoint, StudyError, asymptotic_range, classify,  # noqa: E402
                             entropy_violation, final_point, fitted_order, state_error)
+from file_checksums import seal_texts  # noqa: E402
 from synthetic_runs import STATE_COLUMNS, write_run  # noqa: E402
 from trajectory import RunFileError  # noqa: E402
 
@@ -393,6 +394,7 @@ def test_a_missing_columns_attribute_names_the_file(studies, tmp_path):
     case = broken / "convergence" / "case_00002.h5"
     with h5py.File(case, "r+") as f:
         del f["state"].attrs["columns"]
+        seal_texts(f)                        # a file without it, not a damaged one
     result = run_script(broken, tmp_path / "figures", tmp_path / "summary.h5")
     assert result.returncode == 2
     assert str(case) in result.stderr and "/state has no column" in result.stderr
@@ -707,6 +709,7 @@ def test_no_angular_momentum_drift_is_no_trouble(studies, analysed, tmp_path):
                 if key == "column_units":
                     value = [unit for name, unit in zip(cases.dtype.names, value) if name != "angular_momentum_drift"]
                 index["cases"].attrs[key] = value
+            seal_texts(index)                # an index without the column, not a damaged one
     result = run_script(copy, tmp_path / "figures", tmp_path / "summary.h5")
     assert result.returncode == 0, result.stderr
     output, _ = analysed

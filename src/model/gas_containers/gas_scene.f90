@@ -4,11 +4,12 @@
 module gas_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item
-  use namelist_group, only: group_field, real_field, reals_field, text_field, read_group
+  use namelist_group, only: group_field, real_field, reals_field, text_field, read_group, value_origin
+  use number_text, only: reals_text
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
-  use failures, only: failure_none, failure_type, fail, failure_input
+  use failures, only: failure_none, failure_type, fail, failure_input, failure_code_name
   use thermo_variable_kinds, only: tau_entropy
   use gas_model, only: gas_containers, make_gas_containers
   implicit none (type, external)
@@ -77,6 +78,9 @@ contains
     character(len=*), intent(in) :: text, origin
     type(namelist_item), intent(in) :: extra(:)
     type(failure_type), intent(out) :: failure
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:)
+    integer :: stat
 
     call read_group(text, 'model', self%fields('model'), origin, failure, extra)
     if (failure%failed()) return
@@ -85,7 +89,17 @@ contains
     if (self%q >= 2.0_real64) then
       call fail(failure, failure_input, origin//': &initial: q is not allowed: the second container''s volume 2 - q '// &
                 'would not be > 0; allowed: a real number in (0, 2)', 'q')
+      return
     end if
+    ! The state must lie in the model's domain: finite and positive internal energies, through which
+    ! every variable's state is converted. Refused here, where the input's origin is known (build
+    ! knows no file).
+    call initial_state(self, tau_entropy, model, z0, stat)
+    if (stat /= failure_none) call fail(failure, failure_input, value_origin(text, 'initial', 'entropy', origin, extra)// &
+      ': &initial: entropy = '//reals_text(self%entropy)//' with q = '//reals_text([self%q])//' is not allowed (the '// &
+      'containers'' internal energies give '//failure_code_name(stat)//'); allowed: entropies whose containers'' '// &
+      'internal energies (exp(entropy(a))/v_a)^(2/3), v_1 = q and v_2 = 2 - q, are finite (below 1e277) and > 0', &
+      'entropy')
   end subroutine read
 
   !> The model in thermodynamic variable `variable` and the initial state (no constraints).
@@ -96,16 +110,29 @@ contains
     real(real64), allocatable, intent(out) :: z0(:)
     type(constraint_slot), allocatable, intent(out) :: constraints(:)
     type(failure_type), intent(out) :: failure
-    type(gas_containers) :: in_entropy
     integer :: stat
 
-    in_entropy = make_gas_containers(self%friction, tau_entropy)
-    allocate (model, source=make_gas_containers(self%friction, variable))
-    allocate (z0(model%state_size), constraints(0))
-    call in_entropy%convert_state([self%q, self%p, self%entropy], model, z0, stat)
+    allocate (constraints(0))
+    call initial_state(self, variable, model, z0, stat)
     if (stat /= failure_none) call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', &
                                         '&initial')
   end subroutine build
+
+  ! The model in thermodynamic variable `variable` and the initial state given in entropies; stat
+  ! a domain code if that state lies outside the model's domain.
+  subroutine initial_state(self, variable, model, z0, stat)
+    class(gas_containers_scene), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: model
+    real(real64), allocatable, intent(out) :: z0(:)
+    integer, intent(out) :: stat
+    type(gas_containers) :: in_entropy
+
+    in_entropy = make_gas_containers(self%friction, tau_entropy)
+    allocate (model, source=make_gas_containers(self%friction, variable))
+    allocate (z0(model%state_size))
+    call in_entropy%convert_state([self%q, self%p, self%entropy], model, z0, stat)
+  end subroutine initial_state
 
   !> theta_R = 1 (the model is nondimensional).
   pure function default_theta_r(self) result(theta_r)

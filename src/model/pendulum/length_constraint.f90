@@ -1,7 +1,8 @@
 !> Constraint g1 of eq. (13) for the double pendulum: spring 1 keeps its length,
 !> g1 = (q1.q1 - length^2)/2 (docs/formulation.md section 1: the quadratic form of the paper's g1).
 !> Its force -lambda q1_mid acts on p1; q1_mid is g1's exact discrete gradient, so the force does
-!> no work and is parallel to q1_mid: E and J_z stay conserved (docs/formulation.md section 7).
+!> no work and is parallel to q1_mid: E and the conserved components of J stay conserved
+!> (docs/formulation.md section 7).
 !>
 !> Its continuous-time form (the relaxed Runge-Kutta family): the force -lambda q1 on p1 with
 !> the index-1 multiplier of d^2 g1/dt^2 = |v1|^2 + q1.dv1/dt = 0, v1 = (p1 - p2)/m1, which is

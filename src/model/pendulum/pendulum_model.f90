@@ -9,7 +9,7 @@ module pendulum_model
   use free_energy, only: spring_law_of, viscosity
   use thermo_variable, only: spring_potential
   use elastic_potential, only: elastic_spring, make_elastic_spring
-  use model_interface, only: generic_model
+  use model_interface, only: generic_model, angular_momentum_components, component_values, conserved_component
   use double_pendulum, only: pendulum_layout, make_layout, tau_symbols, inverse_mass_times, cross
   use pendulum_vector_field, only: vector_field
   implicit none (type, external)
@@ -25,13 +25,15 @@ module pendulum_model
     procedure :: invariants
     procedure :: vector_field => pendulum_field
     procedure :: mechanical_energy
+    procedure :: mechanical_energy_scale
+    procedure :: momentum_scale
     procedure :: mechanical_energy_gradient
     procedure :: momenta => pendulum_angular_momentum
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
-    procedure :: conserved_momentum
-    procedure :: conserved_momentum_gradient
+    procedure :: conserved_in_momenta
+    procedure :: conserved_momenta_gradient
     procedure :: mechanical_energy_difference => pendulum_energy_difference
     procedure :: state_from_temperatures
     procedure :: column_units => pendulum_column_units
@@ -58,17 +60,18 @@ contains
     model%words%entropy = 'total entropy S = S_1 + S_2'
     model%words%momentum_units = 'J s'
     model%words%metric_scales = 'C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
+    allocate (model%conserved(0))
     if (params%dimension == 3) then
-      ! J_z: the component about the gravity axis of the paper's scenes (conserved_momentum is J
-      ! along gravity's direction, whatever it is).
+      ! In space J is recorded whole; gravity keeps its component along g (J_z in the paper's
+      ! scenes), no gravity all three (docs/formulation.md section 2).
       model%words%momenta = 'J = q1 x p1 + q2 x p2'
       model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
-      model%conserved_momentum_column = 3
-    else if (norm2(params%gravity(1:2)) <= 0.0_real64) then
+      model%conserved = angular_momentum_components(params%gravity)
+    else if (.not. any(abs(params%gravity(1:2)) > 0.0_real64)) then
       ! In the plane without gravity: J about the plane's normal; with gravity, no momentum is kept.
       model%words%momenta = 'J = q1_x p1_y - q1_y p1_x + q2_x p2_y - q2_y p2_x'
       model%momentum_names = [character(len=8) :: 'J']
-      model%conserved_momentum_column = 1
+      model%conserved = [conserved_component('J', [0.0_real64, 0.0_real64, 1.0_real64])]
     end if
     allocate (model%subsystems(2))
     do a = 1, 2
@@ -134,6 +137,49 @@ contains
 
     energy = self%layout%kinetic_energy(self%params, z) + self%layout%gravity_potential(self%params, z)
   end function mechanical_energy
+
+  !> The rounding scale of T + V_g (model_interface): T's terms p_a.(m^-1 p)_b in absolute value,
+  !> 1/2 (|p1|^2/m1 + 2 |p1||p2|/m1 + (m1+m2)/(m1 m2) |p2|^2), and gravity's |f_a . q_a| summed
+  !> by component, f_1 = (m1+m2) g and f_2 = m2 g (read from z in place: the step check's cost).
+  pure real(real64) function mechanical_energy_scale(self, z)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: p1_squared, p2_squared, gravity_terms, m1, m2
+    integer :: i
+
+    m1 = self%params%mass(1)
+    m2 = self%params%mass(2)
+    p1_squared = 0.0_real64
+    p2_squared = 0.0_real64
+    gravity_terms = 0.0_real64
+    associate (q => self%layout%q, p => self%layout%p, g => self%params%gravity)
+      do i = 1, self%layout%dimension
+        p1_squared = p1_squared + z(p(i, 1))**2
+        p2_squared = p2_squared + z(p(i, 2))**2
+        gravity_terms = gravity_terms + abs(g(i))*((m1 + m2)*abs(z(q(i, 1))) + m2*abs(z(q(i, 2))))
+      end do
+    end associate
+    mechanical_energy_scale = 0.5_real64*(p1_squared/m1 + 2*sqrt(p1_squared*p2_squared)/m1 &
+                                          + (m1 + m2)/(m1*m2)*p2_squared) + gravity_terms
+  end function mechanical_energy_scale
+
+  !> The rounding scale of J = q1 x p1 + q2 x p2 (model_interface): |q1||p1| + |q2||p2|.
+  pure real(real64) function momentum_scale(self, z)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: q_squared(2), p_squared(2)
+    integer :: i
+
+    q_squared = 0.0_real64
+    p_squared = 0.0_real64
+    associate (q => self%layout%q, p => self%layout%p)
+      do i = 1, self%layout%dimension
+        q_squared = q_squared + z(q(i, :))**2
+        p_squared = p_squared + z(p(i, :))**2
+      end do
+    end associate
+    momentum_scale = sum(sqrt(q_squared*p_squared))
+  end function momentum_scale
 
   !> grad (T + V_g): -gravity forces on q, m^-1 p on p.
   pure function mechanical_energy_gradient(self, z) result(gradient)
@@ -208,34 +254,41 @@ contains
     allocate (other, source=make_pendulum(self%params, variable))
   end subroutine in_variable
 
-  !> J.a with a = g/|g| (e_z without gravity): the component of J that gravity leaves conserved.
-  pure function conserved_momentum(self, z) result(j_axis)
+  !> The conserved components J.a of J = q1 x p1 + q2 x p2 (their axes a: `conserved`) from the
+  !> momenta: J itself in space; in the plane its one component, about the normal.
+  pure function conserved_in_momenta(self, momenta) result(values)
+    class(pendulum), intent(in) :: self
+    real(real64), intent(in) :: momenta(:)
+    real(real64) :: values(self%conserved_count())
+
+    if (size(values) == 0) return      ! in the plane under gravity
+    if (size(momenta) == 1) then
+      values = momenta(1)
+    else
+      values = component_values(self%conserved, momenta)
+    end if
+  end function conserved_in_momenta
+
+  !> d(J.a)/dp for each axis a: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
+  pure function conserved_momenta_gradient(self, z) result(gradients)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: j_axis
-
-    j_axis = dot_product(self%layout%angular_momentum(z), conserved_axis(self%params))
-  end function conserved_momentum
-
-  !> d(J.a)/dp: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).
-  pure function conserved_momentum_gradient(self, z) result(gradient)
-    class(pendulum), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64) :: gradient(size(z))
-    real(real64) :: axis(3), q(3)
-    integer :: a, d
+    real(real64) :: gradients(size(z), self%conserved_count())
+    real(real64) :: q(3)
+    integer :: a, d, k
 
     d = self%layout%dimension
-    axis = conserved_axis(self%params)
-    gradient = 0.0_real64
-    do a = 1, 2
-      q = 0.0_real64
-      q(1:d) = z(self%layout%q(1:d, a))
-      associate (gradient_p => cross(axis, q))
-        gradient(self%layout%p(1:d, a)) = gradient_p(1:d)
-      end associate
+    gradients = 0.0_real64
+    do k = 1, size(gradients, 2)
+      do a = 1, 2
+        q = 0.0_real64
+        q(1:d) = z(self%layout%q(1:d, a))
+        associate (gradient_p => cross(self%conserved(k)%axis, q))
+          gradients(self%layout%p(1:d, a), k) = gradient_p(1:d)
+        end associate
+      end do
     end do
-  end function conserved_momentum_gradient
+  end function conserved_momenta_gradient
 
   !> (T + V_g)(z_b) - (T + V_g)(z_a) without cancellation: T is quadratic, so its difference is
   !> 1/2 (p_b - p_a).m^-1 (p_b + p_a); V_g is linear.
@@ -253,15 +306,6 @@ contains
     delta = 0.5_real64*sum((p_b - p_a)*inverse_mass_times(self%params, p_b + p_a)) &
             - sum(self%layout%gravity_force(self%params)*(q_b - q_a))
   end function pendulum_energy_difference
-
-  ! The direction of gravity in space, or e_z without it; the plane's normal e_z in the plane.
-  pure function conserved_axis(params) result(axis)
-    type(pendulum_parameters), intent(in) :: params
-    real(real64) :: axis(3)
-
-    axis = [0.0_real64, 0.0_real64, 1.0_real64]
-    if (params%dimension == 3 .and. norm2(params%gravity) > 0.0_real64) axis = params%gravity/norm2(params%gravity)
-  end function conserved_axis
 
   !> The state z built from positions, momenta (`dimension` components each), gamma (used with
   !> the viscous branch only) and spring temperatures theta(2).

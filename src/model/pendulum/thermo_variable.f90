@@ -49,20 +49,36 @@ contains
   end subroutine spring_temperature
 
   !> (U_a, S_a) and the temperature at x from one evaluation of the mechanical parts (a run
-  !> observes them every step; evaluate and temperature would compute the parts twice).
-  pure subroutine spring_values_and_temperature(self, x, f, theta, stat)
+  !> observes them every step; evaluate and temperature would compute the parts twice), and
+  !> optionally their rounding scales (invariant_function), the sizes of the terms each is summed
+  !> from. A state's temperature is known to eps theta, whatever variable carries it (stored as
+  !> tau = theta, given by exp from tau = s, summed onto theta_ref from tau = u, or converted from
+  !> the variable a scheme integrates in), so Cap (theta - theta_ref) is known to Cap theta eps and
+  !> Cap ln(theta/theta_ref) to Cap eps: U_a's scale is |e| + Cap (theta + theta_ref), S_a's is
+  !> |sigma| + Cap (1 + |ln(theta/theta_ref)|) (docs/faults.md, Every accepted step checked), with
+  !> Cap |ln(theta/theta_ref)| read as |S_a - sigma| (S_a = sigma + Cap ln(theta/theta_ref) in
+  !> every variable), not from a second logarithm.
+  pure subroutine spring_values_and_temperature(self, x, f, theta, stat, scales)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: x(:)
     real(real64), intent(out) :: f(:), theta
     integer, intent(out) :: stat
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), grad(size(x), 2)
+    real(real64), intent(out), optional :: scales(:)
+    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), grad(size(x), 2), cap
 
     theta = 0.0_real64
+    f = 0.0_real64
+    if (present(scales)) scales = 0.0_real64
     call mechanical_state(self, x, e, sigma, de, dsigma, d2e, d2sigma, stat)
     if (stat /= failure_none) return
     call temperature_of(self, x(self%n_invariants), e, sigma, theta, stat)
     if (stat /= failure_none) return
     call potentials_from_parts(self, x(self%n_invariants), theta, e, sigma, de, dsigma, d2e, d2sigma, grad, f=f)
+    if (present(scales)) then
+      cap = self%law%heat_capacity
+      scales(potential_u) = abs(e) + cap*(theta + self%law%theta_ref)
+      scales(potential_s) = abs(sigma) + cap + abs(f(potential_s) - sigma)
+    end if
   end subroutine spring_values_and_temperature
 
   !> U_a and S_a with gradients and Hessians in x (docs/formulation.md section 3, table).

@@ -3,8 +3,11 @@
 !> structure_matrices -- the degeneracy conditions (5) L grad S = 0 and K grad E = 0, skew L and
 !> symmetric positive semidefinite K, eq. (9) for M_S^T grad S and M_E^T grad E, for exact
 !> partials and both discrete gradients; the written-out vector field equals L grad E + K grad S;
-!> its derivatives against central differences. check_model runs them all at states around a
-!> scene's initial state; test_model_conformance runs it over every registered model.
+!> its derivatives against central differences; the conserved momentum components (at most
+!> three) constant along the continuous field, with their gradients in the momenta against
+!> central differences.
+!> check_model runs them all at states around a scene's initial state; test_model_conformance
+!> runs it over every registered model.
 module model_conformance
   use, intrinsic :: iso_fortran_env, only: real64
   use funit, only: assertTrue, assertEqual
@@ -15,7 +18,7 @@ module model_conformance
   use structure_matrices, only: energy_gradient, entropy_gradient, mielke_transpose, poisson_matrix, friction_matrix
   implicit none (type, external)
   private
-  public :: check_model, check_structure, check_vector_field_derivatives, discrete_partials
+  public :: check_model, check_structure, check_vector_field_derivatives, check_conserved_momenta, discrete_partials
 
 contains
 
@@ -40,6 +43,7 @@ contains
       if (stat /= 0) return
       call check_structure(model, z, partials, case_label)
       call check_vector_field_derivatives(model, z, partials, case_label)
+      call check_conserved_momenta(model, z, case_label)
       do kind = gradient_gonzalez, gradient_partitioned
         case_label = label//', '//trim(discrete_gradient_names(kind))//' partials, trial '// &
                      achar(iachar('0') + mod(trial, 10))
@@ -186,6 +190,44 @@ contains
     call assert_close(reshape(df_dp, [size(df_dp)]), reshape(fd_dp, [size(fd_dp)]), 1.0e-6_real64, &
                       1.0e-7_real64*maxval(abs(df_dp)), 'df/dpartials against differences, '//label)
   end subroutine check_vector_field_derivatives
+
+  !> Each conserved momentum component C_k is a first integral: its rate along the continuous
+  !> field, (C_k(z + h f) - C_k(z - h f))/(2 h), is zero to rounding (C_k is at most quadratic in
+  !> z, so the difference has no truncation error); and conserved_momenta_gradient(:, k) is dC_k/dz
+  !> by central differences in every column where it is not zero (the momenta).
+  subroutine check_conserved_momenta(model, z, label)
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: z(:)
+    character(len=*), intent(in) :: label
+    real(real64) :: f(model%state_size), gradients(model%state_size, model%conserved_count())
+    real(real64) :: rate(model%conserved_count()), fd(model%conserved_count()), zp(size(z)), zm(size(z)), h, scale
+    integer :: stat, j, k
+
+    if (model%conserved_count() == 0) return
+    call assertTrue(model%conserved_count() <= 3, 'at most three conserved components (an angular momentum''s), '//label)
+    call model%continuous_field(z, f, stat)
+    call assertTrue(stat == 0, 'the continuous field at a state near the scene''s, '//label)
+    if (stat /= 0) return
+    h = 1.0e-3_real64/max(1.0_real64, maxval(abs(f)))
+    rate = (model%conserved_momenta(z + h*f) - model%conserved_momenta(z - h*f))/(2*h)
+    scale = maxval(abs(z))*maxval(abs(f))
+    call assert_close(rate, 0*rate, 0.0_real64, 1.0e-10_real64*scale, 'd(conserved momenta)/dt = 0 along the field, '// &
+                      label)
+    gradients = model%conserved_momenta_gradient(z)
+    do j = 1, size(z)
+      if (.not. any(abs(gradients(j, :)) > 0.0_real64)) cycle
+      h = 1.0e-6_real64*max(1.0_real64, abs(z(j)))
+      zp = z
+      zm = z
+      zp(j) = z(j) + h
+      zm(j) = z(j) - h
+      fd = (model%conserved_momenta(zp) - model%conserved_momenta(zm))/(2*h)
+      do k = 1, size(fd)
+        call assert_close([gradients(j, k)], [fd(k)], 1.0e-8_real64, 1.0e-8_real64*maxval(abs(z)), &
+                          'conserved momentum gradient against differences, '//label)
+      end do
+    end do
+  end subroutine check_conserved_momenta
 
   ! got against expected within rtol and atol, the failure saying where they differ.
   subroutine assert_close(got, expected, rtol, atol, label)

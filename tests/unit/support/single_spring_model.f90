@@ -12,7 +12,7 @@ module single_spring_model
   use free_energy, only: spring_law_of, viscosity
   use invariant_function, only: potential_u, potential_s
   use thermo_variable, only: spring_potential
-  use model_interface, only: generic_model
+  use model_interface, only: generic_model, angular_momentum_components, component_values
   implicit none (type, external)
   private
   public :: single_spring, make_single_spring
@@ -36,8 +36,8 @@ module single_spring_model
     procedure :: poisson_matrix_0
     procedure :: friction_matrix_0
     procedure :: in_variable
-    procedure :: conserved_momentum
-    procedure :: conserved_momentum_gradient
+    procedure :: conserved_in_momenta
+    procedure :: conserved_momenta_gradient
     procedure :: state_from_temperature
   end type single_spring
 
@@ -60,7 +60,7 @@ contains
     model%column_names(:) = column_names
     model%max_invariants = 3
     model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
-    model%conserved_momentum_column = 3
+    model%conserved = angular_momentum_components(params%gravity)
     allocate (model%subsystems(1))
     associate (part => model%subsystems(1))
       part%name = 'spring'
@@ -201,26 +201,29 @@ contains
     allocate (other, source=make_single_spring(self%params, variable))
   end subroutine in_variable
 
-  !> J_z (gravity is along z in the tests).
-  pure function conserved_momentum(self, z) result(j_z)
+  !> J.a about each conserved axis a (J_z under the tests' gravity along z), from J.
+  pure function conserved_in_momenta(self, momenta) result(values)
+    class(single_spring), intent(in) :: self
+    real(real64), intent(in) :: momenta(:)
+    real(real64) :: values(self%conserved_count())
+
+    values = component_values(self%conserved, momenta)
+  end function conserved_in_momenta
+
+  !> d(J.a)/dp = a x q for each conserved axis a.
+  pure function conserved_momenta_gradient(self, z) result(gradients)
     class(single_spring), intent(in) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: j_z
-    real(real64) :: j(3)
+    real(real64) :: gradients(size(z), self%conserved_count())
+    integer :: k
 
-    j = self%momenta(z)
-    j_z = j(3)
-  end function conserved_momentum
-
-  !> d J_z/dp = (-q_y, q_x, 0).
-  pure function conserved_momentum_gradient(self, z) result(gradient)
-    class(single_spring), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64) :: gradient(size(z))
-
-    gradient = 0.0_real64
-    gradient(4:6) = [-z(2), z(1), 0.0_real64]
-  end function conserved_momentum_gradient
+    gradients = 0.0_real64
+    do k = 1, size(gradients, 2)
+      associate (a => self%conserved(k)%axis)
+        gradients(4:6, k) = [a(2)*z(3) - a(3)*z(2), a(3)*z(1) - a(1)*z(3), a(1)*z(2) - a(2)*z(1)]
+      end associate
+    end do
+  end function conserved_momenta_gradient
 
   !> The state from position, momentum, gamma and temperature.
   subroutine state_from_temperature(self, q, p, gamma, theta, z)
