@@ -36,12 +36,15 @@ contains
   end subroutine mass_block
 
   !> Spring `part`'s block on its local slots (the old and new values `old`, `new`; the end
-  !> masses' inverses, 0 for a support): f and df/d(new slots).
-  pure subroutine spring_block(spring, part, old, new, inverse_mass_left, inverse_mass_right, f, df)
+  !> masses' inverses, 0 for a support): f and df/d(new slots); optionally f's derivatives in the
+  !> spring's partials, df_dpartials(:, i, k) = df/d partials(i, k) (through Theta_a too), which
+  !> a model's written-out field hands on (spring_chain_model).
+  pure subroutine spring_block(spring, part, old, new, inverse_mass_left, inverse_mass_right, f, df, df_dpartials_out)
     type(chain_spring), intent(in) :: spring
     type(spring_partials), intent(in) :: part
     real(real64), intent(in) :: old(:), new(:), inverse_mass_left, inverse_mass_right
     real(real64), intent(out) :: f(:), df(:, :)
+    real(real64), intent(out), optional :: df_dpartials_out(:, :, :)
     real(real64) :: df_dpartials(size(f), 3, 2), df_dtheta(size(f))
     real(real64) :: v_left(3), v_right(3), force, work, w, eta, dinverse_eta, rate, drate(3), heating
     integer :: n, d, c, i, k
@@ -113,6 +116,7 @@ contains
         df_dpartials(:, n, potential_u) = df_dpartials(:, n, potential_u) + df_dtheta/p(n, potential_s)
         df_dpartials(:, n, potential_s) = df_dpartials(:, n, potential_s) - df_dtheta*theta/p(n, potential_s)
       end if
+      if (present(df_dpartials_out)) df_dpartials_out = df_dpartials
       do k = 1, 2
         do i = 1, n
           do c = 1, s%size
@@ -124,12 +128,15 @@ contains
   end subroutine spring_block
 
   !> Link (a, b = a+1)'s conduction block with conductivity kappa, on its local slots (x_{a-1},
-  !> x_a, x_{a+1}, [gamma_a,] tau_a, [gamma_b,] tau_b): f and df/d(new slots).
-  pure subroutine link_block(conductivity, part_a, part_b, f, df)
+  !> x_a, x_{a+1}, [gamma_a,] tau_a, [gamma_b,] tau_b): f and df/d(new slots); optionally f's
+  !> derivatives in the two springs' tau partials, df_dtau_partials(:, k, side) = df/d partials(n,
+  !> k) of spring a (side 1) or b (side 2), the only partials a link reads.
+  pure subroutine link_block(conductivity, part_a, part_b, f, df, df_dtau_partials)
     real(real64), intent(in) :: conductivity
     type(spring_partials), intent(in) :: part_a, part_b
     real(real64), intent(out) :: f(:), df(:, :)
-    real(real64) :: flow
+    real(real64), intent(out), optional :: df_dtau_partials(:, :, :)
+    real(real64) :: flow, tau_partials(2, size(f), 2)   ! (k, row, side): df(row)/d partials(n, k) of spring a or b
     integer :: n, d, m, tau_a, tau_b
 
     n = part_a%invariants
@@ -139,31 +146,39 @@ contains
     tau_b = 3*d + 2*m
     f = 0.0_real64
     df = 0.0_real64
+    tau_partials = 0.0_real64
     flow = conductivity*(part_b%theta - part_a%theta)
     f(tau_a) = flow/part_a%partials(n, potential_u)
     f(tau_b) = -flow/part_b%partials(n, potential_u)
     ! Row tau_a, then tau_b, through each spring's (D_tau U, D_tau S): Theta and the own D_tau U.
     call add_spring(part_a, 0, tau_a, -conductivity/part_a%partials(n, potential_u), &
-                    -flow/part_a%partials(n, potential_u)**2, df)
-    call add_spring(part_b, d, tau_a, conductivity/part_a%partials(n, potential_u), 0.0_real64, df)
-    call add_spring(part_a, 0, tau_b, conductivity/part_b%partials(n, potential_u), 0.0_real64, df)
+                    -flow/part_a%partials(n, potential_u)**2, df, tau_partials(:, tau_a, 1))
+    call add_spring(part_b, d, tau_a, conductivity/part_a%partials(n, potential_u), 0.0_real64, df, &
+                    tau_partials(:, tau_a, 2))
+    call add_spring(part_a, 0, tau_b, conductivity/part_b%partials(n, potential_u), 0.0_real64, df, &
+                    tau_partials(:, tau_b, 1))
     call add_spring(part_b, d, tau_b, -conductivity/part_b%partials(n, potential_u), &
-                    flow/part_b%partials(n, potential_u)**2, df)
+                    flow/part_b%partials(n, potential_u)**2, df, tau_partials(:, tau_b, 2))
+    if (present(df_dtau_partials)) df_dtau_partials = reshape(tau_partials, shape(df_dtau_partials), &
+                                                              order=[2, 1, 3])
 
   contains
 
     ! Row `row` += (d f/d Theta of `part`) dTheta + (d f/d D_tau U direct) dD_tau U, mapped from the
-    ! spring's slots to the link's: its x_left to x_{a-1} (spring a) or x_a (spring b, shift d).
-    pure subroutine add_spring(part, shift, row, df_dtheta, df_du_direct, jacobian)
+    ! spring's slots to the link's: its x_left to x_{a-1} (spring a) or x_a (spring b, shift d);
+    ! tau_derivative: the row's derivatives in the spring's (D_tau U, D_tau S).
+    pure subroutine add_spring(part, shift, row, df_dtheta, df_du_direct, jacobian, tau_derivative)
       type(spring_partials), intent(in) :: part
       integer, intent(in) :: shift, row
       real(real64), intent(in) :: df_dtheta, df_du_direct
       real(real64), intent(inout) :: jacobian(:, :)
+      real(real64), intent(out) :: tau_derivative(2)
       real(real64) :: g_u, g_s, derivative(size(part%dpartials, 3))
       integer :: c, own
 
       g_u = df_du_direct + df_dtheta/part%partials(n, potential_s)
       g_s = -df_dtheta*part%theta/part%partials(n, potential_s)
+      tau_derivative = [g_u, g_s]
       derivative = g_u*part%dpartials(n, potential_u, :) + g_s*part%dpartials(n, potential_s, :)
       associate (s => part%slots)
         do c = 1, d

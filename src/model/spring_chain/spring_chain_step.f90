@@ -17,7 +17,7 @@ module spring_chain_step
   use spring_chain_balance, only: mass_energy, mass_energy_difference, spring_values, spring_differences
   implicit none (type, external)
   private
-  public :: chain_step_problem
+  public :: chain_step_problem, scatter
 
   !> One step z_old -> z of a chain, or its field (rule partials_exact).
   type, extends(nonlinear_system) :: chain_step_problem
@@ -160,7 +160,7 @@ contains
     end function inverse_mass
   end subroutine field
 
-  ! Adds a block into f and df, skipping the slots that are no unknowns (index 0).
+  !> Adds a block into f and df, skipping the slots that are no unknowns (index 0).
   pure subroutine scatter(indices, fl, dfl, f, df)
     integer, intent(in) :: indices(:)
     real(real64), intent(in) :: fl(:), dfl(:, :)
