@@ -133,7 +133,6 @@ contains
       table = model_fields(self)
       if (self%rung() /= rung_thermoviscoelastic) table = without(table, viscous_fields)
       if (self%rung() == rung_elastic) table = without(table, thermal_fields)
-      if (self%ends /= ends_fixed_fixed) table = without(table, [character(len=24) :: 'span'])
     case ('initial')
       table = initial_fields(self)
       if (self%rung() /= rung_thermoviscoelastic) table = without(table, [character(len=24) :: 'gamma'])
@@ -254,6 +253,7 @@ contains
     class(generic_model), allocatable :: model
     real(real64), allocatable :: z0(:)
     real(real64), allocatable :: stiffness(:)
+    character(len=:), allocatable :: where
     integer :: stat, a
 
     ! First pass: every field, arrays long enough for any chain.
@@ -272,6 +272,13 @@ contains
     if (failure%failed()) return
     call read_group(text, 'model', self%fields('model'), origin, failure, extra)
     if (failure%failed()) return
+    where = given_origin(text, 'model', self%fields('model'), origin, 'span', extra)
+    if (self%ends /= ends_fixed_fixed .and. len(where) > 0) then
+      call fail(failure, failure_input, where// &
+                ": &model: span is not allowed with ends = '"//trim(self%ends)//"'; allowed: span with ends = "// &
+                "'fixed-fixed' (the second support's distance)", 'span')
+      return
+    end if
     call refuse_other_parts(self, text, 'initial', initial_fields(probe), origin, extra, failure)
     if (failure%failed()) return
     call read_group(text, 'initial', self%fields('initial'), origin, failure, extra)
