@@ -367,7 +367,7 @@ contains
   end subroutine check_counts
 
   ! One value given: every element; none: the default (spring_data's, mass 1, conductivity 1,
-  ! p 0, gamma 0, theta 300, span the sum of the natural lengths, x the uniform stretch).
+  ! p 0, gamma 0, theta 280, span the sum of the natural lengths, x the uniform stretch).
   pure subroutine complete_defaults(self)
     type(chain_scene), intent(inout) :: self
     type(spring_data) :: d
@@ -389,7 +389,7 @@ contains
     call fill(self%mass, 1.0_real64)
     call fill(self%p, 0.0_real64)
     call fill(self%gamma, 0.0_real64)
-    call fill(self%theta, 300.0_real64)
+    call fill(self%theta, 280.0_real64)
     if (self%span >= unset) self%span = sum(self%natural_length)
     if (all(self%x >= unset)) then
       self%x = 0.0_real64
