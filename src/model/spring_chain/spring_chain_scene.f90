@@ -211,7 +211,7 @@ contains
       reals_field('gamma', self%gamma, 'real numbers [m]: the dampers'' elongations, one for every spring or n_s '// &
                   '(default 0)', 'm', open_length=.true.), &
       absolute_temperature(reals_field('theta', self%theta, 'real numbers > 0 [K], one for every spring or n_s, each '// &
-                                       'below theta_ref + mu_eq_const/mu_eq_slope (default 300)', 'K', &
+                                       'below theta_ref + mu_eq_const/mu_eq_slope (default 280)', 'K', &
                                        minimum=0.0_real64, exclusive=.true., open_length=.true.))]
   end function initial_fields
 
