@@ -1,0 +1,261 @@
+!> A whole chain's step assembled dense from its blocks (docs/formulation.md section 10): the
+!> residual R = (z_{n+1} - z_n)/dt - f and its Jacobian, f the sum of the mass, spring and link
+!> blocks (spring_chain_blocks) scattered by the layout's indices; also the continuous field
+!> f(z) with df/dz (partials_exact). It is the reference a distributed assembly is checked
+!> against, and the step of a small chain (a nonlinear_system the dense solvers take); its E
+!> and S sum the parts of spring_chain_balance.
+module spring_chain_step
+  use, intrinsic :: iso_fortran_env, only: real64
+  use failures, only: failure_none, domain_nonpositive_temperature, domain_overflow
+  use invariant_function, only: potential_u, potential_s
+  use nonlinear_problem, only: nonlinear_system
+  use discrete_gradient, only: gradient_gonzalez, metric_nondimensional
+  use spring_chain_spring, only: chain_spring
+  use spring_chain_layout, only: chain_layout
+  use spring_chain_partials, only: spring_partials, evaluate_spring_partials, partials_discrete_gradient, partials_exact
+  use spring_chain_blocks, only: mass_block, spring_block, link_block
+  use spring_chain_balance, only: mass_energy, mass_energy_difference, spring_values, spring_differences
+  implicit none (type, external)
+  private
+  public :: chain_step_problem, scatter
+
+  !> One step z_old -> z of a chain, or its field (rule partials_exact).
+  type, extends(nonlinear_system) :: chain_step_problem
+    type(chain_layout) :: layout
+    type(chain_spring), allocatable :: springs(:)
+    real(real64), allocatable :: masses(:)
+    real(real64), allocatable :: conductivity(:)          !! one per link (a, a+1)
+    real(real64), allocatable :: gravity(:)               !! `dimension` components
+    integer :: rule = partials_discrete_gradient
+    integer :: gradient = gradient_gonzalez
+    integer :: metric = metric_nondimensional
+    real(real64) :: dt = 0.0_real64
+    real(real64) :: fraction = 1.0_real64                 !! continuation: the step of fraction dt
+    real(real64), allocatable :: z_old(:)
+  contains
+    procedure :: unknowns
+    procedure :: evaluate
+    procedure :: check_root
+    procedure :: set_continuation
+    procedure :: field
+    procedure :: partials_of
+    procedure :: energy_difference
+    procedure :: energy_entropy
+  end type chain_step_problem
+
+contains
+
+  !> The chain's unknowns.
+  pure integer function unknowns(self)
+    class(chain_step_problem), intent(in) :: self
+
+    unknowns = self%layout%state_size()
+  end function unknowns
+
+  !> The step of s dt from the same old state.
+  pure subroutine set_continuation(self, s)
+    class(chain_step_problem), intent(inout) :: self
+    real(real64), intent(in) :: s
+
+    self%fraction = s
+  end subroutine set_continuation
+
+  !> R(z) = (z - z_old)/h - f(z_old, z) and optionally dR/dz, h = fraction dt.
+  pure subroutine evaluate(self, x, residual, jacobian, stat)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: residual(:)
+    real(real64), intent(out), optional :: jacobian(:, :)
+    integer, intent(out) :: stat
+    real(real64) :: h
+    integer :: i
+
+    h = self%fraction*self%dt
+    call self%field(self%z_old, x, residual, jacobian, stat)
+    if (stat /= failure_none) return
+    residual = (x - self%z_old)/h - residual
+    if (present(jacobian)) then
+      jacobian = -jacobian
+      do i = 1, size(x)
+        jacobian(i, i) = jacobian(i, i) + 1.0_real64/h
+      end do
+    end if
+    if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
+  end subroutine evaluate
+
+  !> Every spring's partials for the step old -> new (or the field at new).
+  pure subroutine partials_of(self, old, new, parts, stat)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: old(:), new(:)
+    type(spring_partials), intent(out) :: parts(:)
+    integer, intent(out) :: stat
+    integer :: a
+
+    stat = failure_none
+    do a = 1, self%layout%springs
+      call evaluate_spring_partials(self%springs(a), self%rule, self%gradient, self%metric, self%layout%dimension, &
+                                    self%layout%gather_spring(old, a), self%layout%gather_spring(new, a), parts(a), stat)
+      if (stat /= failure_none) return
+    end do
+  end subroutine partials_of
+
+  !> f = the sum of the blocks for the step old -> new (the field at new for partials_exact) and
+  !> optionally df/d new.
+  pure subroutine field(self, old, new, f, df, stat)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: old(:), new(:)
+    real(real64), intent(out) :: f(:)
+    real(real64), intent(out), optional :: df(:, :)
+    integer, intent(out) :: stat
+    type(spring_partials) :: parts(self%layout%springs)
+    integer :: a, i, d
+    real(real64) :: weight
+
+    f = 0.0_real64
+    if (present(df)) df = 0.0_real64
+    call self%partials_of(old, new, parts, stat)
+    if (stat /= failure_none) return
+    d = self%layout%dimension
+    weight = merge(1.0_real64, 0.5_real64, self%rule == partials_exact)
+    do i = 1, self%layout%masses
+      block
+        integer :: indices(2*d)
+        real(real64) :: fl(2*d), dfl(2*d, 2*d)
+
+        indices = self%layout%mass_indices(i)
+        call mass_block(self%masses(i), self%gravity, old(indices(d + 1:)), new(indices(d + 1:)), weight, fl, dfl)
+        call scatter(indices, fl, dfl, f, df)
+      end block
+    end do
+    do a = 1, self%layout%springs
+      block
+        integer :: indices(self%layout%spring_size())
+        real(real64) :: fl(size(indices)), dfl(size(indices), size(indices))
+
+        indices = self%layout%spring_indices(a)
+        call spring_block(self%springs(a), parts(a), self%layout%gather_spring(old, a), &
+                          self%layout%gather_spring(new, a), inverse_mass(a - 1), inverse_mass(a), fl, dfl)
+        call scatter(indices, fl, dfl, f, df)
+      end block
+    end do
+    if (self%layout%invariant_count == 1) return
+    do a = 1, self%layout%springs - 1
+      block
+        integer :: indices(3*d + 2*(self%layout%invariant_count - 1))
+        real(real64) :: fl(size(indices)), dfl(size(indices), size(indices))
+
+        indices = self%layout%link_indices(a)
+        call link_block(self%conductivity(a), parts(a), parts(a + 1), fl, dfl)
+        call scatter(indices, fl, dfl, f, df)
+      end block
+    end do
+
+  contains
+
+    pure real(real64) function inverse_mass(i)
+      integer, intent(in) :: i
+
+      inverse_mass = 0.0_real64
+      if (i >= 1 .and. i <= self%layout%masses) inverse_mass = 1.0_real64/self%masses(i)
+    end function inverse_mass
+  end subroutine field
+
+  !> Adds a block into f and df, skipping the slots that are no unknowns (index 0).
+  pure subroutine scatter(indices, fl, dfl, f, df)
+    integer, intent(in) :: indices(:)
+    real(real64), intent(in) :: fl(:), dfl(:, :)
+    real(real64), intent(inout) :: f(:)
+    real(real64), intent(inout), optional :: df(:, :)
+    integer :: r, c
+
+    do r = 1, size(indices)
+      if (indices(r) == 0) cycle
+      f(indices(r)) = f(indices(r)) + fl(r)
+      if (.not. present(df)) cycle
+      do c = 1, size(indices)
+        if (indices(c) > 0) df(indices(r), indices(c)) = df(indices(r), indices(c)) + dfl(r, c)
+      end do
+    end do
+  end subroutine scatter
+
+  !> Why z is no physical root ('' if it is): the temperatures at z and the scheme's temperatures
+  !> (discrete, or midpoint) must be positive (docs/formulation.md section 5).
+  pure subroutine check_root(self, x, problem_text)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    character(len=:), allocatable, intent(out) :: problem_text
+    type(spring_partials) :: parts(self%layout%springs)
+    real(real64) :: f(2), theta
+    integer :: a, stat
+
+    problem_text = ''
+    if (self%layout%invariant_count == 1) return
+    do a = 1, self%layout%springs
+      call spring_values(self%springs(a), self%layout%dimension, self%layout%gather_spring(x, a), f, theta, stat)
+      if (stat /= failure_none) then
+        problem_text = 'a spring is outside the domain at the new state'
+        return
+      end if
+    end do
+    call self%partials_of(self%z_old, x, parts, stat)
+    if (stat == failure_none .and. all(parts%theta > 0.0_real64)) return
+    problem_text = 'non-positive scheme temperature (D_tau U/D_tau S)'
+    if (stat /= failure_none .and. stat /= domain_nonpositive_temperature) &
+      problem_text = 'the scheme''s temperatures are undefined between the states'
+  end subroutine check_root
+
+  !> E(new) - E(old) and S(new) - S(old) as sums of the parts' differences (no cancellation).
+  pure subroutine energy_difference(self, old, new, delta_energy, delta_entropy, stat)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: old(:), new(:)
+    real(real64), intent(out) :: delta_energy, delta_entropy
+    integer, intent(out) :: stat
+    real(real64) :: delta(2)
+    integer :: i, a, d
+
+    d = self%layout%dimension
+    delta_energy = 0.0_real64
+    delta_entropy = 0.0_real64
+    stat = failure_none
+    do i = 1, self%layout%masses
+      associate (x => self%layout%mass_indices(i))
+        delta_energy = delta_energy + mass_energy_difference(self%masses(i), self%gravity, old(x(1:d)), old(x(d + 1:)), &
+                                                             new(x(1:d)), new(x(d + 1:)))
+      end associate
+    end do
+    do a = 1, self%layout%springs
+      call spring_differences(self%springs(a), d, self%layout%gather_spring(old, a), self%layout%gather_spring(new, a), &
+                              delta, stat)
+      if (stat /= failure_none) return
+      delta_energy = delta_energy + delta(potential_u)
+      delta_entropy = delta_entropy + delta(potential_s)
+    end do
+  end subroutine energy_difference
+
+  !> E = sum of the masses' T + V_g and the springs' U_a, S = sum of the S_a at z.
+  pure subroutine energy_entropy(self, z, energy, entropy, stat)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: energy, entropy
+    integer, intent(out) :: stat
+    real(real64) :: f(2), theta
+    integer :: i, a, d
+
+    d = self%layout%dimension
+    energy = 0.0_real64
+    entropy = 0.0_real64
+    stat = failure_none
+    do i = 1, self%layout%masses
+      associate (x => self%layout%mass_indices(i))
+        energy = energy + mass_energy(self%masses(i), self%gravity, z(x(1:d)), z(x(d + 1:)))
+      end associate
+    end do
+    do a = 1, self%layout%springs
+      call spring_values(self%springs(a), d, self%layout%gather_spring(z, a), f, theta, stat)
+      if (stat /= failure_none) return
+      energy = energy + f(potential_u)
+      entropy = entropy + f(potential_s)
+    end do
+  end subroutine energy_entropy
+
+end module spring_chain_step
