@@ -257,16 +257,21 @@ contains
     end function about_coordinate_axis
   end function angular_momentum_components
 
-  !> The components' values J.axis of an angular momentum j (in the order x, y, z of the sum, as the
-  !> run file's readers take them from its columns).
+  !> The components' values J.axis of an angular momentum j: its three components in space (in the
+  !> order x, y, z of the sum, as the run file's readers take them from its columns), or in the
+  !> plane its one component, about the normal z (the axis of a planar model's components).
   pure function component_values(components, j) result(values)
     type(conserved_component), intent(in) :: components(:)
-    real(real64), intent(in) :: j(3)
+    real(real64), intent(in) :: j(:)
     real(real64) :: values(size(components))
     integer :: k
 
     do k = 1, size(components)
-      values(k) = j(1)*components(k)%axis(1) + j(2)*components(k)%axis(2) + j(3)*components(k)%axis(3)
+      if (size(j) == 1) then
+        values(k) = j(1)*components(k)%axis(3)
+      else
+        values(k) = j(1)*components(k)%axis(1) + j(2)*components(k)%axis(2) + j(3)*components(k)%axis(3)
+      end if
     end do
   end function component_values
 

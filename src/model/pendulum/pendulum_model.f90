@@ -255,18 +255,13 @@ contains
   end subroutine in_variable
 
   !> The conserved components J.a of J = q1 x p1 + q2 x p2 (their axes a: `conserved`) from the
-  !> momenta: J itself in space; in the plane its one component, about the normal.
+  !> momenta (component_values).
   pure function conserved_in_momenta(self, momenta) result(values)
     class(pendulum), intent(in) :: self
     real(real64), intent(in) :: momenta(:)
     real(real64) :: values(self%conserved_count())
 
-    if (size(values) == 0) return      ! in the plane under gravity
-    if (size(momenta) == 1) then
-      values = momenta(1)
-    else
-      values = component_values(self%conserved, momenta)
-    end if
+    values = component_values(self%conserved, momenta)
   end function conserved_in_momenta
 
   !> d(J.a)/dp for each axis a: a x q1 for p1, a x q2 for p2 (J.a = p1.(a x q1) + p2.(a x q2)).

@@ -10,6 +10,7 @@
 module spring_chain_model
   use, intrinsic :: iso_fortran_env, only: real64
   use failures, only: failure_none
+  use number_text, only: integer_text
   use invariant_function, only: potential_u, potential_s
   use model_interface, only: generic_model, conserved_component, angular_momentum_components, component_values
   use spring_chain_spring, only: spring_data, chain_spring, make_chain_spring, spring_invariants, rung_elastic
@@ -80,14 +81,14 @@ contains
     allocate (model%column_names(model%state_size), model%springs(layout%springs), model%subsystems(layout%springs))
     do i = 1, layout%masses
       do c = 1, d
-        model%column_names(layout%q_index(i, c)) = 'x'//number(i)//'_'//axis_names(c)
-        model%column_names(layout%p_index(i, c)) = 'p'//number(i)//'_'//axis_names(c)
+        model%column_names(layout%q_index(i, c)) = 'x'//integer_text(i)//'_'//axis_names(c)
+        model%column_names(layout%p_index(i, c)) = 'p'//integer_text(i)//'_'//axis_names(c)
       end do
     end do
     do a = 1, layout%springs
       model%springs(a) = make_chain_spring(data(a), n, variable)
       associate (part => model%subsystems(a), spring => model%springs(a))
-        part%name = 'spring '//number(a)
+        part%name = 'spring '//integer_text(a)
         part%invariant_count = n
         part%columns = spring_columns(layout, a)
         part%tau_column = layout%tau_index(a)
@@ -96,9 +97,9 @@ contains
           allocate (part%potentials, source=spring%elastic)
         else
           allocate (part%potentials, source=spring%thermal)
-          model%column_names(layout%tau_index(a)) = trim(tau_symbols(variable))//'_'//number(a)
+          model%column_names(layout%tau_index(a)) = trim(tau_symbols(variable))//'_'//integer_text(a)
         end if
-        if (n == 3) model%column_names(layout%gamma_index(a)) = 'gamma_'//number(a)
+        if (n == 3) model%column_names(layout%gamma_index(a)) = 'gamma_'//integer_text(a)
       end associate
     end do
     model%words%temperature = 'spring temperatures'
@@ -155,16 +156,6 @@ contains
     if (layout%invariant_count == 3) columns = [columns, layout%gamma_index(a)]
     if (layout%invariant_count >= 2) columns = [columns, layout%tau_index(a)]
   end function spring_columns
-
-  ! The decimal digits of i >= 0.
-  pure function number(i) result(text)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: text
-    character(len=12) :: buffer
-
-    write (buffer, '(i0)') i
-    text = trim(buffer)
-  end function number
 
   !> Spring a's invariants (C_a, [gamma_a,] [tau_a]) and their derivatives in its columns
   !> (spring_columns' order): dC/dx_{a-1} = -2 r_a, dC/dx_a = 2 r_a, 1 for gamma_a and tau_a.
@@ -404,19 +395,13 @@ contains
     end if
   end function chain_angular_momentum
 
-  !> The conserved components J.a (their axes a: `conserved`) from the momenta: the plane's J
-  !> itself in 2D, component_values of J in 3D.
+  !> The conserved components J.a (their axes a: `conserved`) from the momenta (component_values).
   pure function conserved_in_momenta(self, momenta) result(values)
     class(spring_chain), intent(in) :: self
     real(real64), intent(in) :: momenta(:)
     real(real64) :: values(self%conserved_count())
 
-    if (size(values) == 0) return
-    if (size(momenta) == 1) then
-      values = momenta(1)
-    else
-      values = component_values(self%conserved, momenta)
-    end if
+    values = component_values(self%conserved, momenta)
   end function conserved_in_momenta
 
   !> d(J.a)/dp_i = a x x_i for each conserved axis a (J.a = sum_i p_i.(a x x_i)).
