@@ -36,6 +36,8 @@ module spring_chain_layout
     procedure :: point_size
     procedure :: spring_size
     procedure :: state_size
+    procedure :: points
+    procedure :: point_of
     procedure :: offset
     procedure :: q_index
     procedure :: p_index
@@ -108,6 +110,22 @@ contains
     state_size = self%masses*self%point_size()
     if (self%fixed_fixed) state_size = state_size + self%invariant_count - 1
   end function state_size
+
+  !> The point that unknown g (1-based) belongs to.
+  pure integer function point_of(self, g)
+    class(chain_layout), intent(in) :: self
+    integer, intent(in) :: g
+
+    point_of = (g - 1)/self%point_size() + 1
+  end function point_of
+
+  !> The number of points: N, and N + 1 with 'fixed-fixed' ends (the last holds one spring's
+  !> gamma and tau only).
+  pure integer function points(self)
+    class(chain_layout), intent(in) :: self
+
+    points = self%springs
+  end function points
 
   !> z index before point k's first unknown.
   pure integer function offset(self, k)
@@ -216,18 +234,22 @@ contains
     end do
   end function link_indices
 
-  !> Spring a's local slots' values from z (a support's position, and zero momentum).
-  pure function gather_spring(self, z, a) result(values)
+  !> Spring a's local slots' values from z (a support's position, and zero momentum); z holds
+  !> the unknowns base + 1 .. base + size(z) (default base 0: the whole state).
+  pure function gather_spring(self, z, a, base) result(values)
     class(chain_layout), intent(in) :: self
     real(real64), intent(in) :: z(:)
     integer, intent(in) :: a
+    integer, intent(in), optional :: base
     real(real64) :: values(self%spring_size())
-    integer :: indices(size(values)), d
+    integer :: indices(size(values)), d, shift
 
     d = self%dimension
+    shift = 0
+    if (present(base)) shift = base
     indices = self%spring_indices(a)
     values = 0.0_real64
-    where (indices > 0) values = z(max(indices, 1))
+    where (indices > 0) values = z(max(indices - shift, 1))
     if (a == 1) values(1:d) = self%support(0)
     if (a > self%masses) values(2*d + 1:3*d) = self%support(a)
   end function gather_spring

@@ -38,6 +38,8 @@ module spring_chain_step
     procedure :: check_root
     procedure :: set_continuation
     procedure :: field
+    procedure :: field_rows
+    procedure :: band_half_width
     procedure :: partials_of
     procedure :: energy_difference
     procedure :: energy_entropy
@@ -83,70 +85,127 @@ contains
     if (.not. all(abs(residual) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine evaluate
 
-  !> Every spring's partials for the step old -> new (or the field at new).
-  pure subroutine partials_of(self, old, new, parts, stat)
+  !> Springs first..last's partials for the step old -> new (or the field at new); old and new
+  !> hold the unknowns base + 1 .. base + size(old).
+  pure subroutine partials_of(self, old, new, parts, stat, base, first)
     class(chain_step_problem), intent(in) :: self
     real(real64), intent(in) :: old(:), new(:)
     type(spring_partials), intent(out) :: parts(:)
     integer, intent(out) :: stat
-    integer :: a
+    integer, intent(in), optional :: base, first
+    integer :: a, shift, a0
 
     stat = failure_none
-    do a = 1, self%layout%springs
+    shift = 0
+    if (present(base)) shift = base
+    a0 = 1
+    if (present(first)) a0 = first
+    do a = a0, a0 + size(parts) - 1
       call evaluate_spring_partials(self%springs(a), self%rule, self%gradient, self%metric, self%layout%dimension, &
-                                    self%layout%gather_spring(old, a), self%layout%gather_spring(new, a), parts(a), stat)
+                                    self%layout%gather_spring(old, a, shift), self%layout%gather_spring(new, a, shift), &
+                                    parts(a - a0 + 1), stat)
       if (stat /= failure_none) return
     end do
   end subroutine partials_of
 
+  !> The half width of a row's band of df/dz: a link couples points a - 1 .. a + 1, so an unknown
+  !> couples unknowns of at most two points on either side.
+  pure integer function band_half_width(self)
+    class(chain_step_problem), intent(in) :: self
+
+    band_half_width = 3*self%layout%point_size() - 1
+  end function band_half_width
+
   !> f = the sum of the blocks for the step old -> new (the field at new for partials_exact) and
-  !> optionally df/d new.
+  !> optionally df/d new, dense (the whole state; field_rows assembles).
   pure subroutine field(self, old, new, f, df, stat)
     class(chain_step_problem), intent(in) :: self
     real(real64), intent(in) :: old(:), new(:)
     real(real64), intent(out) :: f(:)
     real(real64), intent(out), optional :: df(:, :)
     integer, intent(out) :: stat
-    type(spring_partials) :: parts(self%layout%springs)
-    integer :: a, i, d
+    real(real64), allocatable :: band(:, :)
+    integer :: r, c, half, n
+
+    n = size(f)
+    if (.not. present(df)) then
+      call self%field_rows(old, new, 0, 1, n, f, stat=stat)
+      return
+    end if
+    half = self%band_half_width()
+    allocate (band(n, 2*half + 1))
+    call self%field_rows(old, new, 0, 1, n, f, band, stat)
+    df = 0.0_real64
+    do r = 1, n
+      do c = max(1, r - half), min(n, r + half)
+        df(r, c) = band(r, c - r + half + 1)
+      end do
+    end do
+  end subroutine field
+
+  !> Rows first_row..last_row of f = the sum of the mass, spring and link blocks for the step
+  !> old -> new (the field at new for partials_exact), and optionally their df/d new in band
+  !> storage: band(r, c - g + half + 1) holds row g = first_row + r - 1, column c (half =
+  !> band_half_width). old and new hold the unknowns base + 1 .. base + size(old) and must cover
+  !> the rows' points and two points either side (a rank's ghosted part of a DMDA of stencil
+  !> width 2; base 0 and the whole state on one process). Only the blocks that touch the rows
+  !> are evaluated, and only the rows' entries kept: ranks owning disjoint rows assemble the
+  !> whole f and df between them, each without the others' rows.
+  pure subroutine field_rows(self, old, new, base, first_row, last_row, f, band, stat)
+    class(chain_step_problem), intent(in) :: self
+    real(real64), intent(in) :: old(:), new(:)
+    integer, intent(in) :: base, first_row, last_row
+    real(real64), intent(out) :: f(:)
+    real(real64), intent(out), optional :: band(:, :)
+    integer, intent(out) :: stat
+    integer :: first_point, last_point, a_first, a_last, a, i, d, half
+    type(spring_partials), allocatable :: parts(:)
     real(real64) :: weight
 
     f = 0.0_real64
-    if (present(df)) df = 0.0_real64
-    call self%partials_of(old, new, parts, stat)
-    if (stat /= failure_none) return
+    if (present(band)) band = 0.0_real64
     d = self%layout%dimension
+    half = self%band_half_width()
+    first_point = self%layout%point_of(first_row)
+    last_point = self%layout%point_of(last_row)
+    ! Spring a touches points a - 1 and a; link (a, a+1) needs springs a and a + 1.
+    a_first = max(1, first_point - 1)
+    a_last = min(self%layout%springs, last_point + 2)
+    allocate (parts(a_first:a_last))
+    call self%partials_of(old, new, parts, stat, base, a_first)
+    if (stat /= failure_none) return
     weight = merge(1.0_real64, 0.5_real64, self%rule == partials_exact)
-    do i = 1, self%layout%masses
+    do i = max(1, first_point), min(self%layout%masses, last_point)
       block
         integer :: indices(2*d)
         real(real64) :: fl(2*d), dfl(2*d, 2*d)
 
         indices = self%layout%mass_indices(i)
-        call mass_block(self%masses(i), self%gravity, old(indices(d + 1:)), new(indices(d + 1:)), weight, fl, dfl)
-        call scatter(indices, fl, dfl, f, df)
+        call mass_block(self%masses(i), self%gravity, old(indices(d + 1:) - base), new(indices(d + 1:) - base), weight, &
+                        fl, dfl)
+        call add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
       end block
     end do
-    do a = 1, self%layout%springs
+    do a = max(1, first_point), min(self%layout%springs, last_point + 1)
       block
         integer :: indices(self%layout%spring_size())
         real(real64) :: fl(size(indices)), dfl(size(indices), size(indices))
 
         indices = self%layout%spring_indices(a)
-        call spring_block(self%springs(a), parts(a), self%layout%gather_spring(old, a), &
-                          self%layout%gather_spring(new, a), inverse_mass(a - 1), inverse_mass(a), fl, dfl)
-        call scatter(indices, fl, dfl, f, df)
+        call spring_block(self%springs(a), parts(a), self%layout%gather_spring(old, a, base), &
+                          self%layout%gather_spring(new, a, base), inverse_mass(a - 1), inverse_mass(a), fl, dfl)
+        call add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
       end block
     end do
     if (self%layout%invariant_count == 1) return
-    do a = 1, self%layout%springs - 1
+    do a = max(1, first_point - 1), min(self%layout%springs - 1, last_point + 1)
       block
         integer :: indices(3*d + 2*(self%layout%invariant_count - 1))
         real(real64) :: fl(size(indices)), dfl(size(indices), size(indices))
 
         indices = self%layout%link_indices(a)
         call link_block(self%conductivity(a), parts(a), parts(a + 1), fl, dfl)
-        call scatter(indices, fl, dfl, f, df)
+        call add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
       end block
     end do
 
@@ -158,7 +217,29 @@ contains
       inverse_mass = 0.0_real64
       if (i >= 1 .and. i <= self%layout%masses) inverse_mass = 1.0_real64/self%masses(i)
     end function inverse_mass
-  end subroutine field
+
+  end subroutine field_rows
+
+  ! Adds a block's rows that lie in first_row..last_row to f and the band (field_rows' storage);
+  ! index 0, a support's slot, is no unknown.
+  pure subroutine add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
+    integer, intent(in) :: indices(:), first_row, last_row, half
+    real(real64), intent(in) :: fl(:), dfl(:, :)
+    real(real64), intent(inout) :: f(:)
+    real(real64), intent(inout), optional :: band(:, :)
+    integer :: r, c, row
+
+    do r = 1, size(indices)
+      if (indices(r) < first_row .or. indices(r) > last_row) cycle
+      row = indices(r) - first_row + 1
+      f(row) = f(row) + fl(r)
+      if (.not. present(band)) cycle
+      do c = 1, size(indices)
+        if (indices(c) > 0) band(row, indices(c) - indices(r) + half + 1) = band(row, indices(c) - indices(r) + half + 1) &
+                                                                            + dfl(r, c)
+      end do
+    end do
+  end subroutine add_rows
 
   !> Adds a block into f and df, skipping the slots that are no unknowns (index 0).
   pure subroutine scatter(indices, fl, dfl, f, df)
@@ -204,58 +285,77 @@ contains
       problem_text = 'the scheme''s temperatures are undefined between the states'
   end subroutine check_root
 
-  !> E(new) - E(old) and S(new) - S(old) as sums of the parts' differences (no cancellation).
-  pure subroutine energy_difference(self, old, new, delta_energy, delta_entropy, stat)
+  !> E(new) - E(old) and S(new) - S(old) as sums of the parts' differences (no cancellation);
+  !> with `points` (first, last), only the masses and springs of those points (a rank's share),
+  !> old and new then holding the unknowns base + 1 .. base + size(old).
+  pure subroutine energy_difference(self, old, new, delta_energy, delta_entropy, stat, base, points)
     class(chain_step_problem), intent(in) :: self
     real(real64), intent(in) :: old(:), new(:)
     real(real64), intent(out) :: delta_energy, delta_entropy
     integer, intent(out) :: stat
+    integer, intent(in), optional :: base, points(2)
     real(real64) :: delta(2)
-    integer :: i, a, d
+    integer :: i, a, d, shift, range(2)
 
+    call share(self%layout, base, points, shift, range)
     d = self%layout%dimension
     delta_energy = 0.0_real64
     delta_entropy = 0.0_real64
     stat = failure_none
-    do i = 1, self%layout%masses
-      associate (x => self%layout%mass_indices(i))
+    do i = range(1), min(self%layout%masses, range(2))
+      associate (x => self%layout%mass_indices(i) - shift)
         delta_energy = delta_energy + mass_energy_difference(self%masses(i), self%gravity, old(x(1:d)), old(x(d + 1:)), &
                                                              new(x(1:d)), new(x(d + 1:)))
       end associate
     end do
-    do a = 1, self%layout%springs
-      call spring_differences(self%springs(a), d, self%layout%gather_spring(old, a), self%layout%gather_spring(new, a), &
-                              delta, stat)
+    do a = range(1), range(2)
+      call spring_differences(self%springs(a), d, self%layout%gather_spring(old, a, shift), &
+                              self%layout%gather_spring(new, a, shift), delta, stat)
       if (stat /= failure_none) return
       delta_energy = delta_energy + delta(potential_u)
       delta_entropy = delta_entropy + delta(potential_s)
     end do
   end subroutine energy_difference
 
-  !> E = sum of the masses' T + V_g and the springs' U_a, S = sum of the S_a at z.
-  pure subroutine energy_entropy(self, z, energy, entropy, stat)
+  !> E = sum of the masses' T + V_g and the springs' U_a, S = sum of the S_a at z; with `points`,
+  !> only those points' masses and springs (as energy_difference).
+  pure subroutine energy_entropy(self, z, energy, entropy, stat, base, points)
     class(chain_step_problem), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64), intent(out) :: energy, entropy
     integer, intent(out) :: stat
+    integer, intent(in), optional :: base, points(2)
     real(real64) :: f(2), theta
-    integer :: i, a, d
+    integer :: i, a, d, shift, range(2)
 
+    call share(self%layout, base, points, shift, range)
     d = self%layout%dimension
     energy = 0.0_real64
     entropy = 0.0_real64
     stat = failure_none
-    do i = 1, self%layout%masses
-      associate (x => self%layout%mass_indices(i))
+    do i = range(1), min(self%layout%masses, range(2))
+      associate (x => self%layout%mass_indices(i) - shift)
         energy = energy + mass_energy(self%masses(i), self%gravity, z(x(1:d)), z(x(d + 1:)))
       end associate
     end do
-    do a = 1, self%layout%springs
-      call spring_values(self%springs(a), d, self%layout%gather_spring(z, a), f, theta, stat)
+    do a = range(1), range(2)
+      call spring_values(self%springs(a), d, self%layout%gather_spring(z, a, shift), f, theta, stat)
       if (stat /= failure_none) return
       energy = energy + f(potential_u)
       entropy = entropy + f(potential_s)
     end do
   end subroutine energy_entropy
+
+  ! The shift of the arrays and the points summed: the optional arguments, or every point.
+  pure subroutine share(layout, base, points, shift, range)
+    type(chain_layout), intent(in) :: layout
+    integer, intent(in), optional :: base, points(2)
+    integer, intent(out) :: shift, range(2)
+
+    shift = 0
+    if (present(base)) shift = base
+    range = [1, layout%points()]
+    if (present(points)) range = points
+  end subroutine share
 
 end module spring_chain_step
