@@ -27,8 +27,8 @@ module spring_chain_scene
   public :: spring_chain_name, new_spring_chain_scene
 
   character(len=*), parameter :: spring_chain_name = 'spring_chain'
-  !> The most masses the dense path takes (its Jacobian is state_size^2).
-  integer, parameter :: max_links = 100
+  !> The most masses a chain may have (the sparse path's; the dense path takes dense_max_links).
+  integer, parameter :: max_links = 100000
   !> An element no value was given for (compared with >= and <: reals are not compared for equality).
   real(real64), parameter :: unset = huge(1.0_real64)
   !> &model's fields of the viscous branch, and the thermal ones.

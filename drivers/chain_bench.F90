@@ -1,0 +1,97 @@
+!> mpirun -n P chain_bench FILE.nml [-chain_steps K] [-chain_dump PREFIX] [PETSc options]: a spring
+!> chain (&model model_name = 'spring_chain') run on the sparse, distributed path
+!> (src/model/spring_chain/spring_chain_dmda) with the input's fixed-step EME or midpoint rule, for
+!> the input's steps or K, writing no run file. Rank 0 prints one line of key=value figures: the
+!> size, the steps and Newton iterations, E and S at the start and the end, the largest
+!> |E_{n+1} - E_n|/|E_n|, the smallest S_{n+1} - S_n, and the time loop's CPU and wall seconds
+!> (rank 0's), per step and per Newton iteration per unknown. -chain_dump PREFIX writes each rank's
+!> rows of the final state to PREFIX.<rank> ("index value" lines). It is the instrument of the
+!> chain's scaling benchmark (docs/performance.md) and of the tests that compare the path with the
+!> dense one and one rank with two; eme_run does not run this path yet.
+!> Exit status: 0 done, 2 bad input or usage, 3 the run stopped (a step did not converge), 1 a
+!> library failed.
+program chain_bench
+#include <petsc/finclude/petscsys.h>
+  use petscsys
+  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64, int64
+  use run_config, only: run_configuration, read_run_config
+  use integrator_settings, only: step_count
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use failures, only: failure_type, failure_input, failure_not_converged
+  use number_text, only: integer_text
+  use spring_chain_sparse_run, only: sparse_chain_run, sparse_run_result, sparse_run_settings
+  implicit none
+
+  type(run_configuration) :: config
+  type(sparse_run_settings) :: settings
+  type(sparse_run_result) :: result
+  type(failure_type) :: failure
+  class(generic_model), allocatable :: model
+  real(real64), allocatable :: z0(:)
+  type(constraint_slot), allocatable :: constraints(:)
+  character(len=4096) :: input, dump
+  PetscInt :: steps
+  PetscBool :: found, dump_given
+  PetscErrorCode :: ierr
+  PetscMPIInt :: rank
+  integer :: exit_status
+
+  PetscCallA(PetscInitialize(ierr))
+  PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
+  exit_status = 0
+  input = ''
+  if (command_argument_count() >= 1) call get_command_argument(1, input)
+  if (len_trim(input) == 0 .or. input(1:1) == '-') then
+    if (rank == 0) write (error_unit, '(a)') 'usage: mpirun -n P chain_bench FILE.nml [-chain_steps K] [-chain_dump PREFIX]'
+    exit_status = 2
+  else
+    call read_run_config(trim(input), config, failure)
+    if (.not. failure%failed()) call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
+    if (.not. failure%failed()) then
+      settings%input_file = config%input_file
+      settings%scheme = config%integrator%scheme
+      settings%discrete_gradient = config%integrator%discrete_gradient
+      settings%metric = config%integrator%metric
+      settings%dt = config%integrator%dt
+      settings%steps = int(min(step_count(config%integrator), int(huge(1), int64)))
+      settings%newton_tol = config%integrator%newton_tol
+      settings%newton_max_iterations = config%integrator%newton_max_iterations
+      settings%tolerance_given = config%integrator%tolerance_given
+      PetscCallA(PetscOptionsGetInt(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_steps', steps, found, ierr))
+      if (found) settings%steps = int(steps)
+      PetscCallA(PetscOptionsGetString(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_dump', dump, dump_given, ierr))
+      if (dump_given) then
+        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, trim(dump))
+      else
+        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure)
+      end if
+    end if
+    if (failure%failed()) then
+      if (rank == 0) write (error_unit, '(a)') 'chain_bench: '//failure%text()
+      exit_status = 1
+      if (failure%code == failure_input) exit_status = 2
+      if (failure%code == failure_not_converged) exit_status = 3
+    end if
+    if (rank == 0 .and. result%steps > 0) call print_figures(result)
+  end if
+  call PetscFinalize(ierr)
+  if (exit_status /= 0) stop exit_status, quiet=.true.
+
+contains
+
+  ! One line of key=value figures.
+  subroutine print_figures(r)
+    type(sparse_run_result), intent(in) :: r
+
+    write (output_unit, '(a, 4(a, i0), a, i0, a, i0, 4(a, es24.16e3), 2(a, es10.3), 4(a, es10.3))') 'chain_bench:', &
+      ' springs=', r%springs, ' unknowns=', r%unknowns, ' ranks=', r%ranks, ' steps=', r%steps, &
+      ' newton=', r%newton_iterations, ' max_newton=', r%max_newton_iterations, &
+      ' energy_0=', r%energy_0, ' energy=', r%energy, ' entropy_0=', r%entropy_0, ' entropy=', r%entropy, &
+      ' max_energy_error=', r%max_energy_error, ' min_entropy_increment=', r%min_entropy_increment, &
+      ' cpu_per_step=', r%loop_cpu_seconds/r%steps, ' wall_per_step=', r%loop_wall_seconds/r%steps, &
+      ' cpu_per_newton_unknown=', r%loop_cpu_seconds/max(1, r%newton_iterations)/r%unknowns, &
+      ' loop_cpu=', r%loop_cpu_seconds
+  end subroutine print_figures
+
+end program chain_bench

@@ -1,0 +1,410 @@
+!> The chain's step on the sparse, distributed path (docs/formulation.md section 10, "Sparse and
+!> distributed"): the state in a PETSc DMDA of one point per mass and its spring (dof = the
+!> layout's point size; 'fixed-fixed' ends add a point for spring N + 1, whose unused slots are
+!> identity rows), split over the ranks of a communicator. Each rank assembles its own rows of the
+!> residual R = (z - z_old)/h - f and of its Jacobian from the blocks that touch them
+!> (chain_step_problem's field_rows, over the ghosted local vector of stencil width 2: a link
+!> couples points a - 1 .. a + 1), into a matrix preallocated by the DMDA. SNES solves each step
+!> with the KSP and PC the options choose; the default is a direct factorisation (PETSc's LU on
+!> one rank, MUMPS on several). Newton stops at the step's tolerance or at the rounding floor
+!> (an update below 16 eps |z|), whichever comes first.
+!>
+!> Errors: each public procedure returns a failure_type; its PETSc calls sit in a private twin
+!> with PETSc's own ierr.
+module spring_chain_dmda
+#include <petsc/finclude/petscsnes.h>
+#include <petsc/finclude/petscdmda.h>
+  use petscsnes
+  use petscdmda
+  use, intrinsic :: iso_fortran_env, only: real64
+  use failures, only: failure_type, failure_none, fail_on_code, fail, domain_overflow
+  use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
+  use spring_chain_step, only: chain_step_problem
+  implicit none
+  private
+  public :: distributed_chain, chain_step_outcome
+
+  !> What the callbacks see (PETSc holds its address): the step's problem and the rank's part.
+  type :: chain_context
+    type(chain_step_problem) :: problem
+    DM :: da
+    Vec :: old_local               !! z_old on the rank's ghosted points
+    Vec :: new_local               !! the iterate on the rank's ghosted points
+    integer :: base = 0            !! the unknown before the ghosted part's first
+    integer :: first_row = 1       !! the rank's rows (1-based unknowns), first .. last
+    integer :: last_row = 0
+    integer :: local_size = 0      !! the ghosted part's unknowns
+    integer :: total = 0           !! every rank's unknowns (the DMDA's: point size x points)
+    real(real64) :: update_floor = 0.0_real64   !! 16 eps |z_old|: updates below it are rounding
+  end type chain_context
+
+  !> One step's outcome.
+  type :: chain_step_outcome
+    logical :: converged = .false.
+    integer :: iterations = 0
+    integer :: reason = 0                      !! SNESConvergedReason
+    real(real64) :: residual_norm = 0.0_real64
+  end type chain_step_outcome
+
+  !> A chain on a DMDA with its SNES. Do not copy it after `create`: PETSc holds the address of
+  !> `context`.
+  type :: distributed_chain
+    type(chain_context) :: context
+    SNES :: snes
+    Vec :: x                       !! the state (global vector)
+    Vec :: r
+    Mat :: jacobian
+    integer :: first_point = 1     !! the rank's points, first .. last (1-based)
+    integer :: last_point = 0
+    logical :: created = .false.
+  contains
+    procedure :: create
+    procedure :: set_state
+    procedure :: owned_state
+    procedure :: step
+    procedure :: sums
+    procedure :: destroy
+  end type distributed_chain
+
+contains
+
+  !> Makes the DMDA, vectors, matrix and SNES for `problem` (its z_old is not used) on `comm`
+  !> (PETSc's MPI communicator); Newton stops at |R| <= newton_tol or at the rounding floor.
+  subroutine create(self, problem, comm, newton_tol, max_iterations, failure)
+    class(distributed_chain), intent(inout), target :: self
+    type(chain_step_problem), intent(in) :: problem
+    MPI_Comm, intent(in) :: comm
+    real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call create_petsc(self, problem, comm, newton_tol, max_iterations, ierr)
+    call fail_on_code(failure, ierr, 'setting up the chain''s DMDA and SNES')
+  end subroutine create
+
+  subroutine create_petsc(self, problem, comm, newton_tol, max_iterations, ierr)
+    class(distributed_chain), intent(inout), target :: self
+    type(chain_step_problem), intent(in) :: problem
+    MPI_Comm, intent(in) :: comm
+    real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
+    PetscErrorCode, intent(out) :: ierr
+    PetscInt :: points, dof, width, xs, ys, zs, xm, ym, zm, gxs, gxm, max_evaluations, iterations
+    PetscMPIInt :: ranks
+    KSP :: ksp
+    PC :: pc
+
+    self%context%problem = problem
+    points = problem%layout%points()
+    dof = problem%layout%point_size()
+    width = 2
+    PetscCall(DMDACreate1d(comm, DM_BOUNDARY_NONE, points, dof, width, PETSC_NULL_INTEGER, self%context%da, ierr))
+    PetscCall(DMSetUp(self%context%da, ierr))
+    PetscCall(DMDAGetCorners(self%context%da, xs, ys, zs, xm, ym, zm, ierr))
+    PetscCall(DMDAGetGhostCorners(self%context%da, gxs, ys, zs, gxm, ym, zm, ierr))
+    self%first_point = int(xs) + 1
+    self%last_point = int(xs + xm)
+    self%context%first_row = int(xs*dof) + 1
+    self%context%last_row = int((xs + xm)*dof)
+    self%context%base = int(gxs*dof)
+    self%context%local_size = int(gxm*dof)
+    self%context%total = int(points*dof)
+    PetscCall(DMCreateGlobalVector(self%context%da, self%x, ierr))
+    PetscCall(VecDuplicate(self%x, self%r, ierr))
+    PetscCall(DMCreateLocalVector(self%context%da, self%context%old_local, ierr))
+    PetscCall(VecDuplicate(self%context%old_local, self%context%new_local, ierr))
+    PetscCall(DMCreateMatrix(self%context%da, self%jacobian, ierr))
+    PetscCall(SNESCreate(comm, self%snes, ierr))
+    PetscCall(SNESSetDM(self%snes, self%context%da, ierr))
+    PetscCall(SNESSetFunction(self%snes, self%r, chain_residual, self%context, ierr))
+    PetscCall(SNESSetJacobian(self%snes, self%jacobian, self%jacobian, chain_jacobian, self%context, ierr))
+    max_evaluations = 10000
+    iterations = max_iterations
+    PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, iterations, max_evaluations, ierr))
+    PetscCall(SNESSetConvergenceTest(self%snes, converged_or_rounding, self%context, PETSC_NULL_FUNCTION, ierr))
+    PetscCall(SNESGetKSP(self%snes, ksp, ierr))
+    PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
+    PetscCall(KSPGetPC(ksp, pc, ierr))
+    PetscCall(PCSetType(pc, PCLU, ierr))
+    PetscCall(MPI_Comm_size(comm, ranks, ierr))
+    if (ranks > 1) then
+      PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS, ierr))
+    end if
+    PetscCall(SNESSetFromOptions(self%snes, ierr))
+    self%created = .true.
+  end subroutine create_petsc
+
+  !> Sets the state from z (every unknown of the layout; each rank copies its own rows; the
+  !> unused slots of a 'fixed-fixed' chain's last point are 0).
+  subroutine set_state(self, z, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(in) :: z(:)
+    type(failure_type), intent(out) :: failure
+    real(real64), pointer :: values(:)
+    integer :: ierr, last
+
+    call borrow(self%x, self%context%last_row - self%context%first_row + 1, values, ierr)
+    if (ierr == 0) then
+      values = 0.0_real64
+      last = min(self%context%last_row, size(z))
+      values(1:last - self%context%first_row + 1) = z(self%context%first_row:last)
+      call give_back(self%x, values, ierr)
+    end if
+    ! The old state of a step not yet taken is the state itself (sums before the first step).
+    if (ierr == 0) call DMGlobalToLocalBegin(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr)
+    if (ierr == 0) call DMGlobalToLocalEnd(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr)
+    call fail_on_code(failure, ierr, 'setting the chain''s state')
+  end subroutine set_state
+
+  !> The rank's rows of the state: unknowns first_row .. last_row (a copy).
+  subroutine owned_state(self, z, first_row, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), allocatable, intent(out) :: z(:)
+    integer, intent(out) :: first_row
+    type(failure_type), intent(out) :: failure
+    real(real64), pointer :: values(:)
+    integer :: ierr
+
+    first_row = self%context%first_row
+    call borrow_read(self%x, self%context%last_row - first_row + 1, values, ierr)
+    if (ierr == 0) then
+      z = values
+      call give_back_read(self%x, values, ierr)
+    end if
+    call fail_on_code(failure, ierr, 'reading the chain''s state')
+  end subroutine owned_state
+
+  !> One step of length h from the state held: Newton from the old state. On failure to
+  !> converge the old state is kept (outcome%converged false).
+  subroutine step(self, h, outcome, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(in) :: h
+    type(chain_step_outcome), intent(out) :: outcome
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call step_petsc(self, h, outcome, ierr)
+    call fail_on_code(failure, ierr, 'solving the chain''s step with SNES')
+  end subroutine step
+
+  subroutine step_petsc(self, h, outcome, ierr)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(in) :: h
+    type(chain_step_outcome), intent(out) :: outcome
+    PetscErrorCode, intent(out) :: ierr
+    Vec :: old
+    PetscInt :: iterations
+    SNESConvergedReason :: reason
+    PetscReal :: old_norm, residual_norm
+
+    self%context%problem%dt = h
+    self%context%problem%fraction = 1.0_real64
+    PetscCall(DMGlobalToLocalBegin(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr))
+    PetscCall(DMGlobalToLocalEnd(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr))
+    PetscCall(VecNorm(self%x, NORM_2, old_norm, ierr))
+    self%context%update_floor = 16.0_real64*epsilon(1.0_real64)*old_norm
+    PetscCall(VecDuplicate(self%x, old, ierr))
+    PetscCall(VecCopy(self%x, old, ierr))
+    PetscCall(SNESSolve(self%snes, PETSC_NULL_VEC, self%x, ierr))
+    PetscCall(SNESGetConvergedReason(self%snes, reason, ierr))
+    PetscCall(SNESGetIterationNumber(self%snes, iterations, ierr))
+    PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
+    outcome%reason = reason
+    outcome%iterations = int(iterations)
+    outcome%residual_norm = residual_norm
+    outcome%converged = reason > 0
+    if (.not. outcome%converged) then
+      PetscCall(VecCopy(old, self%x, ierr))
+    end if
+    PetscCall(VecDestroy(old, ierr))
+  end subroutine step_petsc
+
+  !> The balances of the last step, summed over the ranks (each rank sums its points' masses and
+  !> springs; MPI_Allreduce adds them): E and S of the state held, and E - E_old and S - S_old as
+  !> sums of the parts' differences (no cancellation of the large E).
+  subroutine sums(self, energy, entropy, delta_energy, delta_entropy, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(out) :: energy, entropy, delta_energy, delta_entropy
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+    integer :: stat
+    real(real64) :: total(4)
+
+    call sums_petsc(self, total, stat, ierr)
+    call fail_on_code(failure, ierr, 'summing the chain''s energy and entropy')
+    if (.not. failure%failed() .and. stat /= failure_none) &
+      call fail(failure, domain_overflow, 'a spring is outside its domain while summing E and S')
+    energy = total(1)
+    entropy = total(2)
+    delta_energy = total(3)
+    delta_entropy = total(4)
+  end subroutine sums
+
+  subroutine sums_petsc(self, total, stat, ierr)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(out) :: total(4)
+    integer, intent(out) :: stat
+    PetscErrorCode, intent(out) :: ierr
+    real(real64), pointer :: old(:), new(:)
+    real(real64) :: local(4)
+    integer :: stat_values, stat_differences, points(2)
+    MPI_Comm :: comm
+
+    points = [self%first_point, self%last_point]
+    associate (c => self%context)
+      PetscCall(DMGlobalToLocalBegin(c%da, self%x, INSERT_VALUES, c%new_local, ierr))
+      PetscCall(DMGlobalToLocalEnd(c%da, self%x, INSERT_VALUES, c%new_local, ierr))
+      PetscCall(borrow_read(c%old_local, c%local_size, old, ierr))
+      PetscCall(borrow_read(c%new_local, c%local_size, new, ierr))
+      call c%problem%energy_entropy(new, local(1), local(2), stat_values, c%base, points)
+      call c%problem%energy_difference(old, new, local(3), local(4), stat_differences, c%base, points)
+      PetscCall(give_back_read(c%old_local, old, ierr))
+      PetscCall(give_back_read(c%new_local, new, ierr))
+      stat = max(stat_values, stat_differences)
+      PetscCall(PetscObjectGetComm(c%da, comm, ierr))
+      PetscCallMPI(MPI_Allreduce(local, total, 4, MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
+    end associate
+  end subroutine sums_petsc
+
+  !> Frees the PETSc objects.
+  subroutine destroy(self, failure)
+    class(distributed_chain), intent(inout) :: self
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    ierr = 0
+    if (self%created) call destroy_petsc(self, ierr)
+    self%created = .false.
+    call fail_on_code(failure, ierr, 'freeing the chain''s DMDA and SNES')
+  end subroutine destroy
+
+  subroutine destroy_petsc(self, ierr)
+    class(distributed_chain), intent(inout) :: self
+    PetscErrorCode, intent(out) :: ierr
+
+    PetscCall(SNESDestroy(self%snes, ierr))
+    PetscCall(MatDestroy(self%jacobian, ierr))
+    PetscCall(VecDestroy(self%x, ierr))
+    PetscCall(VecDestroy(self%r, ierr))
+    PetscCall(VecDestroy(self%context%old_local, ierr))
+    PetscCall(VecDestroy(self%context%new_local, ierr))
+    PetscCall(DMDestroy(self%context%da, ierr))
+  end subroutine destroy_petsc
+
+  ! SNES callback: the rank's rows of R(x) = (x - z_old)/h - f(z_old, x); a state outside a
+  ! spring's domain is a domain error (the line search shortens the step, or SNES stops).
+  subroutine chain_residual(snes, x, r, context, ierr)
+    SNES, intent(in) :: snes
+    Vec, intent(in) :: x
+    Vec, intent(in) :: r
+    type(chain_context), intent(inout) :: context
+    PetscErrorCode, intent(out) :: ierr
+    real(real64), pointer :: old(:), new(:), rows(:), state(:)
+    integer :: stat, owned, first
+    real(real64) :: h
+
+    owned = context%last_row - context%first_row + 1
+    first = context%first_row - context%base
+    h = context%problem%fraction*context%problem%dt
+    PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
+    PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
+    PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
+    PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
+    PetscCall(borrow_read(x, owned, state, ierr))
+    PetscCall(borrow(r, owned, rows, ierr))
+    call context%problem%field_rows(old, new, context%base, context%first_row, context%last_row, rows, stat=stat)
+    rows = (state - old(first:first + owned - 1))/h - rows
+    PetscCall(give_back(r, rows, ierr))
+    PetscCall(give_back_read(x, state, ierr))
+    PetscCall(give_back_read(context%new_local, new, ierr))
+    PetscCall(give_back_read(context%old_local, old, ierr))
+    if (stat /= failure_none) then
+      PetscCall(SNESSetFunctionDomainError(snes, ierr))
+    end if
+  end subroutine chain_residual
+
+  ! SNES callback: the rank's rows of dR/dx = I/h - df/dx, the blocks' band entries within the
+  ! DMDA's stencil (two points either side of a row's point) inserted row by row.
+  subroutine chain_jacobian(snes, x, jacobian, preconditioner, context, ierr)
+    SNES, intent(in) :: snes
+    Vec, intent(in) :: x
+    Mat, intent(in) :: jacobian, preconditioner
+    type(chain_context), intent(inout) :: context
+    PetscErrorCode, intent(out) :: ierr
+    real(real64), pointer :: old(:), new(:)
+    real(real64), allocatable :: rows(:), band(:, :)
+    real(real64) :: h
+    integer :: stat, owned, half, r, row, point, dof, first_column, last_column, k
+    PetscInt :: one, count, row_index(1)
+    PetscInt, allocatable :: columns(:)
+
+    associate (problem => context%problem)
+      owned = context%last_row - context%first_row + 1
+      half = problem%band_half_width()
+      dof = problem%layout%point_size()
+      h = problem%fraction*problem%dt
+      allocate (rows(owned), band(owned, 2*half + 1), columns(2*half + 1))
+      PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
+      PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
+      PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
+      PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
+      call problem%field_rows(old, new, context%base, context%first_row, context%last_row, rows, band, stat)
+      PetscCall(give_back_read(context%new_local, new, ierr))
+      PetscCall(give_back_read(context%old_local, old, ierr))
+      band = -band
+      band(:, half + 1) = band(:, half + 1) + 1.0_real64/h
+      PetscCall(MatZeroEntries(preconditioner, ierr))
+      one = 1
+      do r = 1, owned
+        row = context%first_row + r - 1
+        point = problem%layout%point_of(row)
+        first_column = max(1, (point - 3)*dof + 1, row - half)
+        last_column = min(context%total, (point + 2)*dof, row + half)
+        count = last_column - first_column + 1
+        do k = 1, int(count)
+          columns(k) = first_column + k - 2
+        end do
+        row_index(1) = row - 1
+        PetscCall(MatSetValues(preconditioner, one, row_index, count, columns, band(r, first_column - row + half + 1:), INSERT_VALUES, ierr))
+      end do
+    end associate
+    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
+    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
+    if (jacobian /= preconditioner) then
+      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+    end if
+    if (stat /= failure_none) then
+      PetscCall(SNESSetJacobianDomainError(snes, ierr))
+    end if
+  end subroutine chain_jacobian
+
+  ! SNES convergence test: |R| <= the absolute tolerance, or (after an update) the update at the
+  ! rounding of the state, which Newton cannot go below; diverged at the iteration limit or on a
+  ! non-finite norm.
+  subroutine converged_or_rounding(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
+    SNES, intent(in) :: snes
+    PetscInt, intent(in) :: iteration
+    PetscReal, intent(in) :: x_norm, update_norm, residual_norm
+    SNESConvergedReason, intent(out) :: reason
+    type(chain_context), intent(inout) :: context
+    PetscErrorCode, intent(out) :: ierr
+    PetscReal :: atol, rtol, stol
+    PetscInt :: max_iterations, max_evaluations
+
+    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
+    if (.not. (residual_norm <= huge(residual_norm))) then
+      reason = SNES_DIVERGED_FNORM_NAN
+    else if (residual_norm <= atol) then
+      reason = SNES_CONVERGED_FNORM_ABS
+    else if (iteration > 0 .and. update_norm <= max(context%update_floor, 16.0_real64*epsilon(1.0_real64)*x_norm)) then
+      reason = SNES_CONVERGED_SNORM_RELATIVE
+    else if (iteration >= max_iterations) then
+      reason = SNES_DIVERGED_MAX_IT
+    else
+      reason = SNES_CONVERGED_ITERATING
+    end if
+  end subroutine converged_or_rounding
+
+end module spring_chain_dmda

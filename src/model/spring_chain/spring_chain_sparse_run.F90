@@ -1,0 +1,169 @@
+!> A chain's run on the sparse, distributed path (spring_chain_dmda): the scene's chain and initial
+!> state, fixed steps of EME (the input's discrete gradient and metric) or of the midpoint rule,
+!> and per step the balances summed over the ranks: E, S, dE and dS as sums of the parts'
+!> differences, and Newton's iterations. What the path cannot run (another integrator, adaptive
+!> steps, a model other than the chain) is refused with the reason.
+module spring_chain_sparse_run
+#include <petsc/finclude/petscsys.h>
+  use petscsys
+  use, intrinsic :: iso_fortran_env, only: real64
+  use failures, only: failure_type, fail, failure_input, failure_not_converged, failure_io
+  use number_text, only: integer_text, scientific_text
+  use model_interface, only: generic_model
+  use spring_chain_model, only: spring_chain
+  use spring_chain_step, only: chain_step_problem
+  use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint
+  use spring_chain_dmda, only: distributed_chain, chain_step_outcome
+  implicit none
+  private
+  public :: sparse_chain_run, sparse_run_result, sparse_run_settings, chain_problem_of
+
+  !> What the run is asked to do (the input's &integrator, src/integrator/integrator_settings).
+  type :: sparse_run_settings
+    character(len=:), allocatable :: input_file      !! named in refusals
+    character(len=16) :: scheme = 'eme'
+    integer :: discrete_gradient = 1
+    integer :: metric = 1
+    real(real64) :: dt = 0.0_real64
+    integer :: steps = 0
+    real(real64) :: newton_tol = 1.0e-8_real64
+    integer :: newton_max_iterations = 50
+    logical :: tolerance_given = .false.
+  end type sparse_run_settings
+
+  !> What a run did, the same on every rank but the times (each rank's own).
+  type :: sparse_run_result
+    integer :: springs = 0
+    integer :: unknowns = 0
+    integer :: ranks = 1
+    integer :: steps = 0                                !! accepted steps
+    integer :: newton_iterations = 0                    !! over the run
+    integer :: max_newton_iterations = 0                !! in one step
+    real(real64) :: energy_0 = 0.0_real64, energy = 0.0_real64
+    real(real64) :: entropy_0 = 0.0_real64, entropy = 0.0_real64
+    real(real64) :: max_energy_error = 0.0_real64       !! max over steps of |E_{n+1} - E_n|/|E_n|
+    real(real64) :: min_entropy_increment = huge(1.0_real64)
+    real(real64) :: loop_cpu_seconds = 0.0_real64       !! this rank's CPU time in the time loop
+    real(real64) :: loop_wall_seconds = 0.0_real64
+  end type sparse_run_result
+
+contains
+
+  !> The chain's step problem (without an old state) for the input's integrator, or a refusal.
+  subroutine chain_problem_of(settings, model, problem, failure)
+    type(sparse_run_settings), intent(in) :: settings
+    class(generic_model), intent(in) :: model
+    type(chain_step_problem), intent(out) :: problem
+    type(failure_type), intent(out) :: failure
+
+    select type (model)
+    type is (spring_chain)
+      problem%layout = model%layout
+      problem%springs = model%springs
+      problem%masses = model%masses
+      problem%conductivity = model%conductivity
+      problem%gravity = model%gravity
+    class default
+      call fail(failure, failure_input, settings%input_file//', &model: model_name: the sparse, distributed path '// &
+                'runs the spring chain only; allowed: ''spring_chain''', 'model_name')
+      return
+    end select
+    select case (settings%scheme)
+    case ('eme')
+      problem%rule = partials_discrete_gradient
+    case ('midpoint')
+      problem%rule = partials_midpoint
+    case default
+      call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
+                'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
+                'process); allowed: ''eme'', ''midpoint''', 'scheme')
+      return
+    end select
+    if (settings%tolerance_given) then
+      call fail(failure, failure_input, settings%input_file//', &integrator: tolerance: the chain''s sparse, '// &
+                'distributed path takes fixed steps only; allowed: leave it out', 'tolerance')
+      return
+    end if
+    problem%gradient = settings%discrete_gradient
+    problem%metric = settings%metric
+  end subroutine chain_problem_of
+
+  !> Runs `model` (a chain) from z0 on `comm` as `settings` say; `dump` names files DUMP.<rank>
+  !> that receive each rank's rows of the final state ("index value" lines, 1-based).
+  subroutine sparse_chain_run(settings, model, z0, comm, result, failure, dump)
+    type(sparse_run_settings), intent(in) :: settings
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: z0(:)
+    MPI_Comm, intent(in) :: comm
+    type(sparse_run_result), intent(out) :: result
+    type(failure_type), intent(out) :: failure
+    character(len=*), intent(in), optional :: dump
+    type(chain_step_problem) :: problem
+    type(distributed_chain) :: chain
+    type(chain_step_outcome) :: outcome
+    type(failure_type) :: freeing
+    real(real64) :: delta_energy, delta_entropy, energy_before, cpu_start, cpu_end
+    real(real64) :: wall_start
+    integer :: n, planned, ierr
+    PetscMPIInt :: ranks
+
+    call chain_problem_of(settings, model, problem, failure)
+    if (failure%failed()) return
+    call MPI_Comm_size(comm, ranks, ierr)
+    result%ranks = ranks
+    result%springs = problem%layout%springs
+    result%unknowns = problem%layout%state_size()
+    planned = settings%steps
+    call chain%create(problem, comm, settings%newton_tol, settings%newton_max_iterations, failure)
+    if (.not. failure%failed()) call chain%set_state(z0, failure)
+    if (.not. failure%failed()) call chain%sums(result%energy_0, result%entropy_0, delta_energy, delta_entropy, failure)
+    result%energy = result%energy_0
+    result%entropy = result%entropy_0
+    wall_start = MPI_Wtime()
+    call cpu_time(cpu_start)
+    do n = 1, planned
+      if (failure%failed()) exit
+      energy_before = result%energy
+      call chain%step(settings%dt, outcome, failure)
+      if (failure%failed()) exit
+      if (.not. outcome%converged) then
+        call fail(failure, failure_not_converged, 'step '//integer_text(n)//': Newton did not converge (SNES reason '// &
+                  integer_text(outcome%reason)//', |R| = '//scientific_text(outcome%residual_norm, 3)//')')
+        exit
+      end if
+      call chain%sums(result%energy, result%entropy, delta_energy, delta_entropy, failure)
+      if (failure%failed()) exit
+      result%steps = n
+      result%newton_iterations = result%newton_iterations + outcome%iterations
+      result%max_newton_iterations = max(result%max_newton_iterations, outcome%iterations)
+      result%max_energy_error = max(result%max_energy_error, abs(delta_energy)/abs(energy_before))
+      result%min_entropy_increment = min(result%min_entropy_increment, delta_entropy)
+    end do
+    call cpu_time(cpu_end)
+    result%loop_cpu_seconds = cpu_end - cpu_start
+    result%loop_wall_seconds = MPI_Wtime() - wall_start
+    if (present(dump) .and. .not. failure%failed()) call dump_rows(chain, dump, failure)
+    call chain%destroy(freeing)
+    if (.not. failure%failed() .and. freeing%failed()) failure = freeing
+  end subroutine sparse_chain_run
+
+  ! Each rank's rows of the state to PREFIX.<rank>, one "index value" line per unknown.
+  subroutine dump_rows(chain, prefix, failure)
+    type(distributed_chain), intent(inout) :: chain
+    character(len=*), intent(in) :: prefix
+    type(failure_type), intent(inout) :: failure
+    real(real64), allocatable :: z(:)
+    integer :: first, unit, stat, k, rank, ierr
+    MPI_Comm :: comm
+
+    call chain%owned_state(z, first, failure)
+    if (failure%failed()) return
+    call PetscObjectGetComm(chain%context%da, comm, ierr)
+    call MPI_Comm_rank(comm, rank, ierr)
+    open (newunit=unit, file=prefix//'.'//integer_text(rank), status='replace', action='write', iostat=stat)
+    if (stat == 0) write (unit, '(i0, 1x, es25.17e3)', iostat=stat) (first + k - 1, z(k), k=1, size(z))
+    if (stat == 0) close (unit, iostat=stat)
+    if (stat /= 0) call fail(failure, failure_io, 'cannot write '''//prefix//'.'//integer_text(rank)//'''')
+  end subroutine dump_rows
+
+end module spring_chain_sparse_run
