@@ -39,6 +39,8 @@ module simulation
   public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status, set_up_only
 
   real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
+  !> The most unknowns the dense solvers take: an 8 MB Jacobian, about 1e9 flops an LU.
+  integer, parameter :: dense_max_unknowns = 1000
 
   !> Something that wants control after every accepted step (the ensemble's scheduler serves
   !> other ranks from there while rank 0 computes a case).
@@ -166,6 +168,7 @@ contains
     call install_interrupt_handlers(io_failure)     ! (a run without them still runs)
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, step_failure)
+    if (.not. step_failure%failed()) call check_dense_size(size(z0), step_failure)
     if (step_failure%failed()) then
       call fail(failure_input, config%input_file//': '//step_failure%message)
       return
@@ -811,6 +814,7 @@ contains
 
     call find_integrator(config%integrator%scheme, entry, found)
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
+    if (.not. building%failed()) call check_dense_size(size(z0), building)
     if (building%failed()) then
       ! The scene's words with the input file, as the time loop gives them.
       call set_failure(failure, building%code, config%input_file//': '//building%message)
@@ -829,6 +833,19 @@ contains
   end subroutine set_up_only
 
   ! Why the solver could not be set up: PETSc's own words (an unknown -snes_type, ...).
+  ! The time loop's solvers are dense (Jacobian and LU of state_size^2 numbers, state_size^3 work):
+  ! a larger model is refused before anything is allocated.
+  subroutine check_dense_size(unknowns, failure)
+    integer, intent(in) :: unknowns
+    type(failure_type), intent(inout) :: failure
+
+    if (unknowns <= dense_max_unknowns) return
+    call set_failure(failure, code_input, '&model: '//integer_text(unknowns)//' unknowns; eme_run and eme_ensemble '// &
+                     'solve dense (state_size^2 memory, state_size^3 work) and take at most '// &
+                     integer_text(dense_max_unknowns)//'; a longer spring chain runs on the sparse, distributed '// &
+                     'path: mpirun -n P build/bin/chain_bench FILE.nml (docs/performance.md)')
+  end subroutine check_dense_size
+
   function setup_failure_text() result(text)
     character(len=:), allocatable :: text
 

@@ -5,8 +5,8 @@
 !> residual R = (z - z_old)/h - f and of its Jacobian from the blocks that touch them
 !> (chain_step_problem's field_rows, over the ghosted local vector of stencil width 2: a link
 !> couples points a - 1 .. a + 1), into a matrix preallocated by the DMDA. SNES solves each step
-!> with the KSP and PC the options choose; the default is a direct factorisation (PETSc's LU on
-!> one rank, MUMPS on several). Newton stops at the step's tolerance or at the rounding floor
+!> with the KSP and PC the options choose; the default is full Newton steps with a direct
+!> factorisation (PETSc's LU on one rank, MUMPS on several). Newton stops at the step's tolerance or at the rounding floor
 !> (an update below 16 eps |z|), whichever comes first.
 !>
 !> Errors: each public procedure returns a failure_type; its PETSc calls sit in a private twin
@@ -94,6 +94,7 @@ contains
     PetscMPIInt :: ranks
     KSP :: ksp
     PC :: pc
+    SNESLineSearch :: line_search
 
     self%context%problem = problem
     points = problem%layout%points()
@@ -123,6 +124,10 @@ contains
     iterations = max_iterations
     PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, iterations, max_evaluations, ierr))
     PetscCall(SNESSetConvergenceTest(self%snes, converged_or_rounding, self%context, PETSC_NULL_FUNCTION, ierr))
+    ! Full Newton steps, as on the dense path: backtracking on the 2-norm of rows in different
+    ! units stalls at the rounding floor (-snes_linesearch_type bt chooses it).
+    PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
+    PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
     PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
     PetscCall(KSPGetPC(ksp, pc, ierr))

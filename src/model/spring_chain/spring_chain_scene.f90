@@ -473,7 +473,7 @@ contains
     n = chain%layout%invariant_count
     do a = 1, chain%layout%springs
       call chain%invariants(z, a, x(1:n))
-      call chain%subsystems(a)%potentials%values_and_temperature(x(1:n), f, theta, stat)
+      call chain%springs(a)%values_and_temperature(x(1:n), f, theta, stat)   ! (an elastic one has no theta)
       if (stat /= failure_none) return
     end do
   end subroutine positive_lengths
