@@ -6,7 +6,7 @@ of a bath of constant heat capacity (theta = dU/dS = theta_ref exp(S/c)). The fr
 
 The mass's kinetic energy belongs to the bath's U_a (its invariants are p and tau), so that K0,
 which sees the subsystems' partials (src/structure/model_interface.f90), sees the velocity
-v = dU_a/dp and the temperature Theta: K0 = (nu + nu_3 v^2) Theta on (p, p). Through Mielke's
+v = dU_a/dp - Theta dS_a/dp and the temperature Theta: K0 = (nu + nu_3 v^2) Theta on (p, p). Through Mielke's
 split K = M_E K0 M_E^T then couples p with tau (docs/formulation.md section 11 derives K dE = 0
 and L dS = 0). The generator (tools/model_generator/generate_model.py) writes
 heat_bath_potential.f90, heat_bath_model.f90 and heat_bath_scene.f90 from this file."""
@@ -37,8 +37,10 @@ bath.internal_energy(momentum**2/(2*m) + c*theta_ref*sp.exp(s/c), s)
 
 model.mechanical_energy = k*q**2/2
 model.canonical_pair(q, p)
-velocity = bath.partial("U", "p")
+# The velocity dE/dp at fixed entropy, v = dU_a/dp - Theta dS_a/dp: p/m at a state in every thermodynamic
+# variable (in the internal-energy variable dU_a/dp = 0 and the velocity lies in dS_a/dp).
+velocity = bath.partial("U", "p") - bath.temperature*bath.partial("S", "p")
 model.friction(p, p, (nu + nu_3*velocity**2)*bath.temperature)
 model.theta_r = theta_ref
-model.field_text = """dq/dt = v,  dp/dt = -k q - (nu + nu_3 v^2) v,  v = dU/dp (p/m at a state),
+model.field_text = """dq/dt = v,  dp/dt = -k q - (nu + nu_3 v^2) v,  v = dU/dp - Theta dS/dp (p/m at a state),
 dS/dt = (nu + nu_3 v^2) v^2/Theta (in the entropy variable)"""

@@ -3,7 +3,7 @@
 !> a generic_model whose subsystems' (U_a, S_a) are heat_bath_potential's, with the invariants, the
 !> written-out field f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) and its derivatives in z and in the
 !> partials, the mechanical energy q**2*stiffness/2, L0 and K0 as the description states them:
-!>   dq/dt = v,  dp/dt = -k q - (nu + nu_3 v^2) v,  v = dU/dp (p/m at a state),
+!>   dq/dt = v,  dp/dt = -k q - (nu + nu_3 v^2) v,  v = dU/dp - Theta dS/dp (p/m at a state),
 !>   dS/dt = (nu + nu_3 v^2) v^2/Theta (in the entropy variable)
 module heat_bath_model
   use, intrinsic :: iso_fortran_env, only: real64
@@ -107,7 +107,8 @@ contains
     real(real64), intent(out) :: f(:)
     real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
     real(real64) :: q, du_bath_dp, ds_bath_dp, du_bath_dtau, ds_bath_dtau, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, &
-        t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, derivative_z(2), derivative_partials(12)
+        t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, &
+        derivative_z(2), derivative_partials(12)
 
     q = z(1)
     du_bath_dp = partials(1, 1, 1)
@@ -117,38 +118,48 @@ contains
     if (present(df_dz) .or. present(df_dpartials)) then
       t_1 = 1.0_real64/ds_bath_dtau
       t_2 = ds_bath_dp*du_bath_dtau
-      t_3 = du_bath_dp**2
-      t_4 = self%parameters%friction_cubic*t_3
-      t_5 = self%parameters%friction + t_4
-      t_6 = -ds_bath_dtau*du_bath_dp + t_2
-      t_7 = t_5*t_6
-      t_8 = q*self%parameters%stiffness
-      t_9 = -ds_bath_dtau*t_8 + t_7
-      t_10 = -du_bath_dp*t_7 + t_2*t_8
-      t_11 = 1.0_real64/du_bath_dtau
-      t_12 = t_1*t_11
-      t_13 = ds_bath_dp*t_1
-      t_14 = du_bath_dtau*t_1
-      t_15 = 1.0_real64/ds_bath_dtau**2
-      t_16 = du_bath_dp*t_5
+      t_3 = ds_bath_dtau**3
+      t_4 = 1.0_real64/t_3
+      t_5 = ds_bath_dtau*du_bath_dp
+      t_6 = t_2 - t_5
+      t_7 = ds_bath_dtau**2
+      t_8 = self%parameters%friction_cubic*t_6**2
+      t_9 = self%parameters%friction*t_7 + t_8
+      t_10 = t_6*t_9
+      t_11 = -t_10
+      t_12 = q*self%parameters%stiffness
+      t_13 = -t_11 - t_12*t_3
+      t_14 = t_12*t_7
+      t_15 = -du_bath_dp*t_10 + t_14*t_2
+      t_16 = 1.0_real64/du_bath_dtau
+      t_17 = t_16*t_4
+      t_18 = ds_bath_dp*t_1
+      t_19 = 2.0_real64*ds_bath_dtau
+      t_20 = du_bath_dtau*t_9
+      t_21 = 2.0_real64*t_8
+      t_22 = du_bath_dtau*t_21
+      t_23 = ds_bath_dp*t_9
+      t_24 = ds_bath_dp*t_21
+      t_25 = -2.0_real64*du_bath_dp*self%parameters%friction_cubic*t_6 + self%parameters%friction*t_19
+      t_26 = 3.0_real64/ds_bath_dtau**4
       f(1) = du_bath_dp - t_1*t_2
-      f(2) = t_1*t_9
-      f(3) = t_10*t_12
+      f(2) = t_13*t_4
+      f(3) = t_15*t_17
       derivative_z(1) = -self%parameters%stiffness
-      derivative_z(2) = self%parameters%stiffness*t_13
+      derivative_z(2) = self%parameters%stiffness*t_18
       derivative_partials(1) = 1.0_real64
-      derivative_partials(2) = -t_14
-      derivative_partials(3) = -t_13
-      derivative_partials(4) = t_15*t_2
-      derivative_partials(5) = t_1*(-ds_bath_dtau*t_5 + 2.0_real64*du_bath_dp*self%parameters%friction_cubic*t_6)
-      derivative_partials(6) = t_14*t_5
-      derivative_partials(7) = t_13*t_5
-      derivative_partials(8) = t_1*(-t_16 - t_8) - t_15*t_9
-      derivative_partials(9) = t_12*(ds_bath_dtau*du_bath_dp*t_5 - 2.0_real64*t_4*t_6 - t_7)
-      derivative_partials(10) = t_12*(du_bath_dtau*q*self%parameters%stiffness - du_bath_dtau*t_16)
-      derivative_partials(11) = t_12*(ds_bath_dp*q*self%parameters%stiffness - ds_bath_dp*t_16) - t_1 &
-          *t_10/du_bath_dtau**2
-      derivative_partials(12) = -t_10*t_11*t_15 + t_12*t_3*t_5
+      derivative_partials(2) = -du_bath_dtau*t_1
+      derivative_partials(3) = -t_18
+      derivative_partials(4) = t_2/t_7
+      derivative_partials(5) = t_4*(-ds_bath_dtau*t_9 - t_19*t_8)
+      derivative_partials(6) = t_4*(t_20 + t_22)
+      derivative_partials(7) = t_4*(t_23 + t_24)
+      derivative_partials(8) = -t_13*t_26 + t_4*(-du_bath_dp*t_9 - 3.0_real64*t_14 + t_25*t_6)
+      derivative_partials(9) = t_17*(t_11 + t_21*t_5 + t_5*t_9)
+      derivative_partials(10) = t_17*(-du_bath_dp*t_20 - du_bath_dp*t_22 + du_bath_dtau*q*self%parameters%stiffness*t_7)
+      derivative_partials(11) = t_17*(ds_bath_dp*q*self%parameters%stiffness*t_7 - du_bath_dp*t_23 - du_bath_dp*t_24) &
+          - t_15*t_4/du_bath_dtau**2
+      derivative_partials(12) = -t_15*t_16*t_26 + t_17*(du_bath_dp**2*t_9 - du_bath_dp*t_25*t_6 + t_12*t_19*t_2)
       if (present(df_dz)) then
         df_dz = 0.0_real64
         df_dz(2, 1) = derivative_z(1)
@@ -170,14 +181,16 @@ contains
         df_dpartials(3, 2, 2, 1) = derivative_partials(12)
       end if
     else
-      t_1 = 1.0_real64/ds_bath_dtau
-      t_2 = ds_bath_dp*du_bath_dtau
-      t_3 = du_bath_dp**2*self%parameters%friction_cubic + self%parameters%friction
-      t_4 = -ds_bath_dtau*du_bath_dp + t_2
-      t_5 = q*self%parameters%stiffness
-      f(1) = du_bath_dp - t_1*t_2
-      f(2) = t_1*(-ds_bath_dtau*t_5 + t_3*t_4)
-      f(3) = t_1*(-du_bath_dp*t_3*t_4 + t_2*t_5)/du_bath_dtau
+      t_1 = ds_bath_dp*du_bath_dtau
+      t_2 = ds_bath_dtau**3
+      t_3 = 1.0_real64/t_2
+      t_4 = -ds_bath_dtau*du_bath_dp + t_1
+      t_5 = ds_bath_dtau**2
+      t_6 = self%parameters%friction*t_5 + self%parameters%friction_cubic*t_4**2
+      t_7 = q*self%parameters%stiffness
+      f(1) = du_bath_dp - t_1/ds_bath_dtau
+      f(2) = t_3*(-t_2*t_7 + t_4*t_6)
+      f(3) = t_3*(-du_bath_dp*t_4*t_6 + t_1*t_5*t_7)/du_bath_dtau
     end if
   end subroutine vector_field
 
@@ -232,13 +245,15 @@ contains
     class(heat_bath), intent(in) :: self
     real(real64), intent(in) :: partials(:, :, :)
     real(real64) :: k0(self%state_size, self%state_size)
-    real(real64) :: du_bath_dp, du_bath_dtau, ds_bath_dtau
+    real(real64) :: du_bath_dp, ds_bath_dp, du_bath_dtau, ds_bath_dtau, t_1
 
     k0 = 0.0_real64
     du_bath_dp = partials(1, 1, 1)
+    ds_bath_dp = partials(1, 2, 1)
     du_bath_dtau = partials(2, 1, 1)
     ds_bath_dtau = partials(2, 2, 1)
-    k0(2, 2) = du_bath_dtau*(du_bath_dp**2*self%parameters%friction_cubic + self%parameters%friction)/ds_bath_dtau
+    t_1 = du_bath_dtau/ds_bath_dtau
+    k0(2, 2) = t_1*(self%parameters%friction + self%parameters%friction_cubic*(-ds_bath_dp*t_1 + du_bath_dp)**2)
   end function friction_matrix_0
 
   !> The same model in another thermodynamic variable.
