@@ -1070,8 +1070,8 @@ def input_rows(description, source):
         rows.append(f"| | `{p.name}` | {p.units} | {p.default:g} | {bounds_text(p.minimum, p.exclusive, p.maximum)}: "
                     f"{p.meaning} |")
     for k, (field_name, default, units, bounds, meaning, _) in enumerate(initial_fields(d)):
-        group = f"`&initial` (`{d.name}`)" if k == 0 else ""
-        rows.append(f"| {group} | `{field_name}` | {units} | {default:g} | {bounds_text(*bounds)}: {meaning} |")
+        group = f" `&initial` (`{d.name}`) " if k == 0 else " "
+        rows.append(f"|{group}| `{field_name}` | {units} | {default:g} | {bounds_text(*bounds)}: {meaning} |")
     return "\n".join(rows)
 
 
