@@ -1,0 +1,1108 @@
+"""Writes the Fortran of a model from its description (model_description.py's format): the
+potentials (U_a, S_a) with gradients and Hessians in each thermodynamic variable, the model (a
+`generic_model` extension: invariants, the written-out field f = L grad E + K grad S with df/dz
+and df/dpartials, the mechanical energy, L0 and K0, momenta) and its scene (&model and &initial
+as field tables). Common subexpressions are shared with sympy.cse.
+
+  generate_model.py DESCRIPTION [--output FOLDER]   write NAME_potential.f90, NAME_model.f90 and
+                                                    NAME_scene.f90 (default: the description's folder)
+  generate_model.py DESCRIPTION --input-rows        print the description's rows of docs/input.md
+
+Exit status 2 with a message naming the description and what is wrong if it cannot be generated.
+The generated files are committed (a clean clone builds without SymPy); `make generate` runs this
+for every src/model/*/description.py and tests/e2e/test_generated_models.py checks that doing so
+changes no byte."""
+import argparse
+import importlib.util
+import sys
+from pathlib import Path
+
+import sympy as sp
+from sympy.printing.fortran import FCodePrinter
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from model_description import THERMO_VARIABLES, TAU_PREFIX, DescriptionError  # noqa: E402
+
+LINE_LENGTH = 120
+INDENT = "  "
+
+
+# ---------------------------------------------------------------------------------- printing
+
+class Real64Printer(FCodePrinter):
+    """SymPy's Fortran printer with real64 literals, names as given and the parameters as
+    components of self%parameters."""
+
+    def __init__(self):
+        super().__init__({"standard": 2008, "source_format": "free", "name_mangling": False})
+        self.parameter_names = set()
+        self.owner = "self%parameters"
+
+    def _print_Symbol(self, expr):
+        if expr.name in self.parameter_names:
+            return f"{self.owner}%{expr.name}"
+        return expr.name
+
+    def _print_Float(self, expr):
+        return f"{float(expr)!r}_real64"
+
+    def _print_Rational(self, expr):
+        if expr.q & (expr.q - 1) == 0:          # a power of 2: the decimal is exact
+            return f"{float(expr)!r}_real64"
+        return f"({int(expr.p)}.0_real64/{int(expr.q)}.0_real64)"
+
+    def _print_Integer(self, expr):
+        return f"{int(expr)}.0_real64"
+
+    def _print_Pow(self, expr):
+        if expr.exp.is_Integer:
+            if expr.exp == -1:
+                return f"1.0_real64/{self.parenthesize(expr.base, sp.printing.precedence.precedence(expr))}"
+            base = self.parenthesize(expr.base, sp.printing.precedence.precedence(expr))
+            if expr.exp < 0:
+                return f"1.0_real64/{base}**{-int(expr.exp)}"
+            return f"{base}**{int(expr.exp)}"
+        return super()._print_Pow(expr)
+
+
+PRINTER = Real64Printer()
+
+
+def fortran(expr):
+    """One expression as Fortran text."""
+    return PRINTER._print(sp.sympify(expr))
+
+
+def wrap(line, indent):
+    """`line` at `indent` levels, continued with & before LINE_LENGTH at a blank, an operator or a
+    comma outside character literals."""
+    lead = INDENT*indent
+    text, lines = lead + line, []
+    while len(text) > LINE_LENGTH:
+        quote, cut = None, 0
+        for position, character in enumerate(text[:LINE_LENGTH - 2]):
+            if quote:
+                if character == quote:
+                    quote = None
+            elif character in "'\"":
+                quote = character
+            elif position > len(lead) + 20 and character in " *+-,":
+                cut = position + (character == ",")
+        if cut == 0:
+            break
+        lines.append(text[:cut].rstrip() + " &")
+        text = lead + INDENT*2 + text[cut:].lstrip()
+    return "\n".join(lines + [text])
+
+
+def assignments(targets, expressions, indent, temporaries):
+    """Fortran assignments of `expressions` to `targets` with their common subexpressions as
+    temporaries t_1, t_2, ... (sympy.cse); records the count in temporaries[0]."""
+    shared, reduced = sp.cse(list(expressions), symbols=sp.numbered_symbols("t_", start=1), order="none")
+    temporaries[0] = max(temporaries[0], len(shared))
+    lines = [wrap(f"{fortran(name)} = {fortran(value)}", indent) for name, value in shared]
+    lines += [wrap(f"{target} = {fortran(value)}", indent) for target, value in zip(targets, reduced)]
+    return lines
+
+
+def declare(names, indent):
+    """real(real64) :: names (wrapped)."""
+    return wrap("real(real64) :: " + ", ".join(names), indent) if names else None
+
+
+def temporaries_declaration(count, indent):
+    return declare([f"t_{i}" for i in range(1, count + 1)], indent)
+
+
+def lines_of(*parts):
+    """The text of lines and lists of lines, None left out."""
+    out = []
+    for part in parts:
+        if part is None:
+            continue
+        out.extend(part if isinstance(part, list) else [part])
+    return "\n".join(out)
+
+
+def number(value):
+    """A real64 literal of a Python float."""
+    return f"{float(value)!r}_real64"
+
+
+# ---------------------------------------------------------------------------------- the symbolic model
+
+def load(path):
+    """The ModelDescription `model` of the description file at `path`."""
+    spec = importlib.util.spec_from_file_location(f"description_{Path(path).parent.name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    if not hasattr(module, "model"):
+        raise DescriptionError("it defines no `model` (a ModelDescription)")
+    return module.model
+
+
+def solve_one(equation, unknown, what):
+    """The one solution of equation = 0 for unknown (a closed-form inverse)."""
+    solutions = sp.solve(equation, unknown, dict=False)
+    real = [s for s in solutions if not s.has(sp.I)]
+    if len(real) != 1:
+        raise DescriptionError(f"{what}: SymPy finds {len(real)} real closed forms ({solutions}); give it in "
+                               f"the subsystem's `inverses`")
+    return sp.simplify(real[0])
+
+
+def thermodynamics(part):
+    """{variable: (U, S, theta, tau_of_temperature)} of a subsystem in its invariants and tau (the
+    symbol `tau`; tau_of_temperature in the symbol `theta`): from U(x, s) or psi(x, theta) by
+    eq. (2) and the closed-form inverses (docs/formulation.md section 3's table)."""
+    tau = sp.Symbol("tau", real=True)
+    theta = sp.Symbol("theta", positive=True)
+    energy = sp.Symbol("energy_level", positive=True)
+    entropy = sp.Symbol("entropy_level", real=True)
+    forms = {}
+    if part.energy_of_entropy is not None:
+        s = part.entropy
+        u_of_s = part.energy_of_entropy
+        theta_of_s = sp.simplify(sp.diff(u_of_s, s))
+        s_of_theta = part.inverses.get("temperature") or solve_one(theta_of_s - theta, s, f"{part.name}: s(theta)")
+        s_of_u = part.inverses.get("internal_energy") or solve_one(u_of_s - energy, s, f"{part.name}: s(u)")
+        forms["entropy"] = (u_of_s.subs(s, tau), tau, theta_of_s.subs(s, tau), s_of_theta)
+        forms["temperature"] = (sp.simplify(u_of_s.subs(s, s_of_theta)).subs(theta, tau), s_of_theta.subs(theta, tau),
+                                tau, theta)
+        forms["internal_energy"] = (tau, s_of_u.subs(energy, tau), sp.simplify(theta_of_s.subs(s, s_of_u)).subs(
+            energy, tau), sp.simplify(u_of_s.subs(s, s_of_theta)))
+    elif part.free_energy_of_temperature is not None:
+        t = part.temperature_symbol
+        psi = part.free_energy_of_temperature
+        s_of_t = sp.simplify(-sp.diff(psi, t))
+        u_of_t = sp.simplify(psi + t*s_of_t)
+        t_of_s = part.inverses.get("entropy") or solve_one(s_of_t - entropy, t, f"{part.name}: theta(s)")
+        t_of_u = part.inverses.get("internal_energy") or solve_one(u_of_t - energy, t, f"{part.name}: theta(u)")
+        forms["temperature"] = (u_of_t.subs(t, tau), s_of_t.subs(t, tau), tau, theta)
+        forms["entropy"] = (sp.simplify(u_of_t.subs(t, t_of_s)).subs(entropy, tau), tau, t_of_s.subs(entropy, tau),
+                            s_of_t.subs(t, theta))
+        forms["internal_energy"] = (tau, sp.simplify(s_of_t.subs(t, t_of_u)).subs(energy, tau),
+                                    t_of_u.subs(energy, tau), u_of_t.subs(t, theta))
+    else:
+        raise DescriptionError(f"subsystem {part.name}: neither internal_energy(U, s) nor free_energy(psi, theta)")
+    return {variable: tuple(logs_of_powers(sp.sympify(e)) for e in forms[variable]) for variable in THERMO_VARIABLES}
+
+
+def logs_of_powers(expr):
+    """log(b**e) as e log(b) (SymPy's simplify folds them; the power would overflow first)."""
+    return expr.replace(lambda x: isinstance(x, sp.log) and x.args[0].is_Pow,
+                        lambda x: x.args[0].exp*sp.log(x.args[0].base))
+
+
+class SymbolicModel:
+    """The description's model as the interface needs it: state layout, partials, the field."""
+
+    def __init__(self, description):
+        self.d = description
+        if not description.subsystems:
+            raise DescriptionError("a model needs at least one subsystem")
+        self.tau_symbols = [description.tau(part) for part in description.subsystems]
+        self.state = [column.symbol for column in description.columns] + self.tau_symbols
+        self.index = {symbol: i for i, symbol in enumerate(self.state)}
+        self.parameters = [parameter.symbol for parameter in description.parameters]
+        self.forms = [thermodynamics(part) for part in description.subsystems]
+        self.invariant_names = [[inv.symbol.name for inv in part.invariants] + ["tau"]
+                                for part in description.subsystems]
+        # The partials' symbols, partials(i, k, a) -> Symbol, and their Fortran positions.
+        self.partials = {}
+        for a, part in enumerate(description.subsystems):
+            for i, name in enumerate(self.invariant_names[a]):
+                for k, potential in enumerate(("U", "S")):
+                    self.partials[part.partial(potential, name)] = (i + 1, k + 1, a + 1)
+        self.check()
+
+    def check(self):
+        names = [symbol.name for symbol in self.state + self.parameters + list(self.partials)]
+        clashes = sorted({name for name in names if names.count(name) > 1 or name.startswith("t_")
+                          or name in ("x", "z", "f", "tau", "theta", "self", "stat", "partials")})
+        if clashes:
+            raise DescriptionError(f"names that clash with each other or with the generated code's: {clashes}")
+        for a, part in enumerate(self.d.subsystems):
+            for inv in part.invariants:
+                unknown = inv.expression.free_symbols - set(self.state) - set(self.parameters)
+                if unknown:
+                    raise DescriptionError(f"subsystem {part.name}: invariant {inv.symbol} uses {sorted(map(str, unknown))}, "
+                                           "not state columns or parameters")
+                if sp.Poly(inv.expression, *self.state).total_degree() > 2:
+                    raise DescriptionError(f"subsystem {part.name}: invariant {inv.symbol} = {inv.expression} is not "
+                                           "at most quadratic in z (EME's exact midpoint gradient needs it)")
+        if sp.Poly(self.d.mechanical_energy, *self.state).total_degree() > 2:
+            raise DescriptionError("the mechanical energy is not at most quadratic in z (its cancellation-free "
+                                   "difference is the midpoint gradient's)")
+        for (row, column), entry in self.d.poisson_entries.items():
+            if entry.free_symbols - set(self.parameters):
+                raise DescriptionError(f"L0[{row}, {column}] = {entry} depends on the state: poisson_matrix_0 has no z")
+        for (row, column), entry in self.d.friction_entries.items():
+            on_state = entry.free_symbols & set(self.state)
+            if on_state:
+                raise DescriptionError(f"K0[{row}, {column}] = {entry} depends on {sorted(map(str, on_state))} "
+                                       "directly: friction_matrix_0 sees the partials and temperatures only "
+                                       "(src/structure/model_interface.f90); write it through a subsystem's partial")
+
+    def temperature_of_partials(self, a):
+        """Theta_a = d_tau U_a / d_tau S_a of eq. (2), in the partials' symbols."""
+        part = self.d.subsystems[a]
+        return part.partial("U", "tau")/part.partial("S", "tau")
+
+    def with_temperatures(self, expr):
+        """expr with the subsystems' Theta_a written through the partials."""
+        return sp.sympify(expr).subs({part.temperature: self.temperature_of_partials(a)
+                                      for a, part in enumerate(self.d.subsystems)})
+
+    def matrix(self, entries):
+        n = len(self.state)
+        matrix = sp.zeros(n, n)
+        for (row, column), entry in entries.items():
+            if row not in self.index or column not in self.index:
+                raise DescriptionError(f"matrix entry ({row}, {column}): not a column of z")
+            matrix[self.index[row], self.index[column]] = self.with_temperatures(entry)
+        return matrix
+
+    def invariant_gradient(self, a, potential):
+        """grad_z H_a from the partials (the chain through x_a(z); tau_a's own column last)."""
+        part = self.d.subsystems[a]
+        gradient = sp.zeros(len(self.state), 1)
+        for inv in part.invariants:
+            for j, z in enumerate(self.state):
+                gradient[j] += part.partial(potential, inv.symbol.name)*sp.diff(inv.expression, z)
+        gradient[self.index[self.tau_symbols[a]]] += part.partial(potential, "tau")
+        return gradient
+
+    def mielke_transpose(self, potential):
+        """M_H^T of eq. (7) in z's layout (docs/formulation.md section 4)."""
+        n = len(self.state)
+        mt = sp.eye(n)
+        for a, part in enumerate(self.d.subsystems):
+            column = self.index[self.tau_symbols[a]]
+            d_tau = part.partial(potential, "tau")
+            omega_gradient = self.invariant_gradient(a, potential)
+            for j in range(n):
+                if j != column and j < len(self.d.columns):
+                    mt[j, column] = -omega_gradient[j]/d_tau
+            mt[column, column] = 1/d_tau
+        return mt
+
+    def field(self):
+        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters."""
+        grad_e = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
+        grad_s = sp.zeros(len(self.state), 1)
+        for a in range(len(self.d.subsystems)):
+            grad_e += self.invariant_gradient(a, "U")
+            grad_s += self.invariant_gradient(a, "S")
+        mt_s, mt_e = self.mielke_transpose("S"), self.mielke_transpose("U")
+        l0, k0 = self.matrix(self.d.poisson_entries), self.matrix(self.d.friction_entries)
+        f = mt_s.T*(l0*(mt_s*grad_e)) + mt_e.T*(k0*(mt_e*grad_s))
+        return [sp.simplify(entry) for entry in f]
+
+
+# ---------------------------------------------------------------------------------- code pieces
+
+def parameter_locals(symbolic, expressions, owner="self%parameters"):
+    """Declarations and assignments of the parameters that `expressions` use."""
+    used = set().union(*(sp.sympify(e).free_symbols for e in expressions)) if expressions else set()
+    names = [p.name for p in symbolic.parameters if p in used]
+    return names, [f"{name} = {owner}%{name}" for name in names]
+
+
+def guards(expressions, indent):
+    """Domain checks before evaluating: every log's argument > 0 (domain_nonpositive_temperature)
+    and every exp's argument below max_exponent (domain_overflow)."""
+    logs, exps = set(), set()
+    for expr in expressions:
+        logs |= {atom.args[0] for atom in sp.sympify(expr).atoms(sp.log)}
+        exps |= {atom.args[0] for atom in sp.sympify(expr).atoms(sp.exp)}
+    lines = []
+    for argument in sorted(logs, key=sp.default_sort_key):
+        lines += [wrap(f"if (.not. ({fortran(argument)} > 0.0_real64)) then", indent),
+                  INDENT*(indent + 1) + "stat = domain_nonpositive_temperature", INDENT*(indent + 1) + "return",
+                  INDENT*indent + "end if"]
+    for argument in sorted(exps, key=sp.default_sort_key):
+        lines += [wrap(f"if (.not. ({fortran(argument)} <= max_exponent)) then", indent),
+                  INDENT*(indent + 1) + "stat = domain_overflow", INDENT*(indent + 1) + "return",
+                  INDENT*indent + "end if"]
+    return lines, bool(logs), bool(exps)
+
+
+def header(description, path, what):
+    return (f"!> Generated by tools/model_generator/generate_model.py from {path}; do not edit (make generate).\n"
+            f"!> {what}")
+
+
+# ---------------------------------------------------------------------------------- the potentials
+
+def unpack(symbols_used, names, source, indent):
+    """`name = source(i)` for the names (in order) that the code uses."""
+    used = {s.name for s in symbols_used}
+    return [INDENT*indent + f"{name} = {source}({i + 1})" for i, name in enumerate(names) if name in used]
+
+
+def subsystem_cases(cases, indent):
+    """select case over the subsystem, then over the thermodynamic variable: cases is a list of
+    (part, [(variable, lines)])."""
+    lines = [INDENT*indent + "select case (self%subsystem)"]
+    for a, (part, by_variable) in enumerate(cases):
+        lines.append(INDENT*indent + f"case ({a + 1})  ! {part.name}")
+        lines.append(INDENT*(indent + 1) + "select case (self%variable)")
+        for variable, body in by_variable:
+            lines.append(INDENT*(indent + 1) + f"case (tau_{variable})")
+            lines += body
+        lines.append(INDENT*(indent + 1) + "end select")
+    lines.append(INDENT*indent + "end select")
+    return lines
+
+
+def potential_module(symbolic, source):
+    d = symbolic.d
+    name = d.name
+    tau = sp.Symbol("tau", real=True)
+    codes, temporaries = {"domain_nonpositive_temperature"}, [0]
+    evaluate_cases, temperature_cases, inverse_cases = [], [], []
+    locals_ = {"evaluate": set(), "temperature": set(), "inverse": set()}
+    locals_order = []
+    for a, part in enumerate(d.subsystems):
+        invariants = [inv.symbol for inv in part.invariants] + [tau]
+        names = [x.name for x in invariants]
+        locals_order += [x for x in names if x not in locals_order]
+        evaluate_body, temperature_body, inverse_body = [], [], []
+        for variable in THERMO_VARIABLES:
+            u, s, temperature, tau_of_theta = symbolic.forms[a][variable]
+            values = [u, s]
+            grads = [(i, k, sp.diff(f, x)) for k, f in enumerate(values) for i, x in enumerate(invariants)]
+            hessians = [(i, j, k, sp.diff(f, x, y)) for k, f in enumerate(values)
+                        for i, x in enumerate(invariants) for j, y in enumerate(invariants)]
+            targets = [f"f({k + 1})" for k in range(2)] + [f"grad({i + 1}, {k + 1})" for i, k, g in grads if g != 0]
+            exprs = values + [g for _, _, g in grads if g != 0]
+            hess_targets = [f"hess({i + 1}, {j + 1}, {k + 1})" for i, j, k, h in hessians if h != 0]
+            hess_exprs = [h for *_, h in hessians if h != 0]
+            used = set().union(*(sp.sympify(e).free_symbols for e in exprs + hess_exprs))
+            locals_["evaluate"] |= {x.name for x in used if x.name in names}
+            check, has_log, has_exp = guards(values, 4)
+            codes |= {"domain_overflow"} if has_exp else set()
+            body = unpack(used, names, "x", 4) + check
+            if hess_exprs:
+                body += [INDENT*4 + "if (present(hess)) then"] + assignments(targets + hess_targets, exprs + hess_exprs,
+                                                                              5, temporaries)
+                body += [INDENT*4 + "else"] + assignments(targets, exprs, 5, temporaries) + [INDENT*4 + "end if"]
+            else:
+                body += assignments(targets, exprs, 4, temporaries)
+            evaluate_body.append((variable, body))
+
+            used = sp.sympify(temperature).free_symbols
+            locals_["temperature"] |= {x.name for x in used if x.name in names}
+            check, has_log, has_exp = guards([temperature], 4)
+            codes |= {"domain_overflow"} if has_exp else set()
+            temperature_body.append((variable, unpack(used, names, "x", 4) + check +
+                                     [wrap(f"theta = {fortran(temperature)}", 4)]))
+
+            used = sp.sympify(tau_of_theta).free_symbols
+            locals_["inverse"] |= {x.name for x in used if x.name in names[:-1]}
+            check, has_log, has_exp = guards([tau_of_theta], 4)
+            codes |= {"domain_overflow"} if has_exp else set()
+            inverse_body.append((variable, unpack(used, names[:-1], "mechanical", 4) + check +
+                                 [wrap(f"tau = {fortran(tau_of_theta)}", 4)]))
+        evaluate_cases.append((part, evaluate_body))
+        temperature_cases.append((part, temperature_body))
+        inverse_cases.append((part, inverse_body))
+
+    def local_declaration(routine, extra=()):
+        return declare([x for x in locals_order if x in locals_[routine]] + list(extra), 2)
+
+    parameter_type = [f"  !> The parameters of &model (src/model/{name}/description.py).", f"  type :: {name}_parameters"]
+    parameter_type += [f"    real(real64) :: {p.name} = {number(p.default)}  !! {p.meaning} [{p.units}]"
+                       for p in d.parameters]
+    parameter_type.append(f"  end type {name}_parameters")
+    temps = [f"t_{i}" for i in range(1, temporaries[0] + 1)]
+    text = f"""{header(d, source, f"(U_a, S_a) of the subsystems of {d.title} ({d.reference}):")}
+!> values, gradients and Hessians in the invariants in each thermodynamic variable (entropy, temperature,
+!> internal energy), the temperature of eq. (2) and tau from a temperature, in closed form.
+module {name}_potential
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: invariant_functions
+  use failures, only: failure_none, {", ".join(sorted(codes))}
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
+  implicit none (type, external)
+  private
+  public :: {name}_parameters, {name}_potentials
+
+{lines_of(parameter_type)}
+
+  !> (U_a, S_a) of subsystem `subsystem` in thermodynamic variable `variable` (thermo_variable_kinds' tau_*).
+  type, extends(invariant_functions) :: {name}_potentials
+    type({name}_parameters) :: parameters
+    integer :: subsystem = 1
+    integer :: variable = tau_entropy
+  contains
+    procedure :: evaluate
+    procedure :: temperature
+    procedure :: tau_from_temperature
+  end type {name}_potentials
+
+  ! Largest argument of exp that stays finite, with a margin.
+  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))
+
+contains
+
+  !> f = (U, S), their gradients in the invariants (tau last) and optionally their Hessians.
+  pure subroutine evaluate(self, x, f, grad, hess, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), grad(:, :)
+    real(real64), intent(out), optional :: hess(:, :, :)
+    integer, intent(out) :: stat
+{lines_of(local_declaration("evaluate", temps))}
+
+    f = 0.0_real64
+    grad = 0.0_real64
+    if (present(hess)) hess = 0.0_real64
+    stat = failure_none
+{lines_of(subsystem_cases(evaluate_cases, 2))}
+  end subroutine evaluate
+
+  !> Theta = d_tau U / d_tau S of eq. (2) in closed form.
+  pure subroutine temperature(self, x, theta, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: theta
+    integer, intent(out) :: stat
+{lines_of(local_declaration("temperature"))}
+
+    theta = 0.0_real64
+    stat = failure_none
+{lines_of(subsystem_cases(temperature_cases, 2))}
+    if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
+  end subroutine temperature
+
+  !> tau at the mechanical invariants `mechanical` and the temperature theta (> 0).
+  pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: mechanical(:)
+    real(real64), intent(in) :: theta
+    real(real64), intent(out) :: tau
+    integer, intent(out) :: stat
+{lines_of(local_declaration("inverse"))}
+
+    tau = 0.0_real64
+    stat = failure_none
+    if (.not. (theta > 0.0_real64)) then
+      stat = domain_nonpositive_temperature
+      return
+    end if
+{lines_of(subsystem_cases(inverse_cases, 2))}
+  end subroutine tau_from_temperature
+
+end module {name}_potential
+"""
+    return tidy(text)
+
+
+def tidy(text):
+    """No trailing blanks, no two empty lines in a row."""
+    out = []
+    for line in text.split("\n"):
+        if line.strip() == "" and out and out[-1].strip() == "":
+            continue
+        out.append(line.rstrip())
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------------- the model
+
+def state_unpack(symbolic, used, indent):
+    """Locals of z's columns and of the partials that the code uses."""
+    names = {symbol.name for symbol in used}
+    lines = [INDENT*indent + f"{z.name} = z({i + 1})" for i, z in enumerate(symbolic.state) if z.name in names]
+    lines += [INDENT*indent + f"{symbol.name} = partials({i}, {k}, {a})"
+              for symbol, (i, k, a) in symbolic.partials.items() if symbol.name in names]
+    return lines
+
+
+def local_names(symbolic, used):
+    names = {symbol.name for symbol in used}
+    return [z.name for z in symbolic.state if z.name in names] + [s.name for s in symbolic.partials if s.name in names]
+
+
+def model_module(symbolic, source):
+    d = symbolic.d
+    name = d.name
+    n = len(symbolic.state)
+    f = symbolic.field()
+    partial_symbols = list(symbolic.partials)
+    df_dz = [(i, j, sp.diff(f[i], z)) for i in range(n) for j, z in enumerate(symbolic.state)]
+    df_dz = [(i, j, e) for i, j, e in df_dz if e != 0]
+    df_dp = [(i, symbolic.partials[symbol], sp.diff(f[i], symbol)) for i in range(n) for symbol in partial_symbols]
+    df_dp = [(i, position, e) for i, position, e in df_dp if e != 0]
+    temporaries = [0]
+    f_targets = [f"f({i + 1})" for i in range(n)]
+    derivative_targets = [f"df_dz({i + 1}, {j + 1})" for i, j, _ in df_dz]
+    partial_targets = [f"df_dpartials({i + 1}, {p[0]}, {p[1]}, {p[2]})" for i, p, _ in df_dp]
+    used = set().union(*(sp.sympify(e).free_symbols for e in f + [e for *_, e in df_dz] + [e for *_, e in df_dp]))
+    field_lines = state_unpack(symbolic, used, 2)
+    field_lines += [INDENT*2 + "if (present(df_dz) .or. present(df_dpartials)) then"]
+    field_lines += assignments(f_targets + ["derivative_z(%d)" % (k + 1) for k in range(len(df_dz))]
+                               + ["derivative_partials(%d)" % (k + 1) for k in range(len(df_dp))],
+                               f + [e for *_, e in df_dz] + [e for *_, e in df_dp], 3, temporaries)
+    field_lines += [INDENT*3 + "if (present(df_dz)) then", INDENT*4 + "df_dz = 0.0_real64"]
+    field_lines += [INDENT*4 + f"{target} = derivative_z({k + 1})" for k, target in enumerate(derivative_targets)]
+    field_lines += [INDENT*3 + "end if", INDENT*3 + "if (present(df_dpartials)) then",
+                    INDENT*4 + "df_dpartials = 0.0_real64"]
+    field_lines += [INDENT*4 + f"{target} = derivative_partials({k + 1})" for k, target in enumerate(partial_targets)]
+    field_lines += [INDENT*3 + "end if", INDENT*2 + "else"]
+    field_lines += assignments(f_targets, f, 3, temporaries) + [INDENT*2 + "end if"]
+    field_declarations = declare(local_names(symbolic, used) + [f"t_{i}" for i in range(1, temporaries[0] + 1)]
+                                 + [f"derivative_z({max(len(df_dz), 1)})",
+                                    f"derivative_partials({max(len(df_dp), 1)})"], 2)
+
+    # invariants
+    invariant_lines = [INDENT*2 + "select case (a)"]
+    columns_of = []
+    for a, part in enumerate(d.subsystems):
+        tau_column = symbolic.index[symbolic.tau_symbols[a]] + 1
+        mechanical_columns = sorted({symbolic.index[z] + 1 for inv in part.invariants
+                                     for z in inv.expression.free_symbols if z in symbolic.index})
+        columns = mechanical_columns + [tau_column]
+        columns_of.append(columns)
+        values = [inv.expression for inv in part.invariants]
+        invariant_lines.append(INDENT*2 + f"case ({a + 1})  ! {part.name}")
+        used_here = set().union(*(e.free_symbols for e in values)) if values else set()
+        invariant_lines += [wrap(f"x({i + 1}) = {fortran(e.subs({z: sp.Symbol(f'z({symbolic.index[z] + 1})') for z in used_here if z in symbolic.index}))}", 3)
+                            for i, e in enumerate(values)]
+        invariant_lines.append(INDENT*3 + f"x({len(values) + 1}) = z({tau_column})")
+        invariant_lines += [INDENT*3 + "if (present(dx_dz)) then", INDENT*4 + "dx_dz = 0.0_real64"]
+        for i, e in enumerate(values):
+            for j, column in enumerate(mechanical_columns):
+                derivative = sp.diff(e, symbolic.state[column - 1])
+                if derivative != 0:
+                    derivative = derivative.subs({z: sp.Symbol(f"z({symbolic.index[z] + 1})")
+                                                  for z in derivative.free_symbols if z in symbolic.index})
+                    invariant_lines.append(wrap(f"dx_dz({i + 1}, {j + 1}) = {fortran(derivative)}", 4))
+        invariant_lines += [INDENT*4 + f"dx_dz({len(values) + 1}, {len(columns)}) = 1.0_real64", INDENT*3 + "end if"]
+    invariant_lines.append(INDENT*2 + "end select")
+
+    # energies
+    state_as_z = {z: sp.Symbol(f"z({i + 1})") for i, z in enumerate(symbolic.state)}
+    energy = sp.expand(d.mechanical_energy)
+    gradient = [sp.diff(d.mechanical_energy, z) for z in symbolic.state]
+    gradient_lines = [wrap(f"gradient({j + 1}) = {fortran(g.subs(state_as_z))}", 2)
+                      for j, g in enumerate(gradient) if g != 0]
+    terms = sp.Add.make_args(energy)
+    scale = sum((sp.Abs(term) for term in terms), sp.Integer(0))
+
+    # L0 and K0
+    l0_lines = [INDENT*2 + f"l0({symbolic.index[r] + 1}, {symbolic.index[c] + 1}) = {fortran(e)}"
+                for (r, c), e in sorted(d.poisson_entries.items(), key=lambda item: (symbolic.index[item[0][0]],
+                                                                                     symbolic.index[item[0][1]]))]
+    k0_entries = {(symbolic.index[r] + 1, symbolic.index[c] + 1): symbolic.with_temperatures(e)
+                  for (r, c), e in d.friction_entries.items()}
+    k0_used = set().union(*(e.free_symbols for e in k0_entries.values())) if k0_entries else set()
+    k0_temporaries = [0]
+    k0_lines = state_unpack(symbolic, k0_used, 2)
+    k0_lines += assignments([f"k0({r}, {c})" for r, c in sorted(k0_entries)],
+                            [k0_entries[key] for key in sorted(k0_entries)], 2, k0_temporaries)
+    k0_declaration = declare(local_names(symbolic, k0_used) + [f"t_{i}" for i in range(1, k0_temporaries[0] + 1)], 2)
+
+    # the maker
+    momenta = [c for c in d.columns if c.kind == "momentum"]
+    maker = [f"    model%parameters = parameters", "    model%thermo_variable = variable",
+             f"    model%state_size = {n}",
+             f"    model%max_invariants = {max(len(part.invariants) + 1 for part in d.subsystems)}",
+             f"    allocate (model%column_names({n}))"]
+    for i, column in enumerate(d.columns):
+        maker.append(f"    model%column_names({i + 1}) = '{column.name}'")
+    for a, part in enumerate(d.subsystems):
+        maker.append(f"    model%column_names({len(d.columns) + a + 1}) = trim(tau_prefixes(variable))//'_{part.name}'")
+    maker += [f"    model%words%temperature = 'temperatures theta_a = dU_a/dS_a of the subsystems: "
+              f"{', '.join(part.name for part in d.subsystems)}'",
+              f"    model%words%energy_units = '{d.energy_units}'",
+              f"    model%words%entropy_units = '{d.entropy_units}'",
+              f"    model%words%temperature_units = '{d.temperature_units}'",
+              f"    model%words%metric_scales = 'each invariant by its scale in src/model/{name}/description.py'"]
+    if momenta:
+        maker.append(f"    model%momentum_names = [character(len=8) :: "
+                     + ", ".join(f"'{c.name}'" for c in momenta) + "]")
+        maker.append(f"    model%words%momenta = 'the momenta " + ", ".join(c.name for c in momenta) + "'")
+        maker.append(f"    model%words%momentum_units = '{momenta[0].units}'")
+    if d.conserved:
+        maker.append("    model%conserved = [" + ", ".join(f"conserved_component('{z.name}')" for z in d.conserved)
+                     + "]")
+    maker.append(f"    allocate (model%subsystems({len(d.subsystems)}))")
+    PRINTER.owner = "parameters"
+    for a, part in enumerate(d.subsystems):
+        scales = [inv.scale for inv in part.invariants]
+        maker += [f"    associate (part => model%subsystems({a + 1}))",
+                  f"      part%name = '{part.name}'",
+                  f"      allocate (part%potentials, source={name}_potentials(parameters=parameters, subsystem={a + 1}, "
+                  "variable=variable))",
+                  f"      part%invariant_count = {len(part.invariants) + 1}",
+                  f"      part%columns = [{', '.join(map(str, columns_of[a]))}]",
+                  f"      part%tau_column = {columns_of[a][-1]}",
+                  "      select case (variable)"]
+        for variable in THERMO_VARIABLES:
+            maker.append(f"      case (tau_{variable})")
+            maker.append(wrap("part%metric_scale = [" + ", ".join(fortran(e) for e in scales + [part.tau_scales[variable]])
+                              + "]", 4))
+        maker += ["      end select", "    end associate"]
+    PRINTER.owner = "self%parameters"
+
+    units_lines = [f"    units({i + 1}) = '{c.units}'" for i, c in enumerate(d.columns)]
+    for a, part in enumerate(d.subsystems):
+        units_lines.append(f"    units({len(d.columns) + a + 1}) = tau_units(self%thermo_variable)")
+    momentum_procedures = []
+    momentum_bindings = []
+    if momenta:
+        momentum_bindings.append("    procedure :: momenta")
+        indices = ", ".join(str(symbolic.index[c.symbol] + 1) for c in momenta)
+        momentum_procedures.append(f"""
+  !> The momenta {", ".join(c.name for c in momenta)} (momentum_names).
+  pure function momenta(self, z) result(values)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: values(self%momentum_count())
+
+    values = z([{indices}])
+  end function momenta""")
+    if d.conserved:
+        momentum_bindings += ["    procedure :: conserved_in_momenta", "    procedure :: conserved_momenta_gradient"]
+        positions = [momenta.index(next(c for c in momenta if c.symbol == z)) + 1 for z in d.conserved]
+        columns = [symbolic.index[z] + 1 for z in d.conserved]
+        momentum_procedures.append(f"""
+  !> The conserved momenta ({", ".join(z.name for z in d.conserved)}) among the momenta.
+  pure function conserved_in_momenta(self, momenta) result(values)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: momenta(:)
+    real(real64) :: values(self%conserved_count())
+
+    values = momenta([{", ".join(map(str, positions))}])
+  end function conserved_in_momenta
+
+  !> Their gradients in z: a unit vector each.
+  pure function conserved_momenta_gradient(self, z) result(gradients)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradients(size(z), self%conserved_count())
+
+    gradients = 0.0_real64
+{chr(10).join(f"    gradients({column}, {k + 1}) = 1.0_real64" for k, column in enumerate(columns))}
+  end function conserved_momenta_gradient""")
+    tau_units = {"entropy": d.entropy_units, "temperature": d.temperature_units, "internal_energy": d.energy_units}
+    field_comment = "\n".join("!>   " + line.strip() for line in d.field_text.strip().splitlines())
+    text = f"""{header(d, source, f"The model of {d.title} ({d.reference}):")}
+!> a generic_model whose subsystems' (U_a, S_a) are {name}_potential's, with the invariants, the
+!> written-out field f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) and its derivatives in z and in the
+!> partials, the mechanical energy {sp.sstr(d.mechanical_energy)}, L0 and K0 as the description states them:
+{field_comment}
+module {name}_model
+  use, intrinsic :: iso_fortran_env, only: real64
+  use model_interface, only: generic_model{", conserved_component" if d.conserved else ""}
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
+  use {name}_potential, only: {name}_parameters, {name}_potentials
+  implicit none (type, external)
+  private
+  public :: {name}, make_{name}
+
+  !> The thermodynamic columns' names and units by variable (thermo_variable_kinds' order).
+  character(len=5), parameter :: tau_prefixes(3) = [character(len=5) :: '{TAU_PREFIX["entropy"]}', '{TAU_PREFIX["temperature"]}', '{TAU_PREFIX["internal_energy"]}']
+  character(len=16), parameter :: tau_units(3) = [character(len=16) :: '{tau_units["entropy"]}', '{tau_units["temperature"]}', '{tau_units["internal_energy"]}']
+
+  !> The model with its parameters.
+  type, extends(generic_model) :: {name}
+    type({name}_parameters) :: parameters
+  contains
+    procedure :: invariants
+    procedure :: vector_field
+    procedure :: mechanical_energy
+    procedure :: mechanical_energy_gradient
+    procedure :: mechanical_energy_difference
+    procedure :: mechanical_energy_scale
+    procedure :: poisson_matrix_0
+    procedure :: friction_matrix_0
+    procedure :: in_variable
+    procedure :: column_units
+{lines_of(momentum_bindings)}
+  end type {name}
+
+contains
+
+  !> The model with `parameters` in thermodynamic variable `variable` (thermo_variable_kinds' tau_*).
+  pure function make_{name}(parameters, variable) result(model)
+    type({name}_parameters), intent(in) :: parameters
+    integer, intent(in) :: variable
+    type({name}) :: model
+
+{lines_of(maker)}
+  end function make_{name}
+
+  !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
+  pure subroutine invariants(self, z, a, x, dx_dz)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    integer, intent(in) :: a
+    real(real64), intent(out) :: x(:)
+    real(real64), intent(out), optional :: dx_dz(:, :)
+
+{lines_of(invariant_lines)}
+  end subroutine invariants
+
+  !> f(z, partials) of eq. (8) written out, and optionally df/dz at fixed partials and df/dpartials.
+  pure subroutine vector_field(self, z, partials, f, df_dz, df_dpartials)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:), partials(:, :, :)
+    real(real64), intent(out) :: f(:)
+    real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
+{field_declarations}
+
+{lines_of(field_lines)}
+  end subroutine vector_field
+
+  !> The mechanical energy {sp.sstr(d.mechanical_energy)}.
+  pure function mechanical_energy(self, z) result(value)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: value
+
+{wrap(f"value = {fortran(d.mechanical_energy.subs(state_as_z))}", 2)}
+  end function mechanical_energy
+
+  !> Its gradient in z.
+  pure function mechanical_energy_gradient(self, z) result(gradient)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradient(size(z))
+
+    gradient = 0.0_real64
+{lines_of(gradient_lines)}
+  end function mechanical_energy_gradient
+
+  !> Its difference without cancellation: grad E(z_mid).(z_b - z_a), exact for an energy at most quadratic in z.
+  pure function mechanical_energy_difference(self, z_a, z_b) result(delta)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z_a(:), z_b(:)
+    real(real64) :: delta
+
+    delta = dot_product(self%mechanical_energy_gradient(0.5_real64*(z_a + z_b)), z_b - z_a)
+  end function mechanical_energy_difference
+
+  !> Its rounding scale: the sum of its terms' absolute values.
+  pure real(real64) function mechanical_energy_scale(self, z)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+
+{wrap(f"mechanical_energy_scale = {fortran(scale.subs(state_as_z))}", 2)}
+  end function mechanical_energy_scale
+
+  !> L0 of eq. (8).
+  pure function poisson_matrix_0(self) result(l0)
+    class({name}), intent(in) :: self
+    real(real64) :: l0(self%state_size, self%state_size)
+
+    l0 = 0.0_real64
+{lines_of(l0_lines)}
+  end function poisson_matrix_0
+
+  !> K0 of eq. (8) at the temperatures and partials `partials` gives.
+  pure function friction_matrix_0(self, partials) result(k0)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: partials(:, :, :)
+    real(real64) :: k0(self%state_size, self%state_size)
+{k0_declaration or ""}
+
+    k0 = 0.0_real64
+{lines_of(k0_lines)}
+  end function friction_matrix_0
+
+  !> The same model in another thermodynamic variable.
+  subroutine in_variable(self, variable, other)
+    class({name}), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: other
+
+    allocate (other, source=make_{name}(self%parameters, variable))
+  end subroutine in_variable
+
+  !> The columns' units; the thermodynamic columns' by the variable.
+  pure subroutine column_units(self, units)
+    class({name}), intent(in) :: self
+    character(len=*), intent(out) :: units(:)
+
+{lines_of(units_lines)}
+  end subroutine column_units
+{lines_of(momentum_procedures)}
+
+end module {name}_model
+"""
+    return tidy(text)
+
+
+# ---------------------------------------------------------------------------------- the scene
+
+def bounds_text(minimum, exclusive, maximum):
+    """'> 0', '>= 0', 'in (0, 2]', 'any' of a field's bounds."""
+    if minimum is None and maximum is None:
+        return "any"
+    if maximum is None:
+        return f"{'>' if exclusive else '>='} {minimum:g}"
+    if minimum is None:
+        return f"<= {maximum:g}"
+    return f"in {'(' if exclusive else '['}{minimum:g}, {maximum:g}]"
+
+
+def allowed_text(bounds, units, meaning):
+    words = "a real number" + ("" if bounds == "any" else " " + bounds)
+    return f"{words} [{units}]: {meaning}" if meaning else f"{words} [{units}]"
+
+
+def fortran_text(text, piece=60):
+    """A Fortran character expression of text (quotes doubled), in literals of about `piece`
+    characters joined by // (so that lines can be wrapped between them)."""
+    words, pieces = text.split(" "), [""]
+    for word in words:
+        if pieces[-1] and len(pieces[-1]) + len(word) > piece:
+            pieces.append("")
+        pieces[-1] += word + " "
+    pieces[-1] = pieces[-1][:-1]
+    return " // ".join("'" + p.replace("'", "''") + "'" for p in pieces)
+
+
+def real_field_call(name, target, bounds_args, allowed, units, temperature):
+    minimum, exclusive, maximum = bounds_args
+    options = ""
+    if minimum is not None:
+        options += f", minimum={number(minimum)}" + (", exclusive=.true." if exclusive else "")
+    if maximum is not None:
+        options += f", maximum={number(maximum)}"
+    call = f"real_field('{name}', {target}, {fortran_text(allowed)}, '{units}'{options})"
+    return f"absolute_temperature({call})" if temperature else call
+
+
+def initial_fields(d):
+    """(name, component default, units, bounds, meaning, is a temperature) of &initial."""
+    fields = [(c.name, c.initial, c.units, (c.minimum, c.exclusive, None), c.meaning, False) for c in d.columns]
+    fields += [(f"theta_{part.name}", part.initial_temperature, d.temperature_units, (0.0, True, None),
+                f"the temperature of {part.meaning}, whatever the thermodynamic variable", True)
+               for part in d.subsystems]
+    return fields
+
+
+def scene_module(symbolic, source):
+    d = symbolic.d
+    name = d.name
+    model_rows = [f"      table = [text_field('model_name', self%model_name, \"the model: '{name}'\", {name}_name)"]
+    for p in d.parameters:
+        bounds = (p.minimum, p.exclusive, p.maximum)
+        call = real_field_call(p.name, f"self%parameters%{p.name}", bounds,
+                               allowed_text(bounds_text(*bounds), p.units, p.meaning), p.units,
+                               p.units == d.temperature_units)
+        model_rows.append(f"               {call}")
+    initial = initial_fields(d)
+    initial_rows = []
+    for field_name, _, units, bounds, meaning, temperature in initial:
+        call = real_field_call(field_name, f"self%{field_name}", bounds, allowed_text(bounds_text(*bounds), units,
+                                                                                        meaning), units, temperature)
+        initial_rows.append(f"      {'table = [' if not initial_rows else '         '}{call}")
+
+    def join(rows, indent_first):
+        out = []
+        for k, row in enumerate(rows):
+            end = "]" if k == len(rows) - 1 else ", &"
+            out.append(wrap(row.strip() + end, indent_first if k == 0 else indent_first + 4))
+        return out
+
+    components = [f"    real(real64) :: {field_name} = {number(default)}  !! [{units}]"
+                  for field_name, default, units, *_ in initial]
+    initial_vector = ", ".join(f"self%{field_name}" for field_name, *_ in initial)
+    listing = " // &\n".join(f"      '{',' if k else ''} {field_name} = '//reals_text([self%{field_name}])"
+                             for k, (field_name, *_) in enumerate(initial))
+    PRINTER.owner = "self%parameters"
+    theta_r = fortran(d.theta_r) if d.theta_r is not None else "300.0_real64"
+    text = f"""{header(d, source, f"The input of {d.title} ({d.reference}):")}
+!> &model (model_name = '{name}' and the parameters of the description) and &initial (the state, each subsystem's
+!> temperature whatever the run's thermodynamic variable), as field tables; no constraints.
+module {name}_scene
+  use, intrinsic :: iso_fortran_env, only: real64
+  use namelist_text, only: namelist_item
+  use namelist_group, only: group_field, real_field, text_field, read_group, value_origin, absolute_temperature
+  use number_text, only: reals_text
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use model_scene, only: scene
+  use failures, only: failure_none, failure_type, fail, failure_input, failure_code_name
+  use thermo_variable_kinds, only: tau_temperature
+  use {name}_potential, only: {name}_parameters
+  use {name}_model, only: make_{name}
+  implicit none (type, external)
+  private
+  public :: {name}_name, new_{name}_scene
+
+  character(len=*), parameter :: {name}_name = '{name}'
+
+  !> The values of the two groups, in their namelist names.
+  type, extends(scene) :: {name}_input
+    character(len=24) :: model_name = {name}_name
+    type({name}_parameters) :: parameters
+{lines_of(components)}
+  contains
+    procedure :: group_names
+    procedure :: fields
+    procedure :: read
+    procedure :: build
+    procedure :: default_theta_r
+    procedure :: constraint_count
+  end type {name}_input
+
+contains
+
+  !> A scene of {name} with the defaults (the model registry's maker).
+  subroutine new_{name}_scene(made)
+    class(scene), allocatable, intent(out) :: made
+
+    allocate ({name}_input :: made)
+  end subroutine new_{name}_scene
+
+  !> &model, &initial.
+  pure subroutine group_names(self, names)
+    class({name}_input), intent(in) :: self
+    character(len=16), allocatable, intent(out) :: names(:)
+
+    names = [character(len=16) :: 'model', 'initial']
+  end subroutine group_names
+
+  !> The fields of one group (docs/input.md).
+  function fields(self, group) result(table)
+    class({name}_input), intent(in), target :: self
+    character(len=*), intent(in) :: group
+    type(group_field), allocatable :: table(:)
+
+    select case (group)
+    case ('model')
+{lines_of(join(model_rows, 3))}
+    case ('initial')
+{lines_of(join(initial_rows, 3))}
+    case default
+      allocate (table(0))
+    end select
+  end function fields
+
+  !> Reads &model and &initial; the initial state must lie in the model's domain.
+  subroutine read(self, text, origin, extra, failure)
+    class({name}_input), intent(inout), target :: self
+    character(len=*), intent(in) :: text, origin
+    type(namelist_item), intent(in) :: extra(:)
+    type(failure_type), intent(out) :: failure
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:)
+    integer :: stat
+
+    call read_group(text, 'model', self%fields('model'), origin, failure, extra)
+    if (failure%failed()) return
+    call read_group(text, 'initial', self%fields('initial'), origin, failure, extra)
+    if (failure%failed()) return
+    ! Refused here, where the input's origin is known (build knows no file).
+    call initial_state(self, tau_temperature, model, z0, stat)
+    if (stat /= failure_none) call fail(failure, failure_input, value_origin(text, 'initial', '{initial[-1][0]}', &
+      origin, extra)//': &initial: the state'// &
+{listing} &
+      //' is not allowed ('//failure_code_name(stat)//'); allowed: a state in the domain of the potentials of '// &
+      'src/model/{name}/description.py', '{initial[-1][0]}')
+  end subroutine read
+
+  !> The model in thermodynamic variable `variable` and the initial state (no constraints).
+  subroutine build(self, variable, model, z0, constraints, failure)
+    class({name}_input), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: model
+    real(real64), allocatable, intent(out) :: z0(:)
+    type(constraint_slot), allocatable, intent(out) :: constraints(:)
+    type(failure_type), intent(out) :: failure
+    integer :: stat
+
+    allocate (constraints(0))
+    call initial_state(self, variable, model, z0, stat)
+    if (stat /= failure_none) call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', &
+                                        '&initial')
+  end subroutine build
+
+  ! The model in thermodynamic variable `variable` and the initial state, given with temperatures; stat a
+  ! domain code if that state lies outside the model's domain.
+  subroutine initial_state(self, variable, model, z0, stat)
+    class({name}_input), intent(in) :: self
+    integer, intent(in) :: variable
+    class(generic_model), allocatable, intent(out) :: model
+    real(real64), allocatable, intent(out) :: z0(:)
+    integer, intent(out) :: stat
+    class(generic_model), allocatable :: in_temperature
+
+    allocate (in_temperature, source=make_{name}(self%parameters, tau_temperature))
+    allocate (model, source=make_{name}(self%parameters, variable))
+    allocate (z0(model%state_size))
+    call in_temperature%convert_state([{initial_vector}], model, z0, stat)
+  end subroutine initial_state
+
+  !> theta_R as the description states it.
+  pure function default_theta_r(self) result(theta_r)
+    class({name}_input), intent(in) :: self
+    real(real64) :: theta_r
+
+    theta_r = {theta_r}
+  end function default_theta_r
+
+  !> None: the model takes no constraints.
+  pure integer function constraint_count(self)
+    class({name}_input), intent(in) :: self
+
+    constraint_count = 0
+  end function constraint_count
+
+end module {name}_scene
+"""
+    return tidy(text)
+
+
+def input_rows(description, source):
+    """The description's rows of docs/input.md's table (the same fields as --help)."""
+    d = description
+    rows = [f"| `&model` (`{d.name}`) | `model_name = '{d.name}'` | - | | {d.title} ({d.reference}), generated from "
+            f"`{source}`: no `&constraints` group |"]
+    for p in d.parameters:
+        rows.append(f"| | `{p.name}` | {p.units} | {p.default:g} | {bounds_text(p.minimum, p.exclusive, p.maximum)}: "
+                    f"{p.meaning} |")
+    for k, (field_name, default, units, bounds, meaning, _) in enumerate(initial_fields(d)):
+        group = f" `&initial` (`{d.name}`) " if k == 0 else " "
+        rows.append(f"|{group}| `{field_name}` | {units} | {default:g} | {bounds_text(*bounds)}: {meaning} |")
+    return "\n".join(rows)
+
+
+def main(arguments=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("description")
+    parser.add_argument("--output", help="the folder of the generated files (default: the description's)")
+    parser.add_argument("--input-rows", action="store_true", help="print the rows of docs/input.md")
+    options = parser.parse_args(arguments)
+    path = Path(options.description)
+    try:
+        description = load(path)
+        PRINTER.parameter_names = {p.name for p in description.parameters}
+        symbolic = SymbolicModel(description)
+        source = path.resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix() \
+            if Path(__file__).resolve().parents[2] in path.resolve().parents else path.as_posix()
+        files = {f"{description.name}_potential.f90": potential_module(symbolic, source),
+                 f"{description.name}_model.f90": model_module(symbolic, source),
+                 f"{description.name}_scene.f90": scene_module(symbolic, source)}
+        if options.input_rows:
+            print(input_rows(description, source))
+            return 0
+    except DescriptionError as error:
+        print(f"generate_model.py: {path}: {error}", file=sys.stderr)
+        return 2
+    output = Path(options.output) if options.output else path.parent
+    output.mkdir(parents=True, exist_ok=True)
+    for name, text in files.items():
+        (output / name).write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,188 @@
+"""The description format of a GENERIC model (docs/development.md, Adding a model): what a
+description file states, as SymPy expressions, and what the generator (generate_model.py) reads.
+
+A description is a Python module that builds one `ModelDescription` named `model`:
+
+    model = ModelDescription("heat_bath", "a harmonic oscillator in a heat bath", ...)
+    m = model.parameter("mass", "kg", 1.0, minimum=0.0, exclusive=True)   # a sympy Symbol
+    q = model.position("q", "m", 1.0, "the displacement")                 # a state column
+    p = model.momentum("p", "N s", 0.0, "the momentum")
+    bath = model.subsystem("bath", ...)                                   # (U_a, S_a) and tau_a
+    v = bath.invariant("p", p, scale=...)                                 # a mechanical invariant
+    bath.internal_energy(v**2/(2*m) + ..., bath.entropy)                  # U_a(x, s)
+    model.mechanical_energy = k*q**2/2
+    model.canonical_pair(q, p)                                            # L0
+    model.friction(p, p, ...)                                             # K0 entries
+
+Why a SymPy module: the paper states a model as potentials and matrices, and SymPy keeps them
+as formulas the generator can differentiate, invert (U(S) to U(theta) and U(u)) and share
+subexpressions of (sympy.cse), while Python gives loops for N repeated elements (a chain's
+springs) without a language of our own. The generator, not the description, knows the
+Fortran interface (src/structure/model_interface.f90)."""
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+THERMO_VARIABLES = ("entropy", "temperature", "internal_energy")   # thermo_variable_kinds' order
+TAU_PREFIX = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
+
+
+class DescriptionError(ValueError):
+    """A description that the generator cannot turn into a model: the message names what."""
+
+
+@dataclass
+class Parameter:
+    """A parameter of the model's &model group."""
+    symbol: sp.Symbol
+    units: str
+    default: float
+    minimum: float = None
+    exclusive: bool = False
+    maximum: float = None
+    meaning: str = ""
+
+    @property
+    def name(self):
+        return self.symbol.name
+
+
+@dataclass
+class StateColumn:
+    """A mechanical column of z (a position or a momentum) and its &initial field."""
+    symbol: sp.Symbol
+    units: str
+    initial: float
+    meaning: str
+    kind: str                      # 'position' or 'momentum'
+    minimum: float = None
+    exclusive: bool = False
+
+    @property
+    def name(self):
+        return self.symbol.name
+
+
+@dataclass
+class Invariant:
+    """A mechanical invariant of a subsystem: its symbol in U_a and S_a, its expression in z (at
+    most quadratic) and its typical size for the discrete gradients' metric."""
+    symbol: sp.Symbol
+    expression: sp.Expr
+    scale: sp.Expr
+
+
+@dataclass
+class Subsystem:
+    """A thermodynamic subsystem: its potentials (U_a, S_a) in its invariants and its variable."""
+    name: str
+    meaning: str
+    initial_temperature: float
+    tau_scales: dict                      # thermodynamic variable -> the tau column's typical size
+    invariants: list = field(default_factory=list)
+    entropy: sp.Symbol = None             # s, for internal_energy(U, s)
+    temperature_symbol: sp.Symbol = None  # theta, for free_energy(psi, theta)
+    energy_of_entropy: sp.Expr = None     # U_a(x, s)
+    free_energy_of_temperature: sp.Expr = None  # psi_a(x, theta)
+    inverses: dict = field(default_factory=dict)  # variable -> s or theta of (x, tau), where SymPy cannot solve
+    temperature: sp.Symbol = None         # Theta_a of eq. (2), for K0
+    partial_symbols: dict = field(default_factory=dict)  # ('U' or 'S', invariant name) -> Symbol
+
+    def invariant(self, name, expression, scale):
+        """A mechanical invariant x_i(z) of this subsystem, returned as the symbol U_a and S_a take."""
+        symbol = sp.Symbol(name, real=True)
+        if any(existing.symbol == symbol for existing in self.invariants):
+            raise DescriptionError(f"subsystem {self.name}: invariant {name} twice")
+        self.invariants.append(Invariant(symbol, sp.sympify(expression), sp.sympify(scale)))
+        return symbol
+
+    def internal_energy(self, energy, entropy):
+        """U_a(x, s) with s = `entropy` (the entropy form; S_a = s)."""
+        self.energy_of_entropy, self.entropy = sp.sympify(energy), entropy
+
+    def free_energy(self, psi, theta):
+        """psi_a(x, theta) (the Helmholtz form; S_a = -dpsi/dtheta, U_a = psi + theta S_a)."""
+        self.free_energy_of_temperature, self.temperature_symbol = sp.sympify(psi), theta
+
+    def partial(self, potential, invariant):
+        """The symbol of d potential_a / d invariant ('U' or 'S'; an invariant's name, or 'tau'),
+        for K0: exact at a state, a discrete gradient between two."""
+        if potential not in ("U", "S"):
+            raise DescriptionError(f"subsystem {self.name}: potential {potential!r} is not 'U' or 'S'")
+        return self.partial_symbols.setdefault((potential, invariant),
+                                               sp.Symbol(f"d{potential.lower()}_{self.name}_d{invariant}", real=True))
+
+
+class ModelDescription:
+    """What a model is, in the paper's terms (module docstring)."""
+
+    def __init__(self, name, title, reference, energy_units="J", entropy_units="J/K", temperature_units="K"):
+        self.name, self.title, self.reference = name, title, reference
+        self.energy_units, self.entropy_units, self.temperature_units = energy_units, entropy_units, temperature_units
+        self.parameters, self.columns, self.subsystems = [], [], []
+        self.mechanical_energy = sp.Integer(0)
+        self.poisson_entries = {}      # (row symbol, column symbol) -> L0 entry
+        self.friction_entries = {}     # (row symbol, column symbol) -> K0 entry (symmetric)
+        self.conserved = []            # momentum symbols that are first integrals
+        self.theta_r = None            # the default Lyapunov reference temperature
+        self.field_text = ""           # the written-out field, in words, for the module header
+
+    # ---------------------------------------------------------------- the parts
+    def parameter(self, name, units, default, meaning="", minimum=None, exclusive=False, maximum=None,
+                  positive=False):
+        """A real parameter of &model, returned as its symbol (positive: a symbol SymPy may assume > 0)."""
+        self._new_name(name)
+        symbol = sp.Symbol(name, positive=True) if positive else sp.Symbol(name, real=True)
+        self.parameters.append(Parameter(symbol, units, float(default), minimum, exclusive, maximum, meaning))
+        return symbol
+
+    def position(self, name, units, initial, meaning, minimum=None, exclusive=False):
+        """A position column of z, returned as its symbol; &initial reads its value."""
+        return self._column(StateColumn(sp.Symbol(name, real=True), units, float(initial), meaning, "position",
+                                        minimum, exclusive))
+
+    def momentum(self, name, units, initial, meaning, conserved=False):
+        """A momentum column of z (the output's momentum dataset; `conserved`: a first integral)."""
+        symbol = self._column(StateColumn(sp.Symbol(name, real=True), units, float(initial), meaning, "momentum"))
+        if conserved:
+            self.conserved.append(symbol)
+        return symbol
+
+    def subsystem(self, name, meaning, initial_temperature, tau_scales):
+        """A thermodynamic subsystem with its own variable tau_a (a column of z, last of its
+        invariants); tau_scales: {variable: typical size of tau} for the metric."""
+        self._new_name(name)
+        missing = set(THERMO_VARIABLES) - set(tau_scales)
+        if missing:
+            raise DescriptionError(f"subsystem {name}: tau_scales lacks {sorted(missing)}")
+        part = Subsystem(name, meaning, float(initial_temperature), {k: sp.sympify(v) for k, v in tau_scales.items()})
+        part.temperature = sp.Symbol(f"theta_{name}", positive=True)
+        self.subsystems.append(part)
+        return part
+
+    def canonical_pair(self, position, momentum):
+        """L0 canonical in (position, momentum): dq/dt = dE/dp, dp/dt = -dE/dq (eq. (8))."""
+        self.poisson_entries[(position, momentum)] = sp.Integer(1)
+        self.poisson_entries[(momentum, position)] = sp.Integer(-1)
+
+    def friction(self, row, column, entry):
+        """K0's entry (row, column) and its mirror: rows and columns are state symbols or a
+        subsystem's `tau(part)`; entries may use the subsystems' temperatures and partials."""
+        self.friction_entries[(row, column)] = sp.sympify(entry)
+        self.friction_entries[(column, row)] = sp.sympify(entry)
+
+    @staticmethod
+    def tau(part):
+        """The symbol of subsystem `part`'s thermodynamic column, for K0's rows and columns."""
+        return sp.Symbol(f"tau_{part.name}", real=True)
+
+    # ---------------------------------------------------------------- helpers
+    def _new_name(self, name):
+        taken = {p.name for p in self.parameters} | {c.name for c in self.columns} | {s.name for s in self.subsystems}
+        if name in taken:
+            raise DescriptionError(f"model {self.name}: the name {name} twice")
+
+    def _column(self, column):
+        self._new_name(column.name)
+        self.columns.append(column)
+        return column.symbol
