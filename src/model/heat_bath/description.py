@@ -8,7 +8,7 @@ The mass's kinetic energy belongs to the bath's U_a (its invariants are p and ta
 which sees the subsystems' partials (src/structure/model_interface.f90), sees the velocity
 v = dU_a/dp - Theta dS_a/dp and the temperature Theta: K0 = (nu + nu_3 v^2) Theta on (p, p). Through Mielke's
 split K = M_E K0 M_E^T then couples p with tau (docs/formulation.md section 11 derives K dE = 0
-and L dS = 0). The generator (tools/model_generator/generate_model.py) writes
+and L dS = 0). The generator (src/model/generator/generate_model.py) writes
 heat_bath_potential.f90, heat_bath_model.f90 and heat_bath_scene.f90 from this file."""
 import sympy as sp
 

@@ -1,6 +1,6 @@
 """MODEL_NAME (docs/formulation.md section ?): say here what the model is, its state and its laws.
 
-Started by `make new-model NAME=MODEL_NAME` from tools/model_generator/description_template.py: a
+Started by `make new-model NAME=MODEL_NAME` from src/model/generator/description_template.py: a
 mass on a spring whose linear drag heats a body of constant heat capacity. Edit the parts below
 (model_description.py says what each states), then `make generate` writes
 MODEL_NAME_potential.f90, MODEL_NAME_model.f90 and MODEL_NAME_scene.f90 beside this file, and two
