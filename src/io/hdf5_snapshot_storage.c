@@ -53,19 +53,24 @@ typedef struct {
     const double *local;   /* this rank's values; NULL: the dataset is not written */
 } snapshot_set;
 
+/* The outcome of a call: a snapshot_* status and its message, which starts with the file's path. */
 typedef struct {
     int status;
     char *message;
     int capacity;
+    const char *path;
 } report;
 
+/* Sets the outcome, unless an earlier failure has. */
 static void say(report *out, int status, const char *format, ...)
 {
     if (out->status != snapshot_ok) return;
     out->status = status;
+    int used = snprintf(out->message, (size_t)out->capacity, "%s: ", out->path);
+    if (used < 0 || used >= out->capacity) return;
     va_list arguments;
     va_start(arguments, format);
-    vsnprintf(out->message, (size_t)out->capacity, format, arguments);
+    vsnprintf(out->message + used, (size_t)(out->capacity - used), format, arguments);
     va_end(arguments);
 }
 
@@ -77,15 +82,15 @@ static herr_t innermost(unsigned n, const H5E_error2_t *error, void *data)
 }
 
 /* Says that HDF5 failed at `what` (for dataset `dataset` of the group, or the file if NULL). */
-static void hdf5_failed(report *out, const char *path, const char *dataset, const char *what)
+static void hdf5_failed(report *out, const char *dataset, const char *what)
 {
     char reason[160] = "";
     H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, innermost, reason);
     if (dataset != NULL)
-        say(out, snapshot_library, "%s: cannot %s /%s/%s (HDF5: %s)", path, what, group_name, dataset,
+        say(out, snapshot_library, "cannot %s /%s/%s (HDF5: %s)", what, group_name, dataset,
             reason[0] ? reason : "failed");
     else
-        say(out, snapshot_library, "%s: cannot %s (HDF5: %s)", path, what, reason[0] ? reason : "failed");
+        say(out, snapshot_library, "cannot %s (HDF5: %s)", what, reason[0] ? reason : "failed");
 }
 
 /* Makes every rank's report the first failing rank's; returns the agreed status. */
@@ -264,7 +269,6 @@ static hid_t make_scale(hid_t group, const char *name, const char *description, 
 
 /* What one call writes: the sets, this rank's part and the file. */
 typedef struct {
-    const char *path;
     snapshot_set sets[SET_COUNT];
     hsize_t masses, springs, dimension, first_mass, mass_count, first_spring, spring_count;
     int rank;
@@ -278,12 +282,12 @@ static void create_group(snapshot_call *call, hid_t file, report *out)
     static const char *const axes[3][3] = {{"time"}, {"time", "mass", "component"}, {"time", "spring"}};
     call->group = H5Gcreate2(file, group_name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (call->group < 0) {
-        hdf5_failed(out, call->path, NULL, "create the group /snapshots");
+        hdf5_failed(out, NULL, "create the group /snapshots");
         return;
     }
     const char *group_text = "the state at chosen times, written by every rank in parallel";
     if (write_fixed_texts(call->group, "description", &group_text, 0) < 0) {
-        hdf5_failed(out, call->path, NULL, "describe the group /snapshots");
+        hdf5_failed(out, NULL, "describe the group /snapshots");
         return;
     }
     for (int s = 0; s < SET_COUNT; ++s) {
@@ -298,7 +302,7 @@ static void create_group(snapshot_call *call, hid_t file, report *out)
         if (creation >= 0) H5Pclose(creation);
         if (space >= 0) H5Sclose(space);
         if (call->datasets[s] < 0 || describe(call->datasets[s], set->units, set->description, axes[set->per], rank) < 0) {
-            hdf5_failed(out, call->path, set->name, "create");
+            hdf5_failed(out, set->name, "create");
             return;
         }
     }
@@ -321,10 +325,19 @@ static void create_group(snapshot_call *call, hid_t file, report *out)
             status = H5DSattach_scale(dataset, mass, 1) < 0 || H5DSattach_scale(dataset, component, 2) < 0 ? -1 : 0;
         else status = H5DSattach_scale(dataset, spring, 1) < 0 ? -1 : 0;
     }
-    if (status != 0) hdf5_failed(out, call->path, "mass, spring and component", "make the dimension scales");
+    if (status != 0) hdf5_failed(out, "mass, spring and component", "make the dimension scales");
     if (spring >= 0) H5Dclose(spring);
     if (component >= 0) H5Dclose(component);
     if (mass >= 0) H5Dclose(mass);
+}
+
+/* The shape of `rank` dims as "(a, b)" into `text` (64 bytes). */
+static void shape_text(char *text, const hsize_t *dims, int rank)
+{
+    int used = snprintf(text, 64, "(");
+    for (int i = 0; i < rank && used < 48; ++i)
+        used += snprintf(text + used, (size_t)(64 - used), i > 0 ? ", %llu" : "%llu", (unsigned long long)dims[i]);
+    snprintf(text + used, (size_t)(64 - used), ")");
 }
 
 /* Opens the datasets of an existing /snapshots and checks that they are the sets given, with
@@ -333,7 +346,7 @@ static void open_group(snapshot_call *call, hid_t file, hsize_t *rows, report *o
 {
     call->group = H5Gopen2(file, group_name, H5P_DEFAULT);
     if (call->group < 0) {
-        hdf5_failed(out, call->path, NULL, "open the group /snapshots");
+        hdf5_failed(out, NULL, "open the group /snapshots");
         return;
     }
     for (int s = 0; s < SET_COUNT && out->status == snapshot_ok; ++s) {
@@ -341,12 +354,12 @@ static void open_group(snapshot_call *call, hid_t file, hsize_t *rows, report *o
         int stored = set->name[0] != '\0' && H5Lexists(call->group, set->name, H5P_DEFAULT) > 0;
         if (set->local == NULL) {
             if (stored)
-                say(out, snapshot_mismatch, "%s: /%s/%s is in the file, and this snapshot has no %s", call->path,
-                    group_name, set->name, set->name);
+                say(out, snapshot_mismatch, "/%s/%s is in the file, and this snapshot has no %s", group_name,
+                    set->name, set->name);
             continue;
         }
         if (!stored) {
-            say(out, snapshot_mismatch, "%s: /%s/%s is not in the file; its snapshots were written without %s", call->path,
+            say(out, snapshot_mismatch, "/%s/%s is not in the file; its snapshots were written without %s",
                 group_name, set->name, set->name);
             return;
         }
@@ -357,24 +370,25 @@ static void open_group(snapshot_call *call, hid_t file, hsize_t *rows, report *o
         int found_rank = space >= 0 ? H5Sget_simple_extent_dims(space, found, NULL) : -1;
         if (space >= 0) H5Sclose(space);
         if (found_rank < 0) {
-            hdf5_failed(out, call->path, set->name, "open");
+            hdf5_failed(out, set->name, "open");
             return;
         }
         if (s == SET_TIME) *rows = found[0];
-        if (found_rank != rank || found[0] != *rows || (rank > 1 && found[1] != dims[1]) || (rank > 2 && found[2] != dims[2]))
-            say(out, snapshot_mismatch,
-                "%s: /%s/%s has shape (%llu, %llu, %llu) (rank %d) with %llu snapshots in /%s/time; this snapshot's %s is "
-                "(%llu, %llu) (rank %d)", call->path, group_name, set->name, (unsigned long long)found[0],
-                (unsigned long long)found[1], (unsigned long long)found[2], found_rank, (unsigned long long)*rows,
-                group_name, set->name, (unsigned long long)(rank > 1 ? dims[1] : 1),
-                (unsigned long long)(rank > 2 ? dims[2] : 1), rank - 1);
+        char found_shape[64], given_shape[64];
+        shape_text(found_shape, found + 1, found_rank - 1);
+        shape_text(given_shape, dims + 1, rank - 1);
+        if (strcmp(found_shape, given_shape) != 0)
+            say(out, snapshot_mismatch, "/%s/%s holds snapshots of shape %s; this snapshot's %s is %s", group_name,
+                set->name, found_shape, set->name, given_shape);
+        else if (found[0] != *rows)
+            say(out, snapshot_mismatch, "/%s/%s holds %llu snapshots, /%s/time %llu", group_name, set->name,
+                (unsigned long long)found[0], group_name, (unsigned long long)*rows);
     }
     /* Another thermodynamic variable than the one written before. */
     static const char *const variables[2] = {"entropy", "internal_energy"};
     for (int v = 0; v < 2 && out->status == snapshot_ok; ++v)
         if (strcmp(variables[v], call->sets[SET_TAU].name) != 0 && H5Lexists(call->group, variables[v], H5P_DEFAULT) > 0)
-            say(out, snapshot_mismatch, "%s: /%s/%s is in the file, and this snapshot has %s", call->path, group_name,
-                variables[v], call->sets[SET_TAU].name[0] ? call->sets[SET_TAU].name : "no tau (tau is theta)");
+            say(out, snapshot_mismatch, "/%s/%s is in the file, and this snapshot has %s", group_name, variables[v], call->sets[SET_TAU].name[0] ? call->sets[SET_TAU].name : "no tau (tau is theta)");
 }
 
 /* Gives every dataset `rows` snapshots; returns the name of the first that failed, or NULL. */
@@ -456,9 +470,9 @@ static void check_file(const char *path, int rank, report *out)
     struct stat info;
     if (rank != 0) return;
     if (stat(path, &info) != 0 || access(path, R_OK | W_OK) != 0)
-        say(out, snapshot_io, "%s: cannot open the file to append a snapshot: %s", path, strerror(errno));
+        say(out, snapshot_io, "cannot open the file to append a snapshot: %s", strerror(errno));
     else if (!S_ISREG(info.st_mode))
-        say(out, snapshot_io, "%s: cannot append a snapshot: not a regular file", path);
+        say(out, snapshot_io, "cannot append a snapshot: not a regular file");
 }
 
 /* Appends one snapshot of the state split over the ranks of `fortran_comm` to the existing HDF5
@@ -475,12 +489,11 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
                            const double *tau, const double *theta, const char *tau_name, char *message, int capacity)
 {
     MPI_Comm comm = MPI_Comm_f2c(fortran_comm);
-    report out = {snapshot_ok, message, capacity};
+    report out = {snapshot_ok, message, capacity, path};
     int rank;
     message[0] = '\0';
     MPI_Comm_rank(comm, &rank);
     snapshot_call call = {
-        path,
         {{"time", "s", "time of the snapshot", PER_TIME, &time},
          {"q", "m", "positions of the masses", PER_MASS, q},
          {"p", "kg m/s", "momenta of the masses", PER_MASS, p},
@@ -507,15 +520,15 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
     hid_t file = -1;
     if (access_list < 0 || H5Pset_fapl_mpio(access_list, comm, MPI_INFO_NULL) < 0 ||
         H5Pset_libver_bounds(access_list, H5F_LIBVER_V18, H5F_LIBVER_V18) < 0)
-        hdf5_failed(&out, path, NULL, "set up the MPI-IO driver");
+        hdf5_failed(&out, NULL, "set up the MPI-IO driver");
     else if ((file = H5Fopen(path, H5F_ACC_RDWR, access_list)) < 0) {
-        hdf5_failed(&out, path, NULL, "open the file as HDF5 to append a snapshot");
+        hdf5_failed(&out, NULL, "open the file as HDF5 to append a snapshot");
         out.status = snapshot_io;
     }
     if (access_list >= 0) H5Pclose(access_list);
     call.transfer = H5Pcreate(H5P_DATASET_XFER);
     if (out.status == snapshot_ok && (call.transfer < 0 || H5Pset_dxpl_mpio(call.transfer, H5FD_MPIO_COLLECTIVE) < 0))
-        hdf5_failed(&out, path, NULL, "set up collective writes");
+        hdf5_failed(&out, NULL, "set up collective writes");
     hsize_t rows = 0;
     int creating = 0;
     if (agree(&out, comm) == snapshot_ok) {
@@ -525,8 +538,8 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
     }
     if (agree(&out, comm) == snapshot_ok) {
         const char *failed = set_rows(&call, rows + 1);
-        if (failed != NULL) hdf5_failed(&out, path, failed, "extend");
-        else if ((failed = write_snapshot(&call, rows, rank)) != NULL) hdf5_failed(&out, path, failed, "write a snapshot into");
+        if (failed != NULL) hdf5_failed(&out, failed, "extend");
+        else if ((failed = write_snapshot(&call, rows, rank)) != NULL) hdf5_failed(&out, failed, "write a snapshot into");
         if (agree(&out, comm) != snapshot_ok) (void)set_rows(&call, rows);   /* the snapshots before stay */
     }
     for (int s = 0; s < SET_COUNT; ++s)
@@ -534,7 +547,7 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
     if (call.group >= 0) H5Gclose(call.group);
     if (creating && agree(&out, comm) != snapshot_ok) (void)H5Ldelete(file, group_name, H5P_DEFAULT);   /* no half group */
     if (call.transfer >= 0) H5Pclose(call.transfer);
-    if (file >= 0 && H5Fclose(file) < 0) hdf5_failed(&out, path, NULL, "close the file after a snapshot");
+    if (file >= 0 && H5Fclose(file) < 0) hdf5_failed(&out, NULL, "close the file after a snapshot");
     H5Eset_auto2(H5E_DEFAULT, printer, printer_data);
     return agree(&out, comm);
 }

@@ -6,7 +6,7 @@
 module hdf5_snapshots
   use, intrinsic :: iso_c_binding, only: c_char, c_double, c_int, c_long_long, c_ptr, c_loc, c_null_ptr, c_null_char
   use, intrinsic :: iso_fortran_env, only: real64
-  use mpi_f08, only: MPI_Comm, MPI_Allreduce, MPI_IN_PLACE, MPI_LOGICAL, MPI_LOR
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_IN_PLACE, MPI_INTEGER, MPI_MIN
   use failures, only: failure_type, fail, failure_input, failure_io, failure_mismatch, failure_library
   implicit none (type, external)
   private
@@ -68,25 +68,25 @@ contains
     character(kind=c_char) :: message(message_capacity)
     character(len=:), allocatable :: tau_text
     integer(c_int) :: status
-    logical :: wrong_here, wrong_somewhere
-    integer :: i
+    character(len=12) :: rank_text
+    integer :: rank, first_wrong, i
 
     tau_text = ''
     if (present(tau_name)) tau_text = tau_name
     message = c_null_char
-    ! Every rank learns of a wrong shape on any, so that none goes on into the collective write.
-    wrong_here = any(shape(positions) /= [layout%dimension, layout%mass_count]) .or. &
-                 any(shape(momenta) /= [layout%dimension, layout%mass_count]) .or. &
-                 .not. (fits(viscous_strains) .and. fits(tau) .and. fits(temperatures))
-    wrong_somewhere = wrong_here
-    call MPI_Allreduce(MPI_IN_PLACE, wrong_somewhere, 1, MPI_LOGICAL, MPI_LOR, comm)
-    if (wrong_here) then
-      call fail(failure, failure_input, path//': this rank''s positions and momenta must be (dimension, masses of '// &
-                'this rank) and its gamma, tau and theta one value per spring of this rank', 'append_snapshot')
-      return
-    else if (wrong_somewhere) then
-      call fail(failure, failure_input, path//': another rank''s arrays do not fit its part of the snapshot', &
-                'append_snapshot')
+    ! Every rank learns of arrays that do not fit on any (the first such rank), so that none goes
+    ! on into the collective write.
+    call MPI_Comm_rank(comm, rank)
+    first_wrong = huge(first_wrong)
+    if (any(shape(positions) /= [layout%dimension, layout%mass_count]) .or. &
+        any(shape(momenta) /= [layout%dimension, layout%mass_count]) .or. &
+        .not. (fits(viscous_strains) .and. fits(tau) .and. fits(temperatures))) first_wrong = rank
+    call MPI_Allreduce(MPI_IN_PLACE, first_wrong, 1, MPI_INTEGER, MPI_MIN, comm)
+    if (first_wrong /= huge(first_wrong)) then
+      write (rank_text, '(i0)') first_wrong
+      call fail(failure, failure_input, path//': rank '//trim(rank_text)//'''s arrays do not fit its part of the '// &
+                'snapshot: positions and momenta (dimension, its masses), gamma, tau and theta one value per spring '// &
+                'of its part', 'append_snapshot')
       return
     end if
     status = eme_h5_append_snapshot(path//c_null_char, int(comm%MPI_VAL, c_int), real(time, c_double), &

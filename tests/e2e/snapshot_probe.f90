@@ -25,7 +25,7 @@ program snapshot_probe
   integer, allocatable :: mass_split(:), spring_split(:)
   real(real64), allocatable :: positions(:, :), momenta(:, :), gammas(:), thetas(:), taus(:)
   logical :: with_gamma, with_theta, timing
-  integer :: rank, ranks, snapshots, first, k, i, c, a, status
+  integer :: rank, ranks, snapshots, first, k, i, c, a
   real(real64) :: started, seconds
 
   call MPI_Init()
@@ -189,11 +189,7 @@ contains
 
     if (rank == 0 .and. len(message) > 0) write (error_unit, '(a)') message
     call MPI_Finalize()
-    if (code /= 0) then
-      status = code
-      error stop status, quiet=.true.
-    end if
-    stop
+    stop code, quiet=.true.
   end subroutine finish
 
 end program snapshot_probe
