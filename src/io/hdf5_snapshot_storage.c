@@ -208,9 +208,11 @@ static hid_t checked_chunks(int rank, const hsize_t *chunk)
 }
 
 
-/* Writes this rank's part of `dataset` collectively: the block at `start` of `count` (rank
- * `rank`) from `values`; a rank with an empty block takes part with no selection. */
-static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, int rank, const hsize_t *start,
+/* Writes this rank's part of `dataset` collectively over `comm`: the block at `start` of `count`
+ * (rank `rank`) from `values`; a rank with an empty block takes part with no selection. Returns
+ * 0, -1 if HDF5 failed, or -2 on every rank (none writing) if a rank's block lies outside the
+ * dataset: a rank whose collective write fails alone would leave the others waiting for it. */
+static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, MPI_Comm comm, int rank, const hsize_t *start,
                       const hsize_t *count, const void *values)
 {
     static const double nothing[1] = {0};
@@ -223,9 +225,14 @@ static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, int rank
     if (file_space >= 0 && memory_space >= 0) {
         herr_t selected = elements > 0 ? H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, NULL, count, NULL)
                           : H5Sselect_none(file_space) >= 0 && H5Sselect_none(memory_space) >= 0 ? 0 : -1;
-        if (selected >= 0 &&
-            H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, elements > 0 ? values : nothing) >= 0)
+        int inside = selected >= 0 && H5Sselect_valid(file_space) > 0, everywhere = 0;
+        MPI_Allreduce(&inside, &everywhere, 1, MPI_INT, MPI_MIN, comm);
+        if (!everywhere) status = -2;
+        else if (H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, elements > 0 ? values : nothing) >= 0)
             status = 0;
+    } else {
+        int everywhere = 0, inside = 0;
+        MPI_Allreduce(&inside, &everywhere, 1, MPI_INT, MPI_MIN, comm);
     }
     if (memory_space >= 0) H5Sclose(memory_space);
     if (file_space >= 0) H5Sclose(file_space);
@@ -236,7 +243,7 @@ static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, int rank
  * which this rank writes [first, first + count): the numbers 1 .. length, or with `labels` the
  * one-letter texts labels[0 .. length). Returns the open scale, or -1. */
 static hid_t make_scale(hid_t group, const char *name, const char *description, hsize_t length, hsize_t first,
-                        hsize_t count, const char *labels, hid_t transfer)
+                        hsize_t count, const char *labels, hid_t transfer, MPI_Comm comm)
 {
     hsize_t chunk = length < CHUNK_VALUES ? length : CHUNK_VALUES;
     hid_t space = H5Screate_simple(1, &length, NULL);
@@ -250,8 +257,8 @@ static hid_t make_scale(hid_t group, const char *name, const char *description, 
         scale = H5Dcreate2(group, name, type, space, H5P_DEFAULT, creation, H5P_DEFAULT);
         for (hsize_t i = 0; i < count; ++i) numbers[i] = (long long)(first + i + 1);
         if (scale >= 0)
-            status = labels != NULL ? write_part(scale, type, transfer, 1, &first, &count, labels + first)
-                                    : write_part(scale, H5T_NATIVE_LLONG, transfer, 1, &first, &count, numbers);
+            status = labels != NULL ? write_part(scale, type, transfer, comm, 1, &first, &count, labels + first)
+                                    : write_part(scale, H5T_NATIVE_LLONG, transfer, comm, 1, &first, &count, numbers);
         const char *axes[1] = {name};
         if (status == 0) status = describe(scale, "1", description, axes, 1);
         if (status == 0 && H5DSset_scale(scale, name) < 0) status = -1;
@@ -272,6 +279,7 @@ typedef struct {
     snapshot_set sets[SET_COUNT];
     hsize_t masses, springs, dimension, first_mass, mass_count, first_spring, spring_count;
     int rank;
+    MPI_Comm comm;
     hid_t group, transfer, datasets[SET_COUNT];
 } snapshot_call;
 
@@ -307,14 +315,14 @@ static void create_group(snapshot_call *call, hid_t file, report *out)
         }
     }
     hid_t mass = make_scale(call->group, "mass", "number of the mass (1: next to the first support)", call->masses,
-                            call->first_mass, call->mass_count, NULL, call->transfer);
+                            call->first_mass, call->mass_count, NULL, call->transfer, call->comm);
     hid_t component = make_scale(call->group, "component", "component of a position or momentum", call->dimension, 0,
-                                 call->rank == 0 ? call->dimension : 0, "xyz", call->transfer);
+                                 call->rank == 0 ? call->dimension : 0, "xyz", call->transfer, call->comm);
     hid_t spring = -1;
     int spring_sets = call->datasets[SET_GAMMA] >= 0 || call->datasets[SET_THETA] >= 0 || call->datasets[SET_TAU] >= 0;
     if (spring_sets)
         spring = make_scale(call->group, "spring", "number of the spring (1: from the first support)", call->springs,
-                            call->first_spring, call->spring_count, NULL, call->transfer);
+                            call->first_spring, call->spring_count, NULL, call->transfer, call->comm);
     hid_t time = call->datasets[SET_TIME];
     int status = mass >= 0 && component >= 0 && (spring >= 0 || !spring_sets) && H5DSset_scale(time, "time") >= 0 ? 0 : -1;
     for (int s = SET_Q; s < SET_COUNT && status == 0; ++s) {
@@ -404,13 +412,13 @@ static const char *set_rows(snapshot_call *call, hsize_t rows)
 }
 
 /* Writes snapshot `row` of every set: each rank its masses and springs, rank 0 the time. */
-static const char *write_snapshot(snapshot_call *call, hsize_t row, int rank)
+static void write_snapshot(snapshot_call *call, hsize_t row, report *out)
 {
     for (int s = 0; s < SET_COUNT; ++s) {
         const snapshot_set *set = &call->sets[s];
         if (call->datasets[s] < 0) continue;
         hsize_t start[3] = {row, 0, 0}, count[3] = {1, 0, call->dimension};
-        if (set->per == PER_TIME) count[0] = rank == 0 ? 1 : 0;
+        if (set->per == PER_TIME) count[0] = call->rank == 0 ? 1 : 0;
         else if (set->per == PER_MASS) {
             start[1] = call->first_mass;
             count[1] = call->mass_count;
@@ -419,10 +427,13 @@ static const char *write_snapshot(snapshot_call *call, hsize_t row, int rank)
             count[1] = call->spring_count;
         }
         int dims = set->per == PER_TIME ? 1 : set->per == PER_MASS ? 3 : 2;
-        if (write_part(call->datasets[s], H5T_NATIVE_DOUBLE, call->transfer, dims, start, count, set->local) < 0)
-            return set->name;
+        int status = write_part(call->datasets[s], H5T_NATIVE_DOUBLE, call->transfer, call->comm, dims, start, count,
+                                set->local);
+        if (status == -2)
+            say(out, snapshot_library, "a rank's part lies outside /%s/%s; nothing written", group_name, set->name);
+        else if (status != 0) hdf5_failed(out, set->name, "write a snapshot into");
+        if (status != 0) return;
     }
-    return NULL;
 }
 
 /* Checks the arguments on each rank and across the ranks: one state, split in rank order. */
@@ -502,7 +513,7 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
          {tau_name, strcmp(tau_name, "entropy") == 0 ? "J/K" : "J",
           strcmp(tau_name, "entropy") == 0 ? "entropy of each spring" : "internal energy of each spring", PER_SPRING, tau}},
         (hsize_t)masses, (hsize_t)springs, (hsize_t)dimension, (hsize_t)first_mass, (hsize_t)mass_count,
-        (hsize_t)first_spring, (hsize_t)spring_count, rank, -1, -1, {-1, -1, -1, -1, -1, -1}};
+        (hsize_t)first_spring, (hsize_t)spring_count, rank, comm, -1, -1, {-1, -1, -1, -1, -1, -1}};
     check_arguments(&call, time, dimension, masses, springs, tau_name, tau != NULL, comm, &out);
     if (out.status != snapshot_ok) return out.status;
     /* Positions and momenta are always written; a rank without masses may pass no arrays. */
@@ -539,7 +550,7 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
     if (agree(&out, comm) == snapshot_ok) {
         const char *failed = set_rows(&call, rows + 1);
         if (failed != NULL) hdf5_failed(&out, failed, "extend");
-        else if ((failed = write_snapshot(&call, rows, rank)) != NULL) hdf5_failed(&out, failed, "write a snapshot into");
+        else write_snapshot(&call, rows, &out);
         if (agree(&out, comm) != snapshot_ok) (void)set_rows(&call, rows);   /* the snapshots before stay */
     }
     for (int s = 0; s < SET_COUNT; ++s)

@@ -37,7 +37,7 @@ def probe(ranks, path, **arguments):
     """Runs snapshot_probe on `ranks` MPI ranks with name=value arguments."""
     command = ["mpirun", "--allow-run-as-root", "--oversubscribe", "-n", str(ranks), str(PROBE), f"file={path}",
                *(f"{name}={value}" for name, value in arguments.items())]
-    return subprocess.run(command, capture_output=True, text=True, timeout=600)
+    return subprocess.run(command, capture_output=True, text=True, timeout=300)
 
 
 def expected(snapshots, masses, springs, dimension, first=0):
