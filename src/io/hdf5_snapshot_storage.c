@@ -5,16 +5,17 @@
  * One call opens the file collectively with the MPI-IO driver, creates the group /snapshots on
  * the first call, extends each of its datasets by one snapshot along the first axis, writes and
  * closes. No process may hold the file open meanwhile (the run's own writer closes it before and
- * reopens it after). The datasets are chunked with HDF5's Fletcher-32 filter as every dataset of
- * a run file is; HDF5 1.10 writes filtered chunks in parallel only collectively (H5FD_MPIO_COLLECTIVE),
- * each chunk by one rank that receives the other ranks' parts of it. A chunk of a per-mass
- * dataset holds one snapshot of CHUNK_VALUES numbers (256 KiB): for N = 10^5 masses in 3
- * components, (1, 10922, 3), 10 chunks a snapshot. One chunk per snapshot (2.4 MB) would send the
- * whole of q to one rank; with ten, a rank receives only the parts of the chunks that straddle its
- * neighbours' ranges, and every chunk fits HDF5's default 1 MiB chunk cache when read. The texts
- * (units, description, dims) are fixed-length strings: they live in the object headers, which carry
- * checksums of their own in HDF5 1.8's format, and stay out of the heap that the file's
- * text_checksum covers (hdf5_text_checksum.c), which this writer does not hold.
+ * reopens it after). The datasets are chunked with HDF5's Fletcher-32 filter, as every dataset of
+ * a run file is; HDF5 1.10 writes filtered chunks in parallel only collectively
+ * (H5FD_MPIO_COLLECTIVE), each chunk by one rank that receives the other ranks' parts of it. A
+ * chunk of a per-mass dataset holds one snapshot of at most CHUNK_VALUES numbers (256 KiB), the
+ * masses split evenly (chunk_length): for N = 10^5 masses in 3 components, (1, 10000, 3), 10
+ * chunks a snapshot. One chunk per snapshot (2.4 MB) would send the whole of q to one rank; with
+ * ten, a rank receives only the parts of the chunks that straddle its neighbours' ranges, and
+ * every chunk fits HDF5's default 1 MiB chunk cache when read. The texts (units, description,
+ * dims) are fixed-length strings: they live in the object headers, which carry checksums of their
+ * own in HDF5 1.8's format, and stay out of the heap that the file's text_checksum covers
+ * (hdf5_text_checksum.c), which this writer does not hold.
  *
  * All ranks return the same status and message (the first failing rank's). A call that fails
  * after extending the datasets shrinks them back, so the file keeps its earlier snapshots.
@@ -170,6 +171,17 @@ static int describe(hid_t dataset, const char *units, const char *description, c
                : 0;
 }
 
+/* Entries of a chunk along an axis of `length` entries of `width` numbers each: the axis split
+ * evenly into the fewest chunks of at most CHUNK_VALUES numbers. HDF5 stores a filtered edge
+ * chunk whole: chunks of CHUNK_VALUES numbers exactly would store 100,000 springs in four chunks
+ * of 32,768, 31 % more than the values. */
+static hsize_t chunk_length(hsize_t length, hsize_t width)
+{
+    if (length == 0) return 1;
+    hsize_t chunks = (length * width + CHUNK_VALUES - 1) / CHUNK_VALUES;
+    return (length + chunks - 1) / chunks;
+}
+
 /* The shape of a snapshot dataset: its rank, and its dims, chunk and maximum dims for n snapshots. */
 static int shape_of(const snapshot_set *set, hsize_t n, hsize_t masses, hsize_t springs, hsize_t d, hsize_t *dims,
                     hsize_t *chunk, hsize_t *maximum)
@@ -184,14 +196,12 @@ static int shape_of(const snapshot_set *set, hsize_t n, hsize_t masses, hsize_t 
     }
     if (set->per == PER_SPRING) {
         dims[1] = maximum[1] = springs;
-        chunk[1] = springs < CHUNK_VALUES ? springs : CHUNK_VALUES;
-        if (chunk[1] == 0) chunk[1] = 1;
+        chunk[1] = chunk_length(springs, 1);
         return 2;
     }
     dims[1] = maximum[1] = masses;
     dims[2] = maximum[2] = chunk[2] = d;
-    chunk[1] = masses < CHUNK_VALUES / d ? masses : CHUNK_VALUES / d;
-    if (chunk[1] == 0) chunk[1] = 1;
+    chunk[1] = chunk_length(masses, d);
     return 3;
 }
 
@@ -245,7 +255,7 @@ static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, MPI_Comm
 static hid_t make_scale(hid_t group, const char *name, const char *description, hsize_t length, hsize_t first,
                         hsize_t count, const char *labels, hid_t transfer, MPI_Comm comm)
 {
-    hsize_t chunk = length < CHUNK_VALUES ? length : CHUNK_VALUES;
+    hsize_t chunk = chunk_length(length, 1);
     hid_t space = H5Screate_simple(1, &length, NULL);
     hid_t creation = checked_chunks(1, &chunk);
     hid_t type = labels != NULL ? H5Tcopy(H5T_C_S1) : H5Tcopy(H5T_STD_I64LE);

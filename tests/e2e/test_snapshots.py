@@ -24,7 +24,14 @@ UNITS = {"time": "s", "q": "m", "p": "kg m/s", "gamma": "1", "theta": "K", "entr
 AXES = {"time": ["time"], "q": ["time", "mass", "component"], "p": ["time", "mass", "component"],
         "gamma": ["time", "spring"], "theta": ["time", "spring"], "entropy": ["time", "spring"],
         "internal_energy": ["time", "spring"]}
-CHUNK_VALUES = 32768          # numbers in one chunk of a snapshot (256 KiB), docs/output.md
+CHUNK_VALUES = 32768          # numbers in one chunk of a snapshot at most (256 KiB), docs/output.md
+
+
+def chunk_length(length, width):
+    """docs/output.md: an axis of `length` entries of `width` numbers split evenly into the fewest
+    chunks of at most CHUNK_VALUES numbers."""
+    chunks = -(-length * width // CHUNK_VALUES)
+    return -(-length // chunks)
 
 
 def empty_file(path):
@@ -97,19 +104,20 @@ def test_snapshots_of_known_values_from_uneven_splits(tmp_path, ranks, masses, m
 
 
 def test_one_and_two_ranks_write_the_same_data_across_chunks(tmp_path):
-    """N = 25,000 in 3 components: chunks of 10,922 masses, so that the ranks' parts straddle
+    """N = 25,000 in 3 components: chunks of 8,334 masses, so that the ranks' parts straddle
     chunks (one rank's part ends inside a chunk, and with 3 ranks one rank holds a single mass)."""
     masses, springs = 25_000, 25_001
     files = {}
     for ranks, mass_split, spring_split in ((1, "25000", "25001"), (2, "12500,12500", "12000,13001"),
-                                            (3, "10921,1,14078", "1,25000,0")):
+                                            (3, "8333,1,16666", "1,25000,0")):
         files[ranks] = empty_file(tmp_path / f"ranks{ranks}.h5")
         result = probe(ranks, files[ranks], masses=masses, springs=springs, dimension=3, snapshots=2,
                        mass_split=mass_split, spring_split=spring_split, tau="internal_energy")
         assert result.returncode == 0, result.stderr
     want = expected(2, masses, springs, 3)
     with h5py.File(files[1], "r") as one:
-        assert one["snapshots/q"].chunks == (1, CHUNK_VALUES // 3, 3)
+        assert one["snapshots/q"].chunks == (1, chunk_length(masses, 3), 3) == (1, 8334, 3)
+        assert one["snapshots/gamma"].chunks == (1, chunk_length(springs, 1)) == (1, 25001)
         np.testing.assert_array_equal(one["snapshots/q"][()], want["q"])
         np.testing.assert_array_equal(one["snapshots/internal_energy"][()], want["tau"])
         for ranks in (2, 3):
