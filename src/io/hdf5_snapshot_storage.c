@@ -108,14 +108,6 @@ static int agree(report *out, MPI_Comm comm)
     return out->status;
 }
 
-/* Whether `value` is the same on every rank. */
-static int same_everywhere(long long value, MPI_Comm comm)
-{
-    long long bounds[2] = {value, -value}, reduced[2];
-    MPI_Allreduce(bounds, reduced, 2, MPI_LONG_LONG, MPI_MAX, comm);
-    return reduced[0] == value && -reduced[1] == value;
-}
-
 /* Whether the ranks' parts [first, first + count) follow each other in rank order and cover
  * [0, total). Names the offending rank's `what` in out if not. */
 static void check_split(report *out, const char *what, long long total, long long first, long long count, MPI_Comm comm)
@@ -472,8 +464,12 @@ static void check_arguments(const snapshot_call *call, double time, int dimensio
                                 call->sets[SET_THETA].local != NULL};
     static const char *const shared_names[] = {"time", "number of masses", "number of springs", "dimension",
                                                "thermodynamic variable", "presence of gamma", "presence of theta"};
-    for (int i = 0; i < (int)(sizeof shared / sizeof shared[0]); ++i)
-        if (!same_everywhere(shared[i], comm)) {
+    enum { SHARED = sizeof shared / sizeof shared[0] };
+    long long highest[SHARED], lowest[SHARED];
+    MPI_Allreduce(shared, highest, SHARED, MPI_LONG_LONG, MPI_MAX, comm);
+    MPI_Allreduce(shared, lowest, SHARED, MPI_LONG_LONG, MPI_MIN, comm);
+    for (int i = 0; i < SHARED; ++i)
+        if (highest[i] != lowest[i]) {
             say(out, snapshot_input, "the ranks give different values of the %s", shared_names[i]);
             break;
         }
