@@ -129,6 +129,15 @@ $(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 	@mkdir -p $(dir $@)
 	$(SERIAL_CC) $(CFLAGS) -o $@ $< $(SUNDIALS_LDFLAGS) $(CVODE_LIBS) -lm
 
+# Test helpers built with the programs: snapshot_probe writes snapshots of known values from every
+# MPI rank through hdf5_snapshots (tests/e2e/test_snapshots.py).
+TEST_HELPERS := $(BIN)/snapshot_probe
+all: $(TEST_HELPERS)
+$(OBJ)/tests/e2e/snapshot_probe.o: $(OBJ)/src/io/hdf5_snapshots.o $(OBJ)/src/util/failures.o
+$(BIN)/snapshot_probe: $(OBJ)/tests/e2e/snapshot_probe.o $(LIBRARY_OBJECTS)
+	@mkdir -p $(dir $@)
+	$(FC) $(FFLAGS) $(TEST_LINK_FLAGS) -o $@ $^ $(LINK_LIBS)
+
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines (BDF with Newton), and
 # its fixed-point solver CVODE-Adams; zlib (HDF5's own dependency) gives the CRC-32 of a file's
