@@ -372,7 +372,9 @@ study: programs $(VENV)/.python-deps
 # eme_run against the C program with CVODE alone (cvode_baseline); then issue 32's cost per
 # step of each rung of the pendulum (bench_rungs.py: spatial and planar, thermoviscoelastic and
 # thermoelastic, and the full model on the generic path, in instructions and alternating in
-# time, against the full model; target 0.7 for the planar thermoelastic step). Each part ends with
+# time, against the full model; target 0.7 for the planar thermoelastic step); then the spring
+# chain on the sparse path against its size, 1e3 to 1e5 springs, and on two ranks (bench_chain.py,
+# docs/performance.md). Each part ends with
 # machine-readable lines and the machine's load around it (postprocess/machine_load.py; a
 # warning when it was busy).
 bench: programs $(VENV)/.python-deps bench-deps
@@ -383,6 +385,7 @@ bench: programs $(VENV)/.python-deps bench-deps
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
 	$(PYTHON) postprocess/bench_cvode_baseline.py --bin $(BIN) --repeats 15
 	$(PYTHON) postprocess/bench_rungs.py --bin $(BIN) --repeats 7
+	$(PYTHON) postprocess/bench_chain.py --bin $(BIN) --repeats 3
 
 # make bench counts instructions with valgrind's callgrind (perf stat says "not supported" on
 # these machines): installed with apt-get on Debian as root (not with EME_SETUP_APT=no), else
