@@ -193,7 +193,7 @@ contains
                  "k = mode_number) or 'random' (by amplitude (2 u_i - 1), u_i the i-th number in [0, 1) of "// &
                  "SplitMix64 from seed)"//not_with_file, perturbation_names), &
       integer_field('mode_number', input%mode_number, 'an integer from 1 to N: k of perturbation = ''mode''', &
-                    minimum=1, maximum=max(1, input%links)), &
+                    minimum=1), &
       real_field('amplitude', input%amplitude, 'a real number [m]: the largest displacement along x of '// &
                  'perturbation = ''mode'' or ''random''', 'm'), &
       integer_field('seed', input%seed, 'an integer >= 0: SplitMix64''s seed for perturbation = ''random''', &

@@ -82,7 +82,9 @@ contains
     allocate (model, source=chain)
   end subroutine initial_state
 
-  ! stat = domain code of a spring of zero length (C_a = 0: no direction, ln l undefined).
+  ! stat = domain code of a spring of zero length (C_a = 0: no direction, ln l undefined). Asked
+  ! of the chain's springs, which answer on every rung (an elastic subsystem's potential has no
+  ! temperature to give, and says so with a domain code).
   pure subroutine positive_lengths(chain, z, stat)
     type(spring_chain), intent(in) :: chain
     real(real64), intent(in) :: z(:)
@@ -93,7 +95,7 @@ contains
     n = chain%layout%invariant_count
     do a = 1, chain%layout%springs
       call chain%invariants(z, a, x(1:n))
-      call chain%subsystems(a)%potentials%values_and_temperature(x(1:n), f, theta, stat)
+      call chain%springs(a)%values_and_temperature(x(1:n), f, theta, stat)
       if (stat /= failure_none) return
     end do
   end subroutine positive_lengths

@@ -160,7 +160,7 @@ contains
     character(len=*), intent(in) :: where
     type(failure_type), intent(out) :: failure
     character(len=*), parameter :: names(4) = [character(len=5) :: 'q', 'p', 'gamma', 'theta']
-    character(len=:), allocatable :: prefix, problem
+    character(len=:), allocatable :: prefix, problem, name
     real(real64), allocatable :: values(:)
     integer, allocatable :: shape(:)
     logical :: found
@@ -173,31 +173,30 @@ contains
         return
       end if
       do k = 1, size(names)
-        associate (name => trim(names(k)))
-          call self%arrays%read_array(trim(input%file), name, values, shape, found, failure)
-          if (failure%failed()) then
-            failure%message = prefix//': '//failure%message//'; allowed: an HDF5 file with datasets '// &
-                              'q, p, gamma and theta (docs/input.md)'
-            failure%code = failure_input
-            return
-          end if
-          problem = dataset_problem(input, name, found, shape, values)
-          if (len(problem) > 0) then
-            call fail(failure, failure_input, prefix//': '//problem, 'file')
-            return
-          end if
-          if (.not. found) cycle
-          select case (name)
-          case ('q')
-            input%x = values
-          case ('p')
-            input%p = values
-          case ('gamma')
-            input%gamma = values
-          case ('theta')
-            input%theta = values
-          end select
-        end associate
+        name = trim(names(k))
+        call self%arrays%read_array(trim(input%file), name, values, shape, found, failure)
+        if (failure%failed()) then
+          failure%message = prefix//': '//failure%message//'; allowed: an HDF5 file with datasets '// &
+                            'q, p, gamma and theta (docs/input.md)'
+          failure%code = failure_input
+          return
+        end if
+        problem = dataset_problem(input, name, found, shape, values)
+        if (len(problem) > 0) then
+          call fail(failure, failure_input, prefix//': '//problem, 'file')
+          return
+        end if
+        if (.not. found) cycle
+        select case (name)
+        case ('q')
+          input%x = values
+        case ('p')
+          input%p = values
+        case ('gamma')
+          input%gamma = values
+        case ('theta')
+          input%theta = values
+        end select
       end do
     end associate
   end subroutine read_initial_file
