@@ -157,18 +157,18 @@ def lowest_frequency(tmp_path, n_springs, rod, steps=80):
 def test_the_rod_familys_lowest_frequency_converges_to_the_rods_at_second_order(tmp_path):
     """omega_1(N) from runs at n_s = 4, 8, 16, 32 springs: equal to the lumped chain's
     (2/h) sin(pi/(2 n_s)) sqrt(EA/rho) (section 10's omega_k at k = 1, psi_ll = EA/h, m = rho h)
-    to 1e-6, and its error against the rod's pi sqrt(EA/rho)/L falls like 1/N^2 (the error is
-    (pi/(2 n_s))^2/6 to leading order: observed orders within 0.05 of 2)."""
+    to 1e-9, and its error against the rod's pi sqrt(EA/rho)/L falls like 1/N^2 (the error is
+    (pi/(2 n_s))^2/6 to leading order: observed orders within 0.02 of 2)."""
     rod = {"rod_length": 2.0, "mass_per_length": 0.5, "axial_stiffness": 100.0}
     errors = []
     for n_springs in (4, 8, 16, 32):
         omega, continuum = lowest_frequency(tmp_path, n_springs, rod)
         h = rod["rod_length"] / n_springs
         lumped = 2 / h * np.sin(np.pi / (2 * n_springs)) * np.sqrt(rod["axial_stiffness"] / rod["mass_per_length"])
-        assert omega == pytest.approx(lumped, rel=1e-6), (n_springs, omega, lumped)
+        assert omega == pytest.approx(lumped, rel=1e-9), (n_springs, omega, lumped)
         errors.append(abs(omega - continuum) / continuum)
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
-    assert np.all(np.abs(orders - 2) < 0.05), (errors, orders)
+    assert np.all(np.abs(orders - 2) < 0.02), (errors, orders)
 
 
 # ---------------------------------------------------------------------------- perturbations
