@@ -16,6 +16,7 @@ module run_config
   use model_constraint, only: constraint_slot
   use constrained_flow, only: initial_inconsistency
   use model_registry, only: select_scene
+  use hdf5_array_reader, only: hdf5_arrays
   use failures, only: failure_type, fail, failure_input
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, joined
   use number_text, only: integer_text, reals_text
@@ -109,6 +110,8 @@ contains
       return
     end do
 
+    ! The files the input names (a chain's &initial file), relative to its folder.
+    allocate (config%scene%arrays, source=hdf5_arrays(path(1:index(path, '/', back=.true.))))
     call config%scene%read(text, path, extra, failure)
     if (failure%failed()) return
     call read_group(text, 'integrator', integrator_fields(config), path, failure, extra)

@@ -11,10 +11,18 @@ module model_scene
   use failures, only: failure_type
   implicit none (type, external)
   private
-  public :: scene
+  public :: scene, array_reader
+
+  !> Where a scene reads the arrays its input names in files (a chain's &initial file): given by
+  !> src/io (HDF5, hdf5_array_reader) before `read`, absent where nothing is read (--help).
+  type, abstract :: array_reader
+  contains
+    procedure(read_array_interface), deferred :: read_array
+  end type array_reader
 
   !> A model's input.
   type, abstract :: scene
+    class(array_reader), allocatable :: arrays   !! for the files the input names
   contains
     procedure(group_names_interface), deferred :: group_names
     procedure(fields_interface), deferred :: fields
@@ -26,6 +34,19 @@ module model_scene
   end type scene
 
   abstract interface
+    !> Dataset `name` of the file at `path`: its values in the file's (C, row-major) order and its
+    !> shape as h5py gives it; found = .false. if the file has no such dataset; a failure
+    !> (failure_io) if the file cannot be read or the dataset holds no numbers, naming why.
+    subroutine read_array_interface(self, path, name, values, shape, found, failure)
+      import :: array_reader, real64, failure_type
+      class(array_reader), intent(in) :: self
+      character(len=*), intent(in) :: path, name
+      real(real64), allocatable, intent(out) :: values(:)
+      integer, allocatable, intent(out) :: shape(:)
+      logical, intent(out) :: found
+      type(failure_type), intent(out) :: failure
+    end subroutine read_array_interface
+
     !> The namelist groups the scene reads, in reading order.
     pure subroutine group_names_interface(self, names)
       import :: scene

@@ -268,7 +268,7 @@ contains
       if (associated(field%real_value)) then
         text = reals_text([field%real_value])
       else
-        text = reals_text(field%real_values)
+        text = listed_reals(field%real_values)
       end if
     case (field_integer)
       text = integer_text(field%integer_value)
@@ -283,6 +283,26 @@ contains
       end if
     end select
   end function field_value_text
+
+  ! Values of a list as a message quotes them: those given (a reading array's unset tail, huge(),
+  ! left out), at most 8 of them and their number beyond that (a chain's 1e5 values).
+  function listed_reals(values) result(text)
+    real(real64), intent(in) :: values(:)
+    character(len=:), allocatable :: text
+    integer, parameter :: most = 8
+    integer :: given
+
+    given = size(values)
+    do while (given > 1)
+      if (values(given) < huge(1.0_real64)) exit
+      given = given - 1
+    end do
+    if (given <= most) then
+      text = reals_text(values(1:given))
+    else
+      text = reals_text(values(1:most))//', ... ('//integer_text(given)//' values)'
+    end if
+  end function listed_reals
 
   !> The group as --help shows it: '&group', then each field with its default (the value it holds
   !> now) and what it allows.

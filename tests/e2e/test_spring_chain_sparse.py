@@ -163,3 +163,17 @@ def test_eme_run_refuses_a_chain_too_large_for_its_dense_solvers(tmp_path):
     assert result.returncode == 2
     assert "&model" in result.stderr and "chain_bench" in result.stderr and "1000" in result.stderr
     assert not output.exists() and not list(tmp_path.glob("large.h5*"))
+
+
+def test_a_refused_list_of_many_values_is_quoted_short(tmp_path):
+    """A refused field of 2000 values: the message quotes the first values and their number, not the
+    whole list (nor the reading array's unset tail), and comes at once."""
+    groups = rod_groups(2000, 1)
+    groups["model"]["mu_eq_const"] = [10.0] * 1500 + [-1.0] + [10.0] * 499
+    groups["output"] = {"file": str(tmp_path / "refused.h5")}
+    namelist = tmp_path / "refused.nml"
+    namelist.write_text(namelist_text(groups))
+    result = subprocess.run([str(BIN / "chain_bench"), str(namelist)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert "&model: mu_eq_const = 10.0, 10.0" in result.stderr and "... (2000 values) is not allowed" in result.stderr
+    assert len(result.stderr) < 1000

@@ -1,0 +1,108 @@
+!> The arrays a scene's input names in an HDF5 file (a spring chain's &initial file, with datasets
+!> q, p, gamma, theta): one numeric dataset read whole as real64, in the file's (C, row-major)
+!> order, with its shape as h5py gives it. The file is opened read-only through hdf5_files; a
+!> relative path is relative to the folder of the namelist that names it (docs/input.md, Paths).
+module hdf5_array_reader
+  use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr
+  use hdf5, only: hid_t, hsize_t, h5lexists_f, h5dopen_f, h5dclose_f, h5dget_space_f, h5dget_type_f, h5sclose_f, &
+                  h5tclose_f, h5tget_class_f, h5sget_simple_extent_ndims_f, h5sget_simple_extent_dims_f, h5dread_f, &
+                  H5T_FLOAT_F, H5T_INTEGER_F, H5T_NATIVE_DOUBLE
+  use failures, only: failure_type, fail, failure_io
+  use hdf5_files, only: hdf5_file, hdf5_file_kind, not_hdf5
+  use model_scene, only: array_reader
+  implicit none
+  private
+  public :: hdf5_arrays
+
+  !> model_scene's array_reader for HDF5 files.
+  type, extends(array_reader) :: hdf5_arrays
+    character(len=:), allocatable :: folder   !! of the namelist ('' or ending in '/')
+  contains
+    procedure :: read_array
+  end type hdf5_arrays
+
+contains
+
+  !> Dataset `name` of the HDF5 file `path` (model_scene's read_array); a failure's message starts
+  !> with the path as resolved.
+  subroutine read_array(self, path, name, values, shape, found, failure)
+    class(hdf5_arrays), intent(in) :: self
+    character(len=*), intent(in) :: path, name
+    real(real64), allocatable, intent(out) :: values(:)
+    integer, allocatable, intent(out) :: shape(:)
+    logical, intent(out) :: found
+    type(failure_type), intent(out) :: failure
+    type(hdf5_file) :: file
+    type(failure_type) :: closing
+    character(len=:), allocatable :: where
+    logical :: exists
+
+    found = .false.
+    allocate (values(0), shape(0))
+    where = path
+    if (path(1:1) /= '/' .and. allocated(self%folder)) where = self%folder//path
+    inquire (file=where, exist=exists)
+    if (.not. exists) then
+      call fail(failure, failure_io, where//': no such file', where)
+      return
+    else if (hdf5_file_kind(where) == not_hdf5) then
+      call fail(failure, failure_io, where//': not an HDF5 file', where)
+      return
+    end if
+    call file%open_existing(where, .false., failure)
+    if (failure%failed()) then
+      failure%message = where//': '//failure%message
+      return
+    end if
+    call read_dataset(file%id, where, name, values, shape, found, failure)
+    call file%close(closing)
+    if (.not. failure%failed() .and. closing%failed()) failure = closing
+  end subroutine read_array
+
+  ! Dataset `name` of the open file `file_id`, if it exists, read whole as real64.
+  subroutine read_dataset(file_id, where, name, values, shape, found, failure)
+    integer(hid_t), intent(in) :: file_id
+    character(len=*), intent(in) :: where, name
+    real(real64), allocatable, target, intent(inout) :: values(:)
+    integer, allocatable, intent(inout) :: shape(:)
+    logical, intent(out) :: found
+    type(failure_type), intent(out) :: failure
+    integer(hid_t) :: dataset, space, stored
+    integer(hsize_t), allocatable :: dims(:), most(:)
+    type(c_ptr) :: buffer
+    integer :: stat, rank, class
+
+    call h5lexists_f(file_id, name, found, stat)
+    found = found .and. stat == 0
+    if (.not. found) return
+    call h5dopen_f(file_id, name, dataset, stat)
+    if (stat /= 0) then
+      call fail(failure, failure_io, where//': dataset '''//name//''' cannot be opened', name)
+      return
+    end if
+    call h5dget_space_f(dataset, space, stat)
+    call h5sget_simple_extent_ndims_f(space, rank, stat)
+    allocate (dims(max(rank, 0)), most(max(rank, 0)))
+    if (rank > 0) call h5sget_simple_extent_dims_f(space, dims, most, stat)
+    call h5dget_type_f(dataset, stored, stat)
+    call h5tget_class_f(stored, class, stat)
+    if (class /= H5T_FLOAT_F .and. class /= H5T_INTEGER_F) then
+      call fail(failure, failure_io, where//': dataset '''//name//''' holds no numbers', name)
+    else
+      shape = int(dims(size(dims):1:-1))    ! HDF5's Fortran interface gives the dimensions reversed
+      deallocate (values)
+      allocate (values(product(shape)))
+      if (size(values) > 0) then
+        buffer = c_loc(values(1))
+        call h5dread_f(dataset, H5T_NATIVE_DOUBLE, buffer, stat)
+        if (stat /= 0) call fail(failure, failure_io, where//': dataset '''//name//''' cannot be read (a damaged file)', &
+                                 name)
+      end if
+    end if
+    call h5tclose_f(stored, stat)
+    call h5sclose_f(space, stat)
+    call h5dclose_f(dataset, stat)
+  end subroutine read_dataset
+
+end module hdf5_array_reader
