@@ -1,11 +1,15 @@
-!> mpirun -n P chain_bench FILE.nml [-chain_steps K] [-chain_dump PREFIX] [PETSc options]: a spring
+!> mpirun -n P chain_bench FILE.nml [-chain_steps K] [-chain_dump PREFIX] [-chain_snapshots FILE.h5
+!> [-chain_snapshot_every K]] [PETSc options]: a spring
 !> chain (&model model_name = 'spring_chain') run on the sparse, distributed path
 !> (src/model/spring_chain/spring_chain_dmda) with the input's fixed-step EME or midpoint rule, for
 !> the input's steps or K, writing no run file. Rank 0 prints one line of key=value figures: the
 !> size, the steps and Newton iterations, E and S at the start and the end, the largest
 !> |E_{n+1} - E_n|/|E_n|, the smallest S_{n+1} - S_n, and the time loop's CPU and wall seconds
 !> (rank 0's), per step and per Newton iteration per unknown. -chain_dump PREFIX writes each rank's
-!> rows of the final state to PREFIX.<rank> ("index value" lines). It is the instrument of the
+!> rows of the final state to PREFIX.<rank> ("index value" lines). -chain_snapshots FILE.h5 writes
+!> the state at the start, every K-th step (default 1) and the last into FILE.h5's /snapshots
+!> with parallel HDF5, each rank its own part (src/io/hdf5_snapshots; docs/output.md, Snapshots),
+!> and adds the snapshots' count and seconds (rank 0's wall time) to the figures. It is the instrument of the
 !> chain's scaling benchmark (docs/performance.md) and of the tests that compare the path with the
 !> dense one and one rank with two; eme_run does not run this path yet.
 !> Exit status: 0 done, 2 bad input or usage, 3 the run stopped (a step did not converge), 1 a
@@ -18,9 +22,13 @@ program chain_bench
   use integrator_settings, only: step_count
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
-  use failures, only: failure_type, failure_input, failure_not_converged
+  use failures, only: failure_type, fail, failure_input, failure_not_converged
   use number_text, only: integer_text
   use spring_chain_sparse_run, only: sparse_chain_run, sparse_run_result, sparse_run_settings
+  use spring_chain_dmda, only: distributed_chain
+  use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
+  use hdf5_snapshots, only: snapshot_layout, append_snapshot
+  use hdf5, only: hid_t, h5open_f, h5fcreate_f, h5fclose_f, H5F_ACC_TRUNC_F
   implicit none
 
   type(run_configuration) :: config
@@ -30,9 +38,11 @@ program chain_bench
   class(generic_model), allocatable :: model
   real(real64), allocatable :: z0(:)
   type(constraint_slot), allocatable :: constraints(:)
-  character(len=4096) :: input, dump
-  PetscInt :: steps
-  PetscBool :: found, dump_given
+  character(len=4096) :: input, dump, snapshots
+  PetscInt :: steps, every
+  PetscBool :: found, dump_given, snapshots_given
+  integer :: snapshot_count = 0
+  real(real64) :: snapshot_seconds = 0.0_real64
   PetscErrorCode :: ierr
   PetscMPIInt :: rank
   integer :: exit_status
@@ -61,8 +71,18 @@ program chain_bench
       PetscCallA(PetscOptionsGetInt(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_steps', steps, found, ierr))
       if (found) settings%steps = int(steps)
       PetscCallA(PetscOptionsGetString(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_dump', dump, dump_given, ierr))
-      if (dump_given) then
-        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, trim(dump))
+      PetscCallA(PetscOptionsGetString(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_snapshots', snapshots, snapshots_given, ierr))
+      every = 1
+      PetscCallA(PetscOptionsGetInt(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_snapshot_every', every, found, ierr))
+      if (snapshots_given) call create_snapshot_file(trim(snapshots))
+      if (failure%failed()) then
+        continue
+      else if (snapshots_given .and. dump_given) then
+        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, write_snapshot, trim(dump))
+      else if (snapshots_given) then
+        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, write_snapshot)
+      else if (dump_given) then
+        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, dump=trim(dump))
       else
         call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure)
       end if
@@ -80,6 +100,65 @@ program chain_bench
 
 contains
 
+  ! An empty HDF5 file for the snapshots, made by rank 0 before any rank appends.
+  subroutine create_snapshot_file(path)
+    character(len=*), intent(in) :: path
+    integer(hid_t) :: file
+    integer :: status
+
+    status = 0
+    if (rank == 0) then
+      call h5open_f(status)
+      if (status == 0) call h5fcreate_f(path, H5F_ACC_TRUNC_F, file, status)
+      if (status == 0) call h5fclose_f(file, status)
+    end if
+    call MPI_Barrier(PETSC_COMM_WORLD, ierr)
+    if (status /= 0) call fail(failure, failure_input, "-chain_snapshots: cannot create '"//path//"'")
+  end subroutine create_snapshot_file
+
+  ! step_observer: the state into /snapshots at the start, every `every`-th step and the last.
+  subroutine write_snapshot(chain, step, time, failure)
+    type(distributed_chain), intent(inout) :: chain
+    integer, intent(in) :: step
+    real(real64), intent(in) :: time
+    type(failure_type), intent(inout) :: failure
+    real(real64), allocatable :: positions(:, :), momenta(:, :), gamma(:), tau(:), theta(:)
+    type(snapshot_layout) :: layout
+    real(real64) :: start
+
+    if (failure%failed() .or. (mod(step, int(every)) /= 0 .and. step /= settings%steps)) return
+    start = MPI_Wtime()
+    call chain%state_part(positions, momenta, gamma, tau, theta, failure)
+    if (failure%failed()) return
+    associate (chain_layout => chain%context%problem%layout)
+      layout = snapshot_layout(masses=chain_layout%masses, springs=chain_layout%springs, dimension=chain_layout%dimension, &
+                               first_mass=chain%first_point, mass_count=size(positions, 2), &
+                               first_spring=chain%first_point, spring_count=chain%last_point - chain%first_point + 1)
+    end associate
+    ! Arrays the state has not are passed unallocated: absent (tau too when it is the temperature).
+    if (size(gamma) == 0) deallocate (gamma)
+    if (size(tau) == 0 .or. len(tau_dataset()) == 0) deallocate (tau)
+    if (size(theta) == 0) deallocate (theta)
+    call append_snapshot(trim(snapshots), PETSC_COMM_WORLD, layout, time, positions, momenta, failure, &
+                         viscous_strains=gamma, tau=tau, tau_name=tau_dataset(), temperatures=theta)
+    snapshot_count = snapshot_count + 1
+    snapshot_seconds = snapshot_seconds + (MPI_Wtime() - start)
+  end subroutine write_snapshot
+
+  ! The snapshot's dataset of tau: none when tau is the temperature.
+  function tau_dataset() result(name)
+    character(len=:), allocatable :: name
+
+    select case (config%integrator%thermo_variable)
+    case (tau_entropy)
+      name = 'entropy'
+    case (tau_internal_energy)
+      name = 'internal_energy'
+    case default
+      name = ''
+    end select
+  end function tau_dataset
+
   ! One line of key=value figures.
   subroutine print_figures(r)
     type(sparse_run_result), intent(in) :: r
@@ -92,6 +171,8 @@ contains
       ' cpu_per_step=', r%loop_cpu_seconds/r%steps, ' wall_per_step=', r%loop_wall_seconds/r%steps, &
       ' cpu_per_newton_unknown=', r%loop_cpu_seconds/max(1, r%newton_iterations)/r%unknowns, &
       ' loop_cpu=', r%loop_cpu_seconds
+    if (snapshot_count > 0) write (output_unit, '(a, i0, a, es10.3)') 'chain_bench: snapshots=', snapshot_count, &
+      ' snapshot_seconds=', snapshot_seconds
   end subroutine print_figures
 
 end program chain_bench

@@ -58,7 +58,7 @@ contains
   subroutine append_snapshot(path, comm, layout, time, positions, momenta, failure, viscous_strains, tau, tau_name, &
                              temperatures)
     character(len=*), intent(in) :: path
-    type(MPI_Comm), intent(in) :: comm
+    integer, intent(in) :: comm              !! the communicator's Fortran handle (PETSc's; mpi_f08's %MPI_VAL)
     type(snapshot_layout), intent(in) :: layout
     real(real64), intent(in) :: time
     real(real64), intent(in), target, contiguous :: positions(:, :), momenta(:, :)
@@ -70,18 +70,20 @@ contains
     integer(c_int) :: status
     character(len=12) :: rank_text
     integer :: rank, first_wrong, i
+    type(MPI_Comm) :: communicator
 
     tau_text = ''
     if (present(tau_name)) tau_text = tau_name
     message = c_null_char
     ! Every rank learns of arrays that do not fit on any (the first such rank), so that none goes
     ! on into the collective write.
-    call MPI_Comm_rank(comm, rank)
+    communicator%MPI_VAL = comm
+    call MPI_Comm_rank(communicator, rank)
     first_wrong = huge(first_wrong)
     if (any(shape(positions) /= [layout%dimension, layout%mass_count]) .or. &
         any(shape(momenta) /= [layout%dimension, layout%mass_count]) .or. &
         .not. (fits(viscous_strains) .and. fits(tau) .and. fits(temperatures))) first_wrong = rank
-    call MPI_Allreduce(MPI_IN_PLACE, first_wrong, 1, MPI_INTEGER, MPI_MIN, comm)
+    call MPI_Allreduce(MPI_IN_PLACE, first_wrong, 1, MPI_INTEGER, MPI_MIN, communicator)
     if (first_wrong /= huge(first_wrong)) then
       write (rank_text, '(i0)') first_wrong
       call fail(failure, failure_input, path//': rank '//trim(rank_text)//'''s arrays do not fit its part of the '// &
@@ -89,7 +91,7 @@ contains
                 'of its part', 'append_snapshot')
       return
     end if
-    status = eme_h5_append_snapshot(path//c_null_char, int(comm%MPI_VAL, c_int), real(time, c_double), &
+    status = eme_h5_append_snapshot(path//c_null_char, int(comm, c_int), real(time, c_double), &
                                     int(layout%masses, c_long_long), int(layout%springs, c_long_long), &
                                     int(layout%dimension, c_int), int(layout%first_mass - 1, c_long_long), &
                                     int(layout%mass_count, c_long_long), int(layout%first_spring - 1, c_long_long), &

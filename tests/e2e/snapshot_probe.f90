@@ -87,26 +87,26 @@ contains
 
     if (tau_name == 'none') then
       if (with_gamma .and. with_theta) then
-        call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, viscous_strains=gammas, &
+        call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, viscous_strains=gammas, &
                              temperatures=thetas)
       else if (with_theta) then
-        call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, temperatures=thetas)
+        call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, temperatures=thetas)
       else if (with_gamma) then
-        call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, viscous_strains=gammas)
+        call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, viscous_strains=gammas)
       else
-        call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure)
+        call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure)
       end if
     else if (with_gamma .and. with_theta) then
-      call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, viscous_strains=gammas, &
+      call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, viscous_strains=gammas, &
                            tau=taus, tau_name=tau_name, temperatures=thetas)
     else if (with_theta) then
-      call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, tau=taus, &
+      call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, tau=taus, &
                            tau_name=tau_name, temperatures=thetas)
     else if (with_gamma) then
-      call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, viscous_strains=gammas, &
+      call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, viscous_strains=gammas, &
                            tau=taus, tau_name=tau_name)
     else
-      call append_snapshot(path, MPI_COMM_WORLD, layout, time, positions, momenta, failure, tau=taus, tau_name=tau_name)
+      call append_snapshot(path, MPI_COMM_WORLD%MPI_VAL, layout, time, positions, momenta, failure, tau=taus, tau_name=tau_name)
     end if
   end subroutine append
 

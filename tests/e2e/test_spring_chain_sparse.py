@@ -177,3 +177,26 @@ def test_a_refused_list_of_many_values_is_quoted_short(tmp_path):
     assert result.returncode == 2
     assert "&model: mu_eq_const = 10.0, 10.0" in result.stderr and "... (2000 values) is not allowed" in result.stderr
     assert len(result.stderr) < 1000
+
+
+def test_snapshots_of_a_split_chain_are_its_state(tmp_path):
+    """-chain_snapshots: /snapshots holds the start, every 4th step and the last; written from two
+    ranks it equals the one-rank file, and its last q, p, gamma, theta are the final state's rows
+    (the temperature variable: theta is tau), exactly."""
+    groups = chain_groups(links=12, dimension=3, ends="fixed-free", steps=10)
+    files = {}
+    for ranks in (1, 2):
+        files[ranks] = tmp_path / f"snapshots{ranks}.h5"
+        figures, state = run_bench(tmp_path, f"run{ranks}", groups, ranks, "-chain_snapshots", str(files[ranks]),
+                                   "-chain_snapshot_every", "4")
+    with h5py.File(files[1], "r") as one, h5py.File(files[2], "r") as two:
+        assert np.allclose(one["snapshots/time"][()], [0.0, 0.04, 0.08, 0.10], rtol=0, atol=1e-15)
+        assert one["snapshots/q"].shape == (4, 12, 3) and one["snapshots/theta"].shape == (4, 12)
+        for name in ("q", "p", "gamma", "theta"):
+            assert np.max(np.abs(one[f"snapshots/{name}"][()] - two[f"snapshots/{name}"][()])) <= 1e-12
+        point = 3 + 3 + 1 + 1                                  # x, p, gamma, tau of each mass and spring
+        rows = state.reshape(12, point)                        # the two-rank run's final state
+        assert np.array_equal(two["snapshots/q"][-1], rows[:, 0:3])
+        assert np.array_equal(two["snapshots/p"][-1], rows[:, 3:6])
+        assert np.array_equal(two["snapshots/gamma"][-1], rows[:, 6])
+        assert np.array_equal(two["snapshots/theta"][-1], rows[:, 7])

@@ -20,6 +20,7 @@ module spring_chain_dmda
   use failures, only: failure_type, failure_none, fail_on_code, fail, domain_overflow
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use spring_chain_step, only: chain_step_problem
+  use spring_chain_balance, only: spring_values
   implicit none
   private
   public :: distributed_chain, chain_step_outcome
@@ -63,6 +64,7 @@ module spring_chain_dmda
     procedure :: owned_state
     procedure :: step
     procedure :: sums
+    procedure :: state_part
     procedure :: destroy
   end type distributed_chain
 
@@ -271,6 +273,59 @@ contains
       PetscCallMPI(MPI_Allreduce(local, total, 4, MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
     end associate
   end subroutine sums_petsc
+
+  !> The rank's part of the state as a snapshot holds it: its masses' positions and momenta
+  !> (dimension x masses), its springs' gamma (none without a viscous branch) and tau, and their
+  !> temperatures [K] (spring a lives at point a; its temperature needs mass a - 1, a ghost).
+  subroutine state_part(self, positions, momenta, gamma, tau, theta, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), allocatable, intent(out) :: positions(:, :), momenta(:, :), gamma(:), tau(:), theta(:)
+    type(failure_type), intent(out) :: failure
+    real(real64), pointer :: z(:)
+    real(real64) :: f(2)
+    integer :: ierr, i, a, d, first_mass, last_mass, last_spring, stat
+
+    associate (c => self%context, layout => self%context%problem%layout)
+      d = layout%dimension
+      first_mass = self%first_point
+      last_mass = min(layout%masses, self%last_point)
+      last_spring = min(layout%springs, self%last_point)
+      allocate (positions(d, max(0, last_mass - first_mass + 1)), momenta(d, max(0, last_mass - first_mass + 1)))
+      allocate (gamma(0), tau(0), theta(0))
+      if (layout%invariant_count == 3) gamma = [(0.0_real64, a=self%first_point, last_spring)]
+      if (layout%invariant_count >= 2) then
+        tau = [(0.0_real64, a=self%first_point, last_spring)]
+        theta = tau
+      end if
+      ierr = 0
+      call DMGlobalToLocalBegin(c%da, self%x, INSERT_VALUES, c%new_local, ierr)
+      if (ierr == 0) call DMGlobalToLocalEnd(c%da, self%x, INSERT_VALUES, c%new_local, ierr)
+      if (ierr == 0) call borrow_read(c%new_local, c%local_size, z, ierr)
+      if (ierr /= 0) then
+        call fail_on_code(failure, ierr, 'reading the chain''s state for a snapshot')
+        return
+      end if
+      do i = first_mass, last_mass
+        associate (slots => layout%mass_indices(i) - c%base)
+          positions(:, i - first_mass + 1) = z(slots(1:d))
+          momenta(:, i - first_mass + 1) = z(slots(d + 1:))
+        end associate
+      end do
+      stat = failure_none
+      do a = self%first_point, last_spring
+        if (layout%invariant_count == 3) gamma(a - self%first_point + 1) = z(layout%gamma_index(a) - c%base)
+        if (layout%invariant_count == 1) cycle
+        tau(a - self%first_point + 1) = z(layout%tau_index(a) - c%base)
+        call spring_values(c%problem%springs(a), d, layout%gather_spring(z, a, c%base), f, theta(a - self%first_point + 1), &
+                           stat)
+        if (stat /= failure_none) exit
+      end do
+      call give_back_read(c%new_local, z, ierr)
+    end associate
+    call fail_on_code(failure, ierr, 'reading the chain''s state for a snapshot')
+    if (.not. failure%failed() .and. stat /= failure_none) &
+      call fail(failure, domain_overflow, 'a spring is outside its domain while writing a snapshot')
+  end subroutine state_part
 
   !> Frees the PETSc objects.
   subroutine destroy(self, failure)

@@ -16,7 +16,7 @@ module spring_chain_sparse_run
   use spring_chain_dmda, only: distributed_chain, chain_step_outcome
   implicit none
   private
-  public :: sparse_chain_run, sparse_run_result, sparse_run_settings, chain_problem_of
+  public :: sparse_chain_run, sparse_run_result, sparse_run_settings, chain_problem_of, step_observer
 
   !> What the run is asked to do (the input's &integrator, src/integrator/integrator_settings).
   type :: sparse_run_settings
@@ -46,6 +46,17 @@ module spring_chain_sparse_run
     real(real64) :: loop_cpu_seconds = 0.0_real64       !! this rank's CPU time in the time loop
     real(real64) :: loop_wall_seconds = 0.0_real64
   end type sparse_run_result
+
+  abstract interface
+    !> Called with the state after step `step` (0: the initial state) at `time`, on every rank.
+    subroutine step_observer(chain, step, time, failure)
+      import :: distributed_chain, real64, failure_type
+      type(distributed_chain), intent(inout) :: chain
+      integer, intent(in) :: step
+      real(real64), intent(in) :: time
+      type(failure_type), intent(inout) :: failure
+    end subroutine step_observer
+  end interface
 
 contains
 
@@ -88,15 +99,17 @@ contains
     problem%metric = settings%metric
   end subroutine chain_problem_of
 
-  !> Runs `model` (a chain) from z0 on `comm` as `settings` say; `dump` names files DUMP.<rank>
-  !> that receive each rank's rows of the final state ("index value" lines, 1-based).
-  subroutine sparse_chain_run(settings, model, z0, comm, result, failure, dump)
+  !> Runs `model` (a chain) from z0 on `comm` as `settings` say; `observe` sees the initial state
+  !> and every step's; `dump` names files DUMP.<rank> that receive each rank's rows of the final
+  !> state ("index value" lines, 1-based).
+  subroutine sparse_chain_run(settings, model, z0, comm, result, failure, observe, dump)
     type(sparse_run_settings), intent(in) :: settings
     class(generic_model), intent(in) :: model
     real(real64), intent(in) :: z0(:)
     MPI_Comm, intent(in) :: comm
     type(sparse_run_result), intent(out) :: result
     type(failure_type), intent(out) :: failure
+    procedure(step_observer), optional :: observe
     character(len=*), intent(in), optional :: dump
     type(chain_step_problem) :: problem
     type(distributed_chain) :: chain
@@ -119,6 +132,7 @@ contains
     if (.not. failure%failed()) call chain%sums(result%energy_0, result%entropy_0, delta_energy, delta_entropy, failure)
     result%energy = result%energy_0
     result%entropy = result%entropy_0
+    if (present(observe) .and. .not. failure%failed()) call observe(chain, 0, 0.0_real64, failure)
     wall_start = MPI_Wtime()
     call cpu_time(cpu_start)
     do n = 1, planned
@@ -138,6 +152,7 @@ contains
       result%max_newton_iterations = max(result%max_newton_iterations, outcome%iterations)
       result%max_energy_error = max(result%max_energy_error, abs(delta_energy)/abs(energy_before))
       result%min_entropy_increment = min(result%min_entropy_increment, delta_entropy)
+      if (present(observe)) call observe(chain, n, n*settings%dt, failure)
     end do
     call cpu_time(cpu_end)
     result%loop_cpu_seconds = cpu_end - cpu_start
