@@ -129,12 +129,13 @@ $(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 	@mkdir -p $(dir $@)
 	$(SERIAL_CC) $(CFLAGS) -o $@ $< $(SUNDIALS_LDFLAGS) $(CVODE_LIBS) -lm
 
-# Test helpers built with the programs: snapshot_probe writes snapshots of known values from every
-# MPI rank through hdf5_snapshots (tests/e2e/test_snapshots.py).
-TEST_HELPERS := $(BIN)/snapshot_probe
+# Test helpers built with the programs, in build/tests (build/bin holds the programs alone):
+# snapshot_probe writes snapshots of known values from every MPI rank through hdf5_snapshots
+# (tests/e2e/test_snapshots.py).
+TEST_HELPERS := $(BUILD)/tests/snapshot_probe
 all: $(TEST_HELPERS)
 $(OBJ)/tests/e2e/snapshot_probe.o: $(OBJ)/src/io/hdf5_snapshots.o $(OBJ)/src/util/failures.o
-$(BIN)/snapshot_probe: $(OBJ)/tests/e2e/snapshot_probe.o $(LIBRARY_OBJECTS)
+$(BUILD)/tests/snapshot_probe: $(OBJ)/tests/e2e/snapshot_probe.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) $(TEST_LINK_FLAGS) -o $@ $^ $(LINK_LIBS)
 

@@ -13,7 +13,7 @@
 !> chain's scaling benchmark (docs/performance.md) and of the tests that compare the path with the
 !> dense one and one rank with two; eme_run does not run this path yet.
 !> Exit status: 0 done, 2 bad input or usage, 3 the run stopped (a step did not converge), 1 a
-!> library failed.
+!> library failed. --help, -h, -help and --version print and exit with status 0.
 program chain_bench
 #include <petsc/finclude/petscsys.h>
   use petscsys
@@ -24,8 +24,9 @@ program chain_bench
   use model_constraint, only: constraint_slot
   use failures, only: failure_type, fail, failure_input, failure_not_converged
   use number_text, only: integer_text
+  use command_line, only: has_argument
+  use library_versions, only: print_versions
   use spring_chain_sparse_run, only: sparse_chain_run, sparse_run_result, sparse_run_settings
-  use spring_chain_dmda, only: distributed_chain
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use hdf5_snapshots, only: snapshot_layout, append_snapshot
   use hdf5, only: hid_t, h5open_f, h5fcreate_f, h5fclose_f, H5F_ACC_TRUNC_F
@@ -34,6 +35,7 @@ program chain_bench
   type(run_configuration) :: config
   type(sparse_run_settings) :: settings
   type(sparse_run_result) :: result
+  type(sparse_chain_run) :: run
   type(failure_type) :: failure
   class(generic_model), allocatable :: model
   real(real64), allocatable :: z0(:)
@@ -45,15 +47,23 @@ program chain_bench
   real(real64) :: snapshot_seconds = 0.0_real64
   PetscErrorCode :: ierr
   PetscMPIInt :: rank
-  integer :: exit_status
+  integer :: exit_status, n
 
+  ! --help, -h, PETSc's -help and --version answer at once, wherever they stand.
+  if (has_argument([character(len=6) :: '--help', '-h', '-help'])) then
+    call print_usage(output_unit)
+    stop
+  else if (has_argument(['--version'])) then
+    call print_versions(output_unit, 'chain_bench')
+    stop
+  end if
   PetscCallA(PetscInitialize(ierr))
   PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
   exit_status = 0
   input = ''
   if (command_argument_count() >= 1) call get_command_argument(1, input)
   if (len_trim(input) == 0 .or. input(1:1) == '-') then
-    if (rank == 0) write (error_unit, '(a)') 'usage: mpirun -n P chain_bench FILE.nml [-chain_steps K] [-chain_dump PREFIX]'
+    if (rank == 0) call print_usage(error_unit)
     exit_status = 2
   else
     call read_run_config(trim(input), config, failure)
@@ -75,17 +85,19 @@ program chain_bench
       every = 1
       PetscCallA(PetscOptionsGetInt(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_snapshot_every', every, found, ierr))
       if (snapshots_given) call create_snapshot_file(trim(snapshots))
-      if (failure%failed()) then
-        continue
-      else if (snapshots_given .and. dump_given) then
-        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, write_snapshot, trim(dump))
-      else if (snapshots_given) then
-        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, write_snapshot)
-      else if (dump_given) then
-        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure, dump=trim(dump))
+      if (.not. failure%failed()) call run%start(settings, model, z0, PETSC_COMM_WORLD, failure)
+      if (snapshots_given) call write_snapshot(0.0_real64)
+      do n = 1, settings%steps
+        if (failure%failed()) exit
+        call run%advance(n, failure)
+        if (snapshots_given .and. (mod(n, int(every)) == 0 .or. n == settings%steps)) call write_snapshot(n*settings%dt)
+      end do
+      if (dump_given) then
+        call run%finish(failure, trim(dump))
       else
-        call sparse_chain_run(settings, model, z0, PETSC_COMM_WORLD, result, failure)
+        call run%finish(failure)
       end if
+      result = run%result
     end if
     if (failure%failed()) then
       if (rank == 0) write (error_unit, '(a)') 'chain_bench: '//failure%text()
@@ -99,6 +111,17 @@ program chain_bench
   if (exit_status /= 0) stop exit_status, quiet=.true.
 
 contains
+
+  ! The usage line and what the program does.
+  subroutine print_usage(unit)
+    integer, intent(in) :: unit
+
+    write (unit, '(a)') 'usage: mpirun -n P chain_bench FILE.nml [-chain_steps K] [-chain_dump PREFIX] '// &
+      '[-chain_snapshots FILE.h5 [-chain_snapshot_every K]] [PETSc options]'
+    write (unit, '(a)') '  runs the spring chain of FILE.nml on the sparse, distributed path (EME or the midpoint '// &
+      'rule, fixed steps) and prints its figures; --help, -h, -help: this text; --version: the versions. Exit '// &
+      'status: 0 done, 2 bad input or usage, 3 a step did not converge, 1 a library failed.'
+  end subroutine print_usage
 
   ! An empty HDF5 file for the snapshots, made by rank 0 before any rank appends.
   subroutine create_snapshot_file(path)
@@ -116,21 +139,18 @@ contains
     if (status /= 0) call fail(failure, failure_input, "-chain_snapshots: cannot create '"//path//"'")
   end subroutine create_snapshot_file
 
-  ! step_observer: the state into /snapshots at the start, every `every`-th step and the last.
-  subroutine write_snapshot(chain, step, time, failure)
-    type(distributed_chain), intent(inout) :: chain
-    integer, intent(in) :: step
+  ! The state at `time` into /snapshots, every rank its part.
+  subroutine write_snapshot(time)
     real(real64), intent(in) :: time
-    type(failure_type), intent(inout) :: failure
     real(real64), allocatable :: positions(:, :), momenta(:, :), gamma(:), tau(:), theta(:)
     type(snapshot_layout) :: layout
     real(real64) :: start
 
-    if (failure%failed() .or. (mod(step, int(every)) /= 0 .and. step /= settings%steps)) return
-    start = MPI_Wtime()
-    call chain%state_part(positions, momenta, gamma, tau, theta, failure)
     if (failure%failed()) return
-    associate (chain_layout => chain%context%problem%layout)
+    start = MPI_Wtime()
+    call run%chain%state_part(positions, momenta, gamma, tau, theta, failure)
+    if (failure%failed()) return
+    associate (chain => run%chain, chain_layout => run%chain%context%problem%layout)
       layout = snapshot_layout(masses=chain_layout%masses, springs=chain_layout%springs, dimension=chain_layout%dimension, &
                                first_mass=chain%first_point, mass_count=size(positions, 2), &
                                first_spring=chain%first_point, spring_count=chain%last_point - chain%first_point + 1)

@@ -1,5 +1,5 @@
 """Snapshots of a state split over MPI ranks, written with parallel HDF5 (src/io/hdf5_snapshots.f90,
-src/io/hdf5_snapshot_storage.c; docs/output.md, Snapshots). build/bin/snapshot_probe writes
+src/io/hdf5_snapshot_storage.c; docs/output.md, Snapshots). build/tests/snapshot_probe writes
 snapshots of known values from every rank, each rank its own masses and springs; the expected
 values here are the probe's formulas typed again (tests/e2e/snapshot_probe.f90), the shapes,
 units and axes those of docs/output.md."""
@@ -18,7 +18,7 @@ sys.path.insert(0, str(ROOT / "postprocess"))
 
 import file_checksums  # noqa: E402
 
-PROBE = BIN / "snapshot_probe"
+PROBE = BIN.parent / "tests" / "snapshot_probe"
 UNITS = {"time": "s", "q": "m", "p": "kg m/s", "gamma": "1", "theta": "K", "entropy": "J/K",
          "internal_energy": "J", "mass": "1", "spring": "1", "component": "1"}
 AXES = {"time": ["time"], "q": ["time", "mass", "component"], "p": ["time", "mass", "component"],

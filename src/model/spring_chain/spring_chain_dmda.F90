@@ -258,6 +258,8 @@ contains
     integer :: stat_values, stat_differences, points(2)
     MPI_Comm :: comm
 
+    stat = failure_none
+    total = 0.0_real64
     points = [self%first_point, self%last_point]
     associate (c => self%context)
       PetscCall(DMGlobalToLocalBegin(c%da, self%x, INSERT_VALUES, c%new_local, ierr))

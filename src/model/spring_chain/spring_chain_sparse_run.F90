@@ -16,7 +16,7 @@ module spring_chain_sparse_run
   use spring_chain_dmda, only: distributed_chain, chain_step_outcome
   implicit none
   private
-  public :: sparse_chain_run, sparse_run_result, sparse_run_settings, chain_problem_of, step_observer
+  public :: sparse_chain_run, sparse_run_result, sparse_run_settings, chain_problem_of
 
   !> What the run is asked to do (the input's &integrator, src/integrator/integrator_settings).
   type :: sparse_run_settings
@@ -47,16 +47,17 @@ module spring_chain_sparse_run
     real(real64) :: loop_wall_seconds = 0.0_real64
   end type sparse_run_result
 
-  abstract interface
-    !> Called with the state after step `step` (0: the initial state) at `time`, on every rank.
-    subroutine step_observer(chain, step, time, failure)
-      import :: distributed_chain, real64, failure_type
-      type(distributed_chain), intent(inout) :: chain
-      integer, intent(in) :: step
-      real(real64), intent(in) :: time
-      type(failure_type), intent(inout) :: failure
-    end subroutine step_observer
-  end interface
+  !> A run on the sparse path in named steps: start, advance step by step, finish (the caller
+  !> writes snapshots between steps).
+  type :: sparse_chain_run
+    type(sparse_run_settings) :: settings
+    type(distributed_chain) :: chain
+    type(sparse_run_result) :: result
+  contains
+    procedure :: start
+    procedure :: advance
+    procedure :: finish
+  end type sparse_chain_run
 
 contains
 
@@ -99,68 +100,76 @@ contains
     problem%metric = settings%metric
   end subroutine chain_problem_of
 
-  !> Runs `model` (a chain) from z0 on `comm` as `settings` say; `observe` sees the initial state
-  !> and every step's; `dump` names files DUMP.<rank> that receive each rank's rows of the final
-  !> state ("index value" lines, 1-based).
-  subroutine sparse_chain_run(settings, model, z0, comm, result, failure, observe, dump)
+  !> Sets up `model` (a chain) from z0 on `comm` as `settings` say: the DMDA, the state, E_0, S_0.
+  subroutine start(self, settings, model, z0, comm, failure)
+    class(sparse_chain_run), intent(inout), target :: self
     type(sparse_run_settings), intent(in) :: settings
     class(generic_model), intent(in) :: model
     real(real64), intent(in) :: z0(:)
     MPI_Comm, intent(in) :: comm
-    type(sparse_run_result), intent(out) :: result
     type(failure_type), intent(out) :: failure
-    procedure(step_observer), optional :: observe
-    character(len=*), intent(in), optional :: dump
     type(chain_step_problem) :: problem
-    type(distributed_chain) :: chain
-    type(chain_step_outcome) :: outcome
-    type(failure_type) :: freeing
-    real(real64) :: delta_energy, delta_entropy, energy_before, cpu_start, cpu_end
-    real(real64) :: wall_start
-    integer :: n, planned, ierr
+    real(real64) :: delta_energy, delta_entropy
+    integer :: ierr
     PetscMPIInt :: ranks
 
+    self%settings = settings
     call chain_problem_of(settings, model, problem, failure)
     if (failure%failed()) return
     call MPI_Comm_size(comm, ranks, ierr)
-    result%ranks = ranks
-    result%springs = problem%layout%springs
-    result%unknowns = problem%layout%state_size()
-    planned = settings%steps
-    call chain%create(problem, comm, settings%newton_tol, settings%newton_max_iterations, failure)
-    if (.not. failure%failed()) call chain%set_state(z0, failure)
-    if (.not. failure%failed()) call chain%sums(result%energy_0, result%entropy_0, delta_energy, delta_entropy, failure)
-    result%energy = result%energy_0
-    result%entropy = result%entropy_0
-    if (present(observe) .and. .not. failure%failed()) call observe(chain, 0, 0.0_real64, failure)
-    wall_start = MPI_Wtime()
-    call cpu_time(cpu_start)
-    do n = 1, planned
-      if (failure%failed()) exit
+    self%result%ranks = ranks
+    self%result%springs = problem%layout%springs
+    self%result%unknowns = problem%layout%state_size()
+    call self%chain%create(problem, comm, settings%newton_tol, settings%newton_max_iterations, failure)
+    if (.not. failure%failed()) call self%chain%set_state(z0, failure)
+    if (.not. failure%failed()) call self%chain%sums(self%result%energy_0, self%result%entropy_0, delta_energy, &
+                                                     delta_entropy, failure)
+    self%result%energy = self%result%energy_0
+    self%result%entropy = self%result%entropy_0
+  end subroutine start
+
+  !> Step n: the step, its balances summed over the ranks, and the run's figures (the loop's CPU
+  !> and wall time count these alone). A step Newton does not converge is a failure.
+  subroutine advance(self, n, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    integer, intent(in) :: n
+    type(failure_type), intent(out) :: failure
+    type(chain_step_outcome) :: outcome
+    real(real64) :: delta_energy, delta_entropy, energy_before, cpu_start, cpu_end, wall_start
+
+    associate (result => self%result)
+      wall_start = MPI_Wtime()
+      call cpu_time(cpu_start)
       energy_before = result%energy
-      call chain%step(settings%dt, outcome, failure)
-      if (failure%failed()) exit
-      if (.not. outcome%converged) then
+      call self%chain%step(self%settings%dt, outcome, failure)
+      if (.not. failure%failed() .and. .not. outcome%converged) &
         call fail(failure, failure_not_converged, 'step '//integer_text(n)//': Newton did not converge (SNES reason '// &
                   integer_text(outcome%reason)//', |R| = '//scientific_text(outcome%residual_norm, 3)//')')
-        exit
-      end if
-      call chain%sums(result%energy, result%entropy, delta_energy, delta_entropy, failure)
-      if (failure%failed()) exit
+      if (.not. failure%failed()) call self%chain%sums(result%energy, result%entropy, delta_energy, delta_entropy, failure)
+      call cpu_time(cpu_end)
+      result%loop_cpu_seconds = result%loop_cpu_seconds + (cpu_end - cpu_start)
+      result%loop_wall_seconds = result%loop_wall_seconds + (MPI_Wtime() - wall_start)
+      if (failure%failed()) return
       result%steps = n
       result%newton_iterations = result%newton_iterations + outcome%iterations
       result%max_newton_iterations = max(result%max_newton_iterations, outcome%iterations)
       result%max_energy_error = max(result%max_energy_error, abs(delta_energy)/abs(energy_before))
       result%min_entropy_increment = min(result%min_entropy_increment, delta_entropy)
-      if (present(observe)) call observe(chain, n, n*settings%dt, failure)
-    end do
-    call cpu_time(cpu_end)
-    result%loop_cpu_seconds = cpu_end - cpu_start
-    result%loop_wall_seconds = MPI_Wtime() - wall_start
-    if (present(dump) .and. .not. failure%failed()) call dump_rows(chain, dump, failure)
-    call chain%destroy(freeing)
+    end associate
+  end subroutine advance
+
+  !> Ends the run: `dump` names files DUMP.<rank> that receive each rank's rows of the final state
+  !> ("index value" lines, 1-based); the PETSc objects are freed. failure keeps the first failure.
+  subroutine finish(self, failure, dump)
+    class(sparse_chain_run), intent(inout) :: self
+    type(failure_type), intent(inout) :: failure
+    character(len=*), intent(in), optional :: dump
+    type(failure_type) :: freeing
+
+    if (present(dump) .and. .not. failure%failed()) call dump_rows(self%chain, dump, failure)
+    call self%chain%destroy(freeing)
     if (.not. failure%failed() .and. freeing%failed()) failure = freeing
-  end subroutine sparse_chain_run
+  end subroutine finish
 
   ! Each rank's rows of the state to PREFIX.<rank>, one "index value" line per unknown.
   subroutine dump_rows(chain, prefix, failure)
