@@ -71,7 +71,7 @@ contains
     d = layout%dimension
     n = layout%invariant_count
     model%layout = layout
-    model%data = data
+    allocate (model%data, source=data)
     model%masses = masses
     model%conductivity = conductivity
     model%gravity = gravity
