@@ -37,6 +37,10 @@ module spring_chain_dmda
     integer :: local_size = 0      !! the ghosted part's unknowns
     integer :: total = 0           !! every rank's unknowns (the DMDA's: point size x points)
     real(real64) :: update_floor = 0.0_real64   !! 16 eps |z_old|: updates below it are rounding
+    !> The Jacobian callback's buffers, sized once: the rank's rows of f, their band of df/dz and
+    !> a row's columns.
+    real(real64), allocatable :: rows(:), band(:, :)
+    PetscInt, allocatable :: columns(:)
   end type chain_context
 
   !> One step's outcome.
@@ -113,6 +117,9 @@ contains
     self%context%base = int(gxs*dof)
     self%context%local_size = int(gxm*dof)
     self%context%total = int(points*dof)
+    associate (owned => self%context%last_row - self%context%first_row + 1, half => problem%band_half_width())
+      allocate (self%context%rows(owned), self%context%band(owned, 2*half + 1), self%context%columns(2*half + 1))
+    end associate
     PetscCall(DMCreateGlobalVector(self%context%da, self%x, ierr))
     PetscCall(VecDuplicate(self%x, self%r, ierr))
     PetscCall(DMCreateLocalVector(self%context%da, self%context%old_local, ierr))
@@ -395,18 +402,15 @@ contains
     type(chain_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
     real(real64), pointer :: old(:), new(:)
-    real(real64), allocatable :: rows(:), band(:, :)
     real(real64) :: h
     integer :: stat, owned, half, r, row, point, dof, first_column, last_column, k
     PetscInt :: one, count, row_index(1)
-    PetscInt, allocatable :: columns(:)
 
-    associate (problem => context%problem)
+    associate (problem => context%problem, rows => context%rows, band => context%band, columns => context%columns)
       owned = context%last_row - context%first_row + 1
       half = problem%band_half_width()
       dof = problem%layout%point_size()
       h = problem%fraction*problem%dt
-      allocate (rows(owned), band(owned, 2*half + 1), columns(2*half + 1))
       PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
