@@ -26,14 +26,17 @@ program chain_bench
   use number_text, only: integer_text
   use command_line, only: has_argument
   use library_versions, only: print_versions
-  use spring_chain_sparse_run, only: sparse_chain_run, sparse_run_result, sparse_run_settings
+  use spring_chain_sparse_run, only: sparse_chain_run, sparse_run_result
+  use distributed_model, only: distributed_settings
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use hdf5_snapshots, only: snapshot_layout, append_snapshot
   use hdf5, only: hid_t, h5open_f, h5fcreate_f, h5fclose_f, H5F_ACC_TRUNC_F
   implicit none
 
   type(run_configuration) :: config
-  type(sparse_run_settings) :: settings
+  type(distributed_settings) :: settings
+  real(real64) :: dt
+  integer :: step_total
   type(sparse_run_result) :: result
   type(sparse_chain_run) :: run
   type(failure_type) :: failure
@@ -73,13 +76,13 @@ program chain_bench
       settings%scheme = config%integrator%scheme
       settings%discrete_gradient = config%integrator%discrete_gradient
       settings%metric = config%integrator%metric
-      settings%dt = config%integrator%dt
-      settings%steps = int(min(step_count(config%integrator), int(huge(1), int64)))
+      dt = config%integrator%dt
+      step_total = int(min(step_count(config%integrator), int(huge(1), int64)))
       settings%newton_tol = config%integrator%newton_tol
       settings%newton_max_iterations = config%integrator%newton_max_iterations
       settings%tolerance_given = config%integrator%tolerance_given
       PetscCallA(PetscOptionsGetInt(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_steps', steps, found, ierr))
-      if (found) settings%steps = int(steps)
+      if (found) step_total = int(steps)
       PetscCallA(PetscOptionsGetString(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_dump', dump, dump_given, ierr))
       PetscCallA(PetscOptionsGetString(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_snapshots', snapshots, snapshots_given, ierr))
       every = 1
@@ -87,16 +90,13 @@ program chain_bench
       if (snapshots_given) call create_snapshot_file(trim(snapshots))
       if (.not. failure%failed()) call run%start(settings, model, z0, PETSC_COMM_WORLD, failure)
       if (snapshots_given) call write_snapshot(0.0_real64)
-      do n = 1, settings%steps
+      do n = 1, step_total
         if (failure%failed()) exit
-        call run%advance(n, failure)
-        if (snapshots_given .and. (mod(n, int(every)) == 0 .or. n == settings%steps)) call write_snapshot(n*settings%dt)
+        call run%advance(n, dt, failure)
+        if (snapshots_given .and. (mod(n, int(every)) == 0 .or. n == step_total)) call write_snapshot(n*dt)
       end do
-      if (dump_given) then
-        call run%finish(failure, trim(dump))
-      else
-        call run%finish(failure)
-      end if
+      if (dump_given) call run%dump(trim(dump), failure)
+      call run%finish(failure)
       result = run%result
     end if
     if (failure%failed()) then

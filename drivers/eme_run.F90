@@ -5,7 +5,9 @@
 !> 128 + N after signal N (SIGTERM, SIGINT: the file is kept, marked incomplete).
 !> eme_run --help (or -h), --version, --integrators (the registry as a table) and --output-schema
 !> (the HDF5 layout as a table) print and exit with status 0; so does PETSc's -help, which also
-!> lists the options the run's solver reads (set up from FILE.nml, not run). One process only:
+!> lists the options the run's solver reads (set up from FILE.nml, not run). A model that can be
+!> split over ranks (the spring chain) runs split under mpirun -n P, and on the sparse path
+!> beyond the dense path's 1000 unknowns (src/run/distributed_simulation); for any other model
 !> several ranks are refused (eme_ensemble runs studies on several).
 program eme_run
 #include <petsc/finclude/petscsys.h>
@@ -13,8 +15,9 @@ program eme_run
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use run_config, only: run_configuration, read_run_config
-  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only
-  use run_options, only: progress_wanted
+  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only, dense_max_unknowns
+  use distributed_simulation, only: run_distributed, split_run_wanted, set_up_distributed_only
+  use run_options, only: progress_wanted, continue_requested
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
@@ -23,7 +26,7 @@ program eme_run
   use output_path, only: check_outside_studies, run_own_files, protected_entries
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
-  use failures, only: failure_type
+  use failures, only: failure_type, fail, failure_input
   use number_text, only: integer_text, fixed_text, scientific_text
   implicit none
 
@@ -32,6 +35,7 @@ program eme_run
   type(command_arguments) :: arguments
   character(len=:), allocatable :: unused
   integer :: stat, exit_status, ranks, rank
+  logical :: split      !! the run is split over the ranks (distributed_simulation)
   type(failure_type) :: failure, startup, config_failure
   character(len=:), allocatable :: own_files     !! the files of the run, which no PETSc option may write
   PetscErrorCode :: ierr
@@ -76,7 +80,9 @@ program eme_run
   PetscCallMPIA(MPI_Comm_size(PETSC_COMM_WORLD, ranks, ierr))
   PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
   exit_status = 0
-  if (ranks > 1) then
+  split = .false.
+  if (.not. failure%failed() .and. .not. config_failure%failed()) split = split_run_wanted(config, ranks, dense_max_unknowns)
+  if (ranks > 1 .and. .not. split) then
     ! Every rank would write the same file: a study of several cases is eme_ensemble's.
     if (rank == 0) write (error_unit, '(a, i0, a)') 'eme_run: runs one case on one process, not on ', ranks, &
       ' ranks; for several cases on several ranks: mpirun -n N eme_ensemble STUDY.nml (docs/performance.md)'
@@ -86,27 +92,37 @@ program eme_run
     call print_run_help(output_unit)
     if (.not. failure%failed()) then
       call read_run_config(arguments%input_file, config, failure)
-      if (.not. failure%failed()) call set_up_only(config, failure)
+      if (.not. failure%failed() .and. split) then
+        call set_up_distributed_only(config, PETSC_COMM_WORLD, failure)
+      else if (.not. failure%failed()) then
+        call set_up_only(config, failure)
+      end if
       if (failure%failed()) then
-        write (error_unit, '(a)') 'eme_run: '//failure%text()
+        if (rank == 0) write (error_unit, '(a)') 'eme_run: '//failure%text()
         exit_status = 2
       end if
     end if
   else if (failure%failed()) then
-    write (error_unit, '(a)') 'eme_run: '//failure%text()
+    if (rank == 0) write (error_unit, '(a)') 'eme_run: '//failure%text()
     exit_status = 2
   else
     call check_own_options(failure)
     if (.not. failure%failed()) call check_petsc_file_options(arguments, .true., own_files, '', .true., failure)
     if (failure%failed()) then
-      write (error_unit, '(a)') 'eme_run: '//failure%text()
+      if (rank == 0) write (error_unit, '(a)') 'eme_run: '//failure%text()
       exit_status = 2
     else
       failure = config_failure       ! (read before PETSc started)
       ! The solver set up once, unwritten: PETSc options it cannot take are bad input.
-      if (.not. failure%failed()) call set_up_only(config, failure)
+      if (split .and. .not. failure%failed()) then
+        if (continue_requested()) call fail(failure, failure_input, config%input_file//': -eme_continue: a run split over ranks (the sparse '// &
+                  'path) cannot be continued yet; allowed: run it afresh (docs/faults.md)')
+        if (.not. failure%failed()) call set_up_distributed_only(config, PETSC_COMM_WORLD, failure)
+      else if (.not. failure%failed()) then
+        call set_up_only(config, failure)
+      end if
       if (failure%failed()) then
-        write (error_unit, '(a)') 'eme_run: '//failure%text()
+        if (rank == 0) write (error_unit, '(a)') 'eme_run: '//failure%text()
         exit_status = 2
       else
         call run_case()
@@ -128,40 +144,36 @@ contains
   ! The run of `config`, its summary line and warnings; sets exit_status.
   subroutine run_case()
     type(output_lock) :: lock
-    character(len=:), allocatable :: holder, momentum_part, thermal_part, steps_done
-    integer :: found
+    character(len=:), allocatable :: momentum_part, thermal_part, steps_done
     integer :: k
+    logical :: progress
 
-    ! One writer per output: a second run of the same file is refused before it writes anything.
-    call lock_output(lock, config%output_file//'.lock', found, holder, failure)
-    if (failure%failed()) then
-      write (error_unit, '(a)') 'eme_run: cannot create the lock file '''//config%output_file//'.lock'' ('// &
-        config%input_file//', &output: file): '//failure%message
-      exit_status = 1
-      return
-    else if (found == lock_held_elsewhere) then
-      if (len(holder) == 0) holder = 'another process'
-      write (error_unit, '(a)') 'eme_run: '//config%output_file//' (&output file in '//config%input_file// &
-        ') is being written by '//holder//', which holds '//config%output_file//'.lock; this run is refused '// &
-        'and writes nothing'
-      exit_status = 2
-      return
-    else if (found == lock_not_offered) then
-      write (error_unit, '(a)') 'eme_run: warning: the file system of '//config%output_file//' offers no lock; '// &
-        'a second run writing it at the same time would not be refused'
+    ! One writer per output (rank 0 writes it): a second run of the same file is refused before it
+    ! writes anything.
+    if (rank == 0) call take_lock(lock)
+    if (split) then
+      PetscCallMPIA(MPI_Bcast(exit_status, 1, MPI_INTEGER, 0, PETSC_COMM_WORLD, ierr))
     end if
-    if (allocated(config%warnings)) then
+    if (exit_status /= 0) return
+    if (allocated(config%warnings) .and. rank == 0) then
       do k = 1, size(config%warnings)
         write (error_unit, '(a)') 'eme_run: warning: '//trim(config%warnings(k))
       end do
     end if
-    if (progress_wanted()) then
+    progress = progress_wanted()
+    if (split .and. progress) then
+      call run_distributed(config, PETSC_COMM_WORLD, summary, failure, progress=print_progress, lock=lock)
+    else if (split) then
+      call run_distributed(config, PETSC_COMM_WORLD, summary, failure, lock=lock)
+    else if (progress) then
       call run_simulation(config, summary, failure, progress=print_progress, lock=lock)
     else
       call run_simulation(config, summary, failure, lock=lock)
     end if
-    call unlock_output(lock)
+    if (rank == 0) call unlock_output(lock)
     exit_status = run_exit_status(summary)
+    unused = unused_petsc_options()      ! (collective: every rank asks)
+    if (rank /= 0) return
     stat = failure%code
     if (failure%failed()) then
       write (error_unit, '(a)') 'eme_run: '//failure%text()
@@ -201,9 +213,31 @@ contains
       if (len(summary%warnings) > 0) write (error_unit, '(a)') 'eme_run: warning: '//config%output_file//': '// &
         summary%warnings
     end if
-    unused = unused_petsc_options()
     if (len(unused) > 0) write (error_unit, '(a)') 'eme_run: warning: PETSc options that nothing used: '//unused
   end subroutine run_case
+
+  ! The output's lock for this process; exit_status 2 (held by another run) or 1 (no lock file).
+  subroutine take_lock(lock)
+    type(output_lock), intent(inout) :: lock
+    character(len=:), allocatable :: holder
+    integer :: found
+
+    call lock_output(lock, config%output_file//'.lock', found, holder, failure)
+    if (failure%failed()) then
+      write (error_unit, '(a)') 'eme_run: cannot create the lock file '''//config%output_file//'.lock'' ('// &
+        config%input_file//', &output: file): '//failure%message
+      exit_status = 1
+    else if (found == lock_held_elsewhere) then
+      if (len(holder) == 0) holder = 'another process'
+      write (error_unit, '(a)') 'eme_run: '//config%output_file//' (&output file in '//config%input_file// &
+        ') is being written by '//holder//', which holds '//config%output_file//'.lock; this run is refused '// &
+        'and writes nothing'
+      exit_status = 2
+    else if (found == lock_not_offered) then
+      write (error_unit, '(a)') 'eme_run: warning: the file system of '//config%output_file//' offers no lock; '// &
+        'a second run writing it at the same time would not be refused'
+    end if
+  end subroutine take_lock
 
   ! '|dJz|' for the names 'J_z'; '|dJx|, |dJy|, |dJz|' for 'J_x J_y J_z' (underscores dropped).
   pure function drift_names(names) result(text)

@@ -29,10 +29,28 @@ module crash_safe_file
   use failures, only: failure_type
   implicit none (type, external)
   private
-  public :: safe_file
+  public :: safe_file, spare_addition
 
   !> Bytes reserved beyond the rows of a window, for attributes.
   integer(int64), parameter :: attribute_room = 65536
+
+  !> What a caller adds to the spare in a window, after its rows and attributes and before it
+  !> takes the name `path` (a distributed run's snapshots, which every rank writes into the closed
+  !> spare: src/run/distributed_simulation). A failure leaves `path` as it was.
+  type, abstract :: spare_addition
+  contains
+    procedure(add_interface), deferred :: add
+  end type spare_addition
+
+  abstract interface
+    !> Adds to the closed file at `path`.
+    subroutine add_interface(self, path, failure)
+      import :: spare_addition, failure_type
+      class(spare_addition), intent(inout) :: self
+      character(len=*), intent(in) :: path
+      type(failure_type), intent(out) :: failure
+    end subroutine add_interface
+  end interface
 
   !> The file, its tables and where a write stands.
   type :: safe_file
@@ -208,12 +226,13 @@ contains
 
   !> Finishes the write begun by begin_rows; `failure` comes in as the attributes' (none if they
   !> were written) and goes out as the write's. The first time the file is stored at `path` (synced
-  !> if durable and final) and, unless final, as the spare; later the spare is closed and takes the
-  !> name `path`. At the end the spare is removed, and a durable file synced. On failure `path`
-  !> holds what it held.
-  subroutine end_rows(self, failure)
+  !> if durable and final) and, unless final, as the spare; later the spare is closed, receives the
+  !> `addition` (in a window only: the first write takes none), and takes the name `path`. At the
+  !> end the spare is removed, and a durable file synced. On failure `path` holds what it held.
+  subroutine end_rows(self, failure, addition)
     class(safe_file), intent(inout) :: self
     type(failure_type), intent(inout) :: failure
+    class(spare_addition), intent(inout), optional :: addition
     type(failure_type) :: closing, ignored
     integer :: k
 
@@ -238,6 +257,7 @@ contains
       failure = self%failure
     else
       if (.not. failure%failed()) failure = closing
+      if (.not. failure%failed() .and. present(addition)) call addition%add(self%spare, failure)
       if (.not. failure%failed()) call exchange_files(self%spare, self%path, failure)
       self%failure = failure
       if (.not. failure%failed()) then

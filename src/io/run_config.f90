@@ -49,6 +49,9 @@ module run_config
     real(real64) :: output_interval = 0.0_real64
     logical :: chooses_times = .false.           !! the integrator chooses its times (registry, or a tolerance)
     integer :: compression = 0                   !! deflate level of the datasets, 0 (none) to 9
+    !> A split run's snapshot of the state every this many steps, 0 for the first and last only
+    !> (&output snapshot_every; src/run/distributed_simulation)
+    integer :: snapshot_every = 0
     ! The texts of the &integrator and &output fields, as read.
     character(len=16) :: thermo_variable = 'temperature'
     character(len=16) :: discrete_gradient = 'gonzalez'
@@ -389,7 +392,10 @@ contains
                  'integrator that chooses its steps, they land on every multiple of it and a row is written there '// &
                  '(and at t_end), each step row standing for the steps since the last', 's', minimum=0.0_real64), &
       integer_field('compression', config%compression, 'an integer 0 (default: none) to 9: gzip level of the '// &
-                    'datasets (with the shuffle filter)', minimum=0)]
+                    'datasets (with the shuffle filter)', minimum=0), &
+      integer_field('snapshot_every', config%snapshot_every, 'an integer >= 0 (default 0: the first and last '// &
+                    'states only): a run split over ranks (a spring chain on the sparse path) writes the state '// &
+                    'to /snapshots at t = 0, every K-th step and the last; other runs keep it in /state', minimum=0)]
   end function output_fields
 
   !> Whether fields `name_a` and `name_b` of the eme_run groups set the same variable: the same

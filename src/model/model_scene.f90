@@ -8,6 +8,7 @@ module model_scene
   use namelist_group, only: group_field
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
+  use distributed_model, only: distributed_system
   use failures, only: failure_type
   implicit none (type, external)
   private
@@ -31,6 +32,7 @@ module model_scene
     procedure(theta_interface), deferred :: default_theta_r
     procedure(count_interface), deferred :: constraint_count
     procedure :: without_temperatures
+    procedure :: distributed
   end type scene
 
   abstract interface
@@ -111,5 +113,12 @@ contains
 
     reason = ''
   end function without_temperatures
+
+  !> The scene's model as one that can be split over MPI ranks (src/model/distributed_model),
+  !> not yet started; unallocated (the default) where the model runs on one process only.
+  subroutine distributed(self, system)
+    class(scene), intent(in) :: self
+    class(distributed_system), allocatable, intent(out) :: system     ! (left unallocated)
+  end subroutine distributed
 
 end module model_scene

@@ -8,7 +8,7 @@ module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use hdf5_files, only: hdf5_file, check_run_file, file_template
   use hdf5_series, only: series_table
-  use crash_safe_file, only: safe_file
+  use crash_safe_file, only: safe_file, spare_addition
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
@@ -27,7 +27,7 @@ module run_output
   use failures, only: failure_type, fail, code_io => failure_io, failure_mismatch
   implicit none (type, external)
   private
-  public :: run_file, extra_attribute, resume_record, read_resume_record
+  public :: run_file, extra_attribute, resume_record, read_resume_record, spare_addition
 
   !> A root attribute a caller adds to the file (an ensemble case names its study and case): a
   !> text if `text` is allocated, else the integer `number`.
@@ -81,6 +81,9 @@ module run_output
     integer :: every = 1                !! steps per row (&output every)
     logical :: by_interval = .false.    !! rows at output times instead (&output interval)
     logical :: thermal = .true.         !! the model has temperatures and an entropy (the thermal datasets)
+    !> the state is in rows (/state, /temperature, /scheme_temperature); .false. for a state split
+    !> over ranks, which /snapshots holds instead (src/run/distributed_simulation)
+    logical :: state_rows = .true.
     integer(int64) :: last_step = 0            !! the last step recorded
     integer(int64) :: newton_pending = 0       !! Newton iterations of the steps not yet in a row
     integer(int64) :: committed_steps = 0, committed_newton = 0   !! of the steps in rows (buffered or written)
@@ -112,7 +115,8 @@ contains
   !> Nothing is written to `path` yet. With `template` (a study rank's, kept from case to case),
   !> the root attributes start from those of the first file made with it, and only those that
   !> differ are written (src/io/hdf5_files, file_template). A failure if HDF5 failed.
-  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, failure, template)
+  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, failure, template, &
+                    state_rows)
     class(run_file), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(run_configuration), intent(in), target :: config
@@ -124,6 +128,7 @@ contains
     character(len=*), intent(in) :: petsc_options
     type(failure_type), intent(out) :: failure
     type(file_template), intent(inout), target, optional :: template
+    logical, intent(in), optional :: state_rows    !! .false.: no state in rows (run_file's state_rows)
     type(output_dataset) :: spec
     integer :: k
 
@@ -132,6 +137,7 @@ contains
     self%every = config%output_every
     self%thermal = model%temperature_count() > 0
     self%by_interval = config%output_interval > 0.0_real64
+    if (present(state_rows)) self%state_rows = state_rows
     self%store%tables(point_rows)%compression = config%compression
     self%store%tables(step_rows)%compression = config%compression
     self%store%tables(point_rows)%scale = .true.
@@ -159,6 +165,8 @@ contains
       if (index(spec%columns, '<constraints>') > 0 .and. size(constraints) == 0) cycle
       if (spec%columns == '<momenta>' .and. model%momentum_count() == 0) cycle
       if (thermal_only(spec%name) .and. model%temperature_count() == 0) cycle
+      if (.not. self%state_rows .and. any(spec%name == [character(len=18) :: 'state', 'temperature', &
+                                                         'scheme_temperature'])) cycle
       if (spec%rows == 'point') then
         call define(self%store%tables(point_rows))
       else
@@ -293,7 +301,7 @@ contains
 
       filled = 0
       call put(row, filled, [real(n, real64), time, real(report%newton_iterations, real64)])
-      call put(row, filled, report%scheme_temperature)
+      if (self%state_rows) call put(row, filled, report%scheme_temperature)
       call put(row, filled, [real(report%strategy, real64), real(report%solves, real64), real(report%rejected, real64), &
                              report%residual_norm, real(report%converged_reason, real64), step_seconds])
       if (self%thermal) call put(row, filled, [entropy_increment, lyapunov_increment])
@@ -356,12 +364,13 @@ contains
   !> running'): the first time the whole file, later in a window that appends them; a window
   !> whose spare a reader holds open waits for a later step, until the buffer is full. A failure:
   !> the OS's words (nothing new reached the file; it holds what it held), or HDF5's.
-  subroutine write_rows(self, summary, failure)
+  subroutine write_rows(self, summary, failure, addition)
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
     type(failure_type), intent(out) :: failure
+    class(spare_addition), intent(inout), optional :: addition   !! for a window's spare (crash_safe_file)
     if (.not. self%enabled) return
-    call write_file(self, summary%status, summary, .false., failure)
+    call write_file(self, summary%status, summary, .false., failure, addition)
   end subroutine write_rows
 
   !> Writes what is buffered and the final attributes: status, failure_kind, steps_planned,
@@ -372,10 +381,11 @@ contains
   !> failure_mismatch (the disk does not hold what was written).
   !> If the rows cannot be written for want of space, the file keeps the rows of its last
   !> window, and its status says why if that much can still be written.
-  subroutine finish(self, summary, failure)
+  subroutine finish(self, summary, failure, addition)
     class(run_file), intent(inout) :: self
     type(run_summary), intent(in) :: summary
     type(failure_type), intent(out) :: failure
+    class(spare_addition), intent(inout), optional :: addition   !! for the last window's spare
     type(run_summary) :: stopped
     character(len=:), allocatable :: status_read
     integer :: steps_read
@@ -387,7 +397,7 @@ contains
     ! An incomplete run may be continued: its datasets must be able to grow.
     self%store%extendible = summary%status /= 'complete'
 
-    call write_file(self, summary%status, summary, .true., failure)
+    call write_file(self, summary%status, summary, .true., failure, addition)
     if (whole) return                   ! written whole from memory: store checked every byte
     if (failure%code == code_io) then
       ! No room for the rows: keep those of the last window, and say why in the status.
@@ -567,12 +577,13 @@ contains
   ! One write of the file: the buffered rows, then the attributes of the outcome so far (all of
   ! them the first time and at the end, else the numbers, written in place). After a failed
   ! window the counts of the steps on disk are those the file still holds.
-  subroutine write_file(self, status, summary, final, failure)
+  subroutine write_file(self, status, summary, final, failure, addition)
     type(run_file), intent(inout) :: self
     character(len=*), intent(in) :: status
     type(run_summary), intent(in) :: summary
     logical, intent(in) :: final
     type(failure_type), intent(out) :: failure
+    class(spare_addition), intent(inout), optional :: addition
     integer(int64) :: steps_before, newton_before
     logical :: whole, deferred
 
@@ -593,7 +604,7 @@ contains
                                                                  with_units=whole .or. final)
     ! (at every write: the spare, one write behind, holds the old history until written again)
     if (.not. failure%failed() .and. allocated(self%history)) call continued_attributes(self, failure)
-    call self%store%end_rows(failure)
+    call self%store%end_rows(failure, addition)
     if (failure%failed() .and. .not. whole) then       ! a failed window leaves the file as it was
       self%disk_steps = steps_before
       self%disk_newton = newton_before

@@ -37,6 +37,7 @@ module simulation
   implicit none (type, external)
   private
   public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status, set_up_only
+  public :: dense_max_unknowns, holds_complete_run, failure_code_of
 
   real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
   !> The most unknowns the dense solvers take: an 8 MB Jacobian, about 1e9 flops an LU.
@@ -781,7 +782,7 @@ contains
 
   end subroutine run_simulation
 
-  ! The failures' code of a run's failure kind (a word of run_outcome).
+  !> The failures' code of a run's failure kind (a word of run_outcome).
   pure integer function failure_code_of(kind)
     character(len=*), intent(in) :: kind
 
@@ -840,10 +841,10 @@ contains
     type(failure_type), intent(inout) :: failure
 
     if (unknowns <= dense_max_unknowns) return
-    call set_failure(failure, code_input, '&model: '//integer_text(unknowns)//' unknowns; eme_run and eme_ensemble '// &
-                     'solve dense (state_size^2 memory, state_size^3 work) and take at most '// &
-                     integer_text(dense_max_unknowns)//'; a longer spring chain runs on the sparse, distributed '// &
-                     'path: mpirun -n P build/bin/chain_bench FILE.nml (docs/performance.md)')
+    call set_failure(failure, code_input, '&model: '//integer_text(unknowns)//' unknowns; the dense path (eme_run '// &
+                     'on one rank, every eme_ensemble case) takes at most '//integer_text(dense_max_unknowns)// &
+                     ' (state_size^2 memory, state_size^3 work); a longer spring chain runs on the sparse, '// &
+                     'distributed path: eme_run FILE.nml, or mpirun -n P eme_run FILE.nml (docs/performance.md)')
   end subroutine check_dense_size
 
   function setup_failure_text() result(text)
@@ -895,7 +896,7 @@ contains
     end subroutine next_line
   end function first_difference
 
-  ! Whether `path` is a run file that reads back complete.
+  !> Whether `path` is a run file that reads back complete.
   logical function holds_complete_run(path)
     character(len=*), intent(in) :: path
     character(len=:), allocatable :: status

@@ -6,8 +6,8 @@ driven by build/bin/chain_bench; docs/formulation.md section 10, "Sparse and dis
 - one rank and two give the same run: 100 steps of a dissipative chain with Newton at its rounding
   floor agree to 1e-10 in the state, E and S, for a 1D fixed-fixed chain and a 3D hanging one;
 - at 2000 springs every step keeps E to round-off (1e-13 relative) and S rises;
-- what the path cannot run is refused (exit 2, naming the field), and eme_run refuses a chain too
-  large for its dense solvers before writing anything."""
+- what the path cannot run is refused (exit 2, naming the field). eme_run's runs on this path are
+  tests/e2e/test_split_runs.py's."""
 import math
 import re
 import subprocess
@@ -156,13 +156,6 @@ def test_what_the_sparse_path_cannot_run_is_refused(tmp_path, change, field):
     assert result.returncode == 2, result.stderr
     assert f"&integrator: {field}" in result.stderr and "refused.nml" in result.stderr
     assert not list(tmp_path.glob("refused.state*"))
-
-
-def test_eme_run_refuses_a_chain_too_large_for_its_dense_solvers(tmp_path):
-    result, output = run_eme(tmp_path, "large", chain_groups(links=300, dimension=1, ends="fixed-fixed"))
-    assert result.returncode == 2
-    assert "&model" in result.stderr and "chain_bench" in result.stderr and "1000" in result.stderr
-    assert not output.exists() and not list(tmp_path.glob("large.h5*"))
 
 
 def test_a_refused_list_of_many_values_is_quoted_short(tmp_path):

@@ -34,16 +34,17 @@ contains
   end function mass_energy_difference
 
   !> (U_a, S_a) and the temperature of a spring from its local slots' values (gather_spring).
-  pure subroutine spring_values(spring, dimension, values, f, theta, stat)
+  pure subroutine spring_values(spring, dimension, values, f, theta, stat, scales)
     type(chain_spring), intent(in) :: spring
     integer, intent(in) :: dimension
     real(real64), intent(in) :: values(:)
     real(real64), intent(out) :: f(2), theta
     integer, intent(out) :: stat
+    real(real64), intent(out), optional :: scales(2)   !! f's rounding scales (src/structure/step_balances)
     real(real64) :: x(3)
 
     call invariants_of(spring, dimension, values, x)
-    call spring%values_and_temperature(x(1:spring%invariant_count), f, theta, stat)
+    call spring%values_and_temperature(x(1:spring%invariant_count), f, theta, stat, scales)
   end subroutine spring_values
 
   !> (U_a(new) - U_a(old), S_a(new) - S_a(old)) from the local slots' values, free of cancellation.

@@ -21,6 +21,8 @@ module spring_chain_dmda
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use spring_chain_step, only: chain_step_problem
   use spring_chain_balance, only: spring_values
+  use spring_chain_figures, only: share_figures
+  use distributed_model, only: distributed_figures
   implicit none
   private
   public :: distributed_chain, chain_step_outcome
@@ -70,6 +72,7 @@ module spring_chain_dmda
     procedure :: sums
     procedure :: state_part
     procedure :: destroy
+    procedure :: figures
   end type distributed_chain
 
 contains
@@ -472,5 +475,56 @@ contains
       reason = SNES_CONVERGED_ITERATING
     end if
   end subroutine converged_or_rounding
+
+  !> The figures of the state held and of the last step to it (spring_chain_figures), each rank's
+  !> share summed over the ranks (the minima taken over them) with MPI_Allreduce.
+  subroutine figures(self, values, failure)
+    class(distributed_chain), intent(inout) :: self
+    type(distributed_figures), intent(out) :: values
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+    integer :: stat
+
+    call figures_petsc(self, values, stat, ierr)
+    call fail_on_code(failure, ierr, 'summing the chain''s balances')
+    if (.not. failure%failed() .and. stat /= failure_none) &
+      call fail(failure, domain_overflow, 'a spring is outside its domain while summing the balances')
+  end subroutine figures
+
+  subroutine figures_petsc(self, values, stat, ierr)
+    class(distributed_chain), intent(inout) :: self
+    type(distributed_figures), intent(out) :: values
+    integer, intent(out) :: stat
+    PetscErrorCode, intent(out) :: ierr
+    real(real64), pointer :: old(:), new(:)
+    type(distributed_figures) :: share
+    real(real64) :: sums(16), minima(3)
+    MPI_Comm :: comm
+
+    associate (c => self%context)
+      PetscCall(DMGlobalToLocalBegin(c%da, self%x, INSERT_VALUES, c%new_local, ierr))
+      PetscCall(DMGlobalToLocalEnd(c%da, self%x, INSERT_VALUES, c%new_local, ierr))
+      PetscCall(borrow_read(c%old_local, c%local_size, old, ierr))
+      PetscCall(borrow_read(c%new_local, c%local_size, new, ierr))
+      call share_figures(c%problem, old, new, c%base, [self%first_point, self%last_point], share, stat)
+      PetscCall(give_back_read(c%old_local, old, ierr))
+      PetscCall(give_back_read(c%new_local, new, ierr))
+      PetscCall(PetscObjectGetComm(c%da, comm, ierr))
+      ! (a share outside its domain still takes part in the sums, so that no rank waits alone)
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, stat, 1, MPI_INTEGER, MPI_MAX, comm, ierr))
+      sums = [share%energy, share%energy_scale, share%entropy, share%entropy_scale, share%delta_energy, &
+              share%delta_entropy, share%conserved, share%delta_conserved, share%momentum_scale, &
+              share%angular_momentum]
+      minima = [share%min_temperature, share%min_viscous_production, share%min_link_production]
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, size(sums), MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, minima, size(minima), MPI_DOUBLE_PRECISION, MPI_MIN, comm, ierr))
+    end associate
+    values = distributed_figures(energy=sums(1), energy_scale=sums(2), entropy=sums(3), entropy_scale=sums(4), &
+                                 delta_energy=sums(5), delta_entropy=sums(6), conserved_count=share%conserved_count, &
+                                 conserved=sums(7:9), delta_conserved=sums(10:12), momentum_scale=sums(13), &
+                                 angular_momentum=sums(14:16), &
+                                 min_temperature=minima(1), min_viscous_production=minima(2), &
+                                 min_link_production=minima(3))
+  end subroutine figures_petsc
 
 end module spring_chain_dmda

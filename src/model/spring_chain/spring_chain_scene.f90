@@ -1,12 +1,13 @@
 !> The spring chain's input as a scene of the model registry (docs/input.md, docs/formulation.md
-!> section 10), served by the dense path: &model and &initial (their values: spring_chain_input;
+!> section 10), served by both paths: &model and &initial (their values: spring_chain_input;
 !> their tables: spring_chain_fields; the initial state: spring_chain_initial). &model is read
 !> twice, as the pendulum's: first with arrays long enough for any chain, to learn N, the ends,
 !> the dimension, the rung and the family (and &initial's file or perturbation), then with the
 !> scene's own fields, a field of another chain being refused with the choice that excludes it. A
 !> per-spring field takes exactly one value or as many as its parts; anything else is refused
 !> naming the file, group, field and the allowed counts. An &initial file's datasets are read
-!> through the scene's array reader and checked element by element. No constraints.
+!> through the scene's array reader and checked element by element. No constraints. The sparse,
+!> distributed path takes the same scene (`distributed`).
 module spring_chain_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item, joined
@@ -16,6 +17,8 @@ module spring_chain_scene
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
+  use distributed_model, only: distributed_system
+  use spring_chain_sparse_run, only: sparse_chain_run
   use thermo_variable_kinds, only: tau_entropy
   use spring_chain_spring, only: rung_elastic
   use spring_chain_layout, only: ends_fixed_fixed
@@ -39,6 +42,7 @@ module spring_chain_scene
     procedure :: default_theta_r
     procedure :: constraint_count
     procedure :: without_temperatures
+    procedure :: distributed
   end type chain_scene
 
 contains
@@ -305,5 +309,13 @@ contains
     if (self%input%rung() == rung_elastic) reason = "spring_law = '"//trim(self%input%spring_law)// &
                                                     "' has no thermodynamic variables and no entropy"
   end function without_temperatures
+
+  !> The chain on the sparse, distributed path (spring_chain_sparse_run).
+  subroutine distributed(self, system)
+    class(chain_scene), intent(in) :: self
+    class(distributed_system), allocatable, intent(out) :: system
+
+    allocate (sparse_chain_run :: system)
+  end subroutine distributed
 
 end module spring_chain_scene

@@ -1,8 +1,9 @@
-!> A chain's run on the sparse, distributed path (spring_chain_dmda): the scene's chain and initial
-!> state, fixed steps of EME (the input's discrete gradient and metric) or of the midpoint rule,
-!> and per step the balances summed over the ranks: E, S, dE and dS as sums of the parts'
-!> differences, and Newton's iterations. What the path cannot run (another integrator, adaptive
-!> steps, a model other than the chain) is refused with the reason.
+!> The chain on the sparse, distributed path as a model split over ranks (src/model/
+!> distributed_model; spring_chain_dmda does the work): the scene's chain and initial state, steps
+!> of EME (the input's discrete gradient and metric) or of the midpoint rule, the balances'
+!> figures summed over the ranks, and the rank's part of the state for a snapshot. What the path
+!> cannot run (another integrator, adaptive steps, a model other than the chain) is refused with
+!> the reason. chain_bench's bookkeeping (`advance`, `result`) rides on the same steps.
 module spring_chain_sparse_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
@@ -10,26 +11,15 @@ module spring_chain_sparse_run
   use failures, only: failure_type, fail, failure_input, failure_not_converged, failure_io
   use number_text, only: integer_text, scientific_text
   use model_interface, only: generic_model
+  use distributed_model, only: distributed_system, distributed_settings, distributed_step, distributed_figures, &
+                               distributed_part
   use spring_chain_model, only: spring_chain
   use spring_chain_step, only: chain_step_problem
   use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint
   use spring_chain_dmda, only: distributed_chain, chain_step_outcome
   implicit none
   private
-  public :: sparse_chain_run, sparse_run_result, sparse_run_settings, chain_problem_of
-
-  !> What the run is asked to do (the input's &integrator, src/integrator/integrator_settings).
-  type :: sparse_run_settings
-    character(len=:), allocatable :: input_file      !! named in refusals
-    character(len=16) :: scheme = 'eme'
-    integer :: discrete_gradient = 1
-    integer :: metric = 1
-    real(real64) :: dt = 0.0_real64
-    integer :: steps = 0
-    real(real64) :: newton_tol = 1.0e-8_real64
-    integer :: newton_max_iterations = 50
-    logical :: tolerance_given = .false.
-  end type sparse_run_settings
+  public :: sparse_chain_run, sparse_run_result, chain_problem_of
 
   !> What a run did, the same on every rank but the times (each rank's own).
   type :: sparse_run_result
@@ -47,15 +37,19 @@ module spring_chain_sparse_run
     real(real64) :: loop_wall_seconds = 0.0_real64
   end type sparse_run_result
 
-  !> A run on the sparse path in named steps: start, advance step by step, finish (the caller
-  !> writes snapshots between steps).
-  type :: sparse_chain_run
-    type(sparse_run_settings) :: settings
+  !> The chain split over ranks: start, then step (or chain_bench's advance) step by step, finish.
+  !> Do not copy it after `start`: PETSc holds the address of its chain's context.
+  type, extends(distributed_system) :: sparse_chain_run
+    type(distributed_settings) :: settings
     type(distributed_chain) :: chain
     type(sparse_run_result) :: result
   contains
     procedure :: start
+    procedure :: step
+    procedure :: figures
+    procedure :: part
     procedure :: advance
+    procedure :: dump
     procedure :: finish
   end type sparse_chain_run
 
@@ -63,7 +57,7 @@ contains
 
   !> The chain's step problem (without an old state) for the input's integrator, or a refusal.
   subroutine chain_problem_of(settings, model, problem, failure)
-    type(sparse_run_settings), intent(in) :: settings
+    type(distributed_settings), intent(in) :: settings
     class(generic_model), intent(in) :: model
     type(chain_step_problem), intent(out) :: problem
     type(failure_type), intent(out) :: failure
@@ -103,10 +97,10 @@ contains
   !> Sets up `model` (a chain) from z0 on `comm` as `settings` say: the DMDA, the state, E_0, S_0.
   subroutine start(self, settings, model, z0, comm, failure)
     class(sparse_chain_run), intent(inout), target :: self
-    type(sparse_run_settings), intent(in) :: settings
+    type(distributed_settings), intent(in) :: settings
     class(generic_model), intent(in) :: model
     real(real64), intent(in) :: z0(:)
-    MPI_Comm, intent(in) :: comm
+    integer, intent(in) :: comm
     type(failure_type), intent(out) :: failure
     type(chain_step_problem) :: problem
     real(real64) :: delta_energy, delta_entropy
@@ -130,18 +124,19 @@ contains
 
   !> Step n: the step, its balances summed over the ranks, and the run's figures (the loop's CPU
   !> and wall time count these alone). A step Newton does not converge is a failure.
-  subroutine advance(self, n, failure)
+  subroutine advance(self, n, dt, failure)
     class(sparse_chain_run), intent(inout) :: self
     integer, intent(in) :: n
+    real(real64), intent(in) :: dt
     type(failure_type), intent(out) :: failure
-    type(chain_step_outcome) :: outcome
+    type(distributed_step) :: outcome
     real(real64) :: delta_energy, delta_entropy, energy_before, cpu_start, cpu_end, wall_start
 
     associate (result => self%result)
       wall_start = MPI_Wtime()
       call cpu_time(cpu_start)
       energy_before = result%energy
-      call self%chain%step(self%settings%dt, outcome, failure)
+      call self%step(dt, outcome, failure)
       if (.not. failure%failed() .and. .not. outcome%converged) &
         call fail(failure, failure_not_converged, 'step '//integer_text(n)//': Newton did not converge (SNES reason '// &
                   integer_text(outcome%reason)//', |R| = '//scientific_text(outcome%residual_norm, 3)//')')
@@ -158,15 +153,60 @@ contains
     end associate
   end subroutine advance
 
-  !> Ends the run: `dump` names files DUMP.<rank> that receive each rank's rows of the final state
-  !> ("index value" lines, 1-based); the PETSc objects are freed. failure keeps the first failure.
-  subroutine finish(self, failure, dump)
+  !> One step of size dt (distributed_system).
+  subroutine step(self, dt, outcome, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    real(real64), intent(in) :: dt
+    type(distributed_step), intent(out) :: outcome
+    type(failure_type), intent(out) :: failure
+    type(chain_step_outcome) :: solved
+
+    call self%chain%step(dt, solved, failure)
+    outcome = distributed_step(converged=solved%converged, iterations=solved%iterations, reason=solved%reason, &
+                               residual_norm=solved%residual_norm)
+  end subroutine step
+
+  !> The figures of the state and the last step, summed over the ranks (distributed_system).
+  subroutine figures(self, values, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    type(distributed_figures), intent(out) :: values
+    type(failure_type), intent(out) :: failure
+
+    call self%chain%figures(values, failure)
+  end subroutine figures
+
+  !> The rank's part of the state for a snapshot (distributed_system).
+  subroutine part(self, state, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    type(distributed_part), intent(out) :: state
+    type(failure_type), intent(out) :: failure
+
+    call self%chain%state_part(state%positions, state%momenta, state%gamma, state%tau, state%theta, failure)
+    associate (layout => self%chain%context%problem%layout)
+      state%masses = layout%masses
+      state%springs = layout%springs
+      state%dimension = layout%dimension
+      state%first_mass = self%chain%first_point
+      state%first_spring = self%chain%first_point
+      state%spring_count = max(0, min(layout%springs, self%chain%last_point) - self%chain%first_point + 1)
+    end associate
+  end subroutine part
+
+  !> Each rank's rows of the state to PREFIX.<rank> ("index value" lines, 1-based).
+  subroutine dump(self, prefix, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    character(len=*), intent(in) :: prefix
+    type(failure_type), intent(inout) :: failure
+
+    if (.not. failure%failed()) call dump_rows(self%chain, prefix, failure)
+  end subroutine dump
+
+  !> Frees the PETSc objects; failure keeps the first failure.
+  subroutine finish(self, failure)
     class(sparse_chain_run), intent(inout) :: self
     type(failure_type), intent(inout) :: failure
-    character(len=*), intent(in), optional :: dump
     type(failure_type) :: freeing
 
-    if (present(dump) .and. .not. failure%failed()) call dump_rows(self%chain, dump, failure)
     call self%chain%destroy(freeing)
     if (.not. failure%failed() .and. freeing%failed()) failure = freeing
   end subroutine finish

@@ -168,18 +168,20 @@ contains
   end subroutine discrete_gradient
 
   !> (U, S) and the temperature at x (an elastic spring has none: theta = 0).
-  pure subroutine values_and_temperature(self, x, f, theta, stat)
+  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
     class(chain_spring), intent(in) :: self
     real(real64), intent(in) :: x(:)
     real(real64), intent(out) :: f(:), theta
     integer, intent(out) :: stat
+    real(real64), intent(out), optional :: scales(:)   !! the values' rounding scales (|f| for an elastic spring)
     real(real64) :: grad(size(x), 2)
 
     theta = 0.0_real64
     if (self%invariant_count == rung_elastic) then
       call self%elastic%evaluate(x, f, grad, stat=stat)
+      if (present(scales)) scales = abs(f)
     else
-      call self%thermal%values_and_temperature(x, f, theta, stat)
+      call self%thermal%values_and_temperature(x, f, theta, stat, scales)
     end if
   end subroutine values_and_temperature
 

@@ -1,0 +1,117 @@
+!> A model whose state is split over the ranks of an MPI communicator and stepped there, each rank
+!> holding its own part (the spring chain's sparse path: docs/formulation.md section 10, "Sparse
+!> and distributed"). It is what the distributed time loop (src/run/distributed_simulation) asks
+!> of such a model: start from the scene's initial state, take a step, sum the balances'
+!> quantities over the ranks, hand over the rank's part of the state for a snapshot, and finish.
+!> Every procedure but `part` is collective: all ranks call it, in the same order.
+module distributed_model
+  use, intrinsic :: iso_fortran_env, only: real64
+  use model_interface, only: generic_model
+  use failures, only: failure_type
+  implicit none (type, external)
+  private
+  public :: distributed_system, distributed_settings, distributed_step, distributed_figures, distributed_part
+
+  !> What a run asks of the steps (the input's &integrator, src/integrator/integrator_settings).
+  type :: distributed_settings
+    character(len=:), allocatable :: input_file      !! named in refusals
+    character(len=16) :: scheme = 'eme'
+    integer :: discrete_gradient = 1
+    integer :: metric = 1
+    real(real64) :: newton_tol = 1.0e-8_real64
+    integer :: newton_max_iterations = 50
+    logical :: tolerance_given = .false.
+  end type distributed_settings
+
+  !> One step's solve, the same on every rank.
+  type :: distributed_step
+    logical :: converged = .false.
+    integer :: iterations = 0
+    integer :: reason = 0                      !! SNESConvergedReason
+    real(real64) :: residual_norm = 0.0_real64
+  end type distributed_step
+
+  !> The balances' quantities of the state and of the last step to it, summed over the ranks
+  !> (src/structure/step_balances names the scales): the step's differences are sums of the
+  !> parts' differences, free of the cancellation of a difference of two sums of 10^5 terms.
+  type :: distributed_figures
+    real(real64) :: energy = 0.0_real64, energy_scale = 0.0_real64
+    real(real64) :: entropy = 0.0_real64, entropy_scale = 0.0_real64
+    real(real64) :: delta_energy = 0.0_real64, delta_entropy = 0.0_real64     !! of the last step
+    real(real64) :: angular_momentum(3) = 0.0_real64                          !! J = sum_i x_i x p_i
+    integer :: conserved_count = 0                                             !! conserved momenta
+    real(real64) :: conserved(3) = 0.0_real64, delta_conserved(3) = 0.0_real64, momentum_scale = 0.0_real64
+    real(real64) :: min_temperature = huge(1.0_real64)                         !! [K]
+    !> the last step's smallest entropy production of a viscous branch and of a conducting link
+    !> [W/K] (huge if the model has none)
+    real(real64) :: min_viscous_production = huge(1.0_real64), min_link_production = huge(1.0_real64)
+  end type distributed_figures
+
+  !> The rank's part of the state as a snapshot holds it (src/io/hdf5_snapshots): the whole
+  !> state's counts, the rank's first mass and spring, its masses' positions and momenta
+  !> (dimension x masses), its springs' gamma (none without a viscous branch), tau and
+  !> temperatures (none without temperatures).
+  type :: distributed_part
+    integer :: masses = 0, springs = 0, dimension = 3
+    integer :: first_mass = 1, first_spring = 1, spring_count = 0
+    real(real64), allocatable :: positions(:, :), momenta(:, :), gamma(:), tau(:), theta(:)
+  end type distributed_part
+
+  !> A model split over ranks.
+  type, abstract :: distributed_system
+  contains
+    procedure(start_interface), deferred :: start
+    procedure(step_interface), deferred :: step
+    procedure(figures_interface), deferred :: figures
+    procedure(part_interface), deferred :: part
+    procedure(finish_interface), deferred :: finish
+  end type distributed_system
+
+  abstract interface
+    !> Sets the system up on `comm` (an MPI communicator's Fortran handle) from the scene's
+    !> `model` and initial state z0 (the whole state, on every rank); a failure (failure_input)
+    !> if it cannot run what `settings` ask, naming the field.
+    subroutine start_interface(self, settings, model, z0, comm, failure)
+      import :: distributed_system, distributed_settings, generic_model, real64, failure_type
+      class(distributed_system), intent(inout), target :: self
+      type(distributed_settings), intent(in) :: settings
+      class(generic_model), intent(in) :: model
+      real(real64), intent(in) :: z0(:)
+      integer, intent(in) :: comm
+      type(failure_type), intent(out) :: failure
+    end subroutine start_interface
+
+    !> One step of size dt from the current state; the state moves only if the solve converged.
+    subroutine step_interface(self, dt, outcome, failure)
+      import :: distributed_system, distributed_step, real64, failure_type
+      class(distributed_system), intent(inout) :: self
+      real(real64), intent(in) :: dt
+      type(distributed_step), intent(out) :: outcome
+      type(failure_type), intent(out) :: failure
+    end subroutine step_interface
+
+    !> The figures of the current state and of the step to it (zero differences before a step).
+    subroutine figures_interface(self, values, failure)
+      import :: distributed_system, distributed_figures, failure_type
+      class(distributed_system), intent(inout) :: self
+      type(distributed_figures), intent(out) :: values
+      type(failure_type), intent(out) :: failure
+    end subroutine figures_interface
+
+    !> The rank's part of the current state.
+    subroutine part_interface(self, state, failure)
+      import :: distributed_system, distributed_part, failure_type
+      class(distributed_system), intent(inout) :: self
+      type(distributed_part), intent(out) :: state
+      type(failure_type), intent(out) :: failure
+    end subroutine part_interface
+
+    !> Frees what `start` made; `failure` keeps a failure it comes in with.
+    subroutine finish_interface(self, failure)
+      import :: distributed_system, failure_type
+      class(distributed_system), intent(inout) :: self
+      type(failure_type), intent(inout) :: failure
+    end subroutine finish_interface
+  end interface
+
+end module distributed_model

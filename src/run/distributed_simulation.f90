@@ -1,0 +1,722 @@
+!> One run of a model split over the ranks of an MPI communicator (src/model/distributed_model:
+!> the spring chain's sparse path) to its HDF5 file: what `mpirun -n P eme_run FILE.nml` does for
+!> a model that can be split, and `eme_run` for one beyond the dense path's size
+!> (docs/output.md, "A chain's file"; docs/performance.md, "Which path serves which model").
+!>
+!> The file keeps the dense path's promises (src/run/simulation): it is written as FILE.part by
+!> rank 0 (src/run/run_output, crash-safe windows) and renamed when the run ends, with its status,
+!> failure_kind and checksums; every step is checked (src/structure/step_balances, from the ranks'
+!> summed figures) and a step that breaks a guaranteed balance ends the run. Its rows hold the
+!> scalars (E, S, V, the angular momentum J, Newton's iterations, the residual, the step's smallest
+!> viscous and conduction entropy production), not the state: the state goes to /snapshots
+!> (src/io/hdf5_snapshots), every rank writing its own part with parallel HDF5, every
+!> `&output snapshot_every`-th step and the last. A snapshot reaches the file in a window of the
+!> crash-safe writer: rank 0 closes the window's spare, all ranks append the snapshots the spare
+!> lacks, and only then does the spare take the file's name, so that a kill leaves the file of
+!> the last window, snapshots included. Not here yet: -eme_continue (refused at input), steps
+!> chosen by error control, integrators other than EME and the midpoint rule.
+module distributed_simulation
+  use, intrinsic :: iso_fortran_env, only: real64, int64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_INTEGER, MPI_CHARACTER, &
+                     MPI_MAX
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use distributed_model, only: distributed_system, distributed_settings, distributed_step, distributed_figures, &
+                               distributed_part
+  use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
+  use integrator_settings, only: step_count
+  use integrator_registry, only: integrator_entry, find_integrator
+  use stepper, only: step_report, step_diagnostic
+  use solver_description, only: solver_report, add_setting, text_setting, number_setting, set_petsc_reasons, &
+                                reasons_snes
+  use run_config, only: run_configuration
+  use run_output, only: run_file, extra_attribute, spare_addition
+  use run_outcome, only: run_summary, failure_none, failure_solver, failure_domain, failure_input, failure_io, &
+                         failure_interrupted, failure_library, failure_step_budget, failure_balance
+  use step_balances, only: balance_count, balanced_state, balance_figures, applicable_balances
+  use step_check, only: checked_balances, broken_balance, balance_text
+  use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
+  use run_options, only: overwrite_requested, petsc_options_in_force
+  use simulation, only: line_reporter, holds_complete_run, failure_code_of
+  use hdf5_snapshots, only: snapshot_layout, append_snapshot
+  use output_path, only: check_output_path
+  use filesystem, only: make_parent_directories, rename_file, output_lock, recheck_lock
+  use number_text, only: integer_text, fixed_text, scientific_text
+  use failures, only: failure_type, set_failure => fail, code_input => failure_input
+  implicit none (type, external)
+  private
+  public :: run_distributed, distributed_settings_of, split_run_wanted, set_up_distributed_only, write_part
+
+  real(real64), parameter :: progress_interval = 2.0_real64     !! seconds between progress lines
+  !> Bytes of snapshots a rank holds for the next window at most: more force the window.
+  integer(int64), parameter :: snapshot_buffer_bytes = 256_int64*1024*1024
+
+  !> A snapshot held for the file: its time and the rank's part.
+  type :: held_snapshot
+    real(real64) :: time = 0.0_real64
+    type(distributed_part) :: state
+  end type held_snapshot
+
+  !> The snapshots a window adds to the spare (crash_safe_file's spare_addition): those of the
+  !> window before (`kept`: the spare, one window behind, lacks them) and the new ones; rank 0
+  !> calls `add` inside its window, the other ranks `join` at the same point.
+  type, extends(spare_addition) :: snapshot_window
+    type(MPI_Comm) :: comm
+    integer :: rank = 0
+    character(len=:), allocatable :: tau_name              !! the snapshot's dataset of tau ('' if none)
+    type(held_snapshot), allocatable :: kept(:), new(:)
+    logical :: added = .false.                             !! rank 0: `add` ran in this window
+  contains
+    procedure :: add
+    procedure :: join
+    procedure :: held_bytes
+  end type snapshot_window
+
+contains
+
+  !> Whether `config`'s run goes to the split path on `ranks` ranks: its model can be split
+  !> (model_scene's `distributed`) and it runs on several ranks or has more than `dense_limit`
+  !> unknowns (the dense path's). A scene that cannot be built is left to the caller's run.
+  logical function split_run_wanted(config, ranks, dense_limit)
+    type(run_configuration), intent(in) :: config
+    integer, intent(in) :: ranks, dense_limit
+    class(distributed_system), allocatable :: system
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:)
+    type(constraint_slot), allocatable :: constraints(:)
+    type(failure_type) :: building
+
+    call config%scene%distributed(system)
+    split_run_wanted = allocated(system)
+    if (.not. split_run_wanted .or. ranks > 1) return
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
+    split_run_wanted = .not. building%failed() .and. size(z0) > dense_limit
+  end function split_run_wanted
+
+  !> What the split path's steps need of the input's &integrator.
+  function distributed_settings_of(config) result(settings)
+    type(run_configuration), intent(in) :: config
+    type(distributed_settings) :: settings
+
+    settings%input_file = config%input_file
+    settings%scheme = config%integrator%scheme
+    settings%discrete_gradient = config%integrator%discrete_gradient
+    settings%metric = config%integrator%metric
+    settings%newton_tol = config%integrator%newton_tol
+    settings%newton_max_iterations = config%integrator%newton_max_iterations
+    settings%tolerance_given = config%integrator%tolerance_given
+  end function distributed_settings_of
+
+  !> Sets the split model up on `comm` and frees it again, writing nothing (as simulation's
+  !> set_up_only): what the path cannot run, and PETSc options it cannot take, are refused
+  !> (failure_input) before anything is written.
+  subroutine set_up_distributed_only(config, comm, failure)
+    type(run_configuration), intent(in) :: config
+    integer, intent(in) :: comm
+    type(failure_type), intent(out) :: failure
+    class(distributed_system), allocatable :: system
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:)
+    type(constraint_slot), allocatable :: constraints(:)
+
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
+    if (failure%failed()) then
+      call set_failure(failure, failure%code, config%input_file//': '//failure%message)
+      return
+    end if
+    call config%scene%distributed(system)
+    call system%start(distributed_settings_of(config), model, z0, comm, failure)
+    if (failure%failed() .and. failure%code /= code_input) &
+      call set_failure(failure, code_input, config%input_file//': the split run could not be set up with the '// &
+                       'options given: '//failure%message)
+    call system%finish(failure)
+  end subroutine set_up_distributed_only
+
+  !> Runs `config` split over the ranks of `comm` (every rank calls it) and writes its file; the
+  !> summary and failure are the same on every rank. As simulation's run_simulation: a failure
+  !> for output that cannot be written, a library's failure, or a complete file that may not be
+  !> replaced; a run that stops early says why in summary%status and summary%failure_kind.
+  !> `progress` (rank 0) receives a line at most every 2 s; with `lock` (rank 0's), a lock
+  !> removed or replaced behind the run's back stops it.
+  subroutine run_distributed(config, comm, summary, failure, progress, lock)
+    type(run_configuration), intent(in), target :: config
+    integer, intent(in) :: comm
+    type(run_summary), intent(out) :: summary
+    type(failure_type), intent(out) :: failure
+    procedure(line_reporter), optional :: progress
+    type(output_lock), intent(inout), optional :: lock
+    class(distributed_system), allocatable :: system
+    class(generic_model), allocatable :: model
+    real(real64), allocatable :: z0(:)
+    type(constraint_slot), allocatable :: constraints(:)
+    type(integrator_entry) :: entry
+    type(run_file) :: output
+    type(snapshot_window) :: window
+    type(distributed_step) :: outcome
+    type(distributed_figures) :: figures_0, values
+    type(balanced_state) :: balance_old, balance_new
+    type(step_report) :: report
+    type(failure_type) :: step_failure, io_failure
+    character(len=:), allocatable :: part
+    real(real64) :: figures(balance_count), dt, time, energy_change, conserved_change(3), dv
+    real(real64) :: cpu_start, cpu_loop, step_seconds
+    integer(int64) :: n, clock_start, clock_loop, clock_now, clock_rate, clock_progress, step_start, step_end
+    integer(int64) :: state_step      !! the step whose end the system's state is
+    integer(int64) :: snapshot_step   !! the step of the last snapshot held
+    integer :: rank, every, outputs_passed, stop_flags(3), k
+    logical :: checked(balance_count), has_balance(balance_count), found, replace, row_due, finished, writing
+    type(MPI_Comm) :: communicator
+
+    call system_clock(clock_start, clock_rate)
+    call cpu_time(cpu_start)
+    communicator%MPI_VAL = comm
+    call MPI_Comm_rank(communicator, rank)
+    clock_progress = clock_start
+    clock_loop = clock_start
+    cpu_loop = cpu_start
+    summary%note = ''
+    summary%conserved_momentum = ''
+    summary%warnings = ''
+    summary%status = 'incomplete: running'
+    summary%failure_kind = failure_none
+    summary%steps_planned = step_count(config%integrator)
+    dt = config%integrator%dt
+    time = 0.0_real64
+    n = 0
+    part = config%output_file//'.part'
+    writing = .false.
+    call install_interrupt_handlers(io_failure)
+    call find_integrator(config%integrator%scheme, entry, found)
+    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, step_failure)
+    if (step_failure%failed()) then
+      call fail(failure_input, config%input_file//': '//step_failure%message)
+      return
+    end if
+    call config%scene%distributed(system)
+    ! Rank 0 alone looks at the output; the others learn its verdict.
+    if (rank == 0) then
+      replace = overwrite_requested() .or. config%overwrite
+      call check_output_path(config%output_file, config%input_file, replace, io_failure)
+      if (io_failure%failed()) then
+        call fail(failure_input, io_failure%message)
+      else
+        call make_parent_directories(config%output_file, io_failure)
+        if (io_failure%failed()) call fail(failure_io, 'cannot create the directory of the output file '''// &
+                                           config%output_file//''' ('//config%input_file//', &output: file): '// &
+                                           io_failure%message)
+      end if
+      if (.not. failure%failed() .and. .not. replace) replace = .not. holds_complete_run(config%output_file)
+      if (.not. failure%failed() .and. .not. replace) &
+        call fail(failure_input, config%output_file//' holds a complete run, which is kept; to replace it, set '// &
+                  '&output overwrite = .true. in '//config%input_file//', give -eme_overwrite, or choose another '// &
+                  '&output file')
+    end if
+    call agree(failure)
+    if (failure%failed()) return
+    call system%start(distributed_settings_of(config), model, z0, comm, step_failure)
+    if (.not. step_failure%failed()) call system%figures(figures_0, step_failure)
+    if (step_failure%failed()) then
+      call fail(failure_input, config%input_file//': '//step_failure%message)
+      call system%finish(step_failure)
+      return
+    end if
+    summary%energy_units = model%words%energy_units
+    summary%entropy_units = model%words%entropy_units
+    checked = checked_balances(entry, model, constraints)
+    has_balance = applicable_balances(model)
+    if (model%conserved_count() == 0) summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
+    do k = 1, model%conserved_count()
+      if (k > 1) summary%conserved_momentum = summary%conserved_momentum//' '
+      summary%conserved_momentum = summary%conserved_momentum//trim(model%conserved(k)%name)
+    end do
+    every = config%snapshot_every
+    energy_change = 0.0_real64
+    conserved_change = 0.0_real64
+    window%comm = communicator
+    window%rank = rank
+    window%tau_name = tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0)
+    allocate (window%kept(0), window%new(0))
+    values = figures_0
+    call observe(values)
+    if (model%temperature_count() > 0) summary%min_temperature = values%min_temperature
+    ! The file: its layout and first point, written whole at once (the first write takes no
+    ! snapshot: every later one goes through a window's spare).
+    if (rank == 0) then
+      call output%create(part, config, entry, model, constraints, diagnostics(), [extra_attribute ::], &
+                         petsc_options_in_force(), io_failure, state_rows=.false.)
+      if (.not. io_failure%failed()) call output%record_solver(solver_of(config), io_failure)
+      if (io_failure%failed()) then
+        call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
+      else
+        call record_point(0.0_real64, .true.)
+        call output%write_rows(summary, io_failure)
+        if (io_failure%failed()) call fail(failure_io, 'cannot write the output file '''//part//''' ('// &
+                                           config%input_file//'): '//io_failure%message)
+      end if
+    end if
+    call agree(failure)
+    if (failure%failed()) then
+      call system%finish(failure)
+      return
+    end if
+    writing = .true.
+    state_step = 0
+    call hold_snapshot()
+    outputs_passed = 0
+    call system_clock(clock_loop)
+    call cpu_time(cpu_loop)
+    finished = .false.
+    do while (.not. finished)
+      ! Every rank stops at the same step: a signal to any, the budget, a lost lock on rank 0.
+      stop_flags = [interrupting_signal(), merge(1, 0, n >= config%integrator%max_steps), 0]
+      if (rank == 0 .and. present(lock)) stop_flags(3) = merge(1, 0, lock_lost())
+      call MPI_Allreduce(MPI_IN_PLACE, stop_flags, 3, MPI_INTEGER, MPI_MAX, communicator)
+      if (stop_flags(1) /= 0) then
+        summary%status = 'incomplete: interrupted by '//signal_name(stop_flags(1))
+        summary%failure_kind = failure_interrupted
+        exit
+      else if (stop_flags(2) /= 0) then
+        summary%status = 'incomplete: the step budget is spent: '//integer_text(n)//' steps reached t = '// &
+                         fixed_text(time, 6)//' s of t_end = '//fixed_text(config%integrator%t_end, 6)// &
+                         ' s (raise &integrator max_steps)'
+        summary%failure_kind = failure_step_budget
+        exit
+      else if (stop_flags(3) /= 0) then
+        summary%status = 'incomplete: the lock '//config%output_file//'.lock was removed or replaced while the run wrote'
+        summary%failure_kind = failure_io
+        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock was removed or replaced '// &
+                  'while the run wrote: the run stops after '//integer_text(n)//' steps')
+        exit
+      end if
+      n = n + 1
+      call system_clock(step_start)
+      call system%step(dt, outcome, step_failure)
+      call system_clock(step_end)
+      if (.not. step_failure%failed() .and. outcome%converged) state_step = n
+      step_seconds = real(step_end - step_start, real64)/real(clock_rate, real64)
+      if (step_failure%failed()) then
+        call fail(failure_library, 'PETSc failed during the solve: '//step_failure%message)
+        summary%status = 'incomplete: PETSc error in step '//integer_text(n)
+        exit
+      end if
+      time = n*dt
+      finished = n == summary%steps_planned
+      if (.not. outcome%converged) then
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): no root: '// &
+                         'Newton did not converge (SNES reason '//integer_text(outcome%reason)//', |R| = '// &
+                         scientific_text(outcome%residual_norm, 3)//')'
+        summary%failure_kind = failure_solver
+        exit
+      end if
+      call system%figures(values, step_failure)
+      if (step_failure%failed()) then
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
+                         step_failure%message
+        summary%failure_kind = failure_domain
+        exit
+      end if
+      call check_step()
+      if (summary%failure_kind /= failure_none) exit
+      summary%steps_completed = n
+      summary%newton_iterations = summary%newton_iterations + outcome%iterations
+      energy_change = energy_change + values%delta_energy
+      conserved_change = conserved_change + values%delta_conserved
+      summary%energy_drift = max(summary%energy_drift, abs(energy_change)/abs(figures_0%energy))
+      dv = values%delta_energy - config%theta_r*values%delta_entropy
+      summary%min_entropy_increment = min(summary%min_entropy_increment, values%delta_entropy)
+      summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, dv)
+      if (values%conserved_count > 0) summary%angular_momentum_drift = max(summary%angular_momentum_drift, &
+        maxval(abs(conserved_change(1:values%conserved_count))))
+      if (model%temperature_count() > 0) summary%min_temperature = min(summary%min_temperature, values%min_temperature)
+      if (finished) then
+        call hold_snapshot()
+      else if (every > 0) then
+        if (mod(n, int(every, int64)) == 0) call hold_snapshot()
+      end if
+      if (rank == 0) then
+        report%newton_iterations = outcome%iterations
+        report%solves = 1
+        report%residual_norm = outcome%residual_norm
+        report%converged_reason = outcome%reason
+        allocate (report%scheme_temperature(0))
+        report%diagnostics = [values%min_viscous_production, values%min_link_production]
+        where (report%diagnostics >= huge(1.0_real64)) report%diagnostics = ieee_value(1.0_real64, ieee_quiet_nan)
+        call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
+                                has_balance, .false.)
+        deallocate (report%scheme_temperature)
+        row_due = .false.
+        do while (config%output_interval > 0.0_real64 .and. &
+                  time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
+          outputs_passed = outputs_passed + 1
+          row_due = .true.
+        end do
+        call record_point(time, row_due)
+      end if
+      call write_window(.false.)
+      if (failure%failed()) exit
+      if (rank == 0 .and. present(progress)) call report_progress()
+    end do
+    if (summary%steps_completed == 0 .or. model%temperature_count() == 0) then
+      summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
+      summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
+    end if
+    if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
+    where (.not. has_balance .or. summary%steps_completed == 0) summary%max_balance = ieee_value(1.0_real64, &
+                                                                                                 ieee_quiet_nan)
+    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) &
+      summary%status = 'complete'
+    ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
+    ! did not converge left it there; one whose state broke a balance did not).
+    if (state_step == summary%steps_completed .and. snapshot_step /= state_step) then
+      time = real(state_step, real64)*dt
+      call hold_snapshot()
+    end if
+    call set_times(.true.)
+    call system%finish(failure)
+    if (writing) call write_window(.true.)
+    call set_times(.false.)
+    call agree(failure)
+    call share_outcome()
+
+  contains
+
+    ! Records a failure that is not the method's (the first one wins).
+    subroutine fail(kind, text)
+      character(len=*), intent(in) :: kind, text
+
+      if (failure%failed()) return
+      call set_failure(failure, failure_code_of(kind), text, config%input_file)
+      summary%failure_kind = kind
+    end subroutine fail
+
+    ! Every rank takes rank 0's failure when it has none of its own (rank 0's is the output's).
+    subroutine agree(failure)
+      type(failure_type), intent(inout) :: failure
+      integer :: code
+      character(len=:), allocatable :: text, kind
+
+      code = failure%code
+      call MPI_Bcast(code, 1, MPI_INTEGER, 0, communicator)
+      if (code == 0) return
+      text = ''
+      if (rank == 0) text = failure%message
+      call share_text(text)
+      kind = summary%failure_kind
+      call share_text(kind)
+      if (rank /= 0 .and. .not. failure%failed()) then
+        call set_failure(failure, code, text, config%input_file)
+        summary%failure_kind = kind
+      end if
+    end subroutine agree
+
+    ! rank 0's status, note and failure kind on every rank (the exit status depends on them).
+    subroutine share_outcome()
+      call share_text(summary%status)
+      call share_text(summary%failure_kind)
+      call share_text(summary%note)
+    end subroutine share_outcome
+
+    subroutine share_text(text)
+      character(len=:), allocatable, intent(inout) :: text
+      integer :: length
+
+      length = len(text)
+      call MPI_Bcast(length, 1, MPI_INTEGER, 0, communicator)
+      if (rank /= 0) then
+        deallocate (text)
+        allocate (character(len=length) :: text)
+      end if
+      if (length > 0) call MPI_Bcast(text, length, MPI_CHARACTER, 0, communicator)
+    end subroutine share_text
+
+    ! The balances' state of the figures `values` (into balance_new; balance_old takes the last).
+    subroutine observe(values)
+      type(distributed_figures), intent(in) :: values
+
+      balance_old = balance_new
+      balance_new%energy = values%energy
+      balance_new%energy_scale = values%energy_scale
+      balance_new%entropy = values%entropy
+      balance_new%entropy_scale = values%entropy_scale
+      balance_new%conserved_count = values%conserved_count
+      balance_new%conserved = values%conserved
+      balance_new%momentum_scale = values%momentum_scale
+    end subroutine observe
+
+    ! The step's balance figures, from the summed differences of its parts; a step that breaks a
+    ! guaranteed balance ends the run (the dense path solves it again first; this path has no
+    ! other solver settings to try).
+    subroutine check_step()
+      integer :: broken
+
+      call observe(values)
+      figures = balance_figures(has_balance, balance_old, balance_new, 0.0_real64, config%theta_r, &
+                                [values%delta_energy, values%delta_entropy], values%delta_conserved)
+      broken = broken_balance(figures, checked, 1)
+      if (broken == 0) then
+        where (has_balance) summary%max_balance = max(summary%max_balance, figures)
+        return
+      end if
+      summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
+                       balance_text(broken, figures)
+      summary%failure_kind = failure_balance
+    end subroutine check_step
+
+    ! One point row (rank 0): the state's scalars, from `values`; the model's momenta are J's last
+    ! momentum_count() components (J in 3D, J_z in 2D, none in 1D).
+    subroutine record_point(time, row_due)
+      real(real64), intent(in) :: time
+      logical, intent(in) :: row_due
+
+      call output%record_point(time, [real(real64) ::], [real(real64) ::], values%energy, values%entropy, &
+                               values%energy - config%theta_r*values%entropy, &
+                               values%angular_momentum(4 - model%momentum_count():), 0.0_real64, [real(real64) ::], &
+                               row_due)
+    end subroutine record_point
+
+    ! The rank's part of the state (the end of step state_step, at `time`), held for the next window.
+    subroutine hold_snapshot()
+      type(held_snapshot) :: snapshot
+      type(failure_type) :: reading
+
+      snapshot%time = time
+      snapshot_step = state_step
+      call system%part(snapshot%state, reading)
+      if (reading%failed()) then
+        call fail(failure_library, 'cannot read the state for a snapshot: '//reading%message)
+        return
+      end if
+      window%new = [window%new, snapshot]
+    end subroutine hold_snapshot
+
+    ! A write of the file when one is due (rank 0's clock, or a rank's full snapshot buffer), or
+    ! the last one (`final`): rank 0 writes the rows and attributes, and every rank joins its
+    ! window to add the snapshots (snapshot_window).
+    subroutine write_window(final)
+      logical, intent(in) :: final
+      integer :: flags(2), outcome_code
+
+      flags = 0
+      if (rank == 0 .and. .not. final) flags(1) = merge(1, 0, output%write_due())
+      flags(2) = merge(1, 0, window%held_bytes() > snapshot_buffer_bytes)
+      if (.not. final) then
+        call MPI_Allreduce(MPI_IN_PLACE, flags, 2, MPI_INTEGER, MPI_MAX, communicator)
+        if (all(flags == 0)) return
+      end if
+      window%added = .false.
+      if (rank == 0) then
+        call set_times(.not. final)
+        if (final) then
+          call output%finish(summary, io_failure, window)
+        else
+          call output%write_rows(summary, io_failure, window)
+        end if
+        ! A window that did not reach its addition (deferred, or failed before) releases the others.
+        if (.not. window%added) then
+          outcome_code = 0
+          call MPI_Bcast(outcome_code, 1, MPI_INTEGER, 0, communicator)
+        end if
+      else
+        call window%join()
+      end if
+      outcome_code = merge(1, 0, window%added .and. .not. io_failure%failed())
+      call MPI_Bcast(outcome_code, 1, MPI_INTEGER, 0, communicator)
+      if (outcome_code == 1) then
+        ! The file holds every snapshot; its new spare (the old file) lacks this window's.
+        call move_alloc(window%new, window%kept)
+        allocate (window%new(0))
+      end if
+      if (rank == 0 .and. io_failure%failed()) then
+        summary%status = 'incomplete: cannot write the output file: '//io_failure%message
+        call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): '// &
+                  io_failure%message)
+      end if
+      call agree(failure)
+      if (final .and. rank == 0 .and. .not. failure%failed()) call close_output()
+    end subroutine write_window
+
+    ! The finished file takes its name, unless an incomplete run would replace a complete one.
+    subroutine close_output()
+      type(failure_type) :: renaming
+      logical :: keep
+
+      keep = summary%status /= 'complete'
+      if (keep) keep = holds_complete_run(config%output_file)
+      if (keep) then
+        summary%note = config%output_file//' keeps the earlier complete run; this run''s file is '//part
+        return
+      end if
+      call rename_file(part, config%output_file, renaming, sync=.true.)
+      if (renaming%failed()) call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file// &
+                                       ''' ('//config%input_file//'): '//renaming%message)
+    end subroutine close_output
+
+    ! Whether rank 0's lock of the output was removed or replaced (the run then stops).
+    logical function lock_lost()
+      character(len=:), allocatable :: holder, what
+      logical :: retaken
+
+      call recheck_lock(lock, lock_lost, retaken, what, holder)
+    end function lock_lost
+
+    subroutine set_times(in_loop)
+      logical, intent(in) :: in_loop
+      real(real64) :: cpu_now
+
+      call cpu_time(cpu_now)
+      call system_clock(clock_now)
+      if (in_loop) summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+      summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
+      if (in_loop) summary%solve_cpu_seconds = cpu_now - cpu_loop
+      summary%cpu_seconds = cpu_now - cpu_start
+    end subroutine set_times
+
+    subroutine report_progress()
+      real(real64) :: elapsed, left
+
+      call system_clock(clock_now)
+      if (real(clock_now - clock_progress, real64) < progress_interval*real(clock_rate, real64)) return
+      clock_progress = clock_now
+      elapsed = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+      left = elapsed*max(0.0_real64, config%integrator%t_end - time)/max(time, tiny(time))
+      call progress('t = '//fixed_text(time, 3)//' of '//fixed_text(config%integrator%t_end, 3)//' s, '// &
+                    integer_text(n)//' steps, about '//fixed_text(left, 1)//' s left')
+    end subroutine report_progress
+  end subroutine run_distributed
+
+  !> Appends the window's snapshots to the closed spare at `path` (rank 0, inside its window):
+  !> tells the other ranks where, and writes with them.
+  subroutine add(self, path, failure)
+    class(snapshot_window), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(failure_type), intent(out) :: failure
+    integer :: length
+    character(len=:), allocatable :: text
+
+    self%added = .true.
+    length = len(path)
+    call MPI_Bcast(length, 1, MPI_INTEGER, 0, self%comm)
+    text = path
+    call MPI_Bcast(text, length, MPI_CHARACTER, 0, self%comm)
+    call append_held(self, text, failure)
+  end subroutine add
+
+  !> The other ranks' side of a window: the spare's path from rank 0 (none if the window did not
+  !> reach its addition), and the snapshots written with it.
+  subroutine join(self)
+    class(snapshot_window), intent(inout) :: self
+    integer :: length
+    character(len=:), allocatable :: path
+    type(failure_type) :: failure
+
+    call MPI_Bcast(length, 1, MPI_INTEGER, 0, self%comm)
+    if (length == 0) return
+    allocate (character(len=length) :: path)
+    call MPI_Bcast(path, length, MPI_CHARACTER, 0, self%comm)
+    self%added = .true.
+    call append_held(self, path, failure)
+  end subroutine join
+
+  ! Every held snapshot, kept then new, appended by all ranks (append_snapshot is collective and
+  ! makes every rank agree on a failure).
+  subroutine append_held(self, path, failure)
+    type(snapshot_window), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(failure_type), intent(out) :: failure
+    integer :: k
+
+    do k = 1, size(self%kept)
+      if (.not. failure%failed()) call write_part(path, self%comm%MPI_VAL, self%kept(k)%time, self%kept(k)%state, &
+                                                  self%tau_name, failure)
+    end do
+    do k = 1, size(self%new)
+      if (.not. failure%failed()) call write_part(path, self%comm%MPI_VAL, self%new(k)%time, self%new(k)%state, &
+                                                  self%tau_name, failure)
+    end do
+  end subroutine append_held
+
+  !> The bytes of the snapshots the window holds.
+  integer(int64) function held_bytes(self)
+    class(snapshot_window), intent(in) :: self
+    integer :: k
+
+    held_bytes = 0
+    do k = 1, size(self%new)
+      associate (state => self%new(k)%state)
+        held_bytes = held_bytes + 8_int64*(size(state%positions) + size(state%momenta) + size(state%gamma) + &
+                                           size(state%tau) + size(state%theta))
+      end associate
+    end do
+  end function held_bytes
+
+  !> Appends the snapshot of `state` (every rank its part) at `time` to the closed file `path`
+  !> (collective on `comm`, a communicator's Fortran handle); tau as dataset `tau_name` ('': none,
+  !> tau being the temperature).
+  subroutine write_part(path, comm, time, state, tau_name, failure)
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: comm
+    real(real64), intent(in) :: time
+    type(distributed_part), intent(in) :: state
+    character(len=*), intent(in) :: tau_name
+    type(failure_type), intent(out) :: failure
+    type(snapshot_layout) :: layout
+
+    layout = snapshot_layout(masses=state%masses, springs=state%springs, dimension=state%dimension, &
+                             first_mass=state%first_mass, mass_count=size(state%positions, 2), &
+                             first_spring=state%first_spring, spring_count=state%spring_count)
+    ! Arrays the state has not are absent (tau too when it is the temperature).
+    if (size(state%gamma) > 0 .and. size(state%theta) > 0 .and. len(tau_name) > 0) then
+      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, &
+                           viscous_strains=state%gamma, tau=state%tau, tau_name=tau_name, temperatures=state%theta)
+    else if (size(state%gamma) > 0 .and. size(state%theta) > 0) then
+      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, &
+                           viscous_strains=state%gamma, temperatures=state%theta)
+    else if (size(state%theta) > 0 .and. len(tau_name) > 0) then
+      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, &
+                           tau=state%tau, tau_name=tau_name, temperatures=state%theta)
+    else if (size(state%theta) > 0) then
+      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, temperatures=state%theta)
+    else
+      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure)
+    end if
+  end subroutine write_part
+
+  ! The snapshot's dataset of tau: the run's own variable when it is the entropy or the internal
+  ! energy, none when it is the temperature or the model has none.
+  function tau_dataset(variable, thermal) result(name)
+    integer, intent(in) :: variable
+    logical, intent(in) :: thermal
+    character(len=:), allocatable :: name
+
+    name = ''
+    if (.not. thermal) return
+    if (variable == tau_entropy) name = 'entropy'
+    if (variable == tau_internal_energy) name = 'internal_energy'
+  end function tau_dataset
+
+  ! The per-step figures of the split path beyond the schema's.
+  function diagnostics() result(items)
+    type(step_diagnostic) :: items(2)
+
+    items(1) = step_diagnostic('min_viscous_production', 'W/K', 'the step''s smallest entropy production of a '// &
+                               'spring''s viscous branch, Theta y^2/eta (docs/formulation.md section 10); NaN '// &
+                               'without viscous branches', 'min')
+    items(2) = step_diagnostic('min_link_production', 'W/K', 'the step''s smallest entropy production of a '// &
+                               'conducting link, kappa (Theta_a - Theta_b)^2/(Theta_a Theta_b); NaN without links', &
+                               'min')
+  end function diagnostics
+
+  ! The split path's solver as the file records it.
+  function solver_of(config) result(report)
+    type(run_configuration), intent(in) :: config
+    type(solver_report) :: report
+    type(failure_type) :: ignored
+
+    call add_setting(report, text_setting('name', 'PETSc SNES on a DMDA split over the ranks: Newton, sparse '// &
+                                          'Jacobian, LU (MUMPS on several ranks) unless the options choose a KSP'))
+    call add_setting(report, number_setting('newton_tol', config%integrator%newton_tol, '1'))
+    call set_petsc_reasons(report, reasons_snes, ignored)
+  end function solver_of
+
+end module distributed_simulation
