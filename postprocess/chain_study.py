@@ -56,7 +56,7 @@ OUTCOME_COLOURS = {"stable": "#009E73", "halved": "#F0E442", "energy": "#E69F00"
                    "solver": "#56B4E9"}
 DOMAIN_REASONS = ("domain", "non-positive", "blow-up", "nan", "not finite")
 # RK4's stability region meets the negative real axis at the real root of 1 - x + x^2/2 - x^3/6
-# + x^4/24 = -1, and the imaginary axis at y = 2 sqrt(2) (|R(iy)|^2 = 1 - y^6/72 + y^8/576).
+# + x^4/24 = 1 (R(-x), positive on the axis, rises back through 1 there), and the imaginary axis at y = 2 sqrt(2) (|R(iy)|^2 = 1 - y^6/72 + y^8/576).
 RK4_REAL = 2.785293563405282
 RK4_IMAGINARY = 2.0 * math.sqrt(2.0)
 
