@@ -28,12 +28,12 @@ lambda, RK4_IMAGINARY/omega), which falls like 1/N for the waves and like 1/N^2 
 import argparse
 import csv
 import math
-import os
 import resource
 import subprocess
 import sys
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 import integrators
@@ -56,7 +56,8 @@ OUTCOME_COLOURS = {"stable": "#009E73", "halved": "#F0E442", "energy": "#E69F00"
                    "solver": "#56B4E9"}
 DOMAIN_REASONS = ("domain", "non-positive", "blow-up", "nan", "not finite")
 # RK4's stability region meets the negative real axis at the real root of 1 - x + x^2/2 - x^3/6
-# + x^4/24 = 1 (R(-x), positive on the axis, rises back through 1 there), and the imaginary axis at y = 2 sqrt(2) (|R(iy)|^2 = 1 - y^6/72 + y^8/576).
+# + x^4/24 = 1 (R(-x), positive on the axis, rises back through 1 there), and the imaginary axis
+# at y = 2 sqrt(2) (|R(iy)|^2 = 1 - y^6/72 + y^8/576).
 RK4_REAL = 2.785293563405282
 RK4_IMAGINARY = 2.0 * math.sqrt(2.0)
 
@@ -246,7 +247,6 @@ def write_stability_tables(grids, rod, stem):
 
 def study_load(index_path):
     """The load averages the index recorded, as a caption line."""
-    import h5py
     with h5py.File(index_path, "r") as handle:
         start = handle.attrs.get("load_average_start")
         end = handle.attrs.get("load_average_end")
@@ -389,5 +389,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    os.environ.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
     main()

@@ -7,8 +7,9 @@ mu_eq_slope = 0), at rest at their natural lengths, so the masses stay put and o
 the temperature variable with heat capacity c and one link kappa, c dtheta_1/dt = kappa (theta_2 -
 theta_1) and c dtheta_2/dt = kappa (theta_1 - theta_2): linear, the difference decaying at rate
 lambda = 2 kappa/c. One RK4 step multiplies it by R(-dt lambda), R(z) = 1 + z + z^2/2 + z^3/6 +
-z^4/24, so RK4 keeps it bounded exactly while dt lambda <= x*, where R(-x*) = 1 (R stays positive on the axis), and EME (the
-midpoint rule on a linear field, the Cayley map (1 - x/2)/(1 + x/2)) at every dt. The total
+z^4/24, so RK4 keeps it bounded exactly while dt lambda <= x*, where R(-x*) = 1 (R stays positive
+on the axis), and EME (the midpoint rule on a linear field, the Cayley map (1 - x/2)/(1 + x/2)) at
+every dt. The total
 energy (the internal energies, linear in theta) is kept by both, so a blow-up shows as a
 non-positive temperature.
 """
