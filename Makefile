@@ -369,13 +369,13 @@ study: programs $(VENV)/.python-deps
 # The spring chain's rod family (issue 39 item 7, docs/performance.md): the stability map over
 # (N, dt) and the work-precision chart, each from eme_ensemble studies that chain_study.py writes
 # into results/study (its numbers in results/study/chain_*.csv), and the temperatures along the
-# chain over time from the run of inputs/chain_rod_heat.nml. The dense path at 1000 unknowns needs
-# more than the usual 8 MB of stack (chain_study.py raises its children's limit too).
+# chain over time from the run of inputs/chain_rod_heat.nml. The map's dense runs at 1000 unknowns
+# need more than the usual 8 MB of stack: chain_study.py raises its children's limit.
 study-chain: programs $(VENV)/.python-deps
 	rm -rf results/study/chain_stability results/study/chain_work_precision
 	$(PYTHON) postprocess/chain_study.py stability --bin $(BIN) --study-dir results/study -o results/figures
 	$(PYTHON) postprocess/chain_study.py work-precision --bin $(BIN) --study-dir results/study -o results/figures
-	ulimit -s unlimited && $(BIN)/eme_run inputs/chain_rod_heat.nml -eme_overwrite
+	$(BIN)/eme_run inputs/chain_rod_heat.nml -eme_overwrite
 	$(PYTHON) postprocess/plot_chain_temperatures.py results/chain_rod_heat.h5 -o results/figures/chain_temperatures
 
 # Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
