@@ -6,6 +6,7 @@
 #   make constraints  the constraints with EME_s and EME_u, and without conduction
 #   make figures      the figures of the paper scenes (runs what is missing or outdated first)
 #   make study        convergence, work-precision and stability studies, and their charts
+#   make study-chain  the spring chain's stability map, work-precision chart and temperature picture
 #   make bench        ensemble throughput, per-step cost and instructions (benchmarks, not tests)
 #   make python-lock  pin every Python package anew after postprocess/requirements.txt changed
 #   make generate     regenerate the Fortran of every model description (src/model/*/description.py)
@@ -91,7 +92,7 @@ $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(OBJ)/src/solver/dense_lu.o,$(L
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): | $(LIBRARY_OBJECTS)
 
 # ---------------------------------------------------------------- rules
-.PHONY: all programs deps test check run constraints figures study bench bench-deps clean python-lock version docs \
+.PHONY: all programs deps test check run constraints figures study study-chain bench bench-deps clean python-lock version docs \
         generate new-model
 
 # The programs alone (make run, figures, study, bench and constraints need no unit tests).
@@ -363,6 +364,19 @@ study: programs $(VENV)/.python-deps
 	  --summary results/study/summary.h5
 	$(PYTHON) postprocess/estimate_tracking.py --bin $(BIN) -o results/figures/estimate_tracking \
 	  --data results/study/estimate_tracking.h5
+	@$(MAKE) --no-print-directory study-chain
+
+# The spring chain's rod family (issue 39 item 7, docs/performance.md): the stability map over
+# (N, dt) and the work-precision chart, each from eme_ensemble studies that chain_study.py writes
+# into results/study (its numbers in results/study/chain_*.csv), and the temperatures along the
+# chain over time from the run of inputs/chain_rod_heat.nml. The map's dense runs at 1000 unknowns
+# need more than the usual 8 MB of stack: chain_study.py raises its children's limit.
+study-chain: programs $(VENV)/.python-deps
+	rm -rf results/study/chain_stability results/study/chain_work_precision
+	$(PYTHON) postprocess/chain_study.py stability --bin $(BIN) --study-dir results/study -o results/figures
+	$(PYTHON) postprocess/chain_study.py work-precision --bin $(BIN) --study-dir results/study -o results/figures
+	$(BIN)/eme_run inputs/chain_rod_heat.nml -eme_overwrite
+	$(PYTHON) postprocess/plot_chain_temperatures.py results/chain_rod_heat.h5 -o results/figures/chain_temperatures
 
 # Benchmarks (not tests): the ensemble's throughput on 1 and 2 ranks, the CPU time to 1e-4 and
 # 1e-6 at t = 5 s of every scheme, the per-step cost of every scheme against a hand-written

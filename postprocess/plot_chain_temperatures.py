@@ -1,0 +1,78 @@
+"""The temperatures along a spring chain over time, at a glance: spring index by time, a colour map
+(issue 39, item 7; docs/figures.md).
+
+  plot_chain_temperatures.py FILE.h5 -o OUT
+
+FILE.h5 is a chain's run file of either path: eme_run's (the dense path: /temperature, one column
+per spring, with /time) or one with snapshots (/snapshots/theta, snapshot by spring, with
+/snapshots/time: chain_bench -chain_snapshots writes them on the sparse path); a file with both is
+drawn from its snapshots, which the sparse path writes for any N. Also writes OUT.csv: the drawn
+temperatures, one row per time, one column per spring.
+"""
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from plotting import SINGLE_COLUMN, argument_parser, parse_arguments, plt, save
+from trajectory import RunFileError, run_file
+
+SOURCES = (("snapshots/time", "snapshots/theta"), ("time", "temperature"))
+
+
+def chain_temperatures(path):
+    """(time [s], temperatures [K] as time by spring, the datasets' names) of a chain's file."""
+    with run_file(path) as handle:
+        for time_name, theta_name in SOURCES:
+            if theta_name in handle and time_name in handle:
+                time, theta = handle[time_name][()], handle[theta_name][()]
+                break
+        else:
+            raise RunFileError(f"{path}: neither /snapshots/theta with /snapshots/time nor /temperature with "
+                               "/time: not the run file of a chain with temperatures")
+    if theta.ndim != 2 or theta.shape[0] != time.shape[0]:
+        raise RunFileError(f"{path}: /{theta_name} has shape {theta.shape}, /{time_name} {time.shape}: "
+                           f"allowed: /{theta_name} (times, springs) with one row per time")
+    if time.shape[0] < 1 or theta.shape[1] < 1:
+        raise RunFileError(f"{path}: /{theta_name} is empty")
+    return np.asarray(time, float), np.asarray(theta, float), (time_name, theta_name)
+
+
+def figure(path, output):
+    time, theta, names = chain_temperatures(path)
+    fig, ax = plt.subplots(figsize=(SINGLE_COLUMN * 1.3, 2.6), layout="constrained")
+    springs = np.arange(1, theta.shape[1] + 1)
+    # Cell edges: each row of the file stands at its time, each column for its spring.
+    time_edges = (np.concatenate([[time[0]], 0.5 * (time[1:] + time[:-1]), [time[-1]]])
+                  if time.size > 1 else np.array([time[0] - 0.5, time[0] + 0.5]))
+    spring_edges = np.arange(0.5, theta.shape[1] + 1.0)
+    mesh = ax.pcolormesh(time_edges, spring_edges, theta.T, cmap="inferno", shading="flat")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("spring (1: at the support)")
+    fig.colorbar(mesh, ax=ax, label="temperature [K]")
+    title = f"temperatures along the chain over time: {Path(path).name} (/{names[1]}, {springs.size} springs)"
+    ax.set_title(f"{springs.size} springs, /{names[1]}", fontsize=8)
+    paths = save(fig, output, title)
+    with open(Path(paths[0]).with_suffix(".csv"), "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["time_s", *(f"theta_{a}_K" for a in springs)])
+        for t, row in zip(time, theta):
+            writer.writerow([f"{t:.9g}", *(f"{value:.9g}" for value in row)])
+    return paths
+
+
+def main(argv=None):
+    parser = argument_parser(__doc__.split("\n\n")[0])
+    args = parse_arguments(parser, argv)
+    if len(args.files) != 1:
+        parser.error("one chain file at a time")
+    try:
+        figure(args.files[0], args.output)
+    except RunFileError as error:
+        print(f"plot_chain_temperatures.py: error: {error}", file=sys.stderr)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()
