@@ -1,0 +1,227 @@
+"""The spring chain's physics checked on runs of the code (issue 39 item 6; docs/formulation.md
+section 10, "Exact linear modes" and "The end state of an isolated chain"). The expected values
+come from tests/oracles/spring_chain.py, typed from section 10 in numpy (not from src/):
+
+- exact linear modes: a 1D 'fixed-fixed' chain of identical springs started in one mode at small
+  amplitude about its uniform stretch follows, step by step, the midpoint rule's map of the
+  linearised system, (I - dt A_k/2)^-1 (I + dt A_k/2) per mode; the run's deviation from it,
+  relative to the mode's size, is of the order of the amplitude and halves with it (the
+  nonlinear terms' order), on eme_run (N = 8, 50) and chain_bench (N = 2000), in the three rungs
+  and the three thermodynamic variables;
+- the end state of an isolated chain: a long EME run of a small dissipative chain, started moving,
+  unevenly stretched and at unlike temperatures, ends at rest with equal springs, relaxed dampers
+  and the one temperature its energy fixes, its entropy rising to that state's and not beyond;
+- every step of a 200-spring run on eme_run: energy to 1e-13 relative, V never rising, every
+  viscous branch's and every link's entropy production >= 0 at every written state, and the step's
+  entropy increment equal to the productions integrated over the step (to the step's accuracy).
+"""
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import BIN, namelist_text, run_eme
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "oracles"))
+import spring_chain as oracle  # noqa: E402
+
+# One spring's data per rung: stiff enough that the axial modes, the damper and the heat modes all
+# act within a few steps; beta and mu_eq_slope couple displacement to temperature, beta_v to the
+# damper (the free energy stays convex at the uniform stretch: 2 (1 + beta_v) mu^neq > beta_v^2 mu/l^2).
+SPRINGS = {
+    "elastic": oracle.Spring(natural_length=0.5, mu_eq_const=80.0),
+    "thermoelastic": oracle.Spring(natural_length=0.5, mu_eq_const=80.0, mu_eq_slope=0.1, beta=0.8,
+                                   heat_capacity=3.0),
+    "thermoviscoelastic": oracle.Spring(natural_length=0.5, mu_eq_const=80.0, mu_eq_slope=0.1, beta=0.8,
+                                        heat_capacity=3.0, beta_v=0.4, mu_neq_const=30.0, mu_neq_slope=0.02,
+                                        viscosity_const=2.0, viscosity_activation=10.0)}
+RUNG_FIELDS = {
+    "elastic": ["natural_length", "mu_eq_const"],
+    "thermoelastic": ["natural_length", "mu_eq_const", "mu_eq_slope", "beta", "heat_capacity", "theta_ref"],
+    "thermoviscoelastic": ["natural_length", "mu_eq_const", "mu_eq_slope", "beta", "heat_capacity", "theta_ref",
+                           "beta_v", "mu_neq_const", "mu_neq_slope", "viscosity_const", "viscosity_activation"]}
+MASS = 0.3          # kg
+KAPPA = 2.5         # W/K, every link
+STRETCH = 1.05      # the uniform stretch l_s/l^0
+THETA0 = 300.0      # K, the base temperature (theta_ref: the elastic rung's springs are at it)
+MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
+
+
+def uniform_chain(n, law, kappa=KAPPA, mass=MASS, stretch=STRETCH, **spring_changes):
+    """The oracle's 1D 'fixed-fixed' chain of n masses and n + 1 identical springs of rung `law`."""
+    from dataclasses import replace
+    spring = replace(SPRINGS[law], **spring_changes)
+    return oracle.Chain(masses=np.full(n, mass), springs=[spring] * (n + 1),
+                        conductivity=np.full(n, kappa if law != "elastic" else 0.0), gravity=[0.0],
+                        ends="fixed-fixed", span=(n + 1) * spring.natural_length * stretch)
+
+
+def model_group(chain, law):
+    """The &model group of the oracle's uniform chain (one value for every spring)."""
+    spring = chain.springs[0]
+    group = {"model_name": "spring_chain", "links": chain.n, "ends": "fixed-fixed", "span": chain.span,
+             "dimension": 1, "gravity": [0.0], "spring_law": law, "mass": float(chain.masses[0])}
+    group.update({name: float(getattr(spring, name)) for name in RUNG_FIELDS[law]})
+    if law != "elastic":
+        group["conductivity"] = float(chain.conductivity[0])
+    return group
+
+
+def integrator_group(law, variable, dt, steps, newton_tol=1e-13, gradient="gonzalez"):
+    group = {"scheme": "eme", "dt": dt, "t_end": dt * steps, "newton_tol": newton_tol,
+             "discrete_gradient": gradient}
+    if law != "elastic":
+        group["thermo_variable"] = variable
+    return group
+
+
+def text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def read_chain_rows(path, chain, law):
+    """(x (rows, N), p (rows, N), gamma (rows, ns), theta (rows, ns)) of a 1D chain's run file, by
+    column name; gamma 0 and theta THETA0 where the rung has none."""
+    with h5py.File(path, "r") as f:
+        assert text(f.attrs["status"]) == "complete"
+        names = [text(c) for c in f["state_column"][()]]
+        state = f["state"][()]
+        rows = state.shape[0]
+        x = state[:, [names.index(f"x{i}_x") for i in range(1, chain.n + 1)]]
+        p = state[:, [names.index(f"p{i}_x") for i in range(1, chain.n + 1)]]
+        gamma = (state[:, [names.index(f"gamma_{a}") for a in range(1, chain.ns + 1)]]
+                 if law == "thermoviscoelastic" else np.zeros((rows, chain.ns)))
+        theta = f["temperature"][()] if law != "elastic" else np.full((rows, chain.ns), THETA0)
+        series = {name: f[name][()] for name in ("time", "energy")}
+        if law != "elastic":
+            series.update({name: f[name][()] for name in ("entropy", "lyapunov")})
+    return x, p, gamma, theta, series
+
+
+# ---------------------------------------------------------------- exact linear modes
+def linear_prediction(chain, nodal_start, modes, dt, steps):
+    """The midpoint rule's map of the linearised system, mode by mode: the nodal deviations
+    (u, p, g, T) after 0..steps steps from `nodal_start`, which lies in `modes` (section 10's sine
+    and cosine modes; A_k from the oracle's second derivatives of psi at the base state)."""
+    n = chain.n
+    c = oracle.linear_coefficients(chain, THETA0)
+    rows = np.zeros((steps + 1, len(nodal_start)))
+    for k in modes:
+        step = oracle.cayley(oracle.mode_generator(c, n, k), dt)
+        zeta = oracle.modal_amplitudes(n, nodal_start, k)
+        for row in range(steps + 1):
+            rows[row] += oracle.mode_state(n, k, zeta)
+            zeta = step @ zeta
+    return rows
+
+
+def exact_flow(chain, nodal_start, modes, dt, steps):
+    """The linearised system's exact solution at the same times, exp(t A_k) per mode (to show that
+    the runs follow the step map and not merely the equations)."""
+    from scipy.linalg import expm
+    n = chain.n
+    c = oracle.linear_coefficients(chain, THETA0)
+    rows = np.zeros((steps + 1, len(nodal_start)))
+    for k in modes:
+        a_k = oracle.mode_generator(c, n, k)
+        zeta = oracle.modal_amplitudes(n, nodal_start, k)
+        for row in range(steps + 1):
+            rows[row] += oracle.mode_state(n, k, expm(row * dt * a_k) @ zeta)
+    return rows
+
+
+def relative_deviation(got, expected, n):
+    """max over the rows of |got - expected| per field (u, p, g, T), each relative to the largest
+    magnitude that field's expected rows reach (fields that stay 0, as an elastic chain's g and T,
+    are left out)."""
+    fields = [slice(0, n), slice(n, 2 * n), slice(2 * n, 3 * n + 1), slice(3 * n + 1, 4 * n + 2)]
+    deviations = []
+    for field in fields:
+        scale = np.abs(expected[:, field]).max()
+        if scale > 0:
+            deviations.append(np.abs(got[:, field] - expected[:, field]).max() / scale)
+    return max(deviations)
+
+
+def nodal_deviations(chain, gamma0, x, p, gamma, theta):
+    """Rows of (u, p, g, T): the state's deviation from the uniform stretch."""
+    l_s = chain.span / chain.ns
+    return np.hstack([x - np.arange(1, chain.n + 1) * l_s, p, gamma - gamma0, theta - THETA0])
+
+
+def mode_file(path, chain, gamma0, nodal):
+    """An &initial file holding the base state plus the nodal deviation (u, p, g, T)."""
+    n = chain.n
+    l_s = chain.span / chain.ns
+    with h5py.File(path, "w") as f:
+        f["q"] = (np.arange(1, n + 1) * l_s + nodal[:n])[:, None]
+        f["p"] = nodal[n:2 * n][:, None]
+        f["gamma"] = gamma0 + nodal[2 * n:3 * n + 1]
+        f["theta"] = THETA0 + nodal[3 * n + 1:]
+
+
+def start(chain, law, gamma0, amplitude, mode, directory):
+    """&initial for a run started in mode `mode` at `amplitude` (m), and the modes it excites:
+    mode k >= 1 by perturbation = 'mode' (the masses moved along x by amplitude sin(k pi i/(N + 1)));
+    ('file', k) by an &initial file with every amplitude of mode k (U, P, G, Theta) and mode 0's
+    (G, Theta) nonzero."""
+    initial = {"theta": THETA0} if law != "elastic" else {}
+    if law == "thermoviscoelastic":
+        initial["gamma"] = float(gamma0)
+    if not isinstance(mode, tuple):
+        initial.update(perturbation="mode", mode_number=mode, amplitude=amplitude)
+        return initial, [mode]
+    k = mode[1]
+    n = chain.n
+    c = oracle.linear_coefficients(chain, THETA0)
+    omega = 2 * np.sin(k * np.pi / (2 * (n + 1))) * np.sqrt(c["ll"] / c["m"])
+    # U, P (a quarter period on), G, Theta of mode k and G, Theta of mode 0, each of the size one
+    # displacement of `amplitude` gives it (Theta: the adiabatic heating of such a strain, ~ 20 K/m).
+    nodal = (oracle.mode_state(n, k, amplitude * np.array([1.0, 0.7 * c["m"] * omega, -0.4, 25.0]))
+             + oracle.mode_state(n, 0, amplitude * np.array([0.3, -15.0])))
+    mode_file(directory / "start.h5", chain, gamma0, nodal)
+    return {"file": str(directory / "start.h5")}, [0, k]
+
+
+LINEAR_CASES = [  # (N, rung, variable, discrete gradient, mode, dt, steps)
+    (8, "elastic", "temperature", "gonzalez", 3, 0.05, 30),
+    (8, "thermoelastic", "entropy", "gonzalez", 2, 0.05, 30),
+    (8, "thermoviscoelastic", "temperature", "gonzalez", 1, 0.05, 30),
+    (8, "thermoviscoelastic", "entropy", "partitioned", ("file", 4), 0.05, 30),
+    (50, "thermoviscoelastic", "internal_energy", "partitioned", 7, 0.05, 30),
+]
+AMPLITUDE = 2.5e-4      # m: 5e-4 of the springs' length
+
+
+@pytest.mark.parametrize("n, law, variable, gradient, mode, dt, steps", LINEAR_CASES,
+                         ids=lambda v: "-".join(map(str, v)) if isinstance(v, tuple) else str(v))
+def test_a_mode_follows_the_midpoint_map_of_the_linearised_chain(tmp_path, n, law, variable, gradient, mode, dt, steps):
+    """eme_run from the uniform stretch plus one mode at amplitude eps and eps/2: every written
+    state's deviation (u, p, g, T) equals the per-mode Cayley map's prediction to a relative error
+    below 3 eps/l_s that halves with eps (1.8 to 2.2), while the linearised system's exact flow is
+    at least 5 times farther from the prediction (the run follows the step map, not only the
+    equations). Measured: see the report in docs/formulation.md section 10."""
+    chain = uniform_chain(n, law)
+    l_s, gamma0, _ = oracle.base_state(chain, THETA0)
+    deviations = []
+    for amplitude in (AMPLITUDE, AMPLITUDE / 2):
+        directory = tmp_path / f"eps{amplitude:g}"
+        directory.mkdir()
+        initial, modes = start(chain, law, gamma0, amplitude, mode, directory)
+        groups = {"model": model_group(chain, law), "initial": initial,
+                  "integrator": integrator_group(law, variable, dt, steps, gradient=gradient)}
+        result, path = run_eme(directory, "mode", groups)
+        assert result.returncode == 0, result.stderr
+        got = nodal_deviations(chain, gamma0, *read_chain_rows(path, chain, law)[:4])
+        assert got.shape[0] == steps + 1
+        expected = linear_prediction(chain, got[0], modes, dt, steps)
+        deviations.append(relative_deviation(got, expected, n))
+        flow = relative_deviation(exact_flow(chain, got[0], modes, dt, steps), expected, n)
+        print(f"N={n} {law} {variable} mode {mode}: eps/l_s = {amplitude / l_s:.3g}, relative deviation "
+              f"{deviations[-1]:.3g} (exact flow {flow:.3g})")
+        assert deviations[-1] < 3 * amplitude / l_s, (deviations[-1], amplitude / l_s)
+        assert flow > 5 * 3 * amplitude / l_s, flow
+    assert 1.8 < deviations[0] / deviations[1] < 2.2, deviations
