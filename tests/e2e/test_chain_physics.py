@@ -263,3 +263,116 @@ def test_a_mode_of_a_long_chain_on_the_sparse_path_follows_the_midpoint_map(tmp_
         assert deviations[-1] < 3 * amplitude / l_s, (deviations[-1], amplitude / l_s)
         assert flow > 5 * 3 * amplitude / l_s, flow
     assert 1.8 < deviations[0] / deviations[1] < 2.2, deviations
+
+
+# ---------------------------------------------------------------- the end state of an isolated chain
+def flat_states(x, p, gamma, theta):
+    """The oracle's flat states (x, p, gamma, theta) of each row of a 1D chain's run."""
+    return np.hstack([x, p, gamma, theta])
+
+
+def test_an_isolated_chain_ends_in_the_state_its_energy_fixes(tmp_path):
+    """A 1D 'fixed-fixed' chain of 6 masses and 7 identical thermoviscoelastic springs, well
+    conducting, no gravity, started moving, unevenly stretched, its dampers strained and its springs
+    at 270 to 350 K, run by EME (temperature variable) for 300 steps of 0.075 s. The end state of
+    section 10, solved here from E_0 = 7 u(l*, theta*, gamma*(theta*)) (tests/oracles/
+    spring_chain.py): at rest, every spring of length span/7, relaxed dampers, one temperature
+    theta*. The run's first E and S are the oracle's E(z_0), S(z_0) (1e-13), E stays (1e-12), S
+    never falls (beyond 4 n_s Cap eps, its rounding) and ends at S* within 1e-9 (S* - S_0), never above S* by more
+    than the run's energy error over theta* (plus rounding), and the last state is the end state
+    (positions 1e-9 l*, momenta 1e-9 of the initial ones, gamma 1e-9 of its initial spread,
+    temperatures 1e-8 K). beta_v = 0.2 here: with the mode tests' 0.4 such a start collapses a
+    spring, where psi's coupling -beta_v gamma W_l is unbounded below (see the report)."""
+    n, law, dt, steps = 6, "thermoviscoelastic", 0.075, 300
+    chain = uniform_chain(n, law, kappa=100.0, beta_v=0.2)
+    l_s = chain.span / chain.ns
+    rng = np.random.default_rng(39)
+    x0 = np.arange(1, n + 1) * l_s + 0.08 * l_s * rng.uniform(-1, 1, n)
+    p0 = 0.3 * rng.uniform(-1, 1, n)
+    gamma_start = 0.01 * rng.uniform(-1, 1, n + 1)
+    theta_start = np.linspace(270.0, 350.0, n + 1)[rng.permutation(n + 1)]
+    y0 = oracle.join(x0[:, None], p0[:, None], gamma_start, theta_start)
+    energy0, entropy0 = oracle.energy_entropy(chain, y0)
+    y_star, theta_star, entropy_star = oracle.end_state(chain, energy0)
+    groups = {"model": model_group(chain, law),
+              "initial": {"x": list(x0), "p": list(p0), "gamma": list(gamma_start), "theta": list(theta_start)},
+              "integrator": integrator_group(law, "temperature", dt, steps)}
+    result, path = run_eme(tmp_path, "isolated", groups)
+    assert result.returncode == 0, result.stderr
+    x, p, gamma, theta, series = read_chain_rows(path, chain, law)
+    energy, entropy = series["energy"], series["entropy"]
+    print(f"theta* = {theta_star:.6f} K, S* - S_0 = {entropy_star - entropy0:.6g} J/K; after {steps} steps: "
+          f"S* - S = {entropy_star - entropy[-1]:.3g}, largest S - S* {np.max(entropy - entropy_star):.3g}, "
+          f"|E - E_0| {np.max(np.abs(energy - energy0)):.3g}, state off by {np.abs(flat_states(x, p, gamma, theta)[-1] - y_star).max():.3g}")
+    assert abs(energy[0] - energy0) <= 1e-13 * abs(energy0), (energy[0], energy0)
+    assert abs(entropy[0] - entropy0) <= 1e-13 * abs(entropy0), (entropy[0], entropy0)
+    energy_error = np.max(np.abs(energy - energy0))
+    assert energy_error <= 1e-12 * abs(energy0), energy_error
+    # S's rounding: each temperature's ulp moves s_a by Cap eps (section 3: s = sigma + Cap ln theta).
+    rounding = 4 * chain.ns * oracle.capacity(oracle.spring_arrays(chain)).max() * np.finfo(float).eps
+    assert np.all(np.diff(entropy) >= -rounding), np.diff(entropy).min()
+    assert abs(entropy_star - entropy[-1]) <= 1e-9 * (entropy_star - entropy0)
+    assert np.max(entropy - entropy_star) <= energy_error / theta_star + rounding
+    last = flat_states(x, p, gamma, theta)[-1]
+    _, _, gamma_end, theta_end = oracle.split(chain, y_star)
+    assert np.max(np.abs(x[-1] - y_star[:n])) <= 1e-9 * l_s
+    assert np.max(np.abs(p[-1])) <= 1e-9 * np.max(np.abs(p0))
+    assert np.max(np.abs(gamma[-1] - gamma_end)) <= 1e-9 * np.ptp(gamma_start)
+    assert np.max(np.abs(theta[-1] - theta_end)) <= 1e-8
+    assert last.shape == y_star.shape
+
+
+# ---------------------------------------------------------------- every step of a 200-spring chain
+def spring_entropy_rates(chain, y):
+    """Each spring's (viscous production eta (dgamma/dt)^2/theta = Theta y^2/eta, heat received
+    sum_b kappa (theta_b - theta_a) over theta_a) and each link's production kappa (theta_a -
+    theta_b)^2/(theta_a theta_b), from a state (section 10: theta ds_a/dt = eta (dgamma_a/dt)^2 +
+    sum_b kappa_ab (theta_b - theta_a))."""
+    viscous, links = oracle.entropy_production(chain, y)
+    theta = oracle.split(chain, y)[3]
+    return viscous, oracle.conduction(chain, theta) / theta, links
+
+
+def test_every_step_of_a_200_spring_chain_keeps_each_balance(tmp_path):
+    """eme_run (dense) on a 1D 'fixed-fixed' chain of 199 masses and 200 thermoviscoelastic springs,
+    temperatures alternating 40 K apart on a gradient, masses moved by seeded random numbers, 12
+    steps of 0.005 s in the internal-energy variable. Every step: |E_{n+1} - E_n| <= 1e-13 |E|, V
+    never rises, and at every written state each viscous branch's and each link's production
+    (formulas of section 10 from /state and /temperature) is >= 0, links > 0. Each spring's entropy
+    s_a(z) (from the state, the oracle's formulas) changes over a step by the trapezoidal integral
+    of its viscous production plus its heat received over theta_a, to 2 % of the step's largest
+    such term: so every branch and every link acts with its own size and sign."""
+    n, law, dt, steps = 199, "thermoviscoelastic", 0.0025, 12
+    chain = uniform_chain(n, law)
+    _, gamma0, _ = oracle.base_state(chain, THETA0)
+    theta_start = 300.0 + 20.0 * np.linspace(-1, 1, n + 1) + 20.0 * (-1.0) ** np.arange(n + 1)
+    groups = {"model": model_group(chain, law),
+              "initial": {"gamma": float(gamma0), "theta": list(theta_start), "perturbation": "mode",
+                          "mode_number": 3, "amplitude": 0.02},
+              "integrator": integrator_group(law, "internal_energy", dt, steps, newton_tol=1e-11)}
+    result, path = run_eme(tmp_path, "steps", groups)
+    assert result.returncode == 0, result.stderr
+    x, p, gamma, theta, series = read_chain_rows(path, chain, law)
+    energy, lyapunov = series["energy"], series["lyapunov"]
+    assert len(energy) == steps + 1
+    energy_steps = np.abs(np.diff(energy)) / np.abs(energy[1:])
+    assert np.max(energy_steps) <= 1e-13, energy_steps
+    assert np.all(np.diff(lyapunov) <= 0), np.diff(lyapunov).max()
+    states = flat_states(x, p, gamma, theta)
+    rates = [spring_entropy_rates(chain, y) for y in states]
+    viscous = np.array([r[0] for r in rates])
+    received = np.array([r[1] for r in rates])
+    links = np.array([r[2] for r in rates])
+    assert np.all(viscous >= 0) and np.all(links > 0), (viscous.min(), links.min())
+    spring_entropy = np.array([oracle.entropy_energy(oracle.spring_arrays(chain),
+                                                     oracle.spring_vectors(chain, oracle.split(chain, y)[0])[1],
+                                                     oracle.split(chain, y)[3], oracle.split(chain, y)[2])[0]
+                               for y in states])
+    rate = viscous + received
+    integral = dt * (rate[1:] + rate[:-1]) / 2
+    scale = dt * np.max(np.abs(np.concatenate([viscous, received], axis=1)))
+    mismatch = np.max(np.abs(np.diff(spring_entropy, axis=0) - integral)) / scale
+    print(f"largest step |dE|/|E| {energy_steps.max():.3g}, largest dV {np.diff(lyapunov).max():.3g} J, "
+          f"smallest viscous production {viscous.min():.3g} W/K, link {links.min():.3g} W/K, "
+          f"per-spring entropy balance off by {mismatch:.3g} of its largest term")
+    assert mismatch <= 0.02, mismatch
