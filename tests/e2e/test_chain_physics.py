@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from scipy.linalg import expm
 
 from conftest import BIN, namelist_text, run_eme
 
@@ -102,35 +103,29 @@ def read_chain_rows(path, chain, law):
 
 
 # ---------------------------------------------------------------- exact linear modes
-def linear_prediction(chain, nodal_start, modes, dt, steps):
-    """The midpoint rule's map of the linearised system, mode by mode: the nodal deviations
-    (u, p, g, T) after 0..steps steps from `nodal_start`, which lies in `modes` (section 10's sine
-    and cosine modes; A_k from the oracle's second derivatives of psi at the base state)."""
-    n = chain.n
+def propagate(chain, nodal_start, modes, steps, propagator):
+    """The nodal deviations (u, p, g, T) at steps 0..steps from `nodal_start`, which lies in
+    `modes` (section 10's sine and cosine modes), each mode's amplitudes moved by propagator(A_k,
+    step), A_k from the oracle's second derivatives of psi at the base state."""
     c = oracle.linear_coefficients(chain, THETA0)
     rows = np.zeros((steps + 1, len(nodal_start)))
     for k in modes:
-        step = oracle.cayley(oracle.mode_generator(c, n, k), dt)
-        zeta = oracle.modal_amplitudes(n, nodal_start, k)
+        a_k = oracle.mode_generator(c, chain.n, k)
+        zeta = oracle.modal_amplitudes(chain.n, nodal_start, k)
         for row in range(steps + 1):
-            rows[row] += oracle.mode_state(n, k, zeta)
-            zeta = step @ zeta
+            rows[row] += oracle.mode_state(chain.n, k, propagator(a_k, row) @ zeta)
     return rows
 
 
-def exact_flow(chain, nodal_start, modes, dt, steps):
-    """The linearised system's exact solution at the same times, exp(t A_k) per mode (to show that
-    the runs follow the step map and not merely the equations)."""
-    from scipy.linalg import expm
-    n = chain.n
-    c = oracle.linear_coefficients(chain, THETA0)
-    rows = np.zeros((steps + 1, len(nodal_start)))
-    for k in modes:
-        a_k = oracle.mode_generator(c, n, k)
-        zeta = oracle.modal_amplitudes(n, nodal_start, k)
-        for row in range(steps + 1):
-            rows[row] += oracle.mode_state(n, k, expm(row * dt * a_k) @ zeta)
-    return rows
+def midpoint_map(dt):
+    """The midpoint rule's map of dz/dt = A z, step times: the Cayley transform's power."""
+    return lambda a_k, step: np.linalg.matrix_power(oracle.cayley(a_k, dt), step)
+
+
+def exact_map(dt):
+    """The linear system's exact flow over step dt: to show that a run follows the step map and
+    not merely the equations."""
+    return lambda a_k, step: expm(step * dt * a_k)
 
 
 def relative_deviation(got, expected, n):
@@ -196,6 +191,27 @@ LINEAR_CASES = [  # (N, rung, variable, discrete gradient, mode, dt, steps)
 AMPLITUDE = 2.5e-4      # m: 5e-4 of the springs' length
 
 
+def assert_runs_follow_the_midpoint_map(label, chain, run, dt, steps):
+    """For eps = AMPLITUDE and eps/2, run(eps) gives (the steps written, the state's deviations
+    (u, p, g, T) at them, the modes it started in): each deviates from the per-mode Cayley map's
+    prediction by less than 3 eps/l_s relative (relative_deviation), the two deviations are 1.8 to
+    2.2 apart, and the linearised system's exact flow is at least 5 times that bound away from the
+    prediction."""
+    l_s = chain.span / chain.ns
+    deviations = []
+    for amplitude in (AMPLITUDE, AMPLITUDE / 2):
+        written, got, modes = run(amplitude)
+        expected = propagate(chain, got[0], modes, steps, midpoint_map(dt))[written]
+        flow = relative_deviation(propagate(chain, got[0], modes, steps, exact_map(dt))[written], expected, chain.n)
+        deviations.append(relative_deviation(got, expected, chain.n))
+        bound = 3 * amplitude / l_s
+        print(f"{label}: eps/l_s = {amplitude / l_s:.3g}, relative deviation {deviations[-1]:.3g} "
+              f"(exact flow {flow:.3g})")
+        assert deviations[-1] < bound, (deviations[-1], amplitude / l_s)
+        assert flow > 5 * bound, flow
+    assert 1.8 < deviations[0] / deviations[1] < 2.2, deviations
+
+
 @pytest.mark.parametrize("n, law, variable, gradient, mode, dt, steps", LINEAR_CASES,
                          ids=lambda v: "-".join(map(str, v)) if isinstance(v, tuple) else str(v))
 def test_a_mode_follows_the_midpoint_map_of_the_linearised_chain(tmp_path, n, law, variable, gradient, mode, dt, steps):
@@ -207,9 +223,9 @@ def test_a_mode_follows_the_midpoint_map_of_the_linearised_chain(tmp_path, n, la
     Planted bugs it catches: twice the links' heat flow (spring_chain_blocks' link_block), a step
     residual of 0.9 dt (step_residual)."""
     chain = uniform_chain(n, law)
-    l_s, gamma0, _ = oracle.base_state(chain, THETA0)
-    deviations = []
-    for amplitude in (AMPLITUDE, AMPLITUDE / 2):
+    _, gamma0, _ = oracle.base_state(chain, THETA0)
+
+    def run(amplitude):
         directory = tmp_path / f"eps{amplitude:g}"
         directory.mkdir()
         initial, modes = start(chain, law, gamma0, amplitude, mode, directory)
@@ -219,14 +235,9 @@ def test_a_mode_follows_the_midpoint_map_of_the_linearised_chain(tmp_path, n, la
         assert result.returncode == 0, result.stderr
         got = nodal_deviations(chain, gamma0, *read_chain_rows(path, chain, law)[:4])
         assert got.shape[0] == steps + 1
-        expected = linear_prediction(chain, got[0], modes, dt, steps)
-        deviations.append(relative_deviation(got, expected, n))
-        flow = relative_deviation(exact_flow(chain, got[0], modes, dt, steps), expected, n)
-        print(f"N={n} {law} {variable} mode {mode}: eps/l_s = {amplitude / l_s:.3g}, relative deviation "
-              f"{deviations[-1]:.3g} (exact flow {flow:.3g})")
-        assert deviations[-1] < 3 * amplitude / l_s, (deviations[-1], amplitude / l_s)
-        assert flow > 5 * 3 * amplitude / l_s, flow
-    assert 1.8 < deviations[0] / deviations[1] < 2.2, deviations
+        return np.arange(steps + 1), got, modes
+
+    assert_runs_follow_the_midpoint_map(f"N={n} {law} {variable} mode {mode}", chain, run, dt, steps)
 
 
 def test_a_mode_of_a_long_chain_on_the_sparse_path_follows_the_midpoint_map(tmp_path):
@@ -238,9 +249,9 @@ def test_a_mode_of_a_long_chain_on_the_sparse_path_follows_the_midpoint_map(tmp_
     here."""
     n, law, k, dt, steps, every = 2000, "thermoviscoelastic", 1000, 0.05, 10, 5
     chain = uniform_chain(n, law)
-    l_s, gamma0, _ = oracle.base_state(chain, THETA0)
-    deviations = []
-    for amplitude in (AMPLITUDE, AMPLITUDE / 2):
+    _, gamma0, _ = oracle.base_state(chain, THETA0)
+
+    def run(amplitude):
         initial, modes = start(chain, law, gamma0, amplitude, k, tmp_path)
         name = f"eps{amplitude:g}"
         groups = {"model": model_group(chain, law), "initial": initial,
@@ -254,19 +265,13 @@ def test_a_mode_of_a_long_chain_on_the_sparse_path_follows_the_midpoint_map(tmp_
                                 capture_output=True, text=True, timeout=600)
         assert result.returncode == 0, result.stderr
         with h5py.File(snapshots, "r") as f:
-            times = f["snapshots/time"][()]
+            written = np.rint(f["snapshots/time"][()] / dt).astype(int)
             got = nodal_deviations(chain, gamma0, f["snapshots/q"][:, :, 0], f["snapshots/p"][:, :, 0],
                                    f["snapshots/gamma"][()], f["snapshots/theta"][()])
-        rows = np.rint(times / dt).astype(int)
-        assert np.array_equal(rows, np.arange(0, steps + 1, every)), times
-        expected = linear_prediction(chain, got[0], modes, dt, steps)[rows]
-        deviations.append(relative_deviation(got, expected, n))
-        flow = relative_deviation(exact_flow(chain, got[0], modes, dt, steps)[rows], expected, n)
-        print(f"N={n} mode {k} on chain_bench: eps/l_s = {amplitude / l_s:.3g}, relative deviation "
-              f"{deviations[-1]:.3g} (exact flow {flow:.3g})")
-        assert deviations[-1] < 3 * amplitude / l_s, (deviations[-1], amplitude / l_s)
-        assert flow > 5 * 3 * amplitude / l_s, flow
-    assert 1.8 < deviations[0] / deviations[1] < 2.2, deviations
+        assert np.array_equal(written, np.arange(0, steps + 1, every)), written
+        return written, got, modes
+
+    assert_runs_follow_the_midpoint_map(f"N={n} mode {k} on chain_bench", chain, run, dt, steps)
 
 
 # ---------------------------------------------------------------- the end state of an isolated chain
