@@ -92,11 +92,14 @@ contains
     n = self%model%state_size
     step = self%fraction*self%dt
     block
-      real(real64) :: z_mid(n), f(n), df_dz(n, n)
+      ! The arrays of size n^2 and more live on the heap: on the stack (-fstack-arrays) a chain of
+      ! about 500 unknowns already overflowed its 8 MB.
+      real(real64) :: z_mid(n), f(n)
       real(real64) :: partials(self%model%max_invariants, 2, self%model%subsystem_count())
-      real(real64) :: dpartials_dz(self%model%max_invariants, 2, self%model%subsystem_count(), n)
-      real(real64) :: df_dpartials(n, self%model%max_invariants, 2, self%model%subsystem_count())
+      real(real64), allocatable :: df_dz(:, :), dpartials_dz(:, :, :, :), df_dpartials(:, :, :, :)
 
+      allocate (df_dz(n, n), dpartials_dz(self%model%max_invariants, 2, self%model%subsystem_count(), n), &
+                df_dpartials(n, self%model%max_invariants, 2, self%model%subsystem_count()))
       z_mid = 0.5_real64*(self%z_old + x(1:n))
       if (present(jacobian)) then
         call self%scheme_partials(x, partials, dpartials_dz, stat)
