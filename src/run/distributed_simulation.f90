@@ -32,7 +32,8 @@ module distributed_simulation
                                 reasons_snes
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, spare_addition
-  use run_outcome, only: run_summary, failure_none, failure_solver, failure_domain, failure_input, failure_io, &
+  use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_solver, &
+                         failure_domain, failure_input, failure_io, &
                          failure_interrupted, failure_library, failure_step_budget, failure_balance
   use step_balances, only: balance_count, balanced_state, balance_figures, applicable_balances
   use step_check, only: checked_balances, broken_balance, balance_text
@@ -43,6 +44,7 @@ module distributed_simulation
   use output_path, only: check_output_path
   use filesystem, only: make_parent_directories, rename_file, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text, scientific_text
+  use run_clock, only: run_timer
   use failures, only: failure_type, set_failure => fail, code_input => failure_input
   implicit none (type, external)
   private
@@ -160,27 +162,19 @@ contains
     type(failure_type) :: step_failure, io_failure
     character(len=:), allocatable :: part
     real(real64) :: figures(balance_count), dt, time, energy_change, conserved_change(3), dv
-    real(real64) :: cpu_start, cpu_loop, step_seconds
-    integer(int64) :: n, clock_start, clock_loop, clock_now, clock_rate, clock_progress, step_start, step_end
+    real(real64) :: step_seconds
+    integer(int64) :: n, step_start, step_end
+    type(run_timer) :: timer
     integer(int64) :: state_step      !! the step whose end the system's state is
     integer(int64) :: snapshot_step   !! the step of the last snapshot held
-    integer :: rank, every, outputs_passed, stop_flags(3), k
+    integer :: rank, every, outputs_passed, stop_flags(3)
     logical :: checked(balance_count), has_balance(balance_count), found, replace, row_due, finished, writing
     type(MPI_Comm) :: communicator
 
-    call system_clock(clock_start, clock_rate)
-    call cpu_time(cpu_start)
+    call timer%begin()
     communicator%MPI_VAL = comm
     call MPI_Comm_rank(communicator, rank)
-    clock_progress = clock_start
-    clock_loop = clock_start
-    cpu_loop = cpu_start
-    summary%note = ''
-    summary%conserved_momentum = ''
-    summary%warnings = ''
-    summary%status = 'incomplete: running'
-    summary%failure_kind = failure_none
-    summary%steps_planned = step_count(config%integrator)
+    call open_summary(summary, step_count(config%integrator))
     dt = config%integrator%dt
     time = 0.0_real64
     n = 0
@@ -221,15 +215,9 @@ contains
       call system%finish(step_failure)
       return
     end if
-    summary%energy_units = model%words%energy_units
-    summary%entropy_units = model%words%entropy_units
+    call summarize_model(summary, model)
     checked = checked_balances(entry, model, constraints)
     has_balance = applicable_balances(model)
-    if (model%conserved_count() == 0) summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
-    do k = 1, model%conserved_count()
-      if (k > 1) summary%conserved_momentum = summary%conserved_momentum//' '
-      summary%conserved_momentum = summary%conserved_momentum//trim(model%conserved(k)%name)
-    end do
     every = config%snapshot_every
     energy_change = 0.0_real64
     conserved_change = 0.0_real64
@@ -264,8 +252,7 @@ contains
     state_step = 0
     call hold_snapshot()
     outputs_passed = 0
-    call system_clock(clock_loop)
-    call cpu_time(cpu_loop)
+    call timer%begin_loop()
     finished = .false.
     do while (.not. finished)
       ! Every rank stops at the same step: a signal to any, the budget, a lost lock on rank 0.
@@ -294,7 +281,7 @@ contains
       call system%step(dt, outcome, step_failure)
       call system_clock(step_end)
       if (.not. step_failure%failed() .and. outcome%converged) state_step = n
-      step_seconds = real(step_end - step_start, real64)/real(clock_rate, real64)
+      step_seconds = real(step_end - step_start, real64)/real(timer%rate, real64)
       if (step_failure%failed()) then
         call fail(failure_library, 'PETSc failed during the solve: '//step_failure%message)
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
@@ -357,13 +344,7 @@ contains
       if (failure%failed()) exit
       if (rank == 0 .and. present(progress)) call report_progress()
     end do
-    if (summary%steps_completed == 0 .or. model%temperature_count() == 0) then
-      summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
-      summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
-    end if
-    if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
-    where (.not. has_balance .or. summary%steps_completed == 0) summary%max_balance = ieee_value(1.0_real64, &
-                                                                                                 ieee_quiet_nan)
+    call close_summary(summary, model, has_balance)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) &
       summary%status = 'complete'
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
@@ -562,23 +543,15 @@ contains
 
     subroutine set_times(in_loop)
       logical, intent(in) :: in_loop
-      real(real64) :: cpu_now
 
-      call cpu_time(cpu_now)
-      call system_clock(clock_now)
-      if (in_loop) summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
-      summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
-      if (in_loop) summary%solve_cpu_seconds = cpu_now - cpu_loop
-      summary%cpu_seconds = cpu_now - cpu_start
+      call timer%note_times(summary, in_loop)
     end subroutine set_times
 
     subroutine report_progress()
       real(real64) :: elapsed, left
 
-      call system_clock(clock_now)
-      if (real(clock_now - clock_progress, real64) < progress_interval*real(clock_rate, real64)) return
-      clock_progress = clock_now
-      elapsed = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+      if (.not. timer%progress_due(progress_interval)) return
+      elapsed = timer%loop_seconds()
       left = elapsed*max(0.0_real64, config%integrator%t_end - time)/max(time, tiny(time))
       call progress('t = '//fixed_text(time, 3)//' of '//fixed_text(config%integrator%t_end, 3)//' s, '// &
                     integer_text(n)//' steps, about '//fixed_text(left, 1)//' s left')

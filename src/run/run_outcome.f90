@@ -3,9 +3,11 @@
 !> `failure_kind`), and the figures it is judged by (docs/output.md, docs/studies.md).
 module run_outcome
   use, intrinsic :: iso_fortran_env, only: real64, int64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use model_interface, only: generic_model
   implicit none (type, external)
   private
-  public :: run_summary, step_failure_kind
+  public :: run_summary, step_failure_kind, open_summary, summarize_model, close_summary
   public :: failure_none, failure_solver, failure_domain, failure_input, failure_io, failure_interrupted, &
             failure_library, failure_step_budget, failure_balance
 
@@ -75,5 +77,52 @@ contains
     if (index(reason, 'domain') > 0 .or. index(reason, 'non-positive') > 0 .or. index(reason, 'blow-up') > 0 .or. &
         index(reason, 'undefined') > 0) kind = failure_domain
   end function step_failure_kind
+
+  !> The summary of a run that starts: running, no failure, `steps_planned` steps.
+  pure subroutine open_summary(summary, steps_planned)
+    type(run_summary), intent(out) :: summary
+    integer(int64), intent(in) :: steps_planned
+
+    summary%note = ''
+    summary%warnings = ''
+    summary%conserved_momentum = ''
+    summary%status = 'incomplete: running'
+    summary%failure_kind = failure_none
+    summary%steps_planned = steps_planned
+  end subroutine open_summary
+
+  !> The model's words in the summary: its units and conserved components' names (and no
+  !> momentum drift figure without one).
+  pure subroutine summarize_model(summary, model)
+    type(run_summary), intent(inout) :: summary
+    class(generic_model), intent(in) :: model
+    integer :: k
+
+    summary%energy_units = model%words%energy_units
+    summary%entropy_units = model%words%entropy_units
+    summary%conserved_momentum = ''
+    do k = 1, model%conserved_count()
+      if (k > 1) summary%conserved_momentum = summary%conserved_momentum//' '
+      summary%conserved_momentum = summary%conserved_momentum//trim(model%conserved(k)%name)
+    end do
+    if (model%conserved_count() == 0) summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
+  end subroutine summarize_model
+
+  !> The figures a run's summary cannot have, NaN: those of the steps when none completed, the
+  !> entropy's, V's and the temperature's for a model without temperatures (elastic springs: S = 0,
+  !> V = E), a balance the model has not (`has_balance`: step_balances' applicable_balances).
+  pure subroutine close_summary(summary, model, has_balance)
+    type(run_summary), intent(inout) :: summary
+    class(generic_model), intent(in) :: model
+    logical, intent(in) :: has_balance(:)
+
+    if (summary%steps_completed == 0 .or. model%temperature_count() == 0) then
+      summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
+      summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
+    end if
+    if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
+    where (.not. has_balance .or. summary%steps_completed == 0) summary%max_balance = ieee_value(1.0_real64, &
+                                                                                                 ieee_quiet_nan)
+  end subroutine close_summary
 
 end module run_outcome

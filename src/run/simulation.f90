@@ -19,7 +19,8 @@ module simulation
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
-  use run_outcome, only: run_summary, step_failure_kind, failure_none, failure_solver, failure_domain, &
+  use run_outcome, only: run_summary, step_failure_kind, open_summary, summarize_model, close_summary, &
+                         failure_none, failure_solver, failure_domain, &
                          failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget, &
                          failure_balance
   use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, applicable_balances
@@ -31,6 +32,7 @@ module simulation
   use command_line, only: petsc_error_text
   use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text
+  use run_clock, only: run_timer
   use effective_namelist, only: namelist_of_run
   use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
                       code_interrupted => failure_interrupted, code_library => failure_library
@@ -138,26 +140,16 @@ contains
     logical :: checked(balance_count), has_balance(balance_count), resolved
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
-    integer(int64) :: clock_start, clock_loop, clock_now, clock_rate, clock_progress
-    real(real64) :: cpu_start, cpu_loop    !! the process's CPU time at the run's and the time loop's start
+    type(run_timer) :: timer
     integer(int64) :: n             !! steps taken (accepted)
-    integer :: k, n_state, signal
+    integer :: n_state, signal
     type(failure_type) :: step_failure, release_failure, io_failure
     logical :: found, finished, writing, replace, chooses_time, row_due, continuing
     logical :: lock_lost                !! the output's lock was removed or replaced (guard_lock)
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
-    call system_clock(clock_start, clock_rate)
-    call cpu_time(cpu_start)
-    clock_progress = clock_start
-    clock_loop = clock_start
-    cpu_loop = cpu_start
-    summary%note = ''
-    summary%conserved_momentum = ''
-    summary%warnings = ''
-    summary%status = 'incomplete: running'
-    summary%failure_kind = failure_none
-    summary%steps_planned = step_count(config%integrator)
+    call timer%begin()
+    call open_summary(summary, step_count(config%integrator))
     dt = config%integrator%dt
     t_end = config%integrator%t_end
     time = 0.0_real64
@@ -218,14 +210,7 @@ contains
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
     allocate (theta(model%temperature_count()), residuals(size(constraints)), momentum(model%momentum_count()))
-    summary%energy_units = model%words%energy_units
-    summary%entropy_units = model%words%entropy_units
-    ! A model without a conserved momentum has no drift figure.
-    if (model%conserved_count() == 0) summary%angular_momentum_drift = ieee_value(1.0_real64, ieee_quiet_nan)
-    do k = 1, model%conserved_count()
-      if (k > 1) summary%conserved_momentum = summary%conserved_momentum//' '
-      summary%conserved_momentum = summary%conserved_momentum//trim(model%conserved(k)%name)
-    end do
+    call summarize_model(summary, model)
     ! The conserved components at t = 0 (a continued run's too: its input builds the same z0).
     conserved_0 = model%conserved_momenta(z0)
     x = 0.0_real64
@@ -305,8 +290,7 @@ contains
       call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
                                     x_previous, integrator)
     end if
-    call system_clock(clock_loop)
-    call cpu_time(cpu_loop)
+    call timer%begin_loop()
     ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
     ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
     ! step lands on it), or until the step budget (&integrator max_steps) is spent.
@@ -371,7 +355,7 @@ contains
       x_previous = x
       x = x_new
       call take_observation(energy, entropy, lyapunov)
-      call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(clock_rate, real64), &
+      call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(timer%rate, real64), &
                               entropy - entropy_old, lyapunov - lyapunov_old, figures, has_balance, resolved)
       row_due = .false.
       do while (config%output_interval > 0.0_real64 .and. &
@@ -404,15 +388,7 @@ contains
       if (present(observer)) call observer%after_step()
       if (present(progress)) call report_progress()
     end do
-    ! No step, or a model without entropy (elastic springs: S = 0, V = E, no temperatures): no
-    ! entropy or V figure and no temperature.
-    if (summary%steps_completed == 0 .or. model%temperature_count() == 0) then
-      summary%min_entropy_increment = ieee_value(1.0_real64, ieee_quiet_nan)
-      summary%max_lyapunov_increment = ieee_value(1.0_real64, ieee_quiet_nan)
-    end if
-    if (model%temperature_count() == 0) summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
-    where (.not. has_balance .or. summary%steps_completed == 0) summary%max_balance = ieee_value(1.0_real64, &
-                                                                                                 ieee_quiet_nan)
+    call close_summary(summary, model, has_balance)
     call set_times(.true.)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
@@ -564,26 +540,11 @@ contains
       summary%failure_kind = kind
     end subroutine fail
 
-    ! The whole run's seconds so far, and the time loop's while it runs, in wall time and in the
-    ! process's CPU time. The CPU clock is Fortran's cpu_time, portable and, in gfortran, getrusage:
-    ! user and system time of all the process's threads to the microsecond, enough for cases of
-    ! 0.1 ms and more. It is read inside the wall clock's readings, so that a CPU span lies within
-    ! its wall span. A processor without a CPU clock (cpu_time negative) gives NaN.
+    ! The whole run's seconds so far, and the time loop's while it runs (src/run/run_clock).
     subroutine set_times(in_loop)
       logical, intent(in) :: in_loop
-      real(real64) :: cpu_now
 
-      call cpu_time(cpu_now)
-      call system_clock(clock_now)
-      if (in_loop) summary%solve_seconds = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
-      summary%wall_seconds = real(clock_now - clock_start, real64)/real(clock_rate, real64)
-      if (cpu_start < 0) then
-        summary%cpu_seconds = ieee_value(1.0_real64, ieee_quiet_nan)
-        summary%solve_cpu_seconds = summary%cpu_seconds
-        return
-      end if
-      if (in_loop) summary%solve_cpu_seconds = cpu_now - cpu_loop
-      summary%cpu_seconds = cpu_now - cpu_start
+      call timer%note_times(summary, in_loop)
     end subroutine set_times
 
     ! The balances' quantities at z (into balance_new) and its temperatures (into theta).
@@ -770,10 +731,8 @@ contains
     subroutine report_progress()
       real(real64) :: elapsed, left
 
-      call system_clock(clock_now)
-      if (real(clock_now - clock_progress, real64) < progress_interval*real(clock_rate, real64)) return
-      clock_progress = clock_now
-      elapsed = real(clock_now - clock_loop, real64)/real(clock_rate, real64)
+      if (.not. timer%progress_due(progress_interval)) return
+      elapsed = timer%loop_seconds()
       left = elapsed*max(0.0_real64, t_end - time)/max(time, tiny(time))
       call progress('t = '//fixed_text(time, 3)//' of '//fixed_text(t_end, 3)//' s, '//integer_text(n)//' steps, ' &
                     //integer_text(nint(n/max(elapsed, tiny(elapsed))))//' steps/s, about '//fixed_text(left, 1) &
