@@ -16,7 +16,7 @@ module gas_scene
   private
   public :: gas_containers_name, new_gas_containers_scene
 
-  character(len=*), parameter :: gas_containers_name = 'gas_containers'
+  character(len=*), parameter :: gas_containers_name = 'gas_handwritten'
 
   !> The values of the two groups, in their namelist names.
   type, extends(scene) :: gas_containers_scene
