@@ -39,7 +39,7 @@ contains
     real(real64), intent(out) :: f(:), grad(:, :)
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
-    real(real64) :: v, tau, t_1, t_2, t_3, t_4
+    real(real64) :: v, tau, v_root_3, t_1, t_2, t_3, t_4
 
     f = 0.0_real64
     grad = 0.0_real64
@@ -59,26 +59,27 @@ contains
           stat = domain_overflow
           return
         end if
+        v_root_3 = v**((1.0_real64/3.0_real64))
         if (present(hess)) then
           t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v**((2.0_real64/3.0_real64))
-          t_3 = t_1/v**((5.0_real64/3.0_real64))
+          t_2 = t_1/v_root_3**2
+          t_3 = t_1/v_root_3**5
           t_4 = -(4.0_real64/9.0_real64)*t_3
           f(1) = t_2
           f(2) = tau
           grad(1, 1) = -(2.0_real64/3.0_real64)*t_3
           grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
-          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*t_1/v**((8.0_real64/3.0_real64))
+          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*t_1/v_root_3**8
           hess(1, 2, 1) = t_4
           hess(2, 1, 1) = t_4
           hess(2, 2, 1) = ((4.0_real64/9.0_real64))*t_2
         else
           t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v**((2.0_real64/3.0_real64))
+          t_2 = t_1/v_root_3**2
           f(1) = t_2
           f(2) = tau
-          grad(1, 1) = -(2.0_real64/3.0_real64)*t_1/v**((5.0_real64/3.0_real64))
+          grad(1, 1) = -(2.0_real64/3.0_real64)*t_1/v_root_3**5
           grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
         end if
@@ -150,26 +151,27 @@ contains
           stat = domain_overflow
           return
         end if
+        v_root_3 = v**((1.0_real64/3.0_real64))
         if (present(hess)) then
           t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v**((2.0_real64/3.0_real64))
-          t_3 = t_1/v**((5.0_real64/3.0_real64))
+          t_2 = t_1/v_root_3**2
+          t_3 = t_1/v_root_3**5
           t_4 = -(4.0_real64/9.0_real64)*t_3
           f(1) = t_2
           f(2) = tau
           grad(1, 1) = -(2.0_real64/3.0_real64)*t_3
           grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
-          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*t_1/v**((8.0_real64/3.0_real64))
+          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*t_1/v_root_3**8
           hess(1, 2, 1) = t_4
           hess(2, 1, 1) = t_4
           hess(2, 2, 1) = ((4.0_real64/9.0_real64))*t_2
         else
           t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v**((2.0_real64/3.0_real64))
+          t_2 = t_1/v_root_3**2
           f(1) = t_2
           f(2) = tau
-          grad(1, 1) = -(2.0_real64/3.0_real64)*t_1/v**((5.0_real64/3.0_real64))
+          grad(1, 1) = -(2.0_real64/3.0_real64)*t_1/v_root_3**5
           grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
         end if

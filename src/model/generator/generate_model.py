@@ -362,6 +362,26 @@ def subsystem_cases(cases, indent):
     return lines
 
 
+def shared_roots(positive, *groups):
+    """The fractional powers b**(p/q) of the positive invariants b in the expression lists `groups` as
+    integer powers of one root b**(1/q) each: ([(root symbol, its power of b)], groups rewritten). One pow
+    instead of one per exponent (U = exp(2 s/3)/v**(2/3) has v**(-2/3), v**(-5/3) and v**(-8/3) in its
+    derivatives)."""
+    roots = {}
+
+    def is_root_power(e):
+        return e.is_Pow and e.base in positive and e.exp.is_Rational and not e.exp.is_Integer
+
+    def as_root(e):
+        key = (e.base, e.exp.q)
+        if key not in roots:
+            roots[key] = sp.Symbol(f"{e.base.name}_root_{e.exp.q}", real=True)
+        return roots[key]**e.exp.p
+
+    rewritten = [[sp.sympify(e).replace(is_root_power, as_root) for e in group] for group in groups]
+    return [(root, base**sp.Rational(1, q)) for (base, q), root in roots.items()], rewritten
+
+
 def potential_module(symbolic, source):
     d = symbolic.d
     name = d.name
@@ -391,7 +411,11 @@ def potential_module(symbolic, source):
             locals_["evaluate"] |= {x.name for x in used if x.name in names}
             check, has_log, has_exp = guards(values, 4, positive)
             codes |= {"domain_overflow"} if has_exp else set()
+            roots, (exprs, hess_exprs) = shared_roots(positive, exprs, hess_exprs)
+            locals_["evaluate"] |= {root.name for root, _ in roots}
+            locals_order += [root.name for root, _ in roots if root.name not in locals_order]
             body = unpack(used, names, "x", 4) + check
+            body += [wrap(f"{root.name} = {fortran(power)}", 4) for root, power in roots]
             if hess_exprs:
                 body += [INDENT*4 + "if (present(hess)) then"] + assignments(targets + hess_targets, exprs + hess_exprs,
                                                                               5, temporaries)
