@@ -4,8 +4,6 @@
 submodule (model_registry) model_registry_lines
   use pendulum_scene, only: double_pendulum_name, new_double_pendulum_scene
   use pendulum_step_kernel, only: pendulum_fused_step
-  use gas_scene, only: handwritten_gas_containers_name => gas_containers_name, &
-                       new_handwritten_gas_containers_scene => new_gas_containers_scene
   use gas_containers_scene, only: gas_containers_name, new_gas_containers_scene
   use spring_chain_scene, only: spring_chain_name, new_spring_chain_scene
   use heat_bath_scene, only: heat_bath_name, new_heat_bath_scene
@@ -16,7 +14,6 @@ contains
   module procedure registered_models
     entries = [model_entry(double_pendulum_name, new_double_pendulum_scene, pendulum_fused_step), &
                model_entry(gas_containers_name, new_gas_containers_scene), &
-               model_entry(handwritten_gas_containers_name, new_handwritten_gas_containers_scene), &
                model_entry(spring_chain_name, new_spring_chain_scene), &
                model_entry(heat_bath_name, new_heat_bath_scene)]
   end procedure registered_models
