@@ -4,7 +4,7 @@
 submodule (model_registry) model_registry_lines
   use pendulum_scene, only: double_pendulum_name, new_double_pendulum_scene
   use pendulum_step_kernel, only: pendulum_fused_step
-  use gas_scene, only: gas_containers_name, new_gas_containers_scene
+  use gas_containers_scene, only: gas_containers_name, new_gas_containers_scene
   use spring_chain_scene, only: spring_chain_name, new_spring_chain_scene
   use heat_bath_scene, only: heat_bath_name, new_heat_bath_scene
   implicit none (type, external)

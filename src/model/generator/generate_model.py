@@ -21,7 +21,8 @@ import sympy as sp
 from sympy.printing.fortran import FCodePrinter
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from model_description import THERMO_VARIABLES, TAU_PREFIX, DescriptionError  # noqa: E402
+from model_description import (THERMO_VARIABLES, TAU_PREFIX, TEMPERATURE, ENERGY_LEVEL, ENTROPY_LEVEL,  # noqa: E402
+                               DescriptionError)
 
 LINE_LENGTH = 120
 INDENT = "  "
@@ -55,6 +56,8 @@ class Real64Printer(FCodePrinter):
         return f"{int(expr)}.0_real64"
 
     def _print_Pow(self, expr):
+        if expr.exp == sp.S.Half:              # FCodePrinter's sqrt(6.0d0) of an integer is no real64 literal
+            return f"sqrt({self._print(expr.base)})"
         if expr.exp.is_Integer:
             if expr.exp == -1:
                 return f"1.0_real64/{self.parenthesize(expr.base, sp.printing.precedence.precedence(expr))}"
@@ -156,9 +159,7 @@ def thermodynamics(part):
     symbol `tau`; tau_of_temperature in the symbol `theta`): from U(x, s) or psi(x, theta) by
     eq. (2) and the closed-form inverses (docs/formulation.md section 3's table)."""
     tau = sp.Symbol("tau", real=True)
-    theta = sp.Symbol("theta", positive=True)
-    energy = sp.Symbol("energy_level", positive=True)
-    entropy = sp.Symbol("entropy_level", real=True)
+    theta, energy, entropy = TEMPERATURE, ENERGY_LEVEL, ENTROPY_LEVEL
     forms = {}
     if part.energy_of_entropy is not None:
         s = part.entropy
@@ -309,15 +310,20 @@ def parameter_locals(symbolic, expressions, owner="self%parameters"):
     return names, [f"{name} = {owner}%{name}" for name in names]
 
 
-def guards(expressions, indent):
-    """Domain checks before evaluating: every log's argument > 0 (domain_nonpositive_temperature)
+def guards(expressions, indent, positive=()):
+    """Domain checks before evaluating: the positive invariants `positive` (symbols) > 0
+    (domain_nonpositive_length), every other log's argument > 0 (domain_nonpositive_temperature)
     and every exp's argument below max_exponent (domain_overflow)."""
     logs, exps = set(), set()
     for expr in expressions:
         logs |= {atom.args[0] for atom in sp.sympify(expr).atoms(sp.log)}
         exps |= {atom.args[0] for atom in sp.sympify(expr).atoms(sp.exp)}
     lines = []
-    for argument in sorted(logs, key=sp.default_sort_key):
+    for symbol in positive:
+        lines += [INDENT*indent + f"if (.not. ({fortran(symbol)} > 0.0_real64)) then",
+                  INDENT*(indent + 1) + "stat = domain_nonpositive_length", INDENT*(indent + 1) + "return",
+                  INDENT*indent + "end if"]
+    for argument in sorted(logs - set(positive), key=sp.default_sort_key):
         lines += [wrap(f"if (.not. ({fortran(argument)} > 0.0_real64)) then", indent),
                   INDENT*(indent + 1) + "stat = domain_nonpositive_temperature", INDENT*(indent + 1) + "return",
                   INDENT*indent + "end if"]
@@ -325,7 +331,7 @@ def guards(expressions, indent):
         lines += [wrap(f"if (.not. ({fortran(argument)} <= max_exponent)) then", indent),
                   INDENT*(indent + 1) + "stat = domain_overflow", INDENT*(indent + 1) + "return",
                   INDENT*indent + "end if"]
-    return lines, bool(logs), bool(exps)
+    return lines, bool(logs - set(positive)), bool(exps)
 
 
 def header(description, path, what):
@@ -346,7 +352,7 @@ def subsystem_cases(cases, indent):
     (part, [(variable, lines)])."""
     lines = [INDENT*indent + "select case (self%subsystem)"]
     for a, (part, by_variable) in enumerate(cases):
-        lines.append(INDENT*indent + f"case ({a + 1})  ! {part.name}")
+        lines.append(INDENT*indent + f"case ({a + 1})  ! {part.label}")
         lines.append(INDENT*(indent + 1) + "select case (self%variable)")
         for variable, body in by_variable:
             lines.append(INDENT*(indent + 1) + f"case (tau_{variable})")
@@ -354,6 +360,26 @@ def subsystem_cases(cases, indent):
         lines.append(INDENT*(indent + 1) + "end select")
     lines.append(INDENT*indent + "end select")
     return lines
+
+
+def shared_roots(positive, *groups):
+    """The fractional powers b**(p/q) of the positive invariants b in the expression lists `groups` as
+    integer powers of one root b**(1/q) each: ([(root symbol, its power of b)], groups rewritten). One pow
+    instead of one per exponent (U = exp(2 s/3)/v**(2/3) has v**(-2/3), v**(-5/3) and v**(-8/3) in its
+    derivatives)."""
+    roots = {}
+
+    def is_root_power(e):
+        return e.is_Pow and e.base in positive and e.exp.is_Rational and not e.exp.is_Integer
+
+    def as_root(e):
+        key = (e.base, e.exp.q)
+        if key not in roots:
+            roots[key] = sp.Symbol(f"{e.base.name}_root_{e.exp.q}", real=True)
+        return roots[key]**e.exp.p
+
+    rewritten = [[sp.sympify(e).replace(is_root_power, as_root) for e in group] for group in groups]
+    return [(root, base**sp.Rational(1, q)) for (base, q), root in roots.items()], rewritten
 
 
 def potential_module(symbolic, source):
@@ -367,6 +393,8 @@ def potential_module(symbolic, source):
     for a, part in enumerate(d.subsystems):
         invariants = [inv.symbol for inv in part.invariants] + [tau]
         names = [x.name for x in invariants]
+        positive = [inv.symbol for inv in part.invariants if inv.positive]
+        codes |= {"domain_nonpositive_length"} if positive else set()
         locals_order += [x for x in names if x not in locals_order]
         evaluate_body, temperature_body, inverse_body = [], [], []
         for variable in THERMO_VARIABLES:
@@ -379,11 +407,15 @@ def potential_module(symbolic, source):
             exprs = values + [g for _, _, g in grads if g != 0]
             hess_targets = [f"hess({i + 1}, {j + 1}, {k + 1})" for i, j, k, h in hessians if h != 0]
             hess_exprs = [h for *_, h in hessians if h != 0]
-            used = set().union(*(sp.sympify(e).free_symbols for e in exprs + hess_exprs))
+            used = set().union(*(sp.sympify(e).free_symbols for e in exprs + hess_exprs)) | set(positive)
             locals_["evaluate"] |= {x.name for x in used if x.name in names}
-            check, has_log, has_exp = guards(values, 4)
+            check, has_log, has_exp = guards(values, 4, positive)
             codes |= {"domain_overflow"} if has_exp else set()
+            roots, (exprs, hess_exprs) = shared_roots(positive, exprs, hess_exprs)
+            locals_["evaluate"] |= {root.name for root, _ in roots}
+            locals_order += [root.name for root, _ in roots if root.name not in locals_order]
             body = unpack(used, names, "x", 4) + check
+            body += [wrap(f"{root.name} = {fortran(power)}", 4) for root, power in roots]
             if hess_exprs:
                 body += [INDENT*4 + "if (present(hess)) then"] + assignments(targets + hess_targets, exprs + hess_exprs,
                                                                               5, temporaries)
@@ -392,16 +424,16 @@ def potential_module(symbolic, source):
                 body += assignments(targets, exprs, 4, temporaries)
             evaluate_body.append((variable, body))
 
-            used = sp.sympify(temperature).free_symbols
+            used = sp.sympify(temperature).free_symbols | set(positive)
             locals_["temperature"] |= {x.name for x in used if x.name in names}
-            check, has_log, has_exp = guards([temperature], 4)
+            check, has_log, has_exp = guards([temperature], 4, positive)
             codes |= {"domain_overflow"} if has_exp else set()
             temperature_body.append((variable, unpack(used, names, "x", 4) + check +
                                      [wrap(f"theta = {fortran(temperature)}", 4)]))
 
-            used = sp.sympify(tau_of_theta).free_symbols
+            used = sp.sympify(tau_of_theta).free_symbols | set(positive)
             locals_["inverse"] |= {x.name for x in used if x.name in names[:-1]}
-            check, has_log, has_exp = guards([tau_of_theta], 4)
+            check, has_log, has_exp = guards([tau_of_theta], 4, positive)
             codes |= {"domain_overflow"} if has_exp else set()
             inverse_body.append((variable, unpack(used, names[:-1], "mechanical", 4) + check +
                                  [wrap(f"tau = {fortran(tau_of_theta)}", 4)]))
@@ -567,7 +599,7 @@ def model_module(symbolic, source):
         columns = mechanical_columns + [tau_column]
         columns_of.append(columns)
         values = [inv.expression for inv in part.invariants]
-        invariant_lines.append(INDENT*2 + f"case ({a + 1})  ! {part.name}")
+        invariant_lines.append(INDENT*2 + f"case ({a + 1})  ! {part.label}")
         used_here = set().union(*(e.free_symbols for e in values)) if values else set()
         invariant_lines += [wrap(f"x({i + 1}) = {fortran(e.subs({z: sp.Symbol(f'z({symbolic.index[z] + 1})') for z in used_here if z in symbolic.index}))}", 3)
                             for i, e in enumerate(values)]
@@ -606,7 +638,7 @@ def model_module(symbolic, source):
     k0_declaration = declare(local_names(symbolic, k0_used) + [f"t_{i}" for i in range(1, k0_temporaries[0] + 1)], 2)
 
     # the maker
-    momenta = [c for c in d.columns if c.kind == "momentum"]
+    momenta = [c for c in d.columns if c.kind == "momentum" and c.dataset]
     maker = [f"    model%parameters = parameters", "    model%thermo_variable = variable",
              f"    model%state_size = {n}",
              f"    model%max_invariants = {max(len(part.invariants) + 1 for part in d.subsystems)}",
@@ -615,12 +647,17 @@ def model_module(symbolic, source):
         maker.append(f"    model%column_names({i + 1}) = '{column.name}'")
     for a, part in enumerate(d.subsystems):
         maker.append(f"    model%column_names({len(d.columns) + a + 1}) = trim(tau_prefixes(variable))//'_{part.name}'")
-    maker += [f"    model%words%temperature = 'temperatures theta_a = dU_a/dS_a of the subsystems: "
-              f"{', '.join(part.name for part in d.subsystems)}'",
-              f"    model%words%energy_units = '{d.energy_units}'",
+    words = {"temperature": "temperatures theta_a = dU_a/dS_a of the subsystems: "
+                            + ", ".join(part.label for part in d.subsystems),
+             "metric_scales": f"each invariant by its scale in src/model/{name}/description.py", **d.words}
+    maker += [f"    model%words%temperature = '{words['temperature']}'"]
+    maker += [f"    model%words%{key} = '{words[key]}'" for key in ("energy", "entropy") if key in words]
+    maker += [f"    model%words%energy_units = '{d.energy_units}'",
               f"    model%words%entropy_units = '{d.entropy_units}'",
               f"    model%words%temperature_units = '{d.temperature_units}'",
-              f"    model%words%metric_scales = 'each invariant by its scale in src/model/{name}/description.py'"]
+              f"    model%words%metric_scales = '{words['metric_scales']}'"]
+    if not momenta:
+        maker.append("    allocate (model%momentum_names(0))")
     if momenta:
         maker.append(f"    model%momentum_names = [character(len=8) :: "
                      + ", ".join(f"'{c.name}'" for c in momenta) + "]")
@@ -634,7 +671,7 @@ def model_module(symbolic, source):
     for a, part in enumerate(d.subsystems):
         scales = [inv.scale for inv in part.invariants]
         maker += [f"    associate (part => model%subsystems({a + 1}))",
-                  f"      part%name = '{part.name}'",
+                  f"      part%name = '{part.label}'",
                   f"      allocate (part%potentials, source={name}_potentials(parameters=parameters, subsystem={a + 1}, "
                   "variable=variable))",
                   f"      part%invariant_count = {len(part.invariants) + 1}",
@@ -839,15 +876,17 @@ end module {name}_model
 
 # ---------------------------------------------------------------------------------- the scene
 
-def bounds_text(minimum, exclusive, maximum):
-    """'> 0', '>= 0', 'in (0, 2]', 'any' of a field's bounds."""
+def bounds_text(minimum, exclusive, maximum, open_maximum=False):
+    """'> 0', '>= 0', 'in (0, 2]', 'in (0, 2)', 'any' of a field's bounds (open_maximum: the maximum
+    itself is refused by the domain checks, not by the field)."""
     if minimum is None and maximum is None:
         return "any"
     if maximum is None:
         return f"{'>' if exclusive else '>='} {minimum:g}"
+    close = ")" if open_maximum else "]"
     if minimum is None:
-        return f"<= {maximum:g}"
-    return f"in {'(' if exclusive else '['}{minimum:g}, {maximum:g}]"
+        return f"{'<' if open_maximum else '<='} {maximum:g}"
+    return f"in {'(' if exclusive else '['}{minimum:g}, {maximum:g}{close}"
 
 
 def allowed_text(bounds, units, meaning):
@@ -867,24 +906,56 @@ def fortran_text(text, piece=60):
     return " // ".join("'" + p.replace("'", "''") + "'" for p in pieces)
 
 
-def real_field_call(name, target, bounds_args, allowed, units, temperature):
-    minimum, exclusive, maximum = bounds_args
+def real_field_call(name, target, bounds_args, allowed, units, temperature, count=0):
+    """real_field (count 0) or reals_field (count values) of a component, bounds_args as bounds_text's."""
+    minimum, exclusive, maximum = bounds_args[:3]
     options = ""
     if minimum is not None:
         options += f", minimum={number(minimum)}" + (", exclusive=.true." if exclusive else "")
     if maximum is not None:
         options += f", maximum={number(maximum)}"
-    call = f"real_field('{name}', {target}, {fortran_text(allowed)}, '{units}'{options})"
+    call = f"{'reals' if count else 'real'}_field('{name}', {target}, {fortran_text(allowed)}, '{units}'{options})"
     return f"absolute_temperature({call})" if temperature else call
 
 
+def is_kelvin(units, d):
+    """A field in kelvin, whose small values --help's reader flags as degrees Celsius (a nondimensional
+    model's temperatures, in units of 1, are not)."""
+    return units == d.temperature_units == "K"
+
+
 def initial_fields(d):
-    """(name, component default, units, bounds, meaning, is a temperature) of &initial."""
-    fields = [(c.name, c.initial, c.units, (c.minimum, c.exclusive, None), c.meaning, False) for c in d.columns]
+    """(name, component default (a list: an array field), units, bounds (bounds_text's arguments), meaning, is a
+    temperature) of &initial: the columns of z, then a temperature per subsystem or the initial_thermal_field."""
+    fields = [(c.name, c.initial, c.units, (c.minimum, c.exclusive, c.maximum, c.exclusive), c.meaning, False)
+              for c in d.columns]
+    if d.thermal_field:
+        variable, field_name, values, meaning = d.thermal_field
+        if len(values) != len(d.subsystems):
+            raise DescriptionError(f"initial_thermal_field {field_name}: {len(values)} values for "
+                                   f"{len(d.subsystems)} subsystems")
+        units = {"entropy": d.entropy_units, "temperature": d.temperature_units,
+                 "internal_energy": d.energy_units}[variable]
+        bounds = (0.0, True, None) if variable != "entropy" else (None, False, None)
+        return fields + [(field_name, values, units, bounds, meaning, variable == "temperature" and is_kelvin(units, d))]
+    missing = [part.name for part in d.subsystems if part.initial_temperature is None]
+    if missing:
+        raise DescriptionError(f"subsystems {missing} have no initial_temperature and the model no "
+                               "initial_thermal_field")
     fields += [(f"theta_{part.name}", part.initial_temperature, d.temperature_units, (0.0, True, None),
-                f"the temperature of {part.meaning}, whatever the thermodynamic variable", True)
-               for part in d.subsystems]
+                f"the temperature of {part.meaning}, whatever the thermodynamic variable",
+                is_kelvin(d.temperature_units, d)) for part in d.subsystems]
     return fields
+
+
+def initial_variable(d):
+    """The thermodynamic variable &initial gives the subsystems' state in."""
+    return d.thermal_field[0] if d.thermal_field else "temperature"
+
+
+def default_text(default):
+    """A field's default in docs/input.md: 1.5, 3."""
+    return ", ".join(f"{value:g}" for value in default) if isinstance(default, list) else f"{default:g}"
 
 
 def scene_module(symbolic, source):
@@ -895,13 +966,16 @@ def scene_module(symbolic, source):
         bounds = (p.minimum, p.exclusive, p.maximum)
         call = real_field_call(p.name, f"self%parameters%{p.name}", bounds,
                                allowed_text(bounds_text(*bounds), p.units, p.meaning), p.units,
-                               p.units == d.temperature_units)
+                               is_kelvin(p.units, d))
         model_rows.append(f"               {call}")
     initial = initial_fields(d)
     initial_rows = []
-    for field_name, _, units, bounds, meaning, temperature in initial:
-        call = real_field_call(field_name, f"self%{field_name}", bounds, allowed_text(bounds_text(*bounds), units,
-                                                                                        meaning), units, temperature)
+    for field_name, default, units, bounds, meaning, temperature in initial:
+        count = len(default) if isinstance(default, list) else 0
+        words = allowed_text(bounds_text(*bounds), units, meaning)
+        if count:
+            words = f"{count} " + words.replace("a real number", "real numbers", 1)
+        call = real_field_call(field_name, f"self%{field_name}", bounds, words, units, temperature, count)
         initial_rows.append(f"      {'table = [' if not initial_rows else '         '}{call}")
 
     def join(rows, indent_first):
@@ -911,8 +985,17 @@ def scene_module(symbolic, source):
             out.append(wrap(row.strip() + end, indent_first if k == 0 else indent_first + 4))
         return out
 
-    components = [f"    real(real64) :: {field_name} = {number(default)}  !! [{units}]"
+    components = [f"    real(real64) :: {field_name}({len(default)}) = [{', '.join(map(number, default))}]  !! [{units}]"
+                  if isinstance(default, list) else f"    real(real64) :: {field_name} = {number(default)}  !! [{units}]"
                   for field_name, default, units, *_ in initial]
+    variable = initial_variable(d)
+    domain = d.initial_domain or f"a state in the domain of the potentials of src/model/{name}/description.py"
+    field_imports = sorted({"group_field", "real_field", "text_field", "read_group", "value_origin"}
+                           | ({"absolute_temperature"} if any(f[5] for f in initial) or any(
+                               is_kelvin(p.units, d) for p in d.parameters) else set())
+                           | ({"reals_field"} if any(isinstance(f[1], list) for f in initial) else set()),
+                           key=["group_field", "real_field", "reals_field", "text_field", "read_group",
+                                "value_origin", "absolute_temperature"].index)
     initial_vector = ", ".join(f"self%{field_name}" for field_name, *_ in initial)
     listing = " // &\n".join(f"      '{',' if k else ''} {field_name} = '//reals_text([self%{field_name}])"
                              for k, (field_name, *_) in enumerate(initial))
@@ -924,13 +1007,13 @@ def scene_module(symbolic, source):
 module {name}_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item
-  use namelist_group, only: group_field, real_field, text_field, read_group, value_origin, absolute_temperature
+  use namelist_group, only: {", ".join(field_imports)}
   use number_text, only: reals_text
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
   use failures, only: failure_none, failure_type, fail, failure_input, failure_code_name
-  use thermo_variable_kinds, only: tau_temperature
+  use thermo_variable_kinds, only: tau_{variable}
   use {name}_potential, only: {name}_parameters
   use {name}_model, only: make_{name}
   implicit none (type, external)
@@ -1001,12 +1084,12 @@ contains
     call read_group(text, 'initial', self%fields('initial'), origin, failure, extra)
     if (failure%failed()) return
     ! Refused here, where the input's origin is known (build knows no file).
-    call initial_state(self, tau_temperature, model, z0, stat)
+    call initial_state(self, tau_{variable}, model, z0, stat)
     if (stat /= failure_none) call fail(failure, failure_input, value_origin(text, 'initial', '{initial[-1][0]}', &
       origin, extra)//': &initial: the state'// &
 {listing} &
-      //' is not allowed ('//failure_code_name(stat)//'); allowed: a state in the domain of the potentials of '// &
-      'src/model/{name}/description.py', '{initial[-1][0]}')
+      //' is not allowed ('//failure_code_name(stat)//'); allowed: '// &
+{wrap(fortran_text(domain) + ", '" + initial[-1][0] + "')", 3)}
   end subroutine read
 
   !> The model in thermodynamic variable `variable` and the initial state (no constraints).
@@ -1025,20 +1108,20 @@ contains
                                         '&initial')
   end subroutine build
 
-  ! The model in thermodynamic variable `variable` and the initial state, given with temperatures; stat a
-  ! domain code if that state lies outside the model's domain.
+  ! The model in thermodynamic variable `variable` and the initial state, given in the {variable.replace("_", " ")}
+  ! variable; stat a domain code if that state lies outside the model's domain.
   subroutine initial_state(self, variable, model, z0, stat)
     class({name}_input), intent(in) :: self
     integer, intent(in) :: variable
     class(generic_model), allocatable, intent(out) :: model
     real(real64), allocatable, intent(out) :: z0(:)
     integer, intent(out) :: stat
-    class(generic_model), allocatable :: in_temperature
+    class(generic_model), allocatable :: as_given
 
-    allocate (in_temperature, source=make_{name}(self%parameters, tau_temperature))
+    allocate (as_given, source=make_{name}(self%parameters, tau_{variable}))
     allocate (model, source=make_{name}(self%parameters, variable))
     allocate (z0(model%state_size))
-    call in_temperature%convert_state([{initial_vector}], model, z0, stat)
+    call as_given%convert_state([{initial_vector}], model, z0, stat)
   end subroutine initial_state
 
   !> theta_R as the description states it.
@@ -1071,7 +1154,9 @@ def input_rows(description, source):
                     f"{p.meaning} |")
     for k, (field_name, default, units, bounds, meaning, _) in enumerate(initial_fields(d)):
         group = f" `&initial` (`{d.name}`) " if k == 0 else " "
-        rows.append(f"|{group}| `{field_name}` | {units} | {default:g} | {bounds_text(*bounds)}: {meaning} |")
+        shape = f"({len(default)})" if isinstance(default, list) else ""
+        rows.append(f"|{group}| `{field_name}{shape}` | {units} | {default_text(default)} | {bounds_text(*bounds)}: "
+                    f"{meaning} |")
     return "\n".join(rows)
 
 

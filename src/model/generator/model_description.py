@@ -25,6 +25,11 @@ import sympy as sp
 
 THERMO_VARIABLES = ("entropy", "temperature", "internal_energy")   # thermo_variable_kinds' order
 TAU_PREFIX = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
+# The symbols a subsystem's `inverses` are written in: s(x, theta) and s(x, u) for internal_energy(U, s);
+# theta(x, s) and theta(x, u) for free_energy(psi, theta).
+TEMPERATURE = sp.Symbol("theta", positive=True)
+ENERGY_LEVEL = sp.Symbol("energy_level", positive=True)
+ENTROPY_LEVEL = sp.Symbol("entropy_level", real=True)
 
 
 class DescriptionError(ValueError):
@@ -56,7 +61,9 @@ class StateColumn:
     meaning: str
     kind: str                      # 'position' or 'momentum'
     minimum: float = None
-    exclusive: bool = False
+    exclusive: bool = False        # both bounds exclusive (the maximum's equality is left to the domain checks)
+    maximum: float = None
+    dataset: bool = True           # a momentum: a column of the output's momentum dataset
 
     @property
     def name(self):
@@ -70,6 +77,7 @@ class Invariant:
     symbol: sp.Symbol
     expression: sp.Expr
     scale: sp.Expr
+    positive: bool = False         # the potentials' domain: x > 0 (domain_nonpositive_length otherwise)
 
 
 @dataclass
@@ -77,23 +85,28 @@ class Subsystem:
     """A thermodynamic subsystem: its potentials (U_a, S_a) in its invariants and its variable."""
     name: str
     meaning: str
-    initial_temperature: float
+    initial_temperature: float            # None: the model's initial_thermal_field gives its state
     tau_scales: dict                      # thermodynamic variable -> the tau column's typical size
     invariants: list = field(default_factory=list)
     entropy: sp.Symbol = None             # s, for internal_energy(U, s)
     temperature_symbol: sp.Symbol = None  # theta, for free_energy(psi, theta)
     energy_of_entropy: sp.Expr = None     # U_a(x, s)
     free_energy_of_temperature: sp.Expr = None  # psi_a(x, theta)
-    inverses: dict = field(default_factory=dict)  # variable -> s or theta of (x, tau), where SymPy cannot solve
+    inverses: dict = field(default_factory=dict)  # variable -> s or theta in TEMPERATURE, ENERGY_LEVEL or
+    #                                               ENTROPY_LEVEL: where SymPy cannot solve, or to state its form
     temperature: sp.Symbol = None         # Theta_a of eq. (2), for K0
     partial_symbols: dict = field(default_factory=dict)  # ('U' or 'S', invariant name) -> Symbol
+    label: str = ""                       # its name in messages and the output (default: name)
 
-    def invariant(self, name, expression, scale):
-        """A mechanical invariant x_i(z) of this subsystem, returned as the symbol U_a and S_a take."""
+    def invariant(self, name, expression, scale, positive=False):
+        """A mechanical invariant x_i(z) of this subsystem, returned as the symbol U_a and S_a take;
+        positive: U_a and S_a are defined for x_i > 0 only (a volume, a length), which the generated
+        potentials check first (domain_nonpositive_length). The symbol stays real, so that SymPy keeps
+        exp(a log x) as written rather than as a power x**a (a pow costs more than the exp it replaces)."""
         symbol = sp.Symbol(name, real=True)
-        if any(existing.symbol == symbol for existing in self.invariants):
+        if any(existing.symbol.name == name for existing in self.invariants):
             raise DescriptionError(f"subsystem {self.name}: invariant {name} twice")
-        self.invariants.append(Invariant(symbol, sp.sympify(expression), sp.sympify(scale)))
+        self.invariants.append(Invariant(symbol, sp.sympify(expression), sp.sympify(scale), positive))
         return symbol
 
     def internal_energy(self, energy, entropy):
@@ -126,6 +139,17 @@ class ModelDescription:
         self.conserved = []            # momentum symbols that are first integrals
         self.theta_r = None            # the default Lyapunov reference temperature
         self.field_text = ""           # the written-out field, in words, for the module header
+        self.words = {}                # model_words' temperature, energy, entropy, metric_scales (else generic)
+        self.thermal_field = None      # initial_thermal_field's (variable, name, values, meaning)
+        self.initial_domain = ""       # what &initial allows beyond its fields' bounds, for the refusal
+
+    def describe(self, **words):
+        """How the output and the messages describe the model (model_interface's model_words):
+        temperature, energy, entropy, metric_scales."""
+        unknown = set(words) - {"temperature", "energy", "entropy", "metric_scales"}
+        if unknown:
+            raise DescriptionError(f"model {self.name}: describe() knows no {sorted(unknown)}")
+        self.words.update(words)
 
     # ---------------------------------------------------------------- the parts
     def parameter(self, name, units, default, meaning="", minimum=None, exclusive=False, maximum=None,
@@ -136,26 +160,41 @@ class ModelDescription:
         self.parameters.append(Parameter(symbol, units, float(default), minimum, exclusive, maximum, meaning))
         return symbol
 
-    def position(self, name, units, initial, meaning, minimum=None, exclusive=False):
-        """A position column of z, returned as its symbol; &initial reads its value."""
+    def position(self, name, units, initial, meaning, minimum=None, exclusive=False, maximum=None):
+        """A position column of z, returned as its symbol; &initial reads its value within the bounds."""
         return self._column(StateColumn(sp.Symbol(name, real=True), units, float(initial), meaning, "position",
-                                        minimum, exclusive))
+                                        minimum, exclusive, maximum))
 
-    def momentum(self, name, units, initial, meaning, conserved=False):
-        """A momentum column of z (the output's momentum dataset; `conserved`: a first integral)."""
-        symbol = self._column(StateColumn(sp.Symbol(name, real=True), units, float(initial), meaning, "momentum"))
+    def momentum(self, name, units, initial, meaning, conserved=False, dataset=True):
+        """A momentum column of z (`conserved`: a first integral; dataset=False: not a column of the
+        output's momentum dataset, as for a model that reports no momenta)."""
+        if conserved and not dataset:
+            raise DescriptionError(f"model {self.name}: momentum {name} conserved but not in the momentum dataset")
+        symbol = self._column(StateColumn(sp.Symbol(name, real=True), units, float(initial), meaning, "momentum",
+                                          dataset=dataset))
         if conserved:
             self.conserved.append(symbol)
         return symbol
 
-    def subsystem(self, name, meaning, initial_temperature, tau_scales):
+    def initial_thermal_field(self, variable, name, values, meaning):
+        """&initial gives the subsystems' thermodynamic state as one field `name` of a value per
+        subsystem in `variable` (one of THERMO_VARIABLES), instead of a temperature each."""
+        if variable not in THERMO_VARIABLES:
+            raise DescriptionError(f"model {self.name}: initial_thermal_field's variable {variable!r} is not one of "
+                                   f"{THERMO_VARIABLES}")
+        self.thermal_field = (variable, name, [float(v) for v in values], meaning)
+
+    def subsystem(self, name, meaning, initial_temperature, tau_scales, label=""):
         """A thermodynamic subsystem with its own variable tau_a (a column of z, last of its
-        invariants); tau_scales: {variable: typical size of tau} for the metric."""
+        invariants); tau_scales: {variable: typical size of tau} for the metric; `name` names its
+        symbols and its thermodynamic column (s_NAME, ...), `label` (default: name) the output's and
+        messages' words for it; initial_temperature None with an initial_thermal_field."""
         self._new_name(name)
         missing = set(THERMO_VARIABLES) - set(tau_scales)
         if missing:
             raise DescriptionError(f"subsystem {name}: tau_scales lacks {sorted(missing)}")
-        part = Subsystem(name, meaning, float(initial_temperature), {k: sp.sympify(v) for k, v in tau_scales.items()})
+        part = Subsystem(name, meaning, None if initial_temperature is None else float(initial_temperature),
+                         {k: sp.sympify(v) for k, v in tau_scales.items()}, label=label or name)
         part.temperature = sp.Symbol(f"theta_{name}", positive=True)
         self.subsystems.append(part)
         return part

@@ -110,8 +110,8 @@ contains
       ' q = '//reals_text([self%q]) // &
       ', p = '//reals_text([self%p]) // &
       ', theta_bath = '//reals_text([self%theta_bath]) &
-      //' is not allowed ('//failure_code_name(stat)//'); allowed: a state in the domain of the potentials of '// &
-      'src/model/heat_bath/description.py', 'theta_bath')
+      //' is not allowed ('//failure_code_name(stat)//'); allowed: '// &
+      'a state in the domain of the potentials of ' // 'src/model/heat_bath/description.py', 'theta_bath')
   end subroutine read
 
   !> The model in thermodynamic variable `variable` and the initial state (no constraints).
@@ -130,20 +130,20 @@ contains
                                         '&initial')
   end subroutine build
 
-  ! The model in thermodynamic variable `variable` and the initial state, given with temperatures; stat a
-  ! domain code if that state lies outside the model's domain.
+  ! The model in thermodynamic variable `variable` and the initial state, given in the temperature
+  ! variable; stat a domain code if that state lies outside the model's domain.
   subroutine initial_state(self, variable, model, z0, stat)
     class(heat_bath_input), intent(in) :: self
     integer, intent(in) :: variable
     class(generic_model), allocatable, intent(out) :: model
     real(real64), allocatable, intent(out) :: z0(:)
     integer, intent(out) :: stat
-    class(generic_model), allocatable :: in_temperature
+    class(generic_model), allocatable :: as_given
 
-    allocate (in_temperature, source=make_heat_bath(self%parameters, tau_temperature))
+    allocate (as_given, source=make_heat_bath(self%parameters, tau_temperature))
     allocate (model, source=make_heat_bath(self%parameters, variable))
     allocate (z0(model%state_size))
-    call in_temperature%convert_state([self%q, self%p, self%theta_bath], model, z0, stat)
+    call as_given%convert_state([self%q, self%p, self%theta_bath], model, z0, stat)
   end subroutine initial_state
 
   !> theta_R as the description states it.
