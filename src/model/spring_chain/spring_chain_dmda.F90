@@ -51,6 +51,9 @@ module spring_chain_dmda
     !> What each slot of the last point holds in that numbering, 0 for an unused slot: a
     !> 'fixed-fixed' chain's point N + 1 holds spring N + 1's [gamma,] [tau] in its first slots.
     integer, allocatable :: last_point_slots(:)
+    !> The pattern of a row of slot v at an interior point (two points from the first and three
+    !> from the last): its interior_counts(v) columns relative to the point's first unknown.
+    integer, allocatable :: interior_columns(:, :), interior_counts(:)
     !> The Jacobian callback's buffers, sized once: a slice's rows of f and their band of df/dz,
     !> a row's columns and values.
     real(real64), allocatable :: rows(:), band(:, :), values(:)
@@ -111,7 +114,7 @@ contains
     integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
     PetscInt :: points, dof, width, xs, ys, zs, xm, ym, zm, gxs, gxm, max_evaluations, iterations
-    integer :: k
+    integer :: k, o, w
     PetscMPIInt :: ranks
     KSP :: ksp
     PC :: pc
@@ -139,6 +142,17 @@ contains
       self%context%last_point_slots = 0
       self%context%last_point_slots(1:problem%layout%invariant_count - 1) = [(k, k=2*problem%layout%dimension + 1, int(dof))]
     end if
+    allocate (self%context%interior_columns(size(self%context%pattern(1, :, :)), dof), self%context%interior_counts(dof))
+    self%context%interior_counts = 0
+    do k = 1, int(dof)
+      do o = -2, 2
+        do w = 1, int(dof)
+          if (.not. self%context%pattern(k, w, o)) cycle
+          self%context%interior_counts(k) = self%context%interior_counts(k) + 1
+          self%context%interior_columns(self%context%interior_counts(k), k) = o*int(dof) + w - 1
+        end do
+      end do
+    end do
     associate (slice => min(self%context%last_row - self%context%first_row + 1, slice_points*int(dof)), &
                half => problem%band_half_width())
       allocate (self%context%rows(slice), self%context%band(slice, 2*half + 1))
@@ -165,6 +179,9 @@ contains
     PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
     PetscCall(KSPGetPC(ksp, pc, ierr))
     PetscCall(PCSetType(pc, PCLU, ierr))
+    ! Reverse Cuthill-McKee keeps the chain's factors banded; PETSc's default nested dissection
+    ! cost more to order (0.16 s at 4e4 unknowns) and factored 1.4 times slower.
+    PetscCall(PCFactorSetMatOrderingType(pc, MATORDERINGRCM, ierr))
     PetscCall(MPI_Comm_size(comm, ranks, ierr))
     if (ranks > 1) then
       PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS, ierr))
@@ -528,6 +545,12 @@ contains
     dof = size(context%pattern, 1)
     points = context%total/dof
     point = (row - 1)/dof + 1
+    if (point >= 3 .and. point <= points - 3) then
+      v = row - (point - 1)*dof
+      count = context%interior_counts(v)
+      columns(1:count) = (point - 1)*dof + context%interior_columns(1:count, v)
+      return
+    end if
     v = slot_kind(point, row - (point - 1)*dof)
     count = 0
     if (v == 0) then
