@@ -441,7 +441,9 @@ contains
   end subroutine chain_residual
 
   ! SNES callback: the rank's rows of dR/dx = I/h - df/dx, slice by slice, each row's structural
-  ! nonzeros (coupling_pattern) taken from the slice's band and inserted.
+  ! nonzeros (coupling_pattern) taken from the slice's band and written over the row's stored
+  ! values (MatSetValuesRow: the matrix holds exactly these columns, in this ascending order,
+  ! since create_jacobian_matrix; no column search).
   subroutine chain_jacobian(snes, x, jacobian, preconditioner, context, ierr)
     SNES, intent(in) :: snes
     Vec, intent(in) :: x
@@ -451,7 +453,7 @@ contains
     real(real64), pointer :: old(:), new(:)
     real(real64) :: h
     integer :: stat, half, row, slice_first, slice_last, k
-    PetscInt :: one, count, row_index(1)
+    PetscInt :: count, row_index
 
     associate (problem => context%problem, band => context%band, columns => context%columns, values => context%values)
       half = problem%band_half_width()
@@ -460,7 +462,6 @@ contains
       PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
       PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
-      one = 1
       stat = failure_none
       do slice_first = context%first_row, context%last_row, size(context%rows)
         slice_last = min(context%last_row, slice_first + size(context%rows) - 1)
@@ -474,8 +475,8 @@ contains
             values(k) = -band(row - slice_first + 1, int(columns(k)) + 1 - row + half + 1)
             if (columns(k) == row - 1) values(k) = values(k) + 1.0_real64/h
           end do
-          row_index(1) = row - 1
-          PetscCall(MatSetValues(preconditioner, one, row_index, count, columns, values, INSERT_VALUES, ierr))
+          row_index = row - 1
+          PetscCall(MatSetValuesRow(preconditioner, row_index, values, ierr))
         end do
       end do
       PetscCall(give_back_read(context%new_local, new, ierr))
