@@ -54,6 +54,9 @@ module spring_chain_dmda
     !> The pattern of a row of slot v at an interior point (two points from the first and three
     !> from the last): its interior_counts(v) columns relative to the point's first unknown.
     integer, allocatable :: interior_columns(:, :), interior_counts(:)
+    !> -chain_check_pattern: the Jacobian callback fails when a block's derivative falls outside
+    !> coupling_pattern (the pattern's test; it costs a pass over the band).
+    logical :: check_pattern = .false.
     !> The Jacobian callback's buffers, sized once: a slice's rows of f and their band of df/dz,
     !> a row's columns and values.
     real(real64), allocatable :: rows(:), band(:, :), values(:)
@@ -114,6 +117,7 @@ contains
     integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
     PetscInt :: points, dof, width, xs, ys, zs, xm, ym, zm, gxs, gxm, max_evaluations, iterations
+    PetscBool :: check_pattern
     integer :: k, o, w
     PetscMPIInt :: ranks
     KSP :: ksp
@@ -163,6 +167,8 @@ contains
     PetscCall(DMCreateLocalVector(self%context%da, self%context%old_local, ierr))
     PetscCall(VecDuplicate(self%context%old_local, self%context%new_local, ierr))
     PetscCall(create_jacobian_matrix(self%context, comm, self%jacobian, ierr))
+    PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_check_pattern', check_pattern, ierr))
+    self%context%check_pattern = check_pattern
     PetscCall(SNESCreate(comm, self%snes, ierr))
     PetscCall(SNESSetDM(self%snes, self%context%da, ierr))
     PetscCall(SNESSetFunction(self%snes, self%r, chain_residual, self%context, ierr))
@@ -452,8 +458,9 @@ contains
     PetscErrorCode, intent(out) :: ierr
     real(real64), pointer :: old(:), new(:)
     real(real64) :: h
-    integer :: stat, half, row, slice_first, slice_last, k
+    integer :: stat, half, row, slice_first, slice_last, k, band_column
     PetscInt :: count, row_index
+    logical :: outside
 
     associate (problem => context%problem, band => context%band, columns => context%columns, values => context%values)
       half = problem%band_half_width()
@@ -463,6 +470,7 @@ contains
       PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
       PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
       stat = failure_none
+      outside = .false.
       do slice_first = context%first_row, context%last_row, size(context%rows)
         slice_last = min(context%last_row, slice_first + size(context%rows) - 1)
         call problem%field_rows(old, new, context%base, slice_first, slice_last, context%rows(1:slice_last - slice_first + 1), &
@@ -472,9 +480,12 @@ contains
           call pattern_columns(context, row, columns, count)
           do k = 1, int(count)
             ! band(r, c - g + half + 1) holds row g, column c (1-based; columns are 0-based)
-            values(k) = -band(row - slice_first + 1, int(columns(k)) + 1 - row + half + 1)
+            band_column = int(columns(k)) + 1 - row + half + 1
+            values(k) = -band(row - slice_first + 1, band_column)
             if (columns(k) == row - 1) values(k) = values(k) + 1.0_real64/h
+            if (context%check_pattern) band(row - slice_first + 1, band_column) = 0.0_real64
           end do
+          if (context%check_pattern) outside = outside .or. any(abs(band(row - slice_first + 1, :)) > 0.0_real64)
           row_index = row - 1
           PetscCall(MatSetValuesRow(preconditioner, row_index, values, ierr))
         end do
@@ -490,6 +501,10 @@ contains
     end if
     if (stat /= failure_none) then
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
+    end if
+    if (outside) then
+      ierr = PETSC_ERR_PLIB
+      SETERRQ(PETSC_COMM_SELF, ierr, 'chain_jacobian: a derivative outside coupling_pattern (-chain_check_pattern)')
     end if
   end subroutine chain_jacobian
 
