@@ -10,7 +10,8 @@
 !> in 1D, 80 of 320 in 3D), preallocated exactly, so that neither the assembly nor the
 !> factorisation handles the stencil's zeros. SNES solves each step
 !> with the KSP and PC the options choose; the default is full Newton steps with a direct
-!> factorisation (PETSc's LU on one rank, MUMPS on several). Newton stops at the step's tolerance or at the rounding floor
+!> factorisation on one rank (PETSc's LU, RCM order) and on several GMRES on block Jacobi with each
+!> rank's block so factored. Newton stops at the step's tolerance or at the rounding floor
 !> (an update below 16 eps |z|), whichever comes first.
 !>
 !> Errors: each public procedure returns a failure_type; its PETSc calls sit in a private twin
