@@ -105,6 +105,18 @@ def test_the_sparse_path_takes_the_dense_paths_steps(tmp_path, case):
     assert float(figures["entropy"]) == pytest.approx(entropy, rel=1e-12, abs=1e-300)
 
 
+@pytest.mark.parametrize("case", CASES, ids=lambda c: "-".join(str(v) for v in c.values()))
+def test_the_jacobian_holds_every_derivative_of_the_blocks(tmp_path, case):
+    """The Jacobian's matrix holds the blocks' structural nonzeros only (coupling_pattern in
+    spring_chain_dmda); with -chain_check_pattern its callback fails (exit 1) when a derivative
+    the blocks compute (field_rows' band) falls outside them. Eight masses give interior rows and
+    both ends' rows, on one rank and across two."""
+    groups = chain_groups(links=8, steps=3, **case)
+    for ranks in (1, 2):
+        figures, _ = run_bench(tmp_path, f"pattern{ranks}", groups, ranks, "-chain_check_pattern")
+        assert int(figures["steps"]) == 3 and int(figures["newton"]) >= 3
+
+
 @pytest.mark.parametrize("shape", [dict(links=40, dimension=1, ends="fixed-fixed"),
                                    dict(links=12, dimension=3, ends="fixed-free")], ids=["1d-fixed-fixed", "3d-hanging"])
 def test_one_rank_and_two_give_the_same_run(tmp_path, shape):

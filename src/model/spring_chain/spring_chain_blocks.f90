@@ -36,15 +36,16 @@ contains
   end subroutine mass_block
 
   !> Spring `part`'s block on its local slots (the old and new values `old`, `new`; the end
-  !> masses' inverses, 0 for a support): f and df/d(new slots); optionally f's derivatives in the
-  !> spring's partials, df_dpartials(:, i, k) = df/d partials(i, k) (through Theta_a too), which
-  !> a model's written-out field hands on (spring_chain_model).
+  !> masses' inverses, 0 for a support): f and optionally df/d(new slots) (a residual needs f
+  !> alone); optionally f's derivatives in the spring's partials, df_dpartials(:, i, k) = df/d
+  !> partials(i, k) (through Theta_a too), which a model's written-out field hands on
+  !> (spring_chain_model).
   pure subroutine spring_block(spring, part, old, new, inverse_mass_left, inverse_mass_right, f, df, df_dpartials_out)
     type(chain_spring), intent(in) :: spring
     type(spring_partials), intent(in) :: part
     real(real64), intent(in) :: old(:), new(:), inverse_mass_left, inverse_mass_right
-    real(real64), intent(out) :: f(:), df(:, :)
-    real(real64), intent(out), optional :: df_dpartials_out(:, :, :)
+    real(real64), intent(out) :: f(:)
+    real(real64), intent(out), optional :: df(:, :), df_dpartials_out(:, :, :)
     real(real64) :: df_dpartials(size(f), 3, 2), df_dtheta(size(f))
     real(real64) :: v_left(3), v_right(3), force, work, w, eta, dinverse_eta, rate, drate(3), heating
     integer :: n, d, c, i, k
@@ -53,7 +54,7 @@ contains
     d = count(part%slots%x_left > 0)
     w = part%weight
     f = 0.0_real64
-    df = 0.0_real64
+    if (present(df)) df = 0.0_real64
     df_dpartials = 0.0_real64
     df_dtheta = 0.0_real64
     associate (s => part%slots, p => part%partials, theta => part%theta, rr => part%r(1:d))
@@ -61,12 +62,14 @@ contains
       force = p(1, potential_u) - theta*p(1, potential_s)
       f(s%p_left(1:d)) = 2.0_real64*force*rr
       f(s%p_right(1:d)) = -2.0_real64*force*rr
-      do c = 1, d
-        df(s%p_left(c), s%x_right(c)) = 2.0_real64*force*w
-        df(s%p_left(c), s%x_left(c)) = -2.0_real64*force*w
-        df(s%p_right(c), s%x_right(c)) = -2.0_real64*force*w
-        df(s%p_right(c), s%x_left(c)) = 2.0_real64*force*w
-      end do
+      if (present(df)) then
+        do c = 1, d
+          df(s%p_left(c), s%x_right(c)) = 2.0_real64*force*w
+          df(s%p_left(c), s%x_left(c)) = -2.0_real64*force*w
+          df(s%p_right(c), s%x_right(c)) = -2.0_real64*force*w
+          df(s%p_right(c), s%x_left(c)) = 2.0_real64*force*w
+        end do
+      end if
       df_dpartials(s%p_left(1:d), 1, potential_u) = 2.0_real64*rr
       df_dpartials(s%p_right(1:d), 1, potential_u) = -2.0_real64*rr
       df_dpartials(s%p_left(1:d), 1, potential_s) = -2.0_real64*theta*rr
@@ -82,14 +85,16 @@ contains
         f(s%tau) = -p(1, potential_s)*work/p(n, potential_s)
         df_dpartials(s%tau, 1, potential_s) = -work/p(n, potential_s)
         df_dpartials(s%tau, n, potential_s) = p(1, potential_s)*work/p(n, potential_s)**2
-        do c = 1, d
-          associate (scale => -2.0_real64*p(1, potential_s)/p(n, potential_s))
-            df(s%tau, s%x_right(c)) = scale*(v_right(c) - v_left(c))*w
-            df(s%tau, s%x_left(c)) = -scale*(v_right(c) - v_left(c))*w
-            df(s%tau, s%p_right(c)) = scale*rr(c)*w*inverse_mass_right
-            df(s%tau, s%p_left(c)) = -scale*rr(c)*w*inverse_mass_left
-          end associate
-        end do
+        if (present(df)) then
+          do c = 1, d
+            associate (scale => -2.0_real64*p(1, potential_s)/p(n, potential_s))
+              df(s%tau, s%x_right(c)) = scale*(v_right(c) - v_left(c))*w
+              df(s%tau, s%x_left(c)) = -scale*(v_right(c) - v_left(c))*w
+              df(s%tau, s%p_right(c)) = scale*rr(c)*w*inverse_mass_right
+              df(s%tau, s%p_left(c)) = -scale*rr(c)*w*inverse_mass_left
+            end associate
+          end do
+        end if
       end if
 
       if (n == 3) then
@@ -117,6 +122,7 @@ contains
         df_dpartials(:, n, potential_s) = df_dpartials(:, n, potential_s) - df_dtheta*theta/p(n, potential_s)
       end if
       if (present(df_dpartials_out)) df_dpartials_out = df_dpartials
+      if (.not. present(df)) return
       do k = 1, 2
         do i = 1, n
           do c = 1, s%size
@@ -128,14 +134,14 @@ contains
   end subroutine spring_block
 
   !> Link (a, b = a+1)'s conduction block with conductivity kappa, on its local slots (x_{a-1},
-  !> x_a, x_{a+1}, [gamma_a,] tau_a, [gamma_b,] tau_b): f and df/d(new slots); optionally f's
+  !> x_a, x_{a+1}, [gamma_a,] tau_a, [gamma_b,] tau_b): f and optionally df/d(new slots) and f's
   !> derivatives in the two springs' tau partials, df_dtau_partials(:, k, side) = df/d partials(n,
   !> k) of spring a (side 1) or b (side 2), the only partials a link reads.
   pure subroutine link_block(conductivity, part_a, part_b, f, df, df_dtau_partials)
     real(real64), intent(in) :: conductivity
     type(spring_partials), intent(in) :: part_a, part_b
-    real(real64), intent(out) :: f(:), df(:, :)
-    real(real64), intent(out), optional :: df_dtau_partials(:, :, :)
+    real(real64), intent(out) :: f(:)
+    real(real64), intent(out), optional :: df(:, :), df_dtau_partials(:, :, :)
     real(real64) :: flow, tau_partials(2, size(f), 2)   ! (k, row, side): df(row)/d partials(n, k) of spring a or b
     integer :: n, d, m, tau_a, tau_b
 
@@ -145,11 +151,12 @@ contains
     tau_a = 3*d + m
     tau_b = 3*d + 2*m
     f = 0.0_real64
-    df = 0.0_real64
-    tau_partials = 0.0_real64
     flow = conductivity*(part_b%theta - part_a%theta)
     f(tau_a) = flow/part_a%partials(n, potential_u)
     f(tau_b) = -flow/part_b%partials(n, potential_u)
+    if (.not. present(df)) return
+    df = 0.0_real64
+    tau_partials = 0.0_real64
     ! Row tau_a, then tau_b, through each spring's (D_tau U, D_tau S): Theta and the own D_tau U.
     call add_spring(part_a, 0, tau_a, -conductivity/part_a%partials(n, potential_u), &
                     -flow/part_a%partials(n, potential_u)**2, df, tau_partials(:, tau_a, 1))

@@ -4,9 +4,14 @@
 !> identity rows), split over the ranks of a communicator. Each rank assembles its own rows of the
 !> residual R = (z - z_old)/h - f and of its Jacobian from the blocks that touch them
 !> (chain_step_problem's field_rows, over the ghosted local vector of stencil width 2: a link
-!> couples points a - 1 .. a + 1), into a matrix preallocated by the DMDA. SNES solves each step
+!> couples points a - 1 .. a + 1), in slices of slice_points points so that the springs' partials
+!> and the band stay in cache; the residual computes no derivative. The Jacobian holds the
+!> blocks' structural nonzeros only (coupling_pattern: 26 of the stencil's 80 entries per point
+!> in 1D, 80 of 320 in 3D), preallocated exactly, so that neither the assembly nor the
+!> factorisation handles the stencil's zeros. SNES solves each step
 !> with the KSP and PC the options choose; the default is full Newton steps with a direct
-!> factorisation (PETSc's LU on one rank, MUMPS on several). Newton stops at the step's tolerance or at the rounding floor
+!> factorisation on one rank (PETSc's LU, RCM order) and on several GMRES on block Jacobi with each
+!> rank's block so factored. Newton stops at the step's tolerance or at the rounding floor
 !> (an update below 16 eps |z|), whichever comes first.
 !>
 !> Errors: each public procedure returns a failure_type; its PETSc calls sit in a private twin
@@ -20,12 +25,16 @@ module spring_chain_dmda
   use failures, only: failure_type, failure_none, fail_on_code, fail, domain_overflow
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use spring_chain_step, only: chain_step_problem
+  use spring_chain_layout, only: chain_layout
   use spring_chain_balance, only: spring_values
   use spring_chain_figures, only: share_figures
   use distributed_model, only: distributed_figures
   implicit none
   private
   public :: distributed_chain, chain_step_outcome
+
+  !> The points of a slice the callbacks evaluate at once (a few hundred kB of partials and band).
+  integer, parameter :: slice_points = 128
 
   !> What the callbacks see (PETSc holds its address): the step's problem and the rank's part.
   type :: chain_context
@@ -39,9 +48,21 @@ module spring_chain_dmda
     integer :: local_size = 0      !! the ghosted part's unknowns
     integer :: total = 0           !! every rank's unknowns (the DMDA's: point size x points)
     real(real64) :: update_floor = 0.0_real64   !! 16 eps |z_old|: updates below it are rounding
-    !> The Jacobian callback's buffers, sized once: the rank's rows of f, their band of df/dz and
-    !> a row's columns.
-    real(real64), allocatable :: rows(:), band(:, :)
+    !> pattern(v, w, o): unknown v of a point depends on unknown w of the point o further
+    !> (coupling_pattern), v and w numbered as in a point holding a mass: (x, p, [gamma], [tau]).
+    logical, allocatable :: pattern(:, :, :)
+    !> What each slot of the last point holds in that numbering, 0 for an unused slot: a
+    !> 'fixed-fixed' chain's point N + 1 holds spring N + 1's [gamma,] [tau] in its first slots.
+    integer, allocatable :: last_point_slots(:)
+    !> The pattern of a row of slot v at an interior point (two points from the first and three
+    !> from the last): its interior_counts(v) columns relative to the point's first unknown.
+    integer, allocatable :: interior_columns(:, :), interior_counts(:)
+    !> -chain_check_pattern: the Jacobian callback fails when a block's derivative falls outside
+    !> coupling_pattern (the pattern's test; it costs a pass over the band).
+    logical :: check_pattern = .false.
+    !> The Jacobian callback's buffers, sized once: a slice's rows of f and their band of df/dz,
+    !> a row's columns and values.
+    real(real64), allocatable :: rows(:), band(:, :), values(:)
     PetscInt, allocatable :: columns(:)
   end type chain_context
 
@@ -100,6 +121,8 @@ contains
     integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
     PetscInt :: points, dof, width, xs, ys, zs, xm, ym, zm, gxs, gxm, max_evaluations, iterations
+    PetscBool :: check_pattern
+    integer :: k, o, w
     PetscMPIInt :: ranks
     KSP :: ksp
     PC :: pc
@@ -120,14 +143,36 @@ contains
     self%context%base = int(gxs*dof)
     self%context%local_size = int(gxm*dof)
     self%context%total = int(points*dof)
-    associate (owned => self%context%last_row - self%context%first_row + 1, half => problem%band_half_width())
-      allocate (self%context%rows(owned), self%context%band(owned, 2*half + 1), self%context%columns(2*half + 1))
+    allocate (self%context%pattern(dof, dof, -2:2))      ! the bounds the assignment keeps
+    self%context%pattern = coupling_pattern(problem%layout)
+    self%context%last_point_slots = [(k, k=1, int(dof))]
+    if (problem%layout%fixed_fixed) then
+      self%context%last_point_slots = 0
+      self%context%last_point_slots(1:problem%layout%invariant_count - 1) = [(k, k=2*problem%layout%dimension + 1, int(dof))]
+    end if
+    allocate (self%context%interior_columns(size(self%context%pattern(1, :, :)), dof), self%context%interior_counts(dof))
+    self%context%interior_counts = 0
+    do k = 1, int(dof)
+      do o = -2, 2
+        do w = 1, int(dof)
+          if (.not. self%context%pattern(k, w, o)) cycle
+          self%context%interior_counts(k) = self%context%interior_counts(k) + 1
+          self%context%interior_columns(self%context%interior_counts(k), k) = o*int(dof) + w - 1
+        end do
+      end do
+    end do
+    associate (slice => min(self%context%last_row - self%context%first_row + 1, slice_points*int(dof)), &
+               half => problem%band_half_width())
+      allocate (self%context%rows(slice), self%context%band(slice, 2*half + 1))
+      allocate (self%context%columns(size(self%context%pattern(1, :, :))), self%context%values(size(self%context%pattern(1, :, :))))
     end associate
     PetscCall(DMCreateGlobalVector(self%context%da, self%x, ierr))
     PetscCall(VecDuplicate(self%x, self%r, ierr))
     PetscCall(DMCreateLocalVector(self%context%da, self%context%old_local, ierr))
     PetscCall(VecDuplicate(self%context%old_local, self%context%new_local, ierr))
-    PetscCall(DMCreateMatrix(self%context%da, self%jacobian, ierr))
+    PetscCall(create_jacobian_matrix(self%context, comm, self%jacobian, ierr))
+    PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_check_pattern', check_pattern, ierr))
+    self%context%check_pattern = check_pattern
     PetscCall(SNESCreate(comm, self%snes, ierr))
     PetscCall(SNESSetDM(self%snes, self%context%da, ierr))
     PetscCall(SNESSetFunction(self%snes, self%r, chain_residual, self%context, ierr))
@@ -141,16 +186,42 @@ contains
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
-    PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
     PetscCall(KSPGetPC(ksp, pc, ierr))
-    PetscCall(PCSetType(pc, PCLU, ierr))
     PetscCall(MPI_Comm_size(comm, ranks, ierr))
-    if (ranks > 1) then
-      PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS, ierr))
+    if (ranks == 1) then
+      PetscCall(KSPSetType(ksp, KSPPREONLY, ierr))
+      PetscCall(PCSetType(pc, PCLU, ierr))
+      ! Reverse Cuthill-McKee keeps the chain's factors banded; PETSc's default nested dissection
+      ! cost more to order (0.16 s at 4e4 unknowns) and factored 1.4 times slower.
+      PetscCall(PCFactorSetMatOrderingType(pc, MATORDERINGRCM, ierr))
+    else
+      ! Each rank factors its own diagonal block (block Jacobi, LU in RCM order: the sub-PC's
+      ! options unless given) and GMRES mends the couplings across
+      ! the cuts, a few columns per cut: 6 to 8 iterations a Newton step at 4e4 unknowns on 2
+      ! ranks. MUMPS on 2 ranks executed 2.1 to 2.4 times one rank's instructions per rank
+      ! (its analysis, its factorisation's load messages); this 0.63 (callgrind, 2 steps).
+      ! The solve is tight (1e-12 relative), so Newton takes the direct solver's iterates.
+      PetscCall(KSPSetType(ksp, KSPGMRES, ierr))
+      PetscCall(KSPSetTolerances(ksp, 1.0e-12_real64, 0.0_real64, PETSC_DEFAULT_REAL, PETSC_DEFAULT_INTEGER, ierr))
+      PetscCall(PCSetType(pc, PCBJACOBI, ierr))
+      PetscCall(default_option('-sub_pc_type', 'lu', ierr))
+      PetscCall(default_option('-sub_pc_factor_mat_ordering_type', 'rcm', ierr))
     end if
     PetscCall(SNESSetFromOptions(self%snes, ierr))
     self%created = .true.
   end subroutine create_petsc
+
+  ! Sets PETSc option `name` to `value` unless the options give it.
+  subroutine default_option(name, value, ierr)
+    character(len=*), intent(in) :: name, value
+    PetscErrorCode, intent(out) :: ierr
+    PetscBool :: given
+
+    PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, name, given, ierr))
+    if (.not. given) then
+      PetscCall(PetscOptionsSetValue(PETSC_NULL_OPTIONS, name, value, ierr))
+    end if
+  end subroutine default_option
 
   !> Sets the state from z (every unknown of the layout; each rank copies its own rows; the
   !> unused slots of a 'fixed-fixed' chain's last point are 0).
@@ -364,8 +435,8 @@ contains
     PetscCall(DMDestroy(self%context%da, ierr))
   end subroutine destroy_petsc
 
-  ! SNES callback: the rank's rows of R(x) = (x - z_old)/h - f(z_old, x); a state outside a
-  ! spring's domain is a domain error (the line search shortens the step, or SNES stops).
+  ! SNES callback: the rank's rows of R(x) = (x - z_old)/h - f(z_old, x), slice by slice, without
+  ! derivatives; a state outside a spring's domain is a domain error (SNES stops).
   subroutine chain_residual(snes, x, r, context, ierr)
     SNES, intent(in) :: snes
     Vec, intent(in) :: x
@@ -373,7 +444,7 @@ contains
     type(chain_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
     real(real64), pointer :: old(:), new(:), rows(:), state(:)
-    integer :: stat, owned, first
+    integer :: stat, owned, first, slice_first, slice_last
     real(real64) :: h
 
     owned = context%last_row - context%first_row + 1
@@ -385,7 +456,13 @@ contains
     PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
     PetscCall(borrow_read(x, owned, state, ierr))
     PetscCall(borrow(r, owned, rows, ierr))
-    call context%problem%field_rows(old, new, context%base, context%first_row, context%last_row, rows, stat=stat)
+    stat = failure_none
+    do slice_first = context%first_row, context%last_row, size(context%rows)
+      slice_last = min(context%last_row, slice_first + size(context%rows) - 1)
+      call context%problem%field_rows(old, new, context%base, slice_first, slice_last, &
+                                      rows(slice_first - context%first_row + 1:slice_last - context%first_row + 1), stat=stat)
+      if (stat /= failure_none) exit
+    end do
     rows = (state - old(first:first + owned - 1))/h - rows
     PetscCall(give_back(r, rows, ierr))
     PetscCall(give_back_read(x, state, ierr))
@@ -396,8 +473,10 @@ contains
     end if
   end subroutine chain_residual
 
-  ! SNES callback: the rank's rows of dR/dx = I/h - df/dx, the blocks' band entries within the
-  ! DMDA's stencil (two points either side of a row's point) inserted row by row.
+  ! SNES callback: the rank's rows of dR/dx = I/h - df/dx, slice by slice, each row's structural
+  ! nonzeros (coupling_pattern) taken from the slice's band and written over the row's stored
+  ! values (MatSetValuesRow: the matrix holds exactly these columns, in this ascending order,
+  ! since create_jacobian_matrix; no column search).
   subroutine chain_jacobian(snes, x, jacobian, preconditioner, context, ierr)
     SNES, intent(in) :: snes
     Vec, intent(in) :: x
@@ -406,37 +485,40 @@ contains
     PetscErrorCode, intent(out) :: ierr
     real(real64), pointer :: old(:), new(:)
     real(real64) :: h
-    integer :: stat, owned, half, r, row, point, dof, first_column, last_column, k
-    PetscInt :: one, count, row_index(1)
+    integer :: stat, half, row, slice_first, slice_last, k, band_column
+    PetscInt :: count, row_index
+    logical :: outside
 
-    associate (problem => context%problem, rows => context%rows, band => context%band, columns => context%columns)
-      owned = context%last_row - context%first_row + 1
+    associate (problem => context%problem, band => context%band, columns => context%columns, values => context%values)
       half = problem%band_half_width()
-      dof = problem%layout%point_size()
       h = problem%fraction*problem%dt
       PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
       PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
-      call problem%field_rows(old, new, context%base, context%first_row, context%last_row, rows, band, stat)
+      stat = failure_none
+      outside = .false.
+      do slice_first = context%first_row, context%last_row, size(context%rows)
+        slice_last = min(context%last_row, slice_first + size(context%rows) - 1)
+        call problem%field_rows(old, new, context%base, slice_first, slice_last, context%rows(1:slice_last - slice_first + 1), &
+                                band(1:slice_last - slice_first + 1, :), stat)
+        if (stat /= failure_none) exit
+        do row = slice_first, slice_last
+          call pattern_columns(context, row, columns, count)
+          do k = 1, int(count)
+            ! band(r, c - g + half + 1) holds row g, column c (1-based; columns are 0-based)
+            band_column = int(columns(k)) + 1 - row + half + 1
+            values(k) = -band(row - slice_first + 1, band_column)
+            if (columns(k) == row - 1) values(k) = values(k) + 1.0_real64/h
+            if (context%check_pattern) band(row - slice_first + 1, band_column) = 0.0_real64
+          end do
+          if (context%check_pattern) outside = outside .or. any(abs(band(row - slice_first + 1, :)) > 0.0_real64)
+          row_index = row - 1
+          PetscCall(MatSetValuesRow(preconditioner, row_index, values, ierr))
+        end do
+      end do
       PetscCall(give_back_read(context%new_local, new, ierr))
       PetscCall(give_back_read(context%old_local, old, ierr))
-      band = -band
-      band(:, half + 1) = band(:, half + 1) + 1.0_real64/h
-      PetscCall(MatZeroEntries(preconditioner, ierr))
-      one = 1
-      do r = 1, owned
-        row = context%first_row + r - 1
-        point = problem%layout%point_of(row)
-        first_column = max(1, (point - 3)*dof + 1, row - half)
-        last_column = min(context%total, (point + 2)*dof, row + half)
-        count = last_column - first_column + 1
-        do k = 1, int(count)
-          columns(k) = first_column + k - 2
-        end do
-        row_index(1) = row - 1
-        PetscCall(MatSetValues(preconditioner, one, row_index, count, columns, band(r, first_column - row + half + 1:), INSERT_VALUES, ierr))
-      end do
     end associate
     PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
     PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
@@ -447,7 +529,135 @@ contains
     if (stat /= failure_none) then
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
     end if
+    if (outside) then
+      ierr = PETSC_ERR_PLIB
+      SETERRQ(PETSC_COMM_SELF, ierr, 'chain_jacobian: a derivative outside coupling_pattern (-chain_check_pattern)')
+    end if
   end subroutine chain_jacobian
+
+  ! Which entries of dR/dz can be nonzero, from the blocks of spring_chain_blocks (docs/
+  ! formulation.md section 10), point k holding (x_k, p_k, [gamma_k], [tau_k]) and spring k
+  ! joining masses k - 1 and k: pattern(v, w, o) is true when row v of point k depends on
+  ! unknown w of point k + o.
+  !  - every unknown (I/h); x_k on p_k (v = p/m, the same component);
+  !  - p_k on the forces of springs k and k + 1: on x_{k-1}, x_k, x_{k+1} (every component,
+  !    through C) and on gamma, tau of points k and k + 1;
+  !  - gamma_k on spring k: x_{k-1}, x_k, gamma_k, tau_k;
+  !  - tau_k on spring k (x_{k-1}, x_k, p_{k-1}, p_k, gamma_k, tau_k) and on links (k-1, k) and
+  !    (k, k+1): x_{k-2} .. x_{k+1}, gamma and tau of points k - 1 .. k + 1.
+  pure function coupling_pattern(layout) result(pattern)
+    type(chain_layout), intent(in) :: layout
+    logical :: pattern(layout%point_size(), layout%point_size(), -2:2)
+    integer :: d, c, x(layout%dimension), p(layout%dimension), own(layout%invariant_count - 1)
+
+    d = layout%dimension
+    x = [(c, c=1, d)]
+    p = [(d + c, c=1, d)]
+    own = [(c, c=2*d + 1, layout%point_size())]        ! [gamma,] [tau]
+    pattern = .false.
+    do c = 1, layout%point_size()
+      pattern(c, c, 0) = .true.
+    end do
+    do c = 1, d
+      pattern(x(c), p(c), 0) = .true.
+    end do
+    pattern(p, x, -1:1) = .true.
+    pattern(p, own, 0:1) = .true.
+    if (layout%invariant_count == 3) then
+      pattern(own(1), x, -1:0) = .true.
+      pattern(own(1), own, 0) = .true.
+    end if
+    if (layout%invariant_count >= 2) then
+      associate (tau => layout%point_size())
+        pattern(tau, x, -2:1) = .true.
+        pattern(tau, p, -1:0) = .true.
+        pattern(tau, own, -1:1) = .true.
+      end associate
+    end if
+  end function coupling_pattern
+
+  ! Row `row`'s (1-based) columns in coupling_pattern (0-based, ascending, within the points);
+  ! an unused slot's row has its diagonal alone.
+  subroutine pattern_columns(context, row, columns, count)
+    type(chain_context), intent(in) :: context
+    integer, intent(in) :: row
+    PetscInt, intent(out) :: columns(:)
+    PetscInt, intent(out) :: count
+    integer :: dof, points, point, v, o, w
+
+    dof = size(context%pattern, 1)
+    points = context%total/dof
+    point = (row - 1)/dof + 1
+    if (point >= 3 .and. point <= points - 3) then
+      v = row - (point - 1)*dof
+      count = context%interior_counts(v)
+      columns(1:count) = (point - 1)*dof + context%interior_columns(1:count, v)
+      return
+    end if
+    v = slot_kind(point, row - (point - 1)*dof)
+    count = 0
+    if (v == 0) then
+      count = 1
+      columns(1) = row - 1
+      return
+    end if
+    do o = max(-2, 1 - point), min(2, points - point)
+      do w = 1, dof
+        if (slot_kind(point + o, w) == 0) cycle
+        if (.not. context%pattern(v, slot_kind(point + o, w), o)) cycle
+        count = count + 1
+        columns(count) = (point + o - 1)*dof + w - 1
+      end do
+    end do
+
+  contains
+
+    ! What slot `slot` of point `k` holds, in a mass point's numbering (0: unused).
+    pure integer function slot_kind(k, slot)
+      integer, intent(in) :: k, slot
+
+      slot_kind = slot
+      if (k == points) slot_kind = context%last_point_slots(slot)
+    end function slot_kind
+  end subroutine pattern_columns
+
+  ! The Jacobian's matrix: AIJ with the rank's rows, preallocated with coupling_pattern's entries
+  ! exactly and assembled with them (zeros), so that a later insertion outside them is an error.
+  subroutine create_jacobian_matrix(context, comm, matrix, ierr)
+    type(chain_context), intent(inout) :: context
+    MPI_Comm, intent(in) :: comm
+    Mat, intent(out) :: matrix
+    PetscErrorCode, intent(out) :: ierr
+    PetscInt, allocatable :: diagonal_counts(:), off_counts(:)
+    PetscInt :: owned, total, entries, zero, one, row_index(1)
+    integer :: row
+
+    owned = context%last_row - context%first_row + 1
+    total = context%total
+    allocate (diagonal_counts(owned), off_counts(owned))
+    do row = context%first_row, context%last_row
+      call pattern_columns(context, row, context%columns, entries)
+      diagonal_counts(row - context%first_row + 1) = count(context%columns(1:entries) >= context%first_row - 1 .and. &
+                                                           context%columns(1:entries) <= context%last_row - 1)
+      off_counts(row - context%first_row + 1) = entries - diagonal_counts(row - context%first_row + 1)
+    end do
+    zero = 0
+    PetscCall(MatCreate(comm, matrix, ierr))
+    PetscCall(MatSetSizes(matrix, owned, owned, total, total, ierr))
+    PetscCall(MatSetType(matrix, MATAIJ, ierr))
+    PetscCall(MatSeqAIJSetPreallocation(matrix, zero, diagonal_counts, ierr))
+    PetscCall(MatMPIAIJSetPreallocation(matrix, zero, diagonal_counts, zero, off_counts, ierr))
+    one = 1
+    context%values = 0.0_real64
+    do row = context%first_row, context%last_row
+      call pattern_columns(context, row, context%columns, entries)
+      row_index(1) = row - 1
+      PetscCall(MatSetValues(matrix, one, row_index, entries, context%columns, context%values, INSERT_VALUES, ierr))
+    end do
+    PetscCall(MatAssemblyBegin(matrix, MAT_FINAL_ASSEMBLY, ierr))
+    PetscCall(MatAssemblyEnd(matrix, MAT_FINAL_ASSEMBLY, ierr))
+    PetscCall(MatSetOption(matrix, MAT_NEW_NONZERO_LOCATION_ERR, PETSC_TRUE, ierr))
+  end subroutine create_jacobian_matrix
 
   ! SNES convergence test: |R| <= the absolute tolerance, or (after an update) the update at the
   ! rounding of the state, which Newton cannot go below; diverged at the iteration limit or on a

@@ -189,9 +189,10 @@ contains
     class(chain_layout), intent(in) :: self
     integer, intent(in) :: i
     integer :: indices(2*self%dimension)
-    integer :: c
+    integer :: c, first
 
-    indices = [(self%q_index(i, c), c=1, self%dimension), (self%p_index(i, c), c=1, self%dimension)]
+    first = self%offset(i)          ! x_i then p_i: q_index and p_index, without a call per slot
+    indices = [(first + c, c=1, 2*self%dimension)]
   end function mass_indices
 
   !> z indices of spring a's local slots, 0 for a support's.
@@ -221,7 +222,7 @@ contains
     indices = 0
     do node = a - 1, a + 1
       if (node < 1 .or. node > self%masses) cycle
-      indices((node - a + 1)*d + 1:(node - a + 2)*d) = [(self%q_index(node, c), c=1, d)]
+      indices((node - a + 1)*d + 1:(node - a + 2)*d) = [(self%offset(node) + c, c=1, d)]    ! q_index(node, c)
     end do
     k = 3*d
     do node = a, a + 1

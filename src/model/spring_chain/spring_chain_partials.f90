@@ -42,17 +42,24 @@ contains
 
   !> Spring `spring`'s partials by `rule` (partials_*) from its local slots' old and new values
   !> (spring_chain_layout's gather_spring), with `gradient` and `metric` for the discrete
-  !> gradient; `dimension` components. stat: a domain code of the potentials.
-  pure subroutine evaluate_spring_partials(spring, rule, gradient, metric, dimension, old, new, part, stat)
+  !> gradient; `dimension` components. stat: a domain code of the potentials. With
+  !> with_derivatives false (default true) the partials' derivatives in the slots are skipped
+  !> (dpartials stays 0): a residual needs the partials alone, and their second derivatives cost
+  !> most of the evaluation.
+  pure subroutine evaluate_spring_partials(spring, rule, gradient, metric, dimension, old, new, part, stat, with_derivatives)
     type(chain_spring), intent(in) :: spring
     integer, intent(in) :: rule, gradient, metric, dimension
     real(real64), intent(in) :: old(:), new(:)
     type(spring_partials), intent(out) :: part
     integer, intent(out) :: stat
+    logical, intent(in), optional :: with_derivatives
     real(real64) :: r_old(dimension), r_new(dimension), x_old(3), x_new(3), f(2), second(3, 3, 2), dc_dr(dimension)
     real(real64) :: dx_dslot(3, max_slots), at(size(new))
     integer :: n, d, i, k, c
+    logical :: derivatives
 
+    derivatives = .true.
+    if (present(with_derivatives)) derivatives = with_derivatives
     n = spring%invariant_count
     d = dimension
     part%invariants = n
@@ -66,8 +73,12 @@ contains
         part%r(1:d) = 0.5_real64*(r_old + r_new)
         call invariants_at(old, r_old, x_old)
         call invariants_at(new, r_new, x_new, dc_dr)
-        call spring%discrete_gradient(gradient, metric, x_old(1:n), x_new(1:n), part%partials(1:n, :), &
-                                      second(1:n, 1:n, :), stat)
+        if (derivatives) then
+          call spring%discrete_gradient(gradient, metric, x_old(1:n), x_new(1:n), part%partials(1:n, :), &
+                                        second(1:n, 1:n, :), stat)
+        else
+          call spring%discrete_gradient(gradient, metric, x_old(1:n), x_new(1:n), part%partials(1:n, :), stat=stat)
+        end if
       case default
         ! The field at the new slots, or the midpoint rule's at the middle ones.
         part%weight = 1.0_real64
@@ -78,10 +89,16 @@ contains
         end if
         part%r(1:d) = at(s%x_right(1:d)) - at(s%x_left(1:d))
         call invariants_at(at, part%r(1:d), x_new, dc_dr)
-        call spring%evaluate(x_new(1:n), f, part%partials(1:n, :), second(1:n, 1:n, :), stat)
+        if (derivatives) then
+          call spring%evaluate(x_new(1:n), f, part%partials(1:n, :), second(1:n, 1:n, :), stat)
+        else
+          call spring%evaluate(x_new(1:n), f, part%partials(1:n, :), stat=stat)
+        end if
         dc_dr = part%weight*dc_dr
       end select
       if (stat /= failure_none) return
+      if (n >= 2) part%theta = part%partials(n, potential_u)/part%partials(n, potential_s)
+      if (.not. derivatives) return
 
       ! Chain rule to the slots: C through x_left and x_right, gamma and tau as they are.
       dx_dslot = 0.0_real64
@@ -96,7 +113,6 @@ contains
           part%dpartials(i, k, 1:s%size) = matmul(second(i, 1:n, k), dx_dslot(1:n, 1:s%size))
         end do
       end do
-      if (n >= 2) part%theta = part%partials(n, potential_u)/part%partials(n, potential_s)
     end associate
 
   contains

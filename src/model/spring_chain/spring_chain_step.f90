@@ -150,7 +150,10 @@ contains
   !> the rows' points and two points either side (a rank's ghosted part of a DMDA of stencil
   !> width 2; base 0 and the whole state on one process). Only the blocks that touch the rows
   !> are evaluated, and only the rows' entries kept: ranks owning disjoint rows assemble the
-  !> whole f and df between them, each without the others' rows.
+  !> whole f and df between them, each without the others' rows. Without `band` no derivative
+  !> is computed (a residual's evaluation); a caller may take a rank's rows in slices, so that
+  !> the springs' partials and the band stay small (each slice evaluates 3 springs beyond its
+  !> points).
   pure subroutine field_rows(self, old, new, base, first_row, last_row, f, band, stat)
     class(chain_step_problem), intent(in) :: self
     real(real64), intent(in) :: old(:), new(:)
@@ -168,12 +171,6 @@ contains
     half = self%band_half_width()
     first_point = self%layout%point_of(first_row)
     last_point = self%layout%point_of(last_row)
-    ! Spring a touches points a - 1 and a; link (a, a+1) needs springs a and a + 1.
-    a_first = max(1, first_point - 1)
-    a_last = min(self%layout%springs, last_point + 2)
-    allocate (parts(a_first:a_last))
-    call self%partials_of(old, new, parts, stat, base, a_first)
-    if (stat /= failure_none) return
     weight = merge(1.0_real64, 0.5_real64, self%rule == partials_exact)
     do i = max(1, first_point), min(self%layout%masses, last_point)
       block
@@ -183,18 +180,33 @@ contains
         indices = self%layout%mass_indices(i)
         call mass_block(self%masses(i), self%gravity, old(indices(d + 1:) - base), new(indices(d + 1:) - base), weight, &
                         fl, dfl)
-        call add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
+        call add_rows(indices, fl, first_row, last_row, half, f, dfl, band)
       end block
     end do
-    do a = max(1, first_point), min(self%layout%springs, last_point + 1)
+    ! Spring a touches points a - 1 and a; link (a, a+1) needs springs a and a + 1. Each spring's
+    ! slots are gathered once, for its partials and its block.
+    a_first = max(1, first_point - 1)
+    a_last = min(self%layout%springs, last_point + 2)
+    allocate (parts(a_first:a_last))
+    do a = a_first, a_last
       block
-        integer :: indices(self%layout%spring_size())
-        real(real64) :: fl(size(indices)), dfl(size(indices), size(indices))
+        real(real64) :: old_slots(self%layout%spring_size()), new_slots(size(old_slots)), fl(size(old_slots))
+        real(real64) :: dfl(size(old_slots), size(old_slots))
 
-        indices = self%layout%spring_indices(a)
-        call spring_block(self%springs(a), parts(a), self%layout%gather_spring(old, a, base), &
-                          self%layout%gather_spring(new, a, base), inverse_mass(a - 1), inverse_mass(a), fl, dfl)
-        call add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
+        old_slots = self%layout%gather_spring(old, a, base)
+        new_slots = self%layout%gather_spring(new, a, base)
+        call evaluate_spring_partials(self%springs(a), self%rule, self%gradient, self%metric, d, old_slots, new_slots, &
+                                      parts(a), stat, with_derivatives=present(band))
+        if (stat /= failure_none) return
+        if (a >= first_point .and. a <= last_point + 1) then
+          if (present(band)) then
+            call spring_block(self%springs(a), parts(a), old_slots, new_slots, inverse_mass(a - 1), inverse_mass(a), fl, dfl)
+            call add_rows(self%layout%spring_indices(a), fl, first_row, last_row, half, f, dfl, band)
+          else
+            call spring_block(self%springs(a), parts(a), old_slots, new_slots, inverse_mass(a - 1), inverse_mass(a), fl)
+            call add_rows(self%layout%spring_indices(a), fl, first_row, last_row, half, f)
+          end if
+        end if
       end block
     end do
     if (self%layout%invariant_count == 1) return
@@ -204,8 +216,13 @@ contains
         real(real64) :: fl(size(indices)), dfl(size(indices), size(indices))
 
         indices = self%layout%link_indices(a)
-        call link_block(self%conductivity(a), parts(a), parts(a + 1), fl, dfl)
-        call add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
+        if (present(band)) then
+          call link_block(self%conductivity(a), parts(a), parts(a + 1), fl, dfl)
+          call add_rows(indices, fl, first_row, last_row, half, f, dfl, band)
+        else
+          call link_block(self%conductivity(a), parts(a), parts(a + 1), fl)
+          call add_rows(indices, fl, first_row, last_row, half, f)
+        end if
       end block
     end do
 
@@ -220,12 +237,13 @@ contains
 
   end subroutine field_rows
 
-  ! Adds a block's rows that lie in first_row..last_row to f and the band (field_rows' storage);
-  ! index 0, a support's slot, is no unknown.
-  pure subroutine add_rows(indices, fl, dfl, first_row, last_row, half, f, band)
+  ! Adds a block's rows that lie in first_row..last_row to f and, with dfl, to the band
+  ! (field_rows' storage); index 0, a support's slot, is no unknown.
+  pure subroutine add_rows(indices, fl, first_row, last_row, half, f, dfl, band)
     integer, intent(in) :: indices(:), first_row, last_row, half
-    real(real64), intent(in) :: fl(:), dfl(:, :)
+    real(real64), intent(in) :: fl(:)
     real(real64), intent(inout) :: f(:)
+    real(real64), intent(in), optional :: dfl(:, :)
     real(real64), intent(inout), optional :: band(:, :)
     integer :: r, c, row
 
