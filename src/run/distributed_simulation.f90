@@ -687,7 +687,8 @@ contains
     type(failure_type) :: ignored
 
     call add_setting(report, text_setting('name', 'PETSc SNES on a DMDA split over the ranks: Newton, sparse '// &
-                                          'Jacobian, LU (MUMPS on several ranks) unless the options choose a KSP'))
+                                          'Jacobian, LU (GMRES on block-Jacobi LU on several ranks) unless '// &
+                                          'the options choose a KSP'))
     call add_setting(report, number_setting('newton_tol', config%integrator%newton_tol, '1'))
     call set_petsc_reasons(report, reasons_snes, ignored)
   end function solver_of
