@@ -28,10 +28,10 @@ module spring_chain_dmda
   use spring_chain_layout, only: chain_layout
   use spring_chain_balance, only: spring_values
   use spring_chain_figures, only: share_figures
-  use distributed_model, only: distributed_figures
+  use distributed_model, only: distributed_figures, distributed_step
   implicit none
   private
-  public :: distributed_chain, chain_step_outcome
+  public :: distributed_chain
 
   !> The points of a slice the callbacks evaluate at once (a few hundred kB of partials and band).
   integer, parameter :: slice_points = 128
@@ -65,14 +65,6 @@ module spring_chain_dmda
     real(real64), allocatable :: rows(:), band(:, :), values(:)
     PetscInt, allocatable :: columns(:)
   end type chain_context
-
-  !> One step's outcome.
-  type :: chain_step_outcome
-    logical :: converged = .false.
-    integer :: iterations = 0
-    integer :: reason = 0                      !! SNESConvergedReason
-    real(real64) :: residual_norm = 0.0_real64
-  end type chain_step_outcome
 
   !> A chain on a DMDA with its SNES. Do not copy it after `create`: PETSc holds the address of
   !> `context`.
@@ -268,7 +260,7 @@ contains
   subroutine step(self, h, outcome, failure)
     class(distributed_chain), intent(inout) :: self
     real(real64), intent(in) :: h
-    type(chain_step_outcome), intent(out) :: outcome
+    type(distributed_step), intent(out) :: outcome
     type(failure_type), intent(out) :: failure
     PetscErrorCode :: ierr
 
@@ -279,7 +271,7 @@ contains
   subroutine step_petsc(self, h, outcome, ierr)
     class(distributed_chain), intent(inout) :: self
     real(real64), intent(in) :: h
-    type(chain_step_outcome), intent(out) :: outcome
+    type(distributed_step), intent(out) :: outcome
     PetscErrorCode, intent(out) :: ierr
     Vec :: old
     PetscInt :: iterations

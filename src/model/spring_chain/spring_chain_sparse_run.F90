@@ -16,7 +16,7 @@ module spring_chain_sparse_run
   use spring_chain_model, only: spring_chain
   use spring_chain_step, only: chain_step_problem
   use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint
-  use spring_chain_dmda, only: distributed_chain, chain_step_outcome
+  use spring_chain_dmda, only: distributed_chain
   implicit none
   private
   public :: sparse_chain_run, sparse_run_result, chain_problem_of
@@ -159,11 +159,8 @@ contains
     real(real64), intent(in) :: dt
     type(distributed_step), intent(out) :: outcome
     type(failure_type), intent(out) :: failure
-    type(chain_step_outcome) :: solved
 
-    call self%chain%step(dt, solved, failure)
-    outcome = distributed_step(converged=solved%converged, iterations=solved%iterations, reason=solved%reason, &
-                               residual_norm=solved%residual_norm)
+    call self%chain%step(dt, outcome, failure)
   end subroutine step
 
   !> The figures of the state and the last step, summed over the ranks (distributed_system).
