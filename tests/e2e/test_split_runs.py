@@ -144,3 +144,16 @@ def test_a_split_run_stopped_by_sigterm_keeps_its_snapshots(tmp_path):
         assert np.allclose(np.diff(times), 1e-4, rtol=1e-9)          # one per step, none lost or doubled
         assert times[-1] == pytest.approx(f["time"][-1], rel=1e-12)  # the last is the state the run ended at
         assert np.all(np.isfinite(f["snapshots/theta"][()]))
+
+
+def test_options_cannot_loosen_the_split_step(tmp_path):
+    """-snes_atol 1e3 would accept every step's predictor, the old state, as its root (0 Newton
+    iterations, nothing moving, every balance kept): the input's newton_tol stands, as on the dense
+    path."""
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=10, dt=0.005, newton_tol=1.0e-30)
+    groups["output"] = {"snapshot_every": 10}
+    result, output = run_split(tmp_path, "loose", groups, 2, "-snes_atol", "1e3")
+    assert result.returncode == 0, result.stderr
+    with h5py.File(output, "r") as f:
+        assert np.all(f["newton_iterations"][()] >= 1)
+        assert not np.array_equal(f["snapshots/q"][0], f["snapshots/q"][-1])

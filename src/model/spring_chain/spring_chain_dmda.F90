@@ -47,6 +47,9 @@ module spring_chain_dmda
     integer :: last_row = 0
     integer :: local_size = 0      !! the ghosted part's unknowns
     integer :: total = 0           !! every rank's unknowns (the DMDA's: point size x points)
+    !> the step's tolerance on |R| (the input's newton_tol): options cannot loosen it, as on the
+    !> dense path (a looser -snes_atol would accept the old state as the step's root)
+    real(real64) :: newton_tol = 0.0_real64
     real(real64) :: update_floor = 0.0_real64   !! 16 eps |z_old|: updates below it are rounding
     !> pattern(v, w, o): unknown v of a point depends on unknown w of the point o further
     !> (coupling_pattern), v and w numbered as in a point holding a mass: (x, p, [gamma], [tau]).
@@ -172,6 +175,7 @@ contains
     max_evaluations = 10000
     iterations = max_iterations
     PetscCall(SNESSetTolerances(self%snes, newton_tol, 0.0_real64, 0.0_real64, iterations, max_evaluations, ierr))
+    self%context%newton_tol = newton_tol
     PetscCall(SNESSetConvergenceTest(self%snes, converged_or_rounding, self%context, PETSC_NULL_FUNCTION, ierr))
     ! Full Newton steps, as on the dense path: backtracking on the 2-norm of rows in different
     ! units stalls at the rounding floor (-snes_linesearch_type bt chooses it).
@@ -667,7 +671,7 @@ contains
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (residual_norm <= atol) then
+    else if (residual_norm <= min(atol, context%newton_tol)) then
       reason = SNES_CONVERGED_FNORM_ABS
     else if (iteration > 0 .and. update_norm <= max(context%update_floor, 16.0_real64*epsilon(1.0_real64)*x_norm)) then
       reason = SNES_CONVERGED_SNORM_RELATIVE
