@@ -84,6 +84,7 @@ contains
     if (.not. failure%failed()) call file%set_integer('output_every', config%output_every, failure, units='1')
     if (.not. failure%failed()) call file%set_real('output_interval', config%output_interval, failure, units='s')
     if (.not. failure%failed()) call file%set_integer('compression', config%compression, failure, units='1')
+    if (.not. failure%failed()) call file%set_integer('snapshot_every', config%snapshot_every, failure, units='1')
     do a = 1, model%subsystem_count()
       associate (part => model%subsystems(a))
         if (.not. failure%failed()) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, failure, &
