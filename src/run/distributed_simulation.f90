@@ -67,12 +67,16 @@ module distributed_simulation
     type(MPI_Comm) :: comm
     integer :: rank = 0
     character(len=:), allocatable :: tau_name              !! the snapshot's dataset of tau ('' if none)
+    !> kept(1:kept_count) and new(1:new_count) hold them (capacity doubling as snapshots come)
     type(held_snapshot), allocatable :: kept(:), new(:)
+    integer :: kept_count = 0, new_count = 0
+    integer(int64) :: new_bytes = 0                        !! the new snapshots' values, in bytes
     logical :: added = .false.                             !! rank 0: `add` ran in this window
   contains
     procedure :: add
     procedure :: join
-    procedure :: held_bytes
+    procedure :: hold
+    procedure :: written
   end type snapshot_window
 
 contains
@@ -167,8 +171,8 @@ contains
     type(run_timer) :: timer
     integer(int64) :: state_step      !! the step whose end the system's state is
     integer(int64) :: snapshot_step   !! the step of the last snapshot held
-    integer :: rank, every, outputs_passed, stop_flags(3)
-    logical :: checked(balance_count), has_balance(balance_count), found, replace, row_due, finished, writing
+    integer :: rank, every, stop_flags(3)
+    logical :: checked(balance_count), has_balance(balance_count), found, replace, finished, writing
     type(MPI_Comm) :: communicator
 
     call timer%begin()
@@ -224,7 +228,10 @@ contains
     window%comm = communicator
     window%rank = rank
     window%tau_name = tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0)
-    allocate (window%kept(0), window%new(0))
+    allocate (window%kept(0), window%new(4))
+    ! The step report's parts of the split path: no scheme temperatures (the state is not in
+    ! rows), the two production minima as the integrator's figures.
+    allocate (report%scheme_temperature(0), report%diagnostics(2))
     values = figures_0
     call observe(values)
     if (model%temperature_count() > 0) summary%min_temperature = values%min_temperature
@@ -237,7 +244,7 @@ contains
       if (io_failure%failed()) then
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
       else
-        call record_point(0.0_real64, .true.)
+        call record_point(0.0_real64)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) call fail(failure_io, 'cannot write the output file '''//part//''' ('// &
                                            config%input_file//'): '//io_failure%message)
@@ -251,7 +258,6 @@ contains
     writing = .true.
     state_step = 0
     call hold_snapshot()
-    outputs_passed = 0
     call timer%begin_loop()
     finished = .false.
     do while (.not. finished)
@@ -326,19 +332,12 @@ contains
         report%solves = 1
         report%residual_norm = outcome%residual_norm
         report%converged_reason = outcome%reason
-        allocate (report%scheme_temperature(0))
-        report%diagnostics = [values%min_viscous_production, values%min_link_production]
+        report%diagnostics(1) = values%min_viscous_production
+        report%diagnostics(2) = values%min_link_production
         where (report%diagnostics >= huge(1.0_real64)) report%diagnostics = ieee_value(1.0_real64, ieee_quiet_nan)
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
-        deallocate (report%scheme_temperature)
-        row_due = .false.
-        do while (config%output_interval > 0.0_real64 .and. &
-                  time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
-          outputs_passed = outputs_passed + 1
-          row_due = .true.
-        end do
-        call record_point(time, row_due)
+        call record_point(time)
       end if
       call write_window(.false.)
       if (failure%failed()) exit
@@ -446,14 +445,15 @@ contains
 
     ! One point row (rank 0): the state's scalars, from `values`; the model's momenta are J's last
     ! momentum_count() components (J in 3D, J_z in 2D, none in 1D).
-    subroutine record_point(time, row_due)
+    ! (Fixed steps only: &output interval, which lands rows on output times, is refused for them,
+    ! and the rows follow &output every.)
+    subroutine record_point(time)
       real(real64), intent(in) :: time
-      logical, intent(in) :: row_due
 
       call output%record_point(time, [real(real64) ::], [real(real64) ::], values%energy, values%entropy, &
                                values%energy - config%theta_r*values%entropy, &
                                values%angular_momentum(4 - model%momentum_count():), 0.0_real64, [real(real64) ::], &
-                               row_due)
+                               .false.)
     end subroutine record_point
 
     ! The rank's part of the state (the end of step state_step, at `time`), held for the next window.
@@ -468,7 +468,7 @@ contains
         call fail(failure_library, 'cannot read the state for a snapshot: '//reading%message)
         return
       end if
-      window%new = [window%new, snapshot]
+      call window%hold(snapshot)
     end subroutine hold_snapshot
 
     ! A write of the file when one is due (rank 0's clock, or a rank's full snapshot buffer), or
@@ -480,7 +480,7 @@ contains
 
       flags = 0
       if (rank == 0 .and. .not. final) flags(1) = merge(1, 0, output%write_due())
-      flags(2) = merge(1, 0, window%held_bytes() > snapshot_buffer_bytes)
+      flags(2) = merge(1, 0, window%new_bytes > snapshot_buffer_bytes)
       if (.not. final) then
         call MPI_Allreduce(MPI_IN_PLACE, flags, 2, MPI_INTEGER, MPI_MAX, communicator)
         if (all(flags == 0)) return
@@ -503,11 +503,7 @@ contains
       end if
       outcome_code = merge(1, 0, window%added .and. .not. io_failure%failed())
       call MPI_Bcast(outcome_code, 1, MPI_INTEGER, 0, communicator)
-      if (outcome_code == 1) then
-        ! The file holds every snapshot; its new spare (the old file) lacks this window's.
-        call move_alloc(window%new, window%kept)
-        allocate (window%new(0))
-      end if
+      if (outcome_code == 1) call window%written()
       if (rank == 0 .and. io_failure%failed()) then
         summary%status = 'incomplete: cannot write the output file: '//io_failure%message
         call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): '// &
@@ -599,29 +595,46 @@ contains
     type(failure_type), intent(out) :: failure
     integer :: k
 
-    do k = 1, size(self%kept)
+    do k = 1, self%kept_count
       if (.not. failure%failed()) call write_part(path, self%comm%MPI_VAL, self%kept(k)%time, self%kept(k)%state, &
                                                   self%tau_name, failure)
     end do
-    do k = 1, size(self%new)
+    do k = 1, self%new_count
       if (.not. failure%failed()) call write_part(path, self%comm%MPI_VAL, self%new(k)%time, self%new(k)%state, &
                                                   self%tau_name, failure)
     end do
   end subroutine append_held
 
-  !> The bytes of the snapshots the window holds.
-  integer(int64) function held_bytes(self)
-    class(snapshot_window), intent(in) :: self
-    integer :: k
+  !> Holds `snapshot` for the next window.
+  subroutine hold(self, snapshot)
+    class(snapshot_window), intent(inout) :: self
+    type(held_snapshot), intent(in) :: snapshot
+    type(held_snapshot), allocatable :: grown(:)
 
-    held_bytes = 0
-    do k = 1, size(self%new)
-      associate (state => self%new(k)%state)
-        held_bytes = held_bytes + 8_int64*(size(state%positions) + size(state%momenta) + size(state%gamma) + &
-                                           size(state%tau) + size(state%theta))
-      end associate
-    end do
-  end function held_bytes
+    if (self%new_count == size(self%new)) then
+      allocate (grown(2*size(self%new)))
+      grown(1:self%new_count) = self%new(1:self%new_count)
+      call move_alloc(grown, self%new)
+    end if
+    self%new_count = self%new_count + 1
+    self%new(self%new_count) = snapshot
+    associate (state => snapshot%state)
+      self%new_bytes = self%new_bytes + 8_int64*(size(state%positions) + size(state%momenta) + size(state%gamma) + &
+                                                 size(state%tau) + size(state%theta))
+    end associate
+  end subroutine hold
+
+  !> A window reached the file with every held snapshot: its new spare (the old file) lacks this
+  !> window's, which are kept for the next.
+  subroutine written(self)
+    class(snapshot_window), intent(inout) :: self
+
+    call move_alloc(self%new, self%kept)
+    self%kept_count = self%new_count
+    allocate (self%new(4))
+    self%new_count = 0
+    self%new_bytes = 0
+  end subroutine written
 
   !> Appends the snapshot of `state` (every rank its part) at `time` to the closed file `path`
   !> (collective on `comm`, a communicator's Fortran handle); tau as dataset `tau_name` ('': none,
