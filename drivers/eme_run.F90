@@ -17,7 +17,7 @@ program eme_run
   use run_config, only: run_configuration, read_run_config
   use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only, dense_max_unknowns
   use distributed_simulation, only: run_distributed, split_run_wanted, set_up_distributed_only
-  use run_options, only: progress_wanted, continue_requested
+  use run_options, only: progress_wanted
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
@@ -26,7 +26,7 @@ program eme_run
   use output_path, only: check_outside_studies, run_own_files, protected_entries
   use library_versions, only: print_versions
   use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
-  use failures, only: failure_type, fail, failure_input
+  use failures, only: failure_type
   use number_text, only: integer_text, fixed_text, scientific_text
   implicit none
 
@@ -82,7 +82,8 @@ program eme_run
   exit_status = 0
   split = .false.
   if (.not. failure%failed() .and. .not. config_failure%failed()) split = split_run_wanted(config, ranks, dense_max_unknowns)
-  if (ranks > 1 .and. .not. split) then
+  ! (An input or command line that cannot be read is reported as such below, on rank 0.)
+  if (ranks > 1 .and. .not. split .and. .not. failure%failed() .and. .not. config_failure%failed()) then
     ! Every rank would write the same file: a study of several cases is eme_ensemble's.
     if (rank == 0) write (error_unit, '(a, i0, a)') 'eme_run: runs one case on one process, not on ', ranks, &
       ' ranks; for several cases on several ranks: mpirun -n N eme_ensemble STUDY.nml (docs/performance.md)'
@@ -115,9 +116,7 @@ program eme_run
       failure = config_failure       ! (read before PETSc started)
       ! The solver set up once, unwritten: PETSc options it cannot take are bad input.
       if (split .and. .not. failure%failed()) then
-        if (continue_requested()) call fail(failure, failure_input, config%input_file//': -eme_continue: a run split over ranks (the sparse '// &
-                  'path) cannot be continued yet; allowed: run it afresh (docs/faults.md)')
-        if (.not. failure%failed()) call set_up_distributed_only(config, PETSC_COMM_WORLD, failure)
+        call set_up_distributed_only(config, PETSC_COMM_WORLD, failure)
       else if (.not. failure%failed()) then
         call set_up_only(config, failure)
       end if

@@ -116,13 +116,24 @@ contains
                                             integer_valued=.true.)
   end procedure set_integers
 
-  !> The text attribute `name` of the file root; a failure if it is missing.
+  !> The text attribute `name` of the file root, whole however long (a run's effective namelist
+  !> of per-spring arrays runs to tens of kB); a failure if it is missing.
   module procedure get_text
-    character(len=4096) :: buffer
+    character(len=:), allocatable :: buffer
+    integer :: capacity, length
 
-    call hdf5_failure(failure, int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, &
-                                                         int(len(buffer), c_int))), name)
-    value = buffer(1:max(0, index(buffer, c_null_char) - 1))
+    capacity = 4096
+    do
+      allocate (character(len=capacity) :: buffer)
+      call hdf5_failure(failure, int(c_read_text_attribute(int(self%id, c_int64_t), name//c_null_char, buffer, &
+                                                           int(capacity, c_int))), name)
+      length = max(0, index(buffer, c_null_char) - 1)
+      if (failure%failed() .or. length < capacity - 1) exit
+      ! The text filled the buffer, so C may have cut it: read it again into twice the room.
+      deallocate (buffer)
+      capacity = 2*capacity
+    end do
+    value = buffer(1:length)
   end procedure get_text
 
   !> The numeric attribute `name` of the file root (a scalar or an array, as reals); a failure if

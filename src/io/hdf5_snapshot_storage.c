@@ -17,8 +17,9 @@
  * own in HDF5 1.8's format, and stay out of the heap that the file's text_checksum covers
  * (hdf5_text_checksum.c), which this writer does not hold.
  *
- * All ranks return the same status and message (the first failing rank's). A call that fails
- * after extending the datasets shrinks them back, so the file keeps its earlier snapshots.
+ * The last snapshot is read back the same way, each rank its own part (a continued run starts
+ * from it). All ranks return the same status and message (the first failing rank's). A call that
+ * fails after extending the datasets shrinks them back, so the file keeps its earlier snapshots.
  * Called from Fortran through bind(C) (src/io/hdf5_snapshots.f90). Returns 0 on success, or one of
  * the snapshot_* codes below with a message. */
 #define _POSIX_C_SOURCE 200809L
@@ -210,14 +211,15 @@ static hid_t checked_chunks(int rank, const hsize_t *chunk)
 }
 
 
-/* Writes this rank's part of `dataset` collectively over `comm`: the block at `start` of `count`
- * (rank `rank`) from `values`; a rank with an empty block takes part with no selection. Returns
- * 0, -1 if HDF5 failed, or -2 on every rank (none writing) if a rank's block lies outside the
- * dataset: a rank whose collective write fails alone would leave the others waiting for it. */
-static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, MPI_Comm comm, int rank, const hsize_t *start,
-                      const hsize_t *count, const void *values)
+/* Writes (or with `reading`, reads) this rank's part of `dataset` collectively over `comm`: the
+ * block at `start` of `count` (rank `rank`) from (into) `values`; a rank with an empty block takes
+ * part with no selection. Returns 0, -1 if HDF5 failed, or -2 on every rank (none transferring)
+ * if a rank's block lies outside the dataset: a rank whose collective transfer fails alone would
+ * leave the others waiting for it. */
+static int transfer_part(hid_t dataset, hid_t memory_type, hid_t transfer, MPI_Comm comm, int rank, const hsize_t *start,
+                         const hsize_t *count, const void *values, int reading)
 {
-    static const double nothing[1] = {0};
+    static double nothing[1] = {0};
     hsize_t elements = 1;
     for (int i = 0; i < rank; ++i) elements *= count[i];
     hsize_t memory_length = elements > 0 ? elements : 1;
@@ -229,8 +231,11 @@ static int write_part(hid_t dataset, hid_t memory_type, hid_t transfer, MPI_Comm
                           : H5Sselect_none(file_space) >= 0 && H5Sselect_none(memory_space) >= 0 ? 0 : -1;
         int inside = selected >= 0 && H5Sselect_valid(file_space) > 0, everywhere = 0;
         MPI_Allreduce(&inside, &everywhere, 1, MPI_INT, MPI_MIN, comm);
+        /* A reader's `values` are the caller's writable array (eme_h5_read_last_snapshot). */
+        void *values_or_nothing = elements > 0 ? (void *)values : nothing;
         if (!everywhere) status = -2;
-        else if (H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, elements > 0 ? values : nothing) >= 0)
+        else if (reading ? H5Dread(dataset, memory_type, memory_space, file_space, transfer, values_or_nothing) >= 0
+                         : H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, values_or_nothing) >= 0)
             status = 0;
     } else {
         int everywhere = 0, inside = 0;
@@ -259,8 +264,8 @@ static hid_t make_scale(hid_t group, const char *name, const char *description, 
         scale = H5Dcreate2(group, name, type, space, H5P_DEFAULT, creation, H5P_DEFAULT);
         for (hsize_t i = 0; i < count; ++i) numbers[i] = (long long)(first + i + 1);
         if (scale >= 0)
-            status = labels != NULL ? write_part(scale, type, transfer, comm, 1, &first, &count, labels + first)
-                                    : write_part(scale, H5T_NATIVE_LLONG, transfer, comm, 1, &first, &count, numbers);
+            status = labels != NULL ? transfer_part(scale, type, transfer, comm, 1, &first, &count, labels + first, 0)
+                                    : transfer_part(scale, H5T_NATIVE_LLONG, transfer, comm, 1, &first, &count, numbers, 0);
         const char *axes[1] = {name};
         if (status == 0) status = describe(scale, "1", description, axes, 1);
         if (status == 0 && H5DSset_scale(scale, name) < 0) status = -1;
@@ -413,14 +418,15 @@ static const char *set_rows(snapshot_call *call, hsize_t rows)
     return NULL;
 }
 
-/* Writes snapshot `row` of every set: each rank its masses and springs, rank 0 the time. */
-static void write_snapshot(snapshot_call *call, hsize_t row, report *out)
+/* Writes (or with `reading`, reads) snapshot `row` of every set: each rank its masses and springs,
+ * and the time (rank 0 writes it, every rank reads it). */
+static void transfer_snapshot(snapshot_call *call, hsize_t row, int reading, report *out)
 {
     for (int s = 0; s < SET_COUNT; ++s) {
         const snapshot_set *set = &call->sets[s];
         if (call->datasets[s] < 0) continue;
         hsize_t start[3] = {row, 0, 0}, count[3] = {1, 0, call->dimension};
-        if (set->per == PER_TIME) count[0] = call->rank == 0 ? 1 : 0;
+        if (set->per == PER_TIME) count[0] = call->rank == 0 || reading ? 1 : 0;
         else if (set->per == PER_MASS) {
             start[1] = call->first_mass;
             count[1] = call->mass_count;
@@ -429,11 +435,12 @@ static void write_snapshot(snapshot_call *call, hsize_t row, report *out)
             count[1] = call->spring_count;
         }
         int dims = set->per == PER_TIME ? 1 : set->per == PER_MASS ? 3 : 2;
-        int status = write_part(call->datasets[s], H5T_NATIVE_DOUBLE, call->transfer, call->comm, dims, start, count,
-                                set->local);
+        int status = transfer_part(call->datasets[s], H5T_NATIVE_DOUBLE, call->transfer, call->comm, dims, start, count,
+                                   set->local, reading);
         if (status == -2)
-            say(out, snapshot_library, "a rank's part lies outside /%s/%s; nothing written", group_name, set->name);
-        else if (status != 0) hdf5_failed(out, set->name, "write a snapshot into");
+            say(out, snapshot_library, "a rank's part lies outside /%s/%s; nothing %s", group_name, set->name,
+                reading ? "read" : "written");
+        else if (status != 0) hdf5_failed(out, set->name, reading ? "read a snapshot from" : "write a snapshot into");
         if (status != 0) return;
     }
 }
@@ -480,16 +487,71 @@ static void check_arguments(const snapshot_call *call, double time, int dimensio
     agree(out, comm);
 }
 
-/* Rank 0 checks that `path` is a regular file it may read and write (an HDF5 error would say
- * less). */
-static void check_file(const char *path, int rank, report *out)
+/* Rank 0 checks that `path` is a regular file it may read and, with `writing`, write (an HDF5
+ * error would say less). */
+static void check_file(const char *path, int rank, int writing, report *out)
 {
     struct stat info;
     if (rank != 0) return;
-    if (stat(path, &info) != 0 || access(path, R_OK | W_OK) != 0)
-        say(out, snapshot_io, "cannot open the file to append a snapshot: %s", strerror(errno));
+    const char *what = writing ? "append a snapshot" : "read a snapshot";
+    if (stat(path, &info) != 0 || access(path, writing ? R_OK | W_OK : R_OK) != 0)
+        say(out, snapshot_io, "cannot open the file to %s: %s", what, strerror(errno));
     else if (!S_ISREG(info.st_mode))
-        say(out, snapshot_io, "cannot append a snapshot: not a regular file");
+        say(out, snapshot_io, "cannot %s: not a regular file", what);
+}
+
+/* The call for the state split over `comm` as the arguments say (eme_h5_append_snapshot's), its
+ * sets pointing at this rank's arrays and at `time`, checked on every rank. */
+static snapshot_call new_call(MPI_Comm comm, const double *time, long long masses, long long springs, int dimension,
+                              long long first_mass, long long mass_count, long long first_spring,
+                              long long spring_count, const double *q, const double *p, const double *gamma,
+                              const double *tau, const double *theta, const char *tau_name, report *out)
+{
+    int rank;
+    MPI_Comm_rank(comm, &rank);
+    snapshot_call call = {
+        {{"time", "s", "time of the snapshot", PER_TIME, time},
+         {"q", "m", "positions of the masses", PER_MASS, q},
+         {"p", "kg m/s", "momenta of the masses", PER_MASS, p},
+         {"gamma", "1", "viscous strain of each spring", PER_SPRING, gamma},
+         {"theta", "K", "temperature of each spring", PER_SPRING, theta},
+         {tau_name, strcmp(tau_name, "entropy") == 0 ? "J/K" : "J",
+          strcmp(tau_name, "entropy") == 0 ? "entropy of each spring" : "internal energy of each spring", PER_SPRING, tau}},
+        (hsize_t)masses, (hsize_t)springs, (hsize_t)dimension, (hsize_t)first_mass, (hsize_t)mass_count,
+        (hsize_t)first_spring, (hsize_t)spring_count, rank, comm, -1, -1, {-1, -1, -1, -1, -1, -1}};
+    check_arguments(&call, *time, dimension, masses, springs, tau_name, tau != NULL, comm, out);
+    return call;
+}
+
+/* Opens `path` collectively with the MPI-IO driver (read-write with `writing`) and sets up
+ * collective transfers; returns the file, or -1 with out saying why. */
+static hid_t open_collectively(snapshot_call *call, const char *path, int writing, report *out)
+{
+    hid_t access_list = H5Pcreate(H5P_FILE_ACCESS);
+    hid_t file = -1;
+    if (access_list < 0 || H5Pset_fapl_mpio(access_list, call->comm, MPI_INFO_NULL) < 0 ||
+        H5Pset_libver_bounds(access_list, H5F_LIBVER_V18, H5F_LIBVER_V18) < 0)
+        hdf5_failed(out, NULL, "set up the MPI-IO driver");
+    else if ((file = H5Fopen(path, writing ? H5F_ACC_RDWR : H5F_ACC_RDONLY, access_list)) < 0) {
+        hdf5_failed(out, NULL, writing ? "open the file as HDF5 to append a snapshot"
+                                       : "open the file as HDF5 to read a snapshot");
+        out->status = snapshot_io;
+    }
+    if (access_list >= 0) H5Pclose(access_list);
+    call->transfer = H5Pcreate(H5P_DATASET_XFER);
+    if (out->status == snapshot_ok && (call->transfer < 0 || H5Pset_dxpl_mpio(call->transfer, H5FD_MPIO_COLLECTIVE) < 0))
+        hdf5_failed(out, NULL, "set up collective transfers");
+    return file;
+}
+
+/* Closes what `call` opened in `file`. */
+static void close_call(snapshot_call *call)
+{
+    for (int s = 0; s < SET_COUNT; ++s)
+        if (call->datasets[s] >= 0) H5Dclose(call->datasets[s]);
+    if (call->group >= 0) H5Gclose(call->group);
+    call->group = -1;
+    for (int s = 0; s < SET_COUNT; ++s) call->datasets[s] = -1;
 }
 
 /* Appends one snapshot of the state split over the ranks of `fortran_comm` to the existing HDF5
@@ -507,45 +569,22 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
 {
     MPI_Comm comm = MPI_Comm_f2c(fortran_comm);
     report out = {snapshot_ok, message, capacity, path};
-    int rank;
     message[0] = '\0';
-    MPI_Comm_rank(comm, &rank);
-    snapshot_call call = {
-        {{"time", "s", "time of the snapshot", PER_TIME, &time},
-         {"q", "m", "positions of the masses", PER_MASS, q},
-         {"p", "kg m/s", "momenta of the masses", PER_MASS, p},
-         {"gamma", "1", "viscous strain of each spring", PER_SPRING, gamma},
-         {"theta", "K", "temperature of each spring", PER_SPRING, theta},
-         {tau_name, strcmp(tau_name, "entropy") == 0 ? "J/K" : "J",
-          strcmp(tau_name, "entropy") == 0 ? "entropy of each spring" : "internal energy of each spring", PER_SPRING, tau}},
-        (hsize_t)masses, (hsize_t)springs, (hsize_t)dimension, (hsize_t)first_mass, (hsize_t)mass_count,
-        (hsize_t)first_spring, (hsize_t)spring_count, rank, comm, -1, -1, {-1, -1, -1, -1, -1, -1}};
-    check_arguments(&call, time, dimension, masses, springs, tau_name, tau != NULL, comm, &out);
+    snapshot_call call = new_call(comm, &time, masses, springs, dimension, first_mass, mass_count, first_spring,
+                                  spring_count, q, p, gamma, tau, theta, tau_name, &out);
     if (out.status != snapshot_ok) return out.status;
     /* Positions and momenta are always written; a rank without masses may pass no arrays. */
     static const double none[1] = {0};
     if (call.sets[SET_Q].local == NULL) call.sets[SET_Q].local = none;
     if (call.sets[SET_P].local == NULL) call.sets[SET_P].local = none;
-    check_file(path, rank, &out);
+    check_file(path, call.rank, 1, &out);
     if (agree(&out, comm) != snapshot_ok) return out.status;
 
     H5E_auto2_t printer;
     void *printer_data;
     H5Eget_auto2(H5E_DEFAULT, &printer, &printer_data);
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    hid_t access_list = H5Pcreate(H5P_FILE_ACCESS);
-    hid_t file = -1;
-    if (access_list < 0 || H5Pset_fapl_mpio(access_list, comm, MPI_INFO_NULL) < 0 ||
-        H5Pset_libver_bounds(access_list, H5F_LIBVER_V18, H5F_LIBVER_V18) < 0)
-        hdf5_failed(&out, NULL, "set up the MPI-IO driver");
-    else if ((file = H5Fopen(path, H5F_ACC_RDWR, access_list)) < 0) {
-        hdf5_failed(&out, NULL, "open the file as HDF5 to append a snapshot");
-        out.status = snapshot_io;
-    }
-    if (access_list >= 0) H5Pclose(access_list);
-    call.transfer = H5Pcreate(H5P_DATASET_XFER);
-    if (out.status == snapshot_ok && (call.transfer < 0 || H5Pset_dxpl_mpio(call.transfer, H5FD_MPIO_COLLECTIVE) < 0))
-        hdf5_failed(&out, NULL, "set up collective writes");
+    hid_t file = open_collectively(&call, path, 1, &out);
     hsize_t rows = 0;
     int creating = 0;
     if (agree(&out, comm) == snapshot_ok) {
@@ -556,15 +595,58 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
     if (agree(&out, comm) == snapshot_ok) {
         const char *failed = set_rows(&call, rows + 1);
         if (failed != NULL) hdf5_failed(&out, failed, "extend");
-        else write_snapshot(&call, rows, &out);
+        else transfer_snapshot(&call, rows, 0, &out);
         if (agree(&out, comm) != snapshot_ok) (void)set_rows(&call, rows);   /* the snapshots before stay */
     }
-    for (int s = 0; s < SET_COUNT; ++s)
-        if (call.datasets[s] >= 0) H5Dclose(call.datasets[s]);
-    if (call.group >= 0) H5Gclose(call.group);
+    close_call(&call);
     if (creating && agree(&out, comm) != snapshot_ok) (void)H5Ldelete(file, group_name, H5P_DEFAULT);   /* no half group */
     if (call.transfer >= 0) H5Pclose(call.transfer);
     if (file >= 0 && H5Fclose(file) < 0) hdf5_failed(&out, NULL, "close the file after a snapshot");
+    H5Eset_auto2(H5E_DEFAULT, printer, printer_data);
+    return agree(&out, comm);
+}
+
+/* Reads the last snapshot of the HDF5 file `path` into this rank's part of the state, the part
+ * and arrays as eme_h5_append_snapshot takes them (writable here: q, p, gamma, tau, theta receive
+ * the values, each NULL when the state has none), and its time into *time. The file's snapshots
+ * must be of this state: the same datasets (tau's named `tau_name`) and shapes (a snapshot_mismatch
+ * names the dataset otherwise). Every rank reads its own masses and springs, collectively over
+ * the communicator, so none holds the whole state (a continued run: docs/faults.md). Returns 0, or
+ * a snapshot_* code with the same `message` on every rank. */
+int eme_h5_read_last_snapshot(const char *path, MPI_Fint fortran_comm, long long masses, long long springs,
+                              int dimension, long long first_mass, long long mass_count, long long first_spring,
+                              long long spring_count, double *q, double *p, double *gamma, double *tau, double *theta,
+                              const char *tau_name, double *time, char *message, int capacity)
+{
+    MPI_Comm comm = MPI_Comm_f2c(fortran_comm);
+    report out = {snapshot_ok, message, capacity, path};
+    message[0] = '\0';
+    *time = 0;
+    snapshot_call call = new_call(comm, time, masses, springs, dimension, first_mass, mass_count, first_spring,
+                                  spring_count, q, p, gamma, tau, theta, tau_name, &out);
+    if (out.status != snapshot_ok) return out.status;
+    static double none[1] = {0};
+    if (call.sets[SET_Q].local == NULL) call.sets[SET_Q].local = none;
+    if (call.sets[SET_P].local == NULL) call.sets[SET_P].local = none;
+    check_file(path, call.rank, 0, &out);
+    if (agree(&out, comm) != snapshot_ok) return out.status;
+
+    H5E_auto2_t printer;
+    void *printer_data;
+    H5Eget_auto2(H5E_DEFAULT, &printer, &printer_data);
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    hid_t file = open_collectively(&call, path, 0, &out);
+    hsize_t rows = 0;
+    if (agree(&out, comm) == snapshot_ok) {
+        if (H5Lexists(file, group_name, H5P_DEFAULT) <= 0)
+            say(&out, snapshot_mismatch, "the file has no /%s: its run wrote no snapshot", group_name);
+        else open_group(&call, file, &rows, &out);
+        if (out.status == snapshot_ok && rows == 0) say(&out, snapshot_mismatch, "/%s holds no snapshot", group_name);
+    }
+    if (agree(&out, comm) == snapshot_ok) transfer_snapshot(&call, rows - 1, 1, &out);
+    close_call(&call);
+    if (call.transfer >= 0) H5Pclose(call.transfer);
+    if (file >= 0 && H5Fclose(file) < 0) hdf5_failed(&out, NULL, "close the file after reading a snapshot");
     H5Eset_auto2(H5E_DEFAULT, printer, printer_data);
     return agree(&out, comm);
 }

@@ -2,7 +2,8 @@
 !> holding its own part (the spring chain's sparse path: docs/formulation.md section 10, "Sparse
 !> and distributed"). It is what the distributed time loop (src/run/distributed_simulation) asks
 !> of such a model: start from the scene's initial state, take a step, sum the balances'
-!> quantities over the ranks, hand over the rank's part of the state for a snapshot, and finish.
+!> quantities over the ranks, hand over the rank's part of the state for a snapshot (and take it
+!> back, to continue a run), and finish.
 !> Every procedure but `part` is collective: all ranks call it, in the same order.
 module distributed_model
   use, intrinsic :: iso_fortran_env, only: real64
@@ -64,6 +65,7 @@ module distributed_model
     procedure(step_interface), deferred :: step
     procedure(figures_interface), deferred :: figures
     procedure(part_interface), deferred :: part
+    procedure(restore_interface), deferred :: restore
     procedure(finish_interface), deferred :: finish
   end type distributed_system
 
@@ -105,6 +107,15 @@ module distributed_model
       type(distributed_part), intent(out) :: state
       type(failure_type), intent(out) :: failure
     end subroutine part_interface
+
+    !> Makes `state`, the rank's part as `part` gives it (a continued run's last snapshot), the
+    !> current state; tau is the state's thermodynamic variable (theta is not read).
+    subroutine restore_interface(self, state, failure)
+      import :: distributed_system, distributed_part, failure_type
+      class(distributed_system), intent(inout) :: self
+      type(distributed_part), intent(in) :: state
+      type(failure_type), intent(out) :: failure
+    end subroutine restore_interface
 
     !> Frees what `start` made; `failure` keeps a failure it comes in with.
     subroutine finish_interface(self, failure)

@@ -13,8 +13,9 @@
 !> `&output snapshot_every`-th step and the last. A snapshot reaches the file in a window of the
 !> crash-safe writer: rank 0 closes the window's spare, all ranks append the snapshots the spare
 !> lacks, and only then does the spare take the file's name, so that a kill leaves the file of
-!> the last window, snapshots included. Not here yet: -eme_continue (refused at input), steps
-!> chosen by error control, integrators other than EME and the midpoint rule.
+!> the last window, snapshots included. -eme_continue goes on from the file's last snapshot, at
+!> which its resume record stands (src/run/run_continuation), on any number of ranks. Not here
+!> yet: steps chosen by error control, integrators other than EME and the midpoint rule.
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -31,16 +32,17 @@ module distributed_simulation
   use solver_description, only: solver_report, add_setting, text_setting, number_setting, set_petsc_reasons, &
                                 reasons_snes
   use run_config, only: run_configuration
-  use run_output, only: run_file, extra_attribute, spare_addition
+  use run_output, only: run_file, extra_attribute, spare_addition, resume_record, read_resume_record
+  use run_continuation, only: find_resume_record
   use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_solver, &
                          failure_domain, failure_input, failure_io, &
                          failure_interrupted, failure_library, failure_step_budget, failure_balance
   use step_balances, only: balance_count, balanced_state, balance_figures, applicable_balances
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use run_options, only: overwrite_requested, petsc_options_in_force
+  use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
   use simulation, only: line_reporter, holds_complete_run, failure_code_of
-  use hdf5_snapshots, only: snapshot_layout, append_snapshot
+  use hdf5_snapshots, only: snapshot_layout, append_snapshot, read_last_snapshot
   use output_path, only: check_output_path
   use filesystem, only: make_parent_directories, rename_file, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text, scientific_text
@@ -48,7 +50,7 @@ module distributed_simulation
   use failures, only: failure_type, set_failure => fail, code_input => failure_input
   implicit none (type, external)
   private
-  public :: run_distributed, distributed_settings_of, split_run_wanted, set_up_distributed_only, write_part
+  public :: run_distributed, distributed_settings_of, split_run_wanted, set_up_distributed_only
 
   real(real64), parameter :: progress_interval = 2.0_real64     !! seconds between progress lines
   !> Bytes of snapshots a rank holds for the next window at most: more force the window.
@@ -164,7 +166,8 @@ contains
     type(balanced_state) :: balance_old, balance_new
     type(step_report) :: report
     type(failure_type) :: step_failure, io_failure
-    character(len=:), allocatable :: part
+    type(resume_record) :: resume       !! where a continued run starts (its last snapshot)
+    character(len=:), allocatable :: part, kind, text, status, stored
     real(real64) :: figures(balance_count), dt, time, energy_change, conserved_change(3), dv
     real(real64) :: step_seconds
     integer(int64) :: n, step_start, step_end
@@ -172,7 +175,7 @@ contains
     integer(int64) :: state_step      !! the step whose end the system's state is
     integer(int64) :: snapshot_step   !! the step of the last snapshot held
     integer :: rank, every, stop_flags(3)
-    logical :: checked(balance_count), has_balance(balance_count), found, replace, finished, writing
+    logical :: checked(balance_count), has_balance(balance_count), found, replace, finished, writing, continuing
     type(MPI_Comm) :: communicator
 
     call timer%begin()
@@ -192,8 +195,17 @@ contains
       return
     end if
     call config%scene%distributed(system)
-    ! Rank 0 alone looks at the output; the others learn its verdict.
-    if (rank == 0) then
+    ! Rank 0 alone looks at the output; the others learn its verdict (and read a continued run's
+    ! record from FILE.part once rank 0 has made it).
+    continuing = continue_requested()
+    if (rank == 0 .and. continuing) then
+      call find_resume_record(config, .false., resume, kind, text)
+      if (len(kind) > 0) call fail(kind, text)
+      if (.not. failure%failed() .and. size(resume%x) > 0) &
+        call fail(failure_input, config%output_file//': its run was not split over ranks (its state is in /state) '// &
+                  'and continues on the dense path ('//config%input_file//', -eme_continue); allowed: eme_run on '// &
+                  'one process, as it ran')
+    else if (rank == 0) then
       replace = overwrite_requested() .or. config%overwrite
       call check_output_path(config%output_file, config%input_file, replace, io_failure)
       if (io_failure%failed()) then
@@ -209,6 +221,12 @@ contains
         call fail(failure_input, config%output_file//' holds a complete run, which is kept; to replace it, set '// &
                   '&output overwrite = .true. in '//config%input_file//', give -eme_overwrite, or choose another '// &
                   '&output file')
+    end if
+    call agree(failure)
+    if (failure%failed()) return
+    if (continuing .and. rank /= 0) then
+      call read_resume_record(part, resume, status, stored, io_failure)
+      if (io_failure%failed()) call fail(failure_io, part//': '//io_failure%message)
     end if
     call agree(failure)
     if (failure%failed()) return
@@ -233,16 +251,23 @@ contains
     ! rows), the two production minima as the integrator's figures.
     allocate (report%scheme_temperature(0), report%diagnostics(2))
     values = figures_0
+    state_step = 0
+    if (continuing) call restore_snapshot()
     call observe(values)
-    if (model%temperature_count() > 0) summary%min_temperature = values%min_temperature
+    if (model%temperature_count() > 0 .and. .not. continuing) summary%min_temperature = values%min_temperature
     ! The file: its layout and first point, written whole at once (the first write takes no
-    ! snapshot: every later one goes through a window's spare).
-    if (rank == 0) then
+    ! snapshot: every later one goes through a window's spare); a continued run's file goes on
+    ! from its record's rows, its snapshots all there.
+    if (rank == 0 .and. .not. failure%failed()) then
       call output%create(part, config, entry, model, constraints, diagnostics(), [extra_attribute ::], &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
       if (.not. io_failure%failed()) call output%record_solver(solver_of(config), io_failure)
       if (io_failure%failed()) then
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
+      else if (continuing) then
+        call output%continue_file(resume, config, io_failure)
+        if (io_failure%failed()) call fail(failure_io, "cannot continue the output file '"//part//"' ("// &
+                                           config%input_file//'): '//io_failure%message)
       else
         call record_point(0.0_real64)
         call output%write_rows(summary, io_failure)
@@ -256,8 +281,7 @@ contains
       return
     end if
     writing = .true.
-    state_step = 0
-    call hold_snapshot()
+    if (.not. continuing) call hold_snapshot()
     call timer%begin_loop()
     finished = .false.
     do while (.not. finished)
@@ -322,11 +346,6 @@ contains
       if (values%conserved_count > 0) summary%angular_momentum_drift = max(summary%angular_momentum_drift, &
         maxval(abs(conserved_change(1:values%conserved_count))))
       if (model%temperature_count() > 0) summary%min_temperature = min(summary%min_temperature, values%min_temperature)
-      if (finished) then
-        call hold_snapshot()
-      else if (every > 0) then
-        if (mod(n, int(every, int64)) == 0) call hold_snapshot()
-      end if
       if (rank == 0) then
         report%newton_iterations = outcome%iterations
         report%solves = 1
@@ -338,6 +357,11 @@ contains
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
         call record_point(time)
+      end if
+      if (finished) then
+        call hold_snapshot()
+      else if (every > 0) then
+        if (mod(n, int(every, int64)) == 0) call hold_snapshot()
       end if
       call write_window(.false.)
       if (failure%failed()) exit
@@ -456,7 +480,8 @@ contains
                                .false.)
     end subroutine record_point
 
-    ! The rank's part of the state (the end of step state_step, at `time`), held for the next window.
+    ! The rank's part of the state (the end of step state_step, at `time`), held for the next
+    ! window, which also stores the resume record that stands at it (rank 0: its row is recorded).
     subroutine hold_snapshot()
       type(held_snapshot) :: snapshot
       type(failure_type) :: reading
@@ -469,7 +494,46 @@ contains
         return
       end if
       call window%hold(snapshot)
+      if (rank == 0) call output%note_snapshot_point(state_step, time, figures_0%energy, summary, &
+                                                     [energy_change, conserved_change])
     end subroutine hold_snapshot
+
+    ! A continued run's state: the file's last snapshot, every rank reading its own part, which
+    ! must stand where the file's resume record does; the loop's counts and sums as it recorded
+    ! them (the figures of the restored state into `values`).
+    subroutine restore_snapshot()
+      type(distributed_part) :: state
+      type(failure_type) :: reading
+      real(real64) :: snapshot_time
+      character(len=:), allocatable :: where
+
+      where = ' ('//config%input_file//', -eme_continue)'
+      call system%part(state, reading)       ! this rank's part of the state: the shapes to read
+      if (.not. reading%failed()) call transfer_part(part, comm, snapshot_time, state, window%tau_name, .true., reading)
+      if (len(window%tau_name) == 0) state%tau = state%theta      ! tau is the temperature, stored as theta
+      if (.not. reading%failed()) then
+        if (abs(snapshot_time - resume%time) > 0.0_real64 .or. size(resume%integrator_state) /= 4) then
+          call fail(failure_input, part//': its last snapshot (t = '//fixed_text(snapshot_time, 6)//' s) is not '// &
+                    'where its resume record stands (t = '//fixed_text(resume%time, 6)//' s)'//where// &
+                    '; allowed: a file of a run split over ranks, as eme_run wrote it')
+          return
+        end if
+        call system%restore(state, reading)
+      end if
+      if (.not. reading%failed()) call system%figures(values, reading)
+      if (reading%failed()) then
+        call fail(failure_input, part//': its last snapshot cannot be taken up: '//reading%message//where// &
+                  '; allowed: a file of this input''s run split over ranks')
+        return
+      end if
+      n = resume%step
+      time = resume%time
+      state_step = n
+      snapshot_step = n
+      call resume%restore_summary(summary)
+      energy_change = resume%integrator_state(1)
+      conserved_change = resume%integrator_state(2:4)
+    end subroutine restore_snapshot
 
     ! A write of the file when one is due (rank 0's clock, or a rank's full snapshot buffer), or
     ! the last one (`final`): rank 0 writes the rows and attributes, and every rank joins its
@@ -529,12 +593,14 @@ contains
                                        ''' ('//config%input_file//'): '//renaming%message)
     end subroutine close_output
 
-    ! Whether rank 0's lock of the output was removed or replaced (the run then stops).
-    logical function lock_lost()
+    ! Whether rank 0's lock of the output was removed or replaced (the run then stops). (A result
+    ! named apart from the function: passing the function's own name made gfortran pass the
+    ! nested function, through a trampoline on an executable stack.)
+    logical function lock_lost() result(lost)
       character(len=:), allocatable :: holder, what
       logical :: retaken
 
-      call recheck_lock(lock, lock_lost, retaken, what, holder)
+      call recheck_lock(lock, lost, retaken, what, holder)
     end function lock_lost
 
     subroutine set_times(in_loop)
@@ -596,12 +662,12 @@ contains
     integer :: k
 
     do k = 1, self%kept_count
-      if (.not. failure%failed()) call write_part(path, self%comm%MPI_VAL, self%kept(k)%time, self%kept(k)%state, &
-                                                  self%tau_name, failure)
+      if (.not. failure%failed()) call transfer_part(path, self%comm%MPI_VAL, self%kept(k)%time, self%kept(k)%state, &
+                                                     self%tau_name, .false., failure)
     end do
     do k = 1, self%new_count
-      if (.not. failure%failed()) call write_part(path, self%comm%MPI_VAL, self%new(k)%time, self%new(k)%state, &
-                                                  self%tau_name, failure)
+      if (.not. failure%failed()) call transfer_part(path, self%comm%MPI_VAL, self%new(k)%time, self%new(k)%state, &
+                                                     self%tau_name, .false., failure)
     end do
   end subroutine append_held
 
@@ -637,36 +703,38 @@ contains
   end subroutine written
 
   !> Appends the snapshot of `state` (every rank its part) at `time` to the closed file `path`
-  !> (collective on `comm`, a communicator's Fortran handle); tau as dataset `tau_name` ('': none,
-  !> tau being the temperature).
-  subroutine write_part(path, comm, time, state, tau_name, failure)
-    character(len=*), intent(in) :: path
+  !> (collective on `comm`, a communicator's Fortran handle), or with `reading` reads the file's
+  !> last snapshot into `state` (its arrays allocated to the rank's part) and its `time`; tau as
+  !> dataset `tau_name` ('': none, tau being the temperature).
+  subroutine transfer_part(path, comm, time, state, tau_name, reading, failure)
+    character(len=*), intent(in) :: path, tau_name
     integer, intent(in) :: comm
-    real(real64), intent(in) :: time
-    type(distributed_part), intent(in) :: state
-    character(len=*), intent(in) :: tau_name
+    real(real64), intent(inout) :: time
+    type(distributed_part), intent(inout), target :: state
+    logical, intent(in) :: reading
     type(failure_type), intent(out) :: failure
     type(snapshot_layout) :: layout
+    real(real64), pointer, contiguous :: gamma(:), tau(:), theta(:)
 
     layout = snapshot_layout(masses=state%masses, springs=state%springs, dimension=state%dimension, &
                              first_mass=state%first_mass, mass_count=size(state%positions, 2), &
                              first_spring=state%first_spring, spring_count=state%spring_count)
-    ! Arrays the state has not are absent (tau too when it is the temperature).
-    if (size(state%gamma) > 0 .and. size(state%theta) > 0 .and. len(tau_name) > 0) then
-      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, &
-                           viscous_strains=state%gamma, tau=state%tau, tau_name=tau_name, temperatures=state%theta)
-    else if (size(state%gamma) > 0 .and. size(state%theta) > 0) then
-      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, &
-                           viscous_strains=state%gamma, temperatures=state%theta)
-    else if (size(state%theta) > 0 .and. len(tau_name) > 0) then
-      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, &
-                           tau=state%tau, tau_name=tau_name, temperatures=state%theta)
-    else if (size(state%theta) > 0) then
-      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, temperatures=state%theta)
+    ! Arrays the state has not are absent (a disassociated pointer is an absent argument), tau too
+    ! when it is the temperature.
+    gamma => null()
+    tau => null()
+    theta => null()
+    if (size(state%theta) > 0) theta => state%theta
+    if (size(state%gamma) > 0 .and. size(state%theta) > 0) gamma => state%gamma
+    if (size(state%theta) > 0 .and. len(tau_name) > 0) tau => state%tau
+    if (reading) then
+      call read_last_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, viscous_strains=gamma, &
+                              tau=tau, tau_name=tau_name, temperatures=theta)
     else
-      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure)
+      call append_snapshot(path, comm, layout, time, state%positions, state%momenta, failure, viscous_strains=gamma, &
+                           tau=tau, tau_name=tau_name, temperatures=theta)
     end if
-  end subroutine write_part
+  end subroutine transfer_part
 
   ! The snapshot's dataset of tau: the run's own variable when it is the entropy or the internal
   ! energy, none when it is the temperature or the model has none.

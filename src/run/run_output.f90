@@ -59,6 +59,8 @@ module run_output
     real(real64), allocatable :: x_previous(:)   !! those of the step before (the predictor's base)
     real(real64), allocatable :: integrator_state(:)   !! the integrator's own (time_stepper's resume_state)
     character(len=:), allocatable :: history     !! the file's CF history, which a continuation extends
+  contains
+    procedure :: restore_summary
   end type resume_record
 
   !> Rows held in memory between writes, at most. Each write copies a dataset's columns of them
@@ -104,6 +106,7 @@ module run_output
     procedure :: write_rows
     procedure :: finish
     procedure :: note_resume_state
+    procedure :: note_snapshot_point
     procedure :: continue_file
   end type run_file
 
@@ -426,9 +429,50 @@ contains
     real(real64), intent(in) :: time, energy_0, jz_0, boundary_heat, x(:), x_previous(:)
     integer, intent(in) :: outputs_passed
     type(run_summary), intent(in) :: summary
+    logical :: noted
 
+    call note_point(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, noted)
+    if (.not. noted) return
+    associate (record => self%resume)
+      if (.not. allocated(record%x)) allocate (record%x(size(x)), record%x_previous(size(x)))
+      record%x = x
+      record%x_previous = x_previous
+      call integrator%resume_state(record%integrator_state)
+    end associate
+  end subroutine note_resume_state
+
+  !> Notes the point after step n of a run whose state is not in rows (a state split over ranks,
+  !> whose snapshot of that step the file's next write adds: src/run/distributed_simulation), as
+  !> note_resume_state does, with no state of its own (resume_x is not written) and the loop's
+  !> `running_sums` as the integrator's state.
+  subroutine note_snapshot_point(self, n, time, energy_0, summary, running_sums)
+    class(run_file), intent(inout) :: self
+    integer(int64), intent(in) :: n
+    real(real64), intent(in) :: time, energy_0, running_sums(:)
+    type(run_summary), intent(in) :: summary
+    logical :: noted
+
+    call note_point(self, n, time, 0, energy_0, 0.0_real64, 0.0_real64, summary, noted)
+    if (.not. noted) return
+    self%resume%x = [real(real64) ::]
+    self%resume%x_previous = [real(real64) ::]
+    self%resume%integrator_state = running_sums
+  end subroutine note_snapshot_point
+
+  ! The resume record's point and figures after step n, if record_point has just completed a row
+  ! with it (`noted`).
+  subroutine note_point(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, noted)
+    class(run_file), intent(inout) :: self
+    integer(int64), intent(in) :: n
+    real(real64), intent(in) :: time, energy_0, jz_0, boundary_heat
+    integer, intent(in) :: outputs_passed
+    type(run_summary), intent(in) :: summary
+    logical, intent(out) :: noted
+
+    noted = .false.
     if (.not. self%enabled .or. self%committed_steps /= n) return
     if (self%store%tables(step_rows)%pending_count > 0) return
+    noted = .true.
     associate (record => self%resume)
       record%held = .true.
       record%step = n
@@ -449,12 +493,26 @@ contains
       record%summary%rejected_steps = summary%rejected_steps
       record%summary%resolved_steps = summary%resolved_steps
       record%summary%max_balance = summary%max_balance
-      if (.not. allocated(record%x)) allocate (record%x(size(x)), record%x_previous(size(x)))
-      record%x = x
-      record%x_previous = x_previous
-      call integrator%resume_state(record%integrator_state)
     end associate
-  end subroutine note_resume_state
+  end subroutine note_point
+
+  !> The summary's counts and figures as the record holds them (the steps completed are its step).
+  subroutine restore_summary(self, summary)
+    class(resume_record), intent(in) :: self
+    type(run_summary), intent(inout) :: summary
+
+    summary%newton_iterations = self%summary%newton_iterations
+    summary%energy_drift = self%summary%energy_drift
+    summary%min_entropy_increment = self%summary%min_entropy_increment
+    summary%max_lyapunov_increment = self%summary%max_lyapunov_increment
+    summary%angular_momentum_drift = self%summary%angular_momentum_drift
+    summary%min_temperature = self%summary%min_temperature
+    summary%halved_steps = self%summary%halved_steps
+    summary%rejected_steps = self%summary%rejected_steps
+    summary%resolved_steps = self%summary%resolved_steps
+    summary%max_balance = self%summary%max_balance
+    summary%steps_completed = self%step
+  end subroutine restore_summary
 
   !> Goes on with the file that record came from, now at this file's path (a copy of it), with the
   !> input `config`: the file made by `create` in memory is dropped, and the next write appends the
@@ -512,8 +570,14 @@ contains
     if (reading%failed()) record%history = ''
     call file%get_reals('resume_numbers', numbers, reading)
     if (.not. reading%failed() .and. size(numbers) == 16) then
-      call file%get_reals('resume_x', record%x, failure)
-      if (.not. failure%failed()) call file%get_reals('resume_x_previous', record%x_previous, failure)
+      ! A record without resume_x stands at the file's last snapshot (a state split over ranks).
+      call file%get_reals('resume_x', record%x, reading)
+      if (reading%failed()) then
+        record%x = [real(real64) ::]
+        record%x_previous = [real(real64) ::]
+      else
+        call file%get_reals('resume_x_previous', record%x_previous, failure)
+      end if
       call file%get_reals('resume_integrator', record%integrator_state, reading)
       if (reading%failed()) record%integrator_state = [real(real64) ::]
       record%held = .not. failure%failed()
@@ -558,8 +622,9 @@ contains
                         real(record%summary%rejected_steps, real64)], failure)
     if (.not. failure%failed()) call file%set_reals('resume_balances', [real(record%summary%resolved_steps, real64), &
                                                                         record%summary%max_balance], failure)
-    if (.not. failure%failed()) call file%set_reals('resume_x', record%x, failure)
-    if (.not. failure%failed()) call file%set_reals('resume_x_previous', record%x_previous, failure)
+    if (.not. failure%failed() .and. size(record%x) > 0) call file%set_reals('resume_x', record%x, failure)
+    if (.not. failure%failed() .and. size(record%x) > 0) &
+      call file%set_reals('resume_x_previous', record%x_previous, failure)
     if (.not. failure%failed() .and. size(record%integrator_state) > 0) &
       call file%set_reals('resume_integrator', record%integrator_state, failure)
     if (failure%failed() .or. .not. with_units) return
@@ -567,9 +632,10 @@ contains
     call file%set_texts('resume_numbers_units', [character(len=3) :: '1', 's', '1', 'J', 'J s', 'J', '1', '1', '1', &
                                                  '1', 'J/K', 'J', 'J s', 'K', '1', '1'], failure)
     if (.not. failure%failed()) call file%set_text('resume_balances_units', '1', failure)
-    if (.not. failure%failed()) call file%set_text('resume_x_units', &
-                                                   'the units of /state''s columns, then the multipliers''', failure)
-    if (.not. failure%failed()) call file%set_text('resume_x_previous_units', 'as resume_x', failure)
+    if (.not. failure%failed() .and. size(record%x) > 0) &
+      call file%set_text('resume_x_units', 'the units of /state''s columns, then the multipliers''', failure)
+    if (.not. failure%failed() .and. size(record%x) > 0) &
+      call file%set_text('resume_x_previous_units', 'as resume_x', failure)
     if (.not. failure%failed() .and. size(record%integrator_state) > 0) &
       call file%set_text('resume_integrator_units', 'mixed: the integrator''s own state (docs/faults.md)', failure)
   end subroutine resume_attributes

@@ -18,7 +18,8 @@ module simulation
   use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
-  use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
+  use run_output, only: run_file, extra_attribute, resume_record
+  use run_continuation, only: find_resume_record
   use run_outcome, only: run_summary, step_failure_kind, open_summary, summarize_model, close_summary, &
                          failure_none, failure_solver, failure_domain, &
                          failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget, &
@@ -27,13 +28,12 @@ module simulation
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
-  use hdf5_files, only: check_run_file, check_file_integrity, file_template
+  use hdf5_files, only: check_run_file, file_template
   use output_path, only: check_output_path
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, copy_file, output_lock, recheck_lock
+  use filesystem, only: make_parent_directories, rename_file, file_exists, output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text
   use run_clock, only: run_timer
-  use effective_namelist, only: namelist_of_run
   use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
                       code_interrupted => failure_interrupted, code_library => failure_library
   implicit none (type, external)
@@ -128,7 +128,7 @@ contains
     type(run_file) :: output
     type(extra_attribute), allocatable :: added(:)
     type(resume_record) :: resume       !! the state a continued run starts from
-    character(len=:), allocatable :: part
+    character(len=:), allocatable :: part, kind, text
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
     real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
     real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
@@ -175,7 +175,14 @@ contains
       end if
     end if
     if (continuing) then
-      call find_resume_record()
+      call find_resume_record(config, entry%chooses_time .or. (config%integrator%tolerance_given .and. &
+                              entry%error_control), resume, kind, text)
+      if (len(kind) > 0) call fail(kind, text)
+      ! A split run's record stands at its last snapshot, with no state of its own.
+      if (.not. failure%failed() .and. size(resume%x) /= model%state_size + size(constraints)) &
+        call fail(failure_input, config%output_file//': its run was split over ranks (its state is in /snapshots)'// &
+                  ' and cannot be continued on the dense path ('//config%input_file//', -eme_continue); allowed: '// &
+                  'mpirun -n P eme_run with P > 1 (any P), which continues it from its last snapshot')
       if (failure%failed() .and. present(resume_if_possible)) then
         ! Nothing to continue from: the run starts from t = 0, as it would have.
         failure = failure_type()
@@ -411,101 +418,6 @@ contains
       call build_integrator(entry, made)
     end subroutine new_integrator
 
-    ! -eme_continue: the resume record of the output file, or of FILE.part (the one further on,
-    ! if both hold one), which FILE.part becomes a copy of. Fails (failure_input) if the file
-    ! holds a complete run or no record, was run with another input than t_end and max_steps, or
-    ! has reached t_end or max_steps (the budget of the whole run, not of the continuation).
-    subroutine find_resume_record()
-      type(resume_record) :: candidate
-      character(len=:), allocatable :: status, stored, source, where
-      type(failure_type) :: reading, copying
-      logical :: complete, any_file, beyond
-
-      where = ' ('//config%input_file//', -eme_continue)'
-      source = ''
-      complete = .false.
-      if (file_exists(config%output_file)) then
-        call read_resume_record(config%output_file, candidate, status, stored, reading)
-        complete = .not. reading%failed() .and. status == 'complete'
-        if (.not. reading%failed() .and. candidate%held .and. candidate%stopped_early) then
-          resume = candidate
-          source = config%output_file
-        end if
-      end if
-      if (complete) then
-        call fail(failure_input, config%output_file//' holds a complete run: there is nothing to continue'//where// &
-                  '; allowed: the file of a run that stopped early')
-        return
-      end if
-      if (file_exists(part)) then
-        call read_resume_record(part, candidate, status, stored, reading)
-        if (.not. reading%failed() .and. candidate%held .and. candidate%stopped_early) then
-          if (len(source) == 0) then
-            resume = candidate
-            source = part
-          else if (candidate%step > resume%step) then
-            resume = candidate
-            source = part
-          end if
-        end if
-      end if
-      if (len(source) == 0) then
-        any_file = file_exists(config%output_file)
-        if (.not. any_file) any_file = file_exists(part)
-        if (any_file) then
-          call fail(failure_input, config%output_file//' (or its .part) holds no run to continue (a run that '// &
-                    'stopped at a step it could not solve, a file of an older version, or not a run file)'//where// &
-                    '; allowed: the file of a run stopped by a signal, a kill, its step budget or a failed write')
-        else
-          call fail(failure_input, 'neither '//config%output_file//' nor '//part//' exists'//where// &
-                    '; allowed: the output file of a run that stopped early')
-        end if
-        return
-      end if
-      ! A damaged file is named as the input it is, before anything is copied or appended.
-      call check_file_integrity(source, reading)
-      if (reading%failed()) then
-        call fail(failure_input, source//': '//reading%message//'; it cannot be continued'//where//'; allowed: '// &
-                  'an undamaged file of a run that stopped early (or run afresh without -eme_continue)')
-        return
-      end if
-      call read_resume_record(source, candidate, status, stored, reading)
-      if (len(first_difference(stored, namelist_of_run(config))) > 0) then
-        call fail(failure_input, source//': its input differs from '//config%input_file//': '// &
-                  first_difference(stored, namelist_of_run(config))//where//'; allowed: the same input, with '// &
-                  '&integrator t_end and max_steps changed only')
-        return
-      end if
-      ! The run must have somewhere to go: a later t_end (or, at fixed steps, more steps).
-      if (entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)) then
-        beyond = resume%time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))
-      else
-        beyond = resume%step >= step_count(config%integrator)
-      end if
-      if (beyond) then
-        call fail(failure_input, source//': its run reached t = '//fixed_text(resume%time, 6)//' s, and &integrator '// &
-                  't_end = '//fixed_text(t_end, 6)//' s in '//config%input_file//' leaves nothing to continue'//where// &
-                  '; allowed: a later t_end')
-        return
-      end if
-      ! The step budget counts the whole run's steps, those before the continuation too.
-      if (resume%step >= config%integrator%max_steps) then
-        call fail(failure_input, source//': its run took '//integer_text(resume%step)//' steps, and &integrator '// &
-                  'max_steps = '//integer_text(config%integrator%max_steps)//' in '//config%input_file//', the '// &
-                  'budget of the whole run, leaves none to add'//where//'; allowed: max_steps > '// &
-                  integer_text(resume%step))
-        return
-      end if
-      if (source /= part) then
-        call copy_file(source, part, copying)
-        if (copying%failed()) then
-          call fail(failure_io, "cannot copy '"//source//"' to '"//part//"' ("//config%input_file//'): '// &
-                    copying%message)
-          return
-        end if
-      end if
-    end subroutine find_resume_record
-
     ! The loop's state as `record` stored it (the point after its step was recorded).
     subroutine restore(record)
       type(resume_record), intent(in) :: record
@@ -517,16 +429,7 @@ contains
       boundary_heat = record%boundary_heat
       x = record%x
       x_previous = record%x_previous
-      summary%newton_iterations = record%summary%newton_iterations
-      summary%energy_drift = record%summary%energy_drift
-      summary%min_entropy_increment = record%summary%min_entropy_increment
-      summary%max_lyapunov_increment = record%summary%max_lyapunov_increment
-      summary%angular_momentum_drift = record%summary%angular_momentum_drift
-      summary%halved_steps = record%summary%halved_steps
-      summary%rejected_steps = record%summary%rejected_steps
-      summary%resolved_steps = record%summary%resolved_steps
-      summary%max_balance = record%summary%max_balance
-      summary%steps_completed = n
+      call record%restore_summary(summary)
       call observe(x(1:n_state), energy, entropy, lyapunov)
       summary%min_temperature = record%summary%min_temperature
     end subroutine restore
@@ -812,48 +715,6 @@ contains
     text = 'PETSc could not set up the solver with the options given: '//petsc_error_text()// &
            '; allowed: the options of docs/running.md and PETSc''s own (eme_run FILE.nml -help lists them)'
   end function setup_failure_text
-
-  ! The first line (a field of the effective namelist, src/io/effective_namelist) in which `stored`
-  ! and `given` differ, other than t_end and max_steps, as 'stored' against 'given'; '' if none.
-  function first_difference(stored, given) result(text)
-    character(len=*), intent(in) :: stored, given
-    character(len=:), allocatable :: text
-    character(len=:), allocatable :: a, b
-    integer :: ia, ib
-
-    text = ''
-    ia = 1
-    ib = 1
-    do
-      call next_line(stored, ia, a)
-      call next_line(given, ib, b)
-      if (a /= b) then
-        text = "'"//trim(adjustl(a))//"' against '"//trim(adjustl(b))//"'"
-        return
-      end if
-      if (ia > len(stored) .and. ib > len(given)) return
-    end do
-
-  contains
-
-    ! The next line from position `at` that is not t_end or max_steps ('' at the end).
-    subroutine next_line(text, at, line)
-      character(len=*), intent(in) :: text
-      integer, intent(inout) :: at
-      character(len=:), allocatable, intent(out) :: line
-      integer :: length
-
-      line = ''
-      do while (at <= len(text))
-        length = index(text(at:), new_line('a')) - 1
-        if (length < 0) length = len(text) - at + 1
-        line = text(at:at + length - 1)
-        at = at + length + 1
-        if (index(adjustl(line), 't_end ') /= 1 .and. index(adjustl(line), 'max_steps ') /= 1) return
-        line = ''
-      end do
-    end subroutine next_line
-  end function first_difference
 
   !> Whether `path` is a run file that reads back complete.
   logical function holds_complete_run(path)

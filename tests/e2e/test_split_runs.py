@@ -7,7 +7,9 @@ sparse path): `mpirun -n P eme_run FILE.nml`, and one rank beyond the dense path
   (/balance within its bounds) with each viscous branch's and link's entropy production >= 0;
 - a chain of 1198 unknowns runs on one rank (no mpirun) on the split path;
 - what the split path cannot run is refused before anything is written (exit 2);
-- a split run stopped by SIGTERM keeps a valid file, marked incomplete, with its snapshots."""
+- a split run stopped by SIGTERM keeps a valid file, marked incomplete, with its snapshots;
+- -eme_continue goes on from a split file's last snapshot, on any number of ranks, and ends with
+  the uninterrupted run's file (bit for bit on the same ranks), after a step budget or a SIGKILL."""
 import os
 import signal
 import subprocess
@@ -102,7 +104,7 @@ def test_a_chain_beyond_the_dense_limit_runs_split_on_one_rank(tmp_path):
 @pytest.mark.parametrize("change, option, words", [
     ({"scheme": "relaxed_dp853"}, None, "&integrator: scheme"),
     ({"tolerance": 1e-6}, None, "&integrator: tolerance"),
-    ({}, "-eme_continue", "-eme_continue")])
+    ({}, "-eme_continue", "-eme_continue)")])
 def test_what_the_split_path_cannot_run_is_refused(tmp_path, change, option, words):
     groups = chain_groups()
     groups["integrator"].update(change)
@@ -179,3 +181,156 @@ def test_one_rank_and_two_give_the_same_split_run(tmp_path):
         for name in ("q", "p", "gamma", "theta"):
             x, y = a[f"snapshots/{name}"][()], b[f"snapshots/{name}"][()]
             assert np.max(np.abs(x - y)) <= 1e-10 * max(1.0, np.max(np.abs(x))), name
+
+
+def per_step_datasets(f):
+    """The root datasets with one row per recorded point or step (not the run's times)."""
+    rows = f["time"].shape[0]
+    return sorted(name for name, item in f.items()
+                  if isinstance(item, h5py.Dataset) and item.shape[:1] == (rows,) and "seconds" not in name)
+
+
+def assert_continued_equals(full_file, continued_file, exact, stop_times=()):
+    """The continued file holds the uninterrupted run's rows and its snapshots (plus those at the
+    stops): bit for bit with `exact`, else to rounding (Newton's floor on another rank count)."""
+    with h5py.File(full_file, "r") as full, h5py.File(continued_file, "r") as continued:
+        assert continued.attrs["status"] == "complete", continued.attrs["status"]
+        assert per_step_datasets(continued) == per_step_datasets(full)
+        for name in per_step_datasets(full):
+            a, b = full[name][()], continued[name][()]
+            if exact or a.dtype.kind != "f":
+                assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+            elif name in ("energy", "entropy", "lyapunov"):
+                assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(a)), name
+        # The run's totals, restored from the record with the loop's running sums.
+        for name in ("steps_completed", "step_rows", "newton_iterations_total", "run_figures", "balance_max_ulps"):
+            a, b = np.asarray(full.attrs[name]), np.asarray(continued.attrs[name])
+            if exact or a.dtype.kind != "f":
+                assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+        full_times, times = full["snapshots/time"][()], continued["snapshots/time"][()]
+        assert np.array_equal(np.union1d(full_times, stop_times), times)
+        rows = np.searchsorted(times, full_times)
+        for name in ("q", "p", "gamma", "theta"):
+            a, b = full[f"snapshots/{name}"][()], continued[f"snapshots/{name}"][()][rows]
+            if exact:
+                assert np.array_equal(a, b), name
+            else:
+                assert np.max(np.abs(a - b)) <= 1e-10 * max(1.0, np.max(np.abs(a))), name
+
+
+def stop_when_snapshots(process, part, count, stop):
+    """Sends `stop` to `process` once FILE.part holds `count` snapshots; its exit status."""
+    deadline = time.monotonic() + 300
+    snapshots = 0
+    while snapshots < count and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.05)
+        try:
+            with h5py.File(part, "r") as f:
+                snapshots = f["snapshots/time"].shape[0] if "snapshots" in f else 0
+        except (OSError, KeyError):
+            snapshots = 0
+    stop(process)
+    process.communicate(timeout=300)
+    if process.returncode == 0:
+        pytest.skip("the run ended before it could be stopped")
+    return process.returncode
+
+
+def with_steps(groups, steps):
+    """`groups` running `steps` steps of its dt."""
+    changed = {key: dict(fields) for key, fields in groups.items()}
+    changed["integrator"]["t_end"] = steps * changed["integrator"]["dt"]
+    return changed
+
+
+@pytest.mark.parametrize("ranks", [(2, 2), (1, 2)], ids=["2-then-2-ranks", "1-then-2-ranks"])
+def test_a_continued_split_run_is_the_uninterrupted_run(tmp_path, ranks):
+    """The 300-spring rod (1198 unknowns: split on one rank too), stopped early and continued with
+    -eme_continue from its last snapshot, the one at the stop, to 30 steps further (t_end may
+    change): on the same ranks the file is the uninterrupted run's, rows and snapshots bit for
+    bit, plus the snapshot at the stop; on other ranks, the same to rounding. It is stopped by
+    removing its lock, which every rank obeys at the same step (SIGTERM to mpirun can end in
+    mpirun's SIGKILL on a loaded machine; a kill is the next test's)."""
+    groups = rod_groups(300, 100000)
+    groups["integrator"]["newton_tol"] = 1.0e-30
+    groups["output"] = {"snapshot_every": 10}
+    namelist, continued_file = write_input(tmp_path, "continued", groups)
+    launcher = [*MPIRUN, "-n", "2"] if ranks[0] == 2 else []
+    process = subprocess.Popen([*launcher, str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    part = tmp_path / "continued.h5.part"
+    assert stop_when_snapshots(process, part, 3, lambda p: (tmp_path / "continued.h5.lock").unlink()) == 1
+    with h5py.File(part, "r") as f:
+        assert f.attrs["status"].startswith("incomplete: the lock")
+        stop_time = f["time"][-1]
+        assert f["snapshots/time"][-1] == stop_time
+    end = with_steps(groups, round(stop_time / 1e-4) + 30)
+    full, full_file = run_split(tmp_path, "full", end, 2)
+    assert full.returncode == 0, full.stderr
+    resumed, _ = run_split(tmp_path, "continued", end, ranks[1], "-eme_continue")
+    assert resumed.returncode == 0, resumed.stderr
+    assert_continued_equals(full_file, continued_file, exact=ranks[0] == ranks[1], stop_times=[stop_time])
+
+
+def test_a_killed_split_run_continues_from_its_last_snapshot(tmp_path):
+    """One process, the 300-spring rod, a snapshot every 7th step and a write every 3 rows: SIGKILL
+    leaves FILE.part whose rows can run past its last snapshot; -eme_continue goes on from that
+    snapshot (dropping the rows after it) and ends, 30 steps past the killed file's last row, with
+    the uninterrupted run's file, bit for bit."""
+    groups = rod_groups(300, 100000)
+    groups["output"] = {"snapshot_every": 7}
+    namelist, output = write_input(tmp_path, "killed", groups)
+    environment = dict(os.environ, EME_WRITE_EVERY_ROWS="3")
+    process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=environment)
+    part = tmp_path / "killed.h5.part"
+    assert stop_when_snapshots(process, part, 3, lambda p: p.kill()) == -signal.SIGKILL
+    with h5py.File(part, "r") as f:
+        assert f.attrs["status"] == "incomplete: running"
+        end = with_steps(groups, round(f["time"][-1] / 1e-4) + 30)
+    namelist, full_file = write_input(tmp_path, "full", end)
+    full = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True, timeout=600)
+    assert full.returncode == 0, full.stderr
+    namelist, _ = write_input(tmp_path, "killed", end)
+    resumed = subprocess.run([str(BIN / "eme_run"), str(namelist), "-eme_continue"], capture_output=True, text=True,
+                             timeout=600)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_continued_equals(full_file, output, exact=True)
+
+
+def test_a_split_file_is_not_continued_on_the_dense_path(tmp_path):
+    """A small chain split over two ranks cannot go on as one process (the dense path, which keeps
+    its state in rows): refused, naming the file and what is allowed; the file is untouched."""
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=100000, dt=0.005)
+    groups["output"] = {"snapshot_every": 10}
+    namelist, output = write_input(tmp_path, "small", groups)
+    process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    output = tmp_path / "small.h5.part"
+    assert stop_when_snapshots(process, output, 2, lambda p: (tmp_path / "small.h5.lock").unlink()) == 1
+    before = output.read_bytes()
+    namelist = tmp_path / "small.nml"
+    refused = subprocess.run([str(BIN / "eme_run"), str(namelist), "-eme_continue"], capture_output=True, text=True,
+                             timeout=120)
+    assert refused.returncode == 2, refused.stderr
+    assert "split over ranks" in refused.stderr and "mpirun -n P" in refused.stderr
+    assert output.read_bytes() == before
+
+
+def test_a_lock_removed_during_a_split_run_stops_it(tmp_path):
+    """One process on the split path: removing FILE.lock while it runs stops it at its next step,
+    exit status 1, its file kept as FILE.part (another writer may hold FILE now), marked, its last
+    snapshot the state it stopped at. (Before, the check passed a nested function where a logical
+    was asked, and the run went on.)"""
+    groups = rod_groups(300, 100000)
+    groups["output"] = {"snapshot_every": 50}
+    namelist, output = write_input(tmp_path, "locked", groups)
+    process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    part = tmp_path / "locked.h5.part"
+    status = stop_when_snapshots(process, part, 2, lambda p: (tmp_path / "locked.h5.lock").unlink())
+    assert status == 1
+    assert not output.exists()
+    with h5py.File(part, "r") as f:
+        assert f.attrs["status"] == f"incomplete: the lock {output}.lock was removed or replaced while the run wrote"
+        assert f["snapshots/time"][-1] == f["time"][-1]

@@ -22,7 +22,7 @@ module spring_chain_dmda
   use petscsnes
   use petscdmda
   use, intrinsic :: iso_fortran_env, only: real64
-  use failures, only: failure_type, failure_none, fail_on_code, fail, domain_overflow
+  use failures, only: failure_type, failure_none, failure_input, fail_on_code, fail, domain_overflow
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use spring_chain_step, only: chain_step_problem
   use spring_chain_layout, only: chain_layout
@@ -87,6 +87,7 @@ module spring_chain_dmda
     procedure :: step
     procedure :: sums
     procedure :: state_part
+    procedure :: set_part
     procedure :: destroy
     procedure :: figures
   end type distributed_chain
@@ -405,6 +406,47 @@ contains
     if (.not. failure%failed() .and. stat /= failure_none) &
       call fail(failure, domain_overflow, 'a spring is outside its domain while writing a snapshot')
   end subroutine state_part
+
+  !> Sets the rank's rows of the state from its part as state_part gives it (positions and
+  !> momenta (dimension, its masses), gamma and tau per spring of its points); the old state of the
+  !> next step is this state, as after set_state.
+  subroutine set_part(self, positions, momenta, gamma, tau, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(in) :: positions(:, :), momenta(:, :), gamma(:), tau(:)
+    type(failure_type), intent(out) :: failure
+    real(real64), pointer :: values(:)
+    integer :: ierr, i, a, d, first_mass, last_mass, last_spring
+
+    associate (c => self%context, layout => self%context%problem%layout)
+      d = layout%dimension
+      first_mass = self%first_point
+      last_mass = min(layout%masses, self%last_point)
+      last_spring = min(layout%springs, self%last_point)
+      if (size(positions, 2) /= max(0, last_mass - first_mass + 1) .or. size(momenta, 2) /= size(positions, 2) .or. &
+          (layout%invariant_count == 3 .and. size(gamma) /= max(0, last_spring - first_mass + 1)) .or. &
+          (layout%invariant_count >= 2 .and. size(tau) /= max(0, last_spring - first_mass + 1))) then
+        call fail(failure, failure_input, 'the part of the state given does not fit this rank''s part of the chain')
+        return
+      end if
+      call borrow(self%x, c%last_row - c%first_row + 1, values, ierr)
+      if (ierr == 0) then
+        do i = first_mass, last_mass
+          associate (slots => layout%mass_indices(i) - c%first_row + 1)
+            values(slots(1:d)) = positions(:, i - first_mass + 1)
+            values(slots(d + 1:)) = momenta(:, i - first_mass + 1)
+          end associate
+        end do
+        do a = first_mass, last_spring
+          if (layout%invariant_count == 3) values(layout%gamma_index(a) - c%first_row + 1) = gamma(a - first_mass + 1)
+          if (layout%invariant_count >= 2) values(layout%tau_index(a) - c%first_row + 1) = tau(a - first_mass + 1)
+        end do
+        call give_back(self%x, values, ierr)
+      end if
+      if (ierr == 0) call DMGlobalToLocalBegin(c%da, self%x, INSERT_VALUES, c%old_local, ierr)
+      if (ierr == 0) call DMGlobalToLocalEnd(c%da, self%x, INSERT_VALUES, c%old_local, ierr)
+    end associate
+    call fail_on_code(failure, ierr, 'setting the chain''s state from a snapshot')
+  end subroutine set_part
 
   !> Frees the PETSc objects.
   subroutine destroy(self, failure)

@@ -48,6 +48,7 @@ module spring_chain_sparse_run
     procedure :: step
     procedure :: figures
     procedure :: part
+    procedure :: restore
     procedure :: advance
     procedure :: dump
     procedure :: finish
@@ -188,6 +189,15 @@ contains
       state%spring_count = max(0, min(layout%springs, self%chain%last_point) - self%chain%first_point + 1)
     end associate
   end subroutine part
+
+  !> Makes the rank's part `state` (as `part` gives it) the current state (distributed_system).
+  subroutine restore(self, state, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    type(distributed_part), intent(in) :: state
+    type(failure_type), intent(out) :: failure
+
+    call self%chain%set_part(state%positions, state%momenta, state%gamma, state%tau, failure)
+  end subroutine restore
 
   !> Each rank's rows of the state to PREFIX.<rank> ("index value" lines, 1-based).
   subroutine dump(self, prefix, failure)
