@@ -38,9 +38,12 @@ class Real64Printer(FCodePrinter):
         super().__init__({"standard": 2008, "source_format": "free", "name_mangling": False,
                           "user_functions": {"log1p": "log1p", "expm1": "expm1"}})
         self.parameter_names = set()
+        self.constant_names = {}           # a folded constant's symbol name -> its index in self%constants
         self.owner = "self%parameters"
 
     def _print_Symbol(self, expr):
+        if expr.name in self.constant_names:
+            return f"self%constants({self.constant_names[expr.name]})"
         if expr.name in self.parameter_names:
             return f"{self.owner}%{expr.name}"
         return expr.name
@@ -335,13 +338,13 @@ class SymbolicModel:
         return sp.sympify(expr).subs({part.temperature: self.temperature_of_partials(a)
                                       for a, part in enumerate(self.d.subsystems)})
 
-    def matrix(self, entries):
+    def matrix(self, entries, temperatures=True):
         n = len(self.state)
         matrix = sp.zeros(n, n)
         for (row, column), entry in entries.items():
             if row not in self.index or column not in self.index:
                 raise DescriptionError(f"matrix entry ({row}, {column}): not a column of z")
-            matrix[self.index[row], self.index[column]] = self.with_temperatures(entry)
+            matrix[self.index[row], self.index[column]] = self.with_temperatures(entry) if temperatures else entry
         return matrix
 
     def invariant_gradient(self, a, potential):
@@ -368,17 +371,18 @@ class SymbolicModel:
             mt[column, column] = 1/d_tau
         return mt
 
-    def field(self):
-        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters."""
+    def field(self, simplified=True):
+        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters; not simplified:
+        as the product gives it, K0's temperatures Theta_a kept as their symbols."""
         grad_e = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
         grad_s = sp.zeros(len(self.state), 1)
         for a in range(len(self.d.subsystems)):
             grad_e += self.invariant_gradient(a, "U")
             grad_s += self.invariant_gradient(a, "S")
         mt_s, mt_e = self.mielke_transpose("S"), self.mielke_transpose("U")
-        l0, k0 = self.matrix(self.d.poisson_entries), self.matrix(self.d.friction_entries)
+        l0, k0 = self.matrix(self.d.poisson_entries), self.matrix(self.d.friction_entries, temperatures=simplified)
         f = mt_s.T*(l0*(mt_s*grad_e)) + mt_e.T*(k0*(mt_e*grad_s))
-        return [sp.simplify(entry) for entry in f]
+        return [sp.simplify(entry) for entry in f] if simplified else list(f)
 
 
 # ---------------------------------------------------------------------------------- code pieces
@@ -676,14 +680,44 @@ def local_names(symbolic, used):
     return [z.name for z in symbolic.state if z.name in names] + [s.name for s in symbolic.partials if s.name in names]
 
 
-def continuous_field_procedure(symbolic):
+class ParameterConstants:
+    """The subexpressions of the parameters alone, folded out of expressions into constants that the model's
+    maker computes once (self%constants): 1/m1, (1 + beta^v) c_2, -eta_theta/theta_ref, ... cost nothing per
+    evaluation then."""
+
+    def __init__(self, parameters):
+        self.parameters, self.values = set(parameters), {}
+
+    def constant(self, expr):
+        if expr not in self.values:
+            self.values[expr] = sp.Symbol(f"constant_{len(self.values) + 1}", real=True)
+            PRINTER.constant_names[self.values[expr].name] = len(self.values)
+        return self.values[expr]
+
+    def fold(self, expr):
+        """expr with its largest subexpressions of parameters alone (not a bare parameter or number) as constants."""
+        if expr.is_Atom or not expr.free_symbols:
+            return expr
+        if expr.free_symbols <= self.parameters:
+            return self.constant(expr)
+        if expr.is_Add or expr.is_Mul:
+            fixed = [arg for arg in expr.args if arg.free_symbols <= self.parameters]
+            rest = [self.fold(arg) for arg in expr.args if not arg.free_symbols <= self.parameters]
+            if fixed:
+                part = expr.func(*fixed)
+                rest.insert(0, part if part.is_Atom or not part.free_symbols else self.constant(part))
+            return expr.func(*rest)
+        return expr.func(*(self.fold(arg) for arg in expr.args))
+
+
+def continuous_field_procedure(symbolic, constants):
     """continuous_field (model_interface) composed in z: the field with the exact partials of each variable's
     potentials written in, its invariants as locals, its Jacobian by the chain rule through them; one
     straight-line body per thermodynamic variable, common subexpressions shared (what the relaxed schemes
     evaluate at every stage, issue 42 item 5)."""
     d = symbolic.d
     n = len(symbolic.state)
-    field = symbolic.field()
+    field = symbolic.field(simplified=False)
     tau = sp.Symbol("tau", real=True)
     invariant_values, positive, replace = [], [], {}   # (local symbol, expression in z); their positivity
     for a, part in enumerate(d.subsystems):
@@ -698,12 +732,13 @@ def continuous_field_procedure(symbolic):
             if inv.positive:
                 positive.append(local)
     chain = {local: expression for local, expression in invariant_values}
-    cases = []
+    cases, root_names = [], set()
     temporaries = [0]
     for variable in THERMO_VARIABLES:
         exact = {}
         for a, part in enumerate(d.subsystems):
-            u, s_, *_ = symbolic.forms[a][variable]
+            u, s_, temperature, _ = symbolic.forms[a][variable]
+            exact[part.temperature] = temperature.subs(replace[a], simultaneous=True)   # Theta_a in closed form
             for name in symbolic.invariant_names[a]:
                 symbol = tau if name == "tau" else next(inv.symbol for inv in part.invariants if inv.symbol.name == name)
                 for potential, value in (("U", u), ("S", s_)):
@@ -716,8 +751,14 @@ def continuous_field_procedure(symbolic):
                                                 for local, expression in chain.items()), sp.Integer(0))
                 if entry != 0:
                     jacobian.append((i, j, entry))
+        f = [constants.fold(e) for e in f]
+        jacobian = [(i, j, constants.fold(e)) for i, j, e in jacobian]
         check, _, _ = guards(f, 3, positive)
-        body = check + [INDENT*3 + "if (present(jacobian)) then"]
+        roots, (f, jacobian_values) = shared_roots(positive, f, [e for *_, e in jacobian])
+        jacobian = [(i, j, e) for (i, j, _), e in zip(jacobian, jacobian_values)]
+        root_names |= {root.name for root, _ in roots}
+        body = check + [wrap(f"{root.name} = {fortran(power)}", 3) for root, power in roots]
+        body += [INDENT*3 + "if (present(jacobian)) then"]
         body += assignments([f"f({i + 1})" for i in range(n)] + [f"jacobian({i + 1}, {j + 1})" for i, j, _ in jacobian],
                             f + [e for *_, e in jacobian], 4, temporaries)
         body += [INDENT*3 + "else"] + assignments([f"f({i + 1})" for i in range(n)], f, 4, temporaries)
@@ -731,7 +772,7 @@ def continuous_field_procedure(symbolic):
         select += [INDENT*2 + f"case (tau_{variable})"] + body
     select += [INDENT*2 + "end select"]
     declarations = declare(sorted(used, key=[z.name for z in symbolic.state].index)
-                           + [local.name for local, _ in invariant_values]
+                           + [local.name for local, _ in invariant_values] + sorted(root_names)
                            + [f"t_{i}" for i in range(1, temporaries[0] + 1)], 2)
     return f"""
   !> f(z) with the exact partials written in (model_interface's continuous_field, composed), optionally df/dz;
@@ -745,11 +786,11 @@ def continuous_field_procedure(symbolic):
 {declarations}
 
     stat = failure_none
-    f = 0.0_real64
     if (present(jacobian)) jacobian = 0.0_real64
 {lines_of(unpack_lines)}
 {lines_of(select)}
-    if (.not. all(abs(f) <= huge(1.0_real64))) stat = domain_overflow
+    ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
+{wrap("if (.not. (abs(" + " + ".join(f"f({i + 1})" for i in range(n)) + ") <= huge(1.0_real64))) stat = domain_overflow", 2)}
   end subroutine continuous_field"""
 
 
@@ -996,9 +1037,14 @@ def model_module(symbolic, source):
     gradients = 0.0_real64
 {chr(10).join(f"    gradients({column}, {k + 1}) = 1.0_real64" for k, column in enumerate(columns))}
   end function conserved_momenta_gradient""")
+    constants = ParameterConstants(symbolic.parameters)
     if d.continuous_field:
         momentum_bindings.append("    procedure :: continuous_field")
-        momentum_procedures.append(continuous_field_procedure(symbolic))
+        momentum_procedures.append(continuous_field_procedure(symbolic, constants))
+        PRINTER.owner = "parameters"
+        maker += [wrap(f"model%constants({k + 1}) = {fortran(value)}", 2)
+                  for k, value in enumerate(constants.values)]
+        PRINTER.owner = "self%parameters"
     if d.angular_momentum_pairs:
         momentum_bindings += ["    procedure :: momenta", "    procedure :: conserved_in_momenta",
                               "    procedure :: conserved_momenta_gradient", "    procedure :: momentum_scale"]
@@ -1030,7 +1076,9 @@ module {name}_model
  "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10) if d.continuous_field else ""}
   !> The model with its parameters.
   type, extends(generic_model) :: {name}
-    type({name}_parameters) :: parameters
+    type({name}_parameters) :: parameters{
+    chr(10) + f"    real(real64) :: constants({len(constants.values)}) = 0.0_real64  !! of the parameters alone, for the field"
+    if constants.values else ""}
   contains
     procedure :: invariants
     procedure :: vector_field

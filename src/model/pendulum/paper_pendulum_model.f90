@@ -27,6 +27,7 @@ module paper_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: paper_pendulum
     type(paper_pendulum_parameters) :: parameters
+    real(real64) :: constants(108) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -117,6 +118,136 @@ contains
             *parameters%theta_ref*(parameters%beta_v + 1.0_real64)]
       end select
     end associate
+    model%constants(1) = 1.0_real64/parameters%mass_1
+    model%constants(2) = -1.0_real64/parameters%mass_1
+    model%constants(3) = (parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
+    model%constants(4) = -0.5_real64*parameters%beta
+    model%constants(5) = 1.0_real64/parameters%natural_length_1**2
+    model%constants(6) = -0.25_real64*parameters%mu_eq_slope_1
+    model%constants(7) = -0.125_real64*parameters%mu_eq_slope_1
+    model%constants(8) = 1.0_real64/parameters%heat_capacity_1
+    model%constants(9) = (0.5_real64)*parameters%beta*parameters%theta_ref
+    model%constants(10) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(11) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
+    model%constants(12) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
+    model%constants(13) = parameters%gravity_z*(parameters%mass_1 + parameters%mass_2)
+    model%constants(14) = 1.0_real64/parameters%natural_length_2**2
+    model%constants(15) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
+        *parameters%theta_ref
+    model%constants(16) = parameters%beta_v + 1.0_real64
+    model%constants(17) = (0.5_real64)*parameters%beta
+    model%constants(18) = (0.25_real64)*parameters%mu_eq_slope_2
+    model%constants(19) = -parameters%beta_v - 1.0_real64
+    model%constants(20) = (0.5_real64)*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(21) = (0.5_real64)*parameters%mu_eq_slope_2
+    model%constants(22) = -0.5_real64*parameters%beta_v
+    model%constants(23) = -parameters%mu_neq_slope
+    model%constants(24) = (0.125_real64)*parameters%mu_eq_slope_2
+    model%constants(25) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(26) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
+        *parameters%theta_ref
+    model%constants(27) = parameters%beta*parameters%theta_ref
+    model%constants(28) = (0.5_real64)*parameters%beta_v
+    model%constants(29) = -0.5_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+        *parameters%theta_ref)
+    model%constants(30) = parameters%gravity_x*parameters%mass_2
+    model%constants(31) = parameters%gravity_y*parameters%mass_2
+    model%constants(32) = parameters%gravity_z*parameters%mass_2
+    model%constants(33) = 2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(34) = -2.0_real64*parameters%mu_neq_slope
+    model%constants(35) = -parameters%beta_v
+    model%constants(36) = -1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(37) = 1.0_real64/parameters%theta_ref
+    model%constants(38) = -1.0_real64/parameters%theta_ref
+    model%constants(39) = -parameters%viscosity_activation
+    model%constants(40) = -1.0_real64/parameters%viscosity_const
+    model%constants(41) = parameters%conductivity*parameters%theta_ref
+    model%constants(42) = -parameters%conductivity*parameters%theta_ref
+    model%constants(43) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(44) = 1.0_real64/(parameters%theta_ref*parameters%viscosity_const)
+    model%constants(45) = (0.25_real64)*parameters%mu_eq_slope_1
+    model%constants(46) = -0.5_real64*parameters%beta*parameters%theta_ref
+    model%constants(47) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(48) = parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(49) = -parameters%beta*parameters%theta_ref
+    model%constants(50) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(51) = -2.0_real64*parameters%theta_ref
+    model%constants(52) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(53) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
+        *parameters%theta_ref
+    model%constants(54) = -0.25_real64*parameters%mu_eq_slope_2
+    model%constants(55) = -parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(56) = (0.75_real64)*parameters%beta_v
+    model%constants(57) = parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
+    model%constants(58) = -0.75_real64*parameters%beta_v
+    model%constants(59) = parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(60) = -2.0_real64*parameters%beta_v - 2.0_real64
+    model%constants(61) = -2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(62) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref &
+        *parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
+    model%constants(63) = -2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(64) = -parameters%theta_ref/(parameters%heat_capacity_2*parameters%viscosity_const &
+        *(parameters%beta_v + 1.0_real64))
+    model%constants(65) = -parameters%conductivity/parameters%heat_capacity_1
+    model%constants(66) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
+    model%constants(67) = 2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
+        1.0_real64))
+    model%constants(68) = parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(69) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(70) = -parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(71) = -parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
+    model%constants(72) = 2.0_real64*parameters%theta_ref
+    model%constants(73) = 2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(74) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*(parameters%beta_v + 1.0_real64))
+    model%constants(75) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*parameters%viscosity_const &
+        *(parameters%beta_v + 1.0_real64))
+    model%constants(76) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(77) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref**2 &
+        *parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
+    model%constants(78) = -4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(79) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(80) = parameters%conductivity/parameters%heat_capacity_1
+    model%constants(81) = 2.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+        1.0_real64))
+    model%constants(82) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(83) = 2.0_real64*parameters%mu_neq_slope
+    model%constants(84) = 1.0_real64/parameters%viscosity_const
+    model%constants(85) = -parameters%conductivity
+    model%constants(86) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(87) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+        1.0_real64))
+    model%constants(88) = parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(89) = 2.0_real64/parameters%viscosity_const
+    model%constants(90) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(91) = parameters%viscosity_activation/parameters%viscosity_const
+    model%constants(92) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(93) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(94) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
+    model%constants(95) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+        *parameters%mass_1*parameters%mass_2*(parameters%beta_v + 1.0_real64))
+    model%constants(96) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
+        *parameters%theta_ref)/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
+    model%constants(97) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+        *(parameters%beta_v + 1.0_real64))
+    model%constants(98) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(99) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(100) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
+        *parameters%theta_ref
+    model%constants(101) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+        *parameters%theta_ref)
+    model%constants(102) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(103) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(104) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+        1.0_real64))
+    model%constants(105) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+        *(parameters%beta_v + 1.0_real64))
+    model%constants(106) = -2.0_real64/parameters%mass_1
+    model%constants(107) = 2.0_real64/parameters%mass_1
+    model%constants(108) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_paper_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -686,20 +817,15 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
     real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, gamma, tau_1, tau_2, C_1, &
-        C_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, &
-        t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, t_36, t_37, &
-        t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, t_54, t_55, &
-        t_56, t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, t_72, t_73, &
-        t_74, t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86, t_87, t_88, t_89, t_90, t_91, &
-        t_92, t_93, t_94, t_95, t_96, t_97, t_98, t_99, t_100, t_101, t_102, t_103, t_104, t_105, t_106, t_107, t_108, &
-        t_109, t_110, t_111, t_112, t_113, t_114, t_115, t_116, t_117, t_118, t_119, t_120, t_121, t_122, t_123, &
-        t_124, t_125, t_126, t_127, t_128, t_129, t_130, t_131, t_132, t_133, t_134, t_135, t_136, t_137, t_138, &
-        t_139, t_140, t_141, t_142, t_143, t_144, t_145, t_146, t_147, t_148, t_149, t_150, t_151, t_152, t_153, &
-        t_154, t_155, t_156, t_157, t_158, t_159, t_160, t_161, t_162, t_163, t_164, t_165, t_166, t_167, t_168, &
-        t_169, t_170, t_171, t_172, t_173
+        C_2, C_2_root_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
+        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, &
+        t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, &
+        t_54, t_55, t_56, t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, &
+        t_72, t_73, t_74, t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86, t_87, t_88, t_89, &
+        t_90, t_91, t_92, t_93, t_94, t_95, t_96, t_97, t_98, t_99, t_100, t_101, t_102, t_103, t_104, t_105, t_106, &
+        t_107, t_108, t_109, t_110, t_111, t_112, t_113
 
     stat = failure_none
-    f = 0.0_real64
     if (present(jacobian)) jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
@@ -728,347 +854,257 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1/self%parameters%natural_length_1**2 > 0.0_real64)) then
+      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
         stat = domain_nonpositive_temperature
         return
       end if
-      if (.not. (C_2/self%parameters%natural_length_2**2 > 0.0_real64)) then
+      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
         stat = domain_nonpositive_temperature
         return
       end if
-      if (.not. (-(-0.5_real64*self%parameters%beta*log(C_1/self%parameters%natural_length_1**2) - 0.125_real64 &
-          *self%parameters%mu_eq_slope_1*log(C_1/self%parameters%natural_length_1**2)**2 + &
-          tau_1)/self%parameters%heat_capacity_1 <= max_exponent)) then
+      if (.not. (self%constants(25)*(self%constants(19)*(self%constants(17)*log(C_2*self%constants(14)) + &
+          self%constants(24)*log(C_2*self%constants(14))**2) + self%constants(23)*gamma**2 + tau_2 + &
+          self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(21)*log(C_2 &
+          *self%constants(14)))/sqrt(C_2)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. ((-0.5_real64*self%parameters%beta*log(C_1/self%parameters%natural_length_1**2) - 0.125_real64 &
-          *self%parameters%mu_eq_slope_1*log(C_1/self%parameters%natural_length_1**2)**2 + &
-          tau_1)/self%parameters%heat_capacity_1 <= max_exponent)) then
+      if (.not. (self%constants(36)*(self%constants(19)*(self%constants(17)*log(C_2*self%constants(14)) + &
+          self%constants(24)*log(C_2*self%constants(14))**2) + self%constants(23)*gamma**2 + tau_2 + &
+          self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(21)*log(C_2 &
+          *self%constants(14)))/sqrt(C_2)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (-(-gamma**2*self%parameters%mu_neq_slope + tau_2 - (self%parameters%beta_v + 1.0_real64) &
-          *((0.5_real64)*self%parameters%beta*log(C_2/self%parameters%natural_length_2**2) + (0.125_real64) &
-          *self%parameters%mu_eq_slope_2*log(C_2/self%parameters%natural_length_2**2)**2) + self%parameters%beta_v &
-          *gamma*(self%parameters%beta + (0.5_real64)*self%parameters%mu_eq_slope_2 &
-          *log(C_2/self%parameters%natural_length_2**2))/sqrt(C_2))/(self%parameters%heat_capacity_2 &
-          *(self%parameters%beta_v + 1.0_real64)) <= max_exponent)) then
+      if (.not. (self%constants(39)*(self%constants(37)*exp(self%constants(36)*(C_2**(-0.5_real64) &
+          *self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(21)*log(C_2*self%constants(14))) + &
+          self%constants(19)*(self%constants(17)*log(C_2*self%constants(14)) + self%constants(24)*log(C_2 &
+          *self%constants(14))**2) + self%constants(23)*gamma**2 + tau_2)) + self%constants(38)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. ((-gamma**2*self%parameters%mu_neq_slope + tau_2 - (self%parameters%beta_v + 1.0_real64) &
-          *((0.5_real64)*self%parameters%beta*log(C_2/self%parameters%natural_length_2**2) + (0.125_real64) &
-          *self%parameters%mu_eq_slope_2*log(C_2/self%parameters%natural_length_2**2)**2) + self%parameters%beta_v &
-          *gamma*(self%parameters%beta + (0.5_real64)*self%parameters%mu_eq_slope_2 &
-          *log(C_2/self%parameters%natural_length_2**2))/sqrt(C_2))/(self%parameters%heat_capacity_2 &
-          *(self%parameters%beta_v + 1.0_real64)) <= max_exponent)) then
+      if (.not. (self%constants(43)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
+          *self%constants(5))**2 + tau_1) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (-self%parameters%viscosity_activation*(-self%parameters%theta_ref*exp((C_2**(-0.5_real64) &
-          *self%parameters%beta_v*gamma*(self%parameters%beta + 0.5_real64*self%parameters%mu_eq_slope_2 &
-          *log(C_2/self%parameters%natural_length_2**2)) - gamma**2*self%parameters%mu_neq_slope + tau_2 - &
-          (self%parameters%beta_v + 1.0_real64)*(0.5_real64*self%parameters%beta &
-          *log(C_2/self%parameters%natural_length_2**2) + 0.125_real64*self%parameters%mu_eq_slope_2 &
-          *log(C_2/self%parameters%natural_length_2**2)**2))/(self%parameters%heat_capacity_2*(self%parameters%beta_v &
-          + 1.0_real64))) + self%parameters%theta_ref)*exp(-(C_2**(-0.5_real64)*self%parameters%beta_v*gamma &
-          *(self%parameters%beta + 0.5_real64*self%parameters%mu_eq_slope_2*log(C_2/self%parameters%natural_length_2 &
-          **2)) - gamma**2*self%parameters%mu_neq_slope + tau_2 - (self%parameters%beta_v + 1.0_real64)*(0.5_real64 &
-          *self%parameters%beta*log(C_2/self%parameters%natural_length_2**2) + 0.125_real64 &
-          *self%parameters%mu_eq_slope_2*log(C_2/self%parameters%natural_length_2**2) &
-          **2))/(self%parameters%heat_capacity_2*(self%parameters%beta_v + 1.0_real64)))/self%parameters%theta_ref**2 &
-          <= max_exponent)) then
+      if (.not. (self%constants(8)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
+          *self%constants(5))**2 + tau_1) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%parameters%viscosity_activation*(-self%parameters%theta_ref*exp((C_2**(-0.5_real64) &
-          *self%parameters%beta_v*gamma*(self%parameters%beta + 0.5_real64*self%parameters%mu_eq_slope_2 &
-          *log(C_2/self%parameters%natural_length_2**2)) - gamma**2*self%parameters%mu_neq_slope + tau_2 - &
-          (self%parameters%beta_v + 1.0_real64)*(0.5_real64*self%parameters%beta &
-          *log(C_2/self%parameters%natural_length_2**2) + 0.125_real64*self%parameters%mu_eq_slope_2 &
-          *log(C_2/self%parameters%natural_length_2**2)**2))/(self%parameters%heat_capacity_2*(self%parameters%beta_v &
-          + 1.0_real64))) + self%parameters%theta_ref)*exp(-(C_2**(-0.5_real64)*self%parameters%beta_v*gamma &
-          *(self%parameters%beta + 0.5_real64*self%parameters%mu_eq_slope_2*log(C_2/self%parameters%natural_length_2 &
-          **2)) - gamma**2*self%parameters%mu_neq_slope + tau_2 - (self%parameters%beta_v + 1.0_real64)*(0.5_real64 &
-          *self%parameters%beta*log(C_2/self%parameters%natural_length_2**2) + 0.125_real64 &
-          *self%parameters%mu_eq_slope_2*log(C_2/self%parameters%natural_length_2**2) &
-          **2))/(self%parameters%heat_capacity_2*(self%parameters%beta_v + 1.0_real64)))/self%parameters%theta_ref**2 &
-          <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
+      C_2_root_2 = sqrt(C_2)
       if (present(jacobian)) then
-        t_1 = 1.0_real64/self%parameters%mass_1
-        t_2 = 1.0_real64/self%parameters%mass_2
-        t_3 = self%parameters%mass_1 + self%parameters%mass_2
-        t_4 = 1.0_real64/C_1
-        t_5 = (0.5_real64)*self%parameters%beta
-        t_6 = (0.25_real64)*self%parameters%mu_eq_slope_1
-        t_7 = log(C_1/self%parameters%natural_length_1**2)
-        t_8 = t_4*t_7
-        t_9 = -t_4*t_5 - t_6*t_8
-        t_10 = 1.0_real64/self%parameters%heat_capacity_1
-        t_11 = t_10*(-0.125_real64*self%parameters%mu_eq_slope_1*t_7**2 - t_5*t_7 + tau_1)
-        t_12 = exp(t_11)
-        t_13 = t_12*self%parameters%theta_ref
-        t_14 = t_13*t_9
-        t_15 = self%parameters%beta*self%parameters%theta_ref
-        t_16 = t_15*t_4
-        t_17 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*self%parameters%mu_eq_slope_1 &
-            *self%parameters%theta_ref
-        t_18 = (0.5_real64)*t_17
-        t_19 = 2.0_real64*t_14 + t_16 + 2.0_real64*t_18*t_8
-        t_20 = self%parameters%beta_v + 1.0_real64
-        t_21 = 1.0_real64/C_2
-        t_22 = (0.5_real64)*t_15
-        t_23 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-        t_24 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_23
-        t_25 = log(C_2/self%parameters%natural_length_2**2)
-        t_26 = (0.5_real64)*t_25
-        t_27 = t_24*t_26
-        t_28 = t_20*(t_21*t_22 + t_21*t_27)
-        t_29 = (0.25_real64)*self%parameters%mu_eq_slope_2
-        t_30 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_26
-        t_31 = C_2**(-1.5_real64)
-        t_32 = self%parameters%beta_v*gamma
-        t_33 = t_31*t_32
-        t_34 = (0.5_real64)*self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_31 - t_20*(t_21*t_25*t_29 + &
-            t_21*t_5) - 0.5_real64*t_30*t_33
-        t_35 = 1.0_real64/sqrt(C_2)
-        t_36 = 1.0_real64/(self%parameters%heat_capacity_2*t_20)
-        t_37 = t_36*(self%parameters%beta_v*gamma*t_30*t_35 - gamma**2*self%parameters%mu_neq_slope - t_20 &
-            *((0.125_real64)*self%parameters%mu_eq_slope_2*t_25**2 + t_25*t_5) + tau_2)
-        t_38 = exp(t_37)
-        t_39 = t_38*self%parameters%theta_ref
-        t_40 = t_34*t_39
-        t_41 = self%parameters%mu_eq_const_2 + t_23
-        t_42 = t_15 + t_26*t_41
-        t_43 = t_33*t_42
-        t_44 = 2.0_real64*t_28 - t_33*t_41 + 2.0_real64*t_40 + t_43
-        t_45 = self%parameters%mu_neq_slope*self%parameters%theta_ref
-        t_46 = 2.0_real64*gamma
-        t_47 = self%parameters%beta_v*t_30*t_35 - self%parameters%mu_neq_slope*t_46
-        t_48 = t_39*t_47
-        t_49 = -self%parameters%beta_v*t_35*t_42 + t_46*(self%parameters%mu_neq_const + t_45) + t_48
-        t_50 = -t_49
-        t_51 = exp(-t_37)
-        t_52 = t_51*self%parameters%viscosity_activation*(-t_39 + &
-            self%parameters%theta_ref)/self%parameters%theta_ref**2
-        t_53 = exp(-t_52)/self%parameters%viscosity_const
-        t_54 = t_50*t_53
-        t_55 = exp(-t_11)
-        t_56 = self%parameters%conductivity*t_55
-        t_57 = 1.0_real64/self%parameters%theta_ref
-        t_58 = t_13 - t_39
-        t_59 = -t_57*t_58
-        t_60 = self%parameters%mass_1*self%parameters%mass_2
-        t_61 = t_50*t_60
-        t_62 = exp(t_52)
-        t_63 = self%parameters%conductivity*t_60*t_62*self%parameters%viscosity_const
-        t_64 = t_58*t_63
-        t_65 = -t_49*t_61 + t_64
-        t_66 = t_1*t_2*t_51*t_53*t_57
-        t_67 = t_65*t_66
-        t_68 = -t_1
-        t_69 = t_1 + t_2
-        t_70 = 1.0_real64/C_1**2
-        t_71 = t_18*t_70
-        t_72 = t_6*t_70
-        t_73 = 4.0_real64*t_10*t_13*t_9**2 + 4.0_real64*t_13*(t_5*t_70 + t_7*t_72 - t_72) - 4.0_real64*t_22*t_70 - &
-            4.0_real64*t_7*t_71 + 4.0_real64*t_71
-        t_74 = 2.0_real64*t_14
-        t_75 = t_16 + t_17*t_8 + t_74
-        t_76 = q1_x*t_73
-        t_77 = -q1_y*t_76
-        t_78 = -q1_z*t_76
-        t_79 = t_10*t_74
-        t_80 = -q1_y*q1_z*t_73
-        t_81 = 1.0_real64/C_2**2
-        t_82 = C_2**(-2.5_real64)
-        t_83 = t_32*t_82
-        t_84 = t_36*t_39
-        t_85 = 4.0_real64*t_20*(-0.5_real64*t_15*t_81 + (0.5_real64)*t_24*t_81 - t_27*t_81) + 4.0_real64*t_34**2*t_84 &
-            + 4.0_real64*t_39*((0.75_real64)*self%parameters%beta_v*gamma*t_30*t_82 - self%parameters%mu_eq_slope_2 &
-            *t_83 - t_20*((0.25_real64)*self%parameters%mu_eq_slope_2*t_81 - t_25*t_29*t_81 - t_5*t_81)) + 4.0_real64 &
-            *t_41*t_83 - 3.0_real64*t_42*t_83
-        t_86 = 2.0_real64*t_40
-        t_87 = -self%parameters%beta_v*gamma*t_31*t_41 + 2.0_real64*t_28 + t_43 + t_86
-        t_88 = q2_x*t_85
-        t_89 = -q2_y*t_88
-        t_90 = -q2_z*t_88
-        t_91 = self%parameters%beta_v*t_31
-        t_92 = (0.5_real64)*t_91
-        t_93 = t_36*t_47
-        t_94 = t_39*((0.5_real64)*self%parameters%mu_eq_slope_2*t_91 - t_30*t_92) + t_40*t_93 - t_41*t_92 + t_42*t_92
-        t_95 = 2.0_real64*t_94
-        t_96 = t_36*t_86
-        t_97 = -q2_y*q2_z*t_85
-        t_98 = -t_94
-        t_99 = t_36*t_57
-        t_100 = t_99*self%parameters%viscosity_activation
-        t_101 = t_36*t_52
-        t_102 = t_100*t_34 + t_101*t_34
-        t_103 = 2.0_real64*t_102*t_54 + 2.0_real64*t_53*t_98
-        t_104 = 2.0_real64*self%parameters%mu_neq_const - 2.0_real64*self%parameters%mu_neq_slope*t_38 &
-            *self%parameters%theta_ref + 2.0_real64*t_45 + t_47**2*t_84
-        t_105 = -t_104
-        t_106 = t_100*t_47 + t_52*t_93
-        t_107 = t_100 + t_101
-        t_108 = t_36*t_48
-        t_109 = self%parameters%conductivity*t_10
-        t_110 = t_109*t_9
-        t_111 = t_55*t_59
-        t_112 = -2.0_real64*t_110*t_111 - 2.0_real64*t_110
-        t_113 = t_36*t_38*t_56
-        t_114 = 2.0_real64*t_113*t_34
-        t_115 = t_12*t_51
-        t_116 = 2.0_real64*t_110*t_115
-        t_117 = t_49*t_60
-        t_118 = t_1*t_2*t_51*t_53*t_65*t_99
-        t_119 = 2.0_real64*t_102*t_67 - 2.0_real64*t_118*t_34 + 2.0_real64*t_66*(-self%parameters%conductivity &
-            *self%parameters%mass_1*self%parameters%mass_2*t_102*t_58*t_62*self%parameters%viscosity_const - t_117 &
-            *t_98 - t_36*t_40*t_63 - t_61*t_94)
-        f(1) = t_1*(p1_x - p2_x)
-        f(2) = t_1*(p1_y - p2_y)
-        f(3) = t_1*(p1_z - p2_z)
-        f(4) = -p1_x*t_1 + p2_x*t_1 + p2_x*t_2
-        f(5) = -p1_y*t_1 + p2_y*t_1 + p2_y*t_2
-        f(6) = -p1_z*t_1 + p2_z*t_1 + p2_z*t_2
-        f(7) = self%parameters%gravity_x*t_3 - q1_x*t_19
-        f(8) = self%parameters%gravity_y*t_3 - q1_y*t_19
-        f(9) = self%parameters%gravity_z*t_3 - q1_z*t_19
-        f(10) = self%parameters%gravity_x*self%parameters%mass_2 - q2_x*t_44
-        f(11) = self%parameters%gravity_y*self%parameters%mass_2 - q2_y*t_44
-        f(12) = self%parameters%gravity_z*self%parameters%mass_2 - q2_z*t_44
-        f(13) = t_54
-        f(14) = t_56*t_59
-        f(15) = t_67
-        jacobian(1, 7) = t_1
-        jacobian(1, 10) = t_68
-        jacobian(2, 8) = t_1
-        jacobian(2, 11) = t_68
-        jacobian(3, 9) = t_1
-        jacobian(3, 12) = t_68
-        jacobian(4, 7) = t_68
-        jacobian(4, 10) = t_69
-        jacobian(5, 8) = t_68
-        jacobian(5, 11) = t_69
-        jacobian(6, 9) = t_68
-        jacobian(6, 12) = t_69
-        jacobian(7, 1) = -q1_x**2*t_73 - t_75
-        jacobian(7, 2) = t_77
-        jacobian(7, 3) = t_78
-        jacobian(7, 14) = -q1_x*t_79
-        jacobian(8, 1) = t_77
-        jacobian(8, 2) = -q1_y**2*t_73 - t_75
-        jacobian(8, 3) = t_80
-        jacobian(8, 14) = -q1_y*t_79
-        jacobian(9, 1) = t_78
-        jacobian(9, 2) = t_80
-        jacobian(9, 3) = -q1_z**2*t_73 - t_75
-        jacobian(9, 14) = -q1_z*t_79
-        jacobian(10, 4) = -q2_x**2*t_85 - t_87
-        jacobian(10, 5) = t_89
-        jacobian(10, 6) = t_90
-        jacobian(10, 13) = -q2_x*t_95
-        jacobian(10, 15) = -q2_x*t_96
-        jacobian(11, 4) = t_89
-        jacobian(11, 5) = -q2_y**2*t_85 - t_87
-        jacobian(11, 6) = t_97
-        jacobian(11, 13) = -q2_y*t_95
-        jacobian(11, 15) = -q2_y*t_96
-        jacobian(12, 4) = t_90
-        jacobian(12, 5) = t_97
-        jacobian(12, 6) = -q2_z**2*t_85 - t_87
-        jacobian(12, 13) = -q2_z*t_95
-        jacobian(12, 15) = -q2_z*t_96
-        jacobian(13, 4) = q2_x*t_103
-        jacobian(13, 5) = q2_y*t_103
-        jacobian(13, 6) = q2_z*t_103
-        jacobian(13, 13) = t_105*t_53 + t_106*t_54
-        jacobian(13, 15) = t_107*t_54 - t_108*t_53
-        jacobian(14, 1) = q1_x*t_112
-        jacobian(14, 2) = q1_y*t_112
-        jacobian(14, 3) = q1_z*t_112
-        jacobian(14, 4) = q2_x*t_114
-        jacobian(14, 5) = q2_y*t_114
-        jacobian(14, 6) = q2_z*t_114
-        jacobian(14, 13) = t_113*t_47
-        jacobian(14, 14) = -t_109*t_111 - t_109
-        jacobian(14, 15) = t_113
-        jacobian(15, 1) = q1_x*t_116
-        jacobian(15, 2) = q1_y*t_116
-        jacobian(15, 3) = q1_z*t_116
-        jacobian(15, 4) = q2_x*t_119
-        jacobian(15, 5) = q2_y*t_119
-        jacobian(15, 6) = q2_z*t_119
-        jacobian(15, 13) = t_106*t_67 - t_118*t_47 + t_66*(-self%parameters%conductivity*self%parameters%mass_1 &
-            *self%parameters%mass_2*t_106*t_58*t_62*self%parameters%viscosity_const - t_104*t_61 - t_105*t_117 - &
-            t_108*t_63)
-        jacobian(15, 14) = t_109*t_115
-        jacobian(15, 15) = t_107*t_67 - t_118 + t_66*(-t_107*t_64 + t_108*t_117 - t_108*t_61 - t_63*t_84)
+        t_1 = 1.0_real64/C_1
+        t_2 = log(C_1*self%constants(5))
+        t_3 = t_1*t_2
+        t_4 = self%constants(4)*t_1 + self%constants(6)*t_3
+        t_5 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
+        t_6 = exp(self%constants(8)*t_5)
+        t_7 = t_6*self%parameters%theta_ref
+        t_8 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_4*t_7
+        t_9 = 1.0_real64/C_2
+        t_10 = log(C_2*self%constants(14))
+        t_11 = t_10*t_9
+        t_12 = self%constants(15)*t_11 + self%constants(9)*t_9
+        t_13 = 1.0_real64/C_2_root_2**3
+        t_14 = self%constants(29)*t_13
+        t_15 = self%constants(20)*t_13
+        t_16 = gamma*t_13
+        t_17 = self%parameters%beta + self%constants(21)*t_10
+        t_18 = self%constants(22)*t_17
+        t_19 = self%constants(19)*(self%constants(17)*t_9 + self%constants(18)*t_11) + gamma*t_15 + t_16*t_18
+        t_20 = 1.0_real64/C_2_root_2
+        t_21 = self%parameters%beta_v*t_17*t_20
+        t_22 = self%constants(19)*(self%constants(17)*t_10 + self%constants(24)*t_10**2) + self%constants(23)*gamma &
+            **2 + gamma*t_21 + tau_2
+        t_23 = exp(self%constants(25)*t_22)
+        t_24 = t_23*self%parameters%theta_ref
+        t_25 = self%constants(26)*t_10 + self%constants(27)
+        t_26 = 2.0_real64*self%constants(16)*t_12 + 2.0_real64*self%constants(28)*t_16*t_25 + 2.0_real64*gamma*t_14 + &
+            2.0_real64*t_19*t_24
+        t_27 = self%constants(35)*t_25
+        t_28 = self%constants(34)*gamma + t_21
+        t_29 = self%constants(33)*gamma + t_20*t_27 + t_24*t_28
+        t_30 = exp(self%constants(36)*t_22)
+        t_31 = self%constants(37)*t_30
+        t_32 = exp(self%constants(39)*(self%constants(38) + t_31))
+        t_33 = self%constants(40)*t_32
+        t_34 = exp(self%constants(43)*t_5)
+        t_35 = t_34*(self%constants(41)*t_23 + self%constants(42)*t_6)
+        t_36 = self%constants(41)*t_6 + self%constants(42)*t_23
+        t_37 = t_29**2
+        t_38 = t_30*t_32
+        t_39 = t_37*t_38
+        t_40 = 1.0_real64/C_1**2
+        t_41 = t_2*t_40
+        t_42 = 4.0_real64*self%constants(10)*t_40 + 4.0_real64*self%constants(46)*t_40 + 4.0_real64 &
+            *self%constants(47)*t_41 + 4.0_real64*self%constants(48)*t_4**2*t_6 + 4.0_real64*t_7*(self%constants(17) &
+            *t_40 + self%constants(45)*t_41 + self%constants(6)*t_40)
+        t_43 = t_4*t_6
+        t_44 = self%constants(49)*t_1 + self%constants(50)*t_3 + self%constants(51)*t_43
+        t_45 = q1_x*t_42
+        t_46 = -q1_y*t_45
+        t_47 = -q1_z*t_45
+        t_48 = self%constants(52)*t_43
+        t_49 = -q1_y*q1_z*t_42
+        t_50 = 1.0_real64/C_2**2
+        t_51 = t_10*t_50
+        t_52 = gamma/C_2_root_2**5
+        t_53 = self%constants(59)*t_23
+        t_54 = 4.0_real64*self%constants(16)*(self%constants(15)*t_50 + self%constants(46)*t_50 + self%constants(53) &
+            *t_51) + 4.0_real64*self%constants(57)*t_52 + 4.0_real64*self%constants(58)*t_25*t_52 + 4.0_real64*t_19 &
+            **2*t_53 + 4.0_real64*t_24*(self%constants(19)*(self%constants(18)*t_50 + self%constants(4)*t_50 + &
+            self%constants(54)*t_51) + self%constants(55)*t_52 + self%constants(56)*t_17*t_52)
+        t_55 = t_19*t_23
+        t_56 = self%constants(51)*t_55 + self%constants(57)*t_16 + self%constants(60)*t_12 + t_16*t_27
+        t_57 = q2_x*t_54
+        t_58 = -q2_y*t_57
+        t_59 = -q2_z*t_57
+        t_60 = t_13*t_25
+        t_61 = t_13*t_18 + t_15
+        t_62 = self%constants(28)*t_60 + t_14 + t_19*t_28*t_53 + t_24*t_61
+        t_63 = 2.0_real64*t_62
+        t_64 = self%constants(61)*t_55
+        t_65 = -q2_y*q2_z*t_54
+        t_66 = t_29*t_38
+        t_67 = self%constants(62)*t_66
+        t_68 = 2.0_real64*t_19*t_67 + 2.0_real64*t_33*t_62
+        t_69 = t_28**2
+        t_70 = t_28*t_32
+        t_71 = self%constants(66)*t_35
+        t_72 = 2.0_real64*self%constants(65)*t_4 + 2.0_real64*t_4*t_71
+        t_73 = self%constants(67)*t_34*t_55
+        t_74 = self%constants(68)*t_23*t_34
+        t_75 = self%constants(69)*t_30*t_43
+        t_76 = self%constants(74)*t_30*t_36
+        t_77 = self%constants(44)*t_66
+        t_78 = self%constants(75)*t_39
+        t_79 = self%constants(77)*t_37*exp(self%constants(76)*t_22)
+        t_80 = t_32*t_79
+        t_81 = 2.0_real64*self%constants(70)*t_19 + 2.0_real64*t_19*t_76 + 2.0_real64*t_19*t_78 + 2.0_real64*t_19 &
+            *t_80 + 2.0_real64*t_77*(self%parameters%beta_v*t_60 + self%constants(71)*t_13 + self%constants(72)*t_23 &
+            *t_61 + self%constants(73)*t_28*t_55)
+        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+        f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+        f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+        f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+        f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+        f(7) = self%constants(11) - q1_x*t_8
+        f(8) = self%constants(12) - q1_y*t_8
+        f(9) = self%constants(13) - q1_z*t_8
+        f(10) = self%constants(30) - q2_x*t_26
+        f(11) = self%constants(31) - q2_y*t_26
+        f(12) = self%constants(32) - q2_z*t_26
+        f(13) = t_29*t_33
+        f(14) = self%constants(37)*t_35
+        f(15) = self%constants(44)*t_39 + t_31*t_36
+        jacobian(1, 7) = self%constants(1)
+        jacobian(1, 10) = self%constants(2)
+        jacobian(2, 8) = self%constants(1)
+        jacobian(2, 11) = self%constants(2)
+        jacobian(3, 9) = self%constants(1)
+        jacobian(3, 12) = self%constants(2)
+        jacobian(4, 7) = self%constants(2)
+        jacobian(4, 10) = self%constants(3)
+        jacobian(5, 8) = self%constants(2)
+        jacobian(5, 11) = self%constants(3)
+        jacobian(6, 9) = self%constants(2)
+        jacobian(6, 12) = self%constants(3)
+        jacobian(7, 1) = -q1_x**2*t_42 + t_44
+        jacobian(7, 2) = t_46
+        jacobian(7, 3) = t_47
+        jacobian(7, 14) = q1_x*t_48
+        jacobian(8, 1) = t_46
+        jacobian(8, 2) = -q1_y**2*t_42 + t_44
+        jacobian(8, 3) = t_49
+        jacobian(8, 14) = q1_y*t_48
+        jacobian(9, 1) = t_47
+        jacobian(9, 2) = t_49
+        jacobian(9, 3) = -q1_z**2*t_42 + t_44
+        jacobian(9, 14) = q1_z*t_48
+        jacobian(10, 4) = -q2_x**2*t_54 + t_56
+        jacobian(10, 5) = t_58
+        jacobian(10, 6) = t_59
+        jacobian(10, 13) = -q2_x*t_63
+        jacobian(10, 15) = q2_x*t_64
+        jacobian(11, 4) = t_58
+        jacobian(11, 5) = -q2_y**2*t_54 + t_56
+        jacobian(11, 6) = t_65
+        jacobian(11, 13) = -q2_y*t_63
+        jacobian(11, 15) = q2_y*t_64
+        jacobian(12, 4) = t_59
+        jacobian(12, 5) = t_65
+        jacobian(12, 6) = -q2_z**2*t_54 + t_56
+        jacobian(12, 13) = -q2_z*t_63
+        jacobian(12, 15) = q2_z*t_64
+        jacobian(13, 4) = q2_x*t_68
+        jacobian(13, 5) = q2_y*t_68
+        jacobian(13, 6) = q2_z*t_68
+        jacobian(13, 13) = t_28*t_67 + t_33*(self%constants(33) + self%constants(63)*t_23 + t_53*t_69)
+        jacobian(13, 15) = self%constants(64)*t_23*t_70 + t_67
+        jacobian(14, 1) = q1_x*t_72
+        jacobian(14, 2) = q1_y*t_72
+        jacobian(14, 3) = q1_z*t_72
+        jacobian(14, 4) = q2_x*t_73
+        jacobian(14, 5) = q2_y*t_73
+        jacobian(14, 6) = q2_z*t_73
+        jacobian(14, 13) = t_28*t_74
+        jacobian(14, 14) = self%constants(65) + t_71
+        jacobian(14, 15) = t_74
+        jacobian(15, 1) = q1_x*t_75
+        jacobian(15, 2) = q1_y*t_75
+        jacobian(15, 3) = q1_z*t_75
+        jacobian(15, 4) = q2_x*t_81
+        jacobian(15, 5) = q2_y*t_81
+        jacobian(15, 6) = q2_z*t_81
+        jacobian(15, 13) = self%constants(70)*t_28 + t_28*t_76 + t_28*t_78 + t_70*t_79 + t_77*(self%constants(73) &
+            *t_23*t_69 + self%constants(78)*t_23 + self%constants(79))
+        jacobian(15, 14) = self%constants(80)*t_30*t_6
+        jacobian(15, 15) = self%constants(70) + self%constants(81)*t_29*t_70 + t_76 + t_78 + t_80
       else
-        t_1 = 1.0_real64/self%parameters%mass_1
-        t_2 = 1.0_real64/self%parameters%mass_2
-        t_3 = self%parameters%mass_1 + self%parameters%mass_2
-        t_4 = 1.0_real64/C_1
-        t_5 = (0.5_real64)*self%parameters%beta
-        t_6 = log(C_1/self%parameters%natural_length_1**2)
-        t_7 = t_4*t_6
-        t_8 = (-0.125_real64*self%parameters%mu_eq_slope_1*t_6**2 - t_5*t_6 + tau_1)/self%parameters%heat_capacity_1
-        t_9 = self%parameters%theta_ref*exp(t_8)
-        t_10 = self%parameters%beta*self%parameters%theta_ref
-        t_11 = (0.5_real64)*t_10
-        t_12 = 2.0_real64*t_11*t_4 + t_7*((0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64) &
-            *self%parameters%mu_eq_slope_1*self%parameters%theta_ref) + 2.0_real64*t_9*(-0.25_real64 &
-            *self%parameters%mu_eq_slope_1*t_7 - t_4*t_5)
-        t_13 = self%parameters%beta_v + 1.0_real64
-        t_14 = 1.0_real64/C_2
-        t_15 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-        t_16 = log(C_2/self%parameters%natural_length_2**2)
-        t_17 = (0.5_real64)*t_16
-        t_18 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_17
-        t_19 = C_2**(-1.5_real64)
-        t_20 = (0.5_real64)*self%parameters%beta_v*gamma*t_19
-        t_21 = 1.0_real64/sqrt(C_2)
-        t_22 = (self%parameters%beta_v*gamma*t_18*t_21 - gamma**2*self%parameters%mu_neq_slope - t_13*((0.125_real64) &
-            *self%parameters%mu_eq_slope_2*t_16**2 + t_16*t_5) + tau_2)/(self%parameters%heat_capacity_2*t_13)
-        t_23 = self%parameters%theta_ref*exp(t_22)
-        t_24 = self%parameters%mu_eq_const_2 + t_15
-        t_25 = t_10 + t_17*t_24
-        t_26 = 2.0_real64*t_13*(t_11*t_14 + t_14*t_17*((0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64) &
-            *t_15)) - 2.0_real64*t_20*t_24 + 2.0_real64*t_20*t_25 + 2.0_real64*t_23*((0.5_real64) &
-            *self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_19 - t_13*((0.25_real64) &
-            *self%parameters%mu_eq_slope_2*t_14*t_16 + t_14*t_5) - t_18*t_20)
-        t_27 = 2.0_real64*gamma
-        t_28 = -self%parameters%beta_v*t_21*t_25 + t_23*(self%parameters%beta_v*t_18*t_21 - &
-            self%parameters%mu_neq_slope*t_27) + t_27*(self%parameters%mu_neq_const + self%parameters%mu_neq_slope &
-            *self%parameters%theta_ref)
-        t_29 = -t_28
-        t_30 = exp(-t_22)
-        t_31 = t_30*self%parameters%viscosity_activation*(-t_23 + &
-            self%parameters%theta_ref)/self%parameters%theta_ref**2
-        t_32 = exp(-t_31)/self%parameters%viscosity_const
-        t_33 = 1.0_real64/self%parameters%theta_ref
-        t_34 = -t_23 + t_9
-        t_35 = self%parameters%mass_1*self%parameters%mass_2
-        f(1) = t_1*(p1_x - p2_x)
-        f(2) = t_1*(p1_y - p2_y)
-        f(3) = t_1*(p1_z - p2_z)
-        f(4) = -p1_x*t_1 + p2_x*t_1 + p2_x*t_2
-        f(5) = -p1_y*t_1 + p2_y*t_1 + p2_y*t_2
-        f(6) = -p1_z*t_1 + p2_z*t_1 + p2_z*t_2
-        f(7) = self%parameters%gravity_x*t_3 - q1_x*t_12
-        f(8) = self%parameters%gravity_y*t_3 - q1_y*t_12
-        f(9) = self%parameters%gravity_z*t_3 - q1_z*t_12
-        f(10) = self%parameters%gravity_x*self%parameters%mass_2 - q2_x*t_26
-        f(11) = self%parameters%gravity_y*self%parameters%mass_2 - q2_y*t_26
-        f(12) = self%parameters%gravity_z*self%parameters%mass_2 - q2_z*t_26
-        f(13) = t_29*t_32
-        f(14) = -self%parameters%conductivity*t_33*t_34*exp(-t_8)
-        f(15) = t_1*t_2*t_30*t_32*t_33*(self%parameters%conductivity*t_34*t_35*self%parameters%viscosity_const &
-            *exp(t_31) - t_28*t_29*t_35)
+        t_1 = 1.0_real64/C_1
+        t_2 = log(C_1*self%constants(5))
+        t_3 = t_1*t_2
+        t_4 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
+        t_5 = exp(self%constants(8)*t_4)
+        t_6 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_5 &
+            *self%parameters%theta_ref*(self%constants(4)*t_1 + self%constants(6)*t_3)
+        t_7 = 1.0_real64/C_2
+        t_8 = log(C_2*self%constants(14))
+        t_9 = t_7*t_8
+        t_10 = gamma/C_2_root_2**3
+        t_11 = self%parameters%beta + self%constants(21)*t_8
+        t_12 = 1.0_real64/C_2_root_2
+        t_13 = self%parameters%beta_v*t_11*t_12
+        t_14 = self%constants(19)*(self%constants(17)*t_8 + self%constants(24)*t_8**2) + self%constants(23)*gamma**2 &
+            + gamma*t_13 + tau_2
+        t_15 = exp(self%constants(25)*t_14)
+        t_16 = t_15*self%parameters%theta_ref
+        t_17 = self%constants(26)*t_8 + self%constants(27)
+        t_18 = 2.0_real64*self%constants(16)*(self%constants(15)*t_9 + self%constants(9)*t_7) + 2.0_real64 &
+            *self%constants(28)*t_10*t_17 + 2.0_real64*self%constants(29)*t_10 + 2.0_real64*t_16*(self%constants(19) &
+            *(self%constants(17)*t_7 + self%constants(18)*t_9) + self%constants(20)*t_10 + self%constants(22)*t_10*t_11)
+        t_19 = self%constants(33)*gamma + self%constants(35)*t_12*t_17 + t_16*(self%constants(34)*gamma + t_13)
+        t_20 = exp(self%constants(36)*t_14)
+        t_21 = self%constants(37)*t_20
+        t_22 = exp(self%constants(39)*(self%constants(38) + t_21))
+        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+        f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+        f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+        f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+        f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+        f(7) = self%constants(11) - q1_x*t_6
+        f(8) = self%constants(12) - q1_y*t_6
+        f(9) = self%constants(13) - q1_z*t_6
+        f(10) = self%constants(30) - q2_x*t_18
+        f(11) = self%constants(31) - q2_y*t_18
+        f(12) = self%constants(32) - q2_z*t_18
+        f(13) = self%constants(40)*t_19*t_22
+        f(14) = self%constants(37)*(self%constants(41)*t_15 + self%constants(42)*t_5)*exp(self%constants(43)*t_4)
+        f(15) = self%constants(44)*t_19**2*t_20*t_22 + t_21*(self%constants(41)*t_5 + self%constants(42)*t_15)
       end if
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
@@ -1079,346 +1115,262 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1/self%parameters%natural_length_1**2 > 0.0_real64)) then
+      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
         stat = domain_nonpositive_temperature
         return
       end if
-      if (.not. (C_2/self%parameters%natural_length_2**2 > 0.0_real64)) then
+      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
         stat = domain_nonpositive_temperature
         return
       end if
-      if (.not. (-self%parameters%viscosity_activation*(-self%parameters%heat_capacity_2*(self%parameters%beta_v + &
-          1.0_real64) + self%parameters%heat_capacity_2*self%parameters%theta_ref*(self%parameters%beta_v + &
-          1.0_real64)/tau_2)/(self%parameters%heat_capacity_2*self%parameters%theta_ref*(self%parameters%beta_v + &
-          1.0_real64)) <= max_exponent)) then
+      if (.not. (self%constants(39)*(self%constants(38) + 1.0_real64/tau_2) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%parameters%viscosity_activation*(-self%parameters%heat_capacity_2*(self%parameters%beta_v + &
-          1.0_real64) + self%parameters%heat_capacity_2*self%parameters%theta_ref*(self%parameters%beta_v + &
-          1.0_real64)/tau_2)/(self%parameters%heat_capacity_2*self%parameters%theta_ref*(self%parameters%beta_v + &
-          1.0_real64)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
+      C_2_root_2 = sqrt(C_2)
       if (present(jacobian)) then
-        t_1 = 1.0_real64/self%parameters%mass_1
-        t_2 = p1_x - p2_x
-        t_3 = t_1*t_2
-        t_4 = p1_y - p2_y
-        t_5 = t_1*t_4
-        t_6 = p1_z - p2_z
-        t_7 = t_1*t_6
-        t_8 = 1.0_real64/self%parameters%mass_2
-        t_9 = 1.0_real64/self%parameters%heat_capacity_1
-        t_10 = 1.0_real64/tau_1
-        t_11 = self%parameters%mass_1 + self%parameters%mass_2
-        t_12 = 1.0_real64/C_1
-        t_13 = self%parameters%beta*self%parameters%theta_ref
-        t_14 = t_12*t_13
-        t_15 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*self%parameters%mu_eq_slope_1 &
-            *self%parameters%theta_ref
-        t_16 = log(C_1/self%parameters%natural_length_1**2)
-        t_17 = t_12*t_16
-        t_18 = t_15*t_17
-        t_19 = t_14 + t_18
-        t_20 = t_10*(self%parameters%gravity_x*t_11 - q1_x*t_19)
-        t_21 = (0.5_real64)*self%parameters%beta
-        t_22 = (0.25_real64)*self%parameters%mu_eq_slope_1
-        t_23 = t_12*t_21 + t_17*t_22
-        t_24 = 2.0_real64*self%parameters%heat_capacity_1
-        t_25 = t_23*t_24
-        t_26 = self%parameters%heat_capacity_1*t_20 + q1_x*t_25
-        t_27 = t_10*(self%parameters%gravity_y*t_11 - q1_y*t_19)
-        t_28 = self%parameters%heat_capacity_1*t_27 + q1_y*t_25
-        t_29 = t_10*(self%parameters%gravity_z*t_11 - q1_z*t_19)
-        t_30 = self%parameters%heat_capacity_1*t_29 + q1_z*t_25
-        t_31 = self%parameters%beta_v + 1.0_real64
-        t_32 = 1.0_real64/C_2
-        t_33 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-        t_34 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_33
-        t_35 = log(C_2/self%parameters%natural_length_2**2)
-        t_36 = (0.5_real64)*t_35
-        t_37 = t_34*t_36
-        t_38 = t_31*((0.5_real64)*t_13*t_32 + t_32*t_37)
-        t_39 = self%parameters%mu_eq_const_2 + t_33
-        t_40 = t_13 + t_36*t_39
-        t_41 = C_2**(-1.5_real64)
-        t_42 = self%parameters%beta_v*gamma
-        t_43 = t_41*t_42
-        t_44 = t_40*t_43
-        t_45 = t_39*t_43
-        t_46 = 2.0_real64*t_38 + t_44 - t_45
-        t_47 = (0.25_real64)*self%parameters%mu_eq_slope_2
-        t_48 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_36
-        t_49 = (0.5_real64)*t_43
-        t_50 = -self%parameters%mu_eq_slope_2*t_49 + t_31*(t_21*t_32 + t_32*t_35*t_47) + t_48*t_49
-        t_51 = 2.0_real64*q2_x
-        t_52 = t_50*t_51
-        t_53 = t_52*tau_2
-        t_54 = 2.0_real64*t_50
-        t_55 = t_54*tau_2
-        t_56 = q2_y*t_55
-        t_57 = q2_z*t_55
-        t_58 = 2.0_real64*gamma
-        t_59 = self%parameters%beta_v/sqrt(C_2)
-        t_60 = self%parameters%heat_capacity_2*t_31
-        t_61 = self%parameters%mu_neq_slope*self%parameters%theta_ref
-        t_62 = -t_40*t_59 + t_58*(self%parameters%mu_neq_const + t_61)
-        t_63 = 1.0_real64/tau_2
-        t_64 = t_60*t_63
-        t_65 = t_60*(self%parameters%mu_neq_slope*t_58 - t_48*t_59) - t_62*t_64
-        t_66 = 1.0_real64/self%parameters%heat_capacity_2
-        t_67 = 1.0_real64/t_31
-        t_68 = t_66*t_67
-        t_69 = t_68*self%parameters%viscosity_activation
-        t_70 = t_69*(self%parameters%heat_capacity_2*t_31*t_63*self%parameters%theta_ref - &
-            t_60)/self%parameters%theta_ref
-        t_71 = exp(-t_70)/self%parameters%viscosity_const
-        t_72 = t_68*t_71
-        t_73 = t_65*t_72
-        t_74 = 1.0_real64/self%parameters%heat_capacity_1**2
-        t_75 = -self%parameters%heat_capacity_1*self%parameters%heat_capacity_2*t_10*t_31 + &
-            self%parameters%heat_capacity_1*t_64
-        t_76 = self%parameters%conductivity*self%parameters%mass_1
-        t_77 = q1_x*t_2 + q1_y*t_4 + q1_z*t_6
-        t_78 = t_25*t_77
-        t_79 = -t_64*t_78 - t_75*t_76
-        t_80 = t_1*t_68
-        t_81 = t_74*t_79*t_80
-        t_82 = t_9*tau_1
-        t_83 = t_1*t_82
-        t_84 = exp(t_70)
-        t_85 = t_84*self%parameters%viscosity_const
-        t_86 = self%parameters%mass_2*t_76*t_85
-        t_87 = t_75*t_86
-        t_88 = self%parameters%heat_capacity_1*t_10
-        t_89 = self%parameters%mass_1*self%parameters%mass_2
-        t_90 = t_62*t_88*t_89
-        t_91 = self%parameters%mass_2*p1_x - p2_x*t_11
-        t_92 = self%parameters%mass_2*p1_y - p2_y*t_11
-        t_93 = self%parameters%mass_2*p1_z - p2_z*t_11
-        t_94 = q2_x*t_91 + q2_y*t_92 + q2_z*t_93
-        t_95 = t_10*t_24
-        t_96 = t_85*t_94*t_95
-        t_97 = t_50*t_60*t_96 - t_65*t_90 + t_87
-        t_98 = 1.0_real64/self%parameters%heat_capacity_2**2
-        t_99 = 1.0_real64/t_31**2
-        t_100 = t_71*t_8*t_98*t_99
-        t_101 = t_100*t_97
-        t_102 = t_101*t_83
-        t_103 = -t_1
-        t_104 = t_1 + t_8
-        t_105 = t_82*(t_25 + t_88*(-t_14 - t_18))
-        t_106 = 1.0_real64/C_1**2
-        t_107 = (0.25_real64)*self%parameters%mu_eq_slope_1*t_106 - t_106*t_16*t_22 - t_106*t_21
-        t_108 = t_107*t_24
-        t_109 = (0.5_real64)*t_106
-        t_110 = t_95*((0.5_real64)*t_106*t_15 - t_109*t_13 - t_109*t_15*t_16)
-        t_111 = 2.0_real64*t_82
-        t_112 = t_111*(q1_x*t_108 - q1_x*t_110)
-        t_113 = t_111*(q1_y*t_108 - q1_y*t_110)
-        t_114 = t_111*(q1_z*t_108 - q1_z*t_110)
-        t_115 = 1.0_real64/C_2**2
-        t_116 = t_42/C_2**(2.5_real64)
-        t_117 = (0.75_real64)*t_116
-        t_118 = t_116*t_39 - t_117*t_40 + t_31*(-0.5_real64*t_115*t_13 + (0.5_real64)*t_115*t_34 - t_115*t_37)
-        t_119 = self%parameters%mu_eq_slope_2*t_116 - t_117*t_48 + t_31*((0.25_real64)*self%parameters%mu_eq_slope_2 &
-            *t_115 - t_115*t_21 - t_115*t_35*t_47)
-        t_120 = t_51*tau_2
-        t_121 = -t_118*t_51 + t_119*t_120
-        t_122 = -2.0_real64*t_38 - t_44 + t_45 + t_55
-        t_123 = 2.0_real64*t_121
-        t_124 = (0.5_real64)*self%parameters%beta_v*t_41
-        t_125 = (0.5_real64)*self%parameters%beta_v*t_40*t_41 - t_124*t_39
-        t_126 = (0.5_real64)*self%parameters%beta_v*t_41*t_48 - self%parameters%mu_eq_slope_2*t_124
-        t_127 = 2.0_real64*q2_y
-        t_128 = t_127*tau_2
-        t_129 = -t_118*t_127 + t_119*t_128
-        t_130 = 2.0_real64*q2_z
-        t_131 = t_130*tau_2
-        t_132 = -t_118*t_130 + t_119*t_131
-        t_133 = -t_125*t_64 + t_126*t_60
-        t_134 = t_133*t_72
-        t_135 = 2.0_real64*self%parameters%mu_neq_const + 2.0_real64*t_61
-        t_136 = 2.0_real64*self%parameters%mu_neq_slope*t_60 - t_135*t_64
-        t_137 = t_63*t_71
-        t_138 = t_111*t_23
-        t_139 = 4.0_real64*t_107*t_77*t_83
-        t_140 = t_1*t_138
-        t_141 = q1_x*t_140
-        t_142 = q1_y*t_140
-        t_143 = q1_z*t_140
-        t_144 = t_9*tau_2
-        t_145 = 1.0_real64/tau_2**2
-        t_146 = t_145*t_60
-        t_147 = self%parameters%heat_capacity_1*t_146
-        t_148 = t_55*t_8*t_80
-        t_149 = t_65*t_89
-        t_150 = t_149*t_88
-        t_151 = t_100*t_83
-        t_152 = t_151*(2.0_real64*self%parameters%heat_capacity_1*self%parameters%heat_capacity_2*t_10*t_119*t_31 &
-            *t_84*t_94*self%parameters%viscosity_const - t_125*t_150 - t_133*t_90)
-        t_153 = t_53*t_80
-        t_154 = t_56*t_80
-        t_155 = t_57*t_80
-        t_156 = -t_11*t_8
-        t_157 = t_151*tau_2
-        t_158 = 1.0_real64/tau_1**2
-        t_159 = self%parameters%heat_capacity_1*t_158
-        f(1) = t_3
-        f(2) = t_5
-        f(3) = t_7
-        f(4) = -p1_x*t_1 + p2_x*t_1 + p2_x*t_8
-        f(5) = -p1_y*t_1 + p2_y*t_1 + p2_y*t_8
-        f(6) = -p1_z*t_1 + p2_z*t_1 + p2_z*t_8
-        f(7) = t_26*t_9*tau_1
-        f(8) = t_28*t_9*tau_1
-        f(9) = t_30*t_9*tau_1
-        f(10) = self%parameters%gravity_x*self%parameters%mass_2 - q2_x*t_46 + t_53
-        f(11) = self%parameters%gravity_y*self%parameters%mass_2 - q2_y*t_46 + t_56
-        f(12) = self%parameters%gravity_z*self%parameters%mass_2 - q2_z*t_46 + t_57
-        f(13) = t_73*tau_2
-        f(14) = t_81*tau_1*tau_2
-        f(15) = t_102*tau_2
-        jacobian(1, 7) = t_1
-        jacobian(1, 10) = t_103
-        jacobian(2, 8) = t_1
-        jacobian(2, 11) = t_103
-        jacobian(3, 9) = t_1
-        jacobian(3, 12) = t_103
-        jacobian(4, 7) = t_103
-        jacobian(4, 10) = t_104
-        jacobian(5, 8) = t_103
-        jacobian(5, 11) = t_104
-        jacobian(6, 9) = t_103
-        jacobian(6, 12) = t_104
-        jacobian(7, 1) = q1_x*t_112 + t_105
-        jacobian(7, 2) = q1_y*t_112
-        jacobian(7, 3) = q1_z*t_112
-        jacobian(7, 14) = -t_20 + t_26*t_9
-        jacobian(8, 1) = q1_x*t_113
-        jacobian(8, 2) = q1_y*t_113 + t_105
-        jacobian(8, 3) = q1_z*t_113
-        jacobian(8, 14) = -t_27 + t_28*t_9
-        jacobian(9, 1) = q1_x*t_114
-        jacobian(9, 2) = q1_y*t_114
-        jacobian(9, 3) = q1_z*t_114 + t_105
-        jacobian(9, 14) = -t_29 + t_30*t_9
-        jacobian(10, 4) = t_121*t_51 + t_122
-        jacobian(10, 5) = q2_y*t_123
-        jacobian(10, 6) = q2_z*t_123
-        jacobian(10, 13) = t_120*t_126 - t_125*t_51
-        jacobian(10, 15) = t_52
-        jacobian(11, 4) = t_129*t_51
-        jacobian(11, 5) = t_122 + t_127*t_129
-        jacobian(11, 6) = t_129*t_130
-        jacobian(11, 13) = -t_125*t_127 + t_126*t_128
-        jacobian(11, 15) = q2_y*t_54
-        jacobian(12, 4) = t_132*t_51
-        jacobian(12, 5) = t_127*t_132
-        jacobian(12, 6) = t_122 + t_130*t_132
-        jacobian(12, 13) = -t_125*t_130 + t_126*t_131
-        jacobian(12, 15) = q2_z*t_54
-        jacobian(13, 4) = t_120*t_134
-        jacobian(13, 5) = t_128*t_134
-        jacobian(13, 6) = t_131*t_134
-        jacobian(13, 13) = t_136*t_72*tau_2
-        jacobian(13, 15) = t_137*t_62 + t_137*t_65*t_69 + t_73
-        jacobian(14, 1) = -q1_x*t_139 - t_138*t_3
-        jacobian(14, 2) = -q1_y*t_139 - t_138*t_5
-        jacobian(14, 3) = -q1_z*t_139 - t_138*t_7
-        jacobian(14, 7) = -t_141
-        jacobian(14, 8) = -t_142
-        jacobian(14, 9) = -t_143
-        jacobian(14, 10) = t_141
-        jacobian(14, 11) = t_142
-        jacobian(14, 12) = t_143
-        jacobian(14, 14) = -self%parameters%conductivity*t_10*t_144 + t_1*t_66*t_67*t_74*t_79*tau_2
-        jacobian(14, 15) = t_74*t_80*tau_1*tau_2*(t_146*t_78 + t_147*t_76) + t_81*tau_1
-        jacobian(15, 4) = t_120*t_152 + t_148*t_91
-        jacobian(15, 5) = t_128*t_152 + t_148*t_92
-        jacobian(15, 6) = t_131*t_152 + t_148*t_93
-        jacobian(15, 7) = t_153
-        jacobian(15, 8) = t_154
-        jacobian(15, 9) = t_155
-        jacobian(15, 10) = t_153*t_156
-        jacobian(15, 11) = t_154*t_156
-        jacobian(15, 12) = t_155*t_156
-        jacobian(15, 13) = t_157*(2.0_real64*self%parameters%heat_capacity_1*self%parameters%heat_capacity_2*t_10 &
-            *t_126*t_31*t_84*t_94*self%parameters%viscosity_const - t_135*t_150 - t_136*t_90)
-        jacobian(15, 14) = t_1*t_101*t_144 + t_157*(t_149*t_159*t_62 - t_158*t_24*t_50*t_60*t_85*t_94 + t_159*t_60*t_86)
-        jacobian(15, 15) = t_102 + t_137*t_8*t_83*t_97*t_98*t_99*self%parameters%viscosity_activation + t_157*(-t_145 &
-            *t_60*t_62**2*t_88*t_89 - t_145*t_87*self%parameters%viscosity_activation - t_146*t_50*t_96 &
-            *self%parameters%viscosity_activation - t_147*t_86)
-      else
-        t_1 = 1.0_real64/self%parameters%mass_1
-        t_2 = p1_x - p2_x
-        t_3 = p1_y - p2_y
-        t_4 = p1_z - p2_z
-        t_5 = 1.0_real64/self%parameters%mass_2
-        t_6 = self%parameters%mass_1 + self%parameters%mass_2
-        t_7 = self%parameters%beta*self%parameters%theta_ref
-        t_8 = 1.0_real64/C_1
-        t_9 = (0.5_real64)*t_8
-        t_10 = log(C_1/self%parameters%natural_length_1**2)
-        t_11 = 2.0_real64*t_10*t_9*((0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64) &
-            *self%parameters%mu_eq_slope_1*self%parameters%theta_ref) + 2.0_real64*t_7*t_9
-        t_12 = 1.0_real64/tau_1
-        t_13 = self%parameters%heat_capacity_1*t_12
-        t_14 = (0.5_real64)*self%parameters%beta
-        t_15 = 2.0_real64*self%parameters%heat_capacity_1*((0.25_real64)*self%parameters%mu_eq_slope_1*t_10*t_8 + &
-            t_14*t_8)
-        t_16 = tau_1/self%parameters%heat_capacity_1
-        t_17 = self%parameters%beta_v + 1.0_real64
-        t_18 = 1.0_real64/C_2
-        t_19 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-        t_20 = log(C_2/self%parameters%natural_length_2**2)
-        t_21 = (0.5_real64)*t_20
-        t_22 = self%parameters%mu_eq_const_2 + t_19
-        t_23 = t_21*t_22 + t_7
-        t_24 = (0.5_real64)*self%parameters%beta_v*gamma/C_2**(1.5_real64)
-        t_25 = 2.0_real64*t_17*(t_18*t_21*((0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_19) + &
-            (0.5_real64)*t_18*t_7) - 2.0_real64*t_22*t_24 + 2.0_real64*t_23*t_24
-        t_26 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_21
-        t_27 = -2.0_real64*self%parameters%mu_eq_slope_2*t_24 + 2.0_real64*t_17*((0.25_real64) &
-            *self%parameters%mu_eq_slope_2*t_18*t_20 + t_14*t_18) + 2.0_real64*t_24*t_26
-        t_28 = t_27*tau_2
-        t_29 = 2.0_real64*gamma
-        t_30 = self%parameters%beta_v/sqrt(C_2)
-        t_31 = self%parameters%heat_capacity_2*t_17
-        t_32 = -t_23*t_30 + t_29*(self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref)
+        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+        t_7 = 1.0_real64/C_1
+        t_8 = log(C_1*self%constants(5))
+        t_9 = t_7*t_8
+        t_10 = 2.0_real64*self%constants(10)*t_9 + 2.0_real64*self%constants(9)*t_7
+        t_11 = self%constants(17)*t_7 + self%constants(45)*t_9
+        t_12 = 2.0_real64*q1_x
+        t_13 = t_11*t_12
+        t_14 = 2.0_real64*t_11
+        t_15 = t_14*tau_1
+        t_16 = 1.0_real64/C_2
+        t_17 = log(C_2*self%constants(14))
+        t_18 = t_16*t_17
+        t_19 = self%constants(15)*t_18 + self%constants(9)*t_16
+        t_20 = 1.0_real64/C_2_root_2**3
+        t_21 = self%constants(29)*t_20
+        t_22 = self%constants(26)*t_17 + self%constants(27)
+        t_23 = gamma*t_20
+        t_24 = self%constants(28)*t_23
+        t_25 = 2.0_real64*self%constants(16)*t_19 + 2.0_real64*gamma*t_21 + 2.0_real64*t_22*t_24
+        t_26 = self%constants(82)*t_20
+        t_27 = self%parameters%beta + self%constants(21)*t_17
+        t_28 = self%constants(16)*(self%constants(17)*t_16 + self%constants(18)*t_18) + gamma*t_26 + t_24*t_27
+        t_29 = 2.0_real64*q2_x
+        t_30 = t_28*t_29
+        t_31 = 2.0_real64*t_28
+        t_32 = t_31*tau_2
         t_33 = 1.0_real64/tau_2
-        t_34 = t_31*t_33
-        t_35 = t_31*(self%parameters%mu_neq_slope*t_29 - t_26*t_30) - t_32*t_34
-        t_36 = 1.0_real64/(self%parameters%heat_capacity_2*t_17)
-        t_37 = t_36*tau_2
-        t_38 = t_36*self%parameters%viscosity_activation*(self%parameters%heat_capacity_2*t_17*t_33 &
-            *self%parameters%theta_ref - t_31)/self%parameters%theta_ref
-        t_39 = exp(-t_38)/self%parameters%viscosity_const
-        t_40 = -self%parameters%heat_capacity_1*self%parameters%heat_capacity_2*t_12*t_17 + &
-            self%parameters%heat_capacity_1*t_34
-        t_41 = self%parameters%conductivity*self%parameters%mass_1
-        t_42 = self%parameters%viscosity_const*exp(t_38)
-        f(1) = t_1*t_2
-        f(2) = t_1*t_3
-        f(3) = t_1*t_4
-        f(4) = -p1_x*t_1 + p2_x*t_1 + p2_x*t_5
-        f(5) = -p1_y*t_1 + p2_y*t_1 + p2_y*t_5
-        f(6) = -p1_z*t_1 + p2_z*t_1 + p2_z*t_5
-        f(7) = t_16*(q1_x*t_15 + t_13*(self%parameters%gravity_x*t_6 - q1_x*t_11))
-        f(8) = t_16*(q1_y*t_15 + t_13*(self%parameters%gravity_y*t_6 - q1_y*t_11))
-        f(9) = t_16*(q1_z*t_15 + t_13*(self%parameters%gravity_z*t_6 - q1_z*t_11))
-        f(10) = self%parameters%gravity_x*self%parameters%mass_2 - q2_x*t_25 + q2_x*t_28
-        f(11) = self%parameters%gravity_y*self%parameters%mass_2 - q2_y*t_25 + q2_y*t_28
-        f(12) = self%parameters%gravity_z*self%parameters%mass_2 - q2_z*t_25 + q2_z*t_28
-        f(13) = t_35*t_37*t_39
-        f(14) = t_1*t_37*tau_1*(-t_15*t_34*(q1_x*t_2 + q1_y*t_3 + q1_z*t_4) - t_40 &
-            *t_41)/self%parameters%heat_capacity_1**2
-        f(15) = t_1*t_16*t_39*t_5*tau_2*(-self%parameters%mass_1*self%parameters%mass_2*t_13*t_32*t_35 + &
-            self%parameters%mass_2*t_40*t_41*t_42 + t_13*t_27*t_31*t_42*(q2_x*(self%parameters%mass_2*p1_x - p2_x &
-            *t_6) + q2_y*(self%parameters%mass_2*p1_y - p2_y*t_6) + q2_z*(self%parameters%mass_2*p1_z - p2_z &
-            *t_6)))/(self%parameters%heat_capacity_2**2*t_17**2)
+        t_34 = self%constants(35)/C_2_root_2
+        t_35 = self%constants(33)*gamma + t_22*t_34
+        t_36 = t_33*t_35
+        t_37 = self%constants(83)*gamma + t_27*t_34 - t_36
+        t_38 = exp(self%constants(39)*(self%constants(38) + t_33))
+        t_39 = self%constants(84)*t_38
+        t_40 = t_37*t_39
+        t_41 = t_11*tau_1
+        t_42 = self%constants(86)*t_1
+        t_43 = t_41*t_42
+        t_44 = self%constants(86)*t_41
+        t_45 = t_2*t_44
+        t_46 = t_3*t_44
+        t_47 = t_28*tau_2
+        t_48 = self%constants(76)*t_47
+        t_49 = t_4*t_48
+        t_50 = t_48*t_5
+        t_51 = t_48*t_6
+        t_52 = t_37*t_38
+        t_53 = t_52*tau_2
+        t_54 = self%constants(87)*t_35
+        t_55 = 1.0_real64/C_1**2
+        t_56 = t_55*t_8
+        t_57 = self%constants(10)*t_55 + self%constants(46)*t_55 + self%constants(47)*t_56
+        t_58 = tau_1*(self%constants(4)*t_55 + self%constants(45)*t_55 + self%constants(6)*t_56)
+        t_59 = -t_12*t_57 + t_12*t_58
+        t_60 = self%constants(49)*t_7 + self%constants(50)*t_9 + t_15
+        t_61 = 2.0_real64*t_59
+        t_62 = 2.0_real64*q1_y
+        t_63 = -t_57*t_62 + t_58*t_62
+        t_64 = 2.0_real64*q1_z
+        t_65 = -t_57*t_64 + t_58*t_64
+        t_66 = 1.0_real64/C_2**2
+        t_67 = t_17*t_66
+        t_68 = gamma/C_2_root_2**5
+        t_69 = self%constants(58)*t_68
+        t_70 = self%constants(16)*(self%constants(15)*t_66 + self%constants(46)*t_66 + self%constants(53)*t_67) + &
+            self%constants(57)*t_68 + t_22*t_69
+        t_71 = self%constants(16)*(self%constants(18)*t_66 + self%constants(4)*t_66 + self%constants(54)*t_67) + &
+            self%constants(88)*t_68 + t_27*t_69
+        t_72 = t_29*tau_2
+        t_73 = -t_29*t_70 + t_71*t_72
+        t_74 = self%constants(35)*t_22*t_23 + self%constants(57)*t_23 + self%constants(60)*t_19 + t_32
+        t_75 = 2.0_real64*t_73
+        t_76 = self%constants(28)*t_20
+        t_77 = t_21 + t_22*t_76
+        t_78 = t_26 + t_27*t_76
+        t_79 = 2.0_real64*q2_y
+        t_80 = t_79*tau_2
+        t_81 = -t_70*t_79 + t_71*t_80
+        t_82 = 2.0_real64*q2_z
+        t_83 = t_82*tau_2
+        t_84 = -t_70*t_82 + t_71*t_83
+        t_85 = tau_2*(-t_33*t_77 + t_78)
+        t_86 = self%constants(89)*t_38*t_85
+        t_87 = tau_2*(self%constants(83) + self%constants(90)*t_33)
+        t_88 = q1_x*t_42
+        t_89 = q1_y*t_2
+        t_90 = self%constants(86)*t_58
+        t_91 = q1_z*t_3
+        t_92 = t_58*t_88 + t_89*t_90 + t_90*t_91
+        t_93 = self%constants(92)*t_41
+        t_94 = self%constants(93)*t_41
+        t_95 = self%constants(86)*t_11
+        t_96 = q2_x*t_4
+        t_97 = self%constants(76)*tau_2
+        t_98 = t_71*t_97
+        t_99 = q2_y*t_5
+        t_100 = q2_z*t_6
+        t_101 = self%constants(87)*t_38
+        t_102 = t_101*t_35
+        t_103 = self%constants(87)*t_53*t_77 + t_100*t_98 + t_102*t_85 + t_96*t_98 + t_98*t_99
+        t_104 = self%constants(94)*t_47
+        t_105 = self%constants(95)*t_47
+        t_106 = t_78*t_97
+        t_107 = self%constants(76)*t_28
+        f(1) = t_1
+        f(2) = t_2
+        f(3) = t_3
+        f(4) = t_4
+        f(5) = t_5
+        f(6) = t_6
+        f(7) = self%constants(11) - q1_x*t_10 + t_13*tau_1
+        f(8) = self%constants(12) - q1_y*t_10 + q1_y*t_15
+        f(9) = self%constants(13) - q1_z*t_10 + q1_z*t_15
+        f(10) = self%constants(30) - q2_x*t_25 + t_30*tau_2
+        f(11) = self%constants(31) - q2_y*t_25 + q2_y*t_32
+        f(12) = self%constants(32) - q2_z*t_25 + q2_z*t_32
+        f(13) = t_40*tau_2
+        f(14) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(85)*tau_1) + q1_x*t_43 + q1_y &
+            *t_45 + q1_z*t_46
+        f(15) = self%constants(25)*(self%parameters%conductivity*tau_1 + self%constants(85)*tau_2) + q2_x*t_49 + q2_y &
+            *t_50 + q2_z*t_51 + t_53*t_54
+        jacobian(1, 7) = self%constants(1)
+        jacobian(1, 10) = self%constants(2)
+        jacobian(2, 8) = self%constants(1)
+        jacobian(2, 11) = self%constants(2)
+        jacobian(3, 9) = self%constants(1)
+        jacobian(3, 12) = self%constants(2)
+        jacobian(4, 7) = self%constants(2)
+        jacobian(4, 10) = self%constants(3)
+        jacobian(5, 8) = self%constants(2)
+        jacobian(5, 11) = self%constants(3)
+        jacobian(6, 9) = self%constants(2)
+        jacobian(6, 12) = self%constants(3)
+        jacobian(7, 1) = t_12*t_59 + t_60
+        jacobian(7, 2) = q1_y*t_61
+        jacobian(7, 3) = q1_z*t_61
+        jacobian(7, 14) = t_13
+        jacobian(8, 1) = t_12*t_63
+        jacobian(8, 2) = t_60 + t_62*t_63
+        jacobian(8, 3) = t_63*t_64
+        jacobian(8, 14) = q1_y*t_14
+        jacobian(9, 1) = t_12*t_65
+        jacobian(9, 2) = t_62*t_65
+        jacobian(9, 3) = t_60 + t_64*t_65
+        jacobian(9, 14) = q1_z*t_14
+        jacobian(10, 4) = t_29*t_73 + t_74
+        jacobian(10, 5) = q2_y*t_75
+        jacobian(10, 6) = q2_z*t_75
+        jacobian(10, 13) = -t_29*t_77 + t_72*t_78
+        jacobian(10, 15) = t_30
+        jacobian(11, 4) = t_29*t_81
+        jacobian(11, 5) = t_74 + t_79*t_81
+        jacobian(11, 6) = t_81*t_82
+        jacobian(11, 13) = -t_77*t_79 + t_78*t_80
+        jacobian(11, 15) = q2_y*t_31
+        jacobian(12, 4) = t_29*t_84
+        jacobian(12, 5) = t_79*t_84
+        jacobian(12, 6) = t_74 + t_82*t_84
+        jacobian(12, 13) = -t_77*t_82 + t_78*t_83
+        jacobian(12, 15) = q2_z*t_31
+        jacobian(13, 4) = q2_x*t_86
+        jacobian(13, 5) = q2_y*t_86
+        jacobian(13, 6) = q2_z*t_86
+        jacobian(13, 13) = t_39*t_87
+        jacobian(13, 15) = self%constants(91)*t_33*t_52 + t_36*t_39 + t_40
+        jacobian(14, 1) = t_12*t_92 + t_43
+        jacobian(14, 2) = t_45 + t_62*t_92
+        jacobian(14, 3) = t_46 + t_64*t_92
+        jacobian(14, 7) = q1_x*t_93
+        jacobian(14, 8) = q1_y*t_93
+        jacobian(14, 9) = q1_z*t_93
+        jacobian(14, 10) = q1_x*t_94
+        jacobian(14, 11) = q1_y*t_94
+        jacobian(14, 12) = q1_z*t_94
+        jacobian(14, 14) = self%constants(65) + t_11*t_88 + t_89*t_95 + t_91*t_95
+        jacobian(14, 15) = self%constants(80)
+        jacobian(15, 4) = t_103*t_29 + t_49
+        jacobian(15, 5) = t_103*t_79 + t_50
+        jacobian(15, 6) = t_103*t_82 + t_51
+        jacobian(15, 7) = q2_x*t_104
+        jacobian(15, 8) = q2_y*t_104
+        jacobian(15, 9) = q2_z*t_104
+        jacobian(15, 10) = q2_x*t_105
+        jacobian(15, 11) = q2_y*t_105
+        jacobian(15, 12) = q2_z*t_105
+        jacobian(15, 13) = self%constants(96)*t_53 + t_100*t_106 + t_102*t_87 + t_106*t_96 + t_106*t_99
+        jacobian(15, 14) = self%constants(68)
+        jacobian(15, 15) = self%constants(70) + self%constants(97)*t_36*t_52 + t_100*t_107 + t_101*t_33*t_35**2 + &
+            t_107*t_96 + t_107*t_99 + t_52*t_54
+      else
+        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+        t_7 = 1.0_real64/C_1
+        t_8 = t_7*log(C_1*self%constants(5))
+        t_9 = 2.0_real64*self%constants(10)*t_8 + 2.0_real64*self%constants(9)*t_7
+        t_10 = tau_1*(self%constants(17)*t_7 + self%constants(45)*t_8)
+        t_11 = 2.0_real64*t_10
+        t_12 = 1.0_real64/C_2
+        t_13 = log(C_2*self%constants(14))
+        t_14 = t_12*t_13
+        t_15 = gamma/C_2_root_2**3
+        t_16 = self%constants(26)*t_13 + self%constants(27)
+        t_17 = self%constants(28)*t_15
+        t_18 = 2.0_real64*self%constants(16)*(self%constants(15)*t_14 + self%constants(9)*t_12) + 2.0_real64 &
+            *self%constants(29)*t_15 + 2.0_real64*t_16*t_17
+        t_19 = self%parameters%beta + self%constants(21)*t_13
+        t_20 = tau_2*(self%constants(16)*(self%constants(17)*t_12 + self%constants(18)*t_14) + self%constants(82) &
+            *t_15 + t_17*t_19)
+        t_21 = 2.0_real64*t_20
+        t_22 = 1.0_real64/tau_2
+        t_23 = self%constants(35)/C_2_root_2
+        t_24 = self%constants(33)*gamma + t_16*t_23
+        t_25 = tau_2*(self%constants(83)*gamma + t_19*t_23 - t_22*t_24)*exp(self%constants(39)*(self%constants(38) + &
+            t_22))
+        t_26 = self%constants(86)*t_10
+        t_27 = self%constants(76)*t_20
+        f(1) = t_1
+        f(2) = t_2
+        f(3) = t_3
+        f(4) = t_4
+        f(5) = t_5
+        f(6) = t_6
+        f(7) = self%constants(11) + q1_x*t_11 - q1_x*t_9
+        f(8) = self%constants(12) + q1_y*t_11 - q1_y*t_9
+        f(9) = self%constants(13) + q1_z*t_11 - q1_z*t_9
+        f(10) = self%constants(30) - q2_x*t_18 + q2_x*t_21
+        f(11) = self%constants(31) - q2_y*t_18 + q2_y*t_21
+        f(12) = self%constants(32) - q2_z*t_18 + q2_z*t_21
+        f(13) = self%constants(84)*t_25
+        f(14) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(85)*tau_1) + q1_x*t_1*t_26 + &
+            q1_y*t_2*t_26 + q1_z*t_26*t_3
+        f(15) = self%constants(25)*(self%parameters%conductivity*tau_1 + self%constants(85)*tau_2) + &
+            self%constants(87)*t_24*t_25 + q2_x*t_27*t_4 + q2_y*t_27*t_5 + q2_z*t_27*t_6
       end if
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
@@ -1429,383 +1381,287 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1/self%parameters%natural_length_1**2 > 0.0_real64)) then
+      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
         stat = domain_nonpositive_temperature
         return
       end if
-      if (.not. (C_2/self%parameters%natural_length_2**2 > 0.0_real64)) then
+      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
         stat = domain_nonpositive_temperature
         return
       end if
-      if (.not. (-self%parameters%viscosity_activation*(self%parameters%theta_ref/(self%parameters%theta_ref + ( &
-          -gamma**2*(self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref) + tau_2 - &
-          (self%parameters%beta_v + 1.0_real64)*((0.5_real64)*self%parameters%beta*self%parameters%theta_ref &
-          *log(C_2/self%parameters%natural_length_2**2) + (0.25_real64)*((0.5_real64)*self%parameters%mu_eq_const_2 + &
-          (0.5_real64)*self%parameters%mu_eq_slope_2*self%parameters%theta_ref) &
-          *log(C_2/self%parameters%natural_length_2**2)**2) + self%parameters%beta_v*gamma*(self%parameters%beta &
-          *self%parameters%theta_ref + (0.5_real64)*(self%parameters%mu_eq_const_2 + self%parameters%mu_eq_slope_2 &
-          *self%parameters%theta_ref)*log(C_2/self%parameters%natural_length_2 &
-          **2))/sqrt(C_2))/(self%parameters%heat_capacity_2*(self%parameters%beta_v + 1.0_real64))) - &
-          1.0_real64)/self%parameters%theta_ref <= max_exponent)) then
+      if (.not. (self%constants(39)*(self%constants(38) + 1.0_real64/(self%constants(25)*(self%constants(19) &
+          *(self%constants(100)*log(C_2*self%constants(14))**2 + self%constants(9)*log(C_2*self%constants(14))) + &
+          self%constants(99)*gamma**2 + tau_2 + self%parameters%beta_v*gamma*(self%constants(26)*log(C_2 &
+          *self%constants(14)) + self%constants(27))/sqrt(C_2)) + self%parameters%theta_ref)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%parameters%viscosity_activation*(self%parameters%theta_ref/(self%parameters%theta_ref + (-gamma &
-          **2*(self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref) + tau_2 - &
-          (self%parameters%beta_v + 1.0_real64)*((0.5_real64)*self%parameters%beta*self%parameters%theta_ref &
-          *log(C_2/self%parameters%natural_length_2**2) + (0.25_real64)*((0.5_real64)*self%parameters%mu_eq_const_2 + &
-          (0.5_real64)*self%parameters%mu_eq_slope_2*self%parameters%theta_ref) &
-          *log(C_2/self%parameters%natural_length_2**2)**2) + self%parameters%beta_v*gamma*(self%parameters%beta &
-          *self%parameters%theta_ref + (0.5_real64)*(self%parameters%mu_eq_const_2 + self%parameters%mu_eq_slope_2 &
-          *self%parameters%theta_ref)*log(C_2/self%parameters%natural_length_2 &
-          **2))/sqrt(C_2))/(self%parameters%heat_capacity_2*(self%parameters%beta_v + 1.0_real64))) - &
-          1.0_real64)/self%parameters%theta_ref <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
+      C_2_root_2 = sqrt(C_2)
       if (present(jacobian)) then
-        t_1 = 1.0_real64/self%parameters%mass_1
-        t_2 = p1_x - p2_x
-        t_3 = t_1*t_2
-        t_4 = p1_y - p2_y
-        t_5 = t_1*t_4
-        t_6 = p1_z - p2_z
-        t_7 = t_1*t_6
-        t_8 = 1.0_real64/self%parameters%mass_2
-        t_9 = 1.0_real64/self%parameters%heat_capacity_1
-        t_10 = log(C_1/self%parameters%natural_length_1**2)
-        t_11 = (0.5_real64)*self%parameters%mu_eq_slope_1
-        t_12 = (0.5_real64)*self%parameters%mu_eq_const_1 + t_11*self%parameters%theta_ref
-        t_13 = self%parameters%beta*self%parameters%theta_ref
-        t_14 = (0.5_real64)*t_13
-        t_15 = t_9*(-0.25_real64*t_10**2*t_12 - t_10*t_14 + tau_1) + self%parameters%theta_ref
-        t_16 = 1.0_real64/t_15
-        t_17 = 1.0_real64/C_1
-        t_18 = (0.5_real64)*t_12
-        t_19 = t_10*t_17
-        t_20 = -t_14*t_17 - t_18*t_19
-        t_21 = t_16*t_20
-        t_22 = self%parameters%beta*t_17
-        t_23 = (0.25_real64)*self%parameters%mu_eq_slope_1
-        t_24 = 2.0_real64*t_19*t_23 + 2.0_real64*t_21 + t_22
-        t_25 = q1_x*t_24
-        t_26 = self%parameters%mass_1 + self%parameters%mass_2
-        t_27 = t_16*t_26
-        t_28 = self%parameters%gravity_x*t_27 + t_25
-        t_29 = q1_y*t_24
-        t_30 = self%parameters%gravity_y*t_27 + t_29
-        t_31 = q1_z*t_24
-        t_32 = self%parameters%gravity_z*t_27 + t_31
-        t_33 = self%parameters%mu_neq_slope*self%parameters%theta_ref
-        t_34 = self%parameters%mu_neq_const + t_33
-        t_35 = self%parameters%beta_v + 1.0_real64
-        t_36 = log(C_2/self%parameters%natural_length_2**2)
-        t_37 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-        t_38 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_37
-        t_39 = (0.5_real64)*t_36
-        t_40 = 1.0_real64/sqrt(C_2)
-        t_41 = self%parameters%mu_eq_const_2 + t_37
-        t_42 = t_13 + t_39*t_41
-        t_43 = 1.0_real64/(self%parameters%heat_capacity_2*t_35)
-        t_44 = t_43*(self%parameters%beta_v*gamma*t_40*t_42 - gamma**2*t_34 - t_35*(t_13*t_39 + (0.25_real64)*t_36**2 &
-            *t_38) + tau_2) + self%parameters%theta_ref
-        t_45 = 1.0_real64/t_44
-        t_46 = 1.0_real64/C_2
-        t_47 = t_38*t_39
-        t_48 = C_2**(-1.5_real64)
-        t_49 = (0.5_real64)*t_48
-        t_50 = self%parameters%beta_v*t_49
-        t_51 = t_42*t_50
-        t_52 = (0.5_real64)*self%parameters%beta_v*gamma*t_41*t_48 - gamma*t_51 - t_35*(t_14*t_46 + t_46*t_47)
-        t_53 = t_45*t_52
-        t_54 = (0.5_real64)*self%parameters%beta
-        t_55 = (0.25_real64)*self%parameters%mu_eq_slope_2
-        t_56 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_39
-        t_57 = t_50*t_56
-        t_58 = self%parameters%beta_v*self%parameters%mu_eq_slope_2
-        t_59 = t_49*t_58
-        t_60 = gamma*t_57 - gamma*t_59 + t_35*(t_36*t_46*t_55 + t_46*t_54) + t_53
-        t_61 = 2.0_real64*t_44
-        t_62 = t_60*t_61
-        t_63 = q2_x*t_62
-        t_64 = q2_y*t_62
-        t_65 = q2_z*t_62
-        t_66 = self%parameters%beta_v*t_40*t_42 - 2.0_real64*gamma*t_34
-        t_67 = t_45*t_66
-        t_68 = 2.0_real64*self%parameters%mu_neq_slope
-        t_69 = -self%parameters%beta_v*t_40*t_56 + gamma*t_68 + t_67
-        t_70 = self%parameters%viscosity_activation*(t_45*self%parameters%theta_ref - &
-            1.0_real64)/self%parameters%theta_ref
-        t_71 = exp(-t_70)/self%parameters%viscosity_const
-        t_72 = t_44*t_71
-        t_73 = -t_16 + t_45
-        t_74 = self%parameters%conductivity*self%parameters%mass_1
-        t_75 = q1_x*t_2 + q1_y*t_4 + q1_z*t_6
-        t_76 = t_45*t_75
-        t_77 = -t_24*t_76 - t_73*t_74
-        t_78 = t_1*t_15
-        t_79 = t_44*t_78
-        t_80 = 2.0_real64*t_60
-        t_81 = self%parameters%mass_2*p1_x - p2_x*t_26
-        t_82 = self%parameters%mass_2*p1_y - p2_y*t_26
-        t_83 = self%parameters%mass_2*p1_z - p2_z*t_26
-        t_84 = q2_x*t_81 + q2_y*t_82 + q2_z*t_83
-        t_85 = exp(t_70)
-        t_86 = t_85*self%parameters%viscosity_const
-        t_87 = t_16*t_84*t_86
-        t_88 = t_80*t_87
-        t_89 = self%parameters%mass_2*t_86
-        t_90 = t_74*t_89
-        t_91 = t_73*t_90
-        t_92 = t_88 + t_91
-        t_93 = t_72*t_78*t_8
-        t_94 = -t_1
-        t_95 = t_1 + t_8
-        t_96 = t_15*(t_11*t_19 + 2.0_real64*t_21 + t_22)
-        t_97 = 1.0_real64/C_1**2
-        t_98 = t_18*t_97
-        t_99 = 1.0_real64/t_15**2
-        t_100 = t_9*t_99
-        t_101 = (0.25_real64)*self%parameters%mu_eq_slope_1*t_97 - t_10*t_23*t_97 - t_100*t_20**2 + t_16*(t_10*t_98 + &
-            t_14*t_97 - t_98) - t_54*t_97
-        t_102 = t_100*t_26
-        t_103 = self%parameters%gravity_x*t_102
-        t_104 = t_28*t_9
-        t_105 = t_104*t_20 + t_15*(2.0_real64*q1_x*t_101 - t_103*t_20)
-        t_106 = 2.0_real64*q1_x
-        t_107 = 2.0_real64*t_105
-        t_108 = t_100*t_20
-        t_109 = self%parameters%gravity_y*t_102
-        t_110 = t_30*t_9
-        t_111 = t_110*t_20 + t_15*(2.0_real64*q1_y*t_101 - t_109*t_20)
-        t_112 = 2.0_real64*q1_y
-        t_113 = 2.0_real64*q1_z
-        t_114 = self%parameters%gravity_z*t_102
-        t_115 = t_32*t_9
-        t_116 = t_115*t_20 + t_15*(2.0_real64*q1_z*t_101 - t_114*t_20)
-        t_117 = 1.0_real64/C_2**2
-        t_118 = self%parameters%beta_v*t_41
-        t_119 = C_2**(-2.5_real64)
-        t_120 = gamma*t_119
-        t_121 = t_43/t_44**2
-        t_122 = -0.75_real64*self%parameters%beta_v*t_120*t_56 + t_120*t_58 - t_121*t_52**2 + t_35*((0.25_real64) &
-            *self%parameters%mu_eq_slope_2*t_117 - t_117*t_36*t_55 - t_117*t_54) + t_45*((0.75_real64) &
-            *self%parameters%beta_v*gamma*t_119*t_42 - t_118*t_120 - t_35*(-0.5_real64*t_117*t_13 + (0.5_real64) &
-            *t_117*t_38 - t_117*t_47))
-        t_123 = q2_x*t_61
-        t_124 = t_43*t_80
-        t_125 = q2_x*t_124
-        t_126 = 2.0_real64*t_122*t_123 + 2.0_real64*t_125*t_52
-        t_127 = t_121*t_52
-        t_128 = -t_127*t_66 + t_45*(t_118*t_49 - t_51) + t_57 - t_59
-        t_129 = 2.0_real64*t_43*t_53
-        t_130 = q2_y*t_61
-        t_131 = q2_y*t_124
-        t_132 = 2.0_real64*t_122*t_130 + 2.0_real64*t_131*t_52
-        t_133 = q2_z*t_61
-        t_134 = q2_z*t_124
-        t_135 = 2.0_real64*t_122*t_133 + 2.0_real64*t_134*t_52
-        t_136 = t_43*t_71
-        t_137 = t_136*t_69
-        t_138 = t_137*self%parameters%viscosity_activation
-        t_139 = 2.0_real64*t_128*t_72 + 2.0_real64*t_137*t_52 + 2.0_real64*t_138*t_53
-        t_140 = t_136*t_67
-        t_141 = t_100*t_74
-        t_142 = t_141*t_20
-        t_143 = t_1*t_9
-        t_144 = t_143*t_44*t_77
-        t_145 = t_144*t_20 + t_79*(-2.0_real64*t_101*t_76 - t_142)
-        t_146 = t_15*t_24
-        t_147 = t_24*t_75
-        t_148 = t_43*t_77*t_78
-        t_149 = 2.0_real64*t_148*t_52 + 2.0_real64*t_79*(t_127*t_147 + t_127*t_74)
-        t_150 = t_25*t_78
-        t_151 = t_29*t_78
-        t_152 = t_31*t_78
-        t_153 = t_121*t_74
-        t_154 = t_153*t_66
-        t_155 = t_121*t_147
-        t_156 = t_80*t_84*t_86
-        t_157 = t_8*t_92
-        t_158 = t_143*t_157*t_72
-        t_159 = t_158*t_20 + t_93*(-t_108*t_156 + t_142*t_89)
-        t_160 = t_88*self%parameters%viscosity_activation
-        t_161 = t_157*t_78
-        t_162 = t_136*t_161
-        t_163 = t_162*self%parameters%viscosity_activation
-        t_164 = 2.0_real64*t_162*t_52 + 2.0_real64*t_163*t_53 + 2.0_real64*t_93*(2.0_real64*t_122*t_16*t_84*t_85 &
-            *self%parameters%viscosity_const - t_127*t_160 - t_127*t_90 - t_127*t_91 &
-            *self%parameters%viscosity_activation)
-        t_165 = t_1*t_62*t_8
-        t_166 = t_1*t_63
-        t_167 = t_1*t_64
-        t_168 = t_1*t_65
-        t_169 = -t_26*t_8
-        t_170 = t_154*t_89
-        t_171 = t_121*t_160
-        t_172 = t_73*self%parameters%viscosity_activation
-        t_173 = t_153*t_89
-        f(1) = t_3
-        f(2) = t_5
-        f(3) = t_7
-        f(4) = -p1_x*t_1 + p2_x*t_1 + p2_x*t_8
-        f(5) = -p1_y*t_1 + p2_y*t_1 + p2_y*t_8
-        f(6) = -p1_z*t_1 + p2_z*t_1 + p2_z*t_8
-        f(7) = t_15*t_28
-        f(8) = t_15*t_30
-        f(9) = t_15*t_32
-        f(10) = self%parameters%gravity_x*self%parameters%mass_2 + t_63
-        f(11) = self%parameters%gravity_y*self%parameters%mass_2 + t_64
-        f(12) = self%parameters%gravity_z*self%parameters%mass_2 + t_65
-        f(13) = t_69*t_72
-        f(14) = t_77*t_79
-        f(15) = t_92*t_93
-        jacobian(1, 7) = t_1
-        jacobian(1, 10) = t_94
-        jacobian(2, 8) = t_1
-        jacobian(2, 11) = t_94
-        jacobian(3, 9) = t_1
-        jacobian(3, 12) = t_94
-        jacobian(4, 7) = t_94
-        jacobian(4, 10) = t_95
-        jacobian(5, 8) = t_94
-        jacobian(5, 11) = t_95
-        jacobian(6, 9) = t_94
-        jacobian(6, 12) = t_95
-        jacobian(7, 1) = t_105*t_106 + t_96
-        jacobian(7, 2) = q1_y*t_107
-        jacobian(7, 3) = q1_z*t_107
-        jacobian(7, 14) = t_104 + t_15*(-t_103 - t_106*t_108)
-        jacobian(8, 1) = t_106*t_111
-        jacobian(8, 2) = t_111*t_112 + t_96
-        jacobian(8, 3) = t_111*t_113
-        jacobian(8, 14) = t_110 + t_15*(-t_108*t_112 - t_109)
-        jacobian(9, 1) = t_106*t_116
-        jacobian(9, 2) = t_112*t_116
-        jacobian(9, 3) = t_113*t_116 + t_96
-        jacobian(9, 14) = t_115 + t_15*(-t_108*t_113 - t_114)
-        jacobian(10, 4) = q2_x*t_126 + t_62
-        jacobian(10, 5) = q2_y*t_126
-        jacobian(10, 6) = q2_z*t_126
-        jacobian(10, 13) = t_123*t_128 + t_125*t_66
-        jacobian(10, 15) = -q2_x*t_129 + t_125
-        jacobian(11, 4) = q2_x*t_132
-        jacobian(11, 5) = q2_y*t_132 + t_62
-        jacobian(11, 6) = q2_z*t_132
-        jacobian(11, 13) = t_128*t_130 + t_131*t_66
-        jacobian(11, 15) = -q2_y*t_129 + t_131
-        jacobian(12, 4) = q2_x*t_135
-        jacobian(12, 5) = q2_y*t_135
-        jacobian(12, 6) = q2_z*t_135 + t_62
-        jacobian(12, 13) = t_128*t_133 + t_134*t_66
-        jacobian(12, 15) = -q2_z*t_129 + t_134
-        jacobian(13, 4) = q2_x*t_139
-        jacobian(13, 5) = q2_y*t_139
-        jacobian(13, 6) = q2_z*t_139
-        jacobian(13, 13) = t_137*t_66 + t_138*t_67 + t_72*(-t_121*t_66**2 + t_45*(-2.0_real64 &
-            *self%parameters%mu_neq_const - 2.0_real64*t_33) + t_68)
-        jacobian(13, 15) = t_137 + t_138*t_45 - t_140
-        jacobian(14, 1) = t_106*t_145 - t_146*t_3
-        jacobian(14, 2) = t_112*t_145 - t_146*t_5
-        jacobian(14, 3) = t_113*t_145 - t_146*t_7
-        jacobian(14, 4) = q2_x*t_149
-        jacobian(14, 5) = q2_y*t_149
-        jacobian(14, 6) = q2_z*t_149
-        jacobian(14, 7) = -t_150
-        jacobian(14, 8) = -t_151
-        jacobian(14, 9) = -t_152
-        jacobian(14, 10) = t_150
-        jacobian(14, 11) = t_151
-        jacobian(14, 12) = t_152
-        jacobian(14, 13) = t_148*t_66 + t_79*(t_154 + t_155*t_66)
-        jacobian(14, 14) = t_144 + t_79*(-t_141 + 2.0_real64*t_20*t_45*t_75*t_9*t_99)
-        jacobian(14, 15) = t_148 + t_79*(t_153 + t_155)
-        jacobian(15, 1) = t_106*t_159
-        jacobian(15, 2) = t_112*t_159
-        jacobian(15, 3) = t_113*t_159
-        jacobian(15, 4) = q2_x*t_164 + t_165*t_81
-        jacobian(15, 5) = q2_y*t_164 + t_165*t_82
-        jacobian(15, 6) = q2_z*t_164 + t_165*t_83
-        jacobian(15, 7) = t_166
-        jacobian(15, 8) = t_167
-        jacobian(15, 9) = t_168
-        jacobian(15, 10) = t_166*t_169
-        jacobian(15, 11) = t_167*t_169
-        jacobian(15, 12) = t_168*t_169
-        jacobian(15, 13) = t_140*t_161*self%parameters%viscosity_activation + t_162*t_66 + t_93*(2.0_real64*t_128 &
-            *t_16*t_84*t_85*self%parameters%viscosity_const - t_170*t_172 - t_170 - t_171*t_66)
-        jacobian(15, 14) = t_158 + t_93*(-t_100*t_156 + t_141*t_89)
-        jacobian(15, 15) = t_162 + t_163*t_45 + t_93*(-2.0_real64*t_127*t_87 - t_171 - t_172*t_173 - t_173)
+        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+        t_7 = 1.0_real64/C_1
+        t_8 = log(C_1*self%constants(5))
+        t_9 = self%constants(8)*(self%constants(46)*t_8 + self%constants(98)*t_8**2 + tau_1) + self%parameters%theta_ref
+        t_10 = 1.0_real64/t_9
+        t_11 = t_7*t_8
+        t_12 = self%constants(46)*t_7 + self%constants(47)*t_11
+        t_13 = t_10*t_12
+        t_14 = self%constants(17)*t_7 + self%constants(45)*t_11 + t_13
+        t_15 = 2.0_real64*t_9
+        t_16 = t_14*t_15
+        t_17 = q1_x*t_16
+        t_18 = q1_y*t_16
+        t_19 = q1_z*t_16
+        t_20 = 1.0_real64/C_2
+        t_21 = log(C_2*self%constants(14))
+        t_22 = t_20*t_21
+        t_23 = 1.0_real64/C_2_root_2
+        t_24 = self%constants(26)*t_21 + self%constants(27)
+        t_25 = self%parameters%beta_v*t_23*t_24
+        t_26 = self%constants(25)*(self%constants(19)*(self%constants(100)*t_21**2 + self%constants(9)*t_21) + &
+            self%constants(99)*gamma**2 + gamma*t_25 + tau_2) + self%parameters%theta_ref
+        t_27 = 1.0_real64/t_26
+        t_28 = 1.0_real64/C_2_root_2**3
+        t_29 = self%constants(101)*t_28
+        t_30 = self%constants(22)*t_24*t_28
+        t_31 = self%constants(19)*(self%constants(15)*t_22 + self%constants(9)*t_20) + gamma*t_29 + gamma*t_30
+        t_32 = t_27*t_31
+        t_33 = self%constants(82)*t_28
+        t_34 = self%parameters%beta + self%constants(21)*t_21
+        t_35 = self%constants(28)*t_28*t_34
+        t_36 = self%constants(16)*(self%constants(17)*t_20 + self%constants(18)*t_22) + gamma*t_33 + gamma*t_35 + t_32
+        t_37 = 2.0_real64*t_26
+        t_38 = t_36*t_37
+        t_39 = q2_x*t_38
+        t_40 = q2_y*t_38
+        t_41 = q2_z*t_38
+        t_42 = self%constants(90)*gamma + t_25
+        t_43 = t_27*t_42
+        t_44 = exp(self%constants(39)*(self%constants(38) + t_27))
+        t_45 = t_44*(self%constants(35)*t_23*t_34 + self%constants(83)*gamma + t_43)
+        t_46 = self%constants(84)*t_26
+        t_47 = 1.0_real64/C_1**2
+        t_48 = t_47*t_8
+        t_49 = t_15*(self%constants(4)*t_47 + self%constants(43)*t_12**2/t_9**2 + self%constants(45)*t_47 + &
+            self%constants(6)*t_48 + t_10*(self%constants(10)*t_48 + self%constants(47)*t_47 + self%constants(9)*t_47))
+        t_50 = q1_x*t_49
+        t_51 = self%constants(102)*t_14
+        t_52 = q1_x*t_51
+        t_53 = 2.0_real64*t_12*t_52 + 2.0_real64*t_50
+        t_54 = self%constants(86)*t_13
+        t_55 = q1_y*t_49
+        t_56 = q1_y*t_51
+        t_57 = 2.0_real64*t_12*t_56 + 2.0_real64*t_55
+        t_58 = q1_z*t_49
+        t_59 = q1_z*t_51
+        t_60 = 2.0_real64*t_12*t_59 + 2.0_real64*t_58
+        t_61 = 1.0_real64/C_2**2
+        t_62 = t_21*t_61
+        t_63 = gamma/C_2_root_2**5
+        t_64 = self%constants(36)/t_26**2
+        t_65 = self%constants(16)*(self%constants(18)*t_61 + self%constants(4)*t_61 + self%constants(54)*t_62) + &
+            self%constants(58)*t_34*t_63 + self%constants(88)*t_63 + t_27*(self%constants(19)*(self%constants(15) &
+            *t_61 + self%constants(46)*t_61 + self%constants(53)*t_62) + self%constants(56)*t_24*t_63 + &
+            self%constants(71)*t_63) + t_31**2*t_64
+        t_66 = q2_x*t_37
+        t_67 = t_65*t_66
+        t_68 = self%constants(103)*t_36
+        t_69 = q2_x*t_68
+        t_70 = 2.0_real64*t_31*t_69 + 2.0_real64*t_67
+        t_71 = t_27*(t_29 + t_30) + t_31*t_42*t_64 + t_33 + t_35
+        t_72 = t_66*t_71
+        t_73 = self%constants(76)*t_32
+        t_74 = q2_y*t_37
+        t_75 = t_65*t_74
+        t_76 = q2_y*t_68
+        t_77 = 2.0_real64*t_31*t_76 + 2.0_real64*t_75
+        t_78 = t_71*t_74
+        t_79 = q2_z*t_37
+        t_80 = t_65*t_79
+        t_81 = q2_z*t_68
+        t_82 = 2.0_real64*t_31*t_81 + 2.0_real64*t_80
+        t_83 = t_71*t_79
+        t_84 = self%constants(104)*t_45
+        t_85 = t_44*t_46
+        t_86 = self%constants(105)*t_45
+        t_87 = 2.0_real64*t_31*t_84 + 2.0_real64*t_32*t_86 + 2.0_real64*t_71*t_85
+        t_88 = self%constants(86)*t_14
+        t_89 = q1_x*t_1
+        t_90 = t_88*t_89
+        t_91 = q1_y*t_2
+        t_92 = t_88*t_91
+        t_93 = q1_z*t_3
+        t_94 = t_88*t_93
+        t_95 = 2.0_real64*self%constants(65)*t_12 - 2.0_real64*t_1*t_50 + 2.0_real64*t_12*t_90 + 2.0_real64*t_12*t_92 &
+            + 2.0_real64*t_12*t_94 - 2.0_real64*t_2*t_55 - 2.0_real64*t_3*t_58
+        t_96 = self%constants(67)*t_31
+        t_97 = t_14*t_9
+        t_98 = self%constants(106)*t_97
+        t_99 = self%constants(107)*t_97
+        t_100 = self%constants(102)*t_13
+        t_101 = self%constants(69)*t_12
+        t_102 = self%constants(76)*t_36
+        t_103 = q2_x*t_4
+        t_104 = t_102*t_103
+        t_105 = q2_y*t_5
+        t_106 = t_102*t_105
+        t_107 = q2_z*t_6
+        t_108 = t_102*t_107
+        t_109 = 2.0_real64*self%constants(70)*t_31 + 2.0_real64*t_104*t_31 + 2.0_real64*t_106*t_31 + 2.0_real64*t_108 &
+            *t_31 - 2.0_real64*t_4*t_67 - 2.0_real64*t_5*t_75 - 2.0_real64*t_6*t_80
+        t_110 = t_26*t_36
+        t_111 = self%constants(107)*t_110
+        t_112 = self%constants(108)*t_110
+        t_113 = self%constants(103)*t_32
+        f(1) = t_1
+        f(2) = t_2
+        f(3) = t_3
+        f(4) = t_4
+        f(5) = t_5
+        f(6) = t_6
+        f(7) = self%constants(11) + t_17
+        f(8) = self%constants(12) + t_18
+        f(9) = self%constants(13) + t_19
+        f(10) = self%constants(30) + t_39
+        f(11) = self%constants(31) + t_40
+        f(12) = self%constants(32) + t_41
+        f(13) = t_45*t_46
+        f(14) = self%parameters%conductivity*t_26 + self%constants(85)*t_9 - t_1*t_17 - t_18*t_2 - t_19*t_3
+        f(15) = self%parameters%conductivity*t_9 + self%constants(85)*t_26 - t_39*t_4 - t_40*t_5 - t_41*t_6
+        jacobian(1, 7) = self%constants(1)
+        jacobian(1, 10) = self%constants(2)
+        jacobian(2, 8) = self%constants(1)
+        jacobian(2, 11) = self%constants(2)
+        jacobian(3, 9) = self%constants(1)
+        jacobian(3, 12) = self%constants(2)
+        jacobian(4, 7) = self%constants(2)
+        jacobian(4, 10) = self%constants(3)
+        jacobian(5, 8) = self%constants(2)
+        jacobian(5, 11) = self%constants(3)
+        jacobian(6, 9) = self%constants(2)
+        jacobian(6, 12) = self%constants(3)
+        jacobian(7, 1) = q1_x*t_53 + t_16
+        jacobian(7, 2) = q1_y*t_53
+        jacobian(7, 3) = q1_z*t_53
+        jacobian(7, 14) = q1_x*t_54 + t_52
+        jacobian(8, 1) = q1_x*t_57
+        jacobian(8, 2) = q1_y*t_57 + t_16
+        jacobian(8, 3) = q1_z*t_57
+        jacobian(8, 14) = q1_y*t_54 + t_56
+        jacobian(9, 1) = q1_x*t_60
+        jacobian(9, 2) = q1_y*t_60
+        jacobian(9, 3) = q1_z*t_60 + t_16
+        jacobian(9, 14) = q1_z*t_54 + t_59
+        jacobian(10, 4) = q2_x*t_70 + t_38
+        jacobian(10, 5) = q2_y*t_70
+        jacobian(10, 6) = q2_z*t_70
+        jacobian(10, 13) = t_42*t_69 + t_72
+        jacobian(10, 15) = q2_x*t_73 + t_69
+        jacobian(11, 4) = q2_x*t_77
+        jacobian(11, 5) = q2_y*t_77 + t_38
+        jacobian(11, 6) = q2_z*t_77
+        jacobian(11, 13) = t_42*t_76 + t_78
+        jacobian(11, 15) = q2_y*t_73 + t_76
+        jacobian(12, 4) = q2_x*t_82
+        jacobian(12, 5) = q2_y*t_82
+        jacobian(12, 6) = q2_z*t_82 + t_38
+        jacobian(12, 13) = t_42*t_81 + t_83
+        jacobian(12, 15) = q2_z*t_73 + t_81
+        jacobian(13, 4) = q2_x*t_87
+        jacobian(13, 5) = q2_y*t_87
+        jacobian(13, 6) = q2_z*t_87
+        jacobian(13, 13) = t_42*t_84 + t_43*t_86 + t_85*(self%constants(83) + self%constants(90)*t_27 + t_42**2*t_64)
+        jacobian(13, 15) = self%constants(87)*t_43*t_44 + t_27*t_86 + t_84
+        jacobian(14, 1) = q1_x*t_95 - t_1*t_16
+        jacobian(14, 2) = q1_y*t_95 - t_16*t_2
+        jacobian(14, 3) = q1_z*t_95 - t_16*t_3
+        jacobian(14, 4) = q2_x*t_96
+        jacobian(14, 5) = q2_y*t_96
+        jacobian(14, 6) = q2_z*t_96
+        jacobian(14, 7) = q1_x*t_98
+        jacobian(14, 8) = q1_y*t_98
+        jacobian(14, 9) = q1_z*t_98
+        jacobian(14, 10) = q1_x*t_99
+        jacobian(14, 11) = q1_y*t_99
+        jacobian(14, 12) = q1_z*t_99
+        jacobian(14, 13) = self%constants(68)*t_42
+        jacobian(14, 14) = self%constants(65) + t_100*t_89 + t_100*t_91 + t_100*t_93 + t_90 + t_92 + t_94
+        jacobian(14, 15) = self%constants(68)
+        jacobian(15, 1) = q1_x*t_101
+        jacobian(15, 2) = q1_y*t_101
+        jacobian(15, 3) = q1_z*t_101
+        jacobian(15, 4) = q2_x*t_109 - t_38*t_4
+        jacobian(15, 5) = q2_y*t_109 - t_38*t_5
+        jacobian(15, 6) = q2_z*t_109 - t_38*t_6
+        jacobian(15, 7) = q2_x*t_111
+        jacobian(15, 8) = q2_y*t_111
+        jacobian(15, 9) = q2_z*t_111
+        jacobian(15, 10) = q2_x*t_112
+        jacobian(15, 11) = q2_y*t_112
+        jacobian(15, 12) = q2_z*t_112
+        jacobian(15, 13) = self%constants(70)*t_42 + t_104*t_42 + t_106*t_42 + t_108*t_42 - t_4*t_72 - t_5*t_78 - t_6 &
+            *t_83
+        jacobian(15, 14) = self%constants(80)
+        jacobian(15, 15) = self%constants(70) + t_103*t_113 + t_104 + t_105*t_113 + t_106 + t_107*t_113 + t_108
       else
-        t_1 = 1.0_real64/self%parameters%mass_1
-        t_2 = p1_x - p2_x
-        t_3 = p1_y - p2_y
-        t_4 = p1_z - p2_z
-        t_5 = 1.0_real64/self%parameters%mass_2
-        t_6 = log(C_1/self%parameters%natural_length_1**2)
-        t_7 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*self%parameters%mu_eq_slope_1 &
-            *self%parameters%theta_ref
-        t_8 = self%parameters%beta*self%parameters%theta_ref
-        t_9 = (0.5_real64)*t_8
-        t_10 = self%parameters%theta_ref + (-0.25_real64*t_6**2*t_7 - t_6*t_9 + tau_1)/self%parameters%heat_capacity_1
-        t_11 = 1.0_real64/t_10
-        t_12 = 1.0_real64/C_1
-        t_13 = t_12*t_6
-        t_14 = (0.5_real64)*self%parameters%beta
-        t_15 = (0.5_real64)*self%parameters%mu_eq_slope_1*t_13 + 2.0_real64*t_11*(-t_12*t_9 - 0.5_real64*t_13*t_7) + &
-            2.0_real64*t_12*t_14
-        t_16 = self%parameters%mass_1 + self%parameters%mass_2
-        t_17 = t_11*t_16
-        t_18 = self%parameters%beta_v + 1.0_real64
-        t_19 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
-        t_20 = log(C_2/self%parameters%natural_length_2**2)
-        t_21 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-        t_22 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_21
-        t_23 = (0.5_real64)*t_20
-        t_24 = 1.0_real64/sqrt(C_2)
-        t_25 = self%parameters%mu_eq_const_2 + t_21
-        t_26 = t_23*t_25 + t_8
-        t_27 = self%parameters%theta_ref + (self%parameters%beta_v*gamma*t_24*t_26 - gamma**2*t_19 - t_18 &
-            *((0.25_real64)*t_20**2*t_22 + t_23*t_8) + tau_2)/(self%parameters%heat_capacity_2*t_18)
-        t_28 = 1.0_real64/t_27
-        t_29 = 1.0_real64/C_2
-        t_30 = C_2**(-1.5_real64)
-        t_31 = (0.5_real64)*self%parameters%beta_v*gamma*t_30
-        t_32 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_23
-        t_33 = -2.0_real64*self%parameters%mu_eq_slope_2*t_31 + 2.0_real64*t_18*((0.25_real64) &
-            *self%parameters%mu_eq_slope_2*t_20*t_29 + t_14*t_29) + 2.0_real64*t_28*((0.5_real64) &
-            *self%parameters%beta_v*gamma*t_25*t_30 - t_18*(t_22*t_23*t_29 + t_29*t_9) - t_26*t_31) + 2.0_real64*t_31 &
-            *t_32
-        t_34 = t_27*t_33
-        t_35 = 2.0_real64*gamma
-        t_36 = self%parameters%viscosity_activation*(t_28*self%parameters%theta_ref - &
-            1.0_real64)/self%parameters%theta_ref
-        t_37 = t_27*exp(-t_36)/self%parameters%viscosity_const
-        t_38 = -t_11 + t_28
-        t_39 = self%parameters%conductivity*self%parameters%mass_1
-        t_40 = t_1*t_10
-        t_41 = self%parameters%viscosity_const*exp(t_36)
-        f(1) = t_1*t_2
-        f(2) = t_1*t_3
-        f(3) = t_1*t_4
-        f(4) = -p1_x*t_1 + p2_x*t_1 + p2_x*t_5
-        f(5) = -p1_y*t_1 + p2_y*t_1 + p2_y*t_5
-        f(6) = -p1_z*t_1 + p2_z*t_1 + p2_z*t_5
-        f(7) = t_10*(self%parameters%gravity_x*t_17 + q1_x*t_15)
-        f(8) = t_10*(self%parameters%gravity_y*t_17 + q1_y*t_15)
-        f(9) = t_10*(self%parameters%gravity_z*t_17 + q1_z*t_15)
-        f(10) = self%parameters%gravity_x*self%parameters%mass_2 + q2_x*t_34
-        f(11) = self%parameters%gravity_y*self%parameters%mass_2 + q2_y*t_34
-        f(12) = self%parameters%gravity_z*self%parameters%mass_2 + q2_z*t_34
-        f(13) = t_37*(-self%parameters%beta_v*t_24*t_32 + self%parameters%mu_neq_slope*t_35 + t_28 &
-            *(self%parameters%beta_v*t_24*t_26 - t_19*t_35))
-        f(14) = t_27*t_40*(-t_15*t_28*(q1_x*t_2 + q1_y*t_3 + q1_z*t_4) - t_38*t_39)
-        f(15) = t_37*t_40*t_5*(self%parameters%mass_2*t_38*t_39*t_41 + t_11*t_33*t_41*(q2_x*(self%parameters%mass_2 &
-            *p1_x - p2_x*t_16) + q2_y*(self%parameters%mass_2*p1_y - p2_y*t_16) + q2_z*(self%parameters%mass_2*p1_z - &
-            p2_z*t_16)))
+        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+        t_7 = log(C_1*self%constants(5))
+        t_8 = self%constants(8)*(self%constants(46)*t_7 + self%constants(98)*t_7**2 + tau_1) + self%parameters%theta_ref
+        t_9 = 1.0_real64/C_1
+        t_10 = t_7*t_9
+        t_11 = 2.0_real64*t_8*(self%constants(17)*t_9 + self%constants(45)*t_10 + (self%constants(46)*t_9 + &
+            self%constants(47)*t_10)/t_8)
+        t_12 = q1_x*t_11
+        t_13 = q1_y*t_11
+        t_14 = q1_z*t_11
+        t_15 = log(C_2*self%constants(14))
+        t_16 = 1.0_real64/C_2_root_2
+        t_17 = self%constants(26)*t_15 + self%constants(27)
+        t_18 = self%parameters%beta_v*t_16*t_17
+        t_19 = self%constants(25)*(self%constants(19)*(self%constants(100)*t_15**2 + self%constants(9)*t_15) + &
+            self%constants(99)*gamma**2 + gamma*t_18 + tau_2) + self%parameters%theta_ref
+        t_20 = 1.0_real64/C_2
+        t_21 = t_15*t_20
+        t_22 = 1.0_real64/t_19
+        t_23 = gamma/C_2_root_2**3
+        t_24 = self%parameters%beta + self%constants(21)*t_15
+        t_25 = 2.0_real64*t_19*(self%constants(16)*(self%constants(17)*t_20 + self%constants(18)*t_21) + &
+            self%constants(28)*t_23*t_24 + self%constants(82)*t_23 + t_22*(self%constants(101)*t_23 + &
+            self%constants(19)*(self%constants(15)*t_21 + self%constants(9)*t_20) + self%constants(22)*t_17*t_23))
+        t_26 = q2_x*t_25
+        t_27 = q2_y*t_25
+        t_28 = q2_z*t_25
+        f(1) = t_1
+        f(2) = t_2
+        f(3) = t_3
+        f(4) = t_4
+        f(5) = t_5
+        f(6) = t_6
+        f(7) = self%constants(11) + t_12
+        f(8) = self%constants(12) + t_13
+        f(9) = self%constants(13) + t_14
+        f(10) = self%constants(30) + t_26
+        f(11) = self%constants(31) + t_27
+        f(12) = self%constants(32) + t_28
+        f(13) = self%constants(84)*t_19*(self%constants(35)*t_16*t_24 + self%constants(83)*gamma + t_22 &
+            *(self%constants(90)*gamma + t_18))*exp(self%constants(39)*(self%constants(38) + t_22))
+        f(14) = self%parameters%conductivity*t_19 + self%constants(85)*t_8 - t_1*t_12 - t_13*t_2 - t_14*t_3
+        f(15) = self%parameters%conductivity*t_8 + self%constants(85)*t_19 - t_26*t_4 - t_27*t_5 - t_28*t_6
       end if
     end select
-    if (.not. all(abs(f) <= huge(1.0_real64))) stat = domain_overflow
+    ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
+        f(14) + f(15)) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine continuous_field
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
