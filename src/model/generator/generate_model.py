@@ -15,6 +15,7 @@ changes no byte."""
 import argparse
 import importlib.util
 import sys
+from random import Random
 from pathlib import Path
 
 import sympy as sp
@@ -261,7 +262,7 @@ def thermodynamics(part):
 def check_inverse(part, level, inverse, composed):
     """That `inverse` (theta at the level `level` of s or u) inverts: composed, s or u at theta = inverse, equals
     the level at random points of the invariants and parameters (numerically: simplify folds too slowly)."""
-    random = __import__("random").Random(42)
+    random = Random(42)
     symbols = sorted(composed.free_symbols - {level}, key=lambda x: x.name)
     for _ in range(3):
         point = {x: random.uniform(0.5, 1.5) for x in symbols}
@@ -372,8 +373,8 @@ class SymbolicModel:
         return mt
 
     def field(self, simplified=True):
-        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters; not simplified:
-        as the product gives it, K0's temperatures Theta_a kept as their symbols."""
+        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters; with
+        simplified=False as the product gives it, K0's temperatures Theta_a kept as their symbols."""
         grad_e = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
         grad_s = sp.zeros(len(self.state), 1)
         for a in range(len(self.d.subsystems)):
