@@ -87,3 +87,68 @@ def test_the_template_generates(tmp_path):
     assert sorted(path.name for path in tmp_path.glob("*.f90")) == ["trial_model.f90", "trial_potential.f90",
                                                                     "trial_scene.f90"]
     assert "module trial_model" in (tmp_path / "trial_model.f90").read_text()
+
+
+def pendulum_variant(tmp_path, old, new):
+    """The double pendulum's description with `old` replaced by `new`, in a folder of its own."""
+    text = (ROOT / "src" / "model" / "pendulum" / "description.py").read_text()
+    assert old in text
+    folder = tmp_path / "variant"
+    folder.mkdir()
+    (folder / "description.py").write_text(text.replace(old, new))
+    return folder / "description.py"
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ('"internal_energy": theta_ref + (ENERGY_LEVEL - e)/cap}', '"internal_energy": theta_ref + (ENERGY_LEVEL + e)/cap}',
+     r"the inverse theta = .* does not invert"),
+    ("spring.energy_and_entropy(e + cap*(theta - theta_ref),", "spring.energy_and_entropy(e + cap*(theta - theta_ref)**2,",
+     r"derive from no free energy"),
+])
+def test_the_generator_refuses_inconsistent_thermodynamics(tmp_path, old, new, words):
+    """energy_and_entropy's (u, s) must derive from one free energy and its inverses must invert."""
+    description = pendulum_variant(tmp_path, old, new)
+    result = generate(description, "--output", str(tmp_path / "out"))
+    assert result.returncode == 2
+    assert str(description) in result.stderr and re.search(words, result.stderr), result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_differences_are_free_of_cancellation():
+    """generate_model.difference's f(b) - f(a) for the shapes the springs' potentials are made of (log, powers,
+    1/sqrt, exp, products, a symbolic exponent), in double precision, against the difference of the two values
+    in 50 digits: within 1e-13 of it where the plain difference of two doubles loses 1e-9 or more."""
+    import math
+
+    import mpmath
+    import sympy as sp
+
+    sys.path.insert(0, str(GENERATOR.parent))
+    from generate_model import difference
+
+    c, g, t = (sp.Symbol(name, real=True) for name in ("C", "gamma", "tau"))
+    stretch = sp.log(c/sp.Rational(9, 4))/2
+    shapes = [230*stretch**2/2 + sp.Rational(59, 10)*stretch,
+              sp.Rational(16, 10)*stretch**2 + g**2 - sp.Rational(6, 10)*g*(stretch + sp.Rational(1, 50))/sp.sqrt(c),
+              300*sp.exp((t - stretch**2)/13) + c**sp.Rational(3, 2),
+              g*c**(t/7), 1/(c*g)]
+    symbols = (c, g, t)
+    at_a = {x: sp.Symbol(f"{x.name}_a", real=True) for x in symbols}
+    at_b = {x: sp.Symbol(f"{x.name}_b", real=True) for x in symbols}
+    delta = {x: sp.Symbol(f"d_{x.name}", real=True) for x in symbols}
+    a = {c: 4.7, g: 0.31, t: 0.37}
+    b = {c: 4.7 + 3e-9, g: 0.31 - 2e-9, t: 0.37 + 5e-9}
+    mpmath.mp.dps = 50
+    naive_losses = 0
+    for shape in shapes:
+        formula = difference(shape, at_a, at_b, delta)
+        arguments = [at_a[x] for x in symbols] + [at_b[x] for x in symbols] + [delta[x] for x in symbols]
+        evaluate = sp.lambdify(arguments, formula, modules=[{"log1p": math.log1p, "expm1": math.expm1}, "math"])
+        got = evaluate(*[a[x] for x in symbols], *[b[x] for x in symbols], *[b[x] - a[x] for x in symbols])
+        exact_value = sp.lambdify(symbols, shape, "mpmath")
+        exact = exact_value(*[mpmath.mpf(b[x]) for x in symbols]) - exact_value(*[mpmath.mpf(a[x]) for x in symbols])
+        plain = sp.lambdify(symbols, shape, "math")
+        naive = plain(*[b[x] for x in symbols]) - plain(*[a[x] for x in symbols])
+        assert abs(got - exact) <= 1e-13*abs(exact), f"{shape}: {got} against {exact}"
+        naive_losses += abs(naive - exact) >= 1e-9*abs(exact)
+    assert naive_losses >= 3, "the plain difference loses digits on these shapes: else the test sees nothing"

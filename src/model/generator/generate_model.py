@@ -15,6 +15,7 @@ changes no byte."""
 import argparse
 import importlib.util
 import sys
+from random import Random
 from pathlib import Path
 
 import sympy as sp
@@ -35,11 +36,15 @@ class Real64Printer(FCodePrinter):
     components of self%parameters."""
 
     def __init__(self):
-        super().__init__({"standard": 2008, "source_format": "free", "name_mangling": False})
+        super().__init__({"standard": 2008, "source_format": "free", "name_mangling": False,
+                          "user_functions": {"log1p": "log1p", "expm1": "expm1"}})
         self.parameter_names = set()
+        self.constant_names = {}           # a folded constant's symbol name -> its index in self%constants
         self.owner = "self%parameters"
 
     def _print_Symbol(self, expr):
+        if expr.name in self.constant_names:
+            return f"self%constants({self.constant_names[expr.name]})"
         if expr.name in self.parameter_names:
             return f"{self.owner}%{expr.name}"
         return expr.name
@@ -77,8 +82,8 @@ def fortran(expr):
 
 
 def wrap(line, indent):
-    """`line` at `indent` levels, continued with & before LINE_LENGTH at a blank, an operator or a
-    comma outside character literals."""
+    """`line` at `indent` levels, continued with & before LINE_LENGTH at a blank, an operator (never inside
+    `**`) or a comma outside character literals."""
     lead = INDENT*indent
     text, lines = lead + line, []
     while len(text) > LINE_LENGTH:
@@ -89,7 +94,7 @@ def wrap(line, indent):
                     quote = None
             elif character in "'\"":
                 quote = character
-            elif position > len(lead) + 20 and character in " *+-,":
+            elif position > len(lead) + 20 and character in " *+-," and text[position - 1:position + 1] != "**":
                 cut = position + (character == ",")
         if cut == 0:
             break
@@ -130,6 +135,52 @@ def lines_of(*parts):
 def number(value):
     """A real64 literal of a Python float."""
     return f"{float(value)!r}_real64"
+
+
+# ---------------------------------------------------------------------------------- differences
+
+LOG1P, EXPM1 = sp.Function("log1p"), sp.Function("expm1")   # the C library's (src/util/special_functions)
+
+
+def difference(expr, at_a, at_b, delta):
+    """expr(b) - expr(a) without cancellation, for an expression of the symbols that at_a, at_b and delta map
+    to their values at a and b and to b - a: sums term by term, products by D(f g) = D(f) g_b + f_a D(g),
+    integer powers by their factored differences, square roots by D(f)/(sqrt(f_a) + sqrt(f_b)),
+    log by log1p(D(f)/f_a), exp by exp(f_a) expm1(D(f)), other powers as exp(e log f) (what
+    src/model/pendulum/thermo_variable.f90 did by hand). The discrete gradients divide this difference by
+    |b - a|: a plain f(b) - f(a) would hand them the rounding of two values of size |f|."""
+    expr = sp.sympify(expr)
+    if not expr.free_symbols & set(delta):
+        return sp.Integer(0)
+    if expr in delta:
+        return delta[expr]
+    a, b = expr.subs(at_a, simultaneous=True), expr.subs(at_b, simultaneous=True)
+    if expr.is_Add:
+        return sp.Add(*(difference(term, at_a, at_b, delta) for term in expr.args))
+    if expr.is_Mul:
+        first, rest = expr.args[0], sp.Mul(*expr.args[1:])
+        return (difference(first, at_a, at_b, delta)*rest.subs(at_b, simultaneous=True)
+                + first.subs(at_a, simultaneous=True)*difference(rest, at_a, at_b, delta))
+    if isinstance(expr, sp.log):
+        return LOG1P(difference(expr.args[0], at_a, at_b, delta)/expr.args[0].subs(at_a, simultaneous=True))
+    if isinstance(expr, sp.exp):
+        return a*EXPM1(difference(expr.args[0], at_a, at_b, delta))
+    if expr.is_Pow:
+        base, exponent = expr.args
+        if exponent.free_symbols & set(delta):
+            return difference(sp.exp(exponent*sp.log(base), evaluate=False), at_a, at_b, delta)
+        d_base = difference(base, at_a, at_b, delta)
+        base_a, base_b = base.subs(at_a, simultaneous=True), base.subs(at_b, simultaneous=True)
+        if exponent.is_Integer and exponent > 0:
+            return d_base*sp.Add(*(base_a**k*base_b**(exponent - 1 - k) for k in range(int(exponent))))
+        if exponent.is_Integer:
+            return -difference(base**-exponent, at_a, at_b, delta)*a*b
+        if exponent == sp.S.Half:
+            return d_base/(sp.sqrt(base_a) + sp.sqrt(base_b))
+        if exponent == -sp.S.Half:
+            return -d_base*a*b/(sp.sqrt(base_a) + sp.sqrt(base_b))
+        return a*EXPM1(exponent*LOG1P(d_base/base_a))
+    raise DescriptionError(f"no cancellation-free difference of {expr} (a function the generator does not know)")
 
 
 # ---------------------------------------------------------------------------------- the symbolic model
@@ -184,9 +235,42 @@ def thermodynamics(part):
                             s_of_t.subs(t, theta))
         forms["internal_energy"] = (tau, sp.simplify(s_of_t.subs(t, t_of_u)).subs(energy, tau),
                                     t_of_u.subs(energy, tau), u_of_t.subs(t, theta))
+    elif part.energy_and_entropy_of_temperature is not None:
+        t = part.temperature_symbol
+        u_of_t, s_of_t = part.energy_and_entropy_of_temperature
+        if sp.simplify(sp.diff(u_of_t, t) - t*sp.diff(s_of_t, t)) != 0:
+            raise DescriptionError(f"subsystem {part.name}: du/dtheta != theta ds/dtheta: (u, s) derive from no free "
+                                   "energy u - theta s")
+        missing = {"entropy", "internal_energy"} - set(part.inverses)
+        if missing:
+            raise DescriptionError(f"subsystem {part.name}: energy_and_entropy needs the inverses {sorted(missing)}")
+        t_of_s, t_of_u = part.inverses["entropy"], part.inverses["internal_energy"]
+        for level, inverse, value in ((entropy, t_of_s, s_of_t), (energy, t_of_u, u_of_t)):
+            check_inverse(part, level, inverse, value.subs(t, inverse))
+        forms["temperature"] = (u_of_t.subs(t, tau), s_of_t.subs(t, tau), tau, theta)
+        forms["entropy"] = (u_of_t.subs(t, t_of_s).subs(entropy, tau), tau, t_of_s.subs(entropy, tau),
+                            s_of_t.subs(t, theta))
+        forms["internal_energy"] = (tau, s_of_t.subs(t, t_of_u).subs(energy, tau), t_of_u.subs(energy, tau),
+                                    u_of_t.subs(t, theta))
+        return {variable: forms[variable] for variable in THERMO_VARIABLES}
     else:
-        raise DescriptionError(f"subsystem {part.name}: neither internal_energy(U, s) nor free_energy(psi, theta)")
+        raise DescriptionError(f"subsystem {part.name}: neither internal_energy(U, s), free_energy(psi, theta) nor "
+                               "energy_and_entropy(u, s, theta)")
     return {variable: tuple(logs_of_powers(sp.sympify(e)) for e in forms[variable]) for variable in THERMO_VARIABLES}
+
+
+def check_inverse(part, level, inverse, composed):
+    """That `inverse` (theta at the level `level` of s or u) inverts: composed, s or u at theta = inverse, equals
+    the level at random points of the invariants and parameters (numerically: simplify folds too slowly)."""
+    random = Random(42)
+    symbols = sorted(composed.free_symbols - {level}, key=lambda x: x.name)
+    for _ in range(3):
+        point = {x: random.uniform(0.5, 1.5) for x in symbols}
+        value = random.uniform(-0.1, 0.1) if level == ENTROPY_LEVEL else random.uniform(0.9, 1.1)
+        got = complex(composed.subs(point).subs(level, value).evalf(30))
+        if abs(got - value) > 1e-20*(1 + abs(value)):
+            raise DescriptionError(f"subsystem {part.name}: the inverse theta = {inverse} does not invert at {point}: "
+                                   f"{got} != {value}")
 
 
 def logs_of_powers(expr):
@@ -255,13 +339,13 @@ class SymbolicModel:
         return sp.sympify(expr).subs({part.temperature: self.temperature_of_partials(a)
                                       for a, part in enumerate(self.d.subsystems)})
 
-    def matrix(self, entries):
+    def matrix(self, entries, temperatures=True):
         n = len(self.state)
         matrix = sp.zeros(n, n)
         for (row, column), entry in entries.items():
             if row not in self.index or column not in self.index:
                 raise DescriptionError(f"matrix entry ({row}, {column}): not a column of z")
-            matrix[self.index[row], self.index[column]] = self.with_temperatures(entry)
+            matrix[self.index[row], self.index[column]] = self.with_temperatures(entry) if temperatures else entry
         return matrix
 
     def invariant_gradient(self, a, potential):
@@ -288,17 +372,18 @@ class SymbolicModel:
             mt[column, column] = 1/d_tau
         return mt
 
-    def field(self):
-        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters."""
+    def field(self, simplified=True):
+        """f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) in z, partials and parameters; with
+        simplified=False as the product gives it, K0's temperatures Theta_a kept as their symbols."""
         grad_e = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
         grad_s = sp.zeros(len(self.state), 1)
         for a in range(len(self.d.subsystems)):
             grad_e += self.invariant_gradient(a, "U")
             grad_s += self.invariant_gradient(a, "S")
         mt_s, mt_e = self.mielke_transpose("S"), self.mielke_transpose("U")
-        l0, k0 = self.matrix(self.d.poisson_entries), self.matrix(self.d.friction_entries)
+        l0, k0 = self.matrix(self.d.poisson_entries), self.matrix(self.d.friction_entries, temperatures=simplified)
         f = mt_s.T*(l0*(mt_s*grad_e)) + mt_e.T*(k0*(mt_e*grad_s))
-        return [sp.simplify(entry) for entry in f]
+        return [sp.simplify(entry) for entry in f] if simplified else list(f)
 
 
 # ---------------------------------------------------------------------------------- code pieces
@@ -387,8 +472,9 @@ def potential_module(symbolic, source):
     name = d.name
     tau = sp.Symbol("tau", real=True)
     codes, temporaries = {"domain_nonpositive_temperature"}, [0]
-    evaluate_cases, temperature_cases, inverse_cases = [], [], []
-    locals_ = {"evaluate": set(), "temperature": set(), "inverse": set()}
+    evaluate_cases, temperature_cases, inverse_cases, difference_cases = [], [], [], []
+    locals_ = {"evaluate": set(), "temperature": set(), "inverse": set(), "difference": set()}
+    difference_temporaries = [0]
     locals_order = []
     for a, part in enumerate(d.subsystems):
         invariants = [inv.symbol for inv in part.invariants] + [tau]
@@ -396,7 +482,7 @@ def potential_module(symbolic, source):
         positive = [inv.symbol for inv in part.invariants if inv.positive]
         codes |= {"domain_nonpositive_length"} if positive else set()
         locals_order += [x for x in names if x not in locals_order]
-        evaluate_body, temperature_body, inverse_body = [], [], []
+        evaluate_body, temperature_body, inverse_body, difference_body = [], [], [], []
         for variable in THERMO_VARIABLES:
             u, s, temperature, tau_of_theta = symbolic.forms[a][variable]
             values = [u, s]
@@ -437,9 +523,31 @@ def potential_module(symbolic, source):
             codes |= {"domain_overflow"} if has_exp else set()
             inverse_body.append((variable, unpack(used, names[:-1], "mechanical", 4) + check +
                                  [wrap(f"tau = {fortran(tau_of_theta)}", 4)]))
+            if d.differences:
+                at_a = {x: sp.Symbol(f"{x.name}_a", real=True) for x in invariants}
+                at_b = {x: sp.Symbol(f"{x.name}_b", real=True) for x in invariants}
+                delta = {x: sp.Symbol(f"d_{x.name}", real=True) for x in invariants}
+                differences = [difference(value, at_a, at_b, delta) for value in values]
+                used = set().union(*(e.free_symbols for e in differences)) | set(positive)
+                ends = [[e.subs(at, simultaneous=True) for e in values] for at in (at_a, at_b)]
+                check = []
+                for at, end in zip((at_a, at_b), ends):
+                    lines, _, _ = guards(end, 4, [at[x] for x in positive])
+                    check += lines
+                    used |= set().union(*(e.free_symbols for e in end)) | {at[x] for x in positive}
+                names_here = [n for x in invariants for n in (at_a[x].name, at_b[x].name, delta[x].name)]
+                locals_["difference"] |= {x.name for x in used if x.name in names_here}
+                locals_order += [n for n in names_here if n not in locals_order]
+                body = [INDENT*4 + f"{at_a[x].name} = a({i + 1})" for i, x in enumerate(invariants)]
+                body += [INDENT*4 + f"{at_b[x].name} = b({i + 1})" for i, x in enumerate(invariants)]
+                body += [INDENT*4 + f"{delta[x].name} = b({i + 1}) - a({i + 1})" for i, x in enumerate(invariants)]
+                body = [line for line in body if line.split()[0] in {x.name for x in used}]
+                body += check + assignments(["delta(1)", "delta(2)"], differences, 4, difference_temporaries)
+                difference_body.append((variable, body))
         evaluate_cases.append((part, evaluate_body))
         temperature_cases.append((part, temperature_body))
         inverse_cases.append((part, inverse_body))
+        difference_cases.append((part, difference_body))
 
     def local_declaration(routine, extra=()):
         return declare([x for x in locals_order if x in locals_[routine]] + list(extra), 2)
@@ -449,6 +557,20 @@ def potential_module(symbolic, source):
                        for p in d.parameters]
     parameter_type.append(f"  end type {name}_parameters")
     temps = [f"t_{i}" for i in range(1, temporaries[0] + 1)]
+    difference_text = "" if not d.differences else f"""
+  !> f(b) - f(a) without cancellation (generate_model.py's `difference`: log1p, expm1, factored powers).
+  pure subroutine difference(self, a, b, delta, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: delta(:)
+    integer, intent(out) :: stat
+{lines_of(local_declaration("difference", [f"t_{i}" for i in range(1, difference_temporaries[0] + 1)]))}
+
+    delta = 0.0_real64
+    stat = failure_none
+{lines_of(subsystem_cases(difference_cases, 2))}
+  end subroutine difference
+"""
     text = f"""{header(d, source, f"(U_a, S_a) of the subsystems of {d.title} ({d.reference}):")}
 !> values, gradients and Hessians in the invariants in each thermodynamic variable (entropy, temperature,
 !> internal energy), the temperature of eq. (2) and tau from a temperature, in closed form.
@@ -456,7 +578,8 @@ module {name}_potential
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions
   use failures, only: failure_none, {", ".join(sorted(codes))}
-  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy{
+    chr(10) + "  use special_functions, only: log1p, expm1" if d.differences else ""}
   implicit none (type, external)
   private
   public :: {name}_parameters, {name}_potentials
@@ -471,7 +594,7 @@ module {name}_potential
   contains
     procedure :: evaluate
     procedure :: temperature
-    procedure :: tau_from_temperature
+    procedure :: tau_from_temperature{chr(10) + "    procedure :: difference" if d.differences else ""}
   end type {name}_potentials
 
   ! Largest argument of exp that stays finite, with a margin.
@@ -526,7 +649,7 @@ contains
     end if
 {lines_of(subsystem_cases(inverse_cases, 2))}
   end subroutine tau_from_temperature
-
+{difference_text}
 end module {name}_potential
 """
     return tidy(text)
@@ -556,6 +679,188 @@ def state_unpack(symbolic, used, indent):
 def local_names(symbolic, used):
     names = {symbol.name for symbol in used}
     return [z.name for z in symbolic.state if z.name in names] + [s.name for s in symbolic.partials if s.name in names]
+
+
+class ParameterConstants:
+    """The subexpressions of the parameters alone, folded out of expressions into constants that the model's
+    maker computes once (self%constants): 1/m1, (1 + beta^v) c_2, -eta_theta/theta_ref, ... cost nothing per
+    evaluation then."""
+
+    def __init__(self, parameters):
+        self.parameters, self.values = set(parameters), {}
+
+    def constant(self, expr):
+        if expr not in self.values:
+            self.values[expr] = sp.Symbol(f"constant_{len(self.values) + 1}", real=True)
+            PRINTER.constant_names[self.values[expr].name] = len(self.values)
+        return self.values[expr]
+
+    def fold(self, expr):
+        """expr with its largest subexpressions of parameters alone (not a bare parameter or number) as constants."""
+        if expr.is_Atom or not expr.free_symbols:
+            return expr
+        if expr.free_symbols <= self.parameters:
+            return self.constant(expr)
+        if expr.is_Add or expr.is_Mul:
+            fixed = [arg for arg in expr.args if arg.free_symbols <= self.parameters]
+            rest = [self.fold(arg) for arg in expr.args if not arg.free_symbols <= self.parameters]
+            if fixed:
+                part = expr.func(*fixed)
+                rest.insert(0, part if part.is_Atom or not part.free_symbols else self.constant(part))
+            return expr.func(*rest)
+        return expr.func(*(self.fold(arg) for arg in expr.args))
+
+
+def continuous_field_procedure(symbolic, constants):
+    """continuous_field (model_interface) composed in z: the field with the exact partials of each variable's
+    potentials written in, its invariants as locals, its Jacobian by the chain rule through them; one
+    straight-line body per thermodynamic variable, common subexpressions shared (what the relaxed schemes
+    evaluate at every stage, issue 42 item 5)."""
+    d = symbolic.d
+    n = len(symbolic.state)
+    field = symbolic.field(simplified=False)
+    tau = sp.Symbol("tau", real=True)
+    invariant_values, positive, replace = [], [], {}   # (local symbol, expression in z); their positivity
+    for a, part in enumerate(d.subsystems):
+        replace[a] = {tau: symbolic.tau_symbols[a]}
+        for inv in part.invariants:
+            if inv.expression in symbolic.index:
+                replace[a][inv.symbol] = inv.expression
+                continue
+            local = sp.Symbol(f"{inv.symbol.name}_{part.name}", real=True)
+            replace[a][inv.symbol] = local
+            invariant_values.append((local, inv.expression))
+            if inv.positive:
+                positive.append(local)
+    chain = {local: expression for local, expression in invariant_values}
+    cases, root_names = [], set()
+    temporaries = [0]
+    for variable in THERMO_VARIABLES:
+        exact = {}
+        for a, part in enumerate(d.subsystems):
+            u, s_, temperature, _ = symbolic.forms[a][variable]
+            exact[part.temperature] = temperature.subs(replace[a], simultaneous=True)   # Theta_a in closed form
+            for name in symbolic.invariant_names[a]:
+                symbol = tau if name == "tau" else next(inv.symbol for inv in part.invariants if inv.symbol.name == name)
+                for potential, value in (("U", u), ("S", s_)):
+                    exact[part.partial(potential, name)] = sp.diff(value, symbol).subs(replace[a], simultaneous=True)
+        f = [sp.sympify(entry).subs(exact, simultaneous=True) for entry in field]
+        jacobian = []
+        for i in range(n):
+            for j, z in enumerate(symbolic.state):
+                entry = sp.diff(f[i], z) + sum((sp.diff(f[i], local)*sp.diff(expression, z)
+                                                for local, expression in chain.items()), sp.Integer(0))
+                if entry != 0:
+                    jacobian.append((i, j, entry))
+        f = [constants.fold(e) for e in f]
+        jacobian = [(i, j, constants.fold(e)) for i, j, e in jacobian]
+        check, _, _ = guards(f, 3, positive)
+        roots, (f, jacobian_values) = shared_roots(positive, f, [e for *_, e in jacobian])
+        jacobian = [(i, j, e) for (i, j, _), e in zip(jacobian, jacobian_values)]
+        root_names |= {root.name for root, _ in roots}
+        body = check + [wrap(f"{root.name} = {fortran(power)}", 3) for root, power in roots]
+        body += [INDENT*3 + "if (present(jacobian)) then"]
+        body += assignments([f"f({i + 1})" for i in range(n)] + [f"jacobian({i + 1}, {j + 1})" for i, j, _ in jacobian],
+                            f + [e for *_, e in jacobian], 4, temporaries)
+        body += [INDENT*3 + "else"] + assignments([f"f({i + 1})" for i in range(n)], f, 4, temporaries)
+        body += [INDENT*3 + "end if"]
+        cases.append((variable, body))
+    used = {symbol.name for symbol in symbolic.state}
+    unpack_lines = [INDENT*2 + f"{z.name} = z({i + 1})" for i, z in enumerate(symbolic.state)]
+    unpack_lines += [wrap(f"{local.name} = {fortran(expression)}", 2) for local, expression in invariant_values]
+    select = [INDENT*2 + "select case (self%thermo_variable)"]
+    for variable, body in cases:
+        select += [INDENT*2 + f"case (tau_{variable})"] + body
+    select += [INDENT*2 + "end select"]
+    declarations = declare(sorted(used, key=[z.name for z in symbolic.state].index)
+                           + [local.name for local, _ in invariant_values] + sorted(root_names)
+                           + [f"t_{i}" for i in range(1, temporaries[0] + 1)], 2)
+    return f"""
+  !> f(z) with the exact partials written in (model_interface's continuous_field, composed), optionally df/dz;
+  !> stat a domain code outside the potentials' domain.
+  pure subroutine continuous_field(self, z, f, stat, jacobian)
+    class({d.name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: jacobian(:, :)
+{declarations}
+
+    stat = failure_none
+    if (present(jacobian)) jacobian = 0.0_real64
+{lines_of(unpack_lines)}
+{lines_of(select)}
+    ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
+{wrap("if (.not. (abs(" + " + ".join(f"f({i + 1})" for i in range(n)) + ") <= huge(1.0_real64))) stat = domain_overflow", 2)}
+  end subroutine continuous_field"""
+
+
+def angular_momentum_procedures(symbolic):
+    """momenta, conserved_in_momenta, conserved_momenta_gradient and momentum_scale of J = sum_a q_a x p_a."""
+    d = symbolic.d
+    name = d.name
+    column = {symbol: symbolic.index[symbol] + 1 for symbol in symbolic.state}
+    components = []
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        terms = [f"z({column[q[j]]})*z({column[p[k]]}) - z({column[q[k]]})*z({column[p[j]]})"
+                 for q, p in d.angular_momentum_pairs]
+        components.append(wrap(f"values({i + 1}) = " + " + ".join(terms), 2))
+    gradient = []
+    for a, (q, p) in enumerate(d.angular_momentum_pairs):
+        gradient.append(f"      q = [{', '.join(f'z({column[x]})' for x in q)}]")
+        gradient.append(f"      gradients([{', '.join(str(column[x]) for x in p)}], k) = "
+                        "cross(self%conserved(k)%axis, q)")
+    scale = " + ".join(f"sqrt(sum(z([{', '.join(str(column[x]) for x in q)}])**2)*sum(z([{', '.join(str(column[x]) for x in p)}])**2))"
+                       for q, p in d.angular_momentum_pairs)
+    return f"""
+  !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
+  pure function momenta(self, z) result(values)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: values(self%momentum_count())
+
+{lines_of(components)}
+  end function momenta
+
+  !> The conserved components J.a of J (their axes a: `conserved`) from the momenta.
+  pure function conserved_in_momenta(self, momenta) result(values)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: momenta(:)
+    real(real64) :: values(self%conserved_count())
+
+    values = component_values(self%conserved, momenta)
+  end function conserved_in_momenta
+
+  !> d(J.a)/dp_b = a x q_b for each conserved axis a.
+  pure function conserved_momenta_gradient(self, z) result(gradients)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64) :: gradients(size(z), self%conserved_count())
+    real(real64) :: q(3)
+    integer :: k
+
+    gradients = 0.0_real64
+    do k = 1, size(gradients, 2)
+{lines_of(gradient)}
+    end do
+  end function conserved_momenta_gradient
+
+  !> The rounding scale of J: sum_a |q_a||p_a|.
+  pure real(real64) function momentum_scale(self, z)
+    class({name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+
+{wrap("momentum_scale = " + scale, 2)}
+  end function momentum_scale
+
+  !> The cross product a x b.
+  pure function cross(a, b) result(c)
+    real(real64), intent(in) :: a(3), b(3)
+    real(real64) :: c(3)
+
+    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
+  end function cross"""
 
 
 def model_module(symbolic, source):
@@ -656,7 +961,15 @@ def model_module(symbolic, source):
               f"    model%words%entropy_units = '{d.entropy_units}'",
               f"    model%words%temperature_units = '{d.temperature_units}'",
               f"    model%words%metric_scales = '{words['metric_scales']}'"]
-    if not momenta:
+    if d.angular_momentum_pairs:
+        PRINTER.owner = "parameters"
+        maker += ["    model%words%momenta = 'J = " + " + ".join(f"q{a + 1} x p{a + 1}" for a in
+                                                            range(len(d.angular_momentum_pairs))) + "'",
+                  "    model%words%momentum_units = 'J s'",
+                  "    model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']",
+                  wrap("model%conserved = angular_momentum_components([" + ", ".join(map(fortran, d.gravity)) + "])", 2)]
+        PRINTER.owner = "self%parameters"
+    elif not momenta:
         maker.append("    allocate (model%momentum_names(0))")
     if momenta:
         maker.append(f"    model%momentum_names = [character(len=8) :: "
@@ -725,6 +1038,18 @@ def model_module(symbolic, source):
     gradients = 0.0_real64
 {chr(10).join(f"    gradients({column}, {k + 1}) = 1.0_real64" for k, column in enumerate(columns))}
   end function conserved_momenta_gradient""")
+    constants = ParameterConstants(symbolic.parameters)
+    if d.continuous_field:
+        momentum_bindings.append("    procedure :: continuous_field")
+        momentum_procedures.append(continuous_field_procedure(symbolic, constants))
+        PRINTER.owner = "parameters"
+        maker += [wrap(f"model%constants({k + 1}) = {fortran(value)}", 2)
+                  for k, value in enumerate(constants.values)]
+        PRINTER.owner = "self%parameters"
+    if d.angular_momentum_pairs:
+        momentum_bindings += ["    procedure :: momenta", "    procedure :: conserved_in_momenta",
+                              "    procedure :: conserved_momenta_gradient", "    procedure :: momentum_scale"]
+        momentum_procedures.append(angular_momentum_procedures(symbolic))
     tau_units = {"entropy": d.entropy_units, "temperature": d.temperature_units, "internal_energy": d.energy_units}
     field_comment = "\n".join("!>   " + line.strip() for line in d.field_text.strip().splitlines())
     text = f"""{header(d, source, f"The model of {d.title} ({d.reference}):")}
@@ -734,8 +1059,11 @@ def model_module(symbolic, source):
 {field_comment}
 module {name}_model
   use, intrinsic :: iso_fortran_env, only: real64
-  use model_interface, only: generic_model{", conserved_component" if d.conserved else ""}
-  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
+  use model_interface, only: generic_model{", conserved_component" if d.conserved else ""}{
+    ", angular_momentum_components, component_values" if d.angular_momentum_pairs else ""}
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy{
+    chr(10) + "  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow"
+    if d.continuous_field else ""}
   use {name}_potential, only: {name}_parameters, {name}_potentials
   implicit none (type, external)
   private
@@ -745,9 +1073,13 @@ module {name}_model
   character(len=5), parameter :: tau_prefixes(3) = [character(len=5) :: '{TAU_PREFIX["entropy"]}', '{TAU_PREFIX["temperature"]}', '{TAU_PREFIX["internal_energy"]}']
   character(len=16), parameter :: tau_units(3) = [character(len=16) :: '{tau_units["entropy"]}', '{tau_units["temperature"]}', '{tau_units["internal_energy"]}']
 
+{"  ! Largest argument of exp that stays finite, with a margin." + chr(10) +
+ "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10) if d.continuous_field else ""}
   !> The model with its parameters.
   type, extends(generic_model) :: {name}
-    type({name}_parameters) :: parameters
+    type({name}_parameters) :: parameters{
+    chr(10) + f"    real(real64) :: constants({len(constants.values)}) = 0.0_real64  !! of the parameters alone, for the field"
+    if constants.values else ""}
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -1173,12 +1505,14 @@ def main(arguments=None):
         symbolic = SymbolicModel(description)
         source = path.resolve().relative_to(Path(__file__).resolve().parents[3]).as_posix() \
             if Path(__file__).resolve().parents[3] in path.resolve().parents else path.as_posix()
-        files = {f"{description.name}_potential.f90": potential_module(symbolic, source),
-                 f"{description.name}_model.f90": model_module(symbolic, source),
-                 f"{description.name}_scene.f90": scene_module(symbolic, source)}
         if options.input_rows:
-            print(input_rows(description, source))
+            if description.scene:
+                print(input_rows(description, source))
             return 0
+        files = {f"{description.name}_potential.f90": potential_module(symbolic, source),
+                 f"{description.name}_model.f90": model_module(symbolic, source)}
+        if description.scene:
+            files[f"{description.name}_scene.f90"] = scene_module(symbolic, source)
     except DescriptionError as error:
         print(f"generate_model.py: {path}: {error}", file=sys.stderr)
         return 2

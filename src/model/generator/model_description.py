@@ -92,6 +92,7 @@ class Subsystem:
     temperature_symbol: sp.Symbol = None  # theta, for free_energy(psi, theta)
     energy_of_entropy: sp.Expr = None     # U_a(x, s)
     free_energy_of_temperature: sp.Expr = None  # psi_a(x, theta)
+    energy_and_entropy_of_temperature: tuple = None  # (u_a(x, theta), s_a(x, theta)) of a free energy u - theta s
     inverses: dict = field(default_factory=dict)  # variable -> s or theta in TEMPERATURE, ENERGY_LEVEL or
     #                                               ENTROPY_LEVEL: where SymPy cannot solve, or to state its form
     temperature: sp.Symbol = None         # Theta_a of eq. (2), for K0
@@ -116,6 +117,15 @@ class Subsystem:
     def free_energy(self, psi, theta):
         """psi_a(x, theta) (the Helmholtz form; S_a = -dpsi/dtheta, U_a = psi + theta S_a)."""
         self.free_energy_of_temperature, self.temperature_symbol = sp.sympify(psi), theta
+
+    def energy_and_entropy(self, energy, entropy, theta):
+        """u_a(x, theta) and s_a(x, theta), the internal energy and entropy of the free energy psi_a = u_a - theta s_a
+        as the paper's closed forms give them (docs/formulation.md section 3), in the temperature form: the
+        generator checks du/dtheta = theta ds/dtheta (psi's s = -dpsi/dtheta) and takes the other variables'
+        forms from `inverses` ('entropy': theta(x, ENTROPY_LEVEL), 'internal_energy': theta(x, ENERGY_LEVEL)) by
+        substitution alone, without simplifying (which would fold logs and powers into costlier, less
+        accurate forms)."""
+        self.energy_and_entropy_of_temperature, self.temperature_symbol = (sp.sympify(energy), sp.sympify(entropy)), theta
 
     def partial(self, potential, invariant):
         """The symbol of d potential_a / d invariant ('U' or 'S'; an invariant's name, or 'tau'),
@@ -142,6 +152,11 @@ class ModelDescription:
         self.words = {}                # model_words' temperature, energy, entropy, metric_scales (else generic)
         self.thermal_field = None      # initial_thermal_field's (variable, name, values, meaning)
         self.initial_domain = ""       # what &initial allows beyond its fields' bounds, for the refusal
+        self.scene = True              # False: the generator writes no scene (a hand-written one builds the model)
+        self.continuous_field = False  # True: continuous_field composed in z, not through the partials (faster)
+        self.differences = False       # True: the potentials' U(b) - U(a), S(b) - S(a) free of cancellation
+        self.angular_momentum_pairs = None  # [(q vector, p vector)] of J = sum q_a x p_a, and gravity's components
+        self.gravity = None
 
     def describe(self, **words):
         """How the output and the messages describe the model (model_interface's model_words):
@@ -175,6 +190,16 @@ class ModelDescription:
         if conserved:
             self.conserved.append(symbol)
         return symbol
+
+    def angular_momentum(self, pairs, gravity):
+        """The momenta J = sum_a q_a x p_a (J_x, J_y, J_z) of the (position, momentum) vector pairs, three
+        columns each; its components conserved under the parameters' gravity (g_x, g_y, g_z) are
+        angular_momentum_components' (docs/formulation.md section 2)."""
+        if self.conserved or any(c.dataset for c in self.columns if c.kind == "momentum"):
+            raise DescriptionError(f"model {self.name}: angular_momentum with momenta of the momentum dataset")
+        if any(len(q) != 3 or len(p) != 3 for q, p in pairs) or len(gravity) != 3:
+            raise DescriptionError(f"model {self.name}: angular_momentum takes vectors of 3 components")
+        self.angular_momentum_pairs, self.gravity = [(list(q), list(p)) for q, p in pairs], list(gravity)
 
     def initial_thermal_field(self, variable, name, values, meaning):
         """&initial gives the subsystems' thermodynamic state as one field `name` of a value per
