@@ -35,9 +35,8 @@ import re
 import numpy as np
 import xarray as xr
 
-from trajectory import RunFileError, root_attributes, run_file
+from trajectory import CHAIN_MODEL, RunFileError, root_attributes, run_file
 
-CHAIN_MODEL = "spring_chain"
 # /snapshots/<name> of the run's thermodynamic variable -> its name in the Dataset.
 SPRING_VARIABLES = {"entropy": "spring_entropy", "internal_energy": "spring_internal_energy"}
 # A dense run's /state columns: x<i>_<c>, p<i>_<c> (mass i, component c), gamma_<a>, s_<a>,

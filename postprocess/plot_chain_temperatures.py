@@ -3,11 +3,11 @@
 
   plot_chain_temperatures.py FILE.h5 -o OUT
 
-FILE.h5 is a chain's run file of either path: eme_run's (the dense path: /temperature, one column
-per spring, with /time) or one with snapshots (/snapshots/theta, snapshot by spring, with
-/snapshots/time: chain_bench -chain_snapshots writes them on the sparse path); a file with both is
-drawn from its snapshots, which the sparse path writes for any N. Also writes OUT.csv: the drawn
-temperatures, one row per time, one column per spring.
+FILE.h5 is a spring chain's run file of either path (docs/output.md, A chain's file), read by
+chain_dataset.open_chain: a file split over ranks gives its snapshots (/snapshots/theta by
+/snapshots/time), a dense run's file every point (/temperature by /time); chain_bench
+-chain_snapshots files are snapshots too. Also writes OUT.csv: the drawn temperatures, one row per
+time, one column per spring.
 """
 import csv
 import sys
@@ -15,28 +15,26 @@ from pathlib import Path
 
 import numpy as np
 
+from chain_dataset import open_chain
 from plotting import SINGLE_COLUMN, argument_parser, parse_arguments, plt, save
-from trajectory import RunFileError, run_file
-
-SOURCES = (("snapshots/time", "snapshots/theta"), ("time", "temperature"))
+from trajectory import RunFileError
 
 
 def chain_temperatures(path):
     """(time [s], temperatures [K] as time by spring, the datasets' names) of a chain's file."""
-    with run_file(path) as handle:
-        for time_name, theta_name in SOURCES:
-            if theta_name in handle and time_name in handle:
-                time, theta = handle[time_name][()], handle[theta_name][()]
-                break
-        else:
-            raise RunFileError(f"{path}: neither /snapshots/theta with /snapshots/time nor /temperature with "
-                               "/time: not the run file of a chain with temperatures")
-    if theta.ndim != 2 or theta.shape[0] != time.shape[0]:
-        raise RunFileError(f"{path}: /{theta_name} has shape {theta.shape}, /{time_name} {time.shape}: "
-                           f"allowed: /{theta_name} (times, springs) with one row per time")
+    with open_chain(path) as chain:
+        if "theta" not in chain:
+            raise RunFileError(f"{path}: a chain without temperatures (spring_law "
+                               f"'{chain.attrs.get('spring_law', '?')}'): neither /snapshots/theta nor /temperature")
+        try:
+            time, theta = chain["snapshot_time"].values, chain["theta"].values
+        except OSError as error:
+            raise RunFileError(f"{path}: cannot read the temperatures ({error}); the file may be damaged") from None
+        source = chain.attrs["snapshot_source"]
+    names = ("snapshots/time", "snapshots/theta") if source == "/snapshots" else ("time", "temperature")
     if time.shape[0] < 1 or theta.shape[1] < 1:
-        raise RunFileError(f"{path}: /{theta_name} is empty")
-    return np.asarray(time, float), np.asarray(theta, float), (time_name, theta_name)
+        raise RunFileError(f"{path}: /{names[1]} is empty")
+    return np.asarray(time, float), np.asarray(theta, float), names
 
 
 def figure(path, output):

@@ -26,6 +26,9 @@ from plotting import (DOUBLE_COLUMN, argument_parser, output_stem, parse_argumen
 from trajectory import dimension, mass_positions, read_run, snapshot_steps
 
 TITLE = "Snapshots of the thermoviscoelastic double pendulum"
+# A spring chain's file is refused: what reads it.
+CHAIN_INSTEAD = ("plot_chain_temperatures.py {file} -o OUT (its temperatures along the chain over time) and "
+                 "chain_dataset.open_chain('{file}').q (its positions)")
 PLANES = [((0, 2), "x [m]", "side view\nz [m]"), ((0, 1), "x [m]", "top view\ny [m]")]
 # A planar run's one plane (y vertical, gravity along -y).
 PLANAR_PLANES = [((0, 1), "x [m]", "plane\ny [m]")]
@@ -227,7 +230,8 @@ def main(argv=None):
     parser.add_argument("--dpi", type=int, default=150,
                         help="animation resolution in pixels per inch of its 7-in width (default 150)")
     args = parse_arguments(parser, argv)
-    runs = [read_run(path, ["state"], thermal_datasets=["temperature"]) for path in args.files]
+    runs = [read_run(path, ["state"], thermal_datasets=["temperature"], chain_instead=CHAIN_INSTEAD)
+            for path in args.files]
     last = max(run.data["time"][-1] for run in runs)
     times = args.times if args.times else list(np.linspace(0.0, last, 4))
     if not any(snapshot_steps(run.data["time"], times)[0] for run in runs):
