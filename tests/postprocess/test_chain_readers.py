@@ -60,15 +60,16 @@ def scene_text(scene, output):
     return text
 
 
-def run(command, timeout=300):
+def run(command, status=0, timeout=300):
     result = subprocess.run([str(part) for part in command], capture_output=True, text=True, timeout=timeout)
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == status, result.stderr
     return result
 
 
 @pytest.fixture(scope="module")
 def chain_files(tmp_path_factory):
-    """{(scene, 'dense' or 'split'): path} and 'study': the folder of a 2-case study of the rod."""
+    """{(scene, 'dense' or 'split'): path}, ('rod', 'incomplete'): a split run that Newton stopped at its
+    first step (-snes_max_it 1: exit status 3), and 'study': the folder of a 2-case study of the rod."""
     if not (BIN / "eme_run").exists():
         pytest.skip(f"{BIN / 'eme_run'} is missing: run `make` first")
     folder = tmp_path_factory.mktemp("chain_files")
@@ -81,6 +82,10 @@ def chain_files(tmp_path_factory):
             ranks = [*MPIRUN, "-n", "2"] if path == "split" else []
             run([*ranks, BIN / "eme_run", namelist])
             files[scene, path] = output
+    namelist = folder / "rod_incomplete.nml"
+    namelist.write_text(scene_text("rod", folder / "rod_incomplete.h5"))
+    run([*MPIRUN, "-n", "2", BIN / "eme_run", namelist, "-snes_max_it", "1"], status=3)
+    files["rod", "incomplete"] = folder / "rod_incomplete.h5"
     with h5py.File(files["rod", "split"], "r") as split, h5py.File(files["rod", "dense"], "r") as dense:
         assert "snapshots" in split and "state" not in split, "the split run did not take the split path"
         assert "state" in dense and "snapshots" not in dense, "the dense run did not take the dense path"
@@ -304,3 +309,18 @@ def test_the_chain_temperatures_are_the_files(chain_files, tmp_path, path):
                        else (f["time"][()], f["temperature"][()]))
     assert table.shape == (time.size, 7)
     assert np.allclose(table[:, 0], time, rtol=1e-8, atol=0) and np.allclose(table[:, 1:], theta, rtol=1e-8, atol=0)
+
+
+@pytest.mark.drawing
+def test_a_stopped_split_run_is_read_and_drawn_as_far_as_it_goes(chain_files, tmp_path, capsys):
+    path = chain_files["rod", "incomplete"]
+    with h5py.File(path, "r") as f:
+        status, snapshots = f.attrs["status"], f["snapshots/time"].shape[0]
+    assert status.startswith("incomplete") and snapshots == 1
+    with open_chain(path) as chain:
+        assert chain.sizes["snapshot_time"] == 1 and chain.sizes["time"] == 1 and chain.attrs["status"] == status
+    assert summarize_runs.summarize(path)["status"].startswith(f"INCOMPLETE after 0 steps ({status}")
+    out = tmp_path / "temperatures"
+    plot_chain_temperatures.main([str(path), "-o", str(out)])
+    mark = f"{path}: INCOMPLETE, drawn as far as it goes (status: {status})"
+    assert mark in capsys.readouterr().err and mark in out.with_suffix(".txt").read_text()
