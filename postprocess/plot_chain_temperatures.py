@@ -21,7 +21,8 @@ from trajectory import RunFileError
 
 
 def chain_temperatures(path):
-    """(time [s], temperatures [K] as time by spring, the datasets' names) of a chain's file."""
+    """(time [s], temperatures [K] as time by spring, the datasets' names, the file's status) of a
+    chain's file."""
     with open_chain(path) as chain:
         if "theta" not in chain:
             raise RunFileError(f"{path}: a chain without temperatures (spring_law "
@@ -30,15 +31,15 @@ def chain_temperatures(path):
             time, theta = chain["snapshot_time"].values, chain["theta"].values
         except OSError as error:
             raise RunFileError(f"{path}: cannot read the temperatures ({error}); the file may be damaged") from None
-        source = chain.attrs["snapshot_source"]
+        source, status = chain.attrs["snapshot_source"], str(chain.attrs.get("status", ""))
     names = ("snapshots/time", "snapshots/theta") if source == "/snapshots" else ("time", "temperature")
     if time.shape[0] < 1 or theta.shape[1] < 1:
         raise RunFileError(f"{path}: /{names[1]} is empty")
-    return np.asarray(time, float), np.asarray(theta, float), names
+    return np.asarray(time, float), np.asarray(theta, float), names, status
 
 
 def figure(path, output):
-    time, theta, names = chain_temperatures(path)
+    time, theta, names, status = chain_temperatures(path)
     fig, ax = plt.subplots(figsize=(SINGLE_COLUMN * 1.3, 2.6), layout="constrained")
     springs = np.arange(1, theta.shape[1] + 1)
     # Cell edges: each row of the file stands at its time, each column for its spring.
@@ -51,7 +52,12 @@ def figure(path, output):
     fig.colorbar(mesh, ax=ax, label="temperature [K]")
     title = f"temperatures along the chain over time: {Path(path).name} (/{names[1]}, {springs.size} springs)"
     ax.set_title(f"{springs.size} springs, /{names[1]}", fontsize=8)
-    paths = save(fig, output, title)
+    # A file a stopped run left (chain_bench's have no status) is drawn as far as it goes, and says so.
+    incomplete = ([f"{path}: INCOMPLETE, drawn as far as it goes (status: {status})"]
+                  if status not in ("", "complete") else [])
+    for line in incomplete:
+        print(f"plot_chain_temperatures.py: {line}", file=sys.stderr)
+    paths = save(fig, output, title, lines=incomplete)
     with open(Path(paths[0]).with_suffix(".csv"), "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(["time_s", *(f"theta_{a}_K" for a in springs)])
