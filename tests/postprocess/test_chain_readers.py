@@ -2,16 +2,18 @@
 docs/output.md, A chain's file), against the files' own datasets read here with h5py.
 
 The files are made by the real programs: a tiny copy of inputs/chain_rod_heat.nml (6 springs in 1D,
-the temperature variable) and of inputs/spring_chain_small.nml (5 springs hanging in 3D, the
-entropy variable, a conserved J_z), each run on the dense path (eme_run) and split over two ranks
+the temperature variable), of inputs/spring_chain_small.nml (5 springs hanging in 3D, the entropy
+variable, a conserved J_z) and a planar fixed-fixed chain of 3 masses and 4 thermoelastic springs
+(the internal-energy variable, no viscous strains), each run on the dense path (eme_run) and split over two ranks
 (mpirun -n 2 eme_run), and a 2-case eme_ensemble study of the rod. Newton is converged to its
 rounding floor so that the two paths give one trajectory (tests/e2e/test_split_runs.py).
 - chain_dataset.open_chain gives the split file's snapshots and rows as they are in it, on the
   documented dims; the dense file's /state read through it is the split file's snapshots;
 - summarize_runs.py summarizes a chain file as any run, its figures those of the datasets, and a
   study folder or its index as its case files, each once;
-- the figures of the double pendulum refuse a chain file in one line naming the file, what it lacks
-  and what to use; plot_balance.py and plot_chain_temperatures.py draw the files' own numbers.
+- plot_snapshots.py draws a chain at its snapshots, plot_balance.py and plot_chain_temperatures.py
+  draw the files' own numbers; the other figures of the double pendulum refuse a chain file in one
+  line naming the file, what it lacks and what to use.
 """
 import csv
 import subprocess
@@ -40,11 +42,39 @@ from synthetic_runs import write_run  # noqa: E402
 from trajectory import RunFileError, read_run  # noqa: E402
 
 MPIRUN = ["mpirun", "--allow-run-as-root", "--oversubscribe"]
-SCENES = ("rod", "hanging")
+SCENES = ("rod", "hanging", "span")
+SPAN_SCENE = """&model
+  model_name = 'spring_chain'
+  links = 3
+  ends = 'fixed-fixed'
+  span = 4.5
+  dimension = 2
+  gravity = 0.0, 0.0
+  spring_law = 'thermoelastic'
+/
+&initial
+  theta = 300.0, 290.0, 280.0, 270.0
+  perturbation = 'mode'
+  mode_number = 1
+  amplitude = 0.05
+/
+&integrator
+  scheme = 'eme'
+  thermo_variable = 'internal_energy'
+  dt = 0.01
+  t_end = 0.05
+  newton_tol = 1.0e-30
+/
+&output
+  file = 'OUTPUT'
+/
+"""
 
 
 def scene_text(scene, output):
     """The namelist of a scene, cut to 5 steps of 10 ms, writing `output`, Newton to its floor."""
+    if scene == "span":
+        return SPAN_SCENE.replace("OUTPUT", str(output))
     if scene == "rod":
         text = (ROOT / "inputs" / "chain_rod_heat.nml").read_text()
         changes = {"links = 100": "links = 6", "50*340.0, 50*280.0": "3*340.0, 3*280.0", "t_end = 2.0": "t_end = 0.05",
@@ -109,10 +139,12 @@ def test_the_dataset_of_a_split_file_holds_its_snapshots_and_rows(chain_files, s
     chain = open_chain(path)
     with h5py.File(path, "r") as f:
         links, dimension = int(f.attrs["links"]), int(f.attrs["dimension"])
+        springs = links + (text(f.attrs["ends"]) == "fixed-fixed")
         assert dict(chain.sizes) == {"time": f["time"].shape[0], "snapshot_time": f["snapshots/time"].shape[0],
-                                     "mass": links, "spring": links, "component": dimension,
+                                     "mass": links, "spring": springs, "component": dimension,
                                      "balance_column": f["balance"].shape[1],
-                                     **({"angular_momentum_column": 3} if "angular_momentum" in f else {})}
+                                     **({"angular_momentum_column": f["angular_momentum"].shape[1]}
+                                        if "angular_momentum" in f else {})}
         assert chain["component"].values.tolist() == ["x", "y", "z"][:dimension]
         assert chain["mass"].values.tolist() == list(range(1, links + 1))
         assert chain["q"].dims == ("snapshot_time", "mass", "component")
@@ -120,10 +152,13 @@ def test_the_dataset_of_a_split_file_holds_its_snapshots_and_rows(chain_files, s
         assert np.array_equal(chain["snapshot_time"].values, f["snapshots/time"][()])
         for k in range(f["snapshots/time"].shape[0]):
             for name in ("q", "p", "gamma", "theta"):
-                assert np.array_equal(chain[name].isel(snapshot_time=k).values, f[f"snapshots/{name}"][k]), (name, k)
-        # The run's own variable under its own name, apart from the total S of the rows.
-        if scene == "hanging":
-            assert np.array_equal(chain["spring_entropy"].values, f["snapshots/entropy"][()])
+                if name in f["snapshots"] or name in chain:
+                    assert np.array_equal(chain[name].isel(snapshot_time=k).values, f[f"snapshots/{name}"][k]), \
+                        (name, k)
+        # The run's own variable under a name of its own (the rows' `entropy` is the total S).
+        variable = {"hanging": "entropy", "span": "internal_energy"}.get(scene)
+        if variable:
+            assert np.array_equal(chain[f"spring_{variable}"].values, f[f"snapshots/{variable}"][()])
         assert np.array_equal(chain["entropy"].values, f["entropy"][()])
         # Rows: per point on time; per step on the point its step ends at, NaN at the first.
         assert np.array_equal(chain["time"].values, f["time"][()])
@@ -149,7 +184,10 @@ def test_the_dataset_of_a_dense_file_is_that_of_the_split_file(chain_files, scen
             assert np.array_equal(dense["snapshot_time"].values, f["time"][()])
             assert np.array_equal(dense["theta"].values, f["temperature"][()])
         at_snapshots = dense.sel(snapshot_time=split["snapshot_time"].values)
-        names = ["q", "p", "gamma", "theta", *(["spring_entropy"] if scene == "hanging" else [])]
+        names = {name for name, variable in split.data_vars.items() if "snapshot_time" in variable.dims}
+        assert names == {name for name, variable in dense.data_vars.items() if "snapshot_time" in variable.dims}
+        assert names == {"rod": {"q", "p", "gamma", "theta"}, "hanging": {"q", "p", "gamma", "theta", "spring_entropy"},
+                         "span": {"q", "p", "theta", "spring_internal_energy"}}[scene]
         for name in names:
             expected, got = split[name].values, at_snapshots[name].values
             assert at_snapshots[name].dims == split[name].dims
@@ -252,7 +290,6 @@ def test_a_study_folder_is_summarized_as_its_case_files(chain_files, capsys, tmp
 PENDULUM_FIGURES = {
     # script: (what it lacks in a split file, what it says to use)
     plot_temperatures: ("/temperature", "plot_chain_temperatures.py"),
-    plot_snapshots: ("/state", "plot_chain_temperatures.py"),
     plot_constrained: ("root attribute fix_length", "plot_balance.py"),
 }
 
@@ -276,11 +313,11 @@ def test_a_figure_of_the_double_pendulum_refuses_a_chain_file(chain_files, capsy
 
 def test_a_refused_chain_file_ends_the_script_in_one_line(chain_files, tmp_path):
     chain = chain_files["hanging", "split"]
-    result = subprocess.run([sys.executable, str(POSTPROCESS / "plot_snapshots.py"), str(chain), "-o",
+    result = subprocess.run([sys.executable, str(POSTPROCESS / "plot_temperatures.py"), str(chain), "-o",
                              str(tmp_path / "figure")], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
-    assert result.stderr.startswith(f"plot_snapshots.py: error: {chain}: a spring chain's file (5 springs): it has "
-                                    "no /state") and len(result.stderr.splitlines()) == 1, result.stderr
+    assert result.stderr.startswith(f"plot_temperatures.py: error: {chain}: a spring chain's file (5 springs): it "
+                                    "has no /temperature") and len(result.stderr.splitlines()) == 1, result.stderr
     assert not list(tmp_path.iterdir())
 
 
@@ -324,3 +361,45 @@ def test_a_stopped_split_run_is_read_and_drawn_as_far_as_it_goes(chain_files, tm
     plot_chain_temperatures.main([str(path), "-o", str(out)])
     mark = f"{path}: INCOMPLETE, drawn as far as it goes (status: {status})"
     assert mark in capsys.readouterr().err and mark in out.with_suffix(".txt").read_text()
+
+
+def chain_states(path):
+    """(times, q as time x mass x component, theta as time x spring) of a chain's file, read here:
+    a split file's /snapshots, a dense file's /state columns x<i>_<c> (and /temperature)."""
+    with h5py.File(path, "r") as f:
+        if "snapshots" in f:
+            return f["snapshots/time"][()], f["snapshots/q"][()], f["snapshots/theta"][()]
+        names = text(f["state"].attrs["columns"]).split()
+        masses, dimension = int(f.attrs["links"]), int(f.attrs["dimension"])
+        state = f["state"][()]
+        q = np.stack([np.stack([state[:, names.index(f"x{i}_{c}")] for c in "xyz"[:dimension]], axis=1)
+                      for i in range(1, masses + 1)], axis=1)
+        return f["time"][()], q, f["temperature"][()]
+
+
+@pytest.mark.drawing
+@pytest.mark.parametrize("path", ["split", "dense"])
+@pytest.mark.parametrize("scene", SCENES)
+def test_the_snapshots_draw_a_chain_as_its_file_holds_it(chain_files, scene, path):
+    times, q, theta = chain_states(chain_files[scene, path])
+    chosen = sorted({0, len(times) // 2, len(times) - 1})
+    run = plot_snapshots.read_drawn_run(chain_files[scene, path])
+    figure = plot_snapshots.make_figure([run], [times[k] for k in chosen])
+    planes = [(0, 2), (0, 1)] if q.shape[2] == 3 else [(0, 1)]
+    with h5py.File(chain_files[scene, path], "r") as f:
+        # A fixed-fixed chain's last spring ends at the second support, x = span.
+        far = [[float(f.attrs["span"]), 0.0, 0.0]] if text(f.attrs["ends"]) == "fixed-fixed" else np.zeros((0, 3))
+    panels = np.array(figure.axes[:len(planes) * len(chosen)]).reshape(len(planes), len(chosen))
+    for row, (i, j) in enumerate(planes):
+        for column, k in enumerate(chosen):
+            ax = panels[row, column]
+            nodes = np.vstack([np.zeros((1, 3)), np.pad(q[k], ((0, 0), (0, 3 - q.shape[2]))), far])[:, [i, j]]
+            springs = ax.collections[0]
+            # Spring a joins node a-1 to node a (the support is node 0), coloured by theta_a.
+            assert np.array_equal(np.array(springs.get_segments()), np.stack([nodes[:-1], nodes[1:]], axis=1))
+            assert np.array_equal(springs.get_array(), theta[k])
+            masses = next(line for line in ax.lines if line.get_marker() == "o")
+            assert np.array_equal(np.column_stack(masses.get_data()), nodes[1:1 + q.shape[1]])
+    legend = [text.get_text() for text in figure.legends[0].get_texts()]
+    assert "masses $m_i$ at $q_i$" in legend and "path of the last mass so far" in legend
+    plot_snapshots.plt.close(figure)
