@@ -215,7 +215,7 @@ def chain_refusal(path, handle, datasets, attributes, instead):
     elif absent:
         lack = f"it has no root attribute {', '.join(absent)}"
     else:
-        lack = "its /state and /temperature hold a chain's masses x<i> and springs, not the pendulum's q1, q2"
+        lack = "its /state and /temperature hold a chain's masses and springs, not the double pendulum's"
     return RunFileError(f"{path}: a spring chain's file ({springs} springs): {lack}; this figure draws the double "
                         f"pendulum: use {instead.format(file=path)}")
 
