@@ -22,8 +22,8 @@ first support) and `component` ('x', 'y', 'z': the first d), each with its coord
   temperatures, is on (time, spring)).
 - Attributes: the file's root attributes, and `snapshot_source`: '/snapshots' or '/state'.
 
-A file a killed run left is read as far as it goes: the rows are cut to the steps every dataset
-holds, the snapshots to those every snapshot dataset holds. A file that cannot be used (not HDF5,
+A file a killed run left is read as far as it goes: the rows (and a dense file's state) are cut to
+the steps every dataset holds (a split file's snapshots are whole: docs/output.md). A file that cannot be used (not HDF5,
 damaged texts, another model, no state) raises trajectory.RunFileError naming it and what is
 missing. Another model's run file opens with xr.open_dataset(FILE, engine="h5netcdf",
 phony_dims="access") (docs/output.md, xarray).
@@ -53,20 +53,18 @@ def _text(value):
 
 def _rows(handle, dense):
     """The per-point and per-step datasets of the root group as xarray variables on `time`, cut to
-    the steps every row dataset holds; returns (variables, time, step)."""
-    skipped = {"time", "step", "step_end_time"} | ({"state", "temperature"} if dense else set())
-    rows = {name: item for name, item in handle.items()
-            if hasattr(item, "shape") and item.ndim in (1, 2) and "rows" in item.attrs and name not in skipped}
+    the steps every row dataset holds (a dense file's /state and /temperature too); returns
+    (variables, time, step), time and step None for a file without rows (chain_bench's)."""
     if "time" not in handle:
         return {}, None, None
-    lengths = [handle["time"].shape[0]] + [item.shape[0] + (_text(item.attrs["rows"]) == "step")
-                                           for item in rows.values()]
-    if "step" in handle:
-        lengths.append(handle["step"].shape[0] + 1)
-    points = min(lengths)
+    every = {name: item for name, item in handle.items()
+             if hasattr(item, "shape") and item.ndim in (1, 2) and "rows" in item.attrs}
+    points = min([handle["time"].shape[0]] + [item.shape[0] + (_text(item.attrs["rows"]) == "step")
+                                             for item in every.values()])
     time = handle["time"][:points]
-    step = (np.concatenate([[0], handle["step"][:points - 1]]) if "step" in handle
-            else np.arange(points))
+    step = np.concatenate([[0], handle["step"][:points - 1]]) if "step" in handle else np.arange(points)
+    skipped = {"time", "step", "step_end_time"} | ({"state", "temperature"} if dense else set())
+    rows = {name: item for name, item in every.items() if name not in skipped}
     variables = {}
     for name, item in rows.items():
         per_step = _text(item.attrs["rows"]) == "step"
@@ -131,14 +129,12 @@ def _state_snapshots(path, handle, attrs):
 
 def _split_snapshots(path):
     """/snapshots opened lazily by xarray (h5netcdf), its time renamed snapshot_time, its components
-    as text and its per-spring thermodynamic variable renamed; cut to the snapshots all hold."""
+    as text and its per-spring thermodynamic variable renamed."""
     try:
         snapshots = xr.open_dataset(path, engine="h5netcdf", group="snapshots")
     except (OSError, ValueError, KeyError) as error:
         raise RunFileError(f"{path}: cannot read /snapshots ({type(error).__name__}: {error})") from None
-    held = min(snapshots.sizes["time"], *(variable.shape[0] for variable in snapshots.data_vars.values()
-                                          if "time" in variable.dims))
-    snapshots = snapshots.isel(time=slice(0, held)).rename(
+    snapshots = snapshots.rename(
         {"time": "snapshot_time", **{name: new for name, new in SPRING_VARIABLES.items() if name in snapshots}})
     components = [_text(value) for value in snapshots["component"].values]
     snapshots = snapshots.assign_coords(component=components)
@@ -162,6 +158,8 @@ def open_chain(path):
             raise RunFileError(f"{path}: neither /snapshots (/snapshots/q, /snapshots/theta, ...: the split path) "
                                "nor /state and /temperature (the dense path): no chain state in this file")
         variables, time, step = _rows(handle, dense=not split)
+        if not split and time is None:
+            raise RunFileError(f"{path}: dataset /time is missing: /state has no times")
         if split:
             coords = {}
         else:

@@ -11,8 +11,8 @@ is titled by them), the largest constraint residual, the mean Newton iterations 
 wall time; for a spring chain's file split over ranks (docs/output.md, A chain's file) also the
 smallest entropy production of any spring's viscous branch and of any conducting link over the
 steps (its /min_viscous_production and /min_link_production; '-' where the chain has none, or the
-file does not record them: the dense path's). Everything is read from the HDF5 files, and gives eme_run's own summary line for any
-&output every or interval: the steps are the last step the rows reach (/step), the increments the
+file does not record them: the dense path's). Everything is read from the HDF5 files, and gives
+eme_run's own summary line for any &output every or interval: the steps are the last step the rows reach (/step), the increments the
 per-step records /min_entropy_increment and /max_lyapunov_increment (a row that stands for several
 steps holds their least and largest), Newton/step the summed /newton_iterations over the steps; the
 energy balance and the momentum drift of a complete file are its run_figures, which eme_run took
@@ -70,7 +70,7 @@ def read(path):
                 rows = f[name].attrs.get("rows", "step" if name in (*STEP_DATASETS, "rejected_steps") else "point")
                 run.rows[name] = rows.decode() if isinstance(rows, bytes) else str(rows)
         run.units = {name: text_of(f[name].attrs.get("units", "")) if name in f else ""
-                     for name in ("energy", "entropy", *CHAIN_PRODUCTIONS)}
+                     for name in ("energy", "entropy")}
         if "angular_momentum" in f and "columns" in f["angular_momentum"].attrs:
             run.columns["angular_momentum"] = text_of(f["angular_momentum"].attrs["columns"]).split()
         has_thermal = thermal(f)
@@ -167,7 +167,8 @@ def summarize(path):
     }
 
 
-COLUMNS = [("file", "file", "{}"), ("case", "case", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"), ("rejected", "rejected", "{}"),
+COLUMNS = [("file", "file", "{}"), ("case", "case", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"),
+           ("rejected", "rejected", "{}"),
            ("energy_drift", "energy balance", "{:.2e}"),
            ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
            ("jz_drift", "Jz drift [J s]", "{:.2e}"),

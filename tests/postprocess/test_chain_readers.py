@@ -16,6 +16,7 @@ rounding floor so that the two paths give one trajectory (tests/e2e/test_split_r
   line naming the file, what it lacks and what to use.
 """
 import csv
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -37,6 +38,7 @@ import plot_snapshots  # noqa: E402
 import plot_temperatures  # noqa: E402
 import summarize_runs  # noqa: E402
 from chain_dataset import open_chain  # noqa: E402
+from file_checksums import seal_texts  # noqa: E402
 from plotting import run_script  # noqa: E402
 from synthetic_runs import write_run  # noqa: E402
 from trajectory import RunFileError, read_run  # noqa: E402
@@ -197,6 +199,28 @@ def test_the_dataset_of_a_dense_file_is_that_of_the_split_file(chain_files, scen
             assert np.allclose(dense[name].values, split[name].values, rtol=1e-10, atol=0), name
         # Each path's Newton counts its own iterations; both on time, none before the first step.
         assert dense["newton_iterations"].dims == ("time",) and np.isnan(dense["newton_iterations"].values[0])
+
+
+def test_the_dataset_of_a_stopped_dense_run_holds_the_points_every_dataset_has(chain_files, tmp_path):
+    # A file whose /state lost its last row (as a killed writer could leave it): every other
+    # dataset is cut to the points /state holds.
+    path = tmp_path / "cut.h5"
+    shutil.copy(chain_files["rod", "dense"], path)
+    with h5py.File(path, "r+") as f:
+        state, attrs = f["state"][:-1], dict(f["state"].attrs)
+        del f["state"]
+        f["state"] = state
+        for name, value in attrs.items():
+            if name != "DIMENSION_LIST":
+                f["state"].attrs[name] = value
+        seal_texts(f)
+        time, temperature = f["time"][()], f["temperature"][()]
+    with open_chain(path) as chain:
+        assert chain.sizes["time"] == chain.sizes["snapshot_time"] == len(state) == len(time) - 1
+        assert np.array_equal(chain["time"].values, time[:-1])
+        assert np.array_equal(chain["theta"].values, temperature[:-1])
+        names = text(attrs["columns"]).split()
+        assert np.array_equal(chain["q"].values[:, 2, 0], state[:, names.index("x3_x")])
 
 
 def test_the_dataset_refuses_another_model_and_a_file_without_state(tmp_path):
