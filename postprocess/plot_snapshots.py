@@ -146,16 +146,15 @@ class PendulumView:
     """The artists of one projection panel: the path of m2 (a chain's last mass), the springs, the
     masses, the origin."""
 
-    def __init__(self, ax, plane, limits, norm, run=None):
+    def __init__(self, ax, plane, limits, norm, run):
         (i, j), xlabel, ylabel = plane
         self.axes = (i, j)
         self.path, = ax.plot([], [], color=PATH_COLOUR, linewidth=0.6, zorder=1)
         coloured = dict(cmap=COLOUR_MAP, norm=norm) if norm is not None else dict(colors=PLAIN_SPRING_COLOUR)
         self.springs = LineCollection([], **coloured, linewidths=2.8, zorder=2, path_effects=SPRING_OUTLINE)
         ax.add_collection(self.springs)
-        chain = run is not None and is_chain(run)
-        self.last_mass = last_mass(run) if run is not None else 2
-        self.masses, = ax.plot([], [], **{**MASS_STYLE, **(CHAIN_MASS_STYLE if chain else {})}, zorder=3)
+        self.last_mass = last_mass(run)
+        self.masses, = ax.plot([], [], **{**MASS_STYLE, **(CHAIN_MASS_STYLE if is_chain(run) else {})}, zorder=3)
         ax.plot([0], [0], **ORIGIN_STYLE, zorder=3)
         self.far_supports, = ax.plot([], [], **ORIGIN_STYLE, zorder=3)     # a fixed-fixed chain's second
         ax.set_xlim(limits[0][i], limits[1][i])

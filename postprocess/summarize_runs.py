@@ -226,8 +226,8 @@ def study_folder(path):
     try:
         with h5py.File(path, "r") as handle:
             is_index = "cases" in handle and "energy" not in handle
-    except OSError:
-        return None                       # summarize() names what is wrong with it
+    except (OSError, RuntimeError, KeyError, ValueError):
+        return None                       # not HDF5, or damaged: summarize() names what is wrong with it
     return path.parent if is_index else None
 
 
