@@ -3,11 +3,11 @@
 
   plot_chain_temperatures.py FILE.h5 -o OUT
 
-FILE.h5 is a chain's run file of either path: eme_run's (the dense path: /temperature, one column
-per spring, with /time) or one with snapshots (/snapshots/theta, snapshot by spring, with
-/snapshots/time: chain_bench -chain_snapshots writes them on the sparse path); a file with both is
-drawn from its snapshots, which the sparse path writes for any N. Also writes OUT.csv: the drawn
-temperatures, one row per time, one column per spring.
+FILE.h5 is a spring chain's run file of either path (docs/output.md, A chain's file), read by
+chain_dataset.open_chain: a file split over ranks gives its snapshots (/snapshots/theta by
+/snapshots/time), a dense run's file every point (/temperature by /time); chain_bench
+-chain_snapshots files are snapshots too. Also writes OUT.csv: the drawn temperatures, one row per
+time, one column per spring.
 """
 import csv
 import sys
@@ -15,32 +15,31 @@ from pathlib import Path
 
 import numpy as np
 
+from chain_dataset import open_chain
 from plotting import SINGLE_COLUMN, argument_parser, parse_arguments, plt, save
-from trajectory import RunFileError, run_file
-
-SOURCES = (("snapshots/time", "snapshots/theta"), ("time", "temperature"))
+from trajectory import RunFileError
 
 
 def chain_temperatures(path):
-    """(time [s], temperatures [K] as time by spring, the datasets' names) of a chain's file."""
-    with run_file(path) as handle:
-        for time_name, theta_name in SOURCES:
-            if theta_name in handle and time_name in handle:
-                time, theta = handle[time_name][()], handle[theta_name][()]
-                break
-        else:
-            raise RunFileError(f"{path}: neither /snapshots/theta with /snapshots/time nor /temperature with "
-                               "/time: not the run file of a chain with temperatures")
-    if theta.ndim != 2 or theta.shape[0] != time.shape[0]:
-        raise RunFileError(f"{path}: /{theta_name} has shape {theta.shape}, /{time_name} {time.shape}: "
-                           f"allowed: /{theta_name} (times, springs) with one row per time")
+    """(time [s], temperatures [K] as time by spring, the datasets' names, the file's status) of a
+    chain's file."""
+    with open_chain(path) as chain:
+        if "theta" not in chain:
+            raise RunFileError(f"{path}: a chain without temperatures (spring_law "
+                               f"'{chain.attrs.get('spring_law', '?')}'): neither /snapshots/theta nor /temperature")
+        try:
+            time, theta = chain["snapshot_time"].values, chain["theta"].values
+        except OSError as error:
+            raise RunFileError(f"{path}: cannot read the temperatures ({error}); the file may be damaged") from None
+        source, status = chain.attrs["snapshot_source"], str(chain.attrs.get("status", ""))
+    names = ("snapshots/time", "snapshots/theta") if source == "/snapshots" else ("time", "temperature")
     if time.shape[0] < 1 or theta.shape[1] < 1:
-        raise RunFileError(f"{path}: /{theta_name} is empty")
-    return np.asarray(time, float), np.asarray(theta, float), (time_name, theta_name)
+        raise RunFileError(f"{path}: /{names[1]} is empty")
+    return np.asarray(time, float), np.asarray(theta, float), names, status
 
 
 def figure(path, output):
-    time, theta, names = chain_temperatures(path)
+    time, theta, names, status = chain_temperatures(path)
     fig, ax = plt.subplots(figsize=(SINGLE_COLUMN * 1.3, 2.6), layout="constrained")
     springs = np.arange(1, theta.shape[1] + 1)
     # Cell edges: each row of the file stands at its time, each column for its spring.
@@ -53,7 +52,12 @@ def figure(path, output):
     fig.colorbar(mesh, ax=ax, label="temperature [K]")
     title = f"temperatures along the chain over time: {Path(path).name} (/{names[1]}, {springs.size} springs)"
     ax.set_title(f"{springs.size} springs, /{names[1]}", fontsize=8)
-    paths = save(fig, output, title)
+    # A file a stopped run left (chain_bench's have no status) is drawn as far as it goes, and says so.
+    incomplete = ([f"{path}: INCOMPLETE, drawn as far as it goes (status: {status})"]
+                  if status not in ("", "complete") else [])
+    for line in incomplete:
+        print(f"plot_chain_temperatures.py: {line}", file=sys.stderr)
+    paths = save(fig, output, title, lines=incomplete)
     with open(Path(paths[0]).with_suffix(".csv"), "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(["time_s", *(f"theta_{a}_K" for a in springs)])

@@ -57,7 +57,9 @@ def make_figure(runs):
 
 def main(argv=None):
     args = parse_arguments(argument_parser(__doc__), argv)
-    runs = [read_run(path, ["energy"], CONSTRAINT_ATTRIBUTES, thermal_datasets=["entropy", "lyapunov"]) for path in args.files]
+    runs = [read_run(path, ["energy"], CONSTRAINT_ATTRIBUTES, thermal_datasets=["entropy", "lyapunov"],
+                     chain_instead="plot_balance.py {file} -o OUT (E, S and V; a chain has no constraints)")
+            for path in args.files]
     return save(make_figure(runs), args.output, TITLE, runs)
 
 

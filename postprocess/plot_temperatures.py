@@ -11,6 +11,9 @@ from plotting import (DOUBLE_COLUMN, SINGLE_COLUMN, add_compare_argument, apply_
 from trajectory import RunFileError, momentum_drift, read_run
 
 TITLE = "Spring temperatures and angular momentum drift"
+# A spring chain's file is refused (its springs are more than two): what draws it.
+CHAIN_INSTEAD = ("plot_chain_temperatures.py {file} -o OUT (every spring's temperature over time) and "
+                 "summarize_runs.py {file} (its momentum drift)")
 
 
 def set_title(runs):
@@ -79,9 +82,10 @@ def main(argv=None):
     add_compare_argument(parser)
     args = parse_arguments(parser, argv)
     # The temperatures of every run with thermal unknowns; the momenta where the scene has them.
-    runs = [read_run(path, [], optional=["angular_momentum"], thermal_datasets=["temperature"]) for path in args.files]
-    compare = [read_run(path, [], optional=["angular_momentum"], thermal_datasets=["temperature"])
-               for path in args.compare]
+    runs = [read_run(path, [], optional=["angular_momentum"], thermal_datasets=["temperature"],
+                     chain_instead=CHAIN_INSTEAD) for path in args.files]
+    compare = [read_run(path, [], optional=["angular_momentum"], thermal_datasets=["temperature"],
+                        chain_instead=CHAIN_INSTEAD) for path in args.compare]
     apply_labels(parser, args.labels, [*runs, *compare])
     return save(make_figure(runs, compare), args.output, TITLE, [*runs, *compare])
 

@@ -8,8 +8,11 @@ without it, so this is the energy drift), the smallest entropy increment, the la
 increment, the conserved momentum's drift max_n |J_n - J_0| (the largest over the conserved
 components: J_z, J_y, J_g along an oblique gravity, or J_x, J_y and J_z without gravity; the column
 is titled by them), the largest constraint residual, the mean Newton iterations per step and the
-wall time. Everything is read from the HDF5 files, and gives eme_run's own summary line for any
-&output every or interval: the steps are the last step the rows reach (/step), the increments the
+wall time; for a spring chain's file split over ranks (docs/output.md, A chain's file) also the
+smallest entropy production of any spring's viscous branch and of any conducting link over the
+steps (its /min_viscous_production and /min_link_production; '-' where the chain has none, or the
+file does not record them: the dense path's). Everything is read from the HDF5 files, and gives
+eme_run's own summary line for any &output every or interval: the steps are the last step the rows reach (/step), the increments the
 per-step records /min_entropy_increment and /max_lyapunov_increment (a row that stands for several
 steps holds their least and largest), Newton/step the summed /newton_iterations over the steps; the
 energy balance and the momentum drift of a complete file are its run_figures, which eme_run took
@@ -22,24 +25,32 @@ table as a footnote. A file that a killed or stopped run left behind is summaris
 goes, its status marked INCOMPLETE with what is missing; a file that cannot be used (not HDF5,
 damaged, without the datasets) is named on stderr with the reason, and the exit status is then 2.
 
-usage: summarize_runs.py FILE.h5 [FILE.h5 ...] [--markdown]
+A study's folder (eme_ensemble's output_dir), or its index.h5, stands for the study's case files
+(case_NNNNN.h5, in case order; each once, however often it is named), each a row with its swept
+values (`study_overrides`) in the column 'case'; an index-only study has none, and is named on
+stderr as unusable, pointing at study_table.py.
+
+usage: summarize_runs.py FILE.h5|STUDY_DIR [FILE.h5|STUDY_DIR ...] [--markdown]
 """
 import argparse
 import math
 import sys
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from trajectory import (IDENTITY_ATTRIBUTES, NO_VARIABLE, Run, RunFileError, conserved_momentum, conserved_values,
                         thermal, cut_to_common_length, root_attributes, run_file)
 
 POINT_DATASETS = ("energy",)
+# A split chain's per-step smallest entropy productions [W/K] (docs/output.md, A chain's file).
+CHAIN_PRODUCTIONS = ("min_viscous_production", "min_link_production")
 STEP_DATASETS = ("newton_iterations",)
 # angular_momentum: only for a scene with momenta (not the gas containers, nor a planar pendulum
 # under gravity); entropy and lyapunov: not for elastic springs (no thermal unknowns).
 OPTIONAL = ("entropy", "lyapunov", "boundary_heat", "constraint_residual", "rejected_steps", "step",
-            "min_entropy_increment", "max_lyapunov_increment", "angular_momentum")
+            "min_entropy_increment", "max_lyapunov_increment", "angular_momentum", *CHAIN_PRODUCTIONS)
 # run_figures (docs/output.md): what eme_run took over every step, in this order.
 RUN_FIGURES = ("energy_drift", "min_entropy_increment", "max_lyapunov_increment", "angular_momentum_drift")
 
@@ -84,6 +95,13 @@ def whole_run_figures(run):
     return dict(zip(RUN_FIGURES, (float(value) for value in figures)))
 
 
+def least(values):
+    """The smallest value that is not NaN; NaN when there is none."""
+    values = np.asarray(values, float)
+    values = values[~np.isnan(values)]
+    return float(values.min()) if values.size else float("nan")
+
+
 def summarize(path):
     """The table row of one run file, as a dict of numbers and strings."""
     run = read(path)
@@ -122,7 +140,8 @@ def summarize(path):
     elif warnings:
         status = f"{run.status} (warned)"
     return {
-        "file": run.path.stem,
+        # A study's case by its folder too: every study numbers its cases from case_00001.
+        "file": f"{run.path.parent.name}/{run.path.stem}" if "study_overrides" in attrs else run.path.stem,
         "run": f"{attrs.get('scheme', '?')}" + ("" if variable in NO_VARIABLE else f"/{variable}")
                + (f"/{gradient}" if gradient != "none" else "")
                + (f" + {constraints}" if constraints != "none" else ""),
@@ -142,13 +161,19 @@ def summarize(path):
         "constraint": "-" if constraint is None or constraint.size == 0 else f"{np.abs(constraint).max():.1e}",
         "newton_per_step": float(data["newton_iterations"][:rows].sum()) / steps if steps else float("nan"),
         "wall_s": f"{attrs['wall_time_seconds']:.3f}" if "wall_time_seconds" in attrs else "-",
+        "case": str(attrs.get("study_overrides", "-")),
+        **{name: least(data[name][:rows]) if name in data else float("nan") for name in CHAIN_PRODUCTIONS},
+        "has_productions": any(name in data for name in CHAIN_PRODUCTIONS),
     }
 
 
-COLUMNS = [("file", "file", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"), ("rejected", "rejected", "{}"),
+COLUMNS = [("file", "file", "{}"), ("case", "case", "{}"), ("run", "scheme", "{}"), ("steps", "steps", "{}"),
+           ("rejected", "rejected", "{}"),
            ("energy_drift", "energy balance", "{:.2e}"),
            ("min_dS", "min dS [J/K]", "{:.2e}"), ("max_dV", "max dV [J]", "{:.2e}"),
-           ("jz_drift", "Jz drift [J s]", "{:.2e}"), ("constraint", "max |g|", "{}"),
+           ("jz_drift", "Jz drift [J s]", "{:.2e}"),
+           ("min_viscous_production", "min visc. prod. [W/K]", "{:.2e}"),
+           ("min_link_production", "min link prod. [W/K]", "{:.2e}"), ("constraint", "max |g|", "{}"),
            ("newton_per_step", "Newton/step", "{:.2f}"),
            ("wall_s", "wall [s]", "{}"), ("status", "status", "{}")]
 
@@ -157,9 +182,14 @@ def table_columns(rows):
     """COLUMNS for these rows: no momentum column when no run has a conserved momentum, titled by
     the runs' conserved components (Jz; Jx,Jy,Jz; the planar scalar J; 'J (conserved)' where they
     differ); no dS and dV columns when no run has an entropy (elastic springs); and the units of dS
-    and dV the runs' models give (the pendulum's J/K and J; none in the header where models differ)."""
+    and dV the runs' models give (the pendulum's J/K and J; none in the header where models differ);
+    the chain's production columns when some run has them, the case column when some run is a
+    study's case."""
     entropy = any(row["has_entropy"] for row in rows) or not rows
-    has = {"jz_drift": any(not math.isnan(row["jz_drift"]) for row in rows), "min_dS": entropy, "max_dV": entropy}
+    productions = any(row["has_productions"] for row in rows)
+    has = {"jz_drift": any(not math.isnan(row["jz_drift"]) for row in rows), "min_dS": entropy, "max_dV": entropy,
+           "case": any(row["case"] != "-" for row in rows), "min_viscous_production": productions,
+           "min_link_production": productions}
     columns = [column for column in COLUMNS if has.get(column[0], True)]
     units = {key: {row[key] for row in rows if row[key]} for key in ("entropy_units", "energy_units")}
     momenta = {row.get("momentum") for row in rows if row.get("momentum")}
@@ -187,13 +217,48 @@ def markdown_row(cells):
     return "| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |"
 
 
+def study_folder(path):
+    """The study folder that `path` names (the folder itself, or its index.h5: a file with /cases),
+    else None."""
+    path = Path(path)
+    if path.is_dir():
+        return path
+    try:
+        with h5py.File(path, "r") as handle:
+            is_index = "cases" in handle and "energy" not in handle
+    except (OSError, RuntimeError, KeyError, ValueError):
+        return None                       # not HDF5, or damaged: summarize() names what is wrong with it
+    return path.parent if is_index else None
+
+
+def run_files(arguments):
+    """The run files the arguments name, each once, a study's folder or index standing for its case
+    files; and the messages of the studies that have none."""
+    files, unusable = [], []
+    for argument in arguments:
+        folder = study_folder(argument)
+        if folder is None:
+            found = [Path(argument)]
+        else:
+            found = sorted(folder.glob("case_*.h5"))
+            if not found:
+                unusable.append(f"{argument}: a study folder without case files (case_NNNNN.h5; an index-only "
+                                f"study?): study_table.py {folder / 'index.h5'} reads its index")
+        files += [path for path in found if path.resolve() not in {other.resolve() for other in files}]
+    return files, unusable
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("files", nargs="+", help="eme_run HDF5 files")
+    parser.add_argument("files", nargs="+", help="eme_run HDF5 files, or study folders (their case files)")
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     args = parser.parse_args(argv)
-    rows, unusable, warned = [], 0, []
-    for path in args.files:
+    rows, warned = [], []
+    files, studies_without_cases = run_files(args.files)
+    for message in studies_without_cases:
+        print(f"summarize_runs.py: error: {message}", file=sys.stderr)
+    unusable = len(studies_without_cases)
+    for path in files:
         try:
             row = summarize(path)
         except RunFileError as error:

@@ -30,6 +30,11 @@ CONSTRAINT_ATTRIBUTES = ("constraints", "fix_length", "length", "fix_temperature
 # A /state column of the thermodynamic variable: s_1, theta_2, u_1 (older files: s1, theta2, u1).
 THERMODYNAMIC_COLUMN = re.compile(r"(s|theta|u)_?([0-9]+)")
 
+# The spring chain's model_name (issue 39): its file holds N masses and n_s springs, not the double
+# pendulum's q1, q2 and two temperatures, and split over ranks no /state at all (docs/output.md,
+# A chain's file).
+CHAIN_MODEL = "spring_chain"
+
 # Subscripts of the paper's scheme names EME_s, EME_theta, EME_u.
 VARIABLE_SYMBOLS = {"entropy": "s", "temperature": r"\theta", "internal_energy": "u"}
 VARIABLE_NAMES = {"entropy": "s", "temperature": "theta", "internal_energy": "u"}
@@ -197,14 +202,36 @@ def thermal(handle):
     return "temperature" in handle
 
 
-def read_run(path, datasets, attributes=(), optional=(), thermal_datasets=()):
+def chain_refusal(path, handle, datasets, attributes, instead):
+    """The RunFileError of a figure of the double pendulum given a spring chain's file: one line
+    naming the file, the `datasets` or root `attributes` the figure needs that it lacks (or that its
+    datasets are a chain's), and `instead`, what draws it ({file} stands for the file)."""
+    springs = int(handle.attrs.get("links", 0)) + (_plain(handle.attrs.get("ends", "")) == "fixed-fixed")
+    missing = [f"/{name}" for name in datasets if name not in handle]
+    absent = [name for name in attributes if name not in handle.attrs]
+    if missing:
+        lack = (f"it has no {' or '.join(missing)}: split over ranks, a chain keeps its state in /snapshots "
+                "(docs/output.md, A chain's file)")
+    elif absent:
+        lack = f"it has no root attribute {', '.join(absent)}"
+    else:
+        lack = "its /state and /temperature hold a chain's masses and springs, not the double pendulum's"
+    return RunFileError(f"{path}: a spring chain's file ({springs} springs): {lack}; this figure draws the double "
+                        f"pendulum: use {instead.format(file=path)}")
+
+
+def read_run(path, datasets, attributes=(), optional=(), thermal_datasets=(), chain_instead=None):
     """Reads the named datasets and every root attribute of a run file; `attributes` are required
     besides IDENTITY_ATTRIBUTES; the `optional` datasets are read where the file has them (a scene
     may have no /angular_momentum), and the `thermal_datasets` are required of a file with thermal
     unknowns (a /temperature) and absent from one without (elastic springs: no /temperature,
-    /entropy or /lyapunov)."""
+    /entropy or /lyapunov). `chain_instead`, of a figure that draws only the double pendulum: a
+    spring chain's file is refused (chain_refusal), the message saying what to use instead."""
     path = Path(path)
     with run_file(path) as handle:
+        if chain_instead is not None and _plain(handle.attrs.get("model_name", "")) == CHAIN_MODEL:
+            raise chain_refusal(path, handle, [*datasets, *(thermal_datasets if thermal(handle) else ())],
+                                attributes, chain_instead)
         identity = [name for name in IDENTITY_ATTRIBUTES if name != "thermo_variable" or thermal(handle)]
         missing = [name for name in (*identity, *attributes) if name not in handle.attrs]
         if missing:
