@@ -17,6 +17,7 @@ module distributed_model
   type :: distributed_settings
     character(len=:), allocatable :: input_file      !! named in refusals
     character(len=16) :: scheme = 'eme'
+    real(real64) :: dt = 0.0_real64                  !! the time loop's step (a TS's first step)
     integer :: discrete_gradient = 1
     integer :: metric = 1
     real(real64) :: newton_tol = 1.0e-8_real64

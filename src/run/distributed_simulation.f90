@@ -113,6 +113,7 @@ contains
     settings%newton_max_iterations = config%integrator%newton_max_iterations
     settings%tolerance_given = config%integrator%tolerance_given
     settings%tolerance = config%integrator%tolerance
+    settings%dt = config%integrator%dt
   end function distributed_settings_of
 
   !> Sets the split model up on `comm` and frees it again, writing nothing (as simulation's

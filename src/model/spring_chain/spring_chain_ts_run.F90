@@ -117,6 +117,7 @@ contains
     PetscCall(SNESGetKSP(snes, ksp, ierr))
     PetscCall(set_default_linear_solver(ksp, comm, ierr))
     PetscCall(TSSetTime(self%ts, 0.0_real64, ierr))
+    PetscCall(TSSetTimeStep(self%ts, settings%dt, ierr))
     max_steps = 1000000000
     PetscCall(TSSetMaxSteps(self%ts, max_steps, ierr))
     PetscCall(TSSetExactFinalTime(self%ts, TS_EXACTFINALTIME_MATCHSTEP, ierr))
