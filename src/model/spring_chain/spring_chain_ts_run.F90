@@ -9,8 +9,8 @@
 !> fixed-step methods take one step of dt (no adaptivity, no rejected steps), ts_rk5dp (or options
 !> that choose an adaptor) chooses its own steps at &integrator tolerance and lands on t + dt; the
 !> TS keeps its state, and BDF its history, from one step to the next. The implicit methods' Newton
-!> is the TS's SNES at &integrator newton_tol (absolute) with the chain's default linear solver
-!> (spring_chain_dmda). A stage outside a spring's domain: the field is NaN there and an implicit
+!> is the TS's SNES at &integrator newton_tol (absolute) or the rounding floor of the state (an
+!> update below 16 eps |z|, -snes_stol), with the chain's default linear solver (spring_chain_dmda). A stage outside a spring's domain: the field is NaN there and an implicit
 !> method's SNES is told, so the step fails; an explicit method's step that went through such a
 !> stage ends non-finite, and is reported as not converged. A TS run keeps no balance exactly: its
 !> registry entry guarantees none, and the time loop checks none (src/run/step_check).
@@ -113,7 +113,9 @@ contains
     PetscCall(TSGetSNES(self%ts, snes, ierr))
     max_iterations = settings%newton_max_iterations
     max_evaluations = 10000
-    PetscCall(SNESSetTolerances(snes, settings%newton_tol, 0.0_real64, 0.0_real64, max_iterations, max_evaluations, ierr))
+    ! Newton to newton_tol, or to the rounding floor of the state (an update below 16 eps |z|, as
+    ! the split EME steps): a long chain's TS residual, shift z - f(z), rounds far above 1e-9.
+    PetscCall(SNESSetTolerances(snes, settings%newton_tol, 0.0_real64, 16.0_real64*epsilon(1.0_real64), max_iterations, max_evaluations, ierr))
     PetscCall(SNESGetKSP(snes, ksp, ierr))
     PetscCall(set_default_linear_solver(ksp, comm, ierr))
     PetscCall(TSSetTime(self%ts, 0.0_real64, ierr))
