@@ -118,6 +118,12 @@ contains
     integer, intent(in) :: comm
     type(failure_type), intent(out) :: failure
 
+    ! (a PETSc TS integrator's steps are spring_chain_ts_run's, which the scene gives for it)
+    if (any(settings%scheme == ts_schemes)) then
+      call fail(failure, failure_input, settings%input_file//', &integrator: scheme: '''//trim(settings%scheme)// &
+                ''' runs through eme_run (PETSc TS), not these steps; allowed: ''eme'', ''midpoint''', 'scheme')
+      return
+    end if
     call self%set_up(settings, model, z0, comm, failure)
     if (.not. failure%failed()) call self%chain%create_snes(settings%newton_tol, settings%newton_max_iterations, failure)
   end subroutine start
