@@ -132,11 +132,13 @@ $(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 
 # Test helpers built with the programs, in build/tests (build/bin holds the programs alone):
 # snapshot_probe writes snapshots of known values from every MPI rank through hdf5_snapshots
-# (tests/e2e/test_snapshots.py).
-TEST_HELPERS := $(BUILD)/tests/snapshot_probe
+# (tests/e2e/test_snapshots.py); chain_field_probe writes the split chain's field and Jacobian
+# for PETSc TS beside the dense model's (tests/e2e/test_chain_ts.py).
+TEST_HELPERS := $(BUILD)/tests/snapshot_probe $(BUILD)/tests/chain_field_probe
 all: $(TEST_HELPERS)
 $(OBJ)/tests/e2e/snapshot_probe.o: $(OBJ)/src/io/hdf5_snapshots.o $(OBJ)/src/util/failures.o
-$(BUILD)/tests/snapshot_probe: $(OBJ)/tests/e2e/snapshot_probe.o $(LIBRARY_OBJECTS)
+$(OBJ)/tests/e2e/chain_field_probe.o: $(OBJ)/src/io/run_config.o $(OBJ)/src/model/spring_chain/spring_chain_sparse_run.o
+$(TEST_HELPERS): $(BUILD)/tests/%: $(OBJ)/tests/e2e/%.o $(LIBRARY_OBJECTS)
 	@mkdir -p $(dir $@)
 	$(FC) $(FFLAGS) $(TEST_LINK_FLAGS) -o $@ $^ $(LINK_LIBS)
 

@@ -77,6 +77,8 @@ program chain_bench
       settings%discrete_gradient = config%integrator%discrete_gradient
       settings%metric = config%integrator%metric
       dt = config%integrator%dt
+      settings%dt = dt
+      settings%tolerance = config%integrator%tolerance
       step_total = int(min(step_count(config%integrator), int(huge(1), int64)))
       settings%newton_tol = config%integrator%newton_tol
       settings%newton_max_iterations = config%integrator%newton_max_iterations

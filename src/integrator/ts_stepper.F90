@@ -16,7 +16,8 @@ module ts_stepper
   use model_constraint, only: constraint_slot
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, solver_report, no_residual, accept_in_domain
-  use solver_description, only: add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, reasons_ts
+  use solver_description, only: add_setting, text_setting, set_petsc_reasons, reasons_ts
+  use ts_description, only: describe_ts
   use dense_assembly, only: assemble_jacobian
   use failures, only: failure_type, fail, fail_on_code, failure_input, failure_mismatch
   implicit none
@@ -350,52 +351,10 @@ contains
 
     type(failure_type) :: failure
 
-    call describe_ts(self, report, ierr)
+    call describe_ts(self%ts, 'PETSc TS', self%context%implicit, report, ierr)
     if (ierr == 0) call set_petsc_reasons(report, reasons_ts, failure)
     if (ierr /= 0 .or. failure%failed()) call add_setting(report, text_setting('error', 'PETSc could not describe the TS'))
   end function describe_solver
-
-  subroutine describe_ts(self, report, ierr)
-    class(ts_baseline), intent(in) :: self
-    type(solver_report), intent(inout) :: report
-    PetscErrorCode, intent(out) :: ierr
-    TSAdapt :: adapt
-    SNES :: snes
-    KSP :: ksp
-    PC :: pc
-    Vec :: vector_atol, vector_rtol
-    PetscReal :: atol, rtol, stol, dt
-    PetscInt :: max_iterations, max_evaluations
-    character(len=32) :: ts_type, adapt_type, snes_type, ksp_type, pc_type
-
-    PetscCall(TSGetType(self%ts, ts_type, ierr))
-    PetscCall(TSGetAdapt(self%ts, adapt, ierr))
-    PetscCall(TSAdaptGetType(adapt, adapt_type, ierr))
-    PetscCall(TSGetTolerances(self%ts, atol, vector_atol, rtol, vector_rtol, ierr))
-    PetscCall(TSGetTimeStep(self%ts, dt, ierr))
-    call add_setting(report, text_setting('name', 'PETSc TS'))
-    call add_setting(report, text_setting('ts_type', ts_type))
-    call add_setting(report, text_setting('ts_adapt_type', adapt_type))
-    call add_setting(report, number_setting('ts_atol', atol))
-    call add_setting(report, number_setting('ts_rtol', rtol))
-    call add_setting(report, number_setting('ts_dt', dt, 's'))
-    if (self%context%implicit) then
-      PetscCall(TSGetSNES(self%ts, snes, ierr))
-      PetscCall(SNESGetType(snes, snes_type, ierr))
-      PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
-      PetscCall(SNESGetKSP(snes, ksp, ierr))
-      PetscCall(KSPGetType(ksp, ksp_type, ierr))
-      PetscCall(KSPGetPC(ksp, pc, ierr))
-      PetscCall(PCGetType(pc, pc_type, ierr))
-      call add_setting(report, text_setting('snes_type', snes_type))
-      call add_setting(report, number_setting('snes_atol', atol))
-      call add_setting(report, number_setting('snes_rtol', rtol))
-      call add_setting(report, number_setting('snes_stol', stol))
-      call add_setting(report, integer_setting('snes_max_it', max_iterations))
-      call add_setting(report, text_setting('ksp_type', ksp_type))
-      call add_setting(report, text_setting('pc_type', pc_type))
-    end if
-  end subroutine describe_ts
 
   ! Dense LU for the implicit methods' Newton solves, as for the EME schemes.
   subroutine set_direct_solver(snes, ierr)

@@ -9,6 +9,7 @@ module distributed_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_interface, only: generic_model
   use failures, only: failure_type
+  use solver_description, only: solver_report
   implicit none (type, external)
   private
   public :: distributed_system, distributed_settings, distributed_step, distributed_figures, distributed_part
@@ -17,19 +18,24 @@ module distributed_model
   type :: distributed_settings
     character(len=:), allocatable :: input_file      !! named in refusals
     character(len=16) :: scheme = 'eme'
+    real(real64) :: dt = 0.0_real64                  !! the time loop's step (a TS's first step)
     integer :: discrete_gradient = 1
     integer :: metric = 1
     real(real64) :: newton_tol = 1.0e-8_real64
     integer :: newton_max_iterations = 50
     logical :: tolerance_given = .false.
+    real(real64) :: tolerance = 1.0e-10_real64       !! an adaptive integrator's (ts_rk5dp's) error per step
   end type distributed_settings
 
   !> One step's solve, the same on every rank.
   type :: distributed_step
     logical :: converged = .false.
-    integer :: iterations = 0
-    integer :: reason = 0                      !! SNESConvergedReason
+    integer :: iterations = 0                  !! Newton iterations
+    integer :: solves = 1                      !! the integrator's own steps in it (a TS's)
+    integer :: rejected = 0                    !! of them, rejected
+    integer :: reason = 0                      !! the solver's converged reason (SNES's, or TS's)
     real(real64) :: residual_norm = 0.0_real64
+    character(len=:), allocatable :: failure   !! why it did not converge, in words
   end type distributed_step
 
   !> The balances' quantities of the state and of the last step to it, summed over the ranks
@@ -67,6 +73,7 @@ module distributed_model
     procedure(part_interface), deferred :: part
     procedure(restore_interface), deferred :: restore
     procedure(finish_interface), deferred :: finish
+    procedure(describe_interface), deferred :: describe_solver
   end type distributed_system
 
   abstract interface
@@ -116,6 +123,14 @@ module distributed_model
       type(distributed_part), intent(in) :: state
       type(failure_type), intent(out) :: failure
     end subroutine restore_interface
+
+    !> The solver of the steps as the run file records it (after the options were applied) and
+    !> the legend of its converged reasons.
+    function describe_interface(self) result(report)
+      import :: distributed_system, solver_report
+      class(distributed_system), intent(in) :: self
+      type(solver_report) :: report
+    end function describe_interface
 
     !> Frees what `start` made; `failure` keeps a failure it comes in with.
     subroutine finish_interface(self, failure)

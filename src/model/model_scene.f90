@@ -115,9 +115,11 @@ contains
   end function without_temperatures
 
   !> The scene's model as one that can be split over MPI ranks (src/model/distributed_model),
-  !> not yet started; unallocated (the default) where the model runs on one process only.
-  subroutine distributed(self, system)
+  !> stepped by `scheme` (&integrator scheme), not yet started; unallocated (the default) where
+  !> the model runs on one process only.
+  subroutine distributed(self, scheme, system)
     class(scene), intent(in) :: self
+    character(len=*), intent(in) :: scheme
     class(distributed_system), allocatable, intent(out) :: system     ! (left unallocated)
   end subroutine distributed
 

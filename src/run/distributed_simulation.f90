@@ -13,9 +13,11 @@
 !> `&output snapshot_every`-th step and the last. A snapshot reaches the file in a window of the
 !> crash-safe writer: rank 0 closes the window's spare, all ranks append the snapshots the spare
 !> lacks, and only then does the spare take the file's name, so that a kill leaves the file of
-!> the last window, snapshots included. -eme_continue goes on from the file's last snapshot, at
+!> the last window, snapshots included. The model's system steps by the input's integrator (the
+!> chain: EME, the midpoint rule, PETSc TS); the balances checked are those it guarantees
+!> (step_check, as on the dense path). -eme_continue goes on from the file's last snapshot, at
 !> which its resume record stands (src/run/run_continuation), on any number of ranks. Not here
-!> yet: steps chosen by error control, integrators other than EME and the midpoint rule.
+!> yet: steps chosen by error control.
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -29,8 +31,6 @@ module distributed_simulation
   use integrator_settings, only: step_count
   use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: step_report, step_diagnostic
-  use solver_description, only: solver_report, add_setting, text_setting, number_setting, set_petsc_reasons, &
-                                reasons_snes
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, spare_addition, resume_record, read_resume_record
   use run_continuation, only: find_resume_record
@@ -95,7 +95,7 @@ contains
     type(constraint_slot), allocatable :: constraints(:)
     type(failure_type) :: building
 
-    call config%scene%distributed(system)
+    call config%scene%distributed(config%integrator%scheme, system)
     split_run_wanted = allocated(system)
     if (.not. split_run_wanted .or. ranks > 1) return
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
@@ -114,6 +114,8 @@ contains
     settings%newton_tol = config%integrator%newton_tol
     settings%newton_max_iterations = config%integrator%newton_max_iterations
     settings%tolerance_given = config%integrator%tolerance_given
+    settings%tolerance = config%integrator%tolerance
+    settings%dt = config%integrator%dt
   end function distributed_settings_of
 
   !> Sets the split model up on `comm` and frees it again, writing nothing (as simulation's
@@ -133,7 +135,7 @@ contains
       call set_failure(failure, failure%code, config%input_file//': '//failure%message)
       return
     end if
-    call config%scene%distributed(system)
+    call config%scene%distributed(config%integrator%scheme, system)
     call system%start(distributed_settings_of(config), model, z0, comm, failure)
     if (failure%failed() .and. failure%code /= code_input) &
       call set_failure(failure, code_input, config%input_file//': the split run could not be set up with the '// &
@@ -194,7 +196,7 @@ contains
       call fail(failure_input, config%input_file//': '//step_failure%message)
       return
     end if
-    call config%scene%distributed(system)
+    call config%scene%distributed(config%integrator%scheme, system)
     ! Rank 0 alone looks at the output; the others learn its verdict (and read a continued run's
     ! record from FILE.part once rank 0 has made it).
     continuing = continue_requested()
@@ -261,7 +263,7 @@ contains
     if (rank == 0 .and. .not. failure%failed()) then
       call output%create(part, config, entry, model, constraints, diagnostics(), [extra_attribute ::], &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
-      if (.not. io_failure%failed()) call output%record_solver(solver_of(config), io_failure)
+      if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
       if (io_failure%failed()) then
         call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
       else if (continuing) then
@@ -320,9 +322,9 @@ contains
       time = n*dt
       finished = n == summary%steps_planned
       if (.not. outcome%converged) then
-        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): no root: '// &
-                         'Newton did not converge (SNES reason '//integer_text(outcome%reason)//', |R| = '// &
-                         scientific_text(outcome%residual_norm, 3)//')'
+        if (.not. allocated(outcome%failure)) outcome%failure = 'no root: Newton did not converge (SNES reason '// &
+          integer_text(outcome%reason)//', |R| = '//scientific_text(outcome%residual_norm, 3)//')'
+        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '//outcome%failure
         summary%failure_kind = failure_solver
         exit
       end if
@@ -348,7 +350,8 @@ contains
       if (model%temperature_count() > 0) summary%min_temperature = min(summary%min_temperature, values%min_temperature)
       if (rank == 0) then
         report%newton_iterations = outcome%iterations
-        report%solves = 1
+        report%solves = outcome%solves
+        report%rejected = outcome%rejected
         report%residual_norm = outcome%residual_norm
         report%converged_reason = outcome%reason
         report%diagnostics(1) = values%min_viscous_production
@@ -760,18 +763,5 @@ contains
                                'conducting link, kappa (Theta_a - Theta_b)^2/(Theta_a Theta_b); NaN without links', &
                                'min')
   end function diagnostics
-
-  ! The split path's solver as the file records it.
-  function solver_of(config) result(report)
-    type(run_configuration), intent(in) :: config
-    type(solver_report) :: report
-    type(failure_type) :: ignored
-
-    call add_setting(report, text_setting('name', 'PETSc SNES on a DMDA split over the ranks: Newton, sparse '// &
-                                          'Jacobian, LU (GMRES on block-Jacobi LU on several ranks) unless '// &
-                                          'the options choose a KSP'))
-    call add_setting(report, number_setting('newton_tol', config%integrator%newton_tol, '1'))
-    call set_petsc_reasons(report, reasons_snes, ignored)
-  end function solver_of
 
 end module distributed_simulation

@@ -12,10 +12,13 @@
 !> with the KSP and PC the options choose; the default is full Newton steps with a direct
 !> factorisation on one rank (PETSc's LU, RCM order) and on several GMRES on block Jacobi with each
 !> rank's block so factored. Newton stops at the step's tolerance or at the rounding floor
-!> (an update below 16 eps |z|), whichever comes first.
+!> (an update below 16 eps |z|), whichever comes first. For PETSc TS (spring_chain_ts_run) the
+!> same DMDA, matrix and assembly give the chain's field f(z) and df/dz (rule partials_exact:
+!> field_at, jacobian_at), without the SNES.
 !>
 !> Errors: each public procedure returns a failure_type; its PETSc calls sit in a private twin
-!> with PETSc's own ierr.
+!> with PETSc's own ierr. The helpers of a TS's callbacks and step (field_at, jacobian_at,
+!> hold_old_state, set_default_linear_solver) keep PETSc's ierr.
 module spring_chain_dmda
 #include <petsc/finclude/petscsnes.h>
 #include <petsc/finclude/petscdmda.h>
@@ -25,13 +28,14 @@ module spring_chain_dmda
   use failures, only: failure_type, failure_none, failure_input, fail_on_code, fail, domain_overflow
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use spring_chain_step, only: chain_step_problem
+  use spring_chain_partials, only: partials_exact
   use spring_chain_layout, only: chain_layout
   use spring_chain_balance, only: spring_values
   use spring_chain_figures, only: share_figures
   use distributed_model, only: distributed_figures, distributed_step
   implicit none
   private
-  public :: distributed_chain
+  public :: distributed_chain, set_default_linear_solver
 
   !> The points of a slice the callbacks evaluate at once (a few hundred kB of partials and band).
   integer, parameter :: slice_points = 128
@@ -80,8 +84,13 @@ module spring_chain_dmda
     integer :: first_point = 1     !! the rank's points, first .. last (1-based)
     integer :: last_point = 0
     logical :: created = .false.
+    logical :: snes_created = .false.
   contains
     procedure :: create
+    procedure :: create_snes
+    procedure :: field_at
+    procedure :: jacobian_at
+    procedure :: hold_old_state
     procedure :: set_state
     procedure :: owned_state
     procedure :: step
@@ -94,35 +103,28 @@ module spring_chain_dmda
 
 contains
 
-  !> Makes the DMDA, vectors, matrix and SNES for `problem` (its z_old is not used) on `comm`
-  !> (PETSc's MPI communicator); Newton stops at |R| <= newton_tol or at the rounding floor.
-  subroutine create(self, problem, comm, newton_tol, max_iterations, failure)
+  !> Makes the DMDA, the vectors and the Jacobian's matrix for `problem` (its z_old is not used)
+  !> on `comm` (PETSc's MPI communicator); a step needs create_snes, or a TS of the caller's that
+  !> calls field_at and jacobian_at (the field, rule partials_exact).
+  subroutine create(self, problem, comm, failure)
     class(distributed_chain), intent(inout), target :: self
     type(chain_step_problem), intent(in) :: problem
     MPI_Comm, intent(in) :: comm
-    real(real64), intent(in) :: newton_tol
-    integer, intent(in) :: max_iterations
     type(failure_type), intent(out) :: failure
     PetscErrorCode :: ierr
 
-    call create_petsc(self, problem, comm, newton_tol, max_iterations, ierr)
-    call fail_on_code(failure, ierr, 'setting up the chain''s DMDA and SNES')
+    call create_petsc(self, problem, comm, ierr)
+    call fail_on_code(failure, ierr, 'setting up the chain''s DMDA')
   end subroutine create
 
-  subroutine create_petsc(self, problem, comm, newton_tol, max_iterations, ierr)
+  subroutine create_petsc(self, problem, comm, ierr)
     class(distributed_chain), intent(inout), target :: self
     type(chain_step_problem), intent(in) :: problem
     MPI_Comm, intent(in) :: comm
-    real(real64), intent(in) :: newton_tol
-    integer, intent(in) :: max_iterations
     PetscErrorCode, intent(out) :: ierr
-    PetscInt :: points, dof, width, xs, ys, zs, xm, ym, zm, gxs, gxm, max_evaluations, iterations
+    PetscInt :: points, dof, width, xs, ys, zs, xm, ym, zm, gxs, gxm
     PetscBool :: check_pattern
     integer :: k, o, w
-    PetscMPIInt :: ranks
-    KSP :: ksp
-    PC :: pc
-    SNESLineSearch :: line_search
 
     self%context%problem = problem
     points = problem%layout%points()
@@ -169,7 +171,35 @@ contains
     PetscCall(create_jacobian_matrix(self%context, comm, self%jacobian, ierr))
     PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-chain_check_pattern', check_pattern, ierr))
     self%context%check_pattern = check_pattern
+    self%created = .true.
+  end subroutine create_petsc
+
+  !> Makes the SNES of the steps (after `create`): Newton stops at |R| <= newton_tol or at the
+  !> rounding floor, within max_iterations.
+  subroutine create_snes(self, newton_tol, max_iterations, failure)
+    class(distributed_chain), intent(inout), target :: self
+    real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
+    type(failure_type), intent(out) :: failure
+    PetscErrorCode :: ierr
+
+    call create_snes_petsc(self, newton_tol, max_iterations, ierr)
+    call fail_on_code(failure, ierr, 'setting up the chain''s SNES')
+  end subroutine create_snes
+
+  subroutine create_snes_petsc(self, newton_tol, max_iterations, ierr)
+    class(distributed_chain), intent(inout), target :: self
+    real(real64), intent(in) :: newton_tol
+    integer, intent(in) :: max_iterations
+    PetscErrorCode, intent(out) :: ierr
+    PetscInt :: max_evaluations, iterations
+    KSP :: ksp
+    SNESLineSearch :: line_search
+    MPI_Comm :: comm
+
+    PetscCall(PetscObjectGetComm(self%context%da, comm, ierr))
     PetscCall(SNESCreate(comm, self%snes, ierr))
+    self%snes_created = .true.
     PetscCall(SNESSetDM(self%snes, self%context%da, ierr))
     PetscCall(SNESSetFunction(self%snes, self%r, chain_residual, self%context, ierr))
     PetscCall(SNESSetJacobian(self%snes, self%jacobian, self%jacobian, chain_jacobian, self%context, ierr))
@@ -183,6 +213,20 @@ contains
     PetscCall(SNESGetLineSearch(self%snes, line_search, ierr))
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHBASIC, ierr))
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
+    PetscCall(set_default_linear_solver(ksp, comm, ierr))
+    PetscCall(SNESSetFromOptions(self%snes, ierr))
+  end subroutine create_snes_petsc
+
+  !> The chain's default linear solver on `comm` for `ksp` (a step's Newton iterations, or a
+  !> TS's): on one rank a direct factorisation (PETSc's LU, RCM order), on several GMRES on
+  !> block Jacobi with each rank's block so factored; the options may choose others.
+  subroutine set_default_linear_solver(ksp, comm, ierr)
+    KSP, intent(in) :: ksp
+    MPI_Comm, intent(in) :: comm
+    PetscErrorCode, intent(out) :: ierr
+    PC :: pc
+    PetscMPIInt :: ranks
+
     PetscCall(KSPGetPC(ksp, pc, ierr))
     PetscCall(MPI_Comm_size(comm, ranks, ierr))
     if (ranks == 1) then
@@ -204,9 +248,7 @@ contains
       PetscCall(default_option('-sub_pc_type', 'lu', ierr))
       PetscCall(default_option('-sub_pc_factor_mat_ordering_type', 'rcm', ierr))
     end if
-    PetscCall(SNESSetFromOptions(self%snes, ierr))
-    self%created = .true.
-  end subroutine create_petsc
+  end subroutine set_default_linear_solver
 
   ! Sets PETSc option `name` to `value` unless the options give it.
   subroutine default_option(name, value, ierr)
@@ -285,8 +327,7 @@ contains
 
     self%context%problem%dt = h
     self%context%problem%fraction = 1.0_real64
-    PetscCall(DMGlobalToLocalBegin(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr))
-    PetscCall(DMGlobalToLocalEnd(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr))
+    PetscCall(self%hold_old_state(ierr))
     PetscCall(VecNorm(self%x, NORM_2, old_norm, ierr))
     self%context%update_floor = 16.0_real64*epsilon(1.0_real64)*old_norm
     PetscCall(VecDuplicate(self%x, old, ierr))
@@ -304,6 +345,16 @@ contains
     end if
     PetscCall(VecDestroy(old, ierr))
   end subroutine step_petsc
+
+  !> The state held becomes the old state of the step to come (its ghosted part: the step's
+  !> figures, and EME's residual, read it).
+  subroutine hold_old_state(self, ierr)
+    class(distributed_chain), intent(inout) :: self
+    PetscErrorCode, intent(out) :: ierr
+
+    PetscCall(DMGlobalToLocalBegin(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr))
+    PetscCall(DMGlobalToLocalEnd(self%context%da, self%x, INSERT_VALUES, self%context%old_local, ierr))
+  end subroutine hold_old_state
 
   !> The balances of the last step, summed over the ranks (each rank sums its points' masses and
   !> springs; MPI_Allreduce adds them): E and S of the state held, and E - E_old and S - S_old as
@@ -448,7 +499,7 @@ contains
     call fail_on_code(failure, ierr, 'setting the chain''s state from a snapshot')
   end subroutine set_part
 
-  !> Frees the PETSc objects.
+  !> Frees the PETSc objects (the SNES too, if made).
   subroutine destroy(self, failure)
     class(distributed_chain), intent(inout) :: self
     type(failure_type), intent(out) :: failure
@@ -464,7 +515,10 @@ contains
     class(distributed_chain), intent(inout) :: self
     PetscErrorCode, intent(out) :: ierr
 
-    PetscCall(SNESDestroy(self%snes, ierr))
+    if (self%snes_created) then
+      PetscCall(SNESDestroy(self%snes, ierr))
+    end if
+    self%snes_created = .false.
     PetscCall(MatDestroy(self%jacobian, ierr))
     PetscCall(VecDestroy(self%x, ierr))
     PetscCall(VecDestroy(self%r, ierr))
@@ -473,27 +527,55 @@ contains
     PetscCall(DMDestroy(self%context%da, ierr))
   end subroutine destroy_petsc
 
-  ! SNES callback: the rank's rows of R(x) = (x - z_old)/h - f(z_old, x), slice by slice, without
-  ! derivatives; a state outside a spring's domain is a domain error (SNES stops).
-  subroutine chain_residual(snes, x, r, context, ierr)
-    SNES, intent(in) :: snes
+  !> The rank's rows of the field f(x) (the problem's rule partials_exact: the chain's GENERIC
+  !> field, docs/formulation.md section 10) into the vector f, as PETSc TS's right-hand side
+  !> wants it; stat: a domain code if a spring at x is outside its domain (f is then partial).
+  subroutine field_at(self, x, f, stat, ierr)
+    class(distributed_chain), intent(inout) :: self
     Vec, intent(in) :: x
-    Vec, intent(in) :: r
-    type(chain_context), intent(inout) :: context
+    Vec, intent(in) :: f
+    integer, intent(out) :: stat
     PetscErrorCode, intent(out) :: ierr
-    real(real64), pointer :: old(:), new(:), rows(:), state(:)
-    integer :: stat, owned, first, slice_first, slice_last
-    real(real64) :: h
+    real(real64), pointer :: rows(:)
 
-    owned = context%last_row - context%first_row + 1
-    first = context%first_row - context%base
-    h = context%problem%fraction*context%problem%dt
+    stat = failure_none
+    PetscCall(borrow(f, self%context%last_row - self%context%first_row + 1, rows, ierr))
+    PetscCall(field_into(self%context, x, rows, stat, ierr))
+    PetscCall(give_back(f, rows, ierr))
+  end subroutine field_at
+
+  !> The rank's rows of df/dz at x (rule partials_exact: the field's exact Jacobian) into
+  !> `matrix` (the chain's Jacobian matrix, or one of its pattern), assembled, as PETSc TS's
+  !> right-hand side Jacobian wants it; stat as field_at's.
+  subroutine jacobian_at(self, x, matrix, stat, ierr)
+    class(distributed_chain), intent(inout) :: self
+    Vec, intent(in) :: x
+    Mat, intent(in) :: matrix
+    integer, intent(out) :: stat
+    PetscErrorCode, intent(out) :: ierr
+
+    stat = failure_none
+    PetscCall(jacobian_into(self%context, x, matrix, 1.0_real64, 0.0_real64, stat, ierr))
+  end subroutine jacobian_at
+
+  ! The rank's rows of f at the iterate x into rows(:), slice by slice, without derivatives: the
+  ! step's f(z_old, x) (z_old in old_local), or for the field (partials_exact) f(x) alone.
+  subroutine field_into(context, x, rows, stat, ierr)
+    type(chain_context), intent(inout) :: context
+    Vec, intent(in) :: x
+    real(real64), intent(out) :: rows(:)
+    integer, intent(out) :: stat
+    PetscErrorCode, intent(out) :: ierr
+    real(real64), pointer :: old(:), new(:)
+    integer :: slice_first, slice_last
+
     PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
     PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
-    PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
     PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
-    PetscCall(borrow_read(x, owned, state, ierr))
-    PetscCall(borrow(r, owned, rows, ierr))
+    old => new
+    if (context%problem%rule /= partials_exact) then
+      PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
+    end if
     stat = failure_none
     do slice_first = context%first_row, context%last_row, size(context%rows)
       slice_last = min(context%last_row, slice_first + size(context%rows) - 1)
@@ -501,39 +583,85 @@ contains
                                       rows(slice_first - context%first_row + 1:slice_last - context%first_row + 1), stat=stat)
       if (stat /= failure_none) exit
     end do
-    rows = (state - old(first:first + owned - 1))/h - rows
-    PetscCall(give_back(r, rows, ierr))
-    PetscCall(give_back_read(x, state, ierr))
+    if (context%problem%rule /= partials_exact) then
+      PetscCall(give_back_read(context%old_local, old, ierr))
+    end if
     PetscCall(give_back_read(context%new_local, new, ierr))
+  end subroutine field_into
+
+  ! SNES callback: the rank's rows of R(x) = (x - z_old)/h - f(z_old, x) (field_into); a state
+  ! outside a spring's domain is a domain error (SNES stops).
+  subroutine chain_residual(snes, x, r, context, ierr)
+    SNES, intent(in) :: snes
+    Vec, intent(in) :: x
+    Vec, intent(in) :: r
+    type(chain_context), intent(inout) :: context
+    PetscErrorCode, intent(out) :: ierr
+    real(real64), pointer :: old(:), rows(:), state(:)
+    integer :: stat, owned, first
+    real(real64) :: h
+
+    owned = context%last_row - context%first_row + 1
+    first = context%first_row - context%base
+    h = context%problem%fraction*context%problem%dt
+    PetscCall(borrow(r, owned, rows, ierr))
+    PetscCall(field_into(context, x, rows, stat, ierr))
+    PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
+    PetscCall(borrow_read(x, owned, state, ierr))
+    rows = (state - old(first:first + owned - 1))/h - rows
+    PetscCall(give_back_read(x, state, ierr))
     PetscCall(give_back_read(context%old_local, old, ierr))
+    PetscCall(give_back(r, rows, ierr))
     if (stat /= failure_none) then
       PetscCall(SNESSetFunctionDomainError(snes, ierr))
     end if
   end subroutine chain_residual
 
-  ! SNES callback: the rank's rows of dR/dx = I/h - df/dx, slice by slice, each row's structural
-  ! nonzeros (coupling_pattern) taken from the slice's band and written over the row's stored
-  ! values (MatSetValuesRow: the matrix holds exactly these columns, in this ascending order,
-  ! since create_jacobian_matrix; no column search).
+  ! SNES callback: the rank's rows of dR/dx = I/h - df/dx (jacobian_into).
   subroutine chain_jacobian(snes, x, jacobian, preconditioner, context, ierr)
     SNES, intent(in) :: snes
     Vec, intent(in) :: x
     Mat, intent(in) :: jacobian, preconditioner
     type(chain_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
+    integer :: stat
+
+    PetscCall(jacobian_into(context, x, preconditioner, -1.0_real64, 1.0_real64/(context%problem%fraction*context%problem%dt), stat, ierr))
+    if (jacobian /= preconditioner) then
+      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
+    end if
+    if (stat /= failure_none) then
+      PetscCall(SNESSetJacobianDomainError(snes, ierr))
+    end if
+  end subroutine chain_jacobian
+
+  ! The rank's rows of sign df/dx + diagonal I at x into `matrix`, assembled: slice by slice,
+  ! each row's structural nonzeros (coupling_pattern) taken from the slice's band and written over
+  ! the row's stored values (MatSetValuesRow: the matrix holds exactly these columns, in this
+  ! ascending order, since create_jacobian_matrix; no column search). With -chain_check_pattern
+  ! a derivative outside the pattern is an error.
+  subroutine jacobian_into(context, x, matrix, sign, diagonal, stat, ierr)
+    type(chain_context), intent(inout) :: context
+    Vec, intent(in) :: x
+    Mat, intent(in) :: matrix
+    real(real64), intent(in) :: sign, diagonal
+    integer, intent(out) :: stat
+    PetscErrorCode, intent(out) :: ierr
     real(real64), pointer :: old(:), new(:)
-    real(real64) :: h
-    integer :: stat, half, row, slice_first, slice_last, k, band_column
+    integer :: half, row, slice_first, slice_last, k, band_column
     PetscInt :: count, row_index
     logical :: outside
 
     associate (problem => context%problem, band => context%band, columns => context%columns, values => context%values)
       half = problem%band_half_width()
-      h = problem%fraction*problem%dt
       PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
-      PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
       PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
+      old => new
+      if (problem%rule /= partials_exact) then
+        PetscCall(borrow_read(context%old_local, context%local_size, old, ierr))
+      end if
       stat = failure_none
       outside = .false.
       do slice_first = context%first_row, context%last_row, size(context%rows)
@@ -546,32 +674,27 @@ contains
           do k = 1, int(count)
             ! band(r, c - g + half + 1) holds row g, column c (1-based; columns are 0-based)
             band_column = int(columns(k)) + 1 - row + half + 1
-            values(k) = -band(row - slice_first + 1, band_column)
-            if (columns(k) == row - 1) values(k) = values(k) + 1.0_real64/h
+            values(k) = sign*band(row - slice_first + 1, band_column)
+            if (columns(k) == row - 1) values(k) = values(k) + diagonal
             if (context%check_pattern) band(row - slice_first + 1, band_column) = 0.0_real64
           end do
           if (context%check_pattern) outside = outside .or. any(abs(band(row - slice_first + 1, :)) > 0.0_real64)
           row_index = row - 1
-          PetscCall(MatSetValuesRow(preconditioner, row_index, values, ierr))
+          PetscCall(MatSetValuesRow(matrix, row_index, values, ierr))
         end do
       end do
+      if (problem%rule /= partials_exact) then
+        PetscCall(give_back_read(context%old_local, old, ierr))
+      end if
       PetscCall(give_back_read(context%new_local, new, ierr))
-      PetscCall(give_back_read(context%old_local, old, ierr))
     end associate
-    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    if (jacobian /= preconditioner) then
-      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-    end if
-    if (stat /= failure_none) then
-      PetscCall(SNESSetJacobianDomainError(snes, ierr))
-    end if
+    PetscCall(MatAssemblyBegin(matrix, MAT_FINAL_ASSEMBLY, ierr))
+    PetscCall(MatAssemblyEnd(matrix, MAT_FINAL_ASSEMBLY, ierr))
     if (outside) then
       ierr = PETSC_ERR_PLIB
       SETERRQ(PETSC_COMM_SELF, ierr, 'chain_jacobian: a derivative outside coupling_pattern (-chain_check_pattern)')
     end if
-  end subroutine chain_jacobian
+  end subroutine jacobian_into
 
   ! Which entries of dR/dz can be nonzero, from the blocks of spring_chain_blocks (docs/
   ! formulation.md section 10), point k holding (x_k, p_k, [gamma_k], [tau_k]) and spring k

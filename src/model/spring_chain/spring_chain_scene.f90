@@ -18,7 +18,8 @@ module spring_chain_scene
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
   use distributed_model, only: distributed_system
-  use spring_chain_sparse_run, only: sparse_chain_run
+  use spring_chain_sparse_run, only: sparse_chain_run, ts_schemes
+  use spring_chain_ts_run, only: ts_chain_run
   use thermo_variable_kinds, only: tau_entropy
   use spring_chain_spring, only: rung_elastic
   use spring_chain_layout, only: ends_fixed_fixed
@@ -310,12 +311,19 @@ contains
                                                     "' has no thermodynamic variables and no entropy"
   end function without_temperatures
 
-  !> The chain on the sparse, distributed path (spring_chain_sparse_run).
-  subroutine distributed(self, system)
+  !> The chain on the sparse, distributed path: stepped by PETSc TS for a TS integrator
+  !> (spring_chain_ts_run), else by its own SNES (spring_chain_sparse_run, which refuses what it
+  !> cannot run).
+  subroutine distributed(self, scheme, system)
     class(chain_scene), intent(in) :: self
+    character(len=*), intent(in) :: scheme
     class(distributed_system), allocatable, intent(out) :: system
 
-    allocate (sparse_chain_run :: system)
+    if (any(scheme == ts_schemes)) then
+      allocate (ts_chain_run :: system)
+    else
+      allocate (sparse_chain_run :: system)
+    end if
   end subroutine distributed
 
 end module spring_chain_scene

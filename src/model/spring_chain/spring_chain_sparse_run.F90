@@ -1,9 +1,10 @@
 !> The chain on the sparse, distributed path as a model split over ranks (src/model/
 !> distributed_model; spring_chain_dmda does the work): the scene's chain and initial state, steps
 !> of EME (the input's discrete gradient and metric) or of the midpoint rule, the balances'
-!> figures summed over the ranks, and the rank's part of the state for a snapshot. What the path
-!> cannot run (another integrator, adaptive steps, a model other than the chain) is refused with
-!> the reason. chain_bench's bookkeeping (`advance`, `result`) rides on the same steps.
+!> figures summed over the ranks, and the rank's part of the state for a snapshot. The PETSc TS
+!> integrators extend it (spring_chain_ts_run). What the path cannot run (another integrator,
+!> EME's or the midpoint rule's adaptive steps, a model other than the chain) is refused with the
+!> reason. chain_bench's bookkeeping (`advance`, `result`) rides on the same steps.
 module spring_chain_sparse_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
@@ -11,15 +12,21 @@ module spring_chain_sparse_run
   use failures, only: failure_type, fail, failure_input, failure_not_converged, failure_io
   use number_text, only: integer_text, scientific_text
   use model_interface, only: generic_model
+  use solver_description, only: solver_report, add_setting, text_setting, number_setting, set_petsc_reasons, &
+                                reasons_snes
   use distributed_model, only: distributed_system, distributed_settings, distributed_step, distributed_figures, &
                                distributed_part
   use spring_chain_model, only: spring_chain
   use spring_chain_step, only: chain_step_problem
-  use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint
+  use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint, partials_exact
   use spring_chain_dmda, only: distributed_chain
   implicit none
   private
-  public :: sparse_chain_run, sparse_run_result, chain_problem_of
+  public :: sparse_chain_run, sparse_run_result, chain_problem_of, ts_schemes
+
+  !> The PETSc TS integrators (src/integrator/ts_stepper's registry names) that run the chain's
+  !> field split over ranks (spring_chain_ts_run).
+  character(len=*), parameter :: ts_schemes(4) = [character(len=11) :: 'ts_midpoint', 'ts_bdf2', 'ts_rk4', 'ts_rk5dp']
 
   !> What a run did, the same on every rank but the times (each rank's own).
   type :: sparse_run_result
@@ -45,6 +52,7 @@ module spring_chain_sparse_run
     type(sparse_run_result) :: result
   contains
     procedure :: start
+    procedure :: set_up
     procedure :: step
     procedure :: figures
     procedure :: part
@@ -52,6 +60,7 @@ module spring_chain_sparse_run
     procedure :: advance
     procedure :: dump
     procedure :: finish
+    procedure :: describe_solver
   end type sparse_chain_run
 
 contains
@@ -81,12 +90,17 @@ contains
     case ('midpoint')
       problem%rule = partials_midpoint
     case default
-      call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
-                'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
-                'process); allowed: ''eme'', ''midpoint''', 'scheme')
-      return
+      if (.not. any(settings%scheme == ts_schemes)) then
+        call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
+                  'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
+                  'process); allowed: ''eme'', ''midpoint'' and the PETSc TS integrators ''ts_midpoint'', '// &
+                  '''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', 'scheme')
+        return
+      end if
+      ! PETSc TS integrates the field at the exact partials; its own tolerance (ts_rk5dp) is its own.
+      problem%rule = partials_exact
     end select
-    if (settings%tolerance_given) then
+    if (settings%tolerance_given .and. problem%rule /= partials_exact) then
       call fail(failure, failure_input, settings%input_file//', &integrator: tolerance: the chain''s sparse, '// &
                 'distributed path takes fixed steps only; allowed: leave it out', 'tolerance')
       return
@@ -95,8 +109,29 @@ contains
     problem%metric = settings%metric
   end subroutine chain_problem_of
 
-  !> Sets up `model` (a chain) from z0 on `comm` as `settings` say: the DMDA, the state, E_0, S_0.
+  !> Sets up `model` (a chain) from z0 on `comm` as `settings` say: the DMDA, the state, E_0, S_0
+  !> and the steps' SNES.
   subroutine start(self, settings, model, z0, comm, failure)
+    class(sparse_chain_run), intent(inout), target :: self
+    type(distributed_settings), intent(in) :: settings
+    class(generic_model), intent(in) :: model
+    real(real64), intent(in) :: z0(:)
+    integer, intent(in) :: comm
+    type(failure_type), intent(out) :: failure
+
+    ! (a PETSc TS integrator's steps are spring_chain_ts_run's, which the scene gives for it)
+    if (any(settings%scheme == ts_schemes)) then
+      call fail(failure, failure_input, settings%input_file//', &integrator: scheme: '''//trim(settings%scheme)// &
+                ''' runs through eme_run (PETSc TS), not these steps; allowed: ''eme'', ''midpoint''', 'scheme')
+      return
+    end if
+    call self%set_up(settings, model, z0, comm, failure)
+    if (.not. failure%failed()) call self%chain%create_snes(settings%newton_tol, settings%newton_max_iterations, failure)
+  end subroutine start
+
+  !> `start` but the steps' solver: the DMDA, the state, E_0, S_0 (a refusal for what the path
+  !> cannot run).
+  subroutine set_up(self, settings, model, z0, comm, failure)
     class(sparse_chain_run), intent(inout), target :: self
     type(distributed_settings), intent(in) :: settings
     class(generic_model), intent(in) :: model
@@ -115,13 +150,13 @@ contains
     self%result%ranks = ranks
     self%result%springs = problem%layout%springs
     self%result%unknowns = problem%layout%state_size()
-    call self%chain%create(problem, comm, settings%newton_tol, settings%newton_max_iterations, failure)
+    call self%chain%create(problem, comm, failure)
     if (.not. failure%failed()) call self%chain%set_state(z0, failure)
     if (.not. failure%failed()) call self%chain%sums(self%result%energy_0, self%result%entropy_0, delta_energy, &
                                                      delta_entropy, failure)
     self%result%energy = self%result%energy_0
     self%result%entropy = self%result%entropy_0
-  end subroutine start
+  end subroutine set_up
 
   !> Step n: the step, its balances summed over the ranks, and the run's figures (the loop's CPU
   !> and wall time count these alone). A step Newton does not converge is a failure.
@@ -198,6 +233,19 @@ contains
 
     call self%chain%set_part(state%positions, state%momenta, state%gamma, state%tau, failure)
   end subroutine restore
+
+  !> The steps' SNES as the run file records it (distributed_system).
+  function describe_solver(self) result(report)
+    class(sparse_chain_run), intent(in) :: self
+    type(solver_report) :: report
+    type(failure_type) :: ignored
+
+    call add_setting(report, text_setting('name', 'PETSc SNES on a DMDA split over the ranks: Newton, sparse '// &
+                                          'Jacobian, LU (GMRES on block-Jacobi LU on several ranks) unless '// &
+                                          'the options choose a KSP'))
+    call add_setting(report, number_setting('newton_tol', self%settings%newton_tol, '1'))
+    call set_petsc_reasons(report, reasons_snes, ignored)
+  end function describe_solver
 
   !> Each rank's rows of the state to PREFIX.<rank> ("index value" lines, 1-based).
   subroutine dump(self, prefix, failure)
