@@ -126,19 +126,8 @@ def test_a_split_run_stopped_by_sigterm_keeps_its_snapshots(tmp_path):
     environment = dict(os.environ, EME_WRITE_EVERY_ROWS="3")
     process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, env=environment)
-    part = tmp_path / "long.h5.part"
-    deadline = time.monotonic() + 300
-    snapshots = 0
-    while snapshots < 4 and time.monotonic() < deadline and process.poll() is None:
-        time.sleep(0.2)
-        try:
-            with h5py.File(part, "r") as f:
-                snapshots = f["snapshots/time"].shape[0] if "snapshots" in f else 0
-        except (OSError, KeyError):
-            snapshots = 0
-    process.send_signal(signal.SIGTERM)
-    stdout, stderr = process.communicate(timeout=300)
-    assert process.returncode == 128 + signal.SIGTERM, stderr
+    status = stop_when_snapshots(process, tmp_path / "long.h5.part", 4, lambda p: p.send_signal(signal.SIGTERM))
+    assert status == 128 + signal.SIGTERM
     with h5py.File(output, "r") as f:
         assert f.attrs["status"] == "incomplete: interrupted by SIGTERM"
         times = f["snapshots/time"][()]
