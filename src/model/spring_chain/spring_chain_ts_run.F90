@@ -46,6 +46,7 @@ module spring_chain_ts_run
   type, extends(sparse_chain_run) :: ts_chain_run
     type(ts_context) :: context
     TS :: ts
+    Vec :: old                                  !! the state a step starts from (kept if TS fails)
     logical :: ts_created = .false.
     logical :: adaptive = .false.               !! the TS chooses its steps inside one (ts_rk5dp)
     real(real64) :: time = 0.0_real64           !! the time the state held is at
@@ -92,6 +93,7 @@ contains
     PetscCall(PetscObjectGetComm(self%chain%context%da, comm, ierr))
     PetscCall(TSCreate(comm, self%ts, ierr))
     self%ts_created = .true.
+    PetscCall(VecDuplicate(self%chain%x, self%old, ierr))
     PetscCall(TSSetProblemType(self%ts, TS_NONLINEAR, ierr))
     PetscCall(TSSetSolution(self%ts, self%chain%x, ierr))
     PetscCall(TSSetRHSFunction(self%ts, PETSC_NULL_VEC, chain_field, self%context, ierr))
@@ -167,7 +169,6 @@ contains
     real(real64), intent(in) :: dt
     type(distributed_step), intent(out) :: outcome
     PetscErrorCode, intent(out) :: ierr
-    Vec :: old
     TSConvergedReason :: converged
     SNES :: snes
     PetscInt :: snes_iterations, ts_steps, rejections
@@ -175,8 +176,7 @@ contains
 
     self%context%domain_errors = 0
     PetscCall(self%chain%hold_old_state(ierr))
-    PetscCall(VecDuplicate(self%chain%x, old, ierr))
-    PetscCall(VecCopy(self%chain%x, old, ierr))
+    PetscCall(VecCopy(self%chain%x, self%old, ierr))
     ! From the loop's time, to t + dt exactly; a fixed-step method's step reset to dt (after
     ! landing on an output time TS keeps a shortened last step as its next).
     PetscCall(TSSetTime(self%ts, self%time, ierr))
@@ -204,9 +204,8 @@ contains
       self%time = self%time + dt
     else
       outcome%failure = failure_text(converged, self%context%domain_errors > 0)
-      PetscCall(VecCopy(old, self%chain%x, ierr))
+      PetscCall(VecCopy(self%old, self%chain%x, ierr))
     end if
-    PetscCall(VecDestroy(old, ierr))
   end subroutine step_petsc
 
   !> Makes the rank's part `state` the current state (a continued run's last snapshot) and
@@ -256,6 +255,7 @@ contains
 
     ierr = 0
     if (self%ts_created) call TSDestroy(self%ts, ierr)
+    if (self%ts_created .and. ierr == 0) call VecDestroy(self%old, ierr)
     self%ts_created = .false.
     call fail_on_code(freeing, ierr, 'freeing the chain''s PETSc TS')
     if (.not. failure%failed() .and. freeing%failed()) failure = freeing
