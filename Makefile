@@ -386,7 +386,9 @@ study-chain: programs $(VENV)/.python-deps
 # (bench_eme_run.py: eme_run and eme_bench alternating), and PETSc SNES timed by itself
 # (snes_overhead) beside what the ratios leave it; then issue 34's ratios against CVODE-BDF on
 # the same model (bench_cvode_baseline.py): instructions per step by callgrind, and a whole
-# eme_run against the C program with CVODE alone (cvode_baseline); then issue 32's cost per
+# eme_run against the C program with CVODE alone (cvode_baseline); then issue 42's instructions
+# per evaluation of the paper scene's field, eme's (field_bench) against the C one's
+# (bench_field.py); then issue 32's cost per
 # step of each rung of the pendulum (bench_rungs.py: spatial and planar, thermoviscoelastic and
 # thermoelastic, and the full model on the generic path, in instructions and alternating in
 # time, against the full model; target 0.7 for the planar thermoelastic step); then the spring
@@ -401,6 +403,7 @@ bench: programs $(VENV)/.python-deps bench-deps
 	$(PYTHON) postprocess/machine_load.py --record results/bench/eme_bench.load.json -- $(BIN)/eme_bench 21
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
 	$(PYTHON) postprocess/bench_cvode_baseline.py --bin $(BIN) --repeats 15
+	$(PYTHON) postprocess/bench_field.py --bin $(BIN)
 	$(PYTHON) postprocess/bench_rungs.py --bin $(BIN) --repeats 7
 	$(PYTHON) postprocess/bench_chain.py --bin $(BIN) --repeats 3
 

@@ -1,6 +1,9 @@
 /* cvode_baseline [--tolerance TOL] [--t-end T] [--difference-quotients] [--check-jacobian]:
  * the paper scene with SUNDIALS CVODE alone, the whole-run baseline of `make bench`
  * (docs/performance.md, section "Issue 34").
+ * cvode_baseline --field-evaluations K: only evaluates this file's field (without its Jacobian)
+ * K times at the initial state and prints field_evaluations=K and a checksum, the C side of
+ * make bench's instructions per field evaluation (postprocess/bench_field.py, issue 42 item 5).
  *
  * A minimal C program of the same model as eme_run's paper scene: the thermoviscoelastic double
  * pendulum with Table 1's data and the initial state of docs/formulation.md section 1, in the
@@ -23,6 +26,7 @@
  * largest entry of its row>). Exit status 0, 1 when CVODE fails, 2 on bad usage; --help, -h,
  * -help and --version print and exit with status 0.
  */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -262,10 +266,12 @@ static void initial_state(double *z) {
 
 static int usage(FILE *stream, int status) {
   fprintf(stream, "usage: cvode_baseline [--tolerance TOL] [--t-end T] [--difference-quotients] [--check-jacobian]\n"
+                  "       cvode_baseline --field-evaluations K\n"
                   "The paper scene (Table 1, theta variable) with SUNDIALS CVODE BDF alone: Newton, dense solver,\n"
                   "analytic Jacobian (--difference-quotients: CVODE's), rtol = atol = TOL (1e-10) to t = T (20 s).\n"
                   "Prints the final state and CVODE's counts; --check-jacobian also the analytic Jacobian's\n"
-                  "deviation from central differences at the final state.\n\n"
+                  "deviation from central differences at the final state. --field-evaluations K: evaluate the\n"
+                  "right-hand side alone K times at the initial state, print field_evaluations=K and a checksum.\n\n"
                   "--help, -h, -help: this text; --version: the code's and the libraries' versions. Each prints\n"
                   "and exits with status 0.\n");
   return status;
@@ -280,6 +286,25 @@ static int print_versions(void) {
   return 0;
 }
 
+/* The field K times at the initial state, each state moved in its last digit by the sign of the
+ * previous field (so no evaluation repeats the one before); the instructions of one evaluation
+ * are the difference of two counts' over the difference of the counts (bench_field.py). */
+static int evaluate_field(const parameters *p, long evaluations) {
+  double z0[N_STATE], z[N_STATE], f[N_STATE] = {0.0}, checksum = 0.0;
+  initial_state(z0);
+  memcpy(z, z0, sizeof z);
+  for (long e = 0; e < evaluations; ++e) {
+    z[0] = z0[0] + DBL_EPSILON * fabs(z0[0]) * copysign(1.0, f[0]);
+    if (field(p, z, f, NULL) != 0) {
+      fprintf(stderr, "cvode_baseline: the field failed at the initial state\n");
+      return 1;
+    }
+  }
+  for (int i = 0; i < N_STATE; ++i) checksum += fabs(f[i]);
+  printf("field_evaluations=%ld sum_abs_f=%.17g\n", evaluations, checksum);
+  return 0;
+}
+
 /* A positive number from text, or 0 where the text is not one. */
 static double positive_number(const char *text) {
   char *end;
@@ -290,6 +315,7 @@ static double positive_number(const char *text) {
 int main(int argc, char **argv) {
   double tolerance = 1e-10, t_end = 20.0, t_reached = 0.0;
   int difference_quotients = 0, check_jacobian = 0, flag;
+  long field_evaluations = 0;
   parameters model = table1;
 
   /* --help, -h, -help and --version answer at once, wherever they stand. */
@@ -304,11 +330,15 @@ int main(int argc, char **argv) {
       continue;
     else if (!strcmp(argv[i], "--t-end") && i + 1 < argc && (t_end = positive_number(argv[++i])) > 0.0)
       continue;
+    else if (!strcmp(argv[i], "--field-evaluations") && i + 1 < argc &&
+             (field_evaluations = (long)positive_number(argv[++i])) > 0)
+      continue;
     else {
-      fprintf(stderr, "cvode_baseline: bad argument '%s' (TOL and T: numbers > 0)\n", argv[i]);
+      fprintf(stderr, "cvode_baseline: bad argument '%s' (TOL and T: numbers > 0; K: a whole number >= 1)\n", argv[i]);
       return usage(stderr, 2);
     }
   }
+  if (field_evaluations > 0) return evaluate_field(&model, field_evaluations);
 
   SUNContext context;
   if (SUNContext_Create(NULL, &context) != 0) return 1;
