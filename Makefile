@@ -128,7 +128,7 @@ $(patsubst %,$(OBJ)/drivers/%.o,$(CVODE_C_DRIVERS)): $(OBJ)/drivers/%.o: drivers
 	$(SERIAL_CC) $(CFLAGS) $(SUNDIALS_FLAGS) -c $< -o $@
 $(patsubst %,$(BIN)/%,$(CVODE_C_DRIVERS)): $(BIN)/%: $(OBJ)/drivers/%.o
 	@mkdir -p $(dir $@)
-	$(SERIAL_CC) $(CFLAGS) -o $@ $< $(SUNDIALS_LDFLAGS) $(CVODE_LIBS) -lm
+	$(SERIAL_CC) $(CFLAGS) -o $@ $< $(SUNDIALS_LDFLAGS) $(CVODE_LIBS) -lsundials_arkode -lm
 
 # Test helpers built with the programs, in build/tests (build/bin holds the programs alone):
 # snapshot_probe writes snapshots of known values from every MPI rank through hdf5_snapshots
@@ -144,7 +144,7 @@ $(TEST_HELPERS): $(BUILD)/tests/%: $(OBJ)/tests/e2e/%.o $(LIBRARY_OBJECTS)
 
 # LAPACK and BLAS (the ones PETSc uses): --version reports LAPACK's, and the LU's unit test compares with it;
 # SUNDIALS CVODE with its dense direct solver serves the CVODE baselines (BDF with Newton), and
-# its fixed-point solver CVODE-Adams; zlib (HDF5's own dependency) gives the CRC-32 of a file's
+# its fixed-point solver CVODE-Adams (cvode_baseline also takes ARKODE's explicit steps); zlib (HDF5's own dependency) gives the CRC-32 of a file's
 # texts (src/io/hdf5_text_checksum.c).
 CVODE_LIBS := -lsundials_cvode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense
 SUNDIALS_LIBS := $(CVODE_LIBS) -lsundials_sunnonlinsolfixedpoint
@@ -388,7 +388,8 @@ study-chain: programs $(VENV)/.python-deps
 # the same model (bench_cvode_baseline.py): instructions per step by callgrind, and a whole
 # eme_run against the C program with CVODE alone (cvode_baseline); then issue 42's instructions
 # per evaluation of the paper scene's field, eme's (field_bench) against the C one's
-# (bench_field.py); then issue 32's cost per
+# (bench_field.py), and relaxed_dp853's instructions against ARKODE's Dormand-Prince 5(4) at
+# every error decade (bench_arkode.py); then issue 32's cost per
 # step of each rung of the pendulum (bench_rungs.py: spatial and planar, thermoviscoelastic and
 # thermoelastic, and the full model on the generic path, in instructions and alternating in
 # time, against the full model; target 0.7 for the planar thermoelastic step); then the spring
@@ -404,6 +405,7 @@ bench: programs $(VENV)/.python-deps bench-deps
 	$(PYTHON) postprocess/bench_eme_run.py --bin $(BIN) --repeats 7
 	$(PYTHON) postprocess/bench_cvode_baseline.py --bin $(BIN) --repeats 15
 	$(PYTHON) postprocess/bench_field.py --bin $(BIN)
+	$(PYTHON) postprocess/bench_arkode.py --bin $(BIN)
 	$(PYTHON) postprocess/bench_rungs.py --bin $(BIN) --repeats 7
 	$(PYTHON) postprocess/bench_chain.py --bin $(BIN) --repeats 3
 

@@ -1,6 +1,10 @@
 /* cvode_baseline [--tolerance TOL] [--t-end T] [--difference-quotients] [--check-jacobian]:
  * the paper scene with SUNDIALS CVODE alone, the whole-run baseline of `make bench`
  * (docs/performance.md, section "Issue 34").
+ * cvode_baseline --arkode-dp5 [--tolerance TOL] [--t-end T]: the same scene with ARKODE's explicit
+ * Dormand-Prince 5(4) (ERKStep, its own error control at rtol = atol = TOL) instead, the outside
+ * program of make bench's work-precision line for relaxed_dp853 (postprocess/bench_arkode.py,
+ * issue 42 item 5); it prints steps=N rhs_evaluations=N error_test_failures=N.
  * cvode_baseline --field-evaluations K: only evaluates this file's field (without its Jacobian)
  * K times at the initial state and prints field_evaluations=K and a checksum, the C side of
  * make bench's instructions per field evaluation (postprocess/bench_field.py, issue 42 item 5).
@@ -32,6 +36,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <arkode/arkode_erkstep.h>
 #include <cvode/cvode.h>
 #include <nvector/nvector_serial.h>
 #include <sundials/sundials_version.h>
@@ -266,11 +271,13 @@ static void initial_state(double *z) {
 
 static int usage(FILE *stream, int status) {
   fprintf(stream, "usage: cvode_baseline [--tolerance TOL] [--t-end T] [--difference-quotients] [--check-jacobian]\n"
+                  "       cvode_baseline --arkode-dp5 [--tolerance TOL] [--t-end T]\n"
                   "       cvode_baseline --field-evaluations K\n"
                   "The paper scene (Table 1, theta variable) with SUNDIALS CVODE BDF alone: Newton, dense solver,\n"
                   "analytic Jacobian (--difference-quotients: CVODE's), rtol = atol = TOL (1e-10) to t = T (20 s).\n"
                   "Prints the final state and CVODE's counts; --check-jacobian also the analytic Jacobian's\n"
-                  "deviation from central differences at the final state. --field-evaluations K: evaluate the\n"
+                  "deviation from central differences at the final state. --arkode-dp5: ARKODE's explicit\n"
+                  "Dormand-Prince 5(4) (ERKStep) at rtol = atol = TOL instead. --field-evaluations K: evaluate the\n"
                   "right-hand side alone K times at the initial state, print field_evaluations=K and a checksum.\n\n"
                   "--help, -h, -help: this text; --version: the code's and the libraries' versions. Each prints\n"
                   "and exits with status 0.\n");
@@ -305,6 +312,53 @@ static int evaluate_field(const parameters *p, long evaluations) {
   return 0;
 }
 
+/* The final time, state and counts of a run, on the lines the header describes; `counts` is the
+ * method's own line. */
+static void print_run(const char *method, double tolerance, double t_end, double t_reached, const double *z,
+                      const char *counts) {
+  printf("cvode_baseline: the paper scene in the temperature variable, SUNDIALS %s %s, rtol = atol = %g, to t = %g s\n",
+         SUNDIALS_VERSION, method, tolerance, t_end);
+  printf("t_final=%.17g\nstate=", t_reached);
+  for (int i = 0; i < N_STATE; ++i) printf(i ? " %.17g" : "%.17g", z[i]);
+  printf("\n%s\n", counts);
+}
+
+/* The scene with ARKODE's ERKStep and the Dormand-Prince 5(4) table to t_end (a stop time
+ * there); 0, or 1 when ARKODE fails (said on stderr). */
+static int integrate_dp5(parameters *model, double tolerance, double t_end, SUNContext context) {
+  N_Vector y = N_VNew_Serial(N_STATE, context);
+  if (y == NULL) return 1;
+  initial_state(N_VGetArrayPointer(y));
+  void *arkode = ERKStepCreate(rhs, 0.0, y, context);
+  double t_reached = 0.0;
+  int flag = arkode == NULL ? ARK_MEM_NULL : ARK_SUCCESS;
+  if (flag == ARK_SUCCESS) flag = ERKStepSetTableNum(arkode, ARKODE_DORMAND_PRINCE_7_4_5);
+  if (flag == ARK_SUCCESS) flag = ERKStepSetUserData(arkode, model);
+  if (flag == ARK_SUCCESS) flag = ERKStepSStolerances(arkode, tolerance, tolerance);
+  if (flag == ARK_SUCCESS) flag = ERKStepSetMaxNumSteps(arkode, 10000000);
+  if (flag == ARK_SUCCESS) flag = ERKStepSetStopTime(arkode, t_end);
+  if (flag == ARK_SUCCESS) flag = ERKStepEvolve(arkode, t_end, y, &t_reached, ARK_NORMAL);
+  if (flag == ARK_TSTOP_RETURN) flag = ARK_SUCCESS;
+  long steps = 0, rhs_evaluations = 0, error_fails = 0;
+  char counts[160];
+  if (arkode != NULL) {
+    ERKStepGetNumSteps(arkode, &steps);
+    ERKStepGetNumRhsEvals(arkode, &rhs_evaluations);
+    ERKStepGetNumErrTestFails(arkode, &error_fails);
+  }
+  snprintf(counts, sizeof counts, "steps=%ld rhs_evaluations=%ld error_test_failures=%ld", steps, rhs_evaluations,
+           error_fails);
+  print_run("ARKODE ERKStep Dormand-Prince 5(4)", tolerance, t_end, t_reached, N_VGetArrayPointer(y), counts);
+  if (flag != ARK_SUCCESS) {
+    char *name = ERKStepGetReturnFlagName(flag); /* allocated by ARKODE */
+    fprintf(stderr, "cvode_baseline: ARKODE failed at t = %g s: %s\n", t_reached, name != NULL ? name : "?");
+    free(name);
+  }
+  ERKStepFree(&arkode);
+  N_VDestroy(y);
+  return flag == ARK_SUCCESS ? 0 : 1;
+}
+
 /* A positive number from text, or 0 where the text is not one. */
 static double positive_number(const char *text) {
   char *end;
@@ -314,7 +368,7 @@ static double positive_number(const char *text) {
 
 int main(int argc, char **argv) {
   double tolerance = 1e-10, t_end = 20.0, t_reached = 0.0;
-  int difference_quotients = 0, check_jacobian = 0, flag;
+  int difference_quotients = 0, check_jacobian = 0, dormand_prince = 0, flag;
   long field_evaluations = 0;
   parameters model = table1;
 
@@ -326,6 +380,7 @@ int main(int argc, char **argv) {
   for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--difference-quotients")) difference_quotients = 1;
     else if (!strcmp(argv[i], "--check-jacobian")) check_jacobian = 1;
+    else if (!strcmp(argv[i], "--arkode-dp5")) dormand_prince = 1;
     else if (!strcmp(argv[i], "--tolerance") && i + 1 < argc && (tolerance = positive_number(argv[++i])) > 0.0)
       continue;
     else if (!strcmp(argv[i], "--t-end") && i + 1 < argc && (t_end = positive_number(argv[++i])) > 0.0)
@@ -342,6 +397,11 @@ int main(int argc, char **argv) {
 
   SUNContext context;
   if (SUNContext_Create(NULL, &context) != 0) return 1;
+  if (dormand_prince) {
+    flag = integrate_dp5(&model, tolerance, t_end, context);
+    SUNContext_Free(&context);
+    return flag;
+  }
   N_Vector y = N_VNew_Serial(N_STATE, context);
   void *cvode = CVodeCreate(CV_BDF, context);
   SUNMatrix matrix = SUNDenseMatrix(N_STATE, N_STATE, context);
@@ -372,15 +432,14 @@ int main(int argc, char **argv) {
   CVodeGetNumErrTestFails(cvode, &error_fails);
   CVodeGetNumNonlinSolvConvFails(cvode, &nonlinear_fails);
 
-  printf("cvode_baseline: the paper scene in the temperature variable, SUNDIALS %s CVODE BDF, Newton, dense, "
-         "%s Jacobian, rtol = atol = %g, to t = %g s\n",
-         SUNDIALS_VERSION, difference_quotients ? "difference-quotient" : "analytic", tolerance, t_end);
-  printf("t_final=%.17g\nstate=", t_reached);
+  char counts[240];
+  snprintf(counts, sizeof counts, "steps=%ld rhs_evaluations=%ld jacobian_evaluations=%ld linear_setups=%ld "
+           "nonlinear_iterations=%ld error_test_failures=%ld nonlinear_failures=%ld",
+           steps, rhs_evaluations + difference_rhs, jacobians, setups, iterations, error_fails, nonlinear_fails);
   const double *z = N_VGetArrayPointer(y);
-  for (int i = 0; i < N_STATE; ++i) printf(i ? " %.17g" : "%.17g", z[i]);
-  printf("\nsteps=%ld rhs_evaluations=%ld jacobian_evaluations=%ld linear_setups=%ld nonlinear_iterations=%ld "
-         "error_test_failures=%ld nonlinear_failures=%ld\n",
-         steps, rhs_evaluations + difference_rhs, jacobians, setups, iterations, error_fails, nonlinear_fails);
+  print_run(difference_quotients ? "CVODE BDF, Newton, dense, difference-quotient Jacobian"
+                                  : "CVODE BDF, Newton, dense, analytic Jacobian",
+            tolerance, t_end, t_reached, z, counts);
   if (check_jacobian) printf("jacobian_deviation=%.3g\n", jacobian_deviation(&model, z));
   if (flag != CV_SUCCESS) {
     char *name = CVodeGetReturnFlagName(flag); /* allocated by CVODE */

@@ -85,3 +85,21 @@ def test_cvode_baseline_refuses_bad_arguments():
     for arguments in (["--tolerance", "-1"], ["--t-end"], ["--frobnicate"]):
         result = subprocess.run([str(binary), *arguments], capture_output=True, text=True, timeout=60)
         assert result.returncode == 2 and "usage: cvode_baseline" in result.stderr, (arguments, result.stderr)
+
+
+def test_arkode_dp5_integrates_the_paper_scene_at_fifth_order(tmp_path, eme_run_binary):
+    # cvode_baseline --arkode-dp5, make bench's outside program for relaxed_dp853's work-precision
+    # line (postprocess/bench_arkode.py): at t = 5 s it agrees with eme_run's relaxed_dp853 (a
+    # code written apart: other field, other method) to within both runs' errors (each about 1e-9
+    # at 1e-11, measured 2026-11-29: 1.3e-10 and 6.5e-10 against their own 1e-13 runs) ...
+    ours = baseline("--arkode-dp5", "--tolerance", "1e-11", "--t-end", "5")
+    assert ours["t_final"] == 5.0
+    result, path = run_eme(tmp_path, "relaxed_dp853", {"integrator": {
+        "scheme": "relaxed_dp853", "thermo_variable": "temperature", "dt": 0.15, "t_end": 5.0, "tolerance": 1e-11}})
+    assert result.returncode == 0, result.stderr
+    run = read_run(path)
+    assert distance(ours["state"], np.concatenate([run["state"][-1, :13], run["temperature"][-1]])) < 1e-8
+    # ... and its steps grow like tol^(-1/5), as a fifth-order error control's do: 10 times for
+    # 1e5 times tighter (a second-order table would take 10^2.5 = 316 times as many).
+    looser = baseline("--arkode-dp5", "--tolerance", "1e-6", "--t-end", "5")
+    assert 6 < ours["steps"] / looser["steps"] < 16, (ours["steps"], looser["steps"])
