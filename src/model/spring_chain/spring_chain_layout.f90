@@ -33,21 +33,21 @@ module spring_chain_layout
     logical :: fixed_fixed = .false.
     real(real64) :: span = 0.0_real64  !! the second support's distance along x
   contains
-    procedure :: point_size
-    procedure :: spring_size
-    procedure :: state_size
-    procedure :: points
-    procedure :: point_of
-    procedure :: offset
-    procedure :: q_index
-    procedure :: p_index
-    procedure :: gamma_index
-    procedure :: tau_index
-    procedure :: support
-    procedure :: mass_indices
-    procedure :: spring_indices
-    procedure :: link_indices
-    procedure :: gather_spring
+    procedure, non_overridable :: point_size
+    procedure, non_overridable :: spring_size
+    procedure, non_overridable :: state_size
+    procedure, non_overridable :: points
+    procedure, non_overridable :: point_of
+    procedure, non_overridable :: offset
+    procedure, non_overridable :: q_index
+    procedure, non_overridable :: p_index
+    procedure, non_overridable :: gamma_index
+    procedure, non_overridable :: tau_index
+    procedure, non_overridable :: support
+    procedure, non_overridable :: mass_indices
+    procedure, non_overridable :: spring_indices
+    procedure, non_overridable :: link_indices
+    procedure, non_overridable :: gather_spring
   end type chain_layout
 
 contains
@@ -74,10 +74,12 @@ contains
     type(spring_slots) :: slots
     integer :: c
 
-    slots%x_left(1:d) = [(c, c=1, d)]
-    slots%p_left(1:d) = [(d + c, c=1, d)]
-    slots%x_right(1:d) = [(2*d + c, c=1, d)]
-    slots%p_right(1:d) = [(3*d + c, c=1, d)]
+    do c = 1, d          ! a loop, not array constructors: this runs for every spring of every solve
+      slots%x_left(c) = c
+      slots%p_left(c) = d + c
+      slots%x_right(c) = 2*d + c
+      slots%p_right(c) = 3*d + c
+    end do
     slots%size = 4*d
     if (n == 3) then
       slots%size = slots%size + 1

@@ -47,13 +47,13 @@ module spring_chain_spring
     real(real64) :: viscosity_activation = 0.0_real64
     real(real64) :: theta_ref = 1.0_real64
   contains
-    procedure :: evaluate
-    procedure :: difference
-    procedure :: discrete_gradient
-    procedure :: values_and_temperature
-    procedure :: tau_from_temperature
-    procedure :: metric_scale
-    procedure :: viscosity => spring_viscosity
+    procedure, non_overridable :: evaluate
+    procedure, non_overridable :: difference
+    procedure, non_overridable :: discrete_gradient
+    procedure, non_overridable :: values_and_temperature
+    procedure, non_overridable :: tau_from_temperature
+    procedure, non_overridable :: metric_scale
+    procedure, non_overridable :: viscosity => spring_viscosity
   end type chain_spring
 
 contains
