@@ -22,25 +22,28 @@
 !> to this study's by their swept values (index.h5) or overrides (journal, case files), so a
 !> study whose sweeps grew keeps its finished cases and renames their files. In an index-only study (&study index_only) there are no case
 !> files: index.h5 and the journal are the record.
+!> The columns and their figures are src/run/study_columns's; matching an earlier run's cases to
+!> this study's is src/run/study_case_matching's.
 module study_index
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
   use hdf5_files, only: hdf5_file
-  use hdf5_table, only: table_columns, column_real, column_integer, table_rows
+  use hdf5_table, only: table_columns, column_integer, table_rows
   use filesystem, only: make_directories, remove_file, file_exists, append_text, rename_file
   use integrator_registry, only: integrator_entry, registered_integrators
   use build_info, only: code_version
   use provenance, only: write_provenance, iso_time, machine_load, machine_load_now
   use run_options, only: petsc_options_in_force
   use run_config, only: field_units, run_configuration, read_run_config
-  use model_interface, only: generic_model
-  use model_constraint, only: constraint_slot
   use effective_namelist, only: namelist_of_run
   use namelist_text, only: blanked, item_name
   use study_case_files, only: case_file, case_name, case_overrides, case_file_checks_out, read_case_file
   use study_journal, only: case_result, journal_entry, status_length, kind_length, metric_count, journal_line, &
                            read_journal, start_journal
+  use study_columns, only: m_steps, m_cpu, m_solve_cpu, m_warned, m_rank, m_run_count, choose_metrics, define_columns, &
+                           case_parameters
+  use study_case_matching, only: case_lookup, values_key, values_lookup, overrides_lookup, find_case
   use number_text, only: integer_text
   use failures, only: failure_type, fail, failure_input, failure_io, failure_library
   implicit none (type, external)
@@ -48,34 +51,7 @@ module study_index
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &
             m_run_count, m_warned
 
-  ! metrics: steps_completed, steps_planned, newton_iterations, wall_time_seconds, solve_time_seconds,
-  ! cpu_time_seconds, solve_cpu_time_seconds (the process's CPU time over the run and over its time
-  ! loop, beside the wall times), energy_drift, min_entropy_increment, max_lyapunov_increment,
-  ! angular_momentum_drift, min_temperature, halved_steps, rejected_steps (the run file's run_figures
-  ! from energy_drift on), warned (1 if the complete case's file has the attribute warnings: its
-  ! accuracy is in doubt), rank, run_count
-  integer, parameter :: m_steps = 1, m_cpu = 6, m_solve_cpu = 7, m_warned = 15, m_rank = 16, m_run_count = 17
-  !> The figures whose units are the model's.
-  integer, parameter :: m_entropy_increment = 9, m_lyapunov_increment = 10, m_momentum_drift = 11, &
-                        m_min_temperature = 12
-  character(len=*), parameter :: metric_names(metric_count) = [character(len=24) :: 'steps_completed', &
-    'steps_planned', 'newton_iterations', 'wall_time_seconds', 'solve_time_seconds', 'cpu_time_seconds', &
-    'solve_cpu_time_seconds', 'energy_drift', 'min_entropy_increment', 'max_lyapunov_increment', &
-    'angular_momentum_drift', 'min_temperature', 'halved_steps', 'rejected_steps', 'warned', 'rank', 'run_count']
-  !> The metrics' units, in order.
-  character(len=*), parameter :: metric_units(metric_count) = [character(len=3) :: '1', '1', '1', 's', 's', 's', &
-                                                                's', '1', 'J/K', 'J', 'J s', 'K', '1', '1', '1', '1', '1']
-  logical, parameter :: metric_is_integer(metric_count) = [.true., .true., .true., .false., .false., .false., &
-                                                            .false., .false., .false., .false., .false., .false., &
-                                                            .true., .true., .true., .true., .true.]
   real(real64), parameter :: index_interval = 2.0_real64   !! seconds between rewrites of index.h5
-
-  !> Case numbers ordered by a text key (a case's swept values or its overrides), to find a case
-  !> of this study from an earlier run's record, whose numbers move when sweeps grow.
-  type :: case_lookup
-    character(len=:), allocatable :: keys(:)
-    integer, allocatable :: order(:)          !! keys(order(i)) ascend
-  end type case_lookup
 
   !> The open index of a study and every case's result.
   type :: case_index
@@ -310,115 +286,6 @@ contains
     end if
   end subroutine close_index
 
-  ! Which metrics the index shows, and their units. A figure that no case's model has (a drift of
-  ! the conserved momentum, the thermal figures) would be a column of NaN: it is left out. Every
-  ! case's model is asked, not only the base file's, since a sweep may change the model (a planar
-  ! scene's dimension, gravity); the asking stops once every figure is shown (the pendulum's
-  ! scenes: at case 1). Should no case's model build (a refused scene fails in its case), every
-  ! figure is shown, as before models chose. Units: the base file's model's (as its sweeps').
-  subroutine choose_metrics(study, shown, units)
-    type(study_definition), intent(in) :: study
-    integer, allocatable, intent(out) :: shown(:)
-    character(len=24), intent(out) :: units(metric_count)
-    type(run_configuration), target :: base
-    class(generic_model), allocatable :: model
-    type(constraint_slot), allocatable :: constraints(:)
-    real(real64), allocatable :: z0(:)
-    type(failure_type) :: building
-    logical :: any_built, momentum, thermal
-    integer :: c, m
-
-    units = metric_units
-    call read_run_config(study%base, base, building)
-    if (.not. building%failed()) call base%scene%build(base%integrator%thermo_variable, model, z0, constraints, &
-                                                       building)
-    if (.not. building%failed()) then
-      units(m_entropy_increment) = model%words%entropy_units
-      units(m_lyapunov_increment) = model%words%energy_units
-      units(m_momentum_drift) = '1'
-      if (model%conserved_count() > 0) units(m_momentum_drift) = model%words%momentum_units
-      units(m_min_temperature) = model%words%temperature_units
-    end if
-    any_built = .false.
-    momentum = .false.
-    thermal = .false.
-    do c = 1, size(study%cases)
-      if (allocated(model)) deallocate (model)
-      associate (config => study%cases(c)%config)
-        call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
-      end associate
-      if (building%failed()) cycle
-      any_built = .true.
-      momentum = momentum .or. model%conserved_count() > 0
-      thermal = thermal .or. model%temperature_count() > 0
-      if (momentum .and. thermal) exit
-    end do
-    if (.not. any_built) then
-      momentum = .true.
-      thermal = .true.
-    end if
-    shown = pack([(m, m=1, metric_count)], [(m /= m_momentum_drift .or. momentum, m=1, metric_count)] .and. &
-                 [(all(m /= [m_entropy_increment, m_lyapunov_increment, m_min_temperature]) .or. thermal, &
-                   m=1, metric_count)])
-  end subroutine choose_metrics
-
-  ! case, file, one column per sweep, status, failure_kind, the shown metrics (rank and run_count
-  ! last).
-  subroutine define_columns(study, shown, columns)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: shown(:)
-    type(table_columns), intent(out) :: columns
-    integer :: s, m
-
-    call columns%add('case', column_integer)
-    call columns%add('file', 64)
-    do s = 1, size(study%sweeps)
-      associate (sweep => study%sweeps(s))
-        if (sweep%textual) then
-          call columns%add(sweep%field, 64)
-        else if (sweep%elements == 1) then
-          call columns%add(sweep%field, column_real)
-        else
-          ! An array or section: a column per element, name(i).
-          do m = sweep%first_element, sweep%first_element + sweep%elements - 1
-            call columns%add(element_name(sweep%field, m), column_real)
-          end do
-        end if
-      end associate
-    end do
-    call columns%add('status', status_length)
-    call columns%add('failure_kind', kind_length)
-    do m = 1, size(shown)
-      call columns%add(trim(metric_names(shown(m))), merge(column_integer, column_real, metric_is_integer(shown(m))))
-    end do
-  end subroutine define_columns
-
-  ! The parameter columns of case c (case and sweep values): numbers and texts in column order.
-  subroutine case_parameters(study, c, numbers, texts)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: c
-    real(real64), allocatable, intent(out) :: numbers(:)
-    character(len=64), allocatable, intent(out) :: texts(:)
-    real(real64), allocatable :: values(:)
-    integer :: s, ios
-
-    numbers = [real(c, real64)]
-    allocate (texts(0))
-    do s = 1, size(study%sweeps)
-      associate (sweep => study%sweeps(s), item => study%cases(c)%overrides(s)%item)
-        if (sweep%textual) then
-          texts = [character(len=64) :: texts, unquoted(item(index(item, '=') + 1:))]
-        else
-          allocate (values(sweep%elements))
-          read (item(index(item, '=') + 1:), *, iostat=ios) values
-          if (ios /= 0) values = ieee_value(1.0_real64, ieee_quiet_nan)
-          numbers = [numbers, values]
-          deallocate (values)
-        end if
-      end associate
-    end do
-  end subroutine case_parameters
-
   ! The attribute column_units of /cases: the units of every column, in order ('' for a text):
   ! the swept fields' and the figures' in the units of the base file's model (the gas containers'
   ! are nondimensional).
@@ -450,20 +317,6 @@ contains
     units(next + 2:) = self%units(self%shown)       ! after status and failure_kind
     call file%set_dataset_texts('cases', 'column_units', units, failure)
   end subroutine column_units
-
-  ! 'name(i)' for element i of the swept array or section `field` ('mass' or 'p2(1:2)').
-  pure function element_name(field, i) result(name)
-    character(len=*), intent(in) :: field
-    integer, intent(in) :: i
-    character(len=:), allocatable :: name
-    character(len=16) :: number
-    integer :: open_at
-
-    open_at = index(field, '(')
-    if (open_at == 0) open_at = len(field) + 1
-    write (number, '(i0)') i
-    name = field(1:open_at - 1)//'('//trim(number)//')'
-  end function element_name
 
   ! Writes index.h5: built in memory, written as index.h5.tmp (synced) and renamed over index.h5.
   subroutine write_index(self, failure)
@@ -702,122 +555,6 @@ contains
     end do
   end function row_values
 
-  ! The key of a case's swept values: its numbers exactly, then its texts.
-  pure function values_key(numbers, texts) result(key)
-    real(real64), intent(in) :: numbers(:)
-    character(len=*), intent(in) :: texts(:)
-    character(len=:), allocatable :: key
-    character(len=32) :: number
-    integer :: i
-
-    key = ''
-    do i = 1, size(numbers)
-      write (number, '(es25.17e3)') numbers(i)
-      key = key//trim(adjustl(number))//achar(9)
-    end do
-    do i = 1, size(texts)
-      key = key//trim(texts(i))//achar(9)
-    end do
-  end function values_key
-
-  ! This study's cases by their swept values (values_key).
-  subroutine values_lookup(study, lookup)
-    type(study_definition), intent(in) :: study
-    type(case_lookup), intent(out) :: lookup
-    real(real64), allocatable :: parameters(:)
-    character(len=64), allocatable :: parameter_texts(:)
-    integer :: c, longest
-
-    longest = 0
-    do c = 1, size(study%cases)
-      call case_parameters(study, c, parameters, parameter_texts)
-      longest = max(longest, len(values_key(parameters(2:), parameter_texts)))
-    end do
-    allocate (character(len=longest) :: lookup%keys(size(study%cases)))
-    do c = 1, size(study%cases)
-      call case_parameters(study, c, parameters, parameter_texts)
-      lookup%keys(c) = values_key(parameters(2:), parameter_texts)
-    end do
-    call order_keys(lookup)
-  end subroutine values_lookup
-
-  ! This study's cases by their overrides (as the journal and case files hold them, blanked).
-  subroutine overrides_lookup(study, lookup)
-    type(study_definition), intent(in) :: study
-    type(case_lookup), intent(out) :: lookup
-    integer :: c, longest
-
-    longest = 0
-    do c = 1, size(study%cases)
-      longest = max(longest, len(case_overrides(study, c)))
-    end do
-    allocate (character(len=longest) :: lookup%keys(size(study%cases)))
-    do c = 1, size(study%cases)
-      lookup%keys(c) = blanked(case_overrides(study, c))
-    end do
-    call order_keys(lookup)
-  end subroutine overrides_lookup
-
-  ! Orders the lookup's keys (a merge sort of their numbers, bottom up).
-  subroutine order_keys(lookup)
-    type(case_lookup), intent(inout) :: lookup
-    integer, allocatable :: merged(:)
-    integer :: width, first, middle, last, i, j, k, n
-
-    n = size(lookup%keys)
-    lookup%order = [(i, i=1, n)]
-    allocate (merged(n))
-    width = 1
-    do while (width < n)
-      do first = 1, n, 2*width
-        middle = min(first + width - 1, n)
-        last = min(first + 2*width - 1, n)
-        i = first
-        j = middle + 1
-        do k = first, last
-          if (j > last) then
-            merged(k) = lookup%order(i)
-            i = i + 1
-          else if (i > middle) then
-            merged(k) = lookup%order(j)
-            j = j + 1
-          else if (llt(lookup%keys(lookup%order(j)), lookup%keys(lookup%order(i)))) then
-            merged(k) = lookup%order(j)
-            j = j + 1
-          else
-            merged(k) = lookup%order(i)
-            i = i + 1
-          end if
-        end do
-      end do
-      lookup%order = merged
-      width = 2*width
-    end do
-  end subroutine order_keys
-
-  ! The case whose key is `key` (binary search), or 0.
-  integer function find_case(lookup, key)
-    type(case_lookup), intent(in) :: lookup
-    character(len=*), intent(in) :: key
-    integer :: low, high, middle
-
-    find_case = 0
-    if (len_trim(key) > len(lookup%keys)) return
-    low = 1
-    high = size(lookup%order)
-    do while (low <= high)
-      middle = (low + high)/2
-      if (lookup%keys(lookup%order(middle)) == key) then
-        find_case = lookup%order(middle)
-        return
-      else if (llt(lookup%keys(lookup%order(middle)), key)) then
-        low = middle + 1
-      else
-        high = middle - 1
-      end if
-    end do
-  end function find_case
-
   subroutine add_note(notes, text)
     character(len=:), allocatable, intent(inout) :: notes
     character(len=*), intent(in) :: text
@@ -825,15 +562,5 @@ contains
     if (len(notes) > 0) notes = notes//new_line('a')
     notes = notes//text
   end subroutine add_note
-
-  pure function unquoted(text) result(plain_text)
-    character(len=*), intent(in) :: text
-    character(len=:), allocatable :: plain_text
-
-    plain_text = trim(adjustl(text))
-    if (len(plain_text) >= 2) then
-      if (index('''"', plain_text(1:1)) > 0) plain_text = plain_text(2:len(plain_text) - 1)
-    end if
-  end function unquoted
 
 end module study_index
