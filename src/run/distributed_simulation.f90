@@ -39,7 +39,6 @@ module distributed_simulation
   use run_output, only: run_file, extra_attribute, spare_addition, resume_record, read_resume_record
   use run_continuation, only: find_resume_record
   use run_outcome, only: run_summary, step_failure_kind, open_summary, summarize_model, close_summary, failure_none, &
-                         failure_solver, &
                          failure_domain, failure_input, failure_io, &
                          failure_interrupted, failure_library, failure_step_budget, failure_balance
   use step_balances, only: balance_count, balanced_state, balance_figures, applicable_balances
@@ -290,7 +289,8 @@ contains
     window%tau_name = tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0)
     allocate (window%kept(0), window%new(4))
     ! The step report's parts of the split path: no scheme temperatures (the state is not in
-    ! rows), the two production minima as the integrator's figures.
+    ! rows); the integrator's figures are the step control's (controlled_diagnostics) and the two
+    ! production minima.
     allocate (report%scheme_temperature(0))
     values = figures_0
     state_step = 0
