@@ -71,6 +71,10 @@ program chain_bench
   else
     call read_run_config(trim(input), config, failure)
     if (.not. failure%failed()) call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, failure)
+    ! This benchmark times fixed steps, each one Newton solve; eme_run adapts them.
+    if (.not. failure%failed() .and. config%integrator%tolerance_given) &
+      call fail(failure, failure_input, config%input_file//', &integrator: tolerance: chain_bench takes fixed steps '// &
+                'only (eme_run runs the chain''s adaptive steps); allowed: leave it out', 'tolerance')
     if (.not. failure%failed()) then
       settings%input_file = config%input_file
       settings%scheme = config%integrator%scheme

@@ -44,6 +44,9 @@ module discrete_gradient_stepper
   private
   public :: step_solver, new_eme, new_midpoint
   public :: rejection_error, rejection_no_root, rejection_domain, rejection_underflow
+  ! Shared with the split path's step control (src/integrator/distributed_step_control), which
+  ! takes the same steps over a distributed state.
+  public :: max_rejections_per_step, unit_time, rounding_level
   ! For the submodule discrete_gradient_control only: gfortran gives a module's private procedures
   ! internal linkage, which submodules, compiled apart, cannot reach.
   public :: solve_step

@@ -27,7 +27,7 @@ module local_error_estimate
   use constrained_flow, only: constrained_field, slaved_entries
   implicit none (type, external)
   private
-  public :: hermite_defect_estimate, weighted_rms_norm
+  public :: hermite_defect_estimate, weighted_rms_norm, hermite_middle, hermite_defect, weighted_square_sum
 
 contains
 
@@ -39,16 +39,15 @@ contains
     real(real64), intent(in) :: z_old(:), f_old(:), z_new(:), h
     real(real64), intent(out) :: estimate(:), f_new(:)
     integer, intent(out) :: stat
-    real(real64) :: z_middle(size(z_old)), f_middle(size(z_old)), slope_middle(size(z_old))
+    real(real64) :: z_middle(size(z_old)), f_middle(size(z_old))
 
     estimate = 0.0_real64
     call constrained_field(model, constraints, z_new, f_new, stat)
     if (stat /= failure_none) return
-    z_middle = 0.5_real64*(z_old + z_new) + 0.125_real64*h*(f_old - f_new)
-    slope_middle = 1.5_real64*(z_new - z_old)/h - 0.25_real64*(f_old + f_new)
+    z_middle = hermite_middle(z_old, f_old, z_new, f_new, h)
     call constrained_field(model, constraints, z_middle, f_middle, stat)
     if (stat /= failure_none) return
-    estimate = (2.0_real64*h/3.0_real64)*(slope_middle - f_middle)
+    estimate = hermite_defect(z_old, f_old, z_new, f_new, f_middle, h)
     where (slaved_entries(model, constraints, z_new)) estimate = 0.0_real64
   end subroutine hermite_defect_estimate
 
@@ -58,7 +57,33 @@ contains
   pure real(real64) function weighted_rms_norm(estimate, z_old, z_new) result(norm)
     real(real64), intent(in) :: estimate(:), z_old(:), z_new(:)
 
-    norm = sqrt(sum((estimate/(1.0_real64 + max(abs(z_old), abs(z_new))))**2)/size(estimate))
+    norm = sqrt(weighted_square_sum(estimate, z_old, z_new)/size(estimate))
   end function weighted_rms_norm
+
+  !> The sum of (e_i / (1 + max(|z_old,i|, |z_new,i|)))**2: weighted_rms_norm's, of a part of
+  !> the state (a rank's rows, whose sums over the ranks make the whole state's).
+  pure real(real64) function weighted_square_sum(estimate, z_old, z_new) result(total)
+    real(real64), intent(in) :: estimate(:), z_old(:), z_new(:)
+
+    total = sum((estimate/(1.0_real64 + max(abs(z_old), abs(z_new))))**2)
+  end function weighted_square_sum
+
+  !> H(1/2), the Hermite interpolant of (z_old, f_old) and (z_new, f_new) over the step of h at
+  !> its middle (module header); entry by entry, so a rank's rows give the rank's rows.
+  pure function hermite_middle(z_old, f_old, z_new, f_new, h) result(z_middle)
+    real(real64), intent(in) :: z_old(:), f_old(:), z_new(:), f_new(:), h
+    real(real64) :: z_middle(size(z_old))
+
+    z_middle = 0.5_real64*(z_old + z_new) + 0.125_real64*h*(f_old - f_new)
+  end function hermite_middle
+
+  !> The estimate (2 h/3) (H'(1/2) - f(H(1/2))) of the step's local error (module header), f_middle
+  !> the field at hermite_middle's point; entry by entry.
+  pure function hermite_defect(z_old, f_old, z_new, f_new, f_middle, h) result(estimate)
+    real(real64), intent(in) :: z_old(:), f_old(:), z_new(:), f_new(:), f_middle(:), h
+    real(real64) :: estimate(size(z_old))
+
+    estimate = (2.0_real64*h/3.0_real64)*(1.5_real64*(z_new - z_old)/h - 0.25_real64*(f_old + f_new) - f_middle)
+  end function hermite_defect
 
 end module local_error_estimate

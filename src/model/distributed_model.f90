@@ -8,7 +8,7 @@
 module distributed_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_interface, only: generic_model
-  use failures, only: failure_type
+  use failures, only: failure_type, fail, failure_input
   use solver_description, only: solver_report
   implicit none (type, external)
   private
@@ -25,6 +25,7 @@ module distributed_model
     integer :: newton_max_iterations = 50
     logical :: tolerance_given = .false.
     real(real64) :: tolerance = 1.0e-10_real64       !! an adaptive integrator's (ts_rk5dp's) error per step
+    real(real64) :: t_end = 0.0_real64               !! where the run ends (adaptive steps land on it)
   end type distributed_settings
 
   !> One step's solve, the same on every rank.
@@ -36,6 +37,15 @@ module distributed_model
     integer :: reason = 0                      !! the solver's converged reason (SNES's, or TS's)
     real(real64) :: residual_norm = 0.0_real64
     character(len=:), allocatable :: failure   !! why it did not converge, in words
+    !> The time the step advanced: dt for a fixed step (in halves or not); an adaptive step's own,
+    !> which then ends at `time` (chose_time; exactly t_end on the last step), as the dense path's
+    !> step_report says.
+    real(real64) :: dt_taken = 0.0_real64
+    logical :: chose_time = .false.
+    real(real64) :: time = 0.0_real64
+    integer :: halvings = 0                    !! halves that replaced the step (substeps - 1)
+    integer :: rejected_steps = 0              !! trial steps rejected by step-size control
+    real(real64), allocatable :: diagnostics(:)   !! the step's own figures (a step controller's datasets)
   end type distributed_step
 
   !> The balances' quantities of the state and of the last step to it, summed over the ranks
@@ -74,6 +84,11 @@ module distributed_model
     procedure(restore_interface), deferred :: restore
     procedure(finish_interface), deferred :: finish
     procedure(describe_interface), deferred :: describe_solver
+    procedure :: resume_state
+    procedure :: restore_state
+    procedure :: state_rows
+    procedure :: set_state_rows
+    procedure :: field_rows
   end type distributed_system
 
   abstract interface
@@ -139,5 +154,62 @@ module distributed_model
       type(failure_type), intent(inout) :: failure
     end subroutine finish_interface
   end interface
+
+contains
+
+  !> What a step leaves for the next that a continued run needs (src/run/run_output's resume
+  !> record keeps it at every snapshot): none unless the system says.
+  subroutine resume_state(self, values)
+    class(distributed_system), intent(in) :: self
+    real(real64), allocatable, intent(out) :: values(:)
+
+    allocate (values(0))
+  end subroutine resume_state
+
+  !> Takes back, at `time`, what resume_state gave (after `start` and `restore`).
+  subroutine restore_state(self, time, values, failure)
+    class(distributed_system), intent(inout) :: self
+    real(real64), intent(in) :: time, values(:)
+    type(failure_type), intent(out) :: failure
+
+    if (size(values) > 0) call fail(failure, failure_input, 'the stored integrator state does not fit this split '// &
+                                    'system (it keeps none)', 'restore_state')
+  end subroutine restore_state
+
+  !> The rank's rows of the state (its unknowns, as the DM numbers them): what a step controller
+  !> keeps to go back to. A failure unless the system offers it.
+  subroutine state_rows(self, z, failure)
+    class(distributed_system), intent(inout) :: self
+    real(real64), allocatable, intent(out) :: z(:)
+    type(failure_type), intent(out) :: failure
+
+    allocate (z(0))
+    call fail(failure, failure_input, 'this split system offers no rows of its state', 'state_rows')
+  end subroutine state_rows
+
+  !> Makes the rank's rows z the current state, and z_old the state its step's figures
+  !> (differences, productions) start from. Collective.
+  subroutine set_state_rows(self, z, z_old, failure)
+    class(distributed_system), intent(inout) :: self
+    real(real64), intent(in) :: z(:), z_old(:)
+    type(failure_type), intent(out) :: failure
+
+    call fail(failure, failure_input, 'this split system cannot take rows of a state', 'set_state_rows')
+  end subroutine set_state_rows
+
+  !> The rank's rows of the model's continuous vector field f(z) at the state whose rows are z
+  !> (every rank its own; collective); stat: a domain code where a spring of z is outside its
+  !> domain (f is then not all defined).
+  subroutine field_rows(self, z, f, stat, failure)
+    class(distributed_system), intent(inout) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+
+    f = 0.0_real64
+    stat = 0
+    call fail(failure, failure_input, 'this split system offers no field', 'field_rows')
+  end subroutine field_rows
 
 end module distributed_model

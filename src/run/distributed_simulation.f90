@@ -16,8 +16,11 @@
 !> the last window, snapshots included. The model's system steps by the input's integrator (the
 !> chain: EME, the midpoint rule, PETSc TS); the balances checked are those it guarantees
 !> (step_check, as on the dense path). -eme_continue goes on from the file's last snapshot, at
-!> which its resume record stands (src/run/run_continuation), on any number of ranks. Not here
-!> yet: steps chosen by error control.
+!> which its resume record stands (src/run/run_continuation), on any number of ranks. EME and the
+!> midpoint rule step under the dense path's control (src/integrator/distributed_step_control): a
+!> fixed step without a root is taken in halves, and with &integrator tolerance the steps are
+!> chosen (each reports the time it reached, the last t_end exactly; rows and snapshots count
+!> accepted steps, and the controller's state is kept in the resume record).
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -29,12 +32,13 @@ module distributed_simulation
                                distributed_part
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
+  use distributed_step_control, only: controlled_system, controlled_diagnostics
   use stepper, only: step_report, step_diagnostic
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, spare_addition, resume_record, read_resume_record
   use run_continuation, only: find_resume_record
-  use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_solver, &
+  use run_outcome, only: run_summary, step_failure_kind, open_summary, summarize_model, close_summary, failure_none, &
                          failure_domain, failure_input, failure_io, &
                          failure_interrupted, failure_library, failure_step_budget, failure_balance
   use step_balances, only: balance_count, balanced_state, balance_figures, applicable_balances
@@ -116,7 +120,34 @@ contains
     settings%tolerance_given = config%integrator%tolerance_given
     settings%tolerance = config%integrator%tolerance
     settings%dt = config%integrator%dt
+    settings%t_end = config%integrator%t_end
   end function distributed_settings_of
+
+  !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps
+  !> under the dense path's control (src/integrator/distributed_step_control: halving, adaptive
+  !> steps), others as the scene gives them; a failure (failure_input) for &output interval,
+  !> which the split path's rows do not follow.
+  subroutine split_system(config, system, failure)
+    type(run_configuration), intent(in) :: config
+    class(distributed_system), allocatable, intent(out) :: system
+    type(failure_type), intent(out) :: failure
+    type(integrator_entry) :: entry
+    type(controlled_system), allocatable :: controlled
+    logical :: found
+
+    if (config%output_interval > 0.0_real64) then
+      call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
+                       'writes its rows every &output every accepted steps, not at output times; allowed: leave it '// &
+                       'out (0)', 'interval')
+      return
+    end if
+    call config%scene%distributed(config%integrator%scheme, system)
+    call find_integrator(config%integrator%scheme, entry, found)
+    if (.not. found .or. entry%family /= family_discrete_gradient) return
+    allocate (controlled)
+    call move_alloc(system, controlled%inner)
+    call move_alloc(controlled, system)
+  end subroutine split_system
 
   !> Sets the split model up on `comm` and frees it again, writing nothing (as simulation's
   !> set_up_only): what the path cannot run, and PETSc options it cannot take, are refused
@@ -135,7 +166,8 @@ contains
       call set_failure(failure, failure%code, config%input_file//': '//failure%message)
       return
     end if
-    call config%scene%distributed(config%integrator%scheme, system)
+    call split_system(config, system, failure)
+    if (failure%failed()) return
     call system%start(distributed_settings_of(config), model, z0, comm, failure)
     if (failure%failed() .and. failure%code /= code_input) &
       call set_failure(failure, code_input, config%input_file//': the split run could not be set up with the '// &
@@ -176,6 +208,10 @@ contains
     type(run_timer) :: timer
     integer(int64) :: state_step      !! the step whose end the system's state is
     integer(int64) :: snapshot_step   !! the step of the last snapshot held
+    real(real64) :: state_time        !! the time of the system's state (the end of step state_step)
+    !> the integrator's state after the last accepted step (a continued run's, at its snapshot)
+    real(real64), allocatable :: control_state(:)
+    logical :: steps_chosen           !! the steps are the integrator's (&integrator tolerance)
     integer :: rank, every, stop_flags(3)
     logical :: checked(balance_count), has_balance(balance_count), found, replace, finished, writing, continuing
     type(MPI_Comm) :: communicator
@@ -191,17 +227,20 @@ contains
     writing = .false.
     call install_interrupt_handlers(io_failure)
     call find_integrator(config%integrator%scheme, entry, found)
+    steps_chosen = config%integrator%tolerance_given .and. entry%family == family_discrete_gradient
+    summary%steps_chosen = steps_chosen
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, step_failure)
     if (step_failure%failed()) then
       call fail(failure_input, config%input_file//': '//step_failure%message)
       return
     end if
-    call config%scene%distributed(config%integrator%scheme, system)
+    call split_system(config, system, failure)
+    if (failure%failed()) return
     ! Rank 0 alone looks at the output; the others learn its verdict (and read a continued run's
     ! record from FILE.part once rank 0 has made it).
     continuing = continue_requested()
     if (rank == 0 .and. continuing) then
-      call find_resume_record(config, .false., resume, kind, text)
+      call find_resume_record(config, steps_chosen, resume, kind, text)
       if (len(kind) > 0) call fail(kind, text)
       if (.not. failure%failed() .and. size(resume%x) > 0) &
         call fail(failure_input, config%output_file//': its run was not split over ranks (its state is in /state) '// &
@@ -250,10 +289,13 @@ contains
     window%tau_name = tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0)
     allocate (window%kept(0), window%new(4))
     ! The step report's parts of the split path: no scheme temperatures (the state is not in
-    ! rows), the two production minima as the integrator's figures.
-    allocate (report%scheme_temperature(0), report%diagnostics(2))
+    ! rows); the integrator's figures are the step control's (controlled_diagnostics) and the two
+    ! production minima.
+    allocate (report%scheme_temperature(0))
     values = figures_0
     state_step = 0
+    state_time = 0.0_real64
+    call system%resume_state(control_state)
     if (continuing) call restore_snapshot()
     call observe(values)
     if (model%temperature_count() > 0 .and. .not. continuing) summary%min_temperature = values%min_temperature
@@ -261,7 +303,8 @@ contains
     ! snapshot: every later one goes through a window's spare); a continued run's file goes on
     ! from its record's rows, its snapshots all there.
     if (rank == 0 .and. .not. failure%failed()) then
-      call output%create(part, config, entry, model, constraints, diagnostics(), [extra_attribute ::], &
+      call output%create(part, config, entry, model, constraints, [controlled_diagnostics(system), diagnostics()], &
+                         [extra_attribute ::], &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
       if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
       if (io_failure%failed()) then
@@ -312,22 +355,31 @@ contains
       call system_clock(step_start)
       call system%step(dt, outcome, step_failure)
       call system_clock(step_end)
-      if (.not. step_failure%failed() .and. outcome%converged) state_step = n
       step_seconds = real(step_end - step_start, real64)/real(timer%rate, real64)
       if (step_failure%failed()) then
         call fail(failure_library, 'PETSc failed during the solve: '//step_failure%message)
         summary%status = 'incomplete: PETSc error in step '//integer_text(n)
         exit
       end if
-      time = n*dt
-      finished = n == summary%steps_planned
+      ! A fixed step lands on n dt; the integrator's own steps at the time they reached (t_end
+      ! exactly on the last).
+      if (outcome%chose_time) then
+        time = outcome%time
+        finished = time >= config%integrator%t_end
+      else
+        time = n*dt
+        finished = n == summary%steps_planned
+      end if
       if (.not. outcome%converged) then
-        if (.not. allocated(outcome%failure)) outcome%failure = 'no root: Newton did not converge (SNES reason '// &
+        if (.not. allocated(outcome%failure)) outcome%failure = ''
+        if (len(outcome%failure) == 0) outcome%failure = 'no root: Newton did not converge (SNES reason '// &
           integer_text(outcome%reason)//', |R| = '//scientific_text(outcome%residual_norm, 3)//')'
         summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '//outcome%failure
-        summary%failure_kind = failure_solver
+        summary%failure_kind = step_failure_kind(outcome%failure)
         exit
       end if
+      state_step = n
+      state_time = time
       call system%figures(values, step_failure)
       if (step_failure%failed()) then
         summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
@@ -339,6 +391,9 @@ contains
       if (summary%failure_kind /= failure_none) exit
       summary%steps_completed = n
       summary%newton_iterations = summary%newton_iterations + outcome%iterations
+      summary%halved_steps = summary%halved_steps + outcome%halvings
+      summary%rejected_steps = summary%rejected_steps + outcome%rejected_steps
+      call system%resume_state(control_state)
       energy_change = energy_change + values%delta_energy
       conserved_change = conserved_change + values%delta_conserved
       summary%energy_drift = max(summary%energy_drift, abs(energy_change)/abs(figures_0%energy))
@@ -354,9 +409,9 @@ contains
         report%rejected = outcome%rejected
         report%residual_norm = outcome%residual_norm
         report%converged_reason = outcome%reason
-        report%diagnostics(1) = values%min_viscous_production
-        report%diagnostics(2) = values%min_link_production
+        report%diagnostics = [values%min_viscous_production, values%min_link_production]
         where (report%diagnostics >= huge(1.0_real64)) report%diagnostics = ieee_value(1.0_real64, ieee_quiet_nan)
+        if (allocated(outcome%diagnostics)) report%diagnostics = [outcome%diagnostics, report%diagnostics]
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
         call record_point(time)
@@ -371,12 +426,14 @@ contains
       if (rank == 0 .and. present(progress)) call report_progress()
     end do
     call close_summary(summary, model, has_balance)
-    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) &
+    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
+      if (steps_chosen) summary%steps_planned = n       ! it planned t_end/dt steps and took n
+    end if
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
     ! did not converge left it there; one whose state broke a balance did not).
     if (state_step == summary%steps_completed .and. snapshot_step /= state_step) then
-      time = real(state_step, real64)*dt
+      time = state_time
       call hold_snapshot()
     end if
     call set_times(.true.)
@@ -451,16 +508,16 @@ contains
       balance_new%momentum_scale = values%momentum_scale
     end subroutine observe
 
-    ! The step's balance figures, from the summed differences of its parts; a step that breaks a
-    ! guaranteed balance ends the run (the dense path solves it again first; this path has no
-    ! other solver settings to try).
+    ! The step's balance figures, from the summed differences of its parts (over its halves, if
+    ! halved: their rounding bounds add up); a step that breaks a guaranteed balance ends the run
+    ! (the dense path solves it again first; this path has no other solver settings to try).
     subroutine check_step()
       integer :: broken
 
       call observe(values)
       figures = balance_figures(has_balance, balance_old, balance_new, 0.0_real64, config%theta_r, &
                                 [values%delta_energy, values%delta_entropy], values%delta_conserved)
-      broken = broken_balance(figures, checked, 1)
+      broken = broken_balance(figures, checked, outcome%halvings + 1)
       if (broken == 0) then
         where (has_balance) summary%max_balance = max(summary%max_balance, figures)
         return
@@ -472,8 +529,8 @@ contains
 
     ! One point row (rank 0): the state's scalars, from `values`; the model's momenta are J's last
     ! momentum_count() components (J in 3D, J_z in 2D, none in 1D).
-    ! (Fixed steps only: &output interval, which lands rows on output times, is refused for them,
-    ! and the rows follow &output every.)
+    ! (&output interval, which lands rows on output times, is refused on this path: the rows
+    ! follow &output every, of accepted steps when the integrator chooses them.)
     subroutine record_point(time)
       real(real64), intent(in) :: time
 
@@ -498,7 +555,7 @@ contains
       end if
       call window%hold(snapshot)
       if (rank == 0) call output%note_snapshot_point(state_step, time, figures_0%energy, summary, &
-                                                     [energy_change, conserved_change])
+                                                     [energy_change, conserved_change, control_state])
     end subroutine hold_snapshot
 
     ! A continued run's state: the file's last snapshot, every rank reading its own part, which
@@ -515,13 +572,14 @@ contains
       if (.not. reading%failed()) call transfer_part(part, comm, snapshot_time, state, window%tau_name, .true., reading)
       if (len(window%tau_name) == 0) state%tau = state%theta      ! tau is the temperature, stored as theta
       if (.not. reading%failed()) then
-        if (abs(snapshot_time - resume%time) > 0.0_real64 .or. size(resume%integrator_state) /= 4) then
+        if (abs(snapshot_time - resume%time) > 0.0_real64 .or. size(resume%integrator_state) < 4) then
           call fail(failure_input, part//': its last snapshot (t = '//fixed_text(snapshot_time, 6)//' s) is not '// &
                     'where its resume record stands (t = '//fixed_text(resume%time, 6)//' s)'//where// &
                     '; allowed: a file of a run split over ranks, as eme_run wrote it')
           return
         end if
         call system%restore(state, reading)
+        if (.not. reading%failed()) call system%restore_state(resume%time, resume%integrator_state(5:), reading)
       end if
       if (.not. reading%failed()) call system%figures(values, reading)
       if (reading%failed()) then
@@ -531,6 +589,8 @@ contains
       end if
       n = resume%step
       time = resume%time
+      state_time = time
+      control_state = resume%integrator_state(5:)
       state_step = n
       snapshot_step = n
       call resume%restore_summary(summary)

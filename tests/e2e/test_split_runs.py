@@ -103,7 +103,6 @@ def test_a_chain_beyond_the_dense_limit_runs_split_on_one_rank(tmp_path):
 
 @pytest.mark.parametrize("change, option, words", [
     ({"scheme": "relaxed_dp853"}, None, "&integrator: scheme"),
-    ({"tolerance": 1e-6}, None, "&integrator: tolerance"),
     ({}, "-eme_continue", "-eme_continue)")])
 def test_what_the_split_path_cannot_run_is_refused(tmp_path, change, option, words):
     groups = chain_groups()

@@ -80,6 +80,7 @@ module spring_chain_dmda
     SNES :: snes
     Vec :: x                       !! the state (global vector)
     Vec :: r
+    Vec :: work                    !! a state given as rows (field_of, set_rows)
     Mat :: jacobian
     integer :: first_point = 1     !! the rank's points, first .. last (1-based)
     integer :: last_point = 0
@@ -93,6 +94,8 @@ module spring_chain_dmda
     procedure :: hold_old_state
     procedure :: set_state
     procedure :: owned_state
+    procedure :: set_rows
+    procedure :: field_of
     procedure :: step
     procedure :: sums
     procedure :: state_part
@@ -166,6 +169,7 @@ contains
     end associate
     PetscCall(DMCreateGlobalVector(self%context%da, self%x, ierr))
     PetscCall(VecDuplicate(self%x, self%r, ierr))
+    PetscCall(VecDuplicate(self%x, self%work, ierr))
     PetscCall(DMCreateLocalVector(self%context%da, self%context%old_local, ierr))
     PetscCall(VecDuplicate(self%context%old_local, self%context%new_local, ierr))
     PetscCall(create_jacobian_matrix(self%context, comm, self%jacobian, ierr))
@@ -301,6 +305,55 @@ contains
     end if
     call fail_on_code(failure, ierr, 'reading the chain''s state')
   end subroutine owned_state
+
+  !> Makes the rank's rows z (unknowns first_row .. last_row) the state held and z_old the old
+  !> state of its step (the figures' differences start there). Collective.
+  subroutine set_rows(self, z, z_old, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(in) :: z(:), z_old(:)
+    type(failure_type), intent(out) :: failure
+    real(real64), pointer :: values(:)
+    integer :: ierr
+
+    call borrow(self%work, size(z_old), values, ierr)
+    if (ierr == 0) then
+      values = z_old
+      call give_back(self%work, values, ierr)
+    end if
+    if (ierr == 0) call DMGlobalToLocalBegin(self%context%da, self%work, INSERT_VALUES, self%context%old_local, ierr)
+    if (ierr == 0) call DMGlobalToLocalEnd(self%context%da, self%work, INSERT_VALUES, self%context%old_local, ierr)
+    if (ierr == 0) call borrow(self%x, size(z), values, ierr)
+    if (ierr == 0) then
+      values = z
+      call give_back(self%x, values, ierr)
+    end if
+    call fail_on_code(failure, ierr, 'setting the chain''s state from its rows')
+  end subroutine set_rows
+
+  !> The rank's rows of the chain's continuous field f(z) (the exact partials: docs/formulation.md
+  !> section 10) at the state whose rows are z; stat a domain code if a spring of z is outside
+  !> its domain. The step's own rule is kept. Collective.
+  subroutine field_of(self, z, f, stat, failure)
+    class(distributed_chain), intent(inout) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+    real(real64), pointer :: values(:)
+    integer :: ierr, rule
+
+    stat = failure_none
+    call borrow(self%work, size(z), values, ierr)
+    if (ierr == 0) then
+      values = z
+      call give_back(self%work, values, ierr)
+    end if
+    rule = self%context%problem%rule
+    self%context%problem%rule = partials_exact
+    if (ierr == 0) call field_into(self%context, self%work, f, stat, ierr)
+    self%context%problem%rule = rule
+    call fail_on_code(failure, ierr, 'evaluating the chain''s field')
+  end subroutine field_of
 
   !> One step of length h from the state held: Newton from the old state. On failure to
   !> converge the old state is kept (outcome%converged false).
@@ -522,6 +575,7 @@ contains
     PetscCall(MatDestroy(self%jacobian, ierr))
     PetscCall(VecDestroy(self%x, ierr))
     PetscCall(VecDestroy(self%r, ierr))
+    PetscCall(VecDestroy(self%work, ierr))
     PetscCall(VecDestroy(self%context%old_local, ierr))
     PetscCall(VecDestroy(self%context%new_local, ierr))
     PetscCall(DMDestroy(self%context%da, ierr))

@@ -2,9 +2,10 @@
 !> distributed_model; spring_chain_dmda does the work): the scene's chain and initial state, steps
 !> of EME (the input's discrete gradient and metric) or of the midpoint rule, the balances'
 !> figures summed over the ranks, and the rank's part of the state for a snapshot. The PETSc TS
-!> integrators extend it (spring_chain_ts_run). What the path cannot run (another integrator,
-!> EME's or the midpoint rule's adaptive steps, a model other than the chain) is refused with the
-!> reason. chain_bench's bookkeeping (`advance`, `result`) rides on the same steps.
+!> integrators extend it (spring_chain_ts_run). What the path cannot run (another integrator, a
+!> model other than the chain) is refused with the reason. A step here is one Newton solve of
+!> the step; eme_run's halving of fixed steps and its adaptive steps (&integrator tolerance) are
+!> src/integrator/distributed_step_control's, over this system's rows and field. chain_bench's bookkeeping (`advance`, `result`) rides on the same steps.
 module spring_chain_sparse_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
@@ -57,6 +58,9 @@ module spring_chain_sparse_run
     procedure :: figures
     procedure :: part
     procedure :: restore
+    procedure :: state_rows
+    procedure :: set_state_rows
+    procedure :: field_rows
     procedure :: advance
     procedure :: dump
     procedure :: finish
@@ -100,11 +104,6 @@ contains
       ! PETSc TS integrates the field at the exact partials; its own tolerance (ts_rk5dp) is its own.
       problem%rule = partials_exact
     end select
-    if (settings%tolerance_given .and. problem%rule /= partials_exact) then
-      call fail(failure, failure_input, settings%input_file//', &integrator: tolerance: the chain''s sparse, '// &
-                'distributed path takes fixed steps only; allowed: leave it out', 'tolerance')
-      return
-    end if
     problem%gradient = settings%discrete_gradient
     problem%metric = settings%metric
   end subroutine chain_problem_of
@@ -233,6 +232,36 @@ contains
 
     call self%chain%set_part(state%positions, state%momenta, state%gamma, state%tau, failure)
   end subroutine restore
+
+  !> The rank's rows of the state (distributed_system).
+  subroutine state_rows(self, z, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    real(real64), allocatable, intent(out) :: z(:)
+    type(failure_type), intent(out) :: failure
+    integer :: first
+
+    call self%chain%owned_state(z, first, failure)
+  end subroutine state_rows
+
+  !> The state from the rank's rows z, its step's old state from z_old (distributed_system).
+  subroutine set_state_rows(self, z, z_old, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    real(real64), intent(in) :: z(:), z_old(:)
+    type(failure_type), intent(out) :: failure
+
+    call self%chain%set_rows(z, z_old, failure)
+  end subroutine set_state_rows
+
+  !> The rank's rows of the chain's continuous field at the state of rows z (distributed_system).
+  subroutine field_rows(self, z, f, stat, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    type(failure_type), intent(out) :: failure
+
+    call self%chain%field_of(z, f, stat, failure)
+  end subroutine field_rows
 
   !> The steps' SNES as the run file records it (distributed_system).
   function describe_solver(self) result(report)
