@@ -14,7 +14,8 @@ program eme_ensemble
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
                           launcher_rank, forget_petsc_file_options
   use output_path, only: protected_entry, protected_entries
-  use simulation, only: set_up_only
+  use simulation, only: set_up_only, dense_max_unknowns
+  use distributed_simulation, only: split_run_wanted, set_up_distributed_only
   use library_versions, only: print_versions
   use failures, only: failure_type, failure_input
   implicit none
@@ -124,20 +125,28 @@ program eme_ensemble
 contains
 
   ! Every integrator of the study set up once, unwritten, before any case runs: PETSc options
-  ! that one of them cannot take are bad input for the whole study (exit 2, no case run).
+  ! that one of them cannot take are bad input for the whole study (exit 2, no case run). A case
+  ! that eme_run would split is set up on the split path, on this rank alone, as it will run.
   subroutine check_solver_options()
-    character(len=24), allocatable :: checked(:)      ! scheme and thermodynamic variable of each set-up
-    character(len=24) :: key
+    character(len=32), allocatable :: checked(:)      ! path, scheme and thermodynamic variable of each set-up
+    character(len=32) :: key
     integer :: c
+    logical :: split
 
     allocate (checked(0))
     do c = 1, size(study%cases)
+      split = split_run_wanted(study%cases(c)%config, 1, dense_max_unknowns)
       associate (choice => study%cases(c)%config%integrator)
-        write (key, '(a, 1x, i0)') trim(choice%scheme), choice%thermo_variable
+        write (key, '(a, 1x, a, 1x, i0)') trim(merge('split', 'dense', split)), trim(choice%scheme), &
+          choice%thermo_variable
       end associate
       if (any(checked == key)) cycle
       checked = [checked, key]
-      call set_up_only(study%cases(c)%config, failure)
+      if (split) then
+        call set_up_distributed_only(study%cases(c)%config, PETSC_COMM_SELF, failure)
+      else
+        call set_up_only(study%cases(c)%config, failure)
+      end if
       if (failure%failed()) then
         stat = 1
         message = study%cases(c)%config%input_file//': '//failure%message

@@ -25,7 +25,7 @@ module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_INTEGER, MPI_CHARACTER, &
-                     MPI_MAX
+                     MPI_LOGICAL, MPI_MAX
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use distributed_model, only: distributed_system, distributed_settings, distributed_step, distributed_figures, &
@@ -45,7 +45,7 @@ module distributed_simulation
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
   use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
-  use simulation, only: line_reporter, holds_complete_run, failure_code_of
+  use simulation, only: line_reporter, run_observer, holds_complete_run, failure_code_of
   use hdf5_snapshots, only: snapshot_layout, append_snapshot, read_last_snapshot
   use output_path, only: check_output_path
   use filesystem, only: make_parent_directories, rename_file, output_lock, recheck_lock
@@ -180,14 +180,24 @@ contains
   !> for output that cannot be written, a library's failure, or a complete file that may not be
   !> replaced; a run that stops early says why in summary%status and summary%failure_kind.
   !> `progress` (rank 0) receives a line at most every 2 s; with `lock` (rank 0's), a lock
-  !> removed or replaced behind the run's back stops it.
-  subroutine run_distributed(config, comm, summary, failure, progress, lock)
+  !> removed or replaced behind the run's back stops it. An ensemble's case (src/run/ensemble, on
+  !> MPI_COMM_SELF) passes what run_simulation takes for it: `observer` (called after every step),
+  !> `keep_file` (.false.: no file, an index-only study), `extras` (root attributes), `durable`
+  !> (.false.: the file is not synced) and `resume_if_possible` (continue the run its file holds
+  !> when it can, from t = 0 otherwise, instead of -eme_continue's all or nothing).
+  subroutine run_distributed(config, comm, summary, failure, progress, lock, observer, keep_file, extras, durable, &
+                             resume_if_possible)
     type(run_configuration), intent(in), target :: config
     integer, intent(in) :: comm
     type(run_summary), intent(out) :: summary
     type(failure_type), intent(out) :: failure
     procedure(line_reporter), optional :: progress
     type(output_lock), intent(inout), optional :: lock
+    class(run_observer), intent(inout), optional :: observer
+    logical, intent(in), optional :: keep_file
+    type(extra_attribute), intent(in), optional :: extras(:)
+    logical, intent(in), optional :: durable
+    logical, intent(in), optional :: resume_if_possible
     class(distributed_system), allocatable :: system
     class(generic_model), allocatable :: model
     real(real64), allocatable :: z0(:)
@@ -214,6 +224,8 @@ contains
     logical :: steps_chosen           !! the steps are the integrator's (&integrator tolerance)
     integer :: rank, every, stop_flags(3)
     logical :: checked(balance_count), has_balance(balance_count), found, replace, finished, writing, continuing
+    logical :: keeping                !! the run has a file (keep_file)
+    type(extra_attribute), allocatable :: added(:)
     type(MPI_Comm) :: communicator
 
     call timer%begin()
@@ -225,6 +237,8 @@ contains
     n = 0
     part = config%output_file//'.part'
     writing = .false.
+    keeping = .true.
+    if (present(keep_file)) keeping = keep_file
     call install_interrupt_handlers(io_failure)
     call find_integrator(config%integrator%scheme, entry, found)
     steps_chosen = config%integrator%tolerance_given .and. entry%family == family_discrete_gradient
@@ -238,7 +252,11 @@ contains
     if (failure%failed()) return
     ! Rank 0 alone looks at the output; the others learn its verdict (and read a continued run's
     ! record from FILE.part once rank 0 has made it).
-    continuing = continue_requested()
+    if (present(resume_if_possible)) then
+      continuing = resume_if_possible .and. keeping
+    else
+      continuing = continue_requested()
+    end if
     if (rank == 0 .and. continuing) then
       call find_resume_record(config, steps_chosen, resume, kind, text)
       if (len(kind) > 0) call fail(kind, text)
@@ -246,7 +264,15 @@ contains
         call fail(failure_input, config%output_file//': its run was not split over ranks (its state is in /state) '// &
                   'and continues on the dense path ('//config%input_file//', -eme_continue); allowed: eme_run on '// &
                   'one process, as it ran')
-    else if (rank == 0) then
+      if (failure%failed() .and. present(resume_if_possible)) then
+        ! Nothing to continue from: the run starts from t = 0, as it would have.
+        failure = failure_type()
+        summary%failure_kind = failure_none
+        continuing = .false.
+      end if
+    end if
+    call MPI_Bcast(continuing, 1, MPI_LOGICAL, 0, communicator)
+    if (rank == 0 .and. keeping .and. .not. continuing) then
       replace = overwrite_requested() .or. config%overwrite
       call check_output_path(config%output_file, config%input_file, replace, io_failure)
       if (io_failure%failed()) then
@@ -302,9 +328,11 @@ contains
     ! The file: its layout and first point, written whole at once (the first write takes no
     ! snapshot: every later one goes through a window's spare); a continued run's file goes on
     ! from its record's rows, its snapshots all there.
-    if (rank == 0 .and. .not. failure%failed()) then
-      call output%create(part, config, entry, model, constraints, [controlled_diagnostics(system), diagnostics()], &
-                         [extra_attribute ::], &
+    allocate (added(0))
+    if (present(extras)) added = extras
+    if (present(durable)) output%store%durable = durable
+    if (rank == 0 .and. keeping .and. .not. failure%failed()) then
+      call output%create(part, config, entry, model, constraints, [controlled_diagnostics(system), diagnostics()], added, &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
       if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
       if (io_failure%failed()) then
@@ -325,7 +353,7 @@ contains
       call system%finish(failure)
       return
     end if
-    writing = .true.
+    writing = keeping
     if (.not. continuing) call hold_snapshot()
     call timer%begin_loop()
     finished = .false.
@@ -424,6 +452,7 @@ contains
       call write_window(.false.)
       if (failure%failed()) exit
       if (rank == 0 .and. present(progress)) call report_progress()
+      if (present(observer)) call observer%after_step()
     end do
     call close_summary(summary, model, has_balance)
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
@@ -546,6 +575,7 @@ contains
       type(held_snapshot) :: snapshot
       type(failure_type) :: reading
 
+      if (.not. writing) return          ! no file (keep_file = .false.)
       snapshot%time = time
       snapshot_step = state_step
       call system%part(snapshot%state, reading)
@@ -651,7 +681,7 @@ contains
         summary%note = config%output_file//' keeps the earlier complete run; this run''s file is '//part
         return
       end if
-      call rename_file(part, config%output_file, renaming, sync=.true.)
+      call rename_file(part, config%output_file, renaming, sync=output%store%durable)
       if (renaming%failed()) call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file// &
                                        ''' ('//config%input_file//'): '//renaming%message)
     end subroutine close_output

@@ -1,6 +1,7 @@
 !> Runs the cases of a study on all ranks of MPI_COMM_WORLD, which serves only the scheduling:
-!> each case runs on one rank through run_simulation, the same code path as eme_run, solving on
-!> PETSC_COMM_SELF. Cases go out largest first (planned steps), dynamically: a rank that finishes
+!> each case runs on one rank through the same code path as eme_run on one process, solving on
+!> PETSC_COMM_SELF: run_simulation (the dense path), or run_distributed on MPI_COMM_SELF for a
+!> model that eme_run would split (a spring chain beyond the dense path's 1000 unknowns). Cases go out largest first (planned steps), dynamically: a rank that finishes
 !> asks rank 0 for the next one. Rank 0 computes cases too and serves requests between its own
 !> time steps (a run_observer), so no core idles as a pure manager.
 !>
@@ -12,7 +13,7 @@
 !> marked 'incomplete: interrupted by <signal>', and the index is written; so does an output
 !> that cannot be written (a full disk), since every later case would fail the same way.
 module ensemble
-  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Send, MPI_Recv, MPI_Irecv, MPI_Wait, &
+  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_COMM_SELF, MPI_Send, MPI_Recv, MPI_Irecv, MPI_Wait, &
                      MPI_Iprobe, MPI_Probe, MPI_Status, MPI_Request, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, &
                      MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
   use, intrinsic :: iso_fortran_env, only: real64
@@ -22,7 +23,8 @@ module ensemble
   use run_config, only: run_configuration
   use run_outcome, only: failure_io, failure_interrupted
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute
+  use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute, dense_max_unknowns
+  use distributed_simulation, only: run_distributed, split_run_wanted
   use statistics, only: median
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
@@ -497,7 +499,9 @@ contains
   ! One case with the rank's integrator, reused from case to case (run_simulation replaces it
   ! when a case needs another kind), and the rank's template of its case files' root attributes
   ! (the first case's; a case writes only those that differ). Its file names its study, case
-  ! number, overrides and rank.
+  ! number, overrides and rank. A case that eme_run would split (split_run_wanted on one rank)
+  ! runs on the split path on this rank alone, with its own solver and no template: its file has
+  ! other datasets, and a long case gains nothing from the template's half millisecond.
   subroutine run_case(study, c, rank, result, integrator, template, observer)
     type(study_definition), intent(in) :: study
     integer, intent(in) :: c, rank
@@ -511,6 +515,7 @@ contains
     type(failure_type) :: failure
     real(real64), allocatable :: solve_seconds(:), solve_cpu_seconds(:)      ! on the heap: their size is the input's
     integer :: r
+    logical :: split
 
     config = study%cases(c)%config
     config%output_file = case_file(study, c)
@@ -527,11 +532,19 @@ contains
     ! gets the median of the time loops' durations (wall and CPU, each its own median), so timings
     ! on a shared machine do not zig-zag.
     allocate (solve_seconds(study%repeats), solve_cpu_seconds(study%repeats))
+    split = split_run_wanted(config, 1, dense_max_unknowns)
     do r = 1, study%repeats
-      ! An interrupted case (its file incomplete, with the same input) continues from its file.
-      call run_simulation(config, summary, failure, observer, integrator, &
-                          keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
-                          template=template, resume_if_possible=study%repeats == 1)
+      ! An interrupted case (its file incomplete, with the same input) continues from its file
+      ! (the split path from the file's last snapshot).
+      if (split) then
+        call run_distributed(config, MPI_COMM_SELF%MPI_VAL, summary, failure, observer=observer, &
+                             keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, &
+                             durable=.false., resume_if_possible=study%repeats == 1)
+      else
+        call run_simulation(config, summary, failure, observer, integrator, &
+                            keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
+                            template=template, resume_if_possible=study%repeats == 1)
+      end if
       solve_seconds(r) = summary%solve_seconds
       solve_cpu_seconds(r) = summary%solve_cpu_seconds
       if (failure%failed() .or. summary%status /= 'complete') exit

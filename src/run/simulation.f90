@@ -704,7 +704,7 @@ contains
 
     if (unknowns <= dense_max_unknowns) return
     call set_failure(failure, code_input, '&model: '//integer_text(unknowns)//' unknowns; the dense path (eme_run '// &
-                     'on one rank, every eme_ensemble case) takes at most '//integer_text(dense_max_unknowns)// &
+                     'on one rank, an eme_ensemble case) takes at most '//integer_text(dense_max_unknowns)// &
                      ' (state_size^2 memory, state_size^3 work); a longer spring chain runs on the sparse, '// &
                      'distributed path: eme_run FILE.nml, or mpirun -n P eme_run FILE.nml (docs/performance.md)')
   end subroutine check_dense_size
