@@ -25,6 +25,12 @@ module distributed_model
     integer :: newton_max_iterations = 50
     logical :: tolerance_given = .false.
     real(real64) :: tolerance = 1.0e-10_real64       !! an adaptive integrator's (ts_rk5dp's) error per step
+    !> A relaxed Runge-Kutta scheme's tableau (src/integrator/butcher_tableaux, given by the run;
+    !> unallocated for other schemes): stages g_i = z + h sum_j a_ij k_j, update h sum_i b_i k_i,
+    !> its order, and whether its stages are implicit or it has embedded (adaptive) weights.
+    real(real64), allocatable :: stage_matrix(:, :), weights(:)
+    integer :: order = 0
+    logical :: implicit_stages = .false., embedded_weights = .false.
   end type distributed_settings
 
   !> One step's solve, the same on every rank.
@@ -33,6 +39,11 @@ module distributed_model
     integer :: iterations = 0                  !! Newton iterations
     integer :: solves = 1                      !! the integrator's own steps in it (a TS's)
     integer :: rejected = 0                    !! of them, rejected
+    integer :: halvings = 0                    !! rejected attempts replaced by two halves (relaxed steps)
+    integer :: rejected_steps = 0              !! of the rejected, those replaced by smaller steps (relaxed steps)
+    !> the integrator's own per-step figures, in the order of its registry integrator's
+    !> `diagnostics` (src/integrator/stepper), for a system whose integrator_diagnostics is true
+    real(real64), allocatable :: diagnostics(:)
     integer :: reason = 0                      !! the solver's converged reason (SNES's, or TS's)
     real(real64) :: residual_norm = 0.0_real64
     character(len=:), allocatable :: failure   !! why it did not converge, in words
@@ -74,6 +85,8 @@ module distributed_model
     procedure(restore_interface), deferred :: restore
     procedure(finish_interface), deferred :: finish
     procedure(describe_interface), deferred :: describe_solver
+    procedure :: integrator_diagnostics
+    procedure :: accuracy_warnings
   end type distributed_system
 
   abstract interface
@@ -139,5 +152,24 @@ module distributed_model
       type(failure_type), intent(inout) :: failure
     end subroutine finish_interface
   end interface
+
+contains
+
+  !> Whether each step's outcome carries the per-step figures the dense path's integrator of the
+  !> same name declares (distributed_step%diagnostics); none by default.
+  pure logical function integrator_diagnostics(self)
+    class(distributed_system), intent(in) :: self
+
+    integrator_diagnostics = .false.
+  end function integrator_diagnostics
+
+  !> What the run's record says against its accuracy, as the dense path's integrators say it
+  !> (src/integrator/stepper's accuracy_warnings; '' if nothing); nothing by default.
+  function accuracy_warnings(self) result(text)
+    class(distributed_system), intent(in) :: self
+    character(len=:), allocatable :: text
+
+    text = ''
+  end function accuracy_warnings
 
 end module distributed_model

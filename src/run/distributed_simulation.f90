@@ -29,8 +29,9 @@ module distributed_simulation
                                distributed_part
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator
-  use stepper, only: step_report, step_diagnostic
+  use integrator_registry, only: integrator_entry, find_integrator, build_integrator
+  use butcher_tableaux, only: butcher_tableau, tableau_named
+  use stepper, only: time_stepper, step_report, step_diagnostic
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, spare_addition, resume_record, read_resume_record
   use run_continuation, only: find_resume_record
@@ -106,6 +107,8 @@ contains
   function distributed_settings_of(config) result(settings)
     type(run_configuration), intent(in) :: config
     type(distributed_settings) :: settings
+    type(butcher_tableau) :: tableau
+    logical :: found
 
     settings%input_file = config%input_file
     settings%scheme = config%integrator%scheme
@@ -116,6 +119,13 @@ contains
     settings%tolerance_given = config%integrator%tolerance_given
     settings%tolerance = config%integrator%tolerance
     settings%dt = config%integrator%dt
+    call tableau_named(config%integrator%scheme, tableau, found)
+    if (.not. found) return
+    settings%stage_matrix = tableau%a
+    settings%weights = tableau%b
+    settings%order = tableau%order
+    settings%implicit_stages = tableau%implicit
+    settings%embedded_weights = tableau%embedded
   end function distributed_settings_of
 
   !> Sets the split model up on `comm` and frees it again, writing nothing (as simulation's
@@ -167,6 +177,8 @@ contains
     type(distributed_figures) :: figures_0, values
     type(balanced_state) :: balance_old, balance_new
     type(step_report) :: report
+    class(time_stepper), allocatable :: integrator
+    type(step_diagnostic), allocatable :: integrator_diagnostics(:)
     type(failure_type) :: step_failure, io_failure
     type(resume_record) :: resume       !! where a continued run starts (its last snapshot)
     character(len=:), allocatable :: part, kind, text, status, stored
@@ -251,7 +263,15 @@ contains
     allocate (window%kept(0), window%new(4))
     ! The step report's parts of the split path: no scheme temperatures (the state is not in
     ! rows), the two production minima as the integrator's figures.
-    allocate (report%scheme_temperature(0), report%diagnostics(2))
+    allocate (report%scheme_temperature(0))
+    ! A system that runs one of the dense path's integrators on its own steps reports the figures
+    ! that integrator declares, after the split path's.
+    allocate (integrator_diagnostics(0))
+    if (system%integrator_diagnostics()) then
+      call build_integrator(entry, integrator)
+      integrator_diagnostics = integrator%diagnostics()
+    end if
+    allocate (report%diagnostics(2 + size(integrator_diagnostics)))
     values = figures_0
     state_step = 0
     if (continuing) call restore_snapshot()
@@ -261,7 +281,8 @@ contains
     ! snapshot: every later one goes through a window's spare); a continued run's file goes on
     ! from its record's rows, its snapshots all there.
     if (rank == 0 .and. .not. failure%failed()) then
-      call output%create(part, config, entry, model, constraints, diagnostics(), [extra_attribute ::], &
+      call output%create(part, config, entry, model, constraints, [diagnostics(), integrator_diagnostics], &
+                         [extra_attribute ::], &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
       if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
       if (io_failure%failed()) then
@@ -339,6 +360,8 @@ contains
       if (summary%failure_kind /= failure_none) exit
       summary%steps_completed = n
       summary%newton_iterations = summary%newton_iterations + outcome%iterations
+      summary%halved_steps = summary%halved_steps + outcome%halvings
+      summary%rejected_steps = summary%rejected_steps + outcome%rejected_steps
       energy_change = energy_change + values%delta_energy
       conserved_change = conserved_change + values%delta_conserved
       summary%energy_drift = max(summary%energy_drift, abs(energy_change)/abs(figures_0%energy))
@@ -356,6 +379,7 @@ contains
         report%converged_reason = outcome%reason
         report%diagnostics(1) = values%min_viscous_production
         report%diagnostics(2) = values%min_link_production
+        if (allocated(outcome%diagnostics)) report%diagnostics(3:) = outcome%diagnostics
         where (report%diagnostics >= huge(1.0_real64)) report%diagnostics = ieee_value(1.0_real64, ieee_quiet_nan)
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
@@ -371,8 +395,10 @@ contains
       if (rank == 0 .and. present(progress)) call report_progress()
     end do
     call close_summary(summary, model, has_balance)
-    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) &
+    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
+      summary%warnings = system%accuracy_warnings()
+    end if
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
     ! did not converge left it there; one whose state broke a balance did not).
     if (state_step == summary%steps_completed .and. snapshot_step /= state_step) then
