@@ -26,6 +26,7 @@ def relaxed_chain(scheme="relaxed_rk4", variable="temperature", dt=0.005, steps=
     """chain_groups' chain; in 3D the masses also move across its plane (p_y = 0.3 cos i N s), so that
     J_z, which gravity along z keeps, is not zero."""
     groups = chain_groups(scheme=scheme, variable=variable, dt=dt, steps=steps, **shape)
+    del groups["integrator"]["newton_tol"]                  # explicit stages: no Newton
     if shape.get("dimension") == 3:
         groups["initial"]["p"] = [v for i in range(1, shape["links"] + 1) for v in (0.0, 0.3 * np.cos(i), 0.0)]
     groups["output"] = {"snapshot_every": 1}
