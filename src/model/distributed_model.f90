@@ -26,6 +26,12 @@ module distributed_model
     logical :: tolerance_given = .false.
     real(real64) :: tolerance = 1.0e-10_real64       !! an adaptive integrator's (ts_rk5dp's) error per step
     real(real64) :: t_end = 0.0_real64               !! where the run ends (adaptive steps land on it)
+    !> A relaxed Runge-Kutta scheme's tableau (src/integrator/butcher_tableaux, given by the run;
+    !> unallocated for other schemes): stages g_i = z + h sum_j a_ij k_j, update h sum_i b_i k_i,
+    !> its order, and whether its stages are implicit or it has embedded (adaptive) weights.
+    real(real64), allocatable :: stage_matrix(:, :), weights(:)
+    integer :: order = 0
+    logical :: implicit_stages = .false., embedded_weights = .false.
   end type distributed_settings
 
   !> One step's solve, the same on every rank.
@@ -43,9 +49,15 @@ module distributed_model
     real(real64) :: dt_taken = 0.0_real64
     logical :: chose_time = .false.
     real(real64) :: time = 0.0_real64
-    integer :: halvings = 0                    !! halves that replaced the step (substeps - 1)
-    integer :: rejected_steps = 0              !! trial steps rejected by step-size control
-    real(real64), allocatable :: diagnostics(:)   !! the step's own figures (a step controller's datasets)
+    !> halves that replaced the step (substeps - 1: a fixed step without a root, a relaxed step
+    !> without a relaxation root)
+    integer :: halvings = 0
+    !> trial steps rejected (by step-size control; a relaxed step's attempts replaced by halves)
+    integer :: rejected_steps = 0
+    !> the step's own figures: a step controller's datasets (src/integrator/distributed_step_control),
+    !> or the per-step figures the dense path's integrator of the same name declares (its registry
+    !> entry's `diagnostics`, src/integrator/stepper) for a system whose integrator_diagnostics is true
+    real(real64), allocatable :: diagnostics(:)
   end type distributed_step
 
   !> The balances' quantities of the state and of the last step to it, summed over the ranks
@@ -89,6 +101,8 @@ module distributed_model
     procedure :: state_rows
     procedure :: set_state_rows
     procedure :: field_rows
+    procedure :: integrator_diagnostics
+    procedure :: accuracy_warnings
   end type distributed_system
 
   abstract interface
@@ -211,5 +225,21 @@ contains
     stat = 0
     call fail(failure, failure_input, 'this split system offers no field', 'field_rows')
   end subroutine field_rows
+  !> Whether each step's outcome carries the per-step figures the dense path's integrator of the
+  !> same name declares (distributed_step%diagnostics); none by default.
+  pure logical function integrator_diagnostics(self)
+    class(distributed_system), intent(in) :: self
+
+    integrator_diagnostics = .false.
+  end function integrator_diagnostics
+
+  !> What the run's record says against its accuracy, as the dense path's integrators say it
+  !> (src/integrator/stepper's accuracy_warnings; '' if nothing); nothing by default.
+  function accuracy_warnings(self) result(text)
+    class(distributed_system), intent(in) :: self
+    character(len=:), allocatable :: text
+
+    text = ''
+  end function accuracy_warnings
 
 end module distributed_model

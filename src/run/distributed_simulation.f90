@@ -32,9 +32,10 @@ module distributed_simulation
                                distributed_part
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
+  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient, build_integrator
   use distributed_step_control, only: controlled_system, controlled_diagnostics
-  use stepper, only: step_report, step_diagnostic
+  use butcher_tableaux, only: butcher_tableau, tableau_named
+  use stepper, only: time_stepper, step_report, step_diagnostic
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, spare_addition, resume_record, read_resume_record
   use run_continuation, only: find_resume_record
@@ -110,6 +111,8 @@ contains
   function distributed_settings_of(config) result(settings)
     type(run_configuration), intent(in) :: config
     type(distributed_settings) :: settings
+    type(butcher_tableau) :: tableau
+    logical :: found
 
     settings%input_file = config%input_file
     settings%scheme = config%integrator%scheme
@@ -121,6 +124,13 @@ contains
     settings%tolerance = config%integrator%tolerance
     settings%dt = config%integrator%dt
     settings%t_end = config%integrator%t_end
+    call tableau_named(config%integrator%scheme, tableau, found)
+    if (.not. found) return
+    settings%stage_matrix = tableau%a
+    settings%weights = tableau%b
+    settings%order = tableau%order
+    settings%implicit_stages = tableau%implicit
+    settings%embedded_weights = tableau%embedded
   end function distributed_settings_of
 
   !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps
@@ -209,6 +219,8 @@ contains
     type(distributed_figures) :: figures_0, values
     type(balanced_state) :: balance_old, balance_new
     type(step_report) :: report
+    class(time_stepper), allocatable :: integrator
+    type(step_diagnostic), allocatable :: integrator_diagnostics(:)
     type(failure_type) :: step_failure, io_failure
     type(resume_record) :: resume       !! where a continued run starts (its last snapshot)
     character(len=:), allocatable :: part, kind, text, status, stored
@@ -315,9 +327,15 @@ contains
     window%tau_name = tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0)
     allocate (window%kept(0), window%new(4))
     ! The step report's parts of the split path: no scheme temperatures (the state is not in
-    ! rows); the integrator's figures are the step control's (controlled_diagnostics) and the two
-    ! production minima.
+    ! rows); the integrator's figures are the step control's (controlled_diagnostics), or those
+    ! the dense path's integrator of the same name declares for a system that runs it on its own
+    ! steps (a relaxed scheme's), then the two production minima.
     allocate (report%scheme_temperature(0))
+    allocate (integrator_diagnostics(0))
+    if (system%integrator_diagnostics()) then
+      call build_integrator(entry, integrator)
+      integrator_diagnostics = integrator%diagnostics()
+    end if
     values = figures_0
     state_step = 0
     state_time = 0.0_real64
@@ -332,7 +350,8 @@ contains
     if (present(extras)) added = extras
     if (present(durable)) output%store%durable = durable
     if (rank == 0 .and. keeping .and. .not. failure%failed()) then
-      call output%create(part, config, entry, model, constraints, [controlled_diagnostics(system), diagnostics()], added, &
+      call output%create(part, config, entry, model, constraints, &
+                         [controlled_diagnostics(system), integrator_diagnostics, diagnostics()], added, &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
       if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
       if (io_failure%failed()) then
@@ -458,6 +477,7 @@ contains
     if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
       summary%status = 'complete'
       if (steps_chosen) summary%steps_planned = n       ! it planned t_end/dt steps and took n
+      summary%warnings = system%accuracy_warnings()
     end if
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
     ! did not converge left it there; one whose state broke a balance did not).

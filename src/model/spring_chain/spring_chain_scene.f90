@@ -18,7 +18,8 @@ module spring_chain_scene
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
   use distributed_model, only: distributed_system
-  use spring_chain_sparse_run, only: sparse_chain_run, ts_schemes
+  use spring_chain_sparse_run, only: sparse_chain_run, ts_schemes, step_schemes
+  use spring_chain_relaxed_run, only: relaxed_chain_run
   use spring_chain_ts_run, only: ts_chain_run
   use thermo_variable_kinds, only: tau_entropy
   use spring_chain_spring, only: rung_elastic
@@ -312,8 +313,9 @@ contains
   end function without_temperatures
 
   !> The chain on the sparse, distributed path: stepped by PETSc TS for a TS integrator
-  !> (spring_chain_ts_run), else by its own SNES (spring_chain_sparse_run, which refuses what it
-  !> cannot run).
+  !> (spring_chain_ts_run), by its own SNES for EME and the midpoint rule
+  !> (spring_chain_sparse_run), else by a relaxed Runge-Kutta tableau (spring_chain_relaxed_run;
+  !> what has none, or none the path can run, is refused there).
   subroutine distributed(self, scheme, system)
     class(chain_scene), intent(in) :: self
     character(len=*), intent(in) :: scheme
@@ -321,8 +323,10 @@ contains
 
     if (any(scheme == ts_schemes)) then
       allocate (ts_chain_run :: system)
-    else
+    else if (any(scheme == step_schemes)) then
       allocate (sparse_chain_run :: system)
+    else
+      allocate (relaxed_chain_run :: system)
     end if
   end subroutine distributed
 

@@ -2,10 +2,12 @@
 !> distributed_model; spring_chain_dmda does the work): the scene's chain and initial state, steps
 !> of EME (the input's discrete gradient and metric) or of the midpoint rule, the balances'
 !> figures summed over the ranks, and the rank's part of the state for a snapshot. The PETSc TS
-!> integrators extend it (spring_chain_ts_run). What the path cannot run (another integrator, a
-!> model other than the chain) is refused with the reason. A step here is one Newton solve of
-!> the step; eme_run's halving of fixed steps and its adaptive steps (&integrator tolerance) are
-!> src/integrator/distributed_step_control's, over this system's rows and field. chain_bench's bookkeeping (`advance`, `result`) rides on the same steps.
+!> integrators extend it (spring_chain_ts_run), as do the relaxed Runge-Kutta schemes
+!> (spring_chain_relaxed_run). What the path cannot run (another integrator, a model other than
+!> the chain) is refused with the reason. A step here is one Newton solve of the step; eme_run's
+!> halving of fixed steps and its adaptive steps (&integrator tolerance) are
+!> src/integrator/distributed_step_control's, over this system's rows and field. chain_bench's
+!> bookkeeping (`advance`, `result`) rides on the same steps.
 module spring_chain_sparse_run
 #include <petsc/finclude/petscsys.h>
   use petscsys
@@ -23,7 +25,10 @@ module spring_chain_sparse_run
   use spring_chain_dmda, only: distributed_chain
   implicit none
   private
-  public :: sparse_chain_run, sparse_run_result, chain_problem_of, ts_schemes
+  public :: sparse_chain_run, sparse_run_result, chain_problem_of, ts_schemes, step_schemes
+
+  !> The integrators whose steps are this module's (one SNES solve a step).
+  character(len=*), parameter :: step_schemes(2) = [character(len=8) :: 'eme', 'midpoint']
 
   !> The PETSc TS integrators (src/integrator/ts_stepper's registry names) that run the chain's
   !> field split over ranks (spring_chain_ts_run).
@@ -75,6 +80,7 @@ contains
     class(generic_model), intent(in) :: model
     type(chain_step_problem), intent(out) :: problem
     type(failure_type), intent(out) :: failure
+    character(len=:), allocatable :: reason
 
     select type (model)
     type is (spring_chain)
@@ -94,14 +100,28 @@ contains
     case ('midpoint')
       problem%rule = partials_midpoint
     case default
-      if (.not. any(settings%scheme == ts_schemes)) then
+      if (allocated(settings%weights)) then
+        ! A relaxed Runge-Kutta tableau (spring_chain_relaxed_run): fixed-step explicit ones only.
+        if (settings%embedded_weights .or. settings%implicit_stages) then
+          reason = 'its implicit stages need a Newton solve of all its stages over the split state, which is not built'
+          if (settings%embedded_weights) reason = 'it chooses its own steps (embedded weights), which the split '// &
+                                                  'time loop, stepping to n dt, does not take yet'
+          call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, '// &
+                    'distributed path has no '''//trim(settings%scheme)//''': '//reason//'; allowed: the fixed-step '// &
+                    'explicit relaxed schemes (relaxed_rk4, relaxed_rk8), ''eme'', ''midpoint'' and the PETSc TS '// &
+                    'integrators', 'scheme')
+          return
+        end if
+      else if (.not. any(settings%scheme == ts_schemes)) then
         call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
                   'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
-                  'process); allowed: ''eme'', ''midpoint'' and the PETSc TS integrators ''ts_midpoint'', '// &
-                  '''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', 'scheme')
+                  'process); allowed: ''eme'', ''midpoint'', the fixed-step explicit relaxed schemes (relaxed_rk4, '// &
+                  'relaxed_rk8) and the PETSc TS integrators ''ts_midpoint'', ''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', &
+                  'scheme')
         return
       end if
-      ! PETSc TS integrates the field at the exact partials; its own tolerance (ts_rk5dp) is its own.
+      ! PETSc TS and the relaxed stages integrate the field at the exact partials; ts_rk5dp's
+      ! tolerance is its own, a relaxed scheme's bounds its gamma.
       problem%rule = partials_exact
     end select
     problem%gradient = settings%discrete_gradient

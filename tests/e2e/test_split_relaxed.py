@@ -1,0 +1,154 @@
+"""The relaxed Runge-Kutta family on the chain split over ranks (src/model/spring_chain/
+spring_chain_relaxed_run.F90; docs/integrators.md, "The relaxed family on the split chain").
+- From the same state the split relaxed_rk4 (and relaxed_rk8) on 2 ranks takes the dense path's steps: every step of
+  the split path lands on n dt (the loop's contract) where the dense path's rows advance by gamma h,
+  but the update P(z + gamma d) is the same, so the states, E, S and gamma agree step by step to
+  rounding (all but the dense path's last step, which lands on t_end with a shorter h);
+- 1 and 2 ranks give the same run (a chain beyond the dense path's 1000 unknowns, split on one rank);
+- every step keeps E to round-off (the run's own balance check, in ulps of its terms), the conserved
+  angular momentum, S_{n+1} - S_n = gamma e_S (the entropy identity of entropy variables) with
+  e_S >= 0, and every viscous branch's and link's production >= 0;
+- a step without a relaxation root is halved (recursively, counted in /halved_steps and the
+  summary's halved_steps) and still lands on n dt, and the complete file carries the dense path's
+  accuracy warning;
+- relaxed_dp853 (adaptive) and relaxed_gauss6 (implicit stages) are refused at input with the
+  reason, nothing written."""
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run_eme
+from test_spring_chain_sparse import chain_groups, rod_groups
+from test_split_runs import run_split
+
+
+def relaxed_chain(scheme="relaxed_rk4", variable="temperature", dt=0.005, steps=40, **shape):
+    """chain_groups' chain; in 3D the masses also move across its plane (p_y = 0.3 cos i N s), so that
+    J_z, which gravity along z keeps, is not zero."""
+    groups = chain_groups(scheme=scheme, variable=variable, dt=dt, steps=steps, **shape)
+    del groups["integrator"]["newton_tol"]                  # explicit stages: no Newton
+    if shape.get("dimension") == 3:
+        groups["initial"]["p"] = [v for i in range(1, shape["links"] + 1) for v in (0.0, 0.3 * np.cos(i), 0.0)]
+    groups["output"] = {"snapshot_every": 1}
+    return groups
+
+
+def dense_rows(state, links, dimension):
+    """q, p (masses x dimension), gamma and tau of a hanging thermoviscoelastic chain's /state row."""
+    rows = state[:links * (2 * dimension + 2)].reshape(links, 2 * dimension + 2)
+    return rows[:, :dimension], rows[:, dimension:2 * dimension], rows[:, 2 * dimension], rows[:, 2 * dimension + 1]
+
+
+@pytest.mark.parametrize("scheme, variable, tau", [("relaxed_rk4", "temperature", "theta"),
+                                                   ("relaxed_rk8", "internal_energy", "internal_energy")])
+def test_split_relaxed_steps_are_the_dense_ones(tmp_path, scheme, variable, tau):
+    """A hanging 3D chain of 12 unlike springs (J_z kept), dt = 5 ms, 40 steps; the snapshots hold
+    tau in the run's variable (the steps run in entropy variables).
+
+    Agreement to 1e-11 relative (states, E, S) and 1e-9 in gamma: both paths compute the same stages
+    and root; the ranks' sums and the projection's Gram form change the rounding only, and gamma is
+    resolved to the rounding floor of r(gamma) over its slope (about 1e-11 at these steps), which
+    moves the state by gamma's error times |d|."""
+    links, dimension, steps = 12, 3, 40
+    groups = relaxed_chain(scheme=scheme, variable=variable, links=links, dimension=dimension)
+    result, dense_file = run_eme(tmp_path, "dense", groups)
+    assert result.returncode == 0, result.stderr
+    result, split_file = run_split(tmp_path, "split", groups, 2)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(dense_file, "r") as dense, h5py.File(split_file, "r") as split:
+        assert split.attrs["status"] == "complete" and split.attrs["scheme"] == scheme
+        assert "state" not in split
+        # The loop's contract: every split step lands on n dt; the dense rows advance by gamma h.
+        gamma_dense = dense["relaxation_gamma"][()]
+        gamma_split = split["relaxation_gamma"][()]
+        assert np.allclose(split["time"][()], 0.005 * np.arange(steps + 1), rtol=0, atol=1e-15)
+        assert np.allclose(dense["time"][1:steps], 0.005 * np.cumsum(gamma_dense[:steps - 1]), rtol=0, atol=1e-15)
+        # Step by step the same states, all but the dense path's landing step (its h is t_end - t).
+        compared = range(1, steps)
+        assert np.max(np.abs(gamma_split[:steps - 1] - gamma_dense[:steps - 1])) <= 1e-9
+        if scheme == "relaxed_rk4":
+            assert np.max(np.abs(gamma_dense - 1.0)) > 1e-8     # gamma is no 1 here: the relaxation acts
+        for name in ("energy", "entropy"):
+            expected = dense[name][:steps]
+            assert np.max(np.abs(split[name][:steps] - expected)) <= 1e-11 * np.max(np.abs(expected)), name
+        for n in compared:
+            q, p, gamma, tau_values = dense_rows(dense["state"][n], links, dimension)
+            for name, expected in (("q", q), ("p", p), ("gamma", gamma), (tau, tau_values)):
+                got = split[f"snapshots/{name}"][n]
+                assert np.max(np.abs(got - expected)) <= 1e-11 * max(1.0, np.max(np.abs(expected))), (name, n)
+        # Every step: E to round-off (the run's check, in ulps of E's terms), J_z kept, S rising by
+        # gamma e_S >= 0 exactly, every branch's and link's production >= 0.
+        balance = split["balance"][()]
+        assert np.all(balance[np.isfinite(balance)] <= 32.0)
+        energy = split["energy"][()]
+        assert np.max(np.abs(energy - energy[0])) <= 1e-13 * np.max(np.abs(energy))
+        jz = split["angular_momentum"][:, 2]
+        assert abs(jz[0]) > 0.1
+        assert np.max(np.abs(jz - jz[0])) <= 1e-12 * max(1.0, np.max(np.abs(split["angular_momentum"][()])))
+        increments = np.diff(split["entropy"][()])
+        production = split["entropy_production"][()]
+        assert np.all(production >= 0.0) and np.all(increments > 0.0)
+        assert np.max(np.abs(increments - production)) <= 1e-12 * np.max(np.abs(split["entropy"][()]))
+        assert np.all(split["min_viscous_production"][()] >= 0.0)
+        assert np.all(split["min_link_production"][()] >= 0.0)
+        assert split["halved_steps"][()].sum() == 0 and "warnings" not in split.attrs
+
+
+def test_one_and_two_ranks_give_the_same_run(tmp_path):
+    """300 springs of the rod family (1198 unknowns: split on one rank too), entropy variable,
+    dt = 2e-5 s (below RK4's stability limit there), 20 steps; the sums over the ranks are added in
+    another order, nothing else differs. Both gammas are roots to r's rounding floor; at these short
+    steps (|d| about 1e-6 |z|) r is so flat in gamma that the floor resolves gamma only to about 1e-9
+    (measured: 2.8e-9 apart), and the states they give agree to 1e-13 of each field's size."""
+    groups = rod_groups(300, 20, dt=2.0e-5)
+    groups["integrator"].update({"scheme": "relaxed_rk4", "thermo_variable": "entropy"})
+    groups["output"] = {"snapshot_every": 5}
+    one, one_file = run_split(tmp_path, "one", groups, 1)
+    assert one.returncode == 0, one.stderr
+    two, two_file = run_split(tmp_path, "two", groups, 2)
+    assert two.returncode == 0, two.stderr
+    with h5py.File(one_file, "r") as a, h5py.File(two_file, "r") as b:
+        assert a.attrs["unknowns"] == 1198 and a.attrs["status"] == b.attrs["status"] == "complete"
+        for name in ("energy", "entropy"):
+            assert np.allclose(b[name][()], a[name][()], rtol=1e-12, atol=0), name
+        assert np.allclose(b["relaxation_gamma"][()], a["relaxation_gamma"][()], rtol=0, atol=1e-8)
+        for name in ("q", "p", "gamma", "theta", "entropy"):
+            expected = a[f"snapshots/{name}"][()]
+            assert np.max(np.abs(b[f"snapshots/{name}"][()] - expected)) <= 1e-11 * max(1.0, np.max(np.abs(expected))), name
+        energy = b["energy"][()]
+        assert np.max(np.abs(energy - energy[0])) <= 1e-13 * np.max(np.abs(energy))
+        assert np.all(np.diff(b["entropy"][()]) > 0.0)
+
+
+def test_a_step_without_a_root_is_halved_and_lands_on_n_dt(tmp_path):
+    """The 12-spring chain at dt = 0.1 s: some steps find no relaxation root (or a stage leaves the
+    domain) and are halved, recursively, as on the dense path; every row still lands on n dt, keeps
+    E, and the complete file says that dt was too long for relaxed_rk4's accuracy."""
+    steps = 10
+    groups = relaxed_chain(dt=0.1, steps=steps, links=12, dimension=3)
+    groups["output"] = {"snapshot_every": 5}
+    result, split_file = run_split(tmp_path, "coarse", groups, 2)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(split_file, "r") as f:
+        assert f.attrs["status"] == "complete"
+        halved = f["halved_steps"][()]
+        assert halved.sum() > 0, "no step was halved"
+        assert np.array_equal(f["rejected_steps"][()], halved)
+        assert np.allclose(f["time"][()], 0.1 * np.arange(steps + 1), rtol=0, atol=1e-14)
+        balance = f["balance"][()]
+        assert np.all(balance[np.isfinite(balance)] <= 32.0)
+        assert f"{int(halved.sum())} trial steps rejected ({int(halved.sum())} halved)" in f.attrs["warnings"]
+        assert "dt = 0.1 s is too long for relaxed_rk4's accuracy" in f.attrs["warnings"]
+    assert "trial steps rejected" in result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("scheme, words", [
+    ("relaxed_dp853", "it chooses its own steps (embedded weights)"),
+    ("relaxed_gauss6", "its implicit stages need a Newton solve")])
+def test_the_adaptive_and_implicit_relaxed_schemes_are_refused_with_the_reason(tmp_path, scheme, words):
+    groups = relaxed_chain(scheme=scheme)
+    result, output = run_split(tmp_path, "refused", groups, 2)
+    assert result.returncode == 2, result.stderr
+    assert f"refused.nml, &integrator: scheme: the chain's sparse, distributed path has no '{scheme}'" in result.stderr
+    assert words in result.stderr and "allowed: the fixed-step explicit relaxed schemes" in result.stderr
+    assert not list(tmp_path.glob("refused.h5*"))
