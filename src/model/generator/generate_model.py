@@ -542,7 +542,8 @@ def potential_module(symbolic, source):
                 # In every variable the temperature form's terms at the state's theta: U's e + Cap (theta - theta_ref)
                 # weighs |e| + Cap (theta + theta_ref), S's sigma + Cap ln(theta/theta_ref) |sigma| + Cap (|ln| + 1).
                 at_theta = {tau: sp.Symbol("theta", positive=True)}
-                scales = [rounding_scale(sp.sympify(value).subs(at_theta)) for value in symbolic.forms[a]["temperature"][:2]]
+                scales = [rounding_scale(sp.sympify(value).subs(at_theta))
+                          for value in symbolic.forms[a]["temperature"][:2]]
                 used = set().union(*(e.free_symbols for e in scales))
                 locals_["scale"] |= {x.name for x in used if x.name in names[:-1]}
                 scale_body.append((variable, unpack(used, names[:-1], "x", 4) +
