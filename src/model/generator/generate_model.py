@@ -861,6 +861,8 @@ def angular_momentum_procedures(symbolic):
         terms = [f"z({column[q[j]]})*z({column[p[k]]}) - z({column[q[k]]})*z({column[p[j]]})"
                  for q, p in d.angular_momentum_pairs]
         components.append(wrap(f"values({len(components) + 1}) = " + " + ".join(terms), 2))
+    if planar:          # none with gravity in the plane (the maker's momentum_names)
+        components.insert(0, "    if (size(values) == 0) return")
     gradient = []
     for a, (q, p) in enumerate(d.angular_momentum_pairs):
         gradient.append(f"      q = [{', '.join(f'z({column[x]})' for x in q)}{', 0.0_real64' if planar else ''}]")
@@ -1022,12 +1024,13 @@ def model_module(symbolic, source):
               f"    model%words%metric_scales = '{words['metric_scales']}'"]
     if d.angular_momentum_pairs and len(d.gravity) == 2:
         # In the plane: J about the normal, kept without gravity; with gravity in the plane, no momentum is kept.
+        # (docs/formulation.md section 9: with gravity in the plane the model reports no momenta.)
         PRINTER.owner = "parameters"
-        maker += ["    model%words%momenta = '" + " + ".join(f"q{a + 1}_x p{a + 1}_y - q{a + 1}_y p{a + 1}_x" for a in
-                                                       range(len(d.angular_momentum_pairs))) + "'",
-                  "    model%words%momentum_units = 'J s'",
-                  "    model%momentum_names = [character(len=8) :: 'J']",
-                  wrap("if (.not. any(abs([" + ", ".join(map(fortran, d.gravity)) + "]) > 0.0_real64)) then", 2),
+        maker += [wrap("if (.not. any(abs([" + ", ".join(map(fortran, d.gravity)) + "]) > 0.0_real64)) then", 2),
+                  wrap("model%words%momenta = 'J = " + " + ".join(f"q{a + 1}_x p{a + 1}_y - q{a + 1}_y p{a + 1}_x" for a in
+                                                           range(len(d.angular_momentum_pairs))) + "'", 3),
+                  "      model%words%momentum_units = 'J s'",
+                  "      model%momentum_names = [character(len=8) :: 'J']",
                   "      model%conserved = [conserved_component('J', [0.0_real64, 0.0_real64, 1.0_real64])]",
                   "    else", "      allocate (model%conserved(0))", "    end if"]
         PRINTER.owner = "self%parameters"

@@ -77,10 +77,10 @@ contains
     model%words%entropy_units = 'J/K'
     model%words%temperature_units = 'K'
     model%words%metric_scales = 'C by (l^0)^2, gamma by 1 m, theta by theta_ref, s by Cap, u by Cap theta_ref'
-    model%words%momenta = 'q1_x p1_y - q1_y p1_x + q2_x p2_y - q2_y p2_x'
-    model%words%momentum_units = 'J s'
-    model%momentum_names = [character(len=8) :: 'J']
     if (.not. any(abs([parameters%gravity_x, parameters%gravity_y]) > 0.0_real64)) then
+      model%words%momenta = 'J = q1_x p1_y - q1_y p1_x + q2_x p2_y - q2_y p2_x'
+      model%words%momentum_units = 'J s'
+      model%momentum_names = [character(len=8) :: 'J']
       model%conserved = [conserved_component('J', [0.0_real64, 0.0_real64, 1.0_real64])]
     else
       allocate (model%conserved(0))
@@ -1436,6 +1436,7 @@ contains
     real(real64), intent(in) :: z(:)
     real(real64) :: values(self%momentum_count())
 
+    if (size(values) == 0) return
     values(1) = z(1)*z(6) - z(2)*z(5) + z(3)*z(8) - z(4)*z(7)
   end function momenta
 
