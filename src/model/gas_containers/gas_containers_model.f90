@@ -63,7 +63,8 @@ contains
     allocate (model%subsystems(2))
     associate (part => model%subsystems(1))
       part%name = 'container 1'
-      allocate (part%potentials, source=gas_containers_potentials(parameters=parameters, subsystem=1, variable=variable))
+      allocate (part%potentials, source=gas_containers_potentials(parameters=parameters, subsystem=1, &
+          variable=variable))
       part%invariant_count = 2
       part%columns = [1, 3]
       part%tau_column = 3
@@ -78,7 +79,8 @@ contains
     end associate
     associate (part => model%subsystems(2))
       part%name = 'container 2'
-      allocate (part%potentials, source=gas_containers_potentials(parameters=parameters, subsystem=2, variable=variable))
+      allocate (part%potentials, source=gas_containers_potentials(parameters=parameters, subsystem=2, &
+          variable=variable))
       part%invariant_count = 2
       part%columns = [1, 4]
       part%tau_column = 4

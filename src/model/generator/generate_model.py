@@ -186,13 +186,16 @@ def difference(expr, at_a, at_b, delta):
 # ---------------------------------------------------------------------------------- the symbolic model
 
 def load(path):
-    """The ModelDescription `model` of the description file at `path`."""
+    """The ModelDescriptions of the description file at `path`: its `model`, or its `models` (a list: one
+    description with switches, as the double pendulum's ladder of rungs)."""
     spec = importlib.util.spec_from_file_location(f"description_{Path(path).parent.name}", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
+    if hasattr(module, "models"):
+        return list(module.models)
     if not hasattr(module, "model"):
-        raise DescriptionError("it defines no `model` (a ModelDescription)")
-    return module.model
+        raise DescriptionError("it defines no `model` (a ModelDescription) and no `models` (a list of them)")
+    return [module.model]
 
 
 def solve_one(equation, unknown, what):
@@ -271,6 +274,24 @@ def check_inverse(part, level, inverse, composed):
         if abs(got - value) > 1e-20*(1 + abs(value)):
             raise DescriptionError(f"subsystem {part.name}: the inverse theta = {inverse} does not invert at {point}: "
                                    f"{got} != {value}")
+
+
+def rounding_scale(expr):
+    """A bound on the sizes of the terms `expr` is summed from, for its rounding error (invariant_function's
+    values_and_temperature): sums and products of the parts' scales, a power's of its base's, |log f| + 1 for a
+    log (its absolute error is eps whatever its size), |exp f| (1 + scale(f)) for an exp; |x| for a symbol or number.
+    So Cap (theta - theta_ref) weighs Cap (theta + theta_ref), not the small difference it is."""
+    if expr.is_Add:
+        return sp.Add(*(rounding_scale(term) for term in expr.args))
+    if expr.is_Mul:
+        return sp.Mul(*(rounding_scale(factor) for factor in expr.args))
+    if expr.is_Pow and expr.exp.is_Rational:
+        return rounding_scale(expr.base)**expr.exp
+    if isinstance(expr, sp.log):
+        return sp.Abs(expr, evaluate=False) + 1
+    if isinstance(expr, sp.exp):
+        return expr*(1 + rounding_scale(expr.args[0]))
+    return expr if expr.is_nonnegative else sp.Abs(expr, evaluate=False)    # unevaluated: no arg() of a power
 
 
 def logs_of_powers(expr):
@@ -473,7 +494,8 @@ def potential_module(symbolic, source):
     tau = sp.Symbol("tau", real=True)
     codes, temporaries = {"domain_nonpositive_temperature"}, [0]
     evaluate_cases, temperature_cases, inverse_cases, difference_cases = [], [], [], []
-    locals_ = {"evaluate": set(), "temperature": set(), "inverse": set(), "difference": set()}
+    locals_ = {"evaluate": set(), "temperature": set(), "inverse": set(), "difference": set(), "scale": set()}
+    scale_cases, scale_temporaries = [], [0]
     difference_temporaries = [0]
     locals_order = []
     for a, part in enumerate(d.subsystems):
@@ -482,7 +504,7 @@ def potential_module(symbolic, source):
         positive = [inv.symbol for inv in part.invariants if inv.positive]
         codes |= {"domain_nonpositive_length"} if positive else set()
         locals_order += [x for x in names if x not in locals_order]
-        evaluate_body, temperature_body, inverse_body, difference_body = [], [], [], []
+        evaluate_body, temperature_body, inverse_body, difference_body, scale_body = [], [], [], [], []
         for variable in THERMO_VARIABLES:
             u, s, temperature, tau_of_theta = symbolic.forms[a][variable]
             values = [u, s]
@@ -516,6 +538,16 @@ def potential_module(symbolic, source):
             codes |= {"domain_overflow"} if has_exp else set()
             temperature_body.append((variable, unpack(used, names, "x", 4) + check +
                                      [wrap(f"theta = {fortran(temperature)}", 4)]))
+            if d.rounding_scales:
+                # In every variable the temperature form's terms at the state's theta: U's e + Cap (theta - theta_ref)
+                # weighs |e| + Cap (theta + theta_ref), S's sigma + Cap ln(theta/theta_ref) |sigma| + Cap (|ln| + 1).
+                at_theta = {tau: sp.Symbol("theta", positive=True)}
+                scales = [rounding_scale(sp.sympify(value).subs(at_theta))
+                          for value in symbolic.forms[a]["temperature"][:2]]
+                used = set().union(*(e.free_symbols for e in scales))
+                locals_["scale"] |= {x.name for x in used if x.name in names[:-1]}
+                scale_body.append((variable, unpack(used, names[:-1], "x", 4) +
+                                   assignments(["scales(1)", "scales(2)"], scales, 4, scale_temporaries)))
 
             used = sp.sympify(tau_of_theta).free_symbols | set(positive)
             locals_["inverse"] |= {x.name for x in used if x.name in names[:-1]}
@@ -546,6 +578,7 @@ def potential_module(symbolic, source):
                 difference_body.append((variable, body))
         evaluate_cases.append((part, evaluate_body))
         temperature_cases.append((part, temperature_body))
+        scale_cases.append((part, scale_body))
         inverse_cases.append((part, inverse_body))
         difference_cases.append((part, difference_body))
 
@@ -571,6 +604,26 @@ def potential_module(symbolic, source):
 {lines_of(subsystem_cases(difference_cases, 2))}
   end subroutine difference
 """
+    scale_text = "" if not d.rounding_scales else f"""
+  !> (U, S) and the temperature, with the rounding scales of U and S (generate_model.py's `rounding_scale`: the
+  !> sizes of the terms each is summed from), which the step check's balances are measured in.
+  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), theta
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: scales(:)
+{lines_of(local_declaration("scale", [f"t_{i}" for i in range(1, scale_temporaries[0] + 1)] + ["g(size(x), size(f))"]))}
+
+    theta = 0.0_real64
+    if (present(scales)) scales = 0.0_real64
+    call self%evaluate(x, f, g, stat=stat)
+    if (stat /= failure_none) return
+    call self%temperature(x, theta, stat)
+    if (stat /= failure_none .or. .not. present(scales)) return
+{lines_of(subsystem_cases(scale_cases, 2))}
+  end subroutine values_and_temperature
+"""
     text = f"""{header(d, source, f"(U_a, S_a) of the subsystems of {d.title} ({d.reference}):")}
 !> values, gradients and Hessians in the invariants in each thermodynamic variable (entropy, temperature,
 !> internal energy), the temperature of eq. (2) and tau from a temperature, in closed form.
@@ -594,7 +647,8 @@ module {name}_potential
   contains
     procedure :: evaluate
     procedure :: temperature
-    procedure :: tau_from_temperature{chr(10) + "    procedure :: difference" if d.differences else ""}
+    procedure :: tau_from_temperature{chr(10) + "    procedure :: difference" if d.differences else ""}{
+    chr(10) + "    procedure :: values_and_temperature" if d.rounding_scales else ""}
   end type {name}_potentials
 
   ! Largest argument of exp that stays finite, with a margin.
@@ -649,7 +703,7 @@ contains
     end if
 {lines_of(subsystem_cases(inverse_cases, 2))}
   end subroutine tau_from_temperature
-{difference_text}
+{difference_text}{scale_text}
 end module {name}_potential
 """
     return tidy(text)
@@ -800,17 +854,24 @@ def angular_momentum_procedures(symbolic):
     d = symbolic.d
     name = d.name
     column = {symbol: symbolic.index[symbol] + 1 for symbol in symbolic.state}
+    planar = len(d.gravity) == 2
     components = []
-    for i in range(3):
+    for i in (2,) if planar else range(3):      # in the plane, J's component about the normal alone
         j, k = (i + 1) % 3, (i + 2) % 3
         terms = [f"z({column[q[j]]})*z({column[p[k]]}) - z({column[q[k]]})*z({column[p[j]]})"
                  for q, p in d.angular_momentum_pairs]
-        components.append(wrap(f"values({i + 1}) = " + " + ".join(terms), 2))
+        components.append(wrap(f"values({len(components) + 1}) = " + " + ".join(terms), 2))
+    if planar:          # none with gravity in the plane (the maker's momentum_names)
+        components.insert(0, "    if (size(values) == 0) return")
     gradient = []
     for a, (q, p) in enumerate(d.angular_momentum_pairs):
-        gradient.append(f"      q = [{', '.join(f'z({column[x]})' for x in q)}]")
-        gradient.append(f"      gradients([{', '.join(str(column[x]) for x in p)}], k) = "
-                        "cross(self%conserved(k)%axis, q)")
+        gradient.append(f"      q = [{', '.join(f'z({column[x]})' for x in q)}{', 0.0_real64' if planar else ''}]")
+        targets = f"gradients([{', '.join(str(column[x]) for x in p)}], k)"
+        if planar:      # a x q's components in the plane
+            gradient += [f"      associate (in_space => cross(self%conserved(k)%axis, q))",
+                         f"        {targets} = in_space(1:2)", "      end associate"]
+        else:
+            gradient.append(f"      {targets} = cross(self%conserved(k)%axis, q)")
     scale = " + ".join(f"sqrt(sum(z([{', '.join(str(column[x]) for x in q)}])**2)*sum(z([{', '.join(str(column[x]) for x in p)}])**2))"
                        for q, p in d.angular_momentum_pairs)
     return f"""
@@ -961,7 +1022,19 @@ def model_module(symbolic, source):
               f"    model%words%entropy_units = '{d.entropy_units}'",
               f"    model%words%temperature_units = '{d.temperature_units}'",
               f"    model%words%metric_scales = '{words['metric_scales']}'"]
-    if d.angular_momentum_pairs:
+    if d.angular_momentum_pairs and len(d.gravity) == 2:
+        # In the plane: J about the normal, kept without gravity; with gravity in the plane, no momentum is kept.
+        # (docs/formulation.md section 9: with gravity in the plane the model reports no momenta.)
+        PRINTER.owner = "parameters"
+        maker += [wrap("if (.not. any(abs([" + ", ".join(map(fortran, d.gravity)) + "]) > 0.0_real64)) then", 2),
+                  wrap("model%words%momenta = 'J = " + " + ".join(f"q{a + 1}_x p{a + 1}_y - q{a + 1}_y p{a + 1}_x" for a in
+                                                           range(len(d.angular_momentum_pairs))) + "'", 3),
+                  "      model%words%momentum_units = 'J s'",
+                  "      model%momentum_names = [character(len=8) :: 'J']",
+                  "      model%conserved = [conserved_component('J', [0.0_real64, 0.0_real64, 1.0_real64])]",
+                  "    else", "      allocate (model%conserved(0))", "    end if"]
+        PRINTER.owner = "self%parameters"
+    elif d.angular_momentum_pairs:
         PRINTER.owner = "parameters"
         maker += ["    model%words%momenta = 'J = " + " + ".join(f"q{a + 1} x p{a + 1}" for a in
                                                             range(len(d.angular_momentum_pairs))) + "'",
@@ -985,8 +1058,8 @@ def model_module(symbolic, source):
         scales = [inv.scale for inv in part.invariants]
         maker += [f"    associate (part => model%subsystems({a + 1}))",
                   f"      part%name = '{part.label}'",
-                  f"      allocate (part%potentials, source={name}_potentials(parameters=parameters, subsystem={a + 1}, "
-                  "variable=variable))",
+                  wrap(f"allocate (part%potentials, source={name}_potentials(parameters=parameters, subsystem={a + 1}, "
+                       "variable=variable))", 3),
                   f"      part%invariant_count = {len(part.invariants) + 1}",
                   f"      part%columns = [{', '.join(map(str, columns_of[a]))}]",
                   f"      part%tau_column = {columns_of[a][-1]}",
@@ -1059,12 +1132,13 @@ def model_module(symbolic, source):
 {field_comment}
 module {name}_model
   use, intrinsic :: iso_fortran_env, only: real64
-  use model_interface, only: generic_model{", conserved_component" if d.conserved else ""}{
+  use model_interface, only: generic_model{", conserved_component" if d.conserved or (
+    d.angular_momentum_pairs and len(d.gravity) == 2) else ""}{
     ", angular_momentum_components, component_values" if d.angular_momentum_pairs else ""}
   use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy{
     chr(10) + "  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow"
     if d.continuous_field else ""}
-  use {name}_potential, only: {name}_parameters, {name}_potentials
+{wrap(f"use {name}_potential, only: {name}_parameters, {name}_potentials", 1)}
   implicit none (type, external)
   private
   public :: {name}, make_{name}
@@ -1500,19 +1574,22 @@ def main(arguments=None):
     options = parser.parse_args(arguments)
     path = Path(options.description)
     try:
-        description = load(path)
-        PRINTER.parameter_names = {p.name for p in description.parameters}
-        symbolic = SymbolicModel(description)
         source = path.resolve().relative_to(Path(__file__).resolve().parents[3]).as_posix() \
             if Path(__file__).resolve().parents[3] in path.resolve().parents else path.as_posix()
-        if options.input_rows:
+        files = {}
+        for description in load(path):
+            PRINTER.parameter_names = {p.name for p in description.parameters}
+            if options.input_rows:
+                if description.scene:
+                    print(input_rows(description, source))
+                continue
+            symbolic = SymbolicModel(description)
+            files[f"{description.name}_potential.f90"] = potential_module(symbolic, source)
+            files[f"{description.name}_model.f90"] = model_module(symbolic, source)
             if description.scene:
-                print(input_rows(description, source))
+                files[f"{description.name}_scene.f90"] = scene_module(symbolic, source)
+        if options.input_rows:
             return 0
-        files = {f"{description.name}_potential.f90": potential_module(symbolic, source),
-                 f"{description.name}_model.f90": model_module(symbolic, source)}
-        if description.scene:
-            files[f"{description.name}_scene.f90"] = scene_module(symbolic, source)
     except DescriptionError as error:
         print(f"generate_model.py: {path}: {error}", file=sys.stderr)
         return 2

@@ -155,6 +155,7 @@ class ModelDescription:
         self.scene = True              # False: the generator writes no scene (a hand-written one builds the model)
         self.continuous_field = False  # True: continuous_field composed in z, not through the partials (faster)
         self.differences = False       # True: the potentials' U(b) - U(a), S(b) - S(a) free of cancellation
+        self.rounding_scales = False   # True: the potentials' rounding scales from their terms (rounding_scale), not |U|
         self.angular_momentum_pairs = None  # [(q vector, p vector)] of J = sum q_a x p_a, and gravity's components
         self.gravity = None
 
@@ -194,11 +195,14 @@ class ModelDescription:
     def angular_momentum(self, pairs, gravity):
         """The momenta J = sum_a q_a x p_a (J_x, J_y, J_z) of the (position, momentum) vector pairs, three
         columns each; its components conserved under the parameters' gravity (g_x, g_y, g_z) are
-        angular_momentum_components' (docs/formulation.md section 2)."""
+        angular_momentum_components' (docs/formulation.md section 2). In the plane (vectors of 2
+        components, gravity (g_x, g_y)) J is the one component about the normal, conserved without
+        gravity (docs/formulation.md section 9)."""
         if self.conserved or any(c.dataset for c in self.columns if c.kind == "momentum"):
             raise DescriptionError(f"model {self.name}: angular_momentum with momenta of the momentum dataset")
-        if any(len(q) != 3 or len(p) != 3 for q, p in pairs) or len(gravity) != 3:
-            raise DescriptionError(f"model {self.name}: angular_momentum takes vectors of 3 components")
+        dimension = len(gravity)
+        if dimension not in (2, 3) or any(len(q) != dimension or len(p) != dimension for q, p in pairs):
+            raise DescriptionError(f"model {self.name}: angular_momentum takes vectors of 3 components (or 2, planar)")
         self.angular_momentum_pairs, self.gravity = [(list(q), list(p)) for q, p in pairs], list(gravity)
 
     def initial_thermal_field(self, variable, name, values, meaning):

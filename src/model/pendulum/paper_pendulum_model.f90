@@ -88,7 +88,8 @@ contains
     allocate (model%subsystems(2))
     associate (part => model%subsystems(1))
       part%name = 'spring 1'
-      allocate (part%potentials, source=paper_pendulum_potentials(parameters=parameters, subsystem=1, variable=variable))
+      allocate (part%potentials, source=paper_pendulum_potentials(parameters=parameters, subsystem=1, &
+          variable=variable))
       part%invariant_count = 2
       part%columns = [1, 2, 3, 14]
       part%tau_column = 14
@@ -103,7 +104,8 @@ contains
     end associate
     associate (part => model%subsystems(2))
       part%name = 'spring 2'
-      allocate (part%potentials, source=paper_pendulum_potentials(parameters=parameters, subsystem=2, variable=variable))
+      allocate (part%potentials, source=paper_pendulum_potentials(parameters=parameters, subsystem=2, &
+          variable=variable))
       part%invariant_count = 3
       part%columns = [4, 5, 6, 13, 15]
       part%tau_column = 15

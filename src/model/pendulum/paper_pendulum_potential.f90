@@ -47,6 +47,7 @@ module paper_pendulum_potential
     procedure :: temperature
     procedure :: tau_from_temperature
     procedure :: difference
+    procedure :: values_and_temperature
   end type paper_pendulum_potentials
 
   ! Largest argument of exp that stays finite, with a margin.
@@ -1240,5 +1241,134 @@ contains
       end select
     end select
   end subroutine difference
+
+  !> (U, S) and the temperature, with the rounding scales of U and S (generate_model.py's `rounding_scale`: the
+  !> sizes of the terms each is summed from), which the step check's balances are measured in.
+  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
+    class(paper_pendulum_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), theta
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: scales(:)
+    real(real64) :: C, gamma, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, &
+        g(size(x), size(f))
+
+    theta = 0.0_real64
+    if (present(scales)) scales = 0.0_real64
+    call self%evaluate(x, f, g, stat=stat)
+    if (stat /= failure_none) return
+    call self%temperature(x, theta, stat)
+    if (stat /= failure_none .or. .not. present(scales)) return
+    select case (self%subsystem)
+    case (1)  ! spring 1
+      select case (self%variable)
+      case (tau_entropy)
+        C = x(1)
+        t_1 = abs(log(C/self%parameters%natural_length_1**2)) + 1.0_real64
+        t_2 = t_1**2
+        t_3 = abs(self%parameters%mu_eq_slope_1)
+        t_4 = (0.5_real64)*self%parameters%theta_ref
+        t_5 = t_1*abs(self%parameters%beta)
+        scales(1) = self%parameters%heat_capacity_1*(theta + self%parameters%theta_ref) + (0.25_real64)*t_2*(t_3*t_4 &
+            + (0.5_real64)*abs(self%parameters%mu_eq_const_1)) + t_4*t_5
+        scales(2) = self%parameters%heat_capacity_1*(abs(log(theta/self%parameters%theta_ref)) + 1.0_real64) + &
+            (0.125_real64)*t_2*t_3 + (0.5_real64)*t_5
+      case (tau_temperature)
+        C = x(1)
+        t_1 = abs(log(C/self%parameters%natural_length_1**2)) + 1.0_real64
+        t_2 = t_1**2
+        t_3 = abs(self%parameters%mu_eq_slope_1)
+        t_4 = (0.5_real64)*self%parameters%theta_ref
+        t_5 = t_1*abs(self%parameters%beta)
+        scales(1) = self%parameters%heat_capacity_1*(theta + self%parameters%theta_ref) + (0.25_real64)*t_2*(t_3*t_4 &
+            + (0.5_real64)*abs(self%parameters%mu_eq_const_1)) + t_4*t_5
+        scales(2) = self%parameters%heat_capacity_1*(abs(log(theta/self%parameters%theta_ref)) + 1.0_real64) + &
+            (0.125_real64)*t_2*t_3 + (0.5_real64)*t_5
+      case (tau_internal_energy)
+        C = x(1)
+        t_1 = abs(log(C/self%parameters%natural_length_1**2)) + 1.0_real64
+        t_2 = t_1**2
+        t_3 = abs(self%parameters%mu_eq_slope_1)
+        t_4 = (0.5_real64)*self%parameters%theta_ref
+        t_5 = t_1*abs(self%parameters%beta)
+        scales(1) = self%parameters%heat_capacity_1*(theta + self%parameters%theta_ref) + (0.25_real64)*t_2*(t_3*t_4 &
+            + (0.5_real64)*abs(self%parameters%mu_eq_const_1)) + t_4*t_5
+        scales(2) = self%parameters%heat_capacity_1*(abs(log(theta/self%parameters%theta_ref)) + 1.0_real64) + &
+            (0.125_real64)*t_2*t_3 + (0.5_real64)*t_5
+      end select
+    case (2)  ! spring 2
+      select case (self%variable)
+      case (tau_entropy)
+        C = x(1)
+        gamma = x(2)
+        t_1 = gamma**2
+        t_2 = abs(self%parameters%mu_neq_slope)
+        t_3 = abs(self%parameters%beta_v)
+        t_4 = t_3 + 1.0_real64
+        t_5 = abs(log(C/self%parameters%natural_length_2**2)) + 1.0_real64
+        t_6 = t_5**2
+        t_7 = abs(self%parameters%mu_eq_const_2)
+        t_8 = abs(self%parameters%mu_eq_slope_2)
+        t_9 = t_8*self%parameters%theta_ref
+        t_10 = abs(self%parameters%beta)
+        t_11 = t_10*self%parameters%theta_ref
+        t_12 = (0.5_real64)*t_5
+        t_13 = 1.0_real64
+        t_14 = self%parameters%heat_capacity_2*t_4
+        t_15 = t_13*t_3*abs(gamma)/sqrt(abs(C))
+        scales(1) = t_1*(t_2*self%parameters%theta_ref + abs(self%parameters%mu_neq_const)) + t_14*(t_13 &
+            *self%parameters%theta_ref + theta) + t_15*(t_11 + t_12*(t_7 + t_9)) + t_4*(t_11*t_12 + (0.25_real64)*t_6 &
+            *((0.5_real64)*t_7 + (0.5_real64)*t_9))
+        scales(2) = t_1*t_2 + t_14*(abs(log(theta/self%parameters%theta_ref)) + 1.0_real64) + t_15*(t_10 + t_12*t_8) &
+            + t_4*(t_10*t_12 + (0.125_real64)*t_6*t_8)
+      case (tau_temperature)
+        C = x(1)
+        gamma = x(2)
+        t_1 = gamma**2
+        t_2 = abs(self%parameters%mu_neq_slope)
+        t_3 = abs(self%parameters%beta_v)
+        t_4 = t_3 + 1.0_real64
+        t_5 = abs(log(C/self%parameters%natural_length_2**2)) + 1.0_real64
+        t_6 = t_5**2
+        t_7 = abs(self%parameters%mu_eq_const_2)
+        t_8 = abs(self%parameters%mu_eq_slope_2)
+        t_9 = t_8*self%parameters%theta_ref
+        t_10 = abs(self%parameters%beta)
+        t_11 = t_10*self%parameters%theta_ref
+        t_12 = (0.5_real64)*t_5
+        t_13 = 1.0_real64
+        t_14 = self%parameters%heat_capacity_2*t_4
+        t_15 = t_13*t_3*abs(gamma)/sqrt(abs(C))
+        scales(1) = t_1*(t_2*self%parameters%theta_ref + abs(self%parameters%mu_neq_const)) + t_14*(t_13 &
+            *self%parameters%theta_ref + theta) + t_15*(t_11 + t_12*(t_7 + t_9)) + t_4*(t_11*t_12 + (0.25_real64)*t_6 &
+            *((0.5_real64)*t_7 + (0.5_real64)*t_9))
+        scales(2) = t_1*t_2 + t_14*(abs(log(theta/self%parameters%theta_ref)) + 1.0_real64) + t_15*(t_10 + t_12*t_8) &
+            + t_4*(t_10*t_12 + (0.125_real64)*t_6*t_8)
+      case (tau_internal_energy)
+        C = x(1)
+        gamma = x(2)
+        t_1 = gamma**2
+        t_2 = abs(self%parameters%mu_neq_slope)
+        t_3 = abs(self%parameters%beta_v)
+        t_4 = t_3 + 1.0_real64
+        t_5 = abs(log(C/self%parameters%natural_length_2**2)) + 1.0_real64
+        t_6 = t_5**2
+        t_7 = abs(self%parameters%mu_eq_const_2)
+        t_8 = abs(self%parameters%mu_eq_slope_2)
+        t_9 = t_8*self%parameters%theta_ref
+        t_10 = abs(self%parameters%beta)
+        t_11 = t_10*self%parameters%theta_ref
+        t_12 = (0.5_real64)*t_5
+        t_13 = 1.0_real64
+        t_14 = self%parameters%heat_capacity_2*t_4
+        t_15 = t_13*t_3*abs(gamma)/sqrt(abs(C))
+        scales(1) = t_1*(t_2*self%parameters%theta_ref + abs(self%parameters%mu_neq_const)) + t_14*(t_13 &
+            *self%parameters%theta_ref + theta) + t_15*(t_11 + t_12*(t_7 + t_9)) + t_4*(t_11*t_12 + (0.25_real64)*t_6 &
+            *((0.5_real64)*t_7 + (0.5_real64)*t_9))
+        scales(2) = t_1*t_2 + t_14*(abs(log(theta/self%parameters%theta_ref)) + 1.0_real64) + t_15*(t_10 + t_12*t_8) &
+            + t_4*(t_10*t_12 + (0.125_real64)*t_6*t_8)
+      end select
+    end select
+  end subroutine values_and_temperature
 
 end module paper_pendulum_potential

@@ -16,7 +16,8 @@ module pendulum_scene
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use model_scene, only: scene
-  use pendulum_model, only: pendulum, make_pendulum
+  use double_pendulum, only: pendulum_layout, make_layout
+  use pendulum_rungs, only: rung_model
   use length_constraint, only: make_fixed_length
   use temperature_constraint, only: make_fixed_temperature
   implicit none (type, external)
@@ -277,7 +278,8 @@ contains
     end do
   end subroutine refuse_other_parts
 
-  !> The pendulum in thermodynamic variable `variable`, the initial state and the constraints.
+  !> The pendulum of the scene's rung (pendulum_rungs: generated from src/model/pendulum/description.py, or the
+  !> hand-written elastic one) in thermodynamic variable `variable`, the initial state and the constraints.
   subroutine build(self, variable, model, z0, constraints, failure)
     class(double_pendulum_scene), intent(in) :: self
     integer, intent(in) :: variable
@@ -285,22 +287,39 @@ contains
     real(real64), allocatable, intent(out) :: z0(:)
     type(constraint_slot), allocatable, intent(out) :: constraints(:)
     type(failure_type), intent(out) :: failure
-    type(pendulum) :: pendulum_of_scene
-    integer :: k, stat
+    type(pendulum_layout) :: layout
+    real(real64) :: x(3)
+    integer :: a, k, n, stat
 
-    pendulum_of_scene = make_pendulum(self%params, variable)
-    allocate (z0(pendulum_of_scene%state_size))
-    associate (d => self%params%dimension)
-      call pendulum_of_scene%state_from_temperatures(self%q1(1:d), self%q2(1:d), self%p1(1:d), self%p2(1:d), &
-                                                     self%gamma, self%theta, z0, stat)
+    call rung_model(self%params, variable, model)
+    layout = make_layout(self%params%dimension, self%params%viscous(), self%params%thermal())
+    allocate (z0(model%state_size))
+    z0 = 0.0_real64
+    associate (d => layout%dimension)
+      z0(layout%q(1:d, 1)) = self%q1(1:d)
+      z0(layout%q(1:d, 2)) = self%q2(1:d)
+      z0(layout%p(1:d, 1)) = self%p1(1:d)
+      z0(layout%p(1:d, 2)) = self%p2(1:d)
     end associate
-    if (stat /= 0) call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', '&initial')
-    allocate (model, source=pendulum_of_scene)
+    if (layout%viscous) z0(layout%gamma) = self%gamma
+    ! Each spring's tau from its temperature at its mechanical invariants (its potentials' closed form).
+    do a = 1, size(model%subsystems)
+      associate (part => model%subsystems(a))
+        if (part%tau_column == 0) cycle
+        n = part%invariant_count
+        call model%invariants(z0, a, x(1:n))
+        call part%potentials%tau_from_temperature(x(1:n - 1), self%theta(a), z0(part%tau_column), stat)
+      end associate
+      if (stat /= 0) then
+        call fail(failure, stat, '&initial: the initial state lies outside the model''s domain', '&initial')
+        exit
+      end if
+    end do
     allocate (constraints(self%constraint_count()))
     k = 0
     if (self%fix_length) then
       k = k + 1
-      allocate (constraints(k)%item, source=make_fixed_length(self%length, self%params%mass(1), pendulum_of_scene%layout))
+      allocate (constraints(k)%item, source=make_fixed_length(self%length, self%params%mass(1), layout))
     end if
     if (self%fix_temperature) then
       k = k + 1

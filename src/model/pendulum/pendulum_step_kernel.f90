@@ -37,6 +37,7 @@ module pendulum_step_kernel
   use thermo_variable_kinds, only: tau_temperature, tau_entropy
   use double_pendulum, only: p_index, pendulum_layout
   use pendulum_model, only: pendulum
+  use pendulum_rungs, only: hand_pendulum_of
   use model_constraint, only: constraint_slot
   use length_constraint, only: fixed_length
   use temperature_constraint, only: fixed_temperature
@@ -183,32 +184,31 @@ contains
     type(step_problem), intent(in) :: problem
     type(pendulum_step), intent(out) :: kernel
     logical, intent(out) :: built
+    type(pendulum) :: model
     integer :: k, a, d, n, base
 
+    ! The generated rungs (pendulum_rungs) are served by the hand-written springs of the same parameters.
+    call hand_pendulum_of(problem%model, model, built)
+    if (.not. built) return
     built = .false.
-    select type (model => problem%model)
-    type is (pendulum)
-      if (.not. model%layout%thermal) return
-      kernel%params = model%params
-      kernel%layout = model%layout
-      kernel%spring = model%spring
-      ! Spring 2 with its invariants (C, gamma, tau) in every layout: a thermoelastic one's gamma
-      ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1.
-      kernel%spring(2)%n_invariants = 3
-      do a = 1, 2
-        n = model%spring(a)%n_invariants
-        if (problem%metric == metric_euclidean) then
-          kernel%scale(:, a) = 1.0_real64
-        else
-          kernel%scale(:, a) = 1.0_real64
-          kernel%scale(1, a) = model%subsystems(a)%metric_scale(1)
-          kernel%scale(a + 1, a) = model%subsystems(a)%metric_scale(n)
-          if (n == 3) kernel%scale(2, a) = model%subsystems(a)%metric_scale(2)
-        end if
-      end do
-    class default
-      return
-    end select
+    if (.not. model%layout%thermal) return
+    kernel%params = model%params
+    kernel%layout = model%layout
+    kernel%spring = model%spring
+    ! Spring 2 with its invariants (C, gamma, tau) in every layout: a thermoelastic one's gamma
+    ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1.
+    kernel%spring(2)%n_invariants = 3
+    do a = 1, 2
+      n = model%spring(a)%n_invariants
+      if (problem%metric == metric_euclidean) then
+        kernel%scale(:, a) = 1.0_real64
+      else
+        kernel%scale(:, a) = 1.0_real64
+        kernel%scale(1, a) = model%subsystems(a)%metric_scale(1)
+        kernel%scale(a + 1, a) = model%subsystems(a)%metric_scale(n)
+        if (n == 3) kernel%scale(2, a) = model%subsystems(a)%metric_scale(2)
+      end if
+    end do
     d = kernel%layout%dimension
     kernel%full = kernel%layout%is_full()
     kernel%viscous = kernel%layout%viscous
