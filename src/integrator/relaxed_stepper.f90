@@ -44,6 +44,7 @@ module relaxed_stepper
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, tableau_named
   use relaxation, only: relax
+  use relaxation_root, only: max_halvings, gamma_band_factor, gamma_warning_deviation
   use constrained_flow, only: constrained_field, project_state
   use collocation_stages, only: stage_system
   use snes_solver, only: newton_solver
@@ -60,18 +61,12 @@ module relaxed_stepper
   ! internal linkage, which submodules, compiled apart, cannot reach.
   public :: relaxed_step, landing_time
 
-  !> Depth of the halving of a rejected step: 2^12 substeps at most.
-  integer, parameter :: max_halvings = 12
   ! DOP853's step-size controller: safety factor and the bounds of h_new/h.
   real(real64), parameter :: safety = 0.9_real64, shrink_limit = 0.333_real64, grow_limit = 6.0_real64
   integer, parameter :: max_error_rejections = 100
-  !> The band of the relaxation parameter at a tolerance (module header).
-  real(real64), parameter :: gamma_band_factor = 10.0_real64
   !> A step that would leave less than landing_slack h to t_end lands on t_end instead: a last
   !> step of round-off size would carry no information for relaxation to work with.
   real(real64), parameter :: landing_slack = 0.01_real64
-  !> The largest |gamma - 1| of an accepted (sub)step that passes without a warning (module header).
-  real(real64), parameter :: gamma_warning_deviation = 0.1_real64
 
   !> A relaxed Runge-Kutta integrator and its state in entropy variables.
   type, extends(time_stepper) :: relaxed_runge_kutta

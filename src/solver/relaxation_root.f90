@@ -10,10 +10,17 @@ module relaxation_root
   use failures, only: failure_none
   implicit none (type, external)
   private
-  public :: relaxation_function, find_relaxation_root, gamma_min, gamma_max
+  public :: relaxation_function, find_relaxation_root, gamma_min, gamma_max, max_halvings, gamma_band_factor, &
+            gamma_warning_deviation
 
   !> The gamma a step may take (docs/integrators.md); outside, the step is rejected.
   real(real64), parameter :: gamma_min = 0.2_real64, gamma_max = 2.0_real64
+  !> Depth of the halving of a rejected relaxed step: 2^12 substeps at most.
+  integer, parameter :: max_halvings = 12
+  !> The band of gamma at a tolerance (src/integrator/relaxed_stepper's header).
+  real(real64), parameter :: gamma_band_factor = 10.0_real64
+  !> The largest |gamma - 1| of an accepted (sub)step that passes without a warning.
+  real(real64), parameter :: gamma_warning_deviation = 0.1_real64
   integer, parameter :: max_secant_steps = 30
   real(real64), parameter :: settled = 1.0e-13_real64   !! a secant step this small ends the iteration
 

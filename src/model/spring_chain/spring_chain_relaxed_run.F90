@@ -31,7 +31,8 @@ module spring_chain_relaxed_run
   use model_interface, only: generic_model
   use thermo_variable_kinds, only: tau_entropy
   use solver_description, only: solver_report, no_solver
-  use relaxation_root, only: relaxation_function, find_relaxation_root
+  use relaxation_root, only: relaxation_function, find_relaxation_root, max_halvings, gamma_band_factor, &
+                             gamma_warning_deviation
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_spring, only: chain_spring
@@ -43,12 +44,6 @@ module spring_chain_relaxed_run
   implicit none
   private
   public :: relaxed_chain_run
-
-  ! As the dense path's relaxed steps (src/integrator/relaxed_stepper): the depth of the halving,
-  ! the band of gamma at a tolerance, and the |gamma - 1| beyond which a run is warned about.
-  integer, parameter :: max_halvings = 12
-  real(real64), parameter :: gamma_band_factor = 10.0_real64
-  real(real64), parameter :: gamma_warning_deviation = 0.1_real64
 
   !> The chain stepped by a relaxed Runge-Kutta tableau; its DMDA state in entropy variables. Do
   !> not copy it after `start`: PETSc holds the address of its chain's context.
