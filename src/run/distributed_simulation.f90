@@ -10,7 +10,8 @@
 !> scalars (E, S, V, the angular momentum J, Newton's iterations, the residual, the step's smallest
 !> viscous and conduction entropy production), not the state: the state goes to /snapshots
 !> (src/io/hdf5_snapshots), every rank writing its own part with parallel HDF5, every
-!> `&output snapshot_every`-th step and the last. A snapshot reaches the file in a window of the
+!> `&output snapshot_every`-th step and the last, or, with &output interval (adaptive steps, which
+!> then land on every output time as on the dense path), at every output time. A snapshot reaches the file in a window of the
 !> crash-safe writer: rank 0 closes the window's spare, all ranks append the snapshots the spare
 !> lacks, and only then does the spare take the file's name, so that a kill leaves the file of
 !> the last window, snapshots included. The model's system steps by the input's integrator (the
@@ -135,8 +136,9 @@ contains
 
   !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps
   !> under the dense path's control (src/integrator/distributed_step_control: halving, adaptive
-  !> steps), others as the scene gives them; a failure (failure_input) for &output interval,
-  !> which the split path's rows do not follow.
+  !> steps), others as the scene gives them; a failure (failure_input) for &output interval
+  !> unless the steps are chosen (&integrator tolerance with EME or the midpoint rule: a relaxed
+  !> scheme's steps land on n dt here), or with snapshot_every as well.
   subroutine split_system(config, system, failure)
     type(run_configuration), intent(in) :: config
     class(distributed_system), allocatable, intent(out) :: system
@@ -145,14 +147,22 @@ contains
     type(controlled_system), allocatable :: controlled
     logical :: found
 
+    call find_integrator(config%integrator%scheme, entry, found)
     if (config%output_interval > 0.0_real64) then
-      call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
-                       'writes its rows every &output every accepted steps, not at output times; allowed: leave it '// &
-                       'out (0)', 'interval')
-      return
+      if (.not. (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)) then
+        call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
+                         'lands on output times only with steps it chooses (&integrator tolerance with scheme = '// &
+                         '''eme'' or ''midpoint''); scheme = '''//trim(config%integrator%scheme)//''' steps on n dt '// &
+                         'here; allowed: leave it out (0), or give a tolerance', 'interval')
+        return
+      else if (config%snapshot_every > 0) then
+        call set_failure(failure, code_input, config%input_file//', &output: interval and snapshot_every both '// &
+                         'given: with an interval the snapshots are taken at the output times; allowed: one of them', &
+                         'snapshot_every')
+        return
+      end if
     end if
     call config%scene%distributed(config%integrator%scheme, system)
-    call find_integrator(config%integrator%scheme, entry, found)
     if (.not. found .or. entry%family /= family_discrete_gradient) return
     allocate (controlled)
     call move_alloc(system, controlled%inner)
@@ -237,6 +247,8 @@ contains
     integer :: rank, every, stop_flags(3)
     logical :: checked(balance_count), has_balance(balance_count), found, replace, finished, writing, continuing
     logical :: keeping                !! the run has a file (keep_file)
+    integer :: outputs_passed         !! output times (&output interval) reached so far
+    logical :: row_due                !! the step reached the next output time
     type(extra_attribute), allocatable :: added(:)
     type(MPI_Comm) :: communicator
 
@@ -361,7 +373,7 @@ contains
         if (io_failure%failed()) call fail(failure_io, "cannot continue the output file '"//part//"' ("// &
                                            config%input_file//'): '//io_failure%message)
       else
-        call record_point(0.0_real64)
+        call record_point(0.0_real64, .true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) call fail(failure_io, 'cannot write the output file '''//part//''' ('// &
                                            config%input_file//'): '//io_failure%message)
@@ -374,6 +386,9 @@ contains
     end if
     writing = keeping
     if (.not. continuing) call hold_snapshot()
+    ! Output times already passed (a continued run's, from the time its snapshot stands at).
+    outputs_passed = 0
+    row_due = output_time_reached()
     call timer%begin_loop()
     finished = .false.
     do while (.not. finished)
@@ -399,6 +414,13 @@ contains
         exit
       end if
       n = n + 1
+      ! With &output interval a chosen step lands on the next output time when it reaches it
+      ! (one within rounding of t_end is t_end), as on the dense path.
+      if (config%output_interval > 0.0_real64) then
+        system%stop_time = (outputs_passed + 1)*config%output_interval
+        if (system%stop_time >= config%integrator%t_end*(1.0_real64 - 8*epsilon(1.0_real64))) &
+          system%stop_time = config%integrator%t_end
+      end if
       call system_clock(step_start)
       call system%step(dt, outcome, step_failure)
       call system_clock(step_end)
@@ -450,6 +472,7 @@ contains
       if (values%conserved_count > 0) summary%angular_momentum_drift = max(summary%angular_momentum_drift, &
         maxval(abs(conserved_change(1:values%conserved_count))))
       if (model%temperature_count() > 0) summary%min_temperature = min(summary%min_temperature, values%min_temperature)
+      row_due = output_time_reached()
       if (rank == 0) then
         report%newton_iterations = outcome%iterations
         report%solves = outcome%solves
@@ -461,9 +484,9 @@ contains
         if (allocated(outcome%diagnostics)) report%diagnostics = [outcome%diagnostics, report%diagnostics]
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
-        call record_point(time)
+        call record_point(time, row_due)
       end if
-      if (finished) then
+      if (finished .or. row_due) then
         call hold_snapshot()
       else if (every > 0) then
         if (mod(n, int(every, int64)) == 0) call hold_snapshot()
@@ -480,8 +503,11 @@ contains
       summary%warnings = system%accuracy_warnings()
     end if
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
-    ! did not converge left it there; one whose state broke a balance did not).
-    if (state_step == summary%steps_completed .and. snapshot_step /= state_step) then
+    ! did not converge left it there; one whose state broke a balance did not). With an interval
+    ! the file holds the output times' states only (as the dense path's rows), and a continued
+    ! run starts from the last of them, where its resume record stands.
+    if (state_step == summary%steps_completed .and. snapshot_step /= state_step .and. &
+        config%output_interval <= 0.0_real64) then
       time = state_time
       call hold_snapshot()
     end if
@@ -577,17 +603,28 @@ contains
     end subroutine check_step
 
     ! One point row (rank 0): the state's scalars, from `values`; the model's momenta are J's last
-    ! momentum_count() components (J in 3D, J_z in 2D, none in 1D).
-    ! (&output interval, which lands rows on output times, is refused on this path: the rows
-    ! follow &output every, of accepted steps when the integrator chooses them.)
-    subroutine record_point(time)
+    ! momentum_count() components (J in 3D, J_z in 2D, none in 1D). The rows follow &output every
+    ! (of accepted steps when the integrator chooses them), or the output times (`row_due`).
+    subroutine record_point(time, row_due)
       real(real64), intent(in) :: time
+      logical, intent(in) :: row_due
 
       call output%record_point(time, [real(real64) ::], [real(real64) ::], values%energy, values%entropy, &
                                values%energy - config%theta_r*values%entropy, &
                                values%angular_momentum(4 - model%momentum_count():), 0.0_real64, [real(real64) ::], &
-                               .false.)
+                               row_due)
     end subroutine record_point
+
+    ! Whether `time` reached the next output time of &output interval (counting it passed), as
+    ! the dense path counts them (within 8 ulps).
+    logical function output_time_reached() result(reached)
+      reached = .false.
+      do while (config%output_interval > 0.0_real64 .and. &
+                time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
+        outputs_passed = outputs_passed + 1
+        reached = .true.
+      end do
+    end function output_time_reached
 
     ! The rank's part of the state (the end of step state_step, at `time`), held for the next
     ! window, which also stores the resume record that stands at it (rank 0: its row is recorded).
