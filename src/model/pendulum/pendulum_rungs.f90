@@ -2,12 +2,11 @@
 !> from src/model/pendulum/description.py (paper_pendulum: spatial thermoviscoelastic; planar_pendulum;
 !> thermoelastic_pendulum; planar_thermoelastic_pendulum; elastic_pendulum; planar_elastic_pendulum). &model's
 !> values (pendulum_parameters, the scene's) become the generated model's parameters here, and back for the
-!> fused step kernel (pendulum_step_kernel), which keeps the hand-written springs it was written around.
+!> fused step kernel (pendulum_step_kernel), which keeps the closed-form springs it was written around.
 module pendulum_rungs
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters, law_thermoviscoelastic, law_thermoelastic, law_elastic
   use model_interface, only: generic_model
-  use pendulum_model, only: pendulum, make_pendulum
   use paper_pendulum_potential, only: paper_pendulum_parameters
   use paper_pendulum_model, only: paper_pendulum, make_paper_pendulum
   use planar_pendulum_potential, only: planar_pendulum_parameters
@@ -22,7 +21,7 @@ module pendulum_rungs
   use planar_elastic_pendulum_model, only: planar_elastic_pendulum, make_planar_elastic_pendulum
   implicit none (type, external)
   private
-  public :: rung_model, hand_pendulum_of
+  public :: rung_model, rung_parameters
 
 contains
 
@@ -75,19 +74,15 @@ contains
     end associate
   end subroutine rung_model
 
-  !> The hand-written pendulum of the same rung, parameters and thermodynamic variable as `model` (a rung of
-  !> rung_model's); found = .false. for any other model.
-  pure subroutine hand_pendulum_of(model, hand, found)
+  !> &model's values of `model`, a rung of rung_model's (its spring_law, dimension and parameters; the others
+  !> Table 1's); found = .false. for any other model.
+  pure subroutine rung_parameters(model, params, found)
     class(generic_model), intent(in) :: model
-    type(pendulum), intent(out) :: hand
+    type(pendulum_parameters), intent(out) :: params
     logical, intent(out) :: found
-    type(pendulum_parameters) :: params
 
     found = .true.
     select type (model)
-    type is (pendulum)
-      hand = model
-      return
     type is (paper_pendulum)
       associate (p => model%parameters)
         params = pendulum_parameters(spring_law=law_thermoviscoelastic, dimension=3, mass=[p%mass_1, p%mass_2], &
@@ -136,9 +131,7 @@ contains
       end associate
     class default
       found = .false.
-      return
     end select
-    hand = make_pendulum(params, model%thermo_variable)
-  end subroutine hand_pendulum_of
+  end subroutine rung_parameters
 
 end module pendulum_rungs
