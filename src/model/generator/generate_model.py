@@ -216,6 +216,10 @@ def thermodynamics(part):
     theta, energy, entropy = TEMPERATURE, ENERGY_LEVEL, ENTROPY_LEVEL
     forms = {}
     if not part.thermal:        # (U, S) = (W, 0) whatever the variable; no temperature, no tau
+        if any(form is not None for form in (part.energy_of_entropy, part.free_energy_of_temperature,
+                                             part.energy_and_entropy_of_temperature)):
+            raise DescriptionError(f"subsystem {part.name}: a mechanical subsystem has no thermodynamic form "
+                                   "(internal_energy, free_energy, energy_and_entropy): give stored_energy(W)")
         if part.stored_energy_of_invariants is None:
             raise DescriptionError(f"subsystem {part.name}: a mechanical subsystem without stored_energy(W)")
         return {variable: (logs_of_powers(part.stored_energy_of_invariants), sp.Integer(0), None, None)
@@ -1513,13 +1517,14 @@ def initial_fields(d):
                  "internal_energy": d.energy_units}[variable]
         bounds = (0.0, True, None) if variable != "entropy" else (None, False, None)
         return fields + [(field_name, values, units, bounds, meaning, variable == "temperature" and is_kelvin(units, d))]
-    missing = [part.name for part in d.subsystems if part.initial_temperature is None]
+    thermal = [part for part in d.subsystems if part.thermal]      # a mechanical subsystem has no temperature
+    missing = [part.name for part in thermal if part.initial_temperature is None]
     if missing:
         raise DescriptionError(f"subsystems {missing} have no initial_temperature and the model no "
                                "initial_thermal_field")
     fields += [(f"theta_{part.name}", part.initial_temperature, d.temperature_units, (0.0, True, None),
                 f"the temperature of {part.meaning}, whatever the thermodynamic variable",
-                is_kelvin(d.temperature_units, d)) for part in d.subsystems]
+                is_kelvin(d.temperature_units, d)) for part in thermal]
     return fields
 
 
