@@ -87,7 +87,7 @@ k = model.parameter("stiffness", "N/m", 4.0, "k", minimum=0.0)
 q = model.position("q", "m", 1.0, "the displacement")
 p = model.momentum("p", "N s", 0.0, "the momentum")
 spring = model.mechanical_subsystem("spring", "the spring")
-spring.stored_energy(k*spring.invariant("x", q**2, scale=1)/2)
+spring.stored_energy(k*spring.invariant("C", q**2, scale=1)/2)
 model.mechanical_energy = p**2/2
 model.canonical_pair(q, p)
 """

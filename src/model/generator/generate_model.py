@@ -738,7 +738,7 @@ def mechanical_potential_module(symbolic, source):
     d = symbolic.d
     name = d.name
     codes, temporaries, difference_temporaries = {"domain_overflow"}, [0], [0]
-    evaluate_cases, difference_cases, locals_order = [], [], []
+    evaluate_cases, difference_cases, locals_order, exponent = [], [], [], False
     locals_ = {"evaluate": set(), "difference": set()}
     for a, part in enumerate(d.subsystems):
         invariants = [inv.symbol for inv in part.invariants]
@@ -757,6 +757,7 @@ def mechanical_potential_module(symbolic, source):
         check, has_log, has_exp = guards([energy], 3, positive)
         codes |= ({"domain_nonpositive_length"} if positive else set()) | (
             {"domain_nonpositive_temperature"} if has_log else set())
+        exponent = exponent or has_exp
         roots, (exprs, hess_exprs) = shared_roots(positive, exprs, hess_exprs)
         locals_["evaluate"] |= {root.name for root, _ in roots}
         locals_order += [root.name for root, _ in roots if root.name not in locals_order]
@@ -836,7 +837,8 @@ module {name}_potential
     procedure :: evaluate
     procedure :: temperature{chr(10) + "    procedure :: difference" if d.differences else ""}
   end type {name}_potentials
-
+{chr(10) + "  ! Largest argument of exp that stays finite, with a margin." + chr(10) +
+ "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10) if exponent else ""}
 contains
 
   !> f = (W, 0), their gradients in the invariants and optionally their Hessians.
