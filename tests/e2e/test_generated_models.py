@@ -79,6 +79,51 @@ def test_the_generator_refuses_what_the_interface_cannot_take(tmp_path, old, new
     assert not (tmp_path / "out").exists()
 
 
+# A mass on a spring whose stored energy is a subsystem without a thermodynamic variable (mechanical_subsystem).
+MECHANICAL = """import sympy as sp
+from model_description import ModelDescription
+model = ModelDescription("mechanical_trial", "a mass on a spring", "tests/e2e/test_generated_models.py")
+k = model.parameter("stiffness", "N/m", 4.0, "k", minimum=0.0)
+q = model.position("q", "m", 1.0, "the displacement")
+p = model.momentum("p", "N s", 0.0, "the momentum")
+spring = model.mechanical_subsystem("spring", "the spring")
+spring.stored_energy(k*spring.invariant("C", q**2, scale=1)/2)
+model.mechanical_energy = p**2/2
+model.canonical_pair(q, p)
+"""
+
+
+def test_a_mechanical_model_generates(tmp_path):
+    """A model whose subsystems have no thermodynamic variable: no tau column, U = W, S = 0, no temperature field in
+    &initial."""
+    (tmp_path / "description.py").write_text(MECHANICAL)
+    result = generate(tmp_path / "description.py")
+    assert result.returncode == 0, result.stderr
+    model = (tmp_path / "mechanical_trial_model.f90").read_text()
+    assert "model%state_size = 2" in model and "part%tau_column = 0" in model and "tau_prefixes" not in model
+    potential = (tmp_path / "mechanical_trial_potential.f90").read_text()
+    assert "f(1) = " in potential and "f(2) = " not in potential and "stat = domain_overflow" in potential
+    assert "theta_spring" not in (tmp_path / "mechanical_trial_scene.f90").read_text()
+
+
+@pytest.mark.parametrize("addition, words", [
+    ("model.friction(p, p, 1)", "K0 entries in a model without thermodynamic variables"),
+    ("bath = model.subsystem('bath', 'a bath', 300, {'entropy': 1, 'temperature': 1, 'internal_energy': 1})\n"
+     "bath.internal_energy(sp.exp(sp.Symbol('s')), sp.Symbol('s'))", "all thermal or all mechanical"),
+    ("spring.internal_energy(q, q)", "a mechanical subsystem has no thermodynamic form"),
+    ("model.subsystem('bath', 'a bath', 300, {'entropy': 1, 'temperature': 1, 'internal_energy': 1})"
+     ".stored_energy(1)", "stored_energy is a mechanical subsystem's"),
+])
+def test_the_generator_refuses_mechanical_subsystems_it_cannot_take(tmp_path, addition, words):
+    """K0 without temperatures, thermal and mechanical subsystems mixed, a thermal form on a mechanical subsystem,
+    stored_energy on a thermal one: exit status 2, the description named, nothing written."""
+    (tmp_path / "description.py").write_text(MECHANICAL + addition + "\n")
+    result = generate(tmp_path / "description.py", "--output", str(tmp_path / "out"))
+    assert result.returncode == 2, result.stderr
+    assert str(tmp_path / "description.py") in result.stderr and re.search(words, result.stderr), result.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_template_generates(tmp_path):
     template = (ROOT / "src" / "model" / "generator" / "description_template.py").read_text()
     (tmp_path / "description.py").write_text(template.replace("MODEL_NAME", "trial"))

@@ -215,6 +215,15 @@ def thermodynamics(part):
     tau = sp.Symbol("tau", real=True)
     theta, energy, entropy = TEMPERATURE, ENERGY_LEVEL, ENTROPY_LEVEL
     forms = {}
+    if not part.thermal:        # (U, S) = (W, 0) whatever the variable; no temperature, no tau
+        if any(form is not None for form in (part.energy_of_entropy, part.free_energy_of_temperature,
+                                             part.energy_and_entropy_of_temperature)):
+            raise DescriptionError(f"subsystem {part.name}: a mechanical subsystem has no thermodynamic form "
+                                   "(internal_energy, free_energy, energy_and_entropy): give stored_energy(W)")
+        if part.stored_energy_of_invariants is None:
+            raise DescriptionError(f"subsystem {part.name}: a mechanical subsystem without stored_energy(W)")
+        return {variable: (logs_of_powers(part.stored_energy_of_invariants), sp.Integer(0), None, None)
+                for variable in THERMO_VARIABLES}
     if part.energy_of_entropy is not None:
         s = part.entropy
         u_of_s = part.energy_of_entropy
@@ -307,12 +316,17 @@ class SymbolicModel:
         self.d = description
         if not description.subsystems:
             raise DescriptionError("a model needs at least one subsystem")
-        self.tau_symbols = [description.tau(part) for part in description.subsystems]
-        self.state = [column.symbol for column in description.columns] + self.tau_symbols
+        # A model's subsystems are all thermal or all mechanical (mechanical_subsystem: no tau column, S_a = 0).
+        self.mechanical = not any(part.thermal for part in description.subsystems)
+        if not self.mechanical and not all(part.thermal for part in description.subsystems):
+            raise DescriptionError("subsystems with and without a thermodynamic variable: a model's subsystems are "
+                                   "all thermal or all mechanical (model_interface's temperature_count)")
+        self.tau_symbols = [description.tau(part) if part.thermal else None for part in description.subsystems]
+        self.state = [column.symbol for column in description.columns] + [tau for tau in self.tau_symbols if tau]
         self.index = {symbol: i for i, symbol in enumerate(self.state)}
         self.parameters = [parameter.symbol for parameter in description.parameters]
         self.forms = [thermodynamics(part) for part in description.subsystems]
-        self.invariant_names = [[inv.symbol.name for inv in part.invariants] + ["tau"]
+        self.invariant_names = [[inv.symbol.name for inv in part.invariants] + (["tau"] if part.thermal else [])
                                 for part in description.subsystems]
         # The partials' symbols, partials(i, k, a) -> Symbol, and their Fortran positions.
         self.partials = {}
@@ -343,6 +357,9 @@ class SymbolicModel:
         for (row, column), entry in self.d.poisson_entries.items():
             if entry.free_symbols - set(self.parameters):
                 raise DescriptionError(f"L0[{row}, {column}] = {entry} depends on the state: poisson_matrix_0 has no z")
+        if self.mechanical and self.d.friction_entries:
+            raise DescriptionError("K0 entries in a model without thermodynamic variables: dissipation needs a "
+                                   "subsystem's temperature")
         for (row, column), entry in self.d.friction_entries.items():
             on_state = entry.free_symbols & set(self.state)
             if on_state:
@@ -358,7 +375,7 @@ class SymbolicModel:
     def with_temperatures(self, expr):
         """expr with the subsystems' Theta_a written through the partials."""
         return sp.sympify(expr).subs({part.temperature: self.temperature_of_partials(a)
-                                      for a, part in enumerate(self.d.subsystems)})
+                                      for a, part in enumerate(self.d.subsystems) if part.thermal})
 
     def matrix(self, entries, temperatures=True):
         n = len(self.state)
@@ -376,7 +393,8 @@ class SymbolicModel:
         for inv in part.invariants:
             for j, z in enumerate(self.state):
                 gradient[j] += part.partial(potential, inv.symbol.name)*sp.diff(inv.expression, z)
-        gradient[self.index[self.tau_symbols[a]]] += part.partial(potential, "tau")
+        if part.thermal:
+            gradient[self.index[self.tau_symbols[a]]] += part.partial(potential, "tau")
         return gradient
 
     def mielke_transpose(self, potential):
@@ -384,6 +402,8 @@ class SymbolicModel:
         n = len(self.state)
         mt = sp.eye(n)
         for a, part in enumerate(self.d.subsystems):
+            if not part.thermal:        # no tau: M_H is the identity on its columns
+                continue
             column = self.index[self.tau_symbols[a]]
             d_tau = part.partial(potential, "tau")
             omega_gradient = self.invariant_gradient(a, potential)
@@ -398,9 +418,10 @@ class SymbolicModel:
         simplified=False as the product gives it, K0's temperatures Theta_a kept as their symbols."""
         grad_e = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
         grad_s = sp.zeros(len(self.state), 1)
-        for a in range(len(self.d.subsystems)):
+        for a, part in enumerate(self.d.subsystems):
             grad_e += self.invariant_gradient(a, "U")
-            grad_s += self.invariant_gradient(a, "S")
+            if part.thermal:            # a mechanical subsystem's S_a is 0
+                grad_s += self.invariant_gradient(a, "S")
         mt_s, mt_e = self.mielke_transpose("S"), self.mielke_transpose("U")
         l0, k0 = self.matrix(self.d.poisson_entries), self.matrix(self.d.friction_entries, temperatures=simplified)
         f = mt_s.T*(l0*(mt_s*grad_e)) + mt_e.T*(k0*(mt_e*grad_s))
@@ -709,6 +730,149 @@ end module {name}_potential
     return tidy(text)
 
 
+def mechanical_potential_module(symbolic, source):
+    """The potentials of a model whose subsystems have no thermodynamic variable (mechanical_subsystem): U_a = W_a(x)
+    with gradient and Hessian in the invariants, S_a = 0, W_a(b) - W_a(a) without cancellation (differences), and
+    no temperature: the engine asks none of a model without temperatures, a caller that does gets domain_overflow
+    (tau_from_temperature stays invariant_functions' refusal); the run observes |U_a| as U_a's rounding scale."""
+    d = symbolic.d
+    name = d.name
+    codes, temporaries, difference_temporaries = {"domain_overflow"}, [0], [0]
+    evaluate_cases, difference_cases, locals_order, exponent = [], [], [], False
+    locals_ = {"evaluate": set(), "difference": set()}
+    for a, part in enumerate(d.subsystems):
+        invariants = [inv.symbol for inv in part.invariants]
+        names = [x.name for x in invariants]
+        positive = [inv.symbol for inv in part.invariants if inv.positive]
+        locals_order += [x for x in names if x not in locals_order]
+        energy = symbolic.forms[a]["entropy"][0]
+        grads = [(i, sp.diff(energy, x)) for i, x in enumerate(invariants)]
+        hessians = [(i, j, sp.diff(energy, x, y)) for i, x in enumerate(invariants) for j, y in enumerate(invariants)]
+        targets = ["f(1)"] + [f"grad({i + 1}, 1)" for i, g in grads if g != 0]
+        exprs = [energy] + [g for _, g in grads if g != 0]
+        hess_targets = [f"hess({i + 1}, {j + 1}, 1)" for i, j, h in hessians if h != 0]
+        hess_exprs = [h for *_, h in hessians if h != 0]
+        used = set().union(*(sp.sympify(e).free_symbols for e in exprs + hess_exprs)) | set(positive)
+        locals_["evaluate"] |= {x.name for x in used if x.name in names}
+        check, has_log, has_exp = guards([energy], 3, positive)
+        codes |= ({"domain_nonpositive_length"} if positive else set()) | (
+            {"domain_nonpositive_temperature"} if has_log else set())
+        exponent = exponent or has_exp
+        roots, (exprs, hess_exprs) = shared_roots(positive, exprs, hess_exprs)
+        locals_["evaluate"] |= {root.name for root, _ in roots}
+        locals_order += [root.name for root, _ in roots if root.name not in locals_order]
+        body = unpack(used, names, "x", 3) + check + [wrap(f"{root.name} = {fortran(power)}", 3) for root, power in roots]
+        if hess_exprs:
+            body += [INDENT*3 + "if (present(hess)) then"] + assignments(targets + hess_targets, exprs + hess_exprs, 4,
+                                                                          temporaries)
+            body += [INDENT*3 + "else"] + assignments(targets, exprs, 4, temporaries) + [INDENT*3 + "end if"]
+        else:
+            body += assignments(targets, exprs, 3, temporaries)
+        evaluate_cases.append((part, body))
+        if d.differences:
+            at_a = {x: sp.Symbol(f"{x.name}_a", real=True) for x in invariants}
+            at_b = {x: sp.Symbol(f"{x.name}_b", real=True) for x in invariants}
+            delta = {x: sp.Symbol(f"d_{x.name}", real=True) for x in invariants}
+            change = difference(energy, at_a, at_b, delta)
+            used = change.free_symbols | {at[x] for at in (at_a, at_b) for x in positive}
+            check = []
+            for at in (at_a, at_b):
+                check += guards([energy.subs(at, simultaneous=True)], 3, [at[x] for x in positive])[0]
+                used |= energy.subs(at, simultaneous=True).free_symbols
+            names_here = [n for x in invariants for n in (at_a[x].name, at_b[x].name, delta[x].name)]
+            locals_["difference"] |= {x.name for x in used if x.name in names_here}
+            locals_order += [n for n in names_here if n not in locals_order]
+            body = [INDENT*3 + f"{at_a[x].name} = a({i + 1})" for i, x in enumerate(invariants)]
+            body += [INDENT*3 + f"{at_b[x].name} = b({i + 1})" for i, x in enumerate(invariants)]
+            body += [INDENT*3 + f"{delta[x].name} = b({i + 1}) - a({i + 1})" for i, x in enumerate(invariants)]
+            body = [line for line in body if line.split()[0] in {x.name for x in used}]
+            difference_cases.append((part, body + check + assignments(["delta(1)"], [change], 3,
+                                                                       difference_temporaries)))
+
+    def cases(by_part):
+        lines = [INDENT*2 + "select case (self%subsystem)"]
+        for a, (part, body) in enumerate(by_part):
+            lines += [INDENT*2 + f"case ({a + 1})  ! {part.label}"] + body
+        return lines + [INDENT*2 + "end select"]
+
+    def local_declaration(routine, extra=()):
+        return declare([x for x in locals_order if x in locals_[routine]] + list(extra), 2)
+
+    parameter_type = [f"  !> The parameters of &model (src/model/{name}/description.py).", f"  type :: {name}_parameters"]
+    parameter_type += [f"    real(real64) :: {p.name} = {number(p.default)}  !! {p.meaning} [{p.units}]"
+                       for p in d.parameters]
+    parameter_type.append(f"  end type {name}_parameters")
+    difference_text = "" if not d.differences else f"""
+  !> (W(b) - W(a), 0) without cancellation (generate_model.py's `difference`: log1p, expm1, factored powers).
+  pure subroutine difference(self, a, b, delta, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: delta(:)
+    integer, intent(out) :: stat
+{lines_of(local_declaration("difference", [f"t_{i}" for i in range(1, difference_temporaries[0] + 1)]))}
+
+    delta = 0.0_real64
+    stat = failure_none
+{lines_of(cases(difference_cases))}
+  end subroutine difference
+"""
+    text = f"""{header(d, source, f"(U_a, S_a) of the subsystems of {d.title} ({d.reference}):")}
+!> U_a = W_a of the mechanical invariants with gradient and Hessian, S_a = 0; no thermodynamic variable.
+module {name}_potential
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: invariant_functions
+  use failures, only: failure_none, {", ".join(sorted(codes))}{
+    chr(10) + "  use special_functions, only: log1p, expm1" if d.differences else ""}
+  implicit none (type, external)
+  private
+  public :: {name}_parameters, {name}_potentials
+
+{lines_of(parameter_type)}
+
+  !> (W_a, 0) of subsystem `subsystem`.
+  type, extends(invariant_functions) :: {name}_potentials
+    type({name}_parameters) :: parameters
+    integer :: subsystem = 1
+  contains
+    procedure :: evaluate
+    procedure :: temperature{chr(10) + "    procedure :: difference" if d.differences else ""}
+  end type {name}_potentials
+{chr(10) + "  ! Largest argument of exp that stays finite, with a margin." + chr(10) +
+ "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10) if exponent else ""}
+contains
+
+  !> f = (W, 0), their gradients in the invariants and optionally their Hessians.
+  pure subroutine evaluate(self, x, f, grad, hess, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), grad(:, :)
+    real(real64), intent(out), optional :: hess(:, :, :)
+    integer, intent(out) :: stat
+{lines_of(local_declaration("evaluate", [f"t_{i}" for i in range(1, temporaries[0] + 1)]))}
+
+    f = 0.0_real64
+    grad = 0.0_real64
+    if (present(hess)) hess = 0.0_real64
+    stat = failure_none
+{lines_of(cases(evaluate_cases))}
+  end subroutine evaluate
+
+  !> None: a subsystem without a thermodynamic variable has no temperature (domain_overflow).
+  pure subroutine temperature(self, x, theta, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: theta
+    integer, intent(out) :: stat
+
+    theta = 0.0_real64
+    stat = domain_overflow
+  end subroutine temperature
+{difference_text}
+end module {name}_potential
+"""
+    return tidy(text)
+
+
 def tidy(text):
     """No trailing blanks, no two empty lines in a row."""
     out = []
@@ -776,7 +940,7 @@ def continuous_field_procedure(symbolic, constants):
     tau = sp.Symbol("tau", real=True)
     invariant_values, positive, replace = [], [], {}   # (local symbol, expression in z); their positivity
     for a, part in enumerate(d.subsystems):
-        replace[a] = {tau: symbolic.tau_symbols[a]}
+        replace[a] = {tau: symbolic.tau_symbols[a]} if part.thermal else {}
         for inv in part.invariants:
             if inv.expression in symbolic.index:
                 replace[a][inv.symbol] = inv.expression
@@ -789,11 +953,12 @@ def continuous_field_procedure(symbolic, constants):
     chain = {local: expression for local, expression in invariant_values}
     cases, root_names = [], set()
     temporaries = [0]
-    for variable in THERMO_VARIABLES:
+    for variable in THERMO_VARIABLES[:1] if symbolic.mechanical else THERMO_VARIABLES:   # mechanical: one form
         exact = {}
         for a, part in enumerate(d.subsystems):
             u, s_, temperature, _ = symbolic.forms[a][variable]
-            exact[part.temperature] = temperature.subs(replace[a], simultaneous=True)   # Theta_a in closed form
+            if part.thermal:
+                exact[part.temperature] = temperature.subs(replace[a], simultaneous=True)   # Theta_a in closed form
             for name in symbolic.invariant_names[a]:
                 symbol = tau if name == "tau" else next(inv.symbol for inv in part.invariants if inv.symbol.name == name)
                 for potential, value in (("U", u), ("S", s_)):
@@ -826,6 +991,8 @@ def continuous_field_procedure(symbolic, constants):
     for variable, body in cases:
         select += [INDENT*2 + f"case (tau_{variable})"] + body
     select += [INDENT*2 + "end select"]
+    if symbolic.mechanical:     # no thermodynamic variable to select by: the one body, a level less indented
+        select = [line[len(INDENT):] for line in "\n".join(cases[0][1]).split("\n")]
     declarations = declare(sorted(used, key=[z.name for z in symbolic.state].index)
                            + [local.name for local, _ in invariant_values] + sorted(root_names)
                            + [f"t_{i}" for i in range(1, temporaries[0] + 1)], 2)
@@ -959,17 +1126,18 @@ def model_module(symbolic, source):
     invariant_lines = [INDENT*2 + "select case (a)"]
     columns_of = []
     for a, part in enumerate(d.subsystems):
-        tau_column = symbolic.index[symbolic.tau_symbols[a]] + 1
+        tau_column = symbolic.index[symbolic.tau_symbols[a]] + 1 if part.thermal else 0
         mechanical_columns = sorted({symbolic.index[z] + 1 for inv in part.invariants
                                      for z in inv.expression.free_symbols if z in symbolic.index})
-        columns = mechanical_columns + [tau_column]
+        columns = mechanical_columns + ([tau_column] if part.thermal else [])
         columns_of.append(columns)
         values = [inv.expression for inv in part.invariants]
         invariant_lines.append(INDENT*2 + f"case ({a + 1})  ! {part.label}")
         used_here = set().union(*(e.free_symbols for e in values)) if values else set()
         invariant_lines += [wrap(f"x({i + 1}) = {fortran(e.subs({z: sp.Symbol(f'z({symbolic.index[z] + 1})') for z in used_here if z in symbolic.index}))}", 3)
                             for i, e in enumerate(values)]
-        invariant_lines.append(INDENT*3 + f"x({len(values) + 1}) = z({tau_column})")
+        if part.thermal:
+            invariant_lines.append(INDENT*3 + f"x({len(values) + 1}) = z({tau_column})")
         invariant_lines += [INDENT*3 + "if (present(dx_dz)) then", INDENT*4 + "dx_dz = 0.0_real64"]
         for i, e in enumerate(values):
             for j, column in enumerate(mechanical_columns):
@@ -978,7 +1146,9 @@ def model_module(symbolic, source):
                     derivative = derivative.subs({z: sp.Symbol(f"z({symbolic.index[z] + 1})")
                                                   for z in derivative.free_symbols if z in symbolic.index})
                     invariant_lines.append(wrap(f"dx_dz({i + 1}, {j + 1}) = {fortran(derivative)}", 4))
-        invariant_lines += [INDENT*4 + f"dx_dz({len(values) + 1}, {len(columns)}) = 1.0_real64", INDENT*3 + "end if"]
+        if part.thermal:
+            invariant_lines.append(INDENT*4 + f"dx_dz({len(values) + 1}, {len(columns)}) = 1.0_real64")
+        invariant_lines.append(INDENT*3 + "end if")
     invariant_lines.append(INDENT*2 + "end select")
 
     # energies
@@ -1007,11 +1177,11 @@ def model_module(symbolic, source):
     momenta = [c for c in d.columns if c.kind == "momentum" and c.dataset]
     maker = [f"    model%parameters = parameters", "    model%thermo_variable = variable",
              f"    model%state_size = {n}",
-             f"    model%max_invariants = {max(len(part.invariants) + 1 for part in d.subsystems)}",
+             f"    model%max_invariants = {max(len(part.invariants) + part.thermal for part in d.subsystems)}",
              f"    allocate (model%column_names({n}))"]
     for i, column in enumerate(d.columns):
         maker.append(f"    model%column_names({i + 1}) = '{column.name}'")
-    for a, part in enumerate(d.subsystems):
+    for a, part in enumerate(part for part in d.subsystems if part.thermal):
         maker.append(f"    model%column_names({len(d.columns) + a + 1}) = trim(tau_prefixes(variable))//'_{part.name}'")
     words = {"temperature": "temperatures theta_a = dU_a/dS_a of the subsystems: "
                             + ", ".join(part.label for part in d.subsystems),
@@ -1058,12 +1228,16 @@ def model_module(symbolic, source):
         scales = [inv.scale for inv in part.invariants]
         maker += [f"    associate (part => model%subsystems({a + 1}))",
                   f"      part%name = '{part.label}'",
-                  wrap(f"allocate (part%potentials, source={name}_potentials(parameters=parameters, subsystem={a + 1}, "
-                       "variable=variable))", 3),
-                  f"      part%invariant_count = {len(part.invariants) + 1}",
+                  wrap(f"allocate (part%potentials, source={name}_potentials(parameters=parameters, subsystem={a + 1}"
+                       + (", variable=variable))" if part.thermal else "))"), 3),
+                  f"      part%invariant_count = {len(part.invariants) + part.thermal}",
                   f"      part%columns = [{', '.join(map(str, columns_of[a]))}]",
-                  f"      part%tau_column = {columns_of[a][-1]}",
-                  "      select case (variable)"]
+                  f"      part%tau_column = {columns_of[a][-1] if part.thermal else 0}"]
+        if not part.thermal:        # no tau: the invariants' scales alone, whatever the variable
+            maker += [wrap("part%metric_scale = [" + ", ".join(fortran(e) for e in scales) + "]", 3),
+                      "    end associate"]
+            continue
+        maker.append("      select case (variable)")
         for variable in THERMO_VARIABLES:
             maker.append(f"      case (tau_{variable})")
             maker.append(wrap("part%metric_scale = [" + ", ".join(fortran(e) for e in scales + [part.tau_scales[variable]])
@@ -1072,7 +1246,7 @@ def model_module(symbolic, source):
     PRINTER.owner = "self%parameters"
 
     units_lines = [f"    units({i + 1}) = '{c.units}'" for i, c in enumerate(d.columns)]
-    for a, part in enumerate(d.subsystems):
+    for a, part in enumerate(part for part in d.subsystems if part.thermal):
         units_lines.append(f"    units({len(d.columns) + a + 1}) = tau_units(self%thermo_variable)")
     momentum_procedures = []
     momentum_bindings = []
@@ -1125,6 +1299,11 @@ def model_module(symbolic, source):
         momentum_procedures.append(angular_momentum_procedures(symbolic))
     tau_units = {"entropy": d.entropy_units, "temperature": d.temperature_units, "internal_energy": d.energy_units}
     field_comment = "\n".join("!>   " + line.strip() for line in d.field_text.strip().splitlines())
+    tau_tables = "" if symbolic.mechanical else f"""
+  !> The thermodynamic columns' names and units by variable (thermo_variable_kinds' order).
+  character(len=5), parameter :: tau_prefixes(3) = [character(len=5) :: '{TAU_PREFIX["entropy"]}', '{TAU_PREFIX["temperature"]}', '{TAU_PREFIX["internal_energy"]}']
+  character(len=16), parameter :: tau_units(3) = [character(len=16) :: '{tau_units["entropy"]}', '{tau_units["temperature"]}', '{tau_units["internal_energy"]}']
+"""
     text = f"""{header(d, source, f"The model of {d.title} ({d.reference}):")}
 !> a generic_model whose subsystems' (U_a, S_a) are {name}_potential's, with the invariants, the
 !> written-out field f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) and its derivatives in z and in the
@@ -1135,20 +1314,16 @@ module {name}_model
   use model_interface, only: generic_model{", conserved_component" if d.conserved or (
     d.angular_momentum_pairs and len(d.gravity) == 2) else ""}{
     ", angular_momentum_components, component_values" if d.angular_momentum_pairs else ""}
-  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy{
-    chr(10) + "  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow"
-    if d.continuous_field else ""}
-{wrap(f"use {name}_potential, only: {name}_parameters, {name}_potentials", 1)}
+{"" if symbolic.mechanical else "  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy" + chr(10)}{
+    "  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow"
+    + chr(10) if d.continuous_field else ""}{wrap(f"use {name}_potential, only: {name}_parameters, {name}_potentials", 1)}
   implicit none (type, external)
   private
   public :: {name}, make_{name}
-
-  !> The thermodynamic columns' names and units by variable (thermo_variable_kinds' order).
-  character(len=5), parameter :: tau_prefixes(3) = [character(len=5) :: '{TAU_PREFIX["entropy"]}', '{TAU_PREFIX["temperature"]}', '{TAU_PREFIX["internal_energy"]}']
-  character(len=16), parameter :: tau_units(3) = [character(len=16) :: '{tau_units["entropy"]}', '{tau_units["temperature"]}', '{tau_units["internal_energy"]}']
-
+{tau_tables}
 {"  ! Largest argument of exp that stays finite, with a margin." + chr(10) +
- "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10) if d.continuous_field else ""}
+ "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10)
+ if "<= max_exponent" in "".join(momentum_procedures) else ""}
   !> The model with its parameters.
   type, extends(generic_model) :: {name}
     type({name}_parameters) :: parameters{
@@ -1344,13 +1519,14 @@ def initial_fields(d):
                  "internal_energy": d.energy_units}[variable]
         bounds = (0.0, True, None) if variable != "entropy" else (None, False, None)
         return fields + [(field_name, values, units, bounds, meaning, variable == "temperature" and is_kelvin(units, d))]
-    missing = [part.name for part in d.subsystems if part.initial_temperature is None]
+    thermal = [part for part in d.subsystems if part.thermal]      # a mechanical subsystem has no temperature
+    missing = [part.name for part in thermal if part.initial_temperature is None]
     if missing:
         raise DescriptionError(f"subsystems {missing} have no initial_temperature and the model no "
                                "initial_thermal_field")
     fields += [(f"theta_{part.name}", part.initial_temperature, d.temperature_units, (0.0, True, None),
                 f"the temperature of {part.meaning}, whatever the thermodynamic variable",
-                is_kelvin(d.temperature_units, d)) for part in d.subsystems]
+                is_kelvin(d.temperature_units, d)) for part in thermal]
     return fields
 
 
@@ -1584,7 +1760,8 @@ def main(arguments=None):
                     print(input_rows(description, source))
                 continue
             symbolic = SymbolicModel(description)
-            files[f"{description.name}_potential.f90"] = potential_module(symbolic, source)
+            files[f"{description.name}_potential.f90"] = (mechanical_potential_module if symbolic.mechanical
+                                                          else potential_module)(symbolic, source)
             files[f"{description.name}_model.f90"] = model_module(symbolic, source)
             if description.scene:
                 files[f"{description.name}_scene.f90"] = scene_module(symbolic, source)

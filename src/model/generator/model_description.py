@@ -98,6 +98,8 @@ class Subsystem:
     temperature: sp.Symbol = None         # Theta_a of eq. (2), for K0
     partial_symbols: dict = field(default_factory=dict)  # ('U' or 'S', invariant name) -> Symbol
     label: str = ""                       # its name in messages and the output (default: name)
+    thermal: bool = True                  # False: no thermodynamic variable (mechanical_subsystem)
+    stored_energy_of_invariants: sp.Expr = None  # U_a = W(x) of a mechanical subsystem (S_a = 0)
 
     def invariant(self, name, expression, scale, positive=False):
         """A mechanical invariant x_i(z) of this subsystem, returned as the symbol U_a and S_a take;
@@ -126,6 +128,13 @@ class Subsystem:
         substitution alone, without simplifying (which would fold logs and powers into costlier, less
         accurate forms)."""
         self.energy_and_entropy_of_temperature, self.temperature_symbol = (sp.sympify(energy), sp.sympify(entropy)), theta
+
+    def stored_energy(self, energy):
+        """U_a = W(x) of a mechanical subsystem's invariants alone (S_a = 0: an elastic spring's stored energy)."""
+        if self.thermal:
+            raise DescriptionError(f"subsystem {self.name}: stored_energy is a mechanical subsystem's (it has a "
+                                   "thermodynamic variable: give U and S)")
+        self.stored_energy_of_invariants = sp.sympify(energy)
 
     def partial(self, potential, invariant):
         """The symbol of d potential_a / d invariant ('U' or 'S'; an invariant's name, or 'tau'),
@@ -225,6 +234,15 @@ class ModelDescription:
         part = Subsystem(name, meaning, None if initial_temperature is None else float(initial_temperature),
                          {k: sp.sympify(v) for k, v in tau_scales.items()}, label=label or name)
         part.temperature = sp.Symbol(f"theta_{name}", positive=True)
+        self.subsystems.append(part)
+        return part
+
+    def mechanical_subsystem(self, name, meaning, label=""):
+        """A subsystem without a thermodynamic variable (an elastic spring): its potentials are U_a = W(x) of its
+        mechanical invariants (`stored_energy`) and S_a = 0; no tau column, no temperature, no K0 entry. A model's
+        subsystems are all thermal or all mechanical (model_interface's temperature_count)."""
+        self._new_name(name)
+        part = Subsystem(name, meaning, None, {}, label=label or name, thermal=False)
         self.subsystems.append(part)
         return part
 

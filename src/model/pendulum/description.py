@@ -1,11 +1,13 @@
-"""The double pendulum's thermal rungs (docs/formulation.md sections 2-4 and 9): masses m1 and m2 at q1 and
-q1 + q2, in space or in the plane, two springs of the free energy (16)-(17) with invariants C_a = q_a.q_a,
-heat conduction between the springs and gravity, and on the thermoviscoelastic rungs a Maxwell branch
-(gamma) on spring 2. One description with two switches, `rung(name, title, dimension, viscous)`, since the
+"""The double pendulum's rungs (docs/formulation.md sections 2-4 and 9): masses m1 and m2 at q1 and q1 + q2,
+in space or in the plane, two springs with invariants C_a = q_a.q_a and gravity; on the thermal rungs the springs
+have the free energy (16)-(17) and conduct heat, and on the thermoviscoelastic rungs spring 2 has a Maxwell
+branch (gamma). One description with three switches, `rung(name, title, dimension, viscous, thermal)`, since the
 rungs share every formula and differ by which columns exist: the paper's rung (spatial, thermoviscoelastic:
-paper_pendulum), the planar one (planar_pendulum) and the thermoelastic ones (thermoelastic_pendulum,
-planar_thermoelastic_pendulum: beta^v = 0, no gamma). The elastic rung, the constraints and the input stay
-in the hand-written src/model/pendulum/ (the generator writes no scene for them: `model.scene = False`).
+paper_pendulum), the planar one (planar_pendulum), the thermoelastic ones (thermoelastic_pendulum,
+planar_thermoelastic_pendulum: beta^v = 0, no gamma) and the elastic ones (elastic_pendulum,
+planar_elastic_pendulum: W_a = mu_{a,cst}/2 L_a^2 of mechanical subsystems, no tau, no S, no K0). The
+constraints and the input stay in the hand-written src/model/pendulum/ (the generator writes no scene for them:
+`model.scene = False`).
 
 The springs are written as section 3 collects eq. (16)-(17): u_a = e_a + Cap_a (theta - theta_ref),
 s_a = sigma_a + Cap_a ln(theta/theta_ref) of psi_a = u_a - theta s_a (the generator checks that they derive
@@ -18,18 +20,17 @@ import sympy as sp
 from model_description import ENERGY_LEVEL, ENTROPY_LEVEL, ModelDescription
 
 
-def rung(name, title, dimension, viscous):
+def rung(name, title, dimension, viscous, thermal=True):
     """The pendulum of `dimension` (3: spatial; 2: planar, y vertical) with (viscous) or without the Maxwell branch
-    on spring 2 (the thermoelastic rung: beta^v = 0, no gamma, no mu_neq_*, viscosity_* or beta_v), as
-    docs/formulation.md section 9's table states each rung."""
+    on spring 2 (the thermoelastic rung: beta^v = 0, no gamma, no mu_neq_*, viscosity_* or beta_v), and without
+    the thermal parts (thermal=False, the elastic rung: no mu_eq_slope, heat_capacity, conductivity, theta_ref or
+    beta), as docs/formulation.md section 9's table states each rung."""
     model = ModelDescription(name, title, "docs/formulation.md sections 2-4" + ("" if name == "paper_pendulum" else
                                                                                   " and 9"))
     model.scene = False
     model.differences = True         # U(b) - U(a) by log1p, expm1 and factored powers, as thermo_variable.f90 did
     model.continuous_field = True     # the relaxed schemes' field composed in z (no partials): issue 42 item 5
     model.rounding_scales = True      # U's scale |e| + Cap (theta + theta_ref), not |U|: the step check's ulps
-    axes = "xyz"[:dimension]
-    vector = range(dimension)
 
     def parameter(name, units, default, meaning, **bounds):
         return model.parameter(name, units, default, meaning, **bounds)
@@ -39,6 +40,8 @@ def rung(name, title, dimension, viscous):
     natural_length = [parameter(f"natural_length_{a}", "m", default, f"lambda_{a}^0", minimum=0.0, exclusive=True,
                                 positive=True) for a, default in ((1, 1.5), (2, 2.0))]
     mu_eq_const = [parameter(f"mu_eq_const_{a}", "J", 200.0, f"mu^eq_{{{a},cst}}, eq. (17)") for a in (1, 2)]
+    if not thermal:
+        return elastic_rung(model, dimension, m1, m2, natural_length, mu_eq_const)
     mu_eq_slope = [parameter(f"mu_eq_slope_{a}", "J/K", 0.5, f"mu^eq_{{{a},theta}}, eq. (17)") for a in (1, 2)]
     if viscous:
         mu_neq_const = parameter("mu_neq_const", "J/m^2", 5.0, "mu^neq_{2,cst}, eq. (17)")
@@ -53,24 +56,9 @@ def rung(name, title, dimension, viscous):
     theta_ref = parameter("theta_ref", "K", 300.0, "theta_ref", minimum=0.0, exclusive=True, positive=True)
     beta = parameter("beta", "J/K", 0.02, "the thermal coupling beta")
     beta_v = parameter("beta_v", "1", 0.5, "the Maxwell coupling beta^v", minimum=0.0) if viscous else 0
-    gravity = [parameter(f"gravity_{axis}", "m/s^2", default, f"g_{axis}")
-               for axis, default in zip(axes, (0, 0, -9.81) if dimension == 3 else (0, -9.81))]
-
-    # z = (q1, q2, p1, p2, [gamma,] tau1, tau2), section 2's order; q2 is m2's position relative to m1.
-    q = [[model.position(f"q{a}_{axis}", "m", 0.0, f"q_{a}'s {axis} component") for axis in axes] for a in (1, 2)]
-    p = [[model.momentum(f"p{a}_{axis}", "N s", 0.0, f"p_{a}'s {axis} component", dataset=False) for axis in axes]
-         for a in (1, 2)]
+    q, p = mechanics(model, dimension, m1, m2)
     if viscous:
         gamma = model.position("gamma", "m", 0.0, "the Maxwell element's internal length (spring 2)")
-
-    # T = 1/2 p.m^-1 p with m^-1 = [[I/m1, -I/m1], [-I/m1, (m1+m2)/(m1 m2) I]] (eq. (1)); V_g = -(m1+m2) g.q1 - m2 g.q2.
-    kinetic = sum(p[0][i]**2/(2*m1) - p[0][i]*p[1][i]/m1 + (m1 + m2)/(2*m1*m2)*p[1][i]**2 for i in vector)
-    gravity_potential = -sum(((m1 + m2)*q[0][i] + m2*q[1][i])*gravity[i] for i in vector)
-    model.mechanical_energy = kinetic + gravity_potential
-    for a in range(2):
-        for i in vector:
-            model.canonical_pair(q[a][i], p[a][i])
-    model.angular_momentum([(q[0], p[0]), (q[1], p[1])], gravity)
 
     springs = []
     for a in (1, 2):
@@ -118,9 +106,47 @@ def rung(name, title, dimension, viscous):
     return model
 
 
-# The thermal rungs of docs/formulation.md section 9's ladder; the elastic rung (no thermodynamic variable) stays
-# hand-written (src/model/pendulum/elastic_potential.f90): the generator's subsystems all have one.
+def mechanics(model, dimension, m1, m2):
+    """Every rung's mechanics: gravity's parameters, the columns q1, q2, p1, p2 (`dimension` components each),
+    T + V_g, L0 canonical in each (q_a, p_a) component and J = q1 x p1 + q2 x p2; returns q and p."""
+    axes = "xyz"[:dimension]
+    vector = range(dimension)
+    gravity = [model.parameter(f"gravity_{axis}", "m/s^2", default, f"g_{axis}")
+               for axis, default in zip(axes, (0, 0, -9.81) if dimension == 3 else (0, -9.81))]
+    # z = (q1, q2, p1, p2, [gamma,] [tau1, tau2]), section 2's order; q2 is m2's position relative to m1.
+    q = [[model.position(f"q{a}_{axis}", "m", 0.0, f"q_{a}'s {axis} component") for axis in axes] for a in (1, 2)]
+    p = [[model.momentum(f"p{a}_{axis}", "N s", 0.0, f"p_{a}'s {axis} component", dataset=False) for axis in axes]
+         for a in (1, 2)]
+    # T = 1/2 p.m^-1 p with m^-1 = [[I/m1, -I/m1], [-I/m1, (m1+m2)/(m1 m2) I]] (eq. (1)); V_g = -(m1+m2) g.q1 - m2 g.q2.
+    kinetic = sum(p[0][i]**2/(2*m1) - p[0][i]*p[1][i]/m1 + (m1 + m2)/(2*m1*m2)*p[1][i]**2 for i in vector)
+    gravity_potential = -sum(((m1 + m2)*q[0][i] + m2*q[1][i])*gravity[i] for i in vector)
+    model.mechanical_energy = kinetic + gravity_potential
+    for a in range(2):
+        for i in vector:
+            model.canonical_pair(q[a][i], p[a][i])
+    model.angular_momentum([(q[0], p[0]), (q[1], p[1])], gravity)
+    return q, p
+
+
+def elastic_rung(model, dimension, m1, m2, natural_length, stiffness):
+    """The elastic rung (section 9's table): each spring a mechanical subsystem of C_a alone with the stored energy
+    W_a = mu_{a,cst}/2 L_a^2, the free energy (16) at theta_ref without its thermal terms; no S, no K0."""
+    q, _ = mechanics(model, dimension, m1, m2)
+    for a in (1, 2):
+        spring = model.mechanical_subsystem(str(a), f"spring {a}", label=f"spring {a}")
+        c = spring.invariant("C", sum(x**2 for x in q[a - 1]), scale=natural_length[a - 1]**2, positive=True)
+        log_stretch = sp.log(c/natural_length[a - 1]**2)/2                              # L_a = ln(l_a/l_a^0)
+        spring.stored_energy(stiffness[a - 1]/2*log_stretch**2)
+    model.describe(temperature="spring temperatures", energy="total energy E = T + V_g + W_1 + W_2",
+                   entropy="total entropy S = S_1 + S_2", metric_scales="C by (l^0)^2")
+    model.field_text = "dq/dt = m^-1 p,  dp_a/dt = -grad_qa V_g - 2 q_a dW_a/dC  (docs/formulation.md section 9)"
+    return model
+
+
+# The rungs of docs/formulation.md section 9's ladder, each spatial and planar.
 models = [rung("paper_pendulum", "the thermoviscoelastic double pendulum", 3, viscous=True),
           rung("planar_pendulum", "the planar thermoviscoelastic double pendulum", 2, viscous=True),
           rung("thermoelastic_pendulum", "the thermoelastic double pendulum", 3, viscous=False),
-          rung("planar_thermoelastic_pendulum", "the planar thermoelastic double pendulum", 2, viscous=False)]
+          rung("planar_thermoelastic_pendulum", "the planar thermoelastic double pendulum", 2, viscous=False),
+          rung("elastic_pendulum", "the elastic double pendulum", 3, viscous=False, thermal=False),
+          rung("planar_elastic_pendulum", "the planar elastic double pendulum", 2, viscous=False, thermal=False)]

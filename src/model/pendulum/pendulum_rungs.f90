@@ -1,14 +1,12 @@
-!> The double pendulum's rungs (docs/formulation.md section 9) as the registry builds them: the thermal
-!> rungs generated from src/model/pendulum/description.py (paper_pendulum: spatial thermoviscoelastic;
-!> planar_pendulum; thermoelastic_pendulum; planar_thermoelastic_pendulum), the elastic rung hand-written
-!> (pendulum_model: the generator's subsystems all have a thermodynamic variable). &model's values
-!> (pendulum_parameters, the scene's) become the generated model's parameters here, and back for the
-!> fused step kernel (pendulum_step_kernel), which keeps the hand-written springs it was written around.
+!> The double pendulum's rungs (docs/formulation.md section 9) as the registry builds them, every one generated
+!> from src/model/pendulum/description.py (paper_pendulum: spatial thermoviscoelastic; planar_pendulum;
+!> thermoelastic_pendulum; planar_thermoelastic_pendulum; elastic_pendulum; planar_elastic_pendulum). &model's
+!> values (pendulum_parameters, the scene's) become the generated model's parameters here, and back for the
+!> fused step kernel (pendulum_step_kernel), which keeps the closed-form springs it was written around.
 module pendulum_rungs
   use, intrinsic :: iso_fortran_env, only: real64
-  use model_parameters, only: pendulum_parameters, law_thermoviscoelastic, law_thermoelastic
+  use model_parameters, only: pendulum_parameters, law_thermoviscoelastic, law_thermoelastic, law_elastic
   use model_interface, only: generic_model
-  use pendulum_model, only: pendulum, make_pendulum
   use paper_pendulum_potential, only: paper_pendulum_parameters
   use paper_pendulum_model, only: paper_pendulum, make_paper_pendulum
   use planar_pendulum_potential, only: planar_pendulum_parameters
@@ -17,14 +15,18 @@ module pendulum_rungs
   use thermoelastic_pendulum_model, only: thermoelastic_pendulum, make_thermoelastic_pendulum
   use planar_thermoelastic_pendulum_potential, only: planar_thermoelastic_pendulum_parameters
   use planar_thermoelastic_pendulum_model, only: planar_thermoelastic_pendulum, make_planar_thermoelastic_pendulum
+  use elastic_pendulum_potential, only: elastic_pendulum_parameters
+  use elastic_pendulum_model, only: elastic_pendulum, make_elastic_pendulum
+  use planar_elastic_pendulum_potential, only: planar_elastic_pendulum_parameters
+  use planar_elastic_pendulum_model, only: planar_elastic_pendulum, make_planar_elastic_pendulum
   implicit none (type, external)
   private
-  public :: rung_model, hand_pendulum_of
+  public :: rung_model, rung_parameters
 
 contains
 
-  !> The model of the rung `params` declares (spring_law, dimension) in thermodynamic variable `variable`:
-  !> generated for the thermal rungs, the hand-written pendulum for the elastic one.
+  !> The generated model of the rung `params` declares (spring_law, dimension) in thermodynamic variable
+  !> `variable` (the elastic rungs have none: their model keeps `variable` and ignores it).
   subroutine rung_model(params, variable, model)
     type(pendulum_parameters), intent(in) :: params
     integer, intent(in) :: variable
@@ -60,25 +62,27 @@ contains
           mu_eq_const_2=a(2), mu_eq_slope_1=b(1), mu_eq_slope_2=b(2), heat_capacity_1=c(1), heat_capacity_2=c(2), &
           conductivity=params%conductivity, theta_ref=params%theta_ref, beta=params%beta, gravity_x=g(1), &
           gravity_y=g(2)), variable))
+      else if (params%dimension == 3) then
+        allocate (model, source=make_elastic_pendulum(elastic_pendulum_parameters(mass_1=m(1), mass_2=m(2), &
+          natural_length_1=l(1), natural_length_2=l(2), mu_eq_const_1=a(1), mu_eq_const_2=a(2), gravity_x=g(1), &
+          gravity_y=g(2), gravity_z=g(3)), variable))
       else
-        allocate (model, source=make_pendulum(params, variable))
+        allocate (model, source=make_planar_elastic_pendulum(planar_elastic_pendulum_parameters(mass_1=m(1), &
+          mass_2=m(2), natural_length_1=l(1), natural_length_2=l(2), mu_eq_const_1=a(1), mu_eq_const_2=a(2), &
+          gravity_x=g(1), gravity_y=g(2)), variable))
       end if
     end associate
   end subroutine rung_model
 
-  !> The hand-written pendulum of the same rung, parameters and thermodynamic variable as `model` (a rung of
-  !> rung_model's); found = .false. for any other model.
-  pure subroutine hand_pendulum_of(model, hand, found)
+  !> &model's values of `model`, a rung of rung_model's (its spring_law, dimension and parameters; the others
+  !> Table 1's); found = .false. for any other model.
+  pure subroutine rung_parameters(model, params, found)
     class(generic_model), intent(in) :: model
-    type(pendulum), intent(out) :: hand
+    type(pendulum_parameters), intent(out) :: params
     logical, intent(out) :: found
-    type(pendulum_parameters) :: params
 
     found = .true.
     select type (model)
-    type is (pendulum)
-      hand = model
-      return
     type is (paper_pendulum)
       associate (p => model%parameters)
         params = pendulum_parameters(spring_law=law_thermoviscoelastic, dimension=3, mass=[p%mass_1, p%mass_2], &
@@ -113,11 +117,21 @@ contains
           conductivity=p%conductivity, theta_ref=p%theta_ref, beta=p%beta, &
           gravity=[p%gravity_x, p%gravity_y, 0.0_real64])
       end associate
+    type is (elastic_pendulum)
+      associate (p => model%parameters)
+        params = pendulum_parameters(spring_law=law_elastic, dimension=3, mass=[p%mass_1, p%mass_2], &
+          natural_length=[p%natural_length_1, p%natural_length_2], mu_eq_const=[p%mu_eq_const_1, p%mu_eq_const_2], &
+          gravity=[p%gravity_x, p%gravity_y, p%gravity_z])
+      end associate
+    type is (planar_elastic_pendulum)
+      associate (p => model%parameters)
+        params = pendulum_parameters(spring_law=law_elastic, dimension=2, mass=[p%mass_1, p%mass_2], &
+          natural_length=[p%natural_length_1, p%natural_length_2], mu_eq_const=[p%mu_eq_const_1, p%mu_eq_const_2], &
+          gravity=[p%gravity_x, p%gravity_y, 0.0_real64])
+      end associate
     class default
       found = .false.
-      return
     end select
-    hand = make_pendulum(params, model%thermo_variable)
-  end subroutine hand_pendulum_of
+  end subroutine rung_parameters
 
 end module pendulum_rungs

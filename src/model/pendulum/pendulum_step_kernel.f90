@@ -32,12 +32,11 @@ module pendulum_step_kernel
   use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
   use special_functions, only: log1p
   use model_parameters, only: pendulum_parameters
-  use free_energy, only: mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
+  use free_energy, only: spring_law_of, mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
   use thermo_variable, only: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
   use thermo_variable_kinds, only: tau_temperature, tau_entropy
-  use double_pendulum, only: p_index, pendulum_layout
-  use pendulum_model, only: pendulum
-  use pendulum_rungs, only: hand_pendulum_of
+  use double_pendulum, only: p_index, pendulum_layout, make_layout
+  use pendulum_rungs, only: rung_parameters
   use model_constraint, only: constraint_slot
   use length_constraint, only: fixed_length
   use temperature_constraint, only: fixed_temperature
@@ -184,31 +183,36 @@ contains
     type(step_problem), intent(in) :: problem
     type(pendulum_step), intent(out) :: kernel
     logical, intent(out) :: built
-    type(pendulum) :: model
+    type(pendulum_parameters) :: params
+    real(real64) :: metric_scale(3)
     integer :: k, a, d, n, base
 
-    ! The generated rungs (pendulum_rungs) are served by the hand-written springs of the same parameters.
-    call hand_pendulum_of(problem%model, model, built)
+    ! The generated rungs (pendulum_rungs) are served by the closed-form springs (thermo_variable) of the
+    ! same parameters and thermodynamic variable.
+    call rung_parameters(problem%model, params, built)
     if (.not. built) return
     built = .false.
-    if (.not. model%layout%thermal) return
-    kernel%params = model%params
-    kernel%layout = model%layout
-    kernel%spring = model%spring
-    ! Spring 2 with its invariants (C, gamma, tau) in every layout: a thermoelastic one's gamma
-    ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1.
-    kernel%spring(2)%n_invariants = 3
+    if (.not. params%thermal()) return
+    kernel%params = params
+    kernel%layout = make_layout(params%dimension, params%viscous(), params%thermal())
     do a = 1, 2
-      n = model%spring(a)%n_invariants
+      n = kernel%layout%invariant_count(a)
+      kernel%spring(a)%law = spring_law_of(params, a)
+      kernel%spring(a)%variable = problem%model%thermo_variable
+      kernel%spring(a)%n_invariants = n
+      metric_scale(1:n) = kernel%spring(a)%metric_scale()
       if (problem%metric == metric_euclidean) then
         kernel%scale(:, a) = 1.0_real64
       else
         kernel%scale(:, a) = 1.0_real64
-        kernel%scale(1, a) = model%subsystems(a)%metric_scale(1)
-        kernel%scale(a + 1, a) = model%subsystems(a)%metric_scale(n)
-        if (n == 3) kernel%scale(2, a) = model%subsystems(a)%metric_scale(2)
+        kernel%scale(1, a) = metric_scale(1)
+        kernel%scale(a + 1, a) = metric_scale(n)
+        if (n == 3) kernel%scale(2, a) = metric_scale(2)
       end if
     end do
+    ! Spring 2 with its invariants (C, gamma, tau) in every layout: a thermoelastic one's gamma
+    ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1.
+    kernel%spring(2)%n_invariants = 3
     d = kernel%layout%dimension
     kernel%full = kernel%layout%is_full()
     kernel%viscous = kernel%layout%viscous
