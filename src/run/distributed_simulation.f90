@@ -23,16 +23,14 @@
 !> accepted steps, and the controller's state is kept in the resume record).
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_INTEGER, MPI_CHARACTER, &
                      MPI_LOGICAL, MPI_MAX
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use distributed_model, only: distributed_system, distributed_step, distributed_figures, distributed_part
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient, build_integrator
-  use distributed_step_control, only: controlled_diagnostics
-  use stepper, only: time_stepper, step_report, step_diagnostic
+  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
+  use stepper, only: step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
   use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_domain, &
@@ -43,10 +41,10 @@ module distributed_simulation
   use run_options, only: petsc_options_in_force
   use run_file_steps, only: continuation_wanted, prepare_output, name_finished_file
   use time_loop_steps, only: run_observer, line_reporter, record_failure, step_budget_spent, stop_before_step, &
-                             land_step, step_status, fail_step, note_petsc_error, accumulate_step, lower_min_temperature, &
-                             complete_if_finished
+                             land_step, step_status, fail_step, note_petsc_error, fail_write, accumulate_step, &
+                             lower_min_temperature, note_balance_figures, complete_if_finished
   use split_run_setup, only: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, &
-                             diagnostics
+                             split_diagnostics, report_step, balanced_state_of
   use snapshot_windows, only: held_snapshot, snapshot_window, transfer_part, tau_dataset
   use filesystem, only: output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text, scientific_text
@@ -94,8 +92,6 @@ contains
     type(distributed_figures) :: figures_0, values
     type(balanced_state) :: balance_old, balance_new
     type(step_report) :: report
-    class(time_stepper), allocatable :: integrator
-    type(step_diagnostic), allocatable :: integrator_diagnostics(:)
     type(failure_type) :: step_failure, io_failure
     type(resume_record) :: resume       !! where a continued run starts (its last snapshot)
     character(len=:), allocatable :: part, kind, text, status, stored
@@ -166,20 +162,8 @@ contains
     every = config%snapshot_every
     energy_change = 0.0_real64
     conserved_change = 0.0_real64
-    window%comm = communicator
-    window%rank = rank
-    window%tau_name = tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0)
-    allocate (window%kept(0), window%new(4))
-    ! The step report's parts of the split path: no scheme temperatures (the state is not in
-    ! rows); the integrator's figures are the step control's (controlled_diagnostics), or those
-    ! the dense path's integrator of the same name declares for a system that runs it on its own
-    ! steps (a relaxed scheme's), then the two production minima.
-    allocate (report%scheme_temperature(0))
-    allocate (integrator_diagnostics(0))
-    if (system%integrator_diagnostics()) then
-      call build_integrator(entry, integrator)
-      integrator_diagnostics = integrator%diagnostics()
-    end if
+    call window%open(communicator, tau_dataset(config%integrator%thermo_variable, model%temperature_count() > 0))
+    allocate (report%scheme_temperature(0))    ! the state is not in rows
     values = figures_0
     state_step = 0
     state_time = 0.0_real64
@@ -195,7 +179,7 @@ contains
     if (present(durable)) output%store%durable = durable
     if (rank == 0 .and. keeping .and. .not. failure%failed()) then
       call output%create(part, config, entry, model, constraints, &
-                         [controlled_diagnostics(system), integrator_diagnostics, diagnostics()], added, &
+                         split_diagnostics(system, entry), added, &
                          petsc_options_in_force(), io_failure, state_rows=.false.)
       if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
       if (io_failure%failed()) then
@@ -271,14 +255,7 @@ contains
                            abs(conserved_change(1:values%conserved_count)))
       if (model%temperature_count() > 0) call lower_min_temperature(summary, [values%min_temperature])
       if (rank == 0) then
-        report%newton_iterations = outcome%iterations
-        report%solves = outcome%solves
-        report%rejected = outcome%rejected
-        report%residual_norm = outcome%residual_norm
-        report%converged_reason = outcome%reason
-        report%diagnostics = [values%min_viscous_production, values%min_link_production]
-        where (report%diagnostics >= huge(1.0_real64)) report%diagnostics = ieee_value(1.0_real64, ieee_quiet_nan)
-        if (allocated(outcome%diagnostics)) report%diagnostics = [outcome%diagnostics, report%diagnostics]
+        call report_step(outcome, values, report)
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
         call record_point(time)
@@ -323,13 +300,7 @@ contains
       type(distributed_figures), intent(in) :: values
 
       balance_old = balance_new
-      balance_new%energy = values%energy
-      balance_new%energy_scale = values%energy_scale
-      balance_new%entropy = values%entropy
-      balance_new%entropy_scale = values%entropy_scale
-      balance_new%conserved_count = values%conserved_count
-      balance_new%conserved = values%conserved
-      balance_new%momentum_scale = values%momentum_scale
+      balance_new = balanced_state_of(values)
     end subroutine observe
 
     ! The step's balance figures, from the summed differences of its parts (over its halves, if
@@ -343,7 +314,7 @@ contains
                                 [values%delta_energy, values%delta_entropy], values%delta_conserved)
       broken = broken_balance(figures, checked, outcome%halvings + 1)
       if (broken == 0) then
-        where (has_balance) summary%max_balance = max(summary%max_balance, figures)
+        call note_balance_figures(summary, has_balance, figures)
         return
       end if
       summary%status = step_status(n, time, balance_text(broken, figures))
@@ -456,9 +427,7 @@ contains
       call MPI_Bcast(outcome_code, 1, MPI_INTEGER, 0, communicator)
       if (outcome_code == 1) call window%written()
       if (rank == 0 .and. io_failure%failed()) then
-        summary%status = 'incomplete: cannot write the output file: '//io_failure%message
-        call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): '// &
-                  io_failure%message)
+        call fail_write(failure, summary, part, config%input_file, io_failure%message)
       end if
       call agree(failure, summary, communicator, config%input_file)
       if (final .and. rank == 0 .and. .not. failure%failed()) call close_output()

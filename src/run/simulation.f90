@@ -20,11 +20,12 @@ module simulation
   use run_output, only: run_file, extra_attribute, resume_record
   use run_file_steps, only: continuation_wanted, prepare_output, holds_complete_run, name_finished_file
   use time_loop_steps, only: run_observer, line_reporter, exit_status, failure_code_of, record_failure, &
-                             step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, &
-                             accumulate_step, lower_min_temperature, complete_if_finished
+                             step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, fail_write, &
+                             accumulate_step, note_balance_figures, complete_if_finished
   use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_input, &
                          failure_io, failure_library, failure_balance
-  use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, applicable_balances
+  use step_balances, only: balance_count, applicable_balances
+  use dense_observation, only: state_observation
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal
   use run_options, only: petsc_options_in_force
@@ -87,13 +88,12 @@ contains
     type(extra_attribute), allocatable :: added(:)
     type(resume_record) :: resume       !! the state a continued run starts from
     character(len=:), allocatable :: part, kind, text
-    real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
-    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
-    real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
+    real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), residuals(:)
+    real(real64) :: energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
     real(real64), allocatable :: conserved_0(:)   !! the conserved momentum components at the initial state
-    ! The step check (src/run/step_check): the balances' quantities before and after the step,
-    ! the step's figures, which balances are checked, and which momenta are conserved.
-    type(balanced_state) :: balance_old, balance_new
+    ! The step check (src/run/step_check): the states before and after the step, the step's
+    ! figures, which balances are checked, and which momenta are conserved.
+    type(state_observation) :: seen
     real(real64) :: figures(balance_count), step_heat
     logical :: checked(balance_count), has_balance(balance_count), resolved
     real(real64) :: t_end, time_old
@@ -136,7 +136,7 @@ contains
     n_state = model%state_size
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
-    allocate (theta(model%temperature_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    allocate (residuals(size(constraints)))
     call summarize_model(summary, model)
     ! The conserved components at t = 0 (a continued run's too: its input builds the same z0).
     conserved_0 = model%conserved_momenta(z0)
@@ -209,8 +209,8 @@ contains
         return
       end if
     else
-      call observe(z0, energy, entropy, lyapunov)
-      energy_0 = energy
+      call observe(z0)
+      energy_0 = seen%energy
       call record_point(0.0_real64, z0, .true.)
       outputs_passed = 0
       x_previous = x
@@ -253,13 +253,14 @@ contains
       call check_step(resolved)
       if (failure%failed() .or. summary%failure_kind /= failure_none) exit
       boundary_heat = boundary_heat + step_heat
-      entropy_old = entropy
-      lyapunov_old = lyapunov
+      entropy_old = seen%entropy
+      lyapunov_old = seen%lyapunov
       x_previous = x
       x = x_new
-      call take_observation(energy, entropy, lyapunov)
+      call seen%take(summary, config%theta_r)
       call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(timer%rate, real64), &
-                              entropy - entropy_old, lyapunov - lyapunov_old, figures, has_balance, resolved)
+                              seen%entropy - entropy_old, seen%lyapunov - lyapunov_old, figures, has_balance, &
+                              resolved)
       row_due = .false.
       do while (config%output_interval > 0.0_real64 .and. &
                 time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
@@ -271,8 +272,8 @@ contains
       ! newton_iterations_total / steps_completed in the file; the conserved components' drift
       ! from the step check's values of them (observe_balances).
       call accumulate_step(summary, n, report%newton_iterations, report%halvings, report%rejected_steps, &
-                           abs(energy - energy_0 - boundary_heat)/abs(energy_0), entropy - entropy_old, &
-                           lyapunov - lyapunov_old, abs(balance_new%conserved(1:size(conserved_0)) - conserved_0))
+                           abs(seen%energy - energy_0 - boundary_heat)/abs(energy_0), seen%entropy - entropy_old, &
+                           seen%lyapunov - lyapunov_old, abs(seen%new%conserved(1:size(conserved_0)) - conserved_0))
       call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
                                     x_previous, integrator)
       if (output%write_due()) then
@@ -281,9 +282,7 @@ contains
         call set_times(.true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) then
-          summary%status = 'incomplete: cannot write the output file: '//io_failure%message
-          call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): ' &
-                    //io_failure%message)
+          call fail_write(failure, summary, part, config%input_file, io_failure%message)
           exit
         end if
       end if
@@ -321,7 +320,7 @@ contains
       x = record%x
       x_previous = record%x_previous
       call record%restore_summary(summary)
-      call observe(x(1:n_state), energy, entropy, lyapunov)
+      call observe(x(1:n_state))
       summary%min_temperature = record%summary%min_temperature
     end subroutine restore
 
@@ -339,34 +338,13 @@ contains
       call timer%note_times(summary, in_loop)
     end subroutine set_times
 
-    ! The balances' quantities at z (into balance_new) and its temperatures (into theta).
-    subroutine observe_state(z)
+    ! Looks at the state z and takes it (its E, S, V into `seen`).
+    subroutine observe(z)
       real(real64), intent(in) :: z(:)
-      integer :: domain
 
-      momentum = model%momenta(z)
-      call observe_balances(model, z, balance_new, theta, domain, momentum)
-    end subroutine observe_state
-
-    subroutine observe(z, energy, entropy, lyapunov)
-      real(real64), intent(in) :: z(:)
-      real(real64), intent(out) :: energy, entropy, lyapunov
-
-      call observe_state(z)
-      call take_observation(energy, entropy, lyapunov)
+      call seen%look(model, z)
+      call seen%take(summary, config%theta_r)
     end subroutine observe
-
-    ! The figures of the state observe_state saw last (balance_new, theta), which becomes the
-    ! old state of the next step's check.
-    subroutine take_observation(energy, entropy, lyapunov)
-      real(real64), intent(out) :: energy, entropy, lyapunov
-
-      energy = balance_new%energy
-      entropy = balance_new%entropy
-      balance_old = balance_new
-      lyapunov = energy - config%theta_r*entropy
-      call lower_min_temperature(summary, theta)
-    end subroutine take_observation
 
     ! The check of the step the integrator just accepted, from x to x_new (src/run/step_check):
     ! its heat through the constraints (step_heat; a multiplier is the step's mean rate, lambda_2 a
@@ -380,10 +358,10 @@ contains
       type(failure_type) :: resolving
 
       resolved = .false.
-      call measure()
+      call seen%measure(model, constraints, x_new, time - time_old, has_balance, config%theta_r, step_heat, figures)
       broken = broken_balance(figures, checked, report%halvings + 1)
       if (broken == 0) then
-        call note_figures()
+        call note_balance_figures(summary, has_balance, figures)
         return
       end if
       resolved = .true.
@@ -402,33 +380,16 @@ contains
         summary%failure_kind = failure_balance
         return
       end if
-      call measure()
+      call seen%measure(model, constraints, x_new, time - time_old, has_balance, config%theta_r, step_heat, figures)
       broken = broken_balance(figures, checked, report%halvings + 1)
       if (broken == 0) then
-        call note_figures()
+        call note_balance_figures(summary, has_balance, figures)
         return
       end if
       summary%status = step_status(n, time, balance_text(broken, figures)//', also when solved again with the '// &
                                    'default solver settings')
       summary%failure_kind = failure_balance
     end subroutine check_step
-
-    ! The run's largest figures, with an accepted step's.
-    subroutine note_figures()
-      where (has_balance) summary%max_balance = max(summary%max_balance, figures)
-    end subroutine note_figures
-
-    ! step_heat and the figures of the step from x to x_new; balance_new and theta become x_new's.
-    subroutine measure()
-      integer :: k
-
-      step_heat = 0.0_real64
-      do k = 1, size(constraints)
-        step_heat = step_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
-      end do
-      call observe_state(x_new(1:n_state))
-      figures = balance_figures(has_balance, balance_old, balance_new, step_heat, config%theta_r)
-    end subroutine measure
 
     ! The first conserved component's initial value, which the resume record keeps (0 if none).
     real(real64) function first_conserved_0()
@@ -446,8 +407,8 @@ contains
       do k = 1, size(constraints)
         call constraints(k)%item%value(model, z, residuals(k), domain)
       end do
-      call output%record_point(time, z, theta, energy, entropy, lyapunov, momentum, boundary_heat, &
-                               residuals, row_due)
+      call output%record_point(time, z, seen%theta, seen%energy, seen%entropy, seen%lyapunov, seen%momentum, &
+                               boundary_heat, residuals, row_due)
     end subroutine record_point
 
     ! Writes the file's last rows and final attributes, reads it back, and gives it its final

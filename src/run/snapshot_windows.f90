@@ -5,7 +5,7 @@
 !> snapshot read back, every rank its part (docs/output.md, A chain's file).
 module snapshot_windows
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use mpi_f08, only: MPI_Comm, MPI_Bcast, MPI_INTEGER, MPI_CHARACTER
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Bcast, MPI_INTEGER, MPI_CHARACTER
   use distributed_model, only: distributed_part
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use run_output, only: spare_addition
@@ -37,6 +37,7 @@ module snapshot_windows
     integer(int64) :: new_bytes = 0                        !! the new snapshots' values, in bytes
     logical :: added = .false.                             !! rank 0: `add` ran in this window
   contains
+    procedure :: open
     procedure :: add
     procedure :: join
     procedure :: hold
@@ -45,6 +46,18 @@ module snapshot_windows
   end type snapshot_window
 
 contains
+
+  !> A window of no snapshots yet on `comm`, tau in the snapshots as dataset `tau_name` ('': none).
+  subroutine open(self, comm, tau_name)
+    class(snapshot_window), intent(inout) :: self
+    type(MPI_Comm), intent(in) :: comm
+    character(len=*), intent(in) :: tau_name
+
+    self%comm = comm
+    call MPI_Comm_rank(comm, self%rank)
+    self%tau_name = tau_name
+    allocate (self%kept(0), self%new(4))
+  end subroutine open
 
   !> Appends the window's snapshots to the closed spare at `path` (rank 0, inside its window):
   !> tells the other ranks where, and writes with them.

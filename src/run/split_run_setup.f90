@@ -6,16 +6,19 @@ module split_run_setup
   use, intrinsic :: iso_fortran_env, only: real64
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
-  use distributed_model, only: distributed_system, distributed_settings
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
-  use distributed_step_control, only: controlled_system
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use distributed_model, only: distributed_system, distributed_settings, distributed_step, distributed_figures
+  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient, build_integrator
+  use distributed_step_control, only: controlled_system, controlled_diagnostics
   use butcher_tableaux, only: butcher_tableau, tableau_named
-  use stepper, only: step_diagnostic
+  use stepper, only: time_stepper, step_report, step_diagnostic
+  use step_balances, only: balanced_state
   use run_config, only: run_configuration
   use failures, only: failure_type, set_failure => fail, code_input => failure_input
   implicit none (type, external)
   private
-  public :: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, diagnostics
+  public :: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, split_diagnostics
+  public :: report_step, balanced_state_of
 
 contains
 
@@ -116,7 +119,7 @@ contains
     call system%finish(failure)
   end subroutine set_up_distributed_only
 
-  !> The per-step figures of the split path beyond the schema's.
+  ! The per-step figures of the split path beyond the schema's.
   function diagnostics() result(items)
     type(step_diagnostic) :: items(2)
 
@@ -127,5 +130,56 @@ contains
                                'conducting link, kappa (Theta_a - Theta_b)^2/(Theta_a Theta_b); NaN without links', &
                                'min')
   end function diagnostics
+
+
+  !> The integrator's per-step figures in a split run's file: the step control's
+  !> (controlled_diagnostics), or those the dense path's integrator of the same name declares for
+  !> a system that runs it on its own steps (a relaxed scheme's), then the two production minima.
+  function split_diagnostics(system, entry) result(items)
+    class(distributed_system), intent(in) :: system
+    type(integrator_entry), intent(in) :: entry
+    type(step_diagnostic), allocatable :: items(:)
+    class(time_stepper), allocatable :: integrator
+    type(step_diagnostic), allocatable :: integrator_diagnostics(:)
+
+    allocate (integrator_diagnostics(0))
+    if (system%integrator_diagnostics()) then
+      call build_integrator(entry, integrator)
+      integrator_diagnostics = integrator%diagnostics()
+    end if
+    items = [controlled_diagnostics(system), integrator_diagnostics, diagnostics()]
+  end function split_diagnostics
+
+  !> The row of a split step (`outcome`, its figures `values`) in the dense path's step report:
+  !> the solver's counts, then the integrator's figures and the two production minima (NaN
+  !> where the chain has no such branch or link).
+  pure subroutine report_step(outcome, values, report)
+    type(distributed_step), intent(in) :: outcome
+    type(distributed_figures), intent(in) :: values
+    type(step_report), intent(inout) :: report
+
+    report%newton_iterations = outcome%iterations
+    report%solves = outcome%solves
+    report%rejected = outcome%rejected
+    report%residual_norm = outcome%residual_norm
+    report%converged_reason = outcome%reason
+    report%diagnostics = [values%min_viscous_production, values%min_link_production]
+    where (report%diagnostics >= huge(1.0_real64)) report%diagnostics = ieee_value(1.0_real64, ieee_quiet_nan)
+    if (allocated(outcome%diagnostics)) report%diagnostics = [outcome%diagnostics, report%diagnostics]
+  end subroutine report_step
+
+  !> The balances' state (src/structure/step_balances) of a split state's summed figures.
+  pure function balanced_state_of(values) result(state)
+    type(distributed_figures), intent(in) :: values
+    type(balanced_state) :: state
+
+    state%energy = values%energy
+    state%energy_scale = values%energy_scale
+    state%entropy = values%entropy
+    state%entropy_scale = values%entropy_scale
+    state%conserved_count = values%conserved_count
+    state%conserved = values%conserved
+    state%momentum_scale = values%momentum_scale
+  end function balanced_state_of
 
 end module split_run_setup

@@ -15,8 +15,8 @@ module time_loop_steps
   implicit none (type, external)
   private
   public :: run_observer, line_reporter, exit_status, failure_code_of, record_failure
-  public :: step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error
-  public :: accumulate_step, lower_min_temperature, complete_if_finished
+  public :: step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, fail_write
+  public :: accumulate_step, lower_min_temperature, note_balance_figures, complete_if_finished
 
   !> Something that wants control after every accepted step (the ensemble's scheduler serves
   !> other ranks from there while rank 0 computes a case).
@@ -166,6 +166,18 @@ contains
     summary%status = 'incomplete: PETSc error in step '//integer_text(step)
   end subroutine note_petsc_error
 
+  !> The output file `part` could not be written (`message`: why): the run stops, its status and
+  !> failure (failure_io) say so.
+  pure subroutine fail_write(failure, summary, part, input_file, message)
+    type(failure_type), intent(inout) :: failure
+    type(run_summary), intent(inout) :: summary
+    character(len=*), intent(in) :: part, input_file, message
+
+    summary%status = 'incomplete: cannot write the output file: '//message
+    call record_failure(failure, summary, failure_io, 'cannot write the output file '''//part//''' ('//input_file// &
+                        '): '//message, input_file)
+  end subroutine fail_write
+
   !> The summary after accepted step `step`: its Newton iterations (a failed step's are not
   !> counted), halvings and rejections, and the run's extremes: the energy's drift
   !> (|E - E_0 - Q| / |E_0|), the smallest entropy and largest V increment of a step, the largest
@@ -201,6 +213,15 @@ contains
       summary%min_temperature = min(summary%min_temperature, minval(theta))
     end if
   end subroutine lower_min_temperature
+
+  !> The run's largest balance figures (those the model has: `has_balance`), with an accepted step's.
+  pure subroutine note_balance_figures(summary, has_balance, figures)
+    type(run_summary), intent(inout) :: summary
+    logical, intent(in) :: has_balance(:)
+    real(real64), intent(in) :: figures(:)
+
+    where (has_balance) summary%max_balance = max(summary%max_balance, figures)
+  end subroutine note_balance_figures
 
   !> A run that finished after `steps` steps, each completed, and met no failure is complete; an
   !> integrator that chose its steps planned t_end/dt of them and took `steps` (a fixed step's
