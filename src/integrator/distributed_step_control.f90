@@ -233,7 +233,7 @@ contains
     end if
     allocate (f_new(size(z_old)))
     do attempt = 1, max_rejections_per_step + 1
-      call self%controller%trial_step(self%time, self%t_end, h, landing)
+      call self%controller%trial_step(self%time, min(self%t_end, self%stop_time), h, landing)
       if (h < rejection_underflow*max(1.0_real64, abs(self%time))) then
         reason = 'step-size underflow: the trial step fell below '//scientific_text(h)//' s (last rejection: '// &
                  reason//')'
@@ -279,13 +279,13 @@ contains
       end if
       h_unshortened = self%controller%h
       call self%controller%accept(h, err)
-      ! A step shortened to land on t_end does not shrink the next one.
+      ! A step shortened to land on t_end (or an output time) does not shrink the next one.
       if (landing) self%controller%h = max(self%controller%h, h_unshortened)
       outcome%converged = .true.
       reason = ''
       self%field = f_new
       self%time = self%time + h
-      if (landing) self%time = self%t_end
+      if (landing) self%time = min(self%t_end, self%stop_time)
       exit
     end do
     call finish_outcome()

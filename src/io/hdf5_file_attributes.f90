@@ -85,7 +85,7 @@ contains
     logical :: write, fresh
 
     call compare_with_template(self%template, name, 'v'//bytes_of(values), write, fresh, self%fresh, self%deferred)
-    if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, failure)
+    if (write) call write_numeric_attribute(self%id, name, values, .false., fresh, failure, row_length=row_length)
     if (.not. failure%failed() .and. present(units)) call self%set_text(name//'_units', units, failure)
   end procedure set_reals
 
@@ -160,18 +160,23 @@ contains
     call hdf5_failure(failure, stat, name)
   end procedure get_reals
 
-  !> A numeric attribute of `object`: a scalar or an array of `values`, stored as integers if
+  !> A numeric attribute of `object`: a scalar or an array of `values` (with `row_length`, rows of
+  !> that many values: h5py's shape (size(values)/row_length, row_length)), stored as integers if
   !> `integer_valued`; an existing one is rewritten in place if it holds as many values, else
   !> replaced (`fresh`: the object has no attributes yet, nothing to look up).
   module procedure write_numeric_attribute
     integer(hid_t) :: space, attribute
-    integer(hsize_t) :: dims(1), points
+    integer(hsize_t), allocatable :: dims(:)
+    integer(hsize_t) :: points
     logical :: exists, as_integer
     integer :: stat, ignored, close_stat
 
     as_integer = .false.
     if (present(integer_valued)) as_integer = integer_valued
     dims = [int(size(values), hsize_t)]
+    if (present(row_length)) then
+      if (row_length > 0) dims = [int(row_length, hsize_t), int(size(values)/row_length, hsize_t)]
+    end if
     stat = 0
     steps: block
       if (.not. fresh) then
@@ -197,7 +202,7 @@ contains
       if (scalar) then
         call h5screate_f(H5S_SCALAR_F, space, stat)
       else
-        call h5screate_simple_f(1, dims, space, stat)
+        call h5screate_simple_f(size(dims), dims, space, stat)
       end if
       if (stat /= 0) exit steps
       if (as_integer) then

@@ -301,12 +301,14 @@ module hdf5_files
       type(failure_type), intent(out) :: failure
       character(len=*), intent(in), optional :: units
     end subroutine set_real
-    module subroutine set_reals(self, name, values, failure, units)
+    module subroutine set_reals(self, name, values, failure, units, row_length)
       class(hdf5_file), intent(in) :: self
       character(len=*), intent(in) :: name
       real(real64), intent(in) :: values(:)
       type(failure_type), intent(out) :: failure
       character(len=*), intent(in), optional :: units
+      !> stored as rows of this many values (a 2D attribute of size(values)/row_length rows)
+      integer, intent(in), optional :: row_length
     end subroutine set_reals
     module subroutine set_integer(self, name, value, failure, units)
       class(hdf5_file), intent(in) :: self
@@ -334,13 +336,14 @@ module hdf5_files
       real(real64), allocatable, intent(out) :: values(:)
       type(failure_type), intent(out) :: failure
     end subroutine get_reals
-    module subroutine write_numeric_attribute(object, name, values, scalar, fresh, failure, integer_valued)
+    module subroutine write_numeric_attribute(object, name, values, scalar, fresh, failure, integer_valued, row_length)
       integer(hid_t), intent(in) :: object
       character(len=*), intent(in) :: name
       real(real64), intent(in) :: values(:)
       logical, intent(in) :: scalar, fresh
       type(failure_type), intent(out) :: failure
       logical, intent(in), optional :: integer_valued
+      integer, intent(in), optional :: row_length
     end subroutine write_numeric_attribute
   end interface
 

@@ -395,7 +395,8 @@ contains
                     'datasets (with the shuffle filter)', minimum=0), &
       integer_field('snapshot_every', config%snapshot_every, 'an integer >= 0 (default 0: the first and last '// &
                     'states only): a run split over ranks (a spring chain on the sparse path) writes the state '// &
-                    'to /snapshots at t = 0, every K-th step and the last; other runs keep it in /state', minimum=0)]
+                    'to /snapshots at t = 0, every K-th step and the last (with interval: at the output times '// &
+                    'instead, and this is left out); other runs keep it in /state', minimum=0)]
   end function output_fields
 
   !> Whether fields `name_a` and `name_b` of the eme_run groups set the same variable: the same

@@ -88,6 +88,9 @@ module distributed_model
 
   !> A model split over ranks.
   type, abstract :: distributed_system
+    !> A step of the system's own size does not pass this time (the next output time of
+    !> &output interval; the time loop sets it before each step), as time_stepper's stop_time.
+    real(real64) :: stop_time = huge(1.0_real64)
   contains
     procedure(start_interface), deferred :: start
     procedure(step_interface), deferred :: step

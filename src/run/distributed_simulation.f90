@@ -10,7 +10,8 @@
 !> scalars (E, S, V, the angular momentum J, Newton's iterations, the residual, the step's smallest
 !> viscous and conduction entropy production), not the state: the state goes to /snapshots
 !> (src/io/hdf5_snapshots), every rank writing its own part with parallel HDF5, every
-!> `&output snapshot_every`-th step and the last. A snapshot reaches the file in a window of the
+!> `&output snapshot_every`-th step and the last, or, with &output interval (adaptive steps, which
+!> then land on every output time as on the dense path), at every output time. A snapshot reaches the file in a window of the
 !> crash-safe writer: rank 0 closes the window's spare, all ranks append the snapshots the spare
 !> lacks, and only then does the spare take the file's name, so that a kill leaves the file of
 !> the last window, snapshots included. The model's system steps by the input's integrator (the
@@ -42,7 +43,8 @@ module distributed_simulation
   use run_file_steps, only: continuation_wanted, prepare_output, name_finished_file
   use time_loop_steps, only: run_observer, line_reporter, record_failure, step_budget_spent, stop_before_step, &
                              land_step, step_status, fail_step, note_petsc_error, fail_write, accumulate_step, &
-                             lower_min_temperature, note_balance_figures, complete_if_finished
+                             lower_min_temperature, note_balance_figures, complete_if_finished, &
+                             next_output_stop, pass_output_times
   use split_run_setup, only: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, &
                              split_diagnostics, report_step, balanced_state_of
   use snapshot_windows, only: held_snapshot, snapshot_window, transfer_part, tau_dataset
@@ -108,6 +110,8 @@ contains
     integer :: rank, every, stop_flags(3)
     logical :: checked(balance_count), has_balance(balance_count), found, finished, writing, continuing, completed
     logical :: keeping                !! the run has a file (keep_file)
+    integer :: outputs_passed         !! output times (&output interval) reached so far
+    logical :: row_due                !! the step reached the next output time
     type(extra_attribute), allocatable :: added(:)
     type(MPI_Comm) :: communicator
 
@@ -189,7 +193,7 @@ contains
         if (io_failure%failed()) call fail(failure_io, "cannot continue the output file '"//part//"' ("// &
                                            config%input_file//'): '//io_failure%message)
       else
-        call record_point(0.0_real64)
+        call record_point(0.0_real64, .true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) call fail(failure_io, 'cannot write the output file '''//part//''' ('// &
                                            config%input_file//'): '//io_failure%message)
@@ -202,6 +206,9 @@ contains
     end if
     writing = keeping
     if (.not. continuing) call hold_snapshot()
+    ! Output times already passed (a continued run's, from the time its snapshot stands at).
+    outputs_passed = 0
+    call pass_output_times(time, config%output_interval, outputs_passed, row_due)
     call timer%begin_loop()
     finished = .false.
     do while (.not. finished)
@@ -218,6 +225,10 @@ contains
         exit
       end if
       n = n + 1
+      ! With &output interval a chosen step lands on the next output time when it reaches it
+      ! (one within rounding of t_end is t_end), as on the dense path.
+      if (config%output_interval > 0.0_real64) &
+        system%stop_time = next_output_stop(outputs_passed, config%output_interval, config%integrator%t_end)
       call system_clock(step_start)
       call system%step(dt, outcome, step_failure)
       call system_clock(step_end)
@@ -254,13 +265,14 @@ contains
                            abs(energy_change)/abs(figures_0%energy), values%delta_entropy, dv, &
                            abs(conserved_change(1:values%conserved_count)))
       if (model%temperature_count() > 0) call lower_min_temperature(summary, [values%min_temperature])
+      call pass_output_times(time, config%output_interval, outputs_passed, row_due)
       if (rank == 0) then
         call report_step(outcome, values, report)
         call output%record_step(n, time, report, [real(real64) ::], step_seconds, values%delta_entropy, dv, figures, &
                                 has_balance, .false.)
-        call record_point(time)
+        call record_point(time, row_due)
       end if
-      if (finished) then
+      if (finished .or. row_due) then
         call hold_snapshot()
       else if (every > 0) then
         if (mod(n, int(every, int64)) == 0) call hold_snapshot()
@@ -274,8 +286,11 @@ contains
     call complete_if_finished(summary, finished, n, completed)
     if (completed) summary%warnings = system%accuracy_warnings()
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
-    ! did not converge left it there; one whose state broke a balance did not).
-    if (state_step == summary%steps_completed .and. snapshot_step /= state_step) then
+    ! did not converge left it there; one whose state broke a balance did not). With an interval
+    ! the file holds the output times' states only (as the dense path's rows), and a continued
+    ! run starts from the last of them, where its resume record stands.
+    if (state_step == summary%steps_completed .and. snapshot_step /= state_step .and. &
+        config%output_interval <= 0.0_real64) then
       time = state_time
       call hold_snapshot()
     end if
@@ -322,16 +337,16 @@ contains
     end subroutine check_step
 
     ! One point row (rank 0): the state's scalars, from `values`; the model's momenta are J's last
-    ! momentum_count() components (J in 3D, J_z in 2D, none in 1D).
-    ! (&output interval, which lands rows on output times, is refused on this path: the rows
-    ! follow &output every, of accepted steps when the integrator chooses them.)
-    subroutine record_point(time)
+    ! momentum_count() components (J in 3D, J_z in 2D, none in 1D). The rows follow &output every
+    ! (of accepted steps when the integrator chooses them), or the output times (`row_due`).
+    subroutine record_point(time, row_due)
       real(real64), intent(in) :: time
+      logical, intent(in) :: row_due
 
       call output%record_point(time, [real(real64) ::], [real(real64) ::], values%energy, values%entropy, &
                                values%energy - config%theta_r*values%entropy, &
                                values%angular_momentum(4 - model%momentum_count():), 0.0_real64, [real(real64) ::], &
-                               .false.)
+                               row_due)
     end subroutine record_point
 
     ! The rank's part of the state (the end of step state_step, at `time`), held for the next

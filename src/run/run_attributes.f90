@@ -85,12 +85,23 @@ contains
     if (.not. failure%failed()) call file%set_real('output_interval', config%output_interval, failure, units='s')
     if (.not. failure%failed()) call file%set_integer('compression', config%compression, failure, units='1')
     if (.not. failure%failed()) call file%set_integer('snapshot_every', config%snapshot_every, failure, units='1')
-    do a = 1, model%subsystem_count()
-      associate (part => model%subsystems(a))
-        if (.not. failure%failed()) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, failure, &
-                                           units='those of the subsystem''s invariants (attribute metric)')
-      end associate
-    end do
+    ! The metric's scales: one attribute per subsystem for the scene-sized models (at most two
+    ! subsystems, named: metric_scale_spring1), one of a row per subsystem beyond (a chain of N
+    ! springs: metric_scale, N x n; 2 N attributes would crowd the file's root at 1e5 springs).
+    if (model%subsystem_count() > 2 .and. all([(size(model%subsystems(a)%metric_scale), a=1, model%subsystem_count())] &
+                                              == size(model%subsystems(1)%metric_scale))) then
+      if (.not. failure%failed()) &
+        call file%set_reals('metric_scale', [(model%subsystems(a)%metric_scale, a=1, model%subsystem_count())], failure, &
+                            units='those of the subsystems'' invariants (attribute metric), a row per subsystem', &
+                            row_length=size(model%subsystems(1)%metric_scale))
+    else
+      do a = 1, model%subsystem_count()
+        associate (part => model%subsystems(a))
+          if (.not. failure%failed()) call file%set_reals('metric_scale_'//squeezed(part%name), part%metric_scale, &
+                                             failure, units='those of the subsystem''s invariants (attribute metric)')
+        end associate
+      end do
+    end if
     call config%scene%group_names(groups)
     do g = 1, size(groups)
       call field_attributes(config%scene%fields(trim(groups(g))))

@@ -21,7 +21,8 @@ module simulation
   use run_file_steps, only: continuation_wanted, prepare_output, holds_complete_run, name_finished_file
   use time_loop_steps, only: run_observer, line_reporter, exit_status, failure_code_of, record_failure, &
                              step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, fail_write, &
-                             accumulate_step, note_balance_figures, complete_if_finished
+                             accumulate_step, note_balance_figures, complete_if_finished, &
+                             next_output_stop, pass_output_times
   use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_input, &
                          failure_io, failure_library, failure_balance
   use step_balances, only: balance_count, applicable_balances
@@ -230,12 +231,8 @@ contains
       if (.not. chooses_time) time = (n - 1)*dt
       time_old = time
       ! With &output interval the step lands on the next output time when it reaches it.
-      if (config%output_interval > 0.0_real64) then
-        ! An output time within rounding of t_end (199*0.3 = 59.699999999999996 for t_end = 59.7) is
-        ! t_end: else the run lands there and is left a sliver of 7e-15 s to step.
-        integrator%stop_time = (outputs_passed + 1)*config%output_interval
-        if (integrator%stop_time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))) integrator%stop_time = t_end
-      end if
+      if (config%output_interval > 0.0_real64) &
+        integrator%stop_time = next_output_stop(outputs_passed, config%output_interval, t_end)
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call system_clock(step_start)
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, step_failure)
@@ -261,12 +258,7 @@ contains
       call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(timer%rate, real64), &
                               seen%entropy - entropy_old, seen%lyapunov - lyapunov_old, figures, has_balance, &
                               resolved)
-      row_due = .false.
-      do while (config%output_interval > 0.0_real64 .and. &
-                time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
-        outputs_passed = outputs_passed + 1
-        row_due = .true.
-      end do
+      call pass_output_times(time, config%output_interval, outputs_passed, row_due)
       call record_point(time, x(1:n_state), row_due)
       ! Newton iterations per step: those of the completed steps over their number, as
       ! newton_iterations_total / steps_completed in the file; the conserved components' drift

@@ -69,8 +69,9 @@ contains
 
   !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps
   !> under the dense path's control (src/integrator/distributed_step_control: halving, adaptive
-  !> steps), others as the scene gives them; a failure (failure_input) for &output interval,
-  !> which the split path's rows do not follow.
+  !> steps), others as the scene gives them; a failure (failure_input) for &output interval
+  !> unless the steps are chosen (&integrator tolerance with EME or the midpoint rule: a relaxed
+  !> scheme's steps land on n dt here), or with snapshot_every as well.
   subroutine split_system(config, system, failure)
     type(run_configuration), intent(in) :: config
     class(distributed_system), allocatable, intent(out) :: system
@@ -79,14 +80,22 @@ contains
     type(controlled_system), allocatable :: controlled
     logical :: found
 
+    call find_integrator(config%integrator%scheme, entry, found)
     if (config%output_interval > 0.0_real64) then
-      call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
-                       'writes its rows every &output every accepted steps, not at output times; allowed: leave it '// &
-                       'out (0)', 'interval')
-      return
+      if (.not. (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)) then
+        call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
+                         'lands on output times only with steps it chooses (&integrator tolerance with scheme = '// &
+                         '''eme'' or ''midpoint''); scheme = '''//trim(config%integrator%scheme)//''' steps on n dt '// &
+                         'here; allowed: leave it out (0), or give a tolerance', 'interval')
+        return
+      else if (config%snapshot_every > 0) then
+        call set_failure(failure, code_input, config%input_file//', &output: interval and snapshot_every both '// &
+                         'given: with an interval the snapshots are taken at the output times; allowed: one of them', &
+                         'snapshot_every')
+        return
+      end if
     end if
     call config%scene%distributed(config%integrator%scheme, system)
-    call find_integrator(config%integrator%scheme, entry, found)
     if (.not. found .or. entry%family /= family_discrete_gradient) return
     allocate (controlled)
     call move_alloc(system, controlled%inner)

@@ -17,6 +17,7 @@ module time_loop_steps
   public :: run_observer, line_reporter, exit_status, failure_code_of, record_failure
   public :: step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, fail_write
   public :: accumulate_step, lower_min_temperature, note_balance_figures, complete_if_finished
+  public :: next_output_stop, pass_output_times
 
   !> Something that wants control after every accepted step (the ensemble's scheduler serves
   !> other ranks from there while rank 0 computes a case).
@@ -135,6 +136,32 @@ contains
       finished = step == steps_planned
     end if
   end subroutine land_step
+
+  !> Where a step that chooses its time stops with &output interval (`interval`): at the next output
+  !> time after `outputs_passed`, or at t_end when that is within rounding of it (199*0.3 =
+  !> 59.699999999999996 for t_end = 59.7: else the run lands there and is left a sliver of 7e-15 s).
+  pure real(real64) function next_output_stop(outputs_passed, interval, t_end) result(stop_time)
+    integer, intent(in) :: outputs_passed
+    real(real64), intent(in) :: interval, t_end
+
+    stop_time = (outputs_passed + 1)*interval
+    if (stop_time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))) stop_time = t_end
+  end function next_output_stop
+
+  !> Counts the output times of &output interval (`interval`, 0: none) that `time` reached (within
+  !> 8 ulps) into `outputs_passed`; `reached` if it reached one (its point is then written).
+  pure subroutine pass_output_times(time, interval, outputs_passed, reached)
+    real(real64), intent(in) :: time, interval
+    integer, intent(inout) :: outputs_passed
+    logical, intent(out) :: reached
+
+    reached = .false.
+    if (interval <= 0.0_real64) return
+    do while (time >= (outputs_passed + 1)*interval*(1.0_real64 - 8*epsilon(1.0_real64)))
+      outputs_passed = outputs_passed + 1
+      reached = .true.
+    end do
+  end subroutine pass_output_times
 
   !> The status of a run that stopped at step `step` (ending at `time`) for `reason`.
   pure function step_status(step, time, reason) result(status)

@@ -10,14 +10,17 @@ steps and "On the split path"):
   of two steps of dt/2, bit for bit, and the counts (substeps, halved_steps) say so;
 - an adaptive split run stopped by its step budget and continued with -eme_continue ends with the
   uninterrupted run's file, bit for bit (the controller's state is in the resume record);
-- &output interval is refused on the split path (exit 2, nothing written)."""
+- with &output interval the adaptive steps land on every output time, as the dense path's do: the
+  same steps, rows and snapshots at the output times, states as the dense rows; an interval with
+  a scheme whose steps land on n dt on this path, or with snapshot_every, is refused (exit 2,
+  nothing written)."""
 import h5py
 import numpy as np
 import pytest
 
 from conftest import run_eme
 from test_spring_chain_sparse import chain_groups, rod_groups
-from test_split_runs import assert_continued_equals, run_split, write_input
+from test_split_runs import assert_continued_equals, run_split, snapshot_rows, write_input
 
 
 def adaptive_chain():
@@ -178,10 +181,91 @@ def test_a_continued_adaptive_split_run_is_the_uninterrupted_run(tmp_path):
         assert np.array_equal(full.attrs["run_figures"], continued.attrs["run_figures"], equal_nan=True)
 
 
-def test_output_interval_is_refused_on_the_split_path(tmp_path):
+def test_an_adaptive_split_run_lands_on_the_output_times_as_the_dense_one(tmp_path):
+    """The small chain at tolerance 1e-4 with &output interval = 0.05 s on two ranks against the
+    dense path: the steps are shortened to land on 0.05, 0.1, 0.15 and 0.2 s (the rows are those
+    times exactly, computed as k * 0.05 on both paths), the split run holds a snapshot at each of
+    them, and its states there are the dense path's rows to 1e-8 of max(1, |z|): the step sizes
+    agree to 1e-8 relative as in the run without an interval (the roots differ at Newton's
+    floor); every accepted step is checked and kept, as without an interval."""
     groups = adaptive_chain()
     groups["output"] = {"interval": 0.05}
+    result, dense_file = run_eme(tmp_path, "dense", groups)
+    assert result.returncode == 0, result.stderr
+    result, split_file = run_split(tmp_path, "split", groups)
+    assert result.returncode == 0, result.stderr
+    output_times = [k * 0.05 for k in range(1, 4)] + [0.2]
+    with h5py.File(dense_file, "r") as dense, h5py.File(split_file, "r") as split:
+        assert split.attrs["status"] == "complete" and split.attrs["failure_kind"] == "none"
+        assert np.array_equal(dense["time"][()], [0.0] + output_times)
+        assert np.array_equal(split["time"][()], dense["time"][()])
+        assert np.array_equal(split["snapshots/time"][()], dense["time"][()])
+        # The accepted steps end on each output time (the cumulated step sizes pass through them).
+        ends = np.cumsum(split["step_size"][()])
+        for t in output_times:
+            assert np.min(np.abs(ends - t)) <= 1e-12, t
+        assert split.attrs["steps_completed"] == dense.attrs["steps_completed"]
+        a, b = dense["step_size"][()], split["step_size"][()]
+        assert np.max(np.abs(a - b)) <= 1e-8 * np.max(a)
+        for name in ("energy", "entropy"):
+            a, b = dense[name][()], split[name][()]
+            assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(a)), name
+        for row in range(len(output_times) + 1):
+            q, p, gamma, theta = snapshot_rows(dense["state"][row], 12, 1, True)
+            for name, expected in (("q", q), ("p", p), ("gamma", gamma), ("theta", theta)):
+                got = split[f"snapshots/{name}"][row]
+                assert np.max(np.abs(got - expected)) <= 1e-8 * max(1.0, np.max(np.abs(expected))), (name, row)
+        balance = split["balance"][()]
+        assert np.all(balance[np.isfinite(balance)] <= 32.0)
+        assert np.all(np.diff(split["entropy"][()]) >= 0.0)
+        assert np.all(split["min_viscous_production"][()] >= 0.0) and np.all(split["min_link_production"][()] >= 0.0)
+
+
+def test_a_continued_split_run_with_an_output_interval_is_the_uninterrupted_run(tmp_path):
+    """The adaptive rod on two ranks with &output interval = 0.5 ms, stopped by its step budget
+    between two output times: its rows go to the stop, its snapshots are those of the output
+    times (its resume record stands at the last of them, as the dense path's); continued, it
+    takes the steps from there again and ends with the uninterrupted run's file, bit for bit (the
+    output times already passed follow from the time it starts at)."""
+    groups = adaptive_rod()
+    groups["output"] = {"interval": 5.0e-4}
+    stopped = {key: dict(fields) for key, fields in groups.items()}
+    stopped["integrator"]["max_steps"] = 30
+    result, continued_file = run_split(tmp_path, "continued", stopped)
+    assert result.returncode == 3, result.stderr
+    part = tmp_path / "continued.h5.part"
+    with h5py.File(part if part.exists() else continued_file, "r") as f:
+        assert f.attrs["failure_kind"] == "step_budget"
+        stopped_at = f["snapshots/time"][()]
+        assert np.array_equal(stopped_at, [0.0, 5.0e-4])
+        assert f["time"][-1] > stopped_at[-1] and f.attrs["resume_numbers"][0] < 30
+    full, full_file = run_split(tmp_path, "full", groups)
+    assert full.returncode == 0, full.stderr
+    with h5py.File(full_file, "r") as f:
+        assert np.array_equal(f["time"][()], [0.0, 5.0e-4, 1.0e-3, 3 * 5.0e-4, 2.0e-3])
+        assert np.array_equal(f["snapshots/time"][()], f["time"][()])
+        assert f.attrs["steps_completed"] > 30 and stopped_at[-1] < f["time"][-1]
+    resumed, _ = run_split(tmp_path, "continued", groups, 2, "-eme_continue")
+    assert resumed.returncode == 0, resumed.stderr
+    assert_continued_equals(full_file, continued_file, exact=True)
+    with h5py.File(full_file, "r") as full, h5py.File(continued_file, "r") as continued:
+        assert np.array_equal(full["time"][()], continued["time"][()])
+        assert np.array_equal(full["step_size"][()], continued["step_size"][()])
+
+
+@pytest.mark.parametrize("change, field", [({"integrator": {"scheme": "relaxed_rk4"}}, "interval"),
+                                           ({"output": {"snapshot_every": 2}}, "snapshot_every")])
+def test_an_output_interval_the_split_path_cannot_follow_is_refused(tmp_path, change, field):
+    """A relaxed scheme's steps land on n dt on the split path (its time is not relaxed there), so
+    an interval is refused for it; with an interval the snapshots are at the output times, so
+    snapshot_every as well is refused. Exit 2, the file and field named, nothing written."""
+    groups = adaptive_chain()
+    groups["output"] = {"interval": 0.05}
+    for group, fields in change.items():
+        groups[group].update(fields)
+    if "scheme" in change.get("integrator", {}):
+        del groups["integrator"]["tolerance"]
     result, _ = run_split(tmp_path, "refused", groups)
     assert result.returncode == 2, result.stderr
-    assert "&output: interval" in result.stderr and "refused.nml" in result.stderr
+    assert "&output: interval" in result.stderr and "refused.nml" in result.stderr and field in result.stderr
     assert not list(tmp_path.glob("refused.h5*"))

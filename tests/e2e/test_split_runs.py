@@ -326,3 +326,29 @@ def test_a_lock_removed_during_a_split_run_stops_it(tmp_path):
     with h5py.File(part, "r") as f:
         assert f.attrs["status"] == f"incomplete: the lock {output}.lock was removed or replaced while the run wrote"
         assert f["snapshots/time"][-1] == f["time"][-1]
+
+
+def test_a_chain_file_holds_its_metric_scales_as_one_row_per_spring(tmp_path):
+    """A chain of 13 springs (fixed-fixed, 12 masses) of unlike natural lengths and heat capacities,
+    EME in the entropy: both paths write the discrete gradients' metric scales as one attribute
+    `metric_scale` of a row per spring, (l0_a^2, 1 m, Cap_a) with Cap_a = (1 + beta_v) c0_a
+    (docs/formulation.md sections 3 and 5), not 26 attributes metric_scale_spring<a>[_units]; a
+    double pendulum keeps its two named ones."""
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", variable="entropy", steps=1, dt=0.005)
+    lengths = [1.0 + 0.01 * a for a in range(13)]
+    capacities = [10.0 + a for a in range(13)]
+    groups["model"].update(natural_length=lengths, heat_capacity=capacities, span=1.1 * sum(lengths))
+    expected = np.column_stack([np.square(lengths), np.ones(13), 1.5 * np.array(capacities)])
+    for name, run in (("dense", lambda: run_eme(tmp_path, "dense", groups)),
+                      ("split", lambda: run_split(tmp_path, "split", groups))):
+        result, output = run()
+        assert result.returncode == 0, result.stderr
+        with h5py.File(output, "r") as f:
+            assert f.attrs["status"] == "complete", name
+            assert np.allclose(f.attrs["metric_scale"], expected, rtol=1e-15, atol=0.0), name
+            assert not [key for key in f.attrs if key.startswith("metric_scale_spring")], name
+    result, output = run_eme(tmp_path, "pendulum", {"integrator": {"dt": 0.01, "t_end": 0.01}})
+    assert result.returncode == 0, result.stderr
+    with h5py.File(output, "r") as f:
+        assert "metric_scale" not in f.attrs
+        assert f.attrs["metric_scale_spring1"].shape == (2,) and f.attrs["metric_scale_spring2"].shape == (3,)
