@@ -11,7 +11,6 @@
 !> file (docs/faults.md, Continuing a run).
 module simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_settings, only: step_count
@@ -19,72 +18,33 @@ module simulation
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute, resume_record
-  use run_continuation, only: find_resume_record
-  use run_outcome, only: run_summary, step_failure_kind, open_summary, summarize_model, close_summary, &
-                         failure_none, failure_solver, failure_domain, &
-                         failure_input, failure_io, failure_interrupted, failure_library, failure_step_budget, &
-                         failure_balance
-  use step_balances, only: balance_count, balanced_state, observe_balances, balance_figures, applicable_balances
+  use run_file_steps, only: continuation_wanted, prepare_output, holds_complete_run, name_finished_file
+  use time_loop_steps, only: run_observer, line_reporter, exit_status, failure_code_of, record_failure, &
+                             step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, fail_write, &
+                             accumulate_step, note_balance_figures, complete_if_finished, &
+                             next_output_stop, pass_output_times
+  use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_input, &
+                         failure_io, failure_library, failure_balance
+  use step_balances, only: balance_count, applicable_balances
+  use dense_observation, only: state_observation
   use step_check, only: checked_balances, broken_balance, balance_text
-  use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
-  use hdf5_files, only: check_run_file, file_template
-  use output_path, only: check_output_path
+  use run_signals, only: install_interrupt_handlers, interrupting_signal
+  use run_options, only: petsc_options_in_force
+  use hdf5_files, only: file_template
   use command_line, only: petsc_error_text
-  use filesystem, only: make_parent_directories, rename_file, file_exists, output_lock, recheck_lock
+  use filesystem, only: output_lock, recheck_lock
   use number_text, only: integer_text, fixed_text
   use run_clock, only: run_timer
-  use failures, only: failure_type, set_failure => fail, code_input => failure_input, code_io => failure_io, &
-                      code_interrupted => failure_interrupted, code_library => failure_library
+  use dense_setup, only: dense_max_unknowns, set_up_only, check_dense_size, setup_failure_text
+  use failures, only: failure_type
   implicit none (type, external)
   private
   public :: run_summary, extra_attribute, run_simulation, run_observer, line_reporter, exit_status, set_up_only
   public :: dense_max_unknowns, holds_complete_run, failure_code_of
 
   real(real64), parameter :: progress_interval = 2.0_real64   !! seconds between progress lines
-  !> The most unknowns the dense solvers take: an 8 MB Jacobian, about 1e9 flops an LU.
-  integer, parameter :: dense_max_unknowns = 1000
-
-  !> Something that wants control after every accepted step (the ensemble's scheduler serves
-  !> other ranks from there while rank 0 computes a case).
-  type, abstract :: run_observer
-  contains
-    procedure(after_step_interface), deferred :: after_step
-  end type run_observer
-
-  abstract interface
-    !> Called after each accepted step.
-    subroutine after_step_interface(self)
-      import :: run_observer
-      class(run_observer), intent(inout) :: self
-    end subroutine after_step_interface
-
-    !> Receives a line for the user (progress, a study's start and warnings); the driver prints it.
-    subroutine line_reporter(text)
-      character(len=*), intent(in) :: text
-    end subroutine line_reporter
-  end interface
 
 contains
-
-  !> The exit status a driver gives a run: 0 complete, 3 stopped early by the method (solver,
-  !> domain), 2 input it cannot run, 1 output or library failure, 128 + N after signal N.
-  integer function exit_status(summary)
-    type(run_summary), intent(in) :: summary
-
-    select case (summary%failure_kind)
-    case (failure_none)
-      exit_status = 0
-    case (failure_solver, failure_domain, failure_step_budget, failure_balance)
-      exit_status = 3
-    case (failure_input)
-      exit_status = 2
-    case (failure_interrupted)
-      exit_status = 128 + interrupting_signal()
-    case default
-      exit_status = 1
-    end select
-  end function exit_status
 
   !> Runs `config` and writes its HDF5 file (none if keep_file is .false.: an index-only study).
   !> A failure (its code from the failure kind, its origin the input file), with a message naming
@@ -129,22 +89,21 @@ contains
     type(extra_attribute), allocatable :: added(:)
     type(resume_record) :: resume       !! the state a continued run starts from
     character(len=:), allocatable :: part, kind, text
-    real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), theta(:), residuals(:)
-    real(real64) :: energy, entropy, lyapunov, energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
-    real(real64), allocatable :: momentum(:)   !! the model's momenta at the state `observe` saw last
+    real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), residuals(:)
+    real(real64) :: energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
     real(real64), allocatable :: conserved_0(:)   !! the conserved momentum components at the initial state
-    ! The step check (src/run/step_check): the balances' quantities before and after the step,
-    ! the step's figures, which balances are checked, and which momenta are conserved.
-    type(balanced_state) :: balance_old, balance_new
+    ! The step check (src/run/step_check): the states before and after the step, the step's
+    ! figures, which balances are checked, and which momenta are conserved.
+    type(state_observation) :: seen
     real(real64) :: figures(balance_count), step_heat
     logical :: checked(balance_count), has_balance(balance_count), resolved
     real(real64) :: t_end, time_old
     integer(int64) :: step_start, step_end     !! the monotonic clock around the step (vDSO: ~20 ns a reading)
     type(run_timer) :: timer
     integer(int64) :: n             !! steps taken (accepted)
-    integer :: n_state, signal
+    integer :: n_state
     type(failure_type) :: step_failure, release_failure, io_failure
-    logical :: found, finished, writing, replace, chooses_time, row_due, continuing
+    logical :: found, finished, writing, chooses_time, row_due, continuing, completed
     logical :: lock_lost                !! the output's lock was removed or replaced (guard_lock)
     integer :: outputs_passed           !! output times (&output interval) reached so far
 
@@ -166,57 +125,19 @@ contains
       call fail(failure_input, config%input_file//': '//step_failure%message)
       return
     end if
-    continuing = .false.
+    ! Integrators that choose their times: those of the registry, and EME with a tolerance.
+    chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
+    continuing = continuation_wanted(writing, resume_if_possible)
     if (writing) then
-      if (present(resume_if_possible)) then
-        continuing = resume_if_possible
-      else
-        continuing = continue_requested()
-      end if
-    end if
-    if (continuing) then
-      call find_resume_record(config, entry%chooses_time .or. (config%integrator%tolerance_given .and. &
-                              entry%error_control), resume, kind, text)
+      call prepare_output(config, chooses_time, model%state_size + size(constraints), present(resume_if_possible), &
+                          continuing, resume, kind, text)
       if (len(kind) > 0) call fail(kind, text)
-      ! A split run's record stands at its last snapshot, with no state of its own.
-      if (.not. failure%failed() .and. size(resume%x) /= model%state_size + size(constraints)) &
-        call fail(failure_input, config%output_file//': its run was split over ranks (its state is in /snapshots)'// &
-                  ' and cannot be continued on the dense path ('//config%input_file//', -eme_continue); allowed: '// &
-                  'mpirun -n P eme_run with P > 1 (any P), which continues it from its last snapshot')
-      if (failure%failed() .and. present(resume_if_possible)) then
-        ! Nothing to continue from: the run starts from t = 0, as it would have.
-        failure = failure_type()
-        summary%failure_kind = failure_none
-        continuing = .false.
-      end if
-      if (failure%failed()) return
     end if
-    if (writing .and. .not. continuing) then
-      replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
-      if (config%overwrite) replace = .true.
-      call check_output_path(config%output_file, config%input_file, replace, io_failure)
-      if (io_failure%failed()) then
-        call fail(failure_input, io_failure%message)
-        return
-      end if
-      call make_parent_directories(config%output_file, io_failure)
-      if (io_failure%failed()) then
-        call fail(failure_io, 'cannot create the directory of the output file '''//config%output_file//''' (' &
-                  //config%input_file//', &output: file): '//io_failure%message)
-        return
-      end if
-      if (.not. replace) replace = .not. holds_complete_run(config%output_file)
-      if (.not. replace) then
-        call fail(failure_input, config%output_file//' holds a complete run, which is kept; to replace it, set '// &
-                  '&output overwrite = .true. in '//config%input_file//', give -eme_overwrite, or choose another '// &
-                  '&output file')
-        return
-      end if
-    end if
+    if (failure%failed()) return
     n_state = model%state_size
     ! The unknowns: the state and the multipliers of the active constraints (initial guess 0).
     allocate (x(n_state + size(constraints)), x_previous(n_state + size(constraints)), x_new(n_state + size(constraints)))
-    allocate (theta(model%temperature_count()), residuals(size(constraints)), momentum(model%momentum_count()))
+    allocate (residuals(size(constraints)))
     call summarize_model(summary, model)
     ! The conserved components at t = 0 (a continued run's too: its input builds the same z0).
     conserved_0 = model%conserved_momenta(z0)
@@ -289,8 +210,8 @@ contains
         return
       end if
     else
-      call observe(z0, energy, entropy, lyapunov)
-      energy_0 = energy
+      call observe(z0)
+      energy_0 = seen%energy
       call record_point(0.0_real64, z0, .true.)
       outputs_passed = 0
       x_previous = x
@@ -302,82 +223,49 @@ contains
     ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
     ! step lands on it), or until the step budget (&integrator max_steps) is spent.
     finished = .false.
-    ! Integrators that choose their times: those of the registry, and EME with a tolerance.
-    chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
     summary%steps_chosen = chooses_time
     do while (.not. finished)
-      signal = interrupting_signal()
-      if (signal /= 0) then
-        summary%status = 'incomplete: interrupted by '//signal_name(signal)
-        summary%failure_kind = failure_interrupted
-        exit
-      end if
-      if (n >= config%integrator%max_steps) then
-        summary%status = 'incomplete: the step budget is spent: '//integer_text(n)//' steps reached t = '// &
-                         fixed_text(time, 6)//' s of t_end = '//fixed_text(t_end, 6)//' s (raise &integrator max_steps)'
-        summary%failure_kind = failure_step_budget
-        exit
-      end if
+      if (stop_before_step(interrupting_signal(), step_budget_spent(n, config%integrator%max_steps), n, time, t_end, &
+                           summary)) exit
       n = n + 1
       if (.not. chooses_time) time = (n - 1)*dt
       time_old = time
       ! With &output interval the step lands on the next output time when it reaches it.
-      if (config%output_interval > 0.0_real64) then
-        ! An output time within rounding of t_end (199*0.3 = 59.699999999999996 for t_end = 59.7) is
-        ! t_end: else the run lands there and is left a sliver of 7e-15 s to step.
-        integrator%stop_time = (outputs_passed + 1)*config%output_interval
-        if (integrator%stop_time >= t_end*(1.0_real64 - 8*epsilon(1.0_real64))) integrator%stop_time = t_end
-      end if
+      if (config%output_interval > 0.0_real64) &
+        integrator%stop_time = next_output_stop(outputs_passed, config%output_interval, t_end)
       ! Predictor: linear extrapolation of the last step (the old state on the first step).
       call system_clock(step_start)
       call integrator%advance(x, time, dt, 2*x - x_previous, x_new, report, step_failure)
       call system_clock(step_end)
       if (step_failure%failed()) then
         call fail(failure_library, 'PETSc failed during the solve: '//petsc_error_text())
-        summary%status = 'incomplete: PETSc error in step '//integer_text(n)
+        call note_petsc_error(summary, n)
         exit
       end if
-      if (report%chose_time) then
-        time = report%time
-        finished = time >= t_end
-      else
-        time = n*dt
-        finished = n == summary%steps_planned
-      end if
+      call land_step(report%chose_time, report%time, n, dt, t_end, summary%steps_planned, time, finished)
       if (.not. report%accepted) then
-        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '//report%reason
-        summary%failure_kind = step_failure_kind(report%reason)
+        call fail_step(summary, n, time, report%reason)
         exit
       end if
       call check_step(resolved)
       if (failure%failed() .or. summary%failure_kind /= failure_none) exit
-      ! Newton iterations per step: those of the completed steps over their number (a failed
-      ! step's are not counted), as newton_iterations_total / steps_completed in the file.
-      summary%newton_iterations = summary%newton_iterations + report%newton_iterations
-      summary%halved_steps = summary%halved_steps + report%halvings
-      summary%rejected_steps = summary%rejected_steps + report%rejected_steps
       boundary_heat = boundary_heat + step_heat
-      entropy_old = entropy
-      lyapunov_old = lyapunov
+      entropy_old = seen%entropy
+      lyapunov_old = seen%lyapunov
       x_previous = x
       x = x_new
-      call take_observation(energy, entropy, lyapunov)
+      call seen%take(summary, config%theta_r)
       call output%record_step(n, time, report, x(n_state + 1:), real(step_end - step_start, real64)/real(timer%rate, real64), &
-                              entropy - entropy_old, lyapunov - lyapunov_old, figures, has_balance, resolved)
-      row_due = .false.
-      do while (config%output_interval > 0.0_real64 .and. &
-                time >= (outputs_passed + 1)*config%output_interval*(1.0_real64 - 8*epsilon(1.0_real64)))
-        outputs_passed = outputs_passed + 1
-        row_due = .true.
-      end do
+                              seen%entropy - entropy_old, seen%lyapunov - lyapunov_old, figures, has_balance, &
+                              resolved)
+      call pass_output_times(time, config%output_interval, outputs_passed, row_due)
       call record_point(time, x(1:n_state), row_due)
-      summary%steps_completed = n
-      summary%energy_drift = max(summary%energy_drift, abs(energy - energy_0 - boundary_heat)/abs(energy_0))
-      summary%min_entropy_increment = min(summary%min_entropy_increment, entropy - entropy_old)
-      summary%max_lyapunov_increment = max(summary%max_lyapunov_increment, lyapunov - lyapunov_old)
-      ! The conserved components' drift, from the step check's values of them (observe_balances).
-      if (size(conserved_0) > 0) summary%angular_momentum_drift = max(summary%angular_momentum_drift, &
-        maxval(abs(balance_new%conserved(1:size(conserved_0)) - conserved_0)))
+      ! Newton iterations per step: those of the completed steps over their number, as
+      ! newton_iterations_total / steps_completed in the file; the conserved components' drift
+      ! from the step check's values of them (observe_balances).
+      call accumulate_step(summary, n, report%newton_iterations, report%halvings, report%rejected_steps, &
+                           abs(seen%energy - energy_0 - boundary_heat)/abs(energy_0), seen%entropy - entropy_old, &
+                           seen%lyapunov - lyapunov_old, abs(seen%new%conserved(1:size(conserved_0)) - conserved_0))
       call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
                                     x_previous, integrator)
       if (output%write_due()) then
@@ -386,9 +274,7 @@ contains
         call set_times(.true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) then
-          summary%status = 'incomplete: cannot write the output file: '//io_failure%message
-          call fail(failure_io, 'cannot write the output file '''//part//''' ('//config%input_file//'): ' &
-                    //io_failure%message)
+          call fail_write(failure, summary, part, config%input_file, io_failure%message)
           exit
         end if
       end if
@@ -397,12 +283,8 @@ contains
     end do
     call close_summary(summary, model, has_balance)
     call set_times(.true.)
-    if (finished .and. summary%steps_completed == n .and. summary%failure_kind == failure_none) then
-      summary%status = 'complete'
-      summary%warnings = integrator%accuracy_warnings()
-      ! An integrator that chooses its times planned t_end/dt steps; it took n.
-      summary%steps_planned = n
-    end if
+    call complete_if_finished(summary, finished, n, completed)
+    if (completed) summary%warnings = integrator%accuracy_warnings()
     if (.not. present(reusable)) then
       call integrator%release(release_failure)
       if (release_failure%failed()) call fail(failure_library, 'PETSc failed to free the solver: '//petsc_error_text())
@@ -430,7 +312,7 @@ contains
       x = record%x
       x_previous = record%x_previous
       call record%restore_summary(summary)
-      call observe(x(1:n_state), energy, entropy, lyapunov)
+      call observe(x(1:n_state))
       summary%min_temperature = record%summary%min_temperature
     end subroutine restore
 
@@ -438,9 +320,7 @@ contains
     subroutine fail(kind, text)
       character(len=*), intent(in) :: kind, text
 
-      if (failure%failed()) return
-      call set_failure(failure, failure_code_of(kind), text, config%input_file)
-      summary%failure_kind = kind
+      call record_failure(failure, summary, kind, text, config%input_file)
     end subroutine fail
 
     ! The whole run's seconds so far, and the time loop's while it runs (src/run/run_clock).
@@ -450,39 +330,13 @@ contains
       call timer%note_times(summary, in_loop)
     end subroutine set_times
 
-    ! The balances' quantities at z (into balance_new) and its temperatures (into theta).
-    subroutine observe_state(z)
+    ! Looks at the state z and takes it (its E, S, V into `seen`).
+    subroutine observe(z)
       real(real64), intent(in) :: z(:)
-      integer :: domain
 
-      momentum = model%momenta(z)
-      call observe_balances(model, z, balance_new, theta, domain, momentum)
-    end subroutine observe_state
-
-    subroutine observe(z, energy, entropy, lyapunov)
-      real(real64), intent(in) :: z(:)
-      real(real64), intent(out) :: energy, entropy, lyapunov
-
-      call observe_state(z)
-      call take_observation(energy, entropy, lyapunov)
+      call seen%look(model, z)
+      call seen%take(summary, config%theta_r)
     end subroutine observe
-
-    ! The figures of the state observe_state saw last (balance_new, theta), which becomes the
-    ! old state of the next step's check.
-    subroutine take_observation(energy, entropy, lyapunov)
-      real(real64), intent(out) :: energy, entropy, lyapunov
-
-      energy = balance_new%energy
-      entropy = balance_new%entropy
-      balance_old = balance_new
-      lyapunov = energy - config%theta_r*entropy
-      ! The lowest temperature so far; NaN (for good) once a temperature is not finite.
-      if (.not. all(abs(theta) <= huge(1.0_real64))) then
-        summary%min_temperature = ieee_value(1.0_real64, ieee_quiet_nan)
-      else if (.not. ieee_is_nan(summary%min_temperature)) then
-        summary%min_temperature = min(summary%min_temperature, minval(theta))
-      end if
-    end subroutine take_observation
 
     ! The check of the step the integrator just accepted, from x to x_new (src/run/step_check):
     ! its heat through the constraints (step_heat; a multiplier is the step's mean rate, lambda_2 a
@@ -496,10 +350,10 @@ contains
       type(failure_type) :: resolving
 
       resolved = .false.
-      call measure()
+      call seen%measure(model, constraints, x_new, time - time_old, has_balance, config%theta_r, step_heat, figures)
       broken = broken_balance(figures, checked, report%halvings + 1)
       if (broken == 0) then
-        call note_figures()
+        call note_balance_figures(summary, has_balance, figures)
         return
       end if
       resolved = .true.
@@ -509,43 +363,25 @@ contains
       report%newton_iterations = report%newton_iterations + first_iterations
       if (resolving%failed()) then
         call fail(failure_library, 'PETSc failed during the solve: '//petsc_error_text())
-        summary%status = 'incomplete: PETSc error in step '//integer_text(n)
+        call note_petsc_error(summary, n)
         return
       end if
       if (.not. report%accepted) then
-        summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
-                         balance_text(broken, figures)//'; solved again with the default solver settings: '// &
-                         report%reason
+        summary%status = step_status(n, time, balance_text(broken, figures)//'; solved again with the default '// &
+                                     'solver settings: '//report%reason)
         summary%failure_kind = failure_balance
         return
       end if
-      call measure()
+      call seen%measure(model, constraints, x_new, time - time_old, has_balance, config%theta_r, step_heat, figures)
       broken = broken_balance(figures, checked, report%halvings + 1)
       if (broken == 0) then
-        call note_figures()
+        call note_balance_figures(summary, has_balance, figures)
         return
       end if
-      summary%status = 'incomplete: step '//integer_text(n)//' (t = '//fixed_text(time, 4)//' s): '// &
-                       balance_text(broken, figures)//', also when solved again with the default solver settings'
+      summary%status = step_status(n, time, balance_text(broken, figures)//', also when solved again with the '// &
+                                   'default solver settings')
       summary%failure_kind = failure_balance
     end subroutine check_step
-
-    ! The run's largest figures, with an accepted step's.
-    subroutine note_figures()
-      where (has_balance) summary%max_balance = max(summary%max_balance, figures)
-    end subroutine note_figures
-
-    ! step_heat and the figures of the step from x to x_new; balance_new and theta become x_new's.
-    subroutine measure()
-      integer :: k
-
-      step_heat = 0.0_real64
-      do k = 1, size(constraints)
-        step_heat = step_heat + (time - time_old)*constraints(k)%item%heat_supply(x_new(n_state + k))
-      end do
-      call observe_state(x_new(1:n_state))
-      figures = balance_figures(has_balance, balance_old, balance_new, step_heat, config%theta_r)
-    end subroutine measure
 
     ! The first conserved component's initial value, which the resume record keeps (0 if none).
     real(real64) function first_conserved_0()
@@ -563,15 +399,15 @@ contains
       do k = 1, size(constraints)
         call constraints(k)%item%value(model, z, residuals(k), domain)
       end do
-      call output%record_point(time, z, theta, energy, entropy, lyapunov, momentum, boundary_heat, &
-                               residuals, row_due)
+      call output%record_point(time, z, seen%theta, seen%energy, seen%entropy, seen%lyapunov, seen%momentum, &
+                               boundary_heat, residuals, row_due)
     end subroutine record_point
 
     ! Writes the file's last rows and final attributes, reads it back, and gives it its final
     ! name; an incomplete run does not take the name of a complete one.
     subroutine close_output()
-      type(failure_type) :: finishing, renaming
-      character(len=:), allocatable :: kept
+      type(failure_type) :: finishing
+      character(len=:), allocatable :: kept, note, problem
 
       if (.not. writing) return
       call guard_lock()
@@ -590,18 +426,11 @@ contains
                   //finishing%message//kept)
         return
       end if
-      replace = summary%status == 'complete'
-      if (.not. replace) replace = .not. holds_complete_run(config%output_file)
-      if (.not. replace) then
-        if (.not. failure%failed()) summary%note = config%output_file//' keeps the earlier complete run; this run''s '// &
-                                                   'file is '//part
-        return
-      end if
-      call rename_file(part, config%output_file, renaming, sync=output%store%durable)
-      if (renaming%failed()) then
+      call name_finished_file(config, part, summary%status == 'complete', output%store%durable, note, problem)
+      if (.not. failure%failed() .and. len(note) > 0) summary%note = note
+      if (len(problem) > 0) then
         failure = failure_type()
-        call fail(failure_io, 'cannot rename '''//part//''' to '''//config%output_file//''' ('//config%input_file &
-                  //'): '//renaming%message)
+        call fail(failure_io, problem)
       end if
     end subroutine close_output
 
@@ -643,90 +472,5 @@ contains
     end subroutine report_progress
 
   end subroutine run_simulation
-
-  !> The failures' code of a run's failure kind (a word of run_outcome).
-  pure integer function failure_code_of(kind)
-    character(len=*), intent(in) :: kind
-
-    select case (kind)
-    case (failure_input)
-      failure_code_of = code_input
-    case (failure_io)
-      failure_code_of = code_io
-    case (failure_interrupted)
-      failure_code_of = code_interrupted
-    case default
-      failure_code_of = code_library
-    end select
-  end function failure_code_of
-
-  !> Sets up the run's integrator and frees it again, without integrating or writing anything:
-  !> every option it reads is read (PETSc's -help lists them), so the drivers call it before a
-  !> run to refuse bad PETSc options (an unknown type) with nothing written. A failure if the
-  !> scene cannot be built (its domain code) or PETSc fails (failure_library, in PETSc's words).
-  subroutine set_up_only(config, failure)
-    type(run_configuration), intent(in) :: config
-    type(failure_type), intent(out) :: failure
-    class(time_stepper), allocatable :: integrator
-    class(generic_model), allocatable :: model
-    type(constraint_slot), allocatable :: constraints(:)
-    type(integrator_entry) :: entry
-    real(real64), allocatable :: z0(:)
-    logical :: found
-    type(failure_type) :: release_failure, building
-
-    call find_integrator(config%integrator%scheme, entry, found)
-    call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
-    if (.not. building%failed()) call check_dense_size(size(z0), building)
-    if (building%failed()) then
-      ! The scene's words with the input file, as the time loop gives them.
-      call set_failure(failure, building%code, config%input_file//': '//building%message)
-      return
-    end if
-    call build_integrator(entry, integrator)
-    call integrator%start(config%integrator, model, constraints, z0, failure)
-    ! PETSc's own words say what was refused; the message is the whole story (the drivers print it
-    ! as before), so the PETSc procedure's origin is not added.
-    ! A refusal of the solver's own (failure_input) says what and why in its words.
-    if (failure%failed() .and. failure%code /= code_input) call set_failure(failure, code_input, setup_failure_text())
-    call integrator%release(release_failure)
-    if (.not. failure%failed() .and. release_failure%failed()) &
-      call set_failure(failure, code_library, 'PETSc could not free the solver: '//petsc_error_text(), &
-                       'set_up_only')
-  end subroutine set_up_only
-
-  ! Why the solver could not be set up: PETSc's own words (an unknown -snes_type, ...).
-  ! The time loop's solvers are dense (Jacobian and LU of state_size^2 numbers, state_size^3 work):
-  ! a larger model is refused before anything is allocated.
-  subroutine check_dense_size(unknowns, failure)
-    integer, intent(in) :: unknowns
-    type(failure_type), intent(inout) :: failure
-
-    if (unknowns <= dense_max_unknowns) return
-    call set_failure(failure, code_input, '&model: '//integer_text(unknowns)//' unknowns; the dense path (eme_run '// &
-                     'on one rank, an eme_ensemble case) takes at most '//integer_text(dense_max_unknowns)// &
-                     ' (state_size^2 memory, state_size^3 work); a longer spring chain runs on the sparse, '// &
-                     'distributed path: eme_run FILE.nml, or mpirun -n P eme_run FILE.nml (docs/performance.md)')
-  end subroutine check_dense_size
-
-  function setup_failure_text() result(text)
-    character(len=:), allocatable :: text
-
-    text = 'PETSc could not set up the solver with the options given: '//petsc_error_text()// &
-           '; allowed: the options of docs/running.md and PETSc''s own (eme_run FILE.nml -help lists them)'
-  end function setup_failure_text
-
-  !> Whether `path` is a run file that reads back complete.
-  logical function holds_complete_run(path)
-    character(len=*), intent(in) :: path
-    character(len=:), allocatable :: status
-    integer :: steps
-    type(failure_type) :: checking
-
-    holds_complete_run = .false.
-    if (.not. file_exists(path)) return
-    call check_run_file(path, status, steps, checking)
-    holds_complete_run = .not. checking%failed() .and. status == 'complete'
-  end function holds_complete_run
 
 end module simulation

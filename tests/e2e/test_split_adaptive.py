@@ -168,6 +168,7 @@ def test_a_continued_adaptive_split_run_is_the_uninterrupted_run(tmp_path):
     part = tmp_path / "continued.h5.part"
     with h5py.File(part if part.exists() else continued_file, "r") as f:
         assert f.attrs["failure_kind"] == "step_budget"
+        assert f.attrs["status"].startswith("incomplete: the step budget is spent: 30 steps reached t = ")
         stop_time = f["time"][-1]
         assert f["snapshots/time"][-1] == stop_time
     full, full_file = run_split(tmp_path, "full", groups)

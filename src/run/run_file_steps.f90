@@ -1,0 +1,168 @@
+!> The run file's steps that the dense run (src/run/simulation) and the split run
+!> (src/run/distributed_simulation) take alike, each written once: whether a run continues the
+!> one its file holds (and from which record), the output path's checks before a run that starts
+!> writes, and the name the finished file takes (docs/faults.md, Continuing a run; docs/output.md).
+module run_file_steps
+  use run_config, only: run_configuration
+  use run_output, only: resume_record
+  use run_continuation, only: find_resume_record
+  use run_outcome, only: failure_input, failure_io
+  use run_options, only: overwrite_requested, continue_requested
+  use hdf5_files, only: check_run_file
+  use output_path, only: check_output_path
+  use filesystem, only: make_parent_directories, rename_file, file_exists
+  use failures, only: failure_type
+  implicit none (type, external)
+  private
+  public :: continuation_wanted, prepare_output, holds_complete_run, name_finished_file
+
+contains
+
+  !> Whether a run with a file (`keeping`) should continue the run its file holds: as the caller
+  !> says (`resume_if_possible`: an ensemble's case, when it can) or as the command line asks
+  !> (-eme_continue); a run without a file never does.
+  logical function continuation_wanted(keeping, resume_if_possible) result(continuing)
+    logical, intent(in) :: keeping
+    logical, intent(in), optional :: resume_if_possible
+
+    continuing = .false.
+    if (.not. keeping) return
+    if (present(resume_if_possible)) then
+      continuing = resume_if_possible
+    else
+      continuing = continue_requested()
+    end if
+  end function continuation_wanted
+
+  !> The output before a run that writes: the record it continues from, if it is to continue
+  !> (`continuing` on entry; on return whether it does: find_continuation), else the output
+  !> path's checks (check_output_before_run). `kind` is '' if the run may go on, else the failure
+  !> kind, with `text` saying why.
+  subroutine prepare_output(config, chooses_time, unknowns, lenient, continuing, resume, kind, text)
+    type(run_configuration), intent(in) :: config
+    logical, intent(in) :: chooses_time, lenient
+    integer, intent(in) :: unknowns
+    logical, intent(inout) :: continuing
+    type(resume_record), intent(out) :: resume
+    character(len=:), allocatable, intent(out) :: kind, text
+
+    kind = ''
+    text = ''
+    if (continuing) call find_continuation(config, chooses_time, unknowns, lenient, resume, continuing, kind, text)
+    if (len(kind) == 0 .and. .not. continuing) call check_output_before_run(config, kind, text)
+  end subroutine prepare_output
+
+  !> The record a continued run starts from (src/run/run_continuation), which must be of the run's
+  !> path: `unknowns` numbers in its state (the dense path's state and multipliers), or none (0: a
+  !> split run's record stands at its last snapshot). A record that cannot be used gives its
+  !> failure kind and text, unless `lenient` (an ensemble's case): then the run starts from t = 0,
+  !> as it would have (`continuing` .false.).
+  subroutine find_continuation(config, chooses_time, unknowns, lenient, resume, continuing, kind, text)
+    type(run_configuration), intent(in) :: config
+    logical, intent(in) :: chooses_time, lenient
+    integer, intent(in) :: unknowns
+    type(resume_record), intent(out) :: resume
+    logical, intent(out) :: continuing
+    character(len=:), allocatable, intent(out) :: kind, text
+
+    call find_resume_record(config, chooses_time, resume, kind, text)
+    if (len(kind) == 0) then
+      if (size(resume%x) /= unknowns) then
+        kind = failure_input
+        text = other_path_text(config, unknowns == 0)
+      end if
+    end if
+    continuing = len(kind) == 0
+    if (continuing .or. .not. lenient) return
+    ! Nothing to continue from: the run starts from t = 0, as it would have.
+    kind = ''
+    text = ''
+  end subroutine find_continuation
+
+  ! Why a record of the other path's run cannot be continued on this one (`split`: the run is split).
+  function other_path_text(config, split) result(text)
+    type(run_configuration), intent(in) :: config
+    logical, intent(in) :: split
+    character(len=:), allocatable :: text
+
+    if (split) then
+      text = config%output_file//': its run was not split over ranks (its state is in /state) and continues '// &
+             'on the dense path ('//config%input_file//', -eme_continue); allowed: eme_run on one process, as it ran'
+    else
+      text = config%output_file//': its run was split over ranks (its state is in /snapshots) and cannot be '// &
+             'continued on the dense path ('//config%input_file//', -eme_continue); allowed: mpirun -n P eme_run '// &
+             'with P > 1 (any P), which continues it from its last snapshot'
+    end if
+  end function other_path_text
+
+  !> The output path's checks before a run that starts writes (it does not continue one): not the
+  !> input file, a directory, a stranger's file or a study's (src/io/output_path), its directory
+  !> made, and no complete run in it unless it may be replaced (&output overwrite, -eme_overwrite).
+  !> `kind` is '' if the run may write, else the failure kind, with `text` saying why.
+  subroutine check_output_before_run(config, kind, text)
+    type(run_configuration), intent(in) :: config
+    character(len=:), allocatable, intent(out) :: kind, text
+    type(failure_type) :: checking
+    logical :: replace
+
+    kind = ''
+    text = ''
+    replace = overwrite_requested()       ! asked first, so PETSc counts -eme_overwrite as used
+    if (config%overwrite) replace = .true.
+    call check_output_path(config%output_file, config%input_file, replace, checking)
+    if (checking%failed()) then
+      kind = failure_input
+      text = checking%message
+      return
+    end if
+    call make_parent_directories(config%output_file, checking)
+    if (checking%failed()) then
+      kind = failure_io
+      text = 'cannot create the directory of the output file '''//config%output_file//''' ('//config%input_file// &
+             ', &output: file): '//checking%message
+      return
+    end if
+    if (replace) return
+    if (.not. holds_complete_run(config%output_file)) return
+    kind = failure_input
+    text = config%output_file//' holds a complete run, which is kept; to replace it, set &output overwrite = .true. '// &
+           'in '//config%input_file//', give -eme_overwrite, or choose another &output file'
+  end subroutine check_output_before_run
+
+  !> Whether `path` is a run file that reads back complete.
+  logical function holds_complete_run(path)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: status
+    integer :: steps
+    type(failure_type) :: checking
+
+    holds_complete_run = .false.
+    if (.not. file_exists(path)) return
+    call check_run_file(path, status, steps, checking)
+    holds_complete_run = .not. checking%failed() .and. status == 'complete'
+  end function holds_complete_run
+
+  !> The finished file `part` takes the output's name (synced if `durable`), unless the run is
+  !> incomplete (`complete` .false.) and the name holds a complete run: that one is kept, and
+  !> `note` says where this run's file is. `problem` is '' or why the renaming failed.
+  subroutine name_finished_file(config, part, complete, durable, note, problem)
+    type(run_configuration), intent(in) :: config
+    character(len=*), intent(in) :: part
+    logical, intent(in) :: complete, durable
+    character(len=:), allocatable, intent(out) :: note, problem
+    type(failure_type) :: renaming
+
+    note = ''
+    problem = ''
+    if (.not. complete) then
+      if (holds_complete_run(config%output_file)) then
+        note = config%output_file//' keeps the earlier complete run; this run''s file is '//part
+        return
+      end if
+    end if
+    call rename_file(part, config%output_file, renaming, sync=durable)
+    if (renaming%failed()) problem = 'cannot rename '''//part//''' to '''//config%output_file//''' ('// &
+                                     config%input_file//'): '//renaming%message
+  end subroutine name_finished_file
+
+end module run_file_steps
