@@ -14,6 +14,7 @@ for every src/model/*/description.py and tests/e2e/test_generated_models.py chec
 changes no byte."""
 import argparse
 import importlib.util
+import re
 import sys
 from random import Random
 from pathlib import Path
@@ -1603,7 +1604,7 @@ def element_module(description, source):
         forms = thermodynamics(part)
         kinds.append((part, [inv.symbol for inv in part.invariants] + [tau], forms,
                       {v: [inv.scale for inv in part.invariants] + [part.tau_scales[v]] for v in THERMO_VARIABLES}))
-    routines = ("evaluate", "values", "temperature", "inverse", "difference")
+    routines = ("evaluate", "values", "temperature", "inverse", "difference", "gonzalez")
     bodies = {routine: [] for routine in routines}
     temporaries = {routine: [0] for routine in routines}
     locals_ = {routine: [] for routine in routines}
@@ -1668,6 +1669,24 @@ def element_module(description, source):
             unpacked += [INDENT*indent + f"{delta[x].name} = b({i + 1}) - a({i + 1})" for i, x in enumerate(invariants)]
             per_variable["difference"].append((variable, [line for line in unpacked if line.split()[0] in used_names]
                                                + lines))
+            # Gonzalez's parts in one body: grad f(m), f(b) - f(a) and, for the Jacobian, the Hessian at m and grad f(b).
+            at_m = {x: sp.Symbol(f"{x.name}_m", real=True) for x in invariants}
+            mid_positive = [at_m[x] for x in positive]
+            gonzalez = body_of("gonzalez", indent, [], ends_positive + mid_positive, "",
+                               ["delta(1)", "delta(2)"] + [f"grad_m({i + 1}, {k + 1})" for i, k, _ in grads],
+                               differences + [g.subs(at_m, simultaneous=True) for *_, g in grads],
+                               ("hess_m", [f"hess_m({i + 1}, {j + 1}, {k + 1})" for i, j, k, _ in hessians]
+                                + [f"grad_b({i + 1}, {k + 1})" for i, k, _ in grads],
+                                [h.subs(at_m, simultaneous=True) for *_, h in hessians]
+                                + [g.subs(at_b, simultaneous=True) for *_, g in grads]),
+                               check_on=ends + [e.subs(at_m, simultaneous=True) for e in values])
+            words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", "\n".join(gonzalez)))
+            gonzalez_names = [n for n in names_here + [at_m[x].name for x in invariants] if n in words]
+            keep_locals("gonzalez", gonzalez_names)
+            unpacked += [INDENT*indent + f"{at_m[x].name} = 0.5_real64*(a({i + 1}) + b({i + 1}))"
+                         for i, x in enumerate(invariants)]
+            per_variable["gonzalez"].append((variable, [line for line in unpacked if line.split()[0] in gonzalez_names]
+                                             + gonzalez))
             if variable is None:        # no thermodynamic variable: no temperature, the values' scales |U|
                 per_variable["values"].append((variable, body_of(
                     "values", indent, invariants, positive, "x", ["f(1)", "f(2)"], values,
@@ -1775,6 +1794,7 @@ module {name}_potential
   contains
     procedure :: evaluate
     procedure :: difference
+    procedure :: gonzalez_parts
     procedure :: temperature
     procedure :: values_and_temperature
     procedure :: tau_from_temperature{"".join(chr(10) + f"    procedure :: {function}" for function, *_ in d.temperature_functions)}
@@ -1820,6 +1840,24 @@ contains
     stat = failure_none
 {lines_of(cases("difference"))}
   end subroutine difference
+
+  !> The parts of Gonzalez's discrete gradient between a and b (src/scheme/discrete_gradient's gonzalez_from_parts)
+  !> in one body, their common subexpressions shared: grad f at m = (a + b)/2, f(b) - f(a) free of cancellation
+  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither).
+  pure subroutine gonzalez_parts(self, a, b, grad_m, delta, stat, hess_m, grad_b)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: grad_m(:, :), delta(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: hess_m(:, :, :), grad_b(:, :)
+{lines_of(declaration("gonzalez"))}
+
+    grad_m = 0.0_real64
+    if (present(hess_m)) hess_m = 0.0_real64
+    if (present(grad_b)) grad_b = 0.0_real64
+    stat = failure_none
+{lines_of(cases("gonzalez"))}
+  end subroutine gonzalez_parts
 
   !> Theta = d_tau U / d_tau S of eq. (2) in closed form (a kind without tau has none: domain_overflow).
   pure subroutine temperature(self, x, theta, stat)

@@ -39,10 +39,11 @@ module spring_chain_potential
     integer :: variable = tau_entropy
     integer :: invariant_count = 1  !! the kind's invariants (tau last)
     real(real64) :: metric_scale(3) = 1.0_real64  !! their typical sizes, for the metric
-    real(real64) :: constants(116) = 0.0_real64  !! of the data alone
+    real(real64) :: constants(122) = 0.0_real64  !! of the data alone
   contains
     procedure :: evaluate
     procedure :: difference
+    procedure :: gonzalez_parts
     procedure :: temperature
     procedure :: values_and_temperature
     procedure :: tau_from_temperature
@@ -192,44 +193,52 @@ contains
     element%constants(85) = -parameters%theta_ref/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
     element%constants(86) = parameters%theta_ref/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
     element%constants(87) = parameters%heat_capacity*parameters%theta_ref*(parameters%beta_v + 1.0_real64)
-    element%constants(88) = parameters%theta_ref*abs(parameters%mu_neq_slope) + abs(parameters%mu_neq_const)
-    element%constants(89) = abs(parameters%beta_v) + 1.0_real64
-    element%constants(90) = parameters%heat_capacity*(abs(parameters%beta_v) + 1.0_real64)
-    element%constants(91) = (0.5_real64)*parameters%theta_ref*abs(parameters%mu_eq_slope) + (0.5_real64) &
+    element%constants(88) = (0.25_real64)*parameters%beta_v
+    element%constants(89) = (0.25_real64)*parameters%beta_v*parameters%theta_ref
+    element%constants(90) = (0.125_real64)*parameters%theta_ref/(parameters%heat_capacity*(parameters%beta_v + &
+        1.0_real64))
+    element%constants(91) = parameters%theta_ref*abs(parameters%mu_neq_slope) + abs(parameters%mu_neq_const)
+    element%constants(92) = abs(parameters%beta_v) + 1.0_real64
+    element%constants(93) = parameters%heat_capacity*(abs(parameters%beta_v) + 1.0_real64)
+    element%constants(94) = (0.5_real64)*parameters%theta_ref*abs(parameters%mu_eq_slope) + (0.5_real64) &
         *abs(parameters%mu_eq_const)
-    element%constants(92) = parameters%theta_ref*abs(parameters%beta)
-    element%constants(93) = 1.0_real64*abs(parameters%beta_v)
-    element%constants(94) = abs(parameters%mu_neq_slope)
-    element%constants(95) = (0.5_real64)*abs(parameters%mu_eq_slope)
-    element%constants(96) = abs(parameters%beta)
-    element%constants(97) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope
-    element%constants(98) = parameters%beta*parameters%theta_ref - parameters%mu_eq_const - parameters%mu_eq_slope &
+    element%constants(95) = parameters%theta_ref*abs(parameters%beta)
+    element%constants(96) = 1.0_real64*abs(parameters%beta_v)
+    element%constants(97) = abs(parameters%mu_neq_slope)
+    element%constants(98) = (0.5_real64)*abs(parameters%mu_eq_slope)
+    element%constants(99) = abs(parameters%beta)
+    element%constants(100) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope
+    element%constants(101) = parameters%beta*parameters%theta_ref - parameters%mu_eq_const - parameters%mu_eq_slope &
         *parameters%theta_ref
-    element%constants(99) = 2.0_real64*(parameters%mu_neq_const + parameters%mu_neq_slope*parameters%theta_ref)
-    element%constants(100) = parameters%beta_v*parameters%mu_eq_slope
-    element%constants(101) = parameters%beta - parameters%mu_eq_slope
-    element%constants(102) = -parameters%heat_capacity*(parameters%beta_v + 1.0_real64)
-    element%constants(103) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
-    element%constants(104) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const + parameters%mu_eq_slope &
+    element%constants(102) = 2.0_real64*(parameters%mu_neq_const + parameters%mu_neq_slope*parameters%theta_ref)
+    element%constants(103) = parameters%beta_v*parameters%mu_eq_slope
+    element%constants(104) = parameters%beta - parameters%mu_eq_slope
+    element%constants(105) = -parameters%heat_capacity*(parameters%beta_v + 1.0_real64)
+    element%constants(106) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
+    element%constants(107) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const + parameters%mu_eq_slope &
         *parameters%theta_ref)
-    element%constants(105) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope &
+    element%constants(108) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref
-    element%constants(106) = 8.0_real64*parameters%mu_neq_const + 8.0_real64*parameters%mu_neq_slope &
+    element%constants(109) = 8.0_real64*parameters%mu_neq_const + 8.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref
-    element%constants(107) = -4.0_real64*parameters%beta_v
-    element%constants(108) = -8.0_real64*parameters%beta_v*(parameters%mu_eq_const + parameters%mu_eq_slope &
+    element%constants(110) = -4.0_real64*parameters%beta_v
+    element%constants(111) = -8.0_real64*parameters%beta_v*(parameters%mu_eq_const + parameters%mu_eq_slope &
         *parameters%theta_ref)
-    element%constants(109) = -4.0_real64/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
-    element%constants(110) = -2.0_real64*parameters%beta*parameters%theta_ref + 2.0_real64*parameters%mu_eq_const + &
+    element%constants(112) = -4.0_real64/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
+    element%constants(113) = -2.0_real64*parameters%beta*parameters%theta_ref + 2.0_real64*parameters%mu_eq_const + &
         2.0_real64*parameters%mu_eq_slope*parameters%theta_ref
-    element%constants(111) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope &
+    element%constants(114) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref
-    element%constants(112) = -(0.125_real64)/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
-    element%constants(113) = (0.25_real64)/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
-    element%constants(114) = -8.0_real64*parameters%mu_neq_const - 8.0_real64*parameters%mu_neq_slope &
+    element%constants(115) = -(0.125_real64)/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
+    element%constants(116) = (0.25_real64)/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
+    element%constants(117) = -8.0_real64*parameters%mu_neq_const - 8.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref
-    element%constants(115) = -8.0_real64/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
-    element%constants(116) = -1.0_real64/parameters%theta_ref
+    element%constants(118) = -8.0_real64/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
+    element%constants(119) = 2.0_real64*parameters%beta_v
+    element%constants(120) = -16.0_real64*parameters%mu_neq_const - 16.0_real64*parameters%mu_neq_slope &
+        *parameters%theta_ref
+    element%constants(121) = -16.0_real64/(parameters%heat_capacity*(parameters%beta_v + 1.0_real64))
+    element%constants(122) = -1.0_real64/parameters%theta_ref
   end function make_spring_chain_potentials
 
   !> f = (U, S), their gradients in the invariants (tau last) and optionally their Hessians.
@@ -543,9 +552,9 @@ contains
           t_18 = gamma/C_root_2**5
           t_19 = self%constants(73)*t_18
           t_20 = self%constants(60)*t_13
-          t_21 = t_20*(self%constants(98) + t_4)
+          t_21 = t_20*(self%constants(101) + t_4)
           t_22 = self%parameters%mu_eq_slope*t_2
-          t_23 = t_20*(self%constants(101) + t_8)
+          t_23 = t_20*(self%constants(104) + t_8)
           f(1) = self%constants(48)*t_1 + self%constants(49)*(self%constants(10)*t_2 + self%constants(9)*t_3) + &
               self%constants(54)*(self%constants(8) + tau) + gamma*t_7
           f(2) = self%constants(49)*(self%constants(15)*t_2 + self%constants(16)*t_3) + self%constants(54) &
@@ -554,19 +563,19 @@ contains
               *t_14 + t_15*t_5
           grad(2, 1) = self%constants(62)*gamma + t_7
           grad(3, 1) = self%constants(54)
-          grad(1, 2) = self%constants(49)*(self%constants(15)*t_11 + self%constants(30)*t_12) + self%constants(97) &
-              *t_14 + t_15*t_9
+          grad(1, 2) = self%constants(100)*t_14 + self%constants(49)*(self%constants(15)*t_11 + self%constants(30) &
+              *t_12) + t_15*t_9
           grad(2, 2) = self%constants(84)*gamma + t_10
           grad(3, 2) = self%constants(54)/tau
           hess(1, 1, 1) = self%constants(72)*t_18 + t_17*(self%constants(42) + t_16) + t_19*(self%constants(43) + t_16)
           hess(1, 2, 1) = t_21
           hess(2, 1, 1) = t_21
-          hess(2, 2, 1) = self%constants(99)
-          hess(1, 1, 2) = self%constants(100)*t_18 + t_17*(self%constants(14) + t_22) + t_19*(self%constants(19) + t_22)
+          hess(2, 2, 1) = self%constants(102)
+          hess(1, 1, 2) = self%constants(103)*t_18 + t_17*(self%constants(14) + t_22) + t_19*(self%constants(19) + t_22)
           hess(1, 2, 2) = t_23
           hess(2, 1, 2) = t_23
           hess(2, 2, 2) = self%constants(84)
-          hess(3, 3, 2) = self%constants(102)/tau**2
+          hess(3, 3, 2) = self%constants(105)/tau**2
         else
           t_1 = gamma**2
           t_2 = log(C*self%constants(1))
@@ -588,8 +597,8 @@ contains
               *t_11 + t_12*t_4
           grad(2, 1) = self%constants(62)*gamma + t_6
           grad(3, 1) = self%constants(54)
-          grad(1, 2) = self%constants(49)*(self%constants(15)*t_9 + self%constants(30)*t_10) + self%constants(97) &
-              *t_11 + t_12*t_7
+          grad(1, 2) = self%constants(100)*t_11 + self%constants(49)*(self%constants(15)*t_9 + self%constants(30) &
+              *t_10) + t_12*t_7
           grad(2, 2) = self%constants(84)*gamma + t_8
           grad(3, 2) = self%constants(54)/tau
         end if
@@ -621,7 +630,7 @@ contains
           t_4 = 1.0_real64/C_root_2
           t_5 = self%constants(55)*t_1 + self%constants(56)
           t_6 = self%parameters%beta_v*t_4*t_5
-          t_7 = self%constants(53)*(self%constants(103)*t_3 + self%constants(51)*(self%constants(10)*t_1 + &
+          t_7 = self%constants(53)*(self%constants(106)*t_3 + self%constants(51)*(self%constants(10)*t_1 + &
               self%constants(9)*t_2) + gamma*t_6 + tau) + self%parameters%theta_ref
           t_8 = self%parameters%beta + self%constants(52)*t_1
           t_9 = self%constants(57)*t_4
@@ -634,7 +643,7 @@ contains
           t_16 = self%constants(39)*t_1
           t_17 = self%constants(43) + t_16
           t_18 = t_17*t_4
-          t_19 = self%constants(106)*t_3 + self%constants(107)*gamma*t_18 + self%constants(49)*t_1 &
+          t_19 = self%constants(109)*t_3 + self%constants(110)*gamma*t_18 + self%constants(49)*t_1 &
               *(self%constants(40) + t_16) - 8.0_real64*tau
           t_20 = self%constants(41) + self%constants(70)*t_19
           t_21 = 1.0_real64/t_20
@@ -644,29 +653,29 @@ contains
           t_25 = self%parameters%beta_v*t_15*t_17 + self%constants(49)*t_11*t_17 + self%constants(76)*t_15
           t_26 = self%parameters%mu_eq_slope*t_1
           t_27 = self%constants(19) + t_26
-          t_28 = self%constants(111)*gamma + t_17*t_9
-          t_29 = 2.0_real64*self%parameters%beta_v*t_14*t_21*(self%constants(110) + self%constants(31)*t_1) + &
-              (0.25_real64)*self%parameters%beta_v*t_14*t_27 - 0.5_real64*self%constants(100)*t_14 - 8.0_real64 &
+          t_28 = self%constants(114)*gamma + t_17*t_9
+          t_29 = 2.0_real64*self%parameters%beta_v*t_14*t_21*(self%constants(113) + self%constants(31)*t_1) + &
+              (0.25_real64)*self%parameters%beta_v*t_14*t_27 - 0.5_real64*self%constants(103)*t_14 - 8.0_real64 &
               *self%constants(53)*t_24*t_25*t_28
-          t_30 = 1.0_real64/(self%constants(112)*t_19 + self%parameters%theta_ref)**2
-          t_31 = self%constants(113)*t_25*t_30
+          t_30 = 1.0_real64/(self%constants(115)*t_19 + self%parameters%theta_ref)**2
+          t_31 = self%constants(116)*t_25*t_30
           t_32 = self%constants(53)*t_30*(self%constants(59)*t_18 + self%constants(62)*gamma)
           f(1) = tau
           f(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_2) + self%constants(54) &
               *log(self%constants(29)*t_7) + gamma*t_10 + self%parameters%mu_neq_slope*t_3
           grad(3, 1) = 1.0_real64
-          grad(1, 2) = self%constants(49)*(self%constants(15)*t_11 + self%constants(30)*t_12) + self%constants(60) &
-              *t_15*t_8 + self%constants(97)*t_15 + t_13*(self%constants(104)*t_15 + self%constants(51) &
+          grad(1, 2) = self%constants(100)*t_15 + self%constants(49)*(self%constants(15)*t_11 + self%constants(30) &
+              *t_12) + self%constants(60)*t_15*t_8 + t_13*(self%constants(107)*t_15 + self%constants(51) &
               *(self%constants(10)*t_11 + self%constants(12)*t_12) + self%constants(59)*t_15*t_5)
-          grad(2, 2) = self%constants(84)*gamma + t_10 + t_13*(self%constants(105)*gamma + t_6)
+          grad(2, 2) = self%constants(84)*gamma + t_10 + t_13*(self%constants(108)*gamma + t_6)
           grad(3, 2) = t_13
-          hess(1, 1, 2) = self%constants(100)*t_22 + self%constants(109)*t_24*t_25**2 + self%constants(64)*t_23 &
-              *(self%constants(14) + t_26) + self%constants(73)*t_22*t_27 + t_21*(self%constants(108)*t_22 + &
+          hess(1, 1, 2) = self%constants(103)*t_22 + self%constants(112)*t_24*t_25**2 + self%constants(64)*t_23 &
+              *(self%constants(14) + t_26) + self%constants(73)*t_22*t_27 + t_21*(self%constants(111)*t_22 + &
               self%constants(65)*t_23*(self%constants(42) + t_16) + self%constants(67)*t_17*t_22)
           hess(1, 2, 2) = t_29
           hess(1, 3, 2) = t_31
           hess(2, 1, 2) = t_29
-          hess(2, 2, 2) = 2.0_real64*self%constants(114)*t_21 + 2.0_real64*self%constants(115)*t_24*t_28**2 + &
+          hess(2, 2, 2) = 2.0_real64*self%constants(117)*t_21 + 2.0_real64*self%constants(118)*t_24*t_28**2 + &
               2.0_real64*self%parameters%mu_neq_slope
           hess(2, 3, 2) = t_32
           hess(3, 1, 2) = t_31
@@ -679,7 +688,7 @@ contains
           t_4 = 1.0_real64/C_root_2
           t_5 = self%constants(55)*t_1 + self%constants(56)
           t_6 = self%parameters%beta_v*t_4*t_5
-          t_7 = self%constants(53)*(self%constants(103)*t_3 + self%constants(51)*(self%constants(10)*t_1 + &
+          t_7 = self%constants(53)*(self%constants(106)*t_3 + self%constants(51)*(self%constants(10)*t_1 + &
               self%constants(9)*t_2) + gamma*t_6 + tau) + self%parameters%theta_ref
           t_8 = self%parameters%beta + self%constants(52)*t_1
           t_9 = self%constants(57)*t_4*t_8
@@ -691,10 +700,10 @@ contains
           f(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_2) + self%constants(54) &
               *log(self%constants(29)*t_7) + gamma*t_9 + self%parameters%mu_neq_slope*t_3
           grad(3, 1) = 1.0_real64
-          grad(1, 2) = self%constants(49)*(self%constants(15)*t_10 + self%constants(30)*t_11) + self%constants(60) &
-              *t_13*t_8 + self%constants(97)*t_13 + t_12*(self%constants(104)*t_13 + self%constants(51) &
+          grad(1, 2) = self%constants(100)*t_13 + self%constants(49)*(self%constants(15)*t_10 + self%constants(30) &
+              *t_11) + self%constants(60)*t_13*t_8 + t_12*(self%constants(107)*t_13 + self%constants(51) &
               *(self%constants(10)*t_10 + self%constants(12)*t_11) + self%constants(59)*t_13*t_5)
-          grad(2, 2) = self%constants(84)*gamma + t_12*(self%constants(105)*gamma + t_6) + t_9
+          grad(2, 2) = self%constants(84)*gamma + t_12*(self%constants(108)*gamma + t_6) + t_9
           grad(3, 2) = t_12
         end if
       end select
@@ -991,14 +1000,842 @@ contains
         delta(1) = d_tau
         delta(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_4) + self%constants(54) &
             *log1p(self%constants(53)*(self%parameters%beta_v*(gamma_a*(self%constants(55)*t_6 - t_7*t_9) + t_10*t_7) &
-            + self%constants(103)*t_11 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_4) + &
+            + self%constants(106)*t_11 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_4) + &
             d_tau)/(self%constants(53)*(self%parameters%beta_v*gamma_a*t_5*(self%constants(55)*t_2 + &
-            self%constants(56)) + self%constants(103)*gamma_a**2 + self%constants(51)*(self%constants(10)*t_2 + &
+            self%constants(56)) + self%constants(106)*gamma_a**2 + self%constants(51)*(self%constants(10)*t_2 + &
             self%constants(9)*t_2**2) + tau_a) + self%parameters%theta_ref)) + self%constants(57)*(gamma_a &
             *(self%constants(52)*t_6 - t_12*t_9) + t_10*t_12) + self%parameters%mu_neq_slope*t_11
       end select
     end select
   end subroutine difference
+
+  !> The parts of Gonzalez's discrete gradient between a and b (src/scheme/discrete_gradient's gonzalez_from_parts)
+  !> in one body, their common subexpressions shared: grad f at m = (a + b)/2, f(b) - f(a) free of cancellation
+  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither).
+  pure subroutine gonzalez_parts(self, a, b, grad_m, delta, stat, hess_m, grad_b)
+    class(spring_chain_potentials), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: grad_m(:, :), delta(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: hess_m(:, :, :), grad_b(:, :)
+    real(real64) :: C_a, C_b, d_C, C_m, tau_a, tau_b, d_tau, tau_m, C_a_root_2, C_b_root_2, C_m_root_2, gamma_a, &
+        gamma_b, d_gamma, gamma_m, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, &
+        t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, &
+        t_34, t_35, t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49
+
+    grad_m = 0.0_real64
+    if (present(hess_m)) hess_m = 0.0_real64
+    if (present(grad_b)) grad_b = 0.0_real64
+    stat = failure_none
+    select case (self%kind)
+    case (1)  ! the elastic rung
+      C_a = a(1)
+      C_b = b(1)
+      d_C = b(1) - a(1)
+      C_m = 0.5_real64*(a(1) + b(1))
+      if (.not. (C_a > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_b > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_m > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (present(hess_m)) then
+        t_1 = log(C_b*self%constants(1))
+        t_2 = log(C_m*self%constants(1))
+        delta(1) = self%constants(2)*(t_1 + log(C_a*self%constants(1)))*log1p(d_C/C_a)
+        delta(2) = 0
+        grad_m(1, 1) = self%constants(3)*t_2/C_m
+        hess_m(1, 1, 1) = self%constants(4)*(t_2 - 1.0_real64)/C_m**2
+        grad_b(1, 1) = self%constants(3)*t_1/C_b
+      else
+        delta(1) = self%constants(2)*(log(C_a*self%constants(1)) + log(C_b*self%constants(1)))*log1p(d_C/C_a)
+        delta(2) = 0
+        grad_m(1, 1) = self%constants(3)*log(C_m*self%constants(1))/C_m
+      end if
+    case (2)  ! the thermoelastic rung
+      select case (self%variable)
+      case (tau_entropy)
+        C_a = a(1)
+        tau_a = a(2)
+        C_b = b(1)
+        tau_b = b(2)
+        d_C = b(1) - a(1)
+        d_tau = b(2) - a(2)
+        C_m = 0.5_real64*(a(1) + b(1))
+        tau_m = 0.5_real64*(a(2) + b(2))
+        if (.not. (C_a > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_b > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_m > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. ((-0.5_real64*self%parameters%beta*log(C_a/self%parameters%natural_length**2) - 0.125_real64 &
+            *self%parameters%mu_eq_slope*log(C_a/self%parameters%natural_length**2)**2 + &
+            tau_a)/self%parameters%heat_capacity <= max_exponent)) then
+          stat = domain_overflow
+          return
+        end if
+        if (.not. ((-0.5_real64*self%parameters%beta*log(C_b/self%parameters%natural_length**2) - 0.125_real64 &
+            *self%parameters%mu_eq_slope*log(C_b/self%parameters%natural_length**2)**2 + &
+            tau_b)/self%parameters%heat_capacity <= max_exponent)) then
+          stat = domain_overflow
+          return
+        end if
+        if (.not. ((-0.5_real64*self%parameters%beta*log(C_m/self%parameters%natural_length**2) - 0.125_real64 &
+            *self%parameters%mu_eq_slope*log(C_m/self%parameters%natural_length**2)**2 + &
+            tau_m)/self%parameters%heat_capacity <= max_exponent)) then
+          stat = domain_overflow
+          return
+        end if
+        if (present(hess_m)) then
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = log(C_b*self%constants(1))
+          t_4 = t_1*(t_2 + t_3)
+          t_5 = 1.0_real64/C_m
+          t_6 = log(C_m*self%constants(1))
+          t_7 = t_5*t_6
+          t_8 = t_6**2
+          t_9 = self%parameters%theta_ref*exp(self%constants(7)*(self%constants(5)*t_6 + self%constants(6)*t_8 + tau_m))
+          t_10 = self%parameters%mu_eq_slope*t_6
+          t_11 = exp(self%constants(17)*(self%constants(15)*t_6 + self%constants(16)*t_8 - tau_m))
+          t_12 = self%constants(19) + t_10
+          t_13 = self%constants(20)*t_11
+          t_14 = self%constants(22)*t_11*t_12*t_5
+          t_15 = 1.0_real64/C_b
+          t_16 = t_15*t_3
+          t_17 = self%parameters%theta_ref*exp(self%constants(7)*(self%constants(5)*t_3 + self%constants(6)*t_3**2 + &
+              tau_b))
+          delta(1) = self%constants(10)*t_1 + self%constants(23)*expm1(self%constants(7)*(self%constants(5)*t_1 + &
+              self%constants(6)*t_4 + d_tau))*exp(self%constants(7)*(self%constants(5)*t_2 + self%constants(6)*t_2**2 &
+              + tau_a)) + self%constants(9)*t_4
+          delta(2) = d_tau
+          grad_m(1, 1) = self%constants(10)*t_5 + self%constants(12)*t_7 + t_9*(self%constants(11)*t_7 + &
+              self%constants(5)*t_5)
+          grad_m(2, 1) = t_9
+          grad_m(2, 2) = 1.0_real64
+          hess_m(1, 1, 1) = (0.0625_real64)*(self%constants(13)*t_6 + self%constants(18)*t_11*(self%constants(14) + &
+              t_10) + self%constants(21) + t_12**2*t_13)/C_m**2
+          hess_m(1, 2, 1) = t_14
+          hess_m(2, 1, 1) = t_14
+          hess_m(2, 2, 1) = t_13
+          grad_b(1, 1) = self%constants(10)*t_15 + self%constants(12)*t_16 + t_17*(self%constants(11)*t_16 + &
+              self%constants(5)*t_15)
+          grad_b(2, 1) = t_17
+          grad_b(2, 2) = 1.0_real64
+        else
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = t_1*(t_2 + log(C_b*self%constants(1)))
+          t_4 = 1.0_real64/C_m
+          t_5 = log(C_m*self%constants(1))
+          t_6 = t_4*t_5
+          t_7 = self%parameters%theta_ref*exp(self%constants(7)*(self%constants(5)*t_5 + self%constants(6)*t_5**2 + &
+              tau_m))
+          delta(1) = self%constants(10)*t_1 + self%constants(23)*expm1(self%constants(7)*(self%constants(5)*t_1 + &
+              self%constants(6)*t_3 + d_tau))*exp(self%constants(7)*(self%constants(5)*t_2 + self%constants(6)*t_2**2 &
+              + tau_a)) + self%constants(9)*t_3
+          delta(2) = d_tau
+          grad_m(1, 1) = self%constants(10)*t_4 + self%constants(12)*t_6 + t_7*(self%constants(11)*t_6 + &
+              self%constants(5)*t_4)
+          grad_m(2, 1) = t_7
+          grad_m(2, 2) = 1.0_real64
+        end if
+      case (tau_temperature)
+        C_a = a(1)
+        tau_a = a(2)
+        C_b = b(1)
+        tau_b = b(2)
+        d_C = b(1) - a(1)
+        d_tau = b(2) - a(2)
+        C_m = 0.5_real64*(a(1) + b(1))
+        tau_m = 0.5_real64*(a(2) + b(2))
+        if (.not. (C_a > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_b > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_m > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (tau_a/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. (tau_b/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. (tau_m/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (present(hess_m)) then
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_b*self%constants(1))
+          t_3 = t_1*(t_2 + log(C_a*self%constants(1)))
+          t_4 = 1.0_real64/C_m
+          t_5 = log(C_m*self%constants(1))
+          t_6 = t_4*t_5
+          t_7 = (0.25_real64)/C_m**2
+          t_8 = 1.0_real64/C_b
+          t_9 = t_2*t_8
+          delta(1) = self%constants(10)*t_1 + self%constants(9)*t_3 + d_tau*self%parameters%heat_capacity
+          delta(2) = self%constants(15)*t_1 + self%constants(16)*t_3 + self%parameters%heat_capacity*log1p(d_tau/tau_a)
+          grad_m(1, 1) = self%constants(10)*t_4 + self%constants(12)*t_6
+          grad_m(2, 1) = self%parameters%heat_capacity
+          grad_m(1, 2) = self%constants(15)*t_4 + self%constants(30)*t_6
+          grad_m(2, 2) = self%parameters%heat_capacity/tau_m
+          hess_m(1, 1, 1) = t_7*(self%constants(31)*t_5 + self%constants(32))
+          hess_m(1, 1, 2) = t_7*(self%constants(33)*t_5 + self%constants(34))
+          hess_m(2, 2, 2) = self%constants(35)/tau_m**2
+          grad_b(1, 1) = self%constants(10)*t_8 + self%constants(12)*t_9
+          grad_b(2, 1) = self%parameters%heat_capacity
+          grad_b(1, 2) = self%constants(15)*t_8 + self%constants(30)*t_9
+          grad_b(2, 2) = self%parameters%heat_capacity/tau_b
+        else
+          t_1 = log1p(d_C/C_a)
+          t_2 = t_1*(log(C_a*self%constants(1)) + log(C_b*self%constants(1)))
+          t_3 = 1.0_real64/C_m
+          t_4 = t_3*log(C_m*self%constants(1))
+          delta(1) = self%constants(10)*t_1 + self%constants(9)*t_2 + d_tau*self%parameters%heat_capacity
+          delta(2) = self%constants(15)*t_1 + self%constants(16)*t_2 + self%parameters%heat_capacity*log1p(d_tau/tau_a)
+          grad_m(1, 1) = self%constants(10)*t_3 + self%constants(12)*t_4
+          grad_m(2, 1) = self%parameters%heat_capacity
+          grad_m(1, 2) = self%constants(15)*t_3 + self%constants(30)*t_4
+          grad_m(2, 2) = self%parameters%heat_capacity/tau_m
+        end if
+      case (tau_internal_energy)
+        C_a = a(1)
+        tau_a = a(2)
+        C_b = b(1)
+        tau_b = b(2)
+        d_C = b(1) - a(1)
+        d_tau = b(2) - a(2)
+        C_m = 0.5_real64*(a(1) + b(1))
+        tau_m = 0.5_real64*(a(2) + b(2))
+        if (.not. (C_a > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_b > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_m > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. ((self%parameters%theta_ref + (-0.5_real64*self%parameters%beta*self%parameters%theta_ref &
+            *log(C_a/self%parameters%natural_length**2) + tau_a - 0.25_real64*((0.5_real64) &
+            *self%parameters%mu_eq_const + (0.5_real64)*self%parameters%mu_eq_slope*self%parameters%theta_ref) &
+            *log(C_a/self%parameters%natural_length**2)**2)/self%parameters%heat_capacity)/self%parameters%theta_ref &
+            > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. ((self%parameters%theta_ref + (-0.5_real64*self%parameters%beta*self%parameters%theta_ref &
+            *log(C_b/self%parameters%natural_length**2) + tau_b - 0.25_real64*((0.5_real64) &
+            *self%parameters%mu_eq_const + (0.5_real64)*self%parameters%mu_eq_slope*self%parameters%theta_ref) &
+            *log(C_b/self%parameters%natural_length**2)**2)/self%parameters%heat_capacity)/self%parameters%theta_ref &
+            > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. ((self%parameters%theta_ref + (-0.5_real64*self%parameters%beta*self%parameters%theta_ref &
+            *log(C_m/self%parameters%natural_length**2) + tau_m - 0.25_real64*((0.5_real64) &
+            *self%parameters%mu_eq_const + (0.5_real64)*self%parameters%mu_eq_slope*self%parameters%theta_ref) &
+            *log(C_m/self%parameters%natural_length**2)**2)/self%parameters%heat_capacity)/self%parameters%theta_ref &
+            > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (present(hess_m)) then
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = log(C_b*self%constants(1))
+          t_4 = t_1*(t_2 + t_3)
+          t_5 = 1.0_real64/C_m
+          t_6 = log(C_m*self%constants(1))
+          t_7 = t_6**2
+          t_8 = 1.0_real64/(self%constants(7)*(self%constants(36)*t_7 + self%constants(37)*t_6 + tau_m) + &
+              self%parameters%theta_ref)
+          t_9 = t_5*t_6
+          t_10 = self%constants(39)*t_7 + self%constants(40)*t_6 - 8.0_real64*tau_m
+          t_11 = self%constants(17)*t_10 + self%constants(41)
+          t_12 = self%constants(39)*t_6
+          t_13 = self%constants(43) + t_12
+          t_14 = 1.0_real64/(self%constants(45)*t_10 + self%parameters%theta_ref)**2
+          t_15 = self%constants(46)*t_13*t_14*t_5
+          t_16 = 1.0_real64/C_b
+          t_17 = 1.0_real64/(self%constants(7)*(self%constants(36)*t_3**2 + self%constants(37)*t_3 + tau_b) + &
+              self%parameters%theta_ref)
+          t_18 = t_16*t_3
+          delta(1) = d_tau
+          delta(2) = self%constants(15)*t_1 + self%constants(16)*t_4 + self%parameters%heat_capacity &
+              *log1p(self%constants(7)*(self%constants(36)*t_4 + self%constants(37)*t_1 + d_tau)/(self%constants(7) &
+              *(self%constants(36)*t_2**2 + self%constants(37)*t_2 + tau_a) + self%parameters%theta_ref))
+          grad_m(2, 1) = 1.0_real64
+          grad_m(1, 2) = self%constants(15)*t_5 + self%constants(30)*t_9 + t_8*(self%constants(37)*t_5 + &
+              self%constants(38)*t_9)
+          grad_m(2, 2) = t_8
+          hess_m(1, 1, 2) = (0.25_real64)*(self%constants(33)*t_6 + self%constants(34) + self%constants(44)*t_13 &
+              **2/t_11**2 + 8.0_real64*(self%constants(42) + t_12)/t_11)/C_m**2
+          hess_m(1, 2, 2) = t_15
+          hess_m(2, 1, 2) = t_15
+          hess_m(2, 2, 2) = self%constants(17)*t_14
+          grad_b(2, 1) = 1.0_real64
+          grad_b(1, 2) = self%constants(15)*t_16 + self%constants(30)*t_18 + t_17*(self%constants(37)*t_16 + &
+              self%constants(38)*t_18)
+          grad_b(2, 2) = t_17
+        else
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = t_1*(t_2 + log(C_b*self%constants(1)))
+          t_4 = 1.0_real64/C_m
+          t_5 = log(C_m*self%constants(1))
+          t_6 = 1.0_real64/(self%constants(7)*(self%constants(36)*t_5**2 + self%constants(37)*t_5 + tau_m) + &
+              self%parameters%theta_ref)
+          t_7 = t_4*t_5
+          delta(1) = d_tau
+          delta(2) = self%constants(15)*t_1 + self%constants(16)*t_3 + self%parameters%heat_capacity &
+              *log1p(self%constants(7)*(self%constants(36)*t_3 + self%constants(37)*t_1 + d_tau)/(self%constants(7) &
+              *(self%constants(36)*t_2**2 + self%constants(37)*t_2 + tau_a) + self%parameters%theta_ref))
+          grad_m(2, 1) = 1.0_real64
+          grad_m(1, 2) = self%constants(15)*t_4 + self%constants(30)*t_7 + t_6*(self%constants(37)*t_4 + &
+              self%constants(38)*t_7)
+          grad_m(2, 2) = t_6
+        end if
+      end select
+    case (3)  ! the thermoviscoelastic rung
+      select case (self%variable)
+      case (tau_entropy)
+        C_a = a(1)
+        gamma_a = a(2)
+        tau_a = a(3)
+        C_b = b(1)
+        gamma_b = b(2)
+        tau_b = b(3)
+        d_C = b(1) - a(1)
+        d_gamma = b(2) - a(2)
+        d_tau = b(3) - a(3)
+        C_m = 0.5_real64*(a(1) + b(1))
+        gamma_m = 0.5_real64*(a(2) + b(2))
+        tau_m = 0.5_real64*(a(3) + b(3))
+        if (.not. (C_a > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_b > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_m > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. ((-gamma_a**2*self%parameters%mu_neq_slope + tau_a - (self%parameters%beta_v + 1.0_real64) &
+            *((0.5_real64)*self%parameters%beta*log(C_a/self%parameters%natural_length**2) + (0.125_real64) &
+            *self%parameters%mu_eq_slope*log(C_a/self%parameters%natural_length**2)**2) + self%parameters%beta_v &
+            *gamma_a*(self%parameters%beta + (0.5_real64)*self%parameters%mu_eq_slope &
+            *log(C_a/self%parameters%natural_length**2))/sqrt(C_a))/(self%parameters%heat_capacity &
+            *(self%parameters%beta_v + 1.0_real64)) <= max_exponent)) then
+          stat = domain_overflow
+          return
+        end if
+        if (.not. ((-gamma_b**2*self%parameters%mu_neq_slope + tau_b - (self%parameters%beta_v + 1.0_real64) &
+            *((0.5_real64)*self%parameters%beta*log(C_b/self%parameters%natural_length**2) + (0.125_real64) &
+            *self%parameters%mu_eq_slope*log(C_b/self%parameters%natural_length**2)**2) + self%parameters%beta_v &
+            *gamma_b*(self%parameters%beta + (0.5_real64)*self%parameters%mu_eq_slope &
+            *log(C_b/self%parameters%natural_length**2))/sqrt(C_b))/(self%parameters%heat_capacity &
+            *(self%parameters%beta_v + 1.0_real64)) <= max_exponent)) then
+          stat = domain_overflow
+          return
+        end if
+        if (.not. ((-gamma_m**2*self%parameters%mu_neq_slope + tau_m - (self%parameters%beta_v + 1.0_real64) &
+            *((0.5_real64)*self%parameters%beta*log(C_m/self%parameters%natural_length**2) + (0.125_real64) &
+            *self%parameters%mu_eq_slope*log(C_m/self%parameters%natural_length**2)**2) + self%parameters%beta_v &
+            *gamma_m*(self%parameters%beta + (0.5_real64)*self%parameters%mu_eq_slope &
+            *log(C_m/self%parameters%natural_length**2))/sqrt(C_m))/(self%parameters%heat_capacity &
+            *(self%parameters%beta_v + 1.0_real64)) <= max_exponent)) then
+          stat = domain_overflow
+          return
+        end if
+        C_a_root_2 = sqrt(C_a)
+        C_b_root_2 = sqrt(C_b)
+        C_m_root_2 = sqrt(C_m)
+        if (present(hess_m)) then
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = log(C_b*self%constants(1))
+          t_4 = t_1*(t_2 + t_3)
+          t_5 = 1.0_real64/C_a_root_2
+          t_6 = t_1*t_5
+          t_7 = 1.0_real64/C_b_root_2
+          t_8 = self%constants(55)*t_3 + self%constants(56)
+          t_9 = t_7*t_8
+          t_10 = d_C*t_5/(C_a_root_2 + C_b_root_2)
+          t_11 = d_gamma*t_7
+          t_12 = d_gamma*(gamma_a + gamma_b)
+          t_13 = self%parameters%beta + self%constants(52)*t_3
+          t_14 = t_13*t_7
+          t_15 = 1.0_real64/C_m
+          t_16 = log(C_m*self%constants(1))
+          t_17 = t_15*t_16
+          t_18 = 1.0_real64/C_m_root_2**3
+          t_19 = self%constants(61)*t_18
+          t_20 = gamma_m*t_18
+          t_21 = self%parameters%beta + self%constants(52)*t_16
+          t_22 = gamma_m**2
+          t_23 = 1.0_real64/C_m_root_2
+          t_24 = self%parameters%beta_v*t_21*t_23
+          t_25 = self%parameters%theta_ref*exp(self%constants(53)*(self%constants(50)*t_22 + self%constants(51) &
+              *(self%constants(15)*t_16 + self%constants(16)*t_16**2) + gamma_m*t_24 + tau_m))
+          t_26 = self%constants(55)*t_16 + self%constants(56)
+          t_27 = self%constants(57)*t_23
+          t_28 = 1.0_real64/C_m**2
+          t_29 = self%constants(39)*t_16
+          t_30 = self%parameters%mu_eq_slope*t_16
+          t_31 = gamma_m/C_m_root_2**5
+          t_32 = self%constants(19) + t_30
+          t_33 = self%constants(59)*t_23*t_32
+          t_34 = exp(self%constants(70)*(self%constants(69)*t_16*(self%constants(68) + t_30) + gamma_m*t_33 + &
+              self%parameters%mu_neq_slope*t_22 - tau_m))
+          t_35 = self%parameters%beta_v*t_20*t_32 + self%constants(49)*t_15*t_32 + self%constants(74)*t_20
+          t_36 = self%constants(43) + t_29
+          t_37 = self%constants(79)*gamma_m + t_27*t_32
+          t_38 = t_34*t_35
+          t_39 = self%constants(88)*t_18*t_36 + self%constants(89)*t_18*t_34*(self%constants(33)*t_16 + &
+              self%constants(77)) + self%constants(90)*t_37*t_38 + t_19
+          t_40 = self%constants(81)*t_38
+          t_41 = self%constants(85)*t_34*(self%constants(84)*gamma_m + t_33)
+          t_42 = 1.0_real64/C_b
+          t_43 = t_3*t_42
+          t_44 = gamma_b/C_b_root_2**3
+          t_45 = self%parameters%beta_v*t_14
+          t_46 = self%parameters%theta_ref*exp(self%constants(53)*(self%constants(50)*gamma_b**2 + self%constants(51) &
+              *(self%constants(15)*t_3 + self%constants(16)*t_3**2) + gamma_b*t_45 + tau_b))
+          delta(1) = self%constants(48)*t_12 + self%constants(49)*(self%constants(10)*t_1 + self%constants(9)*t_4) + &
+              self%constants(57)*(gamma_a*(self%constants(55)*t_6 - t_10*t_9) + t_11*t_8) + self%constants(87) &
+              *expm1(self%constants(53)*(self%parameters%beta_v*(gamma_a*(self%constants(52)*t_6 - t_10*t_14) + t_11 &
+              *t_13) + self%constants(50)*t_12 + self%constants(51)*(self%constants(15)*t_1 + self%constants(16)*t_4) &
+              + d_tau))*exp(self%constants(53)*(self%parameters%beta_v*gamma_a*t_5*(self%parameters%beta + &
+              self%constants(52)*t_2) + self%constants(50)*gamma_a**2 + self%constants(51)*(self%constants(15)*t_2 + &
+              self%constants(16)*t_2**2) + tau_a))
+          delta(2) = d_tau
+          grad_m(1, 1) = self%constants(49)*(self%constants(10)*t_15 + self%constants(12)*t_17) + self%constants(60) &
+              *t_20*t_26 + gamma_m*t_19 + t_25*(self%constants(51)*(self%constants(15)*t_15 + self%constants(30) &
+              *t_17) + self%constants(58)*t_20 + self%constants(59)*t_20*t_21)
+          grad_m(2, 1) = self%constants(62)*gamma_m + t_25*(self%constants(63)*gamma_m + t_24) + t_26*t_27
+          grad_m(3, 1) = t_25
+          grad_m(3, 2) = 1.0_real64
+          hess_m(1, 1, 1) = self%constants(64)*t_28*(self%constants(42) + t_29) + self%constants(71)*t_34 &
+              *(self%constants(65)*t_28*(self%constants(14) + t_30) + self%constants(66)*t_31 + self%constants(67) &
+              *t_31*t_32) + self%constants(72)*t_31 + self%constants(73)*t_31*t_36 + self%constants(75)*t_34*t_35**2
+          hess_m(1, 2, 1) = t_39
+          hess_m(1, 3, 1) = t_40
+          hess_m(2, 1, 1) = t_39
+          hess_m(2, 2, 1) = self%constants(62) + self%constants(82)*t_34 + self%constants(83)*t_34*t_37**2
+          hess_m(2, 3, 1) = t_41
+          hess_m(3, 1, 1) = t_40
+          hess_m(3, 2, 1) = t_41
+          hess_m(3, 3, 1) = self%constants(86)*t_34
+          grad_b(1, 1) = self%constants(49)*(self%constants(10)*t_42 + self%constants(12)*t_43) + self%constants(60) &
+              *t_44*t_8 + self%constants(61)*t_44 + t_46*(self%constants(51)*(self%constants(15)*t_42 + &
+              self%constants(30)*t_43) + self%constants(58)*t_44 + self%constants(59)*t_13*t_44)
+          grad_b(2, 1) = self%constants(57)*t_9 + self%constants(62)*gamma_b + t_46*(self%constants(63)*gamma_b + t_45)
+          grad_b(3, 1) = t_46
+          grad_b(3, 2) = 1.0_real64
+        else
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = log(C_b*self%constants(1))
+          t_4 = t_1*(t_2 + t_3)
+          t_5 = 1.0_real64/C_a_root_2
+          t_6 = t_1*t_5
+          t_7 = self%constants(55)*t_3 + self%constants(56)
+          t_8 = 1.0_real64/C_b_root_2
+          t_9 = d_C*t_5*t_8/(C_a_root_2 + C_b_root_2)
+          t_10 = d_gamma*t_8
+          t_11 = d_gamma*(gamma_a + gamma_b)
+          t_12 = self%parameters%beta + self%constants(52)*t_3
+          t_13 = 1.0_real64/C_m
+          t_14 = log(C_m*self%constants(1))
+          t_15 = t_13*t_14
+          t_16 = gamma_m/C_m_root_2**3
+          t_17 = self%parameters%beta + self%constants(52)*t_14
+          t_18 = 1.0_real64/C_m_root_2
+          t_19 = self%parameters%beta_v*t_17*t_18
+          t_20 = self%parameters%theta_ref*exp(self%constants(53)*(self%constants(50)*gamma_m**2 + self%constants(51) &
+              *(self%constants(15)*t_14 + self%constants(16)*t_14**2) + gamma_m*t_19 + tau_m))
+          t_21 = self%constants(55)*t_14 + self%constants(56)
+          delta(1) = self%constants(48)*t_11 + self%constants(49)*(self%constants(10)*t_1 + self%constants(9)*t_4) + &
+              self%constants(57)*(gamma_a*(self%constants(55)*t_6 - t_7*t_9) + t_10*t_7) + self%constants(87) &
+              *expm1(self%constants(53)*(self%parameters%beta_v*(gamma_a*(self%constants(52)*t_6 - t_12*t_9) + t_10 &
+              *t_12) + self%constants(50)*t_11 + self%constants(51)*(self%constants(15)*t_1 + self%constants(16)*t_4) &
+              + d_tau))*exp(self%constants(53)*(self%parameters%beta_v*gamma_a*t_5*(self%parameters%beta + &
+              self%constants(52)*t_2) + self%constants(50)*gamma_a**2 + self%constants(51)*(self%constants(15)*t_2 + &
+              self%constants(16)*t_2**2) + tau_a))
+          delta(2) = d_tau
+          grad_m(1, 1) = self%constants(49)*(self%constants(10)*t_13 + self%constants(12)*t_15) + self%constants(60) &
+              *t_16*t_21 + self%constants(61)*t_16 + t_20*(self%constants(51)*(self%constants(15)*t_13 + &
+              self%constants(30)*t_15) + self%constants(58)*t_16 + self%constants(59)*t_16*t_17)
+          grad_m(2, 1) = self%constants(57)*t_18*t_21 + self%constants(62)*gamma_m + t_20*(self%constants(63)*gamma_m &
+              + t_19)
+          grad_m(3, 1) = t_20
+          grad_m(3, 2) = 1.0_real64
+        end if
+      case (tau_temperature)
+        C_a = a(1)
+        gamma_a = a(2)
+        tau_a = a(3)
+        C_b = b(1)
+        gamma_b = b(2)
+        tau_b = b(3)
+        d_C = b(1) - a(1)
+        d_gamma = b(2) - a(2)
+        d_tau = b(3) - a(3)
+        C_m = 0.5_real64*(a(1) + b(1))
+        gamma_m = 0.5_real64*(a(2) + b(2))
+        tau_m = 0.5_real64*(a(3) + b(3))
+        if (.not. (C_a > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_b > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_m > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (tau_a/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. (tau_b/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. (tau_m/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        C_a_root_2 = sqrt(C_a)
+        C_b_root_2 = sqrt(C_b)
+        C_m_root_2 = sqrt(C_m)
+        if (present(hess_m)) then
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_b*self%constants(1))
+          t_3 = t_1*(t_2 + log(C_a*self%constants(1)))
+          t_4 = 1.0_real64/C_a_root_2
+          t_5 = t_1*t_4
+          t_6 = self%constants(55)*t_2 + self%constants(56)
+          t_7 = 1.0_real64/C_b_root_2
+          t_8 = d_C*t_4*t_7/(C_a_root_2 + C_b_root_2)
+          t_9 = d_gamma*t_7
+          t_10 = d_gamma*(gamma_a + gamma_b)
+          t_11 = self%parameters%beta + self%constants(52)*t_2
+          t_12 = 1.0_real64/C_m
+          t_13 = log(C_m*self%constants(1))
+          t_14 = t_12*t_13
+          t_15 = 1.0_real64/C_m_root_2**3
+          t_16 = gamma_m*t_15
+          t_17 = self%constants(55)*t_13
+          t_18 = self%constants(56) + t_17
+          t_19 = self%constants(60)*t_16
+          t_20 = self%constants(57)/C_m_root_2
+          t_21 = self%constants(52)*t_13
+          t_22 = self%parameters%beta + t_21
+          t_23 = self%constants(39)*t_13
+          t_24 = self%constants(64)/C_m**2
+          t_25 = gamma_m/C_m_root_2**5
+          t_26 = self%constants(73)*t_25
+          t_27 = self%constants(60)*t_15
+          t_28 = t_27*(self%constants(101) + t_17)
+          t_29 = self%parameters%mu_eq_slope*t_13
+          t_30 = t_27*(self%constants(104) + t_21)
+          t_31 = 1.0_real64/C_b
+          t_32 = t_2*t_31
+          t_33 = gamma_b/C_b_root_2**3
+          t_34 = self%constants(60)*t_33
+          t_35 = self%constants(57)*t_7
+          delta(1) = self%constants(48)*t_10 + self%constants(49)*(self%constants(10)*t_1 + self%constants(9)*t_3) + &
+              self%constants(54)*d_tau + self%constants(57)*(gamma_a*(self%constants(55)*t_5 - t_6*t_8) + t_6*t_9)
+          delta(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_3) + self%constants(54) &
+              *log1p(d_tau/tau_a) + self%constants(57)*(gamma_a*(self%constants(52)*t_5 - t_11*t_8) + t_11*t_9) + &
+              self%parameters%mu_neq_slope*t_10
+          grad_m(1, 1) = self%constants(49)*(self%constants(10)*t_12 + self%constants(12)*t_14) + self%constants(61) &
+              *t_16 + t_18*t_19
+          grad_m(2, 1) = self%constants(62)*gamma_m + t_18*t_20
+          grad_m(3, 1) = self%constants(54)
+          grad_m(1, 2) = self%constants(100)*t_16 + self%constants(49)*(self%constants(15)*t_12 + self%constants(30) &
+              *t_14) + t_19*t_22
+          grad_m(2, 2) = self%constants(84)*gamma_m + t_20*t_22
+          grad_m(3, 2) = self%constants(54)/tau_m
+          hess_m(1, 1, 1) = self%constants(72)*t_25 + t_24*(self%constants(42) + t_23) + t_26*(self%constants(43) + &
+              t_23)
+          hess_m(1, 2, 1) = t_28
+          hess_m(2, 1, 1) = t_28
+          hess_m(2, 2, 1) = self%constants(102)
+          hess_m(1, 1, 2) = self%constants(103)*t_25 + t_24*(self%constants(14) + t_29) + t_26*(self%constants(19) + &
+              t_29)
+          hess_m(1, 2, 2) = t_30
+          hess_m(2, 1, 2) = t_30
+          hess_m(2, 2, 2) = self%constants(84)
+          hess_m(3, 3, 2) = self%constants(105)/tau_m**2
+          grad_b(1, 1) = self%constants(49)*(self%constants(10)*t_31 + self%constants(12)*t_32) + self%constants(61) &
+              *t_33 + t_34*t_6
+          grad_b(2, 1) = self%constants(62)*gamma_b + t_35*t_6
+          grad_b(3, 1) = self%constants(54)
+          grad_b(1, 2) = self%constants(100)*t_33 + self%constants(49)*(self%constants(15)*t_31 + self%constants(30) &
+              *t_32) + t_11*t_34
+          grad_b(2, 2) = self%constants(84)*gamma_b + t_11*t_35
+          grad_b(3, 2) = self%constants(54)/tau_b
+        else
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_b*self%constants(1))
+          t_3 = t_1*(t_2 + log(C_a*self%constants(1)))
+          t_4 = 1.0_real64/C_a_root_2
+          t_5 = t_1*t_4
+          t_6 = self%constants(55)*t_2 + self%constants(56)
+          t_7 = 1.0_real64/C_b_root_2
+          t_8 = d_C*t_4*t_7/(C_a_root_2 + C_b_root_2)
+          t_9 = d_gamma*t_7
+          t_10 = d_gamma*(gamma_a + gamma_b)
+          t_11 = self%parameters%beta + self%constants(52)*t_2
+          t_12 = 1.0_real64/C_m
+          t_13 = log(C_m*self%constants(1))
+          t_14 = t_12*t_13
+          t_15 = gamma_m/C_m_root_2**3
+          t_16 = self%constants(55)*t_13 + self%constants(56)
+          t_17 = self%constants(60)*t_15
+          t_18 = self%constants(57)/C_m_root_2
+          t_19 = self%parameters%beta + self%constants(52)*t_13
+          delta(1) = self%constants(48)*t_10 + self%constants(49)*(self%constants(10)*t_1 + self%constants(9)*t_3) + &
+              self%constants(54)*d_tau + self%constants(57)*(gamma_a*(self%constants(55)*t_5 - t_6*t_8) + t_6*t_9)
+          delta(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_3) + self%constants(54) &
+              *log1p(d_tau/tau_a) + self%constants(57)*(gamma_a*(self%constants(52)*t_5 - t_11*t_8) + t_11*t_9) + &
+              self%parameters%mu_neq_slope*t_10
+          grad_m(1, 1) = self%constants(49)*(self%constants(10)*t_12 + self%constants(12)*t_14) + self%constants(61) &
+              *t_15 + t_16*t_17
+          grad_m(2, 1) = self%constants(62)*gamma_m + t_16*t_18
+          grad_m(3, 1) = self%constants(54)
+          grad_m(1, 2) = self%constants(100)*t_15 + self%constants(49)*(self%constants(15)*t_12 + self%constants(30) &
+              *t_14) + t_17*t_19
+          grad_m(2, 2) = self%constants(84)*gamma_m + t_18*t_19
+          grad_m(3, 2) = self%constants(54)/tau_m
+        end if
+      case (tau_internal_energy)
+        C_a = a(1)
+        gamma_a = a(2)
+        tau_a = a(3)
+        C_b = b(1)
+        gamma_b = b(2)
+        tau_b = b(3)
+        d_C = b(1) - a(1)
+        d_gamma = b(2) - a(2)
+        d_tau = b(3) - a(3)
+        C_m = 0.5_real64*(a(1) + b(1))
+        gamma_m = 0.5_real64*(a(2) + b(2))
+        tau_m = 0.5_real64*(a(3) + b(3))
+        if (.not. (C_a > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_b > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. (C_m > 0.0_real64)) then
+          stat = domain_nonpositive_length
+          return
+        end if
+        if (.not. ((self%parameters%theta_ref + (-gamma_a**2*(self%parameters%mu_neq_const + &
+            self%parameters%mu_neq_slope*self%parameters%theta_ref) + tau_a - (self%parameters%beta_v + 1.0_real64) &
+            *((0.5_real64)*self%parameters%beta*self%parameters%theta_ref*log(C_a/self%parameters%natural_length**2) &
+            + (0.25_real64)*((0.5_real64)*self%parameters%mu_eq_const + (0.5_real64)*self%parameters%mu_eq_slope &
+            *self%parameters%theta_ref)*log(C_a/self%parameters%natural_length**2)**2) + self%parameters%beta_v &
+            *gamma_a*(self%parameters%beta*self%parameters%theta_ref + (0.5_real64)*(self%parameters%mu_eq_const + &
+            self%parameters%mu_eq_slope*self%parameters%theta_ref)*log(C_a/self%parameters%natural_length &
+            **2))/sqrt(C_a))/(self%parameters%heat_capacity*(self%parameters%beta_v + &
+            1.0_real64)))/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. ((self%parameters%theta_ref + (-gamma_b**2*(self%parameters%mu_neq_const + &
+            self%parameters%mu_neq_slope*self%parameters%theta_ref) + tau_b - (self%parameters%beta_v + 1.0_real64) &
+            *((0.5_real64)*self%parameters%beta*self%parameters%theta_ref*log(C_b/self%parameters%natural_length**2) &
+            + (0.25_real64)*((0.5_real64)*self%parameters%mu_eq_const + (0.5_real64)*self%parameters%mu_eq_slope &
+            *self%parameters%theta_ref)*log(C_b/self%parameters%natural_length**2)**2) + self%parameters%beta_v &
+            *gamma_b*(self%parameters%beta*self%parameters%theta_ref + (0.5_real64)*(self%parameters%mu_eq_const + &
+            self%parameters%mu_eq_slope*self%parameters%theta_ref)*log(C_b/self%parameters%natural_length &
+            **2))/sqrt(C_b))/(self%parameters%heat_capacity*(self%parameters%beta_v + &
+            1.0_real64)))/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        if (.not. ((self%parameters%theta_ref + (-gamma_m**2*(self%parameters%mu_neq_const + &
+            self%parameters%mu_neq_slope*self%parameters%theta_ref) + tau_m - (self%parameters%beta_v + 1.0_real64) &
+            *((0.5_real64)*self%parameters%beta*self%parameters%theta_ref*log(C_m/self%parameters%natural_length**2) &
+            + (0.25_real64)*((0.5_real64)*self%parameters%mu_eq_const + (0.5_real64)*self%parameters%mu_eq_slope &
+            *self%parameters%theta_ref)*log(C_m/self%parameters%natural_length**2)**2) + self%parameters%beta_v &
+            *gamma_m*(self%parameters%beta*self%parameters%theta_ref + (0.5_real64)*(self%parameters%mu_eq_const + &
+            self%parameters%mu_eq_slope*self%parameters%theta_ref)*log(C_m/self%parameters%natural_length &
+            **2))/sqrt(C_m))/(self%parameters%heat_capacity*(self%parameters%beta_v + &
+            1.0_real64)))/self%parameters%theta_ref > 0.0_real64)) then
+          stat = domain_nonpositive_temperature
+          return
+        end if
+        C_a_root_2 = sqrt(C_a)
+        C_b_root_2 = sqrt(C_b)
+        C_m_root_2 = sqrt(C_m)
+        if (present(hess_m)) then
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = log(C_b*self%constants(1))
+          t_4 = t_1*(t_2 + t_3)
+          t_5 = 1.0_real64/C_a_root_2
+          t_6 = t_1*t_5
+          t_7 = 1.0_real64/C_b_root_2
+          t_8 = self%constants(55)*t_3 + self%constants(56)
+          t_9 = t_7*t_8
+          t_10 = d_C*t_5/(C_a_root_2 + C_b_root_2)
+          t_11 = d_gamma*t_7
+          t_12 = d_gamma*(gamma_a + gamma_b)
+          t_13 = self%parameters%beta + self%constants(52)*t_3
+          t_14 = t_13*t_7
+          t_15 = 1.0_real64/C_m
+          t_16 = log(C_m*self%constants(1))
+          t_17 = t_15*t_16
+          t_18 = gamma_m**2
+          t_19 = 1.0_real64/C_m_root_2
+          t_20 = self%constants(55)*t_16 + self%constants(56)
+          t_21 = self%parameters%beta_v*t_19*t_20
+          t_22 = 1.0_real64/(self%constants(53)*(self%constants(106)*t_18 + self%constants(51)*(self%constants(10) &
+              *t_16 + self%constants(9)*t_16**2) + gamma_m*t_21 + tau_m) + self%parameters%theta_ref)
+          t_23 = 1.0_real64/C_m_root_2**3
+          t_24 = gamma_m*t_23
+          t_25 = self%constants(100)*t_23
+          t_26 = self%parameters%beta + self%constants(52)*t_16
+          t_27 = self%constants(57)*t_19
+          t_28 = self%constants(39)*t_16
+          t_29 = self%constants(43) + t_28
+          t_30 = t_19*t_29
+          t_31 = self%constants(109)*t_18 + self%constants(110)*gamma_m*t_30 + self%constants(49)*t_16 &
+              *(self%constants(40) + t_28) - 8.0_real64*tau_m
+          t_32 = self%constants(41) + self%constants(70)*t_31
+          t_33 = 1.0_real64/t_32
+          t_34 = gamma_m/C_m_root_2**5
+          t_35 = 1.0_real64/C_m**2
+          t_36 = 1.0_real64/t_32**2
+          t_37 = self%parameters%beta_v*t_24*t_29 + self%constants(49)*t_15*t_29 + self%constants(76)*t_24
+          t_38 = self%parameters%mu_eq_slope*t_16
+          t_39 = self%constants(19) + t_38
+          t_40 = self%constants(114)*gamma_m + t_27*t_29
+          t_41 = self%constants(118)*t_36*t_37*t_40 + self%constants(119)*t_23*t_33*(self%constants(113) + &
+              self%constants(31)*t_16) + self%constants(88)*t_23*t_39 + t_25
+          t_42 = 1.0_real64/(self%constants(115)*t_31 + self%parameters%theta_ref)**2
+          t_43 = self%constants(116)*t_37*t_42
+          t_44 = self%constants(53)*t_42*(self%constants(59)*t_30 + self%constants(62)*gamma_m)
+          t_45 = 1.0_real64/C_b
+          t_46 = t_3*t_45
+          t_47 = self%parameters%beta_v*t_9
+          t_48 = 1.0_real64/(self%constants(53)*(self%constants(106)*gamma_b**2 + self%constants(51) &
+              *(self%constants(10)*t_3 + self%constants(9)*t_3**2) + gamma_b*t_47 + tau_b) + self%parameters%theta_ref)
+          t_49 = gamma_b/C_b_root_2**3
+          delta(1) = d_tau
+          delta(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_4) + self%constants(54) &
+              *log1p(self%constants(53)*(self%parameters%beta_v*(gamma_a*(self%constants(55)*t_6 - t_10*t_9) + t_11 &
+              *t_8) + self%constants(106)*t_12 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_4) &
+              + d_tau)/(self%constants(53)*(self%parameters%beta_v*gamma_a*t_5*(self%constants(55)*t_2 + &
+              self%constants(56)) + self%constants(106)*gamma_a**2 + self%constants(51)*(self%constants(10)*t_2 + &
+              self%constants(9)*t_2**2) + tau_a) + self%parameters%theta_ref)) + self%constants(57)*(gamma_a &
+              *(self%constants(52)*t_6 - t_10*t_14) + t_11*t_13) + self%parameters%mu_neq_slope*t_12
+          grad_m(3, 1) = 1.0_real64
+          grad_m(1, 2) = self%constants(49)*(self%constants(15)*t_15 + self%constants(30)*t_17) + self%constants(60) &
+              *t_24*t_26 + gamma_m*t_25 + t_22*(self%constants(107)*t_24 + self%constants(51)*(self%constants(10) &
+              *t_15 + self%constants(12)*t_17) + self%constants(59)*t_20*t_24)
+          grad_m(2, 2) = self%constants(84)*gamma_m + t_22*(self%constants(108)*gamma_m + t_21) + t_26*t_27
+          grad_m(3, 2) = t_22
+          hess_m(1, 1, 2) = self%constants(103)*t_34 + self%constants(112)*t_36*t_37**2 + self%constants(64)*t_35 &
+              *(self%constants(14) + t_38) + self%constants(73)*t_34*t_39 + t_33*(self%constants(111)*t_34 + &
+              self%constants(65)*t_35*(self%constants(42) + t_28) + self%constants(67)*t_29*t_34)
+          hess_m(1, 2, 2) = t_41
+          hess_m(1, 3, 2) = t_43
+          hess_m(2, 1, 2) = t_41
+          hess_m(2, 2, 2) = self%constants(120)*t_33 + self%constants(121)*t_36*t_40**2 + self%constants(84)
+          hess_m(2, 3, 2) = t_44
+          hess_m(3, 1, 2) = t_43
+          hess_m(3, 2, 2) = t_44
+          hess_m(3, 3, 2) = self%constants(70)*t_42
+          grad_b(3, 1) = 1.0_real64
+          grad_b(1, 2) = self%constants(100)*t_49 + self%constants(49)*(self%constants(15)*t_45 + self%constants(30) &
+              *t_46) + self%constants(60)*t_13*t_49 + t_48*(self%constants(107)*t_49 + self%constants(51) &
+              *(self%constants(10)*t_45 + self%constants(12)*t_46) + self%constants(59)*t_49*t_8)
+          grad_b(2, 2) = self%constants(57)*t_14 + self%constants(84)*gamma_b + t_48*(self%constants(108)*gamma_b + &
+              t_47)
+          grad_b(3, 2) = t_48
+        else
+          t_1 = log1p(d_C/C_a)
+          t_2 = log(C_a*self%constants(1))
+          t_3 = log(C_b*self%constants(1))
+          t_4 = t_1*(t_2 + t_3)
+          t_5 = 1.0_real64/C_a_root_2
+          t_6 = t_1*t_5
+          t_7 = self%constants(55)*t_3 + self%constants(56)
+          t_8 = 1.0_real64/C_b_root_2
+          t_9 = d_C*t_5*t_8/(C_a_root_2 + C_b_root_2)
+          t_10 = d_gamma*t_8
+          t_11 = d_gamma*(gamma_a + gamma_b)
+          t_12 = self%parameters%beta + self%constants(52)*t_3
+          t_13 = 1.0_real64/C_m
+          t_14 = log(C_m*self%constants(1))
+          t_15 = t_13*t_14
+          t_16 = 1.0_real64/C_m_root_2
+          t_17 = self%constants(55)*t_14 + self%constants(56)
+          t_18 = self%parameters%beta_v*t_16*t_17
+          t_19 = 1.0_real64/(self%constants(53)*(self%constants(106)*gamma_m**2 + self%constants(51) &
+              *(self%constants(10)*t_14 + self%constants(9)*t_14**2) + gamma_m*t_18 + tau_m) + &
+              self%parameters%theta_ref)
+          t_20 = gamma_m/C_m_root_2**3
+          t_21 = self%parameters%beta + self%constants(52)*t_14
+          delta(1) = d_tau
+          delta(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_4) + self%constants(54) &
+              *log1p(self%constants(53)*(self%parameters%beta_v*(gamma_a*(self%constants(55)*t_6 - t_7*t_9) + t_10 &
+              *t_7) + self%constants(106)*t_11 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_4) &
+              + d_tau)/(self%constants(53)*(self%parameters%beta_v*gamma_a*t_5*(self%constants(55)*t_2 + &
+              self%constants(56)) + self%constants(106)*gamma_a**2 + self%constants(51)*(self%constants(10)*t_2 + &
+              self%constants(9)*t_2**2) + tau_a) + self%parameters%theta_ref)) + self%constants(57)*(gamma_a &
+              *(self%constants(52)*t_6 - t_12*t_9) + t_10*t_12) + self%parameters%mu_neq_slope*t_11
+          grad_m(3, 1) = 1.0_real64
+          grad_m(1, 2) = self%constants(100)*t_20 + self%constants(49)*(self%constants(15)*t_13 + self%constants(30) &
+              *t_15) + self%constants(60)*t_20*t_21 + t_19*(self%constants(107)*t_20 + self%constants(51) &
+              *(self%constants(10)*t_13 + self%constants(12)*t_15) + self%constants(59)*t_17*t_20)
+          grad_m(2, 2) = self%constants(57)*t_16*t_21 + self%constants(84)*gamma_m + t_19*(self%constants(108) &
+              *gamma_m + t_18)
+          grad_m(3, 2) = t_19
+        end if
+      end select
+    end select
+  end subroutine gonzalez_parts
 
   !> Theta = d_tau U / d_tau S of eq. (2) in closed form (a kind without tau has none: domain_overflow).
   pure subroutine temperature(self, x, theta, stat)
@@ -1103,7 +1940,7 @@ contains
         end if
         C_root_2 = sqrt(C)
         t_1 = log(C*self%constants(1))
-        theta = self%constants(53)*(self%constants(103)*gamma**2 + self%constants(51)*(self%constants(10)*t_1 + &
+        theta = self%constants(53)*(self%constants(106)*gamma**2 + self%constants(51)*(self%constants(10)*t_1 + &
             self%constants(9)*t_1**2) + tau + self%parameters%beta_v*gamma*(self%constants(55)*t_1 + &
             self%constants(56))/C_root_2) + self%parameters%theta_ref
       end select
@@ -1288,16 +2125,16 @@ contains
           t_6 = t_5*self%parameters%theta_ref
           t_7 = abs(t_2) + 1.0_real64
           t_8 = t_7**2
-          t_9 = self%constants(93)*abs(gamma)/sqrt(abs(C))
+          t_9 = self%constants(96)*abs(gamma)/sqrt(abs(C))
           f(1) = self%constants(48)*t_1 + self%constants(49)*(self%constants(10)*t_2 + self%constants(9)*t_3) + &
               self%constants(54)*(self%constants(8) + t_6) + self%constants(57)*t_4*(self%constants(55)*t_2 + &
               self%constants(56))
           f(2) = tau
           theta = t_6
-          scales(1) = self%constants(88)*t_1 + self%constants(89)*(self%constants(25)*t_8 + self%constants(26)*t_7) + &
-              self%constants(90)*(self%constants(24) + t_6) + t_9*(self%constants(91)*t_7 + self%constants(92))
-          scales(2) = self%constants(89)*(self%constants(27)*t_7 + self%constants(28)*t_8) + self%constants(90) &
-              *(abs(log(t_5)) + 1.0_real64) + self%constants(94)*t_1 + t_9*(self%constants(95)*t_7 + self%constants(96))
+          scales(1) = self%constants(91)*t_1 + self%constants(92)*(self%constants(25)*t_8 + self%constants(26)*t_7) + &
+              self%constants(93)*(self%constants(24) + t_6) + t_9*(self%constants(94)*t_7 + self%constants(95))
+          scales(2) = self%constants(92)*(self%constants(27)*t_7 + self%constants(28)*t_8) + self%constants(93) &
+              *(abs(log(t_5)) + 1.0_real64) + self%constants(97)*t_1 + t_9*(self%constants(98)*t_7 + self%constants(99))
         else
           t_1 = gamma**2
           t_2 = log(C*self%constants(1))
@@ -1334,16 +2171,16 @@ contains
           t_5 = log(self%constants(29)*tau)
           t_6 = abs(t_2) + 1.0_real64
           t_7 = t_6**2
-          t_8 = self%constants(93)*abs(gamma)/sqrt(abs(C))
+          t_8 = self%constants(96)*abs(gamma)/sqrt(abs(C))
           f(1) = self%constants(48)*t_1 + self%constants(49)*(self%constants(10)*t_2 + self%constants(9)*t_3) + &
               self%constants(54)*(self%constants(8) + tau) + t_4*(self%constants(55)*t_2 + self%constants(56))
           f(2) = self%constants(49)*(self%constants(15)*t_2 + self%constants(16)*t_3) + self%constants(54)*t_5 + &
               self%parameters%mu_neq_slope*t_1 + t_4*(self%parameters%beta + self%constants(52)*t_2)
           theta = tau
-          scales(1) = self%constants(88)*t_1 + self%constants(89)*(self%constants(25)*t_7 + self%constants(26)*t_6) + &
-              self%constants(90)*(self%constants(24) + tau) + t_8*(self%constants(91)*t_6 + self%constants(92))
-          scales(2) = self%constants(89)*(self%constants(27)*t_6 + self%constants(28)*t_7) + self%constants(90) &
-              *(abs(t_5) + 1.0_real64) + self%constants(94)*t_1 + t_8*(self%constants(95)*t_6 + self%constants(96))
+          scales(1) = self%constants(91)*t_1 + self%constants(92)*(self%constants(25)*t_7 + self%constants(26)*t_6) + &
+              self%constants(93)*(self%constants(24) + tau) + t_8*(self%constants(94)*t_6 + self%constants(95))
+          scales(2) = self%constants(92)*(self%constants(27)*t_6 + self%constants(28)*t_7) + self%constants(93) &
+              *(abs(t_5) + 1.0_real64) + self%constants(97)*t_1 + t_8*(self%constants(98)*t_6 + self%constants(99))
         else
           t_1 = gamma**2
           t_2 = log(C*self%constants(1))
@@ -1384,27 +2221,27 @@ contains
           t_3 = gamma**2
           t_4 = gamma/C_root_2
           t_5 = self%constants(53)*(self%parameters%beta_v*t_4*(self%constants(55)*t_1 + self%constants(56)) + &
-              self%constants(103)*t_3 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_2) + tau)
+              self%constants(106)*t_3 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_2) + tau)
           t_6 = t_5 + self%parameters%theta_ref
           t_7 = log(self%constants(29)*t_6)
           t_8 = abs(t_1) + 1.0_real64
           t_9 = t_8**2
-          t_10 = self%constants(93)*abs(gamma)/sqrt(abs(C))
+          t_10 = self%constants(96)*abs(gamma)/sqrt(abs(C))
           f(1) = tau
           f(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_2) + self%constants(54)*t_7 + &
               self%constants(57)*t_4*(self%parameters%beta + self%constants(52)*t_1) + self%parameters%mu_neq_slope*t_3
           theta = t_6
-          scales(1) = self%constants(88)*t_3 + self%constants(89)*(self%constants(25)*t_9 + self%constants(26)*t_8) + &
-              self%constants(90)*(self%constants(47) + t_5) + t_10*(self%constants(91)*t_8 + self%constants(92))
-          scales(2) = self%constants(89)*(self%constants(27)*t_8 + self%constants(28)*t_9) + self%constants(90) &
-              *(abs(t_7) + 1.0_real64) + self%constants(94)*t_3 + t_10*(self%constants(95)*t_8 + self%constants(96))
+          scales(1) = self%constants(91)*t_3 + self%constants(92)*(self%constants(25)*t_9 + self%constants(26)*t_8) + &
+              self%constants(93)*(self%constants(47) + t_5) + t_10*(self%constants(94)*t_8 + self%constants(95))
+          scales(2) = self%constants(92)*(self%constants(27)*t_8 + self%constants(28)*t_9) + self%constants(93) &
+              *(abs(t_7) + 1.0_real64) + self%constants(97)*t_3 + t_10*(self%constants(98)*t_8 + self%constants(99))
         else
           t_1 = log(C*self%constants(1))
           t_2 = t_1**2
           t_3 = gamma**2
           t_4 = gamma/C_root_2
           t_5 = self%constants(53)*(self%parameters%beta_v*t_4*(self%constants(55)*t_1 + self%constants(56)) + &
-              self%constants(103)*t_3 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_2) + tau) + &
+              self%constants(106)*t_3 + self%constants(51)*(self%constants(10)*t_1 + self%constants(9)*t_2) + tau) + &
               self%parameters%theta_ref
           f(1) = tau
           f(2) = self%constants(49)*(self%constants(15)*t_1 + self%constants(16)*t_2) + self%constants(54) &
@@ -1532,7 +2369,7 @@ contains
     real(real64), intent(out) :: value
     real(real64), intent(out), optional :: dinverse_dtheta
 
-    value = self%parameters%viscosity_const*exp(self%parameters%viscosity_activation*(self%constants(116) + &
+    value = self%parameters%viscosity_const*exp(self%parameters%viscosity_activation*(self%constants(122) + &
         1.0_real64/theta))
     if (present(dinverse_dtheta)) dinverse_dtheta = self%parameters%viscosity_activation/theta**2/value
   end subroutine viscosity
