@@ -1587,8 +1587,9 @@ def element_module(description, source):
     """NAME_potential.f90 of a potential_only description: one type extending invariant_functions whose `kind`
     selects one of the element's kinds (the stored energies, then the subsystems) and `variable` the thermodynamic
     variable; values, gradients and Hessians, f(b) - f(a) free of cancellation, the temperature and tau from it,
-    values with the temperature and rounding scales in one body, the metric's scales, and the description's
-    functions of the temperature. Subexpressions of the parameters alone are constants its maker computes once."""
+    values with the temperature and rounding scales in one body, Gonzalez's parts between two states in one body
+    (gonzalez_parts), the metric's scales, and the description's functions of the temperature. Subexpressions of
+    the parameters alone are constants its maker computes once."""
     d = description
     name = d.name
     tau = sp.Symbol("tau", real=True)
@@ -1612,16 +1613,14 @@ def element_module(description, source):
     def keep_locals(routine, names):
         locals_[routine] += [n for n in names if n not in locals_[routine]]
 
-    def body_of(routine, indent, invariants, positive, source_name, targets, values, optional=None, check_on=None,
-                extra_used=()):
+    def body_of(routine, indent, invariants, positive, source_name, targets, values, optional=None, check_on=None):
         """Unpacked invariants, the domain checks of `check_on`, shared roots and the assignments (with `optional`
         (flag, targets, values): a second body with them when the flag is present)."""
         values = [constants.fold(sp.sympify(e)) for e in values]
         more = [constants.fold(sp.sympify(e)) for e in optional[2]] if optional else []
         check, _, _ = element_guards(check_on if check_on is not None else values, indent, positive)
         roots, (values, more) = shared_roots(positive, values, more)
-        used = set().union(*(e.free_symbols for e in values + more + [p for _, p in roots]), set(positive),
-                           set(extra_used))
+        used = set().union(*(e.free_symbols for e in values + more + [p for _, p in roots]), set(positive))
         names = [x.name for x in invariants]
         keep_locals(routine, [n for n in names if n in {s.name for s in used}] + [root.name for root, _ in roots])
         lines = unpack(used, names, source_name, indent) + check
@@ -1659,16 +1658,19 @@ def element_module(description, source):
             ends = [e.subs(at, simultaneous=True) for at in (at_a, at_b) for e in values]
             ends_positive = [at[x] for at in (at_a, at_b) for x in positive]
             names_here = [n for x in invariants for n in (at_a[x].name, at_b[x].name, delta[x].name)]
-            lines = body_of("difference", indent, [], ends_positive, "", ["delta(1)", "delta(2)"], differences,
-                            check_on=ends)
-            used = set().union(*(sp.sympify(e).free_symbols for e in differences + ends), set(ends_positive))
-            used_names = {x.name for x in used}
-            keep_locals("difference", [n for n in names_here if n in used_names])
             unpacked = [INDENT*indent + f"{at_a[x].name} = a({i + 1})" for i, x in enumerate(invariants)]
             unpacked += [INDENT*indent + f"{at_b[x].name} = b({i + 1})" for i, x in enumerate(invariants)]
             unpacked += [INDENT*indent + f"{delta[x].name} = b({i + 1}) - a({i + 1})" for i, x in enumerate(invariants)]
-            per_variable["difference"].append((variable, [line for line in unpacked if line.split()[0] in used_names]
-                                               + lines))
+
+            def with_ends(routine, lines, names):
+                """The lines after the unpacking of the end points' names (of `names`) they use."""
+                words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", "\n".join(lines)))
+                keep_locals(routine, [n for n in names if n in words])
+                return [line for line in unpacked if line.split()[0] in words] + lines
+
+            per_variable["difference"].append((variable, with_ends("difference", body_of(
+                "difference", indent, [], ends_positive, "", ["delta(1)", "delta(2)"], differences, check_on=ends),
+                names_here)))
             # Gonzalez's parts in one body: grad f(m), f(b) - f(a) and, for the Jacobian, the Hessian at m and grad f(b).
             at_m = {x: sp.Symbol(f"{x.name}_m", real=True) for x in invariants}
             mid_positive = [at_m[x] for x in positive]
@@ -1680,13 +1682,10 @@ def element_module(description, source):
                                 [h.subs(at_m, simultaneous=True) for *_, h in hessians]
                                 + [g.subs(at_b, simultaneous=True) for *_, g in grads]),
                                check_on=ends + [e.subs(at_m, simultaneous=True) for e in values])
-            words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", "\n".join(gonzalez)))
-            gonzalez_names = [n for n in names_here + [at_m[x].name for x in invariants] if n in words]
-            keep_locals("gonzalez", gonzalez_names)
             unpacked += [INDENT*indent + f"{at_m[x].name} = 0.5_real64*(a({i + 1}) + b({i + 1}))"
                          for i, x in enumerate(invariants)]
-            per_variable["gonzalez"].append((variable, [line for line in unpacked if line.split()[0] in gonzalez_names]
-                                             + gonzalez))
+            per_variable["gonzalez"].append((variable, with_ends("gonzalez", gonzalez,
+                                                                 names_here + [at_m[x].name for x in invariants])))
             if variable is None:        # no thermodynamic variable: no temperature, the values' scales |U|
                 per_variable["values"].append((variable, body_of(
                     "values", indent, invariants, positive, "x", ["f(1)", "f(2)"], values,
