@@ -94,7 +94,8 @@ contains
         part%tau_column = layout%tau_index(a)
         part%metric_scale = spring%metric_scale()
         allocate (part%potentials, source=spring%potentials)
-        if (n /= rung_elastic) model%column_names(layout%tau_index(a)) = trim(tau_symbols(variable))//'_'//integer_text(a)
+        if (n /= rung_elastic) &
+          model%column_names(layout%tau_index(a)) = trim(tau_symbols(variable))//'_'//integer_text(a)
         if (n == 3) model%column_names(layout%gamma_index(a)) = 'gamma_'//integer_text(a)
       end associate
     end do

@@ -101,8 +101,8 @@ contains
       if (.not. derivatives) return
 
       ! Chain rule to the slots: C through x_left and x_right (dC/dslot = +-dc_dr), gamma and tau
-      ! as they are (weight_of), written out: a matmul by the sparse dx/dslot cost more than the
-      ! discrete gradient.
+      ! as they are (weight_of), written out (the matmul by a sparse dx/dslot it replaces cost
+      ! chain_bench's loop 87e6 more instructions in 2 steps of 1e4 springs).
       w = weight_of(rule)
       do k = 1, 2
         do i = 1, n
