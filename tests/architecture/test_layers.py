@@ -32,16 +32,10 @@ def copy(tmp_path):
     return tmp_path
 
 
-# The paper's spring law (docs/formulation.md section 3: the parameters, the closed forms, the
-# potentials in each variable) lives with the pendulum and serves every model made of such
-# springs: the spring chain's springs are the pendulum's (section 10), used, not copied.
-SPRING_LAW = {"model_parameters", "free_energy", "thermo_variable", "elastic_potential"}
-
-
 def foreign_uses_of_model_rooms(root):
     """Uses of a module in a model's own folder (src/model/NAME/) from outside that folder, other
-    than the registry's lines (model_registry_lines, a model's one registration line), the
-    drivers' and another model's use of the pendulum's spring law (SPRING_LAW)."""
+    than the registry's lines (model_registry_lines, a model's one registration line) and the
+    drivers'."""
     nodes, edges = module_graph.graph(root)
     model_root = root / "src" / "model"
 
@@ -51,8 +45,7 @@ def foreign_uses_of_model_rooms(root):
 
     return sorted((user, used) for user, used in edges
                   if room(used) is not None and room(user) != room(used)
-                  and user != "model_registry_lines" and nodes[user][0] != "drivers"
-                  and not (room(user) is not None and used in SPRING_LAW))
+                  and user != "model_registry_lines" and nodes[user][0] != "drivers")
 
 
 def test_a_model_keeps_to_its_folder():
@@ -70,13 +63,14 @@ def test_a_planted_use_of_a_model_module_is_found(copy):
     assert foreign_uses_of_model_rooms(copy) == [("relaxed_stepper", "pendulum_model")]
 
 
-def test_another_model_may_use_the_spring_law_and_nothing_else_of_the_pendulum(copy):
-    """The spring chain uses the pendulum's spring law (its springs are the paper's); a planted use of
-    the pendulum's model itself from the chain's folder is found."""
-    assert ("spring_chain_spring", "thermo_variable") in module_graph.graph(copy)[1]
+def test_another_model_uses_nothing_of_the_pendulum(copy):
+    """The spring chain's springs are generated from its own description (src/model/spring_chain/
+    description.py), not taken from the pendulum's hand-written spring law; a planted use of the
+    pendulum's law from the chain's folder is found."""
+    assert ("spring_chain_spring", "spring_chain_potential") in module_graph.graph(copy)[1]
     path = copy / "src" / "model" / "spring_chain" / "spring_chain_step.f90"
-    path.write_text(path.read_text().replace("  implicit none", "  use pendulum_model, only: pendulum\n  implicit none", 1))
-    assert foreign_uses_of_model_rooms(copy) == [("spring_chain_step", "pendulum_model")]
+    path.write_text(path.read_text().replace("  implicit none", "  use thermo_variable, only: spring_potential\n  implicit none", 1))
+    assert foreign_uses_of_model_rooms(copy) == [("spring_chain_step", "thermo_variable")]
 
 
 def test_a_planted_upward_use_is_found(copy):

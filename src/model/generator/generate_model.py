@@ -14,6 +14,7 @@ for every src/model/*/description.py and tests/e2e/test_generated_models.py chec
 changes no byte."""
 import argparse
 import importlib.util
+import re
 import sys
 from random import Random
 from pathlib import Path
@@ -1742,6 +1743,351 @@ def input_rows(description, source):
     return "\n".join(rows)
 
 
+# ---------------------------------------------------------------------------------- an element (potential_only)
+
+POSITIVE_LOG = sp.Function("positive_log")      # a log whose argument is known positive: printed as log, not guarded
+
+
+def element_guards(expressions, indent, positive):
+    """guards() less the logs whose argument is positive wherever the positive invariants are (log(C/l0^2) after
+    C > 0): the element's kernels run on every Newton iteration."""
+    PRINTER.known_functions["positive_log"] = "log"
+    assume = {x: sp.Dummy(positive=True) for x in positive}
+    logs = {atom for e in expressions for atom in sp.sympify(e).atoms(sp.log)}
+    marked = [sp.sympify(e).xreplace({atom: POSITIVE_LOG(atom.args[0]) for atom in logs
+                                      if atom.args[0].subs(assume).is_positive}) for e in expressions]
+    return guards(marked, indent, positive)
+
+
+def element_module(description, source):
+    """NAME_potential.f90 of a potential_only description: one type extending invariant_functions whose `kind`
+    selects one of the element's kinds (the stored energies, then the subsystems) and `variable` the thermodynamic
+    variable; values, gradients and Hessians, f(b) - f(a) free of cancellation, the temperature and tau from it,
+    values with the temperature and rounding scales in one body, Gonzalez's parts between two states in one body
+    (gonzalez_parts), the metric's scales, and the description's functions of the temperature. Subexpressions of
+    the parameters alone are constants its maker computes once."""
+    d = description
+    name = d.name
+    tau = sp.Symbol("tau", real=True)
+    PRINTER.constant_names = {}
+    constants = ParameterConstants([p.symbol for p in d.parameters])
+    codes = {"domain_nonpositive_temperature", "domain_overflow"}
+    kinds = []               # (label, invariants, {variable or None: (U, S, theta, tau_of_theta)}, scales by variable)
+    for part, energy in d.stored_energies:
+        invariants = [inv.symbol for inv in part.invariants]
+        kinds.append((part, invariants, {None: (energy, sp.Float(0.0), None, None)},
+                      {None: [inv.scale for inv in part.invariants]}))
+    for part in d.subsystems:
+        forms = thermodynamics(part)
+        kinds.append((part, [inv.symbol for inv in part.invariants] + [tau], forms,
+                      {v: [inv.scale for inv in part.invariants] + [part.tau_scales[v]] for v in THERMO_VARIABLES}))
+    routines = ("evaluate", "values", "temperature", "inverse", "difference", "gonzalez")
+    bodies = {routine: [] for routine in routines}
+    temporaries = {routine: [0] for routine in routines}
+    locals_ = {routine: [] for routine in routines}
+
+    def keep_locals(routine, names):
+        locals_[routine] += [n for n in names if n not in locals_[routine]]
+
+    def body_of(routine, indent, invariants, positive, source_name, targets, values, optional=None, check_on=None):
+        """Unpacked invariants, the domain checks of `check_on`, shared roots and the assignments (with `optional`
+        (flag, targets, values): a second body with them when the flag is present)."""
+        values = [constants.fold(sp.sympify(e)) for e in values]
+        more = [constants.fold(sp.sympify(e)) for e in optional[2]] if optional else []
+        check, _, _ = element_guards(check_on if check_on is not None else values, indent, positive)
+        roots, (values, more) = shared_roots(positive, values, more)
+        used = set().union(*(e.free_symbols for e in values + more + [p for _, p in roots]), set(positive))
+        names = [x.name for x in invariants]
+        keep_locals(routine, [n for n in names if n in {s.name for s in used}] + [root.name for root, _ in roots])
+        lines = unpack(used, names, source_name, indent) + check
+        lines += [wrap(f"{root.name} = {fortran(power)}", indent) for root, power in roots]
+        if optional and more:
+            lines += [INDENT*indent + f"if (present({optional[0]})) then"]
+            lines += assignments(targets + optional[1], values + more, indent + 1, temporaries[routine])
+            lines += [INDENT*indent + "else"] + assignments(targets, values, indent + 1, temporaries[routine])
+            lines += [INDENT*indent + "end if"]
+        else:
+            lines += assignments(targets, values, indent, temporaries[routine])
+        return lines
+
+    for part, invariants, forms, _ in kinds:
+        positive = [inv.symbol for inv in part.invariants if inv.positive]
+        codes |= {"domain_nonpositive_length"} if positive else set()
+        per_variable = {routine: [] for routine in routines}
+        for variable, (u, s, temperature, tau_of_theta) in forms.items():
+            indent = 3 if variable is None else 4
+            values = [u, s]
+            grads = [(i, k, sp.diff(f, x)) for k, f in enumerate(values) for i, x in enumerate(invariants)]
+            hessians = [(i, j, k, sp.diff(f, x, y)) for k, f in enumerate(values)
+                        for i, x in enumerate(invariants) for j, y in enumerate(invariants)]
+            grads = [g for g in grads if g[-1] != 0]
+            hessians = [h for h in hessians if h[-1] != 0]
+            per_variable["evaluate"].append((variable, body_of(
+                "evaluate", indent, invariants, positive, "x",
+                ["f(1)", "f(2)"] + [f"grad({i + 1}, {k + 1})" for i, k, _ in grads], values + [g for *_, g in grads],
+                ("hess", [f"hess({i + 1}, {j + 1}, {k + 1})" for i, j, k, _ in hessians], [h for *_, h in hessians]),
+                check_on=values)))
+            at_a = {x: sp.Symbol(f"{x.name}_a", real=True) for x in invariants}
+            at_b = {x: sp.Symbol(f"{x.name}_b", real=True) for x in invariants}
+            delta = {x: sp.Symbol(f"d_{x.name}", real=True) for x in invariants}
+            differences = [difference(value, at_a, at_b, delta) for value in values]
+            ends = [e.subs(at, simultaneous=True) for at in (at_a, at_b) for e in values]
+            ends_positive = [at[x] for at in (at_a, at_b) for x in positive]
+            names_here = [n for x in invariants for n in (at_a[x].name, at_b[x].name, delta[x].name)]
+            unpacked = [INDENT*indent + f"{at_a[x].name} = a({i + 1})" for i, x in enumerate(invariants)]
+            unpacked += [INDENT*indent + f"{at_b[x].name} = b({i + 1})" for i, x in enumerate(invariants)]
+            unpacked += [INDENT*indent + f"{delta[x].name} = b({i + 1}) - a({i + 1})" for i, x in enumerate(invariants)]
+
+            def with_ends(routine, lines, names):
+                """The lines after the unpacking of the end points' names (of `names`) they use."""
+                words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", "\n".join(lines)))
+                keep_locals(routine, [n for n in names if n in words])
+                return [line for line in unpacked if line.split()[0] in words] + lines
+
+            per_variable["difference"].append((variable, with_ends("difference", body_of(
+                "difference", indent, [], ends_positive, "", ["delta(1)", "delta(2)"], differences, check_on=ends),
+                names_here)))
+            # Gonzalez's parts in one body: grad f(m), f(b) - f(a) and, for the Jacobian, the Hessian at m and grad f(b).
+            at_m = {x: sp.Symbol(f"{x.name}_m", real=True) for x in invariants}
+            mid_positive = [at_m[x] for x in positive]
+            gonzalez = body_of("gonzalez", indent, [], ends_positive + mid_positive, "",
+                               ["delta(1)", "delta(2)"] + [f"grad_m({i + 1}, {k + 1})" for i, k, _ in grads],
+                               differences + [g.subs(at_m, simultaneous=True) for *_, g in grads],
+                               ("hess_m", [f"hess_m({i + 1}, {j + 1}, {k + 1})" for i, j, k, _ in hessians]
+                                + [f"grad_b({i + 1}, {k + 1})" for i, k, _ in grads],
+                                [h.subs(at_m, simultaneous=True) for *_, h in hessians]
+                                + [g.subs(at_b, simultaneous=True) for *_, g in grads]),
+                               check_on=ends + [e.subs(at_m, simultaneous=True) for e in values])
+            unpacked += [INDENT*indent + f"{at_m[x].name} = 0.5_real64*(a({i + 1}) + b({i + 1}))"
+                         for i, x in enumerate(invariants)]
+            per_variable["gonzalez"].append((variable, with_ends("gonzalez", gonzalez,
+                                                                 names_here + [at_m[x].name for x in invariants])))
+            if variable is None:        # no thermodynamic variable: no temperature, the values' scales |U|
+                per_variable["values"].append((variable, body_of(
+                    "values", indent, invariants, positive, "x", ["f(1)", "f(2)"], values,
+                    ("scales", ["scales(1)", "scales(2)"], [sp.Abs(u, evaluate=False), sp.Float(0.0)]))))
+                per_variable["temperature"].append((variable, [INDENT*indent + "stat = domain_overflow"]))
+                per_variable["inverse"].append((variable, [INDENT*indent + "stat = domain_overflow"]))
+                continue
+            at_theta = {tau: sp.Symbol("theta", positive=True)}
+            scales = [rounding_scale(sp.sympify(value).subs(at_theta)) for value in forms["temperature"][:2]]
+            theta_symbol = sp.Symbol("theta", positive=True)
+            scales = [e.subs(theta_symbol, temperature) for e in scales]
+            per_variable["values"].append((variable, body_of(
+                "values", indent, invariants, positive, "x", ["f(1)", "f(2)", "theta"], values + [temperature],
+                ("scales", ["scales(1)", "scales(2)"], scales), check_on=values + [temperature])
+                + [INDENT*indent + "if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature"]))
+            per_variable["temperature"].append((variable, body_of(
+                "temperature", indent, invariants, positive, "x", ["theta"], [temperature])))
+            per_variable["inverse"].append((variable, body_of(
+                "inverse", indent, invariants[:-1], positive, "mechanical", ["tau"], [tau_of_theta])))
+        for routine in routines:
+            bodies[routine].append((part, per_variable[routine]))
+
+    def cases(routine):
+        lines = [INDENT*2 + "select case (self%kind)"]
+        for k, (part, by_variable) in enumerate(bodies[routine]):
+            lines.append(INDENT*2 + f"case ({k + 1})  ! {part.meaning}")
+            if by_variable[0][0] is None:
+                lines += by_variable[0][1]
+                continue
+            lines.append(INDENT*3 + "select case (self%variable)")
+            for variable, body in by_variable:
+                lines += [INDENT*3 + f"case (tau_{variable})"] + body
+            lines.append(INDENT*3 + "end select")
+        return lines + [INDENT*2 + "end select"]
+
+    def declaration(routine, extra=()):
+        return declare(locals_[routine] + [f"t_{i}" for i in range(1, temporaries[routine][0] + 1)] + list(extra), 2)
+
+    theta = TEMPERATURE
+    functions = []
+    for function, meaning, value in d.temperature_functions:
+        folded = constants.fold(value.subs(theta, sp.Symbol("theta", positive=True)))
+        logarithmic_derivative = sp.simplify(sp.diff(value, theta)/value).subs(theta, sp.Symbol("theta", positive=True))
+        functions.append(f"""
+  !> {meaning}, and optionally the derivative of its reciprocal d(1/value)/dtheta.
+  pure subroutine {function}(self, theta, value, dinverse_dtheta)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: theta
+    real(real64), intent(out) :: value
+    real(real64), intent(out), optional :: dinverse_dtheta
+
+{wrap(f"value = {fortran(folded)}", 2)}
+{wrap(f"if (present(dinverse_dtheta)) dinverse_dtheta = {fortran(constants.fold(-logarithmic_derivative))}/value", 2)}
+  end subroutine {function}""")
+
+    largest = max(len(invariants) for _, invariants, _, _ in kinds)
+    maker = ["    element%parameters = parameters", "    element%kind = kind", "    element%variable = variable",
+             "    select case (kind)"]
+    PRINTER.owner = "parameters"
+    for k, (part, invariants, _, scales) in enumerate(kinds):
+        maker += [f"    case ({k + 1})  ! {part.meaning}", f"      element%invariant_count = {len(invariants)}"]
+        if None in scales:
+            maker.append(wrap(f"element%metric_scale(1:{len(invariants)}) = [" + ", ".join(map(fortran, scales[None]))
+                              + "]", 3))
+            continue
+        maker.append("      select case (variable)")
+        for variable in THERMO_VARIABLES:
+            maker += [f"      case (tau_{variable})", wrap(f"element%metric_scale(1:{len(invariants)}) = ["
+                                                         + ", ".join(map(fortran, scales[variable])) + "]", 4)]
+        maker.append("      end select")
+    maker.append("    end select")
+    maker += [wrap(f"element%constants({k + 1}) = {fortran(value)}", 2) for k, value in enumerate(constants.values)]
+    PRINTER.owner = "self%parameters"
+    parameter_type = [f"  !> The element's data (src/model/{name}/description.py).", f"  type :: {name}_parameters"]
+    parameter_type += [f"    real(real64) :: {p.name} = {number(p.default)}  !! {p.meaning} [{p.units}]"
+                       for p in d.parameters]
+    parameter_type.append(f"  end type {name}_parameters")
+    kind_words = "\n".join(f"!>  {k + 1}: {part.meaning}" for k, (part, *_) in enumerate(kinds))
+    text = f"""{header(d, source, f"The potentials of {d.title} ({d.reference}),")}
+!> an element another model's code assembles (potential_only): (U, S) of its kinds in their invariants, with
+!> gradients and Hessians in each thermodynamic variable (entropy, temperature, internal energy), f(b) - f(a) free
+!> of cancellation, the temperature of eq. (2), tau from a temperature, the metric's scales and functions of the
+!> temperature, in closed form; subexpressions of the data alone are constants the maker computes once. Kinds:
+{kind_words}
+module {name}_potential
+  use, intrinsic :: iso_fortran_env, only: real64
+  use invariant_function, only: invariant_functions
+  use failures, only: failure_none, {", ".join(sorted(codes))}
+  use thermo_variable_kinds, only: tau_entropy, tau_temperature, tau_internal_energy
+  use special_functions, only: log1p, expm1
+  implicit none (type, external)
+  private
+  public :: {name}_parameters, {name}_potentials, make_{name}_potentials
+
+{lines_of(parameter_type)}
+
+  !> (U, S) of one element of kind `kind` (numbered as above) in thermodynamic variable `variable`.
+  type, extends(invariant_functions) :: {name}_potentials
+    type({name}_parameters) :: parameters
+    integer :: kind = 1
+    integer :: variable = tau_entropy
+    integer :: invariant_count = 1  !! the kind's invariants (tau last)
+    real(real64) :: metric_scale({largest}) = 1.0_real64  !! their typical sizes, for the metric
+    real(real64) :: constants({max(len(constants.values), 1)}) = 0.0_real64  !! of the data alone
+  contains
+    procedure :: evaluate
+    procedure :: difference
+    procedure :: gonzalez_parts
+    procedure :: temperature
+    procedure :: values_and_temperature
+    procedure :: tau_from_temperature{"".join(chr(10) + f"    procedure :: {function}" for function, *_ in d.temperature_functions)}
+  end type {name}_potentials
+
+  ! Largest argument of exp that stays finite, with a margin.
+  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))
+
+contains
+
+  !> The element of kind `kind` with data `parameters` in thermodynamic variable `variable` (tau_*).
+  pure function make_{name}_potentials(parameters, kind, variable) result(element)
+    type({name}_parameters), intent(in) :: parameters
+    integer, intent(in) :: kind, variable
+    type({name}_potentials) :: element
+
+{lines_of(maker)}
+  end function make_{name}_potentials
+
+  !> f = (U, S), their gradients in the invariants (tau last) and optionally their Hessians.
+  pure subroutine evaluate(self, x, f, grad, hess, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), grad(:, :)
+    real(real64), intent(out), optional :: hess(:, :, :)
+    integer, intent(out) :: stat
+{lines_of(declaration("evaluate"))}
+
+    grad = 0.0_real64
+    if (present(hess)) hess = 0.0_real64
+    stat = failure_none
+{lines_of(cases("evaluate"))}
+  end subroutine evaluate
+
+  !> f(b) - f(a) without cancellation (generate_model.py's `difference`: log1p, expm1, factored powers).
+  pure subroutine difference(self, a, b, delta, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: delta(:)
+    integer, intent(out) :: stat
+{lines_of(declaration("difference"))}
+
+    stat = failure_none
+{lines_of(cases("difference"))}
+  end subroutine difference
+
+  !> The parts of Gonzalez's discrete gradient between a and b (src/scheme/discrete_gradient's gonzalez_from_parts)
+  !> in one body, their common subexpressions shared: grad f at m = (a + b)/2, f(b) - f(a) free of cancellation
+  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither).
+  pure subroutine gonzalez_parts(self, a, b, grad_m, delta, stat, hess_m, grad_b)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: a(:), b(:)
+    real(real64), intent(out) :: grad_m(:, :), delta(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: hess_m(:, :, :), grad_b(:, :)
+{lines_of(declaration("gonzalez"))}
+
+    grad_m = 0.0_real64
+    if (present(hess_m)) hess_m = 0.0_real64
+    if (present(grad_b)) grad_b = 0.0_real64
+    stat = failure_none
+{lines_of(cases("gonzalez"))}
+  end subroutine gonzalez_parts
+
+  !> Theta = d_tau U / d_tau S of eq. (2) in closed form (a kind without tau has none: domain_overflow).
+  pure subroutine temperature(self, x, theta, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: theta
+    integer, intent(out) :: stat
+{lines_of(declaration("temperature"))}
+
+    theta = 0.0_real64
+    stat = failure_none
+{lines_of(cases("temperature"))}
+    if (stat == failure_none .and. .not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
+  end subroutine temperature
+
+  !> (U, S), the temperature (0 for a kind without tau) and optionally the values' rounding scales (the thermal
+  !> kinds' by generate_model.py's `rounding_scale`, the sizes of the terms each is summed from; |U| otherwise).
+  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f(:), theta
+    integer, intent(out) :: stat
+    real(real64), intent(out), optional :: scales(:)
+{lines_of(declaration("values"))}
+
+    theta = 0.0_real64
+    stat = failure_none
+{lines_of(cases("values"))}
+  end subroutine values_and_temperature
+
+  !> tau at the mechanical invariants `mechanical` and the temperature theta (> 0); a kind without tau has none
+  !> (domain_overflow).
+  pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
+    class({name}_potentials), intent(in) :: self
+    real(real64), intent(in) :: mechanical(:)
+    real(real64), intent(in) :: theta
+    real(real64), intent(out) :: tau
+    integer, intent(out) :: stat
+{lines_of(declaration("inverse"))}
+
+    tau = 0.0_real64
+    stat = failure_none
+    if (.not. (theta > 0.0_real64)) then
+      stat = domain_nonpositive_temperature
+      return
+    end if
+{lines_of(cases("inverse"))}
+  end subroutine tau_from_temperature
+{"".join(functions)}
+
+end module {name}_potential
+"""
+    return tidy(text)
+
+
 def main(arguments=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("description")
@@ -1758,6 +2104,9 @@ def main(arguments=None):
             if options.input_rows:
                 if description.scene:
                     print(input_rows(description, source))
+                continue
+            if description.potential_only:
+                files[f"{description.name}_potential.f90"] = element_module(description, source)
                 continue
             symbolic = SymbolicModel(description)
             files[f"{description.name}_potential.f90"] = (mechanical_potential_module if symbolic.mechanical

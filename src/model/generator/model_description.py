@@ -167,6 +167,11 @@ class ModelDescription:
         self.rounding_scales = False   # True: the potentials' rounding scales from their terms (rounding_scale), not |U|
         self.angular_momentum_pairs = None  # [(q vector, p vector)] of J = sum q_a x p_a, and gravity's components
         self.gravity = None
+        # An element's potentials alone (potential_only): another model's own code assembles it, as the spring
+        # chain's does its springs; the generator writes NAME_potential.f90 and nothing else (element_module).
+        self.potential_only = False
+        self.stored_energies = []      # potential_only: (Subsystem, U) of kinds without a thermodynamic variable, S = 0
+        self.temperature_functions = []  # potential_only: (name, meaning, f(TEMPERATURE)) with d(1/f)/dtheta
 
     def describe(self, **words):
         """How the output and the messages describe the model (model_interface's model_words):
@@ -261,6 +266,25 @@ class ModelDescription:
     def tau(part):
         """The symbol of subsystem `part`'s thermodynamic column, for K0's rows and columns."""
         return sp.Symbol(f"tau_{part.name}", real=True)
+
+    # ---------------------------------------------------------------- an element (potential_only)
+    def stored_energy(self, name, meaning, invariants, energy):
+        """potential_only: a kind of the element without a thermodynamic variable (an elastic spring): U = `energy`
+        of the positive `invariants` [(name, metric scale)], S = 0. The element's kinds are numbered from 1, the
+        stored energies first, then the subsystems, each in the order stated."""
+        if not self.potential_only:
+            raise DescriptionError(f"model {self.name}: stored_energy is for a potential_only element")
+        part = Subsystem(name, meaning, None, {}, label=name)
+        for invariant, scale in invariants:
+            part.invariant(invariant, sp.Symbol(invariant, real=True), scale, positive=True)
+        self.stored_energies.append((part, sp.sympify(energy)))
+
+    def temperature_function(self, name, meaning, value):
+        """potential_only: a function of the temperature (in the symbol TEMPERATURE), written as NAME(theta, value,
+        dinverse_dtheta) with d(1/value)/dtheta (a rate value^-1 needs it), as eq. (17)'s viscosity."""
+        if not self.potential_only:
+            raise DescriptionError(f"model {self.name}: temperature_function is for a potential_only element")
+        self.temperature_functions.append((name, meaning, sp.sympify(value)))
 
     # ---------------------------------------------------------------- helpers
     def _new_name(self, name):

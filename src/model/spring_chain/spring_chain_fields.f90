@@ -9,8 +9,7 @@ module spring_chain_fields
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_group, only: group_field, real_field, reals_field, integer_field, text_field, absolute_temperature
   use number_text, only: integer_text
-  use model_parameters, only: spring_law_names
-  use spring_chain_spring, only: rung_thermoviscoelastic, rung_elastic
+  use spring_chain_spring, only: rung_thermoviscoelastic, rung_elastic, spring_law_names
   use spring_chain_layout, only: ends_fixed_free, ends_fixed_fixed
   use spring_chain_input, only: chain_input, max_links, family_rod, family_springs, family_names, perturbation_none, &
                                 perturbation_mode, perturbation_random, perturbation_names

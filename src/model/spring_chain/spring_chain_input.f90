@@ -6,10 +6,9 @@
 !> given for until `complete_defaults` fills it.
 module spring_chain_input
   use, intrinsic :: iso_fortran_env, only: real64
-  use spring_chain_spring, only: spring_data, rung_of
+  use spring_chain_spring, only: spring_data, rung_of, law_thermoviscoelastic
   use spring_chain_layout, only: ends_fixed_free, ends_fixed_fixed
   use spring_chain_continuum, only: rod_data, rod_springs
-  use model_parameters, only: law_thermoviscoelastic
   implicit none (type, external)
   private
   public :: chain_input, size_arrays, complete_defaults, unset, max_links

@@ -93,12 +93,9 @@ contains
         part%columns = spring_columns(layout, a)
         part%tau_column = layout%tau_index(a)
         part%metric_scale = spring%metric_scale()
-        if (n == rung_elastic) then
-          allocate (part%potentials, source=spring%elastic)
-        else
-          allocate (part%potentials, source=spring%thermal)
+        allocate (part%potentials, source=spring%potentials)
+        if (n /= rung_elastic) &
           model%column_names(layout%tau_index(a)) = trim(tau_symbols(variable))//'_'//integer_text(a)
-        end if
         if (n == 3) model%column_names(layout%gamma_index(a)) = 'gamma_'//integer_text(a)
       end associate
     end do

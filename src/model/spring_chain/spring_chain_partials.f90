@@ -54,7 +54,7 @@ contains
     integer, intent(out) :: stat
     logical, intent(in), optional :: with_derivatives
     real(real64) :: r_old(dimension), r_new(dimension), x_old(3), x_new(3), f(2), second(3, 3, 2), dc_dr(dimension)
-    real(real64) :: dx_dslot(3, max_slots), at(size(new))
+    real(real64) :: at(size(new)), w
     integer :: n, d, i, k, c
     logical :: derivatives
 
@@ -100,17 +100,18 @@ contains
       if (n >= 2) part%theta = part%partials(n, potential_u)/part%partials(n, potential_s)
       if (.not. derivatives) return
 
-      ! Chain rule to the slots: C through x_left and x_right, gamma and tau as they are.
-      dx_dslot = 0.0_real64
-      do c = 1, d
-        dx_dslot(1, s%x_right(c)) = dc_dr(c)
-        dx_dslot(1, s%x_left(c)) = -dc_dr(c)
-      end do
-      if (s%gamma > 0) dx_dslot(2, s%gamma) = weight_of(rule)
-      if (s%tau > 0) dx_dslot(n, s%tau) = weight_of(rule)
+      ! Chain rule to the slots: C through x_left and x_right (dC/dslot = +-dc_dr), gamma and tau
+      ! as they are (weight_of), written out (the matmul by a sparse dx/dslot it replaces cost
+      ! chain_bench's loop 87e6 more instructions in 2 steps of 1e4 springs).
+      w = weight_of(rule)
       do k = 1, 2
         do i = 1, n
-          part%dpartials(i, k, 1:s%size) = matmul(second(i, 1:n, k), dx_dslot(1:n, 1:s%size))
+          do c = 1, d
+            part%dpartials(i, k, s%x_right(c)) = second(i, 1, k)*dc_dr(c)
+            part%dpartials(i, k, s%x_left(c)) = -second(i, 1, k)*dc_dr(c)
+          end do
+          if (s%gamma > 0) part%dpartials(i, k, s%gamma) = second(i, 2, k)*w
+          if (s%tau > 0) part%dpartials(i, k, s%tau) = second(i, n, k)*w
         end do
       end do
     end associate
