@@ -510,6 +510,24 @@ def shared_roots(positive, *groups):
     return [(root, base**sp.Rational(1, q)) for (base, q), root in roots.items()], rewritten
 
 
+# The procedures of invariant_functions (src/structure/invariant_function.f90) every potential module writes:
+# their arguments and declarations, one text for the model's, the mechanical and the element's modules.
+PROCEDURE_ARGUMENTS = {
+    "evaluate": ("self, x, f, grad, hess, stat", ['real(real64), intent(in) :: x(:)', 'real(real64), intent(out) :: f(:), grad(:, :)', 'real(real64), intent(out), optional :: hess(:, :, :)', 'integer, intent(out) :: stat']),
+    "difference": ("self, a, b, delta, stat", ['real(real64), intent(in) :: a(:), b(:)', 'real(real64), intent(out) :: delta(:)', 'integer, intent(out) :: stat']),
+    "temperature": ("self, x, theta, stat", ['real(real64), intent(in) :: x(:)', 'real(real64), intent(out) :: theta', 'integer, intent(out) :: stat']),
+    "tau_from_temperature": ("self, mechanical, theta, tau, stat", ['real(real64), intent(in) :: mechanical(:)', 'real(real64), intent(in) :: theta', 'real(real64), intent(out) :: tau', 'integer, intent(out) :: stat']),
+    "values_and_temperature": ("self, x, f, theta, stat, scales", ['real(real64), intent(in) :: x(:)', 'real(real64), intent(out) :: f(:), theta', 'integer, intent(out) :: stat', 'real(real64), intent(out), optional :: scales(:)']),
+}
+
+
+def procedure_head(routine, name):
+    """The first lines of the generated procedure `routine` of {name}_potentials: its statement and declarations."""
+    arguments, declarations = PROCEDURE_ARGUMENTS[routine]
+    return "\n".join([f"  pure subroutine {routine}({arguments})", f"    class({name}_potentials), intent(in) :: self",
+                      *(f"    {line}" for line in declarations)])
+
+
 def potential_module(symbolic, source):
     d = symbolic.d
     name = d.name
@@ -614,11 +632,7 @@ def potential_module(symbolic, source):
     temps = [f"t_{i}" for i in range(1, temporaries[0] + 1)]
     difference_text = "" if not d.differences else f"""
   !> f(b) - f(a) without cancellation (generate_model.py's `difference`: log1p, expm1, factored powers).
-  pure subroutine difference(self, a, b, delta, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: a(:), b(:)
-    real(real64), intent(out) :: delta(:)
-    integer, intent(out) :: stat
+{procedure_head("difference", name)}
 {lines_of(local_declaration("difference", [f"t_{i}" for i in range(1, difference_temporaries[0] + 1)]))}
 
     delta = 0.0_real64
@@ -629,12 +643,7 @@ def potential_module(symbolic, source):
     scale_text = "" if not d.rounding_scales else f"""
   !> (U, S) and the temperature, with the rounding scales of U and S (generate_model.py's `rounding_scale`: the
   !> sizes of the terms each is summed from), which the step check's balances are measured in.
-  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: f(:), theta
-    integer, intent(out) :: stat
-    real(real64), intent(out), optional :: scales(:)
+{procedure_head("values_and_temperature", name)}
 {lines_of(local_declaration("scale", [f"t_{i}" for i in range(1, scale_temporaries[0] + 1)] + ["g(size(x), size(f))"]))}
 
     theta = 0.0_real64
@@ -679,12 +688,7 @@ module {name}_potential
 contains
 
   !> f = (U, S), their gradients in the invariants (tau last) and optionally their Hessians.
-  pure subroutine evaluate(self, x, f, grad, hess, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: f(:), grad(:, :)
-    real(real64), intent(out), optional :: hess(:, :, :)
-    integer, intent(out) :: stat
+{procedure_head("evaluate", name)}
 {lines_of(local_declaration("evaluate", temps))}
 
     f = 0.0_real64
@@ -695,11 +699,7 @@ contains
   end subroutine evaluate
 
   !> Theta = d_tau U / d_tau S of eq. (2) in closed form.
-  pure subroutine temperature(self, x, theta, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: theta
-    integer, intent(out) :: stat
+{procedure_head("temperature", name)}
 {lines_of(local_declaration("temperature"))}
 
     theta = 0.0_real64
@@ -709,12 +709,7 @@ contains
   end subroutine temperature
 
   !> tau at the mechanical invariants `mechanical` and the temperature theta (> 0).
-  pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: mechanical(:)
-    real(real64), intent(in) :: theta
-    real(real64), intent(out) :: tau
-    integer, intent(out) :: stat
+{procedure_head("tau_from_temperature", name)}
 {lines_of(local_declaration("inverse"))}
 
     tau = 0.0_real64
@@ -805,11 +800,7 @@ def mechanical_potential_module(symbolic, source):
     parameter_type.append(f"  end type {name}_parameters")
     difference_text = "" if not d.differences else f"""
   !> (W(b) - W(a), 0) without cancellation (generate_model.py's `difference`: log1p, expm1, factored powers).
-  pure subroutine difference(self, a, b, delta, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: a(:), b(:)
-    real(real64), intent(out) :: delta(:)
-    integer, intent(out) :: stat
+{procedure_head("difference", name)}
 {lines_of(local_declaration("difference", [f"t_{i}" for i in range(1, difference_temporaries[0] + 1)]))}
 
     delta = 0.0_real64
@@ -843,12 +834,7 @@ module {name}_potential
 contains
 
   !> f = (W, 0), their gradients in the invariants and optionally their Hessians.
-  pure subroutine evaluate(self, x, f, grad, hess, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: f(:), grad(:, :)
-    real(real64), intent(out), optional :: hess(:, :, :)
-    integer, intent(out) :: stat
+{procedure_head("evaluate", name)}
 {lines_of(local_declaration("evaluate", [f"t_{i}" for i in range(1, temporaries[0] + 1)]))}
 
     f = 0.0_real64
@@ -859,11 +845,7 @@ contains
   end subroutine evaluate
 
   !> None: a subsystem without a thermodynamic variable has no temperature (domain_overflow).
-  pure subroutine temperature(self, x, theta, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: theta
-    integer, intent(out) :: stat
+{procedure_head("temperature", name)}
 
     theta = 0.0_real64
     stat = domain_overflow
@@ -1990,12 +1972,7 @@ contains
   end function make_{name}_potentials
 
   !> f = (U, S), their gradients in the invariants (tau last) and optionally their Hessians.
-  pure subroutine evaluate(self, x, f, grad, hess, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: f(:), grad(:, :)
-    real(real64), intent(out), optional :: hess(:, :, :)
-    integer, intent(out) :: stat
+{procedure_head("evaluate", name)}
 {lines_of(declaration("evaluate"))}
 
     grad = 0.0_real64
@@ -2005,11 +1982,7 @@ contains
   end subroutine evaluate
 
   !> f(b) - f(a) without cancellation (generate_model.py's `difference`: log1p, expm1, factored powers).
-  pure subroutine difference(self, a, b, delta, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: a(:), b(:)
-    real(real64), intent(out) :: delta(:)
-    integer, intent(out) :: stat
+{procedure_head("difference", name)}
 {lines_of(declaration("difference"))}
 
     stat = failure_none
@@ -2035,11 +2008,7 @@ contains
   end subroutine gonzalez_parts
 
   !> Theta = d_tau U / d_tau S of eq. (2) in closed form (a kind without tau has none: domain_overflow).
-  pure subroutine temperature(self, x, theta, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: theta
-    integer, intent(out) :: stat
+{procedure_head("temperature", name)}
 {lines_of(declaration("temperature"))}
 
     theta = 0.0_real64
@@ -2050,12 +2019,7 @@ contains
 
   !> (U, S), the temperature (0 for a kind without tau) and optionally the values' rounding scales (the thermal
   !> kinds' by generate_model.py's `rounding_scale`, the sizes of the terms each is summed from; |U| otherwise).
-  pure subroutine values_and_temperature(self, x, f, theta, stat, scales)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: x(:)
-    real(real64), intent(out) :: f(:), theta
-    integer, intent(out) :: stat
-    real(real64), intent(out), optional :: scales(:)
+{procedure_head("values_and_temperature", name)}
 {lines_of(declaration("values"))}
 
     theta = 0.0_real64
@@ -2065,12 +2029,7 @@ contains
 
   !> tau at the mechanical invariants `mechanical` and the temperature theta (> 0); a kind without tau has none
   !> (domain_overflow).
-  pure subroutine tau_from_temperature(self, mechanical, theta, tau, stat)
-    class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: mechanical(:)
-    real(real64), intent(in) :: theta
-    real(real64), intent(out) :: tau
-    integer, intent(out) :: stat
+{procedure_head("tau_from_temperature", name)}
 {lines_of(declaration("inverse"))}
 
     tau = 0.0_real64
