@@ -145,6 +145,9 @@ def scenes():
         "budget": {"integrator": {**short, "tolerance": 1e-4, "max_steps": 3}},
         "gas": {**read_namelist(inputs / "gas_containers.nml"), "integrator": {"t_end": 0.3, "dt": 0.1}},
         "elastic": {**read_namelist(inputs / "gonzalez_elastic.nml"), "integrator": {"t_end": 0.1, "dt": 0.02}},
+        # a chain of five springs on the dense path: its metric scales as one attribute of a row per spring
+        "chain": {**read_namelist(inputs / "spring_chain_small.nml"),
+                  "integrator": {"thermo_variable": "entropy", "t_end": 0.02, "dt": 0.01}},
         # relaxed_rk4 halves steps of 0.15 s of the thermoelastic scene: the file has `warnings`.
         "warned": {**read_namelist(inputs / "romero_thermoelastic.nml"),
                    "integrator": {"scheme": "relaxed_rk4", "thermo_variable": "entropy", "dt": 0.15, "t_end": 0.3}},
