@@ -165,8 +165,10 @@ UNIT_PROGRAMS := $(patsubst %,$(TESTBIN)/%,$(UNIT_SUITES))
 UNIT_OBJECTS := $(patsubst %,$(UNIT)/%.o,$(UNIT_SUITES))
 UNIT_DRIVERS := $(patsubst %,$(UNIT)/%_driver.o,$(UNIT_SUITES))
 all: $(UNIT_PROGRAMS)
+# The hand-derived double pendulum (pendulum_model and its field and elastic springs: the reference
+# the generated rungs are tested against) is test support since eme_run runs the generated rungs.
 TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values fixtures scripted_solver single_spring_model paper_free_energy \
-                model_conformance)
+                model_conformance pendulum_model pendulum_vector_field elastic_potential)
 UNIT_INCLUDES = -I$(UNIT)/mod $(filter-out -J$(MOD),$(FFLAGS)) -Wno-unused-dummy-argument
 UNIT_FFLAGS = -J$(UNIT)/mod $(UNIT_INCLUDES)
 ifeq ($(UNIT_RUNNER),pfunit)
@@ -204,7 +206,8 @@ $(UNIT)/%.o: tests/unit/support/%.f90 $(FUNIT) $(LIBRARY_OBJECTS) | $(UNIT)/mod
 	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) $(UNIT_FLAGS) $(PETSC_INCLUDES) -c $< -o $@
 $(UNIT)/%.o: tests/oracles/%.f90 $(LIBRARY_OBJECTS) | $(UNIT)/mod
 	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) -c $< -o $@
-$(UNIT)/fixtures.o: $(UNIT)/close_values.o $(UNIT)/paper_free_energy.o
+$(UNIT)/fixtures.o: $(UNIT)/close_values.o $(UNIT)/paper_free_energy.o $(UNIT)/pendulum_model.o
+$(UNIT)/pendulum_model.o: $(UNIT)/pendulum_vector_field.o $(UNIT)/elastic_potential.o
 $(UNIT)/model_conformance.o: $(UNIT)/close_values.o
 $(UNIT_OBJECTS): $(UNIT)/%.o: $(UNIT)/%.F90 $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
 	$(FC) $(UNIT_FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) $(UNIT_FLAGS) -c $< -o $@

@@ -52,15 +52,15 @@ def test_a_model_keeps_to_its_folder():
     """No module outside a model's folder uses the model's modules (the engine speaks no
     pendulum): the pendulum's modules are used from src/model/pendulum/, the registry and the
     drivers only."""
-    assert (ROOT / "src" / "model" / "pendulum" / "pendulum_model.f90").exists()
+    assert (ROOT / "src" / "model" / "pendulum" / "pendulum_rungs.f90").exists()
     assert foreign_uses_of_model_rooms(ROOT) == []
 
 
 def test_a_planted_use_of_a_model_module_is_found(copy):
     text = (copy / "src" / "integrator" / "relaxed_stepper.f90").read_text()
     (copy / "src" / "integrator" / "relaxed_stepper.f90").write_text(
-        text.replace("  implicit none", "  use pendulum_model, only: pendulum\n  implicit none", 1))
-    assert foreign_uses_of_model_rooms(copy) == [("relaxed_stepper", "pendulum_model")]
+        text.replace("  implicit none", "  use pendulum_rungs, only: rung_model\n  implicit none", 1))
+    assert foreign_uses_of_model_rooms(copy) == [("relaxed_stepper", "pendulum_rungs")]
 
 
 def test_another_model_uses_nothing_of_the_pendulum(copy):
@@ -103,7 +103,7 @@ def test_a_subfolder_is_a_folder_of_its_layer(copy):
         "  implicit none\nend module spring_model\n")
     nodes, edges = module_graph.graph(copy)
     assert (nodes["spring_model"].layer, nodes["spring_model"].folder) == ("model", "model/spring")
-    assert (nodes["pendulum_model"].layer, nodes["pendulum_model"].folder) == ("model", "model/pendulum")
+    assert (nodes["pendulum_rungs"].layer, nodes["pendulum_rungs"].folder) == ("model", "model/pendulum")
     assert (nodes["model_registry"].layer, nodes["model_registry"].folder) == ("model", "model")
     files, counts = module_graph.folder_graph(nodes, edges)
     folders = list(files)
