@@ -24,32 +24,32 @@
 !> accepted steps, and the controller's state is kept in the resume record).
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_INTEGER, MPI_CHARACTER, &
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_INTEGER, &
                      MPI_LOGICAL, MPI_MAX
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
-  use distributed_model, only: distributed_system, distributed_step, distributed_figures, distributed_part
+  use distributed_model, only: distributed_system, distributed_step, distributed_figures
   use integrator_settings, only: step_count
   use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
   use stepper, only: step_report
   use run_config, only: run_configuration
-  use run_output, only: run_file, extra_attribute, resume_record, read_resume_record
+  use run_output, only: run_file, extra_attribute
+  use resume_records, only: resume_record, read_resume_record
   use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_none, failure_domain, &
                          failure_input, failure_io, failure_library, failure_balance
   use step_balances, only: balance_count, balanced_state, balance_figures, applicable_balances
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal
-  use run_options, only: petsc_options_in_force
-  use run_file_steps, only: continuation_wanted, prepare_output, name_finished_file
+  use run_file_steps, only: continuation_wanted, prepare_output, open_run_file, name_finished_file, guard_output_lock
   use time_loop_steps, only: run_observer, line_reporter, record_failure, step_budget_spent, stop_before_step, &
                              land_step, step_status, fail_step, note_petsc_error, fail_write, accumulate_step, &
                              lower_min_temperature, note_balance_figures, complete_if_finished, &
                              next_output_stop, pass_output_times
   use split_run_setup, only: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, &
                              split_diagnostics, report_step, balanced_state_of
-  use snapshot_windows, only: held_snapshot, snapshot_window, transfer_part, tau_dataset
-  use filesystem, only: output_lock, recheck_lock
-  use number_text, only: integer_text, fixed_text, scientific_text
+  use snapshot_windows, only: held_snapshot, snapshot_window, take_up_snapshot, tau_dataset
+  use filesystem, only: output_lock
+  use number_text, only: integer_text, scientific_text
   use run_clock, only: run_timer
   use rank_agreement, only: agree, share_outcome
   use failures, only: failure_type
@@ -96,7 +96,7 @@ contains
     type(step_report) :: report
     type(failure_type) :: step_failure, io_failure
     type(resume_record) :: resume       !! where a continued run starts (its last snapshot)
-    character(len=:), allocatable :: part, kind, text, status, stored
+    character(len=:), allocatable :: part, kind, text, status, stored, line
     real(real64) :: figures(balance_count), dt, time, energy_change, conserved_change(3), dv
     real(real64) :: step_seconds
     integer(int64) :: n, step_start, step_end
@@ -107,12 +107,12 @@ contains
     !> the integrator's state after the last accepted step (a continued run's, at its snapshot)
     real(real64), allocatable :: control_state(:)
     logical :: steps_chosen           !! the steps are the integrator's (&integrator tolerance)
-    integer :: rank, every, stop_flags(3)
+    integer :: rank, every, stop_flags(4)
+    logical :: lock_lost, may_write    !! rank 0's lock of the output (run_file_steps' guard_output_lock)
     logical :: checked(balance_count), has_balance(balance_count), found, finished, writing, continuing, completed
     logical :: keeping                !! the run has a file (keep_file)
     integer :: outputs_passed         !! output times (&output interval) reached so far
     logical :: row_due                !! the step reached the next output time
-    type(extra_attribute), allocatable :: added(:)
     type(MPI_Comm) :: communicator
 
     call timer%begin()
@@ -178,21 +178,11 @@ contains
     ! The file: its layout and first point, written whole at once (the first write takes no
     ! snapshot: every later one goes through a window's spare); a continued run's file goes on
     ! from its record's rows, its snapshots all there.
-    allocate (added(0))
-    if (present(extras)) added = extras
-    if (present(durable)) output%store%durable = durable
     if (rank == 0 .and. keeping .and. .not. failure%failed()) then
-      call output%create(part, config, entry, model, constraints, &
-                         split_diagnostics(system, entry), added, &
-                         petsc_options_in_force(), io_failure, state_rows=.false.)
-      if (.not. io_failure%failed()) call output%record_solver(system%describe_solver(), io_failure)
-      if (io_failure%failed()) then
-        call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
-      else if (continuing) then
-        call output%continue_file(resume, config, io_failure)
-        if (io_failure%failed()) call fail(failure_io, "cannot continue the output file '"//part//"' ("// &
-                                           config%input_file//'): '//io_failure%message)
-      else
+      call open_run_file(output, part, config, entry, model, constraints, split_diagnostics(system, entry), &
+                         system%describe_solver(), continuing, resume, summary, failure, extras, durable, &
+                         state_rows=.false.)
+      if (.not. (continuing .or. failure%failed())) then
         call record_point(0.0_real64, .true.)
         call output%write_rows(summary, io_failure)
         if (io_failure%failed()) call fail(failure_io, 'cannot write the output file '''//part//''' ('// &
@@ -209,19 +199,21 @@ contains
     ! Output times already passed (a continued run's, from the time its snapshot stands at).
     outputs_passed = 0
     call pass_output_times(time, config%output_interval, outputs_passed, row_due)
+    line = ''
     call timer%begin_loop()
     finished = .false.
     do while (.not. finished)
-      ! Every rank stops at the same step: a signal to any, the budget, a lost lock on rank 0.
-      stop_flags = [interrupting_signal(), merge(1, 0, step_budget_spent(n, config%integrator%max_steps)), 0]
-      if (rank == 0 .and. present(lock)) stop_flags(3) = merge(1, 0, lock_lost())
-      call MPI_Allreduce(MPI_IN_PLACE, stop_flags, 3, MPI_INTEGER, MPI_MAX, communicator)
+      ! Every rank stops at the same step: a signal to any, the budget, a lost lock on rank 0
+      ! (after which the file is written once more only if rank 0 took the lock again).
+      stop_flags = [interrupting_signal(), merge(1, 0, step_budget_spent(n, config%integrator%max_steps)), 0, 0]
+      if (rank == 0 .and. present(lock)) then
+        call guard_output_lock(lock, config, part, n, summary, failure, lock_lost, may_write)
+        stop_flags(3:4) = [merge(1, 0, lock_lost), merge(1, 0, .not. may_write)]
+      end if
+      call MPI_Allreduce(MPI_IN_PLACE, stop_flags, 4, MPI_INTEGER, MPI_MAX, communicator)
       if (stop_before_step(stop_flags(1), stop_flags(2) /= 0, n, time, config%integrator%t_end, summary)) exit
       if (stop_flags(3) /= 0) then
-        summary%status = 'incomplete: the lock '//config%output_file//'.lock was removed or replaced while the run wrote'
-        summary%failure_kind = failure_io
-        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock was removed or replaced '// &
-                  'while the run wrote: the run stops after '//integer_text(n)//' steps')
+        writing = writing .and. stop_flags(4) == 0
         exit
       end if
       n = n + 1
@@ -279,7 +271,10 @@ contains
       end if
       call write_window(.false.)
       if (failure%failed()) exit
-      if (rank == 0 .and. present(progress)) call report_progress()
+      if (rank == 0 .and. present(progress)) then
+        line = timer%progress_line(progress_interval, time, config%integrator%t_end, n)
+        if (len(line) > 0) call progress(line)
+      end if
       if (present(observer)) call observer%after_step()
     end do
     call close_summary(summary, model, has_balance)
@@ -372,29 +367,17 @@ contains
     ! must stand where the file's resume record does; the loop's counts and sums as it recorded
     ! them (the figures of the restored state into `values`).
     subroutine restore_snapshot()
-      type(distributed_part) :: state
-      type(failure_type) :: reading
-      real(real64) :: snapshot_time
-      character(len=:), allocatable :: where
+      character(len=:), allocatable :: problem
 
-      where = ' ('//config%input_file//', -eme_continue)'
-      call system%part(state, reading)       ! this rank's part of the state: the shapes to read
-      if (.not. reading%failed()) call transfer_part(part, comm, snapshot_time, state, window%tau_name, .true., reading)
-      if (len(window%tau_name) == 0) state%tau = state%theta      ! tau is the temperature, stored as theta
-      if (.not. reading%failed()) then
-        if (abs(snapshot_time - resume%time) > 0.0_real64 .or. size(resume%integrator_state) < 4) then
-          call fail(failure_input, part//': its last snapshot (t = '//fixed_text(snapshot_time, 6)//' s) is not '// &
-                    'where its resume record stands (t = '//fixed_text(resume%time, 6)//' s)'//where// &
-                    '; allowed: a file of a run split over ranks, as eme_run wrote it')
-          return
-        end if
-        call system%restore(state, reading)
-        if (.not. reading%failed()) call system%restore_state(resume%time, resume%integrator_state(5:), reading)
+      if (size(resume%integrator_state) < 4) then
+        problem = part//': its resume record holds no split run''s sums ('//config%input_file//', -eme_continue)'// &
+                  '; allowed: a file of a run split over ranks, as eme_run wrote it'
+      else
+        call take_up_snapshot(system, part, comm, window%tau_name, resume%time, resume%integrator_state(5:), &
+                              ' ('//config%input_file//', -eme_continue)', values, problem)
       end if
-      if (.not. reading%failed()) call system%figures(values, reading)
-      if (reading%failed()) then
-        call fail(failure_input, part//': its last snapshot cannot be taken up: '//reading%message//where// &
-                  '; allowed: a file of this input''s run split over ranks')
+      if (len(problem) > 0) then
+        call fail(failure_input, problem)
         return
       end if
       n = resume%step
@@ -445,27 +428,11 @@ contains
         call fail_write(failure, summary, part, config%input_file, io_failure%message)
       end if
       call agree(failure, summary, communicator, config%input_file)
-      if (final .and. rank == 0 .and. .not. failure%failed()) call close_output()
+      ! The last write reached the file (a run stopped by a failure too, marked incomplete): it
+      ! takes the output's name, as on the dense path.
+      if (final .and. rank == 0 .and. .not. io_failure%failed()) &
+        call name_finished_file(config, part, output%store%durable, summary, failure)
     end subroutine write_window
-
-    ! The finished file takes its name, unless an incomplete run would replace a complete one.
-    subroutine close_output()
-      character(len=:), allocatable :: note, problem
-
-      call name_finished_file(config, part, summary%status == 'complete', output%store%durable, note, problem)
-      if (len(note) > 0) summary%note = note
-      if (len(problem) > 0) call fail(failure_io, problem)
-    end subroutine close_output
-
-    ! Whether rank 0's lock of the output was removed or replaced (the run then stops). (A result
-    ! named apart from the function: passing the function's own name made gfortran pass the
-    ! nested function, through a trampoline on an executable stack.)
-    logical function lock_lost() result(lost)
-      character(len=:), allocatable :: holder, what
-      logical :: retaken
-
-      call recheck_lock(lock, lost, retaken, what, holder)
-    end function lock_lost
 
     subroutine set_times(in_loop)
       logical, intent(in) :: in_loop
@@ -473,15 +440,6 @@ contains
       call timer%note_times(summary, in_loop)
     end subroutine set_times
 
-    subroutine report_progress()
-      real(real64) :: elapsed, left
-
-      if (.not. timer%progress_due(progress_interval)) return
-      elapsed = timer%loop_seconds()
-      left = elapsed*max(0.0_real64, config%integrator%t_end - time)/max(time, tiny(time))
-      call progress('t = '//fixed_text(time, 3)//' of '//fixed_text(config%integrator%t_end, 3)//' s, '// &
-                    integer_text(n)//' steps, about '//fixed_text(left, 1)//' s left')
-    end subroutine report_progress
   end subroutine run_distributed
 
 end module distributed_simulation

@@ -8,6 +8,7 @@ module run_clock
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use run_outcome, only: run_summary
+  use number_text, only: integer_text, fixed_text
   implicit none (type, external)
   private
   public :: run_timer
@@ -22,6 +23,7 @@ module run_clock
     procedure :: note_times
     procedure :: loop_seconds
     procedure :: progress_due
+    procedure :: progress_line
   end type run_timer
 
 contains
@@ -44,6 +46,23 @@ contains
     call system_clock(self%loop)
     call cpu_time(self%cpu_loop)
   end subroutine begin_loop
+
+  !> The progress line of a run at simulated `time` of `t_end` after `steps` steps: simulated time,
+  !> steps, rate and the wall time left; '' unless `interval` seconds passed since the last one.
+  function progress_line(self, interval, time, t_end, steps) result(line)
+    class(run_timer), intent(inout) :: self
+    real(real64), intent(in) :: interval, time, t_end
+    integer(int64), intent(in) :: steps
+    character(len=:), allocatable :: line
+    real(real64) :: elapsed, left
+
+    line = ''
+    if (.not. self%progress_due(interval)) return
+    elapsed = self%loop_seconds()
+    left = elapsed*max(0.0_real64, t_end - time)/max(time, tiny(time))
+    line = 't = '//fixed_text(time, 3)//' of '//fixed_text(t_end, 3)//' s, '//integer_text(steps)//' steps, '// &
+           integer_text(nint(steps/max(elapsed, tiny(elapsed))))//' steps/s, about '//fixed_text(left, 1)//' s left'
+  end function progress_line
 
   !> The whole run's seconds so far into `summary` (wall and CPU), and the time loop's while it
   !> runs (`in_loop`).

@@ -7,7 +7,7 @@ module run_continuation
   use, intrinsic :: iso_fortran_env, only: real64
   use integrator_settings, only: step_count
   use run_config, only: run_configuration
-  use run_output, only: resume_record, read_resume_record
+  use resume_records, only: resume_record, read_resume_record
   use run_outcome, only: failure_input, failure_io
   use hdf5_files, only: check_file_integrity
   use filesystem, only: file_exists, copy_file

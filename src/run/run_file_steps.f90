@@ -1,20 +1,30 @@
 !> The run file's steps that the dense run (src/run/simulation) and the split run
 !> (src/run/distributed_simulation) take alike, each written once: whether a run continues the
 !> one its file holds (and from which record), the output path's checks before a run that starts
-!> writes, and the name the finished file takes (docs/faults.md, Continuing a run; docs/output.md).
+!> writes, the file's opening, the output's lock while the run writes, and the name the finished file takes
+!> (docs/faults.md, Continuing a run; docs/output.md).
 module run_file_steps
+  use, intrinsic :: iso_fortran_env, only: int64
   use run_config, only: run_configuration
-  use run_output, only: resume_record
+  use run_output, only: run_file, extra_attribute
+  use resume_records, only: resume_record
+  use model_interface, only: generic_model
+  use model_constraint, only: constraint_slot
+  use integrator_registry, only: integrator_entry
+  use stepper, only: step_diagnostic
+  use solver_description, only: solver_report
   use run_continuation, only: find_resume_record
-  use run_outcome, only: failure_input, failure_io
-  use run_options, only: overwrite_requested, continue_requested
-  use hdf5_files, only: check_run_file
+  use run_outcome, only: run_summary, failure_input, failure_io, failure_library
+  use time_loop_steps, only: record_failure
+  use number_text, only: integer_text
+  use run_options, only: overwrite_requested, continue_requested, petsc_options_in_force
+  use hdf5_files, only: check_run_file, file_template
   use output_path, only: check_output_path
-  use filesystem, only: make_parent_directories, rename_file, file_exists
+  use filesystem, only: make_parent_directories, rename_file, file_exists, output_lock, recheck_lock
   use failures, only: failure_type
   implicit none (type, external)
   private
-  public :: continuation_wanted, prepare_output, holds_complete_run, name_finished_file
+  public :: continuation_wanted, prepare_output, open_run_file, holds_complete_run, name_finished_file, guard_output_lock
 
 contains
 
@@ -142,27 +152,107 @@ contains
     holds_complete_run = .not. checking%failed() .and. status == 'complete'
   end function holds_complete_run
 
+  !> Opens the run's file `part` (run_output's create, from `template` unless the run is
+  !> `continuing`; `state_rows` as there, with `extras` as root attributes and synced if `durable`),
+  !> records the solver `solver`, and takes a continued run's file up from its record `resume`.
+  !> A failure (HDF5's, or a file that cannot be continued) is recorded with the file's name.
+  subroutine open_run_file(output, part, config, entry, model, constraints, diagnostics, solver, continuing, resume, &
+                           summary, failure, extras, durable, template, state_rows)
+    type(run_file), intent(inout) :: output
+    character(len=*), intent(in) :: part
+    type(run_configuration), intent(in), target :: config
+    type(integrator_entry), intent(in) :: entry
+    class(generic_model), intent(in) :: model
+    type(constraint_slot), intent(in) :: constraints(:)
+    type(step_diagnostic), intent(in) :: diagnostics(:)
+    type(solver_report), intent(in) :: solver
+    logical, intent(in) :: continuing
+    type(resume_record), intent(in) :: resume
+    type(run_summary), intent(inout) :: summary
+    type(failure_type), intent(inout) :: failure
+    type(extra_attribute), intent(in), optional :: extras(:)
+    logical, intent(in), optional :: durable, state_rows
+    type(file_template), intent(inout), target, optional :: template
+    type(extra_attribute), allocatable :: added(:)
+    type(failure_type) :: writing
+
+    allocate (added(0))
+    if (present(extras)) added = extras
+    if (present(durable)) output%store%durable = durable
+    if (continuing) then        ! the file exists: nothing of it comes from a template
+      call output%create(part, config, entry, model, constraints, diagnostics, added, petsc_options_in_force(), &
+                         writing, state_rows=state_rows)
+    else
+      call output%create(part, config, entry, model, constraints, diagnostics, added, petsc_options_in_force(), &
+                         writing, template, state_rows)
+    end if
+    if (.not. writing%failed()) call output%record_solver(solver, writing)
+    if (writing%failed()) then
+      call record_failure(failure, summary, failure_library, 'HDF5 could not prepare the output file '''//part// &
+                          ''' ('//config%input_file//')', config%input_file)
+      return
+    end if
+    if (.not. continuing) return
+    call output%continue_file(resume, config, writing)
+    if (writing%failed()) call record_failure(failure, summary, failure_io, "cannot continue the output file '"// &
+                                              part//"' ("//config%input_file//'): '//writing%message, config%input_file)
+  end subroutine open_run_file
+
   !> The finished file `part` takes the output's name (synced if `durable`), unless the run is
-  !> incomplete (`complete` .false.) and the name holds a complete run: that one is kept, and
-  !> `note` says where this run's file is. `problem` is '' or why the renaming failed.
-  subroutine name_finished_file(config, part, complete, durable, note, problem)
+  !> incomplete (summary's status) and the name holds a complete run: that one is kept, and the
+  !> summary's note says where this run's file is. A renaming that fails is the run's failure.
+  subroutine name_finished_file(config, part, durable, summary, failure)
     type(run_configuration), intent(in) :: config
     character(len=*), intent(in) :: part
-    logical, intent(in) :: complete, durable
-    character(len=:), allocatable, intent(out) :: note, problem
+    logical, intent(in) :: durable
+    type(run_summary), intent(inout) :: summary
+    type(failure_type), intent(inout) :: failure
     type(failure_type) :: renaming
 
-    note = ''
-    problem = ''
-    if (.not. complete) then
+    if (summary%status /= 'complete') then
       if (holds_complete_run(config%output_file)) then
-        note = config%output_file//' keeps the earlier complete run; this run''s file is '//part
+        if (.not. failure%failed()) summary%note = config%output_file//' keeps the earlier complete run; this '// &
+                                                   'run''s file is '//part
         return
       end if
     end if
     call rename_file(part, config%output_file, renaming, sync=durable)
-    if (renaming%failed()) problem = 'cannot rename '''//part//''' to '''//config%output_file//''' ('// &
-                                     config%input_file//'): '//renaming%message
+    if (.not. renaming%failed()) return
+    failure = failure_type()      ! the file's name is what its user looks for first
+    call record_failure(failure, summary, failure_io, 'cannot rename '''//part//''' to '''//config%output_file// &
+                        ''' ('//config%input_file//'): '//renaming%message, config%input_file)
   end subroutine name_finished_file
+
+  !> Whether the output's lock (eme_run's) is still this process's, checked before the run
+  !> writes. One removed or replaced behind the run's back means that another writer can be in:
+  !> `lost`, the run stops after `steps` steps (summary's status and a failure say why) and writes
+  !> its file once more, marked incomplete, only if it took the lock again (`may_write`); else it
+  !> writes nothing more and leaves the file as its last write made it.
+  subroutine guard_output_lock(lock, config, part, steps, summary, failure, lost, may_write)
+    type(output_lock), intent(inout) :: lock
+    type(run_configuration), intent(in) :: config
+    character(len=*), intent(in) :: part
+    integer(int64), intent(in) :: steps
+    type(run_summary), intent(inout) :: summary
+    type(failure_type), intent(inout) :: failure
+    logical, intent(out) :: lost, may_write
+    character(len=:), allocatable :: holder, what, aftermath
+    logical :: retaken
+
+    call recheck_lock(lock, lost, retaken, what, holder)
+    may_write = .not. lost .or. retaken
+    if (.not. lost) return
+    summary%status = 'incomplete: the lock '//lock%path//' was '//what//' while the run wrote'
+    summary%failure_kind = failure_io
+    if (retaken) then
+      aftermath = ', so that a second writer could start: the run stops after '//integer_text(steps)// &
+                  ' steps; it took the lock again, and '//part//' is marked incomplete'
+    else
+      aftermath = ', and '//holder//' holds it now: the run stops after '//integer_text(steps)// &
+                  ' steps and writes nothing more ('//part//' is left as its last write made it)'
+    end if
+    call record_failure(failure, summary, failure_io, config%output_file//' ('//config%input_file//'): its lock '// &
+                        lock%path//' was '//what//' while the run wrote'//aftermath, config%input_file)
+  end subroutine guard_output_lock
 
 end module run_file_steps

@@ -17,8 +17,10 @@ module simulation
   use integrator_registry, only: integrator_entry, find_integrator, build_integrator
   use stepper, only: time_stepper, step_report
   use run_config, only: run_configuration
-  use run_output, only: run_file, extra_attribute, resume_record
-  use run_file_steps, only: continuation_wanted, prepare_output, holds_complete_run, name_finished_file
+  use run_output, only: run_file, extra_attribute
+  use resume_records, only: resume_record
+  use run_file_steps, only: continuation_wanted, prepare_output, open_run_file, holds_complete_run, &
+                            name_finished_file, guard_output_lock
   use time_loop_steps, only: run_observer, line_reporter, exit_status, failure_code_of, record_failure, &
                              step_budget_spent, stop_before_step, land_step, step_status, fail_step, note_petsc_error, fail_write, &
                              accumulate_step, note_balance_figures, complete_if_finished, &
@@ -29,11 +31,10 @@ module simulation
   use dense_observation, only: state_observation
   use step_check, only: checked_balances, broken_balance, balance_text
   use run_signals, only: install_interrupt_handlers, interrupting_signal
-  use run_options, only: petsc_options_in_force
   use hdf5_files, only: file_template
   use command_line, only: petsc_error_text
-  use filesystem, only: output_lock, recheck_lock
-  use number_text, only: integer_text, fixed_text
+  use filesystem, only: output_lock
+  use number_text, only: integer_text
   use run_clock, only: run_timer
   use dense_setup, only: dense_max_unknowns, set_up_only, check_dense_size, setup_failure_text
   use failures, only: failure_type
@@ -86,9 +87,8 @@ contains
     type(integrator_entry) :: entry
     type(step_report) :: report
     type(run_file) :: output
-    type(extra_attribute), allocatable :: added(:)
     type(resume_record) :: resume       !! the state a continued run starts from
-    character(len=:), allocatable :: part, kind, text
+    character(len=:), allocatable :: part, kind, text, line
     real(real64), allocatable :: x(:), x_previous(:), x_new(:), z0(:), residuals(:)
     real(real64) :: energy_0, entropy_old, lyapunov_old, time, boundary_heat, dt
     real(real64), allocatable :: conserved_0(:)   !! the conserved momentum components at the initial state
@@ -168,39 +168,14 @@ contains
       if (.not. present(reusable)) call integrator%release(release_failure)
       return
     end if
-    if (writing) then
-      allocate (added(0))
-      if (present(extras)) added = extras
-      if (present(durable)) output%store%durable = durable
-      if (continuing) then      ! the file exists: nothing of it comes from a template
-        call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                           petsc_options_in_force(), io_failure)
-      else
-        call output%create(part, config, entry, model, constraints, integrator%diagnostics(), added, &
-                           petsc_options_in_force(), io_failure, template)
-      end if
-      if (io_failure%failed()) then
-        failure = failure_type()
-        call fail(failure_library, 'HDF5 could not prepare the output file '''//part//''' ('//config%input_file//')')
-        if (.not. present(reusable)) call integrator%release(release_failure)
-        return
-      end if
-    end if
-    call output%record_solver(integrator%describe_solver(), io_failure)
-    if (io_failure%failed()) then
-      call fail(failure_library, 'HDF5 could not record the solver in '''//part//''' ('//config%input_file//')')
+    if (writing) call open_run_file(output, part, config, entry, model, constraints, integrator%diagnostics(), &
+                                    integrator%describe_solver(), continuing, resume, summary, failure, extras, durable, &
+                                    template)
+    if (failure%failed()) then
       if (.not. present(reusable)) call integrator%release(release_failure)
       return
     end if
-
     if (continuing) then
-      call output%continue_file(resume, config, io_failure)
-      if (io_failure%failed()) then
-        call fail(failure_io, "cannot continue the output file '"//part//"' ("//config%input_file//'): ' &
-                  //io_failure%message)
-        if (.not. present(reusable)) call integrator%release(release_failure)
-        return
-      end if
       call restore(resume)
       call integrator%restore_state(resume%integrator_state, x, x_previous, step_failure)
       if (step_failure%failed()) then
@@ -218,6 +193,7 @@ contains
       call output%note_resume_state(n, time, outputs_passed, energy_0, first_conserved_0(), boundary_heat, summary, x, &
                                     x_previous, integrator)
     end if
+    line = ''
     call timer%begin_loop()
     ! Integrators on the output grid take steps_planned steps to n dt (at least one: the input
     ! refuses dt > t_end); those that choose their times go on until they reach t_end (the last
@@ -279,7 +255,10 @@ contains
         end if
       end if
       if (present(observer)) call observer%after_step()
-      if (present(progress)) call report_progress()
+      if (present(progress)) then
+        line = timer%progress_line(progress_interval, time, t_end, n)
+        if (len(line) > 0) call progress(line)
+      end if
     end do
     call close_summary(summary, model, has_balance)
     call set_times(.true.)
@@ -407,7 +386,7 @@ contains
     ! name; an incomplete run does not take the name of a complete one.
     subroutine close_output()
       type(failure_type) :: finishing
-      character(len=:), allocatable :: kept, note, problem
+      character(len=:), allocatable :: kept
 
       if (.not. writing) return
       call guard_lock()
@@ -426,50 +405,19 @@ contains
                   //finishing%message//kept)
         return
       end if
-      call name_finished_file(config, part, summary%status == 'complete', output%store%durable, note, problem)
-      if (.not. failure%failed() .and. len(note) > 0) summary%note = note
-      if (len(problem) > 0) then
-        failure = failure_type()
-        call fail(failure_io, problem)
-      end if
+      call name_finished_file(config, part, output%store%durable, summary, failure)
     end subroutine close_output
 
-    ! Before a write: whether the output's lock (eme_run's) is still this process's. If its file
-    ! was removed or replaced, another writer can be in: lock_lost, the run stops (the status says
-    ! why), and writes its file again (marked incomplete) only if it takes the lock again; else
-    ! it writes nothing more.
+    ! Before a write: whether the output's lock (eme_run's) is still this process's
+    ! (run_file_steps' guard_output_lock: a lost one stops the run, which writes nothing more
+    ! unless it took the lock again).
     subroutine guard_lock()
-      character(len=:), allocatable :: holder, what
-      logical :: retaken
+      logical :: may_write
 
       if (.not. present(lock) .or. lock_lost) return
-      call recheck_lock(lock, lock_lost, retaken, what, holder)
-      if (.not. lock_lost) return
-      summary%status = 'incomplete: the lock '//lock%path//' was '//what//' while the run wrote'
-      summary%failure_kind = failure_io
-      if (retaken) then
-        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
-                  what//' while the run wrote, so that a second writer could start: the run stops after '// &
-                  integer_text(n)//' steps; it took the lock again, and '//part//' is marked incomplete')
-      else
-        writing = .false.
-        call fail(failure_io, config%output_file//' ('//config%input_file//'): its lock '//lock%path//' was '// &
-                  what//' while the run wrote, and '//holder//' holds it now: the run stops after '// &
-                  integer_text(n)//' steps and writes nothing more ('//part//' is left as its last write made it)')
-      end if
+      call guard_output_lock(lock, config, part, n, summary, failure, lock_lost, may_write)
+      writing = writing .and. may_write
     end subroutine guard_lock
-
-    ! Every 2 s at most: simulated time, steps, rate and the time left.
-    subroutine report_progress()
-      real(real64) :: elapsed, left
-
-      if (.not. timer%progress_due(progress_interval)) return
-      elapsed = timer%loop_seconds()
-      left = elapsed*max(0.0_real64, t_end - time)/max(time, tiny(time))
-      call progress('t = '//fixed_text(time, 3)//' of '//fixed_text(t_end, 3)//' s, '//integer_text(n)//' steps, ' &
-                    //integer_text(nint(n/max(elapsed, tiny(elapsed))))//' steps/s, about '//fixed_text(left, 1) &
-                    //' s left')
-    end subroutine report_progress
 
   end subroutine run_simulation
 

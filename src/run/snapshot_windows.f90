@@ -6,14 +6,15 @@
 module snapshot_windows
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Bcast, MPI_INTEGER, MPI_CHARACTER
-  use distributed_model, only: distributed_part
+  use distributed_model, only: distributed_system, distributed_part, distributed_figures
+  use number_text, only: fixed_text
   use thermo_variable_kinds, only: tau_entropy, tau_internal_energy
   use run_output, only: spare_addition
   use hdf5_snapshots, only: snapshot_layout, append_snapshot, read_last_snapshot
   use failures, only: failure_type
   implicit none (type, external)
   private
-  public :: held_snapshot, snapshot_window, transfer_part, tau_dataset
+  public :: held_snapshot, snapshot_window, transfer_part, take_up_snapshot, tau_dataset
 
   !> Bytes of snapshots a rank holds for the next window at most: more force the window.
   integer(int64), parameter :: snapshot_buffer_bytes = 256_int64*1024*1024
@@ -174,6 +175,41 @@ contains
                            tau=tau, tau_name=tau_name, temperatures=theta)
     end if
   end subroutine transfer_part
+
+  !> A continued run's state on the ranks of `comm`: the last snapshot of the file `path`, every
+  !> rank reading its own part of `system`'s state (tau as `tau_name` names it), which must stand
+  !> at `resume_time`, made the system's state with the integrator's state `control_state`;
+  !> `values` are its figures. `problem` is '' or why the snapshot cannot be taken up, with what is
+  !> allowed (`where` says which input and option asked for it).
+  subroutine take_up_snapshot(system, path, comm, tau_name, resume_time, control_state, where, values, problem)
+    class(distributed_system), intent(inout) :: system
+    character(len=*), intent(in) :: path, tau_name, where
+    integer, intent(in) :: comm
+    real(real64), intent(in) :: resume_time, control_state(:)
+    type(distributed_figures), intent(out) :: values
+    character(len=:), allocatable, intent(out) :: problem
+    type(distributed_part) :: state
+    type(failure_type) :: reading
+    real(real64) :: snapshot_time
+
+    problem = ''
+    call system%part(state, reading)       ! this rank's part of the state: the shapes to read
+    if (.not. reading%failed()) call transfer_part(path, comm, snapshot_time, state, tau_name, .true., reading)
+    if (len(tau_name) == 0) state%tau = state%theta      ! tau is the temperature, stored as theta
+    if (.not. reading%failed()) then
+      if (abs(snapshot_time - resume_time) > 0.0_real64) then
+        problem = path//': its last snapshot (t = '//fixed_text(snapshot_time, 6)//' s) is not where its resume '// &
+                  'record stands (t = '//fixed_text(resume_time, 6)//' s)'//where//'; allowed: a file of a run '// &
+                  'split over ranks, as eme_run wrote it'
+        return
+      end if
+      call system%restore(state, reading)
+      if (.not. reading%failed()) call system%restore_state(resume_time, control_state, reading)
+    end if
+    if (.not. reading%failed()) call system%figures(values, reading)
+    if (reading%failed()) problem = path//': its last snapshot cannot be taken up: '//reading%message//where// &
+                                    '; allowed: a file of this input''s run split over ranks'
+  end subroutine take_up_snapshot
 
   !> The snapshot's dataset of tau: the run's own variable when it is the entropy or the internal
   ! energy, none when it is the temperature or the model has none.

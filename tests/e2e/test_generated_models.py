@@ -79,6 +79,48 @@ def test_the_generator_refuses_what_the_interface_cannot_take(tmp_path, old, new
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("name, clash", [("x", "the dummy argument x"), ("f", "the dummy argument f"),
+                                         ("exp", "the intrinsic exp"), ("GRAD", "the dummy argument grad")])
+def test_the_generator_refuses_names_that_clash_in_fortran(tmp_path, name, clash):
+    """An invariant named as a dummy argument the generator writes (x, f; GRAD, since Fortran ignores case) or as an
+    intrinsic the code calls (exp) gave Fortran that did not compile ("Symbol 'x' already has basic type of REAL"):
+    refused with exit 2, naming the name, the file and what it clashes with; nothing written."""
+    description = heat_bath_variant(tmp_path, 'momentum = bath.invariant("p", p,',
+                                    f'momentum = bath.invariant("{name}", p,')
+    result = generate(description, "--output", str(tmp_path / "out"))
+    assert result.returncode == 2, result.stderr
+    assert f"the name {name} clashes in the generated heat_bath_potential.f90" in result.stderr, result.stderr
+    assert clash in result.stderr and "allowed:" in result.stderr, result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_name_scanner_reads_continued_declarations_and_ignores_internal_procedures():
+    """fortran_names on hand-written Fortran: a clash on a continued declaration line (in another case) is found,
+    a local of an internal procedure after `contains` is not the host's, and clean code has none."""
+    sys.path.insert(0, str(ROOT / "src" / "model" / "generator"))
+    from fortran_names import name_clashes
+    clean = """  pure subroutine evaluate(self, x, f, stat)
+    class(thing), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    real(real64), intent(out) :: f
+    integer, intent(out) :: stat
+    real(real64) :: a, b(2) = [1.0_real64, &
+      2.0_real64], c
+    f = exp(x(1))
+  contains
+    pure function inner(a) result(x)
+      real(real64), intent(in) :: a
+      real(real64) :: x
+      x = a
+    end function inner
+  end subroutine evaluate
+"""
+    assert name_clashes(clean) == []
+    clashing = clean.replace("2.0_real64], c", "2.0_real64], C, A")
+    assert name_clashes(clashing) == [("evaluate", "A", "the local a")]
+    assert name_clashes(clean.replace(":: a, b(2)", ":: log, b(2)")) == [("evaluate", "log", "the intrinsic log")]
+
+
 # A mass on a spring whose stored energy is a subsystem without a thermodynamic variable (mechanical_subsystem).
 MECHANICAL = """import sympy as sp
 from model_description import ModelDescription

@@ -10,6 +10,7 @@ sparse path): `mpirun -n P eme_run FILE.nml`, and one rank beyond the dense path
 - a split run stopped by SIGTERM keeps a valid file, marked incomplete, with its snapshots;
 - -eme_continue goes on from a split file's last snapshot, on any number of ranks, and ends with
   the uninterrupted run's file (bit for bit on the same ranks), after a step budget or a SIGKILL."""
+import fcntl
 import os
 import signal
 import subprocess
@@ -206,8 +207,9 @@ def assert_continued_equals(full_file, continued_file, exact, stop_times=()):
                 assert np.max(np.abs(a - b)) <= 1e-10 * max(1.0, np.max(np.abs(a))), name
 
 
-def stop_when_snapshots(process, part, count, stop):
-    """Sends `stop` to `process` once FILE.part holds `count` snapshots; its exit status."""
+def stop_when_snapshots(process, part, count, stop, stderr=None):
+    """Sends `stop` to `process` once FILE.part holds `count` snapshots; its exit status (its
+    standard error appended to the list `stderr`, if given)."""
     deadline = time.monotonic() + 300
     snapshots = 0
     while snapshots < count and time.monotonic() < deadline and process.poll() is None:
@@ -218,7 +220,9 @@ def stop_when_snapshots(process, part, count, stop):
         except (OSError, KeyError):
             snapshots = 0
     stop(process)
-    process.communicate(timeout=300)
+    _, err = process.communicate(timeout=300)
+    if stderr is not None:
+        stderr.append(err)
     if process.returncode == 0:
         pytest.skip("the run ended before it could be stopped")
     return process.returncode
@@ -251,7 +255,7 @@ def test_a_continued_split_run_is_the_uninterrupted_run(tmp_path, ranks, scheme)
                                stderr=subprocess.PIPE, text=True)
     part = tmp_path / "continued.h5.part"
     assert stop_when_snapshots(process, part, 3, lambda p: (tmp_path / "continued.h5.lock").unlink()) == 1
-    with h5py.File(part, "r") as f:
+    with h5py.File(continued_file, "r") as f:      # marked incomplete, under the output's name
         assert f.attrs["status"].startswith("incomplete: the lock")
         stop_time = f["time"][-1]
         assert f["snapshots/time"][-1] == stop_time
@@ -298,9 +302,9 @@ def test_a_split_file_is_not_continued_on_the_dense_path(tmp_path):
     namelist, output = write_input(tmp_path, "small", groups)
     process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
-    output = tmp_path / "small.h5.part"
-    assert stop_when_snapshots(process, output, 2, lambda p: (tmp_path / "small.h5.lock").unlink()) == 1
-    before = output.read_bytes()
+    assert stop_when_snapshots(process, tmp_path / "small.h5.part", 2,
+                               lambda p: (tmp_path / "small.h5.lock").unlink()) == 1
+    before = output.read_bytes()      # marked incomplete, under the output's name
     namelist = tmp_path / "small.nml"
     refused = subprocess.run([str(BIN / "eme_run"), str(namelist), "-eme_continue"], capture_output=True, text=True,
                              timeout=120)
@@ -311,21 +315,56 @@ def test_a_split_file_is_not_continued_on_the_dense_path(tmp_path):
 
 def test_a_lock_removed_during_a_split_run_stops_it(tmp_path):
     """One process on the split path: removing FILE.lock while it runs stops it at its next step,
-    exit status 1, its file kept as FILE.part (another writer may hold FILE now), marked, its last
-    snapshot the state it stopped at. (Before, the check passed a nested function where a logical
-    was asked, and the run went on.)"""
+    exit status 1; no other writer holds the lock, so the run takes it again and writes its file
+    once more, marked incomplete, under the output's name (as the dense path does,
+    test_file_integrity), its last snapshot the state it stopped at. (Before, the check passed a
+    nested function where a logical was asked, and the run went on.)"""
     groups = rod_groups(300, 100000)
     groups["output"] = {"snapshot_every": 50}
     namelist, output = write_input(tmp_path, "locked", groups)
     process = subprocess.Popen([str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     part = tmp_path / "locked.h5.part"
-    status = stop_when_snapshots(process, part, 2, lambda p: (tmp_path / "locked.h5.lock").unlink())
+    stderr = []
+    status = stop_when_snapshots(process, part, 2, lambda p: (tmp_path / "locked.h5.lock").unlink(), stderr)
     assert status == 1
+    assert "took the lock again" in stderr[0], stderr[0]
+    assert not part.exists()
+    with h5py.File(output, "r") as f:
+        assert f.attrs["status"] == f"incomplete: the lock {output}.lock was removed while the run wrote"
+        assert f["snapshots/time"][-1] == f["time"][-1]
+
+
+def test_a_lock_taken_by_a_second_writer_stops_a_split_run_which_leaves_it_alone(tmp_path):
+    """Two ranks: FILE.lock is removed and another process takes a new one while the run writes.
+    The run stops at its next step (exit 1), names the other holder, writes nothing more (FILE.part
+    stays as its last window made it, a valid file of complete snapshots) and leaves the other's
+    lock as it is."""
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=100000, dt=0.005)
+    groups["output"] = {"snapshot_every": 10}
+    namelist, output = write_input(tmp_path, "taken", groups)
+    process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    part = tmp_path / "taken.h5.part"
+    lock = tmp_path / "taken.h5.lock"
+    holder = "process 1 on host elsewhere\n"
+    with open(tmp_path / "other.lock", "w") as other:
+        def take_the_lock(process):
+            lock.unlink()
+            other.write(holder)
+            other.flush()
+            fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            os.rename(tmp_path / "other.lock", lock)
+        stderr = []
+        status = stop_when_snapshots(process, part, 2, take_the_lock, stderr)
+        assert lock.read_text() == holder
+    assert status == 1
+    assert "was replaced" in stderr[0] and "process 1 on host elsewhere" in stderr[0], stderr[0]
+    assert "writes nothing more" in stderr[0], stderr[0]
     assert not output.exists()
     with h5py.File(part, "r") as f:
-        assert f.attrs["status"] == f"incomplete: the lock {output}.lock was removed or replaced while the run wrote"
-        assert f["snapshots/time"][-1] == f["time"][-1]
+        assert f.attrs["status"].startswith("incomplete")
+        assert f["snapshots/time"].shape[0] >= 2
 
 
 def test_a_chain_file_holds_its_metric_scales_as_one_row_per_spring(tmp_path):

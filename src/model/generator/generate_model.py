@@ -25,6 +25,7 @@ from sympy.printing.fortran import FCodePrinter
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from model_description import (THERMO_VARIABLES, TAU_PREFIX, TEMPERATURE, ENERGY_LEVEL, ENTROPY_LEVEL,  # noqa: E402
                                DescriptionError)
+from fortran_names import name_clashes  # noqa: E402
 
 LINE_LENGTH = 120
 INDENT = "  "
@@ -2047,6 +2048,19 @@ end module {name}_potential
     return tidy(text)
 
 
+def refuse_name_clashes(files):
+    """A DescriptionError if a generated procedure declares a name twice or after an intrinsic (fortran_names):
+    a name of the description clashes with one the generator writes."""
+    for file, text in files.items():
+        clashes = name_clashes(text)
+        if clashes:
+            procedure, name, other = clashes[0]
+            raise DescriptionError(f"the name {name} clashes in the generated {file} (procedure {procedure}) with "
+                                   f"{other} (Fortran ignores case); allowed: names that are neither an intrinsic "
+                                   "(exp, log, sqrt, ...) nor one the generator writes (x, f, grad, hess, stat, z, "
+                                   "partials, theta, tau, t_1, ..., and the names it derives from yours)")
+
+
 def main(arguments=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("description")
@@ -2075,6 +2089,7 @@ def main(arguments=None):
                 files[f"{description.name}_scene.f90"] = scene_module(symbolic, source)
         if options.input_rows:
             return 0
+        refuse_name_clashes(files)
     except DescriptionError as error:
         print(f"generate_model.py: {path}: {error}", file=sys.stderr)
         return 2

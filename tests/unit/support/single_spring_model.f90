@@ -12,7 +12,7 @@ module single_spring_model
   use free_energy, only: spring_law_of, viscosity
   use invariant_function, only: potential_u, potential_s
   use thermo_variable, only: spring_potential
-  use model_interface, only: generic_model, angular_momentum_components, component_values
+  use model_interface, only: generic_model, angular_momentum_components, component_values, conserved_component
   implicit none (type, external)
   private
   public :: single_spring, make_single_spring
@@ -48,6 +48,7 @@ contains
     type(pendulum_parameters), intent(in) :: params
     integer, intent(in) :: variable
     type(single_spring) :: model
+    type(conserved_component), allocatable :: conserved(:)
 
     model%params = params
     model%mass = params%mass(2)
@@ -60,7 +61,8 @@ contains
     model%column_names(:) = column_names
     model%max_invariants = 3
     model%momentum_names = [character(len=8) :: 'J_x', 'J_y', 'J_z']
-    model%conserved = angular_momentum_components(params%gravity)
+    conserved = angular_momentum_components(params%gravity)
+    call move_alloc(conserved, model%conserved)
     allocate (model%subsystems(1))
     associate (part => model%subsystems(1))
       part%name = 'spring'
