@@ -122,6 +122,7 @@ contains
     dt = config%integrator%dt
     time = 0.0_real64
     n = 0
+    lock_lost = .false.
     part = config%output_file//'.part'
     writing = .false.
     keeping = .true.
@@ -291,6 +292,12 @@ contains
     end if
     call set_times(.true.)
     call system%finish(failure)
+    ! Before the last write, as before every step: the lock still rank 0's, or taken again.
+    if (rank == 0 .and. present(lock) .and. writing .and. .not. lock_lost) then
+      call guard_output_lock(lock, config, part, n, summary, failure, lock_lost, may_write)
+      writing = may_write
+    end if
+    call MPI_Bcast(writing, 1, MPI_LOGICAL, 0, communicator)
     if (writing) call write_window(.true.)
     call set_times(.false.)
     call agree(failure, summary, communicator, config%input_file)
