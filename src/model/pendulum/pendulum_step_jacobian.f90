@@ -28,7 +28,7 @@ contains
     class(pendulum_step), intent(in) :: self
     type(step_point), intent(inout) :: point
     integer, intent(out) :: stat
-    real(real64) :: values(2), partials(3, 2), hess(3, 3, 2)
+    real(real64) :: partials(3, 2), hess(3, 3, 2)
     integer :: a, n
 
     stat = failure_none
@@ -36,10 +36,9 @@ contains
       n = a + 1
       associate (sp => point%spring(a))
         if (self%partials_rule == partials_midpoint) then
-          call self%spring(a)%evaluate(sp%mid(1:n), values, partials(1:n, :), hess(1:n, 1:n, :), stat)
-          if (stat /= failure_none) return
+          hess(1:n, 1:n, :) = sp%hess_m(1:n, 1:n, :)
         else if (self%gradient == gradient_gonzalez) then
-          call gonzalez_derivatives(self, a, sp, hess(1:n, 1:n, :))
+          call gonzalez_derivatives(a, sp, hess(1:n, 1:n, :))
         else
           call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
                                     partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
@@ -50,26 +49,22 @@ contains
     end do
   end subroutine derivative_pass
 
-  !> The derivative of Gonzalez's discrete gradient in x' from its values pass: the Hessian at the
-  !> midpoint and grad f(x') from the element's gonzalez_parts.
-  pure subroutine gonzalez_derivatives(self, a, sp, ddg)
-    class(pendulum_step), intent(in) :: self
+  !> The derivative of Gonzalez's discrete gradient in x' from its values pass (the element's
+  !> Hessian at the midpoint and grad f(x'), kept there).
+  pure subroutine gonzalez_derivatives(a, sp, ddg)
     integer, intent(in) :: a
     type(spring_pass), intent(in) :: sp
     real(real64), intent(out) :: ddg(:, :, :)
-    real(real64) :: grad(3, 2), delta(2), hess_m(3, 3, 2), grad_b(3, 2), dg(3, 2)
-    integer :: n, stat
+    real(real64) :: dg(3, 2)
+    integer :: n
 
     n = a + 1
-    ! The values pass took the same invariants through the same checks: stat is failure_none.
-    call self%spring(a)%gonzalez_parts(self%old(a)%x(1:n), sp%x(1:n), grad(1:n, :), delta, stat, hess_m(1:n, 1:n, :), &
-                                       grad_b(1:n, :))
     if (sp%small) then
-      ddg = 0.5_real64*hess_m(1:n, 1:n, :)
+      ddg = 0.5_real64*sp%hess_m(1:n, 1:n, :)
       return
     end if
     call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
-                             hess_m(1:n, 1:n, :), grad_b(1:n, :), ddg)
+                             sp%hess_m(1:n, 1:n, :), sp%grad_b(1:n, :), ddg)
   end subroutine gonzalez_derivatives
 
   ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.

@@ -68,11 +68,15 @@ module pendulum_step_kernel
   end type spring_old_state
 
   !> What a spring's values pass computed at a point and its derivative pass reuses: its
-  !> invariants x' (EME) or x_mid (midpoint), and for Gonzalez's quotient d = x' - x, its metric,
-  !> grad f at the midpoint and f(x') - f(x).
+  !> invariants x' (EME) or x_mid (midpoint), grad f and the Hessian at the midpoint (or x_mid), and
+  !> for Gonzalez's quotient d = x' - x, its metric, f(x') - f(x) and grad f(x'). The values pass
+  !> asks the element for the Jacobian's parts too: one generated body shares its logarithms and
+  !> roots between them, and Newton wants a Jacobian at about half the points it evaluates (the
+  !> paper scene: 2.9 Jacobians and 5.3 residuals a step), which a second call would pay again.
   type :: spring_pass
     real(real64) :: x(3) = 0.0_real64, mid(3) = 0.0_real64, d(3) = 0.0_real64, weight(3) = 0.0_real64
     real(real64) :: dwd = 0.0_real64, grad_m(3, 2) = 0.0_real64, delta_f(2) = 0.0_real64
+    real(real64) :: hess_m(3, 3, 2) = 0.0_real64, grad_b(3, 2) = 0.0_real64
     logical :: small = .false.            !! Gonzalez's fallback: the midpoint derivative
   end type spring_pass
 

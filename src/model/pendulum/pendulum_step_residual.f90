@@ -123,7 +123,7 @@ contains
     end do
   end procedure values_pass
 
-  !> The exact partials of spring a at sp%mid (the element's gradients there).
+  !> The exact partials of spring a at sp%mid (the element's gradients there) and their Hessian.
   pure subroutine midpoint_values(self, a, sp, stat)
     class(pendulum_step), intent(in) :: self
     integer, intent(in) :: a
@@ -133,12 +133,13 @@ contains
     integer :: n
 
     n = a + 1
-    call self%spring(a)%evaluate(sp%mid(1:n), f, sp%grad_m(1:n, :), stat=stat)
+    call self%spring(a)%evaluate(sp%mid(1:n), f, sp%grad_m(1:n, :), sp%hess_m(1:n, 1:n, :), stat)
   end subroutine midpoint_values
 
   !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x
   !> (src/scheme/discrete_gradient): grad f at the midpoint and f(x') - f(x) from the element's
-  !> gonzalez_parts in one call, kept for the derivative pass.
+  !> gonzalez_parts in one call, with the Hessian at the midpoint and grad f(x') kept for the
+  !> derivative pass.
   pure subroutine gonzalez_values(self, a, sp, dg, stat)
     class(pendulum_step), intent(in) :: self
     integer, intent(in) :: a
@@ -152,7 +153,8 @@ contains
       d = x - old%x(1:n)
       sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
       sp%dwd = dot_product(d, sp%weight(1:n)*d)
-      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m(1:n, :), sp%delta_f, stat)
+      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m(1:n, :), sp%delta_f, stat, sp%hess_m(1:n, 1:n, :), &
+                                         sp%grad_b(1:n, :))
       if (stat /= failure_none) return
       sp%small = sqrt(sp%dwd) < quotient_threshold
       if (sp%small) then
