@@ -538,32 +538,40 @@ contains
     real(real64), intent(in) :: y(:)
     real(real64), intent(out) :: theta(:)
     integer, intent(out) :: stat
+
+    ! The kept pass if it was at this y of this step (the root a solve ended on), read in place: a
+    ! copy of a point, or a new one's default initialization, costs more than the rest of this.
+    theta = 0.0_real64
+    if (kept_for(self, y)) then
+      theta(1:2) = point_temperatures(self%kept)
+      stat = failure_none
+    else
+      call new_point_temperatures(self, y, theta, stat)
+    end if
+  end subroutine scheme_temperatures
+
+  ! scheme_temperatures at a point y that was not kept.
+  pure subroutine new_point_temperatures(self, y, theta, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    real(real64), intent(inout) :: theta(:)
+    integer, intent(out) :: stat
     type(step_point) :: point
+
+    call values_pass(self, y, point, stat)
+    if (stat == failure_none) theta(1:2) = point_temperatures(point)
+  end subroutine new_point_temperatures
+
+  ! The scheme temperatures U_tau/S_tau of a point's partials.
+  pure function point_temperatures(point) result(theta)
+    type(step_point), intent(in) :: point
+    real(real64) :: theta(2)
     integer :: a
 
-    theta = 0.0_real64
-    call values_at(self, y, point, stat)
-    if (stat /= failure_none) return
     do a = 1, 2
       theta(a) = point%partials(a + 1, potential_u, a)/point%partials(a + 1, potential_s, a)
     end do
-  end subroutine scheme_temperatures
-
-  ! The values pass at y: the kept one if it was at this y of this step (the root a solve ended
-  ! on, which check_root and scheme_temperatures then ask about), else a new one.
-  pure subroutine values_at(self, y, point, stat)
-    class(pendulum_step), intent(in) :: self
-    real(real64), intent(in) :: y(:)
-    type(step_point), intent(out) :: point
-    integer, intent(out) :: stat
-
-    if (kept_for(self, y)) then
-      point = self%kept
-      stat = failure_none
-    else
-      call values_pass(self, y, point, stat)
-    end if
-  end subroutine values_at
+  end function point_temperatures
 
   ! Whether the kept pass is at y (bit for bit) of this very step.
   pure logical function kept_for(self, y)
@@ -579,11 +587,37 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: x(:)
     character(len=:), allocatable, intent(out) :: problem_text
-    type(step_point) :: point
-    real(real64) :: theta_new(2), theta_scheme(2)
-    integer :: stat, scheme_stat, a, which
 
-    call values_at(self, x, point, scheme_stat)
+    ! The values pass at x: the kept one, read in place, if it was at this x of this step (the root
+    ! a solve ended on), else a new one (scheme_temperatures' note).
+    if (kept_for(self, x)) then
+      call root_text(self, self%kept, failure_none, problem_text)
+    else
+      call new_point_root_text(self, x, problem_text)
+    end if
+  end subroutine check_root
+
+  ! check_root at a point x that was not kept.
+  pure subroutine new_point_root_text(self, x, problem_text)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    character(len=:), allocatable, intent(out) :: problem_text
+    type(step_point) :: point
+    integer :: scheme_stat
+
+    call values_pass(self, x, point, scheme_stat)
+    call root_text(self, point, scheme_stat, problem_text)
+  end subroutine new_point_root_text
+
+  ! check_root's text from the values pass `point` at the root and its status.
+  pure subroutine root_text(self, point, scheme_stat, problem_text)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(in) :: point
+    integer, intent(in) :: scheme_stat
+    character(len=:), allocatable, intent(out) :: problem_text
+    real(real64) :: theta_new(2), theta_scheme(2)
+    integer :: stat, a, which
+
     theta_new = 0.0_real64
     theta_scheme = 0.0_real64
     which = 1
@@ -598,6 +632,6 @@ contains
                                                    /point%partials(a + 1, potential_s, a), a=1, 2)]
     call root_problem_text(self%partials_rule, stat, which, theta_new, 'spring '//achar(iachar('0') + which), &
                            scheme_stat, theta_scheme, problem_text)
-  end subroutine check_root
+  end subroutine root_text
 
 end module pendulum_step_kernel
