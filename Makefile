@@ -166,9 +166,12 @@ UNIT_OBJECTS := $(patsubst %,$(UNIT)/%.o,$(UNIT_SUITES))
 UNIT_DRIVERS := $(patsubst %,$(UNIT)/%_driver.o,$(UNIT_SUITES))
 all: $(UNIT_PROGRAMS)
 # The hand-derived double pendulum (pendulum_model and its field and elastic springs: the reference
-# the generated rungs are tested against) is test support since eme_run runs the generated rungs.
-TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values fixtures scripted_solver single_spring_model paper_free_energy \
-                model_conformance pendulum_model pendulum_vector_field elastic_potential)
+# the generated rungs are tested against) is test support since eme_run runs the generated rungs, and
+# so are the hand-derived springs (free_energy, thermo_variable) since the fused kernel runs the
+# generated element of the paper's spring (src/model/paper_spring).
+TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values free_energy thermo_variable fixtures scripted_solver \
+                single_spring_model paper_free_energy model_conformance pendulum_model pendulum_vector_field \
+                elastic_potential)
 UNIT_INCLUDES = -I$(UNIT)/mod $(filter-out -J$(MOD),$(FFLAGS)) -Wno-unused-dummy-argument
 UNIT_FFLAGS = -J$(UNIT)/mod $(UNIT_INCLUDES)
 ifeq ($(UNIT_RUNNER),pfunit)
@@ -207,7 +210,9 @@ $(UNIT)/%.o: tests/unit/support/%.f90 $(FUNIT) $(LIBRARY_OBJECTS) | $(UNIT)/mod
 $(UNIT)/%.o: tests/oracles/%.f90 $(LIBRARY_OBJECTS) | $(UNIT)/mod
 	$(FC) $(UNIT_FFLAGS) $(STD_FLAGS) -c $< -o $@
 $(UNIT)/fixtures.o: $(UNIT)/close_values.o $(UNIT)/paper_free_energy.o $(UNIT)/pendulum_model.o
-$(UNIT)/pendulum_model.o: $(UNIT)/pendulum_vector_field.o $(UNIT)/elastic_potential.o
+$(UNIT)/pendulum_model.o: $(UNIT)/pendulum_vector_field.o $(UNIT)/elastic_potential.o $(UNIT)/thermo_variable.o
+$(UNIT)/thermo_variable.o $(UNIT)/pendulum_vector_field.o $(UNIT)/elastic_potential.o: $(UNIT)/free_energy.o
+$(UNIT)/single_spring_model.o: $(UNIT)/free_energy.o $(UNIT)/thermo_variable.o
 $(UNIT)/model_conformance.o: $(UNIT)/close_values.o
 $(UNIT_OBJECTS): $(UNIT)/%.o: $(UNIT)/%.F90 $(TEST_SUPPORT) $(FUNIT) $(LIBRARY_OBJECTS)
 	$(FC) $(UNIT_FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) $(UNIT_FLAGS) -c $< -o $@

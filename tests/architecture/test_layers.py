@@ -32,10 +32,18 @@ def copy(tmp_path):
     return tmp_path
 
 
+def shared_element(folder):
+    """Whether a folder of src/model/ is a shared element, not a model: its description is
+    `potential_only` (the generator writes the element's potentials alone, which models' own code
+    assembles, as src/model/paper_spring/'s spring serves the chain and the pendulum's kernel)."""
+    description = folder / "description.py"
+    return description.exists() and "model.potential_only = True" in description.read_text()
+
+
 def foreign_uses_of_model_rooms(root):
     """Uses of a module in a model's own folder (src/model/NAME/) from outside that folder, other
     than the registry's lines (model_registry_lines, a model's one registration line) and the
-    drivers'."""
+    drivers'. A shared element's folder is no model's room: any model may use it."""
     nodes, edges = module_graph.graph(root)
     model_root = root / "src" / "model"
 
@@ -44,7 +52,7 @@ def foreign_uses_of_model_rooms(root):
         return path.parent if path.parent != model_root and model_root in path.parents else None
 
     return sorted((user, used) for user, used in edges
-                  if room(used) is not None and room(user) != room(used)
+                  if room(used) is not None and room(user) != room(used) and not shared_element(room(used))
                   and user != "model_registry_lines" and nodes[user][0] != "drivers")
 
 
@@ -64,13 +72,25 @@ def test_a_planted_use_of_a_model_module_is_found(copy):
 
 
 def test_another_model_uses_nothing_of_the_pendulum(copy):
-    """The spring chain's springs are generated from its own description (src/model/spring_chain/
-    description.py), not taken from the pendulum's hand-written spring law; a planted use of the
-    pendulum's law from the chain's folder is found."""
-    assert ("spring_chain_spring", "spring_chain_potential") in module_graph.graph(copy)[1]
+    """The spring chain's springs and the pendulum's fused kernel both run on the shared element of
+    the paper's spring (src/model/paper_spring/description.py), not on each other's code; a planted
+    use of the pendulum's kernel from the chain's folder is found."""
+    edges = module_graph.graph(copy)[1]
+    assert ("spring_chain_spring", "paper_spring_potential") in edges
+    assert ("pendulum_step_kernel", "paper_spring_potential") in edges
+    assert shared_element(copy / "src" / "model" / "paper_spring")
+    assert not shared_element(copy / "src" / "model" / "pendulum")
     path = copy / "src" / "model" / "spring_chain" / "spring_chain_step.f90"
-    path.write_text(path.read_text().replace("  implicit none", "  use thermo_variable, only: spring_potential\n  implicit none", 1))
-    assert foreign_uses_of_model_rooms(copy) == [("spring_chain_step", "thermo_variable")]
+    path.write_text(path.read_text().replace("  implicit none", "  use pendulum_step_kernel, only: pendulum_step\n  implicit none", 1))
+    assert foreign_uses_of_model_rooms(copy) == [("spring_chain_step", "pendulum_step_kernel")]
+
+
+def test_a_shared_element_uses_no_model(copy):
+    """The shared element is used by models and uses none of them: a planted use of the chain's
+    module in the element is found."""
+    path = copy / "src" / "model" / "paper_spring" / "paper_spring_potential.f90"
+    path.write_text(path.read_text().replace("  implicit none", "  use spring_chain_layout, only: slots_of\n  implicit none", 1))
+    assert foreign_uses_of_model_rooms(copy) == [("paper_spring_potential", "spring_chain_layout")]
 
 
 def test_a_planted_upward_use_is_found(copy):

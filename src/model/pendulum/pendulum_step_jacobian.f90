@@ -36,10 +36,9 @@ contains
       n = a + 1
       associate (sp => point%spring(a))
         if (self%partials_rule == partials_midpoint) then
-          call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, &
-                                     sp%d2e, sp%d2sigma, partials(1:n, :), hess(1:n, 1:n, :))
+          hess(1:n, 1:n, :) = sp%hess_m(1:n, 1:n, :)
         else if (self%gradient == gradient_gonzalez) then
-          call gonzalez_derivatives(self, a, sp, hess(1:n, 1:n, :))
+          call gonzalez_derivatives(a, sp, hess(1:n, 1:n, :))
         else
           call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
                                     partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
@@ -50,30 +49,22 @@ contains
     end do
   end subroutine derivative_pass
 
-  !> The derivative of Gonzalez's discrete gradient in x' from its values pass.
-  pure subroutine gonzalez_derivatives(self, a, sp, ddg)
-    class(pendulum_step), intent(in) :: self
+  !> The derivative of Gonzalez's discrete gradient in x' from its values pass (the element's
+  !> Hessian at the midpoint and grad f(x'), kept there).
+  pure subroutine gonzalez_derivatives(a, sp, ddg)
     integer, intent(in) :: a
     type(spring_pass), intent(in) :: sp
     real(real64), intent(out) :: ddg(:, :, :)
-    real(real64) :: grad(3, 2), hess_m(3, 3, 2), grad_b(3, 2), dg(3, 2)
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
+    real(real64) :: dg(3, 2)
     integer :: n
 
     n = a + 1
-    associate (spring => self%spring(a))
-      call potentials_from_parts(spring, sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
-                                 sp%d2sigma, grad(1:n, :), hess_m(1:n, 1:n, :))
-      if (sp%small) then
-        ddg = 0.5_real64*hess_m(1:n, 1:n, :)
-        return
-      end if
-      call mechanical_parts_at(spring%law, sp%x(1), self%old(a)%log_stretch + sp%delta_log, sp%inv_b, &
-                               gamma_of(sp%x, n), e, sigma, de, dsigma, d2e, d2sigma)
-      call potentials_from_parts(spring, sp%x(n), sp%theta_b, e, sigma, de, dsigma, d2e, d2sigma, grad_b(1:n, :))
-      call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
-                               hess_m(1:n, 1:n, :), grad_b(1:n, :), ddg)
-    end associate
+    if (sp%small) then
+      ddg = 0.5_real64*sp%hess_m(1:n, 1:n, :)
+      return
+    end if
+    call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
+                             sp%hess_m(1:n, 1:n, :), sp%grad_b(1:n, :), ddg)
   end subroutine gonzalez_derivatives
 
   ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.
@@ -112,10 +103,10 @@ contains
           dinv_u(l, a) = -dp(n, l, potential_u, a)*inv_u_tau(a)**2
         end do
       end do
-      ! d(1/eta)/dTheta = (1/eta) eta_theta/Theta^2, eq. (17). Without the viscous branch 1/eta,
+      ! d(1/eta)/dTheta, eq. (17), as the element's viscosity gave it. Without the viscous branch 1/eta,
       ! the rate, its heating and spring 2's gamma partials and their derivatives are all 0, so
       ! drate and dheating are 0 too, with no branch the full layout would pay for.
-      dinv_eta = inv_eta*self%params%viscosity_activation/theta(2)**2
+      dinv_eta = point%dinv_eta
       do l = 1, 3
         drate(l) = (dtheta(l, 2)*partials(2, potential_s, 2) + theta(2)*dp(2, l, potential_s, 2) &
                     - dp(2, l, potential_u, 2))*inv_eta &

@@ -19,22 +19,24 @@
 !> run time cost it 7 % more instructions a step), and a reduced layout pays for the zeros it
 !> carries, not for a second copy of the kernel; without the viscous branch the viscous rate and
 !> its heating (an exponential a point) are skipped.
-!> Fused: one pass computes the residual and, when asked, the Jacobian, sharing every logarithm,
-!> root and exponential of the spring potentials and the discrete-gradient quotients between them.
-!> Old-state quantities (the invariants, ln(l/l0), 1/l and the temperatures of z) are computed once
-!> per step by set_old_state, not once per Newton iteration.
+!> Fused: one pass computes the residual and, when asked, the Jacobian, and the rows share the
+!> springs' partials and the discrete-gradient quotients between them.
+!> Springs: the shared element of the paper's spring (src/model/paper_spring/description.py, the one
+!> the spring chain uses), generated: spring 1 is its thermoelastic rung, spring 2 its
+!> thermoviscoelastic one (a thermoelastic pendulum's with beta_v = mu_neq = 0). Gonzalez's
+!> quotient takes its parts from the element's gonzalez_parts, one generated body that shares the
+!> logarithms, roots and exponentials of grad f(m), f(b) - f(a) (free of cancellation) and, for the
+!> Jacobian, the Hessian at m and grad f(b). The old state's invariants and temperatures are
+!> computed once per step by set_old_state, not once per Newton iteration.
 !> Schemes: EME (eq. (15)) with Gonzalez's discrete gradient (its parts assembled here) or the
 !> partitioned one (src/scheme/discrete_gradient), and the midpoint rule (exact partials at z_mid),
 !> in every thermodynamic variable; constraints g1 (fixed length) and g2 (fixed temperature).
 module pendulum_step_kernel
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: potential_u, potential_s
-  use failures, only: failure_none, domain_nonpositive_length, domain_nonpositive_temperature, domain_overflow
-  use special_functions, only: log1p
+  use failures, only: failure_none, domain_nonpositive_length, domain_overflow
   use model_parameters, only: pendulum_parameters
-  use free_energy, only: spring_law_of, mechanical_parts, mechanical_parts_at, mechanical_difference_at, viscosity
-  use thermo_variable, only: spring_potential, temperature_of, potentials_from_parts, difference_from_parts
-  use thermo_variable_kinds, only: tau_temperature, tau_entropy
+  use paper_spring_potential, only: paper_spring_parameters, paper_spring_potentials, make_paper_spring_potentials
   use double_pendulum, only: p_index, pendulum_layout, make_layout
   use pendulum_rungs, only: rung_parameters
   use model_constraint, only: constraint_slot
@@ -49,7 +51,7 @@ module pendulum_step_kernel
   public :: pendulum_step, build_pendulum_step, pendulum_fused_step, condensed_offset
   ! For the submodules pendulum_step_residual and pendulum_step_jacobian only: gfortran gives a
   ! module's private procedures internal linkage, which submodules, compiled apart, cannot reach.
-  public :: velocity, new_momenta, gamma_of, new_temperature
+  public :: velocity, new_momenta, new_temperature
 
   !> y = x(condensed_offset + 1:) in the full layout: the positions are the first 6 of the generic
   !> unknowns x (the first 2*dimension in any layout: pendulum_step%eliminated).
@@ -62,21 +64,19 @@ module pendulum_step_kernel
   !> What a step needs of a spring's old state.
   type :: spring_old_state
     real(real64) :: x(3) = 0.0_real64             !! invariants (C, [gamma,] tau)
-    real(real64) :: log_stretch = 0.0_real64      !! L = ln(l/l0)
-    real(real64) :: inv_length = 0.0_real64       !! 1/l
-    real(real64) :: length = 0.0_real64           !! l = sqrt(C)
     real(real64) :: theta = 0.0_real64            !! temperature
   end type spring_old_state
 
   !> What a spring's values pass computed at a point and its derivative pass reuses: its
-  !> invariants x' (EME) or x_mid (midpoint), the mechanical parts at the midpoint (or x_mid) and
-  !> the temperature there, and for Gonzalez's quotient d = x' - x, its metric and f(x') - f(x).
+  !> invariants x' (EME) or x_mid (midpoint), grad f and the Hessian at the midpoint (or x_mid), and
+  !> for Gonzalez's quotient d = x' - x, its metric, f(x') - f(x) and grad f(x'). The values pass
+  !> asks the element for the Jacobian's parts too: one generated body shares its logarithms and
+  !> roots between them, and Newton wants a Jacobian at about half the points it evaluates (the
+  !> paper scene: 2.9 Jacobians and 5.3 residuals a step), which a second call would pay again.
   type :: spring_pass
     real(real64) :: x(3) = 0.0_real64, mid(3) = 0.0_real64, d(3) = 0.0_real64, weight(3) = 0.0_real64
     real(real64) :: dwd = 0.0_real64, grad_m(3, 2) = 0.0_real64, delta_f(2) = 0.0_real64
-    real(real64) :: e = 0.0_real64, sigma = 0.0_real64, de(2) = 0.0_real64, dsigma(2) = 0.0_real64
-    real(real64) :: d2e(2, 2) = 0.0_real64, d2sigma(2, 2) = 0.0_real64, theta_mid = 0.0_real64
-    real(real64) :: delta_log = 0.0_real64, inv_b = 0.0_real64, theta_b = 0.0_real64
+    real(real64) :: hess_m(3, 3, 2) = 0.0_real64, grad_b(3, 2) = 0.0_real64
     logical :: small = .false.            !! Gonzalez's fallback: the midpoint derivative
   end type spring_pass
 
@@ -94,7 +94,7 @@ module pendulum_step_kernel
     type(spring_pass) :: spring(2)
     real(real64) :: theta(2) = 0.0_real64, thermal_force(2) = 0.0_real64, work(2) = 0.0_real64
     real(real64) :: work_ratio(2) = 0.0_real64, inv_u_tau(2) = 0.0_real64
-    real(real64) :: inv_eta = 0.0_real64, rate = 0.0_real64, heating = 0.0_real64
+    real(real64) :: inv_eta = 0.0_real64, dinv_eta = 0.0_real64, rate = 0.0_real64, heating = 0.0_real64
     real(real64) :: lambda_length = 0.0_real64, lambda_temperature = 0.0_real64
   end type step_point
 
@@ -107,7 +107,7 @@ module pendulum_step_kernel
     integer :: internal_count = row_tau(2)         !! internal rows: 9 and the multipliers
     !> internal_of(j): the internal row (1..max_rows) of y's unknown j and of R's row j.
     integer :: internal_of(max_rows) = identity_rows
-    type(spring_potential) :: spring(2)
+    type(paper_spring_potentials) :: spring(2)   !! the paper's spring: rung 2 (spring 1) and 3 (spring 2)
     integer :: partials_rule = partials_discrete_gradient
     integer :: gradient = gradient_gonzalez
     real(real64) :: scale(3, 2) = 1.0_real64       !! the discrete gradients' metric scales
@@ -184,35 +184,24 @@ contains
     type(pendulum_step), intent(out) :: kernel
     logical, intent(out) :: built
     type(pendulum_parameters) :: params
-    real(real64) :: metric_scale(3)
     integer :: k, a, d, n, base
 
-    ! The generated rungs (pendulum_rungs) are served by the closed-form springs (thermo_variable) of the
-    ! same parameters and thermodynamic variable.
+    ! The generated rungs (pendulum_rungs) are served by the generated element of the paper's spring
+    ! (paper_spring_potential) with the same data and thermodynamic variable.
     call rung_parameters(problem%model, params, built)
     if (.not. built) return
     built = .false.
     if (.not. params%thermal()) return
     kernel%params = params
     kernel%layout = make_layout(params%dimension, params%viscous(), params%thermal())
-    do a = 1, 2
-      n = kernel%layout%invariant_count(a)
-      kernel%spring(a)%law = spring_law_of(params, a)
-      kernel%spring(a)%variable = problem%model%thermo_variable
-      kernel%spring(a)%n_invariants = n
-      metric_scale(1:n) = kernel%spring(a)%metric_scale()
-      if (problem%metric == metric_euclidean) then
-        kernel%scale(:, a) = 1.0_real64
-      else
-        kernel%scale(:, a) = 1.0_real64
-        kernel%scale(1, a) = metric_scale(1)
-        kernel%scale(a + 1, a) = metric_scale(n)
-        if (n == 3) kernel%scale(2, a) = metric_scale(2)
-      end if
-    end do
     ! Spring 2 with its invariants (C, gamma, tau) in every layout: a thermoelastic one's gamma
-    ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1.
-    kernel%spring(2)%n_invariants = 3
+    ! (always 0, moving by 0) weighs nothing in the metric, so its scale is 1 (the element's).
+    do a = 1, 2
+      n = a + 1
+      kernel%spring(a) = make_paper_spring_potentials(spring_data(params, a), n, problem%model%thermo_variable)
+      kernel%scale(:, a) = 1.0_real64
+      if (problem%metric /= metric_euclidean) kernel%scale(1:n, a) = kernel%spring(a)%metric_scale(1:n)
+    end do
     d = kernel%layout%dimension
     kernel%full = kernel%layout%is_full()
     kernel%viscous = kernel%layout%viscous
@@ -290,7 +279,6 @@ contains
   pure subroutine set_old_state(self, z)
     class(pendulum_step), intent(inout) :: self
     real(real64), intent(in) :: z(:)
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)
     integer :: a, n, d
 
     ! A planar scene's third components and a thermoelastic scene's gamma stay 0 (module header).
@@ -308,7 +296,7 @@ contains
     self%old_stat = failure_none
     do a = 1, 2
       n = a + 1
-      associate (old => self%old(a), law => self%spring(a)%law)
+      associate (old => self%old(a))
         old%x(1) = dot_product(self%q_old(:, a), self%q_old(:, a))
         if (a == 2) old%x(2) = self%gamma_old
         old%x(n) = self%tau_old(a)
@@ -316,12 +304,7 @@ contains
           self%old_stat = domain_nonpositive_length
           return
         end if
-        old%length = sqrt(old%x(1))
-        old%inv_length = 1.0_real64/old%length
-        old%log_stretch = 0.5_real64*log(old%x(1)/law%natural_length**2)
-        call mechanical_parts_at(law, old%x(1), old%log_stretch, old%inv_length, gamma_of(old%x, n), &
-                                 e, sigma, de, dsigma, d2e, d2sigma)
-        call temperature_of(self%spring(a), old%x(n), e, sigma, old%theta, self%old_stat)
+        call self%spring(a)%temperature(old%x(1:n), old%theta, self%old_stat)
         if (self%old_stat /= failure_none) return
       end associate
     end do
@@ -429,18 +412,34 @@ contains
     v(:, 2) = self%inverse_mass(2, 1)*p_mid(:, 1) + self%inverse_mass(2, 2)*p_mid(:, 2)
   end function velocity
 
-  ! gamma among a spring's invariants (spring 2), 0 for spring 1.
-  pure real(real64) function gamma_of(x, n)
-    real(real64), intent(in) :: x(:)
-    integer, intent(in) :: n
+  ! The element's data of spring a: spring 1 has no Maxwell element, nor has a thermoelastic
+  ! scene's spring 2 (beta_v = mu_neq = 0: its potentials do not depend on gamma).
+  pure function spring_data(params, a) result(data)
+    type(pendulum_parameters), intent(in) :: params
+    integer, intent(in) :: a
+    type(paper_spring_parameters) :: data
 
-    gamma_of = 0.0_real64
-    if (n == 3) gamma_of = x(2)
-  end function gamma_of
+    data%natural_length = params%natural_length(a)
+    data%mu_eq_const = params%mu_eq_const(a)
+    data%mu_eq_slope = params%mu_eq_slope(a)
+    data%heat_capacity = params%heat_capacity(a)
+    data%viscosity_const = params%viscosity_const
+    data%viscosity_activation = params%viscosity_activation
+    data%theta_ref = params%theta_ref
+    data%beta = params%beta
+    data%mu_neq_const = 0.0_real64
+    data%mu_neq_slope = 0.0_real64
+    data%beta_v = 0.0_real64
+    if (a == 2 .and. params%viscous()) then
+      data%mu_neq_const = params%mu_neq_const
+      data%mu_neq_slope = params%mu_neq_slope
+      data%beta_v = params%beta_v
+    end if
+  end function spring_data
 
   !> The temperature of spring a at the new state and, optionally, its gradient in the spring's
-  !> invariants (docs/formulation.md section 3: theta = tau; theta_ref exp((s - sigma)/Cap); theta_ref +
-  !> (u - e)/Cap).
+  !> invariants: the element's closed form, and eq. (2)'s Theta = U_tau/S_tau differentiated,
+  !> dTheta/dx_l = (d2U/dtau dx_l - Theta d2S/dtau dx_l)/S_tau.
   pure subroutine new_temperature(self, a, point, theta, dtheta_dx, stat)
     class(pendulum_step), intent(in) :: self
     integer, intent(in) :: a
@@ -448,37 +447,23 @@ contains
     real(real64), intent(out) :: theta
     real(real64), intent(out), optional :: dtheta_dx(:)
     integer, intent(out) :: stat
-    real(real64) :: c, e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), cap
+    real(real64) :: x(3), f(2), grad(3, 2), hess(3, 3, 2)
     integer :: n
 
     n = a + 1
     theta = 0.0_real64
-    c = dot_product(point%q_new(:, a), point%q_new(:, a))
-    if (.not. (c > 0.0_real64)) then
+    x(1) = dot_product(point%q_new(:, a), point%q_new(:, a))
+    if (.not. (x(1) > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
     end if
-    if (self%spring(a)%variable == tau_temperature .and. .not. present(dtheta_dx)) then
-      ! theta = tau: no mechanical parts needed.
-      call temperature_of(self%spring(a), point%tau_new(a), 0.0_real64, 0.0_real64, theta, stat)
-      return
-    end if
-    call mechanical_parts(self%spring(a)%law, c, merge(point%gamma_new, 0.0_real64, a == 2), e, sigma, de, dsigma, &
-                          d2e, d2sigma)
-    call temperature_of(self%spring(a), point%tau_new(a), e, sigma, theta, stat)
-    if (.not. present(dtheta_dx)) return
-    cap = self%spring(a)%law%heat_capacity
-    dtheta_dx = 0.0_real64
-    select case (self%spring(a)%variable)
-    case (tau_temperature)
-      dtheta_dx(n) = 1.0_real64
-    case (tau_entropy)
-      dtheta_dx(1:n - 1) = -theta*dsigma(1:n - 1)/cap
-      dtheta_dx(n) = theta/cap
-    case default
-      dtheta_dx(1:n - 1) = -de(1:n - 1)/cap
-      dtheta_dx(n) = 1.0_real64/cap
-    end select
+    if (a == 2) x(2) = point%gamma_new
+    x(n) = point%tau_new(a)
+    call self%spring(a)%temperature(x(1:n), theta, stat)
+    if (stat /= failure_none .or. .not. present(dtheta_dx)) return
+    call self%spring(a)%evaluate(x(1:n), f, grad(1:n, :), hess(1:n, 1:n, :), stat)
+    if (stat /= failure_none) return
+    dtheta_dx = (hess(n, 1:n, potential_u) - theta*hess(n, 1:n, potential_s))/grad(n, potential_s)
   end subroutine new_temperature
 
   !> R(y) and optionally dR/dy (module header) in one pass. stat /= 0: y (or a point the scheme
@@ -553,32 +538,40 @@ contains
     real(real64), intent(in) :: y(:)
     real(real64), intent(out) :: theta(:)
     integer, intent(out) :: stat
+
+    ! The kept pass if it was at this y of this step (the root a solve ended on), read in place: a
+    ! copy of a point, or a new one's default initialization, costs more than the rest of this.
+    theta = 0.0_real64
+    if (kept_for(self, y)) then
+      theta(1:2) = point_temperatures(self%kept)
+      stat = failure_none
+    else
+      call new_point_temperatures(self, y, theta, stat)
+    end if
+  end subroutine scheme_temperatures
+
+  ! scheme_temperatures at a point y that was not kept.
+  pure subroutine new_point_temperatures(self, y, theta, stat)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: y(:)
+    real(real64), intent(inout) :: theta(:)
+    integer, intent(out) :: stat
     type(step_point) :: point
+
+    call values_pass(self, y, point, stat)
+    if (stat == failure_none) theta(1:2) = point_temperatures(point)
+  end subroutine new_point_temperatures
+
+  ! The scheme temperatures U_tau/S_tau of a point's partials.
+  pure function point_temperatures(point) result(theta)
+    type(step_point), intent(in) :: point
+    real(real64) :: theta(2)
     integer :: a
 
-    theta = 0.0_real64
-    call values_at(self, y, point, stat)
-    if (stat /= failure_none) return
     do a = 1, 2
       theta(a) = point%partials(a + 1, potential_u, a)/point%partials(a + 1, potential_s, a)
     end do
-  end subroutine scheme_temperatures
-
-  ! The values pass at y: the kept one if it was at this y of this step (the root a solve ended
-  ! on, which check_root and scheme_temperatures then ask about), else a new one.
-  pure subroutine values_at(self, y, point, stat)
-    class(pendulum_step), intent(in) :: self
-    real(real64), intent(in) :: y(:)
-    type(step_point), intent(out) :: point
-    integer, intent(out) :: stat
-
-    if (kept_for(self, y)) then
-      point = self%kept
-      stat = failure_none
-    else
-      call values_pass(self, y, point, stat)
-    end if
-  end subroutine values_at
+  end function point_temperatures
 
   ! Whether the kept pass is at y (bit for bit) of this very step.
   pure logical function kept_for(self, y)
@@ -594,11 +587,37 @@ contains
     class(pendulum_step), intent(in) :: self
     real(real64), intent(in) :: x(:)
     character(len=:), allocatable, intent(out) :: problem_text
-    type(step_point) :: point
-    real(real64) :: theta_new(2), theta_scheme(2)
-    integer :: stat, scheme_stat, a, which
 
-    call values_at(self, x, point, scheme_stat)
+    ! The values pass at x: the kept one, read in place, if it was at this x of this step (the root
+    ! a solve ended on), else a new one (scheme_temperatures' note).
+    if (kept_for(self, x)) then
+      call root_text(self, self%kept, failure_none, problem_text)
+    else
+      call new_point_root_text(self, x, problem_text)
+    end if
+  end subroutine check_root
+
+  ! check_root at a point x that was not kept.
+  pure subroutine new_point_root_text(self, x, problem_text)
+    class(pendulum_step), intent(in) :: self
+    real(real64), intent(in) :: x(:)
+    character(len=:), allocatable, intent(out) :: problem_text
+    type(step_point) :: point
+    integer :: scheme_stat
+
+    call values_pass(self, x, point, scheme_stat)
+    call root_text(self, point, scheme_stat, problem_text)
+  end subroutine new_point_root_text
+
+  ! check_root's text from the values pass `point` at the root and its status.
+  pure subroutine root_text(self, point, scheme_stat, problem_text)
+    class(pendulum_step), intent(in) :: self
+    type(step_point), intent(in) :: point
+    integer, intent(in) :: scheme_stat
+    character(len=:), allocatable, intent(out) :: problem_text
+    real(real64) :: theta_new(2), theta_scheme(2)
+    integer :: stat, a, which
+
     theta_new = 0.0_real64
     theta_scheme = 0.0_real64
     which = 1
@@ -613,6 +632,6 @@ contains
                                                    /point%partials(a + 1, potential_s, a), a=1, 2)]
     call root_problem_text(self%partials_rule, stat, which, theta_new, 'spring '//achar(iachar('0') + which), &
                            scheme_stat, theta_scheme, problem_text)
-  end subroutine check_root
+  end subroutine root_text
 
 end module pendulum_step_kernel

@@ -1,8 +1,8 @@
 !> The residual half of the double pendulum's fused step kernel (src/model/pendulum/pendulum_step_kernel):
 !> the values pass at a point y of the condensed unknowns (the new and midpoint positions from the
 !> condensation, each spring's invariants, its partials by Gonzalez's quotient with its fallback
-!> or by the midpoint rule, sharing every logarithm, root and exponential of the spring
-!> potentials), and the residual's rows of p, gamma, tau and the constraints from it, in the
+!> or by the midpoint rule, from the generated element of the paper's spring), and the residual's
+!> rows of p, gamma, tau and the constraints from it, in the
 !> kernel's internal numbering (the full layout's; a reduced layout's rows are picked from it).
 submodule (pendulum_step_kernel) pendulum_step_residual
   implicit none (type, external)
@@ -11,7 +11,7 @@ contains
 
   ! The values pass and the residual's internal rows at y; the point keeps the residual's scalars.
   module procedure residual_pass
-    real(real64) :: h, theta_new
+    real(real64) :: h, theta_new, eta
     integer :: a, b, n
 
     h = self%fraction*self%dt
@@ -31,11 +31,13 @@ contains
       ! without the viscous branch they are 0 (no exponential spent on eta), gamma's row is
       ! 0 = (0 - 0)/h - 0 and dropped.
       if (self%viscous) then
-        point%inv_eta = 1.0_real64/viscosity(self%params, theta(2))
+        call self%spring(2)%viscosity(theta(2), eta, point%dinv_eta)
+        point%inv_eta = 1.0_real64/eta
         point%rate = (theta(2)*partials(2, potential_s, 2) - partials(2, potential_u, 2))*point%inv_eta
         point%heating = partials(2, potential_u, 2)*inv_u_tau(2)
       else
         point%inv_eta = 0.0_real64
+        point%dinv_eta = 0.0_real64
         point%rate = 0.0_real64
         point%heating = 0.0_real64
       end if
@@ -121,72 +123,44 @@ contains
     end do
   end procedure values_pass
 
-  !> The mechanical parts, temperature and exact partials of spring a at sp%mid.
+  !> The exact partials of spring a at sp%mid (the element's gradients there) and their Hessian.
   pure subroutine midpoint_values(self, a, sp, stat)
     class(pendulum_step), intent(in) :: self
     integer, intent(in) :: a
     type(spring_pass), intent(inout) :: sp
     integer, intent(out) :: stat
+    real(real64) :: f(2)
     integer :: n
 
     n = a + 1
-    if (.not. (sp%mid(1) > 0.0_real64)) then
-      stat = domain_nonpositive_length
-      return
-    end if
-    call mechanical_parts(self%spring(a)%law, sp%mid(1), gamma_of(sp%mid, n), sp%e, sp%sigma, sp%de, sp%dsigma, &
-                          sp%d2e, sp%d2sigma)
-    call temperature_of(self%spring(a), sp%mid(n), sp%e, sp%sigma, sp%theta_mid, stat)
-    if (stat /= failure_none) return
-    call potentials_from_parts(self%spring(a), sp%mid(n), sp%theta_mid, sp%e, sp%sigma, sp%de, sp%dsigma, sp%d2e, &
-                               sp%d2sigma, sp%grad_m(1:n, :))
+    call self%spring(a)%evaluate(sp%mid(1:n), f, sp%grad_m(1:n, :), sp%hess_m(1:n, 1:n, :), stat)
   end subroutine midpoint_values
 
-  !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x, with the
-  !> old state's logarithm, root and temperature reused and the new point's ln(l/l0) and 1/l kept
-  !> for the derivative pass (src/scheme/discrete_gradient).
+  !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x
+  !> (src/scheme/discrete_gradient): grad f at the midpoint and f(x') - f(x) from the element's
+  !> gonzalez_parts in one call, with the Hessian at the midpoint and grad f(x') kept for the
+  !> derivative pass.
   pure subroutine gonzalez_values(self, a, sp, dg, stat)
     class(pendulum_step), intent(in) :: self
     integer, intent(in) :: a
     type(spring_pass), intent(inout) :: sp
     real(real64), intent(out) :: dg(:, :)
     integer, intent(out) :: stat
-    real(real64) :: e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2), delta_e, delta_sigma, delta_theta, length_b
     integer :: n
 
     n = a + 1
-    associate (old => self%old(a), spring => self%spring(a), x => sp%x(1:n), d => sp%d(1:n))
+    associate (old => self%old(a), x => sp%x(1:n), d => sp%d(1:n))
       d = x - old%x(1:n)
       sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
       sp%dwd = dot_product(d, sp%weight(1:n)*d)
-      sp%mid(1:n) = 0.5_real64*(old%x(1:n) + x)
-      call midpoint_values(self, a, sp, stat)
+      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m(1:n, :), sp%delta_f, stat, sp%hess_m(1:n, 1:n, :), &
+                                         sp%grad_b(1:n, :))
       if (stat /= failure_none) return
       sp%small = sqrt(sp%dwd) < quotient_threshold
       if (sp%small) then
         ! The fallback below the threshold: the midpoint derivative.
         dg = sp%grad_m(1:n, :)
         return
-      end if
-      ! The difference f(x) - f(x_old) without cancellation, sharing ln(l/l0) and 1/l at x.
-      if (.not. (x(1) > 0.0_real64)) then
-        stat = domain_nonpositive_length
-        return
-      end if
-      sp%delta_log = 0.5_real64*log1p(d(1)/old%x(1))
-      length_b = sqrt(x(1))
-      sp%inv_b = 1.0_real64/length_b
-      call mechanical_difference_at(spring%law, old%log_stretch, sp%delta_log, sp%inv_b, &
-                                    -d(1)*old%inv_length*sp%inv_b/(old%length + length_b), gamma_of(old%x, n), &
-                                    gamma_of(x, n), delta_e, delta_sigma)
-      call difference_from_parts(spring, old%x(n), d(n), old%theta, delta_e, delta_sigma, sp%delta_f, delta_theta)
-      sp%theta_b = old%theta + delta_theta
-      if (.not. (sp%theta_b > 0.0_real64)) then
-        ! Rounding can take theta_old + delta_theta to zero where theta itself is tiny: decide by theta.
-        call mechanical_parts_at(spring%law, x(1), old%log_stretch + sp%delta_log, sp%inv_b, gamma_of(x, n), &
-                                 e, sigma, de, dsigma, d2e, d2sigma)
-        call temperature_of(spring, x(n), e, sigma, sp%theta_b, stat)
-        if (stat /= failure_none) return
       end if
       call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg)
     end associate

@@ -1,14 +1,14 @@
 !> One spring of the chain (docs/formulation.md section 10): its data, its potentials (U_a, S_a) in
 !> its invariants x_a = (C_a, [gamma_a,] [tau_a]) and eta(Theta) of eq. (17), all generated from the
-!> spring's description (src/model/spring_chain/description.py: section 3's law with the spring's own
-!> data, spring_chain_potential), and its local discrete gradient. A spring without a Maxwell element
+!> shared element of the paper's spring (src/model/paper_spring/description.py: section 3's law with the
+!> spring's own data, paper_spring_potential), and its local discrete gradient. A spring without a Maxwell element
 !> (beta_v = mu_neq = 0) is the pendulum's spring 1, otherwise its spring 2. The rung of the ladder
 !> (section 9) sets the invariants: C (elastic), (C, tau) (thermoelastic), (C, gamma, tau)
 !> (thermoviscoelastic).
 module spring_chain_spring
   use, intrinsic :: iso_fortran_env, only: real64
-  use spring_chain_potential, only: spring_data => spring_chain_parameters, spring_chain_potentials, &
-                                    make_spring_chain_potentials
+  use paper_spring_potential, only: spring_data => paper_spring_parameters, paper_spring_potentials, &
+                                    make_paper_spring_potentials
   use discrete_gradient, only: discrete_gradient_of, gonzalez_from_parts, gradient_gonzalez, metric_euclidean, &
                                quotient_threshold
   use failures, only: failure_none
@@ -34,7 +34,7 @@ module spring_chain_spring
   !> is what it is made of.
   type :: chain_spring
     integer :: invariant_count = 0                 !! the rung (rung_*): 1, 2 or 3 invariants
-    type(spring_chain_potentials) :: potentials    !! (U, S) of (C, [gamma,] [tau]); S = 0 on the elastic rung
+    type(paper_spring_potentials) :: potentials    !! (U, S) of (C, [gamma,] [tau]); S = 0 on the elastic rung
   contains
     procedure, non_overridable :: evaluate
     procedure, non_overridable :: difference
@@ -70,7 +70,7 @@ contains
     type(chain_spring) :: spring
 
     spring%invariant_count = rung
-    spring%potentials = make_spring_chain_potentials(data, rung, variable)
+    spring%potentials = make_paper_spring_potentials(data, rung, variable)
   end function make_chain_spring
 
   !> x = (C, [gamma,] [tau]) of the spring from r = right - left, its own gamma and tau, n

@@ -1,8 +1,9 @@
-"""One spring of the spring chain (docs/formulation.md sections 3, 9 and 10), an element the chain's hand-written
-assembly (spring_chain_partials, spring_chain_blocks) calls spring by spring: its potentials (U_a, S_a) in its
-invariants x_a = (C, [gamma,] [tau]) on each rung of the ladder, with the spring's own data, and the viscosity
-eta(theta) of eq. (17). The generator writes spring_chain_potential.f90 alone from it (`potential_only`: no model,
-no scene).
+"""The paper's spring (docs/formulation.md sections 3, 9 and 10), a shared element: the spring chain's assembly
+(spring_chain_spring) and the double pendulum's fused step kernel (pendulum_step_kernel) both call it spring by
+spring. Its potentials (U_a, S_a) in its invariants x_a = (C, [gamma,] [tau]) on each rung of the ladder, with the
+spring's own data, and the viscosity eta(theta) of eq. (17). The generator writes paper_spring_potential.f90 alone
+from it (`potential_only`: no model, no scene). A potential_only folder is the one kind of model folder whose modules
+other model folders may use (tests/architecture/test_layers.py): it is an element, not a model.
 
 The rungs, numbered by their invariant count as spring_chain_spring's rung_* are:
  1. elastic: x = C, U = W(C) = mu_eq_const/2 L^2 (the free energy (16) at theta_ref without beta), S = 0;
@@ -10,20 +11,21 @@ The rungs, numbered by their invariant count as spring_chain_spring's rung_* are
     e and sigma at beta^v = 0 (no Maxwell branch);
  3. thermoviscoelastic: x = (C, gamma, tau), section 3's e_2 and sigma_2 with the Maxwell branch and
     Cap = (1 + beta^v) c.
-A spring of rung 3 with beta_v = mu_neq_const = mu_neq_slope = 0 is the pendulum's spring 1, otherwise its spring 2
-(src/model/pendulum/description.py states the same law for the pendulum; tests/unit/test_spring_chain_spring.pf
-checks the two agree). L = ln(l/l^0) = ln(C/(l^0)^2)/2 and 1/l = C^(-1/2)."""
+The pendulum's spring 1 is rung 2 with its data; its spring 2 is rung 3 (a thermoelastic pendulum's with
+beta_v = mu_neq_const = mu_neq_slope = 0, so its potentials do not depend on gamma).
+src/model/pendulum/description.py states the same law for the pendulum's generated rungs;
+tests/unit/test_spring_chain_spring.pf checks the two agree. L = ln(l/l^0) = ln(C/(l^0)^2)/2 and 1/l = C^(-1/2)."""
 import sympy as sp
 
 from model_description import ENERGY_LEVEL, ENTROPY_LEVEL, TEMPERATURE, ModelDescription
 
-model = ModelDescription("spring_chain", "one spring of the spring chain", "docs/formulation.md sections 3, 9 and 10")
-model.potential_only = True          # the element's potentials alone: the chain's own code assembles the model
+model = ModelDescription("paper_spring", "the paper's spring", "docs/formulation.md sections 3, 9 and 10")
+model.potential_only = True          # the element's potentials alone: the chain's and the pendulum's code assemble it
 model.scene = False
 model.differences = True             # U(b) - U(a), S(b) - S(a) by log1p, expm1 and factored powers
 model.rounding_scales = True         # the thermal rungs' rounding scales from their terms (the step check's ulps)
 
-# spring_chain_spring's spring_data, in its order; defaults are Table 1's spring 2.
+# The element's data (spring_chain_spring's spring_data), in its order; defaults are Table 1's spring 2.
 natural_length = model.parameter("natural_length", "m", 2.0, "l^0", minimum=0.0, exclusive=True, positive=True)
 mu_eq_const = model.parameter("mu_eq_const", "J", 200.0, "mu^eq_cst, eq. (17)")
 mu_eq_slope = model.parameter("mu_eq_slope", "J/K", 0.5, "mu^eq_theta, eq. (17)")

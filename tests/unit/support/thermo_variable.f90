@@ -1,6 +1,9 @@
 !> The spring potentials U_a and S_a as functions of the invariants x = (C, [gamma,] tau_a),
 !> for each choice of the thermodynamic variable tau (docs/formulation.md section 3, table).
 !> Spring 1 has n = 2 invariants (C1, tau1), spring 2 has n = 3 (C2, gamma, tau2).
+!> Test support: the hand-derived reference the unit tests check the generated springs against; the
+!> programs (and the fused step kernel) run the generated element of the paper's spring
+!> (src/model/paper_spring/description.py).
 module thermo_variable
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions, potential_u, potential_s
@@ -103,8 +106,7 @@ contains
 
   !> The table of docs/formulation.md section 3 from the mechanical parts e, sigma (with their (C, gamma)
   !> derivatives) and the temperature theta at invariants x = (C, [gamma,] tau): the gradient,
-  !> optionally the Hessian and the values of (U_a, S_a). evaluate_potentials and the fused step
-  !> kernel (src/model/pendulum/pendulum_step_kernel) both assemble them here.
+  !> optionally the Hessian and the values of (U_a, S_a).
   pure subroutine potentials_from_parts(self, tau, theta, e, sigma, de, dsigma, d2e, d2sigma, grad, hess, f)
     class(spring_potential), intent(in) :: self
     real(real64), intent(in) :: tau, theta, e, sigma, de(2), dsigma(2), d2e(2, 2), d2sigma(2, 2)

@@ -4,6 +4,8 @@
 !> u_a = e_a + Cap_a (theta - theta_ref) and s_a = sigma_a + Cap_a ln(theta/theta_ref);
 !> tests/unit/test_free_energy checks this against psi as the paper writes it
 !> (tests/oracles/paper_free_energy) by s = -d psi/d theta, u = psi + theta s.
+!> Test support: the hand-derived reference; the programs run the generated element of the paper's
+!> spring (src/model/paper_spring/description.py).
 module free_energy
   use, intrinsic :: iso_fortran_env, only: real64
   use model_parameters, only: pendulum_parameters
@@ -60,8 +62,8 @@ contains
                              e, sigma, de, dsigma, d2e, d2sigma)
   end subroutine mechanical_parts
 
-  !> mechanical_parts for a caller that already has L = ln(l/l0) and r = 1/l at C (the fused
-  !> step kernel shares them between the values, gradients and differences it needs).
+  !> mechanical_parts for a caller that already has L = ln(l/l0) and r = 1/l at C (a caller
+  !> shares them between the values, gradients and differences it needs).
   pure subroutine mechanical_parts_at(law, c, log_stretch, inv_length, gamma, e, sigma, de, dsigma, d2e, d2sigma)
     type(spring_law), intent(in) :: law
     real(real64), intent(in) :: c, log_stretch, inv_length, gamma
