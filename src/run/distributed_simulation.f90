@@ -213,10 +213,8 @@ contains
       end if
       call MPI_Allreduce(MPI_IN_PLACE, stop_flags, 4, MPI_INTEGER, MPI_MAX, communicator)
       if (stop_before_step(stop_flags(1), stop_flags(2) /= 0, n, time, config%integrator%t_end, summary)) exit
-      if (stop_flags(3) /= 0) then
-        writing = writing .and. stop_flags(4) == 0
-        exit
-      end if
+      if (stop_flags(3) /= 0) writing = writing .and. stop_flags(4) == 0
+      if (stop_flags(3) /= 0) exit
       n = n + 1
       ! With &output interval a chosen step lands on the next output time when it reaches it
       ! (one within rounding of t_end is t_end), as on the dense path.
@@ -290,7 +288,7 @@ contains
       time = state_time
       call hold_snapshot()
     end if
-    call set_times(.true.)
+    call timer%note_times(summary, .true.)
     call system%finish(failure)
     ! Before the last write, as before every step: the lock still rank 0's, or taken again.
     if (rank == 0 .and. present(lock) .and. writing .and. .not. lock_lost) then
@@ -299,7 +297,7 @@ contains
     end if
     call MPI_Bcast(writing, 1, MPI_LOGICAL, 0, communicator)
     if (writing) call write_window(.true.)
-    call set_times(.false.)
+    call timer%note_times(summary, .false.)
     call agree(failure, summary, communicator, config%input_file)
     call share_outcome(summary, communicator)
 
@@ -414,7 +412,7 @@ contains
       end if
       window%added = .false.
       if (rank == 0) then
-        call set_times(.not. final)
+        call timer%note_times(summary, .not. final)
         if (final) then
           call output%finish(summary, io_failure, window)
         else
@@ -440,13 +438,6 @@ contains
       if (final .and. rank == 0 .and. .not. io_failure%failed()) &
         call name_finished_file(config, part, output%store%durable, summary, failure)
     end subroutine write_window
-
-    subroutine set_times(in_loop)
-      logical, intent(in) :: in_loop
-
-      call timer%note_times(summary, in_loop)
-    end subroutine set_times
-
   end subroutine run_distributed
 
 end module distributed_simulation
