@@ -336,7 +336,7 @@ def test_a_lock_removed_during_a_split_run_stops_it(tmp_path):
 
 
 def test_a_lock_taken_by_a_second_writer_stops_a_split_run_which_leaves_it_alone(tmp_path):
-    """Two ranks: FILE.lock is removed and another process takes a new one while the run writes.
+    """Two ranks: FILE.lock is replaced by another process's, held, while the run writes.
     The run stops at its next step (exit 1), names the other holder, writes nothing more (FILE.part
     stays as its last window made it, a valid file of complete snapshots) and leaves the other's
     lock as it is."""
@@ -350,7 +350,8 @@ def test_a_lock_taken_by_a_second_writer_stops_a_split_run_which_leaves_it_alone
     holder = "process 1 on host elsewhere\n"
     with open(tmp_path / "other.lock", "w") as other:
         def take_the_lock(process):
-            lock.unlink()
+            # One rename replaces the lock file with the other writer's, held: no moment without a lock
+            # file, in which the run could take the lock again itself.
             other.write(holder)
             other.flush()
             fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
