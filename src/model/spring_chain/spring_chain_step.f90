@@ -133,12 +133,12 @@ contains
       return
     end if
     half = self%band_half_width()
-    allocate (band(n, 2*half + 1))
+    allocate (band(2*half + 1, n))
     call self%field_rows(old, new, 0, 1, n, f, band, stat)
     df = 0.0_real64
     do r = 1, n
       do c = max(1, r - half), min(n, r + half)
-        df(r, c) = band(r, c - r + half + 1)
+        df(r, c) = band(c - r + half + 1, r)
       end do
     end do
   end subroutine field
