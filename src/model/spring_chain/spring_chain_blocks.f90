@@ -49,33 +49,31 @@ contains
     real(real64) :: df_dpartials(size(f), 3, 2), df_dtheta(size(f))
     real(real64) :: v_left(3), v_right(3), force, work, w, eta, dinverse_eta, rate, drate(3), heating
     integer :: n, d, c, i, k
+    logical :: derivatives
 
     n = part%invariants
     d = count(part%slots%x_left > 0)
     w = part%weight
+    ! A residual wants f alone: the derivatives in the partials are skipped (they cost most).
+    derivatives = present(df) .or. present(df_dpartials_out)
     f = 0.0_real64
-    if (present(df)) df = 0.0_real64
-    df_dpartials = 0.0_real64
-    df_dtheta = 0.0_real64
+    if (derivatives) then
+      df_dpartials = 0.0_real64
+      df_dtheta = 0.0_real64
+    end if
     associate (s => part%slots, p => part%partials, theta => part%theta, rr => part%r(1:d))
       ! Momentum rows: the force -dC/dx F on each end.
       force = p(1, potential_u) - theta*p(1, potential_s)
       f(s%p_left(1:d)) = 2.0_real64*force*rr
       f(s%p_right(1:d)) = -2.0_real64*force*rr
-      if (present(df)) then
-        do c = 1, d
-          df(s%p_left(c), s%x_right(c)) = 2.0_real64*force*w
-          df(s%p_left(c), s%x_left(c)) = -2.0_real64*force*w
-          df(s%p_right(c), s%x_right(c)) = -2.0_real64*force*w
-          df(s%p_right(c), s%x_left(c)) = 2.0_real64*force*w
-        end do
+      if (derivatives) then
+        df_dpartials(s%p_left(1:d), 1, potential_u) = 2.0_real64*rr
+        df_dpartials(s%p_right(1:d), 1, potential_u) = -2.0_real64*rr
+        df_dpartials(s%p_left(1:d), 1, potential_s) = -2.0_real64*theta*rr
+        df_dpartials(s%p_right(1:d), 1, potential_s) = 2.0_real64*theta*rr
+        df_dtheta(s%p_left(1:d)) = -2.0_real64*p(1, potential_s)*rr
+        df_dtheta(s%p_right(1:d)) = 2.0_real64*p(1, potential_s)*rr
       end if
-      df_dpartials(s%p_left(1:d), 1, potential_u) = 2.0_real64*rr
-      df_dpartials(s%p_right(1:d), 1, potential_u) = -2.0_real64*rr
-      df_dpartials(s%p_left(1:d), 1, potential_s) = -2.0_real64*theta*rr
-      df_dpartials(s%p_right(1:d), 1, potential_s) = 2.0_real64*theta*rr
-      df_dtheta(s%p_left(1:d)) = -2.0_real64*p(1, potential_s)*rr
-      df_dtheta(s%p_right(1:d)) = 2.0_real64*p(1, potential_s)*rr
 
       if (n >= 2) then
         ! tau row, reversible part: -D_C S (dC/dt)/D_tau S with dC/dt = 2 r.(v_right - v_left).
@@ -83,17 +81,9 @@ contains
         v_right(1:d) = inverse_mass_right*((1.0_real64 - w)*old(s%p_right(1:d)) + w*new(s%p_right(1:d)))
         work = 2.0_real64*dot_product(rr, v_right(1:d) - v_left(1:d))
         f(s%tau) = -p(1, potential_s)*work/p(n, potential_s)
-        df_dpartials(s%tau, 1, potential_s) = -work/p(n, potential_s)
-        df_dpartials(s%tau, n, potential_s) = p(1, potential_s)*work/p(n, potential_s)**2
-        if (present(df)) then
-          do c = 1, d
-            associate (scale => -2.0_real64*p(1, potential_s)/p(n, potential_s))
-              df(s%tau, s%x_right(c)) = scale*(v_right(c) - v_left(c))*w
-              df(s%tau, s%x_left(c)) = -scale*(v_right(c) - v_left(c))*w
-              df(s%tau, s%p_right(c)) = scale*rr(c)*w*inverse_mass_right
-              df(s%tau, s%p_left(c)) = -scale*rr(c)*w*inverse_mass_left
-            end associate
-          end do
+        if (derivatives) then
+          df_dpartials(s%tau, 1, potential_s) = -work/p(n, potential_s)
+          df_dpartials(s%tau, n, potential_s) = p(1, potential_s)*work/p(n, potential_s)**2
         end if
       end if
 
@@ -101,20 +91,23 @@ contains
         ! gamma row and the tau row's viscous heating -(D_gamma U/D_tau U) rate.
         call spring%viscosity(theta, eta, dinverse_eta)
         rate = (theta*p(2, potential_s) - p(2, potential_u))/eta
-        drate = [theta/eta, -1.0_real64/eta, p(2, potential_s)/eta + (theta*p(2, potential_s) - p(2, potential_u))*dinverse_eta]
         f(s%gamma) = rate
-        df_dpartials(s%gamma, 2, potential_s) = drate(1)
-        df_dpartials(s%gamma, 2, potential_u) = drate(2)
-        df_dtheta(s%gamma) = drate(3)
         heating = -p(2, potential_u)/p(n, potential_u)
         f(s%tau) = f(s%tau) + heating*rate
-        df_dpartials(s%tau, 2, potential_s) = df_dpartials(s%tau, 2, potential_s) + heating*drate(1)
-        df_dpartials(s%tau, 2, potential_u) = df_dpartials(s%tau, 2, potential_u) + heating*drate(2) &
-                                              - rate/p(n, potential_u)
-        df_dpartials(s%tau, n, potential_u) = df_dpartials(s%tau, n, potential_u) &
-                                              + p(2, potential_u)*rate/p(n, potential_u)**2
-        df_dtheta(s%tau) = df_dtheta(s%tau) + heating*drate(3)
+        if (derivatives) then
+          drate = [theta/eta, -1.0_real64/eta, p(2, potential_s)/eta + (theta*p(2, potential_s) - p(2, potential_u))*dinverse_eta]
+          df_dpartials(s%gamma, 2, potential_s) = drate(1)
+          df_dpartials(s%gamma, 2, potential_u) = drate(2)
+          df_dtheta(s%gamma) = drate(3)
+          df_dpartials(s%tau, 2, potential_s) = df_dpartials(s%tau, 2, potential_s) + heating*drate(1)
+          df_dpartials(s%tau, 2, potential_u) = df_dpartials(s%tau, 2, potential_u) + heating*drate(2) &
+                                                - rate/p(n, potential_u)
+          df_dpartials(s%tau, n, potential_u) = df_dpartials(s%tau, n, potential_u) &
+                                                + p(2, potential_u)*rate/p(n, potential_u)**2
+          df_dtheta(s%tau) = df_dtheta(s%tau) + heating*drate(3)
+        end if
       end if
+      if (.not. derivatives) return
 
       ! Theta = D_tau U/D_tau S, then the partials' own derivatives in the slots.
       if (n >= 2) then
@@ -123,6 +116,23 @@ contains
       end if
       if (present(df_dpartials_out)) df_dpartials_out = df_dpartials
       if (.not. present(df)) return
+      df = 0.0_real64
+      if (n >= 2) then
+        do c = 1, d
+          associate (scale => -2.0_real64*p(1, potential_s)/p(n, potential_s))
+            df(s%tau, s%x_right(c)) = scale*(v_right(c) - v_left(c))*w
+            df(s%tau, s%x_left(c)) = -scale*(v_right(c) - v_left(c))*w
+            df(s%tau, s%p_right(c)) = scale*rr(c)*w*inverse_mass_right
+            df(s%tau, s%p_left(c)) = -scale*rr(c)*w*inverse_mass_left
+          end associate
+        end do
+      end if
+      do c = 1, d
+        df(s%p_left(c), s%x_right(c)) = 2.0_real64*force*w
+        df(s%p_left(c), s%x_left(c)) = -2.0_real64*force*w
+        df(s%p_right(c), s%x_right(c)) = -2.0_real64*force*w
+        df(s%p_right(c), s%x_left(c)) = 2.0_real64*force*w
+      end do
       do k = 1, 2
         do i = 1, n
           do c = 1, s%size
@@ -180,21 +190,20 @@ contains
       real(real64), intent(in) :: df_dtheta, df_du_direct
       real(real64), intent(inout) :: jacobian(:, :)
       real(real64), intent(out) :: tau_derivative(2)
-      real(real64) :: g_u, g_s, derivative(size(part%dpartials, 3))
+      real(real64) :: g_u, g_s
       integer :: c, own
 
       g_u = df_du_direct + df_dtheta/part%partials(n, potential_s)
       g_s = -df_dtheta*part%theta/part%partials(n, potential_s)
       tau_derivative = [g_u, g_s]
-      derivative = g_u*part%dpartials(n, potential_u, :) + g_s*part%dpartials(n, potential_s, :)
-      associate (s => part%slots)
+      associate (s => part%slots, du => part%dpartials(n, potential_u, :), ds => part%dpartials(n, potential_s, :))
         do c = 1, d
-          jacobian(row, shift + c) = jacobian(row, shift + c) + derivative(s%x_left(c))
-          jacobian(row, shift + d + c) = jacobian(row, shift + d + c) + derivative(s%x_right(c))
+          jacobian(row, shift + c) = jacobian(row, shift + c) + (g_u*du(s%x_left(c)) + g_s*ds(s%x_left(c)))
+          jacobian(row, shift + d + c) = jacobian(row, shift + d + c) + (g_u*du(s%x_right(c)) + g_s*ds(s%x_right(c)))
         end do
         own = 3*d + merge(0, m, shift == 0)
-        if (s%gamma > 0) jacobian(row, own + 1) = jacobian(row, own + 1) + derivative(s%gamma)
-        jacobian(row, own + m) = jacobian(row, own + m) + derivative(s%tau)
+        if (s%gamma > 0) jacobian(row, own + 1) = jacobian(row, own + 1) + (g_u*du(s%gamma) + g_s*ds(s%gamma))
+        jacobian(row, own + m) = jacobian(row, own + m) + (g_u*du(s%tau) + g_s*ds(s%tau))
       end associate
     end subroutine add_spring
   end subroutine link_block

@@ -62,8 +62,9 @@ module spring_chain_dmda
     !> 'fixed-fixed' chain's point N + 1 holds spring N + 1's [gamma,] [tau] in its first slots.
     integer, allocatable :: last_point_slots(:)
     !> The pattern of a row of slot v at an interior point (two points from the first and three
-    !> from the last): its interior_counts(v) columns relative to the point's first unknown.
-    integer, allocatable :: interior_columns(:, :), interior_counts(:)
+    !> from the last): its interior_counts(v) columns relative to the point's first unknown,
+    !> where they sit in the row's band (field_rows' storage) and which of them is the diagonal.
+    integer, allocatable :: interior_columns(:, :), interior_counts(:), interior_band(:, :), interior_diagonal(:)
     !> -chain_check_pattern: the Jacobian callback fails when a block's derivative falls outside
     !> coupling_pattern (the pattern's test; it costs a pass over the band).
     logical :: check_pattern = .false.
@@ -152,19 +153,26 @@ contains
       self%context%last_point_slots(1:problem%layout%invariant_count - 1) = [(k, k=2*problem%layout%dimension + 1, int(dof))]
     end if
     allocate (self%context%interior_columns(size(self%context%pattern(1, :, :)), dof), self%context%interior_counts(dof))
+    allocate (self%context%interior_band, mold=self%context%interior_columns)
+    allocate (self%context%interior_diagonal(dof))
     self%context%interior_counts = 0
     do k = 1, int(dof)
       do o = -2, 2
         do w = 1, int(dof)
           if (.not. self%context%pattern(k, w, o)) cycle
           self%context%interior_counts(k) = self%context%interior_counts(k) + 1
-          self%context%interior_columns(self%context%interior_counts(k), k) = o*int(dof) + w - 1
+          associate (j => self%context%interior_counts(k))
+            self%context%interior_columns(j, k) = o*int(dof) + w - 1
+            ! band(c - g + half + 1, .) for row g = point start + k, column c = point start + that - 1 (1-based)
+            self%context%interior_band(j, k) = o*int(dof) + w - k + problem%band_half_width() + 1
+            if (o == 0 .and. w == k) self%context%interior_diagonal(k) = j
+          end associate
         end do
       end do
     end do
     associate (slice => min(self%context%last_row - self%context%first_row + 1, slice_points*int(dof)), &
                half => problem%band_half_width())
-      allocate (self%context%rows(slice), self%context%band(slice, 2*half + 1))
+      allocate (self%context%rows(slice), self%context%band(2*half + 1, slice))
       allocate (self%context%columns(size(self%context%pattern(1, :, :))), self%context%values(size(self%context%pattern(1, :, :))))
     end associate
     PetscCall(DMCreateGlobalVector(self%context%da, self%x, ierr))
@@ -703,12 +711,14 @@ contains
     integer, intent(out) :: stat
     PetscErrorCode, intent(out) :: ierr
     real(real64), pointer :: old(:), new(:)
-    integer :: half, row, slice_first, slice_last, k, band_column
+    integer :: half, row, slice_first, slice_last, k, band_column, point, slot, dof, points
     PetscInt :: count, row_index
     logical :: outside
 
     associate (problem => context%problem, band => context%band, columns => context%columns, values => context%values)
       half = problem%band_half_width()
+      dof = size(context%pattern, 1)
+      points = context%total/dof
       PetscCall(DMGlobalToLocalBegin(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(DMGlobalToLocalEnd(context%da, x, INSERT_VALUES, context%new_local, ierr))
       PetscCall(borrow_read(context%new_local, context%local_size, new, ierr))
@@ -721,18 +731,29 @@ contains
       do slice_first = context%first_row, context%last_row, size(context%rows)
         slice_last = min(context%last_row, slice_first + size(context%rows) - 1)
         call problem%field_rows(old, new, context%base, slice_first, slice_last, context%rows(1:slice_last - slice_first + 1), &
-                                band(1:slice_last - slice_first + 1, :), stat)
+                                band(:, 1:slice_last - slice_first + 1), stat)
         if (stat /= failure_none) exit
         do row = slice_first, slice_last
-          call pattern_columns(context, row, columns, count)
-          do k = 1, int(count)
-            ! band(r, c - g + half + 1) holds row g, column c (1-based; columns are 0-based)
-            band_column = int(columns(k)) + 1 - row + half + 1
-            values(k) = sign*band(row - slice_first + 1, band_column)
-            if (columns(k) == row - 1) values(k) = values(k) + diagonal
-            if (context%check_pattern) band(row - slice_first + 1, band_column) = 0.0_real64
-          end do
-          if (context%check_pattern) outside = outside .or. any(abs(band(row - slice_first + 1, :)) > 0.0_real64)
+          associate (row_band => band(:, row - slice_first + 1))
+            point = (row - 1)/dof + 1
+            if (point >= 3 .and. point <= points - 3 .and. .not. context%check_pattern) then
+              ! An interior row: its entries sit at fixed places of its band (create_petsc).
+              slot = row - (point - 1)*dof
+              count = context%interior_counts(slot)
+              values(1:count) = sign*row_band(context%interior_band(1:count, slot))
+              values(context%interior_diagonal(slot)) = values(context%interior_diagonal(slot)) + diagonal
+            else
+              call pattern_columns(context, row, columns, count)
+              do k = 1, int(count)
+                ! row_band(c - g + half + 1) holds row g, column c (1-based; columns are 0-based)
+                band_column = int(columns(k)) + 1 - row + half + 1
+                values(k) = sign*row_band(band_column)
+                if (columns(k) == row - 1) values(k) = values(k) + diagonal
+                if (context%check_pattern) row_band(band_column) = 0.0_real64
+              end do
+              if (context%check_pattern) outside = outside .or. any(abs(row_band) > 0.0_real64)
+            end if
+          end associate
           row_index = row - 1
           PetscCall(MatSetValuesRow(matrix, row_index, values, ierr))
         end do

@@ -11,7 +11,7 @@ module spring_chain_step
   use nonlinear_problem, only: nonlinear_system
   use discrete_gradient, only: gradient_gonzalez, metric_nondimensional
   use spring_chain_spring, only: chain_spring
-  use spring_chain_layout, only: chain_layout
+  use spring_chain_layout, only: chain_layout, spring_slots, slots_of
   use spring_chain_partials, only: spring_partials, evaluate_spring_partials, partials_discrete_gradient, partials_exact
   use spring_chain_blocks, only: mass_block, spring_block, link_block
   use spring_chain_balance, only: mass_energy, mass_energy_difference, spring_values, spring_differences
@@ -133,20 +133,21 @@ contains
       return
     end if
     half = self%band_half_width()
-    allocate (band(n, 2*half + 1))
+    allocate (band(2*half + 1, n))
     call self%field_rows(old, new, 0, 1, n, f, band, stat)
     df = 0.0_real64
     do r = 1, n
       do c = max(1, r - half), min(n, r + half)
-        df(r, c) = band(r, c - r + half + 1)
+        df(r, c) = band(c - r + half + 1, r)
       end do
     end do
   end subroutine field
 
   !> Rows first_row..last_row of f = the sum of the mass, spring and link blocks for the step
   !> old -> new (the field at new for partials_exact), and optionally their df/d new in band
-  !> storage: band(r, c - g + half + 1) holds row g = first_row + r - 1, column c (half =
-  !> band_half_width). old and new hold the unknowns base + 1 .. base + size(old) and must cover
+  !> storage: band(c - g + half + 1, r) holds row g = first_row + r - 1, column c (half =
+  !> band_half_width; a row's band is contiguous). old and new hold the unknowns base + 1 ..
+  !> base + size(old) and must cover
   !> the rows' points and two points either side (a rank's ghosted part of a DMDA of stencil
   !> width 2; base 0 and the whole state on one process). Only the blocks that touch the rows
   !> are evaluated, and only the rows' entries kept: ranks owning disjoint rows assemble the
@@ -161,9 +162,13 @@ contains
     real(real64), intent(out) :: f(:)
     real(real64), intent(out), optional :: band(:, :)
     integer, intent(out) :: stat
-    integer :: first_point, last_point, a_first, a_last, a, i, d, half
+    integer :: first_point, last_point, a_first, a_last, a, i, d, half, m, c
     type(spring_partials), allocatable :: parts(:)
+    type(spring_slots) :: slots
     real(real64) :: weight
+    ! The rows a spring block and a link block can fill (a spring's x rows and a link's x and
+    ! gamma rows are zero: the velocities are the masses', the links conduct heat only).
+    integer :: spring_rows(2*self%layout%dimension + self%layout%invariant_count - 1), link_rows(2)
 
     f = 0.0_real64
     if (present(band)) band = 0.0_real64
@@ -172,6 +177,15 @@ contains
     first_point = self%layout%point_of(first_row)
     last_point = self%layout%point_of(last_row)
     weight = merge(1.0_real64, 0.5_real64, self%rule == partials_exact)
+    slots = slots_of(d, self%layout%invariant_count)
+    do c = 1, d
+      spring_rows(c) = slots%p_left(c)
+      spring_rows(d + c) = slots%p_right(c)
+    end do
+    if (slots%gamma > 0) spring_rows(2*d + 1) = slots%gamma
+    if (slots%tau > 0) spring_rows(size(spring_rows)) = slots%tau
+    m = self%layout%invariant_count - 1
+    link_rows = [3*d + m, 3*d + 2*m]
     do i = max(1, first_point), min(self%layout%masses, last_point)
       block
         integer :: indices(2*d)
@@ -192,19 +206,21 @@ contains
       block
         real(real64) :: old_slots(self%layout%spring_size()), new_slots(size(old_slots)), fl(size(old_slots))
         real(real64) :: dfl(size(old_slots), size(old_slots))
+        integer :: indices(size(old_slots))
 
-        old_slots = self%layout%gather_spring(old, a, base)
-        new_slots = self%layout%gather_spring(new, a, base)
+        indices = self%layout%spring_indices(a)
+        old_slots = self%layout%gather_spring(old, a, base, indices)
+        new_slots = self%layout%gather_spring(new, a, base, indices)
         call evaluate_spring_partials(self%springs(a), self%rule, self%gradient, self%metric, d, old_slots, new_slots, &
                                       parts(a), stat, with_derivatives=present(band))
         if (stat /= failure_none) return
         if (a >= first_point .and. a <= last_point + 1) then
           if (present(band)) then
             call spring_block(self%springs(a), parts(a), old_slots, new_slots, inverse_mass(a - 1), inverse_mass(a), fl, dfl)
-            call add_rows(self%layout%spring_indices(a), fl, first_row, last_row, half, f, dfl, band)
+            call add_rows(indices, fl, first_row, last_row, half, f, dfl, band, spring_rows)
           else
             call spring_block(self%springs(a), parts(a), old_slots, new_slots, inverse_mass(a - 1), inverse_mass(a), fl)
-            call add_rows(self%layout%spring_indices(a), fl, first_row, last_row, half, f)
+            call add_rows(indices, fl, first_row, last_row, half, f, only=spring_rows)
           end if
         end if
       end block
@@ -218,10 +234,10 @@ contains
         indices = self%layout%link_indices(a)
         if (present(band)) then
           call link_block(self%conductivity(a), parts(a), parts(a + 1), fl, dfl)
-          call add_rows(indices, fl, first_row, last_row, half, f, dfl, band)
+          call add_rows(indices, fl, first_row, last_row, half, f, dfl, band, link_rows)
         else
           call link_block(self%conductivity(a), parts(a), parts(a + 1), fl)
-          call add_rows(indices, fl, first_row, last_row, half, f)
+          call add_rows(indices, fl, first_row, last_row, half, f, only=link_rows)
         end if
       end block
     end do
@@ -238,23 +254,30 @@ contains
   end subroutine field_rows
 
   ! Adds a block's rows that lie in first_row..last_row to f and, with dfl, to the band
-  ! (field_rows' storage); index 0, a support's slot, is no unknown.
-  pure subroutine add_rows(indices, fl, first_row, last_row, half, f, dfl, band)
+  ! (field_rows' storage); index 0, a support's slot, is no unknown. `only`: the block's rows
+  ! that can be nonzero (default all).
+  pure subroutine add_rows(indices, fl, first_row, last_row, half, f, dfl, band, only)
     integer, intent(in) :: indices(:), first_row, last_row, half
     real(real64), intent(in) :: fl(:)
     real(real64), intent(inout) :: f(:)
     real(real64), intent(in), optional :: dfl(:, :)
     real(real64), intent(inout), optional :: band(:, :)
-    integer :: r, c, row
+    integer, intent(in), optional :: only(:)
+    integer :: k, r, c, row, shift
 
-    do r = 1, size(indices)
+    do k = 1, size(indices)
+      r = k
+      if (present(only)) then
+        if (k > size(only)) exit
+        r = only(k)
+      end if
       if (indices(r) < first_row .or. indices(r) > last_row) cycle
       row = indices(r) - first_row + 1
       f(row) = f(row) + fl(r)
       if (.not. present(band)) cycle
+      shift = half + 1 - indices(r)
       do c = 1, size(indices)
-        if (indices(c) > 0) band(row, indices(c) - indices(r) + half + 1) = band(row, indices(c) - indices(r) + half + 1) &
-                                                                            + dfl(r, c)
+        if (indices(c) > 0) band(indices(c) + shift, row) = band(indices(c) + shift, row) + dfl(r, c)
       end do
     end do
   end subroutine add_rows
