@@ -1034,30 +1034,6 @@ def local_names(symbolic, used):
     return [z.name for z in symbolic.state if z.name in names] + [s.name for s in symbolic.partials if s.name in names]
 
 
-def common_factors(expr, fixed):
-    """A sum with the symbols (not in `fixed`) that divide most of its terms taken out, greedily and recursively:
-    a t_1 + b t_1 t_2 + c t_3 as t_1 (a + b t_2) + c t_3."""
-    if expr.is_Atom:
-        return expr
-    if not expr.is_Add:
-        return expr.func(*(common_factors(arg, fixed) for arg in expr.args))
-    terms = list(expr.args)
-
-    def divides(symbol, term):
-        return any(factor == symbol or (factor.is_Pow and factor.base == symbol and factor.exp.is_Integer
-                                        and factor.exp > 0) for factor in sp.Mul.make_args(term))
-
-    candidates = sorted({x for term in terms for x in term.free_symbols if x not in fixed}, key=sp.default_sort_key)
-    counts = [(sum(divides(x, term) for term in terms), x) for x in candidates]
-    best = max((count for count, _ in counts), default=0)
-    if best < 2:
-        return sp.Add(*(common_factors(term, fixed) for term in terms))
-    symbol = next(x for count, x in counts if count == best)
-    inner = sp.Add(*(term/symbol for term in terms if divides(symbol, term)))
-    rest = sp.Add(*(term for term in terms if not divides(symbol, term)))
-    return symbol*common_factors(inner, fixed) + common_factors(rest, fixed)
-
-
 class ParameterConstants:
     """The subexpressions of the parameters alone, folded out of expressions into constants that the model's
     maker computes once (self%constants): 1/m1, (1 + beta^v) c_2, -eta_theta/theta_ref, ... cost nothing per
@@ -1077,15 +1053,6 @@ class ParameterConstants:
         those folded into constants again."""
         values = {symbol: value for value, symbol in self.values.items()}
         return self.fold(sp.sympify(expr).xreplace(values))
-
-    def cheaper(self, expr):
-        """refold(expr), or the same sum with its terms' common factors of the state taken out (expanded, then
-        factored greedily: t_1 (a + b t_2) for a t_1 + b t_1 t_2) where that takes fewer operations."""
-        folded = self.refold(expr)
-        fixed = self.parameters | {symbol for symbol in self.values.values()}
-        factored = self.refold(common_factors(sp.expand(folded, mul=True, multinomial=False, power_exp=False,
-                                                        power_base=False, log=False), fixed))
-        return factored if sp.count_ops(factored) < sp.count_ops(folded) else folded
 
     def fold(self, expr):
         """expr with its largest subexpressions of parameters alone (not a bare parameter or number) as constants."""
@@ -1159,9 +1126,9 @@ def continuous_field_procedure(symbolic, constants):
         head = check + [wrap(f"{root.name} = {fortran(power)}", 3) for root, power in roots]
         cases.append((variable, head + straight_line(
             [f"f({i + 1})" for i in range(n)] + [f"jacobian({i + 1}, {j + 1})" for i, j, _ in jacobian],
-            f + [e for *_, e in jacobian], 3, temporaries, exponentials, constants.cheaper)))
+            f + [e for *_, e in jacobian], 3, temporaries, exponentials, constants.refold)))
         value_cases.append((variable, head + straight_line([f"f({i + 1})" for i in range(n)], f, 3, value_temporaries,
-                                                           exponentials, constants.cheaper)))
+                                                           exponentials, constants.refold)))
     state_names = [z.name for z in symbolic.state]
     unpack_lines = [INDENT*2 + f"{z.name} = z({i + 1})" for i, z in enumerate(symbolic.state)]
     unpack_lines += [wrap(f"{local.name} = {fortran(expression)}", 2) for local, expression in invariant_values]

@@ -27,7 +27,7 @@ module paper_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: paper_pendulum
     type(paper_pendulum_parameters) :: parameters
-    real(real64) :: constants(170) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(119) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -213,134 +213,57 @@ contains
     model%constants(78) = -parameters%viscosity_activation
     model%constants(79) = (0.5_real64)*parameters%mu_eq_const_1 + (0.5_real64)*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(80) = (0.5_real64)*parameters%beta*(-parameters%beta_v - 1.0_real64)
-    model%constants(81) = (0.25_real64)*parameters%mu_eq_slope_2*(-parameters%beta_v - 1.0_real64)
-    model%constants(82) = 2.0_real64*parameters%beta_v + 2.0_real64
-    model%constants(83) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(84) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(85) = -2.0_real64*parameters%beta*parameters%theta_ref
-    model%constants(86) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(87) = 2.0_real64*parameters%beta - parameters%mu_eq_slope_1
-    model%constants(88) = -2.0_real64*parameters%beta*parameters%theta_ref + parameters%mu_eq_const_1 + &
-        parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(89) = 4.0_real64*parameters%beta_v + 4.0_real64
-    model%constants(90) = -3.0_real64*parameters%beta_v
-    model%constants(91) = 4.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(80) = 2.0_real64*parameters%beta_v + 2.0_real64
+    model%constants(81) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(82) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(83) = -2.0_real64*parameters%beta*parameters%theta_ref
+    model%constants(84) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(85) = 4.0_real64*parameters%beta_v + 4.0_real64
+    model%constants(86) = -3.0_real64*parameters%beta_v
+    model%constants(87) = 4.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(92) = -2.0_real64*parameters%beta*(-parameters%beta_v - 1.0_real64) + parameters%mu_eq_slope_2*( &
-        -parameters%beta_v - 1.0_real64)
-    model%constants(93) = 3.0_real64*parameters%beta_v
-    model%constants(94) = -4.0_real64*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(95) = -parameters%mu_eq_slope_2*(-parameters%beta_v - 1.0_real64)
-    model%constants(96) = -0.5_real64*parameters%beta*parameters%theta_ref*(4.0_real64*parameters%beta_v + &
-        4.0_real64) + (4.0_real64*parameters%beta_v + 4.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(97) = (4.0_real64*parameters%beta_v + 4.0_real64)*(-0.25_real64*parameters%mu_eq_const_2 - &
-        0.25_real64*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(98) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(99) = -2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
+    model%constants(88) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(89) = -2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
         1.0_real64))
-    model%constants(100) = 2.0_real64*parameters%beta_v
-    model%constants(101) = -2.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
-        *parameters%theta_ref)
-    model%constants(102) = 4.0_real64*parameters%theta_ref
-    model%constants(103) = 4.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(104) = -0.125_real64*parameters%mu_eq_slope_1/parameters%heat_capacity_1
-    model%constants(105) = -0.5_real64*parameters%beta/parameters%heat_capacity_1
-    model%constants(106) = -0.125_real64*parameters%mu_eq_slope_2*(-parameters%beta_v - &
-        1.0_real64)/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(107) = -0.5_real64*parameters%beta*(-parameters%beta_v - 1.0_real64)/(parameters%heat_capacity_2 &
-        *(parameters%beta_v + 1.0_real64))
-    model%constants(108) = parameters%mu_neq_slope/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(109) = parameters%viscosity_activation/parameters%theta_ref
-    model%constants(110) = -0.5_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(111) = parameters%beta*(-parameters%beta_v - 1.0_real64)
-    model%constants(112) = (0.5_real64)*parameters%beta*parameters%theta_ref*(2.0_real64*parameters%beta_v + 2.0_real64)
-    model%constants(113) = (0.5_real64)*parameters%mu_eq_slope_2*(-parameters%beta_v - 1.0_real64)
-    model%constants(114) = (2.0_real64*parameters%beta_v + 2.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(115) = parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(116) = -parameters%conductivity
-    model%constants(117) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(118) = 2.0_real64*parameters%mu_neq_slope
-    model%constants(119) = 1.0_real64/parameters%viscosity_const
-    model%constants(120) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(121) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(122) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(123) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(90) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(91) = 2.0_real64*parameters%mu_neq_slope
+    model%constants(92) = 1.0_real64/parameters%viscosity_const
+    model%constants(93) = -parameters%conductivity
+    model%constants(94) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(95) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(96) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(97) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(124) = 2.0_real64/parameters%viscosity_const
-    model%constants(125) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(126) = parameters%viscosity_activation/parameters%viscosity_const
-    model%constants(127) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(128) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(129) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
-    model%constants(130) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(98) = parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(99) = 2.0_real64/parameters%viscosity_const
+    model%constants(100) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(101) = parameters%viscosity_activation/parameters%viscosity_const
+    model%constants(102) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(103) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(104) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
+    model%constants(105) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2*(parameters%beta_v + 1.0_real64))
-    model%constants(131) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
+    model%constants(106) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref)/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(132) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(107) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(133) = (0.5_real64)*parameters%beta*(parameters%beta_v + 1.0_real64)
-    model%constants(134) = (0.25_real64)*parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(135) = -0.5_real64*parameters%beta*parameters%theta_ref + (0.25_real64)*parameters%mu_eq_const_1 &
-        + (0.25_real64)*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(136) = -0.5_real64*parameters%beta + (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(137) = -0.5_real64*parameters%beta*parameters%theta_ref*(parameters%beta_v + 1.0_real64) + &
-        (parameters%beta_v + 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64) &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(138) = (parameters%beta_v + 1.0_real64)*(-0.25_real64*parameters%mu_eq_const_2 - 0.25_real64 &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(139) = -0.5_real64*parameters%beta*(parameters%beta_v + 1.0_real64) + (0.25_real64) &
-        *parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(140) = -0.25_real64*parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(141) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(108) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(142) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(143) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
+    model%constants(109) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(110) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(144) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(111) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(145) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(146) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(147) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(148) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(112) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(113) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(114) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(115) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(149) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(116) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(150) = -2.0_real64/parameters%mass_1
-    model%constants(151) = 2.0_real64/parameters%mass_1
-    model%constants(152) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
-    model%constants(153) = (-parameters%beta_v - 1.0_real64)*((0.125_real64)*parameters%mu_eq_const_2 + &
-        (0.125_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)/(parameters%heat_capacity_2*(parameters%beta_v &
-        + 1.0_real64))
-    model%constants(154) = (0.5_real64)*parameters%beta*parameters%theta_ref*(-parameters%beta_v - &
-        1.0_real64)/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(155) = (-parameters%mu_neq_const - parameters%mu_neq_slope &
-        *parameters%theta_ref)/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(156) = (-0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
-        *parameters%theta_ref)/parameters%heat_capacity_1
-    model%constants(157) = -0.5_real64*parameters%beta*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(158) = (-parameters%beta_v - 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64) &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(159) = (0.5_real64)*parameters%beta*parameters%theta_ref*(-parameters%beta_v - 1.0_real64)
-    model%constants(160) = (0.5_real64)*parameters%beta*parameters%theta_ref - 0.25_real64*parameters%mu_eq_const_1 - &
-        0.25_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(161) = -0.5_real64*parameters%beta*parameters%theta_ref*(-parameters%beta_v - 1.0_real64) + ( &
-        -parameters%beta_v - 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64) &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(162) = (-parameters%beta_v - 1.0_real64)*(-0.25_real64*parameters%mu_eq_const_2 - 0.25_real64 &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(163) = (0.5_real64)*parameters%mu_eq_slope_1
-    model%constants(164) = parameters%beta*parameters%theta_ref*(-parameters%beta_v - 1.0_real64)
-    model%constants(165) = parameters%beta*(parameters%beta_v + 1.0_real64)
-    model%constants(166) = 2.0_real64*(-parameters%beta_v - 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(167) = (0.5_real64)*parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(168) = (-2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope &
-        *parameters%theta_ref)/parameters%viscosity_const
-    model%constants(169) = 2.0_real64*parameters%mu_neq_slope/parameters%viscosity_const
-    model%constants(170) = -parameters%beta_v/parameters%viscosity_const
+    model%constants(117) = -2.0_real64/parameters%mass_1
+    model%constants(118) = 2.0_real64/parameters%mass_1
+    model%constants(119) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_paper_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -983,22 +906,22 @@ contains
       jacobian(6, 12) = self%constants(3)
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(12))
-      if (.not. (abs(self%constants(73)*tau_1 + t_1*(self%constants(104)*t_1 + self%constants(105))) <= &
+      if (.not. (abs(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(73)*tau_1 + t_1*(self%constants(104)*t_1 + self%constants(105)))
+      exp_1 = exp(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1))
       t_3 = 1.0_real64/C_2_root_2
       t_4 = self%parameters%beta + self%constants(19)*t_2
       t_5 = self%parameters%beta_v*t_3*t_4
-      if (.not. (abs(self%constants(76)*tau_2 + gamma*(self%constants(108)*gamma + self%constants(76)*t_5) + t_2 &
-          *(self%constants(106)*t_2 + self%constants(107))) <= max_exponent)) then
+      if (.not. (abs(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(76)*tau_2 + gamma*(self%constants(108)*gamma + self%constants(76)*t_5) + t_2 &
-          *(self%constants(106)*t_2 + self%constants(107)))
+      exp_2 = exp(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2))
       t_6 = self%constants(34)*exp_2
       if (.not. (self%constants(78)*(self%constants(77) + t_6) <= max_exponent)) then
         stat = domain_overflow
@@ -1021,11 +944,11 @@ contains
       t_17 = gamma*t_15
       t_18 = self%constants(18)*t_15
       t_19 = self%constants(20)*t_4
-      t_20 = self%constants(80)*t_12 + self%constants(81)*t_13 + gamma*t_18 + t_17*t_19
+      t_20 = self%constants(17)*(self%constants(15)*t_12 + self%constants(16)*t_13) + gamma*t_18 + t_17*t_19
       t_21 = 1.0_real64/exp_2
       t_22 = t_21*self%parameters%theta_ref
       t_23 = self%constants(21)*t_2 + self%constants(22)
-      t_24 = self%parameters%beta_v*t_17*t_23 + self%constants(82)*t_14 + 2.0_real64*gamma*t_16 + 2.0_real64*t_20*t_22
+      t_24 = self%parameters%beta_v*t_17*t_23 + self%constants(80)*t_14 + 2.0_real64*gamma*t_16 + 2.0_real64*t_20*t_22
       f(10) = self%constants(25) - q2_x*t_24
       f(11) = self%constants(26) - q2_y*t_24
       f(12) = self%constants(27) - q2_z*t_24
@@ -1044,8 +967,8 @@ contains
       f(15) = self%constants(35)*t_34 + t_31*t_6
       t_35 = 1.0_real64/C_1**2
       t_36 = t_1*t_35
-      t_37 = self%constants(86)*exp_1*t_9**2 + t_35*(self%constants(87)*t_10 + self%constants(88)) + t_36 &
-          *(self%constants(84) + self%parameters%mu_eq_slope_1*t_10)
+      t_37 = self%constants(81)*t_35 + self%constants(82)*t_36 + self%constants(83)*t_35 + self%constants(84)*exp_1 &
+          *t_9**2 + 4.0_real64*t_10*(self%constants(15)*t_35 + self%constants(36)*t_36 + self%constants(6)*t_35)
       t_38 = exp_1*t_9
       t_39 = self%constants(40)*t_7 + self%constants(41)*t_8 + self%constants(42)*t_38
       jacobian(7, 1) = -q1_x**2*t_37 + t_39
@@ -1069,11 +992,12 @@ contains
       t_46 = t_2*t_45
       t_47 = gamma/C_2_root_2**5
       t_48 = self%constants(50)*t_21
-      t_49 = self%constants(96)*t_45 + self%constants(97)*t_46 + 4.0_real64*t_20**2*t_48 + t_22*(self%constants(92) &
-          *t_45 + self%constants(95)*t_46 + t_47*(self%constants(93)*t_4 + self%constants(94))) + t_47 &
-          *(self%constants(90)*t_23 + self%constants(91))
+      t_49 = self%constants(85)*(self%constants(13)*t_45 + self%constants(37)*t_45 + self%constants(44)*t_46) + &
+          self%constants(86)*t_23*t_47 + self%constants(87)*t_47 + 4.0_real64*t_20**2*t_48 + 4.0_real64*t_22 &
+          *(self%constants(17)*(self%constants(16)*t_45 + self%constants(4)*t_45 + self%constants(45)*t_46) + &
+          self%constants(46)*t_47 + self%constants(47)*t_4*t_47)
       t_50 = t_20*t_21
-      t_51 = self%constants(42)*t_50 + self%constants(51)*t_14 + t_17*(self%constants(48) + t_25)
+      t_51 = self%constants(42)*t_50 + self%constants(48)*t_17 + self%constants(51)*t_14 + t_17*t_25
       jacobian(10, 4) = -q2_x**2*t_49 + t_51
       t_52 = q2_x*t_49
       t_53 = -q2_y*t_52
@@ -1109,7 +1033,7 @@ contains
       t_65 = exp_3*t_26
       jacobian(13, 15) = self%constants(55)*t_21*t_65 + t_62
       t_66 = self%constants(57)*t_30
-      t_67 = t_9*(self%constants(98) + 2.0_real64*t_66)
+      t_67 = self%constants(88)*t_9 + 2.0_real64*t_66*t_9
       jacobian(14, 1) = q1_x*t_67
       jacobian(14, 2) = q1_y*t_67
       jacobian(14, 3) = q1_z*t_67
@@ -1130,14 +1054,14 @@ contains
       t_73 = self%constants(66)*t_34
       t_74 = self%constants(67)*exp_2**2*t_32
       t_75 = exp_3*t_74
-      t_76 = t_20*(self%constants(99) + 2.0_real64*t_71 + 2.0_real64*t_73 + 2.0_real64*t_75) + t_72 &
-          *(self%constants(100)*t_55 + self%constants(101)*t_15 + self%constants(102)*t_21*t_56 + self%constants(103) &
-          *t_26*t_50)
+      t_76 = self%constants(89)*t_20 + 2.0_real64*t_20*t_71 + 2.0_real64*t_20*t_73 + 2.0_real64*t_20*t_75 + &
+          2.0_real64*t_72*(self%parameters%beta_v*t_55 + self%constants(62)*t_15 + self%constants(63)*t_21*t_56 + &
+          self%constants(64)*t_26*t_50)
       jacobian(15, 4) = q2_x*t_76
       jacobian(15, 5) = q2_y*t_76
       jacobian(15, 6) = q2_z*t_76
-      jacobian(15, 13) = t_26*(self%constants(61) + t_71 + t_73) + t_65*t_74 + t_72*(self%constants(69) + t_21 &
-          *(self%constants(64)*t_64 + self%constants(68)))
+      jacobian(15, 13) = self%constants(61)*t_26 + t_26*t_71 + t_26*t_73 + t_65*t_74 + t_72*(self%constants(64)*t_21 &
+          *t_64 + self%constants(68)*t_21 + self%constants(69))
       jacobian(15, 14) = self%constants(70)*exp_1*exp_2
       jacobian(15, 15) = self%constants(61) + self%constants(71)*t_27*t_65 + t_71 + t_73 + t_75
     case (tau_temperature)
@@ -1193,8 +1117,8 @@ contains
       f(7) = self%constants(9) - q1_x*t_12 + t_15*tau_1
       t_16 = 2.0_real64*t_13
       t_17 = t_16*tau_1
-      f(8) = self%constants(10) + q1_y*(-t_12 + t_17)
-      f(9) = self%constants(11) + q1_z*(-t_12 + t_17)
+      f(8) = self%constants(10) - q1_y*t_12 + q1_y*t_17
+      f(9) = self%constants(11) - q1_z*t_12 + q1_z*t_17
       t_18 = 1.0_real64/C_2
       t_19 = t_18*t_8
       t_20 = self%constants(13)*t_19 + self%constants(7)*t_18
@@ -1203,45 +1127,47 @@ contains
       t_23 = self%constants(21)*t_8 + self%constants(22)
       t_24 = gamma*t_21
       t_25 = self%constants(23)*t_24
-      t_26 = self%constants(82)*t_20 + 2.0_real64*gamma*t_22 + 2.0_real64*t_23*t_25
-      t_27 = self%constants(117)*t_21
+      t_26 = self%constants(80)*t_20 + 2.0_real64*gamma*t_22 + 2.0_real64*t_23*t_25
+      t_27 = self%constants(90)*t_21
       t_28 = self%parameters%beta + self%constants(19)*t_8
-      t_29 = self%constants(133)*t_18 + self%constants(134)*t_19 + gamma*t_27 + t_25*t_28
+      t_29 = self%constants(14)*(self%constants(15)*t_18 + self%constants(16)*t_19) + gamma*t_27 + t_25*t_28
       t_30 = 2.0_real64*q2_x
       t_31 = t_29*t_30
       f(10) = self%constants(25) - q2_x*t_26 + t_31*tau_2
       t_32 = 2.0_real64*t_29
       t_33 = t_32*tau_2
-      f(11) = self%constants(26) + q2_y*(-t_26 + t_33)
-      f(12) = self%constants(27) + q2_z*(-t_26 + t_33)
+      f(11) = self%constants(26) - q2_y*t_26 + q2_y*t_33
+      f(12) = self%constants(27) - q2_z*t_26 + q2_z*t_33
       t_34 = self%constants(30)/C_2_root_2
       t_35 = self%constants(28)*gamma + t_23*t_34
       t_36 = t_35*t_9
-      t_37 = self%constants(118)*gamma + t_28*t_34 - t_36
-      t_38 = self%constants(119)*exp_1
+      t_37 = self%constants(91)*gamma + t_28*t_34 - t_36
+      t_38 = self%constants(92)*exp_1
       t_39 = t_37*t_38
       f(13) = t_39*tau_2
       t_40 = t_13*tau_1
-      t_41 = self%constants(120)*t_1
+      t_41 = self%constants(94)*t_1
       t_42 = t_40*t_41
-      t_43 = self%constants(120)*t_40
+      t_43 = self%constants(94)*t_40
       t_44 = t_2*t_43
       t_45 = t_3*t_43
-      f(14) = self%constants(56)*tau_1 + self%constants(70)*tau_2 + q1_x*t_42 + q1_y*t_44 + q1_z*t_45
+      f(14) = self%constants(73)*(self%parameters%conductivity*tau_2 + self%constants(93)*tau_1) + q1_x*t_42 + q1_y &
+          *t_44 + q1_z*t_45
       t_46 = t_29*tau_2
-      t_47 = self%constants(122)*t_46
+      t_47 = self%constants(96)*t_46
       t_48 = t_4*t_47
       t_49 = t_47*t_5
       t_50 = t_47*t_6
       t_51 = exp_1*t_37
       t_52 = t_51*tau_2
-      t_53 = self%constants(123)*t_35
-      f(15) = self%constants(59)*tau_1 + self%constants(61)*tau_2 + q2_x*t_48 + q2_y*t_49 + q2_z*t_50 + t_52*t_53
+      t_53 = self%constants(97)*t_35
+      f(15) = self%constants(95)*(self%parameters%conductivity*tau_1 + self%constants(93)*tau_2) + q2_x*t_48 + q2_y &
+          *t_49 + q2_z*t_50 + t_52*t_53
       t_54 = 1.0_real64/C_1**2
       t_55 = t_54*t_7
-      t_56 = self%constants(135)*t_54 + self%constants(38)*t_55
-      t_57 = tau_1*(self%constants(136)*t_54 + self%constants(6)*t_55)
-      t_58 = t_14*(-t_56 + t_57)
+      t_56 = self%constants(37)*t_54 + self%constants(38)*t_55 + self%constants(8)*t_54
+      t_57 = tau_1*(self%constants(36)*t_54 + self%constants(4)*t_54 + self%constants(6)*t_55)
+      t_58 = -t_14*t_56 + t_14*t_57
       t_59 = self%constants(40)*t_10 + self%constants(41)*t_11 + t_17
       jacobian(7, 1) = t_14*t_58 + t_59
       t_60 = 2.0_real64*t_58
@@ -1249,13 +1175,13 @@ contains
       jacobian(7, 3) = q1_z*t_60
       jacobian(7, 14) = t_15
       t_61 = 2.0_real64*q1_y
-      t_62 = t_61*(-t_56 + t_57)
+      t_62 = -t_56*t_61 + t_57*t_61
       jacobian(8, 1) = t_14*t_62
       jacobian(8, 2) = t_59 + t_61*t_62
       t_63 = 2.0_real64*q1_z
       jacobian(8, 3) = t_62*t_63
       jacobian(8, 14) = q1_y*t_16
-      t_64 = t_63*(-t_56 + t_57)
+      t_64 = -t_56*t_63 + t_57*t_63
       jacobian(9, 1) = t_14*t_64
       jacobian(9, 2) = t_61*t_64
       jacobian(9, 3) = t_59 + t_63*t_64
@@ -1264,11 +1190,13 @@ contains
       t_66 = t_65*t_8
       t_67 = gamma/C_2_root_2**5
       t_68 = self%constants(49)*t_67
-      t_69 = self%constants(137)*t_65 + self%constants(138)*t_66 + self%constants(48)*t_67 + t_23*t_68
-      t_70 = self%constants(115)*t_67 + self%constants(139)*t_65 + self%constants(140)*t_66 + t_28*t_68
+      t_69 = self%constants(14)*(self%constants(13)*t_65 + self%constants(37)*t_65 + self%constants(44)*t_66) + &
+          self%constants(48)*t_67 + t_23*t_68
+      t_70 = self%constants(14)*(self%constants(16)*t_65 + self%constants(4)*t_65 + self%constants(45)*t_66) + &
+          self%constants(98)*t_67 + t_28*t_68
       t_71 = t_30*tau_2
       t_72 = -t_30*t_69 + t_70*t_71
-      t_73 = self%constants(51)*t_20 + t_24*(self%constants(30)*t_23 + self%constants(48)) + t_33
+      t_73 = self%constants(30)*t_23*t_24 + self%constants(48)*t_24 + self%constants(51)*t_20 + t_33
       jacobian(10, 4) = t_30*t_72 + t_73
       t_74 = 2.0_real64*t_72
       jacobian(10, 5) = q2_y*t_74
@@ -1295,55 +1223,55 @@ contains
       jacobian(12, 13) = -t_76*t_81 + t_77*t_82
       jacobian(12, 15) = q2_z*t_32
       t_84 = tau_2*(-t_76*t_9 + t_77)
-      t_85 = self%constants(124)*exp_1*t_84
+      t_85 = self%constants(99)*exp_1*t_84
       jacobian(13, 4) = q2_x*t_85
       jacobian(13, 5) = q2_y*t_85
       jacobian(13, 6) = q2_z*t_85
-      t_86 = tau_2*(self%constants(118) + self%constants(125)*t_9)
+      t_86 = tau_2*(self%constants(100)*t_9 + self%constants(91))
       jacobian(13, 13) = t_38*t_86
-      jacobian(13, 15) = self%constants(126)*t_51*t_9 + t_36*t_38 + t_39
+      jacobian(13, 15) = self%constants(101)*t_51*t_9 + t_36*t_38 + t_39
       t_87 = q1_x*t_41
       t_88 = q1_y*t_2
-      t_89 = self%constants(120)*t_57
+      t_89 = self%constants(94)*t_57
       t_90 = q1_z*t_3
-      t_91 = t_57*t_87 + t_89*(t_88 + t_90)
+      t_91 = t_57*t_87 + t_88*t_89 + t_89*t_90
       jacobian(14, 1) = t_14*t_91 + t_42
       jacobian(14, 2) = t_44 + t_61*t_91
       jacobian(14, 3) = t_45 + t_63*t_91
-      t_92 = self%constants(127)*t_40
+      t_92 = self%constants(102)*t_40
       jacobian(14, 7) = q1_x*t_92
       jacobian(14, 8) = q1_y*t_92
       jacobian(14, 9) = q1_z*t_92
-      t_93 = self%constants(128)*t_40
+      t_93 = self%constants(103)*t_40
       jacobian(14, 10) = q1_x*t_93
       jacobian(14, 11) = q1_y*t_93
       jacobian(14, 12) = q1_z*t_93
-      t_94 = self%constants(120)*t_13
-      jacobian(14, 14) = self%constants(56) + t_13*t_87 + t_94*(t_88 + t_90)
+      t_94 = self%constants(94)*t_13
+      jacobian(14, 14) = self%constants(56) + t_13*t_87 + t_88*t_94 + t_90*t_94
       t_95 = q2_x*t_4
-      t_96 = self%constants(122)*tau_2
+      t_96 = self%constants(96)*tau_2
       t_97 = t_70*t_96
       t_98 = q2_y*t_5
       t_99 = q2_z*t_6
-      t_100 = self%constants(123)*exp_1
+      t_100 = self%constants(97)*exp_1
       t_101 = t_100*t_35
-      t_102 = self%constants(123)*t_52*t_76 + t_101*t_84 + t_97*(t_95 + t_98 + t_99)
+      t_102 = self%constants(97)*t_52*t_76 + t_101*t_84 + t_95*t_97 + t_97*t_98 + t_97*t_99
       jacobian(15, 4) = t_102*t_30 + t_48
       jacobian(15, 5) = t_102*t_78 + t_49
       jacobian(15, 6) = t_102*t_81 + t_50
-      t_103 = self%constants(129)*t_46
+      t_103 = self%constants(104)*t_46
       jacobian(15, 7) = q2_x*t_103
       jacobian(15, 8) = q2_y*t_103
       jacobian(15, 9) = q2_z*t_103
-      t_104 = self%constants(130)*t_46
+      t_104 = self%constants(105)*t_46
       jacobian(15, 10) = q2_x*t_104
       jacobian(15, 11) = q2_y*t_104
       jacobian(15, 12) = q2_z*t_104
       t_105 = t_77*t_96
-      jacobian(15, 13) = self%constants(131)*t_52 + t_101*t_86 + t_105*(t_95 + t_98 + t_99)
-      t_106 = self%constants(122)*t_29
-      jacobian(15, 15) = self%constants(61) + t_100*t_35**2*t_9 + t_106*(t_95 + t_98 + t_99) + t_51 &
-          *(self%constants(132)*t_36 + t_53)
+      jacobian(15, 13) = self%constants(106)*t_52 + t_101*t_86 + t_105*t_95 + t_105*t_98 + t_105*t_99
+      t_106 = self%constants(96)*t_29
+      jacobian(15, 15) = self%constants(107)*t_36*t_51 + self%constants(61) + t_100*t_35**2*t_9 + t_106*t_95 + t_106 &
+          *t_98 + t_106*t_99 + t_51*t_53
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1385,8 +1313,8 @@ contains
       t_9 = 1.0_real64/C_2_root_2
       t_10 = self%constants(21)*t_7 + self%constants(22)
       t_11 = self%parameters%beta_v*t_10*t_9
-      t_12 = self%constants(121)*tau_2 + gamma*(self%constants(121)*t_11 + self%constants(155)*gamma) + t_7 &
-          *(self%constants(153)*t_7 + self%constants(154)) + self%parameters%theta_ref
+      t_12 = self%constants(95)*(self%constants(109)*gamma**2 + self%constants(17)*(self%constants(110)*t_7**2 + &
+          self%constants(7)*t_7) + gamma*t_11 + tau_2) + self%parameters%theta_ref
       t_13 = 1.0_real64/t_12
       if (.not. (self%constants(78)*(self%constants(77) + t_13) <= max_exponent)) then
         stat = domain_overflow
@@ -1395,7 +1323,8 @@ contains
       exp_1 = exp(self%constants(78)*(self%constants(77) + t_13))
       t_14 = 1.0_real64/C_1
       t_15 = t_14*t_8
-      t_16 = self%constants(73)*tau_1 + t_8*(self%constants(156)*t_8 + self%constants(157)) + self%parameters%theta_ref
+      t_16 = self%constants(73)*(self%constants(108)*t_8**2 + self%constants(37)*t_8 + tau_1) + &
+          self%parameters%theta_ref
       t_17 = 1.0_real64/t_16
       t_18 = self%constants(37)*t_14 + self%constants(38)*t_15
       t_19 = t_17*t_18
@@ -1411,14 +1340,14 @@ contains
       t_26 = 1.0_real64/C_2
       t_27 = t_26*t_7
       t_28 = 1.0_real64/C_2_root_2**3
-      t_29 = self%constants(144)*t_28
+      t_29 = self%constants(111)*t_28
       t_30 = self%constants(20)*t_10*t_28
-      t_31 = self%constants(158)*t_27 + self%constants(159)*t_26 + gamma*(t_29 + t_30)
+      t_31 = self%constants(17)*(self%constants(13)*t_27 + self%constants(7)*t_26) + gamma*t_29 + gamma*t_30
       t_32 = t_13*t_31
-      t_33 = self%constants(117)*t_28
+      t_33 = self%constants(90)*t_28
       t_34 = self%parameters%beta + self%constants(19)*t_7
       t_35 = self%constants(23)*t_28*t_34
-      t_36 = self%constants(133)*t_26 + self%constants(134)*t_27 + gamma*(t_33 + t_35) + t_32
+      t_36 = self%constants(14)*(self%constants(15)*t_26 + self%constants(16)*t_27) + gamma*t_33 + gamma*t_35 + t_32
       t_37 = 2.0_real64*t_12
       t_38 = t_36*t_37
       t_39 = q2_x*t_38
@@ -1427,25 +1356,25 @@ contains
       f(11) = self%constants(26) + t_40
       t_41 = q2_z*t_38
       f(12) = self%constants(27) + t_41
-      t_42 = self%constants(125)*gamma + t_11
+      t_42 = self%constants(100)*gamma + t_11
       t_43 = t_13*t_42
-      t_44 = exp_1*(self%constants(118)*gamma + self%constants(30)*t_34*t_9 + t_43)
-      t_45 = self%constants(119)*t_12
+      t_44 = exp_1*(self%constants(30)*t_34*t_9 + self%constants(91)*gamma + t_43)
+      t_45 = self%constants(92)*t_12
       f(13) = t_44*t_45
-      f(14) = self%parameters%conductivity*t_12 + self%constants(116)*t_16 - t_1*t_23 - t_2*t_24 - t_25*t_3
-      f(15) = self%parameters%conductivity*t_16 + self%constants(116)*t_12 - t_39*t_4 - t_40*t_5 - t_41*t_6
+      f(14) = self%parameters%conductivity*t_12 + self%constants(93)*t_16 - t_1*t_23 - t_2*t_24 - t_25*t_3
+      f(15) = self%parameters%conductivity*t_16 + self%constants(93)*t_12 - t_39*t_4 - t_40*t_5 - t_41*t_6
       t_46 = 1.0_real64/C_1**2
       t_47 = t_46*t_8
-      t_48 = t_21*(self%constants(145)*t_18**2/t_16**2 + t_46*(self%constants(136) + self%constants(160)*t_17) + t_47 &
-          *(self%constants(6) + self%constants(8)*t_17))
+      t_48 = t_21*(self%constants(112)*t_18**2/t_16**2 + self%constants(36)*t_46 + self%constants(4)*t_46 + &
+          self%constants(6)*t_47 + t_17*(self%constants(38)*t_46 + self%constants(7)*t_46 + self%constants(8)*t_47))
       t_49 = q1_x*t_48
-      t_50 = self%constants(146)*t_20
+      t_50 = self%constants(113)*t_20
       t_51 = q1_x*t_50
       t_52 = 2.0_real64*t_18*t_51 + 2.0_real64*t_49
       jacobian(7, 1) = q1_x*t_52 + t_22
       jacobian(7, 2) = q1_y*t_52
       jacobian(7, 3) = q1_z*t_52
-      t_53 = self%constants(120)*t_19
+      t_53 = self%constants(94)*t_19
       jacobian(7, 14) = q1_x*t_53 + t_51
       t_54 = q1_y*t_48
       t_55 = q1_y*t_50
@@ -1465,12 +1394,13 @@ contains
       t_61 = t_60*t_7
       t_62 = gamma/C_2_root_2**5
       t_63 = self%constants(76)/t_12**2
-      t_64 = self%constants(139)*t_60 + self%constants(140)*t_61 + t_13*(self%constants(161)*t_60 + &
-          self%constants(162)*t_61 + t_62*(self%constants(47)*t_10 + self%constants(62))) + t_31**2*t_63 + t_62 &
-          *(self%constants(115) + self%constants(49)*t_34)
+      t_64 = self%constants(14)*(self%constants(16)*t_60 + self%constants(4)*t_60 + self%constants(45)*t_61) + &
+          self%constants(49)*t_34*t_62 + self%constants(98)*t_62 + t_13*(self%constants(17)*(self%constants(13)*t_60 &
+          + self%constants(37)*t_60 + self%constants(44)*t_61) + self%constants(47)*t_10*t_62 + self%constants(62) &
+          *t_62) + t_31**2*t_63
       t_65 = q2_x*t_37
       t_66 = t_64*t_65
-      t_67 = self%constants(147)*t_36
+      t_67 = self%constants(114)*t_36
       t_68 = q2_x*t_67
       t_69 = 2.0_real64*t_31*t_68 + 2.0_real64*t_66
       jacobian(10, 4) = q2_x*t_69 + t_38
@@ -1479,7 +1409,7 @@ contains
       t_70 = t_13*(t_29 + t_30) + t_31*t_42*t_63 + t_33 + t_35
       t_71 = t_65*t_70
       jacobian(10, 13) = t_42*t_68 + t_71
-      t_72 = self%constants(122)*t_32
+      t_72 = self%constants(96)*t_32
       jacobian(10, 15) = q2_x*t_72 + t_68
       t_73 = q2_y*t_37
       t_74 = t_64*t_73
@@ -1501,24 +1431,24 @@ contains
       t_82 = t_70*t_78
       jacobian(12, 13) = t_42*t_80 + t_82
       jacobian(12, 15) = q2_z*t_72 + t_80
-      t_83 = exp_1*t_45
-      t_84 = self%constants(148)*t_44
-      t_85 = self%constants(149)*t_44
-      t_86 = 2.0_real64*t_31*t_84 + 2.0_real64*t_32*t_85 + 2.0_real64*t_70*t_83
+      t_83 = self%constants(115)*t_44
+      t_84 = exp_1*t_45
+      t_85 = self%constants(116)*t_44
+      t_86 = 2.0_real64*t_31*t_83 + 2.0_real64*t_32*t_85 + 2.0_real64*t_70*t_84
       jacobian(13, 4) = q2_x*t_86
       jacobian(13, 5) = q2_y*t_86
       jacobian(13, 6) = q2_z*t_86
-      jacobian(13, 13) = t_42*t_84 + t_43*t_85 + t_83*(self%constants(118) + self%constants(125)*t_13 + t_42**2*t_63)
-      jacobian(13, 15) = self%constants(123)*exp_1*t_43 + t_13*t_85 + t_84
-      t_87 = self%constants(120)*t_20
+      jacobian(13, 13) = t_42*t_83 + t_43*t_85 + t_84*(self%constants(100)*t_13 + self%constants(91) + t_42**2*t_63)
+      jacobian(13, 15) = self%constants(97)*exp_1*t_43 + t_13*t_85 + t_83
+      t_87 = self%constants(94)*t_20
       t_88 = q1_x*t_1
       t_89 = t_87*t_88
       t_90 = q1_y*t_2
       t_91 = t_87*t_90
       t_92 = q1_z*t_3
       t_93 = t_87*t_92
-      t_94 = -2.0_real64*t_1*t_49 + t_18*(self%constants(98) + 2.0_real64*t_89 + 2.0_real64*t_91 + 2.0_real64*t_93) - &
-          2.0_real64*t_2*t_54 - 2.0_real64*t_3*t_57
+      t_94 = self%constants(88)*t_18 - 2.0_real64*t_1*t_49 + 2.0_real64*t_18*t_89 + 2.0_real64*t_18*t_91 + 2.0_real64 &
+          *t_18*t_93 - 2.0_real64*t_2*t_54 - 2.0_real64*t_3*t_57
       jacobian(14, 1) = q1_x*t_94 - t_1*t_22
       jacobian(14, 2) = q1_y*t_94 - t_2*t_22
       jacobian(14, 3) = q1_z*t_94 - t_22*t_3
@@ -1527,45 +1457,45 @@ contains
       jacobian(14, 5) = q2_y*t_95
       jacobian(14, 6) = q2_z*t_95
       t_96 = t_16*t_20
-      t_97 = self%constants(150)*t_96
+      t_97 = self%constants(117)*t_96
       jacobian(14, 7) = q1_x*t_97
       jacobian(14, 8) = q1_y*t_97
       jacobian(14, 9) = q1_z*t_97
-      t_98 = self%constants(151)*t_96
+      t_98 = self%constants(118)*t_96
       jacobian(14, 10) = q1_x*t_98
       jacobian(14, 11) = q1_y*t_98
       jacobian(14, 12) = q1_z*t_98
       jacobian(14, 13) = self%constants(59)*t_42
-      t_99 = self%constants(146)*t_19
-      jacobian(14, 14) = self%constants(56) + t_89 + t_91 + t_93 + t_99*(t_88 + t_90 + t_92)
+      t_99 = self%constants(113)*t_19
+      jacobian(14, 14) = self%constants(56) + t_88*t_99 + t_89 + t_90*t_99 + t_91 + t_92*t_99 + t_93
       t_100 = self%constants(60)*t_18
       jacobian(15, 1) = q1_x*t_100
       jacobian(15, 2) = q1_y*t_100
       jacobian(15, 3) = q1_z*t_100
-      t_101 = self%constants(122)*t_36
+      t_101 = self%constants(96)*t_36
       t_102 = q2_x*t_4
       t_103 = t_101*t_102
       t_104 = q2_y*t_5
       t_105 = t_101*t_104
       t_106 = q2_z*t_6
       t_107 = t_101*t_106
-      t_108 = t_31*(self%constants(99) + 2.0_real64*t_103 + 2.0_real64*t_105 + 2.0_real64*t_107) - 2.0_real64*t_4 &
-          *t_66 - 2.0_real64*t_5*t_74 - 2.0_real64*t_6*t_79
+      t_108 = self%constants(89)*t_31 + 2.0_real64*t_103*t_31 + 2.0_real64*t_105*t_31 + 2.0_real64*t_107*t_31 - &
+          2.0_real64*t_4*t_66 - 2.0_real64*t_5*t_74 - 2.0_real64*t_6*t_79
       jacobian(15, 4) = q2_x*t_108 - t_38*t_4
       jacobian(15, 5) = q2_y*t_108 - t_38*t_5
       jacobian(15, 6) = q2_z*t_108 - t_38*t_6
       t_109 = t_12*t_36
-      t_110 = self%constants(151)*t_109
+      t_110 = self%constants(118)*t_109
       jacobian(15, 7) = q2_x*t_110
       jacobian(15, 8) = q2_y*t_110
       jacobian(15, 9) = q2_z*t_110
-      t_111 = self%constants(152)*t_109
+      t_111 = self%constants(119)*t_109
       jacobian(15, 10) = q2_x*t_111
       jacobian(15, 11) = q2_y*t_111
       jacobian(15, 12) = q2_z*t_111
-      jacobian(15, 13) = -t_4*t_71 + t_42*(self%constants(61) + t_103 + t_105 + t_107) - t_5*t_77 - t_6*t_82
-      t_112 = self%constants(147)*t_32
-      jacobian(15, 15) = self%constants(61) + t_103 + t_105 + t_107 + t_112*(t_102 + t_104 + t_106)
+      jacobian(15, 13) = self%constants(61)*t_42 + t_103*t_42 + t_105*t_42 + t_107*t_42 - t_4*t_71 - t_5*t_77 - t_6*t_82
+      t_112 = self%constants(114)*t_32
+      jacobian(15, 15) = self%constants(61) + t_102*t_112 + t_103 + t_104*t_112 + t_105 + t_106*t_112 + t_107
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
@@ -1621,22 +1551,22 @@ contains
       f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(12))
-      if (.not. (abs(self%constants(73)*tau_1 + t_1*(self%constants(104)*t_1 + self%constants(105))) <= &
+      if (.not. (abs(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(73)*tau_1 + t_1*(self%constants(104)*t_1 + self%constants(105)))
+      exp_1 = exp(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1))
       t_3 = 1.0_real64/C_2_root_2
       t_4 = self%parameters%beta + self%constants(19)*t_2
       t_5 = self%parameters%beta_v*t_3*t_4
-      if (.not. (abs(self%constants(76)*tau_2 + gamma*(self%constants(108)*gamma + self%constants(76)*t_5) + t_2 &
-          *(self%constants(106)*t_2 + self%constants(107))) <= max_exponent)) then
+      if (.not. (abs(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(76)*tau_2 + gamma*(self%constants(108)*gamma + self%constants(76)*t_5) + t_2 &
-          *(self%constants(106)*t_2 + self%constants(107)))
+      exp_2 = exp(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2))
       t_6 = self%constants(34)*exp_2
       if (.not. (self%constants(78)*(self%constants(77) + t_6) <= max_exponent)) then
         stat = domain_overflow
@@ -1645,7 +1575,8 @@ contains
       exp_3 = exp(self%constants(78)*(self%constants(77) + t_6))
       t_7 = 1.0_real64/C_1
       t_8 = t_1*t_7
-      t_9 = self%constants(22)*t_7 + self%constants(79)*t_8 + exp_1*(self%constants(110)*t_8 + self%constants(40)*t_7)
+      t_9 = self%constants(22)*t_7 + self%constants(63)*exp_1*(self%constants(4)*t_7 + self%constants(6)*t_8) + &
+          self%constants(79)*t_8
       f(7) = self%constants(9) - q1_x*t_9
       f(8) = self%constants(10) - q1_y*t_9
       f(9) = self%constants(11) - q1_z*t_9
@@ -1655,15 +1586,15 @@ contains
       t_13 = 1.0_real64/exp_2
       t_14 = t_13*self%parameters%theta_ref
       t_15 = self%constants(21)*t_2 + self%constants(22)
-      t_16 = t_10*(self%constants(111)*t_14 + self%constants(112)) + t_11*(self%constants(113)*t_14 + &
-          self%constants(114)) + t_12*(self%parameters%beta_v*t_15 + self%constants(62) + t_14*(self%constants(115) + &
-          self%constants(30)*t_4))
+      t_16 = self%parameters%beta_v*t_12*t_15 + self%constants(62)*t_12 + self%constants(80)*(self%constants(13)*t_11 &
+          + self%constants(7)*t_10) + 2.0_real64*t_14*(self%constants(17)*(self%constants(15)*t_10 + &
+          self%constants(16)*t_11) + self%constants(18)*t_12 + self%constants(20)*t_12*t_4)
       f(10) = self%constants(25) - q2_x*t_16
       f(11) = self%constants(26) - q2_y*t_16
       f(12) = self%constants(27) - q2_z*t_16
       t_17 = self%constants(28)*gamma + self%constants(30)*t_15*t_3 + t_14*(self%constants(29)*gamma + t_5)
       f(13) = self%constants(31)*exp_3*t_17
-      f(14) = self%parameters%conductivity*t_13/exp_1 + self%constants(116)
+      f(14) = self%constants(34)*(self%constants(32)*t_13 + self%constants(33)*exp_1)/exp_1
       f(15) = self%constants(35)*exp_2*exp_3*t_17**2 + t_6*(self%constants(32)*exp_1 + self%constants(33)*t_13)
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
@@ -1699,30 +1630,33 @@ contains
       t_11 = self%constants(22)*t_7 + self%constants(79)*t_8
       t_12 = tau_1*(self%constants(15)*t_7 + self%constants(36)*t_8)
       t_13 = 2.0_real64*t_12
-      f(7) = self%constants(9) + q1_x*(-t_11 + t_13)
-      f(8) = self%constants(10) + q1_y*(-t_11 + t_13)
-      f(9) = self%constants(11) + q1_z*(-t_11 + t_13)
+      f(7) = self%constants(9) - q1_x*t_11 + q1_x*t_13
+      f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_13
+      f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_13
       t_14 = 1.0_real64/C_2
       t_15 = t_14*t_9
       t_16 = gamma/C_2_root_2**3
       t_17 = self%constants(21)*t_9 + self%constants(22)
       t_18 = self%constants(23)*t_16
-      t_19 = self%constants(112)*t_14 + self%constants(114)*t_15 + self%constants(62)*t_16 + 2.0_real64*t_17*t_18
+      t_19 = self%constants(62)*t_16 + self%constants(80)*(self%constants(13)*t_15 + self%constants(7)*t_14) + &
+          2.0_real64*t_17*t_18
       t_20 = self%parameters%beta + self%constants(19)*t_9
-      t_21 = tau_2*(self%constants(117)*t_16 + self%constants(133)*t_14 + self%constants(134)*t_15 + t_18*t_20)
+      t_21 = tau_2*(self%constants(14)*(self%constants(15)*t_14 + self%constants(16)*t_15) + self%constants(90)*t_16 &
+          + t_18*t_20)
       t_22 = 2.0_real64*t_21
-      f(10) = self%constants(25) + q2_x*(-t_19 + t_22)
-      f(11) = self%constants(26) + q2_y*(-t_19 + t_22)
-      f(12) = self%constants(27) + q2_z*(-t_19 + t_22)
+      f(10) = self%constants(25) - q2_x*t_19 + q2_x*t_22
+      f(11) = self%constants(26) - q2_y*t_19 + q2_y*t_22
+      f(12) = self%constants(27) - q2_z*t_19 + q2_z*t_22
       t_23 = self%constants(30)/C_2_root_2
       t_24 = self%constants(28)*gamma + t_17*t_23
-      t_25 = exp_1*tau_2*(self%constants(118)*gamma - t_10*t_24 + t_20*t_23)
-      f(13) = self%constants(119)*t_25
-      t_26 = self%constants(120)*t_12
-      f(14) = self%constants(56)*tau_1 + self%constants(70)*tau_2 + t_26*(q1_x*t_1 + q1_y*t_2 + q1_z*t_3)
-      t_27 = self%constants(122)*t_21
-      f(15) = self%constants(123)*t_24*t_25 + self%constants(59)*tau_1 + self%constants(61)*tau_2 + t_27*(q2_x*t_4 + &
-          q2_y*t_5 + q2_z*t_6)
+      t_25 = exp_1*tau_2*(self%constants(91)*gamma - t_10*t_24 + t_20*t_23)
+      f(13) = self%constants(92)*t_25
+      t_26 = self%constants(94)*t_12
+      f(14) = self%constants(73)*(self%parameters%conductivity*tau_2 + self%constants(93)*tau_1) + q1_x*t_1*t_26 + &
+          q1_y*t_2*t_26 + q1_z*t_26*t_3
+      t_27 = self%constants(96)*t_21
+      f(15) = self%constants(95)*(self%parameters%conductivity*tau_1 + self%constants(93)*tau_2) + self%constants(97) &
+          *t_24*t_25 + q2_x*t_27*t_4 + q2_y*t_27*t_5 + q2_z*t_27*t_6
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1750,19 +1684,20 @@ contains
       t_9 = 1.0_real64/C_2_root_2
       t_10 = self%constants(21)*t_7 + self%constants(22)
       t_11 = self%parameters%beta_v*t_10*t_9
-      t_12 = self%constants(121)*tau_2 + gamma*(self%constants(121)*t_11 + self%constants(155)*gamma) + t_7 &
-          *(self%constants(153)*t_7 + self%constants(154)) + self%parameters%theta_ref
+      t_12 = self%constants(95)*(self%constants(109)*gamma**2 + self%constants(17)*(self%constants(110)*t_7**2 + &
+          self%constants(7)*t_7) + gamma*t_11 + tau_2) + self%parameters%theta_ref
       t_13 = 1.0_real64/t_12
       if (.not. (self%constants(78)*(self%constants(77) + t_13) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_1 = exp(self%constants(78)*(self%constants(77) + t_13))
-      t_14 = self%constants(73)*tau_1 + t_8*(self%constants(156)*t_8 + self%constants(157)) + self%parameters%theta_ref
+      t_14 = self%constants(73)*(self%constants(108)*t_8**2 + self%constants(37)*t_8 + tau_1) + &
+          self%parameters%theta_ref
       t_15 = 1.0_real64/C_1
       t_16 = t_15*t_8
-      t_17 = self%constants(40)*t_15 + self%constants(41)*t_16 + t_14*(self%parameters%beta*t_15 + &
-          self%constants(163)*t_16)
+      t_17 = 2.0_real64*t_14*(self%constants(15)*t_15 + self%constants(36)*t_16 + (self%constants(37)*t_15 + &
+          self%constants(38)*t_16)/t_14)
       t_18 = q1_x*t_17
       f(7) = self%constants(9) + t_18
       t_19 = q1_y*t_17
@@ -1773,19 +1708,19 @@ contains
       t_22 = t_21*t_7
       t_23 = gamma/C_2_root_2**3
       t_24 = self%parameters%beta + self%constants(19)*t_7
-      t_25 = t_12*(t_21*(self%constants(164)*t_13 + self%constants(165)) + t_22*(self%constants(166)*t_13 + &
-          self%constants(167)) + t_23*(self%parameters%beta_v*t_24 + self%constants(46) + t_13*(self%constants(30) &
-          *t_10 + self%constants(48))))
+      t_25 = 2.0_real64*t_12*(self%constants(14)*(self%constants(15)*t_21 + self%constants(16)*t_22) + &
+          self%constants(23)*t_23*t_24 + self%constants(90)*t_23 + t_13*(self%constants(111)*t_23 + &
+          self%constants(17)*(self%constants(13)*t_22 + self%constants(7)*t_21) + self%constants(20)*t_10*t_23))
       t_26 = q2_x*t_25
       f(10) = self%constants(25) + t_26
       t_27 = q2_y*t_25
       f(11) = self%constants(26) + t_27
       t_28 = q2_z*t_25
       f(12) = self%constants(27) + t_28
-      f(13) = self%constants(119)*exp_1*t_12*(self%constants(118)*gamma + self%constants(30)*t_24*t_9 + t_13 &
-          *(self%constants(125)*gamma + t_11))
-      f(14) = self%parameters%conductivity*t_12 + self%constants(116)*t_14 - t_1*t_18 - t_19*t_2 - t_20*t_3
-      f(15) = self%parameters%conductivity*t_14 + self%constants(116)*t_12 - t_26*t_4 - t_27*t_5 - t_28*t_6
+      f(13) = self%constants(92)*exp_1*t_12*(self%constants(30)*t_24*t_9 + self%constants(91)*gamma + t_13 &
+          *(self%constants(100)*gamma + t_11))
+      f(14) = self%parameters%conductivity*t_12 + self%constants(93)*t_14 - t_1*t_18 - t_19*t_2 - t_20*t_3
+      f(15) = self%parameters%conductivity*t_14 + self%constants(93)*t_12 - t_26*t_4 - t_27*t_5 - t_28*t_6
     end select
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
         f(14) + f(15)) <= huge(1.0_real64))) stat = domain_overflow

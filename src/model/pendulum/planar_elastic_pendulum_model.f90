@@ -398,19 +398,19 @@ contains
     t_5 = 1.0_real64/C_1**2
     t_6 = self%constants(5)*t_5
     t_7 = self%constants(12)*t_1*t_5
-    t_8 = q1_x*(2.0_real64*t_6 + 2.0_real64*t_7)
+    t_8 = 2.0_real64*q1_x*t_6 + 2.0_real64*q1_x*t_7
     jacobian(5, 1) = q1_x*t_8 + t_3
     jacobian(5, 2) = q1_y*t_8
-    t_9 = q1_y*(2.0_real64*t_6 + 2.0_real64*t_7)
+    t_9 = 2.0_real64*q1_y*t_6 + 2.0_real64*q1_y*t_7
     jacobian(6, 1) = q1_x*t_9
     jacobian(6, 2) = q1_y*t_9 + t_3
     t_10 = 1.0_real64/C_2**2
     t_11 = self%constants(9)*t_10
     t_12 = self%constants(13)*t_10*t_2
-    t_13 = q2_x*(2.0_real64*t_11 + 2.0_real64*t_12)
+    t_13 = 2.0_real64*q2_x*t_11 + 2.0_real64*q2_x*t_12
     jacobian(7, 3) = q2_x*t_13 + t_4
     jacobian(7, 4) = q2_y*t_13
-    t_14 = q2_y*(2.0_real64*t_11 + 2.0_real64*t_12)
+    t_14 = 2.0_real64*q2_y*t_11 + 2.0_real64*q2_y*t_12
     jacobian(8, 3) = q2_x*t_14
     jacobian(8, 4) = q2_y*t_14 + t_4
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.

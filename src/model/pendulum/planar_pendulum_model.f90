@@ -27,7 +27,7 @@ module planar_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: planar_pendulum
     type(planar_pendulum_parameters) :: parameters
-    real(real64) :: constants(168) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(117) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -211,134 +211,57 @@ contains
     model%constants(76) = -parameters%viscosity_activation
     model%constants(77) = (0.5_real64)*parameters%mu_eq_const_1 + (0.5_real64)*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(78) = (0.5_real64)*parameters%beta*(-parameters%beta_v - 1.0_real64)
-    model%constants(79) = (0.25_real64)*parameters%mu_eq_slope_2*(-parameters%beta_v - 1.0_real64)
-    model%constants(80) = 2.0_real64*parameters%beta_v + 2.0_real64
-    model%constants(81) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(82) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(83) = -2.0_real64*parameters%beta*parameters%theta_ref
-    model%constants(84) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(85) = 2.0_real64*parameters%beta - parameters%mu_eq_slope_1
-    model%constants(86) = -2.0_real64*parameters%beta*parameters%theta_ref + parameters%mu_eq_const_1 + &
-        parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(87) = 4.0_real64*parameters%beta_v + 4.0_real64
-    model%constants(88) = -3.0_real64*parameters%beta_v
-    model%constants(89) = 4.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(78) = 2.0_real64*parameters%beta_v + 2.0_real64
+    model%constants(79) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(80) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(81) = -2.0_real64*parameters%beta*parameters%theta_ref
+    model%constants(82) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(83) = 4.0_real64*parameters%beta_v + 4.0_real64
+    model%constants(84) = -3.0_real64*parameters%beta_v
+    model%constants(85) = 4.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(90) = -2.0_real64*parameters%beta*(-parameters%beta_v - 1.0_real64) + parameters%mu_eq_slope_2*( &
-        -parameters%beta_v - 1.0_real64)
-    model%constants(91) = 3.0_real64*parameters%beta_v
-    model%constants(92) = -4.0_real64*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(93) = -parameters%mu_eq_slope_2*(-parameters%beta_v - 1.0_real64)
-    model%constants(94) = -0.5_real64*parameters%beta*parameters%theta_ref*(4.0_real64*parameters%beta_v + &
-        4.0_real64) + (4.0_real64*parameters%beta_v + 4.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(95) = (4.0_real64*parameters%beta_v + 4.0_real64)*(-0.25_real64*parameters%mu_eq_const_2 - &
-        0.25_real64*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(96) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(97) = -2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
+    model%constants(86) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(87) = -2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
         1.0_real64))
-    model%constants(98) = 2.0_real64*parameters%beta_v
-    model%constants(99) = -2.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
-        *parameters%theta_ref)
-    model%constants(100) = 4.0_real64*parameters%theta_ref
-    model%constants(101) = 4.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(102) = -0.125_real64*parameters%mu_eq_slope_1/parameters%heat_capacity_1
-    model%constants(103) = -0.5_real64*parameters%beta/parameters%heat_capacity_1
-    model%constants(104) = -0.125_real64*parameters%mu_eq_slope_2*(-parameters%beta_v - &
-        1.0_real64)/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(105) = -0.5_real64*parameters%beta*(-parameters%beta_v - 1.0_real64)/(parameters%heat_capacity_2 &
-        *(parameters%beta_v + 1.0_real64))
-    model%constants(106) = parameters%mu_neq_slope/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(107) = parameters%viscosity_activation/parameters%theta_ref
-    model%constants(108) = -0.5_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(109) = parameters%beta*(-parameters%beta_v - 1.0_real64)
-    model%constants(110) = (0.5_real64)*parameters%beta*parameters%theta_ref*(2.0_real64*parameters%beta_v + 2.0_real64)
-    model%constants(111) = (0.5_real64)*parameters%mu_eq_slope_2*(-parameters%beta_v - 1.0_real64)
-    model%constants(112) = (2.0_real64*parameters%beta_v + 2.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(113) = parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(114) = -parameters%conductivity
-    model%constants(115) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(116) = 2.0_real64*parameters%mu_neq_slope
-    model%constants(117) = 1.0_real64/parameters%viscosity_const
-    model%constants(118) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(119) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(120) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(121) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(88) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(89) = 2.0_real64*parameters%mu_neq_slope
+    model%constants(90) = 1.0_real64/parameters%viscosity_const
+    model%constants(91) = -parameters%conductivity
+    model%constants(92) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(93) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(94) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(95) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(122) = 2.0_real64/parameters%viscosity_const
-    model%constants(123) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(124) = parameters%viscosity_activation/parameters%viscosity_const
-    model%constants(125) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(126) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(127) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
-    model%constants(128) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(96) = parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(97) = 2.0_real64/parameters%viscosity_const
+    model%constants(98) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(99) = parameters%viscosity_activation/parameters%viscosity_const
+    model%constants(100) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(101) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(102) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
+    model%constants(103) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2*(parameters%beta_v + 1.0_real64))
-    model%constants(129) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
+    model%constants(104) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref)/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(130) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(105) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(131) = (0.5_real64)*parameters%beta*(parameters%beta_v + 1.0_real64)
-    model%constants(132) = (0.25_real64)*parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(133) = -0.5_real64*parameters%beta*parameters%theta_ref + (0.25_real64)*parameters%mu_eq_const_1 &
-        + (0.25_real64)*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(134) = -0.5_real64*parameters%beta + (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(135) = -0.5_real64*parameters%beta*parameters%theta_ref*(parameters%beta_v + 1.0_real64) + &
-        (parameters%beta_v + 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64) &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(136) = (parameters%beta_v + 1.0_real64)*(-0.25_real64*parameters%mu_eq_const_2 - 0.25_real64 &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(137) = -0.5_real64*parameters%beta*(parameters%beta_v + 1.0_real64) + (0.25_real64) &
-        *parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(138) = -0.25_real64*parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(139) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(106) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(140) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(141) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
+    model%constants(107) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(108) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(142) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(109) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(143) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(144) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(145) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(146) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(110) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(111) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(112) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(113) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(147) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(114) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(148) = -2.0_real64/parameters%mass_1
-    model%constants(149) = 2.0_real64/parameters%mass_1
-    model%constants(150) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
-    model%constants(151) = (-parameters%beta_v - 1.0_real64)*((0.125_real64)*parameters%mu_eq_const_2 + &
-        (0.125_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)/(parameters%heat_capacity_2*(parameters%beta_v &
-        + 1.0_real64))
-    model%constants(152) = (0.5_real64)*parameters%beta*parameters%theta_ref*(-parameters%beta_v - &
-        1.0_real64)/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(153) = (-parameters%mu_neq_const - parameters%mu_neq_slope &
-        *parameters%theta_ref)/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(154) = (-0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
-        *parameters%theta_ref)/parameters%heat_capacity_1
-    model%constants(155) = -0.5_real64*parameters%beta*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(156) = (-parameters%beta_v - 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64) &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(157) = (0.5_real64)*parameters%beta*parameters%theta_ref*(-parameters%beta_v - 1.0_real64)
-    model%constants(158) = (0.5_real64)*parameters%beta*parameters%theta_ref - 0.25_real64*parameters%mu_eq_const_1 - &
-        0.25_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(159) = -0.5_real64*parameters%beta*parameters%theta_ref*(-parameters%beta_v - 1.0_real64) + ( &
-        -parameters%beta_v - 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64) &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(160) = (-parameters%beta_v - 1.0_real64)*(-0.25_real64*parameters%mu_eq_const_2 - 0.25_real64 &
-        *parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(161) = (0.5_real64)*parameters%mu_eq_slope_1
-    model%constants(162) = parameters%beta*parameters%theta_ref*(-parameters%beta_v - 1.0_real64)
-    model%constants(163) = parameters%beta*(parameters%beta_v + 1.0_real64)
-    model%constants(164) = 2.0_real64*(-parameters%beta_v - 1.0_real64)*((0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(165) = (0.5_real64)*parameters%mu_eq_slope_2*(parameters%beta_v + 1.0_real64)
-    model%constants(166) = (-2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope &
-        *parameters%theta_ref)/parameters%viscosity_const
-    model%constants(167) = 2.0_real64*parameters%mu_neq_slope/parameters%viscosity_const
-    model%constants(168) = -parameters%beta_v/parameters%viscosity_const
+    model%constants(115) = -2.0_real64/parameters%mass_1
+    model%constants(116) = 2.0_real64/parameters%mass_1
+    model%constants(117) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_planar_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -881,22 +804,22 @@ contains
       jacobian(4, 8) = self%constants(3)
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(11))
-      if (.not. (abs(self%constants(71)*tau_1 + t_1*(self%constants(102)*t_1 + self%constants(103))) <= &
+      if (.not. (abs(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(71)*tau_1 + t_1*(self%constants(102)*t_1 + self%constants(103)))
+      exp_1 = exp(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1))
       t_3 = 1.0_real64/C_2_root_2
       t_4 = self%parameters%beta + self%constants(18)*t_2
       t_5 = self%parameters%beta_v*t_3*t_4
-      if (.not. (abs(self%constants(74)*tau_2 + gamma*(self%constants(106)*gamma + self%constants(74)*t_5) + t_2 &
-          *(self%constants(104)*t_2 + self%constants(105))) <= max_exponent)) then
+      if (.not. (abs(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(74)*tau_2 + gamma*(self%constants(106)*gamma + self%constants(74)*t_5) + t_2 &
-          *(self%constants(104)*t_2 + self%constants(105)))
+      exp_2 = exp(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2))
       t_6 = self%constants(32)*exp_2
       if (.not. (self%constants(76)*(self%constants(75) + t_6) <= max_exponent)) then
         stat = domain_overflow
@@ -918,11 +841,11 @@ contains
       t_17 = gamma*t_15
       t_18 = self%constants(17)*t_15
       t_19 = self%constants(19)*t_4
-      t_20 = self%constants(78)*t_12 + self%constants(79)*t_13 + gamma*t_18 + t_17*t_19
+      t_20 = self%constants(16)*(self%constants(14)*t_12 + self%constants(15)*t_13) + gamma*t_18 + t_17*t_19
       t_21 = 1.0_real64/exp_2
       t_22 = t_21*self%parameters%theta_ref
       t_23 = self%constants(20)*t_2 + self%constants(21)
-      t_24 = self%parameters%beta_v*t_17*t_23 + self%constants(80)*t_14 + 2.0_real64*gamma*t_16 + 2.0_real64*t_20*t_22
+      t_24 = self%parameters%beta_v*t_17*t_23 + self%constants(78)*t_14 + 2.0_real64*gamma*t_16 + 2.0_real64*t_20*t_22
       f(7) = self%constants(24) - q2_x*t_24
       f(8) = self%constants(25) - q2_y*t_24
       t_25 = self%constants(28)*t_23
@@ -940,8 +863,8 @@ contains
       f(11) = self%constants(33)*t_34 + t_31*t_6
       t_35 = 1.0_real64/C_1**2
       t_36 = t_1*t_35
-      t_37 = self%constants(84)*exp_1*t_9**2 + t_35*(self%constants(85)*t_10 + self%constants(86)) + t_36 &
-          *(self%constants(82) + self%parameters%mu_eq_slope_1*t_10)
+      t_37 = self%constants(79)*t_35 + self%constants(80)*t_36 + self%constants(81)*t_35 + self%constants(82)*exp_1 &
+          *t_9**2 + 4.0_real64*t_10*(self%constants(14)*t_35 + self%constants(34)*t_36 + self%constants(6)*t_35)
       t_38 = exp_1*t_9
       t_39 = self%constants(38)*t_7 + self%constants(39)*t_8 + self%constants(40)*t_38
       jacobian(5, 1) = -q1_x**2*t_37 + t_39
@@ -956,11 +879,12 @@ contains
       t_43 = t_2*t_42
       t_44 = gamma/C_2_root_2**5
       t_45 = self%constants(48)*t_21
-      t_46 = self%constants(94)*t_42 + self%constants(95)*t_43 + 4.0_real64*t_20**2*t_45 + t_22*(self%constants(90) &
-          *t_42 + self%constants(93)*t_43 + t_44*(self%constants(91)*t_4 + self%constants(92))) + t_44 &
-          *(self%constants(88)*t_23 + self%constants(89))
+      t_46 = self%constants(83)*(self%constants(12)*t_42 + self%constants(35)*t_42 + self%constants(42)*t_43) + &
+          self%constants(84)*t_23*t_44 + self%constants(85)*t_44 + 4.0_real64*t_20**2*t_45 + 4.0_real64*t_22 &
+          *(self%constants(16)*(self%constants(15)*t_42 + self%constants(4)*t_42 + self%constants(43)*t_43) + &
+          self%constants(44)*t_44 + self%constants(45)*t_4*t_44)
       t_47 = t_20*t_21
-      t_48 = self%constants(40)*t_47 + self%constants(49)*t_14 + t_17*(self%constants(46) + t_25)
+      t_48 = self%constants(40)*t_47 + self%constants(46)*t_17 + self%constants(49)*t_14 + t_17*t_25
       jacobian(7, 3) = -q2_x**2*t_46 + t_48
       t_49 = -q2_x*q2_y*t_46
       jacobian(7, 4) = t_49
@@ -985,7 +909,7 @@ contains
       t_59 = exp_3*t_26
       jacobian(9, 11) = self%constants(53)*t_21*t_59 + t_56
       t_60 = self%constants(55)*t_30
-      t_61 = t_9*(self%constants(96) + 2.0_real64*t_60)
+      t_61 = self%constants(86)*t_9 + 2.0_real64*t_60*t_9
       jacobian(10, 1) = q1_x*t_61
       jacobian(10, 2) = q1_y*t_61
       t_62 = self%constants(56)*t_29*t_47
@@ -1003,13 +927,13 @@ contains
       t_67 = self%constants(64)*t_34
       t_68 = self%constants(65)*exp_2**2*t_32
       t_69 = exp_3*t_68
-      t_70 = t_20*(self%constants(97) + 2.0_real64*t_65 + 2.0_real64*t_67 + 2.0_real64*t_69) + t_66 &
-          *(self%constants(100)*t_21*t_51 + self%constants(101)*t_26*t_47 + self%constants(98)*t_50 + &
-          self%constants(99)*t_15)
+      t_70 = self%constants(87)*t_20 + 2.0_real64*t_20*t_65 + 2.0_real64*t_20*t_67 + 2.0_real64*t_20*t_69 + &
+          2.0_real64*t_66*(self%parameters%beta_v*t_50 + self%constants(60)*t_15 + self%constants(61)*t_21*t_51 + &
+          self%constants(62)*t_26*t_47)
       jacobian(11, 3) = q2_x*t_70
       jacobian(11, 4) = q2_y*t_70
-      jacobian(11, 9) = t_26*(self%constants(59) + t_65 + t_67) + t_59*t_68 + t_66*(self%constants(67) + t_21 &
-          *(self%constants(62)*t_58 + self%constants(66)))
+      jacobian(11, 9) = self%constants(59)*t_26 + t_26*t_65 + t_26*t_67 + t_59*t_68 + t_66*(self%constants(62)*t_21 &
+          *t_58 + self%constants(66)*t_21 + self%constants(67))
       jacobian(11, 10) = self%constants(68)*exp_1*exp_2
       jacobian(11, 11) = self%constants(59) + self%constants(69)*t_27*t_59 + t_65 + t_67 + t_69
     case (tau_temperature)
@@ -1057,7 +981,7 @@ contains
       f(5) = self%constants(9) - q1_x*t_10 + t_13*tau_1
       t_14 = 2.0_real64*t_11
       t_15 = t_14*tau_1
-      f(6) = self%constants(10) + q1_y*(-t_10 + t_15)
+      f(6) = self%constants(10) - q1_y*t_10 + q1_y*t_15
       t_16 = 1.0_real64/C_2
       t_17 = t_16*t_6
       t_18 = self%constants(12)*t_17 + self%constants(7)*t_16
@@ -1066,48 +990,49 @@ contains
       t_21 = self%constants(20)*t_6 + self%constants(21)
       t_22 = gamma*t_19
       t_23 = self%constants(22)*t_22
-      t_24 = self%constants(80)*t_18 + 2.0_real64*gamma*t_20 + 2.0_real64*t_21*t_23
-      t_25 = self%constants(115)*t_19
+      t_24 = self%constants(78)*t_18 + 2.0_real64*gamma*t_20 + 2.0_real64*t_21*t_23
+      t_25 = self%constants(88)*t_19
       t_26 = self%parameters%beta + self%constants(18)*t_6
-      t_27 = self%constants(131)*t_16 + self%constants(132)*t_17 + gamma*t_25 + t_23*t_26
+      t_27 = self%constants(13)*(self%constants(14)*t_16 + self%constants(15)*t_17) + gamma*t_25 + t_23*t_26
       t_28 = 2.0_real64*q2_x
       t_29 = t_27*t_28
       f(7) = self%constants(24) - q2_x*t_24 + t_29*tau_2
       t_30 = 2.0_real64*t_27
       t_31 = t_30*tau_2
-      f(8) = self%constants(25) + q2_y*(-t_24 + t_31)
+      f(8) = self%constants(25) - q2_y*t_24 + q2_y*t_31
       t_32 = self%constants(28)/C_2_root_2
       t_33 = self%constants(26)*gamma + t_21*t_32
       t_34 = t_33*t_7
-      t_35 = self%constants(116)*gamma + t_26*t_32 - t_34
-      t_36 = self%constants(117)*exp_1
+      t_35 = self%constants(89)*gamma + t_26*t_32 - t_34
+      t_36 = self%constants(90)*exp_1
       t_37 = t_35*t_36
       f(9) = t_37*tau_2
       t_38 = t_11*tau_1
-      t_39 = self%constants(118)*t_1
+      t_39 = self%constants(92)*t_1
       t_40 = t_38*t_39
-      t_41 = self%constants(118)*t_2
+      t_41 = self%constants(92)*t_2
       t_42 = t_38*t_41
-      f(10) = self%constants(54)*tau_1 + self%constants(68)*tau_2 + q1_x*t_40 + q1_y*t_42
+      f(10) = self%constants(71)*(self%parameters%conductivity*tau_2 + self%constants(91)*tau_1) + q1_x*t_40 + q1_y*t_42
       t_43 = t_27*tau_2
-      t_44 = self%constants(120)*t_43
+      t_44 = self%constants(94)*t_43
       t_45 = t_3*t_44
       t_46 = t_4*t_44
       t_47 = exp_1*t_35
       t_48 = t_47*tau_2
-      t_49 = self%constants(121)*t_33
-      f(11) = self%constants(57)*tau_1 + self%constants(59)*tau_2 + q2_x*t_45 + q2_y*t_46 + t_48*t_49
+      t_49 = self%constants(95)*t_33
+      f(11) = self%constants(93)*(self%parameters%conductivity*tau_1 + self%constants(91)*tau_2) + q2_x*t_45 + q2_y &
+          *t_46 + t_48*t_49
       t_50 = 1.0_real64/C_1**2
       t_51 = t_5*t_50
-      t_52 = self%constants(133)*t_50 + self%constants(36)*t_51
-      t_53 = tau_1*(self%constants(134)*t_50 + self%constants(6)*t_51)
-      t_54 = t_12*(-t_52 + t_53)
+      t_52 = self%constants(35)*t_50 + self%constants(36)*t_51 + self%constants(8)*t_50
+      t_53 = tau_1*(self%constants(34)*t_50 + self%constants(4)*t_50 + self%constants(6)*t_51)
+      t_54 = -t_12*t_52 + t_12*t_53
       t_55 = self%constants(38)*t_8 + self%constants(39)*t_9 + t_15
       jacobian(5, 1) = t_12*t_54 + t_55
       t_56 = 2.0_real64*q1_y
       jacobian(5, 2) = t_54*t_56
       jacobian(5, 10) = t_13
-      t_57 = t_56*(-t_52 + t_53)
+      t_57 = -t_52*t_56 + t_53*t_56
       jacobian(6, 1) = t_12*t_57
       jacobian(6, 2) = t_55 + t_56*t_57
       jacobian(6, 10) = q1_y*t_14
@@ -1115,11 +1040,13 @@ contains
       t_59 = t_58*t_6
       t_60 = gamma/C_2_root_2**5
       t_61 = self%constants(47)*t_60
-      t_62 = self%constants(135)*t_58 + self%constants(136)*t_59 + self%constants(46)*t_60 + t_21*t_61
-      t_63 = self%constants(113)*t_60 + self%constants(137)*t_58 + self%constants(138)*t_59 + t_26*t_61
+      t_62 = self%constants(13)*(self%constants(12)*t_58 + self%constants(35)*t_58 + self%constants(42)*t_59) + &
+          self%constants(46)*t_60 + t_21*t_61
+      t_63 = self%constants(13)*(self%constants(15)*t_58 + self%constants(4)*t_58 + self%constants(43)*t_59) + &
+          self%constants(96)*t_60 + t_26*t_61
       t_64 = t_28*tau_2
       t_65 = -t_28*t_62 + t_63*t_64
-      t_66 = self%constants(49)*t_18 + t_22*(self%constants(28)*t_21 + self%constants(46)) + t_31
+      t_66 = self%constants(28)*t_21*t_22 + self%constants(46)*t_22 + self%constants(49)*t_18 + t_31
       jacobian(7, 3) = t_28*t_65 + t_66
       t_67 = 2.0_real64*q2_y
       jacobian(7, 4) = t_65*t_67
@@ -1135,44 +1062,44 @@ contains
       jacobian(8, 9) = -t_67*t_69 + t_70*t_71
       jacobian(8, 11) = q2_y*t_30
       t_73 = tau_2*(-t_69*t_7 + t_70)
-      t_74 = self%constants(122)*exp_1*t_73
+      t_74 = self%constants(97)*exp_1*t_73
       jacobian(9, 3) = q2_x*t_74
       jacobian(9, 4) = q2_y*t_74
-      t_75 = tau_2*(self%constants(116) + self%constants(123)*t_7)
+      t_75 = tau_2*(self%constants(89) + self%constants(98)*t_7)
       jacobian(9, 9) = t_36*t_75
-      jacobian(9, 11) = self%constants(124)*t_47*t_7 + t_34*t_36 + t_37
+      jacobian(9, 11) = self%constants(99)*t_47*t_7 + t_34*t_36 + t_37
       t_76 = q1_x*t_39
       t_77 = q1_y*t_41
-      t_78 = t_53*(t_76 + t_77)
+      t_78 = t_53*t_76 + t_53*t_77
       jacobian(10, 1) = t_12*t_78 + t_40
       jacobian(10, 2) = t_42 + t_56*t_78
-      t_79 = self%constants(125)*t_38
+      t_79 = self%constants(100)*t_38
       jacobian(10, 5) = q1_x*t_79
       jacobian(10, 6) = q1_y*t_79
-      t_80 = self%constants(126)*t_38
+      t_80 = self%constants(101)*t_38
       jacobian(10, 7) = q1_x*t_80
       jacobian(10, 8) = q1_y*t_80
-      jacobian(10, 10) = self%constants(54) + t_11*(t_76 + t_77)
+      jacobian(10, 10) = self%constants(54) + t_11*t_76 + t_11*t_77
       t_81 = q2_x*t_3
-      t_82 = self%constants(120)*tau_2
+      t_82 = self%constants(94)*tau_2
       t_83 = t_63*t_82
       t_84 = q2_y*t_4
-      t_85 = self%constants(121)*exp_1
+      t_85 = self%constants(95)*exp_1
       t_86 = t_33*t_85
-      t_87 = self%constants(121)*t_48*t_69 + t_73*t_86 + t_83*(t_81 + t_84)
+      t_87 = self%constants(95)*t_48*t_69 + t_73*t_86 + t_81*t_83 + t_83*t_84
       jacobian(11, 3) = t_28*t_87 + t_45
       jacobian(11, 4) = t_46 + t_67*t_87
-      t_88 = self%constants(127)*t_43
+      t_88 = self%constants(102)*t_43
       jacobian(11, 5) = q2_x*t_88
       jacobian(11, 6) = q2_y*t_88
-      t_89 = self%constants(128)*t_43
+      t_89 = self%constants(103)*t_43
       jacobian(11, 7) = q2_x*t_89
       jacobian(11, 8) = q2_y*t_89
       t_90 = t_70*t_82
-      jacobian(11, 9) = self%constants(129)*t_48 + t_75*t_86 + t_90*(t_81 + t_84)
-      t_91 = self%constants(120)*t_27
-      jacobian(11, 11) = self%constants(59) + t_33**2*t_7*t_85 + t_47*(self%constants(130)*t_34 + t_49) + t_91*(t_81 &
-          + t_84)
+      jacobian(11, 9) = self%constants(104)*t_48 + t_75*t_86 + t_81*t_90 + t_84*t_90
+      t_91 = self%constants(94)*t_27
+      jacobian(11, 11) = self%constants(105)*t_34*t_47 + self%constants(59) + t_33**2*t_7*t_85 + t_47*t_49 + t_81 &
+          *t_91 + t_84*t_91
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1206,8 +1133,8 @@ contains
       t_7 = 1.0_real64/C_2_root_2
       t_8 = self%constants(20)*t_5 + self%constants(21)
       t_9 = self%parameters%beta_v*t_7*t_8
-      t_10 = self%constants(119)*tau_2 + gamma*(self%constants(119)*t_9 + self%constants(153)*gamma) + t_5 &
-          *(self%constants(151)*t_5 + self%constants(152)) + self%parameters%theta_ref
+      t_10 = self%constants(93)*(self%constants(107)*gamma**2 + self%constants(16)*(self%constants(108)*t_5**2 + &
+          self%constants(7)*t_5) + gamma*t_9 + tau_2) + self%parameters%theta_ref
       t_11 = 1.0_real64/t_10
       if (.not. (self%constants(76)*(self%constants(75) + t_11) <= max_exponent)) then
         stat = domain_overflow
@@ -1216,7 +1143,8 @@ contains
       exp_1 = exp(self%constants(76)*(self%constants(75) + t_11))
       t_12 = 1.0_real64/C_1
       t_13 = t_12*t_6
-      t_14 = self%constants(71)*tau_1 + t_6*(self%constants(154)*t_6 + self%constants(155)) + self%parameters%theta_ref
+      t_14 = self%constants(71)*(self%constants(106)*t_6**2 + self%constants(35)*t_6 + tau_1) + &
+          self%parameters%theta_ref
       t_15 = 1.0_real64/t_14
       t_16 = self%constants(35)*t_12 + self%constants(36)*t_13
       t_17 = t_15*t_16
@@ -1230,38 +1158,38 @@ contains
       t_23 = 1.0_real64/C_2
       t_24 = t_23*t_5
       t_25 = 1.0_real64/C_2_root_2**3
-      t_26 = self%constants(142)*t_25
+      t_26 = self%constants(109)*t_25
       t_27 = self%constants(19)*t_25*t_8
-      t_28 = self%constants(156)*t_24 + self%constants(157)*t_23 + gamma*(t_26 + t_27)
+      t_28 = self%constants(16)*(self%constants(12)*t_24 + self%constants(7)*t_23) + gamma*t_26 + gamma*t_27
       t_29 = t_11*t_28
-      t_30 = self%constants(115)*t_25
+      t_30 = self%constants(88)*t_25
       t_31 = self%parameters%beta + self%constants(18)*t_5
       t_32 = self%constants(22)*t_25*t_31
-      t_33 = self%constants(131)*t_23 + self%constants(132)*t_24 + gamma*(t_30 + t_32) + t_29
+      t_33 = self%constants(13)*(self%constants(14)*t_23 + self%constants(15)*t_24) + gamma*t_30 + gamma*t_32 + t_29
       t_34 = 2.0_real64*t_10
       t_35 = t_33*t_34
       t_36 = q2_x*t_35
       f(7) = self%constants(24) + t_36
       t_37 = q2_y*t_35
       f(8) = self%constants(25) + t_37
-      t_38 = self%constants(123)*gamma + t_9
+      t_38 = self%constants(98)*gamma + t_9
       t_39 = t_11*t_38
-      t_40 = exp_1*(self%constants(116)*gamma + self%constants(28)*t_31*t_7 + t_39)
-      t_41 = self%constants(117)*t_10
+      t_40 = exp_1*(self%constants(28)*t_31*t_7 + self%constants(89)*gamma + t_39)
+      t_41 = self%constants(90)*t_10
       f(9) = t_40*t_41
-      f(10) = self%parameters%conductivity*t_10 + self%constants(114)*t_14 - t_1*t_21 - t_2*t_22
-      f(11) = self%parameters%conductivity*t_14 + self%constants(114)*t_10 - t_3*t_36 - t_37*t_4
+      f(10) = self%parameters%conductivity*t_10 + self%constants(91)*t_14 - t_1*t_21 - t_2*t_22
+      f(11) = self%parameters%conductivity*t_14 + self%constants(91)*t_10 - t_3*t_36 - t_37*t_4
       t_42 = 1.0_real64/C_1**2
       t_43 = t_42*t_6
-      t_44 = t_19*(self%constants(143)*t_16**2/t_14**2 + t_42*(self%constants(134) + self%constants(158)*t_15) + t_43 &
-          *(self%constants(6) + self%constants(8)*t_15))
+      t_44 = t_19*(self%constants(110)*t_16**2/t_14**2 + self%constants(34)*t_42 + self%constants(4)*t_42 + &
+          self%constants(6)*t_43 + t_15*(self%constants(36)*t_42 + self%constants(7)*t_42 + self%constants(8)*t_43))
       t_45 = q1_x*t_44
-      t_46 = self%constants(144)*t_18
+      t_46 = self%constants(111)*t_18
       t_47 = q1_x*t_46
       t_48 = 2.0_real64*t_16*t_47 + 2.0_real64*t_45
       jacobian(5, 1) = q1_x*t_48 + t_20
       jacobian(5, 2) = q1_y*t_48
-      t_49 = self%constants(118)*t_17
+      t_49 = self%constants(92)*t_17
       jacobian(5, 10) = q1_x*t_49 + t_47
       t_50 = q1_y*t_44
       t_51 = q1_y*t_46
@@ -1273,12 +1201,13 @@ contains
       t_54 = t_5*t_53
       t_55 = gamma/C_2_root_2**5
       t_56 = self%constants(74)/t_10**2
-      t_57 = self%constants(137)*t_53 + self%constants(138)*t_54 + t_11*(self%constants(159)*t_53 + &
-          self%constants(160)*t_54 + t_55*(self%constants(45)*t_8 + self%constants(60))) + t_28**2*t_56 + t_55 &
-          *(self%constants(113) + self%constants(47)*t_31)
+      t_57 = self%constants(13)*(self%constants(15)*t_53 + self%constants(4)*t_53 + self%constants(43)*t_54) + &
+          self%constants(47)*t_31*t_55 + self%constants(96)*t_55 + t_11*(self%constants(16)*(self%constants(12)*t_53 &
+          + self%constants(35)*t_53 + self%constants(42)*t_54) + self%constants(45)*t_55*t_8 + self%constants(60) &
+          *t_55) + t_28**2*t_56
       t_58 = q2_x*t_34
       t_59 = t_57*t_58
-      t_60 = self%constants(145)*t_33
+      t_60 = self%constants(112)*t_33
       t_61 = q2_x*t_60
       t_62 = 2.0_real64*t_28*t_61 + 2.0_real64*t_59
       jacobian(7, 3) = q2_x*t_62 + t_35
@@ -1286,7 +1215,7 @@ contains
       t_63 = t_11*(t_26 + t_27) + t_28*t_38*t_56 + t_30 + t_32
       t_64 = t_58*t_63
       jacobian(7, 9) = t_38*t_61 + t_64
-      t_65 = self%constants(120)*t_29
+      t_65 = self%constants(94)*t_29
       jacobian(7, 11) = q2_x*t_65 + t_61
       t_66 = q2_y*t_34
       t_67 = t_57*t_66
@@ -1297,56 +1226,58 @@ contains
       t_70 = t_63*t_66
       jacobian(8, 9) = t_38*t_68 + t_70
       jacobian(8, 11) = q2_y*t_65 + t_68
-      t_71 = exp_1*t_41
-      t_72 = self%constants(146)*t_40
-      t_73 = self%constants(147)*t_40
-      t_74 = 2.0_real64*t_28*t_72 + 2.0_real64*t_29*t_73 + 2.0_real64*t_63*t_71
+      t_71 = self%constants(113)*t_40
+      t_72 = exp_1*t_41
+      t_73 = self%constants(114)*t_40
+      t_74 = 2.0_real64*t_28*t_71 + 2.0_real64*t_29*t_73 + 2.0_real64*t_63*t_72
       jacobian(9, 3) = q2_x*t_74
       jacobian(9, 4) = q2_y*t_74
-      jacobian(9, 9) = t_38*t_72 + t_39*t_73 + t_71*(self%constants(116) + self%constants(123)*t_11 + t_38**2*t_56)
-      jacobian(9, 11) = self%constants(121)*exp_1*t_39 + t_11*t_73 + t_72
-      t_75 = self%constants(118)*t_18
+      jacobian(9, 9) = t_38*t_71 + t_39*t_73 + t_72*(self%constants(89) + self%constants(98)*t_11 + t_38**2*t_56)
+      jacobian(9, 11) = self%constants(95)*exp_1*t_39 + t_11*t_73 + t_71
+      t_75 = self%constants(92)*t_18
       t_76 = q1_x*t_1
       t_77 = t_75*t_76
       t_78 = q1_y*t_2
       t_79 = t_75*t_78
-      t_80 = -2.0_real64*t_1*t_45 + t_16*(self%constants(96) + 2.0_real64*t_77 + 2.0_real64*t_79) - 2.0_real64*t_2*t_50
+      t_80 = self%constants(86)*t_16 - 2.0_real64*t_1*t_45 + 2.0_real64*t_16*t_77 + 2.0_real64*t_16*t_79 - 2.0_real64 &
+          *t_2*t_50
       jacobian(10, 1) = q1_x*t_80 - t_1*t_20
       jacobian(10, 2) = q1_y*t_80 - t_2*t_20
       t_81 = self%constants(56)*t_28
       jacobian(10, 3) = q2_x*t_81
       jacobian(10, 4) = q2_y*t_81
       t_82 = t_14*t_18
-      t_83 = self%constants(148)*t_82
+      t_83 = self%constants(115)*t_82
       jacobian(10, 5) = q1_x*t_83
       jacobian(10, 6) = q1_y*t_83
-      t_84 = self%constants(149)*t_82
+      t_84 = self%constants(116)*t_82
       jacobian(10, 7) = q1_x*t_84
       jacobian(10, 8) = q1_y*t_84
       jacobian(10, 9) = self%constants(57)*t_38
-      t_85 = self%constants(144)*t_17
-      jacobian(10, 10) = self%constants(54) + t_77 + t_79 + t_85*(t_76 + t_78)
+      t_85 = self%constants(111)*t_17
+      jacobian(10, 10) = self%constants(54) + t_76*t_85 + t_77 + t_78*t_85 + t_79
       t_86 = self%constants(58)*t_16
       jacobian(11, 1) = q1_x*t_86
       jacobian(11, 2) = q1_y*t_86
-      t_87 = self%constants(120)*t_33
+      t_87 = self%constants(94)*t_33
       t_88 = q2_x*t_3
       t_89 = t_87*t_88
       t_90 = q2_y*t_4
       t_91 = t_87*t_90
-      t_92 = t_28*(self%constants(97) + 2.0_real64*t_89 + 2.0_real64*t_91) - 2.0_real64*t_3*t_59 - 2.0_real64*t_4*t_67
+      t_92 = self%constants(87)*t_28 + 2.0_real64*t_28*t_89 + 2.0_real64*t_28*t_91 - 2.0_real64*t_3*t_59 - 2.0_real64 &
+          *t_4*t_67
       jacobian(11, 3) = q2_x*t_92 - t_3*t_35
       jacobian(11, 4) = q2_y*t_92 - t_35*t_4
       t_93 = t_10*t_33
-      t_94 = self%constants(149)*t_93
+      t_94 = self%constants(116)*t_93
       jacobian(11, 5) = q2_x*t_94
       jacobian(11, 6) = q2_y*t_94
-      t_95 = self%constants(150)*t_93
+      t_95 = self%constants(117)*t_93
       jacobian(11, 7) = q2_x*t_95
       jacobian(11, 8) = q2_y*t_95
-      jacobian(11, 9) = -t_3*t_64 + t_38*(self%constants(59) + t_89 + t_91) - t_4*t_70
-      t_96 = self%constants(145)*t_29
-      jacobian(11, 11) = self%constants(59) + t_89 + t_91 + t_96*(t_88 + t_90)
+      jacobian(11, 9) = self%constants(59)*t_38 - t_3*t_64 + t_38*t_89 + t_38*t_91 - t_4*t_70
+      t_96 = self%constants(112)*t_29
+      jacobian(11, 11) = self%constants(59) + t_88*t_96 + t_89 + t_90*t_96 + t_91
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11)) <= &
@@ -1396,22 +1327,22 @@ contains
       f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(11))
-      if (.not. (abs(self%constants(71)*tau_1 + t_1*(self%constants(102)*t_1 + self%constants(103))) <= &
+      if (.not. (abs(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(71)*tau_1 + t_1*(self%constants(102)*t_1 + self%constants(103)))
+      exp_1 = exp(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1))
       t_3 = 1.0_real64/C_2_root_2
       t_4 = self%parameters%beta + self%constants(18)*t_2
       t_5 = self%parameters%beta_v*t_3*t_4
-      if (.not. (abs(self%constants(74)*tau_2 + gamma*(self%constants(106)*gamma + self%constants(74)*t_5) + t_2 &
-          *(self%constants(104)*t_2 + self%constants(105))) <= max_exponent)) then
+      if (.not. (abs(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(74)*tau_2 + gamma*(self%constants(106)*gamma + self%constants(74)*t_5) + t_2 &
-          *(self%constants(104)*t_2 + self%constants(105)))
+      exp_2 = exp(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2))
       t_6 = self%constants(32)*exp_2
       if (.not. (self%constants(76)*(self%constants(75) + t_6) <= max_exponent)) then
         stat = domain_overflow
@@ -1420,7 +1351,8 @@ contains
       exp_3 = exp(self%constants(76)*(self%constants(75) + t_6))
       t_7 = 1.0_real64/C_1
       t_8 = t_1*t_7
-      t_9 = self%constants(21)*t_7 + self%constants(77)*t_8 + exp_1*(self%constants(108)*t_8 + self%constants(38)*t_7)
+      t_9 = self%constants(21)*t_7 + self%constants(61)*exp_1*(self%constants(4)*t_7 + self%constants(6)*t_8) + &
+          self%constants(77)*t_8
       f(5) = self%constants(9) - q1_x*t_9
       f(6) = self%constants(10) - q1_y*t_9
       t_10 = 1.0_real64/C_2
@@ -1429,14 +1361,14 @@ contains
       t_13 = 1.0_real64/exp_2
       t_14 = t_13*self%parameters%theta_ref
       t_15 = self%constants(20)*t_2 + self%constants(21)
-      t_16 = t_10*(self%constants(109)*t_14 + self%constants(110)) + t_11*(self%constants(111)*t_14 + &
-          self%constants(112)) + t_12*(self%parameters%beta_v*t_15 + self%constants(60) + t_14*(self%constants(113) + &
-          self%constants(28)*t_4))
+      t_16 = self%parameters%beta_v*t_12*t_15 + self%constants(60)*t_12 + self%constants(78)*(self%constants(12)*t_11 &
+          + self%constants(7)*t_10) + 2.0_real64*t_14*(self%constants(16)*(self%constants(14)*t_10 + &
+          self%constants(15)*t_11) + self%constants(17)*t_12 + self%constants(19)*t_12*t_4)
       f(7) = self%constants(24) - q2_x*t_16
       f(8) = self%constants(25) - q2_y*t_16
       t_17 = self%constants(26)*gamma + self%constants(28)*t_15*t_3 + t_14*(self%constants(27)*gamma + t_5)
       f(9) = self%constants(29)*exp_3*t_17
-      f(10) = self%parameters%conductivity*t_13/exp_1 + self%constants(114)
+      f(10) = self%constants(32)*(self%constants(30)*t_13 + self%constants(31)*exp_1)/exp_1
       f(11) = self%constants(33)*exp_2*exp_3*t_17**2 + t_6*(self%constants(30)*exp_1 + self%constants(31)*t_13)
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
@@ -1468,28 +1400,31 @@ contains
       t_9 = self%constants(21)*t_5 + self%constants(77)*t_6
       t_10 = tau_1*(self%constants(14)*t_5 + self%constants(34)*t_6)
       t_11 = 2.0_real64*t_10
-      f(5) = self%constants(9) + q1_x*(t_11 - t_9)
-      f(6) = self%constants(10) + q1_y*(t_11 - t_9)
+      f(5) = self%constants(9) + q1_x*t_11 - q1_x*t_9
+      f(6) = self%constants(10) + q1_y*t_11 - q1_y*t_9
       t_12 = 1.0_real64/C_2
       t_13 = t_12*t_7
       t_14 = gamma/C_2_root_2**3
       t_15 = self%constants(20)*t_7 + self%constants(21)
       t_16 = self%constants(22)*t_14
-      t_17 = self%constants(110)*t_12 + self%constants(112)*t_13 + self%constants(60)*t_14 + 2.0_real64*t_15*t_16
+      t_17 = self%constants(60)*t_14 + self%constants(78)*(self%constants(12)*t_13 + self%constants(7)*t_12) + &
+          2.0_real64*t_15*t_16
       t_18 = self%parameters%beta + self%constants(18)*t_7
-      t_19 = tau_2*(self%constants(115)*t_14 + self%constants(131)*t_12 + self%constants(132)*t_13 + t_16*t_18)
+      t_19 = tau_2*(self%constants(13)*(self%constants(14)*t_12 + self%constants(15)*t_13) + self%constants(88)*t_14 &
+          + t_16*t_18)
       t_20 = 2.0_real64*t_19
-      f(7) = self%constants(24) + q2_x*(-t_17 + t_20)
-      f(8) = self%constants(25) + q2_y*(-t_17 + t_20)
+      f(7) = self%constants(24) - q2_x*t_17 + q2_x*t_20
+      f(8) = self%constants(25) - q2_y*t_17 + q2_y*t_20
       t_21 = self%constants(28)/C_2_root_2
       t_22 = self%constants(26)*gamma + t_15*t_21
-      t_23 = exp_1*tau_2*(self%constants(116)*gamma + t_18*t_21 - t_22*t_8)
-      f(9) = self%constants(117)*t_23
-      t_24 = self%constants(118)*t_10
-      f(10) = self%constants(54)*tau_1 + self%constants(68)*tau_2 + t_24*(q1_x*t_1 + q1_y*t_2)
-      t_25 = self%constants(120)*t_19
-      f(11) = self%constants(121)*t_22*t_23 + self%constants(57)*tau_1 + self%constants(59)*tau_2 + t_25*(q2_x*t_3 + &
-          q2_y*t_4)
+      t_23 = exp_1*tau_2*(self%constants(89)*gamma + t_18*t_21 - t_22*t_8)
+      f(9) = self%constants(90)*t_23
+      t_24 = self%constants(92)*t_10
+      f(10) = self%constants(71)*(self%parameters%conductivity*tau_2 + self%constants(91)*tau_1) + q1_x*t_1*t_24 + &
+          q1_y*t_2*t_24
+      t_25 = self%constants(94)*t_19
+      f(11) = self%constants(93)*(self%parameters%conductivity*tau_1 + self%constants(91)*tau_2) + self%constants(95) &
+          *t_22*t_23 + q2_x*t_25*t_3 + q2_y*t_25*t_4
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1513,19 +1448,20 @@ contains
       t_7 = 1.0_real64/C_2_root_2
       t_8 = self%constants(20)*t_5 + self%constants(21)
       t_9 = self%parameters%beta_v*t_7*t_8
-      t_10 = self%constants(119)*tau_2 + gamma*(self%constants(119)*t_9 + self%constants(153)*gamma) + t_5 &
-          *(self%constants(151)*t_5 + self%constants(152)) + self%parameters%theta_ref
+      t_10 = self%constants(93)*(self%constants(107)*gamma**2 + self%constants(16)*(self%constants(108)*t_5**2 + &
+          self%constants(7)*t_5) + gamma*t_9 + tau_2) + self%parameters%theta_ref
       t_11 = 1.0_real64/t_10
       if (.not. (self%constants(76)*(self%constants(75) + t_11) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_1 = exp(self%constants(76)*(self%constants(75) + t_11))
-      t_12 = self%constants(71)*tau_1 + t_6*(self%constants(154)*t_6 + self%constants(155)) + self%parameters%theta_ref
+      t_12 = self%constants(71)*(self%constants(106)*t_6**2 + self%constants(35)*t_6 + tau_1) + &
+          self%parameters%theta_ref
       t_13 = 1.0_real64/C_1
       t_14 = t_13*t_6
-      t_15 = self%constants(38)*t_13 + self%constants(39)*t_14 + t_12*(self%parameters%beta*t_13 + &
-          self%constants(161)*t_14)
+      t_15 = 2.0_real64*t_12*(self%constants(14)*t_13 + self%constants(34)*t_14 + (self%constants(35)*t_13 + &
+          self%constants(36)*t_14)/t_12)
       t_16 = q1_x*t_15
       f(5) = self%constants(9) + t_16
       t_17 = q1_y*t_15
@@ -1534,17 +1470,17 @@ contains
       t_19 = t_18*t_5
       t_20 = gamma/C_2_root_2**3
       t_21 = self%parameters%beta + self%constants(18)*t_5
-      t_22 = t_10*(t_18*(self%constants(162)*t_11 + self%constants(163)) + t_19*(self%constants(164)*t_11 + &
-          self%constants(165)) + t_20*(self%parameters%beta_v*t_21 + self%constants(44) + t_11*(self%constants(28) &
-          *t_8 + self%constants(46))))
+      t_22 = 2.0_real64*t_10*(self%constants(13)*(self%constants(14)*t_18 + self%constants(15)*t_19) + &
+          self%constants(22)*t_20*t_21 + self%constants(88)*t_20 + t_11*(self%constants(109)*t_20 + &
+          self%constants(16)*(self%constants(12)*t_19 + self%constants(7)*t_18) + self%constants(19)*t_20*t_8))
       t_23 = q2_x*t_22
       f(7) = self%constants(24) + t_23
       t_24 = q2_y*t_22
       f(8) = self%constants(25) + t_24
-      f(9) = self%constants(117)*exp_1*t_10*(self%constants(116)*gamma + self%constants(28)*t_21*t_7 + t_11 &
-          *(self%constants(123)*gamma + t_9))
-      f(10) = self%parameters%conductivity*t_10 + self%constants(114)*t_12 - t_1*t_16 - t_17*t_2
-      f(11) = self%parameters%conductivity*t_12 + self%constants(114)*t_10 - t_23*t_3 - t_24*t_4
+      f(9) = self%constants(90)*exp_1*t_10*(self%constants(28)*t_21*t_7 + self%constants(89)*gamma + t_11 &
+          *(self%constants(98)*gamma + t_9))
+      f(10) = self%parameters%conductivity*t_10 + self%constants(91)*t_12 - t_1*t_16 - t_17*t_2
+      f(11) = self%parameters%conductivity*t_12 + self%constants(91)*t_10 - t_23*t_3 - t_24*t_4
     end select
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11)) <= &
         huge(1.0_real64))) stat = domain_overflow

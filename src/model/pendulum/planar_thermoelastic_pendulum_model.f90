@@ -27,7 +27,7 @@ module planar_thermoelastic_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: planar_thermoelastic_pendulum
     type(planar_thermoelastic_pendulum_parameters) :: parameters
-    real(real64) :: constants(95) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(73) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -176,61 +176,31 @@ contains
     model%constants(49) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
     model%constants(50) = -2.0_real64*parameters%beta*parameters%theta_ref
     model%constants(51) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(52) = 2.0_real64*parameters%beta - parameters%mu_eq_slope_1
-    model%constants(53) = -2.0_real64*parameters%beta*parameters%theta_ref + parameters%mu_eq_const_1 + &
-        parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(54) = parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(55) = -parameters%mu_eq_const_2 - parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(56) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(57) = 2.0_real64*parameters%beta - parameters%mu_eq_slope_2
-    model%constants(58) = -2.0_real64*parameters%beta*parameters%theta_ref + parameters%mu_eq_const_2 + &
-        parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(59) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(60) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_2
-    model%constants(61) = -0.125_real64*parameters%mu_eq_slope_1/parameters%heat_capacity_1
-    model%constants(62) = -0.5_real64*parameters%beta/parameters%heat_capacity_1
-    model%constants(63) = -0.125_real64*parameters%mu_eq_slope_2/parameters%heat_capacity_2
-    model%constants(64) = -0.5_real64*parameters%beta/parameters%heat_capacity_2
-    model%constants(65) = 2.0_real64*parameters%theta_ref
-    model%constants(66) = -0.5_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(67) = -0.5_real64*parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(68) = -parameters%conductivity
-    model%constants(69) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(70) = -2.0_real64/parameters%heat_capacity_2
-    model%constants(71) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(72) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(73) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
-    model%constants(74) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(52) = parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(53) = -parameters%mu_eq_const_2 - parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(54) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(55) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(56) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_2
+    model%constants(57) = 2.0_real64*parameters%theta_ref
+    model%constants(58) = -parameters%conductivity
+    model%constants(59) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(60) = -2.0_real64/parameters%heat_capacity_2
+    model%constants(61) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(62) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(63) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
+    model%constants(64) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2)
-    model%constants(75) = -0.5_real64*parameters%beta*parameters%theta_ref + (0.25_real64)*parameters%mu_eq_const_1 + &
-        (0.25_real64)*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(76) = -0.5_real64*parameters%beta + (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(77) = -0.5_real64*parameters%beta*parameters%theta_ref + (0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(78) = -0.5_real64*parameters%beta + (0.25_real64)*parameters%mu_eq_slope_2
-    model%constants(79) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(65) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(80) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
+    model%constants(66) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(81) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(82) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(83) = -1.0_real64/parameters%heat_capacity_2
-    model%constants(84) = 2.0_real64/parameters%heat_capacity_2
-    model%constants(85) = -2.0_real64/parameters%mass_1
-    model%constants(86) = 2.0_real64/parameters%mass_1
-    model%constants(87) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
-    model%constants(88) = (-0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
-        *parameters%theta_ref)/parameters%heat_capacity_1
-    model%constants(89) = -0.5_real64*parameters%beta*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(90) = (-0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
-        *parameters%theta_ref)/parameters%heat_capacity_2
-    model%constants(91) = -0.5_real64*parameters%beta*parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(92) = (0.5_real64)*parameters%beta*parameters%theta_ref - 0.25_real64*parameters%mu_eq_const_1 - &
-        0.25_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(93) = (0.5_real64)*parameters%beta*parameters%theta_ref - 0.25_real64*parameters%mu_eq_const_2 - &
-        0.25_real64*parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(94) = (0.5_real64)*parameters%mu_eq_slope_1
-    model%constants(95) = (0.5_real64)*parameters%mu_eq_slope_2
+    model%constants(67) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(68) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(69) = -1.0_real64/parameters%heat_capacity_2
+    model%constants(70) = 2.0_real64/parameters%heat_capacity_2
+    model%constants(71) = -2.0_real64/parameters%mass_1
+    model%constants(72) = 2.0_real64/parameters%mass_1
+    model%constants(73) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_planar_thermoelastic_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -701,18 +671,18 @@ contains
       jacobian(4, 8) = self%constants(3)
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(11))
-      if (.not. (abs(self%constants(42)*tau_1 + t_1*(self%constants(61)*t_1 + self%constants(62))) <= max_exponent)) &
-          then
+      if (.not. (abs(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(42)*tau_1 + t_1*(self%constants(61)*t_1 + self%constants(62)))
-      if (.not. (abs(self%constants(44)*tau_2 + t_2*(self%constants(63)*t_2 + self%constants(64))) <= max_exponent)) &
-          then
+      exp_1 = exp(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(44)*tau_2 + t_2*(self%constants(63)*t_2 + self%constants(64)))
+      exp_2 = exp(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2))
       t_3 = 1.0_real64/C_1
       t_4 = t_1*t_3
       t_5 = self%constants(4)*t_3 + self%constants(6)*t_4
@@ -735,8 +705,8 @@ contains
       f(10) = self%constants(18)*t_16
       t_17 = 1.0_real64/C_1**2
       t_18 = t_1*t_17
-      t_19 = self%constants(51)*exp_1*t_5**2 + t_17*(self%constants(52)*t_6 + self%constants(53)) + t_18 &
-          *(self%constants(49) + self%parameters%mu_eq_slope_1*t_6)
+      t_19 = self%constants(48)*t_17 + self%constants(49)*t_18 + self%constants(50)*t_17 + self%constants(51)*exp_1 &
+          *t_5**2 + 4.0_real64*t_6*(self%constants(19)*t_17 + self%constants(20)*t_18 + self%constants(6)*t_17)
       t_20 = exp_1*t_5
       t_21 = self%constants(24)*t_3 + self%constants(25)*t_4 + self%constants(26)*t_20
       jacobian(5, 1) = -q1_x**2*t_19 + t_21
@@ -749,8 +719,8 @@ contains
       jacobian(6, 9) = q1_y*t_23
       t_24 = 1.0_real64/C_2**2
       t_25 = t_2*t_24
-      t_26 = self%constants(56)*exp_2*t_10**2 + t_24*(self%constants(57)*t_11 + self%constants(58)) + t_25 &
-          *(self%constants(55) + self%parameters%mu_eq_slope_2*t_11)
+      t_26 = self%constants(50)*t_24 + self%constants(52)*t_24 + self%constants(53)*t_25 + self%constants(54)*exp_2 &
+          *t_10**2 + 4.0_real64*t_11*(self%constants(12)*t_24 + self%constants(19)*t_24 + self%constants(28)*t_25)
       t_27 = exp_2*t_10
       t_28 = self%constants(24)*t_8 + self%constants(26)*t_27 + self%constants(31)*t_9
       jacobian(7, 3) = -q2_x**2*t_26 + t_28
@@ -762,7 +732,7 @@ contains
       jacobian(8, 4) = -q2_y**2*t_26 + t_28
       jacobian(8, 10) = q2_y*t_30
       t_31 = self%constants(34)*t_14
-      t_32 = t_5*(self%constants(59) + 2.0_real64*t_31)
+      t_32 = self%constants(55)*t_5 + 2.0_real64*t_31*t_5
       jacobian(9, 1) = q1_x*t_32
       jacobian(9, 2) = q1_y*t_32
       t_33 = self%constants(35)*t_13*t_27
@@ -774,7 +744,7 @@ contains
       jacobian(10, 1) = q1_x*t_34
       jacobian(10, 2) = q1_y*t_34
       t_35 = self%constants(39)*t_16
-      t_36 = t_10*(self%constants(60) + 2.0_real64*t_35)
+      t_36 = self%constants(56)*t_10 + 2.0_real64*t_10*t_35
       jacobian(10, 3) = q2_x*t_36
       jacobian(10, 4) = q2_y*t_36
       jacobian(10, 9) = self%constants(40)*exp_1*t_15
@@ -817,7 +787,7 @@ contains
       f(5) = self%constants(9) - q1_x*t_9 + t_12*tau_1
       t_13 = 2.0_real64*t_10
       t_14 = t_13*tau_1
-      f(6) = self%constants(10) + q1_y*(t_14 - t_9)
+      f(6) = self%constants(10) + q1_y*t_14 - q1_y*t_9
       t_15 = 1.0_real64/C_2
       t_16 = t_15*t_6
       t_17 = self%constants(46)*t_15 + self%constants(47)*t_16
@@ -827,71 +797,71 @@ contains
       f(7) = self%constants(14) - q2_x*t_17 + t_20*tau_2
       t_21 = 2.0_real64*t_18
       t_22 = t_21*tau_2
-      f(8) = self%constants(15) + q2_y*(-t_17 + t_22)
+      f(8) = self%constants(15) - q2_y*t_17 + q2_y*t_22
       t_23 = t_10*tau_1
-      t_24 = self%constants(69)*t_1
+      t_24 = self%constants(59)*t_1
       t_25 = t_23*t_24
-      t_26 = self%constants(69)*t_2
+      t_26 = self%constants(59)*t_2
       t_27 = t_23*t_26
-      f(9) = self%constants(33)*tau_1 + self%constants(40)*tau_2 + q1_x*t_25 + q1_y*t_27
+      f(9) = self%constants(42)*(self%parameters%conductivity*tau_2 + self%constants(58)*tau_1) + q1_x*t_25 + q1_y*t_27
       t_28 = t_18*tau_2
-      t_29 = self%constants(70)*t_3
+      t_29 = self%constants(60)*t_3
       t_30 = t_28*t_29
-      t_31 = self%constants(70)*t_4
+      t_31 = self%constants(60)*t_4
       t_32 = t_28*t_31
-      f(10) = self%constants(36)*tau_1 + self%constants(38)*tau_2 + q2_x*t_30 + q2_y*t_32
+      f(10) = self%constants(44)*(self%parameters%conductivity*tau_1 + self%constants(58)*tau_2) + q2_x*t_30 + q2_y*t_32
       t_33 = 1.0_real64/C_1**2
       t_34 = t_33*t_5
-      t_35 = self%constants(22)*t_34 + self%constants(75)*t_33
-      t_36 = tau_1*(self%constants(6)*t_34 + self%constants(76)*t_33)
-      t_37 = t_11*(-t_35 + t_36)
+      t_35 = self%constants(21)*t_33 + self%constants(22)*t_34 + self%constants(8)*t_33
+      t_36 = tau_1*(self%constants(20)*t_33 + self%constants(4)*t_33 + self%constants(6)*t_34)
+      t_37 = -t_11*t_35 + t_11*t_36
       t_38 = self%constants(24)*t_7 + self%constants(25)*t_8 + t_14
       jacobian(5, 1) = t_11*t_37 + t_38
       t_39 = 2.0_real64*q1_y
       jacobian(5, 2) = t_37*t_39
       jacobian(5, 9) = t_12
-      t_40 = t_39*(-t_35 + t_36)
+      t_40 = -t_35*t_39 + t_36*t_39
       jacobian(6, 1) = t_11*t_40
       jacobian(6, 2) = t_38 + t_39*t_40
       jacobian(6, 9) = q1_y*t_13
       t_41 = 1.0_real64/C_2**2
       t_42 = t_41*t_6
-      t_43 = self%constants(29)*t_42 + self%constants(77)*t_41
-      t_44 = tau_2*(self%constants(12)*t_42 + self%constants(78)*t_41)
-      t_45 = t_19*(-t_43 + t_44)
+      t_43 = self%constants(13)*t_41 + self%constants(21)*t_41 + self%constants(29)*t_42
+      t_44 = tau_2*(self%constants(12)*t_42 + self%constants(28)*t_41 + self%constants(4)*t_41)
+      t_45 = -t_19*t_43 + t_19*t_44
       t_46 = self%constants(24)*t_15 + self%constants(31)*t_16 + t_22
       jacobian(7, 3) = t_19*t_45 + t_46
       t_47 = 2.0_real64*q2_y
       jacobian(7, 4) = t_45*t_47
       jacobian(7, 10) = t_20
-      t_48 = t_47*(-t_43 + t_44)
+      t_48 = -t_43*t_47 + t_44*t_47
       jacobian(8, 3) = t_19*t_48
       jacobian(8, 4) = t_46 + t_47*t_48
       jacobian(8, 10) = q2_y*t_21
       t_49 = q1_x*t_24
       t_50 = q1_y*t_26
-      t_51 = t_36*(t_49 + t_50)
+      t_51 = t_36*t_49 + t_36*t_50
       jacobian(9, 1) = t_11*t_51 + t_25
       jacobian(9, 2) = t_27 + t_39*t_51
-      t_52 = self%constants(71)*t_23
+      t_52 = self%constants(61)*t_23
       jacobian(9, 5) = q1_x*t_52
       jacobian(9, 6) = q1_y*t_52
-      t_53 = self%constants(72)*t_23
+      t_53 = self%constants(62)*t_23
       jacobian(9, 7) = q1_x*t_53
       jacobian(9, 8) = q1_y*t_53
-      jacobian(9, 9) = self%constants(33) + t_10*(t_49 + t_50)
+      jacobian(9, 9) = self%constants(33) + t_10*t_49 + t_10*t_50
       t_54 = q2_x*t_29
       t_55 = q2_y*t_31
-      t_56 = t_44*(t_54 + t_55)
+      t_56 = t_44*t_54 + t_44*t_55
       jacobian(10, 3) = t_19*t_56 + t_30
       jacobian(10, 4) = t_32 + t_47*t_56
-      t_57 = self%constants(73)*t_28
+      t_57 = self%constants(63)*t_28
       jacobian(10, 5) = q2_x*t_57
       jacobian(10, 6) = q2_y*t_57
-      t_58 = self%constants(74)*t_28
+      t_58 = self%constants(64)*t_28
       jacobian(10, 7) = q2_x*t_58
       jacobian(10, 8) = q2_y*t_58
-      jacobian(10, 10) = self%constants(38) + t_18*(t_54 + t_55)
+      jacobian(10, 10) = self%constants(38) + t_18*t_54 + t_18*t_55
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -923,7 +893,7 @@ contains
       t_6 = log(C_2*self%constants(11))
       t_7 = 1.0_real64/C_1
       t_8 = t_5*t_7
-      t_9 = self%constants(42)*tau_1 + t_5*(self%constants(88)*t_5 + self%constants(89)) + self%parameters%theta_ref
+      t_9 = self%constants(42)*(self%constants(21)*t_5 + self%constants(65)*t_5**2 + tau_1) + self%parameters%theta_ref
       t_10 = 1.0_real64/t_9
       t_11 = self%constants(21)*t_7 + self%constants(22)*t_8
       t_12 = t_10*t_11
@@ -936,7 +906,7 @@ contains
       f(6) = self%constants(10) + t_17
       t_18 = 1.0_real64/C_2
       t_19 = t_18*t_6
-      t_20 = self%constants(44)*tau_2 + t_6*(self%constants(90)*t_6 + self%constants(91)) + self%parameters%theta_ref
+      t_20 = self%constants(44)*(self%constants(21)*t_6 + self%constants(66)*t_6**2 + tau_2) + self%parameters%theta_ref
       t_21 = 1.0_real64/t_20
       t_22 = self%constants(21)*t_18 + self%constants(29)*t_19
       t_23 = t_21*t_22
@@ -947,19 +917,19 @@ contains
       f(7) = self%constants(14) + t_27
       t_28 = q2_y*t_26
       f(8) = self%constants(15) + t_28
-      f(9) = self%parameters%conductivity*t_20 + self%constants(68)*t_9 - t_1*t_16 - t_17*t_2
-      f(10) = self%parameters%conductivity*t_9 + self%constants(68)*t_20 - t_27*t_3 - t_28*t_4
+      f(9) = self%parameters%conductivity*t_20 + self%constants(58)*t_9 - t_1*t_16 - t_17*t_2
+      f(10) = self%parameters%conductivity*t_9 + self%constants(58)*t_20 - t_27*t_3 - t_28*t_4
       t_29 = 1.0_real64/C_1**2
       t_30 = t_29*t_5
-      t_31 = t_14*(self%constants(81)*t_11**2/t_9**2 + t_29*(self%constants(76) + self%constants(92)*t_10) + t_30 &
-          *(self%constants(6) + self%constants(8)*t_10))
+      t_31 = t_14*(self%constants(20)*t_29 + self%constants(4)*t_29 + self%constants(6)*t_30 + self%constants(67) &
+          *t_11**2/t_9**2 + t_10*(self%constants(22)*t_29 + self%constants(7)*t_29 + self%constants(8)*t_30))
       t_32 = q1_x*t_31
-      t_33 = self%constants(82)*t_13
+      t_33 = self%constants(68)*t_13
       t_34 = q1_x*t_33
       t_35 = 2.0_real64*t_11*t_34 + 2.0_real64*t_32
       jacobian(5, 1) = q1_x*t_35 + t_15
       jacobian(5, 2) = q1_y*t_35
-      t_36 = self%constants(69)*t_12
+      t_36 = self%constants(59)*t_12
       jacobian(5, 9) = q1_x*t_36 + t_34
       t_37 = q1_y*t_31
       t_38 = q1_y*t_33
@@ -969,15 +939,15 @@ contains
       jacobian(6, 9) = q1_y*t_36 + t_38
       t_40 = 1.0_real64/C_2**2
       t_41 = t_40*t_6
-      t_42 = t_25*(self%constants(83)*t_22**2/t_20**2 + t_40*(self%constants(78) + self%constants(93)*t_21) + t_41 &
-          *(self%constants(12) + self%constants(13)*t_21))
+      t_42 = t_25*(self%constants(12)*t_41 + self%constants(28)*t_40 + self%constants(4)*t_40 + self%constants(69) &
+          *t_22**2/t_20**2 + t_21*(self%constants(13)*t_41 + self%constants(29)*t_40 + self%constants(7)*t_40))
       t_43 = q2_x*t_42
-      t_44 = self%constants(84)*t_24
+      t_44 = self%constants(70)*t_24
       t_45 = q2_x*t_44
       t_46 = 2.0_real64*t_22*t_45 + 2.0_real64*t_43
       jacobian(7, 3) = q2_x*t_46 + t_26
       jacobian(7, 4) = q2_y*t_46
-      t_47 = self%constants(70)*t_23
+      t_47 = self%constants(60)*t_23
       jacobian(7, 10) = q2_x*t_47 + t_45
       t_48 = q2_y*t_42
       t_49 = q2_y*t_44
@@ -985,46 +955,48 @@ contains
       jacobian(8, 3) = q2_x*t_50
       jacobian(8, 4) = q2_y*t_50 + t_26
       jacobian(8, 10) = q2_y*t_47 + t_49
-      t_51 = self%constants(69)*t_13
+      t_51 = self%constants(59)*t_13
       t_52 = q1_x*t_1
       t_53 = t_51*t_52
       t_54 = q1_y*t_2
       t_55 = t_51*t_54
-      t_56 = -2.0_real64*t_1*t_32 + t_11*(self%constants(59) + 2.0_real64*t_53 + 2.0_real64*t_55) - 2.0_real64*t_2*t_37
+      t_56 = self%constants(55)*t_11 - 2.0_real64*t_1*t_32 + 2.0_real64*t_11*t_53 + 2.0_real64*t_11*t_55 - 2.0_real64 &
+          *t_2*t_37
       jacobian(9, 1) = q1_x*t_56 - t_1*t_15
       jacobian(9, 2) = q1_y*t_56 - t_15*t_2
       t_57 = self%constants(35)*t_22
       jacobian(9, 3) = q2_x*t_57
       jacobian(9, 4) = q2_y*t_57
       t_58 = t_13*t_9
-      t_59 = self%constants(85)*t_58
+      t_59 = self%constants(71)*t_58
       jacobian(9, 5) = q1_x*t_59
       jacobian(9, 6) = q1_y*t_59
-      t_60 = self%constants(86)*t_58
+      t_60 = self%constants(72)*t_58
       jacobian(9, 7) = q1_x*t_60
       jacobian(9, 8) = q1_y*t_60
-      t_61 = self%constants(82)*t_12
-      jacobian(9, 9) = self%constants(33) + t_53 + t_55 + t_61*(t_52 + t_54)
+      t_61 = self%constants(68)*t_12
+      jacobian(9, 9) = self%constants(33) + t_52*t_61 + t_53 + t_54*t_61 + t_55
       t_62 = self%constants(37)*t_11
       jacobian(10, 1) = q1_x*t_62
       jacobian(10, 2) = q1_y*t_62
-      t_63 = self%constants(70)*t_24
+      t_63 = self%constants(60)*t_24
       t_64 = q2_x*t_3
       t_65 = t_63*t_64
       t_66 = q2_y*t_4
       t_67 = t_63*t_66
-      t_68 = t_22*(self%constants(60) + 2.0_real64*t_65 + 2.0_real64*t_67) - 2.0_real64*t_3*t_43 - 2.0_real64*t_4*t_48
+      t_68 = self%constants(56)*t_22 + 2.0_real64*t_22*t_65 + 2.0_real64*t_22*t_67 - 2.0_real64*t_3*t_43 - 2.0_real64 &
+          *t_4*t_48
       jacobian(10, 3) = q2_x*t_68 - t_26*t_3
       jacobian(10, 4) = q2_y*t_68 - t_26*t_4
       t_69 = t_20*t_24
-      t_70 = self%constants(86)*t_69
+      t_70 = self%constants(72)*t_69
       jacobian(10, 5) = q2_x*t_70
       jacobian(10, 6) = q2_y*t_70
-      t_71 = self%constants(87)*t_69
+      t_71 = self%constants(73)*t_69
       jacobian(10, 7) = q2_x*t_71
       jacobian(10, 8) = q2_y*t_71
-      t_72 = self%constants(84)*t_23
-      jacobian(10, 10) = self%constants(38) + t_65 + t_67 + t_72*(t_64 + t_66)
+      t_72 = self%constants(70)*t_23
+      jacobian(10, 10) = self%constants(38) + t_64*t_72 + t_65 + t_66*t_72 + t_67
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10)) <= huge(1.0_real64))) stat = &
@@ -1071,30 +1043,32 @@ contains
       f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(11))
-      if (.not. (abs(self%constants(42)*tau_1 + t_1*(self%constants(61)*t_1 + self%constants(62))) <= max_exponent)) &
-          then
+      if (.not. (abs(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(42)*tau_1 + t_1*(self%constants(61)*t_1 + self%constants(62)))
-      if (.not. (abs(self%constants(44)*tau_2 + t_2*(self%constants(63)*t_2 + self%constants(64))) <= max_exponent)) &
-          then
+      exp_1 = exp(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(44)*tau_2 + t_2*(self%constants(63)*t_2 + self%constants(64)))
+      exp_2 = exp(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2))
       t_3 = 1.0_real64/C_1
       t_4 = t_1*t_3
-      t_5 = self%constants(45)*t_4 + self%constants(46)*t_3 + exp_1*(self%constants(24)*t_3 + self%constants(66)*t_4)
+      t_5 = self%constants(45)*t_4 + self%constants(46)*t_3 + self%constants(57)*exp_1*(self%constants(4)*t_3 + &
+          self%constants(6)*t_4)
       f(5) = self%constants(9) - q1_x*t_5
       f(6) = self%constants(10) - q1_y*t_5
       t_6 = 1.0_real64/C_2
       t_7 = t_2*t_6
-      t_8 = self%constants(46)*t_6 + self%constants(47)*t_7 + exp_2*(self%constants(24)*t_6 + self%constants(67)*t_7)
+      t_8 = self%constants(46)*t_6 + self%constants(47)*t_7 + self%constants(57)*exp_2*(self%constants(12)*t_7 + &
+          self%constants(4)*t_6)
       f(7) = self%constants(14) - q2_x*t_8
       f(8) = self%constants(15) - q2_y*t_8
-      f(9) = self%parameters%conductivity*exp_2/exp_1 + self%constants(68)
-      f(10) = self%parameters%conductivity*exp_1/exp_2 + self%constants(68)
+      f(9) = self%constants(18)*(self%constants(16)*exp_2 + self%constants(17)*exp_1)/exp_1
+      f(10) = self%constants(18)*(self%constants(16)*exp_1 + self%constants(17)*exp_2)/exp_2
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1119,17 +1093,19 @@ contains
       t_9 = self%constants(45)*t_6 + self%constants(46)*t_5
       t_10 = tau_1*(self%constants(19)*t_5 + self%constants(20)*t_6)
       t_11 = 2.0_real64*t_10
-      f(5) = self%constants(9) + q1_x*(t_11 - t_9)
-      f(6) = self%constants(10) + q1_y*(t_11 - t_9)
+      f(5) = self%constants(9) + q1_x*t_11 - q1_x*t_9
+      f(6) = self%constants(10) + q1_y*t_11 - q1_y*t_9
       t_12 = self%constants(46)*t_7 + self%constants(47)*t_8
       t_13 = tau_2*(self%constants(19)*t_7 + self%constants(28)*t_8)
       t_14 = 2.0_real64*t_13
-      f(7) = self%constants(14) + q2_x*(-t_12 + t_14)
-      f(8) = self%constants(15) + q2_y*(-t_12 + t_14)
-      t_15 = self%constants(69)*t_10
-      f(9) = self%constants(33)*tau_1 + self%constants(40)*tau_2 + t_15*(q1_x*t_1 + q1_y*t_2)
-      t_16 = self%constants(70)*t_13
-      f(10) = self%constants(36)*tau_1 + self%constants(38)*tau_2 + t_16*(q2_x*t_3 + q2_y*t_4)
+      f(7) = self%constants(14) - q2_x*t_12 + q2_x*t_14
+      f(8) = self%constants(15) - q2_y*t_12 + q2_y*t_14
+      t_15 = self%constants(59)*t_10
+      f(9) = self%constants(42)*(self%parameters%conductivity*tau_2 + self%constants(58)*tau_1) + q1_x*t_1*t_15 + &
+          q1_y*t_15*t_2
+      t_16 = self%constants(60)*t_13
+      f(10) = self%constants(44)*(self%parameters%conductivity*tau_1 + self%constants(58)*tau_2) + q2_x*t_16*t_3 + &
+          q2_y*t_16*t_4
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1149,25 +1125,26 @@ contains
       f(4) = t_4
       t_5 = log(C_1*self%constants(5))
       t_6 = log(C_2*self%constants(11))
-      t_7 = self%constants(42)*tau_1 + t_5*(self%constants(88)*t_5 + self%constants(89)) + self%parameters%theta_ref
+      t_7 = self%constants(42)*(self%constants(21)*t_5 + self%constants(65)*t_5**2 + tau_1) + self%parameters%theta_ref
       t_8 = 1.0_real64/C_1
       t_9 = t_5*t_8
-      t_10 = self%constants(24)*t_8 + self%constants(25)*t_9 + t_7*(self%parameters%beta*t_8 + self%constants(94)*t_9)
+      t_10 = 2.0_real64*t_7*(self%constants(19)*t_8 + self%constants(20)*t_9 + (self%constants(21)*t_8 + &
+          self%constants(22)*t_9)/t_7)
       t_11 = q1_x*t_10
       f(5) = self%constants(9) + t_11
       t_12 = q1_y*t_10
       f(6) = self%constants(10) + t_12
-      t_13 = self%constants(44)*tau_2 + t_6*(self%constants(90)*t_6 + self%constants(91)) + self%parameters%theta_ref
+      t_13 = self%constants(44)*(self%constants(21)*t_6 + self%constants(66)*t_6**2 + tau_2) + self%parameters%theta_ref
       t_14 = 1.0_real64/C_2
       t_15 = t_14*t_6
-      t_16 = self%constants(24)*t_14 + self%constants(31)*t_15 + t_13*(self%parameters%beta*t_14 + self%constants(95) &
-          *t_15)
+      t_16 = 2.0_real64*t_13*(self%constants(19)*t_14 + self%constants(28)*t_15 + (self%constants(21)*t_14 + &
+          self%constants(29)*t_15)/t_13)
       t_17 = q2_x*t_16
       f(7) = self%constants(14) + t_17
       t_18 = q2_y*t_16
       f(8) = self%constants(15) + t_18
-      f(9) = self%parameters%conductivity*t_13 + self%constants(68)*t_7 - t_1*t_11 - t_12*t_2
-      f(10) = self%parameters%conductivity*t_7 + self%constants(68)*t_13 - t_17*t_3 - t_18*t_4
+      f(9) = self%parameters%conductivity*t_13 + self%constants(58)*t_7 - t_1*t_11 - t_12*t_2
+      f(10) = self%parameters%conductivity*t_7 + self%constants(58)*t_13 - t_17*t_3 - t_18*t_4
     end select
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10)) <= huge(1.0_real64))) stat = &
         domain_overflow

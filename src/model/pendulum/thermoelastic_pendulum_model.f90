@@ -26,7 +26,7 @@ module thermoelastic_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: thermoelastic_pendulum
     type(thermoelastic_pendulum_parameters) :: parameters
-    real(real64) :: constants(97) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(75) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -177,61 +177,31 @@ contains
     model%constants(51) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
     model%constants(52) = -2.0_real64*parameters%beta*parameters%theta_ref
     model%constants(53) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(54) = 2.0_real64*parameters%beta - parameters%mu_eq_slope_1
-    model%constants(55) = -2.0_real64*parameters%beta*parameters%theta_ref + parameters%mu_eq_const_1 + &
-        parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(56) = parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(57) = -parameters%mu_eq_const_2 - parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(58) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(59) = 2.0_real64*parameters%beta - parameters%mu_eq_slope_2
-    model%constants(60) = -2.0_real64*parameters%beta*parameters%theta_ref + parameters%mu_eq_const_2 + &
-        parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(61) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(62) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_2
-    model%constants(63) = -0.125_real64*parameters%mu_eq_slope_1/parameters%heat_capacity_1
-    model%constants(64) = -0.5_real64*parameters%beta/parameters%heat_capacity_1
-    model%constants(65) = -0.125_real64*parameters%mu_eq_slope_2/parameters%heat_capacity_2
-    model%constants(66) = -0.5_real64*parameters%beta/parameters%heat_capacity_2
-    model%constants(67) = 2.0_real64*parameters%theta_ref
-    model%constants(68) = -0.5_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(69) = -0.5_real64*parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(70) = -parameters%conductivity
-    model%constants(71) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(72) = -2.0_real64/parameters%heat_capacity_2
-    model%constants(73) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(74) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(75) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
-    model%constants(76) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(54) = parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(55) = -parameters%mu_eq_const_2 - parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(56) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(57) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(58) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_2
+    model%constants(59) = 2.0_real64*parameters%theta_ref
+    model%constants(60) = -parameters%conductivity
+    model%constants(61) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(62) = -2.0_real64/parameters%heat_capacity_2
+    model%constants(63) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(64) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(65) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
+    model%constants(66) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2)
-    model%constants(77) = -0.5_real64*parameters%beta*parameters%theta_ref + (0.25_real64)*parameters%mu_eq_const_1 + &
-        (0.25_real64)*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(78) = -0.5_real64*parameters%beta + (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(79) = -0.5_real64*parameters%beta*parameters%theta_ref + (0.25_real64)*parameters%mu_eq_const_2 + &
-        (0.25_real64)*parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(80) = -0.5_real64*parameters%beta + (0.25_real64)*parameters%mu_eq_slope_2
-    model%constants(81) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(67) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(82) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
+    model%constants(68) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(83) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(84) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(85) = -1.0_real64/parameters%heat_capacity_2
-    model%constants(86) = 2.0_real64/parameters%heat_capacity_2
-    model%constants(87) = -2.0_real64/parameters%mass_1
-    model%constants(88) = 2.0_real64/parameters%mass_1
-    model%constants(89) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
-    model%constants(90) = (-0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
-        *parameters%theta_ref)/parameters%heat_capacity_1
-    model%constants(91) = -0.5_real64*parameters%beta*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(92) = (-0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
-        *parameters%theta_ref)/parameters%heat_capacity_2
-    model%constants(93) = -0.5_real64*parameters%beta*parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(94) = (0.5_real64)*parameters%beta*parameters%theta_ref - 0.25_real64*parameters%mu_eq_const_1 - &
-        0.25_real64*parameters%mu_eq_slope_1*parameters%theta_ref
-    model%constants(95) = (0.5_real64)*parameters%beta*parameters%theta_ref - 0.25_real64*parameters%mu_eq_const_2 - &
-        0.25_real64*parameters%mu_eq_slope_2*parameters%theta_ref
-    model%constants(96) = (0.5_real64)*parameters%mu_eq_slope_1
-    model%constants(97) = (0.5_real64)*parameters%mu_eq_slope_2
+    model%constants(69) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(70) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(71) = -1.0_real64/parameters%heat_capacity_2
+    model%constants(72) = 2.0_real64/parameters%heat_capacity_2
+    model%constants(73) = -2.0_real64/parameters%mass_1
+    model%constants(74) = 2.0_real64/parameters%mass_1
+    model%constants(75) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_thermoelastic_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -803,18 +773,18 @@ contains
       jacobian(6, 12) = self%constants(3)
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(12))
-      if (.not. (abs(self%constants(44)*tau_1 + t_1*(self%constants(63)*t_1 + self%constants(64))) <= max_exponent)) &
-          then
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(44)*tau_1 + t_1*(self%constants(63)*t_1 + self%constants(64)))
-      if (.not. (abs(self%constants(46)*tau_2 + t_2*(self%constants(65)*t_2 + self%constants(66))) <= max_exponent)) &
-          then
+      exp_1 = exp(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(46)*tau_2 + t_2*(self%constants(65)*t_2 + self%constants(66)))
+      exp_2 = exp(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2))
       t_3 = 1.0_real64/C_1
       t_4 = t_1*t_3
       t_5 = self%constants(4)*t_3 + self%constants(6)*t_4
@@ -839,8 +809,8 @@ contains
       f(14) = self%constants(20)*t_16
       t_17 = 1.0_real64/C_1**2
       t_18 = t_1*t_17
-      t_19 = self%constants(53)*exp_1*t_5**2 + t_17*(self%constants(54)*t_6 + self%constants(55)) + t_18 &
-          *(self%constants(51) + self%parameters%mu_eq_slope_1*t_6)
+      t_19 = self%constants(50)*t_17 + self%constants(51)*t_18 + self%constants(52)*t_17 + self%constants(53)*exp_1 &
+          *t_5**2 + 4.0_real64*t_6*(self%constants(21)*t_17 + self%constants(22)*t_18 + self%constants(6)*t_17)
       t_20 = exp_1*t_5
       t_21 = self%constants(26)*t_3 + self%constants(27)*t_4 + self%constants(28)*t_20
       jacobian(7, 1) = -q1_x**2*t_19 + t_21
@@ -862,8 +832,8 @@ contains
       jacobian(9, 13) = q1_z*t_25
       t_27 = 1.0_real64/C_2**2
       t_28 = t_2*t_27
-      t_29 = self%constants(58)*exp_2*t_10**2 + t_27*(self%constants(59)*t_11 + self%constants(60)) + t_28 &
-          *(self%constants(57) + self%parameters%mu_eq_slope_2*t_11)
+      t_29 = self%constants(52)*t_27 + self%constants(54)*t_27 + self%constants(55)*t_28 + self%constants(56)*exp_2 &
+          *t_10**2 + 4.0_real64*t_11*(self%constants(13)*t_27 + self%constants(21)*t_27 + self%constants(30)*t_28)
       t_30 = exp_2*t_10
       t_31 = self%constants(26)*t_8 + self%constants(28)*t_30 + self%constants(33)*t_9
       jacobian(10, 4) = -q2_x**2*t_29 + t_31
@@ -884,7 +854,7 @@ contains
       jacobian(12, 6) = -q2_z**2*t_29 + t_31
       jacobian(12, 14) = q2_z*t_35
       t_37 = self%constants(36)*t_14
-      t_38 = t_5*(self%constants(61) + 2.0_real64*t_37)
+      t_38 = self%constants(57)*t_5 + 2.0_real64*t_37*t_5
       jacobian(13, 1) = q1_x*t_38
       jacobian(13, 2) = q1_y*t_38
       jacobian(13, 3) = q1_z*t_38
@@ -899,7 +869,7 @@ contains
       jacobian(14, 2) = q1_y*t_40
       jacobian(14, 3) = q1_z*t_40
       t_41 = self%constants(41)*t_16
-      t_42 = t_10*(self%constants(62) + 2.0_real64*t_41)
+      t_42 = self%constants(58)*t_10 + 2.0_real64*t_10*t_41
       jacobian(14, 4) = q2_x*t_42
       jacobian(14, 5) = q2_y*t_42
       jacobian(14, 6) = q2_z*t_42
@@ -951,8 +921,8 @@ contains
       f(7) = self%constants(9) - q1_x*t_11 + t_14*tau_1
       t_15 = 2.0_real64*t_12
       t_16 = t_15*tau_1
-      f(8) = self%constants(10) + q1_y*(-t_11 + t_16)
-      f(9) = self%constants(11) + q1_z*(-t_11 + t_16)
+      f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_16
+      f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_16
       t_17 = 1.0_real64/C_2
       t_18 = t_17*t_8
       t_19 = self%constants(48)*t_17 + self%constants(49)*t_18
@@ -962,27 +932,29 @@ contains
       f(10) = self%constants(15) - q2_x*t_19 + t_22*tau_2
       t_23 = 2.0_real64*t_20
       t_24 = t_23*tau_2
-      f(11) = self%constants(16) + q2_y*(-t_19 + t_24)
-      f(12) = self%constants(17) + q2_z*(-t_19 + t_24)
+      f(11) = self%constants(16) - q2_y*t_19 + q2_y*t_24
+      f(12) = self%constants(17) - q2_z*t_19 + q2_z*t_24
       t_25 = t_12*tau_1
-      t_26 = self%constants(71)*t_1
+      t_26 = self%constants(61)*t_1
       t_27 = t_25*t_26
-      t_28 = self%constants(71)*t_25
+      t_28 = self%constants(61)*t_25
       t_29 = t_2*t_28
       t_30 = t_28*t_3
-      f(13) = self%constants(35)*tau_1 + self%constants(42)*tau_2 + q1_x*t_27 + q1_y*t_29 + q1_z*t_30
+      f(13) = self%constants(44)*(self%parameters%conductivity*tau_2 + self%constants(60)*tau_1) + q1_x*t_27 + q1_y &
+          *t_29 + q1_z*t_30
       t_31 = t_20*tau_2
-      t_32 = self%constants(72)*t_4
+      t_32 = self%constants(62)*t_4
       t_33 = t_31*t_32
-      t_34 = self%constants(72)*t_31
+      t_34 = self%constants(62)*t_31
       t_35 = t_34*t_5
       t_36 = t_34*t_6
-      f(14) = self%constants(38)*tau_1 + self%constants(40)*tau_2 + q2_x*t_33 + q2_y*t_35 + q2_z*t_36
+      f(14) = self%constants(46)*(self%parameters%conductivity*tau_1 + self%constants(60)*tau_2) + q2_x*t_33 + q2_y &
+          *t_35 + q2_z*t_36
       t_37 = 1.0_real64/C_1**2
       t_38 = t_37*t_7
-      t_39 = self%constants(24)*t_38 + self%constants(77)*t_37
-      t_40 = tau_1*(self%constants(6)*t_38 + self%constants(78)*t_37)
-      t_41 = t_13*(-t_39 + t_40)
+      t_39 = self%constants(23)*t_37 + self%constants(24)*t_38 + self%constants(8)*t_37
+      t_40 = tau_1*(self%constants(22)*t_37 + self%constants(4)*t_37 + self%constants(6)*t_38)
+      t_41 = -t_13*t_39 + t_13*t_40
       t_42 = self%constants(26)*t_9 + self%constants(27)*t_10 + t_16
       jacobian(7, 1) = t_13*t_41 + t_42
       t_43 = 2.0_real64*t_41
@@ -990,22 +962,22 @@ contains
       jacobian(7, 3) = q1_z*t_43
       jacobian(7, 13) = t_14
       t_44 = 2.0_real64*q1_y
-      t_45 = t_44*(-t_39 + t_40)
+      t_45 = -t_39*t_44 + t_40*t_44
       jacobian(8, 1) = t_13*t_45
       jacobian(8, 2) = t_42 + t_44*t_45
       t_46 = 2.0_real64*q1_z
       jacobian(8, 3) = t_45*t_46
       jacobian(8, 13) = q1_y*t_15
-      t_47 = t_46*(-t_39 + t_40)
+      t_47 = -t_39*t_46 + t_40*t_46
       jacobian(9, 1) = t_13*t_47
       jacobian(9, 2) = t_44*t_47
       jacobian(9, 3) = t_42 + t_46*t_47
       jacobian(9, 13) = q1_z*t_15
       t_48 = 1.0_real64/C_2**2
       t_49 = t_48*t_8
-      t_50 = self%constants(31)*t_49 + self%constants(79)*t_48
-      t_51 = tau_2*(self%constants(13)*t_49 + self%constants(80)*t_48)
-      t_52 = t_21*(-t_50 + t_51)
+      t_50 = self%constants(14)*t_48 + self%constants(23)*t_48 + self%constants(31)*t_49
+      t_51 = tau_2*(self%constants(13)*t_49 + self%constants(30)*t_48 + self%constants(4)*t_48)
+      t_52 = -t_21*t_50 + t_21*t_51
       t_53 = self%constants(26)*t_17 + self%constants(33)*t_18 + t_24
       jacobian(10, 4) = t_21*t_52 + t_53
       t_54 = 2.0_real64*t_52
@@ -1013,53 +985,53 @@ contains
       jacobian(10, 6) = q2_z*t_54
       jacobian(10, 14) = t_22
       t_55 = 2.0_real64*q2_y
-      t_56 = t_55*(-t_50 + t_51)
+      t_56 = -t_50*t_55 + t_51*t_55
       jacobian(11, 4) = t_21*t_56
       jacobian(11, 5) = t_53 + t_55*t_56
       t_57 = 2.0_real64*q2_z
       jacobian(11, 6) = t_56*t_57
       jacobian(11, 14) = q2_y*t_23
-      t_58 = t_57*(-t_50 + t_51)
+      t_58 = -t_50*t_57 + t_51*t_57
       jacobian(12, 4) = t_21*t_58
       jacobian(12, 5) = t_55*t_58
       jacobian(12, 6) = t_53 + t_57*t_58
       jacobian(12, 14) = q2_z*t_23
       t_59 = q1_x*t_26
       t_60 = q1_y*t_2
-      t_61 = self%constants(71)*t_40
+      t_61 = self%constants(61)*t_40
       t_62 = q1_z*t_3
-      t_63 = t_40*t_59 + t_61*(t_60 + t_62)
+      t_63 = t_40*t_59 + t_60*t_61 + t_61*t_62
       jacobian(13, 1) = t_13*t_63 + t_27
       jacobian(13, 2) = t_29 + t_44*t_63
       jacobian(13, 3) = t_30 + t_46*t_63
-      t_64 = self%constants(73)*t_25
+      t_64 = self%constants(63)*t_25
       jacobian(13, 7) = q1_x*t_64
       jacobian(13, 8) = q1_y*t_64
       jacobian(13, 9) = q1_z*t_64
-      t_65 = self%constants(74)*t_25
+      t_65 = self%constants(64)*t_25
       jacobian(13, 10) = q1_x*t_65
       jacobian(13, 11) = q1_y*t_65
       jacobian(13, 12) = q1_z*t_65
-      t_66 = self%constants(71)*t_12
-      jacobian(13, 13) = self%constants(35) + t_12*t_59 + t_66*(t_60 + t_62)
+      t_66 = self%constants(61)*t_12
+      jacobian(13, 13) = self%constants(35) + t_12*t_59 + t_60*t_66 + t_62*t_66
       t_67 = q2_x*t_32
       t_68 = q2_y*t_5
-      t_69 = self%constants(72)*t_51
+      t_69 = self%constants(62)*t_51
       t_70 = q2_z*t_6
-      t_71 = t_51*t_67 + t_69*(t_68 + t_70)
+      t_71 = t_51*t_67 + t_68*t_69 + t_69*t_70
       jacobian(14, 4) = t_21*t_71 + t_33
       jacobian(14, 5) = t_35 + t_55*t_71
       jacobian(14, 6) = t_36 + t_57*t_71
-      t_72 = self%constants(75)*t_31
+      t_72 = self%constants(65)*t_31
       jacobian(14, 7) = q2_x*t_72
       jacobian(14, 8) = q2_y*t_72
       jacobian(14, 9) = q2_z*t_72
-      t_73 = self%constants(76)*t_31
+      t_73 = self%constants(66)*t_31
       jacobian(14, 10) = q2_x*t_73
       jacobian(14, 11) = q2_y*t_73
       jacobian(14, 12) = q2_z*t_73
-      t_74 = self%constants(72)*t_20
-      jacobian(14, 14) = self%constants(40) + t_20*t_67 + t_74*(t_68 + t_70)
+      t_74 = self%constants(62)*t_20
+      jacobian(14, 14) = self%constants(40) + t_20*t_67 + t_68*t_74 + t_70*t_74
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1099,7 +1071,7 @@ contains
       t_8 = log(C_2*self%constants(12))
       t_9 = 1.0_real64/C_1
       t_10 = t_7*t_9
-      t_11 = self%constants(44)*tau_1 + t_7*(self%constants(90)*t_7 + self%constants(91)) + self%parameters%theta_ref
+      t_11 = self%constants(44)*(self%constants(23)*t_7 + self%constants(67)*t_7**2 + tau_1) + self%parameters%theta_ref
       t_12 = 1.0_real64/t_11
       t_13 = self%constants(23)*t_9 + self%constants(24)*t_10
       t_14 = t_12*t_13
@@ -1114,7 +1086,7 @@ contains
       f(9) = self%constants(11) + t_20
       t_21 = 1.0_real64/C_2
       t_22 = t_21*t_8
-      t_23 = self%constants(46)*tau_2 + t_8*(self%constants(92)*t_8 + self%constants(93)) + self%parameters%theta_ref
+      t_23 = self%constants(46)*(self%constants(23)*t_8 + self%constants(68)*t_8**2 + tau_2) + self%parameters%theta_ref
       t_24 = 1.0_real64/t_23
       t_25 = self%constants(23)*t_21 + self%constants(31)*t_22
       t_26 = t_24*t_25
@@ -1127,20 +1099,20 @@ contains
       f(11) = self%constants(16) + t_31
       t_32 = q2_z*t_29
       f(12) = self%constants(17) + t_32
-      f(13) = self%parameters%conductivity*t_23 + self%constants(70)*t_11 - t_1*t_18 - t_19*t_2 - t_20*t_3
-      f(14) = self%parameters%conductivity*t_11 + self%constants(70)*t_23 - t_30*t_4 - t_31*t_5 - t_32*t_6
+      f(13) = self%parameters%conductivity*t_23 + self%constants(60)*t_11 - t_1*t_18 - t_19*t_2 - t_20*t_3
+      f(14) = self%parameters%conductivity*t_11 + self%constants(60)*t_23 - t_30*t_4 - t_31*t_5 - t_32*t_6
       t_33 = 1.0_real64/C_1**2
       t_34 = t_33*t_7
-      t_35 = t_16*(self%constants(83)*t_13**2/t_11**2 + t_33*(self%constants(78) + self%constants(94)*t_12) + t_34 &
-          *(self%constants(6) + self%constants(8)*t_12))
+      t_35 = t_16*(self%constants(22)*t_33 + self%constants(4)*t_33 + self%constants(6)*t_34 + self%constants(69) &
+          *t_13**2/t_11**2 + t_12*(self%constants(24)*t_33 + self%constants(7)*t_33 + self%constants(8)*t_34))
       t_36 = q1_x*t_35
-      t_37 = self%constants(84)*t_15
+      t_37 = self%constants(70)*t_15
       t_38 = q1_x*t_37
       t_39 = 2.0_real64*t_13*t_38 + 2.0_real64*t_36
       jacobian(7, 1) = q1_x*t_39 + t_17
       jacobian(7, 2) = q1_y*t_39
       jacobian(7, 3) = q1_z*t_39
-      t_40 = self%constants(71)*t_14
+      t_40 = self%constants(61)*t_14
       jacobian(7, 13) = q1_x*t_40 + t_38
       t_41 = q1_y*t_35
       t_42 = q1_y*t_37
@@ -1158,16 +1130,16 @@ contains
       jacobian(9, 13) = q1_z*t_40 + t_45
       t_47 = 1.0_real64/C_2**2
       t_48 = t_47*t_8
-      t_49 = t_28*(self%constants(85)*t_25**2/t_23**2 + t_47*(self%constants(80) + self%constants(95)*t_24) + t_48 &
-          *(self%constants(13) + self%constants(14)*t_24))
+      t_49 = t_28*(self%constants(13)*t_48 + self%constants(30)*t_47 + self%constants(4)*t_47 + self%constants(71) &
+          *t_25**2/t_23**2 + t_24*(self%constants(14)*t_48 + self%constants(31)*t_47 + self%constants(7)*t_47))
       t_50 = q2_x*t_49
-      t_51 = self%constants(86)*t_27
+      t_51 = self%constants(72)*t_27
       t_52 = q2_x*t_51
       t_53 = 2.0_real64*t_25*t_52 + 2.0_real64*t_50
       jacobian(10, 4) = q2_x*t_53 + t_29
       jacobian(10, 5) = q2_y*t_53
       jacobian(10, 6) = q2_z*t_53
-      t_54 = self%constants(72)*t_26
+      t_54 = self%constants(62)*t_26
       jacobian(10, 14) = q2_x*t_54 + t_52
       t_55 = q2_y*t_49
       t_56 = q2_y*t_51
@@ -1183,15 +1155,15 @@ contains
       jacobian(12, 5) = q2_y*t_60
       jacobian(12, 6) = q2_z*t_60 + t_29
       jacobian(12, 14) = q2_z*t_54 + t_59
-      t_61 = self%constants(71)*t_15
+      t_61 = self%constants(61)*t_15
       t_62 = q1_x*t_1
       t_63 = t_61*t_62
       t_64 = q1_y*t_2
       t_65 = t_61*t_64
       t_66 = q1_z*t_3
       t_67 = t_61*t_66
-      t_68 = -2.0_real64*t_1*t_36 + t_13*(self%constants(61) + 2.0_real64*t_63 + 2.0_real64*t_65 + 2.0_real64*t_67) - &
-          2.0_real64*t_2*t_41 - 2.0_real64*t_3*t_44
+      t_68 = self%constants(57)*t_13 - 2.0_real64*t_1*t_36 + 2.0_real64*t_13*t_63 + 2.0_real64*t_13*t_65 + 2.0_real64 &
+          *t_13*t_67 - 2.0_real64*t_2*t_41 - 2.0_real64*t_3*t_44
       jacobian(13, 1) = q1_x*t_68 - t_1*t_17
       jacobian(13, 2) = q1_y*t_68 - t_17*t_2
       jacobian(13, 3) = q1_z*t_68 - t_17*t_3
@@ -1200,43 +1172,43 @@ contains
       jacobian(13, 5) = q2_y*t_69
       jacobian(13, 6) = q2_z*t_69
       t_70 = t_11*t_15
-      t_71 = self%constants(87)*t_70
+      t_71 = self%constants(73)*t_70
       jacobian(13, 7) = q1_x*t_71
       jacobian(13, 8) = q1_y*t_71
       jacobian(13, 9) = q1_z*t_71
-      t_72 = self%constants(88)*t_70
+      t_72 = self%constants(74)*t_70
       jacobian(13, 10) = q1_x*t_72
       jacobian(13, 11) = q1_y*t_72
       jacobian(13, 12) = q1_z*t_72
-      t_73 = self%constants(84)*t_14
-      jacobian(13, 13) = self%constants(35) + t_63 + t_65 + t_67 + t_73*(t_62 + t_64 + t_66)
+      t_73 = self%constants(70)*t_14
+      jacobian(13, 13) = self%constants(35) + t_62*t_73 + t_63 + t_64*t_73 + t_65 + t_66*t_73 + t_67
       t_74 = self%constants(39)*t_13
       jacobian(14, 1) = q1_x*t_74
       jacobian(14, 2) = q1_y*t_74
       jacobian(14, 3) = q1_z*t_74
-      t_75 = self%constants(72)*t_27
+      t_75 = self%constants(62)*t_27
       t_76 = q2_x*t_4
       t_77 = t_75*t_76
       t_78 = q2_y*t_5
       t_79 = t_75*t_78
       t_80 = q2_z*t_6
       t_81 = t_75*t_80
-      t_82 = t_25*(self%constants(62) + 2.0_real64*t_77 + 2.0_real64*t_79 + 2.0_real64*t_81) - 2.0_real64*t_4*t_50 - &
-          2.0_real64*t_5*t_55 - 2.0_real64*t_58*t_6
+      t_82 = self%constants(58)*t_25 + 2.0_real64*t_25*t_77 + 2.0_real64*t_25*t_79 + 2.0_real64*t_25*t_81 - &
+          2.0_real64*t_4*t_50 - 2.0_real64*t_5*t_55 - 2.0_real64*t_58*t_6
       jacobian(14, 4) = q2_x*t_82 - t_29*t_4
       jacobian(14, 5) = q2_y*t_82 - t_29*t_5
       jacobian(14, 6) = q2_z*t_82 - t_29*t_6
       t_83 = t_23*t_27
-      t_84 = self%constants(88)*t_83
+      t_84 = self%constants(74)*t_83
       jacobian(14, 7) = q2_x*t_84
       jacobian(14, 8) = q2_y*t_84
       jacobian(14, 9) = q2_z*t_84
-      t_85 = self%constants(89)*t_83
+      t_85 = self%constants(75)*t_83
       jacobian(14, 10) = q2_x*t_85
       jacobian(14, 11) = q2_y*t_85
       jacobian(14, 12) = q2_z*t_85
-      t_86 = self%constants(86)*t_26
-      jacobian(14, 14) = self%constants(40) + t_77 + t_79 + t_81 + t_86*(t_76 + t_78 + t_80)
+      t_86 = self%constants(72)*t_26
+      jacobian(14, 14) = self%constants(40) + t_76*t_86 + t_77 + t_78*t_86 + t_79 + t_80*t_86 + t_81
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
@@ -1290,32 +1262,34 @@ contains
       f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(12))
-      if (.not. (abs(self%constants(44)*tau_1 + t_1*(self%constants(63)*t_1 + self%constants(64))) <= max_exponent)) &
-          then
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(44)*tau_1 + t_1*(self%constants(63)*t_1 + self%constants(64)))
-      if (.not. (abs(self%constants(46)*tau_2 + t_2*(self%constants(65)*t_2 + self%constants(66))) <= max_exponent)) &
-          then
+      exp_1 = exp(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_2 = exp(self%constants(46)*tau_2 + t_2*(self%constants(65)*t_2 + self%constants(66)))
+      exp_2 = exp(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2))
       t_3 = 1.0_real64/C_1
       t_4 = t_1*t_3
-      t_5 = self%constants(47)*t_4 + self%constants(48)*t_3 + exp_1*(self%constants(26)*t_3 + self%constants(68)*t_4)
+      t_5 = self%constants(47)*t_4 + self%constants(48)*t_3 + self%constants(59)*exp_1*(self%constants(4)*t_3 + &
+          self%constants(6)*t_4)
       f(7) = self%constants(9) - q1_x*t_5
       f(8) = self%constants(10) - q1_y*t_5
       f(9) = self%constants(11) - q1_z*t_5
       t_6 = 1.0_real64/C_2
       t_7 = t_2*t_6
-      t_8 = self%constants(48)*t_6 + self%constants(49)*t_7 + exp_2*(self%constants(26)*t_6 + self%constants(69)*t_7)
+      t_8 = self%constants(48)*t_6 + self%constants(49)*t_7 + self%constants(59)*exp_2*(self%constants(13)*t_7 + &
+          self%constants(4)*t_6)
       f(10) = self%constants(15) - q2_x*t_8
       f(11) = self%constants(16) - q2_y*t_8
       f(12) = self%constants(17) - q2_z*t_8
-      f(13) = self%parameters%conductivity*exp_2/exp_1 + self%constants(70)
-      f(14) = self%parameters%conductivity*exp_1/exp_2 + self%constants(70)
+      f(13) = self%constants(20)*(self%constants(18)*exp_2 + self%constants(19)*exp_1)/exp_1
+      f(14) = self%constants(20)*(self%constants(18)*exp_1 + self%constants(19)*exp_2)/exp_2
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1344,19 +1318,21 @@ contains
       t_11 = self%constants(47)*t_8 + self%constants(48)*t_7
       t_12 = tau_1*(self%constants(21)*t_7 + self%constants(22)*t_8)
       t_13 = 2.0_real64*t_12
-      f(7) = self%constants(9) + q1_x*(-t_11 + t_13)
-      f(8) = self%constants(10) + q1_y*(-t_11 + t_13)
-      f(9) = self%constants(11) + q1_z*(-t_11 + t_13)
+      f(7) = self%constants(9) - q1_x*t_11 + q1_x*t_13
+      f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_13
+      f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_13
       t_14 = self%constants(48)*t_9 + self%constants(49)*t_10
       t_15 = tau_2*(self%constants(21)*t_9 + self%constants(30)*t_10)
       t_16 = 2.0_real64*t_15
-      f(10) = self%constants(15) + q2_x*(-t_14 + t_16)
-      f(11) = self%constants(16) + q2_y*(-t_14 + t_16)
-      f(12) = self%constants(17) + q2_z*(-t_14 + t_16)
-      t_17 = self%constants(71)*t_12
-      f(13) = self%constants(35)*tau_1 + self%constants(42)*tau_2 + t_17*(q1_x*t_1 + q1_y*t_2 + q1_z*t_3)
-      t_18 = self%constants(72)*t_15
-      f(14) = self%constants(38)*tau_1 + self%constants(40)*tau_2 + t_18*(q2_x*t_4 + q2_y*t_5 + q2_z*t_6)
+      f(10) = self%constants(15) - q2_x*t_14 + q2_x*t_16
+      f(11) = self%constants(16) - q2_y*t_14 + q2_y*t_16
+      f(12) = self%constants(17) - q2_z*t_14 + q2_z*t_16
+      t_17 = self%constants(61)*t_12
+      f(13) = self%constants(44)*(self%parameters%conductivity*tau_2 + self%constants(60)*tau_1) + q1_x*t_1*t_17 + &
+          q1_y*t_17*t_2 + q1_z*t_17*t_3
+      t_18 = self%constants(62)*t_15
+      f(14) = self%constants(46)*(self%parameters%conductivity*tau_1 + self%constants(60)*tau_2) + q2_x*t_18*t_4 + &
+          q2_y*t_18*t_5 + q2_z*t_18*t_6
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1380,29 +1356,30 @@ contains
       f(6) = t_6
       t_7 = log(C_1*self%constants(5))
       t_8 = log(C_2*self%constants(12))
-      t_9 = self%constants(44)*tau_1 + t_7*(self%constants(90)*t_7 + self%constants(91)) + self%parameters%theta_ref
+      t_9 = self%constants(44)*(self%constants(23)*t_7 + self%constants(67)*t_7**2 + tau_1) + self%parameters%theta_ref
       t_10 = 1.0_real64/C_1
       t_11 = t_10*t_7
-      t_12 = t_10*(self%parameters%beta*t_9 + self%constants(26)) + t_11*(self%constants(27) + self%constants(96)*t_9)
+      t_12 = 2.0_real64*t_9*(self%constants(21)*t_10 + self%constants(22)*t_11 + (self%constants(23)*t_10 + &
+          self%constants(24)*t_11)/t_9)
       t_13 = q1_x*t_12
       f(7) = self%constants(9) + t_13
       t_14 = q1_y*t_12
       f(8) = self%constants(10) + t_14
       t_15 = q1_z*t_12
       f(9) = self%constants(11) + t_15
-      t_16 = self%constants(46)*tau_2 + t_8*(self%constants(92)*t_8 + self%constants(93)) + self%parameters%theta_ref
+      t_16 = self%constants(46)*(self%constants(23)*t_8 + self%constants(68)*t_8**2 + tau_2) + self%parameters%theta_ref
       t_17 = 1.0_real64/C_2
       t_18 = t_17*t_8
-      t_19 = self%constants(26)*t_17 + self%constants(33)*t_18 + t_16*(self%parameters%beta*t_17 + self%constants(97) &
-          *t_18)
+      t_19 = 2.0_real64*t_16*(self%constants(21)*t_17 + self%constants(30)*t_18 + (self%constants(23)*t_17 + &
+          self%constants(31)*t_18)/t_16)
       t_20 = q2_x*t_19
       f(10) = self%constants(15) + t_20
       t_21 = q2_y*t_19
       f(11) = self%constants(16) + t_21
       t_22 = q2_z*t_19
       f(12) = self%constants(17) + t_22
-      f(13) = self%parameters%conductivity*t_16 + self%constants(70)*t_9 - t_1*t_13 - t_14*t_2 - t_15*t_3
-      f(14) = self%parameters%conductivity*t_9 + self%constants(70)*t_16 - t_20*t_4 - t_21*t_5 - t_22*t_6
+      f(13) = self%parameters%conductivity*t_16 + self%constants(60)*t_9 - t_1*t_13 - t_14*t_2 - t_15*t_3
+      f(14) = self%parameters%conductivity*t_9 + self%constants(60)*t_16 - t_20*t_4 - t_21*t_5 - t_22*t_6
     end select
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
         f(14)) <= huge(1.0_real64))) stat = domain_overflow
