@@ -212,8 +212,8 @@ contains
         stop_flags(3:4) = [merge(1, 0, lock_lost), merge(1, 0, .not. may_write)]
       end if
       call MPI_Allreduce(MPI_IN_PLACE, stop_flags, 4, MPI_INTEGER, MPI_MAX, communicator)
-      if (stop_before_step(stop_flags(1), stop_flags(2) /= 0, n, time, config%integrator%t_end, summary)) exit
       if (stop_flags(3) /= 0) writing = writing .and. stop_flags(4) == 0
+      if (stop_before_step(stop_flags(1), stop_flags(2) /= 0, n, time, config%integrator%t_end, summary)) exit
       if (stop_flags(3) /= 0) exit
       n = n + 1
       ! With &output interval a chosen step lands on the next output time when it reaches it
