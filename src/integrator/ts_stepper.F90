@@ -275,6 +275,13 @@ contains
     PetscCall(TSSetMaxTime(self%ts, t_old + dt, ierr))
     if (self%method /= ts_rk5dp) then
       PetscCall(TSSetTimeStep(self%ts, dt, ierr))
+    else
+      ! Dormand-Prince's first stage is the last one's f (FSAL), which TS carries from one solve to
+      ! the next; a continued run (-eme_continue) starts without it and computes f at the stored
+      ! state, which differs from the last stage's in the last bits. Each output step starts
+      ! afresh instead, so that a continued run is the uninterrupted one bit for bit (one more
+      ! field evaluation an output step).
+      PetscCall(TSRestartStep(self%ts, ierr))
     end if
     PetscCall(TSSolve(self%ts, self%x, ierr))
     PetscCall(TSGetConvergedReason(self%ts, converged, ierr))
