@@ -239,3 +239,39 @@ def test_differences_are_free_of_cancellation():
         assert abs(got - exact) <= 1e-13*abs(exact), f"{shape}: {got} against {exact}"
         naive_losses += abs(naive - exact) >= 1e-9*abs(exact)
     assert naive_losses >= 3, "the plain difference loses digits on these shapes: else the test sees nothing"
+
+
+def test_exponentials_are_shared():
+    """exp(A), exp(-A), exp(2 A) and a Hessian's exp(A) written another way cost one exp, checked on both sides
+    (abs) where powers of both signs are used; every expression equals the original with the exp put back."""
+    sys.path.insert(0, str(GENERATOR.parent))
+    import generate_model as g
+    sp = g.sp
+    x, y, c = sp.Symbol("x", real=True), sp.Symbol("y", real=True), sp.Symbol("c", positive=True)
+    a = (x - y**2/8)/c
+    expressions = [sp.exp(a) + y, x*sp.exp(-a), sp.exp(2*a)*sp.exp(y), sp.exp(-(y**2/8 - x)/c)*y, sp.exp(y)]
+    definitions, (rewritten,) = g.shared_exponentials([], expressions)
+    assert len(definitions) == 2, definitions
+    back = {symbol: sp.exp(argument) for symbol, argument in definitions}
+    for original, new in zip(expressions, rewritten):
+        assert not new.atoms(sp.exp), new
+        assert sp.simplify(new.xreplace(back) - original) == 0, (original, new)
+    lines = "\n".join(g.straight_line([f"f({k + 1})" for k in range(len(rewritten))], rewritten, 1, [0], definitions))
+    assert lines.count("exp(") == 2, lines
+    assert "abs(" in lines, lines       # exp(-A) and exp(A) both used: |A| <= max_exponent
+
+
+def test_the_paper_field_computes_three_exponentials():
+    """The paper rung's field in entropy variables (issue 42 item 5): Theta_1, Theta_2 and eta's exp, once each;
+    the springs' potentials one exp each with or without the Hessian."""
+    model = (ROOT / "src" / "model" / "pendulum" / "paper_pendulum_model.f90").read_text()
+    values = model[model.index("subroutine field_values"):model.index("end subroutine field_values")]
+    entropy = values[values.index("case (tau_entropy)"):values.index("case (tau_temperature)")]
+    assert len(re.findall(r"\bexp\(", entropy)) == 3, entropy
+    potential = (ROOT / "src" / "model" / "pendulum" / "paper_pendulum_potential.f90").read_text()
+    evaluate = potential[potential.index("subroutine evaluate"):potential.index("end subroutine evaluate")]
+    for spring in evaluate.split("case (tau_entropy)")[1:]:
+        body = spring[:spring.index("case (tau_temperature)")]
+        with_hessian, without = body.split("      else\n", 1) if "      else\n" in body else (body, "")
+        assert len(re.findall(r"\bexp\(", with_hessian)) == 1, with_hessian
+        assert len(re.findall(r"\bexp\(", without)) <= 1, without

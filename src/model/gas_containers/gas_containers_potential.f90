@@ -39,7 +39,7 @@ contains
     real(real64), intent(out) :: f(:), grad(:, :)
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
-    real(real64) :: v, tau, v_root_3, t_1, t_2, t_3, t_4
+    real(real64) :: v, tau, v_root_3, exp_1, t_1, t_2, t_3
 
     f = 0.0_real64
     grad = 0.0_real64
@@ -55,33 +55,37 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (((2.0_real64/3.0_real64))*tau <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         v_root_3 = v**((1.0_real64/3.0_real64))
         if (present(hess)) then
-          t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v_root_3**2
-          t_3 = t_1/v_root_3**5
-          t_4 = -(4.0_real64/9.0_real64)*t_3
-          f(1) = t_2
           f(2) = tau
-          grad(1, 1) = -(2.0_real64/3.0_real64)*t_3
-          grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
-          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*t_1/v_root_3**8
-          hess(1, 2, 1) = t_4
-          hess(2, 1, 1) = t_4
-          hess(2, 2, 1) = ((4.0_real64/9.0_real64))*t_2
+          if (.not. (((2.0_real64/3.0_real64))*tau <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(((2.0_real64/3.0_real64))*tau)
+          t_1 = exp_1/v_root_3**2
+          f(1) = t_1
+          t_2 = exp_1/v_root_3**5
+          grad(1, 1) = -(2.0_real64/3.0_real64)*t_2
+          grad(2, 1) = ((2.0_real64/3.0_real64))*t_1
+          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*exp_1/v_root_3**8
+          t_3 = -(4.0_real64/9.0_real64)*t_2
+          hess(1, 2, 1) = t_3
+          hess(2, 1, 1) = t_3
+          hess(2, 2, 1) = ((4.0_real64/9.0_real64))*t_1
         else
-          t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v_root_3**2
-          f(1) = t_2
           f(2) = tau
-          grad(1, 1) = -(2.0_real64/3.0_real64)*t_1/v_root_3**5
-          grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
+          if (.not. (((2.0_real64/3.0_real64))*tau <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(((2.0_real64/3.0_real64))*tau)
+          t_1 = exp_1/v_root_3**2
+          f(1) = t_1
+          grad(1, 1) = -(2.0_real64/3.0_real64)*exp_1/v_root_3**5
+          grad(2, 1) = ((2.0_real64/3.0_real64))*t_1
         end if
       case (tau_temperature)
         v = x(1)
@@ -97,19 +101,19 @@ contains
         if (present(hess)) then
           t_1 = (1.5_real64)*tau
           f(1) = t_1
-          f(2) = (1.5_real64)*log(t_1) + log(v)
           grad(2, 1) = 1.5_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
           hess(1, 1, 2) = -1.0_real64/v**2
           hess(2, 2, 2) = -(1.5_real64)/tau**2
+          f(2) = (1.5_real64)*log(t_1) + log(v)
         else
           t_1 = (1.5_real64)*tau
           f(1) = t_1
-          f(2) = (1.5_real64)*log(t_1) + log(v)
           grad(2, 1) = 1.5_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
+          f(2) = (1.5_real64)*log(t_1) + log(v)
         end if
       case (tau_internal_energy)
         v = x(1)
@@ -124,18 +128,18 @@ contains
         end if
         if (present(hess)) then
           f(1) = tau
-          f(2) = (1.5_real64)*log(tau) + log(v)
           grad(2, 1) = 1.0_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
           hess(1, 1, 2) = -1.0_real64/v**2
           hess(2, 2, 2) = -(1.5_real64)/tau**2
+          f(2) = (1.5_real64)*log(tau) + log(v)
         else
           f(1) = tau
-          f(2) = (1.5_real64)*log(tau) + log(v)
           grad(2, 1) = 1.0_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
+          f(2) = (1.5_real64)*log(tau) + log(v)
         end if
       end select
     case (2)  ! container 2
@@ -147,33 +151,37 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (((2.0_real64/3.0_real64))*tau <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         v_root_3 = v**((1.0_real64/3.0_real64))
         if (present(hess)) then
-          t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v_root_3**2
-          t_3 = t_1/v_root_3**5
-          t_4 = -(4.0_real64/9.0_real64)*t_3
-          f(1) = t_2
           f(2) = tau
-          grad(1, 1) = -(2.0_real64/3.0_real64)*t_3
-          grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
-          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*t_1/v_root_3**8
-          hess(1, 2, 1) = t_4
-          hess(2, 1, 1) = t_4
-          hess(2, 2, 1) = ((4.0_real64/9.0_real64))*t_2
+          if (.not. (((2.0_real64/3.0_real64))*tau <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(((2.0_real64/3.0_real64))*tau)
+          t_1 = exp_1/v_root_3**2
+          f(1) = t_1
+          t_2 = exp_1/v_root_3**5
+          grad(1, 1) = -(2.0_real64/3.0_real64)*t_2
+          grad(2, 1) = ((2.0_real64/3.0_real64))*t_1
+          hess(1, 1, 1) = ((10.0_real64/9.0_real64))*exp_1/v_root_3**8
+          t_3 = -(4.0_real64/9.0_real64)*t_2
+          hess(1, 2, 1) = t_3
+          hess(2, 1, 1) = t_3
+          hess(2, 2, 1) = ((4.0_real64/9.0_real64))*t_1
         else
-          t_1 = exp(0.6666666666666666_real64*tau)
-          t_2 = t_1/v_root_3**2
-          f(1) = t_2
           f(2) = tau
-          grad(1, 1) = -(2.0_real64/3.0_real64)*t_1/v_root_3**5
-          grad(2, 1) = ((2.0_real64/3.0_real64))*t_2
           grad(2, 2) = 1.0_real64
+          if (.not. (((2.0_real64/3.0_real64))*tau <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(((2.0_real64/3.0_real64))*tau)
+          t_1 = exp_1/v_root_3**2
+          f(1) = t_1
+          grad(1, 1) = -(2.0_real64/3.0_real64)*exp_1/v_root_3**5
+          grad(2, 1) = ((2.0_real64/3.0_real64))*t_1
         end if
       case (tau_temperature)
         v = x(1)
@@ -189,19 +197,19 @@ contains
         if (present(hess)) then
           t_1 = (1.5_real64)*tau
           f(1) = t_1
-          f(2) = (1.5_real64)*log(t_1) + log(v)
           grad(2, 1) = 1.5_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
           hess(1, 1, 2) = -1.0_real64/v**2
           hess(2, 2, 2) = -(1.5_real64)/tau**2
+          f(2) = (1.5_real64)*log(t_1) + log(v)
         else
           t_1 = (1.5_real64)*tau
           f(1) = t_1
-          f(2) = (1.5_real64)*log(t_1) + log(v)
           grad(2, 1) = 1.5_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
+          f(2) = (1.5_real64)*log(t_1) + log(v)
         end if
       case (tau_internal_energy)
         v = x(1)
@@ -216,18 +224,18 @@ contains
         end if
         if (present(hess)) then
           f(1) = tau
-          f(2) = (1.5_real64)*log(tau) + log(v)
           grad(2, 1) = 1.0_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
           hess(1, 1, 2) = -1.0_real64/v**2
           hess(2, 2, 2) = -(1.5_real64)/tau**2
+          f(2) = (1.5_real64)*log(tau) + log(v)
         else
           f(1) = tau
-          f(2) = (1.5_real64)*log(tau) + log(v)
           grad(2, 1) = 1.0_real64
           grad(1, 2) = 1.0_real64/v
           grad(2, 2) = (1.5_real64)/tau
+          f(2) = (1.5_real64)*log(tau) + log(v)
         end if
       end select
     end select

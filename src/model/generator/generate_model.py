@@ -13,7 +13,9 @@ The generated files are committed (a clean clone builds without SymPy); `make ge
 for every src/model/*/description.py and tests/e2e/test_generated_models.py checks that doing so
 changes no byte."""
 import argparse
+import functools
 import importlib.util
+import math
 import re
 import sys
 from random import Random
@@ -112,6 +114,140 @@ def assignments(targets, expressions, indent, temporaries):
     temporaries[0] = max(temporaries[0], len(shared))
     lines = [wrap(f"{fortran(name)} = {fortran(value)}", indent) for name, value in shared]
     lines += [wrap(f"{target} = {fortran(value)}", indent) for target, value in zip(targets, reduced)]
+    return lines
+
+
+def shared_exponentials(positive, *groups):
+    """Every exp(A) in the expression lists `groups` as an integer power of one symbol exp_k = exp(B_k) per family of
+    arguments that are rational multiples of one another (A = n B_k): ([(exp_k, B_k)], groups rewritten), inner
+    exponentials first. The entropy variables' Theta_a = theta_ref exp(A) and 1/Theta_a = exp(-A)/theta_ref, and the
+    Hessians' second exp(A) that SymPy writes in another form, cost one exp then, not one each. `positive` (symbols)
+    are known > 0 when the ratios are compared."""
+    assume = {x: sp.Dummy(x.name, positive=True) for x in positive}
+    atoms = set()
+    for group in groups:
+        for e in group:
+            atoms |= sp.sympify(e).atoms(sp.exp)
+    families = []                                  # [argument of the first member, [(atom, ratio to it)]]
+    for atom in sorted(atoms, key=lambda e: (sp.count_ops(e), sp.default_sort_key(e))):
+        argument = atom.args[0].xreplace(assume)
+        for family in families:
+            ratio = sp.cancel(argument/family[0])
+            if ratio.is_Rational and ratio != 0:
+                family[1].append((atom, ratio))
+                break
+        else:
+            families.append([argument, [(atom, sp.Integer(1))]])
+    replacement, definitions = {}, []
+    for k, (_, members) in enumerate(families):
+        ratios = [ratio for _, ratio in members]
+        unit = sp.Rational(functools.reduce(math.gcd, (int(r.p) for r in ratios)),
+                           functools.reduce(math.lcm, (int(r.q) for r in ratios)))
+        if sum(1 for r in ratios if r < 0) > sum(1 for r in ratios if r > 0):
+            unit = -unit                           # most powers positive: a division for the rest
+        symbol = sp.Symbol(f"exp_{k + 1}", real=True)
+        definitions.append((symbol, unit*members[0][0].args[0]))
+        for atom, ratio in members:
+            replacement[atom] = symbol**int(ratio/unit)
+    # Inner exponentials inside the definitions' arguments (an exp of a temperature) become their symbols too.
+    definitions = [(symbol, argument.xreplace(replacement)) for symbol, argument in definitions]
+    return definitions, [[sp.sympify(e).xreplace(replacement) for e in group] for group in groups]
+
+
+def straight_line(targets, expressions, indent, temporaries, exponentials=(), refold=lambda e: e):
+    """Like `assignments`, with the exponentials of shared_exponentials (exp_k = exp(B_k)) computed where first
+    needed, each after the check that B_k <= max_exponent (domain_overflow), and only the temporaries the targets
+    need, numbered t_1, t_2, ... in the order they are written."""
+    exponentials = list(exponentials)
+    shared, reduced = sp.cse([argument for _, argument in exponentials] + list(expressions),
+                             symbols=sp.numbered_symbols("shared_", start=1), order="none")
+    definitions = {name: value for name, value in shared}
+    definitions.update({symbol: ("exp", argument) for (symbol, _), argument
+                        in zip(exponentials, reduced[:len(exponentials)])})
+    order = [name for name, _ in shared] + [symbol for symbol, _ in exponentials]
+    position = {name: k for k, name in enumerate(order)}
+    written, sequence = set(), []
+
+    def needs(value):
+        return sorted((x for x in sp.sympify(value).free_symbols if x in definitions), key=position.get)
+
+    def write(name):
+        if name in written:
+            return
+        written.add(name)
+        value = definitions[name]
+        for dependency in needs(value[1] if isinstance(value, tuple) else value):
+            write(dependency)
+        sequence.append(name)
+
+    # After sharing, each value's factors of the data alone (2 c_7 of 2 c_7 t_1) as one constant: `refold`.
+    definitions = {name: (value[0], refold(value[1])) if isinstance(value, tuple) else refold(value)
+                   for name, value in definitions.items()}
+    values = [refold(value) for value in reduced[len(exponentials):]]
+
+    def calls(value):        # a library call (log, exp, a fractional power): every xmm register is lost across it
+        if isinstance(value, tuple):
+            return True
+        return any(
+            isinstance(node, (sp.log, sp.exp, LOG1P, EXPM1)) or (node.is_Pow and not node.exp.is_Integer
+                                                                 and node.exp != sp.S.Half)
+            for node in sp.preorder_traversal(value))
+
+    def closure(value, seen):
+        for dependency in needs(value[1] if isinstance(value, tuple) else value):
+            if dependency not in seen:
+                seen.add(dependency)
+                closure(definitions[dependency], seen)
+        return seen
+
+    # The targets that need no call first (they free their inputs' registers), then the calls one after the other,
+    # then the rest, each right after what it needs: fewer values are kept across the calls (spilled and reloaded).
+    closures = [closure(value, set()) for value in values]
+    early = [k for k, value in enumerate(values)
+             if not calls(value) and not any(isinstance(definitions[x], tuple) or calls(definitions[x])
+                                             for x in closures[k])]
+    needed = set().union(*(closures[k] for k in range(len(values)) if k not in early))
+    for k in early:
+        for dependency in needs(values[k]):
+            write(dependency)
+        sequence.append(k)
+    for name in order:
+        if name in needed and calls(definitions[name]):   # an exp_k or a temporary with a call
+            write(name)
+    for k, value in enumerate(values):
+        if k not in early:
+            for dependency in needs(value):
+                write(dependency)
+            sequence.append(k)
+    renamed = {name: sp.Symbol(f"t_{k + 1}", real=True) for k, name in enumerate(
+        name for name in sequence if not isinstance(name, int) and not isinstance(definitions[name], tuple))}
+    temporaries[0] = max(temporaries[0], len(renamed))
+    # The checks of exp(n B_k) <= max_exponent for the signs of the powers n that the expressions use (1/exp(B_k) is
+    # exp(-B_k)): what a check of each exp's own argument did.
+    signs = {symbol: set() for symbol, _ in exponentials}
+    for expr in list(expressions) + [argument for _, argument in exponentials]:
+        nodes = sp.preorder_traversal(sp.sympify(expr))
+        for node in nodes:
+            if node.is_Pow and node.base in signs:
+                signs[node.base].add(1 if node.exp > 0 else -1)
+                nodes.skip()
+            elif node in signs:
+                signs[node].add(1)
+    lines = []
+    for name in sequence:
+        if isinstance(name, int):
+            lines.append(wrap(f"{targets[name]} = {fortran(values[name].xreplace(renamed))}", indent))
+            continue
+        value = definitions[name]
+        if isinstance(value, tuple):
+            argument = fortran(value[1].xreplace(renamed))
+            check = {(1,): f"{argument} <= max_exponent", (-1,): f"-({argument}) <= max_exponent",
+                     (-1, 1): f"abs({argument}) <= max_exponent"}[tuple(sorted(signs[name]))]
+            lines += [wrap(f"if (.not. ({check})) then", indent),
+                      INDENT*(indent + 1) + "stat = domain_overflow", INDENT*(indent + 1) + "return",
+                      INDENT*indent + "end if", wrap(f"{name.name} = exp({argument})", indent)]
+        else:
+            lines.append(wrap(f"{fortran(renamed[name])} = {fortran(value.xreplace(renamed))}", indent))
     return lines
 
 
@@ -463,6 +599,17 @@ def guards(expressions, indent, positive=()):
     return lines, bool(logs - set(positive)), bool(exps)
 
 
+def log_guards(expressions, indent, positive, fold=lambda e: e):
+    """guards() without the exponentials' checks (straight_line writes them where each exp is computed) and without
+    the logs whose argument is positive wherever the positive invariants `positive` are (log(C/l0^2) after C > 0);
+    the arguments printed through `fold`."""
+    assume = {x: sp.Dummy(positive=True) for x in positive}
+    logs = {atom.args[0] for e in expressions for atom in sp.sympify(e).atoms(sp.log)}
+    logs = {argument for argument in logs if not argument.xreplace(assume).is_positive}
+    lines, has_log, _ = guards([sp.log(fold(argument), evaluate=False) for argument in logs], indent, positive)
+    return lines, has_log
+
+
 def header(description, path, what):
     return (f"!> Generated by src/model/generator/generate_model.py from {path}; do not edit (make generate).\n"
             f"!> {what}")
@@ -558,19 +705,24 @@ def potential_module(symbolic, source):
             hess_exprs = [h for *_, h in hessians if h != 0]
             used = set().union(*(sp.sympify(e).free_symbols for e in exprs + hess_exprs)) | set(positive)
             locals_["evaluate"] |= {x.name for x in used if x.name in names}
-            check, has_log, has_exp = guards(values, 4, positive)
-            codes |= {"domain_overflow"} if has_exp else set()
-            roots, (exprs, hess_exprs) = shared_roots(positive, exprs, hess_exprs)
-            locals_["evaluate"] |= {root.name for root, _ in roots}
-            locals_order += [root.name for root, _ in roots if root.name not in locals_order]
+            check, has_log = log_guards(values, 4, positive)
+            exponentials, (exprs, hess_exprs) = shared_exponentials(positive, exprs, hess_exprs)
+            codes |= {"domain_overflow"} if exponentials else set()
+            roots, (exprs, hess_exprs, arguments) = shared_roots(positive, exprs, hess_exprs,
+                                                                 [argument for _, argument in exponentials])
+            exponentials = [(symbol, argument) for (symbol, _), argument in zip(exponentials, arguments)]
+            locals_["evaluate"] |= {root.name for root, _ in roots} | {symbol.name for symbol, _ in exponentials}
+            locals_order += [x for x in [root.name for root, _ in roots] + [symbol.name for symbol, _ in exponentials]
+                             if x not in locals_order]
             body = unpack(used, names, "x", 4) + check
             body += [wrap(f"{root.name} = {fortran(power)}", 4) for root, power in roots]
             if hess_exprs:
-                body += [INDENT*4 + "if (present(hess)) then"] + assignments(targets + hess_targets, exprs + hess_exprs,
-                                                                              5, temporaries)
-                body += [INDENT*4 + "else"] + assignments(targets, exprs, 5, temporaries) + [INDENT*4 + "end if"]
+                body += [INDENT*4 + "if (present(hess)) then"] + straight_line(
+                    targets + hess_targets, exprs + hess_exprs, 5, temporaries, exponentials)
+                body += [INDENT*4 + "else"] + straight_line(targets, exprs, 5, temporaries, exponentials)
+                body += [INDENT*4 + "end if"]
             else:
-                body += assignments(targets, exprs, 4, temporaries)
+                body += straight_line(targets, exprs, 4, temporaries, exponentials)
             evaluate_body.append((variable, body))
 
             used = sp.sympify(temperature).free_symbols | set(positive)
@@ -897,6 +1049,12 @@ class ParameterConstants:
             PRINTER.constant_names[self.values[expr].name] = len(self.values)
         return self.values[expr]
 
+    def refold(self, expr):
+        """expr, whose constants and parameters may stand in products and sums of their own (after sympy.cse), with
+        those folded into constants again."""
+        values = {symbol: value for value, symbol in self.values.items()}
+        return self.fold(sp.sympify(expr).xreplace(values))
+
     def fold(self, expr):
         """expr with its largest subexpressions of parameters alone (not a bare parameter or number) as constants."""
         if expr.is_Atom or not expr.free_symbols:
@@ -935,8 +1093,8 @@ def continuous_field_procedure(symbolic, constants):
             if inv.positive:
                 positive.append(local)
     chain = {local: expression for local, expression in invariant_values}
-    cases, root_names = [], set()
-    temporaries = [0]
+    cases, value_cases, root_names, exponential_names = [], [], set(), set()
+    temporaries, value_temporaries = [0], [0]
     for variable in THERMO_VARIABLES[:1] if symbolic.mechanical else THERMO_VARIABLES:   # mechanical: one form
         exact = {}
         for a, part in enumerate(d.subsystems):
@@ -955,31 +1113,42 @@ def continuous_field_procedure(symbolic, constants):
                                                 for local, expression in chain.items()), sp.Integer(0))
                 if entry != 0:
                     jacobian.append((i, j, entry))
+        check, _ = log_guards(f, 3, positive, constants.fold)
+        exponentials, (f, jacobian_values) = shared_exponentials(positive, f, [e for *_, e in jacobian])
+        exponential_names |= {symbol.name for symbol, _ in exponentials}
         f = [constants.fold(e) for e in f]
-        jacobian = [(i, j, constants.fold(e)) for i, j, e in jacobian]
-        check, _, _ = guards(f, 3, positive)
-        roots, (f, jacobian_values) = shared_roots(positive, f, [e for *_, e in jacobian])
+        jacobian = [(i, j, constants.fold(e)) for (i, j, _), e in zip(jacobian, jacobian_values)]
+        exponentials = [(symbol, constants.fold(argument)) for symbol, argument in exponentials]
+        roots, (f, jacobian_values, arguments) = shared_roots(positive, f, [e for *_, e in jacobian],
+                                                              [argument for _, argument in exponentials])
         jacobian = [(i, j, e) for (i, j, _), e in zip(jacobian, jacobian_values)]
+        exponentials = [(symbol, argument) for (symbol, _), argument in zip(exponentials, arguments)]
         root_names |= {root.name for root, _ in roots}
-        body = check + [wrap(f"{root.name} = {fortran(power)}", 3) for root, power in roots]
-        body += [INDENT*3 + "if (present(jacobian)) then"]
-        body += assignments([f"f({i + 1})" for i in range(n)] + [f"jacobian({i + 1}, {j + 1})" for i, j, _ in jacobian],
-                            f + [e for *_, e in jacobian], 4, temporaries)
-        body += [INDENT*3 + "else"] + assignments([f"f({i + 1})" for i in range(n)], f, 4, temporaries)
-        body += [INDENT*3 + "end if"]
-        cases.append((variable, body))
-    used = {symbol.name for symbol in symbolic.state}
+        head = check + [wrap(f"{root.name} = {fortran(power)}", 3) for root, power in roots]
+        cases.append((variable, head + straight_line(
+            [f"f({i + 1})" for i in range(n)] + [f"jacobian({i + 1}, {j + 1})" for i, j, _ in jacobian],
+            f + [e for *_, e in jacobian], 3, temporaries, exponentials, constants.refold)))
+        value_cases.append((variable, head + straight_line([f"f({i + 1})" for i in range(n)], f, 3, value_temporaries,
+                                                           exponentials, constants.refold)))
+    state_names = [z.name for z in symbolic.state]
     unpack_lines = [INDENT*2 + f"{z.name} = z({i + 1})" for i, z in enumerate(symbolic.state)]
     unpack_lines += [wrap(f"{local.name} = {fortran(expression)}", 2) for local, expression in invariant_values]
-    select = [INDENT*2 + "select case (self%thermo_variable)"]
-    for variable, body in cases:
-        select += [INDENT*2 + f"case (tau_{variable})"] + body
-    select += [INDENT*2 + "end select"]
-    if symbolic.mechanical:     # no thermodynamic variable to select by: the one body, a level less indented
-        select = [line[len(INDENT):] for line in "\n".join(cases[0][1]).split("\n")]
-    declarations = declare(sorted(used, key=[z.name for z in symbolic.state].index)
-                           + [local.name for local, _ in invariant_values] + sorted(root_names)
-                           + [f"t_{i}" for i in range(1, temporaries[0] + 1)], 2)
+
+    def selected(by_variable):
+        if symbolic.mechanical:     # no thermodynamic variable to select by: the one body, a level less indented
+            return [line[len(INDENT):] for line in "\n".join(by_variable[0][1]).split("\n")]
+        lines = [INDENT*2 + "select case (self%thermo_variable)"]
+        for variable, body in by_variable:
+            lines += [INDENT*2 + f"case (tau_{variable})"] + body
+        return lines + [INDENT*2 + "end select"]
+
+    def declarations(count):
+        return declare(state_names + [local.name for local, _ in invariant_values] + sorted(root_names)
+                       + sorted(exponential_names, key=lambda name: int(name.split("_")[1]))
+                       + [f"t_{i}" for i in range(1, count + 1)], 2)
+
+    finite = wrap("if (.not. (abs(" + " + ".join(f"f({i + 1})" for i in range(n)) + ") <= huge(1.0_real64))) "
+                  "stat = domain_overflow", 2)
     return f"""
   !> f(z) with the exact partials written in (model_interface's continuous_field, composed), optionally df/dz;
   !> stat a domain code outside the potentials' domain.
@@ -989,15 +1158,46 @@ def continuous_field_procedure(symbolic, constants):
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
-{declarations}
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class({d.name}), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
+{declarations(temporaries[0])}
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
 {lines_of(unpack_lines)}
-{lines_of(select)}
+{lines_of(selected(cases))}
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
-{wrap("if (.not. (abs(" + " + ".join(f"f({i + 1})" for i in range(n)) + ") <= huge(1.0_real64))) stat = domain_overflow", 2)}
-  end subroutine continuous_field"""
+{finite}
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class({d.name}), intent(in) :: self
+    real(real64), intent(in) :: z({n})
+    real(real64), intent(out) :: f({n})
+    integer, intent(out) :: stat
+{declarations(value_temporaries[0])}
+
+    stat = failure_none
+{lines_of(unpack_lines)}
+{lines_of(selected(value_cases))}
+{finite}
+  end subroutine field_values"""
 
 
 def angular_momentum_procedures(symbolic):
@@ -1307,7 +1507,7 @@ module {name}_model
 {tau_tables}
 {"  ! Largest argument of exp that stays finite, with a margin." + chr(10) +
  "  real(real64), parameter :: max_exponent = 0.9_real64*log(huge(1.0_real64))" + chr(10)
- if "<= max_exponent" in "".join(momentum_procedures) else ""}
+ if "max_exponent)" in "".join(momentum_procedures) else ""}
   !> The model with its parameters.
   type, extends(generic_model) :: {name}
     type({name}_parameters) :: parameters{

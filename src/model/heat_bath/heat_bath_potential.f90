@@ -44,7 +44,7 @@ contains
     real(real64), intent(out) :: f(:), grad(:, :)
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
-    real(real64) :: p, tau, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8
+    real(real64) :: p, tau, exp_1, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8
 
     f = 0.0_real64
     grad = 0.0_real64
@@ -56,29 +56,35 @@ contains
       case (tau_entropy)
         p = x(1)
         tau = x(2)
-        if (.not. (tau/self%parameters%heat_capacity <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%mass
-          t_2 = 1.0_real64/self%parameters%heat_capacity
-          t_3 = self%parameters%theta_ref*exp(t_2*tau)
-          f(1) = self%parameters%heat_capacity*t_3 + (0.5_real64)*p**2*t_1
           f(2) = tau
+          t_1 = 1.0_real64/self%parameters%mass
           grad(1, 1) = p*t_1
-          grad(2, 1) = t_3
           grad(2, 2) = 1.0_real64
           hess(1, 1, 1) = t_1
+          t_2 = 1.0_real64/self%parameters%heat_capacity
+          if (.not. (t_2*tau <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(t_2*tau)
+          t_3 = exp_1*self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity*t_3 + (0.5_real64)*p**2*t_1
+          grad(2, 1) = t_3
           hess(2, 2, 1) = t_2*t_3
         else
-          t_1 = 1.0_real64/self%parameters%mass
-          t_2 = self%parameters%theta_ref*exp(tau/self%parameters%heat_capacity)
-          f(1) = self%parameters%heat_capacity*t_2 + (0.5_real64)*p**2*t_1
           f(2) = tau
+          t_1 = 1.0_real64/self%parameters%mass
           grad(1, 1) = p*t_1
-          grad(2, 1) = t_2
           grad(2, 2) = 1.0_real64
+          if (.not. (tau/self%parameters%heat_capacity <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(tau/self%parameters%heat_capacity)
+          t_2 = exp_1*self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity*t_2 + (0.5_real64)*p**2*t_1
+          grad(2, 1) = t_2
         end if
       case (tau_temperature)
         p = x(1)
@@ -90,19 +96,19 @@ contains
         if (present(hess)) then
           t_1 = 1.0_real64/self%parameters%mass
           f(1) = self%parameters%heat_capacity*tau + (0.5_real64)*p**2*t_1
-          f(2) = self%parameters%heat_capacity*log(tau/self%parameters%theta_ref)
           grad(1, 1) = p*t_1
           grad(2, 1) = self%parameters%heat_capacity
           grad(2, 2) = self%parameters%heat_capacity/tau
           hess(1, 1, 1) = t_1
           hess(2, 2, 2) = -self%parameters%heat_capacity/tau**2
+          f(2) = self%parameters%heat_capacity*log(tau/self%parameters%theta_ref)
         else
           t_1 = 1.0_real64/self%parameters%mass
           f(1) = self%parameters%heat_capacity*tau + (0.5_real64)*p**2*t_1
-          f(2) = self%parameters%heat_capacity*log(tau/self%parameters%theta_ref)
           grad(1, 1) = p*t_1
           grad(2, 1) = self%parameters%heat_capacity
           grad(2, 2) = self%parameters%heat_capacity/tau
+          f(2) = self%parameters%heat_capacity*log(tau/self%parameters%theta_ref)
         end if
       case (tau_internal_energy)
         p = x(1)
@@ -113,34 +119,34 @@ contains
           return
         end if
         if (present(hess)) then
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
           t_1 = p**2
           t_2 = 2.0_real64*self%parameters%mass
           t_3 = -t_1 + t_2*tau
           t_4 = 1.0_real64/t_3
           t_5 = 2.0_real64*t_4
           t_6 = self%parameters%heat_capacity*t_5
-          t_7 = 4.0_real64*self%parameters%heat_capacity/t_3**2
-          t_8 = self%parameters%mass*p*t_7
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity*log(0.5_real64*t_3/(self%parameters%heat_capacity*self%parameters%mass &
-              *self%parameters%theta_ref))
-          grad(2, 1) = 1.0_real64
           grad(1, 2) = -p*t_6
           grad(2, 2) = self%parameters%heat_capacity*t_2*t_4
           hess(1, 1, 2) = -t_6*(t_1*t_5 + 1.0_real64)
+          t_7 = 4.0_real64*self%parameters%heat_capacity/t_3**2
+          t_8 = self%parameters%mass*p*t_7
           hess(1, 2, 2) = t_8
           hess(2, 1, 2) = t_8
           hess(2, 2, 2) = -self%parameters%mass**2*t_7
+          f(2) = self%parameters%heat_capacity*log(0.5_real64*t_3/(self%parameters%heat_capacity*self%parameters%mass &
+              *self%parameters%theta_ref))
         else
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
           t_1 = 2.0_real64*self%parameters%mass
           t_2 = -p**2 + t_1*tau
           t_3 = self%parameters%heat_capacity/t_2
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity*log(0.5_real64*t_2/(self%parameters%heat_capacity*self%parameters%mass &
-              *self%parameters%theta_ref))
-          grad(2, 1) = 1.0_real64
           grad(1, 2) = -2.0_real64*p*t_3
           grad(2, 2) = t_1*t_3
+          f(2) = self%parameters%heat_capacity*log(0.5_real64*t_2/(self%parameters%heat_capacity*self%parameters%mass &
+              *self%parameters%theta_ref))
         end if
       end select
     end select

@@ -390,11 +390,26 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class(elastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
     real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, C_1, C_2, t_1, t_2, t_3, &
         t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
     q1_z = z(3)
@@ -417,93 +432,119 @@ contains
       stat = domain_nonpositive_length
       return
     end if
-    if (.not. (C_1*self%constants(4) > 0.0_real64)) then
-      stat = domain_nonpositive_temperature
-      return
-    end if
-    if (.not. (C_2*self%constants(9) > 0.0_real64)) then
-      stat = domain_nonpositive_temperature
-      return
-    end if
-    if (present(jacobian)) then
-      t_1 = log(C_1*self%constants(4))
-      t_2 = self%constants(5)*t_1/C_1
-      t_3 = log(C_2*self%constants(9))
-      t_4 = self%constants(10)*t_3/C_2
-      t_5 = 1.0_real64/C_1**2
-      t_6 = self%constants(5)*t_5
-      t_7 = self%constants(14)*t_1*t_5
-      t_8 = 2.0_real64*q1_x*t_6 + 2.0_real64*q1_x*t_7
-      t_9 = 2.0_real64*q1_y*t_6 + 2.0_real64*q1_y*t_7
-      t_10 = 2.0_real64*q1_z*t_6 + 2.0_real64*q1_z*t_7
-      t_11 = 1.0_real64/C_2**2
-      t_12 = self%constants(10)*t_11
-      t_13 = self%constants(15)*t_11*t_3
-      t_14 = 2.0_real64*q2_x*t_12 + 2.0_real64*q2_x*t_13
-      t_15 = 2.0_real64*q2_y*t_12 + 2.0_real64*q2_y*t_13
-      t_16 = 2.0_real64*q2_z*t_12 + 2.0_real64*q2_z*t_13
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
-      f(7) = self%constants(6) + q1_x*t_2
-      f(8) = self%constants(7) + q1_y*t_2
-      f(9) = self%constants(8) + q1_z*t_2
-      f(10) = self%constants(11) + q2_x*t_4
-      f(11) = self%constants(12) + q2_y*t_4
-      f(12) = self%constants(13) + q2_z*t_4
-      jacobian(1, 7) = self%constants(1)
-      jacobian(1, 10) = self%constants(2)
-      jacobian(2, 8) = self%constants(1)
-      jacobian(2, 11) = self%constants(2)
-      jacobian(3, 9) = self%constants(1)
-      jacobian(3, 12) = self%constants(2)
-      jacobian(4, 7) = self%constants(2)
-      jacobian(4, 10) = self%constants(3)
-      jacobian(5, 8) = self%constants(2)
-      jacobian(5, 11) = self%constants(3)
-      jacobian(6, 9) = self%constants(2)
-      jacobian(6, 12) = self%constants(3)
-      jacobian(7, 1) = q1_x*t_8 + t_2
-      jacobian(7, 2) = q1_y*t_8
-      jacobian(7, 3) = q1_z*t_8
-      jacobian(8, 1) = q1_x*t_9
-      jacobian(8, 2) = q1_y*t_9 + t_2
-      jacobian(8, 3) = q1_z*t_9
-      jacobian(9, 1) = q1_x*t_10
-      jacobian(9, 2) = q1_y*t_10
-      jacobian(9, 3) = q1_z*t_10 + t_2
-      jacobian(10, 4) = q2_x*t_14 + t_4
-      jacobian(10, 5) = q2_y*t_14
-      jacobian(10, 6) = q2_z*t_14
-      jacobian(11, 4) = q2_x*t_15
-      jacobian(11, 5) = q2_y*t_15 + t_4
-      jacobian(11, 6) = q2_z*t_15
-      jacobian(12, 4) = q2_x*t_16
-      jacobian(12, 5) = q2_y*t_16
-      jacobian(12, 6) = q2_z*t_16 + t_4
-    else
-      t_1 = self%constants(5)*log(C_1*self%constants(4))/C_1
-      t_2 = self%constants(10)*log(C_2*self%constants(9))/C_2
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
-      f(7) = self%constants(6) + q1_x*t_1
-      f(8) = self%constants(7) + q1_y*t_1
-      f(9) = self%constants(8) + q1_z*t_1
-      f(10) = self%constants(11) + q2_x*t_2
-      f(11) = self%constants(12) + q2_y*t_2
-      f(12) = self%constants(13) + q2_z*t_2
-    end if
+    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+    f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+    f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+    f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+    f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+    jacobian(1, 7) = self%constants(1)
+    jacobian(1, 10) = self%constants(2)
+    jacobian(2, 8) = self%constants(1)
+    jacobian(2, 11) = self%constants(2)
+    jacobian(3, 9) = self%constants(1)
+    jacobian(3, 12) = self%constants(2)
+    jacobian(4, 7) = self%constants(2)
+    jacobian(4, 10) = self%constants(3)
+    jacobian(5, 8) = self%constants(2)
+    jacobian(5, 11) = self%constants(3)
+    jacobian(6, 9) = self%constants(2)
+    jacobian(6, 12) = self%constants(3)
+    t_1 = log(C_1*self%constants(4))
+    t_2 = log(C_2*self%constants(9))
+    t_3 = self%constants(5)*t_1/C_1
+    f(7) = self%constants(6) + q1_x*t_3
+    f(8) = self%constants(7) + q1_y*t_3
+    f(9) = self%constants(8) + q1_z*t_3
+    t_4 = self%constants(10)*t_2/C_2
+    f(10) = self%constants(11) + q2_x*t_4
+    f(11) = self%constants(12) + q2_y*t_4
+    f(12) = self%constants(13) + q2_z*t_4
+    t_5 = 1.0_real64/C_1**2
+    t_6 = self%constants(5)*t_5
+    t_7 = self%constants(14)*t_1*t_5
+    t_8 = 2.0_real64*q1_x*t_6 + 2.0_real64*q1_x*t_7
+    jacobian(7, 1) = q1_x*t_8 + t_3
+    jacobian(7, 2) = q1_y*t_8
+    jacobian(7, 3) = q1_z*t_8
+    t_9 = 2.0_real64*q1_y*t_6 + 2.0_real64*q1_y*t_7
+    jacobian(8, 1) = q1_x*t_9
+    jacobian(8, 2) = q1_y*t_9 + t_3
+    jacobian(8, 3) = q1_z*t_9
+    t_10 = 2.0_real64*q1_z*t_6 + 2.0_real64*q1_z*t_7
+    jacobian(9, 1) = q1_x*t_10
+    jacobian(9, 2) = q1_y*t_10
+    jacobian(9, 3) = q1_z*t_10 + t_3
+    t_11 = 1.0_real64/C_2**2
+    t_12 = self%constants(10)*t_11
+    t_13 = self%constants(15)*t_11*t_2
+    t_14 = 2.0_real64*q2_x*t_12 + 2.0_real64*q2_x*t_13
+    jacobian(10, 4) = q2_x*t_14 + t_4
+    jacobian(10, 5) = q2_y*t_14
+    jacobian(10, 6) = q2_z*t_14
+    t_15 = 2.0_real64*q2_y*t_12 + 2.0_real64*q2_y*t_13
+    jacobian(11, 4) = q2_x*t_15
+    jacobian(11, 5) = q2_y*t_15 + t_4
+    jacobian(11, 6) = q2_z*t_15
+    t_16 = 2.0_real64*q2_z*t_12 + 2.0_real64*q2_z*t_13
+    jacobian(12, 4) = q2_x*t_16
+    jacobian(12, 5) = q2_y*t_16
+    jacobian(12, 6) = q2_z*t_16 + t_4
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12)) <= &
         huge(1.0_real64))) stat = domain_overflow
-  end subroutine continuous_field
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class(elastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(12)
+    real(real64), intent(out) :: f(12)
+    integer, intent(out) :: stat
+    real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, C_1, C_2, t_1, t_2
+
+    stat = failure_none
+    q1_x = z(1)
+    q1_y = z(2)
+    q1_z = z(3)
+    q2_x = z(4)
+    q2_y = z(5)
+    q2_z = z(6)
+    p1_x = z(7)
+    p1_y = z(8)
+    p1_z = z(9)
+    p2_x = z(10)
+    p2_y = z(11)
+    p2_z = z(12)
+    C_1 = q1_x**2 + q1_y**2 + q1_z**2
+    C_2 = q2_x**2 + q2_y**2 + q2_z**2
+    if (.not. (C_1 > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    if (.not. (C_2 > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+    f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+    f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+    f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+    f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+    t_1 = self%constants(5)*log(C_1*self%constants(4))/C_1
+    t_2 = self%constants(10)*log(C_2*self%constants(9))/C_2
+    f(7) = self%constants(6) + q1_x*t_1
+    f(8) = self%constants(7) + q1_y*t_1
+    f(9) = self%constants(8) + q1_z*t_1
+    f(10) = self%constants(11) + q2_x*t_2
+    f(11) = self%constants(12) + q2_y*t_2
+    f(12) = self%constants(13) + q2_z*t_2
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12)) <= &
+        huge(1.0_real64))) stat = domain_overflow
+  end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
   pure function momenta(self, z) result(values)

@@ -27,7 +27,7 @@ module paper_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: paper_pendulum
     type(paper_pendulum_parameters) :: parameters
-    real(real64) :: constants(108) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(119) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -126,130 +126,144 @@ contains
     model%constants(4) = -0.5_real64*parameters%beta
     model%constants(5) = 1.0_real64/parameters%natural_length_1**2
     model%constants(6) = -0.25_real64*parameters%mu_eq_slope_1
-    model%constants(7) = -0.125_real64*parameters%mu_eq_slope_1
-    model%constants(8) = 1.0_real64/parameters%heat_capacity_1
-    model%constants(9) = (0.5_real64)*parameters%beta*parameters%theta_ref
-    model%constants(10) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
+    model%constants(7) = (0.5_real64)*parameters%beta*parameters%theta_ref
+    model%constants(8) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(11) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
-    model%constants(12) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
-    model%constants(13) = parameters%gravity_z*(parameters%mass_1 + parameters%mass_2)
-    model%constants(14) = 1.0_real64/parameters%natural_length_2**2
-    model%constants(15) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
+    model%constants(9) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
+    model%constants(10) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
+    model%constants(11) = parameters%gravity_z*(parameters%mass_1 + parameters%mass_2)
+    model%constants(12) = 1.0_real64/parameters%natural_length_2**2
+    model%constants(13) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(16) = parameters%beta_v + 1.0_real64
-    model%constants(17) = (0.5_real64)*parameters%beta
-    model%constants(18) = (0.25_real64)*parameters%mu_eq_slope_2
-    model%constants(19) = -parameters%beta_v - 1.0_real64
-    model%constants(20) = (0.5_real64)*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(21) = (0.5_real64)*parameters%mu_eq_slope_2
-    model%constants(22) = -0.5_real64*parameters%beta_v
-    model%constants(23) = -parameters%mu_neq_slope
-    model%constants(24) = (0.125_real64)*parameters%mu_eq_slope_2
-    model%constants(25) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(26) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
+    model%constants(14) = parameters%beta_v + 1.0_real64
+    model%constants(15) = (0.5_real64)*parameters%beta
+    model%constants(16) = (0.25_real64)*parameters%mu_eq_slope_2
+    model%constants(17) = -parameters%beta_v - 1.0_real64
+    model%constants(18) = (0.5_real64)*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(19) = (0.5_real64)*parameters%mu_eq_slope_2
+    model%constants(20) = -0.5_real64*parameters%beta_v
+    model%constants(21) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(27) = parameters%beta*parameters%theta_ref
-    model%constants(28) = (0.5_real64)*parameters%beta_v
-    model%constants(29) = -0.5_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(22) = parameters%beta*parameters%theta_ref
+    model%constants(23) = (0.5_real64)*parameters%beta_v
+    model%constants(24) = -0.5_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(30) = parameters%gravity_x*parameters%mass_2
-    model%constants(31) = parameters%gravity_y*parameters%mass_2
-    model%constants(32) = parameters%gravity_z*parameters%mass_2
-    model%constants(33) = 2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(34) = -2.0_real64*parameters%mu_neq_slope
-    model%constants(35) = -parameters%beta_v
-    model%constants(36) = -1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(37) = 1.0_real64/parameters%theta_ref
-    model%constants(38) = -1.0_real64/parameters%theta_ref
-    model%constants(39) = -parameters%viscosity_activation
-    model%constants(40) = -1.0_real64/parameters%viscosity_const
-    model%constants(41) = parameters%conductivity*parameters%theta_ref
-    model%constants(42) = -parameters%conductivity*parameters%theta_ref
-    model%constants(43) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(44) = 1.0_real64/(parameters%theta_ref*parameters%viscosity_const)
-    model%constants(45) = (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(46) = -0.5_real64*parameters%beta*parameters%theta_ref
-    model%constants(47) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
+    model%constants(25) = parameters%gravity_x*parameters%mass_2
+    model%constants(26) = parameters%gravity_y*parameters%mass_2
+    model%constants(27) = parameters%gravity_z*parameters%mass_2
+    model%constants(28) = 2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(29) = -2.0_real64*parameters%mu_neq_slope
+    model%constants(30) = -parameters%beta_v
+    model%constants(31) = -1.0_real64/parameters%viscosity_const
+    model%constants(32) = parameters%conductivity*parameters%theta_ref
+    model%constants(33) = -parameters%conductivity*parameters%theta_ref
+    model%constants(34) = 1.0_real64/parameters%theta_ref
+    model%constants(35) = 1.0_real64/(parameters%theta_ref*parameters%viscosity_const)
+    model%constants(36) = (0.25_real64)*parameters%mu_eq_slope_1
+    model%constants(37) = -0.5_real64*parameters%beta*parameters%theta_ref
+    model%constants(38) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(48) = parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(49) = -parameters%beta*parameters%theta_ref
-    model%constants(50) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
+    model%constants(39) = parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(40) = -parameters%beta*parameters%theta_ref
+    model%constants(41) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(51) = -2.0_real64*parameters%theta_ref
-    model%constants(52) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(53) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
+    model%constants(42) = -2.0_real64*parameters%theta_ref
+    model%constants(43) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(44) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(54) = -0.25_real64*parameters%mu_eq_slope_2
-    model%constants(55) = -parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(56) = (0.75_real64)*parameters%beta_v
-    model%constants(57) = parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(58) = -0.75_real64*parameters%beta_v
-    model%constants(59) = parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(60) = -2.0_real64*parameters%beta_v - 2.0_real64
-    model%constants(61) = -2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(62) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref &
+    model%constants(45) = -0.25_real64*parameters%mu_eq_slope_2
+    model%constants(46) = -parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(47) = (0.75_real64)*parameters%beta_v
+    model%constants(48) = parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
+    model%constants(49) = -0.75_real64*parameters%beta_v
+    model%constants(50) = parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(51) = -2.0_real64*parameters%beta_v - 2.0_real64
+    model%constants(52) = -2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(53) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref &
         *parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(63) = -2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(64) = -parameters%theta_ref/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(54) = -2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(55) = -parameters%theta_ref/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(65) = -parameters%conductivity/parameters%heat_capacity_1
-    model%constants(66) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
-    model%constants(67) = 2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
+    model%constants(56) = -parameters%conductivity/parameters%heat_capacity_1
+    model%constants(57) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
+    model%constants(58) = 2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
         1.0_real64))
-    model%constants(68) = parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(69) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(70) = -parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(71) = -parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(72) = 2.0_real64*parameters%theta_ref
-    model%constants(73) = 2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(74) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*(parameters%beta_v + 1.0_real64))
-    model%constants(75) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*parameters%viscosity_const &
+    model%constants(59) = parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(60) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(61) = -parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(62) = -parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
+    model%constants(63) = 2.0_real64*parameters%theta_ref
+    model%constants(64) = 2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(65) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*(parameters%beta_v + 1.0_real64))
+    model%constants(66) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(76) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(77) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref**2 &
+    model%constants(67) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref**2 &
         *parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(78) = -4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(79) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(80) = parameters%conductivity/parameters%heat_capacity_1
-    model%constants(81) = 2.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(68) = -4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(69) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(70) = parameters%conductivity/parameters%heat_capacity_1
+    model%constants(71) = 2.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(82) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(83) = 2.0_real64*parameters%mu_neq_slope
-    model%constants(84) = 1.0_real64/parameters%viscosity_const
-    model%constants(85) = -parameters%conductivity
-    model%constants(86) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(87) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(72) = -0.125_real64*parameters%mu_eq_slope_1
+    model%constants(73) = 1.0_real64/parameters%heat_capacity_1
+    model%constants(74) = -parameters%mu_neq_slope
+    model%constants(75) = (0.125_real64)*parameters%mu_eq_slope_2
+    model%constants(76) = -1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(77) = -1.0_real64/parameters%theta_ref
+    model%constants(78) = -parameters%viscosity_activation
+    model%constants(79) = (0.5_real64)*parameters%mu_eq_const_1 + (0.5_real64)*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(80) = 2.0_real64*parameters%beta_v + 2.0_real64
+    model%constants(81) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(82) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(83) = -2.0_real64*parameters%beta*parameters%theta_ref
+    model%constants(84) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(85) = 4.0_real64*parameters%beta_v + 4.0_real64
+    model%constants(86) = -3.0_real64*parameters%beta_v
+    model%constants(87) = 4.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+        *parameters%theta_ref)
+    model%constants(88) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(89) = -2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
         1.0_real64))
-    model%constants(88) = parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(89) = 2.0_real64/parameters%viscosity_const
-    model%constants(90) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(91) = parameters%viscosity_activation/parameters%viscosity_const
-    model%constants(92) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(93) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(94) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
-    model%constants(95) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(90) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(91) = 2.0_real64*parameters%mu_neq_slope
+    model%constants(92) = 1.0_real64/parameters%viscosity_const
+    model%constants(93) = -parameters%conductivity
+    model%constants(94) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(95) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(96) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(97) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+        1.0_real64))
+    model%constants(98) = parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(99) = 2.0_real64/parameters%viscosity_const
+    model%constants(100) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(101) = parameters%viscosity_activation/parameters%viscosity_const
+    model%constants(102) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(103) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(104) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
+    model%constants(105) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2*(parameters%beta_v + 1.0_real64))
-    model%constants(96) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
+    model%constants(106) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref)/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(97) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(107) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(98) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(108) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(99) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(100) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
+    model%constants(109) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(110) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(101) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(111) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(102) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(103) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(104) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(112) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(113) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(114) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(115) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(105) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(116) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(106) = -2.0_real64/parameters%mass_1
-    model%constants(107) = 2.0_real64/parameters%mass_1
-    model%constants(108) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
+    model%constants(117) = -2.0_real64/parameters%mass_1
+    model%constants(118) = 2.0_real64/parameters%mass_1
+    model%constants(119) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_paper_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -818,17 +832,32 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class(paper_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
     real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, gamma, tau_1, tau_2, C_1, &
-        C_2, C_2_root_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
-        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, &
-        t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, &
-        t_54, t_55, t_56, t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, &
-        t_72, t_73, t_74, t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86, t_87, t_88, t_89, &
-        t_90, t_91, t_92, t_93, t_94, t_95, t_96, t_97, t_98, t_99, t_100, t_101, t_102, t_103, t_104, t_105, t_106, &
-        t_107, t_108, t_109, t_110, t_111, t_112, t_113
+        C_2, C_2_root_2, exp_1, exp_2, exp_3, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, &
+        t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, &
+        t_32, t_33, t_34, t_35, t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, &
+        t_50, t_51, t_52, t_53, t_54, t_55, t_56, t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, &
+        t_68, t_69, t_70, t_71, t_72, t_73, t_74, t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, &
+        t_86, t_87, t_88, t_89, t_90, t_91, t_92, t_93, t_94, t_95, t_96, t_97, t_98, t_99, t_100, t_101, t_102, &
+        t_103, t_104, t_105, t_106, t_107, t_108, t_109, t_110, t_111, t_112
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
     q1_z = z(3)
@@ -856,258 +885,185 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(25)*(self%constants(19)*(self%constants(17)*log(C_2*self%constants(14)) + &
-          self%constants(24)*log(C_2*self%constants(14))**2) + self%constants(23)*gamma**2 + tau_2 + &
-          self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(21)*log(C_2 &
-          *self%constants(14)))/sqrt(C_2)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(36)*(self%constants(19)*(self%constants(17)*log(C_2*self%constants(14)) + &
-          self%constants(24)*log(C_2*self%constants(14))**2) + self%constants(23)*gamma**2 + tau_2 + &
-          self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(21)*log(C_2 &
-          *self%constants(14)))/sqrt(C_2)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(39)*(self%constants(37)*exp(self%constants(36)*(C_2**(-0.5_real64) &
-          *self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(21)*log(C_2*self%constants(14))) + &
-          self%constants(19)*(self%constants(17)*log(C_2*self%constants(14)) + self%constants(24)*log(C_2 &
-          *self%constants(14))**2) + self%constants(23)*gamma**2 + tau_2)) + self%constants(38)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(43)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(8)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
       C_2_root_2 = sqrt(C_2)
-      if (present(jacobian)) then
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_1 + self%constants(6)*t_3
-        t_5 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_6 = exp(self%constants(8)*t_5)
-        t_7 = t_6*self%parameters%theta_ref
-        t_8 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_4*t_7
-        t_9 = 1.0_real64/C_2
-        t_10 = log(C_2*self%constants(14))
-        t_11 = t_10*t_9
-        t_12 = self%constants(15)*t_11 + self%constants(9)*t_9
-        t_13 = 1.0_real64/C_2_root_2**3
-        t_14 = self%constants(29)*t_13
-        t_15 = self%constants(20)*t_13
-        t_16 = gamma*t_13
-        t_17 = self%parameters%beta + self%constants(21)*t_10
-        t_18 = self%constants(22)*t_17
-        t_19 = self%constants(19)*(self%constants(17)*t_9 + self%constants(18)*t_11) + gamma*t_15 + t_16*t_18
-        t_20 = 1.0_real64/C_2_root_2
-        t_21 = self%parameters%beta_v*t_17*t_20
-        t_22 = self%constants(19)*(self%constants(17)*t_10 + self%constants(24)*t_10**2) + self%constants(23)*gamma &
-            **2 + gamma*t_21 + tau_2
-        t_23 = exp(self%constants(25)*t_22)
-        t_24 = t_23*self%parameters%theta_ref
-        t_25 = self%constants(26)*t_10 + self%constants(27)
-        t_26 = 2.0_real64*self%constants(16)*t_12 + 2.0_real64*self%constants(28)*t_16*t_25 + 2.0_real64*gamma*t_14 + &
-            2.0_real64*t_19*t_24
-        t_27 = self%constants(35)*t_25
-        t_28 = self%constants(34)*gamma + t_21
-        t_29 = self%constants(33)*gamma + t_20*t_27 + t_24*t_28
-        t_30 = exp(self%constants(36)*t_22)
-        t_31 = self%constants(37)*t_30
-        t_32 = exp(self%constants(39)*(self%constants(38) + t_31))
-        t_33 = self%constants(40)*t_32
-        t_34 = exp(self%constants(43)*t_5)
-        t_35 = t_34*(self%constants(41)*t_23 + self%constants(42)*t_6)
-        t_36 = self%constants(41)*t_6 + self%constants(42)*t_23
-        t_37 = t_29**2
-        t_38 = t_30*t_32
-        t_39 = t_37*t_38
-        t_40 = 1.0_real64/C_1**2
-        t_41 = t_2*t_40
-        t_42 = 4.0_real64*self%constants(10)*t_40 + 4.0_real64*self%constants(46)*t_40 + 4.0_real64 &
-            *self%constants(47)*t_41 + 4.0_real64*self%constants(48)*t_4**2*t_6 + 4.0_real64*t_7*(self%constants(17) &
-            *t_40 + self%constants(45)*t_41 + self%constants(6)*t_40)
-        t_43 = t_4*t_6
-        t_44 = self%constants(49)*t_1 + self%constants(50)*t_3 + self%constants(51)*t_43
-        t_45 = q1_x*t_42
-        t_46 = -q1_y*t_45
-        t_47 = -q1_z*t_45
-        t_48 = self%constants(52)*t_43
-        t_49 = -q1_y*q1_z*t_42
-        t_50 = 1.0_real64/C_2**2
-        t_51 = t_10*t_50
-        t_52 = gamma/C_2_root_2**5
-        t_53 = self%constants(59)*t_23
-        t_54 = 4.0_real64*self%constants(16)*(self%constants(15)*t_50 + self%constants(46)*t_50 + self%constants(53) &
-            *t_51) + 4.0_real64*self%constants(57)*t_52 + 4.0_real64*self%constants(58)*t_25*t_52 + 4.0_real64*t_19 &
-            **2*t_53 + 4.0_real64*t_24*(self%constants(19)*(self%constants(18)*t_50 + self%constants(4)*t_50 + &
-            self%constants(54)*t_51) + self%constants(55)*t_52 + self%constants(56)*t_17*t_52)
-        t_55 = t_19*t_23
-        t_56 = self%constants(51)*t_55 + self%constants(57)*t_16 + self%constants(60)*t_12 + t_16*t_27
-        t_57 = q2_x*t_54
-        t_58 = -q2_y*t_57
-        t_59 = -q2_z*t_57
-        t_60 = t_13*t_25
-        t_61 = t_13*t_18 + t_15
-        t_62 = self%constants(28)*t_60 + t_14 + t_19*t_28*t_53 + t_24*t_61
-        t_63 = 2.0_real64*t_62
-        t_64 = self%constants(61)*t_55
-        t_65 = -q2_y*q2_z*t_54
-        t_66 = t_29*t_38
-        t_67 = self%constants(62)*t_66
-        t_68 = 2.0_real64*t_19*t_67 + 2.0_real64*t_33*t_62
-        t_69 = t_28**2
-        t_70 = t_28*t_32
-        t_71 = self%constants(66)*t_35
-        t_72 = 2.0_real64*self%constants(65)*t_4 + 2.0_real64*t_4*t_71
-        t_73 = self%constants(67)*t_34*t_55
-        t_74 = self%constants(68)*t_23*t_34
-        t_75 = self%constants(69)*t_30*t_43
-        t_76 = self%constants(74)*t_30*t_36
-        t_77 = self%constants(44)*t_66
-        t_78 = self%constants(75)*t_39
-        t_79 = self%constants(77)*t_37*exp(self%constants(76)*t_22)
-        t_80 = t_32*t_79
-        t_81 = 2.0_real64*self%constants(70)*t_19 + 2.0_real64*t_19*t_76 + 2.0_real64*t_19*t_78 + 2.0_real64*t_19 &
-            *t_80 + 2.0_real64*t_77*(self%parameters%beta_v*t_60 + self%constants(71)*t_13 + self%constants(72)*t_23 &
-            *t_61 + self%constants(73)*t_28*t_55)
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-        f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
-        f(7) = self%constants(11) - q1_x*t_8
-        f(8) = self%constants(12) - q1_y*t_8
-        f(9) = self%constants(13) - q1_z*t_8
-        f(10) = self%constants(30) - q2_x*t_26
-        f(11) = self%constants(31) - q2_y*t_26
-        f(12) = self%constants(32) - q2_z*t_26
-        f(13) = t_29*t_33
-        f(14) = self%constants(37)*t_35
-        f(15) = self%constants(44)*t_39 + t_31*t_36
-        jacobian(1, 7) = self%constants(1)
-        jacobian(1, 10) = self%constants(2)
-        jacobian(2, 8) = self%constants(1)
-        jacobian(2, 11) = self%constants(2)
-        jacobian(3, 9) = self%constants(1)
-        jacobian(3, 12) = self%constants(2)
-        jacobian(4, 7) = self%constants(2)
-        jacobian(4, 10) = self%constants(3)
-        jacobian(5, 8) = self%constants(2)
-        jacobian(5, 11) = self%constants(3)
-        jacobian(6, 9) = self%constants(2)
-        jacobian(6, 12) = self%constants(3)
-        jacobian(7, 1) = -q1_x**2*t_42 + t_44
-        jacobian(7, 2) = t_46
-        jacobian(7, 3) = t_47
-        jacobian(7, 14) = q1_x*t_48
-        jacobian(8, 1) = t_46
-        jacobian(8, 2) = -q1_y**2*t_42 + t_44
-        jacobian(8, 3) = t_49
-        jacobian(8, 14) = q1_y*t_48
-        jacobian(9, 1) = t_47
-        jacobian(9, 2) = t_49
-        jacobian(9, 3) = -q1_z**2*t_42 + t_44
-        jacobian(9, 14) = q1_z*t_48
-        jacobian(10, 4) = -q2_x**2*t_54 + t_56
-        jacobian(10, 5) = t_58
-        jacobian(10, 6) = t_59
-        jacobian(10, 13) = -q2_x*t_63
-        jacobian(10, 15) = q2_x*t_64
-        jacobian(11, 4) = t_58
-        jacobian(11, 5) = -q2_y**2*t_54 + t_56
-        jacobian(11, 6) = t_65
-        jacobian(11, 13) = -q2_y*t_63
-        jacobian(11, 15) = q2_y*t_64
-        jacobian(12, 4) = t_59
-        jacobian(12, 5) = t_65
-        jacobian(12, 6) = -q2_z**2*t_54 + t_56
-        jacobian(12, 13) = -q2_z*t_63
-        jacobian(12, 15) = q2_z*t_64
-        jacobian(13, 4) = q2_x*t_68
-        jacobian(13, 5) = q2_y*t_68
-        jacobian(13, 6) = q2_z*t_68
-        jacobian(13, 13) = t_28*t_67 + t_33*(self%constants(33) + self%constants(63)*t_23 + t_53*t_69)
-        jacobian(13, 15) = self%constants(64)*t_23*t_70 + t_67
-        jacobian(14, 1) = q1_x*t_72
-        jacobian(14, 2) = q1_y*t_72
-        jacobian(14, 3) = q1_z*t_72
-        jacobian(14, 4) = q2_x*t_73
-        jacobian(14, 5) = q2_y*t_73
-        jacobian(14, 6) = q2_z*t_73
-        jacobian(14, 13) = t_28*t_74
-        jacobian(14, 14) = self%constants(65) + t_71
-        jacobian(14, 15) = t_74
-        jacobian(15, 1) = q1_x*t_75
-        jacobian(15, 2) = q1_y*t_75
-        jacobian(15, 3) = q1_z*t_75
-        jacobian(15, 4) = q2_x*t_81
-        jacobian(15, 5) = q2_y*t_81
-        jacobian(15, 6) = q2_z*t_81
-        jacobian(15, 13) = self%constants(70)*t_28 + t_28*t_76 + t_28*t_78 + t_70*t_79 + t_77*(self%constants(73) &
-            *t_23*t_69 + self%constants(78)*t_23 + self%constants(79))
-        jacobian(15, 14) = self%constants(80)*t_30*t_6
-        jacobian(15, 15) = self%constants(70) + self%constants(81)*t_29*t_70 + t_76 + t_78 + t_80
-      else
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_5 = exp(self%constants(8)*t_4)
-        t_6 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_5 &
-            *self%parameters%theta_ref*(self%constants(4)*t_1 + self%constants(6)*t_3)
-        t_7 = 1.0_real64/C_2
-        t_8 = log(C_2*self%constants(14))
-        t_9 = t_7*t_8
-        t_10 = gamma/C_2_root_2**3
-        t_11 = self%parameters%beta + self%constants(21)*t_8
-        t_12 = 1.0_real64/C_2_root_2
-        t_13 = self%parameters%beta_v*t_11*t_12
-        t_14 = self%constants(19)*(self%constants(17)*t_8 + self%constants(24)*t_8**2) + self%constants(23)*gamma**2 &
-            + gamma*t_13 + tau_2
-        t_15 = exp(self%constants(25)*t_14)
-        t_16 = t_15*self%parameters%theta_ref
-        t_17 = self%constants(26)*t_8 + self%constants(27)
-        t_18 = 2.0_real64*self%constants(16)*(self%constants(15)*t_9 + self%constants(9)*t_7) + 2.0_real64 &
-            *self%constants(28)*t_10*t_17 + 2.0_real64*self%constants(29)*t_10 + 2.0_real64*t_16*(self%constants(19) &
-            *(self%constants(17)*t_7 + self%constants(18)*t_9) + self%constants(20)*t_10 + self%constants(22)*t_10*t_11)
-        t_19 = self%constants(33)*gamma + self%constants(35)*t_12*t_17 + t_16*(self%constants(34)*gamma + t_13)
-        t_20 = exp(self%constants(36)*t_14)
-        t_21 = self%constants(37)*t_20
-        t_22 = exp(self%constants(39)*(self%constants(38) + t_21))
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-        f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
-        f(7) = self%constants(11) - q1_x*t_6
-        f(8) = self%constants(12) - q1_y*t_6
-        f(9) = self%constants(13) - q1_z*t_6
-        f(10) = self%constants(30) - q2_x*t_18
-        f(11) = self%constants(31) - q2_y*t_18
-        f(12) = self%constants(32) - q2_z*t_18
-        f(13) = self%constants(40)*t_19*t_22
-        f(14) = self%constants(37)*(self%constants(41)*t_15 + self%constants(42)*t_5)*exp(self%constants(43)*t_4)
-        f(15) = self%constants(44)*t_19**2*t_20*t_22 + t_21*(self%constants(41)*t_5 + self%constants(42)*t_15)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+      jacobian(1, 7) = self%constants(1)
+      jacobian(1, 10) = self%constants(2)
+      jacobian(2, 8) = self%constants(1)
+      jacobian(2, 11) = self%constants(2)
+      jacobian(3, 9) = self%constants(1)
+      jacobian(3, 12) = self%constants(2)
+      jacobian(4, 7) = self%constants(2)
+      jacobian(4, 10) = self%constants(3)
+      jacobian(5, 8) = self%constants(2)
+      jacobian(5, 11) = self%constants(3)
+      jacobian(6, 9) = self%constants(2)
+      jacobian(6, 12) = self%constants(3)
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(12))
+      if (.not. (abs(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
       end if
+      exp_1 = exp(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1))
+      t_3 = 1.0_real64/C_2_root_2
+      t_4 = self%parameters%beta + self%constants(19)*t_2
+      t_5 = self%parameters%beta_v*t_3*t_4
+      if (.not. (abs(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_2 = exp(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2))
+      t_6 = self%constants(34)*exp_2
+      if (.not. (self%constants(78)*(self%constants(77) + t_6) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_3 = exp(self%constants(78)*(self%constants(77) + t_6))
+      t_7 = 1.0_real64/C_1
+      t_8 = t_1*t_7
+      t_9 = self%constants(4)*t_7 + self%constants(6)*t_8
+      t_10 = exp_1*self%parameters%theta_ref
+      t_11 = self%constants(22)*t_7 + self%constants(79)*t_8 + 2.0_real64*t_10*t_9
+      f(7) = self%constants(9) - q1_x*t_11
+      f(8) = self%constants(10) - q1_y*t_11
+      f(9) = self%constants(11) - q1_z*t_11
+      t_12 = 1.0_real64/C_2
+      t_13 = t_12*t_2
+      t_14 = self%constants(13)*t_13 + self%constants(7)*t_12
+      t_15 = 1.0_real64/C_2_root_2**3
+      t_16 = self%constants(24)*t_15
+      t_17 = gamma*t_15
+      t_18 = self%constants(18)*t_15
+      t_19 = self%constants(20)*t_4
+      t_20 = self%constants(17)*(self%constants(15)*t_12 + self%constants(16)*t_13) + gamma*t_18 + t_17*t_19
+      t_21 = 1.0_real64/exp_2
+      t_22 = t_21*self%parameters%theta_ref
+      t_23 = self%constants(21)*t_2 + self%constants(22)
+      t_24 = self%parameters%beta_v*t_17*t_23 + self%constants(80)*t_14 + 2.0_real64*gamma*t_16 + 2.0_real64*t_20*t_22
+      f(10) = self%constants(25) - q2_x*t_24
+      f(11) = self%constants(26) - q2_y*t_24
+      f(12) = self%constants(27) - q2_z*t_24
+      t_25 = self%constants(30)*t_23
+      t_26 = self%constants(29)*gamma + t_5
+      t_27 = self%constants(28)*gamma + t_22*t_26 + t_25*t_3
+      t_28 = self%constants(31)*exp_3
+      f(13) = t_27*t_28
+      t_29 = 1.0_real64/exp_1
+      t_30 = t_29*(self%constants(32)*t_21 + self%constants(33)*exp_1)
+      f(14) = self%constants(34)*t_30
+      t_31 = self%constants(32)*exp_1 + self%constants(33)*t_21
+      t_32 = t_27**2
+      t_33 = exp_2*exp_3
+      t_34 = t_32*t_33
+      f(15) = self%constants(35)*t_34 + t_31*t_6
+      t_35 = 1.0_real64/C_1**2
+      t_36 = t_1*t_35
+      t_37 = self%constants(81)*t_35 + self%constants(82)*t_36 + self%constants(83)*t_35 + self%constants(84)*exp_1 &
+          *t_9**2 + 4.0_real64*t_10*(self%constants(15)*t_35 + self%constants(36)*t_36 + self%constants(6)*t_35)
+      t_38 = exp_1*t_9
+      t_39 = self%constants(40)*t_7 + self%constants(41)*t_8 + self%constants(42)*t_38
+      jacobian(7, 1) = -q1_x**2*t_37 + t_39
+      t_40 = q1_x*t_37
+      t_41 = -q1_y*t_40
+      jacobian(7, 2) = t_41
+      t_42 = -q1_z*t_40
+      jacobian(7, 3) = t_42
+      t_43 = self%constants(43)*t_38
+      jacobian(7, 14) = q1_x*t_43
+      jacobian(8, 1) = t_41
+      jacobian(8, 2) = -q1_y**2*t_37 + t_39
+      t_44 = -q1_y*q1_z*t_37
+      jacobian(8, 3) = t_44
+      jacobian(8, 14) = q1_y*t_43
+      jacobian(9, 1) = t_42
+      jacobian(9, 2) = t_44
+      jacobian(9, 3) = -q1_z**2*t_37 + t_39
+      jacobian(9, 14) = q1_z*t_43
+      t_45 = 1.0_real64/C_2**2
+      t_46 = t_2*t_45
+      t_47 = gamma/C_2_root_2**5
+      t_48 = self%constants(50)*t_21
+      t_49 = self%constants(85)*(self%constants(13)*t_45 + self%constants(37)*t_45 + self%constants(44)*t_46) + &
+          self%constants(86)*t_23*t_47 + self%constants(87)*t_47 + 4.0_real64*t_20**2*t_48 + 4.0_real64*t_22 &
+          *(self%constants(17)*(self%constants(16)*t_45 + self%constants(4)*t_45 + self%constants(45)*t_46) + &
+          self%constants(46)*t_47 + self%constants(47)*t_4*t_47)
+      t_50 = t_20*t_21
+      t_51 = self%constants(42)*t_50 + self%constants(48)*t_17 + self%constants(51)*t_14 + t_17*t_25
+      jacobian(10, 4) = -q2_x**2*t_49 + t_51
+      t_52 = q2_x*t_49
+      t_53 = -q2_y*t_52
+      jacobian(10, 5) = t_53
+      t_54 = -q2_z*t_52
+      jacobian(10, 6) = t_54
+      t_55 = t_15*t_23
+      t_56 = t_15*t_19 + t_18
+      t_57 = self%constants(23)*t_55 + t_16 + t_20*t_26*t_48 + t_22*t_56
+      t_58 = 2.0_real64*t_57
+      jacobian(10, 13) = -q2_x*t_58
+      t_59 = self%constants(52)*t_50
+      jacobian(10, 15) = q2_x*t_59
+      jacobian(11, 4) = t_53
+      jacobian(11, 5) = -q2_y**2*t_49 + t_51
+      t_60 = -q2_y*q2_z*t_49
+      jacobian(11, 6) = t_60
+      jacobian(11, 13) = -q2_y*t_58
+      jacobian(11, 15) = q2_y*t_59
+      jacobian(12, 4) = t_54
+      jacobian(12, 5) = t_60
+      jacobian(12, 6) = -q2_z**2*t_49 + t_51
+      jacobian(12, 13) = -q2_z*t_58
+      jacobian(12, 15) = q2_z*t_59
+      t_61 = t_27*t_33
+      t_62 = self%constants(53)*t_61
+      t_63 = 2.0_real64*t_20*t_62 + 2.0_real64*t_28*t_57
+      jacobian(13, 4) = q2_x*t_63
+      jacobian(13, 5) = q2_y*t_63
+      jacobian(13, 6) = q2_z*t_63
+      t_64 = t_26**2
+      jacobian(13, 13) = t_26*t_62 + t_28*(self%constants(28) + self%constants(54)*t_21 + t_48*t_64)
+      t_65 = exp_3*t_26
+      jacobian(13, 15) = self%constants(55)*t_21*t_65 + t_62
+      t_66 = self%constants(57)*t_30
+      t_67 = self%constants(88)*t_9 + 2.0_real64*t_66*t_9
+      jacobian(14, 1) = q1_x*t_67
+      jacobian(14, 2) = q1_y*t_67
+      jacobian(14, 3) = q1_z*t_67
+      t_68 = self%constants(58)*t_29*t_50
+      jacobian(14, 4) = q2_x*t_68
+      jacobian(14, 5) = q2_y*t_68
+      jacobian(14, 6) = q2_z*t_68
+      t_69 = self%constants(59)*t_21*t_29
+      jacobian(14, 13) = t_26*t_69
+      jacobian(14, 14) = self%constants(56) + t_66
+      jacobian(14, 15) = t_69
+      t_70 = self%constants(60)*exp_2*t_38
+      jacobian(15, 1) = q1_x*t_70
+      jacobian(15, 2) = q1_y*t_70
+      jacobian(15, 3) = q1_z*t_70
+      t_71 = self%constants(65)*exp_2*t_31
+      t_72 = self%constants(35)*t_61
+      t_73 = self%constants(66)*t_34
+      t_74 = self%constants(67)*exp_2**2*t_32
+      t_75 = exp_3*t_74
+      t_76 = self%constants(89)*t_20 + 2.0_real64*t_20*t_71 + 2.0_real64*t_20*t_73 + 2.0_real64*t_20*t_75 + &
+          2.0_real64*t_72*(self%parameters%beta_v*t_55 + self%constants(62)*t_15 + self%constants(63)*t_21*t_56 + &
+          self%constants(64)*t_26*t_50)
+      jacobian(15, 4) = q2_x*t_76
+      jacobian(15, 5) = q2_y*t_76
+      jacobian(15, 6) = q2_z*t_76
+      jacobian(15, 13) = self%constants(61)*t_26 + t_26*t_71 + t_26*t_73 + t_65*t_74 + t_72*(self%constants(64)*t_21 &
+          *t_64 + self%constants(68)*t_21 + self%constants(69))
+      jacobian(15, 14) = self%constants(70)*exp_1*exp_2
+      jacobian(15, 15) = self%constants(61) + self%constants(71)*t_27*t_65 + t_71 + t_73 + t_75
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1117,263 +1073,205 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(39)*(self%constants(38) + 1.0_real64/tau_2) <= max_exponent)) then
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      jacobian(1, 7) = self%constants(1)
+      jacobian(1, 10) = self%constants(2)
+      jacobian(2, 8) = self%constants(1)
+      jacobian(2, 11) = self%constants(2)
+      jacobian(3, 9) = self%constants(1)
+      jacobian(3, 12) = self%constants(2)
+      jacobian(4, 7) = self%constants(2)
+      jacobian(4, 10) = self%constants(3)
+      jacobian(5, 8) = self%constants(2)
+      jacobian(5, 11) = self%constants(3)
+      jacobian(6, 9) = self%constants(2)
+      jacobian(6, 12) = self%constants(3)
+      jacobian(14, 15) = self%constants(70)
+      jacobian(15, 14) = self%constants(59)
+      t_7 = log(C_1*self%constants(5))
+      t_8 = log(C_2*self%constants(12))
+      t_9 = 1.0_real64/tau_2
+      if (.not. (self%constants(78)*(self%constants(77) + t_9) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = 1.0_real64/C_1
-        t_8 = log(C_1*self%constants(5))
-        t_9 = t_7*t_8
-        t_10 = 2.0_real64*self%constants(10)*t_9 + 2.0_real64*self%constants(9)*t_7
-        t_11 = self%constants(17)*t_7 + self%constants(45)*t_9
-        t_12 = 2.0_real64*q1_x
-        t_13 = t_11*t_12
-        t_14 = 2.0_real64*t_11
-        t_15 = t_14*tau_1
-        t_16 = 1.0_real64/C_2
-        t_17 = log(C_2*self%constants(14))
-        t_18 = t_16*t_17
-        t_19 = self%constants(15)*t_18 + self%constants(9)*t_16
-        t_20 = 1.0_real64/C_2_root_2**3
-        t_21 = self%constants(29)*t_20
-        t_22 = self%constants(26)*t_17 + self%constants(27)
-        t_23 = gamma*t_20
-        t_24 = self%constants(28)*t_23
-        t_25 = 2.0_real64*self%constants(16)*t_19 + 2.0_real64*gamma*t_21 + 2.0_real64*t_22*t_24
-        t_26 = self%constants(82)*t_20
-        t_27 = self%parameters%beta + self%constants(21)*t_17
-        t_28 = self%constants(16)*(self%constants(17)*t_16 + self%constants(18)*t_18) + gamma*t_26 + t_24*t_27
-        t_29 = 2.0_real64*q2_x
-        t_30 = t_28*t_29
-        t_31 = 2.0_real64*t_28
-        t_32 = t_31*tau_2
-        t_33 = 1.0_real64/tau_2
-        t_34 = self%constants(35)/C_2_root_2
-        t_35 = self%constants(33)*gamma + t_22*t_34
-        t_36 = t_33*t_35
-        t_37 = self%constants(83)*gamma + t_27*t_34 - t_36
-        t_38 = exp(self%constants(39)*(self%constants(38) + t_33))
-        t_39 = self%constants(84)*t_38
-        t_40 = t_37*t_39
-        t_41 = t_11*tau_1
-        t_42 = self%constants(86)*t_1
-        t_43 = t_41*t_42
-        t_44 = self%constants(86)*t_41
-        t_45 = t_2*t_44
-        t_46 = t_3*t_44
-        t_47 = t_28*tau_2
-        t_48 = self%constants(76)*t_47
-        t_49 = t_4*t_48
-        t_50 = t_48*t_5
-        t_51 = t_48*t_6
-        t_52 = t_37*t_38
-        t_53 = t_52*tau_2
-        t_54 = self%constants(87)*t_35
-        t_55 = 1.0_real64/C_1**2
-        t_56 = t_55*t_8
-        t_57 = self%constants(10)*t_55 + self%constants(46)*t_55 + self%constants(47)*t_56
-        t_58 = tau_1*(self%constants(4)*t_55 + self%constants(45)*t_55 + self%constants(6)*t_56)
-        t_59 = -t_12*t_57 + t_12*t_58
-        t_60 = self%constants(49)*t_7 + self%constants(50)*t_9 + t_15
-        t_61 = 2.0_real64*t_59
-        t_62 = 2.0_real64*q1_y
-        t_63 = -t_57*t_62 + t_58*t_62
-        t_64 = 2.0_real64*q1_z
-        t_65 = -t_57*t_64 + t_58*t_64
-        t_66 = 1.0_real64/C_2**2
-        t_67 = t_17*t_66
-        t_68 = gamma/C_2_root_2**5
-        t_69 = self%constants(58)*t_68
-        t_70 = self%constants(16)*(self%constants(15)*t_66 + self%constants(46)*t_66 + self%constants(53)*t_67) + &
-            self%constants(57)*t_68 + t_22*t_69
-        t_71 = self%constants(16)*(self%constants(18)*t_66 + self%constants(4)*t_66 + self%constants(54)*t_67) + &
-            self%constants(88)*t_68 + t_27*t_69
-        t_72 = t_29*tau_2
-        t_73 = -t_29*t_70 + t_71*t_72
-        t_74 = self%constants(35)*t_22*t_23 + self%constants(57)*t_23 + self%constants(60)*t_19 + t_32
-        t_75 = 2.0_real64*t_73
-        t_76 = self%constants(28)*t_20
-        t_77 = t_21 + t_22*t_76
-        t_78 = t_26 + t_27*t_76
-        t_79 = 2.0_real64*q2_y
-        t_80 = t_79*tau_2
-        t_81 = -t_70*t_79 + t_71*t_80
-        t_82 = 2.0_real64*q2_z
-        t_83 = t_82*tau_2
-        t_84 = -t_70*t_82 + t_71*t_83
-        t_85 = tau_2*(-t_33*t_77 + t_78)
-        t_86 = self%constants(89)*t_38*t_85
-        t_87 = tau_2*(self%constants(83) + self%constants(90)*t_33)
-        t_88 = q1_x*t_42
-        t_89 = q1_y*t_2
-        t_90 = self%constants(86)*t_58
-        t_91 = q1_z*t_3
-        t_92 = t_58*t_88 + t_89*t_90 + t_90*t_91
-        t_93 = self%constants(92)*t_41
-        t_94 = self%constants(93)*t_41
-        t_95 = self%constants(86)*t_11
-        t_96 = q2_x*t_4
-        t_97 = self%constants(76)*tau_2
-        t_98 = t_71*t_97
-        t_99 = q2_y*t_5
-        t_100 = q2_z*t_6
-        t_101 = self%constants(87)*t_38
-        t_102 = t_101*t_35
-        t_103 = self%constants(87)*t_53*t_77 + t_100*t_98 + t_102*t_85 + t_96*t_98 + t_98*t_99
-        t_104 = self%constants(94)*t_47
-        t_105 = self%constants(95)*t_47
-        t_106 = t_78*t_97
-        t_107 = self%constants(76)*t_28
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) - q1_x*t_10 + t_13*tau_1
-        f(8) = self%constants(12) - q1_y*t_10 + q1_y*t_15
-        f(9) = self%constants(13) - q1_z*t_10 + q1_z*t_15
-        f(10) = self%constants(30) - q2_x*t_25 + t_30*tau_2
-        f(11) = self%constants(31) - q2_y*t_25 + q2_y*t_32
-        f(12) = self%constants(32) - q2_z*t_25 + q2_z*t_32
-        f(13) = t_40*tau_2
-        f(14) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(85)*tau_1) + q1_x*t_43 + q1_y &
-            *t_45 + q1_z*t_46
-        f(15) = self%constants(25)*(self%parameters%conductivity*tau_1 + self%constants(85)*tau_2) + q2_x*t_49 + q2_y &
-            *t_50 + q2_z*t_51 + t_53*t_54
-        jacobian(1, 7) = self%constants(1)
-        jacobian(1, 10) = self%constants(2)
-        jacobian(2, 8) = self%constants(1)
-        jacobian(2, 11) = self%constants(2)
-        jacobian(3, 9) = self%constants(1)
-        jacobian(3, 12) = self%constants(2)
-        jacobian(4, 7) = self%constants(2)
-        jacobian(4, 10) = self%constants(3)
-        jacobian(5, 8) = self%constants(2)
-        jacobian(5, 11) = self%constants(3)
-        jacobian(6, 9) = self%constants(2)
-        jacobian(6, 12) = self%constants(3)
-        jacobian(7, 1) = t_12*t_59 + t_60
-        jacobian(7, 2) = q1_y*t_61
-        jacobian(7, 3) = q1_z*t_61
-        jacobian(7, 14) = t_13
-        jacobian(8, 1) = t_12*t_63
-        jacobian(8, 2) = t_60 + t_62*t_63
-        jacobian(8, 3) = t_63*t_64
-        jacobian(8, 14) = q1_y*t_14
-        jacobian(9, 1) = t_12*t_65
-        jacobian(9, 2) = t_62*t_65
-        jacobian(9, 3) = t_60 + t_64*t_65
-        jacobian(9, 14) = q1_z*t_14
-        jacobian(10, 4) = t_29*t_73 + t_74
-        jacobian(10, 5) = q2_y*t_75
-        jacobian(10, 6) = q2_z*t_75
-        jacobian(10, 13) = -t_29*t_77 + t_72*t_78
-        jacobian(10, 15) = t_30
-        jacobian(11, 4) = t_29*t_81
-        jacobian(11, 5) = t_74 + t_79*t_81
-        jacobian(11, 6) = t_81*t_82
-        jacobian(11, 13) = -t_77*t_79 + t_78*t_80
-        jacobian(11, 15) = q2_y*t_31
-        jacobian(12, 4) = t_29*t_84
-        jacobian(12, 5) = t_79*t_84
-        jacobian(12, 6) = t_74 + t_82*t_84
-        jacobian(12, 13) = -t_77*t_82 + t_78*t_83
-        jacobian(12, 15) = q2_z*t_31
-        jacobian(13, 4) = q2_x*t_86
-        jacobian(13, 5) = q2_y*t_86
-        jacobian(13, 6) = q2_z*t_86
-        jacobian(13, 13) = t_39*t_87
-        jacobian(13, 15) = self%constants(91)*t_33*t_52 + t_36*t_39 + t_40
-        jacobian(14, 1) = t_12*t_92 + t_43
-        jacobian(14, 2) = t_45 + t_62*t_92
-        jacobian(14, 3) = t_46 + t_64*t_92
-        jacobian(14, 7) = q1_x*t_93
-        jacobian(14, 8) = q1_y*t_93
-        jacobian(14, 9) = q1_z*t_93
-        jacobian(14, 10) = q1_x*t_94
-        jacobian(14, 11) = q1_y*t_94
-        jacobian(14, 12) = q1_z*t_94
-        jacobian(14, 14) = self%constants(65) + t_11*t_88 + t_89*t_95 + t_91*t_95
-        jacobian(14, 15) = self%constants(80)
-        jacobian(15, 4) = t_103*t_29 + t_49
-        jacobian(15, 5) = t_103*t_79 + t_50
-        jacobian(15, 6) = t_103*t_82 + t_51
-        jacobian(15, 7) = q2_x*t_104
-        jacobian(15, 8) = q2_y*t_104
-        jacobian(15, 9) = q2_z*t_104
-        jacobian(15, 10) = q2_x*t_105
-        jacobian(15, 11) = q2_y*t_105
-        jacobian(15, 12) = q2_z*t_105
-        jacobian(15, 13) = self%constants(96)*t_53 + t_100*t_106 + t_102*t_87 + t_106*t_96 + t_106*t_99
-        jacobian(15, 14) = self%constants(68)
-        jacobian(15, 15) = self%constants(70) + self%constants(97)*t_36*t_52 + t_100*t_107 + t_101*t_33*t_35**2 + &
-            t_107*t_96 + t_107*t_99 + t_52*t_54
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = 1.0_real64/C_1
-        t_8 = t_7*log(C_1*self%constants(5))
-        t_9 = 2.0_real64*self%constants(10)*t_8 + 2.0_real64*self%constants(9)*t_7
-        t_10 = tau_1*(self%constants(17)*t_7 + self%constants(45)*t_8)
-        t_11 = 2.0_real64*t_10
-        t_12 = 1.0_real64/C_2
-        t_13 = log(C_2*self%constants(14))
-        t_14 = t_12*t_13
-        t_15 = gamma/C_2_root_2**3
-        t_16 = self%constants(26)*t_13 + self%constants(27)
-        t_17 = self%constants(28)*t_15
-        t_18 = 2.0_real64*self%constants(16)*(self%constants(15)*t_14 + self%constants(9)*t_12) + 2.0_real64 &
-            *self%constants(29)*t_15 + 2.0_real64*t_16*t_17
-        t_19 = self%parameters%beta + self%constants(21)*t_13
-        t_20 = tau_2*(self%constants(16)*(self%constants(17)*t_12 + self%constants(18)*t_14) + self%constants(82) &
-            *t_15 + t_17*t_19)
-        t_21 = 2.0_real64*t_20
-        t_22 = 1.0_real64/tau_2
-        t_23 = self%constants(35)/C_2_root_2
-        t_24 = self%constants(33)*gamma + t_16*t_23
-        t_25 = tau_2*(self%constants(83)*gamma + t_19*t_23 - t_22*t_24)*exp(self%constants(39)*(self%constants(38) + &
-            t_22))
-        t_26 = self%constants(86)*t_10
-        t_27 = self%constants(76)*t_20
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) + q1_x*t_11 - q1_x*t_9
-        f(8) = self%constants(12) + q1_y*t_11 - q1_y*t_9
-        f(9) = self%constants(13) + q1_z*t_11 - q1_z*t_9
-        f(10) = self%constants(30) - q2_x*t_18 + q2_x*t_21
-        f(11) = self%constants(31) - q2_y*t_18 + q2_y*t_21
-        f(12) = self%constants(32) - q2_z*t_18 + q2_z*t_21
-        f(13) = self%constants(84)*t_25
-        f(14) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(85)*tau_1) + q1_x*t_1*t_26 + &
-            q1_y*t_2*t_26 + q1_z*t_26*t_3
-        f(15) = self%constants(25)*(self%parameters%conductivity*tau_1 + self%constants(85)*tau_2) + &
-            self%constants(87)*t_24*t_25 + q2_x*t_27*t_4 + q2_y*t_27*t_5 + q2_z*t_27*t_6
-      end if
+      exp_1 = exp(self%constants(78)*(self%constants(77) + t_9))
+      t_10 = 1.0_real64/C_1
+      t_11 = t_10*t_7
+      t_12 = self%constants(22)*t_10 + self%constants(79)*t_11
+      t_13 = self%constants(15)*t_10 + self%constants(36)*t_11
+      t_14 = 2.0_real64*q1_x
+      t_15 = t_13*t_14
+      f(7) = self%constants(9) - q1_x*t_12 + t_15*tau_1
+      t_16 = 2.0_real64*t_13
+      t_17 = t_16*tau_1
+      f(8) = self%constants(10) - q1_y*t_12 + q1_y*t_17
+      f(9) = self%constants(11) - q1_z*t_12 + q1_z*t_17
+      t_18 = 1.0_real64/C_2
+      t_19 = t_18*t_8
+      t_20 = self%constants(13)*t_19 + self%constants(7)*t_18
+      t_21 = 1.0_real64/C_2_root_2**3
+      t_22 = self%constants(24)*t_21
+      t_23 = self%constants(21)*t_8 + self%constants(22)
+      t_24 = gamma*t_21
+      t_25 = self%constants(23)*t_24
+      t_26 = self%constants(80)*t_20 + 2.0_real64*gamma*t_22 + 2.0_real64*t_23*t_25
+      t_27 = self%constants(90)*t_21
+      t_28 = self%parameters%beta + self%constants(19)*t_8
+      t_29 = self%constants(14)*(self%constants(15)*t_18 + self%constants(16)*t_19) + gamma*t_27 + t_25*t_28
+      t_30 = 2.0_real64*q2_x
+      t_31 = t_29*t_30
+      f(10) = self%constants(25) - q2_x*t_26 + t_31*tau_2
+      t_32 = 2.0_real64*t_29
+      t_33 = t_32*tau_2
+      f(11) = self%constants(26) - q2_y*t_26 + q2_y*t_33
+      f(12) = self%constants(27) - q2_z*t_26 + q2_z*t_33
+      t_34 = self%constants(30)/C_2_root_2
+      t_35 = self%constants(28)*gamma + t_23*t_34
+      t_36 = t_35*t_9
+      t_37 = self%constants(91)*gamma + t_28*t_34 - t_36
+      t_38 = self%constants(92)*exp_1
+      t_39 = t_37*t_38
+      f(13) = t_39*tau_2
+      t_40 = t_13*tau_1
+      t_41 = self%constants(94)*t_1
+      t_42 = t_40*t_41
+      t_43 = self%constants(94)*t_40
+      t_44 = t_2*t_43
+      t_45 = t_3*t_43
+      f(14) = self%constants(73)*(self%parameters%conductivity*tau_2 + self%constants(93)*tau_1) + q1_x*t_42 + q1_y &
+          *t_44 + q1_z*t_45
+      t_46 = t_29*tau_2
+      t_47 = self%constants(96)*t_46
+      t_48 = t_4*t_47
+      t_49 = t_47*t_5
+      t_50 = t_47*t_6
+      t_51 = exp_1*t_37
+      t_52 = t_51*tau_2
+      t_53 = self%constants(97)*t_35
+      f(15) = self%constants(95)*(self%parameters%conductivity*tau_1 + self%constants(93)*tau_2) + q2_x*t_48 + q2_y &
+          *t_49 + q2_z*t_50 + t_52*t_53
+      t_54 = 1.0_real64/C_1**2
+      t_55 = t_54*t_7
+      t_56 = self%constants(37)*t_54 + self%constants(38)*t_55 + self%constants(8)*t_54
+      t_57 = tau_1*(self%constants(36)*t_54 + self%constants(4)*t_54 + self%constants(6)*t_55)
+      t_58 = -t_14*t_56 + t_14*t_57
+      t_59 = self%constants(40)*t_10 + self%constants(41)*t_11 + t_17
+      jacobian(7, 1) = t_14*t_58 + t_59
+      t_60 = 2.0_real64*t_58
+      jacobian(7, 2) = q1_y*t_60
+      jacobian(7, 3) = q1_z*t_60
+      jacobian(7, 14) = t_15
+      t_61 = 2.0_real64*q1_y
+      t_62 = -t_56*t_61 + t_57*t_61
+      jacobian(8, 1) = t_14*t_62
+      jacobian(8, 2) = t_59 + t_61*t_62
+      t_63 = 2.0_real64*q1_z
+      jacobian(8, 3) = t_62*t_63
+      jacobian(8, 14) = q1_y*t_16
+      t_64 = -t_56*t_63 + t_57*t_63
+      jacobian(9, 1) = t_14*t_64
+      jacobian(9, 2) = t_61*t_64
+      jacobian(9, 3) = t_59 + t_63*t_64
+      jacobian(9, 14) = q1_z*t_16
+      t_65 = 1.0_real64/C_2**2
+      t_66 = t_65*t_8
+      t_67 = gamma/C_2_root_2**5
+      t_68 = self%constants(49)*t_67
+      t_69 = self%constants(14)*(self%constants(13)*t_65 + self%constants(37)*t_65 + self%constants(44)*t_66) + &
+          self%constants(48)*t_67 + t_23*t_68
+      t_70 = self%constants(14)*(self%constants(16)*t_65 + self%constants(4)*t_65 + self%constants(45)*t_66) + &
+          self%constants(98)*t_67 + t_28*t_68
+      t_71 = t_30*tau_2
+      t_72 = -t_30*t_69 + t_70*t_71
+      t_73 = self%constants(30)*t_23*t_24 + self%constants(48)*t_24 + self%constants(51)*t_20 + t_33
+      jacobian(10, 4) = t_30*t_72 + t_73
+      t_74 = 2.0_real64*t_72
+      jacobian(10, 5) = q2_y*t_74
+      jacobian(10, 6) = q2_z*t_74
+      t_75 = self%constants(23)*t_21
+      t_76 = t_22 + t_23*t_75
+      t_77 = t_27 + t_28*t_75
+      jacobian(10, 13) = -t_30*t_76 + t_71*t_77
+      jacobian(10, 15) = t_31
+      t_78 = 2.0_real64*q2_y
+      t_79 = t_78*tau_2
+      t_80 = -t_69*t_78 + t_70*t_79
+      jacobian(11, 4) = t_30*t_80
+      jacobian(11, 5) = t_73 + t_78*t_80
+      t_81 = 2.0_real64*q2_z
+      jacobian(11, 6) = t_80*t_81
+      jacobian(11, 13) = -t_76*t_78 + t_77*t_79
+      jacobian(11, 15) = q2_y*t_32
+      t_82 = t_81*tau_2
+      t_83 = -t_69*t_81 + t_70*t_82
+      jacobian(12, 4) = t_30*t_83
+      jacobian(12, 5) = t_78*t_83
+      jacobian(12, 6) = t_73 + t_81*t_83
+      jacobian(12, 13) = -t_76*t_81 + t_77*t_82
+      jacobian(12, 15) = q2_z*t_32
+      t_84 = tau_2*(-t_76*t_9 + t_77)
+      t_85 = self%constants(99)*exp_1*t_84
+      jacobian(13, 4) = q2_x*t_85
+      jacobian(13, 5) = q2_y*t_85
+      jacobian(13, 6) = q2_z*t_85
+      t_86 = tau_2*(self%constants(100)*t_9 + self%constants(91))
+      jacobian(13, 13) = t_38*t_86
+      jacobian(13, 15) = self%constants(101)*t_51*t_9 + t_36*t_38 + t_39
+      t_87 = q1_x*t_41
+      t_88 = q1_y*t_2
+      t_89 = self%constants(94)*t_57
+      t_90 = q1_z*t_3
+      t_91 = t_57*t_87 + t_88*t_89 + t_89*t_90
+      jacobian(14, 1) = t_14*t_91 + t_42
+      jacobian(14, 2) = t_44 + t_61*t_91
+      jacobian(14, 3) = t_45 + t_63*t_91
+      t_92 = self%constants(102)*t_40
+      jacobian(14, 7) = q1_x*t_92
+      jacobian(14, 8) = q1_y*t_92
+      jacobian(14, 9) = q1_z*t_92
+      t_93 = self%constants(103)*t_40
+      jacobian(14, 10) = q1_x*t_93
+      jacobian(14, 11) = q1_y*t_93
+      jacobian(14, 12) = q1_z*t_93
+      t_94 = self%constants(94)*t_13
+      jacobian(14, 14) = self%constants(56) + t_13*t_87 + t_88*t_94 + t_90*t_94
+      t_95 = q2_x*t_4
+      t_96 = self%constants(96)*tau_2
+      t_97 = t_70*t_96
+      t_98 = q2_y*t_5
+      t_99 = q2_z*t_6
+      t_100 = self%constants(97)*exp_1
+      t_101 = t_100*t_35
+      t_102 = self%constants(97)*t_52*t_76 + t_101*t_84 + t_95*t_97 + t_97*t_98 + t_97*t_99
+      jacobian(15, 4) = t_102*t_30 + t_48
+      jacobian(15, 5) = t_102*t_78 + t_49
+      jacobian(15, 6) = t_102*t_81 + t_50
+      t_103 = self%constants(104)*t_46
+      jacobian(15, 7) = q2_x*t_103
+      jacobian(15, 8) = q2_y*t_103
+      jacobian(15, 9) = q2_z*t_103
+      t_104 = self%constants(105)*t_46
+      jacobian(15, 10) = q2_x*t_104
+      jacobian(15, 11) = q2_y*t_104
+      jacobian(15, 12) = q2_z*t_104
+      t_105 = t_77*t_96
+      jacobian(15, 13) = self%constants(106)*t_52 + t_101*t_86 + t_105*t_95 + t_105*t_98 + t_105*t_99
+      t_106 = self%constants(96)*t_29
+      jacobian(15, 15) = self%constants(107)*t_36*t_51 + self%constants(61) + t_100*t_35**2*t_9 + t_106*t_95 + t_106 &
+          *t_98 + t_106*t_99 + t_51*t_53
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1383,288 +1281,450 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(39)*(self%constants(38) + 1.0_real64/(self%constants(25)*(self%constants(19) &
-          *(self%constants(100)*log(C_2*self%constants(14))**2 + self%constants(9)*log(C_2*self%constants(14))) + &
-          self%constants(99)*gamma**2 + tau_2 + self%parameters%beta_v*gamma*(self%constants(26)*log(C_2 &
-          *self%constants(14)) + self%constants(27))/sqrt(C_2)) + self%parameters%theta_ref)) <= max_exponent)) then
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      jacobian(1, 7) = self%constants(1)
+      jacobian(1, 10) = self%constants(2)
+      jacobian(2, 8) = self%constants(1)
+      jacobian(2, 11) = self%constants(2)
+      jacobian(3, 9) = self%constants(1)
+      jacobian(3, 12) = self%constants(2)
+      jacobian(4, 7) = self%constants(2)
+      jacobian(4, 10) = self%constants(3)
+      jacobian(5, 8) = self%constants(2)
+      jacobian(5, 11) = self%constants(3)
+      jacobian(6, 9) = self%constants(2)
+      jacobian(6, 12) = self%constants(3)
+      jacobian(14, 15) = self%constants(59)
+      jacobian(15, 14) = self%constants(70)
+      t_7 = log(C_2*self%constants(12))
+      t_8 = log(C_1*self%constants(5))
+      t_9 = 1.0_real64/C_2_root_2
+      t_10 = self%constants(21)*t_7 + self%constants(22)
+      t_11 = self%parameters%beta_v*t_10*t_9
+      t_12 = self%constants(95)*(self%constants(109)*gamma**2 + self%constants(17)*(self%constants(110)*t_7**2 + &
+          self%constants(7)*t_7) + gamma*t_11 + tau_2) + self%parameters%theta_ref
+      t_13 = 1.0_real64/t_12
+      if (.not. (self%constants(78)*(self%constants(77) + t_13) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = 1.0_real64/C_1
-        t_8 = log(C_1*self%constants(5))
-        t_9 = self%constants(8)*(self%constants(46)*t_8 + self%constants(98)*t_8**2 + tau_1) + self%parameters%theta_ref
-        t_10 = 1.0_real64/t_9
-        t_11 = t_7*t_8
-        t_12 = self%constants(46)*t_7 + self%constants(47)*t_11
-        t_13 = t_10*t_12
-        t_14 = self%constants(17)*t_7 + self%constants(45)*t_11 + t_13
-        t_15 = 2.0_real64*t_9
-        t_16 = t_14*t_15
-        t_17 = q1_x*t_16
-        t_18 = q1_y*t_16
-        t_19 = q1_z*t_16
-        t_20 = 1.0_real64/C_2
-        t_21 = log(C_2*self%constants(14))
-        t_22 = t_20*t_21
-        t_23 = 1.0_real64/C_2_root_2
-        t_24 = self%constants(26)*t_21 + self%constants(27)
-        t_25 = self%parameters%beta_v*t_23*t_24
-        t_26 = self%constants(25)*(self%constants(19)*(self%constants(100)*t_21**2 + self%constants(9)*t_21) + &
-            self%constants(99)*gamma**2 + gamma*t_25 + tau_2) + self%parameters%theta_ref
-        t_27 = 1.0_real64/t_26
-        t_28 = 1.0_real64/C_2_root_2**3
-        t_29 = self%constants(101)*t_28
-        t_30 = self%constants(22)*t_24*t_28
-        t_31 = self%constants(19)*(self%constants(15)*t_22 + self%constants(9)*t_20) + gamma*t_29 + gamma*t_30
-        t_32 = t_27*t_31
-        t_33 = self%constants(82)*t_28
-        t_34 = self%parameters%beta + self%constants(21)*t_21
-        t_35 = self%constants(28)*t_28*t_34
-        t_36 = self%constants(16)*(self%constants(17)*t_20 + self%constants(18)*t_22) + gamma*t_33 + gamma*t_35 + t_32
-        t_37 = 2.0_real64*t_26
-        t_38 = t_36*t_37
-        t_39 = q2_x*t_38
-        t_40 = q2_y*t_38
-        t_41 = q2_z*t_38
-        t_42 = self%constants(90)*gamma + t_25
-        t_43 = t_27*t_42
-        t_44 = exp(self%constants(39)*(self%constants(38) + t_27))
-        t_45 = t_44*(self%constants(35)*t_23*t_34 + self%constants(83)*gamma + t_43)
-        t_46 = self%constants(84)*t_26
-        t_47 = 1.0_real64/C_1**2
-        t_48 = t_47*t_8
-        t_49 = t_15*(self%constants(4)*t_47 + self%constants(43)*t_12**2/t_9**2 + self%constants(45)*t_47 + &
-            self%constants(6)*t_48 + t_10*(self%constants(10)*t_48 + self%constants(47)*t_47 + self%constants(9)*t_47))
-        t_50 = q1_x*t_49
-        t_51 = self%constants(102)*t_14
-        t_52 = q1_x*t_51
-        t_53 = 2.0_real64*t_12*t_52 + 2.0_real64*t_50
-        t_54 = self%constants(86)*t_13
-        t_55 = q1_y*t_49
-        t_56 = q1_y*t_51
-        t_57 = 2.0_real64*t_12*t_56 + 2.0_real64*t_55
-        t_58 = q1_z*t_49
-        t_59 = q1_z*t_51
-        t_60 = 2.0_real64*t_12*t_59 + 2.0_real64*t_58
-        t_61 = 1.0_real64/C_2**2
-        t_62 = t_21*t_61
-        t_63 = gamma/C_2_root_2**5
-        t_64 = self%constants(36)/t_26**2
-        t_65 = self%constants(16)*(self%constants(18)*t_61 + self%constants(4)*t_61 + self%constants(54)*t_62) + &
-            self%constants(58)*t_34*t_63 + self%constants(88)*t_63 + t_27*(self%constants(19)*(self%constants(15) &
-            *t_61 + self%constants(46)*t_61 + self%constants(53)*t_62) + self%constants(56)*t_24*t_63 + &
-            self%constants(71)*t_63) + t_31**2*t_64
-        t_66 = q2_x*t_37
-        t_67 = t_65*t_66
-        t_68 = self%constants(103)*t_36
-        t_69 = q2_x*t_68
-        t_70 = 2.0_real64*t_31*t_69 + 2.0_real64*t_67
-        t_71 = t_27*(t_29 + t_30) + t_31*t_42*t_64 + t_33 + t_35
-        t_72 = t_66*t_71
-        t_73 = self%constants(76)*t_32
-        t_74 = q2_y*t_37
-        t_75 = t_65*t_74
-        t_76 = q2_y*t_68
-        t_77 = 2.0_real64*t_31*t_76 + 2.0_real64*t_75
-        t_78 = t_71*t_74
-        t_79 = q2_z*t_37
-        t_80 = t_65*t_79
-        t_81 = q2_z*t_68
-        t_82 = 2.0_real64*t_31*t_81 + 2.0_real64*t_80
-        t_83 = t_71*t_79
-        t_84 = self%constants(104)*t_45
-        t_85 = t_44*t_46
-        t_86 = self%constants(105)*t_45
-        t_87 = 2.0_real64*t_31*t_84 + 2.0_real64*t_32*t_86 + 2.0_real64*t_71*t_85
-        t_88 = self%constants(86)*t_14
-        t_89 = q1_x*t_1
-        t_90 = t_88*t_89
-        t_91 = q1_y*t_2
-        t_92 = t_88*t_91
-        t_93 = q1_z*t_3
-        t_94 = t_88*t_93
-        t_95 = 2.0_real64*self%constants(65)*t_12 - 2.0_real64*t_1*t_50 + 2.0_real64*t_12*t_90 + 2.0_real64*t_12*t_92 &
-            + 2.0_real64*t_12*t_94 - 2.0_real64*t_2*t_55 - 2.0_real64*t_3*t_58
-        t_96 = self%constants(67)*t_31
-        t_97 = t_14*t_9
-        t_98 = self%constants(106)*t_97
-        t_99 = self%constants(107)*t_97
-        t_100 = self%constants(102)*t_13
-        t_101 = self%constants(69)*t_12
-        t_102 = self%constants(76)*t_36
-        t_103 = q2_x*t_4
-        t_104 = t_102*t_103
-        t_105 = q2_y*t_5
-        t_106 = t_102*t_105
-        t_107 = q2_z*t_6
-        t_108 = t_102*t_107
-        t_109 = 2.0_real64*self%constants(70)*t_31 + 2.0_real64*t_104*t_31 + 2.0_real64*t_106*t_31 + 2.0_real64*t_108 &
-            *t_31 - 2.0_real64*t_4*t_67 - 2.0_real64*t_5*t_75 - 2.0_real64*t_6*t_80
-        t_110 = t_26*t_36
-        t_111 = self%constants(107)*t_110
-        t_112 = self%constants(108)*t_110
-        t_113 = self%constants(103)*t_32
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) + t_17
-        f(8) = self%constants(12) + t_18
-        f(9) = self%constants(13) + t_19
-        f(10) = self%constants(30) + t_39
-        f(11) = self%constants(31) + t_40
-        f(12) = self%constants(32) + t_41
-        f(13) = t_45*t_46
-        f(14) = self%parameters%conductivity*t_26 + self%constants(85)*t_9 - t_1*t_17 - t_18*t_2 - t_19*t_3
-        f(15) = self%parameters%conductivity*t_9 + self%constants(85)*t_26 - t_39*t_4 - t_40*t_5 - t_41*t_6
-        jacobian(1, 7) = self%constants(1)
-        jacobian(1, 10) = self%constants(2)
-        jacobian(2, 8) = self%constants(1)
-        jacobian(2, 11) = self%constants(2)
-        jacobian(3, 9) = self%constants(1)
-        jacobian(3, 12) = self%constants(2)
-        jacobian(4, 7) = self%constants(2)
-        jacobian(4, 10) = self%constants(3)
-        jacobian(5, 8) = self%constants(2)
-        jacobian(5, 11) = self%constants(3)
-        jacobian(6, 9) = self%constants(2)
-        jacobian(6, 12) = self%constants(3)
-        jacobian(7, 1) = q1_x*t_53 + t_16
-        jacobian(7, 2) = q1_y*t_53
-        jacobian(7, 3) = q1_z*t_53
-        jacobian(7, 14) = q1_x*t_54 + t_52
-        jacobian(8, 1) = q1_x*t_57
-        jacobian(8, 2) = q1_y*t_57 + t_16
-        jacobian(8, 3) = q1_z*t_57
-        jacobian(8, 14) = q1_y*t_54 + t_56
-        jacobian(9, 1) = q1_x*t_60
-        jacobian(9, 2) = q1_y*t_60
-        jacobian(9, 3) = q1_z*t_60 + t_16
-        jacobian(9, 14) = q1_z*t_54 + t_59
-        jacobian(10, 4) = q2_x*t_70 + t_38
-        jacobian(10, 5) = q2_y*t_70
-        jacobian(10, 6) = q2_z*t_70
-        jacobian(10, 13) = t_42*t_69 + t_72
-        jacobian(10, 15) = q2_x*t_73 + t_69
-        jacobian(11, 4) = q2_x*t_77
-        jacobian(11, 5) = q2_y*t_77 + t_38
-        jacobian(11, 6) = q2_z*t_77
-        jacobian(11, 13) = t_42*t_76 + t_78
-        jacobian(11, 15) = q2_y*t_73 + t_76
-        jacobian(12, 4) = q2_x*t_82
-        jacobian(12, 5) = q2_y*t_82
-        jacobian(12, 6) = q2_z*t_82 + t_38
-        jacobian(12, 13) = t_42*t_81 + t_83
-        jacobian(12, 15) = q2_z*t_73 + t_81
-        jacobian(13, 4) = q2_x*t_87
-        jacobian(13, 5) = q2_y*t_87
-        jacobian(13, 6) = q2_z*t_87
-        jacobian(13, 13) = t_42*t_84 + t_43*t_86 + t_85*(self%constants(83) + self%constants(90)*t_27 + t_42**2*t_64)
-        jacobian(13, 15) = self%constants(87)*t_43*t_44 + t_27*t_86 + t_84
-        jacobian(14, 1) = q1_x*t_95 - t_1*t_16
-        jacobian(14, 2) = q1_y*t_95 - t_16*t_2
-        jacobian(14, 3) = q1_z*t_95 - t_16*t_3
-        jacobian(14, 4) = q2_x*t_96
-        jacobian(14, 5) = q2_y*t_96
-        jacobian(14, 6) = q2_z*t_96
-        jacobian(14, 7) = q1_x*t_98
-        jacobian(14, 8) = q1_y*t_98
-        jacobian(14, 9) = q1_z*t_98
-        jacobian(14, 10) = q1_x*t_99
-        jacobian(14, 11) = q1_y*t_99
-        jacobian(14, 12) = q1_z*t_99
-        jacobian(14, 13) = self%constants(68)*t_42
-        jacobian(14, 14) = self%constants(65) + t_100*t_89 + t_100*t_91 + t_100*t_93 + t_90 + t_92 + t_94
-        jacobian(14, 15) = self%constants(68)
-        jacobian(15, 1) = q1_x*t_101
-        jacobian(15, 2) = q1_y*t_101
-        jacobian(15, 3) = q1_z*t_101
-        jacobian(15, 4) = q2_x*t_109 - t_38*t_4
-        jacobian(15, 5) = q2_y*t_109 - t_38*t_5
-        jacobian(15, 6) = q2_z*t_109 - t_38*t_6
-        jacobian(15, 7) = q2_x*t_111
-        jacobian(15, 8) = q2_y*t_111
-        jacobian(15, 9) = q2_z*t_111
-        jacobian(15, 10) = q2_x*t_112
-        jacobian(15, 11) = q2_y*t_112
-        jacobian(15, 12) = q2_z*t_112
-        jacobian(15, 13) = self%constants(70)*t_42 + t_104*t_42 + t_106*t_42 + t_108*t_42 - t_4*t_72 - t_5*t_78 - t_6 &
-            *t_83
-        jacobian(15, 14) = self%constants(80)
-        jacobian(15, 15) = self%constants(70) + t_103*t_113 + t_104 + t_105*t_113 + t_106 + t_107*t_113 + t_108
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = log(C_1*self%constants(5))
-        t_8 = self%constants(8)*(self%constants(46)*t_7 + self%constants(98)*t_7**2 + tau_1) + self%parameters%theta_ref
-        t_9 = 1.0_real64/C_1
-        t_10 = t_7*t_9
-        t_11 = 2.0_real64*t_8*(self%constants(17)*t_9 + self%constants(45)*t_10 + (self%constants(46)*t_9 + &
-            self%constants(47)*t_10)/t_8)
-        t_12 = q1_x*t_11
-        t_13 = q1_y*t_11
-        t_14 = q1_z*t_11
-        t_15 = log(C_2*self%constants(14))
-        t_16 = 1.0_real64/C_2_root_2
-        t_17 = self%constants(26)*t_15 + self%constants(27)
-        t_18 = self%parameters%beta_v*t_16*t_17
-        t_19 = self%constants(25)*(self%constants(19)*(self%constants(100)*t_15**2 + self%constants(9)*t_15) + &
-            self%constants(99)*gamma**2 + gamma*t_18 + tau_2) + self%parameters%theta_ref
-        t_20 = 1.0_real64/C_2
-        t_21 = t_15*t_20
-        t_22 = 1.0_real64/t_19
-        t_23 = gamma/C_2_root_2**3
-        t_24 = self%parameters%beta + self%constants(21)*t_15
-        t_25 = 2.0_real64*t_19*(self%constants(16)*(self%constants(17)*t_20 + self%constants(18)*t_21) + &
-            self%constants(28)*t_23*t_24 + self%constants(82)*t_23 + t_22*(self%constants(101)*t_23 + &
-            self%constants(19)*(self%constants(15)*t_21 + self%constants(9)*t_20) + self%constants(22)*t_17*t_23))
-        t_26 = q2_x*t_25
-        t_27 = q2_y*t_25
-        t_28 = q2_z*t_25
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) + t_12
-        f(8) = self%constants(12) + t_13
-        f(9) = self%constants(13) + t_14
-        f(10) = self%constants(30) + t_26
-        f(11) = self%constants(31) + t_27
-        f(12) = self%constants(32) + t_28
-        f(13) = self%constants(84)*t_19*(self%constants(35)*t_16*t_24 + self%constants(83)*gamma + t_22 &
-            *(self%constants(90)*gamma + t_18))*exp(self%constants(39)*(self%constants(38) + t_22))
-        f(14) = self%parameters%conductivity*t_19 + self%constants(85)*t_8 - t_1*t_12 - t_13*t_2 - t_14*t_3
-        f(15) = self%parameters%conductivity*t_8 + self%constants(85)*t_19 - t_26*t_4 - t_27*t_5 - t_28*t_6
-      end if
+      exp_1 = exp(self%constants(78)*(self%constants(77) + t_13))
+      t_14 = 1.0_real64/C_1
+      t_15 = t_14*t_8
+      t_16 = self%constants(73)*(self%constants(108)*t_8**2 + self%constants(37)*t_8 + tau_1) + &
+          self%parameters%theta_ref
+      t_17 = 1.0_real64/t_16
+      t_18 = self%constants(37)*t_14 + self%constants(38)*t_15
+      t_19 = t_17*t_18
+      t_20 = self%constants(15)*t_14 + self%constants(36)*t_15 + t_19
+      t_21 = 2.0_real64*t_16
+      t_22 = t_20*t_21
+      t_23 = q1_x*t_22
+      f(7) = self%constants(9) + t_23
+      t_24 = q1_y*t_22
+      f(8) = self%constants(10) + t_24
+      t_25 = q1_z*t_22
+      f(9) = self%constants(11) + t_25
+      t_26 = 1.0_real64/C_2
+      t_27 = t_26*t_7
+      t_28 = 1.0_real64/C_2_root_2**3
+      t_29 = self%constants(111)*t_28
+      t_30 = self%constants(20)*t_10*t_28
+      t_31 = self%constants(17)*(self%constants(13)*t_27 + self%constants(7)*t_26) + gamma*t_29 + gamma*t_30
+      t_32 = t_13*t_31
+      t_33 = self%constants(90)*t_28
+      t_34 = self%parameters%beta + self%constants(19)*t_7
+      t_35 = self%constants(23)*t_28*t_34
+      t_36 = self%constants(14)*(self%constants(15)*t_26 + self%constants(16)*t_27) + gamma*t_33 + gamma*t_35 + t_32
+      t_37 = 2.0_real64*t_12
+      t_38 = t_36*t_37
+      t_39 = q2_x*t_38
+      f(10) = self%constants(25) + t_39
+      t_40 = q2_y*t_38
+      f(11) = self%constants(26) + t_40
+      t_41 = q2_z*t_38
+      f(12) = self%constants(27) + t_41
+      t_42 = self%constants(100)*gamma + t_11
+      t_43 = t_13*t_42
+      t_44 = exp_1*(self%constants(30)*t_34*t_9 + self%constants(91)*gamma + t_43)
+      t_45 = self%constants(92)*t_12
+      f(13) = t_44*t_45
+      f(14) = self%parameters%conductivity*t_12 + self%constants(93)*t_16 - t_1*t_23 - t_2*t_24 - t_25*t_3
+      f(15) = self%parameters%conductivity*t_16 + self%constants(93)*t_12 - t_39*t_4 - t_40*t_5 - t_41*t_6
+      t_46 = 1.0_real64/C_1**2
+      t_47 = t_46*t_8
+      t_48 = t_21*(self%constants(112)*t_18**2/t_16**2 + self%constants(36)*t_46 + self%constants(4)*t_46 + &
+          self%constants(6)*t_47 + t_17*(self%constants(38)*t_46 + self%constants(7)*t_46 + self%constants(8)*t_47))
+      t_49 = q1_x*t_48
+      t_50 = self%constants(113)*t_20
+      t_51 = q1_x*t_50
+      t_52 = 2.0_real64*t_18*t_51 + 2.0_real64*t_49
+      jacobian(7, 1) = q1_x*t_52 + t_22
+      jacobian(7, 2) = q1_y*t_52
+      jacobian(7, 3) = q1_z*t_52
+      t_53 = self%constants(94)*t_19
+      jacobian(7, 14) = q1_x*t_53 + t_51
+      t_54 = q1_y*t_48
+      t_55 = q1_y*t_50
+      t_56 = 2.0_real64*t_18*t_55 + 2.0_real64*t_54
+      jacobian(8, 1) = q1_x*t_56
+      jacobian(8, 2) = q1_y*t_56 + t_22
+      jacobian(8, 3) = q1_z*t_56
+      jacobian(8, 14) = q1_y*t_53 + t_55
+      t_57 = q1_z*t_48
+      t_58 = q1_z*t_50
+      t_59 = 2.0_real64*t_18*t_58 + 2.0_real64*t_57
+      jacobian(9, 1) = q1_x*t_59
+      jacobian(9, 2) = q1_y*t_59
+      jacobian(9, 3) = q1_z*t_59 + t_22
+      jacobian(9, 14) = q1_z*t_53 + t_58
+      t_60 = 1.0_real64/C_2**2
+      t_61 = t_60*t_7
+      t_62 = gamma/C_2_root_2**5
+      t_63 = self%constants(76)/t_12**2
+      t_64 = self%constants(14)*(self%constants(16)*t_60 + self%constants(4)*t_60 + self%constants(45)*t_61) + &
+          self%constants(49)*t_34*t_62 + self%constants(98)*t_62 + t_13*(self%constants(17)*(self%constants(13)*t_60 &
+          + self%constants(37)*t_60 + self%constants(44)*t_61) + self%constants(47)*t_10*t_62 + self%constants(62) &
+          *t_62) + t_31**2*t_63
+      t_65 = q2_x*t_37
+      t_66 = t_64*t_65
+      t_67 = self%constants(114)*t_36
+      t_68 = q2_x*t_67
+      t_69 = 2.0_real64*t_31*t_68 + 2.0_real64*t_66
+      jacobian(10, 4) = q2_x*t_69 + t_38
+      jacobian(10, 5) = q2_y*t_69
+      jacobian(10, 6) = q2_z*t_69
+      t_70 = t_13*(t_29 + t_30) + t_31*t_42*t_63 + t_33 + t_35
+      t_71 = t_65*t_70
+      jacobian(10, 13) = t_42*t_68 + t_71
+      t_72 = self%constants(96)*t_32
+      jacobian(10, 15) = q2_x*t_72 + t_68
+      t_73 = q2_y*t_37
+      t_74 = t_64*t_73
+      t_75 = q2_y*t_67
+      t_76 = 2.0_real64*t_31*t_75 + 2.0_real64*t_74
+      jacobian(11, 4) = q2_x*t_76
+      jacobian(11, 5) = q2_y*t_76 + t_38
+      jacobian(11, 6) = q2_z*t_76
+      t_77 = t_70*t_73
+      jacobian(11, 13) = t_42*t_75 + t_77
+      jacobian(11, 15) = q2_y*t_72 + t_75
+      t_78 = q2_z*t_37
+      t_79 = t_64*t_78
+      t_80 = q2_z*t_67
+      t_81 = 2.0_real64*t_31*t_80 + 2.0_real64*t_79
+      jacobian(12, 4) = q2_x*t_81
+      jacobian(12, 5) = q2_y*t_81
+      jacobian(12, 6) = q2_z*t_81 + t_38
+      t_82 = t_70*t_78
+      jacobian(12, 13) = t_42*t_80 + t_82
+      jacobian(12, 15) = q2_z*t_72 + t_80
+      t_83 = self%constants(115)*t_44
+      t_84 = exp_1*t_45
+      t_85 = self%constants(116)*t_44
+      t_86 = 2.0_real64*t_31*t_83 + 2.0_real64*t_32*t_85 + 2.0_real64*t_70*t_84
+      jacobian(13, 4) = q2_x*t_86
+      jacobian(13, 5) = q2_y*t_86
+      jacobian(13, 6) = q2_z*t_86
+      jacobian(13, 13) = t_42*t_83 + t_43*t_85 + t_84*(self%constants(100)*t_13 + self%constants(91) + t_42**2*t_63)
+      jacobian(13, 15) = self%constants(97)*exp_1*t_43 + t_13*t_85 + t_83
+      t_87 = self%constants(94)*t_20
+      t_88 = q1_x*t_1
+      t_89 = t_87*t_88
+      t_90 = q1_y*t_2
+      t_91 = t_87*t_90
+      t_92 = q1_z*t_3
+      t_93 = t_87*t_92
+      t_94 = self%constants(88)*t_18 - 2.0_real64*t_1*t_49 + 2.0_real64*t_18*t_89 + 2.0_real64*t_18*t_91 + 2.0_real64 &
+          *t_18*t_93 - 2.0_real64*t_2*t_54 - 2.0_real64*t_3*t_57
+      jacobian(14, 1) = q1_x*t_94 - t_1*t_22
+      jacobian(14, 2) = q1_y*t_94 - t_2*t_22
+      jacobian(14, 3) = q1_z*t_94 - t_22*t_3
+      t_95 = self%constants(58)*t_31
+      jacobian(14, 4) = q2_x*t_95
+      jacobian(14, 5) = q2_y*t_95
+      jacobian(14, 6) = q2_z*t_95
+      t_96 = t_16*t_20
+      t_97 = self%constants(117)*t_96
+      jacobian(14, 7) = q1_x*t_97
+      jacobian(14, 8) = q1_y*t_97
+      jacobian(14, 9) = q1_z*t_97
+      t_98 = self%constants(118)*t_96
+      jacobian(14, 10) = q1_x*t_98
+      jacobian(14, 11) = q1_y*t_98
+      jacobian(14, 12) = q1_z*t_98
+      jacobian(14, 13) = self%constants(59)*t_42
+      t_99 = self%constants(113)*t_19
+      jacobian(14, 14) = self%constants(56) + t_88*t_99 + t_89 + t_90*t_99 + t_91 + t_92*t_99 + t_93
+      t_100 = self%constants(60)*t_18
+      jacobian(15, 1) = q1_x*t_100
+      jacobian(15, 2) = q1_y*t_100
+      jacobian(15, 3) = q1_z*t_100
+      t_101 = self%constants(96)*t_36
+      t_102 = q2_x*t_4
+      t_103 = t_101*t_102
+      t_104 = q2_y*t_5
+      t_105 = t_101*t_104
+      t_106 = q2_z*t_6
+      t_107 = t_101*t_106
+      t_108 = self%constants(89)*t_31 + 2.0_real64*t_103*t_31 + 2.0_real64*t_105*t_31 + 2.0_real64*t_107*t_31 - &
+          2.0_real64*t_4*t_66 - 2.0_real64*t_5*t_74 - 2.0_real64*t_6*t_79
+      jacobian(15, 4) = q2_x*t_108 - t_38*t_4
+      jacobian(15, 5) = q2_y*t_108 - t_38*t_5
+      jacobian(15, 6) = q2_z*t_108 - t_38*t_6
+      t_109 = t_12*t_36
+      t_110 = self%constants(118)*t_109
+      jacobian(15, 7) = q2_x*t_110
+      jacobian(15, 8) = q2_y*t_110
+      jacobian(15, 9) = q2_z*t_110
+      t_111 = self%constants(119)*t_109
+      jacobian(15, 10) = q2_x*t_111
+      jacobian(15, 11) = q2_y*t_111
+      jacobian(15, 12) = q2_z*t_111
+      jacobian(15, 13) = self%constants(61)*t_42 + t_103*t_42 + t_105*t_42 + t_107*t_42 - t_4*t_71 - t_5*t_77 - t_6*t_82
+      t_112 = self%constants(114)*t_32
+      jacobian(15, 15) = self%constants(61) + t_102*t_112 + t_103 + t_104*t_112 + t_105 + t_106*t_112 + t_107
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
         f(14) + f(15)) <= huge(1.0_real64))) stat = domain_overflow
-  end subroutine continuous_field
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class(paper_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(15)
+    real(real64), intent(out) :: f(15)
+    integer, intent(out) :: stat
+    real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, gamma, tau_1, tau_2, C_1, &
+        C_2, C_2_root_2, exp_1, exp_2, exp_3, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, &
+        t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28
+
+    stat = failure_none
+    q1_x = z(1)
+    q1_y = z(2)
+    q1_z = z(3)
+    q2_x = z(4)
+    q2_y = z(5)
+    q2_z = z(6)
+    p1_x = z(7)
+    p1_y = z(8)
+    p1_z = z(9)
+    p2_x = z(10)
+    p2_y = z(11)
+    p2_z = z(12)
+    gamma = z(13)
+    tau_1 = z(14)
+    tau_2 = z(15)
+    C_1 = q1_x**2 + q1_y**2 + q1_z**2
+    C_2 = q2_x**2 + q2_y**2 + q2_z**2
+    select case (self%thermo_variable)
+    case (tau_entropy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      C_2_root_2 = sqrt(C_2)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(12))
+      if (.not. (abs(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1))
+      t_3 = 1.0_real64/C_2_root_2
+      t_4 = self%parameters%beta + self%constants(19)*t_2
+      t_5 = self%parameters%beta_v*t_3*t_4
+      if (.not. (abs(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_2 = exp(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
+          self%constants(74)*gamma**2 + gamma*t_5 + tau_2))
+      t_6 = self%constants(34)*exp_2
+      if (.not. (self%constants(78)*(self%constants(77) + t_6) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_3 = exp(self%constants(78)*(self%constants(77) + t_6))
+      t_7 = 1.0_real64/C_1
+      t_8 = t_1*t_7
+      t_9 = self%constants(22)*t_7 + self%constants(63)*exp_1*(self%constants(4)*t_7 + self%constants(6)*t_8) + &
+          self%constants(79)*t_8
+      f(7) = self%constants(9) - q1_x*t_9
+      f(8) = self%constants(10) - q1_y*t_9
+      f(9) = self%constants(11) - q1_z*t_9
+      t_10 = 1.0_real64/C_2
+      t_11 = t_10*t_2
+      t_12 = gamma/C_2_root_2**3
+      t_13 = 1.0_real64/exp_2
+      t_14 = t_13*self%parameters%theta_ref
+      t_15 = self%constants(21)*t_2 + self%constants(22)
+      t_16 = self%parameters%beta_v*t_12*t_15 + self%constants(62)*t_12 + self%constants(80)*(self%constants(13)*t_11 &
+          + self%constants(7)*t_10) + 2.0_real64*t_14*(self%constants(17)*(self%constants(15)*t_10 + &
+          self%constants(16)*t_11) + self%constants(18)*t_12 + self%constants(20)*t_12*t_4)
+      f(10) = self%constants(25) - q2_x*t_16
+      f(11) = self%constants(26) - q2_y*t_16
+      f(12) = self%constants(27) - q2_z*t_16
+      t_17 = self%constants(28)*gamma + self%constants(30)*t_15*t_3 + t_14*(self%constants(29)*gamma + t_5)
+      f(13) = self%constants(31)*exp_3*t_17
+      f(14) = self%constants(34)*(self%constants(32)*t_13 + self%constants(33)*exp_1)/exp_1
+      f(15) = self%constants(35)*exp_2*exp_3*t_17**2 + t_6*(self%constants(32)*exp_1 + self%constants(33)*t_13)
+    case (tau_temperature)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      t_7 = 1.0_real64/C_1
+      t_8 = t_7*log(C_1*self%constants(5))
+      t_9 = log(C_2*self%constants(12))
+      t_10 = 1.0_real64/tau_2
+      if (.not. (self%constants(78)*(self%constants(77) + t_10) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(78)*(self%constants(77) + t_10))
+      t_11 = self%constants(22)*t_7 + self%constants(79)*t_8
+      t_12 = tau_1*(self%constants(15)*t_7 + self%constants(36)*t_8)
+      t_13 = 2.0_real64*t_12
+      f(7) = self%constants(9) - q1_x*t_11 + q1_x*t_13
+      f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_13
+      f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_13
+      t_14 = 1.0_real64/C_2
+      t_15 = t_14*t_9
+      t_16 = gamma/C_2_root_2**3
+      t_17 = self%constants(21)*t_9 + self%constants(22)
+      t_18 = self%constants(23)*t_16
+      t_19 = self%constants(62)*t_16 + self%constants(80)*(self%constants(13)*t_15 + self%constants(7)*t_14) + &
+          2.0_real64*t_17*t_18
+      t_20 = self%parameters%beta + self%constants(19)*t_9
+      t_21 = tau_2*(self%constants(14)*(self%constants(15)*t_14 + self%constants(16)*t_15) + self%constants(90)*t_16 &
+          + t_18*t_20)
+      t_22 = 2.0_real64*t_21
+      f(10) = self%constants(25) - q2_x*t_19 + q2_x*t_22
+      f(11) = self%constants(26) - q2_y*t_19 + q2_y*t_22
+      f(12) = self%constants(27) - q2_z*t_19 + q2_z*t_22
+      t_23 = self%constants(30)/C_2_root_2
+      t_24 = self%constants(28)*gamma + t_17*t_23
+      t_25 = exp_1*tau_2*(self%constants(91)*gamma - t_10*t_24 + t_20*t_23)
+      f(13) = self%constants(92)*t_25
+      t_26 = self%constants(94)*t_12
+      f(14) = self%constants(73)*(self%parameters%conductivity*tau_2 + self%constants(93)*tau_1) + q1_x*t_1*t_26 + &
+          q1_y*t_2*t_26 + q1_z*t_26*t_3
+      t_27 = self%constants(96)*t_21
+      f(15) = self%constants(95)*(self%parameters%conductivity*tau_1 + self%constants(93)*tau_2) + self%constants(97) &
+          *t_24*t_25 + q2_x*t_27*t_4 + q2_y*t_27*t_5 + q2_z*t_27*t_6
+    case (tau_internal_energy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      t_7 = log(C_2*self%constants(12))
+      t_8 = log(C_1*self%constants(5))
+      t_9 = 1.0_real64/C_2_root_2
+      t_10 = self%constants(21)*t_7 + self%constants(22)
+      t_11 = self%parameters%beta_v*t_10*t_9
+      t_12 = self%constants(95)*(self%constants(109)*gamma**2 + self%constants(17)*(self%constants(110)*t_7**2 + &
+          self%constants(7)*t_7) + gamma*t_11 + tau_2) + self%parameters%theta_ref
+      t_13 = 1.0_real64/t_12
+      if (.not. (self%constants(78)*(self%constants(77) + t_13) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(78)*(self%constants(77) + t_13))
+      t_14 = self%constants(73)*(self%constants(108)*t_8**2 + self%constants(37)*t_8 + tau_1) + &
+          self%parameters%theta_ref
+      t_15 = 1.0_real64/C_1
+      t_16 = t_15*t_8
+      t_17 = 2.0_real64*t_14*(self%constants(15)*t_15 + self%constants(36)*t_16 + (self%constants(37)*t_15 + &
+          self%constants(38)*t_16)/t_14)
+      t_18 = q1_x*t_17
+      f(7) = self%constants(9) + t_18
+      t_19 = q1_y*t_17
+      f(8) = self%constants(10) + t_19
+      t_20 = q1_z*t_17
+      f(9) = self%constants(11) + t_20
+      t_21 = 1.0_real64/C_2
+      t_22 = t_21*t_7
+      t_23 = gamma/C_2_root_2**3
+      t_24 = self%parameters%beta + self%constants(19)*t_7
+      t_25 = 2.0_real64*t_12*(self%constants(14)*(self%constants(15)*t_21 + self%constants(16)*t_22) + &
+          self%constants(23)*t_23*t_24 + self%constants(90)*t_23 + t_13*(self%constants(111)*t_23 + &
+          self%constants(17)*(self%constants(13)*t_22 + self%constants(7)*t_21) + self%constants(20)*t_10*t_23))
+      t_26 = q2_x*t_25
+      f(10) = self%constants(25) + t_26
+      t_27 = q2_y*t_25
+      f(11) = self%constants(26) + t_27
+      t_28 = q2_z*t_25
+      f(12) = self%constants(27) + t_28
+      f(13) = self%constants(92)*exp_1*t_12*(self%constants(30)*t_24*t_9 + self%constants(91)*gamma + t_13 &
+          *(self%constants(100)*gamma + t_11))
+      f(14) = self%parameters%conductivity*t_12 + self%constants(93)*t_14 - t_1*t_18 - t_19*t_2 - t_20*t_3
+      f(15) = self%parameters%conductivity*t_14 + self%constants(93)*t_12 - t_26*t_4 - t_27*t_5 - t_28*t_6
+    end select
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
+        f(14) + f(15)) <= huge(1.0_real64))) stat = domain_overflow
+  end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
   pure function momenta(self, z) result(values)

@@ -62,9 +62,9 @@ contains
     real(real64), intent(out) :: f(:), grad(:, :)
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
-    real(real64) :: C, tau, gamma, C_root_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, &
-        t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, &
-        t_32, t_33, t_34, t_35, t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50
+    real(real64) :: C, tau, exp_1, gamma, C_root_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, &
+        t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, &
+        t_31, t_32, t_33, t_34, t_35, t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46
 
     f = 0.0_real64
     grad = 0.0_real64
@@ -80,65 +80,63 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_1**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
-        if (.not. ((-0.5_real64*self%parameters%beta*log(C/self%parameters%natural_length_1**2) - 0.125_real64 &
-            *self%parameters%mu_eq_slope_1*log(C/self%parameters%natural_length_1**2)**2 + &
-            tau)/self%parameters%heat_capacity_1 <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%heat_capacity_1
-          t_2 = log(C/self%parameters%natural_length_1**2)
-          t_3 = (0.5_real64)*self%parameters%beta
-          t_4 = t_2*t_3
-          t_5 = t_2**2
-          t_6 = (0.125_real64)*self%parameters%mu_eq_slope_1*t_5 + t_4 - tau
-          t_7 = self%parameters%theta_ref*exp(-t_1*t_6)
-          t_8 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
-          t_9 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_8
-          t_10 = 1.0_real64/C
-          t_11 = t_10*t_3
-          t_12 = self%parameters%mu_eq_slope_1*t_2
-          t_13 = (0.25_real64)*t_10
-          t_14 = 2.0_real64*self%parameters%beta + t_12
-          t_15 = self%parameters%theta_ref*exp(-t_1*t_6)
-          t_16 = t_1*t_15
-          t_17 = -t_13*t_14*t_16
-          f(1) = self%parameters%heat_capacity_1*(t_7 - self%parameters%theta_ref) + t_4*self%parameters%theta_ref + &
-              (0.25_real64)*t_5*t_9
           f(2) = tau
-          grad(1, 1) = (0.5_real64)*t_10*t_2*t_9 + t_11*self%parameters%theta_ref + t_7*(-t_11 - t_12*t_13)
-          grad(2, 1) = t_7
           grad(2, 2) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_1**2)
+          t_2 = 1.0_real64/self%parameters%heat_capacity_1
+          t_3 = (0.5_real64)*self%parameters%beta
+          t_4 = t_1*t_3
+          t_5 = t_1**2
+          if (.not. (t_2*(-0.125_real64*self%parameters%mu_eq_slope_1*t_5 - t_4 + tau) <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(t_2*(-0.125_real64*self%parameters%mu_eq_slope_1*t_5 - t_4 + tau))
+          t_6 = exp_1*self%parameters%theta_ref
+          t_7 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
+          t_8 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_7
+          f(1) = self%parameters%heat_capacity_1*(t_6 - self%parameters%theta_ref) + t_4*self%parameters%theta_ref + &
+              (0.25_real64)*t_5*t_8
+          t_9 = 1.0_real64/C
+          t_10 = t_3*t_9
+          t_11 = self%parameters%mu_eq_slope_1*t_1
+          t_12 = (0.25_real64)*t_9
+          grad(1, 1) = (0.5_real64)*t_1*t_8*t_9 + t_10*self%parameters%theta_ref + t_6*(-t_10 - t_11*t_12)
+          grad(2, 1) = t_6
+          t_13 = 2.0_real64*self%parameters%beta + t_11
+          t_14 = t_2*t_6
           hess(1, 1, 1) = (0.0625_real64)*(-8.0_real64*self%parameters%beta*self%parameters%theta_ref + 4.0_real64 &
-              *self%parameters%mu_eq_const_1 + t_14**2*t_16 + 4.0_real64*t_15*(-self%parameters%mu_eq_slope_1 + t_14) &
-              - 4.0_real64*t_2*(self%parameters%mu_eq_const_1 + t_8) + 4.0_real64*t_8)/C**2
-          hess(1, 2, 1) = t_17
-          hess(2, 1, 1) = t_17
-          hess(2, 2, 1) = t_16
+              *self%parameters%mu_eq_const_1 - 4.0_real64*t_1*(self%parameters%mu_eq_const_1 + t_7) + t_13**2*t_14 + &
+              4.0_real64*t_6*(-self%parameters%mu_eq_slope_1 + t_13) + 4.0_real64*t_7)/C**2
+          t_15 = -t_12*t_13*t_14
+          hess(1, 2, 1) = t_15
+          hess(2, 1, 1) = t_15
+          hess(2, 2, 1) = t_14
         else
+          f(2) = tau
+          grad(2, 2) = 1.0_real64
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = (0.5_real64)*self%parameters%beta
           t_3 = t_1*t_2
           t_4 = t_1**2
-          t_5 = self%parameters%theta_ref*exp((-0.125_real64*self%parameters%mu_eq_slope_1*t_4 - t_3 + &
-              tau)/self%parameters%heat_capacity_1)
+          if (.not. ((-0.125_real64*self%parameters%mu_eq_slope_1*t_4 - t_3 + tau)/self%parameters%heat_capacity_1 <= &
+              max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp((-0.125_real64*self%parameters%mu_eq_slope_1*t_4 - t_3 + tau)/self%parameters%heat_capacity_1)
+          t_5 = exp_1*self%parameters%theta_ref
           t_6 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*self%parameters%mu_eq_slope_1 &
               *self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity_1*(t_5 - self%parameters%theta_ref) + t_3*self%parameters%theta_ref + &
+              (0.25_real64)*t_4*t_6
           t_7 = 1.0_real64/C
           t_8 = t_2*t_7
           t_9 = t_1*t_7
-          f(1) = self%parameters%heat_capacity_1*(t_5 - self%parameters%theta_ref) + t_3*self%parameters%theta_ref + &
-              (0.25_real64)*t_4*t_6
-          f(2) = tau
           grad(1, 1) = t_5*(-0.25_real64*self%parameters%mu_eq_slope_1*t_9 - t_8) + (0.5_real64)*t_6*t_9 + t_8 &
               *self%parameters%theta_ref
           grad(2, 1) = t_5
-          grad(2, 2) = 1.0_real64
         end if
       case (tau_temperature)
         C = x(1)
@@ -147,54 +145,50 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_1**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
         if (.not. (tau/self%parameters%theta_ref > 0.0_real64)) then
           stat = domain_nonpositive_temperature
           return
         end if
         if (present(hess)) then
+          grad(2, 1) = self%parameters%heat_capacity_1
+          grad(2, 2) = self%parameters%heat_capacity_1/tau
+          hess(2, 2, 2) = -self%parameters%heat_capacity_1/tau**2
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = t_1**2
           t_3 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
           t_4 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_3
           t_5 = (0.5_real64)*self%parameters%beta
           t_6 = t_1*t_5
-          t_7 = 1.0_real64/C
-          t_8 = t_5*t_7
-          t_9 = self%parameters%mu_eq_slope_1*t_1
-          t_10 = 2.0_real64*self%parameters%beta
-          t_11 = (0.25_real64)/C**2
           f(1) = self%parameters%heat_capacity_1*(tau - self%parameters%theta_ref) + (0.25_real64)*t_2*t_4 + t_6 &
               *self%parameters%theta_ref
           f(2) = self%parameters%heat_capacity_1*log(tau/self%parameters%theta_ref) + (0.125_real64) &
               *self%parameters%mu_eq_slope_1*t_2 + t_6
+          t_7 = 1.0_real64/C
+          t_8 = t_5*t_7
           grad(1, 1) = (0.5_real64)*t_1*t_4*t_7 + t_8*self%parameters%theta_ref
-          grad(2, 1) = self%parameters%heat_capacity_1
+          t_9 = self%parameters%mu_eq_slope_1*t_1
           grad(1, 2) = (0.25_real64)*t_7*t_9 + t_8
-          grad(2, 2) = self%parameters%heat_capacity_1/tau
+          t_10 = 2.0_real64*self%parameters%beta
+          t_11 = (0.25_real64)/C**2
           hess(1, 1, 1) = t_11*(self%parameters%mu_eq_const_1 + self%parameters%mu_eq_slope_1 &
               *self%parameters%theta_ref - t_1*(self%parameters%mu_eq_const_1 + t_3) - t_10*self%parameters%theta_ref)
           hess(1, 1, 2) = t_11*(self%parameters%mu_eq_slope_1 - t_10 - t_9)
-          hess(2, 2, 2) = -self%parameters%heat_capacity_1/tau**2
         else
+          grad(2, 1) = self%parameters%heat_capacity_1
+          grad(2, 2) = self%parameters%heat_capacity_1/tau
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = t_1**2
           t_3 = (0.5_real64)*self%parameters%theta_ref
           t_4 = (0.5_real64)*self%parameters%mu_eq_const_1 + self%parameters%mu_eq_slope_1*t_3
           t_5 = self%parameters%beta*t_3
-          t_6 = (0.5_real64)*self%parameters%beta
-          t_7 = 1.0_real64/C
-          t_8 = t_1*t_7
           f(1) = self%parameters%heat_capacity_1*(tau - self%parameters%theta_ref) + t_1*t_5 + (0.25_real64)*t_2*t_4
+          t_6 = (0.5_real64)*self%parameters%beta
           f(2) = self%parameters%heat_capacity_1*log(tau/self%parameters%theta_ref) + (0.125_real64) &
               *self%parameters%mu_eq_slope_1*t_2 + t_1*t_6
+          t_7 = 1.0_real64/C
+          t_8 = t_1*t_7
           grad(1, 1) = (0.5_real64)*t_4*t_8 + t_5*t_7
-          grad(2, 1) = self%parameters%heat_capacity_1
           grad(1, 2) = (0.25_real64)*self%parameters%mu_eq_slope_1*t_8 + t_6*t_7
-          grad(2, 2) = self%parameters%heat_capacity_1/tau
         end if
       case (tau_internal_energy)
         C = x(1)
@@ -216,38 +210,40 @@ contains
           return
         end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%heat_capacity_1
-          t_2 = log(C/self%parameters%natural_length_1**2)
-          t_3 = t_2**2
-          t_4 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
-          t_5 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_4
-          t_6 = (0.5_real64)*self%parameters%beta
-          t_7 = t_2*t_6
-          t_8 = t_1*(-0.25_real64*t_3*t_5 - t_7*self%parameters%theta_ref + tau) + self%parameters%theta_ref
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_1**2)
+          t_2 = t_1**2
+          t_3 = (0.5_real64)*self%parameters%beta
+          t_4 = t_1*t_3
+          t_5 = 1.0_real64/self%parameters%heat_capacity_1
+          t_6 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
+          t_7 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_6
+          t_8 = t_5*(-0.25_real64*t_2*t_7 - t_4*self%parameters%theta_ref + tau) + self%parameters%theta_ref
+          f(2) = self%parameters%heat_capacity_1*log(t_8/self%parameters%theta_ref) + (0.125_real64) &
+              *self%parameters%mu_eq_slope_1*t_2 + t_4
           t_9 = 1.0_real64/t_8
           t_10 = 1.0_real64/C
-          t_11 = t_10*t_6
-          t_12 = self%parameters%mu_eq_slope_1*t_2
+          t_11 = t_10*t_3
+          t_12 = self%parameters%mu_eq_slope_1*t_1
           t_13 = (0.25_real64)*t_10
-          t_14 = 2.0_real64*self%parameters%beta
-          t_15 = self%parameters%mu_eq_const_1 + t_4
-          t_16 = t_1*(4.0_real64*self%parameters%beta*t_2*self%parameters%theta_ref + t_15*t_3 - 8.0_real64*tau)
-          t_17 = -t_16 + 8.0_real64*self%parameters%theta_ref
-          t_18 = t_14*self%parameters%theta_ref + t_15*t_2
-          t_19 = t_1/(-0.125_real64*t_16 + self%parameters%theta_ref)**2
-          t_20 = t_13*t_18*t_19
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity_1*log(t_8/self%parameters%theta_ref) + (0.125_real64) &
-              *self%parameters%mu_eq_slope_1*t_3 + t_7
-          grad(2, 1) = 1.0_real64
-          grad(1, 2) = t_11 + t_12*t_13 + t_9*(-0.5_real64*t_10*t_2*t_5 - t_11*self%parameters%theta_ref)
+          grad(1, 2) = t_11 + t_12*t_13 + t_9*(-0.5_real64*t_1*t_10*t_7 - t_11*self%parameters%theta_ref)
           grad(2, 2) = t_9
-          hess(1, 1, 2) = (0.25_real64)*(self%parameters%mu_eq_slope_1 - 16.0_real64*t_1*t_18**2/t_17**2 - t_12 - &
-              t_14 + 8.0_real64*(-self%parameters%mu_eq_const_1 + t_18 - t_4)/t_17)/C**2
+          t_14 = 2.0_real64*self%parameters%beta
+          t_15 = self%parameters%mu_eq_const_1 + t_6
+          t_16 = t_5*(4.0_real64*self%parameters%beta*t_1*self%parameters%theta_ref + t_15*t_2 - 8.0_real64*tau)
+          t_17 = -t_16 + 8.0_real64*self%parameters%theta_ref
+          t_18 = t_1*t_15 + t_14*self%parameters%theta_ref
+          hess(1, 1, 2) = (0.25_real64)*(self%parameters%mu_eq_slope_1 - t_12 - t_14 + 8.0_real64*( &
+              -self%parameters%mu_eq_const_1 + t_18 - t_6)/t_17 - 16.0_real64*t_18**2*t_5/t_17**2)/C**2
+          t_19 = t_5/(-0.125_real64*t_16 + self%parameters%theta_ref)**2
+          t_20 = t_13*t_18*t_19
           hess(1, 2, 2) = t_20
           hess(2, 1, 2) = t_20
           hess(2, 2, 2) = -t_19
         else
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = t_1**2
           t_3 = (0.5_real64)*self%parameters%theta_ref
@@ -255,13 +251,11 @@ contains
           t_5 = self%parameters%beta*t_3
           t_6 = self%parameters%theta_ref + (-t_1*t_5 - 0.25_real64*t_2*t_4 + tau)/self%parameters%heat_capacity_1
           t_7 = (0.5_real64)*self%parameters%beta
+          f(2) = self%parameters%heat_capacity_1*log(t_6/self%parameters%theta_ref) + (0.125_real64) &
+              *self%parameters%mu_eq_slope_1*t_2 + t_1*t_7
           t_8 = 1.0_real64/t_6
           t_9 = 1.0_real64/C
           t_10 = t_1*t_9
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity_1*log(t_6/self%parameters%theta_ref) + (0.125_real64) &
-              *self%parameters%mu_eq_slope_1*t_2 + t_1*t_7
-          grad(2, 1) = 1.0_real64
           grad(1, 2) = (0.25_real64)*self%parameters%mu_eq_slope_1*t_10 + t_7*t_9 + t_8*(-0.5_real64*t_10*t_4 - t_5*t_9)
           grad(2, 2) = t_8
         end if
@@ -276,125 +270,121 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_2**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
-        if (.not. ((-gamma**2*self%parameters%mu_neq_slope + tau - (self%parameters%beta_v + 1.0_real64) &
-            *((0.5_real64)*self%parameters%beta*log(C/self%parameters%natural_length_2**2) + (0.125_real64) &
-            *self%parameters%mu_eq_slope_2*log(C/self%parameters%natural_length_2**2)**2) + self%parameters%beta_v &
-            *gamma*(self%parameters%beta + (0.5_real64)*self%parameters%mu_eq_slope_2 &
-            *log(C/self%parameters%natural_length_2**2))/sqrt(C))/(self%parameters%heat_capacity_2 &
-            *(self%parameters%beta_v + 1.0_real64)) <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         C_root_2 = sqrt(C)
         if (present(hess)) then
-          t_1 = gamma**2
-          t_2 = self%parameters%mu_neq_slope*self%parameters%theta_ref
-          t_3 = self%parameters%mu_neq_const + t_2
-          t_4 = self%parameters%beta_v + 1.0_real64
-          t_5 = log(C/self%parameters%natural_length_2**2)
-          t_6 = t_5**2
-          t_7 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-          t_8 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_7
-          t_9 = self%parameters%beta*self%parameters%theta_ref
-          t_10 = (0.5_real64)*t_9
-          t_11 = (0.5_real64)*self%parameters%beta
-          t_12 = 1.0_real64/C_root_2
-          t_13 = self%parameters%mu_eq_slope_2*t_5
-          t_14 = self%parameters%beta + (0.5_real64)*t_13
-          t_15 = self%parameters%mu_neq_slope*t_1 - tau
-          t_16 = 1.0_real64/(self%parameters%heat_capacity_2*t_4)
-          t_17 = self%parameters%theta_ref*exp(t_16*(self%parameters%beta_v*gamma*t_12*t_14 - t_15 - t_4 &
-              *(0.125_real64*self%parameters%mu_eq_slope_2*t_6 + t_11*t_5)))
-          t_18 = self%parameters%mu_eq_const_2 + t_7
-          t_19 = t_18*t_5
-          t_20 = (0.5_real64)*t_19 + t_9
-          t_21 = self%parameters%beta_v*t_12
-          t_22 = t_20*t_21
-          t_23 = 1.0_real64/C
-          t_24 = 1.0_real64/C_root_2**3
-          t_25 = self%parameters%beta_v*gamma
-          t_26 = t_24*t_25
-          t_27 = (0.5_real64)*t_26
-          t_28 = t_18*t_25
-          t_29 = 2.0_real64*gamma
-          t_30 = self%parameters%mu_neq_slope*t_29
-          t_31 = t_19 + 2.0_real64*t_9
-          t_32 = t_4/C**2
-          t_33 = 2.0_real64*self%parameters%beta + t_13
-          t_34 = 1.0_real64/C_root_2**5
-          t_35 = t_25*t_34
-          t_36 = t_21*t_33
-          t_37 = (0.5_real64)*t_36
-          t_38 = exp(-t_16*(-gamma*t_37 + t_15 + 0.125_real64*t_4*t_5*(4.0_real64*self%parameters%beta + t_13)))
-          t_39 = t_38*self%parameters%theta_ref
-          t_40 = (0.125_real64)*t_39
-          t_41 = -2.0_real64*self%parameters%mu_eq_slope_2*t_26 + t_23*t_33*t_4 + t_26*t_33
-          t_42 = t_16*t_39
-          t_43 = self%parameters%beta_v*t_24
-          t_44 = (0.25_real64)*t_43
-          t_45 = 4.0_real64*gamma*self%parameters%mu_neq_slope - t_36
-          t_46 = t_16*t_40*t_41*t_45 - 0.5_real64*t_18*t_43 + t_31*t_44 + t_39*t_44*(2.0_real64 &
-              *self%parameters%mu_eq_slope_2 - t_33)
-          t_47 = (0.25_real64)*t_42
-          t_48 = -t_41*t_47
-          t_49 = 2.0_real64*t_2
-          t_50 = -t_42*(t_30 - t_37)
-          f(1) = -gamma*t_22 + self%parameters%heat_capacity_2*t_4*(t_17 - self%parameters%theta_ref) + t_1*t_3 + t_4 &
-              *(t_10*t_5 + (0.25_real64)*t_6*t_8)
           f(2) = tau
-          grad(1, 1) = t_17*((0.5_real64)*self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_24 - t_14*t_27 &
-              - t_4*(t_11*t_23 + (0.25_real64)*t_13*t_23)) + t_20*t_27 - 0.5_real64*t_24*t_28 + t_4*(t_10*t_23 + &
-              (0.5_real64)*t_23*t_5*t_8)
-          grad(2, 1) = t_17*(self%parameters%beta_v*t_12*t_14 - t_30) - t_22 + t_29*t_3
-          grad(3, 1) = t_17
           grad(3, 2) = 1.0_real64
-          hess(1, 1, 1) = t_28*t_34 - 0.375_real64*t_31*t_35 - 0.25_real64*t_32*(-self%parameters%mu_eq_const_2 + &
-              t_31 - t_7) + t_40*(-8.0_real64*self%parameters%mu_eq_slope_2*t_35 + 2.0_real64*t_32*( &
-              -self%parameters%mu_eq_slope_2 + t_33) + 3.0_real64*t_33*t_35) + (0.0625_real64)*t_41**2*t_42
-          hess(1, 2, 1) = t_46
-          hess(1, 3, 1) = t_48
-          hess(2, 1, 1) = t_46
-          hess(2, 2, 1) = 2.0_real64*self%parameters%mu_neq_const - t_38*t_49 + t_45**2*t_47 + t_49
-          hess(2, 3, 1) = t_50
-          hess(3, 1, 1) = t_48
-          hess(3, 2, 1) = t_50
-          hess(3, 3, 1) = t_42
-        else
-          t_1 = gamma**2
-          t_2 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
+          t_1 = log(C/self%parameters%natural_length_2**2)
+          t_2 = gamma**2
           t_3 = self%parameters%beta_v + 1.0_real64
-          t_4 = log(C/self%parameters%natural_length_2**2)
-          t_5 = t_4**2
-          t_6 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-          t_7 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_6
-          t_8 = self%parameters%beta*self%parameters%theta_ref
-          t_9 = (0.5_real64)*t_4
-          t_10 = 1.0_real64/C_root_2
-          t_11 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_9
-          t_12 = self%parameters%theta_ref*exp((self%parameters%beta_v*gamma*t_10*t_11 - self%parameters%mu_neq_slope &
-              *t_1 - t_3*(self%parameters%beta*t_9 + 0.125_real64*self%parameters%mu_eq_slope_2*t_5) + &
-              tau)/(self%parameters%heat_capacity_2*t_3))
-          t_13 = self%parameters%mu_eq_const_2 + t_6
-          t_14 = t_13*t_9 + t_8
-          t_15 = self%parameters%beta_v*t_10*t_14
+          t_4 = (0.5_real64)*self%parameters%beta
+          t_5 = t_1**2
+          t_6 = 1.0_real64/C_root_2
+          t_7 = self%parameters%mu_eq_slope_2*t_1
+          t_8 = self%parameters%beta + (0.5_real64)*t_7
+          t_9 = 1.0_real64/(self%parameters%heat_capacity_2*t_3)
+          if (.not. (t_9*(self%parameters%beta_v*gamma*t_6*t_8 - self%parameters%mu_neq_slope*t_2 - t_3 &
+              *((0.125_real64)*self%parameters%mu_eq_slope_2*t_5 + t_1*t_4) + tau) <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(t_9*(self%parameters%beta_v*gamma*t_6*t_8 - self%parameters%mu_neq_slope*t_2 - t_3 &
+              *((0.125_real64)*self%parameters%mu_eq_slope_2*t_5 + t_1*t_4) + tau))
+          t_10 = self%parameters%mu_neq_slope*self%parameters%theta_ref
+          t_11 = self%parameters%mu_neq_const + t_10
+          t_12 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
+          t_13 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_12
+          t_14 = self%parameters%beta*self%parameters%theta_ref
+          t_15 = (0.5_real64)*t_14
+          t_16 = exp_1*self%parameters%theta_ref
+          t_17 = self%parameters%mu_eq_const_2 + t_12
+          t_18 = t_1*t_17
+          t_19 = t_14 + (0.5_real64)*t_18
+          t_20 = self%parameters%beta_v*t_6
+          t_21 = t_19*t_20
+          f(1) = -gamma*t_21 + self%parameters%heat_capacity_2*t_3*(t_16 - self%parameters%theta_ref) + t_11*t_2 + &
+              t_3*(t_1*t_15 + (0.25_real64)*t_13*t_5)
+          t_22 = 1.0_real64/C
+          t_23 = 1.0_real64/C_root_2**3
+          t_24 = self%parameters%beta_v*gamma
+          t_25 = t_23*t_24
+          t_26 = (0.5_real64)*t_25
+          t_27 = t_17*t_24
+          grad(1, 1) = t_16*((0.5_real64)*self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_23 - t_26*t_8 &
+              - t_3*(t_22*t_4 + (0.25_real64)*t_22*t_7)) + t_19*t_26 - 0.5_real64*t_23*t_27 + t_3*((0.5_real64)*t_1 &
+              *t_13*t_22 + t_15*t_22)
+          t_28 = 2.0_real64*gamma
+          t_29 = self%parameters%mu_neq_slope*t_28
+          grad(2, 1) = t_11*t_28 + t_16*(self%parameters%beta_v*t_6*t_8 - t_29) - t_21
+          grad(3, 1) = t_16
+          t_30 = 2.0_real64*t_14 + t_18
+          t_31 = t_3/C**2
+          t_32 = 2.0_real64*self%parameters%beta + t_7
+          t_33 = 1.0_real64/C_root_2**5
+          t_34 = t_24*t_33
+          t_35 = (0.125_real64)*t_16
+          t_36 = -2.0_real64*self%parameters%mu_eq_slope_2*t_25 + t_22*t_3*t_32 + t_25*t_32
+          t_37 = t_16*t_9
+          hess(1, 1, 1) = t_27*t_33 - 0.375_real64*t_30*t_34 - 0.25_real64*t_31*(-self%parameters%mu_eq_const_2 - &
+              t_12 + t_30) + t_35*(-8.0_real64*self%parameters%mu_eq_slope_2*t_34 + 2.0_real64*t_31*( &
+              -self%parameters%mu_eq_slope_2 + t_32) + 3.0_real64*t_32*t_34) + (0.0625_real64)*t_36**2*t_37
+          t_38 = self%parameters%beta_v*t_23
+          t_39 = (0.25_real64)*t_38
+          t_40 = t_20*t_32
+          t_41 = 4.0_real64*gamma*self%parameters%mu_neq_slope - t_40
+          t_42 = t_16*t_39*(2.0_real64*self%parameters%mu_eq_slope_2 - t_32) - 0.5_real64*t_17*t_38 + t_30*t_39 + &
+              t_35*t_36*t_41*t_9
+          hess(1, 2, 1) = t_42
+          t_43 = (0.25_real64)*t_37
+          t_44 = -t_36*t_43
+          hess(1, 3, 1) = t_44
+          hess(2, 1, 1) = t_42
+          t_45 = 2.0_real64*t_10
+          hess(2, 2, 1) = -exp_1*t_45 + 2.0_real64*self%parameters%mu_neq_const + t_41**2*t_43 + t_45
+          t_46 = -t_37*(t_29 - 0.5_real64*t_40)
+          hess(2, 3, 1) = t_46
+          hess(3, 1, 1) = t_44
+          hess(3, 2, 1) = t_46
+          hess(3, 3, 1) = t_37
+        else
+          f(2) = tau
+          grad(3, 2) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_2**2)
+          t_2 = self%parameters%beta_v + 1.0_real64
+          t_3 = gamma**2
+          t_4 = (0.5_real64)*t_1
+          t_5 = t_1**2
+          t_6 = 1.0_real64/C_root_2
+          t_7 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_4
+          if (.not. ((self%parameters%beta_v*gamma*t_6*t_7 - self%parameters%mu_neq_slope*t_3 - t_2 &
+              *(self%parameters%beta*t_4 + (0.125_real64)*self%parameters%mu_eq_slope_2*t_5) + &
+              tau)/(self%parameters%heat_capacity_2*t_2) <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp((self%parameters%beta_v*gamma*t_6*t_7 - self%parameters%mu_neq_slope*t_3 - t_2 &
+              *(self%parameters%beta*t_4 + (0.125_real64)*self%parameters%mu_eq_slope_2*t_5) + &
+              tau)/(self%parameters%heat_capacity_2*t_2))
+          t_8 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
+          t_9 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
+          t_10 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_9
+          t_11 = self%parameters%beta*self%parameters%theta_ref
+          t_12 = exp_1*self%parameters%theta_ref
+          t_13 = self%parameters%mu_eq_const_2 + t_9
+          t_14 = t_11 + t_13*t_4
+          t_15 = self%parameters%beta_v*t_14*t_6
+          f(1) = -gamma*t_15 + self%parameters%heat_capacity_2*t_2*(t_12 - self%parameters%theta_ref) + t_2 &
+              *((0.25_real64)*t_10*t_5 + t_11*t_4) + t_3*t_8
           t_16 = 1.0_real64/C
           t_17 = (0.5_real64)*t_16
           t_18 = 1.0_real64/C_root_2**3
           t_19 = (0.5_real64)*self%parameters%beta_v*gamma*t_18
+          grad(1, 1) = t_12*((0.5_real64)*self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_18 - t_19*t_7 &
+              - t_2*(self%parameters%beta*t_17 + (0.25_real64)*self%parameters%mu_eq_slope_2*t_1*t_16)) - t_13*t_19 + &
+              t_14*t_19 + t_2*(t_10*t_16*t_4 + t_11*t_17)
           t_20 = 2.0_real64*gamma
-          f(1) = -gamma*t_15 + self%parameters%heat_capacity_2*t_3*(t_12 - self%parameters%theta_ref) + t_1*t_2 + t_3 &
-              *((0.25_real64)*t_5*t_7 + t_8*t_9)
-          f(2) = tau
-          grad(1, 1) = t_12*((0.5_real64)*self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_18 - t_11*t_19 &
-              - t_3*(self%parameters%beta*t_17 + (0.25_real64)*self%parameters%mu_eq_slope_2*t_16*t_4)) - t_13*t_19 + &
-              t_14*t_19 + t_3*(t_16*t_7*t_9 + t_17*t_8)
-          grad(2, 1) = t_12*(self%parameters%beta_v*t_10*t_11 - self%parameters%mu_neq_slope*t_20) - t_15 + t_2*t_20
+          grad(2, 1) = t_12*(self%parameters%beta_v*t_6*t_7 - self%parameters%mu_neq_slope*t_20) - t_15 + t_20*t_8
           grad(3, 1) = t_12
-          grad(3, 2) = 1.0_real64
         end if
       case (tau_temperature)
         C = x(1)
@@ -404,100 +394,96 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_2**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
         if (.not. (tau/self%parameters%theta_ref > 0.0_real64)) then
           stat = domain_nonpositive_temperature
           return
         end if
         C_root_2 = sqrt(C)
         if (present(hess)) then
-          t_1 = gamma**2
-          t_2 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
-          t_3 = self%parameters%beta_v + 1.0_real64
-          t_4 = log(C/self%parameters%natural_length_2**2)
-          t_5 = t_4**2
-          t_6 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-          t_7 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_6
-          t_8 = self%parameters%beta*self%parameters%theta_ref
-          t_9 = (0.5_real64)*t_8
-          t_10 = self%parameters%heat_capacity_2*t_3
-          t_11 = self%parameters%mu_eq_const_2 + t_6
-          t_12 = t_11*t_4
-          t_13 = (0.5_real64)*t_12 + t_8
-          t_14 = self%parameters%beta_v/C_root_2
-          t_15 = t_13*t_14
-          t_16 = (0.5_real64)*self%parameters%beta
-          t_17 = self%parameters%mu_eq_slope_2*t_4
-          t_18 = self%parameters%beta + (0.5_real64)*t_17
-          t_19 = t_14*t_18
-          t_20 = 1.0_real64/C
-          t_21 = self%parameters%beta_v*gamma
-          t_22 = (0.5_real64)/C_root_2**3
-          t_23 = t_21*t_22
-          t_24 = 2.0_real64*self%parameters%mu_neq_slope
-          t_25 = t_12 + 2.0_real64*t_8
-          t_26 = -self%parameters%mu_eq_const_2 - t_6
-          t_27 = (0.25_real64)*t_3/C**2
+          t_1 = self%parameters%beta_v + 1.0_real64
+          t_2 = self%parameters%heat_capacity_2*t_1
+          grad(3, 1) = t_2
+          grad(3, 2) = t_2/tau
+          t_3 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
+          hess(2, 2, 1) = 2.0_real64*t_3
+          t_4 = 2.0_real64*self%parameters%mu_neq_slope
+          hess(2, 2, 2) = t_4
+          hess(3, 3, 2) = -t_2/tau**2
+          t_5 = log(C/self%parameters%natural_length_2**2)
+          t_6 = gamma**2
+          t_7 = t_5**2
+          t_8 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
+          t_9 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_8
+          t_10 = self%parameters%beta*self%parameters%theta_ref
+          t_11 = (0.5_real64)*t_10
+          t_12 = self%parameters%mu_eq_const_2 + t_8
+          t_13 = t_12*t_5
+          t_14 = t_10 + (0.5_real64)*t_13
+          t_15 = self%parameters%beta_v/C_root_2
+          t_16 = t_14*t_15
+          f(1) = -gamma*t_16 + t_1*(t_11*t_5 + (0.25_real64)*t_7*t_9) + t_2*(tau - self%parameters%theta_ref) + t_3*t_6
+          t_17 = (0.5_real64)*self%parameters%beta
+          t_18 = self%parameters%mu_eq_slope_2*t_5
+          t_19 = self%parameters%beta + (0.5_real64)*t_18
+          t_20 = t_15*t_19
+          f(2) = -gamma*t_20 + self%parameters%mu_neq_slope*t_6 + t_1*((0.125_real64)*self%parameters%mu_eq_slope_2 &
+              *t_7 + t_17*t_5) + t_2*log(tau/self%parameters%theta_ref)
+          t_21 = 1.0_real64/C
+          t_22 = self%parameters%beta_v*gamma
+          t_23 = (0.5_real64)/C_root_2**3
+          t_24 = t_22*t_23
+          grad(1, 1) = t_1*(t_11*t_21 + (0.5_real64)*t_21*t_5*t_9) - t_12*t_24 + t_14*t_24
+          grad(2, 1) = 2.0_real64*gamma*t_3 - t_16
+          grad(1, 2) = -self%parameters%mu_eq_slope_2*t_24 + t_1*(t_17*t_21 + (0.25_real64)*t_18*t_21) + t_19*t_24
+          grad(2, 2) = gamma*t_4 - t_20
+          t_25 = 2.0_real64*t_10 + t_13
+          t_26 = -self%parameters%mu_eq_const_2 - t_8
+          t_27 = (0.25_real64)*t_1/C**2
           t_28 = 1.0_real64/C_root_2**5
-          t_29 = (0.375_real64)*t_21*t_28
-          t_30 = self%parameters%beta_v*t_22
-          t_31 = t_30*(t_13 + t_26)
-          t_32 = -self%parameters%mu_eq_slope_2
-          t_33 = 2.0_real64*self%parameters%beta + t_17
-          t_34 = t_30*(t_18 + t_32)
-          f(1) = -gamma*t_15 + t_1*t_2 + t_10*(tau - self%parameters%theta_ref) + t_3*(t_4*t_9 + (0.25_real64)*t_5*t_7)
-          f(2) = -gamma*t_19 + self%parameters%mu_neq_slope*t_1 + t_10*log(tau/self%parameters%theta_ref) + t_3 &
-              *((0.125_real64)*self%parameters%mu_eq_slope_2*t_5 + t_16*t_4)
-          grad(1, 1) = -t_11*t_23 + t_13*t_23 + t_3*((0.5_real64)*t_20*t_4*t_7 + t_20*t_9)
-          grad(2, 1) = 2.0_real64*gamma*t_2 - t_15
-          grad(3, 1) = t_10
-          grad(1, 2) = -self%parameters%mu_eq_slope_2*t_23 + t_18*t_23 + t_3*(t_16*t_20 + (0.25_real64)*t_17*t_20)
-          grad(2, 2) = gamma*t_24 - t_19
-          grad(3, 2) = t_10/tau
-          hess(1, 1, 1) = self%parameters%beta_v*gamma*t_11*t_28 - t_25*t_29 - t_27*(t_25 + t_26)
+          t_29 = (0.375_real64)*t_22*t_28
+          hess(1, 1, 1) = self%parameters%beta_v*gamma*t_12*t_28 - t_25*t_29 - t_27*(t_25 + t_26)
+          t_30 = self%parameters%beta_v*t_23
+          t_31 = t_30*(t_14 + t_26)
           hess(1, 2, 1) = t_31
           hess(2, 1, 1) = t_31
-          hess(2, 2, 1) = 2.0_real64*t_2
+          t_32 = -self%parameters%mu_eq_slope_2
+          t_33 = 2.0_real64*self%parameters%beta + t_18
           hess(1, 1, 2) = self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_28 - t_27*(t_32 + t_33) - t_29 &
               *t_33
+          t_34 = t_30*(t_19 + t_32)
           hess(1, 2, 2) = t_34
           hess(2, 1, 2) = t_34
-          hess(2, 2, 2) = t_24
-          hess(3, 3, 2) = -t_10/tau**2
         else
-          t_1 = gamma**2
-          t_2 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
-          t_3 = self%parameters%beta_v + 1.0_real64
-          t_4 = log(C/self%parameters%natural_length_2**2)
-          t_5 = t_4**2
-          t_6 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-          t_7 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_6
-          t_8 = self%parameters%beta*self%parameters%theta_ref
-          t_9 = (0.5_real64)*t_4
-          t_10 = self%parameters%heat_capacity_2*t_3
-          t_11 = self%parameters%mu_eq_const_2 + t_6
-          t_12 = t_11*t_9 + t_8
+          t_1 = self%parameters%beta_v + 1.0_real64
+          t_2 = self%parameters%heat_capacity_2*t_1
+          grad(3, 1) = t_2
+          grad(3, 2) = t_2/tau
+          t_3 = log(C/self%parameters%natural_length_2**2)
+          t_4 = gamma**2
+          t_5 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
+          t_6 = t_3**2
+          t_7 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
+          t_8 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_7
+          t_9 = self%parameters%beta*self%parameters%theta_ref
+          t_10 = (0.5_real64)*t_3
+          t_11 = self%parameters%mu_eq_const_2 + t_7
+          t_12 = t_10*t_11 + t_9
           t_13 = self%parameters%beta_v/C_root_2
           t_14 = t_12*t_13
-          t_15 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_9
+          f(1) = -gamma*t_14 + t_1*(t_10*t_9 + (0.25_real64)*t_6*t_8) + t_2*(tau - self%parameters%theta_ref) + t_4*t_5
+          t_15 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_10
           t_16 = t_13*t_15
+          f(2) = -gamma*t_16 + self%parameters%mu_neq_slope*t_4 + t_1*(self%parameters%beta*t_10 + (0.125_real64) &
+              *self%parameters%mu_eq_slope_2*t_6) + t_2*log(tau/self%parameters%theta_ref)
           t_17 = 1.0_real64/C
           t_18 = (0.5_real64)*t_17
           t_19 = (0.5_real64)*self%parameters%beta_v*gamma/C_root_2**3
+          grad(1, 1) = t_1*(t_10*t_17*t_8 + t_18*t_9) - t_11*t_19 + t_12*t_19
           t_20 = 2.0_real64*gamma
-          f(1) = -gamma*t_14 + t_1*t_2 + t_10*(tau - self%parameters%theta_ref) + t_3*((0.25_real64)*t_5*t_7 + t_8*t_9)
-          f(2) = -gamma*t_16 + self%parameters%mu_neq_slope*t_1 + t_10*log(tau/self%parameters%theta_ref) + t_3 &
-              *(self%parameters%beta*t_9 + (0.125_real64)*self%parameters%mu_eq_slope_2*t_5)
-          grad(1, 1) = -t_11*t_19 + t_12*t_19 + t_3*(t_17*t_7*t_9 + t_18*t_8)
-          grad(2, 1) = -t_14 + t_2*t_20
-          grad(3, 1) = t_10
-          grad(1, 2) = -self%parameters%mu_eq_slope_2*t_19 + t_15*t_19 + t_3*(self%parameters%beta*t_18 + &
-              (0.25_real64)*self%parameters%mu_eq_slope_2*t_17*t_4)
+          grad(2, 1) = -t_14 + t_20*t_5
+          grad(1, 2) = -self%parameters%mu_eq_slope_2*t_19 + t_1*(self%parameters%beta*t_18 + (0.25_real64) &
+              *self%parameters%mu_eq_slope_2*t_17*t_3) + t_15*t_19
           grad(2, 2) = self%parameters%mu_neq_slope*t_20 - t_16
-          grad(3, 2) = t_10/tau
         end if
       case (tau_internal_energy)
         C = x(1)
@@ -525,83 +511,85 @@ contains
         end if
         C_root_2 = sqrt(C)
         if (present(hess)) then
-          t_1 = gamma**2
-          t_2 = self%parameters%beta_v + 1.0_real64
-          t_3 = log(C/self%parameters%natural_length_2**2)
+          f(1) = tau
+          grad(3, 1) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_2**2)
+          t_2 = gamma**2
+          t_3 = self%parameters%beta_v + 1.0_real64
           t_4 = (0.5_real64)*self%parameters%beta
-          t_5 = t_3**2
+          t_5 = t_1**2
           t_6 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
-          t_7 = t_1*t_6
+          t_7 = t_2*t_6
           t_8 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
           t_9 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_8
           t_10 = self%parameters%beta*self%parameters%theta_ref
           t_11 = (0.5_real64)*t_10
           t_12 = 1.0_real64/C_root_2
           t_13 = self%parameters%mu_eq_const_2 + t_8
-          t_14 = t_13*t_3
+          t_14 = t_1*t_13
           t_15 = t_10 + (0.5_real64)*t_14
-          t_16 = 1.0_real64/(self%parameters%heat_capacity_2*t_2)
-          t_17 = t_16*(self%parameters%beta_v*gamma*t_12*t_15 - t_2*(t_11*t_3 + (0.25_real64)*t_5*t_9) - t_7 + tau) + &
+          t_16 = 1.0_real64/(self%parameters%heat_capacity_2*t_3)
+          t_17 = t_16*(self%parameters%beta_v*gamma*t_12*t_15 - t_3*(t_1*t_11 + (0.25_real64)*t_5*t_9) - t_7 + tau) + &
               self%parameters%theta_ref
-          t_18 = self%parameters%mu_eq_slope_2*t_3
+          t_18 = self%parameters%mu_eq_slope_2*t_1
           t_19 = self%parameters%beta + (0.5_real64)*t_18
           t_20 = self%parameters%beta_v*t_12
           t_21 = t_19*t_20
+          f(2) = -gamma*t_21 + self%parameters%heat_capacity_2*t_3*log(t_17/self%parameters%theta_ref) + &
+              self%parameters%mu_neq_slope*t_2 + t_3*((0.125_real64)*self%parameters%mu_eq_slope_2*t_5 + t_1*t_4)
           t_22 = 1.0_real64/t_17
           t_23 = 1.0_real64/C
           t_24 = 1.0_real64/C_root_2**3
           t_25 = self%parameters%beta_v*gamma
           t_26 = t_24*t_25
           t_27 = (0.5_real64)*t_26
+          grad(1, 2) = -0.5_real64*self%parameters%mu_eq_slope_2*t_24*t_25 + t_19*t_27 + t_22*((0.5_real64) &
+              *self%parameters%beta_v*gamma*t_13*t_24 - t_15*t_27 - t_3*((0.5_real64)*t_1*t_23*t_9 + t_11*t_23)) + &
+              t_3*((0.25_real64)*t_18*t_23 + t_23*t_4)
           t_28 = gamma*t_6
           t_29 = 2.0_real64*t_28
+          grad(2, 2) = 2.0_real64*gamma*self%parameters%mu_neq_slope - t_21 + t_22*(self%parameters%beta_v*t_12*t_15 &
+              - t_29)
+          grad(3, 2) = t_22
           t_30 = 2.0_real64*t_10 + t_14
           t_31 = t_20*t_30
-          t_32 = t_16*(-4.0_real64*gamma*t_31 + t_2*t_3*(4.0_real64*t_10 + t_14) + 8.0_real64*t_7 - 8.0_real64*tau)
+          t_32 = t_16*(-4.0_real64*gamma*t_31 + t_1*t_3*(4.0_real64*t_10 + t_14) + 8.0_real64*t_7 - 8.0_real64*tau)
           t_33 = -t_32 + 8.0_real64*self%parameters%theta_ref
           t_34 = 1.0_real64/t_33
-          t_35 = t_2/C**2
+          t_35 = t_3/C**2
           t_36 = 1.0_real64/C_root_2**5
           t_37 = t_25*t_36
           t_38 = 2.0_real64*self%parameters%beta + t_18
-          t_39 = -2.0_real64*t_13*t_26 + t_2*t_23*t_30 + t_26*t_30
+          t_39 = -2.0_real64*t_13*t_26 + t_23*t_3*t_30 + t_26*t_30
           t_40 = t_16/t_33**2
+          hess(1, 1, 2) = self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_36 + t_34*(-8.0_real64*t_13 &
+              *t_37 + 3.0_real64*t_30*t_37 + 2.0_real64*t_35*(-self%parameters%mu_eq_const_2 + t_30 - t_8)) - &
+              0.25_real64*t_35*(-self%parameters%mu_eq_slope_2 + t_38) - 0.375_real64*t_37*t_38 - 4.0_real64*t_39**2 &
+              *t_40
           t_41 = 4.0_real64*t_28 - t_31
           t_42 = -0.5_real64*self%parameters%beta_v*self%parameters%mu_eq_slope_2*t_24 + 2.0_real64 &
               *self%parameters%beta_v*t_24*t_34*(2.0_real64*self%parameters%mu_eq_const_2 + 2.0_real64 &
               *self%parameters%mu_eq_slope_2*self%parameters%theta_ref - t_30) + (0.25_real64)*self%parameters%beta_v &
               *t_24*t_38 - 8.0_real64*t_39*t_40*t_41
+          hess(1, 2, 2) = t_42
           t_43 = t_16/(-0.125_real64*t_32 + self%parameters%theta_ref)**2
           t_44 = (0.25_real64)*t_39*t_43
-          t_45 = t_43*(t_29 - 0.5_real64*t_31)
-          f(1) = tau
-          f(2) = -gamma*t_21 + self%parameters%heat_capacity_2*t_2*log(t_17/self%parameters%theta_ref) + &
-              self%parameters%mu_neq_slope*t_1 + t_2*((0.125_real64)*self%parameters%mu_eq_slope_2*t_5 + t_3*t_4)
-          grad(3, 1) = 1.0_real64
-          grad(1, 2) = -0.5_real64*self%parameters%mu_eq_slope_2*t_24*t_25 + t_19*t_27 + t_2*((0.25_real64)*t_18*t_23 &
-              + t_23*t_4) + t_22*((0.5_real64)*self%parameters%beta_v*gamma*t_13*t_24 - t_15*t_27 - t_2*(t_11*t_23 + &
-              (0.5_real64)*t_23*t_3*t_9))
-          grad(2, 2) = 2.0_real64*gamma*self%parameters%mu_neq_slope - t_21 + t_22*(self%parameters%beta_v*t_12*t_15 &
-              - t_29)
-          grad(3, 2) = t_22
-          hess(1, 1, 2) = self%parameters%beta_v*gamma*self%parameters%mu_eq_slope_2*t_36 + t_34*(-8.0_real64*t_13 &
-              *t_37 + 3.0_real64*t_30*t_37 + 2.0_real64*t_35*(-self%parameters%mu_eq_const_2 + t_30 - t_8)) - &
-              0.25_real64*t_35*(-self%parameters%mu_eq_slope_2 + t_38) - 0.375_real64*t_37*t_38 - 4.0_real64*t_39**2 &
-              *t_40
-          hess(1, 2, 2) = t_42
           hess(1, 3, 2) = t_44
           hess(2, 1, 2) = t_42
           hess(2, 2, 2) = 2.0_real64*self%parameters%mu_neq_slope - 16.0_real64*t_34*t_6 - 16.0_real64*t_40*t_41**2
+          t_45 = t_43*(t_29 - 0.5_real64*t_31)
           hess(2, 3, 2) = t_45
           hess(3, 1, 2) = t_44
           hess(3, 2, 2) = t_45
           hess(3, 3, 2) = -t_43
         else
-          t_1 = gamma**2
-          t_2 = self%parameters%beta_v + 1.0_real64
-          t_3 = log(C/self%parameters%natural_length_2**2)
-          t_4 = (0.5_real64)*t_3
-          t_5 = t_3**2
+          f(1) = tau
+          grad(3, 1) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_2**2)
+          t_2 = gamma**2
+          t_3 = self%parameters%beta_v + 1.0_real64
+          t_4 = (0.5_real64)*t_1
+          t_5 = t_1**2
           t_6 = self%parameters%mu_neq_const + self%parameters%mu_neq_slope*self%parameters%theta_ref
           t_7 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
           t_8 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_7
@@ -609,24 +597,22 @@ contains
           t_10 = 1.0_real64/C_root_2
           t_11 = self%parameters%mu_eq_const_2 + t_7
           t_12 = t_11*t_4 + t_9
-          t_13 = self%parameters%theta_ref + (self%parameters%beta_v*gamma*t_10*t_12 - t_1*t_6 - t_2*(t_4*t_9 + &
-              (0.25_real64)*t_5*t_8) + tau)/(self%parameters%heat_capacity_2*t_2)
+          t_13 = self%parameters%theta_ref + (self%parameters%beta_v*gamma*t_10*t_12 - t_2*t_6 - t_3*(t_4*t_9 + &
+              (0.25_real64)*t_5*t_8) + tau)/(self%parameters%heat_capacity_2*t_3)
           t_14 = self%parameters%beta + self%parameters%mu_eq_slope_2*t_4
           t_15 = self%parameters%beta_v*t_10*t_14
+          f(2) = -gamma*t_15 + self%parameters%heat_capacity_2*t_3*log(t_13/self%parameters%theta_ref) + &
+              self%parameters%mu_neq_slope*t_2 + t_3*(self%parameters%beta*t_4 + (0.125_real64) &
+              *self%parameters%mu_eq_slope_2*t_5)
           t_16 = 1.0_real64/t_13
           t_17 = 1.0_real64/C
           t_18 = (0.5_real64)*t_17
           t_19 = 1.0_real64/C_root_2**3
           t_20 = (0.5_real64)*self%parameters%beta_v*gamma*t_19
-          t_21 = 2.0_real64*gamma
-          f(1) = tau
-          f(2) = -gamma*t_15 + self%parameters%heat_capacity_2*t_2*log(t_13/self%parameters%theta_ref) + &
-              self%parameters%mu_neq_slope*t_1 + t_2*(self%parameters%beta*t_4 + (0.125_real64) &
-              *self%parameters%mu_eq_slope_2*t_5)
-          grad(3, 1) = 1.0_real64
           grad(1, 2) = -self%parameters%mu_eq_slope_2*t_20 + t_14*t_20 + t_16*((0.5_real64)*self%parameters%beta_v &
-              *gamma*t_11*t_19 - t_12*t_20 - t_2*(t_17*t_4*t_8 + t_18*t_9)) + t_2*(self%parameters%beta*t_18 + &
-              (0.25_real64)*self%parameters%mu_eq_slope_2*t_17*t_3)
+              *gamma*t_11*t_19 - t_12*t_20 - t_3*(t_17*t_4*t_8 + t_18*t_9)) + t_3*(self%parameters%beta*t_18 + &
+              (0.25_real64)*self%parameters%mu_eq_slope_2*t_1*t_17)
+          t_21 = 2.0_real64*gamma
           grad(2, 2) = self%parameters%mu_neq_slope*t_21 - t_15 + t_16*(self%parameters%beta_v*t_10*t_12 - t_21*t_6)
           grad(3, 2) = t_16
         end if

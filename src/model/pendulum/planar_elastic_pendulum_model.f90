@@ -337,11 +337,26 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class(planar_elastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
     real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, C_1, C_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, &
         t_9, t_10, t_11, t_12, t_13, t_14
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
     q2_x = z(3)
@@ -360,68 +375,89 @@ contains
       stat = domain_nonpositive_length
       return
     end if
-    if (.not. (C_1*self%constants(4) > 0.0_real64)) then
-      stat = domain_nonpositive_temperature
-      return
-    end if
-    if (.not. (C_2*self%constants(8) > 0.0_real64)) then
-      stat = domain_nonpositive_temperature
-      return
-    end if
-    if (present(jacobian)) then
-      t_1 = log(C_1*self%constants(4))
-      t_2 = self%constants(5)*t_1/C_1
-      t_3 = log(C_2*self%constants(8))
-      t_4 = self%constants(9)*t_3/C_2
-      t_5 = 1.0_real64/C_1**2
-      t_6 = self%constants(5)*t_5
-      t_7 = self%constants(12)*t_1*t_5
-      t_8 = 2.0_real64*q1_x*t_6 + 2.0_real64*q1_x*t_7
-      t_9 = 2.0_real64*q1_y*t_6 + 2.0_real64*q1_y*t_7
-      t_10 = 1.0_real64/C_2**2
-      t_11 = self%constants(9)*t_10
-      t_12 = self%constants(13)*t_10*t_3
-      t_13 = 2.0_real64*q2_x*t_11 + 2.0_real64*q2_x*t_12
-      t_14 = 2.0_real64*q2_y*t_11 + 2.0_real64*q2_y*t_12
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(5) = self%constants(6) + q1_x*t_2
-      f(6) = self%constants(7) + q1_y*t_2
-      f(7) = self%constants(10) + q2_x*t_4
-      f(8) = self%constants(11) + q2_y*t_4
-      jacobian(1, 5) = self%constants(1)
-      jacobian(1, 7) = self%constants(2)
-      jacobian(2, 6) = self%constants(1)
-      jacobian(2, 8) = self%constants(2)
-      jacobian(3, 5) = self%constants(2)
-      jacobian(3, 7) = self%constants(3)
-      jacobian(4, 6) = self%constants(2)
-      jacobian(4, 8) = self%constants(3)
-      jacobian(5, 1) = q1_x*t_8 + t_2
-      jacobian(5, 2) = q1_y*t_8
-      jacobian(6, 1) = q1_x*t_9
-      jacobian(6, 2) = q1_y*t_9 + t_2
-      jacobian(7, 3) = q2_x*t_13 + t_4
-      jacobian(7, 4) = q2_y*t_13
-      jacobian(8, 3) = q2_x*t_14
-      jacobian(8, 4) = q2_y*t_14 + t_4
-    else
-      t_1 = self%constants(5)*log(C_1*self%constants(4))/C_1
-      t_2 = self%constants(9)*log(C_2*self%constants(8))/C_2
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(5) = self%constants(6) + q1_x*t_1
-      f(6) = self%constants(7) + q1_y*t_1
-      f(7) = self%constants(10) + q2_x*t_2
-      f(8) = self%constants(11) + q2_y*t_2
-    end if
+    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+    f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+    f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+    jacobian(1, 5) = self%constants(1)
+    jacobian(1, 7) = self%constants(2)
+    jacobian(2, 6) = self%constants(1)
+    jacobian(2, 8) = self%constants(2)
+    jacobian(3, 5) = self%constants(2)
+    jacobian(3, 7) = self%constants(3)
+    jacobian(4, 6) = self%constants(2)
+    jacobian(4, 8) = self%constants(3)
+    t_1 = log(C_1*self%constants(4))
+    t_2 = log(C_2*self%constants(8))
+    t_3 = self%constants(5)*t_1/C_1
+    f(5) = self%constants(6) + q1_x*t_3
+    f(6) = self%constants(7) + q1_y*t_3
+    t_4 = self%constants(9)*t_2/C_2
+    f(7) = self%constants(10) + q2_x*t_4
+    f(8) = self%constants(11) + q2_y*t_4
+    t_5 = 1.0_real64/C_1**2
+    t_6 = self%constants(5)*t_5
+    t_7 = self%constants(12)*t_1*t_5
+    t_8 = 2.0_real64*q1_x*t_6 + 2.0_real64*q1_x*t_7
+    jacobian(5, 1) = q1_x*t_8 + t_3
+    jacobian(5, 2) = q1_y*t_8
+    t_9 = 2.0_real64*q1_y*t_6 + 2.0_real64*q1_y*t_7
+    jacobian(6, 1) = q1_x*t_9
+    jacobian(6, 2) = q1_y*t_9 + t_3
+    t_10 = 1.0_real64/C_2**2
+    t_11 = self%constants(9)*t_10
+    t_12 = self%constants(13)*t_10*t_2
+    t_13 = 2.0_real64*q2_x*t_11 + 2.0_real64*q2_x*t_12
+    jacobian(7, 3) = q2_x*t_13 + t_4
+    jacobian(7, 4) = q2_y*t_13
+    t_14 = 2.0_real64*q2_y*t_11 + 2.0_real64*q2_y*t_12
+    jacobian(8, 3) = q2_x*t_14
+    jacobian(8, 4) = q2_y*t_14 + t_4
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8)) <= huge(1.0_real64))) stat = domain_overflow
-  end subroutine continuous_field
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class(planar_elastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(8)
+    real(real64), intent(out) :: f(8)
+    integer, intent(out) :: stat
+    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, C_1, C_2, t_1, t_2
+
+    stat = failure_none
+    q1_x = z(1)
+    q1_y = z(2)
+    q2_x = z(3)
+    q2_y = z(4)
+    p1_x = z(5)
+    p1_y = z(6)
+    p2_x = z(7)
+    p2_y = z(8)
+    C_1 = q1_x**2 + q1_y**2
+    C_2 = q2_x**2 + q2_y**2
+    if (.not. (C_1 > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    if (.not. (C_2 > 0.0_real64)) then
+      stat = domain_nonpositive_length
+      return
+    end if
+    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+    f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+    f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+    t_1 = self%constants(5)*log(C_1*self%constants(4))/C_1
+    t_2 = self%constants(9)*log(C_2*self%constants(8))/C_2
+    f(5) = self%constants(6) + q1_x*t_1
+    f(6) = self%constants(7) + q1_y*t_1
+    f(7) = self%constants(10) + q2_x*t_2
+    f(8) = self%constants(11) + q2_y*t_2
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8)) <= huge(1.0_real64))) stat = domain_overflow
+  end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
   pure function momenta(self, z) result(values)

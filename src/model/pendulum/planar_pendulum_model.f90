@@ -27,7 +27,7 @@ module planar_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: planar_pendulum
     type(planar_pendulum_parameters) :: parameters
-    real(real64) :: constants(106) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(117) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -126,128 +126,142 @@ contains
     model%constants(4) = -0.5_real64*parameters%beta
     model%constants(5) = 1.0_real64/parameters%natural_length_1**2
     model%constants(6) = -0.25_real64*parameters%mu_eq_slope_1
-    model%constants(7) = -0.125_real64*parameters%mu_eq_slope_1
-    model%constants(8) = 1.0_real64/parameters%heat_capacity_1
-    model%constants(9) = (0.5_real64)*parameters%beta*parameters%theta_ref
-    model%constants(10) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
+    model%constants(7) = (0.5_real64)*parameters%beta*parameters%theta_ref
+    model%constants(8) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(11) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
-    model%constants(12) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
-    model%constants(13) = 1.0_real64/parameters%natural_length_2**2
-    model%constants(14) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
+    model%constants(9) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
+    model%constants(10) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
+    model%constants(11) = 1.0_real64/parameters%natural_length_2**2
+    model%constants(12) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(15) = parameters%beta_v + 1.0_real64
-    model%constants(16) = (0.5_real64)*parameters%beta
-    model%constants(17) = (0.25_real64)*parameters%mu_eq_slope_2
-    model%constants(18) = -parameters%beta_v - 1.0_real64
-    model%constants(19) = (0.5_real64)*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(20) = (0.5_real64)*parameters%mu_eq_slope_2
-    model%constants(21) = -0.5_real64*parameters%beta_v
-    model%constants(22) = -parameters%mu_neq_slope
-    model%constants(23) = (0.125_real64)*parameters%mu_eq_slope_2
-    model%constants(24) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(25) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
+    model%constants(13) = parameters%beta_v + 1.0_real64
+    model%constants(14) = (0.5_real64)*parameters%beta
+    model%constants(15) = (0.25_real64)*parameters%mu_eq_slope_2
+    model%constants(16) = -parameters%beta_v - 1.0_real64
+    model%constants(17) = (0.5_real64)*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(18) = (0.5_real64)*parameters%mu_eq_slope_2
+    model%constants(19) = -0.5_real64*parameters%beta_v
+    model%constants(20) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(26) = parameters%beta*parameters%theta_ref
-    model%constants(27) = (0.5_real64)*parameters%beta_v
-    model%constants(28) = -0.5_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(21) = parameters%beta*parameters%theta_ref
+    model%constants(22) = (0.5_real64)*parameters%beta_v
+    model%constants(23) = -0.5_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(29) = parameters%gravity_x*parameters%mass_2
-    model%constants(30) = parameters%gravity_y*parameters%mass_2
-    model%constants(31) = 2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(32) = -2.0_real64*parameters%mu_neq_slope
-    model%constants(33) = -parameters%beta_v
-    model%constants(34) = -1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(35) = 1.0_real64/parameters%theta_ref
-    model%constants(36) = -1.0_real64/parameters%theta_ref
-    model%constants(37) = -parameters%viscosity_activation
-    model%constants(38) = -1.0_real64/parameters%viscosity_const
-    model%constants(39) = parameters%conductivity*parameters%theta_ref
-    model%constants(40) = -parameters%conductivity*parameters%theta_ref
-    model%constants(41) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(42) = 1.0_real64/(parameters%theta_ref*parameters%viscosity_const)
-    model%constants(43) = (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(44) = -0.5_real64*parameters%beta*parameters%theta_ref
-    model%constants(45) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
+    model%constants(24) = parameters%gravity_x*parameters%mass_2
+    model%constants(25) = parameters%gravity_y*parameters%mass_2
+    model%constants(26) = 2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(27) = -2.0_real64*parameters%mu_neq_slope
+    model%constants(28) = -parameters%beta_v
+    model%constants(29) = -1.0_real64/parameters%viscosity_const
+    model%constants(30) = parameters%conductivity*parameters%theta_ref
+    model%constants(31) = -parameters%conductivity*parameters%theta_ref
+    model%constants(32) = 1.0_real64/parameters%theta_ref
+    model%constants(33) = 1.0_real64/(parameters%theta_ref*parameters%viscosity_const)
+    model%constants(34) = (0.25_real64)*parameters%mu_eq_slope_1
+    model%constants(35) = -0.5_real64*parameters%beta*parameters%theta_ref
+    model%constants(36) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(46) = parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(47) = -parameters%beta*parameters%theta_ref
-    model%constants(48) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
+    model%constants(37) = parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(38) = -parameters%beta*parameters%theta_ref
+    model%constants(39) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(49) = -2.0_real64*parameters%theta_ref
-    model%constants(50) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(51) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
+    model%constants(40) = -2.0_real64*parameters%theta_ref
+    model%constants(41) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(42) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(52) = -0.25_real64*parameters%mu_eq_slope_2
-    model%constants(53) = -parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(54) = (0.75_real64)*parameters%beta_v
-    model%constants(55) = parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(56) = -0.75_real64*parameters%beta_v
-    model%constants(57) = parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(58) = -2.0_real64*parameters%beta_v - 2.0_real64
-    model%constants(59) = -2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(60) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref &
+    model%constants(43) = -0.25_real64*parameters%mu_eq_slope_2
+    model%constants(44) = -parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(45) = (0.75_real64)*parameters%beta_v
+    model%constants(46) = parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
+    model%constants(47) = -0.75_real64*parameters%beta_v
+    model%constants(48) = parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(49) = -2.0_real64*parameters%beta_v - 2.0_real64
+    model%constants(50) = -2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(51) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref &
         *parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(61) = -2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(62) = -parameters%theta_ref/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(52) = -2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(53) = -parameters%theta_ref/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(63) = -parameters%conductivity/parameters%heat_capacity_1
-    model%constants(64) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
-    model%constants(65) = 2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
+    model%constants(54) = -parameters%conductivity/parameters%heat_capacity_1
+    model%constants(55) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
+    model%constants(56) = 2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
         1.0_real64))
-    model%constants(66) = parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(67) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(68) = -parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(69) = -parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
-    model%constants(70) = 2.0_real64*parameters%theta_ref
-    model%constants(71) = 2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(72) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*(parameters%beta_v + 1.0_real64))
-    model%constants(73) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*parameters%viscosity_const &
+    model%constants(57) = parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(58) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(59) = -parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(60) = -parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref)
+    model%constants(61) = 2.0_real64*parameters%theta_ref
+    model%constants(62) = 2.0_real64*parameters%theta_ref/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(63) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*(parameters%beta_v + 1.0_real64))
+    model%constants(64) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(74) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(75) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref**2 &
+    model%constants(65) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%theta_ref**2 &
         *parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(76) = -4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(77) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(78) = parameters%conductivity/parameters%heat_capacity_1
-    model%constants(79) = 2.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(66) = -4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(67) = 4.0_real64*parameters%mu_neq_const + 4.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(68) = parameters%conductivity/parameters%heat_capacity_1
+    model%constants(69) = 2.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(80) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(81) = 2.0_real64*parameters%mu_neq_slope
-    model%constants(82) = 1.0_real64/parameters%viscosity_const
-    model%constants(83) = -parameters%conductivity
-    model%constants(84) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(85) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(70) = -0.125_real64*parameters%mu_eq_slope_1
+    model%constants(71) = 1.0_real64/parameters%heat_capacity_1
+    model%constants(72) = -parameters%mu_neq_slope
+    model%constants(73) = (0.125_real64)*parameters%mu_eq_slope_2
+    model%constants(74) = -1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(75) = -1.0_real64/parameters%theta_ref
+    model%constants(76) = -parameters%viscosity_activation
+    model%constants(77) = (0.5_real64)*parameters%mu_eq_const_1 + (0.5_real64)*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(78) = 2.0_real64*parameters%beta_v + 2.0_real64
+    model%constants(79) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(80) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(81) = -2.0_real64*parameters%beta*parameters%theta_ref
+    model%constants(82) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(83) = 4.0_real64*parameters%beta_v + 4.0_real64
+    model%constants(84) = -3.0_real64*parameters%beta_v
+    model%constants(85) = 4.0_real64*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+        *parameters%theta_ref)
+    model%constants(86) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(87) = -2.0_real64*parameters%conductivity/(parameters%heat_capacity_2*(parameters%beta_v + &
         1.0_real64))
-    model%constants(86) = parameters%beta_v*parameters%mu_eq_slope_2
-    model%constants(87) = 2.0_real64/parameters%viscosity_const
-    model%constants(88) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(89) = parameters%viscosity_activation/parameters%viscosity_const
-    model%constants(90) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(91) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(92) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
-    model%constants(93) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(88) = -0.5_real64*parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(89) = 2.0_real64*parameters%mu_neq_slope
+    model%constants(90) = 1.0_real64/parameters%viscosity_const
+    model%constants(91) = -parameters%conductivity
+    model%constants(92) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(93) = 1.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(94) = -2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(95) = -1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+        1.0_real64))
+    model%constants(96) = parameters%beta_v*parameters%mu_eq_slope_2
+    model%constants(97) = 2.0_real64/parameters%viscosity_const
+    model%constants(98) = -2.0_real64*parameters%mu_neq_const - 2.0_real64*parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(99) = parameters%viscosity_activation/parameters%viscosity_const
+    model%constants(100) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(101) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(102) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1*(parameters%beta_v + 1.0_real64))
+    model%constants(103) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2*(parameters%beta_v + 1.0_real64))
-    model%constants(94) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
+    model%constants(104) = -(2.0_real64*parameters%mu_neq_const + 2.0_real64*parameters%mu_neq_slope &
         *parameters%theta_ref)/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + 1.0_real64))
-    model%constants(95) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(105) = -parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(96) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(106) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(97) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
-    model%constants(98) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
+    model%constants(107) = -parameters%mu_neq_const - parameters%mu_neq_slope*parameters%theta_ref
+    model%constants(108) = (0.125_real64)*parameters%mu_eq_const_2 + (0.125_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(99) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
+    model%constants(109) = (0.5_real64)*parameters%beta_v*(parameters%mu_eq_const_2 + parameters%mu_eq_slope_2 &
         *parameters%theta_ref)
-    model%constants(100) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(101) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
-    model%constants(102) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
+    model%constants(110) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(111) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(112) = 2.0_real64/(parameters%heat_capacity_2*(parameters%beta_v + 1.0_real64))
+    model%constants(113) = 1.0_real64/(parameters%heat_capacity_2*parameters%viscosity_const*(parameters%beta_v + &
         1.0_real64))
-    model%constants(103) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
+    model%constants(114) = parameters%viscosity_activation/(parameters%heat_capacity_2*parameters%viscosity_const &
         *(parameters%beta_v + 1.0_real64))
-    model%constants(104) = -2.0_real64/parameters%mass_1
-    model%constants(105) = 2.0_real64/parameters%mass_1
-    model%constants(106) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
+    model%constants(115) = -2.0_real64/parameters%mass_1
+    model%constants(116) = 2.0_real64/parameters%mass_1
+    model%constants(117) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_planar_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -727,16 +741,31 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
-    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, gamma, tau_1, tau_2, C_1, C_2, C_2_root_2, t_1, &
-        t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, &
-        t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, t_36, t_37, t_38, &
-        t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, t_54, t_55, t_56, &
-        t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, t_72, t_73, t_74, &
-        t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86, t_87, t_88, t_89, t_90, t_91, t_92, &
-        t_93, t_94, t_95, t_96, t_97
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class(planar_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
+    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, gamma, tau_1, tau_2, C_1, C_2, C_2_root_2, exp_1, &
+        exp_2, exp_3, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
+        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, &
+        t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, &
+        t_54, t_55, t_56, t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, &
+        t_72, t_73, t_74, t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86, t_87, t_88, t_89, &
+        t_90, t_91, t_92, t_93, t_94, t_95, t_96
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
     q2_x = z(3)
@@ -760,222 +789,153 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(13) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(24)*(self%constants(18)*(self%constants(16)*log(C_2*self%constants(13)) + &
-          self%constants(23)*log(C_2*self%constants(13))**2) + self%constants(22)*gamma**2 + tau_2 + &
-          self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(20)*log(C_2 &
-          *self%constants(13)))/sqrt(C_2)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(34)*(self%constants(18)*(self%constants(16)*log(C_2*self%constants(13)) + &
-          self%constants(23)*log(C_2*self%constants(13))**2) + self%constants(22)*gamma**2 + tau_2 + &
-          self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(20)*log(C_2 &
-          *self%constants(13)))/sqrt(C_2)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(37)*(self%constants(35)*exp(self%constants(34)*(C_2**(-0.5_real64) &
-          *self%parameters%beta_v*gamma*(self%parameters%beta + self%constants(20)*log(C_2*self%constants(13))) + &
-          self%constants(18)*(self%constants(16)*log(C_2*self%constants(13)) + self%constants(23)*log(C_2 &
-          *self%constants(13))**2) + self%constants(22)*gamma**2 + tau_2)) + self%constants(36)) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(41)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(8)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
       C_2_root_2 = sqrt(C_2)
-      if (present(jacobian)) then
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_1 + self%constants(6)*t_3
-        t_5 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_6 = exp(self%constants(8)*t_5)
-        t_7 = t_6*self%parameters%theta_ref
-        t_8 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_4*t_7
-        t_9 = 1.0_real64/C_2
-        t_10 = log(C_2*self%constants(13))
-        t_11 = t_10*t_9
-        t_12 = self%constants(14)*t_11 + self%constants(9)*t_9
-        t_13 = 1.0_real64/C_2_root_2**3
-        t_14 = self%constants(28)*t_13
-        t_15 = self%constants(19)*t_13
-        t_16 = gamma*t_13
-        t_17 = self%parameters%beta + self%constants(20)*t_10
-        t_18 = self%constants(21)*t_17
-        t_19 = self%constants(18)*(self%constants(16)*t_9 + self%constants(17)*t_11) + gamma*t_15 + t_16*t_18
-        t_20 = 1.0_real64/C_2_root_2
-        t_21 = self%parameters%beta_v*t_17*t_20
-        t_22 = self%constants(18)*(self%constants(16)*t_10 + self%constants(23)*t_10**2) + self%constants(22)*gamma &
-            **2 + gamma*t_21 + tau_2
-        t_23 = exp(self%constants(24)*t_22)
-        t_24 = t_23*self%parameters%theta_ref
-        t_25 = self%constants(25)*t_10 + self%constants(26)
-        t_26 = 2.0_real64*self%constants(15)*t_12 + 2.0_real64*self%constants(27)*t_16*t_25 + 2.0_real64*gamma*t_14 + &
-            2.0_real64*t_19*t_24
-        t_27 = self%constants(33)*t_25
-        t_28 = self%constants(32)*gamma + t_21
-        t_29 = self%constants(31)*gamma + t_20*t_27 + t_24*t_28
-        t_30 = exp(self%constants(34)*t_22)
-        t_31 = self%constants(35)*t_30
-        t_32 = exp(self%constants(37)*(self%constants(36) + t_31))
-        t_33 = self%constants(38)*t_32
-        t_34 = exp(self%constants(41)*t_5)
-        t_35 = t_34*(self%constants(39)*t_23 + self%constants(40)*t_6)
-        t_36 = self%constants(39)*t_6 + self%constants(40)*t_23
-        t_37 = t_29**2
-        t_38 = t_30*t_32
-        t_39 = t_37*t_38
-        t_40 = 1.0_real64/C_1**2
-        t_41 = t_2*t_40
-        t_42 = 4.0_real64*self%constants(10)*t_40 + 4.0_real64*self%constants(44)*t_40 + 4.0_real64 &
-            *self%constants(45)*t_41 + 4.0_real64*self%constants(46)*t_4**2*t_6 + 4.0_real64*t_7*(self%constants(16) &
-            *t_40 + self%constants(43)*t_41 + self%constants(6)*t_40)
-        t_43 = t_4*t_6
-        t_44 = self%constants(47)*t_1 + self%constants(48)*t_3 + self%constants(49)*t_43
-        t_45 = -q1_x*q1_y*t_42
-        t_46 = self%constants(50)*t_43
-        t_47 = 1.0_real64/C_2**2
-        t_48 = t_10*t_47
-        t_49 = gamma/C_2_root_2**5
-        t_50 = self%constants(57)*t_23
-        t_51 = 4.0_real64*self%constants(15)*(self%constants(14)*t_47 + self%constants(44)*t_47 + self%constants(51) &
-            *t_48) + 4.0_real64*self%constants(55)*t_49 + 4.0_real64*self%constants(56)*t_25*t_49 + 4.0_real64*t_19 &
-            **2*t_50 + 4.0_real64*t_24*(self%constants(18)*(self%constants(17)*t_47 + self%constants(4)*t_47 + &
-            self%constants(52)*t_48) + self%constants(53)*t_49 + self%constants(54)*t_17*t_49)
-        t_52 = t_19*t_23
-        t_53 = self%constants(49)*t_52 + self%constants(55)*t_16 + self%constants(58)*t_12 + t_16*t_27
-        t_54 = -q2_x*q2_y*t_51
-        t_55 = t_13*t_25
-        t_56 = t_13*t_18 + t_15
-        t_57 = self%constants(27)*t_55 + t_14 + t_19*t_28*t_50 + t_24*t_56
-        t_58 = 2.0_real64*t_57
-        t_59 = self%constants(59)*t_52
-        t_60 = t_29*t_38
-        t_61 = self%constants(60)*t_60
-        t_62 = 2.0_real64*t_19*t_61 + 2.0_real64*t_33*t_57
-        t_63 = t_28**2
-        t_64 = t_28*t_32
-        t_65 = self%constants(64)*t_35
-        t_66 = 2.0_real64*self%constants(63)*t_4 + 2.0_real64*t_4*t_65
-        t_67 = self%constants(65)*t_34*t_52
-        t_68 = self%constants(66)*t_23*t_34
-        t_69 = self%constants(67)*t_30*t_43
-        t_70 = self%constants(72)*t_30*t_36
-        t_71 = self%constants(42)*t_60
-        t_72 = self%constants(73)*t_39
-        t_73 = self%constants(75)*t_37*exp(self%constants(74)*t_22)
-        t_74 = t_32*t_73
-        t_75 = 2.0_real64*self%constants(68)*t_19 + 2.0_real64*t_19*t_70 + 2.0_real64*t_19*t_72 + 2.0_real64*t_19 &
-            *t_74 + 2.0_real64*t_71*(self%parameters%beta_v*t_55 + self%constants(69)*t_13 + self%constants(70)*t_23 &
-            *t_56 + self%constants(71)*t_28*t_52)
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(5) = self%constants(11) - q1_x*t_8
-        f(6) = self%constants(12) - q1_y*t_8
-        f(7) = self%constants(29) - q2_x*t_26
-        f(8) = self%constants(30) - q2_y*t_26
-        f(9) = t_29*t_33
-        f(10) = self%constants(35)*t_35
-        f(11) = self%constants(42)*t_39 + t_31*t_36
-        jacobian(1, 5) = self%constants(1)
-        jacobian(1, 7) = self%constants(2)
-        jacobian(2, 6) = self%constants(1)
-        jacobian(2, 8) = self%constants(2)
-        jacobian(3, 5) = self%constants(2)
-        jacobian(3, 7) = self%constants(3)
-        jacobian(4, 6) = self%constants(2)
-        jacobian(4, 8) = self%constants(3)
-        jacobian(5, 1) = -q1_x**2*t_42 + t_44
-        jacobian(5, 2) = t_45
-        jacobian(5, 10) = q1_x*t_46
-        jacobian(6, 1) = t_45
-        jacobian(6, 2) = -q1_y**2*t_42 + t_44
-        jacobian(6, 10) = q1_y*t_46
-        jacobian(7, 3) = -q2_x**2*t_51 + t_53
-        jacobian(7, 4) = t_54
-        jacobian(7, 9) = -q2_x*t_58
-        jacobian(7, 11) = q2_x*t_59
-        jacobian(8, 3) = t_54
-        jacobian(8, 4) = -q2_y**2*t_51 + t_53
-        jacobian(8, 9) = -q2_y*t_58
-        jacobian(8, 11) = q2_y*t_59
-        jacobian(9, 3) = q2_x*t_62
-        jacobian(9, 4) = q2_y*t_62
-        jacobian(9, 9) = t_28*t_61 + t_33*(self%constants(31) + self%constants(61)*t_23 + t_50*t_63)
-        jacobian(9, 11) = self%constants(62)*t_23*t_64 + t_61
-        jacobian(10, 1) = q1_x*t_66
-        jacobian(10, 2) = q1_y*t_66
-        jacobian(10, 3) = q2_x*t_67
-        jacobian(10, 4) = q2_y*t_67
-        jacobian(10, 9) = t_28*t_68
-        jacobian(10, 10) = self%constants(63) + t_65
-        jacobian(10, 11) = t_68
-        jacobian(11, 1) = q1_x*t_69
-        jacobian(11, 2) = q1_y*t_69
-        jacobian(11, 3) = q2_x*t_75
-        jacobian(11, 4) = q2_y*t_75
-        jacobian(11, 9) = self%constants(68)*t_28 + t_28*t_70 + t_28*t_72 + t_64*t_73 + t_71*(self%constants(71)*t_23 &
-            *t_63 + self%constants(76)*t_23 + self%constants(77))
-        jacobian(11, 10) = self%constants(78)*t_30*t_6
-        jacobian(11, 11) = self%constants(68) + self%constants(79)*t_29*t_64 + t_70 + t_72 + t_74
-      else
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_5 = exp(self%constants(8)*t_4)
-        t_6 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_5 &
-            *self%parameters%theta_ref*(self%constants(4)*t_1 + self%constants(6)*t_3)
-        t_7 = 1.0_real64/C_2
-        t_8 = log(C_2*self%constants(13))
-        t_9 = t_7*t_8
-        t_10 = gamma/C_2_root_2**3
-        t_11 = self%parameters%beta + self%constants(20)*t_8
-        t_12 = 1.0_real64/C_2_root_2
-        t_13 = self%parameters%beta_v*t_11*t_12
-        t_14 = self%constants(18)*(self%constants(16)*t_8 + self%constants(23)*t_8**2) + self%constants(22)*gamma**2 &
-            + gamma*t_13 + tau_2
-        t_15 = exp(self%constants(24)*t_14)
-        t_16 = t_15*self%parameters%theta_ref
-        t_17 = self%constants(25)*t_8 + self%constants(26)
-        t_18 = 2.0_real64*self%constants(15)*(self%constants(14)*t_9 + self%constants(9)*t_7) + 2.0_real64 &
-            *self%constants(27)*t_10*t_17 + 2.0_real64*self%constants(28)*t_10 + 2.0_real64*t_16*(self%constants(18) &
-            *(self%constants(16)*t_7 + self%constants(17)*t_9) + self%constants(19)*t_10 + self%constants(21)*t_10*t_11)
-        t_19 = self%constants(31)*gamma + self%constants(33)*t_12*t_17 + t_16*(self%constants(32)*gamma + t_13)
-        t_20 = exp(self%constants(34)*t_14)
-        t_21 = self%constants(35)*t_20
-        t_22 = exp(self%constants(37)*(self%constants(36) + t_21))
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(5) = self%constants(11) - q1_x*t_6
-        f(6) = self%constants(12) - q1_y*t_6
-        f(7) = self%constants(29) - q2_x*t_18
-        f(8) = self%constants(30) - q2_y*t_18
-        f(9) = self%constants(38)*t_19*t_22
-        f(10) = self%constants(35)*(self%constants(39)*t_15 + self%constants(40)*t_5)*exp(self%constants(41)*t_4)
-        f(11) = self%constants(42)*t_19**2*t_20*t_22 + t_21*(self%constants(39)*t_5 + self%constants(40)*t_15)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      jacobian(1, 5) = self%constants(1)
+      jacobian(1, 7) = self%constants(2)
+      jacobian(2, 6) = self%constants(1)
+      jacobian(2, 8) = self%constants(2)
+      jacobian(3, 5) = self%constants(2)
+      jacobian(3, 7) = self%constants(3)
+      jacobian(4, 6) = self%constants(2)
+      jacobian(4, 8) = self%constants(3)
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(11))
+      if (.not. (abs(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
       end if
+      exp_1 = exp(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1))
+      t_3 = 1.0_real64/C_2_root_2
+      t_4 = self%parameters%beta + self%constants(18)*t_2
+      t_5 = self%parameters%beta_v*t_3*t_4
+      if (.not. (abs(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_2 = exp(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2))
+      t_6 = self%constants(32)*exp_2
+      if (.not. (self%constants(76)*(self%constants(75) + t_6) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_3 = exp(self%constants(76)*(self%constants(75) + t_6))
+      t_7 = 1.0_real64/C_1
+      t_8 = t_1*t_7
+      t_9 = self%constants(4)*t_7 + self%constants(6)*t_8
+      t_10 = exp_1*self%parameters%theta_ref
+      t_11 = self%constants(21)*t_7 + self%constants(77)*t_8 + 2.0_real64*t_10*t_9
+      f(5) = self%constants(9) - q1_x*t_11
+      f(6) = self%constants(10) - q1_y*t_11
+      t_12 = 1.0_real64/C_2
+      t_13 = t_12*t_2
+      t_14 = self%constants(12)*t_13 + self%constants(7)*t_12
+      t_15 = 1.0_real64/C_2_root_2**3
+      t_16 = self%constants(23)*t_15
+      t_17 = gamma*t_15
+      t_18 = self%constants(17)*t_15
+      t_19 = self%constants(19)*t_4
+      t_20 = self%constants(16)*(self%constants(14)*t_12 + self%constants(15)*t_13) + gamma*t_18 + t_17*t_19
+      t_21 = 1.0_real64/exp_2
+      t_22 = t_21*self%parameters%theta_ref
+      t_23 = self%constants(20)*t_2 + self%constants(21)
+      t_24 = self%parameters%beta_v*t_17*t_23 + self%constants(78)*t_14 + 2.0_real64*gamma*t_16 + 2.0_real64*t_20*t_22
+      f(7) = self%constants(24) - q2_x*t_24
+      f(8) = self%constants(25) - q2_y*t_24
+      t_25 = self%constants(28)*t_23
+      t_26 = self%constants(27)*gamma + t_5
+      t_27 = self%constants(26)*gamma + t_22*t_26 + t_25*t_3
+      t_28 = self%constants(29)*exp_3
+      f(9) = t_27*t_28
+      t_29 = 1.0_real64/exp_1
+      t_30 = t_29*(self%constants(30)*t_21 + self%constants(31)*exp_1)
+      f(10) = self%constants(32)*t_30
+      t_31 = self%constants(30)*exp_1 + self%constants(31)*t_21
+      t_32 = t_27**2
+      t_33 = exp_2*exp_3
+      t_34 = t_32*t_33
+      f(11) = self%constants(33)*t_34 + t_31*t_6
+      t_35 = 1.0_real64/C_1**2
+      t_36 = t_1*t_35
+      t_37 = self%constants(79)*t_35 + self%constants(80)*t_36 + self%constants(81)*t_35 + self%constants(82)*exp_1 &
+          *t_9**2 + 4.0_real64*t_10*(self%constants(14)*t_35 + self%constants(34)*t_36 + self%constants(6)*t_35)
+      t_38 = exp_1*t_9
+      t_39 = self%constants(38)*t_7 + self%constants(39)*t_8 + self%constants(40)*t_38
+      jacobian(5, 1) = -q1_x**2*t_37 + t_39
+      t_40 = -q1_x*q1_y*t_37
+      jacobian(5, 2) = t_40
+      t_41 = self%constants(41)*t_38
+      jacobian(5, 10) = q1_x*t_41
+      jacobian(6, 1) = t_40
+      jacobian(6, 2) = -q1_y**2*t_37 + t_39
+      jacobian(6, 10) = q1_y*t_41
+      t_42 = 1.0_real64/C_2**2
+      t_43 = t_2*t_42
+      t_44 = gamma/C_2_root_2**5
+      t_45 = self%constants(48)*t_21
+      t_46 = self%constants(83)*(self%constants(12)*t_42 + self%constants(35)*t_42 + self%constants(42)*t_43) + &
+          self%constants(84)*t_23*t_44 + self%constants(85)*t_44 + 4.0_real64*t_20**2*t_45 + 4.0_real64*t_22 &
+          *(self%constants(16)*(self%constants(15)*t_42 + self%constants(4)*t_42 + self%constants(43)*t_43) + &
+          self%constants(44)*t_44 + self%constants(45)*t_4*t_44)
+      t_47 = t_20*t_21
+      t_48 = self%constants(40)*t_47 + self%constants(46)*t_17 + self%constants(49)*t_14 + t_17*t_25
+      jacobian(7, 3) = -q2_x**2*t_46 + t_48
+      t_49 = -q2_x*q2_y*t_46
+      jacobian(7, 4) = t_49
+      t_50 = t_15*t_23
+      t_51 = t_15*t_19 + t_18
+      t_52 = self%constants(22)*t_50 + t_16 + t_20*t_26*t_45 + t_22*t_51
+      t_53 = 2.0_real64*t_52
+      jacobian(7, 9) = -q2_x*t_53
+      t_54 = self%constants(50)*t_47
+      jacobian(7, 11) = q2_x*t_54
+      jacobian(8, 3) = t_49
+      jacobian(8, 4) = -q2_y**2*t_46 + t_48
+      jacobian(8, 9) = -q2_y*t_53
+      jacobian(8, 11) = q2_y*t_54
+      t_55 = t_27*t_33
+      t_56 = self%constants(51)*t_55
+      t_57 = 2.0_real64*t_20*t_56 + 2.0_real64*t_28*t_52
+      jacobian(9, 3) = q2_x*t_57
+      jacobian(9, 4) = q2_y*t_57
+      t_58 = t_26**2
+      jacobian(9, 9) = t_26*t_56 + t_28*(self%constants(26) + self%constants(52)*t_21 + t_45*t_58)
+      t_59 = exp_3*t_26
+      jacobian(9, 11) = self%constants(53)*t_21*t_59 + t_56
+      t_60 = self%constants(55)*t_30
+      t_61 = self%constants(86)*t_9 + 2.0_real64*t_60*t_9
+      jacobian(10, 1) = q1_x*t_61
+      jacobian(10, 2) = q1_y*t_61
+      t_62 = self%constants(56)*t_29*t_47
+      jacobian(10, 3) = q2_x*t_62
+      jacobian(10, 4) = q2_y*t_62
+      t_63 = self%constants(57)*t_21*t_29
+      jacobian(10, 9) = t_26*t_63
+      jacobian(10, 10) = self%constants(54) + t_60
+      jacobian(10, 11) = t_63
+      t_64 = self%constants(58)*exp_2*t_38
+      jacobian(11, 1) = q1_x*t_64
+      jacobian(11, 2) = q1_y*t_64
+      t_65 = self%constants(63)*exp_2*t_31
+      t_66 = self%constants(33)*t_55
+      t_67 = self%constants(64)*t_34
+      t_68 = self%constants(65)*exp_2**2*t_32
+      t_69 = exp_3*t_68
+      t_70 = self%constants(87)*t_20 + 2.0_real64*t_20*t_65 + 2.0_real64*t_20*t_67 + 2.0_real64*t_20*t_69 + &
+          2.0_real64*t_66*(self%parameters%beta_v*t_50 + self%constants(60)*t_15 + self%constants(61)*t_21*t_51 + &
+          self%constants(62)*t_26*t_47)
+      jacobian(11, 3) = q2_x*t_70
+      jacobian(11, 4) = q2_y*t_70
+      jacobian(11, 9) = self%constants(59)*t_26 + t_26*t_65 + t_26*t_67 + t_59*t_68 + t_66*(self%constants(62)*t_21 &
+          *t_58 + self%constants(66)*t_21 + self%constants(67))
+      jacobian(11, 10) = self%constants(68)*exp_1*exp_2
+      jacobian(11, 11) = self%constants(59) + self%constants(69)*t_27*t_59 + t_65 + t_67 + t_69
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -985,214 +945,161 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(13) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(37)*(self%constants(36) + 1.0_real64/tau_2) <= max_exponent)) then
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      jacobian(1, 5) = self%constants(1)
+      jacobian(1, 7) = self%constants(2)
+      jacobian(2, 6) = self%constants(1)
+      jacobian(2, 8) = self%constants(2)
+      jacobian(3, 5) = self%constants(2)
+      jacobian(3, 7) = self%constants(3)
+      jacobian(4, 6) = self%constants(2)
+      jacobian(4, 8) = self%constants(3)
+      jacobian(10, 11) = self%constants(68)
+      jacobian(11, 10) = self%constants(57)
+      t_5 = log(C_1*self%constants(5))
+      t_6 = log(C_2*self%constants(11))
+      t_7 = 1.0_real64/tau_2
+      if (.not. (self%constants(76)*(self%constants(75) + t_7) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = 1.0_real64/C_1
-        t_6 = log(C_1*self%constants(5))
-        t_7 = t_5*t_6
-        t_8 = 2.0_real64*self%constants(10)*t_7 + 2.0_real64*self%constants(9)*t_5
-        t_9 = self%constants(16)*t_5 + self%constants(43)*t_7
-        t_10 = 2.0_real64*q1_x
-        t_11 = t_10*t_9
-        t_12 = 2.0_real64*t_9
-        t_13 = t_12*tau_1
-        t_14 = 1.0_real64/C_2
-        t_15 = log(C_2*self%constants(13))
-        t_16 = t_14*t_15
-        t_17 = self%constants(14)*t_16 + self%constants(9)*t_14
-        t_18 = 1.0_real64/C_2_root_2**3
-        t_19 = self%constants(28)*t_18
-        t_20 = self%constants(25)*t_15 + self%constants(26)
-        t_21 = gamma*t_18
-        t_22 = self%constants(27)*t_21
-        t_23 = 2.0_real64*self%constants(15)*t_17 + 2.0_real64*gamma*t_19 + 2.0_real64*t_20*t_22
-        t_24 = self%constants(80)*t_18
-        t_25 = self%parameters%beta + self%constants(20)*t_15
-        t_26 = self%constants(15)*(self%constants(16)*t_14 + self%constants(17)*t_16) + gamma*t_24 + t_22*t_25
-        t_27 = 2.0_real64*q2_x
-        t_28 = t_26*t_27
-        t_29 = 2.0_real64*t_26
-        t_30 = t_29*tau_2
-        t_31 = 1.0_real64/tau_2
-        t_32 = self%constants(33)/C_2_root_2
-        t_33 = self%constants(31)*gamma + t_20*t_32
-        t_34 = t_31*t_33
-        t_35 = self%constants(81)*gamma + t_25*t_32 - t_34
-        t_36 = exp(self%constants(37)*(self%constants(36) + t_31))
-        t_37 = self%constants(82)*t_36
-        t_38 = t_35*t_37
-        t_39 = t_9*tau_1
-        t_40 = self%constants(84)*t_1
-        t_41 = t_39*t_40
-        t_42 = self%constants(84)*t_2
-        t_43 = t_39*t_42
-        t_44 = t_26*tau_2
-        t_45 = self%constants(74)*t_44
-        t_46 = t_3*t_45
-        t_47 = t_4*t_45
-        t_48 = t_35*t_36
-        t_49 = t_48*tau_2
-        t_50 = self%constants(85)*t_33
-        t_51 = 1.0_real64/C_1**2
-        t_52 = t_51*t_6
-        t_53 = self%constants(10)*t_51 + self%constants(44)*t_51 + self%constants(45)*t_52
-        t_54 = tau_1*(self%constants(4)*t_51 + self%constants(43)*t_51 + self%constants(6)*t_52)
-        t_55 = -t_10*t_53 + t_10*t_54
-        t_56 = self%constants(47)*t_5 + self%constants(48)*t_7 + t_13
-        t_57 = 2.0_real64*q1_y
-        t_58 = -t_53*t_57 + t_54*t_57
-        t_59 = 1.0_real64/C_2**2
-        t_60 = t_15*t_59
-        t_61 = gamma/C_2_root_2**5
-        t_62 = self%constants(56)*t_61
-        t_63 = self%constants(15)*(self%constants(14)*t_59 + self%constants(44)*t_59 + self%constants(51)*t_60) + &
-            self%constants(55)*t_61 + t_20*t_62
-        t_64 = self%constants(15)*(self%constants(17)*t_59 + self%constants(4)*t_59 + self%constants(52)*t_60) + &
-            self%constants(86)*t_61 + t_25*t_62
-        t_65 = t_27*tau_2
-        t_66 = -t_27*t_63 + t_64*t_65
-        t_67 = self%constants(33)*t_20*t_21 + self%constants(55)*t_21 + self%constants(58)*t_17 + t_30
-        t_68 = 2.0_real64*q2_y
-        t_69 = self%constants(27)*t_18
-        t_70 = t_19 + t_20*t_69
-        t_71 = t_24 + t_25*t_69
-        t_72 = t_68*tau_2
-        t_73 = -t_63*t_68 + t_64*t_72
-        t_74 = tau_2*(-t_31*t_70 + t_71)
-        t_75 = self%constants(87)*t_36*t_74
-        t_76 = tau_2*(self%constants(81) + self%constants(88)*t_31)
-        t_77 = q1_x*t_40
-        t_78 = q1_y*t_42
-        t_79 = t_54*t_77 + t_54*t_78
-        t_80 = self%constants(90)*t_39
-        t_81 = self%constants(91)*t_39
-        t_82 = q2_x*t_3
-        t_83 = self%constants(74)*tau_2
-        t_84 = t_64*t_83
-        t_85 = q2_y*t_4
-        t_86 = self%constants(85)*t_36
-        t_87 = t_33*t_86
-        t_88 = self%constants(85)*t_49*t_70 + t_74*t_87 + t_82*t_84 + t_84*t_85
-        t_89 = self%constants(92)*t_44
-        t_90 = self%constants(93)*t_44
-        t_91 = t_71*t_83
-        t_92 = self%constants(74)*t_26
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) - q1_x*t_8 + t_11*tau_1
-        f(6) = self%constants(12) + q1_y*t_13 - q1_y*t_8
-        f(7) = self%constants(29) - q2_x*t_23 + t_28*tau_2
-        f(8) = self%constants(30) - q2_y*t_23 + q2_y*t_30
-        f(9) = t_38*tau_2
-        f(10) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(83)*tau_1) + q1_x*t_41 + q1_y &
-            *t_43
-        f(11) = self%constants(24)*(self%parameters%conductivity*tau_1 + self%constants(83)*tau_2) + q2_x*t_46 + q2_y &
-            *t_47 + t_49*t_50
-        jacobian(1, 5) = self%constants(1)
-        jacobian(1, 7) = self%constants(2)
-        jacobian(2, 6) = self%constants(1)
-        jacobian(2, 8) = self%constants(2)
-        jacobian(3, 5) = self%constants(2)
-        jacobian(3, 7) = self%constants(3)
-        jacobian(4, 6) = self%constants(2)
-        jacobian(4, 8) = self%constants(3)
-        jacobian(5, 1) = t_10*t_55 + t_56
-        jacobian(5, 2) = t_55*t_57
-        jacobian(5, 10) = t_11
-        jacobian(6, 1) = t_10*t_58
-        jacobian(6, 2) = t_56 + t_57*t_58
-        jacobian(6, 10) = q1_y*t_12
-        jacobian(7, 3) = t_27*t_66 + t_67
-        jacobian(7, 4) = t_66*t_68
-        jacobian(7, 9) = -t_27*t_70 + t_65*t_71
-        jacobian(7, 11) = t_28
-        jacobian(8, 3) = t_27*t_73
-        jacobian(8, 4) = t_67 + t_68*t_73
-        jacobian(8, 9) = -t_68*t_70 + t_71*t_72
-        jacobian(8, 11) = q2_y*t_29
-        jacobian(9, 3) = q2_x*t_75
-        jacobian(9, 4) = q2_y*t_75
-        jacobian(9, 9) = t_37*t_76
-        jacobian(9, 11) = self%constants(89)*t_31*t_48 + t_34*t_37 + t_38
-        jacobian(10, 1) = t_10*t_79 + t_41
-        jacobian(10, 2) = t_43 + t_57*t_79
-        jacobian(10, 5) = q1_x*t_80
-        jacobian(10, 6) = q1_y*t_80
-        jacobian(10, 7) = q1_x*t_81
-        jacobian(10, 8) = q1_y*t_81
-        jacobian(10, 10) = self%constants(63) + t_77*t_9 + t_78*t_9
-        jacobian(10, 11) = self%constants(78)
-        jacobian(11, 3) = t_27*t_88 + t_46
-        jacobian(11, 4) = t_47 + t_68*t_88
-        jacobian(11, 5) = q2_x*t_89
-        jacobian(11, 6) = q2_y*t_89
-        jacobian(11, 7) = q2_x*t_90
-        jacobian(11, 8) = q2_y*t_90
-        jacobian(11, 9) = self%constants(94)*t_49 + t_76*t_87 + t_82*t_91 + t_85*t_91
-        jacobian(11, 10) = self%constants(66)
-        jacobian(11, 11) = self%constants(68) + self%constants(95)*t_34*t_48 + t_31*t_33**2*t_86 + t_48*t_50 + t_82 &
-            *t_92 + t_85*t_92
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = 1.0_real64/C_1
-        t_6 = t_5*log(C_1*self%constants(5))
-        t_7 = 2.0_real64*self%constants(10)*t_6 + 2.0_real64*self%constants(9)*t_5
-        t_8 = tau_1*(self%constants(16)*t_5 + self%constants(43)*t_6)
-        t_9 = 2.0_real64*t_8
-        t_10 = 1.0_real64/C_2
-        t_11 = log(C_2*self%constants(13))
-        t_12 = t_10*t_11
-        t_13 = gamma/C_2_root_2**3
-        t_14 = self%constants(25)*t_11 + self%constants(26)
-        t_15 = self%constants(27)*t_13
-        t_16 = 2.0_real64*self%constants(15)*(self%constants(14)*t_12 + self%constants(9)*t_10) + 2.0_real64 &
-            *self%constants(28)*t_13 + 2.0_real64*t_14*t_15
-        t_17 = self%parameters%beta + self%constants(20)*t_11
-        t_18 = tau_2*(self%constants(15)*(self%constants(16)*t_10 + self%constants(17)*t_12) + self%constants(80) &
-            *t_13 + t_15*t_17)
-        t_19 = 2.0_real64*t_18
-        t_20 = 1.0_real64/tau_2
-        t_21 = self%constants(33)/C_2_root_2
-        t_22 = self%constants(31)*gamma + t_14*t_21
-        t_23 = tau_2*(self%constants(81)*gamma + t_17*t_21 - t_20*t_22)*exp(self%constants(37)*(self%constants(36) + &
-            t_20))
-        t_24 = self%constants(84)*t_8
-        t_25 = self%constants(74)*t_18
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) - q1_x*t_7 + q1_x*t_9
-        f(6) = self%constants(12) - q1_y*t_7 + q1_y*t_9
-        f(7) = self%constants(29) - q2_x*t_16 + q2_x*t_19
-        f(8) = self%constants(30) - q2_y*t_16 + q2_y*t_19
-        f(9) = self%constants(82)*t_23
-        f(10) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(83)*tau_1) + q1_x*t_1*t_24 + &
-            q1_y*t_2*t_24
-        f(11) = self%constants(24)*(self%parameters%conductivity*tau_1 + self%constants(83)*tau_2) + &
-            self%constants(85)*t_22*t_23 + q2_x*t_25*t_3 + q2_y*t_25*t_4
-      end if
+      exp_1 = exp(self%constants(76)*(self%constants(75) + t_7))
+      t_8 = 1.0_real64/C_1
+      t_9 = t_5*t_8
+      t_10 = self%constants(21)*t_8 + self%constants(77)*t_9
+      t_11 = self%constants(14)*t_8 + self%constants(34)*t_9
+      t_12 = 2.0_real64*q1_x
+      t_13 = t_11*t_12
+      f(5) = self%constants(9) - q1_x*t_10 + t_13*tau_1
+      t_14 = 2.0_real64*t_11
+      t_15 = t_14*tau_1
+      f(6) = self%constants(10) - q1_y*t_10 + q1_y*t_15
+      t_16 = 1.0_real64/C_2
+      t_17 = t_16*t_6
+      t_18 = self%constants(12)*t_17 + self%constants(7)*t_16
+      t_19 = 1.0_real64/C_2_root_2**3
+      t_20 = self%constants(23)*t_19
+      t_21 = self%constants(20)*t_6 + self%constants(21)
+      t_22 = gamma*t_19
+      t_23 = self%constants(22)*t_22
+      t_24 = self%constants(78)*t_18 + 2.0_real64*gamma*t_20 + 2.0_real64*t_21*t_23
+      t_25 = self%constants(88)*t_19
+      t_26 = self%parameters%beta + self%constants(18)*t_6
+      t_27 = self%constants(13)*(self%constants(14)*t_16 + self%constants(15)*t_17) + gamma*t_25 + t_23*t_26
+      t_28 = 2.0_real64*q2_x
+      t_29 = t_27*t_28
+      f(7) = self%constants(24) - q2_x*t_24 + t_29*tau_2
+      t_30 = 2.0_real64*t_27
+      t_31 = t_30*tau_2
+      f(8) = self%constants(25) - q2_y*t_24 + q2_y*t_31
+      t_32 = self%constants(28)/C_2_root_2
+      t_33 = self%constants(26)*gamma + t_21*t_32
+      t_34 = t_33*t_7
+      t_35 = self%constants(89)*gamma + t_26*t_32 - t_34
+      t_36 = self%constants(90)*exp_1
+      t_37 = t_35*t_36
+      f(9) = t_37*tau_2
+      t_38 = t_11*tau_1
+      t_39 = self%constants(92)*t_1
+      t_40 = t_38*t_39
+      t_41 = self%constants(92)*t_2
+      t_42 = t_38*t_41
+      f(10) = self%constants(71)*(self%parameters%conductivity*tau_2 + self%constants(91)*tau_1) + q1_x*t_40 + q1_y*t_42
+      t_43 = t_27*tau_2
+      t_44 = self%constants(94)*t_43
+      t_45 = t_3*t_44
+      t_46 = t_4*t_44
+      t_47 = exp_1*t_35
+      t_48 = t_47*tau_2
+      t_49 = self%constants(95)*t_33
+      f(11) = self%constants(93)*(self%parameters%conductivity*tau_1 + self%constants(91)*tau_2) + q2_x*t_45 + q2_y &
+          *t_46 + t_48*t_49
+      t_50 = 1.0_real64/C_1**2
+      t_51 = t_5*t_50
+      t_52 = self%constants(35)*t_50 + self%constants(36)*t_51 + self%constants(8)*t_50
+      t_53 = tau_1*(self%constants(34)*t_50 + self%constants(4)*t_50 + self%constants(6)*t_51)
+      t_54 = -t_12*t_52 + t_12*t_53
+      t_55 = self%constants(38)*t_8 + self%constants(39)*t_9 + t_15
+      jacobian(5, 1) = t_12*t_54 + t_55
+      t_56 = 2.0_real64*q1_y
+      jacobian(5, 2) = t_54*t_56
+      jacobian(5, 10) = t_13
+      t_57 = -t_52*t_56 + t_53*t_56
+      jacobian(6, 1) = t_12*t_57
+      jacobian(6, 2) = t_55 + t_56*t_57
+      jacobian(6, 10) = q1_y*t_14
+      t_58 = 1.0_real64/C_2**2
+      t_59 = t_58*t_6
+      t_60 = gamma/C_2_root_2**5
+      t_61 = self%constants(47)*t_60
+      t_62 = self%constants(13)*(self%constants(12)*t_58 + self%constants(35)*t_58 + self%constants(42)*t_59) + &
+          self%constants(46)*t_60 + t_21*t_61
+      t_63 = self%constants(13)*(self%constants(15)*t_58 + self%constants(4)*t_58 + self%constants(43)*t_59) + &
+          self%constants(96)*t_60 + t_26*t_61
+      t_64 = t_28*tau_2
+      t_65 = -t_28*t_62 + t_63*t_64
+      t_66 = self%constants(28)*t_21*t_22 + self%constants(46)*t_22 + self%constants(49)*t_18 + t_31
+      jacobian(7, 3) = t_28*t_65 + t_66
+      t_67 = 2.0_real64*q2_y
+      jacobian(7, 4) = t_65*t_67
+      t_68 = self%constants(22)*t_19
+      t_69 = t_20 + t_21*t_68
+      t_70 = t_25 + t_26*t_68
+      jacobian(7, 9) = -t_28*t_69 + t_64*t_70
+      jacobian(7, 11) = t_29
+      t_71 = t_67*tau_2
+      t_72 = -t_62*t_67 + t_63*t_71
+      jacobian(8, 3) = t_28*t_72
+      jacobian(8, 4) = t_66 + t_67*t_72
+      jacobian(8, 9) = -t_67*t_69 + t_70*t_71
+      jacobian(8, 11) = q2_y*t_30
+      t_73 = tau_2*(-t_69*t_7 + t_70)
+      t_74 = self%constants(97)*exp_1*t_73
+      jacobian(9, 3) = q2_x*t_74
+      jacobian(9, 4) = q2_y*t_74
+      t_75 = tau_2*(self%constants(89) + self%constants(98)*t_7)
+      jacobian(9, 9) = t_36*t_75
+      jacobian(9, 11) = self%constants(99)*t_47*t_7 + t_34*t_36 + t_37
+      t_76 = q1_x*t_39
+      t_77 = q1_y*t_41
+      t_78 = t_53*t_76 + t_53*t_77
+      jacobian(10, 1) = t_12*t_78 + t_40
+      jacobian(10, 2) = t_42 + t_56*t_78
+      t_79 = self%constants(100)*t_38
+      jacobian(10, 5) = q1_x*t_79
+      jacobian(10, 6) = q1_y*t_79
+      t_80 = self%constants(101)*t_38
+      jacobian(10, 7) = q1_x*t_80
+      jacobian(10, 8) = q1_y*t_80
+      jacobian(10, 10) = self%constants(54) + t_11*t_76 + t_11*t_77
+      t_81 = q2_x*t_3
+      t_82 = self%constants(94)*tau_2
+      t_83 = t_63*t_82
+      t_84 = q2_y*t_4
+      t_85 = self%constants(95)*exp_1
+      t_86 = t_33*t_85
+      t_87 = self%constants(95)*t_48*t_69 + t_73*t_86 + t_81*t_83 + t_83*t_84
+      jacobian(11, 3) = t_28*t_87 + t_45
+      jacobian(11, 4) = t_46 + t_67*t_87
+      t_88 = self%constants(102)*t_43
+      jacobian(11, 5) = q2_x*t_88
+      jacobian(11, 6) = q2_y*t_88
+      t_89 = self%constants(103)*t_43
+      jacobian(11, 7) = q2_x*t_89
+      jacobian(11, 8) = q2_y*t_89
+      t_90 = t_70*t_82
+      jacobian(11, 9) = self%constants(104)*t_48 + t_75*t_86 + t_81*t_90 + t_84*t_90
+      t_91 = self%constants(94)*t_27
+      jacobian(11, 11) = self%constants(105)*t_34*t_47 + self%constants(59) + t_33**2*t_7*t_85 + t_47*t_49 + t_81 &
+          *t_91 + t_84*t_91
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1202,233 +1109,382 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(13) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(37)*(self%constants(36) + 1.0_real64/(self%constants(24)*(self%constants(18) &
-          *(self%constants(9)*log(C_2*self%constants(13)) + self%constants(98)*log(C_2*self%constants(13))**2) + &
-          self%constants(97)*gamma**2 + tau_2 + self%parameters%beta_v*gamma*(self%constants(25)*log(C_2 &
-          *self%constants(13)) + self%constants(26))/sqrt(C_2)) + self%parameters%theta_ref)) <= max_exponent)) then
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      jacobian(1, 5) = self%constants(1)
+      jacobian(1, 7) = self%constants(2)
+      jacobian(2, 6) = self%constants(1)
+      jacobian(2, 8) = self%constants(2)
+      jacobian(3, 5) = self%constants(2)
+      jacobian(3, 7) = self%constants(3)
+      jacobian(4, 6) = self%constants(2)
+      jacobian(4, 8) = self%constants(3)
+      jacobian(10, 11) = self%constants(57)
+      jacobian(11, 10) = self%constants(68)
+      t_5 = log(C_2*self%constants(11))
+      t_6 = log(C_1*self%constants(5))
+      t_7 = 1.0_real64/C_2_root_2
+      t_8 = self%constants(20)*t_5 + self%constants(21)
+      t_9 = self%parameters%beta_v*t_7*t_8
+      t_10 = self%constants(93)*(self%constants(107)*gamma**2 + self%constants(16)*(self%constants(108)*t_5**2 + &
+          self%constants(7)*t_5) + gamma*t_9 + tau_2) + self%parameters%theta_ref
+      t_11 = 1.0_real64/t_10
+      if (.not. (self%constants(76)*(self%constants(75) + t_11) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = 1.0_real64/C_1
-        t_6 = log(C_1*self%constants(5))
-        t_7 = self%constants(8)*(self%constants(44)*t_6 + self%constants(96)*t_6**2 + tau_1) + self%parameters%theta_ref
-        t_8 = 1.0_real64/t_7
-        t_9 = t_5*t_6
-        t_10 = self%constants(44)*t_5 + self%constants(45)*t_9
-        t_11 = t_10*t_8
-        t_12 = self%constants(16)*t_5 + self%constants(43)*t_9 + t_11
-        t_13 = 2.0_real64*t_7
-        t_14 = t_12*t_13
-        t_15 = q1_x*t_14
-        t_16 = q1_y*t_14
-        t_17 = 1.0_real64/C_2
-        t_18 = log(C_2*self%constants(13))
-        t_19 = t_17*t_18
-        t_20 = 1.0_real64/C_2_root_2
-        t_21 = self%constants(25)*t_18 + self%constants(26)
-        t_22 = self%parameters%beta_v*t_20*t_21
-        t_23 = self%constants(24)*(self%constants(18)*(self%constants(9)*t_18 + self%constants(98)*t_18**2) + &
-            self%constants(97)*gamma**2 + gamma*t_22 + tau_2) + self%parameters%theta_ref
-        t_24 = 1.0_real64/t_23
-        t_25 = 1.0_real64/C_2_root_2**3
-        t_26 = self%constants(99)*t_25
-        t_27 = self%constants(21)*t_21*t_25
-        t_28 = self%constants(18)*(self%constants(14)*t_19 + self%constants(9)*t_17) + gamma*t_26 + gamma*t_27
-        t_29 = t_24*t_28
-        t_30 = self%constants(80)*t_25
-        t_31 = self%parameters%beta + self%constants(20)*t_18
-        t_32 = self%constants(27)*t_25*t_31
-        t_33 = self%constants(15)*(self%constants(16)*t_17 + self%constants(17)*t_19) + gamma*t_30 + gamma*t_32 + t_29
-        t_34 = 2.0_real64*t_23
-        t_35 = t_33*t_34
-        t_36 = q2_x*t_35
-        t_37 = q2_y*t_35
-        t_38 = self%constants(88)*gamma + t_22
-        t_39 = t_24*t_38
-        t_40 = exp(self%constants(37)*(self%constants(36) + t_24))
-        t_41 = t_40*(self%constants(33)*t_20*t_31 + self%constants(81)*gamma + t_39)
-        t_42 = self%constants(82)*t_23
-        t_43 = 1.0_real64/C_1**2
-        t_44 = t_43*t_6
-        t_45 = t_13*(self%constants(4)*t_43 + self%constants(41)*t_10**2/t_7**2 + self%constants(43)*t_43 + &
-            self%constants(6)*t_44 + t_8*(self%constants(10)*t_44 + self%constants(45)*t_43 + self%constants(9)*t_43))
-        t_46 = q1_x*t_45
-        t_47 = self%constants(100)*t_12
-        t_48 = q1_x*t_47
-        t_49 = 2.0_real64*t_10*t_48 + 2.0_real64*t_46
-        t_50 = self%constants(84)*t_11
-        t_51 = q1_y*t_45
-        t_52 = q1_y*t_47
-        t_53 = 2.0_real64*t_10*t_52 + 2.0_real64*t_51
-        t_54 = 1.0_real64/C_2**2
-        t_55 = t_18*t_54
-        t_56 = gamma/C_2_root_2**5
-        t_57 = self%constants(34)/t_23**2
-        t_58 = self%constants(15)*(self%constants(17)*t_54 + self%constants(4)*t_54 + self%constants(52)*t_55) + &
-            self%constants(56)*t_31*t_56 + self%constants(86)*t_56 + t_24*(self%constants(18)*(self%constants(14) &
-            *t_54 + self%constants(44)*t_54 + self%constants(51)*t_55) + self%constants(54)*t_21*t_56 + &
-            self%constants(69)*t_56) + t_28**2*t_57
-        t_59 = q2_x*t_34
-        t_60 = t_58*t_59
-        t_61 = self%constants(101)*t_33
-        t_62 = q2_x*t_61
-        t_63 = 2.0_real64*t_28*t_62 + 2.0_real64*t_60
-        t_64 = t_24*(t_26 + t_27) + t_28*t_38*t_57 + t_30 + t_32
-        t_65 = t_59*t_64
-        t_66 = self%constants(74)*t_29
-        t_67 = q2_y*t_34
-        t_68 = t_58*t_67
-        t_69 = q2_y*t_61
-        t_70 = 2.0_real64*t_28*t_69 + 2.0_real64*t_68
-        t_71 = t_64*t_67
-        t_72 = self%constants(102)*t_41
-        t_73 = t_40*t_42
-        t_74 = self%constants(103)*t_41
-        t_75 = 2.0_real64*t_28*t_72 + 2.0_real64*t_29*t_74 + 2.0_real64*t_64*t_73
-        t_76 = self%constants(84)*t_12
-        t_77 = q1_x*t_1
-        t_78 = t_76*t_77
-        t_79 = q1_y*t_2
-        t_80 = t_76*t_79
-        t_81 = 2.0_real64*self%constants(63)*t_10 - 2.0_real64*t_1*t_46 + 2.0_real64*t_10*t_78 + 2.0_real64*t_10*t_80 &
-            - 2.0_real64*t_2*t_51
-        t_82 = self%constants(65)*t_28
-        t_83 = t_12*t_7
-        t_84 = self%constants(104)*t_83
-        t_85 = self%constants(105)*t_83
-        t_86 = self%constants(100)*t_11
-        t_87 = self%constants(67)*t_10
-        t_88 = self%constants(74)*t_33
-        t_89 = q2_x*t_3
-        t_90 = t_88*t_89
-        t_91 = q2_y*t_4
-        t_92 = t_88*t_91
-        t_93 = 2.0_real64*self%constants(68)*t_28 + 2.0_real64*t_28*t_90 + 2.0_real64*t_28*t_92 - 2.0_real64*t_3*t_60 &
-            - 2.0_real64*t_4*t_68
-        t_94 = t_23*t_33
-        t_95 = self%constants(105)*t_94
-        t_96 = self%constants(106)*t_94
-        t_97 = self%constants(101)*t_29
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) + t_15
-        f(6) = self%constants(12) + t_16
-        f(7) = self%constants(29) + t_36
-        f(8) = self%constants(30) + t_37
-        f(9) = t_41*t_42
-        f(10) = self%parameters%conductivity*t_23 + self%constants(83)*t_7 - t_1*t_15 - t_16*t_2
-        f(11) = self%parameters%conductivity*t_7 + self%constants(83)*t_23 - t_3*t_36 - t_37*t_4
-        jacobian(1, 5) = self%constants(1)
-        jacobian(1, 7) = self%constants(2)
-        jacobian(2, 6) = self%constants(1)
-        jacobian(2, 8) = self%constants(2)
-        jacobian(3, 5) = self%constants(2)
-        jacobian(3, 7) = self%constants(3)
-        jacobian(4, 6) = self%constants(2)
-        jacobian(4, 8) = self%constants(3)
-        jacobian(5, 1) = q1_x*t_49 + t_14
-        jacobian(5, 2) = q1_y*t_49
-        jacobian(5, 10) = q1_x*t_50 + t_48
-        jacobian(6, 1) = q1_x*t_53
-        jacobian(6, 2) = q1_y*t_53 + t_14
-        jacobian(6, 10) = q1_y*t_50 + t_52
-        jacobian(7, 3) = q2_x*t_63 + t_35
-        jacobian(7, 4) = q2_y*t_63
-        jacobian(7, 9) = t_38*t_62 + t_65
-        jacobian(7, 11) = q2_x*t_66 + t_62
-        jacobian(8, 3) = q2_x*t_70
-        jacobian(8, 4) = q2_y*t_70 + t_35
-        jacobian(8, 9) = t_38*t_69 + t_71
-        jacobian(8, 11) = q2_y*t_66 + t_69
-        jacobian(9, 3) = q2_x*t_75
-        jacobian(9, 4) = q2_y*t_75
-        jacobian(9, 9) = t_38*t_72 + t_39*t_74 + t_73*(self%constants(81) + self%constants(88)*t_24 + t_38**2*t_57)
-        jacobian(9, 11) = self%constants(85)*t_39*t_40 + t_24*t_74 + t_72
-        jacobian(10, 1) = q1_x*t_81 - t_1*t_14
-        jacobian(10, 2) = q1_y*t_81 - t_14*t_2
-        jacobian(10, 3) = q2_x*t_82
-        jacobian(10, 4) = q2_y*t_82
-        jacobian(10, 5) = q1_x*t_84
-        jacobian(10, 6) = q1_y*t_84
-        jacobian(10, 7) = q1_x*t_85
-        jacobian(10, 8) = q1_y*t_85
-        jacobian(10, 9) = self%constants(66)*t_38
-        jacobian(10, 10) = self%constants(63) + t_77*t_86 + t_78 + t_79*t_86 + t_80
-        jacobian(10, 11) = self%constants(66)
-        jacobian(11, 1) = q1_x*t_87
-        jacobian(11, 2) = q1_y*t_87
-        jacobian(11, 3) = q2_x*t_93 - t_3*t_35
-        jacobian(11, 4) = q2_y*t_93 - t_35*t_4
-        jacobian(11, 5) = q2_x*t_95
-        jacobian(11, 6) = q2_y*t_95
-        jacobian(11, 7) = q2_x*t_96
-        jacobian(11, 8) = q2_y*t_96
-        jacobian(11, 9) = self%constants(68)*t_38 - t_3*t_65 + t_38*t_90 + t_38*t_92 - t_4*t_71
-        jacobian(11, 10) = self%constants(78)
-        jacobian(11, 11) = self%constants(68) + t_89*t_97 + t_90 + t_91*t_97 + t_92
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = log(C_1*self%constants(5))
-        t_6 = self%constants(8)*(self%constants(44)*t_5 + self%constants(96)*t_5**2 + tau_1) + self%parameters%theta_ref
-        t_7 = 1.0_real64/C_1
-        t_8 = t_5*t_7
-        t_9 = 2.0_real64*t_6*(self%constants(16)*t_7 + self%constants(43)*t_8 + (self%constants(44)*t_7 + &
-            self%constants(45)*t_8)/t_6)
-        t_10 = q1_x*t_9
-        t_11 = q1_y*t_9
-        t_12 = log(C_2*self%constants(13))
-        t_13 = 1.0_real64/C_2_root_2
-        t_14 = self%constants(25)*t_12 + self%constants(26)
-        t_15 = self%parameters%beta_v*t_13*t_14
-        t_16 = self%constants(24)*(self%constants(18)*(self%constants(9)*t_12 + self%constants(98)*t_12**2) + &
-            self%constants(97)*gamma**2 + gamma*t_15 + tau_2) + self%parameters%theta_ref
-        t_17 = 1.0_real64/C_2
-        t_18 = t_12*t_17
-        t_19 = 1.0_real64/t_16
-        t_20 = gamma/C_2_root_2**3
-        t_21 = self%parameters%beta + self%constants(20)*t_12
-        t_22 = 2.0_real64*t_16*(self%constants(15)*(self%constants(16)*t_17 + self%constants(17)*t_18) + &
-            self%constants(27)*t_20*t_21 + self%constants(80)*t_20 + t_19*(self%constants(18)*(self%constants(14) &
-            *t_18 + self%constants(9)*t_17) + self%constants(21)*t_14*t_20 + self%constants(99)*t_20))
-        t_23 = q2_x*t_22
-        t_24 = q2_y*t_22
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) + t_10
-        f(6) = self%constants(12) + t_11
-        f(7) = self%constants(29) + t_23
-        f(8) = self%constants(30) + t_24
-        f(9) = self%constants(82)*t_16*(self%constants(33)*t_13*t_21 + self%constants(81)*gamma + t_19 &
-            *(self%constants(88)*gamma + t_15))*exp(self%constants(37)*(self%constants(36) + t_19))
-        f(10) = self%parameters%conductivity*t_16 + self%constants(83)*t_6 - t_1*t_10 - t_11*t_2
-        f(11) = self%parameters%conductivity*t_6 + self%constants(83)*t_16 - t_23*t_3 - t_24*t_4
-      end if
+      exp_1 = exp(self%constants(76)*(self%constants(75) + t_11))
+      t_12 = 1.0_real64/C_1
+      t_13 = t_12*t_6
+      t_14 = self%constants(71)*(self%constants(106)*t_6**2 + self%constants(35)*t_6 + tau_1) + &
+          self%parameters%theta_ref
+      t_15 = 1.0_real64/t_14
+      t_16 = self%constants(35)*t_12 + self%constants(36)*t_13
+      t_17 = t_15*t_16
+      t_18 = self%constants(14)*t_12 + self%constants(34)*t_13 + t_17
+      t_19 = 2.0_real64*t_14
+      t_20 = t_18*t_19
+      t_21 = q1_x*t_20
+      f(5) = self%constants(9) + t_21
+      t_22 = q1_y*t_20
+      f(6) = self%constants(10) + t_22
+      t_23 = 1.0_real64/C_2
+      t_24 = t_23*t_5
+      t_25 = 1.0_real64/C_2_root_2**3
+      t_26 = self%constants(109)*t_25
+      t_27 = self%constants(19)*t_25*t_8
+      t_28 = self%constants(16)*(self%constants(12)*t_24 + self%constants(7)*t_23) + gamma*t_26 + gamma*t_27
+      t_29 = t_11*t_28
+      t_30 = self%constants(88)*t_25
+      t_31 = self%parameters%beta + self%constants(18)*t_5
+      t_32 = self%constants(22)*t_25*t_31
+      t_33 = self%constants(13)*(self%constants(14)*t_23 + self%constants(15)*t_24) + gamma*t_30 + gamma*t_32 + t_29
+      t_34 = 2.0_real64*t_10
+      t_35 = t_33*t_34
+      t_36 = q2_x*t_35
+      f(7) = self%constants(24) + t_36
+      t_37 = q2_y*t_35
+      f(8) = self%constants(25) + t_37
+      t_38 = self%constants(98)*gamma + t_9
+      t_39 = t_11*t_38
+      t_40 = exp_1*(self%constants(28)*t_31*t_7 + self%constants(89)*gamma + t_39)
+      t_41 = self%constants(90)*t_10
+      f(9) = t_40*t_41
+      f(10) = self%parameters%conductivity*t_10 + self%constants(91)*t_14 - t_1*t_21 - t_2*t_22
+      f(11) = self%parameters%conductivity*t_14 + self%constants(91)*t_10 - t_3*t_36 - t_37*t_4
+      t_42 = 1.0_real64/C_1**2
+      t_43 = t_42*t_6
+      t_44 = t_19*(self%constants(110)*t_16**2/t_14**2 + self%constants(34)*t_42 + self%constants(4)*t_42 + &
+          self%constants(6)*t_43 + t_15*(self%constants(36)*t_42 + self%constants(7)*t_42 + self%constants(8)*t_43))
+      t_45 = q1_x*t_44
+      t_46 = self%constants(111)*t_18
+      t_47 = q1_x*t_46
+      t_48 = 2.0_real64*t_16*t_47 + 2.0_real64*t_45
+      jacobian(5, 1) = q1_x*t_48 + t_20
+      jacobian(5, 2) = q1_y*t_48
+      t_49 = self%constants(92)*t_17
+      jacobian(5, 10) = q1_x*t_49 + t_47
+      t_50 = q1_y*t_44
+      t_51 = q1_y*t_46
+      t_52 = 2.0_real64*t_16*t_51 + 2.0_real64*t_50
+      jacobian(6, 1) = q1_x*t_52
+      jacobian(6, 2) = q1_y*t_52 + t_20
+      jacobian(6, 10) = q1_y*t_49 + t_51
+      t_53 = 1.0_real64/C_2**2
+      t_54 = t_5*t_53
+      t_55 = gamma/C_2_root_2**5
+      t_56 = self%constants(74)/t_10**2
+      t_57 = self%constants(13)*(self%constants(15)*t_53 + self%constants(4)*t_53 + self%constants(43)*t_54) + &
+          self%constants(47)*t_31*t_55 + self%constants(96)*t_55 + t_11*(self%constants(16)*(self%constants(12)*t_53 &
+          + self%constants(35)*t_53 + self%constants(42)*t_54) + self%constants(45)*t_55*t_8 + self%constants(60) &
+          *t_55) + t_28**2*t_56
+      t_58 = q2_x*t_34
+      t_59 = t_57*t_58
+      t_60 = self%constants(112)*t_33
+      t_61 = q2_x*t_60
+      t_62 = 2.0_real64*t_28*t_61 + 2.0_real64*t_59
+      jacobian(7, 3) = q2_x*t_62 + t_35
+      jacobian(7, 4) = q2_y*t_62
+      t_63 = t_11*(t_26 + t_27) + t_28*t_38*t_56 + t_30 + t_32
+      t_64 = t_58*t_63
+      jacobian(7, 9) = t_38*t_61 + t_64
+      t_65 = self%constants(94)*t_29
+      jacobian(7, 11) = q2_x*t_65 + t_61
+      t_66 = q2_y*t_34
+      t_67 = t_57*t_66
+      t_68 = q2_y*t_60
+      t_69 = 2.0_real64*t_28*t_68 + 2.0_real64*t_67
+      jacobian(8, 3) = q2_x*t_69
+      jacobian(8, 4) = q2_y*t_69 + t_35
+      t_70 = t_63*t_66
+      jacobian(8, 9) = t_38*t_68 + t_70
+      jacobian(8, 11) = q2_y*t_65 + t_68
+      t_71 = self%constants(113)*t_40
+      t_72 = exp_1*t_41
+      t_73 = self%constants(114)*t_40
+      t_74 = 2.0_real64*t_28*t_71 + 2.0_real64*t_29*t_73 + 2.0_real64*t_63*t_72
+      jacobian(9, 3) = q2_x*t_74
+      jacobian(9, 4) = q2_y*t_74
+      jacobian(9, 9) = t_38*t_71 + t_39*t_73 + t_72*(self%constants(89) + self%constants(98)*t_11 + t_38**2*t_56)
+      jacobian(9, 11) = self%constants(95)*exp_1*t_39 + t_11*t_73 + t_71
+      t_75 = self%constants(92)*t_18
+      t_76 = q1_x*t_1
+      t_77 = t_75*t_76
+      t_78 = q1_y*t_2
+      t_79 = t_75*t_78
+      t_80 = self%constants(86)*t_16 - 2.0_real64*t_1*t_45 + 2.0_real64*t_16*t_77 + 2.0_real64*t_16*t_79 - 2.0_real64 &
+          *t_2*t_50
+      jacobian(10, 1) = q1_x*t_80 - t_1*t_20
+      jacobian(10, 2) = q1_y*t_80 - t_2*t_20
+      t_81 = self%constants(56)*t_28
+      jacobian(10, 3) = q2_x*t_81
+      jacobian(10, 4) = q2_y*t_81
+      t_82 = t_14*t_18
+      t_83 = self%constants(115)*t_82
+      jacobian(10, 5) = q1_x*t_83
+      jacobian(10, 6) = q1_y*t_83
+      t_84 = self%constants(116)*t_82
+      jacobian(10, 7) = q1_x*t_84
+      jacobian(10, 8) = q1_y*t_84
+      jacobian(10, 9) = self%constants(57)*t_38
+      t_85 = self%constants(111)*t_17
+      jacobian(10, 10) = self%constants(54) + t_76*t_85 + t_77 + t_78*t_85 + t_79
+      t_86 = self%constants(58)*t_16
+      jacobian(11, 1) = q1_x*t_86
+      jacobian(11, 2) = q1_y*t_86
+      t_87 = self%constants(94)*t_33
+      t_88 = q2_x*t_3
+      t_89 = t_87*t_88
+      t_90 = q2_y*t_4
+      t_91 = t_87*t_90
+      t_92 = self%constants(87)*t_28 + 2.0_real64*t_28*t_89 + 2.0_real64*t_28*t_91 - 2.0_real64*t_3*t_59 - 2.0_real64 &
+          *t_4*t_67
+      jacobian(11, 3) = q2_x*t_92 - t_3*t_35
+      jacobian(11, 4) = q2_y*t_92 - t_35*t_4
+      t_93 = t_10*t_33
+      t_94 = self%constants(116)*t_93
+      jacobian(11, 5) = q2_x*t_94
+      jacobian(11, 6) = q2_y*t_94
+      t_95 = self%constants(117)*t_93
+      jacobian(11, 7) = q2_x*t_95
+      jacobian(11, 8) = q2_y*t_95
+      jacobian(11, 9) = self%constants(59)*t_38 - t_3*t_64 + t_38*t_89 + t_38*t_91 - t_4*t_70
+      t_96 = self%constants(112)*t_29
+      jacobian(11, 11) = self%constants(59) + t_88*t_96 + t_89 + t_90*t_96 + t_91
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11)) <= &
         huge(1.0_real64))) stat = domain_overflow
-  end subroutine continuous_field
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class(planar_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(11)
+    real(real64), intent(out) :: f(11)
+    integer, intent(out) :: stat
+    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, gamma, tau_1, tau_2, C_1, C_2, C_2_root_2, exp_1, &
+        exp_2, exp_3, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
+        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25
+
+    stat = failure_none
+    q1_x = z(1)
+    q1_y = z(2)
+    q2_x = z(3)
+    q2_y = z(4)
+    p1_x = z(5)
+    p1_y = z(6)
+    p2_x = z(7)
+    p2_y = z(8)
+    gamma = z(9)
+    tau_1 = z(10)
+    tau_2 = z(11)
+    C_1 = q1_x**2 + q1_y**2
+    C_2 = q2_x**2 + q2_y**2
+    select case (self%thermo_variable)
+    case (tau_entropy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      C_2_root_2 = sqrt(C_2)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(11))
+      if (.not. (abs(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1))
+      t_3 = 1.0_real64/C_2_root_2
+      t_4 = self%parameters%beta + self%constants(18)*t_2
+      t_5 = self%parameters%beta_v*t_3*t_4
+      if (.not. (abs(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_2 = exp(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
+          self%constants(72)*gamma**2 + gamma*t_5 + tau_2))
+      t_6 = self%constants(32)*exp_2
+      if (.not. (self%constants(76)*(self%constants(75) + t_6) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_3 = exp(self%constants(76)*(self%constants(75) + t_6))
+      t_7 = 1.0_real64/C_1
+      t_8 = t_1*t_7
+      t_9 = self%constants(21)*t_7 + self%constants(61)*exp_1*(self%constants(4)*t_7 + self%constants(6)*t_8) + &
+          self%constants(77)*t_8
+      f(5) = self%constants(9) - q1_x*t_9
+      f(6) = self%constants(10) - q1_y*t_9
+      t_10 = 1.0_real64/C_2
+      t_11 = t_10*t_2
+      t_12 = gamma/C_2_root_2**3
+      t_13 = 1.0_real64/exp_2
+      t_14 = t_13*self%parameters%theta_ref
+      t_15 = self%constants(20)*t_2 + self%constants(21)
+      t_16 = self%parameters%beta_v*t_12*t_15 + self%constants(60)*t_12 + self%constants(78)*(self%constants(12)*t_11 &
+          + self%constants(7)*t_10) + 2.0_real64*t_14*(self%constants(16)*(self%constants(14)*t_10 + &
+          self%constants(15)*t_11) + self%constants(17)*t_12 + self%constants(19)*t_12*t_4)
+      f(7) = self%constants(24) - q2_x*t_16
+      f(8) = self%constants(25) - q2_y*t_16
+      t_17 = self%constants(26)*gamma + self%constants(28)*t_15*t_3 + t_14*(self%constants(27)*gamma + t_5)
+      f(9) = self%constants(29)*exp_3*t_17
+      f(10) = self%constants(32)*(self%constants(30)*t_13 + self%constants(31)*exp_1)/exp_1
+      f(11) = self%constants(33)*exp_2*exp_3*t_17**2 + t_6*(self%constants(30)*exp_1 + self%constants(31)*t_13)
+    case (tau_temperature)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      t_5 = 1.0_real64/C_1
+      t_6 = t_5*log(C_1*self%constants(5))
+      t_7 = log(C_2*self%constants(11))
+      t_8 = 1.0_real64/tau_2
+      if (.not. (self%constants(76)*(self%constants(75) + t_8) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(76)*(self%constants(75) + t_8))
+      t_9 = self%constants(21)*t_5 + self%constants(77)*t_6
+      t_10 = tau_1*(self%constants(14)*t_5 + self%constants(34)*t_6)
+      t_11 = 2.0_real64*t_10
+      f(5) = self%constants(9) + q1_x*t_11 - q1_x*t_9
+      f(6) = self%constants(10) + q1_y*t_11 - q1_y*t_9
+      t_12 = 1.0_real64/C_2
+      t_13 = t_12*t_7
+      t_14 = gamma/C_2_root_2**3
+      t_15 = self%constants(20)*t_7 + self%constants(21)
+      t_16 = self%constants(22)*t_14
+      t_17 = self%constants(60)*t_14 + self%constants(78)*(self%constants(12)*t_13 + self%constants(7)*t_12) + &
+          2.0_real64*t_15*t_16
+      t_18 = self%parameters%beta + self%constants(18)*t_7
+      t_19 = tau_2*(self%constants(13)*(self%constants(14)*t_12 + self%constants(15)*t_13) + self%constants(88)*t_14 &
+          + t_16*t_18)
+      t_20 = 2.0_real64*t_19
+      f(7) = self%constants(24) - q2_x*t_17 + q2_x*t_20
+      f(8) = self%constants(25) - q2_y*t_17 + q2_y*t_20
+      t_21 = self%constants(28)/C_2_root_2
+      t_22 = self%constants(26)*gamma + t_15*t_21
+      t_23 = exp_1*tau_2*(self%constants(89)*gamma + t_18*t_21 - t_22*t_8)
+      f(9) = self%constants(90)*t_23
+      t_24 = self%constants(92)*t_10
+      f(10) = self%constants(71)*(self%parameters%conductivity*tau_2 + self%constants(91)*tau_1) + q1_x*t_1*t_24 + &
+          q1_y*t_2*t_24
+      t_25 = self%constants(94)*t_19
+      f(11) = self%constants(93)*(self%parameters%conductivity*tau_1 + self%constants(91)*tau_2) + self%constants(95) &
+          *t_22*t_23 + q2_x*t_25*t_3 + q2_y*t_25*t_4
+    case (tau_internal_energy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      C_2_root_2 = sqrt(C_2)
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      t_5 = log(C_2*self%constants(11))
+      t_6 = log(C_1*self%constants(5))
+      t_7 = 1.0_real64/C_2_root_2
+      t_8 = self%constants(20)*t_5 + self%constants(21)
+      t_9 = self%parameters%beta_v*t_7*t_8
+      t_10 = self%constants(93)*(self%constants(107)*gamma**2 + self%constants(16)*(self%constants(108)*t_5**2 + &
+          self%constants(7)*t_5) + gamma*t_9 + tau_2) + self%parameters%theta_ref
+      t_11 = 1.0_real64/t_10
+      if (.not. (self%constants(76)*(self%constants(75) + t_11) <= max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(76)*(self%constants(75) + t_11))
+      t_12 = self%constants(71)*(self%constants(106)*t_6**2 + self%constants(35)*t_6 + tau_1) + &
+          self%parameters%theta_ref
+      t_13 = 1.0_real64/C_1
+      t_14 = t_13*t_6
+      t_15 = 2.0_real64*t_12*(self%constants(14)*t_13 + self%constants(34)*t_14 + (self%constants(35)*t_13 + &
+          self%constants(36)*t_14)/t_12)
+      t_16 = q1_x*t_15
+      f(5) = self%constants(9) + t_16
+      t_17 = q1_y*t_15
+      f(6) = self%constants(10) + t_17
+      t_18 = 1.0_real64/C_2
+      t_19 = t_18*t_5
+      t_20 = gamma/C_2_root_2**3
+      t_21 = self%parameters%beta + self%constants(18)*t_5
+      t_22 = 2.0_real64*t_10*(self%constants(13)*(self%constants(14)*t_18 + self%constants(15)*t_19) + &
+          self%constants(22)*t_20*t_21 + self%constants(88)*t_20 + t_11*(self%constants(109)*t_20 + &
+          self%constants(16)*(self%constants(12)*t_19 + self%constants(7)*t_18) + self%constants(19)*t_20*t_8))
+      t_23 = q2_x*t_22
+      f(7) = self%constants(24) + t_23
+      t_24 = q2_y*t_22
+      f(8) = self%constants(25) + t_24
+      f(9) = self%constants(90)*exp_1*t_10*(self%constants(28)*t_21*t_7 + self%constants(89)*gamma + t_11 &
+          *(self%constants(98)*gamma + t_9))
+      f(10) = self%parameters%conductivity*t_10 + self%constants(91)*t_12 - t_1*t_16 - t_17*t_2
+      f(11) = self%parameters%conductivity*t_12 + self%constants(91)*t_10 - t_23*t_3 - t_24*t_4
+    end select
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11)) <= &
+        huge(1.0_real64))) stat = domain_overflow
+  end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
   pure function momenta(self, z) result(values)

@@ -27,7 +27,7 @@ module planar_thermoelastic_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: planar_thermoelastic_pendulum
     type(planar_thermoelastic_pendulum_parameters) :: parameters
-    real(real64) :: constants(60) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(73) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -123,69 +123,84 @@ contains
     model%constants(4) = -0.5_real64*parameters%beta
     model%constants(5) = 1.0_real64/parameters%natural_length_1**2
     model%constants(6) = -0.25_real64*parameters%mu_eq_slope_1
-    model%constants(7) = -0.125_real64*parameters%mu_eq_slope_1
-    model%constants(8) = 1.0_real64/parameters%heat_capacity_1
-    model%constants(9) = (0.5_real64)*parameters%beta*parameters%theta_ref
-    model%constants(10) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
+    model%constants(7) = (0.5_real64)*parameters%beta*parameters%theta_ref
+    model%constants(8) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(11) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
-    model%constants(12) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
-    model%constants(13) = 1.0_real64/parameters%natural_length_2**2
-    model%constants(14) = -0.25_real64*parameters%mu_eq_slope_2
-    model%constants(15) = -0.125_real64*parameters%mu_eq_slope_2
-    model%constants(16) = 1.0_real64/parameters%heat_capacity_2
-    model%constants(17) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
+    model%constants(9) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
+    model%constants(10) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
+    model%constants(11) = 1.0_real64/parameters%natural_length_2**2
+    model%constants(12) = -0.25_real64*parameters%mu_eq_slope_2
+    model%constants(13) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(18) = parameters%gravity_x*parameters%mass_2
-    model%constants(19) = parameters%gravity_y*parameters%mass_2
-    model%constants(20) = parameters%conductivity*parameters%theta_ref
-    model%constants(21) = -parameters%conductivity*parameters%theta_ref
-    model%constants(22) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(23) = 1.0_real64/parameters%theta_ref
-    model%constants(24) = -1.0_real64/parameters%heat_capacity_2
-    model%constants(25) = (0.5_real64)*parameters%beta
-    model%constants(26) = (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(27) = -0.5_real64*parameters%beta*parameters%theta_ref
-    model%constants(28) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
+    model%constants(14) = parameters%gravity_x*parameters%mass_2
+    model%constants(15) = parameters%gravity_y*parameters%mass_2
+    model%constants(16) = parameters%conductivity*parameters%theta_ref
+    model%constants(17) = -parameters%conductivity*parameters%theta_ref
+    model%constants(18) = 1.0_real64/parameters%theta_ref
+    model%constants(19) = (0.5_real64)*parameters%beta
+    model%constants(20) = (0.25_real64)*parameters%mu_eq_slope_1
+    model%constants(21) = -0.5_real64*parameters%beta*parameters%theta_ref
+    model%constants(22) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(29) = parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(30) = -parameters%beta*parameters%theta_ref
-    model%constants(31) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
+    model%constants(23) = parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(24) = -parameters%beta*parameters%theta_ref
+    model%constants(25) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(32) = -2.0_real64*parameters%theta_ref
-    model%constants(33) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(34) = (0.25_real64)*parameters%mu_eq_slope_2
-    model%constants(35) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
+    model%constants(26) = -2.0_real64*parameters%theta_ref
+    model%constants(27) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(28) = (0.25_real64)*parameters%mu_eq_slope_2
+    model%constants(29) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(36) = parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(37) = -0.5_real64*parameters%mu_eq_const_2 - 0.5_real64*parameters%mu_eq_slope_2 &
+    model%constants(30) = parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(31) = -0.5_real64*parameters%mu_eq_const_2 - 0.5_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(38) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(39) = -parameters%conductivity/parameters%heat_capacity_1
-    model%constants(40) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
-    model%constants(41) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_2
-    model%constants(42) = parameters%conductivity/parameters%heat_capacity_2
-    model%constants(43) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(44) = -parameters%conductivity/parameters%heat_capacity_2
-    model%constants(45) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref)
-    model%constants(46) = parameters%conductivity/parameters%heat_capacity_1
-    model%constants(47) = -parameters%conductivity
-    model%constants(48) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(49) = -2.0_real64/parameters%heat_capacity_2
-    model%constants(50) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(51) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(52) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
-    model%constants(53) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(32) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(33) = -parameters%conductivity/parameters%heat_capacity_1
+    model%constants(34) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
+    model%constants(35) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_2
+    model%constants(36) = parameters%conductivity/parameters%heat_capacity_2
+    model%constants(37) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(38) = -parameters%conductivity/parameters%heat_capacity_2
+    model%constants(39) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref)
+    model%constants(40) = parameters%conductivity/parameters%heat_capacity_1
+    model%constants(41) = -0.125_real64*parameters%mu_eq_slope_1
+    model%constants(42) = 1.0_real64/parameters%heat_capacity_1
+    model%constants(43) = -0.125_real64*parameters%mu_eq_slope_2
+    model%constants(44) = 1.0_real64/parameters%heat_capacity_2
+    model%constants(45) = (0.5_real64)*parameters%mu_eq_const_1 + (0.5_real64)*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(46) = parameters%beta*parameters%theta_ref
+    model%constants(47) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
+        *parameters%theta_ref
+    model%constants(48) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(49) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(50) = -2.0_real64*parameters%beta*parameters%theta_ref
+    model%constants(51) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(52) = parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(53) = -parameters%mu_eq_const_2 - parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(54) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(55) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(56) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_2
+    model%constants(57) = 2.0_real64*parameters%theta_ref
+    model%constants(58) = -parameters%conductivity
+    model%constants(59) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(60) = -2.0_real64/parameters%heat_capacity_2
+    model%constants(61) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(62) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(63) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
+    model%constants(64) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2)
-    model%constants(54) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(65) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(55) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
+    model%constants(66) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(56) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(57) = 2.0_real64/parameters%heat_capacity_2
-    model%constants(58) = -2.0_real64/parameters%mass_1
-    model%constants(59) = 2.0_real64/parameters%mass_1
-    model%constants(60) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
+    model%constants(67) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(68) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(69) = -1.0_real64/parameters%heat_capacity_2
+    model%constants(70) = 2.0_real64/parameters%heat_capacity_2
+    model%constants(71) = -2.0_real64/parameters%mass_1
+    model%constants(72) = 2.0_real64/parameters%mass_1
+    model%constants(73) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_planar_thermoelastic_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -597,14 +612,29 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
-    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, tau_1, tau_2, C_1, C_2, t_1, t_2, t_3, t_4, t_5, &
-        t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, &
-        t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, t_36, t_37, t_38, t_39, t_40, t_41, t_42, &
-        t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, t_54, t_55, t_56, t_57, t_58, t_59, t_60, &
-        t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, t_72
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class(planar_thermoelastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
+    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, tau_1, tau_2, C_1, C_2, exp_1, exp_2, t_1, t_2, &
+        t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, &
+        t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, t_36, t_37, t_38, t_39, &
+        t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, t_54, t_55, t_56, t_57, &
+        t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, t_72
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
     q2_x = z(3)
@@ -627,147 +657,98 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(13) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(16)*(self%constants(15)*log(C_2*self%constants(13))**2 + self%constants(4)*log(C_2 &
-          *self%constants(13)) + tau_2) <= max_exponent)) then
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      jacobian(1, 5) = self%constants(1)
+      jacobian(1, 7) = self%constants(2)
+      jacobian(2, 6) = self%constants(1)
+      jacobian(2, 8) = self%constants(2)
+      jacobian(3, 5) = self%constants(2)
+      jacobian(3, 7) = self%constants(3)
+      jacobian(4, 6) = self%constants(2)
+      jacobian(4, 8) = self%constants(3)
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(11))
+      if (.not. (abs(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%constants(22)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
+      exp_1 = exp(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%constants(24)*(self%constants(15)*log(C_2*self%constants(13))**2 + self%constants(4)*log(C_2 &
-          *self%constants(13)) + tau_2) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(8)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (present(jacobian)) then
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_1 + self%constants(6)*t_3
-        t_5 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_6 = exp(self%constants(8)*t_5)
-        t_7 = t_6*self%parameters%theta_ref
-        t_8 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_4*t_7
-        t_9 = 1.0_real64/C_2
-        t_10 = log(C_2*self%constants(13))
-        t_11 = t_10*t_9
-        t_12 = self%constants(14)*t_11 + self%constants(4)*t_9
-        t_13 = self%constants(15)*t_10**2 + self%constants(4)*t_10 + tau_2
-        t_14 = exp(self%constants(16)*t_13)
-        t_15 = t_14*self%parameters%theta_ref
-        t_16 = 2.0_real64*self%constants(17)*t_11 + 2.0_real64*self%constants(9)*t_9 + 2.0_real64*t_12*t_15
-        t_17 = exp(self%constants(22)*t_5)
-        t_18 = t_17*(self%constants(20)*t_14 + self%constants(21)*t_6)
-        t_19 = exp(self%constants(24)*t_13)
-        t_20 = t_19*(self%constants(20)*t_6 + self%constants(21)*t_14)
-        t_21 = 1.0_real64/C_1**2
-        t_22 = t_2*t_21
-        t_23 = 4.0_real64*self%constants(10)*t_21 + 4.0_real64*self%constants(27)*t_21 + 4.0_real64 &
-            *self%constants(28)*t_22 + 4.0_real64*self%constants(29)*t_4**2*t_6 + 4.0_real64*t_7*(self%constants(25) &
-            *t_21 + self%constants(26)*t_22 + self%constants(6)*t_21)
-        t_24 = t_4*t_6
-        t_25 = self%constants(30)*t_1 + self%constants(31)*t_3 + self%constants(32)*t_24
-        t_26 = -q1_x*q1_y*t_23
-        t_27 = self%constants(33)*t_24
-        t_28 = 1.0_real64/C_2**2
-        t_29 = t_10*t_28
-        t_30 = 4.0_real64*self%constants(17)*t_28 + 4.0_real64*self%constants(27)*t_28 + 4.0_real64 &
-            *self%constants(35)*t_29 + 4.0_real64*self%constants(36)*t_12**2*t_14 + 4.0_real64*t_15 &
-            *(self%constants(14)*t_28 + self%constants(25)*t_28 + self%constants(34)*t_29)
-        t_31 = t_12*t_14
-        t_32 = self%constants(30)*t_9 + self%constants(32)*t_31 + self%constants(37)*t_11
-        t_33 = -q2_x*q2_y*t_30
-        t_34 = self%constants(38)*t_31
-        t_35 = self%constants(40)*t_18
-        t_36 = 2.0_real64*self%constants(39)*t_4 + 2.0_real64*t_35*t_4
-        t_37 = self%constants(41)*t_17*t_31
-        t_38 = self%constants(43)*t_19*t_24
-        t_39 = self%constants(45)*t_20
-        t_40 = 2.0_real64*self%constants(44)*t_12 + 2.0_real64*t_12*t_39
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(5) = self%constants(11) - q1_x*t_8
-        f(6) = self%constants(12) - q1_y*t_8
-        f(7) = self%constants(18) - q2_x*t_16
-        f(8) = self%constants(19) - q2_y*t_16
-        f(9) = self%constants(23)*t_18
-        f(10) = self%constants(23)*t_20
-        jacobian(1, 5) = self%constants(1)
-        jacobian(1, 7) = self%constants(2)
-        jacobian(2, 6) = self%constants(1)
-        jacobian(2, 8) = self%constants(2)
-        jacobian(3, 5) = self%constants(2)
-        jacobian(3, 7) = self%constants(3)
-        jacobian(4, 6) = self%constants(2)
-        jacobian(4, 8) = self%constants(3)
-        jacobian(5, 1) = -q1_x**2*t_23 + t_25
-        jacobian(5, 2) = t_26
-        jacobian(5, 9) = q1_x*t_27
-        jacobian(6, 1) = t_26
-        jacobian(6, 2) = -q1_y**2*t_23 + t_25
-        jacobian(6, 9) = q1_y*t_27
-        jacobian(7, 3) = -q2_x**2*t_30 + t_32
-        jacobian(7, 4) = t_33
-        jacobian(7, 10) = q2_x*t_34
-        jacobian(8, 3) = t_33
-        jacobian(8, 4) = -q2_y**2*t_30 + t_32
-        jacobian(8, 10) = q2_y*t_34
-        jacobian(9, 1) = q1_x*t_36
-        jacobian(9, 2) = q1_y*t_36
-        jacobian(9, 3) = q2_x*t_37
-        jacobian(9, 4) = q2_y*t_37
-        jacobian(9, 9) = self%constants(39) + t_35
-        jacobian(9, 10) = self%constants(42)*t_14*t_17
-        jacobian(10, 1) = q1_x*t_38
-        jacobian(10, 2) = q1_y*t_38
-        jacobian(10, 3) = q2_x*t_40
-        jacobian(10, 4) = q2_y*t_40
-        jacobian(10, 9) = self%constants(46)*t_19*t_6
-        jacobian(10, 10) = self%constants(44) + t_39
-      else
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_5 = exp(self%constants(8)*t_4)
-        t_6 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_5 &
-            *self%parameters%theta_ref*(self%constants(4)*t_1 + self%constants(6)*t_3)
-        t_7 = 1.0_real64/C_2
-        t_8 = log(C_2*self%constants(13))
-        t_9 = t_7*t_8
-        t_10 = self%constants(15)*t_8**2 + self%constants(4)*t_8 + tau_2
-        t_11 = exp(self%constants(16)*t_10)
-        t_12 = 2.0_real64*self%constants(17)*t_9 + 2.0_real64*self%constants(9)*t_7 + 2.0_real64*t_11 &
-            *self%parameters%theta_ref*(self%constants(14)*t_9 + self%constants(4)*t_7)
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(5) = self%constants(11) - q1_x*t_6
-        f(6) = self%constants(12) - q1_y*t_6
-        f(7) = self%constants(18) - q2_x*t_12
-        f(8) = self%constants(19) - q2_y*t_12
-        f(9) = self%constants(23)*(self%constants(20)*t_11 + self%constants(21)*t_5)*exp(self%constants(22)*t_4)
-        f(10) = self%constants(23)*(self%constants(20)*t_5 + self%constants(21)*t_11)*exp(self%constants(24)*t_10)
-      end if
+      exp_2 = exp(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2))
+      t_3 = 1.0_real64/C_1
+      t_4 = t_1*t_3
+      t_5 = self%constants(4)*t_3 + self%constants(6)*t_4
+      t_6 = exp_1*self%parameters%theta_ref
+      t_7 = self%constants(45)*t_4 + self%constants(46)*t_3 + 2.0_real64*t_5*t_6
+      f(5) = self%constants(9) - q1_x*t_7
+      f(6) = self%constants(10) - q1_y*t_7
+      t_8 = 1.0_real64/C_2
+      t_9 = t_2*t_8
+      t_10 = self%constants(12)*t_9 + self%constants(4)*t_8
+      t_11 = exp_2*self%parameters%theta_ref
+      t_12 = self%constants(46)*t_8 + self%constants(47)*t_9 + 2.0_real64*t_10*t_11
+      f(7) = self%constants(14) - q2_x*t_12
+      f(8) = self%constants(15) - q2_y*t_12
+      t_13 = 1.0_real64/exp_1
+      t_14 = t_13*(self%constants(16)*exp_2 + self%constants(17)*exp_1)
+      f(9) = self%constants(18)*t_14
+      t_15 = 1.0_real64/exp_2
+      t_16 = t_15*(self%constants(16)*exp_1 + self%constants(17)*exp_2)
+      f(10) = self%constants(18)*t_16
+      t_17 = 1.0_real64/C_1**2
+      t_18 = t_1*t_17
+      t_19 = self%constants(48)*t_17 + self%constants(49)*t_18 + self%constants(50)*t_17 + self%constants(51)*exp_1 &
+          *t_5**2 + 4.0_real64*t_6*(self%constants(19)*t_17 + self%constants(20)*t_18 + self%constants(6)*t_17)
+      t_20 = exp_1*t_5
+      t_21 = self%constants(24)*t_3 + self%constants(25)*t_4 + self%constants(26)*t_20
+      jacobian(5, 1) = -q1_x**2*t_19 + t_21
+      t_22 = -q1_x*q1_y*t_19
+      jacobian(5, 2) = t_22
+      t_23 = self%constants(27)*t_20
+      jacobian(5, 9) = q1_x*t_23
+      jacobian(6, 1) = t_22
+      jacobian(6, 2) = -q1_y**2*t_19 + t_21
+      jacobian(6, 9) = q1_y*t_23
+      t_24 = 1.0_real64/C_2**2
+      t_25 = t_2*t_24
+      t_26 = self%constants(50)*t_24 + self%constants(52)*t_24 + self%constants(53)*t_25 + self%constants(54)*exp_2 &
+          *t_10**2 + 4.0_real64*t_11*(self%constants(12)*t_24 + self%constants(19)*t_24 + self%constants(28)*t_25)
+      t_27 = exp_2*t_10
+      t_28 = self%constants(24)*t_8 + self%constants(26)*t_27 + self%constants(31)*t_9
+      jacobian(7, 3) = -q2_x**2*t_26 + t_28
+      t_29 = -q2_x*q2_y*t_26
+      jacobian(7, 4) = t_29
+      t_30 = self%constants(32)*t_27
+      jacobian(7, 10) = q2_x*t_30
+      jacobian(8, 3) = t_29
+      jacobian(8, 4) = -q2_y**2*t_26 + t_28
+      jacobian(8, 10) = q2_y*t_30
+      t_31 = self%constants(34)*t_14
+      t_32 = self%constants(55)*t_5 + 2.0_real64*t_31*t_5
+      jacobian(9, 1) = q1_x*t_32
+      jacobian(9, 2) = q1_y*t_32
+      t_33 = self%constants(35)*t_13*t_27
+      jacobian(9, 3) = q2_x*t_33
+      jacobian(9, 4) = q2_y*t_33
+      jacobian(9, 9) = self%constants(33) + t_31
+      jacobian(9, 10) = self%constants(36)*exp_2*t_13
+      t_34 = self%constants(37)*t_15*t_20
+      jacobian(10, 1) = q1_x*t_34
+      jacobian(10, 2) = q1_y*t_34
+      t_35 = self%constants(39)*t_16
+      t_36 = self%constants(56)*t_10 + 2.0_real64*t_10*t_35
+      jacobian(10, 3) = q2_x*t_36
+      jacobian(10, 4) = q2_y*t_36
+      jacobian(10, 9) = self%constants(40)*exp_1*t_15
+      jacobian(10, 10) = self%constants(38) + t_35
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -777,150 +758,110 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(13) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = 1.0_real64/C_1
-        t_6 = log(C_1*self%constants(5))
-        t_7 = t_5*t_6
-        t_8 = 2.0_real64*self%constants(10)*t_7 + 2.0_real64*self%constants(9)*t_5
-        t_9 = self%constants(25)*t_5 + self%constants(26)*t_7
-        t_10 = 2.0_real64*q1_x
-        t_11 = t_10*t_9
-        t_12 = 2.0_real64*t_9
-        t_13 = t_12*tau_1
-        t_14 = 1.0_real64/C_2
-        t_15 = log(C_2*self%constants(13))
-        t_16 = t_14*t_15
-        t_17 = 2.0_real64*self%constants(17)*t_16 + 2.0_real64*self%constants(9)*t_14
-        t_18 = self%constants(25)*t_14 + self%constants(34)*t_16
-        t_19 = 2.0_real64*q2_x
-        t_20 = t_18*t_19
-        t_21 = 2.0_real64*t_18
-        t_22 = t_21*tau_2
-        t_23 = t_9*tau_1
-        t_24 = self%constants(48)*t_1
-        t_25 = t_23*t_24
-        t_26 = self%constants(48)*t_2
-        t_27 = t_23*t_26
-        t_28 = t_18*tau_2
-        t_29 = self%constants(49)*t_3
-        t_30 = t_28*t_29
-        t_31 = self%constants(49)*t_4
-        t_32 = t_28*t_31
-        t_33 = 1.0_real64/C_1**2
-        t_34 = t_33*t_6
-        t_35 = self%constants(10)*t_33 + self%constants(27)*t_33 + self%constants(28)*t_34
-        t_36 = tau_1*(self%constants(26)*t_33 + self%constants(4)*t_33 + self%constants(6)*t_34)
-        t_37 = -t_10*t_35 + t_10*t_36
-        t_38 = self%constants(30)*t_5 + self%constants(31)*t_7 + t_13
-        t_39 = 2.0_real64*q1_y
-        t_40 = -t_35*t_39 + t_36*t_39
-        t_41 = 1.0_real64/C_2**2
-        t_42 = t_15*t_41
-        t_43 = self%constants(17)*t_41 + self%constants(27)*t_41 + self%constants(35)*t_42
-        t_44 = tau_2*(self%constants(14)*t_42 + self%constants(34)*t_41 + self%constants(4)*t_41)
-        t_45 = -t_19*t_43 + t_19*t_44
-        t_46 = self%constants(30)*t_14 + self%constants(37)*t_16 + t_22
-        t_47 = 2.0_real64*q2_y
-        t_48 = -t_43*t_47 + t_44*t_47
-        t_49 = q1_x*t_24
-        t_50 = q1_y*t_26
-        t_51 = t_36*t_49 + t_36*t_50
-        t_52 = self%constants(50)*t_23
-        t_53 = self%constants(51)*t_23
-        t_54 = q2_x*t_29
-        t_55 = q2_y*t_31
-        t_56 = t_44*t_54 + t_44*t_55
-        t_57 = self%constants(52)*t_28
-        t_58 = self%constants(53)*t_28
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) - q1_x*t_8 + t_11*tau_1
-        f(6) = self%constants(12) + q1_y*t_13 - q1_y*t_8
-        f(7) = self%constants(18) - q2_x*t_17 + t_20*tau_2
-        f(8) = self%constants(19) - q2_y*t_17 + q2_y*t_22
-        f(9) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(47)*tau_1) + q1_x*t_25 + q1_y*t_27
-        f(10) = self%constants(16)*(self%parameters%conductivity*tau_1 + self%constants(47)*tau_2) + q2_x*t_30 + q2_y &
-            *t_32
-        jacobian(1, 5) = self%constants(1)
-        jacobian(1, 7) = self%constants(2)
-        jacobian(2, 6) = self%constants(1)
-        jacobian(2, 8) = self%constants(2)
-        jacobian(3, 5) = self%constants(2)
-        jacobian(3, 7) = self%constants(3)
-        jacobian(4, 6) = self%constants(2)
-        jacobian(4, 8) = self%constants(3)
-        jacobian(5, 1) = t_10*t_37 + t_38
-        jacobian(5, 2) = t_37*t_39
-        jacobian(5, 9) = t_11
-        jacobian(6, 1) = t_10*t_40
-        jacobian(6, 2) = t_38 + t_39*t_40
-        jacobian(6, 9) = q1_y*t_12
-        jacobian(7, 3) = t_19*t_45 + t_46
-        jacobian(7, 4) = t_45*t_47
-        jacobian(7, 10) = t_20
-        jacobian(8, 3) = t_19*t_48
-        jacobian(8, 4) = t_46 + t_47*t_48
-        jacobian(8, 10) = q2_y*t_21
-        jacobian(9, 1) = t_10*t_51 + t_25
-        jacobian(9, 2) = t_27 + t_39*t_51
-        jacobian(9, 5) = q1_x*t_52
-        jacobian(9, 6) = q1_y*t_52
-        jacobian(9, 7) = q1_x*t_53
-        jacobian(9, 8) = q1_y*t_53
-        jacobian(9, 9) = self%constants(39) + t_49*t_9 + t_50*t_9
-        jacobian(9, 10) = self%constants(46)
-        jacobian(10, 3) = t_19*t_56 + t_30
-        jacobian(10, 4) = t_32 + t_47*t_56
-        jacobian(10, 5) = q2_x*t_57
-        jacobian(10, 6) = q2_y*t_57
-        jacobian(10, 7) = q2_x*t_58
-        jacobian(10, 8) = q2_y*t_58
-        jacobian(10, 9) = self%constants(42)
-        jacobian(10, 10) = self%constants(44) + t_18*t_54 + t_18*t_55
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = 1.0_real64/C_1
-        t_6 = t_5*log(C_1*self%constants(5))
-        t_7 = 2.0_real64*self%constants(10)*t_6 + 2.0_real64*self%constants(9)*t_5
-        t_8 = tau_1*(self%constants(25)*t_5 + self%constants(26)*t_6)
-        t_9 = 2.0_real64*t_8
-        t_10 = 1.0_real64/C_2
-        t_11 = t_10*log(C_2*self%constants(13))
-        t_12 = 2.0_real64*self%constants(17)*t_11 + 2.0_real64*self%constants(9)*t_10
-        t_13 = tau_2*(self%constants(25)*t_10 + self%constants(34)*t_11)
-        t_14 = 2.0_real64*t_13
-        t_15 = self%constants(48)*t_8
-        t_16 = self%constants(49)*t_13
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) - q1_x*t_7 + q1_x*t_9
-        f(6) = self%constants(12) - q1_y*t_7 + q1_y*t_9
-        f(7) = self%constants(18) - q2_x*t_12 + q2_x*t_14
-        f(8) = self%constants(19) - q2_y*t_12 + q2_y*t_14
-        f(9) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(47)*tau_1) + q1_x*t_1*t_15 + &
-            q1_y*t_15*t_2
-        f(10) = self%constants(16)*(self%parameters%conductivity*tau_1 + self%constants(47)*tau_2) + q2_x*t_16*t_3 + &
-            q2_y*t_16*t_4
-      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      jacobian(1, 5) = self%constants(1)
+      jacobian(1, 7) = self%constants(2)
+      jacobian(2, 6) = self%constants(1)
+      jacobian(2, 8) = self%constants(2)
+      jacobian(3, 5) = self%constants(2)
+      jacobian(3, 7) = self%constants(3)
+      jacobian(4, 6) = self%constants(2)
+      jacobian(4, 8) = self%constants(3)
+      jacobian(9, 10) = self%constants(40)
+      jacobian(10, 9) = self%constants(36)
+      t_5 = log(C_1*self%constants(5))
+      t_6 = log(C_2*self%constants(11))
+      t_7 = 1.0_real64/C_1
+      t_8 = t_5*t_7
+      t_9 = self%constants(45)*t_8 + self%constants(46)*t_7
+      t_10 = self%constants(19)*t_7 + self%constants(20)*t_8
+      t_11 = 2.0_real64*q1_x
+      t_12 = t_10*t_11
+      f(5) = self%constants(9) - q1_x*t_9 + t_12*tau_1
+      t_13 = 2.0_real64*t_10
+      t_14 = t_13*tau_1
+      f(6) = self%constants(10) + q1_y*t_14 - q1_y*t_9
+      t_15 = 1.0_real64/C_2
+      t_16 = t_15*t_6
+      t_17 = self%constants(46)*t_15 + self%constants(47)*t_16
+      t_18 = self%constants(19)*t_15 + self%constants(28)*t_16
+      t_19 = 2.0_real64*q2_x
+      t_20 = t_18*t_19
+      f(7) = self%constants(14) - q2_x*t_17 + t_20*tau_2
+      t_21 = 2.0_real64*t_18
+      t_22 = t_21*tau_2
+      f(8) = self%constants(15) - q2_y*t_17 + q2_y*t_22
+      t_23 = t_10*tau_1
+      t_24 = self%constants(59)*t_1
+      t_25 = t_23*t_24
+      t_26 = self%constants(59)*t_2
+      t_27 = t_23*t_26
+      f(9) = self%constants(42)*(self%parameters%conductivity*tau_2 + self%constants(58)*tau_1) + q1_x*t_25 + q1_y*t_27
+      t_28 = t_18*tau_2
+      t_29 = self%constants(60)*t_3
+      t_30 = t_28*t_29
+      t_31 = self%constants(60)*t_4
+      t_32 = t_28*t_31
+      f(10) = self%constants(44)*(self%parameters%conductivity*tau_1 + self%constants(58)*tau_2) + q2_x*t_30 + q2_y*t_32
+      t_33 = 1.0_real64/C_1**2
+      t_34 = t_33*t_5
+      t_35 = self%constants(21)*t_33 + self%constants(22)*t_34 + self%constants(8)*t_33
+      t_36 = tau_1*(self%constants(20)*t_33 + self%constants(4)*t_33 + self%constants(6)*t_34)
+      t_37 = -t_11*t_35 + t_11*t_36
+      t_38 = self%constants(24)*t_7 + self%constants(25)*t_8 + t_14
+      jacobian(5, 1) = t_11*t_37 + t_38
+      t_39 = 2.0_real64*q1_y
+      jacobian(5, 2) = t_37*t_39
+      jacobian(5, 9) = t_12
+      t_40 = -t_35*t_39 + t_36*t_39
+      jacobian(6, 1) = t_11*t_40
+      jacobian(6, 2) = t_38 + t_39*t_40
+      jacobian(6, 9) = q1_y*t_13
+      t_41 = 1.0_real64/C_2**2
+      t_42 = t_41*t_6
+      t_43 = self%constants(13)*t_41 + self%constants(21)*t_41 + self%constants(29)*t_42
+      t_44 = tau_2*(self%constants(12)*t_42 + self%constants(28)*t_41 + self%constants(4)*t_41)
+      t_45 = -t_19*t_43 + t_19*t_44
+      t_46 = self%constants(24)*t_15 + self%constants(31)*t_16 + t_22
+      jacobian(7, 3) = t_19*t_45 + t_46
+      t_47 = 2.0_real64*q2_y
+      jacobian(7, 4) = t_45*t_47
+      jacobian(7, 10) = t_20
+      t_48 = -t_43*t_47 + t_44*t_47
+      jacobian(8, 3) = t_19*t_48
+      jacobian(8, 4) = t_46 + t_47*t_48
+      jacobian(8, 10) = q2_y*t_21
+      t_49 = q1_x*t_24
+      t_50 = q1_y*t_26
+      t_51 = t_36*t_49 + t_36*t_50
+      jacobian(9, 1) = t_11*t_51 + t_25
+      jacobian(9, 2) = t_27 + t_39*t_51
+      t_52 = self%constants(61)*t_23
+      jacobian(9, 5) = q1_x*t_52
+      jacobian(9, 6) = q1_y*t_52
+      t_53 = self%constants(62)*t_23
+      jacobian(9, 7) = q1_x*t_53
+      jacobian(9, 8) = q1_y*t_53
+      jacobian(9, 9) = self%constants(33) + t_10*t_49 + t_10*t_50
+      t_54 = q2_x*t_29
+      t_55 = q2_y*t_31
+      t_56 = t_44*t_54 + t_44*t_55
+      jacobian(10, 3) = t_19*t_56 + t_30
+      jacobian(10, 4) = t_32 + t_47*t_56
+      t_57 = self%constants(63)*t_28
+      jacobian(10, 5) = q2_x*t_57
+      jacobian(10, 6) = q2_y*t_57
+      t_58 = self%constants(64)*t_28
+      jacobian(10, 7) = q2_x*t_58
+      jacobian(10, 8) = q2_y*t_58
+      jacobian(10, 10) = self%constants(38) + t_18*t_54 + t_18*t_55
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -930,180 +871,284 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(13) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = 1.0_real64/C_1
-        t_6 = log(C_1*self%constants(5))
-        t_7 = self%constants(8)*(self%constants(27)*t_6 + self%constants(54)*t_6**2 + tau_1) + self%parameters%theta_ref
-        t_8 = 1.0_real64/t_7
-        t_9 = t_5*t_6
-        t_10 = self%constants(27)*t_5 + self%constants(28)*t_9
-        t_11 = t_10*t_8
-        t_12 = self%constants(25)*t_5 + self%constants(26)*t_9 + t_11
-        t_13 = 2.0_real64*t_7
-        t_14 = t_12*t_13
-        t_15 = q1_x*t_14
-        t_16 = q1_y*t_14
-        t_17 = 1.0_real64/C_2
-        t_18 = log(C_2*self%constants(13))
-        t_19 = self%constants(16)*(self%constants(27)*t_18 + self%constants(55)*t_18**2 + tau_2) + &
-            self%parameters%theta_ref
-        t_20 = 1.0_real64/t_19
-        t_21 = t_17*t_18
-        t_22 = self%constants(27)*t_17 + self%constants(35)*t_21
-        t_23 = t_20*t_22
-        t_24 = self%constants(25)*t_17 + self%constants(34)*t_21 + t_23
-        t_25 = 2.0_real64*t_19
-        t_26 = t_24*t_25
-        t_27 = q2_x*t_26
-        t_28 = q2_y*t_26
-        t_29 = 1.0_real64/C_1**2
-        t_30 = t_29*t_6
-        t_31 = t_13*(self%constants(22)*t_10**2/t_7**2 + self%constants(26)*t_29 + self%constants(4)*t_29 + &
-            self%constants(6)*t_30 + t_8*(self%constants(10)*t_30 + self%constants(28)*t_29 + self%constants(9)*t_29))
-        t_32 = q1_x*t_31
-        t_33 = self%constants(56)*t_12
-        t_34 = q1_x*t_33
-        t_35 = 2.0_real64*t_10*t_34 + 2.0_real64*t_32
-        t_36 = self%constants(48)*t_11
-        t_37 = q1_y*t_31
-        t_38 = q1_y*t_33
-        t_39 = 2.0_real64*t_10*t_38 + 2.0_real64*t_37
-        t_40 = 1.0_real64/C_2**2
-        t_41 = t_18*t_40
-        t_42 = t_25*(self%constants(14)*t_41 + self%constants(24)*t_22**2/t_19**2 + self%constants(34)*t_40 + &
-            self%constants(4)*t_40 + t_20*(self%constants(17)*t_41 + self%constants(35)*t_40 + self%constants(9)*t_40))
-        t_43 = q2_x*t_42
-        t_44 = self%constants(57)*t_24
-        t_45 = q2_x*t_44
-        t_46 = 2.0_real64*t_22*t_45 + 2.0_real64*t_43
-        t_47 = self%constants(49)*t_23
-        t_48 = q2_y*t_42
-        t_49 = q2_y*t_44
-        t_50 = 2.0_real64*t_22*t_49 + 2.0_real64*t_48
-        t_51 = self%constants(48)*t_12
-        t_52 = q1_x*t_1
-        t_53 = t_51*t_52
-        t_54 = q1_y*t_2
-        t_55 = t_51*t_54
-        t_56 = 2.0_real64*self%constants(39)*t_10 - 2.0_real64*t_1*t_32 + 2.0_real64*t_10*t_53 + 2.0_real64*t_10*t_55 &
-            - 2.0_real64*t_2*t_37
-        t_57 = self%constants(41)*t_22
-        t_58 = t_12*t_7
-        t_59 = self%constants(58)*t_58
-        t_60 = self%constants(59)*t_58
-        t_61 = self%constants(56)*t_11
-        t_62 = self%constants(43)*t_10
-        t_63 = self%constants(49)*t_24
-        t_64 = q2_x*t_3
-        t_65 = t_63*t_64
-        t_66 = q2_y*t_4
-        t_67 = t_63*t_66
-        t_68 = 2.0_real64*self%constants(44)*t_22 + 2.0_real64*t_22*t_65 + 2.0_real64*t_22*t_67 - 2.0_real64*t_3*t_43 &
-            - 2.0_real64*t_4*t_48
-        t_69 = t_19*t_24
-        t_70 = self%constants(59)*t_69
-        t_71 = self%constants(60)*t_69
-        t_72 = self%constants(57)*t_23
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) + t_15
-        f(6) = self%constants(12) + t_16
-        f(7) = self%constants(18) + t_27
-        f(8) = self%constants(19) + t_28
-        f(9) = self%parameters%conductivity*t_19 + self%constants(47)*t_7 - t_1*t_15 - t_16*t_2
-        f(10) = self%parameters%conductivity*t_7 + self%constants(47)*t_19 - t_27*t_3 - t_28*t_4
-        jacobian(1, 5) = self%constants(1)
-        jacobian(1, 7) = self%constants(2)
-        jacobian(2, 6) = self%constants(1)
-        jacobian(2, 8) = self%constants(2)
-        jacobian(3, 5) = self%constants(2)
-        jacobian(3, 7) = self%constants(3)
-        jacobian(4, 6) = self%constants(2)
-        jacobian(4, 8) = self%constants(3)
-        jacobian(5, 1) = q1_x*t_35 + t_14
-        jacobian(5, 2) = q1_y*t_35
-        jacobian(5, 9) = q1_x*t_36 + t_34
-        jacobian(6, 1) = q1_x*t_39
-        jacobian(6, 2) = q1_y*t_39 + t_14
-        jacobian(6, 9) = q1_y*t_36 + t_38
-        jacobian(7, 3) = q2_x*t_46 + t_26
-        jacobian(7, 4) = q2_y*t_46
-        jacobian(7, 10) = q2_x*t_47 + t_45
-        jacobian(8, 3) = q2_x*t_50
-        jacobian(8, 4) = q2_y*t_50 + t_26
-        jacobian(8, 10) = q2_y*t_47 + t_49
-        jacobian(9, 1) = q1_x*t_56 - t_1*t_14
-        jacobian(9, 2) = q1_y*t_56 - t_14*t_2
-        jacobian(9, 3) = q2_x*t_57
-        jacobian(9, 4) = q2_y*t_57
-        jacobian(9, 5) = q1_x*t_59
-        jacobian(9, 6) = q1_y*t_59
-        jacobian(9, 7) = q1_x*t_60
-        jacobian(9, 8) = q1_y*t_60
-        jacobian(9, 9) = self%constants(39) + t_52*t_61 + t_53 + t_54*t_61 + t_55
-        jacobian(9, 10) = self%constants(42)
-        jacobian(10, 1) = q1_x*t_62
-        jacobian(10, 2) = q1_y*t_62
-        jacobian(10, 3) = q2_x*t_68 - t_26*t_3
-        jacobian(10, 4) = q2_y*t_68 - t_26*t_4
-        jacobian(10, 5) = q2_x*t_70
-        jacobian(10, 6) = q2_y*t_70
-        jacobian(10, 7) = q2_x*t_71
-        jacobian(10, 8) = q2_y*t_71
-        jacobian(10, 9) = self%constants(46)
-        jacobian(10, 10) = self%constants(44) + t_64*t_72 + t_65 + t_66*t_72 + t_67
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_5 = log(C_1*self%constants(5))
-        t_6 = self%constants(8)*(self%constants(27)*t_5 + self%constants(54)*t_5**2 + tau_1) + self%parameters%theta_ref
-        t_7 = 1.0_real64/C_1
-        t_8 = t_5*t_7
-        t_9 = 2.0_real64*t_6*(self%constants(25)*t_7 + self%constants(26)*t_8 + (self%constants(27)*t_7 + &
-            self%constants(28)*t_8)/t_6)
-        t_10 = q1_x*t_9
-        t_11 = q1_y*t_9
-        t_12 = log(C_2*self%constants(13))
-        t_13 = self%constants(16)*(self%constants(27)*t_12 + self%constants(55)*t_12**2 + tau_2) + &
-            self%parameters%theta_ref
-        t_14 = 1.0_real64/C_2
-        t_15 = t_12*t_14
-        t_16 = 2.0_real64*t_13*(self%constants(25)*t_14 + self%constants(34)*t_15 + (self%constants(27)*t_14 + &
-            self%constants(35)*t_15)/t_13)
-        t_17 = q2_x*t_16
-        t_18 = q2_y*t_16
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = self%constants(11) + t_10
-        f(6) = self%constants(12) + t_11
-        f(7) = self%constants(18) + t_17
-        f(8) = self%constants(19) + t_18
-        f(9) = self%parameters%conductivity*t_13 + self%constants(47)*t_6 - t_1*t_10 - t_11*t_2
-        f(10) = self%parameters%conductivity*t_6 + self%constants(47)*t_13 - t_17*t_3 - t_18*t_4
-      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      jacobian(1, 5) = self%constants(1)
+      jacobian(1, 7) = self%constants(2)
+      jacobian(2, 6) = self%constants(1)
+      jacobian(2, 8) = self%constants(2)
+      jacobian(3, 5) = self%constants(2)
+      jacobian(3, 7) = self%constants(3)
+      jacobian(4, 6) = self%constants(2)
+      jacobian(4, 8) = self%constants(3)
+      jacobian(9, 10) = self%constants(36)
+      jacobian(10, 9) = self%constants(40)
+      t_5 = log(C_1*self%constants(5))
+      t_6 = log(C_2*self%constants(11))
+      t_7 = 1.0_real64/C_1
+      t_8 = t_5*t_7
+      t_9 = self%constants(42)*(self%constants(21)*t_5 + self%constants(65)*t_5**2 + tau_1) + self%parameters%theta_ref
+      t_10 = 1.0_real64/t_9
+      t_11 = self%constants(21)*t_7 + self%constants(22)*t_8
+      t_12 = t_10*t_11
+      t_13 = self%constants(19)*t_7 + self%constants(20)*t_8 + t_12
+      t_14 = 2.0_real64*t_9
+      t_15 = t_13*t_14
+      t_16 = q1_x*t_15
+      f(5) = self%constants(9) + t_16
+      t_17 = q1_y*t_15
+      f(6) = self%constants(10) + t_17
+      t_18 = 1.0_real64/C_2
+      t_19 = t_18*t_6
+      t_20 = self%constants(44)*(self%constants(21)*t_6 + self%constants(66)*t_6**2 + tau_2) + self%parameters%theta_ref
+      t_21 = 1.0_real64/t_20
+      t_22 = self%constants(21)*t_18 + self%constants(29)*t_19
+      t_23 = t_21*t_22
+      t_24 = self%constants(19)*t_18 + self%constants(28)*t_19 + t_23
+      t_25 = 2.0_real64*t_20
+      t_26 = t_24*t_25
+      t_27 = q2_x*t_26
+      f(7) = self%constants(14) + t_27
+      t_28 = q2_y*t_26
+      f(8) = self%constants(15) + t_28
+      f(9) = self%parameters%conductivity*t_20 + self%constants(58)*t_9 - t_1*t_16 - t_17*t_2
+      f(10) = self%parameters%conductivity*t_9 + self%constants(58)*t_20 - t_27*t_3 - t_28*t_4
+      t_29 = 1.0_real64/C_1**2
+      t_30 = t_29*t_5
+      t_31 = t_14*(self%constants(20)*t_29 + self%constants(4)*t_29 + self%constants(6)*t_30 + self%constants(67) &
+          *t_11**2/t_9**2 + t_10*(self%constants(22)*t_29 + self%constants(7)*t_29 + self%constants(8)*t_30))
+      t_32 = q1_x*t_31
+      t_33 = self%constants(68)*t_13
+      t_34 = q1_x*t_33
+      t_35 = 2.0_real64*t_11*t_34 + 2.0_real64*t_32
+      jacobian(5, 1) = q1_x*t_35 + t_15
+      jacobian(5, 2) = q1_y*t_35
+      t_36 = self%constants(59)*t_12
+      jacobian(5, 9) = q1_x*t_36 + t_34
+      t_37 = q1_y*t_31
+      t_38 = q1_y*t_33
+      t_39 = 2.0_real64*t_11*t_38 + 2.0_real64*t_37
+      jacobian(6, 1) = q1_x*t_39
+      jacobian(6, 2) = q1_y*t_39 + t_15
+      jacobian(6, 9) = q1_y*t_36 + t_38
+      t_40 = 1.0_real64/C_2**2
+      t_41 = t_40*t_6
+      t_42 = t_25*(self%constants(12)*t_41 + self%constants(28)*t_40 + self%constants(4)*t_40 + self%constants(69) &
+          *t_22**2/t_20**2 + t_21*(self%constants(13)*t_41 + self%constants(29)*t_40 + self%constants(7)*t_40))
+      t_43 = q2_x*t_42
+      t_44 = self%constants(70)*t_24
+      t_45 = q2_x*t_44
+      t_46 = 2.0_real64*t_22*t_45 + 2.0_real64*t_43
+      jacobian(7, 3) = q2_x*t_46 + t_26
+      jacobian(7, 4) = q2_y*t_46
+      t_47 = self%constants(60)*t_23
+      jacobian(7, 10) = q2_x*t_47 + t_45
+      t_48 = q2_y*t_42
+      t_49 = q2_y*t_44
+      t_50 = 2.0_real64*t_22*t_49 + 2.0_real64*t_48
+      jacobian(8, 3) = q2_x*t_50
+      jacobian(8, 4) = q2_y*t_50 + t_26
+      jacobian(8, 10) = q2_y*t_47 + t_49
+      t_51 = self%constants(59)*t_13
+      t_52 = q1_x*t_1
+      t_53 = t_51*t_52
+      t_54 = q1_y*t_2
+      t_55 = t_51*t_54
+      t_56 = self%constants(55)*t_11 - 2.0_real64*t_1*t_32 + 2.0_real64*t_11*t_53 + 2.0_real64*t_11*t_55 - 2.0_real64 &
+          *t_2*t_37
+      jacobian(9, 1) = q1_x*t_56 - t_1*t_15
+      jacobian(9, 2) = q1_y*t_56 - t_15*t_2
+      t_57 = self%constants(35)*t_22
+      jacobian(9, 3) = q2_x*t_57
+      jacobian(9, 4) = q2_y*t_57
+      t_58 = t_13*t_9
+      t_59 = self%constants(71)*t_58
+      jacobian(9, 5) = q1_x*t_59
+      jacobian(9, 6) = q1_y*t_59
+      t_60 = self%constants(72)*t_58
+      jacobian(9, 7) = q1_x*t_60
+      jacobian(9, 8) = q1_y*t_60
+      t_61 = self%constants(68)*t_12
+      jacobian(9, 9) = self%constants(33) + t_52*t_61 + t_53 + t_54*t_61 + t_55
+      t_62 = self%constants(37)*t_11
+      jacobian(10, 1) = q1_x*t_62
+      jacobian(10, 2) = q1_y*t_62
+      t_63 = self%constants(60)*t_24
+      t_64 = q2_x*t_3
+      t_65 = t_63*t_64
+      t_66 = q2_y*t_4
+      t_67 = t_63*t_66
+      t_68 = self%constants(56)*t_22 + 2.0_real64*t_22*t_65 + 2.0_real64*t_22*t_67 - 2.0_real64*t_3*t_43 - 2.0_real64 &
+          *t_4*t_48
+      jacobian(10, 3) = q2_x*t_68 - t_26*t_3
+      jacobian(10, 4) = q2_y*t_68 - t_26*t_4
+      t_69 = t_20*t_24
+      t_70 = self%constants(72)*t_69
+      jacobian(10, 5) = q2_x*t_70
+      jacobian(10, 6) = q2_y*t_70
+      t_71 = self%constants(73)*t_69
+      jacobian(10, 7) = q2_x*t_71
+      jacobian(10, 8) = q2_y*t_71
+      t_72 = self%constants(70)*t_23
+      jacobian(10, 10) = self%constants(38) + t_64*t_72 + t_65 + t_66*t_72 + t_67
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10)) <= huge(1.0_real64))) stat = &
         domain_overflow
-  end subroutine continuous_field
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class(planar_thermoelastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(10)
+    real(real64), intent(out) :: f(10)
+    integer, intent(out) :: stat
+    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, tau_1, tau_2, C_1, C_2, exp_1, exp_2, t_1, t_2, &
+        t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18
+
+    stat = failure_none
+    q1_x = z(1)
+    q1_y = z(2)
+    q2_x = z(3)
+    q2_y = z(4)
+    p1_x = z(5)
+    p1_y = z(6)
+    p2_x = z(7)
+    p2_y = z(8)
+    tau_1 = z(9)
+    tau_2 = z(10)
+    C_1 = q1_x**2 + q1_y**2
+    C_2 = q2_x**2 + q2_y**2
+    select case (self%thermo_variable)
+    case (tau_entropy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(11))
+      if (.not. (abs(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_2 = exp(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2))
+      t_3 = 1.0_real64/C_1
+      t_4 = t_1*t_3
+      t_5 = self%constants(45)*t_4 + self%constants(46)*t_3 + self%constants(57)*exp_1*(self%constants(4)*t_3 + &
+          self%constants(6)*t_4)
+      f(5) = self%constants(9) - q1_x*t_5
+      f(6) = self%constants(10) - q1_y*t_5
+      t_6 = 1.0_real64/C_2
+      t_7 = t_2*t_6
+      t_8 = self%constants(46)*t_6 + self%constants(47)*t_7 + self%constants(57)*exp_2*(self%constants(12)*t_7 + &
+          self%constants(4)*t_6)
+      f(7) = self%constants(14) - q2_x*t_8
+      f(8) = self%constants(15) - q2_y*t_8
+      f(9) = self%constants(18)*(self%constants(16)*exp_2 + self%constants(17)*exp_1)/exp_1
+      f(10) = self%constants(18)*(self%constants(16)*exp_1 + self%constants(17)*exp_2)/exp_2
+    case (tau_temperature)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      t_5 = 1.0_real64/C_1
+      t_6 = t_5*log(C_1*self%constants(5))
+      t_7 = 1.0_real64/C_2
+      t_8 = t_7*log(C_2*self%constants(11))
+      t_9 = self%constants(45)*t_6 + self%constants(46)*t_5
+      t_10 = tau_1*(self%constants(19)*t_5 + self%constants(20)*t_6)
+      t_11 = 2.0_real64*t_10
+      f(5) = self%constants(9) + q1_x*t_11 - q1_x*t_9
+      f(6) = self%constants(10) + q1_y*t_11 - q1_y*t_9
+      t_12 = self%constants(46)*t_7 + self%constants(47)*t_8
+      t_13 = tau_2*(self%constants(19)*t_7 + self%constants(28)*t_8)
+      t_14 = 2.0_real64*t_13
+      f(7) = self%constants(14) - q2_x*t_12 + q2_x*t_14
+      f(8) = self%constants(15) - q2_y*t_12 + q2_y*t_14
+      t_15 = self%constants(59)*t_10
+      f(9) = self%constants(42)*(self%parameters%conductivity*tau_2 + self%constants(58)*tau_1) + q1_x*t_1*t_15 + &
+          q1_y*t_15*t_2
+      t_16 = self%constants(60)*t_13
+      f(10) = self%constants(44)*(self%parameters%conductivity*tau_1 + self%constants(58)*tau_2) + q2_x*t_16*t_3 + &
+          q2_y*t_16*t_4
+    case (tau_internal_energy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_4
+      t_5 = log(C_1*self%constants(5))
+      t_6 = log(C_2*self%constants(11))
+      t_7 = self%constants(42)*(self%constants(21)*t_5 + self%constants(65)*t_5**2 + tau_1) + self%parameters%theta_ref
+      t_8 = 1.0_real64/C_1
+      t_9 = t_5*t_8
+      t_10 = 2.0_real64*t_7*(self%constants(19)*t_8 + self%constants(20)*t_9 + (self%constants(21)*t_8 + &
+          self%constants(22)*t_9)/t_7)
+      t_11 = q1_x*t_10
+      f(5) = self%constants(9) + t_11
+      t_12 = q1_y*t_10
+      f(6) = self%constants(10) + t_12
+      t_13 = self%constants(44)*(self%constants(21)*t_6 + self%constants(66)*t_6**2 + tau_2) + self%parameters%theta_ref
+      t_14 = 1.0_real64/C_2
+      t_15 = t_14*t_6
+      t_16 = 2.0_real64*t_13*(self%constants(19)*t_14 + self%constants(28)*t_15 + (self%constants(21)*t_14 + &
+          self%constants(29)*t_15)/t_13)
+      t_17 = q2_x*t_16
+      f(7) = self%constants(14) + t_17
+      t_18 = q2_y*t_16
+      f(8) = self%constants(15) + t_18
+      f(9) = self%parameters%conductivity*t_13 + self%constants(58)*t_7 - t_1*t_11 - t_12*t_2
+      f(10) = self%parameters%conductivity*t_7 + self%constants(58)*t_13 - t_17*t_3 - t_18*t_4
+    end select
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10)) <= huge(1.0_real64))) stat = &
+        domain_overflow
+  end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
   pure function momenta(self, z) result(values)

@@ -56,8 +56,8 @@ contains
     real(real64), intent(out) :: f(:), grad(:, :)
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
-    real(real64) :: C, tau, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, &
-        t_17, t_18, t_19, t_20
+    real(real64) :: C, tau, exp_1, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, &
+        t_16, t_17, t_18, t_19, t_20
 
     f = 0.0_real64
     grad = 0.0_real64
@@ -73,65 +73,63 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_1**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
-        if (.not. ((-0.5_real64*self%parameters%beta*log(C/self%parameters%natural_length_1**2) - 0.125_real64 &
-            *self%parameters%mu_eq_slope_1*log(C/self%parameters%natural_length_1**2)**2 + &
-            tau)/self%parameters%heat_capacity_1 <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%heat_capacity_1
-          t_2 = log(C/self%parameters%natural_length_1**2)
-          t_3 = (0.5_real64)*self%parameters%beta
-          t_4 = t_2*t_3
-          t_5 = t_2**2
-          t_6 = (0.125_real64)*self%parameters%mu_eq_slope_1*t_5 + t_4 - tau
-          t_7 = self%parameters%theta_ref*exp(-t_1*t_6)
-          t_8 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
-          t_9 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_8
-          t_10 = 1.0_real64/C
-          t_11 = t_10*t_3
-          t_12 = self%parameters%mu_eq_slope_1*t_2
-          t_13 = (0.25_real64)*t_10
-          t_14 = 2.0_real64*self%parameters%beta + t_12
-          t_15 = self%parameters%theta_ref*exp(-t_1*t_6)
-          t_16 = t_1*t_15
-          t_17 = -t_13*t_14*t_16
-          f(1) = self%parameters%heat_capacity_1*(t_7 - self%parameters%theta_ref) + t_4*self%parameters%theta_ref + &
-              (0.25_real64)*t_5*t_9
           f(2) = tau
-          grad(1, 1) = (0.5_real64)*t_10*t_2*t_9 + t_11*self%parameters%theta_ref + t_7*(-t_11 - t_12*t_13)
-          grad(2, 1) = t_7
           grad(2, 2) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_1**2)
+          t_2 = 1.0_real64/self%parameters%heat_capacity_1
+          t_3 = (0.5_real64)*self%parameters%beta
+          t_4 = t_1*t_3
+          t_5 = t_1**2
+          if (.not. (t_2*(-0.125_real64*self%parameters%mu_eq_slope_1*t_5 - t_4 + tau) <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(t_2*(-0.125_real64*self%parameters%mu_eq_slope_1*t_5 - t_4 + tau))
+          t_6 = exp_1*self%parameters%theta_ref
+          t_7 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
+          t_8 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_7
+          f(1) = self%parameters%heat_capacity_1*(t_6 - self%parameters%theta_ref) + t_4*self%parameters%theta_ref + &
+              (0.25_real64)*t_5*t_8
+          t_9 = 1.0_real64/C
+          t_10 = t_3*t_9
+          t_11 = self%parameters%mu_eq_slope_1*t_1
+          t_12 = (0.25_real64)*t_9
+          grad(1, 1) = (0.5_real64)*t_1*t_8*t_9 + t_10*self%parameters%theta_ref + t_6*(-t_10 - t_11*t_12)
+          grad(2, 1) = t_6
+          t_13 = 2.0_real64*self%parameters%beta + t_11
+          t_14 = t_2*t_6
           hess(1, 1, 1) = (0.0625_real64)*(-8.0_real64*self%parameters%beta*self%parameters%theta_ref + 4.0_real64 &
-              *self%parameters%mu_eq_const_1 + t_14**2*t_16 + 4.0_real64*t_15*(-self%parameters%mu_eq_slope_1 + t_14) &
-              - 4.0_real64*t_2*(self%parameters%mu_eq_const_1 + t_8) + 4.0_real64*t_8)/C**2
-          hess(1, 2, 1) = t_17
-          hess(2, 1, 1) = t_17
-          hess(2, 2, 1) = t_16
+              *self%parameters%mu_eq_const_1 - 4.0_real64*t_1*(self%parameters%mu_eq_const_1 + t_7) + t_13**2*t_14 + &
+              4.0_real64*t_6*(-self%parameters%mu_eq_slope_1 + t_13) + 4.0_real64*t_7)/C**2
+          t_15 = -t_12*t_13*t_14
+          hess(1, 2, 1) = t_15
+          hess(2, 1, 1) = t_15
+          hess(2, 2, 1) = t_14
         else
+          f(2) = tau
+          grad(2, 2) = 1.0_real64
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = (0.5_real64)*self%parameters%beta
           t_3 = t_1*t_2
           t_4 = t_1**2
-          t_5 = self%parameters%theta_ref*exp((-0.125_real64*self%parameters%mu_eq_slope_1*t_4 - t_3 + &
-              tau)/self%parameters%heat_capacity_1)
+          if (.not. ((-0.125_real64*self%parameters%mu_eq_slope_1*t_4 - t_3 + tau)/self%parameters%heat_capacity_1 <= &
+              max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp((-0.125_real64*self%parameters%mu_eq_slope_1*t_4 - t_3 + tau)/self%parameters%heat_capacity_1)
+          t_5 = exp_1*self%parameters%theta_ref
           t_6 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*self%parameters%mu_eq_slope_1 &
               *self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity_1*(t_5 - self%parameters%theta_ref) + t_3*self%parameters%theta_ref + &
+              (0.25_real64)*t_4*t_6
           t_7 = 1.0_real64/C
           t_8 = t_2*t_7
           t_9 = t_1*t_7
-          f(1) = self%parameters%heat_capacity_1*(t_5 - self%parameters%theta_ref) + t_3*self%parameters%theta_ref + &
-              (0.25_real64)*t_4*t_6
-          f(2) = tau
           grad(1, 1) = t_5*(-0.25_real64*self%parameters%mu_eq_slope_1*t_9 - t_8) + (0.5_real64)*t_6*t_9 + t_8 &
               *self%parameters%theta_ref
           grad(2, 1) = t_5
-          grad(2, 2) = 1.0_real64
         end if
       case (tau_temperature)
         C = x(1)
@@ -140,54 +138,50 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_1**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
         if (.not. (tau/self%parameters%theta_ref > 0.0_real64)) then
           stat = domain_nonpositive_temperature
           return
         end if
         if (present(hess)) then
+          grad(2, 1) = self%parameters%heat_capacity_1
+          grad(2, 2) = self%parameters%heat_capacity_1/tau
+          hess(2, 2, 2) = -self%parameters%heat_capacity_1/tau**2
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = t_1**2
           t_3 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
           t_4 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_3
           t_5 = (0.5_real64)*self%parameters%beta
           t_6 = t_1*t_5
-          t_7 = 1.0_real64/C
-          t_8 = t_5*t_7
-          t_9 = self%parameters%mu_eq_slope_1*t_1
-          t_10 = 2.0_real64*self%parameters%beta
-          t_11 = (0.25_real64)/C**2
           f(1) = self%parameters%heat_capacity_1*(tau - self%parameters%theta_ref) + (0.25_real64)*t_2*t_4 + t_6 &
               *self%parameters%theta_ref
           f(2) = self%parameters%heat_capacity_1*log(tau/self%parameters%theta_ref) + (0.125_real64) &
               *self%parameters%mu_eq_slope_1*t_2 + t_6
+          t_7 = 1.0_real64/C
+          t_8 = t_5*t_7
           grad(1, 1) = (0.5_real64)*t_1*t_4*t_7 + t_8*self%parameters%theta_ref
-          grad(2, 1) = self%parameters%heat_capacity_1
+          t_9 = self%parameters%mu_eq_slope_1*t_1
           grad(1, 2) = (0.25_real64)*t_7*t_9 + t_8
-          grad(2, 2) = self%parameters%heat_capacity_1/tau
+          t_10 = 2.0_real64*self%parameters%beta
+          t_11 = (0.25_real64)/C**2
           hess(1, 1, 1) = t_11*(self%parameters%mu_eq_const_1 + self%parameters%mu_eq_slope_1 &
               *self%parameters%theta_ref - t_1*(self%parameters%mu_eq_const_1 + t_3) - t_10*self%parameters%theta_ref)
           hess(1, 1, 2) = t_11*(self%parameters%mu_eq_slope_1 - t_10 - t_9)
-          hess(2, 2, 2) = -self%parameters%heat_capacity_1/tau**2
         else
+          grad(2, 1) = self%parameters%heat_capacity_1
+          grad(2, 2) = self%parameters%heat_capacity_1/tau
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = t_1**2
           t_3 = (0.5_real64)*self%parameters%theta_ref
           t_4 = (0.5_real64)*self%parameters%mu_eq_const_1 + self%parameters%mu_eq_slope_1*t_3
           t_5 = self%parameters%beta*t_3
-          t_6 = (0.5_real64)*self%parameters%beta
-          t_7 = 1.0_real64/C
-          t_8 = t_1*t_7
           f(1) = self%parameters%heat_capacity_1*(tau - self%parameters%theta_ref) + t_1*t_5 + (0.25_real64)*t_2*t_4
+          t_6 = (0.5_real64)*self%parameters%beta
           f(2) = self%parameters%heat_capacity_1*log(tau/self%parameters%theta_ref) + (0.125_real64) &
               *self%parameters%mu_eq_slope_1*t_2 + t_1*t_6
+          t_7 = 1.0_real64/C
+          t_8 = t_1*t_7
           grad(1, 1) = (0.5_real64)*t_4*t_8 + t_5*t_7
-          grad(2, 1) = self%parameters%heat_capacity_1
           grad(1, 2) = (0.25_real64)*self%parameters%mu_eq_slope_1*t_8 + t_6*t_7
-          grad(2, 2) = self%parameters%heat_capacity_1/tau
         end if
       case (tau_internal_energy)
         C = x(1)
@@ -209,38 +203,40 @@ contains
           return
         end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%heat_capacity_1
-          t_2 = log(C/self%parameters%natural_length_1**2)
-          t_3 = t_2**2
-          t_4 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
-          t_5 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_4
-          t_6 = (0.5_real64)*self%parameters%beta
-          t_7 = t_2*t_6
-          t_8 = t_1*(-0.25_real64*t_3*t_5 - t_7*self%parameters%theta_ref + tau) + self%parameters%theta_ref
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_1**2)
+          t_2 = t_1**2
+          t_3 = (0.5_real64)*self%parameters%beta
+          t_4 = t_1*t_3
+          t_5 = 1.0_real64/self%parameters%heat_capacity_1
+          t_6 = self%parameters%mu_eq_slope_1*self%parameters%theta_ref
+          t_7 = (0.5_real64)*self%parameters%mu_eq_const_1 + (0.5_real64)*t_6
+          t_8 = t_5*(-0.25_real64*t_2*t_7 - t_4*self%parameters%theta_ref + tau) + self%parameters%theta_ref
+          f(2) = self%parameters%heat_capacity_1*log(t_8/self%parameters%theta_ref) + (0.125_real64) &
+              *self%parameters%mu_eq_slope_1*t_2 + t_4
           t_9 = 1.0_real64/t_8
           t_10 = 1.0_real64/C
-          t_11 = t_10*t_6
-          t_12 = self%parameters%mu_eq_slope_1*t_2
+          t_11 = t_10*t_3
+          t_12 = self%parameters%mu_eq_slope_1*t_1
           t_13 = (0.25_real64)*t_10
-          t_14 = 2.0_real64*self%parameters%beta
-          t_15 = self%parameters%mu_eq_const_1 + t_4
-          t_16 = t_1*(4.0_real64*self%parameters%beta*t_2*self%parameters%theta_ref + t_15*t_3 - 8.0_real64*tau)
-          t_17 = -t_16 + 8.0_real64*self%parameters%theta_ref
-          t_18 = t_14*self%parameters%theta_ref + t_15*t_2
-          t_19 = t_1/(-0.125_real64*t_16 + self%parameters%theta_ref)**2
-          t_20 = t_13*t_18*t_19
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity_1*log(t_8/self%parameters%theta_ref) + (0.125_real64) &
-              *self%parameters%mu_eq_slope_1*t_3 + t_7
-          grad(2, 1) = 1.0_real64
-          grad(1, 2) = t_11 + t_12*t_13 + t_9*(-0.5_real64*t_10*t_2*t_5 - t_11*self%parameters%theta_ref)
+          grad(1, 2) = t_11 + t_12*t_13 + t_9*(-0.5_real64*t_1*t_10*t_7 - t_11*self%parameters%theta_ref)
           grad(2, 2) = t_9
-          hess(1, 1, 2) = (0.25_real64)*(self%parameters%mu_eq_slope_1 - 16.0_real64*t_1*t_18**2/t_17**2 - t_12 - &
-              t_14 + 8.0_real64*(-self%parameters%mu_eq_const_1 + t_18 - t_4)/t_17)/C**2
+          t_14 = 2.0_real64*self%parameters%beta
+          t_15 = self%parameters%mu_eq_const_1 + t_6
+          t_16 = t_5*(4.0_real64*self%parameters%beta*t_1*self%parameters%theta_ref + t_15*t_2 - 8.0_real64*tau)
+          t_17 = -t_16 + 8.0_real64*self%parameters%theta_ref
+          t_18 = t_1*t_15 + t_14*self%parameters%theta_ref
+          hess(1, 1, 2) = (0.25_real64)*(self%parameters%mu_eq_slope_1 - t_12 - t_14 + 8.0_real64*( &
+              -self%parameters%mu_eq_const_1 + t_18 - t_6)/t_17 - 16.0_real64*t_18**2*t_5/t_17**2)/C**2
+          t_19 = t_5/(-0.125_real64*t_16 + self%parameters%theta_ref)**2
+          t_20 = t_13*t_18*t_19
           hess(1, 2, 2) = t_20
           hess(2, 1, 2) = t_20
           hess(2, 2, 2) = -t_19
         else
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
           t_1 = log(C/self%parameters%natural_length_1**2)
           t_2 = t_1**2
           t_3 = (0.5_real64)*self%parameters%theta_ref
@@ -248,13 +244,11 @@ contains
           t_5 = self%parameters%beta*t_3
           t_6 = self%parameters%theta_ref + (-t_1*t_5 - 0.25_real64*t_2*t_4 + tau)/self%parameters%heat_capacity_1
           t_7 = (0.5_real64)*self%parameters%beta
+          f(2) = self%parameters%heat_capacity_1*log(t_6/self%parameters%theta_ref) + (0.125_real64) &
+              *self%parameters%mu_eq_slope_1*t_2 + t_1*t_7
           t_8 = 1.0_real64/t_6
           t_9 = 1.0_real64/C
           t_10 = t_1*t_9
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity_1*log(t_6/self%parameters%theta_ref) + (0.125_real64) &
-              *self%parameters%mu_eq_slope_1*t_2 + t_1*t_7
-          grad(2, 1) = 1.0_real64
           grad(1, 2) = (0.25_real64)*self%parameters%mu_eq_slope_1*t_10 + t_7*t_9 + t_8*(-0.5_real64*t_10*t_4 - t_5*t_9)
           grad(2, 2) = t_8
         end if
@@ -268,65 +262,63 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_2**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
-        if (.not. ((-0.5_real64*self%parameters%beta*log(C/self%parameters%natural_length_2**2) - 0.125_real64 &
-            *self%parameters%mu_eq_slope_2*log(C/self%parameters%natural_length_2**2)**2 + &
-            tau)/self%parameters%heat_capacity_2 <= max_exponent)) then
-          stat = domain_overflow
-          return
-        end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%heat_capacity_2
-          t_2 = log(C/self%parameters%natural_length_2**2)
-          t_3 = (0.5_real64)*self%parameters%beta
-          t_4 = t_2*t_3
-          t_5 = t_2**2
-          t_6 = (0.125_real64)*self%parameters%mu_eq_slope_2*t_5 + t_4 - tau
-          t_7 = self%parameters%theta_ref*exp(-t_1*t_6)
-          t_8 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-          t_9 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_8
-          t_10 = 1.0_real64/C
-          t_11 = t_10*t_3
-          t_12 = self%parameters%mu_eq_slope_2*t_2
-          t_13 = (0.25_real64)*t_10
-          t_14 = 2.0_real64*self%parameters%beta + t_12
-          t_15 = self%parameters%theta_ref*exp(-t_1*t_6)
-          t_16 = t_1*t_15
-          t_17 = -t_13*t_14*t_16
-          f(1) = self%parameters%heat_capacity_2*(t_7 - self%parameters%theta_ref) + t_4*self%parameters%theta_ref + &
-              (0.25_real64)*t_5*t_9
           f(2) = tau
-          grad(1, 1) = (0.5_real64)*t_10*t_2*t_9 + t_11*self%parameters%theta_ref + t_7*(-t_11 - t_12*t_13)
-          grad(2, 1) = t_7
           grad(2, 2) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_2**2)
+          t_2 = 1.0_real64/self%parameters%heat_capacity_2
+          t_3 = (0.5_real64)*self%parameters%beta
+          t_4 = t_1*t_3
+          t_5 = t_1**2
+          if (.not. (t_2*(-0.125_real64*self%parameters%mu_eq_slope_2*t_5 - t_4 + tau) <= max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp(t_2*(-0.125_real64*self%parameters%mu_eq_slope_2*t_5 - t_4 + tau))
+          t_6 = exp_1*self%parameters%theta_ref
+          t_7 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
+          t_8 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_7
+          f(1) = self%parameters%heat_capacity_2*(t_6 - self%parameters%theta_ref) + t_4*self%parameters%theta_ref + &
+              (0.25_real64)*t_5*t_8
+          t_9 = 1.0_real64/C
+          t_10 = t_3*t_9
+          t_11 = self%parameters%mu_eq_slope_2*t_1
+          t_12 = (0.25_real64)*t_9
+          grad(1, 1) = (0.5_real64)*t_1*t_8*t_9 + t_10*self%parameters%theta_ref + t_6*(-t_10 - t_11*t_12)
+          grad(2, 1) = t_6
+          t_13 = 2.0_real64*self%parameters%beta + t_11
+          t_14 = t_2*t_6
           hess(1, 1, 1) = (0.0625_real64)*(-8.0_real64*self%parameters%beta*self%parameters%theta_ref + 4.0_real64 &
-              *self%parameters%mu_eq_const_2 + t_14**2*t_16 + 4.0_real64*t_15*(-self%parameters%mu_eq_slope_2 + t_14) &
-              - 4.0_real64*t_2*(self%parameters%mu_eq_const_2 + t_8) + 4.0_real64*t_8)/C**2
-          hess(1, 2, 1) = t_17
-          hess(2, 1, 1) = t_17
-          hess(2, 2, 1) = t_16
+              *self%parameters%mu_eq_const_2 - 4.0_real64*t_1*(self%parameters%mu_eq_const_2 + t_7) + t_13**2*t_14 + &
+              4.0_real64*t_6*(-self%parameters%mu_eq_slope_2 + t_13) + 4.0_real64*t_7)/C**2
+          t_15 = -t_12*t_13*t_14
+          hess(1, 2, 1) = t_15
+          hess(2, 1, 1) = t_15
+          hess(2, 2, 1) = t_14
         else
+          f(2) = tau
+          grad(2, 2) = 1.0_real64
           t_1 = log(C/self%parameters%natural_length_2**2)
           t_2 = (0.5_real64)*self%parameters%beta
           t_3 = t_1*t_2
           t_4 = t_1**2
-          t_5 = self%parameters%theta_ref*exp((-0.125_real64*self%parameters%mu_eq_slope_2*t_4 - t_3 + &
-              tau)/self%parameters%heat_capacity_2)
+          if (.not. ((-0.125_real64*self%parameters%mu_eq_slope_2*t_4 - t_3 + tau)/self%parameters%heat_capacity_2 <= &
+              max_exponent)) then
+            stat = domain_overflow
+            return
+          end if
+          exp_1 = exp((-0.125_real64*self%parameters%mu_eq_slope_2*t_4 - t_3 + tau)/self%parameters%heat_capacity_2)
+          t_5 = exp_1*self%parameters%theta_ref
           t_6 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*self%parameters%mu_eq_slope_2 &
               *self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity_2*(t_5 - self%parameters%theta_ref) + t_3*self%parameters%theta_ref + &
+              (0.25_real64)*t_4*t_6
           t_7 = 1.0_real64/C
           t_8 = t_2*t_7
           t_9 = t_1*t_7
-          f(1) = self%parameters%heat_capacity_2*(t_5 - self%parameters%theta_ref) + t_3*self%parameters%theta_ref + &
-              (0.25_real64)*t_4*t_6
-          f(2) = tau
           grad(1, 1) = t_5*(-0.25_real64*self%parameters%mu_eq_slope_2*t_9 - t_8) + (0.5_real64)*t_6*t_9 + t_8 &
               *self%parameters%theta_ref
           grad(2, 1) = t_5
-          grad(2, 2) = 1.0_real64
         end if
       case (tau_temperature)
         C = x(1)
@@ -335,54 +327,50 @@ contains
           stat = domain_nonpositive_length
           return
         end if
-        if (.not. (C/self%parameters%natural_length_2**2 > 0.0_real64)) then
-          stat = domain_nonpositive_temperature
-          return
-        end if
         if (.not. (tau/self%parameters%theta_ref > 0.0_real64)) then
           stat = domain_nonpositive_temperature
           return
         end if
         if (present(hess)) then
+          grad(2, 1) = self%parameters%heat_capacity_2
+          grad(2, 2) = self%parameters%heat_capacity_2/tau
+          hess(2, 2, 2) = -self%parameters%heat_capacity_2/tau**2
           t_1 = log(C/self%parameters%natural_length_2**2)
           t_2 = t_1**2
           t_3 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
           t_4 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_3
           t_5 = (0.5_real64)*self%parameters%beta
           t_6 = t_1*t_5
-          t_7 = 1.0_real64/C
-          t_8 = t_5*t_7
-          t_9 = self%parameters%mu_eq_slope_2*t_1
-          t_10 = 2.0_real64*self%parameters%beta
-          t_11 = (0.25_real64)/C**2
           f(1) = self%parameters%heat_capacity_2*(tau - self%parameters%theta_ref) + (0.25_real64)*t_2*t_4 + t_6 &
               *self%parameters%theta_ref
           f(2) = self%parameters%heat_capacity_2*log(tau/self%parameters%theta_ref) + (0.125_real64) &
               *self%parameters%mu_eq_slope_2*t_2 + t_6
+          t_7 = 1.0_real64/C
+          t_8 = t_5*t_7
           grad(1, 1) = (0.5_real64)*t_1*t_4*t_7 + t_8*self%parameters%theta_ref
-          grad(2, 1) = self%parameters%heat_capacity_2
+          t_9 = self%parameters%mu_eq_slope_2*t_1
           grad(1, 2) = (0.25_real64)*t_7*t_9 + t_8
-          grad(2, 2) = self%parameters%heat_capacity_2/tau
+          t_10 = 2.0_real64*self%parameters%beta
+          t_11 = (0.25_real64)/C**2
           hess(1, 1, 1) = t_11*(self%parameters%mu_eq_const_2 + self%parameters%mu_eq_slope_2 &
               *self%parameters%theta_ref - t_1*(self%parameters%mu_eq_const_2 + t_3) - t_10*self%parameters%theta_ref)
           hess(1, 1, 2) = t_11*(self%parameters%mu_eq_slope_2 - t_10 - t_9)
-          hess(2, 2, 2) = -self%parameters%heat_capacity_2/tau**2
         else
+          grad(2, 1) = self%parameters%heat_capacity_2
+          grad(2, 2) = self%parameters%heat_capacity_2/tau
           t_1 = log(C/self%parameters%natural_length_2**2)
           t_2 = t_1**2
           t_3 = (0.5_real64)*self%parameters%theta_ref
           t_4 = (0.5_real64)*self%parameters%mu_eq_const_2 + self%parameters%mu_eq_slope_2*t_3
           t_5 = self%parameters%beta*t_3
-          t_6 = (0.5_real64)*self%parameters%beta
-          t_7 = 1.0_real64/C
-          t_8 = t_1*t_7
           f(1) = self%parameters%heat_capacity_2*(tau - self%parameters%theta_ref) + t_1*t_5 + (0.25_real64)*t_2*t_4
+          t_6 = (0.5_real64)*self%parameters%beta
           f(2) = self%parameters%heat_capacity_2*log(tau/self%parameters%theta_ref) + (0.125_real64) &
               *self%parameters%mu_eq_slope_2*t_2 + t_1*t_6
+          t_7 = 1.0_real64/C
+          t_8 = t_1*t_7
           grad(1, 1) = (0.5_real64)*t_4*t_8 + t_5*t_7
-          grad(2, 1) = self%parameters%heat_capacity_2
           grad(1, 2) = (0.25_real64)*self%parameters%mu_eq_slope_2*t_8 + t_6*t_7
-          grad(2, 2) = self%parameters%heat_capacity_2/tau
         end if
       case (tau_internal_energy)
         C = x(1)
@@ -404,38 +392,40 @@ contains
           return
         end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%heat_capacity_2
-          t_2 = log(C/self%parameters%natural_length_2**2)
-          t_3 = t_2**2
-          t_4 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
-          t_5 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_4
-          t_6 = (0.5_real64)*self%parameters%beta
-          t_7 = t_2*t_6
-          t_8 = t_1*(-0.25_real64*t_3*t_5 - t_7*self%parameters%theta_ref + tau) + self%parameters%theta_ref
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
+          t_1 = log(C/self%parameters%natural_length_2**2)
+          t_2 = t_1**2
+          t_3 = (0.5_real64)*self%parameters%beta
+          t_4 = t_1*t_3
+          t_5 = 1.0_real64/self%parameters%heat_capacity_2
+          t_6 = self%parameters%mu_eq_slope_2*self%parameters%theta_ref
+          t_7 = (0.5_real64)*self%parameters%mu_eq_const_2 + (0.5_real64)*t_6
+          t_8 = t_5*(-0.25_real64*t_2*t_7 - t_4*self%parameters%theta_ref + tau) + self%parameters%theta_ref
+          f(2) = self%parameters%heat_capacity_2*log(t_8/self%parameters%theta_ref) + (0.125_real64) &
+              *self%parameters%mu_eq_slope_2*t_2 + t_4
           t_9 = 1.0_real64/t_8
           t_10 = 1.0_real64/C
-          t_11 = t_10*t_6
-          t_12 = self%parameters%mu_eq_slope_2*t_2
+          t_11 = t_10*t_3
+          t_12 = self%parameters%mu_eq_slope_2*t_1
           t_13 = (0.25_real64)*t_10
-          t_14 = 2.0_real64*self%parameters%beta
-          t_15 = self%parameters%mu_eq_const_2 + t_4
-          t_16 = t_1*(4.0_real64*self%parameters%beta*t_2*self%parameters%theta_ref + t_15*t_3 - 8.0_real64*tau)
-          t_17 = -t_16 + 8.0_real64*self%parameters%theta_ref
-          t_18 = t_14*self%parameters%theta_ref + t_15*t_2
-          t_19 = t_1/(-0.125_real64*t_16 + self%parameters%theta_ref)**2
-          t_20 = t_13*t_18*t_19
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity_2*log(t_8/self%parameters%theta_ref) + (0.125_real64) &
-              *self%parameters%mu_eq_slope_2*t_3 + t_7
-          grad(2, 1) = 1.0_real64
-          grad(1, 2) = t_11 + t_12*t_13 + t_9*(-0.5_real64*t_10*t_2*t_5 - t_11*self%parameters%theta_ref)
+          grad(1, 2) = t_11 + t_12*t_13 + t_9*(-0.5_real64*t_1*t_10*t_7 - t_11*self%parameters%theta_ref)
           grad(2, 2) = t_9
-          hess(1, 1, 2) = (0.25_real64)*(self%parameters%mu_eq_slope_2 - 16.0_real64*t_1*t_18**2/t_17**2 - t_12 - &
-              t_14 + 8.0_real64*(-self%parameters%mu_eq_const_2 + t_18 - t_4)/t_17)/C**2
+          t_14 = 2.0_real64*self%parameters%beta
+          t_15 = self%parameters%mu_eq_const_2 + t_6
+          t_16 = t_5*(4.0_real64*self%parameters%beta*t_1*self%parameters%theta_ref + t_15*t_2 - 8.0_real64*tau)
+          t_17 = -t_16 + 8.0_real64*self%parameters%theta_ref
+          t_18 = t_1*t_15 + t_14*self%parameters%theta_ref
+          hess(1, 1, 2) = (0.25_real64)*(self%parameters%mu_eq_slope_2 - t_12 - t_14 + 8.0_real64*( &
+              -self%parameters%mu_eq_const_2 + t_18 - t_6)/t_17 - 16.0_real64*t_18**2*t_5/t_17**2)/C**2
+          t_19 = t_5/(-0.125_real64*t_16 + self%parameters%theta_ref)**2
+          t_20 = t_13*t_18*t_19
           hess(1, 2, 2) = t_20
           hess(2, 1, 2) = t_20
           hess(2, 2, 2) = -t_19
         else
+          f(1) = tau
+          grad(2, 1) = 1.0_real64
           t_1 = log(C/self%parameters%natural_length_2**2)
           t_2 = t_1**2
           t_3 = (0.5_real64)*self%parameters%theta_ref
@@ -443,13 +433,11 @@ contains
           t_5 = self%parameters%beta*t_3
           t_6 = self%parameters%theta_ref + (-t_1*t_5 - 0.25_real64*t_2*t_4 + tau)/self%parameters%heat_capacity_2
           t_7 = (0.5_real64)*self%parameters%beta
+          f(2) = self%parameters%heat_capacity_2*log(t_6/self%parameters%theta_ref) + (0.125_real64) &
+              *self%parameters%mu_eq_slope_2*t_2 + t_1*t_7
           t_8 = 1.0_real64/t_6
           t_9 = 1.0_real64/C
           t_10 = t_1*t_9
-          f(1) = tau
-          f(2) = self%parameters%heat_capacity_2*log(t_6/self%parameters%theta_ref) + (0.125_real64) &
-              *self%parameters%mu_eq_slope_2*t_2 + t_1*t_7
-          grad(2, 1) = 1.0_real64
           grad(1, 2) = (0.25_real64)*self%parameters%mu_eq_slope_2*t_10 + t_7*t_9 + t_8*(-0.5_real64*t_10*t_4 - t_5*t_9)
           grad(2, 2) = t_8
         end if

@@ -26,7 +26,7 @@ module thermoelastic_pendulum_model
   !> The model with its parameters.
   type, extends(generic_model) :: thermoelastic_pendulum
     type(thermoelastic_pendulum_parameters) :: parameters
-    real(real64) :: constants(62) = 0.0_real64  !! of the parameters alone, for the field
+    real(real64) :: constants(75) = 0.0_real64  !! of the parameters alone, for the field
   contains
     procedure :: invariants
     procedure :: vector_field
@@ -122,71 +122,86 @@ contains
     model%constants(4) = -0.5_real64*parameters%beta
     model%constants(5) = 1.0_real64/parameters%natural_length_1**2
     model%constants(6) = -0.25_real64*parameters%mu_eq_slope_1
-    model%constants(7) = -0.125_real64*parameters%mu_eq_slope_1
-    model%constants(8) = 1.0_real64/parameters%heat_capacity_1
-    model%constants(9) = (0.5_real64)*parameters%beta*parameters%theta_ref
-    model%constants(10) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
+    model%constants(7) = (0.5_real64)*parameters%beta*parameters%theta_ref
+    model%constants(8) = (0.25_real64)*parameters%mu_eq_const_1 + (0.25_real64)*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(11) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
-    model%constants(12) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
-    model%constants(13) = parameters%gravity_z*(parameters%mass_1 + parameters%mass_2)
-    model%constants(14) = 1.0_real64/parameters%natural_length_2**2
-    model%constants(15) = -0.25_real64*parameters%mu_eq_slope_2
-    model%constants(16) = -0.125_real64*parameters%mu_eq_slope_2
-    model%constants(17) = 1.0_real64/parameters%heat_capacity_2
-    model%constants(18) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
+    model%constants(9) = parameters%gravity_x*(parameters%mass_1 + parameters%mass_2)
+    model%constants(10) = parameters%gravity_y*(parameters%mass_1 + parameters%mass_2)
+    model%constants(11) = parameters%gravity_z*(parameters%mass_1 + parameters%mass_2)
+    model%constants(12) = 1.0_real64/parameters%natural_length_2**2
+    model%constants(13) = -0.25_real64*parameters%mu_eq_slope_2
+    model%constants(14) = (0.25_real64)*parameters%mu_eq_const_2 + (0.25_real64)*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(19) = parameters%gravity_x*parameters%mass_2
-    model%constants(20) = parameters%gravity_y*parameters%mass_2
-    model%constants(21) = parameters%gravity_z*parameters%mass_2
-    model%constants(22) = parameters%conductivity*parameters%theta_ref
-    model%constants(23) = -parameters%conductivity*parameters%theta_ref
-    model%constants(24) = -1.0_real64/parameters%heat_capacity_1
-    model%constants(25) = 1.0_real64/parameters%theta_ref
-    model%constants(26) = -1.0_real64/parameters%heat_capacity_2
-    model%constants(27) = (0.5_real64)*parameters%beta
-    model%constants(28) = (0.25_real64)*parameters%mu_eq_slope_1
-    model%constants(29) = -0.5_real64*parameters%beta*parameters%theta_ref
-    model%constants(30) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
+    model%constants(15) = parameters%gravity_x*parameters%mass_2
+    model%constants(16) = parameters%gravity_y*parameters%mass_2
+    model%constants(17) = parameters%gravity_z*parameters%mass_2
+    model%constants(18) = parameters%conductivity*parameters%theta_ref
+    model%constants(19) = -parameters%conductivity*parameters%theta_ref
+    model%constants(20) = 1.0_real64/parameters%theta_ref
+    model%constants(21) = (0.5_real64)*parameters%beta
+    model%constants(22) = (0.25_real64)*parameters%mu_eq_slope_1
+    model%constants(23) = -0.5_real64*parameters%beta*parameters%theta_ref
+    model%constants(24) = -0.25_real64*parameters%mu_eq_const_1 - 0.25_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(31) = parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(32) = -parameters%beta*parameters%theta_ref
-    model%constants(33) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
+    model%constants(25) = parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(26) = -parameters%beta*parameters%theta_ref
+    model%constants(27) = -0.5_real64*parameters%mu_eq_const_1 - 0.5_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(34) = -2.0_real64*parameters%theta_ref
-    model%constants(35) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
-    model%constants(36) = (0.25_real64)*parameters%mu_eq_slope_2
-    model%constants(37) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
+    model%constants(28) = -2.0_real64*parameters%theta_ref
+    model%constants(29) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(30) = (0.25_real64)*parameters%mu_eq_slope_2
+    model%constants(31) = -0.25_real64*parameters%mu_eq_const_2 - 0.25_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(38) = parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(39) = -0.5_real64*parameters%mu_eq_const_2 - 0.5_real64*parameters%mu_eq_slope_2 &
+    model%constants(32) = parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(33) = -0.5_real64*parameters%mu_eq_const_2 - 0.5_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(40) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_2
-    model%constants(41) = -parameters%conductivity/parameters%heat_capacity_1
-    model%constants(42) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
-    model%constants(43) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_2
-    model%constants(44) = parameters%conductivity/parameters%heat_capacity_2
-    model%constants(45) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
-    model%constants(46) = -parameters%conductivity/parameters%heat_capacity_2
-    model%constants(47) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref)
-    model%constants(48) = parameters%conductivity/parameters%heat_capacity_1
-    model%constants(49) = -parameters%conductivity
-    model%constants(50) = -2.0_real64/parameters%heat_capacity_1
-    model%constants(51) = -2.0_real64/parameters%heat_capacity_2
-    model%constants(52) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(53) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
-    model%constants(54) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
-    model%constants(55) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
+    model%constants(34) = -2.0_real64*parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(35) = -parameters%conductivity/parameters%heat_capacity_1
+    model%constants(36) = -1.0_real64/(parameters%heat_capacity_1*parameters%theta_ref)
+    model%constants(37) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_2
+    model%constants(38) = parameters%conductivity/parameters%heat_capacity_2
+    model%constants(39) = 2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(40) = -parameters%conductivity/parameters%heat_capacity_2
+    model%constants(41) = -1.0_real64/(parameters%heat_capacity_2*parameters%theta_ref)
+    model%constants(42) = parameters%conductivity/parameters%heat_capacity_1
+    model%constants(43) = -0.125_real64*parameters%mu_eq_slope_1
+    model%constants(44) = 1.0_real64/parameters%heat_capacity_1
+    model%constants(45) = -0.125_real64*parameters%mu_eq_slope_2
+    model%constants(46) = 1.0_real64/parameters%heat_capacity_2
+    model%constants(47) = (0.5_real64)*parameters%mu_eq_const_1 + (0.5_real64)*parameters%mu_eq_slope_1 &
+        *parameters%theta_ref
+    model%constants(48) = parameters%beta*parameters%theta_ref
+    model%constants(49) = (0.5_real64)*parameters%mu_eq_const_2 + (0.5_real64)*parameters%mu_eq_slope_2 &
+        *parameters%theta_ref
+    model%constants(50) = parameters%mu_eq_const_1 + parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(51) = -parameters%mu_eq_const_1 - parameters%mu_eq_slope_1*parameters%theta_ref
+    model%constants(52) = -2.0_real64*parameters%beta*parameters%theta_ref
+    model%constants(53) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_1
+    model%constants(54) = parameters%mu_eq_const_2 + parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(55) = -parameters%mu_eq_const_2 - parameters%mu_eq_slope_2*parameters%theta_ref
+    model%constants(56) = 4.0_real64*parameters%theta_ref/parameters%heat_capacity_2
+    model%constants(57) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_1
+    model%constants(58) = -2.0_real64*parameters%conductivity/parameters%heat_capacity_2
+    model%constants(59) = 2.0_real64*parameters%theta_ref
+    model%constants(60) = -parameters%conductivity
+    model%constants(61) = -2.0_real64/parameters%heat_capacity_1
+    model%constants(62) = -2.0_real64/parameters%heat_capacity_2
+    model%constants(63) = -2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(64) = 2.0_real64/(parameters%heat_capacity_1*parameters%mass_1)
+    model%constants(65) = 2.0_real64/(parameters%heat_capacity_2*parameters%mass_1)
+    model%constants(66) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%heat_capacity_2 &
         *parameters%mass_1*parameters%mass_2)
-    model%constants(56) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
+    model%constants(67) = -0.125_real64*parameters%mu_eq_const_1 - 0.125_real64*parameters%mu_eq_slope_1 &
         *parameters%theta_ref
-    model%constants(57) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
+    model%constants(68) = -0.125_real64*parameters%mu_eq_const_2 - 0.125_real64*parameters%mu_eq_slope_2 &
         *parameters%theta_ref
-    model%constants(58) = 2.0_real64/parameters%heat_capacity_1
-    model%constants(59) = 2.0_real64/parameters%heat_capacity_2
-    model%constants(60) = -2.0_real64/parameters%mass_1
-    model%constants(61) = 2.0_real64/parameters%mass_1
-    model%constants(62) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
+    model%constants(69) = -1.0_real64/parameters%heat_capacity_1
+    model%constants(70) = 2.0_real64/parameters%heat_capacity_1
+    model%constants(71) = -1.0_real64/parameters%heat_capacity_2
+    model%constants(72) = 2.0_real64/parameters%heat_capacity_2
+    model%constants(73) = -2.0_real64/parameters%mass_1
+    model%constants(74) = 2.0_real64/parameters%mass_1
+    model%constants(75) = -2.0_real64*(parameters%mass_1 + parameters%mass_2)/(parameters%mass_1*parameters%mass_2)
   end function make_thermoelastic_pendulum
 
   !> x_a(z) (tau_a last), and optionally dx_dz(i, j) = d x_a(i)/d z(columns(j)).
@@ -688,15 +703,30 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
+
+    if (present(jacobian)) then
+      call field_and_jacobian(self, z, f, stat, jacobian)
+    else
+      call field_values(self, z, f, stat)
+    end if
+  end subroutine continuous_field
+
+  !> continuous_field with df/dz (not inlined, as field_values).
+  pure subroutine field_and_jacobian(self, z, f, stat, jacobian)
+    class(thermoelastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(:)
+    real(real64), intent(out) :: f(:)
+    integer, intent(out) :: stat
+    real(real64), intent(out) :: jacobian(:, :)
     real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, tau_1, tau_2, C_1, C_2, &
-        t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, &
-        t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, t_36, t_37, t_38, &
-        t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, t_54, t_55, t_56, &
-        t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, t_72, t_73, t_74, &
-        t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86
+        exp_1, exp_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
+        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, t_34, t_35, &
+        t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49, t_50, t_51, t_52, t_53, &
+        t_54, t_55, t_56, t_57, t_58, t_59, t_60, t_61, t_62, t_63, t_64, t_65, t_66, t_67, t_68, t_69, t_70, t_71, &
+        t_72, t_73, t_74, t_75, t_76, t_77, t_78, t_79, t_80, t_81, t_82, t_83, t_84, t_85, t_86
 
     stat = failure_none
-    if (present(jacobian)) jacobian = 0.0_real64
+    jacobian = 0.0_real64
     q1_x = z(1)
     q1_y = z(2)
     q1_z = z(3)
@@ -723,181 +753,128 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (self%constants(17)*(self%constants(16)*log(C_2*self%constants(14))**2 + self%constants(4)*log(C_2 &
-          *self%constants(14)) + tau_2) <= max_exponent)) then
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+      jacobian(1, 7) = self%constants(1)
+      jacobian(1, 10) = self%constants(2)
+      jacobian(2, 8) = self%constants(1)
+      jacobian(2, 11) = self%constants(2)
+      jacobian(3, 9) = self%constants(1)
+      jacobian(3, 12) = self%constants(2)
+      jacobian(4, 7) = self%constants(2)
+      jacobian(4, 10) = self%constants(3)
+      jacobian(5, 8) = self%constants(2)
+      jacobian(5, 11) = self%constants(3)
+      jacobian(6, 9) = self%constants(2)
+      jacobian(6, 12) = self%constants(3)
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(12))
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%constants(24)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
+      exp_1 = exp(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
         stat = domain_overflow
         return
       end if
-      if (.not. (self%constants(26)*(self%constants(16)*log(C_2*self%constants(14))**2 + self%constants(4)*log(C_2 &
-          *self%constants(14)) + tau_2) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (.not. (self%constants(8)*(self%constants(4)*log(C_1*self%constants(5)) + self%constants(7)*log(C_1 &
-          *self%constants(5))**2 + tau_1) <= max_exponent)) then
-        stat = domain_overflow
-        return
-      end if
-      if (present(jacobian)) then
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_1 + self%constants(6)*t_3
-        t_5 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_6 = exp(self%constants(8)*t_5)
-        t_7 = t_6*self%parameters%theta_ref
-        t_8 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_4*t_7
-        t_9 = 1.0_real64/C_2
-        t_10 = log(C_2*self%constants(14))
-        t_11 = t_10*t_9
-        t_12 = self%constants(15)*t_11 + self%constants(4)*t_9
-        t_13 = self%constants(16)*t_10**2 + self%constants(4)*t_10 + tau_2
-        t_14 = exp(self%constants(17)*t_13)
-        t_15 = t_14*self%parameters%theta_ref
-        t_16 = 2.0_real64*self%constants(18)*t_11 + 2.0_real64*self%constants(9)*t_9 + 2.0_real64*t_12*t_15
-        t_17 = exp(self%constants(24)*t_5)
-        t_18 = t_17*(self%constants(22)*t_14 + self%constants(23)*t_6)
-        t_19 = exp(self%constants(26)*t_13)
-        t_20 = t_19*(self%constants(22)*t_6 + self%constants(23)*t_14)
-        t_21 = 1.0_real64/C_1**2
-        t_22 = t_2*t_21
-        t_23 = 4.0_real64*self%constants(10)*t_21 + 4.0_real64*self%constants(29)*t_21 + 4.0_real64 &
-            *self%constants(30)*t_22 + 4.0_real64*self%constants(31)*t_4**2*t_6 + 4.0_real64*t_7*(self%constants(27) &
-            *t_21 + self%constants(28)*t_22 + self%constants(6)*t_21)
-        t_24 = t_4*t_6
-        t_25 = self%constants(32)*t_1 + self%constants(33)*t_3 + self%constants(34)*t_24
-        t_26 = q1_x*t_23
-        t_27 = -q1_y*t_26
-        t_28 = -q1_z*t_26
-        t_29 = self%constants(35)*t_24
-        t_30 = -q1_y*q1_z*t_23
-        t_31 = 1.0_real64/C_2**2
-        t_32 = t_10*t_31
-        t_33 = 4.0_real64*self%constants(18)*t_31 + 4.0_real64*self%constants(29)*t_31 + 4.0_real64 &
-            *self%constants(37)*t_32 + 4.0_real64*self%constants(38)*t_12**2*t_14 + 4.0_real64*t_15 &
-            *(self%constants(15)*t_31 + self%constants(27)*t_31 + self%constants(36)*t_32)
-        t_34 = t_12*t_14
-        t_35 = self%constants(32)*t_9 + self%constants(34)*t_34 + self%constants(39)*t_11
-        t_36 = q2_x*t_33
-        t_37 = -q2_y*t_36
-        t_38 = -q2_z*t_36
-        t_39 = self%constants(40)*t_34
-        t_40 = -q2_y*q2_z*t_33
-        t_41 = self%constants(42)*t_18
-        t_42 = 2.0_real64*self%constants(41)*t_4 + 2.0_real64*t_4*t_41
-        t_43 = self%constants(43)*t_17*t_34
-        t_44 = self%constants(45)*t_19*t_24
-        t_45 = self%constants(47)*t_20
-        t_46 = 2.0_real64*self%constants(46)*t_12 + 2.0_real64*t_12*t_45
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-        f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
-        f(7) = self%constants(11) - q1_x*t_8
-        f(8) = self%constants(12) - q1_y*t_8
-        f(9) = self%constants(13) - q1_z*t_8
-        f(10) = self%constants(19) - q2_x*t_16
-        f(11) = self%constants(20) - q2_y*t_16
-        f(12) = self%constants(21) - q2_z*t_16
-        f(13) = self%constants(25)*t_18
-        f(14) = self%constants(25)*t_20
-        jacobian(1, 7) = self%constants(1)
-        jacobian(1, 10) = self%constants(2)
-        jacobian(2, 8) = self%constants(1)
-        jacobian(2, 11) = self%constants(2)
-        jacobian(3, 9) = self%constants(1)
-        jacobian(3, 12) = self%constants(2)
-        jacobian(4, 7) = self%constants(2)
-        jacobian(4, 10) = self%constants(3)
-        jacobian(5, 8) = self%constants(2)
-        jacobian(5, 11) = self%constants(3)
-        jacobian(6, 9) = self%constants(2)
-        jacobian(6, 12) = self%constants(3)
-        jacobian(7, 1) = -q1_x**2*t_23 + t_25
-        jacobian(7, 2) = t_27
-        jacobian(7, 3) = t_28
-        jacobian(7, 13) = q1_x*t_29
-        jacobian(8, 1) = t_27
-        jacobian(8, 2) = -q1_y**2*t_23 + t_25
-        jacobian(8, 3) = t_30
-        jacobian(8, 13) = q1_y*t_29
-        jacobian(9, 1) = t_28
-        jacobian(9, 2) = t_30
-        jacobian(9, 3) = -q1_z**2*t_23 + t_25
-        jacobian(9, 13) = q1_z*t_29
-        jacobian(10, 4) = -q2_x**2*t_33 + t_35
-        jacobian(10, 5) = t_37
-        jacobian(10, 6) = t_38
-        jacobian(10, 14) = q2_x*t_39
-        jacobian(11, 4) = t_37
-        jacobian(11, 5) = -q2_y**2*t_33 + t_35
-        jacobian(11, 6) = t_40
-        jacobian(11, 14) = q2_y*t_39
-        jacobian(12, 4) = t_38
-        jacobian(12, 5) = t_40
-        jacobian(12, 6) = -q2_z**2*t_33 + t_35
-        jacobian(12, 14) = q2_z*t_39
-        jacobian(13, 1) = q1_x*t_42
-        jacobian(13, 2) = q1_y*t_42
-        jacobian(13, 3) = q1_z*t_42
-        jacobian(13, 4) = q2_x*t_43
-        jacobian(13, 5) = q2_y*t_43
-        jacobian(13, 6) = q2_z*t_43
-        jacobian(13, 13) = self%constants(41) + t_41
-        jacobian(13, 14) = self%constants(44)*t_14*t_17
-        jacobian(14, 1) = q1_x*t_44
-        jacobian(14, 2) = q1_y*t_44
-        jacobian(14, 3) = q1_z*t_44
-        jacobian(14, 4) = q2_x*t_46
-        jacobian(14, 5) = q2_y*t_46
-        jacobian(14, 6) = q2_z*t_46
-        jacobian(14, 13) = self%constants(48)*t_19*t_6
-        jacobian(14, 14) = self%constants(46) + t_45
-      else
-        t_1 = 1.0_real64/C_1
-        t_2 = log(C_1*self%constants(5))
-        t_3 = t_1*t_2
-        t_4 = self%constants(4)*t_2 + self%constants(7)*t_2**2 + tau_1
-        t_5 = exp(self%constants(8)*t_4)
-        t_6 = 2.0_real64*self%constants(10)*t_3 + 2.0_real64*self%constants(9)*t_1 + 2.0_real64*t_5 &
-            *self%parameters%theta_ref*(self%constants(4)*t_1 + self%constants(6)*t_3)
-        t_7 = 1.0_real64/C_2
-        t_8 = log(C_2*self%constants(14))
-        t_9 = t_7*t_8
-        t_10 = self%constants(16)*t_8**2 + self%constants(4)*t_8 + tau_2
-        t_11 = exp(self%constants(17)*t_10)
-        t_12 = 2.0_real64*self%constants(18)*t_9 + 2.0_real64*self%constants(9)*t_7 + 2.0_real64*t_11 &
-            *self%parameters%theta_ref*(self%constants(15)*t_9 + self%constants(4)*t_7)
-        f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-        f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-        f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-        f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-        f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-        f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
-        f(7) = self%constants(11) - q1_x*t_6
-        f(8) = self%constants(12) - q1_y*t_6
-        f(9) = self%constants(13) - q1_z*t_6
-        f(10) = self%constants(19) - q2_x*t_12
-        f(11) = self%constants(20) - q2_y*t_12
-        f(12) = self%constants(21) - q2_z*t_12
-        f(13) = self%constants(25)*(self%constants(22)*t_11 + self%constants(23)*t_5)*exp(self%constants(24)*t_4)
-        f(14) = self%constants(25)*(self%constants(22)*t_5 + self%constants(23)*t_11)*exp(self%constants(26)*t_10)
-      end if
+      exp_2 = exp(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2))
+      t_3 = 1.0_real64/C_1
+      t_4 = t_1*t_3
+      t_5 = self%constants(4)*t_3 + self%constants(6)*t_4
+      t_6 = exp_1*self%parameters%theta_ref
+      t_7 = self%constants(47)*t_4 + self%constants(48)*t_3 + 2.0_real64*t_5*t_6
+      f(7) = self%constants(9) - q1_x*t_7
+      f(8) = self%constants(10) - q1_y*t_7
+      f(9) = self%constants(11) - q1_z*t_7
+      t_8 = 1.0_real64/C_2
+      t_9 = t_2*t_8
+      t_10 = self%constants(13)*t_9 + self%constants(4)*t_8
+      t_11 = exp_2*self%parameters%theta_ref
+      t_12 = self%constants(48)*t_8 + self%constants(49)*t_9 + 2.0_real64*t_10*t_11
+      f(10) = self%constants(15) - q2_x*t_12
+      f(11) = self%constants(16) - q2_y*t_12
+      f(12) = self%constants(17) - q2_z*t_12
+      t_13 = 1.0_real64/exp_1
+      t_14 = t_13*(self%constants(18)*exp_2 + self%constants(19)*exp_1)
+      f(13) = self%constants(20)*t_14
+      t_15 = 1.0_real64/exp_2
+      t_16 = t_15*(self%constants(18)*exp_1 + self%constants(19)*exp_2)
+      f(14) = self%constants(20)*t_16
+      t_17 = 1.0_real64/C_1**2
+      t_18 = t_1*t_17
+      t_19 = self%constants(50)*t_17 + self%constants(51)*t_18 + self%constants(52)*t_17 + self%constants(53)*exp_1 &
+          *t_5**2 + 4.0_real64*t_6*(self%constants(21)*t_17 + self%constants(22)*t_18 + self%constants(6)*t_17)
+      t_20 = exp_1*t_5
+      t_21 = self%constants(26)*t_3 + self%constants(27)*t_4 + self%constants(28)*t_20
+      jacobian(7, 1) = -q1_x**2*t_19 + t_21
+      t_22 = q1_x*t_19
+      t_23 = -q1_y*t_22
+      jacobian(7, 2) = t_23
+      t_24 = -q1_z*t_22
+      jacobian(7, 3) = t_24
+      t_25 = self%constants(29)*t_20
+      jacobian(7, 13) = q1_x*t_25
+      jacobian(8, 1) = t_23
+      jacobian(8, 2) = -q1_y**2*t_19 + t_21
+      t_26 = -q1_y*q1_z*t_19
+      jacobian(8, 3) = t_26
+      jacobian(8, 13) = q1_y*t_25
+      jacobian(9, 1) = t_24
+      jacobian(9, 2) = t_26
+      jacobian(9, 3) = -q1_z**2*t_19 + t_21
+      jacobian(9, 13) = q1_z*t_25
+      t_27 = 1.0_real64/C_2**2
+      t_28 = t_2*t_27
+      t_29 = self%constants(52)*t_27 + self%constants(54)*t_27 + self%constants(55)*t_28 + self%constants(56)*exp_2 &
+          *t_10**2 + 4.0_real64*t_11*(self%constants(13)*t_27 + self%constants(21)*t_27 + self%constants(30)*t_28)
+      t_30 = exp_2*t_10
+      t_31 = self%constants(26)*t_8 + self%constants(28)*t_30 + self%constants(33)*t_9
+      jacobian(10, 4) = -q2_x**2*t_29 + t_31
+      t_32 = q2_x*t_29
+      t_33 = -q2_y*t_32
+      jacobian(10, 5) = t_33
+      t_34 = -q2_z*t_32
+      jacobian(10, 6) = t_34
+      t_35 = self%constants(34)*t_30
+      jacobian(10, 14) = q2_x*t_35
+      jacobian(11, 4) = t_33
+      jacobian(11, 5) = -q2_y**2*t_29 + t_31
+      t_36 = -q2_y*q2_z*t_29
+      jacobian(11, 6) = t_36
+      jacobian(11, 14) = q2_y*t_35
+      jacobian(12, 4) = t_34
+      jacobian(12, 5) = t_36
+      jacobian(12, 6) = -q2_z**2*t_29 + t_31
+      jacobian(12, 14) = q2_z*t_35
+      t_37 = self%constants(36)*t_14
+      t_38 = self%constants(57)*t_5 + 2.0_real64*t_37*t_5
+      jacobian(13, 1) = q1_x*t_38
+      jacobian(13, 2) = q1_y*t_38
+      jacobian(13, 3) = q1_z*t_38
+      t_39 = self%constants(37)*t_13*t_30
+      jacobian(13, 4) = q2_x*t_39
+      jacobian(13, 5) = q2_y*t_39
+      jacobian(13, 6) = q2_z*t_39
+      jacobian(13, 13) = self%constants(35) + t_37
+      jacobian(13, 14) = self%constants(38)*exp_2*t_13
+      t_40 = self%constants(39)*t_15*t_20
+      jacobian(14, 1) = q1_x*t_40
+      jacobian(14, 2) = q1_y*t_40
+      jacobian(14, 3) = q1_z*t_40
+      t_41 = self%constants(41)*t_16
+      t_42 = self%constants(58)*t_10 + 2.0_real64*t_10*t_41
+      jacobian(14, 4) = q2_x*t_42
+      jacobian(14, 5) = q2_y*t_42
+      jacobian(14, 6) = q2_z*t_42
+      jacobian(14, 13) = self%constants(42)*exp_1*t_15
+      jacobian(14, 14) = self%constants(40) + t_41
     case (tau_temperature)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -907,199 +884,154 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = 1.0_real64/C_1
-        t_8 = log(C_1*self%constants(5))
-        t_9 = t_7*t_8
-        t_10 = 2.0_real64*self%constants(10)*t_9 + 2.0_real64*self%constants(9)*t_7
-        t_11 = self%constants(27)*t_7 + self%constants(28)*t_9
-        t_12 = 2.0_real64*q1_x
-        t_13 = t_11*t_12
-        t_14 = 2.0_real64*t_11
-        t_15 = t_14*tau_1
-        t_16 = 1.0_real64/C_2
-        t_17 = log(C_2*self%constants(14))
-        t_18 = t_16*t_17
-        t_19 = 2.0_real64*self%constants(18)*t_18 + 2.0_real64*self%constants(9)*t_16
-        t_20 = self%constants(27)*t_16 + self%constants(36)*t_18
-        t_21 = 2.0_real64*q2_x
-        t_22 = t_20*t_21
-        t_23 = 2.0_real64*t_20
-        t_24 = t_23*tau_2
-        t_25 = t_11*tau_1
-        t_26 = self%constants(50)*t_1
-        t_27 = t_25*t_26
-        t_28 = self%constants(50)*t_25
-        t_29 = t_2*t_28
-        t_30 = t_28*t_3
-        t_31 = t_20*tau_2
-        t_32 = self%constants(51)*t_4
-        t_33 = t_31*t_32
-        t_34 = self%constants(51)*t_31
-        t_35 = t_34*t_5
-        t_36 = t_34*t_6
-        t_37 = 1.0_real64/C_1**2
-        t_38 = t_37*t_8
-        t_39 = self%constants(10)*t_37 + self%constants(29)*t_37 + self%constants(30)*t_38
-        t_40 = tau_1*(self%constants(28)*t_37 + self%constants(4)*t_37 + self%constants(6)*t_38)
-        t_41 = -t_12*t_39 + t_12*t_40
-        t_42 = self%constants(32)*t_7 + self%constants(33)*t_9 + t_15
-        t_43 = 2.0_real64*t_41
-        t_44 = 2.0_real64*q1_y
-        t_45 = -t_39*t_44 + t_40*t_44
-        t_46 = 2.0_real64*q1_z
-        t_47 = -t_39*t_46 + t_40*t_46
-        t_48 = 1.0_real64/C_2**2
-        t_49 = t_17*t_48
-        t_50 = self%constants(18)*t_48 + self%constants(29)*t_48 + self%constants(37)*t_49
-        t_51 = tau_2*(self%constants(15)*t_49 + self%constants(36)*t_48 + self%constants(4)*t_48)
-        t_52 = -t_21*t_50 + t_21*t_51
-        t_53 = self%constants(32)*t_16 + self%constants(39)*t_18 + t_24
-        t_54 = 2.0_real64*t_52
-        t_55 = 2.0_real64*q2_y
-        t_56 = -t_50*t_55 + t_51*t_55
-        t_57 = 2.0_real64*q2_z
-        t_58 = -t_50*t_57 + t_51*t_57
-        t_59 = q1_x*t_26
-        t_60 = q1_y*t_2
-        t_61 = self%constants(50)*t_40
-        t_62 = q1_z*t_3
-        t_63 = t_40*t_59 + t_60*t_61 + t_61*t_62
-        t_64 = self%constants(52)*t_25
-        t_65 = self%constants(53)*t_25
-        t_66 = self%constants(50)*t_11
-        t_67 = q2_x*t_32
-        t_68 = q2_y*t_5
-        t_69 = self%constants(51)*t_51
-        t_70 = q2_z*t_6
-        t_71 = t_51*t_67 + t_68*t_69 + t_69*t_70
-        t_72 = self%constants(54)*t_31
-        t_73 = self%constants(55)*t_31
-        t_74 = self%constants(51)*t_20
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) - q1_x*t_10 + t_13*tau_1
-        f(8) = self%constants(12) - q1_y*t_10 + q1_y*t_15
-        f(9) = self%constants(13) - q1_z*t_10 + q1_z*t_15
-        f(10) = self%constants(19) - q2_x*t_19 + t_22*tau_2
-        f(11) = self%constants(20) - q2_y*t_19 + q2_y*t_24
-        f(12) = self%constants(21) - q2_z*t_19 + q2_z*t_24
-        f(13) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(49)*tau_1) + q1_x*t_27 + q1_y &
-            *t_29 + q1_z*t_30
-        f(14) = self%constants(17)*(self%parameters%conductivity*tau_1 + self%constants(49)*tau_2) + q2_x*t_33 + q2_y &
-            *t_35 + q2_z*t_36
-        jacobian(1, 7) = self%constants(1)
-        jacobian(1, 10) = self%constants(2)
-        jacobian(2, 8) = self%constants(1)
-        jacobian(2, 11) = self%constants(2)
-        jacobian(3, 9) = self%constants(1)
-        jacobian(3, 12) = self%constants(2)
-        jacobian(4, 7) = self%constants(2)
-        jacobian(4, 10) = self%constants(3)
-        jacobian(5, 8) = self%constants(2)
-        jacobian(5, 11) = self%constants(3)
-        jacobian(6, 9) = self%constants(2)
-        jacobian(6, 12) = self%constants(3)
-        jacobian(7, 1) = t_12*t_41 + t_42
-        jacobian(7, 2) = q1_y*t_43
-        jacobian(7, 3) = q1_z*t_43
-        jacobian(7, 13) = t_13
-        jacobian(8, 1) = t_12*t_45
-        jacobian(8, 2) = t_42 + t_44*t_45
-        jacobian(8, 3) = t_45*t_46
-        jacobian(8, 13) = q1_y*t_14
-        jacobian(9, 1) = t_12*t_47
-        jacobian(9, 2) = t_44*t_47
-        jacobian(9, 3) = t_42 + t_46*t_47
-        jacobian(9, 13) = q1_z*t_14
-        jacobian(10, 4) = t_21*t_52 + t_53
-        jacobian(10, 5) = q2_y*t_54
-        jacobian(10, 6) = q2_z*t_54
-        jacobian(10, 14) = t_22
-        jacobian(11, 4) = t_21*t_56
-        jacobian(11, 5) = t_53 + t_55*t_56
-        jacobian(11, 6) = t_56*t_57
-        jacobian(11, 14) = q2_y*t_23
-        jacobian(12, 4) = t_21*t_58
-        jacobian(12, 5) = t_55*t_58
-        jacobian(12, 6) = t_53 + t_57*t_58
-        jacobian(12, 14) = q2_z*t_23
-        jacobian(13, 1) = t_12*t_63 + t_27
-        jacobian(13, 2) = t_29 + t_44*t_63
-        jacobian(13, 3) = t_30 + t_46*t_63
-        jacobian(13, 7) = q1_x*t_64
-        jacobian(13, 8) = q1_y*t_64
-        jacobian(13, 9) = q1_z*t_64
-        jacobian(13, 10) = q1_x*t_65
-        jacobian(13, 11) = q1_y*t_65
-        jacobian(13, 12) = q1_z*t_65
-        jacobian(13, 13) = self%constants(41) + t_11*t_59 + t_60*t_66 + t_62*t_66
-        jacobian(13, 14) = self%constants(48)
-        jacobian(14, 4) = t_21*t_71 + t_33
-        jacobian(14, 5) = t_35 + t_55*t_71
-        jacobian(14, 6) = t_36 + t_57*t_71
-        jacobian(14, 7) = q2_x*t_72
-        jacobian(14, 8) = q2_y*t_72
-        jacobian(14, 9) = q2_z*t_72
-        jacobian(14, 10) = q2_x*t_73
-        jacobian(14, 11) = q2_y*t_73
-        jacobian(14, 12) = q2_z*t_73
-        jacobian(14, 13) = self%constants(44)
-        jacobian(14, 14) = self%constants(46) + t_20*t_67 + t_68*t_74 + t_70*t_74
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = 1.0_real64/C_1
-        t_8 = t_7*log(C_1*self%constants(5))
-        t_9 = 2.0_real64*self%constants(10)*t_8 + 2.0_real64*self%constants(9)*t_7
-        t_10 = tau_1*(self%constants(27)*t_7 + self%constants(28)*t_8)
-        t_11 = 2.0_real64*t_10
-        t_12 = 1.0_real64/C_2
-        t_13 = t_12*log(C_2*self%constants(14))
-        t_14 = 2.0_real64*self%constants(18)*t_13 + 2.0_real64*self%constants(9)*t_12
-        t_15 = tau_2*(self%constants(27)*t_12 + self%constants(36)*t_13)
-        t_16 = 2.0_real64*t_15
-        t_17 = self%constants(50)*t_10
-        t_18 = self%constants(51)*t_15
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) + q1_x*t_11 - q1_x*t_9
-        f(8) = self%constants(12) + q1_y*t_11 - q1_y*t_9
-        f(9) = self%constants(13) + q1_z*t_11 - q1_z*t_9
-        f(10) = self%constants(19) - q2_x*t_14 + q2_x*t_16
-        f(11) = self%constants(20) - q2_y*t_14 + q2_y*t_16
-        f(12) = self%constants(21) - q2_z*t_14 + q2_z*t_16
-        f(13) = self%constants(8)*(self%parameters%conductivity*tau_2 + self%constants(49)*tau_1) + q1_x*t_1*t_17 + &
-            q1_y*t_17*t_2 + q1_z*t_17*t_3
-        f(14) = self%constants(17)*(self%parameters%conductivity*tau_1 + self%constants(49)*tau_2) + q2_x*t_18*t_4 + &
-            q2_y*t_18*t_5 + q2_z*t_18*t_6
-      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      jacobian(1, 7) = self%constants(1)
+      jacobian(1, 10) = self%constants(2)
+      jacobian(2, 8) = self%constants(1)
+      jacobian(2, 11) = self%constants(2)
+      jacobian(3, 9) = self%constants(1)
+      jacobian(3, 12) = self%constants(2)
+      jacobian(4, 7) = self%constants(2)
+      jacobian(4, 10) = self%constants(3)
+      jacobian(5, 8) = self%constants(2)
+      jacobian(5, 11) = self%constants(3)
+      jacobian(6, 9) = self%constants(2)
+      jacobian(6, 12) = self%constants(3)
+      jacobian(13, 14) = self%constants(42)
+      jacobian(14, 13) = self%constants(38)
+      t_7 = log(C_1*self%constants(5))
+      t_8 = log(C_2*self%constants(12))
+      t_9 = 1.0_real64/C_1
+      t_10 = t_7*t_9
+      t_11 = self%constants(47)*t_10 + self%constants(48)*t_9
+      t_12 = self%constants(21)*t_9 + self%constants(22)*t_10
+      t_13 = 2.0_real64*q1_x
+      t_14 = t_12*t_13
+      f(7) = self%constants(9) - q1_x*t_11 + t_14*tau_1
+      t_15 = 2.0_real64*t_12
+      t_16 = t_15*tau_1
+      f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_16
+      f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_16
+      t_17 = 1.0_real64/C_2
+      t_18 = t_17*t_8
+      t_19 = self%constants(48)*t_17 + self%constants(49)*t_18
+      t_20 = self%constants(21)*t_17 + self%constants(30)*t_18
+      t_21 = 2.0_real64*q2_x
+      t_22 = t_20*t_21
+      f(10) = self%constants(15) - q2_x*t_19 + t_22*tau_2
+      t_23 = 2.0_real64*t_20
+      t_24 = t_23*tau_2
+      f(11) = self%constants(16) - q2_y*t_19 + q2_y*t_24
+      f(12) = self%constants(17) - q2_z*t_19 + q2_z*t_24
+      t_25 = t_12*tau_1
+      t_26 = self%constants(61)*t_1
+      t_27 = t_25*t_26
+      t_28 = self%constants(61)*t_25
+      t_29 = t_2*t_28
+      t_30 = t_28*t_3
+      f(13) = self%constants(44)*(self%parameters%conductivity*tau_2 + self%constants(60)*tau_1) + q1_x*t_27 + q1_y &
+          *t_29 + q1_z*t_30
+      t_31 = t_20*tau_2
+      t_32 = self%constants(62)*t_4
+      t_33 = t_31*t_32
+      t_34 = self%constants(62)*t_31
+      t_35 = t_34*t_5
+      t_36 = t_34*t_6
+      f(14) = self%constants(46)*(self%parameters%conductivity*tau_1 + self%constants(60)*tau_2) + q2_x*t_33 + q2_y &
+          *t_35 + q2_z*t_36
+      t_37 = 1.0_real64/C_1**2
+      t_38 = t_37*t_7
+      t_39 = self%constants(23)*t_37 + self%constants(24)*t_38 + self%constants(8)*t_37
+      t_40 = tau_1*(self%constants(22)*t_37 + self%constants(4)*t_37 + self%constants(6)*t_38)
+      t_41 = -t_13*t_39 + t_13*t_40
+      t_42 = self%constants(26)*t_9 + self%constants(27)*t_10 + t_16
+      jacobian(7, 1) = t_13*t_41 + t_42
+      t_43 = 2.0_real64*t_41
+      jacobian(7, 2) = q1_y*t_43
+      jacobian(7, 3) = q1_z*t_43
+      jacobian(7, 13) = t_14
+      t_44 = 2.0_real64*q1_y
+      t_45 = -t_39*t_44 + t_40*t_44
+      jacobian(8, 1) = t_13*t_45
+      jacobian(8, 2) = t_42 + t_44*t_45
+      t_46 = 2.0_real64*q1_z
+      jacobian(8, 3) = t_45*t_46
+      jacobian(8, 13) = q1_y*t_15
+      t_47 = -t_39*t_46 + t_40*t_46
+      jacobian(9, 1) = t_13*t_47
+      jacobian(9, 2) = t_44*t_47
+      jacobian(9, 3) = t_42 + t_46*t_47
+      jacobian(9, 13) = q1_z*t_15
+      t_48 = 1.0_real64/C_2**2
+      t_49 = t_48*t_8
+      t_50 = self%constants(14)*t_48 + self%constants(23)*t_48 + self%constants(31)*t_49
+      t_51 = tau_2*(self%constants(13)*t_49 + self%constants(30)*t_48 + self%constants(4)*t_48)
+      t_52 = -t_21*t_50 + t_21*t_51
+      t_53 = self%constants(26)*t_17 + self%constants(33)*t_18 + t_24
+      jacobian(10, 4) = t_21*t_52 + t_53
+      t_54 = 2.0_real64*t_52
+      jacobian(10, 5) = q2_y*t_54
+      jacobian(10, 6) = q2_z*t_54
+      jacobian(10, 14) = t_22
+      t_55 = 2.0_real64*q2_y
+      t_56 = -t_50*t_55 + t_51*t_55
+      jacobian(11, 4) = t_21*t_56
+      jacobian(11, 5) = t_53 + t_55*t_56
+      t_57 = 2.0_real64*q2_z
+      jacobian(11, 6) = t_56*t_57
+      jacobian(11, 14) = q2_y*t_23
+      t_58 = -t_50*t_57 + t_51*t_57
+      jacobian(12, 4) = t_21*t_58
+      jacobian(12, 5) = t_55*t_58
+      jacobian(12, 6) = t_53 + t_57*t_58
+      jacobian(12, 14) = q2_z*t_23
+      t_59 = q1_x*t_26
+      t_60 = q1_y*t_2
+      t_61 = self%constants(61)*t_40
+      t_62 = q1_z*t_3
+      t_63 = t_40*t_59 + t_60*t_61 + t_61*t_62
+      jacobian(13, 1) = t_13*t_63 + t_27
+      jacobian(13, 2) = t_29 + t_44*t_63
+      jacobian(13, 3) = t_30 + t_46*t_63
+      t_64 = self%constants(63)*t_25
+      jacobian(13, 7) = q1_x*t_64
+      jacobian(13, 8) = q1_y*t_64
+      jacobian(13, 9) = q1_z*t_64
+      t_65 = self%constants(64)*t_25
+      jacobian(13, 10) = q1_x*t_65
+      jacobian(13, 11) = q1_y*t_65
+      jacobian(13, 12) = q1_z*t_65
+      t_66 = self%constants(61)*t_12
+      jacobian(13, 13) = self%constants(35) + t_12*t_59 + t_60*t_66 + t_62*t_66
+      t_67 = q2_x*t_32
+      t_68 = q2_y*t_5
+      t_69 = self%constants(62)*t_51
+      t_70 = q2_z*t_6
+      t_71 = t_51*t_67 + t_68*t_69 + t_69*t_70
+      jacobian(14, 4) = t_21*t_71 + t_33
+      jacobian(14, 5) = t_35 + t_55*t_71
+      jacobian(14, 6) = t_36 + t_57*t_71
+      t_72 = self%constants(65)*t_31
+      jacobian(14, 7) = q2_x*t_72
+      jacobian(14, 8) = q2_y*t_72
+      jacobian(14, 9) = q2_z*t_72
+      t_73 = self%constants(66)*t_31
+      jacobian(14, 10) = q2_x*t_73
+      jacobian(14, 11) = q2_y*t_73
+      jacobian(14, 12) = q2_z*t_73
+      t_74 = self%constants(62)*t_20
+      jacobian(14, 14) = self%constants(40) + t_20*t_67 + t_68*t_74 + t_70*t_74
     case (tau_internal_energy)
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
@@ -1109,230 +1041,349 @@ contains
         stat = domain_nonpositive_length
         return
       end if
-      if (.not. (C_1*self%constants(5) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (.not. (C_2*self%constants(14) > 0.0_real64)) then
-        stat = domain_nonpositive_temperature
-        return
-      end if
-      if (present(jacobian)) then
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = 1.0_real64/C_1
-        t_8 = log(C_1*self%constants(5))
-        t_9 = self%constants(8)*(self%constants(29)*t_8 + self%constants(56)*t_8**2 + tau_1) + self%parameters%theta_ref
-        t_10 = 1.0_real64/t_9
-        t_11 = t_7*t_8
-        t_12 = self%constants(29)*t_7 + self%constants(30)*t_11
-        t_13 = t_10*t_12
-        t_14 = self%constants(27)*t_7 + self%constants(28)*t_11 + t_13
-        t_15 = 2.0_real64*t_9
-        t_16 = t_14*t_15
-        t_17 = q1_x*t_16
-        t_18 = q1_y*t_16
-        t_19 = q1_z*t_16
-        t_20 = 1.0_real64/C_2
-        t_21 = log(C_2*self%constants(14))
-        t_22 = self%constants(17)*(self%constants(29)*t_21 + self%constants(57)*t_21**2 + tau_2) + &
-            self%parameters%theta_ref
-        t_23 = 1.0_real64/t_22
-        t_24 = t_20*t_21
-        t_25 = self%constants(29)*t_20 + self%constants(37)*t_24
-        t_26 = t_23*t_25
-        t_27 = self%constants(27)*t_20 + self%constants(36)*t_24 + t_26
-        t_28 = 2.0_real64*t_22
-        t_29 = t_27*t_28
-        t_30 = q2_x*t_29
-        t_31 = q2_y*t_29
-        t_32 = q2_z*t_29
-        t_33 = 1.0_real64/C_1**2
-        t_34 = t_33*t_8
-        t_35 = t_15*(self%constants(24)*t_12**2/t_9**2 + self%constants(28)*t_33 + self%constants(4)*t_33 + &
-            self%constants(6)*t_34 + t_10*(self%constants(10)*t_34 + self%constants(30)*t_33 + self%constants(9)*t_33))
-        t_36 = q1_x*t_35
-        t_37 = self%constants(58)*t_14
-        t_38 = q1_x*t_37
-        t_39 = 2.0_real64*t_12*t_38 + 2.0_real64*t_36
-        t_40 = self%constants(50)*t_13
-        t_41 = q1_y*t_35
-        t_42 = q1_y*t_37
-        t_43 = 2.0_real64*t_12*t_42 + 2.0_real64*t_41
-        t_44 = q1_z*t_35
-        t_45 = q1_z*t_37
-        t_46 = 2.0_real64*t_12*t_45 + 2.0_real64*t_44
-        t_47 = 1.0_real64/C_2**2
-        t_48 = t_21*t_47
-        t_49 = t_28*(self%constants(15)*t_48 + self%constants(26)*t_25**2/t_22**2 + self%constants(36)*t_47 + &
-            self%constants(4)*t_47 + t_23*(self%constants(18)*t_48 + self%constants(37)*t_47 + self%constants(9)*t_47))
-        t_50 = q2_x*t_49
-        t_51 = self%constants(59)*t_27
-        t_52 = q2_x*t_51
-        t_53 = 2.0_real64*t_25*t_52 + 2.0_real64*t_50
-        t_54 = self%constants(51)*t_26
-        t_55 = q2_y*t_49
-        t_56 = q2_y*t_51
-        t_57 = 2.0_real64*t_25*t_56 + 2.0_real64*t_55
-        t_58 = q2_z*t_49
-        t_59 = q2_z*t_51
-        t_60 = 2.0_real64*t_25*t_59 + 2.0_real64*t_58
-        t_61 = self%constants(50)*t_14
-        t_62 = q1_x*t_1
-        t_63 = t_61*t_62
-        t_64 = q1_y*t_2
-        t_65 = t_61*t_64
-        t_66 = q1_z*t_3
-        t_67 = t_61*t_66
-        t_68 = 2.0_real64*self%constants(41)*t_12 - 2.0_real64*t_1*t_36 + 2.0_real64*t_12*t_63 + 2.0_real64*t_12*t_65 &
-            + 2.0_real64*t_12*t_67 - 2.0_real64*t_2*t_41 - 2.0_real64*t_3*t_44
-        t_69 = self%constants(43)*t_25
-        t_70 = t_14*t_9
-        t_71 = self%constants(60)*t_70
-        t_72 = self%constants(61)*t_70
-        t_73 = self%constants(58)*t_13
-        t_74 = self%constants(45)*t_12
-        t_75 = self%constants(51)*t_27
-        t_76 = q2_x*t_4
-        t_77 = t_75*t_76
-        t_78 = q2_y*t_5
-        t_79 = t_75*t_78
-        t_80 = q2_z*t_6
-        t_81 = t_75*t_80
-        t_82 = 2.0_real64*self%constants(46)*t_25 + 2.0_real64*t_25*t_77 + 2.0_real64*t_25*t_79 + 2.0_real64*t_25 &
-            *t_81 - 2.0_real64*t_4*t_50 - 2.0_real64*t_5*t_55 - 2.0_real64*t_58*t_6
-        t_83 = t_22*t_27
-        t_84 = self%constants(61)*t_83
-        t_85 = self%constants(62)*t_83
-        t_86 = self%constants(59)*t_26
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) + t_17
-        f(8) = self%constants(12) + t_18
-        f(9) = self%constants(13) + t_19
-        f(10) = self%constants(19) + t_30
-        f(11) = self%constants(20) + t_31
-        f(12) = self%constants(21) + t_32
-        f(13) = self%parameters%conductivity*t_22 + self%constants(49)*t_9 - t_1*t_17 - t_18*t_2 - t_19*t_3
-        f(14) = self%parameters%conductivity*t_9 + self%constants(49)*t_22 - t_30*t_4 - t_31*t_5 - t_32*t_6
-        jacobian(1, 7) = self%constants(1)
-        jacobian(1, 10) = self%constants(2)
-        jacobian(2, 8) = self%constants(1)
-        jacobian(2, 11) = self%constants(2)
-        jacobian(3, 9) = self%constants(1)
-        jacobian(3, 12) = self%constants(2)
-        jacobian(4, 7) = self%constants(2)
-        jacobian(4, 10) = self%constants(3)
-        jacobian(5, 8) = self%constants(2)
-        jacobian(5, 11) = self%constants(3)
-        jacobian(6, 9) = self%constants(2)
-        jacobian(6, 12) = self%constants(3)
-        jacobian(7, 1) = q1_x*t_39 + t_16
-        jacobian(7, 2) = q1_y*t_39
-        jacobian(7, 3) = q1_z*t_39
-        jacobian(7, 13) = q1_x*t_40 + t_38
-        jacobian(8, 1) = q1_x*t_43
-        jacobian(8, 2) = q1_y*t_43 + t_16
-        jacobian(8, 3) = q1_z*t_43
-        jacobian(8, 13) = q1_y*t_40 + t_42
-        jacobian(9, 1) = q1_x*t_46
-        jacobian(9, 2) = q1_y*t_46
-        jacobian(9, 3) = q1_z*t_46 + t_16
-        jacobian(9, 13) = q1_z*t_40 + t_45
-        jacobian(10, 4) = q2_x*t_53 + t_29
-        jacobian(10, 5) = q2_y*t_53
-        jacobian(10, 6) = q2_z*t_53
-        jacobian(10, 14) = q2_x*t_54 + t_52
-        jacobian(11, 4) = q2_x*t_57
-        jacobian(11, 5) = q2_y*t_57 + t_29
-        jacobian(11, 6) = q2_z*t_57
-        jacobian(11, 14) = q2_y*t_54 + t_56
-        jacobian(12, 4) = q2_x*t_60
-        jacobian(12, 5) = q2_y*t_60
-        jacobian(12, 6) = q2_z*t_60 + t_29
-        jacobian(12, 14) = q2_z*t_54 + t_59
-        jacobian(13, 1) = q1_x*t_68 - t_1*t_16
-        jacobian(13, 2) = q1_y*t_68 - t_16*t_2
-        jacobian(13, 3) = q1_z*t_68 - t_16*t_3
-        jacobian(13, 4) = q2_x*t_69
-        jacobian(13, 5) = q2_y*t_69
-        jacobian(13, 6) = q2_z*t_69
-        jacobian(13, 7) = q1_x*t_71
-        jacobian(13, 8) = q1_y*t_71
-        jacobian(13, 9) = q1_z*t_71
-        jacobian(13, 10) = q1_x*t_72
-        jacobian(13, 11) = q1_y*t_72
-        jacobian(13, 12) = q1_z*t_72
-        jacobian(13, 13) = self%constants(41) + t_62*t_73 + t_63 + t_64*t_73 + t_65 + t_66*t_73 + t_67
-        jacobian(13, 14) = self%constants(44)
-        jacobian(14, 1) = q1_x*t_74
-        jacobian(14, 2) = q1_y*t_74
-        jacobian(14, 3) = q1_z*t_74
-        jacobian(14, 4) = q2_x*t_82 - t_29*t_4
-        jacobian(14, 5) = q2_y*t_82 - t_29*t_5
-        jacobian(14, 6) = q2_z*t_82 - t_29*t_6
-        jacobian(14, 7) = q2_x*t_84
-        jacobian(14, 8) = q2_y*t_84
-        jacobian(14, 9) = q2_z*t_84
-        jacobian(14, 10) = q2_x*t_85
-        jacobian(14, 11) = q2_y*t_85
-        jacobian(14, 12) = q2_z*t_85
-        jacobian(14, 13) = self%constants(48)
-        jacobian(14, 14) = self%constants(46) + t_76*t_86 + t_77 + t_78*t_86 + t_79 + t_80*t_86 + t_81
-      else
-        t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-        t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-        t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-        t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-        t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-        t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-        t_7 = log(C_1*self%constants(5))
-        t_8 = self%constants(8)*(self%constants(29)*t_7 + self%constants(56)*t_7**2 + tau_1) + self%parameters%theta_ref
-        t_9 = 1.0_real64/C_1
-        t_10 = t_7*t_9
-        t_11 = 2.0_real64*t_8*(self%constants(27)*t_9 + self%constants(28)*t_10 + (self%constants(29)*t_9 + &
-            self%constants(30)*t_10)/t_8)
-        t_12 = q1_x*t_11
-        t_13 = q1_y*t_11
-        t_14 = q1_z*t_11
-        t_15 = log(C_2*self%constants(14))
-        t_16 = self%constants(17)*(self%constants(29)*t_15 + self%constants(57)*t_15**2 + tau_2) + &
-            self%parameters%theta_ref
-        t_17 = 1.0_real64/C_2
-        t_18 = t_15*t_17
-        t_19 = 2.0_real64*t_16*(self%constants(27)*t_17 + self%constants(36)*t_18 + (self%constants(29)*t_17 + &
-            self%constants(37)*t_18)/t_16)
-        t_20 = q2_x*t_19
-        t_21 = q2_y*t_19
-        t_22 = q2_z*t_19
-        f(1) = t_1
-        f(2) = t_2
-        f(3) = t_3
-        f(4) = t_4
-        f(5) = t_5
-        f(6) = t_6
-        f(7) = self%constants(11) + t_12
-        f(8) = self%constants(12) + t_13
-        f(9) = self%constants(13) + t_14
-        f(10) = self%constants(19) + t_20
-        f(11) = self%constants(20) + t_21
-        f(12) = self%constants(21) + t_22
-        f(13) = self%parameters%conductivity*t_16 + self%constants(49)*t_8 - t_1*t_12 - t_13*t_2 - t_14*t_3
-        f(14) = self%parameters%conductivity*t_8 + self%constants(49)*t_16 - t_20*t_4 - t_21*t_5 - t_22*t_6
-      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      jacobian(1, 7) = self%constants(1)
+      jacobian(1, 10) = self%constants(2)
+      jacobian(2, 8) = self%constants(1)
+      jacobian(2, 11) = self%constants(2)
+      jacobian(3, 9) = self%constants(1)
+      jacobian(3, 12) = self%constants(2)
+      jacobian(4, 7) = self%constants(2)
+      jacobian(4, 10) = self%constants(3)
+      jacobian(5, 8) = self%constants(2)
+      jacobian(5, 11) = self%constants(3)
+      jacobian(6, 9) = self%constants(2)
+      jacobian(6, 12) = self%constants(3)
+      jacobian(13, 14) = self%constants(38)
+      jacobian(14, 13) = self%constants(42)
+      t_7 = log(C_1*self%constants(5))
+      t_8 = log(C_2*self%constants(12))
+      t_9 = 1.0_real64/C_1
+      t_10 = t_7*t_9
+      t_11 = self%constants(44)*(self%constants(23)*t_7 + self%constants(67)*t_7**2 + tau_1) + self%parameters%theta_ref
+      t_12 = 1.0_real64/t_11
+      t_13 = self%constants(23)*t_9 + self%constants(24)*t_10
+      t_14 = t_12*t_13
+      t_15 = self%constants(21)*t_9 + self%constants(22)*t_10 + t_14
+      t_16 = 2.0_real64*t_11
+      t_17 = t_15*t_16
+      t_18 = q1_x*t_17
+      f(7) = self%constants(9) + t_18
+      t_19 = q1_y*t_17
+      f(8) = self%constants(10) + t_19
+      t_20 = q1_z*t_17
+      f(9) = self%constants(11) + t_20
+      t_21 = 1.0_real64/C_2
+      t_22 = t_21*t_8
+      t_23 = self%constants(46)*(self%constants(23)*t_8 + self%constants(68)*t_8**2 + tau_2) + self%parameters%theta_ref
+      t_24 = 1.0_real64/t_23
+      t_25 = self%constants(23)*t_21 + self%constants(31)*t_22
+      t_26 = t_24*t_25
+      t_27 = self%constants(21)*t_21 + self%constants(30)*t_22 + t_26
+      t_28 = 2.0_real64*t_23
+      t_29 = t_27*t_28
+      t_30 = q2_x*t_29
+      f(10) = self%constants(15) + t_30
+      t_31 = q2_y*t_29
+      f(11) = self%constants(16) + t_31
+      t_32 = q2_z*t_29
+      f(12) = self%constants(17) + t_32
+      f(13) = self%parameters%conductivity*t_23 + self%constants(60)*t_11 - t_1*t_18 - t_19*t_2 - t_20*t_3
+      f(14) = self%parameters%conductivity*t_11 + self%constants(60)*t_23 - t_30*t_4 - t_31*t_5 - t_32*t_6
+      t_33 = 1.0_real64/C_1**2
+      t_34 = t_33*t_7
+      t_35 = t_16*(self%constants(22)*t_33 + self%constants(4)*t_33 + self%constants(6)*t_34 + self%constants(69) &
+          *t_13**2/t_11**2 + t_12*(self%constants(24)*t_33 + self%constants(7)*t_33 + self%constants(8)*t_34))
+      t_36 = q1_x*t_35
+      t_37 = self%constants(70)*t_15
+      t_38 = q1_x*t_37
+      t_39 = 2.0_real64*t_13*t_38 + 2.0_real64*t_36
+      jacobian(7, 1) = q1_x*t_39 + t_17
+      jacobian(7, 2) = q1_y*t_39
+      jacobian(7, 3) = q1_z*t_39
+      t_40 = self%constants(61)*t_14
+      jacobian(7, 13) = q1_x*t_40 + t_38
+      t_41 = q1_y*t_35
+      t_42 = q1_y*t_37
+      t_43 = 2.0_real64*t_13*t_42 + 2.0_real64*t_41
+      jacobian(8, 1) = q1_x*t_43
+      jacobian(8, 2) = q1_y*t_43 + t_17
+      jacobian(8, 3) = q1_z*t_43
+      jacobian(8, 13) = q1_y*t_40 + t_42
+      t_44 = q1_z*t_35
+      t_45 = q1_z*t_37
+      t_46 = 2.0_real64*t_13*t_45 + 2.0_real64*t_44
+      jacobian(9, 1) = q1_x*t_46
+      jacobian(9, 2) = q1_y*t_46
+      jacobian(9, 3) = q1_z*t_46 + t_17
+      jacobian(9, 13) = q1_z*t_40 + t_45
+      t_47 = 1.0_real64/C_2**2
+      t_48 = t_47*t_8
+      t_49 = t_28*(self%constants(13)*t_48 + self%constants(30)*t_47 + self%constants(4)*t_47 + self%constants(71) &
+          *t_25**2/t_23**2 + t_24*(self%constants(14)*t_48 + self%constants(31)*t_47 + self%constants(7)*t_47))
+      t_50 = q2_x*t_49
+      t_51 = self%constants(72)*t_27
+      t_52 = q2_x*t_51
+      t_53 = 2.0_real64*t_25*t_52 + 2.0_real64*t_50
+      jacobian(10, 4) = q2_x*t_53 + t_29
+      jacobian(10, 5) = q2_y*t_53
+      jacobian(10, 6) = q2_z*t_53
+      t_54 = self%constants(62)*t_26
+      jacobian(10, 14) = q2_x*t_54 + t_52
+      t_55 = q2_y*t_49
+      t_56 = q2_y*t_51
+      t_57 = 2.0_real64*t_25*t_56 + 2.0_real64*t_55
+      jacobian(11, 4) = q2_x*t_57
+      jacobian(11, 5) = q2_y*t_57 + t_29
+      jacobian(11, 6) = q2_z*t_57
+      jacobian(11, 14) = q2_y*t_54 + t_56
+      t_58 = q2_z*t_49
+      t_59 = q2_z*t_51
+      t_60 = 2.0_real64*t_25*t_59 + 2.0_real64*t_58
+      jacobian(12, 4) = q2_x*t_60
+      jacobian(12, 5) = q2_y*t_60
+      jacobian(12, 6) = q2_z*t_60 + t_29
+      jacobian(12, 14) = q2_z*t_54 + t_59
+      t_61 = self%constants(61)*t_15
+      t_62 = q1_x*t_1
+      t_63 = t_61*t_62
+      t_64 = q1_y*t_2
+      t_65 = t_61*t_64
+      t_66 = q1_z*t_3
+      t_67 = t_61*t_66
+      t_68 = self%constants(57)*t_13 - 2.0_real64*t_1*t_36 + 2.0_real64*t_13*t_63 + 2.0_real64*t_13*t_65 + 2.0_real64 &
+          *t_13*t_67 - 2.0_real64*t_2*t_41 - 2.0_real64*t_3*t_44
+      jacobian(13, 1) = q1_x*t_68 - t_1*t_17
+      jacobian(13, 2) = q1_y*t_68 - t_17*t_2
+      jacobian(13, 3) = q1_z*t_68 - t_17*t_3
+      t_69 = self%constants(37)*t_25
+      jacobian(13, 4) = q2_x*t_69
+      jacobian(13, 5) = q2_y*t_69
+      jacobian(13, 6) = q2_z*t_69
+      t_70 = t_11*t_15
+      t_71 = self%constants(73)*t_70
+      jacobian(13, 7) = q1_x*t_71
+      jacobian(13, 8) = q1_y*t_71
+      jacobian(13, 9) = q1_z*t_71
+      t_72 = self%constants(74)*t_70
+      jacobian(13, 10) = q1_x*t_72
+      jacobian(13, 11) = q1_y*t_72
+      jacobian(13, 12) = q1_z*t_72
+      t_73 = self%constants(70)*t_14
+      jacobian(13, 13) = self%constants(35) + t_62*t_73 + t_63 + t_64*t_73 + t_65 + t_66*t_73 + t_67
+      t_74 = self%constants(39)*t_13
+      jacobian(14, 1) = q1_x*t_74
+      jacobian(14, 2) = q1_y*t_74
+      jacobian(14, 3) = q1_z*t_74
+      t_75 = self%constants(62)*t_27
+      t_76 = q2_x*t_4
+      t_77 = t_75*t_76
+      t_78 = q2_y*t_5
+      t_79 = t_75*t_78
+      t_80 = q2_z*t_6
+      t_81 = t_75*t_80
+      t_82 = self%constants(58)*t_25 + 2.0_real64*t_25*t_77 + 2.0_real64*t_25*t_79 + 2.0_real64*t_25*t_81 - &
+          2.0_real64*t_4*t_50 - 2.0_real64*t_5*t_55 - 2.0_real64*t_58*t_6
+      jacobian(14, 4) = q2_x*t_82 - t_29*t_4
+      jacobian(14, 5) = q2_y*t_82 - t_29*t_5
+      jacobian(14, 6) = q2_z*t_82 - t_29*t_6
+      t_83 = t_23*t_27
+      t_84 = self%constants(74)*t_83
+      jacobian(14, 7) = q2_x*t_84
+      jacobian(14, 8) = q2_y*t_84
+      jacobian(14, 9) = q2_z*t_84
+      t_85 = self%constants(75)*t_83
+      jacobian(14, 10) = q2_x*t_85
+      jacobian(14, 11) = q2_y*t_85
+      jacobian(14, 12) = q2_z*t_85
+      t_86 = self%constants(72)*t_26
+      jacobian(14, 14) = self%constants(40) + t_76*t_86 + t_77 + t_78*t_86 + t_79 + t_80*t_86 + t_81
     end select
     ! One sum, written out, for every entry's finiteness: an infinity or a NaN anywhere makes it no finite number.
     if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
         f(14)) <= huge(1.0_real64))) stat = domain_overflow
-  end subroutine continuous_field
+  end subroutine field_and_jacobian
+
+  !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
+  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
+  !> and prepares nothing of the Jacobian's for it.
+  pure subroutine field_values(self, z, f, stat)
+    class(thermoelastic_pendulum), intent(in) :: self
+    real(real64), intent(in) :: z(14)
+    real(real64), intent(out) :: f(14)
+    integer, intent(out) :: stat
+    real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, tau_1, tau_2, C_1, C_2, &
+        exp_1, exp_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
+        t_18, t_19, t_20, t_21, t_22
+
+    stat = failure_none
+    q1_x = z(1)
+    q1_y = z(2)
+    q1_z = z(3)
+    q2_x = z(4)
+    q2_y = z(5)
+    q2_z = z(6)
+    p1_x = z(7)
+    p1_y = z(8)
+    p1_z = z(9)
+    p2_x = z(10)
+    p2_y = z(11)
+    p2_z = z(12)
+    tau_1 = z(13)
+    tau_2 = z(14)
+    C_1 = q1_x**2 + q1_y**2 + q1_z**2
+    C_2 = q2_x**2 + q2_y**2 + q2_z**2
+    select case (self%thermo_variable)
+    case (tau_entropy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(12))
+      if (.not. (abs(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_1 = exp(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1))
+      if (.not. (abs(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2)) <= &
+          max_exponent)) then
+        stat = domain_overflow
+        return
+      end if
+      exp_2 = exp(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2))
+      t_3 = 1.0_real64/C_1
+      t_4 = t_1*t_3
+      t_5 = self%constants(47)*t_4 + self%constants(48)*t_3 + self%constants(59)*exp_1*(self%constants(4)*t_3 + &
+          self%constants(6)*t_4)
+      f(7) = self%constants(9) - q1_x*t_5
+      f(8) = self%constants(10) - q1_y*t_5
+      f(9) = self%constants(11) - q1_z*t_5
+      t_6 = 1.0_real64/C_2
+      t_7 = t_2*t_6
+      t_8 = self%constants(48)*t_6 + self%constants(49)*t_7 + self%constants(59)*exp_2*(self%constants(13)*t_7 + &
+          self%constants(4)*t_6)
+      f(10) = self%constants(15) - q2_x*t_8
+      f(11) = self%constants(16) - q2_y*t_8
+      f(12) = self%constants(17) - q2_z*t_8
+      f(13) = self%constants(20)*(self%constants(18)*exp_2 + self%constants(19)*exp_1)/exp_1
+      f(14) = self%constants(20)*(self%constants(18)*exp_1 + self%constants(19)*exp_2)/exp_2
+    case (tau_temperature)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      t_7 = 1.0_real64/C_1
+      t_8 = t_7*log(C_1*self%constants(5))
+      t_9 = 1.0_real64/C_2
+      t_10 = t_9*log(C_2*self%constants(12))
+      t_11 = self%constants(47)*t_8 + self%constants(48)*t_7
+      t_12 = tau_1*(self%constants(21)*t_7 + self%constants(22)*t_8)
+      t_13 = 2.0_real64*t_12
+      f(7) = self%constants(9) - q1_x*t_11 + q1_x*t_13
+      f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_13
+      f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_13
+      t_14 = self%constants(48)*t_9 + self%constants(49)*t_10
+      t_15 = tau_2*(self%constants(21)*t_9 + self%constants(30)*t_10)
+      t_16 = 2.0_real64*t_15
+      f(10) = self%constants(15) - q2_x*t_14 + q2_x*t_16
+      f(11) = self%constants(16) - q2_y*t_14 + q2_y*t_16
+      f(12) = self%constants(17) - q2_z*t_14 + q2_z*t_16
+      t_17 = self%constants(61)*t_12
+      f(13) = self%constants(44)*(self%parameters%conductivity*tau_2 + self%constants(60)*tau_1) + q1_x*t_1*t_17 + &
+          q1_y*t_17*t_2 + q1_z*t_17*t_3
+      t_18 = self%constants(62)*t_15
+      f(14) = self%constants(46)*(self%parameters%conductivity*tau_1 + self%constants(60)*tau_2) + q2_x*t_18*t_4 + &
+          q2_y*t_18*t_5 + q2_z*t_18*t_6
+    case (tau_internal_energy)
+      if (.not. (C_1 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      if (.not. (C_2 > 0.0_real64)) then
+        stat = domain_nonpositive_length
+        return
+      end if
+      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_1
+      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_2
+      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_3
+      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_4
+      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_5
+      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_6
+      t_7 = log(C_1*self%constants(5))
+      t_8 = log(C_2*self%constants(12))
+      t_9 = self%constants(44)*(self%constants(23)*t_7 + self%constants(67)*t_7**2 + tau_1) + self%parameters%theta_ref
+      t_10 = 1.0_real64/C_1
+      t_11 = t_10*t_7
+      t_12 = 2.0_real64*t_9*(self%constants(21)*t_10 + self%constants(22)*t_11 + (self%constants(23)*t_10 + &
+          self%constants(24)*t_11)/t_9)
+      t_13 = q1_x*t_12
+      f(7) = self%constants(9) + t_13
+      t_14 = q1_y*t_12
+      f(8) = self%constants(10) + t_14
+      t_15 = q1_z*t_12
+      f(9) = self%constants(11) + t_15
+      t_16 = self%constants(46)*(self%constants(23)*t_8 + self%constants(68)*t_8**2 + tau_2) + self%parameters%theta_ref
+      t_17 = 1.0_real64/C_2
+      t_18 = t_17*t_8
+      t_19 = 2.0_real64*t_16*(self%constants(21)*t_17 + self%constants(30)*t_18 + (self%constants(23)*t_17 + &
+          self%constants(31)*t_18)/t_16)
+      t_20 = q2_x*t_19
+      f(10) = self%constants(15) + t_20
+      t_21 = q2_y*t_19
+      f(11) = self%constants(16) + t_21
+      t_22 = q2_z*t_19
+      f(12) = self%constants(17) + t_22
+      f(13) = self%parameters%conductivity*t_16 + self%constants(60)*t_9 - t_1*t_13 - t_14*t_2 - t_15*t_3
+      f(14) = self%parameters%conductivity*t_9 + self%constants(60)*t_16 - t_20*t_4 - t_21*t_5 - t_22*t_6
+    end select
+    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
+        f(14)) <= huge(1.0_real64))) stat = domain_overflow
+  end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
   pure function momenta(self, z) result(values)
