@@ -171,7 +171,7 @@ all: $(UNIT_PROGRAMS)
 # generated element of the paper's spring (src/model/paper_spring).
 TEST_SUPPORT := $(patsubst %,$(UNIT)/%.o,close_values free_energy thermo_variable fixtures scripted_solver \
                 single_spring_model paper_free_energy model_conformance pendulum_model pendulum_vector_field \
-                elastic_potential)
+                elastic_potential spring_chain_blocks_reference)
 UNIT_INCLUDES = -I$(UNIT)/mod $(filter-out -J$(MOD),$(FFLAGS)) -Wno-unused-dummy-argument
 UNIT_FFLAGS = -J$(UNIT)/mod $(UNIT_INCLUDES)
 ifeq ($(UNIT_RUNNER),pfunit)

@@ -26,7 +26,7 @@ from sympy.printing.fortran import FCodePrinter
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from model_description import (THERMO_VARIABLES, TAU_PREFIX, TEMPERATURE, ENERGY_LEVEL, ENTROPY_LEVEL,  # noqa: E402
-                               DescriptionError)
+                               ChainDescription, DescriptionError)
 from fortran_names import name_clashes  # noqa: E402
 
 LINE_LENGTH = 120
@@ -2280,6 +2280,10 @@ def main(arguments=None):
                 continue
             if description.potential_only:
                 files[f"{description.name}_potential.f90"] = element_module(description, source)
+                continue
+            if isinstance(description, ChainDescription):
+                from chain_blocks import blocks_module    # it prints with this module's helpers
+                files[f"{description.name}_blocks.f90"] = blocks_module(description, source)
                 continue
             symbolic = SymbolicModel(description)
             files[f"{description.name}_potential.f90"] = (mechanical_potential_module if symbolic.mechanical

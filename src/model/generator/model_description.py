@@ -296,3 +296,80 @@ class ModelDescription:
         self._new_name(column.name)
         self.columns.append(column)
         return column.symbol
+
+
+# ---------------------------------------------------------------------------------- a chain of repeated elements
+
+class ElementView:
+    """What an element's builders see in `dimension` components: point a+k's position x(k) and momentum p(k)
+    (column vectors), spring a+s's temperature theta(s) and viscosity(s) = eta(Theta_{a+s}), and parameters."""
+
+    def __init__(self, dimension, shift=0):
+        self.dimension, self.shift = dimension, shift
+
+    def x(self, k):
+        return sp.Matrix([sp.Symbol(f"x{k + self.shift}_{c}", real=True) for c in range(1, self.dimension + 1)])
+
+    def p(self, k):
+        return sp.Matrix([sp.Symbol(f"p{k + self.shift}_{c}", real=True) for c in range(1, self.dimension + 1)])
+
+    def theta(self, s):
+        return sp.Symbol(f"theta{s + self.shift}", positive=True)
+
+    def viscosity(self, s):
+        return VISCOSITY(self.theta(s))
+
+    @staticmethod
+    def parameter(name):
+        return sp.Symbol(name, positive=True)
+
+    def vector(self, name):
+        return sp.Matrix([sp.Symbol(f"{name}({c})", real=True) for c in range(1, self.dimension + 1)])
+
+
+VISCOSITY = sp.Function("viscosity")     # eta(Theta) of the repeated spring (its element's temperature_function)
+
+
+@dataclass
+class ChainElement:
+    """One kind of element repeated along the chain: the points (offsets from a) and springs it touches, the rows of
+    the field it fills, its energy, L0 (canonical on its points' (x, p)) and K0 entries between its springs'
+    gamma and tau."""
+    name: str
+    points: tuple
+    springs: tuple
+    rows: tuple
+    parameters: tuple
+    energy: object = None          # ElementView -> expression
+    canonical: bool = False
+    friction: object = None        # ElementView -> {((slot, s), (slot, s')): entry}, slot 'gamma' or 'tau'
+
+
+class ChainDescription:
+    """A model made of N repeated elements with neighbour coupling (issue 42): point a holds a mass (x_a, p_a) and
+    spring a's own unknowns (gamma_a, tau_a); every element touches points and springs at fixed offsets from a, so
+    the field is a sum of small blocks and its Jacobian is banded. The generator writes each element's block (its
+    part of f = L DE + K DS, eq. (8), and its derivatives in its unknowns and in its springs' partials) for every
+    dimension and rung; the loop over the elements stays in the model's Fortran."""
+
+    def __init__(self, name, title, reference, spring, rungs, dimensions=(1, 2, 3)):
+        self.name, self.title, self.reference = name, title, reference
+        self.spring, self.rungs, self.dimensions = spring, dict(rungs), tuple(dimensions)
+        self.elements = []
+        self.spring_invariant = None
+        self.potential_only, self.scene, self.parameters = False, False, []
+
+    def invariant(self, build):
+        """Spring a's invariant C_a in the positions of the points around a (build(view) -> expression)."""
+        self.spring_invariant = build
+
+    def element(self, name, points, springs, rows, parameters=(), energy=None, canonical=False, friction=None):
+        """A repeated element (ChainElement); `parameters` name its kernel's scalar and vector data in order."""
+        if any(e.name == name for e in self.elements):
+            raise DescriptionError(f"chain {self.name}: element {name} twice")
+        unknown = set(rows) - {"x", "p", "gamma", "tau"}
+        if unknown:
+            raise DescriptionError(f"chain {self.name}: element {name} fills rows {sorted(unknown)}; allowed: x, p, "
+                                   "gamma, tau")
+        self.elements.append(ChainElement(name, tuple(points), tuple(springs), tuple(rows), tuple(parameters), energy,
+                                          canonical, friction))
