@@ -275,3 +275,21 @@ def test_the_paper_field_computes_three_exponentials():
         with_hessian, without = body.split("      else\n", 1) if "      else\n" in body else (body, "")
         assert len(re.findall(r"\bexp\(", with_hessian)) == 1, with_hessian
         assert len(re.findall(r"\bexp\(", without)) <= 1, without
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ('points=(-1, 0, 1), springs=(0, 1)', 'points=(0, 1), springs=(0, 1)', r"element link's spring 0 reaches .*x-1_1"),
+    ('rows=("tau",)', 'rows=("theta",)', r"element link fills rows \['theta'\]"),
+])
+def test_the_generator_refuses_a_chain_element_it_cannot_take(tmp_path, old, new, words):
+    """A chain element whose spring reaches a point the element does not touch (its block could not be banded by
+    the element's own points), or a row that is no unknown of a point, exits 2 naming the element."""
+    text = (ROOT / "src" / "model" / "spring_chain" / "description.py").read_text()
+    assert old in text
+    folder = tmp_path / "spring_chain"
+    folder.mkdir()
+    (folder / "description.py").write_text(text.replace(old, new))
+    result = generate(folder / "description.py")
+    assert result.returncode == 2, result.stderr
+    assert re.search(words, result.stderr), result.stderr
+    assert not list(folder.glob("*.f90"))

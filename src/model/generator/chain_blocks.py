@@ -8,7 +8,7 @@ own slot j; theta = D_tau U/D_tau S; weight: d(evaluation point)/d(new slot)).""
 import sympy as sp
 
 from model_description import DescriptionError, ElementView, VISCOSITY
-from generate_model import INDENT, assignments, fortran, header, tidy, wrap
+from generate_model import INDENT, assignments, header, tidy, wrap
 
 PARTS = {1: ("part",), 2: ("part_a", "part_b")}
 
@@ -161,6 +161,9 @@ def kernel_name(element, d, n):
 def arguments(element, field):
     """The kernel's dummy arguments and declarations: data, slots' values and parts, outputs."""
     uses_eta = any(field.eta(0) in value.free_symbols for _, value in field.field())
+    if uses_eta and len(element.springs) != 1:
+        raise DescriptionError(f"element {element.name}: viscosity(s) in an element of {len(element.springs)} springs; "
+                               "a kernel calls its one spring's viscosity")
     names, lines = [], []
     energy = element.energy(field.view) if element.energy else sp.Integer(0)
     vectors = [name for name in element.parameters if sp.Symbol(f"{name}(1)", real=True) in energy.free_symbols]
