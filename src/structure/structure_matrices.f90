@@ -84,7 +84,7 @@ contains
     real(real64) :: mt(model%state_size, model%state_size)
 
     mt = mielke_transpose(model, z, partials, potential_u)
-    k = matmul(transpose(mt), matmul(model%friction_matrix_0(partials), mt))
+    k = matmul(transpose(mt), matmul(model%friction_matrix_0_at(z, partials), mt))
   end function friction_matrix
 
 end module structure_matrices
