@@ -67,6 +67,10 @@ def description_variant(tmp_path, model, old, new):
      r"K0\[p, p\] = .*tau_bath.* depends on the thermodynamic column \['tau_bath'\]"),
     ("heat_bath", "model.friction(p, p, drag)", "model.friction(p, p, drag*sp.Symbol('w'))",
      r"K0\[p, p\] = .*w.* uses \['w'\]: not a mechanical column of z"),
+    ("heat_bath", "model.friction(p, tau, -drag*velocity)", "model.friction(p, tau, drag*velocity)",
+     r"K0 M_E\^T grad E != 0 in row p: .*K grad E = 0 fails"),
+    ("heat_bath", "model.friction(p, tau, -drag*velocity)\nmodel.friction(tau, tau, drag*velocity**2)", "",
+     r"K0 M_E\^T grad E != 0 in row p: .*needs its \(p, tau\) and \(tau, tau\) entries"),
     ("gas_containers", 'v = container.invariant("v", volume,', 'v = container.invariant("v", volume**3,',
      r"invariant v = .*\*\*3 is not at most quadratic"),
     ("heat_bath", "model.mechanical_energy = p**2/(2*m) + k*q**2/2", "model.mechanical_energy = p**2/(2*m) + k*q**4/4",
@@ -76,8 +80,9 @@ def description_variant(tmp_path, model, old, new):
 def test_the_generator_refuses_what_the_interface_cannot_take(tmp_path, model, old, new, words):
     """Refused with exit status 2, the description named with the expression, nothing written: a K0 on a
     thermodynamic column (s, theta or u by the variable) or on a symbol that is no column, parameter, temperature
-    or partial; an invariant or a mechanical energy above quadratic in z; a subsystem without potentials. (A K0 on
-    the mechanical columns is taken: the heat bath's drag on p/m.)"""
+    or partial; a K0 that breaks K grad E = 0 (the heat bath's drag with its (p, tau) entry's sign flipped, or on
+    (p, p) alone while the kinetic energy is mechanical); an invariant or a mechanical energy above quadratic in z;
+    a subsystem without potentials. (A K0 on the mechanical columns is taken: the heat bath's drag on p/m.)"""
     description = description_variant(tmp_path, model, old, new)
     result = generate(description, "--output", str(tmp_path / "out"))
     assert result.returncode == 2

@@ -512,6 +512,38 @@ class SymbolicModel:
             if unknown:
                 raise DescriptionError(f"K0[{row}, {column}] = {entry} uses {sorted(map(str, unknown))}: not a "
                                        "mechanical column of z, a parameter, a subsystem's temperature or partial")
+        self.check_friction_degeneracy()
+
+    def check_friction_degeneracy(self):
+        """K grad E = 0 (eq. (5)) asks K0 M_E^T grad E = 0, where M_E^T grad E is the mechanical energy's gradient
+        on the mechanical columns and 1 on the tau columns (docs/formulation.md section 4), whatever the partials:
+        checked at random points of the columns, parameters, partials and temperatures (numerically, as
+        check_inverse: simplify may not fold what cancels), so that a K0 which would not conserve E is refused
+        here, naming its row, rather than by the conformance kit after a build."""
+        if not self.d.friction_entries:
+            return
+        k0 = self.matrix(self.d.friction_entries, temperatures=False)
+        driving = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
+        for tau in self.tau_symbols:
+            if tau is not None:
+                driving[self.index[tau]] = 1
+        product = k0*driving
+        temperatures = [part.temperature for part in self.d.subsystems if part.thermal]
+        symbols = sorted(set().union(*(e.free_symbols for e in list(k0) + list(driving))) | set(temperatures),
+                         key=lambda x: x.name)
+        random = Random(42)
+        for _ in range(3):
+            point = {x: random.uniform(0.5, 1.5) for x in symbols}
+            for i, entry in enumerate(product):
+                value = float(entry.subs(point))
+                size = sum(abs(float(k0[i, j].subs(point))*float(driving[j].subs(point))) for j in range(len(self.state)))
+                if abs(value) > 1e-12*max(size, 1e-300):
+                    raise DescriptionError(f"K0 M_E^T grad E != 0 in row {self.state[i]}: "
+                                           f"{sp.sstr(sp.expand(entry))} (with M_E^T grad E = the mechanical energy's "
+                                           "gradient on the mechanical columns, 1 on the tau columns), so K grad E = 0 "
+                                           "fails and E is not conserved: a friction on a momentum whose energy is "
+                                           "mechanical needs its (p, tau) and (tau, tau) entries too "
+                                           "(docs/formulation.md section 11)")
 
     def friction_uses_state(self):
         """Whether a K0 entry depends on z (then the model writes friction_matrix_0_at(z, partials))."""
