@@ -82,7 +82,8 @@ module model_interface
     procedure(scalar_of_state), deferred :: mechanical_energy
     procedure(vector_of_state), deferred :: mechanical_energy_gradient
     procedure(poisson_interface), deferred :: poisson_matrix_0
-    procedure(friction_interface), deferred :: friction_matrix_0
+    procedure :: friction_matrix_0_at
+    procedure :: friction_matrix_0
     procedure(in_variable_interface), deferred :: in_variable
     procedure :: conserved_count
     procedure :: conserved_momenta
@@ -159,17 +160,33 @@ module model_interface
       class(generic_model), intent(in) :: self
       real(real64) :: l0(self%state_size, self%state_size)
     end function poisson_interface
-
-    !> K0 of eq. (8) at the temperatures the partials give (eq. (2)), in z's layout.
-    pure function friction_interface(self, partials) result(k0)
-      import :: generic_model, real64
-      class(generic_model), intent(in) :: self
-      real(real64), intent(in) :: partials(:, :, :)
-      real(real64) :: k0(self%state_size, self%state_size)
-    end function friction_interface
   end interface
 
 contains
+
+  !> K0 of eq. (8) at the state z and the temperatures the partials give (eq. (2)), in z's
+  !> layout: what the structure (structure_matrices) takes. A scheme evaluates it where it
+  !> evaluates the field, at z_mid with the step's partials (docs/formulation.md section 5). By
+  !> default the friction_matrix_0 of the partials alone; a model whose K0 depends on the state
+  !> (the heat bath's drag on the velocity p/m, docs/formulation.md section 11) overrides this one.
+  !> The field's df/dz then holds dK0/dz, as its df/dpartials holds dK0/dpartials.
+  pure function friction_matrix_0_at(self, z, partials) result(k0)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: z(:), partials(:, :, :)
+    real(real64) :: k0(self%state_size, self%state_size)
+
+    k0 = self%friction_matrix_0(partials)
+  end function friction_matrix_0_at
+
+  !> K0 of a model whose friction does not depend on the state: at the temperatures the partials
+  !> give. Zero by default (no dissipation); a model overrides this one or friction_matrix_0_at.
+  pure function friction_matrix_0(self, partials) result(k0)
+    class(generic_model), intent(in) :: self
+    real(real64), intent(in) :: partials(:, :, :)
+    real(real64) :: k0(self%state_size, self%state_size)
+
+    k0 = 0.0_real64
+  end function friction_matrix_0
 
   !> The momenta the output records, in the order of momentum_names; none by default.
   pure function momenta(self, z) result(values)

@@ -76,7 +76,7 @@ contains
     l = matmul(transpose(mt), matmul(model%poisson_matrix_0(), mt))
   end function poisson_matrix
 
-  !> K = M_E K0 M_E^T, eq. (8).
+  !> K = M_E K0 M_E^T, eq. (8), with K0 at z and the partials' temperatures (friction_matrix_0_at).
   pure function friction_matrix(model, z, partials) result(k)
     class(generic_model), intent(in) :: model
     real(real64), intent(in) :: z(:), partials(:, :, :)
@@ -84,7 +84,7 @@ contains
     real(real64) :: mt(model%state_size, model%state_size)
 
     mt = mielke_transpose(model, z, partials, potential_u)
-    k = matmul(transpose(mt), matmul(model%friction_matrix_0(partials), mt))
+    k = matmul(transpose(mt), matmul(model%friction_matrix_0_at(z, partials), mt))
   end function friction_matrix
 
 end module structure_matrices

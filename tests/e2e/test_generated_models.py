@@ -52,9 +52,9 @@ def test_docs_input_md_holds_the_descriptions_rows(description):
         assert row in documented, f"docs/input.md lacks the row {row!r} (generate_model.py --input-rows)"
 
 
-def heat_bath_variant(tmp_path, old, new):
-    """The heat bath's description with `old` replaced by `new`, in a folder of its own."""
-    text = (ROOT / "src" / "model" / "heat_bath" / "description.py").read_text()
+def description_variant(tmp_path, model, old, new):
+    """src/model/MODEL/description.py with `old` replaced by `new`, in a folder of its own."""
+    text = (ROOT / "src" / "model" / model / "description.py").read_text()
     assert old in text
     folder = tmp_path / "variant"
     folder.mkdir()
@@ -62,17 +62,28 @@ def heat_bath_variant(tmp_path, old, new):
     return folder / "description.py"
 
 
-@pytest.mark.parametrize("old, new, words", [
-    ("model.friction(p, p, (nu + nu_3*velocity**2)*bath.temperature)", "model.friction(p, p, nu*p**2)",
-     r"K0\[p, p\] = .* depends on \['p'\] directly"),
-    ('momentum = bath.invariant("p", p,', 'momentum = bath.invariant("p", p**3,', r"invariant p = p\*\*3 is not at most "
-     r"quadratic"),
-    ("model.mechanical_energy = k*q**2/2", "model.mechanical_energy = k*q**4/4", "mechanical energy is not at most "
-     "quadratic"),
-    ("bath.internal_energy(", "(", "neither internal_energy"),
+@pytest.mark.parametrize("model, old, new, words", [
+    ("heat_bath", "model.friction(p, p, drag)", "model.friction(p, p, drag*tau)",
+     r"K0\[p, p\] = .*tau_bath.* depends on the thermodynamic column \['tau_bath'\]"),
+    ("heat_bath", "model.friction(p, p, drag)", "model.friction(p, p, drag*sp.Symbol('w'))",
+     r"K0\[p, p\] = .*w.* uses \['w'\]: not a mechanical column of z"),
+    ("heat_bath", "model.friction(p, tau, -drag*velocity)", "model.friction(p, tau, drag*velocity)",
+     r"K0 M_E\^T grad E != 0 in row p: .*K grad E = 0 fails"),
+    ("heat_bath", "model.friction(p, tau, -drag*velocity)\nmodel.friction(tau, tau, drag*velocity**2)", "",
+     r"K0 M_E\^T grad E != 0 in row p: .*needs its \(p, tau\) and \(tau, tau\) entries"),
+    ("gas_containers", 'v = container.invariant("v", volume,', 'v = container.invariant("v", volume**3,',
+     r"invariant v = .*\*\*3 is not at most quadratic"),
+    ("heat_bath", "model.mechanical_energy = p**2/(2*m) + k*q**2/2", "model.mechanical_energy = p**2/(2*m) + k*q**4/4",
+     "mechanical energy is not at most quadratic"),
+    ("heat_bath", "bath.internal_energy(", "(", "neither internal_energy"),
 ])
-def test_the_generator_refuses_what_the_interface_cannot_take(tmp_path, old, new, words):
-    description = heat_bath_variant(tmp_path, old, new)
+def test_the_generator_refuses_what_the_interface_cannot_take(tmp_path, model, old, new, words):
+    """Refused with exit status 2, the description named with the expression, nothing written: a K0 on a
+    thermodynamic column (s, theta or u by the variable) or on a symbol that is no column, parameter, temperature
+    or partial; a K0 that breaks K grad E = 0 (the heat bath's drag with its (p, tau) entry's sign flipped, or on
+    (p, p) alone while the kinetic energy is mechanical); an invariant or a mechanical energy above quadratic in z;
+    a subsystem without potentials. (A K0 on the mechanical columns is taken: the heat bath's drag on p/m.)"""
+    description = description_variant(tmp_path, model, old, new)
     result = generate(description, "--output", str(tmp_path / "out"))
     assert result.returncode == 2
     assert str(description) in result.stderr and re.search(words, result.stderr), result.stderr
@@ -85,11 +96,11 @@ def test_the_generator_refuses_names_that_clash_in_fortran(tmp_path, name, clash
     """An invariant named as a dummy argument the generator writes (x, f; GRAD, since Fortran ignores case) or as an
     intrinsic the code calls (exp) gave Fortran that did not compile ("Symbol 'x' already has basic type of REAL"):
     refused with exit 2, naming the name, the file and what it clashes with; nothing written."""
-    description = heat_bath_variant(tmp_path, 'momentum = bath.invariant("p", p,',
-                                    f'momentum = bath.invariant("{name}", p,')
+    description = description_variant(tmp_path, "gas_containers", 'v = container.invariant("v", volume,',
+                                      f'v = container.invariant("{name}", volume,')
     result = generate(description, "--output", str(tmp_path / "out"))
     assert result.returncode == 2, result.stderr
-    assert f"the name {name} clashes in the generated heat_bath_potential.f90" in result.stderr, result.stderr
+    assert f"the name {name} clashes in the generated gas_containers_potential.f90" in result.stderr, result.stderr
     assert clash in result.stderr and "allowed:" in result.stderr, result.stderr
     assert not (tmp_path / "out").exists()
 

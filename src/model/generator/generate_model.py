@@ -498,12 +498,56 @@ class SymbolicModel:
         if self.mechanical and self.d.friction_entries:
             raise DescriptionError("K0 entries in a model without thermodynamic variables: dissipation needs a "
                                    "subsystem's temperature")
+        # K0 may depend on the mechanical columns of z (friction_matrix_0_at), the temperatures, the partials and the
+        # parameters; not on a thermodynamic column, whose meaning (s, theta or u) changes with the variable.
+        temperatures = {part.temperature for part in self.d.subsystems if part.thermal}
+        allowed = set(self.state) - set(self.tau_symbols) | set(self.parameters) | set(self.partials) | temperatures
         for (row, column), entry in self.d.friction_entries.items():
-            on_state = entry.free_symbols & set(self.state)
-            if on_state:
-                raise DescriptionError(f"K0[{row}, {column}] = {entry} depends on {sorted(map(str, on_state))} "
-                                       "directly: friction_matrix_0 sees the partials and temperatures only "
-                                       "(src/structure/model_interface.f90); write it through a subsystem's partial")
+            on_tau = entry.free_symbols & set(self.tau_symbols)
+            if on_tau:
+                raise DescriptionError(f"K0[{row}, {column}] = {entry} depends on the thermodynamic column "
+                                       f"{sorted(map(str, on_tau))}, which is s, theta or u by the variable: write "
+                                       "it through the subsystem's temperature (or partials)")
+            unknown = entry.free_symbols - allowed
+            if unknown:
+                raise DescriptionError(f"K0[{row}, {column}] = {entry} uses {sorted(map(str, unknown))}: not a "
+                                       "mechanical column of z, a parameter, a subsystem's temperature or partial")
+        self.check_friction_degeneracy()
+
+    def check_friction_degeneracy(self):
+        """K grad E = 0 (eq. (5)) asks K0 M_E^T grad E = 0, where M_E^T grad E is the mechanical energy's gradient
+        on the mechanical columns and 1 on the tau columns (docs/formulation.md section 4), whatever the partials:
+        checked at random points of the columns, parameters, partials and temperatures (numerically, as
+        check_inverse: simplify may not fold what cancels), so that a K0 which would not conserve E is refused
+        here, naming its row, rather than by the conformance kit after a build."""
+        if not self.d.friction_entries:
+            return
+        k0 = self.matrix(self.d.friction_entries, temperatures=False)
+        driving = sp.Matrix([sp.diff(self.d.mechanical_energy, z) for z in self.state])
+        for tau in self.tau_symbols:
+            if tau is not None:
+                driving[self.index[tau]] = 1
+        product = k0*driving
+        temperatures = [part.temperature for part in self.d.subsystems if part.thermal]
+        symbols = sorted(set().union(*(e.free_symbols for e in list(k0) + list(driving))) | set(temperatures),
+                         key=lambda x: x.name)
+        random = Random(42)
+        for _ in range(3):
+            point = {x: random.uniform(0.5, 1.5) for x in symbols}
+            for i, entry in enumerate(product):
+                value = float(entry.subs(point))
+                size = sum(abs(float(k0[i, j].subs(point))*float(driving[j].subs(point))) for j in range(len(self.state)))
+                if abs(value) > 1e-12*max(size, 1e-300):
+                    raise DescriptionError(f"K0 M_E^T grad E != 0 in row {self.state[i]}: "
+                                           f"{sp.sstr(sp.expand(entry))} (with M_E^T grad E = the mechanical energy's "
+                                           "gradient on the mechanical columns, 1 on the tau columns), so K grad E = 0 "
+                                           "fails and E is not conserved: a friction on a momentum whose energy is "
+                                           "mechanical needs its (p, tau) and (tau, tau) entries too "
+                                           "(docs/formulation.md section 11)")
+
+    def friction_uses_state(self):
+        """Whether a K0 entry depends on z (then the model writes friction_matrix_0_at(z, partials))."""
+        return any(entry.free_symbols & set(self.state) for entry in self.d.friction_entries.values())
 
     def temperature_of_partials(self, a):
         """Theta_a = d_tau U_a / d_tau S_a of eq. (2), in the partials' symbols."""
@@ -1356,6 +1400,14 @@ def model_module(symbolic, source):
     k0_lines += assignments([f"k0({r}, {c})" for r, c in sorted(k0_entries)],
                             [k0_entries[key] for key in sorted(k0_entries)], 2, k0_temporaries)
     k0_declaration = declare(local_names(symbolic, k0_used) + [f"t_{i}" for i in range(1, k0_temporaries[0] + 1)], 2)
+    if symbolic.friction_uses_state():     # K0(z, partials): its dK0/dz is in the field's df/dz
+        friction_procedure, friction_arguments = "friction_matrix_0_at", "z(:), partials(:, :, :)"
+        friction_head = ("  !> K0 of eq. (8) at the state z and the temperatures and partials `partials` gives.\n"
+                         "  pure function friction_matrix_0_at(self, z, partials) result(k0)")
+    else:
+        friction_procedure, friction_arguments = "friction_matrix_0", "partials(:, :, :)"
+        friction_head = ("  !> K0 of eq. (8) at the temperatures and partials `partials` gives.\n"
+                         "  pure function friction_matrix_0(self, partials) result(k0)")
 
     # the maker
     momenta = [c for c in d.columns if c.kind == "momentum" and c.dataset]
@@ -1521,7 +1573,7 @@ module {name}_model
     procedure :: mechanical_energy_difference
     procedure :: mechanical_energy_scale
     procedure :: poisson_matrix_0
-    procedure :: friction_matrix_0
+    procedure :: {friction_procedure}
     procedure :: in_variable
     procedure :: column_units
 {lines_of(momentum_bindings)}
@@ -1605,16 +1657,15 @@ contains
 {lines_of(l0_lines)}
   end function poisson_matrix_0
 
-  !> K0 of eq. (8) at the temperatures and partials `partials` gives.
-  pure function friction_matrix_0(self, partials) result(k0)
+{friction_head}
     class({name}), intent(in) :: self
-    real(real64), intent(in) :: partials(:, :, :)
+    real(real64), intent(in) :: {friction_arguments}
     real(real64) :: k0(self%state_size, self%state_size)
 {k0_declaration or ""}
 
     k0 = 0.0_real64
 {lines_of(k0_lines)}
-  end function friction_matrix_0
+  end function {friction_procedure}
 
   !> The same model in another thermodynamic variable.
   subroutine in_variable(self, variable, other)

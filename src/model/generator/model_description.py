@@ -12,7 +12,7 @@ A description is a Python module that builds one `ModelDescription` named `model
     bath.internal_energy(v**2/(2*m) + ..., bath.entropy)                  # U_a(x, s)
     model.mechanical_energy = k*q**2/2
     model.canonical_pair(q, p)                                            # L0
-    model.friction(p, p, ...)                                             # K0 entries
+    model.friction(p, p, ...)                                             # K0 entries, K0(z, partials)
 
 Why a SymPy module: the paper states a model as potentials and matrices, and SymPy keeps them
 as formulas the generator can differentiate, invert (U(S) to U(theta) and U(u)) and share
@@ -258,7 +258,13 @@ class ModelDescription:
 
     def friction(self, row, column, entry):
         """K0's entry (row, column) and its mirror: rows and columns are state symbols or a
-        subsystem's `tau(part)`; entries may use the subsystems' temperatures and partials."""
+        subsystem's `tau(part)`; entries may use the parameters, the subsystems' temperatures and
+        partials, and the mechanical columns of z (K0(z, partials): a drag on the velocity p/m), not
+        a `tau` column (s, theta or u by the variable). A scheme evaluates K0 where it evaluates the
+        field: at z_mid with the step's discrete temperatures (docs/formulation.md section 5). For
+        K grad E = 0, K0 must annihilate M_E^T grad E = (grad of the mechanical energy, 1 on the tau
+        rows): a friction on a momentum p whose energy is mechanical needs its (p, tau) and
+        (tau, tau) entries too (docs/formulation.md section 11)."""
         self.friction_entries[(row, column)] = sp.sympify(entry)
         self.friction_entries[(column, row)] = sp.sympify(entry)
 

@@ -2,8 +2,8 @@
 !> The model of a harmonic oscillator whose friction heats a bath (docs/formulation.md section 11):
 !> a generic_model whose subsystems' (U_a, S_a) are heat_bath_potential's, with the invariants, the
 !> written-out field f = M_S L0 M_S^T grad E + M_E K0 M_E^T grad S (eq. (8)) and its derivatives in z and in the
-!> partials, the mechanical energy q**2*stiffness/2, L0 and K0 as the description states them:
-!>   dq/dt = v,  dp/dt = -k q - (nu + nu_3 v^2) v,  v = dU/dp - Theta dS/dp (p/m at a state),
+!> partials, the mechanical energy q**2*stiffness/2 + p**2/(2*mass), L0 and K0 as the description states them:
+!>   dq/dt = v,  dp/dt = -k q - (nu + nu_3 v^2) v,  v = p/m,
 !>   dS/dt = (nu + nu_3 v^2) v^2/Theta (in the entropy variable)
 module heat_bath_model
   use, intrinsic :: iso_fortran_env, only: real64
@@ -29,7 +29,7 @@ module heat_bath_model
     procedure :: mechanical_energy_difference
     procedure :: mechanical_energy_scale
     procedure :: poisson_matrix_0
-    procedure :: friction_matrix_0
+    procedure :: friction_matrix_0_at
     procedure :: in_variable
     procedure :: column_units
     procedure :: momenta
@@ -46,7 +46,7 @@ contains
     model%parameters = parameters
     model%thermo_variable = variable
     model%state_size = 3
-    model%max_invariants = 2
+    model%max_invariants = 1
     allocate (model%column_names(3))
     model%column_names(1) = 'q'
     model%column_names(2) = 'p'
@@ -63,19 +63,16 @@ contains
     associate (part => model%subsystems(1))
       part%name = 'bath'
       allocate (part%potentials, source=heat_bath_potentials(parameters=parameters, subsystem=1, variable=variable))
-      part%invariant_count = 2
-      part%columns = [2, 3]
+      part%invariant_count = 1
+      part%columns = [3]
       part%tau_column = 3
       select case (variable)
       case (tau_entropy)
-        part%metric_scale = [sqrt(parameters%heat_capacity)*sqrt(parameters%mass)*sqrt(parameters%theta_ref), &
-            parameters%heat_capacity]
+        part%metric_scale = [parameters%heat_capacity]
       case (tau_temperature)
-        part%metric_scale = [sqrt(parameters%heat_capacity)*sqrt(parameters%mass)*sqrt(parameters%theta_ref), &
-            parameters%theta_ref]
+        part%metric_scale = [parameters%theta_ref]
       case (tau_internal_energy)
-        part%metric_scale = [sqrt(parameters%heat_capacity)*sqrt(parameters%mass)*sqrt(parameters%theta_ref), &
-            parameters%heat_capacity*parameters%theta_ref]
+        part%metric_scale = [parameters%heat_capacity*parameters%theta_ref]
       end select
     end associate
   end function make_heat_bath
@@ -90,12 +87,10 @@ contains
 
     select case (a)
     case (1)  ! bath
-      x(1) = z(2)
-      x(2) = z(3)
+      x(1) = z(3)
       if (present(dx_dz)) then
         dx_dz = 0.0_real64
         dx_dz(1, 1) = 1.0_real64
-        dx_dz(2, 2) = 1.0_real64
       end if
     end select
   end subroutine invariants
@@ -106,101 +101,61 @@ contains
     real(real64), intent(in) :: z(:), partials(:, :, :)
     real(real64), intent(out) :: f(:)
     real(real64), intent(out), optional :: df_dz(:, :), df_dpartials(:, :, :, :)
-    real(real64) :: q, du_bath_dp, ds_bath_dp, du_bath_dtau, ds_bath_dtau, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, &
-        t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, &
-        derivative_z(2), derivative_partials(12)
+    real(real64) :: q, p, du_bath_dtau, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, derivative_z(4), &
+        derivative_partials(1)
 
     q = z(1)
-    du_bath_dp = partials(1, 1, 1)
-    ds_bath_dp = partials(1, 2, 1)
-    du_bath_dtau = partials(2, 1, 1)
-    ds_bath_dtau = partials(2, 2, 1)
+    p = z(2)
+    du_bath_dtau = partials(1, 1, 1)
     if (present(df_dz) .or. present(df_dpartials)) then
-      t_1 = 1.0_real64/ds_bath_dtau
-      t_2 = ds_bath_dp*du_bath_dtau
-      t_3 = ds_bath_dtau**3
-      t_4 = 1.0_real64/t_3
-      t_5 = ds_bath_dtau*du_bath_dp
-      t_6 = t_2 - t_5
-      t_7 = ds_bath_dtau**2
-      t_8 = self%parameters%friction_cubic*t_6**2
-      t_9 = self%parameters%friction*t_7 + t_8
-      t_10 = t_6*t_9
-      t_11 = -t_10
-      t_12 = q*self%parameters%stiffness
-      t_13 = -t_11 - t_12*t_3
-      t_14 = t_12*t_7
-      t_15 = -du_bath_dp*t_10 + t_14*t_2
-      t_16 = 1.0_real64/du_bath_dtau
-      t_17 = t_16*t_4
-      t_18 = ds_bath_dp*t_1
-      t_19 = 2.0_real64*ds_bath_dtau
-      t_20 = du_bath_dtau*t_9
-      t_21 = 2.0_real64*t_8
-      t_22 = du_bath_dtau*t_21
-      t_23 = ds_bath_dp*t_9
-      t_24 = ds_bath_dp*t_21
-      t_25 = -2.0_real64*du_bath_dp*self%parameters%friction_cubic*t_6 + self%parameters%friction*t_19
-      t_26 = 3.0_real64/ds_bath_dtau**4
-      f(1) = du_bath_dp - t_1*t_2
-      f(2) = t_13*t_4
-      f(3) = t_15*t_17
-      derivative_z(1) = -self%parameters%stiffness
-      derivative_z(2) = self%parameters%stiffness*t_18
-      derivative_partials(1) = 1.0_real64
-      derivative_partials(2) = -du_bath_dtau*t_1
-      derivative_partials(3) = -t_18
-      derivative_partials(4) = t_2/t_7
-      derivative_partials(5) = t_4*(-ds_bath_dtau*t_9 - t_19*t_8)
-      derivative_partials(6) = t_4*(t_20 + t_22)
-      derivative_partials(7) = t_4*(t_23 + t_24)
-      derivative_partials(8) = -t_13*t_26 + t_4*(-du_bath_dp*t_9 - 3.0_real64*t_14 + t_25*t_6)
-      derivative_partials(9) = t_17*(t_11 + t_21*t_5 + t_5*t_9)
-      derivative_partials(10) = t_17*(-du_bath_dp*t_20 - du_bath_dp*t_22 + du_bath_dtau*q*self%parameters%stiffness*t_7)
-      derivative_partials(11) = t_17*(ds_bath_dp*q*self%parameters%stiffness*t_7 - du_bath_dp*t_23 - du_bath_dp*t_24) &
-          - t_15*t_4/du_bath_dtau**2
-      derivative_partials(12) = -t_15*t_16*t_26 + t_17*(du_bath_dp**2*t_9 - du_bath_dp*t_25*t_6 + t_12*t_19*t_2)
+      t_1 = 1.0_real64/self%parameters%mass
+      t_2 = p*t_1
+      t_3 = 1.0_real64/self%parameters%mass**3
+      t_4 = self%parameters%friction_cubic*p**3
+      t_5 = 1.0_real64/self%parameters%mass**4
+      t_6 = t_5/du_bath_dtau
+      t_7 = p**2
+      t_8 = self%parameters%friction_cubic*t_7
+      t_9 = self%parameters%friction*self%parameters%mass**2 + t_8
+      t_10 = t_7*t_9
+      t_11 = 2.0_real64*t_6
+      f(1) = t_2
+      f(2) = -self%parameters%friction*t_2 - q*self%parameters%stiffness - t_3*t_4
+      f(3) = t_10*t_6
+      derivative_z(1) = t_1
+      derivative_z(2) = -self%parameters%stiffness
+      derivative_z(3) = -self%parameters%friction*t_1 - 3.0_real64*t_3*t_8
+      derivative_z(4) = p*t_11*t_9 + t_11*t_4
+      derivative_partials(1) = -t_10*t_5/du_bath_dtau**2
       if (present(df_dz)) then
         df_dz = 0.0_real64
-        df_dz(2, 1) = derivative_z(1)
-        df_dz(3, 1) = derivative_z(2)
+        df_dz(1, 2) = derivative_z(1)
+        df_dz(2, 1) = derivative_z(2)
+        df_dz(2, 2) = derivative_z(3)
+        df_dz(3, 2) = derivative_z(4)
       end if
       if (present(df_dpartials)) then
         df_dpartials = 0.0_real64
-        df_dpartials(1, 1, 1, 1) = derivative_partials(1)
-        df_dpartials(1, 1, 2, 1) = derivative_partials(2)
-        df_dpartials(1, 2, 1, 1) = derivative_partials(3)
-        df_dpartials(1, 2, 2, 1) = derivative_partials(4)
-        df_dpartials(2, 1, 1, 1) = derivative_partials(5)
-        df_dpartials(2, 1, 2, 1) = derivative_partials(6)
-        df_dpartials(2, 2, 1, 1) = derivative_partials(7)
-        df_dpartials(2, 2, 2, 1) = derivative_partials(8)
-        df_dpartials(3, 1, 1, 1) = derivative_partials(9)
-        df_dpartials(3, 1, 2, 1) = derivative_partials(10)
-        df_dpartials(3, 2, 1, 1) = derivative_partials(11)
-        df_dpartials(3, 2, 2, 1) = derivative_partials(12)
+        df_dpartials(3, 1, 1, 1) = derivative_partials(1)
       end if
     else
-      t_1 = ds_bath_dp*du_bath_dtau
-      t_2 = ds_bath_dtau**3
-      t_3 = 1.0_real64/t_2
-      t_4 = -ds_bath_dtau*du_bath_dp + t_1
-      t_5 = ds_bath_dtau**2
-      t_6 = self%parameters%friction*t_5 + self%parameters%friction_cubic*t_4**2
-      t_7 = q*self%parameters%stiffness
-      f(1) = du_bath_dp - t_1/ds_bath_dtau
-      f(2) = t_3*(-t_2*t_7 + t_4*t_6)
-      f(3) = t_3*(-du_bath_dp*t_4*t_6 + t_1*t_5*t_7)/du_bath_dtau
+      t_1 = p/self%parameters%mass
+      t_2 = p**2
+      f(1) = t_1
+      f(2) = -self%parameters%friction*t_1 - self%parameters%friction_cubic*p**3/self%parameters%mass**3 - q &
+          *self%parameters%stiffness
+      f(3) = t_2*(self%parameters%friction*self%parameters%mass**2 + self%parameters%friction_cubic &
+          *t_2)/(du_bath_dtau*self%parameters%mass**4)
     end if
   end subroutine vector_field
 
-  !> The mechanical energy q**2*stiffness/2.
+  !> The mechanical energy q**2*stiffness/2 + p**2/(2*mass).
   pure function mechanical_energy(self, z) result(value)
     class(heat_bath), intent(in) :: self
     real(real64), intent(in) :: z(:)
     real(real64) :: value
 
-    value = (0.5_real64)*self%parameters%stiffness*z(1)**2
+    value = (0.5_real64)*self%parameters%stiffness*z(1)**2 + (0.5_real64)*z(2)**2/self%parameters%mass
   end function mechanical_energy
 
   !> Its gradient in z.
@@ -211,6 +166,7 @@ contains
 
     gradient = 0.0_real64
     gradient(1) = self%parameters%stiffness*z(1)
+    gradient(2) = z(2)/self%parameters%mass
   end function mechanical_energy_gradient
 
   !> Its difference without cancellation: grad E(z_mid).(z_b - z_a), exact for an energy at most quadratic in z.
@@ -227,7 +183,8 @@ contains
     class(heat_bath), intent(in) :: self
     real(real64), intent(in) :: z(:)
 
-    mechanical_energy_scale = (0.5_real64)*z(1)**2*abs(self%parameters%stiffness)
+    mechanical_energy_scale = (0.5_real64)*z(1)**2*abs(self%parameters%stiffness) + (0.5_real64)*z(2) &
+        **2/self%parameters%mass
   end function mechanical_energy_scale
 
   !> L0 of eq. (8).
@@ -240,21 +197,25 @@ contains
     l0(2, 1) = -1.0_real64
   end function poisson_matrix_0
 
-  !> K0 of eq. (8) at the temperatures and partials `partials` gives.
-  pure function friction_matrix_0(self, partials) result(k0)
+  !> K0 of eq. (8) at the state z and the temperatures and partials `partials` gives.
+  pure function friction_matrix_0_at(self, z, partials) result(k0)
     class(heat_bath), intent(in) :: self
-    real(real64), intent(in) :: partials(:, :, :)
+    real(real64), intent(in) :: z(:), partials(:, :, :)
     real(real64) :: k0(self%state_size, self%state_size)
-    real(real64) :: du_bath_dp, ds_bath_dp, du_bath_dtau, ds_bath_dtau, t_1
+    real(real64) :: p, du_bath_dtau, ds_bath_dtau, t_1, t_2, t_3
 
     k0 = 0.0_real64
-    du_bath_dp = partials(1, 1, 1)
-    ds_bath_dp = partials(1, 2, 1)
-    du_bath_dtau = partials(2, 1, 1)
-    ds_bath_dtau = partials(2, 2, 1)
-    t_1 = du_bath_dtau/ds_bath_dtau
-    k0(2, 2) = t_1*(self%parameters%friction + self%parameters%friction_cubic*(-ds_bath_dp*t_1 + du_bath_dp)**2)
-  end function friction_matrix_0
+    p = z(2)
+    du_bath_dtau = partials(1, 1, 1)
+    ds_bath_dtau = partials(1, 2, 1)
+    t_1 = p**2/self%parameters%mass**2
+    t_2 = du_bath_dtau*(self%parameters%friction + self%parameters%friction_cubic*t_1)/ds_bath_dtau
+    t_3 = -p*t_2/self%parameters%mass
+    k0(2, 2) = t_2
+    k0(2, 3) = t_3
+    k0(3, 2) = t_3
+    k0(3, 3) = t_1*t_2
+  end function friction_matrix_0_at
 
   !> The same model in another thermodynamic variable.
   subroutine in_variable(self, variable, other)

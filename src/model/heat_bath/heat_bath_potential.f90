@@ -44,7 +44,7 @@ contains
     real(real64), intent(out) :: f(:), grad(:, :)
     real(real64), intent(out), optional :: hess(:, :, :)
     integer, intent(out) :: stat
-    real(real64) :: p, tau, exp_1, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8
+    real(real64) :: tau, exp_1, t_1, t_2
 
     f = 0.0_real64
     grad = 0.0_real64
@@ -54,99 +54,67 @@ contains
     case (1)  ! bath
       select case (self%variable)
       case (tau_entropy)
-        p = x(1)
-        tau = x(2)
+        tau = x(1)
         if (present(hess)) then
           f(2) = tau
-          t_1 = 1.0_real64/self%parameters%mass
-          grad(1, 1) = p*t_1
-          grad(2, 2) = 1.0_real64
-          hess(1, 1, 1) = t_1
-          t_2 = 1.0_real64/self%parameters%heat_capacity
-          if (.not. (t_2*tau <= max_exponent)) then
+          grad(1, 2) = 1.0_real64
+          t_1 = 1.0_real64/self%parameters%heat_capacity
+          if (.not. (t_1*tau <= max_exponent)) then
             stat = domain_overflow
             return
           end if
-          exp_1 = exp(t_2*tau)
-          t_3 = exp_1*self%parameters%theta_ref
-          f(1) = self%parameters%heat_capacity*t_3 + (0.5_real64)*p**2*t_1
-          grad(2, 1) = t_3
-          hess(2, 2, 1) = t_2*t_3
+          exp_1 = exp(t_1*tau)
+          t_2 = exp_1*self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity*t_2
+          grad(1, 1) = t_2
+          hess(1, 1, 1) = t_1*t_2
         else
           f(2) = tau
-          t_1 = 1.0_real64/self%parameters%mass
-          grad(1, 1) = p*t_1
-          grad(2, 2) = 1.0_real64
+          grad(1, 2) = 1.0_real64
           if (.not. (tau/self%parameters%heat_capacity <= max_exponent)) then
             stat = domain_overflow
             return
           end if
           exp_1 = exp(tau/self%parameters%heat_capacity)
-          t_2 = exp_1*self%parameters%theta_ref
-          f(1) = self%parameters%heat_capacity*t_2 + (0.5_real64)*p**2*t_1
-          grad(2, 1) = t_2
+          t_1 = exp_1*self%parameters%theta_ref
+          f(1) = self%parameters%heat_capacity*t_1
+          grad(1, 1) = t_1
         end if
       case (tau_temperature)
-        p = x(1)
-        tau = x(2)
+        tau = x(1)
         if (.not. (tau/self%parameters%theta_ref > 0.0_real64)) then
           stat = domain_nonpositive_temperature
           return
         end if
         if (present(hess)) then
-          t_1 = 1.0_real64/self%parameters%mass
-          f(1) = self%parameters%heat_capacity*tau + (0.5_real64)*p**2*t_1
-          grad(1, 1) = p*t_1
-          grad(2, 1) = self%parameters%heat_capacity
-          grad(2, 2) = self%parameters%heat_capacity/tau
-          hess(1, 1, 1) = t_1
-          hess(2, 2, 2) = -self%parameters%heat_capacity/tau**2
+          f(1) = self%parameters%heat_capacity*tau
+          grad(1, 1) = self%parameters%heat_capacity
+          grad(1, 2) = self%parameters%heat_capacity/tau
+          hess(1, 1, 2) = -self%parameters%heat_capacity/tau**2
           f(2) = self%parameters%heat_capacity*log(tau/self%parameters%theta_ref)
         else
-          t_1 = 1.0_real64/self%parameters%mass
-          f(1) = self%parameters%heat_capacity*tau + (0.5_real64)*p**2*t_1
-          grad(1, 1) = p*t_1
-          grad(2, 1) = self%parameters%heat_capacity
-          grad(2, 2) = self%parameters%heat_capacity/tau
+          f(1) = self%parameters%heat_capacity*tau
+          grad(1, 1) = self%parameters%heat_capacity
+          grad(1, 2) = self%parameters%heat_capacity/tau
           f(2) = self%parameters%heat_capacity*log(tau/self%parameters%theta_ref)
         end if
       case (tau_internal_energy)
-        p = x(1)
-        tau = x(2)
-        if (.not. ((0.5_real64)*(2.0_real64*self%parameters%mass*tau - p**2)/(self%parameters%heat_capacity &
-            *self%parameters%mass*self%parameters%theta_ref) > 0.0_real64)) then
+        tau = x(1)
+        if (.not. (tau/(self%parameters%heat_capacity*self%parameters%theta_ref) > 0.0_real64)) then
           stat = domain_nonpositive_temperature
           return
         end if
         if (present(hess)) then
           f(1) = tau
-          grad(2, 1) = 1.0_real64
-          t_1 = p**2
-          t_2 = 2.0_real64*self%parameters%mass
-          t_3 = -t_1 + t_2*tau
-          t_4 = 1.0_real64/t_3
-          t_5 = 2.0_real64*t_4
-          t_6 = self%parameters%heat_capacity*t_5
-          grad(1, 2) = -p*t_6
-          grad(2, 2) = self%parameters%heat_capacity*t_2*t_4
-          hess(1, 1, 2) = -t_6*(t_1*t_5 + 1.0_real64)
-          t_7 = 4.0_real64*self%parameters%heat_capacity/t_3**2
-          t_8 = self%parameters%mass*p*t_7
-          hess(1, 2, 2) = t_8
-          hess(2, 1, 2) = t_8
-          hess(2, 2, 2) = -self%parameters%mass**2*t_7
-          f(2) = self%parameters%heat_capacity*log(0.5_real64*t_3/(self%parameters%heat_capacity*self%parameters%mass &
-              *self%parameters%theta_ref))
+          grad(1, 1) = 1.0_real64
+          grad(1, 2) = self%parameters%heat_capacity/tau
+          hess(1, 1, 2) = -self%parameters%heat_capacity/tau**2
+          f(2) = self%parameters%heat_capacity*log(tau/(self%parameters%heat_capacity*self%parameters%theta_ref))
         else
           f(1) = tau
-          grad(2, 1) = 1.0_real64
-          t_1 = 2.0_real64*self%parameters%mass
-          t_2 = -p**2 + t_1*tau
-          t_3 = self%parameters%heat_capacity/t_2
-          grad(1, 2) = -2.0_real64*p*t_3
-          grad(2, 2) = t_1*t_3
-          f(2) = self%parameters%heat_capacity*log(0.5_real64*t_2/(self%parameters%heat_capacity*self%parameters%mass &
-              *self%parameters%theta_ref))
+          grad(1, 1) = 1.0_real64
+          grad(1, 2) = self%parameters%heat_capacity/tau
+          f(2) = self%parameters%heat_capacity*log(tau/(self%parameters%heat_capacity*self%parameters%theta_ref))
         end if
       end select
     end select
@@ -158,7 +126,7 @@ contains
     real(real64), intent(in) :: x(:)
     real(real64), intent(out) :: theta
     integer, intent(out) :: stat
-    real(real64) :: p, tau
+    real(real64) :: tau
 
     theta = 0.0_real64
     stat = failure_none
@@ -166,19 +134,18 @@ contains
     case (1)  ! bath
       select case (self%variable)
       case (tau_entropy)
-        tau = x(2)
+        tau = x(1)
         if (.not. (tau/self%parameters%heat_capacity <= max_exponent)) then
           stat = domain_overflow
           return
         end if
         theta = self%parameters%theta_ref*exp(tau/self%parameters%heat_capacity)
       case (tau_temperature)
-        tau = x(2)
+        tau = x(1)
         theta = tau
       case (tau_internal_energy)
-        p = x(1)
-        tau = x(2)
-        theta = (self%parameters%mass*tau - 0.5_real64*p**2)/(self%parameters%heat_capacity*self%parameters%mass)
+        tau = x(1)
+        theta = tau/self%parameters%heat_capacity
       end select
     end select
     if (.not. (theta > 0.0_real64)) stat = domain_nonpositive_temperature
@@ -191,7 +158,6 @@ contains
     real(real64), intent(in) :: theta
     real(real64), intent(out) :: tau
     integer, intent(out) :: stat
-    real(real64) :: p
 
     tau = 0.0_real64
     stat = failure_none
@@ -211,8 +177,7 @@ contains
       case (tau_temperature)
         tau = theta
       case (tau_internal_energy)
-        p = mechanical(1)
-        tau = self%parameters%heat_capacity*theta + (0.5_real64)*p**2/self%parameters%mass
+        tau = self%parameters%heat_capacity*theta
       end select
     end select
   end subroutine tau_from_temperature

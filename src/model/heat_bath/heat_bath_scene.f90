@@ -82,8 +82,8 @@ contains
           'm'), &
               real_field('p', self%p, 'a real number [N s]: the mass''s momentum m dq/dt', 'N s'), &
               absolute_temperature(real_field('theta_bath', self%theta_bath, &
-                  'a real number > 0 [K]: the temperature of the heat bath and ' // &
-                  'the moving mass, whatever the thermodynamic variable', 'K', minimum=0.0_real64, exclusive=.true.))]
+                  'a real number > 0 [K]: the temperature of the heat bath, ' // &
+                  'whatever the thermodynamic variable', 'K', minimum=0.0_real64, exclusive=.true.))]
     case default
       allocate (table(0))
     end select
