@@ -13,7 +13,7 @@ contains
   ! rejection, as DOP853 does; a failed or guarded step is halved. The step that reaches t_end
   ! lands on it.
   module procedure adaptive_step
-    real(real64) :: h, error_norm, factor
+    real(real64) :: h, error_norm
     logical :: landing
     integer :: tries
 
@@ -25,17 +25,14 @@ contains
       call relaxed_step(self, h, landing, ok, error_norm, failure)
       if (failure%failed()) return
       if (ok .and. error_norm <= 1.0_real64) then
-        factor = grow_limit
-        if (error_norm > 0.0_real64) factor = min(grow_limit, max(shrink_limit, safety*error_norm**(-0.125_real64)))
-        if (tries > 1) factor = min(factor, 1.0_real64)
-        if (.not. landing) self%h_next = h*factor
+        if (.not. landing) self%h_next = h*accepted_step_factor(error_norm, tries > 1)
         return
       end if
       self%rejections = self%rejections + 1
       if (ok) then
         ! Relaxed, but not accepted by the error test: undo and retry smaller.
         call self%restore()
-        h = h*max(shrink_limit, safety*error_norm**(-0.125_real64))
+        h = h*rejected_step_factor(error_norm)
         ok = .false.
       else
         h = 0.5_real64*h
@@ -47,17 +44,10 @@ contains
                         //integer_text(max_error_rejections)//' times (last: '//self%last_failure//')'
   end procedure adaptive_step
 
-  ! DOP853's error norm of a step of h: err5 = sum ((sum_j e5_j k_j)/sk)^2, err3 likewise with e3,
-  ! sk = tolerance (1 + max(|z|, |z_new|)), err = |h| err5 / sqrt(n (err5 + 0.01 err3)).
-  module procedure dop853_error_norm
-    real(real64) :: scale(size(z_new)), err5, err3, denominator
-
-    scale = self%tolerance*(1.0_real64 + max(abs(self%z), abs(z_new)))
-    err5 = sum((matmul(k, self%tableau%e5)/scale)**2)
-    err3 = sum((matmul(k, self%tableau%e3)/scale)**2)
-    denominator = err5 + 0.01_real64*err3
-    if (denominator <= 0.0_real64) denominator = 1.0_real64
-    error_norm = abs(h)*err5/sqrt(size(z_new)*denominator)
-  end procedure dop853_error_norm
+  ! DOP853's error norm of a step of h (src/solver/dop853_control).
+  module procedure step_error_norm
+    error_norm = dop853_error_norm(h, error_squares(self%tolerance, matmul(k, self%tableau%e5), &
+                                                    matmul(k, self%tableau%e3), self%z, z_new), size(z_new))
+  end procedure step_error_norm
 
 end submodule relaxed_step_control

@@ -45,6 +45,8 @@ module relaxed_stepper
   use butcher_tableaux, only: butcher_tableau, tableau_named
   use relaxation, only: relax
   use relaxation_root, only: max_halvings, gamma_band_factor, gamma_warning_deviation
+  use dop853_control, only: error_squares, dop853_error_norm, accepted_step_factor, rejected_step_factor, &
+                            max_error_rejections, landing_slack
   use constrained_flow, only: constrained_field, project_state
   use collocation_stages, only: stage_system
   use snes_solver, only: newton_solver
@@ -60,13 +62,6 @@ module relaxed_stepper
   ! For the submodule relaxed_step_control only: gfortran gives a module's private procedures
   ! internal linkage, which submodules, compiled apart, cannot reach.
   public :: relaxed_step, landing_time
-
-  ! DOP853's step-size controller: safety factor and the bounds of h_new/h.
-  real(real64), parameter :: safety = 0.9_real64, shrink_limit = 0.333_real64, grow_limit = 6.0_real64
-  integer, parameter :: max_error_rejections = 100
-  !> A step that would leave less than landing_slack h to t_end lands on t_end instead: a last
-  !> step of round-off size would carry no information for relaxation to work with.
-  real(real64), parameter :: landing_slack = 0.01_real64
 
   !> A relaxed Runge-Kutta integrator and its state in entropy variables.
   type, extends(time_stepper) :: relaxed_runge_kutta
@@ -119,11 +114,11 @@ module relaxed_stepper
     end subroutine adaptive_step
     !> DOP853's error norm of the step of h with stage derivatives k to z_new
     !> (src/integrator/relaxed_step_control).
-    module function dop853_error_norm(self, h, k, z_new) result(error_norm)
+    module function step_error_norm(self, h, k, z_new) result(error_norm)
       class(relaxed_runge_kutta), intent(in) :: self
       real(real64), intent(in) :: h, k(:, :), z_new(:)
       real(real64) :: error_norm
-    end function dop853_error_norm
+    end function step_error_norm
   end interface
 
 contains
@@ -414,7 +409,7 @@ contains
       call relaxed_step(self, landing_time(self) - self%t, .true., ok, error_norm, failure)
       return
     end if
-    if (self%tableau%embedded) error_norm = dop853_error_norm(self, h, k, z_new)
+    if (self%tableau%embedded) error_norm = step_error_norm(self, h, k, z_new)
     self%z_saved = self%z
     self%t_saved = self%t
     self%gamma_saved = self%last_gamma

@@ -30,6 +30,9 @@ module distributed_model
     !> unallocated for other schemes): stages g_i = z + h sum_j a_ij k_j, update h sum_i b_i k_i,
     !> its order, and whether its stages are implicit or it has embedded (adaptive) weights.
     real(real64), allocatable :: stage_matrix(:, :), weights(:)
+    !> with embedded weights (relaxed_dp853), the error estimates' weights: h sum_i e5_i k_i of
+    !> order 5 and h sum_i e3_i k_i of order 3 (src/solver/dop853_control)
+    real(real64), allocatable :: error_weights5(:), error_weights3(:)
     integer :: order = 0
     logical :: implicit_stages = .false., embedded_weights = .false.
   end type distributed_settings

@@ -65,28 +65,37 @@ contains
     settings%order = tableau%order
     settings%implicit_stages = tableau%implicit
     settings%embedded_weights = tableau%embedded
+    if (tableau%embedded) then
+      settings%error_weights5 = tableau%e5
+      settings%error_weights3 = tableau%e3
+    end if
   end function distributed_settings_of
 
   !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps
   !> under the dense path's control (src/integrator/distributed_step_control: halving, adaptive
   !> steps), others as the scene gives them; a failure (failure_input) for &output interval
-  !> unless the steps are chosen (&integrator tolerance with EME or the midpoint rule: a relaxed
-  !> scheme's steps land on n dt here), or with snapshot_every as well.
+  !> unless the steps are chosen (&integrator tolerance with EME or the midpoint rule, or
+  !> relaxed_dp853: the fixed-step relaxed schemes' steps land on n dt here), or with
+  !> snapshot_every as well.
   subroutine split_system(config, system, failure)
     type(run_configuration), intent(in) :: config
     class(distributed_system), allocatable, intent(out) :: system
     type(failure_type), intent(out) :: failure
     type(integrator_entry) :: entry
     type(controlled_system), allocatable :: controlled
-    logical :: found
+    type(distributed_settings) :: settings
+    logical :: found, chooses_steps
 
     call find_integrator(config%integrator%scheme, entry, found)
     if (config%output_interval > 0.0_real64) then
-      if (.not. (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)) then
+      settings = distributed_settings_of(config)
+      chooses_steps = settings%embedded_weights .or. &
+                      (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)
+      if (.not. chooses_steps) then
         call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
                          'lands on output times only with steps it chooses (&integrator tolerance with scheme = '// &
-                         '''eme'' or ''midpoint''); scheme = '''//trim(config%integrator%scheme)//''' steps on n dt '// &
-                         'here; allowed: leave it out (0), or give a tolerance', 'interval')
+                         '''eme'' or ''midpoint'', or relaxed_dp853); scheme = '''//trim(config%integrator%scheme)// &
+                         ''' steps on n dt here; allowed: leave it out (0), or give a tolerance', 'interval')
         return
       else if (config%snapshot_every > 0) then
         call set_failure(failure, code_input, config%input_file//', &output: interval and snapshot_every both '// &

@@ -18,8 +18,11 @@
 !> path calls a landing step (no relaxation in time: gamma scales the update, not the time), so
 !> from the same state the states are the dense path's, step by step, while the times of the
 !> dense path's rows advance by gamma h; the order in time drops by one (gamma = 1 + O(h^(p-1))).
-!> Only fixed-step explicit tableaux: embedded weights (relaxed_dp853) and implicit stages
-!> (relaxed_gauss6) are refused at input (spring_chain_sparse_run's chain_problem_of).
+!> With embedded weights (relaxed_dp853) each `step` is one accepted step of the size DOP853's
+!> controller chooses (src/solver/dop853_control, as the dense path's relaxed_step_control; the
+!> error norm summed over the ranks), landing on t_end or the next output time; its next trial
+!> step and the run's record go into the resume record (spring_chain_relaxed_control). Implicit
+!> stages (relaxed_gauss6) are refused at input (spring_chain_sparse_run's chain_problem_of).
 !> All ranks take the same decisions from the same summed figures (MPI_Allreduce gives every
 !> rank the same sum).
 module spring_chain_relaxed_run
@@ -33,6 +36,7 @@ module spring_chain_relaxed_run
   use solver_description, only: solver_report, no_solver
   use relaxation_root, only: relaxation_function, find_relaxation_root, max_halvings, gamma_band_factor, &
                              gamma_warning_deviation
+  use dop853_control, only: accepted_step_factor, rejected_step_factor, max_error_rejections, landing_slack
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_spring, only: chain_spring
@@ -65,6 +69,12 @@ module spring_chain_relaxed_run
     character(len=:), allocatable :: last_failure
     integer :: run_rejections = 0, run_halvings = 0
     real(real64) :: max_gamma_deviation = 0.0_real64
+    ! Adaptive steps (embedded weights): the error estimates' weights, the tolerance, the time of
+    ! the state held, where the run ends, the next trial step and the whole state's size.
+    logical :: adaptive = .false.
+    real(real64), allocatable :: e5(:), e3(:)
+    real(real64) :: tolerance = 0.0_real64, t = 0.0_real64, t_end = 0.0_real64, h_next = 0.0_real64
+    integer :: unknowns = 0
   contains
     procedure :: start
     procedure :: step
@@ -74,6 +84,8 @@ module spring_chain_relaxed_run
     procedure :: describe_solver
     procedure :: integrator_diagnostics
     procedure :: accuracy_warnings
+    procedure :: resume_state
+    procedure :: restore_state
   end type relaxed_chain_run
 
   !> A relaxed step's relaxation as src/solver/relaxation_root searches it: the run it relaxes.
@@ -83,6 +95,28 @@ module spring_chain_relaxed_run
     procedure :: move
     procedure :: scaled_residual
   end type split_relaxation
+
+  interface
+    !> DOP853's error norm of the step of h just relaxed (src/solver/dop853_control), its sums
+    !> over the ranks (spring_chain_relaxed_control).
+    module subroutine step_error_norm(self, h, error_norm, ierr)
+      class(relaxed_chain_run), intent(inout) :: self
+      real(real64), intent(in) :: h
+      real(real64), intent(out) :: error_norm
+      PetscErrorCode, intent(out) :: ierr
+    end subroutine step_error_norm
+    !> An adaptive run's next trial step and record, for the resume record (distributed_system).
+    module subroutine resume_state(self, values)
+      class(relaxed_chain_run), intent(in) :: self
+      real(real64), allocatable, intent(out) :: values(:)
+    end subroutine resume_state
+    !> Takes back what resume_state gave, at `time` (distributed_system).
+    module subroutine restore_state(self, time, values, failure)
+      class(relaxed_chain_run), intent(inout) :: self
+      real(real64), intent(in) :: time, values(:)
+      type(failure_type), intent(out) :: failure
+    end subroutine restore_state
+  end interface
 
 contains
 
@@ -125,8 +159,18 @@ contains
     self%a = settings%stage_matrix
     self%b = settings%weights
     self%order = settings%order
+    self%adaptive = settings%embedded_weights
+    if (self%adaptive) then
+      self%e5 = settings%error_weights5
+      self%e3 = settings%error_weights3
+    end if
+    self%tolerance = settings%tolerance
+    self%t = 0.0_real64
+    self%t_end = settings%t_end
+    self%h_next = settings%dt
+    self%unknowns = size(z0)
     self%gamma_band = huge(1.0_real64)
-    if (settings%tolerance_given) self%gamma_band = gamma_band_factor* &
+    if (settings%tolerance_given .or. self%adaptive) self%gamma_band = gamma_band_factor* &
       settings%tolerance**(real(self%order - 1, real64)/real(self%order + 1, real64))
     self%run_rejections = 0
     self%run_halvings = 0
@@ -154,8 +198,9 @@ contains
   end subroutine create_vectors
 
   !> One step of dt from the state held, landing on t + dt: a relaxed step, or two halves of it,
-  !> recursively (distributed_system). A step that cannot be done keeps the state
-  !> (outcome%converged false, outcome%failure says why).
+  !> recursively; with embedded weights one accepted step of the controller's size instead
+  !> (distributed_system). A step that cannot be done keeps the state (outcome%converged false,
+  !> outcome%failure says why).
   subroutine step(self, dt, outcome, failure)
     class(relaxed_chain_run), intent(inout) :: self
     real(real64), intent(in) :: dt
@@ -163,6 +208,7 @@ contains
     type(failure_type), intent(out) :: failure
     PetscErrorCode :: ierr
     logical :: ok
+    real(real64) :: h
 
     self%attempts = 0
     self%rejections = 0
@@ -174,7 +220,14 @@ contains
     if (ierr == 0) call VecCopy(self%chain%x, self%step_start, ierr)
     call fail_on_code(failure, ierr, 'starting the chain''s relaxed step')
     if (failure%failed()) return
-    call step_or_halve(self, dt, 0, ok, failure)
+    if (self%adaptive) then
+      call adaptive_step(self, h, ok, failure)
+      outcome%chose_time = .true.
+      outcome%time = self%t
+      outcome%dt_taken = h
+    else
+      call step_or_halve(self, dt, 0, ok, failure)
+    end if
     if (failure%failed()) return
     outcome%converged = ok
     outcome%iterations = 0
@@ -216,6 +269,64 @@ contains
     call step_or_halve(self, 0.5_real64*h, depth + 1, ok, failure)
     if (ok .and. .not. failure%failed()) call step_or_halve(self, 0.5_real64*h, depth + 1, ok, failure)
   end subroutine step_or_halve
+
+  ! One accepted step of h from the state held at self%t, as the dense path's relaxed_step_control
+  ! takes it: h the next trial step, shortened to land on t_end or the next output time when it
+  ! (nearly) reaches it; a step relaxed but refused by the error norm is undone and retried
+  ! smaller, one without a relaxation root halved. ok = .false. after max_error_rejections, or
+  ! when h falls to round-off (last_failure says why).
+  subroutine adaptive_step(self, h, ok, failure)
+    class(relaxed_chain_run), intent(inout) :: self
+    real(real64), intent(out) :: h
+    logical, intent(out) :: ok
+    type(failure_type), intent(out) :: failure
+    real(real64) :: error_norm, landing_time, production, gamma, deviation
+    logical :: landing
+    integer :: tries
+    PetscErrorCode :: ierr
+
+    ok = .false.
+    h = self%h_next
+    landing_time = min(self%t_end, self%stop_time)
+    do tries = 1, max_error_rejections
+      landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time
+      if (landing) h = landing_time - self%t
+      production = self%entropy_production
+      gamma = self%last_gamma
+      deviation = self%max_gamma_deviation
+      call relaxed_step(self, h, ok, failure)
+      if (failure%failed()) return
+      if (ok) then
+        call step_error_norm(self, h, error_norm, ierr)
+        call fail_on_code(failure, ierr, 'the error norm of the chain''s relaxed step')
+        if (failure%failed()) return
+        if (error_norm <= 1.0_real64) then
+          if (.not. landing) self%h_next = h*accepted_step_factor(error_norm, tries > 1)
+          self%t = self%t + h
+          if (landing) self%t = landing_time
+          return
+        end if
+        ! Relaxed, but not accepted by the error test: undone, and retried smaller.
+        self%rejections = self%rejections + 1
+        ok = .false.
+        self%entropy_production = production
+        self%last_gamma = gamma
+        self%max_gamma_deviation = deviation
+        self%last_failure = 'the error norm '//scientific_text(error_norm)//' exceeded 1'
+        call VecCopy(self%start_state, self%chain%x, ierr)
+        call fail_on_code(failure, ierr, 'restoring the chain''s state after a rejected relaxed step')
+        if (failure%failed()) return
+        h = h*rejected_step_factor(error_norm)
+      else
+        self%rejections = self%rejections + 1
+        self%halvings = self%halvings + 1
+        h = 0.5_real64*h
+      end if
+      if (h <= 1.0e-14_real64*max(1.0_real64, abs(self%t))) exit
+    end do
+    self%last_failure = 'the adaptive step shrank below round-off or was rejected '//integer_text(max_error_rejections)// &
+                        ' times (last: '//self%last_failure//')'
+  end subroutine adaptive_step
 
   ! One relaxed step of h from the state held, committed when ok: the stages, d and e_S, the
   ! rounding floor and the conserved components at z (one sum over the ranks), then the

@@ -80,7 +80,6 @@ contains
     class(generic_model), intent(in) :: model
     type(chain_step_problem), intent(out) :: problem
     type(failure_type), intent(out) :: failure
-    character(len=:), allocatable :: reason
 
     select type (model)
     type is (spring_chain)
@@ -101,22 +100,20 @@ contains
       problem%rule = partials_midpoint
     case default
       if (allocated(settings%weights)) then
-        ! A relaxed Runge-Kutta tableau (spring_chain_relaxed_run): fixed-step explicit ones only.
-        if (settings%embedded_weights .or. settings%implicit_stages) then
-          reason = 'its implicit stages need a Newton solve of all its stages over the split state, which is not built'
-          if (settings%embedded_weights) reason = 'it chooses its own steps (embedded weights), which the split '// &
-                                                  'time loop, stepping to n dt, does not take yet'
+        ! A relaxed Runge-Kutta tableau (spring_chain_relaxed_run): explicit ones only.
+        if (settings%implicit_stages) then
           call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, '// &
-                    'distributed path has no '''//trim(settings%scheme)//''': '//reason//'; allowed: the fixed-step '// &
-                    'explicit relaxed schemes (relaxed_rk4, relaxed_rk8), ''eme'', ''midpoint'' and the PETSc TS '// &
-                    'integrators', 'scheme')
+                    'distributed path has no '''//trim(settings%scheme)//''': its implicit stages need a Newton '// &
+                    'solve of all its stages over the split state, which is not built; allowed: the explicit '// &
+                    'relaxed schemes (relaxed_rk4, relaxed_rk8, relaxed_dp853), ''eme'', ''midpoint'' and the PETSc '// &
+                    'TS integrators', 'scheme')
           return
         end if
       else if (.not. any(settings%scheme == ts_schemes)) then
         call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
                   'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
-                  'process); allowed: ''eme'', ''midpoint'', the fixed-step explicit relaxed schemes (relaxed_rk4, '// &
-                  'relaxed_rk8) and the PETSc TS integrators ''ts_midpoint'', ''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', &
+                  'process); allowed: ''eme'', ''midpoint'', the explicit relaxed schemes (relaxed_rk4, '// &
+                  'relaxed_rk8, relaxed_dp853) and the PETSc TS integrators ''ts_midpoint'', ''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', &
                   'scheme')
         return
       end if

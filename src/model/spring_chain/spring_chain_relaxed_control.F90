@@ -1,0 +1,75 @@
+!> relaxed_dp853's step control on the chain split over ranks (spring_chain_relaxed_run's adaptive
+!> steps): DOP853's error norm with each rank's sums over its rows added by MPI_Allreduce (the same
+!> on every rank, independent of the rank count up to the rounding of that sum), and what a
+!> continued run needs to go on bit for bit: the next trial step and the record behind the
+!> accuracy warnings.
+#include <petsc/finclude/petscdmda.h>
+submodule (spring_chain_relaxed_run) spring_chain_relaxed_control
+  use failures, only: failure_mismatch
+  use dop853_control, only: error_squares, dop853_error_norm
+  implicit none
+
+contains
+
+  ! err5 and err3 from the estimates sum_i e5_i k_i and sum_i e3_i k_i (in the stage and direction
+  ! vectors, free once the step is relaxed), the step's start and its relaxed end.
+  module procedure step_error_norm
+    real(real64), pointer :: estimate5(:), estimate3(:), z(:), z_new(:)
+    real(real64) :: squares(2)
+    MPI_Comm :: comm
+    integer :: i, rows
+
+    error_norm = huge(1.0_real64)
+    PetscCall(VecSet(self%stage, 0.0_real64, ierr))
+    PetscCall(VecSet(self%direction, 0.0_real64, ierr))
+    do i = 1, size(self%e5)
+      if (abs(self%e5(i)) > 0.0_real64) then
+        PetscCall(VecAXPY(self%stage, self%e5(i), self%k(i), ierr))
+      end if
+      if (abs(self%e3(i)) > 0.0_real64) then
+        PetscCall(VecAXPY(self%direction, self%e3(i), self%k(i), ierr))
+      end if
+    end do
+    rows = self%chain%context%last_row - self%chain%context%first_row + 1
+    PetscCall(borrow_read(self%stage, rows, estimate5, ierr))
+    PetscCall(borrow_read(self%direction, rows, estimate3, ierr))
+    PetscCall(borrow_read(self%start_state, rows, z, ierr))
+    PetscCall(borrow_read(self%chain%x, rows, z_new, ierr))
+    squares = error_squares(self%tolerance, estimate5, estimate3, z, z_new)
+    PetscCall(give_back_read(self%chain%x, z_new, ierr))
+    PetscCall(give_back_read(self%start_state, z, ierr))
+    PetscCall(give_back_read(self%direction, estimate3, ierr))
+    PetscCall(give_back_read(self%stage, estimate5, ierr))
+    PetscCall(PetscObjectGetComm(self%chain%context%da, comm, ierr))
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, squares, 2, MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
+    error_norm = dop853_error_norm(h, squares, self%unknowns)
+  end procedure step_error_norm
+
+  ! [h_next, run_rejections, run_halvings, max_gamma_deviation] of an adaptive run; none for the
+  ! fixed-step schemes, whose steps the time loop gives.
+  module procedure resume_state
+    if (.not. self%adaptive) then
+      allocate (values(0))
+      return
+    end if
+    values = [self%h_next, real(self%run_rejections, real64), real(self%run_halvings, real64), self%max_gamma_deviation]
+  end procedure resume_state
+
+  module procedure restore_state
+    real(real64), allocatable :: expected(:)
+
+    call self%resume_state(expected)
+    if (size(values) /= size(expected)) then
+      call fail(failure, failure_mismatch, 'the stored step control ('//integer_text(size(values))//' values) does '// &
+                'not fit this run''s ('//integer_text(size(expected))//')', 'relaxed_chain_run%restore_state')
+      return
+    end if
+    self%t = time
+    if (.not. self%adaptive) return
+    self%h_next = values(1)
+    self%run_rejections = nint(values(2))
+    self%run_halvings = nint(values(3))
+    self%max_gamma_deviation = values(4)
+  end procedure restore_state
+
+end submodule spring_chain_relaxed_control
