@@ -17,6 +17,13 @@ module hand_newton
   implicit none (type, external)
   private
   public :: newton_loop, newton_settings, newton_outcome, newton_iterate
+  public :: ending_converged, ending_iterations, ending_step_domain, ending_other
+
+  !> How newton_iterate ended: converged; at the iteration limit; a full step (a Newton step, or a
+  !> chord step taken again as one) whose residual lies outside the domain, which the lean SNES's
+  !> shell line search reports as its failure; anything else (the start outside the domain, a
+  !> Jacobian outside it or a zero pivot at an iteration's start, a residual norm not finite).
+  integer, parameter :: ending_converged = 0, ending_iterations = 1, ending_step_domain = 2, ending_other = 3
 
   !> What one run of the iteration is told: the convergence test's tolerances (retry_strategies'
   !> newton_converged: update_tolerance > 0 adds |dx| <= update_tolerance |x|), the iteration
@@ -32,9 +39,10 @@ module hand_newton
   !> What one run of the iteration did.
   type :: newton_outcome
     logical :: converged = .false.
-    integer :: iterations = 0
+    integer :: ending = ending_other
+    integer :: iterations = 0                          !! begun (with a failed step: the completed ones + 1)
     integer :: factorizations = 0
-    real(real64) :: residual_norm = huge(1.0_real64)   !! at the last iterate (as SNES's function norm)
+    real(real64) :: residual_norm = huge(1.0_real64)   !! at the last iterate accepted (as SNES's function norm)
   end type newton_outcome
 
   !> The loop's tolerance, iteration limit, switches and LU factors with their record.
@@ -109,7 +117,7 @@ contains
     real(real64) :: residual(size(initial)), update(size(initial)), trial(size(initial)), trial_residual(size(initial))
     real(real64) :: residual_norm, previous_residual, update_norm, state_scale, residual_scale, step_length
     integer :: info, stat
-    logical :: chord_taken, refactor
+    logical :: chord_taken, refactor, retrying
 
     root = initial
     chord_taken = .false.
@@ -134,27 +142,38 @@ contains
                                        update_norm)
         refactor = .not. chord_taken
       end if
+      retrying = .false.
       do
         if (refactor) then
           call problem%evaluate_jacobian(root, lu%factors, stat)
           lu%ready = .false.
-          if (stat /= 0) return
-          call lu%factor_in_place(info)
-          outcome%factorizations = outcome%factorizations + 1
-          if (info /= 0) return
+          info = 0
+          if (stat == 0) then
+            call lu%factor_in_place(info)
+            outcome%factorizations = outcome%factorizations + 1
+          end if
+          if (stat /= 0 .or. info /= 0) then
+            ! In the shell: the retried step's line search fails; at the iteration's start the PC.
+            if (retrying) outcome%ending = ending_step_domain
+            return
+          end if
           call reuse%factored()
         else
           call reuse%kept()
         end if
         update = residual
         call lu%solve(update, info)
-        if (info /= 0) return
+        if (info /= 0 .and. .not. retrying) return
         trial = root - update
         call problem%evaluate_residual(trial, trial_residual, stat)
         if (stat == 0) exit
         ! A chord step outside the domain is taken again as a Newton step from the same iterate.
-        if (refactor .or. .not. reuse%enabled) return
+        if (refactor .or. .not. reuse%enabled) then
+          outcome%ending = ending_step_domain
+          return
+        end if
         refactor = .true.
+        retrying = .true.
       end do
       root = trial
       residual = trial_residual
@@ -168,6 +187,7 @@ contains
                                           settings%tolerance, settings%update_tolerance, state_scale, residual_scale, &
                                           step_length, previous_residual)
     end do
+    outcome%ending = merge(ending_converged, ending_iterations, outcome%converged)
   end subroutine newton_iterate
 
   !> The chord refinement of a predictor with the last factors, as the SNES solver's.

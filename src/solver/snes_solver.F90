@@ -26,8 +26,12 @@
 !>    system of 9 unknowns cost as much as the residuals (docs/performance.md, Issue 42). The
 !>    iterates, tests, factors and counts are the lean way's, bit for bit (the residual norms are
 !>    the shell's two_norm in both; SNES's own VecNorm of the first residual enters no test that
-!>    can fire at iteration 1); a solve the direct way does not converge is solved again by
-!>    SNESSolve from the same start, so that a failure's reason and residual are PETSc's.
+!>    can fire at iteration 1). A solve that fails the direct way ends as SNES's would: at the
+!>    iteration limit DIVERGED_MAX_IT; on a full step outside the domain after at least one
+!>    iteration DIVERGED_LOCAL_MIN (the shell line search fails, and NEWTONLS's check of J^T F
+!>    reads the lean way's operator, which stays zero); any other failure (the start or a
+!>    Jacobian outside the domain, a zero pivot, a step at the first iteration, whose residual
+!>    SNES measured with its own norm) is solved again by SNESSolve from the same start.
 !>  - standard: SNESComputeJacobian calls form_jacobian, PCSetUp factors the matrix (read without
 !>    changing its state, so once per iteration), the line search is PETSc's. Taken when an
 !>    option needs SNES's own Jacobian (-snes_test_jacobian, -snes_compare_*, -snes_mf*,
@@ -43,7 +47,7 @@ module snes_solver
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: root_finder, chord_refinement, rounding_factor
-  use hand_newton, only: newton_iterate, newton_settings, newton_outcome
+  use hand_newton, only: newton_iterate, newton_settings, newton_outcome, ending_iterations, ending_step_domain
   use euclidean_norm, only: two_norm
   use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
@@ -157,28 +161,29 @@ contains
     integer, intent(out) :: iterations
     type(failure_type), intent(out) :: failure
     PetscErrorCode :: ierr
+    logical :: decided
 
     if (self%direct_way()) then
-      call solve_direct(self, problem, initial, root, converged, iterations)
-      if (converged) then
-        reason = ''
-        return
-      end if
+      call solve_direct(self, problem, initial, root, converged, reason, iterations, decided)
+      if (decided) return
     end if
     call solve_petsc(self, problem, initial, root, converged, reason, iterations, ierr)
     call fail_on_code(failure, ierr, 'newton_solver%solve', 'PETSc failed in SNESSolve')
   end subroutine solve
 
   ! One solve the direct way (module header): newton_iterate on the shell's LU factors and record,
-  ! with the lean SNES's settings; converged, it reports what SNES would (CONVERGED_FNORM_ABS, the
-  ! last residual norm, the iterations and the factorizations).
-  subroutine solve_direct(self, problem, initial, root, converged, iterations)
+  ! with the lean SNES's settings; `decided` when it ended as SNES would report it (converged:
+  ! CONVERGED_FNORM_ABS; DIVERGED_MAX_IT; DIVERGED_LOCAL_MIN), with SNES's reason, residual norm,
+  ! iteration count and factorizations; otherwise SNESSolve must solve it again.
+  subroutine solve_direct(self, problem, initial, root, converged, reason, iterations, decided)
     class(newton_solver), intent(inout) :: self
     class(nonlinear_system), intent(inout), target :: problem
     real(real64), intent(in) :: initial(:)
     real(real64), intent(out) :: root(:)
     logical, intent(out) :: converged
+    character(len=:), allocatable, intent(out) :: reason
     integer, intent(out) :: iterations
+    logical, intent(out) :: decided
     type(newton_outcome) :: outcome
 
     self%context%problem => problem
@@ -191,9 +196,21 @@ contains
     self%context%factorizations = self%context%factorizations + outcome%factorizations
     converged = outcome%converged
     iterations = outcome%iterations
-    if (.not. converged) return
-    self%last_reason = int(SNES_CONVERGED_FNORM_ABS)
+    reason = ''
+    decided = .true.
     self%last_residual_norm = outcome%residual_norm
+    if (converged) then
+      self%last_reason = int(SNES_CONVERGED_FNORM_ABS)
+    else if (outcome%ending == ending_iterations) then
+      self%last_reason = int(SNES_DIVERGED_MAX_IT)
+      reason = 'Newton did not converge: DIVERGED_MAX_IT'
+    else if (outcome%ending == ending_step_domain .and. outcome%iterations >= 2) then
+      self%last_reason = int(SNES_DIVERGED_LOCAL_MIN)
+      reason = 'Newton did not converge: DIVERGED_LOCAL_MIN'
+      iterations = outcome%iterations - 1      ! SNES counts the iterations completed
+    else
+      decided = .false.
+    end if
   end subroutine solve_direct
 
   !> Switches to the fallback line search, or back to the primary one; a failure if PETSc fails.

@@ -45,3 +45,20 @@ def test_snes_options_keep_snes(tmp_path, eme_run_binary, options):
     result, path = run_eme(tmp_path, "option", {"integrator": {"t_end": 0.3}}, *options)
     assert result.returncode == 0, result.stderr
     assert read_run(path)["attrs"]["solver_eme_direct_newton"] == "false"
+
+
+@pytest.mark.parametrize("variable", ["entropy", "internal_energy"])
+def test_a_failed_run_fails_as_through_snes(tmp_path, eme_run_binary, variable):
+    # Without halving the stiff scene stops at a step no strategy solves: the solves' failures
+    # (DIVERGED_MAX_IT and DIVERGED_LOCAL_MIN decided the direct way, the others by SNES again)
+    # give the same message and the same file.
+    scene = {**STIFF, "integrator": {**STIFF["integrator"], "thermo_variable": variable}}
+    runs, messages = {}, {}
+    for name, options in (("direct", []), ("snes", ["-eme_direct_newton", "false"])):
+        result, path = run_eme(tmp_path, name, scene, "-eme_max_halvings", "0", *options)
+        assert result.returncode == 3 and "no root" in result.stderr, result.stderr
+        messages[name] = [line.replace(str(path), "FILE") for line in result.stderr.splitlines() if "no root" in line]
+        runs[name] = read_run(path if path.exists() else path.with_name(path.name + ".part"))
+    assert messages["direct"] == messages["snes"] and messages["direct"]
+    for name in set(runs["direct"]) - TIMED - {"attrs"}:
+        np.testing.assert_array_equal(runs["direct"][name], runs["snes"][name], err_msg=name, strict=True)
