@@ -36,7 +36,7 @@ static const eme_option options[OPTION_COUNT] = {
      "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a full-step shell line search, "
      "unless options need SNES's own Jacobian",
      LOGICAL, 0, 0},
-    {"-eme_direct_newton", "<true>",
+    {"-eme_direct_newton", "<false>",
      "Run the lean SNES's Newton iteration (the same iterates, tests and LU factors) without SNESSolve, unless an "
      "-snes_, -ksp_, -pc_, -info or -log_ option is given; a solve that does not converge is solved again by SNES",
      LOGICAL, 0, 0},

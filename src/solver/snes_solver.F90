@@ -19,9 +19,9 @@
 !>    it computed; the modified Newton needs it (PETSc's line searches select a new Jacobian every
 !>    iteration). SNES's viewer lookups are switched off around SNESSolve when no option asks for a
 !>    viewer.
-!>  - direct (the default where the lean way is taken with its full-step shell and no option asks
-!>    anything of SNES, KSP or PC: none whose name holds -snes_, -ksp_, -pc_, -info or -log_;
-!>    -eme_direct_newton false switches it off): the lean way's iteration run by hand_newton's
+!>  - direct (opt-in, -eme_direct_newton true, where the lean way is taken with its full-step shell
+!>    and no option asks anything of SNES, KSP or PC: none whose name holds -snes_, -ksp_, -pc_,
+!>    -info or -log_; by default SNES solves each step, as the project's design has it): the lean way's iteration run by hand_newton's
 !>    newton_iterate on the same LU factors, without SNESSolve, whose machinery around a dense
 !>    system of 9 unknowns cost as much as the residuals (docs/performance.md, Issue 42). The
 !>    iterates, tests, factors and counts are the lean way's, bit for bit (the residual norms are

@@ -7,8 +7,8 @@
 !>                                fused, condensed step (src/scheme/condensed_step), where it has one
 !>   -eme_lean_snes false         SNES builds the Jacobian (SNESComputeJacobian) and takes its
 !>                                'basic' line search
-!>   -eme_direct_newton false     the lean way's iteration inside SNESSolve instead of by hand
-!>                                (src/solver/hand_newton's newton_iterate, the same iterates)
+!>   -eme_direct_newton true      the lean way's iteration by hand (src/solver/hand_newton's
+!>                                newton_iterate, the same iterates) instead of inside SNESSolve
 !>   -eme_modified_newton false   a new Jacobian for every Newton iteration (but the final chord
 !>                                step) instead of keeping the LU factors while they contract
 !>   -eme_final_chord false       (with -eme_modified_newton false) not even the final chord step
@@ -34,7 +34,7 @@ module solver_options
     logical :: chord_predictor = .true.
     logical :: fused_kernel = .true.
     logical :: lean_snes = .true.
-    logical :: direct_newton = .true.
+    logical :: direct_newton = .false.
     logical :: final_chord = .true.
     logical :: modified_newton = .true.
     integer :: chord_iterations = default_chord_iterations

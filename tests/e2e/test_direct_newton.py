@@ -1,4 +1,4 @@
-"""The direct way of the step solver (src/solver/snes_solver, -eme_direct_newton, default true):
+"""The direct way of the step solver (src/solver/snes_solver, -eme_direct_newton true; SNESSolve by default):
 EME's lean Newton iteration run by src/solver/hand_newton's newton_iterate without SNESSolve. It
 must be SNESSolve's lean way bit for bit (the same iterates, tests and LU factors), and a solve it
 does not converge is solved again by SNES, so that a failure's reason and residual are PETSc's:
@@ -22,7 +22,7 @@ TIMED = {"step_seconds"}     # wall time, the only dataset that may differ
 @pytest.mark.parametrize("scene", [PAPER, MIDPOINT, STIFF], ids=["paper_eme_theta", "midpoint_entropy", "stiff_halved"])
 def test_direct_way_is_snes_bit_for_bit(tmp_path, eme_run_binary, scene):
     runs = {}
-    for name, options in (("direct", []), ("snes", ["-eme_direct_newton", "false"])):
+    for name, options in (("direct", ["-eme_direct_newton", "true"]), ("snes", [])):
         result, path = run_eme(tmp_path, name, scene, *options)
         assert result.returncode == 0, result.stderr
         runs[name] = read_run(path)
@@ -42,7 +42,7 @@ def test_direct_way_is_snes_bit_for_bit(tmp_path, eme_run_binary, scene):
 @pytest.mark.parametrize("options", [["-snes_max_it", "50"], ["-ksp_type", "preonly"], ["-snes_monitor"],
                                      ["-eme_lean_snes", "false"]], ids=["snes", "ksp", "monitor", "not_lean"])
 def test_snes_options_keep_snes(tmp_path, eme_run_binary, options):
-    result, path = run_eme(tmp_path, "option", {"integrator": {"t_end": 0.3}}, *options)
+    result, path = run_eme(tmp_path, "option", {"integrator": {"t_end": 0.3}}, "-eme_direct_newton", "true", *options)
     assert result.returncode == 0, result.stderr
     assert read_run(path)["attrs"]["solver_eme_direct_newton"] == "false"
 
@@ -54,7 +54,7 @@ def test_a_failed_run_fails_as_through_snes(tmp_path, eme_run_binary, variable):
     # give the same message and the same file.
     scene = {**STIFF, "integrator": {**STIFF["integrator"], "thermo_variable": variable}}
     runs, messages = {}, {}
-    for name, options in (("direct", []), ("snes", ["-eme_direct_newton", "false"])):
+    for name, options in (("direct", ["-eme_direct_newton", "true"]), ("snes", [])):
         result, path = run_eme(tmp_path, name, scene, "-eme_max_halvings", "0", *options)
         assert result.returncode == 3 and "no root" in result.stderr, result.stderr
         messages[name] = [line.replace(str(path), "FILE") for line in result.stderr.splitlines() if "no root" in line]
