@@ -27,12 +27,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 # The fast subset of make check: the paper scene's structure, bad input and the command line, the
 # file layout and provenance, the reference docs' tables, adaptive steps, the step rows, a one-rank
-# study, the structure file's statements, the layers, and the scripts on synthetic files. The slow ones (kills,
+# study, the structure file's statements, the layers, the scripts on synthetic files, and the step
+# solver's direct way against SNESSolve. The slow ones (kills,
 # signals, studies, convergence, and the drawings: QUICK_SELECTION) are left to make test.
 QUICK_TESTS = ["tests/e2e/test_paper_scene.py", "tests/e2e/test_bad_input.py", "tests/e2e/test_command_line.py",
                "tests/e2e/test_output_schema.py", "tests/e2e/test_docs_tables.py", "tests/e2e/test_structure_figure.py",
                "tests/architecture/test_layers.py", "tests/e2e/test_conformance_steps.py",
-               "tests/postprocess/test_trajectory.py",
+               "tests/postprocess/test_trajectory.py", "tests/e2e/test_direct_newton.py",
                "tests/e2e/test_adaptive.py::test_rejected_steps_are_never_written_and_the_run_lands_on_t_end",
                # the step rows: an integrator's diagnostics, rows that stand for several steps, a study
                "tests/e2e/test_adaptive.py::test_gamma_outside_its_band_is_a_rejected_step",

@@ -21,7 +21,7 @@ typedef struct {
 
 /* The step solver's options (docs/integrators.md), then the run's (docs/running.md). */
 enum {
-    CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, FINAL_CHORD, MODIFIED_NEWTON, CHORD_ITERATIONS, MAX_HALVINGS,
+    CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, DIRECT_NEWTON, FINAL_CHORD, MODIFIED_NEWTON, CHORD_ITERATIONS, MAX_HALVINGS,
     ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE, CONTINUE, OPTION_COUNT
 };
 static const eme_option options[OPTION_COUNT] = {
@@ -35,6 +35,10 @@ static const eme_option options[OPTION_COUNT] = {
     {"-eme_lean_snes", "<true>",
      "Build the Jacobian and its LU inside the shell preconditioner (lag -1) with a full-step shell line search, "
      "unless options need SNES's own Jacobian",
+     LOGICAL, 0, 0},
+    {"-eme_direct_newton", "<false>",
+     "Run the lean SNES's Newton iteration (the same iterates, tests and LU factors) without SNESSolve, unless an "
+     "-snes_, -ksp_, -pc_, -info or -log_ option is given; a solve that does not converge is solved again by SNES",
      LOGICAL, 0, 0},
     {"-eme_final_chord", "<true>",
      "Confirm a root whose residual is below tolerance after a small update with the existing LU factors instead "
@@ -161,12 +165,13 @@ static PetscErrorCode bool_option(PetscOptionItems *PetscOptionsObject, int whic
     PetscFunctionReturn(0);
 }
 
-/* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes, -eme_final_chord and
- * -eme_modified_newton into the five flags (0 or 1), -eme_chord_iterations into *chord_iterations
+/* Reads -eme_chord_predictor, -eme_fused_kernel, -eme_lean_snes, -eme_direct_newton, -eme_final_chord
+ * and -eme_modified_newton into the six flags (0 or 1), -eme_chord_iterations into *chord_iterations
  * (1 to 10) and -eme_max_halvings into *max_halvings (0 to 30); their values on entry are the
  * defaults. Returns a PETSc error code (PETSC_ERR_ARG_OUTOFRANGE for a number out of its range). */
-PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *final_chord,
-                                       int *modified_newton, int *chord_iterations, int *max_halvings)
+PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, int *lean_snes, int *direct_newton,
+                                       int *final_chord, int *modified_newton, int *chord_iterations,
+                                       int *max_halvings)
 {
     PetscInt depth = *max_halvings, chords = *chord_iterations;
     const char *section = "docs/integrators.md";
@@ -176,6 +181,7 @@ PetscErrorCode eme_read_solver_options(int *chord_predictor, int *fused_kernel, 
     PetscCall(bool_option(PetscOptionsObject, CHORD_PREDICTOR, section, chord_predictor, NULL));
     PetscCall(bool_option(PetscOptionsObject, FUSED_KERNEL, section, fused_kernel, NULL));
     PetscCall(bool_option(PetscOptionsObject, LEAN_SNES, section, lean_snes, NULL));
+    PetscCall(bool_option(PetscOptionsObject, DIRECT_NEWTON, section, direct_newton, NULL));
     PetscCall(bool_option(PetscOptionsObject, FINAL_CHORD, section, final_chord, NULL));
     PetscCall(bool_option(PetscOptionsObject, MODIFIED_NEWTON, section, modified_newton, NULL));
     PetscCall(PetscOptionsInt(options[CHORD_ITERATIONS].name, options[CHORD_ITERATIONS].help, section, chords, &chords,

@@ -8,7 +8,7 @@
 !> different units, and backtracking on its 2-norm can stall where full steps converge; the
 !> fallback is 'bt' (or 'basic' if the command line chose 'bt').
 !>
-!> Two ways to drive SNES (docs/performance.md):
+!> Two ways to drive SNES (docs/performance.md), and one without it:
 !>  - lean (the default): SNES never computes a Jacobian (SNESSetLagJacobian -1). The shell
 !>    preconditioner evaluates it at SNES's current iterate and factors it when it is applied,
 !>    whenever the modified Newton (src/solver/modified_newton) finds the factors it has no
@@ -19,6 +19,19 @@
 !>    it computed; the modified Newton needs it (PETSc's line searches select a new Jacobian every
 !>    iteration). SNES's viewer lookups are switched off around SNESSolve when no option asks for a
 !>    viewer.
+!>  - direct (opt-in, -eme_direct_newton true, where the lean way is taken with its full-step shell
+!>    and no option asks anything of SNES, KSP or PC: none whose name holds -snes_, -ksp_, -pc_,
+!>    -info or -log_; by default SNES solves each step, as the project's design has it): the lean way's iteration run by hand_newton's
+!>    newton_iterate on the same LU factors, without SNESSolve, whose machinery around a dense
+!>    system of 9 unknowns cost as much as the residuals (docs/performance.md, Issue 42). The
+!>    iterates, tests, factors and counts are the lean way's, bit for bit (the residual norms are
+!>    the shell's two_norm in both; SNES's own VecNorm of the first residual enters no test that
+!>    can fire at iteration 1). A solve that fails the direct way ends as SNES's would: at the
+!>    iteration limit DIVERGED_MAX_IT; on a full step outside the domain after at least one
+!>    iteration DIVERGED_LOCAL_MIN (the shell line search fails, and NEWTONLS's check of J^T F
+!>    reads the lean way's operator, which stays zero); any other failure (the start or a
+!>    Jacobian outside the domain, a zero pivot, a step at the first iteration, whose residual
+!>    SNES measured with its own norm) is solved again by SNESSolve from the same start.
 !>  - standard: SNESComputeJacobian calls form_jacobian, PCSetUp factors the matrix (read without
 !>    changing its state, so once per iteration), the line search is PETSc's. Taken when an
 !>    option needs SNES's own Jacobian (-snes_test_jacobian, -snes_compare_*, -snes_mf*,
@@ -34,6 +47,7 @@ module snes_solver
   use, intrinsic :: iso_fortran_env, only: real64
   use nonlinear_problem, only: nonlinear_system
   use retry_strategies, only: root_finder, chord_refinement, rounding_factor
+  use hand_newton, only: newton_iterate, newton_settings, newton_outcome, ending_iterations, ending_step_domain
   use euclidean_norm, only: two_norm
   use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
@@ -66,6 +80,7 @@ module snes_solver
     logical :: shell_line_search = .false.          !! the full-step shell instead of 'basic'
     logical :: shell_in_use = .false.               !! the line search now is the shell
     logical :: quiet = .false.                      !! no option asks for a viewer
+    logical :: direct = .false.                     !! the direct way (module header) where the shell is in use
     character(len=16) :: line_search = ''           !! the primary line search type
     character(len=16) :: fallback_line_search = ''  !! the retry strategies' fallback
     real(real64) :: last_residual_norm = 0.0_real64   !! of the last solve, as SNES's convergence test saw it
@@ -77,6 +92,7 @@ module snes_solver
     procedure :: refine
     procedure :: use_fallback
     procedure :: lean
+    procedure :: direct_way
     procedure :: keeps_factors
     procedure :: factorizations
     procedure :: describe
@@ -145,10 +161,57 @@ contains
     integer, intent(out) :: iterations
     type(failure_type), intent(out) :: failure
     PetscErrorCode :: ierr
+    logical :: decided
 
+    if (self%direct_way()) then
+      call solve_direct(self, problem, initial, root, converged, reason, iterations, decided)
+      if (decided) return
+    end if
     call solve_petsc(self, problem, initial, root, converged, reason, iterations, ierr)
     call fail_on_code(failure, ierr, 'newton_solver%solve', 'PETSc failed in SNESSolve')
   end subroutine solve
+
+  ! One solve the direct way (module header): newton_iterate on the shell's LU factors and record,
+  ! with the lean SNES's settings; `decided` when it ended as SNES would report it (converged:
+  ! CONVERGED_FNORM_ABS; DIVERGED_MAX_IT; DIVERGED_LOCAL_MIN), with SNES's reason, residual norm,
+  ! iteration count and factorizations; otherwise SNESSolve must solve it again.
+  subroutine solve_direct(self, problem, initial, root, converged, reason, iterations, decided)
+    class(newton_solver), intent(inout) :: self
+    class(nonlinear_system), intent(inout), target :: problem
+    real(real64), intent(in) :: initial(:)
+    real(real64), intent(out) :: root(:)
+    logical, intent(out) :: converged
+    character(len=:), allocatable, intent(out) :: reason
+    integer, intent(out) :: iterations
+    logical, intent(out) :: decided
+    type(newton_outcome) :: outcome
+
+    self%context%problem => problem
+    call newton_iterate(problem, initial, newton_settings(tolerance=self%context%tolerance, &
+                                                          update_tolerance=self%context%update_tolerance, &
+                                                          max_iterations=self%max_iterations, &
+                                                          modified_newton=self%keeps_factors(), &
+                                                          final_chord=self%context%final_chord), &
+                        self%context%lu, self%context%reuse, root, outcome)
+    self%context%factorizations = self%context%factorizations + outcome%factorizations
+    converged = outcome%converged
+    iterations = outcome%iterations
+    reason = ''
+    decided = .true.
+    self%last_residual_norm = outcome%residual_norm
+    if (converged) then
+      self%last_reason = int(SNES_CONVERGED_FNORM_ABS)
+    else if (outcome%ending == ending_iterations) then
+      self%last_reason = int(SNES_DIVERGED_MAX_IT)
+      reason = 'Newton did not converge: DIVERGED_MAX_IT'
+    else if (outcome%ending == ending_step_domain .and. outcome%iterations >= 2) then
+      self%last_reason = int(SNES_DIVERGED_LOCAL_MIN)
+      reason = 'Newton did not converge: DIVERGED_LOCAL_MIN'
+      iterations = outcome%iterations - 1      ! SNES counts the iterations completed
+    else
+      decided = .false.
+    end if
+  end subroutine solve_direct
 
   !> Switches to the fallback line search, or back to the primary one; a failure if PETSc fails.
   subroutine use_fallback(self, on, failure)
@@ -261,6 +324,8 @@ contains
     character(len=*), parameter :: jacobian_options(*) = [character(len=20) :: '-snes_test_jacobian', &
       '-snes_compare', '-snes_mf', '-snes_fd', '-snes_lag_jacobian', '-pc_type', '-ksp_type']
     character(len=*), parameter :: viewer_options(*) = [character(len=8) :: 'view', 'reason', 'monitor', 'draw']
+    character(len=*), parameter :: solver_options_seen(*) = [character(len=6) :: '-snes_', '-ksp_', '-pc_', '-info', &
+                                                             '-log_']
 
     self%n = n
     self%newton_tol = newton_tol
@@ -339,6 +404,13 @@ contains
       PetscCall(option_given(trim(viewer_options(k)), given, ierr))
       self%quiet = self%quiet .and. .not. given
     end do
+    ! The direct way only where SNES, KSP and PC would do nothing that the lean way does not.
+    self%direct = self%options%direct_newton .and. self%context%lean .and. self%shell_line_search .and. self%quiet
+    do k = 1, size(solver_options_seen)
+      if (.not. (self%from_options .and. self%direct)) exit
+      PetscCall(option_given(trim(solver_options_seen(k)), given, ierr))
+      self%direct = .not. given
+    end do
   end subroutine create
 
   ! The line search `kind`: the full-step shell stands in for 'basic' when the solver is lean and
@@ -378,6 +450,14 @@ contains
 
     lean = self%context%lean
   end function lean
+
+  !> Whether the next solve is taken the direct way (module header): chosen at set-up, and the
+  !> lean way's full-step shell is in use (not the retry strategies' fallback line search).
+  logical function direct_way(self)
+    class(newton_solver), intent(in) :: self
+
+    direct_way = self%direct .and. self%shell_in_use
+  end function direct_way
 
   !> Whether the lean way keeps its LU factors while they contract (module header), where its
   !> full-step line search is in use.
@@ -424,6 +504,7 @@ contains
     call add_setting(report, text_setting('eme_lean_snes', merge('true ', 'false', self%context%lean)))
     call add_setting(report, text_setting('eme_final_chord', merge('true ', 'false', self%context%final_chord)))
     call add_setting(report, text_setting('eme_modified_newton', merge('true ', 'false', self%keeps_factors())))
+    call add_setting(report, text_setting('eme_direct_newton', merge('true ', 'false', self%direct)))
     call add_setting(report, integer_setting('eme_chord_iterations', self%context%reuse%chord_iterations))
     call add_setting(report, text_setting('eme_chord_predictor', merge('true ', 'false', self%options%chord_predictor)))
   end subroutine describe_petsc

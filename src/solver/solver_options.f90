@@ -7,6 +7,8 @@
 !>                                fused, condensed step (src/scheme/condensed_step), where it has one
 !>   -eme_lean_snes false         SNES builds the Jacobian (SNESComputeJacobian) and takes its
 !>                                'basic' line search
+!>   -eme_direct_newton true      the lean way's iteration by hand (src/solver/hand_newton's
+!>                                newton_iterate, the same iterates) instead of inside SNESSolve
 !>   -eme_modified_newton false   a new Jacobian for every Newton iteration (but the final chord
 !>                                step) instead of keeping the LU factors while they contract
 !>   -eme_final_chord false       (with -eme_modified_newton false) not even the final chord step
@@ -32,6 +34,7 @@ module solver_options
     logical :: chord_predictor = .true.
     logical :: fused_kernel = .true.
     logical :: lean_snes = .true.
+    logical :: direct_newton = .false.
     logical :: final_chord = .true.
     logical :: modified_newton = .true.
     integer :: chord_iterations = default_chord_iterations
@@ -39,11 +42,12 @@ module solver_options
   end type step_solver_options
 
   interface
-    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, final_chord, modified_newton, &
-                                     chord_iterations, max_halvings) bind(C, name='eme_read_solver_options') result(ierr)
+    function eme_read_solver_options(chord_predictor, fused_kernel, lean_snes, direct_newton, final_chord, &
+                                     modified_newton, chord_iterations, max_halvings) &
+      bind(C, name='eme_read_solver_options') result(ierr)
       import :: c_int
-      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, final_chord, modified_newton, &
-                                       chord_iterations, max_halvings
+      integer(c_int), intent(inout) :: chord_predictor, fused_kernel, lean_snes, direct_newton, final_chord, &
+                                       modified_newton, chord_iterations, max_halvings
       integer(c_int) :: ierr
     end function eme_read_solver_options
 
@@ -79,20 +83,21 @@ contains
   subroutine read_solver_options(options, failure)
     type(step_solver_options), intent(out) :: options
     type(failure_type), intent(out) :: failure
-    integer(c_int) :: flags(5), depth, chords
+    integer(c_int) :: flags(6), depth, chords
     integer :: ierr
 
     flags = merge(1_c_int, 0_c_int, [options%chord_predictor, options%fused_kernel, options%lean_snes, &
-                                     options%final_chord, options%modified_newton])
+                                     options%final_chord, options%modified_newton, options%direct_newton])
     depth = int(options%max_halvings, c_int)
     chords = int(options%chord_iterations, c_int)
-    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(4), flags(5), chords, depth))
+    ierr = int(eme_read_solver_options(flags(1), flags(2), flags(3), flags(6), flags(4), flags(5), chords, depth))
     options%max_halvings = int(depth)
     options%chord_predictor = flags(1) /= 0
     options%fused_kernel = flags(2) /= 0
     options%lean_snes = flags(3) /= 0
     options%final_chord = flags(4) /= 0
     options%modified_newton = flags(5) /= 0
+    options%direct_newton = flags(6) /= 0
     options%chord_iterations = int(chords)
     call fail_on_code(failure, ierr, 'read_solver_options', 'PETSc refused an -eme_ solver option')
   end subroutine read_solver_options

@@ -45,6 +45,7 @@ def test_help_lists_the_eme_options(tmp_path, eme_run_binary):
     for option, words in [("-eme_chord_predictor", "chord step with the last step's LU factors"),
                           ("-eme_fused_kernel", "fused step on its condensed unknowns"),
                           ("-eme_lean_snes", "inside the shell preconditioner"),
+                          ("-eme_direct_newton", "without SNESSolve"),
                           ("-eme_final_chord", "existing LU factors instead of a new Jacobian"),
                           ("-eme_modified_newton", "Keep the LU factors across the Newton iterations of a step"),
                           ("-eme_chord_iterations", "within this many chord iterations"),
