@@ -25,6 +25,12 @@
 !> stages (relaxed_gauss6) are refused at input (spring_chain_sparse_run's chain_problem_of).
 !> All ranks take the same decisions from the same summed figures (MPI_Allreduce gives every
 !> rank the same sum).
+!> This module holds the run's type, its start, its fixed steps (halved when rejected) and its
+!> end; beside it: the relaxed step with its stages and rank sums (submodule
+!> spring_chain_relaxed_step), the relaxation's root function (spring_chain_relaxed_root),
+!> relaxed_dp853's step control (submodule spring_chain_relaxed_control), the run's own variable
+!> in snapshot parts (submodule spring_chain_relaxed_parts) and what the run reports, its accuracy
+!> warnings among it (submodule spring_chain_relaxed_report).
 module spring_chain_relaxed_run
 #include <petsc/finclude/petscdmda.h>
   use petscdmda
@@ -34,20 +40,16 @@ module spring_chain_relaxed_run
   use model_interface, only: generic_model
   use thermo_variable_kinds, only: tau_entropy
   use solver_description, only: solver_report, no_solver
-  use relaxation_root, only: relaxation_function, find_relaxation_root, max_halvings, gamma_band_factor, &
-                             gamma_warning_deviation
-  use dop853_control, only: accepted_step_factor, rejected_step_factor, max_error_rejections, landing_slack
-  use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
+  use relaxation_root, only: max_halvings, gamma_band_factor, gamma_warning_deviation
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_spring, only: chain_spring
   use spring_chain_model, only: spring_chain
   use spring_chain_balance, only: conserved_axes
   use spring_chain_sparse_run, only: sparse_chain_run
-  use spring_chain_relaxation_share, only: rounding_floor_share, momentum_share, projection_coefficients, &
-                                           project_momenta, converted_taus
   implicit none
   private
   public :: relaxed_chain_run
+
 
   !> The chain stepped by a relaxed Runge-Kutta tableau; its DMDA state in entropy variables. Do
   !> not copy it after `start`: PETSc holds the address of its chain's context.
@@ -88,15 +90,23 @@ module spring_chain_relaxed_run
     procedure :: restore_state
   end type relaxed_chain_run
 
-  !> A relaxed step's relaxation as src/solver/relaxation_root searches it: the run it relaxes.
-  type, extends(relaxation_function) :: split_relaxation
-    class(relaxed_chain_run), pointer :: run => null()
-  contains
-    procedure :: move
-    procedure :: scaled_residual
-  end type split_relaxation
-
   interface
+    !> One relaxed step of h from the state held, committed when ok; when not ok the state is z
+    !> again and last_failure says why (spring_chain_relaxed_step).
+    module subroutine relaxed_step(self, h, ok, failure)
+      class(relaxed_chain_run), intent(inout), target :: self
+      real(real64), intent(in) :: h
+      logical, intent(out) :: ok
+      type(failure_type), intent(out) :: failure
+    end subroutine relaxed_step
+    !> One accepted step of the controller's size from the state held at self%t
+    !> (spring_chain_relaxed_control).
+    module subroutine adaptive_step(self, h, ok, failure)
+      class(relaxed_chain_run), intent(inout) :: self
+      real(real64), intent(out) :: h
+      logical, intent(out) :: ok
+      type(failure_type), intent(out) :: failure
+    end subroutine adaptive_step
     !> DOP853's error norm of the step of h just relaxed (src/solver/dop853_control), its sums
     !> over the ranks (spring_chain_relaxed_control).
     module subroutine step_error_norm(self, h, error_norm, ierr)
@@ -116,6 +126,35 @@ module spring_chain_relaxed_run
       real(real64), intent(in) :: time, values(:)
       type(failure_type), intent(out) :: failure
     end subroutine restore_state
+    !> The rank's part of the state for a snapshot, tau in the run's own variable
+    !> (spring_chain_relaxed_parts).
+    module subroutine part(self, state, failure)
+      class(relaxed_chain_run), intent(inout) :: self
+      type(distributed_part), intent(out) :: state
+      type(failure_type), intent(out) :: failure
+    end subroutine part
+    !> Makes the rank's part `state` (tau in the run's own variable) the current state, in
+    !> entropy variables (spring_chain_relaxed_parts).
+    module subroutine restore(self, state, failure)
+      class(relaxed_chain_run), intent(inout) :: self
+      type(distributed_part), intent(in) :: state
+      type(failure_type), intent(out) :: failure
+    end subroutine restore
+    !> True: each step's outcome carries the relaxed family's per-step figures
+    !> (spring_chain_relaxed_report).
+    pure logical module function integrator_diagnostics(self)
+      class(relaxed_chain_run), intent(in) :: self
+    end function integrator_diagnostics
+    !> The dense path's accuracy warnings, '' if none (spring_chain_relaxed_report).
+    module function accuracy_warnings(self) result(text)
+      class(relaxed_chain_run), intent(in) :: self
+      character(len=:), allocatable :: text
+    end function accuracy_warnings
+    !> None: explicit stages (spring_chain_relaxed_report).
+    module function describe_solver(self) result(report)
+      class(relaxed_chain_run), intent(in) :: self
+      type(solver_report) :: report
+    end function describe_solver
   end interface
 
 contains
@@ -269,386 +308,6 @@ contains
     call step_or_halve(self, 0.5_real64*h, depth + 1, ok, failure)
     if (ok .and. .not. failure%failed()) call step_or_halve(self, 0.5_real64*h, depth + 1, ok, failure)
   end subroutine step_or_halve
-
-  ! One accepted step of h from the state held at self%t, as the dense path's relaxed_step_control
-  ! takes it: h the next trial step, shortened to land on t_end or the next output time when it
-  ! (nearly) reaches it; a step relaxed but refused by the error norm is undone and retried
-  ! smaller, one without a relaxation root halved. ok = .false. after max_error_rejections, or
-  ! when h falls to round-off (last_failure says why).
-  subroutine adaptive_step(self, h, ok, failure)
-    class(relaxed_chain_run), intent(inout) :: self
-    real(real64), intent(out) :: h
-    logical, intent(out) :: ok
-    type(failure_type), intent(out) :: failure
-    real(real64) :: error_norm, landing_time, production, gamma, deviation
-    logical :: landing
-    integer :: tries
-    PetscErrorCode :: ierr
-
-    ok = .false.
-    h = self%h_next
-    landing_time = min(self%t_end, self%stop_time)
-    do tries = 1, max_error_rejections
-      landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time
-      if (landing) h = landing_time - self%t
-      production = self%entropy_production
-      gamma = self%last_gamma
-      deviation = self%max_gamma_deviation
-      call relaxed_step(self, h, ok, failure)
-      if (failure%failed()) return
-      if (ok) then
-        call step_error_norm(self, h, error_norm, ierr)
-        call fail_on_code(failure, ierr, 'the error norm of the chain''s relaxed step')
-        if (failure%failed()) return
-        if (error_norm <= 1.0_real64) then
-          if (.not. landing) self%h_next = h*accepted_step_factor(error_norm, tries > 1)
-          self%t = self%t + h
-          if (landing) self%t = landing_time
-          return
-        end if
-        ! Relaxed, but not accepted by the error test: undone, and retried smaller.
-        self%rejections = self%rejections + 1
-        ok = .false.
-        self%entropy_production = production
-        self%last_gamma = gamma
-        self%max_gamma_deviation = deviation
-        self%last_failure = 'the error norm '//scientific_text(error_norm)//' exceeded 1'
-        call VecCopy(self%start_state, self%chain%x, ierr)
-        call fail_on_code(failure, ierr, 'restoring the chain''s state after a rejected relaxed step')
-        if (failure%failed()) return
-        h = h*rejected_step_factor(error_norm)
-      else
-        self%rejections = self%rejections + 1
-        self%halvings = self%halvings + 1
-        h = 0.5_real64*h
-      end if
-      if (h <= 1.0e-14_real64*max(1.0_real64, abs(self%t))) exit
-    end do
-    self%last_failure = 'the adaptive step shrank below round-off or was rejected '//integer_text(max_error_rejections)// &
-                        ' times (last: '//self%last_failure//')'
-  end subroutine adaptive_step
-
-  ! One relaxed step of h from the state held, committed when ok: the stages, d and e_S, the
-  ! rounding floor and the conserved components at z (one sum over the ranks), then the
-  ! relaxation. When not ok the state is z again and last_failure says why.
-  subroutine relaxed_step(self, h, ok, failure)
-    class(relaxed_chain_run), intent(inout), target :: self
-    real(real64), intent(in) :: h
-    logical, intent(out) :: ok
-    type(failure_type), intent(out) :: failure
-    type(split_relaxation) :: relaxation
-    real(real64) :: sums(2 + size(self%axes, 2)), gamma, resolution, largest
-    integer :: evaluations, stat, failed_stage
-    PetscErrorCode :: ierr
-
-    ok = .false.
-    self%attempts = self%attempts + 1
-    call stages_petsc(self, h, failed_stage, largest, ierr)
-    if (ierr == 0 .and. failed_stage == 0 .and. largest <= huge(largest)) call sums_petsc(self, sums, stat, ierr)
-    call fail_on_code(failure, ierr, 'evaluating the chain''s relaxed stages')
-    if (failure%failed()) return
-    if (failed_stage > 0) then
-      self%last_failure = 'stage '//integer_text(failed_stage)//' left the model''s domain or is not finite'
-      return
-    else if (.not. (largest <= huge(largest))) then
-      self%last_failure = 'a non-finite stage'
-      return
-    else if (stat /= failure_none) then
-      self%last_failure = 'the state left the model''s domain'
-      return
-    end if
-    associate (entropy_estimate => sums(1), floor => sums(2))
-      if (any(self%b < 0.0_real64) .and. entropy_estimate < 0.0_real64) then
-        self%last_failure = 'the entropy guard: the step''s entropy estimate is negative'
-        return
-      end if
-      self%momenta = sums(3:)
-      relaxation%run => self
-      call find_relaxation_root(relaxation, max(floor, tiny(1.0_real64)), gamma, ok, evaluations, resolution)
-      if (ok .and. abs(gamma - 1.0_real64) > max(self%gamma_band, resolution)) then
-        ok = .false.
-        self%gamma_rejections = self%gamma_rejections + 1
-        self%last_failure = 'gamma = '//fixed_text(gamma, 6)//' outside the band |gamma - 1| <= '// &
-                            scientific_text(self%gamma_band)//' of the tolerance'
-      else if (.not. ok) then
-        self%last_failure = 'no relaxation root gamma in [0.2, 2]'
-      end if
-      if (.not. ok) then
-        call VecCopy(self%start_state, self%chain%x, ierr)
-        call fail_on_code(failure, ierr, 'restoring the chain''s state after a rejected relaxed step')
-        return
-      end if
-      self%last_gamma = gamma
-      self%entropy_production = self%entropy_production + gamma*entropy_estimate
-      if (abs(gamma - 1.0_real64) > resolution) self%max_gamma_deviation = max(self%max_gamma_deviation, &
-                                                                                 abs(gamma - 1.0_real64))
-    end associate
-  end subroutine relaxed_step
-
-  ! z of the substep kept (start_state, start_local), the stages k_i = f(g_i) in turn and
-  ! d = h sum_i b_i k_i; failed_stage: the first stage outside a spring's domain on any rank
-  ! (0: none); largest: max |d_j| over the ranks (not finite if a stage was not).
-  subroutine stages_petsc(self, h, failed_stage, largest, ierr)
-    class(relaxed_chain_run), intent(inout) :: self
-    real(real64), intent(in) :: h
-    integer, intent(out) :: failed_stage
-    real(real64), intent(out) :: largest
-    PetscErrorCode, intent(out) :: ierr
-    integer :: i, j, stat
-    MPI_Comm :: comm
-
-    failed_stage = 0
-    largest = 0.0_real64
-    PetscCall(PetscObjectGetComm(self%chain%context%da, comm, ierr))
-    PetscCall(VecCopy(self%chain%x, self%start_state, ierr))
-    PetscCall(DMGlobalToLocalBegin(self%chain%context%da, self%start_state, INSERT_VALUES, self%start_local, ierr))
-    PetscCall(DMGlobalToLocalEnd(self%chain%context%da, self%start_state, INSERT_VALUES, self%start_local, ierr))
-    do i = 1, size(self%b)
-      PetscCall(VecCopy(self%start_state, self%stage, ierr))
-      do j = 1, i - 1
-        ! (explicit tableaux have many zeros below the diagonal)
-        if (abs(self%a(i, j)) > 0.0_real64) then
-          PetscCall(VecAXPY(self%stage, h*self%a(i, j), self%k(j), ierr))
-        end if
-      end do
-      PetscCall(self%chain%field_at(self%stage, self%k(i), stat, ierr))
-      if (stat /= failure_none) failed_stage = i
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, failed_stage, 1, MPI_INTEGER, MPI_MAX, comm, ierr))
-      if (failed_stage > 0) return
-    end do
-    PetscCall(VecSet(self%direction, 0.0_real64, ierr))
-    do i = 1, size(self%b)
-      PetscCall(VecAXPY(self%direction, h*self%b(i), self%k(i), ierr))
-    end do
-    PetscCall(VecNorm(self%direction, NORM_INFINITY, largest, ierr))
-  end subroutine stages_petsc
-
-  ! Summed over the ranks: e_S = sum_a d(s_a), the rounding floor 8 eps sum_j |z_j| |dE/dz_j| and
-  ! the conserved components at z, into sums(1), sums(2) and sums(3:); stat: a domain code.
-  subroutine sums_petsc(self, sums, stat, ierr)
-    class(relaxed_chain_run), intent(inout) :: self
-    real(real64), intent(out) :: sums(:)
-    integer, intent(out) :: stat
-    PetscErrorCode, intent(out) :: ierr
-    real(real64), pointer :: d(:), z(:)
-    real(real64) :: gram(size(self%axes, 2), size(self%axes, 2))
-    integer :: a, shift
-    MPI_Comm :: comm
-
-    sums = 0.0_real64
-    associate (c => self%chain%context, layout => self%chain%context%problem%layout, &
-               points => [self%chain%first_point, self%chain%last_point])
-      shift = c%first_row - 1
-      PetscCall(borrow_read(self%direction, c%last_row - shift, d, ierr))
-      if (layout%invariant_count >= 2) then
-        do a = points(1), min(layout%springs, points(2))
-          sums(1) = sums(1) + d(layout%tau_index(a) - shift)
-        end do
-      end if
-      PetscCall(give_back_read(self%direction, d, ierr))
-      PetscCall(borrow_read(self%start_local, c%local_size, z, ierr))
-      call rounding_floor_share(c%problem, z, c%base, points, sums(2), stat)
-      call momentum_share(layout, self%axes, z, c%base, [points(1), min(layout%masses, points(2))], gram, sums(3:))
-      PetscCall(give_back_read(self%start_local, z, ierr))
-      sums(2) = 8*epsilon(1.0_real64)*sums(2)
-      PetscCall(PetscObjectGetComm(c%da, comm, ierr))
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, stat, 1, MPI_INTEGER, MPI_MAX, comm, ierr))
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, size(sums), MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
-    end associate
-  end subroutine sums_petsc
-
-  !> z_new = P(z + gamma d) as the state held: the least change of the momenta that gives the
-  !> conserved components their values at z (relaxation_function).
-  subroutine move(self, gamma, stat)
-    class(split_relaxation), intent(inout) :: self
-    real(real64), intent(in) :: gamma
-    integer, intent(out) :: stat
-    PetscErrorCode :: ierr
-
-    call move_petsc(self%run, gamma, ierr)
-    stat = failure_none
-    if (ierr /= 0) stat = domain_overflow
-  end subroutine move
-
-  subroutine move_petsc(run, gamma, ierr)
-    class(relaxed_chain_run), intent(inout) :: run
-    real(real64), intent(in) :: gamma
-    PetscErrorCode, intent(out) :: ierr
-    real(real64), pointer :: owned(:)
-    real(real64) :: sums(size(run%axes, 2)*(size(run%axes, 2) + 1)), gram(size(run%axes, 2), size(run%axes, 2))
-    integer :: m, shift
-    MPI_Comm :: comm
-
-    PetscCall(VecWAXPY(run%chain%x, gamma, run%direction, run%start_state, ierr))
-    m = size(run%axes, 2)
-    if (m == 0) return
-    associate (c => run%chain%context, layout => run%chain%context%problem%layout, &
-               masses => [run%chain%first_point, min(run%chain%context%problem%layout%masses, run%chain%last_point)])
-      shift = c%first_row - 1
-      PetscCall(borrow(run%chain%x, c%last_row - shift, owned, ierr))
-      call momentum_share(layout, run%axes, owned, shift, masses, gram, sums(m*m + 1:))
-      sums(1:m*m) = reshape(gram, [m*m])
-      PetscCall(PetscObjectGetComm(c%da, comm, ierr))
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, size(sums), MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
-      call project_momenta(layout, run%axes, projection_coefficients(reshape(sums(1:m*m), [m, m]), &
-                                                                     sums(m*m + 1:) - run%momenta), shift, masses, owned)
-      PetscCall(give_back(run%chain%x, owned, ierr))
-    end associate
-  end subroutine move_petsc
-
-  !> q = r(gamma)/gamma = [E(P(z + gamma d)) - E(z)]/gamma, the energy difference the sum of the
-  !> ranks' per-part differences (relaxation_function).
-  subroutine scaled_residual(self, gamma, q, stat)
-    class(split_relaxation), intent(inout) :: self
-    real(real64), intent(in) :: gamma
-    real(real64), intent(out) :: q
-    integer, intent(out) :: stat
-    real(real64) :: change(2)
-    PetscErrorCode :: ierr
-
-    q = 0.0_real64
-    call self%move(gamma, stat)
-    if (stat /= failure_none) return
-    call energy_change_petsc(self%run, change, stat, ierr)
-    if (ierr /= 0) stat = domain_overflow
-    if (stat /= failure_none) return
-    q = change(1)/gamma
-    if (.not. (abs(q) <= huge(q))) stat = domain_overflow
-  end subroutine scaled_residual
-
-  ! E and S of the state held minus those at z (start_local), summed over the ranks; stat: a
-  ! domain code (the same on every rank).
-  subroutine energy_change_petsc(run, change, stat, ierr)
-    class(relaxed_chain_run), intent(inout) :: run
-    real(real64), intent(out) :: change(2)
-    integer, intent(out) :: stat
-    PetscErrorCode, intent(out) :: ierr
-    real(real64), pointer :: old(:), new(:)
-    MPI_Comm :: comm
-
-    associate (c => run%chain%context)
-      PetscCall(DMGlobalToLocalBegin(c%da, run%chain%x, INSERT_VALUES, c%new_local, ierr))
-      PetscCall(DMGlobalToLocalEnd(c%da, run%chain%x, INSERT_VALUES, c%new_local, ierr))
-      PetscCall(borrow_read(run%start_local, c%local_size, old, ierr))
-      PetscCall(borrow_read(c%new_local, c%local_size, new, ierr))
-      call c%problem%energy_difference(old, new, change(1), change(2), stat, c%base, &
-                                       [run%chain%first_point, run%chain%last_point])
-      PetscCall(give_back_read(c%new_local, new, ierr))
-      PetscCall(give_back_read(run%start_local, old, ierr))
-      PetscCall(PetscObjectGetComm(c%da, comm, ierr))
-      ! (a share outside its domain still takes part in the sums, so that no rank waits alone)
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, stat, 1, MPI_INTEGER, MPI_MAX, comm, ierr))
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, change, 2, MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
-    end associate
-  end subroutine energy_change_petsc
-
-  !> The rank's part of the state for a snapshot, tau in the run's own variable
-  !> (distributed_system).
-  subroutine part(self, state, failure)
-    class(relaxed_chain_run), intent(inout) :: self
-    type(distributed_part), intent(out) :: state
-    type(failure_type), intent(out) :: failure
-
-    call self%sparse_chain_run%part(state, failure)
-    if (failure%failed() .or. size(state%tau) == 0 .or. self%run_variable == tau_entropy) return
-    call convert_held_taus(self, .true., state%tau, failure)
-  end subroutine part
-
-  !> Makes the rank's part `state` (tau in the run's own variable) the current state, in entropy
-  !> variables (distributed_system).
-  subroutine restore(self, state, failure)
-    class(relaxed_chain_run), intent(inout) :: self
-    type(distributed_part), intent(in) :: state
-    type(failure_type), intent(out) :: failure
-    real(real64) :: taus(size(state%tau))
-
-    call self%sparse_chain_run%restore(state, failure)
-    if (failure%failed() .or. size(state%tau) == 0 .or. self%run_variable == tau_entropy) return
-    call convert_held_taus(self, .false., taus, failure)
-    if (failure%failed()) return
-    call self%sparse_chain_run%restore(distributed_part(masses=state%masses, springs=state%springs, &
-                                                        dimension=state%dimension, first_mass=state%first_mass, &
-                                                        first_spring=state%first_spring, &
-                                                        spring_count=state%spring_count, positions=state%positions, &
-                                                        momenta=state%momenta, gamma=state%gamma, tau=taus, &
-                                                        theta=state%theta), failure)
-  end subroutine restore
-
-  ! The rank's springs' tau of the state held, from entropy variables to the run's (to_run) or
-  ! from the run's to entropy variables.
-  subroutine convert_held_taus(self, to_run, taus, failure)
-    class(relaxed_chain_run), intent(inout) :: self
-    logical, intent(in) :: to_run
-    real(real64), intent(out) :: taus(:)
-    type(failure_type), intent(out) :: failure
-    real(real64), pointer :: z(:)
-    integer :: stat
-    PetscErrorCode :: ierr
-
-    stat = failure_none
-    associate (c => self%chain%context, springs => [self%chain%first_point, &
-                                                    min(self%chain%context%problem%layout%springs, self%chain%last_point)])
-      call DMGlobalToLocalBegin(c%da, self%chain%x, INSERT_VALUES, c%new_local, ierr)
-      if (ierr == 0) call DMGlobalToLocalEnd(c%da, self%chain%x, INSERT_VALUES, c%new_local, ierr)
-      if (ierr == 0) call borrow_read(c%new_local, c%local_size, z, ierr)
-      if (ierr == 0) then
-        if (to_run) then
-          call converted_taus(c%problem%layout, c%problem%springs, self%run_springs, z, c%base, springs, taus, stat)
-        else
-          call converted_taus(c%problem%layout, self%run_springs, c%problem%springs, z, c%base, springs, taus, stat)
-        end if
-        call give_back_read(c%new_local, z, ierr)
-      end if
-    end associate
-    call fail_on_code(failure, ierr, 'converting the chain''s thermodynamic variable')
-    if (.not. failure%failed() .and. stat /= failure_none) &
-      call fail(failure, stat, 'a spring''s tau cannot be converted between thermodynamic variables: '// &
-                failure_code_name(stat))
-  end subroutine convert_held_taus
-
-  !> True: each step's outcome carries the relaxed family's per-step figures (gamma, rejected and
-  !> halved attempts, gamma e_S, attempts outside the gamma band), as the dense path declares them.
-  pure logical function integrator_diagnostics(self)
-    class(relaxed_chain_run), intent(in) :: self
-
-    integrator_diagnostics = .true.
-  end function integrator_diagnostics
-
-  !> The dense path's warnings (src/integrator/relaxed_stepper's accuracy_warnings): a run
-  !> without a tolerance that halved a step, or whose gamma moved more than
-  !> gamma_warning_deviation from 1; '' otherwise.
-  function accuracy_warnings(self) result(text)
-    class(relaxed_chain_run), intent(in) :: self
-    character(len=:), allocatable :: text
-    logical :: uncontrolled
-
-    text = ''
-    uncontrolled = .not. self%gamma_band < huge(1.0_real64)
-    if (uncontrolled .and. self%run_rejections > 0) &
-      text = integer_text(self%run_rejections)//' trial steps rejected ('//integer_text(self%run_halvings)//' halved)'
-    if (self%max_gamma_deviation > gamma_warning_deviation) then
-      if (len(text) > 0) text = text//' and '
-      text = text//'|gamma - 1| up to '//fixed_text(self%max_gamma_deviation, 3)//' (over '// &
-             fixed_text(gamma_warning_deviation, 1)//')'
-    end if
-    if (len(text) == 0) return
-    if (.not. uncontrolled) then
-      text = text//': the steps of '//trim(self%settings%scheme)//' at this tolerance are long for its accuracy (E, '// &
-             'the momenta and dS >= 0 hold all the same); a smaller &integrator tolerance is the remedy (docs/integrators.md)'
-    else
-      text = text//': dt = '//reals_text([self%settings%dt])//' s is too long for '//trim(self%settings%scheme)// &
-             '''s accuracy, which nothing controlled (E, the momenta and dS >= 0 hold all the same); '// &
-             '&integrator tolerance is the remedy (docs/integrators.md)'
-    end if
-  end function accuracy_warnings
-
-  !> None: explicit stages (distributed_system).
-  function describe_solver(self) result(report)
-    class(relaxed_chain_run), intent(in) :: self
-    type(solver_report) :: report
-
-    report = no_solver('explicit stages of the chain''s field on a DMDA split over the ranks')
-  end function describe_solver
 
   !> Frees the step's vectors, then the chain's PETSc objects; failure keeps the first failure.
   subroutine finish(self, failure)
