@@ -21,7 +21,8 @@
 !> midpoint rule step under the dense path's control (src/integrator/distributed_step_control): a
 !> fixed step without a root is taken in halves, and with &integrator tolerance the steps are
 !> chosen (each reports the time it reached, the last t_end exactly; rows and snapshots count
-!> accepted steps, and the controller's state is kept in the resume record).
+!> accepted steps, and the controller's state is kept in the resume record), as relaxed_dp853's
+!> are (split_run_setup's split_steps_chosen).
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_INTEGER, &
@@ -30,7 +31,7 @@ module distributed_simulation
   use model_constraint, only: constraint_slot
   use distributed_model, only: distributed_system, distributed_step, distributed_figures
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient
+  use integrator_registry, only: integrator_entry, find_integrator
   use stepper, only: step_report
   use run_config, only: run_configuration
   use run_output, only: run_file, extra_attribute
@@ -46,7 +47,7 @@ module distributed_simulation
                              lower_min_temperature, note_balance_figures, complete_if_finished, &
                              next_output_stop, pass_output_times
   use split_run_setup, only: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, &
-                             split_diagnostics, report_step, balanced_state_of
+                             split_steps_chosen, split_diagnostics, report_step, balanced_state_of
   use snapshot_windows, only: held_snapshot, snapshot_window, take_up_snapshot, tau_dataset
   use filesystem, only: output_lock
   use number_text, only: integer_text, scientific_text
@@ -106,7 +107,7 @@ contains
     real(real64) :: state_time        !! the time of the system's state (the end of step state_step)
     !> the integrator's state after the last accepted step (a continued run's, at its snapshot)
     real(real64), allocatable :: control_state(:)
-    logical :: steps_chosen           !! the steps are the integrator's (&integrator tolerance)
+    logical :: steps_chosen           !! the steps are the integrator's (split_steps_chosen)
     integer :: rank, every, stop_flags(4)
     logical :: lock_lost, may_write    !! rank 0's lock of the output (run_file_steps' guard_output_lock)
     logical :: checked(balance_count), has_balance(balance_count), found, finished, writing, continuing, completed
@@ -129,7 +130,7 @@ contains
     if (present(keep_file)) keeping = keep_file
     call install_interrupt_handlers(io_failure)
     call find_integrator(config%integrator%scheme, entry, found)
-    steps_chosen = config%integrator%tolerance_given .and. entry%family == family_discrete_gradient
+    steps_chosen = split_steps_chosen(config)
     summary%steps_chosen = steps_chosen
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, step_failure)
     if (step_failure%failed()) then

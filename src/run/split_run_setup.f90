@@ -18,6 +18,7 @@ module split_run_setup
   implicit none (type, external)
   private
   public :: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, split_diagnostics
+  public :: split_steps_chosen
   public :: report_step, balanced_state_of
 
 contains
@@ -40,6 +41,21 @@ contains
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
     split_run_wanted = .not. building%failed() .and. size(z0) > dense_limit
   end function split_run_wanted
+
+  !> Whether the split path's steps are the integrator's own, each reporting the time it reached:
+  !> EME's and the midpoint rule's with &integrator tolerance, and a relaxed tableau's with
+  !> embedded weights (relaxed_dp853); the others land on n dt.
+  logical function split_steps_chosen(config)
+    type(run_configuration), intent(in) :: config
+    type(distributed_settings) :: settings
+    type(integrator_entry) :: entry
+    logical :: found
+
+    call find_integrator(config%integrator%scheme, entry, found)
+    settings = distributed_settings_of(config)
+    split_steps_chosen = settings%embedded_weights .or. &
+                         (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)
+  end function split_steps_chosen
 
   !> What the split path's steps need of the input's &integrator.
   function distributed_settings_of(config) result(settings)
@@ -83,15 +99,11 @@ contains
     type(failure_type), intent(out) :: failure
     type(integrator_entry) :: entry
     type(controlled_system), allocatable :: controlled
-    type(distributed_settings) :: settings
-    logical :: found, chooses_steps
+    logical :: found
 
     call find_integrator(config%integrator%scheme, entry, found)
     if (config%output_interval > 0.0_real64) then
-      settings = distributed_settings_of(config)
-      chooses_steps = settings%embedded_weights .or. &
-                      (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)
-      if (.not. chooses_steps) then
+      if (.not. split_steps_chosen(config)) then
         call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
                          'lands on output times only with steps it chooses (&integrator tolerance with scheme = '// &
                          '''eme'' or ''midpoint'', or relaxed_dp853); scheme = '''//trim(config%integrator%scheme)// &
