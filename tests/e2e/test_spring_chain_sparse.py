@@ -1,5 +1,5 @@
-"""The spring chain on the sparse, distributed path (src/model/spring_chain/spring_chain_dmda.F90,
-driven by build/bin/chain_bench; docs/formulation.md section 10, "Sparse and distributed"):
+"""The spring chain on the sparse, distributed path (src/model/spring_chain/spring_chain_dmda.F90 and its
+submodules spring_chain_dmda_*.F90, driven by build/bin/chain_bench; docs/formulation.md section 10, "Sparse and distributed"):
 - it takes the dense path's steps: from the same input, the state after 12 steps agrees with
   eme_run's (the generic step residual of the model interface, dense LU) to 1e-10, over
   dimensions, ends, rungs, thermodynamic variables, both discrete gradients and the midpoint rule;
