@@ -272,6 +272,29 @@ def test_exponentials_are_shared():
     assert "abs(" in lines, lines       # exp(-A) and exp(A) both used: |A| <= max_exponent
 
 
+def test_sinking_and_the_running_sum_keep_the_statements_and_the_order_of_the_sum():
+    """field_values' rewriting (issue 42 item 5): sunk() moves a plain assignment to just before its first use,
+    keeps every statement (an if block whole), keeps the calls and checks in their order and two values moved in
+    front of one user in their order; running_sum() adds f(1), f(2), ... in index order even when the entries are
+    written in another, each once all before it are written, then checks the sum."""
+    sys.path.insert(0, str(GENERATOR.parent))
+    import generate_model as g
+    lines = ["  a = z(1)", "  b = z(2)", "  e = z(3)", "  c = a*2.0_real64", "  t_1 = log(c)",
+             "  if (.not. (t_1 <= max_exponent)) then", "    stat = domain_overflow", "    return", "  end if",
+             "  exp_1 = exp(t_1)", "  d = b + e + &", "      exp_1", "  f(2) = d", "  f(1) = a*d", "  f(3) = b"]
+    moved = g.sunk(lines)
+    assert sorted(moved) == sorted(lines)
+    assert moved[:3] == ["  a = z(1)", "  c = a*2.0_real64", "  t_1 = log(c)"], moved
+    assert moved[3:7] == lines[5:9] and moved[7] == "  exp_1 = exp(t_1)", moved      # the check and the call
+    assert moved[8:12] == ["  b = z(2)", "  e = z(3)", "  d = b + e + &", "      exp_1"], moved   # b before e
+    summed = g.running_sum(moved, 3, 1)
+    sums = [line.strip() for line in summed if "f_sum" in line]
+    assert sums == ["f_sum = f(1)", "f_sum = f_sum + f(2)", "f_sum = f_sum + f(3)",
+                    "if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow"], sums
+    assert summed.index("  f_sum = f(1)") == summed.index("  f(1) = a*d") + 1, summed   # f(1) after f(2): both then
+    assert summed.index("  f_sum = f_sum + f(3)") == summed.index("  f(3) = b") + 1, summed
+
+
 def test_the_paper_field_computes_three_exponentials():
     """The paper rung's field in entropy variables (issue 42 item 5): Theta_1, Theta_2 and eta's exp, once each;
     the springs' potentials one exp each with or without the Hessian."""

@@ -154,10 +154,12 @@ def shared_exponentials(positive, *groups):
     return definitions, [[sp.sympify(e).xreplace(replacement) for e in group] for group in groups]
 
 
-def straight_line(targets, expressions, indent, temporaries, exponentials=(), refold=lambda e: e):
+def straight_line(targets, expressions, indent, temporaries, exponentials=(), refold=lambda e: e, early_targets=True):
     """Like `assignments`, with the exponentials of shared_exponentials (exp_k = exp(B_k)) computed where first
     needed, each after the check that B_k <= max_exponent (domain_overflow), and only the temporaries the targets
-    need, numbered t_1, t_2, ... in the order they are written."""
+    need, numbered t_1, t_2, ... in the order they are written. early_targets=False writes every target after the
+    calls (field_values: its targets without a call are then not kept, spilled, across the calls for the
+    finiteness sum)."""
     exponentials = list(exponentials)
     shared, reduced = sp.cse([argument for _, argument in exponentials] + list(expressions),
                              symbols=sp.numbered_symbols("shared_", start=1), order="none")
@@ -203,8 +205,8 @@ def straight_line(targets, expressions, indent, temporaries, exponentials=(), re
     # The targets that need no call first (they free their inputs' registers), then the calls one after the other,
     # then the rest, each right after what it needs: fewer values are kept across the calls (spilled and reloaded).
     closures = [closure(value, set()) for value in values]
-    early = [k for k, value in enumerate(values)
-             if not calls(value) and not any(isinstance(definitions[x], tuple) or calls(definitions[x])
+    early = [k for k, value in enumerate(values) if early_targets
+             and not calls(value) and not any(isinstance(definitions[x], tuple) or calls(definitions[x])
                                              for x in closures[k])]
     needed = set().union(*(closures[k] for k in range(len(values)) if k not in early))
     for k in early:
@@ -249,6 +251,72 @@ def straight_line(targets, expressions, indent, temporaries, exponentials=(), re
         else:
             lines.append(wrap(f"{fortran(renamed[name])} = {fortran(value.xreplace(renamed))}", indent))
     return lines
+
+
+def statements(lines):
+    """The Fortran statements of `lines` (strings, each possibly of several lines): a statement with its & continuations,
+    an if block to its end if, as lists of lines."""
+    flat = [line for text in lines for line in text.split("\n")]
+    groups, k = [], 0
+    while k < len(flat):
+        group = [flat[k]]
+        while group[-1].rstrip().endswith("&"):
+            k += 1
+            group.append(flat[k])
+        if group[0].lstrip().startswith("if (") and group[-1].rstrip().endswith(" then"):
+            depth = len(group[0]) - len(group[0].lstrip())
+            while not (flat[k].lstrip() == "end if" and len(flat[k]) - len(flat[k].lstrip()) == depth):
+                k += 1
+                group.append(flat[k])
+        groups.append(group)
+        k += 1
+    return groups
+
+
+def sunk(lines):
+    """`lines` with each assignment to a plain name that calls no log or exp moved down to right before the first
+    statement that uses the name (the calls and checks keep their order): what is needed only after a library call is
+    computed after it, not kept (spilled and reloaded) across it. Values and their rounding are unchanged."""
+    groups = statements(lines)
+    moved_before = {}           # id of a moved statement: id of the statement it was moved in front of
+    for group in reversed(list(groups)):
+        text = " ".join(group)
+        match = re.match(r"\s*([A-Za-z]\w*) = ", group[0])
+        if not match or "log(" in text or "exp(" in text:
+            continue
+        used = re.compile(rf"\b{match.group(1)}\b")
+        k = next(j for j, other in enumerate(groups) if other is group)
+        later = next((j for j in range(k + 1, len(groups)) if used.search(" ".join(groups[j]))), None)
+        if later is None:
+            continue
+        user = groups[later]
+        if later == k + 1:      # in front of its user already
+            moved_before[id(group)] = id(user)
+            continue
+        groups.pop(k)
+        later -= 1
+        while moved_before.get(id(groups[later - 1])) == id(user):   # in front of those moved there before,
+            later -= 1                                               # which came after it: their order kept
+        groups.insert(later, group)
+        moved_before[id(group)] = id(user)
+    return [line for group in groups for line in group]
+
+
+def running_sum(lines, n, indent):
+    """`lines` (with the targets f(1) ... f(n) written each once) followed, after each f(k), by f_sum = f_sum + f(k)
+    as soon as f(1) ... f(k - 1) are in it: the sum f(1) + f(2) + ... + f(n) in that order, with its rounding, while
+    the values are at hand, not kept for a sum at the end; then the check that it is a finite number."""
+    out, done, next_index = [], set(), 1
+    for group in statements(lines):
+        out += group
+        match = re.match(r"\s*f\((\d+)\) = ", group[0])
+        if match:
+            done.add(int(match.group(1)))
+            while next_index in done:
+                out.append(INDENT*indent + ("f_sum = f(1)" if next_index == 1 else f"f_sum = f_sum + f({next_index})"))
+                next_index += 1
+    assert next_index == n + 1, "every f(k) written once"
+    return out + [wrap("if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow", indent)]
 
 
 def declare(names, indent):
@@ -1173,10 +1241,13 @@ def continuous_field_procedure(symbolic, constants):
             [f"f({i + 1})" for i in range(n)] + [f"jacobian({i + 1}, {j + 1})" for i, j, _ in jacobian],
             f + [e for *_, e in jacobian], 3, temporaries, exponentials, constants.refold)))
         value_cases.append((variable, head + straight_line([f"f({i + 1})" for i in range(n)], f, 3, value_temporaries,
-                                                           exponentials, constants.refold)))
+                                                           exponentials, constants.refold, early_targets=False)))
     state_names = [z.name for z in symbolic.state]
     unpack_lines = [INDENT*2 + f"{z.name} = z({i + 1})" for i, z in enumerate(symbolic.state)]
     unpack_lines += [wrap(f"{local.name} = {fortran(expression)}", 2) for local, expression in invariant_values]
+    # field_values: each case reads the state itself, each entry where first needed (sunk), and sums f as it goes.
+    case_unpack = [INDENT + line for line in unpack_lines]
+    value_cases = [(variable, running_sum(sunk(case_unpack + body), n, 3)) for variable, body in value_cases]
 
     def selected(by_variable):
         if symbolic.mechanical:     # no thermodynamic variable to select by: the one body, a level less indented
@@ -1191,6 +1262,9 @@ def continuous_field_procedure(symbolic, constants):
                        + sorted(exponential_names, key=lambda name: int(name.split("_")[1]))
                        + [f"t_{i}" for i in range(1, count + 1)], 2)
 
+    value_declarations = declare(state_names + [local.name for local, _ in invariant_values] + sorted(root_names)
+                                 + sorted(exponential_names, key=lambda name: int(name.split("_")[1]))
+                                 + [f"t_{i}" for i in range(1, value_temporaries[0] + 1)] + ["f_sum"], 2)
     finite = wrap("if (.not. (abs(" + " + ".join(f"f({i + 1})" for i in range(n)) + ") <= huge(1.0_real64))) "
                   "stat = domain_overflow", 2)
     return f"""
@@ -1203,10 +1277,16 @@ def continuous_field_procedure(symbolic, constants):
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy({n}), f_copy({n})
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -1228,19 +1308,18 @@ def continuous_field_procedure(symbolic, constants):
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class({d.name}), intent(in) :: self
     real(real64), intent(in) :: z({n})
     real(real64), intent(out) :: f({n})
     integer, intent(out) :: stat
-{declarations(value_temporaries[0])}
+{value_declarations}
 
     stat = failure_none
-{lines_of(unpack_lines)}
 {lines_of(selected(value_cases))}
-{finite}
   end subroutine field_values"""
 
 

@@ -391,10 +391,16 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy(12), f_copy(12)
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -496,54 +502,66 @@ contains
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class(elastic_pendulum), intent(in) :: self
     real(real64), intent(in) :: z(12)
     real(real64), intent(out) :: f(12)
     integer, intent(out) :: stat
-    real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, C_1, C_2, t_1, t_2
+    real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, C_1, C_2, t_1, t_2, f_sum
 
     stat = failure_none
     q1_x = z(1)
     q1_y = z(2)
     q1_z = z(3)
-    q2_x = z(4)
-    q2_y = z(5)
-    q2_z = z(6)
-    p1_x = z(7)
-    p1_y = z(8)
-    p1_z = z(9)
-    p2_x = z(10)
-    p2_y = z(11)
-    p2_z = z(12)
     C_1 = q1_x**2 + q1_y**2 + q1_z**2
-    C_2 = q2_x**2 + q2_y**2 + q2_z**2
     if (.not. (C_1 > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
     end if
+    q2_x = z(4)
+    q2_y = z(5)
+    q2_z = z(6)
+    C_2 = q2_x**2 + q2_y**2 + q2_z**2
     if (.not. (C_2 > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
     end if
-    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-    f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-    f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-    f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-    f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
     t_1 = self%constants(5)*log(C_1*self%constants(4))/C_1
     t_2 = self%constants(10)*log(C_2*self%constants(9))/C_2
+    p1_x = z(7)
+    p2_x = z(10)
+    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+    f_sum = f(1)
+    p1_y = z(8)
+    p2_y = z(11)
+    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+    f_sum = f_sum + f(2)
+    p1_z = z(9)
+    p2_z = z(12)
+    f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+    f_sum = f_sum + f(3)
+    f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+    f_sum = f_sum + f(4)
+    f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+    f_sum = f_sum + f(5)
+    f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+    f_sum = f_sum + f(6)
     f(7) = self%constants(6) + q1_x*t_1
+    f_sum = f_sum + f(7)
     f(8) = self%constants(7) + q1_y*t_1
+    f_sum = f_sum + f(8)
     f(9) = self%constants(8) + q1_z*t_1
+    f_sum = f_sum + f(9)
     f(10) = self%constants(11) + q2_x*t_2
+    f_sum = f_sum + f(10)
     f(11) = self%constants(12) + q2_y*t_2
+    f_sum = f_sum + f(11)
     f(12) = self%constants(13) + q2_z*t_2
-    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12)) <= &
-        huge(1.0_real64))) stat = domain_overflow
+    f_sum = f_sum + f(12)
+    if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).

@@ -833,10 +833,16 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy(15), f_copy(15)
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -1503,8 +1509,9 @@ contains
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class(paper_pendulum), intent(in) :: self
     real(real64), intent(in) :: z(15)
@@ -1512,53 +1519,41 @@ contains
     integer, intent(out) :: stat
     real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, gamma, tau_1, tau_2, C_1, &
         C_2, C_2_root_2, exp_1, exp_2, exp_3, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, &
-        t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28
+        t_14, t_15, t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, f_sum
 
     stat = failure_none
-    q1_x = z(1)
-    q1_y = z(2)
-    q1_z = z(3)
-    q2_x = z(4)
-    q2_y = z(5)
-    q2_z = z(6)
-    p1_x = z(7)
-    p1_y = z(8)
-    p1_z = z(9)
-    p2_x = z(10)
-    p2_y = z(11)
-    p2_z = z(12)
-    gamma = z(13)
-    tau_1 = z(14)
-    tau_2 = z(15)
-    C_1 = q1_x**2 + q1_y**2 + q1_z**2
-    C_2 = q2_x**2 + q2_y**2 + q2_z**2
     select case (self%thermo_variable)
     case (tau_entropy)
+      q1_x = z(1)
+      q1_y = z(2)
+      q1_z = z(3)
+      C_1 = q1_x**2 + q1_y**2 + q1_z**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(4)
+      q2_y = z(5)
+      q2_z = z(6)
+      C_2 = q2_x**2 + q2_y**2 + q2_z**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(12))
+      tau_1 = z(14)
       if (.not. (abs(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_1 = exp(self%constants(73)*(self%constants(4)*t_1 + self%constants(72)*t_1**2 + tau_1))
+      C_2_root_2 = sqrt(C_2)
       t_3 = 1.0_real64/C_2_root_2
       t_4 = self%parameters%beta + self%constants(19)*t_2
+      gamma = z(13)
+      tau_2 = z(15)
       t_5 = self%parameters%beta_v*t_3*t_4
       if (.not. (abs(self%constants(76)*(self%constants(17)*(self%constants(15)*t_2 + self%constants(75)*t_2**2) + &
           self%constants(74)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
@@ -1573,157 +1568,249 @@ contains
         return
       end if
       exp_3 = exp(self%constants(78)*(self%constants(77) + t_6))
+      p1_x = z(7)
+      p2_x = z(10)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f_sum = f(1)
+      p1_y = z(8)
+      p2_y = z(11)
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f_sum = f_sum + f(2)
+      p1_z = z(9)
+      p2_z = z(12)
+      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f_sum = f_sum + f(3)
+      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f_sum = f_sum + f(4)
+      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f_sum = f_sum + f(5)
+      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f_sum = f_sum + f(6)
       t_7 = 1.0_real64/C_1
       t_8 = t_1*t_7
       t_9 = self%constants(22)*t_7 + self%constants(63)*exp_1*(self%constants(4)*t_7 + self%constants(6)*t_8) + &
           self%constants(79)*t_8
       f(7) = self%constants(9) - q1_x*t_9
+      f_sum = f_sum + f(7)
       f(8) = self%constants(10) - q1_y*t_9
+      f_sum = f_sum + f(8)
       f(9) = self%constants(11) - q1_z*t_9
+      f_sum = f_sum + f(9)
+      t_13 = 1.0_real64/exp_2
       t_10 = 1.0_real64/C_2
       t_11 = t_10*t_2
       t_12 = gamma/C_2_root_2**3
-      t_13 = 1.0_real64/exp_2
       t_14 = t_13*self%parameters%theta_ref
       t_15 = self%constants(21)*t_2 + self%constants(22)
       t_16 = self%parameters%beta_v*t_12*t_15 + self%constants(62)*t_12 + self%constants(80)*(self%constants(13)*t_11 &
           + self%constants(7)*t_10) + 2.0_real64*t_14*(self%constants(17)*(self%constants(15)*t_10 + &
           self%constants(16)*t_11) + self%constants(18)*t_12 + self%constants(20)*t_12*t_4)
       f(10) = self%constants(25) - q2_x*t_16
+      f_sum = f_sum + f(10)
       f(11) = self%constants(26) - q2_y*t_16
+      f_sum = f_sum + f(11)
       f(12) = self%constants(27) - q2_z*t_16
+      f_sum = f_sum + f(12)
       t_17 = self%constants(28)*gamma + self%constants(30)*t_15*t_3 + t_14*(self%constants(29)*gamma + t_5)
       f(13) = self%constants(31)*exp_3*t_17
+      f_sum = f_sum + f(13)
       f(14) = self%constants(34)*(self%constants(32)*t_13 + self%constants(33)*exp_1)/exp_1
+      f_sum = f_sum + f(14)
       f(15) = self%constants(35)*exp_2*exp_3*t_17**2 + t_6*(self%constants(32)*exp_1 + self%constants(33)*t_13)
+      f_sum = f_sum + f(15)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_temperature)
+      q1_x = z(1)
+      q1_y = z(2)
+      q1_z = z(3)
+      C_1 = q1_x**2 + q1_y**2 + q1_z**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(4)
+      q2_y = z(5)
+      q2_z = z(6)
+      C_2 = q2_x**2 + q2_y**2 + q2_z**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = t_4
-      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(5) = t_5
-      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-      f(6) = t_6
-      t_7 = 1.0_real64/C_1
-      t_8 = t_7*log(C_1*self%constants(5))
-      t_9 = log(C_2*self%constants(12))
-      t_10 = 1.0_real64/tau_2
-      if (.not. (self%constants(78)*(self%constants(77) + t_10) <= max_exponent)) then
+      t_1 = 1.0_real64/C_1
+      t_2 = t_1*log(C_1*self%constants(5))
+      t_3 = log(C_2*self%constants(12))
+      tau_2 = z(15)
+      t_4 = 1.0_real64/tau_2
+      if (.not. (self%constants(78)*(self%constants(77) + t_4) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(78)*(self%constants(77) + t_10))
-      t_11 = self%constants(22)*t_7 + self%constants(79)*t_8
-      t_12 = tau_1*(self%constants(15)*t_7 + self%constants(36)*t_8)
+      exp_1 = exp(self%constants(78)*(self%constants(77) + t_4))
+      p1_x = z(7)
+      p2_x = z(10)
+      t_5 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_5
+      f_sum = f(1)
+      p1_y = z(8)
+      p2_y = z(11)
+      t_6 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_6
+      f_sum = f_sum + f(2)
+      p1_z = z(9)
+      p2_z = z(12)
+      t_7 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_7
+      f_sum = f_sum + f(3)
+      t_8 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_8
+      f_sum = f_sum + f(4)
+      t_9 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_9
+      f_sum = f_sum + f(5)
+      t_10 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_10
+      f_sum = f_sum + f(6)
+      tau_1 = z(14)
+      t_12 = tau_1*(self%constants(15)*t_1 + self%constants(36)*t_2)
+      t_11 = self%constants(22)*t_1 + self%constants(79)*t_2
       t_13 = 2.0_real64*t_12
       f(7) = self%constants(9) - q1_x*t_11 + q1_x*t_13
+      f_sum = f_sum + f(7)
       f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_13
+      f_sum = f_sum + f(8)
       f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_13
-      t_14 = 1.0_real64/C_2
-      t_15 = t_14*t_9
+      f_sum = f_sum + f(9)
+      gamma = z(13)
+      C_2_root_2 = sqrt(C_2)
       t_16 = gamma/C_2_root_2**3
-      t_17 = self%constants(21)*t_9 + self%constants(22)
+      t_14 = 1.0_real64/C_2
+      t_15 = t_14*t_3
       t_18 = self%constants(23)*t_16
-      t_19 = self%constants(62)*t_16 + self%constants(80)*(self%constants(13)*t_15 + self%constants(7)*t_14) + &
-          2.0_real64*t_17*t_18
-      t_20 = self%parameters%beta + self%constants(19)*t_9
+      t_20 = self%parameters%beta + self%constants(19)*t_3
       t_21 = tau_2*(self%constants(14)*(self%constants(15)*t_14 + self%constants(16)*t_15) + self%constants(90)*t_16 &
           + t_18*t_20)
+      t_17 = self%constants(21)*t_3 + self%constants(22)
+      t_19 = self%constants(62)*t_16 + self%constants(80)*(self%constants(13)*t_15 + self%constants(7)*t_14) + &
+          2.0_real64*t_17*t_18
       t_22 = 2.0_real64*t_21
       f(10) = self%constants(25) - q2_x*t_19 + q2_x*t_22
+      f_sum = f_sum + f(10)
       f(11) = self%constants(26) - q2_y*t_19 + q2_y*t_22
+      f_sum = f_sum + f(11)
       f(12) = self%constants(27) - q2_z*t_19 + q2_z*t_22
+      f_sum = f_sum + f(12)
       t_23 = self%constants(30)/C_2_root_2
       t_24 = self%constants(28)*gamma + t_17*t_23
-      t_25 = exp_1*tau_2*(self%constants(91)*gamma - t_10*t_24 + t_20*t_23)
+      t_25 = exp_1*tau_2*(self%constants(91)*gamma + t_20*t_23 - t_24*t_4)
       f(13) = self%constants(92)*t_25
+      f_sum = f_sum + f(13)
       t_26 = self%constants(94)*t_12
-      f(14) = self%constants(73)*(self%parameters%conductivity*tau_2 + self%constants(93)*tau_1) + q1_x*t_1*t_26 + &
-          q1_y*t_2*t_26 + q1_z*t_26*t_3
+      f(14) = self%constants(73)*(self%parameters%conductivity*tau_2 + self%constants(93)*tau_1) + q1_x*t_26*t_5 + &
+          q1_y*t_26*t_6 + q1_z*t_26*t_7
+      f_sum = f_sum + f(14)
       t_27 = self%constants(96)*t_21
       f(15) = self%constants(95)*(self%parameters%conductivity*tau_1 + self%constants(93)*tau_2) + self%constants(97) &
-          *t_24*t_25 + q2_x*t_27*t_4 + q2_y*t_27*t_5 + q2_z*t_27*t_6
+          *t_24*t_25 + q2_x*t_27*t_8 + q2_y*t_27*t_9 + q2_z*t_10*t_27
+      f_sum = f_sum + f(15)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_internal_energy)
+      q1_x = z(1)
+      q1_y = z(2)
+      q1_z = z(3)
+      C_1 = q1_x**2 + q1_y**2 + q1_z**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(4)
+      q2_y = z(5)
+      q2_z = z(6)
+      C_2 = q2_x**2 + q2_y**2 + q2_z**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      t_1 = log(C_2*self%constants(12))
+      t_2 = log(C_1*self%constants(5))
       C_2_root_2 = sqrt(C_2)
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = t_4
-      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(5) = t_5
-      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-      f(6) = t_6
-      t_7 = log(C_2*self%constants(12))
-      t_8 = log(C_1*self%constants(5))
-      t_9 = 1.0_real64/C_2_root_2
-      t_10 = self%constants(21)*t_7 + self%constants(22)
-      t_11 = self%parameters%beta_v*t_10*t_9
-      t_12 = self%constants(95)*(self%constants(109)*gamma**2 + self%constants(17)*(self%constants(110)*t_7**2 + &
-          self%constants(7)*t_7) + gamma*t_11 + tau_2) + self%parameters%theta_ref
-      t_13 = 1.0_real64/t_12
-      if (.not. (self%constants(78)*(self%constants(77) + t_13) <= max_exponent)) then
+      t_3 = 1.0_real64/C_2_root_2
+      t_4 = self%constants(21)*t_1 + self%constants(22)
+      gamma = z(13)
+      tau_2 = z(15)
+      t_5 = self%parameters%beta_v*t_3*t_4
+      t_6 = self%constants(95)*(self%constants(109)*gamma**2 + self%constants(17)*(self%constants(110)*t_1**2 + &
+          self%constants(7)*t_1) + gamma*t_5 + tau_2) + self%parameters%theta_ref
+      t_7 = 1.0_real64/t_6
+      if (.not. (self%constants(78)*(self%constants(77) + t_7) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(78)*(self%constants(77) + t_13))
-      t_14 = self%constants(73)*(self%constants(108)*t_8**2 + self%constants(37)*t_8 + tau_1) + &
-          self%parameters%theta_ref
+      exp_1 = exp(self%constants(78)*(self%constants(77) + t_7))
+      p1_x = z(7)
+      p2_x = z(10)
+      t_8 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_8
+      f_sum = f(1)
+      p1_y = z(8)
+      p2_y = z(11)
+      t_9 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_9
+      f_sum = f_sum + f(2)
+      p1_z = z(9)
+      p2_z = z(12)
+      t_10 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_10
+      f_sum = f_sum + f(3)
+      t_11 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_11
+      f_sum = f_sum + f(4)
+      t_12 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_12
+      f_sum = f_sum + f(5)
+      t_13 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_13
+      f_sum = f_sum + f(6)
       t_15 = 1.0_real64/C_1
-      t_16 = t_15*t_8
+      tau_1 = z(14)
+      t_14 = self%constants(73)*(self%constants(108)*t_2**2 + self%constants(37)*t_2 + tau_1) + &
+          self%parameters%theta_ref
+      t_16 = t_15*t_2
       t_17 = 2.0_real64*t_14*(self%constants(15)*t_15 + self%constants(36)*t_16 + (self%constants(37)*t_15 + &
           self%constants(38)*t_16)/t_14)
       t_18 = q1_x*t_17
       f(7) = self%constants(9) + t_18
+      f_sum = f_sum + f(7)
       t_19 = q1_y*t_17
       f(8) = self%constants(10) + t_19
+      f_sum = f_sum + f(8)
       t_20 = q1_z*t_17
       f(9) = self%constants(11) + t_20
+      f_sum = f_sum + f(9)
       t_21 = 1.0_real64/C_2
-      t_22 = t_21*t_7
+      t_22 = t_1*t_21
       t_23 = gamma/C_2_root_2**3
-      t_24 = self%parameters%beta + self%constants(19)*t_7
-      t_25 = 2.0_real64*t_12*(self%constants(14)*(self%constants(15)*t_21 + self%constants(16)*t_22) + &
-          self%constants(23)*t_23*t_24 + self%constants(90)*t_23 + t_13*(self%constants(111)*t_23 + &
-          self%constants(17)*(self%constants(13)*t_22 + self%constants(7)*t_21) + self%constants(20)*t_10*t_23))
+      t_24 = self%parameters%beta + self%constants(19)*t_1
+      t_25 = 2.0_real64*t_6*(self%constants(14)*(self%constants(15)*t_21 + self%constants(16)*t_22) + &
+          self%constants(23)*t_23*t_24 + self%constants(90)*t_23 + t_7*(self%constants(111)*t_23 + self%constants(17) &
+          *(self%constants(13)*t_22 + self%constants(7)*t_21) + self%constants(20)*t_23*t_4))
       t_26 = q2_x*t_25
       f(10) = self%constants(25) + t_26
+      f_sum = f_sum + f(10)
       t_27 = q2_y*t_25
       f(11) = self%constants(26) + t_27
+      f_sum = f_sum + f(11)
       t_28 = q2_z*t_25
       f(12) = self%constants(27) + t_28
-      f(13) = self%constants(92)*exp_1*t_12*(self%constants(30)*t_24*t_9 + self%constants(91)*gamma + t_13 &
-          *(self%constants(100)*gamma + t_11))
-      f(14) = self%parameters%conductivity*t_12 + self%constants(93)*t_14 - t_1*t_18 - t_19*t_2 - t_20*t_3
-      f(15) = self%parameters%conductivity*t_14 + self%constants(93)*t_12 - t_26*t_4 - t_27*t_5 - t_28*t_6
+      f_sum = f_sum + f(12)
+      f(13) = self%constants(92)*exp_1*t_6*(self%constants(30)*t_24*t_3 + self%constants(91)*gamma + t_7 &
+          *(self%constants(100)*gamma + t_5))
+      f_sum = f_sum + f(13)
+      f(14) = self%parameters%conductivity*t_6 + self%constants(93)*t_14 - t_10*t_20 - t_18*t_8 - t_19*t_9
+      f_sum = f_sum + f(14)
+      f(15) = self%parameters%conductivity*t_14 + self%constants(93)*t_6 - t_11*t_26 - t_12*t_27 - t_13*t_28
+      f_sum = f_sum + f(15)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     end select
-    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
-        f(14) + f(15)) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).

@@ -338,10 +338,16 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy(8), f_copy(8)
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -418,45 +424,54 @@ contains
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class(planar_elastic_pendulum), intent(in) :: self
     real(real64), intent(in) :: z(8)
     real(real64), intent(out) :: f(8)
     integer, intent(out) :: stat
-    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, C_1, C_2, t_1, t_2
+    real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, C_1, C_2, t_1, t_2, f_sum
 
     stat = failure_none
     q1_x = z(1)
     q1_y = z(2)
-    q2_x = z(3)
-    q2_y = z(4)
-    p1_x = z(5)
-    p1_y = z(6)
-    p2_x = z(7)
-    p2_y = z(8)
     C_1 = q1_x**2 + q1_y**2
-    C_2 = q2_x**2 + q2_y**2
     if (.not. (C_1 > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
     end if
+    q2_x = z(3)
+    q2_y = z(4)
+    C_2 = q2_x**2 + q2_y**2
     if (.not. (C_2 > 0.0_real64)) then
       stat = domain_nonpositive_length
       return
     end if
-    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-    f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-    f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
     t_1 = self%constants(5)*log(C_1*self%constants(4))/C_1
     t_2 = self%constants(9)*log(C_2*self%constants(8))/C_2
+    p1_x = z(5)
+    p2_x = z(7)
+    f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+    f_sum = f(1)
+    p1_y = z(6)
+    p2_y = z(8)
+    f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+    f_sum = f_sum + f(2)
+    f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+    f_sum = f_sum + f(3)
+    f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+    f_sum = f_sum + f(4)
     f(5) = self%constants(6) + q1_x*t_1
+    f_sum = f_sum + f(5)
     f(6) = self%constants(7) + q1_y*t_1
+    f_sum = f_sum + f(6)
     f(7) = self%constants(10) + q2_x*t_2
+    f_sum = f_sum + f(7)
     f(8) = self%constants(11) + q2_y*t_2
-    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8)) <= huge(1.0_real64))) stat = domain_overflow
+    f_sum = f_sum + f(8)
+    if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).

@@ -742,10 +742,16 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy(11), f_copy(11)
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -1285,8 +1291,9 @@ contains
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class(planar_pendulum), intent(in) :: self
     real(real64), intent(in) :: z(11)
@@ -1294,47 +1301,39 @@ contains
     integer, intent(out) :: stat
     real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, gamma, tau_1, tau_2, C_1, C_2, C_2_root_2, exp_1, &
         exp_2, exp_3, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
-        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25
+        t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, f_sum
 
     stat = failure_none
-    q1_x = z(1)
-    q1_y = z(2)
-    q2_x = z(3)
-    q2_y = z(4)
-    p1_x = z(5)
-    p1_y = z(6)
-    p2_x = z(7)
-    p2_y = z(8)
-    gamma = z(9)
-    tau_1 = z(10)
-    tau_2 = z(11)
-    C_1 = q1_x**2 + q1_y**2
-    C_2 = q2_x**2 + q2_y**2
     select case (self%thermo_variable)
     case (tau_entropy)
+      q1_x = z(1)
+      q1_y = z(2)
+      C_1 = q1_x**2 + q1_y**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(3)
+      q2_y = z(4)
+      C_2 = q2_x**2 + q2_y**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(11))
+      tau_1 = z(10)
       if (.not. (abs(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_1 = exp(self%constants(71)*(self%constants(4)*t_1 + self%constants(70)*t_1**2 + tau_1))
+      C_2_root_2 = sqrt(C_2)
       t_3 = 1.0_real64/C_2_root_2
       t_4 = self%parameters%beta + self%constants(18)*t_2
+      gamma = z(9)
+      tau_2 = z(11)
       t_5 = self%parameters%beta_v*t_3*t_4
       if (.not. (abs(self%constants(74)*(self%constants(16)*(self%constants(14)*t_2 + self%constants(73)*t_2**2) + &
           self%constants(72)*gamma**2 + gamma*t_5 + tau_2)) <= max_exponent)) then
@@ -1349,141 +1348,209 @@ contains
         return
       end if
       exp_3 = exp(self%constants(76)*(self%constants(75) + t_6))
+      p1_x = z(5)
+      p2_x = z(7)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f_sum = f(1)
+      p1_y = z(6)
+      p2_y = z(8)
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f_sum = f_sum + f(2)
+      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f_sum = f_sum + f(3)
+      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f_sum = f_sum + f(4)
       t_7 = 1.0_real64/C_1
       t_8 = t_1*t_7
       t_9 = self%constants(21)*t_7 + self%constants(61)*exp_1*(self%constants(4)*t_7 + self%constants(6)*t_8) + &
           self%constants(77)*t_8
       f(5) = self%constants(9) - q1_x*t_9
+      f_sum = f_sum + f(5)
       f(6) = self%constants(10) - q1_y*t_9
+      f_sum = f_sum + f(6)
+      t_13 = 1.0_real64/exp_2
       t_10 = 1.0_real64/C_2
       t_11 = t_10*t_2
       t_12 = gamma/C_2_root_2**3
-      t_13 = 1.0_real64/exp_2
       t_14 = t_13*self%parameters%theta_ref
       t_15 = self%constants(20)*t_2 + self%constants(21)
       t_16 = self%parameters%beta_v*t_12*t_15 + self%constants(60)*t_12 + self%constants(78)*(self%constants(12)*t_11 &
           + self%constants(7)*t_10) + 2.0_real64*t_14*(self%constants(16)*(self%constants(14)*t_10 + &
           self%constants(15)*t_11) + self%constants(17)*t_12 + self%constants(19)*t_12*t_4)
       f(7) = self%constants(24) - q2_x*t_16
+      f_sum = f_sum + f(7)
       f(8) = self%constants(25) - q2_y*t_16
+      f_sum = f_sum + f(8)
       t_17 = self%constants(26)*gamma + self%constants(28)*t_15*t_3 + t_14*(self%constants(27)*gamma + t_5)
       f(9) = self%constants(29)*exp_3*t_17
+      f_sum = f_sum + f(9)
       f(10) = self%constants(32)*(self%constants(30)*t_13 + self%constants(31)*exp_1)/exp_1
+      f_sum = f_sum + f(10)
       f(11) = self%constants(33)*exp_2*exp_3*t_17**2 + t_6*(self%constants(30)*exp_1 + self%constants(31)*t_13)
+      f_sum = f_sum + f(11)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_temperature)
+      q1_x = z(1)
+      q1_y = z(2)
+      C_1 = q1_x**2 + q1_y**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(3)
+      q2_y = z(4)
+      C_2 = q2_x**2 + q2_y**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      C_2_root_2 = sqrt(C_2)
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(4) = t_4
-      t_5 = 1.0_real64/C_1
-      t_6 = t_5*log(C_1*self%constants(5))
-      t_7 = log(C_2*self%constants(11))
-      t_8 = 1.0_real64/tau_2
-      if (.not. (self%constants(76)*(self%constants(75) + t_8) <= max_exponent)) then
+      t_1 = 1.0_real64/C_1
+      t_2 = t_1*log(C_1*self%constants(5))
+      t_3 = log(C_2*self%constants(11))
+      tau_2 = z(11)
+      t_4 = 1.0_real64/tau_2
+      if (.not. (self%constants(76)*(self%constants(75) + t_4) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(76)*(self%constants(75) + t_8))
-      t_9 = self%constants(21)*t_5 + self%constants(77)*t_6
-      t_10 = tau_1*(self%constants(14)*t_5 + self%constants(34)*t_6)
+      exp_1 = exp(self%constants(76)*(self%constants(75) + t_4))
+      p1_x = z(5)
+      p2_x = z(7)
+      t_5 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_5
+      f_sum = f(1)
+      p1_y = z(6)
+      p2_y = z(8)
+      t_6 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_6
+      f_sum = f_sum + f(2)
+      t_7 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_7
+      f_sum = f_sum + f(3)
+      t_8 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_8
+      f_sum = f_sum + f(4)
+      tau_1 = z(10)
+      t_10 = tau_1*(self%constants(14)*t_1 + self%constants(34)*t_2)
+      t_9 = self%constants(21)*t_1 + self%constants(77)*t_2
       t_11 = 2.0_real64*t_10
       f(5) = self%constants(9) + q1_x*t_11 - q1_x*t_9
+      f_sum = f_sum + f(5)
       f(6) = self%constants(10) + q1_y*t_11 - q1_y*t_9
-      t_12 = 1.0_real64/C_2
-      t_13 = t_12*t_7
+      f_sum = f_sum + f(6)
+      gamma = z(9)
+      C_2_root_2 = sqrt(C_2)
       t_14 = gamma/C_2_root_2**3
-      t_15 = self%constants(20)*t_7 + self%constants(21)
+      t_12 = 1.0_real64/C_2
+      t_13 = t_12*t_3
       t_16 = self%constants(22)*t_14
-      t_17 = self%constants(60)*t_14 + self%constants(78)*(self%constants(12)*t_13 + self%constants(7)*t_12) + &
-          2.0_real64*t_15*t_16
-      t_18 = self%parameters%beta + self%constants(18)*t_7
+      t_18 = self%parameters%beta + self%constants(18)*t_3
       t_19 = tau_2*(self%constants(13)*(self%constants(14)*t_12 + self%constants(15)*t_13) + self%constants(88)*t_14 &
           + t_16*t_18)
+      t_15 = self%constants(20)*t_3 + self%constants(21)
+      t_17 = self%constants(60)*t_14 + self%constants(78)*(self%constants(12)*t_13 + self%constants(7)*t_12) + &
+          2.0_real64*t_15*t_16
       t_20 = 2.0_real64*t_19
       f(7) = self%constants(24) - q2_x*t_17 + q2_x*t_20
+      f_sum = f_sum + f(7)
       f(8) = self%constants(25) - q2_y*t_17 + q2_y*t_20
+      f_sum = f_sum + f(8)
       t_21 = self%constants(28)/C_2_root_2
       t_22 = self%constants(26)*gamma + t_15*t_21
-      t_23 = exp_1*tau_2*(self%constants(89)*gamma + t_18*t_21 - t_22*t_8)
+      t_23 = exp_1*tau_2*(self%constants(89)*gamma + t_18*t_21 - t_22*t_4)
       f(9) = self%constants(90)*t_23
+      f_sum = f_sum + f(9)
       t_24 = self%constants(92)*t_10
-      f(10) = self%constants(71)*(self%parameters%conductivity*tau_2 + self%constants(91)*tau_1) + q1_x*t_1*t_24 + &
-          q1_y*t_2*t_24
+      f(10) = self%constants(71)*(self%parameters%conductivity*tau_2 + self%constants(91)*tau_1) + q1_x*t_24*t_5 + &
+          q1_y*t_24*t_6
+      f_sum = f_sum + f(10)
       t_25 = self%constants(94)*t_19
       f(11) = self%constants(93)*(self%parameters%conductivity*tau_1 + self%constants(91)*tau_2) + self%constants(95) &
-          *t_22*t_23 + q2_x*t_25*t_3 + q2_y*t_25*t_4
+          *t_22*t_23 + q2_x*t_25*t_7 + q2_y*t_25*t_8
+      f_sum = f_sum + f(11)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_internal_energy)
+      q1_x = z(1)
+      q1_y = z(2)
+      C_1 = q1_x**2 + q1_y**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(3)
+      q2_y = z(4)
+      C_2 = q2_x**2 + q2_y**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      t_1 = log(C_2*self%constants(11))
+      t_2 = log(C_1*self%constants(5))
       C_2_root_2 = sqrt(C_2)
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(4) = t_4
-      t_5 = log(C_2*self%constants(11))
-      t_6 = log(C_1*self%constants(5))
-      t_7 = 1.0_real64/C_2_root_2
-      t_8 = self%constants(20)*t_5 + self%constants(21)
-      t_9 = self%parameters%beta_v*t_7*t_8
-      t_10 = self%constants(93)*(self%constants(107)*gamma**2 + self%constants(16)*(self%constants(108)*t_5**2 + &
-          self%constants(7)*t_5) + gamma*t_9 + tau_2) + self%parameters%theta_ref
-      t_11 = 1.0_real64/t_10
-      if (.not. (self%constants(76)*(self%constants(75) + t_11) <= max_exponent)) then
+      t_3 = 1.0_real64/C_2_root_2
+      t_4 = self%constants(20)*t_1 + self%constants(21)
+      gamma = z(9)
+      tau_2 = z(11)
+      t_5 = self%parameters%beta_v*t_3*t_4
+      t_6 = self%constants(93)*(self%constants(107)*gamma**2 + self%constants(16)*(self%constants(108)*t_1**2 + &
+          self%constants(7)*t_1) + gamma*t_5 + tau_2) + self%parameters%theta_ref
+      t_7 = 1.0_real64/t_6
+      if (.not. (self%constants(76)*(self%constants(75) + t_7) <= max_exponent)) then
         stat = domain_overflow
         return
       end if
-      exp_1 = exp(self%constants(76)*(self%constants(75) + t_11))
-      t_12 = self%constants(71)*(self%constants(106)*t_6**2 + self%constants(35)*t_6 + tau_1) + &
-          self%parameters%theta_ref
+      exp_1 = exp(self%constants(76)*(self%constants(75) + t_7))
+      p1_x = z(5)
+      p2_x = z(7)
+      t_8 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_8
+      f_sum = f(1)
+      p1_y = z(6)
+      p2_y = z(8)
+      t_9 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_9
+      f_sum = f_sum + f(2)
+      t_10 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_10
+      f_sum = f_sum + f(3)
+      t_11 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_11
+      f_sum = f_sum + f(4)
       t_13 = 1.0_real64/C_1
-      t_14 = t_13*t_6
+      tau_1 = z(10)
+      t_12 = self%constants(71)*(self%constants(106)*t_2**2 + self%constants(35)*t_2 + tau_1) + &
+          self%parameters%theta_ref
+      t_14 = t_13*t_2
       t_15 = 2.0_real64*t_12*(self%constants(14)*t_13 + self%constants(34)*t_14 + (self%constants(35)*t_13 + &
           self%constants(36)*t_14)/t_12)
       t_16 = q1_x*t_15
       f(5) = self%constants(9) + t_16
+      f_sum = f_sum + f(5)
       t_17 = q1_y*t_15
       f(6) = self%constants(10) + t_17
+      f_sum = f_sum + f(6)
       t_18 = 1.0_real64/C_2
-      t_19 = t_18*t_5
+      t_19 = t_1*t_18
       t_20 = gamma/C_2_root_2**3
-      t_21 = self%parameters%beta + self%constants(18)*t_5
-      t_22 = 2.0_real64*t_10*(self%constants(13)*(self%constants(14)*t_18 + self%constants(15)*t_19) + &
-          self%constants(22)*t_20*t_21 + self%constants(88)*t_20 + t_11*(self%constants(109)*t_20 + &
-          self%constants(16)*(self%constants(12)*t_19 + self%constants(7)*t_18) + self%constants(19)*t_20*t_8))
+      t_21 = self%parameters%beta + self%constants(18)*t_1
+      t_22 = 2.0_real64*t_6*(self%constants(13)*(self%constants(14)*t_18 + self%constants(15)*t_19) + &
+          self%constants(22)*t_20*t_21 + self%constants(88)*t_20 + t_7*(self%constants(109)*t_20 + self%constants(16) &
+          *(self%constants(12)*t_19 + self%constants(7)*t_18) + self%constants(19)*t_20*t_4))
       t_23 = q2_x*t_22
       f(7) = self%constants(24) + t_23
+      f_sum = f_sum + f(7)
       t_24 = q2_y*t_22
       f(8) = self%constants(25) + t_24
-      f(9) = self%constants(90)*exp_1*t_10*(self%constants(28)*t_21*t_7 + self%constants(89)*gamma + t_11 &
-          *(self%constants(98)*gamma + t_9))
-      f(10) = self%parameters%conductivity*t_10 + self%constants(91)*t_12 - t_1*t_16 - t_17*t_2
-      f(11) = self%parameters%conductivity*t_12 + self%constants(91)*t_10 - t_23*t_3 - t_24*t_4
+      f_sum = f_sum + f(8)
+      f(9) = self%constants(90)*exp_1*t_6*(self%constants(28)*t_21*t_3 + self%constants(89)*gamma + t_7 &
+          *(self%constants(98)*gamma + t_5))
+      f_sum = f_sum + f(9)
+      f(10) = self%parameters%conductivity*t_6 + self%constants(91)*t_12 - t_16*t_8 - t_17*t_9
+      f_sum = f_sum + f(10)
+      f(11) = self%parameters%conductivity*t_12 + self%constants(91)*t_6 - t_10*t_23 - t_11*t_24
+      f_sum = f_sum + f(11)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     end select
-    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11)) <= &
-        huge(1.0_real64))) stat = domain_overflow
   end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).

@@ -613,10 +613,16 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy(10), f_copy(10)
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -1004,150 +1010,206 @@ contains
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class(planar_thermoelastic_pendulum), intent(in) :: self
     real(real64), intent(in) :: z(10)
     real(real64), intent(out) :: f(10)
     integer, intent(out) :: stat
     real(real64) :: q1_x, q1_y, q2_x, q2_y, p1_x, p1_y, p2_x, p2_y, tau_1, tau_2, C_1, C_2, exp_1, exp_2, t_1, t_2, &
-        t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18
+        t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, t_18, f_sum
 
     stat = failure_none
-    q1_x = z(1)
-    q1_y = z(2)
-    q2_x = z(3)
-    q2_y = z(4)
-    p1_x = z(5)
-    p1_y = z(6)
-    p2_x = z(7)
-    p2_y = z(8)
-    tau_1 = z(9)
-    tau_2 = z(10)
-    C_1 = q1_x**2 + q1_y**2
-    C_2 = q2_x**2 + q2_y**2
     select case (self%thermo_variable)
     case (tau_entropy)
+      q1_x = z(1)
+      q1_y = z(2)
+      C_1 = q1_x**2 + q1_y**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(3)
+      q2_y = z(4)
+      C_2 = q2_x**2 + q2_y**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(11))
+      tau_1 = z(9)
       if (.not. (abs(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_1 = exp(self%constants(42)*(self%constants(4)*t_1 + self%constants(41)*t_1**2 + tau_1))
+      tau_2 = z(10)
       if (.not. (abs(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_2 = exp(self%constants(44)*(self%constants(4)*t_2 + self%constants(43)*t_2**2 + tau_2))
+      p1_x = z(5)
+      p2_x = z(7)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f_sum = f(1)
+      p1_y = z(6)
+      p2_y = z(8)
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f_sum = f_sum + f(2)
+      f(3) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f_sum = f_sum + f(3)
+      f(4) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f_sum = f_sum + f(4)
       t_3 = 1.0_real64/C_1
       t_4 = t_1*t_3
       t_5 = self%constants(45)*t_4 + self%constants(46)*t_3 + self%constants(57)*exp_1*(self%constants(4)*t_3 + &
           self%constants(6)*t_4)
       f(5) = self%constants(9) - q1_x*t_5
+      f_sum = f_sum + f(5)
       f(6) = self%constants(10) - q1_y*t_5
+      f_sum = f_sum + f(6)
       t_6 = 1.0_real64/C_2
       t_7 = t_2*t_6
       t_8 = self%constants(46)*t_6 + self%constants(47)*t_7 + self%constants(57)*exp_2*(self%constants(12)*t_7 + &
           self%constants(4)*t_6)
       f(7) = self%constants(14) - q2_x*t_8
+      f_sum = f_sum + f(7)
       f(8) = self%constants(15) - q2_y*t_8
+      f_sum = f_sum + f(8)
       f(9) = self%constants(18)*(self%constants(16)*exp_2 + self%constants(17)*exp_1)/exp_1
+      f_sum = f_sum + f(9)
       f(10) = self%constants(18)*(self%constants(16)*exp_1 + self%constants(17)*exp_2)/exp_2
+      f_sum = f_sum + f(10)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_temperature)
+      q1_x = z(1)
+      q1_y = z(2)
+      C_1 = q1_x**2 + q1_y**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(3)
+      q2_y = z(4)
+      C_2 = q2_x**2 + q2_y**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(4) = t_4
-      t_5 = 1.0_real64/C_1
-      t_6 = t_5*log(C_1*self%constants(5))
-      t_7 = 1.0_real64/C_2
-      t_8 = t_7*log(C_2*self%constants(11))
-      t_9 = self%constants(45)*t_6 + self%constants(46)*t_5
-      t_10 = tau_1*(self%constants(19)*t_5 + self%constants(20)*t_6)
+      t_1 = 1.0_real64/C_1
+      t_2 = t_1*log(C_1*self%constants(5))
+      t_3 = 1.0_real64/C_2
+      t_4 = t_3*log(C_2*self%constants(11))
+      p1_x = z(5)
+      p2_x = z(7)
+      t_5 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_5
+      f_sum = f(1)
+      p1_y = z(6)
+      p2_y = z(8)
+      t_6 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_6
+      f_sum = f_sum + f(2)
+      t_7 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_7
+      f_sum = f_sum + f(3)
+      t_8 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_8
+      f_sum = f_sum + f(4)
+      tau_1 = z(9)
+      t_10 = tau_1*(self%constants(19)*t_1 + self%constants(20)*t_2)
+      t_9 = self%constants(45)*t_2 + self%constants(46)*t_1
       t_11 = 2.0_real64*t_10
       f(5) = self%constants(9) + q1_x*t_11 - q1_x*t_9
+      f_sum = f_sum + f(5)
       f(6) = self%constants(10) + q1_y*t_11 - q1_y*t_9
-      t_12 = self%constants(46)*t_7 + self%constants(47)*t_8
-      t_13 = tau_2*(self%constants(19)*t_7 + self%constants(28)*t_8)
+      f_sum = f_sum + f(6)
+      tau_2 = z(10)
+      t_13 = tau_2*(self%constants(19)*t_3 + self%constants(28)*t_4)
+      t_12 = self%constants(46)*t_3 + self%constants(47)*t_4
       t_14 = 2.0_real64*t_13
       f(7) = self%constants(14) - q2_x*t_12 + q2_x*t_14
+      f_sum = f_sum + f(7)
       f(8) = self%constants(15) - q2_y*t_12 + q2_y*t_14
+      f_sum = f_sum + f(8)
       t_15 = self%constants(59)*t_10
-      f(9) = self%constants(42)*(self%parameters%conductivity*tau_2 + self%constants(58)*tau_1) + q1_x*t_1*t_15 + &
-          q1_y*t_15*t_2
+      f(9) = self%constants(42)*(self%parameters%conductivity*tau_2 + self%constants(58)*tau_1) + q1_x*t_15*t_5 + &
+          q1_y*t_15*t_6
+      f_sum = f_sum + f(9)
       t_16 = self%constants(60)*t_13
-      f(10) = self%constants(44)*(self%parameters%conductivity*tau_1 + self%constants(58)*tau_2) + q2_x*t_16*t_3 + &
-          q2_y*t_16*t_4
+      f(10) = self%constants(44)*(self%parameters%conductivity*tau_1 + self%constants(58)*tau_2) + q2_x*t_16*t_7 + &
+          q2_y*t_16*t_8
+      f_sum = f_sum + f(10)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_internal_energy)
+      q1_x = z(1)
+      q1_y = z(2)
+      C_1 = q1_x**2 + q1_y**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(3)
+      q2_y = z(4)
+      C_2 = q2_x**2 + q2_y**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(4) = t_4
-      t_5 = log(C_1*self%constants(5))
-      t_6 = log(C_2*self%constants(11))
-      t_7 = self%constants(42)*(self%constants(21)*t_5 + self%constants(65)*t_5**2 + tau_1) + self%parameters%theta_ref
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(11))
+      p1_x = z(5)
+      p2_x = z(7)
+      t_3 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_3
+      f_sum = f(1)
+      p1_y = z(6)
+      p2_y = z(8)
+      t_4 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_4
+      f_sum = f_sum + f(2)
+      t_5 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(3) = t_5
+      f_sum = f_sum + f(3)
+      t_6 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(4) = t_6
+      f_sum = f_sum + f(4)
       t_8 = 1.0_real64/C_1
-      t_9 = t_5*t_8
+      tau_1 = z(9)
+      t_7 = self%constants(42)*(self%constants(21)*t_1 + self%constants(65)*t_1**2 + tau_1) + self%parameters%theta_ref
+      t_9 = t_1*t_8
       t_10 = 2.0_real64*t_7*(self%constants(19)*t_8 + self%constants(20)*t_9 + (self%constants(21)*t_8 + &
           self%constants(22)*t_9)/t_7)
       t_11 = q1_x*t_10
       f(5) = self%constants(9) + t_11
+      f_sum = f_sum + f(5)
       t_12 = q1_y*t_10
       f(6) = self%constants(10) + t_12
-      t_13 = self%constants(44)*(self%constants(21)*t_6 + self%constants(66)*t_6**2 + tau_2) + self%parameters%theta_ref
+      f_sum = f_sum + f(6)
       t_14 = 1.0_real64/C_2
-      t_15 = t_14*t_6
+      tau_2 = z(10)
+      t_13 = self%constants(44)*(self%constants(21)*t_2 + self%constants(66)*t_2**2 + tau_2) + self%parameters%theta_ref
+      t_15 = t_14*t_2
       t_16 = 2.0_real64*t_13*(self%constants(19)*t_14 + self%constants(28)*t_15 + (self%constants(21)*t_14 + &
           self%constants(29)*t_15)/t_13)
       t_17 = q2_x*t_16
       f(7) = self%constants(14) + t_17
+      f_sum = f_sum + f(7)
       t_18 = q2_y*t_16
       f(8) = self%constants(15) + t_18
-      f(9) = self%parameters%conductivity*t_13 + self%constants(58)*t_7 - t_1*t_11 - t_12*t_2
-      f(10) = self%parameters%conductivity*t_7 + self%constants(58)*t_13 - t_17*t_3 - t_18*t_4
+      f_sum = f_sum + f(8)
+      f(9) = self%parameters%conductivity*t_13 + self%constants(58)*t_7 - t_11*t_3 - t_12*t_4
+      f_sum = f_sum + f(9)
+      f(10) = self%parameters%conductivity*t_7 + self%constants(58)*t_13 - t_17*t_5 - t_18*t_6
+      f_sum = f_sum + f(10)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     end select
-    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10)) <= huge(1.0_real64))) stat = &
-        domain_overflow
   end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).

@@ -704,10 +704,16 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
 
+    real(real64) :: z_copy(14), f_copy(14)
+
     if (present(jacobian)) then
       call field_and_jacobian(self, z, f, stat, jacobian)
-    else
+    else if (is_contiguous(z) .and. is_contiguous(f)) then
       call field_values(self, z, f, stat)
+    else    ! a strided z or f through copies: field_values, called twice, stays a procedure of its own
+      z_copy = z
+      call field_values(self, z_copy, f_copy, stat)
+      f = f_copy
     end if
   end subroutine continuous_field
 
@@ -1216,8 +1222,9 @@ contains
   end subroutine field_and_jacobian
 
   !> continuous_field without df/dz, on z and f of the state's size: contiguous (the relaxed schemes' stages are),
-  !> so no stride is computed for each of their entries; not inlined, so that continuous_field stays a dispatch
-  !> and prepares nothing of the Jacobian's for it.
+  !> so no stride is computed for each of their entries; not inlined (called from two places), so that
+  !> continuous_field stays a dispatch and prepares nothing of the Jacobian's for it. f's finiteness check sums
+  !> f(1) + ... + f(n) in that order as the entries are written (f_sum).
   pure subroutine field_values(self, z, f, stat)
     class(thermoelastic_pendulum), intent(in) :: self
     real(real64), intent(in) :: z(14)
@@ -1225,164 +1232,239 @@ contains
     integer, intent(out) :: stat
     real(real64) :: q1_x, q1_y, q1_z, q2_x, q2_y, q2_z, p1_x, p1_y, p1_z, p2_x, p2_y, p2_z, tau_1, tau_2, C_1, C_2, &
         exp_1, exp_2, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, t_16, t_17, &
-        t_18, t_19, t_20, t_21, t_22
+        t_18, t_19, t_20, t_21, t_22, f_sum
 
     stat = failure_none
-    q1_x = z(1)
-    q1_y = z(2)
-    q1_z = z(3)
-    q2_x = z(4)
-    q2_y = z(5)
-    q2_z = z(6)
-    p1_x = z(7)
-    p1_y = z(8)
-    p1_z = z(9)
-    p2_x = z(10)
-    p2_y = z(11)
-    p2_z = z(12)
-    tau_1 = z(13)
-    tau_2 = z(14)
-    C_1 = q1_x**2 + q1_y**2 + q1_z**2
-    C_2 = q2_x**2 + q2_y**2 + q2_z**2
     select case (self%thermo_variable)
     case (tau_entropy)
+      q1_x = z(1)
+      q1_y = z(2)
+      q1_z = z(3)
+      C_1 = q1_x**2 + q1_y**2 + q1_z**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(4)
+      q2_y = z(5)
+      q2_z = z(6)
+      C_2 = q2_x**2 + q2_y**2 + q2_z**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
       t_1 = log(C_1*self%constants(5))
       t_2 = log(C_2*self%constants(12))
+      tau_1 = z(13)
       if (.not. (abs(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_1 = exp(self%constants(44)*(self%constants(4)*t_1 + self%constants(43)*t_1**2 + tau_1))
+      tau_2 = z(14)
       if (.not. (abs(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2)) <= &
           max_exponent)) then
         stat = domain_overflow
         return
       end if
       exp_2 = exp(self%constants(46)*(self%constants(4)*t_2 + self%constants(45)*t_2**2 + tau_2))
+      p1_x = z(7)
+      p2_x = z(10)
+      f(1) = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f_sum = f(1)
+      p1_y = z(8)
+      p2_y = z(11)
+      f(2) = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f_sum = f_sum + f(2)
+      p1_z = z(9)
+      p2_z = z(12)
+      f(3) = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f_sum = f_sum + f(3)
+      f(4) = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f_sum = f_sum + f(4)
+      f(5) = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f_sum = f_sum + f(5)
+      f(6) = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f_sum = f_sum + f(6)
       t_3 = 1.0_real64/C_1
       t_4 = t_1*t_3
       t_5 = self%constants(47)*t_4 + self%constants(48)*t_3 + self%constants(59)*exp_1*(self%constants(4)*t_3 + &
           self%constants(6)*t_4)
       f(7) = self%constants(9) - q1_x*t_5
+      f_sum = f_sum + f(7)
       f(8) = self%constants(10) - q1_y*t_5
+      f_sum = f_sum + f(8)
       f(9) = self%constants(11) - q1_z*t_5
+      f_sum = f_sum + f(9)
       t_6 = 1.0_real64/C_2
       t_7 = t_2*t_6
       t_8 = self%constants(48)*t_6 + self%constants(49)*t_7 + self%constants(59)*exp_2*(self%constants(13)*t_7 + &
           self%constants(4)*t_6)
       f(10) = self%constants(15) - q2_x*t_8
+      f_sum = f_sum + f(10)
       f(11) = self%constants(16) - q2_y*t_8
+      f_sum = f_sum + f(11)
       f(12) = self%constants(17) - q2_z*t_8
+      f_sum = f_sum + f(12)
       f(13) = self%constants(20)*(self%constants(18)*exp_2 + self%constants(19)*exp_1)/exp_1
+      f_sum = f_sum + f(13)
       f(14) = self%constants(20)*(self%constants(18)*exp_1 + self%constants(19)*exp_2)/exp_2
+      f_sum = f_sum + f(14)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_temperature)
+      q1_x = z(1)
+      q1_y = z(2)
+      q1_z = z(3)
+      C_1 = q1_x**2 + q1_y**2 + q1_z**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(4)
+      q2_y = z(5)
+      q2_z = z(6)
+      C_2 = q2_x**2 + q2_y**2 + q2_z**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = t_4
-      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(5) = t_5
-      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-      f(6) = t_6
-      t_7 = 1.0_real64/C_1
-      t_8 = t_7*log(C_1*self%constants(5))
-      t_9 = 1.0_real64/C_2
-      t_10 = t_9*log(C_2*self%constants(12))
-      t_11 = self%constants(47)*t_8 + self%constants(48)*t_7
-      t_12 = tau_1*(self%constants(21)*t_7 + self%constants(22)*t_8)
+      t_1 = 1.0_real64/C_1
+      t_2 = t_1*log(C_1*self%constants(5))
+      t_3 = 1.0_real64/C_2
+      t_4 = t_3*log(C_2*self%constants(12))
+      p1_x = z(7)
+      p2_x = z(10)
+      t_5 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_5
+      f_sum = f(1)
+      p1_y = z(8)
+      p2_y = z(11)
+      t_6 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_6
+      f_sum = f_sum + f(2)
+      p1_z = z(9)
+      p2_z = z(12)
+      t_7 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_7
+      f_sum = f_sum + f(3)
+      t_8 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_8
+      f_sum = f_sum + f(4)
+      t_9 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_9
+      f_sum = f_sum + f(5)
+      t_10 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_10
+      f_sum = f_sum + f(6)
+      tau_1 = z(13)
+      t_12 = tau_1*(self%constants(21)*t_1 + self%constants(22)*t_2)
+      t_11 = self%constants(47)*t_2 + self%constants(48)*t_1
       t_13 = 2.0_real64*t_12
       f(7) = self%constants(9) - q1_x*t_11 + q1_x*t_13
+      f_sum = f_sum + f(7)
       f(8) = self%constants(10) - q1_y*t_11 + q1_y*t_13
+      f_sum = f_sum + f(8)
       f(9) = self%constants(11) - q1_z*t_11 + q1_z*t_13
-      t_14 = self%constants(48)*t_9 + self%constants(49)*t_10
-      t_15 = tau_2*(self%constants(21)*t_9 + self%constants(30)*t_10)
+      f_sum = f_sum + f(9)
+      tau_2 = z(14)
+      t_15 = tau_2*(self%constants(21)*t_3 + self%constants(30)*t_4)
+      t_14 = self%constants(48)*t_3 + self%constants(49)*t_4
       t_16 = 2.0_real64*t_15
       f(10) = self%constants(15) - q2_x*t_14 + q2_x*t_16
+      f_sum = f_sum + f(10)
       f(11) = self%constants(16) - q2_y*t_14 + q2_y*t_16
+      f_sum = f_sum + f(11)
       f(12) = self%constants(17) - q2_z*t_14 + q2_z*t_16
+      f_sum = f_sum + f(12)
       t_17 = self%constants(61)*t_12
-      f(13) = self%constants(44)*(self%parameters%conductivity*tau_2 + self%constants(60)*tau_1) + q1_x*t_1*t_17 + &
-          q1_y*t_17*t_2 + q1_z*t_17*t_3
+      f(13) = self%constants(44)*(self%parameters%conductivity*tau_2 + self%constants(60)*tau_1) + q1_x*t_17*t_5 + &
+          q1_y*t_17*t_6 + q1_z*t_17*t_7
+      f_sum = f_sum + f(13)
       t_18 = self%constants(62)*t_15
-      f(14) = self%constants(46)*(self%parameters%conductivity*tau_1 + self%constants(60)*tau_2) + q2_x*t_18*t_4 + &
-          q2_y*t_18*t_5 + q2_z*t_18*t_6
+      f(14) = self%constants(46)*(self%parameters%conductivity*tau_1 + self%constants(60)*tau_2) + q2_x*t_18*t_8 + &
+          q2_y*t_18*t_9 + q2_z*t_10*t_18
+      f_sum = f_sum + f(14)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     case (tau_internal_energy)
+      q1_x = z(1)
+      q1_y = z(2)
+      q1_z = z(3)
+      C_1 = q1_x**2 + q1_y**2 + q1_z**2
       if (.not. (C_1 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
+      q2_x = z(4)
+      q2_y = z(5)
+      q2_z = z(6)
+      C_2 = q2_x**2 + q2_y**2 + q2_z**2
       if (.not. (C_2 > 0.0_real64)) then
         stat = domain_nonpositive_length
         return
       end if
-      t_1 = self%constants(1)*p1_x + self%constants(2)*p2_x
-      f(1) = t_1
-      t_2 = self%constants(1)*p1_y + self%constants(2)*p2_y
-      f(2) = t_2
-      t_3 = self%constants(1)*p1_z + self%constants(2)*p2_z
-      f(3) = t_3
-      t_4 = self%constants(2)*p1_x + self%constants(3)*p2_x
-      f(4) = t_4
-      t_5 = self%constants(2)*p1_y + self%constants(3)*p2_y
-      f(5) = t_5
-      t_6 = self%constants(2)*p1_z + self%constants(3)*p2_z
-      f(6) = t_6
-      t_7 = log(C_1*self%constants(5))
-      t_8 = log(C_2*self%constants(12))
-      t_9 = self%constants(44)*(self%constants(23)*t_7 + self%constants(67)*t_7**2 + tau_1) + self%parameters%theta_ref
+      t_1 = log(C_1*self%constants(5))
+      t_2 = log(C_2*self%constants(12))
+      p1_x = z(7)
+      p2_x = z(10)
+      t_3 = self%constants(1)*p1_x + self%constants(2)*p2_x
+      f(1) = t_3
+      f_sum = f(1)
+      p1_y = z(8)
+      p2_y = z(11)
+      t_4 = self%constants(1)*p1_y + self%constants(2)*p2_y
+      f(2) = t_4
+      f_sum = f_sum + f(2)
+      p1_z = z(9)
+      p2_z = z(12)
+      t_5 = self%constants(1)*p1_z + self%constants(2)*p2_z
+      f(3) = t_5
+      f_sum = f_sum + f(3)
+      t_6 = self%constants(2)*p1_x + self%constants(3)*p2_x
+      f(4) = t_6
+      f_sum = f_sum + f(4)
+      t_7 = self%constants(2)*p1_y + self%constants(3)*p2_y
+      f(5) = t_7
+      f_sum = f_sum + f(5)
+      t_8 = self%constants(2)*p1_z + self%constants(3)*p2_z
+      f(6) = t_8
+      f_sum = f_sum + f(6)
       t_10 = 1.0_real64/C_1
-      t_11 = t_10*t_7
+      tau_1 = z(13)
+      t_9 = self%constants(44)*(self%constants(23)*t_1 + self%constants(67)*t_1**2 + tau_1) + self%parameters%theta_ref
+      t_11 = t_1*t_10
       t_12 = 2.0_real64*t_9*(self%constants(21)*t_10 + self%constants(22)*t_11 + (self%constants(23)*t_10 + &
           self%constants(24)*t_11)/t_9)
       t_13 = q1_x*t_12
       f(7) = self%constants(9) + t_13
+      f_sum = f_sum + f(7)
       t_14 = q1_y*t_12
       f(8) = self%constants(10) + t_14
+      f_sum = f_sum + f(8)
       t_15 = q1_z*t_12
       f(9) = self%constants(11) + t_15
-      t_16 = self%constants(46)*(self%constants(23)*t_8 + self%constants(68)*t_8**2 + tau_2) + self%parameters%theta_ref
+      f_sum = f_sum + f(9)
       t_17 = 1.0_real64/C_2
-      t_18 = t_17*t_8
+      tau_2 = z(14)
+      t_16 = self%constants(46)*(self%constants(23)*t_2 + self%constants(68)*t_2**2 + tau_2) + self%parameters%theta_ref
+      t_18 = t_17*t_2
       t_19 = 2.0_real64*t_16*(self%constants(21)*t_17 + self%constants(30)*t_18 + (self%constants(23)*t_17 + &
           self%constants(31)*t_18)/t_16)
       t_20 = q2_x*t_19
       f(10) = self%constants(15) + t_20
+      f_sum = f_sum + f(10)
       t_21 = q2_y*t_19
       f(11) = self%constants(16) + t_21
+      f_sum = f_sum + f(11)
       t_22 = q2_z*t_19
       f(12) = self%constants(17) + t_22
-      f(13) = self%parameters%conductivity*t_16 + self%constants(60)*t_9 - t_1*t_13 - t_14*t_2 - t_15*t_3
-      f(14) = self%parameters%conductivity*t_9 + self%constants(60)*t_16 - t_20*t_4 - t_21*t_5 - t_22*t_6
+      f_sum = f_sum + f(12)
+      f(13) = self%parameters%conductivity*t_16 + self%constants(60)*t_9 - t_13*t_3 - t_14*t_4 - t_15*t_5
+      f_sum = f_sum + f(13)
+      f(14) = self%parameters%conductivity*t_9 + self%constants(60)*t_16 - t_20*t_6 - t_21*t_7 - t_22*t_8
+      f_sum = f_sum + f(14)
+      if (.not. (abs(f_sum) <= huge(1.0_real64))) stat = domain_overflow
     end select
-    if (.not. (abs(f(1) + f(2) + f(3) + f(4) + f(5) + f(6) + f(7) + f(8) + f(9) + f(10) + f(11) + f(12) + f(13) + &
-        f(14)) <= huge(1.0_real64))) stat = domain_overflow
   end subroutine field_values
 
   !> The momenta J = sum_a q_a x p_a (docs/formulation.md section 2).
