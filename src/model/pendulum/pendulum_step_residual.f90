@@ -154,8 +154,7 @@ contains
       d = x - old%x(1:n)
       sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
       sp%dwd = dot_product(d, sp%weight(1:n)*d)
-      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m(1:n, :), sp%delta_f, stat, sp%hess_m(1:n, 1:n, :), &
-                                         sp%grad_b(1:n, :))
+      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m, sp%delta_f, stat, sp%hess_m, sp%grad_b)
       if (stat /= failure_none) return
       sp%small = sqrt(sp%dwd) < quotient_threshold
       if (sp%small) then
