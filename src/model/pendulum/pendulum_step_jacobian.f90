@@ -68,7 +68,9 @@ contains
     call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m, sp%delta_f, dg, sp%hess_m, sp%grad_b, ddg)
   end subroutine gonzalez_derivatives
 
-  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.
+  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass. The
+  ! fixed-size work arrays are zeroed whole: plain loops, not strided ones over their first rows
+  ! (docs/performance.md, Issue 42).
   pure subroutine assemble_jacobian(self, point, dtheta_new, jacobian)
     class(pendulum_step), intent(in) :: self
     type(step_point), intent(in) :: point
@@ -86,9 +88,9 @@ contains
     if (.not. self%full) rows = self%internal_count
     h = self%fraction*self%dt
     kappa = self%params%conductivity
-    jac(1:rows, 1:rows) = 0.0_real64
-    dq(1:rows, :, :) = 0.0_real64
-    drow(1:rows, :, :) = 0.0_real64
+    jac = 0.0_real64
+    dq = 0.0_real64
+    drow = 0.0_real64
     associate (partials => point%partials, dp => point%dpartials, theta => point%theta, &
                thermal_force => point%thermal_force, work => point%work, work_ratio => point%work_ratio, &
                inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &
