@@ -97,7 +97,9 @@ contains
   !> Gonzalez's quotient above the threshold from its parts: d = b - a, the metric's weights W,
   !> dwd = d.W d, grad f at the midpoint and f(b) - f(a); for its Jacobian also the Hessian at the
   !> midpoint and grad f(b) (all three or none). The fused step kernel (src/scheme/
-  !> pendulum_step_kernel) computes the parts itself and shares them.
+  !> pendulum_step_kernel) computes the parts itself and shares them. n = size(d) variables: the
+  !> matrices' first n rows (and hess_m's and ddg_db's first n columns) are read and written, so a
+  !> caller may pass whole arrays of a larger leading dimension (contiguous, never packed).
   pure subroutine gonzalez_from_parts(d, weight, dwd, grad_m, delta_f, dg, hess_m, grad_b, ddg_db)
     real(real64), intent(in), contiguous :: d(:), weight(:), grad_m(:, :), delta_f(:)
     real(real64), intent(in) :: dwd

@@ -2133,6 +2133,7 @@ def element_module(description, source):
             grads = [(i, k, sp.diff(f, x)) for k, f in enumerate(values) for i, x in enumerate(invariants)]
             hessians = [(i, j, k, sp.diff(f, x, y)) for k, f in enumerate(values)
                         for i, x in enumerate(invariants) for j, y in enumerate(invariants)]
+            every_grad, every_hessian = grads, hessians      # gonzalez_parts writes their zeros too (no zeroing pass)
             grads = [g for g in grads if g[-1] != 0]
             hessians = [h for h in hessians if h[-1] != 0]
             per_variable["evaluate"].append((variable, body_of(
@@ -2164,12 +2165,12 @@ def element_module(description, source):
             at_m = {x: sp.Symbol(f"{x.name}_m", real=True) for x in invariants}
             mid_positive = [at_m[x] for x in positive]
             gonzalez = body_of("gonzalez", indent, [], ends_positive + mid_positive, "",
-                               ["delta(1)", "delta(2)"] + [f"grad_m({i + 1}, {k + 1})" for i, k, _ in grads],
-                               differences + [g.subs(at_m, simultaneous=True) for *_, g in grads],
-                               ("hess_m", [f"hess_m({i + 1}, {j + 1}, {k + 1})" for i, j, k, _ in hessians]
-                                + [f"grad_b({i + 1}, {k + 1})" for i, k, _ in grads],
-                                [h.subs(at_m, simultaneous=True) for *_, h in hessians]
-                                + [g.subs(at_b, simultaneous=True) for *_, g in grads]),
+                               ["delta(1)", "delta(2)"] + [f"grad_m({i + 1}, {k + 1})" for i, k, _ in every_grad],
+                               differences + [g.subs(at_m, simultaneous=True) for *_, g in every_grad],
+                               ("hess_m", [f"hess_m({i + 1}, {j + 1}, {k + 1})" for i, j, k, _ in every_hessian]
+                                + [f"grad_b({i + 1}, {k + 1})" for i, k, _ in every_grad],
+                                [h.subs(at_m, simultaneous=True) for *_, h in every_hessian]
+                                + [g.subs(at_b, simultaneous=True) for *_, g in every_grad]),
                                check_on=ends + [e.subs(at_m, simultaneous=True) for e in values])
             unpacked += [INDENT*indent + f"{at_m[x].name} = 0.5_real64*(a({i + 1}) + b({i + 1}))"
                          for i, x in enumerate(invariants)]
@@ -2322,18 +2323,18 @@ contains
 
   !> The parts of Gonzalez's discrete gradient between a and b (src/scheme/discrete_gradient's gonzalez_from_parts)
   !> in one body, their common subexpressions shared: grad f at m = (a + b)/2, f(b) - f(a) free of cancellation
-  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither).
+  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither). Every entry of the kind's invariants is
+  !> written, its zeros too (no pass that zeroes the arrays first: it cost about a fifth of the call); a larger array's
+  !> entries beyond them are not, nor any output after a domain error (stat /= failure_none). Contiguous arrays: a
+  !> caller's section would be packed (docs/performance.md, Issue 42).
   pure subroutine gonzalez_parts(self, a, b, grad_m, delta, stat, hess_m, grad_b)
     class({name}_potentials), intent(in) :: self
-    real(real64), intent(in) :: a(:), b(:)
-    real(real64), intent(out) :: grad_m(:, :), delta(:)
+    real(real64), intent(in), contiguous :: a(:), b(:)
+    real(real64), intent(out), contiguous :: grad_m(:, :), delta(:)
     integer, intent(out) :: stat
-    real(real64), intent(out), optional :: hess_m(:, :, :), grad_b(:, :)
+    real(real64), intent(out), optional, contiguous :: hess_m(:, :, :), grad_b(:, :)
 {lines_of(declaration("gonzalez"))}
 
-    grad_m = 0.0_real64
-    if (present(hess_m)) hess_m = 0.0_real64
-    if (present(grad_b)) grad_b = 0.0_real64
     stat = failure_none
 {lines_of(cases("gonzalez"))}
   end subroutine gonzalez_parts

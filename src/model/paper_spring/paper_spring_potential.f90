@@ -1011,21 +1011,21 @@ contains
 
   !> The parts of Gonzalez's discrete gradient between a and b (src/scheme/discrete_gradient's gonzalez_from_parts)
   !> in one body, their common subexpressions shared: grad f at m = (a + b)/2, f(b) - f(a) free of cancellation
-  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither).
+  !> and, for its Jacobian, the Hessian at m and grad f(b) (both or neither). Every entry of the kind's invariants is
+  !> written, its zeros too (no pass that zeroes the arrays first: it cost about a fifth of the call); a larger array's
+  !> entries beyond them are not, nor any output after a domain error (stat /= failure_none). Contiguous arrays: a
+  !> caller's section would be packed (docs/performance.md, Issue 42).
   pure subroutine gonzalez_parts(self, a, b, grad_m, delta, stat, hess_m, grad_b)
     class(paper_spring_potentials), intent(in) :: self
-    real(real64), intent(in) :: a(:), b(:)
-    real(real64), intent(out) :: grad_m(:, :), delta(:)
+    real(real64), intent(in), contiguous :: a(:), b(:)
+    real(real64), intent(out), contiguous :: grad_m(:, :), delta(:)
     integer, intent(out) :: stat
-    real(real64), intent(out), optional :: hess_m(:, :, :), grad_b(:, :)
+    real(real64), intent(out), optional, contiguous :: hess_m(:, :, :), grad_b(:, :)
     real(real64) :: C_a, C_b, d_C, C_m, tau_a, tau_b, d_tau, tau_m, C_a_root_2, C_b_root_2, C_m_root_2, gamma_a, &
         gamma_b, d_gamma, gamma_m, t_1, t_2, t_3, t_4, t_5, t_6, t_7, t_8, t_9, t_10, t_11, t_12, t_13, t_14, t_15, &
         t_16, t_17, t_18, t_19, t_20, t_21, t_22, t_23, t_24, t_25, t_26, t_27, t_28, t_29, t_30, t_31, t_32, t_33, &
         t_34, t_35, t_36, t_37, t_38, t_39, t_40, t_41, t_42, t_43, t_44, t_45, t_46, t_47, t_48, t_49
 
-    grad_m = 0.0_real64
-    if (present(hess_m)) hess_m = 0.0_real64
-    if (present(grad_b)) grad_b = 0.0_real64
     stat = failure_none
     select case (self%kind)
     case (1)  ! the elastic rung
@@ -1051,12 +1051,16 @@ contains
         delta(1) = self%constants(2)*(t_1 + log(C_a*self%constants(1)))*log1p(d_C/C_a)
         delta(2) = 0
         grad_m(1, 1) = self%constants(3)*t_2/C_m
+        grad_m(1, 2) = 0
         hess_m(1, 1, 1) = self%constants(4)*(t_2 - 1.0_real64)/C_m**2
+        hess_m(1, 1, 2) = 0
         grad_b(1, 1) = self%constants(3)*t_1/C_b
+        grad_b(1, 2) = 0
       else
         delta(1) = self%constants(2)*(log(C_a*self%constants(1)) + log(C_b*self%constants(1)))*log1p(d_C/C_a)
         delta(2) = 0
         grad_m(1, 1) = self%constants(3)*log(C_m*self%constants(1))/C_m
+        grad_m(1, 2) = 0
       end if
     case (2)  ! the thermoelastic rung
       select case (self%variable)
@@ -1125,15 +1129,21 @@ contains
           grad_m(1, 1) = self%constants(10)*t_5 + self%constants(12)*t_7 + t_9*(self%constants(11)*t_7 + &
               self%constants(5)*t_5)
           grad_m(2, 1) = t_9
+          grad_m(1, 2) = 0
           grad_m(2, 2) = 1.0_real64
           hess_m(1, 1, 1) = (0.0625_real64)*(self%constants(13)*t_6 + self%constants(18)*t_11*(self%constants(14) + &
               t_10) + self%constants(21) + t_12**2*t_13)/C_m**2
           hess_m(1, 2, 1) = t_14
           hess_m(2, 1, 1) = t_14
           hess_m(2, 2, 1) = t_13
+          hess_m(1, 1, 2) = 0
+          hess_m(1, 2, 2) = 0
+          hess_m(2, 1, 2) = 0
+          hess_m(2, 2, 2) = 0
           grad_b(1, 1) = self%constants(10)*t_15 + self%constants(12)*t_16 + t_17*(self%constants(11)*t_16 + &
               self%constants(5)*t_15)
           grad_b(2, 1) = t_17
+          grad_b(1, 2) = 0
           grad_b(2, 2) = 1.0_real64
         else
           t_1 = log1p(d_C/C_a)
@@ -1151,6 +1161,7 @@ contains
           grad_m(1, 1) = self%constants(10)*t_4 + self%constants(12)*t_6 + t_7*(self%constants(11)*t_6 + &
               self%constants(5)*t_4)
           grad_m(2, 1) = t_7
+          grad_m(1, 2) = 0
           grad_m(2, 2) = 1.0_real64
         end if
       case (tau_temperature)
@@ -1203,7 +1214,12 @@ contains
           grad_m(1, 2) = self%constants(15)*t_4 + self%constants(30)*t_6
           grad_m(2, 2) = self%parameters%heat_capacity/tau_m
           hess_m(1, 1, 1) = t_7*(self%constants(31)*t_5 + self%constants(32))
+          hess_m(1, 2, 1) = 0
+          hess_m(2, 1, 1) = 0
+          hess_m(2, 2, 1) = 0
           hess_m(1, 1, 2) = t_7*(self%constants(33)*t_5 + self%constants(34))
+          hess_m(1, 2, 2) = 0
+          hess_m(2, 1, 2) = 0
           hess_m(2, 2, 2) = self%constants(35)/tau_m**2
           grad_b(1, 1) = self%constants(10)*t_8 + self%constants(12)*t_9
           grad_b(2, 1) = self%parameters%heat_capacity
@@ -1291,15 +1307,21 @@ contains
           delta(2) = self%constants(15)*t_1 + self%constants(16)*t_4 + self%parameters%heat_capacity &
               *log1p(self%constants(7)*(self%constants(36)*t_4 + self%constants(37)*t_1 + d_tau)/(self%constants(7) &
               *(self%constants(36)*t_2**2 + self%constants(37)*t_2 + tau_a) + self%parameters%theta_ref))
+          grad_m(1, 1) = 0
           grad_m(2, 1) = 1.0_real64
           grad_m(1, 2) = self%constants(15)*t_5 + self%constants(30)*t_9 + t_8*(self%constants(37)*t_5 + &
               self%constants(38)*t_9)
           grad_m(2, 2) = t_8
+          hess_m(1, 1, 1) = 0
+          hess_m(1, 2, 1) = 0
+          hess_m(2, 1, 1) = 0
+          hess_m(2, 2, 1) = 0
           hess_m(1, 1, 2) = (0.25_real64)*(self%constants(33)*t_6 + self%constants(34) + self%constants(44)*t_13 &
               **2/t_11**2 + 8.0_real64*(self%constants(42) + t_12)/t_11)/C_m**2
           hess_m(1, 2, 2) = t_15
           hess_m(2, 1, 2) = t_15
           hess_m(2, 2, 2) = self%constants(17)*t_14
+          grad_b(1, 1) = 0
           grad_b(2, 1) = 1.0_real64
           grad_b(1, 2) = self%constants(15)*t_16 + self%constants(30)*t_18 + t_17*(self%constants(37)*t_16 + &
               self%constants(38)*t_18)
@@ -1317,6 +1339,7 @@ contains
           delta(2) = self%constants(15)*t_1 + self%constants(16)*t_3 + self%parameters%heat_capacity &
               *log1p(self%constants(7)*(self%constants(36)*t_3 + self%constants(37)*t_1 + d_tau)/(self%constants(7) &
               *(self%constants(36)*t_2**2 + self%constants(37)*t_2 + tau_a) + self%parameters%theta_ref))
+          grad_m(1, 1) = 0
           grad_m(2, 1) = 1.0_real64
           grad_m(1, 2) = self%constants(15)*t_4 + self%constants(30)*t_7 + t_6*(self%constants(37)*t_4 + &
               self%constants(38)*t_7)
@@ -1444,6 +1467,8 @@ contains
               *t_17) + self%constants(58)*t_20 + self%constants(59)*t_20*t_21)
           grad_m(2, 1) = self%constants(62)*gamma_m + t_25*(self%constants(63)*gamma_m + t_24) + t_26*t_27
           grad_m(3, 1) = t_25
+          grad_m(1, 2) = 0
+          grad_m(2, 2) = 0
           grad_m(3, 2) = 1.0_real64
           hess_m(1, 1, 1) = self%constants(64)*t_28*(self%constants(42) + t_29) + self%constants(71)*t_34 &
               *(self%constants(65)*t_28*(self%constants(14) + t_30) + self%constants(66)*t_31 + self%constants(67) &
@@ -1456,11 +1481,22 @@ contains
           hess_m(3, 1, 1) = t_40
           hess_m(3, 2, 1) = t_41
           hess_m(3, 3, 1) = self%constants(86)*t_34
+          hess_m(1, 1, 2) = 0
+          hess_m(1, 2, 2) = 0
+          hess_m(1, 3, 2) = 0
+          hess_m(2, 1, 2) = 0
+          hess_m(2, 2, 2) = 0
+          hess_m(2, 3, 2) = 0
+          hess_m(3, 1, 2) = 0
+          hess_m(3, 2, 2) = 0
+          hess_m(3, 3, 2) = 0
           grad_b(1, 1) = self%constants(49)*(self%constants(10)*t_42 + self%constants(12)*t_43) + self%constants(60) &
               *t_44*t_8 + self%constants(61)*t_44 + t_46*(self%constants(51)*(self%constants(15)*t_42 + &
               self%constants(30)*t_43) + self%constants(58)*t_44 + self%constants(59)*t_13*t_44)
           grad_b(2, 1) = self%constants(57)*t_9 + self%constants(62)*gamma_b + t_46*(self%constants(63)*gamma_b + t_45)
           grad_b(3, 1) = t_46
+          grad_b(1, 2) = 0
+          grad_b(2, 2) = 0
           grad_b(3, 2) = 1.0_real64
         else
           t_1 = log1p(d_C/C_a)
@@ -1499,6 +1535,8 @@ contains
           grad_m(2, 1) = self%constants(57)*t_18*t_21 + self%constants(62)*gamma_m + t_20*(self%constants(63)*gamma_m &
               + t_19)
           grad_m(3, 1) = t_20
+          grad_m(1, 2) = 0
+          grad_m(2, 2) = 0
           grad_m(3, 2) = 1.0_real64
         end if
       case (tau_temperature)
@@ -1593,13 +1631,22 @@ contains
           hess_m(1, 1, 1) = self%constants(72)*t_25 + t_24*(self%constants(42) + t_23) + t_26*(self%constants(43) + &
               t_23)
           hess_m(1, 2, 1) = t_28
+          hess_m(1, 3, 1) = 0
           hess_m(2, 1, 1) = t_28
           hess_m(2, 2, 1) = self%constants(102)
+          hess_m(2, 3, 1) = 0
+          hess_m(3, 1, 1) = 0
+          hess_m(3, 2, 1) = 0
+          hess_m(3, 3, 1) = 0
           hess_m(1, 1, 2) = self%constants(103)*t_25 + t_24*(self%constants(14) + t_29) + t_26*(self%constants(19) + &
               t_29)
           hess_m(1, 2, 2) = t_30
+          hess_m(1, 3, 2) = 0
           hess_m(2, 1, 2) = t_30
           hess_m(2, 2, 2) = self%constants(84)
+          hess_m(2, 3, 2) = 0
+          hess_m(3, 1, 2) = 0
+          hess_m(3, 2, 2) = 0
           hess_m(3, 3, 2) = self%constants(105)/tau_m**2
           grad_b(1, 1) = self%constants(49)*(self%constants(10)*t_31 + self%constants(12)*t_32) + self%constants(61) &
               *t_33 + t_34*t_6
@@ -1769,12 +1816,23 @@ contains
               self%constants(56)) + self%constants(106)*gamma_a**2 + self%constants(51)*(self%constants(10)*t_2 + &
               self%constants(9)*t_2**2) + tau_a) + self%parameters%theta_ref)) + self%constants(57)*(gamma_a &
               *(self%constants(52)*t_6 - t_10*t_14) + t_11*t_13) + self%parameters%mu_neq_slope*t_12
+          grad_m(1, 1) = 0
+          grad_m(2, 1) = 0
           grad_m(3, 1) = 1.0_real64
           grad_m(1, 2) = self%constants(49)*(self%constants(15)*t_15 + self%constants(30)*t_17) + self%constants(60) &
               *t_24*t_26 + gamma_m*t_25 + t_22*(self%constants(107)*t_24 + self%constants(51)*(self%constants(10) &
               *t_15 + self%constants(12)*t_17) + self%constants(59)*t_20*t_24)
           grad_m(2, 2) = self%constants(84)*gamma_m + t_22*(self%constants(108)*gamma_m + t_21) + t_26*t_27
           grad_m(3, 2) = t_22
+          hess_m(1, 1, 1) = 0
+          hess_m(1, 2, 1) = 0
+          hess_m(1, 3, 1) = 0
+          hess_m(2, 1, 1) = 0
+          hess_m(2, 2, 1) = 0
+          hess_m(2, 3, 1) = 0
+          hess_m(3, 1, 1) = 0
+          hess_m(3, 2, 1) = 0
+          hess_m(3, 3, 1) = 0
           hess_m(1, 1, 2) = self%constants(103)*t_34 + self%constants(112)*t_36*t_37**2 + self%constants(64)*t_35 &
               *(self%constants(14) + t_38) + self%constants(73)*t_34*t_39 + t_33*(self%constants(111)*t_34 + &
               self%constants(65)*t_35*(self%constants(42) + t_28) + self%constants(67)*t_29*t_34)
@@ -1786,6 +1844,8 @@ contains
           hess_m(3, 1, 2) = t_43
           hess_m(3, 2, 2) = t_44
           hess_m(3, 3, 2) = self%constants(70)*t_42
+          grad_b(1, 1) = 0
+          grad_b(2, 1) = 0
           grad_b(3, 1) = 1.0_real64
           grad_b(1, 2) = self%constants(100)*t_49 + self%constants(49)*(self%constants(15)*t_45 + self%constants(30) &
               *t_46) + self%constants(60)*t_13*t_49 + t_48*(self%constants(107)*t_49 + self%constants(51) &
@@ -1825,6 +1885,8 @@ contains
               self%constants(56)) + self%constants(106)*gamma_a**2 + self%constants(51)*(self%constants(10)*t_2 + &
               self%constants(9)*t_2**2) + tau_a) + self%parameters%theta_ref)) + self%constants(57)*(gamma_a &
               *(self%constants(52)*t_6 - t_12*t_9) + t_10*t_12) + self%parameters%mu_neq_slope*t_11
+          grad_m(1, 1) = 0
+          grad_m(2, 1) = 0
           grad_m(3, 1) = 1.0_real64
           grad_m(1, 2) = self%constants(100)*t_20 + self%constants(49)*(self%constants(15)*t_13 + self%constants(30) &
               *t_15) + self%constants(60)*t_20*t_21 + t_19*(self%constants(107)*t_20 + self%constants(51) &

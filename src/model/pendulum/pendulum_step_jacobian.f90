@@ -38,7 +38,7 @@ contains
         if (self%partials_rule == partials_midpoint) then
           hess(1:n, 1:n, :) = sp%hess_m(1:n, 1:n, :)
         else if (self%gradient == gradient_gonzalez) then
-          call gonzalez_derivatives(a, sp, hess(1:n, 1:n, :))
+          call gonzalez_derivatives(a, sp, hess)
         else
           call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), self%scale(1:n, a), &
                                     partials(1:n, :), hess(1:n, 1:n, :), stat=stat)
@@ -50,24 +50,27 @@ contains
   end subroutine derivative_pass
 
   !> The derivative of Gonzalez's discrete gradient in x' from its values pass (the element's
-  !> Hessian at the midpoint and grad f(x'), kept there).
+  !> Hessian at the midpoint and grad f(x'), kept there), in ddg's first n = a + 1 rows and
+  !> columns. The arrays are passed whole (3 rows): sections of spring 1's 2 rows would be packed
+  !> and unpacked in every pass.
   pure subroutine gonzalez_derivatives(a, sp, ddg)
     integer, intent(in) :: a
     type(spring_pass), intent(in) :: sp
-    real(real64), intent(out) :: ddg(:, :, :)
+    real(real64), intent(inout), contiguous :: ddg(:, :, :)
     real(real64) :: dg(3, 2)
     integer :: n
 
     n = a + 1
     if (sp%small) then
-      ddg = 0.5_real64*sp%hess_m(1:n, 1:n, :)
+      ddg(1:n, 1:n, :) = 0.5_real64*sp%hess_m(1:n, 1:n, :)
       return
     end if
-    call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg(1:n, :), &
-                             sp%hess_m(1:n, 1:n, :), sp%grad_b(1:n, :), ddg)
+    call gonzalez_from_parts(sp%d(1:n), sp%weight(1:n), sp%dwd, sp%grad_m, sp%delta_f, dg, sp%hess_m, sp%grad_b, ddg)
   end subroutine gonzalez_derivatives
 
-  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass.
+  ! dR/dy from the point's partials and derivatives and the scalars of its residual pass. The
+  ! fixed-size work arrays are zeroed whole: plain loops, not strided ones over their first rows
+  ! (docs/performance.md, Issue 42).
   pure subroutine assemble_jacobian(self, point, dtheta_new, jacobian)
     class(pendulum_step), intent(in) :: self
     type(step_point), intent(in) :: point
@@ -85,9 +88,9 @@ contains
     if (.not. self%full) rows = self%internal_count
     h = self%fraction*self%dt
     kappa = self%params%conductivity
-    jac(1:rows, 1:rows) = 0.0_real64
-    dq(1:rows, :, :) = 0.0_real64
-    drow(1:rows, :, :) = 0.0_real64
+    jac = 0.0_real64
+    dq = 0.0_real64
+    drow = 0.0_real64
     associate (partials => point%partials, dp => point%dpartials, theta => point%theta, &
                thermal_force => point%thermal_force, work => point%work, work_ratio => point%work_ratio, &
                inv_u_tau => point%inv_u_tau, inv_eta => point%inv_eta, rate => point%rate, heating => point%heating, &

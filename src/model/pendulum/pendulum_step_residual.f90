@@ -112,7 +112,7 @@ contains
           point%chain_c(:, a) = 2.0_real64*point%q_new(:, a)
           point%chain_other = 1.0_real64
           if (self%gradient == gradient_gonzalez) then
-            call gonzalez_values(self, a, sp, point%partials(1:n, :, a), stat)
+            call gonzalez_values(self, a, sp, point%partials(:, :, a), stat)
           else
             call discrete_gradient_of(self%gradient, self%spring(a), self%old(a)%x(1:n), sp%x(1:n), &
                                       self%scale(1:n, a), point%partials(1:n, :, a), stat=stat)
@@ -139,12 +139,13 @@ contains
   !> Gonzalez's discrete gradient of spring a's (U, S) from the old invariants to sp%x
   !> (src/scheme/discrete_gradient): grad f at the midpoint and f(x') - f(x) from the element's
   !> gonzalez_parts in one call, with the Hessian at the midpoint and grad f(x') kept for the
-  !> derivative pass.
+  !> derivative pass. dg's first n = a + 1 rows are written; the quotient's arrays are passed whole
+  !> (3 rows), as a section of spring 1's 2 rows would be packed and unpacked in every pass.
   pure subroutine gonzalez_values(self, a, sp, dg, stat)
     class(pendulum_step), intent(in) :: self
     integer, intent(in) :: a
     type(spring_pass), intent(inout) :: sp
-    real(real64), intent(out) :: dg(:, :)
+    real(real64), intent(inout), contiguous :: dg(:, :)
     integer, intent(out) :: stat
     integer :: n
 
@@ -153,16 +154,15 @@ contains
       d = x - old%x(1:n)
       sp%weight(1:n) = 1.0_real64/self%scale(1:n, a)**2
       sp%dwd = dot_product(d, sp%weight(1:n)*d)
-      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m(1:n, :), sp%delta_f, stat, sp%hess_m(1:n, 1:n, :), &
-                                         sp%grad_b(1:n, :))
+      call self%spring(a)%gonzalez_parts(old%x(1:n), x, sp%grad_m, sp%delta_f, stat, sp%hess_m, sp%grad_b)
       if (stat /= failure_none) return
       sp%small = sqrt(sp%dwd) < quotient_threshold
       if (sp%small) then
         ! The fallback below the threshold: the midpoint derivative.
-        dg = sp%grad_m(1:n, :)
+        dg(1:n, :) = sp%grad_m(1:n, :)
         return
       end if
-      call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m(1:n, :), sp%delta_f, dg)
+      call gonzalez_from_parts(d, sp%weight(1:n), sp%dwd, sp%grad_m, sp%delta_f, dg)
     end associate
   end subroutine gonzalez_values
 
