@@ -1,7 +1,9 @@
 !> One run of a model split over the ranks of an MPI communicator (src/model/distributed_model:
 !> the spring chain's sparse path) to its HDF5 file: what `mpirun -n P eme_run FILE.nml` does for
 !> a model that can be split, and `eme_run` for one beyond the dense path's size
-!> (docs/output.md, "A chain's file"; docs/performance.md, "Which path serves which model").
+!> (docs/output.md, "A chain's file"; docs/performance.md, "Which path serves which model"). This
+!> module sets the run up and closes it; the one time loop (src/run/time_loop) steps its split
+!> path (src/run/split_run_path).
 !>
 !> The file keeps the dense path's promises (src/run/simulation): it is written as FILE.part by
 !> rank 0 (src/run/run_output, crash-safe windows) and renamed when the run ends, with its status,

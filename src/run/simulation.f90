@@ -1,7 +1,8 @@
-!> One run from a validated configuration to its HDF5 file: the time loop shared by eme_run and
-!> eme_ensemble. The model and its initial state come from the configuration's scene, the
-!> integrator from the registry; the loop advances it one output step at a time and records
-!> every point and step (src/run/run_output). The file is written as FILE.part and renamed to
+!> One dense run from a validated configuration to its HDF5 file, for eme_run and eme_ensemble:
+!> its set-up and closing around the one time loop (src/run/time_loop), which steps the run's
+!> dense path (src/run/dense_run_path). The model and its initial state come from the
+!> configuration's scene, the integrator from the registry; the loop advances it one output step
+!> at a time and records every point and step (src/run/run_output). The file is written as FILE.part and renamed to
 !> FILE when the run has ended and the file has been read back; an existing complete FILE is
 !> not replaced unless asked (&output overwrite, -eme_overwrite). A run ends early, cleanly, when
 !> a step cannot be solved, when SIGTERM or SIGINT arrives, or when the output cannot be
