@@ -1,8 +1,9 @@
-!> The time loop's steps that the dense run (src/run/simulation's run_simulation) and the split
-!> run (src/run/distributed_simulation's run_distributed) take alike, each written once: the
-!> stop rules at the top of a step, where a step lands and whether it is the last, the status of
-!> a step that failed, the summary's figures after an accepted step, the completion, and how a
-!> failure that is not the method's is recorded (docs/architecture.md, The time loop).
+!> The rules that the one time loop (src/run/time_loop) and its two paths, the dense run's
+!> (src/run/dense_run_path) and the split run's (src/run/split_run_path), apply alike, each
+!> written once: the stop rules at the top of a step, where a step lands and whether it is the
+!> last, the status of a step that failed, the summary's figures after an accepted step, the
+!> completion, and how a failure that is not the method's is recorded (docs/architecture.md, The
+!> time loop).
 module time_loop_steps
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
