@@ -70,7 +70,6 @@ module discrete_gradient_stepper
     integer :: newton_iterations = 0
     integer :: solves = 0
     integer :: rejected = 0
-    real(real64), allocatable :: multiplier_integral(:)   !! sum of h lambda over the substeps
     character(len=:), allocatable :: reason, last_rejection
   end type substep_tally
 
@@ -96,6 +95,9 @@ module discrete_gradient_stepper
     type(step_controller) :: controller
     real(real64), allocatable :: z_field(:), field(:)   !! a state and the continuous field there
     real(real64), allocatable :: x_last(:), increment(:)  !! the last accepted state and step (predictor)
+    !> The step's sum of h lambda over its substeps (start_tally zeroes it; kept from step to step
+    !> so that no step allocates it).
+    real(real64), allocatable :: multiplier_integral(:)
     real(real64) :: h_last = 0.0_real64
   contains
     procedure :: start
@@ -240,7 +242,7 @@ contains
     integer :: n
 
     n = self%problem%model%state_size
-    call start_tally(tally, size(x_old) - n)
+    call start_tally(self, tally, size(x_old) - n)
     if (self%adaptive) then
       call adaptive_step(self, x_old, t_old, x_new, tally, report, failure)
       call finish_report(self, tally, x_new, report, failure)
@@ -253,13 +255,18 @@ contains
     report%diagnostics = [report%diagnostics, estimate_norm]
   end subroutine advance
 
-  ! A tally of substeps with no substep yet, for a step with n_multipliers multipliers.
-  subroutine start_tally(tally, n_multipliers)
+  ! A tally of substeps with no substep yet, for a step with n_multipliers multipliers, and the
+  ! solver's multiplier integral zeroed.
+  subroutine start_tally(self, tally, n_multipliers)
+    class(step_solver), intent(inout) :: self
     type(substep_tally), intent(out) :: tally
     integer, intent(in) :: n_multipliers
 
-    allocate (tally%multiplier_integral(n_multipliers))
-    tally%multiplier_integral = 0.0_real64
+    if (allocated(self%multiplier_integral)) then
+      if (size(self%multiplier_integral) /= n_multipliers) deallocate (self%multiplier_integral)
+    end if
+    if (.not. allocated(self%multiplier_integral)) allocate (self%multiplier_integral(n_multipliers))
+    self%multiplier_integral = 0.0_real64
     tally%reason = ''
     tally%last_rejection = ''
   end subroutine start_tally
@@ -277,15 +284,15 @@ contains
 
     n = self%problem%model%state_size
     call step_or_halve(self, x_old, h, guess, x_new, 0, tally, report%accepted, failure)
-    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = tally%multiplier_integral/h
+    if (.not. failure%failed() .and. report%accepted .and. tally%substeps > 1) x_new(n + 1:) = self%multiplier_integral/h
     call finish_report(self, tally, x_new, report, failure)
   end subroutine halved_step
 
   ! The report of a step from what its (sub)steps did; on acceptance the temperatures the (last
-  ! sub)step's K0 used.
+  ! sub)step's K0 used. The tally's reason and last rejection move into the report.
   subroutine finish_report(self, tally, x_new, report, failure)
     class(step_solver), intent(inout) :: self
-    type(substep_tally), intent(in) :: tally
+    type(substep_tally), intent(inout) :: tally
     real(real64), intent(in) :: x_new(:)
     type(step_report), intent(inout) :: report
     type(failure_type), intent(in) :: failure
@@ -295,8 +302,9 @@ contains
     report%newton_iterations = tally%newton_iterations
     report%solves = tally%solves
     report%rejected = tally%rejected
-    report%reason = tally%reason
-    report%last_rejection = tally%last_rejection
+    ! Moved, not copied: the tally's texts end here (a copy and a free fewer each, every step).
+    call move_alloc(tally%reason, report%reason)
+    call move_alloc(tally%last_rejection, report%last_rejection)
     report%halvings = max(0, tally%substeps - 1)     ! each halving adds one substep
     if (self%resolving) then
       report%residual_norm = self%default_solver%last_residual_norm
@@ -342,7 +350,7 @@ contains
     if (accepted) then
       tally%substeps = tally%substeps + 1
       tally%strategy = max(tally%strategy, search%strategy)
-      tally%multiplier_integral = tally%multiplier_integral + h*x_new(size(x_old) - size(tally%multiplier_integral) + 1:)
+      self%multiplier_integral = self%multiplier_integral + h*x_new(size(x_old) - size(self%multiplier_integral) + 1:)
       return
     end if
     if (failure%failed()) return
@@ -421,7 +429,7 @@ contains
     end if
     if (failure%failed()) return
     n = self%problem%model%state_size
-    call start_tally(tally, size(x_old) - n)
+    call start_tally(self, tally, size(x_old) - n)
     self%resolving = .true.
     call halved_step(self, x_old, h, guess, x_new, tally, report, failure)
     self%resolving = .false.

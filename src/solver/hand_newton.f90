@@ -193,7 +193,7 @@ contains
   !> The chord refinement of a predictor with the last factors, as the SNES solver's.
   subroutine refine(self, problem, x)
     class(newton_loop), intent(inout) :: self
-    class(nonlinear_system), intent(in) :: problem
+    class(nonlinear_system), intent(inout) :: problem
     real(real64), intent(inout) :: x(:)
 
     if (self%chord_predictor) call chord_refinement(self%lu, problem, x)

@@ -94,7 +94,7 @@ module retry_strategies
     subroutine refine_interface(self, problem, x)
       import :: root_finder, nonlinear_system, real64
       class(root_finder), intent(inout) :: self
-      class(nonlinear_system), intent(in) :: problem
+      class(nonlinear_system), intent(inout) :: problem
       real(real64), intent(inout) :: x(:)
     end subroutine refine_interface
 
@@ -165,13 +165,16 @@ contains
   !> src/solver/hand_newton) refine their predictor with it; nothing happens without factors.
   subroutine chord_refinement(lu, problem, x)
     type(lu_factors), intent(in) :: lu
-    class(nonlinear_system), intent(in) :: problem
+    class(nonlinear_system), intent(inout) :: problem
     real(real64), intent(inout) :: x(:)
     real(real64) :: residual(size(x))
     integer :: stat, info
 
     if (.not. lu%ready) return
-    call problem%evaluate(x, residual, stat=stat)
+    ! The residual as the solver's callbacks evaluate it: a kernel that keeps its last pass
+    ! (pendulum_step_kernel) then evaluates it in that pass's storage instead of in a new,
+    ! default-initialized one.
+    call problem%evaluate_residual(x, residual, stat)
     if (stat /= 0) return
     call lu%solve(residual, info)
     if (info == 0) x = x - residual
@@ -195,7 +198,7 @@ contains
     continuing = .true.
     if (present(continue_in_s)) continuing = continue_in_s
 
-    search%reason = ''
+    ! The reason comes from the first attempt (attempt moves its solve's reason in).
     search%last_rejection = ''
     offset = 0
     call strategies()
@@ -239,13 +242,16 @@ contains
       character(len=:), allocatable :: why
 
       call solve_once(initial, fraction, ok, why)
-      if (failure%failed()) return
+      if (failure%failed()) then
+        if (.not. allocated(search%reason)) search%reason = ''
+        return
+      end if
+      ! Moved, not copied (why is '' when ok): no allocation more than the solve's.
+      call move_alloc(why, search%reason)
+      if (.not. allocated(search%reason)) search%reason = ''
       if (ok) then
         search%accepted = .true.
         search%strategy = strategy
-        search%reason = ''
-      else
-        search%reason = why
       end if
     end subroutine attempt
 

@@ -18,7 +18,7 @@ module snes_shell
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
   implicit none
   private
-  public :: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, factor_operator, &
+  public :: solver_context, PCSetApplicationContext, converged_on_update, form_residual, form_jacobian, factor_operator, &
             apply_lu, full_step
 
   ! SNES_LINESEARCH_FAILED_DOMAIN of petscsnes.h (PETSc 3.18 has no Fortran name for it).
@@ -47,20 +47,23 @@ module snes_shell
     integer :: factorizations = 0                   !! LU factorizations since the solver was made
   end type solver_context
 
-  ! PETSc needs these interfaces to pass a Fortran derived type as a shell's context.
+  ! PETSc needs these interfaces to pass a Fortran derived type as the preconditioner's context.
+  ! The PC's application context, not PCShellSetContext's: PCShellGetContext compares the PC's
+  ! type name at every call (about 90 instructions), PCGetApplicationContext reads a field (15),
+  ! and apply_lu asks for it at every Newton iteration.
   interface
-    subroutine PCShellSetContext(pc, context, ierr)
+    subroutine PCSetApplicationContext(pc, context, ierr)
       import :: tPC, solver_context
       PC, intent(in) :: pc
       type(solver_context), intent(in) :: context
       PetscErrorCode, intent(out) :: ierr
-    end subroutine PCShellSetContext
-    subroutine PCShellGetContext(pc, context, ierr)
+    end subroutine PCSetApplicationContext
+    subroutine PCGetApplicationContext(pc, context, ierr)
       import :: tPC, solver_context
       PC, intent(in) :: pc
       type(solver_context), pointer, intent(out) :: context
       PetscErrorCode, intent(out) :: ierr
-    end subroutine PCShellGetContext
+    end subroutine PCGetApplicationContext
     !> The dense matrix's values without changing its state (dense_read.c).
     function eme_dense_read(matrix, values) bind(C, name='eme_dense_read') result(ierr)
       import :: c_int, c_double
@@ -160,7 +163,7 @@ contains
     Mat :: operator, preconditioner
     integer :: info
 
-    PetscCall(PCShellGetContext(pc, context, ierr))
+    PetscCall(PCGetApplicationContext(pc, context, ierr))
     if (context%lean) return
     PetscCall(PCGetOperators(pc, operator, preconditioner, ierr))
     ierr = eme_dense_read(preconditioner, context%lu%factors)
@@ -189,7 +192,7 @@ contains
     integer :: info
     logical :: refactor
 
-    PetscCall(PCShellGetContext(pc, context, ierr))
+    PetscCall(PCGetApplicationContext(pc, context, ierr))
     n = context%problem%unknowns()
     if (context%lean) then
       if (context%reuse%enabled) then

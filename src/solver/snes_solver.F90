@@ -51,7 +51,7 @@ module snes_solver
   use euclidean_norm, only: two_norm
   use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
-  use snes_shell, only: solver_context, PCShellSetContext, converged_on_update, form_residual, form_jacobian, &
+  use snes_shell, only: solver_context, PCSetApplicationContext, converged_on_update, form_residual, form_jacobian, &
                         factor_operator, apply_lu, full_step
   use solver_options, only: step_solver_options, read_solver_options, option_given, option_value
   use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
@@ -346,7 +346,7 @@ contains
     PetscCall(KSPGetPC(ksp, pc, ierr))
     call self%context%lu%reset(n)
     PetscCall(PCSetType(pc, PCSHELL, ierr))
-    PetscCall(PCShellSetContext(pc, self%context, ierr))
+    PetscCall(PCSetApplicationContext(pc, self%context, ierr))
     PetscCall(PCShellSetSetUp(pc, factor_operator, ierr))
     PetscCall(PCShellSetApply(pc, apply_lu, ierr))
     PetscCall(PCShellSetName(pc, 'dense LU with partial pivoting (src/solver/dense_lu)', ierr))
@@ -629,7 +629,7 @@ contains
   !> chord_refinement), unless -eme_chord_predictor false.
   subroutine refine(self, problem, x)
     class(newton_solver), intent(inout) :: self
-    class(nonlinear_system), intent(in) :: problem
+    class(nonlinear_system), intent(inout) :: problem
     real(real64), intent(inout) :: x(:)
 
     if (self%options%chord_predictor) call chord_refinement(self%context%lu, problem, x)

@@ -108,7 +108,7 @@ contains
 
   subroutine scripted_refine(self, problem, x)
     class(scripted_finder), intent(inout) :: self
-    class(nonlinear_system), intent(in) :: problem
+    class(nonlinear_system), intent(inout) :: problem
     real(real64), intent(inout) :: x(:)
     real(real64) :: residual(size(x))
     integer :: stat
