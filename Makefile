@@ -94,6 +94,16 @@ $(filter $(OBJ)/src/solver/% $(OBJ)/src/structure/% $(OBJ)/src/integrator/% $(OB
 KERNEL_SOLVER_OBJECTS := $(patsubst %,$(OBJ)/src/solver/%.o,dense_lu snes_shell euclidean_norm vector_arrays \
   modified_newton retry_strategies hand_newton snes_solver) $(OBJ)/src/integrator/discrete_gradient_stepper.o
 $(filter $(OBJ)/src/scheme/% $(OBJ)/src/model/% $(KERNEL_SOLVER_OBJECTS),$(LIBRARY_OBJECTS)): private FFLAGS += $(KERNEL_FLAGS)
+# Every library object depends on the flags it is compiled with: $(OBJ)/flags holds them (the
+# compilers, the common flags, the kernel's and which objects take them) and is rewritten only
+# when they change, so that a flag edited here recompiles the objects instead of leaving them
+# built with the old flags (a working tree's bench read 66,402 instructions an EME step, a fresh
+# build 64,288, after the solver's objects joined the kernel's flags).
+COMPILE_FLAGS_TEXT := $(FC) $(CC) $(FFLAGS) $(STD_FLAGS) $(CFLAGS) $(KERNEL_FLAGS) $(KERNEL_SOLVER_OBJECTS)
+$(shell mkdir -p $(OBJ) && { printf '%s\n' '$(COMPILE_FLAGS_TEXT)' | cmp -s - $(OBJ)/flags || \
+  printf '%s\n' '$(COMPILE_FLAGS_TEXT)' > $(OBJ)/flags; })
+$(OBJ)/flags: ;
+$(LIBRARY_OBJECTS): $(OBJ)/flags
 # A driver is recompiled when a module it uses changes (fortran.deps); the others only come first.
 $(patsubst %,$(OBJ)/drivers/%.o,$(DRIVERS)): | $(LIBRARY_OBJECTS)
 
