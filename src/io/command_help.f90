@@ -69,8 +69,8 @@ contains
       'Integrates one scene of a GENERIC model (&model model_name: by default the thermoviscoelastic double', &
       'pendulum of Valdes y Beck & Betsch, PAMM 2023) and writes an HDF5 file (&output file; docs/output.md).', &
       'mpirun -n P eme_run FILE.nml splits a spring chain over P ranks, as eme_run does on one rank beyond 1000', &
-      'unknowns (the sparse path: EME or midpoint in fixed or adaptive steps, PETSc TS; its state in /snapshots:', &
-      'docs/output.md).', '', &
+      'unknowns (the sparse path: EME or midpoint in fixed or adaptive steps, the relaxed family, PETSc TS; its', &
+      'state in /snapshots: docs/output.md).', '', &
       '  --help, -h        this text', &
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &

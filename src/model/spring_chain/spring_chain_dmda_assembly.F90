@@ -20,7 +20,7 @@ module spring_chain_dmda_assembly
   use spring_chain_dmda_pattern, only: pattern_columns
   implicit none
   private
-  public :: field_into, jacobian_into, chain_residual, chain_jacobian, converged_or_rounding
+  public :: field_into, jacobian_into, chain_residual, chain_jacobian, converged_or_rounding, newton_verdict
 
 contains
 
@@ -175,9 +175,7 @@ contains
     end if
   end subroutine jacobian_into
 
-  ! SNES convergence test: |R| <= the absolute tolerance, or (after an update) the update at the
-  ! rounding of the state, which Newton cannot go below; diverged at the iteration limit or on a
-  ! non-finite norm.
+  ! SNES convergence test: Newton's verdict (newton_verdict) at the step's tolerance.
   subroutine converged_or_rounding(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
     SNES, intent(in) :: snes
     PetscInt, intent(in) :: iteration
@@ -185,21 +183,37 @@ contains
     SNESConvergedReason, intent(out) :: reason
     type(chain_context), intent(inout) :: context
     PetscErrorCode, intent(out) :: ierr
+
+    call newton_verdict(snes, iteration, x_norm, update_norm, residual_norm, context%newton_tol, context%update_floor, &
+                        reason, ierr)
+  end subroutine converged_or_rounding
+
+  !> Newton's verdict on the chain: converged at |R| <= min(the SNES's absolute tolerance,
+  !> newton_tol), or (after an update) at an update below max(update_floor, 16 eps |x|), the
+  !> rounding of the state, which Newton cannot go below; diverged at the iteration limit or on a
+  !> non-finite norm. Shared by the step's SNES and the implicit stages' (spring_chain_stage_solve).
+  subroutine newton_verdict(snes, iteration, x_norm, update_norm, residual_norm, newton_tol, update_floor, reason, ierr)
+    SNES, intent(in) :: snes
+    PetscInt, intent(in) :: iteration
+    PetscReal, intent(in) :: x_norm, update_norm, residual_norm
+    real(real64), intent(in) :: newton_tol, update_floor
+    SNESConvergedReason, intent(out) :: reason
+    PetscErrorCode, intent(out) :: ierr
     PetscReal :: atol, rtol, stol
     PetscInt :: max_iterations, max_evaluations
 
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (residual_norm <= min(atol, context%newton_tol)) then
+    else if (residual_norm <= min(atol, newton_tol)) then
       reason = SNES_CONVERGED_FNORM_ABS
-    else if (iteration > 0 .and. update_norm <= max(context%update_floor, 16.0_real64*epsilon(1.0_real64)*x_norm)) then
+    else if (iteration > 0 .and. update_norm <= max(update_floor, 16.0_real64*epsilon(1.0_real64)*x_norm)) then
       reason = SNES_CONVERGED_SNORM_RELATIVE
     else if (iteration >= max_iterations) then
       reason = SNES_DIVERGED_MAX_IT
     else
       reason = SNES_CONVERGED_ITERATING
     end if
-  end subroutine converged_or_rounding
+  end subroutine newton_verdict
 
 end module spring_chain_dmda_assembly

@@ -1,7 +1,8 @@
 !> What the relaxed chain split over ranks (spring_chain_relaxed_run) reports besides its states:
 !> the relaxed family's per-step figures declared, the dense path's accuracy warnings at the run's
 !> end (a run without a tolerance that halved a step, or whose gamma moved far from 1), and its
-!> solver (none: explicit stages). A submodule because it reads the run's record.
+!> solver (the steps' SNES for implicit stages, none for explicit ones). A submodule because it
+!> reads the run's record.
 submodule (spring_chain_relaxed_run) spring_chain_relaxed_report
   implicit none
 
@@ -43,12 +44,16 @@ contains
     end if
   end function accuracy_warnings
 
-  !> None: explicit stages (distributed_system).
+  !> The implicit stages' SNES, set up as the steps' (distributed_system); none for explicit stages.
   module function describe_solver(self) result(report)
     class(relaxed_chain_run), intent(in) :: self
     type(solver_report) :: report
 
-    report = no_solver('explicit stages of the chain''s field on a DMDA split over the ranks')
+    if (self%implicit) then
+      report = self%sparse_chain_run%describe_solver()
+    else
+      report = no_solver('explicit stages of the chain''s field on a DMDA split over the ranks')
+    end if
   end function describe_solver
 
 end submodule spring_chain_relaxed_report

@@ -22,7 +22,9 @@
 !> controller chooses (src/solver/dop853_control, as the dense path's relaxed_step_control; the
 !> error norm summed over the ranks), landing on t_end or the next output time; its next trial
 !> step and the run's record go into the resume record (spring_chain_relaxed_control). Implicit
-!> stages (relaxed_gauss6) are refused at input (spring_chain_sparse_run's chain_problem_of).
+!> stages (relaxed_gauss6) are solved together by PETSc SNES over the split state
+!> (spring_chain_stage_solve: the dense path's stage equations, s stages of a point side by side);
+!> a step whose stages Newton does not solve is halved, as one without a root.
 !> All ranks take the same decisions from the same summed figures (MPI_Allreduce gives every
 !> rank the same sum).
 !> This module holds the run's type, its start, its fixed steps (halved when rejected) and its
@@ -46,6 +48,7 @@ module spring_chain_relaxed_run
   use spring_chain_model, only: spring_chain
   use spring_chain_balance, only: conserved_axes
   use spring_chain_sparse_run, only: sparse_chain_run
+  use spring_chain_stage_solve, only: chain_stage_solver
   implicit none
   private
   public :: relaxed_chain_run
@@ -64,9 +67,12 @@ module spring_chain_relaxed_run
     Vec :: stage, direction, start_state, step_start    !! g_i, d, z of the substep, z of the step
     Vec :: start_local                                  !! z of the substep on the ghosted points
     logical :: vectors_created = .false.
+    type(chain_stage_solver) :: stage_solver            !! implicit stages (relaxed_gauss6)
+    logical :: implicit = .false.
     real(real64), allocatable :: momenta(:)             !! the conserved components at z
     ! What the current step did (the dense path's per-step figures), and the run's record.
-    integer :: attempts = 0, rejections = 0, halvings = 0, gamma_rejections = 0
+    integer :: attempts = 0, rejections = 0, halvings = 0, gamma_rejections = 0, newton_iterations = 0
+    real(real64) :: residual_norm = 0.0_real64          !! the stages' last |R| (implicit stages)
     real(real64) :: last_gamma = 1.0_real64, entropy_production = 0.0_real64
     character(len=:), allocatable :: last_failure
     integer :: run_rejections = 0, run_halvings = 0
@@ -150,7 +156,7 @@ module spring_chain_relaxed_run
       class(relaxed_chain_run), intent(in) :: self
       character(len=:), allocatable :: text
     end function accuracy_warnings
-    !> None: explicit stages (spring_chain_relaxed_report).
+    !> The implicit stages' SNES; none for explicit stages (spring_chain_relaxed_report).
     module function describe_solver(self) result(report)
       class(relaxed_chain_run), intent(in) :: self
       type(solver_report) :: report
@@ -215,6 +221,9 @@ contains
     self%run_halvings = 0
     self%max_gamma_deviation = 0.0_real64
     call create_vectors(self, size(self%b), ierr)
+    self%implicit = settings%implicit_stages
+    if (ierr == 0 .and. self%implicit) call self%stage_solver%create(self%chain, self%a, settings%newton_tol, &
+                                                                     settings%newton_max_iterations, ierr)
     call fail_on_code(failure, ierr, 'setting up the chain''s relaxed steps')
   end subroutine start
 
@@ -253,6 +262,7 @@ contains
     self%rejections = 0
     self%halvings = 0
     self%gamma_rejections = 0
+    self%newton_iterations = 0
     self%entropy_production = 0.0_real64
     self%last_failure = ''
     call self%chain%hold_old_state(ierr)
@@ -269,12 +279,12 @@ contains
     end if
     if (failure%failed()) return
     outcome%converged = ok
-    outcome%iterations = 0
+    outcome%iterations = self%newton_iterations
     outcome%solves = self%attempts
     outcome%rejected = self%rejections
     outcome%halvings = self%halvings
     outcome%rejected_steps = self%rejections
-    outcome%residual_norm = 0.0_real64
+    outcome%residual_norm = self%residual_norm
     outcome%diagnostics = [self%last_gamma, real(self%rejections, real64), real(self%halvings, real64), &
                            self%entropy_production, real(self%gamma_rejections, real64)]
     if (ok) then
@@ -329,6 +339,7 @@ contains
       if (ierr == 0) call VecDestroy(self%step_start, ierr)
       if (ierr == 0) call VecDestroy(self%start_local, ierr)
     end if
+    if (ierr == 0) call self%stage_solver%destroy(ierr)
     self%vectors_created = .false.
     call fail_on_code(freeing, ierr, 'freeing the chain''s relaxed steps')
     if (.not. failure%failed() .and. freeing%failed()) failure = freeing

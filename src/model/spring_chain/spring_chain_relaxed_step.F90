@@ -1,5 +1,6 @@
 !> One relaxed step on the chain split over ranks (spring_chain_relaxed_run): the stages
-!> k_i = f(g_i) of the chain's field (spring_chain_dmda's field_at) and d = h sum_i b_i k_i, the
+!> k_i = f(g_i) of the chain's field (spring_chain_dmda's field_at; implicit ones solved together,
+!> spring_chain_stage_solve) and d = h sum_i b_i k_i, the
 !> rank sums at z (e_S, the rounding floor, the conserved components: one MPI_Allreduce), then the
 !> relaxation's root gamma (spring_chain_relaxed_root) within the gamma band. A submodule because
 !> it works on the run's vectors and its per-step record.
@@ -24,15 +25,18 @@ contains
     type(split_relaxation) :: relaxation
     real(real64) :: sums(2 + size(self%axes, 2)), gamma, resolution, largest
     integer :: evaluations, stat, failed_stage
+    logical :: solved
     PetscErrorCode :: ierr
 
     ok = .false.
     self%attempts = self%attempts + 1
-    call stages_petsc(self, h, failed_stage, largest, ierr)
+    call stages_petsc(self, h, failed_stage, solved, largest, ierr)
     if (ierr == 0 .and. failed_stage == 0 .and. largest <= huge(largest)) call sums_petsc(self, sums, stat, ierr)
     call fail_on_code(failure, ierr, 'evaluating the chain''s relaxed stages')
     if (failure%failed()) return
-    if (failed_stage > 0) then
+    if (.not. solved) then
+      return
+    else if (failed_stage > 0) then
       self%last_failure = 'stage '//integer_text(failed_stage)//' left the model''s domain or is not finite'
       return
     else if (.not. (largest <= huge(largest))) then
@@ -70,25 +74,37 @@ contains
     end associate
   end subroutine relaxed_step
 
-  ! z of the substep kept (start_state, start_local), the stages k_i = f(g_i) in turn and
+  ! z of the substep kept (start_state, start_local), the stages k_i = f(g_i) (explicit: in turn;
+  ! implicit: solved together, `solved` false when Newton did not, last_failure saying why) and
   ! d = h sum_i b_i k_i; failed_stage: the first stage outside a spring's domain on any rank
   ! (0: none); largest: max |d_j| over the ranks (not finite if a stage was not).
-  subroutine stages_petsc(self, h, failed_stage, largest, ierr)
+  subroutine stages_petsc(self, h, failed_stage, solved, largest, ierr)
     class(relaxed_chain_run), intent(inout) :: self
     real(real64), intent(in) :: h
     integer, intent(out) :: failed_stage
+    logical, intent(out) :: solved
     real(real64), intent(out) :: largest
     PetscErrorCode, intent(out) :: ierr
-    integer :: i, j, stat
+    integer :: i, j, stat, iterations, reason
     MPI_Comm :: comm
 
     failed_stage = 0
+    solved = .true.
     largest = 0.0_real64
     PetscCall(PetscObjectGetComm(self%chain%context%da, comm, ierr))
     PetscCall(VecCopy(self%chain%x, self%start_state, ierr))
     PetscCall(DMGlobalToLocalBegin(self%chain%context%da, self%start_state, INSERT_VALUES, self%start_local, ierr))
     PetscCall(DMGlobalToLocalEnd(self%chain%context%da, self%start_state, INSERT_VALUES, self%start_local, ierr))
-    do i = 1, size(self%b)
+    if (self%implicit) then
+      PetscCall(self%stage_solver%solve(self%start_state, h, self%k, solved, iterations, self%residual_norm, reason, ierr))
+      self%newton_iterations = self%newton_iterations + iterations
+      if (.not. solved) then
+        self%last_failure = 'Newton did not solve the stages (SNES reason '//integer_text(reason)//', |R| = '// &
+                            scientific_text(self%residual_norm, 3)//')'
+        return
+      end if
+    end if
+    do i = 1, merge(0, size(self%b), self%implicit)
       PetscCall(VecCopy(self%start_state, self%stage, ierr))
       do j = 1, i - 1
         ! (explicit tableaux have many zeros below the diagonal)

@@ -99,21 +99,12 @@ contains
     case ('midpoint')
       problem%rule = partials_midpoint
     case default
-      if (allocated(settings%weights)) then
-        ! A relaxed Runge-Kutta tableau (spring_chain_relaxed_run): explicit ones only.
-        if (settings%implicit_stages) then
-          call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, '// &
-                    'distributed path has no '''//trim(settings%scheme)//''': its implicit stages need a Newton '// &
-                    'solve of all its stages over the split state, which is not built; allowed: the explicit '// &
-                    'relaxed schemes (relaxed_rk4, relaxed_rk8, relaxed_dp853), ''eme'', ''midpoint'' and the PETSc '// &
-                    'TS integrators', 'scheme')
-          return
-        end if
-      else if (.not. any(settings%scheme == ts_schemes)) then
+      ! A relaxed Runge-Kutta tableau (spring_chain_relaxed_run, explicit or implicit) or PETSc TS.
+      if (.not. allocated(settings%weights) .and. .not. any(settings%scheme == ts_schemes)) then
         call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
                   'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
-                  'process); allowed: ''eme'', ''midpoint'', the explicit relaxed schemes (relaxed_rk4, '// &
-                  'relaxed_rk8, relaxed_dp853) and the PETSc TS integrators ''ts_midpoint'', ''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', &
+                  'process); allowed: ''eme'', ''midpoint'', the relaxed schemes (relaxed_rk4, '// &
+                  'relaxed_rk8, relaxed_dp853, relaxed_gauss6) and the PETSc TS integrators ''ts_midpoint'', ''ts_bdf2'', ''ts_rk4'', ''ts_rk5dp''', &
                   'scheme')
         return
       end if
