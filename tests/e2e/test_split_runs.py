@@ -102,12 +102,17 @@ def test_a_chain_beyond_the_dense_limit_runs_split_on_one_rank(tmp_path):
         assert np.array_equal(f["snapshots/theta"][0], groups["initial"]["theta"])
 
 
-def test_what_the_split_path_cannot_run_is_refused(tmp_path):
-    """(The integrators it cannot run: test_chain_ts.)"""
-    groups = chain_groups()
-    result, output = run_split(tmp_path, "refused", groups, 2, "-eme_continue")
+@pytest.mark.parametrize("shape, option, words", [
+    ({}, "-eme_continue", "-eme_continue)"),
+    ({"links": 3}, None, "&model: links: a chain split over 2 ranks needs at least 2 points a rank (4); this one has 3")])
+def test_what_the_split_path_cannot_run_is_refused(tmp_path, shape, option, words):
+    """-eme_continue without a file to continue, and a chain with fewer than 2 points a rank (PETSc's
+    DMDA needs its stencil width on every rank; every rank refuses alike, where one rank's PETSc
+    error once left the other waiting for ever). (The integrators it cannot run: test_chain_ts.)"""
+    groups = chain_groups(**shape)
+    result, output = run_split(tmp_path, "refused", groups, 2, *([option] if option else []))
     assert result.returncode == 2, result.stderr
-    assert "-eme_continue)" in result.stderr and "refused.nml" in result.stderr
+    assert words in result.stderr and "refused.nml" in result.stderr
     assert not list(tmp_path.glob("refused.h5*"))
 
 

@@ -34,7 +34,11 @@ module spring_chain_dmda
   use spring_chain_linear_solver, only: set_default_linear_solver
   implicit none
   private
-  public :: distributed_chain, set_default_linear_solver
+  public :: distributed_chain, set_default_linear_solver, stencil_width
+
+  !> The DMDA's stencil width in points (a spring's field reads the points two away): PETSc needs
+  !> as many points on every rank, so a chain split over P ranks needs at least 2 P points.
+  integer, parameter :: stencil_width = 2
 
   !> A chain on a DMDA with its SNES. Do not copy it after `create`: PETSc holds the address of
   !> `context`.
@@ -147,7 +151,7 @@ contains
     self%context%problem = problem
     points = problem%layout%points()
     dof = problem%layout%point_size()
-    width = 2
+    width = stencil_width
     PetscCall(DMDACreate1d(comm, DM_BOUNDARY_NONE, points, dof, width, PETSC_NULL_INTEGER, self%context%da, ierr))
     PetscCall(DMSetUp(self%context%da, ierr))
     PetscCall(DMDAGetCorners(self%context%da, xs, ys, zs, xm, ym, zm, ierr))

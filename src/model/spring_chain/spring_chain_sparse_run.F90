@@ -22,7 +22,7 @@ module spring_chain_sparse_run
   use spring_chain_model, only: spring_chain
   use spring_chain_step, only: chain_step_problem
   use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint, partials_exact
-  use spring_chain_dmda, only: distributed_chain
+  use spring_chain_dmda, only: distributed_chain, stencil_width
   implicit none
   private
   public :: sparse_chain_run, sparse_run_result, chain_problem_of, ts_schemes, step_schemes
@@ -154,6 +154,15 @@ contains
     call chain_problem_of(settings, model, problem, failure)
     if (failure%failed()) return
     call MPI_Comm_size(comm, ranks, ierr)
+    ! (every rank refuses alike: one rank's PETSc error at a partition too fine left the others
+    ! waiting in DMSetUp for ever)
+    if (problem%layout%points() < stencil_width*ranks) then
+      call fail(failure, failure_input, settings%input_file//', &model: links: a chain split over '// &
+                integer_text(int(ranks))//' ranks needs at least '//integer_text(stencil_width)//' points a rank ('// &
+                integer_text(stencil_width*int(ranks))//'); this one has '//integer_text(problem%layout%points())// &
+                ' (one a mass, and a fixed-fixed chain''s last spring one more): more links or fewer ranks', 'links')
+      return
+    end if
     self%result%ranks = ranks
     self%result%springs = problem%layout%springs
     self%result%unknowns = problem%layout%state_size()

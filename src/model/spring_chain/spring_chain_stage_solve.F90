@@ -223,7 +223,7 @@ contains
     PetscCall(borrow(unknowns, size(k)*owned, packed, ierr))
     do j = 1, size(k)
       PetscCall(borrow_read(k(j), owned, stage, ierr))
-      call scatter_stage(c, j, stage, packed)
+      packed(stage_places(c, j, owned)) = stage
       PetscCall(give_back_read(k(j), stage, ierr))
     end do
     PetscCall(give_back(unknowns, packed, ierr))
@@ -242,39 +242,20 @@ contains
     PetscCall(borrow_read(unknowns, size(k)*owned, packed, ierr))
     do j = 1, size(k)
       PetscCall(borrow(k(j), owned, stage, ierr))
-      call gather_stage(c, j, packed, stage)
+      stage = packed(stage_places(c, j, owned))
       PetscCall(give_back(k(j), stage, ierr))
     end do
     PetscCall(give_back_read(unknowns, packed, ierr))
   end subroutine unpack_stages
 
-  ! Stage j's rows (the rank's, 1-based from its first) into their places in the rank's K.
-  pure subroutine scatter_stage(c, j, stage, packed)
+  ! Where stage j's rows (the rank's `owned`, from its first: a point's first) sit in the rank's K.
+  pure function stage_places(c, j, owned) result(places)
     type(stage_context), intent(in) :: c
-    integer, intent(in) :: j
-    real(real64), intent(in) :: stage(:)
-    real(real64), intent(inout) :: packed(:)
-    integer :: point, width
+    integer, intent(in) :: j, owned
+    integer :: places(owned), row
 
-    width = size(c%a, 1)*c%dof
-    do point = 0, size(stage)/c%dof - 1
-      packed(point*width + (j - 1)*c%dof + 1:point*width + j*c%dof) = stage(point*c%dof + 1:(point + 1)*c%dof)
-    end do
-  end subroutine scatter_stage
-
-  ! Stage j's rows (the rank's) from their places in the rank's K.
-  pure subroutine gather_stage(c, j, packed, stage)
-    type(stage_context), intent(in) :: c
-    integer, intent(in) :: j
-    real(real64), intent(in) :: packed(:)
-    real(real64), intent(out) :: stage(:)
-    integer :: point, width
-
-    width = size(c%a, 1)*c%dof
-    do point = 0, size(stage)/c%dof - 1
-      stage(point*c%dof + 1:(point + 1)*c%dof) = packed(point*width + (j - 1)*c%dof + 1:point*width + j*c%dof)
-    end do
-  end subroutine gather_stage
+    places = [(stage_row(c, row, j - 1) + 1, row = 0, owned - 1)]
+  end function stage_places
 
   ! g_i = z + h sum_j a_ij k_j into c%stage.
   subroutine stage_value(c, i, ierr)
@@ -311,7 +292,9 @@ contains
       if (stat /= failure_none) failed = stat
       PetscCall(borrow(r, size(c%k)*owned, rows, ierr))
       PetscCall(borrow_read(c%field, owned, field, ierr))
-      call subtract_stage(c, i, field, rows)
+      associate (places => stage_places(c, i, owned))
+        rows(places) = rows(places) - field
+      end associate
       PetscCall(give_back_read(c%field, field, ierr))
       PetscCall(give_back(r, rows, ierr))
     end do
@@ -319,20 +302,6 @@ contains
       PetscCall(SNESSetFunctionDomainError(snes, ierr))
     end if
   end subroutine stage_residual
-
-  ! Stage i's places of the rank's K rows minus the chain's rows `field`.
-  pure subroutine subtract_stage(c, i, field, rows)
-    type(stage_context), intent(in) :: c
-    integer, intent(in) :: i
-    real(real64), intent(in) :: field(:)
-    real(real64), intent(inout) :: rows(:)
-    integer :: point, first
-
-    do point = 0, size(field)/c%dof - 1
-      first = point*size(c%a, 1)*c%dof + (i - 1)*c%dof
-      rows(first + 1:first + c%dof) = rows(first + 1:first + c%dof) - field(point*c%dof + 1:(point + 1)*c%dof)
-    end do
-  end subroutine subtract_stage
 
   ! SNES callback: the rank's rows of dR_i/dk_j = delta_ij I - h a_ij (df/dz)(g_i), stage row by
   ! stage row: df/dz at g_i into the chain's matrix (jacobian_at), each of its rows written s
