@@ -3,8 +3,8 @@ the continuum family's stability map over (N, dt) and a work-precision chart.
 
 Both run eme_ensemble on studies this script writes (zipped sweeps: a fixed number of steps needs
 t_end = (STEPS - 1/2) dt case by case, which a product of sweeps cannot give) into the study's
-folder, on the base scenes inputs/chain_rod.nml (stability) and inputs/chain_rod_heat.nml
-(work precision).
+folder, on the base scenes inputs/chain_rod.nml (stability) and inputs/chain_rod_heat.nml cut
+into WP_LINKS springs (work precision: the base is written beside the study, heat_base).
 
   chain_study.py stability --bin build/bin --study-dir results/study -o results/figures
   chain_study.py work-precision --bin build/bin --study-dir results/study -o results/figures
@@ -28,6 +28,7 @@ lambda, RK4_IMAGINARY/omega), which falls like 1/N for the waves and like 1/N^2 
 import argparse
 import csv
 import math
+import re
 import resource
 import subprocess
 import sys
@@ -39,7 +40,8 @@ import numpy as np
 import integrators
 from plotting import DOUBLE_COLUMN, plt, save
 from study_analysis import StudyError, namelist_text_value, read_index
-from trajectory import RunFileError, read_run
+from chain_dataset import open_chain
+from trajectory import RunFileError
 
 ROOT = Path(__file__).resolve().parent.parent
 STEPS = 20                       # steps of every stability case
@@ -61,15 +63,18 @@ DOMAIN_REASONS = ("domain", "non-positive", "blow-up", "nan", "not finite")
 RK4_REAL = 2.785293563405282
 RK4_IMAGINARY = 2.0 * math.sqrt(2.0)
 
-# Work precision: the hot-half rod of inputs/chain_rod_heat.nml to WP_END, each fixed-step scheme
-# over its STEPS counts, the adaptive ones over their tolerances.
-WP_END = 0.2
+# Work precision: the hot-half rod of inputs/chain_rod_heat.nml cut into WP_LINKS springs (4000
+# unknowns: the sparse path, one rank a case) to WP_END, each fixed-step scheme over its step
+# counts, the adaptive ones over their tolerances. RK4's limit there is 4.2e-5 s (conduction), so
+# the explicit schemes start at WP_END/512 (3.9e-5 s) and relaxed_rk8 (twice RK4's limit) at /256.
+WP_LINKS = 1000
+WP_END = 0.02
 WP_FIXED = {"eme": (5, 10, 20, 40, 80), "midpoint": (5, 10, 20, 40, 80), "ts_bdf2": (5, 10, 20, 40, 80),
-            "relaxed_rk4": (80, 160, 320, 640, 1280), "relaxed_rk8": (80, 160, 320, 640),
-            "ts_rk4": (80, 160, 320, 640, 1280)}
+            "relaxed_gauss6": (10, 20, 40, 80), "relaxed_rk4": (512, 1024, 2048), "relaxed_rk8": (256, 512, 1024),
+            "ts_rk4": (512, 1024, 2048)}
 WP_ADAPTIVE = {"eme": (1e-1, 1e-2, 1e-3), "relaxed_dp853": (1e-4, 1e-6, 1e-8, 1e-10)}
-WP_REFERENCE = ("relaxed_rk8", 5120)        # the reference: relaxed_rk8 at WP_END/5120
-WP_CROSS_CHECK = ("relaxed_rk8", 2560)      # and its check: the same at twice the step
+WP_REFERENCE = ("relaxed_rk8", 4096)        # the reference: relaxed_rk8 at WP_END/4096
+WP_CROSS_CHECK = ("relaxed_rk8", 2048)      # and its check: the same at twice the step
 WP_REPEATS = 3
 
 
@@ -280,12 +285,24 @@ def stability(args):
 # --- work precision ---------------------------------------------------------------------------
 
 def final_chain_state(path):
-    """(time, mechanical state, temperatures [K], theta_ref) of a dense chain run file's last point."""
-    run = read_run(path, ["state"], attributes=["theta_ref"], thermal_datasets=["temperature"])
-    names = run.columns["state"]
-    mechanical = [i for i, name in enumerate(names) if not name.startswith(("theta_", "s_", "u_"))]
-    theta_ref = float(np.atleast_1d(run.attrs["theta_ref"])[0])
-    return float(run.data["time"][-1]), run.data["state"][-1][mechanical], run.data["temperature"][-1], theta_ref
+    """(time, mechanical state, temperatures [K], theta_ref) of a chain run file's last snapshot,
+    whichever path wrote it (chain_dataset.open_chain)."""
+    chain = open_chain(path).isel(snapshot_time=-1)
+    mechanical = np.concatenate([chain.q.values.ravel(), chain.p.values.ravel(), chain.gamma.values.ravel()])
+    theta_ref = float(np.atleast_1d(chain.attrs["theta_ref"])[0])
+    return float(chain.snapshot_time), mechanical, chain.theta.values, theta_ref
+
+
+def heat_base(source, links, target):
+    """inputs/chain_rod_heat.nml cut into `links` springs into `target`: its hot and cold halves
+    kept (theta's two runs scaled to the new count), the state written at the start and the end
+    only (snapshot_every = 0)."""
+    text = Path(source).read_text()
+    hot, cold = re.search(r"theta = (\d+)\*([0-9.]+), (\d+)\*([0-9.]+)", text).group(2, 4)
+    text = re.sub(r"links = \d+", f"links = {links}", text)
+    text = re.sub(r"theta = \d+\*[0-9.]+, \d+\*[0-9.]+", f"theta = {links // 2}*{hot}, {links - links // 2}*{cold}", text)
+    text = re.sub(r"snapshot_every = \d+", "snapshot_every = 0", text)
+    Path(target).write_text(text)
 
 
 def chain_error(point, reference):
@@ -310,7 +327,8 @@ def work_precision_cases():
 def work_precision(args):
     folder = Path(args.study_dir) / "chain_work_precision"
     folder.mkdir(parents=True, exist_ok=True)
-    base = Path(args.base_heat).resolve()
+    base = (folder / "base.nml").resolve()
+    heat_base(args.base_heat, args.wp_links, base)
     studies = dict(zip(("fixed", "adaptive", "reference"), work_precision_cases()))
     for name, cases in studies.items():
         study = folder / f"{name}.nml"
@@ -337,7 +355,7 @@ def work_precision(args):
     load = study_load(folder / "fixed" / "index.h5")
     fig, ax = plt.subplots(figsize=(DOUBLE_COLUMN, 3.4), layout="constrained")
     for key, points in curves.items():
-        points.sort()
+        points.sort(key=lambda point: -point[2])          # along the curve: from the largest dt or tolerance
         ax.loglog([p[0] for p in points], [p[1] for p in points], marker="o",
                   color=integrators.colour(points[0][3]), label=key)
     ax.axhline(level, color="0.5", lw=0.6, ls=":")
@@ -347,7 +365,7 @@ def work_precision(args):
                  f"|theta - ref|/theta_ref);\nreference {integrators.label(WP_REFERENCE[0])} at dt = T/"
                  f"{WP_REFERENCE[1]}, dotted: its distance to dt = T/{WP_CROSS_CHECK[1]}", fontsize=8)
     fig.legend(loc="outside right upper")
-    title = (f"Work precision on the chain's rod family (N = {links}, inputs/chain_rod_heat.nml, T = {WP_END:g} s): "
+    title = (f"Work precision on the chain's rod family (N = {links}, inputs/chain_rod_heat.nml cut into {links} springs, T = {WP_END:g} s): "
              f"error against {WP_REFERENCE[0]} at dt = T/{WP_REFERENCE[1]} (cross-check at T/{WP_CROSS_CHECK[1]}: "
              f"{level:.2g}, dotted)")
     save(fig, stem, title, lines=[load] if load else ())
@@ -377,6 +395,7 @@ def main(argv=None):
     parser.add_argument("--base-heat", default=str(ROOT / "inputs" / "chain_rod_heat.nml"),
                         help="the work-precision chart's scene")
     parser.add_argument("--links", type=int, nargs="+", help="the map's N (default: %(default)s)")
+    parser.add_argument("--wp-links", type=int, default=WP_LINKS, help="the chart's N (default: %(default)s)")
     parser.add_argument("--analyse-only", action="store_true", help="draw from the studies already run")
     args = parser.parse_args(argv)
     try:

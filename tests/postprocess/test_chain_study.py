@@ -170,3 +170,53 @@ def test_picture_names_what_a_file_lacks(tmp_path, capsys):
     error = capsys.readouterr().err
     assert str(path) in error and "/snapshots/theta" in error and "/temperature" in error, error
     assert not (tmp_path / "out.png").exists()
+
+
+def test_final_state_reads_both_kinds_of_chain_file_alike(tmp_path):
+    """The work-precision chart's error reads each case's last state (final_chain_state): a dense
+    run's /state and /temperature and a split run's /snapshots hold the same chain alike (EME,
+    Newton to its rounding floor on both paths), each read here from the file's own datasets."""
+    groups = {"model": {"model_name": "spring_chain", "links": 4, "ends": "fixed-free", "dimension": 2,
+                        "gravity": [0.0, -9.81]},
+              "initial": {"theta": [300.0, 280.0, 260.0, 250.0]},
+              "integrator": {"scheme": "eme", "thermo_variable": "temperature", "dt": 0.05, "t_end": 0.2,
+                             "newton_tol": 1.0e-30}}
+    result, dense = run_eme(tmp_path, "dense", groups)
+    assert result.returncode == 0, result.stderr
+    namelist = tmp_path / "dense.nml"
+    split_namelist = tmp_path / "split.nml"
+    split_namelist.write_text(namelist.read_text().replace(str(dense), str(tmp_path / "split.h5")))
+    result = subprocess.run(["mpirun", "--allow-run-as-root", "--oversubscribe", "-n", "2", str(BIN / "eme_run"),
+                             str(split_namelist)], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    read = {path: chain_study.final_chain_state(path) for path in (dense, tmp_path / "split.h5")}
+    with h5py.File(dense, "r") as handle:
+        assert read[dense][0] == handle["time"][-1] == pytest.approx(0.2, rel=1e-14)
+        assert np.array_equal(read[dense][2], handle["temperature"][-1])
+        assert read[dense][3] == np.atleast_1d(handle.attrs["theta_ref"])[0]  # one for all springs here
+    with h5py.File(tmp_path / "split.h5", "r") as handle:
+        assert "state" not in handle
+        snapshot = [handle[f"snapshots/{name}"][-1] for name in ("q", "p", "gamma", "theta")]
+        assert read[tmp_path / "split.h5"][0] == handle["snapshots/time"][-1]
+        assert np.array_equal(read[tmp_path / "split.h5"][1], np.concatenate([v.ravel() for v in snapshot[:3]]))
+        assert np.array_equal(read[tmp_path / "split.h5"][2], snapshot[3])
+    (time_a, mechanical_a, theta_a, _), (time_b, mechanical_b, theta_b, _) = read.values()
+    assert time_a == time_b and np.max(np.abs(mechanical_a)) > 1e-3        # the chain moved
+    assert chain_study.chain_error(read[dense], read[tmp_path / "split.h5"]) < 1e-12
+    assert np.allclose(np.sort(mechanical_a), np.sort(mechanical_b), rtol=0, atol=1e-12)
+
+
+def test_heat_base_cuts_the_hot_rod_into_n_springs(tmp_path):
+    """The chart's base: inputs/chain_rod_heat.nml with links = 7, its hot and cold halves 3 and 4
+    springs, the state written at the start and end only; eme_run runs it from those temperatures."""
+    base = tmp_path / "base.nml"
+    chain_study.heat_base(ROOT / "inputs" / "chain_rod_heat.nml", 7, base)
+    text = base.read_text()
+    assert "links = 7" in text and "theta = 3*340.0, 4*280.0" in text and "snapshot_every = 0" in text
+    text = text.replace("results/chain_rod_heat.h5", str(tmp_path / "base.h5")).replace("t_end = 2.0", "t_end = 0.02")
+    base.write_text(text)
+    result = subprocess.run([str(BIN / "eme_run"), str(base)], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "base.h5", "r") as handle:
+        assert handle.attrs["links"] == 7
+        assert handle["temperature"][0].tolist() == [340.0] * 3 + [280.0] * 4
