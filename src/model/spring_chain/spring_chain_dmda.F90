@@ -31,7 +31,7 @@ module spring_chain_dmda
   use spring_chain_dmda_context, only: chain_context, slice_points
   use spring_chain_dmda_pattern, only: hold_pattern, create_jacobian_matrix
   use spring_chain_dmda_assembly, only: field_into, jacobian_into, chain_residual, chain_jacobian, converged_or_rounding
-  use spring_chain_linear_solver, only: set_default_linear_solver
+  use spring_chain_linear_solver, only: set_default_linear_solver, set_rounding_tolerance
   implicit none
   private
   public :: distributed_chain, set_default_linear_solver, stencil_width
@@ -270,12 +270,15 @@ contains
     PetscInt :: iterations
     SNESConvergedReason :: reason
     PetscReal :: old_norm, residual_norm
+    KSP :: ksp
 
     self%context%problem%dt = h
     self%context%problem%fraction = 1.0_real64
     PetscCall(self%hold_old_state(ierr))
     PetscCall(VecNorm(self%x, NORM_2, old_norm, ierr))
     self%context%update_floor = 16.0_real64*epsilon(1.0_real64)*old_norm
+    PetscCall(SNESGetKSP(self%snes, ksp, ierr))
+    PetscCall(set_rounding_tolerance(ksp, epsilon(1.0_real64)*old_norm, ierr))
     PetscCall(VecDuplicate(self%x, old, ierr))
     PetscCall(VecCopy(self%x, old, ierr))
     PetscCall(SNESSolve(self%snes, PETSC_NULL_VEC, self%x, ierr))

@@ -19,7 +19,8 @@ module spring_chain_stage_solve
   use, intrinsic :: iso_fortran_env, only: real64
   use failures, only: failure_none
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
-  use spring_chain_dmda, only: distributed_chain, set_default_linear_solver
+  use spring_chain_dmda, only: distributed_chain
+  use spring_chain_linear_solver, only: set_default_linear_solver, set_rounding_tolerance
   use spring_chain_dmda_pattern, only: pattern_columns
   use spring_chain_dmda_assembly, only: newton_verdict
   implicit none
@@ -147,6 +148,7 @@ contains
     PetscReal :: norm
     integer :: stat, j
     MPI_Comm :: comm
+    KSP :: ksp
 
     converged = .false.
     iterations = 0
@@ -167,6 +169,8 @@ contains
       ! below 16 eps |z|/h move them by less than the rounding of z.
       PetscCall(VecNorm(z, NORM_2, norm, ierr))
       c%update_floor = 16.0_real64*epsilon(1.0_real64)*norm/h
+      PetscCall(SNESGetKSP(self%snes, ksp, ierr))
+      PetscCall(set_rounding_tolerance(ksp, epsilon(1.0_real64)*norm/h, ierr))
       PetscCall(SNESSolve(self%snes, PETSC_NULL_VEC, self%unknowns, ierr))
       PetscCall(SNESGetConvergedReason(self%snes, snes_reason, ierr))
       PetscCall(SNESGetIterationNumber(self%snes, snes_iterations, ierr))
