@@ -145,7 +145,6 @@ contains
     outcome%failure = ''
     call step_or_halve(self, dt, 0, substeps, outcome, failure)
     if (failure%failed()) return
-    outcome%dt_taken = dt
     outcome%halvings = max(0, substeps - 1)
     outcome%diagnostics = [real(max(substeps, 1), real64)]
     if (.not. outcome%converged) then
@@ -296,7 +295,6 @@ contains
     ! step size, rejections by reason); a failed step's end is where its last trial would have been.
     subroutine finish_outcome()
       outcome%chose_time = .true.
-      outcome%dt_taken = h
       outcome%rejected_steps = sum(rejected)
       outcome%failure = reason
       outcome%diagnostics = [1.0_real64, estimate_norm, h, real(sum(rejected), real64), real(rejected, real64)]

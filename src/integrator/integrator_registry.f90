@@ -12,7 +12,7 @@ module integrator_registry
   implicit none (type, external)
   private
   public :: integrator_entry, registered_integrators, find_integrator, integrator_names, build_integrator
-  public :: keeps_structure, all_balances, momentum_balance
+  public :: keeps_structure, chooses_times, all_balances, momentum_balance
   public :: family_discrete_gradient, family_petsc_ts, family_relaxation, family_sundials
 
   !> The guarantees of a structure-preserving scheme, and of one that keeps the momenta alone.
@@ -77,6 +77,16 @@ contains
 
     keeps_structure = all(entry%guarantees)
   end function keeps_structure
+
+  !> Whether a run of `entry` chooses its steps' times (each row at the time its step reached, the
+  !> last on t_end) rather than stepping on n dt: the relaxed schemes and the adaptive ones always,
+  !> EME and the midpoint rule when &integrator tolerance is given (tolerance_given).
+  pure logical function chooses_times(entry, tolerance_given)
+    type(integrator_entry), intent(in) :: entry
+    logical, intent(in) :: tolerance_given
+
+    chooses_times = entry%chooses_time .or. (tolerance_given .and. entry%error_control)
+  end function chooses_times
 
   !> A new, unstarted integrator of `entry`, knowing its registry name (the relaxed integrators
   !> take their tableau by it).

@@ -46,10 +46,8 @@ module distributed_model
     integer :: reason = 0                      !! the solver's converged reason (SNES's, or TS's)
     real(real64) :: residual_norm = 0.0_real64
     character(len=:), allocatable :: failure   !! why it did not converge, in words
-    !> The time the step advanced: dt for a fixed step (in halves or not); an adaptive step's own,
-    !> which then ends at `time` (chose_time; exactly t_end on the last step), as the dense path's
-    !> step_report says.
-    real(real64) :: dt_taken = 0.0_real64
+    !> The step chose the time it reached, `time` (exactly t_end on the last step: an adaptive or a
+    !> relaxed step), as the dense path's step_report says; otherwise it reached n dt.
     logical :: chose_time = .false.
     real(real64) :: time = 0.0_real64
     !> halves that replaced the step (substeps - 1: a fixed step without a root, a relaxed step

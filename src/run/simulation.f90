@@ -13,7 +13,7 @@
 module simulation
   use, intrinsic :: iso_fortran_env, only: real64
   use integrator_settings, only: step_count
-  use integrator_registry, only: integrator_entry, find_integrator, build_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, build_integrator, chooses_times
   use stepper, only: time_stepper
   use run_config, only: run_configuration
   use run_output, only: extra_attribute
@@ -108,8 +108,7 @@ contains
       call run%fail(failure_input, config%input_file//': '//step_failure%message)
       return
     end if
-    ! Integrators that choose their times: those of the registry, and EME with a tolerance.
-    run%chooses_time = entry%chooses_time .or. (config%integrator%tolerance_given .and. entry%error_control)
+    run%chooses_time = chooses_times(entry, config%integrator%tolerance_given)
     continuing = continuation_wanted(run%writing, resume_if_possible)
     if (run%writing) then
       call prepare_output(config, run%chooses_time, run%model%state_size + size(run%constraints), &

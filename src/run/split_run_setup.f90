@@ -8,7 +8,8 @@ module split_run_setup
   use model_constraint, only: constraint_slot
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use distributed_model, only: distributed_system, distributed_settings, distributed_step, distributed_figures
-  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient, build_integrator
+  use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient, build_integrator, &
+                                 chooses_times
   use distributed_step_control, only: controlled_system, controlled_diagnostics
   use butcher_tableaux, only: butcher_tableau, tableau_named
   use stepper, only: time_stepper, step_report, step_diagnostic
@@ -42,19 +43,16 @@ contains
     split_run_wanted = .not. building%failed() .and. size(z0) > dense_limit
   end function split_run_wanted
 
-  !> Whether the split path's steps are the integrator's own, each reporting the time it reached:
-  !> EME's and the midpoint rule's with &integrator tolerance, and a relaxed tableau's with
-  !> embedded weights (relaxed_dp853); the others land on n dt.
+  !> Whether the split path's steps are the integrator's own, each reporting the time it reached, as
+  !> on the dense path (integrator_registry's chooses_times): the relaxed family's, and EME's and the
+  !> midpoint rule's with &integrator tolerance; the others land on n dt.
   logical function split_steps_chosen(config)
     type(run_configuration), intent(in) :: config
-    type(distributed_settings) :: settings
     type(integrator_entry) :: entry
     logical :: found
 
     call find_integrator(config%integrator%scheme, entry, found)
-    settings = distributed_settings_of(config)
-    split_steps_chosen = settings%embedded_weights .or. &
-                         (found .and. entry%family == family_discrete_gradient .and. config%integrator%tolerance_given)
+    split_steps_chosen = found .and. chooses_times(entry, config%integrator%tolerance_given)
   end function split_steps_chosen
 
   !> What the split path's steps need of the input's &integrator.
@@ -90,9 +88,8 @@ contains
   !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps
   !> under the dense path's control (src/integrator/distributed_step_control: halving, adaptive
   !> steps), others as the scene gives them; a failure (failure_input) for &output interval
-  !> unless the steps are chosen (&integrator tolerance with EME or the midpoint rule, or
-  !> relaxed_dp853: the fixed-step relaxed schemes' steps land on n dt here), or with
-  !> snapshot_every as well.
+  !> unless the steps are chosen (a relaxed scheme, or &integrator tolerance with EME or the
+  !> midpoint rule), or with snapshot_every as well.
   subroutine split_system(config, system, failure)
     type(run_configuration), intent(in) :: config
     class(distributed_system), allocatable, intent(out) :: system
@@ -105,8 +102,8 @@ contains
     if (config%output_interval > 0.0_real64) then
       if (.not. split_steps_chosen(config)) then
         call set_failure(failure, code_input, config%input_file//', &output: interval: a run split over ranks '// &
-                         'lands on output times only with steps it chooses (&integrator tolerance with scheme = '// &
-                         '''eme'' or ''midpoint'', or relaxed_dp853); scheme = '''//trim(config%integrator%scheme)// &
+                         'lands on output times only with steps it chooses (a relaxed scheme, or &integrator '// &
+                         'tolerance with scheme = ''eme'' or ''midpoint''); scheme = '''//trim(config%integrator%scheme)// &
                          ''' steps on n dt here; allowed: leave it out (0), or give a tolerance', 'interval')
         return
       else if (config%snapshot_every > 0) then

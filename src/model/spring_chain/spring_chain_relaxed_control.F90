@@ -1,15 +1,15 @@
 !> relaxed_dp853's step control on the chain split over ranks (spring_chain_relaxed_run's adaptive
-!> steps): one accepted step of the size DOP853's controller chooses (adaptive_step: landing on
-!> t_end or the next output time, refused steps undone and retried smaller), DOP853's error norm
-!> with each rank's sums over its rows added by MPI_Allreduce (the same on every rank, independent
-!> of the rank count up to the rounding of that sum), and what a continued run needs to go on bit
+!> steps): one accepted step of the size DOP853's controller chooses (adaptive_step: reaching
+!> t + gamma h, or landing on t_end or the next output time; refused steps undone and retried
+!> smaller), DOP853's error norm with each rank's sums over its rows added by MPI_Allreduce (the
+!> same on every rank, independent of the rank count up to the rounding of that sum), and what a continued run needs to go on bit
 !> for bit: the next trial step and the record behind the accuracy warnings.
 #include <petsc/finclude/petscdmda.h>
 submodule (spring_chain_relaxed_run) spring_chain_relaxed_control
   use failures, only: failure_mismatch
   use vector_arrays, only: borrow_read, give_back_read
   use dop853_control, only: error_squares, dop853_error_norm, accepted_step_factor, rejected_step_factor, &
-                            max_error_rejections, landing_slack
+                            max_error_rejections
   implicit none
 
 contains
@@ -75,45 +75,37 @@ contains
     self%max_gamma_deviation = values(4)
   end procedure restore_state
 
-  ! One accepted step of h from the state held at self%t, as the dense path's relaxed_step_control
-  ! takes it: h the next trial step, shortened to land on t_end or the next output time when it
-  ! (nearly) reaches it; a step relaxed but refused by the error norm is undone and retried
-  ! smaller, one without a relaxation root halved. ok = .false. after max_error_rejections, or
-  ! when h falls to round-off (last_failure says why).
-  module subroutine adaptive_step(self, h, ok, failure)
-    class(relaxed_chain_run), intent(inout) :: self
-    real(real64), intent(out) :: h
-    logical, intent(out) :: ok
-    type(failure_type), intent(out) :: failure
-    real(real64) :: error_norm, landing_time, production, gamma, deviation
+  ! One accepted step from the state held at self%t, as the dense path's relaxed_step_control takes
+  ! it: h the next trial step, shortened to land on t_end or the next output time when it (nearly)
+  ! reaches it; a step relaxed but refused by the error norm is undone (state, time and record) and
+  ! retried smaller, one without a relaxation root halved. ok = .false. after max_error_rejections,
+  ! or when h falls to round-off (last_failure says why).
+  module procedure adaptive_step
+    real(real64) :: h, error_norm, production, gamma, deviation, t_start
     logical :: landing
     integer :: tries
     PetscErrorCode :: ierr
 
     ok = .false.
     h = self%h_next
-    landing_time = min(self%t_end, self%stop_time)
+    t_start = self%t
     do tries = 1, max_error_rejections
-      landing = self%t + (1.0_real64 + landing_slack)*h >= landing_time
-      if (landing) h = landing_time - self%t
+      landing = self%t + (1.0_real64 + landing_slack)*h >= self%landing_time()
+      if (landing) h = self%landing_time() - self%t
       production = self%entropy_production
       gamma = self%last_gamma
       deviation = self%max_gamma_deviation
-      call relaxed_step(self, h, ok, failure)
+      call relaxed_step(self, h, landing, ok, error_norm, failure)
       if (failure%failed()) return
+      if (ok .and. error_norm <= 1.0_real64) then
+        if (.not. landing) self%h_next = h*accepted_step_factor(error_norm, tries > 1)
+        return
+      end if
+      self%rejections = self%rejections + 1
       if (ok) then
-        call step_error_norm(self, h, error_norm, ierr)
-        call fail_on_code(failure, ierr, 'the error norm of the chain''s relaxed step')
-        if (failure%failed()) return
-        if (error_norm <= 1.0_real64) then
-          if (.not. landing) self%h_next = h*accepted_step_factor(error_norm, tries > 1)
-          self%t = self%t + h
-          if (landing) self%t = landing_time
-          return
-        end if
         ! Relaxed, but not accepted by the error test: undone, and retried smaller.
-        self%rejections = self%rejections + 1
         ok = .false.
+        self%t = t_start
         self%entropy_production = production
         self%last_gamma = gamma
         self%max_gamma_deviation = deviation
@@ -123,7 +115,6 @@ contains
         if (failure%failed()) return
         h = h*rejected_step_factor(error_norm)
       else
-        self%rejections = self%rejections + 1
         self%halvings = self%halvings + 1
         h = 0.5_real64*h
       end if
@@ -131,6 +122,6 @@ contains
     end do
     self%last_failure = 'the adaptive step shrank below round-off or was rejected '//integer_text(max_error_rejections)// &
                         ' times (last: '//self%last_failure//')'
-  end subroutine adaptive_step
+  end procedure adaptive_step
 
 end submodule spring_chain_relaxed_control

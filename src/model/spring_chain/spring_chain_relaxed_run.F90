@@ -14,13 +14,14 @@
 !>  - a step without a root (or with a non-finite stage, or gamma outside the band of
 !>    &integrator tolerance) replaced by two halves, recursively, max_halvings deep, counted as on
 !>    the dense path, and the dense path's accuracy warnings at the run's end.
-!> One `step(dt)` lands on t + dt, as the split time loop steps: every step is what the dense
-!> path calls a landing step (no relaxation in time: gamma scales the update, not the time), so
-!> from the same state the states are the dense path's, step by step, while the times of the
-!> dense path's rows advance by gamma h; the order in time drops by one (gamma = 1 + O(h^(p-1))).
+!> Time is relaxed too, as on the dense path: a step of h reaches t + gamma h, so its row is
+!> written at the time it reached (the run chooses its times, as every relaxed run does), and the
+!> step that reaches t_end, or the next output time of &output interval, lands on it (gamma then
+!> scales the update only: the dense path's landing step). From the same state the states and the
+!> times are the dense path's, step by step; the order in time is the tableau's.
 !> With embedded weights (relaxed_dp853) each `step` is one accepted step of the size DOP853's
 !> controller chooses (src/solver/dop853_control, as the dense path's relaxed_step_control; the
-!> error norm summed over the ranks), landing on t_end or the next output time; its next trial
+!> error norm summed over the ranks); its next trial
 !> step and the run's record go into the resume record (spring_chain_relaxed_control). Implicit
 !> stages (relaxed_gauss6) are solved together by PETSc SNES over the split state
 !> (spring_chain_stage_solve: the dense path's stage equations, s stages of a point side by side);
@@ -43,6 +44,7 @@ module spring_chain_relaxed_run
   use thermo_variable_kinds, only: tau_entropy
   use solver_description, only: solver_report, no_solver
   use relaxation_root, only: max_halvings, gamma_band_factor, gamma_warning_deviation
+  use dop853_control, only: landing_slack
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_spring, only: chain_spring
   use spring_chain_model, only: spring_chain
@@ -94,22 +96,26 @@ module spring_chain_relaxed_run
     procedure :: accuracy_warnings
     procedure :: resume_state
     procedure :: restore_state
+    procedure :: landing_time
   end type relaxed_chain_run
 
   interface
-    !> One relaxed step of h from the state held, committed when ok; when not ok the state is z
-    !> again and last_failure says why (spring_chain_relaxed_step).
-    module subroutine relaxed_step(self, h, ok, failure)
+    !> One relaxed step of h from the state held at self%t, committed when ok (the state and the
+    !> time reached: t + gamma h, or the landing time when `landing`); when not ok the state is z
+    !> again and last_failure says why; error_norm: DOP853's (0 without embedded weights)
+    !> (spring_chain_relaxed_step).
+    module recursive subroutine relaxed_step(self, h, landing, ok, error_norm, failure)
       class(relaxed_chain_run), intent(inout), target :: self
       real(real64), intent(in) :: h
+      logical, intent(in) :: landing
       logical, intent(out) :: ok
+      real(real64), intent(out) :: error_norm
       type(failure_type), intent(out) :: failure
     end subroutine relaxed_step
     !> One accepted step of the controller's size from the state held at self%t
     !> (spring_chain_relaxed_control).
-    module subroutine adaptive_step(self, h, ok, failure)
+    module subroutine adaptive_step(self, ok, failure)
       class(relaxed_chain_run), intent(inout) :: self
-      real(real64), intent(out) :: h
       logical, intent(out) :: ok
       type(failure_type), intent(out) :: failure
     end subroutine adaptive_step
@@ -245,10 +251,11 @@ contains
     self%vectors_created = .true.
   end subroutine create_vectors
 
-  !> One step of dt from the state held, landing on t + dt: a relaxed step, or two halves of it,
-  !> recursively; with embedded weights one accepted step of the controller's size instead
-  !> (distributed_system). A step that cannot be done keeps the state (outcome%converged false,
-  !> outcome%failure says why).
+  !> One step of dt from the state held at self%t, to t + gamma dt (a relaxed step, or two halves of
+  !> it, recursively), landing on t_end or the next output time when it reaches it; with embedded
+  !> weights one accepted step of the controller's size instead (distributed_system). A step that
+  !> cannot be done keeps the state and its time (outcome%converged false, outcome%failure says
+  !> why).
   subroutine step(self, dt, outcome, failure)
     class(relaxed_chain_run), intent(inout) :: self
     real(real64), intent(in) :: dt
@@ -256,7 +263,7 @@ contains
     type(failure_type), intent(out) :: failure
     PetscErrorCode :: ierr
     logical :: ok
-    real(real64) :: h
+    real(real64) :: t_start
 
     self%attempts = 0
     self%rejections = 0
@@ -265,20 +272,21 @@ contains
     self%newton_iterations = 0
     self%entropy_production = 0.0_real64
     self%last_failure = ''
+    t_start = self%t
     call self%chain%hold_old_state(ierr)
     if (ierr == 0) call VecCopy(self%chain%x, self%step_start, ierr)
     call fail_on_code(failure, ierr, 'starting the chain''s relaxed step')
     if (failure%failed()) return
     if (self%adaptive) then
-      call adaptive_step(self, h, ok, failure)
-      outcome%chose_time = .true.
-      outcome%time = self%t
-      outcome%dt_taken = h
+      call adaptive_step(self, ok, failure)
+    else if (self%t + (1.0_real64 + landing_slack)*dt >= self%landing_time()) then
+      call step_or_halve(self, self%landing_time() - self%t, .true., 0, ok, failure)
     else
-      call step_or_halve(self, dt, 0, ok, failure)
+      call step_or_halve(self, dt, .false., 0, ok, failure)
     end if
     if (failure%failed()) return
     outcome%converged = ok
+    outcome%chose_time = .true.
     outcome%iterations = self%newton_iterations
     outcome%solves = self%attempts
     outcome%rejected = self%rejections
@@ -292,21 +300,25 @@ contains
       self%run_halvings = self%run_halvings + self%halvings
     else
       outcome%failure = self%last_failure
+      self%t = t_start
       call VecCopy(self%step_start, self%chain%x, ierr)
       call fail_on_code(failure, ierr, 'restoring the chain''s state after a failed relaxed step')
     end if
+    outcome%time = self%t
   end subroutine step
 
-  ! A step of h, or, if it is rejected, two halves, recursively; ok = .false. when halving went
-  ! past max_halvings.
-  recursive subroutine step_or_halve(self, h, depth, ok, failure)
+  ! A step of h (landing: on the landing time), or, if it is rejected, two halves, recursively (the
+  ! second half of a landing step lands); ok = .false. when halving went past max_halvings.
+  recursive subroutine step_or_halve(self, h, landing, depth, ok, failure)
     class(relaxed_chain_run), intent(inout) :: self
     real(real64), intent(in) :: h
+    logical, intent(in) :: landing
     integer, intent(in) :: depth
     logical, intent(out) :: ok
     type(failure_type), intent(out) :: failure
+    real(real64) :: error_norm
 
-    call relaxed_step(self, h, ok, failure)
+    call relaxed_step(self, h, landing, ok, error_norm, failure)
     if (ok .or. failure%failed()) return
     self%rejections = self%rejections + 1
     self%halvings = self%halvings + 1
@@ -315,9 +327,23 @@ contains
                           self%last_failure//')'
       return
     end if
-    call step_or_halve(self, 0.5_real64*h, depth + 1, ok, failure)
-    if (ok .and. .not. failure%failed()) call step_or_halve(self, 0.5_real64*h, depth + 1, ok, failure)
+    call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, failure)
+    if (.not. ok .or. failure%failed()) return
+    if (landing) then
+      call step_or_halve(self, self%landing_time() - self%t, .true., depth + 1, ok, failure)
+    else
+      call step_or_halve(self, 0.5_real64*h, .false., depth + 1, ok, failure)
+    end if
   end subroutine step_or_halve
+
+  !> The time a step lands on when it reaches it: t_end, or the next output time of &output
+  !> interval (stop_time, which the time loop sets). (Type-bound: gfortran's link-time
+  !> optimisation drops a private module function that only submodules call.)
+  pure real(real64) function landing_time(self)
+    class(relaxed_chain_run), intent(in) :: self
+
+    landing_time = min(self%t_end, self%stop_time)
+  end function landing_time
 
   !> Frees the step's vectors, then the chain's PETSc objects; failure keeps the first failure.
   subroutine finish(self, failure)

@@ -2,8 +2,9 @@
 !> k_i = f(g_i) of the chain's field (spring_chain_dmda's field_at; implicit ones solved together,
 !> spring_chain_stage_solve) and d = h sum_i b_i k_i, the
 !> rank sums at z (e_S, the rounding floor, the conserved components: one MPI_Allreduce), then the
-!> relaxation's root gamma (spring_chain_relaxed_root) within the gamma band. A submodule because
-!> it works on the run's vectors and its per-step record.
+!> relaxation's root gamma (spring_chain_relaxed_root) within the gamma band, and the time it
+!> reaches, t + gamma h, as the dense path's relaxed_step (src/integrator/relaxed_stepper). A
+!> submodule because it works on the run's vectors and its per-step record.
 #include <petsc/finclude/petscdmda.h>
 submodule (spring_chain_relaxed_run) spring_chain_relaxed_step
   use relaxation_root, only: find_relaxation_root
@@ -14,14 +15,12 @@ submodule (spring_chain_relaxed_run) spring_chain_relaxed_step
 
 contains
 
-  ! One relaxed step of h from the state held, committed when ok: the stages, d and e_S, the
-  ! rounding floor and the conserved components at z (one sum over the ranks), then the
-  ! relaxation. When not ok the state is z again and last_failure says why.
-  module subroutine relaxed_step(self, h, ok, failure)
-    class(relaxed_chain_run), intent(inout), target :: self
-    real(real64), intent(in) :: h
-    logical, intent(out) :: ok
-    type(failure_type), intent(out) :: failure
+  ! One relaxed step of h from the state held at self%t, committed when ok: the stages, d and e_S,
+  ! the rounding floor and the conserved components at z (one sum over the ranks), then the
+  ! relaxation, and the time reached: t + gamma h, or the landing time when `landing`. A step whose
+  ! relaxed time would pass the landing time, or leave less than landing_slack h before it, is redone
+  ! as the landing step. When not ok the state is z again and last_failure says why.
+  module procedure relaxed_step
     type(split_relaxation) :: relaxation
     real(real64) :: sums(2 + size(self%axes, 2)), gamma, resolution, largest
     integer :: evaluations, stat, failed_stage
@@ -29,6 +28,7 @@ contains
     PetscErrorCode :: ierr
 
     ok = .false.
+    error_norm = 0.0_real64
     self%attempts = self%attempts + 1
     call stages_petsc(self, h, failed_stage, solved, largest, ierr)
     if (ierr == 0 .and. failed_stage == 0 .and. largest <= huge(largest)) call sums_petsc(self, sums, stat, ierr)
@@ -62,17 +62,35 @@ contains
       else if (.not. ok) then
         self%last_failure = 'no relaxation root gamma in [0.2, 2]'
       end if
+      if (ok .and. .not. landing .and. self%t + (gamma + landing_slack)*h >= self%landing_time()) then
+        call VecCopy(self%start_state, self%chain%x, ierr)
+        call fail_on_code(failure, ierr, 'restoring the chain''s state before its landing step')
+        if (failure%failed()) return
+        self%attempts = self%attempts - 1
+        call relaxed_step(self, self%landing_time() - self%t, .true., ok, error_norm, failure)
+        return
+      end if
+      if (ok .and. self%adaptive) then
+        call step_error_norm(self, h, error_norm, ierr)
+        call fail_on_code(failure, ierr, 'the error norm of the chain''s relaxed step')
+        if (failure%failed()) return
+      end if
       if (.not. ok) then
         call VecCopy(self%start_state, self%chain%x, ierr)
         call fail_on_code(failure, ierr, 'restoring the chain''s state after a rejected relaxed step')
         return
+      end if
+      if (landing) then
+        self%t = self%landing_time()
+      else
+        self%t = self%t + gamma*h
       end if
       self%last_gamma = gamma
       self%entropy_production = self%entropy_production + gamma*entropy_estimate
       if (abs(gamma - 1.0_real64) > resolution) self%max_gamma_deviation = max(self%max_gamma_deviation, &
                                                                                  abs(gamma - 1.0_real64))
     end associate
-  end subroutine relaxed_step
+  end procedure relaxed_step
 
   ! z of the substep kept (start_state, start_local), the stages k_i = f(g_i) (explicit: in turn;
   ! implicit: solved together, `solved` false when Newton did not, last_failure saying why) and
