@@ -31,7 +31,7 @@ contains
     error_norm = 0.0_real64
     self%attempts = self%attempts + 1
     call stages_petsc(self, h, failed_stage, solved, largest, ierr)
-    if (ierr == 0 .and. failed_stage == 0 .and. largest <= huge(largest)) call sums_petsc(self, sums, stat, ierr)
+    if (ierr == 0 .and. solved .and. failed_stage == 0 .and. largest <= huge(largest)) call sums_petsc(self, sums, stat, ierr)
     call fail_on_code(failure, ierr, 'evaluating the chain''s relaxed stages')
     if (failure%failed()) return
     if (.not. solved) then
