@@ -270,11 +270,16 @@ def test_relaxed_gauss6_holds_where_relaxed_rk4_must_halve(tmp_path):
         assert f["halved_steps"][()].sum() > 100
 
 
-def test_a_continued_gauss6_run_is_the_uninterrupted_run(tmp_path):
-    """The 12-spring chain on two ranks with relaxed_gauss6, stopped by its step budget (15 of 40
-    steps) and continued with -eme_continue, ends with the uninterrupted run's file bit for bit:
-    the stages' Newton starts from f(z) alone, so nothing but the snapshot is needed."""
-    groups = relaxed_chain(scheme="relaxed_gauss6", variable="entropy", links=12, dimension=1, ends="fixed-fixed")
+@pytest.mark.parametrize("scheme, output", [("relaxed_gauss6", {"snapshot_every": 1}),
+                                            ("relaxed_rk4", {"interval": 0.05})])
+def test_a_continued_relaxed_run_is_the_uninterrupted_run(tmp_path, scheme, output):
+    """The 12-spring chain on two ranks, stopped by its step budget (15 of about 40 steps) and
+    continued with -eme_continue, ends with the uninterrupted run's file bit for bit: relaxed_gauss6's
+    stages' Newton starts from f(z) alone, so nothing but the snapshot and its time are needed;
+    relaxed_rk4 with &output interval goes on from the last output time before the stop (0.05 s),
+    its steps landing on the output times again."""
+    groups = relaxed_chain(scheme=scheme, variable="entropy", links=12, dimension=1, ends="fixed-fixed")
+    groups["output"] = output
     stopped = {key: dict(fields) for key, fields in groups.items()}
     stopped["integrator"]["max_steps"] = 15
     result, continued_file = run_split(tmp_path, "continued", stopped)
