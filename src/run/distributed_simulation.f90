@@ -23,8 +23,8 @@
 !> midpoint rule step under the dense path's control (src/integrator/distributed_step_control): a
 !> fixed step without a root is taken in halves, and with &integrator tolerance the steps are
 !> chosen (each reports the time it reached, the last t_end exactly; rows and snapshots count
-!> accepted steps, and the controller's state is kept in the resume record), as relaxed_dp853's
-!> are (split_run_setup's split_steps_chosen).
+!> accepted steps, and the controller's state is kept in the resume record), as the relaxed
+!> schemes' are (split_run_setup's split_steps_chosen).
 module distributed_simulation
   use, intrinsic :: iso_fortran_env, only: real64
   use mpi_f08, only: MPI_Comm_rank, MPI_Bcast, MPI_LOGICAL
