@@ -2,8 +2,9 @@
 !> steps): one accepted step of the size DOP853's controller chooses (adaptive_step: reaching
 !> t + gamma h, or landing on t_end or the next output time; refused steps undone and retried
 !> smaller), DOP853's error norm with each rank's sums over its rows added by MPI_Allreduce (the
-!> same on every rank, independent of the rank count up to the rounding of that sum), and what a continued run needs to go on bit
-!> for bit: the next trial step and the record behind the accuracy warnings.
+!> same on every rank, independent of the rank count up to the rounding of that sum), and what a
+!> continued run needs to go on bit for bit: the next trial step and the record behind the
+!> accuracy warnings.
 #include <petsc/finclude/petscdmda.h>
 submodule (spring_chain_relaxed_run) spring_chain_relaxed_control
   use failures, only: failure_mismatch
