@@ -23,6 +23,7 @@ module spring_chain_stage_solve
   use spring_chain_linear_solver, only: set_default_linear_solver, set_rounding_tolerance
   use spring_chain_dmda_pattern, only: pattern_columns
   use spring_chain_dmda_assembly, only: newton_verdict
+  use dense_assembly, only: assemble_jacobian
   implicit none
   private
   public :: chain_stage_solver
@@ -41,6 +42,8 @@ module spring_chain_stage_solve
     real(real64) :: previous_residual = 0.0_real64      !! |R| of the iteration before
     PetscInt, allocatable :: columns(:), stage_columns(:)   !! a row of df/dz, its columns in K
     real(real64), allocatable :: values(:), stage_values(:)
+    !> places(:, j): where stage j's rows (the rank's, from its first) sit in the rank's rows of K
+    integer, allocatable :: places(:, :)
   end type stage_context
 
   !> The stage equations' SNES on a chain. Do not copy it after `create`: PETSc holds the address
@@ -94,6 +97,10 @@ contains
       allocate (c%k(stages))
       do j = 1, stages
         PetscCall(VecDuplicate(chain%x, c%k(j), ierr))
+      end do
+      allocate (c%places(owned/stages, stages))
+      do j = 1, stages
+        c%places(:, j) = [(stage_row(c, row, j - 1) + 1, row = 0, owned/stages - 1)]
       end do
       ! A row of stage j at (point, slot) has the chain row's columns once per stage.
       allocate (diagonal_counts(owned), off_counts(owned))
@@ -227,7 +234,7 @@ contains
     PetscCall(borrow(unknowns, size(k)*owned, packed, ierr))
     do j = 1, size(k)
       PetscCall(borrow_read(k(j), owned, stage, ierr))
-      packed(stage_places(c, j, owned)) = stage
+      packed(c%places(:, j)) = stage
       PetscCall(give_back_read(k(j), stage, ierr))
     end do
     PetscCall(give_back(unknowns, packed, ierr))
@@ -246,20 +253,11 @@ contains
     PetscCall(borrow_read(unknowns, size(k)*owned, packed, ierr))
     do j = 1, size(k)
       PetscCall(borrow(k(j), owned, stage, ierr))
-      stage = packed(stage_places(c, j, owned))
+      stage = packed(c%places(:, j))
       PetscCall(give_back(k(j), stage, ierr))
     end do
     PetscCall(give_back_read(unknowns, packed, ierr))
   end subroutine unpack_stages
-
-  ! Where stage j's rows (the rank's `owned`, from its first: a point's first) sit in the rank's K.
-  pure function stage_places(c, j, owned) result(places)
-    type(stage_context), intent(in) :: c
-    integer, intent(in) :: j, owned
-    integer :: places(owned), row
-
-    places = [(stage_row(c, row, j - 1) + 1, row = 0, owned - 1)]
-  end function stage_places
 
   ! g_i = z + h sum_j a_ij k_j into c%stage.
   subroutine stage_value(c, i, ierr)
@@ -296,7 +294,7 @@ contains
       if (stat /= failure_none) failed = stat
       PetscCall(borrow(r, size(c%k)*owned, rows, ierr))
       PetscCall(borrow_read(c%field, owned, field, ierr))
-      associate (places => stage_places(c, i, owned))
+      associate (places => c%places(:, i))
         rows(places) = rows(places) - field
       end associate
       PetscCall(give_back_read(c%field, field, ierr))
@@ -341,12 +339,7 @@ contains
         PetscCall(MatRestoreRow(c%chain%jacobian, chain_row, entries, c%columns, c%values, ierr))
       end do
     end do
-    PetscCall(MatAssemblyBegin(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    PetscCall(MatAssemblyEnd(preconditioner, MAT_FINAL_ASSEMBLY, ierr))
-    if (jacobian /= preconditioner) then
-      PetscCall(MatAssemblyBegin(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-      PetscCall(MatAssemblyEnd(jacobian, MAT_FINAL_ASSEMBLY, ierr))
-    end if
+    PetscCall(assemble_jacobian(jacobian, preconditioner, ierr))
     if (failed /= failure_none) then
       PetscCall(SNESSetJacobianDomainError(snes, ierr))
     end if
