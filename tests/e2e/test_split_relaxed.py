@@ -135,6 +135,33 @@ def test_split_relaxed_rk4_lands_on_the_output_times_as_the_dense_path(tmp_path)
                 assert np.max(np.abs(got - expected)) <= 1e-11 * max(1.0, np.max(np.abs(expected))), (name, n)
 
 
+def test_a_step_whose_relaxed_time_would_pass_t_end_is_redone_to_land_on_it(tmp_path):
+    """The hanging chain at dt = 50 ms, whose third step has gamma > 1 (1.0014 measured): with
+    t_end placed between t_2 + 1.01 dt (so the step is no landing step from the start) and
+    t_2 + (gamma + 0.01) dt (so its relaxed time passes t_end, or leaves less than 1 % of dt
+    before it), the step is redone as the landing step of t_end - t_2 > dt, as on the dense path:
+    three steps, the last longer than dt, ending on t_end exactly (not a third step of gamma dt
+    and a sliver after it)."""
+    dt = 0.05
+    groups = relaxed_chain(dt=dt, steps=20, links=12, dimension=3)
+    result, probe_file = run_eme(tmp_path, "probe", groups)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(probe_file, "r") as f:
+        t_2, gamma_3 = f["time"][2], f["relaxation_gamma"][2]
+    assert gamma_3 > 1.0 + 1e-4, gamma_3
+    t_end = t_2 + 0.5 * (1.01 + gamma_3 + 0.01) * dt
+    groups["integrator"]["t_end"] = t_end
+    result, dense_file = run_eme(tmp_path, "dense", groups)
+    assert result.returncode == 0, result.stderr
+    result, split_file = run_split(tmp_path, "split", groups, 2)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(split_file, "r") as split, h5py.File(dense_file, "r") as dense:
+        times = split["time"][()]
+        assert len(times) == 4 and times[-1] == t_end, times
+        assert times[3] - times[2] > 1.01 * dt
+        assert len(dense["time"]) == 4 and abs(dense["time"][2] - times[2]) <= 1e-14
+
+
 @pytest.mark.parametrize("scheme", ["relaxed_rk4", "relaxed_gauss6"])
 def test_one_and_two_ranks_give_the_same_run(tmp_path, scheme):
     """300 springs of the rod family (1198 unknowns: split on one rank too), entropy variable,
