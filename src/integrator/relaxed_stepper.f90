@@ -21,7 +21,7 @@
 !> The relaxation parameter is an error signal: gamma = 1 + O(h**(p-1)) for a method of order p,
 !> so at steps whose local error is about the tolerance tol, |gamma - 1| ~ tol**((p-1)/(p+1)). With
 !> a tolerance in force (relaxed_dp853 always; the fixed-step schemes when &integrator tolerance is
-!> given) a step with |gamma - 1| > gamma_band_factor tol**((p-1)/(p+1)) is rejected like a step
+!> given) a step with |gamma - 1| > 10 tol**((p-1)/(p+1)) is rejected like a step
 !> without a relaxation root (measured on the paper and low-viscosity scenes with relaxed_dp853 at
 !> tolerances 1e-4 to 1e-10: |gamma - 1| has its median at 0.003 to 0.02 of tol**(7/9) and its
 !> largest value at 2.5 times it; docs/integrators.md).
@@ -44,7 +44,7 @@ module relaxed_stepper
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, tableau_named
   use relaxation, only: relax
-  use relaxation_root, only: max_halvings, gamma_band_factor, gamma_warning_deviation
+  use relaxation_root, only: max_halvings, gamma_band, gamma_warning_deviation
   use dop853_control, only: error_squares, dop853_error_norm, accepted_step_factor, rejected_step_factor, &
                             max_error_rejections, landing_slack
   use constrained_flow, only: constrained_field, project_state
@@ -200,8 +200,7 @@ contains
     self%t_end = choice%t_end
     self%tolerance = choice%tolerance
     self%gamma_band = huge(1.0_real64)
-    if (self%adaptive .or. choice%tolerance_given) self%gamma_band = gamma_band_factor* &
-      choice%tolerance**(real(self%tableau%order - 1, real64)/real(self%tableau%order + 1, real64))
+    if (self%adaptive .or. choice%tolerance_given) self%gamma_band = gamma_band(choice%tolerance, self%tableau%order)
     self%h_next = choice%dt
     self%dt = choice%dt
     self%run_rejections = 0

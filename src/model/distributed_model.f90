@@ -8,6 +8,7 @@
 module distributed_model
   use, intrinsic :: iso_fortran_env, only: real64
   use model_interface, only: generic_model
+  use butcher_tableaux, only: butcher_tableau
   use failures, only: failure_type, fail, failure_input
   use solver_description, only: solver_report
   implicit none (type, external)
@@ -26,15 +27,9 @@ module distributed_model
     logical :: tolerance_given = .false.
     real(real64) :: tolerance = 1.0e-10_real64       !! an adaptive integrator's (ts_rk5dp's) error per step
     real(real64) :: t_end = 0.0_real64               !! where the run ends (adaptive steps land on it)
-    !> A relaxed Runge-Kutta scheme's tableau (src/integrator/butcher_tableaux, given by the run;
-    !> unallocated for other schemes): stages g_i = z + h sum_j a_ij k_j, update h sum_i b_i k_i,
-    !> its order, and whether its stages are implicit or it has embedded (adaptive) weights.
-    real(real64), allocatable :: stage_matrix(:, :), weights(:)
-    !> with embedded weights (relaxed_dp853), the error estimates' weights: h sum_i e5_i k_i of
-    !> order 5 and h sum_i e3_i k_i of order 3 (src/solver/dop853_control)
-    real(real64), allocatable :: error_weights5(:), error_weights3(:)
-    integer :: order = 0
-    logical :: implicit_stages = .false., embedded_weights = .false.
+    !> A relaxed Runge-Kutta scheme's tableau (src/scheme/butcher_tableaux, given by the run; no
+    !> stages for other schemes)
+    type(butcher_tableau) :: tableau
   end type distributed_settings
 
   !> One step's solve, the same on every rank.

@@ -11,7 +11,7 @@ module split_run_setup
   use integrator_registry, only: integrator_entry, find_integrator, family_discrete_gradient, build_integrator, &
                                  chooses_times
   use distributed_step_control, only: controlled_system, controlled_diagnostics
-  use butcher_tableaux, only: butcher_tableau, tableau_named
+  use butcher_tableaux, only: tableau_named
   use stepper, only: time_stepper, step_report, step_diagnostic
   use step_balances, only: balanced_state
   use run_config, only: run_configuration
@@ -59,7 +59,6 @@ contains
   function distributed_settings_of(config) result(settings)
     type(run_configuration), intent(in) :: config
     type(distributed_settings) :: settings
-    type(butcher_tableau) :: tableau
     logical :: found
 
     settings%input_file = config%input_file
@@ -72,17 +71,7 @@ contains
     settings%tolerance = config%integrator%tolerance
     settings%dt = config%integrator%dt
     settings%t_end = config%integrator%t_end
-    call tableau_named(config%integrator%scheme, tableau, found)
-    if (.not. found) return
-    settings%stage_matrix = tableau%a
-    settings%weights = tableau%b
-    settings%order = tableau%order
-    settings%implicit_stages = tableau%implicit
-    settings%embedded_weights = tableau%embedded
-    if (tableau%embedded) then
-      settings%error_weights5 = tableau%e5
-      settings%error_weights3 = tableau%e3
-    end if
+    call tableau_named(config%integrator%scheme, settings%tableau, found)     ! no stages when not found
   end function distributed_settings_of
 
   !> The split model of `config`'s scene for its integrator: EME's and the midpoint rule's steps

@@ -10,15 +10,13 @@ module relaxation_root
   use failures, only: failure_none
   implicit none (type, external)
   private
-  public :: relaxation_function, find_relaxation_root, gamma_min, gamma_max, max_halvings, gamma_band_factor, &
+  public :: relaxation_function, find_relaxation_root, gamma_min, gamma_max, max_halvings, gamma_band, &
             gamma_warning_deviation
 
   !> The gamma a step may take (docs/integrators.md); outside, the step is rejected.
   real(real64), parameter :: gamma_min = 0.2_real64, gamma_max = 2.0_real64
   !> Depth of the halving of a rejected relaxed step: 2^12 substeps at most.
   integer, parameter :: max_halvings = 12
-  !> The band of gamma at a tolerance (src/integrator/relaxed_stepper's header).
-  real(real64), parameter :: gamma_band_factor = 10.0_real64
   !> The largest |gamma - 1| of an accepted (sub)step that passes without a warning.
   real(real64), parameter :: gamma_warning_deviation = 0.1_real64
   integer, parameter :: max_secant_steps = 30
@@ -52,6 +50,15 @@ module relaxation_root
   end interface
 
 contains
+
+  !> The largest |gamma - 1| a step of an order-p tableau may take at `tolerance`:
+  !> 10 tol^((p-1)/(p+1)) (src/integrator/relaxed_stepper's header says why).
+  pure real(real64) function gamma_band(tolerance, order)
+    real(real64), intent(in) :: tolerance
+    integer, intent(in) :: order
+
+    gamma_band = 10.0_real64*tolerance**(real(order - 1, real64)/real(order + 1, real64))
+  end function gamma_band
 
   !> gamma with r(gamma) = 0 to the rounding floor `floor`, its relaxed state made (`move`);
   !> found = .false. when no root lies in [gamma_min, gamma_max] or an evaluation leaves the

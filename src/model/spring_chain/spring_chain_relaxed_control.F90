@@ -26,12 +26,12 @@ contains
     error_norm = huge(1.0_real64)
     PetscCall(VecSet(self%stage, 0.0_real64, ierr))
     PetscCall(VecSet(self%direction, 0.0_real64, ierr))
-    do i = 1, size(self%e5)
-      if (abs(self%e5(i)) > 0.0_real64) then
-        PetscCall(VecAXPY(self%stage, self%e5(i), self%k(i), ierr))
+    do i = 1, size(self%tableau%e5)
+      if (abs(self%tableau%e5(i)) > 0.0_real64) then
+        PetscCall(VecAXPY(self%stage, self%tableau%e5(i), self%k(i), ierr))
       end if
-      if (abs(self%e3(i)) > 0.0_real64) then
-        PetscCall(VecAXPY(self%direction, self%e3(i), self%k(i), ierr))
+      if (abs(self%tableau%e3(i)) > 0.0_real64) then
+        PetscCall(VecAXPY(self%direction, self%tableau%e3(i), self%k(i), ierr))
       end if
     end do
     rows = self%chain%context%last_row - self%chain%context%first_row + 1
@@ -52,7 +52,7 @@ contains
   ! [h_next, run_rejections, run_halvings, max_gamma_deviation] of an adaptive run; none for the
   ! fixed-step schemes, whose steps the time loop gives.
   module procedure resume_state
-    if (.not. self%adaptive) then
+    if (.not. self%tableau%embedded) then
       allocate (values(0))
       return
     end if
@@ -69,7 +69,7 @@ contains
       return
     end if
     self%t = time
-    if (.not. self%adaptive) return
+    if (.not. self%tableau%embedded) return
     self%h_next = values(1)
     self%run_rejections = nint(values(2))
     self%run_halvings = nint(values(3))

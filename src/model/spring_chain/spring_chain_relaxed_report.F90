@@ -49,7 +49,7 @@ contains
     class(relaxed_chain_run), intent(in) :: self
     type(solver_report) :: report
 
-    if (self%implicit) then
+    if (self%tableau%implicit) then
       report = self%sparse_chain_run%describe_solver()
     else
       report = no_solver('explicit stages of the chain''s field on a DMDA split over the ranks')

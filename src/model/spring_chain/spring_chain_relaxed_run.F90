@@ -43,8 +43,9 @@ module spring_chain_relaxed_run
   use model_interface, only: generic_model
   use thermo_variable_kinds, only: tau_entropy
   use solver_description, only: solver_report, no_solver
-  use relaxation_root, only: max_halvings, gamma_band_factor, gamma_warning_deviation
+  use relaxation_root, only: max_halvings, gamma_band, gamma_warning_deviation
   use dop853_control, only: landing_slack
+  use butcher_tableaux, only: butcher_tableau
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_spring, only: chain_spring
   use spring_chain_model, only: spring_chain
@@ -61,8 +62,7 @@ module spring_chain_relaxed_run
   type, extends(sparse_chain_run) :: relaxed_chain_run
     type(chain_spring), allocatable :: run_springs(:)   !! the springs in the run's own variable
     integer :: run_variable = tau_entropy
-    real(real64), allocatable :: a(:, :), b(:)          !! the tableau
-    integer :: order = 0
+    type(butcher_tableau) :: tableau
     real(real64) :: gamma_band = huge(1.0_real64)       !! the largest |gamma - 1| accepted
     real(real64), allocatable :: axes(:, :)             !! the conserved components' axes (3 x m)
     Vec, allocatable :: k(:)                            !! the stage derivatives
@@ -70,7 +70,6 @@ module spring_chain_relaxed_run
     Vec :: start_local                                  !! z of the substep on the ghosted points
     logical :: vectors_created = .false.
     type(chain_stage_solver) :: stage_solver            !! implicit stages (relaxed_gauss6)
-    logical :: implicit = .false.
     real(real64), allocatable :: momenta(:)             !! the conserved components at z
     ! What the current step did (the dense path's per-step figures), and the run's record.
     integer :: attempts = 0, rejections = 0, halvings = 0, gamma_rejections = 0, newton_iterations = 0
@@ -79,10 +78,8 @@ module spring_chain_relaxed_run
     character(len=:), allocatable :: last_failure
     integer :: run_rejections = 0, run_halvings = 0
     real(real64) :: max_gamma_deviation = 0.0_real64
-    ! Adaptive steps (embedded weights): the error estimates' weights, the tolerance, the time of
-    ! the state held, where the run ends, the next trial step and the whole state's size.
-    logical :: adaptive = .false.
-    real(real64), allocatable :: e5(:), e3(:)
+    ! The time of the state held, where the run ends, the next trial step (adaptive steps: the
+    ! tableau's embedded weights) with its tolerance, and the whole state's size.
     real(real64) :: tolerance = 0.0_real64, t = 0.0_real64, t_end = 0.0_real64, h_next = 0.0_real64
     integer :: unknowns = 0
   contains
@@ -185,7 +182,7 @@ contains
     integer :: stat
     PetscErrorCode :: ierr
 
-    if (.not. allocated(settings%weights)) then
+    if (settings%tableau%stages == 0) then
       ! Not a tableau: chain_problem_of says why (set_up refuses it).
       call self%set_up(settings, model, z0, comm, failure)
       if (.not. failure%failed()) call fail(failure, failure_input, settings%input_file// &
@@ -207,28 +204,19 @@ contains
     end if
     call self%set_up(settings, entropy_model, z, comm, failure)
     if (failure%failed()) return
-    self%a = settings%stage_matrix
-    self%b = settings%weights
-    self%order = settings%order
-    self%adaptive = settings%embedded_weights
-    if (self%adaptive) then
-      self%e5 = settings%error_weights5
-      self%e3 = settings%error_weights3
-    end if
+    self%tableau = settings%tableau
     self%tolerance = settings%tolerance
     self%t = 0.0_real64
     self%t_end = settings%t_end
     self%h_next = settings%dt
     self%unknowns = size(z0)
     self%gamma_band = huge(1.0_real64)
-    if (settings%tolerance_given .or. self%adaptive) self%gamma_band = gamma_band_factor* &
-      settings%tolerance**(real(self%order - 1, real64)/real(self%order + 1, real64))
+    if (settings%tolerance_given .or. self%tableau%embedded) self%gamma_band = gamma_band(settings%tolerance, self%tableau%order)
     self%run_rejections = 0
     self%run_halvings = 0
     self%max_gamma_deviation = 0.0_real64
-    call create_vectors(self, size(self%b), ierr)
-    self%implicit = settings%implicit_stages
-    if (ierr == 0 .and. self%implicit) call self%stage_solver%create(self%chain, self%a, settings%newton_tol, &
+    call create_vectors(self, self%tableau%stages, ierr)
+    if (ierr == 0 .and. self%tableau%implicit) call self%stage_solver%create(self%chain, self%tableau%a, settings%newton_tol, &
                                                                      settings%newton_max_iterations, ierr)
     call fail_on_code(failure, ierr, 'setting up the chain''s relaxed steps')
   end subroutine start
@@ -277,7 +265,7 @@ contains
     if (ierr == 0) call VecCopy(self%chain%x, self%step_start, ierr)
     call fail_on_code(failure, ierr, 'starting the chain''s relaxed step')
     if (failure%failed()) return
-    if (self%adaptive) then
+    if (self%tableau%embedded) then
       call adaptive_step(self, ok, failure)
     else if (self%t + (1.0_real64 + landing_slack)*dt >= self%landing_time()) then
       call step_or_halve(self, self%landing_time() - self%t, .true., 0, ok, failure)

@@ -47,7 +47,7 @@ contains
       return
     end if
     associate (entropy_estimate => sums(1), floor => sums(2))
-      if (any(self%b < 0.0_real64) .and. entropy_estimate < 0.0_real64) then
+      if (any(self%tableau%b < 0.0_real64) .and. entropy_estimate < 0.0_real64) then
         self%last_failure = 'the entropy guard: the step''s entropy estimate is negative'
         return
       end if
@@ -70,7 +70,7 @@ contains
         call relaxed_step(self, self%landing_time() - self%t, .true., ok, error_norm, failure)
         return
       end if
-      if (ok .and. self%adaptive) then
+      if (ok .and. self%tableau%embedded) then
         call step_error_norm(self, h, error_norm, ierr)
         call fail_on_code(failure, ierr, 'the error norm of the chain''s relaxed step')
         if (failure%failed()) return
@@ -113,7 +113,7 @@ contains
     PetscCall(VecCopy(self%chain%x, self%start_state, ierr))
     PetscCall(DMGlobalToLocalBegin(self%chain%context%da, self%start_state, INSERT_VALUES, self%start_local, ierr))
     PetscCall(DMGlobalToLocalEnd(self%chain%context%da, self%start_state, INSERT_VALUES, self%start_local, ierr))
-    if (self%implicit) then
+    if (self%tableau%implicit) then
       PetscCall(self%stage_solver%solve(self%start_state, h, self%k, solved, iterations, self%residual_norm, reason, ierr))
       self%newton_iterations = self%newton_iterations + iterations
       if (.not. solved) then
@@ -122,12 +122,12 @@ contains
         return
       end if
     end if
-    do i = 1, merge(0, size(self%b), self%implicit)
+    do i = 1, merge(0, size(self%tableau%b), self%tableau%implicit)
       PetscCall(VecCopy(self%start_state, self%stage, ierr))
       do j = 1, i - 1
         ! (explicit tableaux have many zeros below the diagonal)
-        if (abs(self%a(i, j)) > 0.0_real64) then
-          PetscCall(VecAXPY(self%stage, h*self%a(i, j), self%k(j), ierr))
+        if (abs(self%tableau%a(i, j)) > 0.0_real64) then
+          PetscCall(VecAXPY(self%stage, h*self%tableau%a(i, j), self%k(j), ierr))
         end if
       end do
       PetscCall(self%chain%field_at(self%stage, self%k(i), stat, ierr))
@@ -136,8 +136,8 @@ contains
       if (failed_stage > 0) return
     end do
     PetscCall(VecSet(self%direction, 0.0_real64, ierr))
-    do i = 1, size(self%b)
-      PetscCall(VecAXPY(self%direction, h*self%b(i), self%k(i), ierr))
+    do i = 1, size(self%tableau%b)
+      PetscCall(VecAXPY(self%direction, h*self%tableau%b(i), self%k(i), ierr))
     end do
     PetscCall(VecNorm(self%direction, NORM_INFINITY, largest, ierr))
   end subroutine stages_petsc

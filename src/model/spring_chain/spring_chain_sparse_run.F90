@@ -100,7 +100,7 @@ contains
       problem%rule = partials_midpoint
     case default
       ! A relaxed Runge-Kutta tableau (spring_chain_relaxed_run, explicit or implicit) or PETSc TS.
-      if (.not. allocated(settings%weights) .and. .not. any(settings%scheme == ts_schemes)) then
+      if (settings%tableau%stages == 0 .and. .not. any(settings%scheme == ts_schemes)) then
         call fail(failure, failure_input, settings%input_file//', &integrator: scheme: the chain''s sparse, distributed '// &
                   'path has no '''//trim(settings%scheme)//''' (its steps need the whole state on one '// &
                   'process); allowed: ''eme'', ''midpoint'', the relaxed schemes (relaxed_rk4, '// &
