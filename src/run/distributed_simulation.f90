@@ -34,7 +34,7 @@ module distributed_simulation
   use run_config, only: run_configuration
   use run_output, only: extra_attribute
   use resume_records, only: resume_record, read_resume_record
-  use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_input, failure_io
+  use run_outcome, only: run_summary, open_summary, summarize_model, close_summary, failure_input, failure_io, failure_library
   use step_balances, only: applicable_balances
   use step_check, only: checked_balances
   use run_signals, only: install_interrupt_handlers
@@ -187,11 +187,12 @@ contains
     call complete_if_finished(summary, run%finished, run%n, completed)
     if (completed) summary%warnings = run%system%accuracy_warnings()
     ! The last snapshot is the state the run ended at, if that is a completed step's (a step that
-    ! did not converge left it there; one whose state broke a balance did not). With an interval
-    ! the file holds the output times' states only (as the dense path's rows), and a continued
-    ! run starts from the last of them, where its resume record stands.
+    ! did not converge left it there; one whose state broke a balance did not, nor may a failed
+    ! library call, which can stop a step or a trial anywhere). With an interval the file holds
+    ! the output times' states only (as the dense path's rows), and a continued run starts from
+    ! the last of them, where its resume record stands.
     if (run%state_step == summary%steps_completed .and. run%snapshot_step /= run%state_step .and. &
-        config%output_interval <= 0.0_real64) then
+        config%output_interval <= 0.0_real64 .and. summary%failure_kind /= failure_library) then
       run%time = run%state_time
       call run%hold_snapshot()
     end if

@@ -85,6 +85,57 @@ def test_a_split_run_is_the_dense_run(tmp_path, shape):
         assert np.all(split["newton_iterations"][()] >= 1)
 
 
+
+def test_at_the_default_newton_tol_a_split_step_converges_as_a_dense_one(tmp_path):
+    """A stretched, randomly bent 10-spring hanging chain in 3D (the temperature variable, newton_tol
+    at its default 1e-8): a split step is accepted, as a dense one, when its residual is below the
+    tolerance *and* so was the update that made it. With the residual alone, the split run accepted
+    residuals creeping up to 7e-9 after two iterations, its energy balance grew to 29 ulps by step
+    22 and the run stopped at step 23 (37 ulps over the bound of 32), where the dense run keeps
+    0.06 ulps."""
+    groups = {"model": {"model_name": "spring_chain", "links": 10, "dimension": 3},
+              "initial": {"stretch": 1.5, "perturbation": "random", "amplitude": 0.2},
+              "integrator": {"dt": 0.01, "t_end": 0.4}}
+    result, dense_file = run_eme(tmp_path, "dense", groups)
+    assert result.returncode == 0, result.stderr
+    result, split_file = run_split(tmp_path, "split", groups)
+    assert result.returncode == 0, result.stdout + result.stderr
+    with h5py.File(dense_file, "r") as dense, h5py.File(split_file, "r") as split:
+        assert split.attrs["status"] == "complete"
+        energy = np.abs(split["balance"][:, 0])
+        assert np.max(energy[np.isfinite(energy)]) <= 2.0
+        scale = np.max(np.abs(dense["energy"][()]))
+        assert np.max(np.abs(split["energy"][()] - dense["energy"][()])) <= 1e-12 * scale
+        q, p, gamma, theta = snapshot_rows(dense["state"][-1], 10, 3, False)
+        for name, expected in (("q", q), ("p", p), ("gamma", gamma), ("theta", theta)):
+            got = split[f"snapshots/{name}"][-1]
+            assert np.max(np.abs(got - expected)) <= 1e-10 * max(1.0, np.max(np.abs(expected))), name
+
+
+def test_a_split_run_ended_by_a_library_error_keeps_only_states_it_reached(tmp_path):
+    """-snes_error_if_not_converged turns step 2's unconverged Newton (3 iterations at most) into a
+    PETSc error: the run ends with failure_kind 'library', and every snapshot in its file is a
+    state the run reached, as a run stopped after step 1 has it. (The end-of-run snapshot used to
+    take the last Newton iterate, stamped with step 1's time: 6e-2 off in p.)"""
+    groups = chain_groups(links=8, dimension=1, ends="fixed-fixed", dt=0.03, steps=30, newton_tol=1.0e-13)
+    groups["integrator"]["newton_max_iterations"] = 3
+    groups["output"] = {"snapshot_every": 5}
+    result, output = run_split(tmp_path, "failed", groups, 2, "-snes_error_if_not_converged")
+    assert result.returncode != 0 and "PETSc failed" in result.stderr, result.stderr
+    reference_groups = chain_groups(links=8, dimension=1, ends="fixed-fixed", dt=0.03, steps=1, newton_tol=1.0e-13)
+    reference_groups["integrator"]["newton_max_iterations"] = 3
+    reference_groups["output"] = {"snapshot_every": 1}
+    result, reference_file = run_split(tmp_path, "reference", reference_groups)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(output, "r") as f, h5py.File(reference_file, "r") as reference:
+        assert f.attrs["failure_kind"] == "library" and f.attrs["status"].startswith("incomplete")
+        assert np.allclose(f["time"][()], [0.0, 0.03], rtol=0, atol=1e-15)
+        reached = list(reference["snapshots/time"][()])
+        for row, time in enumerate(f["snapshots/time"][()]):
+            k = reached.index(time)
+            for name in ("q", "p", "gamma", "theta"):
+                assert np.array_equal(f[f"snapshots/{name}"][row], reference[f"snapshots/{name}"][k]), (name, time)
+
 def test_a_chain_beyond_the_dense_limit_runs_split_on_one_rank(tmp_path):
     """300 springs of the rod family (1198 unknowns): eme_run alone takes the split path."""
     groups = rod_groups(300, 4)

@@ -266,7 +266,7 @@ contains
     real(real64), intent(in) :: h
     type(distributed_step), intent(out) :: outcome
     PetscErrorCode, intent(out) :: ierr
-    Vec :: old
+    PetscErrorCode :: solve_ierr
     PetscInt :: iterations
     SNESConvergedReason :: reason
     PetscReal :: old_norm, residual_norm
@@ -279,9 +279,14 @@ contains
     self%context%update_floor = 16.0_real64*epsilon(1.0_real64)*old_norm
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
     PetscCall(set_rounding_tolerance(ksp, epsilon(1.0_real64)*old_norm, ierr))
-    PetscCall(VecDuplicate(self%x, old, ierr))
-    PetscCall(VecCopy(self%x, old, ierr))
-    PetscCall(SNESSolve(self%snes, PETSC_NULL_VEC, self%x, ierr))
+    ! A failed library call inside the solve leaves x at an iterate: the old state is put back
+    ! before the error goes up (the run ends there, keeping the snapshots it wrote).
+    call SNESSolve(self%snes, PETSC_NULL_VEC, self%x, solve_ierr)
+    if (solve_ierr /= 0) then
+      call restore_old_state(self, ierr)
+      ierr = solve_ierr
+      return
+    end if
     PetscCall(SNESGetConvergedReason(self%snes, reason, ierr))
     PetscCall(SNESGetIterationNumber(self%snes, iterations, ierr))
     PetscCall(SNESGetFunctionNorm(self%snes, residual_norm, ierr))
@@ -290,10 +295,19 @@ contains
     outcome%residual_norm = residual_norm
     outcome%converged = reason > 0
     if (.not. outcome%converged) then
-      PetscCall(VecCopy(old, self%x, ierr))
+      PetscCall(restore_old_state(self, ierr))
     end if
-    PetscCall(VecDestroy(old, ierr))
   end subroutine step_petsc
+
+  !> x becomes the state held by hold_old_state again (the rank's own points of its ghosted
+  !> copy: no communication).
+  subroutine restore_old_state(self, ierr)
+    class(distributed_chain), intent(inout) :: self
+    PetscErrorCode, intent(out) :: ierr
+
+    PetscCall(DMLocalToGlobalBegin(self%context%da, self%context%old_local, INSERT_VALUES, self%x, ierr))
+    PetscCall(DMLocalToGlobalEnd(self%context%da, self%context%old_local, INSERT_VALUES, self%x, ierr))
+  end subroutine restore_old_state
 
   !> The state held becomes the old state of the step to come (its ghosted part: the step's
   !> figures, and EME's residual, read it).
