@@ -512,8 +512,8 @@ static snapshot_call new_call(MPI_Comm comm, const double *time, long long masse
     snapshot_call call = {
         {{"time", "s", "time of the snapshot", PER_TIME, time},
          {"q", "m", "positions of the masses", PER_MASS, q},
-         {"p", "kg m/s", "momenta of the masses", PER_MASS, p},
-         {"gamma", "1", "viscous strain of each spring", PER_SPRING, gamma},
+         {"p", "N s", "momenta of the masses", PER_MASS, p},
+         {"gamma", "m", "viscous elongation of each spring (the internal variable gamma)", PER_SPRING, gamma},
          {"theta", "K", "temperature of each spring", PER_SPRING, theta},
          {tau_name, strcmp(tau_name, "entropy") == 0 ? "J/K" : "J",
           strcmp(tau_name, "entropy") == 0 ? "entropy of each spring" : "internal energy of each spring", PER_SPRING, tau}},

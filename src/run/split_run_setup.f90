@@ -15,6 +15,7 @@ module split_run_setup
   use stepper, only: time_stepper, step_report, step_diagnostic
   use step_balances, only: balanced_state
   use run_config, only: run_configuration
+  use command_line, only: petsc_error_text
   use failures, only: failure_type, set_failure => fail, code_input => failure_input
   implicit none (type, external)
   private
@@ -131,8 +132,19 @@ contains
     call system%start(distributed_settings_of(config), model, z0, comm, failure)
     if (failure%failed() .and. failure%code /= code_input) &
       call set_failure(failure, code_input, config%input_file//': the split run could not be set up with the '// &
-                       'options given: '//failure%message)
+                       'options given: '//failure%message//library_words()//'; allowed: the options of '// &
+                       'docs/running.md and PETSc''s own (eme_run FILE.nml -help lists them)')
     call system%finish(failure)
+
+  contains
+
+    ! PETSc's own words on the failed call (an unknown -snes_type, ...), if it left any.
+    function library_words() result(text)
+      character(len=:), allocatable :: text
+
+      text = petsc_error_text()
+      if (len(text) > 0) text = ' ('//text//')'
+    end function library_words
   end subroutine set_up_distributed_only
 
   ! The per-step figures of the split path beyond the schema's.

@@ -19,7 +19,7 @@ sys.path.insert(0, str(ROOT / "postprocess"))
 import file_checksums  # noqa: E402
 
 PROBE = BIN.parent / "tests" / "snapshot_probe"
-UNITS = {"time": "s", "q": "m", "p": "kg m/s", "gamma": "1", "theta": "K", "entropy": "J/K",
+UNITS = {"time": "s", "q": "m", "p": "N s", "gamma": "m", "theta": "K", "entropy": "J/K",
          "internal_energy": "J", "mass": "1", "spring": "1", "component": "1"}
 AXES = {"time": ["time"], "q": ["time", "mass", "component"], "p": ["time", "mass", "component"],
         "gamma": ["time", "spring"], "theta": ["time", "spring"], "entropy": ["time", "spring"],

@@ -64,6 +64,11 @@ def test_a_split_run_is_the_dense_run(tmp_path, shape):
         assert split.attrs["status"] == "complete" and split.attrs["failure_kind"] == "none"
         assert "state" not in split and "temperature" not in split
         assert np.array_equal(split["time"][()], dense["time"][()])
+        # The same units on both paths (the snapshots' gamma once said 1, "viscous strain").
+        columns = [name.decode() for name in dense["state_column"][()]]
+        units = dict(zip(columns, dense["state"].attrs["column_units"]))
+        for name, column in (("q", "x1_x"), ("p", "p1_x"), ("gamma", "gamma_1")):
+            assert split[f"snapshots/{name}"].attrs["units"].decode() == units[column], name
         for name in ("energy", "entropy", "lyapunov"):
             scale = np.max(np.abs(dense[name][()]))
             assert np.max(np.abs(split[name][()] - dense[name][()])) <= 1e-12 * scale, name
@@ -155,13 +160,17 @@ def test_a_chain_beyond_the_dense_limit_runs_split_on_one_rank(tmp_path):
 
 @pytest.mark.parametrize("shape, option, words", [
     ({}, "-eme_continue", "-eme_continue)"),
-    ({"links": 3}, None, "&model: links: a chain split over 2 ranks needs at least 2 points a rank (4); this one has 3")])
+    ({"links": 3}, None, "&model: links: a chain split over 2 ranks needs at least 2 points a rank (4); this one has 3"),
+    ({}, ["-snes_type", "bogus"], "(Unable to find requested SNES type bogus (SNESSetType)); allowed:"),
+    ({}, ["-ksp_type", "bogus"], "(Unable to find requested KSP type bogus (KSPSetType)); allowed:")])
 def test_what_the_split_path_cannot_run_is_refused(tmp_path, shape, option, words):
-    """-eme_continue without a file to continue, and a chain with fewer than 2 points a rank (PETSc's
+    """-eme_continue without a file to continue, a chain with fewer than 2 points a rank (PETSc's
     DMDA needs its stencil width on every rank; every rank refuses alike, where one rank's PETSc
-    error once left the other waiting for ever). (The integrators it cannot run: test_chain_ts.)"""
+    error once left the other waiting for ever), and an unknown PETSc type, in PETSc's own words
+    (once only "a library call failed with code 86"). (The integrators it cannot run: test_chain_ts.)"""
     groups = chain_groups(**shape)
-    result, output = run_split(tmp_path, "refused", groups, 2, *([option] if option else []))
+    options = [option] if isinstance(option, str) else (option or [])
+    result, output = run_split(tmp_path, "refused", groups, 2, *options)
     assert result.returncode == 2, result.stderr
     assert words in result.stderr and "refused.nml" in result.stderr
     assert not list(tmp_path.glob("refused.h5*"))
