@@ -305,7 +305,8 @@ contains
   end function listed_reals
 
   !> The group as --help shows it: '&group', then each field with its default (the value it holds
-  !> now) and what it allows.
+  !> now; none for a real at huge(), a default that follows from other fields, which its text
+  !> gives) and what it allows.
   subroutine describe_group(unit, group, fields)
     integer, intent(in) :: unit
     character(len=*), intent(in) :: group
@@ -316,6 +317,9 @@ contains
     do k = 1, size(fields)
       write (unit, '(4x, a, t28, a)') trim(fields(k)%name), trim(fields(k)%allowed)
       if (fields(k)%open_length .or. field_value_text(fields(k)) == "''") cycle
+      if (fields(k)%kind == field_real .and. associated(fields(k)%real_value)) then
+        if (fields(k)%real_value >= huge(1.0_real64)) cycle
+      end if
       write (unit, '(t28, a)') 'default: '//field_value_text(fields(k))
     end do
   end subroutine describe_group

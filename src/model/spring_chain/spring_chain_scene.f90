@@ -56,6 +56,7 @@ contains
 
     call size_arrays(defaults%input, defaults%input%springs(), defaults%input%links, defaults%input%dimension)
     call complete_defaults(defaults%input)
+    defaults%input%span = unset      ! its default follows from the chain read (--help says which)
     allocate (made, source=defaults)
   end subroutine new_spring_chain_scene
 
