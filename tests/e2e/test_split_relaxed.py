@@ -318,6 +318,30 @@ def test_a_continued_relaxed_run_is_the_uninterrupted_run(tmp_path, scheme, outp
     assert_continued_equals(full_file, continued_file, exact=True)
 
 
+def test_a_continued_fixed_step_relaxed_run_keeps_its_warning_record(tmp_path):
+    """relaxed_rk4 at dt = 0.1 s on the 8-spring fixed-fixed chain halves steps (no tolerance bounds
+    them, so the file warns). Stopped after 7 steps and continued, the file is the uninterrupted
+    run's, its warning too: the halvings and the largest |gamma - 1| before the stop are in the
+    resume record (once only relaxed_dp853's were, and the continued file counted 3 halvings of 6)."""
+    groups = chain_groups(links=8, dimension=1, ends="fixed-fixed", scheme="relaxed_rk4", variable="entropy",
+                          dt=0.1, steps=10)
+    del groups["integrator"]["newton_tol"]
+    groups["output"] = {"snapshot_every": 2}
+    stopped = {key: dict(fields) for key, fields in groups.items()}
+    stopped["integrator"]["max_steps"] = 7
+    result, continued_file = run_split(tmp_path, "continued", stopped)
+    assert result.returncode == 3, result.stderr
+    with h5py.File(continued_file, "r") as f:
+        stop_time = f["snapshots/time"][-1]          # the state at the stop, between two snapshots
+    full, full_file = run_split(tmp_path, "full", groups)
+    assert full.returncode == 0, full.stderr
+    resumed, _ = run_split(tmp_path, "continued", groups, 2, "-eme_continue")
+    assert resumed.returncode == 0, resumed.stderr
+    assert_continued_equals(full_file, continued_file, exact=True, stop_times=[stop_time])
+    with h5py.File(full_file, "r") as f:
+        assert "halved" in f.attrs["warnings"], f.attrs.get("warnings")
+
+
 def dp853_chain(tolerance, t_end=0.4):
     """The 12-spring fixed-fixed chain of the order test, relaxed_dp853 at `tolerance` (its first trial
     step 0.01 s), in entropy variables."""

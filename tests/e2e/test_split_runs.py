@@ -256,6 +256,7 @@ def assert_continued_equals(full_file, continued_file, exact, stop_times=()):
             a, b = np.asarray(full.attrs[name]), np.asarray(continued.attrs[name])
             if exact or a.dtype.kind != "f":
                 assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+        assert continued.attrs.get("warnings", "") == full.attrs.get("warnings", "")
         full_times, times = full["snapshots/time"][()], continued["snapshots/time"][()]
         assert np.array_equal(np.union1d(full_times, stop_times), times)
         rows = np.searchsorted(times, full_times)

@@ -49,13 +49,9 @@ contains
     error_norm = dop853_error_norm(h, squares, self%unknowns)
   end procedure step_error_norm
 
-  ! [h_next, run_rejections, run_halvings, max_gamma_deviation] of an adaptive run; none for the
-  ! fixed-step schemes, whose steps the time loop gives.
+  ! [h_next, run_rejections, run_halvings, max_gamma_deviation]: the adaptive run's next trial
+  ! step, and every relaxed run's record for its accuracy warnings (as the dense path's).
   module procedure resume_state
-    if (.not. self%tableau%embedded) then
-      allocate (values(0))
-      return
-    end if
     values = [self%h_next, real(self%run_rejections, real64), real(self%run_halvings, real64), self%max_gamma_deviation]
   end procedure resume_state
 
@@ -63,13 +59,15 @@ contains
     real(real64), allocatable :: expected(:)
 
     call self%resume_state(expected)
+    self%t = time
+    ! A fixed-step run's file written before 2026-11-30 stored no record (its warnings then count
+    ! from the continuation on).
+    if (.not. self%tableau%embedded .and. size(values) == 0) return
     if (size(values) /= size(expected)) then
       call fail(failure, failure_mismatch, 'the stored step control ('//integer_text(size(values))//' values) does '// &
                 'not fit this run''s ('//integer_text(size(expected))//')', 'relaxed_chain_run%restore_state')
       return
     end if
-    self%t = time
-    if (.not. self%tableau%embedded) return
     self%h_next = values(1)
     self%run_rejections = nint(values(2))
     self%run_halvings = nint(values(3))
