@@ -118,6 +118,7 @@ contains
     integer :: half, row, slice_first, slice_last, k, band_column, point, slot, dof, points
     PetscInt :: count, row_index
     logical :: outside
+    MPI_Comm :: comm
 
     associate (problem => context%problem, band => context%band, columns => context%columns, values => context%values)
       half = problem%band_half_width()
@@ -169,6 +170,10 @@ contains
     end associate
     PetscCall(MatAssemblyBegin(matrix, MAT_FINAL_ASSEMBLY, ierr))
     PetscCall(MatAssemblyEnd(matrix, MAT_FINAL_ASSEMBLY, ierr))
+    if (context%check_pattern) then            ! every rank fails alike (none waits in the solve)
+      PetscCall(PetscObjectGetComm(context%da, comm, ierr))
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, outside, 1, MPI_LOGICAL, MPI_LOR, comm, ierr))
+    end if
     if (outside) then
       ierr = PETSC_ERR_PLIB
       SETERRQ(PETSC_COMM_SELF, ierr, 'chain_jacobian: a derivative outside coupling_pattern (-chain_check_pattern)')

@@ -56,6 +56,8 @@ contains
       PetscCall(give_back_read(c%new_local, new, ierr))
       stat = max(stat_values, stat_differences)
       PetscCall(PetscObjectGetComm(c%da, comm, ierr))
+      ! Every rank fails alike when one rank's springs leave their domain (as figures_petsc).
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, stat, 1, MPI_INTEGER, MPI_MAX, comm, ierr))
       PetscCallMPI(MPI_Allreduce(local, total, 4, MPI_DOUBLE_PRECISION, MPI_SUM, comm, ierr))
     end associate
   end subroutine sums_petsc

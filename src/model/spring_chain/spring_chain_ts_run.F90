@@ -55,6 +55,7 @@ module spring_chain_ts_run
     procedure :: start
     procedure :: step
     procedure :: restore
+    procedure :: restore_state
     procedure :: finish
     procedure :: describe_solver
   end type ts_chain_run
@@ -222,6 +223,17 @@ contains
     call TSRestartStep(self%ts, ierr)
     call fail_on_code(failure, ierr, 'restarting the chain''s PETSc TS')
   end subroutine restore
+
+  !> A continued run's time (its snapshot's) becomes TS's clock: its steps go on from [t, t + dt],
+  !> not from 0 (the field has no time in it, but TS's step count and last, shortened step do).
+  subroutine restore_state(self, time, values, failure)
+    class(ts_chain_run), intent(inout) :: self
+    real(real64), intent(in) :: time, values(:)
+    type(failure_type), intent(out) :: failure
+
+    call self%sparse_chain_run%restore_state(time, values, failure)
+    if (.not. failure%failed()) self%time = time
+  end subroutine restore_state
 
   ! Why TS did not reach the step's end (`converged` < 0), or why its state is not finite;
   ! `domain` when a stage left a spring's domain on this rank.
