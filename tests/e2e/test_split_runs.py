@@ -176,6 +176,17 @@ def test_what_the_split_path_cannot_run_is_refused(tmp_path, shape, option, word
     assert not list(tmp_path.glob("refused.h5*"))
 
 
+def test_a_refused_continuation_names_no_option_the_user_did_not_give(tmp_path):
+    """-eme_continue of a complete split file is refused before any solve: no warning of unused
+    PETSc options (the split solver's own -sub_pc_* defaults once showed as "nothing used")."""
+    groups = chain_groups(links=8, dimension=1, ends="fixed-fixed", steps=3)
+    result, _ = run_split(tmp_path, "done", groups)
+    assert result.returncode == 0, result.stderr
+    result, _ = run_split(tmp_path, "done", groups, 2, "-eme_continue")
+    assert result.returncode == 2 and "holds a complete run" in result.stderr, result.stderr
+    assert "nothing used" not in result.stderr, result.stderr
+
+
 def test_a_split_run_stopped_by_sigterm_keeps_its_snapshots(tmp_path):
     """One process on the split path (2000 springs), snapshots every step, a write every 3 rows
     (EME_WRITE_EVERY_ROWS): SIGTERM once the file holds a window's snapshots leaves a valid file,

@@ -79,6 +79,9 @@ contains
     PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, name, given, ierr))
     if (.not. given) then
       PetscCall(PetscOptionsSetValue(PETSC_NULL_OPTIONS, name, value, ierr))
+      ! Looked up once, it counts as used: a run that stops before its first solve (a refused
+      ! -eme_continue) does not warn of options the user never gave.
+      PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, name, given, ierr))
     end if
   end subroutine default_option
 
