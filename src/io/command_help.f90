@@ -74,7 +74,7 @@ contains
       '  --help, -h        this text', &
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &
-      '  --output-schema   the HDF5 layout as a tab-separated table', '', &
+      '  --output-schema   the run file''s rows as a tab-separated table (a split chain''s /snapshots: docs/output.md)', '', &
       (trim(petsc_options_text(i)), i = 1, size(petsc_options_text))
     call print_own_options(unit)
     write (unit, '(a)') '', exit_codes, '', &
