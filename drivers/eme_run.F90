@@ -159,6 +159,9 @@ contains
         write (error_unit, '(a)') 'eme_run: warning: '//trim(config%warnings(k))
       end do
     end if
+    if (.not. split .and. config%snapshot_every > 0) write (error_unit, '(a)') 'eme_run: warning: '// &
+      config%input_file//': &output: snapshot_every is read by a chain split over ranks only; this run '// &
+      'takes the dense path, whose rows hold the whole state (/state) at every written point'
     progress = progress_wanted()
     if (split .and. progress) then
       call run_distributed(config, PETSC_COMM_WORLD, summary, failure, progress=print_progress, lock=lock)

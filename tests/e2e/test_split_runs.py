@@ -57,8 +57,11 @@ def test_a_split_run_is_the_dense_run(tmp_path, shape):
     groups["output"] = {"snapshot_every": 25}
     result, dense_file = run_eme(tmp_path, "dense", groups)
     assert result.returncode == 0, result.stderr
+    unread = "&output: snapshot_every is read by a chain split over ranks only"      # the dense path says so
+    assert unread in result.stderr
     result, split_file = run_split(tmp_path, "split", groups)
     assert result.returncode == 0, result.stderr
+    assert unread not in result.stderr
     assert result.stdout.count("split.h5: complete, 100/100 steps") == 1       # rank 0 alone reports
     with h5py.File(dense_file, "r") as dense, h5py.File(split_file, "r") as split:
         assert split.attrs["status"] == "complete" and split.attrs["failure_kind"] == "none"
