@@ -13,7 +13,7 @@ from trajectory import RunFileError, momentum_drift, read_run
 TITLE = "Spring temperatures and angular momentum drift"
 # A spring chain's file is refused (its springs are more than two): what draws it.
 CHAIN_INSTEAD = ("plot_chain_temperatures.py {file} -o OUT (every spring's temperature over time) and "
-                 "summarize_runs.py {file} (its momentum drift)")
+                 "summarize_runs.py {file} (its balances, and the momentum drift where the scene conserves one)")
 
 
 def set_title(runs):
