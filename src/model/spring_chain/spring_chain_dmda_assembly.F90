@@ -15,6 +15,7 @@ module spring_chain_dmda_assembly
   use, intrinsic :: iso_fortran_env, only: real64
   use failures, only: failure_none
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
+  use retry_strategies, only: newton_converged
   use spring_chain_partials, only: partials_exact
   use spring_chain_dmda_context, only: chain_context
   use spring_chain_dmda_pattern, only: pattern_columns
@@ -211,7 +212,11 @@ contains
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     if (.not. (residual_norm <= huge(residual_norm))) then
       reason = SNES_DIVERGED_FNORM_NAN
-    else if (tolerance_met(min(atol, newton_tol))) then
+    else if (newton_converged(int(iteration), residual_norm, update_norm, x_norm, min(atol, newton_tol), 0.0_real64, &
+                              0.0_real64, 0.0_real64)) then
+      ! the dense path's tolerance test (its rounding test, with scales 0, left to the next branch):
+      ! the residual and the update that made it below the tolerance, a first guess only at R = 0
+      ! (the residual alone just below 1e-8 let a 10-spring chain's energy balance reach 37 ulps)
       reason = SNES_CONVERGED_FNORM_ABS
     else if (iteration > 0 .and. update_norm <= max(update_floor, 16.0_real64*epsilon(1.0_real64)*x_norm)) then
       reason = SNES_CONVERGED_SNORM_RELATIVE
@@ -220,22 +225,6 @@ contains
     else
       reason = SNES_CONVERGED_ITERATING
     end if
-
-  contains
-
-    ! As the dense path's test (retry_strategies' newton_converged): the residual below the
-    ! tolerance and so was the update that produced it, whose quadratic convergence then leaves a
-    ! residual ~ tolerance^2; a first guess only if it solves the equations exactly. (The
-    ! residual alone just below 1e-8 let a 10-spring chain's energy balance reach 37 ulps.)
-    logical function tolerance_met(tolerance)
-      real(real64), intent(in) :: tolerance
-
-      if (iteration == 0) then
-        tolerance_met = residual_norm <= 0.0_real64
-      else
-        tolerance_met = residual_norm <= tolerance .and. update_norm <= tolerance
-      end if
-    end function tolerance_met
   end subroutine newton_verdict
 
 end module spring_chain_dmda_assembly
