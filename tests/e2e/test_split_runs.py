@@ -346,7 +346,7 @@ def test_a_continued_split_run_is_the_uninterrupted_run(tmp_path, ranks, scheme)
     assert full.returncode == 0, full.stderr
     resumed, _ = run_split(tmp_path, "continued", end, ranks[1], "-eme_continue")
     assert resumed.returncode == 0, resumed.stderr
-    assert_continued_equals(full_file, continued_file, exact=ranks[0] == ranks[1],
+    assert_continued_equals(full_file, continued_file, exact=ranks[0] == ranks[1] and scheme != "ts_midpoint",
                             stop_times=[stop_time])
 
 
