@@ -111,17 +111,10 @@ contains
     integer :: broken, first_iterations
     type(failure_type) :: resolving
 
-    goes_on = .true.
     self%resolved = .false.
-    call self%seen%measure(self%model, self%constraints, self%x_new, self%time - self%time_old, self%has_balance, &
-                           self%config%theta_r, self%step_heat, self%figures)
-    broken = broken_balance(self%figures, self%checked, self%report%halvings + 1)
-    if (broken == 0) then
-      call note_balance_figures(self%summary, self%has_balance, self%figures)
-      goes_on = .not. self%failure%failed() .and. self%summary%failure_kind == failure_none
-      return
-    end if
-    goes_on = .false.
+    broken = measured_break(self)
+    goes_on = broken == 0 .and. .not. self%failure%failed() .and. self%summary%failure_kind == failure_none
+    if (broken == 0) return
     self%resolved = .true.
     self%summary%resolved_steps = self%summary%resolved_steps + 1
     first_iterations = self%report%newton_iterations
@@ -139,18 +132,24 @@ contains
       self%summary%failure_kind = failure_balance
       return
     end if
-    call self%seen%measure(self%model, self%constraints, self%x_new, self%time - self%time_old, self%has_balance, &
-                           self%config%theta_r, self%step_heat, self%figures)
-    broken = broken_balance(self%figures, self%checked, self%report%halvings + 1)
-    if (broken == 0) then
-      call note_balance_figures(self%summary, self%has_balance, self%figures)
-      goes_on = .not. self%failure%failed() .and. self%summary%failure_kind == failure_none
-      return
-    end if
+    broken = measured_break(self)
+    goes_on = broken == 0 .and. .not. self%failure%failed() .and. self%summary%failure_kind == failure_none
+    if (broken == 0) return
     self%summary%status = step_status(self%n, self%time, balance_text(broken, self%figures)// &
                                       ', also when solved again with the default solver settings')
     self%summary%failure_kind = failure_balance
   end function step_stands
+
+  ! The balance the step from x to x_new breaks (step_check's number; 0: none), its figures noted
+  ! in the summary when it breaks none.
+  integer function measured_break(self) result(broken)
+    class(dense_path), intent(inout) :: self
+
+    call self%seen%measure(self%model, self%constraints, self%x_new, self%time - self%time_old, self%has_balance, &
+                           self%config%theta_r, self%step_heat, self%figures)
+    broken = broken_balance(self%figures, self%checked, self%report%halvings + 1)
+    if (broken == 0) call note_balance_figures(self%summary, self%has_balance, self%figures)
+  end function measured_break
 
   !> The step's end becomes the state (x_previous takes x, x takes x_new), its E, S and V the
   !> observed ones, and the summary counts it (Newton's iterations, the drifts from the check's values).

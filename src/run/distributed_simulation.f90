@@ -146,8 +146,6 @@ contains
     run%checked = checked_balances(entry, run%model, constraints)
     run%has_balance = applicable_balances(run%model)
     run%every = config%snapshot_every
-    run%energy_change = 0.0_real64
-    run%conserved_change = 0.0_real64
     call run%window%open(run%communicator, tau_dataset(config%integrator%thermo_variable, &
                                                        run%model%temperature_count() > 0))
     allocate (run%report%scheme_temperature(0))    ! the state is not in rows
@@ -236,8 +234,6 @@ contains
       run%state_step = run%n
       run%snapshot_step = run%n
       call resume%restore_summary(summary)
-      run%energy_change = resume%integrator_state(1)
-      run%conserved_change = resume%integrator_state(2:4)
     end subroutine restore_snapshot
   end subroutine run_distributed
 

@@ -29,7 +29,12 @@ module split_run_path
   private
   public :: split_path
 
-  !> The split run's path: its system, the rank's part of the output, and the sums the loop keeps.
+  !> The resume record's first four values (resume_integrator), before the integrator's own:
+  !> reserved, zeros (files before 2026-11-30 held running sums of the energy's and the conserved
+  !> momenta's changes there, which a continuation now ignores).
+  real(real64), parameter :: reserved_record(4) = 0.0_real64
+
+  !> The split run's path: its system, the rank's part of the output, and what the loop keeps.
   type, extends(run_path) :: split_path
     class(distributed_system), allocatable :: system
     class(generic_model), allocatable :: model
@@ -44,7 +49,6 @@ module split_run_path
     type(step_report) :: report                    !! the last step's row (rank 0)
     character(len=:), allocatable :: part          !! the output file's name while it is written
     real(real64) :: figures(balance_count) = 0.0_real64   !! the step's balance figures
-    real(real64) :: energy_change = 0.0_real64, conserved_change(3) = 0.0_real64
     real(real64) :: dv = 0.0_real64                !! the step's change of V = E - theta_r S
     real(real64) :: step_seconds = 0.0_real64
     integer(int64) :: state_step = 0      !! the step whose end the system's state is
@@ -157,13 +161,18 @@ contains
   subroutine accept_step(self)
     class(split_path), intent(inout) :: self
 
+    integer :: count
+
     call self%system%resume_state(self%control_state)
-    self%energy_change = self%energy_change + self%values%delta_energy
-    self%conserved_change = self%conserved_change + self%values%delta_conserved
     self%dv = self%values%delta_energy - self%config%theta_r*self%values%delta_entropy
+    ! The drifts as the file's rows give them (|E_n - E_0|/|E_0|, J_n - J_0 along the conserved
+    ! axes), which a study's restart recomputes from them to trust a finished file.
+    count = self%values%conserved_count
     call accumulate_step(self%summary, self%n, self%outcome%iterations, self%outcome%halvings, &
-                         self%outcome%rejected_steps, abs(self%energy_change)/abs(self%figures_0%energy), &
-                         self%values%delta_entropy, self%dv, abs(self%conserved_change(1:self%values%conserved_count)))
+                         self%outcome%rejected_steps, &
+                         abs(self%values%energy - self%figures_0%energy)/abs(self%figures_0%energy), &
+                         self%values%delta_entropy, self%dv, &
+                         abs(self%values%conserved(1:count) - self%figures_0%conserved(1:count)))
     if (self%model%temperature_count() > 0) call lower_min_temperature(self%summary, [self%values%min_temperature])
   end subroutine accept_step
 
@@ -233,8 +242,7 @@ contains
     end if
     call self%window%hold(snapshot)
     if (self%rank == 0) call self%output%note_snapshot_point(self%state_step, self%time, self%figures_0%energy, &
-                                                             self%summary, [self%energy_change, self%conserved_change, &
-                                                                            self%control_state])
+                                                             self%summary, [reserved_record, self%control_state])
   end subroutine hold_snapshot
 
   !> A write of the file when one is due (rank 0's clock, or a rank's full snapshot buffer), or

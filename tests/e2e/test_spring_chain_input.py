@@ -50,7 +50,7 @@ def chain_rows(path, n, dim, rung="thermoviscoelastic"):
 # ---------------------------------------------------------------------------- the rod family
 def rod_chain_typed(rod, n_springs, ends, gravity):
     """Section 10's table, typed: h = L/n_s; m_i = rho h (the free end's rho h/2); mu_eq_const = EA h,
-    mu_eq_slope = h d(EA)/dtheta, beta = h E A alpha, heat_capacity = c h, mu_neq_const = E^neq A/h,
+    mu_eq_slope = h stiffness_slope (-d(EA)/dtheta), beta = h E A alpha, heat_capacity = c h, mu_neq_const = E^neq A/h,
     mu_neq_slope = slope/h, viscosity_const = eta A/h, beta_v, theta_ref and the activation as they
     are; each link kappa = k A/h."""
     h = rod["rod_length"] / n_springs

@@ -243,7 +243,7 @@ ROD = oracle.Rod(length=2.0, mass_per_length=0.8, axial_stiffness=400.0, stiffne
 @pytest.mark.parametrize("ends", ["fixed-free", "fixed-fixed"])
 def test_the_continuum_familys_springs_are_the_rods_elements(n_springs, ends):
     """The lumped masses and the supports' halves add up to rho L; the capacities to (1 + beta_v) c L;
-    a uniform 1 % stretch stores (1 + beta_v)((EA + theta_ref d(EA)/dtheta)/2 ln(1.01)^2 + E A alpha
+    a uniform 1 % stretch stores (1 + beta_v)((EA + theta_ref stiffness_slope)/2 ln(1.01)^2 + E A alpha
     theta_ref ln(1.01)) L at theta_ref (u = e of section 3), whatever N; the linear stiffness is
     EA/h, the link conductance kA/h, and the Maxwell relaxation rate 2 E^neq A/(eta A) is the same
     for every N."""

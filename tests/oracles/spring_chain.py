@@ -287,12 +287,12 @@ class Rod:
     length: float
     mass_per_length: float
     axial_stiffness: float           # EA [N]
-    stiffness_slope: float = 0.0     # d(EA)/dtheta [N/K]
+    stiffness_slope: float = 0.0     # -d(EA)/dtheta [N/K], a softening rate (the paper's sign)
     thermal_stress: float = 0.0      # E A alpha [N/K]
     heat_capacity: float = 1.0       # c [J/(K m)]
     beta_v: float = 0.0
-    maxwell_stiffness: float = 0.0   # E^neq A [N]
-    maxwell_slope: float = 0.0       # [N/K]
+    maxwell_stiffness: float = 0.0   # E^neq A [N], half the Maxwell modulus (mu^neq gamma^2)
+    maxwell_slope: float = 0.0       # -d(E^neq A)/dtheta [N/K]
     viscosity: float = 1.0           # eta A [N s]
     viscosity_activation: float = 0.0
     conductivity: float = 0.0        # k A [W m/K]

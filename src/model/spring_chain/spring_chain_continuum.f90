@@ -17,12 +17,12 @@ module spring_chain_continuum
     real(real64) :: length = 1.0_real64                !! L [m], natural
     real(real64) :: mass_per_length = 1.0_real64       !! rho A [kg/m]
     real(real64) :: axial_stiffness = 1.0e3_real64     !! EA [N]
-    real(real64) :: stiffness_slope = 0.0_real64       !! d(EA)/dtheta [N/K]
+    real(real64) :: stiffness_slope = 0.0_real64       !! -d(EA)/dtheta [N/K], a softening rate (the paper's sign)
     real(real64) :: thermal_stress = 0.0_real64        !! E A alpha [N/K]
     real(real64) :: heat_capacity = 1.0_real64         !! c [J/(K m)]
     real(real64) :: beta_v = 0.0_real64                !! Maxwell coupling [-]
-    real(real64) :: maxwell_stiffness = 0.0_real64     !! E^neq A [N]
-    real(real64) :: maxwell_slope = 0.0_real64         !! d(E^neq A)/dtheta [N/K]
+    real(real64) :: maxwell_stiffness = 0.0_real64     !! E^neq A [N], half the Maxwell modulus (the paper's mu^neq gamma^2)
+    real(real64) :: maxwell_slope = 0.0_real64         !! -d(E^neq A)/dtheta [N/K]
     real(real64) :: viscosity = 1.0_real64             !! eta A [N s]
     real(real64) :: viscosity_activation = 0.0_real64  !! eta_theta [K]
     real(real64) :: conductivity = 0.0_real64          !! k A [W m/K]

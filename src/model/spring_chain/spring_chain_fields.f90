@@ -152,16 +152,16 @@ contains
                  "the free end's half)"//rod_only, 'kg/m', minimum=0.0_real64, exclusive=.true.), &
       real_field('axial_stiffness', input%rod%axial_stiffness, 'a real number > 0 [N]: EA (mu_eq_const = EA h)'// &
                  rod_only, 'N', minimum=0.0_real64, exclusive=.true.), &
-      real_field('stiffness_slope', input%rod%stiffness_slope, 'a real number >= 0 [N/K]: d(EA)/dtheta '// &
-                 '(mu_eq_slope = h d(EA)/dtheta)'//rod_only, 'N/K', minimum=0.0_real64), &
+      real_field('stiffness_slope', input%rod%stiffness_slope, 'a real number >= 0 [N/K]: -d(EA)/dtheta, '// &
+                 'a softening rate (mu_eq_slope = h stiffness_slope)'//rod_only, 'N/K', minimum=0.0_real64), &
       real_field('thermal_stress', input%rod%thermal_stress, 'a real number [N/K]: E A alpha (beta = E A alpha h)'// &
                  rod_only, 'N/K'), &
       real_field('rod_heat_capacity', input%rod%heat_capacity, 'a real number > 0 [J/(K m)]: c '// &
                  '(heat_capacity = c h)'//rod_only, 'J/(K m)', minimum=0.0_real64, exclusive=.true.), &
-      real_field('maxwell_stiffness', input%rod%maxwell_stiffness, 'a real number >= 0 [N]: E^neq A '// &
-                 '(mu_neq_const = E^neq A/h)'//rod_only, 'N', minimum=0.0_real64), &
-      real_field('maxwell_slope', input%rod%maxwell_slope, 'a real number >= 0 [N/K]: d(E^neq A)/dtheta '// &
-                 '(mu_neq_slope = slope/h)'//rod_only, 'N/K', minimum=0.0_real64), &
+      real_field('maxwell_stiffness', input%rod%maxwell_stiffness, 'a real number >= 0 [N]: E^neq A, '// &
+                 'half the Maxwell modulus (the paper''s mu^neq gamma^2; mu_neq_const = E^neq A/h)'//rod_only, 'N', minimum=0.0_real64), &
+      real_field('maxwell_slope', input%rod%maxwell_slope, 'a real number >= 0 [N/K]: -d(E^neq A)/dtheta, '// &
+                 'a softening rate (mu_neq_slope = maxwell_slope/h)'//rod_only, 'N/K', minimum=0.0_real64), &
       real_field('viscosity', input%rod%viscosity, 'a real number > 0 [N s]: eta A (viscosity_const = eta A/h)'// &
                  rod_only, 'N s', minimum=0.0_real64, exclusive=.true.), &
       real_field('rod_conductivity', input%rod%conductivity, 'a real number >= 0 [W m/K]: k A (each link''s '// &
