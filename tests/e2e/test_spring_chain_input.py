@@ -323,6 +323,34 @@ def test_a_missing_or_foreign_initial_file_is_refused(tmp_path):
         assert not path.exists()
 
 
+COLLAPSED = [
+    ({"links": 2, "dimension": 1}, {"x": [1.0, 1.0]}, "&initial: x", "spring 2 (from mass 1 to mass 2)"),
+    ({"links": 3, "dimension": 1, "ends": "fixed-fixed", "span": 3.0}, {"x": [1.0, 2.0, 3.0]}, "&initial: x",
+     "spring 4 (from mass 3 to the second support at span)"),
+    ({"links": 3, "dimension": 1, "ends": "fixed-fixed", "span": 1e-200}, {}, "&model: span",
+     "spring 1 (from the support at the origin to mass 1)"),
+    ({"links": 1, "dimension": 1, "natural_length": 1.0}, {"stretch": 1.0, "perturbation": "mode",
+                                                            "mode_number": 1, "amplitude": -1.0},
+     "&initial: amplitude", "spring 1 (from the support at the origin to mass 1)"),
+]
+
+
+@pytest.mark.parametrize("model, initial, field, spring", COLLAPSED, ids=[c[2] for c in COLLAPSED])
+def test_positions_that_leave_a_spring_no_length_are_refused_naming_field_and_spring(tmp_path, model, initial,
+                                                                                     field, spring):
+    """Positions from &initial x, from the default ones (span of a 'fixed-fixed' chain, here so
+    small that the length squared underflows), or moved there by the perturbation (the one mass,
+    at x = 1 m, moved by -1 m sin(pi/2)): exit 2, the
+    file, the field that put the masses there and the spring of length 0 named, nothing written
+    (the message said "the initial state is not allowed" and named x even where x was not given)."""
+    groups = {"model": {"model_name": "spring_chain", **model}, "initial": initial}
+    result, path = run_eme(tmp_path, "collapsed", groups)
+    assert result.returncode == 2, result.stderr
+    for words in ("collapsed.nml", field, spring, "the length 0"):
+        assert words in result.stderr, (words, result.stderr)
+    assert not path.exists() and not Path(str(path) + ".part").exists()
+
+
 # ---------------------------------------------------------------------------- conflicting fields
 CONFLICTS = [
     ({"family": "rod", "natural_length": 1.0}, {}, "natural_length", "family = 'rod'"),

@@ -159,7 +159,8 @@ contains
       real_field('rod_heat_capacity', input%rod%heat_capacity, 'a real number > 0 [J/(K m)]: c '// &
                  '(heat_capacity = c h)'//rod_only, 'J/(K m)', minimum=0.0_real64, exclusive=.true.), &
       real_field('maxwell_stiffness', input%rod%maxwell_stiffness, 'a real number >= 0 [N]: E^neq A, '// &
-                 'half the Maxwell modulus (the paper''s mu^neq gamma^2; mu_neq_const = E^neq A/h)'//rod_only, 'N', minimum=0.0_real64), &
+                 'half the Maxwell modulus (the paper''s mu^neq gamma^2; mu_neq_const = E^neq A/h)'//rod_only, &
+                 'N', minimum=0.0_real64), &
       real_field('maxwell_slope', input%rod%maxwell_slope, 'a real number >= 0 [N/K]: -d(E^neq A)/dtheta, '// &
                  'a softening rate (mu_neq_slope = maxwell_slope/h)'//rod_only, 'N/K', minimum=0.0_real64), &
       real_field('viscosity', input%rod%viscosity, 'a real number > 0 [N s]: eta A (viscosity_const = eta A/h)'// &

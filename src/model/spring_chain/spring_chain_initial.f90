@@ -6,7 +6,7 @@ module spring_chain_initial
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use number_text, only: integer_text, reals_text
-  use failures, only: failure_none
+  use failures, only: failure_none, domain_nonpositive_length
   use model_interface, only: generic_model
   use seeded_random, only: uniform_numbers
   use spring_chain_spring, only: spring_data, rung_thermoviscoelastic, rung_elastic
@@ -15,7 +15,7 @@ module spring_chain_initial
   use spring_chain_input, only: chain_input, perturbation_mode, perturbation_random
   implicit none (type, external)
   private
-  public :: perturbation_shape, initial_state, dataset_problem, stiffness_problem
+  public :: perturbation_shape, initial_state, dataset_problem, stiffness_problem, spring_ends_text
 
   character(len=*), parameter :: axes = 'xyz'
 
@@ -50,12 +50,14 @@ contains
   !> The model of `input` in thermodynamic variable `variable` and its initial state z0 (x with
   !> the perturbation); stat a domain code (a spring of zero length, a temperature outside a
   !> spring's domain).
-  subroutine initial_state(input, variable, model, z0, stat)
+  subroutine initial_state(input, variable, model, z0, stat, failed_spring, by_perturbation)
     type(chain_input), intent(in) :: input
     integer, intent(in) :: variable
     class(generic_model), allocatable, intent(out) :: model
     real(real64), allocatable, intent(out) :: z0(:)
     integer, intent(out) :: stat
+    integer, intent(out), optional :: failed_spring     !! a spring of length 0 (then stat says so), else 0
+    logical, intent(out), optional :: by_perturbation   !! whether the perturbation made it so
     type(spring_chain) :: chain
     type(spring_data), allocatable :: data(:)
     type(chain_layout) :: layout
@@ -74,9 +76,20 @@ contains
     chain = make_spring_chain(layout, data, input%mass, input%conductivity(1:size(data) - 1), input%gravity(1:d), &
                               variable)
     x = reshape(input%x, [d, input%links])
+    ! A spring of length 0 (its square underflowing too) is named before any potential sees it:
+    ! one of the given (or default) positions, else one the perturbation made.
+    a = zero_length_spring(input, x)
+    if (present(by_perturbation)) by_perturbation = a == 0
     x(1, :) = x(1, :) + input%amplitude*perturbation_shape(trim(input%perturbation), trim(input%ends), input%links, &
                                                            input%mode_number, input%seed)
     allocate (z0(chain%state_size))
+    if (a == 0) a = zero_length_spring(input, x)
+    if (present(failed_spring)) failed_spring = a
+    if (a > 0) then
+      stat = domain_nonpositive_length
+      allocate (model, source=chain)
+      return
+    end if
     call chain%state_from_temperatures(x, reshape(input%p, [d, input%links]), input%gamma, input%theta, z0, stat)
     if (stat == failure_none) call positive_lengths(chain, z0, stat)
     allocate (model, source=chain)
@@ -178,7 +191,7 @@ contains
     a = 0
     if (name == 'q') a = zero_length_spring(input, reshape(values, [d, n]))
     if (a > 0) then
-      problem = problem//'q gives spring '//integer_text(a)//' ('//spring_ends_text(input, a)//') the length 0; '// &
+      problem = problem//'q gives spring '//integer_text(a)//' ('//spring_ends_text(input, a, .true.)//') the length 0; '// &
                 'allowed: masses apart from each other and from the supports'
       return
     end if
@@ -217,22 +230,34 @@ contains
     end do
   end function zero_length_spring
 
-  ! 'mass a-1 (q[a-2]) to mass a (q[a-1])', with the supports named.
-  pure function spring_ends_text(input, a) result(text)
+  !> 'from mass a-1, q[a-2] to mass a, q[a-1]' (the &initial file's rows; without `rows`, 'from
+  !> mass a-1 to mass a'), with the supports named.
+  pure function spring_ends_text(input, a, rows) result(text)
     type(chain_input), intent(in) :: input
     integer, intent(in) :: a
+    logical, intent(in) :: rows
     character(len=:), allocatable :: text
 
     if (a == 1) then
       text = 'from the support at the origin'
     else
-      text = 'from mass '//integer_text(a - 1)//', q['//integer_text(a - 2)//']'
+      text = 'from '//mass_text(a - 1)
     end if
     if (a <= input%links) then
-      text = text//' to mass '//integer_text(a)//', q['//integer_text(a - 1)//']'
+      text = text//' to '//mass_text(a)
     else
       text = text//' to the second support at span'
     end if
+
+  contains
+
+    pure function mass_text(i) result(named)
+      integer, intent(in) :: i
+      character(len=:), allocatable :: named
+
+      named = 'mass '//integer_text(i)
+      if (rows) named = named//', q['//integer_text(i - 1)//']'
+    end function mass_text
   end function spring_ends_text
 
   ! 'q[3, 1] (mass 4, component y)' or 'theta[2] (spring 3)': element k (1-based, row by row).

@@ -26,7 +26,7 @@ module spring_chain_scene
   use spring_chain_layout, only: ends_fixed_fixed
   use spring_chain_input, only: chain_input, size_arrays, complete_defaults, unset, max_links
   use spring_chain_fields, only: chain_fields, choices_text
-  use spring_chain_initial, only: initial_state, dataset_problem, stiffness_problem
+  use spring_chain_initial, only: initial_state, dataset_problem, stiffness_problem, spring_ends_text
   implicit none (type, external)
   private
   public :: spring_chain_name, new_spring_chain_scene
@@ -91,6 +91,7 @@ contains
     real(real64) :: stiffness
     character(len=:), allocatable :: where
     integer :: stat, a
+    logical :: positions_given, by_perturbation
 
     ! First pass: every field, arrays long enough for any chain.
     call size_arrays(probe, max_links + 1, max_links, 3)
@@ -134,6 +135,7 @@ contains
                   'N = '//integer_text(input%links), 'mode_number')
         return
       end if
+      positions_given = any(input%x < unset)
       call complete_defaults(input)
       where = value_origin(text, 'initial', 'file', origin, extra)
       if (len_trim(input%file) > 0) then
@@ -152,7 +154,24 @@ contains
                   ' J; allowed: temperatures below theta_ref + mu_eq_const/mu_eq_slope', 'theta')
         return
       end if
-      call initial_state(input, tau_entropy, model, z0, stat)
+      call initial_state(input, tau_entropy, model, z0, stat, a, by_perturbation)
+      if (a > 0) then
+        ! Named by the field that put the masses there: the perturbation's amplitude, x, or the
+        ! default positions' span ('fixed-fixed') or stretch.
+        if (by_perturbation) then
+          where = 'amplitude'
+        else if (positions_given) then
+          where = 'x'
+        else
+          where = trim(merge('span   ', 'stretch', input%ends == ends_fixed_fixed))
+        end if
+        call fail(failure, failure_input, value_origin(text, merge('model  ', 'initial', where == 'span'), where, &
+                                                       origin, extra)//': &'//trim(merge('model  ', 'initial', &
+                                                       where == 'span'))//': '//where//' gives spring '// &
+                  integer_text(a)//' ('//spring_ends_text(input, a, .false.)//') the length 0; allowed: masses '// &
+                  'apart from each other and from the supports', where)
+        return
+      end if
     end associate
     if (stat /= failure_none) call fail(failure, failure_input, value_origin(text, 'initial', 'x', origin, extra)// &
       ': &initial: the initial state is not allowed (a spring''s potentials give '//failure_code_name(stat)// &
