@@ -69,13 +69,16 @@ contains
     real(real64), intent(out), optional :: jacobian(:, :)
     integer, intent(out) :: stat
     real(real64) :: y(self%model%state_size, size(self%a, 1)), f(self%model%state_size)
-    real(real64) :: df(self%model%state_size, self%model%state_size)
+    real(real64), allocatable :: df(:, :)     ! n x n: allocated (8 MB at 1000 unknowns)
     integer :: i, j, n, s, d
 
     n = self%model%state_size
     s = size(self%a, 1)
     y = self%stage_values(x)
-    if (present(jacobian)) jacobian = 0.0_real64
+    if (present(jacobian)) then
+      jacobian = 0.0_real64
+      allocate (df(n, n))
+    end if
     do i = 1, s
       if (present(jacobian)) then
         call constrained_field(self%model, self%constraints, y(:, i), f, stat, df)

@@ -30,18 +30,21 @@ contains
     real(real64), intent(out) :: f(:)
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :), multipliers(:)
-    real(real64) :: w(size(z)), chain(size(z), size(z)), df(size(z), size(z)), lambda
-    integer :: k, i
+    ! The n x n work arrays are allocated (1000 unknowns: 8 MB each, beyond a default stack) and
+    ! only where constraints need them.
+    real(real64), allocatable :: chain(:, :), df(:, :)
+    real(real64) :: w(size(z)), lambda
+    integer :: k
 
     if (size(constraints) == 0) then
       call model%continuous_field(z, f, stat, jacobian)
       return
     end if
     w = z
-    chain = 0.0_real64
-    do i = 1, size(z)
-      chain(i, i) = 1.0_real64
-    end do
+    if (present(jacobian)) then
+      chain = identity(size(z))
+      allocate (df(size(z), size(z)))
+    end if
     do k = 1, size(constraints)
       if (present(jacobian)) then
         call constraints(k)%item%slave_state(model, w, stat, chain)
@@ -74,16 +77,14 @@ contains
     type(constraint_slot), intent(in) :: constraints(:)
     real(real64), intent(in) :: z(:)
     logical :: slaved(size(z))
-    real(real64) :: w(size(z)), chain(size(z), size(z))
+    real(real64), allocatable :: chain(:, :)
+    real(real64) :: w(size(z))
     integer :: k, i, stat
 
     slaved = .false.
     if (size(constraints) == 0) return
     w = z
-    chain = 0.0_real64
-    do i = 1, size(z)
-      chain(i, i) = 1.0_real64
-    end do
+    chain = identity(size(z))
     ! A slaved entry's row of the chain rule no longer depends on the entry itself.
     do k = 1, size(constraints)
       call constraints(k)%item%slave_state(model, w, stat, chain)
@@ -92,6 +93,18 @@ contains
       slaved(i) = abs(chain(i, i)) < 0.5_real64
     end do
   end function slaved_entries
+
+  ! The n x n identity.
+  pure function identity(n) result(unit)
+    integer, intent(in) :: n
+    real(real64), allocatable :: unit(:, :)
+    integer :: i
+
+    allocate (unit(n, n), source=0.0_real64)
+    do i = 1, n
+      unit(i, i) = 1.0_real64
+    end do
+  end function identity
 
   !> z back onto the constraints and the conserved momentum components' values `momenta` (the
   !> model's conserved_momenta; see above); stat: a domain code if a slaved entry has no value.

@@ -275,15 +275,19 @@ contains
     real(c_double), intent(out) :: jacobian(*)
     type(c_ptr), value, intent(in) :: context
     type(field_context), pointer :: run
-    integer :: stat
+    integer :: stat, j
 
     call c_f_pointer(context, run)
     associate (n => run%model%state_size)
       block
-        real(real64) :: f(n), df_dz(n, n)
+        real(real64) :: f(n)
+        real(real64), allocatable :: df_dz(:, :)    ! n x n: allocated (8 MB at 1000 unknowns)
 
+        allocate (df_dz(n, n))
         call run%model%continuous_field(y(1:n), f, stat, df_dz)
-        jacobian(1:n*n) = reshape(df_dz, [n*n])
+        do j = 1, n
+          jacobian((j - 1)*n + 1:j*n) = df_dz(:, j)
+        end do
       end block
     end associate
     field_jacobian = merge(0_c_int, 1_c_int, stat == 0)

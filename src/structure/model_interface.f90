@@ -504,10 +504,13 @@ contains
     integer, intent(out) :: stat
     real(real64), intent(out), optional :: jacobian(:, :)
     real(real64) :: partials(self%max_invariants, 2, size(self%subsystems))
-    real(real64) :: dpartials(self%max_invariants, 2, size(self%subsystems), self%state_size)
-    real(real64) :: df_dpartials(self%state_size, self%max_invariants, 2, size(self%subsystems))
+    ! Allocated, and only for the Jacobian: each is 6 x subsystems x state_size numbers, 12 MB for
+    ! a chain of 1000 unknowns, beyond a default stack.
+    real(real64), allocatable :: dpartials(:, :, :, :), df_dpartials(:, :, :, :)
 
     if (present(jacobian)) then
+      allocate (dpartials(self%max_invariants, 2, size(self%subsystems), self%state_size), &
+                df_dpartials(self%state_size, self%max_invariants, 2, size(self%subsystems)))
       call self%exact_partials(z, partials, dpartials, stat)
       if (stat /= failure_none) return
       call self%vector_field(z, partials, f, jacobian, df_dpartials)

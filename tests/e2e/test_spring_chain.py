@@ -6,7 +6,10 @@
 - a 3D chain of N = 5 runs EME and the midpoint rule to completion, its per-step balances within
   their bounds, and E and S recomputed from /state by tests/oracles/spring_chain.py (typed from
   section 10, not from src/): EME keeps E to round-off and S never falls;
+- a dense chain of 400 unknowns runs under a 1 MB stack (its n x n work arrays are allocated);
 - bad input: exit 2 with a message naming the file, group and field, and no file written."""
+import resource
+import subprocess
 import sys
 from pathlib import Path
 
@@ -14,7 +17,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, read_namelist, run_eme
+from conftest import BIN, ROOT, namelist_text, read_namelist, run_eme
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "oracles"))
 import spring_chain as oracle  # noqa: E402
@@ -151,6 +154,35 @@ def test_five_springs_keep_their_balances(tmp_path, scheme):
         assert np.max(np.abs(recomputed[:, 0] - recomputed[0, 0])) <= 1e-11 * scale, "E conserved to round-off"
         assert np.all(np.diff(recomputed[:, 1]) >= -1e-12 * np.abs(recomputed[:, 1]).max()), "S never falls"
         assert np.diff(recomputed[:, 1]).sum() > 0, "the viscous branches and links produce entropy"
+
+
+def limited_stack(megabytes):
+    """A preexec_fn that sets the process's stack limit."""
+    def limit():
+        resource.setrlimit(resource.RLIMIT_STACK, (megabytes << 20, megabytes << 20))
+    return limit
+
+
+@pytest.mark.parametrize("scheme", ["relaxed_rk4", "relaxed_gauss6", "cvode_bdf"])
+def test_a_large_dense_chain_needs_no_large_stack(tmp_path, scheme):
+    """The dense path takes chains up to 1000 unknowns; its n x n work arrays (the field's
+    Jacobian and its derivatives through the partials, a collocation stage's df, CVODE's
+    Jacobian) are allocated, not automatic: 1000 unknowns are 8 MB an array, Linux's default
+    stack (a 1D rod of 250 springs crashed with SIGSEGV in relaxed_rk4 and relaxed_gauss6).
+    Here 100 springs (400 unknowns, 1.3 MB an array) under a 1 MB stack limit, one step: each
+    completes. Planted: the arrays automatic again, all three die of SIGSEGV."""
+    groups = {"model": {"model_name": "spring_chain", "family": "rod", "links": 100, "ends": "fixed-free",
+                        "dimension": 1},
+              "initial": {"perturbation": "random", "amplitude": 0.01},
+              "integrator": {"scheme": scheme, "dt": 1e-3, "t_end": 1e-3}}
+    groups["output"] = {"file": str(tmp_path / "stack.h5")}
+    namelist = tmp_path / "stack.nml"
+    namelist.write_text(namelist_text(groups))
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True, timeout=300,
+                            preexec_fn=limited_stack(1))
+    assert result.returncode == 0, (result.returncode, result.stderr)
+    with h5py.File(tmp_path / "stack.h5", "r") as f:
+        assert text(f.attrs["status"]) == "complete" and f.attrs["unknowns"] == 400 and "state" in f
 
 
 BAD_INPUT = [
