@@ -17,7 +17,7 @@ program eme_run
   use run_config, only: run_configuration, read_run_config
   use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only, dense_max_unknowns
   use distributed_simulation, only: run_distributed, split_run_wanted, set_up_distributed_only
-  use run_options, only: progress_wanted
+  use run_options, only: progress_wanted, split_requested
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
@@ -81,9 +81,16 @@ program eme_run
   PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
   exit_status = 0
   split = .false.
-  if (.not. failure%failed() .and. .not. config_failure%failed()) split = split_run_wanted(config, ranks, dense_max_unknowns)
+  ! -eme_split: the split path from any size (docs/performance.md, Two paths).
+  if (.not. failure%failed() .and. .not. config_failure%failed()) &
+    split = split_run_wanted(config, ranks, merge(0, dense_max_unknowns, split_requested()))
   ! (An input or command line that cannot be read is reported as such below, on rank 0.)
-  if (ranks > 1 .and. .not. split .and. .not. failure%failed() .and. .not. config_failure%failed()) then
+  if (split_requested() .and. .not. split .and. .not. failure%failed() .and. .not. config_failure%failed()) then
+    if (rank == 0) write (error_unit, '(a)') 'eme_run: '//arguments%input_file//': -eme_split: this model and '// &
+      'integrator run on the dense path only; allowed: -eme_split with the spring chain and an integrator of its '// &
+      'split path (eme, midpoint, the relaxed family, PETSc TS; docs/integrators.md, On the split path)'
+    exit_status = 2
+  else if (ranks > 1 .and. .not. split .and. .not. failure%failed() .and. .not. config_failure%failed()) then
     ! Every rank would write the same file: a study of several cases is eme_ensemble's.
     if (rank == 0) write (error_unit, '(a, i0, a)') 'eme_run: runs one case on one process, not on ', ranks, &
       ' ranks; for several cases on several ranks: mpirun -n N eme_ensemble STUDY.nml (docs/performance.md)'
@@ -160,8 +167,9 @@ contains
       end do
     end if
     if (.not. split .and. config%snapshot_every > 0) write (error_unit, '(a)') 'eme_run: warning: '// &
-      config%input_file//': &output: snapshot_every is read by a chain split over ranks only; this run '// &
-      'takes the dense path, whose rows hold the whole state (/state) at every written point'
+      config%input_file//': &output: snapshot_every is read by the split path only (a chain under mpirun, '// &
+      'beyond 1000 unknowns or with -eme_split); this run takes the dense path, whose rows hold the whole '// &
+      'state (/state) at every written point'
     progress = progress_wanted()
     if (split .and. progress) then
       call run_distributed(config, PETSC_COMM_WORLD, summary, failure, progress=print_progress, lock=lock)

@@ -101,7 +101,7 @@ contains
     else
       text = config%output_file//': its run was split over ranks (its state is in /snapshots) and cannot be '// &
              'continued on the dense path ('//config%input_file//', -eme_continue); allowed: mpirun -n P eme_run '// &
-             'with P > 1 (any P), which continues it from its last snapshot'
+             'with P > 1 (any P), or eme_run -eme_split on one process, which continue it from its last snapshot'
     end if
   end function other_path_text
 

@@ -22,7 +22,7 @@ typedef struct {
 /* The step solver's options (docs/integrators.md), then the run's (docs/running.md). */
 enum {
     CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, DIRECT_NEWTON, FINAL_CHORD, MODIFIED_NEWTON, CHORD_ITERATIONS, MAX_HALVINGS,
-    ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE, CONTINUE, OPTION_COUNT
+    ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE, CONTINUE, SPLIT, OPTION_COUNT
 };
 static const eme_option options[OPTION_COUNT] = {
     {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors",
@@ -75,6 +75,11 @@ static const eme_option options[OPTION_COUNT] = {
     {"-eme_continue", "<false>",
      "Continue the run that FILE (or FILE.part) holds from its last written state, appending to it "
      "(docs/faults.md: Continuing a run)",
+     LOGICAL, 0, 0},
+    {"-eme_split", "<false>",
+     "Run a model that can be split over ranks (the spring chain) on the sparse split path also on one process "
+     "and below 1000 unknowns, where implicit steps are faster from about 100 unknowns (docs/performance.md: "
+     "Two paths)",
      LOGICAL, 0, 0},
 };
 
@@ -217,9 +222,9 @@ PetscErrorCode eme_read_step_control_options(int *record, double *scale)
 }
 
 /* Reads -eme_progress (into *progress, and whether it was given into *progress_given),
- * -eme_overwrite (into *overwrite) and -eme_continue (into *resume); the flags' values on entry
- * are the defaults. Returns a PETSc error code. */
-PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite, int *resume)
+ * -eme_overwrite (into *overwrite), -eme_continue (into *resume) and -eme_split (into *split);
+ * the flags' values on entry are the defaults. Returns a PETSc error code. */
+PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite, int *resume, int *split)
 {
     const char *section = "docs/running.md";
 
@@ -228,6 +233,7 @@ PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *ove
     PetscCall(bool_option(PetscOptionsObject, PROGRESS, section, progress, progress_given));
     PetscCall(bool_option(PetscOptionsObject, OVERWRITE, section, overwrite, NULL));
     PetscCall(bool_option(PetscOptionsObject, CONTINUE, section, resume, NULL));
+    PetscCall(bool_option(PetscOptionsObject, SPLIT, section, split, NULL));
     PetscOptionsEnd();
     PetscFunctionReturn(0);
 }

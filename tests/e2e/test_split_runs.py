@@ -49,17 +49,23 @@ def snapshot_rows(state, links, dimension, fixed_fixed):
     return rows[:, :dimension], rows[:, dimension:2 * dimension], gamma, tau
 
 
+@pytest.mark.parametrize("launch", ["two-ranks", "one-process-eme-split"])
 @pytest.mark.parametrize("shape", [dict(links=40, dimension=1, ends="fixed-fixed"),
                                    dict(links=12, dimension=3, ends="fixed-free")], ids=["1d-fixed-fixed", "3d-hanging"])
-def test_a_split_run_is_the_dense_run(tmp_path, shape):
+def test_a_split_run_is_the_dense_run(tmp_path, shape, launch):
+    """The split path, on two ranks or on one process with -eme_split (below the dense path's 1000
+    unknowns), against the dense path: the same rows to 1e-12 and states to 1e-10."""
     # newton_tol far below rounding: each step's Newton stops at its rounding floor on both paths.
     groups = chain_groups(**shape, steps=100, dt=0.005, newton_tol=1.0e-30)
     groups["output"] = {"snapshot_every": 25}
     result, dense_file = run_eme(tmp_path, "dense", groups)
     assert result.returncode == 0, result.stderr
-    unread = "&output: snapshot_every is read by a chain split over ranks only"      # the dense path says so
+    unread = "&output: snapshot_every is read by the split path only"      # the dense path says so
     assert unread in result.stderr
-    result, split_file = run_split(tmp_path, "split", groups)
+    if launch == "two-ranks":
+        result, split_file = run_split(tmp_path, "split", groups)
+    else:
+        result, split_file = run_eme(tmp_path, "split", groups, "-eme_split")
     assert result.returncode == 0, result.stderr
     assert unread not in result.stderr
     assert result.stdout.count("split.h5: complete, 100/100 steps") == 1       # rank 0 alone reports
@@ -92,6 +98,21 @@ def test_a_split_run_is_the_dense_run(tmp_path, shape):
         assert np.all(split["min_link_production"][()] >= 0.0)
         assert np.all(split["newton_iterations"][()] >= 1)
 
+
+
+def test_eme_split_is_refused_where_the_run_cannot_be_split(tmp_path):
+    """-eme_split asks for the split path: a model that has none (the pendulum) or an integrator
+    the split path lacks (CVODE) is refused with exit 2 naming the reason, nothing written."""
+    pendulum = {"model": {"model_name": "double_pendulum"}, "integrator": {"scheme": "eme", "dt": 0.01, "t_end": 0.02}}
+    result, path = run_eme(tmp_path, "pendulum", pendulum, "-eme_split")
+    assert result.returncode == 2 and "-eme_split" in result.stderr and "dense path only" in result.stderr, \
+        result.stderr
+    assert not path.exists()
+    chain = chain_groups(links=10, dimension=1, ends="fixed-fixed", steps=2, dt=0.005)
+    chain["integrator"]["scheme"] = "cvode_bdf"
+    result, path = run_eme(tmp_path, "cvode", chain, "-eme_split")
+    assert result.returncode == 2 and "cvode_bdf" in result.stderr, result.stderr
+    assert not path.exists()
 
 
 def test_at_the_default_newton_tol_a_split_step_converges_as_a_dense_one(tmp_path):
