@@ -6,7 +6,8 @@
 module ts_description
 #include <petsc/finclude/petscts.h>
   use petscts
-  use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting
+  use solver_description, only: solver_report, add_setting, text_setting, number_setting
+  use snes_description, only: describe_snes
   implicit none
   private
   public :: describe_ts
@@ -14,21 +15,20 @@ module ts_description
 contains
 
   !> Adds the TS's settings to `report` under the name `name`; with `implicit`, its SNES's and
-  !> linear solver's too.
-  subroutine describe_ts(ts, name, implicit, report, ierr)
+  !> linear solver's too (src/solver/snes_description; `ordering` the factorisation's ordering the
+  !> caller set in code).
+  subroutine describe_ts(ts, name, implicit, report, ierr, ordering)
     TS, intent(in) :: ts
     character(len=*), intent(in) :: name
     logical, intent(in) :: implicit
     type(solver_report), intent(inout) :: report
     PetscErrorCode, intent(out) :: ierr
+    character(len=*), intent(in), optional :: ordering
     TSAdapt :: adapt
     SNES :: snes
-    KSP :: ksp
-    PC :: pc
     Vec :: vector_atol, vector_rtol
-    PetscReal :: atol, rtol, stol, dt
-    PetscInt :: max_iterations, max_evaluations
-    character(len=32) :: ts_type, adapt_type, snes_type, ksp_type, pc_type
+    PetscReal :: atol, rtol, dt
+    character(len=32) :: ts_type, adapt_type
 
     PetscCall(TSGetType(ts, ts_type, ierr))
     PetscCall(TSGetAdapt(ts, adapt, ierr))
@@ -43,19 +43,7 @@ contains
     call add_setting(report, number_setting('ts_dt', dt, 's'))
     if (.not. implicit) return
     PetscCall(TSGetSNES(ts, snes, ierr))
-    PetscCall(SNESGetType(snes, snes_type, ierr))
-    PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
-    PetscCall(SNESGetKSP(snes, ksp, ierr))
-    PetscCall(KSPGetType(ksp, ksp_type, ierr))
-    PetscCall(KSPGetPC(ksp, pc, ierr))
-    PetscCall(PCGetType(pc, pc_type, ierr))
-    call add_setting(report, text_setting('snes_type', snes_type))
-    call add_setting(report, number_setting('snes_atol', atol))
-    call add_setting(report, number_setting('snes_rtol', rtol))
-    call add_setting(report, number_setting('snes_stol', stol))
-    call add_setting(report, integer_setting('snes_max_it', max_iterations))
-    call add_setting(report, text_setting('ksp_type', ksp_type))
-    call add_setting(report, text_setting('pc_type', pc_type))
+    PetscCall(describe_snes(snes, report, ierr, ordering))
   end subroutine describe_ts
 
 end module ts_description

@@ -245,6 +245,37 @@ def test_options_cannot_loosen_the_split_step(tmp_path):
         assert not np.array_equal(f["snapshots/q"][0], f["snapshots/q"][-1])
 
 
+@pytest.mark.parametrize("launch, scheme, options, expected", [
+    ("one", "eme", (), dict(snes_type="newtonls", ksp_type="preonly", pc_type="lu",
+                            pc_factor_mat_ordering_type="rcm", snes_linesearch_type="basic")),
+    ("two", "eme", (), dict(ksp_type="gmres", pc_type="bjacobi", sub_pc_type="lu", ksp_rtol=1e-12,
+                            ksp_atol="eps |z|, z the state the step starts from", sub_pc_factor_mat_ordering_type="rcm")),
+    ("two", "eme", ("-ksp_type", "bcgs", "-pc_type", "jacobi", "-ksp_atol", "1e-14", "-snes_linesearch_type", "l2"),
+     dict(ksp_type="bcgs", pc_type="jacobi", ksp_atol=1e-14, snes_linesearch_type="l2")),
+    ("two", "relaxed_gauss6", (), dict(ksp_type="gmres", pc_type="bjacobi", sub_pc_type="lu",
+                                       ksp_atol="eps |z|/h, z the state the step starts from, h its length")),
+], ids=["one-process-lu", "two-ranks-gmres", "two-ranks-options", "two-ranks-stages"])
+def test_a_split_file_names_its_linear_solver(tmp_path, launch, scheme, options, expected):
+    """A split run's file records the SNES and the linear solver it used, as a dense run's does
+    (docs/output.md, solver_*): the documented defaults on one process and on two ranks, the
+    command line's choices where it made them, and none of a choice it did not make."""
+    groups = chain_groups(links=8, dimension=1, ends="fixed-fixed", scheme=scheme, steps=2)
+    if launch == "one":
+        result, output = run_eme(tmp_path, "run", groups, "-eme_split", *options)
+    else:
+        result, output = run_split(tmp_path, "run", groups, 2, *options)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(output, "r") as f:
+        attributes = {key[len("solver_"):]: value for key, value in f.attrs.items() if key.startswith("solver_")}
+    for key, value in expected.items():
+        got = attributes.get(key)
+        got = got.decode() if isinstance(got, bytes) else got
+        assert got == value, (key, got, value)
+    assert attributes["newton_tol"] == 1.0e-13 and attributes["snes_max_it"] >= 1
+    if launch == "one":             # a direct solve has no Krylov tolerances, and no blocks
+        assert not {"ksp_rtol", "ksp_atol", "sub_pc_type"} & attributes.keys()
+
+
 def test_one_rank_and_two_give_the_same_split_run(tmp_path):
     """The 300-spring rod on the split path, alone and on two ranks: the same rows and snapshots
     (the states to 1e-10 of max(1, |x|), as test_spring_chain_sparse's: Newton's rounding floor,

@@ -8,7 +8,10 @@ module spring_chain_linear_solver
   use, intrinsic :: iso_fortran_env, only: real64
   implicit none
   private
-  public :: set_default_linear_solver, set_rounding_tolerance
+  public :: set_default_linear_solver, set_rounding_tolerance, settings_in_code
+
+  !> The factorisation's ordering set_default_linear_solver sets in code on one rank.
+  character(len=*), parameter :: one_rank_ordering = MATORDERINGRCM
 
 contains
 
@@ -29,7 +32,7 @@ contains
       PetscCall(PCSetType(pc, PCLU, ierr))
       ! Reverse Cuthill-McKee keeps the chain's factors banded; PETSc's default nested dissection
       ! cost more to order (0.16 s at 4e4 unknowns) and factored 1.4 times slower.
-      PetscCall(PCFactorSetMatOrderingType(pc, MATORDERINGRCM, ierr))
+      PetscCall(PCFactorSetMatOrderingType(pc, one_rank_ordering, ierr))
     else
       ! Each rank factors its own diagonal block (block Jacobi, LU in RCM order: the sub-PC's
       ! options unless given) and GMRES mends the couplings across
@@ -69,6 +72,31 @@ contains
     PetscCall(KSPGetTolerances(ksp, rtol, atol, dtol, max_iterations, ierr))
     PetscCall(KSPSetTolerances(ksp, rtol, floor, dtol, max_iterations, ierr))
   end subroutine set_rounding_tolerance
+
+  !> What this module sets in code, not in the options database, for `ksp`, as a run
+  !> file records it (src/solver/snes_description): the factorisation's ordering on one rank
+  !> (blank on several: the blocks' is an option), and whether set_rounding_tolerance sets the
+  !> linear solves' absolute tolerance (on several ranks, unless -ksp_atol is given).
+  subroutine settings_in_code(ksp, ordering, floor_set, ierr)
+    KSP, intent(in) :: ksp
+    character(len=:), allocatable, intent(out) :: ordering
+    logical, intent(out) :: floor_set
+    PetscErrorCode, intent(out) :: ierr
+    PetscMPIInt :: ranks
+    PetscBool :: given
+    MPI_Comm :: comm
+
+    ordering = ''
+    floor_set = .false.
+    PetscCall(PetscObjectGetComm(ksp, comm, ierr))
+    PetscCall(MPI_Comm_size(comm, ranks, ierr))
+    if (ranks == 1) then
+      ordering = one_rank_ordering
+      return
+    end if
+    PetscCall(PetscOptionsHasName(PETSC_NULL_OPTIONS, PETSC_NULL_CHARACTER, '-ksp_atol', given, ierr))
+    floor_set = .not. given
+  end subroutine settings_in_code
 
   ! Sets PETSc option `name` to `value` unless the options give it.
   subroutine default_option(name, value, ierr)

@@ -1,7 +1,7 @@
 !> What the relaxed chain split over ranks (spring_chain_relaxed_run) reports besides its states:
 !> the relaxed family's per-step figures declared, the dense path's accuracy warnings at the run's
 !> end (a run without a tolerance that halved a step, or whose gamma moved far from 1), and its
-!> solver (the steps' SNES for implicit stages, none for explicit ones). A submodule because it
+!> solver (the implicit stages' SNES, none for explicit stages). A submodule because it
 !> reads the run's record.
 submodule (spring_chain_relaxed_run) spring_chain_relaxed_report
   implicit none
@@ -44,13 +44,16 @@ contains
     end if
   end function accuracy_warnings
 
-  !> The implicit stages' SNES, set up as the steps' (distributed_system); none for explicit stages.
+  !> The implicit stages' SNES (distributed_system); none for explicit stages.
   module function describe_solver(self) result(report)
     class(relaxed_chain_run), intent(in) :: self
     type(solver_report) :: report
 
     if (self%tableau%implicit) then
-      report = self%sparse_chain_run%describe_solver()
+      report = chain_snes_report(self%stage_solver%snes, 'PETSc SNES of the implicit stages on a DMDA split over the '// &
+                                 'ranks: Newton, sparse Jacobian, LU (GMRES on block-Jacobi LU on several ranks) unless '// &
+                                 'the options choose a KSP', self%settings%newton_tol, 'eps |z|/h, z the state the step '// &
+                                 'starts from, h its length')
     else
       report = no_solver('explicit stages of the chain''s field on a DMDA split over the ranks')
     end if

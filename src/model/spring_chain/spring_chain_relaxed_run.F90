@@ -50,7 +50,7 @@ module spring_chain_relaxed_run
   use spring_chain_spring, only: chain_spring
   use spring_chain_model, only: spring_chain
   use spring_chain_balance, only: conserved_axes
-  use spring_chain_sparse_run, only: sparse_chain_run
+  use spring_chain_sparse_run, only: sparse_chain_run, chain_snes_report
   use spring_chain_stage_solve, only: chain_stage_solver
   implicit none
   private

@@ -9,8 +9,8 @@
 !> src/integrator/distributed_step_control's, over this system's rows and field. chain_bench's
 !> bookkeeping (`advance`, `result`) rides on the same steps.
 module spring_chain_sparse_run
-#include <petsc/finclude/petscsys.h>
-  use petscsys
+#include <petsc/finclude/petscsnes.h>
+  use petscsnes
   use, intrinsic :: iso_fortran_env, only: real64
   use failures, only: failure_type, fail, failure_input, failure_not_converged, failure_io
   use number_text, only: integer_text, scientific_text
@@ -23,9 +23,11 @@ module spring_chain_sparse_run
   use spring_chain_step, only: chain_step_problem
   use spring_chain_partials, only: partials_discrete_gradient, partials_midpoint, partials_exact
   use spring_chain_dmda, only: distributed_chain, stencil_width
+  use spring_chain_linear_solver, only: settings_in_code
+  use snes_description, only: describe_snes
   implicit none
   private
-  public :: sparse_chain_run, sparse_run_result, chain_problem_of, ts_schemes, step_schemes
+  public :: sparse_chain_run, sparse_run_result, chain_problem_of, ts_schemes, step_schemes, chain_snes_report
 
   !> The integrators whose steps are this module's (one SNES solve a step).
   character(len=*), parameter :: step_schemes(2) = [character(len=8) :: 'eme', 'midpoint']
@@ -284,14 +286,42 @@ contains
   function describe_solver(self) result(report)
     class(sparse_chain_run), intent(in) :: self
     type(solver_report) :: report
-    type(failure_type) :: ignored
 
-    call add_setting(report, text_setting('name', 'PETSc SNES on a DMDA split over the ranks: Newton, sparse '// &
-                                          'Jacobian, LU (GMRES on block-Jacobi LU on several ranks) unless '// &
-                                          'the options choose a KSP'))
-    call add_setting(report, number_setting('newton_tol', self%settings%newton_tol, '1'))
-    call set_petsc_reasons(report, reasons_snes, ignored)
+    report = chain_snes_report(self%chain%snes, 'PETSc SNES on a DMDA split over the ranks: Newton, sparse '// &
+                               'Jacobian, LU (GMRES on block-Jacobi LU on several ranks) unless the options choose '// &
+                               'a KSP', self%settings%newton_tol, 'eps |z|, z the state the step starts from')
   end function describe_solver
+
+  !> What a run file records of a chain's SNES `snes` (a step's, or the implicit stages'): `name`,
+  !> Newton's tolerance, the SNES and its linear solver as the options left them
+  !> (src/solver/snes_description) with what spring_chain_linear_solver set in code, `floor_rule`
+  !> for the linear solves' absolute tolerance where that module sets it, and PETSc's names of the
+  !> converged reasons.
+  function chain_snes_report(snes, name, newton_tol, floor_rule) result(report)
+    SNES, intent(in) :: snes
+    character(len=*), intent(in) :: name, floor_rule
+    real(real64), intent(in) :: newton_tol
+    type(solver_report) :: report
+    type(failure_type) :: ignored
+    character(len=:), allocatable :: ordering
+    logical :: floor_set
+    KSP :: ksp
+    PetscErrorCode :: ierr
+
+    call add_setting(report, text_setting('name', name))
+    call add_setting(report, number_setting('newton_tol', newton_tol, '1'))
+    call add_setting(report, text_setting('snes_convergence_test', '|R| <= min(newton_tol, snes_atol) after an update '// &
+                                          'of at most that, or an update below the rounding of the state (16 eps |z|)'))
+    call SNESGetKSP(snes, ksp, ierr)
+    if (ierr == 0) call settings_in_code(ksp, ordering, floor_set, ierr)
+    if (ierr == 0 .and. floor_set) then
+      call describe_snes(snes, report, ierr, ordering, floor_rule)
+    else if (ierr == 0) then
+      call describe_snes(snes, report, ierr, ordering)
+    end if
+    if (ierr /= 0) call add_setting(report, text_setting('error', 'PETSc could not describe the SNES'))
+    call set_petsc_reasons(report, reasons_snes, ignored)
+  end function chain_snes_report
 
   !> Each rank's rows of the state to PREFIX.<rank> ("index value" lines, 1-based).
   subroutine dump(self, prefix, failure)

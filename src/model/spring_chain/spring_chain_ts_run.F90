@@ -26,6 +26,7 @@ module spring_chain_ts_run
   use ts_description, only: describe_ts
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_dmda, only: distributed_chain, set_default_linear_solver
+  use spring_chain_linear_solver, only: settings_in_code
   use spring_chain_sparse_run, only: sparse_chain_run
   implicit none
   private
@@ -281,11 +282,20 @@ contains
     type(solver_report) :: report
     type(failure_type) :: failure
     character(len=32) :: ts_type
+    character(len=:), allocatable :: ordering
+    logical :: floor_set, implicit
+    SNES :: snes
+    KSP :: ksp
     PetscErrorCode :: ierr
 
     call TSGetType(self%ts, ts_type, ierr)
+    implicit = .not. any(ts_type == explicit_types)
+    ordering = ''
+    if (ierr == 0 .and. implicit) call TSGetSNES(self%ts, snes, ierr)
+    if (ierr == 0 .and. implicit) call SNESGetKSP(snes, ksp, ierr)
+    if (ierr == 0 .and. implicit) call settings_in_code(ksp, ordering, floor_set, ierr)   ! (a TS's solves keep their atol)
     if (ierr == 0) call describe_ts(self%ts, 'PETSc TS on a DMDA split over the ranks: the chain''s field and '// &
-                                    'sparse Jacobian', .not. any(ts_type == explicit_types), report, ierr)
+                                    'sparse Jacobian', implicit, report, ierr, ordering)
     if (ierr == 0) call set_petsc_reasons(report, reasons_ts, failure)
     if (ierr /= 0 .or. failure%failed()) call add_setting(report, text_setting('error', 'PETSc could not describe the TS'))
   end function describe_solver
