@@ -276,6 +276,27 @@ def test_a_split_file_names_its_linear_solver(tmp_path, launch, scheme, options,
         assert not {"ksp_rtol", "ksp_atol", "sub_pc_type"} & attributes.keys()
 
 
+def test_a_newton_iterate_outside_the_domain_on_one_rank_stops_every_rank_alike(tmp_path):
+    """The last spring starts 0.01 long (the others 1.1) and dt = 1 s: Newton's iterates take it
+    through zero length, a domain error on rank 1 alone (its springs). Every rank must tell SNES
+    alike: when rank 1 alone did, SNES took another path on it (a failed line search), the ranks'
+    collectives no longer matched and the run hung. Now both ranks stop the run as one process
+    does: the step halved to dt/64, then 'no root', the file kept and marked incomplete."""
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=4, dt=1.0)
+    groups["initial"]["x"] = [1.1 * i for i in range(1, 12)] + [14.29]
+    alone, alone_file = run_eme(tmp_path, "alone", groups, "-eme_split")
+    namelist, split_file = write_input(tmp_path, "split", groups)
+    # (a hang is the failure: 120 s where the run takes about 2)
+    split = subprocess.run([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True,
+                           timeout=120)
+    assert alone.returncode == split.returncode != 0, (alone.stderr, split.stderr)
+    assert "no root" in split.stderr and "dt/64" in split.stderr
+    with h5py.File(alone_file, "r") as a, h5py.File(split_file, "r") as b:
+        for f in (a, b):        # (|R| at the last iterate differs: LU alone, GMRES on two ranks)
+            assert f.attrs["status"].startswith("incomplete: step 2 (t = 2.0000 s): no root"), f.attrs["status"]
+            assert f.attrs["status"].endswith("(also in steps of dt/64)")
+
+
 def test_one_rank_and_two_give_the_same_split_run(tmp_path):
     """The 300-spring rod on the split path, alone and on two ranks: the same rows and snapshots
     (the states to 1e-10 of max(1, |x|), as test_spring_chain_sparse's: Newton's rounding floor,

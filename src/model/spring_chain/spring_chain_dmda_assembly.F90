@@ -54,6 +54,7 @@ contains
       PetscCall(give_back_read(context%old_local, old, ierr))
     end if
     PetscCall(give_back_read(context%new_local, new, ierr))
+    PetscCall(agree_on_domain(context, stat, ierr))
   end subroutine field_into
 
   ! SNES callback: the rank's rows of R(x) = (x - z_old)/h - f(z_old, x) (field_into); a state
@@ -179,7 +180,23 @@ contains
       ierr = PETSC_ERR_PLIB
       SETERRQ(PETSC_COMM_SELF, ierr, 'chain_jacobian: a derivative outside coupling_pattern (-chain_check_pattern)')
     end if
+    PetscCall(agree_on_domain(context, stat, ierr))
   end subroutine jacobian_into
+
+  ! Every rank takes the verdict of the rank whose springs left their domain (stat, the largest
+  ! code), so that all tell SNES alike (SNESSetFunctionDomainError is logically collective): a
+  ! rank that alone flagged a Newton iterate took another path through SNESSolve than the others
+  ! (its line search failed, theirs did not), their collectives no longer matched, and the run
+  ! hung (2 ranks, 12 springs near rest, step 5752 of 100000).
+  subroutine agree_on_domain(context, stat, ierr)
+    type(chain_context), intent(in) :: context
+    integer, intent(inout) :: stat
+    PetscErrorCode, intent(out) :: ierr
+    MPI_Comm :: comm
+
+    PetscCall(PetscObjectGetComm(context%da, comm, ierr))
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, stat, 1, MPI_INTEGER, MPI_MAX, comm, ierr))
+  end subroutine agree_on_domain
 
   ! SNES convergence test: Newton's verdict (newton_verdict) at the step's tolerance.
   subroutine converged_or_rounding(snes, iteration, x_norm, update_norm, residual_norm, reason, context, ierr)
