@@ -452,7 +452,9 @@ def test_a_killed_split_run_continues_from_its_last_snapshot(tmp_path):
 def test_a_split_file_is_not_continued_on_the_dense_path(tmp_path):
     """A small chain split over two ranks cannot go on as one process (the dense path, which keeps
     its state in rows): refused, naming the file and what is allowed; the file is untouched."""
-    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=100000, dt=0.005)
+    # dt = 1 ms: this chain reaches t = 36 s (where its dampers run away and a step breaks the energy
+    # balance, on one rank or two) only after several of the 1 s windows that the test waits for.
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=100000, dt=0.001)
     groups["output"] = {"snapshot_every": 10}
     namelist, output = write_input(tmp_path, "small", groups)
     process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
@@ -495,7 +497,9 @@ def test_a_lock_taken_by_a_second_writer_stops_a_split_run_which_leaves_it_alone
     The run stops at its next step (exit 1), names the other holder, writes nothing more (FILE.part
     stays as its last window made it, a valid file of complete snapshots) and leaves the other's
     lock as it is."""
-    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=100000, dt=0.005)
+    # dt = 1 ms: this chain reaches t = 36 s (where its dampers run away and a step breaks the energy
+    # balance, on one rank or two) only after several of the 1 s windows that the test waits for.
+    groups = chain_groups(links=12, dimension=1, ends="fixed-fixed", steps=100000, dt=0.001)
     groups["output"] = {"snapshot_every": 10}
     namelist, output = write_input(tmp_path, "taken", groups)
     process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist)], stdout=subprocess.PIPE,
