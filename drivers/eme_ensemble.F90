@@ -14,10 +14,11 @@ program eme_ensemble
                           petsc_help_requested, unused_petsc_options, petsc_error_text, check_petsc_file_options, &
                           launcher_rank, forget_petsc_file_options
   use output_path, only: protected_entry, protected_entries
-  use simulation, only: set_up_only, dense_max_unknowns
+  use simulation, only: set_up_only
   use distributed_simulation, only: split_run_wanted, set_up_distributed_only
   use library_versions, only: print_versions
-  use failures, only: failure_type, failure_input
+  use failures, only: failure_type, failure_input, fail
+  use run_options, only: split_requested, dense_requested
   implicit none
 
   type(study_definition), target :: study
@@ -27,7 +28,7 @@ program eme_ensemble
   integer :: stat, rank, exit_status
   type(failure_type) :: failure, startup, study_failure
   character(len=:), allocatable :: own_files, own_folders   !! the study's, which no PETSc option may write
-  logical :: help
+  logical :: help, both_paths
   PetscErrorCode :: ierr
 
   call parse_command_line('eme_ensemble', [character(len=16) :: '--help', '-h', '--version', '--integrators'], &
@@ -75,6 +76,11 @@ program eme_ensemble
     exit_status = 2
   else
     call check_own_options(failure)
+    both_paths = dense_requested()
+    if (both_paths) both_paths = split_requested()
+    if (.not. failure%failed() .and. both_paths) &
+      call fail(failure, failure_input, '-eme_split and -eme_dense ask for both paths; allowed: one of them, '// &
+                'or neither (each case takes the path eme_run would take)')
     if (.not. failure%failed()) &
       call check_petsc_file_options(arguments, .true., own_files, own_folders, .false., failure)
     if (failure%failed()) then
@@ -135,7 +141,7 @@ contains
 
     allocate (checked(0))
     do c = 1, size(study%cases)
-      split = split_run_wanted(study%cases(c)%config, 1, dense_max_unknowns)
+      split = split_run_wanted(study%cases(c)%config, 1)
       associate (choice => study%cases(c)%config%integrator)
         write (key, '(a, 1x, a, 1x, i0)') trim(merge('split', 'dense', split)), trim(choice%scheme), &
           choice%thermo_variable

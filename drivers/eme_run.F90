@@ -15,9 +15,9 @@ program eme_run
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit, real64
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use run_config, only: run_configuration, read_run_config
-  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only, dense_max_unknowns
+  use simulation, only: run_summary, run_simulation, run_exit_status => exit_status, set_up_only
   use distributed_simulation, only: run_distributed, split_run_wanted, set_up_distributed_only
-  use run_options, only: progress_wanted, split_requested
+  use run_options, only: progress_wanted, split_requested, dense_requested
   use run_schema, only: print_output_schema
   use command_help, only: print_run_help, print_integrators
   use command_line, only: command_arguments, parse_command_line, initialize_petsc, check_own_options, &
@@ -36,6 +36,7 @@ program eme_run
   character(len=:), allocatable :: unused
   integer :: stat, exit_status, ranks, rank
   logical :: split      !! the run is split over the ranks (distributed_simulation)
+  logical :: dense_refused   !! -eme_dense with -eme_split or on several ranks
   type(failure_type) :: failure, startup, config_failure
   character(len=:), allocatable :: own_files     !! the files of the run, which no PETSc option may write
   PetscErrorCode :: ierr
@@ -81,11 +82,16 @@ program eme_run
   PetscCallMPIA(MPI_Comm_rank(PETSC_COMM_WORLD, rank, ierr))
   exit_status = 0
   split = .false.
-  ! -eme_split: the split path from any size (docs/performance.md, Two paths).
-  if (.not. failure%failed() .and. .not. config_failure%failed()) &
-    split = split_run_wanted(config, ranks, merge(0, dense_max_unknowns, split_requested()))
+  ! The path by the model, its size and the integrator, or -eme_split / -eme_dense (docs/performance.md, Two paths).
+  if (.not. failure%failed() .and. .not. config_failure%failed()) split = split_run_wanted(config, ranks)
   ! (An input or command line that cannot be read is reported as such below, on rank 0.)
-  if (split_requested() .and. .not. split .and. .not. failure%failed() .and. .not. config_failure%failed()) then
+  dense_refused = dense_requested()
+  if (dense_refused .and. ranks == 1) dense_refused = split_requested()
+  if (dense_refused) then
+    if (rank == 0) write (error_unit, '(a)') 'eme_run: -eme_dense asks for the dense path, which runs on one '// &
+      'process without -eme_split; allowed: eme_run FILE.nml -eme_dense (one process, at most 1000 unknowns)'
+    exit_status = 2
+  else if (split_requested() .and. .not. split .and. .not. failure%failed() .and. .not. config_failure%failed()) then
     if (rank == 0) write (error_unit, '(a)') 'eme_run: '//arguments%input_file//': -eme_split: this model and '// &
       'integrator run on the dense path only; allowed: -eme_split with the spring chain and an integrator of its '// &
       'split path (eme, midpoint, the relaxed family, PETSc TS; docs/integrators.md, On the split path)'
@@ -168,7 +174,8 @@ contains
     end if
     if (.not. split .and. config%snapshot_every > 0) write (error_unit, '(a)') 'eme_run: warning: '// &
       config%input_file//': &output: snapshot_every is read by the split path only (a chain under mpirun, '// &
-      'beyond 1000 unknowns or with -eme_split); this run takes the dense path, whose rows hold the whole '// &
+      'an implicit integrator beyond 64 unknowns, any beyond 1000, or -eme_split); this run takes the dense '// &
+      'path, whose rows hold the whole '// &
       'state (/state) at every written point'
     progress = progress_wanted()
     if (split .and. progress) then

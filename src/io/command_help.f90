@@ -68,9 +68,10 @@ contains
       '       eme_run --help | -h | --version | --integrators | --output-schema', '', &
       'Integrates one scene of a GENERIC model (&model model_name: by default the thermoviscoelastic double', &
       'pendulum of Valdes y Beck & Betsch, PAMM 2023) and writes an HDF5 file (&output file; docs/output.md).', &
-      'mpirun -n P eme_run FILE.nml splits a spring chain over P ranks, as eme_run does on one rank beyond 1000', &
-      'unknowns (the sparse path: EME or midpoint in fixed or adaptive steps, the relaxed family, PETSc TS; its', &
-      'state in /snapshots: docs/output.md).', '', &
+      'mpirun -n P eme_run FILE.nml splits a spring chain over P ranks, as eme_run does on one rank beyond 64', &
+      'unknowns with an integrator that solves equations and beyond 1000 with any (the sparse path: EME or midpoint', &
+      'in fixed or adaptive steps, the relaxed family, PETSc TS; its state in /snapshots: docs/output.md;', &
+      '-eme_split and -eme_dense choose the path on one process).', '', &
       '  --help, -h        this text', &
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &

@@ -23,9 +23,8 @@ module ensemble
   use run_config, only: run_configuration
   use run_outcome, only: failure_io, failure_interrupted
   use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute, dense_max_unknowns
+  use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute
   use distributed_simulation, only: run_distributed, split_run_wanted
-  use run_options, only: split_requested
   use statistics, only: median
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
@@ -533,8 +532,9 @@ contains
     ! gets the median of the time loops' durations (wall and CPU, each its own median), so timings
     ! on a shared machine do not zig-zag.
     allocate (solve_seconds(study%repeats), solve_cpu_seconds(study%repeats))
-    ! -eme_split: every case that can be split takes the split path (docs/performance.md).
-    split = split_run_wanted(config, 1, merge(0, dense_max_unknowns, split_requested()))
+    ! The path eme_run would take for the case on one process, -eme_split and -eme_dense included
+    ! (docs/performance.md, Two paths).
+    split = split_run_wanted(config, 1)
     do r = 1, study%repeats
       ! An interrupted case (its file incomplete, with the same input) continues from its file
       ! (the split path from the file's last snapshot).

@@ -97,7 +97,9 @@ contains
 
     if (split) then
       text = config%output_file//': its run was not split over ranks (its state is in /state) and continues '// &
-             'on the dense path ('//config%input_file//', -eme_continue); allowed: eme_run on one process, as it ran'
+             'on the dense path ('//config%input_file//', -eme_continue); allowed: eme_run -eme_dense on one '// &
+             'process, as it ran (one process takes a chain of more than 64 unknowns with an implicit '// &
+             'integrator to the split path)'
     else
       text = config%output_file//': its run was split over ranks (its state is in /snapshots) and cannot be '// &
              'continued on the dense path ('//config%input_file//', -eme_continue); allowed: mpirun -n P eme_run '// &

@@ -3,8 +3,8 @@
 !> descriptions: src/solver/petsc_options.c registers them): -eme_progress [true|false]
 !> (progress lines on stderr; by default only when stderr is a terminal) and -eme_overwrite
 !> (replace an existing complete result, as &output overwrite = .true. does) and -eme_continue
-!> (continue the run its file holds, docs/faults.md) and -eme_split (a chain on the split path on
-!> one process too, docs/performance.md). Also the options
+!> (continue the run its file holds, docs/faults.md), -eme_split and -eme_dense (a chain on the
+!> split or the dense path on one process, whatever its size, docs/performance.md). Also the options
 !> database as text, for the provenance a run file records.
 module run_options
 #include <petsc/finclude/petscsys.h>
@@ -13,13 +13,14 @@ module run_options
   use filesystem, only: stderr_is_terminal
   implicit none
   private
-  public :: progress_wanted, overwrite_requested, continue_requested, split_requested, petsc_options_in_force
+  public :: progress_wanted, overwrite_requested, continue_requested, split_requested, dense_requested, &
+            petsc_options_in_force
 
   interface
-    function eme_read_run_options(progress, progress_given, overwrite, resume, split) &
+    function eme_read_run_options(progress, progress_given, overwrite, resume, split, dense) &
       bind(C, name='eme_read_run_options') result(ierr)
       import :: c_int
-      integer(c_int), intent(inout) :: progress, progress_given, overwrite, resume, split
+      integer(c_int), intent(inout) :: progress, progress_given, overwrite, resume, split, dense
       integer(c_int) :: ierr
     end function eme_read_run_options
 
@@ -35,9 +36,9 @@ contains
 
   !> Whether eme_run prints progress lines: -eme_progress as given, else when stderr is a terminal.
   logical function progress_wanted()
-    integer(c_int) :: progress, given, overwrite, resume, split
+    integer(c_int) :: progress, given, overwrite, resume, split, dense
 
-    call read_options(progress, given, overwrite, resume, split)
+    call read_options(progress, given, overwrite, resume, split, dense)
     if (given /= 0) then
       progress_wanted = progress /= 0
     else
@@ -47,27 +48,35 @@ contains
 
   !> Whether the command line asks to replace an existing complete result (-eme_overwrite).
   logical function overwrite_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split
+    integer(c_int) :: progress, given, overwrite, resume, split, dense
 
-    call read_options(progress, given, overwrite, resume, split)
+    call read_options(progress, given, overwrite, resume, split, dense)
     overwrite_requested = overwrite /= 0
   end function overwrite_requested
 
   !> Whether the command line asks to continue the run that the output file holds (-eme_continue).
   logical function continue_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split
+    integer(c_int) :: progress, given, overwrite, resume, split, dense
 
-    call read_options(progress, given, overwrite, resume, split)
+    call read_options(progress, given, overwrite, resume, split, dense)
     continue_requested = resume /= 0
   end function continue_requested
 
   !> Whether the command line asks for the split path on one process too (-eme_split).
   logical function split_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split
+    integer(c_int) :: progress, given, overwrite, resume, split, dense
 
-    call read_options(progress, given, overwrite, resume, split)
+    call read_options(progress, given, overwrite, resume, split, dense)
     split_requested = split /= 0
   end function split_requested
+
+  !> Whether the command line asks for the dense path for a chain that would be split (-eme_dense).
+  logical function dense_requested()
+    integer(c_int) :: progress, given, overwrite, resume, split, dense
+
+    call read_options(progress, given, overwrite, resume, split, dense)
+    dense_requested = dense /= 0
+  end function dense_requested
 
   !> The options database as text ('-name value ...'), as the run uses it.
   function petsc_options_in_force() result(text)
@@ -84,19 +93,21 @@ contains
 
   ! The run options as the database sets them (0 or 1; a value PETSc cannot read as a logical
   ! counts as not given).
-  subroutine read_options(progress, given, overwrite, resume, split)
-    integer(c_int), intent(out) :: progress, given, overwrite, resume, split
+  subroutine read_options(progress, given, overwrite, resume, split, dense)
+    integer(c_int), intent(out) :: progress, given, overwrite, resume, split, dense
 
     progress = 0
     given = 0
     overwrite = 0
     resume = 0
     split = 0
-    if (eme_read_run_options(progress, given, overwrite, resume, split) /= 0) then
+    dense = 0
+    if (eme_read_run_options(progress, given, overwrite, resume, split, dense) /= 0) then
       given = 0
       overwrite = 0
       resume = 0
       split = 0
+      dense = 0
     end if
   end subroutine read_options
 

@@ -17,31 +17,50 @@ module split_run_setup
   use run_config, only: run_configuration
   use command_line, only: petsc_error_text
   use failures, only: failure_type, set_failure => fail, code_input => failure_input
+  use dense_setup, only: dense_max_unknowns
+  use run_options, only: split_requested, dense_requested
   implicit none (type, external)
   private
-  public :: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, split_diagnostics
+  public :: split_run_wanted, split_from_unknowns, distributed_settings_of, split_system, set_up_distributed_only, split_diagnostics
   public :: split_steps_chosen
   public :: report_step, balanced_state_of
+
+  !> Beyond this many unknowns an integrator that solves equations takes a splittable model to the
+  !> split path on one process: its sparse LU beat the dense one from between 72 and 100 unknowns
+  !> for EME and the midpoint rule, from 48 for PETSc's BDF2 and midpoint, below 32 for
+  !> relaxed_gauss6 (docs/performance.md, Which path is faster).
+  integer, parameter :: split_from_unknowns = 64
 
 contains
 
   !> Whether `config`'s run goes to the split path on `ranks` ranks: its model can be split
-  !> (model_scene's `distributed`) and it runs on several ranks or has more than `dense_limit`
-  !> unknowns (the dense path's). A scene that cannot be built is left to the caller's run.
-  logical function split_run_wanted(config, ranks, dense_limit)
+  !> (model_scene's `distributed`) and it runs on several ranks, or on one process with -eme_split,
+  !> or, unless -eme_dense, has more than `dense_max_unknowns` unknowns (the dense path's limit), or
+  !> more than `split_from_unknowns` with an integrator that solves equations (docs/performance.md,
+  !> Which path is faster: the dense LU grows like n^3). A scene that cannot be built is left to
+  !> the caller's run.
+  logical function split_run_wanted(config, ranks)
     type(run_configuration), intent(in) :: config
-    integer, intent(in) :: ranks, dense_limit
+    integer, intent(in) :: ranks
     class(distributed_system), allocatable :: system
     class(generic_model), allocatable :: model
     real(real64), allocatable :: z0(:)
     type(constraint_slot), allocatable :: constraints(:)
     type(failure_type) :: building
+    type(integrator_entry) :: entry
+    logical :: found, forced_split, forced_dense
 
+    forced_split = split_requested()
+    forced_dense = dense_requested()
     call config%scene%distributed(config%integrator%scheme, system)
     split_run_wanted = allocated(system)
-    if (.not. split_run_wanted .or. ranks > 1) return
+    if (.not. split_run_wanted .or. ranks > 1 .or. forced_split) return
     call config%scene%build(config%integrator%thermo_variable, model, z0, constraints, building)
-    split_run_wanted = .not. building%failed() .and. size(z0) > dense_limit
+    split_run_wanted = .false.
+    if (building%failed() .or. forced_dense) return
+    call find_integrator(config%integrator%scheme, entry, found)
+    split_run_wanted = size(z0) > dense_max_unknowns .or. &
+                       (found .and. entry%reads_newton_settings .and. size(z0) > split_from_unknowns)
   end function split_run_wanted
 
   !> Whether the split path's steps are the integrator's own, each reporting the time it reached, as

@@ -22,7 +22,7 @@ typedef struct {
 /* The step solver's options (docs/integrators.md), then the run's (docs/running.md). */
 enum {
     CHORD_PREDICTOR, FUSED_KERNEL, LEAN_SNES, DIRECT_NEWTON, FINAL_CHORD, MODIFIED_NEWTON, CHORD_ITERATIONS, MAX_HALVINGS,
-    ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE, CONTINUE, SPLIT, OPTION_COUNT
+    ERROR_ESTIMATE, ERROR_SCALE, PROGRESS, OVERWRITE, CONTINUE, SPLIT, DENSE, OPTION_COUNT
 };
 static const eme_option options[OPTION_COUNT] = {
     {"-eme_chord_predictor", "<true>", "Refine each step's predictor by one chord step with the last step's LU factors",
@@ -77,9 +77,13 @@ static const eme_option options[OPTION_COUNT] = {
      "(docs/faults.md: Continuing a run)",
      LOGICAL, 0, 0},
     {"-eme_split", "<false>",
-     "Run a model that can be split over ranks (the spring chain) on the sparse split path also on one process "
-     "and below 1000 unknowns, where implicit steps are faster from about 100 unknowns (docs/performance.md: "
-     "Two paths)",
+     "Run a model that can be split over ranks (the spring chain) on the sparse split path on one process at any "
+     "size (by default an integrator that solves equations takes it beyond 64 unknowns, the others beyond 1000; "
+     "docs/performance.md: Two paths)",
+     LOGICAL, 0, 0},
+    {"-eme_dense", "<false>",
+     "Run a spring chain of at most 1000 unknowns on the dense path on one process, as eme_run did before 64 "
+     "unknowns took implicit steps to the split path (its state in /state rows; docs/performance.md: Two paths)",
      LOGICAL, 0, 0},
 };
 
@@ -222,9 +226,11 @@ PetscErrorCode eme_read_step_control_options(int *record, double *scale)
 }
 
 /* Reads -eme_progress (into *progress, and whether it was given into *progress_given),
- * -eme_overwrite (into *overwrite), -eme_continue (into *resume) and -eme_split (into *split);
- * the flags' values on entry are the defaults. Returns a PETSc error code. */
-PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite, int *resume, int *split)
+ * -eme_overwrite (into *overwrite), -eme_continue (into *resume), -eme_split (into *split) and
+ * -eme_dense (into *dense); the flags' values on entry are the defaults. Returns a PETSc error
+ * code. */
+PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *overwrite, int *resume, int *split,
+                                    int *dense)
 {
     const char *section = "docs/running.md";
 
@@ -234,6 +240,7 @@ PetscErrorCode eme_read_run_options(int *progress, int *progress_given, int *ove
     PetscCall(bool_option(PetscOptionsObject, OVERWRITE, section, overwrite, NULL));
     PetscCall(bool_option(PetscOptionsObject, CONTINUE, section, resume, NULL));
     PetscCall(bool_option(PetscOptionsObject, SPLIT, section, split, NULL));
+    PetscCall(bool_option(PetscOptionsObject, DENSE, section, dense, NULL));
     PetscOptionsEnd();
     PetscFunctionReturn(0);
 }

@@ -231,7 +231,7 @@ def test_a_mode_follows_the_midpoint_map_of_the_linearised_chain(tmp_path, n, la
         initial, modes = start(chain, law, gamma0, amplitude, mode, directory)
         groups = {"model": model_group(chain, law), "initial": initial,
                   "integrator": integrator_group(law, variable, dt, steps, gradient=gradient)}
-        result, path = run_eme(directory, "mode", groups)
+        result, path = run_eme(directory, "mode", groups, "-eme_dense")
         assert result.returncode == 0, result.stderr
         got = nodal_deviations(chain, gamma0, *read_chain_rows(path, chain, law)[:4])
         assert got.shape[0] == steps + 1
@@ -389,7 +389,7 @@ def test_every_step_of_a_200_spring_chain_keeps_each_balance(tmp_path):
               "initial": {"gamma": float(gamma0), "theta": list(theta_start), "perturbation": "mode",
                           "mode_number": 3, "amplitude": 0.02},
               "integrator": integrator_group(law, "internal_energy", dt, steps, newton_tol=1e-11)}
-    result, path = run_eme(tmp_path, "steps", groups)
+    result, path = run_eme(tmp_path, "steps", groups, "-eme_dense")
     assert result.returncode == 0, result.stderr
     x, _, gamma, _, series = read_chain_rows(path, chain, law)
     with h5py.File(path, "r") as f:

@@ -63,7 +63,7 @@ def test_split_relaxed_steps_are_the_dense_ones(tmp_path, scheme, variable, tau)
     moves the state by gamma's error times |d|."""
     links, dimension, steps = 12, 3, 40
     groups = relaxed_chain(scheme=scheme, variable=variable, links=links, dimension=dimension)
-    result, dense_file = run_eme(tmp_path, "dense", groups)
+    result, dense_file = run_eme(tmp_path, "dense", groups, "-eme_dense")
     assert result.returncode == 0, result.stderr
     result, split_file = run_split(tmp_path, "split", groups, 2)
     assert result.returncode == 0, result.stderr

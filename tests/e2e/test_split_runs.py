@@ -58,7 +58,7 @@ def test_a_split_run_is_the_dense_run(tmp_path, shape, launch):
     # newton_tol far below rounding: each step's Newton stops at its rounding floor on both paths.
     groups = chain_groups(**shape, steps=100, dt=0.005, newton_tol=1.0e-30)
     groups["output"] = {"snapshot_every": 25}
-    result, dense_file = run_eme(tmp_path, "dense", groups)
+    result, dense_file = run_eme(tmp_path, "dense", groups, "-eme_dense")
     assert result.returncode == 0, result.stderr
     unread = "&output: snapshot_every is read by the split path only"      # the dense path says so
     assert unread in result.stderr
@@ -100,6 +100,52 @@ def test_a_split_run_is_the_dense_run(tmp_path, shape, launch):
 
 
 
+@pytest.mark.parametrize("springs, scheme, options, split", [
+    (16, "eme", (), False),                    # 62 unknowns: at most 64, dense
+    (17, "eme", (), True),                     # 66: EME solves equations, split
+    (17, "midpoint", (), True),
+    (17, "relaxed_gauss6", (), True),
+    (17, "ts_bdf2", (), True),
+    (17, "relaxed_rk4", (), False),            # explicit: dense up to 1000 unknowns
+    (17, "ts_rk4", (), False),
+    (17, "eme", ("-eme_dense",), False),
+    (4, "eme", ("-eme_split",), True),
+], ids=["eme-62", "eme-66", "midpoint-66", "gauss6-66", "bdf2-66", "rk4-66", "ts-rk4-66", "eme-66-dense",
+        "eme-14-split"])
+def test_one_process_takes_the_faster_path_for_the_chain(tmp_path, springs, scheme, options, split):
+    """docs/performance.md, Which path is faster: on one process a chain goes to the split path
+    beyond 64 unknowns when its integrator solves equations, and stays dense up to 1000 with an
+    explicit one; -eme_dense and -eme_split choose. The file says which: /snapshots or /state."""
+    groups = rod_groups(springs, 4, dt=1.0e-5)
+    groups["integrator"]["scheme"] = scheme
+    if scheme.startswith("ts_"):
+        groups["integrator"].pop("newton_tol")
+    result, output = run_eme(tmp_path, "run", groups, *options)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(output, "r") as f:
+        assert f.attrs["unknowns"] == 4 * springs - 2
+        assert ("snapshots" in f, "state" in f) == (split, not split)
+
+
+def test_eme_dense_is_refused_with_eme_split_or_on_several_ranks(tmp_path):
+    """-eme_dense asks for one process on the dense path: with -eme_split, or under mpirun, it is
+    refused (exit 2, nothing written), by eme_run and by eme_ensemble."""
+    groups = rod_groups(17, 4)
+    namelist, output = write_input(tmp_path, "both", groups)
+    both = subprocess.run([str(BIN / "eme_run"), str(namelist), "-eme_dense", "-eme_split"], capture_output=True,
+                          text=True, timeout=120)
+    ranks, _ = run_split(tmp_path, "both", groups, 2, "-eme_dense")
+    for result in (both, ranks):
+        assert result.returncode == 2 and "-eme_dense asks for the dense path" in result.stderr, result.stderr
+    assert not output.exists() and not output.with_name("both.h5.part").exists()
+    study = tmp_path / "study.nml"
+    study.write_text(namelist.read_text() + f"&study\n  output_dir = '{tmp_path / 'study'}'\n/\n")
+    refused = subprocess.run([str(BIN / "eme_ensemble"), str(study), "-eme_dense", "-eme_split"], capture_output=True,
+                             text=True, timeout=120)
+    assert refused.returncode == 2 and "-eme_split and -eme_dense ask for both paths" in refused.stderr, refused.stderr
+    assert not (tmp_path / "study").exists()
+
+
 def test_eme_split_is_refused_where_the_run_cannot_be_split(tmp_path):
     """-eme_split asks for the split path: a model that has none (the pendulum) or an integrator
     the split path lacks (CVODE) is refused with exit 2 naming the reason, nothing written."""
@@ -125,7 +171,7 @@ def test_at_the_default_newton_tol_a_split_step_converges_as_a_dense_one(tmp_pat
     groups = {"model": {"model_name": "spring_chain", "links": 10, "dimension": 3},
               "initial": {"stretch": 1.5, "perturbation": "random", "amplitude": 0.2},
               "integrator": {"dt": 0.01, "t_end": 0.4}}
-    result, dense_file = run_eme(tmp_path, "dense", groups)
+    result, dense_file = run_eme(tmp_path, "dense", groups, "-eme_dense")
     assert result.returncode == 0, result.stderr
     result, split_file = run_split(tmp_path, "split", groups)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -178,7 +178,7 @@ def test_a_large_dense_chain_needs_no_large_stack(tmp_path, scheme):
     groups["output"] = {"file": str(tmp_path / "stack.h5")}
     namelist = tmp_path / "stack.nml"
     namelist.write_text(namelist_text(groups))
-    result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True, timeout=300,
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist), "-eme_dense"], capture_output=True, text=True, timeout=300,
                             preexec_fn=limited_stack(1))
     assert result.returncode == 0, (result.returncode, result.stderr)
     with h5py.File(tmp_path / "stack.h5", "r") as f:

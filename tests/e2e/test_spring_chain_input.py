@@ -142,7 +142,7 @@ def lowest_frequency(tmp_path, n_springs, rod, steps=80):
     initial = {"perturbation": "mode", "mode_number": 1, "amplitude": 1e-5 * h}
     integrator = {"dt": dt, "t_end": steps * dt, "newton_tol": 1e-13}
     result, path = run_eme(tmp_path, f"rod_{n_springs}", {"model": model, "initial": initial,
-                                                           "integrator": integrator})
+                                                           "integrator": integrator}, "-eme_dense")
     assert result.returncode == 0, result.stderr
     x = chain_rows(path, links, 1, rung="thermoelastic")[:, :links]
     i = np.arange(1, links + 1)
