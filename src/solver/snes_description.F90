@@ -19,15 +19,16 @@ contains
   !> (sub_ksp_type, sub_pc_type, sub_pc_factor_*) as the options database gives them, the
   !> factorisation's ordering `ordering` where the caller set it in code and no option replaced it
   !> (none when blank); `atol_rule`, unless blank, stands for ksp_atol where the caller sets it at
-  !> each solve.
-  subroutine describe_snes(snes, report, ierr, ordering, atol_rule)
+  !> each solve, and `line_search` for the line search's type where the caller's shell stands in
+  !> for a named one (src/solver/snes_solver).
+  subroutine describe_snes(snes, report, ierr, ordering, atol_rule, line_search)
     SNES, intent(in) :: snes
     type(solver_report), intent(inout) :: report
     PetscErrorCode, intent(out) :: ierr
-    character(len=*), intent(in), optional :: ordering, atol_rule
+    character(len=*), intent(in), optional :: ordering, atol_rule, line_search
     KSP :: ksp
     PC :: pc
-    SNESLineSearch :: line_search
+    SNESLineSearch :: search
     PetscReal :: atol, rtol, stol, divergence
     PetscInt :: max_iterations, max_evaluations, lag
     character(len=32) :: snes_type, line_search_type, ksp_type, pc_type
@@ -35,14 +36,15 @@ contains
     PetscCall(SNESGetType(snes, snes_type, ierr))
     PetscCall(SNESGetTolerances(snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     PetscCall(SNESGetLagJacobian(snes, lag, ierr))
-    PetscCall(SNESGetLineSearch(snes, line_search, ierr))
-    PetscCall(SNESLineSearchGetType(line_search, line_search_type, ierr))
+    PetscCall(SNESGetLineSearch(snes, search, ierr))
+    PetscCall(SNESLineSearchGetType(search, line_search_type, ierr))
     call add_setting(report, text_setting('snes_type', snes_type))
     call add_setting(report, number_setting('snes_atol', atol))
     call add_setting(report, number_setting('snes_rtol', rtol))
     call add_setting(report, number_setting('snes_stol', stol))
     call add_setting(report, integer_setting('snes_max_it', max_iterations))
     call add_setting(report, integer_setting('snes_lag_jacobian', lag))
+    if (.not. blank(line_search)) line_search_type = line_search
     call add_setting(report, text_setting('snes_linesearch_type', line_search_type))
     PetscCall(SNESGetKSP(snes, ksp, ierr))
     PetscCall(KSPGetType(ksp, ksp_type, ierr))

@@ -54,6 +54,7 @@ module snes_solver
   use snes_shell, only: solver_context, PCSetApplicationContext, converged_on_update, form_residual, form_jacobian, &
                         factor_operator, apply_lu, full_step
   use solver_options, only: step_solver_options, read_solver_options, option_given, option_value
+  use snes_description, only: describe_snes
   use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
                                 reasons_snes
   use failures, only: failure_type, fail_on_code, fail, failure_input
@@ -473,34 +474,17 @@ contains
     class(newton_solver), intent(in) :: self
     type(solver_report), intent(inout) :: report
     PetscErrorCode, intent(out) :: ierr
-    KSP :: ksp
-    PC :: pc
     PetscReal :: atol, rtol, stol
-    PetscInt :: max_iterations, max_evaluations, lag
-    character(len=32) :: snes_type, ksp_type, pc_type
+    PetscInt :: max_iterations, max_evaluations
 
-    PetscCall(SNESGetType(self%snes, snes_type, ierr))
-    PetscCall(SNESGetTolerances(self%snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
-    PetscCall(SNESGetLagJacobian(self%snes, lag, ierr))
-    PetscCall(SNESGetKSP(self%snes, ksp, ierr))
-    PetscCall(KSPGetType(ksp, ksp_type, ierr))
-    PetscCall(KSPGetPC(ksp, pc, ierr))
-    PetscCall(PCGetType(pc, pc_type, ierr))
     call add_setting(report, text_setting('name', 'PETSc SNES'))
-    call add_setting(report, text_setting('snes_type', snes_type))
-    call add_setting(report, number_setting('snes_atol', atol))
-    call add_setting(report, number_setting('snes_rtol', rtol))
-    call add_setting(report, number_setting('snes_stol', stol))
-    call add_setting(report, integer_setting('snes_max_it', max_iterations))
+    PetscCall(describe_snes(self%snes, report, ierr, line_search=self%line_search))
+    PetscCall(SNESGetTolerances(self%snes, atol, rtol, stol, max_iterations, max_evaluations, ierr))
     call add_setting(report, integer_setting('snes_max_funcs', max_evaluations))
-    call add_setting(report, integer_setting('snes_lag_jacobian', lag))
     call add_setting(report, text_setting('snes_convergence_test', 'retry_strategies newton_converged: |F| <= '// &
                                           'snes_atol after an update <= max(snes_atol, snes_stol |x|), or both at '// &
                                           'their rounding'))
-    call add_setting(report, text_setting('snes_linesearch_type', self%line_search))
     call add_setting(report, text_setting('fallback_linesearch_type', self%fallback_line_search))
-    call add_setting(report, text_setting('ksp_type', ksp_type))
-    call add_setting(report, text_setting('pc_type', pc_type))
     call add_setting(report, text_setting('eme_lean_snes', merge('true ', 'false', self%context%lean)))
     call add_setting(report, text_setting('eme_final_chord', merge('true ', 'false', self%context%final_chord)))
     call add_setting(report, text_setting('eme_modified_newton', merge('true ', 'false', self%keeps_factors())))
