@@ -409,15 +409,20 @@ contains
     type(study_manager), intent(inout) :: manager
     logical, intent(in) :: final
     real(real64) :: now, elapsed, remaining
-    character(len=:), allocatable :: interrupted, warned
+    character(len=:), allocatable :: interrupted, warned, left
     integer :: warned_cases
 
     now = MPI_Wtime()
     if (.not. final .and. now - manager%last_progress < progress_interval) return
     manager%last_progress = now
     elapsed = now - manager%started
-    remaining = 0.0_real64
-    if (manager%done_cost > 0) remaining = elapsed*(manager%planned_cost - manager%done_cost)/manager%done_cost
+    ! The time left from the cost done so far: none before any case is done (it said 'about 0.0 s
+    ! left' then) and none at the end.
+    left = ''
+    if (manager%done_cost > 0 .and. .not. final) then
+      remaining = elapsed*(manager%planned_cost - manager%done_cost)/manager%done_cost
+      left = ', about '//fixed_text(remaining, 1)//' s left'
+    end if
     ! What the index holds: a case interrupted by a signal or not run yet is neither complete nor failed.
     associate (results => manager%index%results)
       interrupted = ''
@@ -430,8 +435,7 @@ contains
       call say(manager, 'eme_ensemble: '//integer_text(count(results%status == 'complete'))//'/'// &
                integer_text(size(results))//' cases complete'//warned//', '// &
                integer_text(count(results%status(1:7) == 'failed:')) &
-               //' failed, '//interrupted//fixed_text(elapsed, 1)//' s elapsed, about '//fixed_text(remaining, 1)// &
-               ' s left')
+               //' failed, '//interrupted//fixed_text(elapsed, 1)//' s elapsed'//left)
     end associate
   end subroutine progress
 

@@ -186,5 +186,8 @@ def test_progress_counts_complete_and_failed_cases_apart(tmp_path):
 """)
     result = ensemble(study)
     assert result.returncode == 0, result.stderr
-    last = [line for line in result.stdout.splitlines() if "elapsed" in line][-1]
-    assert "1/2 cases complete, 1 failed" in last
+    lines = [line for line in result.stdout.splitlines() if "elapsed" in line]
+    assert "1/2 cases complete, 1 failed" in lines[-1]
+    # The last line estimates nothing; no line estimates before a case is done ('about 0.0 s left').
+    assert lines[-1].endswith(" s elapsed"), lines[-1]
+    assert not any(line.startswith("eme_ensemble: 0/") and "left" in line for line in lines), lines
