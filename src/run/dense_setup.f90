@@ -65,7 +65,8 @@ contains
     call set_failure(failure, code_input, '&model: '//integer_text(unknowns)//' unknowns; the dense path (eme_run '// &
                      'on one rank, an eme_ensemble case) takes at most '//integer_text(dense_max_unknowns)// &
                      ' (state_size^2 memory, state_size^3 work); a longer spring chain runs on the sparse, '// &
-                     'distributed path: eme_run FILE.nml, or mpirun -n P eme_run FILE.nml (docs/performance.md)')
+                     'distributed path: eme_run FILE.nml (without -eme_dense), or mpirun -n P eme_run FILE.nml '// &
+                     '(docs/performance.md)')
   end subroutine check_dense_size
 
   !> Why the solver could not be set up: PETSc's own words (an unknown -snes_type, ...).

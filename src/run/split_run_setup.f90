@@ -21,7 +21,7 @@ module split_run_setup
   use run_options, only: split_requested, dense_requested
   implicit none (type, external)
   private
-  public :: split_run_wanted, split_from_unknowns, distributed_settings_of, split_system, set_up_distributed_only, split_diagnostics
+  public :: split_run_wanted, distributed_settings_of, split_system, set_up_distributed_only, split_diagnostics
   public :: split_steps_chosen
   public :: report_step, balanced_state_of
 
