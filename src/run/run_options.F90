@@ -16,6 +16,11 @@ module run_options
   public :: progress_wanted, overwrite_requested, continue_requested, split_requested, dense_requested, &
             petsc_options_in_force
 
+  !> The run's own flags as the options database sets them (src/solver/petsc_options.c; 0 or 1).
+  type :: run_flags
+    integer(c_int) :: progress = 0, progress_given = 0, overwrite = 0, resume = 0, split = 0, dense = 0
+  end type run_flags
+
   interface
     function eme_read_run_options(progress, progress_given, overwrite, resume, split, dense) &
       bind(C, name='eme_read_run_options') result(ierr)
@@ -36,11 +41,11 @@ contains
 
   !> Whether eme_run prints progress lines: -eme_progress as given, else when stderr is a terminal.
   logical function progress_wanted()
-    integer(c_int) :: progress, given, overwrite, resume, split, dense
+    type(run_flags) :: flags
 
-    call read_options(progress, given, overwrite, resume, split, dense)
-    if (given /= 0) then
-      progress_wanted = progress /= 0
+    flags = read_flags()
+    if (flags%progress_given /= 0) then
+      progress_wanted = flags%progress /= 0
     else
       progress_wanted = stderr_is_terminal()
     end if
@@ -48,34 +53,34 @@ contains
 
   !> Whether the command line asks to replace an existing complete result (-eme_overwrite).
   logical function overwrite_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split, dense
+    type(run_flags) :: flags
 
-    call read_options(progress, given, overwrite, resume, split, dense)
-    overwrite_requested = overwrite /= 0
+    flags = read_flags()
+    overwrite_requested = flags%overwrite /= 0
   end function overwrite_requested
 
   !> Whether the command line asks to continue the run that the output file holds (-eme_continue).
   logical function continue_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split, dense
+    type(run_flags) :: flags
 
-    call read_options(progress, given, overwrite, resume, split, dense)
-    continue_requested = resume /= 0
+    flags = read_flags()
+    continue_requested = flags%resume /= 0
   end function continue_requested
 
   !> Whether the command line asks for the split path on one process too (-eme_split).
   logical function split_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split, dense
+    type(run_flags) :: flags
 
-    call read_options(progress, given, overwrite, resume, split, dense)
-    split_requested = split /= 0
+    flags = read_flags()
+    split_requested = flags%split /= 0
   end function split_requested
 
   !> Whether the command line asks for the dense path for a chain that would be split (-eme_dense).
   logical function dense_requested()
-    integer(c_int) :: progress, given, overwrite, resume, split, dense
+    type(run_flags) :: flags
 
-    call read_options(progress, given, overwrite, resume, split, dense)
-    dense_requested = dense /= 0
+    flags = read_flags()
+    dense_requested = flags%dense /= 0
   end function dense_requested
 
   !> The options database as text ('-name value ...'), as the run uses it.
@@ -92,23 +97,12 @@ contains
   end function petsc_options_in_force
 
   ! The run options as the database sets them (0 or 1; a value PETSc cannot read as a logical
-  ! counts as not given).
-  subroutine read_options(progress, given, overwrite, resume, split, dense)
-    integer(c_int), intent(out) :: progress, given, overwrite, resume, split, dense
+  ! counts as not given: all 0).
+  function read_flags() result(flags)
+    type(run_flags) :: flags
 
-    progress = 0
-    given = 0
-    overwrite = 0
-    resume = 0
-    split = 0
-    dense = 0
-    if (eme_read_run_options(progress, given, overwrite, resume, split, dense) /= 0) then
-      given = 0
-      overwrite = 0
-      resume = 0
-      split = 0
-      dense = 0
-    end if
-  end subroutine read_options
+    if (eme_read_run_options(flags%progress, flags%progress_given, flags%overwrite, flags%resume, flags%split, &
+                             flags%dense) /= 0) flags = run_flags()
+  end function read_flags
 
 end module run_options
