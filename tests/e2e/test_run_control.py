@@ -261,7 +261,10 @@ def test_signals_at_random_moments_of_short_runs(tmp_path, eme_run_binary, name)
         part = output.with_name("paper.h5.part")
         if part.exists():
             assert name == "SIGKILL"
-            assert check_run_file(part)[0] == "incomplete: running"
+            # complete only when the kill fell between the run's last write and the rename
+            # (test_kill_points reproduces that instant)
+            status, steps = check_run_file(part)
+            assert status == "incomplete: running" or (status, steps) == ("complete", 134), (status, steps)
 
 
 def test_a_complete_result_is_not_replaced_unless_asked(tmp_path, eme_run_binary):
