@@ -81,13 +81,18 @@ def parse_namelist(source):
 
 
 def namelist_value(value):
-    """A value text of the effective namelist: a text, a logical, or a list of numbers."""
+    """A value text of the effective namelist: a text, a logical, or a list of numbers, where
+    `r*x` stands for r copies of x (the namelist's repeat count)."""
     if value.startswith("'"):
         assert value.endswith("'") and len(value) >= 2, value
         return value[1:-1].replace("''", "'")
     if value.lower() in (".true.", ".false."):
         return value.lower() == ".true."
-    return [float(x) for x in value.split(",")]
+    numbers = []
+    for item in value.split(","):
+        count, _, number = item.strip().rpartition("*")
+        numbers += [float(number)] * (int(count) if count else 1)
+    return numbers
 
 
 def run_with_argv(argv, **environment):
@@ -256,6 +261,33 @@ def test_stored_namelist_reproduces_the_run(scene_runs, scene):
         assert np.array_equal(first[name], again[name]), (
             f"/{name} differs: {first[name].shape[0]} rows up to t = {first['time'][-1]} s in the run, "
             f"{again[name].shape[0]} rows up to t = {again['time'][-1]} s from its stored namelist")
+
+
+def test_a_chain_namelist_writes_runs_of_equal_values_once(tmp_path, eme_run_binary):
+    """A chain's per-spring and per-mass lists keep their runs of equal values as `r*x` (a chain
+    of 10^5 springs at one temperature spelled every value: megabytes that eme_run then refused
+    to read back, built in time like the square of the count), and the text still gives the same
+    run bit for bit."""
+    groups = {"model": {"model_name": "spring_chain", "links": 5, "dimension": 3, "mass": 1.0,
+                        "mu_eq_const": [300.0, 300.0, 250.0, 250.0, 250.0]},
+              "initial": {"theta": [300.0, 300.0, 300.0, 310.0, 300.0]},
+              "integrator": {"dt": 0.01, "t_end": 0.1}}
+    path = run_ok(tmp_path, "chain", groups)
+    stored = text(read_run(path)["attrs"]["namelist"])
+    fields = {field: value for section in parse_namelist(stored).values() for field, value in section.items()}
+    assert fields["theta"] == "3*300.0, 310.0, 300.0", stored
+    assert fields["mu_eq_const"] == "2*300.0, 3*250.0" and fields["p"] == "15*0.0", stored
+    assert namelist_value(fields["theta"]) == [300.0, 300.0, 300.0, 310.0, 300.0]
+    copy = tmp_path / "chain_again.h5"
+    rerun_text = stored.replace(f"file = '{path}'", f"file = '{copy}'")     # &output's, not &initial's
+    assert rerun_text != stored
+    (tmp_path / "chain_again.nml").write_text(rerun_text)
+    result = subprocess.run([str(BIN / "eme_run"), str(tmp_path / "chain_again.nml")], capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    first, again = read_run(path), read_run(copy)
+    assert text(again["attrs"]["namelist"]) == rerun_text
+    assert first["state"].shape[0] == 11 and np.array_equal(first["state"], again["state"])
 
 
 # -------------------------------------------------------------------------------------- xarray

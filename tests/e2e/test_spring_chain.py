@@ -192,7 +192,7 @@ BAD_INPUT = [
     ({"links": 2, "ends": "fixed-fixed"}, {"theta": [300.0, 310.0]}, "&initial: theta has 2 values; allowed: 1 or 3"),
     ({"links": 2}, {"x": [1.0, 0.0, 0.0]}, "&initial: x has 3 values; allowed: 6"),
     ({"spring_law": "thermoelastic", "beta_v": 0.5}, {}, "&model: beta_v is not a field of spring_law = 'thermoelastic'"),
-    ({"span": 3.0}, {}, "&model: span is not allowed with ends = 'fixed-free'"),
+    ({"span": 3.0}, {}, "&model: span is not a field of spring_law = 'thermoviscoelastic', ends = 'fixed-free'"),
 ]
 
 

@@ -50,6 +50,7 @@ contains
       if (input%rung() == rung_elastic) table = without(table, thermal_fields)
       if (input%family == family_rod) table = without(table, spring_fields)
       if (input%family == family_springs) table = without(table, rod_fields)
+      if (input%ends /= ends_fixed_fixed) table = without(table, [character(len=24) :: 'span'])
     case ('initial')
       table = initial_fields(input)
       if (.not. input%chosen) return

@@ -116,13 +116,6 @@ contains
       if (failure%failed()) return
       call read_group(text, 'model', self%fields('model'), origin, failure, extra)
       if (failure%failed()) return
-      where = given_origin(text, 'model', self%fields('model'), origin, 'span', extra)
-      if (input%ends /= ends_fixed_fixed .and. len(where) > 0) then
-        call fail(failure, failure_input, where// &
-                  ": &model: span is not allowed with ends = '"//trim(input%ends)//"'; allowed: span with ends = "// &
-                  "'fixed-fixed' (the second support's distance)", 'span')
-        return
-      end if
       call refuse_other_parts(self, text, 'initial', chain_fields(probe, 'initial'), origin, extra, failure)
       if (failure%failed()) return
       call read_group(text, 'initial', self%fields('initial'), origin, failure, extra)
