@@ -48,6 +48,7 @@ module distributed_simulation
   use filesystem, only: output_lock
   use rank_agreement, only: agree, share_outcome
   use failures, only: failure_type
+  use solver_description, only: solver_report
   implicit none (type, external)
   private
   public :: run_distributed, distributed_settings_of, split_run_wanted, set_up_distributed_only
@@ -83,6 +84,7 @@ contains
     type(integrator_entry) :: entry
     type(failure_type) :: step_failure, io_failure
     type(resume_record) :: resume       !! where a continued run starts (its last snapshot)
+    type(solver_report) :: solver       !! the solver as the file records it
     character(len=:), allocatable :: kind, text, status, stored
     logical :: steps_chosen           !! the steps are the integrator's (split_steps_chosen)
     logical :: found, continuing, completed, may_write
@@ -159,10 +161,14 @@ contains
     ! The file: its layout and first point, written whole at once (the first write takes no
     ! snapshot: every later one goes through a window's spare); a continued run's file goes on
     ! from its record's rows, its snapshots all there.
+    ! Every rank describes its solver, though rank 0 alone writes it: asking PETSc may create an
+    ! object (a ksponly SNES's line search), which takes a message tag on the ranks' communicator;
+    ! created on rank 0 alone, the ranks' later tags differed and `-ts_type rosw` hung in its first
+    ! matrix product on 2 ranks.
+    solver = run%system%describe_solver()
     if (run%rank == 0 .and. keeping .and. .not. failure%failed()) then
       call open_run_file(run%output, run%part, config, entry, run%model, constraints, split_diagnostics(run%system, entry), &
-                         run%system%describe_solver(), continuing, resume, summary, failure, extras, durable, &
-                         state_rows=.false.)
+                         solver, continuing, resume, summary, failure, extras, durable, state_rows=.false.)
       if (.not. (continuing .or. failure%failed())) then
         call run%record_point(0.0_real64, .true.)
         call run%output%write_rows(summary, io_failure)

@@ -8,6 +8,8 @@ sparse df/dz, assembled by the ranks that own the rows, are TS's RHS function an
 - a split BDF2 run on two ranks is the dense path's ts_bdf2 run of the same input, and one rank
   and two give the same split run;
 - what the split path cannot run is refused (exit 2, nothing written)."""
+import os
+import signal
 import subprocess
 
 import h5py
@@ -138,6 +140,34 @@ def test_one_rank_and_two_give_the_same_split_bdf_run(tmp_path):
             expected = a[f"snapshots/{name}"][()]
             assert np.max(np.abs(b[f"snapshots/{name}"][()] - expected)) <= 1e-8 * max(1.0, np.max(np.abs(expected)))
         assert np.all(np.diff(a["entropy"][()]) > 0.0)             # a dissipative run, not a still one
+
+
+def test_a_rosenbrock_w_ts_runs_on_two_ranks(tmp_path):
+    """`-ts_type rosw` (linearly implicit: its SNES is ksponly, which makes no line search when it
+    is set up) on two ranks. Rank 0 alone described the solver for the file, and asking for the
+    line search created one there: the object took a message tag of the ranks' communicator on
+    rank 0 only, the ranks' later tags differed, and the first matrix product waited forever."""
+    groups = bdf_groups(links=8, dimension=2, ends="fixed-fixed")
+    namelist, output = write_input(tmp_path, "rosw", groups)
+    process = subprocess.Popen([*MPIRUN, "-n", "2", str(BIN / "eme_run"), str(namelist), "-ts_type", "rosw"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        _, err = process.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        # mpirun and its ranks, which Open MPI puts in process groups of their own but which stay
+        # in mpirun's session
+        for pid in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                if os.getsid(int(pid)) == process.pid:
+                    os.kill(int(pid), signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        process.communicate()
+        pytest.fail("-ts_type rosw on two ranks did not end within 120 s")
+    assert process.returncode == 0, err
+    with h5py.File(output, "r") as f:
+        assert f.attrs["status"] == "complete" and f.attrs["steps_completed"] == 40
+        assert f.attrs["solver_ts_type"] == "rosw" and f.attrs["solver_snes_type"] == "ksponly"
 
 
 @pytest.mark.parametrize("change, words", [
