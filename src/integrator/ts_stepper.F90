@@ -18,6 +18,7 @@ module ts_stepper
   use stepper, only: time_stepper, step_report, solver_report, no_residual, accept_in_domain
   use solver_description, only: add_setting, text_setting, set_petsc_reasons, reasons_ts
   use ts_description, only: describe_ts
+  use ts_type_check, only: refuse_other_problem_forms
   use dense_assembly, only: assemble_jacobian
   use failures, only: failure_type, fail, fail_on_code, failure_input, failure_mismatch
   implicit none
@@ -110,6 +111,7 @@ contains
 
     call start_petsc(self, choice, model, constraints, z0, ierr)
     call fail_on_code(failure, ierr, 'ts_baseline%start', 'PETSc could not set up the TS')
+    if (.not. failure%failed()) call refuse_other_problem_forms(self%ts, failure)
     if (size(constraints) > 0) call fail(failure, failure_input, 'the PETSc TS baselines take no constraints', &
                                          'ts_baseline%start')
   end subroutine start

@@ -170,6 +170,28 @@ def test_a_rosenbrock_w_ts_runs_on_two_ranks(tmp_path):
         assert f.attrs["solver_ts_type"] == "rosw" and f.attrs["solver_snes_type"] == "ksponly"
 
 
+@pytest.mark.parametrize("ts_type, needs", [("alpha2", "a second-order equation (TSSetI2Function)"),
+                                             ("discgrad", "its own discrete-gradient formulation"),
+                                             ("mimex", "an implicit part of the equations (TSSetIFunction)"),
+                                             ("mprk", "slow and fast parts (TSRHSSplitSetIS)")])
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_ts_type_that_needs_another_form_of_the_problem_is_refused(tmp_path, ts_type, needs, ranks):
+    """PETSc is given dz/dt = f(z) and df/dz only; alpha2, discgrad and mimex crashed in their first
+    step without what they need (a segmentation fault and PETSc's traceback, the file left
+    'incomplete: running'), mprk stopped there. Refused at set-up, on the dense path (one process)
+    and split over two ranks, with nothing written."""
+    groups = bdf_groups(links=8, dimension=2, ends="fixed-fixed")
+    namelist, output = write_input(tmp_path, "refused", groups)
+    command = [str(BIN / "eme_run"), str(namelist), "-ts_type", ts_type]
+    if ranks > 1:
+        command = [*MPIRUN, "-n", str(ranks), *command]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    assert f"-ts_type {ts_type} is not allowed: PETSc's {ts_type} needs" in result.stderr and needs in result.stderr
+    assert "PETSC ERROR" not in result.stderr
+    assert not any(path.name.startswith(output.name) for path in tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("change, words", [
     ({"scheme": "cvode_bdf"}, "allowed: 'eme', 'midpoint', the relaxed schemes (relaxed_rk4, "
                               "relaxed_rk8, relaxed_dp853, relaxed_gauss6) and the PETSc TS integrators 'ts_midpoint', "

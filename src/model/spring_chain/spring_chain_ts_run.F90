@@ -24,6 +24,7 @@ module spring_chain_ts_run
   use model_interface, only: generic_model
   use solver_description, only: solver_report, add_setting, text_setting, set_petsc_reasons, reasons_ts
   use ts_description, only: describe_ts
+  use ts_type_check, only: refuse_other_problem_forms
   use distributed_model, only: distributed_settings, distributed_step, distributed_part
   use spring_chain_dmda, only: distributed_chain, set_default_linear_solver
   use spring_chain_linear_solver, only: settings_in_code
@@ -78,6 +79,7 @@ contains
     if (failure%failed()) return
     call start_petsc(self, settings, ierr)
     call fail_on_code(failure, ierr, 'setting up the chain''s PETSc TS')
+    if (.not. failure%failed()) call refuse_other_problem_forms(self%ts, failure)
   end subroutine start
 
   subroutine start_petsc(self, settings, ierr)
