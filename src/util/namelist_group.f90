@@ -254,9 +254,34 @@ contains
     type(group_field), intent(in) :: field
     character(len=:), allocatable :: message
 
-    message = origin//': &'//group//': '//trim(field%name)//' = '//field_value_text(field)//' is not allowed; allowed: ' &
-              //trim(field%allowed)
+    integer :: first
+
+    first = 0
+    if (field%kind == field_real .and. associated(field%real_values)) then
+      if (given_count(field%real_values) > 1) first = first_outside(field, field%real_values)
+    end if
+    if (first > 0) then
+      ! The first value outside its bounds, by its namelist subscript: of 10^5 values one is wrong.
+      message = origin//': &'//group//': '//trim(field%name)//'('//integer_text(first)//') = '// &
+                reals_text(field%real_values(first:first))//' (value '//integer_text(first)//' of '// &
+                integer_text(given_count(field%real_values))//') is not allowed; allowed: '//trim(field%allowed)
+    else
+      message = origin//': &'//group//': '//trim(field%name)//' = '//field_value_text(field)//' is not allowed; '// &
+                'allowed: '//trim(field%allowed)
+    end if
   end function invalid_value_message
+
+  ! How many of a reading array's values were given: those before its unset tail (huge()), at
+  ! least one.
+  pure integer function given_count(values)
+    real(real64), intent(in) :: values(:)
+
+    given_count = size(values)
+    do while (given_count > 1)
+      if (values(given_count) < huge(1.0_real64)) exit
+      given_count = given_count - 1
+    end do
+  end function given_count
 
   !> The field's value as a user would write it (texts quoted).
   function field_value_text(field) result(text)
@@ -292,11 +317,7 @@ contains
     integer, parameter :: most = 8
     integer :: given
 
-    given = size(values)
-    do while (given > 1)
-      if (values(given) < huge(1.0_real64)) exit
-      given = given - 1
-    end do
+    given = given_count(values)
     if (given <= most) then
       text = reals_text(values(1:given))
     else
@@ -609,15 +630,8 @@ contains
       else
         values = field%real_values
       end if
-      if (field%exclusive) then
-        within_bounds = all(values > field%minimum)
-      else if (field%minimum > -huge(1.0_real64)) then
-        within_bounds = all(values >= field%minimum)
-      end if
-      if (field%maximum < huge(1.0_real64)) within_bounds = within_bounds .and. all(values <= field%maximum)
+      within_bounds = first_outside(field, values) == 0
       if (field%nonzero) within_bounds = within_bounds .and. norm2(values) > 0.0_real64
-      if (field%check_equal) within_bounds = within_bounds .and. &
-                                             all(abs(values - field%required) <= 1.0e-12_real64*abs(field%required))
     case (field_integer)
       within_bounds = real(field%integer_value, real64) >= field%minimum .and. &
                       real(field%integer_value, real64) <= field%maximum
@@ -625,6 +639,32 @@ contains
       if (allocated(field%choices)) within_bounds = is_choice(trim(field%text_value), field%choices)
     end select
   end function within_bounds
+
+  ! The first of `values` outside the real field's bounds, each taken alone (its minimum, exclusive
+  ! or not, its maximum and its required value), or 0. A loop: a chain's reading arrays hold up to
+  ! 3 x 10^5 values, whose mask would be a temporary on the stack.
+  pure integer function first_outside(field, values)
+    type(group_field), intent(in) :: field
+    real(real64), intent(in) :: values(:)
+    logical :: inside
+    integer :: i
+
+    do i = 1, size(values)
+      inside = .true.
+      if (field%exclusive) then
+        inside = values(i) > field%minimum
+      else if (field%minimum > -huge(1.0_real64)) then
+        inside = values(i) >= field%minimum
+      end if
+      if (field%maximum < huge(1.0_real64)) inside = inside .and. values(i) <= field%maximum
+      if (field%check_equal) inside = inside .and. abs(values(i) - field%required) <= 1.0e-12_real64*abs(field%required)
+      if (.not. inside) then
+        first_outside = i
+        return
+      end if
+    end do
+    first_outside = 0
+  end function first_outside
 
   ! Whether `word` is one of the blank-separated `choices`.
   pure logical function is_choice(word, choices)

@@ -171,8 +171,9 @@ def test_what_the_sparse_path_cannot_run_is_refused(tmp_path, change, field):
 
 
 def test_a_refused_list_of_many_values_is_quoted_short(tmp_path):
-    """A refused field of 2000 values: the message quotes the first values and their number, not the
-    whole list (nor the reading array's unset tail), and comes at once."""
+    """A refused field of 2000 values: the message names the first value outside the field's
+    bounds by its namelist subscript (1-based) and the number given, not the whole list (nor the
+    reading array's unset tail), and comes at once."""
     groups = rod_groups(2000, 1)
     groups["model"]["mu_eq_const"] = [10.0] * 1500 + [-1.0] + [10.0] * 499
     groups["output"] = {"file": str(tmp_path / "refused.h5")}
@@ -180,8 +181,24 @@ def test_a_refused_list_of_many_values_is_quoted_short(tmp_path):
     namelist.write_text(namelist_text(groups))
     result = subprocess.run([str(BIN / "chain_bench"), str(namelist)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
-    assert "&model: mu_eq_const = 10.0, 10.0" in result.stderr and "... (2000 values) is not allowed" in result.stderr
+    assert "&model: mu_eq_const(1501) = -1.0 (value 1501 of 2000) is not allowed; allowed: " in result.stderr
     assert len(result.stderr) < 1000
+
+
+def test_a_temperature_above_its_springs_stiffness_bound_is_named_alone(tmp_path):
+    """One of 300 namelist temperatures above its spring's bound theta_ref + mu_eq_const/mu_eq_slope
+    (300 + 200/0.5 = 700 K): the message names that value by its subscript and its spring, not the
+    300 values (2,278 bytes before)."""
+    groups = {"model": {"model_name": "spring_chain", "links": 300, "dimension": 1},
+              "initial": {"theta": [300.0] * 123 + [800.0] + [300.0] * 176},
+              "output": {"file": str(tmp_path / "refused.h5")}}
+    namelist = tmp_path / "refused.nml"
+    namelist.write_text(namelist_text(groups))
+    result = subprocess.run([str(BIN / "eme_run"), str(namelist)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert ("&initial: theta(124) = 800.0 is not allowed: spring 124's stiffness mu_eq(theta) of eq. (17) is -50.0 J"
+            in result.stderr), result.stderr
+    assert len(result.stderr) < 400 and not list(tmp_path.glob("refused.h5*"))
 
 
 def test_snapshots_of_a_split_chain_are_its_state(tmp_path):

@@ -137,12 +137,15 @@ contains
       end if
       call stiffness_problem(input, a, stiffness)
       if (a > 0) then
+        ! The one temperature by its index (h5py's from 0, the namelist's from 1), not the list.
         if (len_trim(input%file) > 0) then
           where = where//": &initial: file = '"//trim(input%file)//"': dataset theta["//integer_text(a - 1)//'] = '
+        else if (size(input%theta) > 1) then
+          where = value_origin(text, 'initial', 'theta', origin, extra)//': &initial: theta('//integer_text(a)//') = '
         else
           where = value_origin(text, 'initial', 'theta', origin, extra)//': &initial: theta = '
         end if
-        call fail(failure, failure_input, where//reals_text(input%theta)//' is not allowed: spring '// &
+        call fail(failure, failure_input, where//reals_text(input%theta(a:a))//' is not allowed: spring '// &
                   integer_text(a)//'''s stiffness mu_eq(theta) of eq. (17) is '//reals_text([stiffness])// &
                   ' J; allowed: temperatures below theta_ref + mu_eq_const/mu_eq_slope', 'theta')
         return
