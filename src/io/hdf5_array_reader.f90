@@ -1,14 +1,17 @@
 !> The arrays a scene's input names in an HDF5 file (a spring chain's &initial file, with datasets
-!> q, p, gamma, theta): one numeric dataset read whole as real64, in the file's (C, row-major)
-!> order, with its shape as h5py gives it. The file is opened read-only through hdf5_files; a
+!> q, p, gamma, theta, or a run file's /snapshots): one numeric dataset read whole as real64, or
+!> one row of it along its first axis (a snapshot), in the file's (C, row-major) order, with its
+!> shape as h5py gives it. The file is opened read-only through hdf5_files; a
 !> relative path is relative to the folder of the namelist that names it (docs/input.md, Paths).
 module hdf5_array_reader
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_loc, c_ptr
   use hdf5, only: hid_t, hsize_t, h5lexists_f, h5dopen_f, h5dclose_f, h5dget_space_f, h5dget_type_f, h5sclose_f, &
                   h5tclose_f, h5tget_class_f, h5sget_simple_extent_ndims_f, h5sget_simple_extent_dims_f, h5dread_f, &
-                  H5T_FLOAT_F, H5T_INTEGER_F, H5T_NATIVE_DOUBLE
+                  H5T_FLOAT_F, H5T_INTEGER_F, H5T_NATIVE_DOUBLE, h5screate_simple_f, h5sselect_hyperslab_f, &
+                  H5S_SELECT_SET_F
   use failures, only: failure_type, fail, failure_io
+  use number_text, only: integer_text
   use hdf5_files, only: hdf5_file, hdf5_file_kind, not_hdf5
   use model_scene, only: array_reader
   implicit none
@@ -26,13 +29,14 @@ contains
 
   !> Dataset `name` of the HDF5 file `path` (model_scene's read_array); a failure's message starts
   !> with the path as resolved.
-  subroutine read_array(self, path, name, values, shape, found, failure)
+  subroutine read_array(self, path, name, values, shape, found, failure, row)
     class(hdf5_arrays), intent(in) :: self
     character(len=*), intent(in) :: path, name
     real(real64), allocatable, intent(out) :: values(:)
     integer, allocatable, intent(out) :: shape(:)
     logical, intent(out) :: found
     type(failure_type), intent(out) :: failure
+    integer, intent(in), optional :: row
     type(hdf5_file) :: file
     type(failure_type) :: closing
     character(len=:), allocatable :: where
@@ -55,23 +59,25 @@ contains
       failure%message = where//': '//failure%message
       return
     end if
-    call read_dataset(file%id, where, name, values, shape, found, failure)
+    call read_dataset(file%id, where, name, values, shape, found, failure, row)
     call file%close(closing)
     if (.not. failure%failed() .and. closing%failed()) failure = closing
   end subroutine read_array
 
-  ! Dataset `name` of the open file `file_id`, if it exists, read whole as real64.
-  subroutine read_dataset(file_id, where, name, values, shape, found, failure)
+  ! Dataset `name` of the open file `file_id`, if it exists, read whole as real64, or its row `row`
+  ! (from 0) along the first axis.
+  subroutine read_dataset(file_id, where, name, values, shape, found, failure, row)
     integer(hid_t), intent(in) :: file_id
     character(len=*), intent(in) :: where, name
     real(real64), allocatable, target, intent(inout) :: values(:)
     integer, allocatable, intent(inout) :: shape(:)
     logical, intent(out) :: found
     type(failure_type), intent(out) :: failure
-    integer(hid_t) :: dataset, space, stored
-    integer(hsize_t), allocatable :: dims(:), most(:)
+    integer, intent(in), optional :: row
+    integer(hid_t) :: dataset, space, stored, memory
+    integer(hsize_t), allocatable :: dims(:), most(:), start(:), count(:)
     type(c_ptr) :: buffer
-    integer :: stat, rank, class
+    integer :: stat, rank, class, k
 
     call h5lexists_f(file_id, name, found, stat)
     found = found .and. stat == 0
@@ -89,7 +95,7 @@ contains
     call h5tget_class_f(stored, class, stat)
     if (class /= H5T_FLOAT_F .and. class /= H5T_INTEGER_F) then
       call fail(failure, failure_io, where//': dataset '''//name//''' holds no numbers', name)
-    else
+    else if (.not. present(row)) then
       shape = int(dims(size(dims):1:-1))    ! HDF5's Fortran interface gives the dimensions reversed
       deallocate (values)
       allocate (values(product(shape)))
@@ -99,6 +105,27 @@ contains
         if (stat /= 0) call fail(failure, failure_io, where//': dataset '''//name//''' cannot be read (a damaged file)', &
                                  name)
       end if
+    else if (rank < 1) then
+      call fail(failure, failure_io, where//': dataset '''//name//''' has no rows', name)
+    else if (row < 0 .or. row >= int(dims(rank))) then
+      call fail(failure, failure_io, where//': dataset '''//name//''' has no row '//integer_text(row)// &
+                ' (it has '//integer_text(int(dims(rank)))//')', name)
+    else
+      ! The row: the last of HDF5's reversed dimensions is h5py's first.
+      shape = int(dims(size(dims) - 1:1:-1))
+      start = [(0_hsize_t, k=1, rank - 1), int(row, hsize_t)]
+      count = [dims(1:rank - 1), 1_hsize_t]
+      deallocate (values)
+      allocate (values(max(1, product(shape))))
+      call h5sselect_hyperslab_f(space, H5S_SELECT_SET_F, start, count, stat)
+      if (stat == 0) call h5screate_simple_f(rank, count, memory, stat)
+      if (stat == 0) then
+        buffer = c_loc(values(1))
+        call h5dread_f(dataset, H5T_NATIVE_DOUBLE, buffer, stat, memory, space)
+        call h5sclose_f(memory, class)
+      end if
+      if (stat /= 0) call fail(failure, failure_io, where//': dataset '''//name//''' cannot be read (a damaged file)', &
+                               name)
     end if
     call h5tclose_f(stored, stat)
     call h5sclose_f(space, stat)

@@ -39,7 +39,7 @@ module model_scene
     !> Dataset `name` of the file at `path`: its values in the file's (C, row-major) order and its
     !> shape as h5py gives it; found = .false. if the file has no such dataset; a failure
     !> (failure_io) if the file cannot be read or the dataset holds no numbers, naming why.
-    subroutine read_array_interface(self, path, name, values, shape, found, failure)
+    subroutine read_array_interface(self, path, name, values, shape, found, failure, row)
       import :: array_reader, real64, failure_type
       class(array_reader), intent(in) :: self
       character(len=*), intent(in) :: path, name
@@ -47,6 +47,7 @@ module model_scene
       integer, allocatable, intent(out) :: shape(:)
       logical, intent(out) :: found
       type(failure_type), intent(out) :: failure
+      integer, intent(in), optional :: row   !! one row along the first axis (from 0): shape drops that axis
     end subroutine read_array_interface
 
     !> The namelist groups the scene reads, in reading order.

@@ -323,6 +323,41 @@ def test_a_missing_or_foreign_initial_file_is_refused(tmp_path):
         assert not path.exists()
 
 
+def test_a_run_files_snapshot_is_a_runs_start(tmp_path):
+    """&initial file = a split run's file, snapshot = k: the run starts from its k-th snapshot (q, p,
+    gamma, theta of /snapshots, row k from 0; -1 the last). A 20-spring chain in the temperature
+    variable (the snapshot holds the state itself): 10 steps from snapshot 1 (step 5) give the
+    first run's snapshot 2 (step 10) bit for bit; the last (-1) is snapshot 2. A snapshot beyond the
+    file's, or asked of a file without /snapshots, is refused with nothing written."""
+    chain = {"model_name": "spring_chain", "links": 20, "ends": "fixed-fixed", "dimension": 2}
+    first = {"model": chain, "initial": {"theta": [320.0] * 10 + [290.0] * 11, "perturbation": "random"},
+             "integrator": {"thermo_variable": "temperature", "dt": 0.01, "t_end": 0.1},
+             "output": {"snapshot_every": 5}}
+    result, source = run_eme(tmp_path, "first", first)
+    assert result.returncode == 0, result.stderr
+    again = {"model": chain, "initial": {"file": source.name, "snapshot": 1},
+             "integrator": {"thermo_variable": "temperature", "dt": 0.01, "t_end": 0.05}}
+    result, path = run_eme(tmp_path, "again", again)
+    assert result.returncode == 0, result.stderr
+    last = dict(again, initial={"file": source.name})
+    result, from_last = run_eme(tmp_path, "last", last)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(source, "r") as a, h5py.File(path, "r") as b, h5py.File(from_last, "r") as c:
+        assert a["snapshots/time"].shape[0] == 3
+        for name in ("q", "p", "gamma", "theta"):
+            assert np.array_equal(b[f"snapshots/{name}"][0], a[f"snapshots/{name}"][1]), name
+            assert np.array_equal(b[f"snapshots/{name}"][-1], a[f"snapshots/{name}"][2]), name
+            assert np.array_equal(c[f"snapshots/{name}"][0], a[f"snapshots/{name}"][2]), name
+    result, refused = run_eme(tmp_path, "beyond", dict(again, initial={"file": source.name, "snapshot": 3}))
+    assert result.returncode == 2 and "snapshot = 3 is not allowed: the file has 3 snapshots; allowed: 0 to 2" \
+        in result.stderr, result.stderr
+    model, state = file_chain()
+    write_state(tmp_path / "state.h5", state)
+    result, plain = run_eme(tmp_path, "plain", {"model": model, "initial": {"file": "state.h5", "snapshot": 0}})
+    assert result.returncode == 2 and "snapshot = 0 is not allowed: the file has no /snapshots" in result.stderr
+    assert not refused.exists() and not plain.exists()
+
+
 COLLAPSED = [
     ({"links": 2, "dimension": 1}, {"x": [1.0, 1.0]}, "&initial: x", "spring 2 (from mass 1 to mass 2)"),
     ({"links": 3, "dimension": 1, "ends": "fixed-fixed", "span": 3.0}, {"x": [1.0, 2.0, 3.0]}, "&initial: x",

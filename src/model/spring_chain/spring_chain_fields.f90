@@ -60,6 +60,7 @@ contains
       if (len_trim(input%file) > 0) then
         table = without(table, [state_fields, perturbation_fields])
       else
+        table = without(table, [character(len=24) :: 'snapshot'])
         select case (trim(input%perturbation))
         case (perturbation_none)
           table = without(table, perturbation_fields(2:))
@@ -201,8 +202,11 @@ contains
                     minimum=0), &
       text_field('file', input%file, 'the path of an HDF5 file (relative to this namelist''s folder) with '// &
                  'datasets q (N x dimension: the masses'' positions), p (N x dimension), gamma (n_s, '// &
-                 'thermoviscoelastic only) and theta (n_s, K; not elastic); instead of x, p, stretch, gamma, '// &
-                 'theta and a perturbation', '')]
+                 'thermoviscoelastic only) and theta (n_s, K; not elastic), or a run file of the same chain '// &
+                 'with /snapshots (its snapshot `snapshot`); instead of x, p, stretch, gamma, theta and a '// &
+                 'perturbation', ''), &
+      integer_field('snapshot', input%snapshot, 'an integer >= -1: with file = a run file, the snapshot to start '// &
+                    'from, its row of /snapshots counted from 0, or -1 (the default) the last', minimum=-1)]
   end function initial_fields
 
   ! A per-spring real array field (open length; minimum, exclusive).

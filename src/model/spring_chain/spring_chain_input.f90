@@ -53,6 +53,7 @@ module spring_chain_input
     real(real64) :: amplitude = 0.01_real64      !! [m], along x
     integer :: seed = 1
     character(len=4096) :: file = ''             !! &initial file: an HDF5 file of q, p, gamma, theta
+    integer :: snapshot = -1                      !! with a run file: the row of /snapshots (from 0; -1 the last)
     !> The choices that select the fields (spring_law, ends, family, perturbation, file) were read:
     !> before, the tables hold every field any chain takes (--help, a study's field names).
     logical :: chosen = .false.

@@ -182,11 +182,11 @@ contains
     character(len=*), intent(in) :: where
     type(failure_type), intent(out) :: failure
     character(len=*), parameter :: names(4) = [character(len=5) :: 'q', 'p', 'gamma', 'theta']
-    character(len=:), allocatable :: prefix, problem, name
+    character(len=:), allocatable :: prefix, problem, name, group
     real(real64), allocatable :: values(:)
     integer, allocatable :: shape(:)
     logical :: found
-    integer :: k
+    integer :: k, row
 
     associate (input => self%input)
       prefix = where//": &initial: file = '"//trim(input%file)//"'"
@@ -194,12 +194,19 @@ contains
         call fail(failure, failure_input, prefix//': no reader of array files here', 'file')
         return
       end if
+      call snapshot_row(self, prefix, group, row, failure)
+      if (failure%failed()) return
+      if (len(group) > 0) prefix = prefix//', snapshot '//integer_text(row)
       do k = 1, size(names)
         name = trim(names(k))
-        call self%arrays%read_array(trim(input%file), name, values, shape, found, failure)
+        if (len(group) > 0) then
+          call self%arrays%read_array(trim(input%file), group//name, values, shape, found, failure, row)
+        else
+          call self%arrays%read_array(trim(input%file), name, values, shape, found, failure)
+        end if
         if (failure%failed()) then
           failure%message = prefix//': '//failure%message//'; allowed: an HDF5 file with datasets '// &
-                            'q, p, gamma and theta (docs/input.md)'
+                            'q, p, gamma and theta, or a run file with /snapshots (docs/input.md)'
           failure%code = failure_input
           return
         end if
@@ -222,6 +229,45 @@ contains
       end do
     end associate
   end subroutine read_initial_file
+
+  ! Where the &initial file's state lies: a run file's /snapshots (group 'snapshots/', `row` the
+  ! snapshot asked for, -1 the last) or the file's root (group '', row -1). A snapshot asked of a
+  ! file without /snapshots, or beyond its last, is refused.
+  subroutine snapshot_row(self, prefix, group, row, failure)
+    class(chain_scene), intent(in) :: self
+    character(len=*), intent(in) :: prefix
+    character(len=:), allocatable, intent(out) :: group
+    integer, intent(out) :: row
+    type(failure_type), intent(out) :: failure
+    real(real64), allocatable :: times(:)
+    integer, allocatable :: shape(:)
+    logical :: found
+
+    group = ''
+    row = -1
+    call self%arrays%read_array(trim(self%input%file), 'snapshots/time', times, shape, found, failure)
+    if (failure%failed()) then
+      failure%message = prefix//': '//failure%message
+      failure%code = failure_input
+      return
+    end if
+    if (.not. found .and. self%input%snapshot /= -1) then
+      call fail(failure, failure_input, prefix//': snapshot = '//integer_text(self%input%snapshot)//' is not '// &
+                'allowed: the file has no /snapshots; allowed: snapshot with a run file that has them (the split '// &
+                'path''s: docs/output.md)', 'snapshot')
+    else if (found .and. self%input%snapshot >= size(times)) then
+      call fail(failure, failure_input, prefix//': snapshot = '//integer_text(self%input%snapshot)//' is not '// &
+                'allowed: the file has '//integer_text(size(times))//' snapshots; allowed: 0 to '// &
+                integer_text(size(times) - 1)//', or -1 for the last', 'snapshot')
+    else if (found .and. size(times) == 0) then
+      call fail(failure, failure_input, prefix//': its /snapshots hold no snapshot yet; allowed: a run file '// &
+                'with at least one', 'snapshot')
+    else if (found) then
+      group = 'snapshots/'
+      row = self%input%snapshot
+      if (row == -1) row = size(times) - 1
+    end if
+  end subroutine snapshot_row
 
   ! A field that another chain has (in `every_field`, not in the scene's table) is refused with
   ! the choices that exclude it, rather than as an unknown field.
