@@ -39,7 +39,7 @@ import numpy as np
 
 import integrators
 from plotting import DOUBLE_COLUMN, plt, save
-from study_analysis import StudyError, namelist_text_value, read_index
+from study_analysis import StudyError, namelist_numbers, namelist_text_value, read_index
 from chain_dataset import open_chain
 from trajectory import RunFileError
 
@@ -107,7 +107,7 @@ def rod_data(case_input):
         text = namelist_text_value(case_input, name)
         if text is None:
             raise StudyError(f"the study's case_1_input has no field {name}: not a rod scene")
-        data[name] = float(text.split(",")[0].replace("d", "e").replace("D", "e"))
+        data[name] = namelist_numbers(text)[0]
     return data
 
 

@@ -483,7 +483,17 @@ def namelist_values(text, name):
     """The values of field `name` in namelist text as the code writes it (one field a line,
     'name = v1, v2'), as floats; [] if the field is not there."""
     match = re.search(rf"^\s*{re.escape(name)}\s*=\s*(.+?)\s*$", text, flags=re.MULTILINE | re.IGNORECASE)
-    return [float(value.replace("d", "e").replace("D", "e")) for value in match.group(1).split(",")] if match else []
+    return namelist_numbers(match.group(1)) if match else []
+
+
+def namelist_numbers(value_text):
+    """A namelist list of reals as floats, `r*x` standing for r copies of x (the repeat count the
+    code writes runs of equal values with: 'theta = 3*300.0, 310.0')."""
+    numbers = []
+    for item in value_text.split(","):
+        count, _, number = item.strip().rpartition("*")
+        numbers += [float(number.replace("d", "e").replace("D", "e"))] * (int(count) if count else 1)
+    return numbers
 
 
 def namelist_group(text, group):
