@@ -19,7 +19,7 @@ module namelist_group
   public :: group_field, real_field, reals_field, integer_field, logical_field, text_field, texts_field
   public :: read_group, field_names, invalid_value_message, choices_text, field_value_text, value_origin
   public :: describe_group, parse_subscript, absolute_temperature, celsius_suspects, given_origin
-  public :: field_real, field_integer, field_logical, field_text
+  public :: field_real, field_integer, field_logical, field_text, first_outside
 
   integer, parameter :: field_real = 1, field_integer = 2, field_logical = 3, field_text = 4
   ! What apply_item found wrong with an item.

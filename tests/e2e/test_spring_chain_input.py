@@ -12,6 +12,7 @@
   refused with exit status 2, the dataset and index named and nothing written;
 - fields that conflict (a spring's value with a rod, a perturbation's parameter without it, a state
   value with a file) are refused by name."""
+import subprocess
 import sys
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import run_eme
+from conftest import BIN, run_eme
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "oracles"))
 import spring_chain as oracle  # noqa: E402
@@ -356,6 +357,65 @@ def test_a_run_files_snapshot_is_a_runs_start(tmp_path):
     result, plain = run_eme(tmp_path, "plain", {"model": model, "initial": {"file": "state.h5", "snapshot": 0}})
     assert result.returncode == 2 and "snapshot = 0 is not allowed: the file has no /snapshots" in result.stderr
     assert not refused.exists() and not plain.exists()
+
+
+SPRING_ARRAYS = {"mu_eq_const": np.linspace(300.0, 200.0, 6), "mass": np.linspace(1.0, 2.0, 6),
+                 "conductivity": np.full(5, 2.0), "beta_v": np.array([0.0, 0.5, 0.5, 0.4, 0.3, 0.5])}
+
+
+def spring_file_chain(**model):
+    return {"model": {"model_name": "spring_chain", "links": 6, "dimension": 2, **model},
+            "initial": {"theta": 300.0, "perturbation": "random"},
+            "integrator": {"dt": 0.01, "t_end": 0.05}}
+
+
+def test_per_spring_values_from_an_hdf5_file_are_the_namelists(tmp_path):
+    """&model spring_file: 1-D datasets named as the per-spring (per-mass, per-link) fields give
+    the same run, bit for bit, as the same values typed in the namelist; the run's stored namelist
+    names the file instead of its values, and run again gives the same run."""
+    write_state(tmp_path / "springs.h5", SPRING_ARRAYS)
+    result, from_file = run_eme(tmp_path, "from_file", spring_file_chain(spring_file="springs.h5"))
+    assert result.returncode == 0, result.stderr
+    typed = {name: [float(v) for v in values] for name, values in SPRING_ARRAYS.items()}
+    result, from_namelist = run_eme(tmp_path, "typed", spring_file_chain(**typed))
+    assert result.returncode == 0, result.stderr
+    with h5py.File(from_file, "r") as a, h5py.File(from_namelist, "r") as b:
+        assert np.array_equal(a["state"][()], b["state"][()]) and a["state"].shape[0] == 6
+        stored = text(a.attrs["namelist"])
+    assert "spring_file = 'springs.h5'" in stored
+    assert not any(line.strip().startswith(tuple(SPRING_ARRAYS)) for line in stored.splitlines()), stored
+    (tmp_path / "again.nml").write_text(stored.replace(f"file = '{from_file}'", f"file = '{tmp_path / 'again.h5'}'"))
+    result = subprocess.run([str(BIN / "eme_run"), str(tmp_path / "again.nml")], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(from_file, "r") as a, h5py.File(tmp_path / "again.h5", "r") as c:
+        assert np.array_equal(a["state"][()], c["state"][()])
+
+
+def bad_spring_files():
+    """(what is wrong, the datasets, the namelist's own &model fields, what the message names)."""
+    cases = [("a field in both", SPRING_ARRAYS, {"mass": 1.0}, ["dataset mass and the namelist's mass both give"]),
+             ("a wrong length", dict(SPRING_ARRAYS, conductivity=np.full(6, 2.0)), {},
+              ["dataset conductivity has 6 values", "a 1-D dataset of 5 values"])]
+    negative = SPRING_ARRAYS["mu_eq_const"].copy()
+    negative[3] = -1.0
+    cases.append(("a value below its bound", dict(SPRING_ARRAYS, mu_eq_const=negative), {},
+                  ["dataset mu_eq_const[3] = -1.0 is not allowed"]))
+    nan = SPRING_ARRAYS["beta_v"].copy()
+    nan[4] = np.nan
+    cases.append(("a NaN", dict(SPRING_ARRAYS, beta_v=nan), {}, ["dataset beta_v[4] = NaN is not allowed"]))
+    return cases
+
+
+@pytest.mark.parametrize("case", bad_spring_files(), ids=lambda case: case[0])
+def test_a_bad_spring_file_is_refused_naming_the_dataset_and_index(tmp_path, case):
+    _, datasets, fields, named = case
+    write_state(tmp_path / "springs.h5", datasets)
+    result, path = run_eme(tmp_path, "bad", spring_file_chain(spring_file="springs.h5", **fields))
+    assert result.returncode == 2, (result.returncode, result.stderr)
+    for word in ["bad.nml", "&model: spring_file = 'springs.h5'", *named]:
+        assert word in result.stderr, (word, result.stderr)
+    assert not path.exists() and not Path(str(path) + ".part").exists()
 
 
 COLLAPSED = [

@@ -51,6 +51,7 @@ contains
       if (input%family == family_rod) table = without(table, spring_fields)
       if (input%family == family_springs) table = without(table, rod_fields)
       if (input%ends /= ends_fixed_fixed) table = without(table, [character(len=24) :: 'span'])
+      if (allocated(input%from_file)) table = without(table, input%from_file)
     case ('initial')
       table = initial_fields(input)
       if (.not. input%chosen) return
@@ -118,6 +119,10 @@ contains
                  "gamma_a; a spring with beta_v = mu_neq_const = mu_neq_slope = 0 has none in effect), "// &
                  "'thermoelastic' (no gamma and no fields of the viscous branch) or 'elastic' (no temperatures "// &
                  "either: no theta and no thermal fields)", spring_law_names), &
+      text_field('spring_file', input%spring_file, 'the path of an HDF5 file (relative to this namelist''s '// &
+                 'folder) of per-spring arrays: a 1-D dataset named as its field (natural_length, mu_eq_const, '// &
+                 '..., mass with N values, conductivity with n_s - 1) with all of that field''s values, for '// &
+                 'chains too long for a namelist; a field the file gives is not given here', ''), &
       text_field('family', input%family, "'springs' (each spring's values given: natural_length, mu_eq_const, ..., "// &
                  "mass, conductivity) or 'rod' (the n_s elements of a rod of length rod_length, with lumped "// &
                  "masses: the springs' values follow from rod_length, mass_per_length, axial_stiffness, ... as "// &

@@ -54,6 +54,10 @@ module spring_chain_input
     integer :: seed = 1
     character(len=4096) :: file = ''             !! &initial file: an HDF5 file of q, p, gamma, theta
     integer :: snapshot = -1                      !! with a run file: the row of /snapshots (from 0; -1 the last)
+    character(len=4096) :: spring_file = ''      !! &model spring_file: an HDF5 file of per-spring arrays
+    !> The &model fields whose values spring_file gave (not in the group's table from then on, so
+    !> that the run's namelist names the file, not its values).
+    character(len=24), allocatable :: from_file(:)
     !> The choices that select the fields (spring_law, ends, family, perturbation, file) were read:
     !> before, the tables hold every field any chain takes (--help, a study's field names).
     logical :: chosen = .false.

@@ -11,7 +11,7 @@
 module spring_chain_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item, joined
-  use namelist_group, only: group_field, read_group, value_origin, given_origin, field_names
+  use namelist_group, only: group_field, read_group, value_origin, given_origin, field_names, first_outside
   use number_text, only: integer_text, reals_text
   use failures, only: failure_none, failure_type, fail, failure_input, failure_code_name
   use model_interface, only: generic_model
@@ -115,6 +115,9 @@ contains
       call refuse_other_parts(self, text, 'model', chain_fields(probe, 'model'), origin, extra, failure)
       if (failure%failed()) return
       call read_group(text, 'model', self%fields('model'), origin, failure, extra)
+      if (failure%failed()) return
+      if (allocated(input%from_file)) deallocate (input%from_file)
+      if (len_trim(input%spring_file) > 0) call read_spring_file(self, text, origin, extra, failure)
       if (failure%failed()) return
       call refuse_other_parts(self, text, 'initial', chain_fields(probe, 'initial'), origin, extra, failure)
       if (failure%failed()) return
@@ -229,6 +232,66 @@ contains
       end do
     end associate
   end subroutine read_initial_file
+
+  ! The per-spring arrays of the &model spring_file: each 1-D dataset named as a real array field
+  ! of &model holds all of that field's values (n_s, N for mass, n_s - 1 for conductivity), each
+  ! finite and within the field's bounds; a field both there and in the namelist is refused. The
+  ! fields read are noted (input%from_file) and leave the group's table.
+  subroutine read_spring_file(self, text, origin, extra, failure)
+    class(chain_scene), intent(inout), target :: self
+    character(len=*), intent(in) :: text, origin
+    type(namelist_item), intent(in) :: extra(:)
+    type(failure_type), intent(out) :: failure
+    type(group_field), allocatable :: table(:)
+    character(len=:), allocatable :: prefix, name
+    real(real64), allocatable :: values(:)
+    integer, allocatable :: shape(:)
+    logical :: found
+    integer :: k, bad, i
+
+    prefix = value_origin(text, 'model', 'spring_file', origin, extra)//": &model: spring_file = '"// &
+             trim(self%input%spring_file)//"'"
+    if (.not. allocated(self%arrays)) then
+      call fail(failure, failure_input, prefix//': no reader of array files here', 'spring_file')
+      return
+    end if
+    allocate (self%input%from_file(0))
+    table = self%fields('model')
+    do k = 1, size(table)
+      if (.not. associated(table(k)%real_values) .or. table(k)%name == 'gravity') cycle
+      name = trim(table(k)%name)
+      call self%arrays%read_array(trim(self%input%spring_file), name, values, shape, found, failure)
+      if (failure%failed()) then
+        failure%message = prefix//': '//failure%message//'; allowed: an HDF5 file of per-spring arrays (docs/input.md)'
+        failure%code = failure_input
+        return
+      end if
+      if (.not. found) cycle
+      if (len(given_origin(text, 'model', table, origin, name, extra)) > 0) then
+        call fail(failure, failure_input, prefix//': dataset '//name//' and the namelist''s '//name//' both give '// &
+                  'it; allowed: one of them', name)
+        return
+      end if
+      if (size(shape) /= 1 .or. size(values) /= size(table(k)%real_values)) then
+        call fail(failure, failure_input, prefix//': dataset '//name//' has '//integer_text(size(values))// &
+                  ' values in '//integer_text(size(shape))//' dimensions; allowed: a 1-D dataset of '// &
+                  integer_text(size(table(k)%real_values))//' values, '//trim(table(k)%allowed), name)
+        return
+      end if
+      bad = 0
+      do i = size(values), 1, -1      ! the first value that is not finite
+        if (.not. abs(values(i)) <= huge(1.0_real64)) bad = i
+      end do
+      if (bad == 0) bad = first_outside(table(k), values)
+      if (bad > 0) then
+        call fail(failure, failure_input, prefix//': dataset '//name//'['//integer_text(bad - 1)//'] = '// &
+                  reals_text(values(bad:bad))//' is not allowed; allowed: '//trim(table(k)%allowed), name)
+        return
+      end if
+      table(k)%real_values = values
+      self%input%from_file = [self%input%from_file, table(k)%name]
+    end do
+  end subroutine read_spring_file
 
   ! Where the &initial file's state lies: a run file's /snapshots (group 'snapshots/', `row` the
   ! snapshot asked for, -1 the last) or the file's root (group '', row -1). A snapshot asked of a
