@@ -58,11 +58,13 @@ def figure(path, output):
     for line in incomplete:
         print(f"plot_chain_temperatures.py: {line}", file=sys.stderr)
     paths = save(fig, output, title, lines=incomplete)
-    with open(Path(paths[0]).with_suffix(".csv"), "w", newline="") as handle:
+    table = Path(paths[0]).with_suffix(".csv")
+    with open(table, "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(["time_s", *(f"theta_{a}_K" for a in springs)])
         for t, row in zip(time, theta):
             writer.writerow([f"{t:.9g}", *(f"{value:.9g}" for value in row)])
+    print(f"wrote {table}")
     return paths
 
 
