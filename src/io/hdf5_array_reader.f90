@@ -77,7 +77,7 @@ contains
     integer(hid_t) :: dataset, space, stored, memory
     integer(hsize_t), allocatable :: dims(:), most(:), start(:), count(:)
     type(c_ptr) :: buffer
-    integer :: stat, rank, class, k
+    integer :: stat, rank, class, k, closed
 
     call h5lexists_f(file_id, name, found, stat)
     found = found .and. stat == 0
@@ -122,7 +122,7 @@ contains
       if (stat == 0) then
         buffer = c_loc(values(1))
         call h5dread_f(dataset, H5T_NATIVE_DOUBLE, buffer, stat, memory, space)
-        call h5sclose_f(memory, class)
+        call h5sclose_f(memory, closed)
       end if
       if (stat /= 0) call fail(failure, failure_io, where//': dataset '''//name//''' cannot be read (a damaged file)', &
                                name)
