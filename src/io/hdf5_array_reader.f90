@@ -6,10 +6,10 @@
 module hdf5_array_reader
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_loc, c_ptr
-  use hdf5, only: hid_t, hsize_t, h5lexists_f, h5dopen_f, h5dclose_f, h5dget_space_f, h5dget_type_f, h5sclose_f, &
+  use hdf5, only: hid_t, hsize_t, size_t, h5lexists_f, h5dopen_f, h5dclose_f, h5dget_space_f, h5dget_type_f, h5sclose_f, &
                   h5tclose_f, h5tget_class_f, h5sget_simple_extent_ndims_f, h5sget_simple_extent_dims_f, h5dread_f, &
                   H5T_FLOAT_F, H5T_INTEGER_F, H5T_NATIVE_DOUBLE, h5screate_simple_f, h5sselect_hyperslab_f, &
-                  H5S_SELECT_SET_F
+                  H5S_SELECT_SET_F, h5gget_info_f, h5lget_name_by_idx_f, H5_INDEX_NAME_F, H5_ITER_INC_F
   use failures, only: failure_type, fail, failure_io
   use number_text, only: integer_text
   use hdf5_files, only: hdf5_file, hdf5_file_kind, not_hdf5
@@ -23,6 +23,7 @@ module hdf5_array_reader
     character(len=:), allocatable :: folder   !! of the namelist ('' or ending in '/')
   contains
     procedure :: read_array
+    procedure :: member_names
   end type hdf5_arrays
 
 contains
@@ -40,10 +41,57 @@ contains
     type(hdf5_file) :: file
     type(failure_type) :: closing
     character(len=:), allocatable :: where
-    logical :: exists
 
     found = .false.
     allocate (values(0), shape(0))
+    call open_file(self, path, file, where, failure)
+    if (failure%failed()) return
+    call read_dataset(file%id, where, name, values, shape, found, failure, row)
+    call file%close(closing)
+    if (.not. failure%failed() .and. closing%failed()) failure = closing
+  end subroutine read_array
+
+  !> The names of the root group's members of the HDF5 file `path` (model_scene's member_names),
+  !> in name order; a failure's message starts with the path as resolved.
+  subroutine member_names(self, path, names, failure)
+    class(hdf5_arrays), intent(in) :: self
+    character(len=*), intent(in) :: path
+    character(len=256), allocatable, intent(out) :: names(:)
+    type(failure_type), intent(out) :: failure
+    type(hdf5_file) :: file
+    type(failure_type) :: closing
+    character(len=:), allocatable :: where
+    integer(size_t) :: length
+    integer :: stat, storage, count, last_order, k
+
+    allocate (names(0))
+    call open_file(self, path, file, where, failure)
+    if (failure%failed()) return
+    call h5gget_info_f(file%id, storage, count, last_order, stat)
+    if (stat == 0) then
+      deallocate (names)
+      allocate (names(count))
+      do k = 1, count
+        call h5lget_name_by_idx_f(file%id, '.', H5_INDEX_NAME_F, H5_ITER_INC_F, int(k - 1, hsize_t), names(k), stat, &
+                                  length)
+        if (stat /= 0) exit
+      end do
+    end if
+    if (stat /= 0) call fail(failure, failure_io, where//': its root group cannot be listed (a damaged file)', where)
+    call file%close(closing)
+    if (.not. failure%failed() .and. closing%failed()) failure = closing
+  end subroutine member_names
+
+  ! Opens the file at `path` (relative to the namelist's folder unless absolute) read-only as
+  ! `file`; `where` is the path as resolved; a failure names a missing or non-HDF5 file.
+  subroutine open_file(self, path, file, where, failure)
+    class(hdf5_arrays), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(hdf5_file), intent(out) :: file
+    character(len=:), allocatable, intent(out) :: where
+    type(failure_type), intent(out) :: failure
+    logical :: exists
+
     where = path
     if (path(1:1) /= '/' .and. allocated(self%folder)) where = self%folder//path
     inquire (file=where, exist=exists)
@@ -55,14 +103,8 @@ contains
       return
     end if
     call file%open_existing(where, .false., failure)
-    if (failure%failed()) then
-      failure%message = where//': '//failure%message
-      return
-    end if
-    call read_dataset(file%id, where, name, values, shape, found, failure, row)
-    call file%close(closing)
-    if (.not. failure%failed() .and. closing%failed()) failure = closing
-  end subroutine read_array
+    if (failure%failed()) failure%message = where//': '//failure%message
+  end subroutine open_file
 
   ! Dataset `name` of the open file `file_id`, if it exists, read whole as real64, or its row `row`
   ! (from 0) along the first axis.

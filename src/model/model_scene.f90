@@ -19,6 +19,7 @@ module model_scene
   type, abstract :: array_reader
   contains
     procedure(read_array_interface), deferred :: read_array
+    procedure(member_names_interface), deferred :: member_names
   end type array_reader
 
   !> A model's input.
@@ -49,6 +50,16 @@ module model_scene
       type(failure_type), intent(out) :: failure
       integer, intent(in), optional :: row   !! one row along the first axis (from 0): shape drops that axis
     end subroutine read_array_interface
+
+    !> The names of the members (datasets, groups) of the root group of the file at `path`, in
+    !> name order; a failure (failure_io) if the file cannot be read, naming why.
+    subroutine member_names_interface(self, path, names, failure)
+      import :: array_reader, failure_type
+      class(array_reader), intent(in) :: self
+      character(len=*), intent(in) :: path
+      character(len=256), allocatable, intent(out) :: names(:)
+      type(failure_type), intent(out) :: failure
+    end subroutine member_names_interface
 
     !> The namelist groups the scene reads, in reading order.
     pure subroutine group_names_interface(self, names)

@@ -404,6 +404,10 @@ def bad_spring_files():
     nan = SPRING_ARRAYS["beta_v"].copy()
     nan[4] = np.nan
     cases.append(("a NaN", dict(SPRING_ARRAYS, beta_v=nan), {}, ["dataset beta_v[4] = NaN is not allowed"]))
+    misspelt = {("conductivty" if name == "conductivity" else name): values for name, values in SPRING_ARRAYS.items()}
+    cases.append(("a misspelt name", misspelt, {},
+                  ["conductivty is not a per-spring field of this chain's &model (spring_law = 'thermoviscoelastic'",
+                   "allowed: members named ", ", beta_v, conductivity (docs/input.md)"]))
     return cases
 
 

@@ -67,8 +67,10 @@ contains
 
   ! The per-spring arrays of the &model spring_file: each 1-D dataset named as a real array field
   ! of &model holds all of that field's values (n_s, N for mass, n_s - 1 for conductivity), each
-  ! finite and within the field's bounds; a field both there and in the namelist is refused. The
-  ! fields read are noted (input%from_file) and leave the group's table.
+  ! finite and within the field's bounds; a field both there and in the namelist is refused, and
+  ! so is a member of the file named as none of this chain's fields (a misspelt name would
+  ! otherwise leave the field at its default). The fields read are noted (input%from_file) and
+  ! leave the group's table.
   module subroutine read_spring_file(self, text, origin, extra, failure)
     class(chain_scene), intent(inout), target :: self
     character(len=*), intent(in) :: text, origin
@@ -89,6 +91,8 @@ contains
     end if
     allocate (self%input%from_file(0))
     table = self%fields('model')
+    call refuse_other_members(self, prefix, table, failure)
+    if (failure%failed()) return
     do k = 1, size(table)
       if (.not. associated(table(k)%real_values) .or. table(k)%name == 'gravity') cycle
       name = trim(table(k)%name)
@@ -124,6 +128,40 @@ contains
       self%input%from_file = [self%input%from_file, table(k)%name]
     end do
   end subroutine read_spring_file
+
+  ! Refuses a member of the spring_file that names none of the per-spring fields in `table`.
+  subroutine refuse_other_members(self, prefix, table, failure)
+    class(chain_scene), intent(in) :: self
+    character(len=*), intent(in) :: prefix
+    type(group_field), intent(in) :: table(:)
+    type(failure_type), intent(out) :: failure
+    character(len=256), allocatable :: members(:)
+    character(len=:), allocatable :: allowed
+    logical :: per_spring(size(table))
+    integer :: k, j
+
+    call self%arrays%member_names(trim(self%input%spring_file), members, failure)
+    if (failure%failed()) then
+      failure%message = prefix//': '//failure%message//'; allowed: an HDF5 file of per-spring arrays (docs/input.md)'
+      failure%code = failure_input
+      return
+    end if
+    do k = 1, size(table)
+      per_spring(k) = associated(table(k)%real_values) .and. table(k)%name /= 'gravity'
+    end do
+    do k = 1, size(members)
+      if (any(per_spring .and. table%name == members(k))) cycle
+      allowed = ''
+      do j = 1, size(table)
+        if (per_spring(j)) allowed = allowed//', '//trim(table(j)%name)
+      end do
+      call fail(failure, failure_input, prefix//': '//trim(members(k))//' is not a per-spring field of this '// &
+                'chain''s &model (spring_law = '''//trim(self%input%spring_law)//''', family = '''// &
+                trim(self%input%family)//'''); allowed: members named '// &
+                allowed(3:)//' (docs/input.md)', 'spring_file')
+      return
+    end do
+  end subroutine refuse_other_members
 
   ! Where the &initial file's state lies: a run file's /snapshots (group 'snapshots/', `row` the
   ! snapshot asked for, -1 the last) or the file's root (group '', row -1). A snapshot asked of a
