@@ -5,7 +5,7 @@ module command_help
   use, intrinsic :: iso_fortran_env, only: real64
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
   use namelist_text, only: namelist_item
-  use namelist_group, only: describe_group
+  use namelist_field, only: describe_group
   use model_registry, only: select_scene, model_names
   use model_scene, only: scene
   use failures, only: failure_type

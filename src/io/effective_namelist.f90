@@ -7,7 +7,7 @@
 module effective_namelist
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use run_config, only: run_configuration, integrator_fields, output_fields
-  use namelist_group, only: group_field, field_real, field_integer, field_logical
+  use namelist_field, only: group_field, field_real, field_integer, field_logical
   use number_text, only: integer_text
   use integrator_registry, only: integrator_entry, find_integrator
   implicit none (type, external)

@@ -20,9 +20,9 @@ module run_config
   use failures, only: failure_type, fail, failure_input
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, item_name, joined
   use number_text, only: integer_text, reals_text
-  use namelist_group, only: group_field, real_field, integer_field, text_field, logical_field, read_group, field_names, &
-                            invalid_value_message, choices_text, value_origin, absolute_temperature, celsius_suspects, &
-                            given_origin
+  use namelist_field, only: group_field, real_field, integer_field, text_field, logical_field, field_names, &
+                            invalid_value_message, choices_text, absolute_temperature
+  use namelist_group, only: read_group, value_origin, celsius_suspects, given_origin
   implicit none (type, external)
   private
   public :: run_configuration, read_run_config, integrator_fields, output_fields, run_groups, same_variable, field_length

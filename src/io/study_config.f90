@@ -7,8 +7,9 @@ module study_config
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use namelist_text, only: namelist_item, read_source_text, group_names, group_items, lowercase, item_name
-  use namelist_group, only: group_field, text_field, reals_field, texts_field, logical_field, integer_field, &
-                            read_group, invalid_value_message, parse_subscript
+  use namelist_field, only: group_field, text_field, reals_field, texts_field, logical_field, integer_field, &
+                            invalid_value_message
+  use namelist_group, only: read_group, parse_subscript
   use run_config, only: run_configuration, read_run_config, same_variable, field_length
   use integrator_settings, only: step_count
   use number_text, only: integer_text

@@ -5,7 +5,7 @@
 module model_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item
-  use namelist_group, only: group_field
+  use namelist_field, only: group_field
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use distributed_model, only: distributed_system

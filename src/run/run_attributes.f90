@@ -6,7 +6,7 @@ module run_attributes
   use, intrinsic :: iso_fortran_env, only: real64
   use hdf5_files, only: hdf5_file
   use failures, only: failure_type
-  use namelist_group, only: group_field, field_real, field_integer, field_logical
+  use namelist_field, only: group_field, field_real, field_integer, field_logical
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry

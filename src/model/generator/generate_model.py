@@ -1886,12 +1886,11 @@ def scene_module(symbolic, source):
                   for field_name, default, units, *_ in initial]
     variable = initial_variable(d)
     domain = d.initial_domain or f"a state in the domain of the potentials of src/model/{name}/description.py"
-    field_imports = sorted({"group_field", "real_field", "text_field", "read_group", "value_origin"}
+    field_imports = sorted({"group_field", "real_field", "text_field"}
                            | ({"absolute_temperature"} if any(f[5] for f in initial) or any(
                                is_kelvin(p.units, d) for p in d.parameters) else set())
                            | ({"reals_field"} if any(isinstance(f[1], list) for f in initial) else set()),
-                           key=["group_field", "real_field", "reals_field", "text_field", "read_group",
-                                "value_origin", "absolute_temperature"].index)
+                           key=["group_field", "real_field", "reals_field", "text_field", "absolute_temperature"].index)
     initial_vector = ", ".join(f"self%{field_name}" for field_name, *_ in initial)
     listing = " // &\n".join(f"      '{',' if k else ''} {field_name} = '//reals_text([self%{field_name}])"
                              for k, (field_name, *_) in enumerate(initial))
@@ -1903,7 +1902,8 @@ def scene_module(symbolic, source):
 module {name}_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item
-  use namelist_group, only: {", ".join(field_imports)}
+  use namelist_field, only: {", ".join(field_imports)}
+  use namelist_group, only: read_group, value_origin
   use number_text, only: reals_text
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot

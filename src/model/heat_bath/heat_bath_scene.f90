@@ -5,7 +5,8 @@
 module heat_bath_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item
-  use namelist_group, only: group_field, real_field, text_field, read_group, value_origin, absolute_temperature
+  use namelist_field, only: group_field, real_field, text_field, absolute_temperature
+  use namelist_group, only: read_group, value_origin
   use number_text, only: reals_text
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot

@@ -9,8 +9,9 @@ module pendulum_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item, group_items, item_name, joined
   use number_text, only: reals_text
-  use namelist_group, only: group_field, real_field, reals_field, integer_field, logical_field, text_field, &
-                            read_group, invalid_value_message, value_origin, absolute_temperature, field_names
+  use namelist_field, only: group_field, real_field, reals_field, integer_field, logical_field, text_field, &
+                            invalid_value_message, absolute_temperature, field_names
+  use namelist_group, only: read_group, value_origin
   use model_parameters, only: pendulum_parameters, spring_law_names
   use failures, only: failure_type, fail, failure_input
   use model_interface, only: generic_model

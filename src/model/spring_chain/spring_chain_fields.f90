@@ -7,7 +7,7 @@
 !> perturbation the parameters of the others.
 module spring_chain_fields
   use, intrinsic :: iso_fortran_env, only: real64
-  use namelist_group, only: group_field, real_field, reals_field, integer_field, text_field, absolute_temperature
+  use namelist_field, only: group_field, real_field, reals_field, integer_field, text_field, absolute_temperature
   use number_text, only: integer_text
   use spring_chain_spring, only: rung_thermoviscoelastic, rung_elastic, spring_law_names
   use spring_chain_layout, only: ends_fixed_free, ends_fixed_fixed

@@ -11,7 +11,8 @@
 module spring_chain_scene
   use, intrinsic :: iso_fortran_env, only: real64
   use namelist_text, only: namelist_item, joined
-  use namelist_group, only: group_field, read_group, value_origin, given_origin, field_names
+  use namelist_field, only: group_field, field_names
+  use namelist_group, only: read_group, value_origin, given_origin
   use number_text, only: integer_text, reals_text
   use failures, only: failure_none, failure_type, fail, failure_input, failure_code_name
   use model_interface, only: generic_model

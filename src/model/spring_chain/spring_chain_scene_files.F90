@@ -3,7 +3,7 @@
 !> spring_file's per-spring arrays, each value checked before it is taken. A submodule of
 !> spring_chain_scene, whose `read` calls them.
 submodule (spring_chain_scene) spring_chain_scene_files
-  use namelist_group, only: first_outside
+  use namelist_field, only: first_outside
   use spring_chain_initial, only: dataset_problem
   implicit none (type, external)
 
