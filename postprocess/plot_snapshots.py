@@ -11,9 +11,10 @@ figure has no colour bar.
 
 A spring chain's file (docs/output.md, A chain's file; read through chain_dataset.open_chain) is
 drawn the same way at its snapshots (a dense run's file: every point): the support at the origin,
-the masses at q_i, the springs between them coloured by their temperatures (and the second
-support at x = span of a fixed-fixed chain), the path of the last mass; a 3D chain in the two
-views, a 1D or 2D one in its plane (a 1D chain along x at y = 0). A chosen time is the nearest
+the masses at q_i (markers for at most 20 masses: more would hide the springs' colours), the
+springs between them coloured by their temperatures (and the second support at x = span of a
+fixed-fixed chain), the path of the last mass; a 3D chain in the two views, a 2D one in its
+plane, a 1D one along x in a flat panel without a vertical scale. A chosen time is the nearest
 snapshot's.
 
 Animation (unless --no-animation): OUT_animation.mp4 with matplotlib's ffmpeg writer when
@@ -49,6 +50,10 @@ PATH_COLOUR = "0.65"
 FRAMES_PER_SECOND = 10
 MASS_STYLE = dict(marker="o", color="black", markersize=5, linestyle="none")
 CHAIN_MASS_STYLE = dict(markersize=2.5)
+# A chain of more masses is drawn without their markers, which would hide the springs' colours.
+MOST_MASSES_DRAWN = 20
+# A 1D chain's panel height against a plane's: the chain is a line, the vertical axis has no meaning.
+LINE_PANEL_HEIGHT = 0.3
 ORIGIN_STYLE = dict(marker="^", color="black", markersize=6, linestyle="none")
 
 
@@ -118,6 +123,11 @@ def planes(run):
     return {3: PLANES, 2: PLANAR_PLANES, 1: LINE_PLANES}[run.chain["dimension"] if is_chain(run) else dimension(run)]
 
 
+def masses_drawn(run):
+    """Whether a run's masses get markers: the pendulum's two, a chain's up to MOST_MASSES_DRAWN."""
+    return not is_chain(run) or run.chain["masses"] <= MOST_MASSES_DRAWN
+
+
 def temperatures_of(run):
     """The springs' temperatures per state, or None for springs without temperatures."""
     return run.chain["temperature"] if is_chain(run) else run.data.get("temperature")
@@ -155,13 +165,18 @@ class PendulumView:
         ax.add_collection(self.springs)
         self.last_mass = last_mass(run)
         self.masses, = ax.plot([], [], **{**MASS_STYLE, **(CHAIN_MASS_STYLE if is_chain(run) else {})}, zorder=3)
+        self.masses.set_visible(masses_drawn(run))
         ax.plot([0], [0], **ORIGIN_STYLE, zorder=3)
         self.far_supports, = ax.plot([], [], **ORIGIN_STYLE, zorder=3)     # a fixed-fixed chain's second
         ax.set_xlim(limits[0][i], limits[1][i])
-        ax.set_ylim(limits[0][j], limits[1][j])
-        ax.set_aspect("equal")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
+        if plane is LINE_PLANES[0]:     # a line: a flat panel, no vertical scale
+            ax.set_ylim(-1.0, 1.0)
+            ax.set_yticks([])
+        else:
+            ax.set_ylim(limits[0][j], limits[1][j])
+            ax.set_aspect("equal")
 
     def show(self, points, temperatures, step):
         """Draws state `step`: a spring between each two neighbouring nodes; the path is that of
@@ -178,12 +193,14 @@ class PendulumView:
         self.path.set_data(points[: step + 1, self.last_mass, i], points[: step + 1, self.last_mass, j])
 
 
-def legend_handles(coloured=True, chain=False):
-    """What the markers and lines of a panel are (the springs' colours have the colour bar)."""
+def legend_handles(coloured=True, chain=False, all_masses=True):
+    """What the markers and lines of a panel are (the springs' colours have the colour bar); a
+    chain's masses are named as not drawn where some chain has more than MOST_MASSES_DRAWN."""
+    masses = ("masses $m_i$ at $q_i$" if all_masses else
+              f"masses $m_i$ at $q_i$ (not drawn for more than {MOST_MASSES_DRAWN})")
     return [Line2D([], [], **ORIGIN_STYLE, label="supports: the origin (and x = span, fixed-fixed)" if chain
                    else "origin (support)"),
-            Line2D([], [], **MASS_STYLE, label="masses $m_i$ at $q_i$" if chain else
-                   "masses $m_1$ at $q_1$, $m_2$ at $q_1 + q_2$"),
+            Line2D([], [], **MASS_STYLE, label=masses if chain else "masses $m_1$ at $q_1$, $m_2$ at $q_1 + q_2$"),
             Line2D([], [], color=PATH_COLOUR, linewidth=0.6,
                    label="path of the last mass so far" if chain else "path of $m_2$ so far"),
             Line2D([], [], color=COLOUR_MAP(0.5) if coloured else PLAIN_SPRING_COLOUR, linewidth=2.8,
@@ -191,14 +208,15 @@ def legend_handles(coloured=True, chain=False):
                    label="springs, coloured by temperature" if coloured else "springs (no temperatures)")]
 
 
-def finish_figure(fig, axes, norm, chain=False):
+def finish_figure(fig, axes, norm, chain=False, all_masses=True):
     """Colour bar (when some run has temperatures) and the legend of markers and lines (of a
-    chain's when `chain`)."""
+    chain's when `chain`; `all_masses` whether every chain's masses are drawn)."""
     if norm is not None:
-        colour_bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes, shrink=0.8,
-                                  aspect=25)
-        colour_bar.set_label(r"spring temperature $\theta_a$ [K]")
-    fig.legend(handles=legend_handles(norm is not None, chain), loc="outside lower center", ncols=2)
+        flat = fig.get_figheight() < 3.0      # 1D chains only: a bar as high as the panels, a short label
+        colour_bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm, COLOUR_MAP), ax=axes, shrink=1.0 if flat else 0.8,
+                                  aspect=8 if flat else 25)
+        colour_bar.set_label(r"$\theta_a$ [K]" if flat else r"spring temperature $\theta_a$ [K]")
+    fig.legend(handles=legend_handles(norm is not None, chain, all_masses), loc="outside lower center", ncols=2)
 
 
 def make_figure(runs, times):
@@ -211,8 +229,9 @@ def make_figure(runs, times):
         raise ValueError(f"no requested time {list(times)} lies within any run")
     panel = (DOUBLE_COLUMN - 0.9) / max(columns, 3)
     first_rows = np.cumsum([0] + [len(planes(run)) for run in runs])
-    fig, axes = plt.subplots(first_rows[-1], columns, figsize=(DOUBLE_COLUMN, first_rows[-1] * panel + 1.1),
-                             squeeze=False, sharex="col", sharey="row")
+    heights = [LINE_PANEL_HEIGHT if plane is LINE_PLANES[0] else 1.0 for run in runs for plane in planes(run)]
+    fig, axes = plt.subplots(first_rows[-1], columns, figsize=(DOUBLE_COLUMN, sum(heights) * panel + 1.1),
+                             squeeze=False, sharex="col", sharey="row", gridspec_kw={"height_ratios": heights})
     for r, (run, (steps, dropped)) in enumerate(zip(runs, selections)):
         if dropped:
             print(f"{run.path}: times {dropped} s lie past its last step "
@@ -230,7 +249,7 @@ def make_figure(runs, times):
                 if p == 0:
                     ax.set_title(f"$t_n$ = {times_of(run)[steps[c]]:.2f} s")
     fig.suptitle("; ".join(run.label for run in runs))
-    finish_figure(fig, axes, norm, any(is_chain(run) for run in runs))
+    finish_figure(fig, axes, norm, any(is_chain(run) for run in runs), all(masses_drawn(run) for run in runs))
     return fig
 
 
@@ -256,7 +275,7 @@ def write_animation(runs, output, max_frames, dpi):
         for ax in row[len(views):]:
             ax.set_visible(False)        # a planar run has one plane
         panels.append((run, pendulum_points(run), views, row[0].set_title("", loc="left")))
-    finish_figure(fig, axes, norm, any(is_chain(run) for run in runs))
+    finish_figure(fig, axes, norm, any(is_chain(run) for run in runs), all(masses_drawn(run) for run in runs))
 
     def draw(t):
         for run, points, views, title in panels:

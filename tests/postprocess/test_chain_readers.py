@@ -424,6 +424,32 @@ def test_the_snapshots_draw_a_chain_as_its_file_holds_it(chain_files, scene, pat
             assert np.array_equal(springs.get_array(), theta[k])
             masses = next(line for line in ax.lines if line.get_marker() == "o")
             assert np.array_equal(np.column_stack(masses.get_data()), nodes[1:1 + q.shape[1]])
+            assert masses.get_visible()
     legend = [text.get_text() for text in figure.legends[0].get_texts()]
     assert "masses $m_i$ at $q_i$" in legend and "path of the last mass so far" in legend
+    plot_snapshots.plt.close(figure)
+
+
+@pytest.mark.drawing
+def test_a_long_1d_chain_is_drawn_flat_without_mass_markers(tmp_path):
+    """The rod of 100 springs: its masses' markers (every 4 cm) hid the springs' colours, and its
+    line sat in a square panel with a vertical scale of metres that meant nothing. Beyond 20
+    masses the markers are not drawn (the legend says so); a 1D row is flat, without y ticks."""
+    output = tmp_path / "rod.h5"
+    text = (ROOT / "inputs" / "chain_rod_heat.nml").read_text()
+    for old, new in {"t_end = 2.0": "t_end = 0.02", "results/chain_rod_heat.h5": str(output)}.items():
+        assert old in text
+        text = text.replace(old, new)
+    (tmp_path / "rod.nml").write_text(text)
+    run([BIN / "eme_run", tmp_path / "rod.nml"])
+    figure = plot_snapshots.make_figure([plot_snapshots.read_drawn_run(output)], [0.0, 0.02])
+    figure.canvas.draw()       # the layout, as saving does
+    for ax in figure.axes[:2]:
+        masses = next(line for line in ax.lines if line.get_marker() == "o")
+        assert len(masses.get_xdata()) == 100 and not masses.get_visible()
+        assert len(ax.get_yticks()) == 0
+        width, height = ax.get_window_extent().width, ax.get_window_extent().height
+        assert height < 0.5 * width, (width, height)
+    legend = [text.get_text() for text in figure.legends[0].get_texts()]
+    assert "masses $m_i$ at $q_i$ (not drawn for more than 20)" in legend, legend
     plot_snapshots.plt.close(figure)
