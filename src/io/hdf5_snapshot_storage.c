@@ -43,6 +43,10 @@ enum {
 };
 
 enum { CHUNK_VALUES = 32768, TIME_CHUNK = 64 };
+/* Disk reserved for a snapshot beyond its values: HDF5's chunk index and object headers. */
+enum { RESERVE_MARGIN = 262144 };
+
+int eme_reserve_space_ahead(const char *path, long bytes);   /* posix_files.c */
 static const char group_name[] = "snapshots";
 
 /* The datasets of a snapshot, in the order they are written. */
@@ -406,16 +410,18 @@ static void open_group(snapshot_call *call, hid_t file, hsize_t *rows, report *o
             say(out, snapshot_mismatch, "/%s/%s is in the file, and this snapshot has %s", group_name, variables[v], call->sets[SET_TAU].name[0] ? call->sets[SET_TAU].name : "no tau (tau is theta)");
 }
 
-/* Gives every dataset `rows` snapshots; returns the name of the first that failed, or NULL. */
-static const char *set_rows(snapshot_call *call, hsize_t rows)
+/* Gives every dataset `rows` snapshots (H5Dset_extent is collective); the ranks agree after each
+ * dataset, so a failure on one rank (a full disk meets the rank that writes HDF5's metadata)
+ * stops them all at the same dataset rather than leaving the others in the next collective call. */
+static void set_rows(snapshot_call *call, hsize_t rows, report *out)
 {
     for (int s = 0; s < SET_COUNT; ++s) {
         if (call->datasets[s] < 0) continue;
         hsize_t dims[3], chunk[3], maximum[3];
         shape_of(&call->sets[s], rows, call->masses, call->springs, call->dimension, dims, chunk, maximum);
-        if (H5Dset_extent(call->datasets[s], dims) < 0) return call->sets[s].name;
+        if (H5Dset_extent(call->datasets[s], dims) < 0) hdf5_failed(out, call->sets[s].name, "extend");
+        if (agree(out, call->comm) != snapshot_ok) return;
     }
-    return NULL;
 }
 
 /* Writes (or with `reading`, reads) snapshot `row` of every set: each rank its masses and springs,
@@ -441,7 +447,7 @@ static void transfer_snapshot(snapshot_call *call, hsize_t row, int reading, rep
             say(out, snapshot_library, "a rank's part lies outside /%s/%s; nothing %s", group_name, set->name,
                 reading ? "read" : "written");
         else if (status != 0) hdf5_failed(out, set->name, reading ? "read a snapshot from" : "write a snapshot into");
-        if (status != 0) return;
+        if (agree(out, call->comm) != snapshot_ok) return;   /* every rank stops at the same set */
     }
 }
 
@@ -523,6 +529,21 @@ static snapshot_call new_call(MPI_Comm comm, const double *time, long long masse
     return call;
 }
 
+/* Rank 0 reserves the disk one more snapshot takes (its values and RESERVE_MARGIN) past the end
+ * of `path`, so that a full disk is reported here, by the OS, before HDF5 writes: HDF5 1.10
+ * crashes at exit after a failed close (HDFFV-11052), as docs/faults.md says of the rows. */
+static void reserve_snapshot_space(const snapshot_call *call, const char *path, report *out)
+{
+    long bytes = RESERVE_MARGIN;
+    for (int s = 0; s < SET_COUNT; ++s) {
+        if (call->sets[s].local == NULL) continue;
+        int per = call->sets[s].per;
+        bytes += 8L * (per == PER_TIME ? 1L : per == PER_MASS ? (long)(call->masses * call->dimension) : (long)call->springs);
+    }
+    int error = eme_reserve_space_ahead(path, bytes);
+    if (error != 0) say(out, snapshot_io, "cannot append a snapshot: %s (%ld bytes asked)", strerror(error), bytes);
+}
+
 /* Opens `path` collectively with the MPI-IO driver (read-write with `writing`) and sets up
  * collective transfers; returns the file, or -1 with out saying why. */
 static hid_t open_collectively(snapshot_call *call, const char *path, int writing, report *out)
@@ -578,6 +599,7 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
     if (call.sets[SET_Q].local == NULL) call.sets[SET_Q].local = none;
     if (call.sets[SET_P].local == NULL) call.sets[SET_P].local = none;
     check_file(path, call.rank, 1, &out);
+    if (out.status == snapshot_ok && call.rank == 0) reserve_snapshot_space(&call, path, &out);
     if (agree(&out, comm) != snapshot_ok) return out.status;
 
     H5E_auto2_t printer;
@@ -593,10 +615,13 @@ int eme_h5_append_snapshot(const char *path, MPI_Fint fortran_comm, double time,
         else open_group(&call, file, &rows, &out);
     }
     if (agree(&out, comm) == snapshot_ok) {
-        const char *failed = set_rows(&call, rows + 1);
-        if (failed != NULL) hdf5_failed(&out, failed, "extend");
-        else transfer_snapshot(&call, rows, 0, &out);
-        if (agree(&out, comm) != snapshot_ok) (void)set_rows(&call, rows);   /* the snapshots before stay */
+        set_rows(&call, rows + 1, &out);
+        if (out.status == snapshot_ok) transfer_snapshot(&call, rows, 0, &out);
+        if (agree(&out, comm) != snapshot_ok) {   /* the snapshots before stay */
+            char scratch_text[1] = "";
+            report scratch = {snapshot_ok, scratch_text, 1, path};
+            set_rows(&call, rows, &scratch);
+        }
     }
     close_call(&call);
     if (creating && agree(&out, comm) != snapshot_ok) (void)H5Ldelete(file, group_name, H5P_DEFAULT);   /* no half group */

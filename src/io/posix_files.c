@@ -194,6 +194,22 @@ int eme_reserve_space(const char *path, long bytes)
     return error;
 }
 
+/* Allocates `bytes` of disk space past the end of the existing file `path` without changing its
+ * size (Linux fallocate, FALLOC_FL_KEEP_SIZE): a writer that later extends the file into that
+ * range (parallel HDF5 appending a snapshot) cannot fail for want of space. 0 also where the file
+ * system cannot allocate ahead (EOPNOTSUPP: nothing is reserved). */
+int eme_reserve_space_ahead(const char *path, long bytes)
+{
+    int fd = open(path, O_WRONLY);
+    if (fd < 0) return errno;
+    struct stat info;
+    int error = fstat(fd, &info) != 0 ? errno : 0;
+    if (error == 0 && bytes > 0 && fallocate(fd, FALLOC_FL_KEEP_SIZE, info.st_size, (off_t)bytes) != 0)
+        error = errno == EOPNOTSUPP ? 0 : errno;
+    close(fd);
+    return error;
+}
+
 /* fsync(2) of an existing file: its data are on disk on return. */
 int eme_sync_file(const char *path)
 {

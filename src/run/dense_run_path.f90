@@ -198,7 +198,8 @@ contains
     call self%set_times(.true.)
     call self%output%write_rows(self%summary, io_failure)
     if (io_failure%failed()) then
-      call fail_write(self%failure, self%summary, self%part, self%config%input_file, io_failure%message)
+      call fail_write(self%failure, self%summary, self%part, self%config%input_file, io_failure%message, &
+                      self%output%kept_words(self%part))
       goes_on = .false.
     end if
   end function output_held

@@ -33,6 +33,7 @@ contains
     character(len=:), allocatable, intent(out) :: kind, text
     type(resume_record) :: candidate
     character(len=:), allocatable :: status, stored, source, where, part
+    character(len=:), allocatable :: unwritten   ! a .part whose run stopped at a failed write
     type(failure_type) :: reading, copying
     logical :: complete, any_file, beyond
     real(real64) :: t_end
@@ -43,6 +44,7 @@ contains
     t_end = config%integrator%t_end
     where = ' ('//config%input_file//', -eme_continue)'
     source = ''
+    unwritten = ''
     complete = .false.
     if (file_exists(config%output_file)) then
       call read_resume_record(config%output_file, candidate, status, stored, reading)
@@ -59,6 +61,9 @@ contains
     end if
     if (file_exists(part)) then
       call read_resume_record(part, candidate, status, stored, reading)
+      if (.not. reading%failed()) then
+        if (index(status, 'incomplete: cannot write the output file') == 1) unwritten = part
+      end if
       if (.not. reading%failed() .and. candidate%held .and. candidate%stopped_early) then
         if (len(source) == 0) then
           resume = candidate
@@ -72,7 +77,11 @@ contains
     if (len(source) == 0) then
       any_file = file_exists(config%output_file)
       if (.not. any_file) any_file = file_exists(part)
-      if (any_file) then
+      if (len(unwritten) > 0) then
+        text = unwritten//' keeps no step to continue from: its run stopped at a failed write before it kept '// &
+               'one'//where//'; allowed: run it again without -eme_continue, with -eme_overwrite (or &output '// &
+               'overwrite = .true.) to replace that file'
+      else if (any_file) then
         text = config%output_file//' (or its .part) holds no run to continue (a run that stopped at a step it '// &
                'could not solve, a file of an older version, or not a run file)'//where//'; allowed: the file '// &
                'of a run stopped by a signal, a kill, its step budget or a failed write'

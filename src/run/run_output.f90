@@ -26,6 +26,7 @@ module run_output
   use step_balances, only: balance_names, balance_bound_ulps
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use failures, only: failure_type, fail, code_io => failure_io, failure_mismatch
+  use number_text, only: integer_text
   implicit none (type, external)
   private
   public :: run_file, extra_attribute, spare_addition
@@ -83,6 +84,7 @@ module run_output
     procedure :: note_resume_state
     procedure :: note_snapshot_point
     procedure :: continue_file
+    procedure :: kept_words
   end type run_file
 
 contains
@@ -467,6 +469,20 @@ contains
   !> rows after record's to the file's, and stores config's effective namelist, t_end and max_steps
   !> (which alone may differ from the file's: docs/faults.md, Continuing a run). A failure: the
   !> OS's words or HDF5's.
+  !> What a failed write leaves, for its message: '; PART keeps the N steps written before', or
+  !> '; nothing was kept' when no write reached the disk (the partial file is removed).
+  function kept_words(self, part) result(words)
+    class(run_file), intent(in) :: self
+    character(len=*), intent(in) :: part
+    character(len=:), allocatable :: words
+
+    if (self%store%on_disk) then
+      words = '; '//part//' keeps the '//integer_text(self%disk_steps)//' steps written before'
+    else
+      words = '; nothing was kept'
+    end if
+  end function kept_words
+
   subroutine continue_file(self, record, config, failure)
     class(run_file), intent(inout) :: self
     type(resume_record), intent(in) :: record

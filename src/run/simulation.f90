@@ -31,7 +31,6 @@ module simulation
   use hdf5_files, only: file_template
   use command_line, only: petsc_error_text
   use filesystem, only: output_lock
-  use number_text, only: integer_text
   use dense_setup, only: dense_max_unknowns, set_up_only, check_dense_size, setup_failure_text
   use failures, only: failure_type
   implicit none (type, external)
@@ -212,7 +211,6 @@ contains
     ! name; an incomplete run does not take the name of a complete one.
     subroutine close_output()
       type(failure_type) :: finishing
-      character(len=:), allocatable :: kept
 
       if (.not. run%writing) return
       call run%guard_lock()
@@ -221,14 +219,9 @@ contains
       call run%output%finish(summary, finishing)
       if (finishing%failed()) then
         summary%status = 'incomplete: cannot write the output file: '//finishing%message
-        if (run%output%store%on_disk) then
-          kept = '; '//run%part//' keeps the '//integer_text(run%output%disk_steps)//' steps written before'
-        else
-          kept = '; nothing was kept'
-        end if
         failure = failure_type()
         call run%fail(failure_io, 'cannot write the output file '''//run%part//''' ('//config%input_file//'): ' &
-                      //finishing%message//kept)
+                      //finishing%message//run%output%kept_words(run%part))
         return
       end if
       call name_finished_file(config, run%part, run%output%store%durable, summary, failure)

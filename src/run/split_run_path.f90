@@ -281,7 +281,8 @@ contains
     call MPI_Bcast(outcome_code, 1, MPI_INTEGER, 0, self%communicator)
     if (outcome_code == 1) call self%window%written()
     if (self%rank == 0 .and. io_failure%failed()) then
-      call fail_write(self%failure, self%summary, self%part, self%config%input_file, io_failure%message)
+      call fail_write(self%failure, self%summary, self%part, self%config%input_file, io_failure%message, &
+                      self%output%kept_words(self%part))
     end if
     call agree(self%failure, self%summary, self%communicator, self%config%input_file)
     ! The last write reached the file (a run stopped by a failure too, marked incomplete): it

@@ -195,15 +195,16 @@ contains
   end subroutine note_petsc_error
 
   !> The output file `part` could not be written (`message`: why): the run stops, its status and
-  !> failure (failure_io) say so.
-  pure subroutine fail_write(failure, summary, part, input_file, message)
+  !> failure (failure_io) say so, the failure also what the file keeps (`kept`, run_output's
+  !> kept_words).
+  pure subroutine fail_write(failure, summary, part, input_file, message, kept)
     type(failure_type), intent(inout) :: failure
     type(run_summary), intent(inout) :: summary
-    character(len=*), intent(in) :: part, input_file, message
+    character(len=*), intent(in) :: part, input_file, message, kept
 
     summary%status = 'incomplete: cannot write the output file: '//message
     call record_failure(failure, summary, failure_io, 'cannot write the output file '''//part//''' ('//input_file// &
-                        '): '//message, input_file)
+                        '): '//message//kept, input_file)
   end subroutine fail_write
 
   !> The summary after accepted step `step`: its Newton iterations (a failed step's are not

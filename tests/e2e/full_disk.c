@@ -1,7 +1,7 @@
 /* A full disk without privileges, for the tests (tests/e2e/test_full_disk.py): loaded with
  * LD_PRELOAD, it makes the files under the directory $EME_FULL_DISK_DIR behave as if that
- * directory were a file system of $EME_FULL_DISK_BYTES bytes: a write, pwrite, fallocate or
- * ftruncate that would make the files there hold more fails with ENOSPC, as a full tmpfs does.
+ * directory were a file system of $EME_FULL_DISK_BYTES bytes: a write, pwrite, (posix_)fallocate
+ * or ftruncate that would make the files there hold more fails with ENOSPC, as a full tmpfs does.
  * Everything else passes through. Used where `mount -t tmpfs` is not permitted. */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -91,6 +91,23 @@ int posix_fallocate(int fd, off_t offset, off_t length)
 int posix_fallocate64(int fd, off_t offset, off_t length)
 {
     return posix_fallocate(fd, offset, length);
+}
+
+/* Linux fallocate: one that keeps the size (FALLOC_FL_KEEP_SIZE, a reservation ahead of the
+ * writes: hdf5_snapshot_storage.c) is refused when its range would overfill; the file's size,
+ * which this shim counts, does not change until the writes come. */
+int fallocate(int fd, int mode, off_t offset, off_t length)
+{
+    if (overfills(fd, (long long)offset + (long long)length)) {
+        errno = ENOSPC;
+        return -1;
+    }
+    return NEXT(fallocate)(fd, mode, offset, length);
+}
+
+int fallocate64(int fd, int mode, off_t offset, off_t length)
+{
+    return fallocate(fd, mode, offset, length);
 }
 
 int ftruncate(int fd, off_t length)
