@@ -359,6 +359,22 @@ def test_a_run_files_snapshot_is_a_runs_start(tmp_path):
     assert not refused.exists() and not plain.exists()
 
 
+def test_a_dense_run_file_as_the_initial_file_is_named_as_one(tmp_path):
+    """A dense-path run file (a small chain's: /state rows, no /snapshots) given as &initial file
+    is refused as what it is, pointing at a split run's file; it said only that it had no q."""
+    chain = {"model_name": "spring_chain", "links": 3, "dimension": 2}
+    result, dense = run_eme(tmp_path, "dense", {"model": chain, "integrator": {"dt": 0.01, "t_end": 0.02}})
+    assert result.returncode == 0, result.stderr
+    with h5py.File(dense, "r") as f:
+        assert "state" in f and "snapshots" not in f
+    result, path = run_eme(tmp_path, "from_dense", {"model": chain, "initial": {"file": dense.name}})
+    assert result.returncode == 2, result.stderr
+    for words in ("from_dense.nml", f"&initial: file = '{dense.name}' is a run file of the dense path",
+                  "allowed: a split run's file, which has /snapshots (run with -eme_split"):
+        assert words in result.stderr, (words, result.stderr)
+    assert not path.exists() and not Path(str(path) + ".part").exists()
+
+
 SPRING_ARRAYS = {"mu_eq_const": np.linspace(300.0, 200.0, 6), "mass": np.linspace(1.0, 2.0, 6),
                  "conductivity": np.full(5, 2.0), "beta_v": np.array([0.0, 0.5, 0.5, 0.4, 0.3, 0.5])}
 

@@ -184,6 +184,10 @@ contains
       failure%code = failure_input
       return
     end if
+    if (.not. found) then
+      call refuse_dense_run_file(self, prefix, failure)
+      if (failure%failed()) return
+    end if
     if (.not. found .and. self%input%snapshot /= -1) then
       call fail(failure, failure_input, prefix//': snapshot = '//integer_text(self%input%snapshot)//' is not '// &
                 'allowed: the file has no /snapshots; allowed: snapshot with a run file that has them (the split '// &
@@ -201,5 +205,25 @@ contains
       if (row == -1) row = size(times) - 1
     end if
   end subroutine snapshot_row
+
+  ! A run file of the dense path (/state rows, no /snapshots and no q) is refused by name: its
+  ! state is a row of the integrator's unknowns, not the datasets q, p, gamma and theta.
+  subroutine refuse_dense_run_file(self, prefix, failure)
+    class(chain_scene), intent(in) :: self
+    character(len=*), intent(in) :: prefix
+    type(failure_type), intent(out) :: failure
+    character(len=256), allocatable :: members(:)
+
+    call self%arrays%member_names(trim(self%input%file), members, failure)
+    if (failure%failed()) then
+      failure%message = prefix//': '//failure%message
+      failure%code = failure_input
+      return
+    end if
+    if (any(members == 'state') .and. .not. any(members == 'q')) &
+      call fail(failure, failure_input, prefix//' is a run file of the dense path (/state rows, no /snapshots); '// &
+                'allowed: a split run''s file, which has /snapshots (run with -eme_split, or under mpirun: '// &
+                'docs/output.md), or a file with datasets q, p, gamma and theta', 'file')
+  end subroutine refuse_dense_run_file
 
 end submodule spring_chain_scene_files
