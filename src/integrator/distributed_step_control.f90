@@ -53,9 +53,13 @@ module distributed_step_control
     !> the field at the state held, once computed (an accepted step's end is the next's start)
     logical :: field_held = .false.
     real(real64), allocatable :: field(:)
+    !> the last fixed step's start and size (its rows; step_again_tightly solves it again)
+    real(real64), allocatable :: step_start(:)
+    real(real64) :: step_dt = 0.0_real64
   contains
     procedure :: start
     procedure :: step
+    procedure :: step_again_tightly
     procedure :: figures
     procedure :: part
     procedure :: restore
@@ -127,6 +131,28 @@ contains
     end if
   end subroutine step
 
+  !> The last fixed step solved again from its start, in halves where needed, with the wrapped
+  !> system's linear solves tightened (distributed_system's tighten_linear_solves) for it alone:
+  !> a step that broke a guaranteed balance (src/run/split_run_path). `again` is .false.
+  !> (nothing done) with adaptive steps or where the wrapped system has no tighter settings.
+  subroutine step_again_tightly(self, outcome, again, failure)
+    class(controlled_system), intent(inout) :: self
+    type(distributed_step), intent(out) :: outcome
+    logical, intent(out) :: again
+    type(failure_type), intent(out) :: failure
+    type(failure_type) :: loosening
+    logical :: loosened
+
+    again = .false.
+    if (self%adaptive .or. .not. allocated(self%step_start)) return
+    call self%inner%tighten_linear_solves(.true., again, failure)
+    if (failure%failed() .or. .not. again) return
+    call self%inner%set_state_rows(self%step_start, self%step_start, failure)
+    if (.not. failure%failed()) call halved_step(self, self%step_dt, outcome, failure)
+    call self%inner%tighten_linear_solves(.false., loosened, loosening)
+    if (.not. failure%failed() .and. loosening%failed()) failure = loosening
+  end subroutine step_again_tightly
+
   ! The step of dt from the state held, in halves where Newton finds no root (step_or_halve); the
   ! figures then span the whole step. With -eme_error_estimate, the step's estimate.
   subroutine halved_step(self, dt, outcome, failure)
@@ -140,6 +166,8 @@ contains
 
     call self%inner%state_rows(z_start, failure)
     if (failure%failed()) return
+    self%step_start = z_start
+    self%step_dt = dt
     substeps = 0
     outcome%solves = 0
     outcome%failure = ''

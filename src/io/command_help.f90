@@ -75,7 +75,8 @@ contains
       '  --help, -h        this text', &
       '  --version         the code''s version and those of PETSc, HDF5, MPI, SUNDIALS, LAPACK and the compiler', &
       '  --integrators     the integrator registry as a tab-separated table', &
-      '  --output-schema   the run file''s rows as a tab-separated table (a split chain''s /snapshots: docs/output.md)', '', &
+      '  --output-schema   the run file''s rows as a tab-separated table (not listed: a split chain''s /snapshots', &
+      '                    and its per-step production minima: docs/output.md, A chain''s file)', '', &
       (trim(petsc_options_text(i)), i = 1, size(petsc_options_text))
     call print_own_options(unit)
     write (unit, '(a)') '', exit_codes, '', &

@@ -102,6 +102,8 @@ module distributed_model
     procedure :: field_rows
     procedure :: integrator_diagnostics
     procedure :: accuracy_warnings
+    procedure :: step_again_tightly
+    procedure :: tighten_linear_solves
   end type distributed_system
 
   abstract interface
@@ -231,6 +233,34 @@ contains
 
     integrator_diagnostics = .false.
   end function integrator_diagnostics
+
+  !> Solves the last step again, from the state it started from, with tighter linear solves than
+  !> the default's (a step that broke a guaranteed balance: src/run/split_run_path): `again`
+  !> says whether the system has such settings; if it has none (the default), nothing changes.
+  !> Collective.
+  subroutine step_again_tightly(self, outcome, again, failure)
+    class(distributed_system), intent(inout) :: self
+    type(distributed_step), intent(out) :: outcome
+    logical, intent(out) :: again
+    type(failure_type), intent(out) :: failure
+
+    again = .false.
+    outcome%converged = .false.
+    failure = failure_type()
+  end subroutine step_again_tightly
+
+  !> With `on`, the steps to come solve their linear systems tighter than by default (until
+  !> called with .false.); `available` says whether the system has such settings (none by
+  !> default). Collective.
+  subroutine tighten_linear_solves(self, on, available, failure)
+    class(distributed_system), intent(inout) :: self
+    logical, intent(in) :: on
+    logical, intent(out) :: available
+    type(failure_type), intent(out) :: failure
+
+    available = .false.
+    failure = failure_type()
+  end subroutine tighten_linear_solves
 
   !> What the run's record says against its accuracy, as the dense path's integrators say it
   !> (src/integrator/stepper's accuracy_warnings; '' if nothing); nothing by default.

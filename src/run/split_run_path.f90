@@ -59,6 +59,7 @@ module split_run_path
     integer :: every = 0                  !! &output snapshot_every
     integer :: outputs_passed = 0         !! output times (&output interval) reached so far
     logical :: row_due = .false.          !! the step reached the next output time
+    logical :: resolved = .false.         !! the last step was solved again (step_stands)
     logical :: checked(balance_count) = .false., has_balance(balance_count) = .false.
     logical :: writing = .false.          !! the run writes its file (from the first write on)
     logical :: lock_lost = .false.        !! rank 0's lock of the output (guard_output_lock)
@@ -126,15 +127,20 @@ contains
   end subroutine take_step
 
   !> The step's balance figures, from the summed differences of its parts (over its halves, if
-  !> halved: their rounding bounds add up); a step that breaks a guaranteed balance ends the run
-  !> (the dense path solves it again first; this path has no other solver settings to try), as
-  !> does a state whose figures cannot be taken (failure_domain).
+  !> halved: their rounding bounds add up). A step that breaks a guaranteed balance is solved
+  !> again with tighter linear solves where the system has them (a chain's fixed steps on several
+  !> ranks: distributed_system's step_again_tightly; then `resolved`), as the dense path
+  !> solves it again with its default settings; one that still breaks it ends the run, as does a
+  !> state whose figures cannot be taken (failure_domain).
   logical function step_stands(self) result(goes_on)
     class(split_path), intent(inout) :: self
     type(failure_type) :: step_failure
+    type(distributed_step) :: again_outcome
     integer :: broken
+    logical :: again
 
     goes_on = .false.
+    self%resolved = .false.
     self%state_step = self%n
     self%state_time = self%time
     call self%system%figures(self%values, step_failure)
@@ -144,10 +150,28 @@ contains
       return
     end if
     call self%observe(self%values)
-    self%figures = balance_figures(self%has_balance, self%balance_old, self%balance_new, 0.0_real64, &
-                                   self%config%theta_r, [self%values%delta_energy, self%values%delta_entropy], &
-                                   self%values%delta_conserved)
-    broken = broken_balance(self%figures, self%checked, self%outcome%halvings + 1)
+    broken = measured_break(self)
+    if (broken /= 0 .and. .not. self%outcome%chose_time) then
+      call self%system%step_again_tightly(again_outcome, again, step_failure)
+      if (step_failure%failed()) then
+        call self%fail(failure_library, step_failure%message)
+        return
+      end if
+      if (again .and. again_outcome%converged) then
+        again_outcome%iterations = again_outcome%iterations + self%outcome%iterations
+        self%outcome = again_outcome
+        self%resolved = .true.
+        self%summary%resolved_steps = self%summary%resolved_steps + 1
+        call self%system%figures(self%values, step_failure)
+        if (step_failure%failed()) then
+          self%summary%status = step_status(self%n, self%time, step_failure%message)
+          self%summary%failure_kind = failure_domain
+          return
+        end if
+        self%balance_new = balanced_state_of(self%values)
+        broken = measured_break(self)
+      end if
+    end if
     if (broken == 0) then
       call note_balance_figures(self%summary, self%has_balance, self%figures)
     else
@@ -156,6 +180,16 @@ contains
     end if
     goes_on = self%summary%failure_kind == failure_none
   end function step_stands
+
+  ! The step's balance figures (into self%figures) and the first guaranteed balance they break.
+  integer function measured_break(self) result(broken)
+    class(split_path), intent(inout) :: self
+
+    self%figures = balance_figures(self%has_balance, self%balance_old, self%balance_new, 0.0_real64, &
+                                   self%config%theta_r, [self%values%delta_energy, self%values%delta_entropy], &
+                                   self%values%delta_conserved)
+    broken = broken_balance(self%figures, self%checked, self%outcome%halvings + 1)
+  end function measured_break
 
   !> The integrator's state and the running sums after the step; the summary counts it.
   subroutine accept_step(self)
@@ -184,7 +218,7 @@ contains
     if (self%rank /= 0) return
     call report_step(self%outcome, self%values, self%report)
     call self%output%record_step(self%n, self%time, self%report, [real(real64) ::], self%step_seconds, &
-                                 self%values%delta_entropy, self%dv, self%figures, self%has_balance, .false.)
+                                 self%values%delta_entropy, self%dv, self%figures, self%has_balance, self%resolved)
     call self%record_point(self%time, self%row_due)
   end subroutine record_row
 

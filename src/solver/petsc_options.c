@@ -78,7 +78,7 @@ static const eme_option options[OPTION_COUNT] = {
      LOGICAL, 0, 0},
     {"-eme_split", "<false>",
      "Run a model that can be split over ranks (the spring chain) on the sparse split path on one process at any "
-     "size (by default an integrator that solves equations takes it beyond 64 unknowns, the others beyond 1000; "
+     "size of at least 2 masses a rank (by default an integrator that solves equations takes it beyond 64 unknowns, the others beyond 1000; "
      "docs/performance.md: Two paths)",
      LOGICAL, 0, 0},
     {"-eme_dense", "<false>",

@@ -31,7 +31,7 @@ module spring_chain_dmda
   use spring_chain_dmda_context, only: chain_context, slice_points
   use spring_chain_dmda_pattern, only: hold_pattern, create_jacobian_matrix
   use spring_chain_dmda_assembly, only: field_into, jacobian_into, chain_residual, chain_jacobian, converged_or_rounding
-  use spring_chain_linear_solver, only: set_default_linear_solver, set_rounding_tolerance
+  use spring_chain_linear_solver, only: set_default_linear_solver, set_rounding_tolerance, settings_in_code
   implicit none
   private
   public :: distributed_chain, set_default_linear_solver, stencil_width
@@ -53,6 +53,9 @@ module spring_chain_dmda
     integer :: last_point = 0
     logical :: created = .false.
     logical :: snes_created = .false.
+    !> the linear solves without their rounding floor (set_rounding_tolerance): a step solved
+    !> again after it broke a balance (src/model/distributed_model's tighten_linear_solves)
+    logical :: tight = .false.
   contains
     procedure :: create
     procedure :: create_snes
@@ -64,6 +67,7 @@ module spring_chain_dmda
     procedure :: set_rows
     procedure :: field_of
     procedure :: step
+    procedure :: linear_floor_in_use
     procedure :: sums
     procedure :: state_part
     procedure :: set_part
@@ -261,15 +265,32 @@ contains
     call fail_on_code(failure, ierr, 'solving the chain''s step with SNES')
   end subroutine step
 
+  !> Whether the linear solves have the rounding floor of set_rounding_tolerance (several
+  !> ranks, -ksp_atol not given), which `tight` lifts (src/model/distributed_model's
+  !> tighten_linear_solves).
+  subroutine linear_floor_in_use(self, in_use, failure)
+    class(distributed_chain), intent(in) :: self
+    logical, intent(out) :: in_use
+    type(failure_type), intent(out) :: failure
+    character(len=:), allocatable :: ordering
+    PetscErrorCode :: ierr
+    KSP :: ksp
+
+    in_use = .false.
+    call SNESGetKSP(self%snes, ksp, ierr)
+    if (ierr == 0) call settings_in_code(ksp, ordering, in_use, ierr)
+    call fail_on_code(failure, ierr, 'reading the chain''s linear solver settings')
+  end subroutine linear_floor_in_use
+
   subroutine step_petsc(self, h, outcome, ierr)
     class(distributed_chain), intent(inout) :: self
     real(real64), intent(in) :: h
     type(distributed_step), intent(out) :: outcome
     PetscErrorCode, intent(out) :: ierr
     PetscErrorCode :: solve_ierr
-    PetscInt :: iterations
+    PetscInt :: iterations, max_iterations
     SNESConvergedReason :: reason
-    PetscReal :: old_norm, residual_norm
+    PetscReal :: old_norm, residual_norm, rtol, atol, dtol
     KSP :: ksp
 
     self%context%problem%dt = h
@@ -279,6 +300,10 @@ contains
     self%context%update_floor = 16.0_real64*epsilon(1.0_real64)*old_norm
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
     PetscCall(set_rounding_tolerance(ksp, epsilon(1.0_real64)*old_norm, ierr))
+    if (self%tight) then   ! GMRES to its relative tolerance alone, as -ksp_atol 1e-30 would
+      PetscCall(KSPGetTolerances(ksp, rtol, atol, dtol, max_iterations, ierr))
+      PetscCall(KSPSetTolerances(ksp, rtol, 0.0_real64, dtol, max_iterations, ierr))
+    end if
     ! A failed library call inside the solve leaves x at an iterate: the old state is put back
     ! before the error goes up (the run ends there, keeping the snapshots it wrote).
     call SNESSolve(self%snes, PETSC_NULL_VEC, self%x, solve_ierr)

@@ -62,6 +62,7 @@ module spring_chain_sparse_run
     procedure :: start
     procedure :: set_up
     procedure :: step
+    procedure :: tighten_linear_solves
     procedure :: figures
     procedure :: part
     procedure :: restore
@@ -216,6 +217,18 @@ contains
 
     call self%chain%step(dt, outcome, failure)
   end subroutine step
+
+  !> The steps' linear solves without their rounding floor while `on` (distributed_system),
+  !> where the chain's default set one (several ranks: spring_chain_dmda).
+  subroutine tighten_linear_solves(self, on, available, failure)
+    class(sparse_chain_run), intent(inout) :: self
+    logical, intent(in) :: on
+    logical, intent(out) :: available
+    type(failure_type), intent(out) :: failure
+
+    call self%chain%linear_floor_in_use(available, failure)
+    if (available) self%chain%tight = on
+  end subroutine tighten_linear_solves
 
   !> The figures of the state and the last step, summed over the ranks (distributed_system).
   subroutine figures(self, values, failure)
