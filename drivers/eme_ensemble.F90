@@ -19,6 +19,7 @@ program eme_ensemble
   use library_versions, only: print_versions
   use failures, only: failure_type, failure_input, fail
   use run_options, only: split_requested, dense_requested
+  use number_text, only: integer_text
   implicit none
 
   type(study_definition), target :: study
@@ -155,7 +156,11 @@ contains
       end if
       if (failure%failed()) then
         stat = 1
-        message = study%cases(c)%config%input_file//': '//failure%message
+        ! The message names the base file once (the path's refusals start with it) and the case.
+        message = failure%message
+        if (index(message, study%cases(c)%config%input_file) /= 1) &
+          message = study%cases(c)%config%input_file//': '//message
+        message = message//' (case '//integer_text(c)//' of the study)'
         return
       end if
     end do

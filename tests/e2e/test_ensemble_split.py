@@ -202,3 +202,18 @@ def test_a_killed_study_continues_its_large_case_from_its_last_snapshot(tmp_path
     with h5py.File(output / "case_00001.h5", "r") as f:      # continued, not run again
         assert len(f.attrs["history"].splitlines()) == 2
     assert_same_split_file(eme_run_reference(tmp_path), output / "case_00001.h5")
+
+
+def test_a_case_the_split_path_cannot_run_is_refused_naming_the_case(tmp_path, eme_run_binary):
+    """A study of the large rod (split) whose second case asks for CVODE, which the split path
+    cannot run: exit 2 before any case runs, the base file named once, the case named (the message
+    read "base.nml: base.nml, &integrator: ..." without the case)."""
+    study, output = write_study(tmp_path, links=(LARGE,))
+    study.write_text(study.read_text() + "&sweep field = 'scheme', texts = 'eme', 'cvode_adams' /\n")
+    result = ensemble(study)
+    assert result.returncode == 2, result.stdout + result.stderr
+    base = str(tmp_path / "base.nml")
+    line = next(line for line in result.stderr.splitlines() if "cvode_adams" in line)
+    assert line.count(base) == 1 and line.startswith(f"eme_ensemble: {base}, &integrator: scheme: "), line
+    assert line.endswith("(case 2 of the study)"), line
+    assert not (output / "case_00001.h5").exists() and not (output / "case_00002.h5").exists()
