@@ -143,12 +143,7 @@ contains
     self%resolved = .false.
     self%state_step = self%n
     self%state_time = self%time
-    call self%system%figures(self%values, step_failure)
-    if (step_failure%failed()) then
-      self%summary%status = step_status(self%n, self%time, step_failure%message)
-      self%summary%failure_kind = failure_domain
-      return
-    end if
+    if (.not. figures_taken(self)) return
     call self%observe(self%values)
     broken = measured_break(self)
     if (broken /= 0 .and. .not. self%outcome%chose_time) then
@@ -162,12 +157,7 @@ contains
         self%outcome = again_outcome
         self%resolved = .true.
         self%summary%resolved_steps = self%summary%resolved_steps + 1
-        call self%system%figures(self%values, step_failure)
-        if (step_failure%failed()) then
-          self%summary%status = step_status(self%n, self%time, step_failure%message)
-          self%summary%failure_kind = failure_domain
-          return
-        end if
+        if (.not. figures_taken(self)) return
         self%balance_new = balanced_state_of(self%values)
         broken = measured_break(self)
       end if
@@ -180,6 +170,19 @@ contains
     end if
     goes_on = self%summary%failure_kind == failure_none
   end function step_stands
+
+  ! The figures of the state and the step (into self%values); a state whose figures cannot be
+  ! taken ends the run (failure_domain).
+  logical function figures_taken(self) result(taken)
+    class(split_path), intent(inout) :: self
+    type(failure_type) :: step_failure
+
+    call self%system%figures(self%values, step_failure)
+    taken = .not. step_failure%failed()
+    if (taken) return
+    self%summary%status = step_status(self%n, self%time, step_failure%message)
+    self%summary%failure_kind = failure_domain
+  end function figures_taken
 
   ! The step's balance figures (into self%figures) and the first guaranteed balance they break.
   integer function measured_break(self) result(broken)
