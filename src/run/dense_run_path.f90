@@ -5,6 +5,7 @@
 !> are the path's components; src/run/simulation sets them up and closes the run.
 module dense_run_path
   use, intrinsic :: iso_fortran_env, only: real64, int64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use stepper, only: time_stepper, step_report
@@ -20,7 +21,7 @@ module dense_run_path
   use step_check, only: broken_balance, balance_text
   use command_line, only: petsc_error_text
   use filesystem, only: output_lock
-  use failures, only: failure_type
+  use failures, only: failure_type, stat_none => failure_none
   implicit none (type, external)
   private
   public :: dense_path
@@ -175,6 +176,7 @@ contains
     class(dense_path), intent(inout) :: self
     logical :: row_due
 
+    call add_model_figures(self)
     call self%output%record_step(self%n, self%time, self%report, self%x(self%n_state + 1:), &
                                  real(self%step_end - self%step_start, real64)/real(self%timer%rate, real64), &
                                  self%seen%entropy - self%entropy_old, self%seen%lyapunov - self%lyapunov_old, &
@@ -184,6 +186,24 @@ contains
     call self%output%note_resume_state(self%n, self%time, self%outputs_passed, self%energy_0, self%first_conserved_0(), &
                                        self%boundary_heat, self%summary, self%x, self%x_previous, self%integrator)
   end subroutine record_row
+
+  ! The model's own figures of the step from x_previous to x (generic_model's step_figures; a
+  ! chain's production minima) after the integrator's in the row; NaN where they cannot be taken.
+  subroutine add_model_figures(self)
+    class(dense_path), intent(inout) :: self
+    real(real64), allocatable :: values(:)
+    integer :: stat, own, count
+
+    count = size(self%model%step_figure_list())
+    if (count == 0) return
+    call self%model%step_figures(self%config%integrator%scheme, self%config%integrator%discrete_gradient, &
+                                 self%config%integrator%metric, self%x_previous(1:self%n_state), &
+                                 self%x(1:self%n_state), values, stat)
+    if (stat /= stat_none .or. size(values) /= count) values = [(ieee_value(1.0_real64, ieee_quiet_nan), own = 1, count)]
+    own = size(self%integrator%diagnostics())    ! the integrator's figures come first
+    if (.not. allocated(self%report%diagnostics)) allocate (self%report%diagnostics(0))
+    self%report%diagnostics = [self%report%diagnostics(1:min(own, size(self%report%diagnostics))), values]
+  end subroutine add_model_figures
 
   !> The rows held so far written when a write is due (a lost lock or a failed write ends the run).
   logical function output_held(self) result(goes_on)

@@ -182,11 +182,11 @@ contains
     if (present(extras)) added = extras
     if (present(durable)) output%store%durable = durable
     if (continuing) then        ! the file exists: nothing of it comes from a template
-      call output%create(part, config, entry, model, constraints, diagnostics, added, petsc_options_in_force(), &
-                         writing, state_rows=state_rows)
+      call output%create(part, config, entry, model, constraints, [diagnostics, model_diagnostics(model)], added, &
+                         petsc_options_in_force(), writing, state_rows=state_rows)
     else
-      call output%create(part, config, entry, model, constraints, diagnostics, added, petsc_options_in_force(), &
-                         writing, template, state_rows)
+      call output%create(part, config, entry, model, constraints, [diagnostics, model_diagnostics(model)], added, &
+                         petsc_options_in_force(), writing, template, state_rows)
     end if
     if (.not. writing%failed()) call output%record_solver(solver, writing)
     if (writing%failed()) then
@@ -199,6 +199,22 @@ contains
     if (writing%failed()) call record_failure(failure, summary, failure_io, "cannot continue the output file '"// &
                                               part//"' ("//config%input_file//'): '//writing%message, config%input_file)
   end subroutine open_run_file
+
+  ! The model's own figures of each step (generic_model's step_figure_list) as datasets of the
+  ! rows, after the integrator's.
+  function model_diagnostics(model) result(items)
+    class(generic_model), intent(in) :: model
+    type(step_diagnostic), allocatable :: items(:)
+    integer :: k
+
+    associate (figures => model%step_figure_list())
+      allocate (items(size(figures)))
+      do k = 1, size(figures)
+        items(k) = step_diagnostic(trim(figures(k)%name), trim(figures(k)%units), figures(k)%description, &
+                                   trim(figures(k)%combine))
+      end do
+    end associate
+  end function model_diagnostics
 
   !> The finished file `part` takes the output's name (synced if `durable`), unless the run is
   !> incomplete (summary's status) and the name holds a complete run: that one is kept, and the

@@ -166,22 +166,12 @@ contains
     end function library_words
   end subroutine set_up_distributed_only
 
-  ! The per-step figures of the split path beyond the schema's.
-  function diagnostics() result(items)
-    type(step_diagnostic) :: items(2)
-
-    items(1) = step_diagnostic('min_viscous_production', 'W/K', 'the step''s smallest entropy production of a '// &
-                               'spring''s viscous branch, Theta y^2/eta (docs/formulation.md section 10); NaN '// &
-                               'without viscous branches', 'min')
-    items(2) = step_diagnostic('min_link_production', 'W/K', 'the step''s smallest entropy production of a '// &
-                               'conducting link, kappa (Theta_a - Theta_b)^2/(Theta_a Theta_b); NaN without links', &
-                               'min')
-  end function diagnostics
 
 
   !> The integrator's per-step figures in a split run's file: the step control's
   !> (controlled_diagnostics), or those the dense path's integrator of the same name declares for
-  !> a system that runs it on its own steps (a relaxed scheme's), then the two production minima.
+  !> a system that runs it on its own steps (a relaxed scheme's); the model's two production
+  !> minima follow (src/run/run_file_steps adds a model's own figures).
   function split_diagnostics(system, entry) result(items)
     class(distributed_system), intent(in) :: system
     type(integrator_entry), intent(in) :: entry
@@ -194,7 +184,7 @@ contains
       call build_integrator(entry, integrator)
       integrator_diagnostics = integrator%diagnostics()
     end if
-    items = [controlled_diagnostics(system), integrator_diagnostics, diagnostics()]
+    items = [controlled_diagnostics(system), integrator_diagnostics]
   end function split_diagnostics
 
   !> The row of a split step (`outcome`, its figures `values`) in the dense path's step report:

@@ -26,7 +26,7 @@ module model_interface
   use failures, only: failure_none, domain_overflow
   implicit none (type, external)
   private
-  public :: generic_model, subsystem, model_words, conserved_component, add_temperature_chain
+  public :: generic_model, subsystem, model_words, conserved_component, add_temperature_chain, model_step_figure
   public :: angular_momentum_components, component_values
 
   !> One thermodynamic subsystem (a spring, with its temperature). The model's builder sets every
@@ -61,6 +61,14 @@ module model_interface
     character(len=8) :: name = ''
     real(real64) :: axis(3) = 0.0_real64
   end type conserved_component
+
+  !> A figure of each step that a model adds to a run's rows (a chain's smallest entropy
+  !> production of a viscous branch): its dataset's name, units and description, and how strided
+  !> rows combine it ('min', 'max', 'sum', 'mean', 'last').
+  type :: model_step_figure
+    character(len=32) :: name = '', units = '', combine = 'last'
+    character(len=:), allocatable :: description
+  end type model_step_figure
 
   !> A GENERIC model with Mielke's split.
   type, abstract :: generic_model
@@ -107,6 +115,8 @@ module model_interface
     procedure :: add_partials_chain
     procedure :: subsystem_gradient
     procedure :: partials_temperatures
+    procedure :: step_figure_list
+    procedure :: step_figures
   end type generic_model
 
   abstract interface
@@ -599,6 +609,30 @@ contains
       theta(a) = partials(n, potential_u, a)/partials(n, potential_s, a)
     end do
   end function partials_temperatures
+
+  !> The model's own figures of each step (none by default; the spring chain's production
+  !> minima), which the run's rows hold after the integrator's.
+  function step_figure_list(self) result(figures)
+    class(generic_model), intent(in) :: self
+    type(model_step_figure), allocatable :: figures(:)
+
+    allocate (figures(0))
+  end function step_figure_list
+
+  !> The values of step_figure_list for the step from `old` to `new` (states) of the integrator
+  !> `scheme` with discrete gradient `gradient` and `metric` (the chain's discrete temperatures
+  !> follow the scheme's rule); stat /= failure_none where they cannot be taken.
+  subroutine step_figures(self, scheme, gradient, metric, old, new, values, stat)
+    class(generic_model), intent(in) :: self
+    character(len=*), intent(in) :: scheme
+    integer, intent(in) :: gradient, metric
+    real(real64), intent(in) :: old(:), new(:)
+    real(real64), allocatable, intent(out) :: values(:)
+    integer, intent(out) :: stat
+
+    allocate (values(0))
+    stat = failure_none
+  end subroutine step_figures
 
   !> A written-out field's df/dpartials gains the chain through each subsystem's temperature
   !> Theta_a = dU_a/dtau / dS_a/dtau (eq. (2)): df_dtheta(:, a) = df/dTheta_a at fixed partials,

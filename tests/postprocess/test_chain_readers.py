@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import BIN
+from conftest import BIN, namelist_text
 
 ROOT = Path(__file__).resolve().parents[2]
 POSTPROCESS = ROOT / "postprocess"
@@ -280,8 +280,10 @@ def test_the_table_gives_a_chain_its_production_columns(chain_files, capsys):
     with h5py.File(paths[0], "r") as f:
         assert split_row[viscous] == f"{np.nanmin(f['min_viscous_production'][()]):.2e}"
         assert split_row[link] == f"{np.nanmin(f['min_link_production'][()]):.2e}"
-    # The dense path does not record them: its cells say so.
-    assert dense_row[viscous] == dense_row[link] == "-"
+    # The dense path records them too (since 2026-12-01).
+    with h5py.File(paths[1], "r") as f:
+        assert dense_row[viscous] == f"{np.nanmin(f['min_viscous_production'][()]):.2e}"
+        assert dense_row[link] == f"{np.nanmin(f['min_link_production'][()]):.2e}"
 
 
 def test_a_study_folder_is_summarized_as_its_case_files(chain_files, capsys, tmp_path):
@@ -453,3 +455,31 @@ def test_a_long_1d_chain_is_drawn_flat_without_mass_markers(tmp_path):
     legend = [text.get_text() for text in figure.legends[0].get_texts()]
     assert "masses $m_i$ at $q_i$ (not drawn for more than 20)" in legend, legend
     plot_snapshots.plt.close(figure)
+
+
+DENSE_MINIMA_SCENE = {"model": {"model_name": "spring_chain", "links": 4, "dimension": 2,
+                                "conductivity": [2.0, 3.0, 4.0]},
+                      "initial": {"theta": [300.0, 320.0, 290.0, 310.0], "perturbation": "random"},
+                      "integrator": {"scheme": "eme", "dt": 0.01, "t_end": 0.05, "newton_tol": 1.0e-30}}
+
+
+def test_a_dense_chain_file_records_the_production_minima_of_the_split_one(tmp_path):
+    """A dense chain run records `/min_viscous_production` and `/min_link_production` (the model's
+    own step figures) as the split path does: the link minimum is, to rounding, the formula typed
+    here, min_a kappa_a (Theta_a - Theta_(a+1))^2/(Theta_a Theta_(a+1)), of the file's
+    `/scheme_temperature` (the step's discrete temperatures); both minima are the split run's of
+    the same chain to 1e-8 and never negative. They were missing from dense files."""
+    files = {}
+    for path, options in (("dense", []), ("split", ["-eme_split"])):
+        groups = {**DENSE_MINIMA_SCENE, "output": {"file": str(tmp_path / f"{path}.h5")}}
+        (tmp_path / f"{path}.nml").write_text(namelist_text(groups))
+        run([BIN / "eme_run", tmp_path / f"{path}.nml", *options])
+        files[path] = tmp_path / f"{path}.h5"
+    with h5py.File(files["dense"], "r") as dense, h5py.File(files["split"], "r") as split:
+        assert "state" in dense and "snapshots" in split
+        theta, kappa = dense["scheme_temperature"][()], np.array([2.0, 3.0, 4.0])
+        typed = np.min(kappa * (theta[:, :-1] - theta[:, 1:]) ** 2 / (theta[:, :-1] * theta[:, 1:]), axis=1)
+        np.testing.assert_allclose(dense["min_link_production"][()], typed, rtol=1e-12)
+        for name in ("min_viscous_production", "min_link_production"):
+            assert dense[name].shape == (5,) and np.all(dense[name][()] >= 0.0), name
+            np.testing.assert_allclose(dense[name][()], split[name][()], rtol=1e-8, err_msg=name)

@@ -8,16 +8,20 @@
 !> the minima of) the ranks' shares.
 module spring_chain_figures
   use, intrinsic :: iso_fortran_env, only: real64
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use model_interface, only: model_step_figure
+  use spring_chain_layout, only: chain_layout
+  use spring_chain_spring, only: chain_spring
   use invariant_function, only: potential_u, potential_s
   use failures, only: failure_none
   use distributed_model, only: distributed_figures
-  use spring_chain_partials, only: spring_partials
+  use spring_chain_partials, only: spring_partials, partials_discrete_gradient, partials_midpoint, partials_exact
   use spring_chain_balance, only: mass_energy, spring_values, viscous_production, link_production, angular_momentum, &
                                   conserved_axes
   use spring_chain_step, only: chain_step_problem
   implicit none (type, external)
   private
-  public :: share_figures
+  public :: share_figures, production_figures, whole_chain_minima
 
 contains
 
@@ -82,5 +86,55 @@ contains
       end do
     end associate
   end subroutine share_figures
+
+  !> The chain's figures of each step beyond a run file's schema (the split path's rows, and a
+  !> dense chain run's through the model: spring_chain_model's step_figure_list).
+  function production_figures() result(figures)
+    type(model_step_figure) :: figures(2)
+
+    figures(1) = model_step_figure(name='min_viscous_production', units='W/K', combine='min', description= &
+                                   'the step''s smallest entropy production of a spring''s viscous branch, Theta y^2/eta '// &
+                                   '(docs/formulation.md section 10); NaN without viscous branches')
+    figures(2) = model_step_figure(name='min_link_production', units='W/K', combine='min', description= &
+                                   'the step''s smallest entropy production of a conducting link, kappa (Theta_a - '// &
+                                   'Theta_b)^2/(Theta_a Theta_b); NaN without links')
+  end function production_figures
+
+  !> production_figures' values for the step old -> new of the whole chain (states in the layout's
+  !> order, as the dense path holds them): its springs' partials by the rule of `scheme` (EME's
+  !> discrete gradient `gradient` with `metric`, the midpoint rule's, or the exact partials at the
+  !> step's end of any other scheme), as the split path takes them; NaN where the chain has no
+  !> such branch or link; stat /= failure_none outside a spring's domain.
+  pure subroutine whole_chain_minima(layout, springs, masses, conductivity, gravity, scheme, gradient, metric, old, &
+                                     new, minima, stat)
+    type(chain_layout), intent(in) :: layout
+    type(chain_spring), intent(in) :: springs(:)
+    real(real64), intent(in) :: masses(:), conductivity(:), gravity(:), old(:), new(:)
+    character(len=*), intent(in) :: scheme
+    integer, intent(in) :: gradient, metric
+    real(real64), intent(out) :: minima(2)
+    integer, intent(out) :: stat
+    type(chain_step_problem) :: problem
+    type(distributed_figures) :: values
+
+    problem%layout = layout
+    problem%springs = springs
+    problem%masses = masses
+    problem%conductivity = conductivity
+    problem%gravity = gravity
+    select case (scheme)
+    case ('eme')
+      problem%rule = partials_discrete_gradient
+    case ('midpoint')
+      problem%rule = partials_midpoint
+    case default
+      problem%rule = partials_exact
+    end select
+    problem%gradient = gradient
+    problem%metric = metric
+    call share_figures(problem, old, new, 0, [1, layout%points()], values, stat)
+    minima = [values%min_viscous_production, values%min_link_production]
+    where (minima >= huge(1.0_real64)) minima = ieee_value(1.0_real64, ieee_quiet_nan)
+  end subroutine whole_chain_minima
 
 end module spring_chain_figures

@@ -12,7 +12,9 @@ module spring_chain_model
   use failures, only: failure_none
   use number_text, only: integer_text
   use invariant_function, only: potential_u, potential_s
-  use model_interface, only: generic_model, conserved_component, angular_momentum_components, component_values
+  use model_interface, only: generic_model, conserved_component, angular_momentum_components, component_values, &
+                             model_step_figure
+  use spring_chain_figures, only: production_figures, whole_chain_minima
   use spring_chain_spring, only: spring_data, chain_spring, make_chain_spring, spring_invariants, rung_elastic
   use spring_chain_layout, only: chain_layout, slots_of
   use spring_chain_partials, only: spring_partials
@@ -54,6 +56,8 @@ module spring_chain_model
     procedure :: in_variable
     procedure :: column_units => chain_column_units
     procedure :: state_from_temperatures
+    procedure :: step_figure_list => chain_step_figure_list
+    procedure :: step_figures => chain_step_figures
   end type spring_chain
 
 contains
@@ -525,5 +529,28 @@ contains
       if (stat /= failure_none) return
     end do
   end subroutine state_from_temperatures
+
+  !> The chain's figures of each step in a run's rows (generic_model's step_figure_list): the
+  !> smallest entropy production of a viscous branch and of a conducting link.
+  function chain_step_figure_list(self) result(figures)
+    class(spring_chain), intent(in) :: self
+    type(model_step_figure), allocatable :: figures(:)
+
+    figures = production_figures()
+  end function chain_step_figure_list
+
+  !> Their values for the step old -> new of `scheme` (generic_model's step_figures).
+  subroutine chain_step_figures(self, scheme, gradient, metric, old, new, values, stat)
+    class(spring_chain), intent(in) :: self
+    character(len=*), intent(in) :: scheme
+    integer, intent(in) :: gradient, metric
+    real(real64), intent(in) :: old(:), new(:)
+    real(real64), allocatable, intent(out) :: values(:)
+    integer, intent(out) :: stat
+
+    allocate (values(2))
+    call whole_chain_minima(self%layout, self%springs, self%masses, self%conductivity, self%gravity, scheme, gradient, &
+                            metric, old, new, values, stat)
+  end subroutine chain_step_figures
 
 end module spring_chain_model
