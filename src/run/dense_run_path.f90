@@ -34,6 +34,8 @@ module dense_run_path
     type(output_lock), pointer :: lock => null()   !! eme_run's lock of the output, if it has one
     type(run_file) :: output
     type(step_report) :: report                    !! the last step's
+    !> how many figures of each step the integrator and the model add to the rows (set up once)
+    integer :: integrator_figures = 0, model_figures = 0
     type(state_observation) :: seen                !! the step check's states before and after the step
     character(len=:), allocatable :: part          !! the output file's name while it is written
     !> the unknowns (the state, then the active constraints' multipliers) before the last step, at
@@ -192,17 +194,18 @@ contains
   subroutine add_model_figures(self)
     class(dense_path), intent(inout) :: self
     real(real64), allocatable :: values(:)
-    integer :: stat, own, count
+    integer :: stat, k
 
-    count = size(self%model%step_figure_list())
-    if (count == 0) return
+    if (self%model_figures == 0) return
     call self%model%step_figures(self%config%integrator%scheme, self%config%integrator%discrete_gradient, &
                                  self%config%integrator%metric, self%x_previous(1:self%n_state), &
                                  self%x(1:self%n_state), values, stat)
-    if (stat /= stat_none .or. size(values) /= count) values = [(ieee_value(1.0_real64, ieee_quiet_nan), own = 1, count)]
-    own = size(self%integrator%diagnostics())    ! the integrator's figures come first
+    if (stat /= stat_none .or. size(values) /= self%model_figures) &
+      values = [(ieee_value(1.0_real64, ieee_quiet_nan), k = 1, self%model_figures)]
     if (.not. allocated(self%report%diagnostics)) allocate (self%report%diagnostics(0))
-    self%report%diagnostics = [self%report%diagnostics(1:min(own, size(self%report%diagnostics))), values]
+    associate (own => min(self%integrator_figures, size(self%report%diagnostics)))   ! the integrator's come first
+      self%report%diagnostics = [self%report%diagnostics(1:own), values]
+    end associate
   end subroutine add_model_figures
 
   !> The rows held so far written when a write is due (a lost lock or a failed write ends the run).

@@ -144,6 +144,8 @@ contains
     end if
     ! The integrator starts first: the datasets of its own figures can depend on its settings.
     call run%integrator%start(config%integrator, run%model, run%constraints, z0, step_failure)
+    run%integrator_figures = size(run%integrator%diagnostics())
+    run%model_figures = size(run%model%step_figure_list())
     if (step_failure%failed()) then
       ! The drivers set the solver up once before (set_up_only), so this is rare: nothing is written.
       call run%fail(failure_input, config%input_file//': '//setup_failure_text())
