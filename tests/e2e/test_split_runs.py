@@ -366,10 +366,11 @@ def test_one_rank_and_two_give_the_same_split_run(tmp_path):
 
 
 def per_step_datasets(f):
-    """The root datasets with one row per recorded point or step (not the run's times)."""
-    rows = f["time"].shape[0]
+    """The root datasets with one row per recorded point or per step (not the run's times)."""
+    rows = (f["time"].shape[0], f["step"].shape[0])
     return sorted(name for name, item in f.items()
-                  if isinstance(item, h5py.Dataset) and item.shape[:1] == (rows,) and "seconds" not in name)
+                  if isinstance(item, h5py.Dataset) and item.shape[:1] and item.shape[0] in rows
+                  and "seconds" not in name)
 
 
 def assert_continued_equals(full_file, continued_file, exact, stop_times=()):
@@ -380,14 +381,21 @@ def assert_continued_equals(full_file, continued_file, exact, stop_times=()):
         assert per_step_datasets(continued) == per_step_datasets(full)
         for name in per_step_datasets(full):
             a, b = full[name][()], continued[name][()]
-            if exact or a.dtype.kind != "f":
+            if exact or (a.dtype.kind != "f" and name != "newton_iterations"):
                 assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
+            elif name == "newton_iterations":
+                # At Newton's rounding floor a step whose start differs in the last bits (the part
+                # before the stop ran on other ranks) may take one iteration more or less.
+                assert np.max(np.abs(a - b)) <= 1 and np.count_nonzero(a != b) <= 0.01 * a.size, name
             elif name in ("energy", "entropy", "lyapunov"):
                 assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(a)), name
-        # The run's totals, restored from the record with the loop's running sums.
+        # The run's totals, restored from the record with the loop's running sums: the continued
+        # file's own rows add up to them.
+        assert continued.attrs["newton_iterations_total"] == continued["newton_iterations"][()].sum()
+        assert continued.attrs["steps_completed"] == continued["step"].shape[0]
         for name in ("steps_completed", "step_rows", "newton_iterations_total", "run_figures", "balance_max_ulps"):
             a, b = np.asarray(full.attrs[name]), np.asarray(continued.attrs[name])
-            if exact or a.dtype.kind != "f":
+            if exact or (a.dtype.kind != "f" and name != "newton_iterations_total"):
                 assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name
         assert continued.attrs.get("warnings", "") == full.attrs.get("warnings", "")
         full_times, times = full["snapshots/time"][()], continued["snapshots/time"][()]
