@@ -7,23 +7,13 @@
 module run_output
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use hdf5_files, only: check_run_file, file_template
-  use hdf5_series, only: series_table
   use crash_safe_file, only: safe_file, spare_addition
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use integrator_registry, only: integrator_entry
-  use thermo_variable_kinds, only: thermo_variable_names
   use run_config, only: run_configuration
-  use effective_namelist, only: namelist_of_run
-  use provenance, only: write_provenance, iso_time, command_line
   use run_outcome, only: run_summary, failure_io
   use resume_records, only: resume_record, write_resume_attributes
-  use run_schema, only: output_dataset, output_schema, dataset_coordinates, column_units, expanded_columns, count_words, &
-                        thermal_only, &
-                        dataset_description, dataset_units
-  use run_attributes, only: write_run_attributes
-  use step_check, only: checked_balances
-  use step_balances, only: balance_names, balance_bound_ulps
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use failures, only: failure_type, fail, code_io => failure_io, failure_mismatch
   use number_text, only: integer_text
@@ -87,126 +77,91 @@ module run_output
     procedure :: kept_words
   end type run_file
 
+  ! Made in memory (src/run/run_output_layout), noted for continuing (src/run/run_output_resume),
+  ! and the outcome's attributes (src/run/run_output_attributes).
+  interface
+    !> Prepares the run file for `path` in memory with its attributes and the datasets' layout:
+    !> the schema's, then one per step for each of the integrator's own diagnostics (attribute
+    !> source = integrator). `petsc_options` are the options in force (the database's text).
+    !> Nothing is written to `path` yet. With `template` (a study rank's, kept from case to case),
+    !> the root attributes start from those of the first file made with it, and only those that
+    !> differ are written (src/io/hdf5_files, file_template). A failure if HDF5 failed.
+    module subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, failure, template, &
+                      state_rows)
+      class(run_file), intent(inout) :: self
+      character(len=*), intent(in) :: path
+      type(run_configuration), intent(in), target :: config
+      type(integrator_entry), intent(in) :: entry
+      class(generic_model), intent(in) :: model
+      type(constraint_slot), intent(in) :: constraints(:)
+      type(step_diagnostic), intent(in) :: diagnostics(:)
+      type(extra_attribute), intent(in) :: extras(:)
+      character(len=*), intent(in) :: petsc_options
+      type(failure_type), intent(out) :: failure
+      type(file_template), intent(inout), target, optional :: template
+      logical, intent(in), optional :: state_rows    !! .false.: no state in rows (run_file's state_rows)
+    end subroutine create
+
+    !> Notes the state after step n when record_point has just completed a row with it (call it after
+    !> every step, and after the initial point, with the summary updated): every later write of the
+    !> file stores it, as the state its rows end at.
+    module subroutine note_resume_state(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
+                                 integrator)
+      class(run_file), intent(inout) :: self
+      class(time_stepper), intent(in) :: integrator
+      integer(int64), intent(in) :: n
+      real(real64), intent(in) :: time, energy_0, jz_0, boundary_heat, x(:), x_previous(:)
+      integer, intent(in) :: outputs_passed
+      type(run_summary), intent(in) :: summary
+    end subroutine note_resume_state
+
+    !> Notes the point after step n of a run whose state is not in rows (a state split over ranks,
+    !> whose snapshot of that step the file's next write adds: src/run/distributed_simulation), as
+    !> note_resume_state does, with no state of its own (resume_x is not written) and the loop's
+    !> `running_sums` as the integrator's state.
+    module subroutine note_snapshot_point(self, n, time, energy_0, summary, running_sums)
+      class(run_file), intent(inout) :: self
+      integer(int64), intent(in) :: n
+      real(real64), intent(in) :: time, energy_0, running_sums(:)
+      type(run_summary), intent(in) :: summary
+    end subroutine note_snapshot_point
+
+    !> Goes on with the file that record came from, now at this file's path (a copy of it), with the
+    !> input `config`: the file made by `create` in memory is dropped, and the next write appends the
+    !> rows after record's to the file's, and stores config's effective namelist, t_end and max_steps
+    !> (which alone may differ from the file's: docs/faults.md, Continuing a run). A failure: the
+    !> OS's words or HDF5's.
+    module subroutine continue_file(self, record, config, failure)
+      class(run_file), intent(inout) :: self
+      type(resume_record), intent(in) :: record
+      type(run_configuration), intent(in), target :: config
+      type(failure_type), intent(out) :: failure
+    end subroutine continue_file
+
+    ! A continued run's history and the input it was continued with: its effective namelist and the
+    ! attributes t_end and max_steps, the only fields that may differ from the file's.
+    module subroutine continued_attributes(self, failure)
+      type(run_file), intent(inout) :: self
+      type(failure_type), intent(out) :: failure
+    end subroutine continued_attributes
+
+    ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
+    ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
+    ! steps; `final` adds end_time. numbers_only: the texts (status, failure_kind) are as the file
+    ! holds them, and numbers are written in place.
+    module subroutine summary_attributes(self, status, summary, failure, numbers_only, final)
+      type(run_file), intent(inout) :: self
+      character(len=*), intent(in) :: status
+      type(run_summary), intent(in) :: summary
+      type(failure_type), intent(out) :: failure
+      logical, intent(in), optional :: numbers_only, final
+    end subroutine summary_attributes
+  end interface
+
 contains
-
-  !> Prepares the run file for `path` in memory with its attributes and the datasets' layout:
-  !> the schema's, then one per step for each of the integrator's own diagnostics (attribute
-  !> source = integrator). `petsc_options` are the options in force (the database's text).
-  !> Nothing is written to `path` yet. With `template` (a study rank's, kept from case to case),
-  !> the root attributes start from those of the first file made with it, and only those that
-  !> differ are written (src/io/hdf5_files, file_template). A failure if HDF5 failed.
-  subroutine create(self, path, config, entry, model, constraints, diagnostics, extras, petsc_options, failure, template, &
-                    state_rows)
-    class(run_file), intent(inout) :: self
-    character(len=*), intent(in) :: path
-    type(run_configuration), intent(in), target :: config
-    type(integrator_entry), intent(in) :: entry
-    class(generic_model), intent(in) :: model
-    type(constraint_slot), intent(in) :: constraints(:)
-    type(step_diagnostic), intent(in) :: diagnostics(:)
-    type(extra_attribute), intent(in) :: extras(:)
-    character(len=*), intent(in) :: petsc_options
-    type(failure_type), intent(out) :: failure
-    type(file_template), intent(inout), target, optional :: template
-    logical, intent(in), optional :: state_rows    !! .false.: no state in rows (run_file's state_rows)
-    type(output_dataset) :: spec
-    integer :: k
-
-    call self%store%start(path, 2, failure, template)
-    self%enabled = .true.
-    self%every = config%output_every
-    self%thermal = model%temperature_count() > 0
-    self%by_interval = config%output_interval > 0.0_real64
-    if (present(state_rows)) self%state_rows = state_rows
-    self%store%tables(point_rows)%compression = config%compression
-    self%store%tables(step_rows)%compression = config%compression
-    self%store%tables(point_rows)%scale = .true.
-    self%store%tables(step_rows)%scale = .true.
-    if (.not. failure%failed()) call write_run_attributes(self%store%file, config, entry, model, constraints, failure)
-    if (.not. failure%failed()) call write_provenance(self%store%file, 'EME run of '//config%input_file//': '// &
-                                         trim(entry%label)//', '// &
-                                         trim(thermo_variable_names(config%integrator%thermo_variable)), &
-                                         petsc_options, failure)
-    if (.not. failure%failed()) call self%store%file%set_text('namelist', namelist_of_run(config), failure)
-    if (.not. failure%failed()) call self%store%file%set_text('balance_guarantees', &
-                                  checked_names(checked_balances(entry, model, constraints)), failure)
-    if (.not. failure%failed()) call self%store%file%set_reals('balance_bound_ulps', balance_bound_ulps, failure)
-    if (.not. failure%failed()) call self%store%file%set_text('balance_bound_ulps_units', '1', failure)
-    do k = 1, size(extras)
-      if (failure%failed()) exit
-      if (allocated(extras(k)%text)) then
-        call self%store%file%set_text(trim(extras(k)%name), extras(k)%text, failure)
-      else
-        call self%store%file%set_integer(trim(extras(k)%name), extras(k)%number, failure, units='1')
-      end if
-    end do
-    do k = 1, size(output_schema)
-      spec = output_schema(k)
-      if (index(spec%columns, '<constraints>') > 0 .and. size(constraints) == 0) cycle
-      if (spec%columns == '<momenta>' .and. model%momentum_count() == 0) cycle
-      if (thermal_only(spec%name) .and. model%temperature_count() == 0) cycle
-      if (.not. self%state_rows .and. any(spec%name == [character(len=18) :: 'state', 'temperature', &
-                                                         'scheme_temperature'])) cycle
-      if (spec%rows == 'point') then
-        call define(self%store%tables(point_rows))
-      else
-        call define(self%store%tables(step_rows))
-      end if
-    end do
-    do k = 1, size(diagnostics)
-      call self%store%tables(step_rows)%define(trim(diagnostics(k)%name), 1, .false., trim(diagnostics(k)%units), &
-                             trim(diagnostics(k)%description), rows='step', source='integrator', &
-                             combine=diagnostics(k)%combine, coordinates=dataset_coordinates(diagnostics(k)%name, 'step'))
-    end do
-    ! Both tables gain a row per step: together they buffer at most buffer_bytes.
-    associate (points => self%store%tables(point_rows), steps => self%store%tables(step_rows))
-      points%capacity_rows = max(1024, buffer_bytes/(8*(points%row_width + steps%row_width)))
-      steps%capacity_rows = points%capacity_rows
-    end associate
-
-  contains
-
-    subroutine define(table)
-      type(series_table), intent(inout) :: table
-      character(len=:), allocatable :: columns, description
-      character(len=16), allocatable :: units(:)
-      character(len=:), allocatable :: common
-
-      columns = expanded_columns(spec%columns, model, constraints)
-      description = dataset_description(spec, model)
-      if (spec%name == 'scheme_temperature') description = trim(entry%scheme_temperature)
-      if (len(columns) == 0) then
-        call table%define(trim(spec%name), 1, .false., dataset_units(spec, model), description, &
-                          integer_valued=spec%integer_valued, rows=trim(spec%rows), combine=spec%combine, &
-                          coordinates=dataset_coordinates(spec%name, spec%rows))
-        return
-      end if
-      units = column_units(spec, model, constraints, count_words(columns))
-      ! Columns of different units (the state) carry column_units only: no one units is right.
-      common = trim(units(1))
-      if (any(units /= units(1))) common = ''
-      call table%define(trim(spec%name), count_words(columns), .true., common, description, &
-                        integer_valued=spec%integer_valued, columns=columns, rows=trim(spec%rows), &
-                        column_units=units, combine=spec%combine, coordinates=dataset_coordinates(spec%name, spec%rows))
-    end subroutine define
-  end subroutine create
 
   !> The solver the integrator used (after its `start`): each setting as a root attribute
   !> solver_<name> (numbers with solver_<name>_units), and the legend of /converged_reason.
-  ! The balances checked on every step, blank-separated ('none' if none).
-  function checked_names(checked) result(names)
-    logical, intent(in) :: checked(:)
-    character(len=:), allocatable :: names
-    integer :: k
-
-    names = ''
-    do k = 1, size(checked)
-      if (checked(k)) names = names//' '//trim(balance_names(k))
-    end do
-    names = trim(adjustl(names))
-    if (len(names) == 0) names = 'none'
-  end function checked_names
-
   subroutine record_solver(self, report, failure)
     class(run_file), intent(inout) :: self
     type(solver_report), intent(in) :: report
@@ -395,80 +350,6 @@ contains
       call fail(failure, failure_mismatch, 'the file did not read back as written', self%store%path)
   end subroutine finish
 
-  !> Notes the state after step n when record_point has just completed a row with it (call it after
-  !> every step, and after the initial point, with the summary updated): every later write of the
-  !> file stores it, as the state its rows end at.
-  subroutine note_resume_state(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, x, x_previous, &
-                               integrator)
-    class(run_file), intent(inout) :: self
-    class(time_stepper), intent(in) :: integrator
-    integer(int64), intent(in) :: n
-    real(real64), intent(in) :: time, energy_0, jz_0, boundary_heat, x(:), x_previous(:)
-    integer, intent(in) :: outputs_passed
-    type(run_summary), intent(in) :: summary
-    logical :: noted
-
-    call note_point(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, noted)
-    if (.not. noted) return
-    associate (record => self%resume)
-      if (.not. allocated(record%x)) allocate (record%x(size(x)), record%x_previous(size(x)))
-      record%x = x
-      record%x_previous = x_previous
-      call integrator%resume_state(record%integrator_state)
-    end associate
-  end subroutine note_resume_state
-
-  !> Notes the point after step n of a run whose state is not in rows (a state split over ranks,
-  !> whose snapshot of that step the file's next write adds: src/run/distributed_simulation), as
-  !> note_resume_state does, with no state of its own (resume_x is not written) and the loop's
-  !> `running_sums` as the integrator's state.
-  subroutine note_snapshot_point(self, n, time, energy_0, summary, running_sums)
-    class(run_file), intent(inout) :: self
-    integer(int64), intent(in) :: n
-    real(real64), intent(in) :: time, energy_0, running_sums(:)
-    type(run_summary), intent(in) :: summary
-    logical :: noted
-
-    call note_point(self, n, time, 0, energy_0, 0.0_real64, 0.0_real64, summary, noted)
-    if (.not. noted) return
-    self%resume%x = [real(real64) ::]
-    self%resume%x_previous = [real(real64) ::]
-    self%resume%integrator_state = running_sums
-  end subroutine note_snapshot_point
-
-  ! The resume record's point and figures after step n, if record_point has just completed a row
-  ! with it (`noted`).
-  subroutine note_point(self, n, time, outputs_passed, energy_0, jz_0, boundary_heat, summary, noted)
-    class(run_file), intent(inout) :: self
-    integer(int64), intent(in) :: n
-    real(real64), intent(in) :: time, energy_0, jz_0, boundary_heat
-    integer, intent(in) :: outputs_passed
-    type(run_summary), intent(in) :: summary
-    logical, intent(out) :: noted
-
-    noted = .false.
-    if (.not. self%enabled .or. self%committed_steps /= n) return
-    if (self%store%tables(step_rows)%pending_count > 0) return
-    noted = .true.
-    associate (record => self%resume)
-      record%held = .true.
-      record%step = n
-      record%time = time
-      record%outputs_passed = outputs_passed
-      record%energy_0 = energy_0
-      record%jz_0 = jz_0
-      record%boundary_heat = boundary_heat
-      record%point_rows = self%store%tables(point_rows)%first_row + self%store%tables(point_rows)%buffered
-      record%step_rows = self%store%tables(step_rows)%first_row + self%store%tables(step_rows)%buffered
-      call record%keep_summary(summary)
-    end associate
-  end subroutine note_point
-
-  !> Goes on with the file that record came from, now at this file's path (a copy of it), with the
-  !> input `config`: the file made by `create` in memory is dropped, and the next write appends the
-  !> rows after record's to the file's, and stores config's effective namelist, t_end and max_steps
-  !> (which alone may differ from the file's: docs/faults.md, Continuing a run). A failure: the
-  !> OS's words or HDF5's.
   !> What a failed write leaves, for its message: '; PART keeps the N steps written before', or
   !> '; nothing was kept' when no write reached the disk (the partial file is removed).
   function kept_words(self, part) result(words)
@@ -482,27 +363,6 @@ contains
       words = '; nothing was kept'
     end if
   end function kept_words
-
-  subroutine continue_file(self, record, config, failure)
-    class(run_file), intent(inout) :: self
-    type(resume_record), intent(in) :: record
-    type(run_configuration), intent(in), target :: config
-    type(failure_type), intent(out) :: failure
-    if (.not. self%enabled) return
-    call self%store%resume_from([record%point_rows, record%step_rows], failure)
-    self%last_step = record%step
-    self%committed_steps = record%step
-    self%disk_steps = record%step
-    self%committed_newton = record%summary%newton_iterations
-    self%disk_newton = record%summary%newton_iterations
-    self%resume = record
-    ! The file keeps its provenance; its CF history says when and how it was continued, and its
-    ! input the end time and step budget that applied.
-    self%history = record%history//new_line('a')//iso_time()//': '//command_line()
-    self%continued_namelist = namelist_of_run(config)
-    self%continued_t_end = config%integrator%t_end
-    self%continued_max_steps = config%integrator%max_steps
-  end subroutine continue_file
 
   ! One write of the file: the buffered rows, then the attributes of the outcome so far (all of
   ! them the first time and at the end, else the numbers, written in place). After a failed
@@ -540,84 +400,5 @@ contains
       self%disk_newton = newton_before
     end if
   end subroutine write_file
-
-  ! A continued run's history and the input it was continued with: its effective namelist and the
-  ! attributes t_end and max_steps, the only fields that may differ from the file's.
-  subroutine continued_attributes(self, failure)
-    type(run_file), intent(inout) :: self
-    type(failure_type), intent(out) :: failure
-
-    call self%store%file%set_text('history', self%history, failure)
-    if (.not. failure%failed()) call self%store%file%set_text('namelist', self%continued_namelist, failure)
-    if (.not. failure%failed()) call self%store%file%set_real('t_end', self%continued_t_end, failure)
-    if (.not. failure%failed()) call self%store%file%set_integer('max_steps', self%continued_max_steps, failure)
-  end subroutine continued_attributes
-
-  ! The root attributes of the run's outcome: steps_completed counts the steps the file's rows
-  ! stand for, step_rows the step rows, newton_iterations_total the Newton iterations of those
-  ! steps; `final` adds end_time. numbers_only: the texts (status, failure_kind) are as the file
-  ! holds them, and numbers are written in place.
-  subroutine summary_attributes(self, status, summary, failure, numbers_only, final)
-    type(run_file), intent(inout) :: self
-    character(len=*), intent(in) :: status
-    type(run_summary), intent(in) :: summary
-    type(failure_type), intent(out) :: failure
-    logical, intent(in), optional :: numbers_only, final
-    logical :: units, texts
-    units = self%store%file%fresh         ! the units attributes go with the first write
-    texts = .true.
-    if (present(numbers_only)) texts = .not. numbers_only
-    if (texts) then
-      call self%store%file%set_text('status', status, failure)
-      if (.not. failure%failed()) call self%store%file%set_text('failure_kind', summary%failure_kind, failure)
-    end if
-    if (present(final)) then
-      if (.not. failure%failed() .and. final) call self%store%file%set_text('end_time', iso_time(), failure)
-      ! A complete run's accuracy warnings (docs/integrators.md), beside its status.
-      if (allocated(summary%warnings) .and. status == 'complete') then
-        if (.not. failure%failed() .and. final .and. len(summary%warnings) > 0) &
-          call self%store%file%set_text('warnings', summary%warnings, failure)
-      end if
-    end if
-    call number('steps_planned', real(summary%steps_planned, real64), '1', .true.)
-    call number('steps_completed', real(self%disk_steps, real64), '1', .true.)
-    call number('step_rows', real(self%store%tables(step_rows)%written, real64), '1', .true.)
-    call number('newton_iterations_total', real(self%disk_newton, real64), '1', .true.)
-    if (.not. failure%failed()) call self%store%file%set_reals('run_figures', [summary%energy_drift, &
-                                           summary%min_entropy_increment, &
-                                           summary%max_lyapunov_increment, summary%angular_momentum_drift, &
-                                           summary%min_temperature, real(summary%halved_steps, real64), &
-                                           real(summary%rejected_steps, real64)], failure)
-    if (.not. failure%failed() .and. units) call self%store%file%set_texts('run_figures_units', &
-                                                        [character(len=3) :: '1', 'J/K', 'J', 'J s', 'K', '1', '1'], &
-                                                        failure)
-    call number('resolved_steps', real(summary%resolved_steps, real64), '1', .true.)
-    if (.not. failure%failed()) call self%store%file%set_reals('balance_max_ulps', summary%max_balance, failure)
-    if (.not. failure%failed() .and. units) call self%store%file%set_text('balance_max_ulps_units', '1', failure)
-    call number('solve_time_seconds', summary%solve_seconds, 's', .false.)
-    call number('wall_time_seconds', summary%wall_seconds, 's', .false.)
-    call number('solve_cpu_time_seconds', summary%solve_cpu_seconds, 's', .false.)
-    call number('cpu_time_seconds', summary%cpu_seconds, 's', .false.)
-    self%store%file%fresh = .false.
-
-  contains
-
-    subroutine number(name, value, unit, integer_valued)
-      character(len=*), intent(in) :: name, unit
-      real(real64), intent(in) :: value
-      logical, intent(in) :: integer_valued
-
-      if (failure%failed()) return
-      ! A count beyond the default integer's range (Newton iterations of a billion steps) is
-      ! written as a double, which holds it exactly.
-      if (integer_valued .and. abs(value) < real(huge(1), real64)) then
-        if (units) call self%store%file%set_integer(name, nint(value), failure, units=unit)
-        if (.not. units) call self%store%file%set_integer(name, nint(value), failure)
-      else
-        if (units) call self%store%file%set_real(name, value, failure, units=unit)
-        if (.not. units) call self%store%file%set_real(name, value, failure)
-      end if
-    end subroutine number
-  end subroutine summary_attributes
 
 end module run_output

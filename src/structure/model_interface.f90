@@ -172,6 +172,99 @@ module model_interface
     end function poisson_interface
   end interface
 
+  ! Implemented in model_interface_subsystems.
+  interface
+    !> E(z_b) - E(z_a) without cancellation: the mechanical part by mechanical_energy_difference,
+    !> the subsystems' U_a by their potentials' difference (relaxation solves E(z_b) = E(z_a));
+    !> optionally S(z_b) - S(z_a) likewise.
+    pure module subroutine energy_difference(self, z_a, z_b, delta, stat, entropy_delta)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z_a(:), z_b(:)
+      real(real64), intent(out) :: delta
+      integer, intent(out) :: stat
+      real(real64), intent(out), optional :: entropy_delta
+    end subroutine energy_difference
+
+    !> The same physical state in `target`'s thermodynamic variable: every subsystem's tau from its
+    !> temperature at the same mechanical invariants (docs/formulation.md section 3's closed forms).
+    pure module subroutine convert_state(self, z, target, z_target, stat)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      class(generic_model), intent(in) :: target
+      real(real64), intent(out) :: z_target(:)
+      integer, intent(out) :: stat
+    end subroutine convert_state
+
+    !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z; optionally
+    !> the rounding scales of E and S (src/structure/step_balances): the mechanical energy's
+    !> (mechanical_energy_scale) plus sum_a scale(U_a), and sum_a scale(S_a): the potentials' own
+    !> rounding scales (invariant_function's values_and_temperature; |U_a| and |S_a| where there is
+    !> no temperature).
+    pure module subroutine observe(self, z, energy, entropy, temperature, stat, energy_scale, entropy_scale)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64), intent(out) :: energy, entropy, temperature(:)
+      integer, intent(out) :: stat
+      real(real64), intent(out), optional :: energy_scale, entropy_scale
+    end subroutine observe
+
+    !> The subsystems' temperatures at z; stat reports the first that is outside the domain in
+    !> `which` (0 if none).
+    pure module subroutine temperatures(self, z, theta, stat, which)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64), intent(out) :: theta(:)
+      integer, intent(out) :: stat, which
+    end subroutine temperatures
+
+    !> The exact partials of U_a and S_a in each subsystem's invariants at z, and optionally their
+    !> derivatives dpartials_dz(i, k, a, j) with respect to z(j).
+    pure module subroutine exact_partials(self, z, partials, dpartials_dz, stat)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64), intent(out) :: partials(:, :, :)
+      real(real64), intent(out), optional :: dpartials_dz(:, :, :, :)
+      integer, intent(out) :: stat
+    end subroutine exact_partials
+
+    !> The continuous field f(z) = L grad E + K grad S (eq. (8)) at the exact partials, and
+    !> optionally its Jacobian df/dz (through the partials by the chain rule); stat /= failure_none
+    !> outside the model's domain or where f is not finite.
+    pure module subroutine continuous_field(self, z, f, stat, jacobian)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64), intent(out) :: f(:)
+      integer, intent(out) :: stat
+      real(real64), intent(out), optional :: jacobian(:, :)
+    end subroutine continuous_field
+
+    !> Subsystem a's partials' derivatives in z from those in its invariants:
+    !> dpartials_dz(i, k, a, columns(j)) = sum_l dg(i, l, k) dx_dz(l, j). Other columns are left alone.
+    pure module subroutine chain_to_state(self, a, dg, dx_dz, dpartials_dz)
+      class(generic_model), intent(in) :: self
+      integer, intent(in) :: a
+      real(real64), intent(in) :: dg(:, :, :), dx_dz(:, :)
+      real(real64), intent(inout) :: dpartials_dz(:, :, :, :)
+    end subroutine chain_to_state
+
+    !> jacobian(:, j) += factor sum df_dpartials(:, i, k, a) dpartials_dz(i, k, a, j): the chain rule
+    !> through the partials, over each subsystem's own invariants and columns (the rest is zero).
+    pure module subroutine add_partials_chain(self, df_dpartials, dpartials_dz, factor, jacobian)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: df_dpartials(:, :, :, :), dpartials_dz(:, :, :, :), factor
+      real(real64), intent(inout) :: jacobian(:, :)
+    end subroutine add_partials_chain
+
+    !> The gradient in z of sum_a H_a (H = U if potential = potential_u, S if potential_s) from the
+    !> partials: (dx_a/dz)^T partials(:, potential, a), with dx_a/dz at z.
+    pure module function subsystem_gradient(self, z, partials, potential) result(gradient)
+      class(generic_model), intent(in) :: self
+      real(real64), intent(in) :: z(:), partials(:, :, :)
+      integer, intent(in) :: potential
+      real(real64) :: gradient(self%state_size)
+    end function subsystem_gradient
+  end interface
+
 contains
 
   !> K0 of eq. (8) at the state z and the temperatures the partials give (eq. (2)), in z's
@@ -356,245 +449,6 @@ contains
 
     delta = self%mechanical_energy(z_b) - self%mechanical_energy(z_a)
   end function mechanical_energy_difference
-
-  !> E(z_b) - E(z_a) without cancellation: the mechanical part by mechanical_energy_difference,
-  !> the subsystems' U_a by their potentials' difference (relaxation solves E(z_b) = E(z_a));
-  !> optionally S(z_b) - S(z_a) likewise.
-  pure subroutine energy_difference(self, z_a, z_b, delta, stat, entropy_delta)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z_a(:), z_b(:)
-    real(real64), intent(out) :: delta
-    integer, intent(out) :: stat
-    real(real64), intent(out), optional :: entropy_delta
-    real(real64) :: x_a(self%max_invariants), x_b(self%max_invariants), part(2)
-    integer :: a, n
-
-    delta = self%mechanical_energy_difference(z_a, z_b)
-    if (present(entropy_delta)) entropy_delta = 0.0_real64
-    stat = failure_none
-    do a = 1, size(self%subsystems)
-      n = self%subsystems(a)%invariant_count
-      call self%invariants(z_a, a, x_a(1:n))
-      call self%invariants(z_b, a, x_b(1:n))
-      call self%subsystems(a)%potentials%difference(x_a(1:n), x_b(1:n), part, stat)
-      if (stat /= failure_none) return
-      delta = delta + part(potential_u)
-      if (present(entropy_delta)) entropy_delta = entropy_delta + part(potential_s)
-    end do
-  end subroutine energy_difference
-
-  !> The same physical state in `target`'s thermodynamic variable: every subsystem's tau from its
-  !> temperature at the same mechanical invariants (docs/formulation.md section 3's closed forms).
-  pure subroutine convert_state(self, z, target, z_target, stat)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    class(generic_model), intent(in) :: target
-    real(real64), intent(out) :: z_target(:)
-    integer, intent(out) :: stat
-    real(real64) :: x(self%max_invariants), theta
-    integer :: a, n
-
-    z_target = z
-    stat = failure_none
-    do a = 1, size(self%subsystems)
-      if (self%subsystems(a)%tau_column == 0) cycle
-      n = self%subsystems(a)%invariant_count
-      call self%invariants(z, a, x(1:n))
-      call self%subsystems(a)%potentials%temperature(x(1:n), theta, stat)
-      if (stat /= failure_none) return
-      call target%subsystems(a)%potentials%tau_from_temperature(x(1:n - 1), theta, &
-                                                                z_target(self%subsystems(a)%tau_column), stat)
-      if (stat /= failure_none) return
-    end do
-  end subroutine convert_state
-
-  !> Total energy E (6), total entropy S and the subsystems' temperatures (2) at z; optionally
-  !> the rounding scales of E and S (src/structure/step_balances): the mechanical energy's
-  !> (mechanical_energy_scale) plus sum_a scale(U_a), and sum_a scale(S_a): the potentials' own
-  !> rounding scales (invariant_function's values_and_temperature; |U_a| and |S_a| where there is
-  !> no temperature).
-  pure subroutine observe(self, z, energy, entropy, temperature, stat, energy_scale, entropy_scale)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64), intent(out) :: energy, entropy, temperature(:)
-    integer, intent(out) :: stat
-    real(real64), intent(out), optional :: energy_scale, entropy_scale
-    real(real64) :: f(2), x(self%max_invariants), g(self%max_invariants, 2), u_scale, s_scale, scales(2)
-    integer :: a, n
-
-    energy = self%mechanical_energy(z)
-    entropy = 0.0_real64
-    temperature = 0.0_real64
-    u_scale = 0.0_real64
-    s_scale = 0.0_real64
-    stat = failure_none
-    do a = 1, size(self%subsystems)
-      n = self%subsystems(a)%invariant_count
-      call self%invariants(z, a, x(1:n))
-      if (self%subsystems(a)%tau_column > 0) then
-        call self%subsystems(a)%potentials%values_and_temperature(x(1:n), f, temperature(a), stat, scales)
-      else
-        call self%subsystems(a)%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
-        scales = abs(f)
-      end if
-      if (stat /= failure_none) return
-      energy = energy + f(potential_u)
-      entropy = entropy + f(potential_s)
-      u_scale = u_scale + scales(potential_u)
-      s_scale = s_scale + scales(potential_s)
-    end do
-    if (present(energy_scale)) energy_scale = self%mechanical_energy_scale(z) + u_scale
-    if (present(entropy_scale)) entropy_scale = s_scale
-  end subroutine observe
-
-  !> The subsystems' temperatures at z; stat reports the first that is outside the domain in
-  !> `which` (0 if none).
-  pure subroutine temperatures(self, z, theta, stat, which)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64), intent(out) :: theta(:)
-    integer, intent(out) :: stat, which
-    real(real64) :: x(self%max_invariants)
-    integer :: a, n
-
-    theta = 0.0_real64
-    which = 0
-    stat = failure_none
-    do a = 1, self%temperature_count()
-      n = self%subsystems(a)%invariant_count
-      call self%invariants(z, a, x(1:n))
-      call self%subsystems(a)%potentials%temperature(x(1:n), theta(a), stat)
-      if (stat /= failure_none) then
-        which = a
-        return
-      end if
-    end do
-  end subroutine temperatures
-
-  !> The exact partials of U_a and S_a in each subsystem's invariants at z, and optionally their
-  !> derivatives dpartials_dz(i, k, a, j) with respect to z(j).
-  pure subroutine exact_partials(self, z, partials, dpartials_dz, stat)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64), intent(out) :: partials(:, :, :)
-    real(real64), intent(out), optional :: dpartials_dz(:, :, :, :)
-    integer, intent(out) :: stat
-    real(real64) :: f(2), g(self%max_invariants, 2), h(self%max_invariants, self%max_invariants, 2)
-    real(real64) :: x(self%max_invariants), dx(self%max_invariants, self%state_size)
-    integer :: a, n, m
-
-    partials = 0.0_real64
-    stat = failure_none
-    if (present(dpartials_dz)) dpartials_dz = 0.0_real64
-    do a = 1, size(self%subsystems)
-      associate (part => self%subsystems(a))
-        n = part%invariant_count
-        m = size(part%columns)
-        if (present(dpartials_dz)) then
-          call self%invariants(z, a, x(1:n), dx(1:n, 1:m))
-          call part%potentials%evaluate(x(1:n), f, g(1:n, :), h(1:n, 1:n, :), stat)
-        else
-          call self%invariants(z, a, x(1:n))
-          call part%potentials%evaluate(x(1:n), f, g(1:n, :), stat=stat)
-        end if
-        if (stat /= failure_none) return
-        partials(1:n, :, a) = g(1:n, :)
-        if (present(dpartials_dz)) call self%chain_to_state(a, h(1:n, 1:n, :), dx(1:n, 1:m), dpartials_dz)
-      end associate
-    end do
-  end subroutine exact_partials
-
-  !> The continuous field f(z) = L grad E + K grad S (eq. (8)) at the exact partials, and
-  !> optionally its Jacobian df/dz (through the partials by the chain rule); stat /= failure_none
-  !> outside the model's domain or where f is not finite.
-  pure subroutine continuous_field(self, z, f, stat, jacobian)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64), intent(out) :: f(:)
-    integer, intent(out) :: stat
-    real(real64), intent(out), optional :: jacobian(:, :)
-    real(real64) :: partials(self%max_invariants, 2, size(self%subsystems))
-    ! Allocated, and only for the Jacobian: each is 6 x subsystems x state_size numbers, 12 MB for
-    ! a chain of 1000 unknowns, beyond a default stack.
-    real(real64), allocatable :: dpartials(:, :, :, :), df_dpartials(:, :, :, :)
-
-    if (present(jacobian)) then
-      allocate (dpartials(self%max_invariants, 2, size(self%subsystems), self%state_size), &
-                df_dpartials(self%state_size, self%max_invariants, 2, size(self%subsystems)))
-      call self%exact_partials(z, partials, dpartials, stat)
-      if (stat /= failure_none) return
-      call self%vector_field(z, partials, f, jacobian, df_dpartials)
-      call self%add_partials_chain(df_dpartials, dpartials, 1.0_real64, jacobian)
-    else
-      call self%exact_partials(z, partials, stat=stat)
-      if (stat /= failure_none) return
-      call self%vector_field(z, partials, f)
-    end if
-    if (.not. all(abs(f) <= huge(1.0_real64))) stat = domain_overflow
-  end subroutine continuous_field
-
-  !> Subsystem a's partials' derivatives in z from those in its invariants:
-  !> dpartials_dz(i, k, a, columns(j)) = sum_l dg(i, l, k) dx_dz(l, j). Other columns are left alone.
-  pure subroutine chain_to_state(self, a, dg, dx_dz, dpartials_dz)
-    class(generic_model), intent(in) :: self
-    integer, intent(in) :: a
-    real(real64), intent(in) :: dg(:, :, :), dx_dz(:, :)
-    real(real64), intent(inout) :: dpartials_dz(:, :, :, :)
-    integer :: i, k, j
-
-    associate (columns => self%subsystems(a)%columns)
-      do k = 1, 2
-        do i = 1, size(dg, 1)
-          do j = 1, size(columns)
-            dpartials_dz(i, k, a, columns(j)) = dot_product(dg(i, :, k), dx_dz(:, j))
-          end do
-        end do
-      end do
-    end associate
-  end subroutine chain_to_state
-
-  !> jacobian(:, j) += factor sum df_dpartials(:, i, k, a) dpartials_dz(i, k, a, j): the chain rule
-  !> through the partials, over each subsystem's own invariants and columns (the rest is zero).
-  pure subroutine add_partials_chain(self, df_dpartials, dpartials_dz, factor, jacobian)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: df_dpartials(:, :, :, :), dpartials_dz(:, :, :, :), factor
-    real(real64), intent(inout) :: jacobian(:, :)
-    integer :: a, k, i, j, column
-
-    do a = 1, size(self%subsystems)
-      associate (part => self%subsystems(a))
-        do j = 1, size(part%columns)
-          column = part%columns(j)
-          do k = 1, 2
-            do i = 1, part%invariant_count
-              jacobian(1:self%state_size, column) = jacobian(1:self%state_size, column) &
-                + factor*dpartials_dz(i, k, a, column)*df_dpartials(:, i, k, a)
-            end do
-          end do
-        end do
-      end associate
-    end do
-  end subroutine add_partials_chain
-
-  !> The gradient in z of sum_a H_a (H = U if potential = potential_u, S if potential_s) from the
-  !> partials: (dx_a/dz)^T partials(:, potential, a), with dx_a/dz at z.
-  pure function subsystem_gradient(self, z, partials, potential) result(gradient)
-    class(generic_model), intent(in) :: self
-    real(real64), intent(in) :: z(:), partials(:, :, :)
-    integer, intent(in) :: potential
-    real(real64) :: gradient(self%state_size)
-    real(real64) :: x(self%max_invariants), dx(self%max_invariants, self%state_size)
-    integer :: a, n, m
-
-    gradient = 0.0_real64
-    do a = 1, size(self%subsystems)
-      n = self%subsystems(a)%invariant_count
-      m = size(self%subsystems(a)%columns)
-      call self%invariants(z, a, x(1:n), dx(1:n, 1:m))
-      gradient(self%subsystems(a)%columns) = gradient(self%subsystems(a)%columns) &
-                                             + matmul(partials(1:n, potential, a), dx(1:n, 1:m))
-    end do
-  end function subsystem_gradient
 
   !> The temperatures Theta_a = d_tau U_a / d_tau S_a that partials give (eq. (2)): the discrete
   !> temperatures for discrete-gradient partials.
