@@ -60,6 +60,66 @@ module spring_chain_model
     procedure :: step_figures => chain_step_figures
   end type spring_chain
 
+  ! Implemented in spring_chain_mechanics.
+  interface
+    !> T + V_g = sum_i |p_i|^2/(2 m_i) - m_i g.x_i.
+    pure module function mechanical_energy(self, z) result(energy)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: energy
+    end function mechanical_energy
+
+    !> grad (T + V_g): -m_i g on x_i, p_i/m_i on p_i.
+    pure module function mechanical_energy_gradient(self, z) result(gradient)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: gradient(size(z))
+    end function mechanical_energy_gradient
+
+    !> (T + V_g)(z_b) - (T + V_g)(z_a), mass by mass without cancellation (spring_chain_balance).
+    pure module function chain_energy_difference(self, z_a, z_b) result(delta)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z_a(:), z_b(:)
+      real(real64) :: delta
+    end function chain_energy_difference
+
+    !> The rounding scale of T + V_g (model_interface): the sum of its terms' absolute values,
+    !> |p_i|^2/(2 m_i) and |m_i g_c x_i,c| for every mass and component.
+    pure module real(real64) function mechanical_energy_scale(self, z)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+    end function mechanical_energy_scale
+
+    !> The rounding scale of J = sum_i x_i x p_i (model_interface): sum_i |x_i| |p_i|, which bounds
+    !> the sum of the absolute values of every component's terms.
+    pure module real(real64) function momentum_scale(self, z)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+    end function momentum_scale
+
+    !> The momenta: J = sum_i x_i x p_i whole in 3D, its component about the plane's normal in 2D
+    !> (none in 1D).
+    pure module function chain_angular_momentum(self, z) result(j)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: j(self%momentum_count())
+    end function chain_angular_momentum
+
+    !> The conserved components J.a (their axes a: `conserved`) from the momenta (component_values).
+    pure module function conserved_in_momenta(self, momenta) result(values)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: momenta(:)
+      real(real64) :: values(self%conserved_count())
+    end function conserved_in_momenta
+
+    !> d(J.a)/dp_i = a x x_i for each conserved axis a (J.a = sum_i p_i.(a x x_i)).
+    pure module function conserved_momenta_gradient(self, z) result(gradients)
+      class(spring_chain), intent(in) :: self
+      real(real64), intent(in) :: z(:)
+      real(real64) :: gradients(size(z), self%conserved_count())
+    end function conserved_momenta_gradient
+  end interface
+
 contains
 
   !> The chain of `layout` with per-spring `data` (n_s), `masses` (N), link `conductivity`
@@ -288,148 +348,6 @@ contains
       if (k >= 1 .and. k <= self%layout%masses) inverse_mass = 1.0_real64/self%masses(k)
     end function inverse_mass
   end subroutine vector_field
-
-  !> T + V_g = sum_i |p_i|^2/(2 m_i) - m_i g.x_i.
-  pure function mechanical_energy(self, z) result(energy)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64) :: energy
-    integer :: i, d
-
-    d = self%layout%dimension
-    energy = 0.0_real64
-    do i = 1, self%layout%masses
-      associate (k => self%layout%mass_indices(i))
-        energy = energy + mass_energy(self%masses(i), self%gravity, z(k(1:d)), z(k(d + 1:)))
-      end associate
-    end do
-  end function mechanical_energy
-
-  !> grad (T + V_g): -m_i g on x_i, p_i/m_i on p_i.
-  pure function mechanical_energy_gradient(self, z) result(gradient)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64) :: gradient(size(z))
-    integer :: i, d
-
-    d = self%layout%dimension
-    gradient = 0.0_real64
-    do i = 1, self%layout%masses
-      associate (k => self%layout%mass_indices(i))
-        gradient(k(1:d)) = -self%masses(i)*self%gravity
-        gradient(k(d + 1:)) = z(k(d + 1:))/self%masses(i)
-      end associate
-    end do
-  end function mechanical_energy_gradient
-
-  !> (T + V_g)(z_b) - (T + V_g)(z_a), mass by mass without cancellation (spring_chain_balance).
-  pure function chain_energy_difference(self, z_a, z_b) result(delta)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z_a(:), z_b(:)
-    real(real64) :: delta
-    integer :: i, d
-
-    d = self%layout%dimension
-    delta = 0.0_real64
-    do i = 1, self%layout%masses
-      associate (k => self%layout%mass_indices(i))
-        delta = delta + mass_energy_difference(self%masses(i), self%gravity, z_a(k(1:d)), z_a(k(d + 1:)), &
-                                               z_b(k(1:d)), z_b(k(d + 1:)))
-      end associate
-    end do
-  end function chain_energy_difference
-
-  !> The rounding scale of T + V_g (model_interface): the sum of its terms' absolute values,
-  !> |p_i|^2/(2 m_i) and |m_i g_c x_i,c| for every mass and component.
-  pure real(real64) function mechanical_energy_scale(self, z)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    integer :: i, d
-
-    d = self%layout%dimension
-    mechanical_energy_scale = 0.0_real64
-    do i = 1, self%layout%masses
-      associate (k => self%layout%mass_indices(i))
-        mechanical_energy_scale = mechanical_energy_scale + sum(z(k(d + 1:))**2)/(2.0_real64*self%masses(i)) &
-                                  + self%masses(i)*sum(abs(self%gravity*z(k(1:d))))
-      end associate
-    end do
-  end function mechanical_energy_scale
-
-  !> The rounding scale of J = sum_i x_i x p_i (model_interface): sum_i |x_i| |p_i|, which bounds
-  !> the sum of the absolute values of every component's terms.
-  pure real(real64) function momentum_scale(self, z)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    integer :: i, d
-
-    d = self%layout%dimension
-    momentum_scale = 0.0_real64
-    do i = 1, self%layout%masses
-      associate (k => self%layout%mass_indices(i))
-        momentum_scale = momentum_scale + norm2(z(k(1:d)))*norm2(z(k(d + 1:)))
-      end associate
-    end do
-  end function momentum_scale
-
-  !> The momenta: J = sum_i x_i x p_i whole in 3D, its component about the plane's normal in 2D
-  !> (none in 1D).
-  pure function chain_angular_momentum(self, z) result(j)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64) :: j(self%momentum_count())
-    real(real64) :: total(3)
-    integer :: i, d
-
-    if (size(j) == 0) return
-    d = self%layout%dimension
-    total = 0.0_real64
-    do i = 1, self%layout%masses
-      associate (k => self%layout%mass_indices(i))
-        total = total + angular_momentum(z(k(1:d)), z(k(d + 1:)))
-      end associate
-    end do
-    if (size(j) == 3) then
-      j = total
-    else
-      j = total(3)
-    end if
-  end function chain_angular_momentum
-
-  !> The conserved components J.a (their axes a: `conserved`) from the momenta (component_values).
-  pure function conserved_in_momenta(self, momenta) result(values)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: momenta(:)
-    real(real64) :: values(self%conserved_count())
-
-    values = component_values(self%conserved, momenta)
-  end function conserved_in_momenta
-
-  !> d(J.a)/dp_i = a x x_i for each conserved axis a (J.a = sum_i p_i.(a x x_i)).
-  pure function conserved_momenta_gradient(self, z) result(gradients)
-    class(spring_chain), intent(in) :: self
-    real(real64), intent(in) :: z(:)
-    real(real64) :: gradients(size(z), self%conserved_count())
-    real(real64) :: x(3), axis(3)
-    integer :: i, d, k
-
-    d = self%layout%dimension
-    gradients = 0.0_real64
-    do k = 1, size(gradients, 2)
-      axis = self%conserved(k)%axis
-      do i = 1, self%layout%masses
-        associate (m => self%layout%mass_indices(i))
-          x = 0.0_real64
-          x(1:d) = z(m(1:d))
-          ! a x x, of which the first d components are the p_i columns'.
-          associate (a_cross_x => [axis(2)*x(3) - axis(3)*x(2), axis(3)*x(1) - axis(1)*x(3), &
-                                   axis(1)*x(2) - axis(2)*x(1)])
-            gradients(m(d + 1:), k) = a_cross_x(1:d)
-          end associate
-        end associate
-      end do
-    end do
-  end function conserved_momenta_gradient
 
   !> L0: canonical on (x_i, p_i), mass by mass; zero on gamma and tau.
   pure function poisson_matrix_0(self) result(l0)
