@@ -81,6 +81,50 @@ module ensemble
     procedure :: after_step => serve_requests
   end type study_manager
 
+  ! Implemented in ensemble_workers.
+  interface
+    ! A worker holds its next case while it computes one: it asks for the next before it starts a
+    ! case, so that it never waits for rank 0, which answers between its own steps.
+    module subroutine work(study, rank)
+      type(study_definition), intent(in) :: study
+      integer, intent(in) :: rank
+    end subroutine work
+
+    ! One case with the rank's integrator, reused from case to case (run_simulation replaces it
+    ! when a case needs another kind), and the rank's template of its case files' root attributes
+    ! (the first case's; a case writes only those that differ). Its file names its study, case
+    ! number, overrides and rank. A case that eme_run would split (split_run_wanted on one rank)
+    ! runs on the split path on this rank alone, with its own solver and no template: its file has
+    ! other datasets, and a long case gains nothing from the template's half millisecond.
+    module subroutine run_case(study, c, rank, result, integrator, template, observer)
+      type(study_definition), intent(in) :: study
+      integer, intent(in) :: c, rank
+      type(case_result), intent(out) :: result
+      class(time_stepper), allocatable, intent(inout), target :: integrator
+      type(file_template), intent(inout), target :: template
+      class(run_observer), intent(inout), optional :: observer
+    end subroutine run_case
+  end interface
+
+  ! Implemented in ensemble_manager.
+  interface
+    module subroutine manage(manager, outcome)
+      type(study_manager), intent(inout) :: manager
+      type(study_outcome), intent(inout) :: outcome
+    end subroutine manage
+
+    ! Observer hook: between two of rank 0's own steps, answer every waiting request.
+    module subroutine serve_requests(self)
+      class(study_manager), intent(inout) :: self
+    end subroutine serve_requests
+
+    ! Hands a line to the driver's reporter, if it gave one.
+    module subroutine say(manager, text)
+      type(study_manager), intent(in) :: manager
+      character(len=*), intent(in) :: text
+    end subroutine say
+  end interface
+
 contains
 
   !> This process's rank in MPI_COMM_WORLD.
@@ -240,342 +284,8 @@ contains
     end do
   end subroutine say_warnings
 
-  subroutine manage(manager, outcome)
-    type(study_manager), intent(inout) :: manager
-    type(study_outcome), intent(inout) :: outcome
-    type(case_result) :: result
-    class(time_stepper), allocatable :: integrator
-    type(file_template), target :: template     !! the root attributes of the rank's case files
-    integer :: c, skipped
-    type(failure_type) :: release_failure, closing
-
-    skipped = manager%done
-    do
-      call manager%after_step()
-      c = take_next(manager)
-      if (c == 0) exit
-      call run_case(manager%study, c, 0, result, integrator, template, manager)
-      call record(manager, c, result)
-    end do
-    ! Nothing left to start: collect the last results and stop every worker.
-    do while (manager%active_workers > 0)
-      call serve_one(manager, blocking=.true.)
-    end do
-    if (allocated(integrator)) call integrator%release(release_failure)
-    call progress(manager, final=.true.)
-    outcome%complete = count(manager%index%results%status == 'complete')
-    outcome%failed = count(manager%index%results%status(1:7) == 'failed:')
-    outcome%skipped = skipped
-    outcome%wall_seconds = MPI_Wtime() - manager%started
-    call guard_lock(manager)
-    if (.not. manager%index_lost) call manager%index%close(closing)
-    if (closing%failed()) then
-      call index_failed(manager, closing)
-      call say(manager, 'eme_ensemble: '//closing%message//'; '//manager%index%journal_path//' holds every result; running '// &
-               'the study again (with room) rewrites the index')
-    end if
-    outcome%index_errors = manager%index_errors
-    outcome%signal = interrupting_signal()
-    outcome%io_failure = len(manager%io_message) > 0
-    outcome%io_message = manager%io_message
-  end subroutine manage
-
-  ! Observer hook: between two of rank 0's own steps, answer every waiting request.
-  subroutine serve_requests(self)
-    class(study_manager), intent(inout) :: self
-
-    if (self%active_workers > 0) call serve_one(self, blocking=.false.)
-    call progress(self, final=.false.)
-  end subroutine serve_requests
-
-  ! Receives requests (a finished case's result, or none) and answers each with a case number,
-  ! or 0: none left. A worker that says it is leaving gets 0 and is no longer waited for.
-  ! Non-blocking: only what has arrived; blocking: waits for one request.
-  subroutine serve_one(manager, blocking)
-    type(study_manager), intent(inout) :: manager
-    logical, intent(in) :: blocking
-    type(MPI_Status) :: probe
-    type(case_result) :: result
-    real(real64) :: message(message_length)
-    character(len=status_length + kind_length) :: texts
-    integer :: c(1)
-    logical :: waiting
-
-    do
-      if (blocking) then
-        call MPI_Probe(MPI_ANY_SOURCE, tag_request, MPI_COMM_WORLD, probe)
-        waiting = .true.
-      else
-        call MPI_Iprobe(MPI_ANY_SOURCE, tag_request, MPI_COMM_WORLD, waiting, probe)
-      end if
-      if (.not. waiting) return
-      call MPI_Recv(message, message_length, MPI_DOUBLE_PRECISION, probe%MPI_SOURCE, tag_request, MPI_COMM_WORLD, &
-                    MPI_STATUS_IGNORE)
-      call MPI_Recv(texts, len(texts), MPI_CHARACTER, probe%MPI_SOURCE, tag_status, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
-      if (message(1) > 0) then
-        result%status = texts(1:status_length)
-        result%failure_kind = texts(status_length + 1:)
-        result%metrics = message(2:metric_count + 1)
-        call record(manager, nint(message(1)), result)
-      end if
-      if (message(message_length) > going_on) then
-        c(1) = 0
-        manager%active_workers = manager%active_workers - 1
-      else
-        c(1) = take_next(manager)
-      end if
-      call MPI_Send(c, 1, MPI_INTEGER, probe%MPI_SOURCE, tag_assign, MPI_COMM_WORLD)
-      if (blocking) return
-    end do
-  end subroutine serve_one
-
-  ! The next case to start, or 0 when none is left or the study is stopping.
-  integer function take_next(manager)
-    type(study_manager), intent(inout) :: manager
-    integer :: signal
-
-    take_next = 0
-    signal = interrupting_signal()
-    if (signal /= 0 .and. .not. manager%stopping) then
-      manager%stopping = .true.
-      call say(manager, 'eme_ensemble: '//signal_name(signal)//' received: no new cases; the running ones stop '// &
-               'after their current step, and the index is written (run the study again to go on)')
-    end if
-    if (manager%stopping .or. manager%next > size(manager%queue)) return
-    take_next = manager%queue(manager%next)
-    manager%next = manager%next + 1
-  end function take_next
-
-  ! Stores a case's result in the index. A case whose output could not be written, or an index
-  ! that cannot be, stops the study: every later case would meet the same full disk.
-  subroutine record(manager, c, result)
-    type(study_manager), intent(inout) :: manager
-    integer, intent(in) :: c
-    type(case_result), intent(in) :: result
-    type(failure_type) :: recording
-
-    manager%done = manager%done + 1
-    if (result%status(1:7) == 'failed:') manager%failed = manager%failed + 1
-    manager%done_cost = manager%done_cost + manager%study%cases(c)%cost
-    call guard_lock(manager)
-    if (manager%index_lost) return
-    call manager%index%record(c, result, recording)
-    if (recording%failed()) call index_failed(manager, recording)
-    if (result%failure_kind == failure_io .and. len(manager%io_message) == 0) then
-      manager%io_message = 'case '//integer_text(c)//': '//trim(result%status)
-      manager%stopping = .true.
-      call say(manager, 'eme_ensemble: '//manager%io_message//'; no new cases start (run the study again when there '//&
-               'is room)')
-    end if
-  end subroutine record
-
-  ! Before the index is written: whether output_dir/study.lock is still the study's. Removed or
-  ! replaced behind its back, it lets a second study in: no new cases start and the study ends as
-  ! after a failed write (exit 1); the index and the journal are written on only if the lock can
-  ! be taken again, else they are the other study's now.
-  subroutine guard_lock(manager)
-    type(study_manager), intent(inout) :: manager
-    character(len=:), allocatable :: holder, what
-    logical :: retaken
-
-    if (manager%lock_lost) return
-    call recheck_lock(manager%lock, manager%lock_lost, retaken, what, holder)
-    if (.not. manager%lock_lost) return
-    manager%stopping = .true.
-    manager%index_lost = .not. retaken
-    manager%io_message = manager%lock%path//' was '//what//' while the study ran, so that a second study could '// &
-                         'start in '//manager%study%output_dir//'; no new cases start'
-    if (manager%index_lost) then
-      manager%io_message = manager%io_message//', and the index is left to '//holder//', which holds the lock now'
-    else
-      manager%io_message = manager%io_message//' (the lock was taken again; run the study again to go on)'
-    end if
-    call say(manager, 'eme_ensemble: '//manager%io_message)
-  end subroutine guard_lock
-
-  ! The index could not be written: counted, said once, and no new cases start.
-  subroutine index_failed(manager, failure)
-    type(study_manager), intent(inout) :: manager
-    type(failure_type), intent(in) :: failure
-
-    manager%index_errors = manager%index_errors + 1
-    if (len(manager%io_message) == 0) manager%io_message = failure%message
-    if (.not. manager%stopping) call say(manager, 'eme_ensemble: '//failure%message//'; no new cases start')
-    manager%stopping = .true.
-  end subroutine index_failed
-
-  ! One line at most every progress_interval seconds, and a last one at the end.
-  subroutine progress(manager, final)
-    type(study_manager), intent(inout) :: manager
-    logical, intent(in) :: final
-    real(real64) :: now, elapsed, remaining
-    character(len=:), allocatable :: interrupted, warned, left
-    integer :: warned_cases
-
-    now = MPI_Wtime()
-    if (.not. final .and. now - manager%last_progress < progress_interval) return
-    manager%last_progress = now
-    elapsed = now - manager%started
-    ! The time left from the cost done so far: none before any case is done (it said 'about 0.0 s
-    ! left' then) and none at the end.
-    left = ''
-    if (manager%done_cost > 0 .and. .not. final) then
-      remaining = elapsed*(manager%planned_cost - manager%done_cost)/manager%done_cost
-      left = ', about '//fixed_text(remaining, 1)//' s left'
-    end if
-    ! What the index holds: a case interrupted by a signal or not run yet is neither complete nor failed.
-    associate (results => manager%index%results)
-      interrupted = ''
-      if (count(results%status(1:11) == 'incomplete:') > 0) &
-        interrupted = integer_text(count(results%status(1:11) == 'incomplete:'))//' interrupted, '
-      ! Complete cases whose accuracy is in doubt (the index's column warned; docs/integrators.md).
-      warned = ''
-      warned_cases = count(results%status == 'complete' .and. results%metrics(m_warned) > 0)
-      if (warned_cases > 0) warned = ' ('//integer_text(warned_cases)//' warned)'
-      call say(manager, 'eme_ensemble: '//integer_text(count(results%status == 'complete'))//'/'// &
-               integer_text(size(results))//' cases complete'//warned//', '// &
-               integer_text(count(results%status(1:7) == 'failed:')) &
-               //' failed, '//interrupted//fixed_text(elapsed, 1)//' s elapsed'//left)
-    end associate
-  end subroutine progress
-
-  ! Hands a line to the driver's reporter, if it gave one.
-  subroutine say(manager, text)
-    type(study_manager), intent(in) :: manager
-    character(len=*), intent(in) :: text
-
-    if (associated(manager%report)) call manager%report(text)
-  end subroutine say
-
   ! ------------------------------------------------------------------ workers
 
-  ! A worker holds its next case while it computes one: it asks for the next before it starts a
-  ! case, so that it never waits for rank 0, which answers between its own steps.
-  subroutine work(study, rank)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: rank
-    type(case_result) :: result
-    class(time_stepper), allocatable :: integrator
-    type(file_template), target :: template     !! the root attributes of the rank's case files
-    type(MPI_Request) :: asked
-    real(real64) :: message(message_length)
-    character(len=status_length + kind_length) :: texts
-    integer :: current(1), next(1)
-    type(failure_type) :: release_failure
-
-    message = 0.0_real64
-    texts = ''
-    call request(message, texts)
-    call MPI_Recv(current, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
-    if (current(1) /= 0) then
-      call request(message, texts)
-      call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
-    end if
-    do while (current(1) /= 0)
-      call run_case(study, current(1), rank, result, integrator, template)
-      call MPI_Wait(asked, MPI_STATUS_IGNORE)
-      message(1:metric_count + 1) = [real(current(1), real64), result%metrics]
-      texts = result%status//result%failure_kind
-      if (next(1) == 0) exit
-      if (interrupting_signal() /= 0) exit      ! the case held next stays pending
-      call request(message, texts)
-      current = next
-      call MPI_Irecv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, asked)
-    end do
-    ! The last result (if any), and leave.
-    message(message_length) = leaving
-    call request(message, texts)
-    call MPI_Recv(next, 1, MPI_INTEGER, 0, tag_assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE)
-    if (allocated(integrator)) call integrator%release(release_failure)
-  end subroutine work
-
-  ! A request to rank 0: the last result (case 0: none) and whether the worker is leaving.
-  subroutine request(message, texts)
-    real(real64), intent(in) :: message(:)
-    character(len=*), intent(in) :: texts
-
-    call MPI_Send(message, size(message), MPI_DOUBLE_PRECISION, 0, tag_request, MPI_COMM_WORLD)
-    call MPI_Send(texts, len(texts), MPI_CHARACTER, 0, tag_status, MPI_COMM_WORLD)
-  end subroutine request
-
   ! ------------------------------------------------------------------ one case, any rank
-
-  ! One case with the rank's integrator, reused from case to case (run_simulation replaces it
-  ! when a case needs another kind), and the rank's template of its case files' root attributes
-  ! (the first case's; a case writes only those that differ). Its file names its study, case
-  ! number, overrides and rank. A case that eme_run would split (split_run_wanted on one rank)
-  ! runs on the split path on this rank alone, with its own solver and no template: its file has
-  ! other datasets, and a long case gains nothing from the template's half millisecond.
-  subroutine run_case(study, c, rank, result, integrator, template, observer)
-    type(study_definition), intent(in) :: study
-    integer, intent(in) :: c, rank
-    type(case_result), intent(out) :: result
-    class(time_stepper), allocatable, intent(inout), target :: integrator
-    type(file_template), intent(inout), target :: template
-    class(run_observer), intent(inout), optional :: observer
-    type(run_configuration) :: config
-    type(run_summary) :: summary
-    type(extra_attribute) :: extras(4)
-    type(failure_type) :: failure
-    real(real64), allocatable :: solve_seconds(:), solve_cpu_seconds(:)      ! on the heap: their size is the input's
-    integer :: r
-    logical :: split
-
-    config = study%cases(c)%config
-    config%output_file = case_file(study, c)
-    config%overwrite = .true.          ! the index, not the file, says whether a case is done
-    extras(1)%name = 'study'
-    extras(1)%text = study%input_file
-    extras(2)%name = 'study_case'
-    extras(2)%number = c
-    extras(3)%name = 'study_overrides'
-    extras(3)%text = case_overrides(study, c)
-    extras(4)%name = 'study_rank'
-    extras(4)%number = rank
-    ! With &study repeats = R the case runs R times, only the last keeping its file; the index
-    ! gets the median of the time loops' durations (wall and CPU, each its own median), so timings
-    ! on a shared machine do not zig-zag.
-    allocate (solve_seconds(study%repeats), solve_cpu_seconds(study%repeats))
-    ! The path eme_run would take for the case on one process, -eme_split and -eme_dense included
-    ! (docs/performance.md, Two paths).
-    split = split_run_wanted(config, 1)
-    do r = 1, study%repeats
-      ! An interrupted case (its file incomplete, with the same input) continues from its file
-      ! (the split path from the file's last snapshot).
-      if (split) then
-        call run_distributed(config, MPI_COMM_SELF%MPI_VAL, summary, failure, observer=observer, &
-                             keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, &
-                             durable=.false., resume_if_possible=study%repeats == 1)
-      else
-        call run_simulation(config, summary, failure, observer, integrator, &
-                            keep_file=.not. study%index_only .and. r == study%repeats, extras=extras, durable=.false., &
-                            template=template, resume_if_possible=study%repeats == 1)
-      end if
-      solve_seconds(r) = summary%solve_seconds
-      solve_cpu_seconds(r) = summary%solve_cpu_seconds
-      if (failure%failed() .or. summary%status /= 'complete') exit
-    end do
-    if (r > study%repeats) then
-      summary%solve_seconds = median(solve_seconds)
-      summary%solve_cpu_seconds = median(solve_cpu_seconds)
-    end if
-    if (summary%failure_kind == failure_interrupted) then
-      result%status = summary%status
-    else if (failure%failed()) then
-      result%status = 'failed: '//failure%message
-    else if (summary%status == 'complete') then
-      result%status = 'complete'
-    else
-      result%status = 'failed: '//summary%status
-    end if
-    result%failure_kind = summary%failure_kind
-    result%metrics = [real(summary%steps_completed, real64), real(summary%steps_planned, real64), &
-                      real(summary%newton_iterations, real64), summary%wall_seconds, summary%solve_seconds, &
-                      summary%cpu_seconds, summary%solve_cpu_seconds, summary%energy_drift, &
-                      summary%min_entropy_increment, summary%max_lyapunov_increment, &
-                      summary%angular_momentum_drift, summary%min_temperature, &
-                      real(summary%halved_steps, real64), real(summary%rejected_steps, real64), &
-                      merge(1.0_real64, 0.0_real64, len(summary%warnings) > 0), real(rank, real64), 0.0_real64]
-  end subroutine run_case
 
 end module ensemble
