@@ -124,9 +124,12 @@ $(OBJ)/%.o: %.F90 | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@) $(MOD)
 	$(FC) $(FFLAGS) $(PETSC_SOURCE_FLAGS) $(HDF5_FLAGS) -c $< -o $@
 
+# -MMD: the compiler lists the headers a C file includes (src/io/hdf5_snapshot_storage.h) in a .d
+# file beside its object, so that an edited header recompiles the files that include it.
 $(OBJ)/%.o: %.c | $(BUILD)/.native-deps
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) $(HDF5_FLAGS) $(SUNDIALS_FLAGS) -c $< -o $@
+	$(CC) $(CFLAGS) -MMD -MP $(HDF5_FLAGS) $(SUNDIALS_FLAGS) -c $< -o $@
+-include $(patsubst %,$(OBJ)/%.d,$(basename $(filter %.c,$(LIBRARY_SOURCES))))
 
 
 $(BIN)/%: $(OBJ)/drivers/%.o $(LIBRARY_OBJECTS)

@@ -1,12 +1,12 @@
 !> The HDF5 files of the output, written so that a full disk or a kill never leaves a file that
-!> lies (src/io/hdf5_storage.c says how): a file is built in memory and written in one checked
-!> write (`create_in_memory`, `store`), or opened for appending after the disk space of what will
-!> be added was reserved, waiting for readers that hold it open (`open_existing`); the root's and
-!> the datasets' attributes (src/io/hdf5_file_attributes: text attributes are UTF-8
-!> variable-length strings, which h5py reads as str; numbers are rewritten in place when their
-!> size is unchanged); a series of similar files made from the first one's image
-!> (src/io/hdf5_file_templates); and the read-back check of a run file (`check_run_file`). The
-!> tables of rows that grow in such a file are hdf5_series'.
+!> lies (src/io/hdf5_storage.c says how): a file is built in memory (src/io/hdf5_file_image.c)
+!> and written in one checked write (`create_in_memory`, `store`), or opened for appending after
+!> the disk space of what will be added was reserved, waiting for readers that hold it open
+!> (`open_existing`); the root's and the datasets' attributes (src/io/hdf5_file_attributes: text
+!> attributes are UTF-8 variable-length strings, which h5py reads as str; numbers are rewritten in
+!> place when their size is unchanged); a series of similar files made from the first one's image
+!> (src/io/hdf5_file_templates); and the read-back check of a run file (`check_run_file`:
+!> src/io/hdf5_run_file_check.c). The tables of rows that grow in such a file are hdf5_series'.
 module hdf5_files
   use, intrinsic :: iso_fortran_env, only: real64, int64
   use, intrinsic :: iso_c_binding, only: c_char, c_int, c_long, c_int64_t, c_null_char
@@ -123,6 +123,7 @@ module hdf5_files
       character(kind=c_char), intent(in) :: name(*), joined(*)
       integer(c_int) :: status
     end function c_write_text_array_attribute
+    ! src/io/hdf5_file_image.c
     function c_create_in_memory(label, file) result(status) bind(c, name='eme_h5_create_in_memory')
       import :: c_char, c_int, c_int64_t
       character(kind=c_char), intent(in) :: label(*)
@@ -166,6 +167,7 @@ module hdf5_files
       character(kind=c_char), intent(inout) :: data(*)
       integer(c_long), value :: size
     end subroutine c_seal_chunk
+    ! src/io/hdf5_storage.c
     function c_store_image(file, path, sync) result(status) bind(c, name='eme_h5_store_image')
       import :: c_char, c_int, c_int64_t
       integer(c_int64_t), value :: file
@@ -181,6 +183,7 @@ module hdf5_files
       integer(c_int64_t), intent(out) :: file
       integer(c_int) :: status
     end function c_open_file
+    ! src/io/hdf5_run_file_check.c
     function c_check_run_file(path, status_text, capacity, steps, whole) result(status) &
         bind(c, name='eme_h5_check_run_file')
       import :: c_char, c_int, c_long
@@ -463,12 +466,12 @@ contains
 
   !> Reads the run file at `path` back: its status and steps_completed, and whether every
   !> per-point dataset has R + 1 rows and every per-step dataset R, R being the attribute
-  !> step_rows (steps_completed in files without it) (src/io/hdf5_storage.c). With `whole`, also
-  !> every dataset read whole and the texts checked (their checksums) and the summary attributes
-  !> (newton_iterations_total, run_figures) checked against the datasets they summarise. A failure
-  !> unless all holds: failure_io if the file is unreadable, else failure_mismatch (no status,
-  !> lengths disagree, a dataset or a text fails its checksum, a summary disagrees: the message
-  !> says which).
+  !> step_rows (steps_completed in files without it) (src/io/hdf5_run_file_check.c). With
+  !> `whole`, also every dataset read whole and the texts checked (their checksums) and the
+  !> summary attributes (newton_iterations_total, run_figures) checked against the datasets they
+  !> summarise. A failure unless all holds: failure_io if the file is unreadable, else
+  !> failure_mismatch (no status, lengths disagree, a dataset or a text fails its checksum, a
+  !> summary disagrees: the message says which).
   subroutine check_run_file(path, status, steps_completed, failure, whole)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: status
@@ -521,7 +524,7 @@ contains
 
   !> A failure unless every dataset of the file at `path` reads whole (their Fletcher-32 checksums)
   !> and its texts are those its text_checksum was computed from: failure_io if it cannot be
-  !> opened, else failure_mismatch saying which (src/io/hdf5_storage.c).
+  !> opened, else failure_mismatch saying which (src/io/hdf5_run_file_check.c).
   subroutine check_file_integrity(path, failure)
     character(len=*), intent(in) :: path
     type(failure_type), intent(out) :: failure

@@ -1,8 +1,9 @@
 !> Snapshots of a state split over MPI ranks, appended with parallel HDF5 to an existing file that
 !> no process holds open (docs/output.md, Snapshots): every rank writes its own masses and springs,
-!> no rank gathers the whole state. The writing is src/io/hdf5_snapshot_storage.c's (not
-!> hdf5_snapshots.c: a C file and a module of one name would make one object); this module checks
-!> the Fortran arrays against the layout and turns the C status into a failure_type.
+!> no rank gathers the whole state. The writing is src/io/hdf5_snapshot_storage.c's, the group's
+!> datasets and dimension scales src/io/hdf5_snapshot_layout.c's (not hdf5_snapshots.c: a C file
+!> and a module of one name would make one object); this module checks the Fortran arrays against
+!> the layout and turns the C status into a failure_type.
 module hdf5_snapshots
   use, intrinsic :: iso_c_binding, only: c_char, c_double, c_int, c_long_long, c_ptr, c_loc, c_null_ptr, c_null_char
   use, intrinsic :: iso_fortran_env, only: real64

@@ -11,7 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-int eme_h5_file_kind(const char *path);   /* hdf5_storage.c: 1 a run file, 2 another HDF5 file */
+int eme_h5_file_kind(const char *path);   /* hdf5_run_file_check.c: 1 a run file, 2 another HDF5 file */
 
 /* 0: nothing, 1: a regular file, 2: a directory, 3: something else (FIFO, device, socket);
  * -errno if the path cannot be examined. Follows symbolic links, as opening the path would. */

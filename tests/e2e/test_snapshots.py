@@ -1,8 +1,8 @@
 """Snapshots of a state split over MPI ranks, written with parallel HDF5 (src/io/hdf5_snapshots.f90,
-src/io/hdf5_snapshot_storage.c; docs/output.md, Snapshots). build/tests/snapshot_probe writes
-snapshots of known values from every rank, each rank its own masses and springs; the expected
-values here are the probe's formulas typed again (tests/e2e/snapshot_probe.f90), the shapes,
-units and axes those of docs/output.md."""
+src/io/hdf5_snapshot_storage.c, the group's layout src/io/hdf5_snapshot_layout.c; docs/output.md,
+Snapshots). build/tests/snapshot_probe writes snapshots of known values from every rank, each rank
+its own masses and springs; the expected values here are the probe's formulas typed again
+(tests/e2e/snapshot_probe.f90), the shapes, units and axes those of docs/output.md."""
 import os
 import shutil
 import subprocess
