@@ -392,7 +392,7 @@ def assert_continued_equals(full_file, continued_file, exact, stop_times=()):
         # The run's totals, restored from the record with the loop's running sums: the continued
         # file's own rows add up to them.
         assert continued.attrs["newton_iterations_total"] == continued["newton_iterations"][()].sum()
-        assert continued.attrs["steps_completed"] == continued["step"].shape[0]
+        assert continued.attrs["step_rows"] == continued["step"].shape[0]
         for name in ("steps_completed", "step_rows", "newton_iterations_total", "run_figures", "balance_max_ulps"):
             a, b = np.asarray(full.attrs[name]), np.asarray(continued.attrs[name])
             if exact or (a.dtype.kind != "f" and name != "newton_iterations_total"):
