@@ -1,7 +1,7 @@
 !> One relaxed step of relaxed_runge_kutta (src/integrator/relaxed_stepper): the stages (explicit,
 !> or the implicit stage system solved by SNES), the update d and the entropy increment e_S, the
 !> relaxation and its guards, the commit, and the halving of a rejected step.
-!> (A .F90 file, as src/integrator/relaxed_step_control: the parent's scope holds PETSc types.)
+!> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (relaxed_stepper) relaxed_stepper_step
   implicit none
 

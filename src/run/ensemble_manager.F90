@@ -1,6 +1,6 @@
 !> Rank 0's part of a study (src/run/ensemble): its queue of cases handed out on request, between its
 !> own time steps, each result recorded in the study's index as it comes, the study's lock guarded,
-!> and the progress lines. A .F90 file, as src/run/ensemble_workers.
+!> and the progress lines. (A .F90 file: docs/development.md, Modules that grow.)
 submodule (ensemble) ensemble_manager
   implicit none
 

@@ -1,7 +1,6 @@
 !> A study's workers (src/run/ensemble): each rank asks rank 0 for its next case while it runs one,
 !> and runs a case as eme_run would, on one process (rank 0's cases too, between serving requests).
-!> A .F90 file: a submodule of a module that uses MPI (gfortran's -std=f2018 reads MPI's common
-!> blocks in the parent).
+!> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (ensemble) ensemble_workers
   implicit none
 

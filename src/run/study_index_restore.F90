@@ -1,8 +1,7 @@
 !> A study's index opened (src/run/study_index): the earlier runs' results restored from index.h5,
 !> its journal and the case files, matched to this study's cases, their files renamed where a case's
 !> number moved, and the notes that tell the user what was kept or refused.
-!> A .F90 file: gfortran's -std=f2018 flags the MPI common blocks that a submodule reads through
-!> its parent's modules (as src/run/ensemble_workers).
+!> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (study_index) study_index_restore
   implicit none
 

@@ -1,8 +1,7 @@
 !> index.h5 written whole (src/run/study_index): /cases with its columns' units, the attributes of
 !> the study (its input, provenance, machine load) and the integrator registry, as index.h5.tmp
 !> renamed over it.
-!> A .F90 file: gfortran's -std=f2018 flags the MPI common blocks that a submodule reads through
-!> its parent's modules (as src/run/ensemble_workers).
+!> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (study_index) study_index_write
   implicit none
 
