@@ -7,6 +7,11 @@
 !> (A .F90 file, compiled as the PETSc sources are, without -std: the parent's scope, which it
 !> inherits, holds the PETSc types of its SNES solver.)
 submodule (discrete_gradient_stepper) discrete_gradient_control
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use failures, only: failure_none
+  use constrained_flow, only: constrained_field
+  use local_error_estimate, only: hermite_defect_estimate, weighted_rms_norm
+  use number_text, only: integer_text, scientific_text
   implicit none (type, external)
 
 contains

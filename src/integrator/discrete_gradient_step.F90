@@ -4,6 +4,9 @@
 !> tally, and a step solved again from its start with the default solver settings (resolve).
 !> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (discrete_gradient_stepper) discrete_gradient_step
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use retry_strategies, only: find_root
+  use number_text, only: integer_text
   implicit none
 
 contains

@@ -23,7 +23,6 @@
 !> the scheme, so the structure holds on each.
 module discrete_gradient_stepper
   use, intrinsic :: iso_fortran_env, only: real64
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use step_residual, only: step_problem, partials_discrete_gradient, partials_midpoint
@@ -31,15 +30,12 @@ module discrete_gradient_stepper
   use model_registry, only: fused_step_of
   use snes_solver, only: newton_solver
   use solver_options, only: step_solver_options, read_solver_options, read_step_control_options
-  use retry_strategies, only: root_search, find_root
-  use failures, only: failure_none, failure_type, fail, failure_mismatch
-  use constrained_flow, only: constrained_field
-  use local_error_estimate, only: hermite_defect_estimate, weighted_rms_norm
+  use retry_strategies, only: root_search
+  use failures, only: failure_type, fail, failure_mismatch
   use step_size_control, only: step_controller
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use solver_description, only: add_setting, text_setting, number_setting, integer_setting
-  use number_text, only: integer_text, scientific_text
   implicit none (type, external)
   private
   public :: step_solver, new_eme, new_midpoint

@@ -4,6 +4,8 @@
 !> (A .F90 file, compiled as the PETSc sources are, without -std: the parent's scope, which it
 !> inherits, holds the PETSc types of its SNES solver.)
 submodule (relaxed_stepper) relaxed_step_control
+  use dop853_control, only: error_squares, dop853_error_norm, accepted_step_factor, rejected_step_factor, &
+                            max_error_rejections
   implicit none (type, external)
 
 contains

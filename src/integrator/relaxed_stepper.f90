@@ -43,18 +43,15 @@ module relaxed_stepper
   use model_interface, only: generic_model
   use model_constraint, only: constraint_slot
   use butcher_tableaux, only: butcher_tableau, tableau_named
-  use relaxation, only: relax
   use relaxation_root, only: max_halvings, gamma_band, gamma_warning_deviation
-  use dop853_control, only: error_squares, dop853_error_norm, accepted_step_factor, rejected_step_factor, &
-                            max_error_rejections, landing_slack
+  use dop853_control, only: landing_slack
   use constrained_flow, only: constrained_field, project_state
   use collocation_stages, only: stage_system
   use snes_solver, only: newton_solver
-  use retry_strategies, only: root_search, find_root
   use integrator_settings, only: integrator_choice
   use stepper, only: time_stepper, step_report, step_diagnostic, solver_report
   use solver_description, only: add_setting, text_setting, no_solver
-  use number_text, only: integer_text, fixed_text, scientific_text, reals_text
+  use number_text, only: integer_text, fixed_text, reals_text
   implicit none (type, external)
   private
   public :: relaxed_runge_kutta, new_relaxed_runge_kutta

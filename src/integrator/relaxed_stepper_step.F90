@@ -3,6 +3,9 @@
 !> relaxation and its guards, the commit, and the halving of a rejected step.
 !> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (relaxed_stepper) relaxed_stepper_step
+  use relaxation, only: relax
+  use retry_strategies, only: root_search, find_root
+  use number_text, only: scientific_text
   implicit none
 
 contains

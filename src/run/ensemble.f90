@@ -13,23 +13,16 @@
 !> marked 'incomplete: interrupted by <signal>', and the index is written; so does an output
 !> that cannot be written (a full disk), since every later case would fail the same way.
 module ensemble
-  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_COMM_SELF, MPI_Send, MPI_Recv, MPI_Irecv, MPI_Wait, &
-                     MPI_Iprobe, MPI_Probe, MPI_Status, MPI_Request, MPI_Bcast, MPI_ANY_SOURCE, MPI_DOUBLE_PRECISION, &
-                     MPI_INTEGER, MPI_CHARACTER, MPI_Wtime, MPI_STATUS_IGNORE
+  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_COMM_WORLD, MPI_Bcast, MPI_INTEGER, MPI_Wtime
   use, intrinsic :: iso_fortran_env, only: real64
   use study_config, only: study_definition
-  use study_index, only: case_index, case_result, status_length, kind_length, metric_count, m_warned
-  use study_case_files, only: case_file, case_overrides
-  use run_config, only: run_configuration
-  use run_outcome, only: failure_io, failure_interrupted
-  use run_signals, only: install_interrupt_handlers, interrupting_signal, signal_name
-  use simulation, only: run_summary, run_simulation, run_observer, line_reporter, extra_attribute
-  use distributed_simulation, only: run_distributed, split_run_wanted
-  use statistics, only: median
+  use study_index, only: case_index, case_result, metric_count
+  use run_signals, only: install_interrupt_handlers
+  use simulation, only: run_observer, line_reporter
   use stepper, only: time_stepper
   use hdf5_files, only: file_template
-  use number_text, only: integer_text, fixed_text
-  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered, recheck_lock
+  use number_text, only: integer_text
+  use filesystem, only: output_lock, lock_output, unlock_output, lock_held_elsewhere, lock_not_offered
   use failures, only: failure_type, fail, code_input => failure_input, code_io => failure_io
   implicit none (type, external)
   private

@@ -2,6 +2,13 @@
 !> own time steps, each result recorded in the study's index as it comes, the study's lock guarded,
 !> and the progress lines. (A .F90 file: docs/development.md, Modules that grow.)
 submodule (ensemble) ensemble_manager
+  use mpi_f08, only: MPI_Send, MPI_Recv, MPI_Iprobe, MPI_Probe, MPI_Status, MPI_ANY_SOURCE, &
+                     MPI_DOUBLE_PRECISION, MPI_CHARACTER, MPI_STATUS_IGNORE
+  use study_index, only: status_length, kind_length, m_warned
+  use run_outcome, only: failure_io
+  use run_signals, only: interrupting_signal, signal_name
+  use number_text, only: fixed_text
+  use filesystem, only: recheck_lock
   implicit none
 
 contains

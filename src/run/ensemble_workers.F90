@@ -2,6 +2,16 @@
 !> and runs a case as eme_run would, on one process (rank 0's cases too, between serving requests).
 !> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (ensemble) ensemble_workers
+  use mpi_f08, only: MPI_COMM_SELF, MPI_Send, MPI_Recv, MPI_Irecv, MPI_Wait, MPI_Request, &
+                     MPI_DOUBLE_PRECISION, MPI_CHARACTER, MPI_STATUS_IGNORE
+  use study_index, only: status_length, kind_length
+  use study_case_files, only: case_file, case_overrides
+  use run_config, only: run_configuration
+  use run_outcome, only: failure_interrupted
+  use run_signals, only: interrupting_signal
+  use simulation, only: run_summary, run_simulation, extra_attribute
+  use distributed_simulation, only: run_distributed, split_run_wanted
+  use statistics, only: median
   implicit none
 
 contains

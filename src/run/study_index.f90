@@ -26,26 +26,14 @@
 !> this study's is src/run/study_case_matching's.
 module study_index
   use, intrinsic :: iso_fortran_env, only: real64, int64
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use study_config, only: study_definition
-  use hdf5_files, only: hdf5_file
-  use hdf5_table, only: table_columns, column_integer, table_rows
-  use filesystem, only: make_directories, remove_file, file_exists, append_text, rename_file
-  use integrator_registry, only: integrator_entry, registered_integrators
-  use build_info, only: code_version
-  use provenance, only: write_provenance, iso_time, machine_load, machine_load_now
-  use run_options, only: petsc_options_in_force
-  use run_config, only: field_units, run_configuration, read_run_config
-  use effective_namelist, only: namelist_of_run
-  use namelist_text, only: blanked, item_name
-  use study_case_files, only: case_file, case_name, case_overrides, case_file_checks_out, read_case_file
-  use study_journal, only: case_result, journal_entry, status_length, kind_length, metric_count, journal_line, &
-                           read_journal, start_journal
-  use study_columns, only: m_steps, m_cpu, m_solve_cpu, m_warned, m_rank, m_run_count, choose_metrics, define_columns, &
-                           case_parameters
-  use study_case_matching, only: case_lookup, values_key, values_lookup, overrides_lookup, find_case
-  use number_text, only: integer_text
-  use failures, only: failure_type, fail, failure_input, failure_io, failure_library
+  use hdf5_table, only: table_columns
+  use filesystem, only: remove_file, append_text
+  use provenance, only: machine_load, machine_load_now
+  use study_case_files, only: case_overrides
+  use study_journal, only: case_result, status_length, kind_length, metric_count, journal_line
+  use study_columns, only: m_warned, m_rank, m_run_count
+  use failures, only: failure_type, fail, failure_io
   implicit none (type, external)
   private
   public :: case_index, case_result, status_length, kind_length, metric_count, m_rank, &

@@ -3,6 +3,19 @@
 !> number moved, and the notes that tell the user what was kept or refused.
 !> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (study_index) study_index_restore
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use hdf5_files, only: hdf5_file
+  use hdf5_table, only: table_rows
+  use filesystem, only: make_directories, file_exists, rename_file
+  use provenance, only: iso_time
+  use effective_namelist, only: namelist_of_run
+  use namelist_text, only: blanked
+  use study_case_files, only: case_file, case_file_checks_out, read_case_file
+  use study_journal, only: journal_entry, read_journal, start_journal
+  use study_columns, only: m_steps, m_cpu, m_solve_cpu, choose_metrics, define_columns, case_parameters
+  use study_case_matching, only: case_lookup, values_key, values_lookup, overrides_lookup, find_case
+  use number_text, only: integer_text
+  use failures, only: failure_input
   implicit none
 
 contains

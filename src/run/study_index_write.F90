@@ -3,6 +3,19 @@
 !> renamed over it.
 !> (A .F90 file: docs/development.md, Modules that grow.)
 submodule (study_index) study_index_write
+  use hdf5_files, only: hdf5_file
+  use hdf5_table, only: column_integer
+  use integrator_registry, only: integrator_entry, registered_integrators
+  use build_info, only: code_version
+  use provenance, only: write_provenance
+  use run_options, only: petsc_options_in_force
+  use run_config, only: field_units, run_configuration, read_run_config
+  use effective_namelist, only: namelist_of_run
+  use namelist_text, only: item_name
+  use study_case_files, only: case_name
+  use study_columns, only: case_parameters
+  use number_text, only: integer_text
+  use failures, only: failure_library
   implicit none
 
 contains

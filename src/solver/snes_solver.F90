@@ -49,15 +49,13 @@ module snes_solver
   use retry_strategies, only: root_finder, chord_refinement, rounding_factor
   use hand_newton, only: newton_iterate, newton_settings, newton_outcome, ending_iterations, ending_step_domain
   use euclidean_norm, only: two_norm
-  use dense_assembly, only: assemble_jacobian
   use vector_arrays, only: borrow, give_back, borrow_read, give_back_read
-  use snes_shell, only: solver_context, PCSetApplicationContext, converged_on_update, form_residual, form_jacobian, &
-                        factor_operator, apply_lu, full_step
-  use solver_options, only: step_solver_options, read_solver_options, option_given, option_value
+  use snes_shell, only: solver_context, full_step
+  use solver_options, only: step_solver_options
   use snes_description, only: describe_snes
-  use solver_description, only: solver_report, add_setting, text_setting, number_setting, integer_setting, set_petsc_reasons, &
+  use solver_description, only: solver_report, add_setting, text_setting, integer_setting, set_petsc_reasons, &
                                 reasons_snes
-  use failures, only: failure_type, fail_on_code, fail, failure_input
+  use failures, only: failure_type, fail_on_code
   implicit none
   private
   public :: newton_solver

@@ -4,6 +4,11 @@
 !> solver's PETSc objects.
 #include <petsc/finclude/petscsnes.h>
 submodule (snes_solver) snes_solver_setup
+  use dense_assembly, only: assemble_jacobian
+  use snes_shell, only: PCSetApplicationContext, converged_on_update, form_residual, form_jacobian, &
+                        factor_operator, apply_lu
+  use solver_options, only: read_solver_options, option_given, option_value
+  use failures, only: fail, failure_input
   implicit none
 
 contains

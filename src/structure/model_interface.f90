@@ -23,7 +23,7 @@
 module model_interface
   use, intrinsic :: iso_fortran_env, only: real64
   use invariant_function, only: invariant_functions, potential_u, potential_s
-  use failures, only: failure_none, domain_overflow
+  use failures, only: failure_none
   implicit none (type, external)
   private
   public :: generic_model, subsystem, model_words, conserved_component, add_temperature_chain, model_step_figure

@@ -2,6 +2,7 @@
 !> E and S and their differences, the temperatures, the exact partials and the continuous field, the
 !> chain rule through the partials, and a state in another thermodynamic variable.
 submodule (model_interface) model_interface_subsystems
+  use failures, only: domain_overflow
   implicit none
 
 contains

@@ -12,7 +12,7 @@ module spring_chain_fields
   use spring_chain_spring, only: rung_thermoviscoelastic, rung_elastic, spring_law_names
   use spring_chain_layout, only: ends_fixed_free, ends_fixed_fixed
   use spring_chain_input, only: chain_input, max_links, family_rod, family_springs, family_names, perturbation_none, &
-                                perturbation_mode, perturbation_random, perturbation_names
+                                perturbation_mode, perturbation_names
   implicit none (type, external)
   private
   public :: chain_fields, choices_text

@@ -2,6 +2,8 @@
 !> of the masses, its gradient, difference and rounding scale, and the angular momentum J =
 !> sum_i x_i x p_i with the components of it that are kept (docs/formulation.md section 10).
 submodule (spring_chain_model) spring_chain_mechanics
+  use model_interface, only: component_values
+  use spring_chain_balance, only: mass_energy, mass_energy_difference, angular_momentum
   implicit none
 
 contains

@@ -12,14 +12,13 @@ module spring_chain_model
   use failures, only: failure_none
   use number_text, only: integer_text
   use invariant_function, only: potential_u, potential_s
-  use model_interface, only: generic_model, conserved_component, angular_momentum_components, component_values, &
+  use model_interface, only: generic_model, conserved_component, angular_momentum_components, &
                              model_step_figure
   use spring_chain_figures, only: production_figures, whole_chain_minima
   use spring_chain_spring, only: spring_data, chain_spring, make_chain_spring, spring_invariants, rung_elastic
   use spring_chain_layout, only: chain_layout, slots_of
   use spring_chain_partials, only: spring_partials
   use spring_chain_blocks, only: mass_block, spring_block, link_block
-  use spring_chain_balance, only: mass_energy, mass_energy_difference, angular_momentum
   use spring_chain_step, only: scatter
   implicit none (type, external)
   private
