@@ -166,8 +166,6 @@ contains
     end function library_words
   end subroutine set_up_distributed_only
 
-
-
   !> The integrator's per-step figures in a split run's file: the step control's
   !> (controlled_diagnostics), or those the dense path's integrator of the same name declares for
   !> a system that runs it on its own steps (a relaxed scheme's); the model's two production

@@ -288,9 +288,9 @@ contains
     type(distributed_step), intent(out) :: outcome
     PetscErrorCode, intent(out) :: ierr
     PetscErrorCode :: solve_ierr
-    PetscInt :: iterations, max_iterations
+    PetscInt :: iterations
     SNESConvergedReason :: reason
-    PetscReal :: old_norm, residual_norm, rtol, atol, dtol
+    PetscReal :: old_norm, residual_norm
     KSP :: ksp
 
     self%context%problem%dt = h
@@ -299,11 +299,9 @@ contains
     PetscCall(VecNorm(self%x, NORM_2, old_norm, ierr))
     self%context%update_floor = 16.0_real64*epsilon(1.0_real64)*old_norm
     PetscCall(SNESGetKSP(self%snes, ksp, ierr))
-    PetscCall(set_rounding_tolerance(ksp, epsilon(1.0_real64)*old_norm, ierr))
-    if (self%tight) then   ! GMRES to its relative tolerance alone, as -ksp_atol 1e-30 would
-      PetscCall(KSPGetTolerances(ksp, rtol, atol, dtol, max_iterations, ierr))
-      PetscCall(KSPSetTolerances(ksp, rtol, 0.0_real64, dtol, max_iterations, ierr))
-    end if
+    ! `tight` (set only where the floor is in use): GMRES to its relative tolerance alone, as
+    ! -ksp_atol 1e-30 would.
+    PetscCall(set_rounding_tolerance(ksp, merge(0.0_real64, epsilon(1.0_real64)*old_norm, self%tight), ierr))
     ! A failed library call inside the solve leaves x at an iterate: the old state is put back
     ! before the error goes up (the run ends there, keeping the snapshots it wrote).
     call SNESSolve(self%snes, PETSC_NULL_VEC, self%x, solve_ierr)

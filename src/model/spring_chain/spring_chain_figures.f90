@@ -15,7 +15,8 @@ module spring_chain_figures
   use invariant_function, only: potential_u, potential_s
   use failures, only: failure_none
   use distributed_model, only: distributed_figures
-  use spring_chain_partials, only: spring_partials, partials_discrete_gradient, partials_midpoint, partials_exact
+  use spring_chain_partials, only: spring_partials, partials_discrete_gradient, partials_midpoint, partials_exact, &
+                                   evaluate_spring_partials
   use spring_chain_balance, only: mass_energy, spring_values, viscous_production, link_production, angular_momentum, &
                                   conserved_axes
   use spring_chain_step, only: chain_step_problem
@@ -78,14 +79,28 @@ contains
       allocate (parts(max(1, points(1) - 1):last_spring))
       call problem%partials_of(old, new, parts, stat, base, lbound(parts, 1))
       if (stat /= failure_none) return
-      do a = points(1), last_spring
-        if (layout%invariant_count == 3) values%min_viscous_production = &
-          min(values%min_viscous_production, viscous_production(problem%springs(a), parts(a)))
-        if (a > 1) values%min_link_production = &
-          min(values%min_link_production, link_production(problem%conductivity(a - 1), parts(a - 1), parts(a)))
-      end do
+      call lower_production_minima(layout, problem%springs, problem%conductivity, parts, points(1), &
+                                   values%min_viscous_production, values%min_link_production)
     end associate
   end subroutine share_figures
+
+  ! The smallest entropy productions of the viscous branches of springs first .. ubound(parts)
+  ! and of their links to the spring before, from the step's partials `parts` (from spring
+  ! max(1, first - 1) on), lowering min_viscous and min_link.
+  pure subroutine lower_production_minima(layout, springs, conductivity, parts, first, min_viscous, min_link)
+    type(chain_layout), intent(in) :: layout
+    type(chain_spring), intent(in) :: springs(:)
+    real(real64), intent(in) :: conductivity(:)
+    integer, intent(in) :: first
+    type(spring_partials), intent(in) :: parts(max(1, first - 1):)
+    real(real64), intent(inout) :: min_viscous, min_link
+    integer :: a
+
+    do a = first, ubound(parts, 1)
+      if (layout%invariant_count == 3) min_viscous = min(min_viscous, viscous_production(springs(a), parts(a)))
+      if (a > 1) min_link = min(min_link, link_production(conductivity(a - 1), parts(a - 1), parts(a)))
+    end do
+  end subroutine lower_production_minima
 
   !> The chain's figures of each step beyond a run file's schema (the split path's rows, and a
   !> dense chain run's through the model: spring_chain_model's step_figure_list).
@@ -101,39 +116,41 @@ contains
   end function production_figures
 
   !> production_figures' values for the step old -> new of the whole chain (states in the layout's
-  !> order, as the dense path holds them): its springs' partials by the rule of `scheme` (EME's
+  !> order, as the dense path holds them, without building a step problem: the springs are the
+  !> model's own): its springs' partials by the rule of `scheme` (EME's
   !> discrete gradient `gradient` with `metric`, the midpoint rule's, or the exact partials at the
   !> step's end of any other scheme), as the split path takes them; NaN where the chain has no
   !> such branch or link; stat /= failure_none outside a spring's domain.
-  pure subroutine whole_chain_minima(layout, springs, masses, conductivity, gravity, scheme, gradient, metric, old, &
-                                     new, minima, stat)
+  pure subroutine whole_chain_minima(layout, springs, conductivity, scheme, gradient, metric, old, new, minima, stat)
     type(chain_layout), intent(in) :: layout
     type(chain_spring), intent(in) :: springs(:)
-    real(real64), intent(in) :: masses(:), conductivity(:), gravity(:), old(:), new(:)
+    real(real64), intent(in) :: conductivity(:), old(:), new(:)
     character(len=*), intent(in) :: scheme
     integer, intent(in) :: gradient, metric
     real(real64), intent(out) :: minima(2)
     integer, intent(out) :: stat
-    type(chain_step_problem) :: problem
-    type(distributed_figures) :: values
+    type(spring_partials), allocatable :: parts(:)
+    integer :: rule, a
 
-    problem%layout = layout
-    problem%springs = springs
-    problem%masses = masses
-    problem%conductivity = conductivity
-    problem%gravity = gravity
-    select case (scheme)
-    case ('eme')
-      problem%rule = partials_discrete_gradient
-    case ('midpoint')
-      problem%rule = partials_midpoint
-    case default
-      problem%rule = partials_exact
-    end select
-    problem%gradient = gradient
-    problem%metric = metric
-    call share_figures(problem, old, new, 0, [1, layout%points()], values, stat)
-    minima = [values%min_viscous_production, values%min_link_production]
+    minima = huge(1.0_real64)
+    stat = failure_none
+    if (layout%invariant_count > 1) then
+      select case (scheme)
+      case ('eme')
+        rule = partials_discrete_gradient
+      case ('midpoint')
+        rule = partials_midpoint
+      case default
+        rule = partials_exact
+      end select
+      allocate (parts(layout%springs))
+      do a = 1, layout%springs
+        call evaluate_spring_partials(springs(a), rule, gradient, metric, layout%dimension, &
+                                      layout%gather_spring(old, a, 0), layout%gather_spring(new, a, 0), parts(a), stat)
+        if (stat /= failure_none) return
+      end do
+      call lower_production_minima(layout, springs, conductivity, parts, 1, minima(1), minima(2))
+    end if
     where (minima >= huge(1.0_real64)) minima = ieee_value(1.0_real64, ieee_quiet_nan)
   end subroutine whole_chain_minima
 

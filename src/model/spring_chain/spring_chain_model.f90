@@ -466,8 +466,7 @@ contains
     integer, intent(out) :: stat
 
     allocate (values(2))
-    call whole_chain_minima(self%layout, self%springs, self%masses, self%conductivity, self%gravity, scheme, gradient, &
-                            metric, old, new, values, stat)
+    call whole_chain_minima(self%layout, self%springs, self%conductivity, scheme, gradient, metric, old, new, values, stat)
   end subroutine chain_step_figures
 
 end module spring_chain_model
